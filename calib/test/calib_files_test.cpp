@@ -1,0 +1,32 @@
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "hq/config/camera_info.hpp"
+
+namespace {
+
+TEST(CalibFiles, EveryShippedCameraFileLoads) {
+  int loaded = 0;
+  for (const auto& entry : std::filesystem::directory_iterator("calib")) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("tum_", 0) != 0 || entry.path().extension() != ".yaml") continue;
+    const hq::config::CameraInfo info = hq::config::load_camera_info(entry.path().string());
+    EXPECT_EQ(info.width, 640) << name;
+    EXPECT_GT(info.fx, 400.0) << name;
+    ++loaded;
+  }
+  EXPECT_EQ(loaded, 3) << "expected tum_fr1, tum_fr2 and tum_fr3";
+}
+
+TEST(CalibFiles, Fr1MatchesTheTumCalibration) {
+  const auto info = hq::config::load_camera_info("calib/tum_fr1.yaml");
+  EXPECT_DOUBLE_EQ(info.fx, 517.3);
+  EXPECT_DOUBLE_EQ(info.cy, 255.3);
+  ASSERT_EQ(info.distortion.size(), 5u);
+  EXPECT_DOUBLE_EQ(info.distortion[4], 1.1633);
+  EXPECT_TRUE(info.has_distortion());
+  EXPECT_FALSE(hq::config::load_camera_info("calib/tum_fr3.yaml").has_distortion());
+}
+
+}  // namespace

@@ -1,0 +1,61 @@
+#pragma once
+/// Strict YAML reading for component configs: every key read, unknown keys rejected, every
+/// value range-checked, `_deg` keys converted to radians once. Errors are hq::InputError
+/// naming file, key path, value and expectation, e.g.
+///   config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0
+
+#include <string>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+#include "hq/base/error.hpp"
+
+namespace hq::config {
+
+/// Loads a YAML file; throws hq::InputError if it is missing or not valid YAML.
+YAML::Node load_yaml_file(const std::string& path);
+
+/// A YAML mapping read strictly. Create it, read keys with the typed getters (a missing key
+/// keeps the default passed in), then call finish() to reject keys that were never read.
+class StrictMap {
+ public:
+  /// @param where  file name used in messages; @param prefix  key path of this map ("" at root).
+  StrictMap(const YAML::Node& node, std::string where, std::string prefix = "");
+
+  /// Optional keys: absent keeps `value`. Range is inclusive unless stated.
+  void read(const std::string& key, double& value, double min, double max);
+  /// Requires value > min_exclusive (and <= max).
+  void read_positive(const std::string& key, double& value, double max = 1e300);
+  void read(const std::string& key, int& value, int min, int max);
+  void read(const std::string& key, bool& value);
+  void read(const std::string& key, std::string& value, const std::vector<std::string>& allowed);
+  /// A key ending in `_deg`: reads degrees, stores radians.
+  void read_deg_as_rad(const std::string& key, double& value_rad, double min_deg, double max_deg);
+  /// Fixed-length numeric list, e.g. `p_body_camera_m: [0.1, 0, 0]`.
+  void read_list(const std::string& key, double* values, int count);
+
+  /// Required variants: throw if the key is absent.
+  void require(const std::string& key, double& value, double min, double max);
+  void require(const std::string& key, int& value, int min, int max);
+  void require_list(const std::string& key, double* values, int count);
+
+  [[nodiscard]] bool has(const std::string& key) const;
+  /// A nested mapping (must be a map if present; absent gives an empty map).
+  [[nodiscard]] StrictMap child(const std::string& key);
+
+  /// Throws on any key of this map that no getter asked for (Drake-style strictness).
+  void finish() const;
+
+  /// "file: prefix.key" for messages.
+  [[nodiscard]] std::string describe(const std::string& key) const;
+
+ private:
+  const YAML::Node* find(const std::string& key);
+  YAML::Node node_;
+  std::string where_;
+  std::string prefix_;
+  std::vector<std::string> seen_;
+};
+
+}  // namespace hq::config

@@ -1,0 +1,113 @@
+#include "hq/config/camera_info.hpp"
+
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::config {
+
+bool CameraInfo::has_distortion() const {
+  for (double d : distortion) {
+    if (d != 0.0) return true;
+  }
+  return false;
+}
+
+geometry::PinholeCamera CameraInfo::pinhole() const {
+  return geometry::PinholeCamera{fx, fy, cx, cy, width, height};
+}
+
+namespace {
+// camera_info matrices are {rows, cols, data}; checks the shape against what the key needs.
+void read_matrix(StrictMap& root, const std::string& key, int rows, int cols, double* out,
+                 bool required) {
+  if (!root.has(key)) {
+    if (required) throw InputError(root.describe(key) + " is missing");
+    root.child(key);  // mark as seen
+    return;
+  }
+  StrictMap m = root.child(key);
+  int r = rows;
+  int c = cols;
+  m.require("rows", r, 1, 16);
+  m.require("cols", c, 1, 16);
+  if (r != rows || c != cols) {
+    throw InputError(m.describe("rows") + " x cols = " + std::to_string(r) + "x" +
+                     std::to_string(c) + ", expected " + std::to_string(rows) + "x" +
+                     std::to_string(cols));
+  }
+  m.require_list("data", out, rows * cols);
+  m.finish();
+}
+}  // namespace
+
+CameraInfo load_camera_info(const std::string& path) {
+  const YAML::Node node = load_yaml_file(path);
+  StrictMap root(node, path);
+  CameraInfo info;
+  root.require("image_width", info.width, 8, 8192);
+  root.require("image_height", info.height, 8, 8192);
+  root.read("camera_name", info.name, {});
+  double K[9];
+  read_matrix(root, "camera_matrix", 3, 3, K, true);
+  if (!(K[0] > 0.0) || !(K[4] > 0.0)) {
+    throw InputError(root.describe("camera_matrix") + ": fx and fy must be > 0");
+  }
+  if (K[1] != 0.0 || K[3] != 0.0 || K[6] != 0.0 || K[7] != 0.0 || K[8] != 1.0) {
+    throw InputError(root.describe("camera_matrix") +
+                     ": expected [fx 0 cx; 0 fy cy; 0 0 1] (no skew)");
+  }
+  info.fx = K[0];
+  info.fy = K[4];
+  info.cx = K[2];
+  info.cy = K[5];
+  if (info.cx < 0 || info.cx > info.width || info.cy < 0 || info.cy > info.height) {
+    throw InputError(root.describe("camera_matrix") + ": principal point outside the image");
+  }
+  root.read("distortion_model", info.distortion_model, {"plumb_bob", "none"});
+  if (root.has("distortion_coefficients")) {
+    double D[5];
+    read_matrix(root, "distortion_coefficients", 1, 5, D, true);
+    info.distortion.assign(D, D + 5);
+  } else {
+    root.child("distortion_coefficients");
+  }
+  if (info.distortion_model == "none") info.distortion.clear();
+  root.read_positive("depth_scale_units_per_m", info.depth_scale_units_per_m, 1e6);
+  // Keys of the ROS layout that carry no extra information for a monocular camera.
+  for (const char* ignored : {"rectification_matrix", "projection_matrix"}) {
+    if (root.has(ignored)) root.child(ignored);
+  }
+  root.finish();
+  return info;
+}
+
+Undistorter::Undistorter(const CameraInfo& camera) : identity_(!camera.has_distortion()) {
+  if (identity_) return;
+  const cv::Matx33d K(camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1);
+  const cv::Mat D(camera.distortion, true);
+  const cv::Size size(camera.width, camera.height);
+  cv::initUndistortRectifyMap(K, D, cv::noArray(), K, size, CV_16SC2, map_x_, map_y_);
+  cv::initUndistortRectifyMap(K, D, cv::noArray(), K, size, CV_32FC1, map_x_nn_, map_y_nn_);
+}
+
+void Undistorter::apply_color(const cv::Mat& src, cv::Mat& dst) const {
+  if (identity_) {
+    src.copyTo(dst);
+    return;
+  }
+  cv::remap(src, dst, map_x_, map_y_, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+}
+
+void Undistorter::apply_depth(const cv::Mat& src, cv::Mat& dst) const {
+  if (identity_) {
+    src.copyTo(dst);
+    return;
+  }
+  cv::remap(src, dst, map_x_nn_, map_y_nn_, cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+}
+
+}  // namespace hq::config

@@ -1,0 +1,99 @@
+#include "hq/config/camera_info.hpp"
+
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+namespace hq::config {
+namespace {
+
+using ::testing::HasSubstr;
+
+class CameraFile : public ::testing::Test {
+ protected:
+  std::string write(const std::string& text) {
+    std::ofstream(path_) << text;
+    return path_.string();
+  }
+  std::string error_of(const std::string& text) {
+    try {
+      load_camera_info(write(text));
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  }
+  void TearDown() override { std::filesystem::remove(path_); }
+  std::filesystem::path path_ = std::filesystem::temp_directory_path() / "hq_camera_test.yaml";
+};
+
+constexpr const char* kGood = R"(image_width: 640
+image_height: 480
+camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 501, 240, 0, 0, 1]}
+distortion_model: plumb_bob
+distortion_coefficients: {rows: 1, cols: 5, data: [0.1, -0.2, 0, 0, 0]}
+)";
+
+TEST_F(CameraFile, LoadsTheRosLayout) {
+  const CameraInfo info = load_camera_info(write(kGood));
+  EXPECT_EQ(info.width, 640);
+  EXPECT_DOUBLE_EQ(info.fy, 501.0);
+  EXPECT_DOUBLE_EQ(info.cx, 320.0);
+  EXPECT_TRUE(info.has_distortion());
+  EXPECT_DOUBLE_EQ(info.depth_scale_units_per_m, 5000.0);
+}
+
+TEST_F(CameraFile, WrongMatrixSizeNamesKeyAndCount) {
+  std::string text = kGood;
+  text.replace(text.find("0, 0, 1]"), 8, "0, 0]");
+  EXPECT_THAT(error_of(text), HasSubstr("camera_matrix.data has 8 values, expected 9"));
+}
+
+TEST_F(CameraFile, MissingKeyAndBadValuesAreNamed) {
+  std::string no_height = kGood;
+  no_height.erase(no_height.find("image_height"), std::string("image_height: 480\n").size());
+  EXPECT_THAT(error_of(no_height), HasSubstr("image_height is missing"));
+
+  std::string negative_f = kGood;
+  negative_f.replace(negative_f.find("[500"), 4, "[-500");
+  EXPECT_THAT(error_of(negative_f), HasSubstr("fx and fy must be > 0"));
+
+  std::string typo = std::string(kGood) + "focal: 3\n";
+  EXPECT_THAT(error_of(typo), HasSubstr("focal is not a known key"));
+}
+
+TEST(Undistorter, IdentityWithoutDistortionAndStraightensWithIt) {
+  CameraInfo info;
+  info.width = 64;
+  info.height = 48;
+  info.fx = info.fy = 60.0;
+  info.cx = 31.5;
+  info.cy = 23.5;
+  const cv::Mat image(48, 64, CV_8UC1, cv::Scalar(77));
+  cv::Mat out;
+  Undistorter none(info);
+  EXPECT_TRUE(none.is_identity());
+  none.apply_color(image, out);
+  EXPECT_EQ(cv::countNonZero(out != image), 0);
+
+  info.distortion = {0.3, 0.0, 0.0, 0.0, 0.0};
+  Undistorter barrel(info);
+  EXPECT_FALSE(barrel.is_identity());
+  cv::Mat depth(48, 64, CV_32FC1, cv::Scalar(2.0f));
+  cv::Mat depth_out;
+  barrel.apply_depth(depth, depth_out);
+  // Nearest-neighbour depth never invents values: every output is 2 m or 0 (outside).
+  for (int v = 0; v < 48; ++v) {
+    for (int u = 0; u < 64; ++u) {
+      const float d = depth_out.at<float>(v, u);
+      EXPECT_TRUE(d == 2.0f || d == 0.0f);
+    }
+  }
+  EXPECT_EQ(depth_out.at<float>(24, 32), 2.0f);
+}
+
+}  // namespace
+}  // namespace hq::config

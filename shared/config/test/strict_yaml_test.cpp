@@ -1,0 +1,103 @@
+#include "hq/config/strict_yaml.hpp"
+
+#include <cmath>
+#include <functional>
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+namespace hq::config {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(StrictMap, ReadsTypedValuesAndKeepsDefaultsForAbsentKeys) {
+  const YAML::Node node = YAML::Load(
+      "{gain: 2.5, count: 3, enabled: true, mode: fast, angle_deg: 90, p_m: [1, 2, 3]}");
+  StrictMap map(node, "test.yaml");
+  double gain = 0, absent = 7.0, angle = 0;
+  int count = 0;
+  bool enabled = false;
+  std::string mode;
+  double p[3] = {};
+  map.read("gain", gain, 0.0, 10.0);
+  map.read("absent", absent, 0.0, 10.0);
+  map.read("count", count, 0, 5);
+  map.read("enabled", enabled);
+  map.read("mode", mode, {"fast", "slow"});
+  map.read_deg_as_rad("angle_deg", angle, 0.0, 180.0);
+  map.read_list("p_m", p, 3);
+  map.finish();
+  EXPECT_DOUBLE_EQ(gain, 2.5);
+  EXPECT_DOUBLE_EQ(absent, 7.0);
+  EXPECT_EQ(count, 3);
+  EXPECT_TRUE(enabled);
+  EXPECT_EQ(mode, "fast");
+  EXPECT_NEAR(angle, M_PI / 2, 1e-12);
+  EXPECT_DOUBLE_EQ(p[2], 3.0);
+}
+
+TEST(StrictMap, OutOfRangeNamesFileKeyValueAndExpectation) {
+  const YAML::Node node = YAML::Load("{obstacles: {influence_distance_m: -1.2}}");
+  StrictMap root(node, "config/onboard.yaml");
+  StrictMap obstacles = root.child("obstacles");
+  double d = 1.0;
+  EXPECT_EQ(error_of([&] { obstacles.read_positive("influence_distance_m", d); }),
+            "config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0");
+}
+
+TEST(StrictMap, RejectsUnknownKeysMissingKeysAndWrongTypes) {
+  StrictMap unknown(YAML::Load("{gain: 1, gian: 2}"), "a.yaml");
+  double gain = 0;
+  unknown.read("gain", gain, 0, 10);
+  EXPECT_THAT(error_of([&] { unknown.finish(); }), HasSubstr("a.yaml: gian is not a known key"));
+
+  StrictMap missing(YAML::Load("{}"), "b.yaml");
+  EXPECT_THAT(error_of([&] { missing.require("mass_kg", gain, 0, 10); }),
+              HasSubstr("b.yaml: mass_kg is missing"));
+
+  StrictMap wrong(YAML::Load("{mass_kg: heavy, n: 2.5, flag: maybe, list: [1, 2]}"), "c.yaml");
+  int n = 0;
+  bool flag = false;
+  double list[3];
+  EXPECT_THAT(error_of([&] { wrong.read("mass_kg", gain, 0, 10); }),
+              HasSubstr("c.yaml: mass_kg = heavy, expected a number"));
+  EXPECT_THAT(error_of([&] { wrong.read("n", n, 0, 10); }), HasSubstr("expected an integer"));
+  EXPECT_THAT(error_of([&] { wrong.read("flag", flag); }), HasSubstr("expected true or false"));
+  EXPECT_THAT(error_of([&] { wrong.read_list("list", list, 3); }),
+              HasSubstr("c.yaml: list has 2 values, expected 3"));
+}
+
+TEST(StrictMap, RejectsNonFiniteNumbersAndUnknownChoices) {
+  StrictMap map(YAML::Load("{x: .nan, mode: warp}"), "d.yaml");
+  double x = 0;
+  std::string mode;
+  EXPECT_THAT(error_of([&] { map.read("x", x, -1, 1); }), HasSubstr("expected finite"));
+  EXPECT_THAT(error_of([&] { map.read("mode", mode, {"a", "b"}); }),
+              HasSubstr("d.yaml: mode = warp, expected one of a | b"));
+}
+
+TEST(LoadYamlFile, MissingAndMalformedFilesNameTheFile) {
+  EXPECT_THAT(error_of([] { load_yaml_file("/nonexistent/onboard.yaml"); }),
+              HasSubstr("/nonexistent/onboard.yaml: file not found"));
+  const auto path = std::filesystem::temp_directory_path() / "hq_bad_yaml_test.yaml";
+  std::ofstream(path) << "a: [1, 2\nb: 3\n";
+  EXPECT_THAT(error_of([&] { load_yaml_file(path.string()); }),
+              HasSubstr(path.string() + ":"));
+  EXPECT_THAT(error_of([&] { load_yaml_file(path.string()); }), HasSubstr("not valid YAML"));
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace hq::config
