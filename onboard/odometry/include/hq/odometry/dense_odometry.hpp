@@ -1,0 +1,103 @@
+#pragma once
+/// Dense photometric RGB-D odometry (DVO: Kerl, Sturm, Cremers, ICRA 2013).
+///
+/// Coarse-to-fine iteratively re-weighted Gauss-Newton on se(3) with Student-t weights. The
+/// Jacobians are taken on the reference frame (inverse compositional form), so each reference
+/// is prepared once and every iteration only warps, samples and accumulates the 6x6 normal
+/// equations in one pass. All buffers are sized at construction: after the first frame,
+/// track() allocates nothing.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "hq/geometry/pinhole_camera.hpp"
+
+namespace hq::config {
+class StrictMap;
+}
+
+namespace hq::odometry {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+enum class TrackingStatus {
+  kFirstFrame,  ///< No reference yet: this frame became the reference, pose is identity.
+  kOk,
+  kLost,        ///< Too few usable pixels or no convergence; T_ref_cur is identity.
+};
+
+/// Which frame the current one is aligned against.
+enum class ReferenceMode {
+  kFrameToFrame,     ///< The previous frame, as the core paper uses DVO.
+  kFrameToKeyframe,  ///< A keyframe, replaced when the entropy ratio falls (Kerl IROS 2013).
+};
+
+struct OdometryConfig {
+  int pyramid_levels = 4;          ///< Levels built: 0 = input resolution.
+  int finest_level = 1;            ///< Finest level optimised (1 = half resolution, as DVO).
+  int max_iterations_per_level = 20;
+  double step_tolerance = 1e-5;    ///< Stop a level when |delta xi| (m, rad) falls below this.
+  double min_depth_m = 0.3;
+  double max_depth_m = 6.0;
+  double min_gradient = 4.0;       ///< Reference pixels with smaller |grad I| (0..255 units)
+                                   ///< carry no photometric information and are skipped.
+  double student_t_dof = 5.0;      ///< nu of the Student-t weights (Kerl 2013).
+  double min_valid_ratio = 0.02;   ///< Fraction of finest-level pixels that must be usable.
+  bool use_motion_prior = false;   ///< Constant-velocity prior term (Kerl 2013, eq. 16).
+  double motion_prior_precision = 1.0;  ///< Prior information = this x last frame's information.
+  bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion.
+  ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
+  double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
+  int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
+};
+
+/// Reads the `odometry:` section of a YAML config strictly (unknown keys rejected).
+void read_config(config::StrictMap& section, OdometryConfig& out);
+
+/// One frame's outcome. Never contains NaN: on failure the pose is identity and status kLost.
+struct OdometryResult {
+  TrackingStatus status = TrackingStatus::kLost;
+  const char* reason = "";          ///< Static text saying why, when status != kOk.
+  std::int64_t t_ns = 0;
+  Eigen::Isometry3d T_ref_cur = Eigen::Isometry3d::Identity();  ///< current camera in reference.
+  Eigen::Isometry3d T_world_cur = Eigen::Isometry3d::Identity(); ///< accumulated camera pose.
+  Matrix6d information = Matrix6d::Zero();  ///< (v, omega) order, of T_ref_cur's twist.
+  double valid_ratio = 0.0;         ///< usable finest-level pixels / finest-level pixels.
+  double mean_weighted_error = 0.0; ///< final mean of w * r^2 (intensity units^2).
+  int iterations = 0;               ///< Gauss-Newton iterations over all levels.
+  bool new_keyframe = false;        ///< This frame became the reference for the next ones.
+
+  [[nodiscard]] bool ok() const { return status == TrackingStatus::kOk; }
+};
+
+class DenseOdometry {
+ public:
+  /// @param camera  intrinsics of the (undistorted) input images; sizes every buffer.
+  DenseOdometry(const OdometryConfig& config, const geometry::PinholeCamera& camera);
+  ~DenseOdometry();
+  DenseOdometry(const DenseOdometry&) = delete;
+  DenseOdometry& operator=(const DenseOdometry&) = delete;
+
+  /// Aligns a frame to the reference and makes it the next reference as configured.
+  /// @param gray   CV_8UC1, camera.width x camera.height.
+  /// @param depth_m CV_32FC1 metres, same size; 0, NaN or out of range means no depth.
+  OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m);
+
+  /// Forgets the reference and the motion history (next frame is a first frame).
+  void reset();
+
+  [[nodiscard]] const OdometryConfig& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+const char* to_string(TrackingStatus status);
+
+}  // namespace hq::odometry

@@ -1,0 +1,204 @@
+#include "hq/odometry/dense_odometry.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include "hq/config/strict_yaml.hpp"
+#include "hq/geometry/lie.hpp"
+#include "hq/testing/allocation_counter.hpp"
+#include "rendered_plane.hpp"
+
+
+namespace hq::odometry {
+namespace {
+
+using ::testing::HasSubstr;
+
+const geometry::PinholeCamera kCamera{525.0, 525.0, 319.5, 239.5, 640, 480};
+constexpr double kPlaneZ = 2.0;
+
+Eigen::Isometry3d pose(double x, double y, double z, double roll, double pitch, double yaw) {
+  geometry::Vector6d xi;
+  xi << x, y, z, roll, pitch, yaw;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = geometry::exp_so3(xi.tail<3>());
+  T.translation() = xi.head<3>();
+  return T;
+}
+
+struct Frame {
+  cv::Mat gray, depth_m;
+};
+
+Frame render(const Eigen::Isometry3d& T_world_camera) {
+  Frame f;
+  test::render_textured_plane(kCamera, T_world_camera, kPlaneZ, f.gray, f.depth_m);
+  return f;
+}
+
+double translation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.translation() - b.translation()).norm();
+}
+double rotation_error_rad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return geometry::log_so3(a.linear().transpose() * b.linear()).norm();
+}
+
+TEST(DenseOdometry, FirstFrameBecomesReference) {
+  DenseOdometry odometry({}, kCamera);
+  const Frame f = render(Eigen::Isometry3d::Identity());
+  const OdometryResult r = odometry.track(0, f.gray, f.depth_m);
+  EXPECT_EQ(r.status, TrackingStatus::kFirstFrame);
+  EXPECT_TRUE(r.T_ref_cur.isApprox(Eigen::Isometry3d::Identity()));
+}
+
+TEST(DenseOdometry, IdenticalFramesGiveIdentity) {
+  DenseOdometry odometry({}, kCamera);
+  const Frame f = render(pose(0.05, -0.02, 0.0, 0.01, 0.02, 0.0));
+  odometry.track(0, f.gray, f.depth_m);
+  const OdometryResult r = odometry.track(33'000'000, f.gray, f.depth_m);
+  ASSERT_TRUE(r.ok()) << r.reason;
+  EXPECT_LT(r.T_ref_cur.translation().norm(), 1e-4);
+  EXPECT_LT(geometry::log_so3(r.T_ref_cur.linear()).norm(), 1e-4);
+  EXPECT_GT(r.valid_ratio, 0.2);  // pixels with both depth and a usable gradient
+  EXPECT_TRUE(r.information.allFinite());
+  EXPECT_GT(r.information.determinant(), 0.0);
+}
+
+class KnownMotion : public ::testing::TestWithParam<ReferenceMode> {};
+
+TEST_P(KnownMotion, SmallMotionOfTexturedPlaneIsRecovered) {
+  OdometryConfig config;
+  config.reference_mode = GetParam();
+  DenseOdometry odometry(config, kCamera);
+  // GIVEN a camera moving 1 cm and 0.4 deg per frame over a textured plane 2 m away
+  const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  Frame f = render(T_world_camera);
+  ASSERT_EQ(odometry.track(0, f.gray, f.depth_m).status, TrackingStatus::kFirstFrame);
+  for (int k = 1; k <= 5; ++k) {
+    T_world_camera = T_world_camera * step;
+    f = render(T_world_camera);
+    // WHEN each frame is tracked
+    const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    // THEN the accumulated pose follows the truth to a millimetre and a tenth of a degree
+    EXPECT_LT(translation_error(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(BothReferenceModes, KnownMotion,
+                         ::testing::Values(ReferenceMode::kFrameToFrame,
+                                           ReferenceMode::kFrameToKeyframe));
+
+TEST(DenseOdometry, LargerMotionConvergesThroughThePyramid) {
+  DenseOdometry odometry({}, kCamera);
+  const Eigen::Isometry3d truth = pose(0.06, 0.03, -0.04, 0.02, -0.03, 0.025);
+  const Frame a = render(Eigen::Isometry3d::Identity());
+  const Frame b = render(truth);
+  odometry.track(0, a.gray, a.depth_m);
+  const OdometryResult r = odometry.track(1, b.gray, b.depth_m);
+  ASSERT_TRUE(r.ok()) << r.reason;
+  EXPECT_LT(translation_error(r.T_ref_cur, truth), 3e-3);
+  EXPECT_LT(rotation_error_rad(r.T_ref_cur, truth), 3e-3);
+}
+
+TEST(DenseOdometry, AllInvalidDepthReportsTrackingLost) {
+  DenseOdometry odometry({}, kCamera);
+  const Frame f = render(Eigen::Isometry3d::Identity());
+  const cv::Mat no_depth = cv::Mat::zeros(f.depth_m.size(), CV_32FC1);
+  const OdometryResult first = odometry.track(0, f.gray, no_depth);
+  EXPECT_EQ(first.status, TrackingStatus::kLost);
+  EXPECT_THAT(first.reason, HasSubstr("depth"));
+  const OdometryResult second = odometry.track(1, f.gray, no_depth);
+  EXPECT_EQ(second.status, TrackingStatus::kLost);
+  EXPECT_TRUE(second.T_ref_cur.matrix().allFinite());
+  EXPECT_TRUE(second.T_world_cur.matrix().allFinite());
+}
+
+TEST(DenseOdometry, NanAndOutOfRangeDepthIsSkippedNotPropagated) {
+  DenseOdometry odometry({}, kCamera);
+  Frame f = render(Eigen::Isometry3d::Identity());
+  Frame g = render(pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.0));
+  // Every other row NaN, a block beyond max range, a block of Inf.
+  for (int v = 0; v < f.depth_m.rows; v += 2) {
+    f.depth_m.row(v).setTo(std::numeric_limits<float>::quiet_NaN());
+  }
+  f.depth_m(cv::Rect(0, 0, 100, 100)).setTo(50.0f);
+  f.depth_m(cv::Rect(200, 200, 50, 50)).setTo(std::numeric_limits<float>::infinity());
+  odometry.track(0, f.gray, f.depth_m);
+  const OdometryResult r = odometry.track(1, g.gray, g.depth_m);
+  ASSERT_TRUE(r.ok()) << r.reason;
+  EXPECT_TRUE(r.T_ref_cur.matrix().allFinite());
+  EXPECT_TRUE(r.information.allFinite());
+  EXPECT_NEAR(r.T_ref_cur.translation().x(), 0.01, 2e-3);
+}
+
+TEST(DenseOdometry, WrongInputTypeIsLostWithReason) {
+  DenseOdometry odometry({}, kCamera);
+  const cv::Mat small(10, 10, CV_8UC1, cv::Scalar(0));
+  const cv::Mat small_depth(10, 10, CV_32FC1, cv::Scalar(1.0f));
+  const OdometryResult r = odometry.track(0, small, small_depth);
+  EXPECT_EQ(r.status, TrackingStatus::kLost);
+  EXPECT_THAT(r.reason, HasSubstr("size"));
+}
+
+TEST(DenseOdometry, FlatImageWithDepthIsLost) {
+  // Depth but no texture: photometric alignment has nothing to lock on to.
+  DenseOdometry odometry({}, kCamera);
+  const cv::Mat flat(kCamera.height, kCamera.width, CV_8UC1, cv::Scalar(120));
+  const cv::Mat depth(kCamera.height, kCamera.width, CV_32FC1, cv::Scalar(1.5f));
+  EXPECT_EQ(odometry.track(0, flat, depth).status, TrackingStatus::kLost);
+  EXPECT_EQ(odometry.track(1, flat, depth).status, TrackingStatus::kLost);
+}
+
+TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
+  for (const ReferenceMode mode : {ReferenceMode::kFrameToFrame, ReferenceMode::kFrameToKeyframe}) {
+    OdometryConfig config;
+    config.reference_mode = mode;
+    config.use_motion_prior = true;
+    DenseOdometry odometry(config, kCamera);
+    std::vector<Frame> frames;
+    for (int k = 0; k < 4; ++k) frames.push_back(render(pose(0.01 * k, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    odometry.track(0, frames[0].gray, frames[0].depth_m);
+    const long before = hq::testing::allocation_count();
+    for (int k = 1; k < 4; ++k) {
+      const OdometryResult r = odometry.track(k, frames[k].gray, frames[k].depth_m);
+      EXPECT_TRUE(r.ok()) << r.reason;
+    }
+    EXPECT_EQ(hq::testing::allocation_count() - before, 0) << "mode " << static_cast<int>(mode);
+  }
+}
+
+TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
+  const YAML::Node good = YAML::Load(
+      "{finest_level: 0, reference_mode: frame_to_keyframe, use_motion_prior: true}");
+  config::StrictMap section(good, "onboard.yaml", "odometry");
+  OdometryConfig config;
+  read_config(section, config);
+  EXPECT_EQ(config.finest_level, 0);
+  EXPECT_EQ(config.reference_mode, ReferenceMode::kFrameToKeyframe);
+  EXPECT_TRUE(config.use_motion_prior);
+
+  const auto expect_error = [](const std::string& yaml, const std::string& expected) {
+    config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
+    OdometryConfig c;
+    try {
+      read_config(s, c);
+      FAIL() << "accepted " << yaml;
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(expected));
+    }
+  };
+  expect_error("{min_depth_m: -1}", "onboard.yaml: odometry.min_depth_m = -1, expected > 0");
+  expect_error("{finest_level: 5, pyramid_levels: 4}", "odometry.finest_level");
+  expect_error("{reference_mode: sideways}", "expected one of frame_to_frame");
+  expect_error("{max_iterations: 3}", "odometry.max_iterations is not a known key");
+}
+
+}  // namespace
+}  // namespace hq::odometry

@@ -1,0 +1,44 @@
+#include "rendered_plane.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hq::odometry::test {
+
+namespace {
+// Several incommensurate frequencies: rich gradients in every direction, no aliasing at the
+// sizes used in the tests.
+double texture(double x, double y) {
+  const double v = 0.35 * std::sin(9.0 * x + 1.0) + 0.25 * std::sin(13.0 * y + 0.3) +
+                   0.2 * std::sin(7.0 * (x + y)) + 0.2 * std::cos(17.0 * x - 11.0 * y);
+  return 128.0 + 110.0 * v;
+}
+}  // namespace
+
+void render_textured_plane(const geometry::PinholeCamera& camera,
+                           const Eigen::Isometry3d& T_world_camera, double plane_z_m,
+                           cv::Mat& gray, cv::Mat& depth_m) {
+  gray.create(camera.height, camera.width, CV_8UC1);
+  depth_m.create(camera.height, camera.width, CV_32FC1);
+  const Eigen::Matrix3d R = T_world_camera.linear();
+  const Eigen::Vector3d o = T_world_camera.translation();
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy,
+                                     1.0);
+      const Eigen::Vector3d d_world = R * d_camera;
+      const double s = d_world.z() != 0.0 ? (plane_z_m - o.z()) / d_world.z() : -1.0;
+      if (s <= 0.0) {
+        gray.at<unsigned char>(v, u) = 0;
+        depth_m.at<float>(v, u) = 0.0f;
+        continue;
+      }
+      const Eigen::Vector3d p = o + s * d_world;
+      gray.at<unsigned char>(v, u) =
+          static_cast<unsigned char>(std::clamp(std::lround(texture(p.x(), p.y())), 0L, 255L));
+      depth_m.at<float>(v, u) = static_cast<float>(s);  // d_camera.z() == 1
+    }
+  }
+}
+
+}  // namespace hq::odometry::test
