@@ -26,7 +26,6 @@ void read_matrix(StrictMap& root, const std::string& key, int rows, int cols, do
                  bool required) {
   if (!root.has(key)) {
     if (required) throw InputError(root.describe(key) + " is missing");
-    root.child(key);  // mark as seen
     return;
   }
   StrictMap m = root.child(key);
@@ -73,13 +72,13 @@ CameraInfo load_camera_info(const std::string& path) {
     read_matrix(root, "distortion_coefficients", 1, 5, D, true);
     info.distortion.assign(D, D + 5);
   } else {
-    root.child("distortion_coefficients");
+    root.skip("distortion_coefficients");
   }
   if (info.distortion_model == "none") info.distortion.clear();
   root.read_positive("depth_scale_units_per_m", info.depth_scale_units_per_m, 1e6);
   // Keys of the ROS layout that carry no extra information for a monocular camera.
   for (const char* ignored : {"rectification_matrix", "projection_matrix"}) {
-    if (root.has(ignored)) root.child(ignored);
+    root.skip(ignored);
   }
   root.finish();
   return info;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 
 namespace hq::config {
@@ -34,17 +35,21 @@ std::string StrictMap::describe(const std::string& key) const {
 }
 
 bool StrictMap::has(const std::string& key) const {
-  return node_.IsMap() && node_[key].IsDefined();
+  const YAML::Node& map = node_;
+  return map.IsMap() && map[key].IsDefined();
 }
 
-const YAML::Node* StrictMap::find(const std::string& key) {
+std::optional<YAML::Node> StrictMap::find(const std::string& key) {
   seen_.push_back(key);
-  if (!node_.IsMap()) return nullptr;
-  for (auto it = node_.begin(); it != node_.end(); ++it) {
-    if (it->first.as<std::string>() == key) return &it->second;
-  }
-  return nullptr;
+  if (!node_.IsMap()) return std::nullopt;
+  // Indexing a const node never inserts, unlike operator[] on a mutable one.
+  const YAML::Node& map = node_;
+  YAML::Node value = map[key];
+  if (!value.IsDefined()) return std::nullopt;
+  return value;
 }
+
+void StrictMap::skip(const std::string& key) { seen_.push_back(key); }
 
 namespace {
 std::string to_text(const YAML::Node& node) {
@@ -71,8 +76,8 @@ std::string range_text(double min, double max) {
 }  // namespace
 
 void StrictMap::read(const std::string& key, double& value, double min, double max) {
-  const YAML::Node* node = find(key);
-  if (node == nullptr) return;
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
   const double v = parse_double(*node, describe(key));
   if (v < min || v > max) throw InputError(describe(key) + " = " + to_text(*node) + ", " +
                                            range_text(min, max));
@@ -80,8 +85,8 @@ void StrictMap::read(const std::string& key, double& value, double min, double m
 }
 
 void StrictMap::read_positive(const std::string& key, double& value, double max) {
-  const YAML::Node* node = find(key);
-  if (node == nullptr) return;
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
   const double v = parse_double(*node, describe(key));
   if (!(v > 0.0)) throw InputError(describe(key) + " = " + to_text(*node) + ", expected > 0");
   if (v > max) throw InputError(describe(key) + " = " + to_text(*node) + ", " +
@@ -90,8 +95,8 @@ void StrictMap::read_positive(const std::string& key, double& value, double max)
 }
 
 void StrictMap::read(const std::string& key, int& value, int min, int max) {
-  const YAML::Node* node = find(key);
-  if (node == nullptr) return;
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
   int v = 0;
   if (!node->IsScalar() || !YAML::convert<int>::decode(*node, v)) {
     throw InputError(describe(key) + " = " + to_text(*node) + ", expected an integer");
@@ -103,8 +108,8 @@ void StrictMap::read(const std::string& key, int& value, int min, int max) {
 }
 
 void StrictMap::read(const std::string& key, bool& value) {
-  const YAML::Node* node = find(key);
-  if (node == nullptr) return;
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
   bool v = false;
   if (!node->IsScalar() || !YAML::convert<bool>::decode(*node, v)) {
     throw InputError(describe(key) + " = " + to_text(*node) + ", expected true or false");
@@ -114,8 +119,8 @@ void StrictMap::read(const std::string& key, bool& value) {
 
 void StrictMap::read(const std::string& key, std::string& value,
                      const std::vector<std::string>& allowed) {
-  const YAML::Node* node = find(key);
-  if (node == nullptr) return;
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
   if (!node->IsScalar()) throw InputError(describe(key) + " = " + to_text(*node) +
                                           ", expected a string");
   const std::string v = node->Scalar();
@@ -135,8 +140,8 @@ void StrictMap::read_deg_as_rad(const std::string& key, double& value_rad, doubl
 }
 
 void StrictMap::read_list(const std::string& key, double* values, int count) {
-  const YAML::Node* node = find(key);
-  if (node == nullptr) return;
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
   if (!node->IsSequence() || static_cast<int>(node->size()) != count) {
     std::ostringstream message;
     message << describe(key) << " has "
@@ -165,9 +170,9 @@ void StrictMap::require_list(const std::string& key, double* values, int count) 
 }
 
 StrictMap StrictMap::child(const std::string& key) {
-  const YAML::Node* node = find(key);
+  const std::optional<YAML::Node> node = find(key);
   const std::string path = prefix_.empty() ? key : prefix_ + "." + key;
-  if (node == nullptr) return StrictMap(YAML::Node(YAML::NodeType::Map), where_, path);
+  if (!node) return StrictMap(YAML::Node(YAML::NodeType::Map), where_, path);
   return StrictMap(*node, where_, path);
 }
 

@@ -1,5 +1,7 @@
 #include "hq/config/camera_info.hpp"
 
+#include "hq/base/error.hpp"
+
 #include <filesystem>
 #include <fstream>
 

@@ -16,6 +16,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "hq/base/error.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
 
 namespace hq::config {

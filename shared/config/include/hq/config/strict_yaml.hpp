@@ -4,6 +4,7 @@
 /// naming file, key path, value and expectation, e.g.
 ///   config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,9 @@ class StrictMap {
   /// A nested mapping (must be a map if present; absent gives an empty map).
   [[nodiscard]] StrictMap child(const std::string& key);
 
+  /// Marks a key as known without reading it (keys of a foreign layout that carry nothing).
+  void skip(const std::string& key);
+
   /// Throws on any key of this map that no getter asked for (Drake-style strictness).
   void finish() const;
 
@@ -51,7 +55,7 @@ class StrictMap {
   [[nodiscard]] std::string describe(const std::string& key) const;
 
  private:
-  const YAML::Node* find(const std::string& key);
+  std::optional<YAML::Node> find(const std::string& key);
   YAML::Node node_;
   std::string where_;
   std::string prefix_;

@@ -1,0 +1,39 @@
+#pragma once
+/// Where RGB-D frames come from (recording, simulator, camera): the on-board chain's input port.
+
+#include <cstdint>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "hq/geometry/pinhole_camera.hpp"
+
+namespace hq::sources {
+
+/// One registered RGB-D frame, undistorted, ready for the odometry.
+struct RgbdFrame {
+  std::int64_t t_ns = 0;  ///< colour exposure stamp
+  cv::Mat bgr;            ///< CV_8UC3
+  cv::Mat gray;           ///< CV_8UC1
+  cv::Mat depth_m;        ///< CV_32FC1 metres, 0 = no depth
+};
+
+enum class FrameStatus { kFrame, kEndOfStream, kNoFrame };
+
+/// A source fills a caller-owned frame (buffers reused after the first call).
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  /// kFrame on success; kEndOfStream when a recording is exhausted; kNoFrame when a live source
+  /// has nothing (then `error` says why, e.g. a device was unplugged).
+  virtual FrameStatus next(RgbdFrame& frame) = 0;
+  /// Intrinsics of the frames this source delivers (after undistortion).
+  [[nodiscard]] virtual geometry::PinholeCamera camera() const = 0;
+  [[nodiscard]] virtual std::string describe() const = 0;
+  [[nodiscard]] virtual const std::string& error() const { return error_; }
+
+ protected:
+  std::string error_;
+};
+
+}  // namespace hq::sources
