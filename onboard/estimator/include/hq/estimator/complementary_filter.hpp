@@ -1,0 +1,105 @@
+#pragma once
+/// Attitude from IMU: the explicit complementary filter on SO(3) with gyro bias estimation
+/// (Mahony, Hamel, Pflimlin, IEEE TAC 2008), and a first-order low-pass for gyro rates. Both give
+/// the roll/pitch and omega estimates of the core paper, §3.2 and Fig. 4.
+///
+/// Conventions: N is the gravity-aligned NED frame with the filter's (unobservable, drifting)
+/// yaw; Q (= B) the NED body frame. R_ned_body = Rz(psi) Ry(theta) Rx(phi) (ZYX, aerospace),
+/// so roll phi and pitch theta are the core paper's. The core paper's world W is NWU:
+/// R_world_body = Rx(pi) R_ned_body, as its R_WQ = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
+
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "hq/estimator/one_euro_filter.hpp"
+
+namespace hq::estimator {
+
+/// Standard gravity (m/s^2).
+inline constexpr double kGravityMps2 = 9.80665;
+
+/// R_HQ: body Q into the horizontal frame H (Q with roll and pitch removed, yaw kept, origin at
+/// Q, Z_H along gravity), R_HQ = Ry(pitch) Rx(roll), so v_H = R_HQ v_Q (eq. 5 of the core paper;
+/// the paper prints R_QH = Rz(theta) Rx(phi), which we read as this rotation's transpose).
+Eigen::Matrix3d R_horizontal_body(double roll_rad, double pitch_rad);
+
+struct ComplementaryConfig {
+  double k_p = 1.0;                   ///< Proportional gain on the accelerometer error (1/s).
+  double k_i = 0.05;                  ///< Integral gain: gyro bias estimation (1/s^2).
+  double accel_tolerance_mps2 = 3.0;  ///< Accel used only when | |a| - g | is within this.
+  double max_bias_radps = 0.2;        ///< Bias estimate clamped per axis.
+  double max_dt_s = 0.1;              ///< A larger gap re-initialises from the accelerometer.
+  bool init_from_accel = true;        ///< First sample sets roll/pitch from the accelerometer.
+};
+
+/// Reads {k_p, k_i, accel_tolerance_mps2, max_bias_radps, max_dt_s, init_from_accel}.
+void read_config(config::StrictMap& section, ComplementaryConfig& out);
+
+/// Mahony 2008 explicit complementary filter with bias (its eq. 32 with one vector, gravity).
+class ComplementaryFilter {
+ public:
+  explicit ComplementaryFilter(const ComplementaryConfig& config = {});
+
+  /// One IMU sample in the body frame Q (NED). accel is the specific force (at rest it points
+  /// up, i.e. -z for a level vehicle). Non-finite input is rejected and reported.
+  FilterStatus update(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
+                      const Eigen::Vector3d& accel_mps2);
+
+  /// Body Q in the gravity-aligned NED frame N.
+  [[nodiscard]] const Eigen::Matrix3d& R_ned_body() const { return R_ned_body_; }
+  /// Body Q in the core paper's world W (NWU), yaw as integrated by the filter.
+  [[nodiscard]] Eigen::Matrix3d R_world_body() const;
+  [[nodiscard]] double roll_rad() const;
+  [[nodiscard]] double pitch_rad() const;
+  [[nodiscard]] const Eigen::Vector3d& gyro_bias_radps() const { return bias_radps_; }
+  [[nodiscard]] bool initialized() const { return initialized_; }
+  [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
+  void reset();
+
+ private:
+  void initialize(const Eigen::Vector3d& accel_mps2);
+
+  ComplementaryConfig config_;
+  Eigen::Matrix3d R_ned_body_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d bias_radps_ = Eigen::Vector3d::Zero();
+  bool initialized_ = false;
+  std::int64_t t_ns_ = 0;
+};
+
+/// First-order low-pass of an N-vector with irregular dt: y += dt / (tau + dt) (x - y).
+template <int N>
+class LowPassFilter {
+ public:
+  using Vector = Eigen::Matrix<double, N, 1>;
+
+  explicit LowPassFilter(double cutoff_hz = 20.0) : tau_s_(1.0 / (2.0 * M_PI * cutoff_hz)) {}
+
+  FilterStatus update(std::int64_t t_ns, const Vector& x) {
+    if (!x.allFinite()) return FilterStatus::kRejectedNonFinite;
+    if (!initialized_) {
+      y_ = x;
+      t_ns_ = t_ns;
+      initialized_ = true;
+      return FilterStatus::kFirstSample;
+    }
+    const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+    if (!(dt_s > 0.0)) return FilterStatus::kRejectedTime;
+    y_ += dt_s / (tau_s_ + dt_s) * (x - y_);
+    t_ns_ = t_ns;
+    return FilterStatus::kOk;
+  }
+
+  [[nodiscard]] const Vector& value() const { return y_; }
+  [[nodiscard]] bool initialized() const { return initialized_; }
+  [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
+  void reset() { initialized_ = false; }
+
+ private:
+  double tau_s_;
+  bool initialized_ = false;
+  std::int64_t t_ns_ = 0;
+  Vector y_ = Vector::Zero();
+};
+
+}  // namespace hq::estimator

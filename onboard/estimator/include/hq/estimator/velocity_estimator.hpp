@@ -1,0 +1,98 @@
+#pragma once
+/// Vehicle velocity in the horizontal frame H from dense RGB-D odometry and IMU, §3.2 and Fig. 4
+/// of the core paper: 1€-filtered camera poses (eq. 2), lever-arm compensation with the
+/// low-passed gyro (eq. 4), rotation into H with complementary-filter roll/pitch (eq. 5).
+///
+/// Legend: W world, Q (= B) body NED, H horizontal NED (yaw kept), C camera (optical: z forward,
+/// x right, y down). Pure: stamps and data in, estimate out; nothing allocated per update.
+
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "hq/estimator/complementary_filter.hpp"
+#include "hq/estimator/one_euro_filter.hpp"
+#include "hq/odometry/dense_odometry.hpp"
+
+namespace hq::estimator {
+
+struct VelocityEstimatorConfig {
+  OneEuroConfig one_euro_position{1.0, 2.0, 1.0};  ///< On C0_p_Ck (m): beta in Hz per m/s.
+  OneEuroConfig one_euro_rotation{1.0, 1.0, 1.0};  ///< On R_C0_Ck: beta in Hz per rad/s.
+  ComplementaryConfig complementary;
+  double gyro_cutoff_hz = 15.0;        ///< Low-pass on omega_Q before eq. 4.
+  double min_valid_ratio = 0.05;       ///< Odometry with fewer usable pixels is rejected.
+  double max_mean_error = 2500.0;      ///< Odometry mean weighted error (intensity^2) bound.
+  double max_frame_gap_s = 0.5;        ///< Longer gaps re-seed the pose filter (no eq. 2 over it).
+  double max_imu_age_s = 0.2;          ///< Attitude older than this makes the estimate unavailable.
+  double warmup_s = 0.2;               ///< After a (re)seed the 1€ speed starts at 0 and eq. 2
+                                       ///< reads low (0.05 of 0.3 m/s on the first frame); no
+                                       ///< estimate until the filter has run this long.
+};
+
+/// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
+/// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
+/// max_imu_age_s, warmup_s}.
+void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
+
+enum class EstimateStatus { kOk, kUnavailable };
+
+/// One velocity estimate. When status is kUnavailable the velocities are zero and not to be
+/// used; reason says why and unavailable_for_s for how long.
+struct VelocityEstimate {
+  std::int64_t t_ns = 0;
+  EstimateStatus status = EstimateStatus::kUnavailable;
+  const char* reason = "";                                      ///< Static text.
+  Eigen::Vector3d v_camera_mps = Eigen::Vector3d::Zero();       ///< eq. 2: Ck_v_Ck, filtered.
+  Eigen::Vector3d v_camera_raw_mps = Eigen::Vector3d::Zero();   ///< eq. 1: raw poses.
+  Eigen::Vector3d v_body_mps = Eigen::Vector3d::Zero();         ///< eq. 4: Q_v_Q.
+  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();   ///< eq. 5: H_v_Q.
+  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();   ///< low-passed, bias removed.
+  double roll_rad = 0.0;
+  double pitch_rad = 0.0;
+  double unavailable_for_s = 0.0;  ///< Time since the last kOk estimate (0 when kOk).
+
+  [[nodiscard]] bool ok() const { return status == EstimateStatus::kOk; }
+};
+
+class VelocityEstimator {
+ public:
+  /// @param R_body_camera, p_body_camera_m  extrinsics R_QC and Q_p_C (constant).
+  VelocityEstimator(const VelocityEstimatorConfig& config, const Eigen::Matrix3d& R_body_camera,
+                    const Eigen::Vector3d& p_body_camera_m);
+
+  /// IMU sample at IMU rate, body frame Q (NED); accel is specific force. Rejected samples
+  /// (NaN, non-increasing stamp) are reported and ignored.
+  FilterStatus update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
+                          const Eigen::Vector3d& accel_mps2);
+
+  /// One odometry frame (its T_world_cur is the camera pose C0_T_Ck). Rejected or first frames
+  /// give kUnavailable with a reason; never a made-up number.
+  VelocityEstimate update(std::int64_t t_ns, const odometry::OdometryResult& odometry);
+
+  [[nodiscard]] const ComplementaryFilter& attitude() const { return attitude_; }
+  void reset();
+
+ private:
+  VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
+
+  VelocityEstimatorConfig config_;
+  Eigen::Matrix3d R_QC_;
+  Eigen::Vector3d p_QC_;
+  ComplementaryFilter attitude_;
+  LowPassFilter<3> gyro_low_pass_;
+  PoseOneEuroFilter pose_filter_;
+  Eigen::Isometry3d T_C0_Ck_prev_filtered_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_C0_Ck_prev_raw_ = Eigen::Isometry3d::Identity();
+  bool have_previous_ = false;
+  std::int64_t t_prev_frame_ns_ = 0;
+  std::int64_t t_seed_ns_ = 0;
+  bool ever_ok_ = false;
+  bool ever_updated_ = false;
+  std::int64_t t_last_ok_ns_ = 0;
+  std::int64_t t_first_update_ns_ = 0;
+};
+
+const char* to_string(EstimateStatus status);
+
+}  // namespace hq::estimator

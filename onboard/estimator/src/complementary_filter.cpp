@@ -1,0 +1,93 @@
+#include "hq/estimator/complementary_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "hq/config/strict_yaml.hpp"
+#include "hq/geometry/lie.hpp"
+
+namespace hq::estimator {
+
+Eigen::Matrix3d R_horizontal_body(double roll_rad, double pitch_rad) {
+  return (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+void read_config(config::StrictMap& section, ComplementaryConfig& out) {
+  section.read("k_p", out.k_p, 0.0, 100.0);
+  section.read("k_i", out.k_i, 0.0, 100.0);
+  section.read_positive("accel_tolerance_mps2", out.accel_tolerance_mps2, 100.0);
+  section.read("max_bias_radps", out.max_bias_radps, 0.0, 10.0);
+  section.read_positive("max_dt_s", out.max_dt_s, 10.0);
+  section.read("init_from_accel", out.init_from_accel);
+  section.finish();
+}
+
+ComplementaryFilter::ComplementaryFilter(const ComplementaryConfig& config) : config_(config) {}
+
+void ComplementaryFilter::reset() {
+  initialized_ = false;
+  R_ned_body_.setIdentity();
+  bias_radps_.setZero();
+}
+
+void ComplementaryFilter::initialize(const Eigen::Vector3d& accel_mps2) {
+  R_ned_body_.setIdentity();
+  const double norm = accel_mps2.norm();
+  if (config_.init_from_accel && norm > 1e-3) {
+    // At rest a = -R^T g e3, so the measured "down" in Q is -a/|a| = (-s_th, c_th s_ph, c_th c_ph).
+    const Eigen::Vector3d down = -accel_mps2 / norm;
+    const double roll = std::atan2(down.y(), down.z());
+    const double pitch = std::asin(std::clamp(-down.x(), -1.0, 1.0));
+    R_ned_body_ = R_horizontal_body(roll, pitch);
+  }
+}
+
+FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
+                                         const Eigen::Vector3d& accel_mps2) {
+  if (!gyro_radps.allFinite() || !accel_mps2.allFinite()) {
+    return FilterStatus::kRejectedNonFinite;
+  }
+  if (initialized_ && t_ns <= t_ns_) return FilterStatus::kRejectedTime;
+  const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+  if (!initialized_ || dt_s > config_.max_dt_s) {
+    initialize(accel_mps2);
+    initialized_ = true;
+    t_ns_ = t_ns;
+    return FilterStatus::kFirstSample;
+  }
+
+  // Mahony 2008, eq. 32 with the single direction v0 = e3 (gravity, NED): measured
+  // v = -a/|a| = R^T e3 at rest, estimated v_hat = R_hat^T e3, correction omega_mes = v x v_hat.
+  // The accelerometer is trusted only near 1 g, where it measures mostly gravity.
+  Eigen::Vector3d omega_mes = Eigen::Vector3d::Zero();
+  const double norm = accel_mps2.norm();
+  if (std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 && norm > 1e-3) {
+    const Eigen::Vector3d v = -accel_mps2 / norm;
+    const Eigen::Vector3d v_hat = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
+    omega_mes = v.cross(v_hat);
+  }
+  const Eigen::Vector3d omega_rad =
+      (gyro_radps - bias_radps_ + config_.k_p * omega_mes) * dt_s;
+  R_ned_body_ = geometry::orthonormalize(R_ned_body_ * geometry::exp_so3(omega_rad));
+  bias_radps_ -= config_.k_i * omega_mes * dt_s;
+  bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
+  t_ns_ = t_ns;
+  return FilterStatus::kOk;
+}
+
+Eigen::Matrix3d ComplementaryFilter::R_world_body() const {
+  return Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix() * R_ned_body_;
+}
+
+double ComplementaryFilter::roll_rad() const {
+  // R = Rz(psi) Ry(theta) Rx(phi): row 2 is (-s_th, c_th s_ph, c_th c_ph).
+  return std::atan2(R_ned_body_(2, 1), R_ned_body_(2, 2));
+}
+
+double ComplementaryFilter::pitch_rad() const {
+  return std::asin(std::clamp(-R_ned_body_(2, 0), -1.0, 1.0));
+}
+
+}  // namespace hq::estimator

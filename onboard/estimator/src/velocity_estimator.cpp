@@ -1,0 +1,166 @@
+#include "hq/estimator/velocity_estimator.hpp"
+
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::estimator {
+
+const char* to_string(EstimateStatus status) {
+  return status == EstimateStatus::kOk ? "ok" : "unavailable";
+}
+
+void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
+  config::StrictMap position = section.child("one_euro_position");
+  read_config(position, out.one_euro_position);
+  config::StrictMap rotation = section.child("one_euro_rotation");
+  read_config(rotation, out.one_euro_rotation);
+  config::StrictMap complementary = section.child("complementary");
+  read_config(complementary, out.complementary);
+  section.read_positive("gyro_cutoff_hz", out.gyro_cutoff_hz, 1000.0);
+  section.read("min_valid_ratio", out.min_valid_ratio, 0.0, 1.0);
+  section.read_positive("max_mean_error", out.max_mean_error, 65025.0);
+  section.read_positive("max_frame_gap_s", out.max_frame_gap_s, 10.0);
+  section.read_positive("max_imu_age_s", out.max_imu_age_s, 10.0);
+  section.read("warmup_s", out.warmup_s, 0.0, 10.0);
+  section.finish();
+}
+
+VelocityEstimator::VelocityEstimator(const VelocityEstimatorConfig& config,
+                                     const Eigen::Matrix3d& R_body_camera,
+                                     const Eigen::Vector3d& p_body_camera_m)
+    : config_(config),
+      R_QC_(R_body_camera),
+      p_QC_(p_body_camera_m),
+      attitude_(config.complementary),
+      gyro_low_pass_(config.gyro_cutoff_hz),
+      pose_filter_(config.one_euro_position, config.one_euro_rotation) {}
+
+void VelocityEstimator::reset() {
+  attitude_.reset();
+  gyro_low_pass_.reset();
+  pose_filter_.reset();
+  have_previous_ = false;
+  ever_ok_ = false;
+  ever_updated_ = false;
+}
+
+FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
+                                           const Eigen::Vector3d& accel_mps2) {
+  const FilterStatus status = attitude_.update(t_ns, gyro_radps, accel_mps2);
+  if (!accepted(status)) return status;
+  // omega_hat of Fig. 4: the low-passed gyro, with the complementary filter's bias removed.
+  gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
+  return status;
+}
+
+VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* reason) {
+  VelocityEstimate estimate;
+  estimate.t_ns = t_ns;
+  estimate.status = EstimateStatus::kUnavailable;
+  estimate.reason = reason;
+  const std::int64_t since_ns = ever_ok_ ? t_last_ok_ns_ : t_first_update_ns_;
+  estimate.unavailable_for_s = std::max(0.0, 1e-9 * static_cast<double>(t_ns - since_ns));
+  if (attitude_.initialized()) {
+    estimate.roll_rad = attitude_.roll_rad();
+    estimate.pitch_rad = attitude_.pitch_rad();
+  }
+  return estimate;
+}
+
+VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
+                                           const odometry::OdometryResult& odometry) {
+  if (!ever_updated_) {
+    ever_updated_ = true;
+    t_first_update_ns_ = t_ns;
+  }
+  if (odometry.status == odometry::TrackingStatus::kFirstFrame) {
+    // A new odometry reference: the pose chain restarts, so no velocity across it.
+    pose_filter_.reset();
+    pose_filter_.update(t_ns, odometry.T_world_cur);
+    T_C0_Ck_prev_filtered_ = pose_filter_.pose();
+    T_C0_Ck_prev_raw_ = odometry.T_world_cur;
+    have_previous_ = pose_filter_.initialized();
+    t_prev_frame_ns_ = t_ns;
+    t_seed_ns_ = t_ns;
+    return unavailable(t_ns, "first odometry frame");
+  }
+  if (!odometry.ok()) {
+    have_previous_ = false;
+    return unavailable(t_ns, "odometry lost");
+  }
+  if (odometry.valid_ratio < config_.min_valid_ratio) {
+    have_previous_ = false;
+    return unavailable(t_ns, "odometry valid_ratio below min_valid_ratio");
+  }
+  if (!(odometry.mean_weighted_error <= config_.max_mean_error)) {
+    have_previous_ = false;
+    return unavailable(t_ns, "odometry mean_weighted_error above max_mean_error");
+  }
+  if (!odometry.T_world_cur.matrix().allFinite()) {
+    have_previous_ = false;
+    return unavailable(t_ns, "odometry pose not finite");
+  }
+
+  const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
+  if (!have_previous_ || dt_s > config_.max_frame_gap_s) {
+    // Re-seed: eq. 2 needs two consecutive accepted poses.
+    pose_filter_.reset();
+    pose_filter_.update(t_ns, odometry.T_world_cur);
+    T_C0_Ck_prev_filtered_ = pose_filter_.pose();
+    T_C0_Ck_prev_raw_ = odometry.T_world_cur;
+    have_previous_ = pose_filter_.initialized();
+    t_prev_frame_ns_ = t_ns;
+    t_seed_ns_ = t_ns;
+    return unavailable(t_ns, "waiting for a second accepted odometry frame");
+  }
+  if (!(dt_s > 0.0)) return unavailable(t_ns, "odometry stamp not after the previous frame");
+  if (!accepted(pose_filter_.update(t_ns, odometry.T_world_cur))) {
+    return unavailable(t_ns, "odometry pose rejected by the pose filter");
+  }
+
+  VelocityEstimate estimate;
+  estimate.t_ns = t_ns;
+  // eq. 1 (raw, for evaluation): Ck_v_Ck = R_Ck_C0 (C0_p_Ck - C0_p_Ck-1) / dT.
+  const Eigen::Isometry3d& T_raw = odometry.T_world_cur;
+  estimate.v_camera_raw_mps = T_raw.linear().transpose() *
+                              (T_raw.translation() - T_C0_Ck_prev_raw_.translation()) / dt_s;
+  // eq. 2 of the core paper, not eq. 1: differentiating the 1€-filtered pose keeps noise out of v.
+  const Eigen::Isometry3d& T_hat = pose_filter_.pose();
+  const Eigen::Vector3d v_C =
+      T_hat.linear().transpose() * (T_hat.translation() - T_C0_Ck_prev_filtered_.translation()) /
+      dt_s;
+  estimate.v_camera_mps = v_C;
+  T_C0_Ck_prev_filtered_ = T_hat;
+  T_C0_Ck_prev_raw_ = T_raw;
+  t_prev_frame_ns_ = t_ns;
+
+  if (1e-9 * static_cast<double>(t_ns - t_seed_ns_) < config_.warmup_s) {
+    return unavailable(t_ns, "pose filter warming up after a (re)start");
+  }
+  if (!attitude_.initialized() || !gyro_low_pass_.initialized()) {
+    return unavailable(t_ns, "no IMU sample yet");
+  }
+  if (1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) > config_.max_imu_age_s) {
+    return unavailable(t_ns, "IMU samples too old");
+  }
+  const Eigen::Vector3d& omega_Q = gyro_low_pass_.value();
+  // eq. 4: Q_v_Q = R_QC Ck_v_Ck - Q_omega_Q x Q_p_C (removes the lever-arm velocity of O_C).
+  const Eigen::Vector3d v_Q = R_QC_ * v_C - omega_Q.cross(p_QC_);
+  const double roll_rad = attitude_.roll_rad();
+  const double pitch_rad = attitude_.pitch_rad();
+  // eq. 5: H_v_Q = R_HQ Q_v_Q with R_HQ = Ry(theta) Rx(phi).
+  const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_Q;
+
+  estimate.status = EstimateStatus::kOk;
+  estimate.reason = "";
+  estimate.v_body_mps = v_Q;
+  estimate.v_horizontal_mps = v_H;
+  estimate.omega_body_radps = omega_Q;
+  estimate.roll_rad = roll_rad;
+  estimate.pitch_rad = pitch_rad;
+  estimate.unavailable_for_s = 0.0;
+  ever_ok_ = true;
+  t_last_ok_ns_ = t_ns;
+  return estimate;
+}
+
+}  // namespace hq::estimator

@@ -1,0 +1,129 @@
+#include "hq/estimator/complementary_filter.hpp"
+
+#include <cmath>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::estimator {
+namespace {
+
+using testing::HasSubstr;
+
+constexpr std::int64_t kImuNs = 5'000'000;  // 200 Hz
+constexpr double kDeg = M_PI / 180.0;
+
+// Specific force measured at rest by a body with this roll/pitch (any yaw): a = -R^T g e3.
+Eigen::Vector3d static_accel(double roll_rad, double pitch_rad) {
+  return -R_horizontal_body(roll_rad, pitch_rad).transpose() *
+         Eigen::Vector3d(0.0, 0.0, kGravityMps2);
+}
+
+TEST(HorizontalFrame, LevelVehicleGivesIdentity) {
+  EXPECT_TRUE(R_horizontal_body(0.0, 0.0).isApprox(Eigen::Matrix3d::Identity(), 1e-15));
+}
+
+TEST(HorizontalFrame, PitchedVehicleMovingForwardInH) {
+  // GIVEN a vehicle pitched 10 deg nose down (NED pitch -10 deg) moving 1 m/s forward in H.
+  const double pitch = -10.0 * kDeg;
+  const Eigen::Matrix3d R_HQ = R_horizontal_body(0.0, pitch);
+  const Eigen::Vector3d v_Q = R_HQ.transpose() * Eigen::Vector3d(1.0, 0.0, 0.0);
+  // THEN the body sees most of it along its nose and the rest towards its belly's opposite:
+  // body z (down through the belly) leans backwards, so v_Q.z = sin(pitch) < 0.
+  EXPECT_NEAR(v_Q.x(), std::cos(10.0 * kDeg), 1e-12);
+  EXPECT_NEAR(v_Q.y(), 0.0, 1e-12);
+  EXPECT_NEAR(v_Q.z(), -std::sin(10.0 * kDeg), 1e-12);
+  // AND the body nose axis in H points forward and down (NED z > 0).
+  EXPECT_GT(R_HQ.col(0).z(), 0.0);
+  // Rolled right: body y axis in H points right and down.
+  const Eigen::Matrix3d R_roll = R_horizontal_body(20.0 * kDeg, 0.0);
+  EXPECT_NEAR(R_roll.col(1).z(), std::sin(20.0 * kDeg), 1e-12);
+}
+
+TEST(ComplementaryFilter, ConvergesToTheTrueRollAndPitchFromAStaticTiltedAccelerometer) {
+  ComplementaryConfig config;
+  config.init_from_accel = false;  // start level, so convergence is the filter's doing
+  config.k_p = 1.0;
+  config.k_i = 0.0;  // the bias loop (pole near -k_i / k_p) would only slow the settling
+  ComplementaryFilter filter(config);
+  const double roll = 12.0 * kDeg;
+  const double pitch = -17.0 * kDeg;
+  for (int k = 0; k < 200 * 15; ++k) {
+    filter.update(k * kImuNs, Eigen::Vector3d::Zero(), static_accel(roll, pitch));
+  }
+  EXPECT_NEAR(filter.roll_rad(), roll, 0.05 * kDeg);
+  EXPECT_NEAR(filter.pitch_rad(), pitch, 0.05 * kDeg);
+  // World NWU = Rx(pi) NED: the body z (down) axis points to -Z_W, tilted.
+  EXPECT_LT(filter.R_world_body().col(2).z(), -0.9);
+}
+
+TEST(ComplementaryFilter, InitialisesFromTheAccelerometer) {
+  ComplementaryFilter filter;
+  EXPECT_EQ(filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.3, -0.2)),
+            FilterStatus::kFirstSample);
+  EXPECT_NEAR(filter.roll_rad(), 0.3, 1e-12);
+  EXPECT_NEAR(filter.pitch_rad(), -0.2, 1e-12);
+}
+
+TEST(ComplementaryFilter, EstimatesAConstantGyroBias) {
+  ComplementaryConfig config;
+  config.k_p = 1.0;
+  config.k_i = 0.2;
+  ComplementaryFilter filter(config);
+  // Gravity observes the two bias axes orthogonal to it; yaw bias is unobservable without a
+  // heading reference (Mahony 2008, §V), so the test vehicle is level and the z bias zero.
+  const Eigen::Vector3d bias(0.03, -0.02, 0.0);
+  for (int k = 0; k < 200 * 40; ++k) {
+    filter.update(k * kImuNs, bias, static_accel(0.0, 0.0));
+  }
+  EXPECT_NEAR(filter.gyro_bias_radps().x(), bias.x(), 1e-3);
+  EXPECT_NEAR(filter.gyro_bias_radps().y(), bias.y(), 1e-3);
+  // And the attitude did not drift away despite the biased gyro.
+  EXPECT_NEAR(filter.roll_rad(), 0.0, 0.05 * kDeg);
+  EXPECT_NEAR(filter.pitch_rad(), 0.0, 0.05 * kDeg);
+}
+
+TEST(ComplementaryFilter, RejectsNanAndKeepsState) {
+  ComplementaryFilter filter;
+  filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.1, 0.0));
+  const double roll = filter.roll_rad();
+  EXPECT_EQ(filter.update(kImuNs, Eigen::Vector3d(std::nan(""), 0, 0), static_accel(0.5, 0.0)),
+            FilterStatus::kRejectedNonFinite);
+  EXPECT_EQ(filter.update(kImuNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(NAN)),
+            FilterStatus::kRejectedNonFinite);
+  EXPECT_EQ(filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.5, 0.0)),
+            FilterStatus::kRejectedTime);
+  EXPECT_EQ(filter.roll_rad(), roll);
+}
+
+TEST(LowPassFilter, ConvergesToAConstantWithTheConfiguredTimeConstant) {
+  LowPassFilter<3> filter(10.0);
+  filter.update(0, Eigen::Vector3d::Zero());
+  const double tau_s = 1.0 / (2.0 * M_PI * 10.0);
+  std::int64_t t_ns = 0;
+  while (t_ns < static_cast<std::int64_t>(tau_s * 1e9)) {
+    t_ns += 100'000;
+    filter.update(t_ns, Eigen::Vector3d::Ones());
+  }
+  // After one time constant a continuous first-order system reaches 1 - 1/e.
+  EXPECT_NEAR(filter.value().x(), 1.0 - std::exp(-1.0), 0.01);
+  EXPECT_EQ(filter.update(t_ns, Eigen::Vector3d::Ones()), FilterStatus::kRejectedTime);
+}
+
+TEST(ComplementaryConfig, BadValueIsRejectedNamingTheKey) {
+  const YAML::Node node = YAML::Load("{k_p: 1.0, k_i: -0.5}");
+  config::StrictMap section(node, "config/onboard.yaml", "estimator.complementary");
+  ComplementaryConfig config;
+  try {
+    read_config(section, config);
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("estimator.complementary.k_i = -0.5"));
+  }
+}
+
+}  // namespace
+}  // namespace hq::estimator
