@@ -1,0 +1,97 @@
+#pragma once
+/// Obstacle detection and repulsive velocity from one depth image, §3.1 of the core paper:
+/// local minima of the depth image, a standard repulsive potential per minimum (Khatib 1986),
+/// summed into v_obs, which is added to the desired velocity: v_des = v*_des + v_obs.
+///
+/// Frames: C camera (optical: z forward, x right, y down), Q body NED, H horizontal NED (Q with
+/// roll and pitch removed). All buffers are sized at construction; compute() allocates nothing.
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "hq/geometry/pinhole_camera.hpp"
+
+namespace hq::config {
+class StrictMap;
+}
+
+namespace hq::obstacles {
+
+/// Capacity of ObstacleResult::points; config.max_points may not exceed it.
+inline constexpr int kMaxObstaclePoints = 64;
+
+struct ObstacleConfig {
+  int cell_px = 16;                       ///< Side of the min-pool cells (pixels).
+  int speckle_rank = 3;                   ///< A cell's value is its k-th smallest valid range.
+  double suppression_radius_px = 48.0;    ///< Non-minimum suppression radius on the cell grid.
+  double influence_distance_m = 1.2;      ///< d0: points farther away exert nothing.
+  double max_repulsive_speed_mps = 0.8;   ///< |v_obs| saturates here.
+  double gain = 0.05;                     ///< eta of the potential (m^3/s): v = eta (1/d - 1/d0) / d^2.
+  double min_range_m = 0.4;               ///< Sensor minimum range: nearer surfaces read invalid.
+  double max_range_m = 8.0;               ///< Depth beyond this is ignored.
+  double near_invalid_fraction = 0.6;     ///< Invalid fraction of the central window = hazard.
+  double central_window_fraction = 0.4;   ///< Central window side / image side.
+  int max_points = 16;                    ///< Nearest minima kept (<= kMaxObstaclePoints).
+};
+
+/// Reads the `obstacles:` section strictly.
+void read_config(config::StrictMap& section, ObstacleConfig& out);
+
+/// One obstacle point: a local depth minimum, or the near-range hazard.
+struct ObstaclePoint {
+  Eigen::Vector3d p_horizontal_m = Eigen::Vector3d::Zero();  ///< In H, from the body origin.
+  double distance_m = 0.0;                                   ///< |p_horizontal_m|.
+  bool near_hazard = false;                                  ///< Synthesised from invalid depth.
+};
+
+struct ObstacleResult {
+  bool valid = false;                 ///< False if the image was unusable; v_obs is then zero.
+  const char* reason = "";            ///< Static text when !valid.
+  Eigen::Vector3d v_obs_horizontal_mps = Eigen::Vector3d::Zero();  ///< Repulsive velocity in H.
+  std::array<ObstaclePoint, kMaxObstaclePoints> points{};          ///< Nearest first.
+  int count = 0;                      ///< Valid entries in points.
+  bool near_hazard = false;           ///< Central window too invalid: something is too close.
+  double central_invalid_fraction = 0.0;
+};
+
+class ObstacleField {
+ public:
+  /// @param R_body_camera, p_body_camera_m  extrinsics R_QC, Q_p_C.
+  /// @throws hq::InputError if the camera or config are inconsistent.
+  ObstacleField(const ObstacleConfig& config, const geometry::PinholeCamera& camera,
+                const Eigen::Matrix3d& R_body_camera, const Eigen::Vector3d& p_body_camera_m);
+
+  /// @param depth_m  CV_32FC1, camera size, metres; 0 / NaN / out of range = no depth.
+  /// @param R_horizontal_body  R_HQ from the attitude estimate.
+  [[nodiscard]] ObstacleResult compute(const cv::Mat& depth_m,
+                                       const Eigen::Matrix3d& R_horizontal_body);
+
+  [[nodiscard]] const ObstacleConfig& config() const { return config_; }
+
+ private:
+  struct Cell {
+    float range_m;  // speckle_rank-th smallest valid range, or +inf
+    int u;          // pixel of that range
+    int v;
+  };
+
+  /// Adds the repulsive velocity of a point at p_H (Khatib: eta (1/d - 1/d0) / d^2 away).
+  void add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard) const;
+
+  ObstacleConfig config_;
+  geometry::PinholeCamera camera_;
+  Eigen::Matrix3d R_QC_;
+  Eigen::Vector3d p_QC_;
+  int cells_x_ = 0;
+  int cells_y_ = 0;
+  int radius_cells_ = 0;
+  std::vector<float> ray_norm_;  // |K^-1 (u, v, 1)| per pixel: range = depth * ray_norm
+  std::vector<Cell> cells_;
+  std::vector<int> minima_;      // cell indices of local minima, capacity cells_
+};
+
+}  // namespace hq::obstacles

@@ -1,0 +1,215 @@
+#include "hq/obstacles/obstacle_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::obstacles {
+namespace {
+constexpr int kMaxSpeckleRank = 8;
+// Distances are floored here so that a point at the sensor does not give an infinite push;
+// the sum is saturated anyway.
+constexpr double kMinDistanceM = 0.05;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+bool is_valid_depth(float z) { return std::isfinite(z) && z > 0.0f; }
+}  // namespace
+
+void read_config(config::StrictMap& section, ObstacleConfig& out) {
+  section.read("cell_px", out.cell_px, 1, 256);
+  section.read("speckle_rank", out.speckle_rank, 1, kMaxSpeckleRank);
+  section.read_positive("suppression_radius_px", out.suppression_radius_px, 10000.0);
+  section.read_positive("influence_distance_m", out.influence_distance_m, 100.0);
+  section.read_positive("max_repulsive_speed_mps", out.max_repulsive_speed_mps, 20.0);
+  section.read("gain", out.gain, 0.0, 100.0);
+  section.read("min_range_m", out.min_range_m, 0.0, 10.0);
+  section.read_positive("max_range_m", out.max_range_m, 100.0);
+  section.read("near_invalid_fraction", out.near_invalid_fraction, 0.0, 1.0);
+  section.read("central_window_fraction", out.central_window_fraction, 0.01, 1.0);
+  section.read("max_points", out.max_points, 0, kMaxObstaclePoints);
+  section.finish();
+}
+
+ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::PinholeCamera& camera,
+                             const Eigen::Matrix3d& R_body_camera,
+                             const Eigen::Vector3d& p_body_camera_m)
+    : config_(config), camera_(camera), R_QC_(R_body_camera), p_QC_(p_body_camera_m) {
+  if (camera.width <= 0 || camera.height <= 0 || !(camera.fx > 0.0) || !(camera.fy > 0.0)) {
+    throw InputError("obstacles: camera " + std::to_string(camera.width) + "x" +
+                     std::to_string(camera.height) + " fx " + std::to_string(camera.fx) +
+                     ", expected a positive size and focal length");
+  }
+  if (config.cell_px < 1 || config.cell_px > std::min(camera.width, camera.height)) {
+    throw InputError("obstacles.cell_px = " + std::to_string(config.cell_px) +
+                     ", expected in [1, " + std::to_string(std::min(camera.width, camera.height)) +
+                     "] for this camera");
+  }
+  if (config.max_points < 0 || config.max_points > kMaxObstaclePoints ||
+      config.speckle_rank < 1 || config.speckle_rank > kMaxSpeckleRank) {
+    throw InputError("obstacles: max_points = " + std::to_string(config.max_points) +
+                     ", speckle_rank = " + std::to_string(config.speckle_rank) +
+                     ", expected max_points <= " + std::to_string(kMaxObstaclePoints) +
+                     " and speckle_rank in [1, " + std::to_string(kMaxSpeckleRank) + "]");
+  }
+  if (!R_QC_.allFinite() || !p_QC_.allFinite() ||
+      (R_QC_.transpose() * R_QC_ - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6) {
+    throw InputError("obstacles: R_body_camera is not a rotation");
+  }
+  cells_x_ = camera.width / config.cell_px;
+  cells_y_ = camera.height / config.cell_px;
+  radius_cells_ = static_cast<int>(std::ceil(config.suppression_radius_px / config.cell_px));
+  ray_norm_.resize(static_cast<std::size_t>(camera.width) * camera.height);
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      const double x = (u - camera.cx) / camera.fx;
+      const double y = (v - camera.cy) / camera.fy;
+      ray_norm_[static_cast<std::size_t>(v) * camera.width + u] =
+          static_cast<float>(std::sqrt(x * x + y * y + 1.0));
+    }
+  }
+  cells_.resize(static_cast<std::size_t>(cells_x_) * cells_y_);
+  minima_.reserve(cells_.size());
+}
+
+void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H,
+                              bool hazard) const {
+  const double d = std::max(p_H.norm(), kMinDistanceM);
+  const double d0 = config_.influence_distance_m;
+  if (d >= d0) return;
+  // Khatib 1986: U = eta/2 (1/d - 1/d0)^2, v = -grad U = eta (1/d - 1/d0) / d^2 * (-p / d).
+  const double speed = config_.gain * (1.0 / d - 1.0 / d0) / (d * d);
+  result.v_obs_horizontal_mps -= speed * p_H / d;
+  if (result.count < config_.max_points) {
+    ObstaclePoint& point = result.points[static_cast<std::size_t>(result.count++)];
+    point.p_horizontal_m = p_H;
+    point.distance_m = p_H.norm();
+    point.near_hazard = hazard;
+  }
+}
+
+ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
+                                      const Eigen::Matrix3d& R_horizontal_body) {
+  ObstacleResult result;
+  if (depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
+      depth_m.rows != camera_.height) {
+    result.reason = "depth image is not CV_32FC1 of the camera's size";
+    return result;
+  }
+  if (!R_horizontal_body.allFinite()) {
+    result.reason = "R_horizontal_body is not finite";
+    return result;
+  }
+  const Eigen::Matrix3d R_HC = R_horizontal_body * R_QC_;
+  const Eigen::Vector3d p_HC = R_horizontal_body * p_QC_;
+  const int k = config_.speckle_rank;
+  const auto max_range = static_cast<float>(config_.max_range_m);
+
+  // Min-pool into cells. A cell's value is the k-th smallest valid range (distance along the
+  // ray, not z, so that a fronto-parallel wall has one nearest point): fewer than k pixels
+  // nearer than the rest, i.e. isolated speckle, cannot make a cell near.
+  for (int cy = 0; cy < cells_y_; ++cy) {
+    for (int cx = 0; cx < cells_x_; ++cx) {
+      std::array<float, kMaxSpeckleRank> smallest;
+      std::array<int, kMaxSpeckleRank> smallest_index;
+      int n = 0;
+      for (int v = cy * config_.cell_px; v < (cy + 1) * config_.cell_px; ++v) {
+        const auto* row = depth_m.ptr<float>(v);
+        const float* norms = &ray_norm_[static_cast<std::size_t>(v) * camera_.width];
+        for (int u = cx * config_.cell_px; u < (cx + 1) * config_.cell_px; ++u) {
+          const float z = row[u];
+          if (!is_valid_depth(z) || z > max_range) continue;
+          const float range = z * norms[u];
+          if (n == k && range >= smallest[k - 1]) continue;
+          // Insertion into the sorted k smallest.
+          int i = (n < k) ? n++ : k - 1;
+          while (i > 0 && smallest[i - 1] > range) {
+            smallest[i] = smallest[i - 1];
+            smallest_index[i] = smallest_index[i - 1];
+            --i;
+          }
+          smallest[i] = range;
+          smallest_index[i] = v * camera_.width + u;
+        }
+      }
+      Cell& cell = cells_[static_cast<std::size_t>(cy) * cells_x_ + cx];
+      if (n == k) {
+        cell.range_m = smallest[k - 1];
+        cell.u = smallest_index[k - 1] % camera_.width;
+        cell.v = smallest_index[k - 1] / camera_.width;
+      } else {
+        cell.range_m = kInf;
+      }
+    }
+  }
+
+  // Near-range hazard: a structured-light sensor returns nothing for surfaces nearer than its
+  // minimum range, which must not read as free space.
+  const int window_w = std::max(1, static_cast<int>(config_.central_window_fraction * camera_.width));
+  const int window_h =
+      std::max(1, static_cast<int>(config_.central_window_fraction * camera_.height));
+  const int u0 = (camera_.width - window_w) / 2;
+  const int v0 = (camera_.height - window_h) / 2;
+  int invalid = 0;
+  for (int v = v0; v < v0 + window_h; ++v) {
+    const auto* row = depth_m.ptr<float>(v);
+    for (int u = u0; u < u0 + window_w; ++u) invalid += is_valid_depth(row[u]) ? 0 : 1;
+  }
+  result.central_invalid_fraction = static_cast<double>(invalid) / (window_w * window_h);
+  result.near_hazard = result.central_invalid_fraction > config_.near_invalid_fraction;
+  if (result.near_hazard) {
+    add_point(result, R_HC * Eigen::Vector3d(0.0, 0.0, config_.min_range_m) + p_HC, true);
+  }
+
+  // Local minima within the suppression radius; ties go to the lower index so that a plateau
+  // yields one point. Only cells that can be within d0 of the body are candidates.
+  minima_.clear();
+  const double candidate_range_m = config_.influence_distance_m + p_QC_.norm();
+  const int r2 = radius_cells_ * radius_cells_;
+  for (int cy = 0; cy < cells_y_; ++cy) {
+    for (int cx = 0; cx < cells_x_; ++cx) {
+      const int index = cy * cells_x_ + cx;
+      const float range = cells_[static_cast<std::size_t>(index)].range_m;
+      if (!(range < candidate_range_m)) continue;
+      bool is_minimum = true;
+      for (int dy = -radius_cells_; dy <= radius_cells_ && is_minimum; ++dy) {
+        const int ny = cy + dy;
+        if (ny < 0 || ny >= cells_y_) continue;
+        for (int dx = -radius_cells_; dx <= radius_cells_; ++dx) {
+          const int nx = cx + dx;
+          if (nx < 0 || nx >= cells_x_ || dx * dx + dy * dy > r2 || (dx == 0 && dy == 0)) continue;
+          const int other = ny * cells_x_ + nx;
+          const float other_range = cells_[static_cast<std::size_t>(other)].range_m;
+          if (other_range < range || (other_range == range && other < index)) {
+            is_minimum = false;
+            break;
+          }
+        }
+      }
+      if (is_minimum) minima_.push_back(index);
+    }
+  }
+  // Nearest first, so that max_points keeps the ones that matter.
+  std::sort(minima_.begin(), minima_.end(), [this](int a, int b) {
+    return cells_[static_cast<std::size_t>(a)].range_m < cells_[static_cast<std::size_t>(b)].range_m;
+  });
+  for (const int index : minima_) {
+    const Cell& cell = cells_[static_cast<std::size_t>(index)];
+    const double z = cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
+    const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
+                              (cell.v - camera_.cy) / camera_.fy * z, z);
+    add_point(result, R_HC * p_C + p_HC, false);
+  }
+
+  const double speed = result.v_obs_horizontal_mps.norm();
+  if (speed > config_.max_repulsive_speed_mps) {
+    result.v_obs_horizontal_mps *= config_.max_repulsive_speed_mps / speed;
+  }
+  result.valid = true;
+  return result;
+}
+
+}  // namespace hq::obstacles
