@@ -263,58 +263,81 @@ struct DenseOdometry::Impl {
     return valid;
   }
 
-  // Student-t scale by fixed-point iteration (Kerl 2013, eq. 12), then the weights.
-  double compute_weights(int count, int valid, double initial_variance) {
+  // Student-t scale by fixed-point iteration (Kerl 2013, eq. 12). weight[] holds 1 for points
+  // that landed in the image and 0 for the others.
+  double estimate_variance(int count, int valid, double initial_variance) const {
     const auto nu = static_cast<float>(config.student_t_dof);
+    const float* r = residual.data();
+    const float* mask = weight.data();
     float variance = static_cast<float>(initial_variance);
     for (int it = 0; it < kScaleIterations; ++it) {
-      float sum = 0.0f;
       const float inv_var = 1.0f / variance;
+      float sum = 0.0f;
+#pragma omp simd reduction(+ : sum)
       for (int i = 0; i < count; ++i) {
-        const float r2 = residual[i] * residual[i];
-        sum += weight[i] * r2 * (nu + 1.0f) / (nu + r2 * inv_var);
+        const float r2 = r[i] * r[i];
+        sum += mask[i] * r2 * (nu + 1.0f) / (nu + r2 * inv_var);
       }
       const float next = std::max(sum / static_cast<float>(valid), 1e-6f);
       const bool converged = std::abs(next - variance) < 1e-3f * variance;
       variance = next;
       if (converged) break;
     }
-    const float inv_var = 1.0f / variance;
-    for (int i = 0; i < count; ++i) {
-      const float r2 = residual[i] * residual[i];
-      weight[i] *= (nu + 1.0f) / (nu + r2 * inv_var);
-    }
     return variance;
   }
 
-  // One pass: H = sum w J J^T / sigma^2, g = sum w J r / sigma^2, and sum w r^2.
-  double accumulate(int level, int count, double variance, NormalEquations& out) {
+  // One pass: Student-t weights, H = sum w J J^T / sigma^2, g = sum w J r / sigma^2 and the
+  // mean weighted squared error. 27 independent sums let the compiler vectorise across points.
+  double accumulate(int level, int count, double variance, NormalEquations& out) const {
     const ReferenceLevel& ref = reference[level];
-    const auto& J = ref.jacobian;
-    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-    Vector6d g = Vector6d::Zero();
+    const float* j0 = ref.jacobian[0].data();
+    const float* j1 = ref.jacobian[1].data();
+    const float* j2 = ref.jacobian[2].data();
+    const float* j3 = ref.jacobian[3].data();
+    const float* j4 = ref.jacobian[4].data();
+    const float* j5 = ref.jacobian[5].data();
+    const float* res = residual.data();
+    const float* mask = weight.data();
+    const auto nu = static_cast<float>(config.student_t_dof);
+    const auto inv_var = static_cast<float>(1.0 / variance);
+    double H[21] = {};
+    double g[6] = {};
     double weighted_error = 0.0;
     for (int start = 0; start < count; start += kAccumulationBlock) {
       const int end = std::min(count, start + kAccumulationBlock);
-      Eigen::Matrix<float, 6, 6> Hb = Eigen::Matrix<float, 6, 6>::Zero();
-      Eigen::Matrix<float, 6, 1> gb = Eigen::Matrix<float, 6, 1>::Zero();
-      float eb = 0.0f;
+      float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0,
+            h14 = 0, h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0,
+            h44 = 0, h45 = 0, h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0;
+#pragma omp simd reduction(+ : h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, \
+                               h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e)
       for (int i = start; i < end; ++i) {
-        const float w = weight[i];
-        const float r = residual[i];
-        const Eigen::Matrix<float, 6, 1> j(J[0][i], J[1][i], J[2][i], J[3][i], J[4][i], J[5][i]);
-        const Eigen::Matrix<float, 6, 1> wj = w * j;
-        Hb.triangularView<Eigen::Upper>() += wj * j.transpose();
-        gb += wj * r;
-        eb += w * r * r;
+        const float r = res[i];
+        const float w = mask[i] * (nu + 1.0f) / (nu + r * r * inv_var);
+        const float a0 = j0[i], a1 = j1[i], a2 = j2[i], a3 = j3[i], a4 = j4[i], a5 = j5[i];
+        const float w0 = w * a0, w1 = w * a1, w2 = w * a2, w3 = w * a3, w4 = w * a4, w5 = w * a5;
+        h00 += w0 * a0; h01 += w0 * a1; h02 += w0 * a2; h03 += w0 * a3; h04 += w0 * a4;
+        h05 += w0 * a5; h11 += w1 * a1; h12 += w1 * a2; h13 += w1 * a3; h14 += w1 * a4;
+        h15 += w1 * a5; h22 += w2 * a2; h23 += w2 * a3; h24 += w2 * a4; h25 += w2 * a5;
+        h33 += w3 * a3; h34 += w3 * a4; h35 += w3 * a5; h44 += w4 * a4; h45 += w4 * a5;
+        h55 += w5 * a5;
+        g0 += w0 * r; g1 += w1 * r; g2 += w2 * r; g3 += w3 * r; g4 += w4 * r; g5 += w5 * r;
+        e += w * r * r;
       }
-      H += Hb.cast<double>();
-      g += gb.cast<double>();
-      weighted_error += eb;
+      const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
+                               h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};
+      for (int k = 0; k < 21; ++k) H[k] += block[k];
+      g[0] += g0; g[1] += g1; g[2] += g2; g[3] += g3; g[4] += g4; g[5] += g5;
+      weighted_error += e;
     }
-    H.triangularView<Eigen::StrictlyLower>() = H.transpose();
-    out.H = H / variance;
-    out.g = g / variance;
+    int k = 0;
+    for (int r = 0; r < 6; ++r) {
+      for (int c = r; c < 6; ++c) {
+        out.H(r, c) = H[k] / variance;
+        out.H(c, r) = out.H(r, c);
+        ++k;
+      }
+      out.g(r) = g[r] / variance;
+    }
     return weighted_error;
   }
 
@@ -386,7 +409,7 @@ struct DenseOdometry::Impl {
           for (int i = 0; i < count; ++i) sum += residual[i] * residual[i];
           level_variance = std::max(sum / valid, 1.0);
         }
-        variance = compute_weights(count, valid, level_variance);
+        variance = estimate_variance(count, valid, level_variance);
         level_variance = variance;
         NormalEquations candidate;
         weighted_error = accumulate(level, count, variance, candidate) / valid;

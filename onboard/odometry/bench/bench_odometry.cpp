@@ -1,0 +1,224 @@
+// hq-bench-odometry: HaptiQuad's dense odometry beside OpenCV's rgbd odometries on the same
+// frames, in one process and one run, one thread each. Prints median / p90 ms per frame (the
+// odometry call only; loading and undistortion excluded) and RPE / ATE against ground truth.
+//
+//   hq-bench-odometry [--passes N] [--camera calib/tum_fr1.yaml] [sequence-dir ...]
+// Without sequence arguments it runs the bundled real sequences under ../shared/data/tum.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/rgbd.hpp>
+
+#include "hq/base/error.hpp"
+#include "hq/config/camera_info.hpp"
+#include "hq/evaluation/trajectory_error.hpp"
+#include "hq/odometry/dense_odometry.hpp"
+#include "hq/recording/data_dir.hpp"
+#include "hq/recording/tum_io.hpp"
+#include "hq/sources/tum_frame_source.hpp"
+
+namespace {
+
+struct LoadedSequence {
+  std::string name;
+  std::vector<hq::sources::RgbdFrame> frames;
+  std::vector<hq::recording::StampedPose> ground_truth;
+  hq::geometry::PinholeCamera camera;
+};
+
+// A method tracks a whole sequence frame to frame: reset, then one call per frame, returning
+// the camera pose in the first frame's coordinates.
+class Method {
+ public:
+  virtual ~Method() = default;
+  virtual std::string name() const = 0;
+  virtual void reset(const hq::geometry::PinholeCamera& camera) = 0;
+  virtual Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame) = 0;
+};
+
+class HaptiQuadMethod final : public Method {
+ public:
+  HaptiQuadMethod(std::string name, hq::odometry::OdometryConfig config)
+      : name_(std::move(name)), config_(config) {}
+  std::string name() const override { return name_; }
+  void reset(const hq::geometry::PinholeCamera& camera) override {
+    odometry_ = std::make_unique<hq::odometry::DenseOdometry>(config_, camera);
+  }
+  Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame) override {
+    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m).T_world_cur;
+  }
+
+ private:
+  std::string name_;
+  hq::odometry::OdometryConfig config_;
+  std::unique_ptr<hq::odometry::DenseOdometry> odometry_;
+};
+
+class OpenCvMethod final : public Method {
+ public:
+  OpenCvMethod(std::string name, std::string type) : name_(std::move(name)), type_(type) {}
+  std::string name() const override { return name_; }
+  void reset(const hq::geometry::PinholeCamera& camera) override {
+    const cv::Mat K = (cv::Mat_<float>(3, 3) << camera.fx, 0, camera.cx, 0, camera.fy,
+                       camera.cy, 0, 0, 1);
+    odometry_ = cv::rgbd::Odometry::create(type_);
+    odometry_->setCameraMatrix(K);
+    previous_.release();
+    T_world_cur_.setIdentity();
+  }
+  Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame) override {
+    cv::Ptr<cv::rgbd::OdometryFrame> current =
+        cv::rgbd::OdometryFrame::create(frame.gray, frame.depth_m);
+    if (previous_) {
+      cv::Mat Rt;
+      if (odometry_->compute(previous_, current, Rt)) {
+        // OpenCV's Rt maps source (previous) coordinates into destination (current) ones.
+        Eigen::Matrix4d T_cur_prev;
+        for (int r = 0; r < 4; ++r) {
+          for (int c = 0; c < 4; ++c) T_cur_prev(r, c) = Rt.at<double>(r, c);
+        }
+        T_world_cur_ = T_world_cur_ * Eigen::Isometry3d(T_cur_prev.inverse());
+      }
+    }
+    previous_ = current;
+    return T_world_cur_;
+  }
+
+ private:
+  std::string name_;
+  std::string type_;
+  cv::Ptr<cv::rgbd::Odometry> odometry_;
+  cv::Ptr<cv::rgbd::OdometryFrame> previous_;
+  Eigen::Isometry3d T_world_cur_ = Eigen::Isometry3d::Identity();
+};
+
+LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera) {
+  hq::sources::TumFrameSource source(dir, camera);
+  LoadedSequence sequence;
+  sequence.name = std::filesystem::path(dir).filename().string();
+  sequence.camera = source.camera();
+  sequence.ground_truth = source.sequence().ground_truth();
+  hq::sources::RgbdFrame frame;
+  while (source.next(frame) == hq::sources::FrameStatus::kFrame) {
+    hq::sources::RgbdFrame copy;
+    copy.t_ns = frame.t_ns;
+    copy.gray = frame.gray.clone();
+    copy.depth_m = frame.depth_m.clone();
+    sequence.frames.push_back(std::move(copy));
+  }
+  return sequence;
+}
+
+double percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const auto index = static_cast<std::size_t>(p * static_cast<double>(values.size() - 1) + 0.5);
+  return values[std::min(index, values.size() - 1)];
+}
+
+struct Row {
+  double median_ms = 0, p90_ms = 0, rpe_trans_mps = 0, rpe_rot_degps = 0, ate_m = 0;
+};
+
+Row run(Method& method, const LoadedSequence& sequence, int passes) {
+  std::vector<double> times_ms;
+  std::vector<hq::recording::StampedPose> trajectory;
+  for (int pass = 0; pass < passes; ++pass) {
+    method.reset(sequence.camera);
+    trajectory.clear();
+    for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
+      const auto start = std::chrono::steady_clock::now();
+      const Eigen::Isometry3d T_world_cur = method.track(sequence.frames[i]);
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+              .count();
+      if (i > 0) times_ms.push_back(ms);  // the first frame only prepares a reference
+      trajectory.push_back({sequence.frames[i].t_ns, T_world_cur});
+    }
+  }
+  Row row;
+  row.median_ms = percentile(times_ms, 0.5);
+  row.p90_ms = percentile(times_ms, 0.9);
+  if (!sequence.ground_truth.empty()) {
+    const auto rpe = hq::evaluation::relative_pose_error(sequence.ground_truth, trajectory);
+    const auto ate = hq::evaluation::absolute_trajectory_error(sequence.ground_truth, trajectory);
+    row.rpe_trans_mps = rpe.trans_mps.rmse;
+    row.rpe_rot_degps = rpe.rot_degps.rmse;
+    row.ate_m = ate.trans_m.rmse;
+  }
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"HaptiQuad dense odometry beside OpenCV's RgbdOdometry, ICPOdometry, RgbdICPOdometry"};
+  std::vector<std::string> sequence_dirs;
+  std::string camera_path = "calib/tum_fr1.yaml";
+  int passes = 10;
+  app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
+  app.add_option("--camera", camera_path, "camera file of the sequences");
+  app.add_option("--passes", passes, "times each sequence is run per method")->check(CLI::PositiveNumber);
+  CLI11_PARSE(app, argc, argv);
+
+  cv::setNumThreads(1);
+  try {
+    if (sequence_dirs.empty()) {
+      const auto data = hq::recording::find_data_dir();
+      if (!data) {
+        std::fprintf(stderr, "hq-bench-odometry: no sequences given and no data found (%s)\n",
+                     hq::recording::data_dir_search_description().c_str());
+        return 2;
+      }
+      for (const auto& entry : std::filesystem::directory_iterator(*data + "/tum")) {
+        if (entry.is_directory()) sequence_dirs.push_back(entry.path().string());
+      }
+      std::sort(sequence_dirs.begin(), sequence_dirs.end());
+    }
+    const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
+
+    hq::odometry::OdometryConfig half;
+    hq::odometry::OdometryConfig keyframes;
+    keyframes.reference_mode = hq::odometry::ReferenceMode::kFrameToKeyframe;
+    hq::odometry::OdometryConfig full;
+    full.finest_level = 0;
+    std::vector<std::unique_ptr<Method>> methods;
+    methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 320", half));
+    methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2kf 320", keyframes));
+    methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 640", full));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+
+    for (const std::string& dir : sequence_dirs) {
+      const LoadedSequence sequence = load(dir, camera);
+      std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n",
+                  sequence.name.c_str(), sequence.frames.size(), sequence.camera.width,
+                  sequence.camera.height, passes);
+      std::printf("%-24s %9s %9s %11s %11s %9s %10s\n", "method", "median_ms", "p90_ms",
+                  "rpe_t_m/s", "rpe_r_deg/s", "ate_m", "speedup");
+      std::vector<Row> rows;
+      for (auto& method : methods) rows.push_back(run(*method, sequence, passes));
+      const double reference_ms = rows[3].median_ms;  // OpenCV RgbdOdometry
+      for (std::size_t m = 0; m < methods.size(); ++m) {
+        const Row& r = rows[m];
+        std::printf("%-24s %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx\n", methods[m]->name().c_str(),
+                    r.median_ms, r.p90_ms, r.rpe_trans_mps, r.rpe_rot_degps, r.ate_m,
+                    reference_ms / r.median_ms);
+      }
+    }
+    std::printf("\nspeedup = OpenCV RgbdOdometry median / method median, same run.\n");
+  } catch (const hq::InputError& e) {
+    std::fprintf(stderr, "hq-bench-odometry: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}
