@@ -1,0 +1,42 @@
+#pragma once
+/// The vehicle: mass, actuator limits and the camera extrinsics T_body_camera, from a calib file
+/// such as calib/vehicle_core_paper.yaml.
+///
+/// T_body_camera is given as the camera's yaw_deg, pitch_deg, roll_deg in the NED body frame Q
+/// (ZYX, aerospace: yaw right positive, pitch up positive) applied to a forward-looking optical
+/// frame (z forward, x right, y down), plus p_body_camera_m (the core paper's ^Q p_C):
+///   R_QC = Rz(yaw) Ry(pitch) Rx(roll) * R_forward_optical,
+///   R_forward_optical = [e_y e_z e_x] (optical x = body right, y = body down, z = body forward).
+
+#include <string>
+
+#include <Eigen/Core>
+
+namespace hq::config {
+class StrictMap;
+}
+
+namespace hq::control {
+
+struct VehicleConfig {
+  double mass_kg = 1.0;
+  double max_tilt_rad = 0.5236;            ///< Max angle between thrust and vertical.
+  double min_thrust_n = 2.0;               ///< Keeps the rotors spinning.
+  double max_thrust_n = 20.0;
+  double max_yaw_rate_radps = 1.5708;
+  Eigen::Matrix3d R_body_camera = Eigen::Matrix3d::Identity();  ///< R_QC.
+  Eigen::Vector3d p_body_camera_m = Eigen::Vector3d::Zero();    ///< Q_p_C.
+};
+
+/// R_QC from the camera's yaw/pitch/roll in the body frame (see the file comment).
+Eigen::Matrix3d R_body_camera_from_angles(double yaw_rad, double pitch_rad, double roll_rad);
+
+/// Reads a vehicle file's root: {mass_kg, limits: {max_tilt_deg, min_thrust_n, max_thrust_n,
+/// max_yaw_rate_degps}, T_body_camera: {yaw_deg, pitch_deg, roll_deg, p_body_camera_m}}.
+/// Every key is required; throws hq::InputError naming file, key, value and expectation.
+void read_config(config::StrictMap& root, VehicleConfig& out);
+
+/// Loads and validates a vehicle file.
+VehicleConfig load_vehicle_config(const std::string& path);
+
+}  // namespace hq::control
