@@ -1,0 +1,56 @@
+// hq-evaluate: TUM benchmark accuracy (RPE, ATE; Sturm et al., IROS 2012) of an estimated
+// trajectory against ground truth, both in TUM trajectory format.
+#include "hq/base/error.hpp"
+#include "hq/evaluation/trajectory_error.hpp"
+#include "hq/recording/tum_io.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <exception>
+#include <string>
+
+namespace {
+
+void print_row(const char* name, const char* unit, const hq::evaluation::ErrorStats& s) {
+  std::printf("%-10s %-6s %10.6f %10.6f %10.6f %10.6f %6d\n", name, unit, s.rmse, s.mean, s.median,
+              s.max, s.count);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Relative pose error and absolute trajectory error of a TUM-format trajectory"};
+  std::string gt_path;
+  std::string est_path;
+  double delta_s = 1.0;
+  double max_dt_s = 0.02;
+  app.add_option("--gt", gt_path, "ground truth, \"t tx ty tz qx qy qz qw\" per line")->required();
+  app.add_option("--est", est_path, "estimated trajectory, same format")->required();
+  app.add_option("--delta-s", delta_s, "RPE window length (s)");
+  app.add_option("--max-dt-s", max_dt_s, "largest stamp difference of an associated pair (s)");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const auto gt = hq::recording::read_tum_trajectory(gt_path);
+    const auto est = hq::recording::read_tum_trajectory(est_path);
+    const auto pairs = hq::evaluation::associate_poses(gt, est, max_dt_s);
+    const auto rpe = hq::evaluation::relative_pose_error(gt, est, delta_s, max_dt_s);
+    const auto ate = hq::evaluation::absolute_trajectory_error(gt, est, max_dt_s);
+
+    std::printf("poses: ground truth %zu, estimate %zu, associated %zu (max_dt %.3f s)\n",
+                gt.size(), est.size(), pairs.size(), max_dt_s);
+    std::printf(
+        "RPE window %.3f s%s\n", rpe.delta_s,
+        rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
+    std::printf("%-10s %-6s %10s %10s %10s %10s %6s\n", "metric", "unit", "rmse", "mean", "median",
+                "max", "count");
+    print_row("RPE trans", "m/s", rpe.trans_mps);
+    print_row("RPE rot", "deg/s", rpe.rot_degps);
+    print_row("ATE", "m", ate.trans_m);
+  } catch (const hq::InputError& e) {
+    std::fprintf(stderr, "hq-evaluate: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}
