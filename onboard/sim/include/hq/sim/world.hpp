@@ -1,0 +1,85 @@
+#pragma once
+/// Simulated worlds: textured planes, boxes and vertical cylinders with AprilTag 36h11 markers,
+/// read strictly from YAML. World frame W is NWU (z up), as in the core paper §3; the floor is
+/// the plane z = 0.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+namespace hq::sim {
+
+/// Procedural albedo pattern evaluated at surface coordinates (s, t) in metres.
+struct Texture {
+  enum class Kind { kChecker, kNoise, kStripes };
+  Kind kind = Kind::kNoise;
+  Eigen::Vector3f color_bgr = Eigen::Vector3f(0.7f, 0.7f, 0.7f);  ///< albedo in [0, 1].
+  float scale_m = 0.2f;     ///< checker square / noise cell / stripe period.
+  float contrast = 0.5f;    ///< 0: flat colour, 1: pattern spans black to the colour.
+  std::uint32_t salt = 0;   ///< decorrelates the noise of different surfaces (set at load).
+  /// Albedo (BGR, [0, 1]) at surface coordinates; deterministic in (s, t).
+  [[nodiscard]] Eigen::Vector3f albedo(float s_m, float t_m) const;
+};
+
+/// An AprilTag 36h11 marker lying on a surface. size_m is the side of its black border square
+/// (the size cv::aruco reports); a two-cell white margin is drawn around it.
+struct Marker {
+  int id = 0;
+  Eigen::Vector3d center_world_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal_world = Eigen::Vector3d::UnitZ();  ///< out of the surface.
+  double size_m = 0.2;
+  double rotation_rad = 0.0;  ///< about the normal, from the default "up" direction.
+};
+
+/// Finite rectangle: centre, unit normal, in-plane axes u, v with half extents.
+struct Rectangle {
+  Eigen::Vector3d center_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d axis_u = Eigen::Vector3d::UnitX();
+  Eigen::Vector3d axis_v = Eigen::Vector3d::UnitY();
+  double half_u_m = 1.0;
+  double half_v_m = 1.0;
+  Texture texture;
+};
+
+/// Box yawed about the world z axis.
+struct Box {
+  Eigen::Vector3d center_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d size_m = Eigen::Vector3d::Ones();
+  double yaw_rad = 0.0;
+  Texture texture;
+};
+
+/// Vertical cylinder standing on z = base_z_m.
+struct Cylinder {
+  Eigen::Vector2d center_m = Eigen::Vector2d::Zero();
+  double radius_m = 0.2;
+  double base_z_m = 0.0;
+  double height_m = 1.0;
+  Texture texture;
+};
+
+struct World {
+  std::string name;
+  std::uint64_t seed = 1;       ///< default seed of runs in this world.
+  Rectangle floor;              ///< z = 0, normal +z.
+  std::vector<Rectangle> walls;
+  std::vector<Box> boxes;
+  std::vector<Cylinder> cylinders;
+  std::vector<Marker> markers;
+  Eigen::Vector3d start_world_m = Eigen::Vector3d::Zero();  ///< vehicle position on the floor.
+  double start_yaw_rad = 0.0;   ///< yaw of the vehicle (NED heading from world x) at start.
+};
+
+/// Loads a world file (strict: unknown keys rejected, ranges checked). Throws hq::InputError
+/// naming the file and the key, e.g. `arena.yaml: boxes[0].size_m[2] = -1, expected > 0`.
+World load_world(const std::string& path);
+
+/// Signed distance (m) from a point to the nearest obstacle surface (walls, boxes, cylinders;
+/// the floor is excluded: ground contact handles it). Negative inside a box or cylinder.
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m);
+
+}  // namespace hq::sim

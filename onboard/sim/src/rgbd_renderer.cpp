@@ -1,0 +1,535 @@
+#include "hq/sim/rgbd_renderer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <opencv2/aruco.hpp>
+
+#include "hq/base/error.hpp"
+
+namespace hq::sim {
+
+namespace {
+
+constexpr float kNoHit = std::numeric_limits<float>::infinity();
+constexpr float kMinT = 1e-4f;
+// 8 cells of AprilTag 36h11 (6 data + black border) plus a 2-cell white quiet zone on each
+// side: with only one cell against a dark wall cv::aruco's adaptive threshold misses the tag.
+constexpr int kTagCells = 12;
+constexpr int kTagMargin = 2;
+constexpr float kTagBlackAlbedo = 0.08f;
+constexpr float kTagWhiteAlbedo = 0.92f;
+
+using Vec3f = Eigen::Vector3f;
+
+/// Marker bitmap placed on a surface: (s, t) surface coordinates -> cell (col, row).
+struct SurfaceMarker {
+  float s0 = 0.0f, t0 = 0.0f;       // marker centre in surface coordinates
+  float a00 = 0.0f, a01 = 0.0f;     // col = a00 ds + a01 dt + kTagCells / 2
+  float a10 = 0.0f, a11 = 0.0f;     // row = a10 ds + a11 dt + kTagCells / 2
+  float reach = 0.0f;               // |ds|, |dt| beyond this cannot be on the tag
+  Vec3f normal_world = Vec3f::UnitZ();
+  Vec3f center_world = Vec3f::Zero();
+  bool visible = false;             // per frame: the camera sees the printed side
+  std::uint8_t cells[kTagCells * kTagCells] = {};  // 1 = white
+};
+
+/// A planar patch that can carry markers: a rectangle or one face of a box.
+struct Surface {
+  const Texture* texture = nullptr;
+  std::vector<int> markers;  // indices into Scene::markers
+};
+
+struct RectC {  // rectangle, per frame in camera coordinates
+  Vec3f n_c, u_c, v_c;
+  float n_dot_c = 0, u_dot_c = 0, v_dot_c = 0;
+  float half_u = 0, half_v = 0;
+  float shade = 1.0f;
+  int surface = 0;
+};
+
+struct BoxC {
+  Eigen::Matrix3f R_local_camera;
+  Vec3f o_local;       // camera origin in box coordinates
+  Vec3f half;
+  float face_shade[6] = {};  // +x -x +y -y +z -z
+  Vec3f face_normal_c[6];
+  int surface0 = 0;          // first of six surfaces
+};
+
+struct CylinderC {
+  float ox = 0, oy = 0, oz = 0;  // camera origin relative to the base centre (world axes)
+  float radius = 0, height = 0;
+  float top_shade = 1.0f;
+  const Texture* texture = nullptr;
+};
+
+enum class HitKind { kNone, kRect, kBox, kCylinderSide, kCylinderTop };
+
+struct Hit {
+  float t = kNoHit;
+  HitKind kind = HitKind::kNone;
+  int index = 0;
+  int face = 0;
+  float s = 0, u = 0;  // surface coordinates
+};
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+/// Standard normal from one 64-bit hash: Irwin-Hall sum of four 16-bit uniforms (variance
+/// 1/3 scaled to 1). Cheaper than Box-Muller per pixel and bounded at +-3.5 sigma.
+float gaussian_from_hash(std::uint64_t h) {
+  constexpr float kInv = 1.0f / 65536.0f;
+  const float sum = static_cast<float>(h & 0xffff) + static_cast<float>((h >> 16) & 0xffff) +
+                    static_cast<float>((h >> 32) & 0xffff) + static_cast<float>(h >> 48);
+  return (sum * kInv - 2.0f) * 1.7320508f;
+}
+
+}  // namespace
+
+struct RgbdRenderer::Scene {
+  std::vector<Rectangle> rects_world;   // floor first, then walls
+  std::vector<Box> boxes_world;
+  std::vector<Cylinder> cylinders_world;
+  std::vector<Surface> surfaces;        // rects, then 6 per box
+  std::vector<SurfaceMarker> markers;
+  std::vector<RectC> rects;
+  std::vector<BoxC> boxes;
+  std::vector<CylinderC> cylinders;
+};
+
+geometry::PinholeCamera pinhole_from_fov(int width, int height, double hfov_rad) {
+  geometry::PinholeCamera camera;
+  camera.width = width;
+  camera.height = height;
+  camera.fx = 0.5 * width / std::tan(0.5 * hfov_rad);
+  camera.fy = camera.fx;
+  camera.cx = 0.5 * (width - 1);
+  camera.cy = 0.5 * (height - 1);
+  return camera;
+}
+
+namespace {
+
+Eigen::Matrix3d box_R_world_local(const Box& box) {
+  return Eigen::AngleAxisd(box.yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+/// Surface frame (origin, normal, s axis, t axis) of face f of a box, in world coordinates.
+void box_face_frame(const Box& box, int face, Eigen::Vector3d& origin, Eigen::Vector3d& normal,
+                    Eigen::Vector3d& axis_s, Eigen::Vector3d& axis_t) {
+  const Eigen::Matrix3d R = box_R_world_local(box);
+  const int axis = face / 2;
+  const double sign = (face % 2 == 0) ? 1.0 : -1.0;
+  normal = sign * R.col(axis);
+  origin = box.center_m + normal * 0.5 * box.size_m[axis];
+  // Surface coordinates are the two other local coordinates, matching the hit computation.
+  const int a = axis == 0 ? 1 : 0;
+  const int b = axis == 2 ? 1 : 2;
+  axis_s = R.col(a);
+  axis_t = R.col(b);
+}
+
+bool on_plane(const Eigen::Vector3d& origin, const Eigen::Vector3d& normal,
+              const Eigen::Vector3d& axis_s, const Eigen::Vector3d& axis_t, double half_s,
+              double half_t, const Marker& m) {
+  const Eigen::Vector3d d = m.center_world_m - origin;
+  return std::abs(d.dot(normal)) < 0.01 && std::abs(m.normal_world.dot(normal)) > 0.99 &&
+         std::abs(d.dot(axis_s)) <= half_s + 1e-6 && std::abs(d.dot(axis_t)) <= half_t + 1e-6;
+}
+
+SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
+                          const Eigen::Vector3d& axis_s, const Eigen::Vector3d& axis_t,
+                          const cv::Ptr<cv::aruco::Dictionary>& dictionary) {
+  SurfaceMarker sm;
+  const Eigen::Vector3d& n = m.normal_world;
+  // Default "up" of the printed tag: world z on walls, world x on horizontal surfaces.
+  Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ();
+  up = (up - up.dot(n) * n).normalized();
+  up = Eigen::AngleAxisd(m.rotation_rad, n) * up;
+  // Seen from the side n points to (x right, y up, z = n towards the viewer): right = up x n.
+  const Eigen::Vector3d right = up.cross(n);
+  const Eigen::Vector3d down = -up;
+  const double cell_m = m.size_m / 8.0;
+  const Eigen::Vector3d d = m.center_world_m - origin;
+  sm.s0 = static_cast<float>(d.dot(axis_s));
+  sm.t0 = static_cast<float>(d.dot(axis_t));
+  sm.a00 = static_cast<float>(axis_s.dot(right) / cell_m);
+  sm.a01 = static_cast<float>(axis_t.dot(right) / cell_m);
+  sm.a10 = static_cast<float>(axis_s.dot(down) / cell_m);
+  sm.a11 = static_cast<float>(axis_t.dot(down) / cell_m);
+  sm.reach = static_cast<float>(cell_m * kTagCells * 0.7072);
+  sm.normal_world = n.cast<float>();
+  sm.center_world = m.center_world_m.cast<float>();
+
+  cv::Mat tag;
+  dictionary->drawMarker(m.id, 8, tag, 1);  // one pixel per cell: 6x6 code + black border
+  for (int r = 0; r < kTagCells; ++r) {
+    for (int c = 0; c < kTagCells; ++c) {
+      const int tr = r - kTagMargin;
+      const int tc = c - kTagMargin;
+      const bool margin = tr < 0 || tc < 0 || tr >= 8 || tc >= 8;
+      sm.cells[r * kTagCells + c] = margin ? 1 : (tag.at<std::uint8_t>(tr, tc) > 127);
+    }
+  }
+  return sm;
+}
+
+}  // namespace
+
+RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::uint64_t seed)
+    : params_(params), seed_(seed), scene_(std::make_unique<Scene>()) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  const int n = cam.width * cam.height;
+  ray_c_.resize(static_cast<std::size_t>(3 * n));
+  for (int v = 0; v < cam.height; ++v) {
+    for (int u = 0; u < cam.width; ++u) {
+      const double x = (u - cam.cx) / cam.fx;
+      const double y = (v - cam.cy) / cam.fy;
+      const std::size_t i = static_cast<std::size_t>(3 * (v * cam.width + u));
+      ray_c_[i] = static_cast<float>(x);
+      ray_c_[i + 1] = static_cast<float>(y);
+      ray_c_[i + 2] = static_cast<float>(1.0 / std::sqrt(x * x + y * y + 1.0));
+    }
+  }
+  true_depth_m_.create(cam.height, cam.width, CV_32F);
+
+  Scene& sc = *scene_;
+  sc.rects_world.push_back(world.floor);
+  sc.rects_world.insert(sc.rects_world.end(), world.walls.begin(), world.walls.end());
+  sc.boxes_world = world.boxes;
+  sc.cylinders_world = world.cylinders;
+  for (const Rectangle& r : sc.rects_world) {
+    Surface s;
+    s.texture = &r.texture;
+    sc.surfaces.push_back(s);
+  }
+  for (const Box& b : sc.boxes_world) {
+    for (int f = 0; f < 6; ++f) {
+      Surface s;
+      s.texture = &b.texture;
+      sc.surfaces.push_back(s);
+    }
+  }
+  sc.rects.resize(sc.rects_world.size());
+  sc.boxes.resize(sc.boxes_world.size());
+  sc.cylinders.resize(sc.cylinders_world.size());
+  for (std::size_t i = 0; i < sc.rects_world.size(); ++i) sc.rects[i].surface = static_cast<int>(i);
+  for (std::size_t i = 0; i < sc.boxes_world.size(); ++i) {
+    sc.boxes[i].surface0 = static_cast<int>(sc.rects_world.size() + 6 * i);
+  }
+  for (std::size_t i = 0; i < sc.cylinders_world.size(); ++i) {
+    sc.cylinders[i].texture = &sc.cylinders_world[i].texture;
+  }
+
+  const cv::Ptr<cv::aruco::Dictionary> dictionary =
+      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
+  for (std::size_t k = 0; k < world.markers.size(); ++k) {
+    const Marker& m = world.markers[k];
+    int surface = -1;
+    Eigen::Vector3d origin, normal, axis_s, axis_t;
+    for (std::size_t i = 0; i < sc.rects_world.size() && surface < 0; ++i) {
+      const Rectangle& r = sc.rects_world[i];
+      if (on_plane(r.center_m, r.normal, r.axis_u, r.axis_v, r.half_u_m, r.half_v_m, m)) {
+        surface = static_cast<int>(i);
+        origin = r.center_m;
+        axis_s = r.axis_u;
+        axis_t = r.axis_v;
+      }
+    }
+    for (std::size_t i = 0; i < sc.boxes_world.size() && surface < 0; ++i) {
+      const Box& b = sc.boxes_world[i];
+      for (int f = 0; f < 6 && surface < 0; ++f) {
+        box_face_frame(b, f, origin, normal, axis_s, axis_t);
+        const int a = f / 2 == 0 ? 1 : 0;
+        const int c = f / 2 == 2 ? 1 : 2;
+        if (on_plane(origin, normal, axis_s, axis_t, 0.5 * b.size_m[a], 0.5 * b.size_m[c], m) &&
+            m.normal_world.dot(normal) > 0.0) {
+          surface = sc.boxes[i].surface0 + f;
+        }
+      }
+    }
+    if (surface < 0) {
+      throw InputError("markers[" + std::to_string(k) + "] (id " + std::to_string(m.id) +
+                       "): centre lies on no wall, floor or box face with that normal");
+    }
+    sc.markers.push_back(make_marker(m, origin, axis_s, axis_t, dictionary));
+    sc.surfaces[static_cast<std::size_t>(surface)].markers.push_back(
+        static_cast<int>(sc.markers.size() - 1));
+  }
+}
+
+RgbdRenderer::~RgbdRenderer() = default;
+
+void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+                          cv::Mat& image, cv::Mat& depth_m) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
+  depth_m.create(cam.height, cam.width, CV_32F);
+  Scene& sc = *scene_;
+
+  // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
+  const Eigen::Matrix3d R_camera_world = T_world_camera.linear().transpose();
+  const Eigen::Vector3d o_world = T_world_camera.translation();
+  const Eigen::Vector3d light = params_.light_dir_world.normalized();
+  const auto lambert = [&](const Eigen::Vector3d& n_world) {
+    return static_cast<float>(params_.ambient + params_.diffuse * std::max(0.0, n_world.dot(light)));
+  };
+  for (std::size_t i = 0; i < sc.rects.size(); ++i) {
+    const Rectangle& r = sc.rects_world[i];
+    RectC& rc = sc.rects[i];
+    const Eigen::Vector3d c_c = R_camera_world * (r.center_m - o_world);
+    Eigen::Vector3d n_world = r.normal;
+    if (n_world.dot(o_world - r.center_m) < 0.0) n_world = -n_world;  // the side we see
+    rc.n_c = (R_camera_world * n_world).cast<float>();
+    rc.u_c = (R_camera_world * r.axis_u).cast<float>();
+    rc.v_c = (R_camera_world * r.axis_v).cast<float>();
+    rc.n_dot_c = rc.n_c.dot(c_c.cast<float>());
+    rc.u_dot_c = rc.u_c.dot(c_c.cast<float>());
+    rc.v_dot_c = rc.v_c.dot(c_c.cast<float>());
+    rc.half_u = static_cast<float>(r.half_u_m);
+    rc.half_v = static_cast<float>(r.half_v_m);
+    rc.shade = lambert(n_world);
+  }
+  for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
+    const Box& b = sc.boxes_world[i];
+    BoxC& bc = sc.boxes[i];
+    const Eigen::Matrix3d R_world_local = box_R_world_local(b);
+    bc.R_local_camera = (R_world_local.transpose() * T_world_camera.linear()).cast<float>();
+    bc.o_local = (R_world_local.transpose() * (o_world - b.center_m)).cast<float>();
+    bc.half = (0.5 * b.size_m).cast<float>();
+    for (int f = 0; f < 6; ++f) {
+      const Eigen::Vector3d n_world = (f % 2 == 0 ? 1.0 : -1.0) * R_world_local.col(f / 2);
+      bc.face_shade[f] = lambert(n_world);
+      bc.face_normal_c[f] = (R_camera_world * n_world).cast<float>();
+    }
+  }
+  for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
+    const Cylinder& c = sc.cylinders_world[i];
+    CylinderC& cc = sc.cylinders[i];
+    cc.ox = static_cast<float>(o_world.x() - c.center_m.x());
+    cc.oy = static_cast<float>(o_world.y() - c.center_m.y());
+    cc.oz = static_cast<float>(o_world.z() - c.base_z_m);
+    cc.radius = static_cast<float>(c.radius_m);
+    cc.height = static_cast<float>(c.height_m);
+    cc.top_shade = lambert(Eigen::Vector3d::UnitZ());
+  }
+  for (SurfaceMarker& m : sc.markers) {
+    m.visible = m.normal_world.dot(o_world.cast<float>() - m.center_world) > 0.0f;
+  }
+  const Eigen::Matrix3f R_world_camera = T_world_camera.linear().cast<float>();
+  const Vec3f light_f = light.cast<float>();
+
+  const DepthSensorParams& dp = params_.depth;
+  const float fb = static_cast<float>(dp.disparity_focal_px * dp.baseline_m);
+  const float sigma_disparity = static_cast<float>(dp.noise_sigma_per_m2) * fb;  // sigma_z = k z^2
+  const float subpixels = static_cast<float>(dp.disparity_subpixels);
+  const float min_range = static_cast<float>(dp.min_range_m);
+  const float max_range = static_cast<float>(dp.max_range_m);
+  const float cos_grazing = static_cast<float>(std::cos(dp.grazing_max_rad));
+  const float dark = static_cast<float>(dp.dark_albedo);
+  const float image_sigma = static_cast<float>(params_.image_noise_sigma);
+  const std::uint64_t frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
+  const int channels = params_.gray ? 1 : 3;
+
+  for (int v = 0; v < cam.height; ++v) {
+    std::uint8_t* out = image.ptr<std::uint8_t>(v);
+    float* depth_row = depth_m.ptr<float>(v);
+    float* true_row = true_depth_m_.ptr<float>(v);
+    for (int u = 0; u < cam.width; ++u) {
+      const int pixel = v * cam.width + u;
+      const float* ray = &ray_c_[static_cast<std::size_t>(3 * pixel)];
+      const Vec3f d(ray[0], ray[1], 1.0f);
+      Hit hit;
+
+      for (std::size_t i = 0; i < sc.rects.size(); ++i) {
+        const RectC& r = sc.rects[i];
+        const float denom = r.n_c.dot(d);
+        if (denom > -1e-6f) continue;  // parallel or seen from behind (n faces the camera)
+        const float t = r.n_dot_c / denom;
+        if (t < kMinT || t >= hit.t) continue;
+        const float s = t * r.u_c.dot(d) - r.u_dot_c;
+        if (std::abs(s) > r.half_u) continue;
+        const float w = t * r.v_c.dot(d) - r.v_dot_c;
+        if (std::abs(w) > r.half_v) continue;
+        hit = Hit{t, HitKind::kRect, static_cast<int>(i), 0, s, w};
+      }
+      for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
+        const BoxC& b = sc.boxes[i];
+        const Vec3f dl = b.R_local_camera * d;
+        float t_near = -kNoHit;
+        float t_far = kNoHit;
+        int axis = 0;
+        for (int k = 0; k < 3; ++k) {
+          const float inv = 1.0f / dl[k];
+          float t0 = (-b.half[k] - b.o_local[k]) * inv;
+          float t1 = (b.half[k] - b.o_local[k]) * inv;
+          if (t0 > t1) std::swap(t0, t1);
+          if (t0 > t_near) {
+            t_near = t0;
+            axis = k;
+          }
+          t_far = std::min(t_far, t1);
+        }
+        if (t_near > t_far || t_near < kMinT || t_near >= hit.t) continue;
+        const Vec3f p = b.o_local + t_near * dl;
+        const int face = 2 * axis + (dl[axis] < 0.0f ? 0 : 1);  // entering through +axis
+        const int a = axis == 0 ? 1 : 0;
+        const int c = axis == 2 ? 1 : 2;
+        hit = Hit{t_near, HitKind::kBox, static_cast<int>(i), face, p[a], p[c]};
+      }
+      if (!sc.cylinders.empty()) {
+        const Vec3f dw = R_world_camera * d;
+        for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
+          const CylinderC& c = sc.cylinders[i];
+          const float a = dw.x() * dw.x() + dw.y() * dw.y();
+          const float b = c.ox * dw.x() + c.oy * dw.y();
+          const float cc = c.ox * c.ox + c.oy * c.oy - c.radius * c.radius;
+          const float disc = b * b - a * cc;
+          if (a > 1e-12f && disc >= 0.0f) {
+            const float t = (-b - std::sqrt(disc)) / a;
+            const float z = c.oz + t * dw.z();
+            if (t > kMinT && t < hit.t && z >= 0.0f && z <= c.height) {
+              const float angle = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x());
+              hit = Hit{t, HitKind::kCylinderSide, static_cast<int>(i), 0, angle * c.radius, z};
+            }
+          }
+          if (dw.z() < -1e-6f && c.oz > c.height) {
+            const float t = (c.height - c.oz) / dw.z();
+            const float x = c.ox + t * dw.x();
+            const float y = c.oy + t * dw.y();
+            if (t > kMinT && t < hit.t && x * x + y * y <= c.radius * c.radius) {
+              hit = Hit{t, HitKind::kCylinderTop, static_cast<int>(i), 0, x, y};
+            }
+          }
+        }
+      }
+
+      float pixel_value[3] = {0.0f, 0.0f, 0.0f};
+      float z_true = 0.0f;
+      float depth = 0.0f;
+      if (hit.kind != HitKind::kNone) {
+        const Texture* texture = nullptr;
+        const Surface* surface = nullptr;
+        float shade = 1.0f;
+        float cos_incidence = 1.0f;
+        switch (hit.kind) {
+          case HitKind::kRect: {
+            const RectC& r = sc.rects[static_cast<std::size_t>(hit.index)];
+            surface = &sc.surfaces[static_cast<std::size_t>(r.surface)];
+            shade = r.shade;
+            cos_incidence = -r.n_c.dot(d) * ray[2];
+            break;
+          }
+          case HitKind::kBox: {
+            const BoxC& b = sc.boxes[static_cast<std::size_t>(hit.index)];
+            surface = &sc.surfaces[static_cast<std::size_t>(b.surface0 + hit.face)];
+            shade = b.face_shade[hit.face];
+            cos_incidence = -b.face_normal_c[hit.face].dot(d) * ray[2];
+            break;
+          }
+          case HitKind::kCylinderSide: {
+            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
+            texture = c.texture;
+            const float angle = hit.s / c.radius;
+            const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
+            const Vec3f dw = R_world_camera * d;
+            shade = static_cast<float>(params_.ambient) +
+                    static_cast<float>(params_.diffuse) * std::max(0.0f, n.dot(light_f));
+            cos_incidence = -n.dot(dw) * ray[2];
+            break;
+          }
+          case HitKind::kCylinderTop: {
+            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
+            texture = c.texture;
+            shade = c.top_shade;
+            cos_incidence = -(R_world_camera * d).z() * ray[2];
+            break;
+          }
+          case HitKind::kNone:
+            break;
+        }
+        if (surface != nullptr) texture = surface->texture;
+        Vec3f albedo = texture->albedo(hit.s, hit.u);
+        if (surface != nullptr) {
+          for (int k : surface->markers) {
+            const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(k)];
+            const float ds = hit.s - m.s0;
+            const float dt = hit.u - m.t0;
+            if (!m.visible || std::abs(ds) > m.reach || std::abs(dt) > m.reach) continue;
+            const float col = m.a00 * ds + m.a01 * dt + 0.5f * kTagCells;
+            const float row = m.a10 * ds + m.a11 * dt + 0.5f * kTagCells;
+            if (col < 0.0f || row < 0.0f || col >= kTagCells || row >= kTagCells) continue;
+            const bool white =
+                m.cells[static_cast<int>(row) * kTagCells + static_cast<int>(col)] != 0;
+            albedo.setConstant(white ? kTagWhiteAlbedo : kTagBlackAlbedo);
+            break;
+          }
+        }
+        for (int k = 0; k < 3; ++k) pixel_value[k] = 255.0f * shade * albedo[k];
+
+        z_true = hit.t;
+        const float luminance = (albedo[0] + albedo[1] + albedo[2]) * (1.0f / 3.0f);
+        if (luminance >= dark && cos_incidence >= cos_grazing) {
+          // Structured light measures disparity fb / z: Gaussian disparity noise and sub-pixel
+          // quantisation make sigma_z grow with z^2 (Khoshelham 2012, eq. 9).
+          float disparity = fb / z_true;
+          if (sigma_disparity > 0.0f) {
+            disparity += sigma_disparity *
+                         gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel)));
+          }
+          if (subpixels > 0.0f) disparity = std::round(disparity * subpixels) / subpixels;
+          if (disparity > 0.0f) {
+            const float z = fb / disparity;
+            depth = (z >= min_range && z <= max_range) ? z : 0.0f;
+          }
+        }
+      }
+      true_row[u] = z_true;
+      depth_row[u] = depth;
+      const float noise =
+          image_sigma > 0.0f
+              ? image_sigma * gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel + 1ull)))
+              : 0.0f;
+      for (int k = 0; k < channels; ++k) {
+        const float value = channels == 1 ? 0.114f * pixel_value[0] + 0.587f * pixel_value[1] +
+                                                0.299f * pixel_value[2]
+                                          : pixel_value[k];
+        out[channels * u + k] = static_cast<std::uint8_t>(std::clamp(value + noise + 0.5f, 0.0f, 255.0f));
+      }
+    }
+  }
+
+  // Structured light loses the pattern at depth discontinuities. On any plane inverse depth is
+  // affine in the pixel coordinates, so its second difference vanishes (however oblique the
+  // plane); a jump makes it large. Pixels on both sides of a jump, and next to empty space
+  // (inverse depth 0), lose their depth. Image borders are left alone.
+  const float jump = static_cast<float>(dp.edge_jump_ratio);
+  if (jump > 0.0f) {
+    const auto inverse = [](float z) { return z > 0.0f ? 1.0f / z : 0.0f; };
+    for (int v = 1; v + 1 < cam.height; ++v) {
+      float* depth_row = depth_m.ptr<float>(v);
+      const float* row = true_depth_m_.ptr<float>(v);
+      const float* up = true_depth_m_.ptr<float>(v - 1);
+      const float* down = true_depth_m_.ptr<float>(v + 1);
+      for (int u = 1; u + 1 < cam.width; ++u) {
+        if (depth_row[u] == 0.0f) continue;
+        const float w = 1.0f / row[u];
+        const float limit = jump * w;
+        if (std::abs(inverse(row[u - 1]) + inverse(row[u + 1]) - 2.0f * w) > limit ||
+            std::abs(inverse(up[u]) + inverse(down[u]) - 2.0f * w) > limit) {
+          depth_row[u] = 0.0f;
+        }
+      }
+    }
+  }
+}
+
+}  // namespace hq::sim

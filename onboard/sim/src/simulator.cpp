@@ -1,0 +1,270 @@
+#include "hq/sim/simulator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::sim {
+
+namespace {
+constexpr double kGravityMps2 = 9.81;
+constexpr double kPi = 3.14159265358979323846;
+
+/// Camera optical axes (x right, y down, z forward) in a level forward-looking body NED frame.
+Eigen::Matrix3d R_body_optical() {
+  Eigen::Matrix3d R;
+  R << 0.0, 0.0, 1.0,  //
+      1.0, 0.0, 0.0,   //
+      0.0, 1.0, 0.0;
+  return R;
+}
+
+/// T_body_camera of a camera turned yaw_right about body z (down), tilted down by tilt_down
+/// and rolled about its optical axis (core paper §2: 45 deg right, 30 deg down).
+Eigen::Isometry3d make_T_body_camera(const Eigen::Vector3d& p_body_camera_m, double yaw_right_rad,
+                                     double tilt_down_rad, double optical_roll_rad) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw_right_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+               Eigen::AngleAxisd(-tilt_down_rad, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+               R_body_optical() *
+               Eigen::AngleAxisd(optical_roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = p_body_camera_m;
+  return T;
+}
+
+void read_vec3(config::StrictMap& map, const std::string& key, Eigen::Vector3d& v) {
+  double values[3] = {v.x(), v.y(), v.z()};
+  map.read_list(key, values, 3);
+  v = Eigen::Vector3d(values[0], values[1], values[2]);
+}
+}  // namespace
+
+SimConfig default_sim_config(int width, int height) {
+  SimConfig config;
+  config.camera.pinhole = pinhole_from_fov(width, height, 58.0 * kPi / 180.0);  // Xtion: 58 deg
+  config.camera.T_body_camera =
+      make_T_body_camera(Eigen::Vector3d(0.12, 0.0, 0.05), 45.0 * kPi / 180.0,
+                         30.0 * kPi / 180.0, 0.0);
+  return config;
+}
+
+void read_config(config::StrictMap& section, SimConfig& out) {
+  section.read_positive("dynamics_rate_hz", out.dynamics_rate_hz, 100000.0);
+  if (out.dynamics_rate_hz < 500.0) {
+    throw InputError(section.describe("dynamics_rate_hz") + " = " +
+                     std::to_string(out.dynamics_rate_hz) + ", expected >= 500");
+  }
+  section.read_positive("vehicle_radius_m", out.vehicle_radius_m, 5.0);
+  int seed = static_cast<int>(out.seed);
+  section.read("seed", seed, 0, 2147483647);
+  out.seed = static_cast<std::uint64_t>(seed);
+
+  {
+    config::StrictMap v = section.child("vehicle");
+    QuadrotorParams& p = out.vehicle;
+    v.read_positive("mass_kg", p.mass_kg, 100.0);
+    read_vec3(v, "inertia_kgm2", p.inertia_kgm2);
+    if (!(p.inertia_kgm2.minCoeff() > 0.0)) {
+      throw InputError(v.describe("inertia_kgm2") + " has a value <= 0, expected > 0");
+    }
+    v.read_positive("arm_length_m", p.arm_length_m, 5.0);
+    v.read_positive("thrust_coefficient", p.thrust_coefficient, 1.0);
+    v.read_positive("torque_coefficient", p.torque_coefficient, 1.0);
+    v.read_positive("max_rotor_speed_radps", p.max_rotor_speed_radps, 1e5);
+    v.read_positive("motor_time_constant_s", p.motor_time_constant_s, 10.0);
+    v.read("linear_drag_nspm", p.linear_drag_nspm, 0.0, 100.0);
+    v.read("rest_height_m", p.rest_height_m, 0.0, 5.0);
+    v.read_positive("attitude_natural_hz", p.attitude_natural_hz, 100.0);
+    v.read_positive("attitude_damping", p.attitude_damping, 10.0);
+    v.read_positive("yaw_rate_gain_per_s", p.yaw_rate_gain_per_s, 1000.0);
+    v.read_deg_as_rad("max_tilt_deg", p.max_tilt_rad, 1.0, 80.0);
+    read_vec3(v, "wind_mean_mps", p.wind_mean_mps);
+    v.read("gust_sigma_mps", p.gust_sigma_mps, 0.0, 20.0);
+    v.read_positive("gust_time_constant_s", p.gust_time_constant_s, 1000.0);
+    v.finish();
+    const double max_thrust_n = 4.0 * p.thrust_coefficient * p.max_rotor_speed_radps *
+                                p.max_rotor_speed_radps;
+    if (max_thrust_n < 1.2 * p.mass_kg * kGravityMps2) {
+      throw InputError(v.describe("max_rotor_speed_radps") + " = " +
+                       std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
+                       std::to_string(max_thrust_n) + " N, expected >= 1.2 * weight");
+    }
+  }
+  {
+    config::StrictMap m = section.child("imu");
+    ImuParams& p = out.imu;
+    m.read("rate_hz", p.rate_hz, 200.0, 500.0);
+    m.read("gyro_noise_density", p.gyro_noise_density, 0.0, 1.0);
+    m.read("gyro_random_walk", p.gyro_random_walk, 0.0, 1.0);
+    m.read("accel_noise_density", p.accel_noise_density, 0.0, 10.0);
+    m.read("accel_random_walk", p.accel_random_walk, 0.0, 10.0);
+    m.read("gyro_initial_bias_sigma_radps", p.gyro_initial_bias_sigma_radps, 0.0, 1.0);
+    m.read("accel_initial_bias_sigma_mps2", p.accel_initial_bias_sigma_mps2, 0.0, 5.0);
+    const double ratio = out.dynamics_rate_hz / p.rate_hz;
+    if (std::abs(ratio - std::round(ratio)) > 1e-9) {
+      throw InputError(m.describe("rate_hz") + " = " + std::to_string(p.rate_hz) +
+                       ", expected a divisor of dynamics_rate_hz = " +
+                       std::to_string(out.dynamics_rate_hz));
+    }
+    m.finish();
+  }
+  {
+    config::StrictMap c = section.child("camera");
+    CameraParams& p = out.camera;
+    int width = p.pinhole.width;
+    int height = p.pinhole.height;
+    double hfov_rad = 2.0 * std::atan(0.5 * width / p.pinhole.fx);
+    c.read("width", width, 16, 4096);
+    c.read("height", height, 16, 4096);
+    c.read_deg_as_rad("hfov_deg", hfov_rad, 10.0, 170.0);
+    p.pinhole = pinhole_from_fov(width, height, hfov_rad);
+    c.read_positive("rate_hz", p.rate_hz, 1000.0);
+    c.read("gray", p.gray);
+    c.read("image_noise_sigma", p.image_noise_sigma, 0.0, 50.0);
+    c.read("ambient", p.ambient, 0.0, 1.0);
+    c.read("diffuse", p.diffuse, 0.0, 1.0);
+    {
+      config::StrictMap t = c.child("T_body_camera");
+      Eigen::Vector3d p_body_camera_m = p.T_body_camera.translation();
+      double yaw_right_rad = 45.0 * kPi / 180.0;
+      double tilt_down_rad = 30.0 * kPi / 180.0;
+      double optical_roll_rad = 0.0;
+      read_vec3(t, "p_body_camera_m", p_body_camera_m);
+      t.read_deg_as_rad("yaw_right_deg", yaw_right_rad, -180.0, 180.0);
+      t.read_deg_as_rad("tilt_down_deg", tilt_down_rad, -90.0, 90.0);
+      t.read_deg_as_rad("optical_roll_deg", optical_roll_rad, -180.0, 180.0);
+      t.finish();
+      p.T_body_camera =
+          make_T_body_camera(p_body_camera_m, yaw_right_rad, tilt_down_rad, optical_roll_rad);
+    }
+    {
+      config::StrictMap d = c.child("depth");
+      DepthSensorParams& q = p.depth;
+      d.read("min_range_m", q.min_range_m, 0.0, 100.0);
+      d.read_positive("max_range_m", q.max_range_m, 100.0);
+      if (q.max_range_m <= q.min_range_m) {
+        throw InputError(d.describe("max_range_m") + " = " + std::to_string(q.max_range_m) +
+                         ", expected > min_range_m = " + std::to_string(q.min_range_m));
+      }
+      d.read("noise_sigma_per_m2", q.noise_sigma_per_m2, 0.0, 1.0);
+      d.read_positive("baseline_m", q.baseline_m, 10.0);
+      d.read_positive("disparity_focal_px", q.disparity_focal_px, 1e5);
+      d.read("disparity_subpixels", q.disparity_subpixels, 0, 1024);
+      d.read("edge_jump_ratio", q.edge_jump_ratio, 0.0, 10.0);
+      d.read("dark_albedo", q.dark_albedo, 0.0, 1.0);
+      d.read_deg_as_rad("grazing_max_deg", q.grazing_max_rad, 0.0, 90.0);
+      d.finish();
+    }
+    c.finish();
+  }
+  section.finish();
+}
+
+SimConfig load_sim_config(const std::string& path) {
+  const YAML::Node root = config::load_yaml_file(path);
+  config::StrictMap map(root, path);
+  SimConfig config = default_sim_config();
+  read_config(map, config);
+  return config;
+}
+
+Simulator::Simulator(const SimConfig& config, const World& world)
+    : config_(config),
+      world_(world),
+      vehicle_(config.vehicle, config.seed * 3u + 1u),
+      imu_(config.imu, config.seed * 3u + 2u),
+      renderer_(config.camera, world_, config.seed * 3u + 3u) {
+  step_ns_ = std::llround(1e9 / config_.dynamics_rate_hz);
+  imu_decimation_ = static_cast<int>(std::lround(config_.dynamics_rate_hz / config_.imu.rate_hz));
+  if (imu_decimation_ < 1 ||
+      std::abs(config_.dynamics_rate_hz / config_.imu.rate_hz - imu_decimation_) > 1e-9) {
+    throw InputError("sim config: imu.rate_hz = " + std::to_string(config_.imu.rate_hz) +
+                     ", expected a divisor of dynamics_rate_hz = " +
+                     std::to_string(config_.dynamics_rate_hz));
+  }
+  camera_period_ns_ = std::llround(1e9 / config_.camera.rate_hz);
+  imu_ring_.resize(static_cast<std::size_t>(std::ceil(config_.imu.rate_hz)));  // 1 s
+  vehicle_.reset(world_.start_world_m, world_.start_yaw_rad);
+  update_truth();
+  // The first frame is due at t = 0.
+  camera_due_ = true;
+  camera_t_ns_ = 0;
+  camera_pose_ = truth_.T_world_body * config_.camera.T_body_camera;
+  next_camera_ns_ = camera_period_ns_;
+}
+
+void Simulator::set_command(const AttitudeCommand& command) { vehicle_.set_command(command); }
+
+void Simulator::step_to(std::int64_t t_ns) {
+  while (t_ns_ + step_ns_ <= t_ns) physics_step();
+}
+
+void Simulator::physics_step() {
+  vehicle_.step(static_cast<double>(step_ns_) * 1e-9);
+  ++steps_;
+  t_ns_ += step_ns_;
+  update_truth();
+
+  if (steps_ % imu_decimation_ == 0) {
+    const QuadrotorState& s = vehicle_.state();
+    const Eigen::Matrix3d R_world_body = s.q_world_body.toRotationMatrix();
+    // Specific force: what the accelerometer feels, f = R_BW (a_W - g_W).
+    const Eigen::Vector3d f_body_mps2 =
+        R_world_body.transpose() * (s.a_world_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2));
+    const ImuSample sample = imu_.measure(t_ns_, s.omega_body_radps, f_body_mps2);
+    const std::size_t capacity = imu_ring_.size();
+    if (imu_count_ == capacity) {
+      imu_head_ = (imu_head_ + 1) % capacity;
+      --imu_count_;
+    }
+    imu_ring_[(imu_head_ + imu_count_) % capacity] = sample;
+    ++imu_count_;
+  }
+
+  if (t_ns_ >= next_camera_ns_) {
+    if (camera_due_) ++dropped_frames_;
+    camera_due_ = true;
+    camera_t_ns_ = t_ns_;
+    camera_pose_ = truth_.T_world_body * config_.camera.T_body_camera;
+    ++frame_index_;
+    while (next_camera_ns_ <= t_ns_) next_camera_ns_ += camera_period_ns_;
+  }
+}
+
+void Simulator::update_truth() {
+  const QuadrotorState& s = vehicle_.state();
+  truth_.t_ns = t_ns_;
+  truth_.T_world_body.setIdentity();
+  truth_.T_world_body.linear() = s.q_world_body.toRotationMatrix();
+  truth_.T_world_body.translation() = s.p_world_m;
+  truth_.v_world_mps = s.v_world_mps;
+  truth_.omega_body_radps = s.omega_body_radps;
+  truth_.a_world_mps2 = s.a_world_mps2;
+  truth_.euler_rad = euler_from_R_world_body(truth_.T_world_body.linear());
+  // H: NED, yaw only (core paper §3), so R_world_H = Rx(pi) Rz(psi).
+  const Eigen::Matrix3d R_world_horizontal = R_world_body_from_euler(0.0, 0.0, truth_.euler_rad.z());
+  truth_.v_horizontal_mps = R_world_horizontal.transpose() * s.v_world_mps;
+  truth_.clearance_m = distance_to_obstacles(world_, s.p_world_m) - config_.vehicle_radius_m;
+  truth_.collision = truth_.clearance_m < 0.0;
+  truth_.on_ground = s.on_ground;
+  collided_ = collided_ || truth_.collision;
+}
+
+std::size_t Simulator::take_imu(ImuSample* out, std::size_t capacity) {
+  const std::size_t n = std::min(capacity, imu_count_);
+  const std::size_t ring = imu_ring_.size();
+  for (std::size_t i = 0; i < n; ++i) out[i] = imu_ring_[(imu_head_ + i) % ring];
+  imu_head_ = (imu_head_ + n) % ring;
+  imu_count_ -= n;
+  return n;
+}
+
+void Simulator::render_camera(cv::Mat& image, cv::Mat& depth_m) {
+  renderer_.render(camera_pose_, frame_index_, image, depth_m);
+  camera_due_ = false;
+}
+
+}  // namespace hq::sim

@@ -1,0 +1,327 @@
+#include "hq/sim/world.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/Geometry>
+
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::sim {
+
+namespace {
+
+std::uint32_t hash2(std::int32_t x, std::int32_t y, std::uint32_t salt) {
+  // Integer avalanche hash (a variant of the Murmur3 finaliser) of the lattice cell.
+  std::uint32_t h = static_cast<std::uint32_t>(x) * 0x8da6b343u ^
+                    static_cast<std::uint32_t>(y) * 0xd8163841u ^ salt * 0xcb1ab31fu;
+  h ^= h >> 16;
+  h *= 0x85ebca6bu;
+  h ^= h >> 13;
+  h *= 0xc2b2ae35u;
+  h ^= h >> 16;
+  return h;
+}
+
+float lattice(std::int32_t x, std::int32_t y, std::uint32_t salt) {
+  return static_cast<float>(hash2(x, y, salt) & 0xffffu) * (1.0f / 65535.0f);
+}
+
+/// Value noise in [0, 1]: smooth interpolation of random lattice values (cell = 1 unit).
+float value_noise(float x, float y, std::uint32_t salt) {
+  const float fx = std::floor(x);
+  const float fy = std::floor(y);
+  const auto ix = static_cast<std::int32_t>(fx);
+  const auto iy = static_cast<std::int32_t>(fy);
+  float ax = x - fx;
+  float ay = y - fy;
+  ax = ax * ax * (3.0f - 2.0f * ax);
+  ay = ay * ay * (3.0f - 2.0f * ay);
+  const float v00 = lattice(ix, iy, salt);
+  const float v10 = lattice(ix + 1, iy, salt);
+  const float v01 = lattice(ix, iy + 1, salt);
+  const float v11 = lattice(ix + 1, iy + 1, salt);
+  const float a = v00 + (v10 - v00) * ax;
+  const float b = v01 + (v11 - v01) * ax;
+  return a + (b - a) * ay;
+}
+
+}  // namespace
+
+Eigen::Vector3f Texture::albedo(float s_m, float t_m) const {
+  const float inv = 1.0f / scale_m;
+  float pattern = 0.0f;
+  switch (kind) {
+    case Kind::kChecker: {
+      const auto i = static_cast<std::int32_t>(std::floor(s_m * inv)) +
+                     static_cast<std::int32_t>(std::floor(t_m * inv));
+      pattern = (i & 1) != 0 ? 1.0f : 0.0f;
+      // Fine noise inside the squares keeps photometric gradients away from the edges too.
+      pattern = 0.8f * pattern + 0.2f * value_noise(s_m * inv * 6.0f, t_m * inv * 6.0f, salt);
+      break;
+    }
+    case Kind::kNoise:
+      pattern = 0.65f * value_noise(s_m * inv, t_m * inv, salt) +
+                0.35f * value_noise(s_m * inv * 4.0f, t_m * inv * 4.0f, salt + 1u);
+      break;
+    case Kind::kStripes: {
+      const float phase = s_m * inv - std::floor(s_m * inv);
+      pattern = phase < 0.5f ? 1.0f : 0.0f;
+      pattern = 0.8f * pattern + 0.2f * value_noise(s_m * inv * 5.0f, t_m * inv * 5.0f, salt);
+      break;
+    }
+  }
+  return color_bgr * (1.0f - contrast * pattern);
+}
+
+namespace {
+
+using config::StrictMap;
+
+Texture read_texture(StrictMap map, std::uint32_t salt) {
+  Texture texture;
+  texture.salt = salt;
+  std::string type = "noise";
+  map.read("type", type, {"checker", "noise", "stripes"});
+  texture.kind = type == "checker"   ? Texture::Kind::kChecker
+                 : type == "stripes" ? Texture::Kind::kStripes
+                                     : Texture::Kind::kNoise;
+  double color[3] = {0.7, 0.7, 0.7};
+  map.read_list("color_bgr", color, 3);
+  for (int i = 0; i < 3; ++i) {
+    if (color[i] < 0.0 || color[i] > 1.0) {
+      throw InputError(map.describe("color_bgr") + "[" + std::to_string(i) +
+                       "] = " + std::to_string(color[i]) + ", expected in [0, 1]");
+    }
+    texture.color_bgr[i] = static_cast<float>(color[i]);
+  }
+  double scale_m = texture.scale_m;
+  map.read_positive("scale_m", scale_m, 100.0);
+  texture.scale_m = static_cast<float>(scale_m);
+  double contrast = texture.contrast;
+  map.read("contrast", contrast, 0.0, 1.0);
+  texture.contrast = static_cast<float>(contrast);
+  map.finish();
+  return texture;
+}
+
+void check_positive(const StrictMap& map, const std::string& key, const double* values,
+                    int count) {
+  for (int i = 0; i < count; ++i) {
+    if (!(values[i] > 0.0)) {
+      throw InputError(map.describe(key) + "[" + std::to_string(i) +
+                       "] = " + std::to_string(values[i]) + ", expected > 0");
+    }
+  }
+}
+
+YAML::Node sequence(const YAML::Node& root, const std::string& key, const std::string& path) {
+  const YAML::Node node = root[key];
+  if (!node.IsDefined() || node.IsNull()) return YAML::Node(YAML::NodeType::Sequence);
+  if (!node.IsSequence()) throw InputError(path + ": " + key + " is not a list");
+  return node;
+}
+
+Rectangle wall_between(const Eigen::Vector2d& from, const Eigen::Vector2d& to, double height_m) {
+  Rectangle wall;
+  const Eigen::Vector2d along = to - from;
+  wall.center_m = Eigen::Vector3d(0.5 * (from.x() + to.x()), 0.5 * (from.y() + to.y()),
+                                  0.5 * height_m);
+  wall.axis_u = Eigen::Vector3d(along.x(), along.y(), 0.0).normalized();
+  wall.axis_v = Eigen::Vector3d::UnitZ();
+  // Normal to the left of from -> to; walls are two-sided for rendering and distances.
+  wall.normal = Eigen::Vector3d::UnitZ().cross(wall.axis_u);
+  wall.half_u_m = 0.5 * along.norm();
+  wall.half_v_m = 0.5 * height_m;
+  return wall;
+}
+
+/// Distance from p to a rectangle (unsigned).
+double distance_to_rectangle(const Rectangle& r, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d d = p - r.center_m;
+  const double u = std::clamp(d.dot(r.axis_u), -r.half_u_m, r.half_u_m);
+  const double v = std::clamp(d.dot(r.axis_v), -r.half_v_m, r.half_v_m);
+  return (d - u * r.axis_u - v * r.axis_v).norm();
+}
+
+double distance_to_box(const Box& b, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d d = p - b.center_m;
+  const double c = std::cos(b.yaw_rad);
+  const double s = std::sin(b.yaw_rad);
+  const Eigen::Vector3d local(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+  const Eigen::Vector3d q = local.cwiseAbs() - 0.5 * b.size_m;
+  // Signed distance of a box (positive outside, negative inside).
+  return q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+}
+
+double distance_to_cylinder(const Cylinder& c, const Eigen::Vector3d& p) {
+  const double radial = (p.head<2>() - c.center_m).norm() - c.radius_m;
+  const double half_h = 0.5 * c.height_m;
+  const double axial = std::abs(p.z() - (c.base_z_m + half_h)) - half_h;
+  const Eigen::Vector2d q(radial, axial);
+  return q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+}
+
+}  // namespace
+
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m) {
+  double best = 1e9;
+  for (const Rectangle& wall : world.walls) best = std::min(best, distance_to_rectangle(wall, p_world_m));
+  for (const Box& box : world.boxes) best = std::min(best, distance_to_box(box, p_world_m));
+  for (const Cylinder& c : world.cylinders) best = std::min(best, distance_to_cylinder(c, p_world_m));
+  return best;
+}
+
+World load_world(const std::string& path) {
+  const YAML::Node root = config::load_yaml_file(path);
+  YAML::Node scalars = YAML::Clone(root);
+  const char* list_keys[] = {"walls", "boxes", "cylinders", "markers"};
+  for (const char* key : list_keys) scalars.remove(key);
+
+  World world;
+  std::uint32_t salt = 1;
+  StrictMap map(scalars, path);
+  world.name = path;
+  map.read("name", world.name, {});
+  int seed = 1;
+  map.read("seed", seed, 0, 2147483647);
+  world.seed = static_cast<std::uint64_t>(seed);
+
+  {
+    StrictMap start = map.child("start");
+    double xy[2] = {0.0, 0.0};
+    start.read_list("xy_m", xy, 2);
+    world.start_world_m = Eigen::Vector3d(xy[0], xy[1], 0.0);
+    start.read_deg_as_rad("yaw_deg", world.start_yaw_rad, -180.0, 180.0);
+    start.finish();
+  }
+  {
+    StrictMap floor = map.child("floor");
+    double half[2] = {20.0, 20.0};
+    floor.read_list("half_size_m", half, 2);
+    check_positive(floor, "half_size_m", half, 2);
+    world.floor.center_m = Eigen::Vector3d::Zero();
+    world.floor.normal = Eigen::Vector3d::UnitZ();
+    world.floor.axis_u = Eigen::Vector3d::UnitX();
+    world.floor.axis_v = Eigen::Vector3d::UnitY();
+    world.floor.half_u_m = half[0];
+    world.floor.half_v_m = half[1];
+    world.floor.texture = read_texture(floor.child("texture"), salt++);
+    floor.finish();
+  }
+
+  const YAML::Node walls = sequence(root, "walls", path);
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    StrictMap w(walls[i], path, "walls[" + std::to_string(i) + "]");
+    double from[2] = {0, 0};
+    double to[2] = {0, 0};
+    double height_m = 2.5;
+    w.require_list("from_m", from, 2);
+    w.require_list("to_m", to, 2);
+    w.read_positive("height_m", height_m, 100.0);
+    if (std::hypot(to[0] - from[0], to[1] - from[1]) < 1e-3) {
+      throw InputError(w.describe("to_m") + " equals from_m, expected a wall of length > 0");
+    }
+    Rectangle wall = wall_between({from[0], from[1]}, {to[0], to[1]}, height_m);
+    wall.texture = read_texture(w.child("texture"), salt++);
+    w.finish();
+    world.walls.push_back(wall);
+  }
+
+  const YAML::Node boxes = sequence(root, "boxes", path);
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    StrictMap b(boxes[i], path, "boxes[" + std::to_string(i) + "]");
+    Box box;
+    double center[3] = {0, 0, 0};
+    double size[3] = {1, 1, 1};
+    b.require_list("center_m", center, 3);
+    b.require_list("size_m", size, 3);
+    check_positive(b, "size_m", size, 3);
+    b.read_deg_as_rad("yaw_deg", box.yaw_rad, -180.0, 180.0);
+    box.center_m = Eigen::Vector3d(center[0], center[1], center[2]);
+    box.size_m = Eigen::Vector3d(size[0], size[1], size[2]);
+    box.texture = read_texture(b.child("texture"), salt++);
+    b.finish();
+    world.boxes.push_back(box);
+  }
+
+  const YAML::Node cylinders = sequence(root, "cylinders", path);
+  for (std::size_t i = 0; i < cylinders.size(); ++i) {
+    StrictMap c(cylinders[i], path, "cylinders[" + std::to_string(i) + "]");
+    Cylinder cyl;
+    double center[2] = {0, 0};
+    c.require_list("center_m", center, 2);
+    c.read_positive("radius_m", cyl.radius_m, 100.0);
+    c.read_positive("height_m", cyl.height_m, 100.0);
+    c.read("base_z_m", cyl.base_z_m, -10.0, 100.0);
+    cyl.center_m = Eigen::Vector2d(center[0], center[1]);
+    cyl.texture = read_texture(c.child("texture"), salt++);
+    c.finish();
+    world.cylinders.push_back(cyl);
+  }
+
+  const YAML::Node markers = sequence(root, "markers", path);
+  for (std::size_t i = 0; i < markers.size(); ++i) {
+    StrictMap m(markers[i], path, "markers[" + std::to_string(i) + "]");
+    Marker marker;
+    double center[3] = {0, 0, 0};
+    double normal[3] = {0, 0, 1};
+    m.require("id", marker.id, 0, 586);  // AprilTag 36h11 has 587 codes.
+    m.require_list("center_m", center, 3);
+    m.read_list("normal", normal, 3);
+    m.read_positive("size_m", marker.size_m, 10.0);
+    m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);
+    m.finish();
+    const Eigen::Vector3d n(normal[0], normal[1], normal[2]);
+    if (n.norm() < 1e-6) throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
+    marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
+    marker.normal_world = n.normalized();
+    world.markers.push_back(marker);
+  }
+
+  {
+    StrictMap grid = map.child("marker_grid");
+    if (grid.has("rows")) {
+      int rows = 0;
+      int cols = 0;
+      int first_id = 0;
+      double spacing_m = 0.6;
+      double size_m = 0.2;
+      double center[2] = {0, 0};
+      grid.require("rows", rows, 1, 24);
+      grid.require("cols", cols, 1, 24);
+      grid.read("first_id", first_id, 0, 586);
+      grid.read_positive("spacing_m", spacing_m, 10.0);
+      grid.read_positive("size_m", size_m, 10.0);
+      grid.read_list("center_m", center, 2);
+      if (first_id + rows * cols > 587) {
+        throw InputError(grid.describe("first_id") + " = " + std::to_string(first_id) +
+                         ", expected first_id + rows * cols <= 587 (AprilTag 36h11 codes)");
+      }
+      if (size_m * 1.5 > spacing_m) {
+        throw InputError(grid.describe("spacing_m") + " = " + std::to_string(spacing_m) +
+                         ", expected >= 1.5 * size_m so tags and their white margins do not overlap");
+      }
+      for (int r = 0; r < rows; ++r) {
+        for (int c = 0; c < cols; ++c) {
+          Marker marker;
+          marker.id = first_id + r * cols + c;
+          marker.size_m = size_m;
+          // Row index grows along world -x so that ids read like text seen from the start.
+          marker.center_world_m =
+              Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
+                              center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
+          marker.normal_world = Eigen::Vector3d::UnitZ();
+          world.markers.push_back(marker);
+        }
+      }
+    }
+    grid.finish();
+  }
+  map.finish();
+  return world;
+}
+
+}  // namespace hq::sim

@@ -1,0 +1,281 @@
+#include "hq/sim/rgbd_renderer.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/aruco.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "hq/base/error.hpp"
+
+namespace hq::sim {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr double kPi = 3.14159265358979323846;
+
+CameraParams noise_free_camera(int width, int height) {
+  CameraParams p;
+  p.pinhole = pinhole_from_fov(width, height, 60.0 * kPi / 180.0);
+  p.image_noise_sigma = 0.0;
+  p.depth.noise_sigma_per_m2 = 0.0;
+  p.depth.disparity_subpixels = 0;
+  p.depth.edge_jump_ratio = 0.0;
+  return p;
+}
+
+/// Camera at p looking along world +x (optical z), image x right = world -y, y down = world -z.
+Eigen::Isometry3d looking_north(const Eigen::Vector3d& p) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = -Eigen::Vector3d::UnitY();
+  T.linear().col(1) = -Eigen::Vector3d::UnitZ();
+  T.linear().col(2) = Eigen::Vector3d::UnitX();
+  T.translation() = p;
+  return T;
+}
+
+World base_world() {
+  World world;
+  world.floor.half_u_m = world.floor.half_v_m = 20.0;
+  return world;
+}
+
+Rectangle wall_at_x(double x) {
+  Rectangle wall;
+  wall.center_m = Eigen::Vector3d(x, 0.0, 1.5);
+  wall.normal = -Eigen::Vector3d::UnitX();
+  wall.axis_u = Eigen::Vector3d::UnitY();
+  wall.axis_v = Eigen::Vector3d::UnitZ();
+  wall.half_u_m = 5.0;
+  wall.half_v_m = 1.5;
+  return wall;
+}
+
+float centre_depth(const cv::Mat& depth) { return depth.at<float>(depth.rows / 2, depth.cols / 2); }
+
+class RendererFixture : public ::testing::Test {
+ protected:
+  void render(const World& world, const Eigen::Isometry3d& T_world_camera,
+              const CameraParams& params, std::uint64_t seed = 1) {
+    RgbdRenderer renderer(params, world, seed);
+    renderer.render(T_world_camera, 0, image_, depth_);
+  }
+  cv::Mat image_, depth_;
+};
+
+// Odd sizes put a pixel centre exactly on the optical axis.
+TEST_F(RendererFixture, WallAtKnownDistanceGivesThatDepthAtCentre) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(3.0));
+  render(world, looking_north({0.5, 0.0, 1.0}), noise_free_camera(321, 241));
+  EXPECT_NEAR(centre_depth(depth_), 2.5, 1e-4);
+  // Depth is z along the optical axis, so the same wall reads 2.5 m off-centre too.
+  EXPECT_NEAR(depth_.at<float>(120, 40), 2.5, 1e-4);
+  EXPECT_EQ(image_.type(), CV_8UC3);
+  EXPECT_EQ(depth_.type(), CV_32F);
+}
+
+TEST_F(RendererFixture, FloorSeenStraightDownGivesHeight) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = -Eigen::Vector3d::UnitY();
+  T.linear().col(1) = -Eigen::Vector3d::UnitX();
+  T.linear().col(2) = -Eigen::Vector3d::UnitZ();
+  T.translation() = Eigen::Vector3d(0.3, 0.2, 1.7);
+  render(base_world(), T, noise_free_camera(161, 121));
+  EXPECT_NEAR(centre_depth(depth_), 1.7, 1e-4);
+}
+
+TEST_F(RendererFixture, YawedBoxShowsItsNearEdgeAndAxisAlignedItsFace) {
+  World world = base_world();
+  Box box;
+  box.center_m = Eigen::Vector3d(3.0, 0.0, 1.0);
+  box.size_m = Eigen::Vector3d(1.0, 1.0, 2.0);
+  world.boxes.push_back(box);
+  render(world, looking_north({0.0, 0.0, 1.0}), noise_free_camera(161, 121));
+  EXPECT_NEAR(centre_depth(depth_), 2.5, 1e-4);
+  world.boxes[0].yaw_rad = kPi / 4.0;  // a vertical edge now points at the camera
+  render(world, looking_north({0.0, 0.0, 1.0}), noise_free_camera(161, 121));
+  EXPECT_NEAR(centre_depth(depth_), 3.0 - 0.5 * std::sqrt(2.0), 1e-3);
+}
+
+TEST_F(RendererFixture, CylinderGivesDistanceMinusRadiusAndItsTop) {
+  World world = base_world();
+  Cylinder c;
+  c.center_m = Eigen::Vector2d(4.0, 0.0);
+  c.radius_m = 0.4;
+  c.height_m = 0.8;
+  world.cylinders.push_back(c);
+  render(world, looking_north({0.0, 0.0, 0.5}), noise_free_camera(161, 121));
+  EXPECT_NEAR(centre_depth(depth_), 3.6, 1e-3);
+  // From above, looking down onto the top cap.
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = -Eigen::Vector3d::UnitY();
+  T.linear().col(1) = -Eigen::Vector3d::UnitX();
+  T.linear().col(2) = -Eigen::Vector3d::UnitZ();
+  T.translation() = Eigen::Vector3d(4.1, 0.0, 2.0);
+  render(world, T, noise_free_camera(161, 121));
+  EXPECT_NEAR(centre_depth(depth_), 1.2, 1e-4);
+}
+
+TEST_F(RendererFixture, NearestSurfaceWinsWhenPrimitivesOverlapAlongTheRay) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(5.0));
+  Box box;
+  box.center_m = Eigen::Vector3d(2.0, 0.0, 1.0);
+  box.size_m = Eigen::Vector3d(0.4, 0.4, 0.4);
+  world.boxes.push_back(box);
+  render(world, looking_north({0.0, 0.0, 1.0}), noise_free_camera(161, 121));
+  EXPECT_NEAR(centre_depth(depth_), 1.8, 1e-4);
+  EXPECT_NEAR(depth_.at<float>(60, 5), 5.0, 1e-3);  // beside the box: the wall
+}
+
+TEST_F(RendererFixture, DepthBelowMinRangeOrAboveMaxRangeIsZero) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(0.8));
+  CameraParams params = noise_free_camera(81, 61);
+  render(world, looking_north({0.5, 0.0, 1.0}), params);  // 0.3 m < 0.5 m
+  EXPECT_EQ(centre_depth(depth_), 0.0f);
+  world.walls[0] = wall_at_x(9.0);
+  render(world, looking_north({0.5, 0.0, 1.0}), params);  // 8.5 m > 6 m
+  EXPECT_EQ(centre_depth(depth_), 0.0f);
+}
+
+TEST_F(RendererFixture, DarkSurfacesAndDepthEdgesReturnNoDepth) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(3.0));
+  world.walls[0].texture.color_bgr.setConstant(0.02f);
+  CameraParams params = noise_free_camera(81, 61);
+  render(world, looking_north({0.0, 0.0, 1.0}), params);
+  EXPECT_EQ(centre_depth(depth_), 0.0f);
+
+  World edge_world = base_world();
+  edge_world.walls.push_back(wall_at_x(4.0));
+  Box box;
+  box.center_m = Eigen::Vector3d(2.0, 0.0, 1.0);
+  box.size_m = Eigen::Vector3d(0.5, 0.5, 0.5);
+  edge_world.boxes.push_back(box);
+  params.depth.edge_jump_ratio = 0.04;
+  render(edge_world, looking_north({0.0, 0.0, 1.0}), params);
+  EXPECT_GT(centre_depth(depth_), 0.0f);
+  // Scan the centre row: every box/wall transition loses its depth on both sides.
+  const int row = depth_.rows / 2;
+  int transitions = 0;
+  for (int u = 1; u < depth_.cols - 2; ++u) {
+    const float a = depth_.at<float>(row, u - 1);
+    const float b = depth_.at<float>(row, u + 2);
+    if (a > 0.0f && b > 0.0f && std::abs(a - b) > 1.0f) {
+      ++transitions;
+      EXPECT_EQ(depth_.at<float>(row, u), 0.0f);
+      EXPECT_EQ(depth_.at<float>(row, u + 1), 0.0f);
+    }
+  }
+  EXPECT_EQ(transitions, 2);
+}
+
+TEST_F(RendererFixture, StructuredLightNoiseGrowsWithDepthSquared) {
+  CameraParams params = noise_free_camera(161, 121);
+  params.depth.noise_sigma_per_m2 = 1.425e-3;
+  params.depth.disparity_subpixels = 8;
+  const auto patch_sigma = [&](double distance_m) {
+    World world = base_world();
+    world.walls.push_back(wall_at_x(distance_m));
+    render(world, looking_north({0.0, 0.0, 1.0}), params);
+    cv::Scalar mean, sigma;
+    cv::meanStdDev(depth_(cv::Rect(60, 40, 40, 40)), mean, sigma);
+    EXPECT_NEAR(mean[0], distance_m, 0.01 * distance_m * distance_m);
+    return sigma[0];
+  };
+  const double sigma_1m = patch_sigma(1.0);
+  const double sigma_4m = patch_sigma(4.0);
+  // sigma_z = k z^2 (plus quantisation, also ~ z^2): 16x from 1 m to 4 m; allow 10x..22x.
+  EXPECT_GT(sigma_4m, 10.0 * sigma_1m);
+  EXPECT_LT(sigma_4m, 22.0 * sigma_1m);
+  EXPECT_NEAR(sigma_4m, 1.425e-3 * 16.0, 0.6 * 1.425e-3 * 16.0);
+}
+
+TEST_F(RendererFixture, MarkerOnWallIsDetectedByArucoApriltag36h11WithItsId) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(2.0));
+  for (int id : {42, 7}) {
+    Marker m;
+    m.id = id;
+    m.center_world_m = Eigen::Vector3d(2.0, id == 42 ? 0.3 : -0.3, 1.0);
+    m.normal_world = -Eigen::Vector3d::UnitX();
+    m.size_m = 0.2;
+    world.markers.push_back(m);
+  }
+  CameraParams params = noise_free_camera(640, 480);
+  params.image_noise_sigma = 1.0;
+  render(world, looking_north({0.5, 0.0, 1.0}), params);
+  cv::Mat gray;
+  cv::cvtColor(image_, gray, cv::COLOR_BGR2GRAY);
+  const cv::Ptr<cv::aruco::Dictionary> dictionary =
+      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
+  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<int> ids;
+  cv::aruco::detectMarkers(gray, dictionary, corners, ids);
+  std::sort(ids.begin(), ids.end());
+  ASSERT_EQ(ids, (std::vector<int>{7, 42})) << "detected " << ids.size() << " markers";
+  // Id 42 is on the left (world +y is image left when looking north).
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    cv::Point2f centre(0, 0);
+    for (const cv::Point2f& c : corners[i]) centre += 0.25f * c;
+    EXPECT_EQ(centre.x < 320.0f, ids[i] == 42) << "id " << ids[i] << " at x " << centre.x;
+    // 0.2 m at 1.5 m with fx = 554 px: about 74 px wide.
+    EXPECT_NEAR(cv::norm(corners[i][0] - corners[i][1]), 0.2 * params.pinhole.fx / 1.5, 3.0);
+  }
+}
+
+TEST_F(RendererFixture, MarkerOffEverySurfaceIsRejected) {
+  World world = base_world();
+  Marker m;
+  m.id = 3;
+  m.center_world_m = Eigen::Vector3d(1.0, 1.0, 1.0);  // in mid-air
+  world.markers.push_back(m);
+  try {
+    RgbdRenderer renderer(noise_free_camera(32, 24), world, 1);
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("markers[0] (id 3)"));
+  }
+}
+
+TEST_F(RendererFixture, SameSeedGivesIdenticalImagesAndAnotherSeedDoesNot) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(3.0));
+  CameraParams params;  // default: noisy image and depth
+  params.pinhole = pinhole_from_fov(160, 120, 1.0);
+  const Eigen::Isometry3d T = looking_north({0.0, 0.0, 1.0});
+  cv::Mat image_a, depth_a, image_b, depth_b, image_c, depth_c;
+  RgbdRenderer a(params, world, 5);
+  RgbdRenderer b(params, world, 5);
+  RgbdRenderer c(params, world, 6);
+  a.render(T, 3, image_a, depth_a);
+  b.render(T, 3, image_b, depth_b);
+  c.render(T, 3, image_c, depth_c);
+  EXPECT_EQ(cv::norm(image_a, image_b, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(depth_a, depth_b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(image_a, image_c, cv::NORM_L1), 0.0);
+  EXPECT_GT(cv::norm(depth_a, depth_c, cv::NORM_L1), 0.0);
+  // The buffers are reused, not reallocated.
+  const std::uint8_t* data = image_a.data;
+  a.render(T, 4, image_a, depth_a);
+  EXPECT_EQ(image_a.data, data);
+}
+
+TEST_F(RendererFixture, GrayModeGivesOneChannel) {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(3.0));
+  CameraParams params = noise_free_camera(64, 48);
+  params.gray = true;
+  render(world, looking_north({0.0, 0.0, 1.0}), params);
+  EXPECT_EQ(image_.type(), CV_8UC1);
+  cv::Scalar mean = cv::mean(image_);
+  EXPECT_GT(mean[0], 20.0);
+}
+
+}  // namespace
+}  // namespace hq::sim

@@ -1,0 +1,236 @@
+#include "hq/sim/simulator.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "hq/base/error.hpp"
+#include "hq/sim/tum_writer.hpp"
+
+/// Allocations so far in this test binary (test/allocation_counter.cpp replaces operator new).
+long hq_sim_test_allocations();
+
+namespace hq::sim {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr std::int64_t kMs = 1'000'000;
+
+/// Altitude hold on truth plus a fixed attitude: enough to fly scripted tests.
+AttitudeCommand hold_altitude(const Simulator& sim, double z_ref_m, double roll, double pitch) {
+  const TruthState& t = sim.truth();
+  const double m = sim.config().vehicle.mass_kg;
+  const double a_z = 3.0 * (z_ref_m - t.T_world_body.translation().z()) - 2.5 * t.v_world_mps.z();
+  return {m * (9.81 + a_z) / (std::cos(roll) * std::cos(pitch)), roll, pitch, 0.0};
+}
+
+TEST(SimulatorTest, TakesOffAndHoversOnAltitudeHold) {
+  const World world = load_world("onboard/sim/worlds/arena.yaml");
+  Simulator sim(default_sim_config(32, 24), world);
+  EXPECT_TRUE(sim.truth().on_ground);
+  for (std::int64_t t = 0; t < 6000 * kMs; t += 10 * kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
+    sim.step_to(t + 10 * kMs);
+  }
+  EXPECT_FALSE(sim.truth().on_ground);
+  EXPECT_NEAR(sim.truth().T_world_body.translation().z(), 1.0, 0.05);
+  EXPECT_FALSE(sim.collided());
+  EXPECT_GT(sim.truth().clearance_m, 0.0);
+}
+
+TEST(SimulatorTest, CollisionFlagWhenFlownIntoAWall) {
+  const World world = load_world("onboard/sim/worlds/arena.yaml");
+  SimConfig config = default_sim_config(32, 24);
+  config.vehicle.gust_sigma_mps = 0.0;
+  Simulator sim(config, world);
+  for (std::int64_t t = 0; t < 3000 * kMs; t += 10 * kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
+    sim.step_to(t + 10 * kMs);
+  }
+  ASSERT_FALSE(sim.collided());
+  // Nose down (NED pitch < 0): accelerate north into the wall at x = 3 m.
+  double x_at_collision = 0.0;
+  double previous_clearance = sim.truth().clearance_m;
+  for (std::int64_t t = 3000 * kMs; t < 12000 * kMs && !sim.truth().collision; t += kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, -0.15));
+    sim.step_to(t + kMs);
+    x_at_collision = sim.truth().T_world_body.translation().x();
+    if (!sim.truth().collision) previous_clearance = sim.truth().clearance_m;
+  }
+  EXPECT_TRUE(sim.truth().collision);
+  EXPECT_TRUE(sim.collided());
+  EXPECT_LT(sim.truth().clearance_m, 0.0);
+  EXPECT_GE(previous_clearance, 0.0);
+  EXPECT_NEAR(x_at_collision, 3.0 - config.vehicle_radius_m, 0.02);
+  // Truth in H: flying north with yaw 0 is +x in H (NED).
+  EXPECT_GT(sim.truth().v_horizontal_mps.x(), 0.5);
+}
+
+TEST(SimulatorTest, ProducesImuAtItsRateAndFramesAtThirtyHertz) {
+  const World world = load_world("onboard/sim/worlds/arena.yaml");
+  Simulator sim(default_sim_config(32, 24), world);
+  std::vector<ImuSample> imu(1000);
+  cv::Mat image, depth;
+  int frames = 0;
+  std::int64_t last_frame_ns = -1;
+  std::size_t imu_total = 0;
+  std::int64_t last_imu_ns = 0;
+  for (std::int64_t t = 0; t <= 1000 * kMs; t += 5 * kMs) {
+    sim.step_to(t);
+    const std::size_t n = sim.take_imu(imu.data(), imu.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      EXPECT_EQ(imu[i].t_ns - last_imu_ns, 2 * kMs);
+      last_imu_ns = imu[i].t_ns;
+    }
+    imu_total += n;
+    if (sim.camera_due()) {
+      EXPECT_GT(sim.camera_t_ns(), last_frame_ns);
+      last_frame_ns = sim.camera_t_ns();
+      sim.render_camera(image, depth);
+      ++frames;
+      EXPECT_FALSE(sim.camera_due());
+    }
+  }
+  EXPECT_EQ(imu_total, 500u);
+  EXPECT_EQ(frames, 31);  // t = 0 and 30 more within 1 s
+  EXPECT_EQ(sim.dropped_frames(), 0);
+  EXPECT_EQ(last_frame_ns, 1000 * kMs);
+}
+
+TEST(SimulatorTest, SameSeedSameRunIdenticalImagesAndTruth) {
+  const World world = load_world("onboard/sim/worlds/room.yaml");
+  const auto run = [&](std::uint64_t seed, cv::Mat& image, cv::Mat& depth) {
+    SimConfig config = default_sim_config(80, 60);
+    config.seed = seed;
+    config.vehicle.gust_sigma_mps = 0.3;  // the seed then changes the flight, too
+    Simulator sim(config, world);
+    for (std::int64_t t = 0; t < 2000 * kMs; t += 10 * kMs) {
+      sim.set_command(hold_altitude(sim, 1.0, 0.05, -0.05));
+      sim.step_to(t + 10 * kMs);
+    }
+    sim.render_camera(image, depth);
+    return sim.truth().T_world_body.translation().eval();
+  };
+  cv::Mat image_a, depth_a, image_b, depth_b, image_c, depth_c;
+  const Eigen::Vector3d p_a = run(4, image_a, depth_a);
+  const Eigen::Vector3d p_b = run(4, image_b, depth_b);
+  const Eigen::Vector3d p_c = run(5, image_c, depth_c);
+  EXPECT_EQ(p_a, p_b);
+  EXPECT_EQ(cv::norm(image_a, image_b, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(depth_a, depth_b, cv::NORM_INF), 0.0);
+  EXPECT_NE(p_a, p_c);
+}
+
+TEST(SimulatorTest, StepAndRenderAllocateNothingAfterTheFirstFrame) {
+  const World world = load_world("onboard/sim/worlds/room.yaml");
+  Simulator sim(default_sim_config(80, 60), world);
+  std::vector<ImuSample> imu(1000);
+  cv::Mat image, depth;
+  sim.render_camera(image, depth);
+  const long before = hq_sim_test_allocations();
+  for (std::int64_t t = 0; t < 1000 * kMs; t += 5 * kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
+    sim.step_to(t + 5 * kMs);
+    sim.take_imu(imu.data(), imu.size());
+    if (sim.camera_due()) sim.render_camera(image, depth);
+  }
+  EXPECT_EQ(hq_sim_test_allocations() - before, 0);
+}
+
+TEST(SimulatorTest, RecordsATumSequenceThatReadsBack) {
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / "hq_sim_tum_writer_test").string();
+  std::filesystem::remove_all(dir);
+  const World world = load_world("onboard/sim/worlds/arena.yaml");
+  Simulator sim(default_sim_config(64, 48), world);
+  TumWriter writer(dir, sim.config().camera.pinhole, sim.config().camera.T_body_camera);
+  std::vector<ImuSample> imu(1000);
+  cv::Mat image, depth;
+  Eigen::Isometry3d T_first = Eigen::Isometry3d::Identity();
+  int frames = 0;
+  // Take off first: resting on the floor, the camera sees nothing beyond its 0.5 m min range.
+  for (std::int64_t t = 0; t <= 2100 * kMs; t += kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
+    sim.step_to(t);
+    const bool recording = t >= 2000 * kMs;
+    const std::size_t n = sim.take_imu(imu.data(), imu.size());
+    for (std::size_t i = 0; i < n && recording; ++i) writer.write_imu(imu[i]);
+    if (sim.camera_due()) {
+      const std::int64_t t_frame = sim.camera_t_ns();
+      const Eigen::Isometry3d T = sim.camera_T_world_camera();
+      sim.render_camera(image, depth);
+      if (recording) {
+        writer.write_frame(t_frame, image, depth, T);
+        ++frames;
+        if (frames == 1) T_first = T;
+      }
+    }
+  }
+  writer.close();
+  EXPECT_EQ(frames, 4);  // 2.000, 2.034, 2.067, 2.100 s: each the first 1 ms step at k / 30 s
+
+  std::ifstream rgb(dir + "/rgb.txt");
+  std::string line;
+  std::getline(rgb, line);
+  EXPECT_EQ(line, "# color images");
+  std::getline(rgb, line);
+  std::getline(rgb, line);
+  EXPECT_EQ(line, "# timestamp filename");
+  std::getline(rgb, line);
+  EXPECT_EQ(line, "2.000000 rgb/2.000000.png");
+  std::getline(rgb, line);
+  EXPECT_EQ(line, "2.034000 rgb/2.034000.png");
+
+  const cv::Mat depth_png = cv::imread(dir + "/depth/2.100000.png", cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(depth_png.type(), CV_16UC1);
+  int checked = 0;
+  for (int v = 0; v < depth.rows; ++v) {
+    for (int u = 0; u < depth.cols; ++u) {
+      const float z = depth.at<float>(v, u);
+      EXPECT_NEAR(depth_png.at<std::uint16_t>(v, u), z * 5000.0f, 0.51f);
+      checked += z > 0.0f;
+    }
+  }
+  EXPECT_GT(checked, depth.total() / 2);
+  const cv::Mat rgb_png = cv::imread(dir + "/rgb/2.100000.png", cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(cv::norm(rgb_png, image, cv::NORM_INF), 0.0);
+
+  std::ifstream gt(dir + "/groundtruth.txt");
+  for (int i = 0; i < 3; ++i) std::getline(gt, line);
+  EXPECT_EQ(line, "# timestamp tx ty tz qx qy qz qw");
+  double t, tx, ty, tz, qx, qy, qz, qw;
+  gt >> t >> tx >> ty >> tz >> qx >> qy >> qz >> qw;
+  const Eigen::Isometry3d& T0 = T_first;
+  EXPECT_DOUBLE_EQ(t, 2.0);
+  EXPECT_NEAR(tx, T0.translation().x(), 1e-6 + 1e-9);
+  EXPECT_NEAR(tz, T0.translation().z(), 1e-6);
+  EXPECT_NEAR(std::abs(Eigen::Quaterniond(qw, qx, qy, qz).dot(Eigen::Quaterniond(T0.linear()))),
+              1.0, 1e-6);
+
+  std::ifstream acc(dir + "/accelerometer.txt");
+  int lines = 0;
+  while (std::getline(acc, line)) lines += line.empty() || line[0] == '#' ? 0 : 1;
+  EXPECT_EQ(lines, 51);  // 2.000 .. 2.100 s inclusive at 500 Hz
+  EXPECT_TRUE(std::filesystem::exists(dir + "/gyro.txt"));
+  EXPECT_EQ(TumWriter::stamp(1'305'031'102'175'304'000), "1305031102.175304");
+}
+
+TEST(SimulatorTest, UnwritableRecordingDirectoryIsAnInputError) {
+  try {
+    TumWriter writer("/proc/hq_sim_cannot_write_here", default_sim_config().camera.pinhole,
+                     Eigen::Isometry3d::Identity());
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("/proc/hq_sim_cannot_write_here"));
+  }
+}
+
+}  // namespace
+}  // namespace hq::sim

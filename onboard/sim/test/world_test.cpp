@@ -1,0 +1,155 @@
+#include "hq/sim/world.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "hq/base/error.hpp"
+#include "hq/sim/simulator.hpp"
+
+namespace hq::sim {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string write_temp(const std::string& name, const std::string& text) {
+  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string error_of(const std::string& yaml) {
+  const std::string path = write_temp("hq_sim_world_test.yaml", yaml);
+  try {
+    load_world(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(WorldTest, ShippedWorldsLoadWithTheirContent) {
+  const World arena = load_world("onboard/sim/worlds/arena.yaml");
+  EXPECT_EQ(arena.name, "arena");
+  EXPECT_EQ(arena.walls.size(), 4u);
+  ASSERT_EQ(arena.boxes.size(), 1u);
+  EXPECT_NEAR(arena.boxes[0].size_m.x(), 0.5, 0.1);
+  EXPECT_EQ(arena.markers.size(), 4u);
+  // 6 m x 4 m: the north wall is 4 m long, the east wall 6 m.
+  EXPECT_NEAR(arena.walls[0].half_u_m, 2.0, 1e-9);
+  EXPECT_NEAR(arena.walls[1].half_u_m, 3.0, 1e-9);
+
+  const World room = load_world("onboard/sim/worlds/room.yaml");
+  EXPECT_GE(room.boxes.size(), 3u);
+  EXPECT_GE(room.cylinders.size(), 2u);
+
+  const World grid = load_world("onboard/sim/worlds/marker_grid.yaml");
+  ASSERT_EQ(grid.markers.size(), 25u);
+  EXPECT_EQ(grid.markers.front().id, 0);
+  EXPECT_EQ(grid.markers.back().id, 24);
+  EXPECT_NEAR((grid.markers[0].center_world_m - grid.markers[1].center_world_m).norm(), 0.6,
+              1e-9);
+  // Every shipped world's markers lie on a surface (the renderer checks).
+  for (const World* w : {&arena, &room, &grid}) {
+    EXPECT_NO_THROW(Simulator(default_sim_config(32, 24), *w));
+  }
+}
+
+TEST(WorldTest, ErrorsNameTheFileAndKey) {
+  EXPECT_THAT(error_of("boxes:\n  - {center_m: [0, 0, 1], size_m: [1, -2, 1]}\n"),
+              HasSubstr("hq_sim_world_test.yaml: boxes[0].size_m[1] = -2"));
+  EXPECT_THAT(error_of("boxs: []\n"), HasSubstr("boxs is not a known key"));
+  EXPECT_THAT(error_of("walls:\n  - {from_m: [0, 0], to_m: [1, 0], colour: red}\n"),
+              HasSubstr("walls[0].colour is not a known key"));
+  EXPECT_THAT(error_of("walls:\n  - {from_m: [0, 0]}\n"), HasSubstr("walls[0].to_m is missing"));
+  EXPECT_THAT(error_of("cylinders:\n  - {center_m: [0, 0], radius_m: 0}\n"),
+              HasSubstr("cylinders[0].radius_m = 0, expected > 0"));
+  EXPECT_THAT(error_of("floor: {texture: {type: marble}}\n"),
+              HasSubstr("floor.texture.type = marble, expected one of checker | noise | stripes"));
+  EXPECT_THAT(error_of("markers:\n  - {id: 900, center_m: [0, 0, 0]}\n"),
+              HasSubstr("markers[0].id = 900"));
+  EXPECT_THAT(error_of("marker_grid: {rows: 5, cols: 5, spacing_m: 0.2, size_m: 0.2}\n"),
+              HasSubstr("marker_grid.spacing_m"));
+  EXPECT_THAT(error_of("walls: {from_m: [0, 0]}\n"), HasSubstr("walls is not a list"));
+  try {
+    load_world("onboard/sim/worlds/no_such_world.yaml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("no_such_world.yaml: file not found"));
+  }
+}
+
+TEST(WorldTest, DistanceToObstaclesIsExactForEachPrimitive) {
+  World world;
+  Box box;
+  box.center_m = Eigen::Vector3d(0.0, 0.0, 0.5);
+  box.size_m = Eigen::Vector3d(1.0, 1.0, 1.0);
+  world.boxes.push_back(box);
+  EXPECT_NEAR(distance_to_obstacles(world, {2.0, 0.0, 0.5}), 1.5, 1e-12);
+  EXPECT_NEAR(distance_to_obstacles(world, {0.0, 0.0, 0.5}), -0.5, 1e-12);  // inside
+  world.boxes[0].yaw_rad = 0.7853981633974483;
+  EXPECT_NEAR(distance_to_obstacles(world, {2.0, 0.0, 0.5}), 2.0 - std::sqrt(0.5), 1e-9);
+
+  World pillars;
+  Cylinder c;
+  c.center_m = Eigen::Vector2d(1.0, 1.0);
+  c.radius_m = 0.3;
+  c.height_m = 2.0;
+  pillars.cylinders.push_back(c);
+  EXPECT_NEAR(distance_to_obstacles(pillars, {1.0, 2.0, 1.0}), 0.7, 1e-12);
+  EXPECT_NEAR(distance_to_obstacles(pillars, {1.0, 1.0, 3.0}), 1.0, 1e-12);  // above the top
+
+  const World arena = load_world("onboard/sim/worlds/arena.yaml");
+  EXPECT_NEAR(distance_to_obstacles(arena, {2.5, 1.0, 1.0}), 0.5, 1e-9);  // north wall x = 3
+}
+
+TEST(WorldTest, TexturesAreDeterministicAndTextured) {
+  Texture t;
+  t.kind = Texture::Kind::kNoise;
+  t.salt = 9;
+  EXPECT_EQ(t.albedo(0.37f, 1.2f), t.albedo(0.37f, 1.2f));
+  float min_v = 1.0f;
+  float max_v = 0.0f;
+  for (int i = 0; i < 200; ++i) {
+    const float v = t.albedo(0.013f * i, 0.007f * i).x();
+    min_v = std::min(min_v, v);
+    max_v = std::max(max_v, v);
+  }
+  EXPECT_GT(max_v - min_v, 0.1f);  // enough texture for photometric odometry
+  t.kind = Texture::Kind::kChecker;
+  EXPECT_GT(std::abs(t.albedo(0.1f, 0.1f).x() - t.albedo(0.3f, 0.1f).x()), 0.1f);
+}
+
+TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
+  const SimConfig config = load_sim_config("onboard/sim/config/sim.yaml");
+  EXPECT_EQ(config.camera.pinhole.width, 320);
+  EXPECT_DOUBLE_EQ(config.imu.rate_hz, 500.0);
+  // The camera looks 45 deg right and 30 deg down: its optical axis in body NED.
+  const Eigen::Vector3d z_body = config.camera.T_body_camera.linear().col(2);
+  EXPECT_NEAR(z_body.x(), std::cos(0.5236) * std::cos(0.7854), 1e-3);
+  EXPECT_NEAR(z_body.y(), std::cos(0.5236) * std::sin(0.7854), 1e-3);
+  EXPECT_NEAR(z_body.z(), std::sin(0.5236), 1e-3);
+
+  const auto error_of_config = [](const std::string& yaml) -> std::string {
+    try {
+      load_sim_config(write_temp("hq_sim_config_test.yaml", yaml));
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_THAT(error_of_config("imu: {rate_hz: 300}\n"),
+              HasSubstr("imu.rate_hz = 300.000000, expected a divisor of dynamics_rate_hz"));
+  EXPECT_THAT(error_of_config("camera: {depth: {min_range_m: 3, max_range_m: 2}}\n"),
+              HasSubstr("camera.depth.max_range_m"));
+  EXPECT_THAT(error_of_config("vehicle: {mass_kg: 5}\n"),
+              HasSubstr("vehicle.max_rotor_speed_radps"));
+  EXPECT_THAT(error_of_config("camera: {T_body_camera: {yaw_deg: 4}}\n"),
+              HasSubstr("camera.T_body_camera.yaw_deg is not a known key"));
+}
+
+}  // namespace
+}  // namespace hq::sim
