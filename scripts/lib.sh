@@ -1,0 +1,36 @@
+# Shared by scripts/run and scripts/test: install Debian packages, configure and build.
+# Sourced, not run. Honours BUILD_DIR (default build) and CI (adds -Werror).
+set -euo pipefail
+
+HQ_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+BUILD_DIR=${BUILD_DIR:-$HQ_ROOT/build}
+
+# Every Debian 12 package the build and tests need. Nothing is downloaded at build time.
+HQ_PACKAGES=(
+  cmake ninja-build g++ pkg-config
+  libeigen3-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev libcli11-dev
+  libgtest-dev libgmock-dev
+)
+
+hq_install() {
+  local missing=()
+  for p in "${HQ_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ "${#missing[@]}" -gt 0 ]; then
+    echo "== installing: ${missing[*]}"
+    local sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
+      "${missing[@]}" >/dev/null
+  fi
+}
+
+hq_build() {
+  local werror=OFF
+  [ "${CI:-}" = "true" ] && werror=ON
+  cmake -S "$HQ_ROOT" -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DHQ_WERROR=$werror \
+    "$@" >/dev/null
+  cmake --build "$BUILD_DIR" -j "$(nproc)"
+}
