@@ -213,5 +213,12 @@ TEST(VelocityControllerConfig, BadValueIsRejectedNamingTheKey) {
   }
 }
 
+TEST(VelocityControllerConfig, ShippedOnboardYamlSectionLoads) {
+  const YAML::Node root = config::load_yaml_file("config/onboard.yaml");
+  config::StrictMap section(root["control"], "config/onboard.yaml", "control");
+  VelocityControllerConfig config;
+  EXPECT_NO_THROW(read_config(section, config));
+}
+
 }  // namespace
 }  // namespace hq::control

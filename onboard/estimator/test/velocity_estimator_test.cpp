@@ -229,5 +229,12 @@ TEST(VelocityEstimatorConfig, BadValueIsRejectedNamingTheKey) {
   EXPECT_THROW(read_config(section2, config), InputError);
 }
 
+TEST(VelocityEstimatorConfig, ShippedOnboardYamlSectionLoads) {
+  const YAML::Node root = config::load_yaml_file("config/onboard.yaml");
+  config::StrictMap section(root["estimator"], "config/onboard.yaml", "estimator");
+  VelocityEstimatorConfig config;
+  EXPECT_NO_THROW(read_config(section, config));
+}
+
 }  // namespace
 }  // namespace hq::estimator

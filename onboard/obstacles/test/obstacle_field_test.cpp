@@ -187,5 +187,12 @@ TEST(ObstacleConfig, BadValueIsRejectedNamingTheKey) {
   }
 }
 
+TEST(ObstacleConfig, ShippedOnboardYamlSectionLoads) {
+  const YAML::Node root = config::load_yaml_file("config/onboard.yaml");
+  config::StrictMap section(root["obstacles"], "config/onboard.yaml", "obstacles");
+  ObstacleConfig config;
+  EXPECT_NO_THROW(read_config(section, config));
+}
+
 }  // namespace
 }  // namespace hq::obstacles

@@ -1,0 +1,112 @@
+#pragma once
+/// Flight modes feeding the velocity tracker (core paper §3.1): each mode gives v*_des in H and
+/// a yaw rate; the obstacle term is always added, v_des = v*_des + v_obs, and the
+/// VelocityController turns it into an attitude-thrust setpoint.
+///
+/// Switching is bumpless: after a mode change (or a teleop timeout) v*_des and the yaw rate ramp
+/// from their values at the switch, rate-limited, so thrust and tilt have no step.
+
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "hq/control/velocity_controller.hpp"
+
+namespace hq::config {
+class StrictMap;
+}
+
+namespace hq::modes {
+
+enum class Mode { kTeleop, kHover, kLand, kMarker, kExplore };
+const char* to_string(Mode mode);
+
+struct ModesConfig {
+  double teleop_timeout_s = 0.5;          ///< Older operator commands fall back to hover.
+  double land_speed_mps = 0.3;            ///< Descent speed in land (NED: +z).
+  double max_switch_accel_mps2 = 1.0;     ///< Ramp rate of v*_des after a switch.
+  double max_switch_yaw_accel_radps2 = 2.0;  ///< Ramp rate of the yaw rate after a switch.
+};
+
+/// Reads the `modes:` section strictly.
+void read_config(config::StrictMap& section, ModesConfig& out);
+
+/// The operator's latest command (from the haptic mapping, eqs. 6-10), in H.
+struct OperatorCommand {
+  std::int64_t t_ns = 0;
+  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  double yaw_rate_radps = 0.0;
+};
+
+/// What a mode wants: v*_des in H and a yaw rate, or invalid with a reason.
+struct ModeCommand {
+  bool valid = false;
+  const char* reason = "";
+  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  double yaw_rate_radps = 0.0;
+};
+
+/// Supplies the marker and explore modes (implemented elsewhere). Called once per step; must
+/// not allocate.
+class VelocityProvider {
+ public:
+  virtual ~VelocityProvider() = default;
+  virtual ModeCommand desired(std::int64_t t_ns) = 0;
+};
+
+struct ModeSwitch {
+  bool accepted = false;
+  const char* reason = "";  ///< Static text when refused.
+};
+
+struct ModeOutput {
+  Mode mode = Mode::kHover;
+  Eigen::Vector3d v_star_des_horizontal_mps = Eigen::Vector3d::Zero();  ///< After the ramp.
+  double yaw_rate_des_radps = 0.0;
+  Eigen::Vector3d v_des_horizontal_mps = Eigen::Vector3d::Zero();  ///< v*_des + v_obs.
+  bool teleop_timed_out = false;   ///< In teleop, the command was stale: hovering.
+  bool provider_failed = false;    ///< Marker/explore provider gave no command: hovering.
+  bool ramping = false;            ///< A switch ramp is in progress.
+  control::ControlOutput control;  ///< The attitude-thrust setpoint and its flags.
+};
+
+class ModeController {
+ public:
+  /// Starts in hover.
+  ModeController(const ModesConfig& config, const control::VelocityControllerConfig& control,
+                 const control::VehicleConfig& vehicle);
+
+  /// Registers the provider of kMarker or kExplore (not owned; must outlive this object).
+  /// @return false for other modes.
+  bool register_provider(Mode mode, VelocityProvider* provider);
+
+  /// Requests a mode; refused (with a reason) for marker/explore without a provider.
+  ModeSwitch request_mode(Mode mode);
+
+  void set_operator_command(const OperatorCommand& command);
+
+  /// One control step. v_est and v_obs in H. Allocates nothing.
+  ModeOutput step(std::int64_t t_ns, const Eigen::Vector3d& v_est_horizontal_mps,
+                  const Eigen::Vector3d& v_obs_horizontal_mps);
+
+  [[nodiscard]] Mode mode() const { return mode_; }
+
+ private:
+  enum class Source { kOperator, kHover, kLand, kProvider };
+
+  ModesConfig config_;
+  control::VelocityController controller_;
+  Mode mode_ = Mode::kHover;
+  VelocityProvider* marker_ = nullptr;
+  VelocityProvider* explore_ = nullptr;
+  OperatorCommand operator_command_;
+  bool have_operator_command_ = false;
+  Source last_source_ = Source::kHover;
+  bool ramping_ = false;
+  Eigen::Vector3d v_star_mps_ = Eigen::Vector3d::Zero();
+  double yaw_rate_radps_ = 0.0;
+  bool have_previous_ = false;
+  std::int64_t t_prev_ns_ = 0;
+};
+
+}  // namespace hq::modes

@@ -1,0 +1,145 @@
+#include "hq/modes/mode_controller.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "hq/config/strict_yaml.hpp"
+
+namespace hq::modes {
+
+const char* to_string(Mode mode) {
+  switch (mode) {
+    case Mode::kTeleop:
+      return "teleop";
+    case Mode::kHover:
+      return "hover";
+    case Mode::kLand:
+      return "land";
+    case Mode::kMarker:
+      return "marker";
+    case Mode::kExplore:
+      return "explore";
+  }
+  return "unknown";
+}
+
+void read_config(config::StrictMap& section, ModesConfig& out) {
+  section.read_positive("teleop_timeout_s", out.teleop_timeout_s, 10.0);
+  section.read_positive("land_speed_mps", out.land_speed_mps, 2.0);
+  section.read_positive("max_switch_accel_mps2", out.max_switch_accel_mps2, 100.0);
+  section.read_positive("max_switch_yaw_accel_radps2", out.max_switch_yaw_accel_radps2, 100.0);
+  section.finish();
+}
+
+ModeController::ModeController(const ModesConfig& config,
+                               const control::VelocityControllerConfig& control,
+                               const control::VehicleConfig& vehicle)
+    : config_(config), controller_(control, vehicle) {}
+
+bool ModeController::register_provider(Mode mode, VelocityProvider* provider) {
+  if (mode == Mode::kMarker) {
+    marker_ = provider;
+    return true;
+  }
+  if (mode == Mode::kExplore) {
+    explore_ = provider;
+    return true;
+  }
+  return false;
+}
+
+ModeSwitch ModeController::request_mode(Mode mode) {
+  if (mode == Mode::kMarker && marker_ == nullptr) {
+    return {false, "marker mode has no provider registered"};
+  }
+  if (mode == Mode::kExplore && explore_ == nullptr) {
+    return {false, "explore mode has no provider registered"};
+  }
+  if (mode != mode_) {
+    mode_ = mode;
+    ramping_ = true;
+  }
+  return {true, ""};
+}
+
+void ModeController::set_operator_command(const OperatorCommand& command) {
+  if (!command.v_horizontal_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
+  operator_command_ = command;
+  have_operator_command_ = true;
+}
+
+ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_horizontal_mps,
+                                const Eigen::Vector3d& v_obs_horizontal_mps) {
+  ModeOutput out;
+  out.mode = mode_;
+
+  // The mode's own command (v*_des before the ramp).
+  Source source = Source::kHover;
+  Eigen::Vector3d v_target = Eigen::Vector3d::Zero();
+  double yaw_target = 0.0;
+  switch (mode_) {
+    case Mode::kTeleop: {
+      const double age_s = 1e-9 * static_cast<double>(t_ns - operator_command_.t_ns);
+      if (have_operator_command_ && age_s <= config_.teleop_timeout_s) {
+        source = Source::kOperator;
+        v_target = operator_command_.v_horizontal_mps;
+        yaw_target = operator_command_.yaw_rate_radps;
+      } else {
+        out.teleop_timed_out = true;
+      }
+      break;
+    }
+    case Mode::kHover:
+      break;
+    case Mode::kLand:
+      source = Source::kLand;
+      v_target = Eigen::Vector3d(0.0, 0.0, config_.land_speed_mps);
+      break;
+    case Mode::kMarker:
+    case Mode::kExplore: {
+      VelocityProvider* provider = (mode_ == Mode::kMarker) ? marker_ : explore_;
+      const ModeCommand command = provider->desired(t_ns);
+      if (command.valid && command.v_horizontal_mps.allFinite() &&
+          std::isfinite(command.yaw_rate_radps)) {
+        source = Source::kProvider;
+        v_target = command.v_horizontal_mps;
+        yaw_target = command.yaw_rate_radps;
+      } else {
+        out.provider_failed = true;
+      }
+      break;
+    }
+  }
+  // A change of source inside a mode (teleop timing out, a provider failing) ramps too.
+  if (source != last_source_) ramping_ = true;
+  last_source_ = source;
+
+  const double dt_s =
+      have_previous_ ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_prev_ns_)) : 0.0;
+  have_previous_ = true;
+  t_prev_ns_ = t_ns;
+  if (ramping_) {
+    // Rate-limited from the value at the switch: |dv*| <= a_max dt per step.
+    const Eigen::Vector3d dv = v_target - v_star_mps_;
+    const double max_dv = config_.max_switch_accel_mps2 * dt_s;
+    v_star_mps_ += (dv.norm() > max_dv) ? Eigen::Vector3d(dv * (max_dv / dv.norm())) : dv;
+    const double max_dyaw = config_.max_switch_yaw_accel_radps2 * dt_s;
+    yaw_rate_radps_ += std::clamp(yaw_target - yaw_rate_radps_, -max_dyaw, max_dyaw);
+    ramping_ = !(v_star_mps_ == v_target && yaw_rate_radps_ == yaw_target);
+  } else {
+    v_star_mps_ = v_target;
+    yaw_rate_radps_ = yaw_target;
+  }
+  out.ramping = ramping_;
+  out.v_star_des_horizontal_mps = v_star_mps_;
+  out.yaw_rate_des_radps = yaw_rate_radps_;
+  // Core paper §3.1: the obstacle term is added in every mode.
+  const Eigen::Vector3d v_obs =
+      v_obs_horizontal_mps.allFinite() ? v_obs_horizontal_mps : Eigen::Vector3d::Zero();
+  out.v_des_horizontal_mps = v_star_mps_ + v_obs;
+  out.control =
+      controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_horizontal_mps);
+  return out;
+}
+
+}  // namespace hq::modes
