@@ -1,12 +1,12 @@
 #include "hq/control/vehicle_config.hpp"
 
-#include <cmath>
-#include <sstream>
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
 
 #include <Eigen/Geometry>
 
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
+#include <cmath>
+#include <sstream>
 
 namespace hq::control {
 namespace {
@@ -15,8 +15,7 @@ void require_deg_as_rad(config::StrictMap& map, const std::string& key, double& 
   if (!map.has(key)) throw InputError(map.describe(key) + " is missing");
   map.read_deg_as_rad(key, value_rad, min_deg, max_deg);
 }
-void require_positive(config::StrictMap& map, const std::string& key, double& value,
-                      double max) {
+void require_positive(config::StrictMap& map, const std::string& key, double& value, double max) {
   if (!map.has(key)) throw InputError(map.describe(key) + " is missing");
   map.read_positive(key, value, max);
 }
@@ -37,7 +36,8 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
   require_positive(root, "mass_kg", out.mass_kg, 100.0);
   config::StrictMap limits = root.child("limits");
   require_deg_as_rad(limits, "max_tilt_deg", out.max_tilt_rad, 1.0, 80.0);
-  if (!limits.has("min_thrust_n")) throw InputError(limits.describe("min_thrust_n") + " is missing");
+  if (!limits.has("min_thrust_n"))
+    throw InputError(limits.describe("min_thrust_n") + " is missing");
   limits.read("min_thrust_n", out.min_thrust_n, 0.0, 1e4);
   require_positive(limits, "max_thrust_n", out.max_thrust_n, 1e4);
   require_deg_as_rad(limits, "max_yaw_rate_degps", out.max_yaw_rate_radps, 1.0, 2000.0);
@@ -45,8 +45,9 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
   const double weight_n = out.mass_kg * 9.80665;
   if (!(out.max_thrust_n > weight_n) || !(out.min_thrust_n < weight_n)) {
     std::ostringstream message;
-    message << limits.describe("max_thrust_n") << " = " << out.max_thrust_n << ", min_thrust_n = "
-            << out.min_thrust_n << ", expected min < m g = " << weight_n << " < max";
+    message << limits.describe("max_thrust_n") << " = " << out.max_thrust_n
+            << ", min_thrust_n = " << out.min_thrust_n << ", expected min < m g = " << weight_n
+            << " < max";
     throw InputError(message.str());
   }
 

@@ -1,9 +1,9 @@
 #include "hq/control/velocity_controller.hpp"
 
+#include "hq/config/strict_yaml.hpp"
+
 #include <algorithm>
 #include <cmath>
-
-#include "hq/config/strict_yaml.hpp"
 
 namespace hq::control {
 
@@ -82,9 +82,9 @@ ControlOutput VelocityController::update(std::int64_t t_ns,
   }
   // Then horizontal within the tilt limit and what thrust is left.
   Eigen::Vector2d horizontal_n = force_n.head<2>();
-  const double max_horizontal_n =
-      std::min(up_n * std::tan(vehicle_.max_tilt_rad),
-               std::sqrt(std::max(0.0, vehicle_.max_thrust_n * vehicle_.max_thrust_n - up_n * up_n)));
+  const double max_horizontal_n = std::min(
+      up_n * std::tan(vehicle_.max_tilt_rad),
+      std::sqrt(std::max(0.0, vehicle_.max_thrust_n * vehicle_.max_thrust_n - up_n * up_n)));
   const double horizontal_norm = horizontal_n.norm();
   if (horizontal_norm > max_horizontal_n) {
     out.tilt_saturated = true;

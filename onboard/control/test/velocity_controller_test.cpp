@@ -1,15 +1,15 @@
 #include "hq/control/velocity_controller.hpp"
 
-#include <algorithm>
-#include <cmath>
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
 
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
+#include <algorithm>
+#include <cmath>
 
 namespace hq::control {
 namespace {
@@ -38,8 +38,8 @@ struct PointMass {
     const Eigen::Matrix3d R_HQ = (Eigen::AngleAxisd(sp.pitch_rad, Eigen::Vector3d::UnitY()) *
                                   Eigen::AngleAxisd(sp.roll_rad, Eigen::Vector3d::UnitX()))
                                      .toRotationMatrix();
-    const Eigen::Vector3d a = R_HQ * Eigen::Vector3d(0, 0, -sp.thrust_n) / mass_kg +
-                              Eigen::Vector3d(0, 0, kGravityMps2);
+    const Eigen::Vector3d a =
+        R_HQ * Eigen::Vector3d(0, 0, -sp.thrust_n) / mass_kg + Eigen::Vector3d(0, 0, kGravityMps2);
     v_mps += a * dt_s;
   }
 };
@@ -50,8 +50,8 @@ struct StepResponse {
   double settle_s = 0.0;  // last time |v - target| exceeded 2 % of the step
 };
 
-StepResponse step_response(VelocityController& controller, const Eigen::Vector3d& target,
-                           int axis, double duration_s) {
+StepResponse step_response(VelocityController& controller, const Eigen::Vector3d& target, int axis,
+                           double duration_s) {
   PointMass plant;
   StepResponse response;
   const int steps = static_cast<int>(duration_s / kDt);
@@ -80,7 +80,8 @@ TEST(VelocityController, HoverGivesWeightAndNoTilt) {
 
 TEST(VelocityController, SignsFollowNed) {
   VelocityController controller(VelocityControllerConfig{}, test_vehicle());
-  // Forward (+x): nose down (pitch < 0). Right (+y): roll right (> 0). Climb (v_z < 0): more thrust.
+  // Forward (+x): nose down (pitch < 0). Right (+y): roll right (> 0). Climb (v_z < 0): more
+  // thrust.
   const ControlOutput out =
       controller.update(0, Eigen::Vector3d(1.0, 1.0, -1.0), 0.0, Eigen::Vector3d::Zero());
   EXPECT_LT(out.setpoint.pitch_rad, 0.0);
@@ -173,10 +174,10 @@ TEST(VehicleConfig, ShippedCorePaperVehicleLoads) {
   EXPECT_NEAR(vehicle.max_tilt_rad, 30.0 * kDeg, 1e-12);
   // The optical axis looks 45 deg right and 30 deg down in Q (NED: z down is positive).
   const Eigen::Vector3d axis = vehicle.R_body_camera.col(2);
-  EXPECT_TRUE(axis.isApprox(Eigen::Vector3d(std::cos(30 * kDeg) * std::cos(45 * kDeg),
-                                            std::cos(30 * kDeg) * std::sin(45 * kDeg),
-                                            std::sin(30 * kDeg)),
-                            1e-12));
+  EXPECT_TRUE(
+      axis.isApprox(Eigen::Vector3d(std::cos(30 * kDeg) * std::cos(45 * kDeg),
+                                    std::cos(30 * kDeg) * std::sin(45 * kDeg), std::sin(30 * kDeg)),
+                    1e-12));
   // Image "right" (optical x) stays horizontal with zero camera roll; "down" (y) points down-ish.
   EXPECT_NEAR(vehicle.R_body_camera.col(0).z(), 0.0, 1e-12);
   EXPECT_GT(vehicle.R_body_camera.col(1).z(), 0.0);

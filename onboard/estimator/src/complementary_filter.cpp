@@ -1,10 +1,10 @@
 #include "hq/estimator/complementary_filter.hpp"
 
-#include <algorithm>
-#include <cmath>
-
 #include "hq/config/strict_yaml.hpp"
 #include "hq/geometry/lie.hpp"
+
+#include <algorithm>
+#include <cmath>
 
 namespace hq::estimator {
 
@@ -68,8 +68,7 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
     const Eigen::Vector3d v_hat = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
     omega_mes = v.cross(v_hat);
   }
-  const Eigen::Vector3d omega_rad =
-      (gyro_radps - bias_radps_ + config_.k_p * omega_mes) * dt_s;
+  const Eigen::Vector3d omega_rad = (gyro_radps - bias_radps_ + config_.k_p * omega_mes) * dt_s;
   R_ned_body_ = geometry::orthonormalize(R_ned_body_ * geometry::exp_so3(omega_rad));
   bias_radps_ -= config_.k_i * omega_mes * dt_s;
   bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);

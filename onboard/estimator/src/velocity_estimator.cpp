@@ -121,13 +121,12 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.t_ns = t_ns;
   // eq. 1 (raw, for evaluation): Ck_v_Ck = R_Ck_C0 (C0_p_Ck - C0_p_Ck-1) / dT.
   const Eigen::Isometry3d& T_raw = odometry.T_world_cur;
-  estimate.v_camera_raw_mps = T_raw.linear().transpose() *
-                              (T_raw.translation() - T_C0_Ck_prev_raw_.translation()) / dt_s;
+  estimate.v_camera_raw_mps =
+      T_raw.linear().transpose() * (T_raw.translation() - T_C0_Ck_prev_raw_.translation()) / dt_s;
   // eq. 2 of the core paper, not eq. 1: differentiating the 1€-filtered pose keeps noise out of v.
   const Eigen::Isometry3d& T_hat = pose_filter_.pose();
-  const Eigen::Vector3d v_C =
-      T_hat.linear().transpose() * (T_hat.translation() - T_C0_Ck_prev_filtered_.translation()) /
-      dt_s;
+  const Eigen::Vector3d v_C = T_hat.linear().transpose() *
+                              (T_hat.translation() - T_C0_Ck_prev_filtered_.translation()) / dt_s;
   estimate.v_camera_mps = v_C;
   T_C0_Ck_prev_filtered_ = T_hat;
   T_C0_Ck_prev_raw_ = T_raw;

@@ -1,12 +1,12 @@
 #include "hq/estimator/complementary_filter.hpp"
 
-#include <cmath>
+#include "hq/config/strict_yaml.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/config/strict_yaml.hpp"
+#include <cmath>
 
 namespace hq::estimator {
 namespace {

@@ -1,14 +1,14 @@
 #include "hq/estimator/one_euro_filter.hpp"
 
-#include <cmath>
-#include <random>
+#include "hq/config/strict_yaml.hpp"
+#include "hq/geometry/lie.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/config/strict_yaml.hpp"
-#include "hq/geometry/lie.hpp"
+#include <cmath>
+#include <random>
 
 namespace hq::estimator {
 namespace {

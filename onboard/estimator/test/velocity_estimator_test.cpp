@@ -1,14 +1,14 @@
 #include "hq/estimator/velocity_estimator.hpp"
 
-#include <array>
-#include <cmath>
+#include "hq/config/strict_yaml.hpp"
 
+#include "allocation_counter.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/config/strict_yaml.hpp"
-#include "allocation_counter.hpp"
+#include <array>
+#include <cmath>
 
 namespace hq::estimator {
 namespace {
@@ -158,8 +158,7 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
     const VelocityEstimate estimate = estimator.update(t_ns, odometry);
     EXPECT_FALSE(estimate.ok());
     EXPECT_TRUE(estimate.v_horizontal_mps.isZero());
-    EXPECT_NEAR(estimate.unavailable_for_s, 1e-9 * static_cast<double>(t_ns - t_last_ok_ns),
-                1e-9);
+    EXPECT_NEAR(estimate.unavailable_for_s, 1e-9 * static_cast<double>(t_ns - t_last_ok_ns), 1e-9);
     EXPECT_GT(estimate.unavailable_for_s, previous);
     previous = estimate.unavailable_for_s;
     EXPECT_THAT(estimate.reason, HasSubstr(i % 2 == 0 ? "lost" : "valid_ratio"));
@@ -189,8 +188,8 @@ TEST(VelocityEstimator, NoImuMeansUnavailable) {
   config.warmup_s = 0.0;
   VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
   estimator.update(0, motion.odometry_at(0.0, 0, true));
-  const VelocityEstimate estimate =
-      estimator.update(kImuPerFrame * kImuNs, motion.odometry_at(0.03, kImuPerFrame * kImuNs, false));
+  const VelocityEstimate estimate = estimator.update(
+      kImuPerFrame * kImuNs, motion.odometry_at(0.03, kImuPerFrame * kImuNs, false));
   EXPECT_FALSE(estimate.ok());
   EXPECT_STREQ(estimate.reason, "no IMU sample yet");
 }
@@ -214,8 +213,8 @@ TEST(VelocityEstimator, UpdatesAllocateNothing) {
 }
 
 TEST(VelocityEstimatorConfig, BadValueIsRejectedNamingTheKey) {
-  const YAML::Node node = YAML::Load(
-      "{gyro_cutoff_hz: 20, one_euro_rotation: {beta: 1.0}, min_valid_ratio: 1.5}");
+  const YAML::Node node =
+      YAML::Load("{gyro_cutoff_hz: 20, one_euro_rotation: {beta: 1.0}, min_valid_ratio: 1.5}");
   config::StrictMap section(node, "config/onboard.yaml", "estimator");
   VelocityEstimatorConfig config;
   try {

@@ -1,9 +1,9 @@
 #include "hq/modes/mode_controller.hpp"
 
+#include "hq/config/strict_yaml.hpp"
+
 #include <algorithm>
 #include <cmath>
-
-#include "hq/config/strict_yaml.hpp"
 
 namespace hq::modes {
 

@@ -1,15 +1,15 @@
 #include "hq/modes/mode_controller.hpp"
 
-#include <algorithm>
-#include <cmath>
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
 
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
+#include <algorithm>
+#include <cmath>
 
 namespace hq::modes {
 namespace {
@@ -109,12 +109,14 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
   EXPECT_FALSE(modes.register_provider(Mode::kLand, &provider));
   EXPECT_TRUE(modes.request_mode(Mode::kExplore).accepted);
   ModeOutput out;
-  for (int k = 0; k < 100; ++k) out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  for (int k = 0; k < 100; ++k)
+    out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_FALSE(out.ramping);
   EXPECT_TRUE(out.v_star_des_horizontal_mps.isApprox(Eigen::Vector3d(0.2, 0.0, 0.0)));
   // A provider with no command: hover.
   provider.command.valid = false;
-  for (int k = 100; k < 200; ++k) out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  for (int k = 100; k < 200; ++k)
+    out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_TRUE(out.provider_failed);
   EXPECT_TRUE(out.v_star_des_horizontal_mps.isZero());
 }
@@ -150,7 +152,8 @@ TEST(ModeController, LandDescendsAtTheConfiguredSpeed) {
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   modes.request_mode(Mode::kLand);
   PointMass plant;
-  for (int k = 0; k < 2000; ++k) plant.step(modes.step(k * kStepNs, plant.v_mps, Eigen::Vector3d::Zero()).control.setpoint);
+  for (int k = 0; k < 2000; ++k)
+    plant.step(modes.step(k * kStepNs, plant.v_mps, Eigen::Vector3d::Zero()).control.setpoint);
   EXPECT_NEAR(plant.v_mps.z(), 0.4, 0.01);  // NED: descending is +z
 }
 
@@ -159,7 +162,8 @@ TEST(ModeController, ObstacleTermIsAddedInEveryMode) {
   FixedProvider provider;
   provider.command.valid = true;
   provider.command.v_horizontal_mps = Eigen::Vector3d(0.1, 0.1, 0.0);
-  for (const Mode mode : {Mode::kTeleop, Mode::kHover, Mode::kLand, Mode::kMarker, Mode::kExplore}) {
+  for (const Mode mode :
+       {Mode::kTeleop, Mode::kHover, Mode::kLand, Mode::kMarker, Mode::kExplore}) {
     ModeController modes(ModesConfig{}, control::VelocityControllerConfig{}, test_vehicle());
     modes.register_provider(Mode::kMarker, &provider);
     modes.register_provider(Mode::kExplore, &provider);

@@ -1,12 +1,12 @@
 #include "hq/obstacles/obstacle_field.hpp"
 
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
-
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
 
 namespace hq::obstacles {
 namespace {
@@ -48,8 +48,8 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
                      ", expected in [1, " + std::to_string(std::min(camera.width, camera.height)) +
                      "] for this camera");
   }
-  if (config.max_points < 0 || config.max_points > kMaxObstaclePoints ||
-      config.speckle_rank < 1 || config.speckle_rank > kMaxSpeckleRank) {
+  if (config.max_points < 0 || config.max_points > kMaxObstaclePoints || config.speckle_rank < 1 ||
+      config.speckle_rank > kMaxSpeckleRank) {
     throw InputError("obstacles: max_points = " + std::to_string(config.max_points) +
                      ", speckle_rank = " + std::to_string(config.speckle_rank) +
                      ", expected max_points <= " + std::to_string(kMaxObstaclePoints) +
@@ -148,7 +148,8 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
 
   // Near-range hazard: a structured-light sensor returns nothing for surfaces nearer than its
   // minimum range, which must not read as free space.
-  const int window_w = std::max(1, static_cast<int>(config_.central_window_fraction * camera_.width));
+  const int window_w =
+      std::max(1, static_cast<int>(config_.central_window_fraction * camera_.width));
   const int window_h =
       std::max(1, static_cast<int>(config_.central_window_fraction * camera_.height));
   const int u0 = (camera_.width - window_w) / 2;
@@ -194,11 +195,13 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
   }
   // Nearest first, so that max_points keeps the ones that matter.
   std::sort(minima_.begin(), minima_.end(), [this](int a, int b) {
-    return cells_[static_cast<std::size_t>(a)].range_m < cells_[static_cast<std::size_t>(b)].range_m;
+    return cells_[static_cast<std::size_t>(a)].range_m <
+           cells_[static_cast<std::size_t>(b)].range_m;
   });
   for (const int index : minima_) {
     const Cell& cell = cells_[static_cast<std::size_t>(index)];
-    const double z = cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
+    const double z =
+        cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
     const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
                               (cell.v - camera_.cy) / camera_.fy * z, z);
     add_point(result, R_HC * p_C + p_HC, false);

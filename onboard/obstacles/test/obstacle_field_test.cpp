@@ -1,16 +1,16 @@
 #include "hq/obstacles/obstacle_field.hpp"
 
-#include <cmath>
-#include <random>
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
 
+#include "allocation_counter.hpp"
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
-#include "allocation_counter.hpp"
+#include <cmath>
+#include <random>
 
 namespace hq::obstacles {
 namespace {
@@ -95,7 +95,8 @@ cv::Mat far_scene_with_speckle() {
 TEST(ObstacleField, SinglePixelSpeckleGivesZero) {
   ObstacleField field(ObstacleConfig{}, test_camera(), default_R_body_camera(),
                       Eigen::Vector3d::Zero());
-  const ObstacleResult result = field.compute(far_scene_with_speckle(), Eigen::Matrix3d::Identity());
+  const ObstacleResult result =
+      field.compute(far_scene_with_speckle(), Eigen::Matrix3d::Identity());
   ASSERT_TRUE(result.valid);
   EXPECT_EQ(result.count, 0);
   EXPECT_TRUE(result.v_obs_horizontal_mps.isZero());
@@ -182,8 +183,9 @@ TEST(ObstacleConfig, BadValueIsRejectedNamingTheKey) {
     read_config(section, config);
     FAIL() << "expected hq::InputError";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(),
-                HasSubstr("config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0"));
+    EXPECT_THAT(
+        e.what(),
+        HasSubstr("config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0"));
   }
 }
 

@@ -8,9 +8,9 @@
 ///   R_QC = Rz(yaw) Ry(pitch) Rx(roll) * R_forward_optical,
 ///   R_forward_optical = [e_y e_z e_x] (optical x = body right, y = body down, z = body forward).
 
-#include <string>
-
 #include <Eigen/Core>
+
+#include <string>
 
 namespace hq::config {
 class StrictMap;
@@ -20,8 +20,8 @@ namespace hq::control {
 
 struct VehicleConfig {
   double mass_kg = 1.0;
-  double max_tilt_rad = 0.5236;            ///< Max angle between thrust and vertical.
-  double min_thrust_n = 2.0;               ///< Keeps the rotors spinning.
+  double max_tilt_rad = 0.5236;  ///< Max angle between thrust and vertical.
+  double min_thrust_n = 2.0;     ///< Keeps the rotors spinning.
   double max_thrust_n = 20.0;
   double max_yaw_rate_radps = 1.5708;
   Eigen::Matrix3d R_body_camera = Eigen::Matrix3d::Identity();  ///< R_QC.

@@ -8,20 +8,20 @@
 /// NED throughout: z down, so climbing is v_z < 0 and thrust points along -z of the body.
 /// Roll/pitch are the ZYX Euler angles, i.e. R_HQ = Ry(pitch) Rx(roll).
 
-#include <cstdint>
+#include "hq/control/vehicle_config.hpp"
 
 #include <Eigen/Core>
 
-#include "hq/control/vehicle_config.hpp"
+#include <cstdint>
 
 namespace hq::control {
 
 inline constexpr double kGravityMps2 = 9.80665;
 
 struct VelocityControllerConfig {
-  double kp_xy_per_s = 3.0;    ///< Horizontal proportional gain (m/s^2 per m/s).
-  double ki_xy_per_s2 = 2.0;   ///< Horizontal integral gain (m/s^2 per m).
-  double kd_xy = 0.1;          ///< Horizontal derivative gain on measured acceleration.
+  double kp_xy_per_s = 3.0;   ///< Horizontal proportional gain (m/s^2 per m/s).
+  double ki_xy_per_s2 = 2.0;  ///< Horizontal integral gain (m/s^2 per m).
+  double kd_xy = 0.1;         ///< Horizontal derivative gain on measured acceleration.
   double kp_z_per_s = 4.0;
   double ki_z_per_s2 = 3.0;
   double kd_z = 0.1;
@@ -43,8 +43,8 @@ struct AttitudeSetpoint {
 
 struct ControlOutput {
   AttitudeSetpoint setpoint;
-  bool safe_hover = false;       ///< Inputs were not finite: hover setpoint, state frozen.
-  const char* reason = "";       ///< Static text when safe_hover.
+  bool safe_hover = false;  ///< Inputs were not finite: hover setpoint, state frozen.
+  const char* reason = "";  ///< Static text when safe_hover.
   bool tilt_saturated = false;
   bool thrust_saturated = false;
   Eigen::Vector3d a_command_mps2 = Eigen::Vector3d::Zero();  ///< PID output in H.

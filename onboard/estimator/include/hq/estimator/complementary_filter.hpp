@@ -8,11 +8,11 @@
 /// so roll phi and pitch theta are the core paper's. The core paper's world W is NWU:
 /// R_world_body = Rx(pi) R_ned_body, as its R_WQ = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
 
-#include <cstdint>
+#include "hq/estimator/one_euro_filter.hpp"
 
 #include <Eigen/Core>
 
-#include "hq/estimator/one_euro_filter.hpp"
+#include <cstdint>
 
 namespace hq::estimator {
 

@@ -3,11 +3,11 @@
 /// irregular sampling: dt comes from the stamps. Used on the odometry poses before eq. 2 of the
 /// core paper differentiates them.
 
-#include <cmath>
-#include <cstdint>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+
+#include <cmath>
+#include <cstdint>
 
 namespace hq::config {
 class StrictMap;
@@ -17,7 +17,7 @@ namespace hq::estimator {
 
 /// Outcome of one filter update. Rejected samples leave the state unchanged.
 enum class FilterStatus {
-  kFirstSample,        ///< Became the state unchanged (the 1€ filter passes its first sample).
+  kFirstSample,  ///< Became the state unchanged (the 1€ filter passes its first sample).
   kOk,
   kRejectedNonFinite,  ///< NaN or inf in the input.
   kRejectedTime,       ///< t_ns not after the previous accepted sample (dt <= 0).
@@ -79,9 +79,7 @@ class OneEuroFilter {
   }
 
   /// Scalar convenience for N == 1.
-  FilterStatus update(std::int64_t t_ns, double x)
-    requires(N == 1)
-  {
+  FilterStatus update(std::int64_t t_ns, double x) requires(N == 1) {
     return update(t_ns, Vector::Constant(x));
   }
 

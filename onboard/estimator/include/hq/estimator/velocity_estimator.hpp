@@ -6,13 +6,13 @@
 /// Legend: W world, Q (= B) body NED, H horizontal NED (yaw kept), C camera (optical: z forward,
 /// x right, y down). Pure: stamps and data in, estimate out; nothing allocated per update.
 
-#include <cstdint>
-
-#include <Eigen/Core>
-
 #include "hq/estimator/complementary_filter.hpp"
 #include "hq/estimator/one_euro_filter.hpp"
 #include "hq/odometry/dense_odometry.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
 
 namespace hq::estimator {
 
@@ -20,14 +20,14 @@ struct VelocityEstimatorConfig {
   OneEuroConfig one_euro_position{1.0, 2.0, 1.0};  ///< On C0_p_Ck (m): beta in Hz per m/s.
   OneEuroConfig one_euro_rotation{1.0, 1.0, 1.0};  ///< On R_C0_Ck: beta in Hz per rad/s.
   ComplementaryConfig complementary;
-  double gyro_cutoff_hz = 15.0;        ///< Low-pass on omega_Q before eq. 4.
-  double min_valid_ratio = 0.05;       ///< Odometry with fewer usable pixels is rejected.
-  double max_mean_error = 2500.0;      ///< Odometry mean weighted error (intensity^2) bound.
-  double max_frame_gap_s = 0.5;        ///< Longer gaps re-seed the pose filter (no eq. 2 over it).
-  double max_imu_age_s = 0.2;          ///< Attitude older than this makes the estimate unavailable.
-  double warmup_s = 0.2;               ///< After a (re)seed the 1€ speed starts at 0 and eq. 2
-                                       ///< reads low (0.05 of 0.3 m/s on the first frame); no
-                                       ///< estimate until the filter has run this long.
+  double gyro_cutoff_hz = 15.0;    ///< Low-pass on omega_Q before eq. 4.
+  double min_valid_ratio = 0.05;   ///< Odometry with fewer usable pixels is rejected.
+  double max_mean_error = 2500.0;  ///< Odometry mean weighted error (intensity^2) bound.
+  double max_frame_gap_s = 0.5;    ///< Longer gaps re-seed the pose filter (no eq. 2 over it).
+  double max_imu_age_s = 0.2;      ///< Attitude older than this makes the estimate unavailable.
+  double warmup_s = 0.2;           ///< After a (re)seed the 1€ speed starts at 0 and eq. 2
+                                   ///< reads low (0.05 of 0.3 m/s on the first frame); no
+                                   ///< estimate until the filter has run this long.
 };
 
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
@@ -42,12 +42,12 @@ enum class EstimateStatus { kOk, kUnavailable };
 struct VelocityEstimate {
   std::int64_t t_ns = 0;
   EstimateStatus status = EstimateStatus::kUnavailable;
-  const char* reason = "";                                      ///< Static text.
-  Eigen::Vector3d v_camera_mps = Eigen::Vector3d::Zero();       ///< eq. 2: Ck_v_Ck, filtered.
-  Eigen::Vector3d v_camera_raw_mps = Eigen::Vector3d::Zero();   ///< eq. 1: raw poses.
-  Eigen::Vector3d v_body_mps = Eigen::Vector3d::Zero();         ///< eq. 4: Q_v_Q.
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();   ///< eq. 5: H_v_Q.
-  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();   ///< low-passed, bias removed.
+  const char* reason = "";                                     ///< Static text.
+  Eigen::Vector3d v_camera_mps = Eigen::Vector3d::Zero();      ///< eq. 2: Ck_v_Ck, filtered.
+  Eigen::Vector3d v_camera_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1: raw poses.
+  Eigen::Vector3d v_body_mps = Eigen::Vector3d::Zero();        ///< eq. 4: Q_v_Q.
+  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();  ///< eq. 5: H_v_Q.
+  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();  ///< low-passed, bias removed.
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
   double unavailable_for_s = 0.0;  ///< Time since the last kOk estimate (0 when kOk).

@@ -6,11 +6,11 @@
 /// Switching is bumpless: after a mode change (or a teleop timeout) v*_des and the yaw rate ramp
 /// from their values at the switch, rate-limited, so thrust and tilt have no step.
 
-#include <cstdint>
+#include "hq/control/velocity_controller.hpp"
 
 #include <Eigen/Core>
 
-#include "hq/control/velocity_controller.hpp"
+#include <cstdint>
 
 namespace hq::config {
 class StrictMap;
@@ -22,9 +22,9 @@ enum class Mode { kTeleop, kHover, kLand, kMarker, kExplore };
 const char* to_string(Mode mode);
 
 struct ModesConfig {
-  double teleop_timeout_s = 0.5;          ///< Older operator commands fall back to hover.
-  double land_speed_mps = 0.3;            ///< Descent speed in land (NED: +z).
-  double max_switch_accel_mps2 = 1.0;     ///< Ramp rate of v*_des after a switch.
+  double teleop_timeout_s = 0.5;             ///< Older operator commands fall back to hover.
+  double land_speed_mps = 0.3;               ///< Descent speed in land (NED: +z).
+  double max_switch_accel_mps2 = 1.0;        ///< Ramp rate of v*_des after a switch.
   double max_switch_yaw_accel_radps2 = 2.0;  ///< Ramp rate of the yaw rate after a switch.
 };
 

@@ -6,14 +6,14 @@
 /// Frames: C camera (optical: z forward, x right, y down), Q body NED, H horizontal NED (Q with
 /// roll and pitch removed). All buffers are sized at construction; compute() allocates nothing.
 
-#include <array>
-#include <cstdint>
-#include <vector>
+#include "hq/geometry/pinhole_camera.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#include "hq/geometry/pinhole_camera.hpp"
+#include <array>
+#include <cstdint>
+#include <vector>
 
 namespace hq::config {
 class StrictMap;
@@ -25,17 +25,17 @@ namespace hq::obstacles {
 inline constexpr int kMaxObstaclePoints = 64;
 
 struct ObstacleConfig {
-  int cell_px = 16;                       ///< Side of the min-pool cells (pixels).
-  int speckle_rank = 3;                   ///< A cell's value is its k-th smallest valid range.
-  double suppression_radius_px = 48.0;    ///< Non-minimum suppression radius on the cell grid.
-  double influence_distance_m = 1.2;      ///< d0: points farther away exert nothing.
-  double max_repulsive_speed_mps = 0.8;   ///< |v_obs| saturates here.
-  double gain = 0.05;                     ///< eta of the potential (m^3/s): v = eta (1/d - 1/d0) / d^2.
-  double min_range_m = 0.4;               ///< Sensor minimum range: nearer surfaces read invalid.
-  double max_range_m = 8.0;               ///< Depth beyond this is ignored.
-  double near_invalid_fraction = 0.6;     ///< Invalid fraction of the central window = hazard.
-  double central_window_fraction = 0.4;   ///< Central window side / image side.
-  int max_points = 16;                    ///< Nearest minima kept (<= kMaxObstaclePoints).
+  int cell_px = 16;                      ///< Side of the min-pool cells (pixels).
+  int speckle_rank = 3;                  ///< A cell's value is its k-th smallest valid range.
+  double suppression_radius_px = 48.0;   ///< Non-minimum suppression radius on the cell grid.
+  double influence_distance_m = 1.2;     ///< d0: points farther away exert nothing.
+  double max_repulsive_speed_mps = 0.8;  ///< |v_obs| saturates here.
+  double gain = 0.05;        ///< eta of the potential (m^3/s): v = eta (1/d - 1/d0) / d^2.
+  double min_range_m = 0.4;  ///< Sensor minimum range: nearer surfaces read invalid.
+  double max_range_m = 8.0;  ///< Depth beyond this is ignored.
+  double near_invalid_fraction = 0.6;    ///< Invalid fraction of the central window = hazard.
+  double central_window_fraction = 0.4;  ///< Central window side / image side.
+  int max_points = 16;                   ///< Nearest minima kept (<= kMaxObstaclePoints).
 };
 
 /// Reads the `obstacles:` section strictly.
@@ -49,12 +49,12 @@ struct ObstaclePoint {
 };
 
 struct ObstacleResult {
-  bool valid = false;                 ///< False if the image was unusable; v_obs is then zero.
-  const char* reason = "";            ///< Static text when !valid.
+  bool valid = false;       ///< False if the image was unusable; v_obs is then zero.
+  const char* reason = "";  ///< Static text when !valid.
   Eigen::Vector3d v_obs_horizontal_mps = Eigen::Vector3d::Zero();  ///< Repulsive velocity in H.
   std::array<ObstaclePoint, kMaxObstaclePoints> points{};          ///< Nearest first.
-  int count = 0;                      ///< Valid entries in points.
-  bool near_hazard = false;           ///< Central window too invalid: something is too close.
+  int count = 0;                                                   ///< Valid entries in points.
+  bool near_hazard = false;  ///< Central window too invalid: something is too close.
   double central_invalid_fraction = 0.0;
 };
 
@@ -91,7 +91,7 @@ class ObstacleField {
   int radius_cells_ = 0;
   std::vector<float> ray_norm_;  // |K^-1 (u, v, 1)| per pixel: range = depth * ray_norm
   std::vector<Cell> cells_;
-  std::vector<int> minima_;      // cell indices of local minima, capacity cells_
+  std::vector<int> minima_;  // cell indices of local minima, capacity cells_
 };
 
 }  // namespace hq::obstacles
