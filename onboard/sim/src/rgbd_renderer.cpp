@@ -57,6 +57,7 @@ struct BoxC {
   float face_shade[6] = {};  // +x -x +y -y +z -z
   Vec3f face_normal_c[6];
   int surface0 = 0;          // first of six surfaces
+  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;  // per frame: image bounding box (inclusive)
 };
 
 struct CylinderC {
@@ -64,6 +65,7 @@ struct CylinderC {
   float radius = 0, height = 0;
   float top_shade = 1.0f;
   const Texture* texture = nullptr;
+  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;  // per frame: image bounding box (inclusive)
 };
 
 enum class HitKind { kNone, kRect, kBox, kCylinderSide, kCylinderTop };
@@ -180,6 +182,36 @@ SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
     }
   }
   return sm;
+}
+
+/// Image bounding box of a world-frame axis-aligned-in-local box given by 8 corners; the whole
+/// image if any corner is near or behind the camera. Lets a pixel skip primitives it cannot
+/// hit: the test is 4 compares instead of a slab or quadratic intersection.
+void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d& R_camera_world,
+                   const Eigen::Vector3d& o_world, const geometry::PinholeCamera& cam, int& u0,
+                   int& u1, int& v0, int& v1) {
+  double min_u = 1e30, max_u = -1e30, min_v = 1e30, max_v = -1e30;
+  for (int i = 0; i < 8; ++i) {
+    const Eigen::Vector3d p = R_camera_world * (corners_world[i] - o_world);
+    if (p.z() < 1e-3) {
+      u0 = 0;
+      v0 = 0;
+      u1 = cam.width - 1;
+      v1 = cam.height - 1;
+      return;
+    }
+    const double u = cam.fx * p.x() / p.z() + cam.cx;
+    const double v = cam.fy * p.y() / p.z() + cam.cy;
+    min_u = std::min(min_u, u);
+    max_u = std::max(max_u, u);
+    min_v = std::min(min_v, v);
+    max_v = std::max(max_v, v);
+  }
+  u0 = static_cast<int>(std::clamp(std::floor(min_u) - 1.0, 0.0, cam.width - 1.0));
+  u1 = static_cast<int>(std::clamp(std::ceil(max_u) + 1.0, -1.0, cam.width - 1.0));
+  v0 = static_cast<int>(std::clamp(std::floor(min_v) - 1.0, 0.0, cam.height - 1.0));
+  v1 = static_cast<int>(std::clamp(std::ceil(max_v) + 1.0, -1.0, cam.height - 1.0));
+  if (max_u < 0.0 || max_v < 0.0) u1 = -1;  // entirely left of or above the image
 }
 
 }  // namespace
@@ -310,6 +342,12 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       bc.face_shade[f] = lambert(n_world);
       bc.face_normal_c[f] = (R_camera_world * n_world).cast<float>();
     }
+    Eigen::Vector3d corners[8];
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::Vector3d sign((k & 1) ? 1.0 : -1.0, (k & 2) ? 1.0 : -1.0, (k & 4) ? 1.0 : -1.0);
+      corners[k] = b.center_m + R_world_local * (0.5 * b.size_m.cwiseProduct(sign));
+    }
+    screen_bounds(corners, R_camera_world, o_world, cam, bc.u0, bc.u1, bc.v0, bc.v1);
   }
   for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
     const Cylinder& c = sc.cylinders_world[i];
@@ -320,6 +358,13 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
     cc.radius = static_cast<float>(c.radius_m);
     cc.height = static_cast<float>(c.height_m);
     cc.top_shade = lambert(Eigen::Vector3d::UnitZ());
+    Eigen::Vector3d corners[8];
+    for (int k = 0; k < 8; ++k) {
+      corners[k] = Eigen::Vector3d(c.center_m.x() + ((k & 1) ? c.radius_m : -c.radius_m),
+                                   c.center_m.y() + ((k & 2) ? c.radius_m : -c.radius_m),
+                                   c.base_z_m + ((k & 4) ? c.height_m : 0.0));
+    }
+    screen_bounds(corners, R_camera_world, o_world, cam, cc.u0, cc.u1, cc.v0, cc.v1);
   }
   for (SurfaceMarker& m : sc.markers) {
     m.visible = m.normal_world.dot(o_world.cast<float>() - m.center_world) > 0.0f;
@@ -363,6 +408,7 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
       for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
         const BoxC& b = sc.boxes[i];
+        if (u < b.u0 || u > b.u1 || v < b.v0 || v > b.v1) continue;
         const Vec3f dl = b.R_local_camera * d;
         float t_near = -kNoHit;
         float t_far = kNoHit;
@@ -389,6 +435,7 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
         const Vec3f dw = R_world_camera * d;
         for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
           const CylinderC& c = sc.cylinders[i];
+          if (u < c.u0 || u > c.u1 || v < c.v0 || v > c.v1) continue;
           const float a = dw.x() * dw.x() + dw.y() * dw.y();
           const float b = c.ox * dw.x() + c.oy * dw.y();
           const float cc = c.ox * c.ox + c.oy * c.oy - c.radius * c.radius;

@@ -1,0 +1,91 @@
+// hq-bench-sim: render time per frame at 320x240 and 640x480 and the real-time factor of a
+// full simulation (dynamics 1 kHz + IMU + RGB-D at 30 Hz) on one core. Not run by ctest.
+//   hq-bench-sim [world.yaml]   (default onboard/sim/worlds/room.yaml, run from the repo root)
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <string>
+#include <vector>
+
+#include "hq/sim/simulator.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr std::int64_t kMs = 1'000'000;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// A scripted hover-and-circle so the camera sweeps the room.
+hq::sim::AttitudeCommand script(const hq::sim::Simulator& sim, double t_s) {
+  const hq::sim::TruthState& truth = sim.truth();
+  const double m = sim.config().vehicle.mass_kg;
+  const double a_z = 3.0 * (1.0 - truth.T_world_body.translation().z()) - 2.5 * truth.v_world_mps.z();
+  const double roll = t_s > 2.0 ? 0.08 * std::sin(0.8 * t_s) : 0.0;
+  const double pitch = t_s > 2.0 ? 0.08 * std::cos(0.8 * t_s) - 0.08 : 0.0;
+  return {m * (9.81 + a_z) / (std::cos(roll) * std::cos(pitch)), roll, pitch, 0.3};
+}
+
+void run(const hq::sim::World& world, int width, int height) {
+  hq::sim::SimConfig config = hq::sim::default_sim_config(width, height);
+  // 1. Rendering alone, along a flown trajectory.
+  {
+    hq::sim::Simulator sim(config, world);
+    cv::Mat image, depth;
+    std::vector<double> frame_ms;
+    for (std::int64_t t = 0; t < 10'000 * kMs; t += kMs) {
+      sim.set_command(script(sim, static_cast<double>(t) * 1e-9));
+      sim.step_to(t + kMs);
+      if (sim.camera_due()) {
+        const Clock::time_point start = Clock::now();
+        sim.render_camera(image, depth);
+        frame_ms.push_back(ms_since(start));
+      }
+    }
+    std::sort(frame_ms.begin(), frame_ms.end());
+    std::printf("%dx%d render: median %.2f ms/frame, p90 %.2f ms, %zu frames\n", width, height,
+                frame_ms[frame_ms.size() / 2], frame_ms[frame_ms.size() * 9 / 10],
+                frame_ms.size());
+  }
+  // 2. Full simulation: physics, IMU draining and every camera frame rendered.
+  {
+    hq::sim::Simulator sim(config, world);
+    cv::Mat image, depth;
+    std::vector<hq::sim::ImuSample> imu(1000);
+    const double sim_s = 10.0;
+    const Clock::time_point start = Clock::now();
+    for (std::int64_t t = 0; t < static_cast<std::int64_t>(sim_s * 1e3) * kMs; t += kMs) {
+      sim.set_command(script(sim, static_cast<double>(t) * 1e-9));
+      sim.step_to(t + kMs);
+      sim.take_imu(imu.data(), imu.size());
+      if (sim.camera_due()) sim.render_camera(image, depth);
+    }
+    const double wall_s = ms_since(start) * 1e-3;
+    std::printf("%dx%d full sim (1 kHz dynamics + %g Hz IMU + %g Hz RGB-D): %.2f s simulated in "
+                "%.2f s, real-time factor %.1fx\n",
+                width, height, config.imu.rate_hz, config.camera.rate_hz, sim_s, wall_s,
+                sim_s / wall_s);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const std::string path = argc > 1 ? argv[1] : "onboard/sim/worlds/room.yaml";
+    const hq::sim::World world = hq::sim::load_world(path);
+    std::printf("world %s: %zu walls, %zu boxes, %zu cylinders, %zu markers\n", path.c_str(),
+                world.walls.size(), world.boxes.size(), world.cylinders.size(),
+                world.markers.size());
+    run(world, 320, 240);
+    run(world, 640, 480);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "hq-bench-sim: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}
