@@ -401,6 +401,9 @@ struct DenseOdometry::Impl {
       double previous_error = std::numeric_limits<double>::infinity();
       Eigen::Isometry3d T_previous = T_cur_ref;
       double level_variance = 0.0;
+      // A pixel at level l spans 2^l pixels of level 0: a step that moves the image by a fixed
+      // fraction of a pixel is worth less at coarse levels, so they stop sooner.
+      const double tolerance = config.step_tolerance * static_cast<double>(1 << (level - finest));
       for (int it = 0; it < config.max_iterations_per_level; ++it) {
         valid = compute_residuals(level, current.intensity[level], T_cur_ref);
         if (valid < 6) break;
@@ -426,7 +429,10 @@ struct DenseOdometry::Impl {
         Vector6d b = normal.g;
         if (config.use_motion_prior && predict) {
           // Kerl 2013: a Gaussian prior around the constant-velocity prediction.
-          const Matrix6d P = config.motion_prior_precision * last_information;
+          // Scaled to this level's data term: coarse levels have fewer, smaller gradients, and a
+          // prior at full finest-level strength would pin them to the prediction.
+          const double level_scale = normal.H.trace() / last_information.trace();
+          const Matrix6d P = config.motion_prior_precision * level_scale * last_information;
           // T_ref_cur moves as exp(delta) T_ref_cur, so its deviation from the prediction is
           // delta + d with d = log(T_ref_cur T_ref_predicted^-1).
           const Vector6d d = geometry::log_se3(T_cur_ref.inverse() * T_ref_predicted.inverse());
@@ -438,7 +444,7 @@ struct DenseOdometry::Impl {
         if (!delta.allFinite()) break;
         T_previous = T_cur_ref;
         T_cur_ref = T_cur_ref * geometry::exp_se3(-delta);
-        if (delta.squaredNorm() < config.step_tolerance * config.step_tolerance) break;
+        if (delta.squaredNorm() < tolerance * tolerance) break;
       }
     }
 

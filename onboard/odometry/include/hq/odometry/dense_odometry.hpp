@@ -41,7 +41,8 @@ struct OdometryConfig {
   int pyramid_levels = 4;          ///< Levels built: 0 = input resolution.
   int finest_level = 1;            ///< Finest level optimised (1 = half resolution, as DVO).
   int max_iterations_per_level = 20;
-  double step_tolerance = 1e-5;    ///< Stop a level when |delta xi| (m, rad) falls below this.
+  double step_tolerance = 2e-4;    ///< Stop the finest level when |delta xi| (m, rad) falls
+                                   ///< below this; level l stops at 2^(l - finest) times it.
   double min_depth_m = 0.3;
   double max_depth_m = 6.0;
   double min_gradient = 4.0;       ///< Reference pixels with smaller |grad I| (0..255 units)
