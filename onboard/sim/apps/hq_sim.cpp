@@ -1,7 +1,14 @@
 // hq-sim: flies a scripted, truth-stabilised attitude/thrust sequence in a simulated world and
 // records it in the TUM RGB-D layout (with IMU), giving the odometry team ground-truthed runs.
 //   hq-sim --world onboard/sim/worlds/arena.yaml --duration-s 10 --record out_dir
-//          [--resolution 640x480] [--seed N] [--script hover|circle] [--config sim.yaml]
+//          [--resolution 640x480] [--seed N] [--script hover|circle]
+//          [--config onboard/sim/config/sim.yaml]
+#include "hq/base/error.hpp"
+#include "hq/sim/simulator.hpp"
+#include "hq/sim/tum_writer.hpp"
+
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,12 +16,6 @@
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-
-#include "hq/base/error.hpp"
-#include "hq/sim/simulator.hpp"
-#include "hq/sim/tum_writer.hpp"
 
 namespace {
 
@@ -59,7 +60,8 @@ hq::sim::AttitudeCommand command_at(const hq::sim::Simulator& sim, const Script&
     yaw_rate = 0.15 * ramp;  // a slow turn so the camera sweeps the scene
   }
   const Eigen::Vector3d p = truth.T_world_body.translation();
-  const Eigen::Vector2d a_xy = a_ff + 1.2 * (p_d - p.head<2>()) + 1.8 * (v_d - truth.v_world_mps.head<2>());
+  const Eigen::Vector2d a_xy =
+      a_ff + 1.2 * (p_d - p.head<2>()) + 1.8 * (v_d - truth.v_world_mps.head<2>());
   const double a_z = 3.0 * (s.altitude_m - p.z()) - 2.5 * truth.v_world_mps.z();
 
   // World (NWU) acceleration into the horizontal NED frame H, then tilt (core paper §3).
@@ -78,14 +80,15 @@ hq::sim::AttitudeCommand command_at(const hq::sim::Simulator& sim, const Script&
 int run(int argc, char** argv) {
   CLI::App app{"hq-sim: scripted flight in a simulated world, recorded as a TUM RGB-D sequence"};
   std::string world_path;
-  std::string config_path;
+  std::string config_path = "onboard/sim/config/sim.yaml";
   std::string record_dir;
   std::string resolution = "320x240";
   std::string script_kind = "hover";
   double duration_s = 10.0;
   long long seed = -1;
   app.add_option("--world", world_path, "world YAML (onboard/sim/worlds/*.yaml)")->required();
-  app.add_option("--config", config_path, "sim config YAML (default: built-in, as onboard/sim/config/sim.yaml)");
+  app.add_option("--config", config_path,
+                 "sim config YAML (run from the repository root for the default)");
   app.add_option("--duration-s", duration_s, "simulated seconds")->check(CLI::Range(0.1, 3600.0));
   app.add_option("--record", record_dir, "output directory (TUM RGB-D layout)");
   app.add_option("--resolution", resolution, "WIDTHxHEIGHT, e.g. 320x240 or 640x480");
@@ -100,16 +103,17 @@ int run(int argc, char** argv) {
   }
 
   const hq::sim::World world = hq::sim::load_world(world_path);
-  hq::sim::SimConfig config =
-      config_path.empty() ? hq::sim::default_sim_config() : hq::sim::load_sim_config(config_path);
+  hq::sim::SimConfig config = hq::sim::load_sim_config(config_path);
   int width = 0;
   int height = 0;
   char tail = 0;
   if (std::sscanf(resolution.c_str(), "%dx%d%c", &width, &height, &tail) != 2 || width < 16 ||
       height < 16 || width > 4096 || height > 4096) {
-    throw hq::InputError("--resolution = " + resolution + ", expected WIDTHxHEIGHT such as 640x480");
+    throw hq::InputError("--resolution = " + resolution +
+                         ", expected WIDTHxHEIGHT such as 640x480");
   }
-  const double hfov_rad = 2.0 * std::atan(0.5 * config.camera.pinhole.width / config.camera.pinhole.fx);
+  const double hfov_rad =
+      2.0 * std::atan(0.5 * config.camera.pinhole.width / config.camera.pinhole.fx);
   config.camera.pinhole = hq::sim::pinhole_from_fov(width, height, hfov_rad);
   config.seed = seed >= 0 ? static_cast<std::uint64_t>(seed) : world.seed;
 
@@ -119,7 +123,8 @@ int run(int argc, char** argv) {
   script.hover_xy_m = world.start_world_m.head<2>();
   // The circle bends towards the world origin, where the worlds keep their free space.
   const Eigen::Vector2d to_origin = -script.hover_xy_m;
-  const Eigen::Vector2d inward = to_origin.norm() > 1e-6 ? to_origin.normalized() : Eigen::Vector2d(1.0, 0.0);
+  const Eigen::Vector2d inward =
+      to_origin.norm() > 1e-6 ? to_origin.normalized() : Eigen::Vector2d(1.0, 0.0);
   script.circle_center_m = script.hover_xy_m + script.circle_radius_m * inward;
 
   std::unique_ptr<hq::sim::TumWriter> writer;
@@ -148,16 +153,17 @@ int run(int argc, char** argv) {
       if (writer) writer->write_frame(t_frame, image, depth, T_world_camera);
       ++frames;
     }
-    if (!sim.truth().on_ground) min_clearance_m = std::min(min_clearance_m, sim.truth().clearance_m);
+    if (!sim.truth().on_ground)
+      min_clearance_m = std::min(min_clearance_m, sim.truth().clearance_m);
   }
   if (writer) writer->close();
 
   const Eigen::Vector3d p = sim.truth().T_world_body.translation();
-  std::printf("hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
-              "%lld dropped frames\n",
-              world.name.c_str(), script_kind.c_str(), static_cast<unsigned long long>(config.seed),
-              duration_s, frames, width, height, imu_samples,
-              static_cast<long long>(sim.dropped_frames()));
+  std::printf(
+      "hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
+      "%lld dropped frames\n",
+      world.name.c_str(), script_kind.c_str(), static_cast<unsigned long long>(config.seed),
+      duration_s, frames, width, height, imu_samples, static_cast<long long>(sim.dropped_frames()));
   std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n", p.x(),
               p.y(), p.z(), min_clearance_m, sim.collided() ? "YES" : "no");
   if (writer) std::printf("recorded to %s\n", record_dir.c_str());

@@ -1,6 +1,8 @@
 // hq-bench-sim: render time per frame at 320x240 and 640x480 and the real-time factor of a
 // full simulation (dynamics 1 kHz + IMU + RGB-D at 30 Hz) on one core. Not run by ctest.
 //   hq-bench-sim [world.yaml]   (default onboard/sim/worlds/room.yaml, run from the repo root)
+#include "hq/sim/simulator.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,8 +10,6 @@
 #include <exception>
 #include <string>
 #include <vector>
-
-#include "hq/sim/simulator.hpp"
 
 namespace {
 
@@ -24,7 +24,8 @@ double ms_since(Clock::time_point start) {
 hq::sim::AttitudeCommand script(const hq::sim::Simulator& sim, double t_s) {
   const hq::sim::TruthState& truth = sim.truth();
   const double m = sim.config().vehicle.mass_kg;
-  const double a_z = 3.0 * (1.0 - truth.T_world_body.translation().z()) - 2.5 * truth.v_world_mps.z();
+  const double a_z =
+      3.0 * (1.0 - truth.T_world_body.translation().z()) - 2.5 * truth.v_world_mps.z();
   const double roll = t_s > 2.0 ? 0.08 * std::sin(0.8 * t_s) : 0.0;
   const double pitch = t_s > 2.0 ? 0.08 * std::cos(0.8 * t_s) - 0.08 : 0.0;
   return {m * (9.81 + a_z) / (std::cos(roll) * std::cos(pitch)), roll, pitch, 0.3};
@@ -48,8 +49,7 @@ void run(const hq::sim::World& world, int width, int height) {
     }
     std::sort(frame_ms.begin(), frame_ms.end());
     std::printf("%dx%d render: median %.2f ms/frame, p90 %.2f ms, %zu frames\n", width, height,
-                frame_ms[frame_ms.size() / 2], frame_ms[frame_ms.size() * 9 / 10],
-                frame_ms.size());
+                frame_ms[frame_ms.size() / 2], frame_ms[frame_ms.size() * 9 / 10], frame_ms.size());
   }
   // 2. Full simulation: physics, IMU draining and every camera frame rendered.
   {
@@ -65,10 +65,10 @@ void run(const hq::sim::World& world, int width, int height) {
       if (sim.camera_due()) sim.render_camera(image, depth);
     }
     const double wall_s = ms_since(start) * 1e-3;
-    std::printf("%dx%d full sim (1 kHz dynamics + %g Hz IMU + %g Hz RGB-D): %.2f s simulated in "
-                "%.2f s, real-time factor %.1fx\n",
-                width, height, config.imu.rate_hz, config.camera.rate_hz, sim_s, wall_s,
-                sim_s / wall_s);
+    std::printf(
+        "%dx%d full sim (1 kHz dynamics + %g Hz IMU + %g Hz RGB-D): %.2f s simulated in "
+        "%.2f s, real-time factor %.1fx\n",
+        width, height, config.imu.rate_hz, config.camera.rate_hz, sim_s, wall_s, sim_s / wall_s);
   }
 }
 

@@ -4,8 +4,7 @@
 
 namespace hq::sim {
 
-ImuModel::ImuModel(const ImuParams& params, std::uint64_t seed)
-    : params_(params), rng_(seed) {
+ImuModel::ImuModel(const ImuParams& params, std::uint64_t seed) : params_(params), rng_(seed) {
   gyro_bias_ = params_.gyro_initial_bias_sigma_radps * gaussian3();
   accel_bias_ = params_.accel_initial_bias_sigma_mps2 * gaussian3();
 }

@@ -18,11 +18,10 @@ double wrap_angle(double a) { return std::remainder(a, 2.0 * kPi); }
 }  // namespace
 
 Eigen::Matrix3d R_world_body_from_euler(double roll_rad, double pitch_rad, double yaw_rad) {
-  const Eigen::Matrix3d R_ned_body =
-      (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
-       Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d R_ned_body = (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
+                                      Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+                                      Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+                                         .toRotationMatrix();
   return R_world_ned() * R_ned_body;
 }
 
@@ -76,8 +75,7 @@ void Quadrotor::control(double dt_s, double rotor_speed_cmd_radps[4]) {
   const Eigen::Matrix3d R = state_.q_world_body.toRotationMatrix();
   yaw_setpoint_rad_ = wrap_angle(yaw_setpoint_rad_ + command_.yaw_rate_radps * dt_s);
   const double roll = std::clamp(command_.roll_rad, -params_.max_tilt_rad, params_.max_tilt_rad);
-  const double pitch =
-      std::clamp(command_.pitch_rad, -params_.max_tilt_rad, params_.max_tilt_rad);
+  const double pitch = std::clamp(command_.pitch_rad, -params_.max_tilt_rad, params_.max_tilt_rad);
   const Eigen::Matrix3d R_d = R_world_body_from_euler(roll, pitch, yaw_setpoint_rad_);
 
   // Geometric attitude control on SO(3) (Lee, Leok, McClamroch 2010, eqs. 10-11 and 16).
@@ -97,8 +95,7 @@ void Quadrotor::control(double dt_s, double rotor_speed_cmd_radps[4]) {
   alpha_d.z() = -k_yaw_r * e_R.z() - k_yaw_omega * e_omega.z();
   const Eigen::Vector3d& J = params_.inertia_kgm2;
   const Eigen::Vector3d& w = state_.omega_body_radps;
-  const Eigen::Vector3d tau =
-      J.cwiseProduct(alpha_d) + w.cross(J.cwiseProduct(w));
+  const Eigen::Vector3d tau = J.cwiseProduct(alpha_d) + w.cross(J.cwiseProduct(w));
 
   Eigen::Vector4d wrench;
   wrench << std::max(command_.thrust_n, 0.0), tau;

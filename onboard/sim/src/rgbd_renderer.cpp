@@ -1,13 +1,13 @@
 #include "hq/sim/rgbd_renderer.hpp"
 
+#include "hq/base/error.hpp"
+
+#include <opencv2/aruco.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
-
-#include <opencv2/aruco.hpp>
-
-#include "hq/base/error.hpp"
 
 namespace hq::sim {
 
@@ -26,13 +26,13 @@ using Vec3f = Eigen::Vector3f;
 
 /// Marker bitmap placed on a surface: (s, t) surface coordinates -> cell (col, row).
 struct SurfaceMarker {
-  float s0 = 0.0f, t0 = 0.0f;       // marker centre in surface coordinates
-  float a00 = 0.0f, a01 = 0.0f;     // col = a00 ds + a01 dt + kTagCells / 2
-  float a10 = 0.0f, a11 = 0.0f;     // row = a10 ds + a11 dt + kTagCells / 2
-  float reach = 0.0f;               // |ds|, |dt| beyond this cannot be on the tag
+  float s0 = 0.0f, t0 = 0.0f;    // marker centre in surface coordinates
+  float a00 = 0.0f, a01 = 0.0f;  // col = a00 ds + a01 dt + kTagCells / 2
+  float a10 = 0.0f, a11 = 0.0f;  // row = a10 ds + a11 dt + kTagCells / 2
+  float reach = 0.0f;            // |ds|, |dt| beyond this cannot be on the tag
   Vec3f normal_world = Vec3f::UnitZ();
   Vec3f center_world = Vec3f::Zero();
-  bool visible = false;             // per frame: the camera sees the printed side
+  bool visible = false;                            // per frame: the camera sees the printed side
   std::uint8_t cells[kTagCells * kTagCells] = {};  // 1 = white
 };
 
@@ -52,11 +52,11 @@ struct RectC {  // rectangle, per frame in camera coordinates
 
 struct BoxC {
   Eigen::Matrix3f R_local_camera;
-  Vec3f o_local;       // camera origin in box coordinates
+  Vec3f o_local;  // camera origin in box coordinates
   Vec3f half;
   float face_shade[6] = {};  // +x -x +y -y +z -z
   Vec3f face_normal_c[6];
-  int surface0 = 0;          // first of six surfaces
+  int surface0 = 0;                      // first of six surfaces
   int u0 = 0, u1 = -1, v0 = 0, v1 = -1;  // per frame: image bounding box (inclusive)
 };
 
@@ -97,10 +97,10 @@ float gaussian_from_hash(std::uint64_t h) {
 }  // namespace
 
 struct RgbdRenderer::Scene {
-  std::vector<Rectangle> rects_world;   // floor first, then walls
+  std::vector<Rectangle> rects_world;  // floor first, then walls
   std::vector<Box> boxes_world;
   std::vector<Cylinder> cylinders_world;
-  std::vector<Surface> surfaces;        // rects, then 6 per box
+  std::vector<Surface> surfaces;  // rects, then 6 per box
   std::vector<SurfaceMarker> markers;
   std::vector<RectC> rects;
   std::vector<BoxC> boxes;
@@ -312,7 +312,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
   const Eigen::Vector3d o_world = T_world_camera.translation();
   const Eigen::Vector3d light = params_.light_dir_world.normalized();
   const auto lambert = [&](const Eigen::Vector3d& n_world) {
-    return static_cast<float>(params_.ambient + params_.diffuse * std::max(0.0, n_world.dot(light)));
+    return static_cast<float>(params_.ambient +
+                              params_.diffuse * std::max(0.0, n_world.dot(light)));
   };
   for (std::size_t i = 0; i < sc.rects.size(); ++i) {
     const Rectangle& r = sc.rects_world[i];
@@ -529,8 +530,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
           // quantisation make sigma_z grow with z^2 (Khoshelham 2012, eq. 9).
           float disparity = fb / z_true;
           if (sigma_disparity > 0.0f) {
-            disparity += sigma_disparity *
-                         gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel)));
+            disparity +=
+                sigma_disparity * gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel)));
           }
           if (subpixels > 0.0f) disparity = std::round(disparity * subpixels) / subpixels;
           if (disparity > 0.0f) {
@@ -549,7 +550,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
         const float value = channels == 1 ? 0.114f * pixel_value[0] + 0.587f * pixel_value[1] +
                                                 0.299f * pixel_value[2]
                                           : pixel_value[k];
-        out[channels * u + k] = static_cast<std::uint8_t>(std::clamp(value + noise + 0.5f, 0.0f, 255.0f));
+        out[channels * u + k] =
+            static_cast<std::uint8_t>(std::clamp(value + noise + 0.5f, 0.0f, 255.0f));
       }
     }
   }

@@ -1,11 +1,12 @@
 #include "hq/sim/simulator.hpp"
 
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
+#include "hq/control/vehicle_config.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <string>
-
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
 
 namespace hq::sim {
 
@@ -35,6 +36,15 @@ Eigen::Isometry3d make_T_body_camera(const Eigen::Vector3d& p_body_camera_m, dou
   return T;
 }
 
+/// Rejects a key that the vehicle file already defines (two sources would silently disagree).
+void reject_with_vehicle_file(const config::StrictMap& map, const std::string& key,
+                              const SimConfig& out) {
+  if (!out.vehicle_file.empty() && map.has(key)) {
+    throw InputError(map.describe(key) + " is set, but vehicle_file = " + out.vehicle_file +
+                     " defines it; remove one");
+  }
+}
+
 void read_vec3(config::StrictMap& map, const std::string& key, Eigen::Vector3d& v) {
   double values[3] = {v.x(), v.y(), v.z()};
   map.read_list(key, values, 3);
@@ -45,9 +55,8 @@ void read_vec3(config::StrictMap& map, const std::string& key, Eigen::Vector3d& 
 SimConfig default_sim_config(int width, int height) {
   SimConfig config;
   config.camera.pinhole = pinhole_from_fov(width, height, 58.0 * kPi / 180.0);  // Xtion: 58 deg
-  config.camera.T_body_camera =
-      make_T_body_camera(Eigen::Vector3d(0.12, 0.0, 0.05), 45.0 * kPi / 180.0,
-                         30.0 * kPi / 180.0, 0.0);
+  config.camera.T_body_camera = make_T_body_camera(Eigen::Vector3d(0.12, 0.0, 0.05),
+                                                   45.0 * kPi / 180.0, 30.0 * kPi / 180.0, 0.0);
   return config;
 }
 
@@ -61,10 +70,22 @@ void read_config(config::StrictMap& section, SimConfig& out) {
   int seed = static_cast<int>(out.seed);
   section.read("seed", seed, 0, 2147483647);
   out.seed = static_cast<std::uint64_t>(seed);
+  section.read("vehicle_file", out.vehicle_file, {});
+  control::VehicleConfig vehicle_file;
+  if (!out.vehicle_file.empty()) {
+    vehicle_file = control::load_vehicle_config(out.vehicle_file);
+    out.vehicle.mass_kg = vehicle_file.mass_kg;
+    out.vehicle.max_tilt_rad = vehicle_file.max_tilt_rad;
+    out.camera.T_body_camera.setIdentity();
+    out.camera.T_body_camera.linear() = vehicle_file.R_body_camera;
+    out.camera.T_body_camera.translation() = vehicle_file.p_body_camera_m;
+  }
 
   {
     config::StrictMap v = section.child("vehicle");
     QuadrotorParams& p = out.vehicle;
+    reject_with_vehicle_file(v, "mass_kg", out);
+    reject_with_vehicle_file(v, "max_tilt_deg", out);
     v.read_positive("mass_kg", p.mass_kg, 100.0);
     read_vec3(v, "inertia_kgm2", p.inertia_kgm2);
     if (!(p.inertia_kgm2.minCoeff() > 0.0)) {
@@ -85,12 +106,18 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     v.read("gust_sigma_mps", p.gust_sigma_mps, 0.0, 20.0);
     v.read_positive("gust_time_constant_s", p.gust_time_constant_s, 1000.0);
     v.finish();
-    const double max_thrust_n = 4.0 * p.thrust_coefficient * p.max_rotor_speed_radps *
-                                p.max_rotor_speed_radps;
+    const double max_thrust_n =
+        4.0 * p.thrust_coefficient * p.max_rotor_speed_radps * p.max_rotor_speed_radps;
     if (max_thrust_n < 1.2 * p.mass_kg * kGravityMps2) {
       throw InputError(v.describe("max_rotor_speed_radps") + " = " +
                        std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
                        std::to_string(max_thrust_n) + " N, expected >= 1.2 * weight");
+    }
+    if (!out.vehicle_file.empty() && max_thrust_n < vehicle_file.max_thrust_n) {
+      throw InputError(v.describe("max_rotor_speed_radps") + " = " +
+                       std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
+                       std::to_string(max_thrust_n) + " N, expected >= max_thrust_n of " +
+                       out.vehicle_file);
     }
   }
   {
@@ -105,9 +132,9 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     m.read("accel_initial_bias_sigma_mps2", p.accel_initial_bias_sigma_mps2, 0.0, 5.0);
     const double ratio = out.dynamics_rate_hz / p.rate_hz;
     if (std::abs(ratio - std::round(ratio)) > 1e-9) {
-      throw InputError(m.describe("rate_hz") + " = " + std::to_string(p.rate_hz) +
-                       ", expected a divisor of dynamics_rate_hz = " +
-                       std::to_string(out.dynamics_rate_hz));
+      throw InputError(
+          m.describe("rate_hz") + " = " + std::to_string(p.rate_hz) +
+          ", expected a divisor of dynamics_rate_hz = " + std::to_string(out.dynamics_rate_hz));
     }
     m.finish();
   }
@@ -126,7 +153,8 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     c.read("image_noise_sigma", p.image_noise_sigma, 0.0, 50.0);
     c.read("ambient", p.ambient, 0.0, 1.0);
     c.read("diffuse", p.diffuse, 0.0, 1.0);
-    {
+    reject_with_vehicle_file(c, "T_body_camera", out);
+    if (out.vehicle_file.empty()) {
       config::StrictMap t = c.child("T_body_camera");
       Eigen::Vector3d p_body_camera_m = p.T_body_camera.translation();
       double yaw_right_rad = 45.0 * kPi / 180.0;
@@ -181,9 +209,9 @@ Simulator::Simulator(const SimConfig& config, const World& world)
   imu_decimation_ = static_cast<int>(std::lround(config_.dynamics_rate_hz / config_.imu.rate_hz));
   if (imu_decimation_ < 1 ||
       std::abs(config_.dynamics_rate_hz / config_.imu.rate_hz - imu_decimation_) > 1e-9) {
-    throw InputError("sim config: imu.rate_hz = " + std::to_string(config_.imu.rate_hz) +
-                     ", expected a divisor of dynamics_rate_hz = " +
-                     std::to_string(config_.dynamics_rate_hz));
+    throw InputError(
+        "sim config: imu.rate_hz = " + std::to_string(config_.imu.rate_hz) +
+        ", expected a divisor of dynamics_rate_hz = " + std::to_string(config_.dynamics_rate_hz));
   }
   camera_period_ns_ = std::llround(1e9 / config_.camera.rate_hz);
   imu_ring_.resize(static_cast<std::size_t>(std::ceil(config_.imu.rate_hz)));  // 1 s
@@ -245,7 +273,8 @@ void Simulator::update_truth() {
   truth_.a_world_mps2 = s.a_world_mps2;
   truth_.euler_rad = euler_from_R_world_body(truth_.T_world_body.linear());
   // H: NED, yaw only (core paper §3), so R_world_H = Rx(pi) Rz(psi).
-  const Eigen::Matrix3d R_world_horizontal = R_world_body_from_euler(0.0, 0.0, truth_.euler_rad.z());
+  const Eigen::Matrix3d R_world_horizontal =
+      R_world_body_from_euler(0.0, 0.0, truth_.euler_rad.z());
   truth_.v_horizontal_mps = R_world_horizontal.transpose() * s.v_world_mps;
   truth_.clearance_m = distance_to_obstacles(world_, s.p_world_m) - config_.vehicle_radius_m;
   truth_.collision = truth_.clearance_m < 0.0;

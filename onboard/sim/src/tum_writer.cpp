@@ -1,12 +1,12 @@
 #include "hq/sim/tum_writer.hpp"
 
-#include <cinttypes>
-#include <cstdio>
-#include <filesystem>
+#include "hq/base/error.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "hq/base/error.hpp"
+#include <cinttypes>
+#include <cstdio>
+#include <filesystem>
 
 namespace hq::sim {
 
@@ -26,8 +26,8 @@ std::string TumWriter::stamp(std::int64_t t_ns) {
   // Round to microseconds in integers so that file names and list entries agree exactly.
   const std::int64_t us = (magnitude + 500) / 1000;
   char text[40];
-  std::snprintf(text, sizeof(text), "%s%" PRId64 ".%06" PRId64, negative ? "-" : "",
-                us / 1000000, us % 1000000);
+  std::snprintf(text, sizeof(text), "%s%" PRId64 ".%06" PRId64, negative ? "-" : "", us / 1000000,
+                us % 1000000);
   return text;
 }
 
@@ -37,11 +37,10 @@ TumWriter::TumWriter(const std::string& dir, const geometry::PinholeCamera& came
   std::error_code error;
   std::filesystem::create_directories(dir_ + "/rgb", error);
   if (!error) std::filesystem::create_directories(dir_ + "/depth", error);
-  if (error) throw InputError(dir_ + ": cannot create the recording directories: " + error.message());
-  open_list(rgb_, dir_ + "/rgb.txt",
-            "# color images\n# file: 'hq-sim'\n# timestamp filename\n");
-  open_list(depth_, dir_ + "/depth.txt",
-            "# depth maps\n# file: 'hq-sim'\n# timestamp filename\n");
+  if (error)
+    throw InputError(dir_ + ": cannot create the recording directories: " + error.message());
+  open_list(rgb_, dir_ + "/rgb.txt", "# color images\n# file: 'hq-sim'\n# timestamp filename\n");
+  open_list(depth_, dir_ + "/depth.txt", "# depth maps\n# file: 'hq-sim'\n# timestamp filename\n");
   open_list(groundtruth_, dir_ + "/groundtruth.txt",
             "# ground truth trajectory\n# file: 'hq-sim'\n# timestamp tx ty tz qx qy qz qw\n");
   open_list(accelerometer_, dir_ + "/accelerometer.txt",
@@ -56,8 +55,8 @@ TumWriter::TumWriter(const std::string& dir, const geometry::PinholeCamera& came
   const Eigen::Quaterniond q(T_body_camera.linear());
   const Eigen::Vector3d& p = T_body_camera.translation();
   info << "image_width: " << camera.width << "\nimage_height: " << camera.height
-       << "\ncamera_name: hq_sim\ncamera_matrix: {rows: 3, cols: 3, data: [" << camera.fx
-       << ", 0, " << camera.cx << ", 0, " << camera.fy << ", " << camera.cy
+       << "\ncamera_name: hq_sim\ncamera_matrix: {rows: 3, cols: 3, data: [" << camera.fx << ", 0, "
+       << camera.cx << ", 0, " << camera.fy << ", " << camera.cy
        << ", 0, 0, 1]}\ndistortion_model: plumb_bob\n"
        << "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
        << "depth_scale_units_per_m: 5000\n"
@@ -95,9 +94,8 @@ void TumWriter::write_imu(const ImuSample& sample) {
   std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f\n", t.c_str(), sample.f_body_mps2.x(),
                 sample.f_body_mps2.y(), sample.f_body_mps2.z());
   accelerometer_ << line;
-  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f\n", t.c_str(),
-                sample.omega_body_radps.x(), sample.omega_body_radps.y(),
-                sample.omega_body_radps.z());
+  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f\n", t.c_str(), sample.omega_body_radps.x(),
+                sample.omega_body_radps.y(), sample.omega_body_radps.z());
   gyro_ << line;
 }
 

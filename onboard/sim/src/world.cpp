@@ -1,13 +1,13 @@
 #include "hq/sim/world.hpp"
 
-#include <algorithm>
-#include <cmath>
-#include <string>
+#include "hq/base/error.hpp"
+#include "hq/config/strict_yaml.hpp"
 
 #include <Eigen/Geometry>
 
-#include "hq/base/error.hpp"
-#include "hq/config/strict_yaml.hpp"
+#include <algorithm>
+#include <cmath>
+#include <string>
 
 namespace hq::sim {
 
@@ -107,8 +107,7 @@ Texture read_texture(StrictMap map, std::uint32_t salt) {
   return texture;
 }
 
-void check_positive(const StrictMap& map, const std::string& key, const double* values,
-                    int count) {
+void check_positive(const StrictMap& map, const std::string& key, const double* values, int count) {
   for (int i = 0; i < count; ++i) {
     if (!(values[i] > 0.0)) {
       throw InputError(map.describe(key) + "[" + std::to_string(i) +
@@ -127,8 +126,8 @@ YAML::Node sequence(const YAML::Node& root, const std::string& key, const std::s
 Rectangle wall_between(const Eigen::Vector2d& from, const Eigen::Vector2d& to, double height_m) {
   Rectangle wall;
   const Eigen::Vector2d along = to - from;
-  wall.center_m = Eigen::Vector3d(0.5 * (from.x() + to.x()), 0.5 * (from.y() + to.y()),
-                                  0.5 * height_m);
+  wall.center_m =
+      Eigen::Vector3d(0.5 * (from.x() + to.x()), 0.5 * (from.y() + to.y()), 0.5 * height_m);
   wall.axis_u = Eigen::Vector3d(along.x(), along.y(), 0.0).normalized();
   wall.axis_v = Eigen::Vector3d::UnitZ();
   // Normal to the left of from -> to; walls are two-sided for rendering and distances.
@@ -168,9 +167,11 @@ double distance_to_cylinder(const Cylinder& c, const Eigen::Vector3d& p) {
 
 double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m) {
   double best = 1e9;
-  for (const Rectangle& wall : world.walls) best = std::min(best, distance_to_rectangle(wall, p_world_m));
+  for (const Rectangle& wall : world.walls)
+    best = std::min(best, distance_to_rectangle(wall, p_world_m));
   for (const Box& box : world.boxes) best = std::min(best, distance_to_box(box, p_world_m));
-  for (const Cylinder& c : world.cylinders) best = std::min(best, distance_to_cylinder(c, p_world_m));
+  for (const Cylinder& c : world.cylinders)
+    best = std::min(best, distance_to_cylinder(c, p_world_m));
   return best;
 }
 
@@ -275,7 +276,8 @@ World load_world(const std::string& path) {
     m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);
     m.finish();
     const Eigen::Vector3d n(normal[0], normal[1], normal[2]);
-    if (n.norm() < 1e-6) throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
+    if (n.norm() < 1e-6)
+      throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
     marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
     marker.normal_world = n.normalized();
     world.markers.push_back(marker);
@@ -301,8 +303,9 @@ World load_world(const std::string& path) {
                          ", expected first_id + rows * cols <= 587 (AprilTag 36h11 codes)");
       }
       if (size_m * 1.5 > spacing_m) {
-        throw InputError(grid.describe("spacing_m") + " = " + std::to_string(spacing_m) +
-                         ", expected >= 1.5 * size_m so tags and their white margins do not overlap");
+        throw InputError(
+            grid.describe("spacing_m") + " = " + std::to_string(spacing_m) +
+            ", expected >= 1.5 * size_m so tags and their white margins do not overlap");
       }
       for (int r = 0; r < rows; ++r) {
         for (int c = 0; c < cols; ++c) {

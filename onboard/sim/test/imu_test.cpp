@@ -1,11 +1,11 @@
 #include "hq/sim/imu.hpp"
 
-#include <cmath>
-#include <vector>
+#include "hq/sim/simulator.hpp"
 
 #include <gtest/gtest.h>
 
-#include "hq/sim/simulator.hpp"
+#include <cmath>
+#include <vector>
 
 namespace hq::sim {
 namespace {
@@ -63,7 +63,8 @@ TEST(ImuTest, BiasWalksWithConfiguredDensity) {
   const int steps = 500;  // 1 s
   for (int r = 0; r < runs; ++r) {
     ImuModel imu(p, static_cast<std::uint64_t>(r) + 100);
-    for (int i = 0; i < steps; ++i) imu.measure(i, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    for (int i = 0; i < steps; ++i)
+      imu.measure(i, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
     sum_sq += imu.accel_bias_mps2().squaredNorm() / 3.0;
   }
   // After 1 s the bias standard deviation is random_walk * sqrt(1 s).

@@ -1,8 +1,8 @@
 #include "hq/sim/quadrotor.hpp"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 namespace hq::sim {
 namespace {

@@ -1,14 +1,13 @@
+#include "hq/base/error.hpp"
 #include "hq/sim/rgbd_renderer.hpp"
-
-#include <algorithm>
-#include <cmath>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/aruco.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "hq/base/error.hpp"
+#include <algorithm>
+#include <cmath>
 
 namespace hq::sim {
 namespace {

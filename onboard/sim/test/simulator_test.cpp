@@ -1,17 +1,17 @@
 #include "hq/sim/simulator.hpp"
 
-#include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <string>
-#include <vector>
+#include "hq/base/error.hpp"
+#include "hq/sim/tum_writer.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "hq/base/error.hpp"
-#include "hq/sim/tum_writer.hpp"
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
 
 /// Allocations so far in this test binary (test/allocation_counter.cpp replaces operator new).
 long hq_sim_test_allocations();

@@ -1,14 +1,14 @@
 #include "hq/sim/world.hpp"
 
-#include <filesystem>
-#include <fstream>
-#include <string>
+#include "hq/base/error.hpp"
+#include "hq/sim/simulator.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "hq/base/error.hpp"
-#include "hq/sim/simulator.hpp"
+#include <filesystem>
+#include <fstream>
+#include <string>
 
 namespace hq::sim {
 namespace {
@@ -50,8 +50,7 @@ TEST(WorldTest, ShippedWorldsLoadWithTheirContent) {
   ASSERT_EQ(grid.markers.size(), 25u);
   EXPECT_EQ(grid.markers.front().id, 0);
   EXPECT_EQ(grid.markers.back().id, 24);
-  EXPECT_NEAR((grid.markers[0].center_world_m - grid.markers[1].center_world_m).norm(), 0.6,
-              1e-9);
+  EXPECT_NEAR((grid.markers[0].center_world_m - grid.markers[1].center_world_m).norm(), 0.6, 1e-9);
   // Every shipped world's markers lie on a surface (the renderer checks).
   for (const World* w : {&arena, &room, &grid}) {
     EXPECT_NO_THROW(Simulator(default_sim_config(32, 24), *w));
@@ -132,6 +131,11 @@ TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
   EXPECT_NEAR(z_body.x(), std::cos(0.5236) * std::cos(0.7854), 1e-3);
   EXPECT_NEAR(z_body.y(), std::cos(0.5236) * std::sin(0.7854), 1e-3);
   EXPECT_NEAR(z_body.z(), std::sin(0.5236), 1e-3);
+  // Mass and extrinsics come from the vehicle file hq::control reads (core paper's ^Q p_C).
+  EXPECT_EQ(config.vehicle_file, "calib/vehicle_core_paper.yaml");
+  EXPECT_DOUBLE_EQ(config.vehicle.mass_kg, 1.0);
+  EXPECT_TRUE(
+      config.camera.T_body_camera.translation().isApprox(Eigen::Vector3d(0.10, 0.05, 0.03)));
 
   const auto error_of_config = [](const std::string& yaml) -> std::string {
     try {
@@ -147,6 +151,12 @@ TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
               HasSubstr("camera.depth.max_range_m"));
   EXPECT_THAT(error_of_config("vehicle: {mass_kg: 5}\n"),
               HasSubstr("vehicle.max_rotor_speed_radps"));
+  EXPECT_THAT(
+      error_of_config("vehicle_file: calib/vehicle_core_paper.yaml\n"
+                      "vehicle: {mass_kg: 2}\n"),
+      HasSubstr("vehicle.mass_kg is set, but vehicle_file = calib/vehicle_core_paper.yaml"));
+  EXPECT_THAT(error_of_config("vehicle_file: calib/no_such_vehicle.yaml\n"),
+              HasSubstr("calib/no_such_vehicle.yaml"));
   EXPECT_THAT(error_of_config("camera: {T_body_camera: {yaw_deg: 4}}\n"),
               HasSubstr("camera.T_body_camera.yaw_deg is not a known key"));
 }

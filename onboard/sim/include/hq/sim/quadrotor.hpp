@@ -3,12 +3,12 @@
 /// the attitude controller + mixer a flight controller runs. Frames (core paper §3): world W is
 /// NWU, body Q is NED; R_world_body = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
 #include <array>
 #include <cstdint>
 #include <random>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 namespace hq::sim {
 
@@ -21,23 +21,23 @@ struct AttitudeCommand {
 };
 
 struct QuadrotorParams {
-  double mass_kg = 1.0;                  ///< core paper §2: about 1 kg with the camera.
+  double mass_kg = 1.0;  ///< core paper §2: about 1 kg with the camera.
   Eigen::Vector3d inertia_kgm2 = Eigen::Vector3d(0.012, 0.012, 0.022);  ///< body diag.
-  double arm_length_m = 0.25;            ///< 0.5 m span (core paper §2).
-  double thrust_coefficient = 6.8e-6;    ///< rotor thrust (N) per (rad/s)^2.
-  double torque_coefficient = 1.1e-7;    ///< rotor drag torque (N m) per (rad/s)^2.
+  double arm_length_m = 0.25;          ///< 0.5 m span (core paper §2).
+  double thrust_coefficient = 6.8e-6;  ///< rotor thrust (N) per (rad/s)^2.
+  double torque_coefficient = 1.1e-7;  ///< rotor drag torque (N m) per (rad/s)^2.
   double max_rotor_speed_radps = 1100.0;
-  double motor_time_constant_s = 0.02;   ///< first-order lag of rotor speed.
-  double linear_drag_nspm = 0.25;        ///< air drag force per relative airspeed (N s/m).
-  double rest_height_m = 0.08;           ///< body centre height when standing on the floor.
+  double motor_time_constant_s = 0.02;  ///< first-order lag of rotor speed.
+  double linear_drag_nspm = 0.25;       ///< air drag force per relative airspeed (N s/m).
+  double rest_height_m = 0.08;          ///< body centre height when standing on the floor.
   // Attitude controller (a flight controller's inner loop), per unit inertia.
-  double attitude_natural_hz = 3.0;      ///< roll/pitch loop natural frequency.
+  double attitude_natural_hz = 3.0;  ///< roll/pitch loop natural frequency.
   double attitude_damping = 0.8;
   double yaw_rate_gain_per_s = 8.0;
-  double max_tilt_rad = 0.6;             ///< commands beyond this are clamped.
+  double max_tilt_rad = 0.6;  ///< commands beyond this are clamped.
   // Wind: mean plus a first-order Gauss-Markov gust per axis (W frame).
   Eigen::Vector3d wind_mean_mps = Eigen::Vector3d::Zero();
-  double gust_sigma_mps = 0.0;           ///< stationary standard deviation of each gust axis.
+  double gust_sigma_mps = 0.0;  ///< stationary standard deviation of each gust axis.
   double gust_time_constant_s = 2.0;
 };
 

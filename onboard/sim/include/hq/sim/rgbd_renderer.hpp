@@ -5,39 +5,39 @@
 /// Oude Elberink 2012: disparity noise and quantisation, sigma_z growing with z^2, no depth at
 /// discontinuities, on dark or grazing surfaces). One thread; render() allocates nothing.
 
-#include <cstdint>
-#include <memory>
-#include <vector>
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/sim/world.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
-#include "hq/geometry/pinhole_camera.hpp"
-#include "hq/sim/world.hpp"
+#include <cstdint>
+#include <memory>
+#include <vector>
 
 namespace hq::sim {
 
 /// Structured-light depth sensor (Kinect / Xtion class).
 struct DepthSensorParams {
-  double min_range_m = 0.5;           ///< closer returns read 0 (invalid).
-  double max_range_m = 6.0;           ///< farther returns read 0.
+  double min_range_m = 0.5;              ///< closer returns read 0 (invalid).
+  double max_range_m = 6.0;              ///< farther returns read 0.
   double noise_sigma_per_m2 = 1.425e-3;  ///< sigma_z = k z^2 (Khoshelham 2012); 0: noise-free.
-  double baseline_m = 0.075;          ///< projector-camera baseline.
-  double disparity_focal_px = 580.0;  ///< focal length of the IR camera measuring disparity.
-  int disparity_subpixels = 8;        ///< disparity quantised to 1/n px; 0: not quantised.
-  double edge_jump_ratio = 0.04;      ///< |second difference of 1/z| > ratio / z: no depth.
-  double dark_albedo = 0.05;          ///< surfaces darker than this return no depth.
-  double grazing_max_rad = 1.40;      ///< incidence beyond this (from the normal): no depth.
+  double baseline_m = 0.075;             ///< projector-camera baseline.
+  double disparity_focal_px = 580.0;     ///< focal length of the IR camera measuring disparity.
+  int disparity_subpixels = 8;           ///< disparity quantised to 1/n px; 0: not quantised.
+  double edge_jump_ratio = 0.04;         ///< |second difference of 1/z| > ratio / z: no depth.
+  double dark_albedo = 0.05;             ///< surfaces darker than this return no depth.
+  double grazing_max_rad = 1.40;         ///< incidence beyond this (from the normal): no depth.
 };
 
 struct CameraParams {
-  geometry::PinholeCamera pinhole;    ///< image size and intrinsics.
+  geometry::PinholeCamera pinhole;  ///< image size and intrinsics.
   Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
   double rate_hz = 30.0;
-  bool gray = false;                  ///< CV_8UC1 instead of BGR CV_8UC3.
-  double image_noise_sigma = 1.0;     ///< 8-bit intensity units.
-  double ambient = 0.45;              ///< light: ambient + diffuse * max(0, n . l).
+  bool gray = false;               ///< CV_8UC1 instead of BGR CV_8UC3.
+  double image_noise_sigma = 1.0;  ///< 8-bit intensity units.
+  double ambient = 0.45;           ///< light: ambient + diffuse * max(0, n . l).
   double diffuse = 0.55;
   Eigen::Vector3d light_dir_world = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();  ///< to light.
   DepthSensorParams depth;
@@ -58,8 +58,8 @@ class RgbdRenderer {
   /// Renders the view from T_world_camera. frame_index selects the noise realisation, so the
   /// same (seed, frame_index, pose) gives identical images. image: CV_8UC3 BGR (CV_8UC1 if
   /// gray); depth_m: CV_32F metres, 0 = invalid. Reuses the buffers if already sized.
-  void render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
-              cv::Mat& image, cv::Mat& depth_m);
+  void render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index, cv::Mat& image,
+              cv::Mat& depth_m);
 
   [[nodiscard]] const CameraParams& params() const { return params_; }
 
@@ -67,8 +67,8 @@ class RgbdRenderer {
   struct Scene;
   CameraParams params_;
   std::uint64_t seed_;
-  std::vector<float> ray_c_;    ///< per pixel (x/z, y/z, 1/|d|) of the camera ray with z = 1.
-  cv::Mat true_depth_m_;        ///< noise-free z per pixel (0 = no hit), for edge detection.
+  std::vector<float> ray_c_;      ///< per pixel (x/z, y/z, 1/|d|) of the camera ray with z = 1.
+  cv::Mat true_depth_m_;          ///< noise-free z per pixel (0 = no hit), for edge detection.
   std::unique_ptr<Scene> scene_;  ///< intersection tables (defined in the .cpp).
 };
 

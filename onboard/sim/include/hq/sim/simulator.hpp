@@ -3,19 +3,19 @@
 /// IMU samples, RGB-D frames and truth, advanced only by step_to(t_ns). No wall clock: the
 /// caller owns time, so a run is a pure function of (config, world, seed, commands).
 
-#include <cstddef>
-#include <cstdint>
-#include <string>
-#include <vector>
+#include "hq/sim/imu.hpp"
+#include "hq/sim/quadrotor.hpp"
+#include "hq/sim/rgbd_renderer.hpp"
+#include "hq/sim/world.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
-#include "hq/sim/imu.hpp"
-#include "hq/sim/quadrotor.hpp"
-#include "hq/sim/rgbd_renderer.hpp"
-#include "hq/sim/world.hpp"
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
 
 namespace hq::config {
 class StrictMap;
@@ -27,13 +27,18 @@ struct SimConfig {
   double dynamics_rate_hz = 1000.0;  ///< fixed physics step; imu.rate_hz must divide it.
   double vehicle_radius_m = 0.35;    ///< collision sphere (0.5 m span plus propeller tips).
   std::uint64_t seed = 1;            ///< noise and gusts; same seed -> identical run.
+  /// Vehicle file shared with hq::control (e.g. calib/vehicle_core_paper.yaml): when set, its
+  /// mass, tilt limit and T_body_camera are used, so the simulated and the controlled vehicle
+  /// are the same one.
+  std::string vehicle_file;
   QuadrotorParams vehicle;
   ImuParams imu;
   CameraParams camera;
 };
 
 /// Fills `out` from a `sim:`-style section (keys: dynamics_rate_hz, vehicle_radius_m, seed,
-/// vehicle, imu, camera); strict, ranges checked, `_deg` converted once.
+/// vehicle_file, vehicle, imu, camera); strict, ranges checked, `_deg` converted once. With
+/// vehicle_file, vehicle.mass_kg, vehicle.max_tilt_deg and camera.T_body_camera must be absent.
 void read_config(config::StrictMap& section, SimConfig& out);
 /// Loads a sim config file (top-level keys as in read_config).
 SimConfig load_sim_config(const std::string& path);
@@ -108,7 +113,7 @@ class Simulator {
   Eigen::Isometry3d camera_pose_ = Eigen::Isometry3d::Identity();
   std::int64_t dropped_frames_ = 0;
   std::vector<ImuSample> imu_ring_;
-  std::size_t imu_head_ = 0;   ///< index of the oldest sample
+  std::size_t imu_head_ = 0;  ///< index of the oldest sample
   std::size_t imu_count_ = 0;
   TruthState truth_;
   bool collided_ = false;

@@ -6,15 +6,15 @@
 ///   and, beyond TUM, gyro.txt ("timestamp wx wy wz"). Timestamps are seconds with 6 decimals.
 ///   IMU lines are in the body NED frame Q (TUM's accelerometer.txt uses the Kinect's frame).
 
-#include <cstdint>
-#include <fstream>
-#include <string>
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/sim/imu.hpp"
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
-#include "hq/geometry/pinhole_camera.hpp"
-#include "hq/sim/imu.hpp"
+#include <cstdint>
+#include <fstream>
+#include <string>
 
 namespace hq::sim {
 

@@ -3,12 +3,12 @@
 /// read strictly from YAML. World frame W is NWU (z up), as in the core paper §3; the floor is
 /// the plane z = 0.
 
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <opencv2/core.hpp>
 
 namespace hq::sim {
 
@@ -17,9 +17,9 @@ struct Texture {
   enum class Kind { kChecker, kNoise, kStripes };
   Kind kind = Kind::kNoise;
   Eigen::Vector3f color_bgr = Eigen::Vector3f(0.7f, 0.7f, 0.7f);  ///< albedo in [0, 1].
-  float scale_m = 0.2f;     ///< checker square / noise cell / stripe period.
-  float contrast = 0.5f;    ///< 0: flat colour, 1: pattern spans black to the colour.
-  std::uint32_t salt = 0;   ///< decorrelates the noise of different surfaces (set at load).
+  float scale_m = 0.2f;    ///< checker square / noise cell / stripe period.
+  float contrast = 0.5f;   ///< 0: flat colour, 1: pattern spans black to the colour.
+  std::uint32_t salt = 0;  ///< decorrelates the noise of different surfaces (set at load).
   /// Albedo (BGR, [0, 1]) at surface coordinates; deterministic in (s, t).
   [[nodiscard]] Eigen::Vector3f albedo(float s_m, float t_m) const;
 };
@@ -64,14 +64,14 @@ struct Cylinder {
 
 struct World {
   std::string name;
-  std::uint64_t seed = 1;       ///< default seed of runs in this world.
-  Rectangle floor;              ///< z = 0, normal +z.
+  std::uint64_t seed = 1;  ///< default seed of runs in this world.
+  Rectangle floor;         ///< z = 0, normal +z.
   std::vector<Rectangle> walls;
   std::vector<Box> boxes;
   std::vector<Cylinder> cylinders;
   std::vector<Marker> markers;
   Eigen::Vector3d start_world_m = Eigen::Vector3d::Zero();  ///< vehicle position on the floor.
-  double start_yaw_rad = 0.0;   ///< yaw of the vehicle (NED heading from world x) at start.
+  double start_yaw_rad = 0.0;  ///< yaw of the vehicle (NED heading from world x) at start.
 };
 
 /// Loads a world file (strict: unknown keys rejected, ranges checked). Throws hq::InputError
