@@ -26,8 +26,8 @@ struct Bounds {
 // Keyed by sequence folder and reference mode. RPE windows are clipped to the 0.27 s that the
 // five bundled fr1_360 frames span (see ../shared/data/SOURCES.md).
 const std::map<std::string, Bounds> kBounds = {
-    {"rgbd_dataset_freiburg1_360/frame_to_frame", {0.0537, 0.066, 2.01, 2.50, 0.0022, 0.0027}},
-    {"rgbd_dataset_freiburg1_360/frame_to_keyframe", {0.0511, 0.063, 2.27, 2.80, 0.0024, 0.0030}},
+    {"rgbd_dataset_freiburg1_360/frame_to_frame", {0.0464, 0.056, 1.956, 2.40, 0.0016, 0.0020}},
+    {"rgbd_dataset_freiburg1_360/frame_to_keyframe", {0.0395, 0.048, 1.719, 2.10, 0.0016, 0.0020}},
 };
 
 struct SequenceRun {

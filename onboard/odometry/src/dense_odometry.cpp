@@ -46,9 +46,14 @@ struct FrameSlot {
   std::array<cv::Mat, kMaxLevels> depth_m;    // CV_32FC1, 0 = no depth
 };
 
+// Normal equations of the pose twist and the brightness offset b (a seventh parameter with
+// Jacobian 1), kept in blocks so that the pose-only system needs no copy.
 struct NormalEquations {
   Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
   Vector6d g = Vector6d::Zero();
+  Vector6d H_pose_offset = Vector6d::Zero();
+  double H_offset = 0.0;
+  double g_offset = 0.0;
 };
 
 double entropy_of(const Matrix6d& information) {
@@ -95,6 +100,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("use_motion_prior", out.use_motion_prior);
   section.read("motion_prior_precision", out.motion_prior_precision, 0.0, 1e6);
   section.read("initialize_with_previous_motion", out.initialize_with_previous_motion);
+  section.read("estimate_brightness_offset", out.estimate_brightness_offset);
   std::string mode = out.reference_mode == ReferenceMode::kFrameToFrame ? "frame_to_frame"
                                                                          : "frame_to_keyframe";
   section.read("reference_mode", mode, {"frame_to_frame", "frame_to_keyframe"});
@@ -216,7 +222,8 @@ struct DenseOdometry::Impl {
 
   // Warps every reference point with T_cur_ref, samples the current image, stores residuals;
   // points that leave the image get weight 0. Returns how many stayed valid.
-  int compute_residuals(int level, const cv::Mat& current, const Eigen::Isometry3d& T_cur_ref) {
+  int compute_residuals(int level, const cv::Mat& current, const Eigen::Isometry3d& T_cur_ref,
+                        float brightness_offset) {
     const geometry::PinholeCamera& cam = level_camera[level];
     const ReferenceLevel& ref = reference[level];
     const Eigen::Matrix3f R = T_cur_ref.linear().cast<float>();
@@ -252,7 +259,7 @@ struct DenseOdometry::Impl {
           const float* p = data + v0 * stride + u0;
           const float top = p[0] + du * (p[1] - p[0]);
           const float bottom = p[stride] + du * (p[stride + 1] - p[stride]);
-          r = top + dv * (bottom - top) - ref.intensity[i];
+          r = top + dv * (bottom - top) - ref.intensity[i] - brightness_offset;
           w = 1.0f;
           ++valid;
         }
@@ -303,13 +310,18 @@ struct DenseOdometry::Impl {
     double H[21] = {};
     double g[6] = {};
     double weighted_error = 0.0;
+    double pose_offset[6] = {};
+    double offset = 0.0;
+    double g_offset = 0.0;
     for (int start = 0; start < count; start += kAccumulationBlock) {
       const int end = std::min(count, start + kAccumulationBlock);
       float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0,
             h14 = 0, h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0,
-            h44 = 0, h45 = 0, h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0;
+            h44 = 0, h45 = 0, h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0,
+            o0 = 0, o1 = 0, o2 = 0, o3 = 0, o4 = 0, o5 = 0, oo = 0, go = 0;
 #pragma omp simd reduction(+ : h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, \
-                               h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e)
+                               h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e, \
+                               o0, o1, o2, o3, o4, o5, oo, go)
       for (int i = start; i < end; ++i) {
         const float r = res[i];
         const float w = mask[i] * (nu + 1.0f) / (nu + r * r * inv_var);
@@ -322,12 +334,17 @@ struct DenseOdometry::Impl {
         h55 += w5 * a5;
         g0 += w0 * r; g1 += w1 * r; g2 += w2 * r; g3 += w3 * r; g4 += w4 * r; g5 += w5 * r;
         e += w * r * r;
+        o0 += w0; o1 += w1; o2 += w2; o3 += w3; o4 += w4; o5 += w5; oo += w; go += w * r;
       }
       const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
                                h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};
       for (int k = 0; k < 21; ++k) H[k] += block[k];
       g[0] += g0; g[1] += g1; g[2] += g2; g[3] += g3; g[4] += g4; g[5] += g5;
       weighted_error += e;
+      const float offset_block[6] = {o0, o1, o2, o3, o4, o5};
+      for (int k = 0; k < 6; ++k) pose_offset[k] += offset_block[k];
+      offset += oo;
+      g_offset += go;
     }
     int k = 0;
     for (int r = 0; r < 6; ++r) {
@@ -337,7 +354,10 @@ struct DenseOdometry::Impl {
         ++k;
       }
       out.g(r) = g[r] / variance;
+      out.H_pose_offset(r) = pose_offset[r] / variance;
     }
+    out.H_offset = offset / variance;
+    out.g_offset = g_offset / variance;
     return weighted_error;
   }
 
@@ -392,6 +412,7 @@ struct DenseOdometry::Impl {
     Eigen::Isometry3d T_cur_ref = T_ref_predicted.inverse();
 
     NormalEquations normal;
+    float brightness_offset = 0.0f;
     double variance = 0.0;
     int valid = 0;
     int iterations = 0;
@@ -401,11 +422,12 @@ struct DenseOdometry::Impl {
       double previous_error = std::numeric_limits<double>::infinity();
       Eigen::Isometry3d T_previous = T_cur_ref;
       double level_variance = 0.0;
+      float offset_previous = brightness_offset;
       // A pixel at level l spans 2^l pixels of level 0: a step that moves the image by a fixed
       // fraction of a pixel is worth less at coarse levels, so they stop sooner.
       const double tolerance = config.step_tolerance * static_cast<double>(1 << (level - finest));
       for (int it = 0; it < config.max_iterations_per_level; ++it) {
-        valid = compute_residuals(level, current.intensity[level], T_cur_ref);
+        valid = compute_residuals(level, current.intensity[level], T_cur_ref, brightness_offset);
         if (valid < 6) break;
         if (level_variance == 0.0) {
           double sum = 0.0;
@@ -420,6 +442,7 @@ struct DenseOdometry::Impl {
         if (weighted_error > previous_error) {
           // The last step made the fit worse: undo it and stop refining this level.
           T_cur_ref = T_previous;
+          brightness_offset = offset_previous;
           weighted_error = previous_error;
           break;
         }
@@ -439,10 +462,29 @@ struct DenseOdometry::Impl {
           A += P;
           b -= P * d;
         }
-        const Eigen::LDLT<Matrix6d> solver(A);
-        const Vector6d delta = solver.solve(b);
-        if (!delta.allFinite()) break;
+        Vector6d delta;
+        double delta_offset = 0.0;
+        if (config.estimate_brightness_offset) {
+          // Auto-exposure shifts every intensity alike; an offset absorbs it instead of the
+          // pose (Engel et al. use an affine model for the same reason).
+          Eigen::Matrix<double, 7, 7> A7;
+          A7.topLeftCorner<6, 6>() = A;
+          A7.topRightCorner<6, 1>() = normal.H_pose_offset;
+          A7.bottomLeftCorner<1, 6>() = normal.H_pose_offset.transpose();
+          A7(6, 6) = normal.H_offset;
+          Eigen::Matrix<double, 7, 1> b7;
+          b7.head<6>() = b;
+          b7(6) = normal.g_offset;
+          const Eigen::Matrix<double, 7, 1> x = A7.ldlt().solve(b7);
+          delta = x.head<6>();
+          delta_offset = x(6);
+        } else {
+          delta = A.ldlt().solve(b);
+        }
+        if (!delta.allFinite() || !std::isfinite(delta_offset)) break;
         T_previous = T_cur_ref;
+        offset_previous = brightness_offset;
+        brightness_offset += static_cast<float>(delta_offset);
         T_cur_ref = T_cur_ref * geometry::exp_se3(-delta);
         if (delta.squaredNorm() < tolerance * tolerance) break;
       }
@@ -466,7 +508,12 @@ struct DenseOdometry::Impl {
     result.status = TrackingStatus::kOk;
     result.reason = "";
     result.T_ref_cur = T_ref_cur;
+    // With the offset estimated, the pose information is its Schur complement.
     result.information = normal.H;
+    if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
+      result.information -= normal.H_pose_offset * normal.H_pose_offset.transpose() /
+                            normal.H_offset;
+    }
     result.T_world_cur = T_world_reference * T_ref_cur;
 
     last_motion = T_ref_last.inverse() * T_ref_cur;

@@ -107,6 +107,29 @@ TEST(DenseOdometry, LargerMotionConvergesThroughThePyramid) {
   EXPECT_LT(rotation_error_rad(r.T_ref_cur, truth), 3e-3);
 }
 
+TEST(DenseOdometry, GlobalBrightnessChangeIsAbsorbedByTheOffset) {
+  // GIVEN a second frame 1 cm to the side whose exposure made every pixel 15 levels brighter
+  const Eigen::Isometry3d truth = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.0);
+  const Frame a = render(Eigen::Isometry3d::Identity());
+  Frame b = render(truth);
+  b.gray += cv::Scalar(15);
+  OdometryConfig with_offset;
+  OdometryConfig without_offset;
+  without_offset.estimate_brightness_offset = false;
+  double error_with = 0.0;
+  double error_without = 0.0;
+  for (auto* config : {&with_offset, &without_offset}) {
+    DenseOdometry odometry(*config, kCamera);
+    odometry.track(0, a.gray, a.depth_m);
+    const OdometryResult r = odometry.track(1, b.gray, b.depth_m);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    (config == &with_offset ? error_with : error_without) = translation_error(r.T_ref_cur, truth);
+  }
+  // THEN the offset model recovers the motion to a millimetre, better than without it
+  EXPECT_LT(error_with, 1e-3);
+  EXPECT_LT(error_with, error_without);
+}
+
 TEST(DenseOdometry, AllInvalidDepthReportsTrackingLost) {
   DenseOdometry odometry({}, kCamera);
   const Frame f = render(Eigen::Isometry3d::Identity());

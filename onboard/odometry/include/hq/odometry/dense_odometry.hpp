@@ -52,6 +52,7 @@ struct OdometryConfig {
   bool use_motion_prior = false;   ///< Constant-velocity prior term (Kerl 2013, eq. 16).
   double motion_prior_precision = 1.0;  ///< Prior information = this x last frame's information.
   bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion.
+  bool estimate_brightness_offset = true;   ///< Also estimate a global intensity offset.
   ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
   int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
