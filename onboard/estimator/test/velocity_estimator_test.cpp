@@ -2,7 +2,7 @@
 
 #include "hq/config/strict_yaml.hpp"
 
-#include "allocation_counter.hpp"
+#include "hq/testing/allocation_counter.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
@@ -203,13 +203,13 @@ TEST(VelocityEstimator, UpdatesAllocateNothing) {
   for (int i = 0; i < 60; ++i) {
     frames[i] = motion.odometry_at(i * 0.03, i * kImuPerFrame * kImuNs, i == 0);
   }
-  const long before = test::allocation_count();
+  const long before = hq::testing::allocation_count();
   for (int i = 0; i < 60 * kImuPerFrame; ++i) {
     const std::int64_t t_ns = i * kImuNs;
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
     if (i % kImuPerFrame == 0) estimator.update(t_ns, frames[i / kImuPerFrame]);
   }
-  EXPECT_EQ(test::allocation_count() - before, 0);
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
 }
 
 TEST(VelocityEstimatorConfig, BadValueIsRejectedNamingTheKey) {

@@ -3,7 +3,7 @@
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
 
-#include "allocation_counter.hpp"
+#include "hq/testing/allocation_counter.hpp"
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -167,12 +167,12 @@ TEST(ObstacleField, ComputeAllocatesNothing) {
                       Eigen::Vector3d::Zero());
   const cv::Mat near = wall(0.7f);
   const cv::Mat speckle = far_scene_with_speckle();
-  const long before = test::allocation_count();
+  const long before = hq::testing::allocation_count();
   for (int i = 0; i < 5; ++i) {
     static_cast<void>(field.compute(near, Eigen::Matrix3d::Identity()));
     static_cast<void>(field.compute(speckle, Eigen::Matrix3d::Identity()));
   }
-  EXPECT_EQ(test::allocation_count() - before, 0);
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
 }
 
 TEST(ObstacleConfig, BadValueIsRejectedNamingTheKey) {
