@@ -13,7 +13,7 @@
 namespace hq::estimator {
 namespace {
 
-using testing::HasSubstr;
+using ::testing::HasSubstr;
 
 constexpr std::int64_t kImuNs = 5'000'000;  // 200 Hz IMU
 constexpr int kImuPerFrame = 6;             // 33.3 Hz camera

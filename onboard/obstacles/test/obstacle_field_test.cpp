@@ -15,7 +15,7 @@
 namespace hq::obstacles {
 namespace {
 
-using testing::HasSubstr;
+using ::testing::HasSubstr;
 constexpr double kDeg = M_PI / 180.0;
 
 geometry::PinholeCamera test_camera() {
