@@ -1,0 +1,125 @@
+// hq-bench-chain: time from frame arrival to setpoint of the OnboardChain at 640x480 on the
+// bundled real frames (TUM fr1_360), per stage, over repeated passes. Not run by ctest.
+//   hq-bench-chain [--sequence DIR] [--camera calib/tum_fr1.yaml] [--config config/onboard.yaml]
+//                  [--passes 60]
+// The frames are decoded once and played back and forth (0 1 2 3 4 3 2 1 0 1 ...), so that
+// consecutive frames are always neighbours, stamped 68 ms apart as recorded; the IMU is a level
+// body at rest at 200 Hz (timing does not depend on its values). Target: total <= 6 ms median.
+#include "hq/base/error.hpp"
+#include "hq/config/camera_info.hpp"
+#include "hq/control/vehicle_config.hpp"
+#include "hq/pipeline/onboard_chain.hpp"
+#include "hq/pipeline/stage_timing.hpp"
+#include "hq/recording/data_dir.hpp"
+#include "hq/sources/tum_frame_source.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace {
+
+class SteadyClock final : public hq::pipeline::Clock {
+ public:
+  std::int64_t now_ns() const override {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+};
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-bench-chain: per-stage latency of the on-board chain on real frames"};
+  std::string sequence_dir;
+  std::string camera_path = "calib/tum_fr1.yaml";
+  std::string config_path = "config/onboard.yaml";
+  std::string vehicle_path = "calib/vehicle_core_paper.yaml";
+  int passes = 60;
+  app.add_option("--sequence", sequence_dir, "TUM sequence (default: the bundled fr1_360)");
+  app.add_option("--camera", camera_path, "camera file");
+  app.add_option("--config", config_path, "on-board config");
+  app.add_option("--vehicle", vehicle_path, "vehicle file");
+  app.add_option("--passes", passes, "back-and-forth passes over the frames")
+      ->check(CLI::Range(1, 100000));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  if (sequence_dir.empty()) {
+    const auto data = hq::recording::find_data_dir();
+    if (!data) {
+      throw hq::InputError("no --sequence and no real data: " +
+                           hq::recording::data_dir_search_description());
+    }
+    sequence_dir = *data + "/tum/rgbd_dataset_freiburg1_360";
+  }
+  const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
+  hq::sources::TumFrameSource source(sequence_dir, camera);
+  std::vector<hq::sources::RgbdFrame> frames;
+  for (hq::sources::RgbdFrame frame; source.next(frame) == hq::sources::FrameStatus::kFrame;) {
+    frames.push_back({frame.t_ns, frame.bgr.clone(), frame.gray.clone(), frame.depth_m.clone()});
+  }
+  if (frames.size() < 2) throw hq::InputError(sequence_dir + ": fewer than 2 frames");
+  std::vector<std::size_t> order;  // back and forth
+  for (int p = 0; p < passes; ++p) {
+    for (std::size_t i = 0; i + 1 < frames.size(); ++i) order.push_back(i);
+    for (std::size_t i = frames.size() - 1; i > 0; --i) order.push_back(i);
+  }
+
+  const SteadyClock clock;
+  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(config_path);
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(vehicle_path);
+  hq::pipeline::OnboardChain chain(config, vehicle, source.camera(), &clock);
+  hq::pipeline::StageTimingLog log(order.size());
+  constexpr std::int64_t kFramePeriodNs = 68'000'000;
+  constexpr std::int64_t kImuPeriodNs = 5'000'000;
+  int ok = 0;
+  int lost = 0;
+  std::vector<std::pair<const char*, int>> reasons;
+  reasons.reserve(16);
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const std::int64_t t_ns = static_cast<std::int64_t>(k + 1) * kFramePeriodNs;
+    for (std::int64_t t = t_ns - kFramePeriodNs + kImuPeriodNs; t <= t_ns; t += kImuPeriodNs) {
+      chain.on_imu(t, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 0.0, -9.80665));
+    }
+    const hq::sources::RgbdFrame& frame = frames[order[k]];
+    const hq::pipeline::ChainOutput out = chain.on_frame(t_ns, frame.gray, frame.depth_m);
+    if (k > 0) log.add(out.durations);  // the first frame sizes the buffers
+    ok += out.estimate.ok() ? 1 : 0;
+    if (!out.estimate.ok() && k > 0) {
+      // Reasons are static strings: count them by address.
+      std::size_t r = 0;
+      while (r < reasons.size() && reasons[r].first != out.estimate.reason) ++r;
+      if (r == reasons.size()) reasons.emplace_back(out.estimate.reason, 0);
+      ++reasons[r].second;
+    }
+    lost += out.tracking == hq::odometry::TrackingStatus::kLost ? 1 : 0;
+  }
+  std::printf("hq-bench-chain: %s, %dx%d, %zu frames (%d passes), %d estimates ok, %d lost\n",
+              sequence_dir.c_str(), source.camera().width, source.camera().height, order.size(),
+              passes, ok, lost);
+  for (const auto& [reason, count] : reasons) {
+    std::printf("  no estimate on %d frames: %s\n", count, reason);
+  }
+  log.print(stdout);
+  const double total_ms = log.statistics(hq::pipeline::kStageCount - 1).median_ms;
+  std::printf("target: total median <= 6 ms on one core: %s (%.3f ms)\n",
+              total_ms <= 6.0 ? "met" : "MISSED", total_ms);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const hq::InputError& e) {
+    std::fprintf(stderr, "hq-bench-chain: %s\n", e.what());
+    return 2;
+  }
+}

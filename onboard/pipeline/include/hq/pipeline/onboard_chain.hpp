@@ -1,0 +1,141 @@
+#pragma once
+/// The on-board process chain of the core paper (§3.1-3.2, Fig. 4) on one RGB-D frame:
+/// dense odometry -> velocity estimator (eqs. 1-5) -> obstacle field (v_obs) -> mode controller
+/// (v_des = v*_des + v_obs) -> velocity PID -> attitude-thrust setpoint.
+///
+/// Configured once; then stamps and data in, setpoint out. The chain reads no clock: stage
+/// durations come from a Clock the caller injects (a steady clock in the apps, a fake in tests,
+/// none to skip timing). After the first frame, on_frame() allocates nothing.
+
+#include "hq/control/vehicle_config.hpp"
+#include "hq/control/velocity_controller.hpp"
+#include "hq/estimator/velocity_estimator.hpp"
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/modes/mode_controller.hpp"
+#include "hq/obstacles/obstacle_field.hpp"
+#include "hq/odometry/dense_odometry.hpp"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace hq::pipeline {
+
+/// The chain's own settings (section `chain:`).
+struct ChainConfig {
+  double camera_timeout_s = 0.3;  ///< No frame for longer than this: safe hover on IMU only.
+};
+
+/// Reads the `chain:` section {camera_timeout_s} strictly.
+void read_config(config::StrictMap& section, ChainConfig& out);
+
+/// Everything config/onboard.yaml configures, one struct per component.
+struct OnboardConfig {
+  odometry::OdometryConfig odometry;
+  estimator::VelocityEstimatorConfig estimator;
+  obstacles::ObstacleConfig obstacles;
+  control::VelocityControllerConfig control;
+  modes::ModesConfig modes;
+  ChainConfig chain;
+};
+
+/// Loads an on-board config file strictly: sections odometry, estimator, obstacles, control,
+/// modes and chain, each handed to its component's read_config (an absent section keeps that
+/// component's defaults; an unknown section or key is an error). Throws hq::InputError naming
+/// file, key, value and expectation.
+OnboardConfig load_onboard_config(const std::string& path);
+
+/// Monotonic time source for stage timing, injected so the chain itself reads no clock.
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  [[nodiscard]] virtual std::int64_t now_ns() const = 0;
+};
+
+/// Wall durations of one on_frame() call, per stage (ns; all zero without a Clock).
+struct StageDurations {
+  std::int64_t odometry_ns = 0;
+  std::int64_t estimator_ns = 0;
+  std::int64_t obstacles_ns = 0;
+  std::int64_t control_ns = 0;  ///< Mode controller and velocity PID.
+  std::int64_t total_ns = 0;    ///< Frame arrival to setpoint.
+};
+
+/// Stage names in StageDurations order, for tables.
+inline constexpr int kStageCount = 5;
+inline constexpr const char* kStageNames[kStageCount] = {"odometry", "estimator", "obstacles",
+                                                         "control", "total"};
+/// The duration of stage i (0..kStageCount-1) in kStageNames order.
+std::int64_t stage_ns(const StageDurations& durations, int i);
+
+/// One step of the chain: the estimate, the obstacles and the setpoint, with what went wrong.
+struct ChainOutput {
+  std::int64_t t_ns = 0;
+  bool frame = false;  ///< True when produced by on_frame(), false by on_tick().
+  odometry::TrackingStatus tracking = odometry::TrackingStatus::kLost;
+  const char* tracking_reason = "";  ///< Static text.
+  double valid_ratio = 0.0;          ///< Odometry usable-pixel ratio.
+  estimator::VelocityEstimate estimate;
+  obstacles::ObstacleResult obstacles;
+  modes::ModeOutput mode;  ///< mode.control.setpoint is the attitude-thrust setpoint.
+  /// True when the setpoint is the safe hover (level, thrust m g, no yaw rate) because there is
+  /// no usable velocity: estimate unavailable, camera timed out or non-finite input.
+  bool safe_hover = false;
+  const char* safe_hover_reason = "";  ///< Static text when safe_hover.
+  bool camera_timed_out = false;
+  StageDurations durations;
+};
+
+class OnboardChain {
+ public:
+  /// @param camera   intrinsics of the undistorted frames given to on_frame().
+  /// @param vehicle  mass, limits and extrinsics T_body_camera (R_QC, Q_p_C).
+  /// @param clock    optional, not owned, must outlive the chain; null disables stage timing.
+  /// @throws hq::InputError if the components reject the camera or config.
+  OnboardChain(const OnboardConfig& config, const control::VehicleConfig& vehicle,
+               const geometry::PinholeCamera& camera, const Clock* clock = nullptr);
+
+  /// One IMU sample in the body frame Q (NED): gyro (rad/s) and specific force (m/s^2).
+  /// Non-finite or out-of-order samples are ignored by the estimator.
+  void on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
+              const Eigen::Vector3d& accel_mps2);
+
+  /// Runs the whole chain on one frame. gray CV_8UC1, depth_m CV_32FC1 (metres, 0 = none), both
+  /// camera-sized. Without a usable estimate the setpoint is the controller's safe hover.
+  ChainOutput on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m);
+
+  /// Between frames (e.g. from the IMU loop): once no frame has arrived for longer than
+  /// chain.camera_timeout_s (or none ever did), steps the mode controller on IMU only and
+  /// returns the safe-hover output; otherwise nullopt (the last frame's setpoint stands).
+  std::optional<ChainOutput> on_tick(std::int64_t t_ns);
+
+  /// The operator's latest command (used in teleop mode).
+  void set_operator_command(const modes::OperatorCommand& command);
+  /// Requests a flight mode; see ModeController::request_mode.
+  modes::ModeSwitch request_mode(modes::Mode mode);
+
+  [[nodiscard]] modes::Mode mode() const { return modes_.mode(); }
+  [[nodiscard]] const OnboardConfig& config() const { return config_; }
+  [[nodiscard]] const estimator::VelocityEstimator& estimator() const { return estimator_; }
+
+ private:
+  [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
+  /// Current R_HQ from the complementary filter (identity before its first sample).
+  [[nodiscard]] Eigen::Matrix3d R_horizontal_body() const;
+
+  OnboardConfig config_;
+  const Clock* clock_;
+  odometry::DenseOdometry odometry_;
+  estimator::VelocityEstimator estimator_;
+  obstacles::ObstacleField obstacles_;
+  modes::ModeController modes_;
+  bool have_frame_ = false;
+  std::int64_t t_last_frame_ns_ = 0;
+  bool have_tick_ = false;
+  std::int64_t t_first_tick_ns_ = 0;
+};
+
+}  // namespace hq::pipeline

@@ -1,0 +1,152 @@
+#include "hq/pipeline/onboard_chain.hpp"
+
+#include "hq/config/strict_yaml.hpp"
+#include "hq/estimator/complementary_filter.hpp"
+
+#include <limits>
+
+namespace hq::pipeline {
+
+void read_config(config::StrictMap& section, ChainConfig& out) {
+  section.read_positive("camera_timeout_s", out.camera_timeout_s, 10.0);
+  section.finish();
+}
+
+OnboardConfig load_onboard_config(const std::string& path) {
+  const YAML::Node node = config::load_yaml_file(path);
+  config::StrictMap root(node, path);
+  OnboardConfig out;
+  config::StrictMap odometry = root.child("odometry");
+  odometry::read_config(odometry, out.odometry);
+  config::StrictMap estimator = root.child("estimator");
+  estimator::read_config(estimator, out.estimator);
+  config::StrictMap obstacles = root.child("obstacles");
+  obstacles::read_config(obstacles, out.obstacles);
+  config::StrictMap control = root.child("control");
+  control::read_config(control, out.control);
+  config::StrictMap modes = root.child("modes");
+  modes::read_config(modes, out.modes);
+  config::StrictMap chain = root.child("chain");
+  read_config(chain, out.chain);
+  root.finish();
+  return out;
+}
+
+std::int64_t stage_ns(const StageDurations& durations, int i) {
+  switch (i) {
+    case 0:
+      return durations.odometry_ns;
+    case 1:
+      return durations.estimator_ns;
+    case 2:
+      return durations.obstacles_ns;
+    case 3:
+      return durations.control_ns;
+    default:
+      return durations.total_ns;
+  }
+}
+
+OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleConfig& vehicle,
+                           const geometry::PinholeCamera& camera, const Clock* clock)
+    : config_(config),
+      clock_(clock),
+      odometry_(config.odometry, camera),
+      estimator_(config.estimator, vehicle.R_body_camera, vehicle.p_body_camera_m),
+      obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
+      modes_(config.modes, config.control, vehicle) {}
+
+void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
+                          const Eigen::Vector3d& accel_mps2) {
+  estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
+}
+
+Eigen::Matrix3d OnboardChain::R_horizontal_body() const {
+  const estimator::ComplementaryFilter& attitude = estimator_.attitude();
+  if (!attitude.initialized()) return Eigen::Matrix3d::Identity();
+  return estimator::R_horizontal_body(attitude.roll_rad(), attitude.pitch_rad());
+}
+
+ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m) {
+  ChainOutput out;
+  out.t_ns = t_ns;
+  out.frame = true;
+  const std::int64_t t_arrival_ns = now_ns();
+
+  const odometry::OdometryResult odometry = odometry_.track(t_ns, gray, depth_m);
+  out.tracking = odometry.status;
+  out.tracking_reason = odometry.reason;
+  out.valid_ratio = odometry.valid_ratio;
+  const std::int64_t t_odometry_ns = now_ns();
+
+  // Fig. 4: odometry poses and IMU into H_v_Q (eqs. 1-5).
+  out.estimate = estimator_.update(t_ns, odometry);
+  const std::int64_t t_estimator_ns = now_ns();
+
+  // §3.1: depth minima into the repulsive v_obs in H, with the attitude the estimator holds.
+  out.obstacles = obstacles_.compute(depth_m, R_horizontal_body());
+  const std::int64_t t_obstacles_ns = now_ns();
+
+  // Without an estimate the PID gets a non-finite measurement on purpose: the velocity
+  // controller's safe-hover path then commands a level hover (m g) and freezes its integral,
+  // which is what the vehicle can do on IMU attitude alone.
+  const Eigen::Vector3d v_est_mps =
+      out.estimate.ok() ? out.estimate.v_horizontal_mps
+                        : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  out.mode = modes_.step(t_ns, v_est_mps, out.obstacles.v_obs_horizontal_mps);
+  const std::int64_t t_control_ns = now_ns();
+
+  out.safe_hover = out.mode.control.safe_hover;
+  if (out.safe_hover) {
+    out.safe_hover_reason = out.estimate.ok() ? out.mode.control.reason : out.estimate.reason;
+  }
+  have_frame_ = true;
+  t_last_frame_ns_ = t_ns;
+
+  out.durations.odometry_ns = t_odometry_ns - t_arrival_ns;
+  out.durations.estimator_ns = t_estimator_ns - t_odometry_ns;
+  out.durations.obstacles_ns = t_obstacles_ns - t_estimator_ns;
+  out.durations.control_ns = t_control_ns - t_obstacles_ns;
+  out.durations.total_ns = t_control_ns - t_arrival_ns;
+  return out;
+}
+
+std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
+  if (!have_tick_) {
+    have_tick_ = true;
+    t_first_tick_ns_ = t_ns;
+  }
+  const std::int64_t since_ns = have_frame_ ? t_last_frame_ns_ : t_first_tick_ns_;
+  const double silence_s = 1e-9 * static_cast<double>(t_ns - since_ns);
+  if (!(silence_s > config_.chain.camera_timeout_s)) return std::nullopt;
+
+  ChainOutput out;
+  out.t_ns = t_ns;
+  out.frame = false;
+  out.tracking_reason = "no frame";
+  out.camera_timed_out = true;
+  out.estimate.t_ns = t_ns;
+  out.estimate.reason = "camera timed out";
+  out.estimate.unavailable_for_s = silence_s;
+  const estimator::ComplementaryFilter& attitude = estimator_.attitude();
+  if (attitude.initialized()) {
+    out.estimate.roll_rad = attitude.roll_rad();
+    out.estimate.pitch_rad = attitude.pitch_rad();
+  }
+  out.obstacles.reason = "no frame";
+  const Eigen::Vector3d v_none_mps =
+      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  // No depth means no v_obs either: zero, and the same safe-hover path as on_frame().
+  out.mode = modes_.step(t_ns, v_none_mps, Eigen::Vector3d::Zero());
+  out.safe_hover = true;
+  out.safe_hover_reason = "camera timed out: hover on IMU attitude only";
+  return out;
+}
+
+void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
+  modes_.set_operator_command(command);
+}
+
+modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) { return modes_.request_mode(mode); }
+
+}  // namespace hq::pipeline

@@ -1,0 +1,148 @@
+#include "hq/pipeline/velocity_evaluation.hpp"
+
+#include "hq/base/error.hpp"
+#include "hq/sources/tum_frame_source.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hq::pipeline {
+
+std::optional<Eigen::Vector3d> true_camera_velocity(
+    const std::vector<recording::StampedPose>& T_world_camera, std::int64_t t_ns,
+    std::int64_t h_ns) {
+  const auto T_minus = interpolate_pose(T_world_camera, t_ns - h_ns);
+  const auto T_now = interpolate_pose(T_world_camera, t_ns);
+  const auto T_plus = interpolate_pose(T_world_camera, t_ns + h_ns);
+  if (!T_minus || !T_now || !T_plus) return std::nullopt;
+  const double two_h_s = 2e-9 * static_cast<double>(h_ns);
+  // Central difference in W, then into the camera frame at t (as Ck_v_Ck of eqs. 1-2).
+  return Eigen::Vector3d(T_now->linear().transpose() *
+                         (T_plus->translation() - T_minus->translation()) / two_h_s);
+}
+
+namespace {
+
+struct Shifted {
+  Eigen::Vector3d sq_raw = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sq_filtered = Eigen::Vector3d::Zero();
+};
+
+Shifted squared_errors(const std::vector<VelocitySample>& samples,
+                       const std::vector<recording::StampedPose>& truth, std::int64_t h_ns,
+                       std::int64_t shift_ns) {
+  Shifted out;
+  for (const VelocitySample& sample : samples) {
+    const Eigen::Vector3d v_true = *true_camera_velocity(truth, sample.t_ns - shift_ns, h_ns);
+    out.sq_raw += (sample.v_camera_raw_mps - v_true).cwiseAbs2();
+    out.sq_filtered += (sample.v_camera_filtered_mps - v_true).cwiseAbs2();
+  }
+  return out;
+}
+
+}  // namespace
+
+VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
+                                 const std::vector<recording::StampedPose>& T_world_camera,
+                                 std::int64_t frame_interval_ns, const LagSearch& lag) {
+  if (frame_interval_ns <= 0) {
+    throw InputError("velocity evaluation: frame interval = " + std::to_string(frame_interval_ns) +
+                     " ns, expected > 0");
+  }
+  const auto max_shift_ns = static_cast<std::int64_t>(std::llround(lag.max_lag_s * 1e9));
+  const auto step_ns = std::max<std::int64_t>(1, std::llround(lag.step_s * 1e9));
+  // Truth is defined on one interval, so checking both ends of the shift range suffices.
+  std::vector<VelocitySample> usable;
+  for (const VelocitySample& sample : samples) {
+    if (true_camera_velocity(T_world_camera, sample.t_ns, frame_interval_ns) &&
+        true_camera_velocity(T_world_camera, sample.t_ns - max_shift_ns, frame_interval_ns)) {
+      usable.push_back(sample);
+    }
+  }
+  if (usable.empty()) {
+    throw InputError("velocity evaluation: none of " + std::to_string(samples.size()) +
+                     " estimates lies within the ground truth (with +-1 frame and " +
+                     std::to_string(lag.max_lag_s) + " s lag margin), expected at least 1");
+  }
+  VelocityErrors errors;
+  errors.samples = static_cast<int>(usable.size());
+  errors.frame_interval_s = 1e-9 * static_cast<double>(frame_interval_ns);
+  const double n = static_cast<double>(usable.size());
+  const Shifted at_zero = squared_errors(usable, T_world_camera, frame_interval_ns, 0);
+  errors.rmse_raw_mps = (at_zero.sq_raw / n).cwiseSqrt();
+  errors.rmse_filtered_mps = (at_zero.sq_filtered / n).cwiseSqrt();
+  double truth_sq = 0.0;
+  for (const VelocitySample& sample : usable) {
+    truth_sq += true_camera_velocity(T_world_camera, sample.t_ns, frame_interval_ns)->squaredNorm();
+  }
+  errors.truth_rms_mps = std::sqrt(truth_sq / n);
+
+  double best_filtered = at_zero.sq_filtered.sum();
+  double best_raw = at_zero.sq_raw.sum();
+  errors.rmse_filtered_at_lag_mps = errors.rmse_filtered_mps;
+  for (std::int64_t shift = step_ns; shift <= max_shift_ns; shift += step_ns) {
+    const Shifted e = squared_errors(usable, T_world_camera, frame_interval_ns, shift);
+    if (e.sq_filtered.sum() < best_filtered) {
+      best_filtered = e.sq_filtered.sum();
+      errors.filtered_lag_ms = 1e-6 * static_cast<double>(shift);
+      errors.rmse_filtered_at_lag_mps = (e.sq_filtered / n).cwiseSqrt();
+    }
+    if (e.sq_raw.sum() < best_raw) {
+      best_raw = e.sq_raw.sum();
+      errors.raw_lag_ms = 1e-6 * static_cast<double>(shift);
+    }
+  }
+  return errors;
+}
+
+SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
+                               const OnboardConfig& config, const control::VehicleConfig& vehicle) {
+  sources::TumFrameSource source(sequence_dir, camera);
+  const recording::TumSequence& sequence = source.sequence();
+  if (!sequence.has_ground_truth()) {
+    throw InputError(sequence_dir +
+                     "/groundtruth.txt: missing, expected ground truth to compare "
+                     "velocities with");
+  }
+  SequenceReplay replay;
+  replay.ground_truth = sequence.ground_truth();
+  std::vector<std::int64_t> spacing_ns;
+  for (std::size_t i = 1; i < sequence.size(); ++i) {
+    spacing_ns.push_back(sequence.frame(i).t_ns - sequence.frame(i - 1).t_ns);
+  }
+  if (spacing_ns.empty()) {
+    throw InputError(sequence_dir + ": 1 frame, expected at least 2 to differentiate poses");
+  }
+  std::nth_element(spacing_ns.begin(), spacing_ns.begin() + spacing_ns.size() / 2,
+                   spacing_ns.end());
+  replay.frame_interval_ns = spacing_ns[spacing_ns.size() / 2];
+
+  replay.imu = load_replay_imu(sequence, R_body_camera_for_camera_as_body());
+  control::VehicleConfig replay_vehicle = vehicle;
+  if (replay.imu.synthesised) {
+    // The synthesised IMU lives on the camera: the camera is the body (see replay_imu.hpp).
+    replay_vehicle.R_body_camera = R_body_camera_for_camera_as_body();
+    replay_vehicle.p_body_camera_m.setZero();
+  }
+  OnboardChain chain(config, replay_vehicle, source.camera());
+  std::size_t next_imu = 0;
+  sources::RgbdFrame frame;
+  while (source.next(frame) == sources::FrameStatus::kFrame) {
+    while (next_imu < replay.imu.samples.size() &&
+           replay.imu.samples[next_imu].t_ns <= frame.t_ns) {
+      const ImuMeasurement& m = replay.imu.samples[next_imu++];
+      chain.on_imu(m.t_ns, m.gyro_radps, m.accel_mps2);
+    }
+    const ChainOutput out = chain.on_frame(frame.t_ns, frame.gray, frame.depth_m);
+    ++replay.frames;
+    if (out.estimate.ok()) {
+      ++replay.ok_estimates;
+      replay.samples.push_back(
+          {frame.t_ns, out.estimate.v_camera_raw_mps, out.estimate.v_camera_mps});
+    }
+  }
+  replay.imu.samples.clear();
+  return replay;
+}
+
+}  // namespace hq::pipeline

@@ -1,0 +1,205 @@
+// OnboardChain on rendered frames: a finite setpoint, nothing allocated after frame 1, safe
+// hover without depth or camera, and config errors that name the key.
+#include "hq/pipeline/onboard_chain.hpp"
+
+#include "hq/base/error.hpp"
+#include "hq/testing/allocation_counter.hpp"
+
+#include "rendered_plane.hpp"
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace hq::pipeline {
+namespace {
+
+using ::testing::HasSubstr;
+
+const geometry::PinholeCamera kCamera{260.0, 260.0, 159.5, 119.5, 320, 240};
+constexpr double kPlaneZ = 2.0;
+constexpr std::int64_t kFramePeriodNs = 33'333'333;  // 30 Hz
+constexpr std::int64_t kImuPeriodNs = 5'000'000;     // 200 Hz
+constexpr double kSpeedMps = 0.3;                    // along the camera's x axis
+
+/// Each call advances 1 ms, so every stage of one on_frame() lasts exactly 1 ms.
+class FakeClock final : public Clock {
+ public:
+  std::int64_t now_ns() const override { return t_ns_ += 1'000'000; }
+
+ private:
+  mutable std::int64_t t_ns_ = 0;
+};
+
+Eigen::Isometry3d camera_pose_at(std::int64_t t_ns) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(kSpeedMps * 1e-9 * static_cast<double>(t_ns), 0.0, 0.0);
+  return T;
+}
+
+/// A level body at rest as far as the IMU can tell: no rotation, specific force -g along z.
+void feed_imu(OnboardChain& chain, std::int64_t from_ns, std::int64_t to_ns) {
+  for (std::int64_t t = from_ns; t <= to_ns; t += kImuPeriodNs) {
+    if (t <= 0) continue;
+    chain.on_imu(t, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 0.0, -9.80665));
+  }
+}
+
+bool setpoint_finite(const ChainOutput& out) {
+  const control::AttitudeSetpoint& s = out.mode.control.setpoint;
+  return std::isfinite(s.thrust_n) && std::isfinite(s.roll_rad) && std::isfinite(s.pitch_rad) &&
+         std::isfinite(s.yaw_rate_radps) && out.mode.v_des_horizontal_mps.allFinite() &&
+         out.estimate.v_horizontal_mps.allFinite() &&
+         out.obstacles.v_obs_horizontal_mps.allFinite();
+}
+
+class ChainOnRenderedPlane : public ::testing::Test {
+ protected:
+  ChainOnRenderedPlane() : chain_(OnboardConfig{}, control::VehicleConfig{}, kCamera, &clock_) {}
+
+  /// Frame k at t = k * period; IMU up to its stamp first, as the apps do.
+  ChainOutput frame(int k, bool valid_depth = true) {
+    const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
+    feed_imu(chain_, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns);
+    odometry::test::render_textured_plane(kCamera, camera_pose_at(t_ns), kPlaneZ, gray_, depth_);
+    if (!valid_depth) depth_.setTo(0.0f);
+    return chain_.on_frame(t_ns, gray_, depth_);
+  }
+
+  FakeClock clock_;
+  OnboardChain chain_;
+  cv::Mat gray_, depth_;
+};
+
+TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne) {
+  // GIVEN a camera gliding at 0.3 m/s over a textured plane, WHEN the chain runs 20 frames,
+  // THEN every setpoint is finite, the estimate becomes ok after the warm-up, eq. 1 matches the
+  // motion, and frames 2.. allocate nothing (rendering is done before counting).
+  ChainOutput out = frame(0);
+  EXPECT_TRUE(setpoint_finite(out));
+  EXPECT_TRUE(out.safe_hover) << "no velocity on a first frame";
+  long allocations = 0;
+  int ok = 0;
+  for (int k = 1; k < 20; ++k) {
+    const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
+    feed_imu(chain_, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns - 1);
+    odometry::test::render_textured_plane(kCamera, camera_pose_at(t_ns), kPlaneZ, gray_, depth_);
+    const long before = testing::allocation_count();
+    chain_.on_imu(t_ns, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 0.0, -9.80665));
+    out = chain_.on_frame(t_ns, gray_, depth_);
+    allocations += testing::allocation_count() - before;
+    EXPECT_TRUE(setpoint_finite(out)) << "frame " << k;
+    if (out.estimate.ok()) {
+      ++ok;
+      EXPECT_FALSE(out.safe_hover) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_camera_raw_mps.x(), kSpeedMps, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_camera_raw_mps.y(), 0.0, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_camera_raw_mps.z(), 0.0, 0.03) << "frame " << k;
+    }
+  }
+  EXPECT_EQ(allocations, 0);
+  // Warm-up 0.2 s is 6 frames at 30 Hz, so at least 12 of the 19 must be ok.
+  EXPECT_GE(ok, 12);
+  // The fake clock ticks 1 ms per reading: four stages of 1 ms each.
+  EXPECT_EQ(out.durations.odometry_ns, 1'000'000);
+  EXPECT_EQ(out.durations.control_ns, 1'000'000);
+  EXPECT_EQ(out.durations.total_ns, 4'000'000);
+}
+
+TEST_F(ChainOnRenderedPlane, AllInvalidDepthGivesUnavailableEstimateAndSafeHover) {
+  // GIVEN a tracking chain, WHEN depth goes all-invalid for 10 frames, THEN the estimate is
+  // unavailable with a reason, the setpoint is the level m g hover, and nothing is NaN.
+  for (int k = 0; k < 12; ++k) frame(k);
+  // The odometry takes depth from its reference (the previous frame), so the first depthless
+  // frame still tracks; from the second on nothing can.
+  EXPECT_TRUE(setpoint_finite(frame(12, false)));
+  for (int k = 13; k < 23; ++k) {
+    const ChainOutput out = frame(k, false);
+    EXPECT_EQ(out.tracking, odometry::TrackingStatus::kLost) << "frame " << k;
+    EXPECT_FALSE(out.estimate.ok()) << "frame " << k;
+    EXPECT_STRNE(out.estimate.reason, "");
+    EXPECT_TRUE(out.safe_hover) << "frame " << k;
+    EXPECT_STRNE(out.safe_hover_reason, "");
+    EXPECT_TRUE(setpoint_finite(out)) << "frame " << k;
+    EXPECT_DOUBLE_EQ(out.mode.control.setpoint.thrust_n, 1.0 * control::kGravityMps2);
+    EXPECT_EQ(out.mode.control.setpoint.roll_rad, 0.0);
+    EXPECT_EQ(out.mode.control.setpoint.pitch_rad, 0.0);
+    EXPECT_EQ(out.mode.control.setpoint.yaw_rate_radps, 0.0);
+  }
+}
+
+TEST_F(ChainOnRenderedPlane, CameraSilenceLongerThanTimeoutCommandsSafeHover) {
+  for (int k = 0; k < 12; ++k) frame(k);
+  const std::int64_t t_last_ns = 12 * kFramePeriodNs;
+  // Within the 0.3 s timeout the last frame's setpoint stands.
+  EXPECT_FALSE(chain_.on_tick(t_last_ns + 200'000'000).has_value());
+  const auto out = chain_.on_tick(t_last_ns + 400'000'000);
+  ASSERT_TRUE(out.has_value());
+  EXPECT_TRUE(out->camera_timed_out);
+  EXPECT_TRUE(out->safe_hover);
+  EXPECT_THAT(out->safe_hover_reason, HasSubstr("camera timed out"));
+  EXPECT_TRUE(setpoint_finite(*out));
+  EXPECT_DOUBLE_EQ(out->mode.control.setpoint.thrust_n, 1.0 * control::kGravityMps2);
+  EXPECT_EQ(out->mode.control.setpoint.roll_rad, 0.0);
+}
+
+TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
+  OnboardChain chain(OnboardConfig{}, control::VehicleConfig{}, kCamera);
+  EXPECT_FALSE(chain.on_tick(1'000'000'000).has_value());
+  const auto out = chain.on_tick(1'400'000'000);
+  ASSERT_TRUE(out.has_value());
+  EXPECT_TRUE(out->safe_hover);
+}
+
+std::string write_temp_yaml(const std::string& name, const std::string& text) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("hq_pipeline_test_" + name + ".yaml")).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string load_error(const std::string& path) {
+  try {
+    load_onboard_config(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(LoadOnboardConfig, ReadsTheDefaultFileIntoEveryComponent) {
+  const OnboardConfig config = load_onboard_config("config/onboard.yaml");
+  EXPECT_DOUBLE_EQ(config.obstacles.influence_distance_m, 1.2);
+  EXPECT_DOUBLE_EQ(config.estimator.one_euro_position.beta, 2.0);
+  EXPECT_DOUBLE_EQ(config.control.kp_xy_per_s, 3.0);
+  EXPECT_DOUBLE_EQ(config.modes.teleop_timeout_s, 0.5);
+}
+
+TEST(LoadOnboardConfig, OdometryAndChainSectionsReachTheirComponents) {
+  const std::string path = write_temp_yaml(
+      "sections", "odometry: {pyramid_levels: 3}\nchain: {camera_timeout_s: 0.7}\n");
+  const OnboardConfig config = load_onboard_config(path);
+  EXPECT_EQ(config.odometry.pyramid_levels, 3);
+  EXPECT_DOUBLE_EQ(config.chain.camera_timeout_s, 0.7);
+}
+
+TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {
+  const std::string bad_range =
+      write_temp_yaml("range", "obstacles: {influence_distance_m: -1.2}\n");
+  EXPECT_THAT(load_error(bad_range), HasSubstr(bad_range + ": obstacles.influence_distance_m"));
+  EXPECT_THAT(load_error(write_temp_yaml("section", "estimater: {warmup_s: 0.1}\n")),
+              HasSubstr("estimater is not a known key"));
+  EXPECT_THAT(load_error(write_temp_yaml("odometry", "odometry: {pyramid_levelz: 3}\n")),
+              HasSubstr("odometry.pyramid_levelz"));
+  EXPECT_THAT(load_error(write_temp_yaml("chain", "chain: {camera_timeout_s: 0}\n")),
+              HasSubstr("chain.camera_timeout_s"));
+  EXPECT_THAT(load_error(write_temp_yaml("nested", "estimator: {complementary: {k_q: 1}}\n")),
+              HasSubstr("estimator.complementary.k_q"));
+  EXPECT_THAT(load_error("no/such/onboard.yaml"), HasSubstr("no/such/onboard.yaml"));
+}
+
+}  // namespace
+}  // namespace hq::pipeline

@@ -1,0 +1,120 @@
+// Ground-truth velocity, the RMSE/lag evaluation and the synthesised IMU on trajectories whose
+// answers are known in closed form.
+#include "hq/pipeline/velocity_evaluation.hpp"
+
+#include "hq/base/error.hpp"
+#include "hq/pipeline/replay_imu.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace hq::pipeline {
+namespace {
+
+using recording::StampedPose;
+using ::testing::HasSubstr;
+
+constexpr std::int64_t kGroundTruthPeriodNs = 10'000'000;  // 100 Hz, as TUM's mocap
+
+Eigen::Matrix3d Rz(double angle_rad) {
+  return Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+/// A level camera-as-body (R_WQ = Rz(yaw) Rx(pi), NED body in a z-up world) yawing at
+/// yaw_rate_radps while its position follows p(t).
+template <typename Position>
+std::vector<StampedPose> trajectory(double duration_s, double yaw_rate_radps, Position p) {
+  const Eigen::Matrix3d R_QC = R_body_camera_for_camera_as_body();
+  const Eigen::Matrix3d Rx_pi =
+      Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  std::vector<StampedPose> out;
+  for (std::int64_t t = 0; t <= static_cast<std::int64_t>(duration_s * 1e9);
+       t += kGroundTruthPeriodNs) {
+    const double t_s = 1e-9 * static_cast<double>(t);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Rz(yaw_rate_radps * t_s) * Rx_pi * R_QC;
+    T.translation() = p(t_s);
+    out.push_back({t, T});
+  }
+  return out;
+}
+
+TEST(TrueCameraVelocity, IsTheWorldVelocityInTheCameraFrame) {
+  const Eigen::Vector3d v_world(0.4, -0.2, 0.1);
+  const auto gt = trajectory(2.0, 0.5, [&](double t) { return Eigen::Vector3d(v_world * t); });
+  const std::int64_t t_ns = 1'005'000'000;  // between ground-truth samples
+  const auto v = true_camera_velocity(gt, t_ns, 33'000'000);
+  ASSERT_TRUE(v.has_value());
+  const Eigen::Matrix3d R_WC = interpolate_pose(gt, t_ns)->linear();
+  EXPECT_LT((*v - R_WC.transpose() * v_world).norm(), 1e-9);
+  EXPECT_FALSE(true_camera_velocity(gt, 10'000'000, 33'000'000).has_value())
+      << "t - h before the ground truth";
+}
+
+TEST(EvaluateVelocity, FindsRmseAndTheLagOfADelayedEstimate) {
+  // GIVEN a sinusoidal motion, a raw estimate equal to the truth and a filtered estimate that is
+  // the truth 50 ms late, THEN raw RMSE is 0 with lag 0, the filtered lag is 50 ms and its
+  // RMSE at that lag is 0.
+  const auto gt = trajectory(4.0, 0.0, [](double t) {
+    return Eigen::Vector3d(0.5 * std::sin(2.0 * t), 0.3 * std::cos(3.0 * t), 0.0);
+  });
+  const std::int64_t h_ns = 33'000'000;
+  std::vector<VelocitySample> samples;
+  for (std::int64_t t = 500'000'000; t <= 3'500'000'000; t += h_ns) {
+    samples.push_back(
+        {t, *true_camera_velocity(gt, t, h_ns), *true_camera_velocity(gt, t - 50'000'000, h_ns)});
+  }
+  const VelocityErrors e = evaluate_velocity(samples, gt, h_ns);
+  EXPECT_EQ(e.samples, static_cast<int>(samples.size()));
+  EXPECT_LT(e.raw_norm_mps(), 1e-9);
+  EXPECT_DOUBLE_EQ(e.raw_lag_ms, 0.0);
+  EXPECT_GT(e.filtered_norm_mps(), 0.05);
+  EXPECT_NEAR(e.filtered_lag_ms, 50.0, 1e-6);
+  EXPECT_LT(e.rmse_filtered_at_lag_mps.norm(), 1e-9);
+  EXPECT_GT(e.truth_rms_mps, 0.3);
+}
+
+TEST(EvaluateVelocity, EstimatesOutsideTheGroundTruthAreAnError) {
+  const auto gt = trajectory(1.0, 0.0, [](double t) { return Eigen::Vector3d(t, 0.0, 0.0); });
+  VelocitySample late;
+  late.t_ns = 5'000'000'000;
+  const std::vector<VelocitySample> samples = {late};
+  try {
+    evaluate_velocity(samples, gt, 33'000'000);
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("none of 1 estimates"));
+  }
+  EXPECT_THROW(evaluate_velocity(samples, gt, 0), InputError);
+}
+
+TEST(SynthesiseImu, GivesBodyRateAndGravityOfALevelYawingCamera) {
+  // A level camera-as-body yawing left (+z up in the world) at 0.5 rad/s is a rate of -0.5
+  // about the body's down axis; at constant velocity the specific force is -g along body z.
+  const auto gt = trajectory(2.0, 0.5, [](double t) { return Eigen::Vector3d(0.2 * t, 0.0, 1.0); });
+  ImuSynthesis synthesis;
+  synthesis.gyro_noise_density = 0.0;
+  const auto imu = synthesise_imu(gt, R_body_camera_for_camera_as_body(), synthesis);
+  ASSERT_GT(imu.size(), 300u);
+  EXPECT_NEAR(1e-9 * static_cast<double>(imu[1].t_ns - imu[0].t_ns), 1.0 / 200.0, 1e-9);
+  for (const ImuMeasurement& m : imu) {
+    EXPECT_LT((m.gyro_radps - Eigen::Vector3d(0.0, 0.0, -0.5)).norm(), 1e-6);
+    EXPECT_LT((m.accel_mps2 - Eigen::Vector3d(0.0, 0.0, -9.80665)).norm(), 1e-6);
+  }
+}
+
+TEST(SynthesiseImu, TooShortGroundTruthIsAnError) {
+  const std::vector<StampedPose> one = {{0, Eigen::Isometry3d::Identity()}};
+  try {
+    synthesise_imu(one, Eigen::Matrix3d::Identity());
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("ground truth has 1 poses"));
+  }
+}
+
+}  // namespace
+}  // namespace hq::pipeline
