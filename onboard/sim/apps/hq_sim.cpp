@@ -4,6 +4,7 @@
 //          [--resolution 640x480] [--seed N] [--script hover|circle]
 //          [--config onboard/sim/config/sim.yaml]
 #include "hq/base/error.hpp"
+#include "hq/sim/scripted_flight.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/tum_writer.hpp"
 
@@ -18,64 +19,6 @@
 #include <vector>
 
 namespace {
-
-constexpr double kG = 9.81;
-constexpr std::int64_t kControlPeriodNs = 5'000'000;  // 200 Hz, as a flight computer would
-
-struct Script {
-  std::string kind = "hover";
-  double takeoff_s = 1.0;       // rests on the floor until then
-  double circle_start_s = 4.0;  // after take-off and settling
-  double altitude_m = 1.0;
-  double circle_radius_m = 0.7;
-  double circle_speed_mps = 0.4;
-  Eigen::Vector2d circle_center_m = Eigen::Vector2d::Zero();
-  Eigen::Vector2d hover_xy_m = Eigen::Vector2d::Zero();
-};
-
-/// Position/velocity hold on truth -> AttitudeCommand (the on-board tracker's job, simplified:
-/// a PD on position plus feed-forward, converted to roll/pitch with gravity compensation).
-hq::sim::AttitudeCommand command_at(const hq::sim::Simulator& sim, const Script& s, double t_s) {
-  const hq::sim::TruthState& truth = sim.truth();
-  const double m = sim.config().vehicle.mass_kg;
-  if (t_s < s.takeoff_s) return {0.0, 0.0, 0.0, 0.0};
-
-  Eigen::Vector2d p_d = s.hover_xy_m;
-  Eigen::Vector2d v_d = Eigen::Vector2d::Zero();
-  Eigen::Vector2d a_ff = Eigen::Vector2d::Zero();
-  double yaw_rate = 0.0;
-  if (s.kind == "circle" && t_s > s.circle_start_s) {
-    const double w = s.circle_speed_mps / s.circle_radius_m;
-    const double phase = w * (t_s - s.circle_start_s);
-    // Starts at hover_xy_m, which lies on the circle.
-    const Eigen::Vector2d r0 = s.hover_xy_m - s.circle_center_m;
-    const double phase0 = std::atan2(r0.y(), r0.x());
-    const Eigen::Vector2d radial(std::cos(phase0 + phase), std::sin(phase0 + phase));
-    const Eigen::Vector2d tangent(-radial.y(), radial.x());
-    // Ramp the speed in over 2 s so the start is smooth.
-    const double ramp = std::min(1.0, (t_s - s.circle_start_s) / 2.0);
-    p_d = s.circle_center_m + s.circle_radius_m * radial;
-    v_d = ramp * s.circle_speed_mps * tangent;
-    a_ff = -ramp * s.circle_speed_mps * w * radial;
-    yaw_rate = 0.15 * ramp;  // a slow turn so the camera sweeps the scene
-  }
-  const Eigen::Vector3d p = truth.T_world_body.translation();
-  const Eigen::Vector2d a_xy =
-      a_ff + 1.2 * (p_d - p.head<2>()) + 1.8 * (v_d - truth.v_world_mps.head<2>());
-  const double a_z = 3.0 * (s.altitude_m - p.z()) - 2.5 * truth.v_world_mps.z();
-
-  // World (NWU) acceleration into the horizontal NED frame H, then tilt (core paper §3).
-  const double yaw = truth.euler_rad.z();
-  const double a_north = a_xy.x();
-  const double a_east = -a_xy.y();
-  const double a_forward = std::cos(yaw) * a_north + std::sin(yaw) * a_east;
-  const double a_right = -std::sin(yaw) * a_north + std::cos(yaw) * a_east;
-  const double max_tilt = 0.25;
-  const double pitch = std::clamp(-std::atan2(a_forward, kG + a_z), -max_tilt, max_tilt);
-  const double roll =
-      std::clamp(std::atan2(a_right * std::cos(pitch), kG + a_z), -max_tilt, max_tilt);
-  return {m * (kG + a_z) / (std::cos(roll) * std::cos(pitch)), roll, pitch, yaw_rate};
-}
 
 int run(int argc, char** argv) {
   CLI::App app{"hq-sim: scripted flight in a simulated world, recorded as a TUM RGB-D sequence"};
@@ -118,14 +61,9 @@ int run(int argc, char** argv) {
   config.seed = seed >= 0 ? static_cast<std::uint64_t>(seed) : world.seed;
 
   hq::sim::Simulator sim(config, world);
-  Script script;
-  script.kind = script_kind;
-  script.hover_xy_m = world.start_world_m.head<2>();
-  // The circle bends towards the world origin, where the worlds keep their free space.
-  const Eigen::Vector2d to_origin = -script.hover_xy_m;
-  const Eigen::Vector2d inward =
-      to_origin.norm() > 1e-6 ? to_origin.normalized() : Eigen::Vector2d(1.0, 0.0);
-  script.circle_center_m = script.hover_xy_m + script.circle_radius_m * inward;
+  const hq::sim::FlightScript script = hq::sim::script_for_world(
+      world, script_kind == "circle" ? hq::sim::FlightScript::Kind::kCircle
+                                     : hq::sim::FlightScript::Kind::kHover);
 
   std::unique_ptr<hq::sim::TumWriter> writer;
   if (!record_dir.empty()) {
@@ -138,8 +76,8 @@ int run(int argc, char** argv) {
   std::size_t imu_samples = 0;
   double min_clearance_m = 1e9;
   const auto end_ns = static_cast<std::int64_t>(std::llround(duration_s * 1e9));
-  for (std::int64_t t = 0; t <= end_ns; t += kControlPeriodNs) {
-    sim.set_command(command_at(sim, script, static_cast<double>(t) * 1e-9));
+  for (std::int64_t t = 0; t <= end_ns; t += hq::sim::kScriptControlPeriodNs) {
+    sim.set_command(hq::sim::scripted_command(sim, script, static_cast<double>(t) * 1e-9));
     sim.step_to(t);
     const std::size_t n = sim.take_imu(imu.data(), imu.size());
     imu_samples += n;
