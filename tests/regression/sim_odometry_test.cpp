@@ -1,0 +1,139 @@
+// Dense odometry on simulated RGB-D runs with exact ground truth: 8 s of hq-sim's scripted
+// circle in worlds/room.yaml at 320x240, far longer than the five bundled real frames, so RPE
+// over 1 s windows and ATE measure drift. Frames go from the renderer to the odometry in
+// memory. Each bound sits beside the figure measured when it was set (this test, same code and
+// seed), with a margin of at most 25 %.
+#include "hq/evaluation/trajectory_error.hpp"
+#include "hq/odometry/dense_odometry.hpp"
+#include "hq/recording/tum_io.hpp"
+#include "hq/sim/scripted_flight.hpp"
+#include "hq/sim/simulator.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace {
+
+constexpr std::uint64_t kSeed = 7;
+// The camera starts on the floor, closer than the depth sensor's 0.5 m minimum range, so no
+// frame has depth before take-off (1 s); by 3 s the vehicle hovers at 0.97 m. Tracking starts
+// there and covers the end of the hover, the circle's speed ramp and the circle itself.
+constexpr std::int64_t kTrackStartNs = 3'000'000'000;
+constexpr std::int64_t kTrackDurationNs = 8'000'000'000;
+
+struct Bounds {
+  double measured_rpe_trans_mps, max_rpe_trans_mps;
+  double measured_rpe_rot_degps, max_rpe_rot_degps;
+  double measured_ate_m, max_ate_m;
+};
+
+struct Case {
+  const char* name;
+  hq::odometry::ReferenceMode mode;
+  bool initialize_with_previous_motion;
+  Bounds bounds;
+};
+
+struct SimRun {
+  std::vector<hq::recording::StampedPose> trajectory;
+  std::vector<hq::recording::StampedPose> ground_truth;  ///< T_world_camera, simulator truth.
+  int lost = 0;
+  std::int64_t dropped_frames = 0;
+  bool collided = false;
+};
+
+SimRun fly_and_track(const Case& c) {
+  const hq::sim::World world = hq::sim::load_world("onboard/sim/worlds/room.yaml");
+  hq::sim::SimConfig config = hq::sim::load_sim_config("onboard/sim/config/sim.yaml");
+  const double hfov_rad =
+      2.0 * std::atan(0.5 * config.camera.pinhole.width / config.camera.pinhole.fx);
+  config.camera.pinhole = hq::sim::pinhole_from_fov(320, 240, hfov_rad);
+  config.camera.gray = true;  // DenseOdometry takes CV_8UC1
+  config.seed = kSeed;
+  hq::sim::Simulator sim(config, world);
+  const hq::sim::FlightScript script =
+      hq::sim::script_for_world(world, hq::sim::FlightScript::Kind::kCircle);
+
+  hq::odometry::OdometryConfig odometry_config;
+  odometry_config.reference_mode = c.mode;
+  odometry_config.initialize_with_previous_motion = c.initialize_with_previous_motion;
+  hq::odometry::DenseOdometry odometry(odometry_config, config.camera.pinhole);
+
+  SimRun run;
+  cv::Mat gray, depth_m;
+  for (std::int64_t t = 0; t <= kTrackStartNs + kTrackDurationNs;
+       t += hq::sim::kScriptControlPeriodNs) {
+    sim.set_command(hq::sim::scripted_command(sim, script, static_cast<double>(t) * 1e-9));
+    sim.step_to(t);
+    if (!sim.camera_due()) continue;
+    const std::int64_t t_frame_ns = sim.camera_t_ns();
+    const Eigen::Isometry3d T_world_camera = sim.camera_T_world_camera();
+    sim.render_camera(gray, depth_m);
+    if (t_frame_ns < kTrackStartNs) continue;
+    const auto result = odometry.track(t_frame_ns, gray, depth_m);
+    if (result.status == hq::odometry::TrackingStatus::kLost) ++run.lost;
+    run.ground_truth.push_back({t_frame_ns, T_world_camera});
+    run.trajectory.push_back({t_frame_ns, result.T_world_cur});
+  }
+  run.dropped_frames = sim.dropped_frames();
+  run.collided = sim.collided();
+  return run;
+}
+
+class OdometryOnSimulatedCircle : public ::testing::TestWithParam<Case> {};
+
+TEST_P(OdometryOnSimulatedCircle, RpeAndAteStayWithinMeasuredBounds) {
+  const Case& c = GetParam();
+  const auto start = std::chrono::steady_clock::now();
+  const SimRun run = fly_and_track(c);
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(run.dropped_frames, 0);
+  EXPECT_FALSE(run.collided);
+  EXPECT_EQ(run.lost, 0);
+  const auto rpe = hq::evaluation::relative_pose_error(run.ground_truth, run.trajectory, 1.0);
+  const auto ate = hq::evaluation::absolute_trajectory_error(run.ground_truth, run.trajectory);
+  EXPECT_FALSE(rpe.delta_clipped);
+  const Bounds& b = c.bounds;
+  std::printf(
+      "room circle %s, %zu frames, %.1f s: RPE %.5f m/s (measured %.5f, bound %.5f), "
+      "%.4f deg/s (%.4f, %.4f), ATE %.5f m (%.5f, %.5f), %d lost\n",
+      c.name, run.trajectory.size(), elapsed_s, rpe.trans_mps.rmse, b.measured_rpe_trans_mps,
+      b.max_rpe_trans_mps, rpe.rot_degps.rmse, b.measured_rpe_rot_degps, b.max_rpe_rot_degps,
+      ate.trans_m.rmse, b.measured_ate_m, b.max_ate_m, run.lost);
+  EXPECT_LT(rpe.trans_mps.rmse, b.max_rpe_trans_mps);
+  EXPECT_LT(rpe.rot_degps.rmse, b.max_rpe_rot_degps);
+  EXPECT_LT(ate.trans_m.rmse, b.max_ate_m);
+}
+
+std::string case_name(const ::testing::TestParamInfo<Case>& info) { return info.param.name; }
+
+// Measured with seed 7 over 241 frames (3 s to 11 s).
+constexpr Bounds kKeyframeBounds{0.00113, 0.0014, 0.0287, 0.035, 0.00075, 0.0009};
+INSTANTIATE_TEST_SUITE_P(ReferenceModes, OdometryOnSimulatedCircle,
+                         ::testing::Values(Case{"frame_to_frame",
+                                                hq::odometry::ReferenceMode::kFrameToFrame,
+                                                true,
+                                                {0.02397, 0.029, 0.9234, 1.10, 0.01639, 0.020}},
+                                           Case{"frame_to_keyframe_no_prediction",
+                                                hq::odometry::ReferenceMode::kFrameToKeyframe,
+                                                false, kKeyframeBounds}),
+                         case_name);
+
+// Frame-to-keyframe with the default constant-velocity initial guess diverges on this run
+// (measured: RPE 69 m/s, 61.6 deg/s, ATE 8.6 m, 5 lost frames; iterations climb from 4.3 s,
+// when the circle's speed ramp starts), while the same mode without the guess tracks to
+// 1 mm/s. Enable this case, with the no-prediction bounds, once DenseOdometry is fixed.
+INSTANTIATE_TEST_SUITE_P(DISABLED_KeyframeWithPrediction, OdometryOnSimulatedCircle,
+                         ::testing::Values(Case{"frame_to_keyframe",
+                                                hq::odometry::ReferenceMode::kFrameToKeyframe, true,
+                                                kKeyframeBounds}),
+                         case_name);
+
+}  // namespace
