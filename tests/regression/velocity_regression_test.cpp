@@ -1,0 +1,195 @@
+// Camera velocity of eq. 1 (raw) and eq. 2 (1€-filtered) of the core paper against ground
+// truth, through the whole OnboardChain with config/onboard.yaml:
+//  - on the bundled real frames (TUM fr1_360: 5 frames 68 ms apart, IMU synthesised from the
+//    ground truth). The estimator's 0.2 s warm-up leaves ONE frame to compare, so these bounds
+//    only guard against gross regressions;
+//  - on two 10 s simulated flights recorded at 320x240 with hq::sim's TumWriter (recorded
+//    IMU): a hover, where noise dominates and the core paper's reason for the filter shows
+//    (filtered RMSE < raw RMSE), and sinusoidal manoeuvres, where the filter's lag dominates.
+// Each bound sits beside the figure measured when it was set (this test, same code and seed),
+// with a margin of at most 25 %.
+#include "hq/config/camera_info.hpp"
+#include "hq/control/vehicle_config.hpp"
+#include "hq/pipeline/velocity_evaluation.hpp"
+#include "hq/recording/data_dir.hpp"
+#include "hq/sim/simulator.hpp"
+#include "hq/sim/tum_writer.hpp"
+#include "hq/sim/world.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <unistd.h>
+
+namespace {
+
+using hq::pipeline::VelocityErrors;
+
+void print(const char* name, const hq::pipeline::SequenceReplay& replay, const VelocityErrors& e) {
+  std::printf("%s: %d frames, %d ok, %d compared, h %.1f ms, truth RMS %.4f m/s\n", name,
+              replay.frames, replay.ok_estimates, e.samples, 1e3 * e.frame_interval_s,
+              e.truth_rms_mps);
+  std::printf("  RMSE eq. 1 raw      [%.4f %.4f %.4f] |%.4f| m/s\n", e.rmse_raw_mps.x(),
+              e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
+  std::printf("  RMSE eq. 2 filtered [%.4f %.4f %.4f] |%.4f| m/s\n", e.rmse_filtered_mps.x(),
+              e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(), e.filtered_norm_mps());
+  std::printf("  lag eq. 2 %.0f ms, eq. 1 %.0f ms\n", e.filtered_lag_ms, e.raw_lag_ms);
+}
+
+TEST(VelocityOnRecordedDepth, RawAndFilteredRmseStayWithinMeasuredBounds) {
+  const auto data = hq::recording::find_data_dir();
+  if (!data) GTEST_SKIP() << "no real data: " << hq::recording::data_dir_search_description();
+  const std::string dir = *data + "/tum/rgbd_dataset_freiburg1_360";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << dir << " absent";
+  const auto replay = hq::pipeline::replay_velocity(
+      dir, hq::config::load_camera_info("calib/tum_fr1.yaml"),
+      hq::pipeline::load_onboard_config("config/onboard.yaml"),
+      hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+  ASSERT_TRUE(replay.imu.synthesised) << "fr1_360 has no IMU files";
+  const VelocityErrors e = hq::pipeline::evaluate_velocity(replay.samples, replay.ground_truth,
+                                                           replay.frame_interval_ns);
+  print("fr1_360", replay, e);
+  EXPECT_EQ(replay.frames, 5);
+  EXPECT_EQ(e.samples, 1);             // warm-up 0.2 s: only the fifth frame (0.268 s) is past it
+  EXPECT_LT(e.raw_norm_mps(), 0.135);  // measured 0.1085
+  EXPECT_LT(e.filtered_norm_mps(), 0.102);  // measured 0.0815
+}
+
+/// Position hold plus a feed-forward velocity profile flown on truth, converted to the
+/// attitude-thrust command with gravity compensation in H (core paper §3; NED body, NWU world).
+class ScriptedFlight {
+ public:
+  /// @param manoeuvre  scales the velocity and yaw-rate profile: 0 hovers, 1 manoeuvres.
+  ScriptedFlight(const Eigen::Vector3d& start_world_m, double manoeuvre)
+      : start_m_(start_world_m), manoeuvre_(manoeuvre) {}
+
+  hq::sim::AttitudeCommand command(const hq::sim::Simulator& sim, double t_s) const {
+    constexpr double kG = 9.80665;
+    if (t_s < kTakeoffS) return {};
+    // After climbing, sinusoidal velocities of different periods on x and y: the camera sees
+    // speeds up to 0.4 m/s changing direction, so both noise (eq. 1) and lag (eq. 2) show.
+    const double tau = std::max(0.0, t_s - kManoeuvreS);
+    const double k = manoeuvre_;
+    const double wx = 2.0 * M_PI / 4.0;
+    const double wy = 2.0 * M_PI / 3.0;
+    const Eigen::Vector2d v_d(k * 0.4 * std::sin(wx * tau), k * 0.3 * std::sin(wy * tau));
+    const Eigen::Vector2d a_ff(k * 0.4 * wx * std::cos(wx * tau),
+                               k * 0.3 * wy * std::cos(wy * tau));
+    const Eigen::Vector2d p_d =
+        start_m_.head<2>() + k * Eigen::Vector2d(0.4 / wx * (1.0 - std::cos(wx * tau)),
+                                                 0.3 / wy * (1.0 - std::cos(wy * tau)));
+    const hq::sim::TruthState& truth = sim.truth();
+    const Eigen::Vector3d p = truth.T_world_body.translation();
+    const Eigen::Vector2d a_xy = (t_s >= kManoeuvreS ? a_ff : Eigen::Vector2d::Zero()) +
+                                 1.0 * (p_d - p.head<2>()) +
+                                 2.0 * (v_d - truth.v_world_mps.head<2>());
+    const double a_up = 3.0 * (kAltitudeM - p.z()) - 2.5 * truth.v_world_mps.z();
+    // Body forward in NWU is (cos psi, -sin psi), right is (-sin psi, -cos psi).
+    const double yaw = truth.euler_rad.z();
+    const double a_forward = std::cos(yaw) * a_xy.x() - std::sin(yaw) * a_xy.y();
+    const double a_right = -std::sin(yaw) * a_xy.x() - std::cos(yaw) * a_xy.y();
+    const double pitch = std::clamp(-std::atan2(a_forward, kG + a_up), -0.3, 0.3);
+    const double roll = std::clamp(std::atan2(a_right * std::cos(pitch), kG + a_up), -0.3, 0.3);
+    const double yaw_rate = t_s >= kManoeuvreS ? k * 0.25 * std::sin(2.0 * M_PI / 5.0 * tau) : 0.0;
+    return {sim.config().vehicle.mass_kg * (kG + a_up) / (std::cos(roll) * std::cos(pitch)), roll,
+            pitch, yaw_rate};
+  }
+
+  static constexpr double kTakeoffS = 0.5;
+  static constexpr double kManoeuvreS = 3.0;  // climbed and settled
+  static constexpr double kAltitudeM = 1.0;
+
+ private:
+  Eigen::Vector3d start_m_;
+  double manoeuvre_;
+};
+
+/// Records [kManoeuvreS, kManoeuvreS + duration_s] of the scripted flight in worlds/room.yaml.
+void record_flight(const std::string& dir, double duration_s, double manoeuvre) {
+  const hq::sim::World world = hq::sim::load_world("onboard/sim/worlds/room.yaml");
+  hq::sim::SimConfig config = hq::sim::load_sim_config("onboard/sim/config/sim.yaml");
+  const double hfov_rad =
+      2.0 * std::atan(0.5 * config.camera.pinhole.width / config.camera.pinhole.fx);
+  config.camera.pinhole = hq::sim::pinhole_from_fov(320, 240, hfov_rad);
+  config.seed = 5;
+  hq::sim::Simulator sim(config, world);
+  hq::sim::TumWriter writer(dir, config.camera.pinhole, config.camera.T_body_camera);
+  const ScriptedFlight script(world.start_world_m, manoeuvre);
+  constexpr std::int64_t kControlPeriodNs = 5'000'000;
+  const auto start_ns = static_cast<std::int64_t>(ScriptedFlight::kManoeuvreS * 1e9);
+  const auto end_ns = start_ns + static_cast<std::int64_t>(duration_s * 1e9);
+  hq::sim::ImuSample imu[64];
+  cv::Mat image, depth_m;
+  for (std::int64_t t = 0; t <= end_ns; t += kControlPeriodNs) {
+    sim.set_command(script.command(sim, 1e-9 * static_cast<double>(t)));
+    sim.step_to(t);
+    const std::size_t n = sim.take_imu(imu, 64);
+    for (std::size_t i = 0; i < n && t >= start_ns; ++i) writer.write_imu(imu[i]);
+    if (sim.camera_due()) {
+      const std::int64_t t_frame_ns = sim.camera_t_ns();
+      const Eigen::Isometry3d T_world_camera = sim.camera_T_world_camera();
+      sim.render_camera(image, depth_m);
+      if (t_frame_ns >= start_ns) writer.write_frame(t_frame_ns, image, depth_m, T_world_camera);
+    }
+  }
+  writer.close();
+  ASSERT_FALSE(sim.collided());
+}
+
+struct SimulatedEvaluation {
+  hq::pipeline::SequenceReplay replay;
+  VelocityErrors errors;
+};
+
+/// Records 10 s of the scripted flight to a temporary folder and replays it through the chain.
+SimulatedEvaluation fly_and_evaluate(const char* name, double manoeuvre) {
+  const std::string dir = (std::filesystem::temp_directory_path() /
+                           ("hq_velocity_regression_" + std::to_string(::getpid()) + "_" + name))
+                              .string();
+  std::filesystem::remove_all(dir);
+  record_flight(dir, 10.0, manoeuvre);
+  SimulatedEvaluation out;
+  out.replay = hq::pipeline::replay_velocity(
+      dir, hq::config::load_camera_info(dir + "/camera.yaml"),
+      hq::pipeline::load_onboard_config("config/onboard.yaml"),
+      hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+  std::filesystem::remove_all(dir);
+  out.errors = hq::pipeline::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
+                                               out.replay.frame_interval_ns);
+  print(name, out.replay, out.errors);
+  return out;
+}
+
+TEST(VelocityOnSimulatedFlight, InHoverFilteredBeatsRaw) {
+  // GIVEN a 10 s hover (velocity noise-dominated), THEN eq. 2 has a lower RMSE than eq. 1: the
+  // core paper's reason for the filter.
+  const SimulatedEvaluation run = fly_and_evaluate("hover", 0.0);
+  const VelocityErrors& e = run.errors;
+  EXPECT_FALSE(run.replay.imu.synthesised) << "the simulator records gyro.txt, accelerometer.txt";
+  EXPECT_GE(e.samples, 290);  // measured 293 of 301 frames
+  EXPECT_LT(e.filtered_norm_mps(), e.raw_norm_mps());
+  EXPECT_LT(e.raw_norm_mps(), 0.0125);       // measured 0.0100
+  EXPECT_LT(e.filtered_norm_mps(), 0.0115);  // measured 0.0092
+}
+
+TEST(VelocityOnSimulatedFlight, InManoeuvresTheFilterAddsLag) {
+  // GIVEN 10 s of sinusoidal manoeuvres (|v| RMS 0.36 m/s), THEN both stay within their
+  // measured RMSE and the filter delays eq. 2. Measured with config/onboard.yaml (1€ position
+  // min_cutoff 1 Hz, beta 2): here the lag dominates and eq. 2 is WORSE than eq. 1 at zero
+  // shift (0.0577 vs 0.0335 m/s); shifted by its lag eq. 2 reaches 0.0317 m/s. Not asserted
+  // either way: it is a tuning finding, reported with B-onboard-chain.
+  const SimulatedEvaluation run = fly_and_evaluate("manoeuvre", 1.0);
+  const VelocityErrors& e = run.errors;
+  EXPECT_GE(e.samples, 290);                          // measured 293 of 301 frames
+  EXPECT_GT(e.truth_rms_mps, 0.3);                    // measured 0.363
+  EXPECT_LT(e.raw_norm_mps(), 0.0415);                // measured 0.0335
+  EXPECT_LT(e.filtered_norm_mps(), 0.072);            // measured 0.0577
+  EXPECT_GT(e.filtered_lag_ms, e.raw_lag_ms + 20.0);  // measured 76 vs 13 ms
+  EXPECT_LE(e.filtered_lag_ms, 95.0);                 // measured 76 ms
+  EXPECT_LE(e.raw_lag_ms, 16.0);  // measured 13 ms: a backward difference lags h/2
+}
+
+}  // namespace
