@@ -116,8 +116,14 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthGivesUnavailableEstimateAndSafeHover
   // The odometry takes depth from its reference (the previous frame), so the first depthless
   // frame still tracks; from the second on nothing can.
   EXPECT_TRUE(setpoint_finite(frame(12, false)));
+  long allocations = 0;
   for (int k = 13; k < 23; ++k) {
-    const ChainOutput out = frame(k, false);
+    const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
+    feed_imu(chain_, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns);
+    depth_.setTo(0.0f);
+    const long before = testing::allocation_count();
+    const ChainOutput out = chain_.on_frame(t_ns, gray_, depth_);
+    allocations += testing::allocation_count() - before;
     EXPECT_EQ(out.tracking, odometry::TrackingStatus::kLost) << "frame " << k;
     EXPECT_FALSE(out.estimate.ok()) << "frame " << k;
     EXPECT_STRNE(out.estimate.reason, "");
@@ -129,6 +135,7 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthGivesUnavailableEstimateAndSafeHover
     EXPECT_EQ(out.mode.control.setpoint.pitch_rad, 0.0);
     EXPECT_EQ(out.mode.control.setpoint.yaw_rate_radps, 0.0);
   }
+  EXPECT_EQ(allocations, 0) << "the lost path allocates nothing either";
 }
 
 TEST_F(ChainOnRenderedPlane, CameraSilenceLongerThanTimeoutCommandsSafeHover) {
@@ -136,7 +143,9 @@ TEST_F(ChainOnRenderedPlane, CameraSilenceLongerThanTimeoutCommandsSafeHover) {
   const std::int64_t t_last_ns = 12 * kFramePeriodNs;
   // Within the 0.3 s timeout the last frame's setpoint stands.
   EXPECT_FALSE(chain_.on_tick(t_last_ns + 200'000'000).has_value());
+  const long before = testing::allocation_count();
   const auto out = chain_.on_tick(t_last_ns + 400'000'000);
+  EXPECT_EQ(testing::allocation_count() - before, 0);
   ASSERT_TRUE(out.has_value());
   EXPECT_TRUE(out->camera_timed_out);
   EXPECT_TRUE(out->safe_hover);
