@@ -407,7 +407,11 @@ struct DenseOdometry::Impl {
     }
 
     // Constant-velocity initial guess (and prior mean) for T_ref_cur.
-    const bool predict = has_motion && config.initialize_with_previous_motion;
+    // Frame to frame only: against a keyframe, the part of each step that the optimiser leaves
+    // uncorrected is carried into the next prediction, so the predicted velocity random-walks
+    // (measured on a simulated circle: RPE 69 m/s with it, 1 mm/s without).
+    const bool predict = has_motion && config.initialize_with_previous_motion &&
+                         config.reference_mode == ReferenceMode::kFrameToFrame;
     const Eigen::Isometry3d T_ref_predicted = predict ? T_ref_last * last_motion : T_ref_last;
     Eigen::Isometry3d T_cur_ref = T_ref_predicted.inverse();
 

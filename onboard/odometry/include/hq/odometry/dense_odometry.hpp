@@ -51,7 +51,8 @@ struct OdometryConfig {
   double min_valid_ratio = 0.02;   ///< Fraction of finest-level pixels that must be usable.
   bool use_motion_prior = false;   ///< Constant-velocity prior term (Kerl 2013, eq. 16).
   double motion_prior_precision = 1.0;  ///< Prior information = this x last frame's information.
-  bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion.
+  bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion
+                                                ///< (frame-to-frame only; also gates the prior).
   bool estimate_brightness_offset = true;   ///< Also estimate a global intensity offset.
   ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
