@@ -12,6 +12,7 @@
 // is then the tracked sensor, so the body frame Q is the camera's NED-equivalent (Q x = optical
 // z, Q y = optical x, Q z = optical y; Q_p_C = 0) and --vehicle contributes only mass and limits.
 #include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
@@ -179,11 +180,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-onboard: %s\n", e.what());
-    return 2;
-  }
-}
+int main(int argc, char** argv) { return hq::run_tool("hq-onboard", argc, argv, run); }

@@ -7,6 +7,7 @@
 // frame's time. Sequences without gyro.txt/accelerometer.txt (TUM) get an IMU synthesised from
 // the ground truth, with the camera as the body (see hq/pipeline/replay_imu.hpp).
 #include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/velocity_evaluation.hpp"
@@ -70,11 +71,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-velocity-eval: %s\n", e.what());
-    return 2;
-  }
-}
+int main(int argc, char** argv) { return hq::run_tool("hq-velocity-eval", argc, argv, run); }

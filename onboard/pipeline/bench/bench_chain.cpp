@@ -9,6 +9,7 @@
 // frame per pass exceeds estimator.max_mean_error and the estimator re-seeds and warms up again:
 // the "no estimate" counts printed come from the playback, not from the recorded motion.
 #include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
@@ -118,11 +119,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-bench-chain: %s\n", e.what());
-    return 2;
-  }
-}
+int main(int argc, char** argv) { return hq::run_tool("hq-bench-chain", argc, argv, run); }

@@ -4,6 +4,7 @@
 //          [--resolution 640x480] [--seed N] [--script hover|circle]
 //          [--config onboard/sim/config/sim.yaml]
 #include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
 #include "hq/sim/scripted_flight.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/tum_writer.hpp"
@@ -110,11 +111,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-sim: %s\n", e.what());
-    return 2;
-  }
-}
+int main(int argc, char** argv) { return hq::run_tool("hq-sim", argc, argv, run); }
