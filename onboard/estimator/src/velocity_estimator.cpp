@@ -66,6 +66,16 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   return estimate;
 }
 
+void VelocityEstimator::reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_C0_Ck) {
+  pose_filter_.reset();
+  pose_filter_.update(t_ns, T_C0_Ck);
+  T_C0_Ck_prev_filtered_ = pose_filter_.pose();
+  T_C0_Ck_prev_raw_ = T_C0_Ck;
+  have_previous_ = pose_filter_.initialized();
+  t_prev_frame_ns_ = t_ns;
+  t_seed_ns_ = t_ns;
+}
+
 VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
                                            const odometry::OdometryResult& odometry) {
   if (!ever_updated_) {
@@ -74,13 +84,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   }
   if (odometry.status == odometry::TrackingStatus::kFirstFrame) {
     // A new odometry reference: the pose chain restarts, so no velocity across it.
-    pose_filter_.reset();
-    pose_filter_.update(t_ns, odometry.T_world_cur);
-    T_C0_Ck_prev_filtered_ = pose_filter_.pose();
-    T_C0_Ck_prev_raw_ = odometry.T_world_cur;
-    have_previous_ = pose_filter_.initialized();
-    t_prev_frame_ns_ = t_ns;
-    t_seed_ns_ = t_ns;
+    reseed(t_ns, odometry.T_world_cur);
     return unavailable(t_ns, "first odometry frame");
   }
   if (!odometry.ok()) {
@@ -102,14 +106,8 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
 
   const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
   if (!have_previous_ || dt_s > config_.max_frame_gap_s) {
-    // Re-seed: eq. 2 needs two consecutive accepted poses.
-    pose_filter_.reset();
-    pose_filter_.update(t_ns, odometry.T_world_cur);
-    T_C0_Ck_prev_filtered_ = pose_filter_.pose();
-    T_C0_Ck_prev_raw_ = odometry.T_world_cur;
-    have_previous_ = pose_filter_.initialized();
-    t_prev_frame_ns_ = t_ns;
-    t_seed_ns_ = t_ns;
+    // Eq. 2 needs two consecutive accepted poses.
+    reseed(t_ns, odometry.T_world_cur);
     return unavailable(t_ns, "waiting for a second accepted odometry frame");
   }
   if (!(dt_s > 0.0)) return unavailable(t_ns, "odometry stamp not after the previous frame");

@@ -75,6 +75,8 @@ class VelocityEstimator {
 
  private:
   VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
+  /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
+  void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_C0_Ck);
 
   VelocityEstimatorConfig config_;
   Eigen::Matrix3d R_QC_;
