@@ -1,7 +1,8 @@
 #include "hq/config/strict_yaml.hpp"
 
+#include "hq/testing/input_error.hpp"
+
 #include <cmath>
-#include <functional>
 #include <filesystem>
 #include <fstream>
 
@@ -12,15 +13,8 @@ namespace hq::config {
 namespace {
 
 using ::testing::HasSubstr;
+using hq::testing::input_error_message;
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 TEST(StrictMap, ReadsTypedValuesAndKeepsDefaultsForAbsentKeys) {
   const YAML::Node node = YAML::Load(
@@ -53,7 +47,7 @@ TEST(StrictMap, OutOfRangeNamesFileKeyValueAndExpectation) {
   StrictMap root(node, "config/onboard.yaml");
   StrictMap obstacles = root.child("obstacles");
   double d = 1.0;
-  EXPECT_EQ(error_of([&] { obstacles.read_positive("influence_distance_m", d); }),
+  EXPECT_EQ(input_error_message([&] { obstacles.read_positive("influence_distance_m", d); }),
             "config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0");
 }
 
@@ -61,21 +55,21 @@ TEST(StrictMap, RejectsUnknownKeysMissingKeysAndWrongTypes) {
   StrictMap unknown(YAML::Load("{gain: 1, gian: 2}"), "a.yaml");
   double gain = 0;
   unknown.read("gain", gain, 0, 10);
-  EXPECT_THAT(error_of([&] { unknown.finish(); }), HasSubstr("a.yaml: gian is not a known key"));
+  EXPECT_THAT(input_error_message([&] { unknown.finish(); }), HasSubstr("a.yaml: gian is not a known key"));
 
   StrictMap missing(YAML::Load("{}"), "b.yaml");
-  EXPECT_THAT(error_of([&] { missing.require("mass_kg", gain, 0, 10); }),
+  EXPECT_THAT(input_error_message([&] { missing.require("mass_kg", gain, 0, 10); }),
               HasSubstr("b.yaml: mass_kg is missing"));
 
   StrictMap wrong(YAML::Load("{mass_kg: heavy, n: 2.5, flag: maybe, list: [1, 2]}"), "c.yaml");
   int n = 0;
   bool flag = false;
   double list[3];
-  EXPECT_THAT(error_of([&] { wrong.read("mass_kg", gain, 0, 10); }),
+  EXPECT_THAT(input_error_message([&] { wrong.read("mass_kg", gain, 0, 10); }),
               HasSubstr("c.yaml: mass_kg = heavy, expected a number"));
-  EXPECT_THAT(error_of([&] { wrong.read("n", n, 0, 10); }), HasSubstr("expected an integer"));
-  EXPECT_THAT(error_of([&] { wrong.read("flag", flag); }), HasSubstr("expected true or false"));
-  EXPECT_THAT(error_of([&] { wrong.read_list("list", list, 3); }),
+  EXPECT_THAT(input_error_message([&] { wrong.read("n", n, 0, 10); }), HasSubstr("expected an integer"));
+  EXPECT_THAT(input_error_message([&] { wrong.read("flag", flag); }), HasSubstr("expected true or false"));
+  EXPECT_THAT(input_error_message([&] { wrong.read_list("list", list, 3); }),
               HasSubstr("c.yaml: list has 2 values, expected 3"));
 }
 
@@ -83,19 +77,19 @@ TEST(StrictMap, RejectsNonFiniteNumbersAndUnknownChoices) {
   StrictMap map(YAML::Load("{x: .nan, mode: warp}"), "d.yaml");
   double x = 0;
   std::string mode;
-  EXPECT_THAT(error_of([&] { map.read("x", x, -1, 1); }), HasSubstr("expected finite"));
-  EXPECT_THAT(error_of([&] { map.read("mode", mode, {"a", "b"}); }),
+  EXPECT_THAT(input_error_message([&] { map.read("x", x, -1, 1); }), HasSubstr("expected finite"));
+  EXPECT_THAT(input_error_message([&] { map.read("mode", mode, {"a", "b"}); }),
               HasSubstr("d.yaml: mode = warp, expected one of a | b"));
 }
 
 TEST(LoadYamlFile, MissingAndMalformedFilesNameTheFile) {
-  EXPECT_THAT(error_of([] { load_yaml_file("/nonexistent/onboard.yaml"); }),
+  EXPECT_THAT(input_error_message([] { load_yaml_file("/nonexistent/onboard.yaml"); }),
               HasSubstr("/nonexistent/onboard.yaml: file not found"));
   const auto path = std::filesystem::temp_directory_path() / "hq_bad_yaml_test.yaml";
   std::ofstream(path) << "a: [1, 2\nb: 3\n";
-  EXPECT_THAT(error_of([&] { load_yaml_file(path.string()); }),
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path.string()); }),
               HasSubstr(path.string() + ":"));
-  EXPECT_THAT(error_of([&] { load_yaml_file(path.string()); }), HasSubstr("not valid YAML"));
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path.string()); }), HasSubstr("not valid YAML"));
   std::filesystem::remove(path);
 }
 

@@ -1,6 +1,7 @@
 #include "hq/evaluation/trajectory_error.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/testing/input_error.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -16,16 +17,7 @@ using ::testing::HasSubstr;
 constexpr double kPi = 3.14159265358979323846;
 constexpr std::int64_t kT0Ns = 1'305'031'790'000'000'000;
 
-template <typename F>
-std::string input_error_message(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected hq::InputError";
-  return "";
-}
+using hq::testing::input_error_message;
 
 Eigen::Isometry3d make_pose(const Eigen::Vector3d& axis_angle_rad, const Eigen::Vector3d& p_m) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

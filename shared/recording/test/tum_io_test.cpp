@@ -1,6 +1,7 @@
 #include "hq/recording/tum_io.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/testing/input_error.hpp"
 
 #include "temp_dir.hpp"
 #include <gmock/gmock.h>
@@ -14,17 +15,7 @@ namespace {
 using test::TempDir;
 using ::testing::HasSubstr;
 
-// Runs f, expects hq::InputError and returns its message ("" if nothing was thrown).
-template <typename F>
-std::string input_error_message(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected hq::InputError";
-  return "";
-}
+using hq::testing::input_error_message;
 
 TEST(SecondsToNs, RoundsToNearestNanosecondAtEpochMagnitude) {
   EXPECT_EQ(seconds_to_ns(0.25), 250'000'000);

@@ -1,6 +1,7 @@
 #include "hq/recording/tum_sequence.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/testing/input_error.hpp"
 #include "hq/recording/data_dir.hpp"
 
 #include "temp_dir.hpp"
@@ -17,16 +18,7 @@ namespace {
 using test::TempDir;
 using ::testing::HasSubstr;
 
-template <typename F>
-std::string input_error_message(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected hq::InputError";
-  return "";
-}
+using hq::testing::input_error_message;
 
 // Distinct, reproducible content per frame so that a load of the wrong file shows.
 cv::Mat make_bgr(int frame, cv::Size size) {
