@@ -1,6 +1,7 @@
 // hq-evaluate: TUM benchmark accuracy (RPE, ATE; Sturm et al., IROS 2012) of an estimated
 // trajectory against ground truth, both in TUM trajectory format.
 #include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
 #include "hq/recording/tum_io.hpp"
 
@@ -19,7 +20,7 @@ void print_row(const char* name, const char* unit, const hq::evaluation::ErrorSt
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int run(int argc, char** argv) {
   CLI::App app{"Relative pose error and absolute trajectory error of a TUM-format trajectory"};
   std::string gt_path;
   std::string est_path;
@@ -31,26 +32,22 @@ int main(int argc, char** argv) {
   app.add_option("--max-dt-s", max_dt_s, "largest stamp difference of an associated pair (s)");
   CLI11_PARSE(app, argc, argv);
 
-  try {
-    const auto gt = hq::recording::read_tum_trajectory(gt_path);
-    const auto est = hq::recording::read_tum_trajectory(est_path);
-    const auto pairs = hq::evaluation::associate_poses(gt, est, max_dt_s);
-    const auto rpe = hq::evaluation::relative_pose_error(gt, est, delta_s, max_dt_s);
-    const auto ate = hq::evaluation::absolute_trajectory_error(gt, est, max_dt_s);
+  const auto gt = hq::recording::read_tum_trajectory(gt_path);
+  const auto est = hq::recording::read_tum_trajectory(est_path);
+  const auto pairs = hq::evaluation::associate_poses(gt, est, max_dt_s);
+  const auto rpe = hq::evaluation::relative_pose_error(gt, est, delta_s, max_dt_s);
+  const auto ate = hq::evaluation::absolute_trajectory_error(gt, est, max_dt_s);
 
-    std::printf("poses: ground truth %zu, estimate %zu, associated %zu (max_dt %.3f s)\n",
-                gt.size(), est.size(), pairs.size(), max_dt_s);
-    std::printf(
-        "RPE window %.3f s%s\n", rpe.delta_s,
-        rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
-    std::printf("%-10s %-6s %10s %10s %10s %10s %6s\n", "metric", "unit", "rmse", "mean", "median",
-                "max", "count");
-    print_row("RPE trans", "m/s", rpe.trans_mps);
-    print_row("RPE rot", "deg/s", rpe.rot_degps);
-    print_row("ATE", "m", ate.trans_m);
-  } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-evaluate: %s\n", e.what());
-    return 2;
-  }
+  std::printf("poses: ground truth %zu, estimate %zu, associated %zu (max_dt %.3f s)\n", gt.size(),
+              est.size(), pairs.size(), max_dt_s);
+  std::printf("RPE window %.3f s%s\n", rpe.delta_s,
+              rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
+  std::printf("%-10s %-6s %10s %10s %10s %10s %6s\n", "metric", "unit", "rmse", "mean", "median",
+              "max", "count");
+  print_row("RPE trans", "m/s", rpe.trans_mps);
+  print_row("RPE rot", "deg/s", rpe.rot_degps);
+  print_row("ATE", "m", ate.trans_m);
   return 0;
 }
+
+int main(int argc, char** argv) { return hq::run_tool("hq-evaluate", argc, argv, run); }

@@ -4,6 +4,19 @@
 //
 //   hq-bench-odometry [--passes N] [--camera calib/tum_fr1.yaml] [sequence-dir ...]
 // Without sequence arguments it runs the bundled real sequences under ../shared/data/tum.
+#include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
+#include "hq/config/camera_info.hpp"
+#include "hq/evaluation/trajectory_error.hpp"
+#include "hq/odometry/dense_odometry.hpp"
+#include "hq/recording/data_dir.hpp"
+#include "hq/recording/tum_io.hpp"
+#include "hq/sources/tum_frame_source.hpp"
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/rgbd.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -12,18 +25,6 @@
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-#include <opencv2/core.hpp>
-#include <opencv2/rgbd.hpp>
-
-#include "hq/base/error.hpp"
-#include "hq/config/camera_info.hpp"
-#include "hq/evaluation/trajectory_error.hpp"
-#include "hq/odometry/dense_odometry.hpp"
-#include "hq/recording/data_dir.hpp"
-#include "hq/recording/tum_io.hpp"
-#include "hq/sources/tum_frame_source.hpp"
 
 namespace {
 
@@ -67,8 +68,8 @@ class OpenCvMethod final : public Method {
   OpenCvMethod(std::string name, std::string type) : name_(std::move(name)), type_(type) {}
   std::string name() const override { return name_; }
   void reset(const hq::geometry::PinholeCamera& camera) override {
-    const cv::Mat K = (cv::Mat_<float>(3, 3) << camera.fx, 0, camera.cx, 0, camera.fy,
-                       camera.cy, 0, 0, 1);
+    const cv::Mat K =
+        (cv::Mat_<float>(3, 3) << camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1);
     odometry_ = cv::rgbd::Odometry::create(type_);
     odometry_->setCameraMatrix(K);
     previous_.release();
@@ -159,66 +160,66 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"HaptiQuad dense odometry beside OpenCV's RgbdOdometry, ICPOdometry, RgbdICPOdometry"};
+static int run_benchmarks(int argc, char** argv) {
+  CLI::App app{
+      "HaptiQuad dense odometry beside OpenCV's RgbdOdometry, ICPOdometry, RgbdICPOdometry"};
   std::vector<std::string> sequence_dirs;
   std::string camera_path = "calib/tum_fr1.yaml";
   int passes = 10;
   app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
   app.add_option("--camera", camera_path, "camera file of the sequences");
-  app.add_option("--passes", passes, "times each sequence is run per method")->check(CLI::PositiveNumber);
+  app.add_option("--passes", passes, "times each sequence is run per method")
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
-  try {
-    if (sequence_dirs.empty()) {
-      const auto data = hq::recording::find_data_dir();
-      if (!data) {
-        std::fprintf(stderr, "hq-bench-odometry: no sequences given and no data found (%s)\n",
-                     hq::recording::data_dir_search_description().c_str());
-        return 2;
-      }
-      for (const auto& entry : std::filesystem::directory_iterator(*data + "/tum")) {
-        if (entry.is_directory()) sequence_dirs.push_back(entry.path().string());
-      }
-      std::sort(sequence_dirs.begin(), sequence_dirs.end());
+  if (sequence_dirs.empty()) {
+    const auto data = hq::recording::find_data_dir();
+    if (!data) {
+      std::fprintf(stderr, "hq-bench-odometry: no sequences given and no data found (%s)\n",
+                   hq::recording::data_dir_search_description().c_str());
+      return 2;
     }
-    const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
-
-    hq::odometry::OdometryConfig half;
-    hq::odometry::OdometryConfig keyframes;
-    keyframes.reference_mode = hq::odometry::ReferenceMode::kFrameToKeyframe;
-    hq::odometry::OdometryConfig full;
-    full.finest_level = 0;
-    std::vector<std::unique_ptr<Method>> methods;
-    methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 320", half));
-    methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2kf 320", keyframes));
-    methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 640", full));
-    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
-    methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
-    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
-
-    for (const std::string& dir : sequence_dirs) {
-      const LoadedSequence sequence = load(dir, camera);
-      std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n",
-                  sequence.name.c_str(), sequence.frames.size(), sequence.camera.width,
-                  sequence.camera.height, passes);
-      std::printf("%-24s %9s %9s %11s %11s %9s %10s\n", "method", "median_ms", "p90_ms",
-                  "rpe_t_m/s", "rpe_r_deg/s", "ate_m", "speedup");
-      std::vector<Row> rows;
-      for (auto& method : methods) rows.push_back(run(*method, sequence, passes));
-      const double reference_ms = rows[3].median_ms;  // OpenCV RgbdOdometry
-      for (std::size_t m = 0; m < methods.size(); ++m) {
-        const Row& r = rows[m];
-        std::printf("%-24s %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx\n", methods[m]->name().c_str(),
-                    r.median_ms, r.p90_ms, r.rpe_trans_mps, r.rpe_rot_degps, r.ate_m,
-                    reference_ms / r.median_ms);
-      }
+    for (const auto& entry : std::filesystem::directory_iterator(*data + "/tum")) {
+      if (entry.is_directory()) sequence_dirs.push_back(entry.path().string());
     }
-    std::printf("\nspeedup = OpenCV RgbdOdometry median / method median, same run.\n");
-  } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-bench-odometry: %s\n", e.what());
-    return 2;
+    std::sort(sequence_dirs.begin(), sequence_dirs.end());
   }
+  const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
+
+  hq::odometry::OdometryConfig half;
+  hq::odometry::OdometryConfig keyframes;
+  keyframes.reference_mode = hq::odometry::ReferenceMode::kFrameToKeyframe;
+  hq::odometry::OdometryConfig full;
+  full.finest_level = 0;
+  std::vector<std::unique_ptr<Method>> methods;
+  methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 320", half));
+  methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2kf 320", keyframes));
+  methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 640", full));
+  methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
+  methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
+  methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+
+  for (const std::string& dir : sequence_dirs) {
+    const LoadedSequence sequence = load(dir, camera);
+    std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n", sequence.name.c_str(),
+                sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
+    std::printf("%-24s %9s %9s %11s %11s %9s %10s\n", "method", "median_ms", "p90_ms", "rpe_t_m/s",
+                "rpe_r_deg/s", "ate_m", "speedup");
+    std::vector<Row> rows;
+    for (auto& method : methods) rows.push_back(run(*method, sequence, passes));
+    const double reference_ms = rows[3].median_ms;  // OpenCV RgbdOdometry
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      const Row& r = rows[m];
+      std::printf("%-24s %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx\n", methods[m]->name().c_str(),
+                  r.median_ms, r.p90_ms, r.rpe_trans_mps, r.rpe_rot_degps, r.ate_m,
+                  reference_ms / r.median_ms);
+    }
+  }
+  std::printf("\nspeedup = OpenCV RgbdOdometry median / method median, same run.\n");
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return hq::run_tool("hq-bench-odometry", argc, argv, run_benchmarks);
 }
