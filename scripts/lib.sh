@@ -10,6 +10,9 @@ HQ_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev libcli11-dev
   libgtest-dev libgmock-dev
+  cyclonedds-dev cyclonedds-tools libpcl-dev libvisp-dev libceres-dev
+  libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
+  xvfb gnuplot valgrind
 )
 
 hq_install() {
