@@ -75,8 +75,8 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
   minima_.reserve(cells_.size());
 }
 
-void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H,
-                              bool hazard) const {
+void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard,
+                              bool remembered) const {
   const double d = std::max(p_H.norm(), kMinDistanceM);
   const double d0 = config_.influence_distance_m;
   if (d >= d0) return;
@@ -88,11 +88,13 @@ void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H
     point.p_horizontal_m = p_H;
     point.distance_m = p_H.norm();
     point.near_hazard = hazard;
+    point.remembered = remembered;
   }
 }
 
 ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
-                                      const Eigen::Matrix3d& R_horizontal_body) {
+                                      const Eigen::Matrix3d& R_horizontal_body,
+                                      std::span<const Eigen::Vector3d> remembered_p_horizontal_m) {
   ObstacleResult result;
   if (depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
       depth_m.rows != camera_.height) {
@@ -205,6 +207,11 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
     const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
                               (cell.v - camera_.cy) / camera_.fy * z, z);
     add_point(result, R_HC * p_C + p_HC, false);
+  }
+  // Remembered obstacles outside the view: the same Khatib term per point, after the view's
+  // minima so that the listed points stay nearest-first within the view.
+  for (const Eigen::Vector3d& p_H : remembered_p_horizontal_m) {
+    if (p_H.allFinite()) add_point(result, p_H, false, true);
   }
 
   const double speed = result.v_obs_horizontal_mps.norm();

@@ -9,7 +9,9 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 
 namespace hq::obstacles {
@@ -194,6 +196,38 @@ TEST(ObstacleConfig, ShippedOnboardYamlSectionLoads) {
   config::StrictMap section(root["obstacles"], "config/onboard.yaml", "obstacles");
   ObstacleConfig config;
   EXPECT_NO_THROW(read_config(section, config));
+}
+
+TEST(ObstacleField, RememberedPointPushesWithTheSameLawAsAViewMinimum) {
+  const Eigen::Matrix3d R_QC = default_R_body_camera();
+  ObstacleField field(ObstacleConfig{}, test_camera(), R_QC, Eigen::Vector3d::Zero());
+  const ObstacleResult seen = field.compute(wall(0.8f), Eigen::Matrix3d::Identity());
+  ASSERT_EQ(seen.count, 1);
+  // GIVEN nothing near in view (a wall at 6 m) WHEN the same point is remembered instead,
+  // THEN v_obs is the same vector and the point is flagged as remembered.
+  const std::array<Eigen::Vector3d, 2> remembered = {
+      seen.points[0].p_horizontal_m,
+      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())};
+  const ObstacleResult result = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), remembered);
+  ASSERT_TRUE(result.valid);
+  ASSERT_EQ(result.count, 1);  // the NaN point is skipped
+  EXPECT_TRUE(result.points[0].remembered);
+  EXPECT_FALSE(seen.points[0].remembered);
+  EXPECT_LT((result.v_obs_horizontal_mps - seen.v_obs_horizontal_mps).norm(), 1e-9);
+}
+
+TEST(ObstacleField, RememberedPointsAddToTheViewAndSaturate) {
+  ObstacleField field(ObstacleConfig{}, test_camera(), default_R_body_camera(),
+                      Eigen::Vector3d::Zero());
+  const std::array<Eigen::Vector3d, 1> behind = {Eigen::Vector3d(-0.5, 0.0, 0.0)};
+  const ObstacleResult result = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), behind);
+  const double expected = 0.05 * (1.0 / 0.5 - 1.0 / 1.2) / (0.5 * 0.5);
+  EXPECT_NEAR(result.v_obs_horizontal_mps.x(), expected, 1e-9);  // pushed forward
+  const std::array<Eigen::Vector3d, 1> touching = {Eigen::Vector3d(-0.06, 0.0, 0.0)};
+  const ObstacleResult saturated =
+      field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), touching);
+  EXPECT_NEAR(saturated.v_obs_horizontal_mps.norm(), ObstacleConfig{}.max_repulsive_speed_mps,
+              1e-9);
 }
 
 }  // namespace

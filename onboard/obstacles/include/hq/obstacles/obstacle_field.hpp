@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace hq::config {
@@ -46,6 +47,7 @@ struct ObstaclePoint {
   Eigen::Vector3d p_horizontal_m = Eigen::Vector3d::Zero();  ///< In H, from the body origin.
   double distance_m = 0.0;                                   ///< |p_horizontal_m|.
   bool near_hazard = false;                                  ///< Synthesised from invalid depth.
+  bool remembered = false;  ///< From the obstacle memory, outside the current view.
 };
 
 struct ObstacleResult {
@@ -67,8 +69,12 @@ class ObstacleField {
 
   /// @param depth_m  CV_32FC1, camera size, metres; 0 / NaN / out of range = no depth.
   /// @param R_horizontal_body  R_HQ from the attitude estimate.
-  [[nodiscard]] ObstacleResult compute(const cv::Mat& depth_m,
-                                       const Eigen::Matrix3d& R_horizontal_body);
+  /// @param remembered_p_horizontal_m  obstacle points outside the view (in H from the body
+  ///        origin, e.g. from hq::obstacle_memory), pushing with the same law; non-finite ones
+  ///        are skipped.
+  [[nodiscard]] ObstacleResult compute(
+      const cv::Mat& depth_m, const Eigen::Matrix3d& R_horizontal_body,
+      std::span<const Eigen::Vector3d> remembered_p_horizontal_m = {});
 
   [[nodiscard]] const ObstacleConfig& config() const { return config_; }
 
@@ -80,7 +86,8 @@ class ObstacleField {
   };
 
   /// Adds the repulsive velocity of a point at p_H (Khatib: eta (1/d - 1/d0) / d^2 away).
-  void add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard) const;
+  void add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard,
+                 bool remembered = false) const;
 
   ObstacleConfig config_;
   geometry::PinholeCamera camera_;
