@@ -1,0 +1,444 @@
+// hq-bench-link: command latency ground -> onboard over loopback between two processes, beside
+// Cyclone's own ddsperf ping/pong floor measured in the same run, and camera stream throughput
+// and drop rate at 30 Hz. Prints figures; asserts nothing.
+
+#include <sys/mman.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cinttypes>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "hq/base/tool_main.hpp"
+#include "hq/link/link.hpp"
+
+namespace hq::link {
+namespace {
+
+constexpr std::uint64_t kDone = ~std::uint64_t{0};
+constexpr int kWarmup = 200;
+
+std::int64_t now_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return std::int64_t{t.tv_sec} * 1'000'000'000 + t.tv_nsec;
+}
+
+// The command-path QoS variants measured, to show what each choice costs.
+enum class Variant { kCommand, kPlainBestEffort, kReliable };
+constexpr std::array<Variant, 3> kVariants = {Variant::kCommand, Variant::kPlainBestEffort,
+                                              Variant::kReliable};
+
+const char* describe(Variant variant) {
+  switch (variant) {
+    case Variant::kCommand:
+      return "command QoS (best-effort, deadline, EXCLUSIVE, manual liveliness)";
+    case Variant::kPlainBestEffort:
+      return "plain best-effort keep-last-1";
+    case Variant::kReliable:
+      return "reliable keep-last-1";
+  }
+  return "";
+}
+
+Qos qos_for(Variant variant, const LinkConfig& config, End end) {
+  if (variant == Variant::kCommand) return command_qos(config, end);
+  if (variant == Variant::kPlainBestEffort) return vehicle_state_qos();
+  Qos qos;
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  return qos;
+}
+
+std::string topic_name(const char* base, std::size_t index) {
+  return std::string(base) + "_" + std::to_string(index);
+}
+
+struct Stats {
+  double p50_us = 0;
+  double p99_us = 0;
+  double max_us = 0;
+  std::size_t count = 0;
+};
+
+Stats stats_of(std::vector<std::int64_t> values_ns) {
+  Stats s;
+  s.count = values_ns.size();
+  if (values_ns.empty()) return s;
+  std::sort(values_ns.begin(), values_ns.end());
+  const auto at = [&](double q) {
+    return static_cast<double>(values_ns[static_cast<std::size_t>(q * (values_ns.size() - 1))]) *
+           1e-3;
+  };
+  s.p50_us = at(0.5);
+  s.p99_us = at(0.99);
+  s.max_us = static_cast<double>(values_ns.back()) * 1e-3;
+  return s;
+}
+
+// Blocks on `waitset` until `reader` yields a sample or `timeout_ns` passes.
+template <typename T>
+bool receive(WaitSet& waitset, Reader<T>& reader, T& sample, dds_sample_info_t& info,
+             dds_duration_t timeout_ns) {
+  std::array<dds_attach_t, 1> triggered{};
+  const std::int64_t deadline = now_ns() + timeout_ns;
+  for (;;) {
+    if (reader.take(sample, info)) return true;
+    const std::int64_t left = deadline - now_ns();
+    if (left <= 0) return false;
+    waitset.wait(triggered, left);
+  }
+}
+
+// ---- the on-board side (child process) ----
+
+void onboard_echo(const LinkConfig& config, int samples, std::int64_t* one_way_ns) {
+  Participant participant(config.domain_id);
+  for (std::size_t v = 0; v < kVariants.size(); ++v) {
+    Topic<VelocityCommand> command_topic(participant, topic_name("bench_command", v));
+    Topic<VelocityCommand> echo_topic(participant, topic_name("bench_echo", v));
+    Reader<VelocityCommand> reader(participant, command_topic,
+                                   qos_for(kVariants[v], config, End::kReader));
+    Writer<VelocityCommand> writer(participant, echo_topic,
+                                   qos_for(kVariants[v], config, End::kWriter));
+    WaitSet waitset(participant);
+    ReadCondition condition(reader);
+    waitset.attach(condition.handle(), 1);
+    VelocityCommand command{};
+    dds_sample_info_t info{};
+    for (;;) {
+      if (!receive(waitset, reader, command, info, DDS_SECS(30))) return;
+      const std::int64_t t_receipt_ns = now_ns();
+      const std::uint64_t index = command.sequence_number;
+      writer.write(command);
+      if (index == kDone) break;
+      if (index < static_cast<std::uint64_t>(samples)) {
+        one_way_ns[v * samples + index] = t_receipt_ns - command.t_ns;
+      }
+    }
+  }
+  // Camera: publish 30 Hz frames of ~40 KB (JPEG-sized) on absolute deadlines.
+  Topic<CameraFrame> camera_topic(participant);
+  Writer<CameraFrame> camera(participant, camera_topic, camera_qos());
+  Topic<Heartbeat> ready_topic(participant, "bench_ready");
+  Reader<Heartbeat> ready(participant, ready_topic, mode_request_qos());
+  WaitSet waitset(participant);
+  ReadCondition condition(ready);
+  waitset.attach(condition.handle(), 1);
+  Heartbeat go{};
+  dds_sample_info_t info{};
+  if (!receive(waitset, ready, go, info, DDS_SECS(30))) return;
+  const int frames = static_cast<int>(go.sequence_number);
+  Sample<CameraFrame> frame;
+  frame->vehicle_id = config.vehicle_id;
+  frame->width_px = 640;
+  frame->height_px = 480;
+  constexpr std::uint32_t kJpegBytes = 40'000;
+  reserve(frame->rgb_jpeg, kJpegBytes);
+  frame->rgb_jpeg._length = kJpegBytes;
+  for (std::uint32_t i = 0; i < kJpegBytes; ++i) frame->rgb_jpeg._buffer[i] = i * 131 % 256;
+  constexpr std::int64_t kPeriodNs = 1'000'000'000 / 30;
+  timespec next{};
+  clock_gettime(CLOCK_MONOTONIC, &next);
+  for (int i = 0; i < frames; ++i) {
+    next.tv_nsec += kPeriodNs;
+    while (next.tv_nsec >= 1'000'000'000) {
+      next.tv_nsec -= 1'000'000'000;
+      ++next.tv_sec;
+    }
+    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
+    frame->sequence_number = static_cast<std::uint64_t>(i);
+    frame->t_ns = now_ns();
+    camera.write(*frame);
+  }
+  // Let the last frame leave before the participant goes.
+  timespec linger{0, 200'000'000};
+  nanosleep(&linger, nullptr);
+}
+
+// ---- the ground side (parent process) ----
+
+struct VariantResult {
+  std::vector<std::int64_t> round_trip_ns;
+  int lost = 0;
+};
+
+VariantResult ground_ping(Participant& participant, const LinkConfig& config, std::size_t v,
+                          int samples) {
+  Topic<VelocityCommand> command_topic(participant, topic_name("bench_command", v));
+  Topic<VelocityCommand> echo_topic(participant, topic_name("bench_echo", v));
+  Reader<VelocityCommand> reader(participant, echo_topic,
+                                 qos_for(kVariants[v], config, End::kReader));
+  Writer<VelocityCommand> writer(participant, command_topic,
+                                 qos_for(kVariants[v], config, End::kWriter));
+  WaitSet waitset(participant);
+  ReadCondition condition(reader);
+  waitset.attach(condition.handle(), 1);
+  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS),
+        "dds_set_status_mask", "bench writer");
+  WaitSet match_waitset(participant);
+  match_waitset.attach(writer.handle(), 1);
+  std::array<dds_attach_t, 1> triggered{};
+  const std::int64_t match_deadline = now_ns() + DDS_SECS(10);
+  while (writer.matched_readers() == 0 || reader.matched_writers() == 0) {
+    if (now_ns() > match_deadline) throw InputError("hq-bench-link: echo process never matched");
+    match_waitset.wait(triggered, DDS_MSECS(10));
+  }
+  VariantResult result;
+  result.round_trip_ns.reserve(static_cast<std::size_t>(samples));
+  VelocityCommand command{};
+  command.vehicle_id = config.vehicle_id;
+  command.station_id = config.station_id;
+  VelocityCommand echo{};
+  dds_sample_info_t info{};
+  // Warm-up samples use indices past `samples` so the echo side does not record them.
+  for (int i = -kWarmup; i < samples; ++i) {
+    command.sequence_number =
+        static_cast<std::uint64_t>(i < 0 ? samples + (i + kWarmup) : i);
+    command.t_ns = now_ns();
+    writer.write(command);
+    bool got = false;
+    while (receive(waitset, reader, echo, info, DDS_SECS(1))) {
+      if (echo.sequence_number == command.sequence_number) {
+        got = true;
+        break;
+      }
+    }
+    const std::int64_t t_back_ns = now_ns();
+    if (i < 0) continue;
+    if (got) {
+      result.round_trip_ns.push_back(t_back_ns - command.t_ns);
+    } else {
+      ++result.lost;
+    }
+  }
+  command.sequence_number = kDone;
+  for (int attempt = 0; attempt < 20; ++attempt) {
+    writer.write(command);
+    if (receive(waitset, reader, echo, info, DDS_MSECS(100)) && echo.sequence_number == kDone) {
+      break;
+    }
+  }
+  return result;
+}
+
+struct CameraResult {
+  int received = 0;
+  int sent = 0;
+  double mbit_per_s = 0;
+  Stats latency;
+};
+
+CameraResult ground_camera(Participant& participant, const LinkConfig& config, int frames) {
+  Topic<CameraFrame> camera_topic(participant);
+  Reader<CameraFrame> reader(participant, camera_topic, camera_qos());
+  Topic<Heartbeat> ready_topic(participant, "bench_ready");
+  Writer<Heartbeat> ready(participant, ready_topic, mode_request_qos());
+  // Match before the publisher starts so that no frame is lost to discovery.
+  std::array<dds_attach_t, 1> triggered{};
+  WaitSet waitset(participant);
+  ReadCondition condition(reader);
+  waitset.attach(condition.handle(), 1);
+  WaitSet match_waitset(participant);
+  check(dds_set_status_mask(reader.handle(), DDS_SUBSCRIPTION_MATCHED_STATUS),
+        "dds_set_status_mask", "bench camera reader");
+  match_waitset.attach(reader.handle(), 1);
+  const std::int64_t match_deadline = now_ns() + DDS_SECS(10);
+  while (reader.matched_writers() == 0) {
+    if (now_ns() > match_deadline) throw InputError("hq-bench-link: camera publisher never matched");
+    match_waitset.wait(triggered, DDS_MSECS(10));
+  }
+  Heartbeat go{};
+  go.vehicle_id = config.vehicle_id;
+  go.sequence_number = static_cast<std::uint64_t>(frames);
+  ready.write(go);
+  Sample<CameraFrame> frame;
+  reserve(frame->rgb_jpeg, hq_msgs_kMaxJpegBytes);
+  reserve(frame->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
+  dds_sample_info_t info{};
+  CameraResult result;
+  result.sent = frames;
+  std::vector<std::int64_t> latency_ns;
+  std::uint64_t bytes = 0;
+  std::int64_t t_first_ns = 0;
+  std::int64_t t_last_ns = 0;
+  while (receive(waitset, reader, *frame, info, DDS_SECS(2))) {
+    const std::int64_t t_ns = now_ns();
+    if (result.received == 0) t_first_ns = t_ns;
+    t_last_ns = t_ns;
+    latency_ns.push_back(t_ns - frame->t_ns);
+    bytes += frame->rgb_jpeg._length;
+    ++result.received;
+    if (frame->sequence_number + 1 == static_cast<std::uint64_t>(frames)) break;
+  }
+  if (result.received > 1) {
+    result.mbit_per_s = static_cast<double>(bytes) * 8e-6 /
+                        (static_cast<double>(t_last_ns - t_first_ns) * 1e-9) *
+                        (result.received - 1) / result.received;
+  }
+  result.latency = stats_of(latency_ns);
+  return result;
+}
+
+// ---- Cyclone's ddsperf floor ----
+
+struct DdsperfResult {
+  bool ran = false;
+  Stats half_round_trip;  // ddsperf prints latency as half the round trip
+  std::size_t lines = 0;
+};
+
+double parse_us(const std::string& line, const std::string& key) {
+  const std::size_t at = line.find(" " + key + " ");
+  if (at == std::string::npos) return -1;
+  return std::strtod(line.c_str() + at + key.size() + 2, nullptr);
+}
+
+DdsperfResult run_ddsperf(int domain_id, int duration_s) {
+  DdsperfResult result;
+  const std::string domain = std::to_string(domain_id);
+  const std::string pong = "ddsperf -i " + domain + " -D " + std::to_string(duration_s + 2) +
+                           " pong >/dev/null 2>&1 &";
+  const std::string ping =
+      "ddsperf -i " + domain + " -D " + std::to_string(duration_s) + " ping 2>/dev/null";
+  if (std::system(pong.c_str()) != 0) return result;
+  FILE* out = popen(ping.c_str(), "r");
+  if (out == nullptr) return result;
+  std::vector<double> p50;
+  std::vector<double> p99;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof(buffer), out) != nullptr) {
+    const std::string line(buffer);
+    if (line.find(" 50% ") == std::string::npos) continue;
+    p50.push_back(parse_us(line, "50%"));
+    p99.push_back(parse_us(line, "99%"));
+    result.half_round_trip.max_us = std::max(result.half_round_trip.max_us, parse_us(line, "max"));
+    result.half_round_trip.count +=
+        static_cast<std::size_t>(std::max(0.0, parse_us(line, "cnt")));
+  }
+  pclose(out);
+  // ddsperf prints percentiles per second; the median of those is reported.
+  result.lines = p50.size();
+  if (p50.empty()) return result;
+  std::sort(p50.begin(), p50.end());
+  std::sort(p99.begin(), p99.end());
+  result.half_round_trip.p50_us = p50[p50.size() / 2];
+  result.half_round_trip.p99_us = p99[p99.size() / 2];
+  result.ran = true;
+  return result;
+}
+
+void print(const char* label, const Stats& s) {
+  std::printf("  %-34s p50 %8.1f us  p99 %8.1f us  max %9.1f us  (n=%zu)\n", label, s.p50_us,
+              s.p99_us, s.max_us, s.count);
+}
+
+int run(int argc, char** argv) {
+  CLI::App app("hq-bench-link: DDS command latency and camera throughput on loopback");
+  LinkOverrides overrides;
+  add_link_options(app, overrides);
+  int samples = 10'000;
+  double camera_s = 4.0;
+  int ddsperf_s = 5;
+  app.add_option("--samples", samples, "command round trips per QoS variant")
+      ->check(CLI::Range(100, 1'000'000));
+  app.add_option("--camera-s", camera_s, "camera stream duration")->check(CLI::Range(0.5, 60.0));
+  app.add_option("--ddsperf-s", ddsperf_s, "ddsperf ping duration (0 skips it)")
+      ->check(CLI::Range(0, 60));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  LinkConfig config;
+  if (!overrides.domain_id) overrides.domain_id = 150 + static_cast<int>(getpid() % 70);
+  apply_overrides(overrides, config);
+  // Loopback only, as the on-board/ground pair runs in the demo and tests.
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+         "</Interfaces></General></Domain></CycloneDDS>",
+         0);
+
+  const std::size_t one_way_bytes = sizeof(std::int64_t) * kVariants.size() * samples;
+  auto* one_way_ns = static_cast<std::int64_t*>(
+      mmap(nullptr, one_way_bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
+  if (one_way_ns == MAP_FAILED) throw InputError("hq-bench-link: mmap failed");
+  std::fill(one_way_ns, one_way_ns + kVariants.size() * samples, std::int64_t{-1});
+  const int frames = static_cast<int>(camera_s * 30.0);
+
+  // Fork before any DDS entity exists: Cyclone's threads do not survive fork().
+  const pid_t child = fork();
+  if (child < 0) throw InputError("hq-bench-link: fork failed");
+  if (child == 0) {
+    onboard_echo(config, samples, one_way_ns);
+    std::_Exit(0);
+  }
+  std::vector<VariantResult> results;
+  CameraResult camera;
+  {
+    Participant participant(config.domain_id);
+    for (std::size_t v = 0; v < kVariants.size(); ++v) {
+      results.push_back(ground_ping(participant, config, v, samples));
+    }
+    camera = ground_camera(participant, config, frames);
+  }
+  int status = 0;
+  waitpid(child, &status, 0);
+
+  DdsperfResult ddsperf;
+  if (ddsperf_s > 0) ddsperf = run_ddsperf((config.domain_id + 1) % (kMaxDomainId + 1), ddsperf_s);
+
+  std::printf("hq-bench-link: loopback, two processes, domain %d, %d samples per variant\n",
+              config.domain_id, samples);
+  if (ddsperf.ran) {
+    std::printf("Cyclone ddsperf ping/pong floor (reliable, 12 B, listener; %zu one-second "
+                "lines, median of per-second percentiles):\n",
+                ddsperf.lines);
+    print("ddsperf half round trip", ddsperf.half_round_trip);
+  } else if (ddsperf_s > 0) {
+    std::printf("ddsperf: not run or printed no latency (is cyclonedds-tools installed?)\n");
+  }
+  for (std::size_t v = 0; v < kVariants.size(); ++v) {
+    std::vector<std::int64_t> one_way;
+    for (int i = 0; i < samples; ++i) {
+      const std::int64_t value = one_way_ns[v * samples + i];
+      if (value >= 0) one_way.push_back(value);
+    }
+    std::vector<std::int64_t> half(results[v].round_trip_ns);
+    for (std::int64_t& h : half) h /= 2;
+    const Stats one = stats_of(one_way);
+    const Stats round = stats_of(results[v].round_trip_ns);
+    const Stats halved = stats_of(half);
+    std::printf("%s  (lost %d)\n", describe(kVariants[v]), results[v].lost);
+    print("one way ground -> onboard", one);
+    print("round trip", round);
+    print("half round trip", halved);
+    if (ddsperf.ran && ddsperf.half_round_trip.p50_us > 0) {
+      std::printf("  half round trip / ddsperf: p50 x%.2f  p99 x%.2f\n",
+                  halved.p50_us / ddsperf.half_round_trip.p50_us,
+                  halved.p99_us / ddsperf.half_round_trip.p99_us);
+    }
+  }
+  std::printf("camera 30 Hz, 40 KB frames, best-effort keep-last-1, %.1f s:\n", camera_s);
+  std::printf("  received %d of %d (drop rate %.2f %%), %.2f Mbit/s\n", camera.received,
+              camera.sent,
+              100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
+              camera.mbit_per_s);
+  print("frame latency publish -> receipt", camera.latency);
+  munmap(one_way_ns, one_way_bytes);
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1;
+}
+
+}  // namespace
+}  // namespace hq::link
+
+int main(int argc, char** argv) { return hq::run_tool("hq-bench-link", argc, argv, hq::link::run); }

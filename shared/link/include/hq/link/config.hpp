@@ -1,0 +1,60 @@
+#pragma once
+/// Link settings: from the `link:` section of a YAML file, then overridden on the command line.
+///   link: {domain_id: 0, vehicle_id: 1, station_id: 1, station_strength: 100,
+///          command_deadline_ms: 100, command_lease_ms: 500, heartbeat_lease_ms: 1000,
+///          envelope: {max_v_x_mps: 2.0, max_v_y_mps: 2.0, max_v_z_mps: 1.0,
+///                     max_yaw_rate_radps: 1.5}}
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "hq/config/strict_yaml.hpp"
+#include "hq/link/messages.hpp"
+
+namespace hq::link {
+
+/// DDS domain ids usable with the default port mapping (Cyclone rejects larger ones).
+inline constexpr int kMaxDomainId = 232;
+
+struct LinkConfig {
+  int domain_id = 0;                ///< DDS domain, 0..kMaxDomainId.
+  std::uint32_t vehicle_id = 1;     ///< Key of every topic: which vehicle this is / commands.
+  std::uint32_t station_id = 1;     ///< This ground station (unused on board).
+  int station_strength = 100;       ///< EXCLUSIVE ownership strength of this station's commands.
+  std::int64_t command_deadline_ns = 100'000'000;  ///< Expected command period bound.
+  std::int64_t command_lease_ns = 500'000'000;     ///< Liveliness lease of a command writer.
+  std::int64_t heartbeat_lease_ns = 1'000'000'000; ///< Liveliness lease of heartbeat writers.
+  CommandEnvelope envelope;         ///< Limits applied by validate(VelocityCommand).
+};
+
+/// Reads a `link:` mapping strictly (unknown keys, out-of-range values throw hq::InputError
+/// naming file, key, value and expectation) and calls section.finish().
+void read_config(config::StrictMap& section, LinkConfig& out);
+
+/// Reads the `link:` section of a YAML file into a LinkConfig (defaults for absent keys);
+/// other top-level sections belong to other components and are left alone.
+LinkConfig load_link_config(const std::string& path);
+
+/// Command-line values that override the YAML ones; unset options keep the file's value.
+struct LinkOverrides {
+  std::optional<int> domain_id;
+  std::optional<std::uint32_t> vehicle_id;
+  std::optional<std::uint32_t> station_id;
+  std::optional<int> station_strength;
+  std::optional<double> command_deadline_ms;
+};
+
+/// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --command-deadline-ms
+/// (range-checked by CLI11) to `app`, storing into `overrides` (which must outlive parsing).
+void add_link_options(CLI::App& app, LinkOverrides& overrides);
+
+/// Applies the options that were given, then checks the ranges again (hq::InputError).
+void apply_overrides(const LinkOverrides& overrides, LinkConfig& config);
+
+/// Throws hq::InputError naming the field if any setting is out of range.
+void check_config(const LinkConfig& config);
+
+}  // namespace hq::link

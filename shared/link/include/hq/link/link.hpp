@@ -1,0 +1,301 @@
+#pragma once
+/// The DDS link: RAII types over Cyclone DDS's C API (participant, topic, writer, reader,
+/// waitset, listener), plus the messages, QoS and configuration headers.
+///
+/// Every failing dds_* call during setup throws hq::InputError naming the call, the entity and
+/// Cyclone's reason, e.g. "dds_create_writer(hq_velocity_command): Bad Parameter". The per-sample
+/// calls (write, take, wait) return a status instead and keep the reason in last_error(), so the
+/// hot paths throw nothing and allocate nothing.
+///
+/// Deleting a DDS entity deletes its children, so declare children after their participant
+/// (destroyed first). Handles are never reused while the process lives, so deleting an already
+/// deleted child is harmless.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <type_traits>
+#include <utility>
+
+#include <dds/dds.h>
+
+#include "hq/link/config.hpp"
+#include "hq/link/messages.hpp"
+#include "hq/link/qos.hpp"
+
+namespace hq::link {
+
+/// Returns `rc` if it is >= 0, else throws hq::InputError "operation(entity): reason".
+dds_return_t check(dds_return_t rc, const char* operation, const std::string& entity);
+
+/// Owns one dds_entity_t and deletes it (with its children). Non-copyable, movable.
+class Entity {
+ public:
+  Entity() = default;
+  explicit Entity(dds_entity_t handle) : handle_(handle) {}
+  ~Entity() { reset(); }
+  Entity(Entity&& other) noexcept : handle_(std::exchange(other.handle_, 0)) {}
+  Entity& operator=(Entity&& other) noexcept {
+    if (this != &other) {
+      reset();
+      handle_ = std::exchange(other.handle_, 0);
+    }
+    return *this;
+  }
+  Entity(const Entity&) = delete;
+  Entity& operator=(const Entity&) = delete;
+
+  [[nodiscard]] dds_entity_t handle() const { return handle_; }
+  /// Deletes the entity now (no-op if empty).
+  void reset();
+
+ private:
+  dds_entity_t handle_ = 0;
+};
+
+/// Callbacks for the statuses a Listener subscribes to. Called on a Cyclone thread: keep them
+/// short, non-blocking and thread-safe. Must outlive every entity created with its Listener.
+class StatusHandler {
+ public:
+  virtual ~StatusHandler() = default;
+  virtual void on_requested_deadline_missed(dds_entity_t /*reader*/,
+                                            const dds_requested_deadline_missed_status_t&) {}
+  virtual void on_offered_deadline_missed(dds_entity_t /*writer*/,
+                                          const dds_offered_deadline_missed_status_t&) {}
+  virtual void on_liveliness_changed(dds_entity_t /*reader*/,
+                                     const dds_liveliness_changed_status_t&) {}
+  virtual void on_liveliness_lost(dds_entity_t /*writer*/, const dds_liveliness_lost_status_t&) {}
+  virtual void on_subscription_matched(dds_entity_t /*reader*/,
+                                       const dds_subscription_matched_status_t&) {}
+  virtual void on_publication_matched(dds_entity_t /*writer*/,
+                                      const dds_publication_matched_status_t&) {}
+  virtual void on_data_available(dds_entity_t /*reader*/) {}
+};
+
+/// A dds_listener_t forwarding the statuses in `status_mask` (DDS_*_STATUS bits, e.g.
+/// DDS_REQUESTED_DEADLINE_MISSED_STATUS | DDS_LIVELINESS_CHANGED_STATUS) to `handler`.
+/// Entities copy the listener when created, so it may be destroyed afterwards; the handler
+/// may not. Data-available is forwarded only if asked for, because a listener that handles it
+/// resets the status that waitsets on status conditions would see.
+class Listener {
+ public:
+  Listener(StatusHandler& handler, std::uint32_t status_mask);
+  ~Listener();
+  Listener(Listener&& other) noexcept : listener_(std::exchange(other.listener_, nullptr)) {}
+  Listener& operator=(Listener&&) = delete;
+  Listener(const Listener&) = delete;
+  Listener& operator=(const Listener&) = delete;
+
+  [[nodiscard]] const dds_listener_t* get() const { return listener_; }
+
+ private:
+  dds_listener_t* listener_;
+};
+
+/// A domain participant on `domain_id` (0..kMaxDomainId), configured by CYCLONEDDS_URI if set.
+class Participant {
+ public:
+  explicit Participant(int domain_id);
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+  [[nodiscard]] int domain_id() const { return domain_id_; }
+
+ private:
+  Entity entity_;
+  int domain_id_;
+};
+
+/// dds_create_topic with T's idlc descriptor; `name` defaults to TopicTraits<T>::kName.
+template <typename T>
+class Topic {
+ public:
+  explicit Topic(const Participant& participant, std::string name = TopicTraits<T>::kName)
+      : name_(std::move(name)),
+        entity_(check(dds_create_topic(participant.handle(), &TopicTraits<T>::descriptor(),
+                                       name_.c_str(), nullptr, nullptr),
+                      "dds_create_topic", name_)) {}
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+  [[nodiscard]] const std::string& name() const { return name_; }
+
+ private:
+  std::string name_;
+  Entity entity_;
+};
+
+/// Owns one message of type T whose sequence buffers are released with dds_sample_free. Use it
+/// as preallocated storage for Reader<T>::take (buffers are reused once large enough) and for
+/// samples with sequences to write. Non-copyable, movable.
+template <typename T>
+class Sample {
+ public:
+  Sample() = default;
+  ~Sample() { dds_sample_free(&value_, &TopicTraits<T>::descriptor(), DDS_FREE_CONTENTS); }
+  Sample(Sample&& other) noexcept : value_(other.value_) { other.value_ = T{}; }
+  Sample& operator=(Sample&&) = delete;
+  Sample(const Sample&) = delete;
+  Sample& operator=(const Sample&) = delete;
+
+  T& operator*() { return value_; }
+  const T& operator*() const { return value_; }
+  T* operator->() { return &value_; }
+  const T* operator->() const { return &value_; }
+
+ private:
+  T value_{};
+};
+
+/// Gives an idlc sequence (dds_sequence_octet, dds_sequence_hq_msgs_Vector3f, ...) an owned
+/// buffer of `capacity` elements, length 0, so that later takes and fills do not allocate.
+template <typename Sequence>
+void reserve(Sequence& sequence, std::uint32_t capacity) {
+  using Element = std::remove_pointer_t<decltype(sequence._buffer)>;
+  if (sequence._maximum >= capacity) return;
+  if (sequence._release && sequence._buffer != nullptr) dds_free(sequence._buffer);
+  sequence._buffer = static_cast<Element*>(dds_alloc(sizeof(Element) * capacity));
+  sequence._maximum = capacity;
+  sequence._length = 0;
+  sequence._release = true;
+}
+
+/// A data writer of T with the given QoS (see qos.hpp) and optional listener.
+template <typename T>
+class Writer {
+ public:
+  Writer(const Participant& participant, const Topic<T>& topic, const Qos& qos,
+         const Listener* listener = nullptr)
+      : name_(topic.name()),
+        entity_(check(dds_create_writer(participant.handle(), topic.handle(), qos.get(),
+                                        listener != nullptr ? listener->get() : nullptr),
+                      "dds_create_writer", name_)) {}
+
+  /// Publishes `sample`; false on failure with the reason in last_error(). Allocates nothing
+  /// for fixed-size types.
+  bool write(const T& sample) noexcept { return ok(dds_write(entity_.handle(), &sample)); }
+  /// Unregisters the instance keyed by `key_sample` (releases ownership of it at once).
+  bool unregister(const T& key_sample) noexcept {
+    return ok(dds_unregister_instance(entity_.handle(), &key_sample));
+  }
+  /// Readers currently matched.
+  [[nodiscard]] std::uint32_t matched_readers() const {
+    dds_publication_matched_status_t status{};
+    check(dds_get_publication_matched_status(entity_.handle(), &status),
+          "dds_get_publication_matched_status", name_);
+    return status.current_count;
+  }
+  [[nodiscard]] const char* last_error() const { return last_error_; }
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+
+ private:
+  bool ok(dds_return_t rc) noexcept {
+    if (rc >= 0) return true;
+    last_error_ = dds_strretcode(rc);
+    return false;
+  }
+  std::string name_;
+  Entity entity_;
+  const char* last_error_ = "";
+};
+
+/// A data reader of T with the given QoS and optional listener. take() deserialises into
+/// caller-owned storage (dds_take with a non-null buffer, not a loan), so a sample of a
+/// fixed-size type costs no heap allocation, and sequences reuse a buffer reserved once.
+template <typename T>
+class Reader {
+ public:
+  Reader(const Participant& participant, const Topic<T>& topic, const Qos& qos,
+         const Listener* listener = nullptr)
+      : name_(topic.name()),
+        entity_(check(dds_create_reader(participant.handle(), topic.handle(), qos.get(),
+                                        listener != nullptr ? listener->get() : nullptr),
+                      "dds_create_reader", name_)) {}
+
+  /// Takes the oldest valid sample of any instance into `sample`; false if none (or on error,
+  /// with the reason in last_error()). Dispose/unregister notifications are consumed silently.
+  bool take(T& sample, dds_sample_info_t& info) noexcept {
+    return take_from(sample, info, DDS_HANDLE_NIL);
+  }
+  /// As take(), from one instance (vehicle) only; see lookup_instance().
+  bool take_instance(T& sample, dds_sample_info_t& info, dds_instance_handle_t instance) noexcept {
+    return take_from(sample, info, instance);
+  }
+  /// The instance handle of the key in `key_sample` (DDS_HANDLE_NIL if never seen).
+  [[nodiscard]] dds_instance_handle_t lookup_instance(const T& key_sample) const {
+    return dds_lookup_instance(entity_.handle(), &key_sample);
+  }
+  /// Writers currently matched.
+  [[nodiscard]] std::uint32_t matched_writers() const {
+    dds_subscription_matched_status_t status{};
+    check(dds_get_subscription_matched_status(entity_.handle(), &status),
+          "dds_get_subscription_matched_status", name_);
+    return status.current_count;
+  }
+  [[nodiscard]] const char* last_error() const { return last_error_; }
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+  [[nodiscard]] const std::string& name() const { return name_; }
+
+ private:
+  bool take_from(T& sample, dds_sample_info_t& info, dds_instance_handle_t instance) noexcept {
+    void* buffer = &sample;
+    for (;;) {
+      const dds_return_t n =
+          instance == DDS_HANDLE_NIL
+              ? dds_take(entity_.handle(), &buffer, &info, 1, 1)
+              : dds_take_instance(entity_.handle(), &buffer, &info, 1, 1, instance);
+      if (n < 0) {
+        last_error_ = dds_strretcode(n);
+        return false;
+      }
+      if (n == 0) return false;
+      if (info.valid_data) return true;
+    }
+  }
+  std::string name_;
+  Entity entity_;
+  const char* last_error_ = "";
+};
+
+/// A read condition on a reader (triggers while it holds samples of any state).
+class ReadCondition {
+ public:
+  template <typename T>
+  explicit ReadCondition(const Reader<T>& reader)
+      : entity_(check(dds_create_readcondition(reader.handle(), DDS_ANY_STATE),
+                      "dds_create_readcondition", reader.name())) {}
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+
+ private:
+  Entity entity_;
+};
+
+/// A guard condition, e.g. to wake a waiting thread for shutdown.
+class GuardCondition {
+ public:
+  explicit GuardCondition(const Participant& participant);
+  /// Sets (true) or clears (false) the condition.
+  void set(bool triggered);
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+
+ private:
+  Entity entity_;
+};
+
+/// A waitset: attach conditions (or entities, whose status changes then trigger it) with a token,
+/// then block in wait() until one triggers — no sleep-polling.
+class WaitSet {
+ public:
+  explicit WaitSet(const Participant& participant);
+  /// Attaches `condition`; wait() reports `token` when it triggers.
+  void attach(dds_entity_t condition, dds_attach_t token);
+  void detach(dds_entity_t condition);
+  /// Blocks up to `timeout_ns` (DDS_INFINITY for ever); writes the tokens of triggered
+  /// conditions to `triggered` and returns their number (0 on timeout, < 0 on error, reason in
+  /// last_error()).
+  int wait(std::span<dds_attach_t> triggered, dds_duration_t timeout_ns) noexcept;
+  [[nodiscard]] const char* last_error() const { return last_error_; }
+  [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
+
+ private:
+  Entity entity_;
+  const char* last_error_ = "";
+};
+
+}  // namespace hq::link

@@ -1,0 +1,106 @@
+#include "hq/link/config.hpp"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace hq::link {
+
+namespace {
+
+// Deadlines and leases are written in milliseconds in files and on the command line.
+constexpr double kMinPeriodMs = 1.0;
+constexpr double kMaxPeriodMs = 60'000.0;
+constexpr int kMaxId = std::numeric_limits<int>::max();
+
+std::int64_t ms_to_ns(double ms) { return static_cast<std::int64_t>(std::llround(ms * 1e6)); }
+double ns_to_ms(std::int64_t ns) { return static_cast<double>(ns) * 1e-6; }
+
+void read_ms(config::StrictMap& map, const std::string& key, std::int64_t& value_ns) {
+  double ms = ns_to_ms(value_ns);
+  map.read(key, ms, kMinPeriodMs, kMaxPeriodMs);
+  value_ns = ms_to_ns(ms);
+}
+
+}  // namespace
+
+void read_config(config::StrictMap& section, LinkConfig& out) {
+  section.read("domain_id", out.domain_id, 0, kMaxDomainId);
+  int vehicle_id = static_cast<int>(out.vehicle_id);
+  section.read("vehicle_id", vehicle_id, 0, kMaxId);
+  out.vehicle_id = static_cast<std::uint32_t>(vehicle_id);
+  int station_id = static_cast<int>(out.station_id);
+  section.read("station_id", station_id, 0, kMaxId);
+  out.station_id = static_cast<std::uint32_t>(station_id);
+  section.read("station_strength", out.station_strength, 0, kMaxId);
+  read_ms(section, "command_deadline_ms", out.command_deadline_ns);
+  read_ms(section, "command_lease_ms", out.command_lease_ns);
+  read_ms(section, "heartbeat_lease_ms", out.heartbeat_lease_ns);
+  config::StrictMap envelope = section.child("envelope");
+  envelope.read_positive("max_v_x_mps", out.envelope.max_v_x_mps, 20.0);
+  envelope.read_positive("max_v_y_mps", out.envelope.max_v_y_mps, 20.0);
+  envelope.read_positive("max_v_z_mps", out.envelope.max_v_z_mps, 10.0);
+  envelope.read_positive("max_yaw_rate_radps", out.envelope.max_yaw_rate_radps, 10.0);
+  envelope.finish();
+  section.finish();
+}
+
+LinkConfig load_link_config(const std::string& path) {
+  config::StrictMap root(config::load_yaml_file(path), path);
+  config::StrictMap section = root.child("link");
+  LinkConfig config;
+  read_config(section, config);
+  return config;
+}
+
+void add_link_options(CLI::App& app, LinkOverrides& overrides) {
+  app.add_option("--domain-id", overrides.domain_id, "DDS domain id")
+      ->check(CLI::Range(0, kMaxDomainId));
+  app.add_option("--vehicle-id", overrides.vehicle_id, "vehicle id (key of every topic)");
+  app.add_option("--station-id", overrides.station_id, "ground station id");
+  app.add_option("--station-strength", overrides.station_strength,
+                 "ownership strength of this station's commands (higher wins)")
+      ->check(CLI::Range(0, kMaxId));
+  app.add_option("--command-deadline-ms", overrides.command_deadline_ms,
+                 "command deadline in milliseconds")
+      ->check(CLI::Range(kMinPeriodMs, kMaxPeriodMs));
+}
+
+void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
+  if (overrides.domain_id) config.domain_id = *overrides.domain_id;
+  if (overrides.vehicle_id) config.vehicle_id = *overrides.vehicle_id;
+  if (overrides.station_id) config.station_id = *overrides.station_id;
+  if (overrides.station_strength) config.station_strength = *overrides.station_strength;
+  if (overrides.command_deadline_ms) {
+    if (!std::isfinite(*overrides.command_deadline_ms)) {
+      throw InputError("--command-deadline-ms: expected a finite number");
+    }
+    config.command_deadline_ns = ms_to_ns(*overrides.command_deadline_ms);
+  }
+  check_config(config);
+}
+
+void check_config(const LinkConfig& config) {
+  const auto fail = [](const std::string& field, const std::string& value,
+                       const std::string& expected) {
+    throw InputError("link." + field + " = " + value + ", expected " + expected);
+  };
+  if (config.domain_id < 0 || config.domain_id > kMaxDomainId) {
+    fail("domain_id", std::to_string(config.domain_id), "in [0, 232]");
+  }
+  if (config.station_strength < 0) {
+    fail("station_strength", std::to_string(config.station_strength), ">= 0");
+  }
+  const auto check_period = [&](const char* field, std::int64_t ns) {
+    if (ns < ms_to_ns(kMinPeriodMs) || ns > ms_to_ns(kMaxPeriodMs)) {
+      std::ostringstream ms;
+      ms << ns_to_ms(ns);
+      fail(field, ms.str(), "in [1, 60000] ms");
+    }
+  };
+  check_period("command_deadline_ms", config.command_deadline_ns);
+  check_period("command_lease_ms", config.command_lease_ns);
+  check_period("heartbeat_lease_ms", config.heartbeat_lease_ns);
+}
+
+}  // namespace hq::link

@@ -1,0 +1,86 @@
+#include "hq/link/messages.hpp"
+
+#include <cmath>
+
+namespace hq::link {
+
+namespace {
+
+constexpr Validation kOk{};
+
+bool finite(const hq_msgs_Vector3f& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// Enums arrive as whatever integer the sender wrote; compare as integers so that an
+// out-of-range value is never used as an enumerator.
+bool valid_mode(hq_msgs_Mode mode) {
+  const auto value = static_cast<int>(mode);
+  return value >= static_cast<int>(hq_msgs_MODE_TELEOP) &&
+         value <= static_cast<int>(hq_msgs_MODE_EXPLORE);
+}
+
+bool valid_health(hq_msgs_Health health) {
+  const auto value = static_cast<int>(health);
+  return value >= static_cast<int>(hq_msgs_HEALTH_OK) &&
+         value <= static_cast<int>(hq_msgs_HEALTH_LOST);
+}
+
+}  // namespace
+
+Validation validate(const VelocityCommand& command, const CommandEnvelope& envelope) {
+  if (!std::isfinite(command.v_H_mps.x)) return {false, "v_H_mps.x is NaN or Inf"};
+  if (!std::isfinite(command.v_H_mps.y)) return {false, "v_H_mps.y is NaN or Inf"};
+  if (!std::isfinite(command.v_H_mps.z)) return {false, "v_H_mps.z is NaN or Inf"};
+  if (!std::isfinite(command.yaw_rate_radps)) return {false, "yaw_rate_radps is NaN or Inf"};
+  if (std::abs(command.v_H_mps.x) > envelope.max_v_x_mps) {
+    return {false, "v_H_mps.x outside envelope max_v_x_mps"};
+  }
+  if (std::abs(command.v_H_mps.y) > envelope.max_v_y_mps) {
+    return {false, "v_H_mps.y outside envelope max_v_y_mps"};
+  }
+  if (std::abs(command.v_H_mps.z) > envelope.max_v_z_mps) {
+    return {false, "v_H_mps.z outside envelope max_v_z_mps"};
+  }
+  if (std::abs(command.yaw_rate_radps) > envelope.max_yaw_rate_radps) {
+    return {false, "yaw_rate_radps outside envelope max_yaw_rate_radps"};
+  }
+  return kOk;
+}
+
+Validation validate(const ModeRequest& request) {
+  if (!valid_mode(request.requested_mode)) return {false, "requested_mode outside Mode enum"};
+  return kOk;
+}
+
+Validation validate(const Heartbeat& heartbeat) {
+  const auto role = static_cast<int>(heartbeat.role);
+  if (role != static_cast<int>(hq_msgs_ROLE_GROUND) &&
+      role != static_cast<int>(hq_msgs_ROLE_VEHICLE)) {
+    return {false, "role outside Role enum"};
+  }
+  return kOk;
+}
+
+Validation validate(const VehicleState& state) {
+  if (!finite(state.v_H_mps)) return {false, "v_H_mps is NaN or Inf"};
+  if (!finite(state.omega_body_radps)) return {false, "omega_body_radps is NaN or Inf"};
+  if (!finite(state.v_obs_H_mps)) return {false, "v_obs_H_mps is NaN or Inf"};
+  if (!std::isfinite(state.roll_rad) || !std::isfinite(state.pitch_rad)) {
+    return {false, "roll_rad or pitch_rad is NaN or Inf"};
+  }
+  if (!valid_mode(state.mode)) return {false, "mode outside Mode enum"};
+  if (!valid_health(state.estimator_health)) return {false, "estimator_health outside Health enum"};
+  if (!valid_health(state.link_health)) return {false, "link_health outside Health enum"};
+  if (state.obstacle_points_body_m._length > hq_msgs_kMaxObstaclePoints) {
+    return {false, "obstacle_points_body_m longer than kMaxObstaclePoints"};
+  }
+  for (std::uint32_t i = 0; i < state.obstacle_points_body_m._length; ++i) {
+    if (!finite(state.obstacle_points_body_m._buffer[i])) {
+      return {false, "obstacle_points_body_m has a NaN or Inf point"};
+    }
+  }
+  return kOk;
+}
+
+}  // namespace hq::link

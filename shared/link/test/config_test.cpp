@@ -1,0 +1,110 @@
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "hq/link/config.hpp"
+#include "hq/testing/input_error.hpp"
+
+namespace hq::link {
+namespace {
+
+using ::testing::HasSubstr;
+
+LinkConfig from_yaml(const std::string& text) {
+  config::StrictMap map(YAML::Load(text), "link.yaml", "link");
+  LinkConfig config;
+  read_config(map, config);
+  return config;
+}
+
+TEST(LinkConfig, ReadsEveryKey) {
+  const LinkConfig config = from_yaml(
+      "{domain_id: 7, vehicle_id: 3, station_id: 9, station_strength: 250, "
+      "command_deadline_ms: 50, command_lease_ms: 300, heartbeat_lease_ms: 2000, "
+      "envelope: {max_v_x_mps: 1.5, max_v_y_mps: 1.25, max_v_z_mps: 0.5, "
+      "max_yaw_rate_radps: 0.75}}");
+  EXPECT_EQ(config.domain_id, 7);
+  EXPECT_EQ(config.vehicle_id, 3u);
+  EXPECT_EQ(config.station_id, 9u);
+  EXPECT_EQ(config.station_strength, 250);
+  EXPECT_EQ(config.command_deadline_ns, 50'000'000);
+  EXPECT_EQ(config.command_lease_ns, 300'000'000);
+  EXPECT_EQ(config.heartbeat_lease_ns, 2'000'000'000);
+  EXPECT_EQ(config.envelope.max_v_x_mps, 1.5);
+  EXPECT_EQ(config.envelope.max_v_y_mps, 1.25);
+  EXPECT_EQ(config.envelope.max_v_z_mps, 0.5);
+  EXPECT_EQ(config.envelope.max_yaw_rate_radps, 0.75);
+}
+
+TEST(LinkConfig, RejectsOutOfRangeDomainNamingFileKeyAndRange) {
+  const std::string message = hq::testing::input_error_message([] { from_yaml("{domain_id: 300}"); });
+  EXPECT_THAT(message, HasSubstr("link.yaml: link.domain_id = 300, expected in [0, 232]"));
+}
+
+TEST(LinkConfig, RejectsUnknownKey) {
+  const std::string message =
+      hq::testing::input_error_message([] { from_yaml("{domian_id: 3}"); });
+  EXPECT_THAT(message, HasSubstr("domian_id"));
+}
+
+TEST(LinkConfig, RejectsNonPositiveEnvelopeAndTinyDeadline) {
+  EXPECT_THAT(hq::testing::input_error_message(
+                  [] { from_yaml("{envelope: {max_v_z_mps: 0}}"); }),
+              HasSubstr("link.envelope.max_v_z_mps = 0, expected > 0"));
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{command_deadline_ms: 0.1}"); }),
+              HasSubstr("link.command_deadline_ms = 0.1"));
+}
+
+TEST(LinkConfig, LoadsLinkSectionOfFile) {
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("hq_link_config_" + std::to_string(getpid()) +
+                                                ".yaml");
+  std::ofstream(path) << "other: {x: 1}\nlink: {vehicle_id: 4, station_strength: 10}\n";
+  const LinkConfig config = load_link_config(path.string());
+  std::filesystem::remove(path);
+  EXPECT_EQ(config.vehicle_id, 4u);
+  EXPECT_EQ(config.station_strength, 10);
+  EXPECT_EQ(config.domain_id, 0);
+}
+
+TEST(LinkConfig, CommandLineOverridesYaml) {
+  LinkConfig config = from_yaml("{domain_id: 7, vehicle_id: 3, station_strength: 250}");
+  CLI::App app;
+  LinkOverrides overrides;
+  add_link_options(app, overrides);
+  std::vector<std::string> args = {"--command-deadline-ms", "40", "--station-strength", "90",
+                                   "--domain-id", "12"};
+  std::reverse(args.begin(), args.end());  // CLI11 parses a reversed vector
+  app.parse(args);
+  apply_overrides(overrides, config);
+  EXPECT_EQ(config.domain_id, 12);
+  EXPECT_EQ(config.vehicle_id, 3u);  // not given: the file's value stays
+  EXPECT_EQ(config.station_strength, 90);
+  EXPECT_EQ(config.command_deadline_ns, 40'000'000);
+}
+
+TEST(LinkConfig, CommandLineRejectsOutOfRangeDomain) {
+  CLI::App app;
+  LinkOverrides overrides;
+  add_link_options(app, overrides);
+  std::vector<std::string> args = {"--domain-id", "999"};
+  std::reverse(args.begin(), args.end());
+  EXPECT_THROW(app.parse(args), CLI::ValidationError);
+}
+
+TEST(LinkConfig, CheckConfigNamesField) {
+  LinkConfig config;
+  config.command_lease_ns = 0;
+  EXPECT_THAT(hq::testing::input_error_message([&] { check_config(config); }),
+              HasSubstr("link.command_lease_ms = 0, expected in [1, 60000] ms"));
+}
+
+}  // namespace
+}  // namespace hq::link

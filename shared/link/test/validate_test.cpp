@@ -1,0 +1,104 @@
+#include <cmath>
+#include <limits>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "hq/link/messages.hpp"
+
+namespace hq::link {
+namespace {
+
+using ::testing::HasSubstr;
+
+VelocityCommand good_command() {
+  VelocityCommand command{};
+  command.vehicle_id = 1;
+  command.v_H_mps = {1.0F, -1.0F, 0.5F};
+  command.yaw_rate_radps = 0.5F;
+  return command;
+}
+
+TEST(Validate, CommandInsideEnvelopeIsAccepted) {
+  const Validation result = validate(good_command(), CommandEnvelope{});
+  EXPECT_TRUE(result.ok) << result.reason;
+}
+
+TEST(Validate, CommandWithNanOrInfIsRejectedNamingTheField) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  VelocityCommand command = good_command();
+  command.v_H_mps.x = nan;
+  EXPECT_FALSE(validate(command, CommandEnvelope{}).ok);
+  EXPECT_THAT(validate(command, CommandEnvelope{}).reason, HasSubstr("v_H_mps.x is NaN or Inf"));
+  command = good_command();
+  command.v_H_mps.y = -inf;
+  EXPECT_THAT(validate(command, CommandEnvelope{}).reason, HasSubstr("v_H_mps.y"));
+  command = good_command();
+  command.v_H_mps.z = inf;
+  EXPECT_THAT(validate(command, CommandEnvelope{}).reason, HasSubstr("v_H_mps.z"));
+  command = good_command();
+  command.yaw_rate_radps = nan;
+  EXPECT_FALSE(validate(command, CommandEnvelope{}).ok);
+  EXPECT_THAT(validate(command, CommandEnvelope{}).reason, HasSubstr("yaw_rate_radps"));
+}
+
+TEST(Validate, CommandOutsideEnvelopeIsRejectedPerAxis) {
+  CommandEnvelope envelope;
+  envelope.max_v_x_mps = 1.5;
+  envelope.max_v_y_mps = 1.5;
+  envelope.max_v_z_mps = 0.6;
+  envelope.max_yaw_rate_radps = 0.6;
+  VelocityCommand command = good_command();
+  EXPECT_TRUE(validate(command, envelope).ok);
+  command.v_H_mps.x = -1.6F;
+  EXPECT_THAT(validate(command, envelope).reason, HasSubstr("max_v_x_mps"));
+  command = good_command();
+  command.v_H_mps.y = 1.6F;
+  EXPECT_THAT(validate(command, envelope).reason, HasSubstr("max_v_y_mps"));
+  command = good_command();
+  command.v_H_mps.z = -0.7F;
+  EXPECT_THAT(validate(command, envelope).reason, HasSubstr("max_v_z_mps"));
+  command = good_command();
+  command.yaw_rate_radps = 0.7F;
+  EXPECT_FALSE(validate(command, envelope).ok);
+  EXPECT_THAT(validate(command, envelope).reason, HasSubstr("max_yaw_rate_radps"));
+}
+
+TEST(Validate, ModeRequestWithOutOfRangeEnumIsRejected) {
+  ModeRequest request{};
+  request.requested_mode = hq_msgs_MODE_EXPLORE;
+  EXPECT_TRUE(validate(request).ok);
+  request.requested_mode = static_cast<hq_msgs_Mode>(5);
+  EXPECT_FALSE(validate(request).ok);
+  EXPECT_THAT(validate(request).reason, HasSubstr("requested_mode outside Mode enum"));
+  request.requested_mode = static_cast<hq_msgs_Mode>(-1);
+  EXPECT_FALSE(validate(request).ok);
+}
+
+TEST(Validate, HeartbeatWithOutOfRangeRoleIsRejected) {
+  Heartbeat beat{};
+  beat.role = hq_msgs_ROLE_VEHICLE;
+  EXPECT_TRUE(validate(beat).ok);
+  beat.role = static_cast<hq_msgs_Role>(7);
+  EXPECT_THAT(validate(beat).reason, HasSubstr("role outside Role enum"));
+}
+
+TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
+  VehicleState state{};
+  EXPECT_TRUE(validate(state).ok);
+  state.omega_body_radps.z = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THAT(validate(state).reason, HasSubstr("omega_body_radps"));
+  state = VehicleState{};
+  state.link_health = static_cast<hq_msgs_Health>(3);
+  EXPECT_THAT(validate(state).reason, HasSubstr("link_health"));
+  state = VehicleState{};
+  hq_msgs_Vector3f points[2] = {{0.0F, 0.0F, 0.0F}, {1.0F, std::nanf(""), 0.0F}};
+  state.obstacle_points_body_m._buffer = points;
+  state.obstacle_points_body_m._length = 2;
+  state.obstacle_points_body_m._maximum = 2;
+  EXPECT_THAT(validate(state).reason, HasSubstr("obstacle_points_body_m has a NaN"));
+}
+
+}  // namespace
+}  // namespace hq::link
