@@ -1,0 +1,222 @@
+#include "hq/haptics/haptic_loop.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <numbers>
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <time.h>
+
+namespace hq::haptics {
+namespace {
+
+constexpr std::int64_t kBinNs = 500;
+constexpr std::int64_t kHistogramRangeNs = 20'000'000;
+
+void copy_status(const char* text, std::array<char, 128>& out) {
+  std::snprintf(out.data(), out.size(), "%s", text);
+}
+
+timespec to_timespec(std::int64_t t_ns) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(t_ns / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(t_ns % 1'000'000'000);
+  return ts;
+}
+
+}  // namespace
+
+std::int64_t monotonic_now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+JitterStats::JitterStats() : bins_(kHistogramRangeNs / kBinNs + 1, 0) {}
+
+void JitterStats::add(std::int64_t error_ns) {
+  const std::int64_t magnitude_ns = error_ns < 0 ? -error_ns : error_ns;
+  const std::size_t bin = static_cast<std::size_t>(
+      std::min<std::int64_t>(magnitude_ns / kBinNs, static_cast<std::int64_t>(bins_.size()) - 1));
+  ++bins_[bin];
+  ++count_;
+  max_ns_ = std::max(max_ns_, magnitude_ns);
+}
+
+double JitterStats::quantile_us(double q) const {
+  if (count_ == 0) return 0.0;
+  const auto rank = static_cast<std::int64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * count_));
+  std::int64_t seen = 0;
+  for (std::size_t b = 0; b < bins_.size(); ++b) {
+    seen += bins_[b];
+    if (seen >= std::max<std::int64_t>(rank, 1)) {
+      // The last bin holds everything beyond the range: report the true maximum there.
+      if (b + 1 == bins_.size()) return max_us();
+      return 1e-3 * static_cast<double>((static_cast<std::int64_t>(b) + 1) * kBinNs);
+    }
+  }
+  return max_us();
+}
+
+void JitterStats::reset() {
+  std::fill(bins_.begin(), bins_.end(), 0);
+  count_ = 0;
+  max_ns_ = 0;
+}
+
+HapticLoop::HapticLoop(HapticDevice& device, const HapticsConfig& config,
+                       const Eigen::Matrix3d& R_body_camera)
+    : device_(device),
+      config_(config),
+      mapping_(config.mapping, R_body_camera),
+      feedback_(config.feedback, mapping_),
+      period_ns_(static_cast<std::int64_t>(std::llround(1e9 / config.loop.rate_hz))) {
+  copy_status("haptic loop not started", output_.status);
+}
+
+HapticLoop::~HapticLoop() { stop(); }
+
+void HapticLoop::set_vehicle_estimate(const VehicleEstimate& estimate) {
+  const std::lock_guard<std::mutex> lock(estimate_mutex_);
+  estimate_ = estimate;
+}
+
+LoopOutput HapticLoop::latest() const {
+  const std::lock_guard<std::mutex> lock(output_mutex_);
+  return output_;
+}
+
+void HapticLoop::tick(std::int64_t t_ns) {
+  LoopOutput out;
+  out.t_ns = t_ns;
+  out.tick = ++tick_count_;
+  DeviceSample sample;
+  const bool read_ok = device_.read(t_ns, sample);
+  out.device_connected = read_ok;
+  const double dt_s =
+      have_last_ ? 1e-9 * static_cast<double>(t_ns - last_t_ns_) : 1e-9 * period_ns_;
+
+  if (!read_ok || !sample.p_D_m.allFinite() || !(dt_s > 0.0)) {
+    // Device lost or reading unusable: zero command and no force until it comes back.
+    copy_status(read_ok ? "end-effector position is not finite: command zero" : device_.status(),
+                out.status);
+    have_last_ = false;
+    p_dot_D_mps_.setZero();
+    last_F_D_n_.setZero();
+    device_.write_force(t_ns, last_F_D_n_);
+  } else {
+    const Eigen::Vector3d& p_D_m = sample.p_D_m;
+    Eigen::Vector3d v_step_D_mps = Eigen::Vector3d::Zero();
+    if (have_last_) {
+      v_step_D_mps = (p_D_m - last_p_D_m_) / dt_s;
+      // First-order low-pass on the differentiated position: encoder steps would otherwise
+      // turn the damping term into noise.
+      const double tau_s = 1.0 / (2.0 * std::numbers::pi * config_.feedback.velocity_filter_hz);
+      p_dot_D_mps_ += (dt_s / (dt_s + tau_s)) * (v_step_D_mps - p_dot_D_mps_);
+      // The force held over the last interval did exactly -F.dp of work on the system.
+      observer_.update(last_F_D_n_, v_step_D_mps, dt_s);
+    }
+    const MappedCommand mapped = mapping_.map(p_D_m);
+    VehicleEstimate estimate;
+    {
+      const std::lock_guard<std::mutex> lock(estimate_mutex_);
+      estimate = estimate_;
+    }
+    const FeedbackForce force =
+        feedback_.compute(t_ns, p_D_m, p_dot_D_mps_, mapped.command, estimate);
+    device_.write_force(t_ns, force.F_D_n);
+    last_F_D_n_ = force.F_D_n;
+    last_p_D_m_ = p_D_m;
+    have_last_ = true;
+
+    out.command = mapped.command;
+    out.command_valid = mapped.valid;
+    out.p_D_m = p_D_m;
+    out.F_D_n = force.F_D_n;
+    out.buttons = sample.buttons;
+    out.cue_weight = force.cue_weight;
+    copy_status(device_.status(), out.status);
+  }
+  last_t_ns_ = t_ns;
+  out.passivity_energy_j = observer_.energy_j();
+  const std::lock_guard<std::mutex> lock(output_mutex_);
+  output_ = out;
+}
+
+RealtimeGrant HapticLoop::start() {
+  RealtimeGrant grant;
+  if (running_.exchange(true)) return grant;
+  char text[256];
+  std::string refused;
+  if (config_.loop.lock_memory) {
+    if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+      grant.memory_locked = true;
+    } else {
+      std::snprintf(text, sizeof(text), "mlockall refused (%s); ", std::strerror(errno));
+      refused += text;
+    }
+  }
+  timing_.period.reset();
+  timing_.wake.reset();
+  timing_.missed_deadlines = 0;
+  thread_ = std::thread([this] { run(); });
+  if (config_.loop.realtime) {
+    sched_param parameter{};
+    parameter.sched_priority = config_.loop.realtime_priority;
+    const int error = pthread_setschedparam(thread_.native_handle(), SCHED_FIFO, &parameter);
+    if (error == 0) {
+      grant.fifo = true;
+      grant.priority = config_.loop.realtime_priority;
+    } else {
+      std::snprintf(text, sizeof(text), "SCHED_FIFO %d refused (%s); ",
+                    config_.loop.realtime_priority, std::strerror(error));
+      refused += text;
+    }
+  }
+  std::snprintf(text, sizeof(text), "haptic loop %.0f Hz: %s, %s", config_.loop.rate_hz,
+                grant.fifo ? ("SCHED_FIFO " + std::to_string(grant.priority)).c_str()
+                           : "normal scheduling (SCHED_OTHER)",
+                grant.memory_locked ? "memory locked" : "memory not locked");
+  grant.summary = text;
+  if (!refused.empty()) {
+    grant.summary += " -- " + refused +
+                     "timing will jitter under load (needs root or "
+                     "CAP_SYS_NICE / CAP_IPC_LOCK, or rtprio and memlock limits)";
+  }
+  if (!refused.empty()) std::fprintf(stderr, "warning: %s\n", grant.summary.c_str());
+  return grant;
+}
+
+void HapticLoop::stop() {
+  if (!running_.exchange(false)) return;
+  if (thread_.joinable()) thread_.join();
+}
+
+void HapticLoop::run() {
+  std::int64_t deadline_ns = monotonic_now_ns() + period_ns_;
+  std::int64_t previous_wake_ns = 0;
+  while (running_.load(std::memory_order_relaxed)) {
+    const timespec deadline = to_timespec(deadline_ns);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+    }
+    const std::int64_t wake_ns = monotonic_now_ns();
+    timing_.wake.add(wake_ns - deadline_ns);
+    if (previous_wake_ns != 0) timing_.period.add(wake_ns - previous_wake_ns - period_ns_);
+    previous_wake_ns = wake_ns;
+    tick(wake_ns);
+    deadline_ns += period_ns_;
+    // Overran one or more periods: skip them on the same phase rather than bursting to catch up.
+    const std::int64_t now_ns = monotonic_now_ns();
+    if (deadline_ns <= now_ns) {
+      const std::int64_t missed = (now_ns - deadline_ns) / period_ns_ + 1;
+      timing_.missed_deadlines += missed;
+      deadline_ns += missed * period_ns_;
+    }
+  }
+}
+
+}  // namespace hq::haptics
