@@ -5,23 +5,45 @@
 #include "hq/config/strict_yaml.hpp"
 #include "hq/odometry/dense_odometry.hpp"
 #include "hq/recording/tum_io.hpp"
+#include "hq/sources/camera_sources.hpp"
 #include "hq/sources/tum_frame_source.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
+namespace {
+volatile std::sig_atomic_t g_stop = 0;
+void request_stop(int /*signal*/) { g_stop = 1; }
+}  // namespace
+
 static int run(int argc, char** argv) {
-  CLI::App app{"Dense RGB-D odometry (DVO, Kerl 2013) over a TUM RGB-D sequence"};
+  CLI::App app{"Dense RGB-D odometry (DVO, Kerl 2013) over a TUM RGB-D sequence or a camera"};
   std::string sequence_dir;
   std::string camera_path;
   std::string config_path;
+  std::string source_spec;
+  double seconds = 0.0;
   std::string out_path = "trajectory.txt";
-  app.add_option("sequence-dir", sequence_dir, "TUM RGB-D sequence folder")->required();
-  app.add_option("--camera", camera_path, "camera file, e.g. calib/tum_fr1.yaml")->required();
+  std::string kinds;
+  for (const std::string& kind : hq::sources::available_camera_sources()) {
+    kinds += (kinds.empty() ? "" : ", ") + kind;
+  }
+  app.add_option("sequence-dir", sequence_dir, "TUM RGB-D sequence folder");
+  app.add_option("--source", source_spec,
+                 "live camera instead of a sequence: openni2[:uri] | freenect[:index] (this "
+                 "build: " +
+                     (kinds.empty() ? std::string("none") : kinds) + ")");
+  app.add_option("--seconds", seconds, "stop a live run after this long (0 = at Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--camera", camera_path,
+                 "camera file, e.g. calib/tum_fr1.yaml (required for a sequence; for a camera "
+                 "it replaces the device's intrinsics)");
   app.add_option("--config", config_path, "YAML with an odometry: section (optional)");
   app.add_option("--out", out_path, "estimated trajectory, TUM format (camera in world)");
   CLI11_PARSE(app, argc, argv);
@@ -32,14 +54,45 @@ static int run(int argc, char** argv) {
     hq::config::StrictMap section = root.child("odometry");
     hq::odometry::read_config(section, config);
   }
-  hq::sources::TumFrameSource source(sequence_dir, hq::config::load_camera_info(camera_path));
+  if (source_spec.empty() == sequence_dir.empty()) {
+    throw hq::InputError("give either a sequence directory or --source <camera>, not " +
+                         std::string(sequence_dir.empty() ? "neither" : "both"));
+  }
+  if (!sequence_dir.empty() && camera_path.empty()) {
+    throw hq::InputError("--camera is required with a sequence directory");
+  }
+  std::unique_ptr<hq::sources::FrameSource> owned;
+  if (source_spec.empty()) {
+    owned = std::make_unique<hq::sources::TumFrameSource>(
+        sequence_dir, hq::config::load_camera_info(camera_path));
+  } else {
+    hq::sources::CameraSourceOptions options;
+    options.camera_file = camera_path;
+    owned = hq::sources::open_camera_source(source_spec, options);
+    std::signal(SIGINT, request_stop);
+    std::signal(SIGTERM, request_stop);
+  }
+  hq::sources::FrameSource& source = *owned;
   hq::odometry::DenseOdometry odometry(config, source.camera());
   std::fprintf(stderr, "hq-odometry: %s\n", source.describe().c_str());
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
 
   std::vector<hq::recording::StampedPose> trajectory;
   hq::sources::RgbdFrame frame;
   int lost = 0;
-  while (source.next(frame) == hq::sources::FrameStatus::kFrame) {
+  std::string last_error;
+  while (g_stop == 0 && (seconds <= 0.0 || std::chrono::steady_clock::now() < end)) {
+    const hq::sources::FrameStatus status = source.next(frame);
+    if (status == hq::sources::FrameStatus::kEndOfStream) break;
+    if (status == hq::sources::FrameStatus::kNoFrame) {
+      // A live camera was lost; the source reopens it on later calls.
+      if (source.error() != last_error) {
+        std::fprintf(stderr, "hq-odometry: %s\n", source.error().c_str());
+      }
+      last_error = source.error();
+      continue;
+    }
+    last_error.clear();
     const auto start = std::chrono::steady_clock::now();
     const hq::odometry::OdometryResult result =
         odometry.track(frame.t_ns, frame.gray, frame.depth_m);
@@ -48,7 +101,7 @@ static int run(int argc, char** argv) {
     if (result.status == hq::odometry::TrackingStatus::kLost) ++lost;
     trajectory.push_back({frame.t_ns, result.T_world_cur});
     std::fprintf(stderr, "frame %4zu  %-11s %6.2f ms  valid %.2f  iterations %2d%s  %s\n",
-                 source.position(), hq::odometry::to_string(result.status), ms, result.valid_ratio,
+                 trajectory.size(), hq::odometry::to_string(result.status), ms, result.valid_ratio,
                  result.iterations, result.new_keyframe ? "  keyframe" : "", result.reason);
   }
   hq::recording::write_tum_trajectory(out_path, trajectory);

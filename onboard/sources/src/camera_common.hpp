@@ -1,12 +1,12 @@
 #pragma once
 // Pieces shared by the camera adapters: intrinsics, device clocks, retry pacing.
 
+#include "hq/config/camera_info.hpp"
+#include "hq/sources/camera_sources.hpp"
+
 #include <chrono>
 #include <cstdint>
 #include <string>
-
-#include "hq/config/camera_info.hpp"
-#include "hq/sources/camera_sources.hpp"
 
 namespace hq::sources::detail {
 

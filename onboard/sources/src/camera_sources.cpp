@@ -1,9 +1,10 @@
 #include "hq/sources/camera_sources.hpp"
 
-#include <cmath>
+#include "hq/base/error.hpp"
 
 #include "camera_common.hpp"
-#include "hq/base/error.hpp"
+
+#include <cmath>
 
 #ifdef HQ_HAVE_OPENNI2
 #include "openni2_frame_source.hpp"
@@ -33,15 +34,16 @@ std::string available_text() {
 
 CameraSpec parse_camera_spec(const std::string& spec) {
   const std::size_t colon = spec.find(':');
-  CameraSpec parsed{spec.substr(0, colon), colon == std::string::npos ? "" : spec.substr(colon + 1)};
+  CameraSpec parsed{spec.substr(0, colon),
+                    colon == std::string::npos ? "" : spec.substr(colon + 1)};
   if (parsed.kind != "openni2" && parsed.kind != "freenect") {
     throw InputError("--source " + spec + ": unknown camera kind '" + parsed.kind +
                      "', expected openni2[:uri] or freenect[:index]");
   }
   if (!compiled_in(parsed.kind)) {
-    throw InputError("--source " + spec + ": this build has no " + parsed.kind +
-                     " support (its library was not found by CMake); available: " +
-                     available_text());
+    throw InputError(
+        "--source " + spec + ": this build has no " + parsed.kind +
+        " support (its library was not found by CMake); available: " + available_text());
   }
   if (parsed.kind == "freenect" && !parsed.address.empty()) {
     const bool digits = parsed.address.size() <= 3 &&
@@ -89,8 +91,8 @@ void check_options(const CameraSourceOptions& options, const std::string& who) {
   };
   require(options.width > 0 && options.width <= 4096, "width", std::to_string(options.width),
           "1..4096");
-  require(options.height > 0 && options.height <= 4096, "height",
-          std::to_string(options.height), "1..4096");
+  require(options.height > 0 && options.height <= 4096, "height", std::to_string(options.height),
+          "1..4096");
   require(options.fps > 0 && options.fps <= 240, "fps", std::to_string(options.fps), "1..240");
   require(options.frame_timeout_ns > 0, "frame_timeout_ns",
           std::to_string(options.frame_timeout_ns), "> 0");

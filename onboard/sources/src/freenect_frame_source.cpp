@@ -1,23 +1,22 @@
 #include "freenect_frame_source.hpp"
 
-#include <dlfcn.h>
-#include <libfreenect.h>
-#include <sys/time.h>
+#include "hq/base/error.hpp"
+
+#include "camera_common.hpp"
+#include <opencv2/imgproc.hpp>
 
 #include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <dlfcn.h>
 #include <filesystem>
 #include <fstream>
+#include <libfreenect.h>
 #include <optional>
 #include <string>
-
-#include <opencv2/imgproc.hpp>
-
-#include "camera_common.hpp"
-#include "hq/base/error.hpp"
+#include <sys/time.h>
 
 namespace hq::sources::detail {
 
@@ -90,8 +89,8 @@ void check_fakenect_dump() {
     if (!file || header.rfind(magic, 0) != 0 || size != header.size() + 1 + payload) {
       throw InputError(path + ": expected a '" + magic + " ...' header line and " +
                        std::to_string(payload) + " bytes of 640x480 " +
-                       (type == 'r' ? "RGB" : "11-bit depth") + ", found " +
-                       std::to_string(size) + " bytes in all");
+                       (type == 'r' ? "RGB" : "11-bit depth") + ", found " + std::to_string(size) +
+                       " bytes in all");
     }
     (type == 'r' ? colour : depth)++;
   }
@@ -174,12 +173,12 @@ class FreenectFrameSource final : public CameraSource {
   [[nodiscard]] geometry::PinholeCamera camera() const override { return camera_.pinhole(); }
 
   [[nodiscard]] std::string describe() const override {
-    return name_ + (fakenect_ ? " (fakenect replay of " +
-                                    std::string(std::getenv(kFakenectPathVar)) +
-                                    ", 11-bit depth converted to metres, unregistered)"
-                              : " (Kinect v1, 640x480@30, depth registered to RGB)") +
-           ", intrinsics " + (options_.camera_file.empty() ? "calib/kinect_v1.yaml"
-                                                           : options_.camera_file);
+    return name_ +
+           (fakenect_ ? " (fakenect replay of " + std::string(std::getenv(kFakenectPathVar)) +
+                            ", 11-bit depth converted to metres, unregistered)"
+                      : " (Kinect v1, 640x480@30, depth registered to RGB)") +
+           ", intrinsics " +
+           (options_.camera_file.empty() ? "calib/kinect_v1.yaml" : options_.camera_file);
   }
 
   [[nodiscard]] std::optional<recording::AccelSample> accelerometer() const override {
@@ -248,9 +247,8 @@ class FreenectFrameSource final : public CameraSource {
     // The motor subdevice carries the accelerometer; some Kinects (model 1473) only expose it
     // with audio firmware loaded, so fall back to the camera alone.
     has_motor_ = true;
-    freenect_select_subdevices(context_,
-                               static_cast<freenect_device_flags>(FREENECT_DEVICE_CAMERA |
-                                                                  FREENECT_DEVICE_MOTOR));
+    freenect_select_subdevices(context_, static_cast<freenect_device_flags>(FREENECT_DEVICE_CAMERA |
+                                                                            FREENECT_DEVICE_MOTOR));
     if (freenect_open_device(context_, &device_, index_) < 0) {
       has_motor_ = false;
       freenect_select_subdevices(context_, FREENECT_DEVICE_CAMERA);

@@ -1,9 +1,9 @@
 #pragma once
 // Kinect v1 through libfreenect (private to hq_sources; use open_camera_source("freenect:N")).
 
-#include <memory>
-
 #include "hq/sources/camera_sources.hpp"
+
+#include <memory>
 
 namespace hq::sources::detail {
 

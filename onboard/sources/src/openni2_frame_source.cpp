@@ -1,7 +1,11 @@
 #include "openni2_frame_source.hpp"
 
-#include <OpenNI.h>
+#include "hq/base/error.hpp"
 
+#include "camera_common.hpp"
+#include <opencv2/imgproc.hpp>
+
+#include <OpenNI.h>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -11,11 +15,6 @@
 #include <optional>
 #include <string>
 
-#include <opencv2/imgproc.hpp>
-
-#include "camera_common.hpp"
-#include "hq/base/error.hpp"
-
 namespace hq::sources::detail {
 
 namespace {
@@ -24,8 +23,8 @@ constexpr int kWaitStepMs = 100;
 constexpr std::int64_t kNsPerUsNum = 1000;  // OpenNI2 frame stamps are device microseconds
 
 std::string mode_text(const openni::VideoMode& mode) {
-  return std::to_string(mode.getResolutionX()) + "x" + std::to_string(mode.getResolutionY()) +
-         "@" + std::to_string(mode.getFps());
+  return std::to_string(mode.getResolutionX()) + "x" + std::to_string(mode.getResolutionY()) + "@" +
+         std::to_string(mode.getFps());
 }
 
 bool is_depth_format(openni::PixelFormat format) {
@@ -45,8 +44,8 @@ class Openni2FrameSource final : public CameraSource {
       throw InputError(name_ + ": cannot read the .oni file (missing or unreadable)");
     }
     if (openni::OpenNI::initialize() != openni::STATUS_OK) {
-      throw InputError(name_ + ": OpenNI::initialize failed: " +
-                       openni::OpenNI::getExtendedError());
+      throw InputError(name_ +
+                       ": OpenNI::initialize failed: " + openni::OpenNI::getExtendedError());
     }
     initialized_ = true;
     try {
@@ -56,8 +55,8 @@ class Openni2FrameSource final : public CameraSource {
         camera_ = fov_intrinsics();
       } else {
         camera_ = load_camera_for(options_, "calib/xtion_pro_live.yaml", name_);
-        intrinsics_from_ = options.camera_file.empty() ? "calib/xtion_pro_live.yaml"
-                                                       : options.camera_file;
+        intrinsics_from_ =
+            options.camera_file.empty() ? "calib/xtion_pro_live.yaml" : options.camera_file;
       }
     } catch (const InputError&) {
       close_device();
@@ -101,8 +100,7 @@ class Openni2FrameSource final : public CameraSource {
         }
         (ready == 0 ? have_depth : have_colour) = true;
       } else if (status != openni::STATUS_TIME_OUT) {
-        return lose(std::string("waitForAnyStream failed: ") +
-                    openni::OpenNI::getExtendedError());
+        return lose(std::string("waitForAnyStream failed: ") + openni::OpenNI::getExtendedError());
       }
       if (std::chrono::steady_clock::now() > deadline) {
         if (is_file_) {
@@ -197,8 +195,8 @@ class Openni2FrameSource final : public CameraSource {
       while (!detail.empty() && std::isspace(static_cast<unsigned char>(detail.front()))) {
         detail.erase(0, 1);
       }
-      why = name_ + ": cannot open (" + detail + "); OpenNI2 devices connected: " +
-            (list.empty() ? "none" : list);
+      why = name_ + ": cannot open (" + detail +
+            "); OpenNI2 devices connected: " + (list.empty() ? "none" : list);
       return false;
     }
     if (!start_streams(why)) {
@@ -213,8 +211,8 @@ class Openni2FrameSource final : public CameraSource {
   bool start_streams(std::string& why) {
     if (depth_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK ||
         colour_.create(device_, openni::SENSOR_COLOR) != openni::STATUS_OK) {
-      why = name_ + ": cannot create the depth and colour streams: " +
-            openni::OpenNI::getExtendedError();
+      why = name_ +
+            ": cannot create the depth and colour streams: " + openni::OpenNI::getExtendedError();
       return false;
     }
     if (is_file_) {

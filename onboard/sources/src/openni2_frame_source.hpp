@@ -1,10 +1,10 @@
 #pragma once
 // OpenNI2 devices and .oni files (private to hq_sources; use open_camera_source("openni2:URI")).
 
+#include "hq/sources/camera_sources.hpp"
+
 #include <memory>
 #include <string>
-
-#include "hq/sources/camera_sources.hpp"
 
 namespace hq::sources::detail {
 

@@ -1,12 +1,12 @@
 #include "hq/sources/tum_recorder.hpp"
 
-#include <cinttypes>
-#include <cstdio>
-#include <filesystem>
+#include "hq/base/error.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "hq/base/error.hpp"
+#include <cinttypes>
+#include <cstdio>
+#include <filesystem>
 
 namespace hq::sources {
 
@@ -40,8 +40,8 @@ TumRecorder::TumRecorder(const std::string& dir, const geometry::PinholeCamera& 
   std::error_code error;
   std::filesystem::create_directories(dir_ + "/rgb", error);
   if (!error) std::filesystem::create_directories(dir_ + "/depth", error);
-  if (error) throw InputError(dir_ + ": cannot create the recording directories: " +
-                              error.message());
+  if (error)
+    throw InputError(dir_ + ": cannot create the recording directories: " + error.message());
   const std::string from = "# file: '" + description + "'\n";
   open_list(rgb_, dir_ + "/rgb.txt", "# color images\n" + from + "# timestamp filename\n");
   open_list(depth_, dir_ + "/depth.txt", "# depth maps\n" + from + "# timestamp filename\n");

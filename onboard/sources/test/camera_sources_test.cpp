@@ -1,16 +1,16 @@
 #include "hq/sources/camera_sources.hpp"
 
-#include <filesystem>
-#include <fstream>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
 #include "hq/recording/data_dir.hpp"
 #include "hq/recording/tum_sequence.hpp"
 #include "hq/sources/tum_frame_source.hpp"
 #include "hq/sources/tum_recorder.hpp"
 #include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
 
 namespace hq::sources {
 namespace {

@@ -2,29 +2,28 @@
 // dump directory instead of talking USB: the real driver API, no hardware. Each test re-runs
 // itself in a child process whose LD_LIBRARY_PATH puts fakenect first, because fakenect must
 // replace libfreenect when the process starts and exit()s on a dump it cannot read.
-#include <dlfcn.h>
-#include <sys/wait.h>
-#include <unistd.h>
+#include "hq/recording/data_dir.hpp"
+#include "hq/recording/tum_sequence.hpp"
+#include "hq/sources/camera_sources.hpp"
+#include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <dlfcn.h>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <opencv2/imgproc.hpp>
-
-#include "hq/recording/data_dir.hpp"
-#include "hq/recording/tum_sequence.hpp"
-#include "hq/sources/camera_sources.hpp"
-#include "hq/testing/allocation_counter.hpp"
-#include "hq/testing/input_error.hpp"
 
 namespace hq::sources {
 namespace {
@@ -112,8 +111,8 @@ Dump write_dump(const std::string& tum_dir, const std::string& dir) {
     recording::depth_to_metres(depth_u16, 5000.0, depth_m);
     const auto ticks_since_0 =
         static_cast<std::uint64_t>(std::llround((files.t_ns - t0_ns) * 1e-9 * kTicksPerS));
-    const auto ticks = static_cast<std::uint32_t>(
-        (std::uint64_t{1} << 32) - kTicksBeforeWrap + ticks_since_0);  // wraps modulo 2^32
+    const auto ticks = static_cast<std::uint32_t>((std::uint64_t{1} << 32) - kTicksBeforeWrap +
+                                                  ticks_since_0);  // wraps modulo 2^32
     char name[96];
     std::snprintf(name, sizeof(name), "a-%f-%u.dump", files.depth_t_ns * 1e-9, ticks);
     const std::int16_t tilt[6] = {kAccelRaw[0], kAccelRaw[1], kAccelRaw[2], 0, 0, 0};

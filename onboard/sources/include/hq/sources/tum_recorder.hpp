@@ -6,16 +6,16 @@
 ///   camera.yaml (calib/ layout: the source's undistorted intrinsics, no distortion).
 /// Stamps are seconds with 6 decimals, as TUM writes them.
 
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/recording/tum_io.hpp"
+#include "hq/sources/frame_source.hpp"
+
+#include <opencv2/core.hpp>
+
 #include <cstddef>
 #include <cstdint>
 #include <fstream>
 #include <string>
-
-#include <opencv2/core.hpp>
-
-#include "hq/geometry/pinhole_camera.hpp"
-#include "hq/recording/tum_io.hpp"
-#include "hq/sources/frame_source.hpp"
 
 namespace hq::sources {
 
