@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/prctl.h>
 #include <thread>
 #include <time.h>
 
@@ -30,6 +31,7 @@ struct BareLoop {
 };
 
 void run_bare_loop(std::int64_t period_ns, const std::atomic<bool>& running, BareLoop& out) {
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // as HapticLoop does
   std::int64_t deadline_ns = monotonic_now_ns() + period_ns;
   std::int64_t previous_ns = 0;
   while (running.load(std::memory_order_relaxed)) {

@@ -1,5 +1,7 @@
 #include "hq/haptics/haptic_loop.hpp"
 
+#include "hq/base/error.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -9,6 +11,9 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <system_error>
 #include <time.h>
 
 namespace hq::haptics {
@@ -26,6 +31,27 @@ timespec to_timespec(std::int64_t t_ns) {
   ts.tv_sec = static_cast<time_t>(t_ns / 1'000'000'000);
   ts.tv_nsec = static_cast<long>(t_ns % 1'000'000'000);
   return ts;
+}
+
+/// RLIMIT_MEMLOCK in KiB, -1 when unlimited.
+std::int64_t memlock_limit_kib() {
+  rlimit limit{};
+  if (getrlimit(RLIMIT_MEMLOCK, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return -1;
+  return static_cast<std::int64_t>(limit.rlim_cur / 1024);
+}
+
+/// CAP_IPC_LOCK (bit 14) in the effective set, read from /proc/self/status.
+bool has_ipc_lock_capability() {
+  constexpr unsigned long long kCapIpcLock = 1ull << 14;
+  std::FILE* file = std::fopen("/proc/self/status", "r");
+  if (file == nullptr) return false;
+  char line[256];
+  unsigned long long effective = 0;
+  while (std::fgets(line, sizeof(line), file) != nullptr) {
+    if (std::sscanf(line, "CapEff: %llx", &effective) == 1) break;
+  }
+  std::fclose(file);
+  return (effective & kCapIpcLock) != 0;
 }
 
 }  // namespace
@@ -150,20 +176,33 @@ void HapticLoop::tick(std::int64_t t_ns) {
 RealtimeGrant HapticLoop::start() {
   RealtimeGrant grant;
   if (running_.exchange(true)) return grant;
+  timing_.period.reset();
+  timing_.wake.reset();
+  timing_.missed_deadlines = 0;
+  try {
+    thread_ = std::thread([this] { run(); });
+  } catch (const std::system_error& e) {
+    running_.store(false);
+    throw InputError(std::string("haptic loop: cannot start its thread: ") + e.what());
+  }
   char text[256];
   std::string refused;
   if (config_.loop.lock_memory) {
-    if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+    // MCL_FUTURE under a finite RLIMIT_MEMLOCK makes later allocations (thread stacks, the DDS
+    // side's buffers) fail once the limit is reached, so lock only when the limit cannot bite.
+    const std::int64_t limit_kib = memlock_limit_kib();
+    if (limit_kib >= 0 && !has_ipc_lock_capability()) {
+      std::snprintf(text, sizeof(text),
+                    "mlockall not attempted (RLIMIT_MEMLOCK %lld KiB, no CAP_IPC_LOCK); ",
+                    static_cast<long long>(limit_kib));
+      refused += text;
+    } else if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
       grant.memory_locked = true;
     } else {
       std::snprintf(text, sizeof(text), "mlockall refused (%s); ", std::strerror(errno));
       refused += text;
     }
   }
-  timing_.period.reset();
-  timing_.wake.reset();
-  timing_.missed_deadlines = 0;
-  thread_ = std::thread([this] { run(); });
   if (config_.loop.realtime) {
     sched_param parameter{};
     parameter.sched_priority = config_.loop.realtime_priority;
@@ -184,10 +223,10 @@ RealtimeGrant HapticLoop::start() {
   grant.summary = text;
   if (!refused.empty()) {
     grant.summary += " -- " + refused +
-                     "timing will jitter under load (needs root or "
-                     "CAP_SYS_NICE / CAP_IPC_LOCK, or rtprio and memlock limits)";
+                     "timing will jitter under load (needs root or CAP_SYS_NICE / CAP_IPC_LOCK, "
+                     "or rtprio and memlock limits)";
+    std::fprintf(stderr, "warning: %s\n", grant.summary.c_str());
   }
-  if (!refused.empty()) std::fprintf(stderr, "warning: %s\n", grant.summary.c_str());
   return grant;
 }
 
@@ -197,6 +236,8 @@ void HapticLoop::stop() {
 }
 
 void HapticLoop::run() {
+  // Normal threads get 50 us of timer slack, added to every wake-up; the loop wants none.
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   std::int64_t deadline_ns = monotonic_now_ns() + period_ns_;
   std::int64_t previous_wake_ns = 0;
   while (running_.load(std::memory_order_relaxed)) {

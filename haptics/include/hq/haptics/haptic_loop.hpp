@@ -83,8 +83,10 @@ class HapticLoop {
   HapticLoop(const HapticLoop&) = delete;
   HapticLoop& operator=(const HapticLoop&) = delete;
 
-  /// Starts the thread; asks for SCHED_FIFO and mlockall as configured and prints a warning on
-  /// stderr naming what was refused. Returns what was granted.
+  /// Starts the thread; asks for SCHED_FIFO and mlockall as configured (mlockall only where
+  /// RLIMIT_MEMLOCK is unlimited or CAP_IPC_LOCK held, since MCL_FUTURE under a finite limit makes
+  /// later allocations fail) and prints a warning on stderr naming what was refused. Returns what
+  /// was granted. @throws hq::InputError if the thread cannot be created.
   RealtimeGrant start();
   /// Stops and joins the thread (idempotent).
   void stop();
