@@ -22,6 +22,8 @@ OnboardConfig load_onboard_config(const std::string& path) {
   estimator::read_config(estimator, out.estimator);
   config::StrictMap obstacles = root.child("obstacles");
   obstacles::read_config(obstacles, out.obstacles);
+  config::StrictMap memory = root.child("memory");
+  obstacle_memory::read_config(memory, out.memory);
   config::StrictMap control = root.child("control");
   control::read_config(control, out.control);
   config::StrictMap modes = root.child("modes");
@@ -39,8 +41,10 @@ std::int64_t stage_ns(const StageDurations& durations, int i) {
     case 1:
       return durations.estimator_ns;
     case 2:
-      return durations.obstacles_ns;
+      return durations.memory_ns;
     case 3:
+      return durations.obstacles_ns;
+    case 4:
       return durations.control_ns;
     default:
       return durations.total_ns;
@@ -53,6 +57,7 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       clock_(clock),
       odometry_(config.odometry, camera),
       estimator_(config.estimator, vehicle.R_body_camera, vehicle.p_body_camera_m),
+      memory_(config.memory, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       modes_(config.modes, config.control, vehicle) {}
 
@@ -83,8 +88,24 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   out.estimate = estimator_.update(t_ns, odometry);
   const std::int64_t t_estimator_ns = now_ns();
 
-  // §3.1: depth minima into the repulsive v_obs in H, with the attitude the estimator holds.
-  out.obstacles = obstacles_.compute(depth_m, R_horizontal_body());
+  // Issue 10: the memory places this depth at the odometry pose and returns what it remembers
+  // outside the view; without tracking there is no pose to place or recall it with.
+  const Eigen::Matrix3d R_HQ = R_horizontal_body();
+  if (!config_.memory.enabled) {
+    out.memory.reason = "memory disabled";
+  } else if (!odometry.ok()) {
+    out.memory.reason = "odometry not tracking";
+    out.memory.map_size = memory_.size();
+    out.memory.clear_count = memory_.clear_count();
+  } else {
+    out.memory = memory_.update(t_ns, depth_m, odometry.T_world_cur, R_HQ,
+                                config_.obstacles.influence_distance_m);
+  }
+  const std::int64_t t_memory_ns = now_ns();
+
+  // §3.1: depth minima into the repulsive v_obs in H, with the attitude the estimator holds,
+  // plus the remembered points outside the view under the same law.
+  out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
   const std::int64_t t_obstacles_ns = now_ns();
 
   // Without an estimate the PID gets a non-finite measurement on purpose: the velocity
@@ -105,7 +126,8 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
 
   out.durations.odometry_ns = t_odometry_ns - t_arrival_ns;
   out.durations.estimator_ns = t_estimator_ns - t_odometry_ns;
-  out.durations.obstacles_ns = t_obstacles_ns - t_estimator_ns;
+  out.durations.memory_ns = t_memory_ns - t_estimator_ns;
+  out.durations.obstacles_ns = t_obstacles_ns - t_memory_ns;
   out.durations.control_ns = t_control_ns - t_obstacles_ns;
   out.durations.total_ns = t_control_ns - t_arrival_ns;
   return out;

@@ -103,10 +103,11 @@ TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne
   EXPECT_EQ(allocations, 0);
   // Warm-up 0.2 s is 6 frames at 30 Hz, so at least 12 of the 19 must be ok.
   EXPECT_GE(ok, 12);
-  // The fake clock ticks 1 ms per reading: four stages of 1 ms each.
+  // The fake clock ticks 1 ms per reading: five stages of 1 ms each.
   EXPECT_EQ(out.durations.odometry_ns, 1'000'000);
   EXPECT_EQ(out.durations.control_ns, 1'000'000);
-  EXPECT_EQ(out.durations.total_ns, 4'000'000);
+  EXPECT_EQ(out.durations.memory_ns, 1'000'000);
+  EXPECT_EQ(out.durations.total_ns, 5'000'000);
 }
 
 TEST_F(ChainOnRenderedPlane, AllInvalidDepthGivesUnavailableEstimateAndSafeHover) {

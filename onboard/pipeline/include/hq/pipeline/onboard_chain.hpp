@@ -12,6 +12,7 @@
 #include "hq/estimator/velocity_estimator.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
 #include "hq/modes/mode_controller.hpp"
+#include "hq/obstacle_memory/obstacle_memory.hpp"
 #include "hq/obstacles/obstacle_field.hpp"
 #include "hq/odometry/dense_odometry.hpp"
 
@@ -37,13 +38,14 @@ struct OnboardConfig {
   odometry::OdometryConfig odometry;
   estimator::VelocityEstimatorConfig estimator;
   obstacles::ObstacleConfig obstacles;
+  obstacle_memory::MemoryConfig memory;
   control::VelocityControllerConfig control;
   modes::ModesConfig modes;
   ChainConfig chain;
 };
 
-/// Loads an on-board config file strictly: sections odometry, estimator, obstacles, control,
-/// modes and chain, each handed to its component's read_config (an absent section keeps that
+/// Loads an on-board config file strictly: sections odometry, estimator, obstacles, memory,
+/// control, modes and chain, each handed to its component's read_config (an absent section keeps that
 /// component's defaults; an unknown section or key is an error). Throws hq::InputError naming
 /// file, key, value and expectation.
 OnboardConfig load_onboard_config(const std::string& path);
@@ -59,15 +61,16 @@ class Clock {
 struct StageDurations {
   std::int64_t odometry_ns = 0;
   std::int64_t estimator_ns = 0;
+  std::int64_t memory_ns = 0;  ///< Obstacle memory (near zero when disabled).
   std::int64_t obstacles_ns = 0;
   std::int64_t control_ns = 0;  ///< Mode controller and velocity PID.
   std::int64_t total_ns = 0;    ///< Frame arrival to setpoint.
 };
 
 /// Stage names in StageDurations order, for tables.
-inline constexpr int kStageCount = 5;
-inline constexpr const char* kStageNames[kStageCount] = {"odometry", "estimator", "obstacles",
-                                                         "control", "total"};
+inline constexpr int kStageCount = 6;
+inline constexpr const char* kStageNames[kStageCount] = {"odometry", "estimator", "memory",
+                                                         "obstacles", "control", "total"};
 /// The duration of stage i (0..kStageCount-1) in kStageNames order.
 std::int64_t stage_ns(const StageDurations& durations, int i);
 
@@ -80,6 +83,9 @@ struct ChainOutput {
   double valid_ratio = 0.0;          ///< Odometry usable-pixel ratio.
   estimator::VelocityEstimate estimate;
   obstacles::ObstacleResult obstacles;
+  /// Obstacle memory outcome: memory.cleared is the pose-jump event, memory.clear_count counts
+  /// them; memory.reason says why it was skipped (disabled, not tracking).
+  obstacle_memory::MemoryUpdate memory;
   modes::ModeOutput mode;  ///< mode.control.setpoint is the attitude-thrust setpoint.
   /// True when the setpoint is the safe hover (level, thrust m g, no yaw rate) because there is
   /// no usable velocity: estimate unavailable, camera timed out or non-finite input.
@@ -120,6 +126,8 @@ class OnboardChain {
   [[nodiscard]] modes::Mode mode() const { return modes_.mode(); }
   [[nodiscard]] const OnboardConfig& config() const { return config_; }
   [[nodiscard]] const estimator::VelocityEstimator& estimator() const { return estimator_; }
+  /// The obstacle memory (telemetry_cloud(), save()); empty when config.memory.enabled is off.
+  [[nodiscard]] const obstacle_memory::ObstacleMemory& memory() const { return memory_; }
 
  private:
   [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
@@ -130,6 +138,7 @@ class OnboardChain {
   const Clock* clock_;
   odometry::DenseOdometry odometry_;
   estimator::VelocityEstimator estimator_;
+  obstacle_memory::ObstacleMemory memory_;
   obstacles::ObstacleField obstacles_;
   modes::ModeController modes_;
   bool have_frame_ = false;
