@@ -210,6 +210,9 @@ MemoryUpdate ObstacleMemory::update(std::int64_t t_ns, const cv::Mat& depth_m,
   const auto cx = static_cast<float>(camera_.cx);
   const auto cy = static_cast<float>(camera_.cy);
   const int stride = config_.pixel_stride;
+  // Neighbouring samples mostly share a voxel: reuse the last slot instead of hashing again.
+  std::uint64_t last_key = kEmptyKey;
+  FrameVoxel* last_voxel = nullptr;
   for (int v = 0; v < camera_.height; v += stride) {
     const auto* row = depth_m.ptr<float>(v);
     const float y_over_z = (static_cast<float>(v) - cy) * inv_fy;
@@ -220,9 +223,12 @@ MemoryUpdate ObstacleMemory::update(std::int64_t t_ns, const cv::Mat& depth_m,
       const Eigen::Vector3f p_W = R_WC * p_C + t_WC;
       std::uint64_t key = 0;
       if (!key_of(p_W, key)) continue;
-      FrameVoxel& voxel = frame_table_[static_cast<std::size_t>(frame_slot(key, true))];
-      voxel.sum_m += p_W;
-      ++voxel.n;
+      if (key != last_key) {
+        last_key = key;
+        last_voxel = &frame_table_[static_cast<std::size_t>(frame_slot(key, true))];
+      }
+      last_voxel->sum_m += p_W;
+      ++last_voxel->n;
     }
   }
 

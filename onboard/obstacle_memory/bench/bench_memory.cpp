@@ -1,0 +1,166 @@
+// hq-bench-memory: per-frame cost and memory use of the obstacle memory over a long simulated
+// flight at 320x240 (the scripted circle of hq-sim in the room world, depth from the simulator's
+// RgbdRenderer), beside PCL's own VoxelGrid + RadiusOutlierRemoval on the same frames (the
+// peer, on every 10th frame). Not run by ctest.
+//   hq-bench-memory [--seconds 600] [--world onboard/sim/worlds/room.yaml] [--config cfg.yaml]
+#include "hq/base/tool_main.hpp"
+#include "hq/config/strict_yaml.hpp"
+#include "hq/estimator/complementary_filter.hpp"
+#include "hq/obstacle_memory/obstacle_memory.hpp"
+#include "hq/sim/scripted_flight.hpp"
+#include "hq/sim/simulator.hpp"
+
+#include <CLI/CLI.hpp>
+#include <pcl/filters/radius_outlier_removal.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+using SteadyClock = std::chrono::steady_clock;
+
+double ms_between(SteadyClock::time_point a, SteadyClock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+long rss_kib() {
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  while (status >> key) {
+    if (key == "VmRSS:") {
+      long kib = 0;
+      status >> kib;
+      return kib;
+    }
+  }
+  return -1;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-bench-memory: obstacle memory cost over a simulated flight"};
+  double seconds = 600.0;
+  std::string world_path = "onboard/sim/worlds/room.yaml";
+  std::string config_path;
+  app.add_option("--seconds", seconds, "simulated flight length (s)")->check(CLI::Range(1.0, 7200.0));
+  app.add_option("--world", world_path, "world file");
+  app.add_option("--config", config_path, "on-board config: its memory section");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  hq::obstacle_memory::MemoryConfig memory_config;
+  if (!config_path.empty()) {
+    hq::config::StrictMap root(hq::config::load_yaml_file(config_path), config_path);
+    hq::config::StrictMap section = root.child("memory");
+    hq::obstacle_memory::read_config(section, memory_config);
+  }
+  const hq::sim::World world = hq::sim::load_world(world_path);
+  const hq::sim::SimConfig sim_config = hq::sim::default_sim_config(320, 240);
+  hq::sim::Simulator sim(sim_config, world);
+  const hq::sim::FlightScript script =
+      hq::sim::script_for_world(world, hq::sim::FlightScript::Kind::kCircle);
+  const Eigen::Isometry3d& T_body_camera = sim_config.camera.T_body_camera;
+  hq::obstacle_memory::ObstacleMemory memory(memory_config, sim_config.camera.pinhole,
+                                             T_body_camera.linear(),
+                                             T_body_camera.translation());
+  const float leaf = static_cast<float>(memory_config.leaf_m);
+
+  const long rss_start_kib = rss_kib();
+  std::vector<double> memory_ms, peer_ms;
+  memory_ms.reserve(static_cast<std::size_t>(seconds * 31.0));
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  pcl::PointCloud<pcl::PointXYZ>::Ptr voxels(new pcl::PointCloud<pcl::PointXYZ>);
+  pcl::PointCloud<pcl::PointXYZ> cleaned;
+  cv::Mat image, depth;
+  int map_size_at_10s = -1;
+  int max_map_size = 0;
+  long clears = 0;
+  const auto end_ns = static_cast<std::int64_t>(seconds * 1e9);
+  for (std::int64_t t_ns = 0; t_ns < end_ns; t_ns += hq::sim::kScriptControlPeriodNs) {
+    sim.set_command(hq::sim::scripted_command(sim, script, 1e-9 * static_cast<double>(t_ns)));
+    sim.step_to(t_ns);
+    if (!sim.camera_due()) continue;
+    sim.render_camera(image, depth);
+    const hq::sim::TruthState& truth = sim.truth();
+    const Eigen::Matrix3d R_HQ =
+        hq::estimator::R_horizontal_body(truth.euler_rad.x(), truth.euler_rad.y());
+    const auto t0 = SteadyClock::now();
+    const hq::obstacle_memory::MemoryUpdate update =
+        memory.update(sim.camera_t_ns(), depth, sim.camera_T_world_camera(), R_HQ, 1.2);
+    const auto t1 = SteadyClock::now();
+    memory_ms.push_back(ms_between(t0, t1));
+    max_map_size = std::max(max_map_size, update.map_size);
+    clears += update.cleared ? 1 : 0;
+    if (map_size_at_10s < 0 && t_ns >= 10'000'000'000) map_size_at_10s = update.map_size;
+
+    if (memory_ms.size() % 10 == 0) {
+      // Peer: the same frame through PCL's filters (cloud building included, as above).
+      const auto p0 = SteadyClock::now();
+      cloud->clear();
+      const hq::geometry::PinholeCamera& K = sim_config.camera.pinhole;
+      const Eigen::Isometry3f T_WC = sim.camera_T_world_camera().cast<float>();
+      for (int v = 0; v < depth.rows; v += memory_config.pixel_stride) {
+        const auto* row = depth.ptr<float>(v);
+        for (int u = 0; u < depth.cols; u += memory_config.pixel_stride) {
+          const float z = row[u];
+          if (!(z >= memory_config.min_range_m && z <= memory_config.max_range_m)) continue;
+          const Eigen::Vector3f p_C(static_cast<float>((u - K.cx) / K.fx) * z,
+                                    static_cast<float>((v - K.cy) / K.fy) * z, z);
+          const Eigen::Vector3f p_W = T_WC * p_C;
+          cloud->push_back(pcl::PointXYZ(p_W.x(), p_W.y(), p_W.z()));
+        }
+      }
+      pcl::VoxelGrid<pcl::PointXYZ> grid;
+      grid.setInputCloud(cloud);
+      grid.setLeafSize(leaf, leaf, leaf);
+      grid.filter(*voxels);
+      pcl::RadiusOutlierRemoval<pcl::PointXYZ> outliers;
+      outliers.setInputCloud(voxels);
+      outliers.setRadiusSearch(1.75 * leaf);
+      outliers.setMinNeighborsInRadius(memory_config.min_neighbors);
+      outliers.filter(cleaned);
+      peer_ms.push_back(ms_between(p0, SteadyClock::now()));
+    }
+  }
+  const long rss_end_kib = rss_kib();
+
+  const double p50 = percentile(memory_ms, 0.5);
+  const double p99 = percentile(memory_ms, 0.99);
+  const double peer_p50 = percentile(peer_ms, 0.5);
+  const double peer_p99 = percentile(peer_ms, 0.99);
+  std::printf("hq-bench-memory: %.0f s simulated flight, %zu frames at 320x240, %s\n", seconds,
+              memory_ms.size(), world_path.c_str());
+  std::printf("%-46s %9s %9s\n", "per frame (ms)", "p50", "p99");
+  std::printf("%-46s %9.3f %9.3f\n", "ObstacleMemory::update (all of it)", p50, p99);
+  std::printf("%-46s %9.3f %9.3f\n", "peer: cloud + pcl::VoxelGrid + RadiusOutlierRem.", peer_p50,
+              peer_p99);
+  std::printf("ratio peer / memory (p50): %.2f; target <= 2 ms/frame: %s\n",
+              p50 > 0.0 ? peer_p50 / p50 : 0.0, p99 <= 2.0 ? "met (p99)" : "NOT met (p99)");
+  std::printf("map points: at 10 s %d, max %d, at end %d (capacity %d); pose-jump clears %ld\n",
+              map_size_at_10s, max_map_size, memory.size(), memory_config.capacity, clears);
+  std::printf("memory: buffers %.2f MiB (fixed); process RSS %ld KiB at start, %ld KiB at end\n",
+              static_cast<double>(memory.memory_bytes()) / (1024.0 * 1024.0), rss_start_kib,
+              rss_end_kib);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) { return hq::run_tool("hq-bench-memory", argc, argv, run); }
