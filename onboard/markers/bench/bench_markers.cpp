@@ -74,6 +74,9 @@ int run(int argc, char** argv) {
   image_only.refine_with_depth = false;
   hq::markers::MarkerDetector detector_image(image_only, camera.pinhole);
   hq::markers::MarkerDetector detector_depth(hq::markers::MarkerDetectorConfig{}, camera.pinhole);
+  hq::markers::MarkerDetectorConfig decimated;
+  decimated.quad_decimate = 2.0;
+  hq::markers::MarkerDetector detector_decimated(decimated, camera.pinhole);
   const cv::Ptr<cv::aruco::Dictionary> dictionary =
       cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
   const cv::Ptr<cv::aruco::DetectorParameters> parameters = cv::aruco::DetectorParameters::create();
@@ -87,6 +90,10 @@ int run(int argc, char** argv) {
   const Stats visp_depth = time_frames(kFrames, [&](int i) {
     detector_depth.detect(grays[i], depths[i]);
     return static_cast<int>(detector_depth.detections().size());
+  });
+  const Stats visp_decimated = time_frames(kFrames, [&](int i) {
+    detector_decimated.detect(grays[i], depths[i]);
+    return static_cast<int>(detector_decimated.detections().size());
   });
   const Stats aruco = time_frames(kFrames, [&](int i) {
     cv::aruco::detectMarkers(grays[i], dictionary, corners, ids, parameters);
@@ -102,6 +109,7 @@ int run(int argc, char** argv) {
   };
   row("hq ViSP AprilTag + pose", visp);
   row("hq ViSP AprilTag + pose + depth", visp_depth);
+  row("hq ... + depth, quad_decimate 2", visp_decimated);
   row("peer: OpenCV aruco 36h11 corners", aruco);
   return 0;
 }
