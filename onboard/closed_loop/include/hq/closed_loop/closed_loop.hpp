@@ -1,0 +1,138 @@
+#pragma once
+/// The closed loop in simulation: the software-in-the-loop Simulator flies the real on-board
+/// chain (OnboardChain: odometry -> estimator -> obstacles -> modes -> PID), commanded by a
+/// scripted operator, all on simulated time (lock-step), so a run is a pure function of
+/// (configs, world, seed, script) whatever the machine's load.
+///
+/// Timing as on the vehicle: IMU samples reach the chain as the simulator produces them; a frame
+/// is processed at its stamp and its setpoint reaches the flight controller a processing delay
+/// later; between frames the chain is ticked at the flight computer's rate (camera timeout).
+/// Camera faults (dropped frames, NaN depth) can be injected on a schedule.
+///
+/// Never linked into flight code: this is the test bench around it.
+
+#include "hq/closed_loop/operator_script.hpp"
+#include "hq/control/vehicle_config.hpp"
+#include "hq/pipeline/onboard_chain.hpp"
+#include "hq/pipeline/stage_timing.hpp"
+#include "hq/sim/simulator.hpp"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hq::closed_loop {
+
+struct CameraFault {
+  enum class Kind { kDrop, kNanDepth };
+  Kind kind = Kind::kDrop;
+  double start_s = 0.0;
+  double duration_s = 0.0;
+};
+
+struct ClosedLoopOptions {
+  /// Frame stamp to setpoint at the flight controller: the chain's median at 640x480 is ~3 ms
+  /// (hq-bench-chain) plus the serial link to the flight controller.
+  double processing_delay_s = 0.010;
+  /// Rate at which the chain is ticked between frames and the operator command refreshed.
+  std::int64_t control_period_ns = 5'000'000;
+  std::vector<CameraFault> faults;
+  /// Optional, not owned: times the chain's stages (wall time; the flight itself stays on
+  /// simulated time). Null: no timing.
+  const pipeline::Clock* clock = nullptr;
+};
+
+/// One row of the flight record, per processed frame and per camera-timeout tick. Velocities in
+/// H (NED, yaw only), yaw rates about NED z.
+struct FlightSample {
+  double t_s = 0.0;
+  bool frame = false;  ///< From a frame (false: a camera-timeout tick).
+  bool airborne = false;
+  bool estimate_ok = false;
+  bool safe_hover = false;
+  bool degraded = false;  ///< The chain says its estimate is degraded or absent.
+  bool collision = false;
+  bool landed = false;  ///< The vehicle's own belief: on the ground, motors idle.
+  modes::Mode mode = modes::Mode::kHover;
+  Eigen::Vector3d v_est_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_true_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_star_des_mps = Eigen::Vector3d::Zero();  ///< The operator's, after ramps.
+  Eigen::Vector3d v_des_mps = Eigen::Vector3d::Zero();       ///< v*_des + v_obs.
+  Eigen::Vector3d v_obs_mps = Eigen::Vector3d::Zero();
+  double yaw_rate_cmd_radps = 0.0;
+  double yaw_rate_gyro_radps = 0.0;  ///< The estimator's low-passed, bias-corrected gyro z.
+  double yaw_rate_true_radps = 0.0;
+  double clearance_m = 0.0;
+  Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();  ///< Truth, world NWU.
+  const char* reason = "";                               ///< Static text when safe_hover.
+};
+
+class ClosedLoop {
+ public:
+  /// @throws hq::InputError if the simulator or the chain reject their configs.
+  ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world,
+             const pipeline::OnboardConfig& onboard, const control::VehicleConfig& vehicle,
+             OperatorPlayer player, ClosedLoopOptions options = {});
+  ~ClosedLoop();
+  ClosedLoop(const ClosedLoop&) = delete;
+  ClosedLoop& operator=(const ClosedLoop&) = delete;
+
+  /// Advances the loop to simulated time t_s (no-op if already there).
+  void run_until(double t_s);
+  /// Runs to the script's end_s.
+  void run() { run_until(player_.script().end_s); }
+
+  [[nodiscard]] const std::vector<FlightSample>& samples() const { return samples_; }
+  /// Smallest clearance (surface to vehicle sphere) seen at any physics tick while airborne.
+  [[nodiscard]] double min_clearance_m() const { return min_clearance_m_; }
+  /// Control ticks with the vehicle sphere inside an obstacle while airborne.
+  [[nodiscard]] int collision_ticks() const { return collision_ticks_; }
+  /// Mode requests the vehicle refused, as "t_s: mode: reason".
+  [[nodiscard]] const std::vector<std::string>& refusals() const { return refusals_; }
+
+  /// Stage durations of every frame after the first (all zero without options.clock).
+  [[nodiscard]] const pipeline::StageTimingLog& timing() const { return timing_; }
+
+  [[nodiscard]] sim::Simulator& simulator() { return *sim_; }
+  [[nodiscard]] pipeline::OnboardChain& chain() { return *chain_; }
+  [[nodiscard]] const OperatorPlayer& player() const { return player_; }
+
+ private:
+  void control_tick(std::int64_t t_ns);
+  void feed_imu_until(std::int64_t t_ns);
+  void process_frame();
+  void record(const pipeline::ChainOutput& out);
+  [[nodiscard]] const CameraFault* active_fault(std::int64_t t_ns) const;
+
+  std::unique_ptr<sim::Simulator> sim_;
+  std::unique_ptr<pipeline::OnboardChain> chain_;
+  OperatorPlayer player_;
+  ClosedLoopOptions options_;
+  std::int64_t t_ns_ = 0;
+  std::int64_t processing_delay_ns_ = 0;
+  bool pending_ = false;
+  std::int64_t pending_apply_ns_ = 0;
+  sim::AttitudeCommand pending_command_;
+  std::vector<sim::ImuSample> imu_;
+  std::size_t imu_count_ = 0;
+  std::size_t imu_next_ = 0;
+  std::vector<modes::Mode> mode_requests_;
+  cv::Mat image_;
+  cv::Mat gray_;
+  cv::Mat depth_m_;
+  std::vector<FlightSample> samples_;
+  pipeline::StageTimingLog timing_;
+  int frames_processed_ = 0;
+  std::vector<std::string> refusals_;
+  double min_clearance_m_ = 1e9;
+  int collision_ticks_ = 0;
+};
+
+/// The camera heading alpha of eq. 9 from R_QC: atan2(r21, r11).
+double camera_heading_rad(const Eigen::Matrix3d& R_body_camera);
+
+}  // namespace hq::closed_loop
