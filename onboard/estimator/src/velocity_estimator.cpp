@@ -2,10 +2,20 @@
 
 #include "hq/config/strict_yaml.hpp"
 
+#include <algorithm>
+
 namespace hq::estimator {
 
 const char* to_string(EstimateStatus status) {
-  return status == EstimateStatus::kOk ? "ok" : "unavailable";
+  switch (status) {
+    case EstimateStatus::kOk:
+      return "ok";
+    case EstimateStatus::kInertial:
+      return "inertial";
+    case EstimateStatus::kUnavailable:
+      break;
+  }
+  return "unavailable";
 }
 
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
@@ -21,6 +31,8 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read_positive("max_frame_gap_s", out.max_frame_gap_s, 10.0);
   section.read_positive("max_imu_age_s", out.max_imu_age_s, 10.0);
   section.read("warmup_s", out.warmup_s, 0.0, 10.0);
+  section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
+  section.read_positive("max_imu_disagreement_mps", out.max_imu_disagreement_mps, 100.0);
   section.finish();
 }
 
@@ -41,6 +53,22 @@ void VelocityEstimator::reset() {
   have_previous_ = false;
   ever_ok_ = false;
   ever_updated_ = false;
+  coast_anchored_ = false;
+}
+
+void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_horizontal_mps) {
+  coast_anchored_ = config_.inertial_coast_s > 0.0;
+  t_coast_anchor_ns_ = t_ns;
+  t_coast_ns_ = attitude_.initialized() ? attitude_.t_ns() : t_ns;
+  coast_v_horizontal_mps_ = v_horizontal_mps;
+}
+
+void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
+  anchor_coast(t_ns, Eigen::Vector3d::Zero());
+}
+
+VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char* reason) {
+  return unavailable(t_ns, reason);
 }
 
 FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
@@ -49,6 +77,16 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
   if (!accepted(status)) return status;
   // omega_hat of Fig. 4: the low-passed gyro, with the complementary filter's bias removed.
   gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
+  if (coast_anchored_ && t_ns > t_coast_ns_) {
+    // H_a = R_HQ Q_f + g e_z (NED): specific force rotated with the filter's roll and pitch.
+    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_),
+                                 config_.complementary.max_dt_s);
+    const Eigen::Vector3d a_H =
+        R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
+        Eigen::Vector3d(0.0, 0.0, kGravityMps2);
+    coast_v_horizontal_mps_ += a_H * dt_s;
+    t_coast_ns_ = t_ns;
+  }
   return status;
 }
 
@@ -62,6 +100,16 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   if (attitude_.initialized()) {
     estimate.roll_rad = attitude_.roll_rad();
     estimate.pitch_rad = attitude_.pitch_rad();
+  }
+  const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  const bool imu_fresh = attitude_.initialized() && gyro_low_pass_.initialized() &&
+                         1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <=
+                             config_.max_imu_age_s;
+  if (coast_anchored_ && imu_fresh && coast_s <= config_.inertial_coast_s &&
+      coast_v_horizontal_mps_.allFinite()) {
+    estimate.status = EstimateStatus::kInertial;
+    estimate.v_horizontal_mps = coast_v_horizontal_mps_;
+    estimate.omega_body_radps = gyro_low_pass_.value();
   }
   return estimate;
 }
@@ -147,6 +195,11 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   // eq. 5: H_v_Q = R_HQ Q_v_Q with R_HQ = Ry(theta) Rx(phi).
   const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_Q;
 
+  const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  if (coast_anchored_ && coast_s <= config_.inertial_coast_s &&
+      (v_H - coast_v_horizontal_mps_).norm() > config_.max_imu_disagreement_mps) {
+    return unavailable(t_ns, "odometry velocity disagrees with the IMU");
+  }
   estimate.status = EstimateStatus::kOk;
   estimate.reason = "";
   estimate.v_body_mps = v_Q;
@@ -157,6 +210,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.unavailable_for_s = 0.0;
   ever_ok_ = true;
   t_last_ok_ns_ = t_ns;
+  anchor_coast(t_ns, v_H);
   return estimate;
 }
 

@@ -28,17 +28,28 @@ struct VelocityEstimatorConfig {
   double warmup_s = 0.2;           ///< After a (re)seed the 1€ speed starts at 0 and eq. 2
                                    ///< reads low (0.05 of 0.3 m/s on the first frame); no
                                    ///< estimate until the filter has run this long.
+  /// Without usable odometry, H_v_Q is propagated from the last good value (or from rest on the
+  /// ground) with the accelerometer for at most this long; an MPU-class bias of 0.05 m/s^2
+  /// grows to 0.1 m/s in 2 s. 0 disables the coast.
+  double inertial_coast_s = 2.0;
+  /// An odometry velocity further than this from the IMU-propagated one is rejected (a wrong
+  /// match near the sensor's range limits, not a manoeuvre: 1 m/s of disagreement takes 0.5 s
+  /// at the tilt limit to build up from IMU error alone).
+  double max_imu_disagreement_mps = 1.0;
 };
 
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
-/// max_imu_age_s, warmup_s}.
+/// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
-enum class EstimateStatus { kOk, kUnavailable };
+/// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, H_v_Q propagated on the IMU from
+/// the last good value for at most inertial_coast_s (degraded but flyable). kUnavailable:
+/// neither; the velocities are zero and not to be used.
+enum class EstimateStatus { kOk, kInertial, kUnavailable };
 
-/// One velocity estimate. When status is kUnavailable the velocities are zero and not to be
-/// used; reason says why and unavailable_for_s for how long.
+/// One velocity estimate. Unless ok(), reason says why odometry is not used and
+/// unavailable_for_s for how long.
 struct VelocityEstimate {
   std::int64_t t_ns = 0;
   EstimateStatus status = EstimateStatus::kUnavailable;
@@ -53,6 +64,8 @@ struct VelocityEstimate {
   double unavailable_for_s = 0.0;  ///< Time since the last kOk estimate (0 when kOk).
 
   [[nodiscard]] bool ok() const { return status == EstimateStatus::kOk; }
+  /// ok() or a bounded inertial coast: good enough to close the velocity loop on.
+  [[nodiscard]] bool usable() const { return status != EstimateStatus::kUnavailable; }
 };
 
 class VelocityEstimator {
@@ -70,11 +83,22 @@ class VelocityEstimator {
   /// give kUnavailable with a reason; never a made-up number.
   VelocityEstimate update(std::int64_t t_ns, const odometry::OdometryResult& odometry);
 
+  /// The vehicle is known to be at rest (landed, motors idle): re-anchors the inertial coast at
+  /// zero velocity (a zero-velocity update), so a take-off can climb on the IMU until the floor
+  /// comes into the depth camera's range.
+  void hold_at_rest(std::int64_t t_ns);
+  /// The estimate between frames (camera silent): the inertial coast while it lasts, else
+  /// unavailable with `reason`.
+  VelocityEstimate between_frames(std::int64_t t_ns, const char* reason);
+
   [[nodiscard]] const ComplementaryFilter& attitude() const { return attitude_; }
   void reset();
 
  private:
+  /// No odometry velocity this frame: the inertial coast if it is still within its horizon,
+  /// else kUnavailable; `reason` says why odometry was not used.
   VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
+  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_horizontal_mps);
   /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
   void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_C0_Ck);
 
@@ -93,6 +117,10 @@ class VelocityEstimator {
   bool ever_updated_ = false;
   std::int64_t t_last_ok_ns_ = 0;
   std::int64_t t_first_update_ns_ = 0;
+  bool coast_anchored_ = false;
+  std::int64_t t_coast_anchor_ns_ = 0;
+  std::int64_t t_coast_ns_ = 0;  ///< Stamp of the last IMU sample integrated.
+  Eigen::Vector3d coast_v_horizontal_mps_ = Eigen::Vector3d::Zero();
 };
 
 const char* to_string(EstimateStatus status);
