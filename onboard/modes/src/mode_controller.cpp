@@ -7,6 +7,10 @@
 
 namespace hq::modes {
 
+namespace {
+constexpr double kTouchdownThrustRatio = 0.9;
+}
+
 const char* to_string(Mode mode) {
   switch (mode) {
     case Mode::kTeleop:
@@ -28,13 +32,19 @@ void read_config(config::StrictMap& section, ModesConfig& out) {
   section.read_positive("land_speed_mps", out.land_speed_mps, 2.0);
   section.read_positive("max_switch_accel_mps2", out.max_switch_accel_mps2, 100.0);
   section.read_positive("max_switch_yaw_accel_radps2", out.max_switch_yaw_accel_radps2, 100.0);
+  section.read("start_landed", out.start_landed);
+  section.read_positive("takeoff_climb_mps", out.takeoff_climb_mps, 5.0);
+  section.read_positive("touchdown_speed_mps", out.touchdown_speed_mps, 1.0);
+  section.read_positive("touchdown_s", out.touchdown_s, 10.0);
+  section.read("blind_descent_thrust_ratio", out.blind_descent_thrust_ratio, 0.5, 1.0);
+  section.read_positive("blind_descent_s", out.blind_descent_s, 30.0);
   section.finish();
 }
 
 ModeController::ModeController(const ModesConfig& config,
                                const control::VelocityControllerConfig& control,
                                const control::VehicleConfig& vehicle)
-    : config_(config), controller_(control, vehicle) {}
+    : config_(config), controller_(control, vehicle), landed_(config.start_landed) {}
 
 bool ModeController::register_provider(Mode mode, VelocityProvider* provider) {
   if (mode == Mode::kMarker) {
@@ -130,6 +140,25 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
     v_star_mps_ = v_target;
     yaw_rate_radps_ = yaw_target;
   }
+  if (landed_) {
+    // On the ground only a climb request starts the motors; until then the PID is held reset
+    // so no integral winds up against the floor.
+    if (v_target.z() < -config_.takeoff_climb_mps) {
+      landed_ = false;
+      ramping_ = true;
+      touchdown_timer_s_ = 0.0;
+      blind_descent_timer_s_ = 0.0;
+      controller_.reset();
+    } else {
+      v_star_mps_.setZero();
+      yaw_rate_radps_ = 0.0;
+      ramping_ = false;
+      controller_.reset();
+      out.landed = true;
+      out.control.setpoint = control::AttitudeSetpoint{};
+      return out;
+    }
+  }
   out.ramping = ramping_;
   out.v_star_des_horizontal_mps = v_star_mps_;
   out.yaw_rate_des_radps = yaw_rate_radps_;
@@ -139,7 +168,35 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   out.v_des_horizontal_mps = v_star_mps_ + v_obs;
   out.control =
       controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_horizontal_mps);
+  if (mode_ == Mode::kLand) land_step(dt_s, v_est_horizontal_mps, out);
   return out;
+}
+
+void ModeController::land_step(double dt_s, const Eigen::Vector3d& v_est_horizontal_mps,
+                               ModeOutput& out) {
+  if (!v_est_horizontal_mps.allFinite()) {
+    // No velocity to close the loop on: sink level at a fixed fraction of hover thrust; the
+    // floor ends it.
+    out.blind_descent = true;
+    out.control.setpoint = controller_.hover_setpoint();
+    out.control.setpoint.thrust_n *= config_.blind_descent_thrust_ratio;
+    blind_descent_timer_s_ += dt_s;
+    if (blind_descent_timer_s_ >= config_.blind_descent_s) landed_ = true;
+  } else {
+    blind_descent_timer_s_ = 0.0;
+    // Held by the floor: not sinking although the PID, its integral winding against the floor,
+    // asks for well under hover thrust (a hover in mid-air keeps it near m g).
+    const bool held_by_floor =
+        v_est_horizontal_mps.z() < config_.touchdown_speed_mps &&
+        out.control.setpoint.thrust_n < kTouchdownThrustRatio * controller_.hover_setpoint().thrust_n;
+    touchdown_timer_s_ = held_by_floor ? touchdown_timer_s_ + dt_s : 0.0;
+    if (touchdown_timer_s_ >= config_.touchdown_s) landed_ = true;
+  }
+  if (landed_) {
+    controller_.reset();
+    out.landed = true;
+    out.control.setpoint = control::AttitudeSetpoint{};
+  }
 }
 
 }  // namespace hq::modes

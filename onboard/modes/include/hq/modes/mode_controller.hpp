@@ -26,6 +26,18 @@ struct ModesConfig {
   double land_speed_mps = 0.3;               ///< Descent speed in land (NED: +z).
   double max_switch_accel_mps2 = 1.0;        ///< Ramp rate of v*_des after a switch.
   double max_switch_yaw_accel_radps2 = 2.0;  ///< Ramp rate of the yaw rate after a switch.
+  /// The vehicle starts on the ground, motors idle; it takes off when its mode asks to climb
+  /// faster than this (NED: v*_des z < -takeoff_climb_mps), e.g. the operator pulling up.
+  bool start_landed = true;
+  double takeoff_climb_mps = 0.1;
+  /// In land: sinking slower than touchdown_speed_mps for touchdown_s means the floor holds the
+  /// vehicle: motors go idle (landed).
+  double touchdown_speed_mps = 0.08;
+  double touchdown_s = 1.0;
+  /// In land without a usable estimate: level, thrust this fraction of m g (sinks gently), and
+  /// landed after blind_descent_s.
+  double blind_descent_thrust_ratio = 0.9;
+  double blind_descent_s = 3.0;
 };
 
 /// Reads the `modes:` section strictly.
@@ -67,6 +79,8 @@ struct ModeOutput {
   bool teleop_timed_out = false;   ///< In teleop, the command was stale: hovering.
   bool provider_failed = false;    ///< Marker/explore provider gave no command: hovering.
   bool ramping = false;            ///< A switch ramp is in progress.
+  bool landed = false;             ///< On the ground, motors idle (setpoint thrust 0).
+  bool blind_descent = false;      ///< Landing without a velocity estimate.
   control::ControlOutput control;  ///< The attitude-thrust setpoint and its flags.
 };
 
@@ -90,9 +104,13 @@ class ModeController {
                   const Eigen::Vector3d& v_obs_horizontal_mps);
 
   [[nodiscard]] Mode mode() const { return mode_; }
+  /// On the ground with motors idle (before take-off and after touchdown).
+  [[nodiscard]] bool landed() const { return landed_; }
 
  private:
   enum class Source { kOperator, kHover, kLand, kProvider };
+  /// Touchdown detection and the blind descent of Mode::kLand.
+  void land_step(double dt_s, const Eigen::Vector3d& v_est_horizontal_mps, ModeOutput& out);
 
   ModesConfig config_;
   control::VelocityController controller_;
@@ -107,6 +125,9 @@ class ModeController {
   double yaw_rate_radps_ = 0.0;
   bool have_previous_ = false;
   std::int64_t t_prev_ns_ = 0;
+  bool landed_ = true;
+  double touchdown_timer_s_ = 0.0;
+  double blind_descent_timer_s_ = 0.0;
 };
 
 }  // namespace hq::modes
