@@ -3,8 +3,11 @@
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <limits>
 #include <string>
 
@@ -23,9 +26,12 @@ void read_config(config::StrictMap& section, ObstacleConfig& out) {
   section.read("cell_px", out.cell_px, 1, 256);
   section.read("speckle_rank", out.speckle_rank, 1, kMaxSpeckleRank);
   section.read_positive("suppression_radius_px", out.suppression_radius_px, 10000.0);
+  section.read("vehicle_radius_m", out.vehicle_radius_m, 0.0, 5.0);
   section.read_positive("influence_distance_m", out.influence_distance_m, 100.0);
   section.read_positive("max_repulsive_speed_mps", out.max_repulsive_speed_mps, 20.0);
   section.read("gain", out.gain, 0.0, 100.0);
+  section.read("support_normal_max_deg", out.support_normal_max_deg, 0.0, 90.0);
+  section.read("support_influence_m", out.support_influence_m, 0.0, 10.0);
   section.read("min_range_m", out.min_range_m, 0.0, 10.0);
   section.read_positive("max_range_m", out.max_range_m, 100.0);
   section.read("near_invalid_fraction", out.near_invalid_fraction, 0.0, 1.0);
@@ -77,12 +83,13 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
 
 void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard,
                               bool remembered) const {
-  const double d = std::max(p_H.norm(), kMinDistanceM);
+  const double range = p_H.norm();
+  const double d = std::max(range - config_.vehicle_radius_m, kMinDistanceM);
   const double d0 = config_.influence_distance_m;
-  if (d >= d0) return;
-  // Khatib 1986: U = eta/2 (1/d - 1/d0)^2, v = -grad U = eta (1/d - 1/d0) / d^2 * (-p / d).
+  if (d >= d0 || !(range > 0.0)) return;
+  // Khatib 1986 on the clearance d: U = eta/2 (1/d - 1/d0)^2, v = -grad U, along -p/|p|.
   const double speed = config_.gain * (1.0 / d - 1.0 / d0) / (d * d);
-  result.v_obs_horizontal_mps -= speed * p_H / d;
+  result.v_obs_horizontal_mps -= speed * p_H / range;
   if (result.count < config_.max_points) {
     ObstaclePoint& point = result.points[static_cast<std::size_t>(result.count++)];
     point.p_horizontal_m = p_H;
@@ -90,6 +97,43 @@ void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H
     point.near_hazard = hazard;
     point.remembered = remembered;
   }
+}
+
+void ObstacleField::add_support_push(ObstacleResult& result, double height_m) const {
+  const double height = std::max(height_m, kMinDistanceM);
+  if (ground_phase_ || height >= config_.support_influence_m) return;
+  // Upwards only, on the height above the surface.
+  result.v_obs_horizontal_mps.z() -=
+      config_.gain * (1.0 / height - 1.0 / config_.support_influence_m) / (height * height);
+}
+
+bool ObstacleField::on_support_surface(const cv::Mat& depth_m, int u, int v,
+                                      const Eigen::Matrix3d& R_HC,
+                                      const Eigen::Vector3d& p_H) const {
+  if (!(p_H.z() > 0.0)) return false;
+  // Surface normal from four neighbours half a cell away (central differences).
+  const int step = std::max(1, config_.cell_px / 2);
+  const int u0 = std::max(0, u - step);
+  const int u1 = std::min(camera_.width - 1, u + step);
+  const int v0 = std::max(0, v - step);
+  const int v1 = std::min(camera_.height - 1, v + step);
+  if (u1 == u0 || v1 == v0) return false;
+  const auto point = [&](int pu, int pv, Eigen::Vector3d& p) {
+    const float z = depth_m.at<float>(pv, pu);
+    if (!is_valid_depth(z)) return false;
+    p = Eigen::Vector3d((pu - camera_.cx) / camera_.fx * z, (pv - camera_.cy) / camera_.fy * z, z);
+    return true;
+  };
+  Eigen::Vector3d left, right, top, bottom;
+  if (!point(u0, v, left) || !point(u1, v, right) || !point(u, v0, top) ||
+      !point(u, v1, bottom)) {
+    return false;
+  }
+  const Eigen::Vector3d normal_C = (right - left).cross(bottom - top);
+  const double norm = normal_C.norm();
+  if (!(norm > 0.0)) return false;
+  const double vertical = std::abs((R_HC * normal_C).z()) / norm;
+  return vertical > std::cos(config_.support_normal_max_deg * std::numbers::pi / 180.0);
 }
 
 ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
@@ -157,20 +201,30 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
   const int u0 = (camera_.width - window_w) / 2;
   const int v0 = (camera_.height - window_h) / 2;
   int invalid = 0;
+  int nan = 0;
   for (int v = v0; v < v0 + window_h; ++v) {
     const auto* row = depth_m.ptr<float>(v);
-    for (int u = u0; u < u0 + window_w; ++u) invalid += is_valid_depth(row[u]) ? 0 : 1;
+    for (int u = u0; u < u0 + window_w; ++u) {
+      invalid += is_valid_depth(row[u]) ? 0 : 1;
+      nan += std::isnan(row[u]) ? 1 : 0;
+    }
+  }
+  result.nan_fraction = static_cast<double>(nan) / (window_w * window_h);
+  if (result.nan_fraction > 0.5) {
+    result.reason = "depth frame corrupt: mostly NaN";
+    return result;
   }
   result.central_invalid_fraction = static_cast<double>(invalid) / (window_w * window_h);
   result.near_hazard = result.central_invalid_fraction > config_.near_invalid_fraction;
-  if (result.near_hazard) {
+  if (result.near_hazard && !ground_phase_) {
     add_point(result, R_HC * Eigen::Vector3d(0.0, 0.0, config_.min_range_m) + p_HC, true);
   }
 
   // Local minima within the suppression radius; ties go to the lower index so that a plateau
   // yields one point. Only cells that can be within d0 of the body are candidates.
   minima_.clear();
-  const double candidate_range_m = config_.influence_distance_m + p_QC_.norm();
+  const double candidate_range_m =
+      config_.influence_distance_m + config_.vehicle_radius_m + p_QC_.norm();
   const int r2 = radius_cells_ * radius_cells_;
   for (int cy = 0; cy < cells_y_; ++cy) {
     for (int cx = 0; cx < cells_x_; ++cx) {
@@ -206,12 +260,27 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
         cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
     const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
                               (cell.v - camera_.cy) / camera_.fy * z, z);
-    add_point(result, R_HC * p_C + p_HC, false);
+    const Eigen::Vector3d p_H = R_HC * p_C + p_HC;
+    // Taking off or landing, whatever is below the vehicle is the floor it leaves or seeks.
+    if (ground_phase_ && p_H.z() > 0.0) continue;
+    if (on_support_surface(depth_m, cell.u, cell.v, R_HC, p_H)) {
+      // Upwards only, on the height above the surface.
+      add_support_push(result, p_H.z());
+      continue;
+    }
+    add_point(result, p_H, false);
   }
   // Remembered obstacles outside the view: the same Khatib term per point, after the view's
   // minima so that the listed points stay nearest-first within the view.
   for (const Eigen::Vector3d& p_H : remembered_p_horizontal_m) {
-    if (p_H.allFinite()) add_point(result, p_H, false, true);
+    if (!p_H.allFinite() || (ground_phase_ && p_H.z() > 0.0)) continue;
+    // Below the vehicle's sphere a remembered point can only be reached by descending: treat it
+    // as a support surface (no normal is kept to tell a floor from a ledge).
+    if (p_H.z() > config_.vehicle_radius_m) {
+      add_support_push(result, p_H.z());
+      continue;
+    }
+    add_point(result, p_H, false, true);
   }
 
   const double speed = result.v_obs_horizontal_mps.norm();

@@ -29,9 +29,21 @@ struct ObstacleConfig {
   int cell_px = 16;                      ///< Side of the min-pool cells (pixels).
   int speckle_rank = 3;                  ///< A cell's value is its k-th smallest valid range.
   double suppression_radius_px = 48.0;   ///< Non-minimum suppression radius on the cell grid.
-  double influence_distance_m = 1.2;     ///< d0: points farther away exert nothing.
-  double max_repulsive_speed_mps = 0.8;  ///< |v_obs| saturates here.
+  /// The potential acts on the clearance d = |p| - vehicle_radius_m (surface to the vehicle's
+  /// bounding sphere, propellers included), so the push grows without bound as the propellers,
+  /// not the body centre, reach the surface.
+  double vehicle_radius_m = 0.35;
+  double influence_distance_m = 1.0;     ///< d0 (clearance): farther points exert nothing.
+  /// |v_obs| saturates here; above the operator's speed envelope so that no command can push
+  /// the vehicle through an obstacle it sees.
+  double max_repulsive_speed_mps = 1.5;
   double gain = 0.05;        ///< eta of the potential (m^3/s): v = eta (1/d - 1/d0) / d^2.
+  /// A minimum on a surface whose normal is within this angle of vertical, below the vehicle,
+  /// is a support surface (the floor, a table top): it pushes only upwards, on the height
+  /// above it, and only within support_influence_m, so the floor a down-looking camera always
+  /// sees does not shove the vehicle sideways.
+  double support_normal_max_deg = 25.0;
+  double support_influence_m = 0.3;
   double min_range_m = 0.4;  ///< Sensor minimum range: nearer surfaces read invalid.
   double max_range_m = 8.0;  ///< Depth beyond this is ignored.
   double near_invalid_fraction = 0.6;    ///< Invalid fraction of the central window = hazard.
@@ -58,6 +70,9 @@ struct ObstacleResult {
   int count = 0;                                                   ///< Valid entries in points.
   bool near_hazard = false;  ///< Central window too invalid: something is too close.
   double central_invalid_fraction = 0.0;
+  /// Fraction of NaN pixels: a sensor returns 0 where it sees nothing; NaN is a corrupt frame,
+  /// not evidence of a near surface.
+  double nan_fraction = 0.0;
 };
 
 class ObstacleField {
@@ -78,6 +93,11 @@ class ObstacleField {
 
   [[nodiscard]] const ObstacleConfig& config() const { return config_; }
 
+  /// Take-off and landing: the floor is nearer than the sensor's minimum range and is meant to
+  /// be touched, so the near-range hazard and support-surface pushes are suppressed.
+  void set_ground_phase(bool ground_phase) { ground_phase_ = ground_phase; }
+  [[nodiscard]] bool ground_phase() const { return ground_phase_; }
+
  private:
   struct Cell {
     float range_m;  // speckle_rank-th smallest valid range, or +inf
@@ -89,7 +109,16 @@ class ObstacleField {
   void add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard,
                  bool remembered = false) const;
 
+  /// The support-surface term: upwards, Khatib on the height above it within
+  /// support_influence_m; nothing in the ground phase.
+  void add_support_push(ObstacleResult& result, double height_m) const;
+  /// True when the minimum at pixel (u, v) lies on a near-horizontal surface below the vehicle.
+  [[nodiscard]] bool on_support_surface(const cv::Mat& depth_m, int u, int v,
+                                        const Eigen::Matrix3d& R_HC,
+                                        const Eigen::Vector3d& p_H) const;
+
   ObstacleConfig config_;
+  bool ground_phase_ = false;
   geometry::PinholeCamera camera_;
   Eigen::Matrix3d R_QC_;
   Eigen::Vector3d p_QC_;
