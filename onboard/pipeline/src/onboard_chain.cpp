@@ -3,12 +3,14 @@
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/complementary_filter.hpp"
 
+#include <algorithm>
 #include <limits>
 
 namespace hq::pipeline {
 
 void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read_positive("camera_timeout_s", out.camera_timeout_s, 10.0);
+  section.read("takeoff_height_m", out.takeoff_height_m, 0.0, 10.0);
   section.finish();
 }
 
@@ -85,6 +87,9 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   const std::int64_t t_odometry_ns = now_ns();
 
   // Fig. 4: odometry poses and IMU into H_v_Q (eqs. 1-5).
+  // Landed with motors idle the vehicle is at rest: a zero-velocity update, so that the take-off
+  // can climb on the IMU until the floor is far enough for the depth camera.
+  if (modes_.landed()) estimator_.hold_at_rest(t_ns);
   out.estimate = estimator_.update(t_ns, odometry);
   const std::int64_t t_estimator_ns = now_ns();
 
@@ -105,6 +110,14 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
 
   // §3.1: depth minima into the repulsive v_obs in H, with the attitude the estimator holds,
   // plus the remembered points outside the view under the same law.
+  if (modes_.landed()) {
+    climb_since_takeoff_m_ = 0.0;
+  } else if (out.estimate.usable() && have_frame_) {
+    climb_since_takeoff_m_ -=
+        out.estimate.v_horizontal_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
+  }
+  obstacles_.set_ground_phase(modes_.landed() || modes_.mode() == modes::Mode::kLand ||
+                              climb_since_takeoff_m_ < config_.chain.takeoff_height_m);
   out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
   const std::int64_t t_obstacles_ns = now_ns();
 
@@ -112,14 +125,15 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   // controller's safe-hover path then commands a level hover (m g) and freezes its integral,
   // which is what the vehicle can do on IMU attitude alone.
   const Eigen::Vector3d v_est_mps =
-      out.estimate.ok() ? out.estimate.v_horizontal_mps
+      out.estimate.usable() ? out.estimate.v_horizontal_mps
                         : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   out.mode = modes_.step(t_ns, v_est_mps, out.obstacles.v_obs_horizontal_mps);
   const std::int64_t t_control_ns = now_ns();
 
-  out.safe_hover = out.mode.control.safe_hover;
+  out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
+  out.degraded = !out.estimate.ok();
   if (out.safe_hover) {
-    out.safe_hover_reason = out.estimate.ok() ? out.mode.control.reason : out.estimate.reason;
+    out.safe_hover_reason = out.estimate.usable() ? out.mode.control.reason : out.estimate.reason;
   }
   have_frame_ = true;
   t_last_frame_ns_ = t_ns;
@@ -147,21 +161,20 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.frame = false;
   out.tracking_reason = "no frame";
   out.camera_timed_out = true;
-  out.estimate.t_ns = t_ns;
-  out.estimate.reason = "camera timed out";
-  out.estimate.unavailable_for_s = silence_s;
-  const estimator::ComplementaryFilter& attitude = estimator_.attitude();
-  if (attitude.initialized()) {
-    out.estimate.roll_rad = attitude.roll_rad();
-    out.estimate.pitch_rad = attitude.pitch_rad();
-  }
+  if (modes_.landed()) estimator_.hold_at_rest(t_ns);
+  // The inertial coast keeps the velocity loop closed for a bounded time; after it, the safe
+  // hover (level, m g) is all the IMU can hold.
+  out.estimate = estimator_.between_frames(t_ns, "camera timed out");
+  out.estimate.unavailable_for_s = std::max(out.estimate.unavailable_for_s, silence_s);
   out.obstacles.reason = "no frame";
-  const Eigen::Vector3d v_none_mps =
-      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  // No depth means no v_obs either: zero, and the same safe-hover path as on_frame().
-  out.mode = modes_.step(t_ns, v_none_mps, Eigen::Vector3d::Zero());
-  out.safe_hover = true;
-  out.safe_hover_reason = "camera timed out: hover on IMU attitude only";
+  const Eigen::Vector3d v_est_mps =
+      out.estimate.usable() ? out.estimate.v_horizontal_mps
+                            : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  // No depth means no v_obs either: zero.
+  out.mode = modes_.step(t_ns, v_est_mps, Eigen::Vector3d::Zero());
+  out.degraded = true;
+  out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
+  if (out.safe_hover) out.safe_hover_reason = "camera timed out: hover on IMU attitude only";
   return out;
 }
 

@@ -28,9 +28,12 @@ namespace hq::pipeline {
 /// The chain's own settings (section `chain:`).
 struct ChainConfig {
   double camera_timeout_s = 0.3;  ///< No frame for longer than this: safe hover on IMU only.
+  /// Below this climb since take-off (and in land) the floor is expected in view and within the
+  /// sensor's minimum range: the obstacle field's near-range hazard and floor push are off.
+  double takeoff_height_m = 0.5;
 };
 
-/// Reads the `chain:` section {camera_timeout_s} strictly.
+/// Reads the `chain:` section {camera_timeout_s, takeoff_height_m} strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -90,6 +93,9 @@ struct ChainOutput {
   /// True when the setpoint is the safe hover (level, thrust m g, no yaw rate) because there is
   /// no usable velocity: estimate unavailable, camera timed out or non-finite input.
   bool safe_hover = false;
+  /// The velocity is not from odometry this step: an inertial coast (estimate.status kInertial),
+  /// or none at all (safe hover). The estimator says so; the ground shows it.
+  bool degraded = false;
   const char* safe_hover_reason = "";  ///< Static text when safe_hover.
   bool camera_timed_out = false;
   StageDurations durations;
@@ -114,8 +120,9 @@ class OnboardChain {
   ChainOutput on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m);
 
   /// Between frames (e.g. from the IMU loop): once no frame has arrived for longer than
-  /// chain.camera_timeout_s (or none ever did), steps the mode controller on IMU only and
-  /// returns the safe-hover output; otherwise nullopt (the last frame's setpoint stands).
+  /// chain.camera_timeout_s (or none ever did), steps the mode controller on the inertial coast
+  /// while it lasts, then on the safe hover; otherwise nullopt (the last frame's setpoint
+  /// stands).
   std::optional<ChainOutput> on_tick(std::int64_t t_ns);
 
   /// The operator's latest command (used in teleop mode).
@@ -143,6 +150,7 @@ class OnboardChain {
   modes::ModeController modes_;
   bool have_frame_ = false;
   std::int64_t t_last_frame_ns_ = 0;
+  double climb_since_takeoff_m_ = 0.0;  ///< Integrated -v_z of usable estimates since take-off.
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
 };
