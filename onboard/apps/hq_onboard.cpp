@@ -3,6 +3,15 @@
 //   hq-onboard --source replay <sequence-dir> --camera calib/tum_fr1.yaml
 //              [--config config/onboard.yaml] [--vehicle calib/vehicle_core_paper.yaml]
 //              [--csv out.csv]
+//   hq-onboard --source sim --world onboard/sim/worlds/arena.yaml
+//              --script onboard/closed_loop/flights/core_paper_box.yaml
+//              [--sim-config onboard/sim/config/sim.yaml] [--resolution 320x240] [--seed N]
+//              [--csv fig6-8.csv]
+//
+// Sim: the simulator flies the chain in closed loop on simulated time, commanded by the
+// scripted operator; the run ends with the flight summary (estimate and tracking RMSE per axis
+// of H, closest distance, collisions) and the CSV holds the signals of the core paper's
+// Fig. 6-8.
 //
 // Replay IMU: a sequence with accelerometer.txt and gyro.txt (the simulator writes both, body
 // NED frame) is replayed as recorded, with --vehicle's extrinsics. TUM RGB-D has no gyro and the
@@ -13,19 +22,25 @@
 // z, Q y = optical x, Q z = optical y; Q_p_C = 0) and --vehicle contributes only mass and limits.
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
+#include "hq/closed_loop/closed_loop.hpp"
+#include "hq/closed_loop/flight_summary.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/replay_imu.hpp"
 #include "hq/pipeline/stage_timing.hpp"
+#include "hq/sim/simulator.hpp"
+#include "hq/sim/world.hpp"
 #include "hq/sources/tum_frame_source.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <unistd.h>
 
 namespace {
@@ -93,28 +108,70 @@ void print_status(const hq::pipeline::ChainOutput& out, int frames) {
   std::fflush(stderr);
 }
 
-int run(int argc, char** argv) {
-  CLI::App app{"hq-onboard: the on-board velocity chain of the core paper on a frame source"};
+struct Options {
   std::string source_kind;
   std::string sequence_dir;
   std::string camera_path;
   std::string config_path = "config/onboard.yaml";
   std::string vehicle_path = "calib/vehicle_core_paper.yaml";
   std::string csv_path;
-  app.add_option("--source", source_kind, "frame source: replay (a TUM-layout sequence)")
-      ->required()
-      ->check(CLI::IsMember({"replay"}));
-  app.add_option("sequence-dir", sequence_dir, "sequence folder for --source replay")->required();
-  app.add_option("--camera", camera_path, "camera file, e.g. calib/tum_fr1.yaml")->required();
-  app.add_option("--config", config_path, "on-board config");
-  app.add_option("--vehicle", vehicle_path, "vehicle file (mass, limits, T_body_camera)");
-  app.add_option("--csv", csv_path, "per-frame estimates and setpoints");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  std::string world_path;
+  std::string script_path;
+  std::string sim_config_path = "onboard/sim/config/sim.yaml";
+  std::string resolution = "320x240";
+  long long seed = -1;
+};
 
+int run_sim(const Options& o) {
+  if (o.world_path.empty() || o.script_path.empty()) {
+    throw hq::InputError("--source sim needs --world <world.yaml> and --script <timeline.yaml>");
+  }
+  const hq::sim::World world = hq::sim::load_world(o.world_path);
+  hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
+  hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
+  sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
+  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(o.script_path),
+                                         hq::closed_loop::camera_heading_rad(vehicle.R_body_camera));
+  const SteadyClock clock;
+  hq::closed_loop::ClosedLoopOptions options;
+  options.clock = &clock;
+  hq::closed_loop::ClosedLoop loop(sim_config, world, config, vehicle, std::move(player), options);
+  std::fprintf(stderr, "hq-onboard: simulated %s, %dx%d, seed %llu, script %s (%.1f s)\n",
+               world.name.c_str(), sim_config.camera.pinhole.width,
+               sim_config.camera.pinhole.height, static_cast<unsigned long long>(sim_config.seed),
+               o.script_path.c_str(), loop.player().script().end_s);
+  const auto wall_start = std::chrono::steady_clock::now();
+  loop.run();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
+  hq::closed_loop::print_summary(stdout, "flight summary (" + world.name + ")", summary);
+  std::printf("  %-40s %.1fx real time (%.1f s wall)\n", "simulation speed",
+              summary.duration_s / std::max(wall_s, 1e-9), wall_s);
+  for (const std::string& refusal : loop.refusals()) {
+    std::printf("  mode request refused at %s\n", refusal.c_str());
+  }
+  std::printf("per-stage time from frame arrival to setpoint:\n");
+  loop.timing().print(stdout);
+  if (!o.csv_path.empty()) {
+    hq::closed_loop::write_figure_csv(o.csv_path, loop.samples());
+    std::printf("Fig. 6-8 signals written to %s\n", o.csv_path.c_str());
+  }
+  return summary.collision_ticks == 0 ? 0 : 3;
+}
+
+int run_replay(const Options& o) {
+  if (o.sequence_dir.empty() || o.camera_path.empty()) {
+    throw hq::InputError("--source replay needs <sequence-dir> and --camera <camera.yaml>");
+  }
+  const std::string& config_path = o.config_path;
+  const std::string& vehicle_path = o.vehicle_path;
+  const std::string& csv_path = o.csv_path;
+  const std::string& sequence_dir = o.sequence_dir;
+  const std::string& camera_path = o.camera_path;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(config_path);
   hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(vehicle_path);
   hq::sources::TumFrameSource source(sequence_dir, hq::config::load_camera_info(camera_path));
@@ -176,6 +233,34 @@ int run(int argc, char** argv) {
   std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
   timing.print(stdout);
   return 0;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-onboard: the on-board velocity chain of the core paper on a frame source"};
+  Options o;
+  app.add_option("--source", o.source_kind,
+                 "frame source: replay (a TUM-layout sequence) | sim (closed loop in simulation)")
+      ->required()
+      ->check(CLI::IsMember({"replay", "sim"}));
+  app.add_option("sequence-dir", o.sequence_dir, "sequence folder for --source replay");
+  app.add_option("--camera", o.camera_path, "replay: camera file, e.g. calib/tum_fr1.yaml");
+  app.add_option("--config", o.config_path, "on-board config");
+  app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_body_camera)");
+  app.add_option("--csv", o.csv_path,
+                 "replay: per-frame estimates and setpoints; sim: the Fig. 6-8 signals");
+  app.add_option("--world", o.world_path, "sim: world file (onboard/sim/worlds/*.yaml)");
+  app.add_option("--script", o.script_path,
+                 "sim: operator timeline (onboard/closed_loop/flights/*.yaml)");
+  app.add_option("--sim-config", o.sim_config_path, "sim: simulator config");
+  app.add_option("--resolution", o.resolution, "sim: camera WIDTHxHEIGHT (320x240, 640x480)");
+  app.add_option("--seed", o.seed, "sim: noise and gust seed (default: the world's)")
+      ->check(CLI::Range(0LL, 2147483647LL));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  return o.source_kind == "sim" ? run_sim(o) : run_replay(o);
 }
 
 }  // namespace

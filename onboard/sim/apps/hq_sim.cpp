@@ -48,17 +48,7 @@ int run(int argc, char** argv) {
 
   const hq::sim::World world = hq::sim::load_world(world_path);
   hq::sim::SimConfig config = hq::sim::load_sim_config(config_path);
-  int width = 0;
-  int height = 0;
-  char tail = 0;
-  if (std::sscanf(resolution.c_str(), "%dx%d%c", &width, &height, &tail) != 2 || width < 16 ||
-      height < 16 || width > 4096 || height > 4096) {
-    throw hq::InputError("--resolution = " + resolution +
-                         ", expected WIDTHxHEIGHT such as 640x480");
-  }
-  const double hfov_rad =
-      2.0 * std::atan(0.5 * config.camera.pinhole.width / config.camera.pinhole.fx);
-  config.camera.pinhole = hq::sim::pinhole_from_fov(width, height, hfov_rad);
+  hq::sim::set_resolution(config, resolution, "--resolution");
   config.seed = seed >= 0 ? static_cast<std::uint64_t>(seed) : world.seed;
 
   hq::sim::Simulator sim(config, world);
@@ -102,7 +92,7 @@ int run(int argc, char** argv) {
       "hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
       "%lld dropped frames\n",
       world.name.c_str(), script_kind.c_str(), static_cast<unsigned long long>(config.seed),
-      duration_s, frames, width, height, imu_samples, static_cast<long long>(sim.dropped_frames()));
+      duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples, static_cast<long long>(sim.dropped_frames()));
   std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n", p.x(),
               p.y(), p.z(), min_clearance_m, sim.collided() ? "YES" : "no");
   if (writer) std::printf("recorded to %s\n", record_dir.c_str());

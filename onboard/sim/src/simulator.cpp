@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 namespace hq::sim {
@@ -58,6 +59,20 @@ SimConfig default_sim_config(int width, int height) {
   config.camera.T_body_camera = make_T_body_camera(Eigen::Vector3d(0.12, 0.0, 0.05),
                                                    45.0 * kPi / 180.0, 30.0 * kPi / 180.0, 0.0);
   return config;
+}
+
+void set_resolution(SimConfig& config, const std::string& width_x_height,
+                    const std::string& what) {
+  int width = 0;
+  int height = 0;
+  char tail = 0;
+  if (std::sscanf(width_x_height.c_str(), "%dx%d%c", &width, &height, &tail) != 2 || width < 16 ||
+      height < 16 || width > 4096 || height > 4096) {
+    throw InputError(what + " = " + width_x_height + ", expected WIDTHxHEIGHT such as 640x480");
+  }
+  const double hfov_rad =
+      2.0 * std::atan(0.5 * config.camera.pinhole.width / config.camera.pinhole.fx);
+  config.camera.pinhole = pinhole_from_fov(width, height, hfov_rad);
 }
 
 void read_config(config::StrictMap& section, SimConfig& out) {

@@ -44,6 +44,9 @@ void read_config(config::StrictMap& section, SimConfig& out);
 SimConfig load_sim_config(const std::string& path);
 /// Default config with the camera at width x height (60 deg x 45 deg field of view class).
 SimConfig default_sim_config(int width = 320, int height = 240);
+/// Re-sizes the camera to a "WIDTHxHEIGHT" string (e.g. "640x480") keeping its horizontal field
+/// of view. Throws hq::InputError naming `what` (e.g. "--resolution") and the value.
+void set_resolution(SimConfig& config, const std::string& width_x_height, const std::string& what);
 
 /// Ground truth at the current step.
 struct TruthState {
