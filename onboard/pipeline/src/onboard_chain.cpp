@@ -103,8 +103,10 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
     out.memory.map_size = memory_.size();
     out.memory.clear_count = memory_.clear_count();
   } else {
-    out.memory = memory_.update(t_ns, depth_m, odometry.T_world_cur, R_HQ,
-                                config_.obstacles.influence_distance_m);
+    // The field's d0 is a clearance (|p| minus the vehicle radius): recall out to its reach.
+    out.memory = memory_.update(
+        t_ns, depth_m, odometry.T_world_cur, R_HQ,
+        config_.obstacles.influence_distance_m + config_.obstacles.vehicle_radius_m);
   }
   const std::int64_t t_memory_ns = now_ns();
 
