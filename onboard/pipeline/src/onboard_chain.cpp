@@ -32,6 +32,8 @@ OnboardConfig load_onboard_config(const std::string& path) {
   modes::read_config(modes, out.modes);
   config::StrictMap chain = root.child("chain");
   read_config(chain, out.chain);
+  config::StrictMap markers = root.child("markers");
+  marker_modes::read_config(markers, out.markers);
   root.finish();
   return out;
 }
@@ -61,11 +63,19 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       estimator_(config.estimator, vehicle.R_body_camera, vehicle.p_body_camera_m),
       memory_(config.memory, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
-      modes_(config.modes, config.control, vehicle) {}
+      modes_(config.modes, config.control, vehicle) {
+  if (config.markers.enabled) {
+    markers_ = std::make_unique<marker_modes::MarkerStage>(
+        config.markers, camera, vehicle.R_body_camera, vehicle.p_body_camera_m);
+    modes_.register_provider(modes::Mode::kMarker, &markers_->marker_mode());
+    modes_.register_provider(modes::Mode::kExplore, &markers_->explore());
+  }
+}
 
 void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2) {
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
+  if (markers_) markers_->on_imu(t_ns, gyro_radps, accel_mps2);
 }
 
 Eigen::Matrix3d OnboardChain::R_horizontal_body() const {
@@ -91,6 +101,12 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   // can climb on the IMU until the floor is far enough for the depth camera.
   if (modes_.landed()) estimator_.hold_at_rest(t_ns);
   out.estimate = estimator_.update(t_ns, odometry);
+  // Issue 7: markers, map and the error-state filter (timed with the estimator). Low over the
+  // target, the marker and explore modes hand the touchdown to Mode::kLand.
+  if (markers_) {
+    markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_world_cur);
+    if (markers_->wants_land(modes_.mode())) modes_.request_mode(modes::Mode::kLand);
+  }
   const std::int64_t t_estimator_ns = now_ns();
 
   // Issue 10: the memory places this depth at the odometry pose and returns what it remembers

@@ -11,6 +11,7 @@
 #include "hq/control/velocity_controller.hpp"
 #include "hq/estimator/velocity_estimator.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
+#include "hq/marker_modes/marker_providers.hpp"
 #include "hq/modes/mode_controller.hpp"
 #include "hq/obstacle_memory/obstacle_memory.hpp"
 #include "hq/obstacles/obstacle_field.hpp"
@@ -20,6 +21,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -45,6 +47,8 @@ struct OnboardConfig {
   control::VelocityControllerConfig control;
   modes::ModesConfig modes;
   ChainConfig chain;
+  /// Issue 7: the marker stage and the marker/explore providers; off unless markers.enabled.
+  marker_modes::MarkerModesConfig markers;
 };
 
 /// Loads an on-board config file strictly: sections odometry, estimator, obstacles, memory,
@@ -135,6 +139,8 @@ class OnboardChain {
   [[nodiscard]] const estimator::VelocityEstimator& estimator() const { return estimator_; }
   /// The obstacle memory (telemetry_cloud(), save()); empty when config.memory.enabled is off.
   [[nodiscard]] const obstacle_memory::ObstacleMemory& memory() const { return memory_; }
+  /// The marker stage (navigation, marker and explore providers); null unless markers.enabled.
+  [[nodiscard]] marker_modes::MarkerStage* markers() { return markers_.get(); }
 
  private:
   [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
@@ -148,6 +154,7 @@ class OnboardChain {
   obstacle_memory::ObstacleMemory memory_;
   obstacles::ObstacleField obstacles_;
   modes::ModeController modes_;
+  std::unique_ptr<marker_modes::MarkerStage> markers_;
   bool have_frame_ = false;
   std::int64_t t_last_frame_ns_ = 0;
   double climb_since_takeoff_m_ = 0.0;  ///< Integrated -v_z of usable estimates since take-off.

@@ -1,0 +1,342 @@
+#include "hq/marker_modes/marker_providers.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hq::marker_modes {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double wrap_rad(double a) { return std::remainder(a, 2.0 * kPi); }
+
+modes::ModeCommand invalid(const char* reason) {
+  modes::ModeCommand c;
+  c.valid = false;
+  c.reason = reason;
+  return c;
+}
+
+/// v_W clipped to max_speed_mps, turned into H (v_H = R_WH^T v_W).
+Eigen::Vector3d to_horizontal(const Eigen::Vector3d& v_world_mps, double yaw_rad,
+                              double max_speed_mps) {
+  Eigen::Vector3d v = v_world_mps;
+  const double speed = v.norm();
+  if (speed > max_speed_mps) v *= max_speed_mps / speed;
+  return Eigen::AngleAxisd(-yaw_rad, Eigen::Vector3d::UnitZ()) * v;
+}
+
+double yaw_rate_towards(double yaw_target_rad, double yaw_rad, double kp, double max_radps) {
+  return std::clamp(kp * wrap_rad(yaw_target_rad - yaw_rad), -max_radps, max_radps);
+}
+
+}  // namespace
+
+const char* to_string(MarkerTask task) {
+  switch (task) {
+    case MarkerTask::kHold:
+      return "hold";
+    case MarkerTask::kGoTo:
+      return "goto";
+    case MarkerTask::kLand:
+      return "land";
+  }
+  return "?";
+}
+
+const char* to_string(ExplorePhase phase) {
+  switch (phase) {
+    case ExplorePhase::kLiftOff:
+      return "liftoff";
+    case ExplorePhase::kSearch:
+      return "search";
+    case ExplorePhase::kExplore:
+      return "explore";
+    case ExplorePhase::kEdge:
+      return "edge";
+    case ExplorePhase::kNavigate:
+      return "navigate";
+    case ExplorePhase::kLand:
+      return "land";
+    case ExplorePhase::kDone:
+      return "done";
+  }
+  return "?";
+}
+
+MarkerModeProvider::MarkerModeProvider(const MarkerModeConfig& config,
+                                       const MarkerNavigation& navigation)
+    : config_(config), navigation_(navigation), marker_id_(config.target_id) {}
+
+void MarkerModeProvider::set_task(MarkerTask task, int marker_id) {
+  task_ = task;
+  marker_id_ = marker_id;
+  descending_ = false;
+  wants_land_ = false;
+}
+
+modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
+  // A gap in the calls means the mode was (re-)entered: hold the heading it finds.
+  if (t_ns - t_last_ns_ > 200'000'000) have_yaw_ = false;
+  t_last_ns_ = t_ns;
+  if (!navigation_.pose_usable(config_.max_marker_age_s)) return invalid("no marker pose");
+  const std::optional<Eigen::Vector3d> p_marker = navigation_.p_world_marker_m(marker_id_);
+  if (!p_marker) return invalid("target marker not mapped");
+  const double yaw = navigation_.yaw_rad();
+  if (!have_yaw_) {
+    yaw_hold_rad_ = yaw;
+    have_yaw_ = true;
+  }
+  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d offset = *p_marker - p;
+  horizontal_error_m_ = offset.head<2>().norm();
+  const double height_m = p_marker->z() - p.z();  // NED: the floor marker is below.
+
+  Eigen::Vector3d v_world = config_.kp_position_per_s * offset;
+  v_world.z() = config_.kp_position_per_s * (height_m - config_.hold_height_m);
+  // Going far: the camera faces the marker so that the map stays in view; close, the heading
+  // found on arrival is held (turning over the target would only disturb the pose).
+  if (task_ != MarkerTask::kHold && horizontal_error_m_ > config_.face_target_beyond_m) {
+    yaw_hold_rad_ = std::atan2(offset.y(), offset.x()) - navigation_.camera_heading_rad();
+  }
+  if (task_ == MarkerTask::kLand) {
+    if (!descending_ && horizontal_error_m_ < config_.land_align_m) descending_ = true;
+    if (descending_) {
+      v_world.z() = config_.land_descent_mps;
+      if (height_m < config_.land_handover_height_m) wants_land_ = true;
+    }
+  }
+  modes::ModeCommand c;
+  c.valid = true;
+  c.v_horizontal_mps = to_horizontal(v_world, yaw, config_.max_speed_mps);
+  if (task_ == MarkerTask::kLand && descending_) c.v_horizontal_mps.z() = config_.land_descent_mps;
+  c.yaw_rate_radps =
+      yaw_rate_towards(yaw_hold_rad_, yaw, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
+  return c;
+}
+
+ExploreProvider::ExploreProvider(const ExploreConfig& config, const MarkerNavigation& navigation,
+                                 MarkerModeProvider& marker_mode)
+    : config_(config), navigation_(navigation), marker_mode_(marker_mode) {}
+
+double ExploreProvider::exploring_for_s(std::int64_t t_ns) const {
+  return exploring_started_ ? 1e-9 * static_cast<double>(t_ns - t_explore_ns_) : 0.0;
+}
+
+int ExploreProvider::cells_seen() const {
+  return static_cast<int>(std::count(seen_.begin(), seen_.end(), 1));
+}
+
+bool ExploreProvider::cell_index(const Eigen::Vector2d& p_m, int& i, int& j) const {
+  i = static_cast<int>(std::lround(p_m.x() / config_.cell_m)) + kCells / 2;
+  j = static_cast<int>(std::lround(p_m.y() / config_.cell_m)) + kCells / 2;
+  return i >= 0 && i < kCells && j >= 0 && j < kCells;
+}
+
+Eigen::Vector2d ExploreProvider::cell_centre(int i, int j) const {
+  return Eigen::Vector2d(i - kCells / 2, j - kCells / 2) * config_.cell_m;
+}
+
+bool ExploreProvider::map_box(Eigen::Vector2d& lo, Eigen::Vector2d& hi) const {
+  bool any = false;
+  for (int id : navigation_.map().ids()) {
+    const std::optional<Eigen::Vector3d> p = navigation_.p_world_marker_m(id);
+    if (!p) continue;
+    if (!any) {
+      lo = hi = p->head<2>();
+      any = true;
+    }
+    lo = lo.cwiseMin(p->head<2>());
+    hi = hi.cwiseMax(p->head<2>());
+  }
+  return any;
+}
+
+void ExploreProvider::mark_seen() {
+  const double z = 0.0;  // Floor markers lie in z = 0 of W.
+  for (int i = 0; i < kCells; ++i) {
+    for (int j = 0; j < kCells; ++j) {
+      const std::size_t k = static_cast<std::size_t>(i * kCells + j);
+      if (seen_[k]) continue;
+      const Eigen::Vector2d c = cell_centre(i, j);
+      if (navigation_.in_view(Eigen::Vector3d(c.x(), c.y(), z), config_.max_view_range_m)) {
+        seen_[k] = 1;
+      }
+    }
+  }
+}
+
+bool ExploreProvider::choose_goal(const Eigen::Vector2d& p_m) {
+  // Frontier: unseen cells inside the mapped box grown by one cell. The box grows as markers
+  // are found, so the coverage spreads until a ring of empty floor closes it (the seed's
+  // "unvisited cells next to the known grid").
+  Eigen::Vector2d lo;
+  Eigen::Vector2d hi;
+  if (!map_box(lo, hi)) return false;
+  lo -= Eigen::Vector2d::Constant(config_.cell_m);
+  hi += Eigen::Vector2d::Constant(config_.cell_m);
+  double best = 1e300;
+  have_goal_ = false;
+  for (int i = 0; i < kCells; ++i) {
+    for (int j = 0; j < kCells; ++j) {
+      if (seen_[static_cast<std::size_t>(i * kCells + j)]) continue;
+      const Eigen::Vector2d c = cell_centre(i, j);
+      if ((c.array() < lo.array() - 1e-6).any() || (c.array() > hi.array() + 1e-6).any()) continue;
+      const double cost = (c - p_m).norm();
+      if (cost < best) {
+        best = cost;
+        goal_i_ = i;
+        goal_j_ = j;
+        have_goal_ = true;
+      }
+    }
+  }
+  return have_goal_;
+}
+
+modes::ModeCommand ExploreProvider::fly_to(const Eigen::Vector3d& p_target_m,
+                                           double yaw_target_rad) const {
+  const MarkerModeConfig& gains = marker_mode_.config();
+  const Eigen::Vector3d p = navigation_.p_world_m();
+  const double yaw = navigation_.yaw_rad();
+  modes::ModeCommand c;
+  c.valid = true;
+  c.v_horizontal_mps =
+      to_horizontal(gains.kp_position_per_s * (p_target_m - p), yaw, gains.max_speed_mps);
+  c.yaw_rate_radps =
+      yaw_rate_towards(yaw_target_rad, yaw, gains.kp_yaw_per_s, gains.max_yaw_rate_radps);
+  return c;
+}
+
+void ExploreProvider::enter(ExplorePhase phase, std::int64_t t_ns) {
+  phase_ = phase;
+  t_phase_ns_ = t_ns;
+}
+
+modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
+  if (!started_) {
+    started_ = true;
+    enter(ExplorePhase::kLiftOff, t_ns);
+  }
+  const double in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
+  const bool have_pose = navigation_.pose_usable(marker_mode_.config().max_marker_age_s);
+  const Eigen::Vector3d p = navigation_.p_world_m();
+  const double height_m = -p.z();  // W: floor markers at z = 0, NED.
+  const double z_target = -config_.height_m;
+  const double alpha = navigation_.camera_heading_rad();
+
+  switch (phase_) {
+    case ExplorePhase::kLiftOff: {
+      // Seed: climb to the working height; on the RGB-D velocity alone until a marker anchors.
+      if ((have_pose && height_m > config_.height_m - 0.1) || in_phase_s > config_.liftoff_max_s) {
+        enter(have_pose ? ExplorePhase::kExplore : ExplorePhase::kSearch, t_ns);
+        return desired(t_ns);
+      }
+      modes::ModeCommand c;
+      c.valid = true;
+      c.v_horizontal_mps.z() = -config_.liftoff_climb_mps;
+      return c;
+    }
+    case ExplorePhase::kSearch: {
+      if (have_pose) {
+        enter(ExplorePhase::kExplore, t_ns);
+        return desired(t_ns);
+      }
+      modes::ModeCommand c;
+      c.valid = true;
+      c.yaw_rate_radps = config_.search_yaw_rate_radps;
+      return c;
+    }
+    case ExplorePhase::kExplore: {
+      if (!exploring_started_) {
+        exploring_started_ = true;
+        t_explore_ns_ = t_ns;
+      }
+      if (!have_pose) return invalid("explore: no marker pose");
+      mark_seen();
+      Eigen::Vector2d lo;
+      Eigen::Vector2d hi;
+      if (map_box(lo, hi) && navigation_.time_since_detection_s(t_ns) > config_.edge_timeout_s) {
+        const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config_.edge_margin_m);
+        if ((p.head<2>().array() < (lo - margin).array()).any() ||
+            (p.head<2>().array() > (hi + margin).array()).any()) {
+          ++edge_events_;
+          enter(ExplorePhase::kEdge, t_ns);
+          return desired(t_ns);
+        }
+      }
+      if (exploring_for_s(t_ns) > config_.budget_s || !choose_goal(p.head<2>())) {
+        enter(config_.land_at_end ? ExplorePhase::kNavigate : ExplorePhase::kDone, t_ns);
+        marker_mode_.set_task(MarkerTask::kGoTo, marker_mode_.config().target_id);
+        return desired(t_ns);
+      }
+      // Stand off from the goal cell with the camera facing it: the forward, down-tilted camera
+      // sees the floor from about a metre ahead.
+      const Eigen::Vector2d goal = cell_centre(goal_i_, goal_j_);
+      const Eigen::Vector2d to_goal = goal - p.head<2>();
+      const double distance = to_goal.norm();
+      const Eigen::Vector2d dir =
+          distance > 1e-3 ? Eigen::Vector2d(to_goal / distance) : Eigen::Vector2d::UnitX();
+      const Eigen::Vector2d stand = goal - config_.view_distance_m * dir;
+      const double yaw_target = std::atan2(dir.y(), dir.x()) - alpha;
+      return fly_to(Eigen::Vector3d(stand.x(), stand.y(), z_target), yaw_target);
+    }
+    case ExplorePhase::kEdge: {
+      // Seed: the edge of the map -> counter-steer back towards its centre until a marker shows.
+      if (navigation_.time_since_detection_s(t_ns) < 0.1 && in_phase_s > 0.3) {
+        enter(ExplorePhase::kExplore, t_ns);
+        return desired(t_ns);
+      }
+      Eigen::Vector2d lo;
+      Eigen::Vector2d hi;
+      if (!map_box(lo, hi)) return invalid("explore: no map");
+      const Eigen::Vector2d centre = 0.5 * (lo + hi);
+      Eigen::Vector2d back = centre - p.head<2>();
+      if (back.norm() > 1e-6) back *= config_.counter_steer_mps / back.norm();
+      modes::ModeCommand c;
+      c.valid = true;
+      const double yaw = navigation_.yaw_rad();
+      Eigen::Vector3d v_world(back.x(), back.y(),
+                              marker_mode_.config().kp_position_per_s * (z_target - p.z()));
+      c.v_horizontal_mps = to_horizontal(v_world, yaw, marker_mode_.config().max_speed_mps);
+      c.yaw_rate_radps = yaw_rate_towards(std::atan2(back.y(), back.x()) - alpha, yaw,
+                                          marker_mode_.config().kp_yaw_per_s,
+                                          marker_mode_.config().max_yaw_rate_radps);
+      return c;
+    }
+    case ExplorePhase::kNavigate: {
+      const modes::ModeCommand c = marker_mode_.desired(t_ns);
+      if (c.valid && marker_mode_.horizontal_error_m() < 0.1) {
+        enter(ExplorePhase::kLand, t_ns);
+        marker_mode_.set_task(MarkerTask::kLand, marker_mode_.config().target_id);
+      }
+      return c;
+    }
+    case ExplorePhase::kLand:
+      return marker_mode_.desired(t_ns);
+    case ExplorePhase::kDone: {
+      if (!have_pose) return invalid("explore: no marker pose");
+      return fly_to(Eigen::Vector3d(p.x(), p.y(), z_target), navigation_.yaw_rad());
+    }
+  }
+  return invalid("explore: unknown phase");
+}
+
+}  // namespace hq::marker_modes
+
+namespace hq::marker_modes {
+
+MarkerStage::MarkerStage(const MarkerModesConfig& config, const geometry::PinholeCamera& camera,
+                         const Eigen::Matrix3d& R_body_camera,
+                         const Eigen::Vector3d& p_body_camera_m)
+    : navigation_(config, camera, R_body_camera, p_body_camera_m),
+      marker_mode_(config.marker_mode, navigation_),
+      explore_(config.explore, navigation_, marker_mode_) {}
+
+bool MarkerStage::wants_land(modes::Mode mode) const {
+  if (mode == modes::Mode::kMarker) return marker_mode_.wants_land();
+  if (mode == modes::Mode::kExplore) return explore_.wants_land();
+  return false;
+}
+
+}  // namespace hq::marker_modes

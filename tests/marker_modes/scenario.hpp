@@ -1,0 +1,58 @@
+#pragma once
+// Marker-mode flights in the marker_grid world: the closed loop with the marker stage enabled,
+// and simulator truth of the markers in the map's terms.
+
+#include "hq/closed_loop/closed_loop.hpp"
+#include "hq/closed_loop/operator_script.hpp"
+#include "hq/control/vehicle_config.hpp"
+#include "hq/marker_modes/marker_navigation.hpp"
+#include "hq/pipeline/onboard_chain.hpp"
+#include "hq/sim/simulator.hpp"
+#include "hq/sim/world.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace hq::marker_modes::test {
+
+inline constexpr const char* kWorld = "onboard/sim/worlds/marker_grid.yaml";
+
+struct Flight {
+  sim::World world;
+  std::unique_ptr<closed_loop::ClosedLoop> loop;
+
+  marker_modes::MarkerStage& stage() { return *loop->chain().markers(); }
+  /// Truth centre of marker `id` (world NWU).
+  [[nodiscard]] Eigen::Vector3d marker_truth_m(int id) const {
+    for (const sim::Marker& m : world.markers) {
+      if (m.id == id) return m.center_world_m;
+    }
+    return Eigen::Vector3d::Constant(NAN);
+  }
+  [[nodiscard]] Eigen::Vector3d p_truth_m() {
+    return loop->simulator().truth().T_world_body.translation();
+  }
+};
+
+inline Flight make_flight(const std::string& script, std::uint64_t seed,
+                          closed_loop::ClosedLoopOptions options = {}) {
+  Flight f;
+  f.world = sim::load_world(kWorld);
+  sim::SimConfig sim_config = sim::load_sim_config("onboard/sim/config/sim.yaml");
+  sim::set_resolution(sim_config, "320x240", "test");
+  sim_config.seed = seed;
+  pipeline::OnboardConfig config = pipeline::load_onboard_config("config/onboard.yaml");
+  config.markers.enabled = true;
+  const control::VehicleConfig vehicle =
+      control::load_vehicle_config("calib/vehicle_core_paper.yaml");
+  closed_loop::OperatorPlayer player(closed_loop::load_operator_script(script),
+                                     closed_loop::camera_heading_rad(vehicle.R_body_camera));
+  f.loop = std::make_unique<closed_loop::ClosedLoop>(sim_config, f.world, config, vehicle,
+                                                     std::move(player), options);
+  return f;
+}
+
+}  // namespace hq::marker_modes::test
