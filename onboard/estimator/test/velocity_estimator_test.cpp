@@ -1,14 +1,16 @@
 #include "hq/estimator/velocity_estimator.hpp"
 
 #include "hq/config/strict_yaml.hpp"
-
 #include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
 #include <array>
 #include <cmath>
+#include <vector>
 
 namespace hq::estimator {
 namespace {
@@ -157,7 +159,12 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
     }
     const VelocityEstimate estimate = estimator.update(t_ns, odometry);
     EXPECT_FALSE(estimate.ok());
-    EXPECT_TRUE(estimate.v_horizontal_mps.isZero());
+    // Within inertial_coast_s (0.15 s of 2 s) the estimate coasts on the IMU from the last good
+    // value instead of going to zero; the motion has no acceleration, so it stays there.
+    EXPECT_EQ(estimate.status, EstimateStatus::kInertial);
+    EXPECT_TRUE(estimate.usable());
+    EXPECT_LT((estimate.v_horizontal_mps - last_ok.v_horizontal_mps).norm(), 2e-3)
+        << estimate.v_horizontal_mps.transpose();
     EXPECT_NEAR(estimate.unavailable_for_s, 1e-9 * static_cast<double>(t_ns - t_last_ok_ns), 1e-9);
     EXPECT_GT(estimate.unavailable_for_s, previous);
     previous = estimate.unavailable_for_s;
@@ -233,6 +240,202 @@ TEST(VelocityEstimatorConfig, ShippedOnboardYamlSectionLoads) {
   config::StrictMap section(root["estimator"], "config/onboard.yaml", "estimator");
   VelocityEstimatorConfig config;
   EXPECT_NO_THROW(read_config(section, config));
+}
+
+TEST(VelocityEstimator, WithoutTheCoastRejectedOdometryIsUnavailable) {
+  Motion motion;
+  motion.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
+  VelocityEstimatorConfig config;
+  config.inertial_coast_s = 0.0;  // disables the coast
+  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  const VelocityEstimate last_ok = run(estimator, motion, 1.0);
+  ASSERT_TRUE(last_ok.ok());
+  const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
+  estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
+  odometry::OdometryResult lost = motion.odometry_at(1e-9 * t_ns, t_ns, false);
+  lost.status = odometry::TrackingStatus::kLost;
+  const VelocityEstimate estimate = estimator.update(t_ns, lost);
+  EXPECT_EQ(estimate.status, EstimateStatus::kUnavailable);
+  EXPECT_FALSE(estimate.usable());
+  EXPECT_TRUE(estimate.v_horizontal_mps.isZero());
+}
+
+// Loses odometry after `good_s` of the motion and then feeds the IMU a specific force that
+// accelerates the vehicle at a_vertical_mps2 along NED z (keeping its attitude, so the
+// complementary filter's roll and pitch stay right). Returns estimates at each lost frame.
+struct CoastRun {
+  VelocityEstimate last_ok;
+  std::int64_t t_accel_start_ns = 0;  ///< Last IMU sample of the unaccelerated motion.
+  std::vector<VelocityEstimate> lost;
+};
+
+CoastRun coast_after_loss(VelocityEstimator& estimator, const Motion& motion, double good_s,
+                          double lost_s, double a_vertical_mps2) {
+  CoastRun out;
+  out.last_ok = run(estimator, motion, good_s);
+  // run() may integrate IMU samples after its last frame: continue on its IMU and frame grid.
+  const int good_steps = static_cast<int>(good_s * 1e9 / kImuNs);
+  out.t_accel_start_ns = good_steps * kImuNs;
+  const int steps = good_steps + static_cast<int>(lost_s * 1e9 / kImuNs);
+  for (int k = good_steps + 1; k <= steps; ++k) {
+    const std::int64_t t_ns = k * kImuNs;
+    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const Eigen::Matrix3d R_NQ = rz(motion.yaw(t_s)) * motion.R_tilt();
+    // f = R_QN (a - g e_z) in NED.
+    const Eigen::Vector3d accel =
+        R_NQ.transpose() * Eigen::Vector3d(0.0, 0.0, a_vertical_mps2 - kGravityMps2);
+    estimator.update_imu(t_ns, motion.gyro(), accel);
+    if (k % kImuPerFrame == 0) {
+      odometry::OdometryResult lost = motion.odometry_at(t_s, t_ns, false);
+      lost.status = odometry::TrackingStatus::kLost;
+      out.lost.push_back(estimator.update(t_ns, lost));
+    }
+  }
+  return out;
+}
+
+TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
+  // GIVEN a vehicle rolled 8 deg and pitched -12 deg flying at constant velocity, whose
+  // odometry is then lost while it accelerates upwards at 1 m/s^2.
+  Motion motion;
+  motion.roll_rad = 8.0 * kDeg;
+  motion.pitch_rad = -12.0 * kDeg;
+  motion.yaw0_rad = 30.0 * kDeg;
+  motion.v_ned_mps = Eigen::Vector3d(0.3, -0.2, 0.0);
+  VelocityEstimatorConfig config;
+  config.inertial_coast_s = 0.6;
+  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  const double a_z = -1.0;  // NED: climbing faster
+  const CoastRun coast = coast_after_loss(estimator, motion, 1.0, 1.0, a_z);
+  ASSERT_TRUE(coast.last_ok.ok()) << coast.last_ok.reason;
+  int inertial = 0;
+  int unavailable = 0;
+  for (const VelocityEstimate& estimate : coast.lost) {
+    const double coast_s = 1e-9 * static_cast<double>(estimate.t_ns - coast.last_ok.t_ns);
+    if (coast_s <= config.inertial_coast_s) {
+      // THEN within inertial_coast_s: kInertial, the last good velocity plus a t along H z
+      // (the specific force rotated with roll and pitch: unrotated, the tilt would add
+      // g sin(12 deg) = 2 m/s^2 sideways).
+      ASSERT_EQ(estimate.status, EstimateStatus::kInertial) << coast_s;
+      EXPECT_STREQ(estimate.reason, "odometry lost");
+      const double accel_s = 1e-9 * static_cast<double>(estimate.t_ns - coast.t_accel_start_ns);
+      const Eigen::Vector3d expected =
+          coast.last_ok.v_horizontal_mps + Eigen::Vector3d(0.0, 0.0, a_z * accel_s);
+      EXPECT_LT((estimate.v_horizontal_mps - expected).norm(), 5e-3)
+          << coast_s << ": " << estimate.v_horizontal_mps.transpose() << " vs "
+          << expected.transpose();
+      EXPECT_NEAR(estimate.unavailable_for_s, coast_s, 1e-9);
+      ++inertial;
+    } else {
+      // ... AND after it: unavailable, zero velocity.
+      EXPECT_EQ(estimate.status, EstimateStatus::kUnavailable) << coast_s;
+      EXPECT_TRUE(estimate.v_horizontal_mps.isZero());
+      ++unavailable;
+    }
+  }
+  EXPECT_GE(inertial, 15);
+  EXPECT_GE(unavailable, 10);
+}
+
+TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
+  Motion motion;  // level, at rest
+  VelocityEstimatorConfig config;
+  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  std::int64_t t_ns = 0;
+  for (; t_ns <= 500'000'000; t_ns += kImuNs) {
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
+  }
+  t_ns -= kImuNs;
+  // GIVEN no odometry ever: nothing to coast from.
+  EXPECT_EQ(estimator.between_frames(t_ns, "no frame").status, EstimateStatus::kUnavailable);
+  // WHEN the vehicle is known to rest on the ground
+  estimator.hold_at_rest(t_ns);
+  const VelocityEstimate at_rest = estimator.between_frames(t_ns, "no frame");
+  EXPECT_EQ(at_rest.status, EstimateStatus::kInertial);
+  EXPECT_STREQ(at_rest.reason, "no frame");
+  EXPECT_TRUE(at_rest.v_horizontal_mps.isZero());
+  // THEN a take-off climb at 2 m/s^2 for 0.5 s is followed on the IMU from zero.
+  const std::int64_t t_anchor_ns = t_ns;
+  for (int k = 1; k <= 100; ++k) {
+    t_ns = t_anchor_ns + k * kImuNs;
+    estimator.update_imu(t_ns, motion.gyro(), Eigen::Vector3d(0.0, 0.0, -2.0 - kGravityMps2));
+  }
+  const VelocityEstimate climbing = estimator.between_frames(t_ns, "no frame");
+  ASSERT_EQ(climbing.status, EstimateStatus::kInertial);
+  EXPECT_NEAR(climbing.v_horizontal_mps.z(), -2.0 * 0.5, 1e-6);
+  EXPECT_NEAR(climbing.v_horizontal_mps.head<2>().norm(), 0.0, 1e-6);
+
+  // AND after flight at 0.3 m/s, hold_at_rest forgets that velocity.
+  Motion flying;
+  flying.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
+  VelocityEstimator moving(config, flying.R_QC, flying.p_QC);
+  const VelocityEstimate last_ok = run(moving, flying, 1.0);
+  ASSERT_TRUE(last_ok.ok());
+  ASSERT_GT(moving.between_frames(last_ok.t_ns, "no frame").v_horizontal_mps.norm(), 0.25);
+  moving.hold_at_rest(last_ok.t_ns);
+  const VelocityEstimate held = moving.between_frames(last_ok.t_ns, "no frame");
+  EXPECT_EQ(held.status, EstimateStatus::kInertial);
+  EXPECT_TRUE(held.v_horizontal_mps.isZero());
+}
+
+// Flies the motion, then from `jump_s` on reports odometry displaced by jump_C_m in the camera
+// frame (a wrong match); returns the estimate of the first displaced frame.
+VelocityEstimate first_jumped_frame(const VelocityEstimatorConfig& config,
+                                    const Eigen::Vector3d& jump_C_m) {
+  Motion motion;
+  motion.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
+  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  const VelocityEstimate last_ok = run(estimator, motion, 1.0);
+  EXPECT_TRUE(last_ok.ok());
+  const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
+  for (std::int64_t t = last_ok.t_ns + kImuNs; t <= t_ns; t += kImuNs) {
+    estimator.update_imu(t, motion.gyro(), motion.accel(1e-9 * t));
+  }
+  odometry::OdometryResult jumped = motion.odometry_at(1e-9 * t_ns, t_ns, false);
+  jumped.T_world_cur.translation() += jumped.T_world_cur.linear() * jump_C_m;
+  return estimator.update(t_ns, jumped);
+}
+
+TEST(VelocityEstimator, OdometryVelocityDisagreeingWithTheImuIsRejected) {
+  // GIVEN a 0.3 m jump in one frame (a wrong match near the range limit), the IMU saying the
+  // velocity is unchanged.
+  const Eigen::Vector3d jump_C_m(0.0, 0.0, -0.3);
+  const VelocityEstimate rejected = first_jumped_frame(VelocityEstimatorConfig{}, jump_C_m);
+  EXPECT_FALSE(rejected.ok());
+  EXPECT_STREQ(rejected.reason, "odometry velocity disagrees with the IMU");
+  // THEN the coast carries on from the last good velocity instead.
+  EXPECT_EQ(rejected.status, EstimateStatus::kInertial);
+  EXPECT_NEAR(rejected.v_horizontal_mps.x(), 0.3, 0.01);
+  // A gate wider than the jumped velocity lets the same frame through.
+  VelocityEstimatorConfig wide;
+  wide.max_imu_disagreement_mps = 100.0;
+  const VelocityEstimate accepted = first_jumped_frame(wide, jump_C_m);
+  ASSERT_TRUE(accepted.ok()) << accepted.reason;
+  EXPECT_GT((accepted.v_horizontal_mps - Eigen::Vector3d(0.3, 0.0, 0.0)).norm(),
+            VelocityEstimatorConfig{}.max_imu_disagreement_mps);
+  // A small jump within the gate is accepted too.
+  EXPECT_TRUE(first_jumped_frame(VelocityEstimatorConfig{}, 0.01 * jump_C_m).ok());
+}
+
+TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
+  VelocityEstimatorConfig config;
+  config::StrictMap section(YAML::Load("{inertial_coast_s: 1.5, max_imu_disagreement_mps: 2}"),
+                            "config/onboard.yaml", "estimator");
+  read_config(section, config);
+  EXPECT_EQ(config.inertial_coast_s, 1.5);
+  EXPECT_EQ(config.max_imu_disagreement_mps, 2.0);
+  const auto error = [](const char* yaml) {
+    config::StrictMap bad(YAML::Load(yaml), "config/onboard.yaml", "estimator");
+    VelocityEstimatorConfig out;
+    return hq::testing::input_error_message([&] { read_config(bad, out); });
+  };
+  EXPECT_THAT(
+      error("{inertial_coast_s: -1}"),
+      HasSubstr("config/onboard.yaml: estimator.inertial_coast_s = -1, expected in [0, 10]"));
+  EXPECT_THAT(error("{inertial_coast_s: 11}"),
+              HasSubstr("estimator.inertial_coast_s = 11, expected in [0, 10]"));
+  EXPECT_THAT(error("{max_imu_disagreement_mps: 0}"),
+              HasSubstr("estimator.max_imu_disagreement_mps = 0, expected > 0"));
 }
 
 }  // namespace
