@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace hq::modes {
 namespace {
@@ -20,6 +21,14 @@ constexpr std::int64_t kStepNs = 5'000'000;  // 200 Hz
 constexpr double kDt = 5e-3;
 
 control::VehicleConfig test_vehicle() { return control::VehicleConfig{}; }
+
+// ModesConfig::start_landed defaults to true (motors idle until a climb request); the tests of
+// airborne behaviour start in the air.
+ModesConfig airborne_config() {
+  ModesConfig config;
+  config.start_landed = false;
+  return config;
+}
 
 // Point mass whose attitude follows the setpoint instantly (NED, H frame).
 struct PointMass {
@@ -52,7 +61,7 @@ struct SwitchFigures {
 
 // Teleop at 1 m/s forward, settled, then a switch to land.
 SwitchFigures teleop_to_land(double max_switch_accel_mps2) {
-  ModesConfig config;
+  ModesConfig config = airborne_config();
   config.max_switch_accel_mps2 = max_switch_accel_mps2;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   EXPECT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
@@ -95,7 +104,7 @@ TEST(ModeController, SwitchingIsBumpless) {
 }
 
 TEST(ModeController, MarkerAndExploreNeedAProvider) {
-  ModeController modes(ModesConfig{}, control::VelocityControllerConfig{}, test_vehicle());
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
   const ModeSwitch refused = modes.request_mode(Mode::kMarker);
   EXPECT_FALSE(refused.accepted);
   EXPECT_THAT(refused.reason, HasSubstr("marker"));
@@ -122,7 +131,7 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
 }
 
 TEST(ModeController, StaleTeleopCommandFallsBackToHover) {
-  ModeController modes(ModesConfig{}, control::VelocityControllerConfig{}, test_vehicle());
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
   modes.request_mode(Mode::kTeleop);
   ModeOutput out;
   // GIVEN fresh commands for 1 s (the switch ramp reaches 0.5 m/s after 0.5 s).
@@ -147,7 +156,7 @@ TEST(ModeController, StaleTeleopCommandFallsBackToHover) {
 }
 
 TEST(ModeController, LandDescendsAtTheConfiguredSpeed) {
-  ModesConfig config;
+  ModesConfig config = airborne_config();
   config.land_speed_mps = 0.4;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   modes.request_mode(Mode::kLand);
@@ -164,18 +173,231 @@ TEST(ModeController, ObstacleTermIsAddedInEveryMode) {
   provider.command.v_horizontal_mps = Eigen::Vector3d(0.1, 0.1, 0.0);
   for (const Mode mode :
        {Mode::kTeleop, Mode::kHover, Mode::kLand, Mode::kMarker, Mode::kExplore}) {
-    ModeController modes(ModesConfig{}, control::VelocityControllerConfig{}, test_vehicle());
+    ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
     modes.register_provider(Mode::kMarker, &provider);
     modes.register_provider(Mode::kExplore, &provider);
     ASSERT_TRUE(modes.request_mode(mode).accepted);
     ModeOutput out;
+    // In land an estimate stuck at zero reads as held by the floor (touchdown after
+    // touchdown_s, motors idle): the estimate descends at the land speed, as in the air.
+    const Eigen::Vector3d v_est(0.0, 0.0, mode == Mode::kLand ? ModesConfig{}.land_speed_mps : 0.0);
     for (int k = 0; k < 300; ++k) {
       modes.set_operator_command({k * kStepNs, Eigen::Vector3d(0.2, 0.0, 0.0), 0.0});
-      out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), v_obs);
+      out = modes.step(k * kStepNs, v_est, v_obs);
     }
+    EXPECT_FALSE(out.landed) << to_string(mode);
     EXPECT_TRUE(out.v_des_horizontal_mps.isApprox(out.v_star_des_horizontal_mps + v_obs))
         << to_string(mode);
   }
+}
+
+double hover_thrust_n() { return test_vehicle().mass_kg * control::kGravityMps2; }
+
+TEST(ModeController, StartsLandedWithMotorsIdleUntilAClimbRequest) {
+  // GIVEN the default configuration: on the ground, motors idle.
+  const ModesConfig config;
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  EXPECT_TRUE(modes.landed());
+  ModeOutput out;
+  // WHEN hovering with a (sinking) estimate: nothing moves, the PID does not wind up.
+  for (int k = 0; k < 200; ++k) {
+    out = modes.step(k * kStepNs, Eigen::Vector3d(0.0, 0.0, 0.2), Eigen::Vector3d::Zero());
+    ASSERT_TRUE(out.landed) << k;
+    ASSERT_EQ(out.control.setpoint.thrust_n, 0.0) << k;
+  }
+  // ... nor on zero teleop commands, nor on a horizontal one or a climb slower than
+  // takeoff_climb_mps.
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  const Eigen::Vector3d gentle[] = {Eigen::Vector3d::Zero(), Eigen::Vector3d(0.5, 0.0, 0.0),
+                                    Eigen::Vector3d(0.0, 0.0, -0.5 * config.takeoff_climb_mps)};
+  int k = 200;
+  for (const Eigen::Vector3d& v_command : gentle) {
+    for (int i = 0; i < 100; ++i, ++k) {
+      modes.set_operator_command({k * kStepNs, v_command, 0.3});
+      out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+      ASSERT_TRUE(out.landed) << v_command.transpose();
+      ASSERT_EQ(out.control.setpoint.thrust_n, 0.0);
+      ASSERT_EQ(out.control.setpoint.roll_rad, 0.0);
+      ASSERT_EQ(out.control.setpoint.pitch_rad, 0.0);
+    }
+  }
+  EXPECT_TRUE(modes.landed());
+  EXPECT_TRUE(out.v_star_des_horizontal_mps.isZero());
+  // THEN a climb request faster than takeoff_climb_mps (NED: z < 0) takes off: from motors
+  // idle to about m g plus the PID's climb term (measured 1.20 m g: the take-off step applies
+  // the 0.5 m/s command at once, see the report).
+  modes.set_operator_command({k * kStepNs, Eigen::Vector3d(0.0, 0.0, -0.5), 0.0});
+  out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_FALSE(out.landed);
+  EXPECT_FALSE(modes.landed());
+  EXPECT_GT(out.control.setpoint.thrust_n, hover_thrust_n());
+  EXPECT_LT(out.control.setpoint.thrust_n, 1.25 * hover_thrust_n());
+  EXPECT_EQ(out.control.setpoint.roll_rad, 0.0);
+  EXPECT_EQ(out.control.setpoint.pitch_rad, 0.0);
+  // ... AND keeps climbing on the point mass (the ramp brings v*_des to the command).
+  PointMass plant;
+  for (++k; k < 2000; ++k) {
+    modes.set_operator_command({k * kStepNs, Eigen::Vector3d(0.0, 0.0, -0.5), 0.0});
+    out = modes.step(k * kStepNs, plant.v_mps, Eigen::Vector3d::Zero());
+    plant.step(out.control.setpoint);
+  }
+  EXPECT_FALSE(out.landed);
+  EXPECT_NEAR(plant.v_mps.z(), -0.5, 0.02);
+}
+
+// Point mass with a floor at NED z = 0: standing on it, it cannot sink.
+struct PointMassOverFloor {
+  PointMass mass;
+  double z_m = -0.5;
+  bool on_floor = false;
+  void step(const control::AttitudeSetpoint& sp) {
+    mass.step(sp);
+    z_m += mass.v_mps.z() * kDt;
+    if (z_m >= 0.0) {
+      z_m = 0.0;
+      mass.v_mps.z() = std::min(mass.v_mps.z(), 0.0);
+      on_floor = true;
+    }
+  }
+};
+
+TEST(ModeController, LandTouchesDownAfterTouchdownSHeldByTheFloor) {
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+  const ModesConfig config = airborne_config();
+  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  PointMassOverFloor plant;
+  ModeOutput out;
+  double t_floor_s = -1.0;
+  double t_landed_s = -1.0;
+  for (int k = 0; k < 3000 && t_landed_s < 0.0; ++k) {
+    const double t_s = k * kDt;
+    out = modes.step(k * kStepNs, plant.mass.v_mps, Eigen::Vector3d::Zero());
+    if (out.landed) {
+      t_landed_s = t_s;
+      break;
+    }
+    // While descending in mid-air the thrust stays near m g: no touchdown there.
+    if (!plant.on_floor) {
+      EXPECT_GT(out.control.setpoint.thrust_n, 0.9 * hover_thrust_n());
+    }
+    plant.step(out.control.setpoint);
+    if (plant.on_floor && t_floor_s < 0.0) t_floor_s = t_s;
+  }
+  ASSERT_GT(t_floor_s, 0.0) << "never reached the floor";
+  ASSERT_GT(t_landed_s, 0.0) << "never touched down";
+  // THEN landed no earlier than touchdown_s after the floor stopped the descent (the PID must
+  // first wind the thrust below 0.9 m g), and not long after.
+  EXPECT_GE(t_landed_s - t_floor_s, config.touchdown_s);
+  EXPECT_LT(t_landed_s - t_floor_s, config.touchdown_s + 2.0);
+  EXPECT_TRUE(modes.landed());
+  EXPECT_EQ(out.control.setpoint.thrust_n, 0.0);
+  EXPECT_FALSE(out.blind_descent);
+  // ... AND stays on the ground with the motors idle.
+  for (int k = 0; k < 200; ++k) {
+    out = modes.step((3000 + k) * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    ASSERT_TRUE(out.landed);
+    ASSERT_EQ(out.control.setpoint.thrust_n, 0.0);
+  }
+}
+
+TEST(ModeController, DescendingInMidAirNeverTouchesDown) {
+  // GIVEN land mode descending freely at land_speed_mps (thrust near m g, sinking faster than
+  // touchdown_speed_mps): no touchdown however long it takes.
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  PointMass plant;
+  ModeOutput out;
+  for (int k = 0; k < 1200; ++k) {
+    out = modes.step(k * kStepNs, plant.v_mps, Eigen::Vector3d::Zero());
+    plant.step(out.control.setpoint);
+    ASSERT_FALSE(out.landed) << k;
+  }
+  EXPECT_NEAR(plant.v_mps.z(), ModesConfig{}.land_speed_mps, 0.02);
+}
+
+TEST(ModeController, BlindDescentSinksLevelAndLandsAfterBlindDescentS) {
+  ModesConfig config = airborne_config();
+  config.blind_descent_thrust_ratio = 0.8;
+  config.blind_descent_s = 1.0;
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  const Eigen::Vector3d nan_v = Eigen::Vector3d::Constant(std::nan(""));
+  ModeOutput out;
+  int k = 0;
+  // WHEN land has no velocity estimate: level, blind_descent_thrust_ratio m g ...
+  for (; 1e-9 * static_cast<double>(k * kStepNs) < config.blind_descent_s - 1.5 * kDt; ++k) {
+    out = modes.step(k * kStepNs, nan_v, Eigen::Vector3d::Zero());
+    ASSERT_TRUE(out.blind_descent) << k;
+    ASSERT_FALSE(out.landed) << k;
+    ASSERT_NEAR(out.control.setpoint.thrust_n, 0.8 * hover_thrust_n(), 1e-9);
+    ASSERT_EQ(out.control.setpoint.roll_rad, 0.0);
+    ASSERT_EQ(out.control.setpoint.pitch_rad, 0.0);
+  }
+  // THEN landed once blind_descent_s has passed, motors idle.
+  for (int i = 0; i < 3 && !out.landed; ++i, ++k) {
+    out = modes.step(k * kStepNs, nan_v, Eigen::Vector3d::Zero());
+  }
+  EXPECT_TRUE(out.landed);
+  EXPECT_TRUE(modes.landed());
+  EXPECT_EQ(out.control.setpoint.thrust_n, 0.0);
+}
+
+TEST(ModeController, AnEstimateBackRestartsTheBlindDescentTimer) {
+  ModesConfig config = airborne_config();
+  config.blind_descent_s = 1.0;
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  const Eigen::Vector3d nan_v = Eigen::Vector3d::Constant(std::nan(""));
+  ModeOutput out;
+  // 0.75 s blind, 0.05 s with a (descending) estimate, 0.75 s blind: 1.5 s blind in all.
+  for (int k = 0; k < 300; ++k) {
+    const bool blind = k < 150 || k >= 160;
+    out = modes.step(k * kStepNs, blind ? nan_v : Eigen::Vector3d(0.0, 0.0, 0.3),
+                     Eigen::Vector3d::Zero());
+    ASSERT_FALSE(out.landed) << k;
+  }
+  EXPECT_TRUE(out.blind_descent);
+}
+
+std::string modes_config_error(const std::string& yaml) {
+  config::StrictMap section(YAML::Load(yaml), "config/onboard.yaml", "modes");
+  ModesConfig config;
+  try {
+    read_config(section, config);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected hq::InputError for " << yaml;
+  return "";
+}
+
+TEST(ModesConfig, LandingKeysAreReadAndRangeChecked) {
+  config::StrictMap section(
+      YAML::Load("{start_landed: false, takeoff_climb_mps: 0.2, touchdown_speed_mps: 0.05, "
+                 "touchdown_s: 0.5, blind_descent_thrust_ratio: 0.85, blind_descent_s: 4}"),
+      "config/onboard.yaml", "modes");
+  ModesConfig config;
+  read_config(section, config);
+  EXPECT_FALSE(config.start_landed);
+  EXPECT_EQ(config.takeoff_climb_mps, 0.2);
+  EXPECT_EQ(config.touchdown_speed_mps, 0.05);
+  EXPECT_EQ(config.touchdown_s, 0.5);
+  EXPECT_EQ(config.blind_descent_thrust_ratio, 0.85);
+  EXPECT_EQ(config.blind_descent_s, 4.0);
+
+  EXPECT_THAT(modes_config_error("{start_landed: maybe}"),
+              HasSubstr("modes.start_landed = maybe, expected true or false"));
+  EXPECT_THAT(modes_config_error("{takeoff_climb_mps: 0}"),
+              HasSubstr("modes.takeoff_climb_mps = 0, expected > 0"));
+  EXPECT_THAT(modes_config_error("{touchdown_speed_mps: -0.1}"),
+              HasSubstr("modes.touchdown_speed_mps = -0.1, expected > 0"));
+  EXPECT_THAT(modes_config_error("{touchdown_s: 0}"),
+              HasSubstr("modes.touchdown_s = 0, expected > 0"));
+  EXPECT_THAT(modes_config_error("{blind_descent_thrust_ratio: 0.4}"),
+              HasSubstr("modes.blind_descent_thrust_ratio = 0.4, expected in [0.5, 1]"));
+  EXPECT_THAT(modes_config_error("{blind_descent_thrust_ratio: 1.2}"),
+              HasSubstr("modes.blind_descent_thrust_ratio = 1.2, expected in [0.5, 1]"));
+  EXPECT_THAT(modes_config_error("{blind_descent_s: 31}"), HasSubstr("modes.blind_descent_s = 31"));
 }
 
 TEST(ModesConfig, BadValueIsRejectedNamingTheKey) {
