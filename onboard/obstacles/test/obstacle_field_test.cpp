@@ -2,8 +2,9 @@
 
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
-
 #include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
+
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -58,8 +59,12 @@ TEST(ObstacleField, FlatWallPushesAwayAlongTheCameraAxisHorizontalProjection) {
   EXPECT_GT(push_horizontal.normalized().dot(-axis_horizontal), std::cos(1.0 * kDeg));
   // The camera looks down, so the push also has an upward (NED z < 0) part.
   EXPECT_LT(result.v_obs_horizontal_mps.z(), 0.0);
-  // Magnitude of the Khatib term at d = 0.8, d0 = 1.2, eta = 0.05.
-  const double expected = 0.05 * (1.0 / 0.8 - 1.0 / 1.2) / (0.8 * 0.8);
+  // Magnitude of the Khatib term on the clearance d = 0.8 m - vehicle_radius_m (the law now acts
+  // on the distance to the vehicle's sphere, not to its centre), d0 = 1.0, eta = 0.05.
+  const ObstacleConfig config;
+  const double d = 0.8 - config.vehicle_radius_m;
+  const double d0 = config.influence_distance_m;
+  const double expected = config.gain * (1.0 / d - 1.0 / d0) / (d * d);
   EXPECT_NEAR(result.v_obs_horizontal_mps.norm(), expected, 0.02 * expected);
 }
 
@@ -201,8 +206,12 @@ TEST(ObstacleConfig, ShippedOnboardYamlSectionLoads) {
 TEST(ObstacleField, RememberedPointPushesWithTheSameLawAsAViewMinimum) {
   const Eigen::Matrix3d R_QC = default_R_body_camera();
   ObstacleField field(ObstacleConfig{}, test_camera(), R_QC, Eigen::Vector3d::Zero());
-  const ObstacleResult seen = field.compute(wall(0.8f), Eigen::Matrix3d::Identity());
+  // The wall at 0.6 m along the 30 deg down axis puts the point 0.3 m below the camera, inside
+  // the vehicle's sphere: remembered points further below are support points (upwards only).
+  const ObstacleResult seen = field.compute(wall(0.6f), Eigen::Matrix3d::Identity());
   ASSERT_EQ(seen.count, 1);
+  ASSERT_LT(seen.points[0].p_horizontal_m.z(), ObstacleConfig{}.vehicle_radius_m);
+  ASSERT_GT(seen.v_obs_horizontal_mps.norm(), 0.01);
   // GIVEN nothing near in view (a wall at 6 m) WHEN the same point is remembered instead,
   // THEN v_obs is the same vector and the point is flagged as remembered.
   const std::array<Eigen::Vector3d, 2> remembered = {
@@ -219,15 +228,215 @@ TEST(ObstacleField, RememberedPointPushesWithTheSameLawAsAViewMinimum) {
 TEST(ObstacleField, RememberedPointsAddToTheViewAndSaturate) {
   ObstacleField field(ObstacleConfig{}, test_camera(), default_R_body_camera(),
                       Eigen::Vector3d::Zero());
-  const std::array<Eigen::Vector3d, 1> behind = {Eigen::Vector3d(-0.5, 0.0, 0.0)};
+  // 0.9 m behind the centre is 0.55 m of clearance (vehicle_radius_m 0.35): below saturation.
+  const ObstacleConfig config;
+  const std::array<Eigen::Vector3d, 1> behind = {Eigen::Vector3d(-0.9, 0.0, 0.0)};
   const ObstacleResult result = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), behind);
-  const double expected = 0.05 * (1.0 / 0.5 - 1.0 / 1.2) / (0.5 * 0.5);
+  const double d = 0.9 - config.vehicle_radius_m;
+  const double expected = config.gain * (1.0 / d - 1.0 / config.influence_distance_m) / (d * d);
+  ASSERT_LT(expected, config.max_repulsive_speed_mps);
   EXPECT_NEAR(result.v_obs_horizontal_mps.x(), expected, 1e-9);  // pushed forward
+  EXPECT_NEAR(result.v_obs_horizontal_mps.norm(), expected, 1e-9);
+  // Inside the vehicle's sphere (the propellers touch it): saturated.
   const std::array<Eigen::Vector3d, 1> touching = {Eigen::Vector3d(-0.06, 0.0, 0.0)};
   const ObstacleResult saturated =
       field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), touching);
   EXPECT_NEAR(saturated.v_obs_horizontal_mps.norm(), ObstacleConfig{}.max_repulsive_speed_mps,
               1e-9);
+}
+
+// eq. of Khatib 1986 on the clearance d = |p| - vehicle_radius_m.
+double khatib_speed(const ObstacleConfig& config, double d) {
+  return config.gain * (1.0 / d - 1.0 / config.influence_distance_m) / (d * d);
+}
+
+TEST(ObstacleField, KhatibLawActsOnTheClearanceToTheVehicleSphere) {
+  // A non-default configuration, so that every parameter of the law is exercised.
+  ObstacleConfig config;
+  config.vehicle_radius_m = 0.2;
+  config.influence_distance_m = 1.5;
+  config.gain = 0.08;
+  config.max_repulsive_speed_mps = 100.0;
+  ObstacleField field(config, test_camera(), default_R_body_camera(), Eigen::Vector3d::Zero());
+  const Eigen::Vector3d directions[] = {Eigen::Vector3d(-1.0, 0.0, 0.0),
+                                        Eigen::Vector3d(0.0, 1.0, 0.0),
+                                        Eigen::Vector3d(0.6, -0.6, -0.2).normalized()};
+  for (const Eigen::Vector3d& direction : directions) {
+    for (const double d : {0.1, 0.4, 0.9, 1.4}) {
+      // GIVEN one remembered point at |p| = r + d (nothing near in view).
+      const std::array<Eigen::Vector3d, 1> point = {(config.vehicle_radius_m + d) * direction};
+      const ObstacleResult result = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), point);
+      ASSERT_TRUE(result.valid);
+      // THEN v_obs = eta (1/d - 1/d0) / d^2 away from the point.
+      const Eigen::Vector3d expected = -khatib_speed(config, d) * direction;
+      EXPECT_LT((result.v_obs_horizontal_mps - expected).norm(), 1e-9 * expected.norm())
+          << "d " << d << ": " << result.v_obs_horizontal_mps.transpose() << " vs "
+          << expected.transpose();
+    }
+    // ... AND nothing at d >= d0 of clearance, though |p| itself is then below d0 + r.
+    const std::array<Eigen::Vector3d, 1> far = {
+        (config.vehicle_radius_m + config.influence_distance_m + 1e-6) * direction};
+    const ObstacleResult outside = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), far);
+    EXPECT_TRUE(outside.v_obs_horizontal_mps.isZero());
+    EXPECT_EQ(outside.count, 0);
+  }
+}
+
+TEST(ObstacleField, SaturatesAtTheConfiguredSpeed) {
+  const ObstacleConfig config;
+  ObstacleField field(config, test_camera(), default_R_body_camera(), Eigen::Vector3d::Zero());
+  // 0.1 m of clearance gives 45 m/s by the law; 1.5 m/s is the configured ceiling.
+  const std::array<Eigen::Vector3d, 1> point = {
+      Eigen::Vector3d(0.0, -(config.vehicle_radius_m + 0.1), 0.0)};
+  ASSERT_GT(khatib_speed(config, 0.1), config.max_repulsive_speed_mps);
+  const ObstacleResult result = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), point);
+  EXPECT_NEAR(result.v_obs_horizontal_mps.norm(), config.max_repulsive_speed_mps, 1e-9);
+  EXPECT_NEAR(result.v_obs_horizontal_mps.y(), config.max_repulsive_speed_mps, 1e-9);
+}
+
+// Depth of a horizontal floor height_m below the camera (level vehicle, camera at the body
+// centre): each pixel's ray meets the plane z_H = height_m.
+cv::Mat floor_below(const Eigen::Matrix3d& R_HC, double height_m) {
+  const geometry::PinholeCamera camera = test_camera();
+  cv::Mat depth(camera.height, camera.width, CV_32FC1, cv::Scalar(0.0f));
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      const Eigen::Vector3d ray_C((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+      const double down = (R_HC * ray_C).z();
+      if (down > 0.0) depth.at<float>(v, u) = static_cast<float>(height_m / down);
+    }
+  }
+  return depth;
+}
+
+TEST(ObstacleField, FloorBelowPushesOnlyUpwardsWithinSupportInfluence) {
+  const ObstacleConfig config;
+  const Eigen::Matrix3d R_QC = default_R_body_camera();
+  ObstacleField field(config, test_camera(), R_QC, Eigen::Vector3d::Zero());
+  // GIVEN the floor 0.28 m below (within support_influence_m 0.3): nearest pixels at 0.34 m.
+  const double height_m = 0.28;
+  ASSERT_LT(height_m, config.support_influence_m);
+  const ObstacleResult result =
+      field.compute(floor_below(R_QC, height_m), Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(result.valid) << result.reason;
+  EXPECT_FALSE(result.near_hazard);
+  // THEN the push is straight up (NED -z), none sideways (the point law would shove the vehicle
+  // back from the floor it looks at) ...
+  EXPECT_EQ(result.v_obs_horizontal_mps.x(), 0.0);
+  EXPECT_EQ(result.v_obs_horizontal_mps.y(), 0.0);
+  ASSERT_LT(result.v_obs_horizontal_mps.z(), 0.0);
+  EXPECT_EQ(result.count, 0);
+  // ... AND every floor minimum is at that height, so the push is a whole number of support
+  // terms eta (1/h - 1/h0) / h^2.
+  const double one =
+      config.gain * (1.0 / height_m - 1.0 / config.support_influence_m) / (height_m * height_m);
+  const double terms = -result.v_obs_horizontal_mps.z() / one;
+  EXPECT_GE(terms, 1.0 - 1e-4);
+  EXPECT_NEAR(terms, std::round(terms), 1e-3) << terms;
+
+  // WHEN the floor is beyond support_influence_m (0.32 m: its nearest pixels are only 0.04 m
+  // from the vehicle's sphere) THEN nothing at all.
+  const ObstacleResult beyond = field.compute(floor_below(R_QC, 0.32), Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(beyond.valid);
+  EXPECT_TRUE(beyond.v_obs_horizontal_mps.isZero()) << beyond.v_obs_horizontal_mps.transpose();
+  EXPECT_EQ(beyond.count, 0);
+  // ... while a larger support_influence_m reaches it (upwards again).
+  ObstacleConfig wide = config;
+  wide.support_influence_m = 0.5;
+  ObstacleField wide_field(wide, test_camera(), R_QC, Eigen::Vector3d::Zero());
+  const ObstacleResult reached =
+      wide_field.compute(floor_below(R_QC, 0.32), Eigen::Matrix3d::Identity());
+  EXPECT_LT(reached.v_obs_horizontal_mps.z(), 0.0);
+  EXPECT_EQ(reached.v_obs_horizontal_mps.head<2>().norm(), 0.0);
+}
+
+TEST(ObstacleField, GroundPhaseIgnoresTheNearHazardAndEverythingBelow) {
+  const ObstacleConfig config;
+  const Eigen::Matrix3d R_QC = default_R_body_camera();
+  ObstacleField field(config, test_camera(), R_QC, Eigen::Vector3d::Zero());
+  cv::Mat blob = wall(3.0f);
+  blob(cv::Rect(200, 140, 240, 200)).setTo(0.0f);
+  const cv::Mat floor = floor_below(R_QC, 0.28);
+  const std::array<Eigen::Vector3d, 1> below = {Eigen::Vector3d(0.1, 0.0, 0.2)};
+  const std::array<Eigen::Vector3d, 1> beside = {Eigen::Vector3d(-0.9, 0.0, 0.0)};
+  // GIVEN the same inputs push outside the ground phase ...
+  EXPECT_FALSE(field.ground_phase());
+  ASSERT_GT(field.compute(blob, Eigen::Matrix3d::Identity()).v_obs_horizontal_mps.norm(), 0.1);
+  ASSERT_LT(field.compute(floor, Eigen::Matrix3d::Identity()).v_obs_horizontal_mps.z(), 0.0);
+  const ObstacleResult below_air = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), below);
+  ASSERT_GT(below_air.v_obs_horizontal_mps.norm(), 0.1);
+  const ObstacleResult beside_air = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), beside);
+
+  // WHEN taking off or landing
+  field.set_ground_phase(true);
+  EXPECT_TRUE(field.ground_phase());
+  // THEN the near-range hazard is still reported but does not push ...
+  const ObstacleResult hazard = field.compute(blob, Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(hazard.valid);
+  EXPECT_TRUE(hazard.near_hazard);
+  EXPECT_EQ(hazard.count, 0);
+  EXPECT_TRUE(hazard.v_obs_horizontal_mps.isZero());
+  // ... the floor does not push ...
+  EXPECT_TRUE(field.compute(floor, Eigen::Matrix3d::Identity()).v_obs_horizontal_mps.isZero());
+  // ... nor a remembered point below ...
+  const ObstacleResult below_ground = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), below);
+  EXPECT_TRUE(below_ground.v_obs_horizontal_mps.isZero());
+  EXPECT_EQ(below_ground.count, 0);
+  // ... but one beside the vehicle pushes as in the air.
+  const ObstacleResult beside_ground =
+      field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), beside);
+  EXPECT_GT(beside_ground.v_obs_horizontal_mps.norm(), 0.1);
+  EXPECT_LT((beside_ground.v_obs_horizontal_mps - beside_air.v_obs_horizontal_mps).norm(), 1e-12);
+
+  field.set_ground_phase(false);
+  EXPECT_GT(field.compute(blob, Eigen::Matrix3d::Identity()).v_obs_horizontal_mps.norm(), 0.1);
+}
+
+TEST(ObstacleField, MostlyNanFrameIsCorruptNotAHazard) {
+  const Eigen::Matrix3d R_QC = default_R_body_camera();
+  ObstacleField field(ObstacleConfig{}, test_camera(), R_QC, Eigen::Vector3d::Zero());
+  // GIVEN a frame of NaN but for a near patch in a corner.
+  cv::Mat corrupt(480, 640, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  corrupt(cv::Rect(0, 0, 64, 64)).setTo(0.6f);
+  const ObstacleResult result = field.compute(corrupt, Eigen::Matrix3d::Identity());
+  // THEN invalid with the reason, and no push (neither the hazard nor the patch).
+  EXPECT_FALSE(result.valid);
+  EXPECT_STREQ(result.reason, "depth frame corrupt: mostly NaN");
+  EXPECT_GT(result.nan_fraction, 0.5);
+  EXPECT_FALSE(result.near_hazard);
+  EXPECT_TRUE(result.v_obs_horizontal_mps.isZero());
+  EXPECT_EQ(result.count, 0);
+
+  // An all-zero frame is what a sensor returns with a surface inside its minimum range: still
+  // the near hazard, pushing back along the optical axis.
+  const ObstacleResult zero = field.compute(wall(0.0f), Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(zero.valid);
+  EXPECT_EQ(zero.nan_fraction, 0.0);
+  EXPECT_TRUE(zero.near_hazard);
+  ASSERT_GT(zero.v_obs_horizontal_mps.norm(), 0.1);
+  EXPECT_GT(zero.v_obs_horizontal_mps.normalized().dot(-R_QC.col(2)), std::cos(0.1 * kDeg));
+}
+
+TEST(ObstacleConfig, ClearanceAndSupportKeysAreReadAndRangeChecked) {
+  config::StrictMap section(YAML::Load("{vehicle_radius_m: 0.3, support_normal_max_deg: 20, "
+                                       "support_influence_m: 0.4}"),
+                            "config/onboard.yaml", "obstacles");
+  ObstacleConfig config;
+  read_config(section, config);
+  EXPECT_EQ(config.vehicle_radius_m, 0.3);
+  EXPECT_EQ(config.support_normal_max_deg, 20.0);
+  EXPECT_EQ(config.support_influence_m, 0.4);
+  const auto error = [](const char* yaml) {
+    config::StrictMap bad(YAML::Load(yaml), "config/onboard.yaml", "obstacles");
+    ObstacleConfig out;
+    return hq::testing::input_error_message([&] { read_config(bad, out); });
+  };
+  EXPECT_THAT(error("{vehicle_radius_m: -0.1}"),
+              HasSubstr("obstacles.vehicle_radius_m = -0.1, expected in [0, 5]"));
+  EXPECT_THAT(error("{support_normal_max_deg: 95}"),
+              HasSubstr("obstacles.support_normal_max_deg = 95, expected in [0, 90]"));
+  EXPECT_THAT(error("{support_influence_m: 11}"),
+              HasSubstr("obstacles.support_influence_m = 11, expected in [0, 10]"));
 }
 
 }  // namespace
