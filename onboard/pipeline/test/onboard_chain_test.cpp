@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 
 namespace hq::pipeline {
@@ -56,9 +57,25 @@ bool setpoint_finite(const ChainOutput& out) {
          out.obstacles.v_obs_horizontal_mps.allFinite();
 }
 
+/// modes.start_landed is true by default (motors idle until a climb request); the tests of
+/// the flying chain start airborne.
+OnboardConfig airborne_config() {
+  OnboardConfig config;
+  config.modes.start_landed = false;
+  return config;
+}
+
+/// Feeds the level at-rest IMU over (from_ns, to_ns] and ticks the chain at to_ns.
+std::optional<ChainOutput> tick_after_imu(OnboardChain& chain, std::int64_t from_ns,
+                                          std::int64_t to_ns) {
+  feed_imu(chain, from_ns + kImuPeriodNs, to_ns);
+  return chain.on_tick(to_ns);
+}
+
 class ChainOnRenderedPlane : public ::testing::Test {
  protected:
-  ChainOnRenderedPlane() : chain_(OnboardConfig{}, control::VehicleConfig{}, kCamera, &clock_) {}
+  explicit ChainOnRenderedPlane(const OnboardConfig& config = airborne_config())
+      : chain_(config, control::VehicleConfig{}, kCamera, &clock_) {}
 
   /// Frame k at t = k * period; IMU up to its stamp first, as the apps do.
   ChainOutput frame(int k, bool valid_depth = true) {
@@ -95,6 +112,7 @@ TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne
     if (out.estimate.ok()) {
       ++ok;
       EXPECT_FALSE(out.safe_hover) << "frame " << k;
+      EXPECT_FALSE(out.degraded) << "frame " << k;
       EXPECT_NEAR(out.estimate.v_camera_raw_mps.x(), kSpeedMps, 0.03) << "frame " << k;
       EXPECT_NEAR(out.estimate.v_camera_raw_mps.y(), 0.0, 0.03) << "frame " << k;
       EXPECT_NEAR(out.estimate.v_camera_raw_mps.z(), 0.0, 0.03) << "frame " << k;
@@ -110,45 +128,87 @@ TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne
   EXPECT_EQ(out.durations.total_ns, 5'000'000);
 }
 
-TEST_F(ChainOnRenderedPlane, AllInvalidDepthGivesUnavailableEstimateAndSafeHover) {
-  // GIVEN a tracking chain, WHEN depth goes all-invalid for 10 frames, THEN the estimate is
-  // unavailable with a reason, the setpoint is the level m g hover, and nothing is NaN.
-  for (int k = 0; k < 12; ++k) frame(k);
+TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
+  // GIVEN a tracking chain, WHEN depth goes all-invalid, THEN the estimate coasts on the IMU
+  // (kInertial, degraded, the velocity loop still closed) for estimator.inertial_coast_s after
+  // the last ok estimate, and only after that is the setpoint the level m g safe hover.
+  // Nothing is NaN and the lost path allocates nothing.
+  std::int64_t t_last_ok_ns = -1;
+  for (int k = 0; k < 12; ++k) {
+    if (frame(k).estimate.ok()) t_last_ok_ns = (k + 1) * kFramePeriodNs;
+  }
   // The odometry takes depth from its reference (the previous frame), so the first depthless
   // frame still tracks; from the second on nothing can.
-  EXPECT_TRUE(setpoint_finite(frame(12, false)));
+  const ChainOutput first_depthless = frame(12, false);
+  EXPECT_TRUE(setpoint_finite(first_depthless));
+  if (first_depthless.estimate.ok()) t_last_ok_ns = 13 * kFramePeriodNs;
+  ASSERT_GT(t_last_ok_ns, 0);
+  const double coast_s = chain_.config().estimator.inertial_coast_s;
   long allocations = 0;
-  for (int k = 13; k < 23; ++k) {
+  int coasting = 0;
+  int hovering = 0;
+  for (int k = 13; k < 13 + static_cast<int>((coast_s + 0.5) * 30.0); ++k) {
     const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
     feed_imu(chain_, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns);
     depth_.setTo(0.0f);
     const long before = testing::allocation_count();
     const ChainOutput out = chain_.on_frame(t_ns, gray_, depth_);
     allocations += testing::allocation_count() - before;
+    const double since_ok_s = 1e-9 * static_cast<double>(t_ns - t_last_ok_ns);
     EXPECT_EQ(out.tracking, odometry::TrackingStatus::kLost) << "frame " << k;
     EXPECT_FALSE(out.estimate.ok()) << "frame " << k;
     EXPECT_STRNE(out.estimate.reason, "");
-    EXPECT_TRUE(out.safe_hover) << "frame " << k;
-    EXPECT_STRNE(out.safe_hover_reason, "");
+    EXPECT_TRUE(out.degraded) << "frame " << k;
     EXPECT_TRUE(setpoint_finite(out)) << "frame " << k;
-    EXPECT_DOUBLE_EQ(out.mode.control.setpoint.thrust_n, 1.0 * control::kGravityMps2);
-    EXPECT_EQ(out.mode.control.setpoint.roll_rad, 0.0);
-    EXPECT_EQ(out.mode.control.setpoint.pitch_rad, 0.0);
-    EXPECT_EQ(out.mode.control.setpoint.yaw_rate_radps, 0.0);
+    if (since_ok_s <= coast_s) {
+      EXPECT_EQ(out.estimate.status, estimator::EstimateStatus::kInertial) << "frame " << k;
+      EXPECT_FALSE(out.safe_hover) << "frame " << k;
+      EXPECT_TRUE(out.estimate.v_horizontal_mps.allFinite());
+      ++coasting;
+    } else {
+      EXPECT_EQ(out.estimate.status, estimator::EstimateStatus::kUnavailable) << "frame " << k;
+      EXPECT_TRUE(out.safe_hover) << "frame " << k;
+      EXPECT_STRNE(out.safe_hover_reason, "");
+      EXPECT_DOUBLE_EQ(out.mode.control.setpoint.thrust_n, 1.0 * control::kGravityMps2);
+      EXPECT_EQ(out.mode.control.setpoint.roll_rad, 0.0);
+      EXPECT_EQ(out.mode.control.setpoint.pitch_rad, 0.0);
+      EXPECT_EQ(out.mode.control.setpoint.yaw_rate_radps, 0.0);
+      ++hovering;
+    }
   }
+  EXPECT_GE(coasting, 50);
+  EXPECT_GE(hovering, 10);
   EXPECT_EQ(allocations, 0) << "the lost path allocates nothing either";
 }
 
-TEST_F(ChainOnRenderedPlane, CameraSilenceLongerThanTimeoutCommandsSafeHover) {
-  for (int k = 0; k < 12; ++k) frame(k);
+TEST_F(ChainOnRenderedPlane, CameraSilenceCoastsOnTheImuThenCommandsSafeHover) {
+  ChainOutput last;
+  for (int k = 0; k < 12; ++k) last = frame(k);
   const std::int64_t t_last_ns = 12 * kFramePeriodNs;
+  ASSERT_TRUE(last.estimate.ok()) << last.estimate.reason;
   // Within the 0.3 s timeout the last frame's setpoint stands.
-  EXPECT_FALSE(chain_.on_tick(t_last_ns + 200'000'000).has_value());
+  EXPECT_FALSE(tick_after_imu(chain_, t_last_ns, t_last_ns + 200'000'000).has_value());
+  // After it, with the IMU still running: the inertial coast (degraded), not yet the hover.
+  feed_imu(chain_, t_last_ns + 200'000'000 + kImuPeriodNs, t_last_ns + 400'000'000);
   const long before = testing::allocation_count();
-  const auto out = chain_.on_tick(t_last_ns + 400'000'000);
+  const auto coasting = chain_.on_tick(t_last_ns + 400'000'000);
   EXPECT_EQ(testing::allocation_count() - before, 0);
+  ASSERT_TRUE(coasting.has_value());
+  EXPECT_TRUE(coasting->camera_timed_out);
+  EXPECT_TRUE(coasting->degraded);
+  EXPECT_EQ(coasting->estimate.status, estimator::EstimateStatus::kInertial);
+  EXPECT_STREQ(coasting->estimate.reason, "camera timed out");
+  EXPECT_FALSE(coasting->safe_hover);
+  EXPECT_TRUE(setpoint_finite(*coasting));
+  // THEN once estimator.inertial_coast_s has passed since the last ok estimate: safe hover.
+  const std::int64_t t_expired_ns =
+      t_last_ns +
+      static_cast<std::int64_t>((chain_.config().estimator.inertial_coast_s + 0.1) * 1e9);
+  const auto out = tick_after_imu(chain_, t_last_ns + 400'000'000, t_expired_ns);
   ASSERT_TRUE(out.has_value());
   EXPECT_TRUE(out->camera_timed_out);
+  EXPECT_TRUE(out->degraded);
+  EXPECT_EQ(out->estimate.status, estimator::EstimateStatus::kUnavailable);
   EXPECT_TRUE(out->safe_hover);
   EXPECT_THAT(out->safe_hover_reason, HasSubstr("camera timed out"));
   EXPECT_TRUE(setpoint_finite(*out));
@@ -156,12 +216,56 @@ TEST_F(ChainOnRenderedPlane, CameraSilenceLongerThanTimeoutCommandsSafeHover) {
   EXPECT_EQ(out->mode.control.setpoint.roll_rad, 0.0);
 }
 
+class LandedChainOnRenderedPlane : public ChainOnRenderedPlane {
+ protected:
+  LandedChainOnRenderedPlane() : ChainOnRenderedPlane(OnboardConfig{}) {}
+};
+
+TEST_F(LandedChainOnRenderedPlane, StartsLandedWithMotorsIdleAndTakesOffOnAClimbCommand) {
+  ASSERT_TRUE(OnboardConfig{}.modes.start_landed);
+  // GIVEN the default configuration: on the ground. Frames (even the first, with no velocity)
+  // give thrust 0, no safe hover (nothing to hold in the air), the mode controller landed.
+  for (int k = 0; k < 10; ++k) {
+    const ChainOutput out = frame(k);
+    EXPECT_TRUE(out.mode.landed) << "frame " << k;
+    EXPECT_EQ(out.mode.control.setpoint.thrust_n, 0.0) << "frame " << k;
+    EXPECT_FALSE(out.safe_hover) << "frame " << k;
+    EXPECT_TRUE(setpoint_finite(out)) << "frame " << k;
+  }
+  // ... also in teleop with a horizontal command only.
+  ASSERT_TRUE(chain_.request_mode(modes::Mode::kTeleop).accepted);
+  chain_.set_operator_command({11 * kFramePeriodNs, Eigen::Vector3d(0.3, 0.0, 0.0), 0.0});
+  ChainOutput out = frame(10);
+  EXPECT_TRUE(out.mode.landed);
+  EXPECT_EQ(out.mode.control.setpoint.thrust_n, 0.0);
+  // WHEN the operator asks to climb at 0.5 m/s (NED -z)
+  chain_.set_operator_command({12 * kFramePeriodNs, Eigen::Vector3d(0.0, 0.0, -0.5), 0.0});
+  out = frame(11);
+  // THEN the motors start: about m g (plus the climb term of the PID), not landed.
+  EXPECT_FALSE(out.mode.landed);
+  EXPECT_GT(out.mode.control.setpoint.thrust_n, 0.9 * control::kGravityMps2);
+  EXPECT_LT(out.mode.control.setpoint.thrust_n, 1.5 * control::kGravityMps2);
+  EXPECT_TRUE(setpoint_finite(out));
+}
+
 TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
-  OnboardChain chain(OnboardConfig{}, control::VehicleConfig{}, kCamera);
-  EXPECT_FALSE(chain.on_tick(1'000'000'000).has_value());
-  const auto out = chain.on_tick(1'400'000'000);
+  // Airborne, no frame ever and no IMU: nothing to coast on, the safe hover.
+  OnboardChain airborne(airborne_config(), control::VehicleConfig{}, kCamera);
+  EXPECT_FALSE(airborne.on_tick(1'000'000'000).has_value());
+  const auto out = airborne.on_tick(1'400'000'000);
   ASSERT_TRUE(out.has_value());
+  EXPECT_TRUE(out->camera_timed_out);
   EXPECT_TRUE(out->safe_hover);
+  EXPECT_DOUBLE_EQ(out->mode.control.setpoint.thrust_n, 1.0 * control::kGravityMps2);
+  // On the ground (the default) the same silence keeps the motors idle: no safe hover.
+  OnboardChain landed(OnboardConfig{}, control::VehicleConfig{}, kCamera);
+  EXPECT_FALSE(landed.on_tick(1'000'000'000).has_value());
+  const auto on_ground = landed.on_tick(1'400'000'000);
+  ASSERT_TRUE(on_ground.has_value());
+  EXPECT_TRUE(on_ground->camera_timed_out);
+  EXPECT_TRUE(on_ground->mode.landed);
+  EXPECT_FALSE(on_ground->safe_hover);
+  EXPECT_EQ(on_ground->mode.control.setpoint.thrust_n, 0.0);
 }
 
 std::string write_temp_yaml(const std::string& name, const std::string& text) {
@@ -182,10 +286,19 @@ std::string load_error(const std::string& path) {
 
 TEST(LoadOnboardConfig, ReadsTheDefaultFileIntoEveryComponent) {
   const OnboardConfig config = load_onboard_config("config/onboard.yaml");
-  EXPECT_DOUBLE_EQ(config.obstacles.influence_distance_m, 1.2);
+  // influence_distance_m is now the clearance to the vehicle's sphere (1.0 m in the file).
+  EXPECT_DOUBLE_EQ(config.obstacles.influence_distance_m, 1.0);
+  EXPECT_DOUBLE_EQ(config.obstacles.vehicle_radius_m, 0.35);
+  EXPECT_DOUBLE_EQ(config.obstacles.max_repulsive_speed_mps, 1.5);
+  EXPECT_DOUBLE_EQ(config.obstacles.support_influence_m, 0.3);
   EXPECT_DOUBLE_EQ(config.estimator.one_euro_position.beta, 2.0);
+  EXPECT_DOUBLE_EQ(config.estimator.inertial_coast_s, 2.0);
+  EXPECT_DOUBLE_EQ(config.estimator.max_imu_disagreement_mps, 1.0);
   EXPECT_DOUBLE_EQ(config.control.kp_xy_per_s, 3.0);
   EXPECT_DOUBLE_EQ(config.modes.teleop_timeout_s, 0.5);
+  EXPECT_TRUE(config.modes.start_landed);
+  EXPECT_DOUBLE_EQ(config.modes.blind_descent_thrust_ratio, 0.9);
+  EXPECT_DOUBLE_EQ(config.chain.takeoff_height_m, 0.5);
 }
 
 TEST(LoadOnboardConfig, OdometryAndChainSectionsReachTheirComponents) {
@@ -206,6 +319,8 @@ TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {
               HasSubstr("odometry.pyramid_levelz"));
   EXPECT_THAT(load_error(write_temp_yaml("chain", "chain: {camera_timeout_s: 0}\n")),
               HasSubstr("chain.camera_timeout_s"));
+  EXPECT_THAT(load_error(write_temp_yaml("takeoff", "chain: {takeoff_height_m: -0.5}\n")),
+              HasSubstr("chain.takeoff_height_m = -0.5, expected in [0, 10]"));
   EXPECT_THAT(load_error(write_temp_yaml("nested", "estimator: {complementary: {k_q: 1}}\n")),
               HasSubstr("estimator.complementary.k_q"));
   EXPECT_THAT(load_error("no/such/onboard.yaml"), HasSubstr("no/such/onboard.yaml"));
