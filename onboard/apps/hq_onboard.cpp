@@ -7,6 +7,14 @@
 //              --script onboard/closed_loop/flights/core_paper_box.yaml
 //              [--sim-config onboard/sim/config/sim.yaml] [--resolution 320x240] [--seed N]
 //              [--csv fig6-8.csv]
+//   hq-onboard --source sim --world W --link [--duration-s 60] [--link-config config.yaml]
+//              [--domain-id N] [--vehicle-id N] [--command-timeout-ms 200]
+//              [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
+//
+// Sim with --link: the closed loop is paced to wall time and flown by a ground station over DDS
+// (hq-ground) instead of the script, through the on-board fail-safes (onboard/link_bridge):
+// stale commands hold zero velocity, a silent ground lands the vehicle. --link-log writes one
+// row per control step with the mode and the command and heartbeat ages.
 //
 // Sim: the simulator flies the chain in closed loop on simulated time, commanded by the
 // scripted operator; the run ends with the flight summary (estimate and tracking RMSE per axis
@@ -26,6 +34,8 @@
 #include "hq/closed_loop/flight_summary.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/link/config.hpp"
+#include "hq/link_bridge/link_bridge.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/replay_imu.hpp"
 #include "hq/pipeline/stage_timing.hpp"
@@ -36,7 +46,9 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -120,7 +132,148 @@ struct Options {
   std::string sim_config_path = "onboard/sim/config/sim.yaml";
   std::string resolution = "320x240";
   long long seed = -1;
+  bool link = false;
+  double duration_s = 60.0;
+  std::string link_config_path;
+  hq::link::LinkOverrides link_overrides;
+  double command_timeout_ms = 200.0;
+  double heartbeat_timeout_ms = 2000.0;
+  double camera_rate_hz = 10.0;
+  std::string link_log_path;
 };
+
+std::atomic<bool> g_stop{false};
+
+void request_stop(int /*signal*/) { g_stop = true; }
+
+// The DDS link as the closed loop's operator: commands and mode requests through the fail-safes,
+// vehicle state and camera frames back, one log row per control step.
+class LinkOperator final : public hq::closed_loop::OperatorSource {
+ public:
+  LinkOperator(hq::link_bridge::LinkBridge& bridge, std::FILE* log) : bridge_(bridge), log_(log) {}
+
+  hq::modes::OperatorCommand poll(std::int64_t t_ns,
+                                  std::vector<hq::modes::Mode>& mode_requests) override {
+    return bridge_.poll(t_ns, mode_requests).command;
+  }
+  void on_mode_result(std::int64_t t_ns, hq::modes::Mode mode,
+                      const hq::modes::ModeSwitch& result) override {
+    bridge_.acknowledge(t_ns, mode, result);
+  }
+  void on_output(const hq::pipeline::ChainOutput& out,
+                 const hq::sim::TruthState& truth) override {
+    bridge_.publish_state(out);
+    if (log_ == nullptr) return;
+    const hq::link_bridge::FailsafeState& f = bridge_.failsafe().state();
+    const hq::link_bridge::FailsafeCounters& c = bridge_.failsafe().counters();
+    const Eigen::Vector3d& v = f.command.v_horizontal_mps;
+    std::fprintf(log_,
+                 "%.4f,%s,%d,%d,%.2f,%.2f,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,"
+                 "%llu,%llu,%llu\n",
+                 1e-9 * static_cast<double>(out.t_ns), hq::modes::to_string(out.mode.mode),
+                 out.mode.landed ? 1 : 0, truth.on_ground ? 0 : 1,
+                 f.command_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.command_age_ns),
+                 f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
+                 f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
+                 f.command.yaw_rate_radps, truth.v_horizontal_mps.x(),
+                 truth.v_horizontal_mps.y(), truth.v_horizontal_mps.z(),
+                 -truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
+                 out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
+                 static_cast<unsigned long long>(c.commands_rejected),
+                 static_cast<unsigned long long>(c.mode_requests_rejected));
+  }
+  void on_camera(std::int64_t t_ns, const cv::Mat& image) override {
+    bridge_.publish_camera(t_ns, image);
+  }
+
+ private:
+  hq::link_bridge::LinkBridge& bridge_;
+  std::FILE* log_;
+};
+
+int run_sim_link(const Options& o) {
+  if (o.world_path.empty()) throw hq::InputError("--source sim --link needs --world <world.yaml>");
+  const hq::sim::World world = hq::sim::load_world(o.world_path);
+  hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
+  hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
+  sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
+  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  hq::link::LinkConfig link = o.link_config_path.empty()
+                                  ? hq::link::LinkConfig{}
+                                  : hq::link::load_link_config(o.link_config_path);
+  hq::link::apply_overrides(o.link_overrides, link);
+  hq::link_bridge::FailsafeConfig failsafe;
+  failsafe.vehicle_id = link.vehicle_id;
+  failsafe.envelope = link.envelope;
+  failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
+  failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
+  hq::link_bridge::BridgeOptions bridge_options;
+  bridge_options.camera_rate_hz = o.camera_rate_hz;
+  hq::link_bridge::LinkBridge bridge(link, failsafe, bridge_options);
+
+  std::FILE* log = nullptr;
+  if (!o.link_log_path.empty()) {
+    log = std::fopen(o.link_log_path.c_str(), "w");
+    if (!log) throw hq::InputError(o.link_log_path + ": cannot open for writing");
+    std::fprintf(log,
+                 "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
+                 "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"
+                 "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
+                 "commands_rejected,mode_requests_rejected\n");
+  }
+  LinkOperator source(bridge, log);
+  hq::closed_loop::OperatorScript script;
+  script.end_s = o.duration_s;
+  hq::closed_loop::ClosedLoopOptions options;
+  options.operator_source = &source;
+  options.realtime = true;
+  hq::closed_loop::ClosedLoop loop(
+      sim_config, world, config, vehicle,
+      hq::closed_loop::OperatorPlayer(script, hq::closed_loop::camera_heading_rad(vehicle.R_body_camera)),
+      options);
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  std::fprintf(stderr,
+               "hq-onboard: simulated %s over the link: domain %d, vehicle %u, %.1f s, command "
+               "timeout %.0f ms, heartbeat timeout %.0f ms\n",
+               world.name.c_str(), link.domain_id, link.vehicle_id, o.duration_s,
+               o.command_timeout_ms, o.heartbeat_timeout_ms);
+  double t_s = 0.0;
+  while (t_s < o.duration_s && !g_stop) {
+    t_s = std::min(o.duration_s, t_s + 0.1);
+    loop.run_until(t_s);
+  }
+  if (log && std::fclose(log) != 0) throw hq::InputError(o.link_log_path + ": write failed");
+
+  const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
+  hq::closed_loop::print_summary(stdout, "flight summary over the link (" + world.name + ")",
+                                 summary);
+  const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
+  const bool landed = !loop.samples().empty() && loop.samples().back().landed;
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
+              static_cast<unsigned long long>(c.commands_accepted),
+              static_cast<unsigned long long>(c.commands_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
+              static_cast<unsigned long long>(c.mode_requests_accepted),
+              static_cast<unsigned long long>(c.mode_requests_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats",
+              static_cast<unsigned long long>(c.heartbeats_accepted),
+              static_cast<unsigned long long>(c.heartbeats_rejected));
+  std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes",
+              static_cast<unsigned long long>(c.holds),
+              static_cast<unsigned long long>(c.land_requests));
+  std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
+              static_cast<unsigned long long>(bridge.states_sent()),
+              static_cast<unsigned long long>(bridge.camera_frames_sent()),
+              static_cast<unsigned long long>(bridge.events_sent()));
+  std::printf("  %-40s %.1f ms\n", "largest lag behind real time", 1e3 * loop.max_realtime_lag_s());
+  std::printf("  %-40s %s\n", "final state", landed ? "landed" : "in the air");
+  for (const std::string& refusal : loop.refusals()) {
+    std::printf("  mode request refused at %s\n", refusal.c_str());
+  }
+  return summary.collision_ticks == 0 ? 0 : 3;
+}
 
 int run_sim(const Options& o) {
   if (o.world_path.empty() || o.script_path.empty()) {
@@ -255,11 +408,29 @@ int run(int argc, char** argv) {
   app.add_option("--resolution", o.resolution, "sim: camera WIDTHxHEIGHT (320x240, 640x480)");
   app.add_option("--seed", o.seed, "sim: noise and gust seed (default: the world's)")
       ->check(CLI::Range(0LL, 2147483647LL));
+  app.add_flag("--link", o.link,
+               "sim: fly commanded by a ground station over DDS, paced to real time");
+  app.add_option("--duration-s", o.duration_s, "sim --link: flight length")
+      ->check(CLI::Range(0.1, 86400.0));
+  app.add_option("--link-config", o.link_config_path, "sim --link: YAML with a link: section");
+  hq::link::add_link_options(app, o.link_overrides);
+  app.add_option("--command-timeout-ms", o.command_timeout_ms,
+                 "sim --link: no fresh command this long -> hold zero velocity")
+      ->check(CLI::Range(1.0, 10000.0));
+  app.add_option("--heartbeat-timeout-ms", o.heartbeat_timeout_ms,
+                 "sim --link: no ground heartbeat this long -> land")
+      ->check(CLI::Range(1.0, 60000.0));
+  app.add_option("--camera-rate-hz", o.camera_rate_hz,
+                 "sim --link: JPEG frames to the ground (0: none)")
+      ->check(CLI::Range(0.0, 60.0));
+  app.add_option("--link-log", o.link_log_path,
+                 "sim --link: per-step CSV of mode, command and heartbeat ages, truth");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (o.source_kind == "sim" && o.link) return run_sim_link(o);
   return o.source_kind == "sim" ? run_sim(o) : run_replay(o);
 }
 

@@ -4,6 +4,10 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <time.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -55,7 +59,29 @@ void ClosedLoop::run_until(double t_s) {
   const auto end_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
   while (t_ns_ + options_.control_period_ns <= end_ns) {
     t_ns_ += options_.control_period_ns;
+    if (options_.realtime) pace(t_ns_);
     control_tick(t_ns_);
+  }
+}
+
+void ClosedLoop::pace(std::int64_t t_ns) {
+  // Absolute deadlines: a slow tick is not added to every later one.
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  const std::int64_t now_ns = now.tv_sec * 1'000'000'000LL + now.tv_nsec;
+  if (!have_wall_origin_) {
+    wall_origin_ns_ = now_ns - t_ns;
+    have_wall_origin_ = true;
+  }
+  const std::int64_t deadline_ns = wall_origin_ns_ + t_ns;
+  if (now_ns >= deadline_ns) {
+    max_lag_ns_ = std::max(max_lag_ns_, now_ns - deadline_ns);
+    return;
+  }
+  timespec deadline{};
+  deadline.tv_sec = deadline_ns / 1'000'000'000LL;
+  deadline.tv_nsec = deadline_ns % 1'000'000'000LL;
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
   }
 }
 
@@ -70,15 +96,23 @@ void ClosedLoop::control_tick(std::int64_t t_ns) {
   // The operator's hand: mode requests as they fall due, and the held command, refreshed at the
   // device's rate as a streaming haptic link would.
   mode_requests_.clear();
-  player_.take_mode_requests(t_ns, mode_requests_);
+  OperatorSource* source = options_.operator_source;
+  modes::OperatorCommand command;
+  if (source != nullptr) {
+    command = source->poll(t_ns, mode_requests_);
+  } else {
+    player_.take_mode_requests(t_ns, mode_requests_);
+    command = player_.command(t_ns);
+  }
   for (const modes::Mode mode : mode_requests_) {
     const modes::ModeSwitch result = chain_->request_mode(mode);
+    if (source != nullptr) source->on_mode_result(t_ns, mode, result);
     if (!result.accepted) {
       refusals_.push_back(std::to_string(1e-9 * static_cast<double>(t_ns)) + " s: " +
                           modes::to_string(mode) + ": " + result.reason);
     }
   }
-  chain_->set_operator_command(player_.command(t_ns));
+  chain_->set_operator_command(command);
 
   // Physics up to t, with the setpoint switched at its own time, not the tick's.
   if (pending_ && pending_apply_ns_ <= t_ns) {
@@ -113,6 +147,7 @@ void ClosedLoop::control_tick(std::int64_t t_ns) {
 void ClosedLoop::process_frame() {
   const std::int64_t t_frame_ns = sim_->camera_t_ns();
   sim_->render_camera(image_, depth_m_);
+  if (options_.operator_source != nullptr) options_.operator_source->on_camera(t_frame_ns, image_);
   const CameraFault* fault = active_fault(t_frame_ns);
   if (fault && fault->kind == CameraFault::Kind::kDrop) return;
   if (fault && fault->kind == CameraFault::Kind::kNanDepth) {
@@ -156,6 +191,7 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.p_world_m = truth.T_world_body.translation();
   s.reason = out.safe_hover ? out.safe_hover_reason : "";
   samples_.push_back(s);
+  if (options_.operator_source != nullptr) options_.operator_source->on_output(out, truth);
 }
 
 }  // namespace hq::closed_loop

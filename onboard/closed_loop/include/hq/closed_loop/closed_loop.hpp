@@ -34,6 +34,24 @@ struct CameraFault {
   double duration_s = 0.0;
 };
 
+/// Supplies the operator's command and mode requests in place of the scripted player (the DDS
+/// link in hq-onboard --link), and sees what the loop produces. Called on run_until()'s thread.
+class OperatorSource {
+ public:
+  virtual ~OperatorSource() = default;
+  /// At control tick t_ns (simulated time): the command to fly; mode requests that fall due are
+  /// appended to `mode_requests`.
+  virtual modes::OperatorCommand poll(std::int64_t t_ns,
+                                      std::vector<modes::Mode>& mode_requests) = 0;
+  /// What the chain answered to one of those requests.
+  virtual void on_mode_result(std::int64_t /*t_ns*/, modes::Mode /*mode*/,
+                              const modes::ModeSwitch& /*result*/) {}
+  /// Every recorded chain output, with the simulator's truth at that moment.
+  virtual void on_output(const pipeline::ChainOutput& /*out*/, const sim::TruthState& /*truth*/) {}
+  /// Every rendered camera image (as rendered: BGR or gray) at its stamp.
+  virtual void on_camera(std::int64_t /*t_ns*/, const cv::Mat& /*image*/) {}
+};
+
 struct ClosedLoopOptions {
   /// Frame stamp to setpoint at the flight controller: the chain's median at 640x480 is ~3 ms
   /// (hq-bench-chain) plus the serial link to the flight controller.
@@ -44,6 +62,12 @@ struct ClosedLoopOptions {
   /// Optional, not owned: times the chain's stages (wall time; the flight itself stays on
   /// simulated time). Null: no timing.
   const pipeline::Clock* clock = nullptr;
+  /// Optional, not owned: the operator's command and mode requests come from here instead of
+  /// the player (whose script then only gives end_s).
+  OperatorSource* operator_source = nullptr;
+  /// Paced to wall time (CLOCK_MONOTONIC, absolute sleeps): simulated time tracks real time,
+  /// as needed when a live operator flies it over the link. Off: as fast as possible.
+  bool realtime = false;
 };
 
 /// One row of the flight record, per processed frame and per camera-timeout tick. Velocities in
@@ -96,6 +120,8 @@ class ClosedLoop {
 
   /// Stage durations of every frame after the first (all zero without options.clock).
   [[nodiscard]] const pipeline::StageTimingLog& timing() const { return timing_; }
+  /// With options.realtime: the largest lag of a control tick behind its wall-clock time.
+  [[nodiscard]] double max_realtime_lag_s() const { return 1e-9 * static_cast<double>(max_lag_ns_); }
 
   [[nodiscard]] sim::Simulator& simulator() { return *sim_; }
   [[nodiscard]] pipeline::OnboardChain& chain() { return *chain_; }
@@ -103,6 +129,7 @@ class ClosedLoop {
 
  private:
   void control_tick(std::int64_t t_ns);
+  void pace(std::int64_t t_ns);
   void feed_imu_until(std::int64_t t_ns);
   void process_frame();
   void record(const pipeline::ChainOutput& out);
@@ -130,6 +157,9 @@ class ClosedLoop {
   std::vector<std::string> refusals_;
   double min_clearance_m_ = 1e9;
   int collision_ticks_ = 0;
+  bool have_wall_origin_ = false;
+  std::int64_t wall_origin_ns_ = 0;  ///< CLOCK_MONOTONIC at simulated time 0 (realtime).
+  std::int64_t max_lag_ns_ = 0;
 };
 
 /// The camera heading alpha of eq. 9 from R_QC: atan2(r21, r11).

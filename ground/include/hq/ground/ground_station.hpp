@@ -1,0 +1,125 @@
+#pragma once
+/// The operator's side of the DDS link (hq-ground): publishes the haptic loop's velocity
+/// commands, mode requests and heartbeats; receives vehicle state, events, heartbeats and camera
+/// frames, with the one-way latency of each state (source timestamp to receipt, both on the
+/// host's clock, so meaningful on loopback or with synchronised clocks).
+
+#include "hq/haptics/teleop_mapping.hpp"
+#include "hq/link/link.hpp"
+
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hq::ground {
+
+/// Mode toggles from device buttons, on rising edges only (a held button asks once):
+/// button 0 switches teleop <-> hover, button 1 asks to land.
+class ModeToggle {
+ public:
+  /// The mode to request now, given the buttons held and the vehicle's last reported mode.
+  std::optional<hq_msgs_Mode> on_buttons(std::uint32_t buttons, hq_msgs_Mode vehicle_mode);
+
+ private:
+  std::uint32_t previous_ = 0;
+};
+
+/// Name of a link mode ("teleop", "hover", "land", "marker", "explore", "invalid").
+const char* to_string(hq_msgs_Mode mode);
+const char* to_string(hq_msgs_Health health);
+
+/// Latencies in a fixed histogram (10 us bins up to 100 ms); add() allocates nothing.
+class LatencyStats {
+ public:
+  LatencyStats() : bins_(10'000, 0) {}
+  void add(std::int64_t latency_ns);
+  [[nodiscard]] double quantile_ms(double q) const;
+  [[nodiscard]] std::int64_t count() const { return count_; }
+
+ private:
+  std::vector<std::uint32_t> bins_;
+  std::int64_t count_ = 0;
+};
+
+/// What the ground knows of the vehicle and the link.
+struct LinkStatus {
+  bool have_state = false;
+  link::VehicleState state{};         ///< Latest (obstacle cloud not kept).
+  std::int64_t state_receipt_ns = 0;  ///< When it arrived (dds_time()).
+  std::int64_t last_latency_ns = 0;   ///< Its source timestamp to receipt.
+  std::int64_t last_vehicle_heartbeat_ns = 0;
+  bool have_vehicle_heartbeat = false;
+  std::uint64_t states = 0;
+  std::uint64_t events = 0;
+  std::uint64_t camera_frames = 0;
+  std::uint64_t camera_bytes = 0;
+  std::uint64_t commands_sent = 0;
+  std::uint64_t mode_requests_sent = 0;
+  std::uint64_t heartbeats_sent = 0;
+  std::uint64_t write_failures = 0;
+  std::array<char, 161> last_event{};  ///< Text of the latest event.
+};
+
+/// Optional CSV recording of what arrives: DIR/telemetry.csv (one row per vehicle state) and
+/// DIR/events.csv. @throws hq::InputError if the directory or files cannot be written.
+class TelemetryRecorder {
+ public:
+  explicit TelemetryRecorder(const std::string& directory);
+  ~TelemetryRecorder();
+  TelemetryRecorder(const TelemetryRecorder&) = delete;
+  TelemetryRecorder& operator=(const TelemetryRecorder&) = delete;
+  void state(std::int64_t receipt_ns, std::int64_t latency_ns, const link::VehicleState& s);
+  void event(std::int64_t receipt_ns, const link::Event& e);
+
+ private:
+  std::FILE* telemetry_ = nullptr;
+  std::FILE* events_ = nullptr;
+};
+
+class GroundStation {
+ public:
+  /// @throws hq::InputError naming the DDS call that failed.
+  explicit GroundStation(const link::LinkConfig& config, TelemetryRecorder* recorder = nullptr);
+
+  /// Publishes one command of the haptic loop (zero when `valid` is false).
+  void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
+  void request_mode(std::int64_t t_ns, hq_msgs_Mode mode);
+  void send_heartbeat(std::int64_t t_ns);
+  /// Takes everything pending. Returns true if a new vehicle state arrived.
+  bool poll();
+
+  [[nodiscard]] const LinkStatus& status() const { return status_; }
+  [[nodiscard]] const LatencyStats& latency() const { return latency_; }
+  /// Seconds since the last vehicle state (infinity before the first).
+  [[nodiscard]] double state_age_s() const;
+
+ private:
+  link::LinkConfig config_;
+  TelemetryRecorder* recorder_;
+  link::Participant participant_;
+  link::Topic<link::VelocityCommand> command_topic_;
+  link::Topic<link::ModeRequest> mode_topic_;
+  link::Topic<link::Heartbeat> heartbeat_topic_;
+  link::Topic<link::VehicleState> state_topic_;
+  link::Topic<link::CameraFrame> camera_topic_;
+  link::Topic<link::Event> event_topic_;
+  link::Writer<link::VelocityCommand> command_writer_;
+  link::Writer<link::ModeRequest> mode_writer_;
+  link::Writer<link::Heartbeat> heartbeat_writer_;
+  link::Reader<link::VehicleState> state_reader_;
+  link::Reader<link::CameraFrame> camera_reader_;
+  link::Reader<link::Event> event_reader_;
+  link::Reader<link::Heartbeat> heartbeat_reader_;
+  link::Sample<link::VehicleState> state_sample_;
+  link::Sample<link::CameraFrame> camera_sample_;
+  std::uint64_t command_sequence_ = 0;
+  std::uint64_t mode_sequence_ = 0;
+  std::uint64_t heartbeat_sequence_ = 0;
+  LinkStatus status_;
+  LatencyStats latency_;
+};
+
+}  // namespace hq::ground

@@ -1,0 +1,111 @@
+#pragma once
+/// The vehicle side of the DDS link: takes operator commands, mode requests and heartbeats,
+/// checks them through the Failsafe, and publishes the vehicle state, events, heartbeats and
+/// rate-limited JPEG camera frames.
+///
+/// poll() never blocks: the on-board loop calls it once per control step with the step's time,
+/// which is the receipt stamp of everything it takes. Every sample is taken into preallocated
+/// storage and checked before use, so nothing in a message can crash the process.
+
+#include "hq/link/link.hpp"
+#include "hq/link_bridge/failsafe.hpp"
+#include "hq/modes/mode_controller.hpp"
+#include "hq/pipeline/onboard_chain.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace hq::link_bridge {
+
+/// Event codes of this vehicle (Event.code).
+enum class EventCode : std::uint32_t {
+  kModeAccepted = 1,
+  kModeRefused = 2,
+  kCommandsRejected = 3,
+  kModeRequestRejected = 4,
+  kHeartbeatsRejected = 5,
+  kHold = 6,
+  kHeartbeatLost = 7,
+  kCommandsResumed = 8,
+};
+
+struct BridgeOptions {
+  double camera_rate_hz = 10.0;        ///< JPEG frames to the operator at most this often.
+  int jpeg_quality = 70;               ///< cv::imencode quality, 1..100.
+  double heartbeat_rate_hz = 10.0;     ///< The vehicle's own heartbeat.
+  /// Rejections are summarised in one event per this period, not one per sample, so that a
+  /// flood of bad samples cannot flood the reliable event topic.
+  double rejection_report_period_s = 1.0;
+};
+
+class LinkBridge {
+ public:
+  /// Creates participant, topics, readers and writers on link.domain_id for link.vehicle_id.
+  /// @throws hq::InputError naming the DDS call or the fail-safe setting that failed.
+  LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
+             const BridgeOptions& options = {});
+
+  /// Takes every pending sample (receipt time t_ns), appends accepted mode requests (and a land
+  /// request when the heartbeat is lost) to `mode_requests`, publishes the heartbeat when due,
+  /// and returns the fail-safe state whose command the chain must fly.
+  const FailsafeState& poll(std::int64_t t_ns, std::vector<modes::Mode>& mode_requests);
+
+  /// Acknowledges a mode request with an event (accepted or refused with the chain's reason).
+  void acknowledge(std::int64_t t_ns, modes::Mode mode, const modes::ModeSwitch& result);
+
+  /// Publishes the vehicle state of one chain output.
+  void publish_state(const pipeline::ChainOutput& out);
+
+  /// Publishes `image_bgr` (CV_8UC3 or CV_8UC1) as JPEG if the camera rate allows it now.
+  /// Returns true if a frame was sent.
+  bool publish_camera(std::int64_t t_ns, const cv::Mat& image_bgr);
+
+  /// Publishes an event (text truncated to the message's bound).
+  void publish_event(std::int64_t t_ns, hq_msgs_Severity severity, EventCode code,
+                     const char* text);
+
+  [[nodiscard]] const Failsafe& failsafe() const { return failsafe_; }
+  [[nodiscard]] std::uint64_t camera_frames_sent() const { return camera_sent_; }
+  [[nodiscard]] std::uint64_t states_sent() const { return state_sequence_; }
+  [[nodiscard]] std::uint64_t events_sent() const { return event_sequence_; }
+
+ private:
+  void report_rejections(std::int64_t t_ns);
+
+  link::LinkConfig link_;
+  BridgeOptions options_;
+  Failsafe failsafe_;
+  link::Participant participant_;
+  link::Topic<link::VelocityCommand> command_topic_;
+  link::Topic<link::ModeRequest> mode_topic_;
+  link::Topic<link::Heartbeat> heartbeat_topic_;
+  link::Topic<link::VehicleState> state_topic_;
+  link::Topic<link::CameraFrame> camera_topic_;
+  link::Topic<link::Event> event_topic_;
+  link::Reader<link::VelocityCommand> command_reader_;
+  link::Reader<link::ModeRequest> mode_reader_;
+  link::Reader<link::Heartbeat> heartbeat_reader_;
+  link::Writer<link::VehicleState> state_writer_;
+  link::Writer<link::CameraFrame> camera_writer_;
+  link::Writer<link::Event> event_writer_;
+  link::Writer<link::Heartbeat> heartbeat_writer_;
+
+  link::Sample<link::VehicleState> state_;
+  link::Sample<link::CameraFrame> camera_;
+  link::Sample<link::Event> event_;
+  std::vector<unsigned char> jpeg_;
+  std::vector<int> jpeg_params_;
+
+  std::uint64_t state_sequence_ = 0;
+  std::uint64_t event_sequence_ = 0;
+  std::uint64_t heartbeat_sequence_ = 0;
+  std::uint64_t camera_sent_ = 0;
+  std::int64_t next_heartbeat_ns_ = 0;
+  std::int64_t next_camera_ns_ = 0;
+  std::int64_t next_rejection_report_ns_ = 0;
+  FailsafeCounters reported_;
+};
+
+}  // namespace hq::link_bridge

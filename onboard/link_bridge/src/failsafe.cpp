@@ -1,0 +1,144 @@
+#include "hq/link_bridge/failsafe.hpp"
+
+#include "hq/base/error.hpp"
+
+#include <string>
+
+namespace hq::link_bridge {
+
+void check_config(const FailsafeConfig& config) {
+  const auto positive = [](const char* key, double value) {
+    if (!(value > 0.0)) {
+      throw InputError(std::string("link fail-safe: ") + key + " = " + std::to_string(value) +
+                       ", expected > 0");
+    }
+  };
+  positive("command_timeout_ms", 1e-6 * static_cast<double>(config.command_timeout_ns));
+  positive("heartbeat_timeout_ms", 1e-6 * static_cast<double>(config.heartbeat_timeout_ns));
+  positive("envelope.max_v_x_mps", config.envelope.max_v_x_mps);
+  positive("envelope.max_v_y_mps", config.envelope.max_v_y_mps);
+  positive("envelope.max_v_z_mps", config.envelope.max_v_z_mps);
+  positive("envelope.max_yaw_rate_radps", config.envelope.max_yaw_rate_radps);
+  if (config.heartbeat_timeout_ns < config.command_timeout_ns) {
+    // Landing before holding would skip the gentler fail-safe.
+    throw InputError("link fail-safe: heartbeat_timeout_ms = " +
+                     std::to_string(1e-6 * static_cast<double>(config.heartbeat_timeout_ns)) +
+                     ", expected >= command_timeout_ms = " +
+                     std::to_string(1e-6 * static_cast<double>(config.command_timeout_ns)));
+  }
+}
+
+bool to_mode(hq_msgs_Mode value, modes::Mode& mode) {
+  // The enum arrived off the wire: any integer is possible, so compare before converting.
+  switch (static_cast<int>(value)) {
+    case hq_msgs_MODE_TELEOP: mode = modes::Mode::kTeleop; return true;
+    case hq_msgs_MODE_HOVER: mode = modes::Mode::kHover; return true;
+    case hq_msgs_MODE_LAND: mode = modes::Mode::kLand; return true;
+    case hq_msgs_MODE_MARKER: mode = modes::Mode::kMarker; return true;
+    case hq_msgs_MODE_EXPLORE: mode = modes::Mode::kExplore; return true;
+    default: return false;
+  }
+}
+
+hq_msgs_Mode to_link_mode(modes::Mode mode) {
+  switch (mode) {
+    case modes::Mode::kTeleop: return hq_msgs_MODE_TELEOP;
+    case modes::Mode::kHover: return hq_msgs_MODE_HOVER;
+    case modes::Mode::kLand: return hq_msgs_MODE_LAND;
+    case modes::Mode::kMarker: return hq_msgs_MODE_MARKER;
+    case modes::Mode::kExplore: return hq_msgs_MODE_EXPLORE;
+  }
+  return hq_msgs_MODE_HOVER;
+}
+
+Failsafe::Failsafe(const FailsafeConfig& config) : config_(config) { check_config(config_); }
+
+Verdict Failsafe::reject(std::uint64_t& counter, const char* reason) {
+  ++counter;
+  last_rejection_ = reason;
+  return {false, reason};
+}
+
+Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& command) {
+  if (command.vehicle_id != config_.vehicle_id) {
+    last_command_rejection_ = "command for another vehicle id";
+    return reject(counters_.commands_rejected, last_command_rejection_);
+  }
+  const link::Validation v = link::validate(command, config_.envelope);
+  if (!v.ok) {
+    last_command_rejection_ = v.reason;
+    return reject(counters_.commands_rejected, v.reason);
+  }
+  last_command_.t_ns = t_ns;
+  last_command_.v_horizontal_mps = {command.v_H_mps.x, command.v_H_mps.y, command.v_H_mps.z};
+  last_command_.yaw_rate_radps = command.yaw_rate_radps;
+  last_command_t_ns_ = t_ns;
+  have_command_ = true;
+  ++counters_.commands_accepted;
+  return {true, ""};
+}
+
+Verdict Failsafe::on_mode_request(std::int64_t /*t_ns*/, const link::ModeRequest& request,
+                                  modes::Mode& mode) {
+  if (request.vehicle_id != config_.vehicle_id) {
+    return reject(counters_.mode_requests_rejected, "mode request for another vehicle id");
+  }
+  const link::Validation v = link::validate(request);
+  if (!v.ok) return reject(counters_.mode_requests_rejected, v.reason);
+  if (!to_mode(request.requested_mode, mode)) {
+    return reject(counters_.mode_requests_rejected, "requested_mode outside the Mode enum");
+  }
+  ++counters_.mode_requests_accepted;
+  return {true, ""};
+}
+
+Verdict Failsafe::on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbeat) {
+  if (heartbeat.vehicle_id != config_.vehicle_id) {
+    return reject(counters_.heartbeats_rejected, "heartbeat for another vehicle id");
+  }
+  const link::Validation v = link::validate(heartbeat);
+  if (!v.ok) return reject(counters_.heartbeats_rejected, v.reason);
+  if (static_cast<int>(heartbeat.role) != hq_msgs_ROLE_GROUND) {
+    // A vehicle's heartbeat (our own among them: the topic is shared) is well-formed but says
+    // nothing about the operator: ignored, not counted as a rejection.
+    return {false, "heartbeat not from a ground station"};
+  }
+  last_heartbeat_t_ns_ = t_ns;
+  have_heartbeat_ = true;
+  ++counters_.heartbeats_accepted;
+  return {true, ""};
+}
+
+const FailsafeState& Failsafe::update(std::int64_t t_ns) {
+  FailsafeState& s = state_;
+  s.t_ns = t_ns;
+  s.have_command = have_command_;
+  s.command_age_ns = have_command_ ? t_ns - last_command_t_ns_ : -1;
+  s.heartbeat_age_ns = have_heartbeat_ ? t_ns - last_heartbeat_t_ns_ : -1;
+
+  s.hold = !have_command_ || s.command_age_ns > config_.command_timeout_ns;
+  s.hold_started = s.hold && !was_holding_;
+  if (s.hold_started) ++counters_.holds;
+  was_holding_ = s.hold;
+  if (s.hold) {
+    // Zero velocity stamped now, so the mode controller flies it as a fresh command (a held
+    // vehicle, not its own teleop-timeout fallback).
+    s.command = {};
+    s.command.t_ns = t_ns;
+  } else {
+    s.command = last_command_;
+  }
+
+  // The heartbeat clock starts with the first station seen (a heartbeat or a command): before
+  // that the vehicle sits on the ground and there is nobody to lose.
+  const bool armed = have_heartbeat_ || have_command_;
+  const std::int64_t since_ns =
+      have_heartbeat_ ? s.heartbeat_age_ns : (have_command_ ? s.command_age_ns : 0);
+  s.heartbeat_lost = armed && since_ns > config_.heartbeat_timeout_ns;
+  s.request_land = s.heartbeat_lost && !was_lost_;
+  if (s.request_land) ++counters_.land_requests;
+  was_lost_ = s.heartbeat_lost;
+  return s;
+}
+
+}  // namespace hq::link_bridge

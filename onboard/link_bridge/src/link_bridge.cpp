@@ -1,0 +1,191 @@
+#include "hq/link_bridge/link_bridge.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+namespace hq::link_bridge {
+namespace {
+
+std::int64_t period_ns(double rate_hz) {
+  return rate_hz > 0.0 ? static_cast<std::int64_t>(std::llround(1e9 / rate_hz)) : 0;
+}
+
+hq_msgs_Vector3f to_msg(const Eigen::Vector3d& v) {
+  return {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())};
+}
+
+}  // namespace
+
+LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
+                       const BridgeOptions& options)
+    : link_(link),
+      options_(options),
+      failsafe_(failsafe),
+      participant_(link.domain_id),
+      command_topic_(participant_),
+      mode_topic_(participant_),
+      heartbeat_topic_(participant_),
+      state_topic_(participant_),
+      camera_topic_(participant_),
+      event_topic_(participant_),
+      command_reader_(participant_, command_topic_, link::command_qos(link, link::End::kReader)),
+      mode_reader_(participant_, mode_topic_, link::mode_request_qos()),
+      heartbeat_reader_(participant_, heartbeat_topic_, link::heartbeat_qos(link)),
+      state_writer_(participant_, state_topic_, link::vehicle_state_qos()),
+      camera_writer_(participant_, camera_topic_, link::camera_qos()),
+      event_writer_(participant_, event_topic_, link::event_qos()),
+      heartbeat_writer_(participant_, heartbeat_topic_, link::heartbeat_qos(link)) {
+  link::check_config(link_);
+  if (!(options_.camera_rate_hz >= 0.0 && options_.camera_rate_hz <= 60.0)) {
+    throw InputError("link bridge: camera_rate_hz = " + std::to_string(options_.camera_rate_hz) +
+                     ", expected in [0, 60] (0 = no camera stream)");
+  }
+  if (options_.jpeg_quality < 1 || options_.jpeg_quality > 100) {
+    throw InputError("link bridge: jpeg_quality = " + std::to_string(options_.jpeg_quality) +
+                     ", expected in [1, 100]");
+  }
+  link::reserve(state_->obstacle_points_body_m, 0);
+  link::reserve(camera_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
+  camera_->vehicle_id = link_.vehicle_id;
+  state_->vehicle_id = link_.vehicle_id;
+  event_->vehicle_id = link_.vehicle_id;
+  jpeg_params_ = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
+  jpeg_.reserve(hq_msgs_kMaxJpegBytes);
+}
+
+const FailsafeState& LinkBridge::poll(std::int64_t t_ns, std::vector<modes::Mode>& mode_requests) {
+  dds_sample_info_t info{};
+  link::VelocityCommand command{};
+  while (command_reader_.take(command, info)) failsafe_.on_command(t_ns, command);
+  link::Heartbeat heartbeat{};
+  while (heartbeat_reader_.take(heartbeat, info)) failsafe_.on_heartbeat(t_ns, heartbeat);
+  link::ModeRequest request{};
+  while (mode_reader_.take(request, info)) {
+    modes::Mode mode = modes::Mode::kHover;
+    const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
+    if (verdict.accepted) {
+      mode_requests.push_back(mode);
+    } else {
+      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected,
+                    verdict.reason);
+    }
+  }
+
+  const FailsafeState& state = failsafe_.update(t_ns);
+  if (state.hold_started) {
+    char text[96];
+    std::snprintf(text, sizeof text, "no command for %.0f ms: holding zero velocity",
+                  1e-6 * static_cast<double>(state.command_age_ns));
+    publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHold, text);
+  }
+  if (state.request_land) {
+    mode_requests.push_back(modes::Mode::kLand);
+    char text[96];
+    std::snprintf(text, sizeof text, "no ground heartbeat for %.1f s: landing",
+                  1e-9 * static_cast<double>(failsafe_.config().heartbeat_timeout_ns));
+    publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHeartbeatLost, text);
+  }
+  report_rejections(t_ns);
+
+  if (t_ns >= next_heartbeat_ns_) {
+    next_heartbeat_ns_ = t_ns + period_ns(options_.heartbeat_rate_hz);
+    link::Heartbeat own{};
+    own.vehicle_id = link_.vehicle_id;
+    own.role = hq_msgs_ROLE_VEHICLE;
+    own.sender_id = link_.vehicle_id;
+    own.sequence_number = ++heartbeat_sequence_;
+    own.t_ns = t_ns;
+    heartbeat_writer_.write(own);
+  }
+  return state;
+}
+
+void LinkBridge::report_rejections(std::int64_t t_ns) {
+  if (t_ns < next_rejection_report_ns_) return;
+  const FailsafeCounters& c = failsafe_.counters();
+  const std::uint64_t commands = c.commands_rejected - reported_.commands_rejected;
+  const std::uint64_t heartbeats = c.heartbeats_rejected - reported_.heartbeats_rejected;
+  if (commands == 0 && heartbeats == 0) return;
+  char text[hq_msgs_kMaxEventText + 1];
+  if (commands > 0) {
+    std::snprintf(text, sizeof text, "rejected %llu commands (%llu in total), last: %s",
+                  static_cast<unsigned long long>(commands),
+                  static_cast<unsigned long long>(c.commands_rejected),
+                  failsafe_.last_command_rejection());
+    publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kCommandsRejected, text);
+  }
+  if (heartbeats > 0) {
+    std::snprintf(text, sizeof text, "rejected %llu heartbeats (%llu in total)",
+                  static_cast<unsigned long long>(heartbeats),
+                  static_cast<unsigned long long>(c.heartbeats_rejected));
+    publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHeartbeatsRejected, text);
+  }
+  reported_ = c;
+  next_rejection_report_ns_ = t_ns + period_ns(1.0 / options_.rejection_report_period_s);
+}
+
+void LinkBridge::acknowledge(std::int64_t t_ns, modes::Mode mode,
+                             const modes::ModeSwitch& result) {
+  char text[hq_msgs_kMaxEventText + 1];
+  if (result.accepted) {
+    std::snprintf(text, sizeof text, "mode %s accepted", modes::to_string(mode));
+    publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kModeAccepted, text);
+  } else {
+    std::snprintf(text, sizeof text, "mode %s refused: %s", modes::to_string(mode),
+                  result.reason);
+    publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRefused, text);
+  }
+}
+
+void LinkBridge::publish_event(std::int64_t t_ns, hq_msgs_Severity severity, EventCode code,
+                               const char* text) {
+  event_->sequence_number = ++event_sequence_;
+  event_->t_ns = t_ns;
+  event_->severity = severity;
+  event_->code = static_cast<std::uint32_t>(code);
+  std::snprintf(event_->text, sizeof event_->text, "%s", text);
+  event_writer_.write(*event_);
+}
+
+void LinkBridge::publish_state(const pipeline::ChainOutput& out) {
+  const FailsafeState& link_state = failsafe_.state();
+  link::VehicleState& s = *state_;
+  s.sequence_number = ++state_sequence_;
+  s.t_ns = out.t_ns;
+  s.v_H_mps = to_msg(out.estimate.v_horizontal_mps);
+  s.omega_body_radps = to_msg(out.estimate.omega_body_radps);
+  s.roll_rad = static_cast<float>(out.estimate.roll_rad);
+  s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
+  s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
+  s.mode = to_link_mode(out.mode.mode);
+  s.estimator_health = out.estimate.ok() ? hq_msgs_HEALTH_OK
+                       : out.safe_hover  ? hq_msgs_HEALTH_LOST
+                                         : hq_msgs_HEALTH_DEGRADED;
+  s.link_health = link_state.heartbeat_lost ? hq_msgs_HEALTH_LOST
+                  : link_state.hold         ? hq_msgs_HEALTH_DEGRADED
+                                            : hq_msgs_HEALTH_OK;
+  s.obstacle_points_body_m._length = 0;
+  state_writer_.write(s);
+}
+
+bool LinkBridge::publish_camera(std::int64_t t_ns, const cv::Mat& image_bgr) {
+  if (options_.camera_rate_hz <= 0.0 || t_ns < next_camera_ns_ || image_bgr.empty()) return false;
+  next_camera_ns_ = t_ns + period_ns(options_.camera_rate_hz);
+  if (!cv::imencode(".jpg", image_bgr, jpeg_, jpeg_params_)) return false;
+  if (jpeg_.size() > hq_msgs_kMaxJpegBytes) return false;  // quality too high for the bound
+  link::CameraFrame& f = *camera_;
+  f.sequence_number = ++camera_sent_;
+  f.t_ns = t_ns;
+  f.width_px = static_cast<std::uint16_t>(image_bgr.cols);
+  f.height_px = static_cast<std::uint16_t>(image_bgr.rows);
+  std::memcpy(f.rgb_jpeg._buffer, jpeg_.data(), jpeg_.size());
+  f.rgb_jpeg._length = static_cast<std::uint32_t>(jpeg_.size());
+  f.depth_preview._length = 0;
+  return camera_writer_.write(f);
+}
+
+}  // namespace hq::link_bridge

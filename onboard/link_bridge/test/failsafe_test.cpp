@@ -1,0 +1,230 @@
+#include "hq/link_bridge/failsafe.hpp"
+
+#include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace hq::link_bridge {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr std::int64_t kMs = 1'000'000;
+
+link::VelocityCommand command(float v_x_mps) {
+  link::VelocityCommand c{};
+  c.vehicle_id = 1;
+  c.station_id = 1;
+  c.v_H_mps = {v_x_mps, 0.0F, -0.2F};
+  c.yaw_rate_radps = 0.1F;
+  return c;
+}
+
+link::Heartbeat ground_heartbeat() {
+  link::Heartbeat h{};
+  h.vehicle_id = 1;
+  h.role = hq_msgs_ROLE_GROUND;
+  h.sender_id = 1;
+  return h;
+}
+
+TEST(Failsafe, HoldsZeroVelocityUntilTheFirstCommand) {
+  Failsafe failsafe(FailsafeConfig{});
+  const FailsafeState& s = failsafe.update(10 * kMs);
+  EXPECT_TRUE(s.hold);
+  EXPECT_FALSE(s.have_command);
+  EXPECT_EQ(s.command_age_ns, -1);
+  EXPECT_EQ(s.command.v_horizontal_mps.norm(), 0.0);
+  EXPECT_FALSE(s.heartbeat_lost);  // nobody seen yet: nobody to lose
+}
+
+TEST(Failsafe, FreshCommandPassesThenHoldsZeroAfterTheTimeout) {
+  FailsafeConfig config;
+  config.command_timeout_ns = 200 * kMs;
+  Failsafe failsafe(config);
+  ASSERT_TRUE(failsafe.on_command(1000 * kMs, command(0.5F)).accepted);
+  const FailsafeState& fresh = failsafe.update(1150 * kMs);
+  EXPECT_FALSE(fresh.hold);
+  EXPECT_EQ(fresh.command_age_ns, 150 * kMs);
+  EXPECT_FLOAT_EQ(static_cast<float>(fresh.command.v_horizontal_mps.x()), 0.5F);
+  EXPECT_EQ(fresh.command.t_ns, 1000 * kMs);
+
+  EXPECT_FALSE(failsafe.update(1200 * kMs).hold);  // exactly at the timeout: still fresh
+  const FailsafeState& held = failsafe.update(1201 * kMs);
+  EXPECT_TRUE(held.hold);
+  EXPECT_TRUE(held.hold_started);
+  EXPECT_EQ(held.command.v_horizontal_mps.norm(), 0.0);
+  EXPECT_EQ(held.command.yaw_rate_radps, 0.0);
+  EXPECT_EQ(held.command.t_ns, 1201 * kMs);  // stamped now: flown as a fresh zero command
+  EXPECT_FALSE(failsafe.update(1300 * kMs).hold_started);  // the edge is reported once
+  EXPECT_EQ(failsafe.counters().holds, 1U);
+
+  ASSERT_TRUE(failsafe.on_command(1400 * kMs, command(0.3F)).accepted);
+  EXPECT_FALSE(failsafe.update(1405 * kMs).hold);
+}
+
+TEST(Failsafe, CommandTimeoutIsConfigurable) {
+  FailsafeConfig config;
+  config.command_timeout_ns = 50 * kMs;
+  Failsafe failsafe(config);
+  failsafe.on_command(0, command(0.5F));
+  EXPECT_FALSE(failsafe.update(50 * kMs).hold);
+  EXPECT_TRUE(failsafe.update(51 * kMs).hold);
+}
+
+TEST(Failsafe, RequestsLandOnceAfterTwoSecondsWithoutHeartbeat) {
+  Failsafe failsafe(FailsafeConfig{});
+  ASSERT_TRUE(failsafe.on_heartbeat(1000 * kMs, ground_heartbeat()).accepted);
+  EXPECT_FALSE(failsafe.update(2900 * kMs).heartbeat_lost);
+  // Commands keep arriving but do not stand in for the heartbeat.
+  failsafe.on_command(2950 * kMs, command(0.1F));
+  EXPECT_FALSE(failsafe.update(3000 * kMs).heartbeat_lost);
+  const FailsafeState& lost = failsafe.update(3001 * kMs);
+  EXPECT_TRUE(lost.heartbeat_lost);
+  EXPECT_TRUE(lost.request_land);
+  EXPECT_EQ(lost.heartbeat_age_ns, 2001 * kMs);
+  EXPECT_FALSE(failsafe.update(3100 * kMs).request_land);
+  EXPECT_EQ(failsafe.counters().land_requests, 1U);
+
+  // A station coming back re-arms it: a second loss lands again.
+  failsafe.on_heartbeat(4000 * kMs, ground_heartbeat());
+  EXPECT_FALSE(failsafe.update(4000 * kMs).heartbeat_lost);
+  EXPECT_TRUE(failsafe.update(6001 * kMs).request_land);
+  EXPECT_EQ(failsafe.counters().land_requests, 2U);
+}
+
+TEST(Failsafe, CommandsWithoutAnyHeartbeatLandAfterTheTimeout) {
+  Failsafe failsafe(FailsafeConfig{});
+  failsafe.on_command(0, command(0.2F));
+  EXPECT_FALSE(failsafe.update(2000 * kMs).heartbeat_lost);
+  EXPECT_TRUE(failsafe.update(2001 * kMs).request_land);
+}
+
+TEST(Failsafe, VehicleHeartbeatsAndOtherVehiclesDoNotKeepTheLinkAlive) {
+  Failsafe failsafe(FailsafeConfig{});
+  failsafe.on_heartbeat(0, ground_heartbeat());
+  link::Heartbeat own = ground_heartbeat();
+  own.role = hq_msgs_ROLE_VEHICLE;
+  EXPECT_THAT(failsafe.on_heartbeat(1500 * kMs, own).reason, HasSubstr("not from a ground"));
+  link::Heartbeat other = ground_heartbeat();
+  other.vehicle_id = 7;
+  EXPECT_THAT(failsafe.on_heartbeat(1500 * kMs, other).reason, HasSubstr("another vehicle"));
+  link::Heartbeat bad_role = ground_heartbeat();
+  bad_role.role = static_cast<hq_msgs_Role>(77);
+  EXPECT_FALSE(failsafe.on_heartbeat(1500 * kMs, bad_role).accepted);
+  EXPECT_EQ(failsafe.counters().heartbeats_rejected, 2U);  // a vehicle's is ignored, not counted
+  EXPECT_TRUE(failsafe.update(2001 * kMs).request_land);
+}
+
+TEST(Failsafe, NonFiniteOrOutOfEnvelopeCommandsAreRejectedCountedAndNotFlown) {
+  Failsafe failsafe(FailsafeConfig{});
+  ASSERT_TRUE(failsafe.on_command(0, command(0.4F)).accepted);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const float values[] = {nan, inf, -inf, 1e30F, -3.0F, std::numeric_limits<float>::max()};
+  for (const float v : values) {
+    const Verdict verdict = failsafe.on_command(10 * kMs, command(v));
+    EXPECT_FALSE(verdict.accepted) << v;
+    EXPECT_THAT(verdict.reason, HasSubstr("v_H_mps.x")) << v;
+  }
+  link::VelocityCommand yaw = command(0.1F);
+  yaw.yaw_rate_radps = nan;
+  EXPECT_FALSE(failsafe.on_command(10 * kMs, yaw).accepted);
+  link::VelocityCommand other = command(0.1F);
+  other.vehicle_id = 2;
+  EXPECT_THAT(failsafe.on_command(10 * kMs, other).reason, HasSubstr("another vehicle"));
+  EXPECT_EQ(failsafe.counters().commands_rejected, 8U);
+  EXPECT_EQ(failsafe.counters().commands_accepted, 1U);
+  EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("another vehicle"));
+
+  // The last good command is still what flies, and its age is not refreshed by bad samples.
+  const FailsafeState& s = failsafe.update(100 * kMs);
+  EXPECT_FLOAT_EQ(static_cast<float>(s.command.v_horizontal_mps.x()), 0.4F);
+  EXPECT_EQ(s.command_age_ns, 100 * kMs);
+  EXPECT_TRUE(s.command.v_horizontal_mps.allFinite());
+  EXPECT_TRUE(failsafe.update(201 * kMs).hold);
+}
+
+TEST(Failsafe, HugeSequenceNumbersDoNotLockOutTheStation) {
+  Failsafe failsafe(FailsafeConfig{});
+  link::VelocityCommand hostile = command(0.0F);
+  hostile.sequence_number = std::numeric_limits<std::uint64_t>::max();
+  failsafe.on_command(0, hostile);
+  link::VelocityCommand real = command(0.3F);
+  real.sequence_number = 5;
+  EXPECT_TRUE(failsafe.on_command(10 * kMs, real).accepted);
+  EXPECT_FLOAT_EQ(static_cast<float>(failsafe.update(20 * kMs).command.v_horizontal_mps.x()),
+                  0.3F);
+}
+
+TEST(Failsafe, MalformedModeRequestsAreRejectedAndValidOnesMapped) {
+  Failsafe failsafe(FailsafeConfig{});
+  link::ModeRequest request{};
+  request.vehicle_id = 1;
+  modes::Mode mode = modes::Mode::kHover;
+  request.requested_mode = hq_msgs_MODE_TELEOP;
+  EXPECT_TRUE(failsafe.on_mode_request(0, request, mode).accepted);
+  EXPECT_EQ(mode, modes::Mode::kTeleop);
+  request.requested_mode = hq_msgs_MODE_LAND;
+  EXPECT_TRUE(failsafe.on_mode_request(0, request, mode).accepted);
+  EXPECT_EQ(mode, modes::Mode::kLand);
+
+  for (const int bad : {-1, 5, 1000, std::numeric_limits<int>::max()}) {
+    request.requested_mode = static_cast<hq_msgs_Mode>(bad);
+    mode = modes::Mode::kHover;
+    EXPECT_FALSE(failsafe.on_mode_request(0, request, mode).accepted) << bad;
+    EXPECT_EQ(mode, modes::Mode::kHover);
+  }
+  request.requested_mode = hq_msgs_MODE_TELEOP;
+  request.vehicle_id = 9;
+  EXPECT_THAT(failsafe.on_mode_request(0, request, mode).reason, HasSubstr("another vehicle"));
+  EXPECT_EQ(failsafe.counters().mode_requests_rejected, 5U);
+  EXPECT_EQ(failsafe.counters().mode_requests_accepted, 2U);
+}
+
+TEST(Failsafe, ModeEnumRoundTrips) {
+  for (const modes::Mode mode : {modes::Mode::kTeleop, modes::Mode::kHover, modes::Mode::kLand,
+                                 modes::Mode::kMarker, modes::Mode::kExplore}) {
+    modes::Mode back = modes::Mode::kHover;
+    ASSERT_TRUE(to_mode(to_link_mode(mode), back));
+    EXPECT_EQ(back, mode);
+  }
+}
+
+TEST(Failsafe, BadConfigNamesTheField) {
+  FailsafeConfig config;
+  config.command_timeout_ns = 0;
+  EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),
+              HasSubstr("command_timeout_ms = 0"));
+  config = {};
+  config.heartbeat_timeout_ns = 100 * kMs;
+  EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),
+              HasSubstr("heartbeat_timeout_ms = 100"));
+  config = {};
+  config.envelope.max_v_z_mps = std::nan("");
+  EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),
+              HasSubstr("envelope.max_v_z_mps"));
+}
+
+TEST(Failsafe, PerMessagePathAllocatesNothing) {
+  Failsafe failsafe(FailsafeConfig{});
+  failsafe.on_command(0, command(0.1F));
+  failsafe.update(0);
+  const auto before = hq::testing::allocation_count();
+  for (int i = 1; i < 1000; ++i) {
+    const std::int64_t t_ns = i * kMs;
+    failsafe.on_command(t_ns, command(i % 3 == 0 ? std::nanf("") : 0.2F));
+    failsafe.on_heartbeat(t_ns, ground_heartbeat());
+    failsafe.update(t_ns);
+  }
+  EXPECT_EQ(hq::testing::allocation_count(), before);
+}
+
+}  // namespace
+}  // namespace hq::link_bridge

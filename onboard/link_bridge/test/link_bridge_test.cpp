@@ -1,0 +1,171 @@
+// The bridge over a real DDS domain: a private domain per test process, loopback only.
+#include "hq/link_bridge/link_bridge.hpp"
+
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <limits>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace hq::link_bridge {
+namespace {
+
+using ::testing::HasSubstr;
+
+link::LinkConfig private_link() {
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+         "</Interfaces></General></Domain></CycloneDDS>",
+         1);
+  link::LinkConfig config;
+  config.domain_id = 1 + static_cast<int>(getpid() % 200);
+  return config;
+}
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// A ground station's writers and the vehicle's outputs, on the same domain.
+struct Ground {
+  explicit Ground(const link::LinkConfig& config)
+      : participant(config.domain_id),
+        command_topic(participant),
+        mode_topic(participant),
+        heartbeat_topic(participant),
+        event_topic(participant),
+        state_topic(participant),
+        commands(participant, command_topic, link::command_qos(config, link::End::kWriter)),
+        mode_requests(participant, mode_topic, link::mode_request_qos()),
+        heartbeats(participant, heartbeat_topic, link::heartbeat_qos(config)),
+        events(participant, event_topic, link::event_qos()),
+        states(participant, state_topic, link::vehicle_state_qos()) {}
+  link::Participant participant;
+  link::Topic<link::VelocityCommand> command_topic;
+  link::Topic<link::ModeRequest> mode_topic;
+  link::Topic<link::Heartbeat> heartbeat_topic;
+  link::Topic<link::Event> event_topic;
+  link::Topic<link::VehicleState> state_topic;
+  link::Writer<link::VelocityCommand> commands;
+  link::Writer<link::ModeRequest> mode_requests;
+  link::Writer<link::Heartbeat> heartbeats;
+  link::Reader<link::Event> events;
+  link::Reader<link::VehicleState> states;
+};
+
+// Polls the bridge as the control loop does (every 2 ms) until `done` or 5 s.
+template <typename Done>
+bool poll_until(LinkBridge& bridge, std::vector<modes::Mode>& requests, Done done) {
+  const std::int64_t end_ns = now_ns() + 5'000'000'000;
+  while (now_ns() < end_ns) {
+    bridge.poll(now_ns(), requests);
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return false;
+}
+
+TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  std::vector<modes::Mode> requests;
+
+  // Commands are best-effort: keep writing until one is taken.
+  link::VelocityCommand good{};
+  good.vehicle_id = 1;
+  good.v_H_mps = {0.25F, 0.0F, 0.0F};
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    ground.commands.write(good);
+    return bridge.failsafe().counters().commands_accepted > 0;
+  }));
+  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_horizontal_mps.x()),
+                  0.25F);
+
+  link::VelocityCommand bad = good;
+  bad.v_H_mps.y = std::numeric_limits<float>::quiet_NaN();
+  bad.sequence_number = std::numeric_limits<std::uint64_t>::max();
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    ground.commands.write(bad);
+    return bridge.failsafe().counters().commands_rejected > 0;
+  }));
+
+  link::ModeRequest request{};
+  request.vehicle_id = 1;
+  request.requested_mode = static_cast<hq_msgs_Mode>(99);
+  ground.mode_requests.write(request);
+  request.requested_mode = hq_msgs_MODE_TELEOP;
+  ground.mode_requests.write(request);
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
+  EXPECT_EQ(requests.front(), modes::Mode::kTeleop);
+  EXPECT_EQ(bridge.failsafe().counters().mode_requests_rejected, 1U);
+  EXPECT_EQ(bridge.failsafe().counters().heartbeats_rejected, 0U);  // its own are not counted
+  bridge.acknowledge(now_ns(), modes::Mode::kTeleop, {true, ""});
+
+  // Events are reliable and transient-local: the rejection and the acknowledgement arrive.
+  std::vector<std::string> texts;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    link::Event event{};
+    dds_sample_info_t info{};
+    while (ground.events.take(event, info)) texts.emplace_back(event.text);
+    bool ack = false;
+    bool rejected_mode = false;
+    bool rejected_command = false;
+    for (const std::string& t : texts) {
+      ack = ack || t.find("mode teleop accepted") != std::string::npos;
+      rejected_mode = rejected_mode || t.find("Mode enum") != std::string::npos;
+      rejected_command = rejected_command || t.find("NaN or Inf") != std::string::npos;
+    }
+    return ack && rejected_mode && rejected_command;
+  })) << ::testing::PrintToString(texts);
+}
+
+TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
+  const link::LinkConfig config = private_link();
+  BridgeOptions options;
+  options.camera_rate_hz = 10.0;
+  LinkBridge bridge(config, FailsafeConfig{}, options);
+  Ground ground(config);
+  const cv::Mat image(48, 64, CV_8UC3, cv::Scalar(40, 120, 200));
+  // 1 s of 200 Hz control steps on a stamp clock: 10 frames, not 200.
+  int sent = 0;
+  for (int i = 0; i < 200; ++i) sent += bridge.publish_camera(i * 5'000'000LL, image) ? 1 : 0;
+  EXPECT_EQ(sent, 10);
+
+  pipeline::ChainOutput out;
+  out.t_ns = 123;
+  out.estimate.v_horizontal_mps = {0.5, -0.25, 0.125};
+  out.mode.mode = modes::Mode::kLand;
+  std::vector<modes::Mode> requests;
+  link::VehicleState state{};
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    bridge.publish_state(out);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info);
+  }));
+  EXPECT_EQ(state.mode, hq_msgs_MODE_LAND);
+  EXPECT_FLOAT_EQ(state.v_H_mps.y, -0.25F);
+  EXPECT_EQ(state.link_health, hq_msgs_HEALTH_DEGRADED);  // no command yet: holding
+  EXPECT_TRUE(link::validate(state).ok);
+}
+
+TEST(LinkBridge, BadOptionsNameTheKey) {
+  const link::LinkConfig config = private_link();
+  BridgeOptions options;
+  options.jpeg_quality = 0;
+  EXPECT_THAT(hq::testing::input_error_message([&] { LinkBridge b(config, {}, options); }),
+              HasSubstr("jpeg_quality = 0"));
+}
+
+}  // namespace
+}  // namespace hq::link_bridge
