@@ -124,6 +124,27 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   if (source != last_source_) ramping_ = true;
   last_source_ = source;
 
+  if (landed_) {
+    // On the ground only a climb request starts the motors; until then the PID is held reset
+    // so no integral winds up against the floor.
+    if (v_target.z() < -config_.takeoff_climb_mps) {
+      landed_ = false;
+      ramping_ = true;
+      touchdown_timer_s_ = 0.0;
+      blind_descent_timer_s_ = 0.0;
+      controller_.reset();
+    } else {
+      v_star_mps_.setZero();
+      yaw_rate_radps_ = 0.0;
+      ramping_ = false;
+      controller_.reset();
+      have_previous_ = true;
+      t_prev_ns_ = t_ns;
+      out.landed = true;
+      out.control.setpoint = control::AttitudeSetpoint{};
+      return out;
+    }
+  }
   const double dt_s =
       have_previous_ ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_prev_ns_)) : 0.0;
   have_previous_ = true;
@@ -139,25 +160,6 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   } else {
     v_star_mps_ = v_target;
     yaw_rate_radps_ = yaw_target;
-  }
-  if (landed_) {
-    // On the ground only a climb request starts the motors; until then the PID is held reset
-    // so no integral winds up against the floor.
-    if (v_target.z() < -config_.takeoff_climb_mps) {
-      landed_ = false;
-      ramping_ = true;
-      touchdown_timer_s_ = 0.0;
-      blind_descent_timer_s_ = 0.0;
-      controller_.reset();
-    } else {
-      v_star_mps_.setZero();
-      yaw_rate_radps_ = 0.0;
-      ramping_ = false;
-      controller_.reset();
-      out.landed = true;
-      out.control.setpoint = control::AttitudeSetpoint{};
-      return out;
-    }
   }
   out.ramping = ramping_;
   out.v_star_des_horizontal_mps = v_star_mps_;
