@@ -154,7 +154,19 @@ class LinkOperator final : public hq::closed_loop::OperatorSource {
 
   hq::modes::OperatorCommand poll(std::int64_t t_ns,
                                   std::vector<hq::modes::Mode>& mode_requests) override {
-    return bridge_.poll(t_ns, mode_requests).command;
+    const hq::link_bridge::FailsafeState& state = bridge_.poll(t_ns, mode_requests);
+    // Fail-safe transitions, at the control tick they happen (the log has a row per frame).
+    if (state.hold_started) {
+      std::printf("hq-onboard: t %.3f s: fail-safe hold, command age %.1f ms\n",
+                  1e-9 * static_cast<double>(t_ns),
+                  1e-6 * static_cast<double>(state.command_age_ns));
+    }
+    if (state.request_land) {
+      std::printf("hq-onboard: t %.3f s: fail-safe land, heartbeat age %.1f ms\n",
+                  1e-9 * static_cast<double>(t_ns),
+                  1e-6 * static_cast<double>(state.heartbeat_age_ns));
+    }
+    return state.command;
   }
   void on_mode_result(std::int64_t t_ns, hq::modes::Mode mode,
                       const hq::modes::ModeSwitch& result) override {
@@ -177,7 +189,7 @@ class LinkOperator final : public hq::closed_loop::OperatorSource {
                  f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
                  f.command.yaw_rate_radps, truth.v_horizontal_mps.x(),
                  truth.v_horizontal_mps.y(), truth.v_horizontal_mps.z(),
-                 -truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
+                 truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
                  out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
                  static_cast<unsigned long long>(c.commands_rejected),
                  static_cast<unsigned long long>(c.mode_requests_rejected));
@@ -251,6 +263,7 @@ int run_sim_link(const Options& o) {
                                  summary);
   const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
   const bool landed = !loop.samples().empty() && loop.samples().back().landed;
+  const bool on_ground = loop.simulator().truth().on_ground;
   std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
               static_cast<unsigned long long>(c.commands_accepted),
               static_cast<unsigned long long>(c.commands_rejected));
@@ -268,7 +281,8 @@ int run_sim_link(const Options& o) {
               static_cast<unsigned long long>(bridge.camera_frames_sent()),
               static_cast<unsigned long long>(bridge.events_sent()));
   std::printf("  %-40s %.1f ms\n", "largest lag behind real time", 1e3 * loop.max_realtime_lag_s());
-  std::printf("  %-40s %s\n", "final state", landed ? "landed" : "in the air");
+  std::printf("  %-40s %s (vehicle believes %s)\n", "final state", on_ground ? "on the ground" : "in the air",
+              landed ? "landed, motors idle" : "flying");
   for (const std::string& refusal : loop.refusals()) {
     std::printf("  mode request refused at %s\n", refusal.c_str());
   }
@@ -302,6 +316,8 @@ int run_sim(const Options& o) {
 
   const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
   hq::closed_loop::print_summary(stdout, "flight summary (" + world.name + ")", summary);
+  std::printf("  %-40s %s\n", "obstacle memory (outside the view)",
+              config.memory.enabled ? "on" : "off");
   std::printf("  %-40s %.1fx real time (%.1f s wall)\n", "simulation speed",
               summary.duration_s / std::max(wall_s, 1e-9), wall_s);
   for (const std::string& refusal : loop.refusals()) {

@@ -1,0 +1,266 @@
+// Two (and three) real processes on loopback: hq-onboard --source sim --link flown by hq-ground
+// --device sim with a scripted hand, in a private DDS domain per test process. Assertions come
+// from hq-onboard's per-step link log (--link-log), written on simulated time that hq-onboard
+// paces to wall time.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fcntl.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace {
+
+// One row of hq-onboard's --link-log.
+struct Row {
+  double t_s = 0;
+  std::string mode;
+  bool landed = false;
+  bool airborne = false;
+  double command_age_ms = 0;
+  double heartbeat_age_ms = 0;
+  bool hold = false;
+  bool heartbeat_lost = false;
+  double v_cmd[3] = {0, 0, 0};
+  double v_true[3] = {0, 0, 0};
+  double altitude_m = 0;
+  bool collision = false;
+  long commands_rejected = 0;
+  long mode_requests_rejected = 0;
+};
+
+std::vector<Row> read_log(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<Row> rows;
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) f.push_back(cell);
+    if (f.size() != 21) continue;
+    Row r;
+    r.t_s = std::stod(f[0]);
+    r.mode = f[1];
+    r.landed = f[2] == "1";
+    r.airborne = f[3] == "1";
+    r.command_age_ms = std::stod(f[4]);
+    r.heartbeat_age_ms = std::stod(f[5]);
+    r.hold = f[6] == "1";
+    r.heartbeat_lost = f[7] == "1";
+    for (int i = 0; i < 3; ++i) r.v_cmd[i] = std::stod(f[8 + i]);
+    for (int i = 0; i < 3; ++i) r.v_true[i] = std::stod(f[12 + i]);
+    r.altitude_m = std::stod(f[15]);
+    r.collision = f[16] == "1";
+    r.commands_rejected = std::stol(f[19]);
+    r.mode_requests_rejected = std::stol(f[20]);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class Process {
+ public:
+  Process(const std::vector<std::string>& args, const std::string& output_path) {
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output_path.c_str(),
+                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+    const int rc = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) pid_ = -1;
+  }
+  ~Process() {
+    if (pid_ > 0 && !reaped_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  [[nodiscard]] bool started() const { return pid_ > 0; }
+  void kill_now() {
+    kill(pid_, SIGKILL);
+    waitpid(pid_, &status_, 0);
+    reaped_ = true;
+  }
+  // Exit code, or -1 if it did not exit within timeout_s (then it is killed).
+  int wait_exit(double timeout_s) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      if (waitpid(pid_, &status_, WNOHANG) == pid_) {
+        reaped_ = true;
+        return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int status_ = 0;
+  bool reaped_ = false;
+};
+
+class LinkProcesses : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    // Loopback only, and a domain of our own: parallel ctest runs and other engineers'
+    // processes on this machine never see these samples.
+    setenv("CYCLONEDDS_URI",
+           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+           "</Interfaces></General></Domain></CycloneDDS>",
+           1);
+    domain_ = std::to_string(1 + getpid() % 200);
+    dir_ = std::filesystem::temp_directory_path() /
+           ("hq_link_it_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) std::filesystem::remove_all(dir_);
+  }
+  std::vector<std::string> onboard_args(double duration_s) const {
+    return {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
+            "onboard/sim/worlds/arena.yaml", "--duration-s", std::to_string(duration_s),
+            "--domain-id", domain_, "--link-log", (dir_ / "link.csv").string()};
+  }
+  std::vector<std::string> ground_args() const {
+    return {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config",
+            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--duration-s", "60"};
+  }
+  std::string domain_;
+  std::filesystem::path dir_;
+};
+
+TEST_F(LinkProcesses, GroundKilledMidFlightHoldsWithin200msThenLandsAfter2s) {
+  Process onboard(onboard_args(16.0), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(ground_args(), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  // The scripted hand flies forward from 5.5 s to 8 s of its clock: kill it mid-way.
+  std::this_thread::sleep_for(std::chrono::milliseconds(7000));
+  ground.kill_now();
+  ASSERT_EQ(onboard.wait_exit(30.0), 0) << slurp((dir_ / "onboard.out").string());
+
+  const std::vector<Row> rows = read_log((dir_ / "link.csv").string());
+  ASSERT_GT(rows.size(), 100U);
+  // The last row flown on a fresh command while airborne, then the first hold after it.
+  std::size_t last_fresh = 0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (!rows[i].hold && rows[i].airborne) last_fresh = i;
+  }
+  ASSERT_GT(last_fresh, 0U) << "never flew on a fresh command";
+  ASSERT_LT(last_fresh + 1, rows.size());
+  const Row& fresh = rows[last_fresh];
+  const Row& held = rows[last_fresh + 1];
+  EXPECT_GT(fresh.altitude_m, 0.3) << "killed before it was flying";
+  EXPECT_GT(std::abs(fresh.v_cmd[0]) + std::abs(fresh.v_cmd[1]), 0.05)
+      << "killed while the hand was not commanding a velocity";
+  ASSERT_TRUE(held.hold);
+  EXPECT_EQ(held.v_cmd[0], 0.0);
+  EXPECT_EQ(held.v_cmd[1], 0.0);
+  EXPECT_EQ(held.v_cmd[2], 0.0);
+  // The log has a row per frame (30 Hz); hq-onboard prints the transitions at the 5 ms control
+  // tick where they happen: the first tick past 200 ms, and past 2 s without a heartbeat.
+  const std::string out = slurp((dir_ / "onboard.out").string());
+  double hold_t_s = 0;
+  double hold_age_ms = 0;
+  double land_t_s = 0;
+  double land_age_ms = 0;
+  const std::size_t hold_at = out.find("fail-safe hold");
+  const std::size_t land_at = out.find("fail-safe land");
+  ASSERT_NE(hold_at, std::string::npos) << out;
+  ASSERT_NE(land_at, std::string::npos) << out;
+  ASSERT_EQ(std::sscanf(out.c_str() + out.rfind("t ", hold_at), "t %lf s: fail-safe hold, command age %lf",
+                        &hold_t_s, &hold_age_ms), 2);
+  ASSERT_EQ(std::sscanf(out.c_str() + out.rfind("t ", land_at), "t %lf s: fail-safe land, heartbeat age %lf",
+                        &land_t_s, &land_age_ms), 2);
+  EXPECT_GT(hold_age_ms, 200.0);
+  EXPECT_LE(hold_age_ms, 205.0);
+  EXPECT_GT(land_age_ms, 2000.0);
+  EXPECT_LE(land_age_ms, 2005.0);
+  EXPECT_LE(held.t_s - hold_t_s, 0.034) << "the first logged hold row is the next frame";
+
+  // Land: switched at once, then on the ground before the end.
+  std::size_t land = last_fresh + 1;
+  while (land < rows.size() && rows[land].mode != "land") ++land;
+  ASSERT_LT(land, rows.size()) << "never switched to land";
+  EXPECT_TRUE(rows[land].heartbeat_lost);
+  EXPECT_LE(rows[land].t_s - land_t_s, 0.034);
+  for (std::size_t i = last_fresh + 1; i < land; ++i) {
+    EXPECT_TRUE(rows[i].hold);
+    EXPECT_EQ(rows[i].mode, "teleop");
+  }
+  std::size_t touchdown = land;
+  while (touchdown < rows.size() && rows[touchdown].airborne) ++touchdown;
+  ASSERT_LT(touchdown, rows.size()) << "still in the air at the end";
+  EXPECT_FALSE(rows.back().airborne);
+  for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
+  std::printf("[ figures  ] hold at command age %.1f ms; land at heartbeat age %.1f ms, %.2f s "
+              "after the hold; on the ground %.2f s after the land request (from %.2f m)\n",
+              hold_age_ms, land_age_ms, land_t_s - hold_t_s, rows[touchdown].t_s - land_t_s,
+              rows[land].altitude_m);
+}
+
+TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
+  Process onboard(onboard_args(11.0), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(ground_args(), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(4500));  // airborne by now
+  Process fuzz({HQ_LINK_FUZZ_EXE, "--domain-id", domain_, "--duration-s", "4"},
+               (dir_ / "fuzz.out").string());
+  ASSERT_TRUE(fuzz.started());
+  EXPECT_EQ(fuzz.wait_exit(20.0), 0) << slurp((dir_ / "fuzz.out").string());
+  ASSERT_EQ(onboard.wait_exit(30.0), 0) << slurp((dir_ / "onboard.out").string());
+
+  const std::vector<Row> rows = read_log((dir_ / "link.csv").string());
+  ASSERT_GT(rows.size(), 100U);
+  for (const Row& r : rows) {
+    ASSERT_FALSE(r.collision) << r.t_s;
+    for (int i = 0; i < 3; ++i) ASSERT_TRUE(std::isfinite(r.v_cmd[i])) << r.t_s;
+    ASSERT_LE(std::abs(r.v_cmd[0]), 2.0) << r.t_s;
+  }
+  const Row& last = rows.back();
+  EXPECT_TRUE(last.airborne) << "landed or fell under fuzzing";
+  EXPECT_GT(last.altitude_m, 0.3);
+  EXPECT_NE(last.mode, "land");
+  EXPECT_GT(last.commands_rejected, 1000) << slurp((dir_ / "fuzz.out").string());
+  EXPECT_GT(last.mode_requests_rejected, 0);
+  std::printf("[ figures  ] %ld commands and %ld mode requests rejected; final altitude %.2f m\n%s",
+              last.commands_rejected, last.mode_requests_rejected, last.altitude_m,
+              slurp((dir_ / "fuzz.out").string()).c_str());
+}
+
+}  // namespace
