@@ -17,7 +17,6 @@
 
 #include <CLI/CLI.hpp>
 
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -46,15 +45,6 @@ struct Options {
   double command_rate_hz = 50.0;
   std::string record_dir;
 };
-
-void sleep_until(std::int64_t t_ns) {
-  timespec deadline{};
-  deadline.tv_sec = t_ns / 1'000'000'000LL;
-  deadline.tv_nsec = t_ns % 1'000'000'000LL;
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR &&
-         !g_stop) {
-  }
-}
 
 void print_status(std::FILE* out, bool live, double t_s, const hq::ground::GroundStation& ground,
                   const hq::haptics::LoopOutput& hand) {
@@ -134,14 +124,13 @@ int run(int argc, char** argv) {
   bool was_connected = true;
   double max_state_gap_s = 0.0;
   std::int64_t last_state_ns = 0;
+  next_ns += period_ns;
   while (!g_stop) {
-    next_ns += period_ns;
-    sleep_until(next_ns);
+    // Wait for the next command tick, taking vehicle states the moment they arrive so the force
+    // feedback gets them at once and their receipt time is exact.
+    const bool fresh = ground.poll_until(next_ns);
     const std::int64_t now_ns = hq::haptics::monotonic_now_ns();
-    const double t_s = 1e-9 * static_cast<double>(now_ns - start_ns);
-    if (o.duration_s > 0.0 && t_s >= o.duration_s) break;
-
-    if (ground.poll()) {
+    if (fresh) {
       const hq::link::VehicleState& s = ground.status().state;
       hq::haptics::VehicleEstimate estimate;
       estimate.t_ns = now_ns;
@@ -150,10 +139,16 @@ int run(int argc, char** argv) {
       estimate.yaw_rate_radps = s.omega_body_radps.z;
       loop.set_vehicle_estimate(estimate);
       if (last_state_ns != 0) {
-        max_state_gap_s = std::max(max_state_gap_s, 1e-9 * static_cast<double>(now_ns - last_state_ns));
+        max_state_gap_s =
+            std::max(max_state_gap_s, 1e-9 * static_cast<double>(now_ns - last_state_ns));
       }
       last_state_ns = now_ns;
     }
+    if (now_ns < next_ns) continue;
+    next_ns += period_ns;
+    const double t_s = 1e-9 * static_cast<double>(now_ns - start_ns);
+    if (o.duration_s > 0.0 && t_s >= o.duration_s) break;
+
     const hq::haptics::LoopOutput hand = loop.latest();
     if (was_connected && !hand.device_connected) {
       ++device_losses;

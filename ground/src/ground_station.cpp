@@ -3,6 +3,7 @@
 #include "hq/base/error.hpp"
 
 #include <sys/stat.h>
+#include <time.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -130,8 +131,13 @@ GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* 
       state_reader_(participant_, state_topic_, link::vehicle_state_qos()),
       camera_reader_(participant_, camera_topic_, link::camera_qos()),
       event_reader_(participant_, event_topic_, link::event_qos()),
-      heartbeat_reader_(participant_, heartbeat_topic_, link::heartbeat_qos(config)) {
+      heartbeat_reader_(participant_, heartbeat_topic_, link::heartbeat_qos(config)),
+      state_condition_(state_reader_),
+      event_condition_(event_reader_),
+      waitset_(participant_) {
   link::check_config(config_);
+  waitset_.attach(state_condition_.handle(), 1);
+  waitset_.attach(event_condition_.handle(), 2);
   link::reserve(state_sample_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
   link::reserve(camera_sample_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   link::reserve(camera_sample_->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
@@ -223,6 +229,18 @@ bool GroundStation::poll() {
     }
   }
   return fresh;
+}
+
+bool GroundStation::poll_until(std::int64_t deadline_ns) {
+  std::array<dds_attach_t, 2> triggered{};
+  for (;;) {
+    if (poll()) return true;
+    timespec now{};
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    const std::int64_t left_ns = deadline_ns - (now.tv_sec * 1'000'000'000LL + now.tv_nsec);
+    if (left_ns <= 0) return false;
+    if (waitset_.wait(triggered, left_ns) < 0) return false;
+  }
 }
 
 double GroundStation::state_age_s() const {

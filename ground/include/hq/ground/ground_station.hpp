@@ -90,6 +90,10 @@ class GroundStation {
   void send_heartbeat(std::int64_t t_ns);
   /// Takes everything pending. Returns true if a new vehicle state arrived.
   bool poll();
+  /// Blocks on a waitset until a vehicle state arrives (returns true at once) or until
+  /// `deadline_ns` on CLOCK_MONOTONIC (false), taking whatever arrives in the meantime; so
+  /// receipt times, and the latency figures, are not quantised by the caller's period.
+  bool poll_until(std::int64_t deadline_ns);
 
   [[nodiscard]] const LinkStatus& status() const { return status_; }
   [[nodiscard]] const LatencyStats& latency() const { return latency_; }
@@ -113,6 +117,9 @@ class GroundStation {
   link::Reader<link::CameraFrame> camera_reader_;
   link::Reader<link::Event> event_reader_;
   link::Reader<link::Heartbeat> heartbeat_reader_;
+  link::ReadCondition state_condition_;
+  link::ReadCondition event_condition_;
+  link::WaitSet waitset_;
   link::Sample<link::VehicleState> state_sample_;
   link::Sample<link::CameraFrame> camera_sample_;
   std::uint64_t command_sequence_ = 0;
