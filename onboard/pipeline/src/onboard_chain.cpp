@@ -64,6 +64,8 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       memory_(config.memory, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       modes_(config.modes, config.control, vehicle) {
+  // A chain started in the air (config.modes.start_landed false) is past its take-off.
+  if (!config.modes.start_landed) climb_since_takeoff_m_ = config.chain.takeoff_height_m;
   if (config.markers.enabled) {
     markers_ = std::make_unique<marker_modes::MarkerStage>(
         config.markers, camera, vehicle.R_body_camera, vehicle.p_body_camera_m);
