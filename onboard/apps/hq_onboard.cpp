@@ -228,6 +228,8 @@ int run_sim_link(const Options& o) {
   if (!o.link_log_path.empty()) {
     log = std::fopen(o.link_log_path.c_str(), "w");
     if (!log) throw hq::InputError(o.link_log_path + ": cannot open for writing");
+    // Line-buffered: a row per frame is cheap, and tests follow the flight while it happens.
+    std::setvbuf(log, nullptr, _IOLBF, 0);
     std::fprintf(log,
                  "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
                  "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"

@@ -132,6 +132,19 @@ class Process {
   bool reaped_ = false;
 };
 
+// Follows the (line-buffered) log until a row satisfies `ready`; false after timeout_s.
+template <typename Ready>
+bool wait_for_row(const std::string& path, double timeout_s, Ready ready) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (std::chrono::steady_clock::now() < end) {
+    for (const Row& r : read_log(path)) {
+      if (ready(r)) return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return false;
+}
+
 class LinkProcesses : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -168,9 +181,14 @@ TEST_F(LinkProcesses, GroundKilledMidFlightHoldsWithin200msThenLandsAfter2s) {
   ASSERT_TRUE(onboard.started());
   Process ground(ground_args(), (dir_ / "ground.out").string());
   ASSERT_TRUE(ground.started());
-  // The scripted hand flies forward from 5.5 s to 8 s of its clock: kill it mid-way.
-  std::this_thread::sleep_for(std::chrono::milliseconds(7000));
+  // The scripted hand flies forward from 5.5 s to 8 s of its clock: kill it mid-way, once the
+  // vehicle is up and moving forward.
+  const bool moving = wait_for_row((dir_ / "link.csv").string(), 12.0, [](const Row& r) {
+    return r.airborne && r.altitude_m > 0.4 && std::abs(r.v_true[0]) + std::abs(r.v_true[1]) > 0.1;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
   ground.kill_now();
+  ASSERT_TRUE(moving) << slurp((dir_ / "onboard.out").string());
   ASSERT_EQ(onboard.wait_exit(30.0), 0) << slurp((dir_ / "onboard.out").string());
 
   const std::vector<Row> rows = read_log((dir_ / "link.csv").string());
@@ -238,7 +256,9 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
   ASSERT_TRUE(onboard.started());
   Process ground(ground_args(), (dir_ / "ground.out").string());
   ASSERT_TRUE(ground.started());
-  std::this_thread::sleep_for(std::chrono::milliseconds(4500));  // airborne by now
+  ASSERT_TRUE(wait_for_row((dir_ / "link.csv").string(), 10.0,
+                           [](const Row& r) { return r.airborne && r.altitude_m > 0.5; }))
+      << slurp((dir_ / "onboard.out").string());
   Process fuzz({HQ_LINK_FUZZ_EXE, "--domain-id", domain_, "--duration-s", "4"},
                (dir_ / "fuzz.out").string());
   ASSERT_TRUE(fuzz.started());
