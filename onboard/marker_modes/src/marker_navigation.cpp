@@ -40,6 +40,7 @@ void read_explore(config::StrictMap& s, ExploreConfig& out) {
   s.read_positive("view_distance_m", out.view_distance_m, 10.0);
   s.read_positive("max_view_range_m", out.max_view_range_m, 10.0);
   s.read_positive("budget_s", out.budget_s, 3600.0);
+  s.read_positive("goal_timeout_s", out.goal_timeout_s, 600.0);
   s.read_positive("edge_timeout_s", out.edge_timeout_s, 10.0);
   s.read("edge_margin_m", out.edge_margin_m, 0.0, 5.0);
   s.read_positive("counter_steer_mps", out.counter_steer_mps, 2.0);
@@ -127,6 +128,14 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
   have_detection_ = true;
   t_last_detection_ns_ = t_ns;
   map_.add_frame(t_ns, detections, T_odom_camera, motion_covariance);
+  // The providers run per control step and must not allocate: the box is kept here.
+  have_box_ = false;
+  for (int id : map_.ids()) {
+    const Eigen::Vector2d p = (R_world_map() * map_.T_map_marker(id)->translation()).head<2>();
+    map_lo_m_ = have_box_ ? Eigen::Vector2d(map_lo_m_.cwiseMin(p)) : p;
+    map_hi_m_ = have_box_ ? Eigen::Vector2d(map_hi_m_.cwiseMax(p)) : p;
+    have_box_ = true;
+  }
 
   for (const markers::MarkerDetection& d : detections) {
     const std::optional<Eigen::Isometry3d> T_map_marker = map_.T_map_marker(d.id);

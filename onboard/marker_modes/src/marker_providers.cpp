@@ -138,18 +138,7 @@ Eigen::Vector2d ExploreProvider::cell_centre(int i, int j) const {
 }
 
 bool ExploreProvider::map_box(Eigen::Vector2d& lo, Eigen::Vector2d& hi) const {
-  bool any = false;
-  for (int id : navigation_.map().ids()) {
-    const std::optional<Eigen::Vector3d> p = navigation_.p_world_marker_m(id);
-    if (!p) continue;
-    if (!any) {
-      lo = hi = p->head<2>();
-      any = true;
-    }
-    lo = lo.cwiseMin(p->head<2>());
-    hi = hi.cwiseMax(p->head<2>());
-  }
-  return any;
+  return navigation_.map_box(lo, hi);
 }
 
 void ExploreProvider::mark_seen() {
@@ -182,7 +171,9 @@ bool ExploreProvider::choose_goal(const Eigen::Vector2d& p_m) {
       if (seen_[static_cast<std::size_t>(i * kCells + j)]) continue;
       const Eigen::Vector2d c = cell_centre(i, j);
       if ((c.array() < lo.array() - 1e-6).any() || (c.array() > hi.array() + 1e-6).any()) continue;
-      const double cost = (c - p_m).norm();
+      // Cells about a view distance away are seen by flying forwards; nearer ones would need
+      // backing up blind (the camera looks forwards and down), farther ones a longer flight.
+      const double cost = std::abs((c - p_m).norm() - config_.view_distance_m);
       if (cost < best) {
         best = cost;
         goal_i_ = i;
@@ -265,11 +256,13 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
           return desired(t_ns);
         }
       }
+      const int previous_goal = have_goal_ ? goal_i_ * kCells + goal_j_ : -1;
       if (exploring_for_s(t_ns) > config_.budget_s || !choose_goal(p.head<2>())) {
         enter(config_.land_at_end ? ExplorePhase::kNavigate : ExplorePhase::kDone, t_ns);
         marker_mode_.set_task(MarkerTask::kGoTo, marker_mode_.config().target_id);
         return desired(t_ns);
       }
+      if (goal_i_ * kCells + goal_j_ != previous_goal) t_goal_ns_ = t_ns;
       // Stand off from the goal cell with the camera facing it: the forward, down-tilted camera
       // sees the floor from about a metre ahead.
       const Eigen::Vector2d goal = cell_centre(goal_i_, goal_j_);
@@ -277,7 +270,20 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
       const double distance = to_goal.norm();
       const Eigen::Vector2d dir =
           distance > 1e-3 ? Eigen::Vector2d(to_goal / distance) : Eigen::Vector2d::UnitX();
-      const Eigen::Vector2d stand = goal - config_.view_distance_m * dir;
+      // A goal not seen within goal_timeout_s is given up (e.g. in the blind zone below).
+      if (1e-9 * static_cast<double>(t_ns - t_goal_ns_) > config_.goal_timeout_s) {
+        seen_[static_cast<std::size_t>(goal_i_ * kCells + goal_j_)] = 2;
+        return desired(t_ns);
+      }
+      // Never back up: behind the forward camera nothing is seen (nor the obstacle field's
+      // depth). The stand-off stays within the mapped box grown by a cell, away from the walls.
+      Eigen::Vector2d stand = distance > config_.view_distance_m
+                                  ? Eigen::Vector2d(goal - config_.view_distance_m * dir)
+                                  : Eigen::Vector2d(p.head<2>());
+      if (map_box(lo, hi)) {
+        stand = stand.cwiseMax(lo - Eigen::Vector2d::Constant(config_.cell_m))
+                    .cwiseMin(hi + Eigen::Vector2d::Constant(config_.cell_m));
+      }
       const double yaw_target = std::atan2(dir.y(), dir.x()) - alpha;
       return fly_to(Eigen::Vector3d(stand.x(), stand.y(), z_target), yaw_target);
     }

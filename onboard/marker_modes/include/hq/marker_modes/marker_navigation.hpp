@@ -41,8 +41,9 @@ struct MarkerModeConfig {
   double face_target_beyond_m = 0.8; ///< Going to a farther marker, the camera faces it.
   double land_align_m = 0.04;        ///< Horizontal error before the descent starts.
   double land_descent_mps = 0.25;
-  /// Below this height the marker mode hands over to Mode::kLand (vertical touchdown).
-  double land_handover_height_m = 0.35;
+  /// Below this height the marker mode hands over to Mode::kLand (vertical touchdown): above
+  /// the floor push of the obstacle field, which Mode::kLand switches off (ground phase).
+  double land_handover_height_m = 0.6;
   /// No accepted marker for this long: the provider gives no command (the controller hovers).
   double max_marker_age_s = 10.0;
 };
@@ -57,6 +58,7 @@ struct ExploreConfig {
   double view_distance_m = 1.4;        ///< Stand-off from a cell, camera facing it.
   double max_view_range_m = 2.6;       ///< A cell counts as seen within this range in view.
   double budget_s = 120.0;             ///< Exploration ends here at the latest.
+  double goal_timeout_s = 10.0;        ///< A cell not seen within this is given up.
   double edge_timeout_s = 0.75;        ///< Seed: no marker for 750 ms near the edge.
   double edge_margin_m = 0.3;          ///< Beyond the mapped box by this: near the edge.
   double counter_steer_mps = 0.3;
@@ -121,6 +123,12 @@ class MarkerNavigation {
   [[nodiscard]] const markers::MarkerMap& map() const { return map_; }
   [[nodiscard]] const MarkerModesConfig& config() const { return config_; }
   [[nodiscard]] int detections_last_frame() const { return detections_last_frame_; }
+  /// Horizontal box (W) of the mapped markers, updated per frame; false before the first.
+  bool map_box(Eigen::Vector2d& lo, Eigen::Vector2d& hi) const {
+    lo = map_lo_m_;
+    hi = map_hi_m_;
+    return have_box_;
+  }
 
  private:
   MarkerModesConfig config_;
@@ -135,6 +143,9 @@ class MarkerNavigation {
   bool have_detection_ = false;
   std::int64_t t_last_detection_ns_ = 0;
   int detections_last_frame_ = 0;
+  bool have_box_ = false;
+  Eigen::Vector2d map_lo_m_ = Eigen::Vector2d::Zero();
+  Eigen::Vector2d map_hi_m_ = Eigen::Vector2d::Zero();
 };
 
 }  // namespace hq::marker_modes

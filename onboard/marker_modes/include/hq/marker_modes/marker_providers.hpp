@@ -92,6 +92,7 @@ class ExploreProvider final : public modes::VelocityProvider {
   bool have_goal_ = false;
   int goal_i_ = 0;
   int goal_j_ = 0;
+  std::int64_t t_goal_ns_ = 0;
   int edge_events_ = 0;
 };
 
