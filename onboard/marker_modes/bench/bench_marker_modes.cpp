@@ -27,6 +27,7 @@ struct Options {
   int landings = 20;
   int explores = 3;
   int target_id = 12;
+  int explore_seed = 200;  ///< First seed of the explore flights.
   std::string resolution = "320x240";
   std::string world = "onboard/sim/worlds/marker_grid.yaml";
 };
@@ -97,7 +98,7 @@ int run(const Options& o) {
                 errors.back(), failed, collisions);
   }
   for (int k = 0; k < o.explores; ++k) {
-    const std::uint64_t seed = 200 + static_cast<std::uint64_t>(k);
+    const std::uint64_t seed = static_cast<std::uint64_t>(o.explore_seed + k);
     Run r = make_run(o, "onboard/closed_loop/flights/marker_explore.yaml", seed);
     hq::marker_modes::MarkerStage& stage = *r.loop->chain().markers();
     const int total = static_cast<int>(r.world.markers.size());
@@ -105,18 +106,25 @@ int run(const Options& o) {
     double t = 0.0;
     for (; t < 175.0 && !landed(*r.loop); t += 0.5) {
       r.loop->run_until(t);
-      const int mapped = static_cast<int>(stage.navigation().map().ids().size());
+      int mapped = 0;
+      for (int id : stage.navigation().map().ids()) mapped += marker_truth(r.world, id).allFinite();
       if (std::isnan(t90) && mapped * 10 >= total * 9) {
         t90 = stage.explore().exploring_for_s(r.loop->simulator().t_ns());
       }
     }
     const Eigen::Vector3d p = r.loop->simulator().truth().T_world_body.translation();
-    std::printf("explore seed %llu: %zu/%d mapped, 90 %% after %.1f s of exploration, landed %d "
-                "with error %.3f m, edge events %d, collision ticks %d\n",
-                static_cast<unsigned long long>(seed), stage.navigation().map().ids().size(),
-                total, t90, landed(*r.loop) ? 1 : 0,
+    int mapped = 0;
+    for (int id : stage.navigation().map().ids()) mapped += marker_truth(r.world, id).allFinite();
+    std::printf("explore seed %llu: %d/%d mapped (%d spurious ids), 90 %% after %.1f s of exploration, landed %d "
+                "with error %.3f m, edge events %d, collision ticks %d, phase %s, mode %s, %.1f s "
+                "exploring\n",
+                static_cast<unsigned long long>(seed), mapped, total,
+                static_cast<int>(stage.navigation().map().ids().size()) - mapped, t90, landed(*r.loop) ? 1 : 0,
                 (p - marker_truth(r.world, o.target_id)).head<2>().norm(),
-                stage.explore().edge_events(), r.loop->collision_ticks());
+                stage.explore().edge_events(), r.loop->collision_ticks(),
+                hq::marker_modes::to_string(stage.explore().phase()),
+                hq::modes::to_string(r.loop->chain().mode()),
+                stage.explore().exploring_for_s(r.loop->simulator().t_ns()));
   }
   return 0;
 }
@@ -129,6 +137,7 @@ int main(int argc, char** argv) {
     CLI::App app{"Issue-7 campaign: seeded landings on a marker and explore flights"};
     app.add_option("--landings", o.landings, "seeded landing runs")->check(CLI::Range(0, 1000));
     app.add_option("--explores", o.explores, "seeded explore flights")->check(CLI::Range(0, 100));
+    app.add_option("--explore-seed", o.explore_seed, "first seed of the explore flights");
     app.add_option("--target", o.target_id, "marker id landed on");
     app.add_option("--resolution", o.resolution, "camera WxH");
     app.add_option("--world", o.world, "world file");

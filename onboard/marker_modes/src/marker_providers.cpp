@@ -243,7 +243,13 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
         exploring_started_ = true;
         t_explore_ns_ = t_ns;
       }
-      if (!have_pose) return invalid("explore: no marker pose");
+      // Lost the markers for long (e.g. facing empty floor beyond the field): steer back to
+      // the map's centre on the filter's dead-reckoned pose, as at the edge.
+      if (!have_pose) {
+        ++edge_events_;
+        enter(ExplorePhase::kEdge, t_ns);
+        return desired(t_ns);
+      }
       mark_seen();
       Eigen::Vector2d lo;
       Eigen::Vector2d hi;
