@@ -65,7 +65,7 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       modes_(config.modes, config.control, vehicle) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
-  if (!config.modes.start_landed) climb_since_takeoff_m_ = config.chain.takeoff_height_m;
+  takeoff_complete_ = !config.modes.start_landed;
   if (config.markers.enabled) {
     markers_ = std::make_unique<marker_modes::MarkerStage>(
         config.markers, camera, vehicle.R_body_camera, vehicle.p_body_camera_m);
@@ -130,14 +130,17 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
 
   // §3.1: depth minima into the repulsive v_obs in H, with the attitude the estimator holds,
   // plus the remembered points outside the view under the same law.
+  // The take-off ends once, at takeoff_height_m of climb; descending later does not restart it.
   if (modes_.landed()) {
     climb_since_takeoff_m_ = 0.0;
-  } else if (out.estimate.usable() && have_frame_) {
+    takeoff_complete_ = false;
+  } else if (!takeoff_complete_ && out.estimate.usable() && have_frame_) {
     climb_since_takeoff_m_ -=
         out.estimate.v_horizontal_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
+    takeoff_complete_ = climb_since_takeoff_m_ >= config_.chain.takeoff_height_m;
   }
   obstacles_.set_ground_phase(modes_.landed() || modes_.mode() == modes::Mode::kLand ||
-                              climb_since_takeoff_m_ < config_.chain.takeoff_height_m);
+                              !takeoff_complete_);
   out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
   const std::int64_t t_obstacles_ns = now_ns();
 

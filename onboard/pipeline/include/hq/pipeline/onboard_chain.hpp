@@ -158,6 +158,7 @@ class OnboardChain {
   bool have_frame_ = false;
   std::int64_t t_last_frame_ns_ = 0;
   double climb_since_takeoff_m_ = 0.0;  ///< Integrated -v_z of usable estimates since take-off.
+  bool takeoff_complete_ = false;      ///< Climbed takeoff_height_m since leaving the ground.
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
 };
