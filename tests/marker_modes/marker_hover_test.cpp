@@ -2,10 +2,9 @@
 // from velocity-only flight, markers hidden for 5 s (bounded drift, then recovery), zero
 // collisions. Figures printed; the seed (marker-EKF) holds to a few centimetres.
 
-#include "scenario.hpp"
-
 #include "hq/marker_modes/marker_providers.hpp"
 
+#include "scenario.hpp"
 #include <gtest/gtest.h>
 
 #include <cmath>

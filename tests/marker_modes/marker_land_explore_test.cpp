@@ -2,10 +2,9 @@
 // Figures printed against the seeds: the smartphone seed maps 80 % of its markers in 2 min and
 // lands within about 0.2 m; the target here is >= 90 % in 120 s and <= 0.10 m.
 
-#include "scenario.hpp"
-
 #include "hq/marker_modes/marker_providers.hpp"
 
+#include "scenario.hpp"
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
@@ -35,8 +34,8 @@ Landing land_once(std::uint64_t seed, int id) {
   Landing out;
   for (double t = 15.0; t < 40.0; t += 0.1) {
     f.loop->run_until(t);
-    if (f.loop->chain().markers() && f.loop->simulator().truth().T_world_body.translation().z() <
-                                         0.2 &&
+    if (f.loop->chain().markers() &&
+        f.loop->simulator().truth().T_world_body.translation().z() < 0.2 &&
         f.loop->chain().mode() == modes::Mode::kLand && !f.loop->samples().empty() &&
         f.loop->samples().back().landed) {
       out.landed = true;
@@ -61,9 +60,10 @@ TEST(MarkerLanding, LandsOnTheMarkerWithinTenCentimetres) {
     collisions += l.collisions;
   }
   std::sort(errors.begin(), errors.end());
-  std::printf("landing on marker 12, %zu seeded runs: median %.3f m, max %.3f m (target <= 0.10 "
-              "m; smartphone seed ~0.2 m); collision ticks %d\n",
-              errors.size(), errors[errors.size() / 2], errors.back(), collisions);
+  std::printf(
+      "landing on marker 12, %zu seeded runs: median %.3f m, max %.3f m (target <= 0.10 "
+      "m; smartphone seed ~0.2 m); collision ticks %d\n",
+      errors.size(), errors[errors.size() / 2], errors.back(), collisions);
   EXPECT_LE(errors.back(), 0.10);
   EXPECT_EQ(collisions, 0);
 }
@@ -90,8 +90,8 @@ double map_error_m(test::Flight& f, int* n_out) {
   *n_out = static_cast<int>(ids.size());
   if (ids.size() < 3) return NAN;
   const Eigen::Matrix4d T = Eigen::umeyama(mapped, truth, false);
-  const Eigen::Matrix3Xd aligned = (T.topLeftCorner<3, 3>() * mapped).colwise() +
-                                   Eigen::Vector3d(T.topRightCorner<3, 1>());
+  const Eigen::Matrix3Xd aligned =
+      (T.topLeftCorner<3, 3>() * mapped).colwise() + Eigen::Vector3d(T.topRightCorner<3, 1>());
   return std::sqrt((aligned - truth).colwise().squaredNorm().mean());
 }
 
@@ -117,14 +117,16 @@ TEST(ExploreMode, MapsTheMarkerFieldThenLandsOnTheTarget) {
   f.stage().navigation().map().optimise();
   const double after_m = map_error_m(f, &n);
   const int spurious = static_cast<int>(f.stage().navigation().map().ids().size()) - n;
-  std::printf("explore: %d/%d markers mapped (%.0f %%, %d spurious ids) after %.1f s of "
-              "exploration, 90 %% at %.1f s (seed: 80 %% in 120 s); %d cells seen, %d edge "
-              "events\n",
-              n, total, 100.0 * n / total, spurious, explored_s, t90_s, explore.cells_seen(),
-              explore.edge_events());
-  std::printf("  map error vs truth (rigid alignment, rms): %.3f m online, %.3f m after full "
-              "optimisation\n",
-              before_m, after_m);
+  std::printf(
+      "explore: %d/%d markers mapped (%.0f %%, %d spurious ids) after %.1f s of "
+      "exploration, 90 %% at %.1f s (seed: 80 %% in 120 s); %d cells seen, %d edge "
+      "events\n",
+      n, total, 100.0 * n / total, spurious, explored_s, t90_s, explore.cells_seen(),
+      explore.edge_events());
+  std::printf(
+      "  map error vs truth (rigid alignment, rms): %.3f m online, %.3f m after full "
+      "optimisation\n",
+      before_m, after_m);
   EXPECT_GE(n * 10, total * 9);
   EXPECT_LE(t90_s, 120.0);
   EXPECT_LT(after_m, 0.05);
@@ -139,10 +141,11 @@ TEST(ExploreMode, MapsTheMarkerFieldThenLandsOnTheTarget) {
     }
   }
   const double landing_m = (f.p_truth_m() - f.marker_truth_m(id)).head<2>().norm();
-  std::printf("  landed on marker %d: %d, horizontal error %.3f m; collision ticks %d, min "
-              "clearance %.2f m\n",
-              id, f.loop->chain().mode() == modes::Mode::kLand ? 1 : 0, landing_m,
-              f.loop->collision_ticks(), f.loop->min_clearance_m());
+  std::printf(
+      "  landed on marker %d: %d, horizontal error %.3f m; collision ticks %d, min "
+      "clearance %.2f m\n",
+      id, f.loop->chain().mode() == modes::Mode::kLand ? 1 : 0, landing_m,
+      f.loop->collision_ticks(), f.loop->min_clearance_m());
   EXPECT_EQ(f.loop->chain().mode(), modes::Mode::kLand);
   EXPECT_LE(landing_m, 0.10);
   EXPECT_EQ(f.loop->collision_ticks(), 0);

@@ -1,11 +1,10 @@
 // The marker stage's config and the providers' per-step contract (no allocation).
 
-#include "scenario.hpp"
-
 #include "hq/marker_modes/marker_providers.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
 
+#include "scenario.hpp"
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -32,21 +31,21 @@ TEST(MarkerModesConfig, DefaultConfigKeepsTheStageOff) {
 TEST(MarkerModesConfig, OutOfRangeAndUnknownKeysNameTheKey) {
   const std::string bad_range =
       write_config("range", "markers: {enabled: true, detect_every_frames: 0}\n");
-  const std::string message = ::hq::testing::input_error_message(
-      [&] { (void)pipeline::load_onboard_config(bad_range); });
+  const std::string message =
+      ::hq::testing::input_error_message([&] { (void)pipeline::load_onboard_config(bad_range); });
   EXPECT_NE(message.find("detect_every_frames"), std::string::npos) << message;
   EXPECT_NE(message.find(bad_range), std::string::npos) << message;
 
   const std::string unknown =
       write_config("unknown", "markers: {explore: {height_m: 1.0, heigth_m: 2.0}}\n");
-  const std::string unknown_message = ::hq::testing::input_error_message(
-      [&] { (void)pipeline::load_onboard_config(unknown); });
+  const std::string unknown_message =
+      ::hq::testing::input_error_message([&] { (void)pipeline::load_onboard_config(unknown); });
   EXPECT_NE(unknown_message.find("heigth_m"), std::string::npos) << unknown_message;
 
   const std::string nan_gain =
       write_config("nan", "markers: {marker_mode: {kp_position_per_s: .nan}}\n");
-  const std::string nan_message = ::hq::testing::input_error_message(
-      [&] { (void)pipeline::load_onboard_config(nan_gain); });
+  const std::string nan_message =
+      ::hq::testing::input_error_message([&] { (void)pipeline::load_onboard_config(nan_gain); });
   EXPECT_NE(nan_message.find("kp_position_per_s"), std::string::npos) << nan_message;
 }
 

@@ -92,10 +92,11 @@ int run(const Options& o) {
   }
   if (!errors.empty()) {
     std::sort(errors.begin(), errors.end());
-    std::printf("landing on marker %d, %zu runs (%s): median %.3f m, max %.3f m, not landed %d, "
-                "collision ticks %d  [target max <= 0.10 m; smartphone seed ~0.2 m]\n",
-                o.target_id, errors.size(), o.resolution.c_str(), errors[errors.size() / 2],
-                errors.back(), failed, collisions);
+    std::printf(
+        "landing on marker %d, %zu runs (%s): median %.3f m, max %.3f m, not landed %d, "
+        "collision ticks %d  [target max <= 0.10 m; smartphone seed ~0.2 m]\n",
+        o.target_id, errors.size(), o.resolution.c_str(), errors[errors.size() / 2], errors.back(),
+        failed, collisions);
   }
   for (int k = 0; k < o.explores; ++k) {
     const std::uint64_t seed = static_cast<std::uint64_t>(o.explore_seed + k);
@@ -115,16 +116,18 @@ int run(const Options& o) {
     const Eigen::Vector3d p = r.loop->simulator().truth().T_world_body.translation();
     int mapped = 0;
     for (int id : stage.navigation().map().ids()) mapped += marker_truth(r.world, id).allFinite();
-    std::printf("explore seed %llu: %d/%d mapped (%d spurious ids), 90 %% after %.1f s of exploration, landed %d "
-                "with error %.3f m, edge events %d, collision ticks %d, phase %s, mode %s, %.1f s "
-                "exploring\n",
-                static_cast<unsigned long long>(seed), mapped, total,
-                static_cast<int>(stage.navigation().map().ids().size()) - mapped, t90, landed(*r.loop) ? 1 : 0,
-                (p - marker_truth(r.world, o.target_id)).head<2>().norm(),
-                stage.explore().edge_events(), r.loop->collision_ticks(),
-                hq::marker_modes::to_string(stage.explore().phase()),
-                hq::modes::to_string(r.loop->chain().mode()),
-                stage.explore().exploring_for_s(r.loop->simulator().t_ns()));
+    std::printf(
+        "explore seed %llu: %d/%d mapped (%d spurious ids), 90 %% after %.1f s of exploration, "
+        "landed %d "
+        "with error %.3f m, edge events %d, collision ticks %d, phase %s, mode %s, %.1f s "
+        "exploring\n",
+        static_cast<unsigned long long>(seed), mapped, total,
+        static_cast<int>(stage.navigation().map().ids().size()) - mapped, t90,
+        landed(*r.loop) ? 1 : 0, (p - marker_truth(r.world, o.target_id)).head<2>().norm(),
+        stage.explore().edge_events(), r.loop->collision_ticks(),
+        hq::marker_modes::to_string(stage.explore().phase()),
+        hq::modes::to_string(r.loop->chain().mode()),
+        stage.explore().exploring_for_s(r.loop->simulator().t_ns()));
   }
   return 0;
 }

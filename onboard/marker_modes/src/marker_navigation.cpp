@@ -143,8 +143,7 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
     const Eigen::Isometry3d T_marker_camera = d.T_camera_marker.inverse();
     Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
     T_world_camera.linear() = R_world_map() * T_map_marker->linear() * T_marker_camera.linear();
-    T_world_camera.translation() =
-        R_world_map() * (*T_map_marker * T_marker_camera.translation());
+    T_world_camera.translation() = R_world_map() * (*T_map_marker * T_marker_camera.translation());
     // Detection noise xi (right perturbation of T_CM, in M) mapped to the camera pose:
     // T_MC' = exp(-xi) T_MC, so dp_M = -v + [p_MC]x omega and theta_C = -R_MC^T omega.
     Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
@@ -159,7 +158,6 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
     covariance.bottomRightCorner<3, 3>() += sr * sr * Eigen::Matrix3d::Identity();
     filter_.update_marker(t_ns, T_world_camera, covariance);
   }
-  detections_last_frame_ = static_cast<int>(detections.size());
 }
 
 bool MarkerNavigation::pose_usable(double max_age_s) const {

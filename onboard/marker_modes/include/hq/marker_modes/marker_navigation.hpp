@@ -32,14 +32,14 @@ namespace hq::marker_modes {
 
 /// The marker mode's gains and the landing sequence (section `markers: marker_mode:`).
 struct MarkerModeConfig {
-  int target_id = 0;                 ///< Marker held, gone to or landed on.
-  double hold_height_m = 1.0;        ///< Above the marker's plane.
-  double kp_position_per_s = 0.8;    ///< v*_des = kp (p_target - p).
+  int target_id = 0;               ///< Marker held, gone to or landed on.
+  double hold_height_m = 1.0;      ///< Above the marker's plane.
+  double kp_position_per_s = 0.8;  ///< v*_des = kp (p_target - p).
   double max_speed_mps = 0.4;
   double kp_yaw_per_s = 1.0;
   double max_yaw_rate_radps = 0.5;
-  double face_target_beyond_m = 0.8; ///< Going to a farther marker, the camera faces it.
-  double land_align_m = 0.04;        ///< Horizontal error before the descent starts.
+  double face_target_beyond_m = 0.8;  ///< Going to a farther marker, the camera faces it.
+  double land_align_m = 0.04;         ///< Horizontal error before the descent starts.
   double land_descent_mps = 0.25;
   /// Below this height the marker mode hands over to Mode::kLand (vertical touchdown): above
   /// the floor push of the obstacle field, which Mode::kLand switches off (ground phase).
@@ -62,7 +62,7 @@ struct ExploreConfig {
   double edge_timeout_s = 0.75;        ///< Seed: no marker for 750 ms near the edge.
   double edge_margin_m = 0.3;          ///< Beyond the mapped box by this: near the edge.
   double counter_steer_mps = 0.3;
-  bool land_at_end = true;             ///< Navigate to the target marker and land on it.
+  bool land_at_end = true;  ///< Navigate to the target marker and land on it.
 };
 
 struct MarkerModesConfig {
