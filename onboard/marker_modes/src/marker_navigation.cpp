@@ -23,6 +23,7 @@ void read_marker_mode(config::StrictMap& s, MarkerModeConfig& out) {
   s.read_positive("max_speed_mps", out.max_speed_mps, 2.0);
   s.read_positive("kp_yaw_per_s", out.kp_yaw_per_s, 10.0);
   s.read_positive("max_yaw_rate_radps", out.max_yaw_rate_radps, 3.0);
+  s.read_positive("search_yaw_rate_radps", out.search_yaw_rate_radps, 3.0);
   s.read_positive("face_target_beyond_m", out.face_target_beyond_m, 100.0);
   s.read_positive("land_align_m", out.land_align_m, 1.0);
   s.read_positive("land_descent_mps", out.land_descent_mps, 1.0);

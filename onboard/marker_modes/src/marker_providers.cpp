@@ -81,13 +81,13 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   t_last_ns_ = t_ns;
   if (!navigation_.pose_usable(config_.max_marker_age_s)) return invalid("no marker pose");
   const std::optional<Eigen::Vector3d> p_marker = navigation_.p_world_marker_m(marker_id_);
-  if (!p_marker) return invalid("target marker not mapped");
   const double yaw = navigation_.yaw_rad();
   if (!have_yaw_) {
     yaw_hold_rad_ = yaw;
     have_yaw_ = true;
   }
   const Eigen::Vector3d p = navigation_.p_world_m();
+  if (!p_marker) return search(yaw, p);
   const Eigen::Vector3d offset = *p_marker - p;
   horizontal_error_m_ = offset.head<2>().norm();
   const double height_m = p_marker->z() - p.z();  // NED: the floor marker is below.
@@ -112,6 +112,30 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   if (task_ == MarkerTask::kLand && descending_) c.v_horizontal_mps.z() = config_.land_descent_mps;
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
+  return c;
+}
+
+modes::ModeCommand MarkerModeProvider::search(double yaw_rad, const Eigen::Vector3d& p_m) {
+  // The target is not mapped yet: it is most likely in the field already seen, so fly to the
+  // middle of the mapped markers with the camera facing it, then turn there until it shows.
+  Eigen::Vector2d lo;
+  Eigen::Vector2d hi;
+  if (!navigation_.map_box(lo, hi)) return invalid("target marker not mapped");
+  const Eigen::Vector2d to_centre = 0.5 * (lo + hi) - p_m.head<2>();
+  modes::ModeCommand c;
+  c.valid = true;
+  c.reason = "searching the target marker";
+  Eigen::Vector3d v_world(0.0, 0.0, 0.0);
+  const double beyond_m = 0.3;
+  if (to_centre.norm() > beyond_m) {
+    v_world.head<2>() = config_.kp_position_per_s * to_centre;
+    yaw_hold_rad_ = std::atan2(to_centre.y(), to_centre.x()) - navigation_.camera_heading_rad();
+  } else {
+    yaw_hold_rad_ = yaw_rad + config_.search_yaw_rate_radps / config_.kp_yaw_per_s;
+  }
+  c.v_horizontal_mps = to_horizontal(v_world, yaw_rad, config_.max_speed_mps);
+  c.yaw_rate_radps =
+      yaw_rate_towards(yaw_hold_rad_, yaw_rad, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
   return c;
 }
 

@@ -38,8 +38,9 @@ struct MarkerModeConfig {
   double max_speed_mps = 0.4;
   double kp_yaw_per_s = 1.0;
   double max_yaw_rate_radps = 0.5;
-  double face_target_beyond_m = 0.8;  ///< Going to a farther marker, the camera faces it.
-  double land_align_m = 0.04;         ///< Horizontal error before the descent starts.
+  double search_yaw_rate_radps = 0.3;  ///< Turning in place while the target is not mapped.
+  double face_target_beyond_m = 0.8;   ///< Going to a farther marker, the camera faces it.
+  double land_align_m = 0.04;          ///< Horizontal error before the descent starts.
   double land_descent_mps = 0.25;
   /// Below this height the marker mode hands over to Mode::kLand (vertical touchdown): above
   /// the floor push of the obstacle field, which Mode::kLand switches off (ground phase).

@@ -34,6 +34,9 @@ class MarkerModeProvider final : public modes::VelocityProvider {
   [[nodiscard]] double horizontal_error_m() const { return horizontal_error_m_; }
 
  private:
+  /// Target not mapped: towards the mapped field's middle, then turning in place.
+  modes::ModeCommand search(double yaw_rad, const Eigen::Vector3d& p_m);
+
   MarkerModeConfig config_;
   const MarkerNavigation& navigation_;
   MarkerTask task_ = MarkerTask::kHold;
