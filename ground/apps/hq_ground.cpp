@@ -1,13 +1,21 @@
 // hq-ground: the operator's station. Runs the 1 kHz haptic loop on a device, publishes its
 // velocity command (eq. 6-10) and heartbeats over DDS, feeds the force feedback with the vehicle
 // state it receives, toggles modes from the device's buttons (button 0: teleop <-> hover,
-// button 1: land) and shows link and vehicle status in the terminal.
+// button 1: land) and shows link and vehicle status in the operator console (a Dear ImGui
+// window; --headless: status lines in the terminal). --replay plays a recording back into the
+// console instead of flying.
 //   hq-ground --device sim|keyboard|joystick|forcedim [--headless] [--duration-s N]
 //             [--haptics-config config/haptics.yaml] [--vehicle calib/vehicle_core_paper.yaml]
 //             [--link-config F] [--domain-id N] [--vehicle-id N] [--station-id N]
 //             [--station-strength N] [--command-rate-hz 50] [--record DIR]
+//             [--screenshot PNG] [--state-json PATH] [--max-fps 60]
+//   hq-ground --replay DIR [--speed X] [--headless] [--duration-s N] [--screenshot PNG]
+//             [--state-json PATH]
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
+#include "hq/console/console_model.hpp"
+#include "hq/console/console_window.hpp"
+#include "hq/console/recording.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/haptics/haptic_device.hpp"
@@ -20,6 +28,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <chrono>
+#include <string_view>
+#include <utility>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -28,6 +40,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 
 namespace {
 
@@ -44,7 +57,205 @@ struct Options {
   hq::link::LinkOverrides link_overrides;
   double command_rate_hz = 50.0;
   std::string record_dir;
+  std::string replay_dir;
+  double speed = 1.0;
+  std::string screenshot_path;
+  std::string state_json_path;
+  double max_fps = 60.0;
 };
+
+// What the window asks of the flying thread.
+struct UiRequests {
+  std::atomic<int> mode{-1};  ///< hq_msgs_Mode, -1: none.
+  std::atomic<std::int64_t> vehicle{-1};
+};
+
+int mode_of(const char* name) {
+  static constexpr std::array<std::pair<const char*, int>, 5> kModes = {
+      {{"teleop", hq_msgs_MODE_TELEOP},
+       {"hover", hq_msgs_MODE_HOVER},
+       {"land", hq_msgs_MODE_LAND},
+       {"marker", hq_msgs_MODE_MARKER},
+       {"explore", hq_msgs_MODE_EXPLORE}}};
+  for (const auto& [text, mode] : kModes) {
+    if (std::string_view(name) == text) return mode;
+  }
+  return -1;
+}
+
+// The link's view of the selected vehicle, into the console's model (on the flying thread).
+class ModelFeed : public hq::ground::LinkObserver {
+ public:
+  explicit ModelFeed(hq::console::ConsoleModel& model) : model_(model) {}
+  void on_state(std::int64_t receipt_ns, std::int64_t latency_ns,
+                const hq::link::VehicleState& s) override {
+    static_assert(sizeof(hq_msgs_Vector3f) == 3 * sizeof(float));
+    model_.on_state(receipt_ns, 1e-6 * static_cast<double>(latency_ns),
+                    {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
+                    {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z},
+                    s.roll_rad, s.pitch_rad, {s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z},
+                    hq::ground::to_string(s.mode), hq::ground::to_string(s.estimator_health),
+                    hq::ground::to_string(s.link_health),
+                    reinterpret_cast<const float*>(s.obstacle_points_body_m._buffer),
+                    s.obstacle_points_body_m._length);
+  }
+  void on_camera(std::int64_t receipt_ns, const hq::link::CameraFrame& f) override {
+    model_.on_camera(receipt_ns, f.rgb_jpeg._buffer, f.rgb_jpeg._length, f.depth_preview._buffer,
+                     f.depth_preview._length);
+  }
+  void on_event(std::int64_t receipt_ns, const hq::link::Event& e) override {
+    model_.on_event(receipt_ns, static_cast<int>(e.severity), e.text);
+  }
+
+ private:
+  hq::console::ConsoleModel& model_;
+};
+
+std::string json_string(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (static_cast<unsigned char>(c) >= 0x20) out += c;
+  }
+  return out + "\"";
+}
+
+// The console's own state at exit, for tests and scripts (--state-json).
+void write_state_json(const std::string& path, const hq::console::Snapshot& s,
+                      const hq::console::WindowStats* window, std::uint64_t replay_problems,
+                      std::uint64_t replay_frames_missing) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) throw hq::InputError(path + ": cannot open for writing (--state-json)");
+  std::fprintf(f, "{\n  \"source\": %s,\n", json_string(s.source.data()).c_str());
+  std::fprintf(f, "  \"have_state\": %s,\n  \"mode\": %s,\n", s.have_state ? "true" : "false",
+               json_string(s.mode).c_str());
+  std::fprintf(f, "  \"states_received\": %llu,\n  \"camera_frames_received\": %llu,\n",
+               static_cast<unsigned long long>(s.link.states),
+               static_cast<unsigned long long>(s.link.camera_frames));
+  std::fprintf(f, "  \"plot_samples\": %zu,\n  \"plot_samples_total\": %llu,\n", s.plot_count,
+               static_cast<unsigned long long>(s.plot_total));
+  std::fprintf(f, "  \"track_points\": %zu,\n  \"events\": %zu,\n", s.track_count,
+               s.event_count);
+  std::fprintf(f, "  \"position_W_m\": [%.3f, %.3f],\n",
+               static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m));
+  std::fprintf(f, "  \"vehicle_ids\": [");
+  for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
+    std::fprintf(f, "%s%u", i > 0 ? ", " : "", s.link.vehicle_ids[i]);
+  }
+  std::fprintf(f, "],\n  \"latency_p50_ms\": %.3f,\n", s.link.latency_p50_ms);
+  std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
+               static_cast<unsigned long long>(replay_problems),
+               static_cast<unsigned long long>(replay_frames_missing));
+  if (window != nullptr) {
+    std::fprintf(f,
+                 "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
+                 "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
+                 "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
+                 "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
+                 "\"gl_renderer\": %s}\n",
+                 static_cast<unsigned long long>(window->frames), window->fps,
+                 window->render_ms_p50, window->render_ms_max,
+                 static_cast<unsigned long long>(window->camera_frames_decoded),
+                 static_cast<unsigned long long>(window->camera_decode_failures),
+                 window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
+                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str());
+  } else {
+    std::fprintf(f, "  \"window\": null\n");
+  }
+  std::fprintf(f, "}\n");
+  std::fclose(f);
+}
+
+// Runs the console window on this (the main) thread until `done`, the duration or a quit;
+// returns its statistics. Requests go to `requests` for the flying thread.
+hq::console::WindowStats run_window(const Options& o, const std::string& title,
+                                    hq::console::ConsoleModel& model, UiRequests& requests,
+                                    const std::atomic<bool>& done, hq::console::Snapshot& snap) {
+  hq::console::ConsoleWindow window(title, 1600, 960, o.max_fps);
+  const auto start = std::chrono::steady_clock::now();
+  auto next_print = start + std::chrono::seconds(1);
+  while (!g_stop && !done) {
+    model.snapshot(snap);
+    const hq::console::UiActions actions = window.frame(snap);
+    if (actions.quit) break;
+    if (actions.mode_request != nullptr) requests.mode = mode_of(actions.mode_request);
+    if (actions.select_vehicle) requests.vehicle = actions.vehicle_id;
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= next_print) {
+      const hq::console::WindowStats st = window.stats();
+      std::fprintf(stderr, "hq-ground: console %.1f fps (render p50 %.2f ms), %llu frames decoded\n",
+                   st.fps, st.render_ms_p50,
+                   static_cast<unsigned long long>(st.camera_frames_decoded));
+      next_print += std::chrono::seconds(1);
+    }
+    if (o.duration_s > 0 &&
+        std::chrono::duration<double>(now - start).count() >= o.duration_s) {
+      break;
+    }
+  }
+  model.snapshot(snap);
+  if (!o.screenshot_path.empty()) {
+    window.save_screenshot(snap, o.screenshot_path);
+    std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
+  }
+  const hq::console::WindowStats st = window.stats();
+  std::printf("  %-40s %.1f fps over %llu frames (render p50 %.2f ms, max %.2f ms; GL %s)\n",
+              "console", st.fps, static_cast<unsigned long long>(st.frames), st.render_ms_p50,
+              st.render_ms_max, st.gl_renderer.c_str());
+  return st;
+}
+
+int run_replay(const Options& o) {
+  const hq::console::Recording recording = hq::console::load_recording(o.replay_dir);
+  std::fprintf(stderr, "hq-ground: replay %s: %zu states, %zu commands, %zu events, %zu frames\n",
+               o.replay_dir.c_str(), recording.states.size(), recording.commands.size(),
+               recording.events.size(), recording.rgb.size());
+  if (recording.problem_count > 0) {
+    std::fprintf(stderr, "hq-ground: replay: %zu problem(s) in %s; showing what is readable:\n",
+                 recording.problem_count, o.replay_dir.c_str());
+    for (const std::string& p : recording.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+  }
+  hq::console::ConsoleModel model;
+  model.set_source("replay " + o.replay_dir);
+  for (const hq::console::RecordedEvent& e : recording.events) {
+    (void)e;  // events are replayed on their time, like the rest
+  }
+  std::atomic<bool> stop{false};
+  std::atomic<bool> done{false};
+  std::atomic<std::uint64_t> frames_missing{0};
+  std::thread player([&] {
+    hq::console::replay(recording, model, o.speed, stop, frames_missing);
+    done = true;
+  });
+  hq::console::Snapshot snap = model.make_snapshot();
+  std::optional<hq::console::WindowStats> window;
+  std::printf("hq-ground replay summary\n");
+  if (o.headless) {
+    const auto start = std::chrono::steady_clock::now();
+    while (!g_stop && !done &&
+           (o.duration_s <= 0 || std::chrono::duration<double>(std::chrono::steady_clock::now() -
+                                                              start).count() < o.duration_s)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  } else {
+    // The window stays open after the end of the recording until closed or --duration-s.
+    const std::atomic<bool> never{false};
+    UiRequests ignored;
+    window = run_window(o, "hq-ground replay " + o.replay_dir, model, ignored, never, snap);
+  }
+  stop = true;
+  player.join();
+  model.snapshot(snap);
+  std::printf("  %-40s %llu states, %llu camera frames (%llu missing), %zu problems\n",
+              "replayed", static_cast<unsigned long long>(snap.plot_total),
+              static_cast<unsigned long long>(snap.link.camera_frames),
+              static_cast<unsigned long long>(frames_missing.load()), recording.problem_count);
+  if (!o.state_json_path.empty()) {
+    write_state_json(o.state_json_path, snap, window ? &*window : nullptr, recording.problem_count,
+                     frames_missing.load());
+  }
+  return 0;
+}
 
 void print_status(std::FILE* out, bool live, double t_s, const hq::ground::GroundStation& ground,
                   const hq::haptics::LoopOutput& hand) {
@@ -80,11 +291,23 @@ int run(int argc, char** argv) {
   hq::link::add_link_options(app, o.link_overrides);
   app.add_option("--command-rate-hz", o.command_rate_hz, "velocity commands sent per second")
       ->check(CLI::Range(5.0, 1000.0));
-  app.add_option("--record", o.record_dir, "write received telemetry and events as CSV here");
+  app.add_option("--record", o.record_dir,
+                 "record the flight here (telemetry, commands, events CSV; camera as TUM rgb/)");
+  app.add_option("--replay", o.replay_dir, "play a recording back into the console; no link");
+  app.add_option("--speed", o.speed, "replay speed factor")->check(CLI::Range(0.01, 100.0));
+  app.add_option("--screenshot", o.screenshot_path, "write the console's last frame as PNG");
+  app.add_option("--state-json", o.state_json_path, "write the console's state at exit as JSON");
+  app.add_option("--max-fps", o.max_fps, "console frame-rate cap")->check(CLI::Range(1.0, 500.0));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  if (!o.replay_dir.empty()) return run_replay(o);
+  if (o.headless && !o.screenshot_path.empty()) {
+    throw hq::InputError("--screenshot " + o.screenshot_path + ": needs the console (no --headless)");
   }
 
   hq::link::LinkConfig link = o.link_config_path.empty()
@@ -102,9 +325,11 @@ int run(int argc, char** argv) {
   std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
   if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
   hq::ground::GroundStation ground(link, recorder.get());
+  hq::console::ConsoleModel model;
+  ModelFeed feed(model);
+  ground.set_observer(&feed);
+  model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
   hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
-  std::signal(SIGINT, request_stop);
-  std::signal(SIGTERM, request_stop);
   const hq::haptics::RealtimeGrant grant = loop.start();
   std::fprintf(stderr,
                "hq-ground: device %s, domain %d, vehicle %u, station %u (strength %d); haptic "
@@ -112,73 +337,153 @@ int run(int argc, char** argv) {
                device->name(), link.domain_id, link.vehicle_id, link.station_id,
                link.station_strength, grant.summary.c_str());
 
-  const bool live = !o.headless && isatty(fileno(stderr)) != 0;
+  const bool live = false;  // the console window replaced the terminal's live status line
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / o.command_rate_hz));
   const std::int64_t start_ns = hq::haptics::monotonic_now_ns();
-  std::int64_t next_ns = start_ns;
-  std::int64_t next_heartbeat_ns = start_ns;
-  std::int64_t next_status_ns = start_ns;
-  const std::int64_t status_period_ns = live ? 200'000'000 : 1'000'000'000;
-  hq::ground::ModeToggle toggle;
   std::uint64_t device_losses = 0;
-  bool was_connected = true;
   double max_state_gap_s = 0.0;
-  std::int64_t last_state_ns = 0;
-  next_ns += period_ns;
-  while (!g_stop) {
-    // Wait for the next command tick, taking vehicle states the moment they arrive so the force
-    // feedback gets them at once and their receipt time is exact.
-    const bool fresh = ground.poll_until(next_ns);
-    const std::int64_t now_ns = hq::haptics::monotonic_now_ns();
-    if (fresh) {
-      const hq::link::VehicleState& s = ground.status().state;
-      hq::haptics::VehicleEstimate estimate;
-      estimate.t_ns = now_ns;
-      estimate.valid = static_cast<int>(s.estimator_health) != hq_msgs_HEALTH_LOST;
-      estimate.v_H_mps = {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z};
-      estimate.yaw_rate_radps = s.omega_body_radps.z;
-      loop.set_vehicle_estimate(estimate);
-      if (last_state_ns != 0) {
-        max_state_gap_s =
-            std::max(max_state_gap_s, 1e-9 * static_cast<double>(now_ns - last_state_ns));
+  UiRequests requests;
+  std::atomic<bool> flying_done{false};
+  // The flight: commands, link and haptic feedback. On its own thread when the console is up,
+  // so that drawing never delays a command or the feedback's vehicle state.
+  const auto fly = [&] {
+    std::int64_t next_ns = start_ns + period_ns;
+    std::int64_t next_heartbeat_ns = start_ns;
+    std::int64_t next_status_ns = start_ns;
+    std::int64_t next_health_ns = start_ns;
+    const std::int64_t status_period_ns = live ? 200'000'000 : 1'000'000'000;
+    hq::ground::ModeToggle toggle;
+    bool was_connected = true;
+    std::int64_t last_state_ns = 0;
+    std::uint64_t last_states = 0;
+    std::uint64_t last_frames = 0;
+    while (!g_stop && !flying_done) {
+      // Wait for the next command tick, taking vehicle states the moment they arrive so the
+      // force feedback gets them at once and their receipt time is exact.
+      const bool fresh = ground.poll_until(next_ns);
+      const std::int64_t now_ns = hq::haptics::monotonic_now_ns();
+      if (fresh) {
+        const hq::link::VehicleState& s = ground.status().state;
+        hq::haptics::VehicleEstimate estimate;
+        estimate.t_ns = now_ns;
+        estimate.valid = static_cast<int>(s.estimator_health) != hq_msgs_HEALTH_LOST;
+        estimate.v_H_mps = {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z};
+        estimate.yaw_rate_radps = s.omega_body_radps.z;
+        loop.set_vehicle_estimate(estimate);
+        if (last_state_ns != 0) {
+          max_state_gap_s =
+              std::max(max_state_gap_s, 1e-9 * static_cast<double>(now_ns - last_state_ns));
+        }
+        last_state_ns = now_ns;
       }
-      last_state_ns = now_ns;
-    }
-    if (now_ns < next_ns) continue;
-    next_ns += period_ns;
-    const double t_s = 1e-9 * static_cast<double>(now_ns - start_ns);
-    if (o.duration_s > 0.0 && t_s >= o.duration_s) break;
+      if (now_ns < next_ns) continue;
+      next_ns += period_ns;
+      const double t_s = 1e-9 * static_cast<double>(now_ns - start_ns);
+      if (o.duration_s > 0.0 && t_s >= o.duration_s) break;
 
-    const hq::haptics::LoopOutput hand = loop.latest();
-    if (was_connected && !hand.device_connected) {
-      ++device_losses;
-      std::fprintf(stderr, "\nhq-ground: device lost (%s): sending zero commands\n",
-                   hand.status.data());
+      const hq::haptics::LoopOutput hand = loop.latest();
+      if (was_connected && !hand.device_connected) {
+        ++device_losses;
+        std::fprintf(stderr, "\nhq-ground: device lost (%s): sending zero commands\n",
+                     hand.status.data());
+      }
+      was_connected = hand.device_connected;
+      const bool valid = hand.command_valid && hand.device_connected;
+      ground.send_command(now_ns, hand.command, valid);
+      const std::int64_t wall_ns = dds_time();  // the clock of the recorded receipts
+      if (recorder) recorder->command(wall_ns, hand.command, valid);
+      const Eigen::Vector3d v = valid ? hand.command.v_H_mps : Eigen::Vector3d::Zero();
+      model.on_command(wall_ns,
+                       {static_cast<float>(v.x()), static_cast<float>(v.y()),
+                        static_cast<float>(v.z())},
+                       valid ? static_cast<float>(hand.command.yaw_rate_radps) : 0.0F);
+      hq::console::HapticState h;
+      h.valid = true;
+      for (int i = 0; i < 3; ++i) {
+        h.p_D_m[static_cast<std::size_t>(i)] = static_cast<float>(hand.p_D_m[i]);
+        h.F_D_n[static_cast<std::size_t>(i)] = static_cast<float>(hand.F_D_n[i]);
+      }
+      h.buttons = hand.buttons;
+      h.connected = hand.device_connected;
+      h.cue_weight = static_cast<float>(hand.cue_weight);
+      h.passivity_energy_j = static_cast<float>(hand.passivity_energy_j);
+      h.status = hand.status;
+      model.on_haptics(h);
+
+      const hq_msgs_Mode vehicle_mode =
+          ground.status().have_state ? ground.status().state.mode : hq_msgs_MODE_HOVER;
+      std::optional<hq_msgs_Mode> mode = toggle.on_buttons(hand.buttons, vehicle_mode);
+      if (const int ui_mode = requests.mode.exchange(-1); ui_mode >= 0) {
+        mode = static_cast<hq_msgs_Mode>(ui_mode);
+      }
+      if (mode) {
+        ground.request_mode(now_ns, *mode);
+        if (recorder) recorder->mode_request(wall_ns, *mode);
+        std::fprintf(stderr, "%shq-ground: t %.1f s: requesting mode %s\n", live ? "\n" : "", t_s,
+                     hq::ground::to_string(*mode));
+      }
+      if (const std::int64_t id = requests.vehicle.exchange(-1); id >= 0) {
+        ground.select_vehicle(static_cast<std::uint32_t>(id));
+      }
+      if (now_ns >= next_heartbeat_ns) {
+        ground.send_heartbeat(now_ns);
+        next_heartbeat_ns += 100'000'000;  // 10 Hz, well inside the vehicle's 2 s timeout
+      }
+      if (now_ns >= next_health_ns) {
+        const hq::ground::LinkStatus& st = ground.status();
+        hq::console::LinkHealth health;
+        health.latency_p50_ms = ground.latency().quantile_ms(0.5);
+        health.latency_p99_ms = ground.latency().quantile_ms(0.99);
+        health.last_latency_ms = 1e-6 * static_cast<double>(st.last_latency_ns);
+        health.state_age_s = st.have_state ? ground.state_age_s() : -1.0;
+        health.state_rate_hz = 4.0 * static_cast<double>(st.states - last_states);
+        health.camera_rate_hz = 4.0 * static_cast<double>(st.camera_frames - last_frames);
+        last_states = st.states;
+        last_frames = st.camera_frames;
+        health.states = st.states;
+        health.camera_frames = st.camera_frames;
+        health.events = st.events;
+        health.commands_sent = st.commands_sent;
+        health.write_failures = st.write_failures;
+        health.sequence_gaps = st.state_sequence_gaps;
+        health.states_rejected = st.states_rejected;
+        health.heartbeat_seen = st.have_vehicle_heartbeat;
+        health.vehicle_ids = st.vehicle_ids_seen;
+        health.vehicle_id_count = st.vehicle_ids_seen_count;
+        health.selected_vehicle = ground.vehicle_id();
+        model.on_link(health);
+        next_health_ns += 250'000'000;  // 4 Hz: rates above are per quarter second
+      }
+      if (now_ns >= next_status_ns) {
+        if (o.headless) print_status(stderr, live, t_s, ground, hand);
+        if (recorder) recorder->flush();
+        next_status_ns += status_period_ns;
+      }
     }
-    was_connected = hand.device_connected;
-    ground.send_command(now_ns, hand.command, hand.command_valid && hand.device_connected);
-    const hq_msgs_Mode vehicle_mode =
-        ground.status().have_state ? ground.status().state.mode : hq_msgs_MODE_HOVER;
-    if (const std::optional<hq_msgs_Mode> mode = toggle.on_buttons(hand.buttons, vehicle_mode)) {
-      ground.request_mode(now_ns, *mode);
-      std::fprintf(stderr, "%shq-ground: t %.1f s: requesting mode %s\n", live ? "\n" : "", t_s,
-                   hq::ground::to_string(*mode));
+    flying_done = true;
+  };
+  std::printf("hq-ground summary\n");
+  hq::console::Snapshot snap = model.make_snapshot();
+  std::optional<hq::console::WindowStats> window;
+  if (o.headless) {
+    fly();
+  } else {
+    std::thread flying(fly);
+    try {
+      window = run_window(o, "hq-ground: operator console", model, requests, flying_done, snap);
+    } catch (...) {
+      flying_done = true;
+      flying.join();
+      throw;
     }
-    if (now_ns >= next_heartbeat_ns) {
-      ground.send_heartbeat(now_ns);
-      next_heartbeat_ns += 100'000'000;  // 10 Hz, well inside the vehicle's 2 s timeout
-    }
-    if (now_ns >= next_status_ns) {
-      print_status(stderr, live, t_s, ground, hand);
-      next_status_ns += status_period_ns;
-    }
+    flying_done = true;
+    flying.join();
   }
   loop.stop();
   if (live) std::fprintf(stderr, "\n");
 
   const hq::ground::LinkStatus& s = ground.status();
   const hq::haptics::LoopTimingReport& timing = loop.timing();
-  std::printf("hq-ground summary\n");
   std::printf("  %-40s %llu commands, %llu mode requests, %llu heartbeats, %llu failed\n", "sent",
               static_cast<unsigned long long>(s.commands_sent),
               static_cast<unsigned long long>(s.mode_requests_sent),
@@ -202,6 +507,14 @@ int run(int argc, char** argv) {
   std::printf("  %-40s %.4f J (>= 0: passive)\n", "passivity observer energy",
               loop.passivity().energy_j());
   std::printf("  %-40s %llu\n", "device losses", static_cast<unsigned long long>(device_losses));
+  std::printf("  %-40s %llu missing, %llu rejected\n", "vehicle states lost",
+              static_cast<unsigned long long>(s.state_sequence_gaps),
+              static_cast<unsigned long long>(s.states_rejected));
+  if (recorder) recorder->flush();
+  if (!o.state_json_path.empty()) {
+    model.snapshot(snap);
+    write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0);
+  }
   return 0;
 }
 

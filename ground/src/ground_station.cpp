@@ -62,43 +62,147 @@ double LatencyStats::quantile_ms(double q) const {
   return 0.01 * static_cast<double>(bins_.size());
 }
 
-TelemetryRecorder::TelemetryRecorder(const std::string& directory) {
-  if (mkdir(directory.c_str(), 0755) != 0 && errno != EEXIST) {
-    throw InputError("--record " + directory + ": cannot create directory: " +
-                     std::strerror(errno));
+namespace {
+
+std::FILE* open_for_writing(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) throw InputError(path + ": cannot open for writing: " + std::strerror(errno));
+  return f;
+}
+
+void make_directory(const std::string& path) {
+  if (mkdir(path.c_str(), 0755) != 0 && errno != EEXIST) {
+    throw InputError("--record " + path + ": cannot create directory: " + std::strerror(errno));
   }
-  const std::string telemetry = directory + "/telemetry.csv";
-  const std::string events = directory + "/events.csv";
-  telemetry_ = std::fopen(telemetry.c_str(), "w");
-  if (!telemetry_) throw InputError(telemetry + ": cannot open for writing");
-  events_ = std::fopen(events.c_str(), "w");
-  if (!events_) {
-    std::fclose(telemetry_);
-    throw InputError(events + ": cannot open for writing");
+}
+
+// Closest point of the down-sampled cloud to the body origin, NaN without a cloud.
+double closest_obstacle_m(const link::VehicleState& s) {
+  double best_sq = std::numeric_limits<double>::infinity();
+  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
+    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
+    best_sq = std::min(best_sq, static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y +
+                                    static_cast<double>(p.z) * p.z);
   }
+  return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
+
+TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(directory) {
+  make_directory(directory);
+  make_directory(directory + "/rgb");
+  make_directory(directory + "/depth_preview");
+  // Opened one by one; a later failure closes the earlier files in the destructor's order.
+  struct Closer {
+    TelemetryRecorder* r;
+    bool armed = true;
+    ~Closer() {
+      if (!armed) return;
+      for (std::FILE* f : {r->telemetry_, r->events_, r->commands_, r->modes_, r->rgb_list_,
+                           r->depth_list_}) {
+        if (f != nullptr) std::fclose(f);
+      }
+    }
+  } closer{this};
+  telemetry_ = open_for_writing(directory + "/telemetry.csv");
+  events_ = open_for_writing(directory + "/events.csv");
+  commands_ = open_for_writing(directory + "/commands.csv");
+  modes_ = open_for_writing(directory + "/mode_requests.csv");
+  rgb_list_ = open_for_writing(directory + "/rgb.txt");
+  depth_list_ = open_for_writing(directory + "/depth_preview.txt");
+  closer.armed = false;
   std::fprintf(telemetry_,
+               "# hq-ground telemetry v1: one row per vehicle state received.\n"
+               "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
+               "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
+               "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
+               "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
+               "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
                "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
                "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
-               "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health\n");
-  std::fprintf(events_, "receipt_ns,sequence,t_ns,severity,code,text\n");
+               "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
+               "closest_obstacle_m\n");
+  std::fprintf(events_,
+               "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
+               "# severity 0 info 1 warning 2 error.\n"
+               "receipt_ns,sequence,t_ns,severity,code,text\n");
+  std::fprintf(commands_,
+               "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
+               "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
+               "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
+               "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n");
+  std::fprintf(modes_,
+               "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
+               "t_ns,mode\n");
+  std::fprintf(rgb_list_,
+               "# color images (JPEG as received)\n"
+               "# timestamp filename (timestamp: receipt on the ground clock, s)\n");
+  std::fprintf(depth_list_,
+               "# depth colour-map previews (not metric depth)\n"
+               "# timestamp filename (timestamp: receipt on the ground clock, s)\n");
+  path_.reserve(directory.size() + 64);
 }
 
 TelemetryRecorder::~TelemetryRecorder() {
-  std::fclose(telemetry_);
-  std::fclose(events_);
+  for (std::FILE* f : {telemetry_, events_, commands_, modes_, rgb_list_, depth_list_}) {
+    std::fclose(f);
+  }
+}
+
+void TelemetryRecorder::flush() {
+  for (std::FILE* f : {telemetry_, events_, commands_, modes_, rgb_list_, depth_list_}) {
+    std::fflush(f);
+  }
 }
 
 void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
                               const link::VehicleState& s) {
   std::fprintf(telemetry_,
                "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-               "%s\n",
+               "%s,%u,%.3f\n",
                static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
                static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
                s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x,
                s.omega_body_radps.y, s.omega_body_radps.z, s.roll_rad, s.pitch_rad,
                s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z, to_string(s.mode),
-               to_string(s.estimator_health), to_string(s.link_health));
+               to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
+               closest_obstacle_m(s));
+}
+
+void TelemetryRecorder::command(std::int64_t t_ns, const haptics::VelocityCommand& command,
+                                bool valid) {
+  const Eigen::Vector3d v = valid ? command.v_H_mps : Eigen::Vector3d::Zero();
+  std::fprintf(commands_, "%lld,%.4f,%.4f,%.4f,%.4f,%d\n", static_cast<long long>(t_ns), v.x(),
+               v.y(), v.z(), valid ? command.yaw_rate_radps : 0.0, valid ? 1 : 0);
+}
+
+void TelemetryRecorder::mode_request(std::int64_t t_ns, hq_msgs_Mode mode) {
+  std::fprintf(modes_, "%lld,%s\n", static_cast<long long>(t_ns), to_string(mode));
+  std::fflush(modes_);
+}
+
+void TelemetryRecorder::camera(std::int64_t receipt_ns, const link::CameraFrame& frame) {
+  const auto write_file = [&](const char* folder, const char* extension,
+                              const dds_sequence_octet& bytes, std::FILE* list) {
+    char name[64];
+    std::snprintf(name, sizeof name, "%s/%.6f.%s", folder, 1e-9 * static_cast<double>(receipt_ns),
+                  extension);
+    path_.assign(directory_).append("/").append(name);
+    std::FILE* f = std::fopen(path_.c_str(), "wb");
+    if (f == nullptr || std::fwrite(bytes._buffer, 1, bytes._length, f) != bytes._length) {
+      ++frame_write_failures_;
+    } else {
+      std::fprintf(list, "%.6f %s\n", 1e-9 * static_cast<double>(receipt_ns), name);
+    }
+    if (f != nullptr) std::fclose(f);
+  };
+  if (frame.rgb_jpeg._length > 0) write_file("rgb", "jpg", frame.rgb_jpeg, rgb_list_);
+  if (frame.depth_preview._length > 0) {
+    // PNG or JPEG by its magic number (the message allows either).
+    const bool png = frame.depth_preview._length > 4 && frame.depth_preview._buffer[0] == 0x89;
+    write_file("depth_preview", png ? "png" : "jpg", frame.depth_preview, depth_list_);
+  }
 }
 
 void TelemetryRecorder::event(std::int64_t receipt_ns, const link::Event& e) {
@@ -194,10 +298,21 @@ bool GroundStation::poll() {
   bool fresh = false;
   dds_sample_info_t info{};
   while (state_reader_.take(*state_sample_, info)) {
-    if (state_sample_->vehicle_id != config_.vehicle_id || !link::validate(*state_sample_).ok) {
-      continue;  // another vehicle, or a sample the haptic loop must not see
+    note_vehicle(state_sample_->vehicle_id);
+    if (state_sample_->vehicle_id != config_.vehicle_id) continue;  // another vehicle
+    if (!link::validate(*state_sample_).ok) {
+      ++status_.states_rejected;  // a sample the haptic loop must not see
+      continue;
     }
+    if (last_state_sequence_ != 0 && state_sample_->sequence_number > last_state_sequence_ + 1) {
+      status_.state_sequence_gaps += state_sample_->sequence_number - last_state_sequence_ - 1;
+    }
+    last_state_sequence_ = state_sample_->sequence_number;
     const std::int64_t now = dds_time();
+    if (observer_ != nullptr) observer_->on_state(now, now - info.source_timestamp, *state_sample_);
+    if (recorder_ != nullptr) {
+      recorder_->state(now, now - info.source_timestamp, *state_sample_);
+    }
     status_.state = *state_sample_;
     status_.state.obstacle_points_body_m = {};  // the copy must not alias the sample's buffer
     status_.state_receipt_ns = now;
@@ -205,7 +320,6 @@ bool GroundStation::poll() {
     status_.have_state = true;
     ++status_.states;
     latency_.add(status_.last_latency_ns);
-    if (recorder_ != nullptr) recorder_->state(now, status_.last_latency_ns, status_.state);
     fresh = true;
   }
   link::Event event{};
@@ -213,12 +327,17 @@ bool GroundStation::poll() {
     if (event.vehicle_id != config_.vehicle_id) continue;
     ++status_.events;
     std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
-    if (recorder_ != nullptr) recorder_->event(dds_time(), event);
+    const std::int64_t now = dds_time();
+    if (recorder_ != nullptr) recorder_->event(now, event);
+    if (observer_ != nullptr) observer_->on_event(now, event);
   }
   while (camera_reader_.take(*camera_sample_, info)) {
     if (camera_sample_->vehicle_id != config_.vehicle_id) continue;
     ++status_.camera_frames;
     status_.camera_bytes += camera_sample_->rgb_jpeg._length;
+    const std::int64_t now = dds_time();
+    if (recorder_ != nullptr) recorder_->camera(now, *camera_sample_);
+    if (observer_ != nullptr) observer_->on_camera(now, *camera_sample_);
   }
   link::Heartbeat heartbeat{};
   while (heartbeat_reader_.take(heartbeat, info)) {
@@ -229,6 +348,20 @@ bool GroundStation::poll() {
     }
   }
   return fresh;
+}
+
+void GroundStation::note_vehicle(std::uint32_t vehicle_id) {
+  auto& ids = status_.vehicle_ids_seen;
+  const auto end = ids.begin() + static_cast<std::ptrdiff_t>(status_.vehicle_ids_seen_count);
+  if (std::find(ids.begin(), end, vehicle_id) != end) return;
+  if (status_.vehicle_ids_seen_count < ids.size()) ids[status_.vehicle_ids_seen_count++] = vehicle_id;
+}
+
+void GroundStation::select_vehicle(std::uint32_t vehicle_id) {
+  if (vehicle_id == config_.vehicle_id) return;
+  config_.vehicle_id = vehicle_id;
+  status_.have_state = false;
+  last_state_sequence_ = 0;
 }
 
 bool GroundStation::poll_until(std::int64_t deadline_ns) {

@@ -61,10 +61,31 @@ struct LinkStatus {
   std::uint64_t heartbeats_sent = 0;
   std::uint64_t write_failures = 0;
   std::array<char, 161> last_event{};  ///< Text of the latest event.
+  std::uint64_t state_sequence_gaps = 0;  ///< States missing between consecutive sequences.
+  std::uint64_t states_rejected = 0;      ///< States of the selected vehicle failing validate().
+  std::array<std::uint32_t, 8> vehicle_ids_seen{};  ///< Ids of every vehicle heard from.
+  std::size_t vehicle_ids_seen_count = 0;
 };
 
-/// Optional CSV recording of what arrives: DIR/telemetry.csv (one row per vehicle state) and
-/// DIR/events.csv. @throws hq::InputError if the directory or files cannot be written.
+/// Everything the station takes from the link for the selected vehicle, as it arrives (called
+/// on the thread that polls; keep it short and non-blocking). The state still carries its
+/// obstacle cloud, which LinkStatus drops.
+class LinkObserver {
+ public:
+  virtual ~LinkObserver() = default;
+  virtual void on_state(std::int64_t /*receipt_ns*/, std::int64_t /*latency_ns*/,
+                        const link::VehicleState& /*state*/) {}
+  virtual void on_camera(std::int64_t /*receipt_ns*/, const link::CameraFrame& /*frame*/) {}
+  virtual void on_event(std::int64_t /*receipt_ns*/, const link::Event& /*event*/) {}
+};
+
+/// Recording of a flight as the ground saw it, in DIR: telemetry.csv (one row per vehicle
+/// state), commands.csv (one row per velocity command sent), mode_requests.csv, events.csv,
+/// and the camera in the TUM RGB-D layout: rgb/<t>.jpg listed in rgb.txt, depth colour maps in
+/// depth_preview/ listed in depth_preview.txt. Every CSV starts with '#' lines naming frames,
+/// clocks and units. All stamps named receipt_ns/t_ns here are the ground's dds_time() (the
+/// host's real-time clock); vehicle_t_ns is the vehicle's own stamp.
+/// @throws hq::InputError if the directory or files cannot be written.
 class TelemetryRecorder {
  public:
   explicit TelemetryRecorder(const std::string& directory);
@@ -73,16 +94,37 @@ class TelemetryRecorder {
   TelemetryRecorder& operator=(const TelemetryRecorder&) = delete;
   void state(std::int64_t receipt_ns, std::int64_t latency_ns, const link::VehicleState& s);
   void event(std::int64_t receipt_ns, const link::Event& e);
+  /// A velocity command as sent at `t_ns` (zero when not valid).
+  void command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
+  void mode_request(std::int64_t t_ns, hq_msgs_Mode mode);
+  /// Writes the JPEG (and the depth preview if any) as received, without re-encoding.
+  void camera(std::int64_t receipt_ns, const link::CameraFrame& frame);
+  /// Writes buffered rows to disk (called about once a second, not per row).
+  void flush();
 
  private:
+  std::string directory_;
   std::FILE* telemetry_ = nullptr;
   std::FILE* events_ = nullptr;
+  std::FILE* commands_ = nullptr;
+  std::FILE* modes_ = nullptr;
+  std::FILE* rgb_list_ = nullptr;
+  std::FILE* depth_list_ = nullptr;
+  std::string path_;  ///< Reused for frame file names.
+  std::uint64_t frame_write_failures_ = 0;
 };
 
 class GroundStation {
  public:
   /// @throws hq::InputError naming the DDS call that failed.
   explicit GroundStation(const link::LinkConfig& config, TelemetryRecorder* recorder = nullptr);
+
+  /// Also hands every state, frame and event of the selected vehicle to `observer` (may be
+  /// null; must outlive the station or be reset first).
+  void set_observer(LinkObserver* observer) { observer_ = observer; }
+  /// Commands and listens to vehicle `vehicle_id` from now on (the console's selector).
+  void select_vehicle(std::uint32_t vehicle_id);
+  [[nodiscard]] std::uint32_t vehicle_id() const { return config_.vehicle_id; }
 
   /// Publishes one command of the haptic loop (zero when `valid` is false).
   void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
@@ -103,6 +145,9 @@ class GroundStation {
  private:
   link::LinkConfig config_;
   TelemetryRecorder* recorder_;
+  LinkObserver* observer_ = nullptr;
+  std::uint64_t last_state_sequence_ = 0;
+  void note_vehicle(std::uint32_t vehicle_id);
   link::Participant participant_;
   link::Topic<link::VelocityCommand> command_topic_;
   link::Topic<link::ModeRequest> mode_topic_;

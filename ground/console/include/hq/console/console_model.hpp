@@ -1,0 +1,176 @@
+#pragma once
+/// What the operator console shows, fed from the DDS thread (live) or a replay thread and read
+/// by the UI thread. Writers call the on_*() methods; the UI copies everything into its own
+/// Snapshot with snapshot(). Both hold one mutex only for a bounded copy into storage sized at
+/// construction, so neither side allocates per sample and the writer (which also drives the
+/// haptic loop's feedback) is never held up by rendering or JPEG decoding.
+///
+/// Frames: H is the core paper's horizontal NED frame (eq. 5), which turns with the heading;
+/// W is a world frame fixed at the first state (NED, heading 0 there). The top view integrates
+/// p_W += R_z(yaw) v_H dt with yaw integrated from the gyro's z rate, because VehicleState
+/// carries no position (a dead-reckoned track: it drifts, and says so on screen).
+
+#include <array>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace hq::console {
+
+/// One plotted instant (time of the state on the console's clock, seconds from the first).
+struct PlotSample {
+  float t_s = 0;
+  std::array<float, 3> v_est_H_mps{};  ///< Estimated velocity in H (eq. 5).
+  std::array<float, 3> v_cmd_H_mps{};  ///< Latest operator command in H at that time.
+  std::array<float, 3> v_obs_H_mps{};  ///< Obstacle repulsion.
+  float yaw_rate_cmd_radps = 0;
+  float yaw_rate_meas_radps = 0;  ///< Gyro z (FRD).
+  float latency_ms = 0;
+};
+
+struct TrackPoint {
+  float x_W_m = 0;
+  float y_W_m = 0;
+};
+
+struct EventLine {
+  double t_s = 0;
+  int severity = 0;
+  std::array<char, 161> text{};
+};
+
+struct HapticState {
+  bool valid = false;
+  std::array<float, 3> p_D_m{};
+  std::array<float, 3> F_D_n{};
+  std::uint32_t buttons = 0;
+  bool connected = false;
+  float cue_weight = 0;
+  float passivity_energy_j = 0;
+  std::array<char, 128> status{};
+};
+
+struct LinkHealth {
+  double latency_p50_ms = 0;
+  double latency_p99_ms = 0;
+  double last_latency_ms = 0;
+  double state_age_s = -1;  ///< < 0: no state yet.
+  double state_rate_hz = 0;
+  double camera_rate_hz = 0;
+  std::uint64_t states = 0;
+  std::uint64_t camera_frames = 0;
+  std::uint64_t events = 0;
+  std::uint64_t commands_sent = 0;
+  std::uint64_t write_failures = 0;
+  std::uint64_t sequence_gaps = 0;  ///< States lost on the way.
+  std::uint64_t states_rejected = 0;
+  bool heartbeat_seen = false;
+  std::array<std::uint32_t, 8> vehicle_ids{};
+  std::size_t vehicle_id_count = 0;
+  std::uint32_t selected_vehicle = 0;
+};
+
+/// The UI's copy; buffers sized by ConsoleModel::make_snapshot(), reused on every copy.
+struct Snapshot {
+  std::vector<PlotSample> plot;  ///< Oldest first, plot_count valid.
+  std::size_t plot_count = 0;
+  std::uint64_t plot_total = 0;  ///< Samples ever added.
+  std::vector<TrackPoint> track;
+  std::size_t track_count = 0;
+  std::vector<TrackPoint> cloud_W;  ///< Latest obstacle cloud, top view in W.
+  std::size_t cloud_count = 0;
+  std::vector<EventLine> events;  ///< Oldest first.
+  std::size_t event_count = 0;
+  std::vector<std::uint8_t> jpeg;  ///< Latest camera frame, jpeg_size valid.
+  std::size_t jpeg_size = 0;
+  std::vector<std::uint8_t> depth;
+  std::size_t depth_size = 0;
+  std::uint64_t camera_sequence = 0;  ///< Bumps with every frame (decode only when it moves).
+  bool have_state = false;
+  std::string mode = "-";
+  std::string estimator_health = "-";
+  std::string link_health = "-";
+  float roll_rad = 0;
+  float pitch_rad = 0;
+  float yaw_W_rad = 0;
+  TrackPoint position_W{};
+  PlotSample latest{};
+  HapticState haptics{};
+  LinkHealth link{};
+  std::array<char, 192> source{};  ///< "live domain 3" or "replay DIR".
+};
+
+class ConsoleModel {
+ public:
+  struct Capacity {
+    std::size_t plot = 4096;   ///< ~2 min at 30 states/s.
+    std::size_t track = 16384;
+    std::size_t cloud = 2048;  ///< hq_msgs_kMaxObstaclePoints.
+    std::size_t events = 256;
+    std::size_t jpeg_bytes = 262144;   ///< hq_msgs_kMaxJpegBytes.
+    std::size_t depth_bytes = 131072;  ///< hq_msgs_kMaxDepthPreviewBytes.
+  };
+  ConsoleModel() : ConsoleModel(Capacity{}) {}
+  explicit ConsoleModel(const Capacity& capacity);
+
+  /// A vehicle state at `t_ns` (any monotonic clock shared by all on_*() calls).
+  /// `cloud_body_m` is x,y,z triples in the body frame (FRD), `cloud_points` of them.
+  void on_state(std::int64_t t_ns, double latency_ms, const std::array<float, 3>& v_H_mps,
+                const std::array<float, 3>& omega_body_radps, float roll_rad, float pitch_rad,
+                const std::array<float, 3>& v_obs_H_mps, const char* mode,
+                const char* estimator_health, const char* link_health, const float* cloud_body_m,
+                std::size_t cloud_points);
+  void on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps, float yaw_rate_radps);
+  void on_event(std::int64_t t_ns, int severity, const char* text);
+  /// Copies the bytes (truncated to the capacity, which the link's bounds match).
+  void on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
+                 const std::uint8_t* depth, std::size_t depth_size);
+  void on_haptics(const HapticState& haptics);
+  void on_link(const LinkHealth& link);
+  void set_source(const std::string& text);
+
+  /// A Snapshot with every buffer at its capacity.
+  [[nodiscard]] Snapshot make_snapshot() const;
+  /// Copies the current state into `out` (from make_snapshot()); allocates nothing.
+  void snapshot(Snapshot& out) const;
+
+ private:
+  double seconds(std::int64_t t_ns);
+
+  Capacity capacity_;
+  mutable std::mutex mutex_;
+  std::int64_t t0_ns_ = 0;
+  bool have_t0_ = false;
+  std::int64_t last_state_ns_ = 0;
+  std::vector<PlotSample> plot_;  ///< Ring.
+  std::uint64_t plot_total_ = 0;
+  std::vector<TrackPoint> track_;  ///< Ring.
+  std::uint64_t track_total_ = 0;
+  std::vector<TrackPoint> cloud_W_;
+  std::size_t cloud_count_ = 0;
+  std::vector<EventLine> events_;  ///< Ring.
+  std::uint64_t events_total_ = 0;
+  std::vector<std::uint8_t> jpeg_;
+  std::size_t jpeg_size_ = 0;
+  std::vector<std::uint8_t> depth_;
+  std::size_t depth_size_ = 0;
+  std::uint64_t camera_sequence_ = 0;
+  std::array<float, 3> command_{};
+  float yaw_rate_command_ = 0;
+  double yaw_W_rad_ = 0;
+  double x_W_m_ = 0;
+  double y_W_m_ = 0;
+  bool have_state_ = false;
+  const char* mode_ = "-";  ///< Static strings (to_string of the link's enums).
+  const char* estimator_health_ = "-";
+  const char* link_health_ = "-";
+  float roll_rad_ = 0;
+  float pitch_rad_ = 0;
+  PlotSample latest_{};
+  HapticState haptics_{};
+  LinkHealth link_{};
+  std::array<char, 192> source_{};
+};
+
+}  // namespace hq::console

@@ -1,0 +1,62 @@
+#pragma once
+/// The operator console's window: Dear ImGui (Debian's libimgui, with its SDL2 and OpenGL3
+/// backends) on an SDL2 window with an OpenGL 3 context. Draws a Snapshot of ConsoleModel on
+/// the UI thread only; it never touches the link or the haptic loop, it returns what the
+/// operator asked for.
+///
+/// Panels: camera (decoded JPEG, depth preview, overlays of v_obs, commanded and estimated
+/// velocity), time plots in the manner of Fig. 6-8 of the core paper, haptic device, top view,
+/// modes, vehicle selector, link health, event log. Shortcuts (when no text field has focus):
+/// T teleop, H hover, L land, M marker, E explore, Esc quit.
+
+#include "hq/console/console_model.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace hq::console {
+
+struct UiActions {
+  const char* mode_request = nullptr;  ///< "teleop", "hover", "land", "marker", "explore".
+  bool select_vehicle = false;
+  std::uint32_t vehicle_id = 0;
+  bool quit = false;  ///< Window closed or Esc.
+};
+
+struct WindowStats {
+  std::uint64_t frames = 0;
+  double fps = 0;               ///< Frames shown per second since the first frame.
+  double render_ms_p50 = 0;     ///< Time to build and draw one frame (without the frame cap).
+  double render_ms_max = 0;
+  std::uint64_t camera_frames_decoded = 0;
+  std::uint64_t camera_decode_failures = 0;
+  int camera_width_px = 0;
+  int camera_height_px = 0;
+  std::uint64_t depth_frames_decoded = 0;
+  std::size_t plot_samples_drawn = 0;
+  std::string mode_shown = "-";
+  std::string gl_renderer;
+};
+
+class ConsoleWindow {
+ public:
+  /// Opens the window. @throws hq::InputError naming the SDL call that failed (no display...).
+  ConsoleWindow(const std::string& title, int width_px, int height_px, double max_fps = 60.0);
+  ~ConsoleWindow();
+  ConsoleWindow(const ConsoleWindow&) = delete;
+  ConsoleWindow& operator=(const ConsoleWindow&) = delete;
+
+  /// Handles input and draws `s`; waits to hold the frame rate at max_fps.
+  UiActions frame(const Snapshot& s);
+  /// Draws `s` once more and writes that frame (glReadPixels of the back buffer before the
+  /// swap) as PNG. @throws hq::InputError if the file cannot be written.
+  void save_screenshot(const Snapshot& s, const std::string& path);
+  [[nodiscard]] WindowStats stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hq::console

@@ -1,0 +1,180 @@
+#include "hq/console/console_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+namespace hq::console {
+
+namespace {
+
+// Copies a ring of `total` items ever written, capacity ring.size(), oldest first into `out`.
+template <typename T>
+std::size_t copy_ring(const std::vector<T>& ring, std::uint64_t total, std::vector<T>& out) {
+  const std::size_t capacity = ring.size();
+  const std::size_t count = static_cast<std::size_t>(std::min<std::uint64_t>(total, capacity));
+  const std::size_t first = static_cast<std::size_t>((total - count) % capacity);
+  for (std::size_t i = 0; i < count; ++i) out[i] = ring[(first + i) % capacity];
+  return count;
+}
+
+}  // namespace
+
+ConsoleModel::ConsoleModel(const Capacity& capacity)
+    : capacity_(capacity),
+      plot_(std::max<std::size_t>(capacity.plot, 1)),
+      track_(std::max<std::size_t>(capacity.track, 1)),
+      cloud_W_(capacity.cloud),
+      events_(std::max<std::size_t>(capacity.events, 1)),
+      jpeg_(capacity.jpeg_bytes),
+      depth_(capacity.depth_bytes) {}
+
+double ConsoleModel::seconds(std::int64_t t_ns) {
+  if (!have_t0_) {
+    t0_ns_ = t_ns;
+    have_t0_ = true;
+  }
+  return 1e-9 * static_cast<double>(t_ns - t0_ns_);
+}
+
+void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
+                            const std::array<float, 3>& v_H_mps,
+                            const std::array<float, 3>& omega_body_radps, float roll_rad,
+                            float pitch_rad, const std::array<float, 3>& v_obs_H_mps,
+                            const char* mode, const char* estimator_health,
+                            const char* link_health, const float* cloud_body_m,
+                            std::size_t cloud_points) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const double t_s = seconds(t_ns);
+  if (have_state_ && t_ns > last_state_ns_) {
+    // Dead reckoning for the top view (see the header): yaw from the gyro's z rate, then
+    // v_W = R_z(yaw) v_H. A gap of more than a second is not bridged.
+    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - last_state_ns_), 1.0);
+    if (std::isfinite(omega_body_radps[2])) yaw_W_rad_ += omega_body_radps[2] * dt_s;
+    const double c = std::cos(yaw_W_rad_);
+    const double s = std::sin(yaw_W_rad_);
+    if (std::isfinite(v_H_mps[0]) && std::isfinite(v_H_mps[1])) {
+      x_W_m_ += (c * v_H_mps[0] - s * v_H_mps[1]) * dt_s;
+      y_W_m_ += (s * v_H_mps[0] + c * v_H_mps[1]) * dt_s;
+    }
+  }
+  have_state_ = true;
+  last_state_ns_ = t_ns;
+  PlotSample& p = plot_[plot_total_ % plot_.size()];
+  p.t_s = static_cast<float>(t_s);
+  p.v_est_H_mps = v_H_mps;
+  p.v_cmd_H_mps = command_;
+  p.v_obs_H_mps = v_obs_H_mps;
+  p.yaw_rate_cmd_radps = yaw_rate_command_;
+  p.yaw_rate_meas_radps = omega_body_radps[2];
+  p.latency_ms = static_cast<float>(latency_ms);
+  latest_ = p;
+  ++plot_total_;
+  track_[track_total_ % track_.size()] = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
+  ++track_total_;
+  mode_ = mode;
+  estimator_health_ = estimator_health;
+  link_health_ = link_health;
+  roll_rad_ = roll_rad;
+  pitch_rad_ = pitch_rad;
+  if (cloud_body_m != nullptr && cloud_points > 0) {
+    // Body FRD to W about the vertical only (roll and pitch are small in the top view).
+    const double c = std::cos(yaw_W_rad_);
+    const double s = std::sin(yaw_W_rad_);
+    cloud_count_ = std::min(cloud_points, cloud_W_.size());
+    for (std::size_t i = 0; i < cloud_count_; ++i) {
+      const double x = cloud_body_m[3 * i];
+      const double y = cloud_body_m[3 * i + 1];
+      cloud_W_[i] = {static_cast<float>(x_W_m_ + c * x - s * y),
+                     static_cast<float>(y_W_m_ + s * x + c * y)};
+    }
+  } else {
+    cloud_count_ = 0;
+  }
+}
+
+void ConsoleModel::on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps,
+                              float yaw_rate_radps) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  seconds(t_ns);
+  command_ = v_H_mps;
+  yaw_rate_command_ = yaw_rate_radps;
+}
+
+void ConsoleModel::on_event(std::int64_t t_ns, int severity, const char* text) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  EventLine& e = events_[events_total_ % events_.size()];
+  e.t_s = seconds(t_ns);
+  e.severity = severity;
+  std::snprintf(e.text.data(), e.text.size(), "%s", text);
+  ++events_total_;
+}
+
+void ConsoleModel::on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
+                             const std::uint8_t* depth, std::size_t depth_size) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  seconds(t_ns);
+  jpeg_size_ = std::min(jpeg_size, jpeg_.size());
+  if (jpeg_size_ > 0) std::memcpy(jpeg_.data(), jpeg, jpeg_size_);
+  depth_size_ = depth != nullptr ? std::min(depth_size, depth_.size()) : 0;
+  if (depth_size_ > 0) std::memcpy(depth_.data(), depth, depth_size_);
+  ++camera_sequence_;
+}
+
+void ConsoleModel::on_haptics(const HapticState& haptics) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  haptics_ = haptics;
+}
+
+void ConsoleModel::on_link(const LinkHealth& link) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  link_ = link;
+}
+
+void ConsoleModel::set_source(const std::string& text) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  std::snprintf(source_.data(), source_.size(), "%s", text.c_str());
+}
+
+Snapshot ConsoleModel::make_snapshot() const {
+  Snapshot s;
+  s.plot.resize(plot_.size());
+  s.track.resize(track_.size());
+  s.cloud_W.resize(cloud_W_.size());
+  s.events.resize(events_.size());
+  s.jpeg.resize(jpeg_.size());
+  s.depth.resize(depth_.size());
+  return s;
+}
+
+void ConsoleModel::snapshot(Snapshot& out) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  out.plot_count = copy_ring(plot_, plot_total_, out.plot);
+  out.plot_total = plot_total_;
+  out.track_count = copy_ring(track_, track_total_, out.track);
+  out.cloud_count = cloud_count_;
+  std::copy_n(cloud_W_.begin(), cloud_count_, out.cloud_W.begin());
+  out.event_count = copy_ring(events_, events_total_, out.events);
+  if (out.camera_sequence != camera_sequence_) {
+    std::copy_n(jpeg_.begin(), jpeg_size_, out.jpeg.begin());
+    out.jpeg_size = jpeg_size_;
+    std::copy_n(depth_.begin(), depth_size_, out.depth.begin());
+    out.depth_size = depth_size_;
+    out.camera_sequence = camera_sequence_;
+  }
+  out.have_state = have_state_;
+  out.mode = mode_;
+  out.estimator_health = estimator_health_;
+  out.link_health = link_health_;
+  out.roll_rad = roll_rad_;
+  out.pitch_rad = pitch_rad_;
+  out.yaw_W_rad = static_cast<float>(yaw_W_rad_);
+  out.position_W = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
+  out.latest = latest_;
+  out.haptics = haptics_;
+  out.link = link_;
+  out.source = source_;
+}
+
+}  // namespace hq::console

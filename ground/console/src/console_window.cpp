@@ -1,0 +1,569 @@
+#include "hq/console/console_window.hpp"
+
+#include "hq/base/error.hpp"
+
+#include <GL/gl.h>
+#include <SDL.h>
+#include <imgui.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <backends/imgui_impl_sdl.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+#include <vector>
+
+namespace hq::console {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr ImU32 kEstimated = IM_COL32(60, 160, 255, 255);
+constexpr ImU32 kCommanded = IM_COL32(255, 170, 40, 255);
+constexpr ImU32 kObstacle = IM_COL32(255, 70, 70, 255);
+constexpr ImU32 kGrid = IM_COL32(90, 90, 90, 255);
+
+// One GL texture holding a decoded image.
+struct Texture {
+  GLuint id = 0;
+  int width_px = 0;
+  int height_px = 0;
+  void upload(const cv::Mat& rgb) {
+    if (id == 0) glGenTextures(1, &id);
+    glBindTexture(GL_TEXTURE_2D, id);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, static_cast<GLint>(rgb.step[0] / 3));
+    if (rgb.cols != width_px || rgb.rows != height_px) {
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, rgb.cols, rgb.rows, 0, GL_RGB, GL_UNSIGNED_BYTE,
+                   rgb.data);
+      width_px = rgb.cols;
+      height_px = rgb.rows;
+    } else {
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, rgb.cols, rgb.rows, GL_RGB, GL_UNSIGNED_BYTE,
+                      rgb.data);
+    }
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+  }
+  ~Texture() {
+    if (id != 0) glDeleteTextures(1, &id);
+  }
+};
+
+ImTextureID texture_id(GLuint id) {
+  return reinterpret_cast<ImTextureID>(static_cast<std::intptr_t>(id));
+}
+
+// Lines of several series over the plot's time window, in a framed box with a zero line.
+struct Series {
+  const char* label;
+  ImU32 colour;
+  float (*value)(const PlotSample&);
+};
+
+void draw_plot(const char* title, const Snapshot& s, const Series* series, int series_count,
+               float window_s, float height_px) {
+  ImGui::TextUnformatted(title);
+  ImGui::SameLine();
+  for (int k = 0; k < series_count; ++k) {
+    ImGui::SameLine();
+    ImGui::TextColored(ImColor(series[k].colour), " %s", series[k].label);
+  }
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const ImVec2 origin = ImGui::GetCursorScreenPos();
+  const float width_px = std::max(ImGui::GetContentRegionAvail().x, 50.0F);
+  const ImVec2 corner(origin.x + width_px, origin.y + height_px);
+  draw->AddRectFilled(origin, corner, IM_COL32(25, 25, 30, 255));
+  draw->AddRect(origin, corner, kGrid);
+  ImGui::Dummy(ImVec2(width_px, height_px));
+  if (s.plot_count < 2) return;
+  const float t_end = s.plot[s.plot_count - 1].t_s;
+  const float t_begin = t_end - window_s;
+  std::size_t first = s.plot_count;
+  while (first > 0 && s.plot[first - 1].t_s >= t_begin) --first;
+  float lo = -0.1F;
+  float hi = 0.1F;
+  for (std::size_t i = first; i < s.plot_count; ++i) {
+    for (int k = 0; k < series_count; ++k) {
+      const float v = series[k].value(s.plot[i]);
+      if (std::isfinite(v)) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+    }
+  }
+  const float margin = 0.05F * (hi - lo);
+  lo -= margin;
+  hi += margin;
+  const auto x_of = [&](float t) { return origin.x + (t - t_begin) / window_s * width_px; };
+  const auto y_of = [&](float v) { return corner.y - (v - lo) / (hi - lo) * height_px; };
+  draw->AddLine(ImVec2(origin.x, y_of(0)), ImVec2(corner.x, y_of(0)), kGrid);
+  char label[48];
+  std::snprintf(label, sizeof label, "%+.2f", static_cast<double>(hi));
+  draw->AddText(ImVec2(origin.x + 2, origin.y + 1), kGrid, label);
+  std::snprintf(label, sizeof label, "%+.2f  (last %.0f s)", static_cast<double>(lo),
+                static_cast<double>(window_s));
+  draw->AddText(ImVec2(origin.x + 2, corner.y - 14), kGrid, label);
+  draw->PushClipRect(origin, corner, true);
+  for (int k = 0; k < series_count; ++k) {
+    // One vertex per sample; ImGui batches them into a single polyline.
+    ImVec2 previous(x_of(s.plot[first].t_s), y_of(series[k].value(s.plot[first])));
+    for (std::size_t i = first + 1; i < s.plot_count; ++i) {
+      const ImVec2 p(x_of(s.plot[i].t_s), y_of(series[k].value(s.plot[i])));
+      draw->AddLine(previous, p, series[k].colour, 1.5F);
+      previous = p;
+    }
+  }
+  draw->PopClipRect();
+}
+
+// An arrow from `from` along `v` (already in pixels).
+void arrow(ImDrawList* draw, ImVec2 from, ImVec2 v, ImU32 colour) {
+  const ImVec2 to(from.x + v.x, from.y + v.y);
+  draw->AddLine(from, to, colour, 3.0F);
+  const float length = std::hypot(v.x, v.y);
+  if (length < 4.0F) return;
+  const ImVec2 u(v.x / length, v.y / length);
+  const ImVec2 n(-u.y, u.x);
+  draw->AddTriangleFilled(to, ImVec2(to.x - 10 * u.x + 5 * n.x, to.y - 10 * u.y + 5 * n.y),
+                          ImVec2(to.x - 10 * u.x - 5 * n.x, to.y - 10 * u.y - 5 * n.y), colour);
+}
+
+}  // namespace
+
+struct ConsoleWindow::Impl {
+  SDL_Window* window = nullptr;
+  SDL_GLContext gl = nullptr;
+  bool imgui_sdl = false;
+  bool imgui_gl = false;
+  double max_fps = 60;
+  Texture camera;
+  Texture depth;
+  cv::Mat decoded_bgr;
+  cv::Mat decoded_rgb;
+  cv::Mat depth_bgr;
+  cv::Mat depth_rgb;
+  std::uint64_t decoded_sequence = 0;
+  Clock::time_point first_frame{};
+  Clock::time_point next_frame{};
+  std::array<float, 256> render_ms{};
+  WindowStats stats;
+  std::vector<std::uint8_t> pixels;
+  float plot_window_s = 20.0F;
+
+  void decode(const Snapshot& s) {
+    if (s.camera_sequence == decoded_sequence || s.jpeg_size == 0) return;
+    decoded_sequence = s.camera_sequence;
+    // A header over the snapshot's bytes: no copy; imdecode reuses decoded_bgr's buffer.
+    const cv::Mat bytes(1, static_cast<int>(s.jpeg_size), CV_8UC1,
+                        const_cast<std::uint8_t*>(s.jpeg.data()));
+    cv::imdecode(bytes, cv::IMREAD_COLOR, &decoded_bgr);
+    if (decoded_bgr.empty()) {
+      ++stats.camera_decode_failures;
+    } else {
+      cv::cvtColor(decoded_bgr, decoded_rgb, cv::COLOR_BGR2RGB);
+      camera.upload(decoded_rgb);
+      ++stats.camera_frames_decoded;
+      stats.camera_width_px = decoded_rgb.cols;
+      stats.camera_height_px = decoded_rgb.rows;
+    }
+    if (s.depth_size > 0) {
+      const cv::Mat dbytes(1, static_cast<int>(s.depth_size), CV_8UC1,
+                           const_cast<std::uint8_t*>(s.depth.data()));
+      cv::imdecode(dbytes, cv::IMREAD_COLOR, &depth_bgr);
+      if (!depth_bgr.empty()) {
+        cv::cvtColor(depth_bgr, depth_rgb, cv::COLOR_BGR2RGB);
+        depth.upload(depth_rgb);
+        ++stats.depth_frames_decoded;
+      }
+    }
+  }
+
+  void camera_panel(const Snapshot& s) {
+    ImGui::Begin("Camera");
+    if (camera.id == 0) {
+      ImGui::TextUnformatted("no camera frame yet");
+    } else {
+      const float avail = ImGui::GetContentRegionAvail().x;
+      const bool with_depth = depth.id != 0;
+      const float w = with_depth ? avail * 0.66F : avail;
+      const float h = w * static_cast<float>(camera.height_px) / static_cast<float>(camera.width_px);
+      const ImVec2 origin = ImGui::GetCursorScreenPos();
+      ImGui::Image(texture_id(camera.id), ImVec2(w, h));
+      if (with_depth) {
+        ImGui::SameLine();
+        const float dw = avail - w - 8;
+        ImGui::Image(texture_id(depth.id),
+                     ImVec2(dw, dw * static_cast<float>(depth.height_px) /
+                                    static_cast<float>(std::max(depth.width_px, 1))));
+      }
+      // Overlays: velocities in H seen from behind the camera: H's y (right) to image x and
+      // H's z (down) to image y, and H's x (forward) as a ring whose size grows with it.
+      ImDrawList* draw = ImGui::GetWindowDrawList();
+      const ImVec2 centre(origin.x + w / 2, origin.y + h / 2);
+      const float px_per_mps = h / 3.0F;
+      const auto overlay = [&](const std::array<float, 3>& v, ImU32 colour) {
+        arrow(draw, centre, ImVec2(v[1] * px_per_mps, v[2] * px_per_mps), colour);
+        draw->AddCircle(centre, std::abs(v[0]) * px_per_mps * 0.5F + 2, colour, 32,
+                        v[0] >= 0 ? 2.0F : 1.0F);
+      };
+      overlay(s.latest.v_cmd_H_mps, kCommanded);
+      overlay(s.latest.v_est_H_mps, kEstimated);
+      overlay(s.latest.v_obs_H_mps, kObstacle);
+      draw->AddText(ImVec2(origin.x + 6, origin.y + 4), IM_COL32(255, 255, 255, 255),
+                    "arrows: lateral/vertical in H; rings: forward speed");
+    }
+    ImGui::TextColored(ImColor(kCommanded), "commanded");
+    ImGui::SameLine();
+    ImGui::TextColored(ImColor(kEstimated), "estimated");
+    ImGui::SameLine();
+    ImGui::TextColored(ImColor(kObstacle), "v_obs");
+    ImGui::SameLine();
+    ImGui::Text("  %d x %d, %llu frames decoded", stats.camera_width_px, stats.camera_height_px,
+                static_cast<unsigned long long>(stats.camera_frames_decoded));
+    ImGui::End();
+  }
+
+  void plots_panel(const Snapshot& s) {
+    ImGui::Begin("Plots (Fig. 6-8)");
+    ImGui::SliderFloat("window s", &plot_window_s, 5.0F, 120.0F, "%.0f");
+    const float h = std::max((ImGui::GetContentRegionAvail().y - 7 * 22) / 6, 40.0F);
+    static const char* const kAxes[3] = {"v_x H [m/s]", "v_y H [m/s]", "v_z H [m/s]"};
+    static const Series kVx[2] = {
+        {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[0]; }},
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[0]; }}};
+    static const Series kVy[2] = {
+        {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[1]; }},
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[1]; }}};
+    static const Series kVz[2] = {
+        {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[2]; }},
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[2]; }}};
+    static const Series kObs[3] = {
+        {"x", kObstacle, [](const PlotSample& p) { return p.v_obs_H_mps[0]; }},
+        {"y", IM_COL32(255, 140, 200, 255), [](const PlotSample& p) { return p.v_obs_H_mps[1]; }},
+        {"z", IM_COL32(200, 200, 80, 255), [](const PlotSample& p) { return p.v_obs_H_mps[2]; }}};
+    static const Series kYaw[2] = {
+        {"measured", kEstimated, [](const PlotSample& p) { return p.yaw_rate_meas_radps; }},
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.yaw_rate_cmd_radps; }}};
+    static const Series kLatency[1] = {
+        {"one way", IM_COL32(160, 220, 160, 255), [](const PlotSample& p) { return p.latency_ms; }}};
+    draw_plot(kAxes[0], s, kVx, 2, plot_window_s, h);
+    draw_plot(kAxes[1], s, kVy, 2, plot_window_s, h);
+    draw_plot(kAxes[2], s, kVz, 2, plot_window_s, h);
+    draw_plot("v_obs H [m/s]", s, kObs, 3, plot_window_s, h);
+    draw_plot("yaw rate [rad/s]", s, kYaw, 2, plot_window_s, h);
+    draw_plot("latency [ms]", s, kLatency, 1, plot_window_s, h);
+    stats.plot_samples_drawn = s.plot_count;
+    ImGui::End();
+  }
+
+  void top_view_panel(const Snapshot& s) {
+    ImGui::Begin("Top view (dead-reckoned from v_H and gyro yaw)");
+    ImDrawList* draw = ImGui::GetWindowDrawList();
+    const ImVec2 origin = ImGui::GetCursorScreenPos();
+    const ImVec2 size(std::max(ImGui::GetContentRegionAvail().x, 50.0F),
+                      std::max(ImGui::GetContentRegionAvail().y, 50.0F));
+    const ImVec2 corner(origin.x + size.x, origin.y + size.y);
+    draw->AddRectFilled(origin, corner, IM_COL32(20, 25, 20, 255));
+    ImGui::Dummy(size);
+    // Extent of the track and cloud, square metres per pixel, north (x_W) up, east right.
+    float min_x = s.position_W.x_W_m - 1;
+    float max_x = s.position_W.x_W_m + 1;
+    float min_y = s.position_W.y_W_m - 1;
+    float max_y = s.position_W.y_W_m + 1;
+    for (std::size_t i = 0; i < s.track_count; ++i) {
+      min_x = std::min(min_x, s.track[i].x_W_m);
+      max_x = std::max(max_x, s.track[i].x_W_m);
+      min_y = std::min(min_y, s.track[i].y_W_m);
+      max_y = std::max(max_y, s.track[i].y_W_m);
+    }
+    const float m_span = std::max(max_x - min_x, max_y - min_y) * 1.2F;
+    const float px_per_m = std::min(size.x, size.y) / m_span;
+    const ImVec2 mid(origin.x + size.x / 2, origin.y + size.y / 2);
+    const float cx = (min_x + max_x) / 2;
+    const float cy = (min_y + max_y) / 2;
+    const auto to_px = [&](float x, float y) {
+      return ImVec2(mid.x + (y - cy) * px_per_m, mid.y - (x - cx) * px_per_m);
+    };
+    draw->PushClipRect(origin, corner, true);
+    for (float g = std::floor(min_x - m_span); g <= max_x + m_span; g += 1.0F) {
+      draw->AddLine(to_px(g, min_y - m_span), to_px(g, max_y + m_span), IM_COL32(45, 55, 45, 255));
+    }
+    for (float g = std::floor(min_y - m_span); g <= max_y + m_span; g += 1.0F) {
+      draw->AddLine(to_px(min_x - m_span, g), to_px(max_x + m_span, g), IM_COL32(45, 55, 45, 255));
+    }
+    for (std::size_t i = 0; i < s.cloud_count; ++i) {
+      draw->AddRectFilled(to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m),
+                          ImVec2(to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m).x + 2,
+                                 to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m).y + 2),
+                          kObstacle);
+    }
+    for (std::size_t i = 1; i < s.track_count; ++i) {
+      draw->AddLine(to_px(s.track[i - 1].x_W_m, s.track[i - 1].y_W_m),
+                    to_px(s.track[i].x_W_m, s.track[i].y_W_m), kEstimated, 2.0F);
+    }
+    const ImVec2 p = to_px(s.position_W.x_W_m, s.position_W.y_W_m);
+    draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
+    arrow(draw, p, ImVec2(std::sin(s.yaw_W_rad) * 25, -std::cos(s.yaw_W_rad) * 25),
+          IM_COL32(255, 255, 255, 255));
+    draw->PopClipRect();
+    char text[96];
+    std::snprintf(text, sizeof text, "grid 1 m, north up; x %.2f m  y %.2f m  yaw %.0f deg",
+                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
+                  static_cast<double>(s.yaw_W_rad) * 57.29578);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
+    ImGui::End();
+  }
+
+  void control_panel(const Snapshot& s, UiActions& actions) {
+    ImGui::Begin("Vehicle and modes");
+    ImGui::Text("source: %s", s.source.data());
+    ImGui::Text("mode: %s   estimator: %s   vehicle link: %s", s.mode.c_str(),
+                s.estimator_health.c_str(), s.link_health.c_str());
+    ImGui::Text("roll %+.1f deg  pitch %+.1f deg", static_cast<double>(s.roll_rad) * 57.29578,
+                static_cast<double>(s.pitch_rad) * 57.29578);
+    static const char* const kModes[5] = {"teleop", "hover", "land", "marker", "explore"};
+    static const char* const kKeys[5] = {"teleop (T)", "hover (H)", "land (L)", "marker (M)",
+                                         "explore (E)"};
+    for (int i = 0; i < 5; ++i) {
+      if (i > 0) ImGui::SameLine();
+      const bool current = s.mode == kModes[i];
+      if (current) ImGui::PushStyleColor(ImGuiCol_Button, IM_COL32(40, 130, 60, 255));
+      if (ImGui::Button(kKeys[i])) actions.mode_request = kModes[i];
+      if (current) ImGui::PopStyleColor();
+    }
+    ImGui::Text("vehicles seen:");
+    for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
+      ImGui::SameLine();
+      char label[32];
+      std::snprintf(label, sizeof label, "%s%u", s.link.vehicle_ids[i] == s.link.selected_vehicle
+                                                     ? "* " : "", s.link.vehicle_ids[i]);
+      if (ImGui::Button(label)) {
+        actions.select_vehicle = true;
+        actions.vehicle_id = s.link.vehicle_ids[i];
+      }
+    }
+    ImGui::Separator();
+    const HapticState& h = s.haptics;
+    ImGui::Text("haptic device: %s  buttons 0x%x  %s", h.connected ? "connected" : "LOST",
+                h.buttons, h.status.data());
+    ImGui::Text("p_D [mm] %+6.1f %+6.1f %+6.1f", static_cast<double>(h.p_D_m[0]) * 1e3,
+                static_cast<double>(h.p_D_m[1]) * 1e3, static_cast<double>(h.p_D_m[2]) * 1e3);
+    ImGui::Text("F_D [N]  %+6.2f %+6.2f %+6.2f  cue weight %.2f  passivity %.3f J",
+                static_cast<double>(h.F_D_n[0]), static_cast<double>(h.F_D_n[1]),
+                static_cast<double>(h.F_D_n[2]), static_cast<double>(h.cue_weight),
+                static_cast<double>(h.passivity_energy_j));
+    // Force as bars, the device's 3 axes (|F| up to 5 N full scale).
+    for (int i = 0; i < 3; ++i) {
+      char overlay[16];
+      std::snprintf(overlay, sizeof overlay, "F%c", "xyz"[i]);
+      ImGui::ProgressBar(0.5F + std::clamp(h.F_D_n[static_cast<std::size_t>(i)] / 10.0F, -0.5F,
+                                           0.5F),
+                         ImVec2(-1, 0), overlay);
+    }
+    ImGui::End();
+  }
+
+  void link_panel(const Snapshot& s) {
+    ImGui::Begin("Link health");
+    const LinkHealth& l = s.link;
+    const char* state = l.state_age_s < 0 ? "waiting" : l.state_age_s < 0.2 ? "ok"
+                        : l.state_age_s < 2.0 ? "STALE" : "LOST";
+    ImGui::Text("states: %s (age %.2f s)  heartbeat %s", state, l.state_age_s,
+                l.heartbeat_seen ? "seen" : "none");
+    ImGui::Text("latency last %.2f ms  p50 %.2f  p99 %.2f", l.last_latency_ms, l.latency_p50_ms,
+                l.latency_p99_ms);
+    ImGui::Text("rates: states %.1f Hz  camera %.1f Hz", l.state_rate_hz, l.camera_rate_hz);
+    ImGui::Text("received %llu states, %llu frames, %llu events",
+                static_cast<unsigned long long>(l.states),
+                static_cast<unsigned long long>(l.camera_frames),
+                static_cast<unsigned long long>(l.events));
+    ImGui::Text("drops: %llu states missing, %llu rejected; sent %llu commands, %llu failed",
+                static_cast<unsigned long long>(l.sequence_gaps),
+                static_cast<unsigned long long>(l.states_rejected),
+                static_cast<unsigned long long>(l.commands_sent),
+                static_cast<unsigned long long>(l.write_failures));
+    ImGui::Text("console %.1f fps, render p50 %.2f ms", stats.fps, stats.render_ms_p50);
+    ImGui::End();
+  }
+
+  void events_panel(const Snapshot& s) {
+    ImGui::Begin("Events");
+    for (std::size_t i = s.event_count; i-- > 0;) {
+      const EventLine& e = s.events[i];
+      const ImVec4 colour = e.severity >= 2   ? ImVec4(1, 0.4F, 0.4F, 1)
+                            : e.severity == 1 ? ImVec4(1, 0.8F, 0.3F, 1)
+                                              : ImVec4(0.85F, 0.85F, 0.85F, 1);
+      ImGui::TextColored(colour, "%7.2f s  %s", e.t_s, e.text.data());
+    }
+    ImGui::End();
+  }
+};
+
+ConsoleWindow::ConsoleWindow(const std::string& title, int width_px, int height_px,
+                             double max_fps)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->max_fps = max_fps;
+  if (SDL_Init(SDL_INIT_VIDEO) != 0) {
+    throw InputError(std::string("SDL_Init(video): ") + SDL_GetError() +
+                     " (no display? use --headless)");
+  }
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_FLAGS, 0);
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_PROFILE_MASK, SDL_GL_CONTEXT_PROFILE_CORE);
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_MAJOR_VERSION, 3);
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_MINOR_VERSION, 3);
+  SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
+  impl_->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
+                                   width_px, height_px,
+                                   SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE | SDL_WINDOW_SHOWN);
+  if (impl_->window == nullptr) {
+    const std::string error = SDL_GetError();
+    SDL_Quit();
+    throw InputError("SDL_CreateWindow: " + error);
+  }
+  impl_->gl = SDL_GL_CreateContext(impl_->window);
+  if (impl_->gl == nullptr) {
+    const std::string error = SDL_GetError();
+    SDL_DestroyWindow(impl_->window);
+    SDL_Quit();
+    throw InputError("SDL_GL_CreateContext(3.3 core): " + error);
+  }
+  SDL_GL_MakeCurrent(impl_->window, impl_->gl);
+  SDL_GL_SetSwapInterval(0);  // the frame cap below paces; vsync would also block on Xvfb
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;  // the layout below, not a file in the working dir
+  ImGui::StyleColorsDark();
+  impl_->imgui_sdl = ImGui_ImplSDL2_InitForOpenGL(impl_->window, impl_->gl);
+  impl_->imgui_gl = ImGui_ImplOpenGL3_Init("#version 330");
+  if (!impl_->imgui_sdl || !impl_->imgui_gl) throw InputError("ImGui backend initialisation failed");
+  const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  impl_->stats.gl_renderer = renderer != nullptr ? renderer : "?";
+}
+
+ConsoleWindow::~ConsoleWindow() {
+  impl_->camera = Texture{};
+  if (impl_->imgui_gl) ImGui_ImplOpenGL3_Shutdown();
+  if (impl_->imgui_sdl) ImGui_ImplSDL2_Shutdown();
+  if (ImGui::GetCurrentContext() != nullptr) ImGui::DestroyContext();
+  if (impl_->gl != nullptr) SDL_GL_DeleteContext(impl_->gl);
+  if (impl_->window != nullptr) SDL_DestroyWindow(impl_->window);
+  SDL_Quit();
+}
+
+UiActions ConsoleWindow::frame(const Snapshot& s) {
+  Impl& m = *impl_;
+  UiActions actions;
+  SDL_Event event;
+  while (SDL_PollEvent(&event) != 0) {
+    ImGui_ImplSDL2_ProcessEvent(&event);
+    if (event.type == SDL_QUIT) actions.quit = true;
+    if (event.type == SDL_KEYDOWN && event.key.repeat == 0 &&
+        !ImGui::GetIO().WantCaptureKeyboard) {
+      switch (event.key.keysym.sym) {
+        case SDLK_t: actions.mode_request = "teleop"; break;
+        case SDLK_h: actions.mode_request = "hover"; break;
+        case SDLK_l: actions.mode_request = "land"; break;
+        case SDLK_m: actions.mode_request = "marker"; break;
+        case SDLK_e: actions.mode_request = "explore"; break;
+        case SDLK_ESCAPE: actions.quit = true; break;
+        default: break;
+      }
+    }
+  }
+  const Clock::time_point begin = Clock::now();
+  if (m.stats.frames == 0) {
+    m.first_frame = begin;
+    m.next_frame = begin;
+  }
+  m.decode(s);
+  ImGui_ImplOpenGL3_NewFrame();
+  ImGui_ImplSDL2_NewFrame();
+  ImGui::NewFrame();
+  int w = 0;
+  int h = 0;
+  SDL_GetWindowSize(m.window, &w, &h);
+  const float W = static_cast<float>(w);
+  const float H = static_cast<float>(h);
+  const auto place = [](float x, float y, float width, float height) {
+    ImGui::SetNextWindowPos(ImVec2(x, y), ImGuiCond_FirstUseEver);
+    ImGui::SetNextWindowSize(ImVec2(width, height), ImGuiCond_FirstUseEver);
+  };
+  place(0, 0, W * 0.45F, H * 0.5F);
+  m.camera_panel(s);
+  place(W * 0.45F, 0, W * 0.55F, H * 0.62F);
+  m.plots_panel(s);
+  place(0, H * 0.5F, W * 0.45F, H * 0.28F);
+  m.control_panel(s, actions);
+  place(0, H * 0.78F, W * 0.45F, H * 0.22F);
+  m.link_panel(s);
+  place(W * 0.45F, H * 0.62F, W * 0.3F, H * 0.38F);
+  m.top_view_panel(s);
+  place(W * 0.75F, H * 0.62F, W * 0.25F, H * 0.38F);
+  m.events_panel(s);
+  m.stats.mode_shown = s.mode;
+  ImGui::Render();
+  glViewport(0, 0, w, h);
+  glClearColor(0.08F, 0.08F, 0.1F, 1.0F);
+  glClear(GL_COLOR_BUFFER_BIT);
+  ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  if (!m.pixels.empty()) {
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glReadBuffer(GL_BACK);
+    glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, m.pixels.data());
+  }
+  SDL_GL_SwapWindow(m.window);
+  const Clock::time_point end = Clock::now();
+  m.render_ms[m.stats.frames % m.render_ms.size()] =
+      std::chrono::duration<float, std::milli>(end - begin).count();
+  ++m.stats.frames;
+  const double elapsed_s = std::chrono::duration<double>(end - m.first_frame).count();
+  if (elapsed_s > 0) m.stats.fps = static_cast<double>(m.stats.frames - 1) / elapsed_s;
+  // Hold the frame rate: sleep to the next slot (never a busy wait, the haptic loop and the
+  // link share these cores).
+  m.next_frame += std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / m.max_fps));
+  if (m.next_frame > end) {
+    std::this_thread::sleep_until(m.next_frame);
+  } else {
+    m.next_frame = end;
+  }
+  return actions;
+}
+
+void ConsoleWindow::save_screenshot(const Snapshot& s, const std::string& path) {
+  int w = 0;
+  int h = 0;
+  SDL_GetWindowSize(impl_->window, &w, &h);
+  impl_->pixels.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 3, 0);
+  frame(s);
+  const cv::Mat rgb(h, w, CV_8UC3, impl_->pixels.data());
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  cv::flip(bgr, bgr, 0);  // GL rows start at the bottom
+  impl_->pixels.clear();
+  if (!cv::imwrite(path, bgr)) throw InputError(path + ": cannot write the screenshot (PNG)");
+}
+
+WindowStats ConsoleWindow::stats() const {
+  WindowStats s = impl_->stats;
+  const std::size_t n =
+      static_cast<std::size_t>(std::min<std::uint64_t>(s.frames, impl_->render_ms.size()));
+  if (n > 0) {
+    std::array<float, 256> sorted = impl_->render_ms;
+    std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n));
+    s.render_ms_p50 = sorted[n / 2];
+    s.render_ms_max = sorted[n - 1];
+  }
+  return s;
+}
+
+}  // namespace hq::console

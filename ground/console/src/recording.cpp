@@ -1,0 +1,394 @@
+#include "hq/console/recording.hpp"
+
+#include "hq/base/error.hpp"
+
+#include <time.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <thread>
+
+namespace hq::console {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::array<const char*, 9> kNames = {"teleop", "hover",    "land", "marker", "explore",
+                                               "ok",     "degraded", "lost", "invalid"};
+
+void add_problem(Recording& r, const std::string& text) {
+  if (r.problems.size() < Recording::kMaxProblems) r.problems.push_back(text);
+  ++r.problem_count;
+}
+
+std::vector<std::string_view> split(std::string_view line, std::size_t max_fields) {
+  std::vector<std::string_view> fields;
+  std::size_t start = 0;
+  while (fields.size() + 1 < max_fields) {
+    const std::size_t comma = line.find(',', start);
+    if (comma == std::string_view::npos) break;
+    fields.push_back(line.substr(start, comma - start));
+    start = comma + 1;
+  }
+  fields.push_back(line.substr(start));
+  return fields;
+}
+
+// A CSV of the recorder: '#' lines, then a header naming the columns, then rows. Calls
+// `row(fields, where)` per row with the fields in the order of `columns`; returns false from
+// `row` to report the row as unreadable.
+class CsvFile {
+ public:
+  CsvFile(Recording& recording, const std::string& name, std::vector<std::string> columns,
+          bool last_field_is_text = false)
+      : recording_(recording),
+        name_(name),
+        columns_(std::move(columns)),
+        last_text_(last_field_is_text) {}
+
+  template <typename Row>
+  void read(Row row) {
+    const fs::path path = fs::path(recording_.directory) / name_;
+    std::ifstream in(path);
+    if (!in) {
+      add_problem(recording_, name_ + ": missing or unreadable");
+      return;
+    }
+    std::string line;
+    std::size_t line_number = 0;
+    std::vector<std::size_t> index;
+    std::size_t header_fields = 0;
+    std::vector<std::string_view> ordered(columns_.size());
+    while (std::getline(in, line)) {
+      ++line_number;
+      const std::string where = name_ + ":" + std::to_string(line_number);
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      if (line.empty() || line[0] == '#') continue;
+      if (index.empty()) {
+        const std::vector<std::string_view> header = split(line, 1000);
+        header_fields = header.size();
+        for (const std::string& c : columns_) {
+          const auto it = std::find(header.begin(), header.end(), c);
+          if (it == header.end()) {
+            add_problem(recording_, where + ": header has no column " + c +
+                                        " (not an hq-ground recording?); file skipped");
+            return;
+          }
+          index.push_back(static_cast<std::size_t>(it - header.begin()));
+        }
+        continue;
+      }
+      const std::vector<std::string_view> fields =
+          split(line, last_text_ ? header_fields : 1000);
+      if (fields.size() != header_fields) {
+        add_problem(recording_, where + ": expected " + std::to_string(header_fields) +
+                                    " fields, got " + std::to_string(fields.size()) +
+                                    (in.eof() ? " (truncated last line)" : ""));
+        continue;
+      }
+      for (std::size_t i = 0; i < index.size(); ++i) ordered[i] = fields[index[i]];
+      std::string error;
+      if (!row(ordered, error)) add_problem(recording_, where + ": " + error);
+    }
+    if (index.empty()) add_problem(recording_, name_ + ": no header line");
+  }
+
+ private:
+  Recording& recording_;
+  std::string name_;
+  std::vector<std::string> columns_;
+  bool last_text_;
+};
+
+template <typename T>
+bool parse_integer(std::string_view text, T& out) {
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+  return ec == std::errc{} && end == text.data() + text.size();
+}
+
+bool parse_double(std::string_view text, double& out, bool allow_nan = false) {
+  const std::string s(text);
+  char* end = nullptr;
+  errno = 0;
+  out = std::strtod(s.c_str(), &end);
+  if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE) return false;
+  return allow_nan || std::isfinite(out);
+}
+
+// Parses fields[first..first+n) as finite numbers into out; names the bad one in `error`.
+template <std::size_t N>
+bool parse_floats(const std::vector<std::string_view>& fields, std::size_t first,
+                  const std::vector<std::string>& names, std::array<float, N>& out,
+                  std::string& error) {
+  for (std::size_t i = 0; i < N; ++i) {
+    double v = 0;
+    if (!parse_double(fields[first + i], v)) {
+      error = names[first + i] + " = '" + std::string(fields[first + i]) +
+              "', expected a finite number";
+      return false;
+    }
+    out[i] = static_cast<float>(v);
+  }
+  return true;
+}
+
+bool known_name(std::string_view text) {
+  return std::find(kNames.begin(), kNames.end() - 1, text) != kNames.end() - 1;
+}
+
+void read_frame_list(Recording& r, const std::string& name, std::vector<RecordedFrame>& out,
+                     bool required) {
+  const fs::path path = fs::path(r.directory) / name;
+  std::ifstream in(path);
+  if (!in) {
+    if (required) add_problem(r, name + ": missing or unreadable");
+    return;
+  }
+  std::string line;
+  std::size_t line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ss(line);
+    std::string stamp;
+    std::string file;
+    double t_s = 0;
+    if (!(ss >> stamp >> file) || !parse_double(stamp, t_s)) {
+      add_problem(r, name + ":" + std::to_string(line_number) +
+                         ": expected \"timestamp filename\", got '" + line + "'");
+      continue;
+    }
+    const fs::path frame = fs::path(r.directory) / file;
+    if (!fs::exists(frame)) {
+      add_problem(r, name + ":" + std::to_string(line_number) + ": " + file + " does not exist");
+      continue;
+    }
+    out.push_back({static_cast<std::int64_t>(std::llround(t_s * 1e9)), frame.string()});
+  }
+}
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1'000'000'000LL + ts.tv_nsec;
+}
+
+}  // namespace
+
+const char* intern(std::string_view text) {
+  for (const char* name : kNames) {
+    if (text == name) return name;
+  }
+  return kNames.back();
+}
+
+Recording load_recording(const std::string& directory) {
+  if (!fs::is_directory(directory)) {
+    throw InputError("--replay " + directory + ": not a directory");
+  }
+  if (!fs::exists(fs::path(directory) / "telemetry.csv") &&
+      !fs::exists(fs::path(directory) / "rgb.txt")) {
+    throw InputError("--replay " + directory +
+                     ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
+  }
+  Recording r;
+  r.directory = directory;
+
+  const std::vector<std::string> state_columns = {
+      "receipt_ns",   "latency_us",   "sequence",     "t_ns",          "v_H_x_mps",
+      "v_H_y_mps",    "v_H_z_mps",    "omega_x_radps", "omega_y_radps", "omega_z_radps",
+      "roll_rad",     "pitch_rad",    "v_obs_x_mps",  "v_obs_y_mps",   "v_obs_z_mps",
+      "mode",         "estimator_health", "link_health"};
+  CsvFile(r, "telemetry.csv", state_columns).read([&](const auto& f, std::string& error) {
+    RecordedState s;
+    double latency_us = 0;
+    if (!parse_integer(f[0], s.receipt_ns)) {
+      error = "receipt_ns = '" + std::string(f[0]) + "', expected an integer";
+      return false;
+    }
+    if (!parse_double(f[1], latency_us) || !parse_integer(f[2], s.sequence) ||
+        !parse_integer(f[3], s.vehicle_t_ns)) {
+      error = "latency_us, sequence or t_ns is not a number";
+      return false;
+    }
+    s.latency_ms = 1e-3 * latency_us;
+    std::array<float, 11> values{};
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      double v = 0;
+      if (!parse_double(f[4 + i], v)) {
+        error = state_columns[4 + i] + " = '" + std::string(f[4 + i]) +
+                "', expected a finite number";
+        return false;
+      }
+      values[i] = static_cast<float>(v);
+    }
+    s.v_H_mps = {values[0], values[1], values[2]};
+    s.omega_body_radps = {values[3], values[4], values[5]};
+    s.roll_rad = values[6];
+    s.pitch_rad = values[7];
+    s.v_obs_H_mps = {values[8], values[9], values[10]};
+    for (std::size_t i = 15; i < 18; ++i) {
+      if (!known_name(f[i])) {
+        error = state_columns[i] + " = '" + std::string(f[i]) + "', expected a mode/health name";
+        return false;
+      }
+    }
+    s.mode = intern(f[15]);
+    s.estimator_health = intern(f[16]);
+    s.link_health = intern(f[17]);
+    s.closest_obstacle_m = std::numeric_limits<double>::quiet_NaN();
+    r.states.push_back(s);
+    return true;
+  });
+  // closest_obstacle_m came later than the first recordings: read it where present.
+  {
+    std::vector<double> closest;
+    Recording scratch;
+    scratch.directory = directory;
+    CsvFile(scratch, "telemetry.csv", {"receipt_ns", "closest_obstacle_m"})
+        .read([&](const auto& f, std::string& /*error*/) {
+          std::int64_t t = 0;
+          double d = 0;
+          if (parse_integer(f[0], t) && parse_double(f[1], d, true)) closest.push_back(d);
+          return true;
+        });
+    if (closest.size() == r.states.size()) {
+      for (std::size_t i = 0; i < closest.size(); ++i) r.states[i].closest_obstacle_m = closest[i];
+    }
+  }
+
+  const std::vector<std::string> command_columns = {"t_ns", "v_H_x_mps", "v_H_y_mps",
+                                                    "v_H_z_mps", "yaw_rate_radps", "valid"};
+  CsvFile(r, "commands.csv", command_columns).read([&](const auto& f, std::string& error) {
+    RecordedCommand c;
+    int valid = 0;
+    if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
+      error = "t_ns or valid is not an integer";
+      return false;
+    }
+    std::array<float, 4> v{};
+    if (!parse_floats(f, 1, command_columns, v, error)) return false;
+    c.v_H_mps = {v[0], v[1], v[2]};
+    c.yaw_rate_radps = v[3];
+    c.valid = valid != 0;
+    r.commands.push_back(c);
+    return true;
+  });
+
+  CsvFile(r, "mode_requests.csv", {"t_ns", "mode"}).read([&](const auto& f, std::string& error) {
+    RecordedModeRequest m;
+    if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
+      error = "expected \"t_ns,mode\"";
+      return false;
+    }
+    m.mode = intern(f[1]);
+    r.mode_requests.push_back(m);
+    return true;
+  });
+
+  CsvFile(r, "events.csv", {"receipt_ns", "severity", "text"}, true)
+      .read([&](const auto& f, std::string& error) {
+        RecordedEvent e;
+        if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity)) {
+          error = "receipt_ns or severity is not an integer";
+          return false;
+        }
+        std::string_view text = f[2];
+        if (text.size() >= 2 && text.front() == '"' && text.back() == '"') {
+          text = text.substr(1, text.size() - 2);
+        }
+        e.text = text;
+        r.events.push_back(std::move(e));
+        return true;
+      });
+
+  read_frame_list(r, "rgb.txt", r.rgb, true);
+  read_frame_list(r, "depth_preview.txt", r.depth_preview, false);
+  return r;
+}
+
+bool replay(const Recording& recording, ConsoleModel& model, double speed,
+            const std::atomic<bool>& stop, std::atomic<std::uint64_t>& frames_missing) {
+  // Merge the streams by their ground-clock stamps (each is in order as recorded).
+  std::int64_t t0_ns = std::numeric_limits<std::int64_t>::max();
+  if (!recording.states.empty()) t0_ns = std::min(t0_ns, recording.states.front().receipt_ns);
+  if (!recording.commands.empty()) t0_ns = std::min(t0_ns, recording.commands.front().t_ns);
+  if (!recording.rgb.empty()) t0_ns = std::min(t0_ns, recording.rgb.front().t_ns);
+  if (!recording.events.empty()) t0_ns = std::min(t0_ns, recording.events.front().receipt_ns);
+  if (t0_ns == std::numeric_limits<std::int64_t>::max()) return true;
+  std::size_t is = 0;
+  std::size_t ic = 0;
+  std::size_t ie = 0;
+  std::size_t ir = 0;
+  std::vector<std::uint8_t> jpeg;
+  std::vector<std::uint8_t> depth;
+  const std::int64_t start_ns = monotonic_ns();
+  constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::max();
+  LinkHealth link;
+  while (!stop.load()) {
+    const std::int64_t ts = is < recording.states.size() ? recording.states[is].receipt_ns : kNone;
+    const std::int64_t tc = ic < recording.commands.size() ? recording.commands[ic].t_ns : kNone;
+    const std::int64_t te = ie < recording.events.size() ? recording.events[ie].receipt_ns : kNone;
+    const std::int64_t tr = ir < recording.rgb.size() ? recording.rgb[ir].t_ns : kNone;
+    const std::int64_t next = std::min({ts, tc, te, tr});
+    if (next == kNone) return true;
+    const auto due_ns =
+        start_ns + static_cast<std::int64_t>(static_cast<double>(next - t0_ns) / speed);
+    const std::int64_t wait_ns = due_ns - monotonic_ns();
+    if (wait_ns > 0) {
+      // Sleep in short steps so that a stop request is seen at once.
+      std::this_thread::sleep_for(std::chrono::nanoseconds(std::min<std::int64_t>(wait_ns, 20'000'000)));
+      continue;
+    }
+    if (next == tc) {
+      const RecordedCommand& c = recording.commands[ic++];
+      model.on_command(c.t_ns, c.v_H_mps, c.yaw_rate_radps);
+    } else if (next == ts) {
+      const RecordedState& s = recording.states[is++];
+      model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad,
+                     s.pitch_rad, s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health,
+                     nullptr, 0);
+      ++link.states;
+      link.last_latency_ms = s.latency_ms;
+      link.state_age_s = 0;
+      model.on_link(link);
+    } else if (next == te) {
+      const RecordedEvent& e = recording.events[ie++];
+      model.on_event(e.receipt_ns, e.severity, e.text.c_str());
+    } else {
+      const RecordedFrame& f = recording.rgb[ir++];
+      std::ifstream in(f.path, std::ios::binary);
+      jpeg.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      if (jpeg.empty()) {
+        frames_missing.fetch_add(1);
+        continue;
+      }
+      depth.clear();
+      // The depth preview received with this frame, if any (same receipt stamp).
+      const auto d = std::lower_bound(
+          recording.depth_preview.begin(), recording.depth_preview.end(), f.t_ns,
+          [](const RecordedFrame& a, std::int64_t t) { return a.t_ns < t; });
+      if (d != recording.depth_preview.end() && d->t_ns == f.t_ns) {
+        std::ifstream din(d->path, std::ios::binary);
+        depth.assign(std::istreambuf_iterator<char>(din), std::istreambuf_iterator<char>());
+      }
+      model.on_camera(f.t_ns, jpeg.data(), jpeg.size(), depth.empty() ? nullptr : depth.data(),
+                      depth.size());
+      ++link.camera_frames;
+      model.on_link(link);
+    }
+  }
+  return false;
+}
+
+}  // namespace hq::console

@@ -1,0 +1,65 @@
+#include "hq/console/console_model.hpp"
+
+#include "hq/testing/allocation_counter.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace hq::console {
+namespace {
+
+void add_state(ConsoleModel& m, std::int64_t t_ns, float vx, float yaw_rate) {
+  m.on_state(t_ns, 1.0, {vx, 0, 0}, {0, 0, yaw_rate}, 0, 0, {0, 0, 0}, "teleop", "ok", "ok",
+             nullptr, 0);
+}
+
+TEST(ConsoleModel, TopViewIntegratesVelocityInHRotatedByGyroYaw) {
+  ConsoleModel m;
+  // 1 s straight ahead at 1 m/s, then turning at pi/2 rad/s for 1 s at the same speed in H.
+  for (int i = 0; i <= 100; ++i) add_state(m, i * 10'000'000LL, 1.0F, 0.0F);
+  for (int i = 101; i <= 200; ++i) add_state(m, i * 10'000'000LL, 1.0F, static_cast<float>(M_PI / 2));
+  Snapshot s = m.make_snapshot();
+  m.snapshot(s);
+  EXPECT_EQ(s.plot_count, 201U);
+  EXPECT_NEAR(s.yaw_W_rad, M_PI / 2, 1e-3);
+  // A quarter circle of radius 2/pi after the first metre: x = 1 + 2/pi, y = 2/pi.
+  EXPECT_NEAR(s.position_W.x_W_m, 1.0 + 2.0 / M_PI, 0.03);
+  EXPECT_NEAR(s.position_W.y_W_m, 2.0 / M_PI, 0.03);
+  EXPECT_EQ(s.mode, "teleop");
+}
+
+TEST(ConsoleModel, RingsKeepTheNewestSamplesOldestFirst) {
+  ConsoleModel::Capacity c;
+  c.plot = 8;
+  ConsoleModel m(c);
+  for (int i = 0; i < 20; ++i) add_state(m, i * 1'000'000'000LL, static_cast<float>(i), 0);
+  Snapshot s = m.make_snapshot();
+  m.snapshot(s);
+  ASSERT_EQ(s.plot_count, 8U);
+  EXPECT_EQ(s.plot_total, 20U);
+  for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(s.plot[i].v_est_H_mps[0], 12.0F + i);
+}
+
+TEST(ConsoleModel, SamplesAndSnapshotsAllocateNothingAfterConstruction) {
+  ConsoleModel m;
+  Snapshot s = m.make_snapshot();
+  std::vector<std::uint8_t> jpeg(50'000, 7);
+  std::vector<float> cloud(3 * 500, 1.0F);
+  const long before = hq::testing::allocation_count();
+  for (int i = 0; i < 5000; ++i) {
+    m.on_command(i * 1'000'000LL, {0.1F, 0, 0}, 0.0F);
+    m.on_state(i * 1'000'000LL, 1.0, {0.1F, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "hover", "ok",
+               "ok", cloud.data(), 500);
+    if (i % 10 == 0) m.on_camera(i * 1'000'000LL, jpeg.data(), jpeg.size(), nullptr, 0);
+    m.on_event(i * 1'000'000LL, 0, "event");
+    if (i % 16 == 0) m.snapshot(s);
+  }
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
+  m.snapshot(s);
+  EXPECT_EQ(s.cloud_count, 500U);
+  EXPECT_EQ(s.jpeg_size, jpeg.size());
+}
+
+}  // namespace
+}  // namespace hq::console
