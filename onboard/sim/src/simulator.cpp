@@ -251,13 +251,19 @@ void Simulator::physics_step() {
   t_ns_ += step_ns_;
   update_truth();
 
+  // Specific force: what the accelerometer feels, f = R_BW (a_W - g_W). A MEMS IMU averages
+  // over its sample period (its digital low-pass), so short events such as the touchdown
+  // impulse reach the samples instead of falling between them.
+  const QuadrotorState& s = vehicle_.state();
+  const Eigen::Matrix3d R_world_body = s.q_world_body.toRotationMatrix();
+  imu_f_sum_mps2_ +=
+      R_world_body.transpose() * (s.a_world_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2));
+  imu_omega_sum_radps_ += s.omega_body_radps;
   if (steps_ % imu_decimation_ == 0) {
-    const QuadrotorState& s = vehicle_.state();
-    const Eigen::Matrix3d R_world_body = s.q_world_body.toRotationMatrix();
-    // Specific force: what the accelerometer feels, f = R_BW (a_W - g_W).
-    const Eigen::Vector3d f_body_mps2 =
-        R_world_body.transpose() * (s.a_world_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2));
-    const ImuSample sample = imu_.measure(t_ns_, s.omega_body_radps, f_body_mps2);
+    const ImuSample sample = imu_.measure(t_ns_, imu_omega_sum_radps_ / imu_decimation_,
+                                          imu_f_sum_mps2_ / imu_decimation_);
+    imu_f_sum_mps2_.setZero();
+    imu_omega_sum_radps_.setZero();
     const std::size_t capacity = imu_ring_.size();
     if (imu_count_ == capacity) {
       imu_head_ = (imu_head_ + 1) % capacity;

@@ -108,6 +108,8 @@ class Simulator {
   std::int64_t t_ns_ = 0;
   std::int64_t steps_ = 0;
   int imu_decimation_ = 2;
+  Eigen::Vector3d imu_f_sum_mps2_ = Eigen::Vector3d::Zero();  ///< over the current IMU period
+  Eigen::Vector3d imu_omega_sum_radps_ = Eigen::Vector3d::Zero();
   std::int64_t camera_period_ns_ = 33'333'333;
   std::int64_t next_camera_ns_ = 0;
   std::uint64_t frame_index_ = 0;
