@@ -243,3 +243,36 @@ TEST(Fakenect, CorruptDumpIsAClearErrorNamingTheFile) {
 
 }  // namespace
 }  // namespace hq::sources
+
+namespace hq::sources {
+namespace {
+
+// The whole on-board chain on a "live" Kinect: hq-onboard --source freenect, with fakenect in
+// place of libfreenect, runs every frame of the dump through odometry, estimator and control.
+TEST(Fakenect, HqOnboardRunsTheChainOnTheKinect) {
+#if !defined(HQ_FAKENECT_DIR) || !defined(HQ_ONBOARD_EXE)
+  GTEST_SKIP() << "built without fakenect or hq-onboard";
+#else
+  if (running_on_fakenect()) GTEST_SKIP() << "runs hq-onboard as its own process";
+  const auto data = recording::find_data_dir();
+  if (!data) GTEST_SKIP() << "no real data: " << recording::data_dir_search_description();
+  const std::string dir = fresh_dir("onboard");
+  (void)write_dump(*data + "/tum/rgbd_dataset_freiburg1_360", dir);
+  const std::string command = std::string("LD_LIBRARY_PATH=") + HQ_FAKENECT_DIR +
+                              " FAKENECT_PATH=" + dir + " " + HQ_ONBOARD_EXE +
+                              " --source freenect --duration-s 20 2>&1";
+  std::FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe)) output += buffer;
+  const int status = pclose(pipe);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+  EXPECT_THAT(output, HasSubstr("5 frames from"));
+  EXPECT_THAT(output, HasSubstr("fakenect replay"));
+  EXPECT_THAT(output, HasSubstr("total"));  // the stage-timing table
+#endif
+}
+
+}  // namespace
+}  // namespace hq::sources
