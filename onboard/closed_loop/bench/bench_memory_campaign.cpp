@@ -1,0 +1,154 @@
+// hq-bench-memory-campaign: issue 10's campaign, the vehicle moving towards a box it saw but no
+// longer sees (backing up, sideways, after a yaw while close), each seeded run flown with the
+// obstacle memory off and on (same world, noise and script). Prints collisions and the closest
+// distance distribution side by side, then the chain's stage timings with each setting (the
+// memory stage beside the odometry stage and the whole chain measured in the same flights).
+//   hq-bench-memory-campaign [--runs 20] [--seed 20261126]
+// Run from the repository root (configs are read from config/ and onboard/).
+
+#include "memory_campaign.hpp"
+
+#include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
+#include "hq/pipeline/stage_timing.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <string>
+#include <cstdio>
+#include <vector>
+
+namespace {
+
+using hq::closed_loop::testing::MemoryCase;
+using hq::closed_loop::testing::MemoryOutcome;
+
+class SteadyClock final : public hq::pipeline::Clock {
+ public:
+  std::int64_t now_ns() const override {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+};
+
+struct Column {
+  int collisions = 0;
+  std::vector<double> clearance_m;
+  int max_map_size = 0;
+};
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
+}
+
+void print_stage(const char* setting, const hq::pipeline::StageTimingLog& log) {
+  const auto memory = log.statistics(2);
+  const auto odometry = log.statistics(0);
+  const auto total = log.statistics(5);
+  std::printf("  memory %-3s  %7zu frames  memory stage median %.3f p99 %.3f max %.3f ms;"
+              "  odometry median %.3f ms (memory/odometry %.2f);  total median %.3f p99 %.3f ms"
+              " (memory/total %.2f)\n",
+              setting, log.size(), memory.median_ms, memory.p99_ms, memory.max_ms,
+              odometry.median_ms, memory.median_ms / std::max(odometry.median_ms, 1e-9),
+              total.median_ms, total.p99_ms, memory.median_ms / std::max(total.median_ms, 1e-9));
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-bench-memory-campaign: obstacles outside the view, memory off against on"};
+  int runs = 20;
+  unsigned seed = 20261126;
+  app.add_option("--runs", runs, "runs per case")->check(CLI::Range(1, 1000));
+  app.add_option("--seed", seed, "campaign seed");
+  std::string trace;
+  app.add_option("--trace", trace,
+                 "CASE:INDEX (e.g. back-up:0): fly that run only, memory off then on, one line "
+                 "per frame");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  const hq::sim::World room = hq::sim::load_world("onboard/sim/worlds/room.yaml");
+  const SteadyClock clock;
+  if (!trace.empty()) {
+    const auto colon = trace.find(':');
+    for (const MemoryCase kind : hq::closed_loop::testing::kMemoryCases) {
+      if (colon == std::string::npos ||
+          trace.substr(0, colon) != hq::closed_loop::testing::to_string(kind)) {
+        continue;
+      }
+      const auto r =
+          hq::closed_loop::testing::draw_memory_run(kind, std::stoi(trace.substr(colon + 1)), seed);
+      for (int on = 0; on < 2; ++on) {
+        std::printf("--- %s memory %s\n", trace.c_str(), on ? "on" : "off");
+        hq::closed_loop::testing::fly_memory_run(r, on == 1, room, nullptr, nullptr, stdout);
+      }
+      return 0;
+    }
+    throw hq::InputError("--trace " + trace + ": expected CASE:INDEX with CASE one of back-up, "
+                         "sideways, yaw-close");
+  }
+  hq::pipeline::StageTimingLog timing[2];
+  Column columns[3][2];
+  const auto wall_start = std::chrono::steady_clock::now();
+  for (int c = 0; c < 3; ++c) {
+    const MemoryCase kind = hq::closed_loop::testing::kMemoryCases[c];
+    for (int i = 0; i < runs; ++i) {
+      const auto r = hq::closed_loop::testing::draw_memory_run(kind, i, seed);
+      MemoryOutcome outcome[2];
+      for (int on = 0; on < 2; ++on) {
+        outcome[on] = hq::closed_loop::testing::fly_memory_run(r, on == 1, room, &clock,
+                                                               &timing[on]);
+        Column& col = columns[c][on];
+        col.collisions += outcome[on].collided ? 1 : 0;
+        col.clearance_m.push_back(outcome[on].min_clearance_m);
+        col.max_map_size = std::max(col.max_map_size, outcome[on].max_map_size);
+      }
+      std::printf("%-9s run %2d: %.2f m/s, box %.2f x %.2f at %.2f m, turn %3.0f deg: "
+                  "closest off %+.3f%s  on %+.3f%s\n",
+                  hq::closed_loop::testing::to_string(kind), i, r.speed_mps, r.box_size_m.x(),
+                  r.box_size_m.y(), r.distance_m, r.turn_rad * 180.0 / M_PI,
+                  outcome[0].min_clearance_m, outcome[0].collided ? " COLLIDED" : "",
+                  outcome[1].min_clearance_m, outcome[1].collided ? " COLLIDED" : "");
+      std::fflush(stdout);
+    }
+  }
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  std::printf("\nobstacle memory campaign, %d runs per case, seed %u, 320x240 (%.0f s wall)\n",
+              runs, seed, wall_s);
+  std::printf("closest distance = box surface to the %.2f m vehicle sphere (m)\n",
+              hq::closed_loop::testing::kVehicleRadiusM);
+  std::printf("%-10s | %-36s | %-36s\n", "case", "memory off", "memory on");
+  std::printf("%-10s | %10s %7s %7s %8s | %10s %7s %7s %8s\n", "", "collisions", "min", "p10",
+              "median", "collisions", "min", "p10", "median");
+  for (int c = 0; c < 3; ++c) {
+    std::printf("%-10s |", hq::closed_loop::testing::to_string(hq::closed_loop::testing::kMemoryCases[c]));
+    for (int on = 0; on < 2; ++on) {
+      const Column& col = columns[c][on];
+      std::printf(" %4d/%-5d %+7.3f %+7.3f %+8.3f %s", col.collisions, runs,
+                  quantile(col.clearance_m, 0.0), quantile(col.clearance_m, 0.1),
+                  quantile(col.clearance_m, 0.5), on == 0 ? "|" : "\n");
+    }
+  }
+  int largest_map = 0;
+  for (const auto& row : columns) largest_map = std::max(largest_map, row[1].max_map_size);
+  std::printf("largest memory map in any run: %d points\n", largest_map);
+  std::printf("\nper-frame stage time over every frame of the campaign (wall clock, one thread):\n");
+  print_stage("off", timing[0]);
+  print_stage("on", timing[1]);
+  std::printf("memory on: chain stages\n");
+  timing[1].print(stdout);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) { return hq::run_tool("hq-bench-memory-campaign", argc, argv, run); }
