@@ -48,7 +48,20 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
     throw InputError("link bridge: jpeg_quality = " + std::to_string(options_.jpeg_quality) +
                      ", expected in [1, 100]");
   }
-  link::reserve(state_->obstacle_points_body_m, 0);
+  if (!(options_.obstacle_cloud_rate_hz >= 0.0 && options_.obstacle_cloud_rate_hz <= 30.0)) {
+    throw InputError("link bridge: obstacle_cloud_rate_hz = " +
+                     std::to_string(options_.obstacle_cloud_rate_hz) +
+                     ", expected in [0, 30] (0 = no obstacle cloud)");
+  }
+  if (options_.max_obstacle_points < 1 ||
+      options_.max_obstacle_points > static_cast<int>(hq_msgs_kMaxObstaclePoints)) {
+    throw InputError("link bridge: max_obstacle_points = " +
+                     std::to_string(options_.max_obstacle_points) + ", expected in [1, " +
+                     std::to_string(hq_msgs_kMaxObstaclePoints) + "] (the IDL bound)");
+  }
+  link::reserve(state_->obstacle_points_body_m,
+                static_cast<std::uint32_t>(options_.max_obstacle_points));
+  cloud_world_m_.resize(static_cast<std::size_t>(options_.max_obstacle_points));
   link::reserve(camera_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   camera_->vehicle_id = link_.vehicle_id;
   state_->vehicle_id = link_.vehicle_id;
@@ -151,7 +164,8 @@ void LinkBridge::publish_event(std::int64_t t_ns, hq_msgs_Severity severity, Eve
   event_writer_.write(*event_);
 }
 
-void LinkBridge::publish_state(const pipeline::ChainOutput& out) {
+void LinkBridge::publish_state(const pipeline::ChainOutput& out,
+                               const ObstacleCloudSource& cloud) {
   const FailsafeState& link_state = failsafe_.state();
   link::VehicleState& s = *state_;
   s.sequence_number = ++state_sequence_;
@@ -169,6 +183,24 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out) {
                   : link_state.hold         ? hq_msgs_HEALTH_DEGRADED
                                             : hq_msgs_HEALTH_OK;
   s.obstacle_points_body_m._length = 0;
+  last_cloud_size_ = 0;
+  if (cloud.memory != nullptr && options_.obstacle_cloud_rate_hz > 0.0 &&
+      out.t_ns >= next_cloud_ns_ && cloud.T_world_body.matrix().allFinite()) {
+    next_cloud_ns_ = out.t_ns + period_ns(options_.obstacle_cloud_rate_hz);
+    // The map is in W; the IDL field is in Q: p_Q = T_QW p_W. The memory strides its map down
+    // to the buffer's size; a non-finite point (never expected) is dropped, not sent.
+    const Eigen::Isometry3f T_body_world = cloud.T_world_body.inverse().cast<float>();
+    const int n = cloud.memory->telemetry_cloud(cloud_world_m_);
+    std::uint32_t count = 0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3f p_body_m = T_body_world * cloud_world_m_[static_cast<std::size_t>(i)];
+      if (!p_body_m.allFinite()) continue;
+      s.obstacle_points_body_m._buffer[count++] = {p_body_m.x(), p_body_m.y(), p_body_m.z()};
+    }
+    s.obstacle_points_body_m._length = count;
+    last_cloud_size_ = static_cast<int>(count);
+    ++clouds_sent_;
+  }
   state_writer_.write(s);
 }
 

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <string>
@@ -159,12 +160,106 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   EXPECT_TRUE(link::validate(state).ok);
 }
 
+// Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
+// The memory holds a wall 2 m along the camera's optical axis; whatever pose the body has in the
+// memory's world, the published points must sit 2 m along that axis seen from the body.
+TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
+  const link::LinkConfig config = private_link();
+  BridgeOptions options;
+  options.obstacle_cloud_rate_hz = 1.0;
+  options.max_obstacle_points = 300;
+  LinkBridge bridge(config, FailsafeConfig{}, options);
+  Ground ground(config);
+
+  geometry::PinholeCamera camera;
+  camera.width = 160;
+  camera.height = 120;
+  camera.fx = camera.fy = 120.0;
+  camera.cx = 79.5;
+  camera.cy = 59.5;
+  // The core paper's mount: 45 deg right, 30 deg down (calib/vehicle_core_paper.yaml).
+  const Eigen::Matrix3d R_QC_forward =
+      (Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(-M_PI / 6, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
+  Eigen::Matrix3d optical_to_forward;  // optical (x right, y down, z forward) -> NED-like body
+  optical_to_forward << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  const Eigen::Matrix3d R_QC = R_QC_forward * optical_to_forward;
+  const Eigen::Vector3d p_QC(0.10, 0.05, 0.03);
+  obstacle_memory::MemoryConfig memory_config;
+  obstacle_memory::ObstacleMemory memory(memory_config, camera, R_QC, p_QC);
+  const cv::Mat wall(camera.height, camera.width, CV_32FC1, cv::Scalar(2.0F));
+  // The camera's pose in the memory's world W: rotated and moved, so that W, C and Q differ.
+  Eigen::Isometry3d T_WC = Eigen::Isometry3d::Identity();
+  T_WC.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())
+                      .toRotationMatrix();
+  T_WC.translation() = Eigen::Vector3d(1.5, -2.0, 0.4);
+  for (int i = 0; i < 3; ++i) {
+    (void)memory.update(i * 33'000'000LL, wall, T_WC, Eigen::Matrix3d::Identity(), 1.35);
+  }
+  ASSERT_GT(memory.size(), options.max_obstacle_points);  // the bound is what limits the cloud
+
+  Eigen::Isometry3d T_QC = Eigen::Isometry3d::Identity();
+  T_QC.linear() = R_QC;
+  T_QC.translation() = p_QC;
+  ObstacleCloudSource source{&memory, T_WC * T_QC.inverse()};
+  pipeline::ChainOutput out;
+  // 2 s of 100 Hz states on a stamp clock: clouds at 0 s and 1 s only.
+  for (int i = 0; i < 200; ++i) {
+    out.t_ns = i * 10'000'000LL;
+    bridge.publish_state(out, source);
+    EXPECT_EQ(bridge.last_cloud_size() > 0, i % 100 == 0) << "state " << i;
+  }
+  EXPECT_EQ(bridge.clouds_sent(), 2U);
+  EXPECT_EQ(bridge.states_sent(), 200U);
+
+  link::Sample<link::VehicleState> state;
+  std::vector<modes::Mode> requests;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    out.t_ns += 1'000'000'000;  // one cloud per call
+    bridge.publish_state(out, source);
+    dds_sample_info_t info{};
+    while (ground.states.take(*state, info)) {
+      if (state->obstacle_points_body_m._length > 0) return true;
+    }
+    return false;
+  }));
+  const auto& cloud = state->obstacle_points_body_m;
+  EXPECT_LE(cloud._length, static_cast<std::uint32_t>(options.max_obstacle_points));
+  EXPECT_GE(cloud._length, static_cast<std::uint32_t>(options.max_obstacle_points) / 2);
+  EXPECT_TRUE(link::validate(*state).ok);
+  for (std::uint32_t i = 0; i < cloud._length; ++i) {
+    const Eigen::Vector3d p_Q(cloud._buffer[i].x, cloud._buffer[i].y, cloud._buffer[i].z);
+    ASSERT_TRUE(p_Q.allFinite()) << i;
+    // Back into the camera: on the wall, within the voxel leaf.
+    const Eigen::Vector3d p_C = R_QC.transpose() * (p_Q - p_QC);
+    EXPECT_NEAR(p_C.z(), 2.0, memory_config.leaf_m) << i;
+    EXPECT_LT(std::abs(p_C.x()), 2.0 * camera.cx / camera.fx + memory_config.leaf_m) << i;
+  }
+
+  // No memory, or a non-finite pose: an empty cloud, still a state.
+  out.t_ns += 10'000'000'000LL;
+  bridge.publish_state(out, {});
+  EXPECT_EQ(bridge.last_cloud_size(), 0);
+  source.T_world_body.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  bridge.publish_state(out, source);
+  EXPECT_EQ(bridge.last_cloud_size(), 0);
+}
+
 TEST(LinkBridge, BadOptionsNameTheKey) {
   const link::LinkConfig config = private_link();
   BridgeOptions options;
   options.jpeg_quality = 0;
   EXPECT_THAT(hq::testing::input_error_message([&] { LinkBridge b(config, {}, options); }),
               HasSubstr("jpeg_quality = 0"));
+  options = {};
+  options.max_obstacle_points = 5000;
+  EXPECT_THAT(hq::testing::input_error_message([&] { LinkBridge b(config, {}, options); }),
+              HasSubstr("max_obstacle_points = 5000, expected in [1, 2048]"));
+  options = {};
+  options.obstacle_cloud_rate_hz = -1.0;
+  EXPECT_THAT(hq::testing::input_error_message([&] { LinkBridge b(config, {}, options); }),
+              HasSubstr("obstacle_cloud_rate_hz = -1"));
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 #pragma once
 /// The vehicle side of the DDS link: takes operator commands, mode requests and heartbeats,
-/// checks them through the Failsafe, and publishes the vehicle state, events, heartbeats and
-/// rate-limited JPEG camera frames.
+/// checks them through the Failsafe, and publishes the vehicle state (with the obstacle memory's
+/// cloud at a low rate), events, heartbeats and rate-limited JPEG camera frames.
 ///
 /// poll() never blocks: the on-board loop calls it once per control step with the step's time,
 /// which is the receipt stamp of everything it takes. Every sample is taken into preallocated
@@ -10,7 +10,11 @@
 #include "hq/link/link.hpp"
 #include "hq/link_bridge/failsafe.hpp"
 #include "hq/modes/mode_controller.hpp"
+#include "hq/obstacle_memory/obstacle_memory.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <opencv2/core.hpp>
 
@@ -38,6 +42,19 @@ struct BridgeOptions {
   /// Rejections are summarised in one event per this period, not one per sample, so that a
   /// flood of bad samples cannot flood the reliable event topic.
   double rejection_report_period_s = 1.0;
+  /// The remembered obstacle cloud rides on the vehicle state at most this often (issue 10),
+  /// so the console can draw a top view; 0 = never. Between clouds the state carries none.
+  double obstacle_cloud_rate_hz = 1.0;
+  /// Points per cloud, 1..hq_msgs_kMaxObstaclePoints (the IDL bound).
+  int max_obstacle_points = static_cast<int>(hq_msgs_kMaxObstaclePoints);
+};
+
+/// What the bridge needs to send the memory's cloud: the map (points in the world W of the
+/// estimate) and where the body is in W, to express the cloud in the body frame Q as the IDL
+/// field obstacle_points_body_m says.
+struct ObstacleCloudSource {
+  const obstacle_memory::ObstacleMemory* memory = nullptr;  ///< Not owned; null = no cloud.
+  Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
 };
 
 class LinkBridge {
@@ -55,8 +72,14 @@ class LinkBridge {
   /// Acknowledges a mode request with an event (accepted or refused with the chain's reason).
   void acknowledge(std::int64_t t_ns, modes::Mode mode, const modes::ModeSwitch& result);
 
-  /// Publishes the vehicle state of one chain output.
-  void publish_state(const pipeline::ChainOutput& out);
+  /// Publishes the vehicle state of one chain output. When `cloud` has a memory and the cloud
+  /// rate allows it at out.t_ns, the state carries the memory's down-sampled map in Q (at most
+  /// max_obstacle_points, finite points only); otherwise an empty cloud. Allocates nothing.
+  void publish_state(const pipeline::ChainOutput& out, const ObstacleCloudSource& cloud = {});
+
+  /// Obstacle points in the latest published state (0 when it carried no cloud).
+  [[nodiscard]] int last_cloud_size() const { return last_cloud_size_; }
+  [[nodiscard]] std::uint64_t clouds_sent() const { return clouds_sent_; }
 
   /// Publishes `image_bgr` (CV_8UC3 or CV_8UC1) as JPEG if the camera rate allows it now.
   /// Returns true if a frame was sent.
@@ -95,6 +118,7 @@ class LinkBridge {
   link::Sample<link::VehicleState> state_;
   link::Sample<link::CameraFrame> camera_;
   link::Sample<link::Event> event_;
+  std::vector<Eigen::Vector3f> cloud_world_m_;  // telemetry_cloud() output, sized once
   std::vector<unsigned char> jpeg_;
   std::vector<int> jpeg_params_;
 
@@ -105,6 +129,9 @@ class LinkBridge {
   std::int64_t next_heartbeat_ns_ = 0;
   std::int64_t next_camera_ns_ = 0;
   std::int64_t next_rejection_report_ns_ = 0;
+  std::int64_t next_cloud_ns_ = 0;
+  int last_cloud_size_ = 0;
+  std::uint64_t clouds_sent_ = 0;
   FailsafeCounters reported_;
 };
 
