@@ -6,7 +6,7 @@
 //   hq-onboard --source sim --world onboard/sim/worlds/arena.yaml
 //              --script onboard/closed_loop/flights/core_paper_box.yaml
 //              [--sim-config onboard/sim/config/sim.yaml] [--resolution 320x240] [--seed N]
-//              [--csv fig6-8.csv]
+//              [--csv fig6-8.csv] [--save-map map.pcd|map.ply]
 //   hq-onboard --source sim --world W --link [--duration-s 60] [--link-config config.yaml]
 //              [--domain-id N] [--vehicle-id N] [--command-timeout-ms 200]
 //              [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
@@ -143,6 +143,7 @@ struct Options {
   double heartbeat_timeout_ms = 2000.0;
   double camera_rate_hz = 10.0;
   std::string link_log_path;
+  std::string save_map_path;
 };
 
 std::atomic<bool> g_stop{false};
@@ -330,6 +331,13 @@ int run_sim(const Options& o) {
   }
   std::printf("per-stage time from frame arrival to setpoint:\n");
   loop.timing().print(stdout);
+  if (!o.save_map_path.empty()) {
+    // Issue 10: the obstacle memory's map at the end of the flight (points in the world of the
+    // odometry), for PCL's viewers and CloudCompare.
+    loop.chain().memory().save(o.save_map_path);
+    std::printf("obstacle memory map (%d points) written to %s\n", loop.chain().memory().size(),
+                o.save_map_path.c_str());
+  }
   if (!o.csv_path.empty()) {
     hq::closed_loop::write_figure_csv(o.csv_path, loop.samples());
     std::printf("Fig. 6-8 signals written to %s\n", o.csv_path.c_str());
@@ -514,6 +522,14 @@ int run(int argc, char** argv) {
   app.add_option("--camera-rate-hz", o.camera_rate_hz,
                  "sim --link: JPEG frames to the ground (0: none)")
       ->check(CLI::Range(0.0, 60.0));
+  app.add_option("--save-map", o.save_map_path,
+                 "sim: the obstacle memory's map at the end of the flight (.pcd or .ply)")
+      ->check([](const std::string& path) -> std::string {
+        const auto ends = [&](const char* ext) {
+          return path.size() > 4 && path.compare(path.size() - 4, 4, ext) == 0;
+        };
+        return ends(".pcd") || ends(".ply") ? "" : path + ": expected a .pcd or .ply file";
+      });
   app.add_option("--link-log", o.link_log_path,
                  "sim --link: per-step CSV of mode, command and heartbeat ages, truth");
   try {
