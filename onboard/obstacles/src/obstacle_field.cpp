@@ -274,13 +274,11 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
   // minima so that the listed points stay nearest-first within the view.
   for (const Eigen::Vector3d& p_H : remembered_p_horizontal_m) {
     if (!p_H.allFinite() || (ground_phase_ && p_H.z() > 0.0)) continue;
-    // Below the vehicle's sphere a remembered point can only be reached by descending: treat it
-    // as a support surface (no normal is kept to tell a floor from a ledge).
-    if (p_H.z() > config_.vehicle_radius_m) {
-      add_support_push(result, p_H.z());
-      continue;
-    }
-    add_point(result, p_H, false, true);
+    // The memory keeps only points in a band around the vehicle's height (floor and ceiling
+    // excluded there), and a camera looking 30 deg down remembers an obstacle by its face below
+    // the vehicle: the point stands for a column, so it pushes horizontally, on its horizontal
+    // offset.
+    add_point(result, Eigen::Vector3d(p_H.x(), p_H.y(), 0.0), false, true);
   }
 
   const double speed = result.v_obs_horizontal_mps.norm();

@@ -203,26 +203,36 @@ TEST(ObstacleConfig, ShippedOnboardYamlSectionLoads) {
   EXPECT_NO_THROW(read_config(section, config));
 }
 
-TEST(ObstacleField, RememberedPointPushesWithTheSameLawAsAViewMinimum) {
+TEST(ObstacleField, RememberedPointPushesAsAColumnOnItsHorizontalOffset) {
   const Eigen::Matrix3d R_QC = default_R_body_camera();
   ObstacleField field(ObstacleConfig{}, test_camera(), R_QC, Eigen::Vector3d::Zero());
-  // The wall at 0.6 m along the 30 deg down axis puts the point 0.3 m below the camera, inside
-  // the vehicle's sphere: remembered points further below are support points (upwards only).
+  // A wall at 0.6 m along the 30 deg down axis: the camera sees it by its face below the body.
   const ObstacleResult seen = field.compute(wall(0.6f), Eigen::Matrix3d::Identity());
   ASSERT_EQ(seen.count, 1);
-  ASSERT_LT(seen.points[0].p_horizontal_m.z(), ObstacleConfig{}.vehicle_radius_m);
-  ASSERT_GT(seen.v_obs_horizontal_mps.norm(), 0.01);
-  // GIVEN nothing near in view (a wall at 6 m) WHEN the same point is remembered instead,
-  // THEN v_obs is the same vector and the point is flagged as remembered.
+  const Eigen::Vector3d p = seen.points[0].p_horizontal_m;
+  ASSERT_GT(p.z(), 0.1);
+  // GIVEN nothing near in view (a wall at 6 m) WHEN that point is remembered instead (and a NaN
+  // one), THEN it pushes as the wall's column does at the vehicle's height: horizontally, with
+  // the view's law on its horizontal offset, flagged as remembered.
   const std::array<Eigen::Vector3d, 2> remembered = {
-      seen.points[0].p_horizontal_m,
-      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())};
+      p, Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())};
   const ObstacleResult result = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), remembered);
   ASSERT_TRUE(result.valid);
   ASSERT_EQ(result.count, 1);  // the NaN point is skipped
   EXPECT_TRUE(result.points[0].remembered);
   EXPECT_FALSE(seen.points[0].remembered);
-  EXPECT_LT((result.v_obs_horizontal_mps - seen.v_obs_horizontal_mps).norm(), 1e-9);
+  const ObstacleResult column = field.compute(
+      wall(6.0f), Eigen::Matrix3d::Identity(),
+      std::array<Eigen::Vector3d, 1>{Eigen::Vector3d(p.x(), p.y(), 0.0)});
+  EXPECT_LT((result.v_obs_horizontal_mps - column.v_obs_horizontal_mps).norm(), 1e-12);
+  EXPECT_EQ(result.v_obs_horizontal_mps.z(), 0.0);
+  EXPECT_GT(result.v_obs_horizontal_mps.head<2>().norm(),
+            seen.v_obs_horizontal_mps.head<2>().norm());
+  // A face remembered 0.37 m below (beyond the sphere's radius) still pushes: the campaign's
+  // back-up collisions came from treating it as floor.
+  const std::array<Eigen::Vector3d, 1> low = {Eigen::Vector3d(-0.8, 0.0, 0.37)};
+  EXPECT_GT(field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), low).v_obs_horizontal_mps.x(),
+            0.05);
 }
 
 TEST(ObstacleField, RememberedPointsAddToTheViewAndSaturate) {
@@ -260,7 +270,9 @@ TEST(ObstacleField, KhatibLawActsOnTheClearanceToTheVehicleSphere) {
   ObstacleField field(config, test_camera(), default_R_body_camera(), Eigen::Vector3d::Zero());
   const Eigen::Vector3d directions[] = {Eigen::Vector3d(-1.0, 0.0, 0.0),
                                         Eigen::Vector3d(0.0, 1.0, 0.0),
-                                        Eigen::Vector3d(0.6, -0.6, -0.2).normalized()};
+                                        Eigen::Vector3d(0.6, -0.8, 0.0)};
+  // Remembered points probe the law at the vehicle's height (they push on their horizontal
+  // offset); off-horizontal view points are covered by the flat-wall test.
   for (const Eigen::Vector3d& direction : directions) {
     for (const double d : {0.1, 0.4, 0.9, 1.4}) {
       // GIVEN one remembered point at |p| = r + d (nothing near in view).

@@ -85,8 +85,9 @@ class ObstacleField {
   /// @param depth_m  CV_32FC1, camera size, metres; 0 / NaN / out of range = no depth.
   /// @param R_horizontal_body  R_HQ from the attitude estimate.
   /// @param remembered_p_horizontal_m  obstacle points outside the view (in H from the body
-  ///        origin, e.g. from hq::obstacle_memory), pushing with the same law; non-finite ones
-  ///        are skipped.
+  ///        origin, e.g. from hq::obstacle_memory, which keeps only points near the vehicle's
+  ///        height): each stands for a column and pushes with the same law on its horizontal
+  ///        offset; non-finite ones are skipped.
   [[nodiscard]] ObstacleResult compute(
       const cv::Mat& depth_m, const Eigen::Matrix3d& R_horizontal_body,
       std::span<const Eigen::Vector3d> remembered_p_horizontal_m = {});
