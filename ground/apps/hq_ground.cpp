@@ -18,6 +18,7 @@
 #include "hq/console/recording.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/ground/ground_station.hpp"
+#include "hq/ground/window_keyboard.hpp"
 #include "hq/haptics/haptic_device.hpp"
 #include "hq/haptics/haptic_loop.hpp"
 #include "hq/haptics/haptics_config.hpp"
@@ -90,6 +91,23 @@ class ModelFeed : public hq::ground::LinkObserver {
   void on_state(std::int64_t receipt_ns, std::int64_t latency_ns,
                 const hq::link::VehicleState& s) override {
     static_assert(sizeof(hq_msgs_Vector3f) == 3 * sizeof(float));
+    static_assert(hq::console::kMaxMarkerViews == hq_msgs_kMaxMarkersInState);
+    hq::console::StateExtras extras;
+    extras.position_valid = s.position_valid;
+    extras.p_W_m = {s.p_W_m.x, s.p_W_m.y, s.p_W_m.z};
+    extras.yaw_W_rad = s.yaw_W_rad;
+    extras.truth_valid = s.truth_valid;
+    extras.v_truth_H_mps = {s.v_truth_H_mps.x, s.v_truth_H_mps.y, s.v_truth_H_mps.z};
+    const std::size_t count = std::min<std::size_t>(s.markers._length, markers_.size());
+    for (std::size_t i = 0; i < count; ++i) {
+      const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
+      markers_[i] = {m.id,
+                     {m.p_camera_marker_m.x, m.p_camera_marker_m.y, m.p_camera_marker_m.z},
+                     {m.q_camera_marker.w, m.q_camera_marker.x, m.q_camera_marker.y,
+                      m.q_camera_marker.z}};
+    }
+    extras.markers = markers_.data();
+    extras.marker_count = count;
     model_.on_state(receipt_ns, 1e-6 * static_cast<double>(latency_ns),
                     {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
                     {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z},
@@ -97,7 +115,7 @@ class ModelFeed : public hq::ground::LinkObserver {
                     hq::ground::to_string(s.mode), hq::ground::to_string(s.estimator_health),
                     hq::ground::to_string(s.link_health),
                     reinterpret_cast<const float*>(s.obstacle_points_body_m._buffer),
-                    s.obstacle_points_body_m._length);
+                    s.obstacle_points_body_m._length, extras);
   }
   void on_camera(std::int64_t receipt_ns, const hq::link::CameraFrame& f) override {
     model_.on_camera(receipt_ns, f.rgb_jpeg._buffer, f.rgb_jpeg._length, f.depth_preview._buffer,
@@ -109,6 +127,7 @@ class ModelFeed : public hq::ground::LinkObserver {
 
  private:
   hq::console::ConsoleModel& model_;
+  std::array<hq::console::MarkerView, hq::console::kMaxMarkerViews> markers_{};
 };
 
 std::string json_string(const std::string& text) {
@@ -138,6 +157,12 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                s.event_count);
   std::fprintf(f, "  \"position_W_m\": [%.3f, %.3f],\n",
                static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m));
+  std::fprintf(f,
+               "  \"position_from_vehicle\": %s,\n  \"position_states\": %llu,\n"
+               "  \"truth\": %s,\n  \"markers_latest\": %zu,\n  \"marker_detections\": %llu,\n",
+               s.position_from_vehicle ? "true" : "false",
+               static_cast<unsigned long long>(s.position_states), s.have_truth ? "true" : "false",
+               s.marker_count, static_cast<unsigned long long>(s.marker_detections));
   std::fprintf(f, "  \"vehicle_ids\": [");
   for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
     std::fprintf(f, "%s%u", i > 0 ? ", " : "", s.link.vehicle_ids[i]);
@@ -170,8 +195,10 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
 // returns its statistics. Requests go to `requests` for the flying thread.
 hq::console::WindowStats run_window(const Options& o, const std::string& title,
                                     hq::console::ConsoleModel& model, UiRequests& requests,
-                                    const std::atomic<bool>& done, hq::console::Snapshot& snap) {
+                                    const std::atomic<bool>& done, hq::console::Snapshot& snap,
+                                    hq::console::FlightKeys* flight_keys = nullptr) {
   hq::console::ConsoleWindow window(title, 1600, 960, o.max_fps);
+  window.set_flight_keys(flight_keys);
   const auto start = std::chrono::steady_clock::now();
   auto next_print = start + std::chrono::seconds(1);
   while (!g_stop && !done) {
@@ -319,8 +346,14 @@ int run(int argc, char** argv) {
   hq::haptics::DeviceOptions device_options;
   device_options.config = haptics;
   device_options.terminal_fd = STDIN_FILENO;
+  // Keyboard flying: from the console window's key events when it is open, from the terminal
+  // in raw mode when --headless.
+  hq::console::FlightKeys flight_keys;
+  const bool window_keyboard = o.device == "keyboard" && !o.headless;
   std::unique_ptr<hq::haptics::HapticDevice> device =
-      hq::haptics::open_device(o.device, device_options);
+      window_keyboard
+          ? std::make_unique<hq::ground::WindowKeyboardDevice>(haptics.keyboard, flight_keys)
+          : hq::haptics::open_device(o.device, device_options);
 
   std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
   if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
@@ -470,7 +503,8 @@ int run(int argc, char** argv) {
   } else {
     std::thread flying(fly);
     try {
-      window = run_window(o, "hq-ground: operator console", model, requests, flying_done, snap);
+      window = run_window(o, "hq-ground: operator console", model, requests, flying_done, snap,
+                          window_keyboard ? &flight_keys : nullptr);
     } catch (...) {
       flying_done = true;
       flying.join();

@@ -52,6 +52,15 @@ std::string json_text(const std::string& json, const std::string& key) {
   return std::regex_search(json, m, re) ? std::string(m[1]) : "";
 }
 
+// A boolean in the state JSON: 1 true, 0 false, -1 absent.
+int json_bool(const std::string& json, const std::string& key) {
+  std::string pattern = "\"";
+  pattern.append(key).append("\": (true|false)");
+  const std::regex re(pattern);
+  std::smatch m;
+  return std::regex_search(json, m, re) ? (m[1] == "true" ? 1 : 0) : -1;
+}
+
 class Process {
  public:
   Process(const std::vector<std::string>& args, const fs::path& output) {
@@ -139,6 +148,19 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   EXPECT_GT(json_number(json, "frames"), 50) << json;
   EXPECT_EQ(json_text(json, "mode_shown"), "teleop") << json;  // the scripted hand's request
   EXPECT_GT(json_number(json, "camera_width_px"), 0) << json;
+  // The state's position, marker and truth fields reach the console: the flags are shown, a
+  // position flag agrees with the count of states that carried one, and a marker count of the
+  // latest state within the link's bound.
+  const int from_vehicle = json_bool(json, "position_from_vehicle");
+  ASSERT_GE(from_vehicle, 0) << json;
+  if (from_vehicle == 1) {
+    EXPECT_GT(json_number(json, "position_states"), 0) << json;
+  }
+  EXPECT_GE(json_number(json, "position_states"), 0) << json;
+  EXPECT_GE(json_bool(json, "truth"), 0) << json;
+  EXPECT_GE(json_number(json, "markers_latest"), 0) << json;
+  EXPECT_LE(json_number(json, "markers_latest"), 16) << json;
+  EXPECT_GE(json_number(json, "marker_detections"), 0) << json;
   ASSERT_TRUE(fs::exists(shot));
   EXPECT_GT(fs::file_size(shot), 20'000U);  // a PNG of a 1600x960 console, not a blank
   std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(), json_number(json, "fps"));

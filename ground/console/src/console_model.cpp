@@ -44,10 +44,19 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
                             float pitch_rad, const std::array<float, 3>& v_obs_H_mps,
                             const char* mode, const char* estimator_health,
                             const char* link_health, const float* cloud_body_m,
-                            std::size_t cloud_points) {
+                            std::size_t cloud_points, const StateExtras& extras) {
   const std::lock_guard<std::mutex> lock(mutex_);
   const double t_s = seconds(t_ns);
-  if (have_state_ && t_ns > last_state_ns_) {
+  const bool position = extras.position_valid && std::isfinite(extras.p_W_m[0]) &&
+                        std::isfinite(extras.p_W_m[1]) && std::isfinite(extras.yaw_W_rad);
+  if (position) {
+    // The vehicle's own estimate replaces the dead reckoning, which carries on from it when
+    // the position drops out again.
+    x_W_m_ = extras.p_W_m[0];
+    y_W_m_ = extras.p_W_m[1];
+    yaw_W_rad_ = extras.yaw_W_rad;
+    ++position_states_;
+  } else if (have_state_ && t_ns > last_state_ns_) {
     // Dead reckoning for the top view (see the header): yaw from the gyro's z rate, then
     // v_W = R_z(yaw) v_H. A gap of more than a second is not bridged.
     const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - last_state_ns_), 1.0);
@@ -69,6 +78,13 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   p.yaw_rate_cmd_radps = yaw_rate_command_;
   p.yaw_rate_meas_radps = omega_body_radps[2];
   p.latency_ms = static_cast<float>(latency_ms);
+  p.truth_valid = extras.truth_valid;
+  p.v_truth_H_mps = extras.truth_valid ? extras.v_truth_H_mps : std::array<float, 3>{};
+  have_truth_ = have_truth_ || extras.truth_valid;
+  position_from_vehicle_ = position;
+  marker_count_ = extras.markers != nullptr ? std::min(extras.marker_count, markers_.size()) : 0;
+  std::copy_n(extras.markers, marker_count_, markers_.begin());
+  marker_detections_ += marker_count_;
   latest_ = p;
   ++plot_total_;
   track_[track_total_ % track_.size()] = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
@@ -171,6 +187,12 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.pitch_rad = pitch_rad_;
   out.yaw_W_rad = static_cast<float>(yaw_W_rad_);
   out.position_W = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
+  out.position_from_vehicle = position_from_vehicle_;
+  out.position_states = position_states_;
+  out.have_truth = have_truth_;
+  out.markers = markers_;
+  out.marker_count = marker_count_;
+  out.marker_detections = marker_detections_;
   out.latest = latest_;
   out.haptics = haptics_;
   out.link = link_;

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <thread>
 #include <vector>
 
@@ -29,6 +30,8 @@ constexpr ImU32 kEstimated = IM_COL32(60, 160, 255, 255);
 constexpr ImU32 kCommanded = IM_COL32(255, 170, 40, 255);
 constexpr ImU32 kObstacle = IM_COL32(255, 70, 70, 255);
 constexpr ImU32 kGrid = IM_COL32(90, 90, 90, 255);
+constexpr ImU32 kTruth = IM_COL32(120, 230, 120, 255);
+constexpr ImU32 kMarker = IM_COL32(255, 230, 0, 255);
 
 // One GL texture holding a decoded image.
 struct Texture {
@@ -115,11 +118,17 @@ void draw_plot(const char* title, const Snapshot& s, const Series* series, int s
   draw->PushClipRect(origin, corner, true);
   for (int k = 0; k < series_count; ++k) {
     // One vertex per sample; ImGui batches them into a single polyline.
-    ImVec2 previous(x_of(s.plot[first].t_s), y_of(series[k].value(s.plot[first])));
+    // A non-finite value (a sample without that series, e.g. no truth) breaks the line.
+    float previous_value = series[k].value(s.plot[first]);
+    ImVec2 previous(x_of(s.plot[first].t_s), y_of(previous_value));
     for (std::size_t i = first + 1; i < s.plot_count; ++i) {
-      const ImVec2 p(x_of(s.plot[i].t_s), y_of(series[k].value(s.plot[i])));
-      draw->AddLine(previous, p, series[k].colour, 1.5F);
+      const float value = series[k].value(s.plot[i]);
+      const ImVec2 p(x_of(s.plot[i].t_s), y_of(value));
+      if (std::isfinite(value) && std::isfinite(previous_value)) {
+        draw->AddLine(previous, p, series[k].colour, 1.5F);
+      }
       previous = p;
+      previous_value = value;
     }
   }
   draw->PopClipRect();
@@ -139,12 +148,38 @@ void arrow(ImDrawList* draw, ImVec2 from, ImVec2 v, ImU32 colour) {
 
 }  // namespace
 
+std::uint32_t flight_key_for_scancode(int sdl_scancode) {
+  switch (sdl_scancode) {
+    case SDL_SCANCODE_W:
+    case SDL_SCANCODE_UP:
+      return kKeyForward;
+    case SDL_SCANCODE_S:
+    case SDL_SCANCODE_DOWN:
+      return kKeyBack;
+    case SDL_SCANCODE_Q:
+    case SDL_SCANCODE_A:
+    case SDL_SCANCODE_LEFT:
+      return kKeyYawLeft;
+    case SDL_SCANCODE_E:
+    case SDL_SCANCODE_D:
+    case SDL_SCANCODE_RIGHT:
+      return kKeyYawRight;
+    case SDL_SCANCODE_PAGEUP:
+      return kKeyClimb;
+    case SDL_SCANCODE_PAGEDOWN:
+      return kKeyDescend;
+    default:
+      return 0;
+  }
+}
+
 struct ConsoleWindow::Impl {
   SDL_Window* window = nullptr;
   SDL_GLContext gl = nullptr;
   bool imgui_sdl = false;
   bool imgui_gl = false;
   double max_fps = 60;
+  FlightKeys* flight_keys = nullptr;
   Texture camera;
   Texture depth;
   cv::Mat decoded_bgr;
@@ -218,6 +253,21 @@ struct ConsoleWindow::Impl {
       overlay(s.latest.v_cmd_H_mps, kCommanded);
       overlay(s.latest.v_est_H_mps, kEstimated);
       overlay(s.latest.v_obs_H_mps, kObstacle);
+      // Detected markers, projected with a pinhole whose focal length fits the frame's width
+      // to a 60 deg field of view (the state carries poses, not the camera's intrinsics).
+      const float f_px = w / (2.0F * std::tan(0.5236F));
+      for (std::size_t i = 0; i < s.marker_count; ++i) {
+        const MarkerView& mk = s.markers[i];
+        if (!(mk.p_camera_marker_m[2] > 0.05F)) continue;
+        const ImVec2 c(origin.x + w / 2 + f_px * mk.p_camera_marker_m[0] / mk.p_camera_marker_m[2],
+                       origin.y + h / 2 + f_px * mk.p_camera_marker_m[1] / mk.p_camera_marker_m[2]);
+        const float r = std::clamp(f_px * 0.08F / mk.p_camera_marker_m[2], 6.0F, 80.0F);
+        draw->AddRect(ImVec2(c.x - r, c.y - r), ImVec2(c.x + r, c.y + r), kMarker, 0, 0, 2.0F);
+        char label[48];
+        std::snprintf(label, sizeof label, "id %d  %.2f m", mk.id,
+                      static_cast<double>(mk.p_camera_marker_m[2]));
+        draw->AddText(ImVec2(c.x - r, c.y - r - 16), kMarker, label);
+      }
       draw->AddText(ImVec2(origin.x + 6, origin.y + 4), IM_COL32(255, 255, 255, 255),
                     "arrows: lateral/vertical in H; rings: forward speed");
     }
@@ -237,15 +287,24 @@ struct ConsoleWindow::Impl {
     ImGui::SliderFloat("window s", &plot_window_s, 5.0F, 120.0F, "%.0f");
     const float h = std::max((ImGui::GetContentRegionAvail().y - 7 * 22) / 6, 40.0F);
     static const char* const kAxes[3] = {"v_x H [m/s]", "v_y H [m/s]", "v_z H [m/s]"};
-    static const Series kVx[2] = {
+    // Simulator truth is the third series, drawn only once some state carried it.
+    constexpr float kNone = std::numeric_limits<float>::quiet_NaN();
+    static const Series kVx[3] = {
         {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[0]; }},
-        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[0]; }}};
-    static const Series kVy[2] = {
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[0]; }},
+        {"truth (sim)", kTruth,
+         [](const PlotSample& p) { return p.truth_valid ? p.v_truth_H_mps[0] : kNone; }}};
+    static const Series kVy[3] = {
         {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[1]; }},
-        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[1]; }}};
-    static const Series kVz[2] = {
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[1]; }},
+        {"truth (sim)", kTruth,
+         [](const PlotSample& p) { return p.truth_valid ? p.v_truth_H_mps[1] : kNone; }}};
+    static const Series kVz[3] = {
         {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[2]; }},
-        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[2]; }}};
+        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[2]; }},
+        {"truth (sim)", kTruth,
+         [](const PlotSample& p) { return p.truth_valid ? p.v_truth_H_mps[2] : kNone; }}};
+    const int velocity_series = s.have_truth ? 3 : 2;
     static const Series kObs[3] = {
         {"x", kObstacle, [](const PlotSample& p) { return p.v_obs_H_mps[0]; }},
         {"y", IM_COL32(255, 140, 200, 255), [](const PlotSample& p) { return p.v_obs_H_mps[1]; }},
@@ -255,9 +314,9 @@ struct ConsoleWindow::Impl {
         {"commanded", kCommanded, [](const PlotSample& p) { return p.yaw_rate_cmd_radps; }}};
     static const Series kLatency[1] = {
         {"one way", IM_COL32(160, 220, 160, 255), [](const PlotSample& p) { return p.latency_ms; }}};
-    draw_plot(kAxes[0], s, kVx, 2, plot_window_s, h);
-    draw_plot(kAxes[1], s, kVy, 2, plot_window_s, h);
-    draw_plot(kAxes[2], s, kVz, 2, plot_window_s, h);
+    draw_plot(kAxes[0], s, kVx, velocity_series, plot_window_s, h);
+    draw_plot(kAxes[1], s, kVy, velocity_series, plot_window_s, h);
+    draw_plot(kAxes[2], s, kVz, velocity_series, plot_window_s, h);
     draw_plot("v_obs H [m/s]", s, kObs, 3, plot_window_s, h);
     draw_plot("yaw rate [rad/s]", s, kYaw, 2, plot_window_s, h);
     draw_plot("latency [ms]", s, kLatency, 1, plot_window_s, h);
@@ -266,7 +325,8 @@ struct ConsoleWindow::Impl {
   }
 
   void top_view_panel(const Snapshot& s) {
-    ImGui::Begin("Top view (dead-reckoned from v_H and gyro yaw)");
+    // A fixed window name (ImGui keys windows by it); what the track is comes in the text.
+    ImGui::Begin("Top view");
     ImDrawList* draw = ImGui::GetWindowDrawList();
     const ImVec2 origin = ImGui::GetCursorScreenPos();
     const ImVec2 size(std::max(ImGui::GetContentRegionAvail().x, 50.0F),
@@ -315,8 +375,10 @@ struct ConsoleWindow::Impl {
     arrow(draw, p, ImVec2(std::sin(s.yaw_W_rad) * 25, -std::cos(s.yaw_W_rad) * 25),
           IM_COL32(255, 255, 255, 255));
     draw->PopClipRect();
-    char text[96];
-    std::snprintf(text, sizeof text, "grid 1 m, north up; x %.2f m  y %.2f m  yaw %.0f deg",
+    char text[160];
+    std::snprintf(text, sizeof text, "%s; grid 1 m, north up; x %.2f m  y %.2f m  yaw %.0f deg",
+                  s.position_from_vehicle ? "vehicle position (marker filter)"
+                                          : "DEAD-RECKONED from v_H and gyro yaw (drifts)",
                   static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
                   static_cast<double>(s.yaw_W_rad) * 57.29578);
     draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
@@ -332,7 +394,7 @@ struct ConsoleWindow::Impl {
                 static_cast<double>(s.pitch_rad) * 57.29578);
     static const char* const kModes[5] = {"teleop", "hover", "land", "marker", "explore"};
     static const char* const kKeys[5] = {"teleop (T)", "hover (H)", "land (L)", "marker (M)",
-                                         "explore (E)"};
+                                         "explore (X)"};
     for (int i = 0; i < 5; ++i) {
       if (i > 0) ImGui::SameLine();
       const bool current = s.mode == kModes[i];
@@ -450,6 +512,7 @@ ConsoleWindow::ConsoleWindow(const std::string& title, int width_px, int height_
 }
 
 ConsoleWindow::~ConsoleWindow() {
+  if (impl_->flight_keys != nullptr) impl_->flight_keys->set_window_open(false);
   impl_->camera = Texture{};
   if (impl_->imgui_gl) ImGui_ImplOpenGL3_Shutdown();
   if (impl_->imgui_sdl) ImGui_ImplSDL2_Shutdown();
@@ -466,6 +529,19 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
   while (SDL_PollEvent(&event) != 0) {
     ImGui_ImplSDL2_ProcessEvent(&event);
     if (event.type == SDL_QUIT) actions.quit = true;
+    if (m.flight_keys != nullptr) {
+      // Key ups always count (a key released over a text field must not stay held).
+      const std::uint32_t key = event.type == SDL_KEYDOWN || event.type == SDL_KEYUP
+                                    ? flight_key_for_scancode(event.key.keysym.scancode)
+                                    : 0;
+      if (event.type == SDL_KEYUP) m.flight_keys->release(key);
+      if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard) {
+        m.flight_keys->press(key);
+      }
+      if (event.type == SDL_WINDOWEVENT && event.window.event == SDL_WINDOWEVENT_FOCUS_LOST) {
+        m.flight_keys->release_all();
+      }
+    }
     if (event.type == SDL_KEYDOWN && event.key.repeat == 0 &&
         !ImGui::GetIO().WantCaptureKeyboard) {
       switch (event.key.keysym.sym) {
@@ -473,7 +549,7 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
         case SDLK_h: actions.mode_request = "hover"; break;
         case SDLK_l: actions.mode_request = "land"; break;
         case SDLK_m: actions.mode_request = "marker"; break;
-        case SDLK_e: actions.mode_request = "explore"; break;
+        case SDLK_x: actions.mode_request = "explore"; break;
         case SDLK_ESCAPE: actions.quit = true; break;
         default: break;
       }
@@ -551,6 +627,12 @@ void ConsoleWindow::save_screenshot(const Snapshot& s, const std::string& path) 
   cv::flip(bgr, bgr, 0);  // GL rows start at the bottom
   impl_->pixels.clear();
   if (!cv::imwrite(path, bgr)) throw InputError(path + ": cannot write the screenshot (PNG)");
+}
+
+void ConsoleWindow::set_flight_keys(FlightKeys* keys) {
+  if (impl_->flight_keys != nullptr) impl_->flight_keys->set_window_open(false);
+  impl_->flight_keys = keys;
+  if (keys != nullptr) keys->set_window_open(true);
 }
 
 WindowStats ConsoleWindow::stats() const {

@@ -62,6 +62,7 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   link::reserve(state_->obstacle_points_body_m,
                 static_cast<std::uint32_t>(options_.max_obstacle_points));
   cloud_world_m_.resize(static_cast<std::size_t>(options_.max_obstacle_points));
+  link::reserve(state_->markers, hq_msgs_kMaxMarkersInState);
   link::reserve(camera_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   camera_->vehicle_id = link_.vehicle_id;
   state_->vehicle_id = link_.vehicle_id;
@@ -201,6 +202,14 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out,
     last_cloud_size_ = static_cast<int>(count);
     ++clouds_sent_;
   }
+  // Position, markers and truth need inputs the chain's output does not carry (the marker
+  // stage, the simulator); until they are passed in they go out flagged absent.
+  s.position_valid = false;
+  s.p_W_m = {0.0F, 0.0F, 0.0F};
+  s.yaw_W_rad = 0.0F;
+  s.markers._length = 0;
+  s.truth_valid = false;
+  s.v_truth_H_mps = {0.0F, 0.0F, 0.0F};
   state_writer_.write(s);
 }
 

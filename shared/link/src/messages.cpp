@@ -80,6 +80,27 @@ Validation validate(const VehicleState& state) {
       return {false, "obstacle_points_body_m has a NaN or Inf point"};
     }
   }
+  // Absent estimates travel as zeros, so these are finite whatever the flags say.
+  if (!finite(state.p_W_m) || !std::isfinite(state.yaw_W_rad)) {
+    return {false, "p_W_m or yaw_W_rad is NaN or Inf"};
+  }
+  if (!finite(state.v_truth_H_mps)) return {false, "v_truth_H_mps is NaN or Inf"};
+  if (state.markers._length > hq_msgs_kMaxMarkersInState) {
+    return {false, "markers longer than kMaxMarkersInState"};
+  }
+  for (std::uint32_t i = 0; i < state.markers._length; ++i) {
+    const hq_msgs_MarkerInCamera& m = state.markers._buffer[i];
+    if (m.id < 0) return {false, "markers has a negative id"};
+    const hq_msgs_Quaternionf& q = m.q_camera_marker;
+    if (!finite(m.p_camera_marker_m) || !std::isfinite(q.w) || !std::isfinite(q.x) ||
+        !std::isfinite(q.y) || !std::isfinite(q.z)) {
+      return {false, "markers has a NaN or Inf pose"};
+    }
+    // A detected marker is in front of the camera, and its rotation a unit quaternion.
+    if (!(m.p_camera_marker_m.z > 0.0F)) return {false, "markers has a pose behind the camera"};
+    const float norm2 = q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z;
+    if (std::abs(norm2 - 1.0F) > 1e-3F) return {false, "markers has a non-unit quaternion"};
+  }
   return kOk;
 }
 

@@ -6,9 +6,11 @@
 /// haptic loop's feedback) is never held up by rendering or JPEG decoding.
 ///
 /// Frames: H is the core paper's horizontal NED frame (eq. 5), which turns with the heading;
-/// W is a world frame fixed at the first state (NED, heading 0 there). The top view integrates
-/// p_W += R_z(yaw) v_H dt with yaw integrated from the gyro's z rate, because VehicleState
-/// carries no position (a dead-reckoned track: it drifts, and says so on screen).
+/// W is a world frame fixed at the first state (NED, heading 0 there). While the vehicle sends
+/// no position, the top view integrates p_W += R_z(yaw) v_H dt with yaw integrated from the
+/// gyro's z rate (a dead-reckoned track: it drifts, and says so on screen). Once the vehicle
+/// sends its position (the marker filter's, in the marker map's W) the track and the cloud
+/// follow that, and the view says which one it shows.
 
 #include <array>
 #include <cstdint>
@@ -27,6 +29,28 @@ struct PlotSample {
   float yaw_rate_cmd_radps = 0;
   float yaw_rate_meas_radps = 0;  ///< Gyro z (FRD).
   float latency_ms = 0;
+  bool truth_valid = false;            ///< Simulator truth present in this sample.
+  std::array<float, 3> v_truth_H_mps{};  ///< Simulator truth velocity in H.
+};
+
+/// A marker detected in the latest frame, its pose in the camera (optical) frame.
+struct MarkerView {
+  std::int32_t id = -1;
+  std::array<float, 3> p_camera_marker_m{};
+  std::array<float, 4> q_camera_marker{1, 0, 0, 0};  ///< w, x, y, z.
+};
+
+inline constexpr std::size_t kMaxMarkerViews = 16;  ///< hq_msgs_kMaxMarkersInState.
+
+/// What a vehicle state carries beyond the velocity: position, markers, simulator truth.
+struct StateExtras {
+  bool position_valid = false;  ///< False: the top view dead-reckons.
+  std::array<float, 3> p_W_m{};
+  float yaw_W_rad = 0;
+  const MarkerView* markers = nullptr;  ///< marker_count of them (more are dropped).
+  std::size_t marker_count = 0;
+  bool truth_valid = false;
+  std::array<float, 3> v_truth_H_mps{};
 };
 
 struct TrackPoint {
@@ -95,6 +119,12 @@ struct Snapshot {
   float pitch_rad = 0;
   float yaw_W_rad = 0;
   TrackPoint position_W{};
+  bool position_from_vehicle = false;  ///< position_W is the vehicle's estimate, not ours.
+  std::uint64_t position_states = 0;   ///< States that carried a position.
+  bool have_truth = false;             ///< Some state carried simulator truth.
+  std::array<MarkerView, kMaxMarkerViews> markers{};  ///< Of the latest state.
+  std::size_t marker_count = 0;
+  std::uint64_t marker_detections = 0;  ///< Markers in all states so far.
   PlotSample latest{};
   HapticState haptics{};
   LinkHealth link{};
@@ -120,7 +150,7 @@ class ConsoleModel {
                 const std::array<float, 3>& omega_body_radps, float roll_rad, float pitch_rad,
                 const std::array<float, 3>& v_obs_H_mps, const char* mode,
                 const char* estimator_health, const char* link_health, const float* cloud_body_m,
-                std::size_t cloud_points);
+                std::size_t cloud_points, const StateExtras& extras = StateExtras{});
   void on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps, float yaw_rate_radps);
   void on_event(std::int64_t t_ns, int severity, const char* text);
   /// Copies the bytes (truncated to the capacity, which the link's bounds match).
@@ -161,6 +191,12 @@ class ConsoleModel {
   double yaw_W_rad_ = 0;
   double x_W_m_ = 0;
   double y_W_m_ = 0;
+  bool position_from_vehicle_ = false;
+  std::uint64_t position_states_ = 0;
+  bool have_truth_ = false;
+  std::array<MarkerView, kMaxMarkerViews> markers_{};
+  std::size_t marker_count_ = 0;
+  std::uint64_t marker_detections_ = 0;
   bool have_state_ = false;
   const char* mode_ = "-";  ///< Static strings (to_string of the link's enums).
   const char* estimator_health_ = "-";

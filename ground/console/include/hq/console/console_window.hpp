@@ -7,9 +7,11 @@
 /// Panels: camera (decoded JPEG, depth preview, overlays of v_obs, commanded and estimated
 /// velocity), time plots in the manner of Fig. 6-8 of the core paper, haptic device, top view,
 /// modes, vehicle selector, link health, event log. Shortcuts (when no text field has focus):
-/// T teleop, H hover, L land, M marker, E explore, Esc quit.
+/// T teleop, H hover, L land, M marker, X explore, Esc quit; with set_flight_keys(), the flying
+/// keys of flight_keys.hpp (W/S, Q/E, A/D, arrows, page up/down) are held into FlightKeys.
 
 #include "hq/console/console_model.hpp"
+#include "hq/console/flight_keys.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -39,6 +41,10 @@ struct WindowStats {
   std::string gl_renderer;
 };
 
+/// The FlightKey bit of an SDL scancode (SDL_Scancode, by physical position, so WASD stays put
+/// on other layouts), 0 for keys that do not fly.
+std::uint32_t flight_key_for_scancode(int sdl_scancode);
+
 class ConsoleWindow {
  public:
   /// Opens the window. @throws hq::InputError naming the SDL call that failed (no display...).
@@ -53,6 +59,9 @@ class ConsoleWindow {
   /// swap) as PNG. @throws hq::InputError if the file cannot be written.
   void save_screenshot(const Snapshot& s, const std::string& path);
   [[nodiscard]] WindowStats stats() const;
+  /// Holds the flying keys into `keys` (not owned; null stops), marks it open until this
+  /// window closes, and releases every key when the window loses the focus.
+  void set_flight_keys(FlightKeys* keys);
 
  private:
   struct Impl;
