@@ -155,6 +155,11 @@ void request_stop(int /*signal*/) { g_stop = true; }
 class LinkOperator final : public hq::closed_loop::OperatorSource {
  public:
   LinkOperator(hq::link_bridge::LinkBridge& bridge, std::FILE* log) : bridge_(bridge), log_(log) {}
+  /// The chain whose obstacle memory goes to the ground with the state (set once it exists).
+  void set_chain(const hq::pipeline::OnboardChain* chain, const Eigen::Isometry3d& T_body_camera) {
+    chain_ = chain;
+    T_camera_body_ = T_body_camera.inverse();
+  }
 
   hq::modes::OperatorCommand poll(std::int64_t t_ns,
                                   std::vector<hq::modes::Mode>& mode_requests) override {
@@ -178,7 +183,14 @@ class LinkOperator final : public hq::closed_loop::OperatorSource {
   }
   void on_output(const hq::pipeline::ChainOutput& out,
                  const hq::sim::TruthState& truth) override {
-    bridge_.publish_state(out);
+    hq::link_bridge::ObstacleCloudSource cloud;
+    if (chain_ != nullptr && chain_->config().memory.enabled) {
+      if (const auto T_world_camera = chain_->memory().T_world_camera()) {
+        cloud.memory = &chain_->memory();
+        cloud.T_world_body = *T_world_camera * T_camera_body_;
+      }
+    }
+    bridge_.publish_state(out, cloud);
     if (log_ == nullptr) return;
     const hq::link_bridge::FailsafeState& f = bridge_.failsafe().state();
     const hq::link_bridge::FailsafeCounters& c = bridge_.failsafe().counters();
@@ -205,6 +217,8 @@ class LinkOperator final : public hq::closed_loop::OperatorSource {
  private:
   hq::link_bridge::LinkBridge& bridge_;
   std::FILE* log_;
+  const hq::pipeline::OnboardChain* chain_ = nullptr;
+  Eigen::Isometry3d T_camera_body_ = Eigen::Isometry3d::Identity();
 };
 
 int run_sim_link(const Options& o) {
@@ -250,6 +264,11 @@ int run_sim_link(const Options& o) {
       sim_config, world, config, vehicle,
       hq::closed_loop::OperatorPlayer(script, hq::closed_loop::camera_heading_rad(vehicle.R_body_camera)),
       options);
+  // The vehicle's own extrinsics (not the simulator's truth) place the cloud in the body.
+  Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
+  T_body_camera.linear() = vehicle.R_body_camera;
+  T_body_camera.translation() = vehicle.p_body_camera_m;
+  source.set_chain(&loop.chain(), T_body_camera);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,

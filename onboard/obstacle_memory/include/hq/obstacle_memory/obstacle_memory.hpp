@@ -18,6 +18,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -94,6 +95,10 @@ class ObstacleMemory {
 
   [[nodiscard]] int size() const { return static_cast<int>(entries_.size()); }
   [[nodiscard]] std::int64_t clear_count() const { return clear_count_; }
+  /// The camera pose of the last accepted update (what the map is relative to), if any.
+  [[nodiscard]] std::optional<Eigen::Isometry3d> T_world_camera() const {
+    return have_pose_ ? std::optional<Eigen::Isometry3d>(T_world_camera_prev_) : std::nullopt;
+  }
   [[nodiscard]] const MemoryConfig& config() const { return config_; }
 
   /// Bytes held by the map and its buffers (constant after construction).
