@@ -1,0 +1,246 @@
+// hq-onboard in simulation: the closed loop flown by a scripted operator on simulated time
+// (--source sim), or paced to wall time and flown by a ground station over DDS (--link).
+
+#include "onboard_runs.hpp"
+
+#include "hq/base/error.hpp"
+#include "hq/closed_loop/closed_loop.hpp"
+#include "hq/closed_loop/flight_summary.hpp"
+#include "hq/control/vehicle_config.hpp"
+#include "hq/link/config.hpp"
+#include "hq/link_bridge/link_bridge.hpp"
+#include "hq/pipeline/stage_timing.hpp"
+#include "hq/sim/simulator.hpp"
+#include "hq/sim/world.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hq::onboard_app {
+
+namespace {
+
+// The DDS link as the closed loop's operator: commands and mode requests through the fail-safes,
+// vehicle state and camera frames back, one log row per control step.
+class LinkOperator final : public hq::closed_loop::OperatorSource {
+ public:
+  LinkOperator(hq::link_bridge::LinkBridge& bridge, std::FILE* log) : bridge_(bridge), log_(log) {}
+  /// The chain whose obstacle memory goes to the ground with the state (set once it exists).
+  void set_chain(const hq::pipeline::OnboardChain* chain, const Eigen::Isometry3d& T_body_camera) {
+    chain_ = chain;
+    T_camera_body_ = T_body_camera.inverse();
+  }
+
+  hq::modes::OperatorCommand poll(std::int64_t t_ns,
+                                  std::vector<hq::modes::Mode>& mode_requests) override {
+    const hq::link_bridge::FailsafeState& state = bridge_.poll(t_ns, mode_requests);
+    // Fail-safe transitions, at the control tick they happen (the log has a row per frame).
+    if (state.hold_started) {
+      std::printf("hq-onboard: t %.3f s: fail-safe hold, command age %.1f ms\n",
+                  1e-9 * static_cast<double>(t_ns),
+                  1e-6 * static_cast<double>(state.command_age_ns));
+    }
+    if (state.request_land) {
+      std::printf("hq-onboard: t %.3f s: fail-safe land, heartbeat age %.1f ms\n",
+                  1e-9 * static_cast<double>(t_ns),
+                  1e-6 * static_cast<double>(state.heartbeat_age_ns));
+    }
+    return state.command;
+  }
+  void on_mode_result(std::int64_t t_ns, hq::modes::Mode mode,
+                      const hq::modes::ModeSwitch& result) override {
+    bridge_.acknowledge(t_ns, mode, result);
+  }
+  void on_output(const hq::pipeline::ChainOutput& out,
+                 const hq::sim::TruthState& truth) override {
+    hq::link_bridge::ObstacleCloudSource cloud;
+    if (chain_ != nullptr && chain_->config().memory.enabled) {
+      if (const auto T_world_camera = chain_->memory().T_world_camera()) {
+        cloud.memory = &chain_->memory();
+        cloud.T_world_body = *T_world_camera * T_camera_body_;
+      }
+    }
+    bridge_.publish_state(out, cloud);
+    if (log_ == nullptr) return;
+    const hq::link_bridge::FailsafeState& f = bridge_.failsafe().state();
+    const hq::link_bridge::FailsafeCounters& c = bridge_.failsafe().counters();
+    const Eigen::Vector3d& v = f.command.v_horizontal_mps;
+    std::fprintf(log_,
+                 "%.4f,%s,%d,%d,%.2f,%.2f,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,"
+                 "%llu,%llu,%llu\n",
+                 1e-9 * static_cast<double>(out.t_ns), hq::modes::to_string(out.mode.mode),
+                 out.mode.landed ? 1 : 0, truth.on_ground ? 0 : 1,
+                 f.command_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.command_age_ns),
+                 f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
+                 f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
+                 f.command.yaw_rate_radps, truth.v_horizontal_mps.x(),
+                 truth.v_horizontal_mps.y(), truth.v_horizontal_mps.z(),
+                 truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
+                 out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
+                 static_cast<unsigned long long>(c.commands_rejected),
+                 static_cast<unsigned long long>(c.mode_requests_rejected));
+  }
+  void on_camera(std::int64_t t_ns, const cv::Mat& image) override {
+    bridge_.publish_camera(t_ns, image);
+  }
+
+ private:
+  hq::link_bridge::LinkBridge& bridge_;
+  std::FILE* log_;
+  const hq::pipeline::OnboardChain* chain_ = nullptr;
+  Eigen::Isometry3d T_camera_body_ = Eigen::Isometry3d::Identity();
+};
+
+}  // namespace
+
+int run_sim_link(const Options& o) {
+  if (o.world_path.empty()) throw hq::InputError("--source sim --link needs --world <world.yaml>");
+  const hq::sim::World world = hq::sim::load_world(o.world_path);
+  hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
+  hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
+  sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
+  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  hq::link::LinkConfig link = o.link_config_path.empty()
+                                  ? hq::link::LinkConfig{}
+                                  : hq::link::load_link_config(o.link_config_path);
+  hq::link::apply_overrides(o.link_overrides, link);
+  hq::link_bridge::FailsafeConfig failsafe;
+  failsafe.vehicle_id = link.vehicle_id;
+  failsafe.envelope = link.envelope;
+  failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
+  failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
+  hq::link_bridge::BridgeOptions bridge_options;
+  bridge_options.camera_rate_hz = o.camera_rate_hz;
+  hq::link_bridge::LinkBridge bridge(link, failsafe, bridge_options);
+
+  std::FILE* log = nullptr;
+  if (!o.link_log_path.empty()) {
+    log = std::fopen(o.link_log_path.c_str(), "w");
+    if (!log) throw hq::InputError(o.link_log_path + ": cannot open for writing");
+    // Line-buffered: a row per frame is cheap, and tests follow the flight while it happens.
+    std::setvbuf(log, nullptr, _IOLBF, 0);
+    std::fprintf(log,
+                 "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
+                 "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"
+                 "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
+                 "commands_rejected,mode_requests_rejected\n");
+  }
+  LinkOperator source(bridge, log);
+  hq::closed_loop::OperatorScript script;
+  script.end_s = o.duration_s;
+  hq::closed_loop::ClosedLoopOptions options;
+  options.operator_source = &source;
+  options.realtime = true;
+  hq::closed_loop::ClosedLoop loop(
+      sim_config, world, config, vehicle,
+      hq::closed_loop::OperatorPlayer(script, hq::closed_loop::camera_heading_rad(vehicle.R_body_camera)),
+      options);
+  // The vehicle's own extrinsics (not the simulator's truth) place the cloud in the body.
+  Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
+  T_body_camera.linear() = vehicle.R_body_camera;
+  T_body_camera.translation() = vehicle.p_body_camera_m;
+  source.set_chain(&loop.chain(), T_body_camera);
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  std::fprintf(stderr,
+               "hq-onboard: simulated %s over the link: domain %d, vehicle %u, %.1f s, command "
+               "timeout %.0f ms, heartbeat timeout %.0f ms\n",
+               world.name.c_str(), link.domain_id, link.vehicle_id, o.duration_s,
+               o.command_timeout_ms, o.heartbeat_timeout_ms);
+  double t_s = 0.0;
+  while (t_s < o.duration_s && !g_stop) {
+    t_s = std::min(o.duration_s, t_s + 0.1);
+    loop.run_until(t_s);
+  }
+  if (log && std::fclose(log) != 0) throw hq::InputError(o.link_log_path + ": write failed");
+
+  const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
+  hq::closed_loop::print_summary(stdout, "flight summary over the link (" + world.name + ")",
+                                 summary);
+  const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
+  const bool landed = !loop.samples().empty() && loop.samples().back().landed;
+  const bool on_ground = loop.simulator().truth().on_ground;
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
+              static_cast<unsigned long long>(c.commands_accepted),
+              static_cast<unsigned long long>(c.commands_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
+              static_cast<unsigned long long>(c.mode_requests_accepted),
+              static_cast<unsigned long long>(c.mode_requests_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats",
+              static_cast<unsigned long long>(c.heartbeats_accepted),
+              static_cast<unsigned long long>(c.heartbeats_rejected));
+  std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes",
+              static_cast<unsigned long long>(c.holds),
+              static_cast<unsigned long long>(c.land_requests));
+  std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
+              static_cast<unsigned long long>(bridge.states_sent()),
+              static_cast<unsigned long long>(bridge.camera_frames_sent()),
+              static_cast<unsigned long long>(bridge.events_sent()));
+  std::printf("  %-40s %.1f ms\n", "largest lag behind real time", 1e3 * loop.max_realtime_lag_s());
+  std::printf("  %-40s %s (vehicle believes %s)\n", "final state", on_ground ? "on the ground" : "in the air",
+              landed ? "landed, motors idle" : "flying");
+  for (const std::string& refusal : loop.refusals()) {
+    std::printf("  mode request refused at %s\n", refusal.c_str());
+  }
+  return summary.collision_ticks == 0 ? 0 : 3;
+}
+
+int run_sim(const Options& o) {
+  if (o.world_path.empty() || o.script_path.empty()) {
+    throw hq::InputError("--source sim needs --world <world.yaml> and --script <timeline.yaml>");
+  }
+  const hq::sim::World world = hq::sim::load_world(o.world_path);
+  hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
+  hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
+  sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
+  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(o.script_path),
+                                         hq::closed_loop::camera_heading_rad(vehicle.R_body_camera));
+  const SteadyClock clock;
+  hq::closed_loop::ClosedLoopOptions options;
+  options.clock = &clock;
+  hq::closed_loop::ClosedLoop loop(sim_config, world, config, vehicle, std::move(player), options);
+  std::fprintf(stderr, "hq-onboard: simulated %s, %dx%d, seed %llu, script %s (%.1f s)\n",
+               world.name.c_str(), sim_config.camera.pinhole.width,
+               sim_config.camera.pinhole.height, static_cast<unsigned long long>(sim_config.seed),
+               o.script_path.c_str(), loop.player().script().end_s);
+  const auto wall_start = std::chrono::steady_clock::now();
+  loop.run();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
+  hq::closed_loop::print_summary(stdout, "flight summary (" + world.name + ")", summary);
+  std::printf("  %-40s %s\n", "obstacle memory (outside the view)",
+              config.memory.enabled ? "on" : "off");
+  std::printf("  %-40s %.1fx real time (%.1f s wall)\n", "simulation speed",
+              summary.duration_s / std::max(wall_s, 1e-9), wall_s);
+  for (const std::string& refusal : loop.refusals()) {
+    std::printf("  mode request refused at %s\n", refusal.c_str());
+  }
+  std::printf("per-stage time from frame arrival to setpoint:\n");
+  loop.timing().print(stdout);
+  if (!o.save_map_path.empty()) {
+    // Issue 10: the obstacle memory's map at the end of the flight (points in the world of the
+    // odometry), for PCL's viewers and CloudCompare.
+    loop.chain().memory().save(o.save_map_path);
+    std::printf("obstacle memory map (%d points) written to %s\n", loop.chain().memory().size(),
+                o.save_map_path.c_str());
+  }
+  if (!o.csv_path.empty()) {
+    hq::closed_loop::write_figure_csv(o.csv_path, loop.samples());
+    std::printf("Fig. 6-8 signals written to %s\n", o.csv_path.c_str());
+  }
+  return summary.collision_ticks == 0 ? 0 : 3;
+}
+
+}  // namespace hq::onboard_app
