@@ -124,7 +124,11 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
     replay_vehicle.R_body_camera = R_body_camera_for_camera_as_body();
     replay_vehicle.p_body_camera_m.setZero();
   }
-  OnboardChain chain(config, replay_vehicle, source.camera());
+  // A recording is replayed from its first frame in motion (hand-held or in flight): never a
+  // vehicle resting on the floor with its motors idle.
+  OnboardConfig in_motion = config;
+  in_motion.modes.start_landed = false;
+  OnboardChain chain(in_motion, replay_vehicle, source.camera());
   std::size_t next_imu = 0;
   sources::RgbdFrame frame;
   while (source.next(frame) == sources::FrameStatus::kFrame) {
