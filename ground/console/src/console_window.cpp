@@ -17,6 +17,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -59,6 +61,129 @@ struct Texture {
   ~Texture() {
     if (id != 0) glDeleteTextures(1, &id);
   }
+};
+
+// JPEG (and depth preview) decoding on its own thread into a double buffer: the UI thread
+// submits the latest bytes (a copy into a buffer sized once) and uploads the newest finished
+// image; the decoder writes only the buffer the UI is not allowed to read. A frame submitted
+// while another decodes replaces any still waiting (the newest is the one worth showing).
+class FrameDecoder {
+ public:
+  FrameDecoder() : worker_([this] { run(); }) {}
+  ~FrameDecoder() {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_one();
+    worker_.join();
+  }
+  FrameDecoder(const FrameDecoder&) = delete;
+  FrameDecoder& operator=(const FrameDecoder&) = delete;
+
+  void submit(std::uint64_t sequence, const std::uint8_t* jpeg, std::size_t jpeg_size,
+              const std::uint8_t* depth, std::size_t depth_size) {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (pending_jpeg_.size() < jpeg_size) pending_jpeg_.resize(jpeg_size);  // first frames
+      if (pending_depth_.size() < depth_size) pending_depth_.resize(depth_size);
+      std::copy_n(jpeg, jpeg_size, pending_jpeg_.begin());
+      std::copy_n(depth, depth_size, pending_depth_.begin());
+      pending_jpeg_size_ = jpeg_size;
+      pending_depth_size_ = depth_size;
+      pending_sequence_ = sequence;
+    }
+    wake_.notify_one();
+  }
+
+  // UI thread (GL context): uploads the newest decoded frame if it is not `uploaded` yet.
+  void upload_latest(std::uint64_t& uploaded, Texture& camera, Texture& depth,
+                     WindowStats& stats) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    stats.camera_frames_decoded = frames_decoded_;
+    stats.camera_decode_failures = decode_failures_;
+    stats.depth_frames_decoded = depth_decoded_;
+    if (ready_ < 0 || ready_sequence_ == uploaded) return;
+    uploaded = ready_sequence_;
+    const Slot& slot = slots_[static_cast<std::size_t>(ready_)];
+    camera.upload(slot.rgb);
+    stats.camera_width_px = slot.rgb.cols;
+    stats.camera_height_px = slot.rgb.rows;
+    if (slot.has_depth) depth.upload(slot.depth_rgb);
+  }
+
+ private:
+  struct Slot {
+    cv::Mat rgb;
+    cv::Mat depth_rgb;
+    bool has_depth = false;
+  };
+
+  void run() {
+    std::vector<std::uint8_t> jpeg;
+    std::vector<std::uint8_t> depth;
+    cv::Mat bgr;
+    for (;;) {
+      std::uint64_t sequence = 0;
+      std::size_t jpeg_size = 0;
+      std::size_t depth_size = 0;
+      int back = 0;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [this] { return stop_ || pending_sequence_ != taken_sequence_; });
+        if (stop_) return;
+        taken_sequence_ = pending_sequence_;
+        sequence = pending_sequence_;
+        jpeg.swap(pending_jpeg_);
+        depth.swap(pending_depth_);
+        jpeg_size = pending_jpeg_size_;
+        depth_size = pending_depth_size_;
+        back = ready_ == 0 ? 1 : 0;
+      }
+      Slot& slot = slots_[static_cast<std::size_t>(back)];
+      const cv::Mat bytes(1, static_cast<int>(jpeg_size), CV_8UC1, jpeg.data());
+      cv::imdecode(bytes, cv::IMREAD_COLOR, &bgr);
+      const bool ok = !bgr.empty();
+      if (ok) cv::cvtColor(bgr, slot.rgb, cv::COLOR_BGR2RGB);
+      slot.has_depth = false;
+      if (ok && depth_size > 0) {
+        const cv::Mat dbytes(1, static_cast<int>(depth_size), CV_8UC1, depth.data());
+        cv::imdecode(dbytes, cv::IMREAD_COLOR, &bgr);
+        if (!bgr.empty()) {
+          cv::cvtColor(bgr, slot.depth_rgb, cv::COLOR_BGR2RGB);
+          slot.has_depth = true;
+        }
+      }
+      // The two byte buffers alternate between submit() and this thread; once both reached
+      // the frame size nothing is allocated.
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (!ok) {
+        ++decode_failures_;
+        continue;
+      }
+      ++frames_decoded_;
+      if (slot.has_depth) ++depth_decoded_;
+      ready_ = back;
+      ready_sequence_ = sequence;
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::vector<std::uint8_t> pending_jpeg_;
+  std::vector<std::uint8_t> pending_depth_;
+  std::size_t pending_jpeg_size_ = 0;
+  std::size_t pending_depth_size_ = 0;
+  std::uint64_t pending_sequence_ = 0;
+  std::uint64_t taken_sequence_ = 0;
+  std::array<Slot, 2> slots_;
+  int ready_ = -1;
+  std::uint64_t ready_sequence_ = 0;
+  std::uint64_t frames_decoded_ = 0;
+  std::uint64_t decode_failures_ = 0;
+  std::uint64_t depth_decoded_ = 0;
+  std::thread worker_;  ///< Last: starts once everything above exists.
 };
 
 ImTextureID texture_id(GLuint id) {
@@ -182,11 +307,9 @@ struct ConsoleWindow::Impl {
   FlightKeys* flight_keys = nullptr;
   Texture camera;
   Texture depth;
-  cv::Mat decoded_bgr;
-  cv::Mat decoded_rgb;
-  cv::Mat depth_bgr;
-  cv::Mat depth_rgb;
-  std::uint64_t decoded_sequence = 0;
+  FrameDecoder decoder;
+  std::uint64_t submitted_sequence = 0;
+  std::uint64_t uploaded_sequence = 0;
   Clock::time_point first_frame{};
   Clock::time_point next_frame{};
   std::array<float, 256> render_ms{};
@@ -194,32 +317,14 @@ struct ConsoleWindow::Impl {
   std::vector<std::uint8_t> pixels;
   float plot_window_s = 20.0F;
 
+  // Hands a new frame's bytes to the decoder thread, and uploads whatever it finished since;
+  // the UI thread does only the copy and the texture upload, never the JPEG decode.
   void decode(const Snapshot& s) {
-    if (s.camera_sequence == decoded_sequence || s.jpeg_size == 0) return;
-    decoded_sequence = s.camera_sequence;
-    // A header over the snapshot's bytes: no copy; imdecode reuses decoded_bgr's buffer.
-    const cv::Mat bytes(1, static_cast<int>(s.jpeg_size), CV_8UC1,
-                        const_cast<std::uint8_t*>(s.jpeg.data()));
-    cv::imdecode(bytes, cv::IMREAD_COLOR, &decoded_bgr);
-    if (decoded_bgr.empty()) {
-      ++stats.camera_decode_failures;
-    } else {
-      cv::cvtColor(decoded_bgr, decoded_rgb, cv::COLOR_BGR2RGB);
-      camera.upload(decoded_rgb);
-      ++stats.camera_frames_decoded;
-      stats.camera_width_px = decoded_rgb.cols;
-      stats.camera_height_px = decoded_rgb.rows;
+    if (s.camera_sequence != submitted_sequence && s.jpeg_size > 0) {
+      submitted_sequence = s.camera_sequence;
+      decoder.submit(s.camera_sequence, s.jpeg.data(), s.jpeg_size, s.depth.data(), s.depth_size);
     }
-    if (s.depth_size > 0) {
-      const cv::Mat dbytes(1, static_cast<int>(s.depth_size), CV_8UC1,
-                           const_cast<std::uint8_t*>(s.depth.data()));
-      cv::imdecode(dbytes, cv::IMREAD_COLOR, &depth_bgr);
-      if (!depth_bgr.empty()) {
-        cv::cvtColor(depth_bgr, depth_rgb, cv::COLOR_BGR2RGB);
-        depth.upload(depth_rgb);
-        ++stats.depth_frames_decoded;
-      }
-    }
+    decoder.upload_latest(uploaded_sequence, camera, depth, stats);
   }
 
   void camera_panel(const Snapshot& s) {
