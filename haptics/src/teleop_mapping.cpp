@@ -1,20 +1,17 @@
 #include "hq/haptics/teleop_mapping.hpp"
 
 #include "hq/base/error.hpp"
-
-#include <Eigen/LU>
+#include "hq/geometry/camera_mount.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <sstream>
 
 namespace hq::haptics {
 namespace {
 
 // A camera whose viewing direction has less horizontal extent than this (about 3 deg from
 // vertical) has no meaningful forward direction for eq. 9.
-constexpr double kMinHorizontalViewing = 0.05;
 
 double dead_band(double p_m, double band_m) {
   const double magnitude = std::max(std::abs(p_m) - band_m, 0.0);
@@ -37,29 +34,11 @@ double clamp_symmetric(double value, double limit, bool& saturated) {
 
 TeleopMapping::TeleopMapping(const MappingConfig& config, const Eigen::Matrix3d& R_body_camera)
     : config_(config) {
-  const bool is_rotation =
-      R_body_camera.allFinite() &&
-      (R_body_camera.transpose() * R_body_camera - Eigen::Matrix3d::Identity()).norm() < 1e-6 &&
-      R_body_camera.determinant() > 0.0;
-  if (!is_rotation) {
-    std::ostringstream message;
-    message << "haptics: R_body_camera is not a rotation matrix: [" << R_body_camera.row(0) << "; "
-            << R_body_camera.row(1) << "; " << R_body_camera.row(2) << "]";
-    throw InputError(message.str());
+  try {
+    alpha_rad_ = geometry::camera_heading_rad(R_body_camera);  // eq. 9
+  } catch (const InputError& e) {
+    throw InputError(std::string("haptics: ") + e.what());
   }
-  // Eq. 9 takes (r11, r21) of R_QC for a camera frame whose x axis looks forward. Our R_QC is
-  // optical (z forward, hq::control::VehicleConfig), so the viewing direction is its third
-  // column; atan2(r21, r11) of the optical matrix would be the yaw of the image's x axis, 90 deg
-  // off (135 deg instead of 45 deg for calib/vehicle_core_paper.yaml).
-  const Eigen::Vector3d viewing_Q = R_body_camera.col(2);
-  const double horizontal = std::hypot(viewing_Q.x(), viewing_Q.y());
-  if (horizontal < kMinHorizontalViewing) {
-    std::ostringstream message;
-    message << "haptics: camera viewing direction in the body frame (" << viewing_Q.transpose()
-            << ") is within 3 deg of vertical; eq. 9 needs a horizontal component";
-    throw InputError(message.str());
-  }
-  alpha_rad_ = std::atan2(viewing_Q.y(), viewing_Q.x());  // eq. 9
   cos_alpha_ = std::cos(alpha_rad_);
   sin_alpha_ = std::sin(alpha_rad_);
 }

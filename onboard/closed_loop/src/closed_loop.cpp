@@ -14,12 +14,6 @@
 
 namespace hq::closed_loop {
 
-double camera_heading_rad(const Eigen::Matrix3d& R_body_camera) {
-  // eq. 9 with R_QC's optical z axis as the camera's viewing direction: the paper's camera frame
-  // has x forward; ours is optical (z forward), so the forward column is R_QC's third.
-  return std::atan2(R_body_camera(1, 2), R_body_camera(0, 2));
-}
-
 ClosedLoop::ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world,
                        const pipeline::OnboardConfig& onboard,
                        const control::VehicleConfig& vehicle, OperatorPlayer player,

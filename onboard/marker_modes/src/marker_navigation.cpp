@@ -1,6 +1,7 @@
 #include "hq/marker_modes/marker_navigation.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/velocity_estimator.hpp"
 #include "hq/geometry/lie.hpp"
@@ -88,7 +89,7 @@ MarkerNavigation::MarkerNavigation(const MarkerModesConfig& config,
     : config_(config),
       camera_(camera),
       T_body_camera_(body_camera(R_body_camera, p_body_camera_m)),
-      camera_heading_rad_(std::atan2(R_body_camera(1, 2), R_body_camera(0, 2))),
+      camera_heading_rad_(geometry::camera_heading_rad(R_body_camera)),
       detector_(config.detector, camera),
       map_(config.map),
       filter_(config.navigation, T_body_camera_) {}

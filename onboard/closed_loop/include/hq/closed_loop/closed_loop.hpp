@@ -13,6 +13,7 @@
 
 #include "hq/closed_loop/operator_script.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/sim/simulator.hpp"
@@ -162,7 +163,7 @@ class ClosedLoop {
   std::int64_t max_lag_ns_ = 0;
 };
 
-/// The camera heading alpha of eq. 9 from R_QC: atan2(r21, r11).
-double camera_heading_rad(const Eigen::Matrix3d& R_body_camera);
+/// The camera heading alpha of eq. 9, for scripts that command along it.
+using geometry::camera_heading_rad;
 
 }  // namespace hq::closed_loop

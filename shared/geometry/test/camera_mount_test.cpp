@@ -1,0 +1,52 @@
+#include "hq/geometry/camera_mount.hpp"
+
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <numbers>
+
+namespace hq::geometry {
+namespace {
+
+using ::testing::HasSubstr;
+
+// A camera yawed by yaw and pitched by pitch in Q (NED body), optical axes as in calib/.
+Eigen::Matrix3d mount(double yaw_rad, double pitch_rad, double roll_rad) {
+  Eigen::Matrix3d optical_in_forward;  // columns: optical x (right), y (down), z (forward)
+  optical_in_forward << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+             .toRotationMatrix() *
+         optical_in_forward;
+}
+
+TEST(CameraHeading, IsTheCameraYawWhateverItsPitchAndRoll) {
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  for (const double yaw : {-170.0, -90.0, 0.0, 45.0, 135.0}) {
+    for (const double pitch : {-60.0, -30.0, 0.0, 20.0}) {
+      for (const double roll : {-15.0, 0.0, 30.0}) {
+        EXPECT_NEAR(camera_heading_rad(mount(yaw * kDeg, pitch * kDeg, roll * kDeg)), yaw * kDeg,
+                    1e-9)
+            << yaw << " " << pitch << " " << roll;
+      }
+    }
+  }
+}
+
+TEST(CameraHeading, RejectsANonRotationAndAVerticalCamera) {
+  EXPECT_THAT(testing::input_error_message(
+                  [] { (void)camera_heading_rad(2.0 * Eigen::Matrix3d::Identity()); }),
+              HasSubstr("not a rotation"));
+  EXPECT_THAT(testing::input_error_message(
+                  [] { (void)camera_heading_rad(mount(0.3, -std::numbers::pi / 2, 0.0)); }),
+              HasSubstr("vertical"));
+}
+
+}  // namespace
+}  // namespace hq::geometry
