@@ -482,8 +482,7 @@ struct ConsoleWindow::Impl {
     draw->PopClipRect();
     char text[160];
     std::snprintf(text, sizeof text, "%s; grid 1 m, north up; x %.2f m  y %.2f m  yaw %.0f deg",
-                  s.position_from_vehicle ? "vehicle position (marker filter)"
-                                          : "DEAD-RECKONED from v_H and gyro yaw (drifts)",
+                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)",
                   static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
                   static_cast<double>(s.yaw_W_rad) * 57.29578);
     draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
