@@ -31,6 +31,9 @@ namespace {
 // vehicle state and camera frames back, one log row per control step.
 class LinkOperator final : public hq::closed_loop::OperatorSource {
  public:
+  /// The marker filter's position is sent while a marker was seen this recently.
+  static constexpr double kPositionMaxAgeS = 5.0;
+
   LinkOperator(hq::link_bridge::LinkBridge& bridge, std::FILE* log) : bridge_(bridge), log_(log) {}
   /// The chain whose obstacle memory goes to the ground with the state (set once it exists).
   void set_chain(const hq::pipeline::OnboardChain* chain, const Eigen::Isometry3d& T_body_camera) {
@@ -60,14 +63,24 @@ class LinkOperator final : public hq::closed_loop::OperatorSource {
   }
   void on_output(const hq::pipeline::ChainOutput& out,
                  const hq::sim::TruthState& truth) override {
-    hq::link_bridge::ObstacleCloudSource cloud;
+    hq::link_bridge::StateExtras extras;
     if (chain_ != nullptr && chain_->config().memory.enabled) {
       if (const auto T_world_camera = chain_->memory().T_world_camera()) {
-        cloud.memory = &chain_->memory();
-        cloud.T_world_body = *T_world_camera * T_camera_body_;
+        extras.cloud.memory = &chain_->memory();
+        extras.cloud.T_world_body = *T_world_camera * T_camera_body_;
       }
     }
-    bridge_.publish_state(out, cloud);
+    if (chain_ != nullptr && chain_->markers() != nullptr) {
+      const hq::marker_modes::MarkerNavigation& navigation = chain_->markers()->navigation();
+      extras.position_valid = navigation.pose_usable(kPositionMaxAgeS);
+      extras.p_world_m = navigation.p_world_m();
+      extras.yaw_rad = navigation.yaw_rad();
+      extras.markers = navigation.detections();
+    }
+    // This vehicle is the simulator: its truth goes along for the operator's Fig. 6-8 plots.
+    extras.truth_valid = true;
+    extras.v_truth_horizontal_mps = truth.v_horizontal_mps;
+    bridge_.publish_state(out, extras);
     if (log_ == nullptr) return;
     const hq::link_bridge::FailsafeState& f = bridge_.failsafe().state();
     const hq::link_bridge::FailsafeCounters& c = bridge_.failsafe().counters();

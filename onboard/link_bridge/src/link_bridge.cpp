@@ -165,8 +165,8 @@ void LinkBridge::publish_event(std::int64_t t_ns, hq_msgs_Severity severity, Eve
   event_writer_.write(*event_);
 }
 
-void LinkBridge::publish_state(const pipeline::ChainOutput& out,
-                               const ObstacleCloudSource& cloud) {
+void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtras& extras) {
+  const ObstacleCloudSource& cloud = extras.cloud;
   const FailsafeState& link_state = failsafe_.state();
   link::VehicleState& s = *state_;
   s.sequence_number = ++state_sequence_;
@@ -202,14 +202,25 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out,
     last_cloud_size_ = static_cast<int>(count);
     ++clouds_sent_;
   }
-  // Position, markers and truth need inputs the chain's output does not carry (the marker
-  // stage, the simulator); until they are passed in they go out flagged absent.
-  s.position_valid = false;
-  s.p_W_m = {0.0F, 0.0F, 0.0F};
-  s.yaw_W_rad = 0.0F;
-  s.markers._length = 0;
-  s.truth_valid = false;
-  s.v_truth_H_mps = {0.0F, 0.0F, 0.0F};
+  // Position, markers and truth come from outside the chain's output (the marker stage, the
+  // simulator); a non-finite value goes out as absent rather than as garbage.
+  s.position_valid = extras.position_valid && extras.p_world_m.allFinite() &&
+                     std::isfinite(extras.yaw_rad);
+  s.p_W_m = s.position_valid ? to_msg(extras.p_world_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
+  s.yaw_W_rad = s.position_valid ? static_cast<float>(extras.yaw_rad) : 0.0F;
+  std::uint32_t markers = 0;
+  for (const markers::MarkerDetection& d : extras.markers) {
+    if (markers == hq_msgs_kMaxMarkersInState) break;
+    const Eigen::Quaterniond q(d.T_camera_marker.linear());
+    if (!d.T_camera_marker.matrix().allFinite()) continue;
+    s.markers._buffer[markers++] = {d.id, to_msg(d.T_camera_marker.translation()),
+                                    {static_cast<float>(q.w()), static_cast<float>(q.x()),
+                                     static_cast<float>(q.y()), static_cast<float>(q.z())}};
+  }
+  s.markers._length = markers;
+  s.truth_valid = extras.truth_valid && extras.v_truth_horizontal_mps.allFinite();
+  s.v_truth_H_mps = s.truth_valid ? to_msg(extras.v_truth_horizontal_mps)
+                                  : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   state_writer_.write(s);
 }
 

@@ -202,7 +202,8 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
   Eigen::Isometry3d T_QC = Eigen::Isometry3d::Identity();
   T_QC.linear() = R_QC;
   T_QC.translation() = p_QC;
-  ObstacleCloudSource source{&memory, T_WC * T_QC.inverse()};
+  StateExtras source;
+  source.cloud = {&memory, T_WC * T_QC.inverse()};
   pipeline::ChainOutput out;
   // 2 s of 100 Hz states on a stamp clock: clouds at 0 s and 1 s only.
   for (int i = 0; i < 200; ++i) {
@@ -241,7 +242,7 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
   out.t_ns += 10'000'000'000LL;
   bridge.publish_state(out, {});
   EXPECT_EQ(bridge.last_cloud_size(), 0);
-  source.T_world_body.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  source.cloud.T_world_body.translation().x() = std::numeric_limits<double>::quiet_NaN();
   bridge.publish_state(out, source);
   EXPECT_EQ(bridge.last_cloud_size(), 0);
 }
@@ -260,6 +261,66 @@ TEST(LinkBridge, BadOptionsNameTheKey) {
   options.obstacle_cloud_rate_hz = -1.0;
   EXPECT_THAT(hq::testing::input_error_message([&] { LinkBridge b(config, {}, options); }),
               HasSubstr("obstacle_cloud_rate_hz = -1"));
+}
+
+}  // namespace
+}  // namespace hq::link_bridge
+
+namespace hq::link_bridge {
+namespace {
+
+// Position, markers and truth go out as given and flagged; non-finite ones as absent.
+TEST(LinkBridge, PublishesPositionMarkersAndTruthOnlyWhenGivenAndFinite) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{}, BridgeOptions{});
+  Ground ground(config);
+  pipeline::ChainOutput out;
+  out.t_ns = 5'000'000;
+  std::array<markers::MarkerDetection, 1> detections{};
+  detections[0].id = 7;
+  detections[0].T_camera_marker.translation() = Eigen::Vector3d(0.1, -0.2, 1.5);
+  detections[0].T_camera_marker.linear() =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  StateExtras extras;
+  extras.position_valid = true;
+  extras.p_world_m = Eigen::Vector3d(1.0, 2.0, -1.0);
+  extras.yaw_rad = 0.5;
+  extras.markers = detections;
+  extras.truth_valid = true;
+  extras.v_truth_horizontal_mps = Eigen::Vector3d(0.3, 0.0, -0.1);
+
+  link::Sample<link::VehicleState> state;
+  std::vector<modes::Mode> requests;
+  const auto publish_and_take = [&](const StateExtras& e) {
+    bool got = false;
+    EXPECT_TRUE(poll_until(bridge, requests, [&] {
+      bridge.publish_state(out, e);
+      dds_sample_info_t info{};
+      while (ground.states.take(*state, info)) got = true;
+      return got;
+    }));
+  };
+  publish_and_take(extras);
+  EXPECT_TRUE(state->position_valid);
+  EXPECT_FLOAT_EQ(state->p_W_m.y, 2.0F);
+  EXPECT_FLOAT_EQ(state->yaw_W_rad, 0.5F);
+  ASSERT_EQ(state->markers._length, 1u);
+  EXPECT_EQ(state->markers._buffer[0].id, 7);
+  EXPECT_FLOAT_EQ(state->markers._buffer[0].p_camera_marker_m.z, 1.5F);
+  EXPECT_NEAR(state->markers._buffer[0].q_camera_marker.z, std::sin(0.15), 1e-6);
+  EXPECT_TRUE(state->truth_valid);
+  EXPECT_FLOAT_EQ(state->v_truth_H_mps.z, -0.1F);
+  EXPECT_TRUE(link::validate(*state).ok);
+
+  // A non-finite position or truth is sent as absent, never as garbage.
+  extras.p_world_m.x() = std::numeric_limits<double>::quiet_NaN();
+  extras.v_truth_horizontal_mps.y() = std::numeric_limits<double>::infinity();
+  extras.markers = {};
+  publish_and_take(extras);
+  EXPECT_FALSE(state->position_valid);
+  EXPECT_FALSE(state->truth_valid);
+  EXPECT_EQ(state->markers._length, 0u);
+  EXPECT_TRUE(link::validate(*state).ok);
 }
 
 }  // namespace

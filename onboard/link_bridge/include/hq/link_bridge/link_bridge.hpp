@@ -9,6 +9,7 @@
 
 #include "hq/link/link.hpp"
 #include "hq/link_bridge/failsafe.hpp"
+#include "hq/markers/marker_detector.hpp"
 #include "hq/modes/mode_controller.hpp"
 #include "hq/obstacle_memory/obstacle_memory.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
@@ -19,6 +20,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace hq::link_bridge {
@@ -57,6 +59,20 @@ struct ObstacleCloudSource {
   Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
 };
 
+/// What the vehicle state carries beyond the chain's output, each flagged absent unless given.
+struct StateExtras {
+  ObstacleCloudSource cloud;
+  /// The marker filter's pose while it is anchored (marker modes), in the map frame W.
+  bool position_valid = false;
+  Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
+  double yaw_rad = 0.0;
+  /// Markers detected in the latest frame (at most kMaxMarkersInState are sent).
+  std::span<const markers::MarkerDetection> markers;
+  /// Simulator truth of the velocity in H: only ever set when the vehicle is the simulator.
+  bool truth_valid = false;
+  Eigen::Vector3d v_truth_horizontal_mps = Eigen::Vector3d::Zero();
+};
+
 class LinkBridge {
  public:
   /// Creates participant, topics, readers and writers on link.domain_id for link.vehicle_id.
@@ -72,10 +88,11 @@ class LinkBridge {
   /// Acknowledges a mode request with an event (accepted or refused with the chain's reason).
   void acknowledge(std::int64_t t_ns, modes::Mode mode, const modes::ModeSwitch& result);
 
-  /// Publishes the vehicle state of one chain output. When `cloud` has a memory and the cloud
-  /// rate allows it at out.t_ns, the state carries the memory's down-sampled map in Q (at most
-  /// max_obstacle_points, finite points only); otherwise an empty cloud. Allocates nothing.
-  void publish_state(const pipeline::ChainOutput& out, const ObstacleCloudSource& cloud = {});
+  /// Publishes the vehicle state of one chain output. When extras.cloud has a memory and the
+  /// cloud rate allows it at out.t_ns, the state carries the memory's down-sampled map in Q (at
+  /// most max_obstacle_points, finite points only); otherwise an empty cloud. Position, markers
+  /// and truth go out as given in extras, flagged absent otherwise. Allocates nothing.
+  void publish_state(const pipeline::ChainOutput& out, const StateExtras& extras = {});
 
   /// Obstacle points in the latest published state (0 when it carried no cloud).
   [[nodiscard]] int last_cloud_size() const { return last_cloud_size_; }

@@ -19,6 +19,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 
 namespace hq::config {
@@ -124,6 +125,11 @@ class MarkerNavigation {
   [[nodiscard]] const markers::MarkerMap& map() const { return map_; }
   [[nodiscard]] const MarkerModesConfig& config() const { return config_; }
   [[nodiscard]] int detections_last_frame() const { return detections_last_frame_; }
+  /// The markers detected in the last frame (empty when it was not searched or had none).
+  [[nodiscard]] std::span<const markers::MarkerDetection> detections() const {
+    return std::span<const markers::MarkerDetection>(detector_.detections())
+        .first(static_cast<std::size_t>(detections_last_frame_));
+  }
   /// Horizontal box (W) of the mapped markers, updated per frame; false before the first.
   bool map_box(Eigen::Vector2d& lo, Eigen::Vector2d& hi) const {
     lo = map_lo_m_;

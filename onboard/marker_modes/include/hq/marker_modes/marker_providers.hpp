@@ -122,6 +122,7 @@ class MarkerStage {
   [[nodiscard]] bool wants_land(modes::Mode mode) const;
 
   [[nodiscard]] MarkerNavigation& navigation() { return navigation_; }
+  [[nodiscard]] const MarkerNavigation& navigation() const { return navigation_; }
   [[nodiscard]] MarkerModeProvider& marker_mode() { return marker_mode_; }
   [[nodiscard]] ExploreProvider& explore() { return explore_; }
 

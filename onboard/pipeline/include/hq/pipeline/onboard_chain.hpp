@@ -141,6 +141,7 @@ class OnboardChain {
   [[nodiscard]] const obstacle_memory::ObstacleMemory& memory() const { return memory_; }
   /// The marker stage (navigation, marker and explore providers); null unless markers.enabled.
   [[nodiscard]] marker_modes::MarkerStage* markers() { return markers_.get(); }
+  [[nodiscard]] const marker_modes::MarkerStage* markers() const { return markers_.get(); }
 
  private:
   [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
