@@ -50,6 +50,12 @@ Validation validate(const VelocityCommand& command, const CommandEnvelope& envel
 
 Validation validate(const ModeRequest& request) {
   if (!valid_mode(request.requested_mode)) return {false, "requested_mode outside Mode enum"};
+  const auto task = static_cast<int>(request.marker_task);
+  if (task < static_cast<int>(hq_msgs_MARKER_TASK_NONE) ||
+      task > static_cast<int>(hq_msgs_MARKER_TASK_LAND)) {
+    return {false, "marker_task outside MarkerTask enum"};
+  }
+  if (request.target_id < 0) return {false, "target_id is negative"};
   return kOk;
 }
 

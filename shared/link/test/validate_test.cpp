@@ -76,6 +76,24 @@ TEST(Validate, ModeRequestWithOutOfRangeEnumIsRejected) {
   EXPECT_FALSE(validate(request).ok);
 }
 
+TEST(Validate, ModeRequestMarkerTaskIsCheckedForEnumAndTargetId) {
+  ModeRequest request{};
+  request.requested_mode = hq_msgs_MODE_MARKER;
+  EXPECT_TRUE(validate(request).ok) << "zeros are a plain mode request";
+  request.marker_task = hq_msgs_MARKER_TASK_LAND;
+  request.target_id = 7;
+  EXPECT_TRUE(validate(request).ok) << validate(request).reason;
+  request.marker_task = static_cast<hq_msgs_MarkerTask>(4);
+  EXPECT_FALSE(validate(request).ok);
+  EXPECT_THAT(validate(request).reason, HasSubstr("marker_task outside MarkerTask enum"));
+  request.marker_task = static_cast<hq_msgs_MarkerTask>(-1);
+  EXPECT_THAT(validate(request).reason, HasSubstr("marker_task outside MarkerTask enum"));
+  request.marker_task = hq_msgs_MARKER_TASK_GO_TO;
+  request.target_id = -1;
+  EXPECT_FALSE(validate(request).ok);
+  EXPECT_THAT(validate(request).reason, HasSubstr("target_id is negative"));
+}
+
 TEST(Validate, HeartbeatWithOutOfRangeRoleIsRejected) {
   Heartbeat beat{};
   beat.role = hq_msgs_ROLE_VEHICLE;
