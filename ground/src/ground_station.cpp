@@ -119,10 +119,15 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
                "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
                "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
                "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
+               "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
+               "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
+               "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
+               "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
                "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
                "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
                "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
-               "closest_obstacle_m\n");
+               "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
+               "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n\n");
   std::fprintf(events_,
                "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
                "# severity 0 info 1 warning 2 error.\n"
@@ -160,14 +165,16 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
                               const link::VehicleState& s) {
   std::fprintf(telemetry_,
                "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-               "%s,%u,%.3f\n",
+               "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u\n",
                static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
                static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
                s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x,
                s.omega_body_radps.y, s.omega_body_radps.z, s.roll_rad, s.pitch_rad,
                s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z, to_string(s.mode),
                to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
-               closest_obstacle_m(s));
+               closest_obstacle_m(s), s.position_valid ? 1 : 0, s.p_W_m.x, s.p_W_m.y,
+               s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
+               s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length);
 }
 
 void TelemetryRecorder::command(std::int64_t t_ns, const haptics::VelocityCommand& command,

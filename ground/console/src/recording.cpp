@@ -45,15 +45,24 @@ std::vector<std::string_view> split(std::string_view line, std::size_t max_field
 
 // A CSV of the recorder: '#' lines, then a header naming the columns, then rows. Calls
 // `row(fields, where)` per row with the fields in the order of `columns`; returns false from
-// `row` to report the row as unreadable.
+// `row` to report the row as unreadable. Columns from index `required` on are optional (added
+// to the layout later): one the header lacks is named in absent_columns, has(i) is false for
+// it and its field is empty.
 class CsvFile {
  public:
+  static constexpr std::size_t kAllRequired = std::numeric_limits<std::size_t>::max();
+
   CsvFile(Recording& recording, const std::string& name, std::vector<std::string> columns,
-          bool last_field_is_text = false)
+          bool last_field_is_text = false, std::size_t required = kAllRequired)
       : recording_(recording),
         name_(name),
         columns_(std::move(columns)),
-        last_text_(last_field_is_text) {}
+        last_text_(last_field_is_text),
+        required_(std::min(required, columns_.size())) {}
+
+  [[nodiscard]] bool has(std::size_t column) const {
+    return column < index_.size() && index_[column] != kAbsent;
+  }
 
   template <typename Row>
   void read(Row row) {
@@ -65,7 +74,8 @@ class CsvFile {
     }
     std::string line;
     std::size_t line_number = 0;
-    std::vector<std::size_t> index;
+    std::vector<std::size_t>& index = index_;
+    index.clear();
     std::size_t header_fields = 0;
     std::vector<std::string_view> ordered(columns_.size());
     while (std::getline(in, line)) {
@@ -78,6 +88,11 @@ class CsvFile {
         header_fields = header.size();
         for (const std::string& c : columns_) {
           const auto it = std::find(header.begin(), header.end(), c);
+          if (it == header.end() && index.size() >= required_) {
+            recording_.absent_columns.push_back(name_ + ": " + c);
+            index.push_back(kAbsent);
+            continue;
+          }
           if (it == header.end()) {
             add_problem(recording_, where + ": header has no column " + c +
                                         " (not an hq-ground recording?); file skipped");
@@ -95,7 +110,9 @@ class CsvFile {
                                     (in.eof() ? " (truncated last line)" : ""));
         continue;
       }
-      for (std::size_t i = 0; i < index.size(); ++i) ordered[i] = fields[index[i]];
+      for (std::size_t i = 0; i < index.size(); ++i) {
+        ordered[i] = index[i] == kAbsent ? std::string_view() : fields[index[i]];
+      }
       std::string error;
       if (!row(ordered, error)) add_problem(recording_, where + ": " + error);
     }
@@ -105,8 +122,11 @@ class CsvFile {
  private:
   Recording& recording_;
   std::string name_;
+  static constexpr std::size_t kAbsent = std::numeric_limits<std::size_t>::max();
   std::vector<std::string> columns_;
   bool last_text_;
+  std::size_t required_;
+  std::vector<std::size_t> index_;
 };
 
 template <typename T>
@@ -208,8 +228,13 @@ Recording load_recording(const std::string& directory) {
       "receipt_ns",   "latency_us",   "sequence",     "t_ns",          "v_H_x_mps",
       "v_H_y_mps",    "v_H_z_mps",    "omega_x_radps", "omega_y_radps", "omega_z_radps",
       "roll_rad",     "pitch_rad",    "v_obs_x_mps",  "v_obs_y_mps",   "v_obs_z_mps",
-      "mode",         "estimator_health", "link_health"};
-  CsvFile(r, "telemetry.csv", state_columns).read([&](const auto& f, std::string& error) {
+      "mode",         "estimator_health", "link_health",
+      // Optional from here: later layouts (older recordings lack them).
+      "closest_obstacle_m", "position_valid", "p_W_x_m", "p_W_y_m", "p_W_z_m", "yaw_W_rad",
+      "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n"};
+  constexpr std::size_t kRequiredStateColumns = 18;
+  CsvFile telemetry(r, "telemetry.csv", state_columns, false, kRequiredStateColumns);
+  telemetry.read([&](const auto& f, std::string& error) {
     RecordedState s;
     double latency_us = 0;
     if (!parse_integer(f[0], s.receipt_ns)) {
@@ -247,25 +272,37 @@ Recording load_recording(const std::string& directory) {
     s.estimator_health = intern(f[16]);
     s.link_health = intern(f[17]);
     s.closest_obstacle_m = std::numeric_limits<double>::quiet_NaN();
+    if (telemetry.has(18) && !parse_double(f[18], s.closest_obstacle_m, true)) {
+      error = "closest_obstacle_m = '" + std::string(f[18]) + "', expected a number or nan";
+      return false;
+    }
+    // Each flag with its values: a layout has all of a group or none.
+    int flag = 0;
+    if (telemetry.has(19) && telemetry.has(23)) {
+      std::array<float, 4> pose{};
+      if (!parse_integer(f[19], flag) || !parse_floats(f, 20, state_columns, pose, error)) {
+        if (error.empty()) error = "position_valid = '" + std::string(f[19]) + "', expected 0/1";
+        return false;
+      }
+      s.position_valid = flag != 0;
+      s.p_W_m = {pose[0], pose[1], pose[2]};
+      s.yaw_W_rad = pose[3];
+    }
+    if (telemetry.has(24) && telemetry.has(27)) {
+      if (!parse_integer(f[24], flag) ||
+          !parse_floats(f, 25, state_columns, s.v_truth_H_mps, error)) {
+        if (error.empty()) error = "truth_valid = '" + std::string(f[24]) + "', expected 0/1";
+        return false;
+      }
+      s.truth_valid = flag != 0;
+    }
+    if (telemetry.has(28) && (!parse_integer(f[28], s.markers_n) || s.markers_n < 0)) {
+      error = "markers_n = '" + std::string(f[28]) + "', expected a count";
+      return false;
+    }
     r.states.push_back(s);
     return true;
   });
-  // closest_obstacle_m came later than the first recordings: read it where present.
-  {
-    std::vector<double> closest;
-    Recording scratch;
-    scratch.directory = directory;
-    CsvFile(scratch, "telemetry.csv", {"receipt_ns", "closest_obstacle_m"})
-        .read([&](const auto& f, std::string& /*error*/) {
-          std::int64_t t = 0;
-          double d = 0;
-          if (parse_integer(f[0], t) && parse_double(f[1], d, true)) closest.push_back(d);
-          return true;
-        });
-    if (closest.size() == r.states.size()) {
-      for (std::size_t i = 0; i < closest.size(); ++i) r.states[i].closest_obstacle_m = closest[i];
-    }
-  }
 
   const std::vector<std::string> command_columns = {"t_ns", "v_H_x_mps", "v_H_y_mps",
                                                     "v_H_z_mps", "yaw_rate_radps", "valid"};
@@ -355,9 +392,16 @@ bool replay(const Recording& recording, ConsoleModel& model, double speed,
       model.on_command(c.t_ns, c.v_H_mps, c.yaw_rate_radps);
     } else if (next == ts) {
       const RecordedState& s = recording.states[is++];
+      // Marker poses are not recorded (only their count): the replay shows none.
+      StateExtras extras;
+      extras.position_valid = s.position_valid;
+      extras.p_W_m = s.p_W_m;
+      extras.yaw_W_rad = s.yaw_W_rad;
+      extras.truth_valid = s.truth_valid;
+      extras.v_truth_H_mps = s.v_truth_H_mps;
       model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad,
                      s.pitch_rad, s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health,
-                     nullptr, 0);
+                     nullptr, 0, extras);
       ++link.states;
       link.last_latency_ms = s.latency_ms;
       link.state_age_s = 0;

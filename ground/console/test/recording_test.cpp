@@ -8,6 +8,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -59,6 +60,76 @@ TEST(Recording, RoundTripsStatesCommandsAndEvents) {
   fs::remove_all(dir);
 }
 
+TEST(Recording, RoundTripsPositionTruthAndMarkerCount) {
+  const fs::path dir = fresh_dir("extras");
+  {
+    ground::TelemetryRecorder recorder(dir.string());
+    hq_msgs_MarkerInCamera seen[3]{};
+    for (int i = 0; i < 3; ++i) {
+      link::VehicleState s{};
+      s.sequence_number = static_cast<unsigned long long>(i + 1);
+      s.mode = hq_msgs_MODE_MARKER;
+      s.position_valid = i != 1;
+      s.p_W_m = {1.5F + static_cast<float>(i), -0.25F, -1.125F};
+      s.yaw_W_rad = 0.75F * static_cast<float>(i);
+      s.truth_valid = i == 2;
+      s.v_truth_H_mps = {0.5F, -0.125F * static_cast<float>(i), 0.0625F};
+      s.markers._buffer = seen;
+      s.markers._length = static_cast<std::uint32_t>(i + 1);
+      s.markers._maximum = 3;
+      recorder.state(1'000'000'000LL + i * 10'000'000LL, 1'000'000, s);
+    }
+  }
+  const Recording r = load_recording(dir.string());
+  ASSERT_EQ(r.states.size(), 3U);
+  EXPECT_TRUE(r.absent_columns.empty()) << r.absent_columns.front();
+  EXPECT_TRUE(r.states[0].position_valid);
+  EXPECT_FALSE(r.states[1].position_valid);
+  EXPECT_FLOAT_EQ(r.states[2].p_W_m[0], 3.5F);
+  EXPECT_FLOAT_EQ(r.states[2].p_W_m[1], -0.25F);
+  EXPECT_FLOAT_EQ(r.states[2].p_W_m[2], -1.125F);
+  EXPECT_FLOAT_EQ(r.states[2].yaw_W_rad, 1.5F);
+  EXPECT_FALSE(r.states[1].truth_valid);
+  EXPECT_TRUE(r.states[2].truth_valid);
+  EXPECT_FLOAT_EQ(r.states[2].v_truth_H_mps[0], 0.5F);
+  EXPECT_FLOAT_EQ(r.states[2].v_truth_H_mps[1], -0.25F);
+  EXPECT_FLOAT_EQ(r.states[2].v_truth_H_mps[2], 0.0625F);
+  EXPECT_EQ(r.states[0].markers_n, 1);
+  EXPECT_EQ(r.states[2].markers_n, 3);
+  EXPECT_EQ(r.problem_count, 0U) << (r.problems.empty() ? "" : r.problems[0]);
+  fs::remove_all(dir);
+}
+
+// GIVEN a telemetry.csv of the first layout (no closest obstacle, pose, truth or markers),
+// WHEN read, THEN every row returns with those fields absent, and the absent columns are named.
+TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
+  const fs::path dir = fresh_dir("old_layout");
+  fs::create_directories(dir);
+  std::ofstream(dir / "telemetry.csv")
+      << "# hq-ground telemetry v1\n"
+         "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,omega_x_radps,"
+         "omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,v_obs_y_mps,v_obs_z_mps,"
+         "mode,estimator_health,link_health,vehicle_id\n"
+         "1000,5.0,1,0,0.2500,0,0,0,0,0,0,0,0,0,0,hover,ok,ok,1\n"
+         "2000,5.0,2,10,0.5000,0,0,0,0,0,0,0,0,0,0,teleop,ok,ok,1\n";
+  const Recording r = load_recording(dir.string());
+  ASSERT_EQ(r.states.size(), 2U);
+  EXPECT_FLOAT_EQ(r.states[1].v_H_mps[0], 0.5F);
+  EXPECT_FALSE(r.states[1].position_valid);
+  EXPECT_FALSE(r.states[1].truth_valid);
+  EXPECT_EQ(r.states[1].markers_n, -1);
+  EXPECT_TRUE(std::isnan(r.states[1].closest_obstacle_m));
+  EXPECT_THAT(r.absent_columns,
+              ::testing::IsSupersetOf({"telemetry.csv: closest_obstacle_m",
+                                       "telemetry.csv: position_valid",
+                                       "telemetry.csv: truth_valid",
+                                       "telemetry.csv: v_truth_H_x_mps",
+                                       "telemetry.csv: markers_n"}));
+  EXPECT_EQ(r.absent_columns.size(), 11U);
+  for (const std::string& p : r.problems) EXPECT_THAT(p, ::testing::Not(HasSubstr("telemetry")));
+  fs::remove_all(dir);
+}
+
 TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const fs::path dir = fresh_dir("truncated");
   write_recording(dir, 10);
@@ -74,8 +145,8 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const Recording r = load_recording(dir.string());
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
-  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:11: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:17: expected 20 fields"));
+  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:15: v_H_x_mps = 'abc'"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:21: expected 30 fields"));
   fs::remove_all(dir);
 }
 

@@ -29,6 +29,14 @@ struct RecordedState {
   const char* estimator_health = "invalid";
   const char* link_health = "invalid";
   double closest_obstacle_m = 0;  ///< NaN when unknown (or older recordings).
+  /// Marker filter pose in the map frame W (NED); false when absent or not anchored.
+  bool position_valid = false;
+  std::array<float, 3> p_W_m{};
+  float yaw_W_rad = 0;
+  /// Simulator truth of the velocity in H; false on a real vehicle or older recordings.
+  bool truth_valid = false;
+  std::array<float, 3> v_truth_H_mps{};
+  int markers_n = -1;  ///< Markers detected in the state's frame; -1 when not recorded.
 };
 
 struct RecordedCommand {
@@ -62,6 +70,9 @@ struct Recording {
   std::vector<RecordedEvent> events;
   std::vector<RecordedFrame> rgb;
   std::vector<RecordedFrame> depth_preview;
+  /// Optional columns the files lack ("telemetry.csv: truth_valid"): older layouts, read
+  /// without them (their fields keep the defaults above).
+  std::vector<std::string> absent_columns;
   std::vector<std::string> problems;  ///< "file:line: what", first kMaxProblems.
   std::size_t problem_count = 0;      ///< All of them.
   static constexpr std::size_t kMaxProblems = 100;
