@@ -1,6 +1,7 @@
 // hq-report: the flight report of a recording made by hq-ground --record. Plots in the manner
-// of Fig. 6-8 of the core paper (velocity in H estimated vs commanded per axis, v_obs, yaw rate
-// commanded vs measured), the dead-reckoned top view and the summary figures (tracking error,
+// of Fig. 6-8 of the core paper (velocity in H estimated vs commanded per axis, and vs simulator
+// truth when recorded; v_obs; yaw rate commanded vs measured), the dead-reckoned top view with
+// the vehicle's own position where it sent one and the summary figures (tracking error,
 // closest obstacle, mode changes, link incidents), drawn by Debian's gnuplot run as a
 // subprocess on a generated script, plus report.md linking them.
 //   hq-report <recording-dir> [--out DIR] [--format png|svg]
@@ -37,6 +38,10 @@ struct Summary {
   double latency_p50_ms = 0;
   double latency_max_ms = 0;
   std::size_t warnings = 0;
+  /// |v_est - v_truth| per axis of H over the states that carry simulator truth.
+  std::array<double, 3> rmse_truth_mps{};
+  std::size_t truth_samples = 0;
+  std::size_t position_samples = 0;  ///< States with the vehicle's own position in W.
 };
 
 // Latest command at or before t_ns (commands are in time order).
@@ -67,6 +72,9 @@ int run(int argc, char** argv) {
   }
   const hq::console::Recording r = hq::console::load_recording(dir);
   for (const std::string& p : r.problems) std::fprintf(stderr, "hq-report: %s\n", p.c_str());
+  for (const std::string& c : r.absent_columns) {
+    std::fprintf(stderr, "hq-report: column absent (older layout): %s\n", c.c_str());
+  }
   if (r.states.empty()) {
     throw hq::InputError(dir + "/telemetry.csv: no readable vehicle state, nothing to report");
   }
@@ -80,7 +88,8 @@ int run(int argc, char** argv) {
   const std::string data_path = (fs::path(out_dir) / "flight.dat").string();
   std::ofstream data(data_path);
   data << "# t_s v_est_x v_est_y v_est_z v_cmd_x v_cmd_y v_cmd_z v_obs_x v_obs_y v_obs_z "
-          "yaw_cmd yaw_meas x_W y_W closest_m latency_ms\n";
+          "yaw_cmd yaw_meas x_W y_W closest_m latency_ms v_truth_x v_truth_y v_truth_z "
+          "p_W_x p_W_y (NaN: absent)\n";
   double yaw = 0;
   double x = 0;
   double y = 0;
@@ -123,18 +132,37 @@ int run(int argc, char** argv) {
     }
     sum.max_v_obs_mps = std::max(sum.max_v_obs_mps,
                                  static_cast<double>(std::hypot(s.v_obs_H_mps[0], s.v_obs_H_mps[1], s.v_obs_H_mps[2])));
+    if (s.truth_valid) {
+      for (std::size_t a = 0; a < 3; ++a) {
+        const double e = s.v_H_mps[a] - s.v_truth_H_mps[a];
+        sum.rmse_truth_mps[a] += e * e;
+      }
+      ++sum.truth_samples;
+    }
+    sum.position_samples += s.position_valid ? 1 : 0;
     latencies.push_back(s.latency_ms);
     data << t_s << ' ' << s.v_H_mps[0] << ' ' << s.v_H_mps[1] << ' ' << s.v_H_mps[2] << ' '
          << v_cmd[0] << ' ' << v_cmd[1] << ' ' << v_cmd[2] << ' ' << s.v_obs_H_mps[0] << ' '
          << s.v_obs_H_mps[1] << ' ' << s.v_obs_H_mps[2] << ' ' << yaw_cmd << ' '
          << s.omega_body_radps[2] << ' ' << x << ' ' << y << ' '
          << (std::isfinite(s.closest_obstacle_m) ? std::to_string(s.closest_obstacle_m) : "NaN")
-         << ' ' << s.latency_ms << '\n';
+         << ' ' << s.latency_ms;
+    // gnuplot leaves NaN points out, so absent truth or position breaks the trace there.
+    for (std::size_t a = 0; a < 3; ++a) {
+      data << ' ' << (s.truth_valid ? std::to_string(s.v_truth_H_mps[a]) : "NaN");
+    }
+    for (std::size_t a = 0; a < 2; ++a) {
+      data << ' ' << (s.position_valid ? std::to_string(s.p_W_m[a]) : "NaN");
+    }
+    data << '\n';
   }
   data.close();
   sum.duration_s = 1e-9 * static_cast<double>(r.states.back().receipt_ns - t0_ns);
   for (double& v : sum.rms_tracking_mps) {
     v = sum.tracking_samples > 0 ? std::sqrt(v / static_cast<double>(sum.tracking_samples)) : NAN;
+  }
+  for (double& v : sum.rmse_truth_mps) {
+    v = sum.truth_samples > 0 ? std::sqrt(v / static_cast<double>(sum.truth_samples)) : NAN;
   }
   std::sort(latencies.begin(), latencies.end());
   sum.latency_p50_ms = latencies[latencies.size() / 2];
@@ -149,12 +177,15 @@ int run(int argc, char** argv) {
     gp << "set terminal " << terminal << "\nset grid\nset key outside top center horizontal\n"
        << "d = '" << data_path << "'\n";
     gp << "set output '" << (fs::path(out_dir) / ("velocity_H." + format)).string() << "'\n"
-       << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded (Fig. 6-7)'\n";
+       << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded"
+       << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";
     const char* axes[3] = {"x", "y", "z"};
     for (int a = 0; a < 3; ++a) {
       gp << "set ylabel 'v_" << axes[a] << " [m/s]'\n" << (a == 2 ? "set xlabel 't [s]'\n" : "")
          << "plot d u 1:" << 2 + a << " w l lw 2 t 'estimated', d u 1:" << 5 + a
-         << " w l lw 2 dt 2 t 'commanded'\n";
+         << " w l lw 2 dt 2 t 'commanded'";
+      if (sum.truth_samples > 0) gp << ", d u 1:" << 17 + a << " w l lw 1 t 'truth'";
+      gp << '\n';
     }
     gp << "unset multiplot\nunset xlabel\n";
     gp << "set output '" << (fs::path(out_dir) / ("v_obs." + format)).string() << "'\n"
@@ -168,10 +199,13 @@ int run(int argc, char** argv) {
        << "set title 'Vehicle state latency (one way)'\nset ylabel '[ms]'\n"
        << "plot d u 1:16 w l t 'latency'\n";
     gp << "set output '" << (fs::path(out_dir) / ("top_view." + format)).string() << "'\n"
-       << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts)'\n"
+       << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts)"
+       << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "'\n"
        << "set size ratio -1\nset xlabel 'east y_W [m]'\nset ylabel 'north x_W [m]'\n"
-       << "plot d u 14:13 w l lw 2 t 'track', d u (column(14)):(column(13)) every ::0::0 w p pt 7 "
-          "ps 2 t 'start'\n";
+       << "plot d u 14:13 w l lw 2 t 'track (dead-reckoned)', d u (column(14)):(column(13)) "
+          "every ::0::0 w p pt 7 ps 2 t 'start'";
+    if (sum.position_samples > 0) gp << ", d u 21:20 w p pt 7 ps 0.4 t 'vehicle position p_W'";
+    gp << '\n';
   }
   const std::string command = "gnuplot '" + script_path + "' 2>'" +
                               (fs::path(out_dir) / "gnuplot.log").string() + "'";
@@ -193,6 +227,14 @@ int run(int argc, char** argv) {
                    "over %zu states |\n",
                sum.rms_tracking_mps[0], sum.rms_tracking_mps[1], sum.rms_tracking_mps[2],
                sum.tracking_samples);
+  if (sum.truth_samples > 0) {
+    std::fprintf(md, "| velocity estimate RMSE vs truth (simulator, v_est - v_truth in H) | x "
+                     "%.3f, y %.3f, z %.3f m/s over %zu states |\n",
+                 sum.rmse_truth_mps[0], sum.rmse_truth_mps[1], sum.rmse_truth_mps[2],
+                 sum.truth_samples);
+  } else {
+    std::fprintf(md, "| velocity estimate RMSE vs truth | no truth in this recording |\n");
+  }
   if (std::isnan(sum.closest_obstacle_m)) {
     std::fprintf(md, "| closest obstacle | unknown (no obstacle cloud sent) |\n");
   } else {
@@ -212,6 +254,11 @@ int run(int argc, char** argv) {
                sum.latency_max_ms);
   for (const char* name : {"velocity_H", "v_obs", "yaw_rate", "top_view", "latency"}) {
     std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
+  }
+  if (!r.absent_columns.empty()) {
+    std::fprintf(md, "## Columns absent (older recording layout)\n\n");
+    for (const std::string& c : r.absent_columns) std::fprintf(md, "- %s\n", c.c_str());
+    std::fprintf(md, "\n");
   }
   if (!r.problems.empty()) {
     std::fprintf(md, "## Recording problems\n\n");

@@ -1,0 +1,100 @@
+// hq-report on recordings written by the ground's own recorder: the truth RMSE line of a
+// simulated flight, and an older layout whose absent columns the page names.
+#include "hq/ground/ground_station.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace hq::ground {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("hq_report_" + std::to_string(getpid()) + "_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+int run_report(const fs::path& recording) {
+  const std::string command = std::string("'") + HQ_REPORT_EXE + "' '" + recording.string() +
+                              "' > '" + (recording / "report.out").string() + "' 2>&1";
+  const int rc = std::system(command.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+// GIVEN a simulated flight whose estimate is off the truth by (0.2, -0.1, 0) m/s on half the
+// states and exact on the rest, WHEN reported, THEN the page's truth line holds the RMSE
+// sqrt(0.5 * e^2) per axis over the states with truth.
+TEST(HqReport, RecordingWithTruthHasTheTruthRmseLine) {
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "no gnuplot";
+  const fs::path dir = fresh_dir("truth");
+  {
+    TelemetryRecorder recorder(dir.string());
+    for (int i = 0; i < 40; ++i) {
+      link::VehicleState s{};
+      s.sequence_number = static_cast<unsigned long long>(i + 1);
+      s.t_ns = i * 50'000'000LL;
+      s.mode = hq_msgs_MODE_TELEOP;
+      s.truth_valid = true;
+      s.v_truth_H_mps = {0.5F, 0.25F, 0.0F};
+      const bool off = i % 2 == 0;
+      s.v_H_mps = {0.5F + (off ? 0.2F : 0.0F), 0.25F - (off ? 0.1F : 0.0F), 0.0F};
+      s.position_valid = i >= 20;
+      s.p_W_m = {0.05F * static_cast<float>(i), 0.0F, -1.0F};
+      recorder.state(1'000'000'000LL + s.t_ns, 1'000'000, s);
+    }
+  }
+  ASSERT_EQ(run_report(dir), 0) << slurp(dir / "report.out");
+  const std::string page = slurp(dir / "report" / "report.md");
+  // sqrt(0.5 * 0.2^2) = 0.141, sqrt(0.5 * 0.1^2) = 0.071.
+  EXPECT_THAT(page, HasSubstr("| velocity estimate RMSE vs truth (simulator, v_est - v_truth in "
+                              "H) | x 0.141, y 0.071, z 0.000 m/s over 40 states |"));
+  const std::string script = slurp(dir / "report" / "report.gp");
+  EXPECT_THAT(script, HasSubstr("t 'truth'"));
+  EXPECT_THAT(script, HasSubstr("vehicle position p_W"));
+  EXPECT_GT(fs::file_size(dir / "report" / "velocity_H.png"), 5000U);
+  fs::remove_all(dir);
+}
+
+// GIVEN a recording of the first layout, WHEN reported, THEN it still reports, says there is no
+// truth, draws no truth trace and names the absent columns.
+TEST(HqReport, OldLayoutReportsAndNamesAbsentColumns) {
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "no gnuplot";
+  const fs::path dir = fresh_dir("old");
+  fs::create_directories(dir);
+  std::ofstream(dir / "telemetry.csv")
+      << "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,omega_x_radps,"
+         "omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,v_obs_y_mps,v_obs_z_mps,"
+         "mode,estimator_health,link_health,vehicle_id\n"
+         "1000000000,5.0,1,0,0.25,0,0,0,0,0,0,0,0,0,0,hover,ok,ok,1\n"
+         "1100000000,5.0,2,10,0.5,0,0,0,0,0,0,0,0,0,0,teleop,ok,ok,1\n";
+  ASSERT_EQ(run_report(dir), 0) << slurp(dir / "report.out");
+  const std::string page = slurp(dir / "report" / "report.md");
+  EXPECT_THAT(page, HasSubstr("| velocity estimate RMSE vs truth | no truth in this recording |"));
+  EXPECT_THAT(page, HasSubstr("- telemetry.csv: v_truth_H_x_mps"));
+  EXPECT_THAT(page, HasSubstr("- telemetry.csv: position_valid"));
+  EXPECT_THAT(slurp(dir / "report" / "report.gp"), ::testing::Not(HasSubstr("t 'truth'")));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace hq::ground
