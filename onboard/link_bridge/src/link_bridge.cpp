@@ -20,6 +20,40 @@ hq_msgs_Vector3f to_msg(const Eigen::Vector3d& v) {
 
 }  // namespace
 
+bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task) {
+  // Compared as integers: a received enum may hold any value.
+  switch (static_cast<int>(value)) {
+    case static_cast<int>(hq_msgs_MARKER_TASK_HOLD):
+      task = marker_modes::MarkerTask::kHold;
+      return true;
+    case static_cast<int>(hq_msgs_MARKER_TASK_GO_TO):
+      task = marker_modes::MarkerTask::kGoTo;
+      return true;
+    case static_cast<int>(hq_msgs_MARKER_TASK_LAND):
+      task = marker_modes::MarkerTask::kLand;
+      return true;
+    default:
+      return false;
+  }
+}
+
+Verdict route_marker_task(const link::ModeRequest& request, pipeline::OnboardChain* chain) {
+  if (static_cast<int>(request.marker_task) == static_cast<int>(hq_msgs_MARKER_TASK_NONE)) {
+    return {true, ""};
+  }
+  marker_modes::MarkerTask task = marker_modes::MarkerTask::kHold;
+  if (!to_marker_task(request.marker_task, task)) {
+    return {false, "marker_task outside the MarkerTask enum"};
+  }
+  if (request.target_id < 0) return {false, "marker target_id is negative"};
+  if (chain == nullptr) return {false, "marker task refused: no on-board chain attached"};
+  if (chain->markers() == nullptr) {
+    return {false, "marker task refused: the marker stage is off (markers.enabled: false)"};
+  }
+  chain->markers()->marker_mode().set_task(task, static_cast<int>(request.target_id));
+  return {true, ""};
+}
+
 LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
                        const BridgeOptions& options)
     : link_(link),
@@ -82,6 +116,21 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns, std::vector<modes::Mode
     modes::Mode mode = modes::Mode::kHover;
     const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
     if (verdict.accepted) {
+      const Verdict routed = route_marker_task(request, chain_);
+      char text[hq_msgs_kMaxEventText + 1];
+      if (!routed.accepted) {
+        std::snprintf(text, sizeof text, "mode %s with marker %ld refused: %s",
+                      modes::to_string(mode), static_cast<long>(request.target_id),
+                      routed.reason);
+        publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
+        continue;
+      }
+      if (static_cast<int>(request.marker_task) != static_cast<int>(hq_msgs_MARKER_TASK_NONE)) {
+        std::snprintf(text, sizeof text, "marker task %s on marker %d accepted",
+                      marker_modes::to_string(chain_->markers()->marker_mode().task()),
+                      chain_->markers()->marker_mode().marker_id());
+        publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text);
+      }
       mode_requests.push_back(mode);
     } else {
       publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected,

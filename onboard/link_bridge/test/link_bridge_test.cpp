@@ -325,3 +325,102 @@ TEST(LinkBridge, PublishesPositionMarkersAndTruthOnlyWhenGivenAndFinite) {
 
 }  // namespace
 }  // namespace hq::link_bridge
+
+namespace hq::link_bridge {
+namespace {
+
+const geometry::PinholeCamera kMarkerCamera{260.0, 260.0, 159.5, 119.5, 320, 240};
+
+pipeline::OnboardConfig chain_config(bool markers_enabled) {
+  pipeline::OnboardConfig config;
+  config.markers.enabled = markers_enabled;
+  return config;
+}
+
+// A forward-looking camera (eq. 9 needs a horizontal viewing direction).
+control::VehicleConfig forward_camera_vehicle() {
+  control::VehicleConfig vehicle;
+  vehicle.R_body_camera = control::R_body_camera_from_angles(0.0, 0.0, 0.0);
+  return vehicle;
+}
+
+link::ModeRequest marker_request(hq_msgs_MarkerTask task, std::int32_t target_id) {
+  link::ModeRequest request{};
+  request.vehicle_id = 1;
+  request.requested_mode = hq_msgs_MODE_MARKER;
+  request.marker_task = task;
+  request.target_id = target_id;
+  return request;
+}
+
+// GIVEN a chain with its marker stage on, WHEN a request carries a marker task, THEN the stage's
+// marker mode takes task and target; without a stage, or a chain, it is refused with a reason.
+TEST(RouteMarkerTask, SetsTheStageTaskOrRefusesWithoutAStage) {
+  pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
+  ASSERT_NE(with_stage.markers(), nullptr);
+  Verdict v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_LAND, 7), &with_stage);
+  EXPECT_TRUE(v.accepted) << v.reason;
+  EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kLand);
+  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 7);
+  v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_GO_TO, 3), &with_stage);
+  EXPECT_TRUE(v.accepted) << v.reason;
+  EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kGoTo);
+  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 3);
+  // NONE leaves the task as it was.
+  EXPECT_TRUE(route_marker_task(marker_request(hq_msgs_MARKER_TASK_NONE, 0), &with_stage).accepted);
+  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 3);
+  v = route_marker_task(marker_request(static_cast<hq_msgs_MarkerTask>(9), 3), &with_stage);
+  EXPECT_FALSE(v.accepted);
+  EXPECT_THAT(v.reason, HasSubstr("MarkerTask enum"));
+
+  pipeline::OnboardChain without_stage(chain_config(false), forward_camera_vehicle(),
+                                       kMarkerCamera);
+  v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_HOLD, 2), &without_stage);
+  EXPECT_FALSE(v.accepted);
+  EXPECT_THAT(v.reason, HasSubstr("marker stage is off"));
+  EXPECT_TRUE(
+      route_marker_task(marker_request(hq_msgs_MARKER_TASK_NONE, 0), &without_stage).accepted);
+  v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_HOLD, 2), nullptr);
+  EXPECT_FALSE(v.accepted);
+  EXPECT_THAT(v.reason, HasSubstr("no on-board chain"));
+}
+
+// Over DDS: a marker request to a chain without a marker stage is refused with an event and
+// its mode not requested; to a chain with one, the stage takes the task and the mode follows.
+TEST(LinkBridge, RoutesMarkerRequestsToTheStageAndRefusesThemWhenItIsOff) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  std::vector<modes::Mode> requests;
+  pipeline::OnboardChain without_stage(chain_config(false), forward_camera_vehicle(),
+                                       kMarkerCamera);
+  bridge.set_chain(&without_stage);
+  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
+  std::vector<std::string> texts;
+  const auto event_seen = [&](const char* needle) {
+    link::Event event{};
+    dds_sample_info_t info{};
+    while (ground.events.take(event, info)) texts.emplace_back(event.text);
+    for (const std::string& t : texts) {
+      if (t.find(needle) != std::string::npos) return true;
+    }
+    return false;
+  };
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return event_seen("marker stage is off"); }))
+      << ::testing::PrintToString(texts);
+  EXPECT_TRUE(requests.empty());
+  EXPECT_THAT(texts.back(), HasSubstr("mode marker with marker 4 refused"));
+
+  pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
+  bridge.set_chain(&with_stage);
+  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
+  EXPECT_EQ(requests.front(), modes::Mode::kMarker);
+  EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kLand);
+  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 4);
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return event_seen("on marker 4 accepted"); }))
+      << ::testing::PrintToString(texts);
+}
+
+}  // namespace
+}  // namespace hq::link_bridge

@@ -35,7 +35,18 @@ enum class EventCode : std::uint32_t {
   kHold = 6,
   kHeartbeatLost = 7,
   kCommandsResumed = 8,
+  kMarkerTaskAccepted = 9,
+  kMarkerTaskRefused = 10,
 };
+
+/// The marker stage's task of a link MarkerTask; false for NONE or a value outside the enum.
+bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task);
+
+/// Hands the marker task of an accepted mode request to `chain`'s marker stage
+/// (marker_mode().set_task(task, target_id)). A request without one (MARKER_TASK_NONE) is
+/// accepted untouched; one with a task is refused, naming why, when there is no chain, the
+/// chain's marker stage is off (markers.enabled false) or the task is outside the enum.
+Verdict route_marker_task(const link::ModeRequest& request, pipeline::OnboardChain* chain);
 
 struct BridgeOptions {
   double camera_rate_hz = 10.0;        ///< JPEG frames to the operator at most this often.
@@ -80,9 +91,15 @@ class LinkBridge {
   LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
              const BridgeOptions& options = {});
 
+  /// The chain whose marker stage takes the marker tasks of mode requests (not owned; null:
+  /// every request with a marker task is refused).
+  void set_chain(pipeline::OnboardChain* chain) { chain_ = chain; }
+
   /// Takes every pending sample (receipt time t_ns), appends accepted mode requests (and a land
   /// request when the heartbeat is lost) to `mode_requests`, publishes the heartbeat when due,
-  /// and returns the fail-safe state whose command the chain must fly.
+  /// and returns the fail-safe state whose command the chain must fly. A request's marker task
+  /// goes to the chain's marker stage first (route_marker_task); refused, the whole request is
+  /// refused with a kMarkerTaskRefused event and its mode is not requested.
   const FailsafeState& poll(std::int64_t t_ns, std::vector<modes::Mode>& mode_requests);
 
   /// Acknowledges a mode request with an event (accepted or refused with the chain's reason).
@@ -150,6 +167,7 @@ class LinkBridge {
   int last_cloud_size_ = 0;
   std::uint64_t clouds_sent_ = 0;
   FailsafeCounters reported_;
+  pipeline::OnboardChain* chain_ = nullptr;
 };
 
 }  // namespace hq::link_bridge
