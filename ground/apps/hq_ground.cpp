@@ -9,6 +9,7 @@
 //             [--link-config F] [--domain-id N] [--vehicle-id N] [--station-id N]
 //             [--station-strength N] [--command-rate-hz 50] [--record DIR]
 //             [--screenshot PNG] [--state-json PATH] [--max-fps 60]
+//             [--marker-task hold|goto|land --marker-id N]  (marker mode on that tag)
 //   hq-ground --replay DIR [--speed X] [--headless] [--duration-s N] [--screenshot PNG]
 //             [--state-json PATH]
 #include "hq/base/error.hpp"
@@ -63,11 +64,16 @@ struct Options {
   std::string screenshot_path;
   std::string state_json_path;
   double max_fps = 60.0;
+  std::string marker_task;  ///< "hold", "goto", "land"; empty: no marker request.
+  int marker_id = 0;
 };
 
 // What the window asks of the flying thread.
 struct UiRequests {
   std::atomic<int> mode{-1};  ///< hq_msgs_Mode, -1: none.
+  /// With a marker mode request: hq_msgs_MarkerTask and target id (the window's marker panel).
+  std::atomic<int> marker_task{hq_msgs_MARKER_TASK_NONE};
+  std::atomic<int> marker_id{0};
   std::atomic<std::int64_t> vehicle{-1};
 };
 
@@ -205,6 +211,11 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     model.snapshot(snap);
     const hq::console::UiActions actions = window.frame(snap);
     if (actions.quit) break;
+    if (actions.marker_task != nullptr) {
+      requests.marker_task = hq::ground::marker_task_of(actions.marker_task)
+                                 .value_or(hq_msgs_MARKER_TASK_NONE);
+      requests.marker_id = actions.marker_id;
+    }
     if (actions.mode_request != nullptr) requests.mode = mode_of(actions.mode_request);
     if (actions.select_vehicle) requests.vehicle = actions.vehicle_id;
     const auto now = std::chrono::steady_clock::now();
@@ -325,6 +336,11 @@ int run(int argc, char** argv) {
   app.add_option("--screenshot", o.screenshot_path, "write the console's last frame as PNG");
   app.add_option("--state-json", o.state_json_path, "write the console's state at exit as JSON");
   app.add_option("--max-fps", o.max_fps, "console frame-rate cap")->check(CLI::Range(1.0, 500.0));
+  app.add_option("--marker-task", o.marker_task,
+                 "request marker mode with this task once the vehicle is heard from")
+      ->check(CLI::IsMember({"hold", "goto", "land"}));
+  app.add_option("--marker-id", o.marker_id, "target marker (AprilTag id) of --marker-task")
+      ->check(CLI::Range(0, 1 << 30));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -379,6 +395,11 @@ int run(int argc, char** argv) {
   std::atomic<bool> flying_done{false};
   // The flight: commands, link and haptic feedback. On its own thread when the console is up,
   // so that drawing never delays a command or the feedback's vehicle state.
+  hq::ground::MarkerChoice marker_cli;
+  if (!o.marker_task.empty()) {
+    marker_cli.task = hq::ground::marker_task_of(o.marker_task).value_or(hq_msgs_MARKER_TASK_NONE);
+    marker_cli.target_id = o.marker_id;
+  }
   const auto fly = [&] {
     std::int64_t next_ns = start_ns + period_ns;
     std::int64_t next_heartbeat_ns = start_ns;
@@ -386,6 +407,7 @@ int run(int argc, char** argv) {
     std::int64_t next_health_ns = start_ns;
     const std::int64_t status_period_ns = live ? 200'000'000 : 1'000'000'000;
     hq::ground::ModeToggle toggle;
+    bool marker_cli_sent = false;
     bool was_connected = true;
     std::int64_t last_state_ns = 0;
     std::uint64_t last_states = 0;
@@ -449,8 +471,30 @@ int run(int argc, char** argv) {
       if (const int ui_mode = requests.mode.exchange(-1); ui_mode >= 0) {
         mode = static_cast<hq_msgs_Mode>(ui_mode);
       }
+      // --marker-task: one marker mode request once the vehicle is heard from.
+      if (!mode && marker_cli.task != hq_msgs_MARKER_TASK_NONE && !marker_cli_sent &&
+          ground.status().have_state) {
+        mode = hq_msgs_MODE_MARKER;
+        marker_cli_sent = true;
+      }
       if (mode) {
-        ground.request_mode(now_ns, *mode);
+        // A marker request carries the window's last marker choice, else the command line's.
+        hq::ground::MarkerChoice marker;
+        if (*mode == hq_msgs_MODE_MARKER) {
+          const int ui_task = requests.marker_task.exchange(hq_msgs_MARKER_TASK_NONE);
+          marker = marker_cli;
+          if (ui_task != hq_msgs_MARKER_TASK_NONE) {
+            marker.task = static_cast<hq_msgs_MarkerTask>(ui_task);
+            marker.target_id = requests.marker_id.load();
+          }
+        }
+        ground.request_mode(now_ns, *mode, marker);
+        if (marker.task != hq_msgs_MARKER_TASK_NONE) {
+          static constexpr std::array<const char*, 4> kTaskNames = {"none", "hold", "goto", "land"};
+          std::fprintf(stderr, "%shq-ground: marker task %s on marker %d\n", live ? "\n" : "",
+                       kTaskNames[static_cast<std::size_t>(marker.task) % kTaskNames.size()],
+                       static_cast<int>(marker.target_id));
+        }
         if (recorder) recorder->mode_request(wall_ns, *mode);
         std::fprintf(stderr, "%shq-ground: t %.1f s: requesting mode %s\n", live ? "\n" : "", t_s,
                      hq::ground::to_string(*mode));

@@ -273,13 +273,23 @@ void GroundStation::send_command(std::int64_t t_ns, const haptics::VelocityComma
   }
 }
 
-void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode) {
+std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name) {
+  if (name == "hold") return hq_msgs_MARKER_TASK_HOLD;
+  if (name == "goto") return hq_msgs_MARKER_TASK_GO_TO;
+  if (name == "land") return hq_msgs_MARKER_TASK_LAND;
+  return std::nullopt;
+}
+
+void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
+                                 const MarkerChoice& marker) {
   link::ModeRequest r{};
   r.vehicle_id = config_.vehicle_id;
   r.station_id = config_.station_id;
   r.sequence_number = ++mode_sequence_;
   r.t_ns = t_ns;
   r.requested_mode = mode;
+  r.marker_task = marker.task;
+  r.target_id = marker.target_id;
   if (mode_writer_.write(r)) {
     ++status_.mode_requests_sent;
   } else {

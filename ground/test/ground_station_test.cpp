@@ -53,5 +53,13 @@ TEST(TelemetryRecorder, UnwritableDirectoryIsNamed) {
               HasSubstr("--record /proc/no/such/dir"));
 }
 
+TEST(MarkerTaskOf, NamesTheCommandLineTasksAndRejectsOthers) {
+  EXPECT_EQ(marker_task_of("hold"), hq_msgs_MARKER_TASK_HOLD);
+  EXPECT_EQ(marker_task_of("goto"), hq_msgs_MARKER_TASK_GO_TO);
+  EXPECT_EQ(marker_task_of("land"), hq_msgs_MARKER_TASK_LAND);
+  EXPECT_FALSE(marker_task_of("none").has_value());
+  EXPECT_FALSE(marker_task_of("Land").has_value());
+}
+
 }  // namespace
 }  // namespace hq::ground

@@ -161,6 +161,8 @@ int run_sim_link(const Options& o) {
   T_body_camera.linear() = vehicle.R_body_camera;
   T_body_camera.translation() = vehicle.p_body_camera_m;
   source.set_chain(&loop.chain(), T_body_camera);
+  // Marker tasks chosen on the ground go to this chain's marker stage.
+  bridge.set_chain(&loop.chain());
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,

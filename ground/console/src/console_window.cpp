@@ -301,6 +301,7 @@ std::uint32_t flight_key_for_scancode(int sdl_scancode) {
 struct ConsoleWindow::Impl {
   SDL_Window* window = nullptr;
   SDL_GLContext gl = nullptr;
+  int marker_target_id = 0;  ///< The marker panel's target id field.
   bool imgui_sdl = false;
   bool imgui_gl = false;
   double max_fps = 60;
@@ -515,6 +516,22 @@ struct ConsoleWindow::Impl {
       if (ImGui::Button(label)) {
         actions.select_vehicle = true;
         actions.vehicle_id = s.link.vehicle_ids[i];
+      }
+    }
+    // Marker mode with a chosen target (issue 7): each button asks for Mode marker with a task.
+    ImGui::Text("marker:");
+    ImGui::SameLine();
+    ImGui::SetNextItemWidth(100);
+    ImGui::InputInt("target id", &marker_target_id);
+    marker_target_id = std::max(marker_target_id, 0);
+    static const char* const kTasks[3] = {"hold", "goto", "land"};
+    static const char* const kTaskLabels[3] = {"Hold", "Go to", "Land on"};
+    for (int i = 0; i < 3; ++i) {
+      ImGui::SameLine();
+      if (ImGui::Button(kTaskLabels[i])) {
+        actions.mode_request = "marker";
+        actions.marker_task = kTasks[i];
+        actions.marker_id = marker_target_id;
       }
     }
     ImGui::Separator();

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hq::ground {
@@ -26,6 +27,15 @@ class ModeToggle {
  private:
   std::uint32_t previous_ = 0;
 };
+
+/// The marker a mode request asks the vehicle's marker mode to fly to (issue 7); NONE: none.
+struct MarkerChoice {
+  hq_msgs_MarkerTask task = hq_msgs_MARKER_TASK_NONE;
+  std::int32_t target_id = 0;
+};
+
+/// The task named "hold", "goto" or "land"; nullopt for any other text.
+std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name);
 
 /// Name of a link mode ("teleop", "hover", "land", "marker", "explore", "invalid").
 const char* to_string(hq_msgs_Mode mode);
@@ -128,7 +138,8 @@ class GroundStation {
 
   /// Publishes one command of the haptic loop (zero when `valid` is false).
   void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
-  void request_mode(std::int64_t t_ns, hq_msgs_Mode mode);
+  /// Requests `mode`, with a marker task for the vehicle's marker stage if `marker` has one.
+  void request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {});
   void send_heartbeat(std::int64_t t_ns);
   /// Takes everything pending. Returns true if a new vehicle state arrived.
   bool poll();

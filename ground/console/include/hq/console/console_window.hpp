@@ -21,6 +21,9 @@ namespace hq::console {
 
 struct UiActions {
   const char* mode_request = nullptr;  ///< "teleop", "hover", "land", "marker", "explore".
+  /// With mode_request "marker": "hold", "goto" or "land" on marker marker_id; null: none.
+  const char* marker_task = nullptr;
+  int marker_id = 0;
   bool select_vehicle = false;
   std::uint32_t vehicle_id = 0;
   bool quit = false;  ///< Window closed or Esc.
