@@ -55,7 +55,8 @@ struct Validation {
 
 /// Rejects NaN/Inf and components outside `envelope`.
 Validation validate(const VelocityCommand& command, const CommandEnvelope& envelope);
-/// Rejects a requested mode outside the Mode enum.
+/// Rejects a requested mode outside the Mode enum, a marker task outside MarkerTask and a
+/// negative target id.
 Validation validate(const ModeRequest& request);
 /// Rejects a role outside the Role enum.
 Validation validate(const Heartbeat& heartbeat);
