@@ -3,6 +3,8 @@
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
 
+#include <Eigen/Geometry>
+
 #include <pcl/exceptions.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
@@ -15,6 +17,7 @@
 
 namespace hq::obstacle_memory {
 namespace {
+constexpr int kNormalStepPx = 8;  // support-surface normals, see update()
 // Voxel indices are packed 21 bits per axis, offset so that every stored field is >= 1 and
 // <= 2^21 - 2: neighbour keys are then key +- one field unit, and key 0 marks an empty slot.
 constexpr int kKeyBits = 21;
@@ -54,6 +57,7 @@ void read_config(config::StrictMap& section, MemoryConfig& out) {
   section.read_positive("max_pose_jump_m", out.max_pose_jump_m, 100.0);
   section.read_deg_as_rad("max_pose_jump_deg", out.max_pose_jump_rad, 0.1, 180.0);
   section.read_positive("vertical_band_m", out.vertical_band_m, 100.0);
+  section.read_deg_as_rad("support_normal_max_deg", out.support_normal_max_rad, 0.0, 90.0);
   section.read("sectors", out.sectors, 3, 360);
   section.read("max_points", out.max_points, 0, kMaxRememberedPoints);
   if (!(out.max_range_m > out.min_range_m)) {
@@ -210,6 +214,16 @@ MemoryUpdate ObstacleMemory::update(std::int64_t t_ns, const cv::Mat& depth_m,
   const auto cx = static_cast<float>(camera_.cx);
   const auto cy = static_cast<float>(camera_.cy);
   const int stride = config_.pixel_stride;
+  // Support surfaces: the normal from neighbouring samples, in H (gravity-aligned).
+  const Eigen::Matrix3f R_HC_f = (R_horizontal_body * R_QC_).cast<float>();
+  const auto min_vertical = static_cast<float>(std::cos(config_.support_normal_max_rad));
+  const auto point_at = [&](int pu, int pv, Eigen::Vector3f& p) {
+    const float pz = depth_m.ptr<float>(pv)[pu];
+    if (!(std::isfinite(pz) && pz >= min_z && pz <= max_z)) return false;
+    p = Eigen::Vector3f((static_cast<float>(pu) - cx) * inv_fx * pz,
+                        (static_cast<float>(pv) - cy) * inv_fy * pz, pz);
+    return true;
+  };
   // Neighbouring samples mostly share a voxel: reuse the last slot instead of hashing again.
   std::uint64_t last_key = kEmptyKey;
   FrameVoxel* last_voxel = nullptr;
@@ -220,6 +234,22 @@ MemoryUpdate ObstacleMemory::update(std::int64_t t_ns, const cv::Mat& depth_m,
       const float z = row[u];
       if (!(std::isfinite(z) && z >= min_z && z <= max_z)) continue;
       const Eigen::Vector3f p_C((static_cast<float>(u) - cx) * inv_fx * z, y_over_z * z, z);
+      // One-sided differences, to the right or left and below or above, whichever has depth,
+      // kNormalStepPx apart: at 1 m a structured-light sensor quantises depth in ~2 mm steps,
+      // which over adjacent pixels (3 mm apart) tilts a floor's normal by tens of degrees.
+      Eigen::Vector3f side, vertical;
+      const bool has_side =
+          (u + kNormalStepPx < camera_.width && point_at(u + kNormalStepPx, v, side)) ||
+          (u >= kNormalStepPx && point_at(u - kNormalStepPx, v, side));
+      const bool has_vertical =
+          (v + kNormalStepPx < camera_.height && point_at(u, v + kNormalStepPx, vertical)) ||
+          (v >= kNormalStepPx && point_at(u, v - kNormalStepPx, vertical));
+      // Without a normal the sample is unknown surface, most often the ragged edge of depth at
+      // the sensor's minimum range on the floor ahead: not remembered.
+      if (!has_side || !has_vertical) continue;
+      const Eigen::Vector3f normal_C = (side - p_C).cross(vertical - p_C);
+      const float norm = normal_C.norm();
+      if (!(norm > 0.0f) || std::abs((R_HC_f * normal_C).z()) > min_vertical * norm) continue;
       const Eigen::Vector3f p_W = R_WC * p_C + t_WC;
       std::uint64_t key = 0;
       if (!key_of(p_W, key)) continue;

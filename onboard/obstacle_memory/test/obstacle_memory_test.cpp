@@ -133,15 +133,17 @@ TEST(ObstacleMemory, PointsBeyondTheRadiusAreForgotten) {
   EXPECT_EQ(memory.size(), 0);  // 6 m away: all of it
 }
 
-TEST(ObstacleMemory, IsolatedSpeckleIsRemovedASurfaceIsKept) {
+TEST(ObstacleMemory, IsolatedSpeckleIsNotRememberedASurfaceIs) {
   ObstacleMemory memory = make_memory();
   cv::Mat depth = no_depth();
   depth.at<float>(100, 100) = 1.0f;
   depth.at<float>(20, 300) = 2.0f;
   MemoryUpdate update = memory.update(0, depth, camera_pose(0.0), kLevel, kD0);
   ASSERT_TRUE(update.updated);
-  EXPECT_EQ(update.speckle_removed, 2);
+  // Isolated pixels have no neighbours to give a surface normal: not remembered at all, before
+  // the voxel speckle filter even sees them.
   EXPECT_EQ(update.inserted, 0);
+  EXPECT_EQ(memory.size(), 0);
   update = memory.update(kFrameNs, wall(1.0f), camera_pose(0.0), kLevel, kD0);
   EXPECT_GT(update.inserted, 100);
   EXPECT_LT(update.speckle_removed, update.inserted / 20);  // at most the plane's corners
@@ -347,6 +349,42 @@ TEST(ObstacleMemory, RejectsAnUnusableCameraOrExtrinsics) {
                                Eigen::Vector3d::Zero());
               }),
               HasSubstr("not a rotation"));
+}
+
+}  // namespace
+}  // namespace hq::obstacle_memory
+
+namespace hq::obstacle_memory {
+namespace {
+
+// A level camera 0.4 m above a floor: the lower half of the image is floor (depth along each
+// ray to the plane y_C = 0.4). The floor is a support surface, never remembered; the same
+// camera looking at a wall does remember it. Tilting the body by 30 deg (R_HQ) turns the floor
+// in the camera into a slope the test must still see as horizontal in H.
+TEST(ObstacleMemory, FloorIsNotRememberedAWallIs) {
+  const geometry::PinholeCamera camera = test_camera();
+  for (const double pitch_deg : {0.0, 20.0}) {
+    const double pitch = pitch_deg * M_PI / 180.0;
+    // The body pitched nose-down by pitch; the floor is horizontal in H.
+    const Eigen::Matrix3d R_horizontal_body =
+        Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Eigen::Matrix3d R_HC = R_horizontal_body * forward_R_body_camera();
+    cv::Mat floor = no_depth();
+    for (int v = 0; v < camera.height; ++v) {
+      for (int u = 0; u < camera.width; ++u) {
+        const Eigen::Vector3d ray_C((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+        const double down = (R_HC * ray_C).z();  // H z is down
+        if (down > 1e-3) floor.at<float>(v, u) = static_cast<float>(0.4 / down);
+      }
+    }
+    ObstacleMemory memory = make_memory();
+    const MemoryUpdate update = memory.update(0, floor, camera_pose(0.0), R_horizontal_body, kD0);
+    ASSERT_TRUE(update.updated) << update.reason;
+    EXPECT_EQ(update.inserted, 0) << "pitch " << pitch_deg;
+    EXPECT_EQ(memory.size(), 0) << "pitch " << pitch_deg;
+  }
+  ObstacleMemory memory = make_memory();
+  EXPECT_GT(memory.update(0, wall(1.5f), camera_pose(0.0), kLevel, kD0).inserted, 100);
 }
 
 }  // namespace

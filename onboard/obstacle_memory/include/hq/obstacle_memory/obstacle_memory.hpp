@@ -47,6 +47,9 @@ struct MemoryConfig {
   double max_pose_jump_m = 0.3;   ///< A larger pose step between frames clears the map.
   double max_pose_jump_rad = 0.35;  ///< Same for rotation (YAML max_pose_jump_deg).
   double vertical_band_m = 0.5;   ///< Only points with |z_H| below this push (no floor/ceiling).
+  /// Depth on a surface whose normal is within this angle of vertical (a floor, a table top) is
+  /// not remembered: horizontal motion cannot hit it, and the field handles it in view.
+  double support_normal_max_rad = 0.436;  ///< 25 deg (YAML support_normal_max_deg).
   int sectors = 24;               ///< Azimuth sectors of H for min-pooling remembered points.
   int max_points = 4;             ///< Nearest sector minima handed to the field.
 };
