@@ -111,25 +111,37 @@ bool ObstacleField::on_support_surface(const cv::Mat& depth_m, int u, int v,
                                       const Eigen::Matrix3d& R_HC,
                                       const Eigen::Vector3d& p_H) const {
   if (!(p_H.z() > 0.0)) return false;
-  // Surface normal from four neighbours half a cell away (central differences).
+  // Surface normal from neighbours half a cell away: central differences where both sides have
+  // depth, one-sided where only one has (a minimum often sits where depth ends, at the
+  // sensor's minimum range or an occluding edge).
   const int step = std::max(1, config_.cell_px / 2);
-  const int u0 = std::max(0, u - step);
-  const int u1 = std::min(camera_.width - 1, u + step);
-  const int v0 = std::max(0, v - step);
-  const int v1 = std::min(camera_.height - 1, v + step);
-  if (u1 == u0 || v1 == v0) return false;
   const auto point = [&](int pu, int pv, Eigen::Vector3d& p) {
+    if (pu < 0 || pv < 0 || pu >= camera_.width || pv >= camera_.height) return false;
     const float z = depth_m.at<float>(pv, pu);
     if (!is_valid_depth(z)) return false;
     p = Eigen::Vector3d((pu - camera_.cx) / camera_.fx * z, (pv - camera_.cy) / camera_.fy * z, z);
     return true;
   };
-  Eigen::Vector3d left, right, top, bottom;
-  if (!point(u0, v, left) || !point(u1, v, right) || !point(u, v0, top) ||
-      !point(u, v1, bottom)) {
-    return false;
-  }
-  const Eigen::Vector3d normal_C = (right - left).cross(bottom - top);
+  Eigen::Vector3d centre;
+  if (!point(u, v, centre)) return false;
+  const auto difference = [&](int du, int dv, Eigen::Vector3d& d) {
+    Eigen::Vector3d plus, minus;
+    const bool has_plus = point(u + du, v + dv, plus);
+    const bool has_minus = point(u - du, v - dv, minus);
+    if (has_plus && has_minus) {
+      d = plus - minus;
+    } else if (has_plus) {
+      d = plus - centre;
+    } else if (has_minus) {
+      d = centre - minus;
+    } else {
+      return false;
+    }
+    return true;
+  };
+  Eigen::Vector3d along_u, along_v;
+  if (!difference(step, 0, along_u) || !difference(0, step, along_v)) return false;
+  const Eigen::Vector3d normal_C = along_u.cross(along_v);
   const double norm = normal_C.norm();
   if (!(norm > 0.0)) return false;
   const double vertical = std::abs((R_HC * normal_C).z()) / norm;
