@@ -10,6 +10,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -162,6 +163,9 @@ TEST(Fakenect, ReplaysTumFramesWithDeviceStampsDepthAndAccelerometer) {
   RgbdFrame frame;
   std::vector<std::int64_t> t_ns;
   long allocations_after_first = 0;
+  // OpenCV grows its worker pool lazily, on its own threads, and the counter is process-wide:
+  // keep OpenCV on this thread so that what is counted is the source's own allocation.
+  cv::setNumThreads(1);
   while (true) {
     const long before = hq::testing::allocation_count();
     const FrameStatus status = source->next(frame);

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <unistd.h>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -29,7 +30,11 @@ class CameraFile : public ::testing::Test {
     return "(no error)";
   }
   void TearDown() override { std::filesystem::remove(path_); }
-  std::filesystem::path path_ = std::filesystem::temp_directory_path() / "hq_camera_test.yaml";
+  // One file per test case and process: ctest runs the cases of this fixture in parallel.
+  std::filesystem::path path_ =
+      std::filesystem::temp_directory_path() /
+      ("hq_camera_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+       "_" + std::to_string(getpid()) + ".yaml");
 };
 
 constexpr const char* kGood = R"(image_width: 640
