@@ -60,19 +60,14 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
       options_(options),
       failsafe_(failsafe),
       participant_(link.domain_id),
-      command_topic_(participant_),
-      mode_topic_(participant_),
-      heartbeat_topic_(participant_),
-      state_topic_(participant_),
-      camera_topic_(participant_),
-      event_topic_(participant_),
-      command_reader_(participant_, command_topic_, link::command_qos(link, link::End::kReader)),
-      mode_reader_(participant_, mode_topic_, link::mode_request_qos()),
-      heartbeat_reader_(participant_, heartbeat_topic_, link::heartbeat_qos(link)),
-      state_writer_(participant_, state_topic_, link::vehicle_state_qos()),
-      camera_writer_(participant_, camera_topic_, link::camera_qos()),
-      event_writer_(participant_, event_topic_, link::event_qos()),
-      heartbeat_writer_(participant_, heartbeat_topic_, link::heartbeat_qos(link)) {
+      topics_(participant_),
+      command_reader_(participant_, topics_.command, link::command_qos(link, link::End::kReader)),
+      mode_reader_(participant_, topics_.mode_request, link::mode_request_qos()),
+      heartbeat_reader_(participant_, topics_.heartbeat, link::heartbeat_qos(link)),
+      state_writer_(participant_, topics_.vehicle_state, link::vehicle_state_qos()),
+      camera_writer_(participant_, topics_.camera, link::camera_qos()),
+      event_writer_(participant_, topics_.event, link::event_qos()),
+      heartbeat_writer_(participant_, topics_.heartbeat, link::heartbeat_qos(link)) {
   link::check_config(link_);
   if (!(options_.camera_rate_hz >= 0.0 && options_.camera_rate_hz <= 60.0)) {
     throw InputError("link bridge: camera_rate_hz = " + std::to_string(options_.camera_rate_hz) +

@@ -160,12 +160,7 @@ class GroundStation {
   std::uint64_t last_state_sequence_ = 0;
   void note_vehicle(std::uint32_t vehicle_id);
   link::Participant participant_;
-  link::Topic<link::VelocityCommand> command_topic_;
-  link::Topic<link::ModeRequest> mode_topic_;
-  link::Topic<link::Heartbeat> heartbeat_topic_;
-  link::Topic<link::VehicleState> state_topic_;
-  link::Topic<link::CameraFrame> camera_topic_;
-  link::Topic<link::Event> event_topic_;
+  link::Topics topics_;
   link::Writer<link::VelocityCommand> command_writer_;
   link::Writer<link::ModeRequest> mode_writer_;
   link::Writer<link::Heartbeat> heartbeat_writer_;

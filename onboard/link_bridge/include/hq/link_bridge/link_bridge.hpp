@@ -135,12 +135,7 @@ class LinkBridge {
   BridgeOptions options_;
   Failsafe failsafe_;
   link::Participant participant_;
-  link::Topic<link::VelocityCommand> command_topic_;
-  link::Topic<link::ModeRequest> mode_topic_;
-  link::Topic<link::Heartbeat> heartbeat_topic_;
-  link::Topic<link::VehicleState> state_topic_;
-  link::Topic<link::CameraFrame> camera_topic_;
-  link::Topic<link::Event> event_topic_;
+  link::Topics topics_;
   link::Reader<link::VelocityCommand> command_reader_;
   link::Reader<link::ModeRequest> mode_reader_;
   link::Reader<link::Heartbeat> heartbeat_reader_;

@@ -298,4 +298,22 @@ class WaitSet {
   const char* last_error_ = "";
 };
 
+/// Every HaptiQuad topic on one participant: what a station and a vehicle both create before
+/// their readers and writers (declare it before them, so it is built first).
+struct Topics {
+  explicit Topics(const Participant& participant)
+      : command(participant),
+        mode_request(participant),
+        heartbeat(participant),
+        vehicle_state(participant),
+        camera(participant),
+        event(participant) {}
+  Topic<VelocityCommand> command;
+  Topic<ModeRequest> mode_request;
+  Topic<Heartbeat> heartbeat;
+  Topic<VehicleState> vehicle_state;
+  Topic<CameraFrame> camera;
+  Topic<Event> event;
+};
+
 }  // namespace hq::link
