@@ -1,0 +1,106 @@
+#pragma once
+/// MAVLink v2 framing (https://mavlink.io/en/guide/serialization.html), written from the
+/// specification because Debian ships no MAVLink library: little-endian payloads in the spec's
+/// wire order (fields sorted by size, extensions last), trailing zero bytes trimmed, CRC-16/MCRF4XX
+/// over the header and payload with each message's CRC_EXTRA. Nothing here allocates.
+
+#include "hq/mavlink/messages.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+namespace hq::mavlink {
+
+inline constexpr std::uint8_t kStxV2 = 0xFD;
+inline constexpr std::uint8_t kStxV1 = 0xFE;
+inline constexpr std::size_t kMaxPayload = 255;
+inline constexpr std::size_t kSignatureSize = 13;
+/// The largest frame: 10-byte header, payload, CRC, signature.
+inline constexpr std::size_t kMaxFrameSize = 10 + kMaxPayload + 2 + kSignatureSize;
+
+/// The header fields of a received frame.
+struct FrameHeader {
+  std::uint8_t sequence = 0;
+  std::uint8_t system_id = 0;
+  std::uint8_t component_id = 0;
+  std::uint32_t message_id = 0;
+  bool v1 = false;      ///< Arrived as a MAVLink 1 frame (0xFE).
+  bool signed_ = false; ///< Carried a signature (skipped, not verified).
+};
+
+/// CRC-16/MCRF4XX (X.25) as MAVLink accumulates it.
+std::uint16_t crc16_mcrf4xx(std::span<const std::uint8_t> bytes, std::uint16_t crc = 0xFFFF);
+
+/// Encodes v2 frames from one sender (system, component), numbering them 0..255 in turn.
+class Encoder {
+ public:
+  Encoder(std::uint8_t system_id, std::uint8_t component_id);
+  /// Writes one frame of `message` into `out` (at least kMaxFrameSize bytes); returns its length.
+  std::size_t encode(const Message& message, std::span<std::uint8_t, kMaxFrameSize> out);
+  [[nodiscard]] std::uint8_t system_id() const { return system_id_; }
+  [[nodiscard]] std::uint8_t component_id() const { return component_id_; }
+
+ private:
+  std::uint8_t system_id_;
+  std::uint8_t component_id_;
+  std::uint8_t sequence_ = 0;
+};
+
+/// What the parser threw away, by reason.
+struct ParserCounters {
+  std::uint64_t frames = 0;          ///< Valid frames of a known message handed on.
+  std::uint64_t v1_frames = 0;       ///< Of those, MAVLink 1 frames.
+  std::uint64_t bad_crc = 0;         ///< Checksum mismatch (the parser resynchronises).
+  std::uint64_t unknown_id = 0;      ///< Well-framed, but a message this codec does not know.
+  std::uint64_t truncated = 0;       ///< A frame cut short by the end of a datagram.
+  std::uint64_t bad_length = 0;      ///< Payload longer than the message allows, or bad flags.
+  std::uint64_t garbage_bytes = 0;   ///< Bytes skipped while looking for a start byte.
+  [[nodiscard]] std::uint64_t dropped() const {
+    return bad_crc + unknown_id + truncated + bad_length;
+  }
+};
+
+/// A byte-stream parser: feed() any chunk (a UDP datagram, whatever read() gave from a serial
+/// port); each valid frame of a known message is decoded and handed to the callback. Broken input
+/// is counted and skipped, never trusted: a bad CRC resynchronises on the next start byte.
+class Parser {
+ public:
+  /// Calls on_message(const FrameHeader&, const Message&) for every valid frame in `bytes`
+  /// (including one completed from bytes fed earlier).
+  template <typename OnMessage>
+  void feed(std::span<const std::uint8_t> bytes, OnMessage&& on_message);
+  /// A datagram ended: a partial frame left in the buffer is counted truncated and dropped
+  /// (UDP carries whole frames; serial streams never call this).
+  void end_of_datagram();
+  [[nodiscard]] const ParserCounters& counters() const { return counters_; }
+
+ private:
+  /// Consumes bytes into the frame buffer; returns how many of `bytes` it used and sets
+  /// `complete` when buf_ holds a whole candidate frame.
+  std::size_t accumulate(std::span<const std::uint8_t> bytes, bool& complete);
+  /// Checks and decodes the candidate frame in buf_; on failure counts it and shifts buf_ past
+  /// its start byte so a frame starting inside it is found.
+  bool decode_candidate(FrameHeader& header, Message& message);
+
+  std::uint8_t buf_[kMaxFrameSize]{};
+  std::size_t size_ = 0;
+  ParserCounters counters_;
+};
+
+template <typename OnMessage>
+void Parser::feed(std::span<const std::uint8_t> bytes, OnMessage&& on_message) {
+  FrameHeader header;
+  Message message;
+  while (!bytes.empty()) {
+    bool complete = false;
+    bytes = bytes.subspan(accumulate(bytes, complete));
+    while (complete) {
+      if (decode_candidate(header, message)) on_message(std::as_const(header), std::as_const(message));
+      complete = false;
+      accumulate({}, complete);  // the buffer may already hold the next frame
+    }
+  }
+}
+
+}  // namespace hq::mavlink
