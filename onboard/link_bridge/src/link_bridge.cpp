@@ -37,7 +37,9 @@ bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task) {
   }
 }
 
-Verdict route_marker_task(const link::ModeRequest& request, pipeline::OnboardChain* chain) {
+Verdict to_mode_request(const link::ModeRequest& request, modes::Mode mode,
+                        pipeline::ModeRequest& out) {
+  out = {mode, std::nullopt};
   if (static_cast<int>(request.marker_task) == static_cast<int>(hq_msgs_MARKER_TASK_NONE)) {
     return {true, ""};
   }
@@ -46,11 +48,7 @@ Verdict route_marker_task(const link::ModeRequest& request, pipeline::OnboardCha
     return {false, "marker_task outside the MarkerTask enum"};
   }
   if (request.target_id < 0) return {false, "marker target_id is negative"};
-  if (chain == nullptr) return {false, "marker task refused: no on-board chain attached"};
-  if (chain->markers() == nullptr) {
-    return {false, "marker task refused: the marker stage is off (markers.enabled: false)"};
-  }
-  chain->markers()->marker_mode().set_task(task, static_cast<int>(request.target_id));
+  out.marker = pipeline::MarkerTarget{task, static_cast<int>(request.target_id)};
   return {true, ""};
 }
 
@@ -100,7 +98,8 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   jpeg_.reserve(hq_msgs_kMaxJpegBytes);
 }
 
-const FailsafeState& LinkBridge::poll(std::int64_t t_ns, std::vector<modes::Mode>& mode_requests) {
+const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
+                                      std::vector<pipeline::ModeRequest>& mode_requests) {
   dds_sample_info_t info{};
   link::VelocityCommand command{};
   while (command_reader_.take(command, info)) failsafe_.on_command(t_ns, command);
@@ -111,22 +110,17 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns, std::vector<modes::Mode
     modes::Mode mode = modes::Mode::kHover;
     const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
     if (verdict.accepted) {
-      const Verdict routed = route_marker_task(request, chain_);
-      char text[hq_msgs_kMaxEventText + 1];
+      pipeline::ModeRequest chain_request;
+      const Verdict routed = to_mode_request(request, mode, chain_request);
       if (!routed.accepted) {
+        char text[hq_msgs_kMaxEventText + 1];
         std::snprintf(text, sizeof text, "mode %s with marker %ld refused: %s",
                       modes::to_string(mode), static_cast<long>(request.target_id),
                       routed.reason);
         publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
         continue;
       }
-      if (static_cast<int>(request.marker_task) != static_cast<int>(hq_msgs_MARKER_TASK_NONE)) {
-        std::snprintf(text, sizeof text, "marker task %s on marker %d accepted",
-                      marker_modes::to_string(chain_->markers()->marker_mode().task()),
-                      chain_->markers()->marker_mode().marker_id());
-        publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text);
-      }
-      mode_requests.push_back(mode);
+      mode_requests.push_back(chain_request);
     } else {
       publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected,
                     verdict.reason);
@@ -141,7 +135,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns, std::vector<modes::Mode
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHold, text);
   }
   if (state.request_land) {
-    mode_requests.push_back(modes::Mode::kLand);
+    mode_requests.push_back({modes::Mode::kLand, std::nullopt});
     char text[96];
     std::snprintf(text, sizeof text, "no ground heartbeat for %.1f s: landing",
                   1e-9 * static_cast<double>(failsafe_.config().heartbeat_timeout_ns));
@@ -186,15 +180,29 @@ void LinkBridge::report_rejections(std::int64_t t_ns) {
   next_rejection_report_ns_ = t_ns + period_ns(1.0 / options_.rejection_report_period_s);
 }
 
-void LinkBridge::acknowledge(std::int64_t t_ns, modes::Mode mode,
+void LinkBridge::acknowledge(std::int64_t t_ns, const pipeline::ModeRequest& request,
                              const modes::ModeSwitch& result) {
   char text[hq_msgs_kMaxEventText + 1];
+  const char* mode = modes::to_string(request.mode);
+  if (request.marker) {
+    const char* task = marker_modes::to_string(request.marker->task);
+    const int id = request.marker->marker_id;
+    if (result.accepted) {
+      std::snprintf(text, sizeof text, "mode %s accepted: marker task %s on marker %d", mode,
+                    task, id);
+      publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text);
+    } else {
+      std::snprintf(text, sizeof text, "mode %s with marker task %s on marker %d refused: %s",
+                    mode, task, id, result.reason);
+      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
+    }
+    return;
+  }
   if (result.accepted) {
-    std::snprintf(text, sizeof text, "mode %s accepted", modes::to_string(mode));
+    std::snprintf(text, sizeof text, "mode %s accepted", mode);
     publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kModeAccepted, text);
   } else {
-    std::snprintf(text, sizeof text, "mode %s refused: %s", modes::to_string(mode),
-                  result.reason);
+    std::snprintf(text, sizeof text, "mode %s refused: %s", mode, result.reason);
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRefused, text);
   }
 }
@@ -221,9 +229,9 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
   s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
   s.mode = to_link_mode(out.mode.mode);
-  s.estimator_health = out.estimate.ok() ? hq_msgs_HEALTH_OK
-                       : out.safe_hover  ? hq_msgs_HEALTH_LOST
-                                         : hq_msgs_HEALTH_DEGRADED;
+  s.estimator_health = out.safe_hover                                 ? hq_msgs_HEALTH_LOST
+                       : (!out.estimate.ok() || extras.vehicle_degraded) ? hq_msgs_HEALTH_DEGRADED
+                                                                         : hq_msgs_HEALTH_OK;
   s.link_health = link_state.heartbeat_lost ? hq_msgs_HEALTH_LOST
                   : link_state.hold         ? hq_msgs_HEALTH_DEGRADED
                                             : hq_msgs_HEALTH_OK;

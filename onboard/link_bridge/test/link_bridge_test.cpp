@@ -66,7 +66,7 @@ struct Ground {
 
 // Polls the bridge as the control loop does (every 2 ms) until `done` or 5 s.
 template <typename Done>
-bool poll_until(LinkBridge& bridge, std::vector<modes::Mode>& requests, Done done) {
+bool poll_until(LinkBridge& bridge, std::vector<pipeline::ModeRequest>& requests, Done done) {
   const std::int64_t end_ns = now_ns() + 5'000'000'000;
   while (now_ns() < end_ns) {
     bridge.poll(now_ns(), requests);
@@ -80,7 +80,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
   const link::LinkConfig config = private_link();
   LinkBridge bridge(config, FailsafeConfig{});
   Ground ground(config);
-  std::vector<modes::Mode> requests;
+  std::vector<pipeline::ModeRequest> requests;
 
   // Commands are best-effort: keep writing until one is taken.
   link::VelocityCommand good{};
@@ -108,10 +108,10 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
   request.requested_mode = hq_msgs_MODE_TELEOP;
   ground.mode_requests.write(request);
   ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
-  EXPECT_EQ(requests.front(), modes::Mode::kTeleop);
+  EXPECT_EQ(requests.front().mode, modes::Mode::kTeleop);
   EXPECT_EQ(bridge.failsafe().counters().mode_requests_rejected, 1U);
   EXPECT_EQ(bridge.failsafe().counters().heartbeats_rejected, 0U);  // its own are not counted
-  bridge.acknowledge(now_ns(), modes::Mode::kTeleop, {true, ""});
+  bridge.acknowledge(now_ns(), {modes::Mode::kTeleop, std::nullopt}, {true, ""});
 
   // Events are reliable and transient-local: the rejection and the acknowledgement arrive.
   std::vector<std::string> texts;
@@ -147,7 +147,7 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   out.t_ns = 123;
   out.estimate.v_horizontal_mps = {0.5, -0.25, 0.125};
   out.mode.mode = modes::Mode::kLand;
-  std::vector<modes::Mode> requests;
+  std::vector<pipeline::ModeRequest> requests;
   link::VehicleState state{};
   ASSERT_TRUE(poll_until(bridge, requests, [&] {
     bridge.publish_state(out);
@@ -215,7 +215,7 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
   EXPECT_EQ(bridge.states_sent(), 200U);
 
   link::Sample<link::VehicleState> state;
-  std::vector<modes::Mode> requests;
+  std::vector<pipeline::ModeRequest> requests;
   ASSERT_TRUE(poll_until(bridge, requests, [&] {
     out.t_ns += 1'000'000'000;  // one cloud per call
     bridge.publish_state(out, source);
@@ -290,7 +290,7 @@ TEST(LinkBridge, PublishesPositionMarkersAndTruthOnlyWhenGivenAndFinite) {
   extras.v_truth_horizontal_mps = Eigen::Vector3d(0.3, 0.0, -0.1);
 
   link::Sample<link::VehicleState> state;
-  std::vector<modes::Mode> requests;
+  std::vector<pipeline::ModeRequest> requests;
   const auto publish_and_take = [&](const StateExtras& e) {
     bool got = false;
     EXPECT_TRUE(poll_until(bridge, requests, [&] {
@@ -353,49 +353,58 @@ link::ModeRequest marker_request(hq_msgs_MarkerTask task, std::int32_t target_id
   return request;
 }
 
-// GIVEN a chain with its marker stage on, WHEN a request carries a marker task, THEN the stage's
-// marker mode takes task and target; without a stage, or a chain, it is refused with a reason.
-TEST(RouteMarkerTask, SetsTheStageTaskOrRefusesWithoutAStage) {
-  pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
-  ASSERT_NE(with_stage.markers(), nullptr);
-  Verdict v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_LAND, 7), &with_stage);
+// GIVEN link requests with marker tasks, WHEN they become chain requests, THEN a malformed task
+// or target is refused with its reason and NONE carries no task.
+TEST(ToModeRequest, CarriesTheMarkerTaskOrRefusesAMalformedOne) {
+  pipeline::ModeRequest out;
+  Verdict v = to_mode_request(marker_request(hq_msgs_MARKER_TASK_LAND, 7), modes::Mode::kMarker,
+                              out);
   EXPECT_TRUE(v.accepted) << v.reason;
-  EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kLand);
-  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 7);
-  v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_GO_TO, 3), &with_stage);
-  EXPECT_TRUE(v.accepted) << v.reason;
-  EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kGoTo);
-  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 3);
-  // NONE leaves the task as it was.
-  EXPECT_TRUE(route_marker_task(marker_request(hq_msgs_MARKER_TASK_NONE, 0), &with_stage).accepted);
-  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 3);
-  v = route_marker_task(marker_request(static_cast<hq_msgs_MarkerTask>(9), 3), &with_stage);
+  EXPECT_EQ(out.mode, modes::Mode::kMarker);
+  ASSERT_TRUE(out.marker.has_value());
+  EXPECT_EQ(out.marker->task, marker_modes::MarkerTask::kLand);
+  EXPECT_EQ(out.marker->marker_id, 7);
+  EXPECT_TRUE(to_mode_request(marker_request(hq_msgs_MARKER_TASK_NONE, 0), modes::Mode::kMarker,
+                              out)
+                  .accepted);
+  EXPECT_FALSE(out.marker.has_value());
+  v = to_mode_request(marker_request(static_cast<hq_msgs_MarkerTask>(9), 3), modes::Mode::kMarker,
+                      out);
   EXPECT_FALSE(v.accepted);
   EXPECT_THAT(v.reason, HasSubstr("MarkerTask enum"));
+  v = to_mode_request(marker_request(hq_msgs_MARKER_TASK_HOLD, -2), modes::Mode::kMarker, out);
+  EXPECT_FALSE(v.accepted);
+  EXPECT_THAT(v.reason, HasSubstr("negative"));
+}
+
+// GIVEN a chain with its marker stage on, WHEN it is asked for a mode with a marker task, THEN
+// the stage's marker mode takes task and target; without a stage it is refused with a reason.
+TEST(ChainModeRequest, SetsTheStageTaskOrRefusesWithoutAStage) {
+  pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
+  ASSERT_NE(with_stage.markers(), nullptr);
+  const pipeline::ModeRequest land{modes::Mode::kMarker,
+                                   pipeline::MarkerTarget{marker_modes::MarkerTask::kLand, 7}};
+  modes::ModeSwitch result = with_stage.request_mode(land);
+  EXPECT_TRUE(result.accepted) << result.reason;
+  EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kLand);
+  EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 7);
+  EXPECT_EQ(with_stage.mode(), modes::Mode::kMarker);
 
   pipeline::OnboardChain without_stage(chain_config(false), forward_camera_vehicle(),
                                        kMarkerCamera);
-  v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_HOLD, 2), &without_stage);
-  EXPECT_FALSE(v.accepted);
-  EXPECT_THAT(v.reason, HasSubstr("marker stage is off"));
-  EXPECT_TRUE(
-      route_marker_task(marker_request(hq_msgs_MARKER_TASK_NONE, 0), &without_stage).accepted);
-  v = route_marker_task(marker_request(hq_msgs_MARKER_TASK_HOLD, 2), nullptr);
-  EXPECT_FALSE(v.accepted);
-  EXPECT_THAT(v.reason, HasSubstr("no on-board chain"));
+  result = without_stage.request_mode(land);
+  EXPECT_FALSE(result.accepted);
+  EXPECT_THAT(result.reason, HasSubstr("marker stage is off"));
+  EXPECT_NE(without_stage.mode(), modes::Mode::kMarker);
 }
 
-// Over DDS: a marker request to a chain without a marker stage is refused with an event and
-// its mode not requested; to a chain with one, the stage takes the task and the mode follows.
-TEST(LinkBridge, RoutesMarkerRequestsToTheStageAndRefusesThemWhenItIsOff) {
+// Over DDS: a marker request reaches the vehicle as a chain request with its task; the chain's
+// answer goes back as an event naming the task: refused when the stage is off, accepted with it.
+TEST(LinkBridge, PassesMarkerRequestsOnAndAcknowledgesTheChainsAnswer) {
   const link::LinkConfig config = private_link();
   LinkBridge bridge(config, FailsafeConfig{});
   Ground ground(config);
-  std::vector<modes::Mode> requests;
-  pipeline::OnboardChain without_stage(chain_config(false), forward_camera_vehicle(),
-                                       kMarkerCamera);
-  bridge.set_chain(&without_stage);
-  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
+  std::vector<pipeline::ModeRequest> requests;
   std::vector<std::string> texts;
   const auto event_seen = [&](const char* needle) {
     link::Event event{};
@@ -406,20 +415,28 @@ TEST(LinkBridge, RoutesMarkerRequestsToTheStageAndRefusesThemWhenItIsOff) {
     }
     return false;
   };
-  ASSERT_TRUE(poll_until(bridge, requests, [&] { return event_seen("marker stage is off"); }))
-      << ::testing::PrintToString(texts);
-  EXPECT_TRUE(requests.empty());
-  EXPECT_THAT(texts.back(), HasSubstr("mode marker with marker 4 refused"));
-
-  pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
-  bridge.set_chain(&with_stage);
+  pipeline::OnboardChain without_stage(chain_config(false), forward_camera_vehicle(),
+                                       kMarkerCamera);
   ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
   ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
-  EXPECT_EQ(requests.front(), modes::Mode::kMarker);
+  ASSERT_TRUE(requests.front().marker.has_value());
+  EXPECT_EQ(requests.front().marker->marker_id, 4);
+  bridge.acknowledge(now_ns(), requests.front(), without_stage.request_mode(requests.front()));
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return event_seen("marker stage is off"); }))
+      << ::testing::PrintToString(texts);
+  EXPECT_THAT(texts.back(), HasSubstr("marker task land on marker 4 refused"));
+
+  requests.clear();
+  pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
+  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
+  EXPECT_EQ(requests.front().mode, modes::Mode::kMarker);
+  bridge.acknowledge(now_ns(), requests.front(), with_stage.request_mode(requests.front()));
   EXPECT_EQ(with_stage.markers()->marker_mode().task(), marker_modes::MarkerTask::kLand);
   EXPECT_EQ(with_stage.markers()->marker_mode().marker_id(), 4);
-  ASSERT_TRUE(poll_until(bridge, requests, [&] { return event_seen("on marker 4 accepted"); }))
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return event_seen("on marker 4"); }))
       << ::testing::PrintToString(texts);
+  EXPECT_THAT(texts.back(), HasSubstr("accepted"));
 }
 
 }  // namespace

@@ -207,4 +207,15 @@ void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
 
 modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) { return modes_.request_mode(mode); }
 
+modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
+  if (request.marker) {
+    if (request.marker->marker_id < 0) return {false, "marker target id is negative"};
+    if (!markers_) {
+      return {false, "marker task refused: the marker stage is off (markers.enabled: false)"};
+    }
+    markers_->marker_mode().set_task(request.marker->task, request.marker->marker_id);
+  }
+  return modes_.request_mode(request.mode);
+}
+
 }  // namespace hq::pipeline

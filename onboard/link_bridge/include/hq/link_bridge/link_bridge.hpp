@@ -37,16 +37,18 @@ enum class EventCode : std::uint32_t {
   kCommandsResumed = 8,
   kMarkerTaskAccepted = 9,
   kMarkerTaskRefused = 10,
+  kVehicle = 11,  ///< The vehicle runtime: flight controller lost, disarmed, out of offboard.
 };
 
 /// The marker stage's task of a link MarkerTask; false for NONE or a value outside the enum.
 bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task);
 
-/// Hands the marker task of an accepted mode request to `chain`'s marker stage
-/// (marker_mode().set_task(task, target_id)). A request without one (MARKER_TASK_NONE) is
-/// accepted untouched; one with a task is refused, naming why, when there is no chain, the
-/// chain's marker stage is off (markers.enabled false) or the task is outside the enum.
-Verdict route_marker_task(const link::ModeRequest& request, pipeline::OnboardChain* chain);
+/// The chain's mode request of an accepted link request with mode `mode`: its marker task, if it
+/// has one (MARKER_TASK_NONE: none). Refused, naming why, when the task is outside the enum or
+/// the target id is negative; whether the chain can do it (its marker stage on) is the chain's
+/// answer to the request.
+Verdict to_mode_request(const link::ModeRequest& request, modes::Mode mode,
+                        pipeline::ModeRequest& out);
 
 struct BridgeOptions {
   double camera_rate_hz = 10.0;        ///< JPEG frames to the operator at most this often.
@@ -82,6 +84,9 @@ struct StateExtras {
   /// Simulator truth of the velocity in H: only ever set when the vehicle is the simulator.
   bool truth_valid = false;
   Eigen::Vector3d v_truth_horizontal_mps = Eigen::Vector3d::Zero();
+  /// The vehicle cannot fly as commanded (its flight controller lost or not in offboard): the
+  /// state says degraded whatever the estimate.
+  bool vehicle_degraded = false;
 };
 
 class LinkBridge {
@@ -91,19 +96,17 @@ class LinkBridge {
   LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
              const BridgeOptions& options = {});
 
-  /// The chain whose marker stage takes the marker tasks of mode requests (not owned; null:
-  /// every request with a marker task is refused).
-  void set_chain(pipeline::OnboardChain* chain) { chain_ = chain; }
+  /// Takes every pending sample (receipt time t_ns), appends accepted mode requests with their
+  /// marker tasks (and a land request when the heartbeat is lost) to `mode_requests`, publishes
+  /// the heartbeat when due, and returns the fail-safe state whose command the chain must fly.
+  /// A request whose marker task is malformed (to_mode_request) is refused with a
+  /// kMarkerTaskRefused event and not requested.
+  const FailsafeState& poll(std::int64_t t_ns, std::vector<pipeline::ModeRequest>& mode_requests);
 
-  /// Takes every pending sample (receipt time t_ns), appends accepted mode requests (and a land
-  /// request when the heartbeat is lost) to `mode_requests`, publishes the heartbeat when due,
-  /// and returns the fail-safe state whose command the chain must fly. A request's marker task
-  /// goes to the chain's marker stage first (route_marker_task); refused, the whole request is
-  /// refused with a kMarkerTaskRefused event and its mode is not requested.
-  const FailsafeState& poll(std::int64_t t_ns, std::vector<modes::Mode>& mode_requests);
-
-  /// Acknowledges a mode request with an event (accepted or refused with the chain's reason).
-  void acknowledge(std::int64_t t_ns, modes::Mode mode, const modes::ModeSwitch& result);
+  /// Acknowledges a mode request with an event (accepted or refused with the chain's reason;
+  /// a marker task is named).
+  void acknowledge(std::int64_t t_ns, const pipeline::ModeRequest& request,
+                   const modes::ModeSwitch& result);
 
   /// Publishes the vehicle state of one chain output. When extras.cloud has a memory and the
   /// cloud rate allows it at out.t_ns, the state carries the memory's down-sampled map in Q (at
@@ -162,7 +165,6 @@ class LinkBridge {
   int last_cloud_size_ = 0;
   std::uint64_t clouds_sent_ = 0;
   FailsafeCounters reported_;
-  pipeline::OnboardChain* chain_ = nullptr;
 };
 
 }  // namespace hq::link_bridge

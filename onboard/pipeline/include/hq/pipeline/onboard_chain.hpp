@@ -105,6 +105,18 @@ struct ChainOutput {
   StageDurations durations;
 };
 
+/// The marker stage's task for a marker-mode request: what to do about which marker.
+struct MarkerTarget {
+  marker_modes::MarkerTask task = marker_modes::MarkerTask::kHold;
+  int marker_id = 0;
+};
+
+/// A mode request as an operator makes it: the mode and, for the marker mode, its task.
+struct ModeRequest {
+  modes::Mode mode = modes::Mode::kHover;
+  std::optional<MarkerTarget> marker;
+};
+
 class OnboardChain {
  public:
   /// @param camera   intrinsics of the undistorted frames given to on_frame().
@@ -133,6 +145,9 @@ class OnboardChain {
   void set_operator_command(const modes::OperatorCommand& command);
   /// Requests a flight mode; see ModeController::request_mode.
   modes::ModeSwitch request_mode(modes::Mode mode);
+  /// Requests a mode with its marker task: the task goes to the marker stage first, and the
+  /// whole request is refused (with the reason) when the stage is off or the target invalid.
+  modes::ModeSwitch request_mode(const ModeRequest& request);
 
   [[nodiscard]] modes::Mode mode() const { return modes_.mode(); }
   [[nodiscard]] const OnboardConfig& config() const { return config_; }

@@ -37,11 +37,6 @@ struct CameraSourceOptions {
 /// is missing or lost, and reopens it on later calls without restarting the process.
 class CameraSource : public FrameSource {
  public:
-  /// The latest accelerometer sample (specific force in the camera's own axes, m/s^2), for
-  /// devices that have one (Kinect v1); nullopt otherwise or before the first sample.
-  [[nodiscard]] virtual std::optional<recording::AccelSample> accelerometer() const {
-    return std::nullopt;
-  }
   /// True while the device is open and delivering.
   [[nodiscard]] virtual bool connected() const = 0;
 };

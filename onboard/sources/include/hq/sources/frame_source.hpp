@@ -2,11 +2,13 @@
 /// Where RGB-D frames come from (recording, simulator, camera): the on-board chain's input port.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include <opencv2/core.hpp>
 
 #include "hq/geometry/pinhole_camera.hpp"
+#include "hq/recording/tum_io.hpp"
 
 namespace hq::sources {
 
@@ -31,6 +33,11 @@ class FrameSource {
   [[nodiscard]] virtual geometry::PinholeCamera camera() const = 0;
   [[nodiscard]] virtual std::string describe() const = 0;
   [[nodiscard]] virtual const std::string& error() const { return error_; }
+  /// The latest accelerometer sample (specific force in the sensor's own axes, m/s^2), for
+  /// devices that have one (Kinect v1); nullopt otherwise or before the first sample.
+  [[nodiscard]] virtual std::optional<recording::AccelSample> accelerometer() const {
+    return std::nullopt;
+  }
 
  protected:
   std::string error_;

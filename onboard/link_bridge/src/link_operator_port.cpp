@@ -1,0 +1,78 @@
+#include "hq/link_bridge/link_operator_port.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+namespace hq::link_bridge {
+
+LinkOperatorPort::LinkOperatorPort(LinkBridge& bridge, const pipeline::OnboardChain& chain,
+                                   const Eigen::Isometry3d& T_body_camera, std::FILE* log)
+    : bridge_(bridge), chain_(chain), T_camera_body_(T_body_camera.inverse()), log_(log) {}
+
+modes::OperatorCommand LinkOperatorPort::poll(std::int64_t t_ns,
+                                              std::vector<pipeline::ModeRequest>& requests) {
+  const FailsafeState& state = bridge_.poll(t_ns, requests);
+  if (log_ != nullptr && state.hold_started) {
+    std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe hold, command age %.1f ms\n",
+                 1e-9 * static_cast<double>(t_ns),
+                 1e-6 * static_cast<double>(state.command_age_ns));
+  }
+  if (log_ != nullptr && state.request_land) {
+    std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe land, heartbeat age %.1f ms\n",
+                 1e-9 * static_cast<double>(t_ns),
+                 1e-6 * static_cast<double>(state.heartbeat_age_ns));
+  }
+  return state.command;
+}
+
+void LinkOperatorPort::on_mode_result(std::int64_t t_ns, const pipeline::ModeRequest& request,
+                                      const modes::ModeSwitch& result) {
+  bridge_.acknowledge(t_ns, request, result);
+}
+
+void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
+                                 const vehicle::VehicleStatus& status) {
+  StateExtras extras;
+  if (chain_.config().memory.enabled) {
+    if (const auto T_world_camera = chain_.memory().T_world_camera()) {
+      extras.cloud.memory = &chain_.memory();
+      extras.cloud.T_world_body = *T_world_camera * T_camera_body_;
+    }
+  }
+  if (const marker_modes::MarkerStage* markers = chain_.markers()) {
+    const marker_modes::MarkerNavigation& navigation = markers->navigation();
+    extras.position_valid = navigation.pose_usable(kPositionMaxAgeS);
+    extras.p_world_m = navigation.p_world_m();
+    extras.yaw_rad = navigation.yaw_rad();
+    extras.markers = navigation.detections();
+  }
+  if (status.truth) {
+    extras.truth_valid = true;
+    extras.v_truth_horizontal_mps = status.truth->v_H_mps;
+  }
+  extras.vehicle_degraded = status.degraded();
+  bridge_.publish_state(out, extras);
+}
+
+void LinkOperatorPort::on_frame(const sources::RgbdFrame& frame) {
+  bridge_.publish_camera(frame.t_ns, frame.bgr.empty() ? frame.gray : frame.bgr);
+}
+
+void LinkOperatorPort::on_event(std::int64_t t_ns, vehicle::FcSeverity severity,
+                                std::string_view text) {
+  char buffer[hq_msgs_kMaxEventText + 1];
+  const std::size_t n = std::min(text.size(), sizeof buffer - 1);
+  std::memcpy(buffer, text.data(), n);
+  buffer[n] = '\0';
+  const hq_msgs_Severity link_severity = severity == vehicle::FcSeverity::kError
+                                             ? hq_msgs_SEVERITY_ERROR
+                                         : severity == vehicle::FcSeverity::kWarning
+                                             ? hq_msgs_SEVERITY_WARNING
+                                             : hq_msgs_SEVERITY_INFO;
+  bridge_.publish_event(t_ns, link_severity, EventCode::kVehicle, buffer);
+  if (log_ != nullptr) {
+    std::fprintf(log_, "hq-onboard: t %.3f s: %s\n", 1e-9 * static_cast<double>(t_ns), buffer);
+  }
+}
+
+}  // namespace hq::link_bridge
