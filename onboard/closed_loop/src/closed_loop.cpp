@@ -2,8 +2,6 @@
 
 #include "hq/base/error.hpp"
 
-#include <opencv2/imgproc.hpp>
-
 #include <time.h>
 
 #include <algorithm>
@@ -13,6 +11,64 @@
 #include <utility>
 
 namespace hq::closed_loop {
+
+/// The runtime's operator: the scripted player, a legacy OperatorSource or a vehicle operator
+/// port, and the flight record of every output.
+class ClosedLoop::Port final : public vehicle::OperatorPort {
+ public:
+  explicit Port(ClosedLoop& loop) : loop_(loop) { modes_.reserve(8); }
+
+  modes::OperatorCommand poll(std::int64_t t_ns,
+                              std::vector<pipeline::ModeRequest>& requests) override {
+    const ClosedLoopOptions& o = loop_.options_;
+    if (o.operator_port != nullptr) return o.operator_port->poll(t_ns, requests);
+    modes_.clear();
+    modes::OperatorCommand command;
+    if (o.operator_source != nullptr) {
+      command = o.operator_source->poll(t_ns, modes_);
+    } else {
+      loop_.player_.take_mode_requests(t_ns, modes_);
+      command = loop_.player_.command(t_ns);
+    }
+    for (const modes::Mode mode : modes_) requests.push_back({mode, std::nullopt});
+    return command;
+  }
+
+  void on_mode_result(std::int64_t t_ns, const pipeline::ModeRequest& request,
+                      const modes::ModeSwitch& result) override {
+    const ClosedLoopOptions& o = loop_.options_;
+    if (o.operator_port != nullptr) o.operator_port->on_mode_result(t_ns, request, result);
+    if (o.operator_source != nullptr) o.operator_source->on_mode_result(t_ns, request.mode, result);
+    if (!result.accepted) {
+      loop_.refusals_.push_back(std::to_string(1e-9 * static_cast<double>(t_ns)) + " s: " +
+                                modes::to_string(request.mode) + ": " + result.reason);
+    }
+  }
+
+  void on_output(const pipeline::ChainOutput& out, const vehicle::VehicleStatus& status) override {
+    if (out.frame && ++loop_.frames_processed_ > 1) {
+      loop_.timing_.add(out.durations);  // the first frame sizes the buffers
+    }
+    loop_.record(out);
+    const ClosedLoopOptions& o = loop_.options_;
+    if (o.operator_port != nullptr) o.operator_port->on_output(out, status);
+    if (o.operator_source != nullptr) o.operator_source->on_output(out, loop_.sim_->truth());
+  }
+
+  void on_frame(const sources::RgbdFrame& frame) override {
+    if (loop_.options_.operator_port != nullptr) loop_.options_.operator_port->on_frame(frame);
+  }
+
+  void on_event(std::int64_t t_ns, vehicle::FcSeverity severity, std::string_view text) override {
+    if (loop_.options_.operator_port != nullptr) {
+      loop_.options_.operator_port->on_event(t_ns, severity, text);
+    }
+  }
+
+ private:
+  ClosedLoop& loop_;
+  std::vector<modes::Mode> modes_;
+};
 
 ClosedLoop::ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world,
                        const pipeline::OnboardConfig& onboard,
@@ -32,29 +88,40 @@ ClosedLoop::ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world
     throw InputError("closed loop: processing_delay_s = " +
                      std::to_string(options_.processing_delay_s) + ", expected in [0, 1) s");
   }
-  processing_delay_ns_ = std::llround(options_.processing_delay_s * 1e9);
-  imu_.resize(static_cast<std::size_t>(std::ceil(sim_config.imu.rate_hz)) + 16);
-  mode_requests_.reserve(8);
+  if (options_.operator_port != nullptr && options_.operator_source != nullptr) {
+    throw InputError("closed loop: give an operator_port or an operator_source, not both");
+  }
+  fc_ = std::make_unique<SimFlightController>(*sim_,
+                                              std::llround(options_.processing_delay_s * 1e9));
+  SimCamera::ImageObserver observer;
+  if (options_.operator_source != nullptr) {
+    observer = [source = options_.operator_source](std::int64_t t_ns, const cv::Mat& image) {
+      source->on_camera(t_ns, image);
+    };
+  }
+  camera_ = std::make_unique<SimCamera>(*sim_, options_.faults, std::move(observer));
+  port_ = std::make_unique<Port>(*this);
+  vehicle::RuntimeConfig runtime_config;
+  runtime_config.control_period_ns = options_.control_period_ns;
+  runtime_ = std::make_unique<vehicle::VehicleRuntime>(*chain_, *camera_, *fc_, port_.get(),
+                                                       fc_.get(), runtime_config);
   samples_.reserve(static_cast<std::size_t>(
       std::max(1.0, player_.script().end_s * sim_config.camera.rate_hz * 1.1)));
 }
 
 ClosedLoop::~ClosedLoop() = default;
 
-const CameraFault* ClosedLoop::active_fault(std::int64_t t_ns) const {
-  const double t_s = 1e-9 * static_cast<double>(t_ns);
-  for (const CameraFault& fault : options_.faults) {
-    if (t_s >= fault.start_s && t_s < fault.start_s + fault.duration_s) return &fault;
-  }
-  return nullptr;
-}
-
 void ClosedLoop::run_until(double t_s) {
   const auto end_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
   while (t_ns_ + options_.control_period_ns <= end_ns) {
     t_ns_ += options_.control_period_ns;
     if (options_.realtime) pace(t_ns_);
-    control_tick(t_ns_);
+    runtime_->step(t_ns_);
+    const sim::TruthState& truth = sim_->truth();
+    if (!truth.on_ground) {
+      min_clearance_m_ = std::min(min_clearance_m_, truth.clearance_m);
+      if (truth.collision) ++collision_ticks_;
+    }
   }
 }
 
@@ -77,88 +144,6 @@ void ClosedLoop::pace(std::int64_t t_ns) {
   deadline.tv_nsec = deadline_ns % 1'000'000'000LL;
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
   }
-}
-
-void ClosedLoop::feed_imu_until(std::int64_t t_ns) {
-  while (imu_next_ < imu_count_ && imu_[imu_next_].t_ns <= t_ns) {
-    const sim::ImuSample& s = imu_[imu_next_++];
-    chain_->on_imu(s.t_ns, s.omega_body_radps, s.f_body_mps2);
-  }
-}
-
-void ClosedLoop::control_tick(std::int64_t t_ns) {
-  // The operator's hand: mode requests as they fall due, and the held command, refreshed at the
-  // device's rate as a streaming haptic link would.
-  mode_requests_.clear();
-  OperatorSource* source = options_.operator_source;
-  modes::OperatorCommand command;
-  if (source != nullptr) {
-    command = source->poll(t_ns, mode_requests_);
-  } else {
-    player_.take_mode_requests(t_ns, mode_requests_);
-    command = player_.command(t_ns);
-  }
-  for (const modes::Mode mode : mode_requests_) {
-    const modes::ModeSwitch result = chain_->request_mode(mode);
-    if (source != nullptr) source->on_mode_result(t_ns, mode, result);
-    if (!result.accepted) {
-      refusals_.push_back(std::to_string(1e-9 * static_cast<double>(t_ns)) + " s: " +
-                          modes::to_string(mode) + ": " + result.reason);
-    }
-  }
-  chain_->set_operator_command(command);
-
-  // Physics up to t, with the setpoint switched at its own time, not the tick's.
-  if (pending_ && pending_apply_ns_ <= t_ns) {
-    sim_->step_to(pending_apply_ns_);
-    sim_->set_command(pending_command_);
-    pending_ = false;
-  }
-  sim_->step_to(t_ns);
-  imu_count_ = sim_->take_imu(imu_.data(), imu_.size());
-  imu_next_ = 0;
-
-  const sim::TruthState& truth = sim_->truth();
-  if (!truth.on_ground) {
-    min_clearance_m_ = std::min(min_clearance_m_, truth.clearance_m);
-    if (truth.collision) ++collision_ticks_;
-  }
-
-  if (sim_->camera_due()) {
-    feed_imu_until(sim_->camera_t_ns());
-    process_frame();
-  }
-  feed_imu_until(std::numeric_limits<std::int64_t>::max());
-
-  if (const auto held = chain_->on_tick(t_ns)) {
-    const control::AttitudeSetpoint& s = held->mode.control.setpoint;
-    sim_->set_command({s.thrust_n, s.roll_rad, s.pitch_rad, s.yaw_rate_radps});
-    pending_ = false;
-    record(*held);
-  }
-}
-
-void ClosedLoop::process_frame() {
-  const std::int64_t t_frame_ns = sim_->camera_t_ns();
-  sim_->render_camera(image_, depth_m_);
-  if (options_.operator_source != nullptr) options_.operator_source->on_camera(t_frame_ns, image_);
-  const CameraFault* fault = active_fault(t_frame_ns);
-  if (fault && fault->kind == CameraFault::Kind::kDrop) return;
-  if (fault && fault->kind == CameraFault::Kind::kNanDepth) {
-    depth_m_.setTo(std::numeric_limits<float>::quiet_NaN());
-  }
-  if (image_.channels() == 3) {
-    cv::cvtColor(image_, gray_, cv::COLOR_BGR2GRAY);
-  } else {
-    gray_ = image_;
-  }
-  const pipeline::ChainOutput out = chain_->on_frame(t_frame_ns, gray_, depth_m_);
-  if (++frames_processed_ > 1) timing_.add(out.durations);  // the first sizes the buffers
-  const control::AttitudeSetpoint& s = out.mode.control.setpoint;
-  pending_command_ = {s.thrust_n, s.roll_rad, s.pitch_rad, s.yaw_rate_radps};
-  pending_apply_ns_ = t_frame_ns + processing_delay_ns_;
-  pending_ = true;
-  record(out);
 }
 
 void ClosedLoop::record(const pipeline::ChainOutput& out) {
@@ -185,7 +170,6 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.p_world_m = truth.T_world_body.translation();
   s.reason = out.safe_hover ? out.safe_hover_reason : "";
   samples_.push_back(s);
-  if (options_.operator_source != nullptr) options_.operator_source->on_output(out, truth);
 }
 
 }  // namespace hq::closed_loop

@@ -178,9 +178,13 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
 }
 
 void VehicleRuntime::deliver(const pipeline::ChainOutput& out) {
-  if (!status_.streaming && out.estimate.ok()) {
+  // Landed, the chain knows the state without odometry (at rest, motors idle): its idle
+  // setpoints are safe to stream, and PX4 needs the stream before it enters offboard.
+  if (!status_.streaming && (out.estimate.ok() || out.mode.landed)) {
     status_.streaming = true;
-    event(out.t_ns, FcSeverity::kInfo, "first estimate: setpoint stream to the FC started");
+    event(out.t_ns, FcSeverity::kInfo,
+          out.mode.landed ? "landed and at rest: setpoint stream to the FC started"
+                          : "first estimate: setpoint stream to the FC started");
   }
   if (status_.streaming) {
     fc_.send_setpoint(out.t_ns, out.mode.control.setpoint);

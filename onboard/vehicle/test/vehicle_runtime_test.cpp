@@ -169,7 +169,21 @@ TEST(VehicleRuntime, StreamsSetpointsOnlyAfterTheFirstEstimate) {
   rig.run_until(rig.t_ns + 20 * kFramePeriodNs);
   EXPECT_TRUE(rig.runtime->status().streaming);
   EXPECT_GT(rig.fc.setpoints, 0);
-  EXPECT_TRUE(contains(rig.port.events, "setpoint stream to the FC started"));
+  EXPECT_TRUE(contains(rig.port.events, "first estimate: setpoint stream to the FC started"));
+}
+
+// GIVEN a vehicle that starts landed WHEN no frame has come yet THEN it streams its idle
+// setpoints at once (the FC needs the stream before offboard), with zero thrust.
+TEST(VehicleRuntime, StreamsIdleSetpointsWhileLanded) {
+  pipeline::OnboardConfig config;
+  config.modes.start_landed = true;
+  Rig rig(40, config);
+  rig.source.hold_ = true;
+  rig.run_until(500'000'000);
+  EXPECT_TRUE(rig.runtime->status().streaming);
+  EXPECT_GT(rig.fc.setpoints, 0);
+  EXPECT_LT(rig.fc.last.thrust_n, 0.5);
+  EXPECT_TRUE(contains(rig.port.events, "landed and at rest"));
 }
 
 // GIVEN a connected, armed FC in offboard WHEN its heartbeat stops THEN one error event, the

@@ -4,19 +4,23 @@
 /// scripted operator, all on simulated time (lock-step), so a run is a pure function of
 /// (configs, world, seed, script) whatever the machine's load.
 ///
-/// Timing as on the vehicle: IMU samples reach the chain as the simulator produces them; a frame
-/// is processed at its stamp and its setpoint reaches the flight controller a processing delay
-/// later; between frames the chain is ticked at the flight computer's rate (camera timeout).
-/// Camera faults (dropped frames, NaN depth) can be injected on a schedule.
+/// The loop is the vehicle's own: the VehicleRuntime (onboard/vehicle) with the simulator as its
+/// flight controller and camera (sim_vehicle.hpp), so every flight here runs the code path of a
+/// real vehicle. Timing as on the vehicle: IMU samples reach the chain as the simulator produces
+/// them; a frame is processed at its stamp and every setpoint reaches the flight controller a
+/// processing delay later; between frames the chain is ticked at the flight computer's rate
+/// (camera timeout). Camera faults (dropped frames, NaN depth) can be injected on a schedule.
 ///
 /// Never linked into flight code: this is the test bench around it.
 
 #include "hq/closed_loop/operator_script.hpp"
+#include "hq/closed_loop/sim_vehicle.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/sim/simulator.hpp"
+#include "hq/vehicle/vehicle_runtime.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -27,13 +31,6 @@
 #include <vector>
 
 namespace hq::closed_loop {
-
-struct CameraFault {
-  enum class Kind { kDrop, kNanDepth };
-  Kind kind = Kind::kDrop;
-  double start_s = 0.0;
-  double duration_s = 0.0;
-};
 
 /// Supplies the operator's command and mode requests in place of the scripted player (the DDS
 /// link in hq-onboard --link), and sees what the loop produces. Called on run_until()'s thread.
@@ -66,6 +63,9 @@ struct ClosedLoopOptions {
   /// Optional, not owned: the operator's command and mode requests come from here instead of
   /// the player (whose script then only gives end_s).
   OperatorSource* operator_source = nullptr;
+  /// Optional, not owned, instead of operator_source: a vehicle operator port (the DDS link),
+  /// with marker tasks and runtime events. Sees every output with the simulator's truth.
+  vehicle::OperatorPort* operator_port = nullptr;
   /// Paced to wall time (CLOCK_MONOTONIC, absolute sleeps): simulated time tracks real time,
   /// as needed when a live operator flies it over the link. Off: as fast as possible.
   bool realtime = false;
@@ -108,6 +108,9 @@ class ClosedLoop {
 
   /// Advances the loop to simulated time t_s (no-op if already there).
   void run_until(double t_s);
+  /// Sets options.operator_port after construction (a port that needs the loop's chain).
+  /// @pre nothing run yet and no operator_source given.
+  void set_operator_port(vehicle::OperatorPort* port) { options_.operator_port = port; }
   /// Runs to the script's end_s.
   void run() { run_until(player_.script().end_s); }
 
@@ -126,32 +129,24 @@ class ClosedLoop {
 
   [[nodiscard]] sim::Simulator& simulator() { return *sim_; }
   [[nodiscard]] pipeline::OnboardChain& chain() { return *chain_; }
+  [[nodiscard]] const vehicle::VehicleRuntime& runtime() const { return *runtime_; }
+  [[nodiscard]] const SimFlightController& flight_controller() const { return *fc_; }
   [[nodiscard]] const OperatorPlayer& player() const { return player_; }
 
  private:
-  void control_tick(std::int64_t t_ns);
+  class Port;
   void pace(std::int64_t t_ns);
-  void feed_imu_until(std::int64_t t_ns);
-  void process_frame();
   void record(const pipeline::ChainOutput& out);
-  [[nodiscard]] const CameraFault* active_fault(std::int64_t t_ns) const;
 
   std::unique_ptr<sim::Simulator> sim_;
   std::unique_ptr<pipeline::OnboardChain> chain_;
   OperatorPlayer player_;
   ClosedLoopOptions options_;
+  std::unique_ptr<SimFlightController> fc_;
+  std::unique_ptr<SimCamera> camera_;
+  std::unique_ptr<Port> port_;
+  std::unique_ptr<vehicle::VehicleRuntime> runtime_;
   std::int64_t t_ns_ = 0;
-  std::int64_t processing_delay_ns_ = 0;
-  bool pending_ = false;
-  std::int64_t pending_apply_ns_ = 0;
-  sim::AttitudeCommand pending_command_;
-  std::vector<sim::ImuSample> imu_;
-  std::size_t imu_count_ = 0;
-  std::size_t imu_next_ = 0;
-  std::vector<modes::Mode> mode_requests_;
-  cv::Mat image_;
-  cv::Mat gray_;
-  cv::Mat depth_m_;
   std::vector<FlightSample> samples_;
   pipeline::StageTimingLog timing_;
   int frames_processed_ = 0;

@@ -5,7 +5,7 @@
 /// on-board chain on it (or ticks it between frames) and sends the setpoint to the flight
 /// controller. Recordings, cameras, the SITL process and the in-process simulator all run
 /// through this same code, so the fail-safes are the same for all of them:
-///   - no setpoint stream until the chain has an estimate;
+///   - no setpoint stream until the chain has an estimate (or knows it is landed, at rest);
 ///   - flight controller silent beyond its timeout: an error event, the chain holds (hover);
 ///   - flight controller disarmed or out of offboard on its own (its failsafe, the pilot's RC):
 ///     said once, the chain lands or holds, and the runtime never re-arms or re-enters offboard
@@ -47,7 +47,7 @@ class TruthSource {
 /// What the runtime knows about the vehicle beyond the chain's output.
 struct VehicleStatus {
   FcStatus fc;
-  bool streaming = false;    ///< Setpoints go to the FC (since the chain's first estimate).
+  bool streaming = false;    ///< Setpoints go to the FC (since the first estimate or landed).
   bool fc_lost = false;      ///< Heard from once, silent beyond its timeout now.
   bool fc_override = false;  ///< The FC left offboard or disarmed on its own: not our setpoints.
   std::optional<TruthSample> truth;
@@ -89,7 +89,7 @@ struct RuntimeCounters {
   std::uint64_t frames_out_of_order = 0;  ///< Not newer than the previous frame: dropped.
   std::uint64_t ticks = 0;                ///< Chain outputs between frames.
   std::uint64_t setpoints = 0;
-  std::uint64_t setpoints_withheld = 0;   ///< Before the first estimate.
+  std::uint64_t setpoints_withheld = 0;   ///< Before the first estimate (airborne start).
   std::uint64_t imu_samples = 0;
   std::uint64_t imu_overflow = 0;
   std::uint64_t arm_requests = 0;
