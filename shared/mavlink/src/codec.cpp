@@ -372,13 +372,15 @@ bool Parser::decode_candidate(FrameHeader& header, Message& message) {
     drop_start_byte();  // a real frame may begin inside this one
     return false;
   }
-  if (length > (v2 ? info.max_len : info.base_len)) {
+  // MAVLink 1 frames carry no extensions; one that does anyway (node-mavlink writes them) is
+  // accepted and its extension bytes ignored.
+  if (length > info.max_len) {
     ++counters_.bad_length;
     drop_frame();
     return false;
   }
   std::uint8_t payload[kMaxPayload]{};  // zero padding restores trimmed bytes and extensions
-  std::memcpy(payload, buf_ + header_size, length);
+  std::memcpy(payload, buf_ + header_size, v2 ? length : std::min(length, info.base_len));
   decode_payload(info.variant_index, payload, message);
   header.v1 = !v2;
   header.signed_ = v2 && (buf_[2] & kIncompatSigned) != 0;

@@ -222,6 +222,30 @@ TEST(Codec, V1FrameIsDecodedAndCounted) {
   EXPECT_EQ(parser.counters().frames, 1u);
 }
 
+TEST(Codec, V1FrameExtensionBytesAreIgnored) {
+  // node-mavlink writes extension fields into v1 frames; MAVLink 1 has none, so they are dropped.
+  HighresImu imu{};
+  imu.time_usec = 99;
+  imu.fields_updated = 7;
+  imu.id = 5;
+  const Bytes v2 = encode(imu);
+  ASSERT_EQ(v2[1], 63);
+  Bytes frame = {0xFE, 63, 0, 1, 1, 105};
+  frame.insert(frame.end(), v2.begin() + 10, v2.begin() + 10 + 63);
+  std::uint16_t crc = crc16_mcrf4xx(std::span<const std::uint8_t>(frame.data() + 1, 5 + 63));
+  const std::uint8_t crc_extra = 93;
+  crc = crc16_mcrf4xx(std::span<const std::uint8_t>(&crc_extra, 1), crc);
+  frame.push_back(static_cast<std::uint8_t>(crc & 0xFF));
+  frame.push_back(static_cast<std::uint8_t>(crc >> 8));
+  Parser parser;
+  const auto got = feed(parser, frame);
+  ASSERT_EQ(got.size(), 1u);
+  const auto& decoded = std::get<HighresImu>(got[0].message);
+  EXPECT_EQ(decoded.time_usec, 99u);
+  EXPECT_EQ(decoded.fields_updated, 7);
+  EXPECT_EQ(decoded.id, 0);
+}
+
 TEST(Codec, SignedFrameSignatureIsSkipped) {
   Bytes frame = encode(Attitude{5, 0.1f, 0.2f, 0.3f, 0, 0, 0});
   frame[2] = 0x01;  // MAVLINK_IFLAG_SIGNED: the CRC covers the flags
