@@ -1,16 +1,15 @@
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 
+#include "hq/base/error.hpp"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <cstring>
 #include <numbers>
 #include <string_view>
-
-#include "hq/base/error.hpp"
 
 namespace hq::vehicle {
 namespace {
@@ -29,23 +28,27 @@ constexpr std::uint8_t kMavTypeGcs = 6;
 constexpr std::uint8_t kMavSeverityError = 3;
 constexpr std::uint8_t kMavSeverityWarning = 4;
 
-double wrap_pi(double angle_rad) {
-  return std::remainder(angle_rad, 2.0 * std::numbers::pi);
-}
+double wrap_pi(double angle_rad) { return std::remainder(angle_rad, 2.0 * std::numbers::pi); }
 
 const char* command_name(std::uint16_t command) {
   switch (command) {
-    case ml::kMavCmdDoSetMode: return "MAV_CMD_DO_SET_MODE";
-    case ml::kMavCmdComponentArmDisarm: return "MAV_CMD_COMPONENT_ARM_DISARM";
-    default: return "command";
+    case ml::kMavCmdDoSetMode:
+      return "MAV_CMD_DO_SET_MODE";
+    case ml::kMavCmdComponentArmDisarm:
+      return "MAV_CMD_COMPONENT_ARM_DISARM";
+    default:
+      return "command";
   }
 }
 
 const char* autopilot_name(MavlinkFcConfig::Autopilot autopilot) {
   switch (autopilot) {
-    case MavlinkFcConfig::Autopilot::kPx4: return "PX4";
-    case MavlinkFcConfig::Autopilot::kArduPilot: return "ArduPilot";
-    case MavlinkFcConfig::Autopilot::kAuto: break;
+    case MavlinkFcConfig::Autopilot::kPx4:
+      return "PX4";
+    case MavlinkFcConfig::Autopilot::kArduPilot:
+      return "ArduPilot";
+    case MavlinkFcConfig::Autopilot::kAuto:
+      break;
   }
   return "unknown autopilot";
 }
@@ -115,14 +118,8 @@ MavlinkFlightController::MavlinkFlightController(const MavlinkFcConfig& config,
   if (!transport_) throw InputError("MavlinkFlightController: no transport");
 }
 
-void MavlinkFlightController::event(FcSink& sink, FcSeverity severity, const char* format, ...) {
-  va_list args;
-  va_start(args, format);
-  const int n = std::vsnprintf(text_.data(), text_.size(), format, args);
-  va_end(args);
-  if (n < 0) return;
-  const std::size_t length = std::min(static_cast<std::size_t>(n), text_.size() - 1);
-  sink.on_fc_event(severity, std::string_view(text_.data(), length));
+void MavlinkFlightController::emit(FcSink& sink, FcSeverity severity, std::size_t length) {
+  sink.on_fc_event(severity, std::string_view(text_.data(), std::min(length, text_.size() - 1)));
 }
 
 bool MavlinkFlightController::send(const ml::Message& message) {
@@ -183,7 +180,7 @@ void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
   }
   if (pending_no_autopilot_) {
     pending_no_autopilot_ = false;
-    event(sink, FcSeverity::kError,
+    event(sink, FcSeverity::kError, "%s",
           "arm/offboard request not sent: autopilot unknown (no FC heartbeat yet)");
   }
 }
@@ -219,9 +216,8 @@ void MavlinkFlightController::handle(std::int64_t t_ns, const ml::FrameHeader& h
       return;
     }
     FcAttitude attitude;
-    attitude.t_ns = have_offset_ ? static_cast<std::int64_t>(att->time_boot_ms) * 1'000'000 +
-                                       offset_ns_
-                                 : t_ns;
+    attitude.t_ns =
+        have_offset_ ? static_cast<std::int64_t>(att->time_boot_ms) * 1'000'000 + offset_ns_ : t_ns;
     attitude.roll_rad = att->roll_rad;
     attitude.pitch_rad = att->pitch_rad;
     attitude.yaw_rad = att->yaw_rad;
@@ -260,7 +256,7 @@ void MavlinkFlightController::handle_heartbeat(std::int64_t t_ns, const ml::Fram
   } else if (header.system_id != target_system_ || header.component_id != target_component_) {
     return;
   }
-  heard_autopilot_ = hb.autopilot == ml::kMavAutopilotPx4 ? Autopilot::kPx4
+  heard_autopilot_ = hb.autopilot == ml::kMavAutopilotPx4             ? Autopilot::kPx4
                      : hb.autopilot == ml::kMavAutopilotArdupilotMega ? Autopilot::kArduPilot
                                                                       : Autopilot::kAuto;
   armed_ = (hb.base_mode & ml::kMavModeFlagSafetyArmed) != 0;
@@ -271,7 +267,9 @@ void MavlinkFlightController::handle_heartbeat(std::int64_t t_ns, const ml::Fram
     case Autopilot::kArduPilot:
       offboard_ = hb.custom_mode == ml::kArduCopterModeGuidedNoGps;
       break;
-    case Autopilot::kAuto: offboard_ = false; break;
+    case Autopilot::kAuto:
+      offboard_ = false;
+      break;
   }
   last_heartbeat_ns_ = t_ns;
 }
@@ -317,8 +315,8 @@ void MavlinkFlightController::send_setpoint(std::int64_t t_ns,
   if (!flying_ours || !yaw_integrating_) {
     yaw_target_rad_ = have_fc_yaw_ ? fc_yaw_rad_ : 0.0;
   } else {
-    const double dt_s = std::clamp(static_cast<double>(t_ns - last_setpoint_ns_) * 1e-9, 0.0,
-                                   kMaxYawStepS);
+    const double dt_s =
+        std::clamp(static_cast<double>(t_ns - last_setpoint_ns_) * 1e-9, 0.0, kMaxYawStepS);
     yaw_target_rad_ += setpoint.yaw_rate_radps * dt_s;
   }
   yaw_integrating_ = flying_ours;
@@ -341,7 +339,8 @@ void MavlinkFlightController::send_setpoint(std::int64_t t_ns,
   target.body_roll_rate_radps = 0.0f;
   target.body_pitch_rate_radps = 0.0f;
   target.body_yaw_rate_radps = static_cast<float>(setpoint.yaw_rate_radps);
-  target.thrust = static_cast<float>(std::clamp(setpoint.thrust_n / config_.max_thrust_n, 0.0, 1.0));
+  target.thrust =
+      static_cast<float>(std::clamp(setpoint.thrust_n / config_.max_thrust_n, 0.0, 1.0));
   target.target_system = target_system_;
   target.target_component = target_component_;
   target.type_mask = ml::kAttitudeTargetIgnoreBodyRollRate | ml::kAttitudeTargetIgnoreBodyPitchRate;

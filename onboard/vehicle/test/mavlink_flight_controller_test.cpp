@@ -2,9 +2,13 @@
 // controller polls and sends THEN what it reports and what the FC receives are checked.
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 
-#include <unistd.h>
+#include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
 
 #include <Eigen/Geometry>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
@@ -13,14 +17,8 @@
 #include <numbers>
 #include <string>
 #include <thread>
+#include <unistd.h>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <yaml-cpp/yaml.h>
-
-#include "hq/testing/allocation_counter.hpp"
-#include "hq/testing/input_error.hpp"
 
 namespace hq::vehicle {
 namespace {
@@ -66,7 +64,8 @@ struct Received {
 // The flight-controller side: system 1, component 1, as PX4 and ArduPilot are.
 class FakeFc {
  public:
-  explicit FakeFc(int port) : transport_(ml::open_transport("udp-listen:" + std::to_string(port))) {}
+  explicit FakeFc(int port)
+      : transport_(ml::open_transport("udp-listen:" + std::to_string(port))) {}
 
   void send(const ml::Message& message) {
     std::array<std::uint8_t, ml::kMaxFrameSize> frame{};
@@ -77,9 +76,9 @@ class FakeFc {
   void send_raw(const std::vector<std::uint8_t>& bytes) { ASSERT_TRUE(transport_->send(bytes)); }
 
   // Everything the controller sent within `timeout_ns` (stops early once `until` holds).
-  std::vector<Received> receive(std::int64_t timeout_ns,
-                                const std::function<bool(const std::vector<Received>&)>& until =
-                                    nullptr) {
+  std::vector<Received> receive(
+      std::int64_t timeout_ns,
+      const std::function<bool(const std::vector<Received>&)>& until = nullptr) {
     std::vector<Received> out;
     const auto end = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
     std::array<std::uint8_t, 2048> buffer{};
@@ -88,7 +87,9 @@ class FakeFc {
       if (!transport_->wait_readable(5 * kMs)) continue;
       const std::size_t n = transport_->receive(buffer);
       parser_.feed(std::span<const std::uint8_t>(buffer.data(), n),
-                   [&](const ml::FrameHeader& h, const ml::Message& m) { out.push_back({h, m}); });
+                   [&](const ml::FrameHeader& h, const ml::Message& m) {
+                     out.push_back({h, m});
+                   });
       parser_.end_of_datagram();
     }
     return out;
@@ -295,7 +296,8 @@ struct Euler {
   double roll, pitch, yaw;
 };
 Euler euler_zyx(const std::array<float, 4>& q) {
-  const Eigen::Matrix3d R = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+  const Eigen::Matrix3d R =
+      Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
   return {std::atan2(R(2, 1), R(2, 2)), -std::asin(R(2, 0)), std::atan2(R(1, 0), R(0, 0))};
 }
 
@@ -401,9 +403,11 @@ TEST(MavlinkFc, StatustextAndRefusalsBecomeEvents) {
 
   ASSERT_TRUE(link.deliver(ml::CommandAck{ml::kMavCmdComponentArmDisarm, 4, 0, 0, 1, 191}));
   EXPECT_EQ(link.sink.events.back().severity, FcSeverity::kError);
-  EXPECT_EQ(link.sink.events.back().text, "FC refused MAV_CMD_COMPONENT_ARM_DISARM (400): result 4");
+  EXPECT_EQ(link.sink.events.back().text,
+            "FC refused MAV_CMD_COMPONENT_ARM_DISARM (400): result 4");
   const std::size_t events = link.sink.events.size();
-  ASSERT_TRUE(link.deliver(ml::CommandAck{ml::kMavCmdDoSetMode, ml::kMavResultAccepted, 0, 0, 1, 191}));
+  ASSERT_TRUE(
+      link.deliver(ml::CommandAck{ml::kMavCmdDoSetMode, ml::kMavResultAccepted, 0, 0, 1, 191}));
   EXPECT_EQ(link.sink.events.size(), events) << "an accepted command says nothing";
 
   ml::SysStatus sys;

@@ -5,6 +5,8 @@
 //                       TEXT ("message ID SYSID COMPID v1|v2|signed" then "FIELD VALUE..." lines)
 // Exit status 0 when everything matched, 1 on a mismatch, 2 on bad usage or files.
 
+#include "hq/mavlink/codec.hpp"
+
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
@@ -15,8 +17,6 @@
 #include <string>
 #include <type_traits>
 #include <vector>
-
-#include "hq/mavlink/codec.hpp"
 
 namespace {
 
@@ -143,9 +143,8 @@ std::vector<Message> chosen_messages() {
   for (std::size_t i = 0; i < 9; ++i) vse.covariance[i] = i % 4 == 0 ? 0.04f : 0.f;
   vse.reset_counter = 7;
   out.emplace_back(vse);
-  out.emplace_back(HighresImu{1700000000123456ull, 0.125f, -0.25f, -9.80665f, 0.01f, -0.02f,
-                              0.03f, 0.21f, -0.05f, 0.43f, 1013.25f, 0.5f, 120.5f, 25.25f, 0x1FFF,
-                              0});
+  out.emplace_back(HighresImu{1700000000123456ull, 0.125f, -0.25f, -9.80665f, 0.01f, -0.02f, 0.03f,
+                              0.21f, -0.05f, 0.43f, 1013.25f, 0.5f, 120.5f, 25.25f, 0x1FFF, 0});
   out.emplace_back(HighresImu{42, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 3});
   Statustext st;
   st.severity = 6;
@@ -326,9 +325,11 @@ int check(const std::string& frames_path, const std::string& text_path) {
   // Fed in odd-sized chunks so frames straddle feed() calls, as from a serial port.
   for (std::size_t i = 0; i < bytes.size(); i += 7) {
     const std::size_t n = std::min<std::size_t>(7, bytes.size() - i);
-    parser.feed(std::span<const std::uint8_t>(
-                    reinterpret_cast<const std::uint8_t*>(bytes.data()) + i, n),
-                [&](const FrameHeader& h, const Message& m) { decoded.push_back({h, m}); });
+    parser.feed(
+        std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()) + i, n),
+        [&](const FrameHeader& h, const Message& m) {
+          decoded.push_back({h, m});
+        });
   }
   const ParserCounters& c = parser.counters();
   int mismatches = 0;
@@ -368,8 +369,8 @@ int check(const std::string& frames_path, const std::string& text_path) {
   for (std::size_t i = 0; i < expected.size(); ++i) {
     const Expected& e = expected[i];
     const Decoded& d = decoded[i];
-    const std::string context = "message " + std::to_string(i) + " (id " + std::to_string(e.id) +
-                                ", " + e.kind + ")";
+    const std::string context =
+        "message " + std::to_string(i) + " (id " + std::to_string(e.id) + ", " + e.kind + ")";
     const std::string kind = d.header.v1 ? "v1" : d.header.signed_ ? "signed" : "v2";
     if (message_id(d.message) != e.id || d.header.system_id != e.sysid ||
         d.header.component_id != e.compid || kind != e.kind) {

@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -24,10 +25,10 @@ namespace hq::vehicle {
 struct MavlinkFcConfig {
   enum class Autopilot { kAuto, kPx4, kArduPilot };
   std::string transport = "udp:127.0.0.1:14540";  ///< mavlink::open_transport() spec.
-  std::uint8_t system_id = 1;                       ///< Ours (a companion shares the vehicle's).
-  std::uint8_t component_id = 191;                  ///< MAV_COMP_ID_ONBOARD_COMPUTER.
-  double heartbeat_timeout_s = 1.0;  ///< No FC heartbeat for longer: not connected.
-  double heartbeat_rate_hz = 1.0;    ///< Our HEARTBEAT, sent from poll().
+  std::uint8_t system_id = 1;                     ///< Ours (a companion shares the vehicle's).
+  std::uint8_t component_id = 191;                ///< MAV_COMP_ID_ONBOARD_COMPUTER.
+  double heartbeat_timeout_s = 1.0;               ///< No FC heartbeat for longer: not connected.
+  double heartbeat_rate_hz = 1.0;                 ///< Our HEARTBEAT, sent from poll().
   /// Collective thrust at full throttle, to normalise SET_ATTITUDE_TARGET's thrust (the simulated
   /// vehicle's 4 rotors give 32.9 N).
   double max_thrust_n = 32.9;
@@ -82,8 +83,13 @@ class MavlinkFlightController final : public FlightController {
   [[nodiscard]] Autopilot autopilot() const;
   bool send(const mavlink::Message& message);
   void send_command(std::uint16_t command, float param1, float param2);
-  [[gnu::format(printf, 4, 5)]] void event(FcSink& sink, FcSeverity severity, const char* format,
-                                           ...);
+  /// Formats into text_ (no allocation) and hands it to the sink.
+  template <typename... Args>
+  void event(FcSink& sink, FcSeverity severity, const char* format, Args... args) {
+    const int n = std::snprintf(text_.data(), text_.size(), format, args...);
+    if (n >= 0) emit(sink, severity, static_cast<std::size_t>(n));
+  }
+  void emit(FcSink& sink, FcSeverity severity, std::size_t length);
 
   MavlinkFcConfig config_;
   std::unique_ptr<mavlink::Transport> transport_;
