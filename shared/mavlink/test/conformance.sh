@@ -8,10 +8,10 @@
 set -euo pipefail
 tool=$1
 work=$2
-here=$(cd "$(dirname "$0")" && pwd)
 
 command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
 command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
+here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$work"
 if [ ! -f "$work/node_modules/node-mavlink/package.json" ]; then
   if ! npm install --no-audit --no-fund --prefix "$work" 'node-mavlink@2' >"$work/npm-install.log" 2>&1; then
