@@ -19,6 +19,7 @@ struct Heartbeat {
   std::uint8_t base_mode = 0;  ///< MAV_MODE_FLAG bits.
   std::uint8_t system_status = 0;
   std::uint8_t mavlink_version = 3;
+  bool operator==(const Heartbeat&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// SYS_STATUS (1): the battery part is what the operator needs.
@@ -38,6 +39,7 @@ struct SysStatus {
   std::uint32_t onboard_control_sensors_present_extended = 0;
   std::uint32_t onboard_control_sensors_enabled_extended = 0;
   std::uint32_t onboard_control_sensors_health_extended = 0;
+  bool operator==(const SysStatus&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// ATTITUDE (30): Euler angles of the body FRD in the local NED frame.
@@ -46,6 +48,7 @@ struct Attitude {
   std::uint32_t time_boot_ms = 0;
   float roll_rad = 0, pitch_rad = 0, yaw_rad = 0;
   float rollspeed_radps = 0, pitchspeed_radps = 0, yawspeed_radps = 0;
+  bool operator==(const Attitude&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// COMMAND_LONG (76).
@@ -56,6 +59,7 @@ struct CommandLong {
   std::uint8_t target_system = 0;
   std::uint8_t target_component = 0;
   std::uint8_t confirmation = 0;
+  bool operator==(const CommandLong&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// COMMAND_ACK (77).
@@ -68,6 +72,7 @@ struct CommandAck {
   std::int32_t result_param2 = 0;
   std::uint8_t target_system = 0;
   std::uint8_t target_component = 0;
+  bool operator==(const CommandAck&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// SET_ATTITUDE_TARGET (82).
@@ -82,6 +87,7 @@ struct SetAttitudeTarget {
   std::uint8_t type_mask = 0;  ///< ATTITUDE_TARGET_TYPEMASK bits: what to ignore.
   // Extensions.
   std::array<float, 3> thrust_body{};
+  bool operator==(const SetAttitudeTarget&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// VISION_SPEED_ESTIMATE (103): velocity in the local NED frame.
@@ -92,6 +98,7 @@ struct VisionSpeedEstimate {
   // Extensions.
   std::array<float, 9> covariance{};  ///< Row-major 3x3, m^2/s^2; NaN in [0]: unknown.
   std::uint8_t reset_counter = 0;
+  bool operator==(const VisionSpeedEstimate&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// HIGHRES_IMU (105): body FRD.
@@ -105,6 +112,7 @@ struct HighresImu {
   std::uint16_t fields_updated = 0;
   // Extensions.
   std::uint8_t id = 0;
+  bool operator==(const HighresImu&) const = default;  ///< Field by field (tests, tools).
 };
 
 /// STATUSTEXT (253).
@@ -115,6 +123,7 @@ struct Statustext {
   // Extensions.
   std::uint16_t id = 0;
   std::uint8_t chunk_seq = 0;
+  bool operator==(const Statustext&) const = default;  ///< Field by field (tests, tools).
 };
 
 using Message = std::variant<Heartbeat, SysStatus, Attitude, CommandLong, CommandAck,
