@@ -3,15 +3,24 @@
 //   hq-sim --world onboard/sim/worlds/arena.yaml --duration-s 10 --record out_dir
 //          [--resolution 640x480] [--seed N] [--script hover|circle]
 //          [--config onboard/sim/config/sim.yaml]
+// hq-sim --sitl: the same simulator as a separate SITL process, paced to real time, playing a
+// PX4-like flight controller over MAVLink and publishing its RGB-D frames into shared memory
+// for hq-onboard --source sitl (SIGINT/SIGTERM or --duration-s end it with a summary).
+//   hq-sim --sitl --world onboard/sim/worlds/arena.yaml [--resolution 320x240] [--seed N]
+//          [--mavlink udp-listen:14560] [--channel sitl] [--duration-s S] [--config ...]
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/sim/scripted_flight.hpp"
 #include "hq/sim/simulator.hpp"
+#include "hq/sim/sitl_runner.hpp"
 #include "hq/sim/tum_writer.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <signal.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -20,6 +29,20 @@
 #include <vector>
 
 namespace {
+
+std::atomic<bool> g_stop{false};
+
+void request_stop(int /*signal*/) { g_stop.store(true); }
+
+/// SIGINT and SIGTERM end a SITL run cleanly (summary printed, frame channel unlinked).
+void install_stop_handlers() {
+  struct sigaction action {};
+  action.sa_handler = request_stop;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = 0;  // no SA_RESTART: a sleep returns early
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
 
 int run(int argc, char** argv) {
   CLI::App app{"hq-sim: scripted flight in a simulated world, recorded as a TUM RGB-D sequence"};
@@ -40,6 +63,16 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0LL, 2147483647LL));
   app.add_option("--script", script_kind, "hover | circle")
       ->check(CLI::IsMember({"hover", "circle"}));
+  bool sitl = false;
+  hq::sim::SitlOptions sitl_options;
+  app.add_flag("--sitl", sitl,
+               "run as a real-time SITL process: MAVLink flight controller, frames in shared "
+               "memory (--duration-s: 0 or absent runs until SIGINT/SIGTERM)");
+  app.add_option("--mavlink", sitl_options.mavlink_spec,
+                 "with --sitl: MAVLink transport spec (udp-listen:[HOST:]PORT, udp:HOST:PORT, "
+                 "serial:DEV:BAUD)");
+  app.add_option("--channel", sitl_options.channel,
+                 "with --sitl: frame channel name, shared memory /hq-<name>");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -52,6 +85,14 @@ int run(int argc, char** argv) {
   config.seed = seed >= 0 ? static_cast<std::uint64_t>(seed) : world.seed;
 
   hq::sim::Simulator sim(config, world);
+  if (sitl) {
+    sitl_options.duration_s = app.count("--duration-s") > 0 ? duration_s : 0.0;
+    install_stop_handlers();
+    return hq::sim::run_sitl(sim, sitl_options, g_stop);
+  }
+  if (app.count("--mavlink") > 0 || app.count("--channel") > 0) {
+    throw hq::InputError("--mavlink and --channel need --sitl");
+  }
   const hq::sim::FlightScript script = hq::sim::script_for_world(
       world, script_kind == "circle" ? hq::sim::FlightScript::Kind::kCircle
                                      : hq::sim::FlightScript::Kind::kHover);

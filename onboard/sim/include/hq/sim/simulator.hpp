@@ -85,6 +85,11 @@ class Simulator {
   [[nodiscard]] const Eigen::Isometry3d& camera_T_world_camera() const { return camera_pose_; }
   /// Renders the due frame (image BGR CV_8UC3 or gray, depth CV_32F metres) and clears the flag.
   void render_camera(cv::Mat& image, cv::Mat& depth_m);
+  /// Noise realisation of the due frame (RgbdRenderer::render's frame_index).
+  [[nodiscard]] std::uint64_t camera_frame_index() const { return frame_index_; }
+  /// Clears the due flag without rendering: for a caller rendering the due frame with its own
+  /// RgbdRenderer on another thread while physics runs on (hq-sim --sitl).
+  void hand_off_camera() { camera_due_ = false; }
   /// Frames that fell due and were superseded before being rendered.
   [[nodiscard]] std::int64_t dropped_frames() const { return dropped_frames_; }
 

@@ -1,0 +1,109 @@
+#pragma once
+/// The flight controller hq-sim --sitl plays over MAVLink, shaped like PX4 in OFFBOARD with
+/// attitude-thrust setpoints (docs.px4.io "Offboard Mode"): arming, the offboard mode and its
+/// failsafes, a LAND mode, and the messages PX4 streams. Pure: simulated time, truth and
+/// messages in, an attitude command and messages out; the process wiring is in sitl_runner.
+///
+/// Frames: the simulator's world W is NWU, its body B is FRD (core paper §3); MAVLink's local
+/// frame is NED, so v_NED = (v_W.x, -v_W.y, -v_W.z).
+
+#include "hq/mavlink/messages.hpp"
+#include "hq/sim/imu.hpp"
+#include "hq/sim/quadrotor.hpp"
+#include "hq/sim/simulator.hpp"
+
+#include <cstdint>
+#include <string_view>
+
+namespace hq::sim {
+
+/// Where the autopilot's messages go (the runner encodes and sends them). Must not allocate.
+class MessageSink {
+ public:
+  virtual ~MessageSink() = default;
+  virtual void send(const mavlink::Message& message) = 0;
+};
+
+struct SitlAutopilotConfig {
+  /// PX4 COM_OF_LOSS_T: offboard with no setpoint for this long -> LAND.
+  std::int64_t offboard_loss_ns = 500'000'000;
+  /// Offboard is granted only if a setpoint arrived within this (PX4 wants a stream first).
+  std::int64_t setpoint_stream_ns = 500'000'000;
+  /// Companion heartbeat silent this long while in offboard -> LAND.
+  std::int64_t companion_loss_ns = 2'000'000'000;
+  double land_speed_mps = 0.5;         ///< Descent speed in LAND.
+  double land_speed_gain_per_s = 2.0;  ///< P gain of the vertical-speed loop.
+  /// On the ground this long in LAND -> disarm (PX4's land detector).
+  std::int64_t landed_disarm_ns = 500'000'000;
+  std::int64_t attitude_period_ns = 20'000'000;   ///< ATTITUDE at 50 Hz.
+  std::int64_t status_period_ns = 1'000'000'000;  ///< HEARTBEAT and SYS_STATUS at 1 Hz.
+};
+
+enum class SitlMode { kPosctl, kOffboard, kLand };
+/// "POSCTL", "OFFBOARD", "LAND".
+std::string_view sitl_mode_name(SitlMode mode);
+
+/// What the runner reports at the end.
+struct SitlAutopilotStats {
+  std::uint64_t setpoints = 0;           ///< SET_ATTITUDE_TARGET accepted as input.
+  std::uint64_t setpoints_rejected = 0;  ///< Non-finite or for another system.
+  std::uint64_t commands = 0;            ///< COMMAND_LONG received (each acked).
+  std::uint64_t vision_estimates = 0;    ///< Finite VISION_SPEED_ESTIMATE received.
+  double vision_sq_error_sum = 0.0;      ///< Sum of |v_est - v_true|^2 (NED), m^2/s^2.
+  std::int64_t armed_ns = 0;
+  std::int64_t offboard_ns = 0;
+};
+
+class SitlAutopilot {
+ public:
+  /// max_thrust_n = 4 rotors x thrust_coefficient x max_rotor_speed^2; hover from mass.
+  SitlAutopilot(const QuadrotorParams& vehicle, const SitlAutopilotConfig& config = {});
+
+  /// A message from the companion received at simulated time t_ns.
+  void on_message(std::int64_t t_ns, std::uint8_t system_id, std::uint8_t component_id,
+                  const mavlink::Message& message, const TruthState& truth, MessageSink& out);
+  /// Failsafes, LAND, periodic messages at t_ns; returns the command to hold until the next
+  /// call. Call at a fixed tick (e.g. 2 ms).
+  AttitudeCommand update(std::int64_t t_ns, const TruthState& truth, MessageSink& out);
+  /// HIGHRES_IMU of one simulator sample (time_usec = simulated time since start).
+  void send_imu(const ImuSample& sample, MessageSink& out) const;
+
+  [[nodiscard]] bool armed() const { return armed_; }
+  [[nodiscard]] SitlMode mode() const { return mode_; }
+  [[nodiscard]] double max_thrust_n() const { return max_thrust_n_; }
+  [[nodiscard]] double battery_v() const { return battery_v_; }
+  [[nodiscard]] const SitlAutopilotStats& stats() const { return stats_; }
+  /// PX4 custom_mode of the current mode (main << 16 | sub << 24).
+  [[nodiscard]] std::uint32_t custom_mode() const;
+
+ private:
+  void statustext(std::uint8_t severity, std::string_view text, MessageSink& out) const;
+  void ack(const mavlink::CommandLong& command, std::uint8_t result, std::uint8_t system_id,
+           std::uint8_t component_id, MessageSink& out) const;
+  void handle_command(std::int64_t t_ns, std::uint8_t system_id, std::uint8_t component_id,
+                      const mavlink::CommandLong& command, const TruthState& truth,
+                      MessageSink& out);
+  void handle_setpoint(std::int64_t t_ns, const mavlink::SetAttitudeTarget& target);
+  void set_mode(SitlMode mode, std::string_view why, MessageSink& out);
+  void set_armed(bool armed, std::string_view why, MessageSink& out);
+  void send_heartbeat(MessageSink& out) const;
+  /// Level, no yaw rate, thrust tracking the vertical speed v_up_mps (W z, up).
+  AttitudeCommand level_command(const TruthState& truth, double v_up_mps) const;
+
+  SitlAutopilotConfig config_;
+  double mass_kg_;
+  double max_thrust_n_;
+  bool armed_ = false;
+  SitlMode mode_ = SitlMode::kPosctl;
+  AttitudeCommand setpoint_;
+  std::int64_t last_setpoint_ns_ = -1;  ///< -1: never.
+  std::int64_t last_companion_ns_ = -1;
+  std::int64_t on_ground_since_ns_ = -1;
+  std::int64_t last_update_ns_ = -1;
+  std::int64_t next_attitude_ns_ = 0;
+  std::int64_t next_status_ns_ = 0;
+  double battery_v_ = 16.8;
+  SitlAutopilotStats stats_;
+};
+
+}  // namespace hq::sim

@@ -1,0 +1,306 @@
+#include "hq/sim/sitl_autopilot.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace hq::sim {
+
+namespace {
+
+constexpr double kGravityMps2 = 9.81;
+constexpr std::uint8_t kSeverityCritical = 2;
+constexpr std::uint8_t kSeverityWarning = 4;
+constexpr std::uint8_t kSeverityInfo = 6;
+constexpr std::uint8_t kResultTemporarilyRejected = 1;
+constexpr std::uint8_t kResultDenied = 2;
+constexpr std::uint8_t kResultUnsupported = 3;
+constexpr std::uint32_t kPx4MainPosctl = 3;
+constexpr std::uint32_t kPx4MainAuto = 4;
+constexpr std::uint32_t kPx4AutoSubLand = 6;
+/// MAV_CMD_COMPONENT_ARM_DISARM param2 that forces a disarm in the air.
+constexpr float kForceDisarmMagic = 21196.0f;
+/// HIGHRES_IMU fields_updated: xacc..zacc (bits 0-2), xgyro..zgyro (bits 3-5).
+constexpr std::uint16_t kImuAccGyroFields = 0x3F;
+/// A 4S battery: full, empty, and how fast the simulation drains it.
+constexpr double kBatteryFullV = 16.8;
+constexpr double kBatteryEmptyV = 14.0;
+constexpr double kDrainIdleVps = 0.0005;
+constexpr double kDrainArmedVps = 0.004;
+
+bool finite(const mavlink::SetAttitudeTarget& t) {
+  return std::isfinite(t.q[0]) && std::isfinite(t.q[1]) && std::isfinite(t.q[2]) &&
+         std::isfinite(t.q[3]) && std::isfinite(t.body_yaw_rate_radps) && std::isfinite(t.thrust);
+}
+
+const char* mode_name(SitlMode mode) {
+  switch (mode) {
+    case SitlMode::kPosctl:
+      return "POSCTL";
+    case SitlMode::kOffboard:
+      return "OFFBOARD";
+    case SitlMode::kLand:
+      return "LAND";
+  }
+  return "?";
+}
+
+}  // namespace
+
+SitlAutopilot::SitlAutopilot(const QuadrotorParams& vehicle, const SitlAutopilotConfig& config)
+    : config_(config),
+      mass_kg_(vehicle.mass_kg),
+      max_thrust_n_(4.0 * vehicle.thrust_coefficient * vehicle.max_rotor_speed_radps *
+                    vehicle.max_rotor_speed_radps) {}
+
+std::uint32_t SitlAutopilot::custom_mode() const {
+  switch (mode_) {
+    case SitlMode::kOffboard:
+      return mavlink::kPx4MainModeOffboard << 16;
+    case SitlMode::kLand:
+      return kPx4MainAuto << 16 | kPx4AutoSubLand << 24;
+    case SitlMode::kPosctl:
+      break;
+  }
+  return kPx4MainPosctl << 16;
+}
+
+void SitlAutopilot::statustext(std::uint8_t severity, std::string_view text,
+                               MessageSink& out) const {
+  mavlink::Statustext s;
+  s.severity = severity;
+  std::memcpy(s.text.data(), text.data(), std::min(text.size(), s.text.size()));
+  out.send(s);
+}
+
+void SitlAutopilot::ack(const mavlink::CommandLong& command, std::uint8_t result,
+                        std::uint8_t system_id, std::uint8_t component_id, MessageSink& out) const {
+  mavlink::CommandAck a;
+  a.command = command.command;
+  a.result = result;
+  a.target_system = system_id;
+  a.target_component = component_id;
+  out.send(a);
+}
+
+void SitlAutopilot::set_mode(SitlMode mode, std::string_view why, MessageSink& out) {
+  if (mode == mode_) return;
+  mode_ = mode;
+  statustext(mode == SitlMode::kLand ? kSeverityCritical : kSeverityInfo, why, out);
+  send_heartbeat(out);  // as PX4 does: the new mode is seen at once, not within a second
+}
+
+void SitlAutopilot::set_armed(bool armed, std::string_view why, MessageSink& out) {
+  if (armed == armed_) return;
+  armed_ = armed;
+  on_ground_since_ns_ = -1;
+  statustext(kSeverityInfo, why, out);
+  send_heartbeat(out);
+}
+
+void SitlAutopilot::send_heartbeat(MessageSink& out) const {
+  mavlink::Heartbeat h;
+  h.type = mavlink::kMavTypeQuadrotor;
+  h.autopilot = mavlink::kMavAutopilotPx4;
+  h.base_mode = mavlink::kMavModeFlagCustomModeEnabled |
+                (armed_ ? mavlink::kMavModeFlagSafetyArmed : std::uint8_t{0});
+  h.custom_mode = custom_mode();
+  h.system_status = armed_ ? mavlink::kMavStateActive : mavlink::kMavStateStandby;
+  out.send(h);
+}
+
+void SitlAutopilot::on_message(std::int64_t t_ns, std::uint8_t system_id, std::uint8_t component_id,
+                               const mavlink::Message& message, const TruthState& truth,
+                               MessageSink& out) {
+  if (const auto* h = std::get_if<mavlink::Heartbeat>(&message)) {
+    if (h->type == mavlink::kMavTypeOnboardController) last_companion_ns_ = t_ns;
+  } else if (const auto* c = std::get_if<mavlink::CommandLong>(&message)) {
+    handle_command(t_ns, system_id, component_id, *c, truth, out);
+  } else if (const auto* s = std::get_if<mavlink::SetAttitudeTarget>(&message)) {
+    if ((s->target_system != 0 && s->target_system != 1) || !finite(*s)) {
+      ++stats_.setpoints_rejected;
+      return;
+    }
+    handle_setpoint(t_ns, *s);
+  } else if (const auto* v = std::get_if<mavlink::VisionSpeedEstimate>(&message)) {
+    if (!std::isfinite(v->x_mps) || !std::isfinite(v->y_mps) || !std::isfinite(v->z_mps)) return;
+    const Eigen::Vector3d& v_W = truth.v_world_mps;
+    const Eigen::Vector3d v_ned_true(v_W.x(), -v_W.y(), -v_W.z());  // W is NWU
+    const Eigen::Vector3d v_ned_est(v->x_mps, v->y_mps, v->z_mps);
+    ++stats_.vision_estimates;
+    stats_.vision_sq_error_sum += (v_ned_est - v_ned_true).squaredNorm();
+  }
+}
+
+void SitlAutopilot::handle_setpoint(std::int64_t t_ns, const mavlink::SetAttitudeTarget& t) {
+  ++stats_.setpoints;
+  last_setpoint_ns_ = t_ns;
+  if ((t.type_mask & mavlink::kAttitudeTargetIgnoreAttitude) == 0) {
+    // ZYX Euler angles of the body FRD in NED from q = (w, x, y, z).
+    const double w = t.q[0], x = t.q[1], y = t.q[2], z = t.q[3];
+    const double n = std::sqrt(w * w + x * x + y * y + z * z);
+    if (n > 1e-6) {
+      const double qw = w / n, qx = x / n, qy = y / n, qz = z / n;
+      setpoint_.roll_rad = std::atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy));
+      setpoint_.pitch_rad = std::asin(std::clamp(2.0 * (qw * qy - qz * qx), -1.0, 1.0));
+    }
+  }
+  setpoint_.yaw_rate_radps = (t.type_mask & mavlink::kAttitudeTargetIgnoreBodyYawRate) != 0
+                                 ? 0.0
+                                 : static_cast<double>(t.body_yaw_rate_radps);
+  if ((t.type_mask & mavlink::kAttitudeTargetIgnoreThrust) == 0) {
+    setpoint_.thrust_n = std::clamp(static_cast<double>(t.thrust), 0.0, 1.0) * max_thrust_n_;
+  }
+}
+
+void SitlAutopilot::handle_command(std::int64_t t_ns, std::uint8_t system_id,
+                                   std::uint8_t component_id, const mavlink::CommandLong& c,
+                                   const TruthState& truth, MessageSink& out) {
+  ++stats_.commands;
+  if (c.command == mavlink::kMavCmdComponentArmDisarm) {
+    if (c.param[0] > 0.5f) {
+      if (last_companion_ns_ < 0) {
+        statustext(kSeverityWarning, "arming refused: no companion heartbeat yet", out);
+        ack(c, kResultTemporarilyRejected, system_id, component_id, out);
+        return;
+      }
+      set_armed(true, "armed", out);
+      ack(c, mavlink::kMavResultAccepted, system_id, component_id, out);
+      return;
+    }
+    if (armed_ && !truth.on_ground && c.param[1] != kForceDisarmMagic) {
+      statustext(kSeverityWarning, "disarm refused: in the air (param2 21196 forces)", out);
+      ack(c, kResultDenied, system_id, component_id, out);
+      return;
+    }
+    set_armed(false, truth.on_ground ? "disarmed" : "disarmed in the air (forced)", out);
+    ack(c, mavlink::kMavResultAccepted, system_id, component_id, out);
+    return;
+  }
+  if (c.command == mavlink::kMavCmdDoSetMode) {
+    const auto main_mode = static_cast<std::uint32_t>(std::lround(c.param[1]));
+    const auto sub_mode = static_cast<std::uint32_t>(std::lround(c.param[2]));
+    if ((static_cast<int>(c.param[0]) & mavlink::kMavModeFlagCustomModeEnabled) == 0) {
+      ack(c, kResultUnsupported, system_id, component_id, out);
+      return;
+    }
+    if (main_mode == mavlink::kPx4MainModeOffboard) {
+      if (last_setpoint_ns_ < 0 || t_ns - last_setpoint_ns_ > config_.setpoint_stream_ns) {
+        statustext(kSeverityWarning, "offboard refused: no setpoint stream", out);
+        ack(c, kResultTemporarilyRejected, system_id, component_id, out);
+        return;
+      }
+      set_mode(SitlMode::kOffboard, "mode: OFFBOARD", out);
+    } else if (main_mode == kPx4MainPosctl) {
+      set_mode(SitlMode::kPosctl, "mode: POSCTL", out);
+    } else if (main_mode == kPx4MainAuto && sub_mode == kPx4AutoSubLand) {
+      set_mode(SitlMode::kLand, "mode: LAND", out);
+    } else {
+      ack(c, kResultUnsupported, system_id, component_id, out);
+      return;
+    }
+    ack(c, mavlink::kMavResultAccepted, system_id, component_id, out);
+    return;
+  }
+  ack(c, kResultUnsupported, system_id, component_id, out);
+}
+
+AttitudeCommand SitlAutopilot::level_command(const TruthState& truth, double v_up_mps) const {
+  // The FC's own estimator is the truth here: a P loop on vertical speed, level, no yaw.
+  const double a_up_mps2 = config_.land_speed_gain_per_s * (v_up_mps - truth.v_world_mps.z());
+  const double tilt = std::cos(truth.euler_rad.x()) * std::cos(truth.euler_rad.y());
+  AttitudeCommand c;
+  c.thrust_n =
+      std::clamp(mass_kg_ * (kGravityMps2 + a_up_mps2) / std::max(tilt, 0.5), 0.0, max_thrust_n_);
+  return c;
+}
+
+AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth,
+                                      MessageSink& out) {
+  const std::int64_t dt_ns = last_update_ns_ < 0 ? 0 : t_ns - last_update_ns_;
+  last_update_ns_ = t_ns;
+  if (armed_) stats_.armed_ns += dt_ns;
+  if (mode_ == SitlMode::kOffboard) stats_.offboard_ns += dt_ns;
+  battery_v_ -= (armed_ ? kDrainArmedVps : kDrainIdleVps) * static_cast<double>(dt_ns) * 1e-9;
+
+  // PX4's offboard failsafes (COM_OF_LOSS_T, then the link-loss action).
+  if (mode_ == SitlMode::kOffboard) {
+    const bool setpoints_lost = t_ns - last_setpoint_ns_ > config_.offboard_loss_ns;
+    const bool companion_lost = t_ns - last_companion_ns_ >= config_.companion_loss_ns;
+    if (setpoints_lost || companion_lost) {
+      const SitlMode fallback = armed_ ? SitlMode::kLand : SitlMode::kPosctl;
+      set_mode(fallback,
+               setpoints_lost
+                   ? (armed_ ? "offboard setpoints lost: landing" : "offboard setpoints lost")
+                   : (armed_ ? "companion heartbeat lost: landing" : "companion heartbeat lost"),
+               out);
+    }
+  }
+
+  AttitudeCommand command;  // disarmed: no thrust
+  if (armed_) {
+    switch (mode_) {
+      case SitlMode::kOffboard:
+        command = setpoint_;
+        break;
+      case SitlMode::kLand:
+        command = level_command(truth, -config_.land_speed_mps);
+        if (truth.on_ground) {
+          if (on_ground_since_ns_ < 0) on_ground_since_ns_ = t_ns;
+          if (t_ns - on_ground_since_ns_ >= config_.landed_disarm_ns) {
+            set_armed(false, "landed: disarmed", out);
+            command = AttitudeCommand{};
+          }
+        } else {
+          on_ground_since_ns_ = -1;
+        }
+        break;
+      case SitlMode::kPosctl:
+        // No sticks: idle on the ground, hold altitude (zero vertical speed) in the air.
+        if (!truth.on_ground) command = level_command(truth, 0.0);
+        break;
+    }
+  }
+
+  if (t_ns >= next_attitude_ns_) {
+    next_attitude_ns_ = t_ns + config_.attitude_period_ns;
+    mavlink::Attitude a;
+    a.time_boot_ms = static_cast<std::uint32_t>(t_ns / 1'000'000);
+    a.roll_rad = static_cast<float>(truth.euler_rad.x());  // euler_rad: B (FRD) in NED
+    a.pitch_rad = static_cast<float>(truth.euler_rad.y());
+    a.yaw_rad = static_cast<float>(truth.euler_rad.z());
+    a.rollspeed_radps = static_cast<float>(truth.omega_body_radps.x());
+    a.pitchspeed_radps = static_cast<float>(truth.omega_body_radps.y());
+    a.yawspeed_radps = static_cast<float>(truth.omega_body_radps.z());
+    out.send(a);
+  }
+  if (t_ns >= next_status_ns_) {
+    next_status_ns_ = t_ns + config_.status_period_ns;
+    send_heartbeat(out);
+    mavlink::SysStatus s;
+    s.voltage_battery_mv = static_cast<std::uint16_t>(std::lround(battery_v_ * 1000.0));
+    s.current_battery_ca = static_cast<std::int16_t>(armed_ ? 1200 : 50);
+    s.battery_remaining_pct = static_cast<std::int8_t>(std::clamp(
+        std::lround(100.0 * (battery_v_ - kBatteryEmptyV) / (kBatteryFullV - kBatteryEmptyV)), 0L,
+        100L));
+    out.send(s);
+  }
+  return command;
+}
+
+void SitlAutopilot::send_imu(const ImuSample& sample, MessageSink& out) const {
+  mavlink::HighresImu m;
+  m.time_usec = static_cast<std::uint64_t>(sample.t_ns / 1000);
+  m.xacc_mps2 = static_cast<float>(sample.f_body_mps2.x());
+  m.yacc_mps2 = static_cast<float>(sample.f_body_mps2.y());
+  m.zacc_mps2 = static_cast<float>(sample.f_body_mps2.z());
+  m.xgyro_radps = static_cast<float>(sample.omega_body_radps.x());
+  m.ygyro_radps = static_cast<float>(sample.omega_body_radps.y());
+  m.zgyro_radps = static_cast<float>(sample.omega_body_radps.z());
+  m.fields_updated = kImuAccGyroFields;
+  out.send(m);
+}
+
+std::string_view sitl_mode_name(SitlMode mode) { return mode_name(mode); }
+
+}  // namespace hq::sim
