@@ -10,6 +10,12 @@
 //   hq-onboard --source sim --world W --link [--duration-s 60] [--link-config config.yaml]
 //              [--domain-id N] [--vehicle-id N] [--command-timeout-ms 200]
 //              [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
+//   hq-onboard --source sitl [--fc mavlink:udp:127.0.0.1:14560] [--channel hq-sitl] [--link]
+//   hq-onboard --source openni2|freenect [--fc none|mavlink:serial:/dev/ttyACM0:921600] [--link]
+//
+// Every source but the in-process sim runs through one VehicleRuntime (onboard/vehicle) with a
+// flight controller (--fc): none (replay, bench), or MAVLink to PX4/ArduPilot or hq-sim --sitl.
+// --link works with every source.
 //
 // Sim with --link: the closed loop is paced to wall time and flown by a ground station over DDS
 // (hq-ground) instead of the script, through the on-board fail-safes (onboard/link_bridge):
@@ -24,6 +30,7 @@
 
 #include "onboard_runs.hpp"
 
+#include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/link/config.hpp"
 #include "hq/sources/camera_sources.hpp"
@@ -44,7 +51,9 @@ namespace {
 int run(int argc, char** argv) {
   CLI::App app{"hq-onboard: the on-board velocity chain of the core paper on a frame source"};
   Options o;
-  std::string kinds = "replay (a TUM-layout sequence) | sim (closed loop in simulation)";
+  std::string kinds =
+      "replay (a TUM-layout sequence) | sim (closed loop in simulation) | sitl (hq-sim --sitl's "
+      "frame channel)";
   for (const std::string& camera : hq::sources::available_camera_sources()) {
     kinds += " | " + camera + (camera == "openni2" ? "[:uri] (Xtion, .oni)" : "[:index] (Kinect v1)");
   }
@@ -63,19 +72,32 @@ int run(int argc, char** argv) {
   app.add_option("--seed", o.seed, "sim: noise and gust seed (default: the world's)")
       ->check(CLI::Range(0LL, 2147483647LL));
   app.add_flag("--link", o.link,
-               "sim: fly commanded by a ground station over DDS, paced to real time");
-  app.add_option("--duration-s", o.duration_s, "sim --link and cameras: run length")
+               "fly commanded by a ground station over DDS (sim: paced to real time)");
+  app.add_option("--fc", o.fc_spec,
+                 "flight controller: none | mavlink:udp:HOST:PORT | mavlink:serial:DEVICE:BAUD "
+                 "(default: none; sitl: mavlink:udp:127.0.0.1:14560)");
+  app.add_option("--fc-max-thrust-n", o.fc_max_thrust_n,
+                 "MAVLink: collective thrust at full throttle, for the normalised thrust")
+      ->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--channel", o.sitl_channel, "sitl: hq-sim's frame channel name");
+  app.add_option("--fc-lost-exit-s", o.fc_lost_exit_s,
+                 "stop once the flight controller is lost this long (0: never; default 3 s "
+                 "for sitl, never otherwise)")
+      ->check(CLI::Range(0.0, 3600.0));
+  app.add_option("--sitl-wait-s", o.sitl_wait_s, "sitl: wait this long for hq-sim to start")
+      ->check(CLI::Range(0.0, 600.0));
+  app.add_option("--duration-s", o.duration_s, "sim --link, sitl and cameras: run length")
       ->check(CLI::Range(0.1, 86400.0));
-  app.add_option("--link-config", o.link_config_path, "sim --link: YAML with a link: section");
+  app.add_option("--link-config", o.link_config_path, "--link: YAML with a link: section");
   hq::link::add_link_options(app, o.link_overrides);
   app.add_option("--command-timeout-ms", o.command_timeout_ms,
-                 "sim --link: no fresh command this long -> hold zero velocity")
+                 "--link: no fresh command this long -> hold zero velocity")
       ->check(CLI::Range(1.0, 10000.0));
   app.add_option("--heartbeat-timeout-ms", o.heartbeat_timeout_ms,
-                 "sim --link: no ground heartbeat this long -> land")
+                 "--link: no ground heartbeat this long -> land")
       ->check(CLI::Range(1.0, 60000.0));
   app.add_option("--camera-rate-hz", o.camera_rate_hz,
-                 "sim --link: JPEG frames to the ground (0: none)")
+                 "--link: JPEG frames to the ground (0: none)")
       ->check(CLI::Range(0.0, 60.0));
   app.add_option("--save-map", o.save_map_path,
                  "sim: the obstacle memory's map at the end of the flight (.pcd or .ply)")
@@ -92,12 +114,14 @@ int run(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  if (o.source_kind == "sim" && o.link) return run_sim_link(o);
-  if (o.source_kind == "sim") return run_sim(o);
-  if (o.source_kind == "replay") return run_replay(o);
-  // Anything else must be a camera this build has; parse_camera_spec says what is wrong.
-  (void)hq::sources::parse_camera_spec(o.source_kind);
-  return run_live(o);
+  if (o.source_kind == "sim") {
+    if (!o.fc_spec.empty()) {
+      throw hq::InputError("--source sim is its own flight controller; for MAVLink run hq-sim "
+                           "--sitl and hq-onboard --source sitl --fc mavlink:udp:HOST:PORT");
+    }
+    return o.link ? run_sim_link(o) : run_sim(o);
+  }
+  return run_vehicle(o);
 }
 
 }  // namespace

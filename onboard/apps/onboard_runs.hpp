@@ -1,7 +1,7 @@
 #pragma once
-// hq-onboard's run modes, one file each: replay and live cameras (frame_source_runs.cpp), the
-// simulator with a script or over the DDS link (sim_runs.cpp); hq_onboard.cpp parses the
-// command line and picks one.
+// hq-onboard's run modes, one file each: a vehicle runtime on a recording, a live camera or the
+// SITL process (vehicle_runs.cpp), the in-process simulator with a script or over the DDS link
+// (sim_runs.cpp); hq_onboard.cpp parses the command line and picks one.
 
 #include "hq/link/config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
@@ -43,6 +43,11 @@ struct Options {
   double camera_rate_hz = 10.0;
   std::string link_log_path;
   std::string save_map_path;
+  std::string fc_spec;  ///< none | mavlink:<transport>; empty: the source's default.
+  double fc_max_thrust_n = 0.0;  ///< > 0: overrides the MAVLink thrust normalisation.
+  std::string sitl_channel = "hq-sitl";
+  double sitl_wait_s = 10.0;
+  double fc_lost_exit_s = -1.0;  ///< Stop after the FC is lost this long; 0 never; < 0 default.
 };
 
 /// Set by SIGINT/SIGTERM; runs that last (sim --link, cameras) stop cleanly when it is.
@@ -52,8 +57,8 @@ void request_stop(int signal);
 /// One live status line on stderr (overwritten in place).
 void print_status(const pipeline::ChainOutput& out, int frames);
 
-int run_replay(const Options& o);
-int run_live(const Options& o);
+/// replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
+int run_vehicle(const Options& o);
 int run_sim(const Options& o);
 int run_sim_link(const Options& o);
 

@@ -9,6 +9,7 @@
 #include "hq/control/vehicle_config.hpp"
 #include "hq/link/config.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
+#include "hq/link_bridge/link_operator_port.hpp"
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
@@ -27,63 +28,22 @@ namespace hq::onboard_app {
 
 namespace {
 
-// The DDS link as the closed loop's operator: commands and mode requests through the fail-safes,
-// vehicle state and camera frames back, one log row per control step.
-class LinkOperator final : public hq::closed_loop::OperatorSource {
+// The DDS link as the closed loop's operator (the same port every vehicle source uses), plus
+// one log row per control step with the simulator's truth.
+class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
  public:
-  /// The marker filter's position is sent while a marker was seen this recently.
-  static constexpr double kPositionMaxAgeS = 5.0;
+  LoggedLinkPort(hq::link_bridge::LinkBridge& bridge, const hq::pipeline::OnboardChain& chain,
+                 const Eigen::Isometry3d& T_body_camera, std::FILE* log)
+      : LinkOperatorPort(bridge, chain, T_body_camera, stdout), log_(log) {}
+  void set_simulator(const hq::sim::Simulator* sim) { sim_ = sim; }
 
-  LinkOperator(hq::link_bridge::LinkBridge& bridge, std::FILE* log) : bridge_(bridge), log_(log) {}
-  /// The chain whose obstacle memory goes to the ground with the state (set once it exists).
-  void set_chain(const hq::pipeline::OnboardChain* chain, const Eigen::Isometry3d& T_body_camera) {
-    chain_ = chain;
-    T_camera_body_ = T_body_camera.inverse();
-  }
-
-  hq::modes::OperatorCommand poll(std::int64_t t_ns,
-                                  std::vector<hq::modes::Mode>& mode_requests) override {
-    const hq::link_bridge::FailsafeState& state = bridge_.poll(t_ns, mode_requests);
-    // Fail-safe transitions, at the control tick they happen (the log has a row per frame).
-    if (state.hold_started) {
-      std::printf("hq-onboard: t %.3f s: fail-safe hold, command age %.1f ms\n",
-                  1e-9 * static_cast<double>(t_ns),
-                  1e-6 * static_cast<double>(state.command_age_ns));
-    }
-    if (state.request_land) {
-      std::printf("hq-onboard: t %.3f s: fail-safe land, heartbeat age %.1f ms\n",
-                  1e-9 * static_cast<double>(t_ns),
-                  1e-6 * static_cast<double>(state.heartbeat_age_ns));
-    }
-    return state.command;
-  }
-  void on_mode_result(std::int64_t t_ns, hq::modes::Mode mode,
-                      const hq::modes::ModeSwitch& result) override {
-    bridge_.acknowledge(t_ns, mode, result);
-  }
   void on_output(const hq::pipeline::ChainOutput& out,
-                 const hq::sim::TruthState& truth) override {
-    hq::link_bridge::StateExtras extras;
-    if (chain_ != nullptr && chain_->config().memory.enabled) {
-      if (const auto T_world_camera = chain_->memory().T_world_camera()) {
-        extras.cloud.memory = &chain_->memory();
-        extras.cloud.T_world_body = *T_world_camera * T_camera_body_;
-      }
-    }
-    if (chain_ != nullptr && chain_->markers() != nullptr) {
-      const hq::marker_modes::MarkerNavigation& navigation = chain_->markers()->navigation();
-      extras.position_valid = navigation.pose_usable(kPositionMaxAgeS);
-      extras.p_world_m = navigation.p_world_m();
-      extras.yaw_rad = navigation.yaw_rad();
-      extras.markers = navigation.detections();
-    }
-    // This vehicle is the simulator: its truth goes along for the operator's Fig. 6-8 plots.
-    extras.truth_valid = true;
-    extras.v_truth_horizontal_mps = truth.v_horizontal_mps;
-    bridge_.publish_state(out, extras);
-    if (log_ == nullptr) return;
-    const hq::link_bridge::FailsafeState& f = bridge_.failsafe().state();
-    const hq::link_bridge::FailsafeCounters& c = bridge_.failsafe().counters();
+                 const hq::vehicle::VehicleStatus& status) override {
+    LinkOperatorPort::on_output(out, status);
+    if (log_ == nullptr || sim_ == nullptr) return;
+    const hq::sim::TruthState& truth = sim_->truth();
+    const hq::link_bridge::FailsafeState& f = bridge().failsafe().state();
+    const hq::link_bridge::FailsafeCounters& c = bridge().failsafe().counters();
     const Eigen::Vector3d& v = f.command.v_horizontal_mps;
     std::fprintf(log_,
                  "%.4f,%s,%d,%d,%.2f,%.2f,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,"
@@ -100,15 +60,10 @@ class LinkOperator final : public hq::closed_loop::OperatorSource {
                  static_cast<unsigned long long>(c.commands_rejected),
                  static_cast<unsigned long long>(c.mode_requests_rejected));
   }
-  void on_camera(std::int64_t t_ns, const cv::Mat& image) override {
-    bridge_.publish_camera(t_ns, image);
-  }
 
  private:
-  hq::link_bridge::LinkBridge& bridge_;
   std::FILE* log_;
-  const hq::pipeline::OnboardChain* chain_ = nullptr;
-  Eigen::Isometry3d T_camera_body_ = Eigen::Isometry3d::Identity();
+  const hq::sim::Simulator* sim_ = nullptr;
 };
 
 }  // namespace
@@ -146,11 +101,9 @@ int run_sim_link(const Options& o) {
                  "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
                  "commands_rejected,mode_requests_rejected\n");
   }
-  LinkOperator source(bridge, log);
   hq::closed_loop::OperatorScript script;
   script.end_s = o.duration_s;
   hq::closed_loop::ClosedLoopOptions options;
-  options.operator_source = &source;
   options.realtime = true;
   hq::closed_loop::ClosedLoop loop(
       sim_config, world, config, vehicle,
@@ -160,9 +113,9 @@ int run_sim_link(const Options& o) {
   Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
   T_body_camera.linear() = vehicle.R_body_camera;
   T_body_camera.translation() = vehicle.p_body_camera_m;
-  source.set_chain(&loop.chain(), T_body_camera);
-  // Marker tasks chosen on the ground go to this chain's marker stage.
-  bridge.set_chain(&loop.chain());
+  LoggedLinkPort port(bridge, loop.chain(), T_body_camera, log);
+  port.set_simulator(&loop.simulator());
+  loop.set_operator_port(&port);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,

@@ -1,0 +1,428 @@
+// hq-onboard on a vehicle runtime: a recorded sequence (--source replay), a live camera
+// (--source openni2|freenect) or hq-sim's SITL frame channel (--source sitl), each with a flight
+// controller (--fc none | mavlink:<transport>) and, with --link, a ground station over DDS. One
+// loop (hq::vehicle::VehicleRuntime) for all of them: the fail-safes are the same code.
+//
+// Replay IMU: a sequence with accelerometer.txt and gyro.txt (the simulator writes both, body
+// NED frame) is replayed as recorded, with --vehicle's extrinsics. TUM RGB-D has no gyro and the
+// bundled fr1_360 has no accelerometer.txt either, so there the IMU is SYNTHESISED from the ground
+// truth at 200 Hz (gyro = body rate between consecutive ground-truth orientations + white noise;
+// accelerometer = gravity and the finite-difference acceleration in the body frame). The camera
+// is then the tracked sensor, so the body frame Q is the camera's NED-equivalent (Q x = optical
+// z, Q y = optical x, Q z = optical y; Q_p_C = 0) and --vehicle contributes only mass and limits.
+//
+// A live camera without a flight controller has no gyro: the chain gets zero rate and, for
+// tilt, the Kinect's accelerometer or else a level vehicle, with the camera as the body.
+
+#include "onboard_runs.hpp"
+
+#include "hq/base/error.hpp"
+#include "hq/config/camera_info.hpp"
+#include "hq/control/vehicle_config.hpp"
+#include "hq/link_bridge/link_operator_port.hpp"
+#include "hq/pipeline/replay_imu.hpp"
+#include "hq/pipeline/stage_timing.hpp"
+#include "hq/sources/camera_sources.hpp"
+#include "hq/sources/sitl_frame_source.hpp"
+#include "hq/sources/threaded_frame_source.hpp"
+#include "hq/sources/tum_frame_source.hpp"
+#include "hq/vehicle/mavlink_flight_controller.hpp"
+#include "hq/vehicle/vehicle_runtime.hpp"
+
+#include <time.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace hq::onboard_app {
+
+namespace {
+
+void write_csv_header(std::FILE* csv) {
+  std::fprintf(csv,
+               "# hq-onboard per-step log. Frames: C camera optical (x right, y down, z forward);"
+               " Q body NED; H horizontal NED (Q without roll and pitch, yaw kept). SI units as "
+               "named; frame = 0 rows are camera-timeout steps between frames.\n");
+  std::fprintf(csv,
+               "t_s,frame,tracking,valid_ratio,estimate_ok,v_camera_raw_x_mps,v_camera_raw_y_mps,"
+               "v_camera_raw_z_mps,v_camera_x_mps,v_camera_y_mps,v_camera_z_mps,v_body_x_mps,"
+               "v_body_y_mps,v_body_z_mps,v_horizontal_x_mps,v_horizontal_y_mps,"
+               "v_horizontal_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,near_hazard,"
+               "v_obs_horizontal_x_mps,v_obs_horizontal_y_mps,v_obs_horizontal_z_mps,mode,"
+               "v_des_horizontal_x_mps,v_des_horizontal_y_mps,v_des_horizontal_z_mps,"
+               "thrust_n,roll_cmd_rad,pitch_cmd_rad,yaw_rate_cmd_radps,safe_hover,total_ms,"
+               "reason\n");
+}
+
+void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
+  const auto& e = out.estimate;
+  const auto& s = out.mode.control.setpoint;
+  const auto v3 = [csv](const Eigen::Vector3d& v) {
+    std::fprintf(csv, "%.6f,%.6f,%.6f,", v.x(), v.y(), v.z());
+  };
+  std::fprintf(csv, "%.6f,%d,%s,%.4f,%d,", 1e-9 * static_cast<double>(out.t_ns), out.frame ? 1 : 0,
+               out.frame ? hq::odometry::to_string(out.tracking) : "none", out.valid_ratio,
+               e.ok() ? 1 : 0);
+  v3(e.v_camera_raw_mps);
+  v3(e.v_camera_mps);
+  v3(e.v_body_mps);
+  v3(e.v_horizontal_mps);
+  std::fprintf(csv, "%.6f,%.6f,%d,%d,", e.roll_rad, e.pitch_rad, out.obstacles.count,
+               out.obstacles.near_hazard ? 1 : 0);
+  v3(out.obstacles.v_obs_horizontal_mps);
+  std::fprintf(csv, "%s,", hq::modes::to_string(out.mode.mode));
+  v3(out.mode.v_des_horizontal_mps);
+  std::fprintf(csv, "%.6f,%.6f,%.6f,%.6f,%d,%.3f,\"%s\"\n", s.thrust_n, s.roll_rad, s.pitch_rad,
+               s.yaw_rate_radps, out.safe_hover ? 1 : 0,
+               1e-6 * static_cast<double>(out.durations.total_ns),
+               out.safe_hover ? out.safe_hover_reason : "");
+}
+
+std::int64_t monotonic_ns() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return now.tv_sec * 1'000'000'000LL + now.tv_nsec;
+}
+
+void sleep_until_ns(std::int64_t deadline_ns) {
+  timespec deadline{};
+  deadline.tv_sec = deadline_ns / 1'000'000'000LL;
+  deadline.tv_nsec = deadline_ns % 1'000'000'000LL;
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+  }
+}
+
+/// The run's own operator-side duties around the link (or nobody): the CSV log, the live status
+/// line, counts for the summary, and runtime events on stderr.
+class RunPort final : public hq::vehicle::OperatorPort {
+ public:
+  RunPort(hq::vehicle::OperatorPort* link, std::FILE* csv, bool live)
+      : link_(link), csv_(csv), live_(live) {}
+
+  hq::modes::OperatorCommand poll(std::int64_t t_ns,
+                                  std::vector<hq::pipeline::ModeRequest>& requests) override {
+    return link_ != nullptr ? link_->poll(t_ns, requests) : hq::modes::OperatorCommand{};
+  }
+  void on_mode_result(std::int64_t t_ns, const hq::pipeline::ModeRequest& request,
+                      const hq::modes::ModeSwitch& result) override {
+    if (link_ != nullptr) link_->on_mode_result(t_ns, request, result);
+  }
+  void on_output(const hq::pipeline::ChainOutput& out,
+                 const hq::vehicle::VehicleStatus& status) override {
+    if (out.frame) {
+      ++frames;
+      ok += out.estimate.ok() ? 1 : 0;
+      safe_hover += out.safe_hover ? 1 : 0;
+      if (frames > 1) timing.add(out.durations);  // the first frame sizes the buffers
+      if (live_) print_status(out, frames);
+    } else {
+      ++ticks;
+    }
+    if (csv_ != nullptr) write_csv_row(csv_, out);
+    if (link_ != nullptr) link_->on_output(out, status);
+  }
+  void on_frame(const hq::sources::RgbdFrame& frame) override {
+    if (link_ != nullptr) link_->on_frame(frame);
+  }
+  void on_event(std::int64_t t_ns, hq::vehicle::FcSeverity severity,
+                std::string_view text) override {
+    // The link port prints its own events; without it they go to stderr here.
+    if (link_ != nullptr) {
+      link_->on_event(t_ns, severity, text);
+    } else {
+      std::fprintf(stderr, "%shq-onboard: %.*s\n", live_ ? "\n" : "",
+                   static_cast<int>(text.size()), text.data());
+    }
+    ++events;
+  }
+
+  int frames = 0;
+  int ok = 0;
+  int safe_hover = 0;
+  int ticks = 0;
+  int events = 0;
+  hq::pipeline::StageTimingLog timing;
+
+ private:
+  hq::vehicle::OperatorPort* link_;
+  std::FILE* csv_;
+  bool live_;
+};
+
+/// The truth a SITL frame carries (simulation only), for the ground's "vs truth" plots.
+class SitlTruth final : public hq::vehicle::TruthSource {
+ public:
+  explicit SitlTruth(const hq::sources::SitlFrameSource& source) : source_(source) {}
+  [[nodiscard]] std::optional<hq::vehicle::TruthSample> truth() const override {
+    const auto t = source_.truth();
+    if (!t) return std::nullopt;
+    hq::vehicle::TruthSample s;
+    s.v_H_mps = Eigen::Vector3d(t->v_H_mps[0], t->v_H_mps[1], t->v_H_mps[2]);
+    s.p_W_m = Eigen::Vector3d(t->p_W_m[0], t->p_W_m[1], t->p_W_m[2]);
+    s.on_ground = t->on_ground;
+    return s;
+  }
+
+ private:
+  const hq::sources::SitlFrameSource& source_;
+};
+
+/// hq-sim may still be starting: its frame channel is waited for, not failed on at once.
+std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& channel,
+                                                        double wait_s) {
+  const std::int64_t end_ns = monotonic_ns() + static_cast<std::int64_t>(wait_s * 1e9);
+  bool said = false;
+  while (true) {
+    try {
+      return std::make_unique<hq::sources::SitlFrameSource>(channel);
+    } catch (const hq::InputError& e) {
+      if (monotonic_ns() >= end_ns || g_stop) {
+        throw hq::InputError(std::string(e.what()) + " (waited " + std::to_string(wait_s) +
+                             " s for hq-sim --sitl)");
+      }
+      if (!said) std::fprintf(stderr, "hq-onboard: waiting for hq-sim's frame channel: %s\n", e.what());
+      said = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+}
+
+}  // namespace
+
+void print_status(const hq::pipeline::ChainOutput& out, int frames) {
+  const auto& v = out.estimate.v_horizontal_mps;
+  const auto& s = out.mode.control.setpoint;
+  // \033[K clears what a longer previous line left behind.
+  std::fprintf(stderr,
+               "\rt %8.3f s  frame %5d  %-5s  v_H [%+.2f %+.2f %+.2f] m/s  thrust %5.2f N  "
+               "roll %+.3f pitch %+.3f rad  %5.2f ms  %s\033[K",
+               1e-9 * static_cast<double>(out.t_ns), frames, out.estimate.ok() ? "ok" : "HOVER",
+               v.x(), v.y(), v.z(), s.thrust_n, s.roll_rad, s.pitch_rad,
+               1e-6 * static_cast<double>(out.durations.total_ns),
+               out.safe_hover ? out.safe_hover_reason : "");
+  std::fflush(stderr);
+}
+
+int run_vehicle(const Options& o) {
+  const bool replay = o.source_kind == "replay";
+  const bool sitl = o.source_kind == "sitl";
+  if (replay && (o.sequence_dir.empty() || o.camera_path.empty())) {
+    throw hq::InputError("--source replay needs <sequence-dir> and --camera <camera.yaml>");
+  }
+  std::string fc_spec = o.fc_spec;
+  if (fc_spec.empty()) fc_spec = sitl ? "mavlink:udp:127.0.0.1:14560" : "none";
+  if (fc_spec != "none" && fc_spec.rfind("mavlink:", 0) != 0) {
+    throw hq::InputError("--fc " + fc_spec +
+                         ": expected none or mavlink:udp:HOST:PORT | mavlink:serial:DEVICE:BAUD");
+  }
+  if (replay && fc_spec != "none") {
+    throw hq::InputError("--source replay flies no vehicle: it takes --fc none, not --fc " +
+                         fc_spec);
+  }
+  if (sitl && fc_spec == "none") {
+    throw hq::InputError("--source sitl needs the simulator's flight controller: --fc mavlink:udp:HOST:PORT");
+  }
+
+  hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
+  hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+
+  // The frame source.
+  std::unique_ptr<hq::sources::FrameSource> source;
+  hq::sources::TumFrameSource* tum = nullptr;
+  hq::sources::SitlFrameSource* sitl_source = nullptr;
+  if (replay) {
+    auto t = std::make_unique<hq::sources::TumFrameSource>(
+        o.sequence_dir, hq::config::load_camera_info(o.camera_path));
+    tum = t.get();
+    source = std::move(t);
+    config.modes.start_landed = false;  // a recording starts in motion, not resting on the floor
+  } else if (sitl) {
+    auto s = open_sitl(o.sitl_channel, o.sitl_wait_s);
+    sitl_source = s.get();
+    source = std::move(s);
+  } else {
+    // Anything else must be a camera this build has; parse_camera_spec says what is wrong.
+    (void)hq::sources::parse_camera_spec(o.source_kind);
+    hq::sources::CameraSourceOptions camera_options;
+    camera_options.camera_file = o.camera_path;
+    source = std::make_unique<hq::sources::ThreadedFrameSource>(
+        hq::sources::open_camera_source(o.source_kind, camera_options));
+    if (fc_spec == "none") config.modes.start_landed = false;  // carried by hand
+  }
+  std::fprintf(stderr, "hq-onboard: %s\n", source->describe().c_str());
+
+  // The flight controller.
+  std::unique_ptr<hq::vehicle::FlightController> fc;
+  if (replay) {
+    const hq::pipeline::ReplayImu imu = hq::pipeline::load_replay_imu(
+        tum->sequence(), hq::pipeline::R_body_camera_for_camera_as_body());
+    std::fprintf(stderr, "hq-onboard: %s\n", imu.description.c_str());
+    if (imu.synthesised) {
+      vehicle.R_body_camera = hq::pipeline::R_body_camera_for_camera_as_body();
+      vehicle.p_body_camera_m.setZero();
+      std::fprintf(stderr,
+                   "hq-onboard: body frame = the camera's NED-equivalent (camera-as-body "
+                   "extrinsics); %s supplies mass and limits only\n",
+                   o.vehicle_path.c_str());
+    }
+    std::vector<hq::vehicle::FcImuSample> samples;
+    samples.reserve(imu.samples.size());
+    for (const hq::pipeline::ImuMeasurement& m : imu.samples) {
+      samples.push_back({m.t_ns, m.gyro_radps, m.accel_mps2});
+    }
+    fc = std::make_unique<hq::vehicle::NoFlightController>(std::move(samples));
+  } else if (fc_spec == "none") {
+    auto none = std::make_unique<hq::vehicle::NoFlightController>();
+    // A hand-held camera is the body; the Kinect's accelerometer is in its optical axes.
+    vehicle.R_body_camera = hq::pipeline::R_body_camera_for_camera_as_body();
+    vehicle.p_body_camera_m.setZero();
+    none->set_tilt_source(source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
+    std::fprintf(stderr, "hq-onboard: camera-as-body, no gyro (zero rate), tilt from %s\n",
+                 o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
+                                                        : "a level-camera assumption");
+    fc = std::move(none);
+  } else {
+    hq::vehicle::MavlinkFcConfig fc_config;
+    fc_config.transport = fc_spec.substr(std::string("mavlink:").size());
+    if (o.fc_max_thrust_n > 0.0) fc_config.max_thrust_n = o.fc_max_thrust_n;
+    fc = std::make_unique<hq::vehicle::MavlinkFlightController>(fc_config);
+  }
+  std::fprintf(stderr, "hq-onboard: flight controller: %s\n", fc->describe().c_str());
+
+  std::FILE* csv = nullptr;
+  if (!o.csv_path.empty()) {
+    csv = std::fopen(o.csv_path.c_str(), "w");
+    if (!csv) throw hq::InputError(o.csv_path + ": cannot open for writing");
+    write_csv_header(csv);
+  }
+  const bool live = isatty(fileno(stderr)) != 0;
+  const SteadyClock clock;
+  hq::pipeline::OnboardChain chain(config, vehicle, source->camera(), &clock);
+
+  // The operator link, when asked for.
+  std::unique_ptr<hq::link_bridge::LinkBridge> bridge;
+  std::unique_ptr<hq::link_bridge::LinkOperatorPort> link_port;
+  if (o.link) {
+    hq::link::LinkConfig link = o.link_config_path.empty()
+                                    ? hq::link::LinkConfig{}
+                                    : hq::link::load_link_config(o.link_config_path);
+    hq::link::apply_overrides(o.link_overrides, link);
+    hq::link_bridge::FailsafeConfig failsafe;
+    failsafe.vehicle_id = link.vehicle_id;
+    failsafe.envelope = link.envelope;
+    failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
+    failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
+    hq::link_bridge::BridgeOptions bridge_options;
+    bridge_options.camera_rate_hz = o.camera_rate_hz;
+    bridge = std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
+    Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
+    T_body_camera.linear() = vehicle.R_body_camera;
+    T_body_camera.translation() = vehicle.p_body_camera_m;
+    link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain,
+                                                                     T_body_camera, stdout);
+    std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u\n", link.domain_id,
+                 link.vehicle_id);
+  }
+  RunPort port(link_port.get(), csv, live);
+  std::unique_ptr<SitlTruth> truth;
+  if (sitl_source != nullptr) truth = std::make_unique<SitlTruth>(*sitl_source);
+  hq::vehicle::VehicleRuntime runtime(chain, *source, *fc, &port, truth.get());
+
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  constexpr std::int64_t kLoopPeriodNs = 1'000'000;
+  if (replay) {
+    // Recorded time, as fast as the chain goes: the clock jumps to the next frame when there is
+    // nothing to tick between.
+    std::int64_t t_ns = 0;
+    while (!g_stop && runtime.step(t_ns)) {
+      const std::optional<std::int64_t> next = runtime.pending_frame_t_ns();
+      t_ns += 5'000'000;
+      if (next && *next > t_ns && (t_ns < *next - 1'000'000'000LL || port.frames == 0)) {
+        t_ns = *next;
+      }
+    }
+  } else {
+    // Wall time: the loop wakes every millisecond (frames and FC input within 1 ms); a camera
+    // blocks only its own thread.
+    const std::int64_t start_ns = monotonic_ns();
+    const auto end_ns = start_ns + static_cast<std::int64_t>(o.duration_s * 1e9);
+    // In SITL the flight controller is the simulator: once it is gone for good there is no
+    // vehicle left to fly, so the process stops (a real companion keeps waiting for its FC).
+    const double fc_lost_exit_s = o.fc_lost_exit_s >= 0.0 ? o.fc_lost_exit_s : (sitl ? 3.0 : 0.0);
+    std::int64_t fc_lost_since_ns = -1;
+    std::int64_t next_ns = start_ns;
+    while (!g_stop && runtime.step(monotonic_ns()) && monotonic_ns() < end_ns) {
+      if (runtime.status().fc_lost) {
+        if (fc_lost_since_ns < 0) fc_lost_since_ns = monotonic_ns();
+        if (fc_lost_exit_s > 0.0 &&
+            monotonic_ns() - fc_lost_since_ns > static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
+          std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
+          break;
+        }
+      } else {
+        fc_lost_since_ns = -1;
+      }
+      next_ns += kLoopPeriodNs;
+      const std::int64_t now_ns = monotonic_ns();
+      if (next_ns < now_ns) next_ns = now_ns;  // late: no burst of catch-up steps
+      sleep_until_ns(next_ns);
+    }
+  }
+  if (live) std::fprintf(stderr, "\n");
+  if (csv && std::fclose(csv) != 0) throw hq::InputError(o.csv_path + ": write failed");
+
+  const hq::vehicle::RuntimeCounters& rc = runtime.counters();
+  const hq::vehicle::FcCounters fcc = fc->counters();
+  std::printf(
+      "hq-onboard: %d frames, %d estimates ok, %d safe-hover setpoints, %d camera-timeout "
+      "steps%s%s\n",
+      port.frames, port.ok, port.safe_hover, port.ticks, csv ? ", log in " : "",
+      o.csv_path.c_str());
+  std::printf("  %-40s %s\n", "flight controller", fc->describe().c_str());
+  std::printf("  %-40s %llu sent (%llu withheld before the first estimate)\n", "setpoints",
+              static_cast<unsigned long long>(rc.setpoints),
+              static_cast<unsigned long long>(rc.setpoints_withheld));
+  if (fc_spec != "none") {
+    std::printf("  %-40s %llu sent, %llu received, %llu dropped, %llu send failures\n",
+                "MAVLink messages", static_cast<unsigned long long>(fcc.messages_sent),
+                static_cast<unsigned long long>(fcc.messages_received),
+                static_cast<unsigned long long>(fcc.frames_dropped),
+                static_cast<unsigned long long>(fcc.send_failures));
+    std::printf("  %-40s %llu IMU samples, %llu arm requests, FC %s\n", "flight controller input",
+                static_cast<unsigned long long>(rc.imu_samples),
+                static_cast<unsigned long long>(rc.arm_requests),
+                runtime.status().fc_lost ? "LOST" : runtime.status().fc.connected ? "connected" : "never heard");
+  }
+  std::printf("  %-40s %d\n", "runtime events", port.events);
+  if (bridge) {
+    const hq::link_bridge::FailsafeCounters& c = bridge->failsafe().counters();
+    std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
+                static_cast<unsigned long long>(c.commands_accepted),
+                static_cast<unsigned long long>(c.commands_rejected));
+    std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
+                static_cast<unsigned long long>(c.mode_requests_accepted),
+                static_cast<unsigned long long>(c.mode_requests_rejected));
+    std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes",
+                static_cast<unsigned long long>(c.holds),
+                static_cast<unsigned long long>(c.land_requests));
+    std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
+                static_cast<unsigned long long>(bridge->states_sent()),
+                static_cast<unsigned long long>(bridge->camera_frames_sent()),
+                static_cast<unsigned long long>(bridge->events_sent()));
+  }
+  std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
+  port.timing.print(stdout);
+  // A vehicle that lost its flight controller did not end well: say so in the exit status.
+  return runtime.status().fc_lost ? 4 : 0;
+}
+
+}  // namespace hq::onboard_app
