@@ -340,14 +340,22 @@ int run_vehicle(const Options& o) {
   std::signal(SIGTERM, request_stop);
   constexpr std::int64_t kLoopPeriodNs = 1'000'000;
   if (replay) {
-    // Recorded time, as fast as the chain goes: the clock jumps to the next frame when there is
-    // nothing to tick between.
+    // Recorded time, as fast as the chain goes (with --link: at the recording's own pace, so a
+    // ground station sees it as it happened); the clock jumps to the first frame and over gaps.
     std::int64_t t_ns = 0;
+    std::int64_t wall_minus_recorded_ns = 0;
+    bool paced = false;
     while (!g_stop && runtime.step(t_ns)) {
       const std::optional<std::int64_t> next = runtime.pending_frame_t_ns();
       t_ns += 5'000'000;
       if (next && *next > t_ns && (t_ns < *next - 1'000'000'000LL || port.frames == 0)) {
         t_ns = *next;
+        paced = false;
+      }
+      if (o.link) {
+        if (!paced) wall_minus_recorded_ns = monotonic_ns() - t_ns;
+        paced = true;
+        sleep_until_ns(t_ns + wall_minus_recorded_ns);
       }
     }
   } else {
@@ -383,10 +391,10 @@ int run_vehicle(const Options& o) {
   const hq::vehicle::RuntimeCounters& rc = runtime.counters();
   const hq::vehicle::FcCounters fcc = fc->counters();
   std::printf(
-      "hq-onboard: %d frames, %d estimates ok, %d safe-hover setpoints, %d camera-timeout "
-      "steps%s%s\n",
-      port.frames, port.ok, port.safe_hover, port.ticks, csv ? ", log in " : "",
-      o.csv_path.c_str());
+      "hq-onboard: %d frames from %s, %d estimates ok, %d safe-hover setpoints, %d "
+      "camera-timeout steps%s%s\n",
+      port.frames, source->describe().c_str(), port.ok, port.safe_hover, port.ticks,
+      csv ? ", log in " : "", o.csv_path.c_str());
   std::printf("  %-40s %s\n", "flight controller", fc->describe().c_str());
   std::printf("  %-40s %llu sent (%llu withheld before the first estimate)\n", "setpoints",
               static_cast<unsigned long long>(rc.setpoints),

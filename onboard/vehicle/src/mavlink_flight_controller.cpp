@@ -79,6 +79,9 @@ void MavlinkFcConfig::validate(const std::string& where) const {
   if (!(max_yaw_lead_rad > 0.0 && max_yaw_lead_rad <= std::numbers::pi)) {
     fail("max_yaw_lead_rad", text(max_yaw_lead_rad), "> 0 and <= pi");
   }
+  if (!(imu_rate_hz >= 10.0 && imu_rate_hz <= 1000.0)) {
+    fail("imu_rate_hz", text(imu_rate_hz), "in [10, 1000]");
+  }
 }
 
 void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
@@ -100,6 +103,7 @@ void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
                   : autopilot == "ardupilot" ? MavlinkFcConfig::Autopilot::kArduPilot
                                              : MavlinkFcConfig::Autopilot::kAuto;
   section.read_positive("max_yaw_lead_rad", out.max_yaw_lead_rad, std::numbers::pi);
+  section.read_positive("imu_rate_hz", out.imu_rate_hz, 1000.0);
   section.finish();
   // The key path without a key, e.g. "config/onboard.yaml: mavlink.", for the same messages.
   const std::string path = section.describe("transport");
@@ -164,8 +168,8 @@ void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
       event(sink, FcSeverity::kInfo, "FC connected: %s, system %d, component %d",
             autopilot_name(autopilot()), target_system_, target_component_);
     } else {
-      event(sink, FcSeverity::kError, "FC heartbeat lost: none for %.1f s",
-            static_cast<double>(t_ns - last_heartbeat_ns_) * 1e-9);
+      event(sink, FcSeverity::kError, "FC silent: nothing heard for %.1f s",
+            static_cast<double>(t_ns - last_heard_ns_) * 1e-9);
     }
   }
   if (armed_ != said_armed_) {
@@ -196,6 +200,7 @@ void MavlinkFlightController::handle(std::int64_t t_ns, const ml::FrameHeader& h
   }
   // Data only from the FC once known; before that from anyone (IMU may precede the heartbeat).
   if (have_target_ && header.system_id != target_system_) return;
+  if (have_target_) last_heard_ns_ = t_ns;
 
   if (const auto* imu = std::get_if<ml::HighresImu>(&message)) {
     const auto fc_stamp_ns = static_cast<std::int64_t>(imu->time_usec) * 1000;
@@ -272,6 +277,16 @@ void MavlinkFlightController::handle_heartbeat(std::int64_t t_ns, const ml::Fram
       break;
   }
   last_heartbeat_ns_ = t_ns;
+  last_heard_ns_ = t_ns;
+  if (!requested_streams_) {
+    // ArduPilot streams nothing on a companion's port until asked, and PX4's onboard profile
+    // sends HIGHRES_IMU slower than the chain wants: ask for the IMU and attitude rates once.
+    requested_streams_ = true;
+    send_command(ml::kMavCmdSetMessageInterval, static_cast<float>(ml::HighresImu::kId),
+                 static_cast<float>(1e6 / config_.imu_rate_hz));
+    send_command(ml::kMavCmdSetMessageInterval, static_cast<float>(ml::Attitude::kId),
+                 static_cast<float>(1e6 / 50.0));
+  }
 }
 
 void MavlinkFlightController::update_clock(std::int64_t t_ns, std::int64_t fc_stamp_ns) {
@@ -293,8 +308,10 @@ std::int64_t MavlinkFlightController::fc_time_ns(std::int64_t t_ns) const {
 }
 
 bool MavlinkFlightController::connected(std::int64_t t_ns) const {
+  // Any message from the FC counts, not only its 1 Hz heartbeat: a 1 s timeout on a 1 Hz
+  // heartbeat alone would raise false alarms on every late one.
   return last_heartbeat_ns_ >= 0 &&
-         static_cast<double>(t_ns - last_heartbeat_ns_) <= config_.heartbeat_timeout_s * 1e9;
+         static_cast<double>(t_ns - last_heard_ns_) <= config_.heartbeat_timeout_s * 1e9;
 }
 
 MavlinkFcConfig::Autopilot MavlinkFlightController::autopilot() const {
@@ -406,7 +423,7 @@ FcStatus MavlinkFlightController::status(std::int64_t t_ns) const {
   s.connected = connected(t_ns);
   s.armed = armed_;
   s.offboard = offboard_;
-  s.heartbeat_age_ns = last_heartbeat_ns_ >= 0 ? t_ns - last_heartbeat_ns_ : -1;
+  s.heartbeat_age_ns = last_heard_ns_ >= 0 ? t_ns - last_heard_ns_ : -1;
   s.battery_v = battery_v_;
   s.battery_pct = battery_pct_;
   return s;

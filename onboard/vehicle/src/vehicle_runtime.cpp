@@ -71,6 +71,7 @@ bool VehicleRuntime::step(std::int64_t t_ns) {
   counters_.imu_samples += static_cast<std::uint64_t>(imu_count_);
   supervise_fc(t_ns);
   take_operator(t_ns);
+  request_arm_when_ready(t_ns);
 
   if (!have_pending_ && !ended_) {
     switch (source_.next(frame_)) {
@@ -124,23 +125,40 @@ void VehicleRuntime::take_operator(std::int64_t t_ns) {
   for (const pipeline::ModeRequest& request : requests_) {
     const modes::ModeSwitch result = chain_.request_mode(request);
     op_->on_mode_result(t_ns, request, result);
-    // Arming is the operator's act: a request to fly while the FC is not flying our setpoints.
-    // It is never repeated on the runtime's own initiative.
-    const FcStatus& fc = status_.fc;
-    if (result.accepted && flying_mode(request.mode) && fc.connected &&
-        !(fc.armed && fc.offboard)) {
-      if (status_.streaming) {
-        fc_.request_arm_offboard(t_ns);
-        ++counters_.arm_requests;
-        event(t_ns, FcSeverity::kInfo,
-              "operator asked to fly: requesting the FC to arm and enter offboard");
-      } else {
-        event(t_ns, FcSeverity::kWarning,
-              "operator asked to fly, but there is no estimate yet: the FC is not armed");
-      }
+    // Arming is the operator's act: a request to fly while the FC is not flying our setpoints
+    // asks it to arm, now or as soon as it is heard and the stream runs (a few tries). A request
+    // for hover or land withdraws it. The runtime never asks on its own initiative.
+    if (result.accepted) {
+      arm_wanted_ = flying_mode(request.mode) && !(status_.fc.armed && status_.fc.offboard);
+      arm_attempts_ = 0;
+      next_arm_attempt_ns_ = t_ns;
     }
   }
   chain_.set_operator_command(command);
+}
+
+void VehicleRuntime::request_arm_when_ready(std::int64_t t_ns) {
+  const FcStatus& fc = status_.fc;
+  if (!arm_wanted_) return;
+  if (fc.armed && fc.offboard) {
+    arm_wanted_ = false;
+    return;
+  }
+  if (!fc.connected || !status_.streaming || t_ns < next_arm_attempt_ns_) return;
+  if (arm_attempts_ == kMaxArmAttempts) {
+    arm_wanted_ = false;
+    event(t_ns, FcSeverity::kWarning,
+          "the FC did not arm and enter offboard after 5 requests: ask to fly again to retry");
+    return;
+  }
+  fc_.request_arm_offboard(t_ns);
+  ++counters_.arm_requests;
+  ++arm_attempts_;
+  next_arm_attempt_ns_ = t_ns + kArmRetryNs;
+  if (arm_attempts_ == 1) {
+    event(t_ns, FcSeverity::kInfo,
+          "operator asked to fly: requesting the FC to arm and enter offboard");
+  }
 }
 
 void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
@@ -154,23 +172,25 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
   } else if (ever_connected_ && !status_.fc_lost) {
     status_.fc_lost = true;
     std::snprintf(text, sizeof text,
-                  "flight controller lost: no heartbeat for %.0f ms; holding, link degraded",
+                  "flight controller lost: nothing heard for %.0f ms; holding, link degraded",
                   1e-6 * static_cast<double>(fc.heartbeat_age_ns));
     event(t_ns, FcSeverity::kError, text);
-    chain_.request_mode(modes::Mode::kHover);
+    arm_wanted_ = false;
+    if (!landed()) chain_.request_mode(modes::Mode::kHover);
   }
   const bool flying_offboard = fc.connected && fc.armed && fc.offboard;
   if (was_flying_offboard_ && !flying_offboard && fc.connected) {
     status_.fc_override = true;
+    arm_wanted_ = false;
     if (!fc.armed) {
       event(t_ns, FcSeverity::kError,
             "flight controller disarmed (its failsafe or the pilot): landing, not re-arming");
-      chain_.request_mode(modes::Mode::kLand);
+      if (!landed()) chain_.request_mode(modes::Mode::kLand);
     } else {
       event(t_ns, FcSeverity::kError,
             "flight controller left offboard (its failsafe or the pilot's RC): our setpoints "
             "are not flown; holding, not re-entering offboard");
-      chain_.request_mode(modes::Mode::kHover);
+      if (!landed()) chain_.request_mode(modes::Mode::kHover);
     }
   }
   if (flying_offboard) status_.fc_override = false;

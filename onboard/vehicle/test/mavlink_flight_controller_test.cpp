@@ -281,7 +281,7 @@ TEST(MavlinkFc, HeartbeatSilenceBeyondTheTimeoutIsLostOnce) {
   EXPECT_FALSE(link.controller->status(heard + 1500 * kMs).connected);
   ASSERT_FALSE(link.sink.events.empty());
   EXPECT_EQ(link.sink.events.back().severity, FcSeverity::kError);
-  EXPECT_THAT(link.sink.events.back().text, HasSubstr("FC heartbeat lost: none for 1.5 s"));
+  EXPECT_THAT(link.sink.events.back().text, HasSubstr("FC silent: nothing heard for 1.5 s"));
   const std::size_t events = link.sink.events.size();
   link.controller->poll(heard + 2000 * kMs, link.sink);
   EXPECT_EQ(link.sink.events.size(), events);
@@ -290,6 +290,20 @@ TEST(MavlinkFc, HeartbeatSilenceBeyondTheTimeoutIsLostOnce) {
   ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
   EXPECT_TRUE(link.controller->status(link.t_ns).connected);
   EXPECT_TRUE(link.sink.events.back().text.starts_with("FC connected"));
+}
+
+// A 1 Hz heartbeat a little late is no loss while the FC's IMU still streams: any message from
+// the FC keeps it connected; its silence, not a late heartbeat, is the loss.
+TEST(MavlinkFc, AnyMessageFromTheFcKeepsItConnected) {
+  Link link;
+  ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
+  const std::int64_t heard = link.t_ns;
+  ASSERT_TRUE(link.deliver_imu(1'000'000, heard + 800 * kMs));
+  link.controller->poll(heard + 1500 * kMs, link.sink);
+  EXPECT_TRUE(link.controller->status(heard + 1500 * kMs).connected);
+  EXPECT_EQ(link.controller->status(heard + 1500 * kMs).heartbeat_age_ns, 700 * kMs);
+  link.controller->poll(heard + 1900 * kMs, link.sink);
+  EXPECT_FALSE(link.controller->status(heard + 1900 * kMs).connected);
 }
 
 struct Euler {

@@ -197,7 +197,7 @@ TEST(VehicleRuntime, SaysFlightControllerLostOnceAndHolds) {
   rig.fc.fc_status.heartbeat_age_ns = 1'200'000'000;
   rig.run_until(rig.t_ns + 10 * kFramePeriodNs);
   EXPECT_EQ(rig.port.errors, 1) << ::testing::PrintToString(rig.port.events);
-  EXPECT_TRUE(contains(rig.port.events, "flight controller lost: no heartbeat for 1200 ms"));
+  EXPECT_TRUE(contains(rig.port.events, "flight controller lost: nothing heard for 1200 ms"));
   EXPECT_EQ(rig.chain.mode(), modes::Mode::kHover);
   EXPECT_TRUE(rig.runtime->status().fc_lost);
   EXPECT_TRUE(rig.port.last_degraded);
@@ -231,6 +231,28 @@ TEST(VehicleRuntime, NeverReArmsByItselfAfterTheFlightControllerTakesOver) {
   EXPECT_TRUE(contains(rig.port.events, "requesting the FC to arm"));
   rig.run_until(rig.t_ns + 10 * kFramePeriodNs);
   EXPECT_EQ(rig.fc.arm_requests, 1);
+  // Refused (the FC stays disarmed): asked again once a second, five times, then given up.
+  rig.run_until(rig.t_ns + 6'000'000'000);
+  EXPECT_EQ(rig.fc.arm_requests, 5);
+  EXPECT_TRUE(contains(rig.port.events, "did not arm and enter offboard after 5 requests"));
+}
+
+// GIVEN an operator who asks to fly before the FC is heard WHEN the FC is heard THEN the
+// runtime asks it to arm then, once.
+TEST(VehicleRuntime, ArmsWhenTheFlightControllerIsHeardAfterTheOperatorsRequest) {
+  pipeline::OnboardConfig config;
+  config.modes.start_landed = true;
+  Rig rig(300, config);
+  rig.port.queued.push_back({modes::Mode::kTeleop, std::nullopt});
+  rig.run_until(10 * kFramePeriodNs);
+  EXPECT_EQ(rig.fc.arm_requests, 0);
+  rig.fc.fc_status = {true, false, false, 0, -1.0, -1};
+  rig.run_until(rig.t_ns + kStepNs);
+  EXPECT_EQ(rig.fc.arm_requests, 1);
+  rig.fc.fc_status.armed = rig.fc.fc_status.offboard = true;
+  rig.run_until(rig.t_ns + 3'000'000'000);
+  EXPECT_EQ(rig.fc.arm_requests, 1);
+  EXPECT_FALSE(rig.runtime->status().fc_override);
 }
 
 // GIVEN an FC that was armed and offboard WHEN it disarms on its own THEN the chain lands.

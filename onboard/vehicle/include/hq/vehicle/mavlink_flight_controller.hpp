@@ -27,7 +27,8 @@ struct MavlinkFcConfig {
   std::string transport = "udp:127.0.0.1:14540";  ///< mavlink::open_transport() spec.
   std::uint8_t system_id = 1;                     ///< Ours (a companion shares the vehicle's).
   std::uint8_t component_id = 191;                ///< MAV_COMP_ID_ONBOARD_COMPUTER.
-  double heartbeat_timeout_s = 1.0;               ///< No FC heartbeat for longer: not connected.
+  /// Nothing from the FC (heartbeat, IMU, attitude: any message) for longer: not connected.
+  double heartbeat_timeout_s = 1.0;
   double heartbeat_rate_hz = 1.0;                 ///< Our HEARTBEAT, sent from poll().
   /// Collective thrust at full throttle, to normalise SET_ATTITUDE_TARGET's thrust (the simulated
   /// vehicle's 4 rotors give 32.9 N).
@@ -35,6 +36,8 @@ struct MavlinkFcConfig {
   Autopilot autopilot = Autopilot::kAuto;  ///< kAuto: from the FC's HEARTBEAT.
   /// The commanded yaw never leads the FC's yaw by more than this (no wind-up while it lags).
   double max_yaw_lead_rad = 0.3;
+  /// HIGHRES_IMU rate asked of the FC once it is heard (MAV_CMD_SET_MESSAGE_INTERVAL).
+  double imu_rate_hz = 200.0;
 
   /// Throws hq::InputError naming the key after the prefix `where`, e.g.
   /// `config/onboard.yaml: mavlink.max_thrust_n = -1, expected > 0 and <= 10000`.
@@ -43,7 +46,7 @@ struct MavlinkFcConfig {
 
 /// Reads the `mavlink:` section strictly: transport, system_id, component_id,
 /// heartbeat_timeout_s, heartbeat_rate_hz, max_thrust_n, autopilot (auto | px4 | ardupilot),
-/// max_yaw_lead_rad; then validate().
+/// max_yaw_lead_rad, imu_rate_hz; then validate().
 void read_config(config::StrictMap& section, MavlinkFcConfig& out);
 
 class MavlinkFlightController final : public FlightController {
@@ -105,6 +108,8 @@ class MavlinkFlightController final : public FlightController {
   std::uint8_t target_component_ = 0;
   Autopilot heard_autopilot_ = Autopilot::kAuto;
   std::int64_t last_heartbeat_ns_ = -1;
+  std::int64_t last_heard_ns_ = -1;  ///< Any message from the FC.
+  bool requested_streams_ = false;
   bool armed_ = false;
   bool offboard_ = false;
   double battery_v_ = -1.0;

@@ -9,7 +9,8 @@
 ///   - flight controller silent beyond its timeout: an error event, the chain holds (hover);
 ///   - flight controller disarmed or out of offboard on its own (its failsafe, the pilot's RC):
 ///     said once, the chain lands or holds, and the runtime never re-arms or re-enters offboard
-///     by itself: only an operator's request for a flying mode asks the FC to arm;
+///     by itself: only an operator's request for a flying mode asks the FC to arm (retried a
+///     few times while the FC is not yet heard or refuses);
 ///   - camera silent: the chain's own coast-then-safe-hover (chain.camera_timeout_s);
 ///   - operator link: the link bridge's hold-then-land, behind the OperatorPort.
 ///
@@ -121,7 +122,13 @@ class VehicleRuntime final : private FcSink {
   void on_attitude(const FcAttitude& attitude) override;
   void on_fc_event(FcSeverity severity, std::string_view text) override;
 
+  static constexpr int kMaxArmAttempts = 5;
+  static constexpr std::int64_t kArmRetryNs = 1'000'000'000;
+
   void supervise_fc(std::int64_t t_ns);
+  void request_arm_when_ready(std::int64_t t_ns);
+  /// The chain's latest belief: on the ground, motors idle.
+  [[nodiscard]] bool landed() const { return last_ && last_->mode.landed; }
   void take_operator(std::int64_t t_ns);
   void feed_imu_until(std::int64_t t_ns);
   void deliver(const pipeline::ChainOutput& out);
@@ -146,6 +153,9 @@ class VehicleRuntime final : private FcSink {
   std::int64_t t_now_ns_ = 0;
   std::int64_t next_tick_ns_ = 0;
   bool ever_connected_ = false;
+  bool arm_wanted_ = false;  ///< The operator asked to fly and the FC is not flying us yet.
+  int arm_attempts_ = 0;
+  std::int64_t next_arm_attempt_ns_ = 0;
   bool was_flying_offboard_ = false;
   VehicleStatus status_;
   RuntimeCounters counters_;

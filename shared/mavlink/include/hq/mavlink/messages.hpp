@@ -144,6 +144,7 @@ inline constexpr std::uint8_t kMavStateActive = 4;
 inline constexpr std::uint8_t kMavStateCritical = 5;
 inline constexpr std::uint16_t kMavCmdDoSetMode = 176;
 inline constexpr std::uint16_t kMavCmdComponentArmDisarm = 400;
+inline constexpr std::uint16_t kMavCmdSetMessageInterval = 511;
 inline constexpr std::uint8_t kMavResultAccepted = 0;
 inline constexpr std::uint8_t kMavCompIdAutopilot1 = 1;
 inline constexpr std::uint8_t kMavCompIdOnboardComputer = 191;
