@@ -460,6 +460,14 @@ TEST(MavlinkFc, ArmOffboardAndDisarmCommandsCarryTheRightParams) {
     EXPECT_TRUE(link.sink.said("autopilot unknown"));
 
     ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
+    // The first heartbeat heard asks for the IMU at 200 Hz and the attitude at 50 Hz.
+    const auto intervals = link.fc.receive_all<ml::CommandLong>(kSecond, 2);
+    ASSERT_EQ(intervals.size(), 2u);
+    EXPECT_EQ(intervals[0].command, ml::kMavCmdSetMessageInterval);
+    EXPECT_EQ(intervals[0].param[0], static_cast<float>(ml::HighresImu::kId));
+    EXPECT_EQ(intervals[0].param[1], 5000.0f);
+    EXPECT_EQ(intervals[1].param[0], static_cast<float>(ml::Attitude::kId));
+    EXPECT_EQ(intervals[1].param[1], 20000.0f);
     link.controller->request_arm_offboard(link.t_ns);
     const auto got = link.fc.receive_all<ml::CommandLong>(kSecond, 2);
     ASSERT_EQ(got.size(), 2u);
@@ -479,6 +487,7 @@ TEST(MavlinkFc, ArmOffboardAndDisarmCommandsCarryTheRightParams) {
   {
     Link link;
     ASSERT_TRUE(link.deliver(ardupilot_heartbeat(false, 0)));
+    ASSERT_EQ(link.fc.receive_all<ml::CommandLong>(kSecond, 2).size(), 2u);  // stream rates
     link.controller->request_arm_offboard(link.t_ns);
     const auto got = link.fc.receive_all<ml::CommandLong>(kSecond, 2);
     ASSERT_EQ(got.size(), 2u);
