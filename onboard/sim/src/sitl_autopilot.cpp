@@ -202,6 +202,12 @@ void SitlAutopilot::handle_command(std::int64_t t_ns, std::uint8_t system_id,
     ack(c, mavlink::kMavResultAccepted, system_id, component_id, out);
     return;
   }
+  if (c.command == mavlink::kMavCmdSetMessageInterval) {
+    // Accepted as PX4 does; the simulated FC already streams the IMU at the simulator's IMU
+    // rate and the attitude at 50 Hz, which is what a companion asks for.
+    ack(c, mavlink::kMavResultAccepted, system_id, component_id, out);
+    return;
+  }
   ack(c, kResultUnsupported, system_id, component_id, out);
 }
 

@@ -330,8 +330,10 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
   } else {
     std::printf("vision speed estimates 0, RMSE n/a\n");
   }
-  std::printf("final: %s %s, battery %.2f V\n", autopilot.armed() ? "armed" : "disarmed",
-              sitl_mode_name(autopilot.mode()).data(), autopilot.battery_v());
+  std::printf("final: %s %s, battery %.2f V, %s at altitude %.2f m\n",
+              autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
+              autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
+              sim.truth().T_world_body.translation().z());
   std::fflush(stdout);
   return 0;
 }
