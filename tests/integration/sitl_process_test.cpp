@@ -245,6 +245,16 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   EXPECT_GT(companion.frame_count_, 20) << "30 Hz frames, polled at 50 Hz";
   EXPECT_TRUE(companion.frame_stamps_increasing_);
   EXPECT_TRUE(companion.frame_stamps_recent_);
+  // Frame stamps and IMU time_usec share the origin the channel publishes: the newest IMU
+  // sample, mapped onto the host clock, is in the past and recent.
+  ASSERT_TRUE(companion.frames_);
+  const std::int64_t origin_ns = companion.frames_->time_origin_ns();
+  ASSERT_GT(origin_ns, 0);
+  const std::int64_t imu_host_ns =
+      origin_ns + 1000 * static_cast<std::int64_t>(companion.last_imu_usec_);
+  const std::int64_t now_ns = hq::frame_channel::monotonic_now_ns();
+  EXPECT_LT(imu_host_ns, now_ns);
+  EXPECT_GT(imu_host_ns, now_ns - 200'000'000);
   ASSERT_TRUE(companion.last_frame_.has_truth);
   EXPECT_TRUE(companion.last_frame_.truth.on_ground);
   EXPECT_GE(companion.heartbeats_, 2);

@@ -45,6 +45,7 @@ struct alignas(kAlign) Header {
   alignas(kAlign) std::atomic<std::int64_t> heartbeat_ns;
   std::atomic<std::uint64_t> published;  ///< Frames published; the newest is published - 1.
   std::atomic<std::uint32_t> closed;
+  std::atomic<std::int64_t> time_origin_ns;  ///< 0: not set.
 };
 
 /// The slot's metadata; the image and depth bytes follow at the header's offsets.
@@ -264,6 +265,7 @@ FrameChannelWriter::FrameChannelWriter(const std::string& name, const ChannelGeo
   h->heartbeat_ns.store(monotonic_now_ns(), std::memory_order_relaxed);
   h->published.store(0, std::memory_order_relaxed);
   h->closed.store(0, std::memory_order_relaxed);
+  h->time_origin_ns.store(0, std::memory_order_relaxed);
   for (int i = 0; i < kSlots; ++i) {
     new (slot_base(map_, static_cast<std::uint64_t>(i))) SlotHeader{};
   }
@@ -275,6 +277,10 @@ FrameChannelWriter::~FrameChannelWriter() {
   header_of(map_)->closed.store(1, std::memory_order_release);
   unmap(map_);
   shm_unlink(name_.c_str());
+}
+
+void FrameChannelWriter::set_time_origin(std::int64_t time_origin_ns) {
+  header_of(map_)->time_origin_ns.store(time_origin_ns, std::memory_order_release);
 }
 
 void FrameChannelWriter::heartbeat() {
@@ -337,6 +343,10 @@ FrameChannelReader::FrameChannelReader(const std::string& name, const ReaderOpti
 FrameChannelReader::~FrameChannelReader() { unmap(map_); }
 
 int FrameChannelReader::writer_pid() const { return header_of(map_)->writer_pid; }
+
+std::int64_t FrameChannelReader::time_origin_ns() const {
+  return header_of(map_)->time_origin_ns.load(std::memory_order_acquire);
+}
 
 void FrameChannelReader::check_writer(std::int64_t now_ns) {
   const Header* h = header_of(map_);
