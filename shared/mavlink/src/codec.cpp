@@ -90,8 +90,8 @@ struct Spec<SysStatus> {
   static constexpr void wire(Io& io, M& m) {
     io(m.onboard_control_sensors_present), io(m.onboard_control_sensors_enabled),
         io(m.onboard_control_sensors_health), io(m.load_permille), io(m.voltage_battery_mv),
-        io(m.current_battery_ca), io(m.drop_rate_comm_cpct), io(m.errors_comm),
-        io(m.errors_count), io(m.battery_remaining_pct);
+        io(m.current_battery_ca), io(m.drop_rate_comm_cpct), io(m.errors_comm), io(m.errors_count),
+        io(m.battery_remaining_pct);
     io(m.onboard_control_sensors_present_extended), io(m.onboard_control_sensors_enabled_extended),
         io(m.onboard_control_sensors_health_extended);
   }
@@ -160,8 +160,8 @@ struct Spec<HighresImu> {
   template <typename Io, typename M>
   static constexpr void wire(Io& io, M& m) {
     io(m.time_usec), io(m.xacc_mps2), io(m.yacc_mps2), io(m.zacc_mps2), io(m.xgyro_radps),
-        io(m.ygyro_radps), io(m.zgyro_radps), io(m.xmag_gauss), io(m.ymag_gauss),
-        io(m.zmag_gauss), io(m.abs_pressure_hpa), io(m.diff_pressure_hpa), io(m.pressure_alt_m),
+        io(m.ygyro_radps), io(m.zgyro_radps), io(m.xmag_gauss), io(m.ymag_gauss), io(m.zmag_gauss),
+        io(m.abs_pressure_hpa), io(m.diff_pressure_hpa), io(m.pressure_alt_m),
         io(m.temperature_degc), io(m.fields_updated);
     io(m.id);
   }
@@ -211,12 +211,13 @@ template <typename... Ms>
 constexpr bool find_info(std::uint32_t id, MessageInfo& out, std::variant<Ms...>*) {
   std::size_t index = 0;
   bool found = false;
-  ((found = found || [&] {
-      const bool hit = Ms::kId == id;
-      if (hit) out = {Spec<Ms>::kCrcExtra, Spec<Ms>::kBaseLen, Spec<Ms>::kMaxLen, index};
-      ++index;
-      return hit;
-    }()),
+  ((found = found ||
+            [&] {
+              const bool hit = Ms::kId == id;
+              if (hit) out = {Spec<Ms>::kCrcExtra, Spec<Ms>::kBaseLen, Spec<Ms>::kMaxLen, index};
+              ++index;
+              return hit;
+            }()),
    ...);
   return found;
 }
@@ -322,7 +323,8 @@ std::size_t Parser::accumulate(std::span<const std::uint8_t> bytes, bool& comple
         --size_;
         continue;
       }
-      need = header + buf_[1] + kCrcSize + ((v2 && (buf_[2] & kIncompatSigned)) ? kSignatureSize : 0);
+      need =
+          header + buf_[1] + kCrcSize + ((v2 && (buf_[2] & kIncompatSigned)) ? kSignatureSize : 0);
     }
     // After a failed candidate the buffer may already hold more than this frame.
     const std::size_t take = size_ >= need ? 0 : std::min(need - size_, bytes.size() - used);
@@ -372,13 +374,15 @@ bool Parser::decode_candidate(FrameHeader& header, Message& message) {
     drop_start_byte();  // a real frame may begin inside this one
     return false;
   }
-  if (length > (v2 ? info.max_len : info.base_len)) {
+  // MAVLink 1 frames carry no extensions; one that does anyway (node-mavlink writes them) is
+  // accepted and its extension bytes ignored.
+  if (length > info.max_len) {
     ++counters_.bad_length;
     drop_frame();
     return false;
   }
   std::uint8_t payload[kMaxPayload]{};  // zero padding restores trimmed bytes and extensions
-  std::memcpy(payload, buf_ + header_size, length);
+  std::memcpy(payload, buf_ + header_size, v2 ? length : std::min(length, info.base_len));
   decode_payload(info.variant_index, payload, message);
   header.v1 = !v2;
   header.signed_ = v2 && (buf_[2] & kIncompatSigned) != 0;

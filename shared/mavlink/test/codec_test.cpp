@@ -1,13 +1,13 @@
 #include "hq/mavlink/codec.hpp"
 
+#include "hq/testing/allocation_counter.hpp"
+
+#include <gtest/gtest.h>
+
 #include <array>
 #include <cstring>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
-
-#include "hq/testing/allocation_counter.hpp"
 
 namespace hq::mavlink {
 namespace {
@@ -89,8 +89,8 @@ std::vector<Message> every_message() {
   vse.z_mps = 0.25f;
   for (int i = 0; i < 9; ++i) vse.covariance[static_cast<std::size_t>(i)] = 0.01f * (i + 1);
   vse.reset_counter = 3;
-  HighresImu imu{0x1122334455667ull, 0.1f, -0.2f, -9.81f, 0.01f, 0.02f, -0.03f, 0.2f, 0.0f,
-                 0.4f, 1013.25f, 0.5f, 120.f, 25.5f, 0x1FFF, 2};
+  HighresImu imu{0x1122334455667ull, 0.1f, -0.2f, -9.81f, 0.01f,  0.02f, -0.03f, 0.2f, 0.0f, 0.4f,
+                 1013.25f,           0.5f, 120.f, 25.5f,  0x1FFF, 2};
   Statustext st;
   st.severity = 4;
   const char* text = "Preflight Fail: accel uncalibrated";
@@ -102,9 +102,9 @@ std::vector<Message> every_message() {
 
 TEST(Crc, Mcrf4xxCheckValue) {
   const char* check = "123456789";
-  EXPECT_EQ(crc16_mcrf4xx(std::span<const std::uint8_t>(
-                reinterpret_cast<const std::uint8_t*>(check), 9)),
-            0x6F91);
+  EXPECT_EQ(
+      crc16_mcrf4xx(std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(check), 9)),
+      0x6F91);
 }
 
 TEST(Codec, EveryMessageRoundTripsWithItsHeader) {
@@ -201,8 +201,8 @@ TEST(Codec, V1FrameIsDecodedAndCounted) {
   Bytes frame = {0xFE, 28, 9, 3, 1, 30};
   std::uint8_t payload[28];
   std::memcpy(payload, &att.time_boot_ms, 4);
-  const float values[6] = {att.roll_rad, att.pitch_rad, att.yaw_rad, att.rollspeed_radps,
-                           att.pitchspeed_radps, att.yawspeed_radps};
+  const float values[6] = {att.roll_rad,        att.pitch_rad,        att.yaw_rad,
+                           att.rollspeed_radps, att.pitchspeed_radps, att.yawspeed_radps};
   std::memcpy(payload + 4, values, sizeof(values));
   frame.insert(frame.end(), payload, payload + 28);
   std::uint16_t crc = crc16_mcrf4xx(std::span<const std::uint8_t>(frame.data() + 1, 5 + 28));
@@ -222,11 +222,36 @@ TEST(Codec, V1FrameIsDecodedAndCounted) {
   EXPECT_EQ(parser.counters().frames, 1u);
 }
 
+TEST(Codec, V1FrameExtensionBytesAreIgnored) {
+  // node-mavlink writes extension fields into v1 frames; MAVLink 1 has none, so they are dropped.
+  HighresImu imu{};
+  imu.time_usec = 99;
+  imu.fields_updated = 7;
+  imu.id = 5;
+  const Bytes v2 = encode(imu);
+  ASSERT_EQ(v2[1], 63);
+  Bytes frame = {0xFE, 63, 0, 1, 1, 105};
+  frame.insert(frame.end(), v2.begin() + 10, v2.begin() + 10 + 63);
+  std::uint16_t crc = crc16_mcrf4xx(std::span<const std::uint8_t>(frame.data() + 1, 5 + 63));
+  const std::uint8_t crc_extra = 93;
+  crc = crc16_mcrf4xx(std::span<const std::uint8_t>(&crc_extra, 1), crc);
+  frame.push_back(static_cast<std::uint8_t>(crc & 0xFF));
+  frame.push_back(static_cast<std::uint8_t>(crc >> 8));
+  Parser parser;
+  const auto got = feed(parser, frame);
+  ASSERT_EQ(got.size(), 1u);
+  const auto& decoded = std::get<HighresImu>(got[0].message);
+  EXPECT_EQ(decoded.time_usec, 99u);
+  EXPECT_EQ(decoded.fields_updated, 7);
+  EXPECT_EQ(decoded.id, 0);
+}
+
 TEST(Codec, SignedFrameSignatureIsSkipped) {
   Bytes frame = encode(Attitude{5, 0.1f, 0.2f, 0.3f, 0, 0, 0});
   frame[2] = 0x01;  // MAVLINK_IFLAG_SIGNED: the CRC covers the flags
   fix_crc_v2(frame, 39);
-  for (int i = 0; i < 13; ++i) frame.push_back(static_cast<std::uint8_t>(0xFD - i));  // start bytes inside
+  for (int i = 0; i < 13; ++i)
+    frame.push_back(static_cast<std::uint8_t>(0xFD - i));  // start bytes inside
   const Bytes next = encode(Heartbeat{});
   frame.insert(frame.end(), next.begin(), next.end());
 
@@ -296,7 +321,8 @@ TEST(Codec, BadCrcResynchronisesInsideTheFailedFrame) {
 
 TEST(Codec, UnknownMessageIdIsSkippedWhole) {
   // Message 9999 with a payload full of start bytes: skipped by its length, not rescanned.
-  Bytes stream = {0xFD, 6, 0, 0, 0, 1, 1, 0x0F, 0x27, 0x00, 0xFD, 0xFE, 0xFD, 0xFE, 0xFD, 0xFE, 0x12, 0x34};
+  Bytes stream = {0xFD, 6,    0,    0,    0,    1,    1,    0x0F, 0x27,
+                  0x00, 0xFD, 0xFE, 0xFD, 0xFE, 0xFD, 0xFE, 0x12, 0x34};
   const Bytes good = encode(Heartbeat{});
   stream.insert(stream.end(), good.begin(), good.end());
   Parser parser;

@@ -1,19 +1,18 @@
 #include "hq/mavlink/transport.hpp"
 
-#include <fcntl.h>
-#include <pty.h>
-#include <termios.h>
-#include <unistd.h>
-
-#include <array>
-#include <string>
-#include <vector>
+#include "hq/mavlink/codec.hpp"
+#include "hq/testing/input_error.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "hq/mavlink/codec.hpp"
-#include "hq/testing/input_error.hpp"
+#include <array>
+#include <fcntl.h>
+#include <pty.h>
+#include <string>
+#include <termios.h>
+#include <unistd.h>
+#include <vector>
 
 namespace hq::mavlink {
 namespace {
@@ -45,10 +44,12 @@ TEST(Transport, UdpListenLearnsThePeerAndReplies) {
   EXPECT_EQ(server->receive(empty), 0u) << "non-blocking: nothing pending";
 
   ASSERT_TRUE(client->send(hello));
-  EXPECT_EQ(receive_within(*server, 1'000'000'000), std::vector<std::uint8_t>(hello.begin(), hello.end()));
+  EXPECT_EQ(receive_within(*server, 1'000'000'000),
+            std::vector<std::uint8_t>(hello.begin(), hello.end()));
   const std::array<std::uint8_t, 2> reply{9, 8};
   ASSERT_TRUE(server->send(reply));
-  EXPECT_EQ(receive_within(*client, 1'000'000'000), std::vector<std::uint8_t>(reply.begin(), reply.end()));
+  EXPECT_EQ(receive_within(*client, 1'000'000'000),
+            std::vector<std::uint8_t>(reply.begin(), reply.end()));
   EXPECT_FALSE(client->wait_readable(1'000'000)) << "nothing more pending";
 }
 
@@ -109,8 +110,10 @@ TEST(Transport, SerialThroughAPseudoTerminal) {
   std::size_t have = 0;
   for (int i = 0; i < 20 && have < binary.size(); ++i) {
     const ssize_t r = ::read(master, back.data() + have, back.size() - have);
-    if (r > 0) have += static_cast<std::size_t>(r);
-    else ::usleep(10'000);
+    if (r > 0)
+      have += static_cast<std::size_t>(r);
+    else
+      ::usleep(10'000);
   }
   ASSERT_EQ(have, binary.size());
   EXPECT_TRUE(std::equal(binary.begin(), binary.end(), back.begin()));
@@ -133,11 +136,13 @@ TEST(Transport, BadSpecsNameTheSpecAndTheProblem) {
               HasSubstr("port 0 out of range 1..65535"));
   EXPECT_THAT(input_error_message([] { open_transport("udp:no.such.host.invalid:14540"); }),
               HasSubstr("cannot resolve host \"no.such.host.invalid\""));
-  EXPECT_EQ(input_error_message([] { open_transport("serial:/dev/ttyACM0:12345"); }).rfind(
-                "mavlink transport \"serial:/dev/ttyACM0:12345\": baud rate 12345 is not a termios "
-                "rate",
-                0),
-            0u);
+  EXPECT_EQ(
+      input_error_message([] { open_transport("serial:/dev/ttyACM0:12345"); })
+          .rfind(
+              "mavlink transport \"serial:/dev/ttyACM0:12345\": baud rate 12345 is not a termios "
+              "rate",
+              0),
+      0u);
   EXPECT_THAT(input_error_message([] { open_transport("serial:/nonexistent/tty:115200"); }),
               HasSubstr("cannot open /nonexistent/tty: No such file or directory"));
   EXPECT_THAT(input_error_message([] { open_transport("serial:/dev/null:115200"); }),

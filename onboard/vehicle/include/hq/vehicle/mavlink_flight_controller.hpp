@@ -1,0 +1,140 @@
+#pragma once
+/// The flight controller over MAVLink (PX4, ArduPilot, hq-sim --sitl): HIGHRES_IMU and ATTITUDE
+/// in, SET_ATTITUDE_TARGET and VISION_SPEED_ESTIMATE out, arming and the offboard mode by
+/// COMMAND_LONG, health from HEARTBEAT, SYS_STATUS and STATUSTEXT.
+///
+/// Clocks: the FC stamps in its boot time; the runtime clock is whatever t_ns poll() is given.
+/// offset = min over a sliding window of (t_ns at receipt - FC stamp), because every packet
+/// arrives late by the transport delay and the least-delayed one bounds it most tightly (the
+/// minimum-delay rule of NTP-style one-way clock estimation). The same offset stamps what we send
+/// (time_boot_ms, usec) in the FC's clock.
+
+#include "hq/config/strict_yaml.hpp"
+#include "hq/mavlink/codec.hpp"
+#include "hq/mavlink/transport.hpp"
+#include "hq/vehicle/flight_controller.hpp"
+
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+namespace hq::vehicle {
+
+struct MavlinkFcConfig {
+  enum class Autopilot { kAuto, kPx4, kArduPilot };
+  std::string transport = "udp:127.0.0.1:14540";  ///< mavlink::open_transport() spec.
+  std::uint8_t system_id = 1;                     ///< Ours (a companion shares the vehicle's).
+  std::uint8_t component_id = 191;                ///< MAV_COMP_ID_ONBOARD_COMPUTER.
+  double heartbeat_timeout_s = 1.0;               ///< No FC heartbeat for longer: not connected.
+  double heartbeat_rate_hz = 1.0;                 ///< Our HEARTBEAT, sent from poll().
+  /// Collective thrust at full throttle, to normalise SET_ATTITUDE_TARGET's thrust (the simulated
+  /// vehicle's 4 rotors give 32.9 N).
+  double max_thrust_n = 32.9;
+  Autopilot autopilot = Autopilot::kAuto;  ///< kAuto: from the FC's HEARTBEAT.
+  /// The commanded yaw never leads the FC's yaw by more than this (no wind-up while it lags).
+  double max_yaw_lead_rad = 0.3;
+
+  /// Throws hq::InputError naming the key after the prefix `where`, e.g.
+  /// `config/onboard.yaml: mavlink.max_thrust_n = -1, expected > 0 and <= 10000`.
+  void validate(const std::string& where = "mavlink.") const;
+};
+
+/// Reads the `mavlink:` section strictly: transport, system_id, component_id,
+/// heartbeat_timeout_s, heartbeat_rate_hz, max_thrust_n, autopilot (auto | px4 | ardupilot),
+/// max_yaw_lead_rad; then validate().
+void read_config(config::StrictMap& section, MavlinkFcConfig& out);
+
+class MavlinkFlightController final : public FlightController {
+ public:
+  /// Opens config.transport; throws hq::InputError on a bad config or transport spec.
+  explicit MavlinkFlightController(const MavlinkFcConfig& config);
+  /// Over a transport opened by the caller (tests, tools).
+  MavlinkFlightController(const MavlinkFcConfig& config,
+                          std::unique_ptr<mavlink::Transport> transport);
+  MavlinkFlightController(const MavlinkFlightController&) = delete;
+  MavlinkFlightController& operator=(const MavlinkFlightController&) = delete;
+
+  void poll(std::int64_t t_ns, FcSink& sink) override;
+  /// SET_ATTITUDE_TARGET, q = Rz(yaw_target) Ry(pitch) Rx(roll) of B (FRD) in NED. Not sent
+  /// (counted a send failure) if not finite or no FC has been heard yet.
+  void send_setpoint(std::int64_t t_ns, const control::AttitudeSetpoint& setpoint) override;
+  /// VISION_SPEED_ESTIMATE, v_NED = Rz(fc_yaw) v_H, covariance diagonal = variance.
+  void send_velocity_estimate(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
+                              double variance_m2ps2) override;
+  void request_arm_offboard(std::int64_t t_ns) override;
+  void request_disarm(std::int64_t t_ns) override;
+  [[nodiscard]] FcStatus status(std::int64_t t_ns) const override;
+  [[nodiscard]] FcCounters counters() const override;
+  [[nodiscard]] std::string describe() const override;
+
+ private:
+  using Autopilot = MavlinkFcConfig::Autopilot;
+  static constexpr std::size_t kOffsetWindow = 64;
+
+  void handle(std::int64_t t_ns, const mavlink::FrameHeader& header,
+              const mavlink::Message& message, FcSink& sink);
+  void handle_heartbeat(std::int64_t t_ns, const mavlink::FrameHeader& header,
+                        const mavlink::Heartbeat& hb);
+  void update_clock(std::int64_t t_ns, std::int64_t fc_stamp_ns);
+  [[nodiscard]] std::int64_t fc_time_ns(std::int64_t t_ns) const;
+  [[nodiscard]] bool connected(std::int64_t t_ns) const;
+  [[nodiscard]] Autopilot autopilot() const;
+  bool send(const mavlink::Message& message);
+  void send_command(std::uint16_t command, float param1, float param2);
+  /// Formats into text_ (no allocation) and hands it to the sink.
+  template <typename... Args>
+  void event(FcSink& sink, FcSeverity severity, const char* format, Args... args) {
+    const int n = std::snprintf(text_.data(), text_.size(), format, args...);
+    if (n >= 0) emit(sink, severity, static_cast<std::size_t>(n));
+  }
+  void emit(FcSink& sink, FcSeverity severity, std::size_t length);
+
+  MavlinkFcConfig config_;
+  std::unique_ptr<mavlink::Transport> transport_;
+  mavlink::Encoder encoder_;
+  mavlink::Parser parser_;
+  std::array<std::uint8_t, 65536> rx_{};
+  std::array<std::uint8_t, mavlink::kMaxFrameSize> tx_{};
+  std::array<char, 160> text_{};  ///< Event text, formatted without allocating.
+
+  // The flight controller as last heard.
+  bool have_target_ = false;
+  std::uint8_t target_system_ = 0;
+  std::uint8_t target_component_ = 0;
+  Autopilot heard_autopilot_ = Autopilot::kAuto;
+  std::int64_t last_heartbeat_ns_ = -1;
+  bool armed_ = false;
+  bool offboard_ = false;
+  double battery_v_ = -1.0;
+  int battery_pct_ = -1;
+  bool have_fc_yaw_ = false;
+  double fc_yaw_rad_ = 0.0;
+
+  // What we last said in events, so each change is said once.
+  bool said_connected_ = false;
+  bool said_armed_ = false;
+  bool said_offboard_ = false;
+  bool pending_no_autopilot_ = false;
+
+  // Clock mapping: offsets (receipt - FC stamp) of the last kOffsetWindow IMU samples.
+  std::array<std::int64_t, kOffsetWindow> offsets_ns_{};
+  std::size_t offsets_count_ = 0;
+  std::size_t offsets_next_ = 0;
+  std::int64_t offset_ns_ = 0;
+  bool have_offset_ = false;
+  std::int64_t last_imu_t_ns_ = 0;
+  bool have_imu_ = false;
+
+  // Commanded yaw, integrated from yaw_rate_radps while armed and offboard.
+  double yaw_target_rad_ = 0.0;
+  std::int64_t last_setpoint_ns_ = 0;
+  bool yaw_integrating_ = false;
+
+  bool sent_first_heartbeat_ = false;
+  std::int64_t last_heartbeat_sent_ns_ = 0;
+  FcCounters counters_;
+};
+
+}  // namespace hq::vehicle

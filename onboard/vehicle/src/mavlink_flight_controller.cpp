@@ -1,0 +1,427 @@
+#include "hq/vehicle/mavlink_flight_controller.hpp"
+
+#include "hq/base/error.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <numbers>
+#include <string_view>
+
+namespace hq::vehicle {
+namespace {
+
+namespace ml = mavlink;
+
+// A jump of the receipt-minus-stamp offset larger than any plausible transport delay: the FC
+// rebooted (its boot clock restarted) or the link stalled; the window starts afresh.
+constexpr std::int64_t kOffsetJumpNs = 50'000'000;
+// At most this many datagrams or reads per poll(), so a flood cannot hold the loop.
+constexpr int kMaxReadsPerPoll = 1000;
+// A setpoint gap longer than this integrates no yaw (a stall must not turn the vehicle).
+constexpr double kMaxYawStepS = 0.1;
+
+constexpr std::uint8_t kMavTypeGcs = 6;
+constexpr std::uint8_t kMavSeverityError = 3;
+constexpr std::uint8_t kMavSeverityWarning = 4;
+
+double wrap_pi(double angle_rad) { return std::remainder(angle_rad, 2.0 * std::numbers::pi); }
+
+const char* command_name(std::uint16_t command) {
+  switch (command) {
+    case ml::kMavCmdDoSetMode:
+      return "MAV_CMD_DO_SET_MODE";
+    case ml::kMavCmdComponentArmDisarm:
+      return "MAV_CMD_COMPONENT_ARM_DISARM";
+    default:
+      return "command";
+  }
+}
+
+const char* autopilot_name(MavlinkFcConfig::Autopilot autopilot) {
+  switch (autopilot) {
+    case MavlinkFcConfig::Autopilot::kPx4:
+      return "PX4";
+    case MavlinkFcConfig::Autopilot::kArduPilot:
+      return "ArduPilot";
+    case MavlinkFcConfig::Autopilot::kAuto:
+      break;
+  }
+  return "unknown autopilot";
+}
+
+}  // namespace
+
+void MavlinkFcConfig::validate(const std::string& where) const {
+  auto fail = [&](const char* key, const std::string& value, const char* expected) {
+    throw InputError(where + key + " = " + value + ", expected " + expected);
+  };
+  auto text = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%g", v);
+    return std::string(buf);
+  };
+  if (transport.empty()) fail("transport", "\"\"", "a spec such as udp:127.0.0.1:14540");
+  if (system_id == 0) fail("system_id", "0", "1..255");
+  if (component_id == 0) fail("component_id", "0", "1..255");
+  if (!(heartbeat_timeout_s > 0.0 && heartbeat_timeout_s <= 60.0)) {
+    fail("heartbeat_timeout_s", text(heartbeat_timeout_s), "> 0 and <= 60");
+  }
+  if (!(heartbeat_rate_hz > 0.0 && heartbeat_rate_hz <= 50.0)) {
+    fail("heartbeat_rate_hz", text(heartbeat_rate_hz), "> 0 and <= 50");
+  }
+  if (!(max_thrust_n > 0.0 && max_thrust_n <= 1e4)) {
+    fail("max_thrust_n", text(max_thrust_n), "> 0 and <= 10000");
+  }
+  if (!(max_yaw_lead_rad > 0.0 && max_yaw_lead_rad <= std::numbers::pi)) {
+    fail("max_yaw_lead_rad", text(max_yaw_lead_rad), "> 0 and <= pi");
+  }
+}
+
+void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
+  section.read("transport", out.transport, {});
+  int system_id = out.system_id;
+  int component_id = out.component_id;
+  section.read("system_id", system_id, 1, 255);
+  section.read("component_id", component_id, 1, 255);
+  out.system_id = static_cast<std::uint8_t>(system_id);
+  out.component_id = static_cast<std::uint8_t>(component_id);
+  section.read_positive("heartbeat_timeout_s", out.heartbeat_timeout_s, 60.0);
+  section.read_positive("heartbeat_rate_hz", out.heartbeat_rate_hz, 50.0);
+  section.read_positive("max_thrust_n", out.max_thrust_n, 1e4);
+  std::string autopilot = out.autopilot == MavlinkFcConfig::Autopilot::kPx4         ? "px4"
+                          : out.autopilot == MavlinkFcConfig::Autopilot::kArduPilot ? "ardupilot"
+                                                                                    : "auto";
+  section.read("autopilot", autopilot, {"auto", "px4", "ardupilot"});
+  out.autopilot = autopilot == "px4"         ? MavlinkFcConfig::Autopilot::kPx4
+                  : autopilot == "ardupilot" ? MavlinkFcConfig::Autopilot::kArduPilot
+                                             : MavlinkFcConfig::Autopilot::kAuto;
+  section.read_positive("max_yaw_lead_rad", out.max_yaw_lead_rad, std::numbers::pi);
+  section.finish();
+  // The key path without a key, e.g. "config/onboard.yaml: mavlink.", for the same messages.
+  const std::string path = section.describe("transport");
+  out.validate(path.substr(0, path.size() - std::string_view("transport").size()));
+}
+
+MavlinkFlightController::MavlinkFlightController(const MavlinkFcConfig& config)
+    : MavlinkFlightController(config, (config.validate(), ml::open_transport(config.transport))) {}
+
+MavlinkFlightController::MavlinkFlightController(const MavlinkFcConfig& config,
+                                                 std::unique_ptr<ml::Transport> transport)
+    : config_(config),
+      transport_(std::move(transport)),
+      encoder_(config.system_id, config.component_id) {
+  config_.validate();
+  if (!transport_) throw InputError("MavlinkFlightController: no transport");
+}
+
+void MavlinkFlightController::emit(FcSink& sink, FcSeverity severity, std::size_t length) {
+  sink.on_fc_event(severity, std::string_view(text_.data(), std::min(length, text_.size() - 1)));
+}
+
+bool MavlinkFlightController::send(const ml::Message& message) {
+  const std::size_t n = encoder_.encode(message, tx_);
+  if (transport_->send(std::span<const std::uint8_t>(tx_.data(), n))) {
+    ++counters_.messages_sent;
+    return true;
+  }
+  ++counters_.send_failures;
+  return false;
+}
+
+void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
+  // Our heartbeat first, from the very first poll: a listening SITL learns our address from it.
+  const auto period_ns = static_cast<std::int64_t>(1e9 / config_.heartbeat_rate_hz);
+  if (!sent_first_heartbeat_ || t_ns - last_heartbeat_sent_ns_ >= period_ns) {
+    ml::Heartbeat hb;
+    hb.type = ml::kMavTypeOnboardController;
+    hb.autopilot = ml::kMavAutopilotInvalid;
+    hb.system_status = ml::kMavStateActive;
+    send(hb);
+    sent_first_heartbeat_ = true;
+    last_heartbeat_sent_ns_ = t_ns;
+  }
+
+  const bool datagrams = transport_->datagrams();
+  for (int i = 0; i < kMaxReadsPerPoll; ++i) {
+    const std::size_t n = transport_->receive(rx_);
+    if (n == 0) break;
+    parser_.feed(std::span<const std::uint8_t>(rx_.data(), n),
+                 [&](const ml::FrameHeader& header, const ml::Message& message) {
+                   handle(t_ns, header, message, sink);
+                 });
+    if (datagrams) parser_.end_of_datagram();
+  }
+
+  // State changes, each said once.
+  const bool is_connected = connected(t_ns);
+  if (is_connected != said_connected_) {
+    said_connected_ = is_connected;
+    if (is_connected) {
+      event(sink, FcSeverity::kInfo, "FC connected: %s, system %d, component %d",
+            autopilot_name(autopilot()), target_system_, target_component_);
+    } else {
+      event(sink, FcSeverity::kError, "FC heartbeat lost: none for %.1f s",
+            static_cast<double>(t_ns - last_heartbeat_ns_) * 1e-9);
+    }
+  }
+  if (armed_ != said_armed_) {
+    said_armed_ = armed_;
+    event(sink, armed_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC %s",
+          armed_ ? "armed" : "disarmed");
+  }
+  if (offboard_ != said_offboard_) {
+    said_offboard_ = offboard_;
+    event(sink, offboard_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC %s",
+          offboard_ ? "entered offboard mode" : "left offboard mode");
+  }
+  if (pending_no_autopilot_) {
+    pending_no_autopilot_ = false;
+    event(sink, FcSeverity::kError, "%s",
+          "arm/offboard request not sent: autopilot unknown (no FC heartbeat yet)");
+  }
+}
+
+void MavlinkFlightController::handle(std::int64_t t_ns, const ml::FrameHeader& header,
+                                     const ml::Message& message, FcSink& sink) {
+  if (header.system_id == config_.system_id && header.component_id == config_.component_id) {
+    return;  // our own frames, echoed by a broadcast or a loop
+  }
+  if (const auto* hb = std::get_if<ml::Heartbeat>(&message)) {
+    handle_heartbeat(t_ns, header, *hb);
+    return;
+  }
+  // Data only from the FC once known; before that from anyone (IMU may precede the heartbeat).
+  if (have_target_ && header.system_id != target_system_) return;
+
+  if (const auto* imu = std::get_if<ml::HighresImu>(&message)) {
+    const auto fc_stamp_ns = static_cast<std::int64_t>(imu->time_usec) * 1000;
+    update_clock(t_ns, fc_stamp_ns);
+    FcImuSample sample;
+    sample.t_ns = fc_stamp_ns + offset_ns_;
+    if (have_imu_ && sample.t_ns <= last_imu_t_ns_) return;  // stamps in order, or not at all
+    sample.omega_B_radps = Eigen::Vector3d(imu->xgyro_radps, imu->ygyro_radps, imu->zgyro_radps);
+    sample.f_B_mps2 = Eigen::Vector3d(imu->xacc_mps2, imu->yacc_mps2, imu->zacc_mps2);
+    if (!sample.omega_B_radps.allFinite() || !sample.f_B_mps2.allFinite()) return;
+    have_imu_ = true;
+    last_imu_t_ns_ = sample.t_ns;
+    ++counters_.imu_samples;
+    sink.on_imu(sample);
+  } else if (const auto* att = std::get_if<ml::Attitude>(&message)) {
+    if (!std::isfinite(att->roll_rad) || !std::isfinite(att->pitch_rad) ||
+        !std::isfinite(att->yaw_rad)) {
+      return;
+    }
+    FcAttitude attitude;
+    attitude.t_ns =
+        have_offset_ ? static_cast<std::int64_t>(att->time_boot_ms) * 1'000'000 + offset_ns_ : t_ns;
+    attitude.roll_rad = att->roll_rad;
+    attitude.pitch_rad = att->pitch_rad;
+    attitude.yaw_rad = att->yaw_rad;
+    fc_yaw_rad_ = att->yaw_rad;
+    have_fc_yaw_ = true;
+    sink.on_attitude(attitude);
+  } else if (const auto* sys = std::get_if<ml::SysStatus>(&message)) {
+    battery_v_ = sys->voltage_battery_mv == UINT16_MAX ? -1.0 : sys->voltage_battery_mv * 1e-3;
+    battery_pct_ = sys->battery_remaining_pct < 0 ? -1 : sys->battery_remaining_pct;
+  } else if (const auto* st = std::get_if<ml::Statustext>(&message)) {
+    const FcSeverity severity = st->severity <= kMavSeverityError     ? FcSeverity::kError
+                                : st->severity == kMavSeverityWarning ? FcSeverity::kWarning
+                                                                      : FcSeverity::kInfo;
+    sink.on_fc_event(severity,
+                     std::string_view(st->text.data(), strnlen(st->text.data(), st->text.size())));
+  } else if (const auto* ack = std::get_if<ml::CommandAck>(&message)) {
+    const bool for_us = ack->target_system == 0 || ack->target_system == config_.system_id;
+    if (for_us && ack->result != ml::kMavResultAccepted) {
+      event(sink, FcSeverity::kError, "FC refused %s (%d): result %d", command_name(ack->command),
+            ack->command, ack->result);
+    }
+  }
+}
+
+void MavlinkFlightController::handle_heartbeat(std::int64_t t_ns, const ml::FrameHeader& header,
+                                               const ml::Heartbeat& hb) {
+  // Only an autopilot: not a GCS, not another companion computer, not a camera.
+  if (hb.autopilot == ml::kMavAutopilotInvalid || hb.type == kMavTypeGcs ||
+      hb.type == ml::kMavTypeOnboardController) {
+    return;
+  }
+  if (!have_target_) {
+    have_target_ = true;
+    target_system_ = header.system_id;
+    target_component_ = header.component_id;
+  } else if (header.system_id != target_system_ || header.component_id != target_component_) {
+    return;
+  }
+  heard_autopilot_ = hb.autopilot == ml::kMavAutopilotPx4             ? Autopilot::kPx4
+                     : hb.autopilot == ml::kMavAutopilotArdupilotMega ? Autopilot::kArduPilot
+                                                                      : Autopilot::kAuto;
+  armed_ = (hb.base_mode & ml::kMavModeFlagSafetyArmed) != 0;
+  switch (autopilot()) {
+    case Autopilot::kPx4:
+      offboard_ = ((hb.custom_mode >> 16) & 0xFF) == ml::kPx4MainModeOffboard;
+      break;
+    case Autopilot::kArduPilot:
+      offboard_ = hb.custom_mode == ml::kArduCopterModeGuidedNoGps;
+      break;
+    case Autopilot::kAuto:
+      offboard_ = false;
+      break;
+  }
+  last_heartbeat_ns_ = t_ns;
+}
+
+void MavlinkFlightController::update_clock(std::int64_t t_ns, std::int64_t fc_stamp_ns) {
+  const std::int64_t offset = t_ns - fc_stamp_ns;
+  if (have_offset_ && std::llabs(offset - offset_ns_) > kOffsetJumpNs) {
+    offsets_count_ = 0;  // the FC rebooted (or the link stalled): forget the old clock
+    offsets_next_ = 0;
+  }
+  offsets_ns_[offsets_next_] = offset;
+  offsets_next_ = (offsets_next_ + 1) % kOffsetWindow;
+  offsets_count_ = std::min(offsets_count_ + 1, kOffsetWindow);
+  offset_ns_ = *std::min_element(offsets_ns_.begin(),
+                                 offsets_ns_.begin() + static_cast<std::ptrdiff_t>(offsets_count_));
+  have_offset_ = true;
+}
+
+std::int64_t MavlinkFlightController::fc_time_ns(std::int64_t t_ns) const {
+  return have_offset_ ? std::max<std::int64_t>(0, t_ns - offset_ns_) : 0;
+}
+
+bool MavlinkFlightController::connected(std::int64_t t_ns) const {
+  return last_heartbeat_ns_ >= 0 &&
+         static_cast<double>(t_ns - last_heartbeat_ns_) <= config_.heartbeat_timeout_s * 1e9;
+}
+
+MavlinkFcConfig::Autopilot MavlinkFlightController::autopilot() const {
+  return config_.autopilot != Autopilot::kAuto ? config_.autopilot : heard_autopilot_;
+}
+
+void MavlinkFlightController::send_setpoint(std::int64_t t_ns,
+                                            const control::AttitudeSetpoint& setpoint) {
+  if (!std::isfinite(setpoint.thrust_n) || !std::isfinite(setpoint.roll_rad) ||
+      !std::isfinite(setpoint.pitch_rad) || !std::isfinite(setpoint.yaw_rate_radps) ||
+      !have_target_) {
+    ++counters_.send_failures;
+    return;
+  }
+  // The commanded yaw: held at the FC's own yaw until it flies our setpoints, then integrated
+  // from the commanded rate, never leading the FC's yaw by more than max_yaw_lead_rad.
+  const bool flying_ours = armed_ && offboard_;
+  if (!flying_ours || !yaw_integrating_) {
+    yaw_target_rad_ = have_fc_yaw_ ? fc_yaw_rad_ : 0.0;
+  } else {
+    const double dt_s =
+        std::clamp(static_cast<double>(t_ns - last_setpoint_ns_) * 1e-9, 0.0, kMaxYawStepS);
+    yaw_target_rad_ += setpoint.yaw_rate_radps * dt_s;
+  }
+  yaw_integrating_ = flying_ours;
+  last_setpoint_ns_ = t_ns;
+  if (have_fc_yaw_) {
+    const double lead = std::clamp(wrap_pi(yaw_target_rad_ - fc_yaw_rad_),
+                                   -config_.max_yaw_lead_rad, config_.max_yaw_lead_rad);
+    yaw_target_rad_ = fc_yaw_rad_ + lead;
+  }
+  yaw_target_rad_ = wrap_pi(yaw_target_rad_);
+
+  const Eigen::Quaterniond q_NED_B =
+      Eigen::AngleAxisd(yaw_target_rad_, Eigen::Vector3d::UnitZ()) *
+      Eigen::AngleAxisd(setpoint.pitch_rad, Eigen::Vector3d::UnitY()) *
+      Eigen::AngleAxisd(setpoint.roll_rad, Eigen::Vector3d::UnitX());
+  ml::SetAttitudeTarget target;
+  target.time_boot_ms = static_cast<std::uint32_t>(fc_time_ns(t_ns) / 1'000'000);
+  target.q = {static_cast<float>(q_NED_B.w()), static_cast<float>(q_NED_B.x()),
+              static_cast<float>(q_NED_B.y()), static_cast<float>(q_NED_B.z())};
+  target.body_roll_rate_radps = 0.0f;
+  target.body_pitch_rate_radps = 0.0f;
+  target.body_yaw_rate_radps = static_cast<float>(setpoint.yaw_rate_radps);
+  target.thrust =
+      static_cast<float>(std::clamp(setpoint.thrust_n / config_.max_thrust_n, 0.0, 1.0));
+  target.target_system = target_system_;
+  target.target_component = target_component_;
+  target.type_mask = ml::kAttitudeTargetIgnoreBodyRollRate | ml::kAttitudeTargetIgnoreBodyPitchRate;
+  if (send(target)) ++counters_.setpoints_sent;
+}
+
+void MavlinkFlightController::send_velocity_estimate(std::int64_t t_ns,
+                                                     const Eigen::Vector3d& v_H_mps,
+                                                     double variance_m2ps2) {
+  if (!v_H_mps.allFinite() || !std::isfinite(variance_m2ps2) || variance_m2ps2 < 0.0) {
+    ++counters_.send_failures;
+    return;
+  }
+  // H is the yaw-only frame of the body: NED = Rz(yaw) H.
+  const double yaw_rad = have_fc_yaw_ ? fc_yaw_rad_ : 0.0;
+  const Eigen::Vector3d v_NED_mps = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) * v_H_mps;
+  ml::VisionSpeedEstimate estimate;
+  estimate.usec = static_cast<std::uint64_t>(fc_time_ns(t_ns) / 1000);
+  estimate.x_mps = static_cast<float>(v_NED_mps.x());
+  estimate.y_mps = static_cast<float>(v_NED_mps.y());
+  estimate.z_mps = static_cast<float>(v_NED_mps.z());
+  estimate.covariance = {};
+  estimate.covariance[0] = estimate.covariance[4] = estimate.covariance[8] =
+      static_cast<float>(variance_m2ps2);
+  send(estimate);
+}
+
+void MavlinkFlightController::send_command(std::uint16_t command, float param1, float param2) {
+  ml::CommandLong cmd;
+  cmd.command = command;
+  cmd.param[0] = param1;
+  cmd.param[1] = param2;
+  cmd.target_system = target_system_;
+  cmd.target_component = target_component_;
+  send(cmd);
+}
+
+void MavlinkFlightController::request_arm_offboard(std::int64_t /*t_ns*/) {
+  const Autopilot ap = autopilot();
+  if (ap == Autopilot::kAuto || !have_target_) {
+    ++counters_.send_failures;
+    pending_no_autopilot_ = true;
+    return;
+  }
+  // MAV_CMD_DO_SET_MODE: param1 = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, param2 = the custom main
+  // mode (PX4 OFFBOARD 6; ArduCopter GUIDED_NOGPS 20).
+  const float mode = ap == Autopilot::kPx4 ? static_cast<float>(ml::kPx4MainModeOffboard)
+                                           : static_cast<float>(ml::kArduCopterModeGuidedNoGps);
+  send_command(ml::kMavCmdDoSetMode, static_cast<float>(ml::kMavModeFlagCustomModeEnabled), mode);
+  send_command(ml::kMavCmdComponentArmDisarm, 1.0f, 0.0f);
+}
+
+void MavlinkFlightController::request_disarm(std::int64_t /*t_ns*/) {
+  if (!have_target_) {
+    ++counters_.send_failures;
+    return;
+  }
+  send_command(ml::kMavCmdComponentArmDisarm, 0.0f, 0.0f);
+}
+
+FcStatus MavlinkFlightController::status(std::int64_t t_ns) const {
+  FcStatus s;
+  s.connected = connected(t_ns);
+  s.armed = armed_;
+  s.offboard = offboard_;
+  s.heartbeat_age_ns = last_heartbeat_ns_ >= 0 ? t_ns - last_heartbeat_ns_ : -1;
+  s.battery_v = battery_v_;
+  s.battery_pct = battery_pct_;
+  return s;
+}
+
+FcCounters MavlinkFlightController::counters() const {
+  FcCounters c = counters_;
+  c.messages_received = parser_.counters().frames;
+  c.frames_dropped = parser_.counters().dropped();
+  return c;
+}
+
+std::string MavlinkFlightController::describe() const {
+  return "MAVLink " + transport_->describe() + " (" + autopilot_name(autopilot()) + ", system " +
+         std::to_string(have_target_ ? target_system_ : config_.system_id) + ")";
+}
+
+}  // namespace hq::vehicle
