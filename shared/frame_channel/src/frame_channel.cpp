@@ -21,6 +21,8 @@ namespace {
 constexpr std::uint32_t kMagic = 0x43465148;  // "HQFC" little-endian
 constexpr std::uint32_t kVersion = 1;
 constexpr std::size_t kAlign = 64;
+/// A channel whose writer has not beaten for this long may be taken over by a new writer.
+constexpr std::int64_t kStaleWriterNs = 5'000'000'000;
 
 static_assert(std::atomic<std::uint64_t>::is_always_lock_free);
 static_assert(std::atomic<std::int64_t>::is_always_lock_free);
@@ -217,8 +219,11 @@ FrameChannelWriter::FrameChannelWriter(const std::string& name, const ChannelGeo
       const Header* h = header_of(old);
       const int pid = h->writer_pid;
       const bool closed = h->closed.load(std::memory_order_acquire) != 0;
+      // A live pid with a silent heartbeat is a recycled pid, not a writer.
+      const bool beating =
+          monotonic_now_ns() - h->heartbeat_ns.load(std::memory_order_acquire) < kStaleWriterNs;
       unmap(old);
-      if (!closed && pid_alive(pid)) {
+      if (!closed && beating && pid_alive(pid)) {
         throw InputError(name_ + ": frame channel in use by a live writer (pid " +
                          std::to_string(pid) + "); choose another --channel name");
       }
