@@ -8,6 +8,7 @@
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
 #include "hq/testing/process.hpp"
+#include "hq/vehicle/mavlink_flight_controller.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -26,6 +27,7 @@
 #include <span>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <unistd.h>
 #include <vector>
@@ -245,6 +247,16 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   EXPECT_GT(companion.frame_count_, 20) << "30 Hz frames, polled at 50 Hz";
   EXPECT_TRUE(companion.frame_stamps_increasing_);
   EXPECT_TRUE(companion.frame_stamps_recent_);
+  // Frame stamps and IMU time_usec share the origin the channel publishes: the newest IMU
+  // sample, mapped onto the host clock, is in the past and recent.
+  ASSERT_TRUE(companion.frames_);
+  const std::int64_t origin_ns = companion.frames_->time_origin_ns();
+  ASSERT_GT(origin_ns, 0);
+  const std::int64_t imu_host_ns =
+      origin_ns + 1000 * static_cast<std::int64_t>(companion.last_imu_usec_);
+  const std::int64_t now_ns = hq::frame_channel::monotonic_now_ns();
+  EXPECT_LT(imu_host_ns, now_ns);
+  EXPECT_GT(imu_host_ns, now_ns - 200'000'000);
   ASSERT_TRUE(companion.last_frame_.has_truth);
   EXPECT_TRUE(companion.last_frame_.truth.on_ground);
   EXPECT_GE(companion.heartbeats_, 2);
@@ -313,6 +325,116 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   EXPECT_LT(number_after(summary, "RMSE against truth \\(NED\\)"), 0.3);
   EXPECT_THAT(summary, HasSubstr("dropped 0"));
   EXPECT_FALSE(fs::exists("/dev/shm/hq-" + channel)) << "the channel is unlinked";
+}
+
+/// What the vehicle's FC client hands its runtime.
+class CountingSink final : public hq::vehicle::FcSink {
+ public:
+  void on_imu(const hq::vehicle::FcImuSample& sample) override {
+    if (imu > 0 && sample.t_ns <= last_imu_ns) imu_increasing = false;
+    last_imu_ns = sample.t_ns;
+    ++imu;
+  }
+  void on_fc_event(hq::vehicle::FcSeverity /*severity*/, std::string_view text) override {
+    events.append(text).append("\n");
+  }
+  long imu = 0;
+  std::int64_t last_imu_ns = 0;
+  bool imu_increasing = true;
+  std::string events;
+};
+
+// The vehicle's MavlinkFlightController (onboard/vehicle) against the SITL FC: the contract both
+// sides were written to, checked end to end.
+TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetpointLoss) {
+  const int port = test_port(3);
+  const std::string channel = test_channel("vehicle");
+  const fs::path out = dir_ / "sim.out";
+  Process sim(sim_args(port, channel), out.string());
+  ASSERT_TRUE(sim.started());
+  std::unique_ptr<hq::frame_channel::FrameChannelReader> frames;
+  for (int i = 0; i < 100 && !frames; ++i) {
+    try {
+      frames = std::make_unique<hq::frame_channel::FrameChannelReader>(channel);
+    } catch (const hq::InputError&) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  ASSERT_TRUE(frames) << slurp(out);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::string banner = slurp(out);
+  const double hover_n = number_after(banner, "hover");
+  ASSERT_GT(hover_n, 0.0) << banner;
+
+  hq::vehicle::MavlinkFcConfig config;
+  config.transport = "udp:127.0.0.1:" + std::to_string(port);
+  config.max_thrust_n = number_after(banner, "max thrust");
+  hq::vehicle::MavlinkFlightController fc(config);
+  CountingSink sink;
+  cv::Mat image, depth;
+  hq::frame_channel::FrameInfo frame;
+  frame.truth.p_W_m = {0.0, 0.0, 0.08};
+
+  // The vehicle's 50 Hz loop for `seconds`: poll, newest frame, setpoint (altitude hold on truth)
+  // and velocity estimate (the truth's v_H, which the client turns into NED with the FC's yaw).
+  auto run_for = [&](double seconds, bool setpoints, auto at_start) {
+    at_start();
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      const std::int64_t t_ns = hq::frame_channel::monotonic_now_ns();
+      fc.poll(t_ns, sink);
+      frames->take_latest(image, depth, frame);
+      if (setpoints) {
+        const double v_up_mps = -frame.truth.v_H_mps[2];
+        const double a_up_mps2 = 2.0 * (1.5 - frame.truth.p_W_m[2]) - 2.5 * v_up_mps;
+        hq::control::AttitudeSetpoint sp;
+        sp.thrust_n = hover_n * (1.0 + std::clamp(a_up_mps2, -3.0, 3.0) / 9.81);
+        fc.send_setpoint(t_ns, sp);
+        fc.send_velocity_estimate(
+            t_ns,
+            Eigen::Vector3d(frame.truth.v_H_mps[0], frame.truth.v_H_mps[1], frame.truth.v_H_mps[2]),
+            0.01);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  };
+  auto nothing = [] {};
+  run_for(1.0, true, nothing);
+  const std::int64_t now_ns = hq::frame_channel::monotonic_now_ns();
+  EXPECT_TRUE(fc.status(now_ns).connected) << sink.events;
+  EXPECT_GT(sink.imu, 350) << "about 500 Hz";
+  EXPECT_TRUE(sink.imu_increasing);
+  EXPECT_NEAR(static_cast<double>(sink.last_imu_ns), static_cast<double>(now_ns), 100e6)
+      << "IMU stamped on the runtime clock";
+
+  run_for(5.0, true, [&] { fc.request_arm_offboard(hq::frame_channel::monotonic_now_ns()); });
+  const hq::vehicle::FcStatus flying = fc.status(hq::frame_channel::monotonic_now_ns());
+  EXPECT_TRUE(flying.armed) << sink.events << slurp(out);
+  EXPECT_TRUE(flying.offboard);
+  EXPECT_GT(flying.battery_v, 14.0);
+  EXPECT_FALSE(frame.truth.on_ground);
+  EXPECT_NEAR(frame.truth.p_W_m[2], 1.5, 0.5);
+
+  // Setpoints stop: the SITL FC lands and disarms; the client reports it.
+  run_for(1.0, false, nothing);
+  EXPECT_FALSE(fc.status(hq::frame_channel::monotonic_now_ns()).offboard);
+  EXPECT_THAT(sink.events, HasSubstr("offboard setpoints lost: landing"));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (fc.status(hq::frame_channel::monotonic_now_ns()).armed &&
+         std::chrono::steady_clock::now() < deadline) {
+    run_for(0.2, false, nothing);
+  }
+  EXPECT_FALSE(fc.status(hq::frame_channel::monotonic_now_ns()).armed) << sink.events;
+  EXPECT_TRUE(frame.truth.on_ground);
+
+  sim.signal(SIGTERM);
+  ASSERT_EQ(sim.wait_exit(10.0), 0) << slurp(out);
+  const std::string summary = slurp(out);
+  std::printf("%s", summary.c_str());
+  EXPECT_GT(number_after(summary, "vision speed estimates"), 100.0);
+  EXPECT_LT(number_after(summary, "RMSE against truth \\(NED\\)"), 0.3)
+      << "the client's v_NED = Rz(yaw) v_H agrees with the simulator's NWU truth";
+  EXPECT_THAT(summary, HasSubstr("collision ticks airborne 0"));
 }
 
 TEST_F(SitlProcess, BadInputExitsWithStatus2AndAReason) {

@@ -17,14 +17,13 @@
 
 #include <CLI/CLI.hpp>
 
-#include <signal.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <signal.h>
 #include <string>
 #include <vector>
 
@@ -67,7 +66,7 @@ int run(int argc, char** argv) {
   hq::sim::SitlOptions sitl_options;
   app.add_flag("--sitl", sitl,
                "run as a real-time SITL process: MAVLink flight controller, frames in shared "
-               "memory (--duration-s: 0 or absent runs until SIGINT/SIGTERM)");
+               "memory (without --duration-s: until SIGINT/SIGTERM)");
   app.add_option("--mavlink", sitl_options.mavlink_spec,
                  "with --sitl: MAVLink transport spec (udp-listen:[HOST:]PORT, udp:HOST:PORT, "
                  "serial:DEV:BAUD)");
@@ -133,7 +132,8 @@ int run(int argc, char** argv) {
       "hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
       "%lld dropped frames\n",
       world.name.c_str(), script_kind.c_str(), static_cast<unsigned long long>(config.seed),
-      duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples, static_cast<long long>(sim.dropped_frames()));
+      duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples,
+      static_cast<long long>(sim.dropped_frames()));
   std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n", p.x(),
               p.y(), p.z(), min_clearance_m, sim.collided() ? "YES" : "no");
   if (writer) std::printf("recorded to %s\n", record_dir.c_str());

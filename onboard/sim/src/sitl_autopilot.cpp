@@ -115,6 +115,8 @@ void SitlAutopilot::on_message(std::int64_t t_ns, std::uint8_t system_id, std::u
   if (const auto* h = std::get_if<mavlink::Heartbeat>(&message)) {
     if (h->type == mavlink::kMavTypeOnboardController) last_companion_ns_ = t_ns;
   } else if (const auto* c = std::get_if<mavlink::CommandLong>(&message)) {
+    // As PX4: a command for another system is not ours to ack.
+    if (c->target_system != 0 && c->target_system != 1) return;
     handle_command(t_ns, system_id, component_id, *c, truth, out);
   } else if (const auto* s = std::get_if<mavlink::SetAttitudeTarget>(&message)) {
     if ((s->target_system != 0 && s->target_system != 1) || !finite(*s)) {

@@ -5,12 +5,8 @@
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <algorithm>
+#include <arpa/inet.h>
 #include <array>
 #include <cerrno>
 #include <cmath>
@@ -20,8 +16,11 @@
 #include <ctime>
 #include <memory>
 #include <mutex>
+#include <netinet/in.h>
 #include <span>
+#include <sys/socket.h>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 namespace hq::sim {
@@ -218,6 +217,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
       options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * 1e9))
                                : -1;
   const std::int64_t wall_origin_ns = frame_channel::monotonic_now_ns();
+  channel.set_time_origin(wall_origin_ns);  // frame stamps and IMU time_usec share it
   std::int64_t max_lag_ns = 0;
   std::int64_t next_status_wall_ns = wall_origin_ns + 1'000'000'000;
   std::int64_t collision_ticks = 0;

@@ -215,6 +215,11 @@ TEST_F(SitlAutopilotTest, StreamsAttitudeAt50HzAndStatusAt1HzAndAcksEveryCommand
   ap_.on_message(0, 1, 191, command(511, 0), ground, out_);
   EXPECT_EQ(out_.all<mav::CommandAck>().back().command, 511);
   EXPECT_EQ(out_.all<mav::CommandAck>().back().result, 3) << "MAV_RESULT_UNSUPPORTED";
+  mav::CommandLong other = command(mav::kMavCmdComponentArmDisarm, 1);
+  other.target_system = 2;
+  const std::size_t acks = out_.all<mav::CommandAck>().size();
+  ap_.on_message(0, 1, 191, other, ground, out_);
+  EXPECT_EQ(out_.all<mav::CommandAck>().size(), acks) << "for system 2: not acked";
 }
 
 TEST_F(SitlAutopilotTest, ImuSamplesBecomeHighresImuInMicrosecondsOfSimulatedTime) {

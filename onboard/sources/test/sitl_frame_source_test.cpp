@@ -47,6 +47,8 @@ TEST(SitlFrameSource, ColourChannelGivesBgrGrayDepthStampTruthAndTheHeaderIntrin
   EXPECT_EQ(source.camera().cy, 11.5);
   EXPECT_EQ(source.camera().width, 32);
   EXPECT_THAT(source.describe(), HasSubstr("sitl:/hq-" + name + " (32x24 BGR-D"));
+  writer.set_time_origin(1'000'000);
+  EXPECT_EQ(source.fc_time_origin_ns(), 1'000'000);
 
   RgbdFrame frame;
   EXPECT_EQ(source.next(frame), FrameStatus::kNoFrame);

@@ -21,6 +21,8 @@ namespace {
 constexpr std::uint32_t kMagic = 0x43465148;  // "HQFC" little-endian
 constexpr std::uint32_t kVersion = 1;
 constexpr std::size_t kAlign = 64;
+/// A channel whose writer has not beaten for this long may be taken over by a new writer.
+constexpr std::int64_t kStaleWriterNs = 5'000'000'000;
 
 static_assert(std::atomic<std::uint64_t>::is_always_lock_free);
 static_assert(std::atomic<std::int64_t>::is_always_lock_free);
@@ -45,6 +47,7 @@ struct alignas(kAlign) Header {
   alignas(kAlign) std::atomic<std::int64_t> heartbeat_ns;
   std::atomic<std::uint64_t> published;  ///< Frames published; the newest is published - 1.
   std::atomic<std::uint32_t> closed;
+  std::atomic<std::int64_t> time_origin_ns;  ///< 0: not set.
 };
 
 /// The slot's metadata; the image and depth bytes follow at the header's offsets.
@@ -216,8 +219,11 @@ FrameChannelWriter::FrameChannelWriter(const std::string& name, const ChannelGeo
       const Header* h = header_of(old);
       const int pid = h->writer_pid;
       const bool closed = h->closed.load(std::memory_order_acquire) != 0;
+      // A live pid with a silent heartbeat is a recycled pid, not a writer.
+      const bool beating =
+          monotonic_now_ns() - h->heartbeat_ns.load(std::memory_order_acquire) < kStaleWriterNs;
       unmap(old);
-      if (!closed && pid_alive(pid)) {
+      if (!closed && beating && pid_alive(pid)) {
         throw InputError(name_ + ": frame channel in use by a live writer (pid " +
                          std::to_string(pid) + "); choose another --channel name");
       }
@@ -264,6 +270,7 @@ FrameChannelWriter::FrameChannelWriter(const std::string& name, const ChannelGeo
   h->heartbeat_ns.store(monotonic_now_ns(), std::memory_order_relaxed);
   h->published.store(0, std::memory_order_relaxed);
   h->closed.store(0, std::memory_order_relaxed);
+  h->time_origin_ns.store(0, std::memory_order_relaxed);
   for (int i = 0; i < kSlots; ++i) {
     new (slot_base(map_, static_cast<std::uint64_t>(i))) SlotHeader{};
   }
@@ -275,6 +282,10 @@ FrameChannelWriter::~FrameChannelWriter() {
   header_of(map_)->closed.store(1, std::memory_order_release);
   unmap(map_);
   shm_unlink(name_.c_str());
+}
+
+void FrameChannelWriter::set_time_origin(std::int64_t time_origin_ns) {
+  header_of(map_)->time_origin_ns.store(time_origin_ns, std::memory_order_release);
 }
 
 void FrameChannelWriter::heartbeat() {
@@ -337,6 +348,10 @@ FrameChannelReader::FrameChannelReader(const std::string& name, const ReaderOpti
 FrameChannelReader::~FrameChannelReader() { unmap(map_); }
 
 int FrameChannelReader::writer_pid() const { return header_of(map_)->writer_pid; }
+
+std::int64_t FrameChannelReader::time_origin_ns() const {
+  return header_of(map_)->time_origin_ns.load(std::memory_order_acquire);
+}
 
 void FrameChannelReader::check_writer(std::int64_t now_ns) {
   const Header* h = header_of(map_);

@@ -78,6 +78,9 @@ TEST(FrameChannel, RoundTripCarriesGeometryIntrinsicsStampImageDepthAndTruth) {
   EXPECT_EQ(reader.geometry().cy, 2.5);
   EXPECT_EQ(reader.writer_pid(), getpid());
   EXPECT_TRUE(reader.writer_alive());
+  EXPECT_EQ(reader.time_origin_ns(), 0) << "not set yet";
+  writer.set_time_origin(42'000'000'000);
+  EXPECT_EQ(reader.time_origin_ns(), 42'000'000'000);
 
   cv::Mat image(6, 8, CV_8UC3);
   cv::Mat depth(6, 8, CV_32FC1);

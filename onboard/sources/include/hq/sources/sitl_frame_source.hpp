@@ -28,6 +28,9 @@ class SitlFrameSource final : public FrameSource {
   [[nodiscard]] std::string describe() const override;
   /// Simulator truth of the last delivered frame, if the writer sent it.
   [[nodiscard]] std::optional<frame_channel::SitlTruth> truth() const;
+  /// CLOCK_MONOTONIC of hq-sim's simulated t = 0, the boot of the flight controller it plays:
+  /// its MAVLink time_usec is at t_ns = fc_time_origin_ns() + 1000 * time_usec. 0: not set yet.
+  [[nodiscard]] std::int64_t fc_time_origin_ns() const { return reader_.time_origin_ns(); }
   [[nodiscard]] const frame_channel::FrameChannelReader& reader() const { return reader_; }
 
  private:

@@ -76,6 +76,10 @@ class FrameChannelWriter {
                const SitlTruth* truth);
   /// Refreshes the heartbeat without a frame (a writer that is alive but has nothing to send).
   void heartbeat();
+  /// Publishes the CLOCK_MONOTONIC of the writer's time zero; hq-sim --sitl: simulated t = 0,
+  /// the boot of the flight controller it plays, so a reader maps the FC's MAVLink time_usec
+  /// onto frame stamps exactly: t_ns = time_origin_ns + 1000 * time_usec.
+  void set_time_origin(std::int64_t time_origin_ns);
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] const ChannelGeometry& geometry() const { return geometry_; }
@@ -122,6 +126,8 @@ class FrameChannelReader {
   [[nodiscard]] const ChannelGeometry& geometry() const { return geometry_; }
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] int writer_pid() const;
+  /// The writer's set_time_origin(); 0 until it set one.
+  [[nodiscard]] std::int64_t time_origin_ns() const;
   [[nodiscard]] std::uint64_t frames_taken() const { return taken_; }
   [[nodiscard]] std::uint64_t frames_missed() const { return missed_; }
   /// Copies that the writer overwrote mid-copy and were retried.
