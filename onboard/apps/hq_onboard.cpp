@@ -10,7 +10,7 @@
 //   hq-onboard --source sim --world W --link [--duration-s 60] [--link-config config.yaml]
 //              [--domain-id N] [--vehicle-id N] [--command-timeout-ms 200]
 //              [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
-//   hq-onboard --source sitl [--fc mavlink:udp:127.0.0.1:14560] [--channel hq-sitl] [--link]
+//   hq-onboard --source sitl [--fc mavlink:udp:127.0.0.1:14560] [--channel sitl] [--link]
 //   hq-onboard --source openni2|freenect [--fc none|mavlink:serial:/dev/ttyACM0:921600] [--link]
 //
 // Every source but the in-process sim runs through one VehicleRuntime (onboard/vehicle) with a

@@ -7,12 +7,15 @@
 #include "hq/sources/camera_sources.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/process.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -21,8 +24,10 @@
 #include <dlfcn.h>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <sys/wait.h>
+#include <thread>
 #include <unistd.h>
 #include <vector>
 
@@ -275,6 +280,51 @@ TEST(Fakenect, HqOnboardRunsTheChainOnTheKinect) {
   EXPECT_THAT(output, HasSubstr("5 frames from"));
   EXPECT_THAT(output, HasSubstr("fakenect replay"));
   EXPECT_THAT(output, HasSubstr("total"));  // the stage-timing table
+#endif
+}
+
+// The same Kinect with --link: a ground station on a private domain receives the vehicle's
+// states while hq-onboard runs the dump, the camera read on its own thread.
+TEST(Fakenect, HqOnboardOnTheKinectReachesAGroundStationOverTheLink) {
+#if !defined(HQ_FAKENECT_DIR) || !defined(HQ_ONBOARD_EXE) || !defined(HQ_GROUND_EXE)
+  GTEST_SKIP() << "built without fakenect, hq-onboard or hq-ground";
+#else
+  if (running_on_fakenect()) GTEST_SKIP() << "runs hq-onboard as its own process";
+  const auto data = recording::find_data_dir();
+  if (!data) GTEST_SKIP() << "no real data: " << recording::data_dir_search_description();
+  const std::string dir = fresh_dir("onboard_link");
+  (void)write_dump(*data + "/tum/rgbd_dataset_freiburg1_360", dir);
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+         "</Interfaces></General></Domain></CycloneDDS>",
+         1);
+  const std::string domain = std::to_string(1 + (getpid() + 101) % 200);
+  hq::testing::Process ground({HQ_GROUND_EXE, "--device", "sim", "--headless", "--domain-id",
+                               domain, "--duration-s", "6"},
+                              dir + "/ground.out");
+  ASSERT_TRUE(ground.started());
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  const std::string command = std::string("LD_LIBRARY_PATH=") + HQ_FAKENECT_DIR +
+                              " FAKENECT_PATH=" + dir + " " + HQ_ONBOARD_EXE +
+                              " --source freenect --link --domain-id " + domain +
+                              " --duration-s 3 2>&1";
+  std::FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe)) output += buffer;
+  const int status = pclose(pipe);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+  EXPECT_THAT(output, HasSubstr("5 frames from"));
+  EXPECT_THAT(output, HasSubstr("link on domain " + domain));
+  EXPECT_EQ(ground.wait_exit(20.0), 0);
+  std::ifstream in(dir + "/ground.out");
+  const std::string ground_out((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // Every chain output is a state: 5 frames and the camera-timeout ticks after them.
+  const std::size_t at = ground_out.find("received");
+  ASSERT_NE(at, std::string::npos) << ground_out;
+  EXPECT_GT(std::atoi(ground_out.c_str() + ground_out.find_first_of("0123456789", at)), 5)
+      << ground_out;
 #endif
 }
 
