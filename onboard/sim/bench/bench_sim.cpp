@@ -1,5 +1,6 @@
-// hq-bench-sim: render time per frame at 320x240 and 640x480 and the real-time factor of a
-// full simulation (dynamics 1 kHz + IMU + RGB-D at 30 Hz) on one core. Not run by ctest.
+// hq-bench-sim: render time per frame at 320x240 and 640x480, render() against the reference
+// ray caster (render_reference()) on the same poses in the same run, and the real-time factor
+// of a full simulation (dynamics 1 kHz + IMU + RGB-D at 30 Hz) on one core. Not run by ctest.
 //   hq-bench-sim [world.yaml]   (default onboard/sim/worlds/room.yaml, run from the repo root)
 #include "hq/sim/simulator.hpp"
 
@@ -33,23 +34,38 @@ hq::sim::AttitudeCommand script(const hq::sim::Simulator& sim, double t_s) {
 
 void run(const hq::sim::World& world, int width, int height) {
   hq::sim::SimConfig config = hq::sim::default_sim_config(width, height);
-  // 1. Rendering alone, along a flown trajectory.
+  // 1. Rendering alone, along a flown trajectory: each pose by render() and by the reference,
+  // alternating, so that both see the same machine load.
   {
     hq::sim::Simulator sim(config, world);
-    cv::Mat image, depth;
-    std::vector<double> frame_ms;
+    std::vector<Eigen::Isometry3d> poses;
     for (std::int64_t t = 0; t < 10'000 * kMs; t += kMs) {
       sim.set_command(script(sim, static_cast<double>(t) * 1e-9));
       sim.step_to(t + kMs);
       if (sim.camera_due()) {
-        const Clock::time_point start = Clock::now();
-        sim.render_camera(image, depth);
-        frame_ms.push_back(ms_since(start));
+        poses.push_back(sim.camera_T_world_camera());
+        cv::Mat unused_image, unused_depth;
+        sim.render_camera(unused_image, unused_depth);
       }
     }
-    std::sort(frame_ms.begin(), frame_ms.end());
-    std::printf("%dx%d render: median %.2f ms/frame, p90 %.2f ms, %zu frames\n", width, height,
-                frame_ms[frame_ms.size() / 2], frame_ms[frame_ms.size() * 9 / 10], frame_ms.size());
+    hq::sim::RgbdRenderer renderer(config.camera, world, 1);
+    cv::Mat image, depth;
+    std::vector<double> new_ms, reference_ms;
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      Clock::time_point start = Clock::now();
+      renderer.render(poses[i], i, image, depth);
+      new_ms.push_back(ms_since(start));
+      start = Clock::now();
+      renderer.render_reference(poses[i], i, image, depth);
+      reference_ms.push_back(ms_since(start));
+    }
+    const auto print = [&](const char* name, std::vector<double>& ms) {
+      std::sort(ms.begin(), ms.end());
+      std::printf("%dx%d render %-9s: median %6.2f ms/frame, p90 %6.2f ms, %zu frames\n", width,
+                  height, name, ms[ms.size() / 2], ms[ms.size() * 9 / 10], ms.size());
+    };
+    print("new", new_ms);
+    print("reference", reference_ms);
   }
   // 2. Full simulation: physics, IMU draining and every camera frame rendered.
   {
