@@ -81,7 +81,8 @@ class RgbdRenderer {
   std::vector<std::int32_t> hit_code_;  ///< per pixel: which primitive and face won, -1 none.
 
   void prepare_frame(const Eigen::Isometry3d& T_world_camera);
-  void drop_depth_at_discontinuities(cv::Mat& depth_m) const;
+  void drop_depth_at_discontinuities(cv::Mat& depth_m) const;  ///< the reference's
+  void drop_depth_at_discontinuities_fast(cv::Mat& depth_m);
 };
 
 }  // namespace hq::sim
