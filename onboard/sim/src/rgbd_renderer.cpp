@@ -120,6 +120,9 @@ struct SceneTables {
   std::uint64_t frame_key = 0;
   // Per row of render()'s shading: surface coordinates, light, incidence cosine, albedo.
   std::vector<float> row_s, row_w, row_shade, row_cos, row_b, row_g, row_r;
+  std::vector<float> row_depth_draw, row_image_draw;  // standard normal noise draws
+  std::vector<std::int32_t> row_levels;               // intensity per channel, before uint8
+  std::vector<std::int32_t> row_gray_levels;          // the same, gray
   std::vector<float> inverse_depth;  // per pixel: 1 / noise-free z, 0 without a hit
 };
 
@@ -257,11 +260,12 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
 
   Scene& sc = *scene_;
   sc.ray_x.resize(static_cast<std::size_t>(cam.width));
-  for (std::vector<float>* row :
-       {&sc.row_s, &sc.row_w, &sc.row_shade, &sc.row_cos, &sc.row_b, &sc.row_g, &sc.row_r}) {
+  for (std::vector<float>* row : {&sc.row_s, &sc.row_w, &sc.row_shade, &sc.row_cos, &sc.row_b,
+                                  &sc.row_g, &sc.row_r, &sc.row_depth_draw, &sc.row_image_draw}) {
     row->resize(static_cast<std::size_t>(cam.width));
   }
   sc.inverse_depth.resize(static_cast<std::size_t>(n));
+  sc.row_levels.resize(4 * static_cast<std::size_t>(cam.width));
   sc.ray_y.resize(static_cast<std::size_t>(cam.height));
   for (int u = 0; u < cam.width; ++u)
     sc.ray_x[static_cast<std::size_t>(u)] = ray_c_[3 * static_cast<std::size_t>(u)];
@@ -635,10 +639,14 @@ namespace {
 /// std::round (half away from zero) without a library call or a branch (the fraction is as
 /// likely above as below one half); exact, as x - trunc(x) is.
 inline float round_half_away(float x) {
-  if (!(std::abs(x) < 8388608.0f)) return x;  // 2^23: already an integer (or not finite)
-  const auto truncated = static_cast<float>(static_cast<std::int32_t>(x));
-  const float fraction = x - truncated;
-  return truncated + (fraction >= 0.5f ? 1.0f : 0.0f) - (fraction <= -0.5f ? 1.0f : 0.0f);
+  // |x| >= 2^23 is an integer already (or not finite): x itself. Clamping first keeps the
+  // int32 conversion defined.
+  const float bounded = std::min(std::max(x, -8388608.0f), 8388608.0f);
+  const auto truncated = static_cast<float>(static_cast<std::int32_t>(bounded));
+  const float fraction = bounded - truncated;
+  const float rounded =
+      truncated + (fraction >= 0.5f ? 1.0f : 0.0f) - (fraction <= -0.5f ? 1.0f : 0.0f);
+  return std::abs(x) < 8388608.0f ? rounded : x;
 }
 
 /// The planar surface (rectangle or box face) a hit code names; nullptr for a cylinder.
@@ -708,15 +716,17 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       const float v_y = r.v_c.y() * y + r.v_c.z();
       float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
       std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      for (int u = fp.u0; u <= fp.u1; ++u) {
+      const int u_end = fp.u1 + 1;  // a < bound lets the vectoriser count the iterations
+      for (int u = fp.u0; u < u_end; ++u) {
         const float x = ray_x[u];
         const float denom = r.n_c.x() * x + n_y;
         const float t = r.n_dot_c / denom;
         const float s = t * (r.u_c.x() * x + u_y) - r.u_dot_c;
         const float w = t * (r.v_c.x() * x + v_y) - r.v_dot_c;
-        // Seen from the front (n faces the camera), in front of it, nearer, inside.
-        const bool hit = denom <= -1e-6f && t >= kMinT && t < t_row[u] && std::abs(s) <= r.half_u &&
-                         std::abs(w) <= r.half_v;
+        // Seen from the front (n faces the camera), in front of it, nearer, inside; & rather
+        // than && keeps the loop free of branches, so it vectorises.
+        const bool hit = (denom <= -1e-6f) & (t >= kMinT) & (t < t_row[u]) &
+                         (std::abs(s) <= r.half_u) & (std::abs(w) <= r.half_v);
         t_row[u] = hit ? t : t_row[u];
         code_row[u] = hit ? code : code_row[u];
       }
@@ -801,6 +811,12 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
   float* b = sc.row_b.data();
   float* g = sc.row_g.data();
   float* r = sc.row_r.data();
+  float* depth_draw = sc.row_depth_draw.data();
+  float* image_draw = sc.row_image_draw.data();
+  std::int32_t* level_b = sc.row_levels.data();  // four planes of width
+  std::int32_t* level_g = level_b + width;
+  std::int32_t* level_r = level_g + width;
+  std::int32_t* level_gray = level_r + width;
   for (int v = 0; v < cam.height; ++v) {
     const float y = sc.ray_y[static_cast<std::size_t>(v)];
     const float* inv_norm = &ray_c_[static_cast<std::size_t>(3 * v * width) + 2];
@@ -875,49 +891,65 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
       u0 = u1;
     }
+    // The noise draws: scalar 64-bit hashes, independent per pixel so they pipeline. A zero
+    // sigma adds sigma * draw = +-0, which changes no value, so the draws can be 0 then.
+    const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
+    for (int u = 0; u < width; ++u) {
+      const std::uint64_t pixel = first + static_cast<std::uint64_t>(u);
+      depth_draw[u] = k.sigma_disparity > 0.0f
+                          ? gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel)))
+                          : 0.0f;
+      image_draw[u] = k.image_sigma > 0.0f
+                          ? gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel + 1ull)))
+                          : 0.0f;
+    }
+    // Colour, depth model and noise, branch-free so that it vectorises: shade_pixel()'s
+    // operations, every conditional a select.
     std::uint8_t* out = image.ptr<std::uint8_t>(v);
     float* depth_row = depth_m.ptr<float>(v);
     float* true_row = true_depth_m_.ptr<float>(v);
+    const bool quantise = k.subpixels > 0.0f;
+#pragma omp simd
     for (int u = 0; u < width; ++u) {
-      const int pixel = v * width + u;
-      float value[3] = {0.0f, 0.0f, 0.0f};
-      float z_true = 0.0f;
-      float depth = 0.0f;
-      if (code_row[u] != kNoCode) {
-        value[0] = 255.0f * shade[u] * b[u];
-        value[1] = 255.0f * shade[u] * g[u];
-        value[2] = 255.0f * shade[u] * r[u];
-        z_true = t_row[u];
-        const float luminance = (b[u] + g[u] + r[u]) * (1.0f / 3.0f);
-        if (luminance >= k.dark && cos_incidence[u] >= k.cos_grazing) {
-          // Structured light: disparity fb / z, its noise and quantisation (Khoshelham 2012).
-          float disparity = k.fb / z_true;
-          if (k.sigma_disparity > 0.0f) {
-            disparity +=
-                k.sigma_disparity * gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel)));
-          }
-          if (k.subpixels > 0.0f)
-            disparity = round_half_away(disparity * k.subpixels) / k.subpixels;
-          if (disparity > 0.0f) {
-            const float z = k.fb / disparity;
-            depth = (z >= k.min_range && z <= k.max_range) ? z : 0.0f;
-          }
-        }
-      }
+      // Unconditional loads (stale values where nothing was hit are selected away): a load
+      // under a condition would need a masked load, which SSE2 lacks.
+      const bool hit = code_row[u] != kNoCode;
+      const float light = shade[u];
+      const float t = t_row[u];
+      const float value_b = hit ? 255.0f * light * b[u] : 0.0f;
+      const float value_g = hit ? 255.0f * light * g[u] : 0.0f;
+      const float value_r = hit ? 255.0f * light * r[u] : 0.0f;
+      const float z_true = hit ? t : 0.0f;
+      const float luminance = (b[u] + g[u] + r[u]) * (1.0f / 3.0f);
+      const bool measured = hit & (luminance >= k.dark) & (cos_incidence[u] >= k.cos_grazing);
+      // Structured light: disparity fb / z, its noise and quantisation (Khoshelham 2012).
+      float disparity = k.fb / z_true + k.sigma_disparity * depth_draw[u];
+      disparity = quantise ? round_half_away(disparity * k.subpixels) / k.subpixels : disparity;
+      const float z = k.fb / disparity;
+      const bool in_range = (disparity > 0.0f) & (z >= k.min_range) & (z <= k.max_range);
       true_row[u] = z_true;
-      depth_row[u] = depth;
-      const float noise =
-          k.image_sigma > 0.0f
-              ? k.image_sigma * gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel + 1ull)))
-              : 0.0f;
-      if (k.channels == 1) {
-        const float gray = 0.114f * value[0] + 0.587f * value[1] + 0.299f * value[2];
-        out[u] = static_cast<std::uint8_t>(std::clamp(gray + noise + 0.5f, 0.0f, 255.0f));
-      } else {
-        for (int c = 0; c < 3; ++c) {
-          out[3 * u + c] =
-              static_cast<std::uint8_t>(std::clamp(value[c] + noise + 0.5f, 0.0f, 255.0f));
-        }
+      depth_row[u] = measured & in_range ? z : 0.0f;
+      const float noise = k.image_sigma * image_draw[u];
+      // Clamped to [0, 255]: truncating to int32 here and to uint8 below gives what a direct
+      // cast gives. Planar and in two loops: GCC vectorises neither a narrowing select nor
+      // stores three apart.
+      const auto level = [](float x) {
+        return static_cast<std::int32_t>(std::min(std::max(x, 0.0f), 255.0f));
+      };
+      const float gray = 0.114f * value_b + 0.587f * value_g + 0.299f * value_r;
+      level_gray[u] = level(gray + noise + 0.5f);
+      level_b[u] = level(value_b + noise + 0.5f);
+      level_g[u] = level(value_g + noise + 0.5f);
+      level_r[u] = level(value_r + noise + 0.5f);
+    }
+    if (k.channels == 1) {
+#pragma omp simd
+      for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
+    } else {
+      for (int u = 0; u < width; ++u) {
+        out[3 * u] = static_cast<std::uint8_t>(level_b[u]);
+        out[3 * u + 1] = static_cast<std::uint8_t>(level_g[u]);
+        out[3 * u + 2] = static_cast<std::uint8_t>(level_r[u]);
       }
     }
   }
