@@ -1092,11 +1092,12 @@ void RgbdRenderer::drop_depth_at_discontinuities_fast(cv::Mat& depth_m) {
     const float* w = sc.inverse_depth.data() + static_cast<std::ptrdiff_t>(v) * width;
     const float* up = w - width;
     const float* down = w + width;
-    for (int u = 1; u + 1 < width; ++u) {
+#pragma omp simd
+    for (int u = 1; u < width - 1; ++u) {
       // A valid depth has a hit, so w[u] is the reference's 1.0f / row[u].
       const float limit = jump * w[u];
-      const bool edge = std::abs(w[u - 1] + w[u + 1] - 2.0f * w[u]) > limit ||
-                        std::abs(up[u] + down[u] - 2.0f * w[u]) > limit;
+      const bool edge = (std::abs(w[u - 1] + w[u + 1] - 2.0f * w[u]) > limit) |
+                        (std::abs(up[u] + down[u] - 2.0f * w[u]) > limit);
       depth_row[u] = edge ? 0.0f : depth_row[u];
     }
   }

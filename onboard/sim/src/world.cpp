@@ -89,8 +89,12 @@ float value_noise(float x, float y, std::uint32_t salt) {
 
 }  // namespace
 
-void Texture::albedo_span(const float* s_m, const float* t_m, int n, float* b, float* g,
-                          float* r) const {
+// Also built for AVX2 (8 lanes, a native 32-bit multiply for the hash) and picked at load time
+// where the CPU has it. No FMA: the avx2 target does not enable it, so values are unchanged.
+[[gnu::target_clones("avx2", "default")]] void Texture::albedo_span(const float* s_m,
+                                                                    const float* t_m, int n,
+                                                                    float* b, float* g,
+                                                                    float* r) const {
   const float inv = 1.0f / scale_m;
   const float cb = color_bgr[0];
   const float cg = color_bgr[1];
