@@ -636,19 +636,6 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
 
 namespace {
 
-/// std::round (half away from zero) without a library call or a branch (the fraction is as
-/// likely above as below one half); exact, as x - trunc(x) is.
-inline float round_half_away(float x) {
-  // |x| >= 2^23 is an integer already (or not finite): x itself. Clamping first keeps the
-  // int32 conversion defined.
-  const float bounded = std::min(std::max(x, -8388608.0f), 8388608.0f);
-  const auto truncated = static_cast<float>(static_cast<std::int32_t>(bounded));
-  const float fraction = bounded - truncated;
-  const float rounded =
-      truncated + (fraction >= 0.5f ? 1.0f : 0.0f) - (fraction <= -0.5f ? 1.0f : 0.0f);
-  return std::abs(x) < 8388608.0f ? rounded : x;
-}
-
 /// The planar surface (rectangle or box face) a hit code names; nullptr for a cylinder.
 const Surface* surface_of(const SceneTables& sc, std::int32_t code) {
   const int index = (code >> 3) & 0x1fffff;
@@ -682,6 +669,88 @@ inline void paint_markers(const SceneTables& sc, const Surface& surface, float s
     const bool white = m.cells[static_cast<int>(row) * kTagCells + static_cast<int>(col)] != 0;
     b = g = r = white ? kTagWhiteAlbedo : kTagBlackAlbedo;
     return;
+  }
+}
+
+/// Standard normal draws for the n pixels from index `first` on, of the stream `odd` (0:
+/// depth, 1: image): shade_pixel()'s hash per pixel. Built also for AVX-512 (a native 64-bit
+/// multiply) and AVX2, picked at load time; integer work but for the last scaling, which
+/// -ffp-contract=off keeps from fusing.
+[[gnu::target_clones("arch=x86-64-v4", "avx2", "default")]] void noise_draws(
+    std::uint64_t frame_key, std::uint64_t first, std::uint64_t odd, int n, float* draw) {
+#pragma omp simd
+  for (int u = 0; u < n; ++u) {
+    const std::uint64_t pixel = first + static_cast<std::uint64_t>(u);
+    draw[u] = gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel + odd)));
+  }
+}
+
+/// One row's inputs and outputs of the colour and depth-model stage.
+struct RowStage {
+  const std::int32_t* code;
+  const float* t;
+  const float* shade;
+  const float* cos_incidence;
+  const float *b, *g, *r;  // albedo
+  const float* depth_draw;
+  const float* image_draw;
+  float* true_depth;
+  float* depth;
+  std::int32_t *level_b, *level_g, *level_r, *level_gray;
+};
+
+/// Colour, depth model and noise: shade_pixel()'s operations, branch-free so that they
+/// vectorise, every conditional a select. (GCC 12 if-converts none of it in AVX2 or AVX-512
+/// target clones, so it has none.)
+void colour_and_depth(const ShadeConstants& k, const RowStage& row, int n) {
+  const bool quantise = k.subpixels > 0.0f;
+  // std::round (half away from zero) without a library call or a branch (the fraction is as
+  // likely above as below one half); exact, as x - trunc(x) is.
+  const auto round_half_away = [](float x) {
+    // |x| >= 2^23 is an integer already (or not finite): x itself. Clamping first keeps the
+    // int32 conversion defined.
+    const float bounded = std::min(std::max(x, -8388608.0f), 8388608.0f);
+    const auto truncated = static_cast<float>(static_cast<std::int32_t>(bounded));
+    const float fraction = bounded - truncated;
+    const float rounded =
+        truncated + (fraction >= 0.5f ? 1.0f : 0.0f) - (fraction <= -0.5f ? 1.0f : 0.0f);
+    return std::abs(x) < 8388608.0f ? rounded : x;
+  };
+#pragma omp simd
+  for (int u = 0; u < n; ++u) {
+    // Unconditional loads (stale values where nothing was hit are selected away): a load
+    // under a condition would need a masked load, which SSE2 lacks.
+    const bool hit = row.code[u] != kNoCode;
+    const float light = row.shade[u];
+    const float t = row.t[u];
+    const float b = row.b[u];
+    const float g = row.g[u];
+    const float r = row.r[u];
+    const float value_b = hit ? 255.0f * light * b : 0.0f;
+    const float value_g = hit ? 255.0f * light * g : 0.0f;
+    const float value_r = hit ? 255.0f * light * r : 0.0f;
+    const float z_true = hit ? t : 0.0f;
+    const float luminance = (b + g + r) * (1.0f / 3.0f);
+    const bool measured = hit & (luminance >= k.dark) & (row.cos_incidence[u] >= k.cos_grazing);
+    // Structured light: disparity fb / z, its noise and quantisation (Khoshelham 2012).
+    float disparity = k.fb / z_true + k.sigma_disparity * row.depth_draw[u];
+    disparity = quantise ? round_half_away(disparity * k.subpixels) / k.subpixels : disparity;
+    const float z = k.fb / disparity;
+    const bool in_range = (disparity > 0.0f) & (z >= k.min_range) & (z <= k.max_range);
+    row.true_depth[u] = z_true;
+    row.depth[u] = measured & in_range ? z : 0.0f;
+    const float noise = k.image_sigma * row.image_draw[u];
+    // Clamped to [0, 255]: truncating to int32 here and to uint8 by the caller gives what a
+    // direct cast gives. Planar: GCC vectorises neither a narrowing select nor stores three
+    // apart.
+    const auto level = [](float x) {
+      return static_cast<std::int32_t>(std::min(std::max(x, 0.0f), 255.0f));
+    };
+    const float gray = 0.114f * value_b + 0.587f * value_g + 0.299f * value_r;
+    row.level_gray[u] = level(gray + noise + 0.5f);
+    row.level_b[u] = level(value_b + noise + 0.5f);
+    row.level_g[u] = level(value_g + noise + 0.5f);
+    row.level_r[u] = level(value_r + noise + 0.5f);
   }
 }
 
@@ -891,57 +960,35 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
       u0 = u1;
     }
-    // The noise draws: scalar 64-bit hashes, independent per pixel so they pipeline. A zero
-    // sigma adds sigma * draw = +-0, which changes no value, so the draws can be 0 then.
+    // A zero sigma adds sigma * draw = +-0, which changes no value: the draws can be 0 then.
     const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
-    for (int u = 0; u < width; ++u) {
-      const std::uint64_t pixel = first + static_cast<std::uint64_t>(u);
-      depth_draw[u] = k.sigma_disparity > 0.0f
-                          ? gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel)))
-                          : 0.0f;
-      image_draw[u] = k.image_sigma > 0.0f
-                          ? gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel + 1ull)))
-                          : 0.0f;
+    if (k.sigma_disparity > 0.0f) {
+      noise_draws(sc.frame_key, first, 0ull, width, depth_draw);
+    } else {
+      std::fill(depth_draw, depth_draw + width, 0.0f);
     }
-    // Colour, depth model and noise, branch-free so that it vectorises: shade_pixel()'s
-    // operations, every conditional a select.
+    if (k.image_sigma > 0.0f) {
+      noise_draws(sc.frame_key, first, 1ull, width, image_draw);
+    } else {
+      std::fill(image_draw, image_draw + width, 0.0f);
+    }
+    const RowStage row{code_row,
+                       t_row,
+                       shade,
+                       cos_incidence,
+                       b,
+                       g,
+                       r,
+                       depth_draw,
+                       image_draw,
+                       true_depth_m_.ptr<float>(v),
+                       depth_m.ptr<float>(v),
+                       level_b,
+                       level_g,
+                       level_r,
+                       level_gray};
+    colour_and_depth(k, row, width);
     std::uint8_t* out = image.ptr<std::uint8_t>(v);
-    float* depth_row = depth_m.ptr<float>(v);
-    float* true_row = true_depth_m_.ptr<float>(v);
-    const bool quantise = k.subpixels > 0.0f;
-#pragma omp simd
-    for (int u = 0; u < width; ++u) {
-      // Unconditional loads (stale values where nothing was hit are selected away): a load
-      // under a condition would need a masked load, which SSE2 lacks.
-      const bool hit = code_row[u] != kNoCode;
-      const float light = shade[u];
-      const float t = t_row[u];
-      const float value_b = hit ? 255.0f * light * b[u] : 0.0f;
-      const float value_g = hit ? 255.0f * light * g[u] : 0.0f;
-      const float value_r = hit ? 255.0f * light * r[u] : 0.0f;
-      const float z_true = hit ? t : 0.0f;
-      const float luminance = (b[u] + g[u] + r[u]) * (1.0f / 3.0f);
-      const bool measured = hit & (luminance >= k.dark) & (cos_incidence[u] >= k.cos_grazing);
-      // Structured light: disparity fb / z, its noise and quantisation (Khoshelham 2012).
-      float disparity = k.fb / z_true + k.sigma_disparity * depth_draw[u];
-      disparity = quantise ? round_half_away(disparity * k.subpixels) / k.subpixels : disparity;
-      const float z = k.fb / disparity;
-      const bool in_range = (disparity > 0.0f) & (z >= k.min_range) & (z <= k.max_range);
-      true_row[u] = z_true;
-      depth_row[u] = measured & in_range ? z : 0.0f;
-      const float noise = k.image_sigma * image_draw[u];
-      // Clamped to [0, 255]: truncating to int32 here and to uint8 below gives what a direct
-      // cast gives. Planar and in two loops: GCC vectorises neither a narrowing select nor
-      // stores three apart.
-      const auto level = [](float x) {
-        return static_cast<std::int32_t>(std::min(std::max(x, 0.0f), 255.0f));
-      };
-      const float gray = 0.114f * value_b + 0.587f * value_g + 0.299f * value_r;
-      level_gray[u] = level(gray + noise + 0.5f);
-      level_b[u] = level(value_b + noise + 0.5f);
-      level_g[u] = level(value_g + noise + 0.5f);
-      level_r[u] = level(value_r + noise + 0.5f);
-    }
     if (k.channels == 1) {
 #pragma omp simd
       for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
