@@ -121,9 +121,8 @@ struct SceneTables {
   // Per row of render()'s shading: surface coordinates, light, incidence cosine, albedo.
   std::vector<float> row_s, row_w, row_shade, row_cos, row_b, row_g, row_r;
   std::vector<float> row_depth_draw, row_image_draw;  // standard normal noise draws
-  std::vector<std::int32_t> row_levels;               // intensity per channel, before uint8
-  std::vector<std::int32_t> row_gray_levels;          // the same, gray
-  std::vector<float> inverse_depth;  // per pixel: 1 / noise-free z, 0 without a hit
+  std::vector<std::int32_t> row_levels;  // intensity of b, g, r, gray (planes), before uint8
+  std::vector<float> inverse_depth;      // per pixel: 1 / noise-free z, 0 without a hit
 };
 
 }  // namespace
