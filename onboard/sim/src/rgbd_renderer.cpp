@@ -112,8 +112,9 @@ struct SceneTables {
   std::vector<RectC> rects;
   std::vector<BoxC> boxes;
   std::vector<CylinderC> cylinders;
-  std::vector<float> ray_x;  // per column: x / z of its rays (the same as in ray_c_)
-  std::vector<float> ray_y;  // per row: y / z
+  std::vector<float> ray_x;     // per column: x / z of its rays (the same as in ray_c_)
+  std::vector<float> ray_y;     // per row: y / z
+  std::vector<float> inv_norm;  // per pixel: 1 / |(x, y, 1)| (the same as in ray_c_)
   // Per frame (prepare_frame), shared by render() and render_reference().
   Eigen::Matrix3f R_world_camera = Eigen::Matrix3f::Identity();
   Vec3f light = Vec3f::UnitZ();
@@ -264,6 +265,8 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
     row->resize(static_cast<std::size_t>(cam.width));
   }
   sc.inverse_depth.resize(static_cast<std::size_t>(n));
+  sc.inv_norm.resize(static_cast<std::size_t>(n));
+  for (std::size_t i = 0; i < sc.inv_norm.size(); ++i) sc.inv_norm[i] = ray_c_[3 * i + 2];
   sc.row_levels.resize(4 * static_cast<std::size_t>(cam.width));
   sc.ray_y.resize(static_cast<std::size_t>(cam.height));
   for (int u = 0; u < cam.width; ++u)
@@ -887,61 +890,86 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
   std::int32_t* level_gray = level_r + width;
   for (int v = 0; v < cam.height; ++v) {
     const float y = sc.ray_y[static_cast<std::size_t>(v)];
-    const float* inv_norm = &ray_c_[static_cast<std::size_t>(3 * v * width) + 2];
+    const float* inv_norm_row = sc.inv_norm.data() + static_cast<std::ptrdiff_t>(v) * width;
     const float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
     const std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
-    for (int u = 0; u < width; ++u) {
-      const std::int32_t code = code_row[u];
-      s_m[u] = 0.0f;
-      w_m[u] = 0.0f;
-      if (code == kNoCode) continue;
-      const Vec3f d(ray_x[u], y, 1.0f);
-      const float t = t_row[u];
-      const int index = (code >> 3) & 0x1fffff;
-      const int face = code & 7;
-      const float ray_scale = inv_norm[3 * u];
-      switch (static_cast<HitKind>(code >> 24)) {
-        case HitKind::kRect: {
-          const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
-          s_m[u] = t * rc.u_c.dot(d) - rc.u_dot_c;
-          w_m[u] = t * rc.v_c.dot(d) - rc.v_dot_c;
+    for (int u0 = 0; u0 < width;) {
+      const std::int32_t run_code = code_row[u0];
+      int u1 = u0 + 1;
+      while (u1 < width && code_row[u1] == run_code) ++u1;
+      if (run_code != kNoCode && static_cast<HitKind>(run_code >> 24) == HitKind::kRect) {
+        // A run on one rectangle (most pixels: floor and walls), vectorised. Its dots sum as
+        // x_term + (y_term + z_term), Eigen's order, so the row-constant part is hoisted
+        // without changing a bit.
+        const RectC& rc = sc.rects[static_cast<std::size_t>((run_code >> 3) & 0x1fffff)];
+        const float u_y = rc.u_c.y() * y + rc.u_c.z();
+        const float v_y = rc.v_c.y() * y + rc.v_c.z();
+        const float n_y = rc.n_c.y() * y + rc.n_c.z();
+#pragma omp simd
+        for (int u = u0; u < u1; ++u) {
+          const float x = ray_x[u];
+          s_m[u] = t_row[u] * (rc.u_c.x() * x + u_y) - rc.u_dot_c;
+          w_m[u] = t_row[u] * (rc.v_c.x() * x + v_y) - rc.v_dot_c;
           shade[u] = rc.shade;
-          cos_incidence[u] = -rc.n_c.dot(d) * ray_scale;
-          break;
+          cos_incidence[u] = -(rc.n_c.x() * x + n_y) * inv_norm_row[u];
         }
-        case HitKind::kBox: {
-          const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
-          const Vec3f p = bc.o_local + t * (bc.R_local_camera * d);
-          const int axis = face / 2;
-          s_m[u] = p[axis == 0 ? 1 : 0];
-          w_m[u] = p[axis == 2 ? 1 : 2];
-          shade[u] = bc.face_shade[face];
-          cos_incidence[u] = -bc.face_normal_c[face].dot(d) * ray_scale;
-          break;
-        }
-        case HitKind::kCylinderSide: {
-          const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-          const Vec3f dw = sc.R_world_camera * d;
-          s_m[u] = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
-          w_m[u] = c.oz + t * dw.z();
-          const float angle = s_m[u] / c.radius;
-          const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
-          shade[u] = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
-          cos_incidence[u] = -n.dot(dw) * ray_scale;
-          break;
-        }
-        case HitKind::kCylinderTop: {
-          const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-          const Vec3f dw = sc.R_world_camera * d;
-          s_m[u] = c.ox + t * dw.x();
-          w_m[u] = c.oy + t * dw.y();
-          shade[u] = c.top_shade;
-          cos_incidence[u] = -dw.z() * ray_scale;
-          break;
-        }
-        case HitKind::kNone:
-          break;
+        u0 = u1;
+        continue;
       }
+      for (int u = u0; u < u1; ++u) {
+        const std::int32_t code = code_row[u];
+        s_m[u] = 0.0f;
+        w_m[u] = 0.0f;
+        if (code == kNoCode) continue;
+        const Vec3f d(ray_x[u], y, 1.0f);
+        const float t = t_row[u];
+        const int index = (code >> 3) & 0x1fffff;
+        const int face = code & 7;
+        const float ray_scale = inv_norm_row[u];
+        switch (static_cast<HitKind>(code >> 24)) {
+          case HitKind::kRect: {
+            const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
+            s_m[u] = t * rc.u_c.dot(d) - rc.u_dot_c;
+            w_m[u] = t * rc.v_c.dot(d) - rc.v_dot_c;
+            shade[u] = rc.shade;
+            cos_incidence[u] = -rc.n_c.dot(d) * ray_scale;
+            break;
+          }
+          case HitKind::kBox: {
+            const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
+            const Vec3f p = bc.o_local + t * (bc.R_local_camera * d);
+            const int axis = face / 2;
+            s_m[u] = p[axis == 0 ? 1 : 0];
+            w_m[u] = p[axis == 2 ? 1 : 2];
+            shade[u] = bc.face_shade[face];
+            cos_incidence[u] = -bc.face_normal_c[face].dot(d) * ray_scale;
+            break;
+          }
+          case HitKind::kCylinderSide: {
+            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+            const Vec3f dw = sc.R_world_camera * d;
+            s_m[u] = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
+            w_m[u] = c.oz + t * dw.z();
+            const float angle = s_m[u] / c.radius;
+            const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
+            shade[u] = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
+            cos_incidence[u] = -n.dot(dw) * ray_scale;
+            break;
+          }
+          case HitKind::kCylinderTop: {
+            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+            const Vec3f dw = sc.R_world_camera * d;
+            s_m[u] = c.ox + t * dw.x();
+            w_m[u] = c.oy + t * dw.y();
+            shade[u] = c.top_shade;
+            cos_incidence[u] = -dw.z() * ray_scale;
+            break;
+          }
+          case HitKind::kNone:
+            break;
+        }
+      }
+      u0 = u1;
     }
     for (int u0 = 0; u0 < width;) {
       const std::int32_t code = code_row[u0];
