@@ -123,6 +123,7 @@ struct SceneTables {
   std::vector<float> row_s, row_w, row_shade, row_cos, row_b, row_g, row_r;
   std::vector<float> row_depth_draw, row_image_draw;  // standard normal noise draws
   std::vector<std::int32_t> row_levels;  // intensity of b, g, r, gray (planes), before uint8
+  std::vector<int> near_markers;         // per run: markers that can cover it (markers_near_run)
   std::vector<float> inverse_depth;      // per pixel: 1 / noise-free z, 0 without a hit
 };
 
@@ -266,6 +267,7 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
   }
   sc.inverse_depth.resize(static_cast<std::size_t>(n));
   sc.inv_norm.resize(static_cast<std::size_t>(n));
+  sc.near_markers.resize(world.markers.size());
   for (std::size_t i = 0; i < sc.inv_norm.size(); ++i) sc.inv_norm[i] = ray_c_[3 * i + 2];
   sc.row_levels.resize(4 * static_cast<std::size_t>(cam.width));
   sc.ray_y.resize(static_cast<std::size_t>(cam.height));
@@ -658,10 +660,10 @@ const Texture* cylinder_texture(const SceneTables& sc, std::int32_t code) {
 }
 
 /// Replaces the albedo by the cell of the first visible marker of the surface covering (s, w).
-inline void paint_markers(const SceneTables& sc, const Surface& surface, float s, float w, float& b,
-                          float& g, float& r) {
-  for (int i : surface.markers) {
-    const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(i)];
+inline void paint_markers(const SceneTables& sc, const int* markers, int count, float s, float w,
+                          float& b, float& g, float& r) {
+  for (int k = 0; k < count; ++k) {
+    const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(markers[k])];
     const float ds = s - m.s0;
     const float dt = w - m.t0;
     if (!m.visible || std::abs(ds) > m.reach || std::abs(dt) > m.reach) continue;
@@ -672,6 +674,33 @@ inline void paint_markers(const SceneTables& sc, const Surface& surface, float s
     b = g = r = white ? kTagWhiteAlbedo : kTagBlackAlbedo;
     return;
   }
+}
+
+/// The visible markers of a surface that can cover a pixel of the run (s_m, w_m)[0, n), in
+/// the surface's order, into near; returns how many. A marker is left out only if its square
+/// of half-side reach misses the run's (s, t) bounding box by more than 1 cm, so float
+/// rounding cannot leave out one that paint_markers() would paint.
+int markers_near_run(const SceneTables& sc, const Surface& surface, const float* s_m,
+                     const float* w_m, int n, int* near) {
+  float s_lo = s_m[0], s_hi = s_m[0], t_lo = w_m[0], t_hi = w_m[0];
+  for (int i = 1; i < n; ++i) {
+    s_lo = std::min(s_lo, s_m[i]);
+    s_hi = std::max(s_hi, s_m[i]);
+    t_lo = std::min(t_lo, w_m[i]);
+    t_hi = std::max(t_hi, w_m[i]);
+  }
+  constexpr float kMargin = 0.01f;
+  int count = 0;
+  for (int i : surface.markers) {
+    const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(i)];
+    const float reach = m.reach + kMargin;
+    if (!m.visible || m.s0 + reach < s_lo || m.s0 - reach > s_hi || m.t0 + reach < t_lo ||
+        m.t0 - reach > t_hi) {
+      continue;
+    }
+    near[count++] = i;
+  }
+  return count;
 }
 
 /// Standard normal draws for the n pixels from index `first` on, of the stream `odd` (0:
@@ -981,8 +1010,12 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
             surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
         texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
         if (surface != nullptr && !surface->markers.empty()) {
-          for (int u = u0; u < u1; ++u)
-            paint_markers(sc, *surface, s_m[u], w_m[u], b[u], g[u], r[u]);
+          // Only the markers near this run (a floor may carry dozens) are tested per pixel.
+          int* near = sc.near_markers.data();
+          const int count = markers_near_run(sc, *surface, s_m + u0, w_m + u0, u1 - u0, near);
+          for (int u = u0; count > 0 && u < u1; ++u) {
+            paint_markers(sc, near, count, s_m[u], w_m[u], b[u], g[u], r[u]);
+          }
         }
       }
       u0 = u1;
