@@ -769,7 +769,7 @@ void colour_and_depth(const ShadeConstants& k, const RowStage& row, int n) {
     const float z = k.fb / disparity;
     const bool in_range = (disparity > 0.0f) & (z >= k.min_range) & (z <= k.max_range);
     row.true_depth[u] = z_true;
-    row.depth[u] = measured & in_range ? z : 0.0f;
+    row.depth[u] = (measured & in_range) ? z : 0.0f;
     const float noise = k.image_sigma * row.image_draw[u];
     // Clamped to [0, 255]: truncating to int32 here and to uint8 by the caller gives what a
     // direct cast gives. Planar: GCC vectorises neither a narrowing select nor stores three
@@ -825,8 +825,9 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
         const float w = t * (r.v_c.x() * x + v_y) - r.v_dot_c;
         // Seen from the front (n faces the camera), in front of it, nearer, inside; & rather
         // than && keeps the loop free of branches, so it vectorises.
-        const bool hit = (denom <= -1e-6f) & (t >= kMinT) & (t < t_row[u]) &
-                         (std::abs(s) <= r.half_u) & (std::abs(w) <= r.half_v);
+        const bool inside_u = std::abs(s) <= r.half_u;
+        const bool inside_v = std::abs(w) <= r.half_v;
+        const bool hit = (denom <= -1e-6f) & (t >= kMinT) & (t < t_row[u]) & inside_u & inside_v;
         t_row[u] = hit ? t : t_row[u];
         code_row[u] = hit ? code : code_row[u];
       }
@@ -1203,8 +1204,9 @@ void RgbdRenderer::drop_depth_at_discontinuities_fast(cv::Mat& depth_m) {
     for (int u = 1; u < width - 1; ++u) {
       // A valid depth has a hit, so w[u] is the reference's 1.0f / row[u].
       const float limit = jump * w[u];
-      const bool edge = (std::abs(w[u - 1] + w[u + 1] - 2.0f * w[u]) > limit) |
-                        (std::abs(up[u] + down[u] - 2.0f * w[u]) > limit);
+      const bool jump_u = std::abs(w[u - 1] + w[u + 1] - 2.0f * w[u]) > limit;
+      const bool jump_v = std::abs(up[u] + down[u] - 2.0f * w[u]) > limit;
+      const bool edge = jump_u | jump_v;
       depth_row[u] = edge ? 0.0f : depth_row[u];
     }
   }
