@@ -3,6 +3,7 @@
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
 
+#include "target_clones.hpp"
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -91,10 +92,8 @@ float value_noise(float x, float y, std::uint32_t salt) {
 
 // Also built for AVX2 (8 lanes, a native 32-bit multiply for the hash) and picked at load time
 // where the CPU has it. No FMA: the avx2 target does not enable it, so values are unchanged.
-[[gnu::target_clones("avx2", "default")]] void Texture::albedo_span(const float* s_m,
-                                                                    const float* t_m, int n,
-                                                                    float* b, float* g,
-                                                                    float* r) const {
+HQ_SIM_CLONES_AVX2 void Texture::albedo_span(const float* s_m, const float* t_m, int n, float* b,
+                                             float* g, float* r) const {
   const float inv = 1.0f / scale_m;
   const float cb = color_bgr[0];
   const float cg = color_bgr[1];
