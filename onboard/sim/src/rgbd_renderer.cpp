@@ -968,7 +968,10 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
           }
           case HitKind::kBox: {
             const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
-            const Vec3f p = bc.o_local + t * (bc.R_local_camera * d);
+            // dl first, as the reference: Eigen folds t * (R * d) into the product, which
+            // rounds differently.
+            const Vec3f dl = bc.R_local_camera * d;
+            const Vec3f p = bc.o_local + t * dl;
             const int axis = face / 2;
             s_m[u] = p[axis == 0 ? 1 : 0];
             w_m[u] = p[axis == 2 ? 1 : 2];
