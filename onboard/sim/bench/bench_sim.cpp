@@ -1,5 +1,8 @@
-// hq-bench-sim: render time per frame at 320x240 and 640x480 and the real-time factor of a
-// full simulation (dynamics 1 kHz + IMU + RGB-D at 30 Hz) on one core. Not run by ctest.
+// hq-bench-sim: render time per frame at 320x240 and 640x480, render() against the reference
+// ray caster (render_reference()) on the same poses in the same run, and the real-time factor
+// of a full simulation (dynamics 1 kHz + IMU + RGB-D at 30 Hz) on one core. Each figure in wall
+// time and in this thread's CPU time: on a shared, loaded machine the wall clock also counts
+// the time other processes hold the core. Not run by ctest.
 //   hq-bench-sim [world.yaml]   (default onboard/sim/worlds/room.yaml, run from the repo root)
 #include "hq/sim/simulator.hpp"
 
@@ -7,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <exception>
 #include <string>
 #include <vector>
@@ -18,6 +22,13 @@ constexpr std::int64_t kMs = 1'000'000;
 
 double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// CPU time consumed by the calling thread.
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
 /// A scripted hover-and-circle so the camera sweeps the room.
@@ -33,23 +44,46 @@ hq::sim::AttitudeCommand script(const hq::sim::Simulator& sim, double t_s) {
 
 void run(const hq::sim::World& world, int width, int height) {
   hq::sim::SimConfig config = hq::sim::default_sim_config(width, height);
-  // 1. Rendering alone, along a flown trajectory.
+  // 1. Rendering alone, along a flown trajectory: each pose by render() and by the reference,
+  // alternating, so that both see the same machine load.
   {
     hq::sim::Simulator sim(config, world);
-    cv::Mat image, depth;
-    std::vector<double> frame_ms;
+    std::vector<Eigen::Isometry3d> poses;
     for (std::int64_t t = 0; t < 10'000 * kMs; t += kMs) {
       sim.set_command(script(sim, static_cast<double>(t) * 1e-9));
       sim.step_to(t + kMs);
       if (sim.camera_due()) {
-        const Clock::time_point start = Clock::now();
-        sim.render_camera(image, depth);
-        frame_ms.push_back(ms_since(start));
+        poses.push_back(sim.camera_T_world_camera());
+        cv::Mat unused_image, unused_depth;
+        sim.render_camera(unused_image, unused_depth);
       }
     }
-    std::sort(frame_ms.begin(), frame_ms.end());
-    std::printf("%dx%d render: median %.2f ms/frame, p90 %.2f ms, %zu frames\n", width, height,
-                frame_ms[frame_ms.size() / 2], frame_ms[frame_ms.size() * 9 / 10], frame_ms.size());
+    hq::sim::RgbdRenderer renderer(config.camera, world, 1);
+    cv::Mat image, depth;
+    std::vector<double> new_ms, new_cpu_ms, reference_ms, reference_cpu_ms;
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      Clock::time_point start = Clock::now();
+      double cpu_start = thread_cpu_ms();
+      renderer.render(poses[i], i, image, depth);
+      new_ms.push_back(ms_since(start));
+      new_cpu_ms.push_back(thread_cpu_ms() - cpu_start);
+      start = Clock::now();
+      cpu_start = thread_cpu_ms();
+      renderer.render_reference(poses[i], i, image, depth);
+      reference_ms.push_back(ms_since(start));
+      reference_cpu_ms.push_back(thread_cpu_ms() - cpu_start);
+    }
+    const auto print = [&](const char* name, std::vector<double>& wall, std::vector<double>& cpu) {
+      std::sort(wall.begin(), wall.end());
+      std::sort(cpu.begin(), cpu.end());
+      std::printf(
+          "%dx%d render %-9s: median %6.2f ms/frame, p90 %6.2f ms (wall); median %6.2f, p90 "
+          "%6.2f ms (thread CPU); %zu frames\n",
+          width, height, name, wall[wall.size() / 2], wall[wall.size() * 9 / 10],
+          cpu[cpu.size() / 2], cpu[cpu.size() * 9 / 10], wall.size());
+    };
+    print("new", new_ms, new_cpu_ms);
+    print("reference", reference_ms, reference_cpu_ms);
   }
   // 2. Full simulation: physics, IMU draining and every camera frame rendered.
   {
@@ -58,6 +92,7 @@ void run(const hq::sim::World& world, int width, int height) {
     std::vector<hq::sim::ImuSample> imu(1000);
     const double sim_s = 10.0;
     const Clock::time_point start = Clock::now();
+    const double cpu_start = thread_cpu_ms();
     for (std::int64_t t = 0; t < static_cast<std::int64_t>(sim_s * 1e3) * kMs; t += kMs) {
       sim.set_command(script(sim, static_cast<double>(t) * 1e-9));
       sim.step_to(t + kMs);
@@ -65,10 +100,12 @@ void run(const hq::sim::World& world, int width, int height) {
       if (sim.camera_due()) sim.render_camera(image, depth);
     }
     const double wall_s = ms_since(start) * 1e-3;
+    const double cpu_s = (thread_cpu_ms() - cpu_start) * 1e-3;
     std::printf(
         "%dx%d full sim (1 kHz dynamics + %g Hz IMU + %g Hz RGB-D): %.2f s simulated in "
-        "%.2f s, real-time factor %.1fx\n",
-        width, height, config.imu.rate_hz, config.camera.rate_hz, sim_s, wall_s, sim_s / wall_s);
+        "%.2f s wall, real-time factor %.1fx; %.2f s thread CPU, %.1fx\n",
+        width, height, config.imu.rate_hz, config.camera.rate_hz, sim_s, wall_s, sim_s / wall_s,
+        cpu_s, sim_s / cpu_s);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 
+#include "target_clones.hpp"
 #include <opencv2/aruco.hpp>
 
 #include <algorithm>
@@ -42,12 +43,18 @@ struct Surface {
   std::vector<int> markers;  // indices into Scene::markers
 };
 
+/// Inclusive pixel rectangle; empty when u1 < u0 or v1 < v0.
+struct PixelBox {
+  int u0 = 0, u1 = -1, v0 = 0, v1 = -1;
+};
+
 struct RectC {  // rectangle, per frame in camera coordinates
   Vec3f n_c, u_c, v_c;
   float n_dot_c = 0, u_dot_c = 0, v_dot_c = 0;
   float half_u = 0, half_v = 0;
   float shade = 1.0f;
   int surface = 0;
+  PixelBox footprint;  // per frame: pixels whose ray can hit it (render(), not the reference)
 };
 
 struct BoxC {
@@ -58,6 +65,7 @@ struct BoxC {
   Vec3f face_normal_c[6];
   int surface0 = 0;                      // first of six surfaces
   int u0 = 0, u1 = -1, v0 = 0, v1 = -1;  // per frame: image bounding box (inclusive)
+  PixelBox footprint;                    // per frame, cut at the near plane (render())
 };
 
 struct CylinderC {
@@ -66,6 +74,7 @@ struct CylinderC {
   float top_shade = 1.0f;
   const Texture* texture = nullptr;
   int u0 = 0, u1 = -1, v0 = 0, v1 = -1;  // per frame: image bounding box (inclusive)
+  PixelBox footprint;                    // per frame, cut at the near plane (render())
 };
 
 enum class HitKind { kNone, kRect, kBox, kCylinderSide, kCylinderTop };
@@ -94,9 +103,8 @@ float gaussian_from_hash(std::uint64_t h) {
   return (sum * kInv - 2.0f) * 1.7320508f;
 }
 
-}  // namespace
-
-struct RgbdRenderer::Scene {
+/// Intersection and shading tables; RgbdRenderer::Scene is this, under its private name.
+struct SceneTables {
   std::vector<Rectangle> rects_world;  // floor first, then walls
   std::vector<Box> boxes_world;
   std::vector<Cylinder> cylinders_world;
@@ -105,7 +113,24 @@ struct RgbdRenderer::Scene {
   std::vector<RectC> rects;
   std::vector<BoxC> boxes;
   std::vector<CylinderC> cylinders;
+  std::vector<float> ray_x;     // per column: x / z of its rays (the same as in ray_c_)
+  std::vector<float> ray_y;     // per row: y / z
+  std::vector<float> inv_norm;  // per pixel: 1 / |(x, y, 1)| (the same as in ray_c_)
+  // Per frame (prepare_frame), shared by render() and render_reference().
+  Eigen::Matrix3f R_world_camera = Eigen::Matrix3f::Identity();
+  Vec3f light = Vec3f::UnitZ();
+  std::uint64_t frame_key = 0;
+  // Per row of render()'s shading: surface coordinates, light, incidence cosine, albedo.
+  std::vector<float> row_s, row_w, row_shade, row_cos, row_b, row_g, row_r;
+  std::vector<float> row_depth_draw, row_image_draw;  // standard normal noise draws
+  std::vector<std::int32_t> row_levels;  // intensity of b, g, r, gray (planes), before uint8
+  std::vector<int> near_markers;         // per run: markers that can cover it (markers_near_run)
+  std::vector<float> inverse_depth;      // per pixel: 1 / noise-free z, 0 without a hit
 };
+
+}  // namespace
+
+struct RgbdRenderer::Scene : SceneTables {};
 
 geometry::PinholeCamera pinhole_from_fov(int width, int height, double hfov_rad) {
   geometry::PinholeCamera camera;
@@ -232,8 +257,26 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
     }
   }
   true_depth_m_.create(cam.height, cam.width, CV_32F);
+  hit_t_.resize(static_cast<std::size_t>(n));
+  hit_code_.resize(static_cast<std::size_t>(n));
 
   Scene& sc = *scene_;
+  sc.ray_x.resize(static_cast<std::size_t>(cam.width));
+  for (std::vector<float>* row : {&sc.row_s, &sc.row_w, &sc.row_shade, &sc.row_cos, &sc.row_b,
+                                  &sc.row_g, &sc.row_r, &sc.row_depth_draw, &sc.row_image_draw}) {
+    row->resize(static_cast<std::size_t>(cam.width));
+  }
+  sc.inverse_depth.resize(static_cast<std::size_t>(n));
+  sc.inv_norm.resize(static_cast<std::size_t>(n));
+  sc.near_markers.resize(world.markers.size());
+  for (std::size_t i = 0; i < sc.inv_norm.size(); ++i) sc.inv_norm[i] = ray_c_[3 * i + 2];
+  sc.row_levels.resize(4 * static_cast<std::size_t>(cam.width));
+  sc.ray_y.resize(static_cast<std::size_t>(cam.height));
+  for (int u = 0; u < cam.width; ++u)
+    sc.ray_x[static_cast<std::size_t>(u)] = ray_c_[3 * static_cast<std::size_t>(u)];
+  for (int v = 0; v < cam.height; ++v) {
+    sc.ray_y[static_cast<std::size_t>(v)] = ray_c_[3 * static_cast<std::size_t>(v * cam.width) + 1];
+  }
   sc.rects_world.push_back(world.floor);
   sc.rects_world.insert(sc.rects_world.end(), world.walls.begin(), world.walls.end());
   sc.boxes_world = world.boxes;
@@ -300,11 +343,109 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
 
 RgbdRenderer::~RgbdRenderer() = default;
 
-void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
-                          cv::Mat& image, cv::Mat& depth_m) {
+namespace {
+
+/// Footprints are cut at this depth, below the smallest accepted hit (t is z in C: the rays
+/// have z = 1), so a face crossing the camera's plane keeps the part in front of it.
+constexpr double kFootprintNearZ = 0.5 * kMinT;
+
+/// Pixel bounding rectangle of convex polygons given in camera coordinates, each cut at
+/// z = kFootprintNearZ (Sutherland-Hodgman against that one plane) before projection. A ray
+/// through a pixel centre hitting a polygon projects inside its hull; the one-pixel margin
+/// covers rounding.
+class Footprint {
+ public:
+  explicit Footprint(const geometry::PinholeCamera& cam) : cam_(cam) {}
+
+  void add_polygon(const Eigen::Vector3d* p_c, int n) {
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d& a = p_c[i];
+      const Eigen::Vector3d& b = p_c[(i + 1) % n];
+      const bool a_in = a.z() >= kFootprintNearZ;
+      if (a_in) add_point(a);
+      if (a_in != (b.z() >= kFootprintNearZ)) {
+        const double s = (kFootprintNearZ - a.z()) / (b.z() - a.z());
+        Eigen::Vector3d cut = a + s * (b - a);
+        cut.z() = kFootprintNearZ;
+        add_point(cut);
+      }
+    }
+  }
+
+  /// The 6 faces of the parallelepiped with corner k at corners_c[k] (bit 0, 1, 2 of k: which
+  /// end along the first, second, third edge direction).
+  void add_box(const Eigen::Vector3d corners_c[8]) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const int b = 1 << ((axis + 1) % 3);
+      const int c = 1 << ((axis + 2) % 3);
+      for (int side = 0; side < 2; ++side) {
+        const int k = side << axis;
+        const Eigen::Vector3d quad[4] = {corners_c[k], corners_c[k | b], corners_c[k | b | c],
+                                         corners_c[k | c]};
+        add_polygon(quad, 4);
+      }
+    }
+  }
+
+  [[nodiscard]] PixelBox pixels() const {
+    PixelBox box;
+    if (max_u_ < min_u_) return box;  // wholly behind the camera
+    box.u0 = static_cast<int>(std::clamp(std::floor(min_u_) - 1.0, 0.0, 1.0 * cam_.width));
+    box.u1 = static_cast<int>(std::clamp(std::ceil(max_u_) + 1.0, -1.0, cam_.width - 1.0));
+    box.v0 = static_cast<int>(std::clamp(std::floor(min_v_) - 1.0, 0.0, 1.0 * cam_.height));
+    box.v1 = static_cast<int>(std::clamp(std::ceil(max_v_) + 1.0, -1.0, cam_.height - 1.0));
+    return box;
+  }
+
+ private:
+  void add_point(const Eigen::Vector3d& p) {
+    const double u = cam_.fx * p.x() / p.z() + cam_.cx;
+    const double v = cam_.fy * p.y() / p.z() + cam_.cy;
+    min_u_ = std::min(min_u_, u);
+    max_u_ = std::max(max_u_, u);
+    min_v_ = std::min(min_v_, v);
+    max_v_ = std::max(max_v_, v);
+  }
+
+  const geometry::PinholeCamera& cam_;
+  double min_u_ = 1e300, max_u_ = -1e300, min_v_ = 1e300, max_v_ = -1e300;
+};
+
+/// Per-pixel hit code of the z-buffer: which primitive (in the reference's test order) and
+/// which face of it won.
+constexpr std::int32_t kNoCode = -1;
+std::int32_t hit_code(HitKind kind, int index, int face) {
+  return (static_cast<std::int32_t>(kind) << 24) | (index << 3) | face;
+}
+
+/// Per-frame constants of shading and of the depth model.
+struct ShadeConstants {
+  float ambient, diffuse;
+  float fb, sigma_disparity, subpixels, min_range, max_range, cos_grazing, dark, image_sigma;
+  int channels;
+};
+
+ShadeConstants shade_constants(const CameraParams& params) {
+  const DepthSensorParams& dp = params.depth;
+  ShadeConstants k{};
+  k.ambient = static_cast<float>(params.ambient);
+  k.diffuse = static_cast<float>(params.diffuse);
+  k.fb = static_cast<float>(dp.disparity_focal_px * dp.baseline_m);
+  k.sigma_disparity = static_cast<float>(dp.noise_sigma_per_m2) * k.fb;  // sigma_z = k z^2
+  k.subpixels = static_cast<float>(dp.disparity_subpixels);
+  k.min_range = static_cast<float>(dp.min_range_m);
+  k.max_range = static_cast<float>(dp.max_range_m);
+  k.cos_grazing = static_cast<float>(std::cos(dp.grazing_max_rad));
+  k.dark = static_cast<float>(dp.dark_albedo);
+  k.image_sigma = static_cast<float>(params.image_noise_sigma);
+  k.channels = params.gray ? 1 : 3;
+  return k;
+}
+
+}  // namespace
+
+void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_world_camera) {
   const geometry::PinholeCamera& cam = params_.pinhole;
-  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
-  depth_m.create(cam.height, cam.width, CV_32F);
   Scene& sc = *scene_;
 
   // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
@@ -314,6 +455,9 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
   const auto lambert = [&](const Eigen::Vector3d& n_world) {
     return static_cast<float>(params_.ambient +
                               params_.diffuse * std::max(0.0, n_world.dot(light)));
+  };
+  const auto to_camera = [&](const Eigen::Vector3d& p_world) -> Eigen::Vector3d {
+    return R_camera_world * (p_world - o_world);
   };
   for (std::size_t i = 0; i < sc.rects.size(); ++i) {
     const Rectangle& r = sc.rects_world[i];
@@ -330,6 +474,14 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
     rc.half_u = static_cast<float>(r.half_u_m);
     rc.half_v = static_cast<float>(r.half_v_m);
     rc.shade = lambert(n_world);
+    const Eigen::Vector3d du = r.half_u_m * r.axis_u;
+    const Eigen::Vector3d dv = r.half_v_m * r.axis_v;
+    const Eigen::Vector3d quad[4] = {
+        to_camera(r.center_m - du - dv), to_camera(r.center_m + du - dv),
+        to_camera(r.center_m + du + dv), to_camera(r.center_m - du + dv)};
+    Footprint footprint(cam);
+    footprint.add_polygon(quad, 4);
+    rc.footprint = footprint.pixels();
   }
   for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
     const Box& b = sc.boxes_world[i];
@@ -344,11 +496,16 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       bc.face_normal_c[f] = (R_camera_world * n_world).cast<float>();
     }
     Eigen::Vector3d corners[8];
+    Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d sign((k & 1) ? 1.0 : -1.0, (k & 2) ? 1.0 : -1.0, (k & 4) ? 1.0 : -1.0);
       corners[k] = b.center_m + R_world_local * (0.5 * b.size_m.cwiseProduct(sign));
+      corners_c[k] = to_camera(corners[k]);
     }
     screen_bounds(corners, R_camera_world, o_world, cam, bc.u0, bc.u1, bc.v0, bc.v1);
+    Footprint footprint(cam);
+    footprint.add_box(corners_c);
+    bc.footprint = footprint.pixels();
   }
   for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
     const Cylinder& c = sc.cylinders_world[i];
@@ -360,30 +517,567 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
     cc.height = static_cast<float>(c.height_m);
     cc.top_shade = lambert(Eigen::Vector3d::UnitZ());
     Eigen::Vector3d corners[8];
+    Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       corners[k] = Eigen::Vector3d(c.center_m.x() + ((k & 1) ? c.radius_m : -c.radius_m),
                                    c.center_m.y() + ((k & 2) ? c.radius_m : -c.radius_m),
                                    c.base_z_m + ((k & 4) ? c.height_m : 0.0));
+      corners_c[k] = to_camera(corners[k]);
     }
     screen_bounds(corners, R_camera_world, o_world, cam, cc.u0, cc.u1, cc.v0, cc.v1);
+    Footprint footprint(cam);
+    footprint.add_box(corners_c);  // the cylinder's bounding box
+    cc.footprint = footprint.pixels();
   }
   for (SurfaceMarker& m : sc.markers) {
     m.visible = m.normal_world.dot(o_world.cast<float>() - m.center_world) > 0.0f;
   }
-  const Eigen::Matrix3f R_world_camera = T_world_camera.linear().cast<float>();
-  const Vec3f light_f = light.cast<float>();
+  sc.R_world_camera = T_world_camera.linear().cast<float>();
+  sc.light = light.cast<float>();
+}
 
-  const DepthSensorParams& dp = params_.depth;
-  const float fb = static_cast<float>(dp.disparity_focal_px * dp.baseline_m);
-  const float sigma_disparity = static_cast<float>(dp.noise_sigma_per_m2) * fb;  // sigma_z = k z^2
-  const float subpixels = static_cast<float>(dp.disparity_subpixels);
-  const float min_range = static_cast<float>(dp.min_range_m);
-  const float max_range = static_cast<float>(dp.max_range_m);
-  const float cos_grazing = static_cast<float>(std::cos(dp.grazing_max_rad));
-  const float dark = static_cast<float>(dp.dark_albedo);
-  const float image_sigma = static_cast<float>(params_.image_noise_sigma);
-  const std::uint64_t frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
-  const int channels = params_.gray ? 1 : 3;
+namespace {
+
+/// Shades one pixel given its nearest hit: texture and markers, Lambert lighting, image noise
+/// and the structured-light depth model. Writes the pixel's channels, measured depth and
+/// noise-free z (0 without a hit).
+inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hit& hit,
+                        const float* ray, int pixel, std::uint8_t* out, float& depth_out,
+                        float& z_true_out) {
+  const Vec3f d(ray[0], ray[1], 1.0f);
+  float pixel_value[3] = {0.0f, 0.0f, 0.0f};
+  float z_true = 0.0f;
+  float depth = 0.0f;
+  if (hit.kind != HitKind::kNone) {
+    const Texture* texture = nullptr;
+    const Surface* surface = nullptr;
+    float shade = 1.0f;
+    float cos_incidence = 1.0f;
+    switch (hit.kind) {
+      case HitKind::kRect: {
+        const RectC& r = sc.rects[static_cast<std::size_t>(hit.index)];
+        surface = &sc.surfaces[static_cast<std::size_t>(r.surface)];
+        shade = r.shade;
+        cos_incidence = -r.n_c.dot(d) * ray[2];
+        break;
+      }
+      case HitKind::kBox: {
+        const BoxC& b = sc.boxes[static_cast<std::size_t>(hit.index)];
+        surface = &sc.surfaces[static_cast<std::size_t>(b.surface0 + hit.face)];
+        shade = b.face_shade[hit.face];
+        cos_incidence = -b.face_normal_c[hit.face].dot(d) * ray[2];
+        break;
+      }
+      case HitKind::kCylinderSide: {
+        const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
+        texture = c.texture;
+        const float angle = hit.s / c.radius;
+        const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
+        const Vec3f dw = sc.R_world_camera * d;
+        shade = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
+        cos_incidence = -n.dot(dw) * ray[2];
+        break;
+      }
+      case HitKind::kCylinderTop: {
+        const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
+        texture = c.texture;
+        shade = c.top_shade;
+        cos_incidence = -(sc.R_world_camera * d).z() * ray[2];
+        break;
+      }
+      case HitKind::kNone:
+        break;
+    }
+    if (surface != nullptr) texture = surface->texture;
+    Vec3f albedo = texture->albedo(hit.s, hit.u);
+    if (surface != nullptr) {
+      for (int i : surface->markers) {
+        const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(i)];
+        const float ds = hit.s - m.s0;
+        const float dt = hit.u - m.t0;
+        if (!m.visible || std::abs(ds) > m.reach || std::abs(dt) > m.reach) continue;
+        const float col = m.a00 * ds + m.a01 * dt + 0.5f * kTagCells;
+        const float row = m.a10 * ds + m.a11 * dt + 0.5f * kTagCells;
+        if (col < 0.0f || row < 0.0f || col >= kTagCells || row >= kTagCells) continue;
+        const bool white = m.cells[static_cast<int>(row) * kTagCells + static_cast<int>(col)] != 0;
+        albedo.setConstant(white ? kTagWhiteAlbedo : kTagBlackAlbedo);
+        break;
+      }
+    }
+    for (int c = 0; c < 3; ++c) pixel_value[c] = 255.0f * shade * albedo[c];
+
+    z_true = hit.t;
+    const float luminance = (albedo[0] + albedo[1] + albedo[2]) * (1.0f / 3.0f);
+    if (luminance >= k.dark && cos_incidence >= k.cos_grazing) {
+      // Structured light measures disparity fb / z: Gaussian disparity noise and sub-pixel
+      // quantisation make sigma_z grow with z^2 (Khoshelham 2012, eq. 9).
+      float disparity = k.fb / z_true;
+      if (k.sigma_disparity > 0.0f) {
+        disparity +=
+            k.sigma_disparity * gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel)));
+      }
+      if (k.subpixels > 0.0f) disparity = std::round(disparity * k.subpixels) / k.subpixels;
+      if (disparity > 0.0f) {
+        const float z = k.fb / disparity;
+        depth = (z >= k.min_range && z <= k.max_range) ? z : 0.0f;
+      }
+    }
+  }
+  z_true_out = z_true;
+  depth_out = depth;
+  const float noise =
+      k.image_sigma > 0.0f
+          ? k.image_sigma * gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel + 1ull)))
+          : 0.0f;
+  for (int c = 0; c < k.channels; ++c) {
+    const float value = k.channels == 1 ? 0.114f * pixel_value[0] + 0.587f * pixel_value[1] +
+                                              0.299f * pixel_value[2]
+                                        : pixel_value[c];
+    out[c] = static_cast<std::uint8_t>(std::clamp(value + noise + 0.5f, 0.0f, 255.0f));
+  }
+}
+
+}  // namespace
+
+namespace {
+
+/// The planar surface (rectangle or box face) a hit code names; nullptr for a cylinder.
+const Surface* surface_of(const SceneTables& sc, std::int32_t code) {
+  const int index = (code >> 3) & 0x1fffff;
+  switch (static_cast<HitKind>(code >> 24)) {
+    case HitKind::kRect:
+      return &sc.surfaces[static_cast<std::size_t>(
+          sc.rects[static_cast<std::size_t>(index)].surface)];
+    case HitKind::kBox:
+      return &sc.surfaces[static_cast<std::size_t>(
+          sc.boxes[static_cast<std::size_t>(index)].surface0 + (code & 7))];
+    default:
+      return nullptr;
+  }
+}
+
+const Texture* cylinder_texture(const SceneTables& sc, std::int32_t code) {
+  return sc.cylinders[static_cast<std::size_t>((code >> 3) & 0x1fffff)].texture;
+}
+
+/// Replaces the albedo by the cell of the first visible marker of the surface covering (s, w).
+inline void paint_markers(const SceneTables& sc, const int* markers, int count, float s, float w,
+                          float& b, float& g, float& r) {
+  for (int k = 0; k < count; ++k) {
+    const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(markers[k])];
+    const float ds = s - m.s0;
+    const float dt = w - m.t0;
+    if (!m.visible || std::abs(ds) > m.reach || std::abs(dt) > m.reach) continue;
+    const float col = m.a00 * ds + m.a01 * dt + 0.5f * kTagCells;
+    const float row = m.a10 * ds + m.a11 * dt + 0.5f * kTagCells;
+    if (col < 0.0f || row < 0.0f || col >= kTagCells || row >= kTagCells) continue;
+    const bool white = m.cells[static_cast<int>(row) * kTagCells + static_cast<int>(col)] != 0;
+    b = g = r = white ? kTagWhiteAlbedo : kTagBlackAlbedo;
+    return;
+  }
+}
+
+/// The visible markers of a surface that can cover a pixel of the run (s_m, w_m)[0, n), in
+/// the surface's order, into near; returns how many. A marker is left out only if its square
+/// of half-side reach misses the run's (s, t) bounding box by more than 1 cm, so float
+/// rounding cannot leave out one that paint_markers() would paint.
+int markers_near_run(const SceneTables& sc, const Surface& surface, const float* s_m,
+                     const float* w_m, int n, int* near) {
+  float s_lo = s_m[0], s_hi = s_m[0], t_lo = w_m[0], t_hi = w_m[0];
+  for (int i = 1; i < n; ++i) {
+    s_lo = std::min(s_lo, s_m[i]);
+    s_hi = std::max(s_hi, s_m[i]);
+    t_lo = std::min(t_lo, w_m[i]);
+    t_hi = std::max(t_hi, w_m[i]);
+  }
+  constexpr float kMargin = 0.01f;
+  int count = 0;
+  for (int i : surface.markers) {
+    const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(i)];
+    const float reach = m.reach + kMargin;
+    if (!m.visible || m.s0 + reach < s_lo || m.s0 - reach > s_hi || m.t0 + reach < t_lo ||
+        m.t0 - reach > t_hi) {
+      continue;
+    }
+    near[count++] = i;
+  }
+  return count;
+}
+
+/// Standard normal draws for the n pixels from index `first` on, of the stream `odd` (0:
+/// depth, 1: image): shade_pixel()'s hash per pixel. Built also for AVX-512 (a native 64-bit
+/// multiply) and AVX2, picked at load time; integer work but for the last scaling, which
+/// -ffp-contract=off keeps from fusing.
+HQ_SIM_CLONES_AVX512 void noise_draws(std::uint64_t frame_key, std::uint64_t first,
+                                      std::uint64_t odd, int n, float* draw) {
+#pragma omp simd
+  for (int u = 0; u < n; ++u) {
+    const std::uint64_t pixel = first + static_cast<std::uint64_t>(u);
+    draw[u] = gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel + odd)));
+  }
+}
+
+/// One row's inputs and outputs of the colour and depth-model stage.
+struct RowStage {
+  const std::int32_t* code;
+  const float* t;
+  const float* shade;
+  const float* cos_incidence;
+  const float *b, *g, *r;  // albedo
+  const float* depth_draw;
+  const float* image_draw;
+  float* true_depth;
+  float* depth;
+  std::int32_t *level_b, *level_g, *level_r, *level_gray;
+};
+
+/// Colour, depth model and noise: shade_pixel()'s operations, branch-free so that they
+/// vectorise, every conditional a select. (GCC 12 if-converts none of it in AVX2 or AVX-512
+/// target clones, so it has none.)
+void colour_and_depth(const ShadeConstants& k, const RowStage& row, int n) {
+  const bool quantise = k.subpixels > 0.0f;
+  // std::round (half away from zero) without a library call or a branch (the fraction is as
+  // likely above as below one half); exact, as x - trunc(x) is.
+  const auto round_half_away = [](float x) {
+    // |x| >= 2^23 is an integer already (or not finite): x itself. Clamping first keeps the
+    // int32 conversion defined.
+    const float bounded = std::min(std::max(x, -8388608.0f), 8388608.0f);
+    const auto truncated = static_cast<float>(static_cast<std::int32_t>(bounded));
+    const float fraction = bounded - truncated;
+    const float rounded =
+        truncated + (fraction >= 0.5f ? 1.0f : 0.0f) - (fraction <= -0.5f ? 1.0f : 0.0f);
+    return std::abs(x) < 8388608.0f ? rounded : x;
+  };
+#pragma omp simd
+  for (int u = 0; u < n; ++u) {
+    // Unconditional loads (stale values where nothing was hit are selected away): a load
+    // under a condition would need a masked load, which SSE2 lacks.
+    const bool hit = row.code[u] != kNoCode;
+    const float light = row.shade[u];
+    const float t = row.t[u];
+    const float b = row.b[u];
+    const float g = row.g[u];
+    const float r = row.r[u];
+    const float value_b = hit ? 255.0f * light * b : 0.0f;
+    const float value_g = hit ? 255.0f * light * g : 0.0f;
+    const float value_r = hit ? 255.0f * light * r : 0.0f;
+    const float z_true = hit ? t : 0.0f;
+    const float luminance = (b + g + r) * (1.0f / 3.0f);
+    const bool measured = hit & (luminance >= k.dark) & (row.cos_incidence[u] >= k.cos_grazing);
+    // Structured light: disparity fb / z, its noise and quantisation (Khoshelham 2012).
+    float disparity = k.fb / z_true + k.sigma_disparity * row.depth_draw[u];
+    disparity = quantise ? round_half_away(disparity * k.subpixels) / k.subpixels : disparity;
+    const float z = k.fb / disparity;
+    const bool in_range = (disparity > 0.0f) & (z >= k.min_range) & (z <= k.max_range);
+    row.true_depth[u] = z_true;
+    row.depth[u] = (measured & in_range) ? z : 0.0f;
+    const float noise = k.image_sigma * row.image_draw[u];
+    // Clamped to [0, 255]: truncating to int32 here and to uint8 by the caller gives what a
+    // direct cast gives. Planar: GCC vectorises neither a narrowing select nor stores three
+    // apart.
+    const auto level = [](float x) {
+      return static_cast<std::int32_t>(std::min(std::max(x, 0.0f), 255.0f));
+    };
+    const float gray = 0.114f * value_b + 0.587f * value_g + 0.299f * value_r;
+    row.level_gray[u] = level(gray + noise + 0.5f);
+    row.level_b[u] = level(value_b + noise + 0.5f);
+    row.level_g[u] = level(value_g + noise + 0.5f);
+    row.level_r[u] = level(value_r + noise + 0.5f);
+  }
+}
+
+}  // namespace
+
+void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+                          cv::Mat& image, cv::Mat& depth_m) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
+  depth_m.create(cam.height, cam.width, CV_32F);
+  prepare_frame(T_world_camera);
+  Scene& sc = *scene_;
+  sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
+  const int width = cam.width;
+  const float* ray_x = sc.ray_x.data();
+
+  // 1. Visibility: each primitive tests only the pixels of its footprint and z-tests its hits
+  // into (hit_t_, hit_code_). Primitives go in the reference's order with the same strict
+  // comparisons, so the same one wins a tie.
+  std::fill(hit_t_.begin(), hit_t_.end(), kNoHit);
+  std::fill(hit_code_.begin(), hit_code_.end(), kNoCode);
+  for (std::size_t i = 0; i < sc.rects.size(); ++i) {
+    const RectC& r = sc.rects[i];
+    const PixelBox& fp = r.footprint;
+    const std::int32_t code = hit_code(HitKind::kRect, static_cast<int>(i), 0);
+    for (int v = fp.v0; v <= fp.v1; ++v) {
+      // n . d with d = (x, y, 1) sums as n_x x + (n_y y + n_z), the order Eigen's dot uses, so
+      // the row-constant part can be hoisted without changing a bit.
+      const float y = sc.ray_y[static_cast<std::size_t>(v)];
+      const float n_y = r.n_c.y() * y + r.n_c.z();
+      const float u_y = r.u_c.y() * y + r.u_c.z();
+      const float v_y = r.v_c.y() * y + r.v_c.z();
+      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      const int u_end = fp.u1 + 1;  // a < bound lets the vectoriser count the iterations
+      for (int u = fp.u0; u < u_end; ++u) {
+        const float x = ray_x[u];
+        const float denom = r.n_c.x() * x + n_y;
+        const float t = r.n_dot_c / denom;
+        const float s = t * (r.u_c.x() * x + u_y) - r.u_dot_c;
+        const float w = t * (r.v_c.x() * x + v_y) - r.v_dot_c;
+        // Seen from the front (n faces the camera), in front of it, nearer, inside; & rather
+        // than && keeps the loop free of branches, so it vectorises.
+        const bool inside_u = std::abs(s) <= r.half_u;
+        const bool inside_v = std::abs(w) <= r.half_v;
+        const bool hit = (denom <= -1e-6f) & (t >= kMinT) & (t < t_row[u]) & inside_u & inside_v;
+        t_row[u] = hit ? t : t_row[u];
+        code_row[u] = hit ? code : code_row[u];
+      }
+    }
+  }
+  for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
+    const BoxC& b = sc.boxes[i];
+    const PixelBox& fp = b.footprint;
+    for (int v = fp.v0; v <= fp.v1; ++v) {
+      const float y = sc.ray_y[static_cast<std::size_t>(v)];
+      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      for (int u = fp.u0; u <= fp.u1; ++u) {
+        const Vec3f d(ray_x[u], y, 1.0f);
+        const Vec3f dl = b.R_local_camera * d;
+        float t_near = -kNoHit;
+        float t_far = kNoHit;
+        int axis = 0;
+        for (int k = 0; k < 3; ++k) {
+          const float inv = 1.0f / dl[k];
+          float t0 = (-b.half[k] - b.o_local[k]) * inv;
+          float t1 = (b.half[k] - b.o_local[k]) * inv;
+          if (t0 > t1) std::swap(t0, t1);
+          if (t0 > t_near) {
+            t_near = t0;
+            axis = k;
+          }
+          t_far = std::min(t_far, t1);
+        }
+        if (t_near > t_far || t_near < kMinT || t_near >= t_row[u]) continue;
+        const int face = 2 * axis + (dl[axis] < 0.0f ? 0 : 1);  // entering through +axis
+        t_row[u] = t_near;
+        code_row[u] = hit_code(HitKind::kBox, static_cast<int>(i), face);
+      }
+    }
+  }
+  for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
+    const CylinderC& c = sc.cylinders[i];
+    const PixelBox& fp = c.footprint;
+    const std::int32_t side_code = hit_code(HitKind::kCylinderSide, static_cast<int>(i), 0);
+    const std::int32_t top_code = hit_code(HitKind::kCylinderTop, static_cast<int>(i), 0);
+    for (int v = fp.v0; v <= fp.v1; ++v) {
+      const float y = sc.ray_y[static_cast<std::size_t>(v)];
+      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      for (int u = fp.u0; u <= fp.u1; ++u) {
+        const Vec3f dw = sc.R_world_camera * Vec3f(ray_x[u], y, 1.0f);
+        const float a = dw.x() * dw.x() + dw.y() * dw.y();
+        const float b = c.ox * dw.x() + c.oy * dw.y();
+        const float cc = c.ox * c.ox + c.oy * c.oy - c.radius * c.radius;
+        const float disc = b * b - a * cc;
+        if (a > 1e-12f && disc >= 0.0f) {
+          const float t = (-b - std::sqrt(disc)) / a;
+          const float z = c.oz + t * dw.z();
+          if (t > kMinT && t < t_row[u] && z >= 0.0f && z <= c.height) {
+            t_row[u] = t;
+            code_row[u] = side_code;
+          }
+        }
+        if (dw.z() < -1e-6f && c.oz > c.height) {
+          const float t = (c.height - c.oz) / dw.z();
+          const float x = c.ox + t * dw.x();
+          const float y_top = c.oy + t * dw.y();
+          if (t > kMinT && t < t_row[u] && x * x + y_top * y_top <= c.radius * c.radius) {
+            t_row[u] = t;
+            code_row[u] = top_code;
+          }
+        }
+      }
+    }
+  }
+
+  // 2. Shading, once per pixel and row by row in stages: the winner's surface coordinates,
+  // light and incidence (recomputed from its t by the reference's expressions); albedo over
+  // runs of one surface (a vectorised texture loop) and its markers; then colour, depth model
+  // and noise. The same operations as shade_pixel() in the same order: the same bits.
+  const ShadeConstants k = shade_constants(params_);
+  float* s_m = sc.row_s.data();
+  float* w_m = sc.row_w.data();
+  float* shade = sc.row_shade.data();
+  float* cos_incidence = sc.row_cos.data();
+  float* b = sc.row_b.data();
+  float* g = sc.row_g.data();
+  float* r = sc.row_r.data();
+  float* depth_draw = sc.row_depth_draw.data();
+  float* image_draw = sc.row_image_draw.data();
+  std::int32_t* level_b = sc.row_levels.data();  // four planes of width
+  std::int32_t* level_g = level_b + width;
+  std::int32_t* level_r = level_g + width;
+  std::int32_t* level_gray = level_r + width;
+  for (int v = 0; v < cam.height; ++v) {
+    const float y = sc.ray_y[static_cast<std::size_t>(v)];
+    const float* inv_norm_row = sc.inv_norm.data() + static_cast<std::ptrdiff_t>(v) * width;
+    const float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
+    const std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+    for (int u0 = 0; u0 < width;) {
+      const std::int32_t run_code = code_row[u0];
+      int u1 = u0 + 1;
+      while (u1 < width && code_row[u1] == run_code) ++u1;
+      if (run_code != kNoCode && static_cast<HitKind>(run_code >> 24) == HitKind::kRect) {
+        // A run on one rectangle (most pixels: floor and walls), vectorised. Its dots sum as
+        // x_term + (y_term + z_term), Eigen's order, so the row-constant part is hoisted
+        // without changing a bit.
+        const RectC& rc = sc.rects[static_cast<std::size_t>((run_code >> 3) & 0x1fffff)];
+        const float u_y = rc.u_c.y() * y + rc.u_c.z();
+        const float v_y = rc.v_c.y() * y + rc.v_c.z();
+        const float n_y = rc.n_c.y() * y + rc.n_c.z();
+#pragma omp simd
+        for (int u = u0; u < u1; ++u) {
+          const float x = ray_x[u];
+          s_m[u] = t_row[u] * (rc.u_c.x() * x + u_y) - rc.u_dot_c;
+          w_m[u] = t_row[u] * (rc.v_c.x() * x + v_y) - rc.v_dot_c;
+          shade[u] = rc.shade;
+          cos_incidence[u] = -(rc.n_c.x() * x + n_y) * inv_norm_row[u];
+        }
+        u0 = u1;
+        continue;
+      }
+      for (int u = u0; u < u1; ++u) {
+        const std::int32_t code = code_row[u];
+        s_m[u] = 0.0f;
+        w_m[u] = 0.0f;
+        if (code == kNoCode) continue;
+        const Vec3f d(ray_x[u], y, 1.0f);
+        const float t = t_row[u];
+        const int index = (code >> 3) & 0x1fffff;
+        const int face = code & 7;
+        const float ray_scale = inv_norm_row[u];
+        switch (static_cast<HitKind>(code >> 24)) {
+          case HitKind::kRect: {
+            const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
+            s_m[u] = t * rc.u_c.dot(d) - rc.u_dot_c;
+            w_m[u] = t * rc.v_c.dot(d) - rc.v_dot_c;
+            shade[u] = rc.shade;
+            cos_incidence[u] = -rc.n_c.dot(d) * ray_scale;
+            break;
+          }
+          case HitKind::kBox: {
+            const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
+            // dl first, as the reference: Eigen folds t * (R * d) into the product, which
+            // rounds differently.
+            const Vec3f dl = bc.R_local_camera * d;
+            const Vec3f p = bc.o_local + t * dl;
+            const int axis = face / 2;
+            s_m[u] = p[axis == 0 ? 1 : 0];
+            w_m[u] = p[axis == 2 ? 1 : 2];
+            shade[u] = bc.face_shade[face];
+            cos_incidence[u] = -bc.face_normal_c[face].dot(d) * ray_scale;
+            break;
+          }
+          case HitKind::kCylinderSide: {
+            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+            const Vec3f dw = sc.R_world_camera * d;
+            s_m[u] = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
+            w_m[u] = c.oz + t * dw.z();
+            const float angle = s_m[u] / c.radius;
+            const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
+            shade[u] = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
+            cos_incidence[u] = -n.dot(dw) * ray_scale;
+            break;
+          }
+          case HitKind::kCylinderTop: {
+            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+            const Vec3f dw = sc.R_world_camera * d;
+            s_m[u] = c.ox + t * dw.x();
+            w_m[u] = c.oy + t * dw.y();
+            shade[u] = c.top_shade;
+            cos_incidence[u] = -dw.z() * ray_scale;
+            break;
+          }
+          case HitKind::kNone:
+            break;
+        }
+      }
+      u0 = u1;
+    }
+    for (int u0 = 0; u0 < width;) {
+      const std::int32_t code = code_row[u0];
+      int u1 = u0 + 1;
+      while (u1 < width && code_row[u1] == code) ++u1;
+      if (code != kNoCode) {
+        const Surface* surface = surface_of(sc, code);
+        const Texture& texture =
+            surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
+        texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
+        if (surface != nullptr && !surface->markers.empty()) {
+          // Only the markers near this run (a floor may carry dozens) are tested per pixel.
+          int* near = sc.near_markers.data();
+          const int count = markers_near_run(sc, *surface, s_m + u0, w_m + u0, u1 - u0, near);
+          for (int u = u0; count > 0 && u < u1; ++u) {
+            paint_markers(sc, near, count, s_m[u], w_m[u], b[u], g[u], r[u]);
+          }
+        }
+      }
+      u0 = u1;
+    }
+    // A zero sigma adds sigma * draw = +-0, which changes no value: the draws can be 0 then.
+    const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
+    if (k.sigma_disparity > 0.0f) {
+      noise_draws(sc.frame_key, first, 0ull, width, depth_draw);
+    } else {
+      std::fill(depth_draw, depth_draw + width, 0.0f);
+    }
+    if (k.image_sigma > 0.0f) {
+      noise_draws(sc.frame_key, first, 1ull, width, image_draw);
+    } else {
+      std::fill(image_draw, image_draw + width, 0.0f);
+    }
+    const RowStage row{code_row,
+                       t_row,
+                       shade,
+                       cos_incidence,
+                       b,
+                       g,
+                       r,
+                       depth_draw,
+                       image_draw,
+                       true_depth_m_.ptr<float>(v),
+                       depth_m.ptr<float>(v),
+                       level_b,
+                       level_g,
+                       level_r,
+                       level_gray};
+    colour_and_depth(k, row, width);
+    std::uint8_t* out = image.ptr<std::uint8_t>(v);
+    if (k.channels == 1) {
+#pragma omp simd
+      for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
+    } else {
+      for (int u = 0; u < width; ++u) {
+        out[3 * u] = static_cast<std::uint8_t>(level_b[u]);
+        out[3 * u + 1] = static_cast<std::uint8_t>(level_g[u]);
+        out[3 * u + 2] = static_cast<std::uint8_t>(level_r[u]);
+      }
+    }
+  }
+  drop_depth_at_discontinuities_fast(depth_m);
+}
+
+void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_world_camera,
+                                    std::uint64_t frame_index, cv::Mat& image, cv::Mat& depth_m) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
+  depth_m.create(cam.height, cam.width, CV_32F);
+  prepare_frame(T_world_camera);
+  Scene& sc = *scene_;
+  sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
+  const Eigen::Matrix3f& R_world_camera = sc.R_world_camera;
+  const ShadeConstants k = shade_constants(params_);
 
   for (int v = 0; v < cam.height; ++v) {
     std::uint8_t* out = image.ptr<std::uint8_t>(v);
@@ -459,124 +1153,65 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
           }
         }
       }
-
-      float pixel_value[3] = {0.0f, 0.0f, 0.0f};
-      float z_true = 0.0f;
-      float depth = 0.0f;
-      if (hit.kind != HitKind::kNone) {
-        const Texture* texture = nullptr;
-        const Surface* surface = nullptr;
-        float shade = 1.0f;
-        float cos_incidence = 1.0f;
-        switch (hit.kind) {
-          case HitKind::kRect: {
-            const RectC& r = sc.rects[static_cast<std::size_t>(hit.index)];
-            surface = &sc.surfaces[static_cast<std::size_t>(r.surface)];
-            shade = r.shade;
-            cos_incidence = -r.n_c.dot(d) * ray[2];
-            break;
-          }
-          case HitKind::kBox: {
-            const BoxC& b = sc.boxes[static_cast<std::size_t>(hit.index)];
-            surface = &sc.surfaces[static_cast<std::size_t>(b.surface0 + hit.face)];
-            shade = b.face_shade[hit.face];
-            cos_incidence = -b.face_normal_c[hit.face].dot(d) * ray[2];
-            break;
-          }
-          case HitKind::kCylinderSide: {
-            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
-            texture = c.texture;
-            const float angle = hit.s / c.radius;
-            const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
-            const Vec3f dw = R_world_camera * d;
-            shade = static_cast<float>(params_.ambient) +
-                    static_cast<float>(params_.diffuse) * std::max(0.0f, n.dot(light_f));
-            cos_incidence = -n.dot(dw) * ray[2];
-            break;
-          }
-          case HitKind::kCylinderTop: {
-            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
-            texture = c.texture;
-            shade = c.top_shade;
-            cos_incidence = -(R_world_camera * d).z() * ray[2];
-            break;
-          }
-          case HitKind::kNone:
-            break;
-        }
-        if (surface != nullptr) texture = surface->texture;
-        Vec3f albedo = texture->albedo(hit.s, hit.u);
-        if (surface != nullptr) {
-          for (int k : surface->markers) {
-            const SurfaceMarker& m = sc.markers[static_cast<std::size_t>(k)];
-            const float ds = hit.s - m.s0;
-            const float dt = hit.u - m.t0;
-            if (!m.visible || std::abs(ds) > m.reach || std::abs(dt) > m.reach) continue;
-            const float col = m.a00 * ds + m.a01 * dt + 0.5f * kTagCells;
-            const float row = m.a10 * ds + m.a11 * dt + 0.5f * kTagCells;
-            if (col < 0.0f || row < 0.0f || col >= kTagCells || row >= kTagCells) continue;
-            const bool white =
-                m.cells[static_cast<int>(row) * kTagCells + static_cast<int>(col)] != 0;
-            albedo.setConstant(white ? kTagWhiteAlbedo : kTagBlackAlbedo);
-            break;
-          }
-        }
-        for (int k = 0; k < 3; ++k) pixel_value[k] = 255.0f * shade * albedo[k];
-
-        z_true = hit.t;
-        const float luminance = (albedo[0] + albedo[1] + albedo[2]) * (1.0f / 3.0f);
-        if (luminance >= dark && cos_incidence >= cos_grazing) {
-          // Structured light measures disparity fb / z: Gaussian disparity noise and sub-pixel
-          // quantisation make sigma_z grow with z^2 (Khoshelham 2012, eq. 9).
-          float disparity = fb / z_true;
-          if (sigma_disparity > 0.0f) {
-            disparity +=
-                sigma_disparity * gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel)));
-          }
-          if (subpixels > 0.0f) disparity = std::round(disparity * subpixels) / subpixels;
-          if (disparity > 0.0f) {
-            const float z = fb / disparity;
-            depth = (z >= min_range && z <= max_range) ? z : 0.0f;
-          }
-        }
-      }
-      true_row[u] = z_true;
-      depth_row[u] = depth;
-      const float noise =
-          image_sigma > 0.0f
-              ? image_sigma * gaussian_from_hash(splitmix64(frame_key ^ (2ull * pixel + 1ull)))
-              : 0.0f;
-      for (int k = 0; k < channels; ++k) {
-        const float value = channels == 1 ? 0.114f * pixel_value[0] + 0.587f * pixel_value[1] +
-                                                0.299f * pixel_value[2]
-                                          : pixel_value[k];
-        out[channels * u + k] =
-            static_cast<std::uint8_t>(std::clamp(value + noise + 0.5f, 0.0f, 255.0f));
-      }
+      shade_pixel(sc, k, hit, ray, pixel, out + k.channels * u, depth_row[u], true_row[u]);
     }
   }
+  drop_depth_at_discontinuities(depth_m);
+}
 
+void RgbdRenderer::drop_depth_at_discontinuities(cv::Mat& depth_m) const {
   // Structured light loses the pattern at depth discontinuities. On any plane inverse depth is
   // affine in the pixel coordinates, so its second difference vanishes (however oblique the
   // plane); a jump makes it large. Pixels on both sides of a jump, and next to empty space
   // (inverse depth 0), lose their depth. Image borders are left alone.
-  const float jump = static_cast<float>(dp.edge_jump_ratio);
-  if (jump > 0.0f) {
-    const auto inverse = [](float z) { return z > 0.0f ? 1.0f / z : 0.0f; };
-    for (int v = 1; v + 1 < cam.height; ++v) {
-      float* depth_row = depth_m.ptr<float>(v);
-      const float* row = true_depth_m_.ptr<float>(v);
-      const float* up = true_depth_m_.ptr<float>(v - 1);
-      const float* down = true_depth_m_.ptr<float>(v + 1);
-      for (int u = 1; u + 1 < cam.width; ++u) {
-        if (depth_row[u] == 0.0f) continue;
-        const float w = 1.0f / row[u];
-        const float limit = jump * w;
-        if (std::abs(inverse(row[u - 1]) + inverse(row[u + 1]) - 2.0f * w) > limit ||
-            std::abs(inverse(up[u]) + inverse(down[u]) - 2.0f * w) > limit) {
-          depth_row[u] = 0.0f;
-        }
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  const float jump = static_cast<float>(params_.depth.edge_jump_ratio);
+  if (jump <= 0.0f) return;
+  const auto inverse = [](float z) { return z > 0.0f ? 1.0f / z : 0.0f; };
+  for (int v = 1; v + 1 < cam.height; ++v) {
+    float* depth_row = depth_m.ptr<float>(v);
+    const float* row = true_depth_m_.ptr<float>(v);
+    const float* up = true_depth_m_.ptr<float>(v - 1);
+    const float* down = true_depth_m_.ptr<float>(v + 1);
+    for (int u = 1; u + 1 < cam.width; ++u) {
+      if (depth_row[u] == 0.0f) continue;
+      const float w = 1.0f / row[u];
+      const float limit = jump * w;
+      if (std::abs(inverse(row[u - 1]) + inverse(row[u + 1]) - 2.0f * w) > limit ||
+          std::abs(inverse(up[u]) + inverse(down[u]) - 2.0f * w) > limit) {
+        depth_row[u] = 0.0f;
       }
+    }
+  }
+}
+
+void RgbdRenderer::drop_depth_at_discontinuities_fast(cv::Mat& depth_m) {
+  // drop_depth_at_discontinuities() with each inverse depth computed once instead of five
+  // times: 1 / z is the same float wherever it is computed.
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  const float jump = static_cast<float>(params_.depth.edge_jump_ratio);
+  if (jump <= 0.0f) return;
+  Scene& sc = *scene_;
+  const int width = cam.width;
+  for (int v = 0; v < cam.height; ++v) {
+    const float* row = true_depth_m_.ptr<float>(v);
+    float* inverse = sc.inverse_depth.data() + static_cast<std::ptrdiff_t>(v) * width;
+#pragma omp simd
+    for (int u = 0; u < width; ++u) inverse[u] = row[u] > 0.0f ? 1.0f / row[u] : 0.0f;
+  }
+  for (int v = 1; v + 1 < cam.height; ++v) {
+    float* depth_row = depth_m.ptr<float>(v);
+    const float* w = sc.inverse_depth.data() + static_cast<std::ptrdiff_t>(v) * width;
+    const float* up = w - width;
+    const float* down = w + width;
+#pragma omp simd
+    for (int u = 1; u < width - 1; ++u) {
+      // A valid depth has a hit, so w[u] is the reference's 1.0f / row[u].
+      const float limit = jump * w[u];
+      const bool jump_u = std::abs(w[u - 1] + w[u + 1] - 2.0f * w[u]) > limit;
+      const bool jump_v = std::abs(up[u] + down[u] - 2.0f * w[u]) > limit;
+      const bool edge = jump_u | jump_v;
+      depth_row[u] = edge ? 0.0f : depth_row[u];
     }
   }
 }

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 namespace hq::sim {
 namespace {
@@ -120,6 +121,39 @@ TEST(WorldTest, TexturesAreDeterministicAndTextured) {
   EXPECT_GT(max_v - min_v, 0.1f);  // enough texture for photometric odometry
   t.kind = Texture::Kind::kChecker;
   EXPECT_GT(std::abs(t.albedo(0.1f, 0.1f).x() - t.albedo(0.3f, 0.1f).x()), 0.1f);
+}
+
+// albedo_span() is the renderer's vectorised albedo(): the same bits for every kind, on both
+// sides of zero (floor without libm), at lattice and checker boundaries, at -0 and far out.
+TEST(WorldTest, AlbedoSpanEqualsAlbedoBitForBit) {
+  std::vector<float> s, t;
+  for (float x : {0.0f, -0.0f, 0.2f, -0.2f, 0.6f, -0.6f, 1e-7f, -1e-7f, 37.5f, -123.4f}) {
+    s.push_back(x);
+    t.push_back(-x);
+  }
+  std::uint32_t state = 12345u;
+  for (int i = 0; i < 997; ++i) {  // odd count: the vector loops' remainders run too
+    state = state * 1664525u + 1013904223u;
+    s.push_back(static_cast<float>(state >> 8) * (1.0f / 16777216.0f) * 40.0f - 20.0f);
+    state = state * 1664525u + 1013904223u;
+    t.push_back(static_cast<float>(state >> 8) * (1.0f / 16777216.0f) * 40.0f - 20.0f);
+  }
+  const int n = static_cast<int>(s.size());
+  for (Texture::Kind kind :
+       {Texture::Kind::kChecker, Texture::Kind::kNoise, Texture::Kind::kStripes}) {
+    Texture texture;
+    texture.kind = kind;
+    texture.salt = 7u;
+    texture.scale_m = 0.2f;
+    std::vector<float> b(s.size()), g(s.size()), r(s.size());
+    texture.albedo_span(s.data(), t.data(), n, b.data(), g.data(), r.data());
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3f expected = texture.albedo(s[i], t[i]);
+      ASSERT_EQ(b[i], expected[0]) << "kind " << static_cast<int>(kind) << " at " << s[i];
+      ASSERT_EQ(g[i], expected[1]);
+      ASSERT_EQ(r[i], expected[2]);
+    }
+  }
 }
 
 TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {

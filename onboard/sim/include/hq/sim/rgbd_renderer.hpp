@@ -1,8 +1,9 @@
 #pragma once
 /// Ray-cast RGB-D camera for the simulated worlds: per-pixel rays precomputed once in the
-/// camera frame C (optical: z forward, x right, y down), analytic intersections, procedural
-/// textures and AprilTag 36h11 bitmaps, and a structured-light depth model (Khoshelham and
-/// Oude Elberink 2012: disparity noise and quantisation, sigma_z growing with z^2, no depth at
+/// camera frame C (optical: z forward, x right, y down), analytic intersections tested only on
+/// the pixels a primitive's projection covers (z-buffered), one shading pass per pixel with
+/// procedural textures and AprilTag 36h11 bitmaps, and a structured-light depth model (Khoshelham
+/// and Oude Elberink 2012: disparity noise and quantisation, sigma_z growing with z^2, no depth at
 /// discontinuities, on dark or grazing surfaces). One thread; render() allocates nothing.
 
 #include "hq/geometry/pinhole_camera.hpp"
@@ -61,6 +62,12 @@ class RgbdRenderer {
   void render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index, cv::Mat& image,
               cv::Mat& depth_m);
 
+  /// The per-pixel ray caster render() replaced (every ray against every primitive, shading
+  /// the nearest): same outputs, several times slower. Kept as the reference render() is
+  /// tested and benchmarked against; not for simulation.
+  void render_reference(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+                        cv::Mat& image, cv::Mat& depth_m);
+
   [[nodiscard]] const CameraParams& params() const { return params_; }
 
  private:
@@ -70,6 +77,12 @@ class RgbdRenderer {
   std::vector<float> ray_c_;      ///< per pixel (x/z, y/z, 1/|d|) of the camera ray with z = 1.
   cv::Mat true_depth_m_;          ///< noise-free z per pixel (0 = no hit), for edge detection.
   std::unique_ptr<Scene> scene_;  ///< intersection tables (defined in the .cpp).
+  std::vector<float> hit_t_;      ///< per pixel: nearest hit's t (z in C), +inf if none.
+  std::vector<std::int32_t> hit_code_;  ///< per pixel: which primitive and face won, -1 none.
+
+  void prepare_frame(const Eigen::Isometry3d& T_world_camera);
+  void drop_depth_at_discontinuities(cv::Mat& depth_m) const;  ///< the reference's
+  void drop_depth_at_discontinuities_fast(cv::Mat& depth_m);
 };
 
 }  // namespace hq::sim

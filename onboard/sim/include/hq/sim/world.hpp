@@ -22,6 +22,9 @@ struct Texture {
   std::uint32_t salt = 0;  ///< decorrelates the noise of different surfaces (set at load).
   /// Albedo (BGR, [0, 1]) at surface coordinates; deterministic in (s, t).
   [[nodiscard]] Eigen::Vector3f albedo(float s_m, float t_m) const;
+  /// albedo() at n points at once, bit for bit, in a loop the compiler vectorises: channels
+  /// into b[i], g[i], r[i].
+  void albedo_span(const float* s_m, const float* t_m, int n, float* b, float* g, float* r) const;
 };
 
 /// An AprilTag 36h11 marker lying on a surface. size_m is the side of its black border square
