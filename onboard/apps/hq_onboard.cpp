@@ -38,6 +38,7 @@
 #include <CLI/CLI.hpp>
 
 #include <atomic>
+#include <cstdio>
 #include <string>
 
 namespace hq::onboard_app {
@@ -128,5 +129,8 @@ int run(int argc, char** argv) {
 }  // namespace hq::onboard_app
 
 int main(int argc, char** argv) {
+  // Line-buffered even into a file or a pipe: the events of a flight (FC lost, fail-safes) are
+  // read by operators and tests while it runs, not after it ends.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   return hq::run_tool("hq-onboard", argc, argv, hq::onboard_app::run);
 }

@@ -212,8 +212,12 @@ TEST_F(SitlAutopilotTest, StreamsAttitudeAt50HzAndStatusAt1HzAndAcksEveryCommand
   EXPECT_EQ(out_.all<mav::Heartbeat>().size(), 1u);
   ASSERT_EQ(out_.all<mav::SysStatus>().size(), 1u);
   EXPECT_EQ(out_.all<mav::SysStatus>()[0].voltage_battery_mv, 16800);
-  ap_.on_message(0, 1, 191, command(511, 0), ground, out_);
-  EXPECT_EQ(out_.all<mav::CommandAck>().back().command, 511);
+  // MAV_CMD_SET_MESSAGE_INTERVAL is accepted, as PX4 does; a command it does not know is not.
+  ap_.on_message(0, 1, 191, command(mav::kMavCmdSetMessageInterval, 105), ground, out_);
+  EXPECT_EQ(out_.all<mav::CommandAck>().back().command, mav::kMavCmdSetMessageInterval);
+  EXPECT_EQ(out_.all<mav::CommandAck>().back().result, mav::kMavResultAccepted);
+  ap_.on_message(0, 1, 191, command(520, 0), ground, out_);
+  EXPECT_EQ(out_.all<mav::CommandAck>().back().command, 520);
   EXPECT_EQ(out_.all<mav::CommandAck>().back().result, 3) << "MAV_RESULT_UNSUPPORTED";
   mav::CommandLong other = command(mav::kMavCmdComponentArmDisarm, 1);
   other.target_system = 2;
