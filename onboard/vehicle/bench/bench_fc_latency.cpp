@@ -109,7 +109,7 @@ class WireFc {
   }
   ~WireFc() {
     stop_ = true;
-    thread_.join();
+    if (thread_.joinable()) thread_.join();
   }
   std::vector<std::int64_t> receipts() {
     stop_ = true;
@@ -121,7 +121,18 @@ class WireFc {
   void loop() {
     std::array<std::uint8_t, 2048> buffer{};
     std::int64_t next_beat_ns = 0;
+    const std::int64_t boot_ns = now_ns();
+    std::int64_t next_imu_ns = boot_ns;
     while (!stop_) {
+      // A level vehicle at rest, as an FC streams it: the chain needs an attitude to estimate.
+      for (; now_ns() >= next_imu_ns; next_imu_ns += 5'000'000) {
+        ml::HighresImu imu;
+        imu.time_usec = static_cast<std::uint64_t>((next_imu_ns - boot_ns) / 1000);
+        imu.zacc_mps2 = -9.80665f;
+        std::array<std::uint8_t, ml::kMaxFrameSize> frame{};
+        const std::size_t n = encoder_.encode(imu, frame);
+        transport_->send(std::span<const std::uint8_t>(frame.data(), n));
+      }
       if (now_ns() >= next_beat_ns) {
         ml::Heartbeat hb;
         hb.type = ml::kMavTypeQuadrotor;
@@ -131,7 +142,7 @@ class WireFc {
         transport_->send(std::span<const std::uint8_t>(frame.data(), n));
         next_beat_ns = now_ns() + 200'000'000;
       }
-      if (!transport_->wait_readable(2'000'000)) continue;
+      if (!transport_->wait_readable(1'000'000)) continue;
       std::size_t n = 0;
       while ((n = transport_->receive(buffer)) > 0) {
         const std::int64_t t = now_ns();
@@ -242,6 +253,14 @@ int run(int argc, char** argv) {
     std::vector<std::int64_t> receipts = wire.receipts();
     // Setpoints sent during warm-up came first on the wire.
     const std::size_t skip = static_cast<std::size_t>(sent_before);
+    if (receipts.size() < skip + arrivals.size()) {
+      std::fprintf(stderr,
+                   "hq-bench-fc-latency: %zu setpoints sent, %zu received (FC %s, %llu send "
+                   "failures)\n",
+                   skip + arrivals.size(), receipts.size(),
+                   fc.status(now_ns()).connected ? "connected" : "not heard",
+                   static_cast<unsigned long long>(fc.counters().send_failures));
+    }
     for (std::size_t k = 0; k < arrivals.size() && skip + k < receipts.size(); ++k) {
       wire_us.push_back(1e-3 * static_cast<double>(receipts[skip + k] - arrivals[k]));
     }
