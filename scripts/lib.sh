@@ -12,7 +12,7 @@ HQ_PACKAGES=(
   libgtest-dev libgmock-dev
   cyclonedds-dev cyclonedds-tools libpcl-dev libvisp-dev libceres-dev
   libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
-  xvfb xauth libgl1-mesa-dri gnuplot valgrind
+  xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev
 )
 
 hq_install() {
@@ -28,6 +28,17 @@ hq_install() {
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
       "${missing[@]}" >/dev/null
   fi
+}
+
+# Node.js and npm run the independent checkers of the tests (node-mavlink, @mcap/core), which the
+# test scripts install into the build tree. Best effort: without them those tests report SKIPPED.
+hq_install_checkers() {
+  if command -v node >/dev/null && command -v npm >/dev/null; then return 0; fi
+  local sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  echo "== installing: nodejs npm (independent checkers of the tests)"
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends nodejs npm \
+    >/dev/null 2>&1 || echo "== nodejs/npm unavailable: the npm-checked tests will report SKIPPED" >&2
 }
 
 hq_build() {
