@@ -4,11 +4,13 @@
 // (sim_runs.cpp); hq_onboard.cpp parses the command line and picks one.
 
 #include "hq/link/config.hpp"
+#include "hq/link_bridge/link_bridge.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <string>
 
 namespace hq::onboard_app {
@@ -56,6 +58,13 @@ void request_stop(int signal);
 
 /// One live status line on stderr (overwritten in place).
 void print_status(const pipeline::ChainOutput& out, int frames);
+
+/// The link bridge the options ask for (--link-config, --domain-id, --vehicle-id, the fail-safe
+/// timeouts and the camera rate). Throws hq::InputError for a bad file or value.
+std::unique_ptr<link_bridge::LinkBridge> make_link_bridge(const Options& o);
+/// The link's lines of an exit summary: commands, mode requests and heartbeats accepted and
+/// rejected, fail-safes, what was published.
+void print_link_summary(const link_bridge::LinkBridge& bridge);
 
 /// replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
 int run_vehicle(const Options& o);

@@ -76,18 +76,8 @@ int run_sim_link(const Options& o) {
   sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
-  hq::link::LinkConfig link = o.link_config_path.empty()
-                                  ? hq::link::LinkConfig{}
-                                  : hq::link::load_link_config(o.link_config_path);
-  hq::link::apply_overrides(o.link_overrides, link);
-  hq::link_bridge::FailsafeConfig failsafe;
-  failsafe.vehicle_id = link.vehicle_id;
-  failsafe.envelope = link.envelope;
-  failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
-  failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
-  hq::link_bridge::BridgeOptions bridge_options;
-  bridge_options.camera_rate_hz = o.camera_rate_hz;
-  hq::link_bridge::LinkBridge bridge(link, failsafe, bridge_options);
+  const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
+  hq::link_bridge::LinkBridge& bridge = *link_bridge;
 
   std::FILE* log = nullptr;
   if (!o.link_log_path.empty()) {
@@ -119,10 +109,9 @@ int run_sim_link(const Options& o) {
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,
-               "hq-onboard: simulated %s over the link: domain %d, vehicle %u, %.1f s, command "
-               "timeout %.0f ms, heartbeat timeout %.0f ms\n",
-               world.name.c_str(), link.domain_id, link.vehicle_id, o.duration_s,
-               o.command_timeout_ms, o.heartbeat_timeout_ms);
+               "hq-onboard: simulated %s over the link: %.1f s, command timeout %.0f ms, "
+               "heartbeat timeout %.0f ms\n",
+               world.name.c_str(), o.duration_s, o.command_timeout_ms, o.heartbeat_timeout_ms);
   double t_s = 0.0;
   while (t_s < o.duration_s && !g_stop) {
     t_s = std::min(o.duration_s, t_s + 0.1);
@@ -133,25 +122,9 @@ int run_sim_link(const Options& o) {
   const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
   hq::closed_loop::print_summary(stdout, "flight summary over the link (" + world.name + ")",
                                  summary);
-  const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
   const bool landed = !loop.samples().empty() && loop.samples().back().landed;
   const bool on_ground = loop.simulator().truth().on_ground;
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
-              static_cast<unsigned long long>(c.commands_accepted),
-              static_cast<unsigned long long>(c.commands_rejected));
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
-              static_cast<unsigned long long>(c.mode_requests_accepted),
-              static_cast<unsigned long long>(c.mode_requests_rejected));
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats",
-              static_cast<unsigned long long>(c.heartbeats_accepted),
-              static_cast<unsigned long long>(c.heartbeats_rejected));
-  std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes",
-              static_cast<unsigned long long>(c.holds),
-              static_cast<unsigned long long>(c.land_requests));
-  std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
-              static_cast<unsigned long long>(bridge.states_sent()),
-              static_cast<unsigned long long>(bridge.camera_frames_sent()),
-              static_cast<unsigned long long>(bridge.events_sent()));
+  print_link_summary(bridge);
   std::printf("  %-40s %.1f ms\n", "largest lag behind real time", 1e3 * loop.max_realtime_lag_s());
   std::printf("  %-40s %s (vehicle believes %s)\n", "final state", on_ground ? "on the ground" : "in the air",
               landed ? "landed, motors idle" : "flying");

@@ -211,6 +211,39 @@ void print_status(const hq::pipeline::ChainOutput& out, int frames) {
   std::fflush(stderr);
 }
 
+std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) {
+  hq::link::LinkConfig link = o.link_config_path.empty()
+                                  ? hq::link::LinkConfig{}
+                                  : hq::link::load_link_config(o.link_config_path);
+  hq::link::apply_overrides(o.link_overrides, link);
+  hq::link_bridge::FailsafeConfig failsafe;
+  failsafe.vehicle_id = link.vehicle_id;
+  failsafe.envelope = link.envelope;
+  failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
+  failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
+  hq::link_bridge::BridgeOptions bridge_options;
+  bridge_options.camera_rate_hz = o.camera_rate_hz;
+  std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u\n", link.domain_id,
+               link.vehicle_id);
+  return std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
+}
+
+void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
+  const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
+  const auto count = [](std::uint64_t n) { return static_cast<unsigned long long>(n); };
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
+              count(c.commands_accepted), count(c.commands_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
+              count(c.mode_requests_accepted), count(c.mode_requests_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats",
+              count(c.heartbeats_accepted), count(c.heartbeats_rejected));
+  std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes", count(c.holds),
+              count(c.land_requests));
+  std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
+              count(bridge.states_sent()), count(bridge.camera_frames_sent()),
+              count(bridge.events_sent()));
+}
+
 int run_vehicle(const Options& o) {
   const bool replay = o.source_kind == "replay";
   const bool sitl = o.source_kind == "sitl";
@@ -311,25 +344,12 @@ int run_vehicle(const Options& o) {
   std::unique_ptr<hq::link_bridge::LinkBridge> bridge;
   std::unique_ptr<hq::link_bridge::LinkOperatorPort> link_port;
   if (o.link) {
-    hq::link::LinkConfig link = o.link_config_path.empty()
-                                    ? hq::link::LinkConfig{}
-                                    : hq::link::load_link_config(o.link_config_path);
-    hq::link::apply_overrides(o.link_overrides, link);
-    hq::link_bridge::FailsafeConfig failsafe;
-    failsafe.vehicle_id = link.vehicle_id;
-    failsafe.envelope = link.envelope;
-    failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
-    failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
-    hq::link_bridge::BridgeOptions bridge_options;
-    bridge_options.camera_rate_hz = o.camera_rate_hz;
-    bridge = std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
+    bridge = make_link_bridge(o);
     Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
     T_body_camera.linear() = vehicle.R_body_camera;
     T_body_camera.translation() = vehicle.p_body_camera_m;
     link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain,
                                                                      T_body_camera, stdout);
-    std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u\n", link.domain_id,
-                 link.vehicle_id);
   }
   RunPort port(link_port.get(), csv, live);
   std::unique_ptr<SitlTruth> truth;
@@ -411,22 +431,7 @@ int run_vehicle(const Options& o) {
                 runtime.status().fc_lost ? "LOST" : runtime.status().fc.connected ? "connected" : "never heard");
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
-  if (bridge) {
-    const hq::link_bridge::FailsafeCounters& c = bridge->failsafe().counters();
-    std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
-                static_cast<unsigned long long>(c.commands_accepted),
-                static_cast<unsigned long long>(c.commands_rejected));
-    std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
-                static_cast<unsigned long long>(c.mode_requests_accepted),
-                static_cast<unsigned long long>(c.mode_requests_rejected));
-    std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes",
-                static_cast<unsigned long long>(c.holds),
-                static_cast<unsigned long long>(c.land_requests));
-    std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
-                static_cast<unsigned long long>(bridge->states_sent()),
-                static_cast<unsigned long long>(bridge->camera_frames_sent()),
-                static_cast<unsigned long long>(bridge->events_sent()));
-  }
+  if (bridge) print_link_summary(*bridge);
   std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
   port.timing.print(stdout);
   // A vehicle that lost its flight controller did not end well: say so in the exit status.
