@@ -52,8 +52,6 @@ void VehicleRuntime::on_imu(const FcImuSample& sample) {
   imu_[static_cast<std::size_t>(imu_count_++)] = sample;
 }
 
-void VehicleRuntime::on_attitude(const FcAttitude& /*attitude*/) {}
-
 void VehicleRuntime::on_fc_event(FcSeverity severity, std::string_view text) {
   event(t_now_ns_, severity, text);
 }

@@ -119,7 +119,6 @@ class VehicleRuntime final : private FcSink {
 
  private:
   void on_imu(const FcImuSample& sample) override;
-  void on_attitude(const FcAttitude& attitude) override;
   void on_fc_event(FcSeverity severity, std::string_view text) override;
 
   static constexpr int kMaxArmAttempts = 5;
