@@ -1,7 +1,7 @@
 // hq-sim: flies a scripted, truth-stabilised attitude/thrust sequence in a simulated world and
 // records it in the TUM RGB-D layout (with IMU), giving the odometry team ground-truthed runs.
 //   hq-sim --world onboard/sim/worlds/arena.yaml --duration-s 10 --record out_dir
-//          [--resolution 640x480] [--seed N] [--script hover|circle]
+//          [--resolution 640x480] [--seed N] [--script hover|circle] [--yaw-rate-degps R]
 //          [--config onboard/sim/config/sim.yaml]
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
@@ -40,6 +40,10 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0LL, 2147483647LL));
   app.add_option("--script", script_kind, "hover | circle")
       ->check(CLI::IsMember({"hover", "circle"}));
+  double yaw_rate_degps = -1.0;
+  app.add_option("--yaw-rate-degps", yaw_rate_degps,
+                 "yaw rate of the circle script (default: the script's slow turn)")
+      ->check(CLI::Range(0.0, 360.0));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -52,9 +56,10 @@ int run(int argc, char** argv) {
   config.seed = seed >= 0 ? static_cast<std::uint64_t>(seed) : world.seed;
 
   hq::sim::Simulator sim(config, world);
-  const hq::sim::FlightScript script = hq::sim::script_for_world(
+  hq::sim::FlightScript script = hq::sim::script_for_world(
       world, script_kind == "circle" ? hq::sim::FlightScript::Kind::kCircle
                                      : hq::sim::FlightScript::Kind::kHover);
+  if (yaw_rate_degps >= 0.0) script.circle_yaw_rate_radps = yaw_rate_degps * M_PI / 180.0;
 
   std::unique_ptr<hq::sim::TumWriter> writer;
   if (!record_dir.empty()) {
