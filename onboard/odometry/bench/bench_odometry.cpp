@@ -237,6 +237,8 @@ static int run_benchmarks(int argc, char** argv) {
   std::string camera_path = "calib/tum_fr1.yaml";
   int passes = 10;
   double skip_s = 0.0;
+  bool only_haptiquad = false;
+  int depth_point_stride = hq::odometry::OdometryConfig{}.depth_point_stride;
   app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
   app.add_option("--camera", camera_path,
                  "camera file of sequences without their own camera.yaml");
@@ -245,6 +247,10 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_option("--skip-s", skip_s,
                  "seconds skipped at each sequence's start (hq-sim: 3 s, take-off without depth)")
       ->check(CLI::NonNegativeNumber);
+  app.add_flag("--only-haptiquad", only_haptiquad, "skip OpenCV's methods (quick comparisons)");
+  app.add_option("--depth-point-stride", depth_point_stride,
+                 "odometry.depth_point_stride of every HaptiQuad variant")
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
@@ -264,7 +270,8 @@ static int run_benchmarks(int argc, char** argv) {
 
   std::vector<std::unique_ptr<Method>> methods;
   // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
-  const hq::odometry::OdometryConfig defaults;
+  hq::odometry::OdometryConfig defaults;
+  defaults.depth_point_stride = depth_point_stride;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
   for (const auto mode : {hq::odometry::ReferenceMode::kFrameToFrame,
                           hq::odometry::ReferenceMode::kFrameToKeyframe}) {
@@ -273,6 +280,7 @@ static int run_benchmarks(int argc, char** argv) {
       c.reference_mode = mode;
       c.use_depth_term = (variant & 1) != 0;
       c.use_rotation_prior = (variant & 2) != 0;
+      c.depth_point_stride = depth_point_stride;
       const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
       std::string name = mode == hq::odometry::ReferenceMode::kFrameToFrame ? "hq f2f " : "hq f2kf ";
       methods.push_back(std::make_unique<HaptiQuadMethod>(name + names[variant], c));
@@ -281,10 +289,13 @@ static int run_benchmarks(int argc, char** argv) {
   hq::odometry::OdometryConfig full = defaults;
   full.finest_level = 0;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 640", full));
-  const std::size_t opencv_rgbd = methods.size();
-  methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
-  methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
-  methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+  const std::size_t opencv_rgbd = only_haptiquad ? 0 : methods.size();
+  if (!only_haptiquad) {
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
+    methods.push_back(
+        std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+  }
 
   for (const std::string& dir : sequence_dirs) {
     // A simulator recording carries its own camera.yaml; TUM folders use --camera.

@@ -263,43 +263,67 @@ struct DenseOdometry::Impl {
     const auto stride = static_cast<int>(image.step1());
     const float* photometric = ref.photometric.data();
     Counts counts;
-    for (int i = 0; i < ref.count; ++i) {
-      float qx, qy, qz;
-      T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-      float r = 0.0f;
-      float m = 0.0f;
-      if (qz > min_z) {
-        const float inv_z = 1.0f / qz;
-        const float u = k.fx * qx * inv_z + k.cx;
-        const float v = k.fy * qy * inv_z + k.cy;
-        if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
-          r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
-          m = photometric[i];
+    if (!config.use_depth_term) {
+      for (int i = 0; i < ref.count; ++i) {
+        float qx, qy, qz;
+        T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
+        float r = 0.0f;
+        float m = 0.0f;
+        if (qz > min_z) {
+          const float inv_z = 1.0f / qz;
+          const float u = k.fx * qx * inv_z + k.cx;
+          const float v = k.fy * qy * inv_z + k.cy;
+          if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
+            r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
+            m = photometric[i];
+          }
         }
+        residual[i] = r;
+        mask[i] = m;
+        counts.photometric += m > 0.0f ? 1 : 0;
       }
-      residual[i] = r;
-      mask[i] = m;
-      counts.photometric += m > 0.0f ? 1 : 0;
+      counts.any = counts.photometric;
+      return counts;
     }
-    counts.any = counts.photometric;
-    if (!config.use_depth_term) return counts;
 
+    // Intensity and depth in one pass over the points (the depth kernel warps for itself so
+    // that it stays testable alone; points without gradient skip the intensity sample).
     const cv::Mat& depth_image = current.depth_m[level];
     const auto* depth = reinterpret_cast<const float*>(depth_image.data);
     const auto depth_stride = static_cast<int>(depth_image.step1());
     const auto noise = static_cast<float>(config.depth_noise_per_m);
     const auto spread = static_cast<float>(config.depth_max_spread_ratio);
-    counts.any = 0;
+    float* jz[6];
+    for (int j = 0; j < 6; ++j) jz[j] = depth_jacobian[j].data();
     for (int i = 0; i < ref.count; ++i) {
       float J[6];
-      float r = 0.0f;
+      float rz = 0.0f;
       const bool ok = detail::depth_residual(depth, depth_stride, max_u, max_v, k, T, ref.x[i],
-                                             ref.y[i], ref.z[i], min_z, noise, spread, r, J);
-      depth_residual[i] = ok ? r : 0.0f;
+                                             ref.y[i], ref.z[i], min_z, noise, spread, rz, J);
+      depth_residual[i] = ok ? rz : 0.0f;
       depth_mask[i] = ok ? 1.0f : 0.0f;
-      for (int j = 0; j < 6; ++j) depth_jacobian[j][i] = ok ? J[j] : 0.0f;
+      for (int j = 0; j < 6; ++j) jz[j][i] = ok ? J[j] : 0.0f;
+      float r = 0.0f;
+      float m = 0.0f;
+      if (photometric[i] > 0.0f) {
+        float qx, qy, qz;
+        T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
+        if (qz > min_z) {
+          const float inv_z = 1.0f / qz;
+          const float u = k.fx * qx * inv_z + k.cx;
+          const float v = k.fy * qy * inv_z + k.cy;
+          if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
+            r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] -
+                brightness_offset;
+            m = 1.0f;
+          }
+        }
+      }
+      residual[i] = r;
+      mask[i] = m;
+      counts.photometric += m > 0.0f ? 1 : 0;
       counts.depth += ok ? 1 : 0;
-      counts.any += (ok || mask[i] > 0.0f) ? 1 : 0;
+      counts.any += (ok || m > 0.0f) ? 1 : 0;
     }
     return counts;
   }
@@ -416,6 +440,19 @@ struct DenseOdometry::Impl {
     float* wi = weight.data();
     float* wz = depth_weight.data();
     float* oz = depth_offset_jacobian.data();
+    const float* ji0 = ref.jacobian[0].data();
+    const float* ji1 = ref.jacobian[1].data();
+    const float* ji2 = ref.jacobian[2].data();
+    const float* ji3 = ref.jacobian[3].data();
+    const float* ji4 = ref.jacobian[4].data();
+    const float* ji5 = ref.jacobian[5].data();
+    float* jz0 = depth_jacobian[0].data();
+    float* jz1 = depth_jacobian[1].data();
+    float* jz2 = depth_jacobian[2].data();
+    float* jz3 = depth_jacobian[3].data();
+    float* jz4 = depth_jacobian[4].data();
+    float* jz5 = depth_jacobian[5].data();
+#pragma omp simd
     for (int i = 0; i < count; ++i) {
       const float both = mi[i] * mz[i];
       const float q = ri[i] * ri[i] * i_ii + 2.0f * ri[i] * rz[i] * i_iz + rz[i] * rz[i] * i_zz;
@@ -428,9 +465,12 @@ struct DenseOdometry::Impl {
       const float c_z = both * u22 + (mz[i] - both) * inv_sd_z;
       const float c_i = both * u12;
       rz[i] = c_z * rz[i] + c_i * ri[i];
-      for (int j = 0; j < 6; ++j) {
-        depth_jacobian[j][i] = c_z * depth_jacobian[j][i] + c_i * ref.jacobian[j][i];
-      }
+      jz0[i] = c_z * jz0[i] + c_i * ji0[i];
+      jz1[i] = c_z * jz1[i] + c_i * ji1[i];
+      jz2[i] = c_z * jz2[i] + c_i * ji2[i];
+      jz3[i] = c_z * jz3[i] + c_i * ji3[i];
+      jz4[i] = c_z * jz4[i] + c_i * ji4[i];
+      jz5[i] = c_z * jz5[i] + c_i * ji5[i];
       oz[i] = c_i;
     }
     const float* J[6] = {ref.jacobian[0].data(), ref.jacobian[1].data(), ref.jacobian[2].data(),
@@ -535,6 +575,7 @@ struct DenseOdometry::Impl {
     for (int level = levels - 1; level >= finest; --level) {
       const int count = reference[level].count;
       double previous_error = std::numeric_limits<double>::infinity();
+      double previous_weighted_error = weighted_error;
       Eigen::Isometry3d T_previous = T_cur_ref;
       double level_variance = 0.0;
       sigma_ii = 0.0;
@@ -571,14 +612,24 @@ struct DenseOdometry::Impl {
           weighted_error = accumulate_with_depth(level, count, candidate) / valid;
         }
         ++iterations;
-        if (weighted_error > previous_error) {
+        // The gyro prior's cost joins the test below, in the data term's units (intensity^2 per
+        // point): a step towards the gyro may raise the data cost and still lower the total.
+        double cost = weighted_error;
+        if (use_prior) {
+          const Eigen::Vector3d d = geometry::log_so3(T_cur_ref.linear().transpose() *
+                                                      R_ref_prior.transpose());
+          const double scale = config.use_depth_term ? sigma_ii : variance;
+          cost += d.dot(prior_information * d) * scale / valid;
+        }
+        if (cost > previous_error) {
           // The last step made the fit worse: undo it and stop refining this level.
           T_cur_ref = T_previous;
           brightness_offset = offset_previous;
-          weighted_error = previous_error;
+          weighted_error = previous_weighted_error;
           break;
         }
-        previous_error = weighted_error;
+        previous_error = cost;
+        previous_weighted_error = weighted_error;
         normal = candidate;
         Matrix6d A = normal.H;
         Vector6d b = normal.g;
