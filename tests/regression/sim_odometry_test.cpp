@@ -147,7 +147,8 @@ INSTANTIATE_TEST_SUITE_P(DepthTerm, OdometryOnSimulatedCircle,
                                            Case{"frame_to_keyframe_depth",
                                                 hq::odometry::ReferenceMode::kFrameToKeyframe,
                                                 true,
-                                                {0.00051, 0.00064, 0.0124, 0.0155, 0.00039, 0.00049},
+                                                {0.00051, 0.00064, 0.0124, 0.0155, 0.00039,
+                                                 0.00049},
                                                 true}),
                          case_name);
 

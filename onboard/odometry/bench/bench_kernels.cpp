@@ -2,11 +2,10 @@
 // 320x240 level's worth of points (76800): the warp + intensity sample, the depth residual
 // with its Jacobian, and the one-pass normal-equation accumulation. Built, not run by ctest.
 #include "kernels.hpp"
+#include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <vector>
-
-#include <benchmark/benchmark.h>
 
 namespace {
 
@@ -16,14 +15,22 @@ constexpr int kWidth = 320;
 constexpr int kHeight = 240;
 constexpr int kPoints = kWidth * kHeight;
 const Intrinsics kK{262.5f, 262.5f, 159.5f, 119.5f};
-const Warp kWarp{0.9998f, -0.0175f, 0.0087f, 0.0174f, 0.9998f, 0.0052f, -0.0088f, -0.0050f,
-                 0.9999f, 0.01f, -0.005f, 0.02f};
+const Warp kWarp{0.9998f,  -0.0175f, 0.0087f, 0.0174f, 0.9998f, 0.0052f,
+                 -0.0088f, -0.0050f, 0.9999f, 0.01f,   -0.005f, 0.02f};
 
 struct Scene {
   std::vector<float> image, depth, x, y, z, intensity, r, w, o;
   std::vector<float> J[6];
-  Scene() : image(kPoints), depth(kPoints), x(kPoints), y(kPoints), z(kPoints),
-            intensity(kPoints), r(kPoints), w(kPoints, 1.0f), o(kPoints, 0.5f) {
+  Scene()
+      : image(kPoints),
+        depth(kPoints),
+        x(kPoints),
+        y(kPoints),
+        z(kPoints),
+        intensity(kPoints),
+        r(kPoints),
+        w(kPoints, 1.0f),
+        o(kPoints, 0.5f) {
     for (auto& j : J) j.assign(kPoints, 0.1f);
     for (int v = 0; v < kHeight; ++v) {
       for (int u = 0; u < kWidth; ++u) {
@@ -69,9 +76,8 @@ void BM_DepthResidualAndJacobian(benchmark::State& state) {
   std::vector<float> jacobian(6 * kPoints);
   for (auto _ : state) {
     for (int i = 0; i < kPoints; ++i) {
-      depth_residual(s.depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK, kWarp,
-                     s.x[i], s.y[i], s.z[i], 0.15f, 0.0015f, 0.05f, residual[i],
-                     &jacobian[6 * i]);
+      depth_residual(s.depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK, kWarp, s.x[i],
+                     s.y[i], s.z[i], 0.15f, 0.0015f, 0.05f, residual[i], &jacobian[6 * i]);
     }
     benchmark::DoNotOptimize(residual.data());
     benchmark::DoNotOptimize(jacobian.data());

@@ -282,7 +282,8 @@ static int run_benchmarks(int argc, char** argv) {
       c.use_rotation_prior = (variant & 2) != 0;
       c.depth_point_stride = depth_point_stride;
       const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
-      std::string name = mode == hq::odometry::ReferenceMode::kFrameToFrame ? "hq f2f " : "hq f2kf ";
+      const bool f2f = mode == hq::odometry::ReferenceMode::kFrameToFrame;
+      std::string name = f2f ? "hq f2f " : "hq f2kf ";
       methods.push_back(std::make_unique<HaptiQuadMethod>(name + names[variant], c));
     }
   }

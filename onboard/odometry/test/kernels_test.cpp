@@ -3,12 +3,12 @@
 // of the residual itself under the shared update T_cur_ref <- T_cur_ref exp(-delta).
 #include "kernels.hpp"
 
-#include <cmath>
-#include <vector>
+#include "hq/geometry/lie.hpp"
 
 #include <gtest/gtest.h>
 
-#include "hq/geometry/lie.hpp"
+#include <cmath>
+#include <vector>
 
 namespace hq::odometry::detail {
 namespace {
@@ -51,19 +51,18 @@ TEST(DepthResidual, AnalyticJacobianMatchesNumericDerivative) {
   int checked = 0;
   // Points that T maps onto the surface, inside pixel cells: r = 0 there, so the noise model's
   // 1 / z^2, held fixed within an iteration (IRLS), does not enter the derivative.
-  for (const Eigen::Vector2d& uv : {Eigen::Vector2d(20.3, 15.6), Eigen::Vector2d(40.7, 30.4),
-                                    Eigen::Vector2d(12.45, 35.55)}) {
+  for (const Eigen::Vector2d& uv :
+       {Eigen::Vector2d(20.3, 15.6), Eigen::Vector2d(40.7, 30.4), Eigen::Vector2d(12.45, 35.55)}) {
     const double z = 2.0 + 0.01 * uv.x() - 0.005 * uv.y() + 0.0002 * uv.x() * uv.y();
     const Eigen::Vector3d q((uv.x() - kK.cx) * z / kK.fx, (uv.y() - kK.cy) * z / kK.fy, z);
     const Eigen::Vector3d p = T.inverse() * q;
     const auto residual_at = [&](const geometry::Vector6d& delta, float* J) {
       float r = 0.0f;
       float scratch[6];
-      const bool ok = depth_residual(depth.data(), kWidth, max_u, max_v, kK,
-                                     warp_of(T * geometry::exp_se3(-delta)),
-                                     static_cast<float>(p.x()), static_cast<float>(p.y()),
-                                     static_cast<float>(p.z()), 0.1f, 0.0015f, 0.5f, r,
-                                     J != nullptr ? J : scratch);
+      const bool ok = depth_residual(
+          depth.data(), kWidth, max_u, max_v, kK, warp_of(T * geometry::exp_se3(-delta)),
+          static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), 0.1f,
+          0.0015f, 0.5f, r, J != nullptr ? J : scratch);
       EXPECT_TRUE(ok);
       return static_cast<double>(r);
     };
@@ -106,7 +105,8 @@ double intensity(double u, double v) { return 100.0 + 2.0 * u - 1.5 * v; }
 
 TEST(PhotometricJacobian, MatchesNumericDerivativeOfTheWarpedReference) {
   // Inverse compositional: J = d I_ref(pi(exp(xi) p)) / d xi at 0.
-  for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.1, 0.05, 2.1), Eigen::Vector3d(-0.4, 0.2, 1.9)}) {
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.1, 0.05, 2.1), Eigen::Vector3d(-0.4, 0.2, 1.9)}) {
     const auto I_at = [&](const geometry::Vector6d& xi) {
       const Eigen::Vector3d q = geometry::exp_se3(xi) * p;
       return intensity(kK.fx * q.x() / q.z() + kK.cx, kK.fy * q.y() / q.z() + kK.cy);
@@ -143,14 +143,15 @@ TEST(AccumulateRows, MatchesDenseSums) {
       row(k) = j[k][i];
     }
     r[i] = std::cos(0.05f * static_cast<float>(i));
-    w[i] = 0.5f + 0.5f * std::sin(0.3f * static_cast<float>(i)) * std::sin(0.3f * static_cast<float>(i));
+    w[i] = 0.5f +
+           0.5f * std::sin(0.3f * static_cast<float>(i)) * std::sin(0.3f * static_cast<float>(i));
     o[i] = 0.25f;
     H += w[i] * row * row.transpose();
     g += w[i] * row * r[i];
     oo += w[i] * o[i] * o[i];
   }
-  const float* J[6] = {j[0].data(), j[1].data(), j[2].data(), j[3].data(), j[4].data(),
-                       j[5].data()};
+  const float* J[6] = {j[0].data(), j[1].data(), j[2].data(),
+                       j[3].data(), j[4].data(), j[5].data()};
   RowSums sums;
   accumulate_rows(J, r.data(), w.data(), kRows, sums, o.data());
   int k = 0;
