@@ -273,17 +273,20 @@ static int run_benchmarks(int argc, char** argv) {
   hq::odometry::OdometryConfig defaults;
   defaults.depth_point_stride = depth_point_stride;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
-  for (const auto mode : {hq::odometry::ReferenceMode::kFrameToFrame,
-                          hq::odometry::ReferenceMode::kFrameToKeyframe}) {
+  // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
+  for (const int mode_index : {0, 1, 2}) {
+    const auto mode = mode_index == 0 ? hq::odometry::ReferenceMode::kFrameToFrame
+                                      : hq::odometry::ReferenceMode::kFrameToKeyframe;
     for (const int variant : {0, 1, 2, 3}) {
       hq::odometry::OdometryConfig c;
       c.reference_mode = mode;
+      c.keyframe_check = mode_index == 2;
       c.use_depth_term = (variant & 1) != 0;
       c.use_rotation_prior = (variant & 2) != 0;
       c.depth_point_stride = depth_point_stride;
       const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
-      const bool f2f = mode == hq::odometry::ReferenceMode::kFrameToFrame;
-      std::string name = f2f ? "hq f2f " : "hq f2kf ";
+      const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
+      std::string name = modes[mode_index];
       methods.push_back(std::make_unique<HaptiQuadMethod>(name + names[variant], c));
     }
   }

@@ -107,6 +107,11 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
       mode == "frame_to_frame" ? ReferenceMode::kFrameToFrame : ReferenceMode::kFrameToKeyframe;
   section.read("keyframe_entropy_ratio", out.keyframe_entropy_ratio, 0.0, 1.0);
   section.read("max_keyframe_age", out.max_keyframe_age, 1, 100000);
+  section.read("keyframe_check", out.keyframe_check);
+  section.read_positive("keyframe_check_max_translation_m", out.keyframe_check_max_translation_m,
+                        10.0);
+  section.read_positive("keyframe_check_max_rotation_deg", out.keyframe_check_max_rotation_deg,
+                        180.0);
   section.read("use_depth_term", out.use_depth_term);
   section.read_positive("depth_noise_per_m", out.depth_noise_per_m, 1.0);
   section.read("depth_point_stride", out.depth_point_stride, 1, 64);
@@ -124,10 +129,19 @@ struct DenseOdometry::Impl {
   int levels = 0;
   int finest = 0;
 
-  std::array<FrameSlot, 2> slots;
+  // Three slots: the reference (keyframe), the previous frame (for the keyframe check) and the
+  // current frame; frame to frame the previous frame is the reference.
+  std::array<FrameSlot, 3> slots;
   int reference_slot = 0;
-  std::array<ReferenceLevel, kMaxLevels> reference;
+  int previous_slot = 0;
+  // Prepared points of the reference (set 0) and, with the keyframe check, of the previous
+  // frame (set 1); the kernels read the active one.
+  static constexpr int kReferenceSet = 0;
+  static constexpr int kPreviousSet = 1;
+  std::array<std::array<ReferenceLevel, kMaxLevels>, 2> reference_sets;
+  int active_set = kReferenceSet;
   bool has_reference = false;
+  bool has_previous = false;  // set 1 holds the previous frame
 
   // Per-point work buffers, sized for the finest optimised level. mask: 1 where the residual
   // exists; weight: its robust weight including the scale.
@@ -151,6 +165,10 @@ struct DenseOdometry::Impl {
   double keyframe_first_entropy = 0.0;
   int keyframe_age = 0;
 
+  bool keyframe_check() const {
+    return config.reference_mode == ReferenceMode::kFrameToKeyframe && config.keyframe_check;
+  }
+
   Impl(const OdometryConfig& c, const geometry::PinholeCamera& cam) : config(c), camera(cam) {
     levels = std::clamp(config.pyramid_levels, 1, kMaxLevels);
     finest = std::clamp(config.finest_level, 0, levels - 1);
@@ -164,7 +182,8 @@ struct DenseOdometry::Impl {
         slot.depth_m[l].create(h, w, CV_32FC1);
       }
       if (l >= finest) {
-        reference[l].reserve(w * h);
+        reference_sets[kReferenceSet][l].reserve(w * h);
+        if (keyframe_check()) reference_sets[kPreviousSet][l].reserve(w * h);
         capacity = std::max(capacity, w * h);
       }
     }
@@ -190,7 +209,7 @@ struct DenseOdometry::Impl {
 
   // Selects pixels with depth and gradient, and precomputes their points and Jacobians: done
   // once per reference, not per iteration (the inverse compositional trick).
-  void prepare_reference(const FrameSlot& slot) {
+  void prepare_reference(const FrameSlot& slot, int set) {
     const auto min_gradient_sq = static_cast<float>(config.min_gradient * config.min_gradient);
     // With the depth term, pixels without gradient still constrain the pose through their
     // depth (a textureless wall fixes its normal's translation and two rotations).
@@ -201,7 +220,7 @@ struct DenseOdometry::Impl {
       const float fx = k.fx, fy = k.fy, cx = k.cx, cy = k.cy;
       const cv::Mat& I = slot.intensity[l];
       const cv::Mat& D = slot.depth_m[l];
-      ReferenceLevel& ref = reference[l];
+      ReferenceLevel& ref = reference_sets[set][l];
       int n = 0;
       for (int v = 1; v < cam.height - 1; ++v) {
         const float* row = I.ptr<float>(v);
@@ -250,7 +269,7 @@ struct DenseOdometry::Impl {
                            float brightness_offset) {
     const geometry::PinholeCamera& cam = level_camera[level];
     const detail::Intrinsics k = intrinsics(level);
-    const ReferenceLevel& ref = reference[level];
+    const ReferenceLevel& ref = reference_sets[active_set][level];
     const Eigen::Matrix3f R = T_cur_ref.linear().cast<float>();
     const Eigen::Vector3f t = T_cur_ref.translation().cast<float>();
     const detail::Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
@@ -406,7 +425,7 @@ struct DenseOdometry::Impl {
     float* w = weight.data();
 #pragma omp simd
     for (int i = 0; i < count; ++i) w[i] = m[i] * (nu + 1.0f) / (nu + r[i] * r[i] * inv_var);
-    const ReferenceLevel& ref = reference[level];
+    const ReferenceLevel& ref = reference_sets[active_set][level];
     const float* J[6] = {ref.jacobian[0].data(), ref.jacobian[1].data(), ref.jacobian[2].data(),
                          ref.jacobian[3].data(), ref.jacobian[4].data(), ref.jacobian[5].data()};
     detail::RowSums sums;
@@ -432,7 +451,7 @@ struct DenseOdometry::Impl {
     const auto inv_sd_z = static_cast<float>(1.0 / std::sqrt(sigma_zz));
     const float u22 = std::sqrt(i_zz);
     const float u12 = i_iz / u22;
-    const ReferenceLevel& ref = reference[level];
+    const ReferenceLevel& ref = reference_sets[active_set][level];
     float* ri = residual.data();
     float* rz = depth_residual.data();
     const float* mi = mask.data();
@@ -511,12 +530,14 @@ struct DenseOdometry::Impl {
 
   bool reference_usable() const {
     const int pixels = level_camera[finest].width * level_camera[finest].height;
-    return reference[finest].count >= std::max(6, static_cast<int>(config.min_valid_ratio * pixels));
+    return reference_sets[kReferenceSet][finest].count >= std::max(6, static_cast<int>(config.min_valid_ratio * pixels));
   }
 
   void make_reference(int slot_index, const Eigen::Isometry3d& T_world_cur) {
     reference_slot = slot_index;
-    prepare_reference(slots[slot_index]);
+    prepare_reference(slots[slot_index], kReferenceSet);
+    previous_slot = slot_index;
+    has_previous = false;
     has_reference = reference_usable();
     T_world_reference = T_world_cur;
     T_ref_last.setIdentity();
@@ -524,48 +545,19 @@ struct DenseOdometry::Impl {
     keyframe_first_entropy = 0.0;
   }
 
-  OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
-                       const RotationPrior* prior) {
-    OdometryResult result;
-    result.t_ns = t_ns;
-    result.T_world_cur = T_world_reference * T_ref_last;
-    if (gray.type() != CV_8UC1 || depth_m.type() != CV_32FC1 || gray.cols != camera.width ||
-        gray.rows != camera.height || depth_m.size() != gray.size()) {
-      return lost(result, "input is not CV_8UC1 gray and CV_32FC1 depth of the camera's size");
-    }
-    const int current_slot = 1 - reference_slot;
-    FrameSlot& current = slots[current_slot];
-    build_pyramid(current, gray, depth_m);
+  struct Alignment {
+    Eigen::Isometry3d T_cur_ref = Eigen::Isometry3d::Identity();
+    NormalEquations normal;
+    int valid = 0;
+    int iterations = 0;
+    double weighted_error = 0.0;
+  };
 
-    if (!has_reference) {
-      make_reference(current_slot, result.T_world_cur);
-      result.status = has_reference ? TrackingStatus::kFirstFrame : TrackingStatus::kLost;
-      result.reason = has_reference ? "first frame: became the reference"
-                                    : "no usable depth: too few pixels with depth and gradient";
-      result.new_keyframe = has_reference;
-      return result;
-    }
-
-    // Constant-velocity initial guess (and prior mean) for T_ref_cur.
-    // Frame to frame only: against a keyframe, the part of each step that the optimiser leaves
-    // uncorrected is carried into the next prediction, so the predicted velocity random-walks
-    // (measured on a simulated circle: RPE 69 m/s with it, 1 mm/s without).
-    const bool predict = has_motion && config.initialize_with_previous_motion &&
-                         config.reference_mode == ReferenceMode::kFrameToFrame;
-    Eigen::Isometry3d T_ref_predicted = predict ? T_ref_last * last_motion : T_ref_last;
-    // The gyro's rotation since the previous frame replaces the predicted one: photometric
-    // alignment fails first under fast yaw, where the gyro is at its best.
-    const bool use_prior = config.use_rotation_prior && prior != nullptr &&
-                           prior->R_prev_cur.allFinite() && prior->information.allFinite();
-    Eigen::Matrix3d R_ref_prior = Eigen::Matrix3d::Identity();
-    Eigen::Matrix3d prior_information = Eigen::Matrix3d::Zero();
-    if (use_prior) {
-      R_ref_prior = T_ref_last.linear() * prior->R_prev_cur;
-      prior_information = config.rotation_prior_information_scale * prior->information;
-      T_ref_predicted.linear() = R_ref_prior;
-    }
-    Eigen::Isometry3d T_cur_ref = T_ref_predicted.inverse();
-
+  // Coarse-to-fine iteratively re-weighted Gauss-Newton of the current frame against the
+  // active reference set, from T_cur_ref.
+  Alignment align(const FrameSlot& current, Eigen::Isometry3d T_cur_ref,
+                  const Eigen::Isometry3d& T_ref_predicted, bool predict, bool use_prior,
+                  const Eigen::Matrix3d& R_ref_prior, const Eigen::Matrix3d& prior_information) {
     NormalEquations normal;
     float brightness_offset = 0.0f;
     double variance = 0.0;
@@ -573,7 +565,7 @@ struct DenseOdometry::Impl {
     int iterations = 0;
     double weighted_error = 0.0;
     for (int level = levels - 1; level >= finest; --level) {
-      const int count = reference[level].count;
+      const int count = reference_sets[active_set][level].count;
       double previous_error = std::numeric_limits<double>::infinity();
       double previous_weighted_error = weighted_error;
       Eigen::Isometry3d T_previous = T_cur_ref;
@@ -681,12 +673,131 @@ struct DenseOdometry::Impl {
       }
     }
 
-    result.iterations = iterations;
+    Alignment out;
+    out.T_cur_ref = T_cur_ref;
+    out.normal = normal;
+    out.valid = valid;
+    out.iterations = iterations;
+    out.weighted_error = weighted_error;
+    return out;
+  }
+
+  OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
+                       const RotationPrior* prior) {
+    OdometryResult result;
+    result.t_ns = t_ns;
+    result.T_world_cur = T_world_reference * T_ref_last;
+    if (gray.type() != CV_8UC1 || depth_m.type() != CV_32FC1 || gray.cols != camera.width ||
+        gray.rows != camera.height || depth_m.size() != gray.size()) {
+      return lost(result, "input is not CV_8UC1 gray and CV_32FC1 depth of the camera's size");
+    }
+    int current_slot = 0;
+    while (current_slot == reference_slot || current_slot == previous_slot) ++current_slot;
+    FrameSlot& current = slots[current_slot];
+    build_pyramid(current, gray, depth_m);
+
+    if (!has_reference) {
+      make_reference(current_slot, result.T_world_cur);
+      result.status = has_reference ? TrackingStatus::kFirstFrame : TrackingStatus::kLost;
+      result.reason = has_reference ? "first frame: became the reference"
+                                    : "no usable depth: too few pixels with depth and gradient";
+      result.new_keyframe = has_reference;
+      return result;
+    }
+
+    // Constant-velocity initial guess (and prior mean) for T_ref_cur.
+    // Frame to frame only: against a keyframe, the part of each step that the optimiser leaves
+    // uncorrected is carried into the next prediction, so the predicted velocity random-walks
+    // (measured on a simulated circle: RPE 69 m/s with it, 1 mm/s without).
+    const bool predict = has_motion && config.initialize_with_previous_motion &&
+                         config.reference_mode == ReferenceMode::kFrameToFrame;
+    Eigen::Isometry3d T_ref_predicted = predict ? T_ref_last * last_motion : T_ref_last;
+    // The gyro's rotation since the previous frame replaces the predicted one: photometric
+    // alignment fails first under fast yaw, where the gyro is at its best.
+    const bool use_prior = config.use_rotation_prior && prior != nullptr &&
+                           prior->R_prev_cur.allFinite() && prior->information.allFinite();
+    Eigen::Matrix3d R_ref_prior = Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d prior_information = Eigen::Matrix3d::Zero();
+    if (use_prior) {
+      R_ref_prior = T_ref_last.linear() * prior->R_prev_cur;
+      prior_information = config.rotation_prior_information_scale * prior->information;
+      T_ref_predicted.linear() = R_ref_prior;
+    }
+    Eigen::Isometry3d T_cur_ref_guess = T_ref_predicted.inverse();
+
+    // Keyframe check: align to the previous frame as well, start the keyframe alignment from
+    // that, and re-anchor on the previous frame when the two disagree.
+    Alignment to_previous;
+    bool previous_ok = false;
+    if (keyframe_check() && has_previous) {
+      active_set = kPreviousSet;
+      Eigen::Isometry3d T_prev_predicted =
+          has_motion && config.initialize_with_previous_motion ? last_motion
+                                                                : Eigen::Isometry3d::Identity();
+      if (use_prior) T_prev_predicted.linear() = prior->R_prev_cur;
+      to_previous = align(current, T_prev_predicted.inverse(), T_prev_predicted, false, use_prior,
+                          use_prior ? prior->R_prev_cur : Eigen::Matrix3d::Identity(),
+                          prior_information);
+      active_set = kReferenceSet;
+      const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
+      previous_ok = to_previous.T_cur_ref.matrix().allFinite() &&
+                    to_previous.normal.H.allFinite() && to_previous.valid >= 6 &&
+                    static_cast<double>(to_previous.valid) / finest_pixels >=
+                        config.min_valid_ratio;
+      if (previous_ok) T_cur_ref_guess = (T_ref_last * to_previous.T_cur_ref.inverse()).inverse();
+    }
+
+    Alignment a = align(current, T_cur_ref_guess, T_ref_predicted, predict, use_prior,
+                        R_ref_prior, prior_information);
+    bool re_anchor = false;
+    if (previous_ok) {
+      const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
+      const bool keyframe_ok = a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
+                               static_cast<double>(a.valid) / finest_pixels >=
+                                   config.min_valid_ratio;
+      // T_prev_cur through the keyframe chain against the direct one.
+      const Eigen::Isometry3d chain = T_ref_last.inverse() * a.T_cur_ref.inverse();
+      const Eigen::Isometry3d difference = to_previous.T_cur_ref * chain;
+      re_anchor = !keyframe_ok ||
+                  difference.translation().norm() > config.keyframe_check_max_translation_m ||
+                  geometry::log_so3(difference.linear()).norm() >
+                      config.keyframe_check_max_rotation_deg * M_PI / 180.0;
+    }
+    if (re_anchor) {
+      // The keyframe chain broke (Kerl IROS 2013 re-anchors on such failures): this frame's
+      // pose comes from the previous frame, and this frame becomes the keyframe.
+      const NormalEquations& normal = to_previous.normal;
+      const Eigen::Isometry3d T_prev_cur = to_previous.T_cur_ref.inverse();
+      const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
+      result.iterations = a.iterations + to_previous.iterations;
+      result.valid_ratio = static_cast<double>(to_previous.valid) / finest_pixels;
+      result.mean_weighted_error = to_previous.weighted_error;
+      result.status = TrackingStatus::kOk;
+      result.reason = "";
+      result.T_ref_cur = T_prev_cur;
+      result.information = normal.H;
+      if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
+        result.information -= normal.H_pose_offset * normal.H_pose_offset.transpose() /
+                              normal.H_offset;
+      }
+      result.T_world_cur = T_world_reference * T_ref_last * T_prev_cur;
+      last_motion = T_prev_cur;
+      last_information = normal.H;
+      has_motion = true;
+      make_reference(current_slot, result.T_world_cur);
+      result.new_keyframe = has_reference;
+      return result;
+    }
+    if (previous_ok) a.iterations += to_previous.iterations;
+
+    const Eigen::Isometry3d& T_cur_ref = a.T_cur_ref;
+    const NormalEquations& normal = a.normal;
+    result.iterations = a.iterations;
     const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-    result.valid_ratio = static_cast<double>(valid) / finest_pixels;
-    result.mean_weighted_error = weighted_error;
+    result.valid_ratio = static_cast<double>(a.valid) / finest_pixels;
+    result.mean_weighted_error = a.weighted_error;
     const bool converged_numbers =
-        T_cur_ref.matrix().allFinite() && normal.H.allFinite() && valid >= 6;
+        T_cur_ref.matrix().allFinite() && normal.H.allFinite() && a.valid >= 6;
     if (!converged_numbers || result.valid_ratio < config.min_valid_ratio) {
       // Keep flying on the newest frame: it becomes the reference if it has depth.
       const Eigen::Isometry3d T_world_cur = result.T_world_cur;
@@ -726,6 +837,11 @@ struct DenseOdometry::Impl {
       result.new_keyframe = has_reference;
     } else {
       T_ref_last = T_ref_cur;
+      previous_slot = current_slot;
+      if (keyframe_check()) {
+        prepare_reference(current, kPreviousSet);
+        has_previous = true;
+      }
     }
     return result;
   }
@@ -749,6 +865,7 @@ OdometryResult DenseOdometry::track(std::int64_t t_ns, const cv::Mat& gray,
 void DenseOdometry::reset() {
   impl_->has_reference = false;
   impl_->has_motion = false;
+  impl_->has_previous = false;
   impl_->T_world_reference.setIdentity();
   impl_->T_ref_last.setIdentity();
 }

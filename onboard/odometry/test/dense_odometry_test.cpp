@@ -98,6 +98,30 @@ INSTANTIATE_TEST_SUITE_P(BothReferenceModesWithAndWithoutDepth, KnownMotion,
                                                               ReferenceMode::kFrameToKeyframe),
                                             ::testing::Bool()));
 
+TEST(DenseOdometry, KeyframeCheckKeepsTheKeyframeChainOnKnownMotion) {
+  // GIVEN frame to keyframe with the check, a camera moving 1 cm and 0.4 deg per frame
+  OdometryConfig config;
+  config.reference_mode = ReferenceMode::kFrameToKeyframe;
+  config.keyframe_check = true;
+  DenseOdometry odometry(config, kCamera);
+  const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  Frame f = render(T_world_camera);
+  odometry.track(0, f.gray, f.depth_m);
+  int keyframes = 0;
+  for (int k = 1; k <= 6; ++k) {
+    T_world_camera = T_world_camera * step;
+    f = render(T_world_camera);
+    const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    keyframes += r.new_keyframe ? 1 : 0;
+    // THEN the poses follow the truth and the chain agrees with each step: no re-anchoring
+    EXPECT_LT(translation_error(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+  }
+  EXPECT_LT(keyframes, 6);
+}
+
 TEST(DenseOdometry, GyroPriorCarriesAFastYaw) {
   // GIVEN 8 degrees of yaw between two frames (240 deg/s at 30 Hz) and the gyro's rotation
   const Eigen::Isometry3d truth = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.14);
@@ -218,9 +242,12 @@ TEST(DenseOdometry, FlatImageWithDepthIsLost) {
 }
 
 TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
-  for (const ReferenceMode mode : {ReferenceMode::kFrameToFrame, ReferenceMode::kFrameToKeyframe}) {
+  for (const int variant : {0, 1, 2}) {
+    const ReferenceMode mode =
+        variant == 0 ? ReferenceMode::kFrameToFrame : ReferenceMode::kFrameToKeyframe;
     OdometryConfig config;
     config.reference_mode = mode;
+    config.keyframe_check = variant == 2;
     config.use_motion_prior = true;
     config.use_depth_term = true;
     DenseOdometry odometry(config, kCamera);
@@ -233,14 +260,15 @@ TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
       const OdometryResult r = odometry.track(k, frames[k].gray, frames[k].depth_m, &gyro);
       EXPECT_TRUE(r.ok()) << r.reason;
     }
-    EXPECT_EQ(hq::testing::allocation_count() - before, 0) << "mode " << static_cast<int>(mode);
+    EXPECT_EQ(hq::testing::allocation_count() - before, 0) << "variant " << variant;
   }
 }
 
 TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   const YAML::Node good = YAML::Load(
       "{finest_level: 0, reference_mode: frame_to_keyframe, use_motion_prior: true,"
-      " use_depth_term: true, depth_point_stride: 3, use_rotation_prior: false}");
+      " use_depth_term: true, depth_point_stride: 3, use_rotation_prior: false,"
+      " keyframe_check: true, keyframe_check_max_rotation_deg: 1.0}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
@@ -250,6 +278,8 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_TRUE(config.use_depth_term);
   EXPECT_EQ(config.depth_point_stride, 3);
   EXPECT_FALSE(config.use_rotation_prior);
+  EXPECT_TRUE(config.keyframe_check);
+  EXPECT_DOUBLE_EQ(config.keyframe_check_max_rotation_deg, 1.0);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");

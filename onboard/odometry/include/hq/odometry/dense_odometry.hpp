@@ -57,6 +57,12 @@ struct OdometryConfig {
   ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
   int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
+  /// Keyframe check: each frame is also aligned to its predecessor; when T_prev_cur through
+  /// the keyframe disagrees with it by more than these, the frame re-anchors on its predecessor
+  /// and becomes the keyframe.
+  bool keyframe_check = false;
+  double keyframe_check_max_translation_m = 0.01;
+  double keyframe_check_max_rotation_deg = 0.5;
   /// Adds DVO-SLAM's depth residual (Kerl, Sturm, Cremers IROS 2013, eq. 11-13) to the same
   /// Gauss-Newton, with the bivariate Student-t weights of the pair (intensity, depth).
   bool use_depth_term = false;
