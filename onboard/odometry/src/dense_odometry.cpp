@@ -117,8 +117,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("depth_point_stride", out.depth_point_stride, 1, 64);
   section.read_positive("depth_max_spread_ratio", out.depth_max_spread_ratio, 1.0);
   section.read("use_rotation_prior", out.use_rotation_prior);
-  section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, 0.0,
-               1e6);
+  section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, 0.0, 1e6);
   section.finish();
 }
 
@@ -530,7 +529,8 @@ struct DenseOdometry::Impl {
 
   bool reference_usable() const {
     const int pixels = level_camera[finest].width * level_camera[finest].height;
-    return reference_sets[kReferenceSet][finest].count >= std::max(6, static_cast<int>(config.min_valid_ratio * pixels));
+    return reference_sets[kReferenceSet][finest].count >=
+           std::max(6, static_cast<int>(config.min_valid_ratio * pixels));
   }
 
   void make_reference(int slot_index, const Eigen::Isometry3d& T_world_cur) {
@@ -731,30 +731,30 @@ struct DenseOdometry::Impl {
     bool previous_ok = false;
     if (keyframe_check() && has_previous) {
       active_set = kPreviousSet;
-      Eigen::Isometry3d T_prev_predicted =
-          has_motion && config.initialize_with_previous_motion ? last_motion
-                                                                : Eigen::Isometry3d::Identity();
+      Eigen::Isometry3d T_prev_predicted = has_motion && config.initialize_with_previous_motion
+                                               ? last_motion
+                                               : Eigen::Isometry3d::Identity();
       if (use_prior) T_prev_predicted.linear() = prior->R_prev_cur;
-      to_previous = align(current, T_prev_predicted.inverse(), T_prev_predicted, false, use_prior,
-                          use_prior ? prior->R_prev_cur : Eigen::Matrix3d::Identity(),
-                          prior_information);
+      to_previous =
+          align(current, T_prev_predicted.inverse(), T_prev_predicted, false, use_prior,
+                use_prior ? prior->R_prev_cur : Eigen::Matrix3d::Identity(), prior_information);
       active_set = kReferenceSet;
       const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-      previous_ok = to_previous.T_cur_ref.matrix().allFinite() &&
-                    to_previous.normal.H.allFinite() && to_previous.valid >= 6 &&
-                    static_cast<double>(to_previous.valid) / finest_pixels >=
-                        config.min_valid_ratio;
+      previous_ok =
+          to_previous.T_cur_ref.matrix().allFinite() && to_previous.normal.H.allFinite() &&
+          to_previous.valid >= 6 &&
+          static_cast<double>(to_previous.valid) / finest_pixels >= config.min_valid_ratio;
       if (previous_ok) T_cur_ref_guess = (T_ref_last * to_previous.T_cur_ref.inverse()).inverse();
     }
 
-    Alignment a = align(current, T_cur_ref_guess, T_ref_predicted, predict, use_prior,
-                        R_ref_prior, prior_information);
+    Alignment a = align(current, T_cur_ref_guess, T_ref_predicted, predict, use_prior, R_ref_prior,
+                        prior_information);
     bool re_anchor = false;
     if (previous_ok) {
       const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-      const bool keyframe_ok = a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
-                               static_cast<double>(a.valid) / finest_pixels >=
-                                   config.min_valid_ratio;
+      const bool keyframe_ok =
+          a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
+          static_cast<double>(a.valid) / finest_pixels >= config.min_valid_ratio;
       // T_prev_cur through the keyframe chain against the direct one.
       const Eigen::Isometry3d chain = T_ref_last.inverse() * a.T_cur_ref.inverse();
       const Eigen::Isometry3d difference = to_previous.T_cur_ref * chain;
@@ -777,8 +777,8 @@ struct DenseOdometry::Impl {
       result.T_ref_cur = T_prev_cur;
       result.information = normal.H;
       if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
-        result.information -= normal.H_pose_offset * normal.H_pose_offset.transpose() /
-                              normal.H_offset;
+        result.information -=
+            normal.H_pose_offset * normal.H_pose_offset.transpose() / normal.H_offset;
       }
       result.T_world_cur = T_world_reference * T_ref_last * T_prev_cur;
       last_motion = T_prev_cur;
