@@ -304,8 +304,8 @@ struct DenseOdometry::Impl {
       return counts;
     }
 
-    // Intensity and depth in one pass over the points (the depth kernel warps for itself so
-    // that it stays testable alone; points without gradient skip the intensity sample).
+    // Intensity and depth in one pass over the points and one warp; points without gradient
+    // skip the intensity sample.
     const cv::Mat& depth_image = current.depth_m[level];
     const auto* depth = reinterpret_cast<const float*>(depth_image.data);
     const auto depth_stride = static_cast<int>(depth_image.step1());
@@ -316,27 +316,28 @@ struct DenseOdometry::Impl {
     for (int i = 0; i < ref.count; ++i) {
       float J[6];
       float rz = 0.0f;
-      const bool ok = detail::depth_residual(depth, depth_stride, max_u, max_v, k, T, ref.x[i],
-                                             ref.y[i], ref.z[i], min_z, noise, spread, rz, J);
-      depth_residual[i] = ok ? rz : 0.0f;
-      depth_mask[i] = ok ? 1.0f : 0.0f;
-      for (int j = 0; j < 6; ++j) jz[j][i] = ok ? J[j] : 0.0f;
       float r = 0.0f;
       float m = 0.0f;
-      if (photometric[i] > 0.0f) {
-        float qx, qy, qz;
-        T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-        if (qz > min_z) {
-          const float inv_z = 1.0f / qz;
-          const float u = k.fx * qx * inv_z + k.cx;
-          const float v = k.fy * qy * inv_z + k.cy;
-          if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
+      bool ok = false;
+      float qx, qy, qz;
+      T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
+      if (qz > min_z) {
+        const float inv_z = 1.0f / qz;
+        const float u = k.fx * qx * inv_z + k.cx;
+        const float v = k.fy * qy * inv_z + k.cy;
+        if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
+          if (photometric[i] > 0.0f) {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] -
                 brightness_offset;
             m = 1.0f;
           }
+          ok = detail::depth_residual_at(depth, depth_stride, k, T, ref.x[i], ref.y[i],
+                                         ref.z[i], qx, qy, qz, u, v, noise, spread, rz, J);
         }
       }
+      depth_residual[i] = ok ? rz : 0.0f;
+      depth_mask[i] = ok ? 1.0f : 0.0f;
+      for (int j = 0; j < 6; ++j) jz[j][i] = ok ? J[j] : 0.0f;
       residual[i] = r;
       mask[i] = m;
       counts.photometric += m > 0.0f ? 1 : 0;

@@ -63,17 +63,12 @@ inline float sample_bilinear(const float* data, int stride, float u, float v) {
 /// J = (grad D * d pi / d q - e_z^T) R [I, -[p]x] / sigma_z, with grad D the gradient of the
 /// bilinear interpolant, so J is the exact derivative of the sampled residual. Returns false
 /// (r, J untouched) when q leaves the image or the four depths are missing or span an edge.
-inline bool depth_residual(const float* depth, int stride, float max_u, float max_v,
-                           const Intrinsics& k, const Warp& T, float px, float py, float pz,
-                           float min_z, float noise_per_m, float max_spread_ratio,
-                           float& residual, float* d_residual_d_xi) {
-  float qx, qy, qz;
-  T.apply(px, py, pz, qx, qy, qz);
-  if (!(qz > min_z)) return false;
+/// This form takes q = T p and its projection (u, v), already checked to lie in the image.
+inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& k,
+                              const Warp& T, float px, float py, float pz, float qx, float qy,
+                              float qz, float u, float v, float noise_per_m,
+                              float max_spread_ratio, float& residual, float* d_residual_d_xi) {
   const float inv_z = 1.0f / qz;
-  const float u = k.fx * qx * inv_z + k.cx;
-  const float v = k.fy * qy * inv_z + k.cy;
-  if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) return false;
   const int u0 = static_cast<int>(u);
   const int v0 = static_cast<int>(v);
   const float du = u - static_cast<float>(u0);
@@ -106,6 +101,22 @@ inline bool depth_residual(const float* depth, int stride, float max_u, float ma
   d_residual_d_xi[4] = pz * bx - px * bz;
   d_residual_d_xi[5] = px * by - py * bx;
   return true;
+}
+
+/// As depth_residual_at, warping and projecting p itself.
+inline bool depth_residual(const float* depth, int stride, float max_u, float max_v,
+                           const Intrinsics& k, const Warp& T, float px, float py, float pz,
+                           float min_z, float noise_per_m, float max_spread_ratio,
+                           float& residual, float* d_residual_d_xi) {
+  float qx, qy, qz;
+  T.apply(px, py, pz, qx, qy, qz);
+  if (!(qz > min_z)) return false;
+  const float inv_z = 1.0f / qz;
+  const float u = k.fx * qx * inv_z + k.cx;
+  const float v = k.fy * qy * inv_z + k.cy;
+  if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) return false;
+  return depth_residual_at(depth, stride, k, T, px, py, pz, qx, qy, qz, u, v, noise_per_m,
+                           max_spread_ratio, residual, d_residual_d_xi);
 }
 
 /// Sums of one pass over weighted rows: H = sum w J J^T (upper triangle, row-major), g = sum w
