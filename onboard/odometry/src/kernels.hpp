@@ -28,8 +28,8 @@ struct Warp {
 
 /// d I_ref(pi(exp(xi) p)) / d xi at xi = 0 (inverse compositional: the reference's gradient
 /// (gx, gy) in intensity per pixel, the point p in the reference camera, metres).
-inline void photometric_jacobian(float x, float y, float z, float gx, float gy,
-                                 const Intrinsics& k, float* d_residual_d_xi) {
+inline void photometric_jacobian(float x, float y, float z, float gx, float gy, const Intrinsics& k,
+                                 float* d_residual_d_xi) {
   // d I / d p = grad I * d pi / d p; d p / d xi = [I, -[p]x], so the rotational part is
   // p x (d I / d p).
   const float inv_z = 1.0f / z;
@@ -64,10 +64,10 @@ inline float sample_bilinear(const float* data, int stride, float u, float v) {
 /// bilinear interpolant, so J is the exact derivative of the sampled residual. Returns false
 /// (r, J untouched) when q leaves the image or the four depths are missing or span an edge.
 /// This form takes q = T p and its projection (u, v), already checked to lie in the image.
-inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& k,
-                              const Warp& T, float px, float py, float pz, float qx, float qy,
-                              float qz, float u, float v, float noise_per_m,
-                              float max_spread_ratio, float& residual, float* d_residual_d_xi) {
+inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& k, const Warp& T,
+                              float px, float py, float pz, float qx, float qy, float qz, float u,
+                              float v, float noise_per_m, float max_spread_ratio, float& residual,
+                              float* d_residual_d_xi) {
   const float inv_z = 1.0f / qz;
   const int u0 = static_cast<int>(u);
   const int v0 = static_cast<int>(v);
@@ -106,8 +106,8 @@ inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& 
 /// As depth_residual_at, warping and projecting p itself.
 inline bool depth_residual(const float* depth, int stride, float max_u, float max_v,
                            const Intrinsics& k, const Warp& T, float px, float py, float pz,
-                           float min_z, float noise_per_m, float max_spread_ratio,
-                           float& residual, float* d_residual_d_xi) {
+                           float min_z, float noise_per_m, float max_spread_ratio, float& residual,
+                           float* d_residual_d_xi) {
   float qx, qy, qz;
   T.apply(px, py, pz, qx, qy, qz);
   if (!(qz > min_z)) return false;
