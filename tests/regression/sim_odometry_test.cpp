@@ -38,6 +38,7 @@ struct Case {
   hq::odometry::ReferenceMode mode;
   bool initialize_with_previous_motion;
   Bounds bounds;
+  bool use_depth_term = false;
 };
 
 struct SimRun {
@@ -63,6 +64,7 @@ SimRun fly_and_track(const Case& c) {
   hq::odometry::OdometryConfig odometry_config;
   odometry_config.reference_mode = c.mode;
   odometry_config.initialize_with_previous_motion = c.initialize_with_previous_motion;
+  odometry_config.use_depth_term = c.use_depth_term;
   hq::odometry::DenseOdometry odometry(odometry_config, config.camera.pinhole);
 
   SimRun run;
@@ -132,6 +134,22 @@ INSTANTIATE_TEST_SUITE_P(KeyframeDefaults, OdometryOnSimulatedCircle,
                          ::testing::Values(Case{"frame_to_keyframe",
                                                 hq::odometry::ReferenceMode::kFrameToKeyframe, true,
                                                 kKeyframeBounds}),
+                         case_name);
+
+// With DVO-SLAM's depth residual (Kerl IROS 2013) beside the intensity one; measured with
+// seed 7 over the same 241 frames: it cuts the frame-to-frame drift 3x (0.02397 -> 0.00838
+// m/s) and the keyframe drift 2x (0.00113 -> 0.00051 m/s).
+INSTANTIATE_TEST_SUITE_P(DepthTerm, OdometryOnSimulatedCircle,
+                         ::testing::Values(Case{"frame_to_frame_depth",
+                                                hq::odometry::ReferenceMode::kFrameToFrame, true,
+                                                {0.00838, 0.0105, 0.3516, 0.44, 0.00751, 0.0094},
+                                                true},
+                                           Case{"frame_to_keyframe_depth",
+                                                hq::odometry::ReferenceMode::kFrameToKeyframe,
+                                                true,
+                                                {0.00051, 0.00064, 0.0124, 0.0155, 0.00039,
+                                                 0.00049},
+                                                true}),
                          case_name);
 
 }  // namespace

@@ -1,13 +1,19 @@
 // hq-bench-odometry: HaptiQuad's dense odometry beside OpenCV's rgbd odometries on the same
 // frames, in one process and one run, one thread each. Prints median / p90 ms per frame (the
 // odometry call only; loading and undistortion excluded) and RPE / ATE against ground truth.
+// HaptiQuad runs as intensity only, + depth term, + gyro prior, + both, frame to frame and
+// frame to keyframe. The gyro is synthesised from the ground truth (TUM has none): the true
+// rotation between frames plus white noise and a constant residual bias, as a complementary
+// filter's bias estimate leaves it.
 //
 //   hq-bench-odometry [--passes N] [--camera calib/tum_fr1.yaml] [sequence-dir ...]
+// (a sequence folder with its own camera.yaml, as hq-sim records, uses that one).
 // Without sequence arguments it runs the bundled real sequences under ../shared/data/tum.
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
+#include "hq/geometry/lie.hpp"
 #include "hq/odometry/dense_odometry.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/recording/tum_io.hpp"
@@ -19,6 +25,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <optional>
+#include <random>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -33,7 +42,58 @@ struct LoadedSequence {
   std::vector<hq::sources::RgbdFrame> frames;
   std::vector<hq::recording::StampedPose> ground_truth;
   hq::geometry::PinholeCamera camera;
+  std::vector<std::optional<hq::odometry::RotationPrior>> gyro;  ///< per frame; none at 0
 };
+
+// Synthetic gyro: noise density of an MPU-class gyro (as replay_imu synthesises) and the bias a
+// complementary filter leaves after convergence, on every axis.
+constexpr double kGyroNoiseDensity = 1.7e-4;  // rad/s/sqrt(Hz)
+constexpr double kGyroResidualBiasRadps = 0.005;
+constexpr double kGyroRateHz = 200.0;
+
+std::optional<Eigen::Isometry3d> pose_at(const std::vector<hq::recording::StampedPose>& poses,
+                                         std::int64_t t_ns) {
+  if (poses.empty() || t_ns < poses.front().t_ns || t_ns > poses.back().t_ns) return std::nullopt;
+  const auto next = std::lower_bound(
+      poses.begin(), poses.end(), t_ns,
+      [](const hq::recording::StampedPose& p, std::int64_t t) { return p.t_ns < t; });
+  if (next == poses.begin()) return next->T_world_sensor;
+  const auto prev = next - 1;
+  const double s = static_cast<double>(t_ns - prev->t_ns) /
+                   static_cast<double>(std::max<std::int64_t>(next->t_ns - prev->t_ns, 1));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(prev->T_world_sensor.linear())
+                   .slerp(s, Eigen::Quaterniond(next->T_world_sensor.linear()))
+                   .toRotationMatrix();
+  T.translation() = (1.0 - s) * prev->T_world_sensor.translation() +
+                    s * next->T_world_sensor.translation();
+  return T;
+}
+
+void synthesise_gyro(LoadedSequence& sequence) {
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> gaussian(0.0, 1.0);
+  const Eigen::Vector3d bias = Eigen::Vector3d::Constant(kGyroResidualBiasRadps);
+  sequence.gyro.assign(sequence.frames.size(), std::nullopt);
+  for (std::size_t i = 1; i < sequence.frames.size(); ++i) {
+    const auto a = pose_at(sequence.ground_truth, sequence.frames[i - 1].t_ns);
+    const auto b = pose_at(sequence.ground_truth, sequence.frames[i].t_ns);
+    if (!a || !b) continue;
+    const double dt_s = 1e-9 * static_cast<double>(sequence.frames[i].t_ns -
+                                                   sequence.frames[i - 1].t_ns);
+    // Integrated white noise: sigma = density sqrt(dt); the bias integrates to bias dt.
+    const double sigma = kGyroNoiseDensity * std::sqrt(dt_s);
+    const Eigen::Vector3d noise(gaussian(rng), gaussian(rng), gaussian(rng));
+    const Eigen::Vector3d error = sigma * noise + bias * dt_s;
+    hq::odometry::RotationPrior prior;
+    prior.R_prev_cur = a->linear().transpose() * b->linear() * hq::geometry::exp_so3(error);
+    // Covariance: the white noise plus the bias the filter may still have.
+    const double var = sigma * sigma + std::pow(kGyroResidualBiasRadps * dt_s, 2) +
+                       kGyroNoiseDensity * kGyroNoiseDensity / kGyroRateHz;
+    prior.information = Eigen::Matrix3d::Identity() / var;
+    sequence.gyro[i] = prior;
+  }
+}
 
 // A method tracks a whole sequence frame to frame: reset, then one call per frame, returning
 // the camera pose in the first frame's coordinates.
@@ -42,7 +102,8 @@ class Method {
   virtual ~Method() = default;
   virtual std::string name() const = 0;
   virtual void reset(const hq::geometry::PinholeCamera& camera) = 0;
-  virtual Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame) = 0;
+  virtual Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
+                                  const hq::odometry::RotationPrior* gyro) = 0;
 };
 
 class HaptiQuadMethod final : public Method {
@@ -53,8 +114,9 @@ class HaptiQuadMethod final : public Method {
   void reset(const hq::geometry::PinholeCamera& camera) override {
     odometry_ = std::make_unique<hq::odometry::DenseOdometry>(config_, camera);
   }
-  Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame) override {
-    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m).T_world_cur;
+  Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
+                          const hq::odometry::RotationPrior* gyro) override {
+    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro).T_world_cur;
   }
 
  private:
@@ -75,7 +137,8 @@ class OpenCvMethod final : public Method {
     previous_.release();
     T_world_cur_.setIdentity();
   }
-  Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame) override {
+  Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
+                          const hq::odometry::RotationPrior* /*gyro*/) override {
     cv::Ptr<cv::rgbd::OdometryFrame> current =
         cv::rgbd::OdometryFrame::create(frame.gray, frame.depth_m);
     if (previous_) {
@@ -101,20 +164,25 @@ class OpenCvMethod final : public Method {
   Eigen::Isometry3d T_world_cur_ = Eigen::Isometry3d::Identity();
 };
 
-LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera) {
+LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera,
+                    double skip_s) {
   hq::sources::TumFrameSource source(dir, camera);
   LoadedSequence sequence;
   sequence.name = std::filesystem::path(dir).filename().string();
   sequence.camera = source.camera();
   sequence.ground_truth = source.sequence().ground_truth();
   hq::sources::RgbdFrame frame;
+  std::int64_t first_ns = -1;
   while (source.next(frame) == hq::sources::FrameStatus::kFrame) {
+    if (first_ns < 0) first_ns = frame.t_ns;
+    if (static_cast<double>(frame.t_ns - first_ns) < skip_s * 1e9) continue;
     hq::sources::RgbdFrame copy;
     copy.t_ns = frame.t_ns;
     copy.gray = frame.gray.clone();
     copy.depth_m = frame.depth_m.clone();
     sequence.frames.push_back(std::move(copy));
   }
+  synthesise_gyro(sequence);
   return sequence;
 }
 
@@ -137,7 +205,9 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     trajectory.clear();
     for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
       const auto start = std::chrono::steady_clock::now();
-      const Eigen::Isometry3d T_world_cur = method.track(sequence.frames[i]);
+      const auto& gyro = sequence.gyro[i];
+      const Eigen::Isometry3d T_world_cur =
+          method.track(sequence.frames[i], gyro ? &*gyro : nullptr);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count();
@@ -166,9 +236,20 @@ static int run_benchmarks(int argc, char** argv) {
   std::vector<std::string> sequence_dirs;
   std::string camera_path = "calib/tum_fr1.yaml";
   int passes = 10;
+  double skip_s = 0.0;
+  bool only_haptiquad = false;
+  int depth_point_stride = hq::odometry::OdometryConfig{}.depth_point_stride;
   app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
-  app.add_option("--camera", camera_path, "camera file of the sequences");
+  app.add_option("--camera", camera_path,
+                 "camera file of sequences without their own camera.yaml");
   app.add_option("--passes", passes, "times each sequence is run per method")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--skip-s", skip_s,
+                 "seconds skipped at each sequence's start (hq-sim: 3 s, take-off without depth)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--only-haptiquad", only_haptiquad, "skip OpenCV's methods (quick comparisons)");
+  app.add_option("--depth-point-stride", depth_point_stride,
+                 "odometry.depth_point_stride of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
@@ -187,28 +268,53 @@ static int run_benchmarks(int argc, char** argv) {
   }
   const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
 
-  hq::odometry::OdometryConfig half;
-  hq::odometry::OdometryConfig keyframes;
-  keyframes.reference_mode = hq::odometry::ReferenceMode::kFrameToKeyframe;
-  hq::odometry::OdometryConfig full;
-  full.finest_level = 0;
   std::vector<std::unique_ptr<Method>> methods;
-  methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 320", half));
-  methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2kf 320", keyframes));
-  methods.push_back(std::make_unique<HaptiQuadMethod>("haptiquad f2f 640", full));
-  methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
-  methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
-  methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+  // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
+  hq::odometry::OdometryConfig defaults;
+  defaults.depth_point_stride = depth_point_stride;
+  methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
+  // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
+  for (const int mode_index : {0, 1, 2}) {
+    const auto mode = mode_index == 0 ? hq::odometry::ReferenceMode::kFrameToFrame
+                                      : hq::odometry::ReferenceMode::kFrameToKeyframe;
+    for (const int variant : {0, 1, 2, 3}) {
+      hq::odometry::OdometryConfig c;
+      c.reference_mode = mode;
+      c.keyframe_check = mode_index == 2;
+      c.use_depth_term = (variant & 1) != 0;
+      c.use_rotation_prior = (variant & 2) != 0;
+      c.depth_point_stride = depth_point_stride;
+      const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
+      const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
+      std::string name = modes[mode_index];
+      methods.push_back(std::make_unique<HaptiQuadMethod>(name + names[variant], c));
+    }
+  }
+  hq::odometry::OdometryConfig full = defaults;
+  full.finest_level = 0;
+  methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 640", full));
+  const std::size_t opencv_rgbd = only_haptiquad ? 0 : methods.size();
+  if (!only_haptiquad) {
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
+    methods.push_back(
+        std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+  }
 
   for (const std::string& dir : sequence_dirs) {
-    const LoadedSequence sequence = load(dir, camera);
+    // A simulator recording carries its own camera.yaml; TUM folders use --camera.
+    const std::string own_camera = dir + "/camera.yaml";
+    const LoadedSequence sequence =
+        load(dir, std::filesystem::exists(own_camera) ? hq::config::load_camera_info(own_camera)
+                                                      : camera,
+             skip_s);
     std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n", sequence.name.c_str(),
                 sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
     std::printf("%-24s %9s %9s %11s %11s %9s %10s\n", "method", "median_ms", "p90_ms", "rpe_t_m/s",
                 "rpe_r_deg/s", "ate_m", "speedup");
     std::vector<Row> rows;
     for (auto& method : methods) rows.push_back(run(*method, sequence, passes));
-    const double reference_ms = rows[3].median_ms;  // OpenCV RgbdOdometry
+    const double reference_ms = rows[opencv_rgbd].median_ms;
     for (std::size_t m = 0; m < methods.size(); ++m) {
       const Row& r = rows[m];
       std::printf("%-24s %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx\n", methods[m]->name().c_str(),

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -68,11 +69,12 @@ TEST(DenseOdometry, IdenticalFramesGiveIdentity) {
   EXPECT_GT(r.information.determinant(), 0.0);
 }
 
-class KnownMotion : public ::testing::TestWithParam<ReferenceMode> {};
+class KnownMotion : public ::testing::TestWithParam<std::tuple<ReferenceMode, bool>> {};
 
 TEST_P(KnownMotion, SmallMotionOfTexturedPlaneIsRecovered) {
   OdometryConfig config;
-  config.reference_mode = GetParam();
+  config.reference_mode = std::get<0>(GetParam());
+  config.use_depth_term = std::get<1>(GetParam());
   DenseOdometry odometry(config, kCamera);
   // GIVEN a camera moving 1 cm and 0.4 deg per frame over a textured plane 2 m away
   const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
@@ -91,9 +93,69 @@ TEST_P(KnownMotion, SmallMotionOfTexturedPlaneIsRecovered) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(BothReferenceModes, KnownMotion,
-                         ::testing::Values(ReferenceMode::kFrameToFrame,
-                                           ReferenceMode::kFrameToKeyframe));
+INSTANTIATE_TEST_SUITE_P(BothReferenceModesWithAndWithoutDepth, KnownMotion,
+                         ::testing::Combine(::testing::Values(ReferenceMode::kFrameToFrame,
+                                                              ReferenceMode::kFrameToKeyframe),
+                                            ::testing::Bool()));
+
+TEST(DenseOdometry, KeyframeCheckKeepsTheKeyframeChainOnKnownMotion) {
+  // GIVEN frame to keyframe with the check, a camera moving 1 cm and 0.4 deg per frame
+  OdometryConfig config;
+  config.reference_mode = ReferenceMode::kFrameToKeyframe;
+  config.keyframe_check = true;
+  DenseOdometry odometry(config, kCamera);
+  const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  Frame f = render(T_world_camera);
+  odometry.track(0, f.gray, f.depth_m);
+  int keyframes = 0;
+  for (int k = 1; k <= 6; ++k) {
+    T_world_camera = T_world_camera * step;
+    f = render(T_world_camera);
+    const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    keyframes += r.new_keyframe ? 1 : 0;
+    // THEN the poses follow the truth and the chain agrees with each step: no re-anchoring
+    EXPECT_LT(translation_error(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+  }
+  EXPECT_LT(keyframes, 6);
+}
+
+TEST(DenseOdometry, GyroPriorCarriesAFastYaw) {
+  // GIVEN 8 degrees of yaw between two frames (240 deg/s at 30 Hz) and the gyro's rotation
+  const Eigen::Isometry3d truth = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.14);
+  const Frame a = render(Eigen::Isometry3d::Identity());
+  const Frame b = render(truth);
+  RotationPrior gyro;
+  gyro.R_prev_cur = truth.linear() * geometry::exp_so3(Eigen::Vector3d(0.0, 0.0, 5e-4));
+  gyro.information = Eigen::Matrix3d::Identity() / (1e-3 * 1e-3);
+  for (const bool depth : {false, true}) {
+    OdometryConfig config;
+    config.use_depth_term = depth;
+    DenseOdometry odometry(config, kCamera);
+    odometry.track(0, a.gray, a.depth_m);
+    // WHEN the frame is tracked with the prior
+    const OdometryResult r = odometry.track(1, b.gray, b.depth_m, &gyro);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    // THEN the pose is the image's, not the gyro's 0.03 deg error
+    EXPECT_LT(translation_error(r.T_ref_cur, truth), 2e-3) << "depth " << depth;
+    EXPECT_LT(rotation_error_rad(r.T_ref_cur, truth), 4e-4) << "depth " << depth;
+  }
+}
+
+TEST(DenseOdometry, NonFiniteGyroPriorIsIgnored) {
+  const Eigen::Isometry3d truth = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.0);
+  const Frame a = render(Eigen::Isometry3d::Identity());
+  const Frame b = render(truth);
+  RotationPrior gyro;
+  gyro.R_prev_cur(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  DenseOdometry odometry({}, kCamera);
+  odometry.track(0, a.gray, a.depth_m);
+  const OdometryResult r = odometry.track(1, b.gray, b.depth_m, &gyro);
+  ASSERT_TRUE(r.ok()) << r.reason;
+  EXPECT_LT(translation_error(r.T_ref_cur, truth), 1e-3);
+}
 
 TEST(DenseOdometry, LargerMotionConvergesThroughThePyramid) {
   DenseOdometry odometry({}, kCamera);
@@ -180,32 +242,44 @@ TEST(DenseOdometry, FlatImageWithDepthIsLost) {
 }
 
 TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
-  for (const ReferenceMode mode : {ReferenceMode::kFrameToFrame, ReferenceMode::kFrameToKeyframe}) {
+  for (const int variant : {0, 1, 2}) {
+    const ReferenceMode mode =
+        variant == 0 ? ReferenceMode::kFrameToFrame : ReferenceMode::kFrameToKeyframe;
     OdometryConfig config;
     config.reference_mode = mode;
+    config.keyframe_check = variant == 2;
     config.use_motion_prior = true;
+    config.use_depth_term = true;
     DenseOdometry odometry(config, kCamera);
+    RotationPrior gyro;
     std::vector<Frame> frames;
     for (int k = 0; k < 4; ++k) frames.push_back(render(pose(0.01 * k, 0.0, 0.0, 0.0, 0.0, 0.0)));
     odometry.track(0, frames[0].gray, frames[0].depth_m);
     const long before = hq::testing::allocation_count();
     for (int k = 1; k < 4; ++k) {
-      const OdometryResult r = odometry.track(k, frames[k].gray, frames[k].depth_m);
+      const OdometryResult r = odometry.track(k, frames[k].gray, frames[k].depth_m, &gyro);
       EXPECT_TRUE(r.ok()) << r.reason;
     }
-    EXPECT_EQ(hq::testing::allocation_count() - before, 0) << "mode " << static_cast<int>(mode);
+    EXPECT_EQ(hq::testing::allocation_count() - before, 0) << "variant " << variant;
   }
 }
 
 TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   const YAML::Node good = YAML::Load(
-      "{finest_level: 0, reference_mode: frame_to_keyframe, use_motion_prior: true}");
+      "{finest_level: 0, reference_mode: frame_to_keyframe, use_motion_prior: true,"
+      " use_depth_term: true, depth_point_stride: 3, use_rotation_prior: false,"
+      " keyframe_check: true, keyframe_check_max_rotation_deg: 1.0}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
   EXPECT_EQ(config.finest_level, 0);
   EXPECT_EQ(config.reference_mode, ReferenceMode::kFrameToKeyframe);
   EXPECT_TRUE(config.use_motion_prior);
+  EXPECT_TRUE(config.use_depth_term);
+  EXPECT_EQ(config.depth_point_stride, 3);
+  EXPECT_FALSE(config.use_rotation_prior);
+  EXPECT_TRUE(config.keyframe_check);
+  EXPECT_DOUBLE_EQ(config.keyframe_check_max_rotation_deg, 1.0);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
@@ -221,6 +295,8 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{finest_level: 5, pyramid_levels: 4}", "odometry.finest_level");
   expect_error("{reference_mode: sideways}", "expected one of frame_to_frame");
   expect_error("{max_iterations: 3}", "odometry.max_iterations is not a known key");
+  expect_error("{depth_noise_per_m: 0}", "odometry.depth_noise_per_m = 0, expected > 0");
+  expect_error("{depth_point_stride: 0}", "odometry.depth_point_stride");
 }
 
 }  // namespace

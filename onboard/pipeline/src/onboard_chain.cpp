@@ -2,6 +2,7 @@
 
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/complementary_filter.hpp"
+#include "hq/geometry/lie.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -11,6 +12,8 @@ namespace hq::pipeline {
 void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read_positive("camera_timeout_s", out.camera_timeout_s, 10.0);
   section.read("takeoff_height_m", out.takeoff_height_m, 0.0, 10.0);
+  section.read("gyro_rotation_prior", out.gyro_rotation_prior);
+  section.read_positive("gyro_prior_sigma_radps", out.gyro_prior_sigma_radps, 10.0);
   section.finish();
 }
 
@@ -63,7 +66,8 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       estimator_(config.estimator, vehicle.R_body_camera, vehicle.p_body_camera_m),
       memory_(config.memory, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
-      modes_(config.modes, config.control, vehicle) {
+      modes_(config.modes, config.control, vehicle),
+      R_body_camera_(vehicle.R_body_camera) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
   takeoff_complete_ = !config.modes.start_landed;
   if (config.markers.enabled) {
@@ -77,6 +81,16 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
 void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2) {
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
+  if (config_.chain.gyro_rotation_prior) {
+    // The body's rotation since the last frame, bias removed: R_Qprev_Qcur.
+    if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {
+      const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_last_imu_ns_), 0.1);
+      const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().gyro_bias_radps();
+      R_prev_cur_body_ = R_prev_cur_body_ * geometry::exp_so3(omega * dt_s);
+      gyro_since_frame_ = true;
+    }
+    t_last_imu_ns_ = t_ns;
+  }
   if (markers_) markers_->on_imu(t_ns, gyro_radps, accel_mps2);
 }
 
@@ -92,7 +106,20 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   out.frame = true;
   const std::int64_t t_arrival_ns = now_ns();
 
-  const odometry::OdometryResult odometry = odometry_.track(t_ns, gray, depth_m);
+  odometry::RotationPrior gyro;
+  const bool use_gyro = config_.chain.gyro_rotation_prior && gyro_since_frame_ && have_frame_;
+  if (use_gyro) {
+    // R_CprevCcur = R_CQ R_QprevQcur R_QC.
+    gyro.R_prev_cur = R_body_camera_.transpose() * R_prev_cur_body_ * R_body_camera_;
+    const auto interval_ns = std::max<std::int64_t>(t_ns - t_last_frame_ns_, 1);
+    const double sigma_rad =
+        config_.chain.gyro_prior_sigma_radps * 1e-9 * static_cast<double>(interval_ns);
+    gyro.information = Eigen::Matrix3d::Identity() / (sigma_rad * sigma_rad);
+  }
+  R_prev_cur_body_.setIdentity();
+  gyro_since_frame_ = false;
+  const odometry::OdometryResult odometry =
+      odometry_.track(t_ns, gray, depth_m, use_gyro ? &gyro : nullptr);
   out.tracking = odometry.status;
   out.tracking_reason = odometry.reason;
   out.valid_ratio = odometry.valid_ratio;

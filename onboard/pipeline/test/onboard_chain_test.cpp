@@ -303,10 +303,15 @@ TEST(LoadOnboardConfig, ReadsTheDefaultFileIntoEveryComponent) {
 
 TEST(LoadOnboardConfig, OdometryAndChainSectionsReachTheirComponents) {
   const std::string path = write_temp_yaml(
-      "sections", "odometry: {pyramid_levels: 3}\nchain: {camera_timeout_s: 0.7}\n");
+      "sections",
+      "odometry: {pyramid_levels: 3, use_depth_term: true}\n"
+      "chain: {camera_timeout_s: 0.7, gyro_rotation_prior: true, gyro_prior_sigma_radps: 0.02}\n");
   const OnboardConfig config = load_onboard_config(path);
   EXPECT_EQ(config.odometry.pyramid_levels, 3);
+  EXPECT_TRUE(config.odometry.use_depth_term);
   EXPECT_DOUBLE_EQ(config.chain.camera_timeout_s, 0.7);
+  EXPECT_TRUE(config.chain.gyro_rotation_prior);
+  EXPECT_DOUBLE_EQ(config.chain.gyro_prior_sigma_radps, 0.02);
 }
 
 TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {
@@ -321,6 +326,8 @@ TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {
               HasSubstr("chain.camera_timeout_s"));
   EXPECT_THAT(load_error(write_temp_yaml("takeoff", "chain: {takeoff_height_m: -0.5}\n")),
               HasSubstr("chain.takeoff_height_m = -0.5, expected in [0, 10]"));
+  EXPECT_THAT(load_error(write_temp_yaml("gyro", "chain: {gyro_prior_sigma_radps: 0}\n")),
+              HasSubstr("chain.gyro_prior_sigma_radps"));
   EXPECT_THAT(load_error(write_temp_yaml("nested", "estimator: {complementary: {k_q: 1}}\n")),
               HasSubstr("estimator.complementary.k_q"));
   EXPECT_THAT(load_error("no/such/onboard.yaml"), HasSubstr("no/such/onboard.yaml"));

@@ -1,7 +1,7 @@
 // hq-sim: flies a scripted, truth-stabilised attitude/thrust sequence in a simulated world and
 // records it in the TUM RGB-D layout (with IMU), giving the odometry team ground-truthed runs.
 //   hq-sim --world onboard/sim/worlds/arena.yaml --duration-s 10 --record out_dir
-//          [--resolution 640x480] [--seed N] [--script hover|circle]
+//          [--resolution 640x480] [--seed N] [--script hover|circle] [--yaw-rate-degps R]
 //          [--config onboard/sim/config/sim.yaml]
 // hq-sim --sitl: the same simulator as a separate SITL process, paced to real time, playing a
 // PX4-like flight controller over MAVLink and publishing its RGB-D frames into shared memory
@@ -72,6 +72,10 @@ int run(int argc, char** argv) {
                  "serial:DEV:BAUD)");
   app.add_option("--channel", sitl_options.channel,
                  "with --sitl: frame channel name, shared memory /hq-<name>");
+  double yaw_rate_degps = -1.0;
+  app.add_option("--yaw-rate-degps", yaw_rate_degps,
+                 "yaw rate of the circle script (default: the script's slow turn)")
+      ->check(CLI::Range(0.0, 360.0));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -92,9 +96,10 @@ int run(int argc, char** argv) {
   if (app.count("--mavlink") > 0 || app.count("--channel") > 0) {
     throw hq::InputError("--mavlink and --channel need --sitl");
   }
-  const hq::sim::FlightScript script = hq::sim::script_for_world(
+  hq::sim::FlightScript script = hq::sim::script_for_world(
       world, script_kind == "circle" ? hq::sim::FlightScript::Kind::kCircle
                                      : hq::sim::FlightScript::Kind::kHover);
+  if (yaw_rate_degps >= 0.0) script.circle_yaw_rate_radps = yaw_rate_degps * M_PI / 180.0;
 
   std::unique_ptr<hq::sim::TumWriter> writer;
   if (!record_dir.empty()) {

@@ -57,6 +57,30 @@ struct OdometryConfig {
   ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
   int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
+  /// Keyframe check: each frame is also aligned to its predecessor; when T_prev_cur through
+  /// the keyframe disagrees with it by more than these, the frame re-anchors on its predecessor
+  /// and becomes the keyframe.
+  bool keyframe_check = false;
+  double keyframe_check_max_translation_m = 0.01;
+  double keyframe_check_max_rotation_deg = 0.5;
+  /// Adds DVO-SLAM's depth residual (Kerl, Sturm, Cremers IROS 2013, eq. 11-13) to the same
+  /// Gauss-Newton, with the bivariate Student-t weights of the pair (intensity, depth).
+  bool use_depth_term = false;
+  double depth_noise_per_m = 0.0015;   ///< sigma_z = this x z^2 (m), the Kinect noise model.
+  int depth_point_stride = 2;          ///< Pixels without photometric gradient still add a depth
+                                       ///< residual on this grid (1 = every pixel).
+  double depth_max_spread_ratio = 0.05;  ///< Depth residual skipped where the four sampled
+                                         ///< depths spread by more than this fraction.
+  /// Uses a RotationPrior given to track() as initial guess and prior (else it is ignored).
+  bool use_rotation_prior = true;
+  double rotation_prior_information_scale = 1.0;  ///< Prior information = this x the given one.
+};
+
+/// Rotation of the current camera in the previous frame's camera, integrated from the gyro
+/// by the caller (bias removed), with its information: a prior on the twist's rotation part.
+struct RotationPrior {
+  Eigen::Matrix3d R_prev_cur = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d information = Eigen::Matrix3d::Identity();  ///< rad^-2, symmetric PSD.
 };
 
 /// Reads the `odometry:` section of a YAML config strictly (unknown keys rejected).
@@ -90,6 +114,10 @@ class DenseOdometry {
   /// @param gray   CV_8UC1, camera.width x camera.height.
   /// @param depth_m CV_32FC1 metres, same size; 0, NaN or out of range means no depth.
   OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m);
+  /// As above, with the gyro's rotation since the previous frame (nullptr: none). A prior
+  /// that is not finite is ignored.
+  OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
+                       const RotationPrior* prior);
 
   /// Forgets the reference and the motion history (next frame is a first frame).
   void reset();

@@ -33,9 +33,16 @@ struct ChainConfig {
   /// Below this climb since take-off (and in land) the floor is expected in view and within the
   /// sensor's minimum range: the obstacle field's near-range hazard and floor push are off.
   double takeoff_height_m = 0.5;
+  /// Gives the odometry the gyro's rotation between frames (bias from the complementary
+  /// filter) as its initial guess and a prior on the rotation (odometry.use_rotation_prior).
+  bool gyro_rotation_prior = false;
+  /// Per-axis rate error assumed for that rotation (residual bias and noise): its covariance
+  /// is (this x frame interval)^2 rad^2.
+  double gyro_prior_sigma_radps = 0.01;
 };
 
-/// Reads the `chain:` section {camera_timeout_s, takeoff_height_m} strictly.
+/// Reads the `chain:` section {camera_timeout_s, takeoff_height_m, gyro_rotation_prior,
+/// gyro_prior_sigma_radps} strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -177,6 +184,10 @@ class OnboardChain {
   bool takeoff_complete_ = false;      ///< Climbed takeoff_height_m since leaving the ground.
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
+  Eigen::Matrix3d R_body_camera_;  ///< R_QC, to turn the body's rotation into the camera's.
+  Eigen::Matrix3d R_prev_cur_body_ = Eigen::Matrix3d::Identity();  ///< gyro since last frame
+  std::int64_t t_last_imu_ns_ = -1;
+  bool gyro_since_frame_ = false;
 };
 
 }  // namespace hq::pipeline

@@ -1,0 +1,106 @@
+// hq-bench-odometry-kernels: Google Benchmark of DenseOdometry's per-point kernels on a
+// 320x240 level's worth of points (76800): the warp + intensity sample, the depth residual
+// with its Jacobian, and the one-pass normal-equation accumulation. Built, not run by ctest.
+#include "kernels.hpp"
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <vector>
+
+namespace {
+
+using namespace hq::odometry::detail;
+
+constexpr int kWidth = 320;
+constexpr int kHeight = 240;
+constexpr int kPoints = kWidth * kHeight;
+const Intrinsics kK{262.5f, 262.5f, 159.5f, 119.5f};
+const Warp kWarp{0.9998f,  -0.0175f, 0.0087f, 0.0174f, 0.9998f, 0.0052f,
+                 -0.0088f, -0.0050f, 0.9999f, 0.01f,   -0.005f, 0.02f};
+
+struct Scene {
+  std::vector<float> image, depth, x, y, z, intensity, r, w, o;
+  std::vector<float> J[6];
+  Scene()
+      : image(kPoints),
+        depth(kPoints),
+        x(kPoints),
+        y(kPoints),
+        z(kPoints),
+        intensity(kPoints),
+        r(kPoints),
+        w(kPoints, 1.0f),
+        o(kPoints, 0.5f) {
+    for (auto& j : J) j.assign(kPoints, 0.1f);
+    for (int v = 0; v < kHeight; ++v) {
+      for (int u = 0; u < kWidth; ++u) {
+        const int i = v * kWidth + u;
+        image[i] = 128.0f + 60.0f * std::sin(0.2f * u) * std::cos(0.15f * v);
+        depth[i] = 1.5f + 0.002f * u + 0.001f * v;
+        z[i] = depth[i];
+        x[i] = (static_cast<float>(u) - kK.cx) * z[i] / kK.fx;
+        y[i] = (static_cast<float>(v) - kK.cy) * z[i] / kK.fy;
+        intensity[i] = image[i];
+      }
+    }
+  }
+};
+
+const Scene& scene() {
+  static const Scene s;
+  return s;
+}
+
+void BM_WarpAndSampleIntensity(benchmark::State& state) {
+  const Scene& s = scene();
+  std::vector<float> residual(kPoints);
+  for (auto _ : state) {
+    for (int i = 0; i < kPoints; ++i) {
+      float qx, qy, qz;
+      kWarp.apply(s.x[i], s.y[i], s.z[i], qx, qy, qz);
+      const float u = kK.fx * qx / qz + kK.cx;
+      const float v = kK.fy * qy / qz + kK.cy;
+      residual[i] = (u >= 0.0f && v >= 0.0f && u < kWidth - 1.001f && v < kHeight - 1.001f)
+                        ? sample_bilinear(s.image.data(), kWidth, u, v) - s.intensity[i]
+                        : 0.0f;
+    }
+    benchmark::DoNotOptimize(residual.data());
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_WarpAndSampleIntensity);
+
+void BM_DepthResidualAndJacobian(benchmark::State& state) {
+  const Scene& s = scene();
+  std::vector<float> residual(kPoints);
+  std::vector<float> jacobian(6 * kPoints);
+  for (auto _ : state) {
+    for (int i = 0; i < kPoints; ++i) {
+      depth_residual(s.depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK, kWarp, s.x[i],
+                     s.y[i], s.z[i], 0.15f, 0.0015f, 0.05f, residual[i], &jacobian[6 * i]);
+    }
+    benchmark::DoNotOptimize(residual.data());
+    benchmark::DoNotOptimize(jacobian.data());
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_DepthResidualAndJacobian);
+
+void BM_AccumulateRows(benchmark::State& state) {
+  const Scene& s = scene();
+  const float* J[6] = {s.J[0].data(), s.J[1].data(), s.J[2].data(),
+                       s.J[3].data(), s.J[4].data(), s.J[5].data()};
+  const bool offset_rows = state.range(0) != 0;
+  for (auto _ : state) {
+    RowSums sums;
+    accumulate_rows(J, s.intensity.data(), s.w.data(), kPoints, sums,
+                    offset_rows ? s.o.data() : nullptr);
+    benchmark::DoNotOptimize(sums);
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_AccumulateRows)->Arg(0)->Arg(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,198 @@
+#pragma once
+// The per-point kernels of DenseOdometry (private to hq_odometry, included by its tests and
+// benchmarks): the photometric Jacobian on the reference, the warp, the bilinear samples, the
+// depth residual with its Jacobian on the current frame, and the normal-equation accumulation.
+//
+// Update convention shared by both residuals: the estimate moves as T_cur_ref <- T_cur_ref
+// exp(-delta), i.e. T_ref_cur <- exp(delta) T_ref_cur, xi = (v, omega). Each kernel returns J
+// such that r(delta) ~ r(0) - J delta, so that delta = (sum w J J^T)^-1 sum w J r for both.
+
+#include <algorithm>
+#include <cmath>
+
+namespace hq::odometry::detail {
+
+struct Intrinsics {
+  float fx = 0, fy = 0, cx = 0, cy = 0;
+};
+
+/// Row-major 3x4 [R | t] of T_cur_ref in float.
+struct Warp {
+  float r00, r01, r02, r10, r11, r12, r20, r21, r22, tx, ty, tz;
+  void apply(float px, float py, float pz, float& qx, float& qy, float& qz) const {
+    qx = r00 * px + r01 * py + r02 * pz + tx;
+    qy = r10 * px + r11 * py + r12 * pz + ty;
+    qz = r20 * px + r21 * py + r22 * pz + tz;
+  }
+};
+
+/// d I_ref(pi(exp(xi) p)) / d xi at xi = 0 (inverse compositional: the reference's gradient
+/// (gx, gy) in intensity per pixel, the point p in the reference camera, metres).
+inline void photometric_jacobian(float x, float y, float z, float gx, float gy, const Intrinsics& k,
+                                 float* d_residual_d_xi) {
+  // d I / d p = grad I * d pi / d p; d p / d xi = [I, -[p]x], so the rotational part is
+  // p x (d I / d p).
+  const float inv_z = 1.0f / z;
+  const float a = gx * k.fx * inv_z;
+  const float b = gy * k.fy * inv_z;
+  const float c = -(a * x + b * y) * inv_z;
+  d_residual_d_xi[0] = a;
+  d_residual_d_xi[1] = b;
+  d_residual_d_xi[2] = c;
+  d_residual_d_xi[3] = y * c - z * b;
+  d_residual_d_xi[4] = z * a - x * c;
+  d_residual_d_xi[5] = x * b - y * a;
+}
+
+/// Bilinear sample of a float image at (u, v), 0 <= u < width - 1, 0 <= v < height - 1.
+inline float sample_bilinear(const float* data, int stride, float u, float v) {
+  const int u0 = static_cast<int>(u);
+  const int v0 = static_cast<int>(v);
+  const float du = u - static_cast<float>(u0);
+  const float dv = v - static_cast<float>(v0);
+  const float* p = data + v0 * stride + u0;
+  const float top = p[0] + du * (p[1] - p[0]);
+  const float bottom = p[stride] + du * (p[stride + 1] - p[stride]);
+  return top + dv * (bottom - top);
+}
+
+/// Depth residual of DVO-SLAM (Kerl, Sturm, Cremers, IROS 2013, eq. 11): the current depth at
+/// the warped reference point against that point's depth, r = (D_cur(pi(q)) - q_z) / sigma_z
+/// with q = T_cur_ref p and sigma_z = noise_per_m * q_z^2 (Kinect depth noise grows with z^2).
+/// Its Jacobian needs D_cur's gradient at pi(q), so it is taken forward, on the current frame:
+/// J = (grad D * d pi / d q - e_z^T) R [I, -[p]x] / sigma_z, with grad D the gradient of the
+/// bilinear interpolant, so J is the exact derivative of the sampled residual. Returns false
+/// (r, J untouched) when q leaves the image or the four depths are missing or span an edge.
+/// This form takes q = T p and its projection (u, v), already checked to lie in the image.
+inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& k, const Warp& T,
+                              float px, float py, float pz, float qx, float qy, float qz, float u,
+                              float v, float noise_per_m, float max_spread_ratio, float& residual,
+                              float* d_residual_d_xi) {
+  const float inv_z = 1.0f / qz;
+  const int u0 = static_cast<int>(u);
+  const int v0 = static_cast<int>(v);
+  const float du = u - static_cast<float>(u0);
+  const float dv = v - static_cast<float>(v0);
+  const float* p = depth + v0 * stride + u0;
+  const float d00 = p[0], d01 = p[1], d10 = p[stride], d11 = p[stride + 1];
+  const float lo = std::min(std::min(d00, d01), std::min(d10, d11));
+  const float hi = std::max(std::max(d00, d01), std::max(d10, d11));
+  if (!(lo > 0.0f) || hi - lo > max_spread_ratio * lo) return false;
+  const float top = d00 + du * (d01 - d00);
+  const float bottom = d10 + du * (d11 - d10);
+  const float d = top + dv * (bottom - top);
+  const float dd_du = (d01 - d00) + dv * ((d11 - d10) - (d01 - d00));
+  const float dd_dv = bottom - top;
+  const float inv_sigma = 1.0f / (noise_per_m * qz * qz);
+  residual = (d - qz) * inv_sigma;
+  // a = d r / d q (times sigma_z), row vector in the current camera.
+  const float ax = dd_du * k.fx * inv_z;
+  const float ay = dd_dv * k.fy * inv_z;
+  const float az = -(ax * qx + ay * qy) * inv_z - 1.0f;
+  // b = a R: the same derivative with respect to the reference point p.
+  const float bx = (ax * T.r00 + ay * T.r10 + az * T.r20) * inv_sigma;
+  const float by = (ax * T.r01 + ay * T.r11 + az * T.r21) * inv_sigma;
+  const float bz = (ax * T.r02 + ay * T.r12 + az * T.r22) * inv_sigma;
+  // r(delta) = r(T exp(-delta) p) ~ r - b [I, -[p]x] delta: J = [b, p x b].
+  d_residual_d_xi[0] = bx;
+  d_residual_d_xi[1] = by;
+  d_residual_d_xi[2] = bz;
+  d_residual_d_xi[3] = py * bz - pz * by;
+  d_residual_d_xi[4] = pz * bx - px * bz;
+  d_residual_d_xi[5] = px * by - py * bx;
+  return true;
+}
+
+/// As depth_residual_at, warping and projecting p itself.
+inline bool depth_residual(const float* depth, int stride, float max_u, float max_v,
+                           const Intrinsics& k, const Warp& T, float px, float py, float pz,
+                           float min_z, float noise_per_m, float max_spread_ratio, float& residual,
+                           float* d_residual_d_xi) {
+  float qx, qy, qz;
+  T.apply(px, py, pz, qx, qy, qz);
+  if (!(qz > min_z)) return false;
+  const float inv_z = 1.0f / qz;
+  const float u = k.fx * qx * inv_z + k.cx;
+  const float v = k.fy * qy * inv_z + k.cy;
+  if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) return false;
+  return depth_residual_at(depth, stride, k, T, px, py, pz, qx, qy, qz, u, v, noise_per_m,
+                           max_spread_ratio, residual, d_residual_d_xi);
+}
+
+/// Sums of one pass over weighted rows: H = sum w J J^T (upper triangle, row-major), g = sum w
+/// J r, and for a seventh parameter with Jacobian 1 (the brightness offset) its cross terms.
+struct RowSums {
+  double H[21] = {};
+  double g[6] = {};
+  double pose_offset[6] = {};
+  double offset = 0.0;
+  double g_offset = 0.0;
+  double weighted_error = 0.0;  ///< sum w r^2
+};
+
+// Rows accumulate in float within a block, then into double: float alone loses digits over
+// 10^5 pixels, double everywhere halves the throughput of the inner loop.
+inline constexpr int kAccumulationBlock = 256;
+
+template <bool kOffsetJacobian>
+void accumulate_rows_impl(const float* const* J, const float* r_in, const float* w_in,
+                          const float* offset_jacobian, int count, RowSums& out) {
+  const float* j0 = J[0];
+  const float* j1 = J[1];
+  const float* j2 = J[2];
+  const float* j3 = J[3];
+  const float* j4 = J[4];
+  const float* j5 = J[5];
+  for (int start = 0; start < count; start += kAccumulationBlock) {
+    const int end = std::min(count, start + kAccumulationBlock);
+    float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0,
+          h14 = 0, h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0,
+          h44 = 0, h45 = 0, h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0,
+          o0 = 0, o1 = 0, o2 = 0, o3 = 0, o4 = 0, o5 = 0, oo = 0, go = 0;
+#pragma omp simd reduction(+ : h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, \
+                               h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e, \
+                               o0, o1, o2, o3, o4, o5, oo, go)
+    for (int i = start; i < end; ++i) {
+      const float r = r_in[i];
+      const float w = w_in[i];
+      const float a0 = j0[i], a1 = j1[i], a2 = j2[i], a3 = j3[i], a4 = j4[i], a5 = j5[i];
+      const float c = kOffsetJacobian ? offset_jacobian[i] : 1.0f;
+      const float w0 = w * a0, w1 = w * a1, w2 = w * a2, w3 = w * a3, w4 = w * a4, w5 = w * a5;
+      h00 += w0 * a0; h01 += w0 * a1; h02 += w0 * a2; h03 += w0 * a3; h04 += w0 * a4;
+      h05 += w0 * a5; h11 += w1 * a1; h12 += w1 * a2; h13 += w1 * a3; h14 += w1 * a4;
+      h15 += w1 * a5; h22 += w2 * a2; h23 += w2 * a3; h24 += w2 * a4; h25 += w2 * a5;
+      h33 += w3 * a3; h34 += w3 * a4; h35 += w3 * a5; h44 += w4 * a4; h45 += w4 * a5;
+      h55 += w5 * a5;
+      g0 += w0 * r; g1 += w1 * r; g2 += w2 * r; g3 += w3 * r; g4 += w4 * r; g5 += w5 * r;
+      e += w * r * r;
+      o0 += c * w0; o1 += c * w1; o2 += c * w2; o3 += c * w3; o4 += c * w4; o5 += c * w5;
+      oo += c * c * w; go += c * w * r;
+    }
+    const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
+                             h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};
+    for (int k = 0; k < 21; ++k) out.H[k] += block[k];
+    const float gb[6] = {g0, g1, g2, g3, g4, g5};
+    const float ob[6] = {o0, o1, o2, o3, o4, o5};
+    for (int k = 0; k < 6; ++k) {
+      out.g[k] += gb[k];
+      out.pose_offset[k] += ob[k];
+    }
+    out.weighted_error += e;
+    out.offset += oo;
+    out.g_offset += go;
+  }
+}
+
+/// Accumulates `count` rows J[k][i], r[i] with weights w[i] into `out` in one pass; 36
+/// independent sums let the compiler vectorise across rows. The brightness offset's Jacobian
+/// is offset_jacobian[i], or 1 for every row when it is null.
+inline void accumulate_rows(const float* const* J, const float* r, const float* w, int count,
+                            RowSums& out, const float* offset_jacobian = nullptr) {
+  if (offset_jacobian != nullptr) {
+    accumulate_rows_impl<true>(J, r, w, offset_jacobian, count, out);
+  } else {
+    accumulate_rows_impl<false>(J, r, w, nullptr, count, out);
+  }
+}
+
+}  // namespace hq::odometry::detail

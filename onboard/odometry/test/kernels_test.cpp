@@ -1,0 +1,166 @@
+// The per-point kernels against numeric derivatives (as basalt tests its camera models and
+// Sophus its Lie groups): both residuals' analytic Jacobians must match central differences
+// of the residual itself under the shared update T_cur_ref <- T_cur_ref exp(-delta).
+#include "kernels.hpp"
+
+#include "hq/geometry/lie.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace hq::odometry::detail {
+namespace {
+
+constexpr int kWidth = 64;
+constexpr int kHeight = 48;
+const Intrinsics kK{50.0f, 52.0f, 31.5f, 23.5f};
+
+Warp warp_of(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d& R = T.linear();
+  const Eigen::Vector3d& t = T.translation();
+  return {static_cast<float>(R(0, 0)), static_cast<float>(R(0, 1)), static_cast<float>(R(0, 2)),
+          static_cast<float>(R(1, 0)), static_cast<float>(R(1, 1)), static_cast<float>(R(1, 2)),
+          static_cast<float>(R(2, 0)), static_cast<float>(R(2, 1)), static_cast<float>(R(2, 2)),
+          static_cast<float>(t.x()),   static_cast<float>(t.y()),   static_cast<float>(t.z())};
+}
+
+Eigen::Isometry3d some_pose() {
+  geometry::Vector6d xi;
+  xi << 0.03, -0.02, 0.05, 0.02, -0.03, 0.04;
+  return geometry::exp_se3(xi);
+}
+
+// A smooth surface z(u, v) = 2 + 0.01 u - 0.005 v + 0.0002 u v, sampled on the pixel grid.
+std::vector<float> smooth_depth() {
+  std::vector<float> d(kWidth * kHeight);
+  for (int v = 0; v < kHeight; ++v) {
+    for (int u = 0; u < kWidth; ++u) {
+      d[v * kWidth + u] = 2.0f + 0.01f * u - 0.005f * v + 0.0002f * u * v;
+    }
+  }
+  return d;
+}
+
+TEST(DepthResidual, AnalyticJacobianMatchesNumericDerivative) {
+  const std::vector<float> depth = smooth_depth();
+  const Eigen::Isometry3d T = some_pose();
+  const float max_u = kWidth - 1 - 1e-3f;
+  const float max_v = kHeight - 1 - 1e-3f;
+  int checked = 0;
+  // Points that T maps onto the surface, inside pixel cells: r = 0 there, so the noise model's
+  // 1 / z^2, held fixed within an iteration (IRLS), does not enter the derivative.
+  for (const Eigen::Vector2d& uv :
+       {Eigen::Vector2d(20.3, 15.6), Eigen::Vector2d(40.7, 30.4), Eigen::Vector2d(12.45, 35.55)}) {
+    const double z = 2.0 + 0.01 * uv.x() - 0.005 * uv.y() + 0.0002 * uv.x() * uv.y();
+    const Eigen::Vector3d q((uv.x() - kK.cx) * z / kK.fx, (uv.y() - kK.cy) * z / kK.fy, z);
+    const Eigen::Vector3d p = T.inverse() * q;
+    const auto residual_at = [&](const geometry::Vector6d& delta, float* J) {
+      float r = 0.0f;
+      float scratch[6];
+      const bool ok = depth_residual(
+          depth.data(), kWidth, max_u, max_v, kK, warp_of(T * geometry::exp_se3(-delta)),
+          static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), 0.1f,
+          0.0015f, 0.5f, r, J != nullptr ? J : scratch);
+      EXPECT_TRUE(ok);
+      return static_cast<double>(r);
+    };
+    float J[6];
+    const double r0 = residual_at(geometry::Vector6d::Zero(), J);
+    EXPECT_TRUE(std::isfinite(r0));
+    EXPECT_NEAR(r0, 0.0, 0.05);
+    constexpr double kStep = 1e-3;
+    for (int k = 0; k < 6; ++k) {
+      geometry::Vector6d e = geometry::Vector6d::Zero();
+      e(k) = kStep;
+      // r(delta) ~ r(0) - J delta
+      const double numeric = -(residual_at(e, nullptr) - residual_at(-e, nullptr)) / (2 * kStep);
+      EXPECT_NEAR(J[k], numeric, 1e-2 * std::max(1.0, std::abs(numeric))) << "axis " << k;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 18);
+}
+
+TEST(DepthResidual, MissingDepthOrEdgeIsRejected) {
+  std::vector<float> depth = smooth_depth();
+  const Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  float r = 0.0f;
+  float J[6];
+  // p projects to pixel (31.5 + 50 x / z, 23.5 + 52 y / z) = (34, 26): punch a hole there.
+  const float px = 2.5f * 2.0f / 50.0f, py = 2.5f * 2.0f / 52.0f, pz = 2.0f;
+  EXPECT_TRUE(depth_residual(depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK,
+                             warp_of(T), px, py, pz, 0.1f, 0.0015f, 0.05f, r, J));
+  depth[26 * kWidth + 34] = 0.0f;
+  EXPECT_FALSE(depth_residual(depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK,
+                              warp_of(T), px, py, pz, 0.1f, 0.0015f, 0.05f, r, J));
+  depth[26 * kWidth + 34] = 4.0f;  // an occlusion edge: 2 m against 4 m
+  EXPECT_FALSE(depth_residual(depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK,
+                              warp_of(T), px, py, pz, 0.1f, 0.0015f, 0.05f, r, J));
+}
+
+// I_ref smooth enough that central differences are its exact gradient at the pixel.
+double intensity(double u, double v) { return 100.0 + 2.0 * u - 1.5 * v; }
+
+TEST(PhotometricJacobian, MatchesNumericDerivativeOfTheWarpedReference) {
+  // Inverse compositional: J = d I_ref(pi(exp(xi) p)) / d xi at 0.
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.1, 0.05, 2.1), Eigen::Vector3d(-0.4, 0.2, 1.9)}) {
+    const auto I_at = [&](const geometry::Vector6d& xi) {
+      const Eigen::Vector3d q = geometry::exp_se3(xi) * p;
+      return intensity(kK.fx * q.x() / q.z() + kK.cx, kK.fy * q.y() / q.z() + kK.cy);
+    };
+    const double u = kK.fx * p.x() / p.z() + kK.cx;
+    const double v = kK.fy * p.y() / p.z() + kK.cy;
+    const auto gx = static_cast<float>(0.5 * (intensity(u + 1, v) - intensity(u - 1, v)));
+    const auto gy = static_cast<float>(0.5 * (intensity(u, v + 1) - intensity(u, v - 1)));
+    float J[6];
+    photometric_jacobian(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                         static_cast<float>(p.z()), gx, gy, kK, J);
+    constexpr double kStep = 1e-5;
+    for (int k = 0; k < 6; ++k) {
+      geometry::Vector6d e = geometry::Vector6d::Zero();
+      e(k) = kStep;
+      const double numeric = (I_at(e) - I_at(-e)) / (2 * kStep);
+      EXPECT_NEAR(J[k], numeric, 1e-3 * std::max(1.0, std::abs(numeric))) << "axis " << k;
+    }
+  }
+}
+
+TEST(AccumulateRows, MatchesDenseSums) {
+  // 600 rows (more than one accumulation block) against a double-precision reference.
+  constexpr int kRows = 600;
+  std::vector<float> j[6], r(kRows), w(kRows), o(kRows);
+  for (auto& c : j) c.resize(kRows);
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+  double oo = 0.0;
+  for (int i = 0; i < kRows; ++i) {
+    Eigen::Matrix<double, 6, 1> row;
+    for (int k = 0; k < 6; ++k) {
+      j[k][i] = std::sin(0.1f * static_cast<float>(i * (k + 1)));
+      row(k) = j[k][i];
+    }
+    r[i] = std::cos(0.05f * static_cast<float>(i));
+    w[i] = 0.5f +
+           0.5f * std::sin(0.3f * static_cast<float>(i)) * std::sin(0.3f * static_cast<float>(i));
+    o[i] = 0.25f;
+    H += w[i] * row * row.transpose();
+    g += w[i] * row * r[i];
+    oo += w[i] * o[i] * o[i];
+  }
+  const float* J[6] = {j[0].data(), j[1].data(), j[2].data(),
+                       j[3].data(), j[4].data(), j[5].data()};
+  RowSums sums;
+  accumulate_rows(J, r.data(), w.data(), kRows, sums, o.data());
+  int k = 0;
+  for (int a = 0; a < 6; ++a) {
+    for (int b = a; b < 6; ++b) EXPECT_NEAR(sums.H[k++], H(a, b), 1e-3 * std::abs(H(a, a)));
+    EXPECT_NEAR(sums.g[a], g(a), 1e-3);
+  }
+  EXPECT_NEAR(sums.offset, oo, 1e-3 * oo);
+}
+
+}  // namespace
+}  // namespace hq::odometry::detail
