@@ -1,7 +1,7 @@
+#include "hq/mcap/mcap.hpp"
+
 #include <array>
 #include <cstdint>
-
-#include "hq/mcap/mcap.hpp"
 
 namespace hq::mcap {
 namespace {
@@ -40,9 +40,9 @@ std::uint32_t crc32_update(std::uint32_t crc, Bytes data) {
   while (n >= 8) {
     const std::uint32_t one = load_le32(p) ^ c;
     const std::uint32_t two = load_le32(p + 4);
-    c = kTables[7][one & 0xFFu] ^ kTables[6][(one >> 8) & 0xFFu] ^
-        kTables[5][(one >> 16) & 0xFFu] ^ kTables[4][one >> 24] ^ kTables[3][two & 0xFFu] ^
-        kTables[2][(two >> 8) & 0xFFu] ^ kTables[1][(two >> 16) & 0xFFu] ^ kTables[0][two >> 24];
+    c = kTables[7][one & 0xFFu] ^ kTables[6][(one >> 8) & 0xFFu] ^ kTables[5][(one >> 16) & 0xFFu] ^
+        kTables[4][one >> 24] ^ kTables[3][two & 0xFFu] ^ kTables[2][(two >> 8) & 0xFFu] ^
+        kTables[1][(two >> 16) & 0xFFu] ^ kTables[0][two >> 24];
     p += 8;
     n -= 8;
   }

@@ -64,7 +64,8 @@ inline std::size_t begin_record(std::vector<std::uint8_t>& out, Opcode opcode) {
 }
 inline void end_record(std::vector<std::uint8_t>& out, std::size_t length_at) {
   const std::uint64_t length = out.size() - length_at - 8;
-  for (std::size_t i = 0; i < 8; ++i) out[length_at + i] = static_cast<std::uint8_t>(length >> (8 * i));
+  for (std::size_t i = 0; i < 8; ++i)
+    out[length_at + i] = static_cast<std::uint8_t>(length >> (8 * i));
 }
 /// Patches a uint32 byte length (maps, arrays) written as a placeholder at `at`.
 inline void patch_u32(std::vector<std::uint8_t>& out, std::size_t at, std::uint32_t v) {

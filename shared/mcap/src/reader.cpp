@@ -1,19 +1,19 @@
-#include <fcntl.h>
-#include <sys/mman.h>
-#include <sys/stat.h>
-#include <unistd.h>
-#include <zstd.h>
+#include "hq/base/error.hpp"
+#include "hq/mcap/mcap.hpp"
+
+#include "format.hpp"
 
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <fcntl.h>
 #include <limits>
 #include <set>
-
-#include "format.hpp"
-#include "hq/base/error.hpp"
-#include "hq/mcap/mcap.hpp"
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zstd.h>
 
 namespace hq::mcap {
 
@@ -105,7 +105,8 @@ class Fields {
   std::uint64_t le(std::size_t n) {
     need(n);
     std::uint64_t v = 0;
-    for (std::size_t i = 0; i < n; ++i) v |= static_cast<std::uint64_t>(content_[at_ + i]) << (8 * i);
+    for (std::size_t i = 0; i < n; ++i)
+      v |= static_cast<std::uint64_t>(content_[at_ + i]) << (8 * i);
     at_ += n;
     return v;
   }
@@ -149,8 +150,9 @@ class ReaderImpl {
       throw InputError(path_ + ": not an MCAP file (no magic 0x89 MCAP0 at the start)");
     }
     if (!read_with_summary(bytes)) scan(bytes);
-    std::stable_sort(r_.messages_.begin(), r_.messages_.end(),
-                     [](const Message& a, const Message& b) { return a.log_time_ns < b.log_time_ns; });
+    std::stable_sort(
+        r_.messages_.begin(), r_.messages_.end(),
+        [](const Message& a, const Message& b) { return a.log_time_ns < b.log_time_ns; });
     r_.report_.messages_recovered = r_.messages_.size();
     if (!r_.report_.has_summary) count_statistics();
   }
@@ -201,24 +203,36 @@ class ReaderImpl {
       }
       Fields g(rec.content, where("summary record", at));
       switch (rec.opcode) {
-        case kSchema: add_schema(g); break;
-        case kChannel: add_channel(g); break;
-        case kStatistics: read_statistics(g); break;
+        case kSchema:
+          add_schema(g);
+          break;
+        case kChannel:
+          add_channel(g);
+          break;
+        case kStatistics:
+          read_statistics(g);
+          break;
         case kChunkIndex:
           g.u64();  // message_start_time
           g.u64();  // message_end_time
           chunk_offsets.push_back(g.u64());
           break;
-        case kAttachmentIndex: attachment_offsets.push_back(g.u64()); break;
-        case kMetadataIndex: metadata_offsets.push_back(g.u64()); break;
-        default: break;
+        case kAttachmentIndex:
+          attachment_offsets.push_back(g.u64());
+          break;
+        case kMetadataIndex:
+          metadata_offsets.push_back(g.u64());
+          break;
+        default:
+          break;
       }
     }
     for (const std::uint64_t at : chunk_offsets) read_record_at(bytes, at, kChunk, "Chunk");
     for (const std::uint64_t at : attachment_offsets) {
       read_record_at(bytes, at, kAttachment, "Attachment");
     }
-    for (const std::uint64_t at : metadata_offsets) read_record_at(bytes, at, kMetadata, "Metadata");
+    for (const std::uint64_t at : metadata_offsets)
+      read_record_at(bytes, at, kMetadata, "Metadata");
     r_.report_.has_summary = true;
     r_.report_.valid_end_bytes = bytes.size();
     return true;
@@ -295,11 +309,21 @@ class ReaderImpl {
         r_.profile_ = f.string();
         r_.library_ = f.string();
         break;
-      case kSchema: add_schema(f); break;
-      case kChannel: add_channel(f); break;
-      case kMessage: add_message(f); break;
-      case kChunk: read_chunk(f, rec.offset); break;
-      case kAttachment: add_attachment(f, rec.offset); break;
+      case kSchema:
+        add_schema(f);
+        break;
+      case kChannel:
+        add_channel(f);
+        break;
+      case kMessage:
+        add_message(f);
+        break;
+      case kChunk:
+        read_chunk(f, rec.offset);
+        break;
+      case kAttachment:
+        add_attachment(f, rec.offset);
+        break;
       case kMetadata: {
         Metadata m;
         m.name = f.string();
@@ -307,7 +331,8 @@ class ReaderImpl {
         r_.metadata_.push_back(std::move(m));
         break;
       }
-      default: break;  // MessageIndex and records this reader does not need
+      default:
+        break;  // MessageIndex and records this reader does not need
     }
   }
 
@@ -412,10 +437,17 @@ class ReaderImpl {
       }
       Fields g(rec.content, where("Chunk", offset) + ", chunk offset " + std::to_string(at));
       switch (rec.opcode) {
-        case kSchema: add_schema(g); break;
-        case kChannel: add_channel(g); break;
-        case kMessage: add_message(g); break;
-        default: break;
+        case kSchema:
+          add_schema(g);
+          break;
+        case kChannel:
+          add_channel(g);
+          break;
+        case kMessage:
+          add_message(g);
+          break;
+        default:
+          break;
       }
     }
     ++r_.report_.chunk_count;

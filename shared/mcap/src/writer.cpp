@@ -1,16 +1,16 @@
-#include <fcntl.h>
-#include <unistd.h>
-#include <zstd.h>
+#include "hq/base/error.hpp"
+#include "hq/mcap/mcap.hpp"
+
+#include "format.hpp"
 
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <fcntl.h>
+#include <unistd.h>
 #include <utility>
-
-#include "format.hpp"
-#include "hq/base/error.hpp"
-#include "hq/mcap/mcap.hpp"
+#include <zstd.h>
 
 namespace hq::mcap {
 
@@ -342,7 +342,8 @@ void McapWriter::open(const std::string& path, const WriterOptions& options) {
   Impl& w = *impl_;
   w.path = path;
   w.options = options;
-  if (options.chunk_size_bytes == 0) throw InputError(path + ": chunk_size_bytes = 0, expected > 0");
+  if (options.chunk_size_bytes == 0)
+    throw InputError(path + ": chunk_size_bytes = 0, expected > 0");
   if (options.compression == Compression::kZstd) {
     w.zstd = ZSTD_createCCtx();
     if (w.zstd == nullptr) throw InputError(path + ": ZSTD_createCCtx failed");

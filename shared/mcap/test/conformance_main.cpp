@@ -4,15 +4,15 @@
 // DIR/zstd.mcap (zstd chunks), DIR/none.mcap (uncompressed chunks), DIR/nosummary.mcap (the
 // bytes on disk after a flush, before close: what a killed writer leaves), each with .json.
 
+#include "hq/base/error.hpp"
+#include "hq/mcap/mcap.hpp"
+
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
-
-#include "hq/base/error.hpp"
-#include "hq/mcap/mcap.hpp"
 
 namespace {
 
@@ -80,9 +80,11 @@ void write_files(const std::string& dir, const std::string& name, Compression co
   const std::string idl_state = "module hq { struct State { double v_H_mps[3]; }; };";
   const std::string idl_image = "module hq { struct Jpeg { sequence<octet> data; }; };";
   const std::uint16_t s_state = writer.add_schema(
-      "hq::State", "omgidl", Bytes(reinterpret_cast<const std::uint8_t*>(idl_state.data()), idl_state.size()));
+      "hq::State", "omgidl",
+      Bytes(reinterpret_cast<const std::uint8_t*>(idl_state.data()), idl_state.size()));
   const std::uint16_t s_image = writer.add_schema(
-      "hq::Jpeg", "omgidl", Bytes(reinterpret_cast<const std::uint8_t*>(idl_image.data()), idl_image.size()));
+      "hq::Jpeg", "omgidl",
+      Bytes(reinterpret_cast<const std::uint8_t*>(idl_image.data()), idl_image.size()));
   const std::vector<std::string> topics = {"/state", "/camera/jpeg", "/events"};
   const std::vector<std::string> schemas = {"hq::State", "hq::Jpeg", ""};
   writer.add_channel(s_state, topics[0], "cdr", {{"frame", "H"}});

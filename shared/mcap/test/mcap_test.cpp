@@ -1,21 +1,21 @@
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
+#include "hq/mcap/mcap.hpp"
+
+#include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <signal.h>
 #include <string>
+#include <sys/wait.h>
 #include <thread>
+#include <unistd.h>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
-#include "hq/mcap/mcap.hpp"
-#include "hq/testing/allocation_counter.hpp"
-#include "hq/testing/input_error.hpp"
 
 namespace hq::mcap {
 namespace {
@@ -73,8 +73,10 @@ Recording write_recording(const std::string& path, Compression compression,
   options.compression = compression;
   options.chunk_size_bytes = chunk_size_bytes;
   writer.open(path, options);
-  const std::uint16_t state_schema = writer.add_schema("hq.State", "omgidl", as_bytes("struct State {};"));
-  const std::uint16_t image_schema = writer.add_schema("hq.Image", "omgidl", as_bytes("struct Image {};"));
+  const std::uint16_t state_schema =
+      writer.add_schema("hq.State", "omgidl", as_bytes("struct State {};"));
+  const std::uint16_t image_schema =
+      writer.add_schema("hq.Image", "omgidl", as_bytes("struct Image {};"));
   const std::uint16_t state = writer.add_channel(state_schema, "/state", "cdr", {{"frame", "H"}});
   const std::uint16_t image = writer.add_channel(image_schema, "/camera/jpeg", "cdr");
   const std::uint16_t events = writer.add_channel(0, "/events", "json", {{"a", "1"}, {"b", "2"}});
@@ -84,7 +86,8 @@ Recording write_recording(const std::string& path, Compression compression,
   for (int i = 0; i < 1000; ++i) {
     const std::int64_t t_ns = 1'000'000'000LL + i * 5'000'000LL;
     auto add = [&](std::uint16_t channel, std::size_t size) {
-      Message m{channel, sequence[channel]++, t_ns, t_ns - 1000, payload(size, static_cast<std::uint32_t>(i * 3 + channel))};
+      Message m{channel, sequence[channel]++, t_ns, t_ns - 1000,
+                payload(size, static_cast<std::uint32_t>(i * 3 + channel))};
       writer.write(m.channel_id, m.sequence, m.log_time_ns, m.publish_time_ns, m.data);
       r.messages.push_back(std::move(m));
     };
@@ -283,8 +286,7 @@ TEST(McapReader, CorruptedSummaryIsReported) {
   std::vector<std::uint8_t> bytes = read_file(path);
   bytes[bytes.size() - 8 - 4] ^= 0x01;  // the footer's summary CRC
   write_file(path, bytes, bytes.size());
-  EXPECT_THAT(testing::input_error_message([&] { McapReader r(path); }),
-              HasSubstr("summary CRC"));
+  EXPECT_THAT(testing::input_error_message([&] { McapReader r(path); }), HasSubstr("summary CRC"));
 }
 
 TEST(McapWriter, FullDiskGivesAClearError) {
@@ -309,8 +311,8 @@ TEST(McapWriter, MissingFolderGivesAClearError) {
 TEST(McapWriter, AllocatesOnlyPerChunkNotPerMessage) {
   const TempDir dir;
   McapWriter writer;
-  writer.open(dir.file("alloc.mcap"), {.profile = "", .chunk_size_bytes = 64 * 1024,
-                                       .compression = Compression::kZstd});
+  writer.open(dir.file("alloc.mcap"),
+              {.profile = "", .chunk_size_bytes = 64 * 1024, .compression = Compression::kZstd});
   const std::uint16_t a = writer.add_channel(0, "/a", "raw");
   const std::uint16_t b = writer.add_channel(0, "/b", "raw");
   const std::vector<std::uint8_t> data = payload(100, 3);
@@ -368,7 +370,8 @@ TEST(McapWriter, SigkilledWriterLeavesARecoverableFile) {
   const McapReader reader(path);
   EXPECT_FALSE(reader.report().has_summary);
   ASSERT_FALSE(reader.messages().empty());
-  const double lost_s = static_cast<double>(killed_ns - reader.messages().back().log_time_ns) * 1e-9;
+  const double lost_s =
+      static_cast<double>(killed_ns - reader.messages().back().log_time_ns) * 1e-9;
   // 1 s chunk limit + 10 ms period; 0.1 s margin for a loaded machine.
   EXPECT_LT(lost_s, 1.11) << reader.messages().size() << " messages recovered";
   EXPECT_GT(reader.messages().size(), 100u);

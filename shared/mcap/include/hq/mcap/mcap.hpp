@@ -21,10 +21,10 @@ using Bytes = std::span<const std::uint8_t>;
 enum class Compression { kNone, kZstd };
 
 struct WriterOptions {
-  std::string profile;                          ///< Header profile, e.g. "" or "ros2"
-  std::uint64_t chunk_size_bytes = 1u << 20;    ///< a chunk is closed once its records reach this
+  std::string profile;                        ///< Header profile, e.g. "" or "ros2"
+  std::uint64_t chunk_size_bytes = 1u << 20;  ///< a chunk is closed once its records reach this
   Compression compression = Compression::kZstd;
-  int zstd_level = 1;                           ///< 1 is fast enough for a 1 kHz recorder thread
+  int zstd_level = 1;  ///< 1 is fast enough for a 1 kHz recorder thread
   /// A chunk is closed when its first message is older than this (steady clock): a writer
   /// killed with SIGKILL loses at most this much; chunks reach the kernel with write(2).
   std::int64_t chunk_time_limit_ns = 1'000'000'000;
@@ -125,8 +125,8 @@ struct Metadata {
 
 /// How the reader got its content.
 struct ReadReport {
-  bool has_summary = false;        ///< footer and summary present and used (seeking by index)
-  bool truncated = false;          ///< the file ends inside a record (scan stopped cleanly there)
+  bool has_summary = false;  ///< footer and summary present and used (seeking by index)
+  bool truncated = false;    ///< the file ends inside a record (scan stopped cleanly there)
   std::uint64_t file_size_bytes = 0;
   std::uint64_t valid_end_bytes = 0;  ///< offset just after the last complete record read
   std::uint64_t chunk_count = 0;
