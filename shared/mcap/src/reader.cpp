@@ -231,8 +231,20 @@ class ReaderImpl {
     for (const std::uint64_t at : attachment_offsets) {
       read_record_at(bytes, at, kAttachment, "Attachment");
     }
-    for (const std::uint64_t at : metadata_offsets)
+    for (const std::uint64_t at : metadata_offsets) {
       read_record_at(bytes, at, kMetadata, "Metadata");
+    }
+    // Messages may also sit outside chunks (unchunked writers), where no index points: when the
+    // chunks do not hold every message the statistics count, the data section is scanned.
+    if (chunk_offsets.empty() ||
+        (has_statistics_ && r_.messages_.size() != r_.statistics_.message_count)) {
+      r_.messages_.clear();
+      r_.attachments_.clear();
+      r_.metadata_.clear();
+      r_.report_.chunk_count = 0;
+      scan(bytes);
+      r_.report_.truncated = false;
+    }
     r_.report_.has_summary = true;
     r_.report_.valid_end_bytes = bytes.size();
     return true;
@@ -398,12 +410,17 @@ class ReaderImpl {
     if (compression.empty()) {
       records = payload;
     } else if (compression == "zstd") {
+      // Frames without a content size (streaming encoders) are decoded into the size the record
+      // states; a stated size beyond 4 GiB is corruption, not a chunk.
       const unsigned long long frame = ZSTD_getFrameContentSize(payload.data(), payload.size());
-      if (frame != uncompressed_size) {
+      if (frame == ZSTD_CONTENTSIZE_ERROR) {
+        throw InputError(where("Chunk", offset) + ": the payload is not a zstd frame");
+      }
+      if ((frame != ZSTD_CONTENTSIZE_UNKNOWN && frame != uncompressed_size) ||
+          uncompressed_size > (std::uint64_t{1} << 32)) {
         throw InputError(where("Chunk", offset) + ": zstd frame holds " +
-                         (frame == ZSTD_CONTENTSIZE_ERROR || frame == ZSTD_CONTENTSIZE_UNKNOWN
-                              ? std::string("an unknown size")
-                              : std::to_string(frame) + " bytes") +
+                         (frame == ZSTD_CONTENTSIZE_UNKNOWN ? std::string("an unknown size")
+                                                            : std::to_string(frame) + " bytes") +
                          ", the record says " + std::to_string(uncompressed_size));
       }
       buffer_.resize(uncompressed_size);
@@ -454,6 +471,7 @@ class ReaderImpl {
   }
 
   void read_statistics(Fields& f) {
+    has_statistics_ = true;
     Statistics& s = r_.statistics_;
     s.message_count = f.u64();
     s.schema_count = f.u16();
@@ -492,6 +510,7 @@ class ReaderImpl {
   std::set<std::uint16_t> schema_ids_;
   std::set<std::uint16_t> channel_ids_;
   std::vector<std::uint8_t> buffer_;
+  bool has_statistics_ = false;
 };
 
 McapReader::McapReader(const std::string& path) { ReaderImpl(*this, path).read(); }
