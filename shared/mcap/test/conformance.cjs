@@ -1,18 +1,22 @@
 // The @mcap/core side of the conformance check (run by conformance.sh).
-//   node conformance.cjs MODULES FILE.mcap FILE.json
-// Files with a summary are read with McapIndexedReader (summary, chunk indexes, seeking by topic
-// and time window, CRCs validated) and with McapStreamReader; a file without its summary (a
-// killed writer) must be refused by the indexed reader and stream up to its last chunk.
+//   node conformance.cjs MODULES read FILE.mcap FILE.json
+//       Files with a summary are read with McapIndexedReader (summary, chunk indexes, seeking by
+//       topic and time window, CRCs validated) and with McapStreamReader; a file without its
+//       summary (a killed writer) must be refused by the indexed reader and stream up to its
+//       last chunk.
+//   node conformance.cjs MODULES write FILE.mcap FILE.txt CHUNKS
+//       @mcap/core's McapWriter writes a recording (zstd chunks from @foxglove/wasm-zstd when
+//       CHUNKS is "zstd", no chunks when "none") and the values for hq-mcap-conformance check.
 'use strict';
 const fs = require('fs');
 const path = require('path');
 
-const [modules, mcapPath, jsonPath] = process.argv.slice(2);
-const { McapIndexedReader, McapStreamReader } = require(path.resolve(modules, '@mcap/core'));
+const [modules, mode, mcapPath, jsonPath, chunking] = process.argv.slice(2);
+const { McapIndexedReader, McapStreamReader, McapWriter } = require(path.resolve(modules, '@mcap/core'));
 const { loadDecompressHandlers } = require(path.resolve(modules, '@mcap/support'));
 
-const bytes = new Uint8Array(fs.readFileSync(mcapPath));
-const want = JSON.parse(fs.readFileSync(jsonPath, 'utf8'));
+const bytes = mode === 'read' ? new Uint8Array(fs.readFileSync(mcapPath)) : undefined;
+const want = mode === 'read' ? JSON.parse(fs.readFileSync(jsonPath, 'utf8')) : undefined;
 const name = path.basename(mcapPath);
 let failures = 0;
 function fail(message) {
@@ -167,16 +171,92 @@ function streamed(handlers) {
   console.log(`${name}: stream reader: ${JSON.stringify(counts)}`);
 }
 
+async function write() {
+  const zstd = require(path.resolve(modules, '@foxglove/wasm-zstd'));
+  await zstd.isLoaded;
+  const parts = [];
+  let size = 0n;
+  const writable = {
+    position: () => size,
+    write: async (buffer) => {
+      parts.push(Buffer.from(buffer));
+      size += BigInt(buffer.length);
+    },
+  };
+  const writer = new McapWriter({
+    writable,
+    useChunks: chunking === 'zstd',
+    chunkSize: 32 * 1024,
+    compressChunk: (data) => ({ compression: 'zstd', compressedData: zstd.compress(data, 3) }),
+  });
+  const lines = [];
+  const text = (s) => new TextEncoder().encode(s);
+  await writer.start({ profile: 'theirs', library: '@mcap/core' });
+  const imu = await writer.registerSchema({ name: 'px4.Imu', encoding: 'jsonschema', data: text('{}') });
+  const pose = await writer.registerSchema({ name: 'geometry.Pose', encoding: 'protobuf', data: text('pb') });
+  const channels = [
+    [imu, '/imu', 'json', new Map([['rate_hz', '250']])],
+    [pose, '/pose', 'protobuf', new Map()],
+    [0, '/log', 'raw', new Map([['a', 'b'], ['c', 'd']])],
+  ];
+  const ids = [];
+  for (const [schemaId, topic, encoding, metadata] of channels) {
+    const id = await writer.registerChannel({ schemaId, topic, messageEncoding: encoding, metadata });
+    ids.push(id);
+    const schema = schemaId === imu ? 'px4.Imu' : schemaId === pose ? 'geometry.Pose' : '-';
+    lines.push(`channel ${id} ${schemaId} ${topic} ${encoding} ${schema} ${metadata.size}`);
+  }
+  await writer.addMetadata({ name: 'session', metadata: new Map([['site', 'lab'], ['pilot', 'x']]) });
+  lines.push('metadata session 2');
+  const attachment = new Uint8Array(777).fill(42);
+  const addAttachment = async () => {
+    await writer.addAttachment({ name: 'map.bin', mediaType: 'application/octet-stream',
+                                 logTime: 5n, createTime: 6n, data: attachment });
+    lines.push('attachment map.bin application/octet-stream 777');
+  };
+  // @mcap/core 2.2.2 without chunks keeps messages in its buffer and indexes an attachment that
+  // follows them at the offset before them (hq::mcap reports "the summary's index points at no
+  // Attachment record"): there, the attachment goes first.
+  if (chunking !== 'zstd') await addAttachment();
+  const sequences = [0, 0, 0];
+  for (let i = 0; i < 3000; i++) {
+    const c = i % 7 === 0 ? 1 : i % 50 === 0 ? 2 : 0;
+    const n = c === 1 ? 900 + (i % 13) * 50 : c === 2 ? i % 5 : 64;
+    const data = new Uint8Array(n);
+    let sum = 0;
+    for (let k = 0; k < n; k++) {
+      data[k] = (i * 31 + k * 17) & 0xff;
+      sum = (sum + data[k]) >>> 0;
+    }
+    const logTime = 1_600_000_000_000_000_000n + BigInt(i) * 4_000_000n;
+    const publishTime = logTime - BigInt(c * 100 + 7);
+    const sequence = sequences[c]++;
+    await writer.addMessage({ channelId: ids[c], sequence, logTime, publishTime, data });
+    lines.push(`message ${ids[c]} ${sequence} ${logTime} ${publishTime} ${n} ${sum}`);
+  }
+  if (chunking === 'zstd') await addAttachment();
+  await writer.end();
+  lines.push(`statistics ${writer.statistics.messageCount} ${writer.statistics.chunkCount}`);
+  fs.writeFileSync(mcapPath, Buffer.concat(parts));
+  fs.writeFileSync(jsonPath, lines.join('\n') + '\n');
+  console.log(`${path.basename(mcapPath)}: @mcap/core wrote ${writer.statistics.messageCount} ` +
+              `messages in ${writer.statistics.chunkCount} chunks, ${size} bytes`);
+}
+
 (async () => {
-  const handlers = await loadDecompressHandlers();
   try {
-    await indexed(handlers);
-    streamed(handlers);
+    if (mode === 'write') {
+      await write();
+    } else {
+      const handlers = await loadDecompressHandlers();
+      await indexed(handlers);
+      streamed(handlers);
+    }
   } catch (e) {
     fail(`@mcap/core threw: ${e.stack || e}`);
   }
   if (failures > 0) {
-    console.error(`${name}: ${failures} failure(s)`);
+    console.error(`${name || mcapPath}: ${failures} failure(s)`);
     process.exit(1);
   }
 })();

@@ -2,7 +2,9 @@
 # Conformance of hq::mcap with an independent implementation, @mcap/core (npm, the Foxglove MCAP
 # library, with @mcap/support for zstd): files our writer produced are read by McapIndexedReader
 # (footer, summary, chunk indexes, seeking by topic and time, CRCs) and McapStreamReader (every
-# record in order, CRCs), and everything is checked against what the writer reports (JSON).
+# record in order, CRCs), and everything is checked against what the writer reports (JSON); and
+# files @mcap/core's McapWriter produced (zstd chunks, no chunks) are read by hq::mcap, whole
+# and cut in half.
 # Usage: conformance.sh HQ_MCAP_CONFORMANCE_BINARY WORK_DIR   (WORK_DIR holds node_modules)
 # Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
 set -euo pipefail
@@ -31,6 +33,11 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 "$tool" write "$tmp"
 for name in zstd none nosummary; do
-  node "$here/conformance.cjs" "$work/node_modules" "$tmp/$name.mcap" "$tmp/$name.json"
+  node "$here/conformance.cjs" "$work/node_modules" read "$tmp/$name.mcap" "$tmp/$name.json"
+done
+for chunks in zstd none; do
+  node "$here/conformance.cjs" "$work/node_modules" write "$tmp/theirs-$chunks.mcap" \
+       "$tmp/theirs-$chunks.txt" "$chunks"
+  "$tool" check "$tmp/theirs-$chunks.mcap" "$tmp/theirs-$chunks.txt"
 done
 echo "conformance with @mcap/core $core: passed"

@@ -1,8 +1,12 @@
-// Writes MCAP files for the @mcap/core checker (conformance.cjs) and, beside each, what the
-// writer reports as JSON: channels, schemas, statistics and every message's stamps and bytes.
+// Both directions of the conformance check with @mcap/core (conformance.cjs).
 //   hq-mcap-conformance write DIR
-// DIR/zstd.mcap (zstd chunks), DIR/none.mcap (uncompressed chunks), DIR/nosummary.mcap (the
-// bytes on disk after a flush, before close: what a killed writer leaves), each with .json.
+//       Writes DIR/zstd.mcap (zstd chunks), DIR/none.mcap (uncompressed chunks) and
+//       DIR/nosummary.mcap (the bytes on disk after a flush, before close: what a killed writer
+//       leaves), each with a .json of what the writer reports: channels, schemas, statistics
+//       and every message's stamps and bytes.
+//   hq-mcap-conformance check FILE.mcap FILE.txt
+//       Reads a file @mcap/core wrote and checks it against the values it listed; then the
+//       file cut in half (no summary) must recover a prefix of the messages.
 
 #include "hq/base/error.hpp"
 #include "hq/mcap/mcap.hpp"
@@ -11,6 +15,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -132,14 +137,138 @@ void write_files(const std::string& dir, const std::string& name, Compression co
   write_json(dir + "/" + name + ".json", writer, topics, schemas, messages, true);
 }
 
+int failures = 0;
+
+void expect(bool condition, const std::string& what) {
+  if (!condition) {
+    std::fprintf(stderr, "hq-mcap-conformance: %s\n", what.c_str());
+    ++failures;
+  }
+}
+
+std::uint32_t byte_sum(const std::vector<std::uint8_t>& data) {
+  std::uint32_t sum = 0;
+  for (const std::uint8_t b : data) sum += b;
+  return sum;
+}
+
+// Compares the first `count` of the listed messages with what the reader returned.
+void expect_messages(const std::vector<hq::mcap::Message>& got, const std::vector<Written>& want,
+                     std::size_t count, const std::string& how) {
+  expect(got.size() == count,
+         how + ": " + std::to_string(got.size()) + " messages, expected " + std::to_string(count));
+  int shown = 0;
+  for (std::size_t i = 0; i < std::min(got.size(), count); ++i) {
+    const hq::mcap::Message& m = got[i];
+    const Written& w = want[i];
+    const bool same = m.channel_id == w.channel_id && m.sequence == w.sequence &&
+                      m.log_time_ns == w.log_time_ns && m.publish_time_ns == w.publish_time_ns &&
+                      m.data.size() == w.size && byte_sum(m.data) == w.sum;
+    if (!same && shown++ < 5) expect(false, how + ": message " + std::to_string(i) + " differs");
+  }
+}
+
+int check(const std::string& mcap_path, const std::string& values_path) {
+  std::ifstream in(values_path);
+  std::vector<Written> messages;
+  std::size_t channels = 0;
+  std::size_t attachments = 0;
+  std::size_t metadata = 0;
+  std::uint64_t stat_messages = 0;
+  std::uint64_t stat_chunks = 0;
+  const hq::mcap::McapReader reader(mcap_path);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream f(line);
+    std::string kind;
+    f >> kind;
+    if (kind == "channel") {
+      unsigned id = 0;
+      unsigned schema_id = 0;
+      std::string topic;
+      std::string encoding;
+      std::string schema;
+      std::size_t metadata_size = 0;
+      f >> id >> schema_id >> topic >> encoding >> schema >> metadata_size;
+      const hq::mcap::Channel* c = reader.channel(static_cast<std::uint16_t>(id));
+      expect(c != nullptr, "channel " + std::to_string(id) + " missing");
+      if (c == nullptr) continue;
+      expect(c->schema_id == schema_id && c->topic == topic && c->message_encoding == encoding &&
+                 c->metadata.size() == metadata_size,
+             "channel " + std::to_string(id) + " is " + c->topic + " " + c->message_encoding);
+      const hq::mcap::Schema* s = reader.schema(c->schema_id);
+      expect((s == nullptr ? std::string("-") : s->name) == schema,
+             "channel " + topic + ": schema differs from " + schema);
+      ++channels;
+    } else if (kind == "message") {
+      Written w{};
+      unsigned channel = 0;
+      f >> channel >> w.sequence >> w.log_time_ns >> w.publish_time_ns >> w.size >> w.sum;
+      w.channel_id = static_cast<std::uint16_t>(channel);
+      messages.push_back(w);
+    } else if (kind == "attachment") {
+      std::string name;
+      std::string media_type;
+      std::size_t size = 0;
+      f >> name >> media_type >> size;
+      const bool found = attachments < reader.attachments().size();
+      expect(found && reader.attachments()[attachments].name == name &&
+                 reader.attachments()[attachments].media_type == media_type &&
+                 reader.attachments()[attachments].data.size() == size,
+             "attachment " + name + " differs");
+      ++attachments;
+    } else if (kind == "metadata") {
+      std::string name;
+      std::size_t count = 0;
+      f >> name >> count;
+      const bool found = metadata < reader.metadata().size();
+      expect(found && reader.metadata()[metadata].name == name &&
+                 reader.metadata()[metadata].values.size() == count,
+             "metadata " + name + " differs");
+      ++metadata;
+    } else if (kind == "statistics") {
+      f >> stat_messages >> stat_chunks;
+    }
+  }
+  expect(reader.report().has_summary, "summary not read");
+  expect(reader.profile() == "theirs", "profile " + reader.profile());
+  expect(reader.channels().size() == channels, "channel count");
+  expect(reader.attachments().size() == attachments, "attachment count");
+  expect(reader.metadata().size() == metadata, "metadata count");
+  expect(reader.statistics().message_count == stat_messages, "statistics: message count");
+  expect(reader.statistics().chunk_count == stat_chunks, "statistics: chunk count");
+  expect(reader.report().chunk_count == stat_chunks, "chunks read");
+  expect_messages(reader.messages(), messages, messages.size(), "indexed");
+
+  // The same file without its summary, as a killed writer would leave it.
+  const std::string cut = mcap_path + ".cut";
+  const auto size = std::filesystem::file_size(mcap_path);
+  std::filesystem::copy_file(mcap_path, cut, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::resize_file(cut, size / 2);
+  const hq::mcap::McapReader recovered(cut);
+  expect(!recovered.report().has_summary && recovered.report().truncated, "cut file: report");
+  expect(!recovered.messages().empty(), "cut file: nothing recovered");
+  expect_messages(recovered.messages(), messages, recovered.messages().size(), "cut file");
+  std::printf(
+      "%s: hq::mcap read %zu messages in %llu chunks, %zu channels, %zu attachments, "
+      "%zu metadata; cut at %llu of %llu bytes: %zu messages recovered\n",
+      mcap_path.c_str(), reader.messages().size(),
+      static_cast<unsigned long long>(reader.report().chunk_count), channels, attachments, metadata,
+      static_cast<unsigned long long>(recovered.report().valid_end_bytes),
+      static_cast<unsigned long long>(size), recovered.messages().size());
+  return failures == 0 ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 3 || std::string(argv[1]) != "write") {
-    std::fprintf(stderr, "usage: hq-mcap-conformance write DIR\n");
+  const std::string mode = argc > 1 ? argv[1] : "";
+  if (!((argc == 3 && mode == "write") || (argc == 4 && mode == "check"))) {
+    std::fprintf(stderr, "usage: hq-mcap-conformance write DIR | check FILE.mcap FILE.txt\n");
     return 2;
   }
   try {
+    if (mode == "check") return check(argv[2], argv[3]);
     write_files(argv[2], "zstd", Compression::kZstd, true);
     write_files(argv[2], "none", Compression::kNone, false);
   } catch (const hq::InputError& e) {
