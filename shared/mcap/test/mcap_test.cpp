@@ -12,6 +12,7 @@
 #include <fstream>
 #include <signal.h>
 #include <string>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -307,6 +308,46 @@ TEST(McapWriter, MissingFolderGivesAClearError) {
             "/nonexistent-hq/flight.mcap: cannot open for writing: No such file or directory");
   EXPECT_THAT(testing::input_error_message([&] { writer.write(0, 0, 0, 0, {}); }),
               HasSubstr("not open"));
+}
+
+// GIVEN a recording under way WHEN the file may grow no further (RLIMIT_FSIZE, as a full disk
+// mid-flight) THEN the chunk flush fails at once with the path and errno text, the writer is
+// closed, and what reached the file before still reads.
+TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);  // else the kernel kills the process
+  rlimit limited = saved;
+  limited.rlim_cur = 200 * 1024;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  McapWriter writer;
+  std::uint32_t written = 0;
+  const std::string message = testing::input_error_message([&] {
+    writer.open(path,
+                {.profile = "", .chunk_size_bytes = 16 * 1024, .compression = Compression::kNone});
+    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+    const std::vector<std::uint8_t> data = payload(300, 9);
+    for (; written < 100'000; ++written) writer.write(channel, written, written, written, data);
+  });
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  ::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(message, path + ": write failed: File too large");
+  EXPECT_FALSE(writer.is_open());
+  EXPECT_LT(written, 1000u);
+  const McapReader reader(path);
+  EXPECT_GT(reader.messages().size(), 300u);
+  EXPECT_LE(reader.messages().size(), written);
+}
+
+TEST(McapReader, MissingFileAndNonMcapFileGiveClearErrors) {
+  const TempDir dir;
+  EXPECT_EQ(testing::input_error_message([&] { McapReader r(dir.file("none.mcap")); }),
+            dir.file("none.mcap") + ": cannot open: No such file or directory");
+  write_file(dir.file("text.mcap"), {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd'}, 11);
+  EXPECT_THAT(testing::input_error_message([&] { McapReader r(dir.file("text.mcap")); }),
+              HasSubstr("text.mcap: not an MCAP file"));
 }
 
 TEST(McapWriter, AllocatesOnlyPerChunkNotPerMessage) {
