@@ -29,6 +29,7 @@ struct ChunkIndexEntry {
   std::uint64_t message_index_length = 0;
   std::uint64_t compressed_size = 0;
   std::uint64_t uncompressed_size = 0;
+  bool compressed = false;  // zstd, else stored
 };
 
 struct AttachmentIndexEntry {
@@ -160,9 +161,13 @@ struct McapWriter::Impl {
       if (ZSTD_isError(n) != 0) {
         throw InputError(path + ": zstd compression failed: " + ZSTD_getErrorName(n));
       }
-      payload = compressed.data();
-      payload_size = n;
-      compression = "zstd";
+      // A chunk zstd cannot shrink (JPEG frames) is stored as it is: the specification names
+      // the compression per chunk, and readers then skip a useless decompression.
+      if (n < chunk.size()) {
+        payload = compressed.data();
+        payload_size = n;
+        compression = "zstd";
+      }
     }
 
     ChunkIndexEntry index;
@@ -171,6 +176,7 @@ struct McapWriter::Impl {
     index.chunk_start_offset = position;
     index.compressed_size = payload_size;
     index.uncompressed_size = chunk.size();
+    index.compressed = !compression.empty();
 
     record.clear();
     put_u8(record, kChunk);
@@ -270,7 +276,7 @@ struct McapWriter::Impl {
           put_u64(record, offset);
         }
         put_u64(record, c.message_index_length);
-        put_string(record, options.compression == Compression::kZstd ? "zstd" : "");
+        put_string(record, c.compressed ? "zstd" : "");
         put_u64(record, c.compressed_size);
         put_u64(record, c.uncompressed_size);
         end_record(record, at);

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -222,6 +223,67 @@ TEST(McapReader, FileWithoutSummaryIsScannedWithItsAttachmentsAndMetadata) {
   EXPECT_EQ(reader.metadata().size(), 2u);
   EXPECT_EQ(reader.statistics().message_count, written.messages.size());
   EXPECT_EQ(reader.statistics().channel_message_counts.at(1), 50u);
+}
+
+// The compression field of every top-level Chunk record (opcode 0x06), walking the records.
+std::vector<std::string> chunk_compressions(const std::vector<std::uint8_t>& bytes) {
+  std::vector<std::string> out;
+  auto u64 = [&](std::size_t at) {
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(bytes[at + i]) << (8 * i);
+    return v;
+  };
+  for (std::size_t at = 8; at + 9 <= bytes.size(); at += 9 + u64(at + 1)) {
+    if (bytes[at] != 0x06) continue;
+    const std::size_t field = at + 9 + 8 + 8 + 8 + 4;
+    const std::size_t length = bytes[field] | (bytes[field + 1] << 8);
+    out.emplace_back(bytes.begin() + static_cast<std::ptrdiff_t>(field + 4),
+                     bytes.begin() + static_cast<std::ptrdiff_t>(field + 4 + length));
+  }
+  return out;
+}
+
+TEST(McapWriter, ChunksZstdCannotShrinkAreStoredUncompressed) {
+  const TempDir dir;
+  const std::string path = dir.file("jpeg.mcap");
+  std::vector<std::uint8_t> noise(20'000);
+  std::uint64_t x = 88172645463325252ULL;
+  std::vector<Message> written;
+  {
+    McapWriter writer;
+    writer.open(path, {.profile = "", .chunk_size_bytes = 50'000});
+    const std::uint16_t image = writer.add_channel(0, "/camera/jpeg", "raw");
+    const std::uint16_t state = writer.add_channel(0, "/state", "raw");
+    for (std::uint32_t i = 0; i < 20; ++i) {
+      for (auto& b : noise) {  // xorshift: incompressible, as JPEG
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        b = static_cast<std::uint8_t>(x);
+      }
+      written.push_back({image, i, 100 * static_cast<std::int64_t>(i), 0, noise});
+      writer.write(image, i, 100 * static_cast<std::int64_t>(i), 0, noise);
+      if (i == 10) {  // one compressible chunk among the stored ones
+        writer.flush();
+        for (std::uint32_t k = 0; k < 200; ++k) {
+          const std::vector<std::uint8_t> zeros(300, 0);
+          written.push_back({state, k, 1000 + static_cast<std::int64_t>(k), 0, zeros});
+          writer.write(state, k, 1000 + static_cast<std::int64_t>(k), 0, zeros);
+        }
+        writer.flush();
+      }
+    }
+    writer.close();
+  }
+  const McapReader reader(path);
+  std::stable_sort(written.begin(), written.end(), [](const Message& a, const Message& b) {
+    return a.log_time_ns < b.log_time_ns;
+  });
+  expect_same_messages(reader.messages(), written, written.size());
+  const std::vector<std::string> compressions = chunk_compressions(read_file(path));
+  // The 200 compressible messages (66 kB) fill two chunks; the frames fill the rest.
+  EXPECT_EQ(std::count(compressions.begin(), compressions.end(), "zstd"), 2);
+  EXPECT_GE(std::count(compressions.begin(), compressions.end(), ""), 4);
 }
 
 TEST(McapReader, MessagesComeInLogTimeOrder) {
