@@ -8,6 +8,7 @@
 #include "hq/mcap/mcap.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -142,8 +143,8 @@ int main(int argc, char** argv) {
       const char* name;
       int kind;  // 0 fwrite, 1 mcap none, 2 mcap zstd
     };
-    const Case cases[] = {
-        {"fwrite (peer)", 0}, {"mcap, no compression", 1}, {"mcap, zstd level 1", 2}};
+    const std::array<Case, 3> cases = {
+        {{"fwrite (peer)", 0}, {"mcap, no compression", 1}, {"mcap, zstd level 1", 2}}};
     for (const Case& c : cases) {
       std::vector<double> seconds;
       std::uint64_t bytes = 0;

@@ -4,6 +4,7 @@
 #include "format.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -22,9 +23,9 @@ using namespace format;  // NOLINT(google-build-using-namespace): record vocabul
 namespace {
 
 std::string hex32(std::uint32_t v) {
-  char text[16];
-  std::snprintf(text, sizeof(text), "0x%08x", v);
-  return text;
+  std::array<char, 16> text{};
+  std::snprintf(text.data(), text.size(), "0x%08x", v);
+  return text.data();
 }
 
 // Read-only mapping of the whole file; the reader copies out what it keeps.

@@ -11,6 +11,7 @@
 #include "hq/base/error.hpp"
 #include "hq/mcap/mcap.hpp"
 
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -80,7 +81,7 @@ void write_files(const std::string& dir, const std::string& name, Compression co
   hq::mcap::WriterOptions options;
   options.profile = "hq";
   options.compression = compression;
-  options.chunk_size_bytes = 64 * 1024;  // many chunks for the index to seek through
+  options.chunk_size_bytes = 64 * 1024ULL;  // many chunks for the index to seek through
   writer.open(path, options);
   const std::string idl_state = "module hq { struct State { double v_H_mps[3]; }; };";
   const std::string idl_image = "module hq { struct Jpeg { sequence<octet> data; }; };";
@@ -103,7 +104,7 @@ void write_files(const std::string& dir, const std::string& name, Compression co
 
   std::vector<Written> messages;
   std::vector<std::uint8_t> data;
-  std::uint32_t sequence[3] = {0, 0, 0};
+  std::array<std::uint32_t, 3> sequence = {0, 0, 0};
   auto add = [&](std::uint16_t channel, std::int64_t t_ns, std::size_t size) {
     data.resize(size);
     std::uint32_t sum = 0;
@@ -112,7 +113,7 @@ void write_files(const std::string& dir, const std::string& name, Compression co
       sum += data[i];
     }
     // Jitter in publish time so that log and publish stamps differ.
-    const std::int64_t publish_ns = t_ns - 1234 * (channel + 1);
+    const std::int64_t publish_ns = t_ns - std::int64_t{1234} * (channel + 1);
     writer.write(channel, sequence[channel], t_ns, publish_ns, data);
     messages.push_back({channel, sequence[channel], t_ns, publish_ns, size, sum});
     ++sequence[channel];

@@ -7,11 +7,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <signal.h>
 #include <string>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -28,8 +29,8 @@ namespace fs = std::filesystem;
 class TempDir {
  public:
   TempDir() {
-    char pattern[] = "/tmp/hq-mcap-test-XXXXXX";
-    path_ = ::mkdtemp(pattern);
+    std::string pattern = "/tmp/hq-mcap-test-XXXXXX";
+    path_ = ::mkdtemp(pattern.data());
   }
   ~TempDir() { fs::remove_all(path_); }
   [[nodiscard]] std::string file(const std::string& name) const { return path_ + "/" + name; }
@@ -41,7 +42,8 @@ class TempDir {
 std::vector<std::uint8_t> payload(std::size_t size, std::uint32_t seed) {
   std::vector<std::uint8_t> out(size);
   for (std::size_t i = 0; i < size; ++i) {
-    out[i] = static_cast<std::uint8_t>((seed * 2654435761u + i * 40503u) >> 13);
+    out[i] =
+        static_cast<std::uint8_t>((std::size_t{seed * 2654435761u} + i * std::size_t{40503}) >> 13);
   }
   return out;
 }
@@ -68,7 +70,7 @@ struct Recording {
 };
 
 Recording write_recording(const std::string& path, Compression compression,
-                          std::uint64_t chunk_size_bytes = 16 * 1024) {
+                          std::uint64_t chunk_size_bytes = 16 * 1024ULL) {
   McapWriter writer;
   WriterOptions options;
   options.profile = "hq";
@@ -84,7 +86,7 @@ Recording write_recording(const std::string& path, Compression compression,
   const std::uint16_t events = writer.add_channel(0, "/events", "json", {{"a", "1"}, {"b", "2"}});
   writer.add_metadata("flight", {{"vehicle", "hq-1"}, {"operator", "test"}});
   Recording r;
-  std::uint32_t sequence[3] = {0, 0, 0};
+  std::array<std::uint32_t, 3> sequence = {0, 0, 0};
   for (int i = 0; i < 1000; ++i) {
     const std::int64_t t_ns = 1'000'000'000LL + i * 5'000'000LL;
     auto add = [&](std::uint16_t channel, std::size_t size) {
@@ -175,7 +177,7 @@ TEST_P(RoundTrip, SchemasChannelsMessagesAttachmentsMetadataAndStatisticsSurvive
 TEST_P(RoundTrip, FileTruncatedAnywhereRecoversAPrefixOfTheMessages) {
   const TempDir dir;
   const std::string path = dir.file("flight.mcap");
-  const Recording written = write_recording(path, GetParam(), 8 * 1024);
+  const Recording written = write_recording(path, GetParam(), 8 * 1024ULL);
   const std::vector<std::uint8_t> bytes = read_file(path);
   const std::string cut_path = dir.file("cut.mcap");
   std::size_t previous = 0;
@@ -382,13 +384,13 @@ TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
   ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
   const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);  // else the kernel kills the process
   rlimit limited = saved;
-  limited.rlim_cur = 200 * 1024;
+  limited.rlim_cur = 200 * 1024ULL;
   ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
   McapWriter writer;
   std::uint32_t written = 0;
   const std::string message = testing::input_error_message([&] {
-    writer.open(path,
-                {.profile = "", .chunk_size_bytes = 16 * 1024, .compression = Compression::kNone});
+    writer.open(
+        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
     const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
     const std::vector<std::uint8_t> data = payload(300, 9);
     for (; written < 100'000; ++written) writer.write(channel, written, written, written, data);
@@ -416,7 +418,7 @@ TEST(McapWriter, AllocatesOnlyPerChunkNotPerMessage) {
   const TempDir dir;
   McapWriter writer;
   writer.open(dir.file("alloc.mcap"),
-              {.profile = "", .chunk_size_bytes = 64 * 1024, .compression = Compression::kZstd});
+              {.profile = "", .chunk_size_bytes = 64 * 1024ULL, .compression = Compression::kZstd});
   const std::uint16_t a = writer.add_channel(0, "/a", "raw");
   const std::uint16_t b = writer.add_channel(0, "/b", "raw");
   const std::vector<std::uint8_t> data = payload(100, 3);
