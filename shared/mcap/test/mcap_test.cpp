@@ -440,6 +440,26 @@ TEST(McapWriter, AllocatesOnlyPerChunkNotPerMessage) {
   writer.close();
 }
 
+// The SIGKILL bound rests on this rule: the write that finds the open chunk older than
+// chunk_time_limit_ns closes it (and it reaches the file), whatever its size.
+TEST(McapWriter, ChunkOlderThanTheTimeLimitIsWrittenOut) {
+  const TempDir dir;
+  McapWriter writer;
+  writer.open(dir.file("timed.mcap"), {.profile = "", .chunk_time_limit_ns = 50'000'000});
+  const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+  const std::vector<std::uint8_t> data = payload(300, 5);
+  writer.write(channel, 0, 0, 0, data);
+  const std::uint64_t before = writer.bytes_written();
+  EXPECT_EQ(writer.statistics().chunk_count, 0u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  writer.write(channel, 1, 1, 1, data);
+  EXPECT_EQ(writer.statistics().chunk_count, 1u);
+  EXPECT_GT(writer.bytes_written(), before);
+  const McapReader reader(dir.file("timed.mcap"));  // before close: no summary yet
+  EXPECT_EQ(reader.messages().size(), 2u);
+  writer.close();
+}
+
 // GIVEN a child writing 100 Hz for 2.5 s WHEN it is SIGKILLed THEN the file opens and holds
 // the messages up to the last closed chunk, at most chunk_time_limit (1 s) plus one period old.
 TEST(McapWriter, SigkilledWriterLeavesARecoverableFile) {
