@@ -25,8 +25,9 @@ struct WriterOptions {
   std::uint64_t chunk_size_bytes = 1u << 20;  ///< a chunk is closed once its records reach this
   Compression compression = Compression::kZstd;
   int zstd_level = 1;  ///< 1 is fast enough for a 1 kHz recorder thread
-  /// A chunk is closed when its first message is older than this (steady clock): a writer
-  /// killed with SIGKILL loses at most this much; chunks reach the kernel with write(2).
+  /// write() closes the chunk once its first message is older than this (steady clock), so a
+  /// writer killed with SIGKILL loses about this much (plus one message period); chunks reach
+  /// the kernel with write(2). The check runs on write(): when messages stop, call flush().
   std::int64_t chunk_time_limit_ns = 1'000'000'000;
 };
 
