@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Conformance of hq::mcap with an independent implementation, @mcap/core (npm, the Foxglove MCAP
+# library, with @mcap/support for zstd): files our writer produced are read by McapIndexedReader
+# (footer, summary, chunk indexes, seeking by topic and time, CRCs) and McapStreamReader (every
+# record in order, CRCs), and everything is checked against what the writer reports (JSON); and
+# files @mcap/core's McapWriter produced (zstd chunks, no chunks) are read by hq::mcap, whole
+# and cut in half.
+# Usage: conformance.sh HQ_MCAP_CONFORMANCE_BINARY WORK_DIR   (WORK_DIR holds node_modules)
+# Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
+set -euo pipefail
+tool=$1
+work=$2
+
+command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
+command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
+here=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$work"
+work=$(cd "$work" && pwd)
+if [ ! -f "$work/node_modules/@mcap/core/package.json" ] ||
+   [ ! -f "$work/node_modules/@mcap/support/package.json" ]; then
+  if ! npm install --no-audit --no-fund --prefix "$work" '@mcap/core@2' '@mcap/support@1' \
+       >"$work/npm-install.log" 2>&1; then
+    echo "SKIPPED: npm install @mcap/core @mcap/support failed (see $work/npm-install.log)"
+    tail -5 "$work/npm-install.log"
+    exit 77
+  fi
+fi
+core=$(node -p "require('$work/node_modules/@mcap/core/package.json').version")
+support=$(node -p "require('$work/node_modules/@mcap/support/package.json').version")
+echo "node $(node --version), @mcap/core $core, @mcap/support $support"
+
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+"$tool" write "$tmp"
+for name in zstd none nosummary; do
+  node "$here/conformance.cjs" "$work/node_modules" read "$tmp/$name.mcap" "$tmp/$name.json"
+done
+for chunks in zstd none; do
+  node "$here/conformance.cjs" "$work/node_modules" write "$tmp/theirs-$chunks.mcap" \
+       "$tmp/theirs-$chunks.txt" "$chunks"
+  "$tool" check "$tmp/theirs-$chunks.mcap" "$tmp/theirs-$chunks.txt"
+done
+echo "conformance with @mcap/core $core: passed"

@@ -1,0 +1,512 @@
+#include "hq/mcap/mcap.hpp"
+
+#include "hq/testing/allocation_counter.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace hq::mcap {
+namespace {
+
+using ::testing::HasSubstr;
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = "/tmp/hq-mcap-test-XXXXXX";
+    path_ = ::mkdtemp(pattern.data());
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  [[nodiscard]] std::string file(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+std::vector<std::uint8_t> payload(std::size_t size, std::uint32_t seed) {
+  std::vector<std::uint8_t> out(size);
+  for (std::size_t i = 0; i < size; ++i) {
+    out[i] =
+        static_cast<std::uint8_t>((std::size_t{seed * 2654435761u} + i * std::size_t{40503}) >> 13);
+  }
+  return out;
+}
+
+std::vector<std::uint8_t> read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_file(const std::string& path, const std::vector<std::uint8_t>& bytes, std::size_t n) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(n));
+}
+
+Bytes as_bytes(const std::string& s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+
+// A recording as the ground station would write it: three channels at different rates and
+// sizes, two attachments and two metadata records, messages in log-time order.
+struct Recording {
+  std::vector<Message> messages;
+  Statistics statistics;
+};
+
+Recording write_recording(const std::string& path, Compression compression,
+                          std::uint64_t chunk_size_bytes = 16 * 1024ULL) {
+  McapWriter writer;
+  WriterOptions options;
+  options.profile = "hq";
+  options.compression = compression;
+  options.chunk_size_bytes = chunk_size_bytes;
+  writer.open(path, options);
+  const std::uint16_t state_schema =
+      writer.add_schema("hq.State", "omgidl", as_bytes("struct State {};"));
+  const std::uint16_t image_schema =
+      writer.add_schema("hq.Image", "omgidl", as_bytes("struct Image {};"));
+  const std::uint16_t state = writer.add_channel(state_schema, "/state", "cdr", {{"frame", "H"}});
+  const std::uint16_t image = writer.add_channel(image_schema, "/camera/jpeg", "cdr");
+  const std::uint16_t events = writer.add_channel(0, "/events", "json", {{"a", "1"}, {"b", "2"}});
+  writer.add_metadata("flight", {{"vehicle", "hq-1"}, {"operator", "test"}});
+  Recording r;
+  std::array<std::uint32_t, 3> sequence = {0, 0, 0};
+  for (int i = 0; i < 1000; ++i) {
+    const std::int64_t t_ns = 1'000'000'000LL + i * 5'000'000LL;
+    auto add = [&](std::uint16_t channel, std::size_t size) {
+      Message m{channel, sequence[channel]++, t_ns, t_ns - 1000,
+                payload(size, static_cast<std::uint32_t>(i * 3 + channel))};
+      writer.write(m.channel_id, m.sequence, m.log_time_ns, m.publish_time_ns, m.data);
+      r.messages.push_back(std::move(m));
+    };
+    add(state, 300);
+    if (i % 20 == 0) add(image, 3000 + static_cast<std::size_t>(i));
+    if (i % 250 == 0) add(events, 0);
+  }
+  writer.add_attachment("calib.yaml", "application/yaml", as_bytes("K: [1, 2, 3]"), 1'000'000'000);
+  writer.add_attachment("empty", "application/octet-stream", {}, 2'000'000'000, 7);
+  writer.add_metadata("end", {});
+  r.statistics = writer.statistics();
+  writer.close();
+  return r;
+}
+
+void expect_same_messages(const std::vector<Message>& got, const std::vector<Message>& want,
+                          std::size_t count) {
+  ASSERT_LE(count, want.size());
+  ASSERT_EQ(got.size(), count);
+  for (std::size_t i = 0; i < count; ++i) {
+    EXPECT_EQ(got[i].channel_id, want[i].channel_id) << i;
+    EXPECT_EQ(got[i].sequence, want[i].sequence) << i;
+    EXPECT_EQ(got[i].log_time_ns, want[i].log_time_ns) << i;
+    EXPECT_EQ(got[i].publish_time_ns, want[i].publish_time_ns) << i;
+    EXPECT_EQ(got[i].data, want[i].data) << i;
+  }
+}
+
+class RoundTrip : public ::testing::TestWithParam<Compression> {};
+
+TEST_P(RoundTrip, SchemasChannelsMessagesAttachmentsMetadataAndStatisticsSurvive) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  const Recording written = write_recording(path, GetParam());
+
+  const McapReader reader(path);
+  EXPECT_TRUE(reader.report().has_summary);
+  EXPECT_FALSE(reader.report().truncated);
+  EXPECT_EQ(reader.profile(), "hq");
+  ASSERT_EQ(reader.schemas().size(), 2u);
+  EXPECT_EQ(reader.schemas()[0].id, 1);
+  EXPECT_EQ(reader.schemas()[0].name, "hq.State");
+  EXPECT_EQ(reader.schemas()[1].encoding, "omgidl");
+  EXPECT_EQ(std::string(reader.schemas()[1].data.begin(), reader.schemas()[1].data.end()),
+            "struct Image {};");
+  ASSERT_EQ(reader.channels().size(), 3u);
+  EXPECT_EQ(reader.channel(0)->topic, "/state");
+  EXPECT_EQ(reader.channel(0)->metadata.at("frame"), "H");
+  EXPECT_EQ(reader.channel(1)->schema_id, 2);
+  EXPECT_EQ(reader.channel(2)->schema_id, 0);
+  EXPECT_EQ(reader.channel(2)->metadata.size(), 2u);
+  EXPECT_EQ(reader.channel(2)->message_encoding, "json");
+
+  expect_same_messages(reader.messages(), written.messages, written.messages.size());
+  EXPECT_GT(reader.report().chunk_count, 10u);
+
+  ASSERT_EQ(reader.attachments().size(), 2u);
+  EXPECT_EQ(reader.attachments()[0].name, "calib.yaml");
+  EXPECT_EQ(reader.attachments()[0].media_type, "application/yaml");
+  EXPECT_EQ(std::string(reader.attachments()[0].data.begin(), reader.attachments()[0].data.end()),
+            "K: [1, 2, 3]");
+  EXPECT_EQ(reader.attachments()[1].create_time_ns, 7);
+  EXPECT_TRUE(reader.attachments()[1].data.empty());
+  ASSERT_EQ(reader.metadata().size(), 2u);
+  EXPECT_EQ(reader.metadata()[0].values.at("vehicle"), "hq-1");
+  EXPECT_TRUE(reader.metadata()[1].values.empty());
+
+  const Statistics& s = reader.statistics();
+  EXPECT_EQ(s.message_count, written.messages.size());
+  EXPECT_EQ(s.message_count, written.statistics.message_count);
+  EXPECT_EQ(s.schema_count, 2);
+  EXPECT_EQ(s.channel_count, 3u);
+  EXPECT_EQ(s.attachment_count, 2u);
+  EXPECT_EQ(s.metadata_count, 2u);
+  EXPECT_EQ(s.chunk_count, reader.report().chunk_count);
+  EXPECT_EQ(s.message_start_time_ns, 1'000'000'000u);
+  EXPECT_EQ(s.message_end_time_ns, 1'000'000'000ULL + 999ULL * 5'000'000ULL);
+  EXPECT_EQ(s.channel_message_counts.at(0), 1000u);
+  EXPECT_EQ(s.channel_message_counts.at(1), 50u);
+  EXPECT_EQ(s.channel_message_counts.at(2), 4u);
+}
+
+TEST_P(RoundTrip, FileTruncatedAnywhereRecoversAPrefixOfTheMessages) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  const Recording written = write_recording(path, GetParam(), 8 * 1024ULL);
+  const std::vector<std::uint8_t> bytes = read_file(path);
+  const std::string cut_path = dir.file("cut.mcap");
+  std::size_t previous = 0;
+  const std::size_t step = std::max<std::size_t>(97, bytes.size() / 1500);
+  for (std::size_t n = 0; n < bytes.size(); n += step) {
+    write_file(cut_path, bytes, n);
+    if (n < 8) {
+      EXPECT_THAT(testing::input_error_message([&] { McapReader r(cut_path); }),
+                  HasSubstr("not an MCAP file"));
+      continue;
+    }
+    const McapReader reader(cut_path);
+    EXPECT_FALSE(reader.report().has_summary) << n;
+    EXPECT_LE(reader.report().valid_end_bytes, n);
+    EXPECT_GE(reader.messages().size(), previous) << n;
+    previous = reader.messages().size();
+    expect_same_messages(reader.messages(), written.messages, reader.messages().size());
+    EXPECT_EQ(reader.report().messages_recovered, reader.messages().size());
+    if (HasFailure()) {
+      ADD_FAILURE() << "at " << n << " of " << bytes.size() << " bytes";
+      return;
+    }
+  }
+  EXPECT_GT(previous, written.messages.size() / 2);
+}
+
+INSTANTIATE_TEST_SUITE_P(Compressions, RoundTrip,
+                         ::testing::Values(Compression::kZstd, Compression::kNone),
+                         [](const auto& info) {
+                           return info.param == Compression::kZstd ? "zstd" : "none";
+                         });
+
+TEST(McapReader, FileWithoutSummaryIsScannedWithItsAttachmentsAndMetadata) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  const Recording written = write_recording(path, Compression::kZstd);
+  std::vector<std::uint8_t> bytes = read_file(path);
+  // Cut right after the data section: magic and footer gone, as after a crash at close.
+  const std::size_t footer_and_magic = 8 + 9 + 20;
+  write_file(path, bytes, bytes.size() - footer_and_magic - 1);
+  const McapReader reader(path);
+  EXPECT_FALSE(reader.report().has_summary);
+  expect_same_messages(reader.messages(), written.messages, written.messages.size());
+  EXPECT_EQ(reader.attachments().size(), 2u);
+  EXPECT_EQ(reader.metadata().size(), 2u);
+  EXPECT_EQ(reader.statistics().message_count, written.messages.size());
+  EXPECT_EQ(reader.statistics().channel_message_counts.at(1), 50u);
+}
+
+// The compression field of every top-level Chunk record (opcode 0x06), walking the records.
+std::vector<std::string> chunk_compressions(const std::vector<std::uint8_t>& bytes) {
+  std::vector<std::string> out;
+  auto u64 = [&](std::size_t at) {
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(bytes[at + i]) << (8 * i);
+    return v;
+  };
+  for (std::size_t at = 8; at + 9 <= bytes.size(); at += 9 + u64(at + 1)) {
+    if (bytes[at] != 0x06) continue;
+    const std::size_t field = at + 9 + 8 + 8 + 8 + 4;
+    const std::size_t length = bytes[field] | (bytes[field + 1] << 8);
+    out.emplace_back(bytes.begin() + static_cast<std::ptrdiff_t>(field + 4),
+                     bytes.begin() + static_cast<std::ptrdiff_t>(field + 4 + length));
+  }
+  return out;
+}
+
+TEST(McapWriter, ChunksZstdCannotShrinkAreStoredUncompressed) {
+  const TempDir dir;
+  const std::string path = dir.file("jpeg.mcap");
+  std::vector<std::uint8_t> noise(20'000);
+  std::uint64_t x = 88172645463325252ULL;
+  std::vector<Message> written;
+  {
+    McapWriter writer;
+    writer.open(path, {.profile = "", .chunk_size_bytes = 50'000});
+    const std::uint16_t image = writer.add_channel(0, "/camera/jpeg", "raw");
+    const std::uint16_t state = writer.add_channel(0, "/state", "raw");
+    for (std::uint32_t i = 0; i < 20; ++i) {
+      for (auto& b : noise) {  // xorshift: incompressible, as JPEG
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        b = static_cast<std::uint8_t>(x);
+      }
+      written.push_back({image, i, 100 * static_cast<std::int64_t>(i), 0, noise});
+      writer.write(image, i, 100 * static_cast<std::int64_t>(i), 0, noise);
+      if (i == 10) {  // one compressible chunk among the stored ones
+        writer.flush();
+        for (std::uint32_t k = 0; k < 200; ++k) {
+          const std::vector<std::uint8_t> zeros(300, 0);
+          written.push_back({state, k, 1000 + static_cast<std::int64_t>(k), 0, zeros});
+          writer.write(state, k, 1000 + static_cast<std::int64_t>(k), 0, zeros);
+        }
+        writer.flush();
+      }
+    }
+    writer.close();
+  }
+  const McapReader reader(path);
+  std::stable_sort(written.begin(), written.end(), [](const Message& a, const Message& b) {
+    return a.log_time_ns < b.log_time_ns;
+  });
+  expect_same_messages(reader.messages(), written, written.size());
+  const std::vector<std::string> compressions = chunk_compressions(read_file(path));
+  // The 200 compressible messages (66 kB) fill two chunks; the frames fill the rest.
+  EXPECT_EQ(std::count(compressions.begin(), compressions.end(), "zstd"), 2);
+  EXPECT_GE(std::count(compressions.begin(), compressions.end(), ""), 4);
+}
+
+TEST(McapReader, MessagesComeInLogTimeOrder) {
+  const TempDir dir;
+  const std::string path = dir.file("order.mcap");
+  {
+    McapWriter writer;
+    writer.open(path, {.profile = "", .chunk_size_bytes = 256});
+    const std::uint16_t a = writer.add_channel(0, "/a", "raw");
+    const std::uint16_t b = writer.add_channel(0, "/b", "raw");
+    const std::vector<std::uint8_t> data(40, 1);
+    for (std::uint32_t i = 0; i < 50; ++i) {
+      writer.write(a, i, 1000 + 10 * static_cast<std::int64_t>(i), 0, data);
+      writer.write(b, i, 995 + 10 * static_cast<std::int64_t>(i), 0, data);  // 5 ns earlier
+    }
+    writer.close();
+  }
+  const McapReader reader(path);
+  ASSERT_EQ(reader.messages().size(), 100u);
+  for (std::size_t i = 1; i < reader.messages().size(); ++i) {
+    EXPECT_LE(reader.messages()[i - 1].log_time_ns, reader.messages()[i].log_time_ns);
+  }
+  EXPECT_EQ(reader.messages().front().channel_id, 1);
+}
+
+// Offset of the first Chunk record: records follow the magic, each opcode + u64 length.
+std::size_t first_chunk_offset(const std::vector<std::uint8_t>& bytes) {
+  std::size_t at = 8;
+  while (at + 9 <= bytes.size()) {
+    std::uint64_t length = 0;
+    for (int i = 0; i < 8; ++i) length |= static_cast<std::uint64_t>(bytes[at + 1 + i]) << (8 * i);
+    if (bytes[at] == 0x06) return at;
+    at += 9 + length;
+  }
+  return 0;
+}
+
+TEST(McapReader, CorruptedChunkIsReportedWithItsCrc) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  write_recording(path, Compression::kNone);
+  std::vector<std::uint8_t> bytes = read_file(path);
+  const std::size_t chunk = first_chunk_offset(bytes);
+  ASSERT_GT(chunk, 0u);
+  // A flipped bit in the first message's payload, well inside the uncompressed records.
+  const std::size_t inside = chunk + 9 + 8 + 8 + 8 + 4 + 4 + 8 + 9 + 30 + 5;
+  bytes[inside] ^= 0x10;
+  write_file(path, bytes, bytes.size());
+  EXPECT_THAT(testing::input_error_message([&] { McapReader r(path); }),
+              HasSubstr("data section CRC"));
+
+  // Without the summary the chunk's own CRC catches it.
+  const std::string cut = dir.file("cut.mcap");
+  write_file(cut, bytes, bytes.size() - 40);
+  const std::string message = testing::input_error_message([&] { McapReader r(cut); });
+  EXPECT_THAT(message, HasSubstr("cut.mcap: Chunk at offset " + std::to_string(chunk)));
+  EXPECT_THAT(message, HasSubstr("uncompressed CRC"));
+}
+
+TEST(McapReader, CorruptedSummaryIsReported) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  write_recording(path, Compression::kZstd);
+  std::vector<std::uint8_t> bytes = read_file(path);
+  bytes[bytes.size() - 8 - 4] ^= 0x01;  // the footer's summary CRC
+  write_file(path, bytes, bytes.size());
+  EXPECT_THAT(testing::input_error_message([&] { McapReader r(path); }), HasSubstr("summary CRC"));
+}
+
+TEST(McapWriter, FullDiskGivesAClearError) {
+  McapWriter writer;
+  const std::string message = testing::input_error_message([&] {
+    writer.open("/dev/full");
+    writer.add_channel(0, "/x", "raw");
+    writer.close();
+  });
+  EXPECT_EQ(message, "/dev/full: write failed: No space left on device");
+  EXPECT_FALSE(writer.is_open());
+}
+
+TEST(McapWriter, MissingFolderGivesAClearError) {
+  McapWriter writer;
+  EXPECT_EQ(testing::input_error_message([&] { writer.open("/nonexistent-hq/flight.mcap"); }),
+            "/nonexistent-hq/flight.mcap: cannot open for writing: No such file or directory");
+  EXPECT_THAT(testing::input_error_message([&] { writer.write(0, 0, 0, 0, {}); }),
+              HasSubstr("not open"));
+}
+
+// GIVEN a recording under way WHEN the file may grow no further (RLIMIT_FSIZE, as a full disk
+// mid-flight) THEN the chunk flush fails at once with the path and errno text, the writer is
+// closed, and what reached the file before still reads.
+TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);  // else the kernel kills the process
+  rlimit limited = saved;
+  limited.rlim_cur = 200 * 1024ULL;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  McapWriter writer;
+  std::uint32_t written = 0;
+  const std::string message = testing::input_error_message([&] {
+    writer.open(
+        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
+    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+    const std::vector<std::uint8_t> data = payload(300, 9);
+    for (; written < 100'000; ++written) writer.write(channel, written, written, written, data);
+  });
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  ::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(message, path + ": write failed: File too large");
+  EXPECT_FALSE(writer.is_open());
+  EXPECT_LT(written, 1000u);
+  const McapReader reader(path);
+  EXPECT_GT(reader.messages().size(), 300u);
+  EXPECT_LE(reader.messages().size(), written);
+}
+
+TEST(McapReader, MissingFileAndNonMcapFileGiveClearErrors) {
+  const TempDir dir;
+  EXPECT_EQ(testing::input_error_message([&] { McapReader r(dir.file("none.mcap")); }),
+            dir.file("none.mcap") + ": cannot open: No such file or directory");
+  write_file(dir.file("text.mcap"), {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd'}, 11);
+  EXPECT_THAT(testing::input_error_message([&] { McapReader r(dir.file("text.mcap")); }),
+              HasSubstr("text.mcap: not an MCAP file"));
+}
+
+TEST(McapWriter, AllocatesOnlyPerChunkNotPerMessage) {
+  const TempDir dir;
+  McapWriter writer;
+  writer.open(dir.file("alloc.mcap"),
+              {.profile = "", .chunk_size_bytes = 64 * 1024ULL, .compression = Compression::kZstd});
+  const std::uint16_t a = writer.add_channel(0, "/a", "raw");
+  const std::uint16_t b = writer.add_channel(0, "/b", "raw");
+  const std::vector<std::uint8_t> data = payload(100, 3);
+  std::uint32_t seq = 0;
+  auto burst = [&](int n) {
+    for (int i = 0; i < n; ++i, ++seq) {
+      writer.write(i % 2 == 0 ? a : b, seq, static_cast<std::int64_t>(seq) * 1000, 0, data);
+    }
+  };
+  burst(5000);  // buffers grow to their working size
+  const std::uint32_t chunks_before = writer.statistics().chunk_count;
+  const long before = hq::testing::allocation_count();
+  burst(20000);
+  const long allocations = hq::testing::allocation_count() - before;
+  const std::uint32_t chunks = writer.statistics().chunk_count - chunks_before;
+  EXPECT_GT(chunks, 10u);
+  // Per chunk: its index entry and the per-channel offsets of its message indexes.
+  EXPECT_LE(allocations, 4L * chunks);
+  writer.close();
+}
+
+// The SIGKILL bound rests on this rule: the write that finds the open chunk older than
+// chunk_time_limit_ns closes it (and it reaches the file), whatever its size.
+TEST(McapWriter, ChunkOlderThanTheTimeLimitIsWrittenOut) {
+  const TempDir dir;
+  McapWriter writer;
+  writer.open(dir.file("timed.mcap"), {.profile = "", .chunk_time_limit_ns = 50'000'000});
+  const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+  const std::vector<std::uint8_t> data = payload(300, 5);
+  writer.write(channel, 0, 0, 0, data);
+  const std::uint64_t before = writer.bytes_written();
+  EXPECT_EQ(writer.statistics().chunk_count, 0u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  writer.write(channel, 1, 1, 1, data);
+  EXPECT_EQ(writer.statistics().chunk_count, 1u);
+  EXPECT_GT(writer.bytes_written(), before);
+  const McapReader reader(dir.file("timed.mcap"));  // before close: no summary yet
+  EXPECT_EQ(reader.messages().size(), 2u);
+  writer.close();
+}
+
+// GIVEN a child writing 100 Hz for 2.5 s WHEN it is SIGKILLed THEN the file opens and holds
+// the messages up to the last closed chunk, at most chunk_time_limit (1 s) plus one period old.
+TEST(McapWriter, SigkilledWriterLeavesARecoverableFile) {
+  const TempDir dir;
+  const std::string path = dir.file("killed.mcap");
+  using Clock = std::chrono::steady_clock;
+  auto now_ns = [] {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+        .count();
+  };
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    try {
+      McapWriter writer;
+      writer.open(path);  // zstd, 1 MiB, 1 s
+      const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+      const std::vector<std::uint8_t> data = payload(300, 1);
+      for (std::uint32_t i = 0;; ++i) {
+        writer.write(channel, i, now_ns(), now_ns(), data);
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+    } catch (...) {
+      ::_exit(3);
+    }
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  ASSERT_EQ(::kill(child, SIGKILL), 0);
+  const std::int64_t killed_ns = now_ns();
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "child exited with " << WEXITSTATUS(status);
+
+  const McapReader reader(path);
+  EXPECT_FALSE(reader.report().has_summary);
+  ASSERT_FALSE(reader.messages().empty());
+  const double lost_s =
+      static_cast<double>(killed_ns - reader.messages().back().log_time_ns) * 1e-9;
+  // 1 s chunk limit + 10 ms period; 0.1 s margin for a loaded machine.
+  EXPECT_LT(lost_s, 1.11) << reader.messages().size() << " messages recovered";
+  EXPECT_GT(reader.messages().size(), 100u);
+  std::printf("recovered %zu messages, the last %.3f s before the kill\n", reader.messages().size(),
+              lost_s);
+  for (std::size_t i = 0; i < reader.messages().size(); ++i) {
+    EXPECT_EQ(reader.messages()[i].sequence, i);
+  }
+}
+
+}  // namespace
+}  // namespace hq::mcap
