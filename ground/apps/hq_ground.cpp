@@ -357,6 +357,10 @@ int run(int argc, char** argv) {
                                   ? hq::link::LinkConfig{}
                                   : hq::link::load_link_config(o.link_config_path);
   hq::link::apply_overrides(o.link_overrides, link);
+  if (link.impairment.active()) {
+    std::fprintf(stderr, "hq-ground: received samples impaired: %s\n",
+                 hq::link::describe(link.impairment).c_str());
+  }
   const hq::haptics::HapticsConfig haptics = hq::haptics::load_haptics_config(o.haptics_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
   hq::haptics::DeviceOptions device_options;

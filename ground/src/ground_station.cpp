@@ -247,6 +247,12 @@ GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* 
   link::reserve(state_sample_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
   link::reserve(camera_sample_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   link::reserve(camera_sample_->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
+  if (config_.impairment.active()) {  // tests and demos over an emulated slow link
+    state_reader_.impair(config_.impairment, 1);
+    camera_reader_.impair(config_.impairment, 2);
+    event_reader_.impair(config_.impairment, 3);
+    heartbeat_reader_.impair(config_.impairment, 4);
+  }
 }
 
 void GroundStation::send_command(std::int64_t t_ns, const haptics::VelocityCommand& command,

@@ -96,6 +96,11 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   event_->vehicle_id = link_.vehicle_id;
   jpeg_params_ = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
   jpeg_.reserve(hq_msgs_kMaxJpegBytes);
+  if (link_.impairment.active()) {  // tests and demos over an emulated slow link
+    command_reader_.impair(link_.impairment, 11);
+    mode_reader_.impair(link_.impairment, 12);
+    heartbeat_reader_.impair(link_.impairment, 13);
+  }
 }
 
 const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
