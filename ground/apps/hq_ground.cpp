@@ -303,13 +303,16 @@ void print_status(std::FILE* out, bool live, double t_s, const hq::ground::Groun
   const auto& v = hand.command.v_H_mps;
   std::fprintf(out,
                "%st %6.1f s  link %-7s  vehicle %-7s est %-8s vlink %-8s  latency %5.2f ms  "
+               "rtt %4.0f ms  age %4.0f ms  loss %4.1f %%  "
                "cmd [%+.2f %+.2f %+.2f] yaw %+.2f  |F| %.1f N  %s%s",
                live ? "\r" : "", t_s, link,
                s.have_state ? hq::ground::to_string(s.state.mode) : "-",
                s.have_state ? hq::ground::to_string(s.state.estimator_health) : "-",
                s.have_state ? hq::ground::to_string(s.state.link_health) : "-",
-               1e-6 * static_cast<double>(s.last_latency_ns), v.x(), v.y(), v.z(),
-               hand.command.yaw_rate_radps, hand.F_D_n.norm(),
+               1e-6 * static_cast<double>(s.last_latency_ns),
+               1e-6 * static_cast<double>(s.round_trip_ns),
+               1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * ground.state_loss(), v.x(),
+               v.y(), v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
                hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
   std::fprintf(out, live ? "\033[K" : "\n");
   std::fflush(out);
@@ -424,7 +427,10 @@ int run(int argc, char** argv) {
       if (fresh) {
         const hq::link::VehicleState& s = ground.status().state;
         hq::haptics::VehicleEstimate estimate;
-        estimate.t_ns = now_ns;
+        // Stamped with when the vehicle measured it (through the heartbeat clock offset), so
+        // the force law's fade sees the link's delay; the receipt time until the offset is known.
+        const std::int64_t age_ns = ground.status().last_state_age_ns;
+        estimate.t_ns = now_ns - std::max<std::int64_t>(age_ns, 0);
         estimate.valid = static_cast<int>(s.estimator_health) != hq_msgs_HEALTH_LOST;
         estimate.v_H_mps = {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z};
         estimate.yaw_rate_radps = s.omega_body_radps.z;
@@ -517,6 +523,12 @@ int run(int argc, char** argv) {
         health.latency_p99_ms = ground.latency().quantile_ms(0.99);
         health.last_latency_ms = 1e-6 * static_cast<double>(st.last_latency_ns);
         health.state_age_s = st.have_state ? ground.state_age_s() : -1.0;
+        health.round_trip_ms = 1e-6 * static_cast<double>(st.round_trip_ns);
+        health.round_trip_p50_ms = ground.round_trip().quantile_ms(0.5);
+        health.round_trip_p99_ms = ground.round_trip().quantile_ms(0.99);
+        health.state_one_way_ms = 1e-6 * static_cast<double>(st.last_state_age_ns);
+        health.state_one_way_p99_ms = ground.state_age().quantile_ms(0.99);
+        health.state_loss_percent = 100.0 * ground.state_loss();
         health.state_rate_hz = 4.0 * static_cast<double>(st.states - last_states);
         health.camera_rate_hz = 4.0 * static_cast<double>(st.camera_frames - last_frames);
         last_states = st.states;
@@ -578,6 +590,13 @@ int run(int argc, char** argv) {
   std::printf("  %-40s p50 %.2f ms, p99 %.2f ms over %lld\n", "vehicle state latency (one way)",
               ground.latency().quantile_ms(0.5), ground.latency().quantile_ms(0.99),
               static_cast<long long>(ground.latency().count()));
+  std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "heartbeat round trip",
+              ground.round_trip().quantile_ms(0.5), ground.round_trip().quantile_ms(0.99),
+              static_cast<long long>(ground.round_trip().count()));
+  std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "vehicle state age (one way)",
+              ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
+              static_cast<long long>(ground.state_age().count()));
+  std::printf("  %-40s %.1f %%\n", "vehicle state loss", 100.0 * ground.state_loss());
   std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states", 1e3 * max_state_gap_s);
   std::printf("  %-40s %s\n", "last vehicle mode",
               s.have_state ? hq::ground::to_string(s.state.mode) : "-");
@@ -586,8 +605,11 @@ int run(int argc, char** argv) {
               "haptic loop period jitter", timing.period.quantile_us(0.5),
               timing.period.quantile_us(0.99), timing.period.max_us(),
               static_cast<long long>(timing.missed_deadlines));
-  std::printf("  %-40s %.4f J (>= 0: passive)\n", "passivity observer energy",
-              loop.passivity().energy_j());
+  std::printf("  %-40s %.4f J (>= 0: passive), min %.4f J\n", "passivity observer energy",
+              loop.passivity().energy_j(), loop.passivity().min_energy_j());
+  std::printf("  %-40s %.4f J dissipated (%s)\n", "passivity controller",
+              loop.passivity_controller().dissipated_j(),
+              loop.passivity_controller().enabled() ? "on" : "off");
   std::printf("  %-40s %llu\n", "device losses", static_cast<unsigned long long>(device_losses));
   std::printf("  %-40s %llu missing, %llu rejected\n", "vehicle states lost",
               static_cast<unsigned long long>(s.state_sequence_gaps),

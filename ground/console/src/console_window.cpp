@@ -564,6 +564,10 @@ struct ConsoleWindow::Impl {
                 l.heartbeat_seen ? "seen" : "none");
     ImGui::Text("latency last %.2f ms  p50 %.2f  p99 %.2f", l.last_latency_ms, l.latency_p50_ms,
                 l.latency_p99_ms);
+    ImGui::Text("round trip %.0f ms (p50 %.0f, p99 %.0f)  state age %.0f ms (p99 %.0f)  "
+                "loss %.1f %%",
+                l.round_trip_ms, l.round_trip_p50_ms, l.round_trip_p99_ms, l.state_one_way_ms,
+                l.state_one_way_p99_ms, l.state_loss_percent);
     ImGui::Text("rates: states %.1f Hz  camera %.1f Hz", l.state_rate_hz, l.camera_rate_hz);
     ImGui::Text("received %llu states, %llu frames, %llu events",
                 static_cast<unsigned long long>(l.states),

@@ -72,10 +72,12 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
     last_command_rejection_ = v.reason;
     return reject(counters_.commands_rejected, v.reason);
   }
-  if (command.t_ns > 0 && stale(t_ns, command.t_ns)) {
-    ++counters_.commands_stale;
-    last_command_rejection_ = "command older than its deadline (link delay or stall)";
-    return reject(counters_.commands_rejected, last_command_rejection_);
+  if (command.t_ns > 0) {
+    if (const char* reason = stale(t_ns, command.t_ns); reason != nullptr) {
+      ++counters_.commands_stale;
+      last_command_rejection_ = reason;
+      return reject(counters_.commands_rejected, reason);
+    }
   }
   last_command_.t_ns = t_ns;
   last_command_.v_horizontal_mps = {command.v_H_mps.x, command.v_H_mps.y, command.v_H_mps.z};
@@ -86,7 +88,7 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
   return {true, ""};
 }
 
-bool Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
+const char* Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
   const std::int64_t offset_ns = t_ns - stamp_ns;
   if (!have_offset_) {
     have_offset_ = true;
@@ -98,20 +100,24 @@ bool Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
   min_offset_ns_ += (t_ns - offset_relaxed_t_ns_) / 20;
   offset_relaxed_t_ns_ = t_ns;
   min_offset_ns_ = std::min(min_offset_ns_, offset_ns);
-  const bool late = offset_ns - min_offset_ns_ > config_.command_max_delay_ns ||
-                    stamp_ns <= last_stamp_ns_;
-  if (!late) {
+  const char* reason = nullptr;
+  if (offset_ns - min_offset_ns_ > config_.command_max_delay_ns) {
+    reason = "command older than its deadline (link delay or stall)";
+  } else if (stamp_ns <= last_stamp_ns_) {
+    reason = "command older than one already accepted (reordered)";
+  }
+  if (reason == nullptr) {
     stale_since_t_ns_ = -1;
     last_stamp_ns_ = stamp_ns;
-    return false;
+    return nullptr;
   }
   if (stale_since_t_ns_ < 0) stale_since_t_ns_ = t_ns;
-  if (t_ns - stale_since_t_ns_ < config_.command_reanchor_ns) return true;
+  if (t_ns - stale_since_t_ns_ < config_.command_reanchor_ns) return reason;
   // Stale for command_reanchor without a fresh one in between: not a burst but another clock.
   min_offset_ns_ = offset_ns;
   last_stamp_ns_ = stamp_ns;
   stale_since_t_ns_ = -1;
-  return false;
+  return nullptr;
 }
 
 Verdict Failsafe::on_mode_request(std::int64_t /*t_ns*/, const link::ModeRequest& request,

@@ -270,6 +270,7 @@ TEST(FailsafeStamps, ReorderedOlderCommandIsRejected) {
   Failsafe failsafe(FailsafeConfig{});
   ASSERT_TRUE(failsafe.on_command(100 * kMs, stamped(0.3F, 60 * kMs)).accepted);
   EXPECT_FALSE(failsafe.on_command(105 * kMs, stamped(0.9F, 50 * kMs)).accepted);
+  EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("reordered"));
   EXPECT_FALSE(failsafe.on_command(106 * kMs, stamped(0.9F, 60 * kMs)).accepted);
   EXPECT_TRUE(failsafe.on_command(110 * kMs, stamped(0.3F, 70 * kMs)).accepted);
 }

@@ -80,6 +80,12 @@ struct LinkHealth {
   double latency_p99_ms = 0;
   double last_latency_ms = 0;
   double state_age_s = -1;  ///< < 0: no state yet.
+  double round_trip_ms = -1;      ///< Latest heartbeat round trip; < 0: none yet.
+  double round_trip_p50_ms = 0;   ///< Over the flight.
+  double round_trip_p99_ms = 0;
+  double state_one_way_ms = -1;   ///< Latest state's age at receipt (vehicle stamp); < 0: none.
+  double state_one_way_p99_ms = 0;
+  double state_loss_percent = 0;  ///< States missing by sequence number, over the flight.
   double state_rate_hz = 0;
   double camera_rate_hz = 0;
   std::uint64_t states = 0;

@@ -63,7 +63,7 @@ struct FailsafeState {
 struct FailsafeCounters {
   std::uint64_t commands_accepted = 0;
   std::uint64_t commands_rejected = 0;   ///< All rejections, the stale ones included.
-  std::uint64_t commands_stale = 0;      ///< Rejected as older than their deadline.
+  std::uint64_t commands_stale = 0;      ///< Older than their deadline or than one accepted.
   std::uint64_t mode_requests_accepted = 0;
   std::uint64_t mode_requests_rejected = 0;
   std::uint64_t heartbeats_accepted = 0;
@@ -97,8 +97,9 @@ class Failsafe {
 
  private:
   Verdict reject(std::uint64_t& counter, const char* reason);
-  /// Whether a command stamped stamp_ns received at t_ns is stale; updates the delay estimate.
-  bool stale(std::int64_t t_ns, std::int64_t stamp_ns);
+  /// Why a command stamped stamp_ns received at t_ns is stale (static text), nullptr if it is
+  /// not; updates the delay estimate.
+  const char* stale(std::int64_t t_ns, std::int64_t stamp_ns);
 
   FailsafeConfig config_;
   FailsafeState state_;
