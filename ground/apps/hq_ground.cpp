@@ -93,7 +93,8 @@ int mode_of(const char* name) {
 // The link's view of the selected vehicle, into the console's model (on the flying thread).
 class ModelFeed : public hq::ground::LinkObserver {
  public:
-  explicit ModelFeed(hq::console::ConsoleModel& model) : model_(model) {}
+  ModelFeed(hq::console::ConsoleModel& model, const hq::ground::GroundStation& ground)
+      : model_(model), ground_(ground) {}
   void on_state(std::int64_t receipt_ns, std::int64_t latency_ns,
                 const hq::link::VehicleState& s) override {
     static_assert(sizeof(hq_msgs_Vector3f) == 3 * sizeof(float));
@@ -124,8 +125,12 @@ class ModelFeed : public hq::ground::LinkObserver {
                     s.obstacle_points_body_m._length, extras);
   }
   void on_camera(std::int64_t receipt_ns, const hq::link::CameraFrame& f) override {
+    // The exposure on our clock through the heartbeat clock offset (video latency).
+    const hq::ground::LinkStatus& link = ground_.status();
+    const std::int64_t now_ns = hq::haptics::monotonic_now_ns();
+    const std::int64_t exposure_ns = link.have_clock_offset ? f.t_ns - link.clock_offset_ns : -1;
     model_.on_camera(receipt_ns, f.rgb_jpeg._buffer, f.rgb_jpeg._length, f.depth_preview._buffer,
-                     f.depth_preview._length);
+                     f.depth_preview._length, exposure_ns, now_ns);
   }
   void on_event(std::int64_t receipt_ns, const hq::link::Event& e) override {
     model_.on_event(receipt_ns, static_cast<int>(e.severity), e.text);
@@ -133,6 +138,7 @@ class ModelFeed : public hq::ground::LinkObserver {
 
  private:
   hq::console::ConsoleModel& model_;
+  const hq::ground::GroundStation& ground_;
   std::array<hq::console::MarkerView, hq::console::kMaxMarkerViews> markers_{};
 };
 
@@ -183,13 +189,17 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
                  "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
                  "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
-                 "\"gl_renderer\": %s}\n",
+                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
+                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
+                 "\"video_display_p50_ms\": %.1f}\n",
                  static_cast<unsigned long long>(window->frames), window->fps,
                  window->render_ms_p50, window->render_ms_max,
                  static_cast<unsigned long long>(window->camera_frames_decoded),
                  static_cast<unsigned long long>(window->camera_decode_failures),
                  window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
-                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str());
+                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
+                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
+                 window->video_decode_p50_ms, window->video_display_p50_ms);
   } else {
     std::fprintf(f, "  \"window\": null\n");
   }
@@ -221,9 +231,14 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_print) {
       const hq::console::WindowStats st = window.stats();
-      std::fprintf(stderr, "hq-ground: console %.1f fps (render p50 %.2f ms), %llu frames decoded\n",
+      std::fprintf(stderr,
+                   "hq-ground: console %.1f fps (render p50 %.2f ms), %llu frames decoded, video "
+                   "exposure->display p50 %.0f ms p99 %.0f ms (vehicle+link %.0f, decode %.0f, "
+                   "display %.0f)\n",
                    st.fps, st.render_ms_p50,
-                   static_cast<unsigned long long>(st.camera_frames_decoded));
+                   static_cast<unsigned long long>(st.camera_frames_decoded), st.video_p50_ms,
+                   st.video_p99_ms, st.video_link_p50_ms, st.video_decode_p50_ms,
+                   st.video_display_p50_ms);
       next_print += std::chrono::seconds(1);
     }
     if (o.duration_s > 0 &&
@@ -382,7 +397,7 @@ int run(int argc, char** argv) {
   if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
   hq::ground::GroundStation ground(link, recorder.get());
   hq::console::ConsoleModel model;
-  ModelFeed feed(model);
+  ModelFeed feed(model, ground);
   ground.set_observer(&feed);
   model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
   hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);

@@ -128,13 +128,16 @@ void ConsoleModel::on_event(std::int64_t t_ns, int severity, const char* text) {
 }
 
 void ConsoleModel::on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
-                             const std::uint8_t* depth, std::size_t depth_size) {
+                             const std::uint8_t* depth, std::size_t depth_size,
+                             std::int64_t exposure_ns, std::int64_t receipt_ns) {
   const std::lock_guard<std::mutex> lock(mutex_);
   seconds(t_ns);
   jpeg_size_ = std::min(jpeg_size, jpeg_.size());
   if (jpeg_size_ > 0) std::memcpy(jpeg_.data(), jpeg, jpeg_size_);
   depth_size_ = depth != nullptr ? std::min(depth_size, depth_.size()) : 0;
   if (depth_size_ > 0) std::memcpy(depth_.data(), depth, depth_size_);
+  camera_exposure_ns_ = exposure_ns;
+  camera_receipt_ns_ = receipt_ns;
   ++camera_sequence_;
 }
 
@@ -178,6 +181,8 @@ void ConsoleModel::snapshot(Snapshot& out) const {
     std::copy_n(depth_.begin(), depth_size_, out.depth.begin());
     out.depth_size = depth_size_;
     out.camera_sequence = camera_sequence_;
+    out.camera_exposure_ns = camera_exposure_ns_;
+    out.camera_receipt_ns = camera_receipt_ns_;
   }
   out.have_state = have_state_;
   out.mode = mode_;

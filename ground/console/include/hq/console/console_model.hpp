@@ -117,6 +117,8 @@ struct Snapshot {
   std::vector<std::uint8_t> depth;
   std::size_t depth_size = 0;
   std::uint64_t camera_sequence = 0;  ///< Bumps with every frame (decode only when it moves).
+  std::int64_t camera_exposure_ns = -1;  ///< Its exposure on CLOCK_MONOTONIC; -1 unknown.
+  std::int64_t camera_receipt_ns = -1;   ///< Its receipt on CLOCK_MONOTONIC; -1 unknown.
   bool have_state = false;
   std::string mode = "-";
   std::string estimator_health = "-";
@@ -159,9 +161,11 @@ class ConsoleModel {
                 std::size_t cloud_points, const StateExtras& extras = StateExtras{});
   void on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps, float yaw_rate_radps);
   void on_event(std::int64_t t_ns, int severity, const char* text);
-  /// Copies the bytes (truncated to the capacity, which the link's bounds match).
+  /// Copies the bytes (truncated to the capacity, which the link's bounds match). For the video
+  /// latency: exposure_ns and receipt_ns on the ground's CLOCK_MONOTONIC, -1 when unknown.
   void on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
-                 const std::uint8_t* depth, std::size_t depth_size);
+                 const std::uint8_t* depth, std::size_t depth_size, std::int64_t exposure_ns = -1,
+                 std::int64_t receipt_ns = -1);
   void on_haptics(const HapticState& haptics);
   void on_link(const LinkHealth& link);
   void set_source(const std::string& text);
@@ -192,6 +196,8 @@ class ConsoleModel {
   std::vector<std::uint8_t> depth_;
   std::size_t depth_size_ = 0;
   std::uint64_t camera_sequence_ = 0;
+  std::int64_t camera_exposure_ns_ = -1;
+  std::int64_t camera_receipt_ns_ = -1;
   std::array<float, 3> command_{};
   float yaw_rate_command_ = 0;
   double yaw_W_rad_ = 0;
