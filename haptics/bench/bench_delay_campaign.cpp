@@ -3,11 +3,10 @@
 // passivity controller off and on, all in one run beside the no-delay baseline. Simulated time:
 // the figures do not depend on the machine's load. Not run by ctest.
 
-#include "delay_campaign.hpp"
-
 #include "hq/base/tool_main.hpp"
 #include "hq/control/vehicle_config.hpp"
 
+#include "delay_campaign.hpp"
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -57,12 +56,12 @@ int run(int argc, char** argv) {
         seconds, jitter_ms, seed);
     const auto campaign = [&](const char* title, const hq::haptics::HapticsConfig& config,
                               const hq::haptics::campaign::VehicleModel& vehicle) {
-      std::printf("## %s: K %.0f N/m, B %.1f N s/m, fade after %.2f s, vehicle lag %.2f s\n",
-                  title, config.feedback.velocity_stiffness_n_per_m,
-                  config.feedback.damping_ns_per_m, config.feedback.stale_after_s, vehicle.lag_s);
-      std::printf("%7s %5s %3s | %9s %9s %9s | %7s %7s %6s | %8s %8s | %9s %5s\n", "rtt_ms",
-                  "loss", "pc", "minE_J", "finalE_J", "dissip_J", "F_rms_N", "Fid_rms", "transp",
-                  "track", "hand_osc", "clear_m", "coll");
+      std::printf("## %s: K %.0f N/m, B %.1f N s/m, fade after %.2f s, vehicle lag %.2f s\n", title,
+                  config.feedback.velocity_stiffness_n_per_m, config.feedback.damping_ns_per_m,
+                  config.feedback.stale_after_s, vehicle.lag_s);
+      std::printf("%7s %5s %3s | %9s %9s %9s | %7s %7s %6s | %8s %8s | %9s %5s\n", "rtt_ms", "loss",
+                  "pc", "minE_J", "finalE_J", "dissip_J", "F_rms_N", "Fid_rms", "transp", "track",
+                  "hand_osc", "clear_m", "coll");
       for (const double rtt_ms : round_trips_ms) {
         for (const double loss : losses) {
           for (const bool pc : {false, true}) {
@@ -73,8 +72,8 @@ int run(int argc, char** argv) {
             link.jitter_s = rtt_ms > 0.0 ? 1e-3 * jitter_ms : 0.0;
             link.loss = loss;
             link.seed = seed;
-            const hq::haptics::campaign::RunResult r = hq::haptics::campaign::run(
-                run_config, R_body_camera, link, {}, vehicle, seconds);
+            const hq::haptics::campaign::RunResult r =
+                hq::haptics::campaign::run(run_config, R_body_camera, link, {}, vehicle, seconds);
             std::printf(
                 "%7.0f %5.2f %3s | %9.4f %9.4f %9.4f | %7.3f %7.3f %6.2f | %8.3f %8.4f | %9.3f "
                 "%5d\n",
@@ -97,6 +96,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  return hq::run_tool("hq-bench-delay-campaign", argc, argv, run);
-}
+int main(int argc, char** argv) { return hq::run_tool("hq-bench-delay-campaign", argc, argv, run); }

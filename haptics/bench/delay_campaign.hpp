@@ -39,41 +39,47 @@ struct LinkModel {
 };
 
 struct ArmModel {
-  double mass_kg = 1.0;            ///< Hand and forearm on the effector.
+  double mass_kg = 1.0;  ///< Hand and forearm on the effector.
   double stiffness_n_per_m = 150.0;
   double damping_ns_per_m = 5.0;
-  double reaction_s = 0.15;        ///< Voluntary reaction time.
-  double yield = 0.5;              ///< Fraction of the felt force the intent gives way to.
+  double reaction_s = 0.15;  ///< Voluntary reaction time.
+  double yield = 0.5;        ///< Fraction of the felt force the intent gives way to.
 };
 
 struct VehicleModel {
-  double lag_s = 0.3;                   ///< Velocity controller time constant.
-  double wall_distance_m = 3.0;         ///< Start to wall, along the camera heading.
-  double radius_m = 0.25;               ///< Closer than this to the wall: a collision.
-  double influence_distance_m = 1.2;    ///< obstacles.influence_distance_m.
-  double max_repulsive_speed_mps = 0.8; ///< obstacles.max_repulsive_speed_mps.
-  double command_timeout_s = 0.2;       ///< Fail-safe hold.
-  double noise_mps = 0.02;              ///< Estimate noise.
+  double lag_s = 0.3;                    ///< Velocity controller time constant.
+  double wall_distance_m = 3.0;          ///< Start to wall, along the camera heading.
+  double radius_m = 0.25;                ///< Closer than this to the wall: a collision.
+  double influence_distance_m = 1.2;     ///< obstacles.influence_distance_m.
+  double max_repulsive_speed_mps = 0.8;  ///< obstacles.max_repulsive_speed_mps.
+  double command_timeout_s = 0.2;        ///< Fail-safe hold.
+  double noise_mps = 0.02;               ///< Estimate noise.
 };
 
 struct RunResult {
-  double min_energy_j = 0.0;       ///< Device port E (passivity observer), min over the run.
+  double min_energy_j = 0.0;  ///< Device port E (passivity observer), min over the run.
   double final_energy_j = 0.0;
-  double dissipated_j = 0.0;       ///< By the passivity controller.
-  double force_rms_n = 0.0;        ///< |F| felt.
-  double ideal_force_rms_n = 0.0;  ///< |F| the law gives with the vehicle's true state, now.
-  double transparency = 0.0;       ///< 1 - rms(F - F_ideal) / rms(F_ideal).
-  double tracking_rms_mps = 0.0;   ///< |v_vehicle - v_cmd as sent|.
+  double dissipated_j = 0.0;             ///< By the passivity controller.
+  double force_rms_n = 0.0;              ///< |F| felt.
+  double ideal_force_rms_n = 0.0;        ///< |F| the law gives with the vehicle's true state, now.
+  double transparency = 0.0;             ///< 1 - rms(F - F_ideal) / rms(F_ideal).
+  double tracking_rms_mps = 0.0;         ///< |v_vehicle - v_cmd as sent|.
   double hold_hand_speed_rms_mps = 0.0;  ///< Effector speed while the intent is constant.
   double min_clearance_m = 0.0;
   int collisions = 0;
-  double loss_measured = 0.0;      ///< Fraction of state samples lost.
+  double loss_measured = 0.0;  ///< Fraction of state samples lost.
 };
+
+/// The operator's intent in D at t_s: where the hand would go with no force on it.
+using IntentFn = Eigen::Vector3d (*)(double t_s);
 
 /// The arm: a device whose effector is the operator's hand.
 class OperatorArm final : public HapticDevice {
  public:
-  explicit OperatorArm(const ArmModel& arm) : arm_(arm) { set_status("operator arm"); }
+  explicit OperatorArm(const ArmModel& arm, IntentFn intent = &wall_intent)
+      : arm_(arm), intent_(intent) {
+    set_status("operator arm");
+  }
 
   bool read(std::int64_t t_ns, DeviceSample& out) override {
     if (!started_) {
@@ -97,13 +103,20 @@ class OperatorArm final : public HapticDevice {
 
   /// The operator's intent along D x: forward to 8 cm (against the centring spring the hand
   /// settles near 6 cm, 0.6 m/s), hold towards the wall, pull back, release.
-  [[nodiscard]] static double intent_x_m(double t_s) {
-    if (t_s < 1.0) return 0.0;
-    if (t_s < 1.5) return 0.08 * (t_s - 1.0) / 0.5;
-    if (t_s < 8.0) return 0.08;
-    if (t_s < 8.4) return 0.08 - 0.11 * (t_s - 8.0) / 0.4;  // pull back past the centre
-    if (t_s < 9.0) return -0.03 + 0.03 * (t_s - 8.4) / 0.6;
-    return 0.0;
+  [[nodiscard]] static Eigen::Vector3d wall_intent(double t_s) {
+    double x = 0.0;
+    if (t_s < 1.0) {
+      x = 0.0;
+    } else if (t_s < 1.5) {
+      x = 0.08 * (t_s - 1.0) / 0.5;
+    } else if (t_s < 8.0) {
+      x = 0.08;
+    } else if (t_s < 8.4) {
+      x = 0.08 - 0.11 * (t_s - 8.0) / 0.4;  // pull back past the centre
+    } else if (t_s < 9.0) {
+      x = -0.03 + 0.03 * (t_s - 8.4) / 0.6;
+    }
+    return {x, 0.0, 0.0};
   }
   [[nodiscard]] const Eigen::Vector3d& v_D_mps() const { return v_D_mps_; }
   [[nodiscard]] const Eigen::Vector3d& p_D_m() const { return p_D_m_; }
@@ -115,16 +128,17 @@ class OperatorArm final : public HapticDevice {
     const auto lag_ticks = static_cast<std::uint64_t>(std::lround(arm_.reaction_s * 1e3));
     Eigen::Vector3d felt = Eigen::Vector3d::Zero();
     if (head_ > lag_ticks) felt = felt_[(head_ - 1 - lag_ticks) % felt_.size()];
-    const Eigen::Vector3d intent(intent_x_m(t_s_), 0.0, 0.0);
+    const Eigen::Vector3d intent = intent_(t_s_);
     const Eigen::Vector3d target = intent + arm_.yield * felt / arm_.stiffness_n_per_m;
-    const Eigen::Vector3d a = (arm_.stiffness_n_per_m * (target - p_D_m_) -
-                               arm_.damping_ns_per_m * v_D_mps_ + F_D_n_) /
-                              arm_.mass_kg;
+    const Eigen::Vector3d a =
+        (arm_.stiffness_n_per_m * (target - p_D_m_) - arm_.damping_ns_per_m * v_D_mps_ + F_D_n_) /
+        arm_.mass_kg;
     v_D_mps_ += a * dt_s;
     p_D_m_ += v_D_mps_ * dt_s;
   }
 
   ArmModel arm_;
+  IntentFn intent_;
   bool started_ = false;
   std::int64_t t0_ns_ = 0;
   double t_s_ = 0.0;
@@ -149,8 +163,7 @@ class DelayLine {
       ++lost_;
       return;
     }
-    const double delay_s =
-        std::max(0.0, 0.5 * link_.round_trip_s + link_.jitter_s * jitter_(rng_));
+    const double delay_s = std::max(0.0, 0.5 * link_.round_trip_s + link_.jitter_s * jitter_(rng_));
     Pending& slot = pending_[write_ % pending_.size()];
     ++write_;
     slot.arrive_ns = t_ns + static_cast<std::int64_t>(std::llround(1e9 * delay_s));
@@ -251,8 +264,8 @@ inline RunResult run(HapticsConfig config, const Eigen::Matrix3d& R_body_camera,
     // Vehicle.
     up.receive(t_ns);
     Eigen::Vector2d v_cmd_H = Eigen::Vector2d::Zero();
-    if (up.have() && 1e-9 * static_cast<double>(t_ns - up.newest_arrived_ns()) <=
-                         vehicle.command_timeout_s) {
+    if (up.have() &&
+        1e-9 * static_cast<double>(t_ns - up.newest_arrived_ns()) <= vehicle.command_timeout_s) {
       v_cmd_H = up.newest().v_H_mps.head<2>();
     }
     const double distance_m = vehicle.wall_distance_m - heading_H.dot(p_H_m);

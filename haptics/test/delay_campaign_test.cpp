@@ -2,7 +2,6 @@
 #include "delay_campaign.hpp"
 
 #include "test_support.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cstdio>

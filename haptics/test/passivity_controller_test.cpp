@@ -16,8 +16,8 @@ namespace {
 // feels when a remote side closes a stiff coupling over a slow link. The delayed spring lags the
 // motion and pushes energy into the oscillation; a passive port could not.
 struct DelayedCouplingRun {
-  double min_energy_j = 0.0;     // the port's E as the controller keeps it
-  double min_exact_j = 0.0;      // E from the force held times the displacement actually made
+  double min_energy_j = 0.0;      // the port's E as the controller keeps it
+  double min_exact_j = 0.0;       // E from the force held times the displacement actually made
   double late_amplitude_m = 0.0;  // max |p| over the last second
   double dissipated_j = 0.0;
 };
@@ -45,8 +45,8 @@ DelayedCouplingRun run_delayed_coupling(double delay_s, bool control) {
     const double v_step = (p - previous_p) / kDt;
     exact_j -= held_force * (p - previous_p);
     run.min_exact_j = std::min(run.min_exact_j, exact_j);
-    const Eigen::Vector3d F = controller.apply(Eigen::Vector3d(-kCouplingStiffness * p_delayed, 0, 0),
-                                               Eigen::Vector3d(v_step, 0, 0), kDt);
+    const Eigen::Vector3d F = controller.apply(
+        Eigen::Vector3d(-kCouplingStiffness * p_delayed, 0, 0), Eigen::Vector3d(v_step, 0, 0), kDt);
     held_force = F.x();
     previous_p = p;
     // Semi-implicit Euler on the hand.
@@ -74,9 +74,9 @@ TEST(PassivityController, ControllerKeepsThePortPassiveAndStopsTheOscillation) {
   for (const double delay_s : {0.05, 0.1, 0.3, 0.6}) {
     // GIVEN the same coupling, WHEN the controller damps the port
     const DelayedCouplingRun run = run_delayed_coupling(delay_s, true);
-    std::printf("PC, %.0f ms: min E %.5f J, exact %.5f J, late amplitude %.5f m, dissipated %.4f J\n",
-                1e3 * delay_s, run.min_energy_j, run.min_exact_j, run.late_amplitude_m,
-                run.dissipated_j);
+    std::printf(
+        "PC, %.0f ms: min E %.5f J, exact %.5f J, late amplitude %.5f m, dissipated %.4f J\n",
+        1e3 * delay_s, run.min_energy_j, run.min_exact_j, run.late_amplitude_m, run.dissipated_j);
     // THEN E stays above -10 mJ, 2 % of what the damper dissipates (measured at worst -5 mJ
     // at 300 ms: the velocity held over a tick is not the one the damper was sized with) ...
     EXPECT_GT(run.min_energy_j, -0.01) << delay_s;

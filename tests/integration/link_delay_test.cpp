@@ -8,11 +8,10 @@
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <unistd.h>
 #include <vector>
 
 namespace hq {
@@ -43,8 +42,7 @@ TEST(LinkDelay, RoundTripStateAgeAndCommandsOverAnImpairedLink) {
   std::int64_t next_state_ns = start_ns;
   link_bridge::FailsafeState vehicle;
   // WHEN both sides run their loops for 2.5 s (ground paced by its waitset, 10 ms steps)
-  for (std::int64_t step_ns = start_ns; step_ns < start_ns + 2'500'000'000;
-       step_ns += 10'000'000) {
+  for (std::int64_t step_ns = start_ns; step_ns < start_ns + 2'500'000'000; step_ns += 10'000'000) {
     ground.poll_until(step_ns);
     const std::int64_t t_ns = monotonic_ns();
     if (t_ns >= next_heartbeat_ns) {
@@ -62,13 +60,14 @@ TEST(LinkDelay, RoundTripStateAgeAndCommandsOverAnImpairedLink) {
     }
   }
   const ground::LinkStatus& s = ground.status();
-  std::printf("round trip %.1f ms (p50 %.1f), offset %.1f ms, state age %.1f ms (p50 %.1f), "
-              "loss %.3f, vehicle hold %d, stale %llu\n",
-              1e-6 * static_cast<double>(s.round_trip_ns), ground.round_trip().quantile_ms(0.5),
-              1e-6 * static_cast<double>(s.clock_offset_ns - kVehicleAheadNs),
-              1e-6 * static_cast<double>(s.last_state_age_ns), ground.state_age().quantile_ms(0.5),
-              ground.state_loss(), vehicle.hold,
-              static_cast<unsigned long long>(bridge.failsafe().counters().commands_stale));
+  std::printf(
+      "round trip %.1f ms (p50 %.1f), offset %.1f ms, state age %.1f ms (p50 %.1f), "
+      "loss %.3f, vehicle hold %d, stale %llu\n",
+      1e-6 * static_cast<double>(s.round_trip_ns), ground.round_trip().quantile_ms(0.5),
+      1e-6 * static_cast<double>(s.clock_offset_ns - kVehicleAheadNs),
+      1e-6 * static_cast<double>(s.last_state_age_ns), ground.state_age().quantile_ms(0.5),
+      ground.state_loss(), vehicle.hold,
+      static_cast<unsigned long long>(bridge.failsafe().counters().commands_stale));
   // THEN the round trip is the two 100 ms delays (+ up to a 10 ms step each side and jitter),
   ASSERT_TRUE(s.have_clock_offset);
   EXPECT_NEAR(ground.round_trip().quantile_ms(0.5), 210.0, 40.0);

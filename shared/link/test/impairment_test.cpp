@@ -1,14 +1,15 @@
-#include <array>
-#include <cmath>
-#include <string>
+#include "hq/link/impairment.hpp"
 
+#include "hq/link/link.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include "link_test_support.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "hq/link/impairment.hpp"
-#include "hq/link/link.hpp"
-#include "hq/testing/input_error.hpp"
-#include "link_test_support.hpp"
+#include <array>
+#include <cmath>
+#include <string>
 
 namespace hq::link {
 namespace {
@@ -96,7 +97,8 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
     dds_sample_info_t info{};
     while (reader.take(*received, info)) {
       ++got;
-      min_delay_ms = std::min(min_delay_ms, 1e-6 * static_cast<double>(dds_time() - received->t_ns));
+      min_delay_ms =
+          std::min(min_delay_ms, 1e-6 * static_cast<double>(dds_time() - received->t_ns));
       // THEN the sequence arrives intact, not aliased to the ring's buffer
       ASSERT_EQ(received->obstacle_points_body_m._length, 3u);
       EXPECT_EQ(received->obstacle_points_body_m._buffer[2].x,
@@ -109,7 +111,8 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
     dds_sample_info_t info{};
     while (reader.take(*received, info)) {
       ++got;
-      min_delay_ms = std::min(min_delay_ms, 1e-6 * static_cast<double>(dds_time() - received->t_ns));
+      min_delay_ms =
+          std::min(min_delay_ms, 1e-6 * static_cast<double>(dds_time() - received->t_ns));
     }
   }
   // ... no sample earlier than 80 ms, and about 20 % lost (8 of 40, seeded)
