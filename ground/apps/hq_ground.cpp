@@ -105,6 +105,11 @@ class ModelFeed : public hq::ground::LinkObserver {
     extras.yaw_W_rad = s.yaw_W_rad;
     extras.truth_valid = s.truth_valid;
     extras.v_truth_H_mps = {s.v_truth_H_mps.x, s.v_truth_H_mps.y, s.v_truth_H_mps.z};
+    const hq::ground::LinkStatus& link = ground_.status();
+    extras.state_age_ms = static_cast<float>(
+        1e-6 * static_cast<double>(std::max<std::int64_t>(link.last_state_age_ns, 0)));
+    extras.round_trip_ms = static_cast<float>(
+        1e-6 * static_cast<double>(std::max<std::int64_t>(link.round_trip_ns, 0)));
     const std::size_t count = std::min<std::size_t>(s.markers._length, markers_.size());
     for (std::size_t i = 0; i < count; ++i) {
       const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
@@ -611,7 +616,8 @@ int run(int argc, char** argv) {
   std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "vehicle state age (one way)",
               ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
               static_cast<long long>(ground.state_age().count()));
-  std::printf("  %-40s %.1f %%\n", "vehicle state loss", 100.0 * ground.state_loss());
+  std::printf("  %-40s %.1f %% (%llu reordered, dropped as older)\n", "vehicle state loss",
+              100.0 * ground.state_loss(), static_cast<unsigned long long>(s.states_reordered));
   std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states", 1e3 * max_state_gap_s);
   std::printf("  %-40s %s\n", "last vehicle mode",
               s.have_state ? hq::ground::to_string(s.state.mode) : "-");

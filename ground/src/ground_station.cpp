@@ -331,11 +331,24 @@ bool GroundStation::poll() {
       ++status_.states_rejected;  // a sample the haptic loop must not see
       continue;
     }
+    if (last_state_sequence_ != 0 && state_sample_->sequence_number <= last_state_sequence_) {
+      // Overtaken on the way (jitter): older than what the loop already has. It was counted
+      // missing when the newer one came; it is not, but it must not replace the newer state.
+      ++status_.states_reordered;
+      if (status_.state_sequence_gaps > 0) --status_.state_sequence_gaps;
+      continue;
+    }
     if (last_state_sequence_ != 0 && state_sample_->sequence_number > last_state_sequence_ + 1) {
       status_.state_sequence_gaps += state_sample_->sequence_number - last_state_sequence_ - 1;
     }
     last_state_sequence_ = state_sample_->sequence_number;
     const std::int64_t now = dds_time();
+    if (status_.have_clock_offset) {
+      // The stamp on the ground's clock: vehicle time minus the offset.
+      status_.last_state_age_ns =
+          monotonic_ns() - (state_sample_->t_ns - status_.clock_offset_ns);
+      state_age_.add(status_.last_state_age_ns);
+    }
     if (observer_ != nullptr) observer_->on_state(now, now - info.source_timestamp, *state_sample_);
     if (recorder_ != nullptr) {
       recorder_->state(now, now - info.source_timestamp, *state_sample_);
@@ -344,12 +357,6 @@ bool GroundStation::poll() {
     status_.state.obstacle_points_body_m = {};  // the copy must not alias the sample's buffer
     status_.state_receipt_ns = now;
     status_.last_latency_ns = now - info.source_timestamp;
-    if (status_.have_clock_offset) {
-      // The stamp on the ground's clock: vehicle time minus the offset.
-      status_.last_state_age_ns =
-          monotonic_ns() - (state_sample_->t_ns - status_.clock_offset_ns);
-      state_age_.add(status_.last_state_age_ns);
-    }
     status_.have_state = true;
     ++status_.states;
     latency_.add(status_.last_latency_ns);

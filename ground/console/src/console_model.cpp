@@ -78,6 +78,8 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   p.yaw_rate_cmd_radps = yaw_rate_command_;
   p.yaw_rate_meas_radps = omega_body_radps[2];
   p.latency_ms = static_cast<float>(latency_ms);
+  p.state_age_ms = extras.state_age_ms;
+  p.round_trip_ms = extras.round_trip_ms;
   p.truth_valid = extras.truth_valid;
   p.v_truth_H_mps = extras.truth_valid ? extras.v_truth_H_mps : std::array<float, 3>{};
   have_truth_ = have_truth_ || extras.truth_valid;

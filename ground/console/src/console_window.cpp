@@ -491,14 +491,18 @@ struct ConsoleWindow::Impl {
     static const Series kYaw[2] = {
         {"measured", kEstimated, [](const PlotSample& p) { return p.yaw_rate_meas_radps; }},
         {"commanded", kCommanded, [](const PlotSample& p) { return p.yaw_rate_cmd_radps; }}};
-    static const Series kLatency[1] = {
-        {"one way", IM_COL32(160, 220, 160, 255), [](const PlotSample& p) { return p.latency_ms; }}};
+    static const Series kLatency[3] = {
+        {"one way", IM_COL32(160, 220, 160, 255), [](const PlotSample& p) { return p.latency_ms; }},
+        {"state age", IM_COL32(240, 200, 90, 255),
+         [](const PlotSample& p) { return p.state_age_ms; }},
+        {"round trip", IM_COL32(230, 120, 120, 255),
+         [](const PlotSample& p) { return p.round_trip_ms; }}};
     draw_plot(kAxes[0], s, kVx, velocity_series, plot_window_s, h);
     draw_plot(kAxes[1], s, kVy, velocity_series, plot_window_s, h);
     draw_plot(kAxes[2], s, kVz, velocity_series, plot_window_s, h);
     draw_plot("v_obs H [m/s]", s, kObs, 3, plot_window_s, h);
     draw_plot("yaw rate [rad/s]", s, kYaw, 2, plot_window_s, h);
-    draw_plot("latency [ms]", s, kLatency, 1, plot_window_s, h);
+    draw_plot("latency [ms]", s, kLatency, 3, plot_window_s, h);
     stats.plot_samples_drawn = s.plot_count;
     ImGui::End();
   }

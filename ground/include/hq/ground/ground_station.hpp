@@ -84,6 +84,7 @@ struct LinkStatus {
   std::uint64_t write_failures = 0;
   std::array<char, 161> last_event{};  ///< Text of the latest event.
   std::uint64_t state_sequence_gaps = 0;  ///< States missing between consecutive sequences.
+  std::uint64_t states_reordered = 0;     ///< Arrived after a newer one: dropped, not missing.
   std::uint64_t states_rejected = 0;      ///< States of the selected vehicle failing validate().
   std::array<std::uint32_t, 8> vehicle_ids_seen{};  ///< Ids of every vehicle heard from.
   std::size_t vehicle_ids_seen_count = 0;

@@ -29,6 +29,8 @@ struct PlotSample {
   float yaw_rate_cmd_radps = 0;
   float yaw_rate_meas_radps = 0;  ///< Gyro z (FRD).
   float latency_ms = 0;
+  float state_age_ms = 0;   ///< One-way age from the vehicle stamp (0: unknown).
+  float round_trip_ms = 0;  ///< Heartbeat round trip at that time (0: none yet).
   bool truth_valid = false;            ///< Simulator truth present in this sample.
   std::array<float, 3> v_truth_H_mps{};  ///< Simulator truth velocity in H.
 };
@@ -51,6 +53,8 @@ struct StateExtras {
   std::size_t marker_count = 0;
   bool truth_valid = false;
   std::array<float, 3> v_truth_H_mps{};
+  float state_age_ms = 0;   ///< Its one-way age from its vehicle stamp (0: unknown yet).
+  float round_trip_ms = 0;  ///< The latest heartbeat round trip (0: none yet).
 };
 
 struct TrackPoint {
