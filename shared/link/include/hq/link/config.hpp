@@ -52,7 +52,8 @@ struct LinkOverrides {
 };
 
 /// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --command-deadline-ms
-/// (range-checked by CLI11), --link-impair (checked by apply_overrides) to `app`, storing into `overrides` (which must outlive parsing).
+/// (range-checked by CLI11), --link-impair (checked by apply_overrides) to `app`, storing into
+/// `overrides` (which must outlive parsing).
 void add_link_options(CLI::App& app, LinkOverrides& overrides);
 
 /// Applies the options that were given, then checks the ranges again (hq::InputError).
