@@ -93,7 +93,8 @@ int mode_of(const char* name) {
 // The link's view of the selected vehicle, into the console's model (on the flying thread).
 class ModelFeed : public hq::ground::LinkObserver {
  public:
-  explicit ModelFeed(hq::console::ConsoleModel& model) : model_(model) {}
+  ModelFeed(hq::console::ConsoleModel& model, const hq::ground::GroundStation& ground)
+      : model_(model), ground_(ground) {}
   void on_state(std::int64_t receipt_ns, std::int64_t latency_ns,
                 const hq::link::VehicleState& s) override {
     static_assert(sizeof(hq_msgs_Vector3f) == 3 * sizeof(float));
@@ -104,6 +105,11 @@ class ModelFeed : public hq::ground::LinkObserver {
     extras.yaw_W_rad = s.yaw_W_rad;
     extras.truth_valid = s.truth_valid;
     extras.v_truth_H_mps = {s.v_truth_H_mps.x, s.v_truth_H_mps.y, s.v_truth_H_mps.z};
+    const hq::ground::LinkStatus& link = ground_.status();
+    extras.state_age_ms = static_cast<float>(
+        1e-6 * static_cast<double>(std::max<std::int64_t>(link.last_state_age_ns, 0)));
+    extras.round_trip_ms = static_cast<float>(
+        1e-6 * static_cast<double>(std::max<std::int64_t>(link.round_trip_ns, 0)));
     const std::size_t count = std::min<std::size_t>(s.markers._length, markers_.size());
     for (std::size_t i = 0; i < count; ++i) {
       const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
@@ -124,8 +130,12 @@ class ModelFeed : public hq::ground::LinkObserver {
                     s.obstacle_points_body_m._length, extras);
   }
   void on_camera(std::int64_t receipt_ns, const hq::link::CameraFrame& f) override {
+    // The exposure on our clock through the heartbeat clock offset (video latency).
+    const hq::ground::LinkStatus& link = ground_.status();
+    const std::int64_t now_ns = hq::haptics::monotonic_now_ns();
+    const std::int64_t exposure_ns = link.have_clock_offset ? f.t_ns - link.clock_offset_ns : -1;
     model_.on_camera(receipt_ns, f.rgb_jpeg._buffer, f.rgb_jpeg._length, f.depth_preview._buffer,
-                     f.depth_preview._length);
+                     f.depth_preview._length, exposure_ns, now_ns);
   }
   void on_event(std::int64_t receipt_ns, const hq::link::Event& e) override {
     model_.on_event(receipt_ns, static_cast<int>(e.severity), e.text);
@@ -133,6 +143,7 @@ class ModelFeed : public hq::ground::LinkObserver {
 
  private:
   hq::console::ConsoleModel& model_;
+  const hq::ground::GroundStation& ground_;
   std::array<hq::console::MarkerView, hq::console::kMaxMarkerViews> markers_{};
 };
 
@@ -183,13 +194,17 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
                  "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
                  "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
-                 "\"gl_renderer\": %s}\n",
+                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
+                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
+                 "\"video_display_p50_ms\": %.1f}\n",
                  static_cast<unsigned long long>(window->frames), window->fps,
                  window->render_ms_p50, window->render_ms_max,
                  static_cast<unsigned long long>(window->camera_frames_decoded),
                  static_cast<unsigned long long>(window->camera_decode_failures),
                  window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
-                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str());
+                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
+                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
+                 window->video_decode_p50_ms, window->video_display_p50_ms);
   } else {
     std::fprintf(f, "  \"window\": null\n");
   }
@@ -221,9 +236,14 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_print) {
       const hq::console::WindowStats st = window.stats();
-      std::fprintf(stderr, "hq-ground: console %.1f fps (render p50 %.2f ms), %llu frames decoded\n",
+      std::fprintf(stderr,
+                   "hq-ground: console %.1f fps (render p50 %.2f ms), %llu frames decoded, video "
+                   "exposure->display p50 %.0f ms p99 %.0f ms (vehicle+link %.0f, decode %.0f, "
+                   "display %.0f)\n",
                    st.fps, st.render_ms_p50,
-                   static_cast<unsigned long long>(st.camera_frames_decoded));
+                   static_cast<unsigned long long>(st.camera_frames_decoded), st.video_p50_ms,
+                   st.video_p99_ms, st.video_link_p50_ms, st.video_decode_p50_ms,
+                   st.video_display_p50_ms);
       next_print += std::chrono::seconds(1);
     }
     if (o.duration_s > 0 &&
@@ -303,13 +323,16 @@ void print_status(std::FILE* out, bool live, double t_s, const hq::ground::Groun
   const auto& v = hand.command.v_H_mps;
   std::fprintf(out,
                "%st %6.1f s  link %-7s  vehicle %-7s est %-8s vlink %-8s  latency %5.2f ms  "
+               "rtt %4.0f ms  age %4.0f ms  loss %4.1f %%  "
                "cmd [%+.2f %+.2f %+.2f] yaw %+.2f  |F| %.1f N  %s%s",
                live ? "\r" : "", t_s, link,
                s.have_state ? hq::ground::to_string(s.state.mode) : "-",
                s.have_state ? hq::ground::to_string(s.state.estimator_health) : "-",
                s.have_state ? hq::ground::to_string(s.state.link_health) : "-",
-               1e-6 * static_cast<double>(s.last_latency_ns), v.x(), v.y(), v.z(),
-               hand.command.yaw_rate_radps, hand.F_D_n.norm(),
+               1e-6 * static_cast<double>(s.last_latency_ns),
+               1e-6 * static_cast<double>(s.round_trip_ns),
+               1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * ground.state_loss(), v.x(),
+               v.y(), v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
                hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
   std::fprintf(out, live ? "\033[K" : "\n");
   std::fflush(out);
@@ -357,6 +380,10 @@ int run(int argc, char** argv) {
                                   ? hq::link::LinkConfig{}
                                   : hq::link::load_link_config(o.link_config_path);
   hq::link::apply_overrides(o.link_overrides, link);
+  if (link.impairment.active()) {
+    std::fprintf(stderr, "hq-ground: received samples impaired: %s\n",
+                 hq::link::describe(link.impairment).c_str());
+  }
   const hq::haptics::HapticsConfig haptics = hq::haptics::load_haptics_config(o.haptics_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
   hq::haptics::DeviceOptions device_options;
@@ -375,7 +402,7 @@ int run(int argc, char** argv) {
   if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
   hq::ground::GroundStation ground(link, recorder.get());
   hq::console::ConsoleModel model;
-  ModelFeed feed(model);
+  ModelFeed feed(model, ground);
   ground.set_observer(&feed);
   model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
   hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
@@ -420,7 +447,10 @@ int run(int argc, char** argv) {
       if (fresh) {
         const hq::link::VehicleState& s = ground.status().state;
         hq::haptics::VehicleEstimate estimate;
-        estimate.t_ns = now_ns;
+        // Stamped with when the vehicle measured it (through the heartbeat clock offset), so
+        // the force law's fade sees the link's delay; the receipt time until the offset is known.
+        const std::int64_t age_ns = ground.status().last_state_age_ns;
+        estimate.t_ns = now_ns - std::max<std::int64_t>(age_ns, 0);
         estimate.valid = static_cast<int>(s.estimator_health) != hq_msgs_HEALTH_LOST;
         estimate.v_H_mps = {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z};
         estimate.yaw_rate_radps = s.omega_body_radps.z;
@@ -513,6 +543,12 @@ int run(int argc, char** argv) {
         health.latency_p99_ms = ground.latency().quantile_ms(0.99);
         health.last_latency_ms = 1e-6 * static_cast<double>(st.last_latency_ns);
         health.state_age_s = st.have_state ? ground.state_age_s() : -1.0;
+        health.round_trip_ms = 1e-6 * static_cast<double>(st.round_trip_ns);
+        health.round_trip_p50_ms = ground.round_trip().quantile_ms(0.5);
+        health.round_trip_p99_ms = ground.round_trip().quantile_ms(0.99);
+        health.state_one_way_ms = 1e-6 * static_cast<double>(st.last_state_age_ns);
+        health.state_one_way_p99_ms = ground.state_age().quantile_ms(0.99);
+        health.state_loss_percent = 100.0 * ground.state_loss();
         health.state_rate_hz = 4.0 * static_cast<double>(st.states - last_states);
         health.camera_rate_hz = 4.0 * static_cast<double>(st.camera_frames - last_frames);
         last_states = st.states;
@@ -574,6 +610,14 @@ int run(int argc, char** argv) {
   std::printf("  %-40s p50 %.2f ms, p99 %.2f ms over %lld\n", "vehicle state latency (one way)",
               ground.latency().quantile_ms(0.5), ground.latency().quantile_ms(0.99),
               static_cast<long long>(ground.latency().count()));
+  std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "heartbeat round trip",
+              ground.round_trip().quantile_ms(0.5), ground.round_trip().quantile_ms(0.99),
+              static_cast<long long>(ground.round_trip().count()));
+  std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "vehicle state age (one way)",
+              ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
+              static_cast<long long>(ground.state_age().count()));
+  std::printf("  %-40s %.1f %% (%llu reordered, dropped as older)\n", "vehicle state loss",
+              100.0 * ground.state_loss(), static_cast<unsigned long long>(s.states_reordered));
   std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states", 1e3 * max_state_gap_s);
   std::printf("  %-40s %s\n", "last vehicle mode",
               s.have_state ? hq::ground::to_string(s.state.mode) : "-");
@@ -582,8 +626,11 @@ int run(int argc, char** argv) {
               "haptic loop period jitter", timing.period.quantile_us(0.5),
               timing.period.quantile_us(0.99), timing.period.max_us(),
               static_cast<long long>(timing.missed_deadlines));
-  std::printf("  %-40s %.4f J (>= 0: passive)\n", "passivity observer energy",
-              loop.passivity().energy_j());
+  std::printf("  %-40s %.4f J (>= 0: passive), min %.4f J\n", "passivity observer energy",
+              loop.passivity().energy_j(), loop.passivity().min_energy_j());
+  std::printf("  %-40s %.4f J dissipated (%s)\n", "passivity controller",
+              loop.passivity_controller().dissipated_j(),
+              loop.passivity_controller().enabled() ? "on" : "off");
   std::printf("  %-40s %llu\n", "device losses", static_cast<unsigned long long>(device_losses));
   std::printf("  %-40s %llu missing, %llu rejected\n", "vehicle states lost",
               static_cast<unsigned long long>(s.state_sequence_gaps),

@@ -45,7 +45,7 @@ const char* to_string(hq_msgs_Health health) {
 }
 
 void LatencyStats::add(std::int64_t latency_ns) {
-  const std::int64_t bin = std::clamp<std::int64_t>(latency_ns / 10'000, 0,
+  const std::int64_t bin = std::clamp<std::int64_t>(latency_ns / bin_ns_, 0,
                                                     static_cast<std::int64_t>(bins_.size()) - 1);
   ++bins_[static_cast<std::size_t>(bin)];
   ++count_;
@@ -57,12 +57,21 @@ double LatencyStats::quantile_ms(double q) const {
   std::int64_t seen = 0;
   for (std::size_t i = 0; i < bins_.size(); ++i) {
     seen += bins_[i];
-    if (seen >= std::max<std::int64_t>(target, 1)) return 0.01 * static_cast<double>(i + 1);
+    if (seen >= std::max<std::int64_t>(target, 1)) {
+      return 1e-6 * static_cast<double>(bin_ns_) * static_cast<double>(i + 1);
+    }
   }
-  return 0.01 * static_cast<double>(bins_.size());
+  return 1e-6 * static_cast<double>(bin_ns_) * static_cast<double>(bins_.size());
 }
 
 namespace {
+
+/// CLOCK_MONOTONIC, the haptic side's clock (haptics::monotonic_now_ns()).
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
 
 std::FILE* open_for_writing(const std::string& path) {
   std::FILE* f = std::fopen(path.c_str(), "w");
@@ -247,6 +256,12 @@ GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* 
   link::reserve(state_sample_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
   link::reserve(camera_sample_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   link::reserve(camera_sample_->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
+  if (config_.impairment.active()) {  // tests and demos over an emulated slow link
+    state_reader_.impair(config_.impairment, 1);
+    camera_reader_.impair(config_.impairment, 2);
+    event_reader_.impair(config_.impairment, 3);
+    heartbeat_reader_.impair(config_.impairment, 4);
+  }
 }
 
 void GroundStation::send_command(std::int64_t t_ns, const haptics::VelocityCommand& command,
@@ -316,11 +331,24 @@ bool GroundStation::poll() {
       ++status_.states_rejected;  // a sample the haptic loop must not see
       continue;
     }
+    if (last_state_sequence_ != 0 && state_sample_->sequence_number <= last_state_sequence_) {
+      // Overtaken on the way (jitter): older than what the loop already has. It was counted
+      // missing when the newer one came; it is not, but it must not replace the newer state.
+      ++status_.states_reordered;
+      if (status_.state_sequence_gaps > 0) --status_.state_sequence_gaps;
+      continue;
+    }
     if (last_state_sequence_ != 0 && state_sample_->sequence_number > last_state_sequence_ + 1) {
       status_.state_sequence_gaps += state_sample_->sequence_number - last_state_sequence_ - 1;
     }
     last_state_sequence_ = state_sample_->sequence_number;
     const std::int64_t now = dds_time();
+    if (status_.have_clock_offset) {
+      // The stamp on the ground's clock: vehicle time minus the offset.
+      status_.last_state_age_ns =
+          monotonic_ns() - (state_sample_->t_ns - status_.clock_offset_ns);
+      state_age_.add(status_.last_state_age_ns);
+    }
     if (observer_ != nullptr) observer_->on_state(now, now - info.source_timestamp, *state_sample_);
     if (recorder_ != nullptr) {
       recorder_->state(now, now - info.source_timestamp, *state_sample_);
@@ -357,9 +385,36 @@ bool GroundStation::poll() {
         static_cast<int>(heartbeat.role) == hq_msgs_ROLE_VEHICLE) {
       status_.last_vehicle_heartbeat_ns = dds_time();
       status_.have_vehicle_heartbeat = true;
+      if (heartbeat.echo_t_ns != 0) note_echo(heartbeat);
     }
   }
   return fresh;
+}
+
+void GroundStation::note_echo(const link::Heartbeat& heartbeat) {
+  // NTP with t0 our send (echo_t_ns), t1 = t2 - held the vehicle's receipt, t2 its send
+  // (t_ns), t3 our receipt: round trip (t3 - t0) - held, offset ((t1 - t0) + (t2 - t3)) / 2.
+  const std::int64_t t3 = monotonic_ns();
+  const std::int64_t round_trip_ns = t3 - heartbeat.echo_t_ns - heartbeat.echo_held_ns;
+  if (round_trip_ns < 0 || heartbeat.echo_held_ns < 0) return;  // not our clock's echo
+  const std::int64_t t1 = heartbeat.t_ns - heartbeat.echo_held_ns;
+  const std::int64_t offset_ns = ((t1 - heartbeat.echo_t_ns) + (heartbeat.t_ns - t3)) / 2;
+  status_.round_trip_ns = round_trip_ns;
+  round_trip_.add(round_trip_ns);
+  echoes_[echo_count_++ % echoes_.size()] = {round_trip_ns, offset_ns};
+  const std::size_t n = std::min(echo_count_, echoes_.size());
+  const Echo* best = &echoes_[0];
+  for (std::size_t i = 1; i < n; ++i) {
+    if (echoes_[i].round_trip_ns < best->round_trip_ns) best = &echoes_[i];
+  }
+  status_.clock_offset_ns = best->offset_ns;
+  status_.have_clock_offset = true;
+}
+
+double GroundStation::state_loss() const {
+  const double missing = static_cast<double>(status_.state_sequence_gaps);
+  const double total = missing + static_cast<double>(status_.states);
+  return total > 0.0 ? missing / total : 0.0;
 }
 
 void GroundStation::note_vehicle(std::uint32_t vehicle_id) {

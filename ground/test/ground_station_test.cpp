@@ -47,6 +47,14 @@ TEST(LatencyStats, QuantilesFollowTheSamples) {
   EXPECT_EQ(stats.count(), 102);
 }
 
+TEST(LatencyStats, CoarseBinsReachSeconds) {
+  // Round trips and state ages over a slow link: 1 ms bins up to 10 s.
+  LatencyStats stats(1'000'000, 10'000);
+  for (int i = 1; i <= 100; ++i) stats.add(i * 12'000'000LL);  // 12 .. 1200 ms
+  EXPECT_NEAR(stats.quantile_ms(0.5), 601.0, 1.0);
+  EXPECT_NEAR(stats.quantile_ms(0.99), 1189.0, 1.0);
+}
+
 TEST(TelemetryRecorder, UnwritableDirectoryIsNamed) {
   EXPECT_THAT(hq::testing::input_error_message(
                   [] { TelemetryRecorder r("/proc/no/such/dir"); }),

@@ -100,6 +100,8 @@ HapticLoop::HapticLoop(HapticDevice& device, const HapticsConfig& config,
       config_(config),
       mapping_(config.mapping, R_body_camera),
       feedback_(config.feedback, mapping_),
+      controller_(config.feedback.passivity_max_damping_ns_per_m,
+                  config.feedback.passivity_control),
       period_ns_(static_cast<std::int64_t>(std::llround(1e9 / config.loop.rate_hz))) {
   copy_status("haptic loop not started", output_.status);
 }
@@ -152,8 +154,11 @@ void HapticLoop::tick(std::int64_t t_ns) {
       const std::lock_guard<std::mutex> lock(estimate_mutex_);
       estimate = estimate_;
     }
-    const FeedbackForce force =
-        feedback_.compute(t_ns, p_D_m, p_dot_D_mps_, mapped.command, estimate);
+    FeedbackForce force = feedback_.compute(t_ns, p_D_m, p_dot_D_mps_, mapped.command, estimate);
+    // The cue carries the link's delay and the saturation scales the centring spring in time:
+    // either can make the device port active, so the controller guards the whole force, with
+    // the velocity of the interval just measured.
+    force.F_D_n = controller_.apply(force.F_D_n, v_step_D_mps, dt_s);
     device_.write_force(t_ns, force.F_D_n);
     last_F_D_n_ = force.F_D_n;
     last_p_D_m_ = p_D_m;
@@ -169,6 +174,8 @@ void HapticLoop::tick(std::int64_t t_ns) {
   }
   last_t_ns_ = t_ns;
   out.passivity_energy_j = observer_.energy_j();
+  out.channel_energy_j = controller_.energy_j();
+  out.passivity_damping_ns_per_m = controller_.damping_ns_per_m();
   const std::lock_guard<std::mutex> lock(output_mutex_);
   output_ = out;
 }

@@ -28,6 +28,8 @@ void read_feedback(config::StrictMap& map, FeedbackConfig& out) {
   map.read("stale_after_s", out.stale_after_s, 0.001, 10.0);
   map.read("fade_s", out.fade_s, 0.0, 10.0);
   map.read("velocity_filter_hz", out.velocity_filter_hz, 1.0, 400.0);
+  map.read("passivity_control", out.passivity_control);
+  map.read_positive("passivity_max_damping_ns_per_m", out.passivity_max_damping_ns_per_m, 1000.0);
   map.finish();
 }
 

@@ -98,6 +98,7 @@ FeedbackForce ForceFeedback::compute(std::int64_t t_ns, const Eigen::Vector3d& p
   }
   Eigen::Vector3d F_D_n = -config_.centring_stiffness_n_per_m * p_D_m;
   F_D_n -= config_.damping_ns_per_m * p_dot_D_mps;
+  Eigen::Vector3d F_cue_D_n = Eigen::Vector3d::Zero();
 
   out.cue_weight = cue_weight(t_ns, estimate);
   const bool estimate_finite =
@@ -111,14 +112,18 @@ FeedbackForce ForceFeedback::compute(std::int64_t t_ns, const Eigen::Vector3d& p
     const Eigen::Vector3d stiffness_n_per_m(config_.velocity_stiffness_n_per_m,
                                             config_.yaw_stiffness_n_per_m,
                                             config_.velocity_stiffness_n_per_m);
-    F_D_n -= out.cue_weight * stiffness_n_per_m.cwiseProduct(error_D_m);
+    F_cue_D_n = -out.cue_weight * stiffness_n_per_m.cwiseProduct(error_D_m);
+    F_D_n += F_cue_D_n;
   }
   const double magnitude_n = F_D_n.norm();
   if (magnitude_n > config_.max_force_n) {
-    F_D_n *= config_.max_force_n / magnitude_n;
+    const double scale = config_.max_force_n / magnitude_n;
+    F_D_n *= scale;
+    F_cue_D_n *= scale;
     out.saturated = true;
   }
   out.F_D_n = F_D_n;
+  out.F_cue_D_n = F_cue_D_n;
   return out;
 }
 

@@ -78,6 +78,8 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   p.yaw_rate_cmd_radps = yaw_rate_command_;
   p.yaw_rate_meas_radps = omega_body_radps[2];
   p.latency_ms = static_cast<float>(latency_ms);
+  p.state_age_ms = extras.state_age_ms;
+  p.round_trip_ms = extras.round_trip_ms;
   p.truth_valid = extras.truth_valid;
   p.v_truth_H_mps = extras.truth_valid ? extras.v_truth_H_mps : std::array<float, 3>{};
   have_truth_ = have_truth_ || extras.truth_valid;
@@ -128,13 +130,16 @@ void ConsoleModel::on_event(std::int64_t t_ns, int severity, const char* text) {
 }
 
 void ConsoleModel::on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
-                             const std::uint8_t* depth, std::size_t depth_size) {
+                             const std::uint8_t* depth, std::size_t depth_size,
+                             std::int64_t exposure_ns, std::int64_t receipt_ns) {
   const std::lock_guard<std::mutex> lock(mutex_);
   seconds(t_ns);
   jpeg_size_ = std::min(jpeg_size, jpeg_.size());
   if (jpeg_size_ > 0) std::memcpy(jpeg_.data(), jpeg, jpeg_size_);
   depth_size_ = depth != nullptr ? std::min(depth_size, depth_.size()) : 0;
   if (depth_size_ > 0) std::memcpy(depth_.data(), depth, depth_size_);
+  camera_exposure_ns_ = exposure_ns;
+  camera_receipt_ns_ = receipt_ns;
   ++camera_sequence_;
 }
 
@@ -178,6 +183,8 @@ void ConsoleModel::snapshot(Snapshot& out) const {
     std::copy_n(depth_.begin(), depth_size_, out.depth.begin());
     out.depth_size = depth_size_;
     out.camera_sequence = camera_sequence_;
+    out.camera_exposure_ns = camera_exposure_ns_;
+    out.camera_receipt_ns = camera_receipt_ns_;
   }
   out.have_state = have_state_;
   out.mode = mode_;

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <limits>
 #include <condition_variable>
 #include <mutex>
@@ -67,6 +68,38 @@ struct Texture {
 // submits the latest bytes (a copy into a buffer sized once) and uploads the newest finished
 // image; the decoder writes only the buffer the UI is not allowed to read. A frame submitted
 // while another decodes replaces any still waiting (the newest is the one worth showing).
+// Milliseconds in 1 ms bins up to 5 s, sized once (the UI thread adds, allocation-free).
+class MsHistogram {
+ public:
+  void add(std::int64_t ns) {
+    const std::int64_t bin = std::clamp<std::int64_t>(ns / 1'000'000, 0, kBins - 1);
+    ++bins_[static_cast<std::size_t>(bin)];
+    ++count_;
+  }
+  [[nodiscard]] double quantile_ms(double q) const {
+    if (count_ == 0) return -1.0;
+    const auto target = std::max<std::int64_t>(
+        static_cast<std::int64_t>(std::ceil(q * static_cast<double>(count_))), 1);
+    std::int64_t seen = 0;
+    for (std::size_t i = 0; i < bins_.size(); ++i) {
+      seen += bins_[i];
+      if (seen >= target) return static_cast<double>(i + 1);
+    }
+    return static_cast<double>(kBins);
+  }
+
+ private:
+  static constexpr std::int64_t kBins = 5000;
+  std::array<std::uint32_t, kBins> bins_{};
+  std::int64_t count_ = 0;
+};
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
 class FrameDecoder {
  public:
   FrameDecoder() : worker_([this] { run(); }) {}
@@ -82,9 +115,12 @@ class FrameDecoder {
   FrameDecoder& operator=(const FrameDecoder&) = delete;
 
   void submit(std::uint64_t sequence, const std::uint8_t* jpeg, std::size_t jpeg_size,
-              const std::uint8_t* depth, std::size_t depth_size) {
+              const std::uint8_t* depth, std::size_t depth_size, std::int64_t exposure_ns,
+              std::int64_t receipt_ns) {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
+      pending_exposure_ns_ = exposure_ns;
+      pending_receipt_ns_ = receipt_ns;
       if (pending_jpeg_.size() < jpeg_size) pending_jpeg_.resize(jpeg_size);  // first frames
       if (pending_depth_.size() < depth_size) pending_depth_.resize(depth_size);
       std::copy_n(jpeg, jpeg_size, pending_jpeg_.begin());
@@ -110,6 +146,20 @@ class FrameDecoder {
     stats.camera_width_px = slot.rgb.cols;
     stats.camera_height_px = slot.rgb.rows;
     if (slot.has_depth) depth.upload(slot.depth_rgb);
+    // Displayed from this UI frame on: the end of the video latency.
+    const std::int64_t shown_ns = monotonic_ns();
+    if (slot.exposure_ns >= 0 && slot.receipt_ns >= 0) {
+      video_.add(shown_ns - slot.exposure_ns);
+      link_.add(slot.receipt_ns - slot.exposure_ns);
+      decode_.add(slot.decoded_ns - slot.receipt_ns);
+      display_.add(shown_ns - slot.decoded_ns);
+      stats.video_last_ms = 1e-6 * static_cast<double>(shown_ns - slot.exposure_ns);
+      stats.video_p50_ms = video_.quantile_ms(0.5);
+      stats.video_p99_ms = video_.quantile_ms(0.99);
+      stats.video_link_p50_ms = link_.quantile_ms(0.5);
+      stats.video_decode_p50_ms = decode_.quantile_ms(0.5);
+      stats.video_display_p50_ms = display_.quantile_ms(0.5);
+    }
   }
 
  private:
@@ -117,6 +167,9 @@ class FrameDecoder {
     cv::Mat rgb;
     cv::Mat depth_rgb;
     bool has_depth = false;
+    std::int64_t exposure_ns = -1;
+    std::int64_t receipt_ns = -1;
+    std::int64_t decoded_ns = -1;
   };
 
   void run() {
@@ -125,6 +178,8 @@ class FrameDecoder {
     cv::Mat bgr;
     for (;;) {
       std::uint64_t sequence = 0;
+      std::int64_t exposure_ns = -1;
+      std::int64_t receipt_ns = -1;
       std::size_t jpeg_size = 0;
       std::size_t depth_size = 0;
       int back = 0;
@@ -134,6 +189,8 @@ class FrameDecoder {
         if (stop_) return;
         taken_sequence_ = pending_sequence_;
         sequence = pending_sequence_;
+        exposure_ns = pending_exposure_ns_;
+        receipt_ns = pending_receipt_ns_;
         jpeg.swap(pending_jpeg_);
         depth.swap(pending_depth_);
         jpeg_size = pending_jpeg_size_;
@@ -163,6 +220,9 @@ class FrameDecoder {
       }
       ++frames_decoded_;
       if (slot.has_depth) ++depth_decoded_;
+      slot.exposure_ns = exposure_ns;
+      slot.receipt_ns = receipt_ns;
+      slot.decoded_ns = monotonic_ns();
       ready_ = back;
       ready_sequence_ = sequence;
     }
@@ -176,6 +236,8 @@ class FrameDecoder {
   std::size_t pending_jpeg_size_ = 0;
   std::size_t pending_depth_size_ = 0;
   std::uint64_t pending_sequence_ = 0;
+  std::int64_t pending_exposure_ns_ = -1;
+  std::int64_t pending_receipt_ns_ = -1;
   std::uint64_t taken_sequence_ = 0;
   std::array<Slot, 2> slots_;
   int ready_ = -1;
@@ -183,6 +245,10 @@ class FrameDecoder {
   std::uint64_t frames_decoded_ = 0;
   std::uint64_t decode_failures_ = 0;
   std::uint64_t depth_decoded_ = 0;
+  MsHistogram video_;    // UI thread only (upload_latest)
+  MsHistogram link_;
+  MsHistogram decode_;
+  MsHistogram display_;
   std::thread worker_;  ///< Last: starts once everything above exists.
 };
 
@@ -323,7 +389,8 @@ struct ConsoleWindow::Impl {
   void decode(const Snapshot& s) {
     if (s.camera_sequence != submitted_sequence && s.jpeg_size > 0) {
       submitted_sequence = s.camera_sequence;
-      decoder.submit(s.camera_sequence, s.jpeg.data(), s.jpeg_size, s.depth.data(), s.depth_size);
+      decoder.submit(s.camera_sequence, s.jpeg.data(), s.jpeg_size, s.depth.data(), s.depth_size,
+                     s.camera_exposure_ns, s.camera_receipt_ns);
     }
     decoder.upload_latest(uploaded_sequence, camera, depth, stats);
   }
@@ -377,6 +444,12 @@ struct ConsoleWindow::Impl {
       draw->AddText(ImVec2(origin.x + 6, origin.y + 4), IM_COL32(255, 255, 255, 255),
                     "arrows: lateral/vertical in H; rings: forward speed");
     }
+    if (stats.video_p50_ms >= 0) {
+      ImGui::Text("video exposure->display %.0f ms (p50 %.0f, p99 %.0f): vehicle+link %.0f, "
+                  "pick-up+decode %.0f, to display %.0f (p50s)",
+                  stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms,
+                  stats.video_link_p50_ms, stats.video_decode_p50_ms, stats.video_display_p50_ms);
+    }
     ImGui::TextColored(ImColor(kCommanded), "commanded");
     ImGui::SameLine();
     ImGui::TextColored(ImColor(kEstimated), "estimated");
@@ -418,14 +491,18 @@ struct ConsoleWindow::Impl {
     static const Series kYaw[2] = {
         {"measured", kEstimated, [](const PlotSample& p) { return p.yaw_rate_meas_radps; }},
         {"commanded", kCommanded, [](const PlotSample& p) { return p.yaw_rate_cmd_radps; }}};
-    static const Series kLatency[1] = {
-        {"one way", IM_COL32(160, 220, 160, 255), [](const PlotSample& p) { return p.latency_ms; }}};
+    static const Series kLatency[3] = {
+        {"one way", IM_COL32(160, 220, 160, 255), [](const PlotSample& p) { return p.latency_ms; }},
+        {"state age", IM_COL32(240, 200, 90, 255),
+         [](const PlotSample& p) { return p.state_age_ms; }},
+        {"round trip", IM_COL32(230, 120, 120, 255),
+         [](const PlotSample& p) { return p.round_trip_ms; }}};
     draw_plot(kAxes[0], s, kVx, velocity_series, plot_window_s, h);
     draw_plot(kAxes[1], s, kVy, velocity_series, plot_window_s, h);
     draw_plot(kAxes[2], s, kVz, velocity_series, plot_window_s, h);
     draw_plot("v_obs H [m/s]", s, kObs, 3, plot_window_s, h);
     draw_plot("yaw rate [rad/s]", s, kYaw, 2, plot_window_s, h);
-    draw_plot("latency [ms]", s, kLatency, 1, plot_window_s, h);
+    draw_plot("latency [ms]", s, kLatency, 3, plot_window_s, h);
     stats.plot_samples_drawn = s.plot_count;
     ImGui::End();
   }
@@ -564,6 +641,10 @@ struct ConsoleWindow::Impl {
                 l.heartbeat_seen ? "seen" : "none");
     ImGui::Text("latency last %.2f ms  p50 %.2f  p99 %.2f", l.last_latency_ms, l.latency_p50_ms,
                 l.latency_p99_ms);
+    ImGui::Text("round trip %.0f ms (p50 %.0f, p99 %.0f)  state age %.0f ms (p99 %.0f)  "
+                "loss %.1f %%",
+                l.round_trip_ms, l.round_trip_p50_ms, l.round_trip_p99_ms, l.state_one_way_ms,
+                l.state_one_way_p99_ms, l.state_loss_percent);
     ImGui::Text("rates: states %.1f Hz  camera %.1f Hz", l.state_rate_hz, l.camera_rate_hz);
     ImGui::Text("received %llu states, %llu frames, %llu events",
                 static_cast<unsigned long long>(l.states),

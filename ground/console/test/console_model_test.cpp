@@ -61,5 +61,18 @@ TEST(ConsoleModel, SamplesAndSnapshotsAllocateNothingAfterConstruction) {
   EXPECT_EQ(s.jpeg_size, jpeg.size());
 }
 
+TEST(ConsoleModel, CameraFrameCarriesItsExposureAndReceiptForTheVideoLatency) {
+  ConsoleModel m;
+  Snapshot s = m.make_snapshot();
+  std::vector<std::uint8_t> jpeg(100, 7);
+  m.on_camera(5, jpeg.data(), jpeg.size(), nullptr, 0);
+  m.snapshot(s);
+  EXPECT_EQ(s.camera_exposure_ns, -1);  // no clock offset yet: unknown
+  m.on_camera(6, jpeg.data(), jpeg.size(), nullptr, 0, 1'000'000'000, 1'080'000'000);
+  m.snapshot(s);
+  EXPECT_EQ(s.camera_exposure_ns, 1'000'000'000);
+  EXPECT_EQ(s.camera_receipt_ns, 1'080'000'000);
+}
+
 }  // namespace
 }  // namespace hq::console

@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 
+#include <algorithm>
 #include <string>
 
 namespace hq::link_bridge {
@@ -15,6 +16,8 @@ void check_config(const FailsafeConfig& config) {
   };
   positive("command_timeout_ms", 1e-6 * static_cast<double>(config.command_timeout_ns));
   positive("heartbeat_timeout_ms", 1e-6 * static_cast<double>(config.heartbeat_timeout_ns));
+  positive("command_max_delay_ms", 1e-6 * static_cast<double>(config.command_max_delay_ns));
+  positive("command_reanchor_ms", 1e-6 * static_cast<double>(config.command_reanchor_ns));
   positive("envelope.max_v_x_mps", config.envelope.max_v_x_mps);
   positive("envelope.max_v_y_mps", config.envelope.max_v_y_mps);
   positive("envelope.max_v_z_mps", config.envelope.max_v_z_mps);
@@ -69,6 +72,13 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
     last_command_rejection_ = v.reason;
     return reject(counters_.commands_rejected, v.reason);
   }
+  if (command.t_ns > 0) {
+    if (const char* reason = stale(t_ns, command.t_ns); reason != nullptr) {
+      ++counters_.commands_stale;
+      last_command_rejection_ = reason;
+      return reject(counters_.commands_rejected, reason);
+    }
+  }
   last_command_.t_ns = t_ns;
   last_command_.v_horizontal_mps = {command.v_H_mps.x, command.v_H_mps.y, command.v_H_mps.z};
   last_command_.yaw_rate_radps = command.yaw_rate_radps;
@@ -76,6 +86,38 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
   have_command_ = true;
   ++counters_.commands_accepted;
   return {true, ""};
+}
+
+const char* Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
+  const std::int64_t offset_ns = t_ns - stamp_ns;
+  if (!have_offset_) {
+    have_offset_ = true;
+    min_offset_ns_ = offset_ns;
+    offset_relaxed_t_ns_ = t_ns;
+    last_stamp_ns_ = stamp_ns - 1;
+  }
+  // The least delay rises by 5 % of elapsed time: clock drift is followed, a stall is not.
+  min_offset_ns_ += (t_ns - offset_relaxed_t_ns_) / 20;
+  offset_relaxed_t_ns_ = t_ns;
+  min_offset_ns_ = std::min(min_offset_ns_, offset_ns);
+  const char* reason = nullptr;
+  if (offset_ns - min_offset_ns_ > config_.command_max_delay_ns) {
+    reason = "command older than its deadline (link delay or stall)";
+  } else if (stamp_ns <= last_stamp_ns_) {
+    reason = "command older than one already accepted (reordered)";
+  }
+  if (reason == nullptr) {
+    stale_since_t_ns_ = -1;
+    last_stamp_ns_ = stamp_ns;
+    return nullptr;
+  }
+  if (stale_since_t_ns_ < 0) stale_since_t_ns_ = t_ns;
+  if (t_ns - stale_since_t_ns_ < config_.command_reanchor_ns) return reason;
+  // Stale for command_reanchor without a fresh one in between: not a burst but another clock.
+  min_offset_ns_ = offset_ns;
+  last_stamp_ns_ = stamp_ns;
+  stale_since_t_ns_ = -1;
+  return nullptr;
 }
 
 Verdict Failsafe::on_mode_request(std::int64_t /*t_ns*/, const link::ModeRequest& request,

@@ -96,6 +96,11 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   event_->vehicle_id = link_.vehicle_id;
   jpeg_params_ = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
   jpeg_.reserve(hq_msgs_kMaxJpegBytes);
+  if (link_.impairment.active()) {  // tests and demos over an emulated slow link
+    command_reader_.impair(link_.impairment, 11);
+    mode_reader_.impair(link_.impairment, 12);
+    heartbeat_reader_.impair(link_.impairment, 13);
+  }
 }
 
 const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
@@ -104,7 +109,12 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   link::VelocityCommand command{};
   while (command_reader_.take(command, info)) failsafe_.on_command(t_ns, command);
   link::Heartbeat heartbeat{};
-  while (heartbeat_reader_.take(heartbeat, info)) failsafe_.on_heartbeat(t_ns, heartbeat);
+  while (heartbeat_reader_.take(heartbeat, info)) {
+    if (failsafe_.on_heartbeat(t_ns, heartbeat).accepted) {
+      echo_t_ns_ = heartbeat.t_ns;  // echoed in our next heartbeat: the station's round trip
+      echo_receipt_t_ns_ = t_ns;
+    }
+  }
   link::ModeRequest request{};
   while (mode_reader_.take(request, info)) {
     modes::Mode mode = modes::Mode::kHover;
@@ -151,6 +161,8 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
     own.sender_id = link_.vehicle_id;
     own.sequence_number = ++heartbeat_sequence_;
     own.t_ns = t_ns;
+    own.echo_t_ns = echo_t_ns_;
+    own.echo_held_ns = echo_t_ns_ != 0 ? t_ns - echo_receipt_t_ns_ : 0;
     heartbeat_writer_.write(own);
   }
   return state;

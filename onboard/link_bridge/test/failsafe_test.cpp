@@ -226,5 +226,87 @@ TEST(Failsafe, PerMessagePathAllocatesNothing) {
   EXPECT_EQ(hq::testing::allocation_count(), before);
 }
 
+link::VelocityCommand stamped(float v_x_mps, std::int64_t stamp_ns) {
+  link::VelocityCommand c = command(v_x_mps);
+  c.t_ns = stamp_ns;
+  return c;
+}
+
+// The station's clock runs 7 s ahead of the vehicle's: only differences of delay matter.
+constexpr std::int64_t kStationAheadNs = 7'000'000'000;
+
+TEST(FailsafeStamps, BurstOfStaleCommandsAfterAStallMovesNothing) {
+  // GIVEN a station 50 ms away sending every 10 ms
+  Failsafe failsafe(FailsafeConfig{});
+  // Fresh commands for 1 s: accepted, flown.
+  for (std::int64_t t = 0; t < 1000 * kMs; t += 10 * kMs) {
+    ASSERT_TRUE(failsafe.on_command(t + 50 * kMs, stamped(0.3F, t + kStationAheadNs)).accepted);
+    failsafe.update(t + 50 * kMs);
+  }
+  EXPECT_FALSE(failsafe.update(1050 * kMs).hold);
+  // WHEN the link stalls while the station sends 1.0 m/s from 1.0 to 1.7 s, and those commands
+  // arrive in one burst at 2.05 s
+  EXPECT_TRUE(failsafe.update(1300 * kMs).hold);  // no command for 250 ms: hold
+  int accepted = 0;
+  for (std::int64_t t = 1000 * kMs; t < 1700 * kMs; t += 10 * kMs) {
+    accepted += failsafe.on_command(2050 * kMs, stamped(1.0F, t + kStationAheadNs)).accepted;
+  }
+  const FailsafeState& during = failsafe.update(2050 * kMs);
+  // THEN every burst command is rejected as stale and the vehicle keeps holding zero velocity
+  EXPECT_EQ(accepted, 0);
+  EXPECT_EQ(failsafe.counters().commands_stale, 70u);
+  EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("older than its deadline"));
+  EXPECT_TRUE(during.hold);
+  EXPECT_EQ(during.command.v_horizontal_mps.norm(), 0.0);
+  // ... and it resumes on the first fresh command
+  ASSERT_TRUE(
+      failsafe.on_command(2100 * kMs, stamped(0.2F, 2050 * kMs + kStationAheadNs)).accepted);
+  const FailsafeState& resumed = failsafe.update(2100 * kMs);
+  EXPECT_FALSE(resumed.hold);
+  EXPECT_FLOAT_EQ(static_cast<float>(resumed.command.v_horizontal_mps.x()), 0.2F);
+}
+
+TEST(FailsafeStamps, ReorderedOlderCommandIsRejected) {
+  Failsafe failsafe(FailsafeConfig{});
+  ASSERT_TRUE(failsafe.on_command(100 * kMs, stamped(0.3F, 60 * kMs)).accepted);
+  EXPECT_FALSE(failsafe.on_command(105 * kMs, stamped(0.9F, 50 * kMs)).accepted);
+  EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("reordered"));
+  EXPECT_FALSE(failsafe.on_command(106 * kMs, stamped(0.9F, 60 * kMs)).accepted);
+  EXPECT_TRUE(failsafe.on_command(110 * kMs, stamped(0.3F, 70 * kMs)).accepted);
+}
+
+TEST(FailsafeStamps, AnotherClockIsReanchoredAfterOneSecondOfStaleCommands) {
+  // GIVEN a station whose stamps jump 5 s back (restarted, another clock), or a sample stamped
+  // far in the future: fresh commands look stale, but only for command_reanchor
+  for (const std::int64_t jump_ns : {-5'000'000'000LL, 3'600'000'000'000LL}) {
+    Failsafe failsafe(FailsafeConfig{});
+    for (std::int64_t t = 0; t < 500 * kMs; t += 10 * kMs) {
+      ASSERT_TRUE(failsafe.on_command(t, stamped(0.3F, t + kStationAheadNs)).accepted);
+    }
+    std::int64_t t = 500 * kMs;
+    if (jump_ns > 0) {
+      // one hostile sample from the future: accepted once (nothing tells it apart)
+      failsafe.on_command(t, stamped(0.0F, t + kStationAheadNs + jump_ns));
+      t += 10 * kMs;
+    }
+    std::int64_t first_accepted_ns = -1;
+    for (; t < 3000 * kMs && first_accepted_ns < 0; t += 10 * kMs) {
+      const std::int64_t stamp = t + kStationAheadNs + (jump_ns < 0 ? jump_ns : 0);
+      if (failsafe.on_command(t, stamped(0.3F, stamp)).accepted) first_accepted_ns = t;
+    }
+    // THEN the vehicle holds for 1 s, then accepts the station's commands again
+    EXPECT_NEAR(static_cast<double>(first_accepted_ns), 1510.0 * kMs, 20.0 * kMs) << jump_ns;
+  }
+}
+
+TEST(FailsafeStamps, UnstampedCommandsSkipTheDeadline) {
+  // t_ns = 0 (a sender that does not stamp): only the receipt timeout applies
+  Failsafe failsafe(FailsafeConfig{});
+  for (std::int64_t t = 0; t < 3000 * kMs; t += 10 * kMs) {
+    ASSERT_TRUE(failsafe.on_command(t, command(0.3F)).accepted);
+  }
+  EXPECT_EQ(failsafe.counters().commands_stale, 0u);
+}
+
 }  // namespace
 }  // namespace hq::link_bridge

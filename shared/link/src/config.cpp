@@ -42,6 +42,14 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
   envelope.read_positive("max_v_z_mps", out.envelope.max_v_z_mps, 10.0);
   envelope.read_positive("max_yaw_rate_radps", out.envelope.max_yaw_rate_radps, 10.0);
   envelope.finish();
+  config::StrictMap impair = section.child("impair");
+  impair.read("delay_ms", out.impairment.delay_ms, 0.0, 10'000.0);
+  impair.read("jitter_ms", out.impairment.jitter_ms, 0.0, 10'000.0);
+  impair.read("loss", out.impairment.loss, 0.0, 1.0);
+  int seed = static_cast<int>(out.impairment.seed);
+  impair.read("seed", seed, 0, kMaxId);
+  out.impairment.seed = static_cast<std::uint32_t>(seed);
+  impair.finish();
   section.finish();
 }
 
@@ -64,6 +72,9 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides) {
   app.add_option("--command-deadline-ms", overrides.command_deadline_ms,
                  "command deadline in milliseconds")
       ->check(CLI::Range(kMinPeriodMs, kMaxPeriodMs));
+  app.add_option("--link-impair", overrides.link_impair,
+                 "impair received samples for tests and demos: "
+                 "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N] (one way, this process's side)");
 }
 
 void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
@@ -77,6 +88,7 @@ void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
     }
     config.command_deadline_ns = ms_to_ns(*overrides.command_deadline_ms);
   }
+  if (overrides.link_impair) config.impairment = parse_impairment(*overrides.link_impair);
   check_config(config);
 }
 
@@ -101,6 +113,7 @@ void check_config(const LinkConfig& config) {
   check_period("command_deadline_ms", config.command_deadline_ns);
   check_period("command_lease_ms", config.command_lease_ns);
   check_period("heartbeat_lease_ms", config.heartbeat_lease_ns);
+  check_impairment(config.impairment, "link.impair");
 }
 
 }  // namespace hq::link

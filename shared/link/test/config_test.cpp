@@ -106,5 +106,26 @@ TEST(LinkConfig, CheckConfigNamesField) {
               HasSubstr("link.command_lease_ms = 0, expected in [1, 60000] ms"));
 }
 
+TEST(LinkConfig, ImpairmentFromYamlAndFromTheCommandLine) {
+  LinkConfig config = from_yaml("{impair: {delay_ms: 40, loss: 0.01}}");
+  EXPECT_EQ(config.impairment.delay_ms, 40.0);
+  EXPECT_EQ(config.impairment.loss, 0.01);
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{impair: {loss: 1.5}}"); }),
+              HasSubstr("link.impair.loss = 1.5"));
+  CLI::App app;
+  LinkOverrides overrides;
+  add_link_options(app, overrides);
+  std::vector<std::string> args = {"--link-impair", "delay_ms=150,jitter_ms=30,loss=0.05"};
+  std::reverse(args.begin(), args.end());
+  app.parse(args);
+  apply_overrides(overrides, config);
+  EXPECT_EQ(config.impairment.delay_ms, 150.0);
+  EXPECT_EQ(config.impairment.jitter_ms, 30.0);
+  EXPECT_EQ(config.impairment.loss, 0.05);
+  overrides.link_impair = "loss=1.5";
+  EXPECT_EQ(hq::testing::input_error_message([&] { apply_overrides(overrides, config); }),
+            "--link-impair loss=1.5: expected 0..1");
+}
+
 }  // namespace
 }  // namespace hq::link

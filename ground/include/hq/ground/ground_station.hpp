@@ -44,12 +44,15 @@ const char* to_string(hq_msgs_Health health);
 /// Latencies in a fixed histogram (10 us bins up to 100 ms); add() allocates nothing.
 class LatencyStats {
  public:
-  LatencyStats() : bins_(10'000, 0) {}
+  /// `bins` bins of `bin_ns` each (default 10 us up to 2 s); the last holds everything beyond.
+  explicit LatencyStats(std::int64_t bin_ns = 10'000, std::size_t bins = 200'000)
+      : bin_ns_(bin_ns), bins_(bins, 0) {}
   void add(std::int64_t latency_ns);
   [[nodiscard]] double quantile_ms(double q) const;
   [[nodiscard]] std::int64_t count() const { return count_; }
 
  private:
+  std::int64_t bin_ns_;
   std::vector<std::uint32_t> bins_;
   std::int64_t count_ = 0;
 };
@@ -68,10 +71,20 @@ struct LinkStatus {
   std::uint64_t camera_bytes = 0;
   std::uint64_t commands_sent = 0;
   std::uint64_t mode_requests_sent = 0;
+  /// Latest heartbeat round trip, ns (-1 before the vehicle echoes one).
+  std::int64_t round_trip_ns = -1;
+  /// Vehicle clock minus the ground's CLOCK_MONOTONIC, from the heartbeat with the least round
+  /// trip of the last 16 (NTP's estimate; error at most half that round trip).
+  std::int64_t clock_offset_ns = 0;
+  bool have_clock_offset = false;
+  /// One-way age of the latest state at receipt: its vehicle stamp through the clock offset,
+  /// ns (-1 until the offset is known). What the force law's fade is given.
+  std::int64_t last_state_age_ns = -1;
   std::uint64_t heartbeats_sent = 0;
   std::uint64_t write_failures = 0;
   std::array<char, 161> last_event{};  ///< Text of the latest event.
   std::uint64_t state_sequence_gaps = 0;  ///< States missing between consecutive sequences.
+  std::uint64_t states_reordered = 0;     ///< Arrived after a newer one: dropped, not missing.
   std::uint64_t states_rejected = 0;      ///< States of the selected vehicle failing validate().
   std::array<std::uint32_t, 8> vehicle_ids_seen{};  ///< Ids of every vehicle heard from.
   std::size_t vehicle_ids_seen_count = 0;
@@ -140,6 +153,8 @@ class GroundStation {
   void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
   /// Requests `mode`, with a marker task for the vehicle's marker stage if `marker` has one.
   void request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {});
+  /// @param t_ns  on CLOCK_MONOTONIC (haptics::monotonic_now_ns()): the vehicle echoes it back
+  /// for the round trip.
   void send_heartbeat(std::int64_t t_ns);
   /// Takes everything pending. Returns true if a new vehicle state arrived.
   bool poll();
@@ -150,6 +165,11 @@ class GroundStation {
 
   [[nodiscard]] const LinkStatus& status() const { return status_; }
   [[nodiscard]] const LatencyStats& latency() const { return latency_; }
+  /// Heartbeat round trips and state ages over the flight (1 ms bins up to 10 s).
+  [[nodiscard]] const LatencyStats& round_trip() const { return round_trip_; }
+  [[nodiscard]] const LatencyStats& state_age() const { return state_age_; }
+  /// Fraction of vehicle states missing by sequence number (0 before any).
+  [[nodiscard]] double state_loss() const;
   /// Seconds since the last vehicle state (infinity before the first).
   [[nodiscard]] double state_age_s() const;
 
@@ -159,6 +179,7 @@ class GroundStation {
   LinkObserver* observer_ = nullptr;
   std::uint64_t last_state_sequence_ = 0;
   void note_vehicle(std::uint32_t vehicle_id);
+  void note_echo(const link::Heartbeat& heartbeat);
   link::Participant participant_;
   link::Topics topics_;
   link::Writer<link::VelocityCommand> command_writer_;
@@ -178,6 +199,14 @@ class GroundStation {
   std::uint64_t heartbeat_sequence_ = 0;
   LinkStatus status_;
   LatencyStats latency_;
+  LatencyStats round_trip_{1'000'000, 10'000};
+  LatencyStats state_age_{1'000'000, 10'000};
+  struct Echo {
+    std::int64_t round_trip_ns = 0;
+    std::int64_t offset_ns = 0;
+  };
+  std::array<Echo, 16> echoes_{};
+  std::size_t echo_count_ = 0;
 };
 
 }  // namespace hq::ground

@@ -8,6 +8,7 @@
 
 #include "hq/haptics/haptic_device.hpp"
 #include "hq/haptics/haptics_config.hpp"
+#include "hq/haptics/passivity_controller.hpp"
 #include "hq/haptics/passivity_observer.hpp"
 #include "hq/haptics/teleop_mapping.hpp"
 
@@ -64,6 +65,8 @@ struct LoopOutput {
   bool device_connected = false;
   double cue_weight = 0.0;         ///< 0 when the vehicle state is stale.
   double passivity_energy_j = 0;   ///< PassivityObserver::energy_j() at this tick.
+  double channel_energy_j = 0;     ///< PassivityController::energy_j() of the device port.
+  double passivity_damping_ns_per_m = 0;  ///< The controller's damper at this tick.
   std::array<char, 128> status{};  ///< Device status, or why the command is zero.
 };
 
@@ -102,6 +105,8 @@ class HapticLoop {
   /// Timing of the threaded run. @pre the loop is stopped (or never started).
   [[nodiscard]] const LoopTimingReport& timing() const { return timing_; }
   [[nodiscard]] const PassivityObserver& passivity() const { return observer_; }
+  /// The passivity controller on the device port. @pre the loop is stopped (or never started).
+  [[nodiscard]] const PassivityController& passivity_controller() const { return controller_; }
   [[nodiscard]] const TeleopMapping& mapping() const { return mapping_; }
 
  private:
@@ -112,6 +117,7 @@ class HapticLoop {
   TeleopMapping mapping_;
   ForceFeedback feedback_;
   PassivityObserver observer_;
+  PassivityController controller_;
   std::int64_t period_ns_;
 
   // Loop-thread state.

@@ -37,6 +37,9 @@ struct FeedbackConfig {
   double stale_after_s = 0.1;                ///< Estimate older than this starts the fade.
   double fade_s = 0.5;                       ///< Cue weight goes 1 -> 0 over this time.
   double velocity_filter_hz = 60.0;          ///< Low-pass on the differentiated p for p_dot.
+  /// Time-domain passivity controller on the delayed cue (PassivityController): on by default.
+  bool passivity_control = true;
+  double passivity_max_damping_ns_per_m = 60.0;  ///< Cap on its variable damper.
 };
 
 /// The haptic thread.

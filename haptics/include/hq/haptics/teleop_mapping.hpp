@@ -73,7 +73,10 @@ class TeleopMapping {
 
 /// The force cue of one tick, in D.
 struct FeedbackForce {
-  Eigen::Vector3d F_D_n = Eigen::Vector3d::Zero();  ///< Force on the hand.
+  Eigen::Vector3d F_D_n = Eigen::Vector3d::Zero();  ///< Force on the hand (local + cue).
+  /// The part of F_D_n computed from the vehicle's state (the velocity-error cue, after the same
+  /// saturation scale): the port the link's delay acts on, for the passivity controller.
+  Eigen::Vector3d F_cue_D_n = Eigen::Vector3d::Zero();
   double cue_weight = 0.0;  ///< 1 fresh estimate, 0 stale or none; the fade in between.
   bool saturated = false;
 };

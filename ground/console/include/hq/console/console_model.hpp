@@ -29,6 +29,8 @@ struct PlotSample {
   float yaw_rate_cmd_radps = 0;
   float yaw_rate_meas_radps = 0;  ///< Gyro z (FRD).
   float latency_ms = 0;
+  float state_age_ms = 0;   ///< One-way age from the vehicle stamp (0: unknown).
+  float round_trip_ms = 0;  ///< Heartbeat round trip at that time (0: none yet).
   bool truth_valid = false;            ///< Simulator truth present in this sample.
   std::array<float, 3> v_truth_H_mps{};  ///< Simulator truth velocity in H.
 };
@@ -51,6 +53,8 @@ struct StateExtras {
   std::size_t marker_count = 0;
   bool truth_valid = false;
   std::array<float, 3> v_truth_H_mps{};
+  float state_age_ms = 0;   ///< Its one-way age from its vehicle stamp (0: unknown yet).
+  float round_trip_ms = 0;  ///< The latest heartbeat round trip (0: none yet).
 };
 
 struct TrackPoint {
@@ -80,6 +84,12 @@ struct LinkHealth {
   double latency_p99_ms = 0;
   double last_latency_ms = 0;
   double state_age_s = -1;  ///< < 0: no state yet.
+  double round_trip_ms = -1;      ///< Latest heartbeat round trip; < 0: none yet.
+  double round_trip_p50_ms = 0;   ///< Over the flight.
+  double round_trip_p99_ms = 0;
+  double state_one_way_ms = -1;   ///< Latest state's age at receipt (vehicle stamp); < 0: none.
+  double state_one_way_p99_ms = 0;
+  double state_loss_percent = 0;  ///< States missing by sequence number, over the flight.
   double state_rate_hz = 0;
   double camera_rate_hz = 0;
   std::uint64_t states = 0;
@@ -111,6 +121,8 @@ struct Snapshot {
   std::vector<std::uint8_t> depth;
   std::size_t depth_size = 0;
   std::uint64_t camera_sequence = 0;  ///< Bumps with every frame (decode only when it moves).
+  std::int64_t camera_exposure_ns = -1;  ///< Its exposure on CLOCK_MONOTONIC; -1 unknown.
+  std::int64_t camera_receipt_ns = -1;   ///< Its receipt on CLOCK_MONOTONIC; -1 unknown.
   bool have_state = false;
   std::string mode = "-";
   std::string estimator_health = "-";
@@ -153,9 +165,11 @@ class ConsoleModel {
                 std::size_t cloud_points, const StateExtras& extras = StateExtras{});
   void on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps, float yaw_rate_radps);
   void on_event(std::int64_t t_ns, int severity, const char* text);
-  /// Copies the bytes (truncated to the capacity, which the link's bounds match).
+  /// Copies the bytes (truncated to the capacity, which the link's bounds match). For the video
+  /// latency: exposure_ns and receipt_ns on the ground's CLOCK_MONOTONIC, -1 when unknown.
   void on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
-                 const std::uint8_t* depth, std::size_t depth_size);
+                 const std::uint8_t* depth, std::size_t depth_size, std::int64_t exposure_ns = -1,
+                 std::int64_t receipt_ns = -1);
   void on_haptics(const HapticState& haptics);
   void on_link(const LinkHealth& link);
   void set_source(const std::string& text);
@@ -186,6 +200,8 @@ class ConsoleModel {
   std::vector<std::uint8_t> depth_;
   std::size_t depth_size_ = 0;
   std::uint64_t camera_sequence_ = 0;
+  std::int64_t camera_exposure_ns_ = -1;
+  std::int64_t camera_receipt_ns_ = -1;
   std::array<float, 3> command_{};
   float yaw_rate_command_ = 0;
   double yaw_W_rad_ = 0;

@@ -39,6 +39,15 @@ struct WindowStats {
   int camera_width_px = 0;
   int camera_height_px = 0;
   std::uint64_t depth_frames_decoded = 0;
+  /// Video latency, camera exposure to the frame's first display, and where it goes: exposure
+  /// to receipt (vehicle encode and link), receipt to decoded (the UI's pick-up and the JPEG
+  /// decode), decoded to display (upload on the next UI frame). ms over the session; -1 none.
+  double video_p50_ms = -1;
+  double video_p99_ms = -1;
+  double video_last_ms = -1;
+  double video_link_p50_ms = -1;
+  double video_decode_p50_ms = -1;
+  double video_display_p50_ms = -1;
   std::size_t plot_samples_drawn = 0;
   std::string mode_shown = "-";
   std::string gl_renderer;

@@ -6,6 +6,13 @@
 ///   - a command is accepted only if it is for this vehicle, finite and inside the envelope;
 ///     otherwise it is rejected and counted (never clipped: a value outside the envelope means a
 ///     broken or hostile sender);
+///   - a stamped command (t_ns > 0, the station's clock) is rejected as stale when it arrives
+///     later than command_max_delay beyond the least delay seen, or is not newer than the last
+///     accepted one: a burst of commands queued during a link stall moves nothing, the vehicle
+///     holds and resumes on fresh commands. The clocks need not agree: the delay is measured
+///     against the least (receipt - stamp) seen, which rises by 5 % of elapsed time so clock
+///     drift is followed; if every command for command_reanchor is stale (the station
+///     restarted with another clock, or a stamp from the future), the estimate is re-anchored.
 ///   - no accepted command for command_timeout (200 ms): hold zero velocity;
 ///   - no heartbeat from any station for heartbeat_timeout (2 s) once a station has been seen:
 ///     request land, once per loss;
@@ -25,6 +32,8 @@ struct FailsafeConfig {
   std::uint32_t vehicle_id = 1;                        ///< Messages for other vehicles: rejected.
   std::int64_t command_timeout_ns = 200'000'000;       ///< Older command: hold zero velocity.
   std::int64_t heartbeat_timeout_ns = 2'000'000'000;   ///< No heartbeat this long: land.
+  std::int64_t command_max_delay_ns = 250'000'000;     ///< Later than the least delay + this.
+  std::int64_t command_reanchor_ns = 1'000'000'000;  ///< All stale this long: new clock.
   link::CommandEnvelope envelope;                      ///< Accepted command magnitudes.
 };
 
@@ -53,7 +62,8 @@ struct FailsafeState {
 
 struct FailsafeCounters {
   std::uint64_t commands_accepted = 0;
-  std::uint64_t commands_rejected = 0;
+  std::uint64_t commands_rejected = 0;   ///< All rejections, the stale ones included.
+  std::uint64_t commands_stale = 0;      ///< Older than their deadline or than one accepted.
   std::uint64_t mode_requests_accepted = 0;
   std::uint64_t mode_requests_rejected = 0;
   std::uint64_t heartbeats_accepted = 0;
@@ -87,6 +97,9 @@ class Failsafe {
 
  private:
   Verdict reject(std::uint64_t& counter, const char* reason);
+  /// Why a command stamped stamp_ns received at t_ns is stale (static text), nullptr if it is
+  /// not; updates the delay estimate.
+  const char* stale(std::int64_t t_ns, std::int64_t stamp_ns);
 
   FailsafeConfig config_;
   FailsafeState state_;
@@ -94,6 +107,13 @@ class Failsafe {
   modes::OperatorCommand last_command_;
   std::int64_t last_command_t_ns_ = 0;
   bool have_command_ = false;
+  // Stamp ageing: least (receipt - stamp), when it was last relaxed, the newest accepted stamp
+  // and since when every stamped command has been stale (-1: the last one was not).
+  bool have_offset_ = false;
+  std::int64_t min_offset_ns_ = 0;
+  std::int64_t offset_relaxed_t_ns_ = 0;
+  std::int64_t last_stamp_ns_ = 0;
+  std::int64_t stale_since_t_ns_ = -1;
   std::int64_t last_heartbeat_t_ns_ = 0;
   bool have_heartbeat_ = false;
   bool was_holding_ = true;

@@ -142,6 +142,8 @@ class LinkBridge {
   link::Reader<link::VelocityCommand> command_reader_;
   link::Reader<link::ModeRequest> mode_reader_;
   link::Reader<link::Heartbeat> heartbeat_reader_;
+  std::int64_t echo_t_ns_ = 0;          ///< Newest accepted ground heartbeat's stamp.
+  std::int64_t echo_receipt_t_ns_ = 0;  ///< When it arrived (our clock).
   link::Writer<link::VehicleState> state_writer_;
   link::Writer<link::CameraFrame> camera_writer_;
   link::Writer<link::Event> event_writer_;

@@ -3,7 +3,8 @@
 ///   link: {domain_id: 0, vehicle_id: 1, station_id: 1, station_strength: 100,
 ///          command_deadline_ms: 100, command_lease_ms: 500, heartbeat_lease_ms: 1000,
 ///          envelope: {max_v_x_mps: 2.0, max_v_y_mps: 2.0, max_v_z_mps: 1.0,
-///                     max_yaw_rate_radps: 1.5}}
+///                     max_yaw_rate_radps: 1.5},
+///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1}}   # tests and demos only
 
 #include <cstdint>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <CLI/CLI.hpp>
 
 #include "hq/config/strict_yaml.hpp"
+#include "hq/link/impairment.hpp"
 #include "hq/link/messages.hpp"
 
 namespace hq::link {
@@ -28,6 +30,7 @@ struct LinkConfig {
   std::int64_t command_lease_ns = 500'000'000;     ///< Liveliness lease of a command writer.
   std::int64_t heartbeat_lease_ns = 1'000'000'000; ///< Liveliness lease of heartbeat writers.
   CommandEnvelope envelope;         ///< Limits applied by validate(VelocityCommand).
+  ImpairmentConfig impairment;      ///< Receive-side link impairment (none by default).
 };
 
 /// Reads a `link:` mapping strictly (unknown keys, out-of-range values throw hq::InputError
@@ -45,10 +48,12 @@ struct LinkOverrides {
   std::optional<std::uint32_t> station_id;
   std::optional<int> station_strength;
   std::optional<double> command_deadline_ms;
+  std::optional<std::string> link_impair;  ///< "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N]"
 };
 
 /// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --command-deadline-ms
-/// (range-checked by CLI11) to `app`, storing into `overrides` (which must outlive parsing).
+/// (range-checked by CLI11), --link-impair (checked by apply_overrides) to `app`, storing into
+/// `overrides` (which must outlive parsing).
 void add_link_options(CLI::App& app, LinkOverrides& overrides);
 
 /// Applies the options that were given, then checks the ranges again (hq::InputError).

@@ -12,14 +12,17 @@
 /// deleted child is harmless.
 
 #include <cstdint>
+#include <cstring>
 #include <span>
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include <dds/dds.h>
 
 #include "hq/link/config.hpp"
+#include "hq/link/impairment.hpp"
 #include "hq/link/messages.hpp"
 #include "hq/link/qos.hpp"
 
@@ -156,6 +159,43 @@ void reserve(Sequence& sequence, std::uint32_t capacity) {
   sequence._release = true;
 }
 
+/// Copies `src` into `dst`, whose buffer it owns (reserve() semantics): for deep copies into
+/// preallocated samples.
+template <typename Sequence>
+void copy_sequence(Sequence& dst, const Sequence& src) {
+  reserve(dst, src._length);
+  if (src._length > 0) {
+    std::memcpy(dst._buffer, src._buffer, sizeof(*src._buffer) * src._length);
+  }
+  dst._length = src._length;
+}
+
+/// Deep copy of a message into storage that owns its sequence buffers (a Sample<T>); the
+/// fixed-size topics copy as structs.
+template <typename T>
+void copy_sample(T& dst, const T& src) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  dst = src;
+}
+inline void copy_sample(VehicleState& dst, const VehicleState& src) {
+  const auto points = dst.obstacle_points_body_m;
+  const auto markers = dst.markers;
+  dst = src;
+  dst.obstacle_points_body_m = points;
+  dst.markers = markers;
+  copy_sequence(dst.obstacle_points_body_m, src.obstacle_points_body_m);
+  copy_sequence(dst.markers, src.markers);
+}
+inline void copy_sample(CameraFrame& dst, const CameraFrame& src) {
+  const auto jpeg = dst.rgb_jpeg;
+  const auto depth = dst.depth_preview;
+  dst = src;
+  dst.rgb_jpeg = jpeg;
+  dst.depth_preview = depth;
+  copy_sequence(dst.rgb_jpeg, src.rgb_jpeg);
+  copy_sequence(dst.depth_preview, src.depth_preview);
+}
+
 /// A data writer of T with the given QoS (see qos.hpp) and optional listener.
 template <typename T>
 class Writer {
@@ -232,8 +272,20 @@ class Reader {
   [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
   [[nodiscard]] const std::string& name() const { return name_; }
 
+ /// Impairs this reader (impairment.hpp): from now on take() hands a sample out only at its
+  /// impaired arrival time on dds_time()'s clock, reordered by jitter, or never if dropped.
+  /// Sizes the stage's ring of `capacity` samples once; their sequence buffers grow on first use.
+  void impair(const ImpairmentConfig& config, std::uint32_t salt, std::size_t capacity = 64) {
+    impairment_ = Impairment(config, salt);
+    held_ = std::vector<Held>(config.active() ? capacity : 0);
+  }
+  [[nodiscard]] const Impairment& impairment() const { return impairment_; }
+  /// Samples the impairment ring had to drop because it was full.
+  [[nodiscard]] std::uint64_t impairment_overflows() const { return overflows_; }
+
  private:
   bool take_from(T& sample, dds_sample_info_t& info, dds_instance_handle_t instance) noexcept {
+    if (!held_.empty()) return take_impaired(sample, info, instance);
     void* buffer = &sample;
     for (;;) {
       const dds_return_t n =
@@ -248,9 +300,62 @@ class Reader {
       if (info.valid_data) return true;
     }
   }
+
+  /// Drains DDS into the ring (each sample admitted or dropped), then hands out the due sample
+  /// with the earliest impaired arrival.
+  bool take_impaired(T& sample, dds_sample_info_t& info, dds_instance_handle_t instance) noexcept {
+    const std::int64_t now_ns = dds_time();
+    for (;;) {
+      Held* slot = nullptr;
+      for (Held& h : held_) {
+        if (!h.live) {
+          slot = &h;
+          break;
+        }
+        if (slot == nullptr || h.release_ns < slot->release_ns) slot = &h;
+      }
+      // Full: the sample due first gives way, if DDS has a new one (counted below).
+      const bool evicting = slot->live;
+      const dds_sample_info_t kept_info = slot->info;
+      void* buffer = &*slot->sample;
+      const dds_return_t n =
+          instance == DDS_HANDLE_NIL
+              ? dds_take(entity_.handle(), &buffer, &slot->info, 1, 1)
+              : dds_take_instance(entity_.handle(), &buffer, &slot->info, 1, 1, instance);
+      if (n <= 0) {
+        if (n < 0) last_error_ = dds_strretcode(n);
+        slot->info = kept_info;
+        break;
+      }
+      if (evicting) ++overflows_;
+      slot->live = slot->info.valid_data && impairment_.admit(now_ns, slot->release_ns);
+    }
+    Held* due = nullptr;
+    for (Held& h : held_) {
+      if (!h.live || h.release_ns > now_ns) continue;
+      if (instance != DDS_HANDLE_NIL && h.info.instance_handle != instance) continue;
+      if (due == nullptr || h.release_ns < due->release_ns) due = &h;
+    }
+    if (due == nullptr) return false;
+    copy_sample(sample, *due->sample);
+    info = due->info;
+    due->live = false;
+    return true;
+  }
+
+  struct Held {
+    Sample<T> sample;
+    dds_sample_info_t info{};
+    std::int64_t release_ns = 0;
+    bool live = false;
+  };
+
   std::string name_;
   Entity entity_;
   const char* last_error_ = "";
+  Impairment impairment_;
+  std::vector<Held> held_;
+  std::uint64_t overflows_ = 0;
 };
 
 /// A read condition on a reader (triggers while it holds samples of any state).
