@@ -50,6 +50,7 @@ LinkConfig load_link_config(const std::string& path) {
   config::StrictMap section = root.child("link");
   LinkConfig config;
   read_config(section, config);
+  root.finish_sections();
   return config;
 }
 
