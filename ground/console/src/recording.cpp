@@ -214,11 +214,12 @@ const char* intern(std::string_view text) {
 
 Recording load_recording(const std::string& directory) {
   if (!fs::is_directory(directory)) {
-    throw InputError("--replay " + directory + ": not a directory");
+    throw InputError(directory + ": " + (fs::exists(directory) ? "not a directory" : "not found") +
+                     ", expected a recording folder written by hq-ground --record");
   }
   if (!fs::exists(fs::path(directory) / "telemetry.csv") &&
       !fs::exists(fs::path(directory) / "rgb.txt")) {
-    throw InputError("--replay " + directory +
+    throw InputError(directory +
                      ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
   }
   Recording r;
