@@ -166,5 +166,25 @@ TEST(HqGround, RecordIntoAnExistingRecordingExitsTwo) {
   fs::remove_all(dir);
 }
 
+// GIVEN a recording with one garbled stamp, WHEN hq-ground replays it, THEN it exits 2 naming
+// file:line at once instead of waiting for years.
+TEST(HqGround, ReplayOfAGarbledStampExitsTwoNamingFileAndLine) {
+  const fs::path dir = fresh_dir("garbled_replay");
+  {
+    TelemetryRecorder recorder(dir.string());
+    for (int i = 0; i < 5; ++i) {
+      link::VehicleState s{};
+      recorder.state(1'000'000'000LL + i * 50'000'000LL, 0, s);
+    }
+    recorder.state(9'000'000'000'000'000'000LL, 0, link::VehicleState{});
+  }
+  const fs::path out = fs::temp_directory_path() / ("hq_ground_replay_" + std::to_string(getpid()) + ".out");
+  hq::testing::Process p({HQ_GROUND_EXE, "--replay", dir.string(), "--headless"}, out.string());
+  EXPECT_EQ(p.wait_exit(30.0), 2);
+  EXPECT_THAT(slurp(out), HasSubstr("hq-ground: " + (dir / "telemetry.csv").string() + ":17: receipt_ns = 9000000000000000000 is "));
+  fs::remove(out);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace hq::ground

@@ -129,7 +129,8 @@ class CsvFile {
     std::size_t header_fields = 0;
     std::vector<std::string_view> ordered(columns_.size());
     std::vector<std::pair<std::string, std::int64_t>> unused;
-    StampOrder order(name_, columns_.front(), starts_ != nullptr ? *starts_ : unused);
+    StampOrder order((fs::path(recording_.directory) / name_).string(), columns_.front(),
+                     starts_ != nullptr ? *starts_ : unused);
     while (std::getline(in, line)) {
       ++line_number;
       const std::string where = name_ + ":" + std::to_string(line_number);
@@ -231,7 +232,7 @@ bool known_name(std::string_view text) {
 
 void read_frame_list(Recording& r, const std::string& name, std::vector<RecordedFrame>& out,
                      bool required, std::vector<std::pair<std::string, std::int64_t>>& starts) {
-  StampOrder order(name, "timestamp", starts);
+  StampOrder order((fs::path(r.directory) / name).string(), "timestamp", starts);
   const fs::path path = fs::path(r.directory) / name;
   std::ifstream in(path);
   if (!in) {
@@ -259,7 +260,7 @@ void read_frame_list(Recording& r, const std::string& name, std::vector<Recorded
       continue;
     }
     if (!(std::abs(t_s) < 9e9)) {
-      throw InputError(name + ":" + std::to_string(line_number) + ": timestamp = " + stamp +
+      throw InputError(path.string() + ":" + std::to_string(line_number) + ": timestamp = " + stamp +
                        ", expected seconds since 1970 (below 9e9)");
     }
     const auto t_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
@@ -432,7 +433,8 @@ Recording load_recording(const std::string& directory) {
   if (earliest != starts.end() && latest->second - earliest->second > kMaxStampGapNs) {
     throw InputError(latest->first + ": first stamp " + std::to_string(latest->second) + " is " +
                      seconds_text(latest->second - earliest->second) + " after " +
-                     earliest->first + "'s " + std::to_string(earliest->second) +
+                     fs::path(earliest->first).filename().string() + "'s " +
+                     std::to_string(earliest->second) +
                      ", expected the files of one recording to start within " +
                      seconds_text(kMaxStampGapNs) + " (a garbled stamp?)");
   }
