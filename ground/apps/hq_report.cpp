@@ -71,7 +71,8 @@ int run_in(const std::vector<std::string>& args, const std::string& directory,
   const int error = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (error == ENOENT) {
-    throw hq::InputError(args[0] + ": not found on PATH; hq-report draws its figures with "
+    throw hq::InputError(args[0] +
+                         ": not found on PATH; hq-report draws its figures with "
                          "Debian's gnuplot (apt-get install gnuplot-nox)");
   }
   if (error != 0) {

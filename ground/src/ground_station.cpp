@@ -69,7 +69,8 @@ namespace {
 std::FILE* open_for_writing(const std::string& path) {
   std::FILE* f = std::fopen(path.c_str(), "wx");
   if (f == nullptr && errno == EEXIST) {
-    throw InputError("--record " + path + ": exists; refusing to overwrite a recording, "
+    throw InputError("--record " + path +
+                     ": exists; refusing to overwrite a recording, "
                      "expected a new folder");
   }
   if (f == nullptr) throw InputError(path + ": cannot open for writing: " + std::strerror(errno));
@@ -124,40 +125,49 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
   rgb_list_ = open_for_writing(directory + "/rgb.txt");
   depth_list_ = open_for_writing(directory + "/depth_preview.txt");
   closer.armed = false;
-  written(std::fprintf(telemetry_,
-               "# hq-ground telemetry v1: one row per vehicle state received.\n"
-               "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
-               "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
-               "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
-               "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
-               "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
-               "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
-               "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
-               "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
-               "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
-               "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
-               "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
-               "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
-               "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
-               "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n\n"), "telemetry.csv");
-  written(std::fprintf(events_,
-               "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
-               "# severity 0 info 1 warning 2 error.\n"
-               "receipt_ns,sequence,t_ns,severity,code,text\n"), "events.csv");
-  written(std::fprintf(commands_,
-               "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
-               "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
-               "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
-               "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n"), "commands.csv");
+  written(std::fprintf(
+              telemetry_,
+              "# hq-ground telemetry v1: one row per vehicle state received.\n"
+              "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
+              "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
+              "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
+              "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
+              "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
+              "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
+              "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
+              "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
+              "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
+              "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
+              "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
+              "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
+              "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
+              "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n\n"),
+          "telemetry.csv");
+  written(
+      std::fprintf(events_,
+                   "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
+                   "# severity 0 info 1 warning 2 error.\n"
+                   "receipt_ns,sequence,t_ns,severity,code,text\n"),
+      "events.csv");
+  written(std::fprintf(
+              commands_,
+              "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
+              "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
+              "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
+              "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n"),
+          "commands.csv");
   written(std::fprintf(modes_,
-               "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
-               "t_ns,mode\n"), "mode_requests.csv");
+                       "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
+                       "t_ns,mode\n"),
+          "mode_requests.csv");
   written(std::fprintf(rgb_list_,
-               "# color images (JPEG as received)\n"
-               "# timestamp filename (timestamp: receipt on the ground clock, s)\n"), "rgb.txt");
+                       "# color images (JPEG as received)\n"
+                       "# timestamp filename (timestamp: receipt on the ground clock, s)\n"),
+          "rgb.txt");
   written(std::fprintf(depth_list_,
-               "# depth colour-map previews (not metric depth)\n"
-               "# timestamp filename (timestamp: receipt on the ground clock, s)\n"), "depth_preview.txt");
+                       "# depth colour-map previews (not metric depth)\n"
+                       "# timestamp filename (timestamp: receipt on the ground clock, s)\n"),
+          "depth_preview.txt");
   path_.reserve(directory.size() + 64);
 }
 
@@ -196,19 +206,20 @@ bool TelemetryRecorder::close() {
 void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
                               const link::VehicleState& s) {
   if (!error_.empty() || telemetry_ == nullptr) return;
-  written(std::fprintf(telemetry_,
-               "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-               "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u\n",
-               static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
-               static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
-               s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x,
-               s.omega_body_radps.y, s.omega_body_radps.z, s.roll_rad, s.pitch_rad,
-               s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z, to_string(s.mode),
-               to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
-               closest_obstacle_m(s), s.position_valid ? 1 : 0, s.p_W_m.x, s.p_W_m.y,
-               s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
-               s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length),
-          "telemetry.csv");
+  written(
+      std::fprintf(
+          telemetry_,
+          "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
+          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u\n",
+          static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
+          static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
+          s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x, s.omega_body_radps.y,
+          s.omega_body_radps.z, s.roll_rad, s.pitch_rad, s.v_obs_H_mps.x, s.v_obs_H_mps.y,
+          s.v_obs_H_mps.z, to_string(s.mode), to_string(s.estimator_health),
+          to_string(s.link_health), s.vehicle_id, closest_obstacle_m(s), s.position_valid ? 1 : 0,
+          s.p_W_m.x, s.p_W_m.y, s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
+          s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length),
+      "telemetry.csv");
 }
 
 void TelemetryRecorder::command(std::int64_t t_ns, const haptics::VelocityCommand& command,
@@ -236,8 +247,8 @@ void TelemetryRecorder::camera(std::int64_t receipt_ns, const link::CameraFrame&
                   extension);
     path_.assign(directory_).append("/").append(name);
     std::FILE* f = std::fopen(path_.c_str(), "wb");
-    const bool complete = f != nullptr &&
-                          std::fwrite(bytes._buffer, 1, bytes._length, f) == bytes._length;
+    const bool complete =
+        f != nullptr && std::fwrite(bytes._buffer, 1, bytes._length, f) == bytes._length;
     const int saved_errno = errno;
     const bool closed = f != nullptr && std::fclose(f) == 0;
     if (!complete || !closed) {
@@ -270,8 +281,7 @@ void TelemetryRecorder::event(std::int64_t receipt_ns, const link::Event& e) {
     if (c == '"') c = '\'';
   }
   if (!error_.empty() || events_ == nullptr) return;
-  written(std::fprintf(events_, "%lld,%llu,%lld,%d,%u,\"%s\"\n",
-                       static_cast<long long>(receipt_ns),
+  written(std::fprintf(events_, "%lld,%llu,%lld,%d,%u,\"%s\"\n", static_cast<long long>(receipt_ns),
                        static_cast<unsigned long long>(e.sequence_number),
                        static_cast<long long>(e.t_ns), static_cast<int>(e.severity), e.code, text),
           "events.csv");

@@ -155,7 +155,8 @@ TEST(TelemetryRecorder, CompleteRecordingClosesCleanly) {
 TEST(HqGround, RecordIntoAnExistingRecordingExitsTwo) {
   const fs::path dir = fresh_dir("process");
   { TelemetryRecorder first(dir.string()); }
-  const fs::path out = fs::temp_directory_path() / ("hq_ground_" + std::to_string(getpid()) + ".out");
+  const fs::path out =
+      fs::temp_directory_path() / ("hq_ground_" + std::to_string(getpid()) + ".out");
   hq::testing::Process p({HQ_GROUND_EXE, "--device", "sim", "--headless", "--duration-s", "1",
                           "--record", dir.string()},
                          out.string());
@@ -178,10 +179,12 @@ TEST(HqGround, ReplayOfAGarbledStampExitsTwoNamingFileAndLine) {
     }
     recorder.state(9'000'000'000'000'000'000LL, 0, link::VehicleState{});
   }
-  const fs::path out = fs::temp_directory_path() / ("hq_ground_replay_" + std::to_string(getpid()) + ".out");
+  const fs::path out =
+      fs::temp_directory_path() / ("hq_ground_replay_" + std::to_string(getpid()) + ".out");
   hq::testing::Process p({HQ_GROUND_EXE, "--replay", dir.string(), "--headless"}, out.string());
   EXPECT_EQ(p.wait_exit(30.0), 2);
-  EXPECT_THAT(slurp(out), HasSubstr("hq-ground: " + (dir / "telemetry.csv").string() + ":17: receipt_ns = 9000000000000000000 is "));
+  EXPECT_THAT(slurp(out), HasSubstr("hq-ground: " + (dir / "telemetry.csv").string() +
+                                    ":17: receipt_ns = 9000000000000000000 is "));
   fs::remove(out);
   fs::remove_all(dir);
 }

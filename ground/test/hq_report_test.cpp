@@ -146,8 +146,8 @@ TEST(HqReport, QuotesAndSemicolonsInPathsRunNothing) {
 // names a --replay flag hq-report does not have.
 TEST(HqReport, MissingFolderExitsTwoNamingIt) {
   const fs::path dir = fresh_dir("missing");
-  const fs::path output = fs::temp_directory_path() / ("hq_report_missing_" +
-                                                       std::to_string(getpid()) + ".out");
+  const fs::path output =
+      fs::temp_directory_path() / ("hq_report_missing_" + std::to_string(getpid()) + ".out");
   EXPECT_EQ(run_report(dir, {}, output), 2);
   const std::string message = slurp(output);
   EXPECT_THAT(message, HasSubstr("hq-report: " + dir.string() +

@@ -23,7 +23,8 @@ void print_row(const char* name, const char* unit, const hq::evaluation::ErrorSt
 
 double largest_coordinate_m(const std::vector<hq::recording::StampedPose>& poses) {
   double largest = 0.0;
-  for (const auto& p : poses) largest = std::max(largest, p.T_world_sensor.translation().cwiseAbs().maxCoeff());
+  for (const auto& p : poses)
+    largest = std::max(largest, p.T_world_sensor.translation().cwiseAbs().maxCoeff());
   return largest;
 }
 

@@ -38,7 +38,8 @@ std::vector<Loader> loaders() {
     return Loader{"hq-onboard", args};
   };
   return {
-      {"hq-odometry", {HQ_ODOMETRY_EXE, sequence, "--camera", "calib/tum_fr1.yaml", "--config", "{}"}},
+      {"hq-odometry",
+       {HQ_ODOMETRY_EXE, sequence, "--camera", "calib/tum_fr1.yaml", "--config", "{}"}},
       {"hq-odometry", {HQ_ODOMETRY_EXE, sequence, "--camera", "{}"}},
       onboard("--world"),
       onboard("--script"),

@@ -57,23 +57,24 @@ std::string seconds_text(std::int64_t ns) {
 // Checks the stamps of one file row by row; records where the file starts.
 class StampOrder {
  public:
-  StampOrder(std::string name, std::string column, std::vector<std::pair<std::string, std::int64_t>>& starts)
+  StampOrder(std::string name, std::string column,
+             std::vector<std::pair<std::string, std::int64_t>>& starts)
       : name_(std::move(name)), column_(std::move(column)), starts_(starts) {}
 
   /// @throws hq::InputError naming file:line, the stamp and the previous row's.
   void check(std::int64_t t_ns, std::size_t line) {
-    const std::string where = name_ + ":" + std::to_string(line) + ": " + column_ + " = " +
-                              std::to_string(t_ns);
+    const std::string where =
+        name_ + ":" + std::to_string(line) + ": " + column_ + " = " + std::to_string(t_ns);
     if (t_ns < 0) throw InputError(where + ", expected a stamp >= 0");
     if (previous_line_ == 0) {
       starts_.emplace_back(name_ + ":" + std::to_string(line), t_ns);
     } else if (t_ns < previous_ns_ || t_ns - previous_ns_ > kMaxStampGapNs) {
-      throw InputError(where + " is " +
-                       seconds_text(t_ns < previous_ns_ ? previous_ns_ - t_ns : t_ns - previous_ns_) +
-                       (t_ns < previous_ns_ ? " before" : " after") + " line " +
-                       std::to_string(previous_line_) + "'s " + std::to_string(previous_ns_) +
-                       ", expected rows in time order at most " + seconds_text(kMaxStampGapNs) +
-                       " apart (a garbled stamp?)");
+      throw InputError(
+          where + " is " +
+          seconds_text(t_ns < previous_ns_ ? previous_ns_ - t_ns : t_ns - previous_ns_) +
+          (t_ns < previous_ns_ ? " before" : " after") + " line " + std::to_string(previous_line_) +
+          "'s " + std::to_string(previous_ns_) + ", expected rows in time order at most " +
+          seconds_text(kMaxStampGapNs) + " apart (a garbled stamp?)");
     }
     previous_ns_ = t_ns;
     previous_line_ = line;
@@ -260,8 +261,8 @@ void read_frame_list(Recording& r, const std::string& name, std::vector<Recorded
       continue;
     }
     if (!(std::abs(t_s) < 9e9)) {
-      throw InputError(path.string() + ":" + std::to_string(line_number) + ": timestamp = " + stamp +
-                       ", expected seconds since 1970 (below 9e9)");
+      throw InputError(path.string() + ":" + std::to_string(line_number) +
+                       ": timestamp = " + stamp + ", expected seconds since 1970 (below 9e9)");
     }
     const auto t_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
     order.check(t_ns, line_number);
@@ -291,8 +292,7 @@ Recording load_recording(const std::string& directory) {
   }
   if (!fs::exists(fs::path(directory) / "telemetry.csv") &&
       !fs::exists(fs::path(directory) / "rgb.txt")) {
-    throw InputError(directory +
-                     ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
+    throw InputError(directory + ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
   }
   Recording r;
   r.directory = directory;
@@ -380,32 +380,36 @@ Recording load_recording(const std::string& directory) {
 
   const std::vector<std::string> command_columns = {"t_ns", "v_H_x_mps", "v_H_y_mps",
                                                     "v_H_z_mps", "yaw_rate_radps", "valid"};
-  CsvFile(r, "commands.csv", command_columns).check_stamps(starts).read([&](const auto& f, std::string& error) {
-    RecordedCommand c;
-    int valid = 0;
-    if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
-      error = "t_ns or valid is not an integer";
-      return false;
-    }
-    std::array<float, 4> v{};
-    if (!parse_floats(f, 1, command_columns, v, error)) return false;
-    c.v_H_mps = {v[0], v[1], v[2]};
-    c.yaw_rate_radps = v[3];
-    c.valid = valid != 0;
-    r.commands.push_back(c);
-    return true;
-  });
+  CsvFile(r, "commands.csv", command_columns)
+      .check_stamps(starts)
+      .read([&](const auto& f, std::string& error) {
+        RecordedCommand c;
+        int valid = 0;
+        if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
+          error = "t_ns or valid is not an integer";
+          return false;
+        }
+        std::array<float, 4> v{};
+        if (!parse_floats(f, 1, command_columns, v, error)) return false;
+        c.v_H_mps = {v[0], v[1], v[2]};
+        c.yaw_rate_radps = v[3];
+        c.valid = valid != 0;
+        r.commands.push_back(c);
+        return true;
+      });
 
-  CsvFile(r, "mode_requests.csv", {"t_ns", "mode"}).check_stamps(starts).read([&](const auto& f, std::string& error) {
-    RecordedModeRequest m;
-    if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
-      error = "expected \"t_ns,mode\"";
-      return false;
-    }
-    m.mode = intern(f[1]);
-    r.mode_requests.push_back(m);
-    return true;
-  });
+  CsvFile(r, "mode_requests.csv", {"t_ns", "mode"})
+      .check_stamps(starts)
+      .read([&](const auto& f, std::string& error) {
+        RecordedModeRequest m;
+        if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
+          error = "expected \"t_ns,mode\"";
+          return false;
+        }
+        m.mode = intern(f[1]);
+        r.mode_requests.push_back(m);
+        return true;
+      });
 
   CsvFile(r, "events.csv", {"receipt_ns", "severity", "text"}, true)
       .check_stamps(starts)
@@ -428,8 +432,9 @@ Recording load_recording(const std::string& directory) {
   read_frame_list(r, "depth_preview.txt", r.depth_preview, false, starts);
   // Each file is in order; a file that starts far from the others (one garbled row alone in
   // it) would still stretch the merged timeline.
-  const auto [earliest, latest] = std::minmax_element(
-      starts.begin(), starts.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+  const auto [earliest, latest] =
+      std::minmax_element(starts.begin(), starts.end(),
+                          [](const auto& a, const auto& b) { return a.second < b.second; });
   if (earliest != starts.end() && latest->second - earliest->second > kMaxStampGapNs) {
     throw InputError(latest->first + ": first stamp " + std::to_string(latest->second) + " is " +
                      seconds_text(latest->second - earliest->second) + " after " +

@@ -164,8 +164,9 @@ TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
 // Values without physical sense are refused with the file, key and value named: a start of
 // 1e300 m gave a flight summary of NaN, 100k boxes never rendered a frame.
 TEST(WorldTest, PositionsAndPrimitiveCountHavePhysicalBounds) {
-  EXPECT_THAT(error_of("start: {xy_m: [1e300, 0]}\n"),
-              HasSubstr("hq_sim_world_test.yaml: start.xy_m[0] = 1e+300, expected within +-1000 m"));
+  EXPECT_THAT(
+      error_of("start: {xy_m: [1e300, 0]}\n"),
+      HasSubstr("hq_sim_world_test.yaml: start.xy_m[0] = 1e+300, expected within +-1000 m"));
   EXPECT_THAT(error_of("floor: {half_size_m: [6, 6]}\nstart: {xy_m: [7, 0]}\n"),
               HasSubstr("hq_sim_world_test.yaml: start.xy_m = [7, 0], expected on the floor "
                         "(|x| <= 6, |y| <= 6 m, floor.half_size_m)"));

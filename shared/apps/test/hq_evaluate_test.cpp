@@ -30,9 +30,9 @@ ToolRun evaluate(const std::string& gt_text, const std::string& est_text) {
   const std::string out = (dir / "out.txt").string();
   int code = -1;
   {
-    hq::testing::Process p({HQ_EVALUATE_EXE, "--gt", (dir / "gt.txt").string(), "--est",
-                            (dir / "est.txt").string()},
-                           out);
+    hq::testing::Process p(
+        {HQ_EVALUATE_EXE, "--gt", (dir / "gt.txt").string(), "--est", (dir / "est.txt").string()},
+        out);
     code = p.wait_exit(30.0);
   }
   std::ifstream in(out);
@@ -51,9 +51,9 @@ const char* kGroundTruth =
 // an error naming the figure and the largest position, not "inf" with exit 0.
 TEST(HqEvaluate, OverflowingErrorExitsTwoNamingWhy) {
   const ToolRun r = evaluate(kGroundTruth,
-                         "1.0 0 0 0 0 0 0 1\n"
-                         "1.5 1e200 0 0 0 0 0 1\n"
-                         "2.0 2 0 0 0 0 0 1\n");
+                             "1.0 0 0 0 0 0 0 1\n"
+                             "1.5 1e200 0 0 0 0 0 1\n"
+                             "2.0 2 0 0 0 0 0 1\n");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_THAT(r.output, HasSubstr("hq-evaluate: RPE trans is inf over 2 pairs, expected finite"));
   EXPECT_THAT(r.output, HasSubstr("the largest coordinate is 2 m in"));
@@ -64,7 +64,8 @@ TEST(HqEvaluate, OverflowingErrorExitsTwoNamingWhy) {
 TEST(HqEvaluate, NoOverlapOrEmptyEstimateExitsTwoNamingWhy) {
   const ToolRun disjoint = evaluate(kGroundTruth, "100.0 0 0 0 0 0 0 1\n");
   EXPECT_EQ(disjoint.exit_code, 2) << disjoint.output;
-  EXPECT_THAT(disjoint.output, HasSubstr("hq-evaluate: RPE needs at least 2 associated poses, got 0"));
+  EXPECT_THAT(disjoint.output,
+              HasSubstr("hq-evaluate: RPE needs at least 2 associated poses, got 0"));
   const ToolRun empty = evaluate(kGroundTruth, "");
   EXPECT_EQ(empty.exit_code, 2) << empty.output;
   EXPECT_THAT(empty.output, HasSubstr("estimate 0 poses"));

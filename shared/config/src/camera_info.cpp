@@ -61,8 +61,8 @@ CameraInfo load_camera_info(const std::string& path) {
   for (const int i : {0, 4}) {
     if (!(K[i] >= kMinFocalPx && K[i] <= kMaxFocalPx)) {
       std::ostringstream message;
-      message << root.describe("camera_matrix") << ": " << (i == 0 ? "fx" : "fy") << " = "
-              << K[i] << ", expected in [" << kMinFocalPx << ", " << kMaxFocalPx << "] px";
+      message << root.describe("camera_matrix") << ": " << (i == 0 ? "fx" : "fy") << " = " << K[i]
+              << ", expected in [" << kMinFocalPx << ", " << kMaxFocalPx << "] px";
       throw InputError(message.str());
     }
   }

@@ -46,8 +46,8 @@ void check_keys(const YAML::Node& node, const std::string& where, const std::str
     const auto [first, inserted] = keys.emplace(name, line);
     if (!inserted) {
       // yaml-cpp keeps the first of two equal keys without a word; a config must not.
-      throw InputError(where + ":" + std::to_string(line) + ": " + join_key(prefix, name) +
-                       " = " + to_text(it->second) + " duplicates the key on line " +
+      throw InputError(where + ":" + std::to_string(line) + ": " + join_key(prefix, name) + " = " +
+                       to_text(it->second) + " duplicates the key on line " +
                        std::to_string(first->second) + ", expected each key once");
     }
     if (recursive) check_keys(it->second, where, join_key(prefix, name), true);
@@ -265,8 +265,7 @@ void StrictMap::finish_except(const std::vector<std::string>& read_elsewhere) co
       return std::find(keys.begin(), keys.end(), key) != keys.end();
     };
     if (known(seen_) || known(read_elsewhere)) continue;
-    std::string message =
-        describe(key) + " is not a known key (value " + to_text(it->second);
+    std::string message = describe(key) + " is not a known key (value " + to_text(it->second);
     std::string closest;
     std::size_t best = 3;  // suggest only near misses (odometri -> odometry)
     for (const auto* keys : {&seen_, &read_elsewhere}) {

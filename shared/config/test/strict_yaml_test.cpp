@@ -111,8 +111,9 @@ TEST(LoadYamlFile, DirectoryIsNamedNotACrash) {
 
 TEST(LoadYamlFile, ListOrMapKeyIsNamedWithFileLineAndPath) {
   const std::string list = write_file("hq_yaml_listkey.yaml", "odometry:\n  [a, b]: 1\n");
-  EXPECT_THAT(input_error_message([&] { load_yaml_file(list); }),
-              HasSubstr(list + ":2: odometry has key [a, b], which is a list, expected a scalar key"));
+  EXPECT_THAT(
+      input_error_message([&] { load_yaml_file(list); }),
+      HasSubstr(list + ":2: odometry has key [a, b], which is a list, expected a scalar key"));
   const std::string map = write_file("hq_yaml_mapkey.yaml", "{a: 1}: 1\n");
   EXPECT_THAT(input_error_message([&] { load_yaml_file(map); }),
               HasSubstr(map + ":1: top level has key {a: 1}, which is a mapping"));
@@ -123,8 +124,9 @@ TEST(LoadYamlFile, ListOrMapKeyIsNamedWithFileLineAndPath) {
 }
 
 TEST(LoadYamlFile, DuplicateKeyNamesBothLinesAndTheValue) {
-  const std::string path = write_file(
-      "hq_yaml_dup.yaml", "odometry:\n  max_iterations_per_level: 10\n  max_iterations_per_level: 99\n");
+  const std::string path =
+      write_file("hq_yaml_dup.yaml",
+                 "odometry:\n  max_iterations_per_level: 10\n  max_iterations_per_level: 99\n");
   EXPECT_THAT(input_error_message([&] { load_yaml_file(path); }),
               HasSubstr(path + ":3: odometry.max_iterations_per_level = 99 duplicates the key on "
                                "line 2, expected each key once"));

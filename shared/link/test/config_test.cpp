@@ -76,9 +76,8 @@ TEST(LinkConfig, LoadsLinkSectionOfFile) {
 
 // A --link-config whose link: section is misspelled used to fly on the defaults, exit 0.
 TEST(LinkConfig, FileWithoutLinkSectionIsRejected) {
-  const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("hq_link_nosection_" + std::to_string(getpid()) +
-                                                ".yaml");
+  const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                     ("hq_link_nosection_" + std::to_string(getpid()) + ".yaml");
   std::ofstream(path) << "lnik: {vehicle_id: 4}\n";
   EXPECT_THAT(hq::testing::input_error_message([&] { load_link_config(path.string()); }),
               HasSubstr(path.string() + ": link section missing, expected a `link:` mapping "
