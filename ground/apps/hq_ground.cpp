@@ -436,6 +436,7 @@ int run(int argc, char** argv) {
     hq::ground::ModeToggle toggle;
     bool marker_cli_sent = false;
     bool was_connected = true;
+    bool recording_failure_told = false;
     std::int64_t last_state_ns = 0;
     std::uint64_t last_states = 0;
     std::uint64_t last_frames = 0;
@@ -569,7 +570,12 @@ int run(int argc, char** argv) {
       }
       if (now_ns >= next_status_ns) {
         if (o.headless) print_status(stderr, live, t_s, ground, hand);
-        if (recorder) recorder->flush();
+        if (recorder && !recorder->flush() && !recording_failure_told) {
+          // Told once, on the console and the terminal; flying goes on, the exit status says it.
+          recording_failure_told = true;
+          std::fprintf(stderr, "\nhq-ground: recording: %s\n", recorder->error().c_str());
+          model.on_event(dds_time(), 2, ("recording: " + recorder->error()).c_str());
+        }
         next_status_ns += status_period_ns;
       }
     }
@@ -635,11 +641,11 @@ int run(int argc, char** argv) {
   std::printf("  %-40s %llu missing, %llu rejected\n", "vehicle states lost",
               static_cast<unsigned long long>(s.state_sequence_gaps),
               static_cast<unsigned long long>(s.states_rejected));
-  if (recorder) recorder->flush();
   if (!o.state_json_path.empty()) {
     model.snapshot(snap);
     write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0);
   }
+  if (recorder && !recorder->close()) throw hq::InputError("recording: " + recorder->error());
   return 0;
 }
 

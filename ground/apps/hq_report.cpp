@@ -3,7 +3,9 @@
 // truth when recorded; v_obs; yaw rate commanded vs measured), the dead-reckoned top view with
 // the vehicle's own position where it sent one and the summary figures (tracking error,
 // closest obstacle, mode changes, link incidents), drawn by Debian's gnuplot run as a
-// subprocess on a generated script, plus report.md linking them.
+// subprocess on a generated script, plus report.md linking them. No shell is involved and no
+// path reaches gnuplot's script: gnuplot is spawned with an argument vector in the output
+// folder, and the script names only the fixed file names there.
 //   hq-report <recording-dir> [--out DIR] [--format png|svg]
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
@@ -11,16 +13,23 @@
 
 #include <CLI/CLI.hpp>
 
+#include <fcntl.h>
+#include <spawn.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
+
+extern char** environ;
 
 namespace {
 
@@ -44,6 +53,39 @@ struct Summary {
   std::size_t position_samples = 0;  ///< States with the vehicle's own position in W.
 };
 
+// Runs `args` (args[0] looked up on PATH) in `directory` with stdin from /dev/null and stderr
+// to `stderr_name` there; returns the exit status, or -1 if it died of a signal. A path, quote
+// or ';' in any argument is passed as bytes, never seen by a shell. Throws if it cannot start.
+int run_in(const std::vector<std::string>& args, const std::string& directory,
+           const std::string& stderr_name) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addchdir_np(&actions, directory.c_str());
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, stderr_name.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = -1;
+  const int error = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (error == ENOENT) {
+    throw hq::InputError(args[0] +
+                         ": not found on PATH; hq-report draws its figures with "
+                         "Debian's gnuplot (apt-get install gnuplot-nox)");
+  }
+  if (error != 0) {
+    throw hq::InputError("posix_spawnp(" + args[0] + ") in " + directory + ": " +
+                         std::strerror(error));
+  }
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) throw hq::InputError("waitpid(" + args[0] + "): " + std::strerror(errno));
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 // Latest command at or before t_ns (commands are in time order).
 const hq::console::RecordedCommand* command_at(const std::vector<hq::console::RecordedCommand>& c,
                                                std::int64_t t_ns) {
@@ -66,10 +108,6 @@ int run(int argc, char** argv) {
     return app.exit(e);
   }
   if (out_dir.empty()) out_dir = (fs::path(dir) / "report").string();
-  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
-    throw hq::InputError("gnuplot: not found on PATH; hq-report draws its figures with Debian's "
-                         "gnuplot (apt-get install gnuplot-nox)");
-  }
   const hq::console::Recording r = hq::console::load_recording(dir);
   for (const std::string& p : r.problems) std::fprintf(stderr, "hq-report: %s\n", p.c_str());
   for (const std::string& c : r.absent_columns) {
@@ -85,8 +123,10 @@ int run(int argc, char** argv) {
   // One data file for gnuplot: time, estimate, command, v_obs, yaw rates, track, closest.
   const std::int64_t t0_ns = r.states.front().receipt_ns;
   Summary sum;
-  const std::string data_path = (fs::path(out_dir) / "flight.dat").string();
+  const std::string data_name = "flight.dat";
+  const std::string data_path = (fs::path(out_dir) / data_name).string();
   std::ofstream data(data_path);
+  if (!data) throw hq::InputError(data_path + ": cannot open for writing");
   data << "# t_s v_est_x v_est_y v_est_z v_cmd_x v_cmd_y v_cmd_z v_obs_x v_obs_y v_obs_z "
           "yaw_cmd yaw_meas x_W y_W closest_m latency_ms v_truth_x v_truth_y v_truth_z "
           "p_W_x p_W_y (NaN: absent)\n";
@@ -157,6 +197,7 @@ int run(int argc, char** argv) {
     data << '\n';
   }
   data.close();
+  if (!data) throw hq::InputError(data_path + ": write failed (disk full?)");
   sum.duration_s = 1e-9 * static_cast<double>(r.states.back().receipt_ns - t0_ns);
   for (double& v : sum.rms_tracking_mps) {
     v = sum.tracking_samples > 0 ? std::sqrt(v / static_cast<double>(sum.tracking_samples)) : NAN;
@@ -174,9 +215,10 @@ int run(int argc, char** argv) {
   const std::string script_path = (fs::path(out_dir) / "report.gp").string();
   {
     std::ofstream gp(script_path);
+    if (!gp) throw hq::InputError(script_path + ": cannot open for writing");
     gp << "set terminal " << terminal << "\nset grid\nset key outside top center horizontal\n"
-       << "d = '" << data_path << "'\n";
-    gp << "set output '" << (fs::path(out_dir) / ("velocity_H." + format)).string() << "'\n"
+       << "d = '" << data_name << "'\n";
+    gp << "set output '" << ("velocity_H." + format) << "'\n"
        << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded"
        << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";
     const char* axes[3] = {"x", "y", "z"};
@@ -188,17 +230,17 @@ int run(int argc, char** argv) {
       gp << '\n';
     }
     gp << "unset multiplot\nunset xlabel\n";
-    gp << "set output '" << (fs::path(out_dir) / ("v_obs." + format)).string() << "'\n"
+    gp << "set output '" << ("v_obs." + format) << "'\n"
        << "set title 'Obstacle repulsion v_{obs} in H (Fig. 8)'\nset xlabel 't [s]'\n"
        << "set ylabel '[m/s]'\nplot d u 1:8 w l lw 2 t 'x', d u 1:9 w l lw 2 t 'y', d u 1:10 w l "
           "lw 2 t 'z'\n";
-    gp << "set output '" << (fs::path(out_dir) / ("yaw_rate." + format)).string() << "'\n"
+    gp << "set output '" << ("yaw_rate." + format) << "'\n"
        << "set title 'Yaw rate: commanded vs measured'\nset ylabel '[rad/s]'\n"
        << "plot d u 1:11 w l lw 2 dt 2 t 'commanded', d u 1:12 w l lw 2 t 'measured (gyro z)'\n";
-    gp << "set output '" << (fs::path(out_dir) / ("latency." + format)).string() << "'\n"
+    gp << "set output '" << ("latency." + format) << "'\n"
        << "set title 'Vehicle state latency (one way)'\nset ylabel '[ms]'\n"
        << "plot d u 1:16 w l t 'latency'\n";
-    gp << "set output '" << (fs::path(out_dir) / ("top_view." + format)).string() << "'\n"
+    gp << "set output '" << ("top_view." + format) << "'\n"
        << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts)"
        << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "'\n"
        << "set size ratio -1\nset xlabel 'east y_W [m]'\nset ylabel 'north x_W [m]'\n"
@@ -207,12 +249,9 @@ int run(int argc, char** argv) {
     if (sum.position_samples > 0) gp << ", d u 21:20 w p pt 7 ps 0.4 t 'vehicle position p_W'";
     gp << '\n';
   }
-  const std::string command = "gnuplot '" + script_path + "' 2>'" +
-                              (fs::path(out_dir) / "gnuplot.log").string() + "'";
-  const int rc = std::system(command.c_str());
+  const int rc = run_in({"gnuplot", "report.gp"}, out_dir, "gnuplot.log");
   if (rc != 0) {
-    throw hq::InputError(script_path + ": gnuplot failed (exit " +
-                         std::to_string(WIFEXITED(rc) ? WEXITSTATUS(rc) : -1) + "), see " +
+    throw hq::InputError(script_path + ": gnuplot failed (exit " + std::to_string(rc) + "), see " +
                          (fs::path(out_dir) / "gnuplot.log").string());
   }
 

@@ -3,6 +3,7 @@
 #include "hq/base/error.hpp"
 
 #include <sys/stat.h>
+#include <unistd.h>
 #include <time.h>
 
 #include <algorithm>
@@ -73,8 +74,14 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
+// "x": never truncates a file already there (another recording's).
 std::FILE* open_for_writing(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "w");
+  std::FILE* f = std::fopen(path.c_str(), "wx");
+  if (f == nullptr && errno == EEXIST) {
+    throw InputError("--record " + path +
+                     ": exists; refusing to overwrite a recording, "
+                     "expected a new folder");
+  }
   if (f == nullptr) throw InputError(path + ": cannot open for writing: " + std::strerror(errno));
   return f;
 }
@@ -99,6 +106,12 @@ double closest_obstacle_m(const link::VehicleState& s) {
 }  // namespace
 
 TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(directory) {
+  for (const char* name : {"telemetry.csv", "rgb.txt"}) {
+    if (access((directory + "/" + name).c_str(), F_OK) == 0) {
+      throw InputError("--record " + directory + ": already holds a recording (" + name +
+                       "); refusing to overwrite it, expected a new folder");
+    }
+  }
   make_directory(directory);
   make_directory(directory + "/rgb");
   make_directory(directory + "/depth_preview");
@@ -121,84 +134,121 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
   rgb_list_ = open_for_writing(directory + "/rgb.txt");
   depth_list_ = open_for_writing(directory + "/depth_preview.txt");
   closer.armed = false;
-  std::fprintf(telemetry_,
-               "# hq-ground telemetry v1: one row per vehicle state received.\n"
-               "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
-               "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
-               "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
-               "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
-               "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
-               "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
-               "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
-               "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
-               "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
-               "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
-               "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
-               "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
-               "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
-               "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n\n");
-  std::fprintf(events_,
-               "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
-               "# severity 0 info 1 warning 2 error.\n"
-               "receipt_ns,sequence,t_ns,severity,code,text\n");
-  std::fprintf(commands_,
-               "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
-               "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
-               "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
-               "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n");
-  std::fprintf(modes_,
-               "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
-               "t_ns,mode\n");
-  std::fprintf(rgb_list_,
-               "# color images (JPEG as received)\n"
-               "# timestamp filename (timestamp: receipt on the ground clock, s)\n");
-  std::fprintf(depth_list_,
-               "# depth colour-map previews (not metric depth)\n"
-               "# timestamp filename (timestamp: receipt on the ground clock, s)\n");
+  written(std::fprintf(
+              telemetry_,
+              "# hq-ground telemetry v1: one row per vehicle state received.\n"
+              "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
+              "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
+              "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
+              "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
+              "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
+              "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
+              "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
+              "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
+              "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
+              "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
+              "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
+              "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
+              "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
+              "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n\n"),
+          "telemetry.csv");
+  written(
+      std::fprintf(events_,
+                   "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
+                   "# severity 0 info 1 warning 2 error.\n"
+                   "receipt_ns,sequence,t_ns,severity,code,text\n"),
+      "events.csv");
+  written(std::fprintf(
+              commands_,
+              "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
+              "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
+              "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
+              "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n"),
+          "commands.csv");
+  written(std::fprintf(modes_,
+                       "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
+                       "t_ns,mode\n"),
+          "mode_requests.csv");
+  written(std::fprintf(rgb_list_,
+                       "# color images (JPEG as received)\n"
+                       "# timestamp filename (timestamp: receipt on the ground clock, s)\n"),
+          "rgb.txt");
+  written(std::fprintf(depth_list_,
+                       "# depth colour-map previews (not metric depth)\n"
+                       "# timestamp filename (timestamp: receipt on the ground clock, s)\n"),
+          "depth_preview.txt");
   path_.reserve(directory.size() + 64);
 }
 
-TelemetryRecorder::~TelemetryRecorder() {
-  for (std::FILE* f : {telemetry_, events_, commands_, modes_, rgb_list_, depth_list_}) {
-    std::fclose(f);
-  }
+TelemetryRecorder::~TelemetryRecorder() { close(); }
+
+void TelemetryRecorder::written(int result, const char* file) {
+  if (result >= 0 || !error_.empty()) return;
+  error_ = directory_ + "/" + file + ": write failed: " + std::strerror(errno) +
+           "; the recording stops here (disk full?)";
 }
 
-void TelemetryRecorder::flush() {
-  for (std::FILE* f : {telemetry_, events_, commands_, modes_, rgb_list_, depth_list_}) {
-    std::fflush(f);
-  }
+bool TelemetryRecorder::flush() {
+  if (!error_.empty() || telemetry_ == nullptr) return error_.empty();
+  written(std::fflush(telemetry_), "telemetry.csv");
+  written(std::fflush(events_), "events.csv");
+  written(std::fflush(commands_), "commands.csv");
+  written(std::fflush(modes_), "mode_requests.csv");
+  written(std::fflush(rgb_list_), "rgb.txt");
+  written(std::fflush(depth_list_), "depth_preview.txt");
+  return error_.empty();
+}
+
+bool TelemetryRecorder::close() {
+  if (telemetry_ == nullptr) return error_.empty();
+  // fclose writes what is buffered: its result is the last word on whether the data landed.
+  written(std::fclose(telemetry_), "telemetry.csv");
+  written(std::fclose(events_), "events.csv");
+  written(std::fclose(commands_), "commands.csv");
+  written(std::fclose(modes_), "mode_requests.csv");
+  written(std::fclose(rgb_list_), "rgb.txt");
+  written(std::fclose(depth_list_), "depth_preview.txt");
+  telemetry_ = events_ = commands_ = modes_ = rgb_list_ = depth_list_ = nullptr;
+  return error_.empty();
 }
 
 void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
                               const link::VehicleState& s) {
-  std::fprintf(telemetry_,
-               "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-               "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u\n",
-               static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
-               static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
-               s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x,
-               s.omega_body_radps.y, s.omega_body_radps.z, s.roll_rad, s.pitch_rad,
-               s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z, to_string(s.mode),
-               to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
-               closest_obstacle_m(s), s.position_valid ? 1 : 0, s.p_W_m.x, s.p_W_m.y,
-               s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
-               s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length);
+  if (!error_.empty() || telemetry_ == nullptr) return;
+  written(
+      std::fprintf(
+          telemetry_,
+          "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
+          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u\n",
+          static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
+          static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
+          s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x, s.omega_body_radps.y,
+          s.omega_body_radps.z, s.roll_rad, s.pitch_rad, s.v_obs_H_mps.x, s.v_obs_H_mps.y,
+          s.v_obs_H_mps.z, to_string(s.mode), to_string(s.estimator_health),
+          to_string(s.link_health), s.vehicle_id, closest_obstacle_m(s), s.position_valid ? 1 : 0,
+          s.p_W_m.x, s.p_W_m.y, s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
+          s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length),
+      "telemetry.csv");
 }
 
 void TelemetryRecorder::command(std::int64_t t_ns, const haptics::VelocityCommand& command,
                                 bool valid) {
+  if (!error_.empty() || commands_ == nullptr) return;
   const Eigen::Vector3d v = valid ? command.v_H_mps : Eigen::Vector3d::Zero();
-  std::fprintf(commands_, "%lld,%.4f,%.4f,%.4f,%.4f,%d\n", static_cast<long long>(t_ns), v.x(),
-               v.y(), v.z(), valid ? command.yaw_rate_radps : 0.0, valid ? 1 : 0);
+  written(std::fprintf(commands_, "%lld,%.4f,%.4f,%.4f,%.4f,%d\n", static_cast<long long>(t_ns),
+                       v.x(), v.y(), v.z(), valid ? command.yaw_rate_radps : 0.0, valid ? 1 : 0),
+          "commands.csv");
 }
 
 void TelemetryRecorder::mode_request(std::int64_t t_ns, hq_msgs_Mode mode) {
-  std::fprintf(modes_, "%lld,%s\n", static_cast<long long>(t_ns), to_string(mode));
-  std::fflush(modes_);
+  if (!error_.empty() || modes_ == nullptr) return;
+  written(std::fprintf(modes_, "%lld,%s\n", static_cast<long long>(t_ns), to_string(mode)),
+          "mode_requests.csv");
+  written(std::fflush(modes_), "mode_requests.csv");
 }
 
 void TelemetryRecorder::camera(std::int64_t receipt_ns, const link::CameraFrame& frame) {
+  if (!error_.empty() || rgb_list_ == nullptr) return;
   const auto write_file = [&](const char* folder, const char* extension,
                               const dds_sequence_octet& bytes, std::FILE* list) {
     char name[64];
@@ -206,12 +256,22 @@ void TelemetryRecorder::camera(std::int64_t receipt_ns, const link::CameraFrame&
                   extension);
     path_.assign(directory_).append("/").append(name);
     std::FILE* f = std::fopen(path_.c_str(), "wb");
-    if (f == nullptr || std::fwrite(bytes._buffer, 1, bytes._length, f) != bytes._length) {
+    const bool complete =
+        f != nullptr && std::fwrite(bytes._buffer, 1, bytes._length, f) == bytes._length;
+    const int saved_errno = errno;
+    const bool closed = f != nullptr && std::fclose(f) == 0;
+    if (!complete || !closed) {
       ++frame_write_failures_;
+      // No space (or quota) is the recording's end, not one lost frame: say so.
+      const int e = complete ? errno : saved_errno;
+      if (e == ENOSPC || e == EDQUOT || e == EFBIG) {
+        errno = e;
+        written(-1, name);
+      }
     } else {
-      std::fprintf(list, "%.6f %s\n", 1e-9 * static_cast<double>(receipt_ns), name);
+      written(std::fprintf(list, "%.6f %s\n", 1e-9 * static_cast<double>(receipt_ns), name),
+              list == rgb_list_ ? "rgb.txt" : "depth_preview.txt");
     }
-    if (f != nullptr) std::fclose(f);
   };
   if (frame.rgb_jpeg._length > 0) write_file("rgb", "jpg", frame.rgb_jpeg, rgb_list_);
   if (frame.depth_preview._length > 0) {
@@ -229,10 +289,12 @@ void TelemetryRecorder::event(std::int64_t receipt_ns, const link::Event& e) {
   for (char& c : text) {
     if (c == '"') c = '\'';
   }
-  std::fprintf(events_, "%lld,%llu,%lld,%d,%u,\"%s\"\n", static_cast<long long>(receipt_ns),
-               static_cast<unsigned long long>(e.sequence_number), static_cast<long long>(e.t_ns),
-               static_cast<int>(e.severity), e.code, text);
-  std::fflush(events_);
+  if (!error_.empty() || events_ == nullptr) return;
+  written(std::fprintf(events_, "%lld,%llu,%lld,%d,%u,\"%s\"\n", static_cast<long long>(receipt_ns),
+                       static_cast<unsigned long long>(e.sequence_number),
+                       static_cast<long long>(e.t_ns), static_cast<int>(e.severity), e.code, text),
+          "events.csv");
+  written(std::fflush(events_), "events.csv");
 }
 
 GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* recorder)

@@ -1,9 +1,19 @@
 #include "hq/ground/ground_station.hpp"
 
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/process.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
 
 namespace hq::ground {
 namespace {
@@ -67,6 +77,124 @@ TEST(MarkerTaskOf, NamesTheCommandLineTasksAndRejectsOthers) {
   EXPECT_EQ(marker_task_of("land"), hq_msgs_MARKER_TASK_LAND);
   EXPECT_FALSE(marker_task_of("none").has_value());
   EXPECT_FALSE(marker_task_of("Land").has_value());
+}
+
+namespace fs = std::filesystem;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("hq_ground_" + std::to_string(getpid()) + "_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// GIVEN a folder that holds a recording, WHEN --record names it again, THEN it is refused and
+// the recording is untouched (it used to be truncated).
+TEST(TelemetryRecorder, ExistingRecordingIsRefusedNotTruncated) {
+  const fs::path dir = fresh_dir("existing");
+  {
+    TelemetryRecorder first(dir.string());
+    link::VehicleState s{};
+    first.state(1'000'000'000LL, 0, s);
+    ASSERT_TRUE(first.close()) << first.error();
+  }
+  const auto size = fs::file_size(dir / "telemetry.csv");
+  EXPECT_THAT(hq::testing::input_error_message([&] { TelemetryRecorder again(dir.string()); }),
+              HasSubstr("--record " + dir.string() +
+                        ": already holds a recording (telemetry.csv); refusing to overwrite it"));
+  EXPECT_EQ(fs::file_size(dir / "telemetry.csv"), size);
+  fs::remove_all(dir);
+}
+
+// GIVEN a file size limit standing in for a full disk (RLIMIT_FSIZE: writes past it fail with
+// EFBIG as they would with ENOSPC), WHEN a flight is recorded past it, THEN flush and close say
+// which file failed and why, instead of losing the rows silently.
+TEST(TelemetryRecorder, FullDiskIsReportedByFlushAndClose) {
+  const fs::path dir = fresh_dir("full");
+  rlimit saved{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto previous_handler = signal(SIGXFSZ, SIG_IGN);
+  rlimit small = saved;
+  small.rlim_cur = 16 * 1024;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+  bool flushed = true;
+  bool closed = true;
+  std::string error;
+  {
+    TelemetryRecorder recorder(dir.string());
+    for (int i = 0; i < 2000 && flushed; ++i) {
+      link::VehicleState s{};
+      s.sequence_number = static_cast<unsigned long long>(i + 1);
+      recorder.state(1'000'000'000LL + i * 1'000'000LL, 0, s);
+      if (i % 100 == 99) flushed = recorder.flush();
+    }
+    closed = recorder.close();
+    error = recorder.error();
+  }
+  setrlimit(RLIMIT_FSIZE, &saved);
+  signal(SIGXFSZ, previous_handler);
+  EXPECT_FALSE(flushed);
+  EXPECT_FALSE(closed);
+  EXPECT_THAT(error, HasSubstr(dir.string() + "/telemetry.csv: write failed: File too large; "
+                                              "the recording stops here"));
+  fs::remove_all(dir);
+}
+
+TEST(TelemetryRecorder, CompleteRecordingClosesCleanly) {
+  const fs::path dir = fresh_dir("clean");
+  TelemetryRecorder recorder(dir.string());
+  link::VehicleState s{};
+  recorder.state(1'000'000'000LL, 0, s);
+  EXPECT_TRUE(recorder.flush());
+  EXPECT_TRUE(recorder.close());
+  EXPECT_TRUE(recorder.close());
+  EXPECT_EQ(recorder.error(), "");
+  fs::remove_all(dir);
+}
+
+// hq-ground --record into an existing recording exits 2 naming it, before any link is set up.
+TEST(HqGround, RecordIntoAnExistingRecordingExitsTwo) {
+  const fs::path dir = fresh_dir("process");
+  { TelemetryRecorder first(dir.string()); }
+  const fs::path out =
+      fs::temp_directory_path() / ("hq_ground_" + std::to_string(getpid()) + ".out");
+  hq::testing::Process p({HQ_GROUND_EXE, "--device", "sim", "--headless", "--duration-s", "1",
+                          "--record", dir.string()},
+                         out.string());
+  EXPECT_EQ(p.wait_exit(60.0), 2);
+  EXPECT_THAT(slurp(out), HasSubstr("hq-ground: --record " + dir.string() +
+                                    ": already holds a recording (telemetry.csv)"));
+  fs::remove(out);
+  fs::remove_all(dir);
+}
+
+// GIVEN a recording with one garbled stamp, WHEN hq-ground replays it, THEN it exits 2 naming
+// file:line at once instead of waiting for years.
+TEST(HqGround, ReplayOfAGarbledStampExitsTwoNamingFileAndLine) {
+  const fs::path dir = fresh_dir("garbled_replay");
+  {
+    TelemetryRecorder recorder(dir.string());
+    for (int i = 0; i < 5; ++i) {
+      link::VehicleState s{};
+      recorder.state(1'000'000'000LL + i * 50'000'000LL, 0, s);
+    }
+    recorder.state(9'000'000'000'000'000'000LL, 0, link::VehicleState{});
+  }
+  const fs::path out =
+      fs::temp_directory_path() / ("hq_ground_replay_" + std::to_string(getpid()) + ".out");
+  hq::testing::Process p({HQ_GROUND_EXE, "--replay", dir.string(), "--headless"}, out.string());
+  EXPECT_EQ(p.wait_exit(30.0), 2);
+  EXPECT_THAT(slurp(out), HasSubstr("hq-ground: " + (dir / "telemetry.csv").string() +
+                                    ":17: receipt_ns = 9000000000000000000 is "));
+  fs::remove(out);
+  fs::remove_all(dir);
 }
 
 }  // namespace

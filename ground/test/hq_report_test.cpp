@@ -1,6 +1,7 @@
 // hq-report on recordings written by the ground's own recorder: the truth RMSE line of a
 // simulated flight, and an older layout whose absent columns the page names.
 #include "hq/ground/ground_station.hpp"
+#include "hq/testing/process.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace hq::ground {
 namespace {
@@ -34,11 +36,26 @@ std::string slurp(const fs::path& path) {
   return ss.str();
 }
 
-int run_report(const fs::path& recording) {
-  const std::string command = std::string("'") + HQ_REPORT_EXE + "' '" + recording.string() +
-                              "' > '" + (recording / "report.out").string() + "' 2>&1";
-  const int rc = std::system(command.c_str());
-  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+// Runs hq-report with an argument vector (no shell), output to `output` (default
+// <recording>/report.out).
+int run_report(const fs::path& recording, std::vector<std::string> extra = {},
+               fs::path output = {}) {
+  if (output.empty()) output = recording / "report.out";
+  std::vector<std::string> args = {HQ_REPORT_EXE, recording.string()};
+  args.insert(args.end(), extra.begin(), extra.end());
+  hq::testing::Process p(args, output.string());
+  return p.wait_exit(120.0);
+}
+
+void record_flight(const fs::path& dir) {
+  TelemetryRecorder recorder(dir.string());
+  for (int i = 0; i < 10; ++i) {
+    link::VehicleState s{};
+    s.sequence_number = static_cast<unsigned long long>(i + 1);
+    s.t_ns = i * 50'000'000LL;
+    s.mode = hq_msgs_MODE_TELEOP;
+    recorder.state(1'000'000'000LL + s.t_ns, 1'000'000, s);
+  }
 }
 
 // GIVEN a simulated flight whose estimate is off the truth by (0.2, -0.1, 0) m/s on half the
@@ -94,6 +111,50 @@ TEST(HqReport, OldLayoutReportsAndNamesAbsentColumns) {
   EXPECT_THAT(page, HasSubstr("- telemetry.csv: position_valid"));
   EXPECT_THAT(slurp(dir / "report" / "report.gp"), ::testing::Not(HasSubstr("t 'truth'")));
   fs::remove_all(dir);
+}
+
+// GIVEN a recording folder and an --out folder whose names hold a quote and ";touch FILE;",
+// WHEN reported, THEN the report is written there and no command ran: hq-report spawns gnuplot
+// with an argument vector and its script names no path.
+TEST(HqReport, QuotesAndSemicolonsInPathsRunNothing) {
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "no gnuplot";
+  const fs::path base = fresh_dir("inject");
+  // A relative name: the shell (or gnuplot) would create it in its working directory.
+  const std::string canary = "hq_report_canary_" + std::to_string(getpid());
+  const fs::path recording = base / ("rec'x;touch " + canary + ";'");
+  const fs::path out = base / ("x';touch " + canary + ";'");
+  const auto touched = [&] {
+    return fs::exists(fs::current_path() / canary) || fs::exists(base / canary) ||
+           fs::exists(out / canary) || fs::exists(recording / "report" / canary);
+  };
+  fs::create_directories(base);
+  record_flight(recording);
+  ASSERT_EQ(run_report(recording, {"--out", out.string()}, base / "report.out"), 0)
+      << slurp(base / "report.out");
+  EXPECT_TRUE(fs::exists(out / "report.md"));
+  EXPECT_GT(fs::file_size(out / "velocity_H.png"), 5000U);
+  EXPECT_FALSE(touched()) << "a shell or gnuplot ran the injected command";
+  EXPECT_THAT(slurp(out / "report.gp"), ::testing::Not(HasSubstr("touch")));
+  // The same with the default output folder, inside the quoted recording folder.
+  ASSERT_EQ(run_report(recording, {}, base / "report.out"), 0) << slurp(base / "report.out");
+  EXPECT_TRUE(fs::exists(recording / "report" / "report.md"));
+  EXPECT_FALSE(touched());
+  fs::remove_all(base);
+}
+
+// A missing recording folder is named with what is expected there, and the message no longer
+// names a --replay flag hq-report does not have.
+TEST(HqReport, MissingFolderExitsTwoNamingIt) {
+  const fs::path dir = fresh_dir("missing");
+  const fs::path output =
+      fs::temp_directory_path() / ("hq_report_missing_" + std::to_string(getpid()) + ".out");
+  EXPECT_EQ(run_report(dir, {}, output), 2);
+  const std::string message = slurp(output);
+  EXPECT_THAT(message, HasSubstr("hq-report: " + dir.string() +
+                                 ": not found, expected a recording folder written by hq-ground "
+                                 "--record"));
+  EXPECT_THAT(message, ::testing::Not(HasSubstr("--replay")));
+  fs::remove(output);
 }
 
 }  // namespace

@@ -53,6 +53,7 @@ static int run(int argc, char** argv) {
     hq::config::StrictMap root(hq::config::load_yaml_file(config_path), config_path);
     hq::config::StrictMap section = root.child("odometry");
     hq::odometry::read_config(section, config);
+    root.finish_sections();
   }
   if (source_spec.empty() == sequence_dir.empty()) {
     throw hq::InputError("give either a sequence directory or --source <camera>, not " +

@@ -7,15 +7,40 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <string>
+#include <vector>
 
 namespace {
 
 void print_row(const char* name, const char* unit, const hq::evaluation::ErrorStats& s) {
   std::printf("%-10s %-6s %10.6f %10.6f %10.6f %10.6f %6d\n", name, unit, s.rmse, s.mean, s.median,
               s.max, s.count);
+}
+
+double largest_coordinate_m(const std::vector<hq::recording::StampedPose>& poses) {
+  double largest = 0.0;
+  for (const auto& p : poses)
+    largest = std::max(largest, p.T_world_sensor.translation().cwiseAbs().maxCoeff());
+  return largest;
+}
+
+// A figure that is not finite (positions so large their squares overflow) is no accuracy: say
+// so and exit 2 rather than print inf with exit 0.
+void require_finite(const char* name, const hq::evaluation::ErrorStats& s, const std::string& gt,
+                    double gt_largest_m, const std::string& est, double est_largest_m) {
+  for (const double v : {s.rmse, s.mean, s.median, s.max}) {
+    if (std::isfinite(v)) continue;
+    char message[512];
+    std::snprintf(message, sizeof message,
+                  "%s is %g over %d pairs, expected finite; the largest coordinate is %g m in %s "
+                  "and %g m in %s",
+                  name, v, s.count, gt_largest_m, gt.c_str(), est_largest_m, est.c_str());
+    throw hq::InputError(message);
+  }
 }
 
 }  // namespace
@@ -37,6 +62,12 @@ static int run(int argc, char** argv) {
   const auto pairs = hq::evaluation::associate_poses(gt, est, max_dt_s);
   const auto rpe = hq::evaluation::relative_pose_error(gt, est, delta_s, max_dt_s);
   const auto ate = hq::evaluation::absolute_trajectory_error(gt, est, max_dt_s);
+
+  const double gt_largest_m = largest_coordinate_m(gt);
+  const double est_largest_m = largest_coordinate_m(est);
+  require_finite("RPE trans", rpe.trans_mps, gt_path, gt_largest_m, est_path, est_largest_m);
+  require_finite("RPE rot", rpe.rot_degps, gt_path, gt_largest_m, est_path, est_largest_m);
+  require_finite("ATE", ate.trans_m, gt_path, gt_largest_m, est_path, est_largest_m);
 
   std::printf("poses: ground truth %zu, estimate %zu, associated %zu (max_dt %.3f s)\n", gt.size(),
               est.size(), pairs.size(), max_dt_s);

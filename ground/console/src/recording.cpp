@@ -43,6 +43,51 @@ std::vector<std::string_view> split(std::string_view line, std::size_t max_field
   return fields;
 }
 
+// One garbled stamp (a flipped digit) used to make replay wait for years: every file's stamps
+// must be in time order, at most this far apart, and the files of one recording must start
+// within it of each other.
+constexpr std::int64_t kMaxStampGapNs = 3600LL * 1'000'000'000LL;
+
+std::string seconds_text(std::int64_t ns) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g s", 1e-9 * static_cast<double>(ns));
+  return text;
+}
+
+// Checks the stamps of one file row by row; records where the file starts.
+class StampOrder {
+ public:
+  StampOrder(std::string name, std::string column,
+             std::vector<std::pair<std::string, std::int64_t>>& starts)
+      : name_(std::move(name)), column_(std::move(column)), starts_(starts) {}
+
+  /// @throws hq::InputError naming file:line, the stamp and the previous row's.
+  void check(std::int64_t t_ns, std::size_t line) {
+    const std::string where =
+        name_ + ":" + std::to_string(line) + ": " + column_ + " = " + std::to_string(t_ns);
+    if (t_ns < 0) throw InputError(where + ", expected a stamp >= 0");
+    if (previous_line_ == 0) {
+      starts_.emplace_back(name_ + ":" + std::to_string(line), t_ns);
+    } else if (t_ns < previous_ns_ || t_ns - previous_ns_ > kMaxStampGapNs) {
+      throw InputError(
+          where + " is " +
+          seconds_text(t_ns < previous_ns_ ? previous_ns_ - t_ns : t_ns - previous_ns_) +
+          (t_ns < previous_ns_ ? " before" : " after") + " line " + std::to_string(previous_line_) +
+          "'s " + std::to_string(previous_ns_) + ", expected rows in time order at most " +
+          seconds_text(kMaxStampGapNs) + " apart (a garbled stamp?)");
+    }
+    previous_ns_ = t_ns;
+    previous_line_ = line;
+  }
+
+ private:
+  std::string name_;
+  std::string column_;
+  std::vector<std::pair<std::string, std::int64_t>>& starts_;
+  std::int64_t previous_ns_ = 0;
+  std::size_t previous_line_ = 0;
+};
+
 // A CSV of the recorder: '#' lines, then a header naming the columns, then rows. Calls
 // `row(fields, where)` per row with the fields in the order of `columns`; returns false from
 // `row` to report the row as unreadable. Columns from index `required` on are optional (added
@@ -59,6 +104,12 @@ class CsvFile {
         columns_(std::move(columns)),
         last_text_(last_field_is_text),
         required_(std::min(required, columns_.size())) {}
+
+  /// Checks the stamp order of column 0 (StampOrder) and adds where the file starts.
+  CsvFile& check_stamps(std::vector<std::pair<std::string, std::int64_t>>& starts) {
+    starts_ = &starts;
+    return *this;
+  }
 
   [[nodiscard]] bool has(std::size_t column) const {
     return column < index_.size() && index_[column] != kAbsent;
@@ -78,6 +129,9 @@ class CsvFile {
     index.clear();
     std::size_t header_fields = 0;
     std::vector<std::string_view> ordered(columns_.size());
+    std::vector<std::pair<std::string, std::int64_t>> unused;
+    StampOrder order((fs::path(recording_.directory) / name_).string(), columns_.front(),
+                     starts_ != nullptr ? *starts_ : unused);
     while (std::getline(in, line)) {
       ++line_number;
       const std::string where = name_ + ":" + std::to_string(line_number);
@@ -114,7 +168,13 @@ class CsvFile {
         ordered[i] = index[i] == kAbsent ? std::string_view() : fields[index[i]];
       }
       std::string error;
-      if (!row(ordered, error)) add_problem(recording_, where + ": " + error);
+      if (!row(ordered, error)) {
+        add_problem(recording_, where + ": " + error);
+        continue;
+      }
+      // Column 0 of every recorder CSV is its ground-clock stamp, parsed by `row` already.
+      std::int64_t t_ns = 0;
+      if (starts_ != nullptr && parse_stamp(ordered[0], t_ns)) order.check(t_ns, line_number);
     }
     if (index.empty()) add_problem(recording_, name_ + ": no header line");
   }
@@ -127,6 +187,12 @@ class CsvFile {
   bool last_text_;
   std::size_t required_;
   std::vector<std::size_t> index_;
+  std::vector<std::pair<std::string, std::int64_t>>* starts_ = nullptr;
+
+  static bool parse_stamp(std::string_view text, std::int64_t& out) {
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+    return ec == std::errc{} && end == text.data() + text.size();
+  }
 };
 
 template <typename T>
@@ -166,7 +232,8 @@ bool known_name(std::string_view text) {
 }
 
 void read_frame_list(Recording& r, const std::string& name, std::vector<RecordedFrame>& out,
-                     bool required) {
+                     bool required, std::vector<std::pair<std::string, std::int64_t>>& starts) {
+  StampOrder order((fs::path(r.directory) / name).string(), "timestamp", starts);
   const fs::path path = fs::path(r.directory) / name;
   std::ifstream in(path);
   if (!in) {
@@ -193,7 +260,13 @@ void read_frame_list(Recording& r, const std::string& name, std::vector<Recorded
       add_problem(r, name + ":" + std::to_string(line_number) + ": " + file + " does not exist");
       continue;
     }
-    out.push_back({static_cast<std::int64_t>(std::llround(t_s * 1e9)), frame.string()});
+    if (!(std::abs(t_s) < 9e9)) {
+      throw InputError(path.string() + ":" + std::to_string(line_number) +
+                       ": timestamp = " + stamp + ", expected seconds since 1970 (below 9e9)");
+    }
+    const auto t_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
+    order.check(t_ns, line_number);
+    out.push_back({t_ns, frame.string()});
   }
 }
 
@@ -214,15 +287,16 @@ const char* intern(std::string_view text) {
 
 Recording load_recording(const std::string& directory) {
   if (!fs::is_directory(directory)) {
-    throw InputError("--replay " + directory + ": not a directory");
+    throw InputError(directory + ": " + (fs::exists(directory) ? "not a directory" : "not found") +
+                     ", expected a recording folder written by hq-ground --record");
   }
   if (!fs::exists(fs::path(directory) / "telemetry.csv") &&
       !fs::exists(fs::path(directory) / "rgb.txt")) {
-    throw InputError("--replay " + directory +
-                     ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
+    throw InputError(directory + ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
   }
   Recording r;
   r.directory = directory;
+  std::vector<std::pair<std::string, std::int64_t>> starts;  // "file:line", first stamp
 
   const std::vector<std::string> state_columns = {
       "receipt_ns",   "latency_us",   "sequence",     "t_ns",          "v_H_x_mps",
@@ -234,7 +308,7 @@ Recording load_recording(const std::string& directory) {
       "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n"};
   constexpr std::size_t kRequiredStateColumns = 18;
   CsvFile telemetry(r, "telemetry.csv", state_columns, false, kRequiredStateColumns);
-  telemetry.read([&](const auto& f, std::string& error) {
+  telemetry.check_stamps(starts).read([&](const auto& f, std::string& error) {
     RecordedState s;
     double latency_us = 0;
     if (!parse_integer(f[0], s.receipt_ns)) {
@@ -306,34 +380,39 @@ Recording load_recording(const std::string& directory) {
 
   const std::vector<std::string> command_columns = {"t_ns", "v_H_x_mps", "v_H_y_mps",
                                                     "v_H_z_mps", "yaw_rate_radps", "valid"};
-  CsvFile(r, "commands.csv", command_columns).read([&](const auto& f, std::string& error) {
-    RecordedCommand c;
-    int valid = 0;
-    if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
-      error = "t_ns or valid is not an integer";
-      return false;
-    }
-    std::array<float, 4> v{};
-    if (!parse_floats(f, 1, command_columns, v, error)) return false;
-    c.v_H_mps = {v[0], v[1], v[2]};
-    c.yaw_rate_radps = v[3];
-    c.valid = valid != 0;
-    r.commands.push_back(c);
-    return true;
-  });
+  CsvFile(r, "commands.csv", command_columns)
+      .check_stamps(starts)
+      .read([&](const auto& f, std::string& error) {
+        RecordedCommand c;
+        int valid = 0;
+        if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
+          error = "t_ns or valid is not an integer";
+          return false;
+        }
+        std::array<float, 4> v{};
+        if (!parse_floats(f, 1, command_columns, v, error)) return false;
+        c.v_H_mps = {v[0], v[1], v[2]};
+        c.yaw_rate_radps = v[3];
+        c.valid = valid != 0;
+        r.commands.push_back(c);
+        return true;
+      });
 
-  CsvFile(r, "mode_requests.csv", {"t_ns", "mode"}).read([&](const auto& f, std::string& error) {
-    RecordedModeRequest m;
-    if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
-      error = "expected \"t_ns,mode\"";
-      return false;
-    }
-    m.mode = intern(f[1]);
-    r.mode_requests.push_back(m);
-    return true;
-  });
+  CsvFile(r, "mode_requests.csv", {"t_ns", "mode"})
+      .check_stamps(starts)
+      .read([&](const auto& f, std::string& error) {
+        RecordedModeRequest m;
+        if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
+          error = "expected \"t_ns,mode\"";
+          return false;
+        }
+        m.mode = intern(f[1]);
+        r.mode_requests.push_back(m);
+        return true;
+      });
 
   CsvFile(r, "events.csv", {"receipt_ns", "severity", "text"}, true)
+      .check_stamps(starts)
       .read([&](const auto& f, std::string& error) {
         RecordedEvent e;
         if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity)) {
@@ -349,8 +428,21 @@ Recording load_recording(const std::string& directory) {
         return true;
       });
 
-  read_frame_list(r, "rgb.txt", r.rgb, true);
-  read_frame_list(r, "depth_preview.txt", r.depth_preview, false);
+  read_frame_list(r, "rgb.txt", r.rgb, true, starts);
+  read_frame_list(r, "depth_preview.txt", r.depth_preview, false, starts);
+  // Each file is in order; a file that starts far from the others (one garbled row alone in
+  // it) would still stretch the merged timeline.
+  const auto [earliest, latest] =
+      std::minmax_element(starts.begin(), starts.end(),
+                          [](const auto& a, const auto& b) { return a.second < b.second; });
+  if (earliest != starts.end() && latest->second - earliest->second > kMaxStampGapNs) {
+    throw InputError(latest->first + ": first stamp " + std::to_string(latest->second) + " is " +
+                     seconds_text(latest->second - earliest->second) + " after " +
+                     fs::path(earliest->first).filename().string() + "'s " +
+                     std::to_string(earliest->second) +
+                     ", expected the files of one recording to start within " +
+                     seconds_text(kMaxStampGapNs) + " (a garbled stamp?)");
+  }
   return r;
 }
 

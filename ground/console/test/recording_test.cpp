@@ -163,5 +163,68 @@ TEST(Recording, ForeignDirectoryIsRejectedAndForeignCsvNamed) {
   fs::remove_all(dir);
 }
 
+std::string slurp_text(const fs::path& path) {
+  std::ifstream in(path);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// GIVEN one telemetry stamp garbled by a flipped digit (years ahead), WHEN loaded, THEN it is
+// rejected naming file:line and the gap, instead of a replay that waits for years.
+TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
+  const fs::path dir = fresh_dir("garbled_stamp");
+  write_recording(dir, 10);
+  std::string text = slurp_text(dir / "telemetry.csv");
+  const std::size_t row = text.find("\n1099000000,");
+  ASSERT_NE(row, std::string::npos);
+  text.replace(row + 1, 10, "9099000000000000000");
+  std::ofstream(dir / "telemetry.csv") << text;
+  const std::string message =
+      hq::testing::input_error_message([&] { load_recording(dir.string()); });
+  EXPECT_THAT(message, HasSubstr("telemetry.csv:15: receipt_ns = 9099000000000000000 is "));
+  EXPECT_THAT(message, HasSubstr("after line 14's 1066000000, expected rows in time order at most "
+                                 "3600 s apart"));
+  fs::remove_all(dir);
+}
+
+TEST(Recording, StampGoingBackIsRejectedNamingFileAndLine) {
+  const fs::path dir = fresh_dir("backwards_stamp");
+  write_recording(dir, 10);
+  std::string text = slurp_text(dir / "commands.csv");
+  const std::size_t row = text.find("\n1099000000,");
+  ASSERT_NE(row, std::string::npos);
+  text.replace(row + 1, 10, "1000000001");
+  std::ofstream(dir / "commands.csv") << text;
+  EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
+              HasSubstr("commands.csv:8: t_ns = 1000000001 is 0.066 s before line 7's "
+                        "1066000000"));
+  fs::remove_all(dir);
+}
+
+// A file of a single garbled row is in order by itself; it starts far from the others.
+TEST(Recording, FileStartingFarFromTheOthersIsRejected) {
+  const fs::path dir = fresh_dir("far_file");
+  write_recording(dir, 10);
+  std::string text = slurp_text(dir / "events.csv");
+  const std::size_t row = text.find("\n1100000000,");
+  ASSERT_NE(row, std::string::npos);
+  text.replace(row + 1, 10, "5100000000000000000");
+  std::ofstream(dir / "events.csv") << text;
+  EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
+              HasSubstr("events.csv:4: first stamp 5100000000000000000 is 5.1e+09 s after "
+                        "telemetry.csv:12's 1000000000, expected the files of one recording to "
+                        "start within 3600 s"));
+  fs::remove_all(dir);
+}
+
+TEST(Recording, AbsurdFrameTimestampIsRejected) {
+  const fs::path dir = fresh_dir("frame_stamp");
+  write_recording(dir, 3);
+  std::ofstream(dir / "rgb" / "1.000000.jpg") << "jpeg";
+  std::ofstream(dir / "rgb.txt", std::ios::app) << "1e300 rgb/1.000000.jpg\n";
+  EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
+              HasSubstr("rgb.txt:3: timestamp = 1e300, expected seconds since 1970"));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace hq::console

@@ -8,10 +8,12 @@
 namespace hq::control {
 
 void read_config(config::StrictMap& section, VelocityControllerConfig& out) {
-  section.read("kp_xy_per_s", out.kp_xy_per_s, 0.0, 100.0);
+  // A zero proportional gain never tracks a velocity command; integral and derivative terms
+  // may be zero.
+  section.read_positive("kp_xy_per_s", out.kp_xy_per_s, 100.0);
   section.read("ki_xy_per_s2", out.ki_xy_per_s2, 0.0, 100.0);
   section.read("kd_xy", out.kd_xy, 0.0, 10.0);
-  section.read("kp_z_per_s", out.kp_z_per_s, 0.0, 100.0);
+  section.read_positive("kp_z_per_s", out.kp_z_per_s, 100.0);
   section.read("ki_z_per_s2", out.ki_z_per_s2, 0.0, 100.0);
   section.read("kd_z", out.kd_z, 0.0, 10.0);
   section.read("max_integral_m", out.max_integral_m, 0.0, 1e3);

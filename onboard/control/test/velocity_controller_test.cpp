@@ -221,5 +221,26 @@ TEST(VelocityControllerConfig, ShippedOnboardYamlSectionLoads) {
   EXPECT_NO_THROW(read_config(section, config));
 }
 
+// All-zero PID gains never track a command: the proportional gains must be positive, the
+// integral and derivative ones may be zero.
+TEST(VelocityControllerConfig, ZeroProportionalGainIsRejected) {
+  const auto error_of = [](const char* yaml) -> std::string {
+    config::StrictMap section(YAML::Load(yaml), "config/onboard.yaml", "control");
+    VelocityControllerConfig config;
+    try {
+      read_config(section, config);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_THAT(error_of("{kp_xy_per_s: 0, ki_xy_per_s2: 0, kd_xy: 0, kp_z_per_s: 0}"),
+              HasSubstr("config/onboard.yaml: control.kp_xy_per_s = 0, expected > 0"));
+  EXPECT_THAT(error_of("{kp_z_per_s: 0}"),
+              HasSubstr("config/onboard.yaml: control.kp_z_per_s = 0, expected > 0"));
+  EXPECT_EQ(error_of("{kp_xy_per_s: 1, ki_xy_per_s2: 0, kd_xy: 0, ki_z_per_s2: 0, kd_z: 0}"),
+            "no error");
+}
+
 }  // namespace
 }  // namespace hq::control

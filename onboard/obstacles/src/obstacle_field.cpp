@@ -29,7 +29,9 @@ void read_config(config::StrictMap& section, ObstacleConfig& out) {
   section.read("vehicle_radius_m", out.vehicle_radius_m, 0.0, 5.0);
   section.read_positive("influence_distance_m", out.influence_distance_m, 100.0);
   section.read_positive("max_repulsive_speed_mps", out.max_repulsive_speed_mps, 20.0);
-  section.read("gain", out.gain, 0.0, 100.0);
+  // Zero gain is no avoidance at all (1515 collision ticks in the core-paper flight): not a
+  // setting. Turning avoidance off is influence_distance_m at its smallest.
+  section.read_positive("gain", out.gain, 100.0);
   section.read("support_normal_max_deg", out.support_normal_max_deg, 0.0, 90.0);
   section.read("support_influence_m", out.support_influence_m, 0.0, 10.0);
   section.read("min_range_m", out.min_range_m, 0.0, 10.0);

@@ -451,5 +451,13 @@ TEST(ObstacleConfig, ClearanceAndSupportKeysAreReadAndRangeChecked) {
               HasSubstr("obstacles.support_influence_m = 11, expected in [0, 10]"));
 }
 
+// A zero gain is no avoidance (1515 collision ticks in the core-paper flight), not a setting.
+TEST(ObstacleConfig, ZeroGainIsRejected) {
+  config::StrictMap section(YAML::Load("{gain: 0}"), "config/onboard.yaml", "obstacles");
+  ObstacleConfig config;
+  EXPECT_THAT(hq::testing::input_error_message([&] { read_config(section, config); }),
+              HasSubstr("config/onboard.yaml: obstacles.gain = 0, expected > 0"));
+}
+
 }  // namespace
 }  // namespace hq::obstacles

@@ -1,12 +1,14 @@
 #include "hq/sim/simulator.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/config/camera_info.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/control/vehicle_config.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 #include <string>
 
 namespace hq::sim {
@@ -163,6 +165,13 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     c.read("height", height, 16, 4096);
     c.read_deg_as_rad("hfov_deg", hfov_rad, 10.0, 170.0);
     p.pinhole = pinhole_from_fov(width, height, hfov_rad);
+    if (!(p.pinhole.fx >= config::kMinFocalPx && p.pinhole.fx <= config::kMaxFocalPx)) {
+      std::ostringstream message;
+      message << c.describe("hfov_deg") << " = " << hfov_rad * 180.0 / M_PI << " with width "
+              << width << " gives fx = " << p.pinhole.fx << " px, expected in ["
+              << config::kMinFocalPx << ", " << config::kMaxFocalPx << "] px";
+      throw InputError(message.str());
+    }
     c.read_positive("rate_hz", p.rate_hz, 1000.0);
     c.read("gray", p.gray);
     c.read("image_noise_sigma", p.image_noise_sigma, 0.0, 50.0);

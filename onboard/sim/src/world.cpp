@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <string>
 
 namespace hq::sim {
@@ -206,6 +207,24 @@ void check_positive(const StrictMap& map, const std::string& key, const double* 
   }
 }
 
+// Every primitive is tested by every camera ray: 100k boxes never rendered a frame. The bundled
+// worlds have at most 16; a generated room may have a few thousand.
+constexpr std::size_t kMaxPrimitives = 10000;
+// Indoor flight: anything placed farther than this from the origin is a typo (1e300 m gave a
+// summary of NaN).
+constexpr double kMaxCoordinateM = 1000.0;
+
+void check_within(const StrictMap& map, const std::string& key, const double* values, int count) {
+  for (int i = 0; i < count; ++i) {
+    if (!(std::abs(values[i]) <= kMaxCoordinateM)) {
+      std::ostringstream message;
+      message << map.describe(key) << "[" << i << "] = " << values[i] << ", expected within +-"
+              << kMaxCoordinateM << " m of the world origin";
+      throw InputError(message.str());
+    }
+  }
+}
+
 YAML::Node sequence(const YAML::Node& root, const std::string& key, const std::string& path) {
   const YAML::Node node = root[key];
   if (!node.IsDefined() || node.IsNull()) return YAML::Node(YAML::NodeType::Sequence);
@@ -284,6 +303,7 @@ World load_world(const std::string& path) {
     StrictMap start = map.child("start");
     double xy[2] = {0.0, 0.0};
     start.read_list("xy_m", xy, 2);
+    check_within(start, "xy_m", xy, 2);
     world.start_world_m = Eigen::Vector3d(xy[0], xy[1], 0.0);
     start.read_deg_as_rad("yaw_deg", world.start_yaw_rad, -180.0, 180.0);
     start.finish();
@@ -293,6 +313,7 @@ World load_world(const std::string& path) {
     double half[2] = {20.0, 20.0};
     floor.read_list("half_size_m", half, 2);
     check_positive(floor, "half_size_m", half, 2);
+    check_within(floor, "half_size_m", half, 2);
     world.floor.center_m = Eigen::Vector3d::Zero();
     world.floor.normal = Eigen::Vector3d::UnitZ();
     world.floor.axis_u = Eigen::Vector3d::UnitX();
@@ -301,6 +322,27 @@ World load_world(const std::string& path) {
     world.floor.half_v_m = half[1];
     world.floor.texture = read_texture(floor.child("texture"), salt++);
     floor.finish();
+    const Eigen::Vector2d start = world.start_world_m.head<2>();
+    if (std::abs(start.x()) > half[0] || std::abs(start.y()) > half[1]) {
+      std::ostringstream message;
+      message << path << ": start.xy_m = [" << start.x() << ", " << start.y()
+              << "], expected on the floor (|x| <= " << half[0] << ", |y| <= " << half[1]
+              << " m, floor.half_size_m)";
+      throw InputError(message.str());
+    }
+  }
+  {
+    std::size_t count = 0;
+    std::string counts;
+    for (const char* key : {"walls", "boxes", "cylinders", "markers"}) {
+      const std::size_t n = sequence(root, key, path).size();
+      count += n;
+      counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + key;
+    }
+    if (count > kMaxPrimitives) {
+      throw InputError(path + ": " + std::to_string(count) + " primitives (" + counts +
+                       "), expected at most " + std::to_string(kMaxPrimitives));
+    }
   }
 
   const YAML::Node walls = sequence(root, "walls", path);
@@ -311,6 +353,8 @@ World load_world(const std::string& path) {
     double height_m = 2.5;
     w.require_list("from_m", from, 2);
     w.require_list("to_m", to, 2);
+    check_within(w, "from_m", from, 2);
+    check_within(w, "to_m", to, 2);
     w.read_positive("height_m", height_m, 100.0);
     if (std::hypot(to[0] - from[0], to[1] - from[1]) < 1e-3) {
       throw InputError(w.describe("to_m") + " equals from_m, expected a wall of length > 0");
@@ -329,7 +373,9 @@ World load_world(const std::string& path) {
     double size[3] = {1, 1, 1};
     b.require_list("center_m", center, 3);
     b.require_list("size_m", size, 3);
+    check_within(b, "center_m", center, 3);
     check_positive(b, "size_m", size, 3);
+    check_within(b, "size_m", size, 3);
     b.read_deg_as_rad("yaw_deg", box.yaw_rad, -180.0, 180.0);
     box.center_m = Eigen::Vector3d(center[0], center[1], center[2]);
     box.size_m = Eigen::Vector3d(size[0], size[1], size[2]);
@@ -344,6 +390,7 @@ World load_world(const std::string& path) {
     Cylinder cyl;
     double center[2] = {0, 0};
     c.require_list("center_m", center, 2);
+    check_within(c, "center_m", center, 2);
     c.read_positive("radius_m", cyl.radius_m, 100.0);
     c.read_positive("height_m", cyl.height_m, 100.0);
     c.read("base_z_m", cyl.base_z_m, -10.0, 100.0);
@@ -361,6 +408,7 @@ World load_world(const std::string& path) {
     double normal[3] = {0, 0, 1};
     m.require("id", marker.id, 0, 586);  // AprilTag 36h11 has 587 codes.
     m.require_list("center_m", center, 3);
+    check_within(m, "center_m", center, 3);
     m.read_list("normal", normal, 3);
     m.read_positive("size_m", marker.size_m, 10.0);
     m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);

@@ -195,5 +195,35 @@ TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
               HasSubstr("camera.T_body_camera.yaw_deg is not a known key"));
 }
 
+// Values without physical sense are refused with the file, key and value named: a start of
+// 1e300 m gave a flight summary of NaN, 100k boxes never rendered a frame.
+TEST(WorldTest, PositionsAndPrimitiveCountHavePhysicalBounds) {
+  EXPECT_THAT(
+      error_of("start: {xy_m: [1e300, 0]}\n"),
+      HasSubstr("hq_sim_world_test.yaml: start.xy_m[0] = 1e+300, expected within +-1000 m"));
+  EXPECT_THAT(error_of("floor: {half_size_m: [6, 6]}\nstart: {xy_m: [7, 0]}\n"),
+              HasSubstr("hq_sim_world_test.yaml: start.xy_m = [7, 0], expected on the floor "
+                        "(|x| <= 6, |y| <= 6 m, floor.half_size_m)"));
+  EXPECT_THAT(error_of("boxes:\n  - {center_m: [0, 5000, 1], size_m: [1, 1, 1]}\n"),
+              HasSubstr("boxes[0].center_m[1] = 5000, expected within +-1000 m"));
+  std::string many = "boxes:\n";
+  for (int i = 0; i < 10001; ++i) many += "  - {center_m: [0, 0, 1], size_m: [1, 1, 1]}\n";
+  EXPECT_THAT(error_of(many),
+              HasSubstr("hq_sim_world_test.yaml: 10001 primitives (0 walls, 10001 boxes, 0 "
+                        "cylinders, 0 markers), expected at most 10000"));
+}
+
+TEST(WorldTest, SimCameraFocalLengthHasPhysicalBounds) {
+  const std::string path =
+      write_temp("hq_sim_config_fov_test.yaml", "camera: {width: 16, height: 16, hfov_deg: 170}\n");
+  try {
+    load_sim_config(path);
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("camera.hfov_deg = 170 with width 16 gives fx = 0.69"));
+    EXPECT_THAT(e.what(), HasSubstr("px, expected in [10, 10000] px"));
+  }
+}
+
 }  // namespace
 }  // namespace hq::sim

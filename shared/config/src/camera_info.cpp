@@ -1,6 +1,7 @@
 #include "hq/config/camera_info.hpp"
 
 #include <cmath>
+#include <sstream>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -54,6 +55,16 @@ CameraInfo load_camera_info(const std::string& path) {
   read_matrix(root, "camera_matrix", 3, 3, K, true);
   if (!(K[0] > 0.0) || !(K[4] > 0.0)) {
     throw InputError(root.describe("camera_matrix") + ": fx and fy must be > 0");
+  }
+  // Depth cameras and webcams have focal lengths of a few hundred to a few thousand pixels; a
+  // value outside 10-10000 px is a typo or another unit (fx = 1e-300 passed before).
+  for (const int i : {0, 4}) {
+    if (!(K[i] >= kMinFocalPx && K[i] <= kMaxFocalPx)) {
+      std::ostringstream message;
+      message << root.describe("camera_matrix") << ": " << (i == 0 ? "fx" : "fy") << " = " << K[i]
+              << ", expected in [" << kMinFocalPx << ", " << kMaxFocalPx << "] px";
+      throw InputError(message.str());
+    }
   }
   if (K[1] != 0.0 || K[3] != 0.0 || K[6] != 0.0 || K[7] != 0.0 || K[8] != 1.0) {
     throw InputError(root.describe("camera_matrix") +

@@ -1,24 +1,80 @@
 #include "hq/config/strict_yaml.hpp"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
 #include <cmath>
 #include <filesystem>
 #include <optional>
 #include <sstream>
+#include <unordered_map>
 
 namespace hq::config {
 
+namespace {
+std::string to_text(const YAML::Node& node);
+
+std::string join_key(const std::string& prefix, const std::string& key) {
+  return prefix.empty() ? key : prefix + "." + key;
+}
+
+std::string kind_of(const YAML::Node& node) {
+  return node.IsSequence() ? "a list" : node.IsMap() ? "a mapping" : "not a scalar";
+}
+}  // namespace
+
+void check_keys(const YAML::Node& node, const std::string& where, const std::string& prefix,
+                bool recursive) {
+  if (node.IsSequence() && recursive) {
+    for (std::size_t i = 0; i < node.size(); ++i) {
+      check_keys(node[i], where, prefix + "[" + std::to_string(i) + "]", true);
+    }
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::unordered_map<std::string, int> keys;  // key -> line (1-based)
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const YAML::Node key = it->first;
+    const int line = key.Mark().line + 1;
+    if (!key.IsScalar()) {
+      throw InputError(where + ":" + std::to_string(line) + ": " +
+                       (prefix.empty() ? std::string("top level") : prefix) + " has key " +
+                       to_text(key) + ", which is " + kind_of(key) + ", expected a scalar key");
+    }
+    const std::string& name = key.Scalar();
+    const auto [first, inserted] = keys.emplace(name, line);
+    if (!inserted) {
+      // yaml-cpp keeps the first of two equal keys without a word; a config must not.
+      throw InputError(where + ":" + std::to_string(line) + ": " + join_key(prefix, name) + " = " +
+                       to_text(it->second) + " duplicates the key on line " +
+                       std::to_string(first->second) + ", expected each key once");
+    }
+    if (recursive) check_keys(it->second, where, join_key(prefix, name), true);
+  }
+}
+
 YAML::Node load_yaml_file(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw InputError(path + ": file not found");
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status)) throw InputError(path + ": file not found");
+  if (std::filesystem::is_directory(status)) {
+    throw InputError(path + ": is a directory, expected a YAML file");
+  }
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot read: " + std::strerror(errno));
   try {
-    YAML::Node node = YAML::LoadFile(path);
+    YAML::Node node = YAML::Load(in);
     if (!node.IsDefined() || node.IsNull()) return YAML::Node(YAML::NodeType::Map);
     if (!node.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
+    check_keys(node, path, "", true);
     return node;
   } catch (const YAML::Exception& e) {
     std::ostringstream message;
     message << path << ":" << (e.mark.line + 1) << ": not valid YAML: " << e.msg;
     throw InputError(message.str());
+  } catch (const std::ios_base::failure& e) {
+    throw InputError(path + ": cannot read: " + e.what());
   }
 }
 
@@ -26,8 +82,10 @@ StrictMap::StrictMap(const YAML::Node& node, std::string where, std::string pref
     : node_(node), where_(std::move(where)), prefix_(std::move(prefix)) {
   if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap()) {
     throw InputError(where_ + ": " + (prefix_.empty() ? std::string("top level") : prefix_) +
-                     " is not a mapping");
+                     " = " + to_text(node_) + ", expected a mapping");
   }
+  // Maps built in memory (YAML::Load) have not been through load_yaml_file's check.
+  check_keys(node_, where_, prefix_, false);
 }
 
 std::string StrictMap::describe(const std::string& key) const {
@@ -53,6 +111,7 @@ void StrictMap::skip(const std::string& key) { seen_.push_back(key); }
 
 namespace {
 std::string to_text(const YAML::Node& node) {
+  if (!node.IsDefined()) return "(absent)";
   if (node.IsScalar()) return node.Scalar();
   YAML::Emitter out;
   out << YAML::Flow << node;
@@ -176,13 +235,50 @@ StrictMap StrictMap::child(const std::string& key) {
   return StrictMap(*node, where_, path);
 }
 
-void StrictMap::finish() const {
+namespace {
+// Levenshtein distance, for "did you mean" on a misspelled key.
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+}  // namespace
+
+void StrictMap::finish() const { finish_except({}); }
+
+void StrictMap::finish_sections() const { finish_except(kSharedFileSections); }
+
+void StrictMap::finish_except(const std::vector<std::string>& read_elsewhere) const {
   if (!node_.IsMap()) return;
   for (auto it = node_.begin(); it != node_.end(); ++it) {
-    const std::string key = it->first.as<std::string>();
-    if (std::find(seen_.begin(), seen_.end(), key) == seen_.end()) {
-      throw InputError(describe(key) + " is not a known key");
+    const std::string key = it->first.Scalar();
+    const auto known = [&](const std::vector<std::string>& keys) {
+      return std::find(keys.begin(), keys.end(), key) != keys.end();
+    };
+    if (known(seen_) || known(read_elsewhere)) continue;
+    std::string message = describe(key) + " is not a known key (value " + to_text(it->second);
+    std::string closest;
+    std::size_t best = 3;  // suggest only near misses (odometri -> odometry)
+    for (const auto* keys : {&seen_, &read_elsewhere}) {
+      for (const std::string& k : *keys) {
+        const std::size_t d = edit_distance(key, k);
+        if (d < best) {
+          best = d;
+          closest = k;
+        }
+      }
     }
+    message += closest.empty() ? ")" : "; did you mean " + closest + "?)";
+    throw InputError(message);
   }
 }
 

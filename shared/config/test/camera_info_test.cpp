@@ -102,5 +102,15 @@ TEST(Undistorter, IdentityWithoutDistortionAndStraightensWithIt) {
   EXPECT_EQ(depth_out.at<float>(24, 32), 2.0f);
 }
 
+// fx = 1e-300 passed as "> 0": focal lengths outside 10-10000 px have no physical sense.
+TEST_F(CameraFile, FocalLengthOutsidePhysicalRangeIsNamed) {
+  std::string tiny = kGood;
+  tiny.replace(tiny.find("[500"), 4, "[1e-300");
+  EXPECT_THAT(error_of(tiny), HasSubstr("camera_matrix: fx = 1e-300, expected in [10, 10000] px"));
+  std::string huge = kGood;
+  huge.replace(huge.find("501"), 3, "2e6");
+  EXPECT_THAT(error_of(huge), HasSubstr("camera_matrix: fy = 2e+06, expected in [10, 10000] px"));
+}
+
 }  // namespace
 }  // namespace hq::config

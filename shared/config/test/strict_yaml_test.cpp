@@ -93,5 +93,84 @@ TEST(LoadYamlFile, MissingAndMalformedFilesNameTheFile) {
   std::filesystem::remove(path);
 }
 
+std::string write_file(const std::string& name, const std::string& text) {
+  const auto path = std::filesystem::temp_directory_path() / name;
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+// Each of these used to abort every loader with exit 134 (an uncaught yaml-cpp or iostream
+// exception) or pass silently.
+TEST(LoadYamlFile, DirectoryIsNamedNotACrash) {
+  const auto dir = std::filesystem::temp_directory_path() / "hq_yaml_dir_test.yaml";
+  std::filesystem::create_directories(dir);
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(dir.string()); }),
+              HasSubstr(dir.string() + ": is a directory, expected a YAML file"));
+  std::filesystem::remove(dir);
+}
+
+TEST(LoadYamlFile, ListOrMapKeyIsNamedWithFileLineAndPath) {
+  const std::string list = write_file("hq_yaml_listkey.yaml", "odometry:\n  [a, b]: 1\n");
+  EXPECT_THAT(
+      input_error_message([&] { load_yaml_file(list); }),
+      HasSubstr(list + ":2: odometry has key [a, b], which is a list, expected a scalar key"));
+  const std::string map = write_file("hq_yaml_mapkey.yaml", "{a: 1}: 1\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(map); }),
+              HasSubstr(map + ":1: top level has key {a: 1}, which is a mapping"));
+  const std::string nested =
+      write_file("hq_yaml_nestedkey.yaml", "boxes:\n  - {size_m: 1}\n  - {[x]: 2}\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(nested); }),
+              HasSubstr("boxes[1] has key [x], which is a list"));
+}
+
+TEST(LoadYamlFile, DuplicateKeyNamesBothLinesAndTheValue) {
+  const std::string path =
+      write_file("hq_yaml_dup.yaml",
+                 "odometry:\n  max_iterations_per_level: 10\n  max_iterations_per_level: 99\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path); }),
+              HasSubstr(path + ":3: odometry.max_iterations_per_level = 99 duplicates the key on "
+                               "line 2, expected each key once"));
+}
+
+TEST(StrictMap, InMemoryMapsGetTheSameKeyChecks) {
+  EXPECT_THAT(input_error_message([] { StrictMap(YAML::Load("{a: 1, a: 2}"), "m.yaml"); }),
+              HasSubstr("m.yaml:1: a = 2 duplicates the key on line 1"));
+  EXPECT_THAT(input_error_message([] { StrictMap(YAML::Load("{[1]: 1}"), "m.yaml"); }),
+              HasSubstr("expected a scalar key"));
+  EXPECT_THAT(input_error_message([] { StrictMap(YAML::Load("[1, 2]"), "m.yaml", "odometry"); }),
+              HasSubstr("m.yaml: odometry = [1, 2], expected a mapping"));
+}
+
+TEST(StrictMap, MisspelledKeyNamesTheValueAndTheClosestKnownKey) {
+  StrictMap map(YAML::Load("{gain: 1, gian: 2}"), "a.yaml");
+  double gain = 0;
+  map.read("gain", gain, 0, 10);
+  EXPECT_THAT(input_error_message([&] { map.finish(); }),
+              HasSubstr("a.yaml: gian is not a known key (value 2; did you mean gain?)"));
+}
+
+// GIVEN a shared file whose odometry section is misspelled, WHEN a loader reads only its own
+// section, THEN the misspelling is rejected rather than the defaults used with exit 0, while
+// another loader's section is accepted.
+TEST(StrictMap, FinishSectionsRejectsAMisspelledSectionAndKeepsOthers) {
+  StrictMap root(YAML::Load("{odometri: {max_iterations_per_level: 10}, obstacles: {gain: 1}}"),
+                 "config/onboard.yaml");
+  StrictMap odometry = root.child("odometry");
+  odometry.finish();
+  EXPECT_THAT(input_error_message([&] { root.finish_sections(); }),
+              HasSubstr("config/onboard.yaml: odometri is not a known key (value "
+                        "{max_iterations_per_level: 10}; did you mean odometry?)"));
+  StrictMap fine(YAML::Load("{odometry: {}, obstacles: {gain: 1}, link: {}}"), "b.yaml");
+  fine.child("odometry").finish();
+  fine.finish_sections();
+}
+
+// The list of shared sections covers every section of the bundled onboard config.
+TEST(StrictMap, SharedSectionsCoverTheBundledOnboardConfig) {
+  const YAML::Node root = load_yaml_file("config/onboard.yaml");
+  StrictMap map(root, "config/onboard.yaml");
+  map.finish_sections();
+}
+
 }  // namespace
 }  // namespace hq::config

@@ -54,7 +54,18 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
 }
 
 LinkConfig load_link_config(const std::string& path) {
-  config::StrictMap root(config::load_yaml_file(path), path);
+  const YAML::Node node = config::load_yaml_file(path);
+  config::StrictMap root(node, path);
+  // The file may hold anything else (one file for several tools), but a --link-config without
+  // a link: section is a mistake (a misspelled lnik:) that would fly on the defaults.
+  if (!root.has("link")) {
+    std::string keys;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      keys += (keys.empty() ? "" : ", ") + it->first.Scalar();
+    }
+    throw InputError(path + ": link section missing, expected a `link:` mapping (top-level keys: " +
+                     (keys.empty() ? std::string("none") : keys) + ")");
+  }
   config::StrictMap section = root.child("link");
   LinkConfig config;
   read_config(section, config);

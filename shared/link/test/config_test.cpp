@@ -74,6 +74,17 @@ TEST(LinkConfig, LoadsLinkSectionOfFile) {
   EXPECT_EQ(config.domain_id, 0);
 }
 
+// A --link-config whose link: section is misspelled used to fly on the defaults, exit 0.
+TEST(LinkConfig, FileWithoutLinkSectionIsRejected) {
+  const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                     ("hq_link_nosection_" + std::to_string(getpid()) + ".yaml");
+  std::ofstream(path) << "lnik: {vehicle_id: 4}\n";
+  EXPECT_THAT(hq::testing::input_error_message([&] { load_link_config(path.string()); }),
+              HasSubstr(path.string() + ": link section missing, expected a `link:` mapping "
+                                        "(top-level keys: lnik)"));
+  std::filesystem::remove(path);
+}
+
 TEST(LinkConfig, CommandLineOverridesYaml) {
   LinkConfig config = from_yaml("{domain_id: 7, vehicle_id: 3, station_strength: 250}");
   CLI::App app;

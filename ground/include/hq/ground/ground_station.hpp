@@ -108,7 +108,10 @@ class LinkObserver {
 /// depth_preview/ listed in depth_preview.txt. Every CSV starts with '#' lines naming frames,
 /// clocks and units. All stamps named receipt_ns/t_ns here are the ground's dds_time() (the
 /// host's real-time clock); vehicle_t_ns is the vehicle's own stamp.
-/// @throws hq::InputError if the directory or files cannot be written.
+/// @throws hq::InputError if the directory or files cannot be created, or DIR already holds a
+/// recording (never overwritten). A failed write later (disk full) is not thrown from the
+/// flight loop: writing stops and error() says which file and why; flush() and close() return
+/// false from then on, for the operator to be told.
 class TelemetryRecorder {
  public:
   explicit TelemetryRecorder(const std::string& directory);
@@ -122,8 +125,15 @@ class TelemetryRecorder {
   void mode_request(std::int64_t t_ns, hq_msgs_Mode mode);
   /// Writes the JPEG (and the depth preview if any) as received, without re-encoding.
   void camera(std::int64_t receipt_ns, const link::CameraFrame& frame);
-  /// Writes buffered rows to disk (called about once a second, not per row).
-  void flush();
+  /// Writes buffered rows to disk (called about once a second, not per row). False once any
+  /// write has failed (see error()).
+  bool flush();
+  /// Flushes and closes every file (the destructor does too, silently); false if any write or
+  /// close failed.
+  bool close();
+  /// The first failed write, "DIR/telemetry.csv: write failed: No space left on device; ...",
+  /// or empty.
+  [[nodiscard]] const std::string& error() const { return error_; }
 
  private:
   std::string directory_;
@@ -135,6 +145,8 @@ class TelemetryRecorder {
   std::FILE* depth_list_ = nullptr;
   std::string path_;  ///< Reused for frame file names.
   std::uint64_t frame_write_failures_ = 0;
+  std::string error_;
+  void written(int result, const char* file);
 };
 
 class GroundStation {

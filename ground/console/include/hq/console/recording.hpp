@@ -78,9 +78,10 @@ struct Recording {
   static constexpr std::size_t kMaxProblems = 100;
 };
 
-/// Reads `directory`. @throws hq::InputError if it is not a directory or holds neither
-/// telemetry.csv nor rgb.txt (nothing of an hq-ground recording). Every other defect is a
-/// problem in the result.
+/// Reads `directory`. @throws hq::InputError if it is not a directory, holds neither
+/// telemetry.csv nor rgb.txt (nothing of an hq-ground recording), or has a stamp out of time
+/// order, more than an hour after its file's previous one, or a file starting more than an
+/// hour from the others (file:line named). Every other defect is a problem in the result.
 Recording load_recording(const std::string& directory);
 
 /// The static name among the link's mode and health names equal to `text`, else "invalid".

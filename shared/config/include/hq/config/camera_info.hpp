@@ -21,6 +21,11 @@
 
 namespace hq::config {
 
+/// Focal lengths with physical sense for the cameras this system flies (a few hundred px for
+/// the Xtion and Kinect): camera files and simulated cameras outside [10, 10000] px are refused.
+constexpr double kMinFocalPx = 10.0;
+constexpr double kMaxFocalPx = 10000.0;
+
 struct CameraInfo {
   std::string name;
   int width = 0;

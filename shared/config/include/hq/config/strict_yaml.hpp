@@ -14,8 +14,22 @@
 
 namespace hq::config {
 
-/// Loads a YAML file; throws hq::InputError if it is missing or not valid YAML.
+/// Loads a YAML file; throws hq::InputError if it is missing, a directory, unreadable, not
+/// valid YAML, or has a key that is not a scalar or appears twice in one mapping (check_keys).
 YAML::Node load_yaml_file(const std::string& path);
+
+/// Throws hq::InputError naming file:line, key path and value if a mapping in `node` has a key
+/// that is a list or mapping, or a key twice (yaml-cpp silently keeps the first).
+/// @param recursive  also every mapping nested in `node`.
+void check_keys(const YAML::Node& node, const std::string& where, const std::string& prefix,
+                bool recursive);
+
+/// The top-level sections of files that several loaders share (config/onboard.yaml, a file
+/// given to --link-config): a loader that reads one of them accepts the others, read
+/// elsewhere, and rejects any other top-level key (StrictMap::finish_sections).
+inline const std::vector<std::string> kSharedFileSections = {
+    "odometry", "estimator", "obstacles", "memory", "control",
+    "modes",    "chain",     "markers",   "link",   "navigation"};
 
 /// A YAML mapping read strictly. Create it, read keys with the typed getters (a missing key
 /// keeps the default passed in), then call finish() to reject keys that were never read.
@@ -48,8 +62,14 @@ class StrictMap {
   /// Marks a key as known without reading it (keys of a foreign layout that carry nothing).
   void skip(const std::string& key);
 
-  /// Throws on any key of this map that no getter asked for (Drake-style strictness).
+  /// Throws on any key of this map that no getter asked for (Drake-style strictness), naming
+  /// the closest known key when it looks misspelled.
   void finish() const;
+  /// finish() for a file several loaders share: keys in `read_elsewhere` are sections another
+  /// loader reads; any other unread key (a misspelled `odometri:`) is rejected.
+  void finish_except(const std::vector<std::string>& read_elsewhere) const;
+  /// finish_except(kSharedFileSections): for the root of a file whose one section is read.
+  void finish_sections() const;
 
   /// "file: prefix.key" for messages.
   [[nodiscard]] std::string describe(const std::string& key) const;
