@@ -1,6 +1,7 @@
 #include "hq/ground/ground_station.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -66,13 +67,6 @@ double LatencyStats::quantile_ms(double q) const {
 }
 
 namespace {
-
-/// CLOCK_MONOTONIC, the haptic side's clock (haptics::monotonic_now_ns()).
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // "x": never truncates a file already there (another recording's).
 std::FILE* open_for_writing(const std::string& path) {
@@ -408,7 +402,7 @@ bool GroundStation::poll() {
     if (status_.have_clock_offset) {
       // The stamp on the ground's clock: vehicle time minus the offset.
       status_.last_state_age_ns =
-          monotonic_ns() - (state_sample_->t_ns - status_.clock_offset_ns);
+          monotonic_now_ns() - (state_sample_->t_ns - status_.clock_offset_ns);
       state_age_.add(status_.last_state_age_ns);
     }
     if (observer_ != nullptr) observer_->on_state(now, now - info.source_timestamp, *state_sample_);
@@ -456,7 +450,7 @@ bool GroundStation::poll() {
 void GroundStation::note_echo(const link::Heartbeat& heartbeat) {
   // NTP with t0 our send (echo_t_ns), t1 = t2 - held the vehicle's receipt, t2 its send
   // (t_ns), t3 our receipt: round trip (t3 - t0) - held, offset ((t1 - t0) + (t2 - t3)) / 2.
-  const std::int64_t t3 = monotonic_ns();
+  const std::int64_t t3 = monotonic_now_ns();
   const std::int64_t round_trip_ns = t3 - heartbeat.echo_t_ns - heartbeat.echo_held_ns;
   if (round_trip_ns < 0 || heartbeat.echo_held_ns < 0) return;  // not our clock's echo
   const std::int64_t t1 = heartbeat.t_ns - heartbeat.echo_held_ns;

@@ -17,6 +17,7 @@
 #include "onboard_runs.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/link_bridge/link_operator_port.hpp"
@@ -29,7 +30,6 @@
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
 
-#include <time.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -84,20 +84,6 @@ void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
                s.yaw_rate_radps, out.safe_hover ? 1 : 0,
                1e-6 * static_cast<double>(out.durations.total_ns),
                out.safe_hover ? out.safe_hover_reason : "");
-}
-
-std::int64_t monotonic_ns() {
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return now.tv_sec * 1'000'000'000LL + now.tv_nsec;
-}
-
-void sleep_until_ns(std::int64_t deadline_ns) {
-  timespec deadline{};
-  deadline.tv_sec = deadline_ns / 1'000'000'000LL;
-  deadline.tv_nsec = deadline_ns % 1'000'000'000LL;
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-  }
 }
 
 /// The run's own operator-side duties around the link (or nobody): the CSV log, the live status
@@ -178,13 +164,13 @@ class SitlTruth final : public hq::vehicle::TruthSource {
 /// hq-sim may still be starting: its frame channel is waited for, not failed on at once.
 std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& channel,
                                                         double wait_s) {
-  const std::int64_t end_ns = monotonic_ns() + static_cast<std::int64_t>(wait_s * 1e9);
+  const std::int64_t end_ns = hq::monotonic_now_ns() + static_cast<std::int64_t>(wait_s * 1e9);
   bool said = false;
   while (true) {
     try {
       return std::make_unique<hq::sources::SitlFrameSource>(channel);
     } catch (const hq::InputError& e) {
-      if (monotonic_ns() >= end_ns || g_stop) {
+      if (hq::monotonic_now_ns() >= end_ns || g_stop) {
         throw hq::InputError(std::string(e.what()) + " (waited " + std::to_string(wait_s) +
                              " s for hq-sim --sitl)");
       }
@@ -373,26 +359,26 @@ int run_vehicle(const Options& o) {
         paced = false;
       }
       if (o.link) {
-        if (!paced) wall_minus_recorded_ns = monotonic_ns() - t_ns;
+        if (!paced) wall_minus_recorded_ns = hq::monotonic_now_ns() - t_ns;
         paced = true;
-        sleep_until_ns(t_ns + wall_minus_recorded_ns);
+        hq::sleep_until_monotonic_ns(t_ns + wall_minus_recorded_ns);
       }
     }
   } else {
     // Wall time: the loop wakes every millisecond (frames and FC input within 1 ms); a camera
     // blocks only its own thread.
-    const std::int64_t start_ns = monotonic_ns();
+    const std::int64_t start_ns = hq::monotonic_now_ns();
     const auto end_ns = start_ns + static_cast<std::int64_t>(o.duration_s * 1e9);
     // In SITL the flight controller is the simulator: once it is gone for good there is no
     // vehicle left to fly, so the process stops (a real companion keeps waiting for its FC).
     const double fc_lost_exit_s = o.fc_lost_exit_s >= 0.0 ? o.fc_lost_exit_s : (sitl ? 3.0 : 0.0);
     std::int64_t fc_lost_since_ns = -1;
     std::int64_t next_ns = start_ns;
-    while (!g_stop && runtime.step(monotonic_ns()) && monotonic_ns() < end_ns) {
+    while (!g_stop && runtime.step(hq::monotonic_now_ns()) && hq::monotonic_now_ns() < end_ns) {
       if (runtime.status().fc_lost) {
-        if (fc_lost_since_ns < 0) fc_lost_since_ns = monotonic_ns();
+        if (fc_lost_since_ns < 0) fc_lost_since_ns = hq::monotonic_now_ns();
         if (fc_lost_exit_s > 0.0 &&
-            monotonic_ns() - fc_lost_since_ns > static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
+            hq::monotonic_now_ns() - fc_lost_since_ns > static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
           std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
           break;
         }
@@ -400,9 +386,9 @@ int run_vehicle(const Options& o) {
         fc_lost_since_ns = -1;
       }
       next_ns += kLoopPeriodNs;
-      const std::int64_t now_ns = monotonic_ns();
+      const std::int64_t now_ns = hq::monotonic_now_ns();
       if (next_ns < now_ns) next_ns = now_ns;  // late: no burst of catch-up steps
-      sleep_until_ns(next_ns);
+      hq::sleep_until_monotonic_ns(next_ns);
     }
   }
   if (live) std::fprintf(stderr, "\n");

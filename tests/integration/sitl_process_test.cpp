@@ -4,6 +4,7 @@
 // setpoints; WHEN the setpoints stop, THEN it lands and disarms; SIGTERM ends it with the summary
 // and the channel unlinked. Each test uses its own port and channel name.
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
@@ -115,7 +116,7 @@ class Companion {
     }
     hq::frame_channel::FrameInfo info;
     if (frames_->take_latest(image_, depth_, info)) {
-      const std::int64_t now_ns = hq::frame_channel::monotonic_now_ns();
+      const std::int64_t now_ns = hq::monotonic_now_ns();
       if (frame_count_ > 0 && info.t_ns <= last_frame_.t_ns) frame_stamps_increasing_ = false;
       // A host-clock stamp of the exposure: in the past, by less than a render and a poll.
       if (info.t_ns > now_ns || now_ns - info.t_ns > 300'000'000) frame_stamps_recent_ = false;
@@ -254,7 +255,7 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   ASSERT_GT(origin_ns, 0);
   const std::int64_t imu_host_ns =
       origin_ns + 1000 * static_cast<std::int64_t>(companion.last_imu_usec_);
-  const std::int64_t now_ns = hq::frame_channel::monotonic_now_ns();
+  const std::int64_t now_ns = hq::monotonic_now_ns();
   EXPECT_LT(imu_host_ns, now_ns);
   EXPECT_GT(imu_host_ns, now_ns - 200'000'000);
   ASSERT_TRUE(companion.last_frame_.has_truth);
@@ -381,7 +382,7 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
     at_start();
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
     while (std::chrono::steady_clock::now() < end) {
-      const std::int64_t t_ns = hq::frame_channel::monotonic_now_ns();
+      const std::int64_t t_ns = hq::monotonic_now_ns();
       fc.poll(t_ns, sink);
       frames->take_latest(image, depth, frame);
       if (setpoints) {
@@ -400,15 +401,15 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   };
   auto nothing = [] {};
   run_for(1.0, true, nothing);
-  const std::int64_t now_ns = hq::frame_channel::monotonic_now_ns();
+  const std::int64_t now_ns = hq::monotonic_now_ns();
   EXPECT_TRUE(fc.status(now_ns).connected) << sink.events;
   EXPECT_GT(sink.imu, 350) << "about 500 Hz";
   EXPECT_TRUE(sink.imu_increasing);
   EXPECT_NEAR(static_cast<double>(sink.last_imu_ns), static_cast<double>(now_ns), 100e6)
       << "IMU stamped on the runtime clock";
 
-  run_for(5.0, true, [&] { fc.request_arm_offboard(hq::frame_channel::monotonic_now_ns()); });
-  const hq::vehicle::FcStatus flying = fc.status(hq::frame_channel::monotonic_now_ns());
+  run_for(5.0, true, [&] { fc.request_arm_offboard(hq::monotonic_now_ns()); });
+  const hq::vehicle::FcStatus flying = fc.status(hq::monotonic_now_ns());
   EXPECT_TRUE(flying.armed) << sink.events << slurp(out);
   EXPECT_TRUE(flying.offboard);
   EXPECT_GT(flying.battery_v, 14.0);
@@ -417,14 +418,14 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
 
   // Setpoints stop: the SITL FC lands and disarms; the client reports it.
   run_for(1.0, false, nothing);
-  EXPECT_FALSE(fc.status(hq::frame_channel::monotonic_now_ns()).offboard);
+  EXPECT_FALSE(fc.status(hq::monotonic_now_ns()).offboard);
   EXPECT_THAT(sink.events, HasSubstr("offboard setpoints lost: landing"));
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (fc.status(hq::frame_channel::monotonic_now_ns()).armed &&
+  while (fc.status(hq::monotonic_now_ns()).armed &&
          std::chrono::steady_clock::now() < deadline) {
     run_for(0.2, false, nothing);
   }
-  EXPECT_FALSE(fc.status(hq::frame_channel::monotonic_now_ns()).armed) << sink.events;
+  EXPECT_FALSE(fc.status(hq::monotonic_now_ns()).armed) << sink.events;
   EXPECT_TRUE(frame.truth.on_ground);
 
   sim.signal(SIGTERM);

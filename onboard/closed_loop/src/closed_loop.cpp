@@ -1,6 +1,7 @@
 #include "hq/closed_loop/closed_loop.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 
 #include <time.h>
 
@@ -127,9 +128,7 @@ void ClosedLoop::run_until(double t_s) {
 
 void ClosedLoop::pace(std::int64_t t_ns) {
   // Absolute deadlines: a slow tick is not added to every later one.
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  const std::int64_t now_ns = now.tv_sec * 1'000'000'000LL + now.tv_nsec;
+  const std::int64_t now_ns = monotonic_now_ns();
   if (!have_wall_origin_) {
     wall_origin_ns_ = now_ns - t_ns;
     have_wall_origin_ = true;
@@ -139,11 +138,7 @@ void ClosedLoop::pace(std::int64_t t_ns) {
     max_lag_ns_ = std::max(max_lag_ns_, now_ns - deadline_ns);
     return;
   }
-  timespec deadline{};
-  deadline.tv_sec = deadline_ns / 1'000'000'000LL;
-  deadline.tv_nsec = deadline_ns % 1'000'000'000LL;
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-  }
+  sleep_until_monotonic_ns(deadline_ns);
 }
 
 void ClosedLoop::record(const pipeline::ChainOutput& out) {

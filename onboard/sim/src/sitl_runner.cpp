@@ -1,6 +1,7 @@
 #include "hq/sim/sitl_runner.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
@@ -144,9 +145,9 @@ class RenderWorker {
         pending_ = false;
         busy_ = true;
       }
-      const std::int64_t start_ns = frame_channel::monotonic_now_ns();
+      const std::int64_t start_ns = monotonic_now_ns();
       renderer_.render(job.T_world_camera, job.frame_index, image_, depth_m_);
-      render_s_ += static_cast<double>(frame_channel::monotonic_now_ns() - start_ns) * 1e-9;
+      render_s_ += static_cast<double>(monotonic_now_ns() - start_ns) * 1e-9;
       if (channel_.publish(job.t_ns, image_, depth_m_, &job.truth)) ++published_;
       const std::lock_guard<std::mutex> lock(mutex_);
       busy_ = false;
@@ -167,14 +168,6 @@ class RenderWorker {
   std::thread thread_;  // last: starts once everything above is constructed
 };
 
-void sleep_until(std::int64_t deadline_ns, const std::atomic<bool>& stop) {
-  timespec deadline{};
-  deadline.tv_sec = deadline_ns / 1'000'000'000LL;
-  deadline.tv_nsec = deadline_ns % 1'000'000'000LL;
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-    if (stop.load()) return;
-  }
-}
 
 }  // namespace
 
@@ -216,7 +209,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
   const std::int64_t end_ns =
       options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * 1e9))
                                : -1;
-  const std::int64_t wall_origin_ns = frame_channel::monotonic_now_ns();
+  const std::int64_t wall_origin_ns = monotonic_now_ns();
   channel.set_time_origin(wall_origin_ns);  // frame stamps and IMU time_usec share it
   std::int64_t max_lag_ns = 0;
   std::int64_t next_status_wall_ns = wall_origin_ns + 1'000'000'000;
@@ -232,9 +225,9 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
     // Absolute deadlines: the simulation never runs ahead of the wall clock, and a slow tick
     // (a render) is caught up instead of delaying every later one.
     const std::int64_t deadline_ns = wall_origin_ns + t_next_ns;
-    const std::int64_t now_ns = frame_channel::monotonic_now_ns();
+    const std::int64_t now_ns = monotonic_now_ns();
     if (now_ns < deadline_ns) {
-      sleep_until(deadline_ns, stop);
+      sleep_until_monotonic_ns(deadline_ns, &stop);
     } else {
       max_lag_ns = std::max(max_lag_ns, now_ns - deadline_ns);
     }
@@ -280,7 +273,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
     }
     max_speed_mps = std::max(max_speed_mps, after.v_world_mps.norm());
 
-    const std::int64_t wall_ns = frame_channel::monotonic_now_ns();
+    const std::int64_t wall_ns = monotonic_now_ns();
     if (options.status_lines && wall_ns >= next_status_wall_ns) {
       next_status_wall_ns += 1'000'000'000;
       std::fprintf(stderr, "hq-sim: t %.1f s, RT %.2f, %s %s, altitude %.2f m\n",
@@ -292,7 +285,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
   }
 
   const double wall_s =
-      static_cast<double>(frame_channel::monotonic_now_ns() - wall_origin_ns) * 1e-9;
+      static_cast<double>(monotonic_now_ns() - wall_origin_ns) * 1e-9;
   renderer->finish();
   const std::int64_t frames = renderer->published();
   const double render_s = renderer->render_s();

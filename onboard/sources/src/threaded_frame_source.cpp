@@ -1,21 +1,11 @@
 #include "hq/sources/threaded_frame_source.hpp"
 
-#include <time.h>
+#include "hq/base/monotonic_clock.hpp"
 
 #include <algorithm>
 #include <utility>
 
 namespace hq::sources {
-namespace {
-
-std::int64_t monotonic_ns() {
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return now.tv_sec * 1'000'000'000LL + now.tv_nsec;
-}
-
-}  // namespace
-
 ThreadedFrameSource::ThreadedFrameSource(std::unique_ptr<FrameSource> source, bool restamp)
     : source_(std::move(source)),
       restamp_(restamp),
@@ -50,7 +40,7 @@ void ThreadedFrameSource::read_loop() {
     }
     if (status != FrameStatus::kFrame) continue;  // the source paces its own retries
     if (restamp_) {
-      const std::int64_t receipt_offset_ns = monotonic_ns() - frame.t_ns;
+      const std::int64_t receipt_offset_ns = monotonic_now_ns() - frame.t_ns;
       offset_ns_ = have_offset_ ? std::min(offset_ns_, receipt_offset_ns) : receipt_offset_ns;
       have_offset_ = true;
       frame.t_ns += offset_ns_;

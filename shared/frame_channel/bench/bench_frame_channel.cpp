@@ -1,6 +1,7 @@
 // hq-bench-frame-channel: publish and take_latest cost per frame at the SITL geometries, beside
 // the floor of the same run (memcpy of the same bytes between two buffers), so the figures say
 // what the channel adds to copying. Median and p90 over 300 frames; not run by ctest.
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
 
 #include <algorithm>
@@ -12,7 +13,7 @@
 
 namespace {
 
-using hq::frame_channel::monotonic_now_ns;
+using hq::monotonic_now_ns;
 
 struct Figures {
   double median_us, p90_us;

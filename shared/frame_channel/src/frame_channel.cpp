@@ -1,6 +1,7 @@
 #include "hq/frame_channel/frame_channel.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 
 #include <atomic>
 #include <cerrno>
@@ -186,12 +187,6 @@ std::string shm_name(const std::string& name) {
                      "\": expected 1..200 characters of [A-Za-z0-9._-]");
   }
   return "/hq-" + name;
-}
-
-std::int64_t monotonic_now_ns() {
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000LL + now.tv_nsec;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -47,9 +47,6 @@ struct FrameInfo {
 
 /// "/hq-<name>"; throws hq::InputError unless name is 1..200 of [A-Za-z0-9._-].
 std::string shm_name(const std::string& name);
-/// CLOCK_MONOTONIC now, ns.
-std::int64_t monotonic_now_ns();
-
 /// One mmap of a channel's shared object (no heap: a reader remaps without allocating).
 struct Mapping {
   void* base = nullptr;
