@@ -26,6 +26,12 @@ bool valid_health(hq_msgs_Health health) {
          value <= static_cast<int>(hq_msgs_HEALTH_LOST);
 }
 
+template <typename Enum>
+bool in_enum(Enum value, Enum first, Enum last) {
+  const auto v = static_cast<int>(value);
+  return v >= static_cast<int>(first) && v <= static_cast<int>(last);
+}
+
 }  // namespace
 
 Validation validate(const VelocityCommand& command, const CommandEnvelope& envelope) {
@@ -91,6 +97,19 @@ Validation validate(const VehicleState& state) {
     return {false, "p_W_m or yaw_W_rad is NaN or Inf"};
   }
   if (!finite(state.v_truth_H_mps)) return {false, "v_truth_H_mps is NaN or Inf"};
+  if (!in_enum(state.flight_state, hq_msgs_FLIGHT_LANDED, hq_msgs_FLIGHT_LANDING)) {
+    return {false, "flight_state outside FlightState enum"};
+  }
+  if (!in_enum(state.height_source, hq_msgs_HEIGHT_NONE, hq_msgs_HEIGHT_ESTIMATE)) {
+    return {false, "height_source outside HeightSource enum"};
+  }
+  if (!in_enum(state.operator_input, hq_msgs_INPUT_FLOWN, hq_msgs_INPUT_LIMITED_UNSEEN)) {
+    return {false, "operator_input outside OperatorInput enum"};
+  }
+  if (!std::isfinite(state.height_m) || !std::isfinite(state.clearance_m)) {
+    return {false, "height_m or clearance_m is NaN or Inf"};
+  }
+  if (!finite(state.v_cmd_flown_H_mps)) return {false, "v_cmd_flown_H_mps is NaN or Inf"};
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};
   }
