@@ -12,7 +12,7 @@ HQ_PACKAGES=(
   libgtest-dev libgmock-dev libzstd-dev
   cyclonedds-dev cyclonedds-tools libpcl-dev libvisp-dev libceres-dev
   libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
-  xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev
+  xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev dpkg-dev
 )
 
 hq_install() {

@@ -32,6 +32,7 @@
 
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
+#include "hq/config/data_path.hpp"
 #include "hq/link/config.hpp"
 #include "hq/sources/camera_sources.hpp"
 
@@ -115,6 +116,9 @@ int run(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  // Which file serves, since a relative name may come from the current folder or the install.
+  std::fprintf(stderr, "hq-onboard: config %s\n",
+               hq::config::resolve_data_path(o.config_path).c_str());
   if (o.source_kind == "sim") {
     if (!o.fc_spec.empty()) {
       throw hq::InputError("--source sim is its own flight controller; for MAVLink run hq-sim "

@@ -1,5 +1,7 @@
 #include "hq/config/strict_yaml.hpp"
 
+#include "hq/config/data_path.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
@@ -54,10 +56,13 @@ void check_keys(const YAML::Node& node, const std::string& where, const std::str
   }
 }
 
-YAML::Node load_yaml_file(const std::string& path) {
+YAML::Node load_yaml_file(const std::string& given_path) {
+  const std::string path = resolve_data_path(given_path);
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
-  if (!std::filesystem::exists(status)) throw InputError(path + ": file not found");
+  if (!std::filesystem::exists(status)) {
+    throw InputError(path + ": file not found (" + data_dirs_text() + ")");
+  }
   if (std::filesystem::is_directory(status)) {
     throw InputError(path + ": is a directory, expected a YAML file");
   }

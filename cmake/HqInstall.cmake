@@ -1,0 +1,33 @@
+# `cmake --install build [--prefix P]` and `cpack` (a .deb): the operator's programs in bin/ and
+# the files they ship with under share/haptiquad/, in the repository's relative layout, where
+# hq::config::resolve_data_path() finds them from the executable's own location.
+
+set(HQ_PROGRAMS hq-onboard hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate
+                hq-velocity-eval)
+install(TARGETS ${HQ_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+
+set(HQ_DATA_DESTINATION ${CMAKE_INSTALL_DATADIR}/haptiquad)
+install(DIRECTORY config/ DESTINATION ${HQ_DATA_DESTINATION}/config FILES_MATCHING PATTERN "*.yaml")
+install(DIRECTORY calib/ DESTINATION ${HQ_DATA_DESTINATION}/calib
+        FILES_MATCHING PATTERN "*.yaml" PATTERN "test" EXCLUDE)
+install(DIRECTORY onboard/sim/worlds/ DESTINATION ${HQ_DATA_DESTINATION}/onboard/sim/worlds)
+install(DIRECTORY onboard/closed_loop/flights/
+        DESTINATION ${HQ_DATA_DESTINATION}/onboard/closed_loop/flights)
+install(DIRECTORY ground/config/ DESTINATION ${HQ_DATA_DESTINATION}/ground/config)
+install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+
+set(CPACK_PACKAGE_NAME haptiquad)
+set(CPACK_PACKAGE_VENDOR "HaptiQuad")
+set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
+    "Haptic and keyboard teleoperation of an indoor quadrotor with RGB-D velocity estimation")
+set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
+set(CPACK_GENERATOR DEB)
+set(CPACK_DEBIAN_PACKAGE_MAINTAINER "HaptiQuad developers <haptiquad@localhost>")
+set(CPACK_DEBIAN_PACKAGE_SECTION science)
+set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
+# The Debian libraries the programs link come from dpkg-shlibdeps, not a hand-kept list.
+set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# hq-report draws its plots with gnuplot (spawned, not linked), so dpkg-shlibdeps cannot see it.
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "gnuplot-nox | gnuplot")
+set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
+include(CPack)
