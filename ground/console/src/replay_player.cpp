@@ -320,6 +320,12 @@ void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
   model.on_replay(status);
 }
 
+void format_clock(double t_s, char* out, std::size_t size) {
+  const double t = std::max(t_s, 0.0);
+  const int minutes = static_cast<int>(t / 60.0);
+  std::snprintf(out, size, "%02d:%04.1f", minutes, t - 60.0 * minutes);
+}
+
 void ReplayControl::apply(ReplayPlayer& player) {
   for (int n = toggles.exchange(0); n > 0; --n) player.toggle_play();
   for (int n = speed_steps.exchange(0); n != 0; n += n > 0 ? -1 : 1) {

@@ -138,6 +138,9 @@ class ReplayPlayer {
   mutable std::vector<double> latency_window_;
 };
 
+/// "mm:ss.s" of a replay clock.
+void format_clock(double t_s, char* out, std::size_t size);
+
 /// Requests from the UI thread to the thread that owns the player: lock-free, the latest of
 /// each kind wins.
 struct ReplayControl {
