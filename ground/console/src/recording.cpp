@@ -458,12 +458,12 @@ Recording load_recording(const std::string& directory) {
         return true;
       });
 
-  CsvFile(r, "events.csv", {"receipt_ns", "severity", "text"}, true)
-      .check_stamps(starts)
-      .read([&](const auto& f, std::string& error) {
+  CsvFile events(r, "events.csv", {"receipt_ns", "severity", "text", "code"}, true, 3);
+  events.check_stamps(starts).read([&](const auto& f, std::string& error) {
         RecordedEvent e;
-        if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity)) {
-          error = "receipt_ns or severity is not an integer";
+        if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity) ||
+            (events.has(3) && !parse_integer(f[3], e.code))) {
+          error = "receipt_ns, severity or code is not an integer";
           return false;
         }
         std::string_view text = f[2];

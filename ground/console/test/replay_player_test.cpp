@@ -41,8 +41,8 @@ Recording synthetic(double restart_at_s = -1, bool with_sessions = true) {
     c.valid = true;
     r.commands.push_back(c);
   }
-  r.events.push_back({kT0 + 1'000'000'000LL, 0, "teleop requested"});
-  r.events.push_back({kT0 + 6'000'000'000LL, 1, "obstacle close"});
+  r.events.push_back({kT0 + 1'000'000'000LL, 0, -1, "teleop requested"});
+  r.events.push_back({kT0 + 6'000'000'000LL, 1, -1, "obstacle close"});
   return r;
 }
 

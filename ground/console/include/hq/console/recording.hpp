@@ -69,6 +69,7 @@ struct RecordedModeRequest {
 struct RecordedEvent {
   std::int64_t receipt_ns = 0;
   int severity = 0;
+  int code = -1;  ///< The vehicle's event code (7: ground heartbeat lost); -1 not recorded.
   std::string text;
 };
 
