@@ -66,6 +66,8 @@ struct Options {
   double seek_s = 0.0;   ///< Replay: start here (s from the recording's start).
   bool paused = false;   ///< Replay: start paused.
   std::string keys;      ///< "T:KEY,...": keys typed into the window T s after it opens.
+  int window_w_px = 1600;  ///< --window-size WxH.
+  int window_h_px = 960;
   std::string screenshot_path;
   std::string state_json_path;
   double max_fps = 60.0;
@@ -235,7 +237,7 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
                                     hq::console::ConsoleModel& model, UiRequests& requests,
                                     const std::atomic<bool>& done, hq::console::Snapshot& snap,
                                     hq::console::FlightKeys* flight_keys = nullptr) {
-  hq::console::ConsoleWindow window(title, 1600, 960, o.max_fps);
+  hq::console::ConsoleWindow window(title, o.window_w_px, o.window_h_px, o.max_fps);
   window.set_flight_keys(flight_keys);
   const auto start = std::chrono::steady_clock::now();
   auto next_print = start + std::chrono::seconds(1);
@@ -310,7 +312,8 @@ hq::console::WindowStats run_replay_window(const Options& o, hq::console::Consol
                                            const hq::console::Timeline& timeline,
                                            hq::console::ReplayControl& control,
                                            hq::console::Snapshot& snap) {
-  hq::console::ConsoleWindow window("hq-ground replay " + o.replay_dir, 1600, 960, o.max_fps);
+  hq::console::ConsoleWindow window("hq-ground replay " + o.replay_dir, o.window_w_px,
+                                    o.window_h_px, o.max_fps);
   window.set_replay(&timeline);
   const std::vector<std::pair<double, std::string>> keys = parse_keys(o.keys);
   std::size_t next_key = 0;
@@ -466,6 +469,8 @@ int run(int argc, char** argv) {
   app.add_option("--seek", o.seek_s, "replay: start this many seconds into the recording")
       ->check(CLI::Range(0.0, 86400.0));
   app.add_flag("--paused", o.paused, "replay: start paused (Space plays)");
+  std::string window_size;
+  app.add_option("--window-size", window_size, "console window size WxH (default 1600x960)");
   app.add_option("--keys", o.keys,
                  "replay window: keys typed as SECONDS:KEY,... after it opens (scripted runs)");
   app.add_option("--screenshot", o.screenshot_path, "write the console's last frame as PNG");
@@ -480,6 +485,16 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  if (!window_size.empty()) {
+    char x = 0;
+    char rest = 0;
+    if (std::sscanf(window_size.c_str(), "%d%c%d%c", &o.window_w_px, &x, &o.window_h_px, &rest) != 3 ||
+        x != 'x' || o.window_w_px < 320 || o.window_h_px < 240 || o.window_w_px > 8192 ||
+        o.window_h_px > 8192) {
+      throw hq::InputError("--window-size " + window_size +
+                           ": expected WxH in pixels, 320x240 to 8192x8192 (e.g. 1280x800)");
+    }
   }
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);

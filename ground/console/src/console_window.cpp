@@ -577,6 +577,7 @@ struct ConsoleWindow::Impl {
     ImGui::Text("roll %+.1f deg  pitch %+.1f deg", static_cast<double>(s.roll_rad) * 57.29578,
                 static_cast<double>(s.pitch_rad) * 57.29578);
     // A replay has no vehicle to ask: the requests are greyed out, not live-looking.
+    if (s.replay.active) ImGui::TextDisabled("replay: mode requests off (no vehicle to ask)");
     ImGui::BeginDisabled(s.replay.active);
     static const char* const kModes[5] = {"teleop", "hover", "land", "marker", "explore"};
     static const char* const kKeys[5] = {"teleop (T)", "hover (H)", "land (L)", "marker (M)",
