@@ -88,11 +88,10 @@ const hq::console::RecordedCommand* command_at(const std::vector<hq::console::Re
   return it == c.begin() ? nullptr : &*(it - 1);
 }
 
-// gnuplot objects behind every time plot: the vehicle's mode bands, event marks (ticks at the
-// top, coloured by severity) and vehicle restarts (red lines).
-std::string band_script(const hq::console::ReportFigures& f,
-                        const std::vector<hq::console::RecordedEvent>& events,
-                        std::int64_t t0_ns) {
+// gnuplot objects behind every time plot, as on the replay's scrub bar: the vehicle's mode
+// bands (none where no state came for over a second), event marks (ticks at the top, coloured by
+// severity) and vehicle restarts (red lines).
+std::string band_script(const hq::console::Timeline& t) {
   const auto colour = [](std::string_view mode) {
     if (mode == "teleop") return "#3ca050";
     if (mode == "hover") return "#3c6ebe";
@@ -103,36 +102,27 @@ std::string band_script(const hq::console::ReportFigures& f,
   };
   std::string gp;
   char line[256];
-  double start_s = 0;
-  const char* mode = f.initial_mode;
   int object = 1;
-  const auto band = [&](double end_s) {
+  for (const hq::console::ModeBand& b : t.bands) {
     std::snprintf(line, sizeof line,
                   "set object %d rect from %.3f, graph 0 to %.3f, graph 1 fc rgb '%s' fs "
                   "transparent solid 0.12 noborder behind\n",
-                  object++, start_s, end_s, colour(mode));
+                  object++, b.start_s, std::max(b.end_s, b.start_s + 1e-3), colour(b.mode));
     gp += line;
-  };
-  for (const hq::console::ModeChange& c : f.mode_changes) {
-    band(c.t_s);
-    start_s = c.t_s;
-    mode = c.to;
   }
-  band(f.duration_s);
   int arrow = 1;
-  for (const hq::console::RecordedEvent& e : events) {
-    const double t_s = 1e-9 * static_cast<double>(e.receipt_ns - t0_ns);
+  for (const hq::console::EventMark& e : t.marks) {
     std::snprintf(line, sizeof line,
                   "set arrow %d from %.3f, graph 0.92 to %.3f, graph 1 nohead lw 2 lc rgb '%s'\n",
-                  arrow++, t_s, t_s,
+                  arrow++, e.t_s, e.t_s,
                   e.severity >= 2 ? "#e03030" : e.severity == 1 ? "#e0a000" : "#808080");
     gp += line;
   }
-  for (std::size_t i = 1; i < f.sessions.size(); ++i) {
+  for (std::size_t i = 1; i < t.sessions.size(); ++i) {
     std::snprintf(line, sizeof line,
                   "set arrow %d from %.3f, graph 0 to %.3f, graph 1 nohead lw 3 lc rgb '#ff0000'\n"
                   "set label %zu 'vehicle restarted' at %.3f, graph 0.85 tc rgb '#ff0000'\n",
-                  arrow++, f.sessions[i].start_s, f.sessions[i].start_s, i, f.sessions[i].start_s);
+                  arrow++, t.sessions[i].t_s, t.sessions[i].t_s, i, t.sessions[i].t_s);
     gp += line;
   }
   return gp;
@@ -180,7 +170,9 @@ int run(int argc, char** argv) {
   const hq::console::ReportFigures fig = hq::console::compute_report(r);
   // One data file for gnuplot: a blank line between vehicle sessions breaks every trace there
   // (a restarted vehicle's track is not joined to its predecessor's).
-  const std::int64_t t0_ns = r.states.front().receipt_ns;
+  // Times on the replay's timeline (from the recording's earliest stamp), so that the page and
+  // hq-ground --replay name the same instant alike.
+  const std::int64_t t0_ns = fig.timeline.t0_ns;
   Summary sum;
   const std::string data_name = "flight.dat";
   const std::string data_path = (fs::path(out_dir) / data_name).string();
@@ -271,10 +263,10 @@ int run(int argc, char** argv) {
     std::ofstream gp(script_path);
     if (!gp) throw hq::InputError(script_path + ": cannot open for writing");
     gp << "set terminal " << terminal << "\nset grid\nset key outside top center horizontal\n"
-       << "d = '" << data_name << "'\nset xrange [0:" << std::max(fig.duration_s, 1e-3) << "]\n"
+       << "d = '" << data_name << "'\nset xrange [0:" << std::max(fig.timeline.duration_s, 1e-3) << "]\n"
        << "# Mode bands (teleop green, hover blue, land orange, marker purple, explore teal),\n"
        << "# event ticks (grey info, amber warning, red error), vehicle restarts (red).\n"
-       << band_script(fig, r.events, t0_ns);
+       << band_script(fig.timeline);
     gp << "set output '" << ("velocity_H." + format) << "'\n"
        << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded"
        << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";

@@ -18,9 +18,10 @@ double seconds(std::int64_t from_ns, std::int64_t to_ns) {
 ReportFigures compute_report(const Recording& r) {
   ReportFigures f;
   f.states = r.states.size();
+  f.timeline = make_timeline(r);
   if (r.states.empty()) return f;
-  const std::int64_t t0_ns = r.states.front().receipt_ns;
-  f.duration_s = seconds(t0_ns, r.states.back().receipt_ns);
+  const std::int64_t t0_ns = f.timeline.t0_ns;
+  f.duration_s = seconds(r.states.front().receipt_ns, r.states.back().receipt_ns);
   const std::vector<SessionStart> starts = find_sessions(r.states, t0_ns);
   for (std::size_t k = 0; k < starts.size(); ++k) {
     const std::size_t first = starts[k].first_state;

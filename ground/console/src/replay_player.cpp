@@ -74,15 +74,20 @@ Timeline make_timeline(const Recording& r) {
   if (first == kNone) return t;
   t.t0_ns = first;
   t.duration_s = seconds_between(first, last);
+  // A band ends where the mode changes, or at the last state before a silence of more than
+  // kBandGapS (no state: no mode to show, the bar stays empty there).
+  constexpr double kBandGapS = 1.0;
+  double previous_s = -1;
   for (const RecordedState& s : r.states) {
     const double at_s = seconds_between(first, s.receipt_ns);
-    if (t.bands.empty() || t.bands.back().mode != s.mode) {
-      if (!t.bands.empty()) t.bands.back().end_s = at_s;
+    const bool silence = previous_s >= 0 && at_s - previous_s > kBandGapS;
+    if (t.bands.empty() || t.bands.back().mode != s.mode || silence) {
+      if (!t.bands.empty() && !silence) t.bands.back().end_s = at_s;
       t.bands.push_back({at_s, at_s, s.mode});
     }
     t.bands.back().end_s = at_s;
+    previous_s = at_s;
   }
-  if (!t.bands.empty()) t.bands.back().end_s = t.duration_s;
   for (const RecordedEvent& e : r.events) {
     t.marks.push_back({seconds_between(first, e.receipt_ns), e.severity});
   }

@@ -55,11 +55,21 @@ TEST(ReplayTimeline, SpansTheRecordingWithModeBandsAndEventMarks) {
   EXPECT_STREQ(t.bands[0].mode, "hover");
   EXPECT_STREQ(t.bands[1].mode, "teleop");
   EXPECT_NEAR(t.bands[1].start_s, 3.0, 0.05);
-  EXPECT_NEAR(t.bands[1].end_s, t.duration_s, 1e-9);
+  EXPECT_NEAR(t.bands[1].end_s, t.duration_s, 1e-6);  // the last state is the last stamp
   ASSERT_EQ(t.marks.size(), 2U);
   EXPECT_NEAR(t.marks[1].t_s, 6.0, 1e-3);
   EXPECT_EQ(t.marks[1].severity, 1);
   EXPECT_EQ(t.sessions.size(), 1U);
+}
+
+TEST(ReplayTimeline, ASilenceOfMoreThanASecondLeavesTheBarEmpty) {
+  Recording r = synthetic();
+  for (std::size_t i = 150; i < r.states.size(); ++i) r.states[i].receipt_ns += 3'000'000'000LL;
+  const Timeline t = make_timeline(r);
+  ASSERT_EQ(t.bands.size(), 3U);  // hover, teleop until the silence, teleop after it
+  EXPECT_NEAR(t.bands[1].end_s, 149 / 30.0, 0.01);
+  EXPECT_NEAR(t.bands[2].start_s, 150 / 30.0 + 3.0, 0.01);
+  EXPECT_STREQ(t.bands[2].mode, "teleop");
 }
 
 TEST(ReplayPlayer, PlaysPausesChangesSpeedAndStopsAtTheEnd) {

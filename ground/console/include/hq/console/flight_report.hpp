@@ -25,7 +25,7 @@ namespace hq::console {
 struct SessionFigures {
   std::uint64_t session_id = 0;  ///< 0: unknown (recording without sessions).
   const char* why = "";          ///< How its start was found.
-  double start_s = 0;            ///< Ground receipt time from the first state.
+  double start_s = 0;            ///< Its first state.
   double end_s = 0;
   std::size_t states = 0;
   double vehicle_duration_s = 0;  ///< Span of its vehicle stamps (the vehicle's own clock).
@@ -38,7 +38,9 @@ struct ModeChange {
   const char* to = "";
 };
 
+/// Times are seconds on the replay's timeline: from the recording's earliest stamp (Timeline).
 struct ReportFigures {
+  Timeline timeline;      ///< Its origin, span, mode bands, event marks and sessions.
   double duration_s = 0;  ///< First to last state, ground receipt time.
   std::size_t states = 0;
   std::vector<SessionFigures> sessions;
