@@ -196,6 +196,16 @@ void ConsoleModel::reset() {
   link_ = LinkHealth{};
 }
 
+void ConsoleModel::start_new_track() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  track_total_ = 0;
+  cloud_count_ = 0;
+  yaw_W_rad_ = 0;
+  x_W_m_ = 0;
+  y_W_m_ = 0;
+  have_state_ = false;  // no dead-reckoning step across the restart
+}
+
 Snapshot ConsoleModel::make_snapshot() const {
   Snapshot s;
   s.plot.resize(plot_.size());

@@ -252,6 +252,7 @@ void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
           timeline_.sessions[next_session_].first_state == is_) {
         const SessionStart& start = timeline_.sessions[next_session_++];
         if (start.first_state > 0) {
+          model.start_new_track();
           char text[160];
           std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session",
                         start.t_s, start.why);

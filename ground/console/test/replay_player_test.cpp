@@ -178,6 +178,8 @@ TEST(ReplayPlayer, ARestartedVehicleIsANewSessionNotALoss) {
     EXPECT_NE(std::strstr(snap.events[1].text.data(), "vehicle restarted at 4.0 s"), nullptr)
         << snap.events[1].text.data();
     EXPECT_EQ(snap.link.events, 2U);
+    // The restarted vehicle's track is its own: only the states since the restart.
+    EXPECT_EQ(snap.track_count, p.counts().states - 120U);
   }
 }
 

@@ -189,6 +189,9 @@ class ConsoleModel {
   /// Forgets every state, command, event and frame (a replay seeking backwards refills it);
   /// keeps the source and the buffers' storage.
   void reset();
+  /// A restarted vehicle (a new session): its track starts afresh at W's origin instead of
+  /// being joined to its predecessor's.
+  void start_new_track();
 
   /// A Snapshot with every buffer at its capacity.
   [[nodiscard]] Snapshot make_snapshot() const;
