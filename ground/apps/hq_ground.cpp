@@ -10,13 +10,15 @@
 //             [--station-strength N] [--command-rate-hz 50] [--record DIR]
 //             [--screenshot PNG] [--state-json PATH] [--max-fps 60]
 //             [--marker-task hold|goto|land --marker-id N]  (marker mode on that tag)
-//   hq-ground --replay DIR [--speed X] [--headless] [--duration-s N] [--screenshot PNG]
-//             [--state-json PATH]
+//   hq-ground --replay DIR [--speed X] [--seek S] [--paused] [--headless] [--duration-s N]
+//             [--screenshot PNG] [--state-json PATH] [--keys "T:KEY,..."]
+//             (replay window: Space play/pause, [ ] speed, Left/Right -/+5 s, click the bar)
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/console_model.hpp"
 #include "hq/console/console_window.hpp"
 #include "hq/console/recording.hpp"
+#include "hq/console/replay_player.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/ground/window_keyboard.hpp"
@@ -61,6 +63,11 @@ struct Options {
   std::string record_dir;
   std::string replay_dir;
   double speed = 1.0;
+  double seek_s = 0.0;   ///< Replay: start here (s from the recording's start).
+  bool paused = false;   ///< Replay: start paused.
+  std::string keys;      ///< "T:KEY,...": keys typed into the window T s after it opens.
+  int window_w_px = 1600;  ///< --window-size WxH.
+  int window_h_px = 960;
   std::string screenshot_path;
   std::string state_json_path;
   double max_fps = 60.0;
@@ -185,6 +192,18 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
     std::fprintf(f, "%s%u", i > 0 ? ", " : "", s.link.vehicle_ids[i]);
   }
   std::fprintf(f, "],\n  \"latency_p50_ms\": %.3f,\n", s.link.latency_p50_ms);
+  std::fprintf(f,
+               "  \"state_rate_hz\": %.2f,\n  \"camera_rate_hz\": %.2f,\n  \"link_events\": %llu,\n",
+               s.link.state_rate_hz, s.link.camera_rate_hz,
+               static_cast<unsigned long long>(s.link.events));
+  if (s.replay.active) {
+    std::fprintf(f,
+                 "  \"replay\": {\"position_s\": %.3f, \"duration_s\": %.3f, \"speed\": %.2f, "
+                 "\"playing\": %s, \"at_end\": %s, \"sessions\": %zu},\n",
+                 s.replay.position_s, s.replay.duration_s, s.replay.speed,
+                 s.replay.playing ? "true" : "false", s.replay.at_end ? "true" : "false",
+                 s.replay.sessions);
+  }
   std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
                static_cast<unsigned long long>(replay_problems),
                static_cast<unsigned long long>(replay_frames_missing));
@@ -218,7 +237,7 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
                                     hq::console::ConsoleModel& model, UiRequests& requests,
                                     const std::atomic<bool>& done, hq::console::Snapshot& snap,
                                     hq::console::FlightKeys* flight_keys = nullptr) {
-  hq::console::ConsoleWindow window(title, 1600, 960, o.max_fps);
+  hq::console::ConsoleWindow window(title, o.window_w_px, o.window_h_px, o.max_fps);
   window.set_flight_keys(flight_keys);
   const auto start = std::chrono::steady_clock::now();
   auto next_print = start + std::chrono::seconds(1);
@@ -263,6 +282,69 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
   return st;
 }
 
+// "T:KEY,..." of --keys: each key typed T seconds after the window opens, in time order.
+std::vector<std::pair<double, std::string>> parse_keys(const std::string& text) {
+  std::vector<std::pair<double, std::string>> keys;
+  std::size_t start = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find(',', start);
+    if (end == std::string::npos) end = text.size();
+    const std::string item = text.substr(start, end - start);
+    const std::size_t colon = item.find(':');
+    char* number_end = nullptr;
+    const double t_s = colon == std::string::npos ? -1 : std::strtod(item.c_str(), &number_end);
+    if (colon == std::string::npos || number_end != item.c_str() + colon || !(t_s >= 0) ||
+        colon + 1 >= item.size()) {
+      throw hq::InputError("--keys '" + text + "': item '" + item +
+                           "', expected SECONDS:KEY (e.g. 1.5:Space)");
+    }
+    keys.emplace_back(t_s, item.substr(colon + 1));
+    start = end + 1;
+  }
+  std::stable_sort(keys.begin(), keys.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  return keys;
+}
+
+// The replay's window on this (the main) thread until quit or --duration-s: the timeline
+// strip's requests go to `control` for the player's thread.
+hq::console::WindowStats run_replay_window(const Options& o, hq::console::ConsoleModel& model,
+                                           const hq::console::Timeline& timeline,
+                                           hq::console::ReplayControl& control,
+                                           hq::console::Snapshot& snap) {
+  hq::console::ConsoleWindow window("hq-ground replay " + o.replay_dir, o.window_w_px,
+                                    o.window_h_px, o.max_fps);
+  window.set_replay(&timeline);
+  const std::vector<std::pair<double, std::string>> keys = parse_keys(o.keys);
+  std::size_t next_key = 0;
+  const auto start = std::chrono::steady_clock::now();
+  while (!g_stop) {
+    const double elapsed_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    for (; next_key < keys.size() && keys[next_key].first <= elapsed_s; ++next_key) {
+      window.queue_key(keys[next_key].second);
+    }
+    model.snapshot(snap);
+    const hq::console::UiActions actions = window.frame(snap);
+    if (actions.quit) break;
+    if (actions.replay_toggle) control.toggles.fetch_add(1);
+    if (actions.replay_speed_step != 0) control.speed_steps.fetch_add(actions.replay_speed_step);
+    if (actions.replay_seek_to_s >= 0) control.seek_to_s = actions.replay_seek_to_s;
+    if (actions.replay_seek_by_s != 0) control.seek_by_s.fetch_add(actions.replay_seek_by_s);
+    if (o.duration_s > 0 && elapsed_s >= o.duration_s) break;
+  }
+  model.snapshot(snap);
+  if (!o.screenshot_path.empty()) {
+    window.save_screenshot(snap, o.screenshot_path);
+    std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
+  }
+  const hq::console::WindowStats st = window.stats();
+  std::printf("  %-40s %.1f fps over %llu frames (render p50 %.2f ms, max %.2f ms; GL %s)\n",
+              "console", st.fps, static_cast<unsigned long long>(st.frames), st.render_ms_p50,
+              st.render_ms_max, st.gl_renderer.c_str());
+  return st;
+}
+
 int run_replay(const Options& o) {
   const hq::console::Recording recording = hq::console::load_recording(o.replay_dir);
   std::fprintf(stderr, "hq-ground: replay %s: %zu states, %zu commands, %zu events, %zu frames\n",
@@ -275,39 +357,67 @@ int run_replay(const Options& o) {
   }
   hq::console::ConsoleModel model;
   model.set_source("replay " + o.replay_dir);
-  for (const hq::console::RecordedEvent& e : recording.events) {
-    (void)e;  // events are replayed on their time, like the rest
+  hq::console::ReplayPlayer player(recording);
+  if (o.seek_s > player.duration_s()) {
+    throw hq::InputError("--seek " + std::to_string(o.seek_s) + ": beyond the recording's " +
+                         std::to_string(player.duration_s()) + " s");
   }
+  for (const hq::console::SessionStart& session : player.timeline().sessions) {
+    if (session.first_state > 0) {
+      std::fprintf(stderr, "hq-ground: replay: vehicle restarted at %.1f s (%s)\n", session.t_s,
+                   session.why);
+    }
+  }
+  player.set_speed(o.speed);
+  player.seek(o.seek_s);
+  if (!o.paused) player.play();
+  hq::console::ReplayControl control;
   std::atomic<bool> stop{false};
-  std::atomic<bool> done{false};
+  std::atomic<bool> at_end{false};
   std::atomic<std::uint64_t> frames_missing{0};
-  std::thread player([&] {
-    hq::console::replay(recording, model, o.speed, stop, frames_missing);
-    done = true;
+  // The player's thread: reads the frames on show from disk, never the window's.
+  std::thread player_thread([&] {
+    std::uint64_t missing = 0;
+    auto last = std::chrono::steady_clock::now();
+    auto next = last;
+    while (!stop) {
+      control.apply(player);
+      const auto now = std::chrono::steady_clock::now();
+      player.advance(std::chrono::duration<double>(now - last).count());
+      last = now;
+      player.feed(model, missing);
+      frames_missing = missing;
+      at_end = player.at_end();
+      next += std::chrono::milliseconds(20);
+      std::this_thread::sleep_until(next);
+    }
   });
   hq::console::Snapshot snap = model.make_snapshot();
   std::optional<hq::console::WindowStats> window;
   std::printf("hq-ground replay summary\n");
   if (o.headless) {
     const auto start = std::chrono::steady_clock::now();
-    while (!g_stop && !done &&
+    while (!g_stop && !at_end &&
            (o.duration_s <= 0 || std::chrono::duration<double>(std::chrono::steady_clock::now() -
                                                               start).count() < o.duration_s)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   } else {
-    // The window stays open after the end of the recording until closed or --duration-s.
-    const std::atomic<bool> never{false};
-    UiRequests ignored;
-    window = run_window(o, "hq-ground replay " + o.replay_dir, model, ignored, never, snap);
+    // The window stays open at the end of the recording (shown as such) until closed or
+    // --duration-s.
+    window = run_replay_window(o, model, player.timeline(), control, snap);
   }
   stop = true;
-  player.join();
+  player_thread.join();
   model.snapshot(snap);
-  std::printf("  %-40s %llu states, %llu camera frames (%llu missing), %zu problems\n",
+  char clock[16];
+  hq::console::format_clock(snap.replay.position_s, clock, sizeof clock);
+  std::printf("  %-40s %llu states, %llu camera frames (%llu missing), %zu problems, at %s of "
+              "%.1f s%s\n",
               "replayed", static_cast<unsigned long long>(snap.plot_total),
               static_cast<unsigned long long>(snap.link.camera_frames),
-              static_cast<unsigned long long>(frames_missing.load()), recording.problem_count);
+              static_cast<unsigned long long>(frames_missing.load()), recording.problem_count,
+              clock, snap.replay.duration_s, snap.replay.at_end ? " (end of recording)" : "");
   if (!o.state_json_path.empty()) {
     write_state_json(o.state_json_path, snap, window ? &*window : nullptr, recording.problem_count,
                      frames_missing.load());
@@ -355,7 +465,14 @@ int run(int argc, char** argv) {
   app.add_option("--record", o.record_dir,
                  "record the flight here (telemetry, commands, events CSV; camera as TUM rgb/)");
   app.add_option("--replay", o.replay_dir, "play a recording back into the console; no link");
-  app.add_option("--speed", o.speed, "replay speed factor")->check(CLI::Range(0.01, 100.0));
+  app.add_option("--speed", o.speed, "replay speed factor")->check(CLI::Range(0.25, 8.0));
+  app.add_option("--seek", o.seek_s, "replay: start this many seconds into the recording")
+      ->check(CLI::Range(0.0, 86400.0));
+  app.add_flag("--paused", o.paused, "replay: start paused (Space plays)");
+  std::string window_size;
+  app.add_option("--window-size", window_size, "console window size WxH (default 1600x960)");
+  app.add_option("--keys", o.keys,
+                 "replay window: keys typed as SECONDS:KEY,... after it opens (scripted runs)");
   app.add_option("--screenshot", o.screenshot_path, "write the console's last frame as PNG");
   app.add_option("--state-json", o.state_json_path, "write the console's state at exit as JSON");
   app.add_option("--max-fps", o.max_fps, "console frame-rate cap")->check(CLI::Range(1.0, 500.0));
@@ -368,6 +485,16 @@ int run(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  if (!window_size.empty()) {
+    char x = 0;
+    char rest = 0;
+    if (std::sscanf(window_size.c_str(), "%d%c%d%c", &o.window_w_px, &x, &o.window_h_px, &rest) != 3 ||
+        x != 'x' || o.window_w_px < 320 || o.window_h_px < 240 || o.window_w_px > 8192 ||
+        o.window_h_px > 8192) {
+      throw hq::InputError("--window-size " + window_size +
+                           ": expected WxH in pixels, 320x240 to 8192x8192 (e.g. 1280x800)");
+    }
   }
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);

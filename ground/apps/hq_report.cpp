@@ -9,6 +9,7 @@
 //   hq-report <recording-dir> [--out DIR] [--format png|svg]
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
+#include "hq/console/flight_report.hpp"
 #include "hq/console/recording.hpp"
 
 #include <CLI/CLI.hpp>
@@ -39,14 +40,7 @@ struct Summary {
   double duration_s = 0;
   std::array<double, 3> rms_tracking_mps{};  ///< |v_est - v_cmd| per axis of H, teleop only.
   std::size_t tracking_samples = 0;
-  double closest_obstacle_m = NAN;
   double max_v_obs_mps = 0;
-  std::vector<std::string> mode_changes;
-  std::size_t sequence_gaps = 0;
-  double max_state_gap_s = 0;
-  double latency_p50_ms = 0;
-  double latency_max_ms = 0;
-  std::size_t warnings = 0;
   /// |v_est - v_truth| per axis of H over the states that carry simulator truth.
   std::array<double, 3> rmse_truth_mps{};
   std::size_t truth_samples = 0;
@@ -94,6 +88,53 @@ const hq::console::RecordedCommand* command_at(const std::vector<hq::console::Re
   return it == c.begin() ? nullptr : &*(it - 1);
 }
 
+// gnuplot objects behind every time plot, as on the replay's scrub bar: the vehicle's mode
+// bands (none where no state came for over a second), event marks (ticks at the top, coloured by
+// severity) and vehicle restarts (red lines).
+std::string band_script(const hq::console::Timeline& t) {
+  const auto colour = [](std::string_view mode) {
+    if (mode == "teleop") return "#3ca050";
+    if (mode == "hover") return "#3c6ebe";
+    if (mode == "land") return "#d28228";
+    if (mode == "marker") return "#9650b4";
+    if (mode == "explore") return "#28a0a0";
+    return "#5a5a5a";
+  };
+  std::string gp;
+  char line[256];
+  int object = 1;
+  for (const hq::console::ModeBand& b : t.bands) {
+    std::snprintf(line, sizeof line,
+                  "set object %d rect from %.3f, graph 0 to %.3f, graph 1 fc rgb '%s' fs "
+                  "transparent solid 0.12 noborder behind\n",
+                  object++, b.start_s, std::max(b.end_s, b.start_s + 1e-3), colour(b.mode));
+    gp += line;
+  }
+  int arrow = 1;
+  for (const hq::console::EventMark& e : t.marks) {
+    std::snprintf(line, sizeof line,
+                  "set arrow %d from %.3f, graph 0.92 to %.3f, graph 1 nohead lw 2 lc rgb '%s'\n",
+                  arrow++, e.t_s, e.t_s,
+                  e.severity >= 2 ? "#e03030" : e.severity == 1 ? "#e0a000" : "#808080");
+    gp += line;
+  }
+  for (std::size_t i = 1; i < t.sessions.size(); ++i) {
+    std::snprintf(line, sizeof line,
+                  "set arrow %d from %.3f, graph 0 to %.3f, graph 1 nohead lw 3 lc rgb '#ff0000'\n"
+                  "set label %zu 'vehicle restarted' at %.3f, graph 0.85 tc rgb '#ff0000'\n",
+                  arrow++, t.sessions[i].t_s, t.sessions[i].t_s, i, t.sessions[i].t_s);
+    gp += line;
+  }
+  return gp;
+}
+
+std::string number_or_nan(double v) {
+  if (!std::isfinite(v)) return "NaN";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4f", v);
+  return text;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"hq-report: flight report of an hq-ground recording"};
   std::string dir;
@@ -108,7 +149,13 @@ int run(int argc, char** argv) {
     return app.exit(e);
   }
   if (out_dir.empty()) out_dir = (fs::path(dir) / "report").string();
-  const hq::console::Recording r = hq::console::load_recording(dir);
+  hq::console::Recording r;
+  try {
+    r = hq::console::load_recording(dir);
+  } catch (const hq::InputError& e) {
+    throw hq::InputError(std::string(e.what()) +
+                         " (usage: hq-report <recording-dir> [--out DIR] [--format png|svg])");
+  }
   for (const std::string& p : r.problems) std::fprintf(stderr, "hq-report: %s\n", p.c_str());
   for (const std::string& c : r.absent_columns) {
     std::fprintf(stderr, "hq-report: column absent (older layout): %s\n", c.c_str());
@@ -120,40 +167,41 @@ int run(int argc, char** argv) {
   fs::create_directories(out_dir, ec);
   if (ec) throw hq::InputError("--out " + out_dir + ": cannot create: " + ec.message());
 
-  // One data file for gnuplot: time, estimate, command, v_obs, yaw rates, track, closest.
-  const std::int64_t t0_ns = r.states.front().receipt_ns;
+  const hq::console::ReportFigures fig = hq::console::compute_report(r);
+  // One data file for gnuplot: a blank line between vehicle sessions breaks every trace there
+  // (a restarted vehicle's track is not joined to its predecessor's).
+  // Times on the replay's timeline (from the recording's earliest stamp), so that the page and
+  // hq-ground --replay name the same instant alike.
+  const std::int64_t t0_ns = fig.timeline.t0_ns;
   Summary sum;
   const std::string data_name = "flight.dat";
   const std::string data_path = (fs::path(out_dir) / data_name).string();
   std::ofstream data(data_path);
   if (!data) throw hq::InputError(data_path + ": cannot open for writing");
   data << "# t_s v_est_x v_est_y v_est_z v_cmd_x v_cmd_y v_cmd_z v_obs_x v_obs_y v_obs_z "
-          "yaw_cmd yaw_meas x_W y_W closest_m latency_ms v_truth_x v_truth_y v_truth_z "
-          "p_W_x p_W_y (NaN: absent)\n";
+          "yaw_cmd yaw_meas x_W y_W cloud_nearest_m latency_ms v_truth_x v_truth_y v_truth_z "
+          "p_W_x p_W_y height_m clearance_m session (NaN: absent)\n";
   double yaw = 0;
   double x = 0;
   double y = 0;
-  std::vector<double> latencies;
-  const char* previous_mode = nullptr;
+  std::size_t session = 0;
   for (std::size_t i = 0; i < r.states.size(); ++i) {
     const hq::console::RecordedState& s = r.states[i];
     const double t_s = 1e-9 * static_cast<double>(s.receipt_ns - t0_ns);
-    if (i > 0) {
-      // Dead reckoning as the console's top view: p_W += R_z(yaw) v_H dt.
+    const bool new_session =
+        session + 1 < fig.sessions.size() &&
+        s.receipt_ns - t0_ns >= static_cast<std::int64_t>(std::llround(fig.sessions[session + 1].start_s * 1e9));
+    if (new_session) {
+      ++session;
+      yaw = x = y = 0;  // a new vehicle: its own dead-reckoned track from its own start
+      data << '\n';
+    } else if (i > 0) {
+      // Dead reckoning as the console's top view: p_W += R_z(yaw) v_H dt (a gap of more than a
+      // second is not bridged).
       const double dt = std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0);
-      sum.max_state_gap_s = std::max(sum.max_state_gap_s, dt);
-      if (s.sequence > r.states[i - 1].sequence + 1) {
-        sum.sequence_gaps += s.sequence - r.states[i - 1].sequence - 1;
-      }
       yaw += s.omega_body_radps[2] * dt;
       x += (std::cos(yaw) * s.v_H_mps[0] - std::sin(yaw) * s.v_H_mps[1]) * dt;
       y += (std::sin(yaw) * s.v_H_mps[0] + std::cos(yaw) * s.v_H_mps[1]) * dt;
-    }
-    if (previous_mode != s.mode) {
-      char line[96];
-      std::snprintf(line, sizeof line, "%.2f s: %s", t_s, s.mode);
-      sum.mode_changes.emplace_back(line);
-      previous_mode = s.mode;
     }
     const hq::console::RecordedCommand* c = command_at(r.commands, s.receipt_ns);
     const std::array<float, 3> v_cmd = c ? c->v_H_mps : std::array<float, 3>{};
@@ -165,11 +213,6 @@ int run(int argc, char** argv) {
       }
       ++sum.tracking_samples;
     }
-    if (std::isfinite(s.closest_obstacle_m)) {
-      sum.closest_obstacle_m = std::isnan(sum.closest_obstacle_m)
-                                   ? s.closest_obstacle_m
-                                   : std::min(sum.closest_obstacle_m, s.closest_obstacle_m);
-    }
     sum.max_v_obs_mps = std::max(sum.max_v_obs_mps,
                                  static_cast<double>(std::hypot(s.v_obs_H_mps[0], s.v_obs_H_mps[1], s.v_obs_H_mps[2])));
     if (s.truth_valid) {
@@ -180,13 +223,11 @@ int run(int argc, char** argv) {
       ++sum.truth_samples;
     }
     sum.position_samples += s.position_valid ? 1 : 0;
-    latencies.push_back(s.latency_ms);
     data << t_s << ' ' << s.v_H_mps[0] << ' ' << s.v_H_mps[1] << ' ' << s.v_H_mps[2] << ' '
          << v_cmd[0] << ' ' << v_cmd[1] << ' ' << v_cmd[2] << ' ' << s.v_obs_H_mps[0] << ' '
          << s.v_obs_H_mps[1] << ' ' << s.v_obs_H_mps[2] << ' ' << yaw_cmd << ' '
          << s.omega_body_radps[2] << ' ' << x << ' ' << y << ' '
-         << (std::isfinite(s.closest_obstacle_m) ? std::to_string(s.closest_obstacle_m) : "NaN")
-         << ' ' << s.latency_ms;
+         << number_or_nan(s.closest_obstacle_m) << ' ' << s.latency_ms;
     // gnuplot leaves NaN points out, so absent truth or position breaks the trace there.
     for (std::size_t a = 0; a < 3; ++a) {
       data << ' ' << (s.truth_valid ? std::to_string(s.v_truth_H_mps[a]) : "NaN");
@@ -194,30 +235,38 @@ int run(int argc, char** argv) {
     for (std::size_t a = 0; a < 2; ++a) {
       data << ' ' << (s.position_valid ? std::to_string(s.p_W_m[a]) : "NaN");
     }
-    data << '\n';
+    data << ' ' << number_or_nan(s.height_m) << ' ' << number_or_nan(s.clearance_m) << ' '
+         << session << '\n';
   }
   data.close();
   if (!data) throw hq::InputError(data_path + ": write failed (disk full?)");
-  sum.duration_s = 1e-9 * static_cast<double>(r.states.back().receipt_ns - t0_ns);
   for (double& v : sum.rms_tracking_mps) {
     v = sum.tracking_samples > 0 ? std::sqrt(v / static_cast<double>(sum.tracking_samples)) : NAN;
   }
   for (double& v : sum.rmse_truth_mps) {
     v = sum.truth_samples > 0 ? std::sqrt(v / static_cast<double>(sum.truth_samples)) : NAN;
   }
-  std::sort(latencies.begin(), latencies.end());
-  sum.latency_p50_ms = latencies[latencies.size() / 2];
-  sum.latency_max_ms = latencies.back();
-  for (const auto& e : r.events) sum.warnings += e.severity >= 1 ? 1 : 0;
+  const bool have_clearance = std::isfinite(fig.closest_clearance_m);
+  const bool have_height = fig.height_states > 0;
+  const bool have_cloud = std::isfinite(fig.closest_cloud_point_m);
+  // gnuplot refuses a plot whose points are all undefined: an empty frame that says so.
+  const char* const kNoData =
+      "set label 99 'not in this recording' at graph 0.4, graph 0.5\nset yrange [0:1]\n"
+      "plot -1 notitle\nunset label 99\nset autoscale y\n";
 
-  // The gnuplot script: one figure per Fig. 6-8 panel group.
+  // The gnuplot script: time plots over the mode bands, event marks and restarts.
   const std::string terminal = format == "png" ? "pngcairo size 1000,700" : "svg size 1000,700";
   const std::string script_path = (fs::path(out_dir) / "report.gp").string();
+  std::vector<std::string> figures = {"velocity_H", "v_obs", "yaw_rate", "height", "clearance",
+                                      "latency", "top_view"};
   {
     std::ofstream gp(script_path);
     if (!gp) throw hq::InputError(script_path + ": cannot open for writing");
     gp << "set terminal " << terminal << "\nset grid\nset key outside top center horizontal\n"
-       << "d = '" << data_name << "'\n";
+       << "d = '" << data_name << "'\nset xrange [0:" << std::max(fig.timeline.duration_s, 1e-3) << "]\n"
+       << "# Mode bands (teleop green, hover blue, land orange, marker purple, explore teal),\n"
+       << "# event ticks (grey info, amber warning, red error), vehicle restarts (red).\n"
+       << band_script(fig.timeline);
     gp << "set output '" << ("velocity_H." + format) << "'\n"
        << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded"
        << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";
@@ -229,7 +278,7 @@ int run(int argc, char** argv) {
       if (sum.truth_samples > 0) gp << ", d u 1:" << 17 + a << " w l lw 1 t 'truth'";
       gp << '\n';
     }
-    gp << "unset multiplot\nunset xlabel\n";
+    gp << "unset multiplot\n";
     gp << "set output '" << ("v_obs." + format) << "'\n"
        << "set title 'Obstacle repulsion v_{obs} in H (Fig. 8)'\nset xlabel 't [s]'\n"
        << "set ylabel '[m/s]'\nplot d u 1:8 w l lw 2 t 'x', d u 1:9 w l lw 2 t 'y', d u 1:10 w l "
@@ -237,13 +286,28 @@ int run(int argc, char** argv) {
     gp << "set output '" << ("yaw_rate." + format) << "'\n"
        << "set title 'Yaw rate: commanded vs measured'\nset ylabel '[rad/s]'\n"
        << "plot d u 1:11 w l lw 2 dt 2 t 'commanded', d u 1:12 w l lw 2 t 'measured (gyro z)'\n";
+    gp << "set output '" << ("height." + format) << "'\n"
+       << "set title 'Height above the floor (vehicle)" << (have_height ? "" : ": not recorded")
+       << "'\nset ylabel '[m]'\n"
+       << (have_height ? "plot d u 1:22 w l lw 2 t 'height_m'\n" : kNoData);
+    gp << "set output '" << ("clearance." + format) << "'\n"
+       << "set title 'Closest obstacle'\nset ylabel '[m]'\n"
+       << (have_clearance && have_cloud
+               ? "plot d u 1:23 w l lw 2 t 'clearance (vehicle)', d u 1:15 w p pt 7 ps 0.3 t "
+                 "'nearest cloud point from the body origin'\n"
+           : have_clearance ? "plot d u 1:23 w l lw 2 t 'clearance (vehicle)'\n"
+           : have_cloud ? "plot d u 1:15 w p pt 7 ps 0.3 t 'nearest cloud point from the body "
+                          "origin (the vehicle sent no clearance)'\n"
+                        : kNoData);
     gp << "set output '" << ("latency." + format) << "'\n"
        << "set title 'Vehicle state latency (one way)'\nset ylabel '[ms]'\n"
        << "plot d u 1:16 w l t 'latency'\n";
+    gp << "unset object\nunset arrow\nunset label\nset autoscale x\nunset xrange\n";
     gp << "set output '" << ("top_view." + format) << "'\n"
-       << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts)"
+       << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts); one track per vehicle session"
        << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "'\n"
        << "set size ratio -1\nset xlabel 'east y_W [m]'\nset ylabel 'north x_W [m]'\n"
+       << "set autoscale\n"
        << "plot d u 14:13 w l lw 2 t 'track (dead-reckoned)', d u (column(14)):(column(13)) "
           "every ::0::0 w p pt 7 ps 2 t 'start'";
     if (sum.position_samples > 0) gp << ", d u 21:20 w p pt 7 ps 0.4 t 'vehicle position p_W'";
@@ -255,44 +319,98 @@ int run(int argc, char** argv) {
                          (fs::path(out_dir) / "gnuplot.log").string());
   }
 
+  // The page: the same rows in Markdown (report.md) and HTML (report.html), figures embedded.
+  std::vector<std::pair<std::string, std::string>> rows;
+  char text[512];
+  const auto row = [&](const char* name, const char* format_text, auto... values) {
+    std::snprintf(text, sizeof text, format_text, values...);
+    rows.emplace_back(name, text);
+  };
+  row("duration", "%.1f s (ground receipt, first to last state), %zu states, %zu commands, %zu "
+                  "camera frames",
+      fig.duration_s, r.states.size(), r.commands.size(), r.rgb.size());
+  {
+    std::string list;
+    for (std::size_t i = 0; i < fig.sessions.size(); ++i) {
+      const hq::console::SessionFigures& s = fig.sessions[i];
+      std::snprintf(text, sizeof text, "%s%s %zu: %.1f-%.1f s, %zu states, %.1f s on the vehicle's clock, %llu lost%s",
+                    list.empty() ? "" : "; ", i == 0 ? "session" : "vehicle restarted, session",
+                    i + 1, s.start_s, s.end_s, s.states, s.vehicle_duration_s,
+                    static_cast<unsigned long long>(s.states_lost),
+                    s.session_id != 0 ? "" : " (no session id)");
+      list += text;
+    }
+    std::snprintf(text, sizeof text, "%zu: %s", fig.sessions.size(), list.c_str());
+    rows.emplace_back("vehicle sessions (restarts)", text);
+  }
+  row("tracking error RMS (teleop, v_est - v_cmd in H)", "x %.3f, y %.3f, z %.3f m/s over %zu states",
+      sum.rms_tracking_mps[0], sum.rms_tracking_mps[1], sum.rms_tracking_mps[2],
+      sum.tracking_samples);
+  if (sum.truth_samples > 0) {
+    row("velocity estimate RMSE vs truth (simulator, v_est - v_truth in H)",
+        "x %.3f, y %.3f, z %.3f m/s over %zu states", sum.rmse_truth_mps[0], sum.rmse_truth_mps[1],
+        sum.rmse_truth_mps[2], sum.truth_samples);
+  } else {
+    rows.emplace_back("velocity estimate RMSE vs truth", "no truth in this recording");
+  }
+  if (have_clearance) {
+    row("closest obstacle (vehicle's clearance)", "%.3f m at %.1f s", fig.closest_clearance_m,
+        fig.closest_clearance_at_s);
+  } else {
+    rows.emplace_back("closest obstacle (vehicle's clearance)",
+                      "not recorded (the vehicle sent no clearance)");
+  }
+  if (std::isfinite(fig.closest_cloud_point_m)) {
+    row("nearest cloud point from the body origin (not a clearance)", "%.3f m",
+        fig.closest_cloud_point_m);
+  }
+  if (have_height) {
+    row("height above the floor", "max %.2f m over %zu states", fig.max_height_m,
+        fig.height_states);
+  } else {
+    rows.emplace_back("height above the floor", "not recorded");
+  }
+  row("largest v_obs", "%.3f m/s", sum.max_v_obs_mps);
+  {
+    std::string list;
+    for (const hq::console::ModeChange& c : fig.mode_changes) {
+      std::snprintf(text, sizeof text, "%s%.2f s: %s -> %s", list.empty() ? "" : "; ", c.t_s,
+                    c.from, c.to);
+      list += text;
+    }
+    std::snprintf(text, sizeof text, "%zu (initial mode %s)%s%s", fig.mode_changes.size(),
+                  fig.initial_mode, list.empty() ? "" : ": ", list.c_str());
+    rows.emplace_back("mode changes", text);
+  }
+  {
+    std::string lost;
+    for (const double t_s : fig.link_lost_events_s) {
+      std::snprintf(text, sizeof text, "%s%.1f s", lost.empty() ? "" : ", ", t_s);
+      lost += text;
+    }
+    std::snprintf(text, sizeof text,
+                  "%llu states lost (within sessions), largest gap %.0f ms at %.1f s, %zu "
+                  "ground-heartbeat-lost event(s)%s%s, %zu warning/error events, %zu unreadable "
+                  "recording lines",
+                  static_cast<unsigned long long>(fig.states_lost), 1e3 * fig.largest_gap_s,
+                  fig.largest_gap_at_s, fig.link_lost_events_s.size(),
+                  lost.empty() ? "" : " at ", lost.c_str(), fig.warnings, r.problem_count);
+    rows.emplace_back("link incidents", text);
+  }
+  row("latency (one way)", "p50 %.2f ms, p99 %.2f ms, max %.2f ms", fig.latency_p50_ms,
+      fig.latency_p99_ms, fig.latency_max_ms);
+
   const std::string md_path = (fs::path(out_dir) / "report.md").string();
   std::FILE* md = std::fopen(md_path.c_str(), "w");
   if (md == nullptr) throw hq::InputError(md_path + ": cannot open for writing");
   std::fprintf(md, "# Flight report: %s\n\n", dir.c_str());
   std::fprintf(md, "| figure | value |\n| --- | --- |\n");
-  std::fprintf(md, "| duration | %.1f s, %zu states, %zu commands, %zu camera frames |\n",
-               sum.duration_s, r.states.size(), r.commands.size(), r.rgb.size());
-  std::fprintf(md, "| tracking error RMS (teleop, v_est - v_cmd in H) | x %.3f, y %.3f, z %.3f m/s "
-                   "over %zu states |\n",
-               sum.rms_tracking_mps[0], sum.rms_tracking_mps[1], sum.rms_tracking_mps[2],
-               sum.tracking_samples);
-  if (sum.truth_samples > 0) {
-    std::fprintf(md, "| velocity estimate RMSE vs truth (simulator, v_est - v_truth in H) | x "
-                     "%.3f, y %.3f, z %.3f m/s over %zu states |\n",
-                 sum.rmse_truth_mps[0], sum.rmse_truth_mps[1], sum.rmse_truth_mps[2],
-                 sum.truth_samples);
-  } else {
-    std::fprintf(md, "| velocity estimate RMSE vs truth | no truth in this recording |\n");
-  }
-  if (std::isnan(sum.closest_obstacle_m)) {
-    std::fprintf(md, "| closest obstacle | unknown (no obstacle cloud sent) |\n");
-  } else {
-    std::fprintf(md, "| closest obstacle | %.2f m |\n", sum.closest_obstacle_m);
-  }
-  std::fprintf(md, "| largest v_obs | %.3f m/s |\n", sum.max_v_obs_mps);
-  std::fprintf(md, "| mode changes | %zu: %s |\n", sum.mode_changes.size() - 1,
-               [&] {
-                 std::string all;
-                 for (const std::string& m : sum.mode_changes) all += (all.empty() ? "" : "; ") + m;
-                 return all;
-               }().c_str());
-  std::fprintf(md, "| link incidents | %zu states missing, largest gap %.0f ms, %zu warning/error "
-                   "events, %zu unreadable recording lines |\n",
-               sum.sequence_gaps, 1e3 * sum.max_state_gap_s, sum.warnings, r.problem_count);
-  std::fprintf(md, "| latency (one way) | p50 %.2f ms, max %.2f ms |\n\n", sum.latency_p50_ms,
-               sum.latency_max_ms);
-  for (const char* name : {"velocity_H", "v_obs", "yaw_rate", "top_view", "latency"}) {
-    std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
+  for (const auto& [name, value] : rows) std::fprintf(md, "| %s | %s |\n", name.c_str(), value.c_str());
+  std::fprintf(md, "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
+                   "orange, marker purple, explore teal), event ticks at the top (grey info, "
+                   "amber warning, red error), vehicle restarts as red lines.\n\n");
+  for (const std::string& name : figures) {
+    std::fprintf(md, "![%s](%s.%s)\n\n", name.c_str(), name.c_str(), format.c_str());
   }
   if (!r.absent_columns.empty()) {
     std::fprintf(md, "## Columns absent (older recording layout)\n\n");
@@ -303,9 +421,37 @@ int run(int argc, char** argv) {
     std::fprintf(md, "## Recording problems\n\n");
     for (const std::string& p : r.problems) std::fprintf(md, "- %s\n", p.c_str());
   }
-  std::fclose(md);
-  std::printf("hq-report: %s (figures %s in %s)\n", md_path.c_str(), format.c_str(),
-              out_dir.c_str());
+  if (std::fclose(md) != 0) throw hq::InputError(md_path + ": write failed");
+
+  // HTML: the same table and figures, one page to open in a browser.
+  const auto html_escape = [](const std::string& in) {
+    std::string out;
+    for (const char ch : in) {
+      if (ch == '<') out += "&lt;";
+      else if (ch == '>') out += "&gt;";
+      else if (ch == '&') out += "&amp;";
+      else out += ch;
+    }
+    return out;
+  };
+  const std::string html_path = (fs::path(out_dir) / "report.html").string();
+  std::ofstream html(html_path);
+  html << "<!doctype html><html><head><meta charset='utf-8'><title>Flight report</title>"
+          "<style>body{font-family:sans-serif;max-width:1050px;margin:auto}td,th{border:1px solid "
+          "#ccc;padding:4px}table{border-collapse:collapse}</style></head><body>\n<h1>Flight report: "
+       << html_escape(dir) << "</h1>\n<table><tr><th>figure</th><th>value</th></tr>\n";
+  for (const auto& [name, value] : rows) {
+    html << "<tr><td>" << html_escape(name) << "</td><td>" << html_escape(value) << "</td></tr>\n";
+  }
+  html << "</table>\n";
+  for (const std::string& name : figures) {
+    html << "<p><img src='" << name << "." << format << "' alt='" << name << "'></p>\n";
+  }
+  html << "</body></html>\n";
+  html.close();
+  if (!html) throw hq::InputError(html_path + ": write failed");
+  std::printf("hq-report: %s (and report.html; figures %s in %s)\n", md_path.c_str(),
+              format.c_str(), out_dir.c_str());
   return 0;
 }
 

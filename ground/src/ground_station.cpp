@@ -97,6 +97,40 @@ double closest_obstacle_m(const link::VehicleState& s) {
   return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
 }
 
+// Names of the link's flight enums as recorded (hq::console::load_recording reads them back);
+// a value the recorder does not know (a newer vehicle) goes out as "unknown".
+const char* flight_state_name(hq_msgs_FlightState v) {
+  switch (v) {
+    case hq_msgs_FLIGHT_LANDED: return "landed";
+    case hq_msgs_FLIGHT_TAKING_OFF: return "taking_off";
+    case hq_msgs_FLIGHT_AIRBORNE: return "airborne";
+    case hq_msgs_FLIGHT_LANDING: return "landing";
+  }
+  return "unknown";
+}
+
+const char* height_source_name(hq_msgs_HeightSource v) {
+  switch (v) {
+    case hq_msgs_HEIGHT_NONE: return "none";
+    case hq_msgs_HEIGHT_DEPTH: return "depth";
+    case hq_msgs_HEIGHT_ESTIMATE: return "estimate";
+  }
+  return "unknown";
+}
+
+const char* operator_input_name(hq_msgs_OperatorInput v) {
+  switch (v) {
+    case hq_msgs_INPUT_FLOWN: return "flown";
+    case hq_msgs_INPUT_NONE: return "none";
+    case hq_msgs_INPUT_IGNORED_MODE: return "ignored_mode";
+    case hq_msgs_INPUT_IGNORED_LANDED: return "ignored_landed";
+    case hq_msgs_INPUT_IGNORED_NOT_OWNER: return "ignored_not_owner";
+    case hq_msgs_INPUT_IGNORED_FAILSAFE: return "ignored_failsafe";
+    case hq_msgs_INPUT_LIMITED_UNSEEN: return "limited_unseen";
+  }
+  return "unknown";
+}
+
 }  // namespace
 
 TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(directory) {
@@ -140,11 +174,20 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
               "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
               "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
               "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
+              "# session_id: the vehicle process's session (a new value: the vehicle restarted);\n"
+              "# commanding_station_id: the station it obeys (0 none); flight_state, motors_armed;\n"
+              "# height_m above the floor from height_source (none: meaningless);\n"
+              "# operator_input: what the vehicle did with the command; v_cmd_flown_H: the\n"
+              "# command as flown (m/s); clearance_m: the vehicle's closest obstacle clearance\n"
+              "# (m, < 0: none seen).\n"
               "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
               "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
               "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
               "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
-              "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n\n"),
+              "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n,"
+              "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
+              "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
+              "clearance_m\n"),
           "telemetry.csv");
   written(
       std::fprintf(events_,
@@ -213,7 +256,8 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
       std::fprintf(
           telemetry_,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u\n",
+          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,%llu,%u,%s,%d,%s,%.4f,%s,%.4f,"
+          "%.4f,%.4f,%.4f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x, s.omega_body_radps.y,
@@ -221,7 +265,11 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           s.v_obs_H_mps.z, to_string(s.mode), to_string(s.estimator_health),
           to_string(s.link_health), s.vehicle_id, closest_obstacle_m(s), s.position_valid ? 1 : 0,
           s.p_W_m.x, s.p_W_m.y, s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
-          s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length),
+          s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length,
+          static_cast<unsigned long long>(s.session_id), s.commanding_station_id,
+          flight_state_name(s.flight_state), s.motors_armed ? 1 : 0,
+          height_source_name(s.height_source), s.height_m, operator_input_name(s.operator_input),
+          s.v_cmd_flown_H_mps.x, s.v_cmd_flown_H_mps.y, s.v_cmd_flown_H_mps.z, s.clearance_m),
       "telemetry.csv");
 }
 

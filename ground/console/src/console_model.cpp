@@ -158,6 +158,54 @@ void ConsoleModel::set_source(const std::string& text) {
   std::snprintf(source_.data(), source_.size(), "%s", text.c_str());
 }
 
+void ConsoleModel::on_replay(const ReplayStatus& replay) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  replay_ = replay;
+}
+
+void ConsoleModel::reset() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  have_t0_ = false;
+  t0_ns_ = 0;
+  last_state_ns_ = 0;
+  plot_total_ = 0;
+  track_total_ = 0;
+  cloud_count_ = 0;
+  events_total_ = 0;
+  jpeg_size_ = 0;
+  depth_size_ = 0;
+  camera_exposure_ns_ = -1;
+  camera_receipt_ns_ = -1;
+  command_ = {};
+  yaw_rate_command_ = 0;
+  yaw_W_rad_ = 0;
+  x_W_m_ = 0;
+  y_W_m_ = 0;
+  position_from_vehicle_ = false;
+  position_states_ = 0;
+  have_truth_ = false;
+  marker_count_ = 0;
+  marker_detections_ = 0;
+  have_state_ = false;
+  mode_ = "-";
+  estimator_health_ = "-";
+  link_health_ = "-";
+  roll_rad_ = 0;
+  pitch_rad_ = 0;
+  latest_ = PlotSample{};
+  link_ = LinkHealth{};
+}
+
+void ConsoleModel::start_new_track() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  track_total_ = 0;
+  cloud_count_ = 0;
+  yaw_W_rad_ = 0;
+  x_W_m_ = 0;
+  y_W_m_ = 0;
+  have_state_ = false;  // no dead-reckoning step across the restart
+}
+
 Snapshot ConsoleModel::make_snapshot() const {
   Snapshot s;
   s.plot.resize(plot_.size());
@@ -204,6 +252,7 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.haptics = haptics_;
   out.link = link_;
   out.source = source_;
+  out.replay = replay_;
 }
 
 }  // namespace hq::console

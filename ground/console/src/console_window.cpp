@@ -1,6 +1,7 @@
 #include "hq/console/console_window.hpp"
 
 #include "hq/base/error.hpp"
+#include "replay_strip.hpp"
 
 #include <GL/gl.h>
 #include <SDL.h>
@@ -372,6 +373,7 @@ struct ConsoleWindow::Impl {
   bool imgui_gl = false;
   double max_fps = 60;
   FlightKeys* flight_keys = nullptr;
+  const Timeline* replay = nullptr;  ///< Replay: the strip's timeline.
   Texture camera;
   Texture depth;
   FrameDecoder decoder;
@@ -574,6 +576,9 @@ struct ConsoleWindow::Impl {
                 s.estimator_health.c_str(), s.link_health.c_str());
     ImGui::Text("roll %+.1f deg  pitch %+.1f deg", static_cast<double>(s.roll_rad) * 57.29578,
                 static_cast<double>(s.pitch_rad) * 57.29578);
+    // A replay has no vehicle to ask: the requests are greyed out, not live-looking.
+    if (s.replay.active) ImGui::TextDisabled("replay: mode requests off (no vehicle to ask)");
+    ImGui::BeginDisabled(s.replay.active);
     static const char* const kModes[5] = {"teleop", "hover", "land", "marker", "explore"};
     static const char* const kKeys[5] = {"teleop (T)", "hover (H)", "land (L)", "marker (M)",
                                          "explore (X)"};
@@ -611,6 +616,7 @@ struct ConsoleWindow::Impl {
         actions.marker_id = marker_target_id;
       }
     }
+    ImGui::EndDisabled();
     ImGui::Separator();
     const HapticState& h = s.haptics;
     ImGui::Text("haptic device: %s  buttons 0x%x  %s", h.connected ? "connected" : "LOST",
@@ -635,7 +641,8 @@ struct ConsoleWindow::Impl {
   void link_panel(const Snapshot& s) {
     ImGui::Begin("Link health");
     const LinkHealth& l = s.link;
-    const char* state = l.state_age_s < 0 ? "waiting" : l.state_age_s < 0.2 ? "ok"
+    const char* state = s.replay.active ? (s.replay.at_end ? "END OF RECORDING" : "replayed")
+                        : l.state_age_s < 0 ? "waiting" : l.state_age_s < 0.2 ? "ok"
                         : l.state_age_s < 2.0 ? "STALE" : "LOST";
     ImGui::Text("states: %s (age %.2f s)  heartbeat %s", state, l.state_age_s,
                 l.heartbeat_seen ? "seen" : "none");
@@ -744,6 +751,12 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
         m.flight_keys->release_all();
       }
     }
+    if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard && m.replay != nullptr &&
+        event.key.keysym.sym != SDLK_ESCAPE) {
+      // Replay: its keys, and no mode requests (there is no vehicle to ask).
+      replay_key(event.key.keysym.sym, actions);
+      continue;
+    }
     if (event.type == SDL_KEYDOWN && event.key.repeat == 0 &&
         !ImGui::GetIO().WantCaptureKeyboard) {
       switch (event.key.keysym.sym) {
@@ -770,7 +783,9 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
   int h = 0;
   SDL_GetWindowSize(m.window, &w, &h);
   const float W = static_cast<float>(w);
-  const float H = static_cast<float>(h);
+  // Replay: the timeline strip takes the bottom; the panels share the rest.
+  const float H = static_cast<float>(h) - (m.replay != nullptr ? kReplayStripHeightPx : 0.0F);
+  if (m.replay != nullptr) draw_replay_strip(*m.replay, s, actions, 0, H, W);
   const auto place = [](float x, float y, float width, float height) {
     ImGui::SetNextWindowPos(ImVec2(x, y), ImGuiCond_FirstUseEver);
     ImGui::SetNextWindowSize(ImVec2(width, height), ImGuiCond_FirstUseEver);
@@ -835,6 +850,25 @@ void ConsoleWindow::set_flight_keys(FlightKeys* keys) {
   if (impl_->flight_keys != nullptr) impl_->flight_keys->set_window_open(false);
   impl_->flight_keys = keys;
   if (keys != nullptr) keys->set_window_open(true);
+}
+
+void ConsoleWindow::set_replay(const Timeline* timeline) { impl_->replay = timeline; }
+
+void ConsoleWindow::queue_key(const std::string& name) {
+  const SDL_Keycode key = SDL_GetKeyFromName(name.c_str());
+  if (key == SDLK_UNKNOWN) {
+    throw InputError("key '" + name + "': not an SDL key name (Space, Left, Right, [, ], T...)");
+  }
+  SDL_Event event{};
+  event.type = SDL_KEYDOWN;
+  event.key.state = SDL_PRESSED;
+  event.key.keysym.sym = key;
+  event.key.keysym.scancode = SDL_GetScancodeFromKey(key);
+  event.key.windowID = SDL_GetWindowID(impl_->window);
+  SDL_PushEvent(&event);
+  event.type = SDL_KEYUP;
+  event.key.state = SDL_RELEASED;
+  SDL_PushEvent(&event);
 }
 
 WindowStats ConsoleWindow::stats() const {

@@ -1,6 +1,7 @@
 #include "hq/console/recording.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/console/replay_player.hpp"
 
 #include <time.h>
 
@@ -24,6 +25,19 @@ namespace fs = std::filesystem;
 
 constexpr std::array<const char*, 9> kNames = {"teleop", "hover",    "land", "marker", "explore",
                                                "ok",     "degraded", "lost", "invalid"};
+
+// The recorder's names of the link's flight enums (ground_station.cpp), static for RecordedState.
+constexpr std::array<const char*, 15> kFlightNames = {
+    "landed",       "taking_off",     "airborne",          "landing",          "none",
+    "depth",        "estimate",       "flown",             "ignored_mode",     "ignored_landed",
+    "ignored_not_owner", "ignored_failsafe", "limited_unseen", "unknown", "invalid"};
+
+const char* intern_flight(std::string_view text) {
+  for (const char* name : kFlightNames) {
+    if (text == name) return name;
+  }
+  return nullptr;
+}
 
 void add_problem(Recording& r, const std::string& text) {
   if (r.problems.size() < Recording::kMaxProblems) r.problems.push_back(text);
@@ -305,7 +319,10 @@ Recording load_recording(const std::string& directory) {
       "mode",         "estimator_health", "link_health",
       // Optional from here: later layouts (older recordings lack them).
       "closest_obstacle_m", "position_valid", "p_W_x_m", "p_W_y_m", "p_W_z_m", "yaw_W_rad",
-      "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n"};
+      "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
+      "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
+      "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
+      "v_cmd_flown_H_z_mps", "clearance_m"};
   constexpr std::size_t kRequiredStateColumns = 18;
   CsvFile telemetry(r, "telemetry.csv", state_columns, false, kRequiredStateColumns);
   telemetry.check_stamps(starts).read([&](const auto& f, std::string& error) {
@@ -374,6 +391,36 @@ Recording load_recording(const std::string& directory) {
       error = "markers_n = '" + std::string(f[28]) + "', expected a count";
       return false;
     }
+    if (telemetry.has(29) && telemetry.has(39)) {
+      int armed = 0;
+      double height = 0;
+      double clearance = 0;
+      const char* flight = intern_flight(f[31]);
+      const char* source = intern_flight(f[33]);
+      const char* input = intern_flight(f[35]);
+      if (!parse_integer(f[29], s.session_id) || !parse_integer(f[30], s.commanding_station_id) ||
+          flight == nullptr || !parse_integer(f[32], armed) || source == nullptr ||
+          !parse_double(f[34], height, true) || input == nullptr ||
+          !parse_floats(f, 36, state_columns, s.v_cmd_flown_H_mps, error) ||
+          !parse_double(f[39], clearance, true)) {
+        if (error.empty()) {
+          error = "session_id .. clearance_m: a field is not a number or a known name";
+        }
+        return false;
+      }
+      // A vehicle that does not fill them sends zeros: session 0 marks that.
+      s.flight_fields = s.session_id != 0;
+      if (s.flight_fields) {
+        s.flight_state = flight;
+        s.motors_armed = armed;
+        s.height_source = source;
+        s.operator_input = input;
+        if (std::string_view(source) != "none" && std::isfinite(height)) s.height_m = height;
+        if (std::isfinite(clearance) && clearance >= 0) s.clearance_m = clearance;
+      } else {
+        s.v_cmd_flown_H_mps = {};
+      }
+    }
     r.states.push_back(s);
     return true;
   });
@@ -411,12 +458,12 @@ Recording load_recording(const std::string& directory) {
         return true;
       });
 
-  CsvFile(r, "events.csv", {"receipt_ns", "severity", "text"}, true)
-      .check_stamps(starts)
-      .read([&](const auto& f, std::string& error) {
+  CsvFile events(r, "events.csv", {"receipt_ns", "severity", "text", "code"}, true, 3);
+  events.check_stamps(starts).read([&](const auto& f, std::string& error) {
         RecordedEvent e;
-        if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity)) {
-          error = "receipt_ns or severity is not an integer";
+        if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity) ||
+            (events.has(3) && !parse_integer(f[3], e.code))) {
+          error = "receipt_ns, severity or code is not an integer";
           return false;
         }
         std::string_view text = f[2];
@@ -448,81 +495,20 @@ Recording load_recording(const std::string& directory) {
 
 bool replay(const Recording& recording, ConsoleModel& model, double speed,
             const std::atomic<bool>& stop, std::atomic<std::uint64_t>& frames_missing) {
-  // Merge the streams by their ground-clock stamps (each is in order as recorded).
-  std::int64_t t0_ns = std::numeric_limits<std::int64_t>::max();
-  if (!recording.states.empty()) t0_ns = std::min(t0_ns, recording.states.front().receipt_ns);
-  if (!recording.commands.empty()) t0_ns = std::min(t0_ns, recording.commands.front().t_ns);
-  if (!recording.rgb.empty()) t0_ns = std::min(t0_ns, recording.rgb.front().t_ns);
-  if (!recording.events.empty()) t0_ns = std::min(t0_ns, recording.events.front().receipt_ns);
-  if (t0_ns == std::numeric_limits<std::int64_t>::max()) return true;
-  std::size_t is = 0;
-  std::size_t ic = 0;
-  std::size_t ie = 0;
-  std::size_t ir = 0;
-  std::vector<std::uint8_t> jpeg;
-  std::vector<std::uint8_t> depth;
-  const std::int64_t start_ns = monotonic_ns();
-  constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::max();
-  LinkHealth link;
+  // Straight through on the player, in steps of 20 ms of wall time.
+  ReplayPlayer player(recording);
+  player.set_speed(speed);
+  player.play();
+  std::uint64_t missing = 0;
+  std::int64_t last_ns = monotonic_ns();
   while (!stop.load()) {
-    const std::int64_t ts = is < recording.states.size() ? recording.states[is].receipt_ns : kNone;
-    const std::int64_t tc = ic < recording.commands.size() ? recording.commands[ic].t_ns : kNone;
-    const std::int64_t te = ie < recording.events.size() ? recording.events[ie].receipt_ns : kNone;
-    const std::int64_t tr = ir < recording.rgb.size() ? recording.rgb[ir].t_ns : kNone;
-    const std::int64_t next = std::min({ts, tc, te, tr});
-    if (next == kNone) return true;
-    const auto due_ns =
-        start_ns + static_cast<std::int64_t>(static_cast<double>(next - t0_ns) / speed);
-    const std::int64_t wait_ns = due_ns - monotonic_ns();
-    if (wait_ns > 0) {
-      // Sleep in short steps so that a stop request is seen at once.
-      std::this_thread::sleep_for(std::chrono::nanoseconds(std::min<std::int64_t>(wait_ns, 20'000'000)));
-      continue;
-    }
-    if (next == tc) {
-      const RecordedCommand& c = recording.commands[ic++];
-      model.on_command(c.t_ns, c.v_H_mps, c.yaw_rate_radps);
-    } else if (next == ts) {
-      const RecordedState& s = recording.states[is++];
-      // Marker poses are not recorded (only their count): the replay shows none.
-      StateExtras extras;
-      extras.position_valid = s.position_valid;
-      extras.p_W_m = s.p_W_m;
-      extras.yaw_W_rad = s.yaw_W_rad;
-      extras.truth_valid = s.truth_valid;
-      extras.v_truth_H_mps = s.v_truth_H_mps;
-      model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad,
-                     s.pitch_rad, s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health,
-                     nullptr, 0, extras);
-      ++link.states;
-      link.last_latency_ms = s.latency_ms;
-      link.state_age_s = 0;
-      model.on_link(link);
-    } else if (next == te) {
-      const RecordedEvent& e = recording.events[ie++];
-      model.on_event(e.receipt_ns, e.severity, e.text.c_str());
-    } else {
-      const RecordedFrame& f = recording.rgb[ir++];
-      std::ifstream in(f.path, std::ios::binary);
-      jpeg.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-      if (jpeg.empty()) {
-        frames_missing.fetch_add(1);
-        continue;
-      }
-      depth.clear();
-      // The depth preview received with this frame, if any (same receipt stamp).
-      const auto d = std::lower_bound(
-          recording.depth_preview.begin(), recording.depth_preview.end(), f.t_ns,
-          [](const RecordedFrame& a, std::int64_t t) { return a.t_ns < t; });
-      if (d != recording.depth_preview.end() && d->t_ns == f.t_ns) {
-        std::ifstream din(d->path, std::ios::binary);
-        depth.assign(std::istreambuf_iterator<char>(din), std::istreambuf_iterator<char>());
-      }
-      model.on_camera(f.t_ns, jpeg.data(), jpeg.size(), depth.empty() ? nullptr : depth.data(),
-                      depth.size());
-      ++link.camera_frames;
-      model.on_link(link);
-    }
+    const std::int64_t now_ns = monotonic_ns();
+    player.advance(1e-9 * static_cast<double>(now_ns - last_ns));
+    last_ns = now_ns;
+    player.feed(model, missing);
+    frames_missing.store(missing);
+    if (player.at_end()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return false;
 }

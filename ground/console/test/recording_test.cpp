@@ -100,6 +100,55 @@ TEST(Recording, RoundTripsPositionTruthAndMarkerCount) {
   fs::remove_all(dir);
 }
 
+// GIVEN states with the vehicle's flight fields (and one from a vehicle that leaves them at
+// zero), WHEN recorded and read back, THEN they return, and the unfilled ones read as unknown
+// rather than as a clearance of 0 m on the floor.
+TEST(Recording, FlightFieldsRoundTripAndUnfilledOnesAreUnknown) {
+  const fs::path dir = fresh_dir("flight_fields");
+  {
+    ground::TelemetryRecorder recorder(dir.string());
+    link::VehicleState s{};
+    s.sequence_number = 1;
+    s.mode = hq_msgs_MODE_TELEOP;
+    recorder.state(1'000'000'000LL, 1'000'000, s);  // session 0: fields not filled
+    s.sequence_number = 2;
+    s.session_id = 0xfeedbeefcafeULL;
+    s.commanding_station_id = 7;
+    s.flight_state = hq_msgs_FLIGHT_AIRBORNE;
+    s.motors_armed = true;
+    s.height_source = hq_msgs_HEIGHT_DEPTH;
+    s.height_m = 1.25F;
+    s.operator_input = hq_msgs_INPUT_LIMITED_UNSEEN;
+    s.v_cmd_flown_H_mps = {0.3F, 0, 0};
+    s.clearance_m = 0.347F;
+    recorder.state(1'033'000'000LL, 1'000'000, s);
+    s.sequence_number = 3;
+    s.height_source = hq_msgs_HEIGHT_NONE;
+    s.clearance_m = -1;
+    recorder.state(1'066'000'000LL, 1'000'000, s);
+  }
+  const Recording r = load_recording(dir.string());
+  ASSERT_EQ(r.states.size(), 3U) << (r.problems.empty() ? "" : r.problems[0]);
+  EXPECT_FALSE(r.states[0].flight_fields);
+  EXPECT_TRUE(std::isnan(r.states[0].clearance_m));
+  EXPECT_STREQ(r.states[0].flight_state, "unknown");
+  const RecordedState& a = r.states[1];
+  EXPECT_TRUE(a.flight_fields);
+  EXPECT_EQ(a.session_id, 0xfeedbeefcafeULL);
+  EXPECT_EQ(a.commanding_station_id, 7U);
+  EXPECT_STREQ(a.flight_state, "airborne");
+  EXPECT_EQ(a.motors_armed, 1);
+  EXPECT_STREQ(a.height_source, "depth");
+  EXPECT_NEAR(a.height_m, 1.25, 1e-4);
+  EXPECT_STREQ(a.operator_input, "limited_unseen");
+  EXPECT_NEAR(a.v_cmd_flown_H_mps[0], 0.3F, 1e-4);
+  EXPECT_NEAR(a.clearance_m, 0.347, 1e-4);
+  EXPECT_TRUE(std::isnan(r.states[2].height_m));     // source none
+  EXPECT_TRUE(std::isnan(r.states[2].clearance_m));  // < 0: none seen
+  EXPECT_TRUE(r.absent_columns.empty());
+  fs::remove_all(dir);
+}
+
 // GIVEN a telemetry.csv of the first layout (no closest obstacle, pose, truth or markers),
 // WHEN read, THEN every row returns with those fields absent, and the absent columns are named.
 TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
@@ -125,7 +174,12 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
                                        "telemetry.csv: truth_valid",
                                        "telemetry.csv: v_truth_H_x_mps",
                                        "telemetry.csv: markers_n"}));
-  EXPECT_EQ(r.absent_columns.size(), 11U);
+  // 11 of the second layout's columns and 11 of the flight fields' (session .. clearance).
+  EXPECT_EQ(r.absent_columns.size(), 22U);
+  EXPECT_FALSE(r.states[1].flight_fields);
+  EXPECT_STREQ(r.states[1].flight_state, "unknown");
+  EXPECT_TRUE(std::isnan(r.states[1].height_m));
+  EXPECT_TRUE(std::isnan(r.states[1].clearance_m));
   for (const std::string& p : r.problems) EXPECT_THAT(p, ::testing::Not(HasSubstr("telemetry")));
   fs::remove_all(dir);
 }
@@ -145,8 +199,8 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const Recording r = load_recording(dir.string());
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
-  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:15: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:21: expected 30 fields"));
+  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:21: v_H_x_mps = 'abc'"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:27: expected 41 fields"));
   fs::remove_all(dir);
 }
 
@@ -180,8 +234,8 @@ TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
   std::ofstream(dir / "telemetry.csv") << text;
   const std::string message =
       hq::testing::input_error_message([&] { load_recording(dir.string()); });
-  EXPECT_THAT(message, HasSubstr("telemetry.csv:15: receipt_ns = 9099000000000000000 is "));
-  EXPECT_THAT(message, HasSubstr("after line 14's 1066000000, expected rows in time order at most "
+  EXPECT_THAT(message, HasSubstr("telemetry.csv:21: receipt_ns = 9099000000000000000 is "));
+  EXPECT_THAT(message, HasSubstr("after line 20's 1066000000, expected rows in time order at most "
                                  "3600 s apart"));
   fs::remove_all(dir);
 }
@@ -211,7 +265,7 @@ TEST(Recording, FileStartingFarFromTheOthersIsRejected) {
   std::ofstream(dir / "events.csv") << text;
   EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
               HasSubstr("events.csv:4: first stamp 5100000000000000000 is 5.1e+09 s after "
-                        "telemetry.csv:12's 1000000000, expected the files of one recording to "
+                        "telemetry.csv:18's 1000000000, expected the files of one recording to "
                         "start within 3600 s"));
   fs::remove_all(dir);
 }

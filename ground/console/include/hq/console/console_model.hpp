@@ -105,6 +105,17 @@ struct LinkHealth {
   std::uint32_t selected_vehicle = 0;
 };
 
+/// Where a replay stands (hq-ground --replay); inactive in a live console.
+struct ReplayStatus {
+  bool active = false;
+  double position_s = 0;  ///< Recording time from its first stamp.
+  double duration_s = 0;
+  double speed = 1;
+  bool playing = false;
+  bool at_end = false;          ///< Stopped at the end of the recording (not a live link).
+  std::size_t sessions = 0;     ///< Vehicle sessions begun up to position_s.
+};
+
 /// The UI's copy; buffers sized by ConsoleModel::make_snapshot(), reused on every copy.
 struct Snapshot {
   std::vector<PlotSample> plot;  ///< Oldest first, plot_count valid.
@@ -141,6 +152,7 @@ struct Snapshot {
   HapticState haptics{};
   LinkHealth link{};
   std::array<char, 192> source{};  ///< "live domain 3" or "replay DIR".
+  ReplayStatus replay{};
 };
 
 class ConsoleModel {
@@ -173,6 +185,13 @@ class ConsoleModel {
   void on_haptics(const HapticState& haptics);
   void on_link(const LinkHealth& link);
   void set_source(const std::string& text);
+  void on_replay(const ReplayStatus& replay);
+  /// Forgets every state, command, event and frame (a replay seeking backwards refills it);
+  /// keeps the source and the buffers' storage.
+  void reset();
+  /// A restarted vehicle (a new session): its track starts afresh at W's origin instead of
+  /// being joined to its predecessor's.
+  void start_new_track();
 
   /// A Snapshot with every buffer at its capacity.
   [[nodiscard]] Snapshot make_snapshot() const;
@@ -223,6 +242,7 @@ class ConsoleModel {
   HapticState haptics_{};
   LinkHealth link_{};
   std::array<char, 192> source_{};
+  ReplayStatus replay_{};
 };
 
 }  // namespace hq::console

@@ -12,6 +12,7 @@
 
 #include "hq/console/console_model.hpp"
 #include "hq/console/flight_keys.hpp"
+#include "hq/console/replay_player.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -27,6 +28,12 @@ struct UiActions {
   bool select_vehicle = false;
   std::uint32_t vehicle_id = 0;
   bool quit = false;  ///< Window closed or Esc.
+  /// Replay controls (with set_replay()): play/pause, speed steps (+ faster), seek to a time
+  /// (< 0: none) or by an offset.
+  bool replay_toggle = false;
+  int replay_speed_step = 0;
+  double replay_seek_to_s = -1;
+  double replay_seek_by_s = 0;
 };
 
 struct WindowStats {
@@ -74,6 +81,12 @@ class ConsoleWindow {
   /// Holds the flying keys into `keys` (not owned; null stops), marks it open until this
   /// window closes, and releases every key when the window loses the focus.
   void set_flight_keys(FlightKeys* keys);
+  /// Replay: draws `timeline` (not owned; null: live) as a strip below the panels, takes
+  /// Space, [ ], Left/Right as replay controls and greys out the mode requests.
+  void set_replay(const Timeline* timeline);
+  /// Queues a key press and release (an SDL key name: "Space", "Right", "[") as if typed, for
+  /// scripted runs (hq-ground --keys). @throws hq::InputError for an unknown name.
+  void queue_key(const std::string& name);
 
  private:
   struct Impl;

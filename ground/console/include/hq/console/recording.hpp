@@ -9,6 +9,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -37,6 +38,20 @@ struct RecordedState {
   bool truth_valid = false;
   std::array<float, 3> v_truth_H_mps{};
   int markers_n = -1;  ///< Markers detected in the state's frame; -1 when not recorded.
+  /// The vehicle's flight fields (later layouts). False when the columns are absent or the
+  /// vehicle left them unfilled (session_id 0: a vehicle from before sessions); then every
+  /// field below is unknown ("unknown", -1, NaN).
+  bool flight_fields = false;
+  std::uint64_t session_id = 0;
+  std::uint32_t commanding_station_id = 0;
+  const char* flight_state = "unknown";  ///< "landed", "taking_off", "airborne", "landing".
+  int motors_armed = -1;
+  const char* height_source = "unknown";  ///< "none", "depth", "estimate".
+  double height_m = std::numeric_limits<double>::quiet_NaN();  ///< NaN: unknown or source none.
+  const char* operator_input = "unknown";  ///< "flown", "ignored_mode", ... (the IDL's names).
+  std::array<float, 3> v_cmd_flown_H_mps{};
+  /// The vehicle's closest obstacle clearance; NaN when unknown or none seen.
+  double clearance_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct RecordedCommand {
@@ -54,6 +69,7 @@ struct RecordedModeRequest {
 struct RecordedEvent {
   std::int64_t receipt_ns = 0;
   int severity = 0;
+  int code = -1;  ///< The vehicle's event code (7: ground heartbeat lost); -1 not recorded.
   std::string text;
 };
 
@@ -87,8 +103,8 @@ Recording load_recording(const std::string& directory);
 /// The static name among the link's mode and health names equal to `text`, else "invalid".
 const char* intern(std::string_view text);
 
-/// Replays `recording` into `model` on its recorded timeline scaled by 1/`speed`, from the
-/// calling thread, until its end or `stop`. JPEGs are read from disk as their time comes (a
+/// Replays `recording` into `model` on its recorded timeline scaled by 1/`speed` (clamped to
+/// ReplayPlayer's 0.25x..8x), from the calling thread, until its end or `stop`. JPEGs are read from disk as their time comes (a
 /// missing or unreadable one is counted in `frames_missing`). Returns false if stopped.
 bool replay(const Recording& recording, ConsoleModel& model, double speed,
             const std::atomic<bool>& stop, std::atomic<std::uint64_t>& frames_missing);
