@@ -313,10 +313,10 @@ int run(int argc, char** argv) {
       ++forged_sequence;
       // Each would pull the operator's hand hard if the ground believed it.
       switch (forged_sequence % 6) {
-        case 0:  // plausible values from another session: 15 m/s towards the hand
+        case 0:  // plausible values (17 m/s) from another session
           s.session_id = session ^ 0xdeadbeefULL;
           s.sequence_number = forged_sequence;
-          s.v_H_mps = {15.0F, -15.0F, 0.0F};
+          s.v_H_mps = {12.0F, -12.0F, 0.0F};
           break;
         case 1:
           s.session_id = session;
