@@ -502,6 +502,10 @@ bool GroundStation::poll() {
   return fresh;
 }
 
+// What this cannot catch: a forger that copies the live session and sends plausible values with
+// the next sequence number. Only the writer's identity tells it apart, and that is DDS
+// security's job (a permissions document granting VehicleState to the vehicle's certificate
+// only); with security on, such a writer is never matched and nothing here changes.
 bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receipt_ns) {
   const auto reject = [&](std::uint64_t& counter) {
     ++counter;
