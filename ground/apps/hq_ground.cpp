@@ -166,7 +166,8 @@ std::string json_string(const std::string& text) {
 // The console's own state at exit, for tests and scripts (--state-json).
 void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                       const hq::console::WindowStats* window, std::uint64_t replay_problems,
-                      std::uint64_t replay_frames_missing) {
+                      std::uint64_t replay_frames_missing, double max_force_n = -1.0,
+                      double min_passivity_energy_j = 0.0) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (f == nullptr) throw hq::InputError(path + ": cannot open for writing (--state-json)");
   std::fprintf(f, "{\n  \"source\": %s,\n", json_string(s.source.data()).c_str());
@@ -203,6 +204,24 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  s.replay.position_s, s.replay.duration_s, s.replay.speed,
                  s.replay.playing ? "true" : "false", s.replay.at_end ? "true" : "false",
                  s.replay.sessions);
+  }
+  // Ownership and the checks on what the vehicle sends (issue 16).
+  std::fprintf(f,
+               "  \"control_lost\": %s,\n  \"commanding_station_id\": %u,\n"
+               "  \"own_station_id\": %u,\n  \"vehicle_session\": \"%016llx\",\n"
+               "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
+               "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
+               "  \"events_rejected\": %llu,\n",
+               s.link.control_lost ? "true" : "false", s.link.commanding_station,
+               s.link.own_station, static_cast<unsigned long long>(s.link.vehicle_session),
+               s.link.waiting_for_vehicle ? "true" : "false",
+               static_cast<unsigned long long>(s.link.states_rejected),
+               static_cast<unsigned long long>(s.link.states_implausible),
+               static_cast<unsigned long long>(s.link.states_wrong_session),
+               static_cast<unsigned long long>(s.link.events_rejected));
+  if (max_force_n >= 0.0) {
+    std::fprintf(f, "  \"max_force_n\": %.4f,\n  \"passivity_min_energy_j\": %.5f,\n",
+                 max_force_n, min_passivity_energy_j);
   }
   std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
                static_cast<unsigned long long>(replay_problems),
@@ -528,6 +547,7 @@ int run(int argc, char** argv) {
   std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
   if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
   hq::ground::GroundStation ground(link, recorder.get());
+  ground.set_log(stdout);  // control lost / vehicle restarted: said once each, on stdout
   hq::console::ConsoleModel model;
   ModelFeed feed(model, ground);
   ground.set_observer(&feed);
@@ -545,6 +565,7 @@ int run(int argc, char** argv) {
   const std::int64_t start_ns = hq::haptics::monotonic_now_ns();
   std::uint64_t device_losses = 0;
   double max_state_gap_s = 0.0;
+  double max_force_n = 0.0;  // the largest force the hand felt (at the command rate)
   UiRequests requests;
   std::atomic<bool> flying_done{false};
   // The flight: commands, link and haptic feedback. On its own thread when the console is up,
@@ -616,6 +637,7 @@ int run(int argc, char** argv) {
         h.p_D_m[static_cast<std::size_t>(i)] = static_cast<float>(hand.p_D_m[i]);
         h.F_D_n[static_cast<std::size_t>(i)] = static_cast<float>(hand.F_D_n[i]);
       }
+      max_force_n = std::max(max_force_n, hand.F_D_n.norm());
       h.buttons = hand.buttons;
       h.connected = hand.device_connected;
       h.cue_weight = static_cast<float>(hand.cue_weight);
@@ -646,7 +668,7 @@ int run(int argc, char** argv) {
             marker.target_id = requests.marker_id.load();
           }
         }
-        ground.request_mode(now_ns, *mode, marker);
+        const bool sent = ground.request_mode(now_ns, *mode, marker);
         if (marker.task != hq_msgs_MARKER_TASK_NONE) {
           static constexpr std::array<const char*, 4> kTaskNames = {"none", "hold", "goto", "land"};
           std::fprintf(stderr, "%shq-ground: marker task %s on marker %d\n", live ? "\n" : "",
@@ -654,8 +676,8 @@ int run(int argc, char** argv) {
                        static_cast<int>(marker.target_id));
         }
         if (recorder) recorder->mode_request(wall_ns, *mode);
-        std::fprintf(stderr, "%shq-ground: t %.1f s: requesting mode %s\n", live ? "\n" : "", t_s,
-                     hq::ground::to_string(*mode));
+        std::fprintf(stderr, "%shq-ground: t %.1f s: requesting mode %s%s\n", live ? "\n" : "",
+                     t_s, hq::ground::to_string(*mode), sent ? "" : " (waiting for vehicle)");
       }
       if (const std::int64_t id = requests.vehicle.exchange(-1); id >= 0) {
         ground.select_vehicle(static_cast<std::uint32_t>(id));
@@ -688,6 +710,14 @@ int run(int argc, char** argv) {
         health.write_failures = st.write_failures;
         health.sequence_gaps = st.state_sequence_gaps;
         health.states_rejected = st.states_rejected;
+        health.states_implausible = st.states_implausible;
+        health.states_wrong_session = st.states_wrong_session;
+        health.events_rejected = st.events_rejected;
+        health.vehicle_session = st.vehicle_session;
+        health.waiting_for_vehicle = st.waiting_for_vehicle;
+        health.control_lost = st.control_lost;
+        health.commanding_station = st.commanding_station_id;
+        health.own_station = link.station_id;
         health.heartbeat_seen = st.have_vehicle_heartbeat;
         health.vehicle_ids = st.vehicle_ids_seen;
         health.vehicle_id_count = st.vehicle_ids_seen_count;
@@ -765,12 +795,36 @@ int run(int argc, char** argv) {
               loop.passivity_controller().dissipated_j(),
               loop.passivity_controller().enabled() ? "on" : "off");
   std::printf("  %-40s %llu\n", "device losses", static_cast<unsigned long long>(device_losses));
-  std::printf("  %-40s %llu missing, %llu rejected\n", "vehicle states lost",
-              static_cast<unsigned long long>(s.state_sequence_gaps),
-              static_cast<unsigned long long>(s.states_rejected));
+  std::printf("  %-40s %llu missing, %llu rejected (%llu invalid, %llu implausible, %llu of "
+              "another session, %llu sequence jumps)\n",
+              "vehicle states lost", static_cast<unsigned long long>(s.state_sequence_gaps),
+              static_cast<unsigned long long>(s.states_rejected),
+              static_cast<unsigned long long>(s.states_invalid),
+              static_cast<unsigned long long>(s.states_implausible),
+              static_cast<unsigned long long>(s.states_wrong_session),
+              static_cast<unsigned long long>(s.states_sequence_jump));
+  std::printf("  %-40s %llu rejected (not of session %016llx); %llu vehicle restarts\n",
+              "vehicle events", static_cast<unsigned long long>(s.events_rejected),
+              static_cast<unsigned long long>(s.vehicle_session),
+              static_cast<unsigned long long>(s.vehicle_restarts));
+  std::printf("  %-40s %s (commander: station %u, this station %u, %llu losses)\n", "control",
+              s.control_lost ? "LOST" : "held", s.commanding_station_id, link.station_id,
+              static_cast<unsigned long long>(s.control_losses));
+  std::printf("  %-40s %.3f N\n", "largest force on the hand", max_force_n);
   if (!o.state_json_path.empty()) {
     model.snapshot(snap);
-    write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0);
+    // The final word of the station, not the console's last 4 Hz copy.
+    snap.link.control_lost = s.control_lost;
+    snap.link.commanding_station = s.commanding_station_id;
+    snap.link.own_station = link.station_id;
+    snap.link.vehicle_session = s.vehicle_session;
+    snap.link.waiting_for_vehicle = s.waiting_for_vehicle;
+    snap.link.states_rejected = s.states_rejected;
+    snap.link.states_implausible = s.states_implausible;
+    snap.link.states_wrong_session = s.states_wrong_session;
+    snap.link.events_rejected = s.events_rejected;
+    write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0, max_force_n,
+                     loop.passivity().min_energy_j());
   }
   if (recorder && !recorder->close()) throw hq::InputError("recording: " + recorder->error());
   return 0;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <random>
 
 namespace hq::ground {
 
@@ -44,6 +45,44 @@ const char* to_string(hq_msgs_Health health) {
     case hq_msgs_HEALTH_LOST: return "lost";
     default: return "invalid";
   }
+}
+
+namespace {
+
+double norm(const hq_msgs_Vector3f& v) {
+  return std::sqrt(static_cast<double>(v.x) * v.x + static_cast<double>(v.y) * v.y +
+                   static_cast<double>(v.z) * v.z);
+}
+
+}  // namespace
+
+link::Validation plausible(const link::VehicleState& s) {
+  // Compared with !(x <= bound) so that a NaN (validate() lets none through, but this function
+  // stands alone) fails too.
+  if (!(norm(s.v_H_mps) <= kMaxPlausibleSpeedMps)) return {false, "v_H_mps beyond 20 m/s"};
+  if (!(norm(s.v_obs_H_mps) <= kMaxPlausibleSpeedMps)) return {false, "v_obs_H_mps beyond 20 m/s"};
+  if (!(norm(s.v_cmd_flown_H_mps) <= kMaxPlausibleSpeedMps)) {
+    return {false, "v_cmd_flown_H_mps beyond 20 m/s"};
+  }
+  if (!(norm(s.v_truth_H_mps) <= kMaxPlausibleSpeedMps)) {
+    return {false, "v_truth_H_mps beyond 20 m/s"};
+  }
+  if (!(norm(s.omega_body_radps) <= kMaxPlausibleRateRadps)) {
+    return {false, "omega_body_radps beyond 35 rad/s"};
+  }
+  if (!(std::abs(s.roll_rad) < M_PI) || !(std::abs(s.pitch_rad) < M_PI)) {
+    return {false, "roll_rad or pitch_rad outside (-pi, pi)"};
+  }
+  if (!(std::abs(s.yaw_W_rad) <= 2.0 * M_PI)) return {false, "yaw_W_rad outside [-2 pi, 2 pi]"};
+  if (!(std::abs(s.height_m) <= kMaxPlausibleHeightM)) return {false, "height_m beyond 1000 m"};
+  if (!(std::abs(s.clearance_m) <= kMaxPlausibleDistanceM)) {
+    return {false, "clearance_m not finite or beyond 100 km"};
+  }
+  if (!(norm(s.p_W_m) <= kMaxPlausibleDistanceM)) return {false, "p_W_m beyond 100 km"};
+  if (s.markers._length > hq_msgs_kMaxMarkersInState) {
+    return {false, "markers longer than kMaxMarkersInState"};
+  }
+  return {true, ""};
 }
 
 void LatencyStats::add(std::int64_t latency_ns) {
@@ -355,6 +394,8 @@ GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* 
       event_condition_(event_reader_),
       waitset_(participant_) {
   link::check_config(config_);
+  std::random_device device;
+  while (session_id_ == 0) session_id_ = (static_cast<std::uint64_t>(device()) << 32U) | device();
   waitset_.attach(state_condition_.handle(), 1);
   waitset_.attach(event_condition_.handle(), 2);
   link::reserve(state_sample_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
@@ -394,8 +435,29 @@ std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name) {
   return std::nullopt;
 }
 
-void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
+bool GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
                                  const MarkerChoice& marker) {
+  if (status_.vehicle_session == 0) {
+    // A request needs the session it is for; the latest one waits for the vehicle.
+    const bool told = pending_request_;
+    pending_request_ = true;
+    pending_mode_ = mode;
+    pending_marker_ = marker;
+    status_.waiting_for_vehicle = true;
+    if (!told) {
+      char text[96];
+      std::snprintf(text, sizeof text, "mode %s: waiting for vehicle %u", to_string(mode),
+                    config_.vehicle_id);
+      notice(hq_msgs_SEVERITY_INFO, kGroundEventWaiting, text);
+    }
+    return false;
+  }
+  send_mode_request(t_ns, mode, marker);
+  return true;
+}
+
+void GroundStation::send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode,
+                                      const MarkerChoice& marker) {
   link::ModeRequest r{};
   r.vehicle_id = config_.vehicle_id;
   r.station_id = config_.station_id;
@@ -404,6 +466,7 @@ void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
   r.requested_mode = mode;
   r.marker_task = marker.task;
   r.target_id = marker.target_id;
+  r.vehicle_session_id = status_.vehicle_session;
   if (mode_writer_.write(r)) {
     ++status_.mode_requests_sent;
   } else {
@@ -418,6 +481,7 @@ void GroundStation::send_heartbeat(std::int64_t t_ns) {
   h.sender_id = config_.station_id;
   h.sequence_number = ++heartbeat_sequence_;
   h.t_ns = t_ns;
+  h.session_id = session_id_;
   if (heartbeat_writer_.write(h)) {
     ++status_.heartbeats_sent;
   } else {
@@ -431,22 +495,8 @@ bool GroundStation::poll() {
   while (state_reader_.take(*state_sample_, info)) {
     note_vehicle(state_sample_->vehicle_id);
     if (state_sample_->vehicle_id != config_.vehicle_id) continue;  // another vehicle
-    if (!link::validate(*state_sample_).ok) {
-      ++status_.states_rejected;  // a sample the haptic loop must not see
-      continue;
-    }
-    if (last_state_sequence_ != 0 && state_sample_->sequence_number <= last_state_sequence_) {
-      // Overtaken on the way (jitter): older than what the loop already has. It was counted
-      // missing when the newer one came; it is not, but it must not replace the newer state.
-      ++status_.states_reordered;
-      if (status_.state_sequence_gaps > 0) --status_.state_sequence_gaps;
-      continue;
-    }
-    if (last_state_sequence_ != 0 && state_sample_->sequence_number > last_state_sequence_ + 1) {
-      status_.state_sequence_gaps += state_sample_->sequence_number - last_state_sequence_ - 1;
-    }
-    last_state_sequence_ = state_sample_->sequence_number;
     const std::int64_t now = dds_time();
+    if (!admit_state(*state_sample_, now)) continue;  // never reaches the loop or the record
     if (status_.have_clock_offset) {
       // The stamp on the ground's clock: vehicle time minus the offset.
       status_.last_state_age_ns =
@@ -469,6 +519,11 @@ bool GroundStation::poll() {
   link::Event event{};
   while (event_reader_.take(event, info)) {
     if (event.vehicle_id != config_.vehicle_id) continue;
+    if (status_.vehicle_session == 0 || event.session_id != status_.vehicle_session) {
+      // Not the vehicle we follow: forged, or its predecessor's (TRANSIENT_LOCAL history).
+      ++status_.events_rejected;
+      continue;
+    }
     ++status_.events;
     std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
     const std::int64_t now = dds_time();
@@ -493,6 +548,99 @@ bool GroundStation::poll() {
     }
   }
   return fresh;
+}
+
+// What this cannot catch: a forger that copies the live session and sends plausible values with
+// the next sequence number. Only the writer's identity tells it apart, and that is DDS
+// security's job (a permissions document granting VehicleState to the vehicle's certificate
+// only); with security on, such a writer is never matched and nothing here changes.
+bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receipt_ns) {
+  const auto reject = [&](std::uint64_t& counter) {
+    ++counter;
+    ++status_.states_rejected;  // a sample the haptic loop must not see
+    return false;
+  };
+  if (!link::validate(s).ok) return reject(status_.states_invalid);
+  if (!plausible(s).ok) return reject(status_.states_implausible);
+  if (s.session_id == 0) return reject(status_.states_wrong_session);  // no vehicle draws 0
+  if (s.session_id != status_.vehicle_session) {
+    const bool live = status_.vehicle_session != 0 &&
+                      receipt_ns - session_receipt_ns_ <= kSessionLiveNs;
+    if (live) return reject(status_.states_wrong_session);
+    // The current session went quiet: a new vehicle process (a restart) took its place.
+    const bool restart = status_.vehicle_session != 0;
+    status_.vehicle_session = s.session_id;
+    last_state_sequence_ = 0;
+    if (restart) {
+      ++status_.vehicle_restarts;
+      // Nothing is re-sent: what the operator asked of the previous instance may not suit this
+      // one (it is on the floor, or somewhere else).
+      pending_request_ = false;
+      status_.waiting_for_vehicle = false;
+      char text[128];
+      std::snprintf(text, sizeof text,
+                    "vehicle %u restarted (new session %016llx): request the mode again",
+                    config_.vehicle_id, static_cast<unsigned long long>(s.session_id));
+      notice(hq_msgs_SEVERITY_WARNING, kGroundEventVehicleRestarted, text);
+    } else if (pending_request_) {
+      pending_request_ = false;
+      status_.waiting_for_vehicle = false;
+      send_mode_request(monotonic_now_ns(), pending_mode_, pending_marker_);
+    }
+  }
+  if (last_state_sequence_ != 0 && s.sequence_number <= last_state_sequence_) {
+    // Overtaken on the way (jitter) or replayed: older than what the loop already has. If it
+    // was counted missing when the newer one came, it is not; it must not replace the newer.
+    ++status_.states_reordered;
+    if (status_.state_sequence_gaps > 0) --status_.state_sequence_gaps;
+    return false;
+  }
+  if (last_state_sequence_ != 0 && s.sequence_number - last_state_sequence_ > kMaxSequenceJump) {
+    return reject(status_.states_sequence_jump);
+  }
+  if (last_state_sequence_ != 0 && s.sequence_number > last_state_sequence_ + 1) {
+    status_.state_sequence_gaps += s.sequence_number - last_state_sequence_ - 1;
+  }
+  last_state_sequence_ = s.sequence_number;
+  session_receipt_ns_ = receipt_ns;
+  note_control(s);
+  return true;
+}
+
+void GroundStation::note_control(const link::VehicleState& s) {
+  status_.commanding_station_id = s.commanding_station_id;
+  const bool lost = s.commanding_station_id != 0 && s.commanding_station_id != config_.station_id;
+  if (lost == status_.control_lost) return;
+  status_.control_lost = lost;
+  char text[128];
+  if (lost) {
+    ++status_.control_losses;
+    std::snprintf(text, sizeof text, "CONTROL LOST: station %u commands vehicle %u",
+                  s.commanding_station_id, config_.vehicle_id);
+    notice(hq_msgs_SEVERITY_ERROR, kGroundEventControlLost, text);
+  } else {
+    std::snprintf(text, sizeof text, "control regained: station %u commands vehicle %u",
+                  s.commanding_station_id, config_.vehicle_id);
+    notice(hq_msgs_SEVERITY_WARNING, kGroundEventControlRegained, text);
+  }
+}
+
+void GroundStation::notice(hq_msgs_Severity severity, std::uint32_t code, const char* text) {
+  link::Event e{};
+  e.vehicle_id = config_.vehicle_id;
+  e.t_ns = monotonic_now_ns();
+  e.severity = severity;
+  e.code = code;
+  e.session_id = status_.vehicle_session;
+  std::snprintf(e.text, sizeof e.text, "%s", text);
+  std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", text);
+  const std::int64_t now = dds_time();
+  if (recorder_ != nullptr) recorder_->event(now, e);
+  if (observer_ != nullptr) observer_->on_event(now, e);
+  if (log_ != nullptr) {
+    std::fprintf(log_, "hq-ground: %s\n", text);
+    std::fflush(log_);
+  }
 }
 
 void GroundStation::note_echo(const link::Heartbeat& heartbeat) {
@@ -533,6 +681,12 @@ void GroundStation::select_vehicle(std::uint32_t vehicle_id) {
   config_.vehicle_id = vehicle_id;
   status_.have_state = false;
   last_state_sequence_ = 0;
+  // Another vehicle: its own session, commander and pending requests.
+  status_.vehicle_session = 0;
+  status_.control_lost = false;
+  status_.commanding_station_id = 0;
+  pending_request_ = false;
+  status_.waiting_for_vehicle = false;
 }
 
 bool GroundStation::poll_until(std::int64_t deadline_ns) {

@@ -98,6 +98,9 @@ int run(int argc, char** argv) {
   app.add_option("--heartbeat-timeout-ms", o.heartbeat_timeout_ms,
                  "--link: no ground heartbeat this long -> land")
       ->check(CLI::Range(1.0, 60000.0));
+  app.add_option("--hold-to-land-s", o.hold_to_land_s,
+                 "--link: still no fresh command this long after the hold began -> land")
+      ->check(CLI::Range(0.1, 600.0));
   app.add_option("--camera-rate-hz", o.camera_rate_hz,
                  "--link: JPEG frames to the ground (0: none)")
       ->check(CLI::Range(0.0, 60.0));

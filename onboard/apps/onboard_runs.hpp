@@ -42,6 +42,7 @@ struct Options {
   hq::link::LinkOverrides link_overrides;
   double command_timeout_ms = 200.0;
   double heartbeat_timeout_ms = 2000.0;
+  double hold_to_land_s = 5.0;  ///< --link: held without commands this long -> land.
   double camera_rate_hz = 10.0;
   std::string link_log_path;
   std::string save_map_path;

@@ -207,11 +207,19 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
   failsafe.envelope = link.envelope;
   failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
   failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
+  failsafe.hold_to_land_ns = std::llround(o.hold_to_land_s * 1e9);
   hq::link_bridge::BridgeOptions bridge_options;
   bridge_options.camera_rate_hz = o.camera_rate_hz;
-  std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u\n", link.domain_id,
-               link.vehicle_id);
-  return std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
+  auto bridge = std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
+  std::string stations;
+  for (const std::uint32_t id : link.stations) {
+    stations += (stations.empty() ? "" : ",") + std::to_string(id);
+  }
+  std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u, session %016llx, "
+               "commanded by %s\n", link.domain_id, link.vehicle_id,
+               static_cast<unsigned long long>(bridge->session_id()),
+               stations.empty() ? "any station" : ("stations " + stations).c_str());
+  return bridge;
 }
 
 void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
@@ -223,8 +231,14 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
               count(c.mode_requests_accepted), count(c.mode_requests_rejected));
   std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats",
               count(c.heartbeats_accepted), count(c.heartbeats_rejected));
-  std::printf("  %-40s %llu holds, %llu land requests\n", "fail-safes", count(c.holds),
-              count(c.land_requests));
+  std::printf("  %-40s %llu holds, %llu land requests (%llu after a hold)\n", "fail-safes",
+              count(c.holds), count(c.land_requests), count(c.land_requests_hold));
+  std::printf("  %-40s station %u, %llu changes; rejected: %llu commands not allowed, %llu "
+              "requests not from it, %llu for another session; %llu foreign heartbeats\n",
+              "commanding station", bridge.failsafe().state().commanding_station_id,
+              count(c.commander_changes), count(c.commands_not_allowed),
+              count(c.mode_requests_not_commander), count(c.mode_requests_wrong_session),
+              count(c.heartbeats_not_commander));
   std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
               count(bridge.states_sent()), count(bridge.camera_frames_sent()),
               count(bridge.events_sent()));

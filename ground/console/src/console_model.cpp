@@ -255,4 +255,15 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.replay = replay_;
 }
 
+bool control_banner(const LinkHealth& link, char* out, std::size_t size) {
+  if (size == 0) return false;
+  out[0] = '\0';
+  if (!link.control_lost) return false;
+  std::snprintf(out, size,
+                "CONTROL LOST: station %u commands vehicle %u; this station (%u) does not: its "
+                "hand and mode requests are ignored",
+                link.commanding_station, link.selected_vehicle, link.own_station);
+  return true;
+}
+
 }  // namespace hq::console

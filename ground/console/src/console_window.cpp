@@ -571,6 +571,9 @@ struct ConsoleWindow::Impl {
 
   void control_panel(const Snapshot& s, UiActions& actions) {
     ImGui::Begin("Vehicle and modes");
+    if (char banner[192]; control_banner(s.link, banner, sizeof banner)) {
+      ImGui::TextColored(ImVec4(1, 0.15F, 0.15F, 1), "%s", banner);  // loud: the hand flies nothing
+    }
     ImGui::Text("source: %s", s.source.data());
     ImGui::Text("mode: %s   estimator: %s   vehicle link: %s", s.mode.c_str(),
                 s.estimator_health.c_str(), s.link_health.c_str());

@@ -74,5 +74,25 @@ TEST(ConsoleModel, CameraFrameCarriesItsExposureAndReceiptForTheVideoLatency) {
   EXPECT_EQ(s.camera_receipt_ns, 1'080'000'000);
 }
 
+// Issue 16: a station that lost control says so, loudly, naming who commands; nothing otherwise.
+TEST(ConsoleModel, ControlBannerNamesTheCommandingStation) {
+  LinkHealth link;
+  char text[192];
+  EXPECT_FALSE(control_banner(link, text, sizeof text));
+  EXPECT_STREQ(text, "");
+  link.control_lost = true;
+  link.commanding_station = 9;
+  link.selected_vehicle = 1;
+  link.own_station = 2;
+  ASSERT_TRUE(control_banner(link, text, sizeof text));
+  EXPECT_EQ(std::string(text).rfind("CONTROL LOST: station 9 commands vehicle 1", 0), 0U) << text;
+  ConsoleModel m;
+  m.on_link(link);
+  Snapshot s = m.make_snapshot();
+  m.snapshot(s);
+  EXPECT_TRUE(s.link.control_lost);
+  EXPECT_EQ(s.link.commanding_station, 9U);
+}
+
 }  // namespace
 }  // namespace hq::console

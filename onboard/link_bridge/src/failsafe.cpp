@@ -18,6 +18,15 @@ void check_config(const FailsafeConfig& config) {
   positive("heartbeat_timeout_ms", 1e-6 * static_cast<double>(config.heartbeat_timeout_ns));
   positive("command_max_delay_ms", 1e-6 * static_cast<double>(config.command_max_delay_ns));
   positive("command_reanchor_ms", 1e-6 * static_cast<double>(config.command_reanchor_ns));
+  const double hold_to_land_s = 1e-9 * static_cast<double>(config.hold_to_land_ns);
+  if (!(hold_to_land_s >= 0.1 && hold_to_land_s <= 600.0)) {
+    throw InputError("link fail-safe: hold_to_land_s = " + std::to_string(hold_to_land_s) +
+                     ", expected in [0.1, 600]");
+  }
+  for (const std::uint32_t id : config.stations) {
+    // Station 0 means "none" in VehicleState.commanding_station_id: it cannot command.
+    if (id == 0) throw InputError("link.stations: station id 0, expected ids >= 1");
+  }
   positive("envelope.max_v_x_mps", config.envelope.max_v_x_mps);
   positive("envelope.max_v_y_mps", config.envelope.max_v_y_mps);
   positive("envelope.max_v_z_mps", config.envelope.max_v_z_mps);
@@ -54,7 +63,36 @@ hq_msgs_Mode to_link_mode(modes::Mode mode) {
   return hq_msgs_MODE_HOVER;
 }
 
+hq_msgs_OperatorInput operator_input(const FailsafeState& state, modes::Mode mode, bool landed) {
+  if (state.last_command_station_id != 0 &&
+      state.last_command_station_id != state.commanding_station_id) {
+    return hq_msgs_INPUT_IGNORED_NOT_OWNER;
+  }
+  if (!state.have_command) return hq_msgs_INPUT_NONE;
+  if (state.hold || state.heartbeat_lost) return hq_msgs_INPUT_IGNORED_FAILSAFE;
+  if (mode == modes::Mode::kTeleop) {
+    return landed ? hq_msgs_INPUT_IGNORED_LANDED : hq_msgs_INPUT_FLOWN;
+  }
+  return hq_msgs_INPUT_IGNORED_MODE;
+}
+
 Failsafe::Failsafe(const FailsafeConfig& config) : config_(config) { check_config(config_); }
+
+bool Failsafe::allowed(std::uint32_t station_id) const {
+  if (config_.stations.empty()) return station_id != 0;
+  return std::find(config_.stations.begin(), config_.stations.end(), station_id) !=
+         config_.stations.end();
+}
+
+void Failsafe::take_command(std::int64_t t_ns, std::uint32_t station_id) {
+  if (station_id == commander_) return;
+  commander_ = station_id;
+  commander_since_t_ns_ = t_ns;
+  commander_changed_ = true;
+  ++counters_.commander_changes;
+  // The previous commander's heartbeats say nothing about the new one: its own count from now.
+  have_heartbeat_ = false;
+}
 
 Verdict Failsafe::reject(std::uint64_t& counter, const char* reason) {
   ++counter;
@@ -72,7 +110,18 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
     last_command_rejection_ = v.reason;
     return reject(counters_.commands_rejected, v.reason);
   }
+  last_command_station_ = command.station_id;
+  if (!allowed(command.station_id)) {
+    ++counters_.commands_not_allowed;
+    last_command_rejection_ = "command from a station not allowed to command (link.stations)";
+    return reject(counters_.commands_rejected, last_command_rejection_);
+  }
   if (command.t_ns > 0) {
+    if (command.station_id != commander_ && commander_ != 0 && have_command_) {
+      // Another station's clock: its stamps say nothing about the previous one's delay.
+      have_offset_ = false;
+      stale_since_t_ns_ = -1;
+    }
     if (const char* reason = stale(t_ns, command.t_ns); reason != nullptr) {
       ++counters_.commands_stale;
       last_command_rejection_ = reason;
@@ -84,6 +133,9 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
   last_command_.yaw_rate_radps = command.yaw_rate_radps;
   last_command_t_ns_ = t_ns;
   have_command_ = true;
+  // DDS exclusive ownership delivers the strongest live writer's commands: the station of an
+  // accepted command is the one the vehicle follows.
+  take_command(t_ns, command.station_id);
   ++counters_.commands_accepted;
   return {true, ""};
 }
@@ -120,16 +172,36 @@ const char* Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
   return nullptr;
 }
 
-Verdict Failsafe::on_mode_request(std::int64_t /*t_ns*/, const link::ModeRequest& request,
+Verdict Failsafe::on_mode_request(std::int64_t t_ns, const link::ModeRequest& request,
                                   modes::Mode& mode) {
   if (request.vehicle_id != config_.vehicle_id) {
     return reject(counters_.mode_requests_rejected, "mode request for another vehicle id");
   }
   const link::Validation v = link::validate(request);
   if (!v.ok) return reject(counters_.mode_requests_rejected, v.reason);
-  if (!to_mode(request.requested_mode, mode)) {
+  modes::Mode requested = mode;  // `mode` is left alone unless the request is accepted
+  if (!to_mode(request.requested_mode, requested)) {
     return reject(counters_.mode_requests_rejected, "requested_mode outside the Mode enum");
   }
+  if (request.vehicle_session_id != config_.session_id) {
+    // Made to a previous instance of this vehicle (a TRANSIENT_LOCAL leftover, a replay) or
+    // before the station heard this one: it must not act.
+    ++counters_.mode_requests_wrong_session;
+    return reject(counters_.mode_requests_rejected,
+                  "mode request for another vehicle session (stale or replayed)");
+  }
+  if (!allowed(request.station_id)) {
+    ++counters_.mode_requests_not_commander;
+    return reject(counters_.mode_requests_rejected,
+                  "mode request from a station not allowed to command (link.stations)");
+  }
+  if (commander_ == 0) take_command(t_ns, request.station_id);  // the first station
+  if (request.station_id != commander_) {
+    ++counters_.mode_requests_not_commander;
+    return reject(counters_.mode_requests_rejected,
+                  "mode request from a station that does not command this vehicle");
+  }
+  mode = requested;
   ++counters_.mode_requests_accepted;
   return {true, ""};
 }
@@ -145,6 +217,16 @@ Verdict Failsafe::on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbe
     // nothing about the operator: ignored, not counted as a rejection.
     return {false, "heartbeat not from a ground station"};
   }
+  if (!allowed(heartbeat.sender_id)) {
+    return reject(counters_.heartbeats_rejected,
+                  "heartbeat from a station not allowed to command (link.stations)");
+  }
+  if (commander_ == 0) take_command(t_ns, heartbeat.sender_id);  // the first station
+  if (heartbeat.sender_id != commander_) {
+    // Well-formed, but another station's: alive or not, it does not fly this vehicle.
+    ++counters_.heartbeats_not_commander;
+    return {false, "heartbeat not from the commanding station"};
+  }
   last_heartbeat_t_ns_ = t_ns;
   have_heartbeat_ = true;
   ++counters_.heartbeats_accepted;
@@ -155,6 +237,10 @@ const FailsafeState& Failsafe::update(std::int64_t t_ns) {
   FailsafeState& s = state_;
   s.t_ns = t_ns;
   s.have_command = have_command_;
+  s.commanding_station_id = commander_;
+  s.last_command_station_id = last_command_station_;
+  s.commander_changed = commander_changed_;
+  commander_changed_ = false;
   s.command_age_ns = have_command_ ? t_ns - last_command_t_ns_ : -1;
   s.heartbeat_age_ns = have_heartbeat_ ? t_ns - last_heartbeat_t_ns_ : -1;
 
@@ -171,15 +257,30 @@ const FailsafeState& Failsafe::update(std::int64_t t_ns) {
     s.command = last_command_;
   }
 
-  // The heartbeat clock starts with the first station seen (a heartbeat or a command): before
-  // that the vehicle sits on the ground and there is nobody to lose.
-  const bool armed = have_heartbeat_ || have_command_;
-  const std::int64_t since_ns =
-      have_heartbeat_ ? s.heartbeat_age_ns : (have_command_ ? s.command_age_ns : 0);
+  // The heartbeat clock starts with the first commander: before that the vehicle sits on the
+  // ground and there is nobody to lose. Until the commander's first heartbeat, its commands
+  // (or the moment it took command) stand in for one.
+  const bool armed = commander_ != 0;
+  std::int64_t since_ns = 0;
+  if (have_heartbeat_) {
+    since_ns = s.heartbeat_age_ns;
+  } else if (armed) {
+    const std::int64_t alive_t_ns =
+        have_command_ ? std::max(last_command_t_ns_, commander_since_t_ns_) : commander_since_t_ns_;
+    since_ns = t_ns - alive_t_ns;
+  }
   s.heartbeat_lost = armed && since_ns > config_.heartbeat_timeout_ns;
-  s.request_land = s.heartbeat_lost && !was_lost_;
+  // Escalation: a hold that outlasts hold_to_land lands. Only once a command was flown: a
+  // vehicle that never had one was never flown by anybody.
+  s.hold_expired = s.hold && have_command_ &&
+                   s.command_age_ns > config_.command_timeout_ns + config_.hold_to_land_ns;
+  s.land_for_heartbeat = s.heartbeat_lost && !was_lost_ && !was_expired_;
+  s.land_for_hold = s.hold_expired && !was_expired_ && !was_lost_ && !s.land_for_heartbeat;
+  s.request_land = s.land_for_heartbeat || s.land_for_hold;
   if (s.request_land) ++counters_.land_requests;
+  if (s.land_for_hold) ++counters_.land_requests_hold;
   was_lost_ = s.heartbeat_lost;
+  was_expired_ = s.hold_expired;
   return s;
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <random>
 
 namespace hq::link_bridge {
 namespace {
@@ -52,11 +53,23 @@ Verdict to_mode_request(const link::ModeRequest& request, modes::Mode mode,
   return {true, ""};
 }
 
+FailsafeConfig LinkBridge::with_session(FailsafeConfig config, const link::LinkConfig& link) {
+  if (config.session_id == 0) {
+    // 64 random bits: two vehicle processes (a restart) practically never share a session.
+    std::random_device device;
+    while (config.session_id == 0) {
+      config.session_id = (static_cast<std::uint64_t>(device()) << 32U) | device();
+    }
+  }
+  if (config.stations.empty()) config.stations = link.stations;
+  return config;
+}
+
 LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
                        const BridgeOptions& options)
     : link_(link),
       options_(options),
-      failsafe_(failsafe),
+      failsafe_(with_session(failsafe, link)),
       participant_(link.domain_id),
       topics_(participant_),
       command_reader_(participant_, topics_.command, link::command_qos(link, link::End::kReader)),
@@ -94,6 +107,8 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   camera_->vehicle_id = link_.vehicle_id;
   state_->vehicle_id = link_.vehicle_id;
   event_->vehicle_id = link_.vehicle_id;
+  state_->session_id = session_id();
+  event_->session_id = session_id();
   jpeg_params_ = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
   jpeg_.reserve(hq_msgs_kMaxJpegBytes);
   if (link_.impairment.active()) {  // tests and demos over an emulated slow link
@@ -132,24 +147,43 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
       }
       mode_requests.push_back(chain_request);
     } else {
-      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected,
-                    verdict.reason);
+      // Named with the station and sessions: the operator of a station that lost control, or
+      // that talks to a previous instance, sees why its request did nothing.
+      char text[hq_msgs_kMaxEventText + 1];
+      std::snprintf(text, sizeof text, "mode request of station %u (session %016llx) rejected: %s",
+                    request.station_id,
+                    static_cast<unsigned long long>(request.vehicle_session_id), verdict.reason);
+      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, text);
     }
   }
 
   const FailsafeState& state = failsafe_.update(t_ns);
+  if (state.commander_changed) {
+    char text[96];
+    std::snprintf(text, sizeof text, "station %u commands this vehicle",
+                  state.commanding_station_id);
+    publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kCommanderChanged, text);
+  }
   if (state.hold_started) {
     char text[96];
     std::snprintf(text, sizeof text, "no command for %.0f ms: holding zero velocity",
                   1e-6 * static_cast<double>(state.command_age_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHold, text);
   }
-  if (state.request_land) {
-    mode_requests.push_back({modes::Mode::kLand, std::nullopt});
+  if (state.request_land) mode_requests.push_back({modes::Mode::kLand, std::nullopt});
+  if (state.land_for_heartbeat) {
     char text[96];
-    std::snprintf(text, sizeof text, "no ground heartbeat for %.1f s: landing",
+    std::snprintf(text, sizeof text, "no heartbeat from station %u for %.1f s: landing",
+                  state.commanding_station_id,
                   1e-9 * static_cast<double>(failsafe_.config().heartbeat_timeout_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHeartbeatLost, text);
+  }
+  if (state.land_for_hold) {
+    char text[96];
+    std::snprintf(text, sizeof text, "no command for %.1f s (held %.1f s): landing",
+                  1e-9 * static_cast<double>(state.command_age_ns),
+                  1e-9 * static_cast<double>(failsafe_.config().hold_to_land_ns));
+    publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHoldToLand, text);
   }
   report_rejections(t_ns);
 
@@ -163,6 +197,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
     own.t_ns = t_ns;
     own.echo_t_ns = echo_t_ns_;
     own.echo_held_ns = echo_t_ns_ != 0 ? t_ns - echo_receipt_t_ns_ : 0;
+    own.session_id = session_id();
     heartbeat_writer_.write(own);
   }
   return state;
@@ -225,6 +260,7 @@ void LinkBridge::publish_event(std::int64_t t_ns, hq_msgs_Severity severity, Eve
   event_->t_ns = t_ns;
   event_->severity = severity;
   event_->code = static_cast<std::uint32_t>(code);
+  event_->session_id = session_id();
   std::snprintf(event_->text, sizeof event_->text, "%s", text);
   event_writer_.write(*event_);
 }
@@ -247,6 +283,9 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.link_health = link_state.heartbeat_lost ? hq_msgs_HEALTH_LOST
                   : link_state.hold         ? hq_msgs_HEALTH_DEGRADED
                                             : hq_msgs_HEALTH_OK;
+  s.session_id = session_id();
+  s.commanding_station_id = link_state.commanding_station_id;
+  s.operator_input = operator_input(link_state, out.mode.mode, out.mode.landed);
   s.obstacle_points_body_m._length = 0;
   last_cloud_size_ = 0;
   if (cloud.memory != nullptr && options_.obstacle_cloud_rate_hz > 0.0 &&

@@ -17,10 +17,19 @@ modes::OperatorCommand LinkOperatorPort::poll(std::int64_t t_ns,
                  1e-9 * static_cast<double>(t_ns),
                  1e-6 * static_cast<double>(state.command_age_ns));
   }
-  if (log_ != nullptr && state.request_land) {
+  if (log_ != nullptr && state.land_for_heartbeat) {
     std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe land, heartbeat age %.1f ms\n",
                  1e-9 * static_cast<double>(t_ns),
                  1e-6 * static_cast<double>(state.heartbeat_age_ns));
+  }
+  if (log_ != nullptr && state.land_for_hold) {
+    std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe land after hold, command age %.1f ms\n",
+                 1e-9 * static_cast<double>(t_ns),
+                 1e-6 * static_cast<double>(state.command_age_ns));
+  }
+  if (log_ != nullptr && state.commander_changed) {
+    std::fprintf(log_, "hq-onboard: t %.3f s: commanded by station %u\n",
+                 1e-9 * static_cast<double>(t_ns), state.commanding_station_id);
   }
   return state.command;
 }

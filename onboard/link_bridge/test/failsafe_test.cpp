@@ -26,12 +26,36 @@ link::VelocityCommand command(float v_x_mps) {
   return c;
 }
 
-link::Heartbeat ground_heartbeat() {
+link::Heartbeat ground_heartbeat(std::uint32_t station_id = 1) {
   link::Heartbeat h{};
   h.vehicle_id = 1;
   h.role = hq_msgs_ROLE_GROUND;
-  h.sender_id = 1;
+  h.sender_id = station_id;
   return h;
+}
+
+constexpr std::uint64_t kSession = 0x1234'5678'9abc'def0ULL;
+
+link::ModeRequest mode_request(std::uint32_t station_id, hq_msgs_Mode mode,
+                               std::uint64_t session = kSession) {
+  link::ModeRequest r{};
+  r.vehicle_id = 1;
+  r.station_id = station_id;
+  r.requested_mode = mode;
+  r.vehicle_session_id = session;
+  return r;
+}
+
+FailsafeConfig session_config() {
+  FailsafeConfig config;
+  config.session_id = kSession;
+  return config;
+}
+
+link::VelocityCommand command_from(std::uint32_t station_id, float v_x_mps) {
+  link::VelocityCommand c = command(v_x_mps);
+  c.station_id = station_id;
+  return c;
 }
 
 TEST(Failsafe, HoldsZeroVelocityUntilTheFirstCommand) {
@@ -167,6 +191,7 @@ TEST(Failsafe, MalformedModeRequestsAreRejectedAndValidOnesMapped) {
   Failsafe failsafe(FailsafeConfig{});
   link::ModeRequest request{};
   request.vehicle_id = 1;
+  request.station_id = 1;
   modes::Mode mode = modes::Mode::kHover;
   request.requested_mode = hq_msgs_MODE_TELEOP;
   EXPECT_TRUE(failsafe.on_mode_request(0, request, mode).accepted);
@@ -188,6 +213,160 @@ TEST(Failsafe, MalformedModeRequestsAreRejectedAndValidOnesMapped) {
   EXPECT_EQ(failsafe.counters().mode_requests_accepted, 2U);
 }
 
+// Ownership (issue 16): requests and heartbeats count only from the commanding station.
+TEST(FailsafeOwnership, WeakerStationsRequestsAreIgnoredWhileTheStrongerCommands) {
+  // GIVEN station 2's commands are delivered (DDS gave it the command instance)
+  Failsafe failsafe(session_config());
+  ASSERT_TRUE(failsafe.on_command(0, command_from(2, 0.3F)).accepted);
+  EXPECT_EQ(failsafe.update(0).commanding_station_id, 2U);
+  // WHEN station 1 (weaker: its commands never arrive) asks for hover
+  modes::Mode mode = modes::Mode::kTeleop;
+  const Verdict weak = failsafe.on_mode_request(10 * kMs, mode_request(1, hq_msgs_MODE_HOVER), mode);
+  // THEN it is rejected and counted; the commander's request is accepted
+  EXPECT_FALSE(weak.accepted);
+  EXPECT_THAT(weak.reason, HasSubstr("does not command"));
+  EXPECT_EQ(mode, modes::Mode::kTeleop);
+  EXPECT_EQ(failsafe.counters().mode_requests_not_commander, 1U);
+  EXPECT_TRUE(
+      failsafe.on_mode_request(20 * kMs, mode_request(2, hq_msgs_MODE_LAND), mode).accepted);
+  EXPECT_EQ(mode, modes::Mode::kLand);
+}
+
+TEST(FailsafeOwnership, FirstStationHeardCommandsUntilAStrongerOnesCommandsArrive) {
+  Failsafe failsafe(session_config());
+  modes::Mode mode = modes::Mode::kHover;
+  // Before any command: the first station's heartbeat makes it the commander ...
+  EXPECT_TRUE(failsafe.on_heartbeat(0, ground_heartbeat(5)).accepted);
+  EXPECT_EQ(failsafe.update(0).commanding_station_id, 5U);
+  EXPECT_TRUE(failsafe.update(1).commander_changed == false);
+  EXPECT_TRUE(
+      failsafe.on_mode_request(5 * kMs, mode_request(5, hq_msgs_MODE_TELEOP), mode).accepted);
+  EXPECT_FALSE(failsafe.on_heartbeat(6 * kMs, ground_heartbeat(6)).accepted);
+  EXPECT_EQ(failsafe.counters().heartbeats_not_commander, 1U);
+  // ... until station 6's commands arrive (it is stronger): it commands from then on.
+  ASSERT_TRUE(failsafe.on_command(10 * kMs, command_from(6, 0.2F)).accepted);
+  const FailsafeState& s = failsafe.update(10 * kMs);
+  EXPECT_EQ(s.commanding_station_id, 6U);
+  EXPECT_TRUE(s.commander_changed);
+  EXPECT_FALSE(
+      failsafe.on_mode_request(20 * kMs, mode_request(5, hq_msgs_MODE_HOVER), mode).accepted);
+  EXPECT_EQ(failsafe.counters().commander_changes, 2U);
+}
+
+TEST(FailsafeOwnership, ForeignHeartbeatsDoNotKeepAVehicleWhoseCommanderDiedFromLanding) {
+  // GIVEN station 1 commands and sends heartbeats
+  Failsafe failsafe(session_config());
+  for (std::int64_t t = 0; t <= 1000 * kMs; t += 10 * kMs) {
+    failsafe.on_command(t, command_from(1, 0.3F));
+    failsafe.on_heartbeat(t, ground_heartbeat(1));
+    failsafe.update(t);
+  }
+  // WHEN it dies at 1 s while station 666 keeps sending heartbeats
+  bool landed = false;
+  std::int64_t land_t = -1;
+  for (std::int64_t t = 1010 * kMs; t <= 4000 * kMs && !landed; t += 10 * kMs) {
+    EXPECT_FALSE(failsafe.on_heartbeat(t, ground_heartbeat(666)).accepted);
+    const FailsafeState& s = failsafe.update(t);
+    if (s.request_land) {
+      landed = true;
+      land_t = t;
+      EXPECT_TRUE(s.land_for_heartbeat);
+    }
+  }
+  // THEN it lands once the commander's heartbeat is 2 s old
+  EXPECT_TRUE(landed);
+  EXPECT_EQ(land_t, 3010 * kMs);
+  EXPECT_GT(failsafe.counters().heartbeats_not_commander, 100U);
+}
+
+TEST(FailsafeOwnership, RequestsForAnotherSessionAreRejected) {
+  // A TRANSIENT_LOCAL request made to the previous instance of this vehicle, or a replay
+  Failsafe failsafe(session_config());
+  modes::Mode mode = modes::Mode::kHover;
+  const Verdict old =
+      failsafe.on_mode_request(0, mode_request(1, hq_msgs_MODE_TELEOP, kSession + 1), mode);
+  EXPECT_FALSE(old.accepted);
+  EXPECT_THAT(old.reason, HasSubstr("another vehicle session"));
+  EXPECT_EQ(mode, modes::Mode::kHover);
+  EXPECT_FALSE(failsafe.on_mode_request(0, mode_request(1, hq_msgs_MODE_TELEOP, 0), mode).accepted);
+  EXPECT_EQ(failsafe.counters().mode_requests_wrong_session, 2U);
+  // ... and does not make its station the commander
+  EXPECT_EQ(failsafe.update(0).commanding_station_id, 0U);
+  EXPECT_TRUE(failsafe.on_mode_request(0, mode_request(1, hq_msgs_MODE_TELEOP), mode).accepted);
+}
+
+TEST(FailsafeOwnership, StationsNotListedCannotCommandRequestOrKeepTheLink) {
+  FailsafeConfig config = session_config();
+  config.stations = {1, 2};
+  Failsafe failsafe(config);
+  modes::Mode mode = modes::Mode::kHover;
+  EXPECT_FALSE(failsafe.on_command(0, command_from(9, 0.5F)).accepted);
+  EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("not allowed"));
+  EXPECT_FALSE(failsafe.on_mode_request(0, mode_request(9, hq_msgs_MODE_TELEOP), mode).accepted);
+  EXPECT_FALSE(failsafe.on_heartbeat(0, ground_heartbeat(9)).accepted);
+  const FailsafeState& s = failsafe.update(0);
+  EXPECT_EQ(s.commanding_station_id, 0U);
+  EXPECT_EQ(operator_input(s, modes::Mode::kTeleop, false), hq_msgs_INPUT_IGNORED_NOT_OWNER);
+  EXPECT_EQ(failsafe.counters().commands_not_allowed, 1U);
+  EXPECT_TRUE(failsafe.on_command(10 * kMs, command_from(2, 0.5F)).accepted);
+  EXPECT_EQ(failsafe.update(10 * kMs).commanding_station_id, 2U);
+}
+
+TEST(FailsafeEscalation, HoldThenLandAfterHoldToLand) {
+  FailsafeConfig config = session_config();
+  config.hold_to_land_ns = 1000 * kMs;
+  Failsafe failsafe(config);
+  // Commands stop at 0 while heartbeats go on (a hand that froze, a broken device loop)
+  failsafe.on_command(0, command_from(1, 0.3F));
+  std::int64_t land_t = -1;
+  int lands = 0;
+  for (std::int64_t t = 0; t <= 5000 * kMs; t += 5 * kMs) {
+    failsafe.on_heartbeat(t, ground_heartbeat(1));
+    const FailsafeState& s = failsafe.update(t);
+    if (t == 205 * kMs) {
+      EXPECT_TRUE(s.hold);
+    }
+    if (s.request_land) {
+      ++lands;
+      if (land_t < 0) land_t = t;
+      EXPECT_TRUE(s.land_for_hold);
+      EXPECT_FALSE(s.heartbeat_lost);
+    }
+  }
+  // hold at 200 ms, land 1 s later, once
+  EXPECT_EQ(land_t, 1205 * kMs);
+  EXPECT_EQ(lands, 1);
+  EXPECT_EQ(failsafe.counters().land_requests_hold, 1U);
+  // A fresh command ends the episode: the next silence lands again.
+  failsafe.on_command(6000 * kMs, command_from(1, 0.1F));
+  failsafe.on_heartbeat(6000 * kMs, ground_heartbeat(1));
+  EXPECT_FALSE(failsafe.update(6000 * kMs).hold_expired);
+  failsafe.on_heartbeat(7000 * kMs, ground_heartbeat(1));
+  EXPECT_TRUE(failsafe.update(7201 * kMs).land_for_hold);
+}
+
+TEST(FailsafeEscalation, HeartbeatLossAndHoldExpiryLandOnce) {
+  Failsafe failsafe(session_config());  // heartbeat 2 s, hold_to_land 5 s
+  failsafe.on_command(0, command_from(1, 0.3F));
+  failsafe.on_heartbeat(0, ground_heartbeat(1));
+  int lands = 0;
+  for (std::int64_t t = 0; t <= 8000 * kMs; t += 5 * kMs) lands += failsafe.update(t).request_land;
+  EXPECT_EQ(lands, 1);
+  EXPECT_EQ(failsafe.counters().land_requests_hold, 0U);
+}
+
+TEST(FailsafeOwnership, OperatorInputSaysWhatTheVehicleDoesWithTheHand) {
+  Failsafe failsafe(session_config());
+  EXPECT_EQ(operator_input(failsafe.update(0), modes::Mode::kTeleop, true), hq_msgs_INPUT_NONE);
+  failsafe.on_command(10 * kMs, command_from(1, 0.3F));
+  const FailsafeState& s = failsafe.update(10 * kMs);
+  EXPECT_EQ(operator_input(s, modes::Mode::kTeleop, false), hq_msgs_INPUT_FLOWN);
+  EXPECT_EQ(operator_input(s, modes::Mode::kTeleop, true), hq_msgs_INPUT_IGNORED_LANDED);
+  EXPECT_EQ(operator_input(s, modes::Mode::kHover, false), hq_msgs_INPUT_IGNORED_MODE);
+  EXPECT_EQ(operator_input(failsafe.update(300 * kMs), modes::Mode::kTeleop, false),
+            hq_msgs_INPUT_IGNORED_FAILSAFE);
+}
+
 TEST(Failsafe, ModeEnumRoundTrips) {
   for (const modes::Mode mode : {modes::Mode::kTeleop, modes::Mode::kHover, modes::Mode::kLand,
                                  modes::Mode::kMarker, modes::Mode::kExplore}) {
@@ -206,6 +385,14 @@ TEST(Failsafe, BadConfigNamesTheField) {
   config.heartbeat_timeout_ns = 100 * kMs;
   EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),
               HasSubstr("heartbeat_timeout_ms = 100"));
+  config = {};
+  config.hold_to_land_ns = 50 * kMs;
+  EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),
+              HasSubstr("hold_to_land_s = 0.05"));
+  config = {};
+  config.stations = {1, 0};
+  EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),
+              HasSubstr("station id 0"));
   config = {};
   config.envelope.max_v_z_mps = std::nan("");
   EXPECT_THAT(hq::testing::input_error_message([&] { Failsafe f(config); }),

@@ -85,6 +85,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
   // Commands are best-effort: keep writing until one is taken.
   link::VelocityCommand good{};
   good.vehicle_id = 1;
+  good.station_id = 1;
   good.v_H_mps = {0.25F, 0.0F, 0.0F};
   ASSERT_TRUE(poll_until(bridge, requests, [&] {
     ground.commands.write(good);
@@ -103,13 +104,26 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
 
   link::ModeRequest request{};
   request.vehicle_id = 1;
+  request.station_id = 1;
+  request.vehicle_session_id = bridge.session_id();
   request.requested_mode = static_cast<hq_msgs_Mode>(99);
   ground.mode_requests.write(request);
+  request.requested_mode = hq_msgs_MODE_HOVER;
+  request.vehicle_session_id = bridge.session_id() + 1;  // made to a previous instance
+  ground.mode_requests.write(request);
+  request.station_id = 2;  // station 1 commands: not station 2's to ask
+  request.vehicle_session_id = bridge.session_id();
+  ground.mode_requests.write(request);
+  request.station_id = 1;
   request.requested_mode = hq_msgs_MODE_TELEOP;
   ground.mode_requests.write(request);
   ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
+  ASSERT_EQ(requests.size(), 1U);
   EXPECT_EQ(requests.front().mode, modes::Mode::kTeleop);
-  EXPECT_EQ(bridge.failsafe().counters().mode_requests_rejected, 1U);
+  EXPECT_NE(bridge.session_id(), 0U);
+  EXPECT_EQ(bridge.failsafe().counters().mode_requests_rejected, 3U);
+  EXPECT_EQ(bridge.failsafe().counters().mode_requests_wrong_session, 1U);
+  EXPECT_EQ(bridge.failsafe().counters().mode_requests_not_commander, 1U);
   EXPECT_EQ(bridge.failsafe().counters().heartbeats_rejected, 0U);  // its own are not counted
   bridge.acknowledge(now_ns(), {modes::Mode::kTeleop, std::nullopt}, {true, ""});
 
@@ -118,16 +132,24 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
   ASSERT_TRUE(poll_until(bridge, requests, [&] {
     link::Event event{};
     dds_sample_info_t info{};
-    while (ground.events.take(event, info)) texts.emplace_back(event.text);
+    while (ground.events.take(event, info)) {
+      EXPECT_EQ(event.session_id, bridge.session_id());
+      texts.emplace_back(event.text);
+    }
     bool ack = false;
     bool rejected_mode = false;
     bool rejected_command = false;
+    bool rejected_session = false;
+    bool rejected_station = false;
     for (const std::string& t : texts) {
       ack = ack || t.find("mode teleop accepted") != std::string::npos;
       rejected_mode = rejected_mode || t.find("Mode enum") != std::string::npos;
       rejected_command = rejected_command || t.find("NaN or Inf") != std::string::npos;
+      rejected_session = rejected_session || t.find("another vehicle session") != std::string::npos;
+      rejected_station =
+          rejected_station || t.find("station 2 (session") != std::string::npos;
     }
-    return ack && rejected_mode && rejected_command;
+    return ack && rejected_mode && rejected_command && rejected_session && rejected_station;
   })) << ::testing::PrintToString(texts);
 }
 
@@ -158,6 +180,38 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   EXPECT_FLOAT_EQ(state.v_H_mps.y, -0.25F);
   EXPECT_EQ(state.link_health, hq_msgs_HEALTH_DEGRADED);  // no command yet: holding
   EXPECT_TRUE(link::validate(state).ok);
+  // Who it is and who commands it: its session, nobody yet, no input.
+  EXPECT_EQ(state.session_id, bridge.session_id());
+  EXPECT_NE(state.session_id, 0U);
+  EXPECT_EQ(state.commanding_station_id, 0U);
+  EXPECT_EQ(state.operator_input, hq_msgs_INPUT_NONE);
+}
+
+// GIVEN two bridges (a vehicle and its restart) THEN their sessions differ and the state of each
+// carries the station whose commands it flies.
+TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {
+  link::LinkConfig config = private_link();
+  LinkBridge first(config, FailsafeConfig{});
+  EXPECT_NE(first.session_id(), LinkBridge(config, FailsafeConfig{}).session_id());
+  Ground ground(config);
+  link::VelocityCommand c{};
+  c.vehicle_id = 1;
+  c.station_id = 7;
+  std::vector<pipeline::ModeRequest> requests;
+  ASSERT_TRUE(poll_until(first, requests, [&] {
+    ground.commands.write(c);
+    return first.failsafe().state().commanding_station_id == 7U;
+  }));
+  pipeline::ChainOutput out;
+  out.mode.mode = modes::Mode::kTeleop;
+  link::VehicleState state{};
+  ASSERT_TRUE(poll_until(first, requests, [&] {
+    ground.commands.write(c);  // fresh: flown
+    first.publish_state(out);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info) && state.commanding_station_id == 7U;
+  }));
+  EXPECT_EQ(state.operator_input, hq_msgs_INPUT_FLOWN);
 }
 
 // Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
@@ -344,9 +398,12 @@ control::VehicleConfig forward_camera_vehicle() {
   return vehicle;
 }
 
-link::ModeRequest marker_request(hq_msgs_MarkerTask task, std::int32_t target_id) {
+link::ModeRequest marker_request(hq_msgs_MarkerTask task, std::int32_t target_id,
+                                 std::uint64_t session = 0) {
   link::ModeRequest request{};
   request.vehicle_id = 1;
+  request.station_id = 1;
+  request.vehicle_session_id = session;
   request.requested_mode = hq_msgs_MODE_MARKER;
   request.marker_task = task;
   request.target_id = target_id;
@@ -417,7 +474,7 @@ TEST(LinkBridge, PassesMarkerRequestsOnAndAcknowledgesTheChainsAnswer) {
   };
   pipeline::OnboardChain without_stage(chain_config(false), forward_camera_vehicle(),
                                        kMarkerCamera);
-  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
+  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4, bridge.session_id()));
   ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
   ASSERT_TRUE(requests.front().marker.has_value());
   EXPECT_EQ(requests.front().marker->marker_id, 4);
@@ -428,7 +485,7 @@ TEST(LinkBridge, PassesMarkerRequestsOnAndAcknowledgesTheChainsAnswer) {
 
   requests.clear();
   pipeline::OnboardChain with_stage(chain_config(true), forward_camera_vehicle(), kMarkerCamera);
-  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4));
+  ground.mode_requests.write(marker_request(hq_msgs_MARKER_TASK_LAND, 4, bridge.session_id()));
   ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
   EXPECT_EQ(requests.front().mode, modes::Mode::kMarker);
   bridge.acknowledge(now_ns(), requests.front(), with_stage.request_mode(requests.front()));

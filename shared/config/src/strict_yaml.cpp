@@ -218,6 +218,29 @@ void StrictMap::read_list(const std::string& key, double* values, int count) {
   }
 }
 
+void StrictMap::read_int_list(const std::string& key, std::vector<int>& values, int min, int max,
+                              int max_count) {
+  const std::optional<YAML::Node> node = find(key);
+  if (!node) return;
+  if (!node->IsSequence() || static_cast<int>(node->size()) > max_count) {
+    throw InputError(describe(key) + " = " + to_text(*node) + ", expected a list of at most " +
+                     std::to_string(max_count) + " integers");
+  }
+  std::vector<int> out;
+  for (std::size_t i = 0; i < node->size(); ++i) {
+    const std::string where = describe(key) + "[" + std::to_string(i) + "]";
+    int v = 0;
+    if (!(*node)[i].IsScalar() || !YAML::convert<int>::decode((*node)[i], v)) {
+      throw InputError(where + " = " + to_text((*node)[i]) + ", expected an integer");
+    }
+    if (v < min || v > max) {
+      throw InputError(where + " = " + to_text((*node)[i]) + ", " + range_text(min, max));
+    }
+    out.push_back(v);
+  }
+  values = std::move(out);
+}
+
 void StrictMap::require(const std::string& key, double& value, double min, double max) {
   if (!has(key)) throw InputError(describe(key) + " is missing");
   read(key, value, min, max);

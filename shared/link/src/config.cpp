@@ -12,6 +12,7 @@ namespace {
 constexpr double kMinPeriodMs = 1.0;
 constexpr double kMaxPeriodMs = 60'000.0;
 constexpr int kMaxId = std::numeric_limits<int>::max();
+constexpr int kMaxStations = 16;
 
 std::int64_t ms_to_ns(double ms) { return static_cast<std::int64_t>(std::llround(ms * 1e6)); }
 double ns_to_ms(std::int64_t ns) { return static_cast<double>(ns) * 1e-6; }
@@ -33,6 +34,9 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
   section.read("station_id", station_id, 0, kMaxId);
   out.station_id = static_cast<std::uint32_t>(station_id);
   section.read("station_strength", out.station_strength, 0, kMaxId);
+  std::vector<int> stations(out.stations.begin(), out.stations.end());
+  section.read_int_list("stations", stations, 1, kMaxId, kMaxStations);
+  out.stations.assign(stations.begin(), stations.end());
   read_ms(section, "command_deadline_ms", out.command_deadline_ns);
   read_ms(section, "command_lease_ms", out.command_lease_ns);
   read_ms(section, "heartbeat_lease_ms", out.heartbeat_lease_ns);
@@ -80,6 +84,10 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides) {
   app.add_option("--station-strength", overrides.station_strength,
                  "ownership strength of this station's commands (higher wins)")
       ->check(CLI::Range(0, kMaxId));
+  app.add_option("--stations", overrides.stations,
+                 "on board: station ids allowed to command, e.g. 1,2 (default: any)")
+      ->delimiter(',')
+      ->check(CLI::Range(1, kMaxId));
   app.add_option("--command-deadline-ms", overrides.command_deadline_ms,
                  "command deadline in milliseconds")
       ->check(CLI::Range(kMinPeriodMs, kMaxPeriodMs));
@@ -93,6 +101,7 @@ void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
   if (overrides.vehicle_id) config.vehicle_id = *overrides.vehicle_id;
   if (overrides.station_id) config.station_id = *overrides.station_id;
   if (overrides.station_strength) config.station_strength = *overrides.station_strength;
+  if (overrides.stations) config.stations.assign(overrides.stations->begin(), overrides.stations->end());
   if (overrides.command_deadline_ms) {
     if (!std::isfinite(*overrides.command_deadline_ms)) {
       throw InputError("--command-deadline-ms: expected a finite number");
@@ -121,6 +130,13 @@ void check_config(const LinkConfig& config) {
       fail(field, ms.str(), "in [1, 60000] ms");
     }
   };
+  if (config.stations.size() > static_cast<std::size_t>(kMaxStations)) {
+    fail("stations", std::to_string(config.stations.size()) + " ids",
+         "at most " + std::to_string(kMaxStations));
+  }
+  for (const std::uint32_t id : config.stations) {
+    if (id == 0) fail("stations", "[.. 0 ..]", "ids >= 1 (0 means no station)");
+  }
   check_period("command_deadline_ms", config.command_deadline_ns);
   check_period("command_lease_ms", config.command_lease_ns);
   check_period("heartbeat_lease_ms", config.heartbeat_lease_ns);

@@ -101,6 +101,25 @@ TEST(LinkConfig, CommandLineOverridesYaml) {
   EXPECT_EQ(config.command_deadline_ns, 40'000'000);
 }
 
+// Issue 16: the stations allowed to command, from the file or --stations; 0 and junk refused.
+TEST(LinkConfig, StationsFromYamlAndTheCommandLine) {
+  EXPECT_TRUE(from_yaml("{}").stations.empty());  // any station
+  LinkConfig config = from_yaml("{stations: [1, 4]}");
+  EXPECT_EQ(config.stations, (std::vector<std::uint32_t>{1, 4}));
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{stations: [1, 0]}"); }),
+              HasSubstr("link.stations[1] = 0"));
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{stations: 3}"); }),
+              HasSubstr("link.stations = 3, expected a list"));
+  CLI::App app;
+  LinkOverrides overrides;
+  add_link_options(app, overrides);
+  std::vector<std::string> args = {"--stations", "2,7"};
+  std::reverse(args.begin(), args.end());
+  app.parse(args);
+  apply_overrides(overrides, config);
+  EXPECT_EQ(config.stations, (std::vector<std::uint32_t>{2, 7}));
+}
+
 TEST(LinkConfig, CommandLineRejectsOutOfRangeDomain) {
   CLI::App app;
   LinkOverrides overrides;

@@ -41,6 +41,30 @@ std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name);
 const char* to_string(hq_msgs_Mode mode);
 const char* to_string(hq_msgs_Health health);
 
+/// Plausibility of a vehicle state beyond validate() (finite values, enums in range): speeds
+/// and rates a multirotor can have, attitudes inside (-pi, pi), height, clearance and position
+/// of sane size. A state failing it is a broken or forged sender's and must never reach the
+/// force feedback. Static reason text.
+link::Validation plausible(const link::VehicleState& state);
+
+/// Bounds of plausible() (SI units).
+inline constexpr double kMaxPlausibleSpeedMps = 20.0;
+inline constexpr double kMaxPlausibleRateRadps = 35.0;  ///< 2000 deg/s, a gyro's full scale.
+inline constexpr double kMaxPlausibleHeightM = 1000.0;
+inline constexpr double kMaxPlausibleDistanceM = 100'000.0;
+/// A forward jump of the sequence number larger than this (~1 h of states at 30 Hz) is a
+/// forged sample, not lost ones: accepting it would make every real state after it "old".
+inline constexpr std::uint64_t kMaxSequenceJump = 100'000;
+/// The vehicle session whose states arrived this recently is live: a state of another session
+/// meanwhile is forged (or a second vehicle process with the same id) and rejected.
+inline constexpr std::int64_t kSessionLiveNs = 1'000'000'000;
+
+/// Event codes the ground raises itself (Event.code in events.csv), apart from the vehicle's.
+inline constexpr std::uint32_t kGroundEventControlLost = 1001;
+inline constexpr std::uint32_t kGroundEventControlRegained = 1002;
+inline constexpr std::uint32_t kGroundEventVehicleRestarted = 1003;
+inline constexpr std::uint32_t kGroundEventWaiting = 1004;
+
 /// Latencies in a fixed histogram (10 us bins up to 100 ms); add() allocates nothing.
 class LatencyStats {
  public:
@@ -85,7 +109,22 @@ struct LinkStatus {
   std::array<char, 161> last_event{};  ///< Text of the latest event.
   std::uint64_t state_sequence_gaps = 0;  ///< States missing between consecutive sequences.
   std::uint64_t states_reordered = 0;     ///< Arrived after a newer one: dropped, not missing.
-  std::uint64_t states_rejected = 0;      ///< States of the selected vehicle failing validate().
+  /// States of the selected vehicle rejected: all reasons below, never handed to the loop.
+  std::uint64_t states_rejected = 0;
+  std::uint64_t states_invalid = 0;        ///< Failing validate() (NaN, enums).
+  std::uint64_t states_implausible = 0;    ///< Failing plausible() (magnitudes).
+  std::uint64_t states_wrong_session = 0;  ///< Another session while the current one is live.
+  std::uint64_t states_sequence_jump = 0;  ///< Sequence ahead by more than kMaxSequenceJump.
+  std::uint64_t events_rejected = 0;       ///< Events not of the current vehicle session.
+  /// The vehicle session (VehicleState.session_id) followed; 0 before the first state.
+  std::uint64_t vehicle_session = 0;
+  std::uint64_t vehicle_restarts = 0;      ///< New sessions after the first.
+  /// A mode request waits for the vehicle's session (nothing heard yet): sent once it is.
+  bool waiting_for_vehicle = false;
+  /// The vehicle reports another station as its commander: this station lost control.
+  bool control_lost = false;
+  std::uint32_t commanding_station_id = 0;  ///< As the vehicle reports it (0: none).
+  std::uint64_t control_losses = 0;
   std::array<std::uint32_t, 8> vehicle_ids_seen{};  ///< Ids of every vehicle heard from.
   std::size_t vehicle_ids_seen_count = 0;
 };
@@ -163,8 +202,15 @@ class GroundStation {
 
   /// Publishes one command of the haptic loop (zero when `valid` is false).
   void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
-  /// Requests `mode`, with a marker task for the vehicle's marker stage if `marker` has one.
-  void request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {});
+  /// Requests `mode`, with a marker task for the vehicle's marker stage if `marker` has one,
+  /// for the vehicle session last heard from. Before any session is known the request waits
+  /// (status().waiting_for_vehicle; the latest one replaces an earlier one) and goes out when
+  /// the first state arrives; returns false then. A vehicle that restarts (a new session)
+  /// gets nothing re-sent: the station raises "vehicle restarted" and the operator asks again.
+  bool request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {});
+  /// Where the ground's own notices (control lost, vehicle restarted) are printed once each
+  /// (e.g. stdout); null: not printed. They also go to the recorder and the observer as events.
+  void set_log(std::FILE* log) { log_ = log; }
   /// @param t_ns  on CLOCK_MONOTONIC (haptics::monotonic_now_ns()): the vehicle echoes it back
   /// for the round trip.
   void send_heartbeat(std::int64_t t_ns);
@@ -191,6 +237,19 @@ class GroundStation {
   LinkObserver* observer_ = nullptr;
   std::uint64_t last_state_sequence_ = 0;
   void note_vehicle(std::uint32_t vehicle_id);
+  /// Checks a state of the selected vehicle (session, sequence, values); false: rejected and
+  /// counted. Adopts a new session when the current one is not live.
+  bool admit_state(const link::VehicleState& s, std::int64_t receipt_ns);
+  void note_control(const link::VehicleState& s);
+  /// A notice of the ground's own: printed to log_, recorded, shown.
+  void notice(hq_msgs_Severity severity, std::uint32_t code, const char* text);
+  void send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker);
+  std::FILE* log_ = nullptr;
+  std::uint64_t session_id_ = 0;  ///< This station's own, in its heartbeats.
+  std::int64_t session_receipt_ns_ = 0;  ///< Last accepted state of the current session.
+  bool pending_request_ = false;
+  hq_msgs_Mode pending_mode_ = hq_msgs_MODE_HOVER;
+  MarkerChoice pending_marker_;
   void note_echo(const link::Heartbeat& heartbeat);
   link::Participant participant_;
   link::Topics topics_;

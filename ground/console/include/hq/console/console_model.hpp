@@ -99,6 +99,15 @@ struct LinkHealth {
   std::uint64_t write_failures = 0;
   std::uint64_t sequence_gaps = 0;  ///< States lost on the way.
   std::uint64_t states_rejected = 0;
+  std::uint64_t states_implausible = 0;    ///< Of states_rejected: magnitudes out of range.
+  std::uint64_t states_wrong_session = 0;  ///< Of states_rejected: another vehicle session.
+  std::uint64_t events_rejected = 0;       ///< Not of the current vehicle session.
+  std::uint64_t vehicle_session = 0;       ///< 0: no vehicle heard yet.
+  bool waiting_for_vehicle = false;        ///< A mode request waits for the vehicle's session.
+  /// The vehicle reports another station as its commander than this one (own_station).
+  bool control_lost = false;
+  std::uint32_t commanding_station = 0;
+  std::uint32_t own_station = 0;
   bool heartbeat_seen = false;
   std::array<std::uint32_t, 8> vehicle_ids{};
   std::size_t vehicle_id_count = 0;
@@ -115,6 +124,10 @@ struct ReplayStatus {
   bool at_end = false;          ///< Stopped at the end of the recording (not a live link).
   std::size_t sessions = 0;     ///< Vehicle sessions begun up to position_s.
 };
+
+/// The loud line a station that lost control shows ("CONTROL LOST: station 7 commands vehicle
+/// 1; this station 1 does not"), written into `out`; false (out empty) while in control.
+bool control_banner(const LinkHealth& link, char* out, std::size_t size);
 
 /// The UI's copy; buffers sized by ConsoleModel::make_snapshot(), reused on every copy.
 struct Snapshot {

@@ -13,10 +13,33 @@
 ///     against the least (receipt - stamp) seen, which rises by 5 % of elapsed time so clock
 ///     drift is followed; if every command for command_reanchor is stale (the station
 ///     restarted with another clock, or a stamp from the future), the estimate is re-anchored.
-///   - no accepted command for command_timeout (200 ms): hold zero velocity;
-///   - no heartbeat from any station for heartbeat_timeout (2 s) once a station has been seen:
-///     request land, once per loss;
+///   - no accepted command for command_timeout (200 ms): hold zero velocity; still none
+///     hold_to_land (5 s) later: request land, once per hold (the fail-safe escalates; a vehicle
+///     whose operator went silent does not hover until its battery is flat);
+///   - no heartbeat from the commanding station for heartbeat_timeout (2 s): request land, once
+///     per loss;
 ///   - a mode request with an unknown mode or for another vehicle is rejected and counted.
+///
+/// Ownership. The vehicle follows one station, the commander (commanding_station_id):
+///   - the station of the last accepted velocity command. DDS EXCLUSIVE ownership delivers
+///     only the strongest live command writer's samples, so a stronger station's commands take
+///     the vehicle over; when the commander dies its lease expires and the next one's commands
+///     arrive and take over (it is then the commander: its own heartbeats keep the link);
+///   - before any command was accepted, the first allowed station whose heartbeat or mode
+///     request arrives, so the first station can ask for take-off and teleop before its hand
+///     moves; a stronger station's commands still take over later;
+///   - `stations` (config link.stations) lists the station ids allowed to command; empty: any.
+///     A command, request or heartbeat from another id is rejected and counted.
+/// Mode requests (marker tasks included) and heartbeats count only from the commander: another
+/// station's requests are rejected and counted; its heartbeats are ignored (counted apart) and
+/// never keep a vehicle whose commander was killed from landing.
+///
+/// Sessions. Each vehicle process draws a random session id (LinkBridge); a mode request
+/// counts only if its vehicle_session_id is this session. A request made to a previous
+/// instance of the vehicle (kept by DDS as a TRANSIENT_LOCAL sample, or replayed) is rejected
+/// and counted, so a restarted vehicle obeys no stale request. The writer identity of a
+/// station (a forged station_id) is DDS security's job (permissions per topic), not this
+/// logic's: without security any process on the domain can claim any station id.
 ///
 /// Sequence numbers are recorded, not used to drop samples: a hostile sample with a huge sequence
 /// number would otherwise lock the real station out for good.
@@ -25,6 +48,7 @@
 #include "hq/modes/mode_controller.hpp"
 
 #include <cstdint>
+#include <vector>
 
 namespace hq::link_bridge {
 
@@ -34,7 +58,13 @@ struct FailsafeConfig {
   std::int64_t heartbeat_timeout_ns = 2'000'000'000;   ///< No heartbeat this long: land.
   std::int64_t command_max_delay_ns = 250'000'000;     ///< Later than the least delay + this.
   std::int64_t command_reanchor_ns = 1'000'000'000;  ///< All stale this long: new clock.
+  /// Holding (no fresh command) this long after the hold began: land. 0.1 s .. 600 s.
+  std::int64_t hold_to_land_ns = 5'000'000'000;
   link::CommandEnvelope envelope;                      ///< Accepted command magnitudes.
+  /// This vehicle's session: mode requests must carry it (LinkBridge draws it at random).
+  std::uint64_t session_id = 0;
+  /// Station ids allowed to command (link.stations); empty: any station.
+  std::vector<std::uint32_t> stations;
 };
 
 /// Throws hq::InputError naming the field, its value and the expectation.
@@ -53,9 +83,18 @@ struct FailsafeState {
   modes::OperatorCommand command;
   bool have_command = false;          ///< A command was ever accepted.
   bool hold = true;                   ///< No fresh command: zero velocity.
-  bool heartbeat_lost = false;        ///< Stations were seen, none for heartbeat_timeout.
-  bool request_land = false;          ///< True on the one step the heartbeat loss starts.
+  bool heartbeat_lost = false;        ///< A commander was seen, silent for heartbeat_timeout.
+  bool hold_expired = false;          ///< Holding for hold_to_land after a command was flown.
+  /// True on the one step the vehicle must land: the heartbeat loss or the hold expiry starts
+  /// (only the first of the two while both last: one land request per episode).
+  bool request_land = false;
+  bool land_for_heartbeat = false;    ///< request_land because of the heartbeat loss.
+  bool land_for_hold = false;         ///< request_land because the hold expired.
   bool hold_started = false;          ///< True on the step fresh commands stop.
+  /// The station followed (0: none yet) and the one whose well-formed command came last.
+  std::uint32_t commanding_station_id = 0;
+  std::uint32_t last_command_station_id = 0;
+  bool commander_changed = false;     ///< True on the step the commander changed.
   std::int64_t command_age_ns = -1;   ///< Since the last accepted command; -1 if none yet.
   std::int64_t heartbeat_age_ns = -1; ///< Since the last heartbeat; -1 if none yet.
 };
@@ -70,6 +109,15 @@ struct FailsafeCounters {
   std::uint64_t heartbeats_rejected = 0;
   std::uint64_t holds = 0;        ///< Times fresh commands stopped.
   std::uint64_t land_requests = 0;
+  std::uint64_t land_requests_hold = 0;  ///< Of land_requests: the hold expired.
+  /// Of the rejections above: from a station not allowed to command (link.stations).
+  std::uint64_t commands_not_allowed = 0;
+  /// Of mode_requests_rejected: not from the commander / for another vehicle session.
+  std::uint64_t mode_requests_not_commander = 0;
+  std::uint64_t mode_requests_wrong_session = 0;
+  /// Well-formed ground heartbeats not from the commander: ignored (not in _rejected).
+  std::uint64_t heartbeats_not_commander = 0;
+  std::uint64_t commander_changes = 0;
 };
 
 class Failsafe {
@@ -100,6 +148,9 @@ class Failsafe {
   /// Why a command stamped stamp_ns received at t_ns is stale (static text), nullptr if it is
   /// not; updates the delay estimate.
   const char* stale(std::int64_t t_ns, std::int64_t stamp_ns);
+  [[nodiscard]] bool allowed(std::uint32_t station_id) const;
+  /// Makes `station_id` the commander at t_ns (no-op if it is already).
+  void take_command(std::int64_t t_ns, std::uint32_t station_id);
 
   FailsafeConfig config_;
   FailsafeState state_;
@@ -114,13 +165,26 @@ class Failsafe {
   std::int64_t offset_relaxed_t_ns_ = 0;
   std::int64_t last_stamp_ns_ = 0;
   std::int64_t stale_since_t_ns_ = -1;
+  // The commander's heartbeats only: reset when another station takes command.
   std::int64_t last_heartbeat_t_ns_ = 0;
   bool have_heartbeat_ = false;
+  std::uint32_t commander_ = 0;
+  std::uint32_t last_command_station_ = 0;
+  std::int64_t commander_since_t_ns_ = 0;
+  bool commander_changed_ = false;
   bool was_holding_ = true;
   bool was_lost_ = false;
+  bool was_expired_ = false;
   const char* last_rejection_ = "";
   const char* last_command_rejection_ = "";
 };
+
+/// What the vehicle does with the operator's input (VehicleState.operator_input), given the
+/// fail-safe state, the mode flown and whether it is on the floor: NOT_OWNER when the last
+/// well-formed command came from a station that is not the commander, FAILSAFE while holding
+/// or landing for stale commands or a lost heartbeat, LANDED on the floor in teleop, MODE in any
+/// other mode than teleop, NONE before any command, FLOWN otherwise.
+hq_msgs_OperatorInput operator_input(const FailsafeState& state, modes::Mode mode, bool landed);
 
 /// The on-board mode of a link enum value; false for a value outside the enum.
 bool to_mode(hq_msgs_Mode value, modes::Mode& mode);

@@ -38,6 +38,9 @@ enum class EventCode : std::uint32_t {
   kMarkerTaskAccepted = 9,
   kMarkerTaskRefused = 10,
   kVehicle = 11,  ///< The vehicle runtime: flight controller lost, disarmed, out of offboard.
+  // 20+: ownership and escalation (numbered apart from codes other work may add after 11).
+  kCommanderChanged = 20,  ///< Another station commands the vehicle now.
+  kHoldToLand = 21,        ///< Held without commands for hold_to_land: landing.
 };
 
 /// The marker stage's task of a link MarkerTask; false for NONE or a value outside the enum.
@@ -92,6 +95,9 @@ struct StateExtras {
 class LinkBridge {
  public:
   /// Creates participant, topics, readers and writers on link.domain_id for link.vehicle_id.
+  /// Draws this vehicle's session id (non-zero, std::random_device) unless failsafe.session_id
+  /// is already set (tests); it goes out in every state, heartbeat and event, and mode requests
+  /// must carry it. link.stations, if any, are the stations allowed to command.
   /// @throws hq::InputError naming the DDS call or the fail-safe setting that failed.
   LinkBridge(const link::LinkConfig& link, const FailsafeConfig& failsafe,
              const BridgeOptions& options = {});
@@ -127,12 +133,14 @@ class LinkBridge {
                      const char* text);
 
   [[nodiscard]] const Failsafe& failsafe() const { return failsafe_; }
+  [[nodiscard]] std::uint64_t session_id() const { return failsafe_.config().session_id; }
   [[nodiscard]] std::uint64_t camera_frames_sent() const { return camera_sent_; }
   [[nodiscard]] std::uint64_t states_sent() const { return state_sequence_; }
   [[nodiscard]] std::uint64_t events_sent() const { return event_sequence_; }
 
  private:
   void report_rejections(std::int64_t t_ns);
+  static FailsafeConfig with_session(FailsafeConfig config, const link::LinkConfig& link);
 
   link::LinkConfig link_;
   BridgeOptions options_;

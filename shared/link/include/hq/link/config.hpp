@@ -2,6 +2,7 @@
 /// Link settings: from the `link:` section of a YAML file, then overridden on the command line.
 ///   link: {domain_id: 0, vehicle_id: 1, station_id: 1, station_strength: 100,
 ///          command_deadline_ms: 100, command_lease_ms: 500, heartbeat_lease_ms: 1000,
+///          stations: [1, 2],   # station ids allowed to command this vehicle; absent/[]: any
 ///          envelope: {max_v_x_mps: 2.0, max_v_y_mps: 2.0, max_v_z_mps: 1.0,
 ///                     max_yaw_rate_radps: 1.5},
 ///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1}}   # tests and demos only
@@ -9,6 +10,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -29,6 +31,8 @@ struct LinkConfig {
   std::int64_t command_deadline_ns = 100'000'000;  ///< Expected command period bound.
   std::int64_t command_lease_ns = 500'000'000;     ///< Liveliness lease of a command writer.
   std::int64_t heartbeat_lease_ns = 1'000'000'000; ///< Liveliness lease of heartbeat writers.
+  /// On board: station ids whose commands, mode requests and heartbeats count; empty = any.
+  std::vector<std::uint32_t> stations;
   CommandEnvelope envelope;         ///< Limits applied by validate(VelocityCommand).
   ImpairmentConfig impairment;      ///< Receive-side link impairment (none by default).
 };
@@ -48,10 +52,11 @@ struct LinkOverrides {
   std::optional<std::uint32_t> station_id;
   std::optional<int> station_strength;
   std::optional<double> command_deadline_ms;
+  std::optional<std::vector<int>> stations;  ///< --stations 1,2
   std::optional<std::string> link_impair;  ///< "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N]"
 };
 
-/// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --command-deadline-ms
+/// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --stations, --command-deadline-ms
 /// (range-checked by CLI11), --link-impair (checked by apply_overrides) to `app`, storing into
 /// `overrides` (which must outlive parsing).
 void add_link_options(CLI::App& app, LinkOverrides& overrides);

@@ -1,0 +1,228 @@
+// The ground's checks on what it receives and its side of ownership (issue 16): vehicle states
+// are checked (finite, plausible, one session, sequence) before anything uses them; events count
+// only from the vehicle's session; mode requests carry the session and wait for it; a station
+// that another station took the vehicle from says so. Over DDS on a private loopback domain, a
+// fake vehicle writing what a broken or hostile one would.
+#include "hq/ground/ground_station.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <string>
+#include <thread>
+
+namespace hq::ground {
+namespace {
+
+using ::testing::HasSubstr;
+
+link::LinkConfig private_link() {
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+         "</Interfaces></General></Domain></CycloneDDS>",
+         1);
+  link::LinkConfig config;
+  config.domain_id = 1 + static_cast<int>((getpid() + 100) % 200);
+  config.station_id = 1;
+  return config;
+}
+
+link::VehicleState good_state(std::uint64_t session, std::uint64_t sequence) {
+  link::VehicleState s{};
+  s.vehicle_id = 1;
+  s.session_id = session;
+  s.sequence_number = sequence;
+  s.t_ns = static_cast<std::int64_t>(sequence) * 33'000'000;
+  s.v_H_mps = {0.3F, 0.0F, 0.0F};
+  s.mode = hq_msgs_MODE_TELEOP;
+  s.commanding_station_id = 1;
+  s.clearance_m = -1.0F;
+  return s;
+}
+
+// The vehicle's side: writes states and events, reads the station's mode requests.
+struct FakeVehicle {
+  explicit FakeVehicle(const link::LinkConfig& config)
+      : participant(config.domain_id),
+        state_topic(participant),
+        event_topic(participant),
+        mode_topic(participant),
+        states(participant, state_topic, link::vehicle_state_qos()),
+        events(participant, event_topic, link::event_qos()),
+        requests(participant, mode_topic, link::mode_request_qos()) {}
+  link::Participant participant;
+  link::Topic<link::VehicleState> state_topic;
+  link::Topic<link::Event> event_topic;
+  link::Topic<link::ModeRequest> mode_topic;
+  link::Writer<link::VehicleState> states;
+  link::Writer<link::Event> events;
+  link::Reader<link::ModeRequest> requests;
+};
+
+// Polls the station until `done` or 5 s.
+template <typename Done>
+bool poll_until(GroundStation& station, Done done) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (std::chrono::steady_clock::now() < end) {
+    station.poll();
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return false;
+}
+
+TEST(Plausible, RejectsMagnitudesNoVehicleHasAndAcceptsAFlyingOne) {
+  EXPECT_TRUE(plausible(good_state(1, 1)).ok);
+  const auto rejected = [](auto change) {
+    link::VehicleState s = good_state(1, 1);
+    change(s);
+    return plausible(s);
+  };
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.v_H_mps.x = 1e6F; }).reason,
+              HasSubstr("v_H_mps"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.v_H_mps.y = std::nanf(""); }).reason,
+              HasSubstr("v_H_mps"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.v_obs_H_mps.z = -25.0F; }).reason,
+              HasSubstr("v_obs_H_mps"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.omega_body_radps.z = 100.0F; }).reason,
+              HasSubstr("omega"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.roll_rad = 4.0F; }).reason,
+              HasSubstr("roll_rad"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.height_m = 1e5F; }).reason,
+              HasSubstr("height_m"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) {
+                s.clearance_m = std::numeric_limits<float>::infinity();
+              }).reason,
+              HasSubstr("clearance_m"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.p_W_m.x = 1e9F; }).reason,
+              HasSubstr("p_W_m"));
+}
+
+// GIVEN a station that asked for teleop before any vehicle was heard, WHEN the vehicle's first
+// state arrives, THEN the request goes out then, for that session; forged states (NaN, huge,
+// another session while this one is live, old sequence, huge sequence jump) and events of
+// another session are rejected and counted, and never become the station's state.
+TEST(GroundChecks, RequestsWaitForTheSessionAndForgedStatesAndEventsAreRejected) {
+  const link::LinkConfig config = private_link();
+  GroundStation station(config);
+  FakeVehicle vehicle(config);
+  EXPECT_FALSE(station.request_mode(1, hq_msgs_MODE_TELEOP));
+  EXPECT_TRUE(station.status().waiting_for_vehicle);
+  EXPECT_EQ(station.status().mode_requests_sent, 0U);
+
+  constexpr std::uint64_t kSession = 0xabcdef12345ULL;
+  std::uint64_t sequence = 1;
+  ASSERT_TRUE(poll_until(station, [&] {
+    vehicle.states.write(good_state(kSession, sequence++));
+    return station.status().have_state;
+  }));
+  EXPECT_EQ(station.status().vehicle_session, kSession);
+  EXPECT_FALSE(station.status().waiting_for_vehicle);
+  EXPECT_EQ(station.status().mode_requests_sent, 1U);
+  link::ModeRequest request{};
+  dds_sample_info_t info{};
+  ASSERT_TRUE(poll_until(station, [&] { return vehicle.requests.take(request, info); }));
+  EXPECT_EQ(request.requested_mode, hq_msgs_MODE_TELEOP);
+  EXPECT_EQ(request.vehicle_session_id, kSession);
+  EXPECT_EQ(request.station_id, 1U);
+
+  // Forgeries, each after a good state (so the session stays live).
+  const std::uint64_t last_good = sequence;
+  vehicle.states.write(good_state(kSession, sequence++));
+  link::VehicleState nan_state = good_state(kSession, sequence++);
+  nan_state.v_H_mps.x = std::nanf("");
+  link::VehicleState huge = good_state(kSession, sequence++);
+  huge.v_H_mps.x = 1e7F;
+  link::VehicleState other_session = good_state(kSession + 1, sequence++);
+  other_session.v_H_mps.x = 5.0F;
+  link::VehicleState old = good_state(kSession, 1);
+  old.v_H_mps.x = 6.0F;
+  link::VehicleState jump = good_state(kSession, sequence + 10'000'000);
+  jump.v_H_mps.x = 7.0F;
+  // States are keep-last 1: one at a time, each taken before the next is written.
+  for (const link::VehicleState* forged : {&nan_state, &huge, &other_session, &old, &jump}) {
+    const std::uint64_t seen = station.status().states_rejected + station.status().states_reordered;
+    ASSERT_TRUE(poll_until(station, [&] {
+      vehicle.states.write(*forged);
+      return station.status().states_rejected + station.status().states_reordered > seen;
+    })) << forged->v_H_mps.x;
+  }
+  link::Event forged_event{};
+  forged_event.vehicle_id = 1;
+  forged_event.session_id = kSession + 1;
+  std::snprintf(forged_event.text, sizeof forged_event.text, "forged");
+  vehicle.events.write(forged_event);
+  link::Event real_event = forged_event;
+  real_event.session_id = kSession;
+  std::snprintf(real_event.text, sizeof real_event.text, "real");
+  vehicle.events.write(real_event);
+  ASSERT_TRUE(poll_until(station, [&] {
+    return station.status().events >= 1 && station.status().events_rejected >= 1;
+  }));
+  const LinkStatus& s = station.status();
+  // Each forgery may have been written more than once (best effort, written until taken).
+  EXPECT_GE(s.states_invalid, 1U);
+  EXPECT_GE(s.states_implausible, 1U);
+  EXPECT_GE(s.states_wrong_session, 1U);
+  EXPECT_GE(s.states_sequence_jump, 1U);
+  EXPECT_EQ(s.states_rejected, s.states_invalid + s.states_implausible + s.states_wrong_session +
+                                   s.states_sequence_jump);
+  EXPECT_GE(s.states_reordered, 1U);
+  EXPECT_EQ(s.events_rejected, 1U);
+  EXPECT_EQ(s.events, 1U);
+  EXPECT_STREQ(s.last_event.data(), "real");
+  // The station's state is the last good one: no forged value reached it.
+  EXPECT_EQ(s.state.sequence_number, last_good);
+  EXPECT_FLOAT_EQ(s.state.v_H_mps.x, 0.3F);
+  EXPECT_FALSE(s.control_lost);
+}
+
+// GIVEN a station flying vehicle 1, WHEN the vehicle reports station 9 as its commander, THEN
+// the station says it lost control (once); WHEN the vehicle restarts (a new session after the
+// old one went quiet), THEN it is followed, counted and nothing is re-sent.
+TEST(GroundChecks, LostControlIsShownAndARestartIsFollowedWithoutResending) {
+  const link::LinkConfig config = private_link();
+  GroundStation station(config);
+  FakeVehicle vehicle(config);
+  constexpr std::uint64_t kSession = 77;
+  std::uint64_t sequence = 1;
+  ASSERT_TRUE(poll_until(station, [&] {
+    vehicle.states.write(good_state(kSession, sequence++));
+    return station.status().have_state;
+  }));
+  EXPECT_FALSE(station.status().control_lost);
+  ASSERT_TRUE(poll_until(station, [&] {
+    link::VehicleState s = good_state(kSession, sequence++);
+    s.commanding_station_id = 9;
+    vehicle.states.write(s);
+    return station.status().control_lost;
+  }));
+  EXPECT_EQ(station.status().commanding_station_id, 9U);
+  EXPECT_EQ(station.status().control_losses, 1U);
+  EXPECT_THAT(station.status().last_event.data(),
+              HasSubstr("CONTROL LOST: station 9 commands vehicle 1"));
+  EXPECT_TRUE(station.request_mode(2, hq_msgs_MODE_HOVER));  // sent: the vehicle decides
+
+  // The vehicle restarts: silence for more than kSessionLiveNs, then another session.
+  std::this_thread::sleep_for(std::chrono::nanoseconds(kSessionLiveNs + 200'000'000));
+  const std::uint64_t sent_before = station.status().mode_requests_sent;
+  std::uint64_t new_sequence = 1;
+  ASSERT_TRUE(poll_until(station, [&] {
+    vehicle.states.write(good_state(kSession + 1, new_sequence++));
+    return station.status().vehicle_session == kSession + 1;
+  }));
+  EXPECT_EQ(station.status().vehicle_restarts, 1U);
+  EXPECT_FALSE(station.status().control_lost);  // the new instance reports station 1
+  EXPECT_EQ(station.status().mode_requests_sent, sent_before);
+  EXPECT_THAT(std::string(station.status().last_event.data()),
+              ::testing::AnyOf(HasSubstr("restarted"), HasSubstr("control regained")));
+}
+
+}  // namespace
+}  // namespace hq::ground
