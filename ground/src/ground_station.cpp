@@ -346,8 +346,8 @@ std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name) {
   return std::nullopt;
 }
 
-void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
-                                 const MarkerChoice& marker) {
+void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker,
+                                 bool take_off) {
   link::ModeRequest r{};
   r.vehicle_id = config_.vehicle_id;
   r.station_id = config_.station_id;
@@ -356,6 +356,7 @@ void GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
   r.requested_mode = mode;
   r.marker_task = marker.task;
   r.target_id = marker.target_id;
+  r.take_off = take_off;
   if (mode_writer_.write(r)) {
     ++status_.mode_requests_sent;
   } else {

@@ -164,7 +164,9 @@ class GroundStation {
   /// Publishes one command of the haptic loop (zero when `valid` is false).
   void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
   /// Requests `mode`, with a marker task for the vehicle's marker stage if `marker` has one.
-  void request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {});
+  /// With take_off, the vehicle takes off first and then flies `mode`.
+  void request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {},
+                    bool take_off = false);
   /// @param t_ns  on CLOCK_MONOTONIC (haptics::monotonic_now_ns()): the vehicle echoes it back
   /// for the round trip.
   void send_heartbeat(std::int64_t t_ns);
