@@ -335,6 +335,12 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   EXPECT_LE(json_number(json, "x_px") + json_number(json, "width_px"), 1280) << json;
   EXPECT_LE(json_number(json, "y_px") + json_number(json, "height_px"), 720) << json;
   EXPECT_GT(json_number(json, "take_off_hint_frames"), 0) << json;
+  // and its placement is remembered for the next run, in XDG_CONFIG_HOME (here the test's)
+  EXPECT_EQ(slurp(dir / "config" / "haptiquad" / "console.ini"),
+            "window " + std::to_string(static_cast<int>(json_number(json, "x_px"))) + " " +
+                std::to_string(static_cast<int>(json_number(json, "y_px"))) + " " +
+                std::to_string(static_cast<int>(json_number(json, "width_px"))) + " " +
+                std::to_string(static_cast<int>(json_number(json, "height_px"))) + "\n");
   std::printf("console take-off: height %.2f m (%s), stale %.1f s, %.1f fps; screenshot %s\n",
               json_number(json, "height_m"), json_text(json, "height_source").c_str(),
               json_number(json, "stale_s"), json_number(json, "fps"), shot.c_str());
