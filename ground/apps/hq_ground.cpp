@@ -20,6 +20,7 @@
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/ground/window_keyboard.hpp"
 #include "hq/haptics/haptic_device.hpp"
@@ -41,6 +42,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <optional>
 #include <string>
@@ -66,14 +68,63 @@ struct Options {
   double seek_s = 0.0;   ///< Replay: start here (s from the recording's start).
   bool paused = false;   ///< Replay: start paused.
   std::string keys;      ///< "T:KEY,...": keys typed into the window T s after it opens.
-  int window_w_px = 1600;  ///< --window-size WxH.
-  int window_h_px = 960;
   std::string screenshot_path;
   std::string state_json_path;
   double max_fps = 60.0;
   std::string marker_task;  ///< "hold", "goto", "land"; empty: no marker request.
   int marker_id = 0;
+  bool take_off = false;  ///< Ask the vehicle to take off (then teleop) once it is heard from.
+  double link_lost_after_s = 0.5;  ///< Link-loss alarm: no vehicle state for longer.
+  std::string window_size;  ///< "WxH"; empty: from the display.
+  std::string window_ini;   ///< Window size/position file; empty: the default, "none": off.
+  bool bare_window = false;  ///< Measurement: an empty window, the console's frame-rate floor.
 };
+
+// The console needs a display; without one SDL fails after a long X connection timeout or
+// waits, so say it at once (exit 2), before the link is up.
+void require_display(const char* what) {
+  const char* display = std::getenv("DISPLAY");
+  const char* wayland = std::getenv("WAYLAND_DISPLAY");
+  const char* driver = std::getenv("SDL_VIDEODRIVER");
+  const auto set = [](const char* v) { return v != nullptr && v[0] != '\0'; };
+  if (!set(display) && !set(wayland) && !set(driver)) {
+    throw hq::InputError(std::string("no display (DISPLAY unset): use --headless (") + what +
+                         " opens the console window)");
+  }
+}
+
+// What the vehicle does with the operator's input, as the console's warning.
+const char* operator_input_warning(int input) {
+  switch (input) {
+    case hq_msgs_INPUT_IGNORED_LANDED:
+      return "commands ignored: take off first";
+    case hq_msgs_INPUT_IGNORED_MODE:
+      return "commands ignored: not teleop";
+    case hq_msgs_INPUT_IGNORED_NOT_OWNER:
+      return "commands ignored: another station commands";
+    case hq_msgs_INPUT_IGNORED_FAILSAFE:
+      return "commands ignored: fail-safe";
+    case hq_msgs_INPUT_LIMITED_UNSEEN:
+      return "slowed: unseen space";
+    default:
+      return "";
+  }
+}
+
+const char* flight_state_name(int state) {
+  switch (state) {
+    case hq_msgs_FLIGHT_LANDED:
+      return "landed";
+    case hq_msgs_FLIGHT_TAKING_OFF:
+      return "taking off";
+    case hq_msgs_FLIGHT_AIRBORNE:
+      return "airborne";
+    case hq_msgs_FLIGHT_LANDING:
+      return "landing";
+    default:
+      return "?";
+  }
+}
 
 // What the window asks of the flying thread.
 struct UiRequests {
@@ -82,6 +133,7 @@ struct UiRequests {
   std::atomic<int> marker_task{hq_msgs_MARKER_TASK_NONE};
   std::atomic<int> marker_id{0};
   std::atomic<std::int64_t> vehicle{-1};
+  std::atomic<bool> take_off{false};  ///< The window's take-off button or key.
 };
 
 int mode_of(const char* name) {
@@ -127,6 +179,16 @@ class ModelFeed : public hq::ground::LinkObserver {
     }
     extras.markers = markers_.data();
     extras.marker_count = count;
+    extras.flight_state = flight_state_name(static_cast<int>(s.flight_state));
+    extras.motors_armed = s.motors_armed;
+    extras.height_valid = static_cast<int>(s.height_source) != hq_msgs_HEIGHT_NONE;
+    extras.height_m = s.height_m;
+    extras.height_source = static_cast<int>(s.height_source) == hq_msgs_HEIGHT_DEPTH ? "depth"
+                           : static_cast<int>(s.height_source) == hq_msgs_HEIGHT_ESTIMATE
+                               ? "estimate"
+                               : "-";
+    extras.operator_input = operator_input_warning(static_cast<int>(s.operator_input));
+    extras.clearance_m = s.clearance_m;
     model_.on_state(receipt_ns, 1e-6 * static_cast<double>(latency_ns),
                     {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
                     {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z},
@@ -188,6 +250,19 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                s.position_from_vehicle ? "true" : "false",
                static_cast<unsigned long long>(s.position_states), s.have_truth ? "true" : "false",
                s.marker_count, static_cast<unsigned long long>(s.marker_detections));
+  std::fprintf(f,
+               "  \"flight_state\": %s,\n  \"motors_armed\": %s,\n  \"height_valid\": %s,\n"
+               "  \"height_m\": %.3f,\n  \"height_source\": %s,\n  \"operator_input\": %s,\n"
+               "  \"clearance_m\": %.3f,\n",
+               json_string(s.flight_state).c_str(), s.motors_armed ? "true" : "false",
+               s.height_valid ? "true" : "false", static_cast<double>(s.height_m),
+               json_string(s.height_source).c_str(), json_string(s.operator_input).c_str(),
+               static_cast<double>(s.clearance_m));
+  std::fprintf(f,
+               "  \"link_lost\": %s,\n  \"stale_s\": %.3f,\n  \"link_losses\": %u,\n"
+               "  \"longest_link_loss_s\": %.3f,\n",
+               s.link.link_lost ? "true" : "false", s.link.state_age_s, s.link.link_losses,
+               s.link.longest_loss_s);
   std::fprintf(f, "  \"vehicle_ids\": [");
   for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
     std::fprintf(f, "%s%u", i > 0 ? ", " : "", s.link.vehicle_ids[i]);
@@ -234,7 +309,9 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
                  "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
                  "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
-                 "\"video_display_p50_ms\": %.1f}\n",
+                 "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
+                 "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
+                 "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
                  static_cast<unsigned long long>(window->frames), window->fps,
                  window->render_ms_p50, window->render_ms_max,
                  static_cast<unsigned long long>(window->camera_frames_decoded),
@@ -242,12 +319,49 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
                  json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
                  window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
-                 window->video_decode_p50_ms, window->video_display_p50_ms);
+                 window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px,
+                 window->y_px, window->width_px, window->height_px, window->display_width_px,
+                 window->display_height_px,
+                 static_cast<unsigned long long>(window->link_lost_banner_frames),
+                 static_cast<unsigned long long>(window->take_off_hint_frames));
   } else {
     std::fprintf(f, "  \"window\": null\n");
   }
   std::fprintf(f, "}\n");
   std::fclose(f);
+}
+
+// The console window's options from the command line: size (checked), placement file, and the
+// camera mount the top view draws (heading, field of view) from the vehicle file.
+hq::console::WindowOptions window_options(const Options& o) {
+  hq::console::WindowOptions window_options;
+  window_options.max_fps = o.max_fps;
+  window_options.bare = o.bare_window;
+  if (!o.window_size.empty()) {
+    char x = 0;
+    char rest = 0;
+    if (std::sscanf(o.window_size.c_str(), "%d%c%d%c", &window_options.width_px, &x,
+                    &window_options.height_px, &rest) != 3 ||
+        x != 'x' || window_options.width_px < 320 || window_options.height_px < 240 ||
+        window_options.width_px > 8192 || window_options.height_px > 8192) {
+      throw hq::InputError("--window-size " + o.window_size +
+                           ": expected WxH in pixels, 320x240 to 8192x8192 (e.g. 1280x800)");
+    }
+  }
+  window_options.ini_path = o.window_ini == "none" ? std::string()
+                            : o.window_ini.empty() ? hq::console::default_window_ini_path()
+                                                   : o.window_ini;
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  window_options.camera_heading_rad = hq::geometry::camera_heading_rad(vehicle.R_body_camera);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      window_options.R_body_camera[static_cast<std::size_t>(3 * r + c)] =
+          static_cast<float>(vehicle.R_body_camera(r, c));
+    }
+    window_options.p_body_camera_m[static_cast<std::size_t>(r)] =
+        static_cast<float>(vehicle.p_body_camera_m[r]);
+  }
+  return window_options;
 }
 
 // Runs the console window on this (the main) thread until `done`, the duration or a quit;
@@ -256,7 +370,7 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
                                     hq::console::ConsoleModel& model, UiRequests& requests,
                                     const std::atomic<bool>& done, hq::console::Snapshot& snap,
                                     hq::console::FlightKeys* flight_keys = nullptr) {
-  hq::console::ConsoleWindow window(title, o.window_w_px, o.window_h_px, o.max_fps);
+  hq::console::ConsoleWindow window(title, window_options(o));
   window.set_flight_keys(flight_keys);
   const auto start = std::chrono::steady_clock::now();
   auto next_print = start + std::chrono::seconds(1);
@@ -271,6 +385,7 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     }
     if (actions.mode_request != nullptr) requests.mode = mode_of(actions.mode_request);
     if (actions.select_vehicle) requests.vehicle = actions.vehicle_id;
+    if (actions.take_off) requests.take_off = true;
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_print) {
       const hq::console::WindowStats st = window.stats();
@@ -331,8 +446,7 @@ hq::console::WindowStats run_replay_window(const Options& o, hq::console::Consol
                                            const hq::console::Timeline& timeline,
                                            hq::console::ReplayControl& control,
                                            hq::console::Snapshot& snap) {
-  hq::console::ConsoleWindow window("hq-ground replay " + o.replay_dir, o.window_w_px,
-                                    o.window_h_px, o.max_fps);
+  hq::console::ConsoleWindow window("hq-ground replay " + o.replay_dir, window_options(o));
   window.set_replay(&timeline);
   const std::vector<std::pair<double, std::string>> keys = parse_keys(o.keys);
   std::size_t next_key = 0;
@@ -488,8 +602,6 @@ int run(int argc, char** argv) {
   app.add_option("--seek", o.seek_s, "replay: start this many seconds into the recording")
       ->check(CLI::Range(0.0, 86400.0));
   app.add_flag("--paused", o.paused, "replay: start paused (Space plays)");
-  std::string window_size;
-  app.add_option("--window-size", window_size, "console window size WxH (default 1600x960)");
   app.add_option("--keys", o.keys,
                  "replay window: keys typed as SECONDS:KEY,... after it opens (scripted runs)");
   app.add_option("--screenshot", o.screenshot_path, "write the console's last frame as PNG");
@@ -500,23 +612,26 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"hold", "goto", "land"}));
   app.add_option("--marker-id", o.marker_id, "target marker (AprilTag id) of --marker-task")
       ->check(CLI::Range(0, 1 << 30));
+  app.add_flag("--take-off", o.take_off,
+               "ask the vehicle to take off (then teleop) once it is heard from");
+  app.add_option("--link-lost-after-s", o.link_lost_after_s,
+                 "link-loss alarm: no vehicle state for longer than this")
+      ->check(CLI::Range(0.05, 60.0));
+  app.add_option("--window-size", o.window_size,
+                 "console window size WxH (default: fits the display, at most 1600x960)");
+  app.add_option("--window-ini", o.window_ini,
+                 "file remembering the window's size and position (default "
+                 "$XDG_CONFIG_HOME/haptiquad/console.ini; \"none\": neither read nor written)");
+  app.add_flag("--bare-window", o.bare_window,
+               "measurement: draw an empty window (the frame-rate floor of the console)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  if (!window_size.empty()) {
-    char x = 0;
-    char rest = 0;
-    if (std::sscanf(window_size.c_str(), "%d%c%d%c", &o.window_w_px, &x, &o.window_h_px, &rest) != 3 ||
-        x != 'x' || o.window_w_px < 320 || o.window_h_px < 240 || o.window_w_px > 8192 ||
-        o.window_h_px > 8192) {
-      throw hq::InputError("--window-size " + window_size +
-                           ": expected WxH in pixels, 320x240 to 8192x8192 (e.g. 1280x800)");
-    }
-  }
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
+  if (!o.headless) require_display(o.replay_dir.empty() ? "--device" : "--replay");
   if (!o.replay_dir.empty()) return run_replay(o);
   if (o.headless && !o.screenshot_path.empty()) {
     throw hq::InputError("--screenshot " + o.screenshot_path + ": needs the console (no --headless)");
@@ -568,6 +683,7 @@ int run(int argc, char** argv) {
   double max_force_n = 0.0;  // the largest force the hand felt (at the command rate)
   UiRequests requests;
   std::atomic<bool> flying_done{false};
+  hq::console::LinkLossMonitor link_loss(o.link_lost_after_s);
   // The flight: commands, link and haptic feedback. On its own thread when the console is up,
   // so that drawing never delays a command or the feedback's vehicle state.
   hq::ground::MarkerChoice marker_cli;
@@ -583,6 +699,7 @@ int run(int argc, char** argv) {
     const std::int64_t status_period_ns = live ? 200'000'000 : 1'000'000'000;
     hq::ground::ModeToggle toggle;
     bool marker_cli_sent = false;
+    bool take_off_cli_sent = false;
     bool was_connected = true;
     bool recording_failure_told = false;
     std::int64_t last_state_ns = 0;
@@ -614,6 +731,30 @@ int run(int argc, char** argv) {
       next_ns += period_ns;
       const double t_s = 1e-9 * static_cast<double>(now_ns - start_ns);
       if (o.duration_s > 0.0 && t_s >= o.duration_s) break;
+      // The link-loss alarm: told once per loss on stdout, in the console's events and in the
+      // recording (so a replay shows it), and counted for the summary.
+      const hq::console::LinkLossMonitor::Change loss =
+          link_loss.update(ground.status().have_state ? ground.state_age_s() : -1.0);
+      if (loss != hq::console::LinkLossMonitor::Change::kNone) {
+        const bool lost = loss == hq::console::LinkLossMonitor::Change::kLost;
+        hq::link::Event e{};
+        e.vehicle_id = ground.vehicle_id();
+        e.t_ns = now_ns;
+        e.severity = lost ? hq_msgs_SEVERITY_ERROR : hq_msgs_SEVERITY_INFO;
+        if (lost) {
+          std::snprintf(e.text, sizeof e.text,
+                        "VEHICLE LINK LOST: no vehicle state for %.1f s (ground)",
+                        link_loss.last_loss_s());
+        } else {
+          std::snprintf(e.text, sizeof e.text, "vehicle link regained after %.1f s (ground)",
+                        link_loss.last_loss_s());
+        }
+        std::printf("hq-ground: t %.1f s: %s\n", t_s, e.text);
+        std::fflush(stdout);
+        const std::int64_t event_wall_ns = dds_time();
+        model.on_event(event_wall_ns, lost ? 2 : 0, e.text);
+        if (recorder) recorder->event(event_wall_ns, e);
+      }
 
       const hq::haptics::LoopOutput hand = loop.latest();
       if (was_connected && !hand.device_connected) {
@@ -651,6 +792,14 @@ int run(int argc, char** argv) {
       if (const int ui_mode = requests.mode.exchange(-1); ui_mode >= 0) {
         mode = static_cast<hq_msgs_Mode>(ui_mode);
       }
+      // Take-off (the window's button or key, or --take-off once the vehicle is heard from):
+      // the vehicle climbs to its take-off height, then flies teleop.
+      bool take_off = requests.take_off.exchange(false);
+      if (o.take_off && !take_off_cli_sent && ground.status().have_state) {
+        take_off = true;
+        take_off_cli_sent = true;
+      }
+      if (take_off) mode = hq_msgs_MODE_TELEOP;
       // --marker-task: one marker mode request once the vehicle is heard from.
       if (!mode && marker_cli.task != hq_msgs_MARKER_TASK_NONE && !marker_cli_sent &&
           ground.status().have_state) {
@@ -668,7 +817,7 @@ int run(int argc, char** argv) {
             marker.target_id = requests.marker_id.load();
           }
         }
-        const bool sent = ground.request_mode(now_ns, *mode, marker);
+        const bool sent = ground.request_mode(now_ns, *mode, marker, take_off);
         if (marker.task != hq_msgs_MARKER_TASK_NONE) {
           static constexpr std::array<const char*, 4> kTaskNames = {"none", "hold", "goto", "land"};
           std::fprintf(stderr, "%shq-ground: marker task %s on marker %d\n", live ? "\n" : "",
@@ -676,8 +825,9 @@ int run(int argc, char** argv) {
                        static_cast<int>(marker.target_id));
         }
         if (recorder) recorder->mode_request(wall_ns, *mode);
-        std::fprintf(stderr, "%shq-ground: t %.1f s: requesting mode %s%s\n", live ? "\n" : "",
-                     t_s, hq::ground::to_string(*mode), sent ? "" : " (waiting for vehicle)");
+        std::fprintf(stderr, "%shq-ground: t %.1f s: requesting %smode %s%s\n", live ? "\n" : "",
+                     t_s, take_off ? "take-off, then " : "", hq::ground::to_string(*mode),
+                     sent ? "" : " (waiting for vehicle)");
       }
       if (const std::int64_t id = requests.vehicle.exchange(-1); id >= 0) {
         ground.select_vehicle(static_cast<std::uint32_t>(id));
@@ -722,6 +872,9 @@ int run(int argc, char** argv) {
         health.vehicle_ids = st.vehicle_ids_seen;
         health.vehicle_id_count = st.vehicle_ids_seen_count;
         health.selected_vehicle = ground.vehicle_id();
+        health.link_lost = link_loss.lost();
+        health.link_losses = link_loss.losses();
+        health.longest_loss_s = link_loss.longest_s();
         model.on_link(health);
         next_health_ns += 250'000'000;  // 4 Hz: rates above are per quarter second
       }
@@ -782,6 +935,9 @@ int run(int argc, char** argv) {
   std::printf("  %-40s %.1f %% (%llu reordered, dropped as older)\n", "vehicle state loss",
               100.0 * ground.state_loss(), static_cast<unsigned long long>(s.states_reordered));
   std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states", 1e3 * max_state_gap_s);
+  std::printf("  %-40s %u, longest %.1f s (alarm after %.1f s without a state)\n",
+              "vehicle link losses", link_loss.losses(), link_loss.longest_s(),
+              link_loss.lost_after_s());
   std::printf("  %-40s %s\n", "last vehicle mode",
               s.have_state ? hq::ground::to_string(s.state.mode) : "-");
   std::printf("  %-40s %s\n", "last event", s.last_event.data());

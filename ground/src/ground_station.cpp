@@ -436,13 +436,14 @@ std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name) {
 }
 
 bool GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
-                                 const MarkerChoice& marker) {
+                                 const MarkerChoice& marker, bool take_off) {
   if (status_.vehicle_session == 0) {
     // A request needs the session it is for; the latest one waits for the vehicle.
     const bool told = pending_request_;
     pending_request_ = true;
     pending_mode_ = mode;
     pending_marker_ = marker;
+    pending_take_off_ = take_off;
     status_.waiting_for_vehicle = true;
     if (!told) {
       char text[96];
@@ -452,12 +453,12 @@ bool GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
     }
     return false;
   }
-  send_mode_request(t_ns, mode, marker);
+  send_mode_request(t_ns, mode, marker, take_off);
   return true;
 }
 
 void GroundStation::send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode,
-                                      const MarkerChoice& marker) {
+                                      const MarkerChoice& marker, bool take_off) {
   link::ModeRequest r{};
   r.vehicle_id = config_.vehicle_id;
   r.station_id = config_.station_id;
@@ -467,6 +468,7 @@ void GroundStation::send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode,
   r.marker_task = marker.task;
   r.target_id = marker.target_id;
   r.vehicle_session_id = status_.vehicle_session;
+  r.take_off = take_off;
   if (mode_writer_.write(r)) {
     ++status_.mode_requests_sent;
   } else {
@@ -585,7 +587,7 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receip
     } else if (pending_request_) {
       pending_request_ = false;
       status_.waiting_for_vehicle = false;
-      send_mode_request(monotonic_now_ns(), pending_mode_, pending_marker_);
+      send_mode_request(monotonic_now_ns(), pending_mode_, pending_marker_, pending_take_off_);
     }
   }
   if (last_state_sequence_ != 0 && s.sequence_number <= last_state_sequence_) {

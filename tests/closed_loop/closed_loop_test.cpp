@@ -179,6 +179,52 @@ TEST(ClosedLoop, CorePaperFlightTakesOffApproachesTheBoxAndLands) {
   EXPECT_FALSE(loop->samples().back().airborne);
 }
 
+TEST(ClosedLoop, TakeOffRequestAloneEndsHoveringAtTargetHeightWithHeightNearTruth) {
+  // GIVEN the vehicle on the floor of the room, no operator command at all
+  Scenario s;
+  s.world = sim::load_world("onboard/sim/worlds/room.yaml");
+  s.sim.seed = 5;
+  s.script.end_s = 12.0;
+  auto loop = s.make();
+  loop->run_until(0.5);
+  ASSERT_EQ(loop->samples().back().flight_state, modes::FlightState::kLanded);
+  // WHEN only a take-off (then hover) is requested
+  pipeline::ModeRequest request;
+  request.mode = modes::Mode::kHover;
+  request.take_off = true;
+  ASSERT_TRUE(loop->chain().request_mode(request).accepted);
+  loop->run();
+  // THEN it took off through the taking-off state, ends airborne and hovering at the target
+  // height, and the height it reports tracks the simulator's truth while airborne.
+  const double target_m = s.onboard.modes.takeoff_target_height_m;
+  bool saw_taking_off = false;
+  double max_error_m = 0.0;
+  int depth_samples = 0;
+  int airborne_samples = 0;
+  for (const FlightSample& x : loop->samples()) {
+    saw_taking_off |= x.flight_state == modes::FlightState::kTakingOff;
+    if (!x.frame || !x.airborne || x.t_s < 2.0) continue;
+    ASSERT_NE(x.height_source, pipeline::HeightSource::kNone) << "t = " << x.t_s;
+    ++airborne_samples;
+    depth_samples += x.height_source == pipeline::HeightSource::kDepth ? 1 : 0;
+    max_error_m = std::max(max_error_m, std::abs(x.height_m - x.p_world_m.z()));
+  }
+  const FlightSample& last = loop->samples().back();
+  std::printf("take-off: final height %.3f m (truth %.3f m, target %.2f m), height error max "
+              "%.3f m over %d airborne frames (%d from depth)\n",
+              last.height_m, last.p_world_m.z(), target_m, max_error_m, airborne_samples,
+              depth_samples);
+  EXPECT_TRUE(saw_taking_off);
+  EXPECT_EQ(last.flight_state, modes::FlightState::kAirborne);
+  EXPECT_EQ(last.mode, modes::Mode::kHover);
+  EXPECT_TRUE(last.airborne);
+  EXPECT_NEAR(last.p_world_m.z(), target_m, 0.1);
+  EXPECT_GT(airborne_samples, 200);
+  EXPECT_GT(depth_samples, airborne_samples / 2) << "the floor is in the camera's view";
+  EXPECT_LT(max_error_m, 0.1);
+  EXPECT_EQ(loop->collision_ticks(), 0);
+}
+
 TEST(OperatorScript, RejectsBadFilesNamingStepAndKey) {
   const std::string path = ::testing::TempDir() + "hq_script.yaml";
   const auto message_for = [&](const char* text) {

@@ -7,11 +7,17 @@
 
 #include "hq/testing/process.hpp"
 
+#include <X11/Xlib.h>
+#include <X11/keysym.h>
+#include <dlfcn.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
+#include <memory>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -62,6 +68,102 @@ using hq::testing::Process;
 
 const char* const kXvfb = "/usr/bin/Xvfb";
 
+// A private Xvfb of the given size; sets DISPLAY.
+class XvfbDisplay {
+ public:
+  XvfbDisplay(const fs::path& dir, const std::string& screen) {
+    number_ = 90 + getpid() % 50;
+    while (fs::exists("/tmp/.X" + std::to_string(number_) + "-lock")) ++number_;
+    name_ = ":";  // appended: GCC 12 -Wrestrict false positive on "+"
+    name_.append(std::to_string(number_));
+    xvfb_ = std::make_unique<Process>(
+        std::vector<std::string>{kXvfb, name_, "-screen", "0", screen, "-nolisten", "tcp"},
+        dir / "xvfb.out");
+    for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(number_)); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    setenv("DISPLAY", name_.c_str(), 1);
+  }
+
+ private:
+  int number_ = 0;
+  std::string name_;
+  std::unique_ptr<Process> xvfb_;
+};
+
+// Real key presses into a window found by its title, through the XTest extension (what
+// xdotool does): the console sees them as a user's keys. libXtst is opened at run time.
+class Keyboard {
+ public:
+  Keyboard() {
+    display_ = XOpenDisplay(nullptr);
+    xtst_ = dlopen("libXtst.so.6", RTLD_NOW);
+    if (xtst_ != nullptr) {
+      fake_key_ = reinterpret_cast<FakeKey>(dlsym(xtst_, "XTestFakeKeyEvent"));
+    }
+  }
+  ~Keyboard() {
+    if (display_ != nullptr) XCloseDisplay(display_);
+    if (xtst_ != nullptr) dlclose(xtst_);
+  }
+  [[nodiscard]] bool usable() const { return display_ != nullptr && fake_key_ != nullptr; }
+
+  // Waits up to timeout_s for a top-level window whose title starts with `title`, focuses it.
+  bool focus(const char* title, double timeout_s) {
+    for (int i = 0; i < static_cast<int>(timeout_s * 10); ++i) {
+      if (const Window w = find(DefaultRootWindow(display_), title); w != 0) {
+        XSetInputFocus(display_, w, RevertToParent, CurrentTime);
+        XSync(display_, False);
+        return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return false;
+  }
+  void press(KeySym key) { send(key, True); }
+  void release(KeySym key) { send(key, False); }
+  void tap(KeySym key) {
+    press(key);
+    std::this_thread::sleep_for(std::chrono::milliseconds(80));
+    release(key);
+  }
+
+ private:
+  using FakeKey = int (*)(::Display*, unsigned int, int, unsigned long);
+  void send(KeySym key, int down) {
+    fake_key_(display_, XKeysymToKeycode(display_, key), down, 0);
+    XFlush(display_);
+  }
+  Window find(Window w, const char* title) {
+    char* name = nullptr;
+    if (XFetchName(display_, w, &name) != 0 && name != nullptr) {
+      const bool match = std::strncmp(name, title, std::strlen(title)) == 0;
+      XFree(name);
+      if (match) return w;
+    }
+    Window root = 0;
+    Window parent = 0;
+    Window* children = nullptr;
+    unsigned int n = 0;
+    Window found = 0;
+    if (XQueryTree(display_, w, &root, &parent, &children, &n) != 0) {
+      for (unsigned int i = 0; i < n && found == 0; ++i) found = find(children[i], title);
+      if (children != nullptr) XFree(children);
+    }
+    return found;
+  }
+  ::Display* display_ = nullptr;
+  void* xtst_ = nullptr;
+  FakeKey fake_key_ = nullptr;
+};
+
+void use_loopback_dds() {
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+         "</Interfaces></General></Domain></CycloneDDS>",
+         1);
+}
+
 TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) {
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   setenv("CYCLONEDDS_URI",
@@ -72,6 +174,8 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_test";
   fs::remove_all(dir);
   fs::create_directories(dir);
+  // The window placement file goes to the test's folder, never the user's.
+  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
   // A display of our own: the first free number from 90 (a lock file marks a used one).
   int display = 90 + getpid() % 50;
   while (fs::exists("/tmp/.X" + std::to_string(display) + "-lock")) ++display;
@@ -158,6 +262,106 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   EXPECT_GT(json_number(rjson, "plot_samples"), 100) << rjson;
   EXPECT_GT(json_number(rjson, "camera_frames_received"), 20) << rjson;
   EXPECT_EQ(json_number(rjson, "replay_problems"), 1) << rjson;
+}
+
+TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLossBanner) {
+  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
+  use_loopback_dds();
+  const std::string domain = std::to_string(1 + (getpid() + 57) % 200);
+  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_takeoff_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
+  // GIVEN a 1280x720 display, the simulated vehicle on the floor and the console flown from
+  // the keyboard
+  const XvfbDisplay display(dir, "1280x720x24");
+  Keyboard keys;
+  if (!keys.usable()) GTEST_SKIP() << "no XTest (libXtst.so.6) on this display";
+  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
+                   "onboard/sim/worlds/arena.yaml", "--duration-s", "60", "--domain-id", domain},
+                  dir / "onboard.out");
+  const fs::path shot = dir / "link_lost.png";
+  const fs::path state = dir / "state.json";
+  const fs::path recording = dir / "recording";
+  Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--domain-id", domain, "--duration-s",
+                  "60", "--record", recording.string(), "--screenshot", shot.string(),
+                  "--state-json", state.string()},
+                 dir / "ground.out");
+  ASSERT_TRUE(keys.focus("hq-ground", 10.0)) << slurp(dir / "ground.out");
+  // WHEN the operator presses U once the vehicle is up, flies forward a little with W, ...
+  // (pressed twice: a request sent before the vehicle's reader matched would be lost, and a
+  // second take-off request while climbing or at the height changes nothing)
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  keys.tap(XK_u);
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  keys.tap(XK_u);
+  std::this_thread::sleep_for(std::chrono::seconds(5));
+  keys.press(XK_w);
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  keys.release(XK_w);
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  // ... and the vehicle dies (kill -9: no last word on the link)
+  onboard.signal(SIGKILL);
+  // ... and the operator closes the console 3 s later (SIGTERM: the exit path, JSON and
+  // screenshot included)
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  ground.signal(SIGTERM);
+  ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
+  onboard.wait_exit(5.0);
+
+  const std::string json = slurp(state);
+  const std::string out = slurp(dir / "ground.out");
+  ASSERT_FALSE(json.empty()) << out;
+  // THEN the console showed the take-off: the last state before the loss says airborne, motors
+  // on, at the take-off height (1.0 m in config/onboard.yaml) within 0.15 m, from a source named
+  EXPECT_EQ(json_text(json, "flight_state"), "airborne") << json;
+  EXPECT_EQ(json_bool(json, "motors_armed"), 1) << json;
+  EXPECT_EQ(json_bool(json, "height_valid"), 1) << json;
+  EXPECT_NEAR(json_number(json, "height_m"), 1.0, 0.15) << json;
+  EXPECT_NE(json_text(json, "height_source"), "-") << json;
+  // and the loss: the banner drawn, the state stale for more than 2 s, one loss counted, said
+  // on stdout and recorded as an event for the replay
+  EXPECT_EQ(json_bool(json, "link_lost"), 1) << json;
+  EXPECT_GT(json_number(json, "stale_s"), 2.0) << json;
+  EXPECT_EQ(json_number(json, "link_losses"), 1) << json;
+  EXPECT_GT(json_number(json, "link_lost_banner_frames"), 3) << json;
+  EXPECT_NE(out.find("VEHICLE LINK LOST"), std::string::npos) << out;
+  EXPECT_NE(slurp(recording / "events.csv").find("VEHICLE LINK LOST"), std::string::npos);
+  ASSERT_TRUE(fs::exists(shot));
+  EXPECT_GT(fs::file_size(shot), 20'000U);
+  // and the window fits the 1280x720 display, inside it
+  EXPECT_GE(json_number(json, "x_px"), 0) << json;
+  EXPECT_GE(json_number(json, "y_px"), 0) << json;
+  EXPECT_LE(json_number(json, "x_px") + json_number(json, "width_px"), 1280) << json;
+  EXPECT_LE(json_number(json, "y_px") + json_number(json, "height_px"), 720) << json;
+  EXPECT_GT(json_number(json, "take_off_hint_frames"), 0) << json;
+  // and its placement is remembered for the next run, in XDG_CONFIG_HOME (here the test's)
+  EXPECT_EQ(slurp(dir / "config" / "haptiquad" / "console.ini"),
+            "window " + std::to_string(static_cast<int>(json_number(json, "x_px"))) + " " +
+                std::to_string(static_cast<int>(json_number(json, "y_px"))) + " " +
+                std::to_string(static_cast<int>(json_number(json, "width_px"))) + " " +
+                std::to_string(static_cast<int>(json_number(json, "height_px"))) + "\n");
+  std::printf("console take-off: height %.2f m (%s), stale %.1f s, %.1f fps; screenshot %s\n",
+              json_number(json, "height_m"), json_text(json, "height_source").c_str(),
+              json_number(json, "stale_s"), json_number(json, "fps"), shot.c_str());
+}
+
+TEST(ConsoleProcesses, WindowedGroundWithoutADisplaySaysUseHeadlessAndExits2) {
+  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_no_display_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  unsetenv("DISPLAY");
+  unsetenv("WAYLAND_DISPLAY");
+  unsetenv("SDL_VIDEODRIVER");
+  const auto start = std::chrono::steady_clock::now();
+  Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--duration-s", "5"},
+                 dir / "ground.out");
+  EXPECT_EQ(ground.wait_exit(10.0), 2);
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::string out = slurp(dir / "ground.out");
+  EXPECT_NE(out.find("no display (DISPLAY unset): use --headless"), std::string::npos) << out;
+  EXPECT_LT(took_s, 2.0) << "said at once, not after waiting for a window";
 }
 
 }  // namespace

@@ -93,6 +93,13 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   ++track_total_;
   mode_ = mode;
   estimator_health_ = estimator_health;
+  flight_state_ = extras.flight_state;
+  motors_armed_ = extras.motors_armed;
+  height_valid_ = extras.height_valid && std::isfinite(extras.height_m);
+  height_m_ = height_valid_ ? extras.height_m : 0.0F;
+  height_source_ = extras.height_source;
+  operator_input_ = extras.operator_input;
+  clearance_m_ = std::isfinite(extras.clearance_m) ? extras.clearance_m : -1.0F;
   link_health_ = link_health;
   roll_rad_ = roll_rad;
   pitch_rad_ = pitch_rad;
@@ -238,6 +245,13 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.mode = mode_;
   out.estimator_health = estimator_health_;
   out.link_health = link_health_;
+  out.flight_state = flight_state_;
+  out.motors_armed = motors_armed_;
+  out.height_valid = height_valid_;
+  out.height_m = height_m_;
+  out.height_source = height_source_;
+  out.operator_input = operator_input_;
+  out.clearance_m = clearance_m_;
   out.roll_rad = roll_rad_;
   out.pitch_rad = pitch_rad_;
   out.yaw_W_rad = static_cast<float>(yaw_W_rad_);
@@ -264,6 +278,29 @@ bool control_banner(const LinkHealth& link, char* out, std::size_t size) {
                 "hand and mode requests are ignored",
                 link.commanding_station, link.selected_vehicle, link.own_station);
   return true;
+}
+
+LinkLossMonitor::Change LinkLossMonitor::update(double state_age_s) {
+  Change change = Change::kNone;
+  if (state_age_s < 0) {
+    previous_age_s_ = state_age_s;
+    return change;
+  }
+  if (!lost_ && state_age_s > lost_after_s_) {
+    lost_ = true;
+    ++losses_;
+    change = Change::kLost;
+  } else if (lost_ && (state_age_s <= lost_after_s_ || state_age_s < previous_age_s_)) {
+    // A fresh state (the age fell back) ends the loss.
+    lost_ = false;
+    change = Change::kRegained;
+  }
+  if (lost_) {
+    last_loss_s_ = state_age_s;
+    longest_s_ = std::max(longest_s_, state_age_s);
+  }
+  previous_age_s_ = state_age_s;
+  return change;
 }
 
 }  // namespace hq::console

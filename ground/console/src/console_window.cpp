@@ -17,8 +17,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <ctime>
 #include <limits>
+#include <optional>
 #include <condition_variable>
 #include <mutex>
 #include <thread>
@@ -36,6 +40,13 @@ constexpr ImU32 kObstacle = IM_COL32(255, 70, 70, 255);
 constexpr ImU32 kGrid = IM_COL32(90, 90, 90, 255);
 constexpr ImU32 kTruth = IM_COL32(120, 230, 120, 255);
 constexpr ImU32 kMarker = IM_COL32(255, 230, 0, 255);
+constexpr ImU32 kStale = IM_COL32(120, 120, 120, 255);
+constexpr ImU32 kCameraAxis = IM_COL32(255, 200, 60, 255);
+/// The newest vehicle state older than this: its fields are greyed and marked STALE.
+constexpr double kStaleAfterS = 0.5;
+constexpr const char* kKeyHint =
+    "keys: U take off | W/S forward/back | A/D or Q/E yaw | PgUp/PgDn climb/descend | T teleop | "
+    "H hover | L land | M marker | X explore | Esc quit";
 
 // One GL texture holding a decoded image.
 struct Texture {
@@ -338,7 +349,69 @@ void arrow(ImDrawList* draw, ImVec2 from, ImVec2 v, ImU32 colour) {
                           ImVec2(to.x - 10 * u.x - 5 * n.x, to.y - 10 * u.y - 5 * n.y), colour);
 }
 
+// A bar centred on zero with a mark there: empty is zero force, full left/right the negative/
+// positive full scale.
+void centred_bar(const char* label, float value, float full_scale) {
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const ImVec2 origin = ImGui::GetCursorScreenPos();
+  const float width = std::max(ImGui::GetContentRegionAvail().x, 40.0F);
+  const float height = ImGui::GetFrameHeight();
+  ImGui::Dummy(ImVec2(width, height));
+  const ImVec2 corner(origin.x + width, origin.y + height);
+  draw->AddRectFilled(origin, corner, IM_COL32(40, 40, 48, 255));
+  const float mid = origin.x + width / 2;
+  const float fraction = std::isfinite(value) ? std::clamp(value / full_scale, -1.0F, 1.0F) : 0.0F;
+  const float end = mid + fraction * width / 2;
+  draw->AddRectFilled(ImVec2(std::min(mid, end), origin.y + 2),
+                      ImVec2(std::max(mid, end), corner.y - 2), kCommanded);
+  draw->AddLine(ImVec2(mid, origin.y), ImVec2(mid, corner.y), IM_COL32(255, 255, 255, 255), 2.0F);
+  char text[48];
+  std::snprintf(text, sizeof text, "%s %+.2f N", label, static_cast<double>(value));
+  draw->AddText(ImVec2(origin.x + 4, origin.y + 2), IM_COL32(230, 230, 230, 255), text);
+}
+
+struct SavedPlacement {
+  int x = 0;
+  int y = 0;
+  int width = 0;
+  int height = 0;
+};
+
+std::optional<SavedPlacement> read_placement(const std::string& path) {
+  if (path.empty()) return std::nullopt;
+  std::FILE* f = std::fopen(path.c_str(), "r");
+  if (f == nullptr) return std::nullopt;
+  SavedPlacement p;
+  const int n = std::fscanf(f, "window %d %d %d %d", &p.x, &p.y, &p.width, &p.height);
+  std::fclose(f);
+  if (n != 4 || p.width <= 0 || p.height <= 0) return std::nullopt;
+  return p;
+}
+
+void write_placement(const std::string& path, const SavedPlacement& p) {
+  if (path.empty()) return;
+  std::error_code error;
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path(), error);
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) {
+    std::fprintf(stderr, "hq-ground: %s: cannot write the window placement\n", path.c_str());
+    return;
+  }
+  std::fprintf(f, "window %d %d %d %d\n", p.x, p.y, p.width, p.height);
+  std::fclose(f);
+}
+
 }  // namespace
+
+std::string default_window_ini_path() {
+  if (const char* xdg = std::getenv("XDG_CONFIG_HOME"); xdg != nullptr && xdg[0] != '\0') {
+    return std::string(xdg) + "/haptiquad/console.ini";
+  }
+  if (const char* home = std::getenv("HOME"); home != nullptr && home[0] != '\0') {
+    return std::string(home) + "/.config/haptiquad/console.ini";
+  }
+  return {};
+}
 
 std::uint32_t flight_key_for_scancode(int sdl_scancode) {
   switch (sdl_scancode) {
@@ -372,6 +445,8 @@ struct ConsoleWindow::Impl {
   bool imgui_sdl = false;
   bool imgui_gl = false;
   double max_fps = 60;
+  WindowOptions options;
+  SDL_Rect display{0, 0, 0, 0};
   FlightKeys* flight_keys = nullptr;
   const Timeline* replay = nullptr;  ///< Replay: the strip's timeline.
   Texture camera;
@@ -556,17 +631,194 @@ struct ConsoleWindow::Impl {
                     to_px(s.track[i].x_W_m, s.track[i].y_W_m), kEstimated, 2.0F);
     }
     const ImVec2 p = to_px(s.position_W.x_W_m, s.position_W.y_W_m);
+    // The camera's field of view as a wedge along its axis (W flies along the camera axis,
+    // eq. 9's alpha), then the markers it sees placed through R_QC and the heading.
+    const float yaw = s.yaw_W_rad;
+    const auto camera_yaw = static_cast<float>(yaw + options.camera_heading_rad);
+    const auto half_fov = static_cast<float>(options.camera_hfov_rad / 2);
+    const float reach_px = 0.35F * std::min(size.x, size.y);
+    const auto along = [&](float heading, float length) {
+      return ImVec2(p.x + std::sin(heading) * length, p.y - std::cos(heading) * length);
+    };
+    draw->AddTriangleFilled(p, along(camera_yaw - half_fov, reach_px),
+                            along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 40));
+    draw->AddLine(p, along(camera_yaw - half_fov, reach_px), IM_COL32(255, 200, 60, 120));
+    draw->AddLine(p, along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 120));
+    const std::array<float, 9>& R = options.R_body_camera;
+    for (std::size_t i = 0; i < s.marker_count; ++i) {
+      const std::array<float, 3>& c = s.markers[i].p_camera_marker_m;
+      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_body_camera_m[0];
+      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_body_camera_m[1];
+      const float x_W = s.position_W.x_W_m + std::cos(yaw) * qx - std::sin(yaw) * qy;
+      const float y_W = s.position_W.y_W_m + std::sin(yaw) * qx + std::cos(yaw) * qy;
+      const ImVec2 mp = to_px(x_W, y_W);
+      draw->AddRect(ImVec2(mp.x - 5, mp.y - 5), ImVec2(mp.x + 5, mp.y + 5), kMarker, 0, 0, 2.0F);
+      char id[16];
+      std::snprintf(id, sizeof id, "%d", s.markers[i].id);
+      draw->AddText(ImVec2(mp.x + 7, mp.y - 7), kMarker, id);
+    }
     draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
-    arrow(draw, p, ImVec2(std::sin(s.yaw_W_rad) * 25, -std::cos(s.yaw_W_rad) * 25),
-          IM_COL32(255, 255, 255, 255));
+    arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25), IM_COL32(255, 255, 255, 255));
+    arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40), kCameraAxis);
     draw->PopClipRect();
+    // Two short lines so that a narrow panel does not cut the yaw off.
     char text[160];
-    std::snprintf(text, sizeof text, "%s; grid 1 m, north up; x %.2f m  y %.2f m  yaw %.0f deg",
-                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)",
-                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
-                  static_cast<double>(s.yaw_W_rad) * 57.29578);
+    std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
+                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
     draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
+    std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
+                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
+                  static_cast<double>(yaw) * 57.29578, s.cloud_count);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + ImGui::GetFontSize()),
+                  IM_COL32(220, 220, 220, 255), text);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 2 * ImGui::GetFontSize()),
+                  IM_COL32(255, 255, 255, 255), "white: body x");
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 3 * ImGui::GetFontSize()), kCameraAxis,
+                  "yellow: camera axis, W flies it");
     ImGui::End();
+  }
+
+  // Laid out from the current size on every frame: a resize re-lays the panels out, and the
+  // status bar's height (it wraps the key hint on narrow windows) pushes them down.
+  void draw_panels(const Snapshot& s, UiActions& actions, float W, float H) {
+    const float top = status_bar(s, actions, W);
+    const float rest = std::max(H - top, 100.0F);
+    const auto place = [&](float x, float y, float width, float height) {
+      ImGui::SetNextWindowPos(ImVec2(x * W, top + y * rest), ImGuiCond_Always);
+      ImGui::SetNextWindowSize(ImVec2(width * W, height * rest), ImGuiCond_Always);
+    };
+    place(0, 0, 0.45F, 0.45F);
+    camera_panel(s);
+    place(0.45F, 0, 0.55F, 0.58F);
+    plots_panel(s);
+    place(0, 0.45F, 0.45F, 0.33F);
+    control_panel(s, actions);
+    place(0, 0.78F, 0.45F, 0.22F);
+    link_panel(s);
+    place(0.45F, 0.58F, 0.3F, 0.42F);
+    top_view_panel(s);
+    place(0.75F, 0.58F, 0.25F, 0.42F);
+    events_panel(s);
+    link_lost_banner(s, top, W);
+    stats.mode_shown = s.mode;
+  }
+
+  // The floor: one empty ImGui window, no text, no plots, no texture.
+  void draw_bare(int w, int h) {
+    ImGui::SetNextWindowPos(ImVec2(0, 0), ImGuiCond_Always);
+    ImGui::SetNextWindowSize(ImVec2(static_cast<float>(w), static_cast<float>(h)),
+                             ImGuiCond_Always);
+    ImGui::Begin("Bare", nullptr, ImGuiWindowFlags_NoDecoration);
+    ImGui::End();
+  }
+
+  /// Seconds since the newest vehicle state when it is stale (> kStaleAfterS), else < 0.
+  static double stale_s(const Snapshot& s) {
+    if (!s.have_state) return -1.0;
+    if (s.link.link_lost) return std::max(s.link.state_age_s, kStaleAfterS);
+    return s.link.state_age_s > kStaleAfterS ? s.link.state_age_s : -1.0;
+  }
+
+  /// One "name: value" field of the status bar; greyed and marked STALE when the vehicle's
+  /// state is old.
+  /// On the same line while it fits, else on the next: a narrow window wraps the bar, never
+  /// cuts it.
+  static void field(const char* name, const char* value, ImU32 colour, double stale) {
+    char text[128];
+    if (stale >= 0) {
+      std::snprintf(text, sizeof text, "%s: %s (STALE %.0f s)", name, value, stale);
+    } else {
+      std::snprintf(text, sizeof text, "%s: %s", name, value);
+    }
+    ImGui::SameLine(0, 18);
+    if (ImGui::CalcTextSize(text).x > ImGui::GetContentRegionAvail().x) ImGui::NewLine();
+    ImGui::TextColored(ImColor(stale >= 0 ? kStale : colour), "%s", text);
+  }
+
+  /// The status bar across the top: the vehicle's flight at a glance, the take-off action and
+  /// the key hint (wrapped, never cut). Returns its height.
+  float status_bar(const Snapshot& s, UiActions& actions, float width) {
+    ImGui::SetNextWindowPos(ImVec2(0, 0), ImGuiCond_Always);
+    ImGui::SetNextWindowSize(ImVec2(width, 0), ImGuiCond_Always);
+    ImGui::Begin("Status", nullptr,
+                 ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoMove |
+                     ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
+                     ImGuiWindowFlags_NoSavedSettings);
+    const double stale = stale_s(s);
+    const bool landed = std::strcmp(s.flight_state, "landed") == 0;
+    const ImU32 flight_colour = landed ? IM_COL32(230, 200, 80, 255)
+                                : std::strcmp(s.flight_state, "airborne") == 0
+                                    ? IM_COL32(90, 220, 110, 255)
+                                    : IM_COL32(120, 200, 255, 255);
+    ImGui::TextUnformatted(s.have_state ? "VEHICLE" : "VEHICLE (no state yet)");
+    field("flight", s.flight_state, flight_colour, stale);
+    field("motors", s.motors_armed ? "ARMED" : "idle",
+          s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), stale);
+    char height[48];
+    if (s.height_valid) {
+      std::snprintf(height, sizeof height, "%.2f m (%s)", static_cast<double>(s.height_m),
+                    s.height_source);
+    } else {
+      std::snprintf(height, sizeof height, "unknown");
+    }
+    field("height", height, IM_COL32(230, 230, 230, 255), stale);
+    field("mode", s.mode.c_str(), IM_COL32(230, 230, 230, 255), stale);
+    const ImU32 ok = IM_COL32(90, 220, 110, 255);
+    const ImU32 bad = IM_COL32(255, 170, 40, 255);
+    field("estimator", s.estimator_health.c_str(), s.estimator_health == "ok" ? ok : bad, stale);
+    field("vehicle link", s.link_health.c_str(), s.link_health == "ok" ? ok : bad, stale);
+    char clearance[24];
+    if (s.clearance_m >= 0) {
+      std::snprintf(clearance, sizeof clearance, "%.2f m", static_cast<double>(s.clearance_m));
+    } else {
+      std::snprintf(clearance, sizeof clearance, "-");
+    }
+    field("clearance", clearance, IM_COL32(230, 230, 230, 255), stale);
+    // The take-off action, prominent while the vehicle reports landed.
+    if (landed && stale < 0) {
+      ImGui::PushStyleColor(ImGuiCol_Button, IM_COL32(40, 130, 60, 255));
+      if (ImGui::Button("Take off (U)")) actions.take_off = true;
+      ImGui::PopStyleColor();
+      ImGui::SameLine();
+      ImGui::TextColored(ImColor(IM_COL32(230, 200, 80, 255)),
+                         "landed - press U to take off (climbs to the take-off height, then "
+                         "teleop)");
+      ++stats.take_off_hint_frames;
+    } else {
+      if (ImGui::Button("Take off (U)")) actions.take_off = true;
+    }
+    if (s.operator_input[0] != '\0') {
+      ImGui::SameLine(0, 18);
+      const bool slowed = std::strncmp(s.operator_input, "slowed", 6) == 0;
+      ImGui::TextColored(stale >= 0 ? ImColor(kStale)
+                         : slowed   ? ImColor(IM_COL32(255, 200, 60, 255))
+                                    : ImColor(IM_COL32(255, 90, 90, 255)),
+                         "%s", s.operator_input);
+    }
+    ImGui::PushTextWrapPos(width - 8);
+    ImGui::TextColored(ImColor(IM_COL32(170, 170, 190, 255)), "%s", kKeyHint);
+    ImGui::PopTextWrapPos();
+    const float height_px = ImGui::GetWindowHeight();
+    ImGui::End();
+    return height_px;
+  }
+
+  /// Across the window when the vehicle went silent: its age, on top of everything.
+  void link_lost_banner(const Snapshot& s, float top, float width) {
+    if (!s.have_state || !s.link.link_lost) return;
+    ImDrawList* draw = ImGui::GetForegroundDrawList();
+    const float height = 2.2F * ImGui::GetFontSize() + 12;
+    draw->AddRectFilled(ImVec2(0, top), ImVec2(width, top + height), IM_COL32(200, 20, 20, 235));
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "VEHICLE LINK LOST %.1f s - no vehicle state; everything shown is from before",
+                  s.link.state_age_s);
+    ImFont* font = ImGui::GetFont();
+    const float size = 2.0F * ImGui::GetFontSize();
+    const ImVec2 extent = font->CalcTextSizeA(size, width, 0, text);
+    draw->AddText(font, size, ImVec2(std::max(4.0F, (width - extent.x) / 2), top + 6),
+                  IM_COL32(255, 255, 255, 255), text);
+    ++stats.link_lost_banner_frames;
   }
 
   void control_panel(const Snapshot& s, UiActions& actions) {
@@ -575,10 +827,15 @@ struct ConsoleWindow::Impl {
       ImGui::TextColored(ImVec4(1, 0.15F, 0.15F, 1), "%s", banner);  // loud: the hand flies nothing
     }
     ImGui::Text("source: %s", s.source.data());
-    ImGui::Text("mode: %s   estimator: %s   vehicle link: %s", s.mode.c_str(),
-                s.estimator_health.c_str(), s.link_health.c_str());
-    ImGui::Text("roll %+.1f deg  pitch %+.1f deg", static_cast<double>(s.roll_rad) * 57.29578,
-                static_cast<double>(s.pitch_rad) * 57.29578);
+    const double stale = stale_s(s);
+    if (stale >= 0) {
+      ImGui::TextColored(ImColor(kStale), "roll %+.1f deg  pitch %+.1f deg (STALE %.0f s)",
+                         static_cast<double>(s.roll_rad) * 57.29578,
+                         static_cast<double>(s.pitch_rad) * 57.29578, stale);
+    } else {
+      ImGui::Text("roll %+.1f deg  pitch %+.1f deg", static_cast<double>(s.roll_rad) * 57.29578,
+                  static_cast<double>(s.pitch_rad) * 57.29578);
+    }
     // A replay has no vehicle to ask: the requests are greyed out, not live-looking.
     if (s.replay.active) ImGui::TextDisabled("replay: mode requests off (no vehicle to ask)");
     ImGui::BeginDisabled(s.replay.active);
@@ -630,13 +887,10 @@ struct ConsoleWindow::Impl {
                 static_cast<double>(h.F_D_n[0]), static_cast<double>(h.F_D_n[1]),
                 static_cast<double>(h.F_D_n[2]), static_cast<double>(h.cue_weight),
                 static_cast<double>(h.passivity_energy_j));
-    // Force as bars, the device's 3 axes (|F| up to 5 N full scale).
+    // Force as bars centred on zero, the device's 3 axes (5 N full scale either way).
     for (int i = 0; i < 3; ++i) {
-      char overlay[16];
-      std::snprintf(overlay, sizeof overlay, "F%c", "xyz"[i]);
-      ImGui::ProgressBar(0.5F + std::clamp(h.F_D_n[static_cast<std::size_t>(i)] / 10.0F, -0.5F,
-                                           0.5F),
-                         ImVec2(-1, 0), overlay);
+      const char label[3] = {'F', "xyz"[i], '\0'};
+      centred_bar(label, h.F_D_n[static_cast<std::size_t>(i)], 5.0F);
     }
     ImGui::End();
   }
@@ -676,27 +930,52 @@ struct ConsoleWindow::Impl {
       const ImVec4 colour = e.severity >= 2   ? ImVec4(1, 0.4F, 0.4F, 1)
                             : e.severity == 1 ? ImVec4(1, 0.8F, 0.3F, 1)
                                               : ImVec4(0.85F, 0.85F, 0.85F, 1);
-      ImGui::TextColored(colour, "%7.2f s  %s", e.t_s, e.text.data());
+      ImGui::PushStyleColor(ImGuiCol_Text, colour);
+      ImGui::TextWrapped("%7.2f s  %s", e.t_s, e.text.data());
+      ImGui::PopStyleColor();
     }
     ImGui::End();
   }
 };
 
-ConsoleWindow::ConsoleWindow(const std::string& title, int width_px, int height_px,
-                             double max_fps)
+ConsoleWindow::ConsoleWindow(const std::string& title, const WindowOptions& options)
     : impl_(std::make_unique<Impl>()) {
-  impl_->max_fps = max_fps;
+  impl_->max_fps = options.max_fps;
+  impl_->options = options;
   if (SDL_Init(SDL_INIT_VIDEO) != 0) {
     throw InputError(std::string("SDL_Init(video): ") + SDL_GetError() +
                      " (no display? use --headless)");
   }
+  // Fit the display: at most 1600 x 960, never larger than its usable area, placed inside it;
+  // the remembered placement when it still fits (another screen may be smaller).
+  SDL_Rect& d = impl_->display;
+  if (SDL_GetDisplayUsableBounds(0, &d) != 0 || d.w <= 0 || d.h <= 0) d = {0, 0, 1600, 960};
+  int width_px = options.width_px > 0 ? options.width_px : std::min(1600, d.w);
+  int height_px = options.height_px > 0 ? options.height_px : std::min(960, d.h);
+  int x_px = -1;
+  int y_px = -1;
+  if (options.width_px <= 0) {
+    if (const std::optional<SavedPlacement> saved = read_placement(options.ini_path)) {
+      if (saved->width <= d.w && saved->height <= d.h) {
+        width_px = saved->width;
+        height_px = saved->height;
+        x_px = saved->x;
+        y_px = saved->y;
+      }
+    }
+  }
+  width_px = std::clamp(width_px, 320, d.w);
+  height_px = std::clamp(height_px, 240, d.h);
+  if (x_px < d.x || x_px + width_px > d.x + d.w) x_px = d.x + (d.w - width_px) / 2;
+  if (y_px < d.y || y_px + height_px > d.y + d.h) y_px = d.y + (d.h - height_px) / 2;
+  impl_->stats.display_width_px = d.w;
+  impl_->stats.display_height_px = d.h;
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_FLAGS, 0);
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_PROFILE_MASK, SDL_GL_CONTEXT_PROFILE_CORE);
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_MAJOR_VERSION, 3);
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_MINOR_VERSION, 3);
   SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
-  impl_->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
-                                   width_px, height_px,
+  impl_->window = SDL_CreateWindow(title.c_str(), x_px, y_px, width_px, height_px,
                                    SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE | SDL_WINDOW_SHOWN);
   if (impl_->window == nullptr) {
     const std::string error = SDL_GetError();
@@ -725,6 +1004,12 @@ ConsoleWindow::ConsoleWindow(const std::string& title, int width_px, int height_
 
 ConsoleWindow::~ConsoleWindow() {
   if (impl_->flight_keys != nullptr) impl_->flight_keys->set_window_open(false);
+  if (impl_->window != nullptr && !impl_->options.ini_path.empty()) {
+    SavedPlacement p;
+    SDL_GetWindowPosition(impl_->window, &p.x, &p.y);
+    SDL_GetWindowSize(impl_->window, &p.width, &p.height);
+    write_placement(impl_->options.ini_path, p);
+  }
   impl_->camera = Texture{};
   if (impl_->imgui_gl) ImGui_ImplOpenGL3_Shutdown();
   if (impl_->imgui_sdl) ImGui_ImplSDL2_Shutdown();
@@ -768,6 +1053,7 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
         case SDLK_l: actions.mode_request = "land"; break;
         case SDLK_m: actions.mode_request = "marker"; break;
         case SDLK_x: actions.mode_request = "explore"; break;
+        case SDLK_u: actions.take_off = true; break;
         case SDLK_ESCAPE: actions.quit = true; break;
         default: break;
       }
@@ -788,24 +1074,15 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
   const float W = static_cast<float>(w);
   // Replay: the timeline strip takes the bottom; the panels share the rest.
   const float H = static_cast<float>(h) - (m.replay != nullptr ? kReplayStripHeightPx : 0.0F);
-  if (m.replay != nullptr) draw_replay_strip(*m.replay, s, actions, 0, H, W);
-  const auto place = [](float x, float y, float width, float height) {
-    ImGui::SetNextWindowPos(ImVec2(x, y), ImGuiCond_FirstUseEver);
-    ImGui::SetNextWindowSize(ImVec2(width, height), ImGuiCond_FirstUseEver);
-  };
-  place(0, 0, W * 0.45F, H * 0.5F);
-  m.camera_panel(s);
-  place(W * 0.45F, 0, W * 0.55F, H * 0.62F);
-  m.plots_panel(s);
-  place(0, H * 0.5F, W * 0.45F, H * 0.28F);
-  m.control_panel(s, actions);
-  place(0, H * 0.78F, W * 0.45F, H * 0.22F);
-  m.link_panel(s);
-  place(W * 0.45F, H * 0.62F, W * 0.3F, H * 0.38F);
-  m.top_view_panel(s);
-  place(W * 0.75F, H * 0.62F, W * 0.25F, H * 0.38F);
-  m.events_panel(s);
-  m.stats.mode_shown = s.mode;
+  if (m.options.bare) {
+    m.draw_bare(w, h);
+  } else {
+    if (m.replay != nullptr) draw_replay_strip(*m.replay, s, actions, 0, H, W);
+    m.draw_panels(s, actions, W, H);
+  }
+  SDL_GetWindowPosition(m.window, &m.stats.x_px, &m.stats.y_px);
+  m.stats.width_px = w;
+  m.stats.height_px = h;
   ImGui::Render();
   glViewport(0, 0, w, h);
   glClearColor(0.08F, 0.08F, 0.1F, 1.0F);

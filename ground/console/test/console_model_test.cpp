@@ -94,5 +94,55 @@ TEST(ConsoleModel, ControlBannerNamesTheCommandingStation) {
   EXPECT_EQ(s.link.commanding_station, 9U);
 }
 
+TEST(ConsoleModel, FlightStateHeightAndOperatorInputReachTheSnapshot) {
+  ConsoleModel m;
+  StateExtras extras;
+  extras.flight_state = "airborne";
+  extras.motors_armed = true;
+  extras.height_valid = true;
+  extras.height_m = 1.02F;
+  extras.height_source = "depth";
+  extras.operator_input = "slowed: unseen space";
+  extras.clearance_m = 0.7F;
+  m.on_state(0, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "teleop", "ok", "ok", nullptr, 0,
+             extras);
+  Snapshot s = m.make_snapshot();
+  m.snapshot(s);
+  EXPECT_STREQ(s.flight_state, "airborne");
+  EXPECT_TRUE(s.motors_armed);
+  EXPECT_TRUE(s.height_valid);
+  EXPECT_FLOAT_EQ(s.height_m, 1.02F);
+  EXPECT_STREQ(s.height_source, "depth");
+  EXPECT_STREQ(s.operator_input, "slowed: unseen space");
+  EXPECT_FLOAT_EQ(s.clearance_m, 0.7F);
+  // A non-finite height from a broken sender is shown as unknown, never as NaN.
+  extras.height_m = std::nanf("");
+  m.on_state(1, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "teleop", "ok", "ok", nullptr, 0,
+             extras);
+  m.snapshot(s);
+  EXPECT_FALSE(s.height_valid);
+  EXPECT_EQ(s.height_m, 0.0F);
+}
+
+TEST(LinkLossMonitor, LostAfterTheThresholdRegainedByAFreshStateCountsAndKeepsTheLongest) {
+  LinkLossMonitor monitor(0.5);
+  // No state yet: never lost, however long.
+  EXPECT_EQ(monitor.update(-1.0), LinkLossMonitor::Change::kNone);
+  EXPECT_EQ(monitor.update(0.1), LinkLossMonitor::Change::kNone);
+  EXPECT_EQ(monitor.update(0.5), LinkLossMonitor::Change::kNone) << "at the threshold: not yet";
+  EXPECT_EQ(monitor.update(0.6), LinkLossMonitor::Change::kLost);
+  EXPECT_TRUE(monitor.lost());
+  EXPECT_EQ(monitor.update(2.4), LinkLossMonitor::Change::kNone) << "told once per loss";
+  EXPECT_EQ(monitor.update(0.02), LinkLossMonitor::Change::kRegained);
+  EXPECT_FALSE(monitor.lost());
+  EXPECT_DOUBLE_EQ(monitor.last_loss_s(), 2.4);
+  EXPECT_EQ(monitor.update(0.9), LinkLossMonitor::Change::kLost);
+  EXPECT_EQ(monitor.update(1.0), LinkLossMonitor::Change::kNone);
+  EXPECT_EQ(monitor.update(0.01), LinkLossMonitor::Change::kRegained);
+  EXPECT_EQ(monitor.losses(), 2U);
+  EXPECT_DOUBLE_EQ(monitor.longest_s(), 2.4);
+  EXPECT_DOUBLE_EQ(monitor.last_loss_s(), 1.0);
+}
+
 }  // namespace
 }  // namespace hq::console

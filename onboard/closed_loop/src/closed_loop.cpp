@@ -164,6 +164,9 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.clearance_m = truth.clearance_m;
   s.p_world_m = truth.T_world_body.translation();
   s.reason = out.safe_hover ? out.safe_hover_reason : "";
+  s.flight_state = out.flight_state;
+  s.height_m = out.height_m;
+  s.height_source = out.height_source;
   samples_.push_back(s);
 }
 

@@ -38,9 +38,25 @@ bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task) {
   }
 }
 
+namespace {
+hq_msgs_FlightState to_link_flight_state(modes::FlightState state) {
+  switch (state) {
+    case modes::FlightState::kLanded:
+      return hq_msgs_FLIGHT_LANDED;
+    case modes::FlightState::kTakingOff:
+      return hq_msgs_FLIGHT_TAKING_OFF;
+    case modes::FlightState::kAirborne:
+      return hq_msgs_FLIGHT_AIRBORNE;
+    case modes::FlightState::kLanding:
+      return hq_msgs_FLIGHT_LANDING;
+  }
+  return hq_msgs_FLIGHT_LANDED;
+}
+}  // namespace
+
 Verdict to_mode_request(const link::ModeRequest& request, modes::Mode mode,
                         pipeline::ModeRequest& out) {
-  out = {mode, std::nullopt};
+  out = {mode, std::nullopt, request.take_off};
   if (static_cast<int>(request.marker_task) == static_cast<int>(hq_msgs_MARKER_TASK_NONE)) {
     return {true, ""};
   }
@@ -321,6 +337,16 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
                                      static_cast<float>(q.y()), static_cast<float>(q.z())}};
   }
   s.markers._length = markers;
+  s.flight_state = to_link_flight_state(out.flight_state);
+  s.motors_armed = extras.motors_armed;
+  // validate() rejects NaN: the chain never gives one, and a none source goes out as 0.
+  const bool height_ok = out.height_source != pipeline::HeightSource::kNone &&
+                         std::isfinite(out.height_m);
+  s.height_source = !height_ok ? hq_msgs_HEIGHT_NONE
+                    : out.height_source == pipeline::HeightSource::kDepth ? hq_msgs_HEIGHT_DEPTH
+                                                                          : hq_msgs_HEIGHT_ESTIMATE;
+  s.height_m = height_ok ? static_cast<float>(out.height_m) : 0.0F;
+  s.clearance_m = std::isfinite(out.clearance_m) ? static_cast<float>(out.clearance_m) : -1.0F;
   s.truth_valid = extras.truth_valid && extras.v_truth_horizontal_mps.allFinite();
   s.v_truth_H_mps = s.truth_valid ? to_msg(extras.v_truth_horizontal_mps)
                                   : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};

@@ -60,6 +60,10 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
     extras.v_truth_horizontal_mps = status.truth->v_H_mps;
   }
   extras.vehicle_degraded = status.degraded();
+  // Spinning: the chain off the floor (landed is motors idle, thrust 0) and, when a flight
+  // controller reports, it armed (the simulator's always is; a real one may be disarmed).
+  extras.motors_armed = out.flight_state != modes::FlightState::kLanded &&
+                        (!status.fc.connected || status.fc.armed);
   bridge_.publish_state(out, extras);
 }
 

@@ -185,6 +185,29 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   EXPECT_NE(state.session_id, 0U);
   EXPECT_EQ(state.commanding_station_id, 0U);
   EXPECT_EQ(state.operator_input, hq_msgs_INPUT_NONE);
+  // Flight state, motors, height and clearance ride along; an unknown height goes out as
+  // HEIGHT_NONE and 0, never NaN.
+  EXPECT_EQ(state.flight_state, hq_msgs_FLIGHT_LANDED);
+  EXPECT_FALSE(state.motors_armed);
+  EXPECT_EQ(state.height_source, hq_msgs_HEIGHT_NONE);
+  EXPECT_EQ(state.height_m, 0.0F);
+  EXPECT_EQ(state.clearance_m, -1.0F);
+  out.flight_state = modes::FlightState::kAirborne;
+  out.height_m = 1.02;
+  out.height_source = pipeline::HeightSource::kDepth;
+  out.clearance_m = 0.6;
+  StateExtras extras;
+  extras.motors_armed = true;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    bridge.publish_state(out, extras);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info) && state.flight_state == hq_msgs_FLIGHT_AIRBORNE;
+  }));
+  EXPECT_TRUE(state.motors_armed);
+  EXPECT_EQ(state.height_source, hq_msgs_HEIGHT_DEPTH);
+  EXPECT_FLOAT_EQ(state.height_m, 1.02F);
+  EXPECT_FLOAT_EQ(state.clearance_m, 0.6F);
+  EXPECT_TRUE(link::validate(state).ok);
 }
 
 // GIVEN two bridges (a vehicle and its restart) THEN their sessions differ and the state of each
@@ -432,6 +455,17 @@ TEST(ToModeRequest, CarriesTheMarkerTaskOrRefusesAMalformedOne) {
   v = to_mode_request(marker_request(hq_msgs_MARKER_TASK_HOLD, -2), modes::Mode::kMarker, out);
   EXPECT_FALSE(v.accepted);
   EXPECT_THAT(v.reason, HasSubstr("negative"));
+}
+
+TEST(ToModeRequest, CarriesTheTakeOff) {
+  link::ModeRequest request = marker_request(hq_msgs_MARKER_TASK_NONE, 0);
+  pipeline::ModeRequest out;
+  ASSERT_TRUE(to_mode_request(request, modes::Mode::kTeleop, out).accepted);
+  EXPECT_FALSE(out.take_off);
+  request.take_off = true;
+  ASSERT_TRUE(to_mode_request(request, modes::Mode::kTeleop, out).accepted);
+  EXPECT_TRUE(out.take_off);
+  EXPECT_EQ(out.mode, modes::Mode::kTeleop);
 }
 
 // GIVEN a chain with its marker stage on, WHEN it is asked for a mode with a marker task, THEN

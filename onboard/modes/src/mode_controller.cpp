@@ -9,6 +9,8 @@ namespace hq::modes {
 
 namespace {
 constexpr double kTouchdownThrustRatio = 0.9;
+/// The take-off's climb ends this near its target height (the slow final approach covers it).
+constexpr double kTakeoffReachedM = 0.02;
 }
 
 const char* to_string(Mode mode) {
@@ -27,6 +29,20 @@ const char* to_string(Mode mode) {
   return "unknown";
 }
 
+const char* to_string(FlightState state) {
+  switch (state) {
+    case FlightState::kLanded:
+      return "landed";
+    case FlightState::kTakingOff:
+      return "taking off";
+    case FlightState::kAirborne:
+      return "airborne";
+    case FlightState::kLanding:
+      return "landing";
+  }
+  return "unknown";
+}
+
 void read_config(config::StrictMap& section, ModesConfig& out) {
   section.read_positive("teleop_timeout_s", out.teleop_timeout_s, 10.0);
   section.read_positive("land_speed_mps", out.land_speed_mps, 2.0);
@@ -38,6 +54,9 @@ void read_config(config::StrictMap& section, ModesConfig& out) {
   section.read_positive("touchdown_s", out.touchdown_s, 10.0);
   section.read("blind_descent_thrust_ratio", out.blind_descent_thrust_ratio, 0.5, 1.0);
   section.read_positive("blind_descent_s", out.blind_descent_s, 30.0);
+  section.read_positive("takeoff_target_height_m", out.takeoff_target_height_m, 10.0);
+  section.read_positive("takeoff_speed_mps", out.takeoff_speed_mps, 2.0);
+  section.read_positive("takeoff_slowdown_m", out.takeoff_slowdown_m, 5.0);
   section.finish();
 }
 
@@ -65,11 +84,23 @@ ModeSwitch ModeController::request_mode(Mode mode) {
   if (mode == Mode::kExplore && explore_ == nullptr) {
     return {false, "explore mode has no provider registered"};
   }
+  // Any other mode request ends a take-off's climb where it is.
+  takeoff_active_ = false;
   if (mode != mode_) {
     mode_ = mode;
     ramping_ = true;
   }
   return {true, ""};
+}
+
+ModeSwitch ModeController::request_takeoff(Mode then) {
+  if (then == Mode::kLand) return {false, "take-off refused: the mode after it is land"};
+  const ModeSwitch verdict = request_mode(then);
+  if (!verdict.accepted) return verdict;
+  takeoff_active_ = true;
+  takeoff_then_ = then;
+  ramping_ = true;
+  return verdict;
 }
 
 void ModeController::set_operator_command(const OperatorCommand& command) {
@@ -87,7 +118,12 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   Source source = Source::kHover;
   Eigen::Vector3d v_target = Eigen::Vector3d::Zero();
   double yaw_target = 0.0;
-  switch (mode_) {
+  if (takeoff_active_ && std::isfinite(height_m_) &&
+      height_m_ >= config_.takeoff_target_height_m - kTakeoffReachedM) {
+    // At the take-off height: the requested mode takes over (ramping from the slow final climb).
+    takeoff_active_ = false;
+  }
+  switch (takeoff_active_ ? Mode::kHover : mode_) {
     case Mode::kTeleop: {
       const double age_s = 1e-9 * static_cast<double>(t_ns - operator_command_.t_ns);
       if (have_operator_command_ && age_s <= config_.teleop_timeout_s) {
@@ -100,6 +136,19 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
       break;
     }
     case Mode::kHover:
+      if (takeoff_active_) {
+        // Climb at takeoff_speed_mps, proportionally slower over the last takeoff_slowdown_m
+        // (a first-order approach, so no overshoot); without a height, climb slowly on.
+        const double to_go_m = std::isfinite(height_m_)
+                                   ? config_.takeoff_target_height_m - height_m_
+                                   : config_.takeoff_slowdown_m;
+        const double climb_mps = std::clamp(
+            config_.takeoff_speed_mps * to_go_m / config_.takeoff_slowdown_m,
+            std::min(2.0 * config_.takeoff_climb_mps, config_.takeoff_speed_mps),
+            config_.takeoff_speed_mps);
+        source = Source::kTakeoff;
+        v_target = Eigen::Vector3d(0.0, 0.0, -climb_mps);
+      }
       break;
     case Mode::kLand:
       source = Source::kLand;
@@ -124,6 +173,8 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   if (source != last_source_) ramping_ = true;
   last_source_ = source;
 
+  out.taking_off = takeoff_active_;
+  out.operator_ignored = takeoff_active_ || mode_ != Mode::kTeleop || landed_;
   if (landed_) {
     // On the ground only a climb request starts the motors; until then the PID is held reset
     // so no integral winds up against the floor.
@@ -141,6 +192,7 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
       have_previous_ = true;
       t_prev_ns_ = t_ns;
       out.landed = true;
+      out.flight_state = FlightState::kLanded;
       out.control.setpoint = control::AttitudeSetpoint{};
       return out;
     }
@@ -171,6 +223,10 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   out.control =
       controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_horizontal_mps);
   if (mode_ == Mode::kLand) land_step(dt_s, v_est_horizontal_mps, out);
+  out.flight_state = out.landed           ? FlightState::kLanded
+                     : mode_ == Mode::kLand ? FlightState::kLanding
+                     : takeoff_active_      ? FlightState::kTakingOff
+                                            : FlightState::kAirborne;
   return out;
 }
 

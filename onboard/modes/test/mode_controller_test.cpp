@@ -371,6 +371,64 @@ std::string modes_config_error(const std::string& yaml) {
   return "";
 }
 
+TEST(ModeController, TakeOffClimbsToTheTargetHeightThenFliesTheRequestedMode) {
+  // GIVEN a vehicle on the floor (height 0.08 m) that an operator commands forwards
+  ModesConfig config;
+  config.takeoff_target_height_m = 1.0;
+  ModeController controller(config, {}, test_vehicle());
+  PointMass body;
+  double height_m = 0.08;
+  std::int64_t t_ns = 0;
+  controller.set_height_m(height_m);
+  controller.request_mode(Mode::kTeleop);
+  controller.set_operator_command({0, Eigen::Vector3d(0.5, 0, 0), 0});
+  ModeOutput out = controller.step(t_ns, body.v_mps, Eigen::Vector3d::Zero());
+  // THEN landed, teleop ignores it: no take-off without a climb or a take-off request
+  EXPECT_EQ(out.flight_state, FlightState::kLanded);
+  EXPECT_TRUE(out.operator_ignored);
+  // WHEN a take-off then teleop is requested
+  ASSERT_TRUE(controller.request_takeoff(Mode::kTeleop).accepted);
+  double max_height_m = 0;
+  bool saw_taking_off = false;
+  for (int i = 0; i < 2400; ++i) {  // 12 s
+    t_ns += kStepNs;
+    controller.set_height_m(height_m);
+    controller.set_operator_command({t_ns, Eigen::Vector3d::Zero(), 0});
+    out = controller.step(t_ns, body.v_mps, Eigen::Vector3d::Zero());
+    body.step(out.control.setpoint);
+    height_m -= body.v_mps.z() * kDt;
+    max_height_m = std::max(max_height_m, height_m);
+    if (out.flight_state == FlightState::kTakingOff) {
+      saw_taking_off = true;
+      EXPECT_TRUE(out.operator_ignored) << "the climb is not the operator's";
+      EXPECT_LE(out.v_star_des_horizontal_mps.z(), 1e-9) << "never sinks while taking off";
+    }
+  }
+  // THEN it climbed through the taking-off state to the target without overshooting, and
+  // flies teleop, the operator's input flown again
+  EXPECT_TRUE(saw_taking_off);
+  EXPECT_EQ(out.flight_state, FlightState::kAirborne);
+  EXPECT_EQ(out.mode, Mode::kTeleop);
+  EXPECT_FALSE(out.operator_ignored);
+  EXPECT_NEAR(height_m, 1.0, 0.1);
+  EXPECT_LT(max_height_m, 1.1);
+}
+
+TEST(ModeController, TakeOffIntoLandIsRefusedAndAnotherModeRequestEndsTheClimb) {
+  ModeController controller(ModesConfig{}, {}, test_vehicle());
+  EXPECT_FALSE(controller.request_takeoff(Mode::kLand).accepted);
+  EXPECT_FALSE(controller.request_takeoff(Mode::kMarker).accepted) << "no provider";
+  ASSERT_TRUE(controller.request_takeoff(Mode::kHover).accepted);
+  EXPECT_TRUE(controller.taking_off());
+  controller.set_height_m(0.3);
+  ModeOutput out = controller.step(0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_FALSE(out.landed) << "a take-off starts the motors";
+  controller.request_mode(Mode::kLand);
+  EXPECT_FALSE(controller.taking_off());
+  out = controller.step(kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_EQ(out.flight_state, FlightState::kLanding);
+}
+
 TEST(ModesConfig, LandingKeysAreReadAndRangeChecked) {
   config::StrictMap section(
       YAML::Load("{start_landed: false, takeoff_climb_mps: 0.2, touchdown_speed_mps: 0.05, "

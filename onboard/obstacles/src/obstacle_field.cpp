@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <limits>
 #include <string>
@@ -81,6 +82,7 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
   }
   cells_.resize(static_cast<std::size_t>(cells_x_) * cells_y_);
   minima_.reserve(cells_.size());
+  support_z_m_.reserve(cells_.size());
 }
 
 void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard,
@@ -88,6 +90,10 @@ void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H
   const double range = p_H.norm();
   const double d = std::max(range - config_.vehicle_radius_m, kMinDistanceM);
   const double d0 = config_.influence_distance_m;
+  const double clearance_m = std::max(range - config_.vehicle_radius_m, 0.0);
+  if (result.min_clearance_m < 0.0 || clearance_m < result.min_clearance_m) {
+    result.min_clearance_m = clearance_m;
+  }
   if (d >= d0 || !(range > 0.0)) return;
   // Khatib 1986 on the clearance d: U = eta/2 (1/d - 1/d0)^2, v = -grad U, along -p/|p|.
   const double speed = config_.gain * (1.0 / d - 1.0 / d0) / (d * d);
@@ -150,6 +156,33 @@ bool ObstacleField::on_support_surface(const cv::Mat& depth_m, int u, int v,
   return vertical > std::cos(config_.support_normal_max_deg * std::numbers::pi / 180.0);
 }
 
+double ObstacleField::floor_height(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                                   const Eigen::Vector3d& p_HC) {
+  // A camera looking down sees the floor in its lower rows; each cell's nearest point that
+  // lies on a near-horizontal surface below the body gives that surface's depth below it. The
+  // floor is the lowest such surface (a table top is higher); a lone deepest cell may be noise,
+  // so the answer is the deepest value that two more cells confirm within kFloorAgreeM.
+  constexpr double kFloorAgreeM = 0.05;
+  support_z_m_.clear();
+  for (int cy = cells_y_ / 2; cy < cells_y_; ++cy) {
+    for (int cx = 0; cx < cells_x_; ++cx) {
+      const Cell& cell = cells_[static_cast<std::size_t>(cy) * cells_x_ + cx];
+      if (!std::isfinite(cell.range_m)) continue;
+      const double z =
+          cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
+      const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
+                                (cell.v - camera_.cy) / camera_.fy * z, z);
+      const Eigen::Vector3d p_H = R_HC * p_C + p_HC;
+      if (on_support_surface(depth_m, cell.u, cell.v, R_HC, p_H)) support_z_m_.push_back(p_H.z());
+    }
+  }
+  std::sort(support_z_m_.begin(), support_z_m_.end(), std::greater<>());
+  for (std::size_t i = 0; i + 2 < support_z_m_.size(); ++i) {
+    if (support_z_m_[i] - support_z_m_[i + 2] < kFloorAgreeM) return support_z_m_[i + 1];
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
 ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
                                       const Eigen::Matrix3d& R_horizontal_body,
                                       std::span<const Eigen::Vector3d> remembered_p_horizontal_m) {
@@ -205,6 +238,8 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
       }
     }
   }
+
+  result.floor_height_m = floor_height(depth_m, R_HC, p_HC);
 
   // Near-range hazard: a structured-light sensor returns nothing for surfaces nearer than its
   // minimum range, which must not read as free space.

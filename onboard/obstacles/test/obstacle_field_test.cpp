@@ -362,6 +362,30 @@ TEST(ObstacleField, FloorBelowPushesOnlyUpwardsWithinSupportInfluence) {
   EXPECT_EQ(reached.v_obs_horizontal_mps.head<2>().norm(), 0.0);
 }
 
+TEST(ObstacleField, FloorInViewGivesTheHeightAboveItAndATableTopDoesNot) {
+  const ObstacleConfig config;
+  const Eigen::Matrix3d R_QC = default_R_body_camera();
+  ObstacleField field(config, test_camera(), R_QC, Eigen::Vector3d::Zero());
+  // GIVEN the floor 1.2 m below, seen by the camera looking 30 deg down
+  cv::Mat depth = floor_below(R_QC, 1.2);
+  ObstacleResult result = field.compute(depth, Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(result.valid) << result.reason;
+  EXPECT_NEAR(result.floor_height_m, 1.2, 0.01);
+  // WHEN a table top 0.5 m below covers the image's lower left quarter, THEN the floor is still
+  // the lowest surface seen
+  const cv::Mat table = floor_below(R_QC, 0.5);
+  table(cv::Rect(0, 240, 320, 240)).copyTo(depth(cv::Rect(0, 240, 320, 240)));
+  result = field.compute(depth, Eigen::Matrix3d::Identity());
+  EXPECT_NEAR(result.floor_height_m, 1.2, 0.01);
+  // WHEN nothing horizontal is in view (a wall), THEN no height, and the wall's clearance
+  result = field.compute(wall(1.0F), Eigen::Matrix3d::Identity());
+  EXPECT_TRUE(std::isnan(result.floor_height_m));
+  EXPECT_NEAR(result.min_clearance_m, 1.0 - config.vehicle_radius_m, 0.02);
+  // and nothing within range: no clearance either
+  result = field.compute(wall(7.0F), Eigen::Matrix3d::Identity());
+  EXPECT_EQ(result.min_clearance_m, -1.0);
+}
+
 TEST(ObstacleField, GroundPhaseIgnoresTheNearHazardAndEverythingBelow) {
   const ObstacleConfig config;
   const Eigen::Matrix3d R_QC = default_R_body_camera();

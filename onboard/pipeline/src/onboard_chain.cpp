@@ -5,6 +5,7 @@
 #include "hq/geometry/lie.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace hq::pipeline {
@@ -14,7 +15,20 @@ void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read("takeoff_height_m", out.takeoff_height_m, 0.0, 10.0);
   section.read("gyro_rotation_prior", out.gyro_rotation_prior);
   section.read_positive("gyro_prior_sigma_radps", out.gyro_prior_sigma_radps, 10.0);
+  section.read("landed_height_m", out.landed_height_m, 0.0, 2.0);
   section.finish();
+}
+
+const char* to_string(HeightSource source) {
+  switch (source) {
+    case HeightSource::kNone:
+      return "none";
+    case HeightSource::kDepth:
+      return "depth";
+    case HeightSource::kEstimate:
+      return "estimate";
+  }
+  return "unknown";
 }
 
 OnboardConfig load_onboard_config(const std::string& path) {
@@ -169,6 +183,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   obstacles_.set_ground_phase(modes_.landed() || modes_.mode() == modes::Mode::kLand ||
                               !takeoff_complete_);
   out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
+  update_height(t_ns, out.obstacles.floor_height_m, out);
   const std::int64_t t_obstacles_ns = now_ns();
 
   // Without an estimate the PID gets a non-finite measurement on purpose: the velocity
@@ -178,6 +193,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
       out.estimate.usable() ? out.estimate.v_horizontal_mps
                         : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   out.mode = modes_.step(t_ns, v_est_mps, out.obstacles.v_obs_horizontal_mps);
+  finish_output(out);
   const std::int64_t t_control_ns = now_ns();
 
   out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
@@ -220,12 +236,51 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   const Eigen::Vector3d v_est_mps =
       out.estimate.usable() ? out.estimate.v_horizontal_mps
                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
   // No depth means no v_obs either: zero.
   out.mode = modes_.step(t_ns, v_est_mps, Eigen::Vector3d::Zero());
+  finish_output(out);
   out.degraded = true;
   out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
   if (out.safe_hover) out.safe_hover_reason = "camera timed out: hover on IMU attitude only";
   return out;
+}
+
+void OnboardChain::update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out) {
+  const double dt_s =
+      height_known_ ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_height_ns_)) : 0.0;
+  t_height_ns_ = t_ns;
+  if (std::isfinite(floor_height_m)) {
+    // The floor in view is the measurement; the integrated climb carries on from it when the
+    // floor leaves the view or comes nearer than the sensor's minimum range.
+    height_m_ = floor_height_m;
+    height_known_ = true;
+    out.height_source = HeightSource::kDepth;
+  } else if (modes_.landed()) {
+    height_m_ = config_.chain.landed_height_m;
+    height_known_ = true;
+    out.height_source = HeightSource::kEstimate;
+  } else if (height_known_ && out.estimate.usable()) {
+    height_m_ -= out.estimate.v_horizontal_mps.z() * dt_s;  // NED: climbing is -v_z
+    out.height_source = HeightSource::kEstimate;
+  } else {
+    // No floor in view and no velocity to integrate: the height is not known any more.
+    height_known_ = false;
+    out.height_source = HeightSource::kNone;
+  }
+  out.height_m = out.height_source == HeightSource::kNone ? 0.0 : height_m_;
+  modes_.set_height_m(out.height_source == HeightSource::kNone
+                          ? std::numeric_limits<double>::quiet_NaN()
+                          : height_m_);
+}
+
+void OnboardChain::finish_output(ChainOutput& out) const {
+  out.flight_state = out.mode.flight_state;
+  // Left the floor but not yet clear of it: still the take-off, whatever the mode.
+  if (out.flight_state == modes::FlightState::kAirborne && !takeoff_complete_) {
+    out.flight_state = modes::FlightState::kTakingOff;
+  }
+  out.clearance_m = out.obstacles.min_clearance_m;
 }
 
 void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
@@ -242,7 +297,7 @@ modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
     }
     markers_->marker_mode().set_task(request.marker->task, request.marker->marker_id);
   }
-  return modes_.request_mode(request.mode);
+  return request.take_off ? modes_.request_takeoff(request.mode) : modes_.request_mode(request.mode);
 }
 
 }  // namespace hq::pipeline

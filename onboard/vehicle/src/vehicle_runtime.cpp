@@ -127,7 +127,8 @@ void VehicleRuntime::take_operator(std::int64_t t_ns) {
     // asks it to arm, now or as soon as it is heard and the stream runs (a few tries). A request
     // for hover or land withdraws it. The runtime never asks on its own initiative.
     if (result.accepted) {
-      arm_wanted_ = flying_mode(request.mode) && !(status_.fc.armed && status_.fc.offboard);
+      arm_wanted_ = (flying_mode(request.mode) || request.take_off) &&
+                    !(status_.fc.armed && status_.fc.offboard);
       arm_attempts_ = 0;
       next_arm_attempt_ns_ = t_ns;
     }

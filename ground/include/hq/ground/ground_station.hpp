@@ -207,7 +207,9 @@ class GroundStation {
   /// (status().waiting_for_vehicle; the latest one replaces an earlier one) and goes out when
   /// the first state arrives; returns false then. A vehicle that restarts (a new session)
   /// gets nothing re-sent: the station raises "vehicle restarted" and the operator asks again.
-  bool request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {});
+  /// With take_off, the vehicle takes off first and then flies `mode`.
+  bool request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {},
+                    bool take_off = false);
   /// Where the ground's own notices (control lost, vehicle restarted) are printed once each
   /// (e.g. stdout); null: not printed. They also go to the recorder and the observer as events.
   void set_log(std::FILE* log) { log_ = log; }
@@ -243,13 +245,15 @@ class GroundStation {
   void note_control(const link::VehicleState& s);
   /// A notice of the ground's own: printed to log_, recorded, shown.
   void notice(hq_msgs_Severity severity, std::uint32_t code, const char* text);
-  void send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker);
+  void send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker,
+                         bool take_off);
   std::FILE* log_ = nullptr;
   std::uint64_t session_id_ = 0;  ///< This station's own, in its heartbeats.
   std::int64_t session_receipt_ns_ = 0;  ///< Last accepted state of the current session.
   bool pending_request_ = false;
   hq_msgs_Mode pending_mode_ = hq_msgs_MODE_HOVER;
   MarkerChoice pending_marker_;
+  bool pending_take_off_ = false;
   void note_echo(const link::Heartbeat& heartbeat);
   link::Participant participant_;
   link::Topics topics_;

@@ -55,6 +55,15 @@ struct StateExtras {
   std::array<float, 3> v_truth_H_mps{};
   float state_age_ms = 0;   ///< Its one-way age from its vehicle stamp (0: unknown yet).
   float round_trip_ms = 0;  ///< The latest heartbeat round trip (0: none yet).
+  /// Flight: static texts (the link's enums by name); "-" when the state carried none.
+  const char* flight_state = "-";
+  bool motors_armed = false;
+  bool height_valid = false;  ///< False: the vehicle does not know its height.
+  float height_m = 0;         ///< Body above the floor.
+  const char* height_source = "-";  ///< "depth" or "estimate".
+  /// What the vehicle does with the operator's input, as a warning ("" when flown as is).
+  const char* operator_input = "";
+  float clearance_m = -1;  ///< Closest obstacle clearance; < 0: none seen.
 };
 
 struct TrackPoint {
@@ -112,6 +121,10 @@ struct LinkHealth {
   std::array<std::uint32_t, 8> vehicle_ids{};
   std::size_t vehicle_id_count = 0;
   std::uint32_t selected_vehicle = 0;
+  /// Link-loss alarm (LinkLossMonitor): no vehicle state for longer than its threshold.
+  bool link_lost = false;
+  std::uint32_t link_losses = 0;  ///< Losses so far.
+  double longest_loss_s = 0;      ///< Longest loss so far (the current one included).
 };
 
 /// Where a replay stands (hq-ground --replay); inactive in a live console.
@@ -128,6 +141,32 @@ struct ReplayStatus {
 /// The loud line a station that lost control shows ("CONTROL LOST: station 7 commands vehicle
 /// 1; this station 1 does not"), written into `out`; false (out empty) while in control.
 bool control_banner(const LinkHealth& link, char* out, std::size_t size);
+
+/// The link-loss alarm's logic: lost once the newest vehicle state is older than lost_after_s,
+/// regained at the next fresh state; counts the losses and keeps the longest. Pure: the age is
+/// an argument.
+class LinkLossMonitor {
+ public:
+  enum class Change { kNone, kLost, kRegained };
+  explicit LinkLossMonitor(double lost_after_s = 0.5) : lost_after_s_(lost_after_s) {}
+  /// @param state_age_s  age of the newest vehicle state (< 0: none received yet, never lost).
+  Change update(double state_age_s);
+  [[nodiscard]] bool lost() const { return lost_; }
+  [[nodiscard]] std::uint32_t losses() const { return losses_; }
+  [[nodiscard]] double longest_s() const { return longest_s_; }
+  /// Length of the current loss, or of the last one once regained.
+  [[nodiscard]] double last_loss_s() const { return last_loss_s_; }
+  [[nodiscard]] double lost_after_s() const { return lost_after_s_; }
+
+ private:
+  double lost_after_s_;
+  bool lost_ = false;
+  std::uint32_t losses_ = 0;
+  double longest_s_ = 0;
+  double last_loss_s_ = 0;
+  double previous_age_s_ = -1;
+};
+
 
 /// The UI's copy; buffers sized by ConsoleModel::make_snapshot(), reused on every copy.
 struct Snapshot {
@@ -151,6 +190,13 @@ struct Snapshot {
   std::string mode = "-";
   std::string estimator_health = "-";
   std::string link_health = "-";
+  const char* flight_state = "-";  ///< Static texts, see StateExtras.
+  bool motors_armed = false;
+  bool height_valid = false;
+  float height_m = 0;
+  const char* height_source = "-";
+  const char* operator_input = "";
+  float clearance_m = -1;
   float roll_rad = 0;
   float pitch_rad = 0;
   float yaw_W_rad = 0;
@@ -249,6 +295,13 @@ class ConsoleModel {
   const char* mode_ = "-";  ///< Static strings (to_string of the link's enums).
   const char* estimator_health_ = "-";
   const char* link_health_ = "-";
+  const char* flight_state_ = "-";
+  bool motors_armed_ = false;
+  bool height_valid_ = false;
+  float height_m_ = 0;
+  const char* height_source_ = "-";
+  const char* operator_input_ = "";
+  float clearance_m_ = -1;
   float roll_rad_ = 0;
   float pitch_rad_ = 0;
   PlotSample latest_{};

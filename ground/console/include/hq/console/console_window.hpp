@@ -6,14 +6,19 @@
 ///
 /// Panels: camera (decoded JPEG, depth preview, overlays of v_obs, commanded and estimated
 /// velocity), time plots in the manner of Fig. 6-8 of the core paper, haptic device, top view,
-/// modes, vehicle selector, link health, event log. Shortcuts (when no text field has focus):
-/// T teleop, H hover, L land, M marker, X explore, Esc quit; with set_flight_keys(), the flying
+/// modes, vehicle selector, link health, event log, under a status bar (flight state, motors,
+/// height, mode, estimator, link, what happens to the operator's input) and, when no vehicle
+/// state came for link_lost_after_s, a red link-loss banner with every vehicle field greyed
+/// and marked STALE. Panels are laid out from the window's size on every frame, so a resize
+/// re-lays them out. Shortcuts (when no text field has focus): U take off, T teleop, H hover,
+/// L land, M marker, X explore, Esc quit; with set_flight_keys(), the flying
 /// keys of flight_keys.hpp (W/S, Q/E, A/D, arrows, page up/down) are held into FlightKeys.
 
 #include "hq/console/console_model.hpp"
 #include "hq/console/flight_keys.hpp"
 #include "hq/console/replay_player.hpp"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -25,6 +30,7 @@ struct UiActions {
   /// With mode_request "marker": "hold", "goto" or "land" on marker marker_id; null: none.
   const char* marker_task = nullptr;
   int marker_id = 0;
+  bool take_off = false;  ///< The take-off button or U: take off, then teleop.
   bool select_vehicle = false;
   std::uint32_t vehicle_id = 0;
   bool quit = false;  ///< Window closed or Esc.
@@ -58,7 +64,39 @@ struct WindowStats {
   std::size_t plot_samples_drawn = 0;
   std::string mode_shown = "-";
   std::string gl_renderer;
+  /// The window on the screen at the last frame, and the display's usable area.
+  int x_px = 0;
+  int y_px = 0;
+  int width_px = 0;
+  int height_px = 0;
+  int display_width_px = 0;
+  int display_height_px = 0;
+  std::uint64_t link_lost_banner_frames = 0;  ///< Frames drawn with the link-loss banner.
+  std::uint64_t take_off_hint_frames = 0;     ///< Frames drawn with the landed take-off hint.
 };
+
+struct WindowOptions {
+  /// Initial size; 0: from the display's usable area (at most 1600 x 960), or the remembered
+  /// size when it fits. Always clamped to the display and placed inside it.
+  int width_px = 0;
+  int height_px = 0;
+  double max_fps = 60.0;
+  /// Remembers the window's size and position between runs ("x y width height"); empty: off.
+  std::string ini_path;
+  /// Top view: the camera's heading in the body (core paper's alpha, geometry::
+  /// camera_heading_rad), its horizontal field of view, and R_QC row-major to place markers.
+  double camera_heading_rad = 0.0;
+  double camera_hfov_rad = 1.01;  ///< 58 deg, the Xtion's.
+  std::array<float, 9> R_body_camera{0, 0, 1, 1, 0, 0, 0, 1, 0};
+  std::array<float, 3> p_body_camera_m{};
+  /// Measurement only: draw no panel (an empty ImGui frame on the cleared window), the floor
+  /// against which the console's own frame cost is read.
+  bool bare = false;
+};
+
+/// $XDG_CONFIG_HOME/haptiquad/console.ini, else $HOME/.config/haptiquad/console.ini; empty when
+/// neither variable is set.
+std::string default_window_ini_path();
 
 /// The FlightKey bit of an SDL scancode (SDL_Scancode, by physical position, so WASD stays put
 /// on other layouts), 0 for keys that do not fly.
@@ -67,7 +105,7 @@ std::uint32_t flight_key_for_scancode(int sdl_scancode);
 class ConsoleWindow {
  public:
   /// Opens the window. @throws hq::InputError naming the SDL call that failed (no display...).
-  ConsoleWindow(const std::string& title, int width_px, int height_px, double max_fps = 60.0);
+  ConsoleWindow(const std::string& title, const WindowOptions& options);
   ~ConsoleWindow();
   ConsoleWindow(const ConsoleWindow&) = delete;
   ConsoleWindow& operator=(const ConsoleWindow&) = delete;

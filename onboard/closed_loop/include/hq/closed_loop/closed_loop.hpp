@@ -94,6 +94,10 @@ struct FlightSample {
   double clearance_m = 0.0;
   Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();  ///< Truth, world NWU.
   const char* reason = "";                               ///< Static text when safe_hover.
+  /// The vehicle's own flight state and height above the floor (ChainOutput).
+  modes::FlightState flight_state = modes::FlightState::kLanded;
+  double height_m = 0.0;
+  pipeline::HeightSource height_source = pipeline::HeightSource::kNone;
 };
 
 class ClosedLoop {

@@ -90,6 +90,9 @@ struct StateExtras {
   /// The vehicle cannot fly as commanded (its flight controller lost or not in offboard): the
   /// state says degraded whatever the estimate.
   bool vehicle_degraded = false;
+  /// Motors spinning: off the floor (not landed) and the flight controller, when one reports,
+  /// armed.
+  bool motors_armed = false;
 };
 
 class LinkBridge {

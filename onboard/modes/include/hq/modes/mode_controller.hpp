@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <limits>
 
 namespace hq::config {
 class StrictMap;
@@ -20,6 +21,11 @@ namespace hq::modes {
 
 enum class Mode { kTeleop, kHover, kLand, kMarker, kExplore };
 const char* to_string(Mode mode);
+
+/// Where the vehicle is in its flight: on the floor with motors idle, climbing to its take-off
+/// height, flying, or descending in land mode until touchdown.
+enum class FlightState { kLanded, kTakingOff, kAirborne, kLanding };
+const char* to_string(FlightState state);
 
 struct ModesConfig {
   double teleop_timeout_s = 0.5;             ///< Older operator commands fall back to hover.
@@ -38,6 +44,12 @@ struct ModesConfig {
   /// landed after blind_descent_s.
   double blind_descent_thrust_ratio = 0.9;
   double blind_descent_s = 3.0;
+  /// An explicit take-off (request_takeoff) climbs at takeoff_speed_mps to this height above
+  /// the floor, slowing down over the last takeoff_slowdown_m so that it does not overshoot,
+  /// then flies the mode asked for.
+  double takeoff_target_height_m = 1.0;
+  double takeoff_speed_mps = 0.5;
+  double takeoff_slowdown_m = 0.3;
 };
 
 /// Reads the `modes:` section strictly.
@@ -81,6 +93,10 @@ struct ModeOutput {
   bool ramping = false;            ///< A switch ramp is in progress.
   bool landed = false;             ///< On the ground, motors idle (setpoint thrust 0).
   bool blind_descent = false;      ///< Landing without a velocity estimate.
+  bool taking_off = false;  ///< Climbing to takeoff_target_height_m after request_takeoff().
+  FlightState flight_state = FlightState::kLanded;
+  /// The operator's command is not flown this step (landed, taking off, or not in teleop).
+  bool operator_ignored = false;
   control::ControlOutput control;  ///< The attitude-thrust setpoint and its flags.
 };
 
@@ -99,6 +115,14 @@ class ModeController {
 
   void set_operator_command(const OperatorCommand& command);
 
+  /// Take-off: from the floor (or in the air, a climb) to takeoff_target_height_m at
+  /// takeoff_speed_mps, then `then` (request_mode rules apply to it; refused otherwise).
+  ModeSwitch request_takeoff(Mode then);
+
+  /// Height of the body above the floor (m) for the take-off's climb; NaN when unknown, in
+  /// which case a take-off climbs on until a height is known again.
+  void set_height_m(double height_m) { height_m_ = height_m; }
+
   /// One control step. v_est and v_obs in H. Allocates nothing.
   ModeOutput step(std::int64_t t_ns, const Eigen::Vector3d& v_est_horizontal_mps,
                   const Eigen::Vector3d& v_obs_horizontal_mps);
@@ -106,9 +130,11 @@ class ModeController {
   [[nodiscard]] Mode mode() const { return mode_; }
   /// On the ground with motors idle (before take-off and after touchdown).
   [[nodiscard]] bool landed() const { return landed_; }
+  /// An explicit take-off is climbing.
+  [[nodiscard]] bool taking_off() const { return takeoff_active_; }
 
  private:
-  enum class Source { kOperator, kHover, kLand, kProvider };
+  enum class Source { kOperator, kHover, kLand, kProvider, kTakeoff };
   /// Touchdown detection and the blind descent of Mode::kLand.
   void land_step(double dt_s, const Eigen::Vector3d& v_est_horizontal_mps, ModeOutput& out);
 
@@ -128,6 +154,9 @@ class ModeController {
   bool landed_ = true;
   double touchdown_timer_s_ = 0.0;
   double blind_descent_timer_s_ = 0.0;
+  bool takeoff_active_ = false;
+  Mode takeoff_then_ = Mode::kHover;
+  double height_m_ = std::numeric_limits<double>::quiet_NaN();
 };
 
 }  // namespace hq::modes

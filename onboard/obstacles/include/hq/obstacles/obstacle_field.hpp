@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -73,6 +74,12 @@ struct ObstacleResult {
   /// Fraction of NaN pixels: a sensor returns 0 where it sees nothing; NaN is a corrupt frame,
   /// not evidence of a near surface.
   double nan_fraction = 0.0;
+  /// Height of the body origin above the lowest near-horizontal surface seen below it (the
+  /// floor), from the lower half of the image; NaN when no such surface is in view.
+  double floor_height_m = std::numeric_limits<double>::quiet_NaN();
+  /// Smallest clearance (|p| - vehicle_radius_m, >= 0) of the points considered this step;
+  /// -1 when there were none.
+  double min_clearance_m = -1.0;
 };
 
 class ObstacleField {
@@ -114,6 +121,9 @@ class ObstacleField {
   /// support_influence_m; nothing in the ground phase.
   void add_support_push(ObstacleResult& result, double height_m) const;
   /// True when the minimum at pixel (u, v) lies on a near-horizontal surface below the vehicle.
+  /// The floor's height below the body from the lower image half's support cells.
+  [[nodiscard]] double floor_height(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                                    const Eigen::Vector3d& p_HC);
   [[nodiscard]] bool on_support_surface(const cv::Mat& depth_m, int u, int v,
                                         const Eigen::Matrix3d& R_HC,
                                         const Eigen::Vector3d& p_H) const;
@@ -129,6 +139,7 @@ class ObstacleField {
   std::vector<float> ray_norm_;  // |K^-1 (u, v, 1)| per pixel: range = depth * ray_norm
   std::vector<Cell> cells_;
   std::vector<int> minima_;  // cell indices of local minima, capacity cells_
+  std::vector<double> support_z_m_;  // floor candidates' heights, capacity cells_
 };
 
 }  // namespace hq::obstacles

@@ -39,10 +39,13 @@ struct ChainConfig {
   /// Per-axis rate error assumed for that rotation (residual bias and noise): its covariance
   /// is (this x frame interval)^2 rad^2.
   double gyro_prior_sigma_radps = 0.01;
+  /// Height of the body origin above the floor when standing on it (landing gear): the
+  /// height estimate starts here at every take-off.
+  double landed_height_m = 0.08;
 };
 
 /// Reads the `chain:` section {camera_timeout_s, takeoff_height_m, gyro_rotation_prior,
-/// gyro_prior_sigma_radps} strictly.
+/// gyro_prior_sigma_radps, landed_height_m} strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -88,6 +91,10 @@ inline constexpr const char* kStageNames[kStageCount] = {"odometry", "estimator"
 /// The duration of stage i (0..kStageCount-1) in kStageNames order.
 std::int64_t stage_ns(const StageDurations& durations, int i);
 
+/// Where ChainOutput::height_m comes from.
+enum class HeightSource { kNone, kDepth, kEstimate };
+const char* to_string(HeightSource source);
+
 /// One step of the chain: the estimate, the obstacles and the setpoint, with what went wrong.
 struct ChainOutput {
   std::int64_t t_ns = 0;
@@ -109,6 +116,15 @@ struct ChainOutput {
   bool degraded = false;
   const char* safe_hover_reason = "";  ///< Static text when safe_hover.
   bool camera_timed_out = false;
+  /// Landed, taking off (left the floor, not yet chain.takeoff_height_m climbed, or an explicit
+  /// take-off still climbing), airborne, landing.
+  modes::FlightState flight_state = modes::FlightState::kLanded;
+  /// Body height above the floor: from depth when the floor is in view (kDepth), else the
+  /// landed height plus the climb integrated from the estimate (kEstimate); 0 with kNone.
+  double height_m = 0.0;
+  HeightSource height_source = HeightSource::kNone;
+  /// Closest obstacle clearance the field saw this step (m); -1 when none.
+  double clearance_m = -1.0;
   StageDurations durations;
 };
 
@@ -122,6 +138,8 @@ struct MarkerTarget {
 struct ModeRequest {
   modes::Mode mode = modes::Mode::kHover;
   std::optional<MarkerTarget> marker;
+  /// Take off first (ModeController::request_takeoff), then fly `mode`.
+  bool take_off = false;
 };
 
 class OnboardChain {
@@ -169,6 +187,11 @@ class OnboardChain {
   [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
   /// Current R_HQ from the complementary filter (identity before its first sample).
   [[nodiscard]] Eigen::Matrix3d R_horizontal_body() const;
+  /// Updates the height above the floor from the floor in view (NaN: none) or the estimate,
+  /// hands it to the mode controller and fills out.height_m/height_source.
+  void update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out);
+  /// Fills out.flight_state and out.clearance_m after the mode step.
+  void finish_output(ChainOutput& out) const;
 
   OnboardConfig config_;
   const Clock* clock_;
@@ -182,6 +205,9 @@ class OnboardChain {
   std::int64_t t_last_frame_ns_ = 0;
   double climb_since_takeoff_m_ = 0.0;  ///< Integrated -v_z of usable estimates since take-off.
   bool takeoff_complete_ = false;      ///< Climbed takeoff_height_m since leaving the ground.
+  double height_m_ = 0.0;              ///< Body above the floor (see ChainOutput::height_m).
+  bool height_known_ = false;
+  std::int64_t t_height_ns_ = 0;
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
   Eigen::Matrix3d R_body_camera_;  ///< R_QC, to turn the body's rotation into the camera's.
