@@ -1,5 +1,5 @@
 // hq-keys: DDS Security keys for the link (a CA, identities, signed governance and permissions).
-//   hq-keys init DIR [--days 3650] [--domains 0-232]
+//   hq-keys init DIR [--days 3650] [--domains 0-230]
 //   hq-keys identity DIR --role vehicle --id 1 [--days 365]
 //   hq-keys identity DIR --role station --id 1 --vehicles 1,2 [--days 365]
 //   hq-keys check DIR --identity vehicle_1
@@ -34,7 +34,7 @@ hq::security::DomainRange parse_domains(const std::string& text) {
       if (used != max.size()) throw std::invalid_argument(text);
     }
   } catch (const std::logic_error&) {
-    throw hq::InputError("--domains " + text + ": expected ID or MIN-MAX (0..232)");
+    throw hq::InputError("--domains " + text + ": expected ID or MIN-MAX (0..230)");
   }
   return range;
 }
@@ -46,13 +46,13 @@ int run(int argc, char** argv) {
   app.require_subcommand(1);
   std::string dir;
   int days = 0;
-  std::string domains = "0-232";
+  std::string domains = "0-230";
 
   CLI::App* init = app.add_subcommand("init", "make a CA and the signed governance document");
   init->add_option("DIR", dir, "keys directory (created)")->required();
   init->add_option("--days", days, "CA validity in days")->check(CLI::Range(1, 36500))
       ->default_val(3650);
-  init->add_option("--domains", domains, "DDS domain ids: ID or MIN-MAX")->default_val("0-232");
+  init->add_option("--domains", domains, "DDS domain ids: ID or MIN-MAX")->default_val("0-230");
 
   std::string role;
   std::uint32_t id = 1;
@@ -73,7 +73,7 @@ int run(int argc, char** argv) {
                        "start the validity this many days ago (to test expired certificates)")
       ->check(CLI::Range(0, 36500));
   identity->add_option("--domains", domains, "DDS domain ids: ID or MIN-MAX")
-      ->default_val("0-232");
+      ->default_val("0-230");
 
   std::string identity_to_check;
   CLI::App* check = app.add_subcommand("check", "check an identity's files as the link does");

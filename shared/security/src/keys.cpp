@@ -220,9 +220,12 @@ std::string domains_xml(const DomainRange& domains, const char* indent) {
 }
 
 void check_domains(const DomainRange& domains) {
-  if (domains.min_id < 0 || domains.max_id > 232 || domains.min_id > domains.max_id) {
+  if (domains.min_id < 0 || domains.max_id > kMaxSecuredDomainId ||
+      domains.min_id > domains.max_id) {
     throw InputError("domains " + std::to_string(domains.min_id) + "-" +
-                     std::to_string(domains.max_id) + ": expected 0 <= min <= max <= 232");
+                     std::to_string(domains.max_id) + ": expected 0 <= min <= max <= " +
+                     std::to_string(kMaxSecuredDomainId) +
+                     " (the largest id Cyclone's access control accepts)");
   }
 }
 

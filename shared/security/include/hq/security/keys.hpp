@@ -60,10 +60,14 @@ struct Validity {
 /// From `now_s` - 60 s (clock skew between machines) for `days` days.
 Validity valid_for_days(std::int64_t now_s, int days);
 
+/// The largest domain id Cyclone's access-control plugin accepts in governance and permissions
+/// (230, below the 232 of the default port mapping): secured links use domains 0..230.
+inline constexpr int kMaxSecuredDomainId = 230;
+
 /// DDS domain ids the governance and permissions cover.
 struct DomainRange {
   int min_id = 0;
-  int max_id = 232;
+  int max_id = kMaxSecuredDomainId;
 };
 
 /// Makes `dir` (if absent) with ca.pem and ca.key.pem: an ECDSA P-256 key and a self-signed CA
