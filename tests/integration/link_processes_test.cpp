@@ -114,11 +114,11 @@ class LinkProcesses : public ::testing::Test {
   std::vector<std::string> onboard_args(double duration_s) const {
     return {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
             "onboard/sim/worlds/arena.yaml", "--duration-s", std::to_string(duration_s),
-            "--domain-id", domain_, "--link-log", (dir_ / "link.csv").string()};
+            "--domain-id", domain_, "--insecure", "--link-log", (dir_ / "link.csv").string()};
   }
   std::vector<std::string> ground_args() const {
     return {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config",
-            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--duration-s", "60"};
+            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--insecure", "--duration-s", "60"};
   }
   std::string domain_;
   std::filesystem::path dir_;

@@ -1,10 +1,21 @@
 // DDS Security on the link, real Cyclone DDS on loopback with keys made by hq::security (the
 // code of hq-keys) in a temp dir: a permitted station commands its vehicle; nobody else delivers
 // a single command, and a station cannot publish vehicle state.
+#include <arpa/inet.h>
+#include <linux/if_packet.h>
+#include <net/ethernet.h>
+#include <net/if.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdio>
+#include <cstring>
+#include <optional>
+#include <span>
+#include <vector>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
@@ -20,6 +31,10 @@ namespace hq::link {
 namespace {
 
 using security::Role;
+
+// The command every test station sends: x = 0.25 m/s, and y, z unlikely to occur by chance in
+// anything else on the wire (the encryption test looks for these 12 bytes).
+constexpr hq_msgs_Vector3f kMarker{0.25f, -1.2345678f, 3.1415927f};
 
 // Nothing reaches an unauthorised reader "within a couple of seconds": on loopback a permitted
 // sample arrives in milliseconds once matched, so this bounds the wait for the negative cases.
@@ -77,7 +92,7 @@ class Secured : public ::testing::Test {
       Writer<VelocityCommand> writer(station, topics.command, command_qos(c, End::kWriter));
       VelocityCommand command{};
       command.vehicle_id = 1;
-      command.v_H_mps.x = 0.25f;
+      command.v_H_mps = kMarker;
       const std::int64_t end_ns = dds_time() + static_cast<std::int64_t>(seconds * 1e9);
       while (dds_time() < end_ns) {
         writer.write(command);
@@ -96,13 +111,17 @@ class Secured : public ::testing::Test {
     return WEXITSTATUS(status);
   }
 
-  // Whether vehicle 1 (secured as vehicle_1) takes a command within `within`.
-  bool vehicle_takes_a_command(dds_duration_t within) const {
-    const LinkConfig c = config("");
+  // Whether vehicle 1 (secured as vehicle_1 unless `c` says otherwise) takes a command within
+  // `within`; `during` runs once the vehicle's reader exists (so the station sends).
+  template <typename During = void (*)()>
+  bool vehicle_takes_a_command(dds_duration_t within, std::optional<LinkConfig> plain = {},
+                               During during = [] {}) const {
+    const LinkConfig c = plain ? *plain : config("");
     Participant vehicle(c, Role::kVehicle);
-    EXPECT_TRUE(vehicle.secured());
+    EXPECT_EQ(vehicle.secured(), !plain);
     Topics topics(vehicle);
     Reader<VelocityCommand> commands(vehicle, topics.command, command_qos(c, End::kReader));
+    during();
     VelocityCommand got{};
     return test::take_within(vehicle, commands, got, within) && got.v_H_mps.x == 0.25f;
   }
@@ -184,6 +203,70 @@ TEST_F(Secured, VehiclePublishesStateButNotCommands) {
     Writer<VelocityCommand> writer(vehicle, topics.command, command_qos(c, End::kWriter));
   });
   EXPECT_NE(message.find("Not Allowed By Security"), std::string::npos) << message;
+}
+
+// Every frame on the loopback interface, through a packet socket (needs CAP_NET_RAW).
+class LoopbackCapture {
+ public:
+  LoopbackCapture() : fd_(::socket(AF_PACKET, SOCK_RAW, htons(ETH_P_ALL))) {
+    if (fd_ < 0) return;
+    sockaddr_ll address{};
+    address.sll_family = AF_PACKET;
+    address.sll_protocol = htons(ETH_P_ALL);
+    address.sll_ifindex = static_cast<int>(if_nametoindex("lo"));
+    timeval timeout{0, 50'000};
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0 ||
+        ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout) != 0) {
+      ::close(fd_);
+      fd_ = -1;
+    }
+  }
+  ~LoopbackCapture() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  LoopbackCapture(const LoopbackCapture&) = delete;
+  LoopbackCapture& operator=(const LoopbackCapture&) = delete;
+  [[nodiscard]] bool open() const { return fd_ >= 0; }
+
+  // Reads frames for `duration`; counts them and whether any holds `pattern`.
+  void watch(std::span<const unsigned char> pattern, dds_duration_t duration) {
+    std::vector<unsigned char> frame(65'536);
+    const std::int64_t end_ns = dds_time() + duration;
+    while (dds_time() < end_ns) {
+      const ssize_t n = ::recv(fd_, frame.data(), frame.size(), 0);
+      if (n <= 0) continue;
+      ++frames;
+      const auto last = frame.begin() + n;
+      if (std::search(frame.begin(), last, pattern.begin(), pattern.end()) != last) seen = true;
+    }
+  }
+  int frames = 0;
+  bool seen = false;
+
+ private:
+  int fd_;
+};
+
+TEST_F(Secured, CommandPayloadIsEncryptedOnTheWire) {
+  if (!LoopbackCapture().open()) GTEST_SKIP() << "no packet socket (needs CAP_NET_RAW)";
+  std::array<unsigned char, sizeof kMarker> pattern{};
+  std::memcpy(pattern.data(), &kMarker, sizeof kMarker);  // CDR little-endian, as on x86
+  // Control: on plain DDS the capture does see the command's bytes.
+  LinkConfig plain = config("");
+  plain.security.enabled = false;
+  for (const bool secured : {false, true}) {
+    SCOPED_TRACE(secured ? "secured" : "plain");
+    const pid_t station = spawn_station(secured ? config("") : plain, 2.5);
+    ASSERT_GT(station, 0);
+    LoopbackCapture capture;
+    const bool taken = vehicle_takes_a_command(
+        kNothingWithin, secured ? std::optional<LinkConfig>{} : std::optional<LinkConfig>{plain},
+        [&] { capture.watch(pattern, DDS_MSECS(1500)); });
+    EXPECT_TRUE(taken);  // the station did send while we watched
+    EXPECT_GT(capture.frames, 10);
+    EXPECT_EQ(capture.seen, !secured);
+    EXPECT_EQ(exit_code(station), 0);
+  }
 }
 
 TEST_F(Secured, ExpiredCertificateIsRefusedNamingTheFile) {
