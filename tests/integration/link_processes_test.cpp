@@ -8,6 +8,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -229,6 +230,56 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
   std::printf("[ figures  ] %ld commands and %ld mode requests rejected; final altitude %.2f m\n%s",
               last.commands_rejected, last.mode_requests_rejected, last.altitude_m,
               slurp((dir_ / "fuzz.out").string()).c_str());
+}
+
+// DDS Security end to end, keys made by hq-keys: the vehicle flies on a secured station's
+// commands; a station listed for another vehicle is refused, naming the writer; hq-onboard
+// without keys and without --insecure says how to make them.
+TEST_F(LinkProcesses, SecuredStationFliesItsVehicleOthersAreRefused) {
+  const std::string keys = (dir_ / "keys").string();
+  const auto keys_tool = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), HQ_KEYS_EXE);
+    Process p(args, (dir_ / "keys.out").string());
+    return p.wait_exit(30.0);
+  };
+  ASSERT_EQ(keys_tool({"init", keys}), 0) << slurp((dir_ / "keys.out").string());
+  ASSERT_EQ(keys_tool({"identity", keys, "--role", "vehicle", "--id", "1"}), 0);
+  ASSERT_EQ(keys_tool({"identity", keys, "--role", "station", "--id", "1", "--vehicles", "1"}), 0);
+  ASSERT_EQ(keys_tool({"identity", keys, "--role", "station", "--id", "2", "--vehicles", "2"}), 0);
+  const auto secured = [&](std::vector<std::string> args) {
+    const auto insecure = std::find(args.begin(), args.end(), "--insecure");
+    *insecure = "--security-dir";
+    args.insert(insecure + 1, keys);
+    return args;
+  };
+
+  {
+    std::vector<std::string> args = onboard_args(1.0);
+    args.erase(std::find(args.begin(), args.end(), "--insecure"));
+    Process no_keys(args, (dir_ / "no_keys.out").string());
+    EXPECT_EQ(no_keys.wait_exit(30.0), 2);
+    const std::string out = slurp((dir_ / "no_keys.out").string());
+    EXPECT_NE(out.find("hq-keys identity KEYS --role vehicle --id 1"), std::string::npos) << out;
+  }
+  {
+    std::vector<std::string> args = secured(ground_args());
+    args.insert(args.end(), {"--station-id", "2"});
+    Process other(args, (dir_ / "other.out").string());
+    EXPECT_EQ(other.wait_exit(30.0), 2);
+    const std::string out = slurp((dir_ / "other.out").string());
+    EXPECT_NE(out.find("dds_create_writer(hq_velocity_command): Not Allowed By Security"),
+              std::string::npos)
+        << out;
+  }
+
+  Process onboard(secured(onboard_args(9.0)), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(secured(ground_args()), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  EXPECT_TRUE(wait_for_row((dir_ / "link.csv").string(), 12.0,
+                           [](const Row& r) { return r.airborne && r.altitude_m > 0.5; }))
+      << slurp((dir_ / "onboard.out").string()) << slurp((dir_ / "ground.out").string());
+  EXPECT_EQ(onboard.wait_exit(30.0), 0) << slurp((dir_ / "onboard.out").string());
 }
 
 }  // namespace
