@@ -20,6 +20,7 @@
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/link/link.hpp"
 #include "hq/link_bridge/link_operator_port.hpp"
 #include "hq/pipeline/replay_imu.hpp"
 #include "hq/pipeline/stage_timing.hpp"
@@ -209,8 +210,9 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
   failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
   hq::link_bridge::BridgeOptions bridge_options;
   bridge_options.camera_rate_hz = o.camera_rate_hz;
-  std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u\n", link.domain_id,
-               link.vehicle_id);
+  std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u, %s\n", link.domain_id,
+               link.vehicle_id,
+               hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
   return std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
 }
 

@@ -45,14 +45,20 @@ int run(int argc, char** argv) {
   CLI::App app{"hq-keys: DDS Security keys for the HaptiQuad link"};
   app.require_subcommand(1);
   std::string dir;
-  int days = 0;
-  std::string domains = "0-230";
+  // One variable per subcommand: CLI11 writes an option's default into its variable when the
+  // option is declared, so a shared one would end up with the last subcommand's default.
+  int ca_days = 3650;
+  int identity_days = 365;
+  std::string ca_domains = "0-230";
+  std::string identity_domains = "0-230";
 
   CLI::App* init = app.add_subcommand("init", "make a CA and the signed governance document");
   init->add_option("DIR", dir, "keys directory (created)")->required();
-  init->add_option("--days", days, "CA validity in days")->check(CLI::Range(1, 36500))
-      ->default_val(3650);
-  init->add_option("--domains", domains, "DDS domain ids: ID or MIN-MAX")->default_val("0-230");
+  init->add_option("--days", ca_days, "CA validity in days")
+      ->check(CLI::Range(1, 36500))
+      ->capture_default_str();
+  init->add_option("--domains", ca_domains, "DDS domain ids: ID or MIN-MAX")
+      ->capture_default_str();
 
   std::string role;
   std::uint32_t id = 1;
@@ -67,13 +73,14 @@ int run(int argc, char** argv) {
   identity->add_option("--id", id, "vehicle id or station id")->required();
   identity->add_option("--vehicles", vehicles, "vehicle ids a station may command (1,2,...)")
       ->delimiter(',');
-  identity->add_option("--days", days, "validity in days")->check(CLI::Range(1, 36500))
-      ->default_val(365);
+  identity->add_option("--days", identity_days, "validity in days")
+      ->check(CLI::Range(1, 36500))
+      ->capture_default_str();
   identity->add_option("--start-days-ago", start_days_ago,
                        "start the validity this many days ago (to test expired certificates)")
       ->check(CLI::Range(0, 36500));
-  identity->add_option("--domains", domains, "DDS domain ids: ID or MIN-MAX")
-      ->default_val("0-230");
+  identity->add_option("--domains", identity_domains, "DDS domain ids: ID or MIN-MAX")
+      ->capture_default_str();
 
   std::string identity_to_check;
   CLI::App* check = app.add_subcommand("check", "check an identity's files as the link does");
@@ -87,8 +94,8 @@ int run(int argc, char** argv) {
   }
 
   if (init->parsed()) {
-    hq::security::make_ca(dir, hq::security::valid_for_days(now_s(), days));
-    hq::security::make_governance(dir, parse_domains(domains));
+    hq::security::make_ca(dir, hq::security::valid_for_days(now_s(), ca_days));
+    hq::security::make_governance(dir, parse_domains(ca_domains));
     std::printf("hq-keys: CA %s/ca.pem (key ca.key.pem: keep it off the vehicle), governance "
                 "%s/governance.p7s\n",
                 dir.c_str(), dir.c_str());
@@ -100,9 +107,9 @@ int run(int argc, char** argv) {
     if (request.role == hq::security::Role::kVehicle && !vehicles.empty()) {
       throw hq::InputError("--vehicles: only for --role station (a vehicle is only itself)");
     }
-    request.validity =
-        hq::security::valid_for_days(now_s() - std::int64_t{start_days_ago} * 86'400, days);
-    request.domains = parse_domains(domains);
+    const std::int64_t start_s = now_s() - std::int64_t{start_days_ago} * 86'400;
+    request.validity = hq::security::valid_for_days(start_s, identity_days);
+    request.domains = parse_domains(identity_domains);
     hq::security::make_identity(dir, request);
     const std::string name = hq::security::identity_name(request.role, id);
     std::printf("hq-keys: identity %s/%s (%s)\n", dir.c_str(), name.c_str(),

@@ -150,6 +150,12 @@ security::IdentityFiles security_files(const LinkConfig& config, security::Role 
   return files;
 }
 
+std::string describe_security(const LinkConfig& config, security::Role role) {
+  if (!config.security.enabled) return "plain DDS (--insecure)";
+  if (!config.security.has_keys()) return "DDS Security, no keys configured";
+  return "DDS Security, certificate " + security_files(config, role).certificate;
+}
+
 Participant::Participant(int domain_id)
     : entity_(check(create_participant(domain_id, nullptr), "dds_create_participant",
                     "domain " + std::to_string(domain_id))),

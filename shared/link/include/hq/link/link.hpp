@@ -101,6 +101,10 @@ class Listener {
 /// station_<station_id>). hq::InputError if a file is named by neither.
 security::IdentityFiles security_files(const LinkConfig& config, security::Role role);
 
+/// "DDS Security, certificate keys/vehicle_1/cert.pem" or "plain DDS (--insecure)", for the
+/// programs' start-up line.
+std::string describe_security(const LinkConfig& config, security::Role role);
+
 /// A domain participant, configured by CYCLONEDDS_URI if set.
 ///
 /// Secured (LinkConfig::security.enabled): before creating it, the key files are checked
