@@ -182,6 +182,12 @@ Participant::Participant(const LinkConfig& config, security::Role role)
         ") and pass --security-dir KEYS (link.security.keys_dir), or, for the loopback demo and "
         "tests only, run plain DDS with --insecure (link.security.enabled: false)");
   }
+  if (config.domain_id > security::kMaxSecuredDomainId) {
+    throw InputError("link.domain_id = " + std::to_string(config.domain_id) +
+                     ": a secured link needs a domain in [0, " +
+                     std::to_string(security::kMaxSecuredDomainId) +
+                     "] (the largest id Cyclone's access control accepts)");
+  }
   const security::IdentityFiles files = security_files(config, role);
   security::check_identity(files, static_cast<std::int64_t>(std::time(nullptr)));
   const Qos qos = security_qos(config.security, files);

@@ -291,6 +291,16 @@ TEST_F(Secured, MissingOrMismatchedFilesAreNamed) {
   EXPECT_NE(message.find("missing"), std::string::npos) << message;
 }
 
+TEST_F(Secured, DomainAboveWhatAccessControlAcceptsIsNamed) {
+  LinkConfig c = config("");
+  c.domain_id = 231;
+  const std::string message =
+      testing::input_error_message([&] { Participant vehicle(c, Role::kVehicle); });
+  EXPECT_NE(message.find("link.domain_id = 231: a secured link needs a domain in [0, 230]"),
+            std::string::npos)
+      << message;
+}
+
 TEST_F(Secured, SecurityOnWithoutKeysTellsHowToMakeThem) {
   LinkConfig c;
   c.domain_id = test::private_domain_id();
