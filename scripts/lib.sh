@@ -13,6 +13,7 @@ HQ_PACKAGES=(
   cyclonedds-dev cyclonedds-tools libpcl-dev libvisp-dev libceres-dev
   libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
   xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev dpkg-dev
+  openssl libssl-dev
 )
 
 hq_install() {

@@ -27,6 +27,7 @@
 #include "hq/haptics/haptic_loop.hpp"
 #include "hq/haptics/haptics_config.hpp"
 #include "hq/link/config.hpp"
+#include "hq/link/link.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -641,6 +642,9 @@ int run(int argc, char** argv) {
                                   ? hq::link::LinkConfig{}
                                   : hq::link::load_link_config(o.link_config_path);
   hq::link::apply_overrides(o.link_overrides, link);
+  std::fprintf(stderr, "hq-ground: link on domain %d as station %u for vehicle %u, %s\n",
+               link.domain_id, link.station_id, link.vehicle_id,
+               hq::link::describe_security(link, hq::security::Role::kStation).c_str());
   if (link.impairment.active()) {
     std::fprintf(stderr, "hq-ground: received samples impaired: %s\n",
                  hq::link::describe(link.impairment).c_str());

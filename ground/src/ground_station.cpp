@@ -381,7 +381,7 @@ void TelemetryRecorder::event(std::int64_t receipt_ns, const link::Event& e) {
 GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* recorder)
     : config_(config),
       recorder_(recorder),
-      participant_(config.domain_id),
+      participant_(config, security::Role::kStation),
       topics_(participant_),
       command_writer_(participant_, topics_.command, link::command_qos(config, link::End::kWriter)),
       mode_writer_(participant_, topics_.mode_request, link::mode_request_qos()),

@@ -166,7 +166,7 @@ TEST(HqGround, RecordIntoAnExistingRecordingExitsTwo) {
   const fs::path out =
       fs::temp_directory_path() / ("hq_ground_" + std::to_string(getpid()) + ".out");
   hq::testing::Process p({HQ_GROUND_EXE, "--device", "sim", "--headless", "--duration-s", "1",
-                          "--record", dir.string()},
+                          "--insecure", "--record", dir.string()},
                          out.string());
   EXPECT_EQ(p.wait_exit(60.0), 2);
   EXPECT_THAT(slurp(out), HasSubstr("hq-ground: --record " + dir.string() +

@@ -20,6 +20,7 @@
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/link/link.hpp"
 #include "hq/link_bridge/link_operator_port.hpp"
 #include "hq/pipeline/replay_imu.hpp"
 #include "hq/pipeline/stage_timing.hpp"
@@ -216,9 +217,10 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
     stations += (stations.empty() ? "" : ",") + std::to_string(id);
   }
   std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u, session %016llx, "
-               "commanded by %s\n", link.domain_id, link.vehicle_id,
+               "commanded by %s, %s\n", link.domain_id, link.vehicle_id,
                static_cast<unsigned long long>(bridge->session_id()),
-               stations.empty() ? "any station" : ("stations " + stations).c_str());
+               stations.empty() ? "any station" : ("stations " + stations).c_str(),
+               hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
   return bridge;
 }
 

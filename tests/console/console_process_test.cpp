@@ -189,13 +189,14 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   setenv("DISPLAY", display_name.c_str(), 1);
 
   Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "11", "--domain-id", domain},
+                   "onboard/sim/worlds/arena.yaml", "--duration-s", "11", "--domain-id", domain,
+                   "--insecure"},
                   dir / "onboard.out");
   const fs::path shot = dir / "console.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";
   Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--duration-s", "8",
+                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure", "--duration-s", "8",
                   "--record", recording.string(), "--screenshot", shot.string(), "--state-json",
                   state.string()},
                  dir / "ground.out");

@@ -30,6 +30,7 @@ TEST(LinkDelay, RoundTripStateAgeAndCommandsOverAnImpairedLink) {
          1);
   link::LinkConfig config;
   config.domain_id = 1 + static_cast<int>(getpid() % 200);
+  config.security.enabled = false;  // ground and vehicle in one process: plain DDS
   config.impairment = link::parse_impairment("delay_ms=100,jitter_ms=10,seed=3");
   ground::GroundStation ground(config);
   link_bridge::LinkBridge bridge(config, link_bridge::FailsafeConfig{});

@@ -116,11 +116,11 @@ class LinkProcesses : public ::testing::Test {
   std::vector<std::string> onboard_args(double duration_s) const {
     return {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
             "onboard/sim/worlds/arena.yaml", "--duration-s", std::to_string(duration_s),
-            "--domain-id", domain_, "--link-log", (dir_ / "link.csv").string()};
+            "--domain-id", domain_, "--insecure", "--link-log", (dir_ / "link.csv").string()};
   }
   std::vector<std::string> ground_args(double duration_s = 60.0) const {
     return {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config",
-            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--duration-s",
+            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--insecure", "--duration-s",
             std::to_string(duration_s)};
   }
   std::vector<std::string> fuzz_args(const std::string& attacks, int station_id, int strength,
@@ -511,6 +511,56 @@ TEST_F(LinkProcesses, DISABLED_HostileInEnvelopeCommandsOfAnAllowedStationHitNot
   const std::vector<Row> rows = read_log(log_path());
   ASSERT_GT(rows.size(), 100U);
   for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
+}
+
+// DDS Security end to end, keys made by hq-keys: the vehicle flies on a secured station's
+// commands; a station listed for another vehicle is refused, naming the writer; hq-onboard
+// without keys and without --insecure says how to make them.
+TEST_F(LinkProcesses, SecuredStationFliesItsVehicleOthersAreRefused) {
+  const std::string keys = (dir_ / "keys").string();
+  const auto keys_tool = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), HQ_KEYS_EXE);
+    Process p(args, (dir_ / "keys.out").string());
+    return p.wait_exit(30.0);
+  };
+  ASSERT_EQ(keys_tool({"init", keys}), 0) << slurp((dir_ / "keys.out").string());
+  ASSERT_EQ(keys_tool({"identity", keys, "--role", "vehicle", "--id", "1"}), 0);
+  ASSERT_EQ(keys_tool({"identity", keys, "--role", "station", "--id", "1", "--vehicles", "1"}), 0);
+  ASSERT_EQ(keys_tool({"identity", keys, "--role", "station", "--id", "2", "--vehicles", "2"}), 0);
+  const auto secured = [&](std::vector<std::string> args) {
+    const auto insecure = std::find(args.begin(), args.end(), "--insecure");
+    *insecure = "--security-dir";
+    args.insert(insecure + 1, keys);
+    return args;
+  };
+
+  {
+    std::vector<std::string> args = onboard_args(1.0);
+    args.erase(std::find(args.begin(), args.end(), "--insecure"));
+    Process no_keys(args, (dir_ / "no_keys.out").string());
+    EXPECT_EQ(no_keys.wait_exit(30.0), 2);
+    const std::string out = slurp((dir_ / "no_keys.out").string());
+    EXPECT_NE(out.find("hq-keys identity KEYS --role vehicle --id 1"), std::string::npos) << out;
+  }
+  {
+    std::vector<std::string> args = secured(ground_args());
+    args.insert(args.end(), {"--station-id", "2"});
+    Process other(args, (dir_ / "other.out").string());
+    EXPECT_EQ(other.wait_exit(30.0), 2);
+    const std::string out = slurp((dir_ / "other.out").string());
+    EXPECT_NE(out.find("dds_create_writer(hq_velocity_command): Not Allowed By Security"),
+              std::string::npos)
+        << out;
+  }
+
+  Process onboard(secured(onboard_args(9.0)), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(secured(ground_args()), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  EXPECT_TRUE(wait_for_row((dir_ / "link.csv").string(), 12.0,
+                           [](const Row& r) { return r.airborne && r.altitude_m > 0.5; }))
+      << slurp((dir_ / "onboard.out").string()) << slurp((dir_ / "ground.out").string());
+  EXPECT_EQ(onboard.wait_exit(30.0), 0) << slurp((dir_ / "onboard.out").string());
 }
 
 }  // namespace

@@ -89,12 +89,12 @@ class VehicleProcesses : public ::testing::Test {
   }
   std::vector<std::string> onboard_args(double duration_s) const {
     return {HQ_ONBOARD_EXE, "--source", "sitl", "--fc", "mavlink:udp:127.0.0.1:" + port_,
-            "--channel", channel_, "--link", "--domain-id", domain_, "--duration-s",
+            "--channel", channel_, "--link", "--domain-id", domain_, "--insecure", "--duration-s",
             std::to_string(duration_s)};
   }
   std::vector<std::string> ground_args(double duration_s) const {
     return {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config",
-            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--duration-s",
+            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--insecure", "--duration-s",
             std::to_string(duration_s)};
   }
   std::filesystem::path file(const char* name) const { return dir_ / name; }
@@ -195,11 +195,12 @@ TEST_F(VehicleProcesses, ReplayWithLinkReachesTheGround) {
                  file("record.out"));
   ASSERT_EQ(record.wait_exit(120.0), 0) << slurp(file("record.out"));
   Process ground({HQ_GROUND_EXE, "--device", "sim", "--headless", "--domain-id", domain_,
-                  "--duration-s", "12"},
+                  "--insecure", "--duration-s", "12"},
                  file("ground.out"));
   std::this_thread::sleep_for(std::chrono::seconds(1));
   Process onboard({HQ_ONBOARD_EXE, "--source", "replay", sequence.string(), "--camera",
-                   (sequence / "camera.yaml").string(), "--link", "--domain-id", domain_},
+                   (sequence / "camera.yaml").string(), "--link", "--domain-id", domain_,
+                   "--insecure"},
                   file("onboard.out"));
   EXPECT_EQ(onboard.wait_exit(60.0), 0) << slurp(file("onboard.out"));
   EXPECT_EQ(ground.wait_exit(30.0), 0) << slurp(file("ground.out"));

@@ -2,8 +2,9 @@
 // console without the simulator: the real LinkBridge (JPEG encode, states, heartbeats with their
 // echo) publishing a synthetic 640x480 camera at 30 Hz whose frames are stamped at "exposure",
 // before the image is drawn and encoded, on a clock 3 s ahead of the ground's. Not run by ctest.
-//   hq-video-latency-vehicle --seconds 15 [--link-impair delay_ms=100] &
-//   xvfb-run hq-ground --device sim --duration-s 12 --state-json out.json
+//   hq-video-latency-vehicle --seconds 15 --insecure [--link-impair delay_ms=100] &
+//   xvfb-run hq-ground --device sim --duration-s 12 --insecure --state-json out.json
+// (or --security-dir KEYS on both, with keys made by hq-keys)
 
 #include "hq/base/tool_main.hpp"
 #include "hq/link/config.hpp"

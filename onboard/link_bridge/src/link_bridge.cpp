@@ -86,7 +86,7 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
     : link_(link),
       options_(options),
       failsafe_(with_session(failsafe, link)),
-      participant_(link.domain_id),
+      participant_(link, security::Role::kVehicle),
       topics_(participant_),
       command_reader_(participant_, topics_.command, link::command_qos(link, link::End::kReader)),
       mode_reader_(participant_, topics_.mode_request, link::mode_request_qos()),

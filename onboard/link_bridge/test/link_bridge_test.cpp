@@ -28,6 +28,7 @@ link::LinkConfig private_link() {
          1);
   link::LinkConfig config;
   config.domain_id = 1 + static_cast<int>(getpid() % 200);
+  config.security.enabled = false;  // the test's ground shares this process: plain DDS
   return config;
 }
 

@@ -300,13 +300,13 @@ TEST(Fakenect, HqOnboardOnTheKinectReachesAGroundStationOverTheLink) {
          1);
   const std::string domain = std::to_string(1 + (getpid() + 101) % 200);
   hq::testing::Process ground({HQ_GROUND_EXE, "--device", "sim", "--headless", "--domain-id",
-                               domain, "--duration-s", "6"},
+                               domain, "--insecure", "--duration-s", "6"},
                               dir + "/ground.out");
   ASSERT_TRUE(ground.started());
   std::this_thread::sleep_for(std::chrono::seconds(1));
   const std::string command = std::string("LD_LIBRARY_PATH=") + HQ_FAKENECT_DIR +
                               " FAKENECT_PATH=" + dir + " " + HQ_ONBOARD_EXE +
-                              " --source freenect --link --domain-id " + domain +
+                              " --source freenect --link --insecure --domain-id " + domain +
                               " --duration-s 3 2>&1";
   std::FILE* pipe = popen(command.c_str(), "r");
   ASSERT_NE(pipe, nullptr);

@@ -1,6 +1,7 @@
 // hq-bench-link: command latency ground -> onboard over loopback between two processes, beside
 // Cyclone's own ddsperf ping/pong floor measured in the same run, and camera stream throughput
-// and drop rate at 30 Hz. Prints figures; asserts nothing.
+// and drop rate at 30 Hz, and the cost of DDS Security on the command path (plain beside
+// secured in the same run). Prints figures; asserts nothing.
 
 #include <sys/mman.h>
 #include <sys/wait.h>
@@ -13,6 +14,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -163,6 +166,83 @@ void onboard_echo(const LinkConfig& config, int samples, std::int64_t* one_way_n
   // Let the last frame leave before the participant goes.
   timespec linger{0, 200'000'000};
   nanosleep(&linger, nullptr);
+}
+
+// ---- DDS Security's cost: the same command stream, plain and secured ----
+//
+// One way, write -> take, on the link's own topic and command QoS, the station writing every
+// 1 ms on an absolute schedule (faster than the control rate, slower than a take). Both
+// processes read CLOCK_MONOTONIC, so the stamp difference is the latency. Plain and secured run
+// one after the other in the same run, each on a domain of its own (a process with Cyclone's
+// security plugins loaded for a domain accepts only secured participants on it).
+
+constexpr int kSecurityWarmup = 300;
+
+// The vehicle (child): records t_take - t_write per sequence number until kDone.
+void security_vehicle(const LinkConfig& config, int samples, std::int64_t* one_way_ns) {
+  Participant participant(config, security::Role::kVehicle);
+  Topic<VelocityCommand> topic(participant);
+  Reader<VelocityCommand> reader(participant, topic, command_qos(config, End::kReader));
+  WaitSet waitset(participant);
+  ReadCondition condition(reader);
+  waitset.attach(condition.handle(), 1);
+  VelocityCommand command{};
+  dds_sample_info_t info{};
+  // The first sample may come after the whole rest of the bench.
+  dds_duration_t timeout_ns = DDS_SECS(600);
+  while (receive(waitset, reader, command, info, timeout_ns)) {
+    const std::int64_t t_take_ns = now_ns();
+    timeout_ns = DDS_SECS(10);
+    if (command.sequence_number == kDone) break;
+    const std::uint64_t index = command.sequence_number - kSecurityWarmup;
+    if (command.sequence_number >= kSecurityWarmup && index < static_cast<std::uint64_t>(samples)) {
+      one_way_ns[index] = t_take_ns - command.t_ns;
+    }
+  }
+}
+
+// The station (parent): waits for the match, then writes warm-up + `samples` commands.
+void security_station(const LinkConfig& config, int samples) {
+  Participant participant(config, security::Role::kStation);
+  Topic<VelocityCommand> topic(participant);
+  Writer<VelocityCommand> writer(participant, topic, command_qos(config, End::kWriter));
+  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS),
+        "dds_set_status_mask", "bench command writer");
+  WaitSet waitset(participant);
+  waitset.attach(writer.handle(), 1);
+  std::array<dds_attach_t, 1> triggered{};
+  const std::int64_t give_up_ns = now_ns() + 20'000'000'000;
+  while (writer.matched_readers() == 0 && now_ns() < give_up_ns) {
+    waitset.wait(triggered, DDS_MSECS(100));
+  }
+  if (writer.matched_readers() == 0) {
+    throw InputError("hq-bench-link: the vehicle's command reader never matched (domain " +
+                     std::to_string(config.domain_id) + ")");
+  }
+  VelocityCommand command{};
+  command.vehicle_id = config.vehicle_id;
+  timespec next{};
+  clock_gettime(CLOCK_MONOTONIC, &next);
+  const auto tick = [&next] {
+    next.tv_nsec += 1'000'000;
+    if (next.tv_nsec >= 1'000'000'000) {
+      next.tv_nsec -= 1'000'000'000;
+      ++next.tv_sec;
+    }
+    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
+  };
+  for (int i = 0; i < kSecurityWarmup + samples; ++i) {
+    tick();
+    command.sequence_number = static_cast<std::uint64_t>(i);
+    command.t_ns = now_ns();
+    writer.write(command);
+  }
+  // Best effort: repeat the end marker so that one of them arrives.
+  command.sequence_number = kDone;
+  for (int i = 0; i < 20; ++i) {
+    tick();
+    writer.write(command);
+  }
 }
 
 // ---- the ground side (parent process) ----
@@ -354,6 +434,10 @@ int run(int argc, char** argv) {
   app.add_option("--camera-s", camera_s, "camera stream duration")->check(CLI::Range(0.5, 60.0));
   app.add_option("--ddsperf-s", ddsperf_s, "ddsperf ping duration (0 skips it)")
       ->check(CLI::Range(0, 60));
+  int security_samples = 5'000;
+  app.add_option("--security-samples", security_samples,
+                 "commands (1 ms apart) measured plain and then secured (0 skips it)")
+      ->check(CLI::Range(0, 1'000'000));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -375,12 +459,59 @@ int run(int argc, char** argv) {
   std::fill(one_way_ns, one_way_ns + kVariants.size() * samples, std::int64_t{-1});
   const int frames = static_cast<int>(camera_s * 30.0);
 
+  // DDS Security's cost: keys for vehicle_1 and station_1 in a temp dir; plain and secured
+  // each on a domain of its own (secured domains end at security::kMaxSecuredDomainId).
+  const std::string keys_dir = "/tmp/hq-bench-link-keys-" + std::to_string(getpid());
+  LinkConfig plain = config;
+  plain.security.enabled = false;
+  plain.domain_id = (config.domain_id + 2) % (security::kMaxSecuredDomainId + 1);
+  LinkConfig secured = config;
+  secured.security = SecurityConfig{};
+  secured.security.keys_dir = keys_dir;
+  secured.vehicle_id = 1;
+  secured.station_id = 1;
+  secured.domain_id = (config.domain_id + 3) % (security::kMaxSecuredDomainId + 1);
+  const std::size_t security_bytes = sizeof(std::int64_t) * 2 * std::max(security_samples, 1);
+  auto* security_ns = static_cast<std::int64_t*>(
+      mmap(nullptr, security_bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
+  if (security_ns == MAP_FAILED) throw InputError("hq-bench-link: mmap failed");
+  std::fill(security_ns, security_ns + 2 * std::max(security_samples, 1), std::int64_t{-1});
+  if (security_samples > 0) {
+    std::filesystem::remove_all(keys_dir);
+    const std::int64_t t_s = static_cast<std::int64_t>(std::time(nullptr));
+    security::make_ca(keys_dir, security::valid_for_days(t_s, 1));
+    security::make_governance(keys_dir, security::DomainRange{});
+    security::IdentityRequest request;
+    request.validity = security::valid_for_days(t_s, 1);
+    request.role = security::Role::kVehicle;
+    security::make_identity(keys_dir, request);
+    request.role = security::Role::kStation;
+    request.vehicles = {1};
+    security::make_identity(keys_dir, request);
+  }
+
   // Fork before any DDS entity exists: Cyclone's threads do not survive fork().
   const pid_t child = fork();
   if (child < 0) throw InputError("hq-bench-link: fork failed");
   if (child == 0) {
     onboard_echo(config, samples, one_way_ns);
     std::_Exit(0);
+  }
+  std::array<pid_t, 2> security_children{-1, -1};
+  for (std::size_t k = 0; k < 2 && security_samples > 0; ++k) {
+    security_children[k] = fork();
+    if (security_children[k] < 0) throw InputError("hq-bench-link: fork failed");
+    if (security_children[k] == 0) {
+      int code = 0;
+      try {
+        security_vehicle(k == 0 ? plain : secured, security_samples,
+                         security_ns + k * security_samples);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "hq-bench-link: vehicle: %s\n", e.what());
+        code = 2;
+      }
+      std::_Exit(code);
+    }
   }
   std::vector<VariantResult> results;
   CameraResult camera;
@@ -393,6 +524,17 @@ int run(int argc, char** argv) {
   }
   int status = 0;
   waitpid(child, &status, 0);
+  bool security_ok = true;
+  if (security_samples > 0) {
+    security_station(plain, security_samples);
+    security_station(secured, security_samples);
+    for (const pid_t pid : security_children) {
+      int s = 0;
+      waitpid(pid, &s, 0);
+      security_ok = security_ok && WIFEXITED(s) && WEXITSTATUS(s) == 0;
+    }
+    std::filesystem::remove_all(keys_dir);
+  }
 
   DdsperfResult ddsperf;
   if (ddsperf_s > 0) ddsperf = run_ddsperf((config.domain_id + 1) % (kMaxDomainId + 1), ddsperf_s);
@@ -434,8 +576,29 @@ int run(int argc, char** argv) {
               100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
               camera.mbit_per_s);
   print("frame latency publish -> receipt", camera.latency);
+  if (security_samples > 0) {
+    std::printf("DDS Security's cost, hq_velocity_command with the command QoS, one way write -> "
+                "take, %d commands 1 ms apart after %d warm-up, plain (domain %d) then secured "
+                "(domain %d: authenticated, access-controlled, payload and metadata AES-GCM):\n",
+                security_samples, kSecurityWarmup, plain.domain_id, secured.domain_id);
+    std::array<Stats, 2> s;
+    for (std::size_t k = 0; k < 2; ++k) {
+      std::vector<std::int64_t> values;
+      for (int i = 0; i < security_samples; ++i) {
+        const std::int64_t value = security_ns[k * security_samples + i];
+        if (value >= 0) values.push_back(value);
+      }
+      s[k] = stats_of(values);
+      print(k == 0 ? "plain DDS" : "DDS Security", s[k]);
+    }
+    if (s[0].p50_us > 0) {
+      std::printf("  secured - plain: p50 %+.1f us  p99 %+.1f us\n", s[1].p50_us - s[0].p50_us,
+                  s[1].p99_us - s[0].p99_us);
+    }
+  }
   munmap(one_way_ns, one_way_bytes);
-  return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1;
+  munmap(security_ns, security_bytes);
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0 && security_ok ? 0 : 1;
 }
 
 }  // namespace

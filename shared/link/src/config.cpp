@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 namespace hq::link {
 
@@ -24,6 +25,14 @@ void read_ms(config::StrictMap& map, const std::string& key, std::int64_t& value
 }
 
 }  // namespace
+
+const char* const kDefaultSecurityLibraryDir = HQ_DDS_SECURITY_LIBRARY_DIR;
+
+bool SecurityConfig::has_keys() const {
+  return !keys_dir.empty() || !identity_ca.empty() || !certificate.empty() ||
+         !private_key.empty() || !governance.empty() || !permissions.empty() ||
+         !permissions_ca.empty();
+}
 
 void read_config(config::StrictMap& section, LinkConfig& out) {
   section.read("domain_id", out.domain_id, 0, kMaxDomainId);
@@ -54,6 +63,20 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
   impair.read("seed", seed, 0, kMaxId);
   out.impairment.seed = static_cast<std::uint32_t>(seed);
   impair.finish();
+  config::StrictMap security = section.child("security");
+  security.read("enabled", out.security.enabled);
+  for (auto [key, value] : {std::pair{"keys_dir", &out.security.keys_dir},
+                            std::pair{"identity", &out.security.identity},
+                            std::pair{"identity_ca", &out.security.identity_ca},
+                            std::pair{"certificate", &out.security.certificate},
+                            std::pair{"private_key", &out.security.private_key},
+                            std::pair{"governance", &out.security.governance},
+                            std::pair{"permissions", &out.security.permissions},
+                            std::pair{"permissions_ca", &out.security.permissions_ca},
+                            std::pair{"library_dir", &out.security.library_dir}}) {
+    security.read(key, *value, {});
+  }
+  security.finish();
   section.finish();
 }
 
@@ -91,6 +114,12 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides) {
   app.add_option("--command-deadline-ms", overrides.command_deadline_ms,
                  "command deadline in milliseconds")
       ->check(CLI::Range(kMinPeriodMs, kMaxPeriodMs));
+  app.add_option("--security-dir", overrides.security_dir,
+                 "DDS Security keys made by hq-keys (link.security.keys_dir)");
+  app.add_option("--identity", overrides.identity,
+                 "identity in --security-dir (default vehicle_<vehicle id> / station_<station id>)");
+  app.add_flag("--insecure", overrides.insecure,
+               "plain DDS without authentication or encryption: loopback demo and tests only");
   app.add_option("--link-impair", overrides.link_impair,
                  "impair received samples for tests and demos: "
                  "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N] (one way, this process's side)");
@@ -109,6 +138,14 @@ void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
     config.command_deadline_ns = ms_to_ns(*overrides.command_deadline_ms);
   }
   if (overrides.link_impair) config.impairment = parse_impairment(*overrides.link_impair);
+  if (overrides.security_dir) config.security.keys_dir = *overrides.security_dir;
+  if (overrides.identity) config.security.identity = *overrides.identity;
+  if (overrides.insecure) {
+    if (overrides.security_dir || overrides.identity) {
+      throw InputError("--insecure: contradicts --security-dir/--identity");
+    }
+    config.security.enabled = false;
+  }
   check_config(config);
 }
 

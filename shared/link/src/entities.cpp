@@ -1,5 +1,9 @@
 #include "hq/link/link.hpp"
 
+#include <unistd.h>
+
+#include <ctime>
+#include <filesystem>
 #include <string>
 
 #include "hq/base/error.hpp"
@@ -83,14 +87,127 @@ Listener::~Listener() {
   if (listener_ != nullptr) dds_delete_listener(listener_);
 }
 
+namespace {
+
+dds_entity_t create_participant(int domain_id, const dds_qos_t* qos) {
+  if (domain_id < 0 || domain_id > kMaxDomainId) return DDS_RETCODE_BAD_PARAMETER;
+  return dds_create_participant(static_cast<dds_domainid_t>(domain_id), qos, nullptr);
+}
+
+std::string absolute(const std::string& path) {
+  return std::filesystem::absolute(path).lexically_normal().string();
+}
+
+// The QoS properties that load and configure Cyclone's builtin security plugins.
+Qos security_qos(const SecurityConfig& security, const security::IdentityFiles& files) {
+  Qos qos;
+  const auto plugin = [&](const char* kind, const char* file, const char* init,
+                          const char* finalize) {
+    const std::string path = security.library_dir + "/" + file;
+    if (::access(path.c_str(), R_OK) != 0) {
+      throw InputError(path + ": DDS Security plugin missing (Debian package libddsc0debian; "
+                       "or set link.security.library_dir)");
+    }
+    const std::string prefix = std::string("dds.sec.") + kind + ".library.";
+    dds_qset_prop(qos.get(), (prefix + "path").c_str(), path.c_str());
+    dds_qset_prop(qos.get(), (prefix + "init").c_str(), init);
+    dds_qset_prop(qos.get(), (prefix + "finalize").c_str(), finalize);
+  };
+  plugin("auth", "libdds_security_auth.so", "init_authentication", "finalize_authentication");
+  plugin("crypto", "libdds_security_crypto.so", "init_crypto", "finalize_crypto");
+  plugin("access", "libdds_security_ac.so", "init_access_control", "finalize_access_control");
+  const auto file = [&](const char* name, const std::string& path) {
+    dds_qset_prop(qos.get(), name, ("file:" + absolute(path)).c_str());
+  };
+  file("dds.sec.auth.identity_ca", files.identity_ca);
+  file("dds.sec.auth.identity_certificate", files.certificate);
+  file("dds.sec.auth.private_key", files.private_key);
+  file("dds.sec.access.governance", files.governance);
+  file("dds.sec.access.permissions", files.permissions);
+  file("dds.sec.access.permissions_ca", files.permissions_ca);
+  return qos;
+}
+
+}  // namespace
+
+security::IdentityFiles security_files(const LinkConfig& config, security::Role role) {
+  const SecurityConfig& s = config.security;
+  const std::uint32_t id =
+      role == security::Role::kVehicle ? config.vehicle_id : config.station_id;
+  const std::string identity =
+      s.identity.empty() ? security::identity_name(role, id) : s.identity;
+  security::IdentityFiles files;
+  if (!s.keys_dir.empty()) files = security::files_in(s.keys_dir, identity);
+  const auto take = [](std::string& dst, const std::string& src) {
+    if (!src.empty()) dst = src;
+  };
+  take(files.identity_ca, s.identity_ca);
+  take(files.certificate, s.certificate);
+  take(files.private_key, s.private_key);
+  take(files.governance, s.governance);
+  take(files.permissions, s.permissions);
+  take(files.permissions_ca, s.permissions_ca);
+  return files;
+}
+
+std::string describe_security(const LinkConfig& config, security::Role role) {
+  if (!config.security.enabled) return "plain DDS (--insecure)";
+  if (!config.security.has_keys()) return "DDS Security, no keys configured";
+  return "DDS Security, certificate " + security_files(config, role).certificate;
+}
+
 Participant::Participant(int domain_id)
-    : entity_(check(domain_id < 0 || domain_id > kMaxDomainId ? DDS_RETCODE_BAD_PARAMETER
-                                                              : dds_create_participant(
-                                                                    static_cast<dds_domainid_t>(
-                                                                        domain_id),
-                                                                    nullptr, nullptr),
-                    "dds_create_participant", "domain " + std::to_string(domain_id))),
+    : entity_(check(create_participant(domain_id, nullptr), "dds_create_participant",
+                    "domain " + std::to_string(domain_id))),
       domain_id_(domain_id) {}
+
+Participant::Participant(const LinkConfig& config, security::Role role)
+    : domain_id_(config.domain_id) {
+  const std::string where = "domain " + std::to_string(config.domain_id);
+  if (!config.security.enabled) {
+    entity_ = Entity(check(create_participant(config.domain_id, nullptr),
+                           "dds_create_participant", where));
+    return;
+  }
+  const char* role_flag = role == security::Role::kVehicle ? "vehicle" : "station";
+  if (!config.security.has_keys()) {
+    const std::string id = std::to_string(role == security::Role::kVehicle ? config.vehicle_id
+                                                                            : config.station_id);
+    throw InputError(
+        std::string("link.security: DDS Security is on and no keys are configured. Make them "
+                    "(hq-keys init KEYS && hq-keys identity KEYS --role ") +
+        role_flag + " --id " + id +
+        (role == security::Role::kStation ? " --vehicles " + std::to_string(config.vehicle_id)
+                                          : std::string()) +
+        ") and pass --security-dir KEYS (link.security.keys_dir), or, for the loopback demo and "
+        "tests only, run plain DDS with --insecure (link.security.enabled: false)");
+  }
+  if (config.domain_id > security::kMaxSecuredDomainId) {
+    throw InputError("link.domain_id = " + std::to_string(config.domain_id) +
+                     ": a secured link needs a domain in [0, " +
+                     std::to_string(security::kMaxSecuredDomainId) +
+                     "] (the largest id Cyclone's access control accepts)");
+  }
+  const security::IdentityFiles files = security_files(config, role);
+  security::check_identity(files, static_cast<std::int64_t>(std::time(nullptr)));
+  const Qos qos = security_qos(config.security, files);
+  const dds_entity_t handle = create_participant(config.domain_id, qos.get());
+  if (handle < 0) {
+    throw InputError("dds_create_participant(" + where + ", secured by " + files.certificate +
+                     "): " + dds_strretcode(handle) +
+                     ": Cyclone's security plugins refused the identity, governance or "
+                     "permissions (e.g. permissions for another subject or domain; its log "
+                     "says which); every participant of one process must use the same plugins");
+  }
+  entity_ = Entity(handle);
+  partition_ = security::vehicle_partition(config.vehicle_id);
+}
+
+Qos Participant::endpoint_qos(const Qos& qos) const {
+  Qos out = qos.copy();
+  if (!partition_.empty()) dds_qset_partition1(out.get(), partition_.c_str());
+  return out;
+}
 
 GuardCondition::GuardCondition(const Participant& participant)
     : entity_(check(dds_create_guardcondition(participant.handle()), "dds_create_guardcondition",

@@ -1,5 +1,6 @@
 #include "hq/link/qos.hpp"
 
+#include <string>
 #include <utility>
 
 #include "hq/base/error.hpp"
@@ -12,6 +13,13 @@ Qos::Qos() : qos_(dds_create_qos()) {
 
 Qos::~Qos() {
   if (qos_ != nullptr) dds_delete_qos(qos_);
+}
+
+Qos Qos::copy() const {
+  Qos out;
+  const dds_return_t rc = dds_copy_qos(out.get(), qos_);
+  if (rc < 0) throw InputError(std::string("dds_copy_qos: ") + dds_strretcode(rc));
+  return out;
 }
 
 Qos::Qos(Qos&& other) noexcept : qos_(std::exchange(other.qos_, nullptr)) {}

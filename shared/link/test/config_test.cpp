@@ -157,5 +157,54 @@ TEST(LinkConfig, ImpairmentFromYamlAndFromTheCommandLine) {
             "--link-impair loss=1.5: expected 0..1");
 }
 
+TEST(LinkConfig, SecurityIsOnByDefaultAndReadFromYaml) {
+  EXPECT_TRUE(LinkConfig{}.security.enabled);
+  EXPECT_FALSE(LinkConfig{}.security.has_keys());
+  const LinkConfig config = from_yaml(
+      "{security: {keys_dir: keys, identity: station_2, permissions: p.p7s, "
+      "library_dir: /opt/cyclone}}");
+  EXPECT_TRUE(config.security.enabled);
+  EXPECT_EQ(config.security.keys_dir, "keys");
+  EXPECT_EQ(config.security.identity, "station_2");
+  EXPECT_EQ(config.security.permissions, "p.p7s");
+  EXPECT_EQ(config.security.library_dir, "/opt/cyclone");
+  EXPECT_TRUE(config.security.has_keys());
+  EXPECT_FALSE(from_yaml("{security: {enabled: false}}").security.enabled);
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{security: {key_dir: k}}"); }),
+              HasSubstr("key_dir"));
+}
+
+TEST(LinkConfig, SecurityFromTheCommandLine) {
+  {
+    CLI::App app;
+    LinkOverrides overrides;
+    add_link_options(app, overrides);
+    app.parse(std::vector<std::string>{"vehicle_1", "--identity", "keys", "--security-dir"});
+    LinkConfig config;
+    apply_overrides(overrides, config);
+    EXPECT_EQ(config.security.keys_dir, "keys");
+    EXPECT_EQ(config.security.identity, "vehicle_1");
+    EXPECT_TRUE(config.security.enabled);
+  }
+  {
+    CLI::App app;
+    LinkOverrides overrides;
+    add_link_options(app, overrides);
+    app.parse(std::vector<std::string>{"--insecure"});
+    LinkConfig config;
+    apply_overrides(overrides, config);
+    EXPECT_FALSE(config.security.enabled);
+  }
+  {
+    CLI::App app;
+    LinkOverrides overrides;
+    add_link_options(app, overrides);
+    app.parse(std::vector<std::string>{"keys", "--security-dir", "--insecure"});
+    LinkConfig config;
+    EXPECT_THAT(hq::testing::input_error_message([&] { apply_overrides(overrides, config); }),
+                HasSubstr("--insecure: contradicts --security-dir"));
+  }
+}
+
 }  // namespace
 }  // namespace hq::link

@@ -5,7 +5,13 @@
 ///          stations: [1, 2],   # station ids allowed to command this vehicle; absent/[]: any
 ///          envelope: {max_v_x_mps: 2.0, max_v_y_mps: 2.0, max_v_z_mps: 1.0,
 ///                     max_yaw_rate_radps: 1.5},
-///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1}}   # tests and demos only
+///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1},   # tests and demos only
+///          security: {enabled: true, keys_dir: keys, identity: vehicle_1}}
+/// security: DDS Security (hq/security/keys.hpp) is on unless `enabled: false` or --insecure;
+/// keys come from `keys_dir` laid out by hq-keys (identity defaults to vehicle_<vehicle_id> on
+/// board, station_<station_id> on the ground) and/or the single paths identity_ca, certificate,
+/// private_key, governance, permissions, permissions_ca (relative to the working directory),
+/// which override the keys_dir ones. library_dir is where Cyclone's plugins are.
 
 #include <cstdint>
 #include <optional>
@@ -23,6 +29,25 @@ namespace hq::link {
 /// DDS domain ids usable with the default port mapping (Cyclone rejects larger ones).
 inline constexpr int kMaxDomainId = 232;
 
+/// Where the DDS Security plugins of Debian's Cyclone DDS are (found by CMake).
+extern const char* const kDefaultSecurityLibraryDir;
+
+struct SecurityConfig {
+  bool enabled = true;        ///< Off only for the loopback demo and tests (--insecure).
+  std::string keys_dir;       ///< A directory made by hq-keys.
+  std::string identity;       ///< Folder in keys_dir; empty: from the role and id.
+  std::string identity_ca;    ///< Each file below overrides the keys_dir one when set.
+  std::string certificate;
+  std::string private_key;
+  std::string governance;
+  std::string permissions;
+  std::string permissions_ca;
+  std::string library_dir = kDefaultSecurityLibraryDir;
+
+  /// Whether any key file or keys_dir is configured.
+  [[nodiscard]] bool has_keys() const;
+};
+
 struct LinkConfig {
   int domain_id = 0;                ///< DDS domain, 0..kMaxDomainId.
   std::uint32_t vehicle_id = 1;     ///< Key of every topic: which vehicle this is / commands.
@@ -35,6 +60,7 @@ struct LinkConfig {
   std::vector<std::uint32_t> stations;
   CommandEnvelope envelope;         ///< Limits applied by validate(VelocityCommand).
   ImpairmentConfig impairment;      ///< Receive-side link impairment (none by default).
+  SecurityConfig security;          ///< DDS Security (on by default).
 };
 
 /// Reads a `link:` mapping strictly (unknown keys, out-of-range values throw hq::InputError
@@ -54,10 +80,14 @@ struct LinkOverrides {
   std::optional<double> command_deadline_ms;
   std::optional<std::vector<int>> stations;  ///< --stations 1,2
   std::optional<std::string> link_impair;  ///< "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N]"
+  std::optional<std::string> security_dir;  ///< keys_dir
+  std::optional<std::string> identity;      ///< identity in keys_dir
+  bool insecure = false;                    ///< security.enabled = false
 };
 
-/// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --stations, --command-deadline-ms
-/// (range-checked by CLI11), --link-impair (checked by apply_overrides) to `app`, storing into
+/// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --stations,
+/// --command-deadline-ms (range-checked by CLI11), --link-impair (checked by apply_overrides),
+/// --security-dir, --identity and --insecure to `app`, storing into
 /// `overrides` (which must outlive parsing).
 void add_link_options(CLI::App& app, LinkOverrides& overrides);
 

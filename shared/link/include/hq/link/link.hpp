@@ -25,6 +25,7 @@
 #include "hq/link/impairment.hpp"
 #include "hq/link/messages.hpp"
 #include "hq/link/qos.hpp"
+#include "hq/security/keys.hpp"
 
 namespace hq::link {
 
@@ -95,16 +96,42 @@ class Listener {
   dds_listener_t* listener_;
 };
 
-/// A domain participant on `domain_id` (0..kMaxDomainId), configured by CYCLONEDDS_URI if set.
+/// The key files a secured participant of `role` uses: config.security's single paths where
+/// set, else the hq-keys layout of keys_dir with identity (default vehicle_<vehicle_id> or
+/// station_<station_id>). hq::InputError if a file is named by neither.
+security::IdentityFiles security_files(const LinkConfig& config, security::Role role);
+
+/// "DDS Security, certificate keys/vehicle_1/cert.pem" or "plain DDS (--insecure)", for the
+/// programs' start-up line.
+std::string describe_security(const LinkConfig& config, security::Role role);
+
+/// A domain participant, configured by CYCLONEDDS_URI if set.
+///
+/// Secured (LinkConfig::security.enabled): before creating it, the key files are checked
+/// (security::check_identity: present, readable, certificate valid now, signed by the CA,
+/// matching its key, documents signed by the permissions CA; hq::InputError naming file and
+/// problem), then Cyclone's authentication, access-control and crypto plugins are configured
+/// through participant QoS properties (dds.sec.*). Every reader and writer made on a secured
+/// participant is put in the partition security::vehicle_partition(vehicle_id), the unit the
+/// permissions grant (see hq/security/keys.hpp for why). A plain participant uses the default
+/// partition, so plain and secured participants never exchange samples.
 class Participant {
  public:
+  /// Plain DDS on `domain_id` (0..kMaxDomainId).
   explicit Participant(int domain_id);
+  /// On config.domain_id, secured as `role` unless config.security.enabled is false;
+  /// hq::InputError naming what to do when security is on and no keys are configured.
+  Participant(const LinkConfig& config, security::Role role);
   [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
   [[nodiscard]] int domain_id() const { return domain_id_; }
+  [[nodiscard]] bool secured() const { return !partition_.empty(); }
+  /// `qos` for a reader or writer of this participant (with the partition when secured).
+  [[nodiscard]] Qos endpoint_qos(const Qos& qos) const;
 
  private:
   Entity entity_;
   int domain_id_;
+  std::string partition_;
 };
 
 /// dds_create_topic with T's idlc descriptor; `name` defaults to TopicTraits<T>::kName.
@@ -203,7 +230,8 @@ class Writer {
   Writer(const Participant& participant, const Topic<T>& topic, const Qos& qos,
          const Listener* listener = nullptr)
       : name_(topic.name()),
-        entity_(check(dds_create_writer(participant.handle(), topic.handle(), qos.get(),
+        entity_(check(dds_create_writer(participant.handle(), topic.handle(),
+                                        participant.endpoint_qos(qos).get(),
                                         listener != nullptr ? listener->get() : nullptr),
                       "dds_create_writer", name_)) {}
 
@@ -244,7 +272,8 @@ class Reader {
   Reader(const Participant& participant, const Topic<T>& topic, const Qos& qos,
          const Listener* listener = nullptr)
       : name_(topic.name()),
-        entity_(check(dds_create_reader(participant.handle(), topic.handle(), qos.get(),
+        entity_(check(dds_create_reader(participant.handle(), topic.handle(),
+                                        participant.endpoint_qos(qos).get(),
                                         listener != nullptr ? listener->get() : nullptr),
                       "dds_create_reader", name_)) {}
 

@@ -32,6 +32,8 @@ class Qos {
 
   [[nodiscard]] const dds_qos_t* get() const { return qos_; }
   [[nodiscard]] dds_qos_t* get() { return qos_; }
+  /// A copy, to add policies to without changing this one.
+  [[nodiscard]] Qos copy() const;
 
  private:
   dds_qos_t* qos_;

@@ -1,0 +1,468 @@
+#include "hq/security/keys.hpp"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include <openssl/bio.h>
+#include <openssl/bn.h>
+#include <openssl/err.h>
+#include <openssl/evp.h>
+#include <openssl/pem.h>
+#include <openssl/pkcs7.h>
+#include <openssl/rand.h>
+#include <openssl/x509.h>
+#include <openssl/x509v3.h>
+
+#include "hq/base/error.hpp"
+
+namespace hq::security {
+
+namespace {
+
+// RAII for the OpenSSL objects used here.
+struct Free {
+  void operator()(BIO* p) const { BIO_free_all(p); }
+  void operator()(EVP_PKEY* p) const { EVP_PKEY_free(p); }
+  void operator()(X509* p) const { X509_free(p); }
+  void operator()(X509_STORE* p) const { X509_STORE_free(p); }
+  void operator()(PKCS7* p) const { PKCS7_free(p); }
+  void operator()(BIGNUM* p) const { BN_free(p); }
+};
+template <typename T>
+using Owned = std::unique_ptr<T, Free>;
+
+// The OpenSSL error queue as text (emptied), for messages.
+std::string openssl_reason() {
+  std::string reason;
+  while (const unsigned long code = ERR_get_error()) {
+    char text[256];
+    ERR_error_string_n(code, text, sizeof text);
+    reason += (reason.empty() ? "" : "; ") + std::string(text);
+  }
+  return reason.empty() ? "unknown OpenSSL error" : reason;
+}
+
+[[noreturn]] void fail(const std::string& where, const std::string& what) {
+  throw InputError(where + ": " + what);
+}
+
+void require(bool ok, const std::string& where, const std::string& what) {
+  if (!ok) fail(where, what + " (" + openssl_reason() + ")");
+}
+
+const char* role_word(Role role) { return role == Role::kVehicle ? "vehicle" : "station"; }
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, std::string("cannot read: ") + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Writes atomically enough for keys: a private key is created 0600 before any byte is written.
+void write_file(const std::string& path, const std::string& text, bool secret = false) {
+  const std::string tmp = path + ".tmp";
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (f == nullptr) fail(path, std::string("cannot write: ") + std::strerror(errno));
+  if (secret) ::fchmod(fileno(f), S_IRUSR | S_IWUSR);
+  const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  const bool closed = std::fclose(f) == 0;
+  if (!written || !closed || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    fail(path, std::string("cannot write: ") + std::strerror(errno));
+  }
+}
+
+std::string bio_text(BIO* bio) {
+  char* data = nullptr;
+  const long n = BIO_get_mem_data(bio, &data);
+  return std::string(data, static_cast<std::size_t>(n));
+}
+
+Owned<BIO> memory_bio() {
+  Owned<BIO> bio(BIO_new(BIO_s_mem()));
+  require(bio != nullptr, "BIO_new", "out of memory");
+  return bio;
+}
+
+Owned<EVP_PKEY> make_key() {
+  Owned<EVP_PKEY> key(EVP_EC_gen("P-256"));
+  require(key != nullptr, "EVP_EC_gen(P-256)", "key generation failed");
+  return key;
+}
+
+std::string key_pem(EVP_PKEY* key) {
+  Owned<BIO> bio = memory_bio();
+  require(PEM_write_bio_PrivateKey(bio.get(), key, nullptr, nullptr, 0, nullptr, nullptr) == 1,
+          "PEM_write_bio_PrivateKey", "failed");
+  return bio_text(bio.get());
+}
+
+std::string cert_pem(X509* cert) {
+  Owned<BIO> bio = memory_bio();
+  require(PEM_write_bio_X509(bio.get(), cert) == 1, "PEM_write_bio_X509", "failed");
+  return bio_text(bio.get());
+}
+
+Owned<X509> load_cert(const std::string& path) {
+  const std::string text = read_file(path);
+  Owned<BIO> bio(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
+  Owned<X509> cert(PEM_read_bio_X509(bio.get(), nullptr, nullptr, nullptr));
+  if (cert == nullptr) fail(path, "not a PEM certificate (" + openssl_reason() + ")");
+  return cert;
+}
+
+Owned<EVP_PKEY> load_key(const std::string& path) {
+  const std::string text = read_file(path);
+  Owned<BIO> bio(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
+  Owned<EVP_PKEY> key(PEM_read_bio_PrivateKey(bio.get(), nullptr, nullptr, nullptr));
+  if (key == nullptr) {
+    fail(path, "not an unencrypted PEM private key (" + openssl_reason() + ")");
+  }
+  return key;
+}
+
+void add_name_entry(X509_NAME* name, const char* field, const std::string& value) {
+  require(X509_NAME_add_entry_by_txt(name, field, MBSTRING_UTF8,
+                                     reinterpret_cast<const unsigned char*>(value.c_str()), -1, -1,
+                                     0) == 1,
+          "X509_NAME_add_entry_by_txt", field);
+}
+
+void add_extension(X509* cert, X509* issuer, int nid, const char* value) {
+  X509V3_CTX ctx;
+  X509V3_set_ctx_nodb(&ctx);
+  X509V3_set_ctx(&ctx, issuer, cert, nullptr, nullptr, 0);
+  X509_EXTENSION* ext = X509V3_EXT_conf_nid(nullptr, &ctx, nid, value);
+  require(ext != nullptr, "X509V3_EXT_conf_nid", value);
+  const int ok = X509_add_ext(cert, ext, -1);
+  X509_EXTENSION_free(ext);
+  require(ok == 1, "X509_add_ext", value);
+}
+
+// A certificate for `key` with subject CN=`common_name`,O=HaptiQuad, signed by issuer_key
+// (self-signed when issuer is null).
+Owned<X509> make_cert(EVP_PKEY* key, const std::string& common_name, const Validity& validity,
+                      X509* issuer, EVP_PKEY* issuer_key) {
+  Owned<X509> cert(X509_new());
+  require(cert != nullptr, "X509_new", "out of memory");
+  X509_set_version(cert.get(), 2);  // v3, for the extensions
+  // 64 random bits of serial: two certificates of one CA never share a serial.
+  Owned<BIGNUM> serial(BN_new());
+  require(serial != nullptr && BN_rand(serial.get(), 63, BN_RAND_TOP_ANY, BN_RAND_BOTTOM_ANY) == 1,
+          "BN_rand", "serial");
+  require(BN_to_ASN1_INTEGER(serial.get(), X509_get_serialNumber(cert.get())) != nullptr,
+          "BN_to_ASN1_INTEGER", "serial");
+  require(ASN1_TIME_set(X509_getm_notBefore(cert.get()), static_cast<time_t>(validity.not_before_s)) !=
+              nullptr,
+          "ASN1_TIME_set", "notBefore");
+  require(ASN1_TIME_set(X509_getm_notAfter(cert.get()), static_cast<time_t>(validity.not_after_s)) !=
+              nullptr,
+          "ASN1_TIME_set", "notAfter");
+  X509_NAME* subject = X509_get_subject_name(cert.get());
+  add_name_entry(subject, "CN", common_name);
+  add_name_entry(subject, "O", "HaptiQuad");
+  require(X509_set_pubkey(cert.get(), key) == 1, "X509_set_pubkey", "failed");
+  X509* signer = issuer != nullptr ? issuer : cert.get();
+  require(X509_set_issuer_name(cert.get(), X509_get_subject_name(signer)) == 1,
+          "X509_set_issuer_name", "failed");
+  if (issuer == nullptr) {
+    add_extension(cert.get(), signer, NID_basic_constraints, "critical,CA:TRUE");
+    add_extension(cert.get(), signer, NID_key_usage, "critical,keyCertSign,cRLSign,digitalSignature");
+  } else {
+    add_extension(cert.get(), signer, NID_basic_constraints, "critical,CA:FALSE");
+    add_extension(cert.get(), signer, NID_key_usage, "critical,digitalSignature,keyAgreement");
+  }
+  add_extension(cert.get(), signer, NID_subject_key_identifier, "hash");
+  require(X509_sign(cert.get(), issuer_key != nullptr ? issuer_key : key, EVP_sha256()) > 0,
+          "X509_sign", common_name);
+  return cert;
+}
+
+// `document` signed by the CA as `openssl smime -sign -text` does: detached, text/plain header
+// inside the signed part, multipart/signed S/MIME output (what Cyclone's access control reads).
+std::string smime_sign(const std::string& document, X509* ca, EVP_PKEY* ca_key) {
+  const int flags = PKCS7_DETACHED | PKCS7_TEXT | PKCS7_STREAM;
+  Owned<BIO> in(BIO_new_mem_buf(document.data(), static_cast<int>(document.size())));
+  Owned<PKCS7> p7(PKCS7_sign(ca, ca_key, nullptr, in.get(), flags));
+  require(p7 != nullptr, "PKCS7_sign", "signing failed");
+  Owned<BIO> out = memory_bio();
+  require(SMIME_write_PKCS7(out.get(), p7.get(), in.get(), flags) == 1, "SMIME_write_PKCS7",
+          "failed");
+  return bio_text(out.get());
+}
+
+std::string iso_utc(std::int64_t t_s) {
+  const std::time_t t = static_cast<std::time_t>(t_s);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%S", &tm);
+  return text;
+}
+
+std::string domains_xml(const DomainRange& domains, const char* indent) {
+  std::ostringstream xml;
+  xml << indent << "<domains>\n"
+      << indent << "  <id_range><min>" << domains.min_id << "</min><max>" << domains.max_id
+      << "</max></id_range>\n"
+      << indent << "</domains>\n";
+  return xml.str();
+}
+
+void check_domains(const DomainRange& domains) {
+  if (domains.min_id < 0 || domains.max_id > kMaxSecuredDomainId ||
+      domains.min_id > domains.max_id) {
+    throw InputError("domains " + std::to_string(domains.min_id) + "-" +
+                     std::to_string(domains.max_id) + ": expected 0 <= min <= max <= " +
+                     std::to_string(kMaxSecuredDomainId) +
+                     " (the largest id Cyclone's access control accepts)");
+  }
+}
+
+struct Ca {
+  Owned<X509> cert;
+  Owned<EVP_PKEY> key;
+};
+
+Ca load_ca(const std::string& dir) {
+  const IdentityFiles files = files_in(dir, "");
+  return {load_cert(files.identity_ca), load_key(dir + "/ca.key.pem")};
+}
+
+void make_dir(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) fail(dir, "cannot create directory: " + ec.message());
+}
+
+void check_readable(const std::string& path, const char* what) {
+  if (path.empty()) throw InputError(std::string("security: no ") + what + " file configured");
+  if (::access(path.c_str(), F_OK) != 0) {
+    fail(path, std::string(what) + " missing (make keys with `hq-keys`)");
+  }
+  if (::access(path.c_str(), R_OK) != 0) {
+    fail(path, std::string(what) + " not readable: " + std::strerror(errno));
+  }
+}
+
+std::string asn1_time_text(const ASN1_TIME* t) {
+  Owned<BIO> bio = memory_bio();
+  ASN1_TIME_print(bio.get(), t);
+  return bio_text(bio.get());
+}
+
+void check_times(X509* cert, const std::string& path, const char* what, std::int64_t now_s) {
+  time_t now = static_cast<time_t>(now_s);
+  if (X509_cmp_time(X509_get0_notAfter(cert), &now) < 0) {
+    fail(path, std::string(what) + " expired (not after " +
+                   asn1_time_text(X509_get0_notAfter(cert)) + "); make a new one with `hq-keys`");
+  }
+  if (X509_cmp_time(X509_get0_notBefore(cert), &now) > 0) {
+    fail(path, std::string(what) + " not valid yet (not before " +
+                   asn1_time_text(X509_get0_notBefore(cert)) + "); check this machine's clock");
+  }
+}
+
+// Verifies an S/MIME signed document against `ca` (and nothing else).
+void check_signed(const std::string& path, const char* what, X509* ca,
+                  const std::string& ca_path) {
+  const std::string text = read_file(path);
+  Owned<BIO> in(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
+  BIO* content_raw = nullptr;
+  Owned<PKCS7> p7(SMIME_read_PKCS7(in.get(), &content_raw));
+  Owned<BIO> content(content_raw);
+  if (p7 == nullptr) fail(path, std::string(what) + " is not an S/MIME signed document");
+  Owned<X509_STORE> store(X509_STORE_new());
+  require(store != nullptr && X509_STORE_add_cert(store.get(), ca) == 1, "X509_STORE_add_cert",
+          ca_path);
+  Owned<BIO> out = memory_bio();
+  if (PKCS7_verify(p7.get(), nullptr, store.get(), content.get(), out.get(), PKCS7_TEXT) != 1) {
+    fail(path, std::string(what) + " signature does not verify against " + ca_path + " (" +
+                   openssl_reason() + ")");
+  }
+}
+
+}  // namespace
+
+std::string vehicle_partition(std::uint32_t vehicle_id) {
+  return "hq_vehicle_" + std::to_string(vehicle_id);
+}
+
+std::string identity_name(Role role, std::uint32_t id) {
+  return std::string(role_word(role)) + "_" + std::to_string(id);
+}
+
+std::string subject_name(Role role, std::uint32_t id) {
+  return "CN=" + identity_name(role, id) + ",O=HaptiQuad";
+}
+
+IdentityFiles files_in(const std::string& keys_dir, const std::string& identity) {
+  const std::string own = keys_dir + "/" + identity + "/";
+  return {keys_dir + "/ca.pem",           own + "cert.pem",          own + "key.pem",
+          keys_dir + "/governance.p7s",   own + "permissions.p7s",   keys_dir + "/ca.pem"};
+}
+
+Validity valid_for_days(std::int64_t now_s, int days) {
+  return {now_s - 60, now_s + static_cast<std::int64_t>(days) * 86'400};
+}
+
+void make_ca(const std::string& dir, const Validity& validity) {
+  const IdentityFiles files = files_in(dir, "");
+  if (std::filesystem::exists(files.identity_ca)) {
+    fail(files.identity_ca, "a CA exists already; remove the directory to start over");
+  }
+  make_dir(dir);
+  Owned<EVP_PKEY> key = make_key();
+  Owned<X509> cert = make_cert(key.get(), "HaptiQuad CA", validity, nullptr, nullptr);
+  write_file(dir + "/ca.key.pem", key_pem(key.get()), true);
+  write_file(files.identity_ca, cert_pem(cert.get()));
+}
+
+std::string governance_xml(const DomainRange& domains) {
+  check_domains(domains);
+  std::ostringstream xml;
+  xml << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+         "<dds xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\"\n"
+         "     xsi:noNamespaceSchemaLocation=\"http://www.omg.org/spec/DDS-SECURITY/20170901/"
+         "omg_shared_ca_governance.xsd\">\n"
+         "  <domain_access_rules>\n"
+         "    <domain_rule>\n"
+      << domains_xml(domains, "      ")
+      << "      <allow_unauthenticated_participants>false</allow_unauthenticated_participants>\n"
+         "      <enable_join_access_control>true</enable_join_access_control>\n"
+         "      <discovery_protection_kind>ENCRYPT</discovery_protection_kind>\n"
+         "      <liveliness_protection_kind>ENCRYPT</liveliness_protection_kind>\n"
+         // Payloads are encrypted per topic below; whole-message protection would add a second
+         // AES-GCM pass per packet for nothing on top.
+         "      <rtps_protection_kind>NONE</rtps_protection_kind>\n"
+         "      <topic_access_rules>\n"
+         "        <topic_rule>\n"
+         "          <topic_expression>hq_*</topic_expression>\n"
+         "          <enable_discovery_protection>true</enable_discovery_protection>\n"
+         "          <enable_liveliness_protection>true</enable_liveliness_protection>\n"
+         "          <enable_read_access_control>true</enable_read_access_control>\n"
+         "          <enable_write_access_control>true</enable_write_access_control>\n"
+         "          <metadata_protection_kind>ENCRYPT</metadata_protection_kind>\n"
+         "          <data_protection_kind>ENCRYPT</data_protection_kind>\n"
+         "        </topic_rule>\n"
+         "      </topic_access_rules>\n"
+         "    </domain_rule>\n"
+         "  </domain_access_rules>\n"
+         "</dds>\n";
+  return xml.str();
+}
+
+std::string permissions_xml(const IdentityRequest& request) {
+  check_domains(request.domains);
+  const bool vehicle = request.role == Role::kVehicle;
+  const std::vector<std::uint32_t> vehicles =
+      vehicle ? std::vector<std::uint32_t>{request.id} : request.vehicles;
+  if (vehicles.empty()) {
+    throw InputError("station " + std::to_string(request.id) +
+                     ": no vehicles to command (expected --vehicles ID[,ID...])");
+  }
+  // What each end writes and reads (the link's topic table in hq/link/qos.hpp).
+  const std::vector<const char*> vehicle_writes = {"hq_vehicle_state", "hq_camera_frame",
+                                                   "hq_event", "hq_heartbeat"};
+  const std::vector<const char*> station_writes = {"hq_velocity_command", "hq_mode_request",
+                                                   "hq_heartbeat"};
+  const auto& publishes = vehicle ? vehicle_writes : station_writes;
+  const auto& subscribes = vehicle ? station_writes : vehicle_writes;
+  const auto criteria = [&](const char* kind, const std::vector<const char*>& topics) {
+    std::ostringstream xml;
+    xml << "        <" << kind << ">\n          <topics>\n";
+    for (const char* topic : topics) xml << "            <topic>" << topic << "</topic>\n";
+    xml << "          </topics>\n          <partitions>\n";
+    for (const std::uint32_t v : vehicles) {
+      xml << "            <partition>" << vehicle_partition(v) << "</partition>\n";
+    }
+    xml << "          </partitions>\n        </" << kind << ">\n";
+    return xml.str();
+  };
+  std::ostringstream xml;
+  xml << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+         "<dds xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\"\n"
+         "     xsi:noNamespaceSchemaLocation=\"http://www.omg.org/spec/DDS-SECURITY/20170901/"
+         "omg_shared_ca_permissions.xsd\">\n"
+         "  <permissions>\n"
+      << "    <grant name=\"" << identity_name(request.role, request.id) << "\">\n"
+      << "      <subject_name>" << subject_name(request.role, request.id) << "</subject_name>\n"
+      << "      <validity>\n"
+      << "        <not_before>" << iso_utc(request.validity.not_before_s) << "</not_before>\n"
+      << "        <not_after>" << iso_utc(request.validity.not_after_s) << "</not_after>\n"
+      << "      </validity>\n"
+      << "      <allow_rule>\n"
+      << domains_xml(request.domains, "        ") << criteria("publish", publishes)
+      << criteria("subscribe", subscribes)
+      << "      </allow_rule>\n"
+         "      <default>DENY</default>\n"
+         "    </grant>\n"
+         "  </permissions>\n"
+         "</dds>\n";
+  return xml.str();
+}
+
+void make_governance(const std::string& dir, const DomainRange& domains) {
+  const Ca ca = load_ca(dir);
+  const std::string xml = governance_xml(domains);
+  write_file(dir + "/governance.xml", xml);
+  write_file(dir + "/governance.p7s", smime_sign(xml, ca.cert.get(), ca.key.get()));
+}
+
+void make_identity(const std::string& dir, const IdentityRequest& request) {
+  if (request.validity.not_after_s <= request.validity.not_before_s) {
+    throw InputError("identity " + identity_name(request.role, request.id) +
+                     ": validity ends before it starts");
+  }
+  const Ca ca = load_ca(dir);
+  const std::string xml = permissions_xml(request);
+  const std::string name = identity_name(request.role, request.id);
+  const IdentityFiles files = files_in(dir, name);
+  make_dir(dir + "/" + name);
+  Owned<EVP_PKEY> key = make_key();
+  Owned<X509> cert = make_cert(key.get(), name, request.validity, ca.cert.get(), ca.key.get());
+  write_file(files.private_key, key_pem(key.get()), true);
+  write_file(files.certificate, cert_pem(cert.get()));
+  write_file(dir + "/" + name + "/permissions.xml", xml);
+  write_file(files.permissions, smime_sign(xml, ca.cert.get(), ca.key.get()));
+}
+
+void check_identity(const IdentityFiles& files, std::int64_t now_s) {
+  check_readable(files.identity_ca, "identity CA certificate");
+  check_readable(files.certificate, "identity certificate");
+  check_readable(files.private_key, "private key");
+  check_readable(files.governance, "governance document");
+  check_readable(files.permissions, "permissions document");
+  check_readable(files.permissions_ca, "permissions CA certificate");
+  const Owned<X509> ca = load_cert(files.identity_ca);
+  check_times(ca.get(), files.identity_ca, "identity CA certificate", now_s);
+  const Owned<X509> cert = load_cert(files.certificate);
+  check_times(cert.get(), files.certificate, "certificate", now_s);
+  if (X509_verify(cert.get(), X509_get0_pubkey(ca.get())) != 1) {
+    ERR_clear_error();
+    fail(files.certificate, "certificate was not signed by the identity CA " + files.identity_ca);
+  }
+  const Owned<EVP_PKEY> key = load_key(files.private_key);
+  if (X509_check_private_key(cert.get(), key.get()) != 1) {
+    ERR_clear_error();
+    fail(files.private_key, "private key does not match the certificate " + files.certificate);
+  }
+  const Owned<X509> permissions_ca = load_cert(files.permissions_ca);
+  check_times(permissions_ca.get(), files.permissions_ca, "permissions CA certificate", now_s);
+  check_signed(files.governance, "governance document", permissions_ca.get(),
+               files.permissions_ca);
+  check_signed(files.permissions, "permissions document", permissions_ca.get(),
+               files.permissions_ca);
+}
+
+}  // namespace hq::security

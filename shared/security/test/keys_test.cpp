@@ -1,0 +1,162 @@
+// hq::security: keys and documents made here verify with OpenSSL, and check_identity names the
+// file and the problem for every way an identity can be broken.
+#include "hq/security/keys.hpp"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "hq/testing/input_error.hpp"
+
+namespace hq::security {
+namespace {
+
+std::int64_t now_s() { return static_cast<std::int64_t>(std::time(nullptr)); }
+
+class Keys : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = (std::filesystem::temp_directory_path() /
+            ("hq_keys_test_" + std::to_string(getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name()))
+               .string();
+    std::filesystem::remove_all(dir_);
+    make_ca(dir_, valid_for_days(now_s(), 30));
+    make_governance(dir_, DomainRange{});
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  IdentityFiles vehicle(std::int64_t not_before_s, std::int64_t not_after_s) {
+    IdentityRequest request;
+    request.role = Role::kVehicle;
+    request.id = 3;
+    request.validity = {not_before_s, not_after_s};
+    make_identity(dir_, request);
+    return files_in(dir_, "vehicle_3");
+  }
+
+  std::string dir_;
+};
+
+TEST_F(Keys, FreshIdentityPassesTheChecks) {
+  const IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  EXPECT_NO_THROW(check_identity(files, now_s()));
+  EXPECT_EQ(files.certificate, dir_ + "/vehicle_3/cert.pem");
+}
+
+TEST_F(Keys, PermissionsGrantOnlyTheVehiclesOwnPartitionAndTopics) {
+  IdentityRequest station;
+  station.role = Role::kStation;
+  station.id = 2;
+  station.vehicles = {1, 4};
+  station.validity = valid_for_days(now_s(), 1);
+  const std::string xml = permissions_xml(station);
+  EXPECT_NE(xml.find("<subject_name>CN=station_2,O=HaptiQuad</subject_name>"), std::string::npos);
+  EXPECT_NE(xml.find("<partition>hq_vehicle_1</partition>"), std::string::npos);
+  EXPECT_NE(xml.find("<partition>hq_vehicle_4</partition>"), std::string::npos);
+  EXPECT_EQ(xml.find("<partition>hq_vehicle_2</partition>"), std::string::npos);
+  // A station publishes commands and never vehicle state.
+  const std::size_t publish = xml.find("<publish>");
+  const std::size_t subscribe = xml.find("<subscribe>");
+  ASSERT_NE(publish, std::string::npos);
+  ASSERT_NE(subscribe, std::string::npos);
+  const std::string published = xml.substr(publish, subscribe - publish);
+  EXPECT_NE(published.find("hq_velocity_command"), std::string::npos);
+  EXPECT_EQ(published.find("hq_vehicle_state"), std::string::npos);
+  EXPECT_NE(xml.find("<default>DENY</default>"), std::string::npos);
+
+  station.vehicles.clear();
+  EXPECT_NE(testing::input_error_message([&] { permissions_xml(station); }).find("no vehicles"),
+            std::string::npos);
+}
+
+TEST_F(Keys, GovernanceEncryptsEveryLinkTopic) {
+  const std::string xml = governance_xml(DomainRange{});
+  EXPECT_NE(xml.find("<topic_expression>hq_*</topic_expression>"), std::string::npos);
+  EXPECT_NE(xml.find("<data_protection_kind>ENCRYPT</data_protection_kind>"), std::string::npos);
+  EXPECT_NE(xml.find("<allow_unauthenticated_participants>false"), std::string::npos);
+  EXPECT_NE(xml.find("<enable_join_access_control>true"), std::string::npos);
+  EXPECT_NE(testing::input_error_message([] { governance_xml(DomainRange{5, 231}); })
+                .find("expected 0 <= min <= max <= 230"),
+            std::string::npos);
+}
+
+TEST_F(Keys, MissingFileIsNamed) {
+  IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  std::filesystem::remove(files.private_key);
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.private_key), std::string::npos) << message;
+  EXPECT_NE(message.find("private key missing"), std::string::npos) << message;
+}
+
+TEST_F(Keys, ExpiredCertificateIsNamed) {
+  const IdentityFiles files = vehicle(now_s() - 10 * 86'400, now_s() - 86'400);
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.certificate), std::string::npos) << message;
+  EXPECT_NE(message.find("expired"), std::string::npos) << message;
+}
+
+TEST_F(Keys, CertificateNotYetValidIsNamed) {
+  const IdentityFiles files = vehicle(now_s() + 86'400, now_s() + 2 * 86'400);
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find("not valid yet"), std::string::npos) << message;
+}
+
+TEST_F(Keys, CertificateOfAnotherCaIsNamed) {
+  IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  const std::string other = dir_ + "/other";
+  make_ca(other, valid_for_days(now_s(), 30));
+  files.identity_ca = other + "/ca.pem";
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.certificate), std::string::npos) << message;
+  EXPECT_NE(message.find("not signed by the identity CA"), std::string::npos) << message;
+}
+
+TEST_F(Keys, KeyOfAnotherIdentityIsNamed) {
+  IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  IdentityRequest station;
+  station.role = Role::kStation;
+  station.id = 1;
+  station.vehicles = {3};
+  station.validity = valid_for_days(now_s(), 1);
+  make_identity(dir_, station);
+  files.private_key = files_in(dir_, "station_1").private_key;
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.private_key), std::string::npos) << message;
+  EXPECT_NE(message.find("does not match the certificate"), std::string::npos) << message;
+}
+
+TEST_F(Keys, TamperedPermissionsDoNotVerify) {
+  const IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  std::ifstream in(files.permissions);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t at = text.find("hq_vehicle_3");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 12, "hq_vehicle_4");  // grant itself another vehicle's partition
+  std::ofstream(files.permissions) << text;
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.permissions), std::string::npos) << message;
+  EXPECT_NE(message.find("signature does not verify"), std::string::npos) << message;
+}
+
+TEST_F(Keys, ExistingCaIsNotOverwritten) {
+  const std::string message =
+      testing::input_error_message([&] { make_ca(dir_, valid_for_days(now_s(), 1)); });
+  EXPECT_NE(message.find("a CA exists already"), std::string::npos) << message;
+}
+
+TEST_F(Keys, PrivateKeysAreOwnerOnly) {
+  const IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  const auto perms = std::filesystem::status(files.private_key).permissions();
+  EXPECT_EQ(perms & (std::filesystem::perms::group_all | std::filesystem::perms::others_all),
+            std::filesystem::perms::none);
+}
+
+}  // namespace
+}  // namespace hq::security
