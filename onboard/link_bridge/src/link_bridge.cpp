@@ -240,6 +240,14 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.roll_rad = static_cast<float>(out.estimate.roll_rad);
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
   s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
+  // Issue 16: the command as flown after the seen-space limit, so the ground can show the cut
+  // and render it; "limited" only where the chain limited it, the rest is the fail-safe's.
+  s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_horizontal_mps);
+  if (out.command_limited && out.mode.mode == modes::Mode::kTeleop) {
+    s.operator_input = hq_msgs_INPUT_LIMITED_UNSEEN;
+  } else if (s.operator_input == hq_msgs_INPUT_LIMITED_UNSEEN) {
+    s.operator_input = hq_msgs_INPUT_FLOWN;
+  }
   s.mode = to_link_mode(out.mode.mode);
   s.estimator_health = out.safe_hover                                 ? hq_msgs_HEALTH_LOST
                        : (!out.estimate.ok() || extras.vehicle_degraded) ? hq_msgs_HEALTH_DEGRADED

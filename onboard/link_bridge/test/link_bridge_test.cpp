@@ -158,6 +158,27 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   EXPECT_FLOAT_EQ(state.v_H_mps.y, -0.25F);
   EXPECT_EQ(state.link_health, hq_msgs_HEALTH_DEGRADED);  // no command yet: holding
   EXPECT_TRUE(link::validate(state).ok);
+
+  // Issue 16: a teleop command cut by the seen-space limit goes out as flown, and says so.
+  out.mode.mode = modes::Mode::kTeleop;
+  out.v_cmd_flown_horizontal_mps = {0.4, 0.0, -0.1};
+  out.command_limited = true;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    bridge.publish_state(out);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info);
+  }));
+  EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.x, 0.4F);
+  EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.z, -0.1F);
+  EXPECT_EQ(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
+  EXPECT_TRUE(link::validate(state).ok);
+  out.command_limited = false;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    bridge.publish_state(out);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info);
+  }));
+  EXPECT_NE(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
 }
 
 // Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.

@@ -179,8 +179,9 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   out.seen_space = seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_world_cur : nullptr,
                                       R_HQ);
   if (out.seen_space.updated && config_.memory.enabled && odometry.ok()) {
-    memory_.for_each_point(
-        [this](const Eigen::Vector3f& p_world_m) { seen_space_.add_remembered_point(p_world_m); });
+    memory_.for_each_point([this](const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns) {
+      seen_space_.add_remembered_point(p_world_m, t_seen_ns);
+    });
   }
   apply_operator_limit(&out);
   const std::int64_t t_obstacles_ns = now_ns();

@@ -117,6 +117,7 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   const bool pose_ok = T_world_camera != nullptr && T_world_camera->matrix().allFinite() &&
                        R_horizontal_body.allFinite();
   if (!pose_ok) {
+    pose_chain_broken_ = true;
     out.reason = "no pose";
     for (int b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
     return out;
@@ -128,6 +129,13 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   const Eigen::Matrix3d R_H_W = R_HC * R_WC.transpose();
   const Eigen::Vector3d p_C_body = -R_QC_.transpose() * p_QC_;
   const Eigen::Vector3d p_W_body = *T_world_camera * p_C_body;
+  if (have_pose_ && pose_chain_broken_) {
+    // Tracking came back: how far the vehicle turned and moved meanwhile is unknown.
+    for (int b = 0; b < n; ++b) bins_[b].seen = false;
+    have_pose_ = false;
+  }
+  if (!have_pose_) t_pose_since_ns_ = t_ns;
+  pose_chain_broken_ = false;
   if (have_pose_) {
     // Yaw turns the bins: a world-fixed direction keeps its bin. R_Hcur_Hprev = Rz(-dpsi).
     const Eigen::Matrix3d R_cur_prev = R_H_W * R_H_W_prev_.transpose();
@@ -227,8 +235,10 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   return out;
 }
 
-void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m) {
-  if (!config_.enabled || !have_pose_ || !p_world_m.allFinite()) return;
+void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m,
+                                            std::int64_t t_seen_ns) {
+  if (!config_.enabled || !have_pose_ || pose_chain_broken_ || !p_world_m.allFinite()) return;
+  if (t_seen_ns < t_pose_since_ns_) return;
   const Eigen::Vector3d p_H = R_H_W_ * (p_world_m.cast<double>() - p_W_body_);
   if (std::abs(p_H.z()) > config_.vertical_band_m) return;
   const double r_m = p_H.head<2>().norm();

@@ -116,10 +116,10 @@ TEST_F(SeenSpaceTest, ADirectionCoveredOnlyByMemoryUsesTheMemory) {
   limiter_.update(0, wall(3.0), &T, level_);
   // A remembered wall 1.5 m behind (W = body frame here), spanning +-40 deg.
   for (double y = -1.3; y <= 1.3; y += 0.05) {
-    limiter_.add_remembered_point(Eigen::Vector3f(-1.5f, static_cast<float>(y), 0.0f));
+    limiter_.add_remembered_point(Eigen::Vector3f(-1.5f, static_cast<float>(y), 0.0f), 0);
   }
   // Remembered points above the band (a ceiling) or beyond range do nothing.
-  limiter_.add_remembered_point(Eigen::Vector3f(0.0f, 1.0f, -1.0f));
+  limiter_.add_remembered_point(Eigen::Vector3f(0.0f, 1.0f, -1.0f), 0);
   EXPECT_LT(limiter_.free_distance_m(limiter_.bin_of_heading_azimuth(M_PI)), 1.51);
   EXPECT_LT(limiter_.free_distance_m(limiter_.bin_of_heading_azimuth(M_PI / 2)), 0.0);
 
@@ -194,6 +194,22 @@ TEST_F(SeenSpaceTest, YawTurnsTheBinsWithTheWorld) {
   EXPECT_TRUE(limiter_.limit(Eigen::Vector3d(1.0, 0.0, 0.0)).unseen) << "ahead is unseen now";
 }
 
+TEST_F(SeenSpaceTest, ATrackingLossForgetsKeptBinsAndOlderMemory) {
+  const Eigen::Isometry3d T = camera_pose(0.0);
+  limiter_.update(0, wall(3.0), &T, level_);
+  limiter_.update(kSecond / 30, wall(3.0), nullptr, level_);  // lost
+  // Back, turned 90 deg meanwhile (unknown to the limiter): nothing kept is trusted.
+  const Eigen::Isometry3d T90 = camera_pose(M_PI / 2);
+  limiter_.update(2 * kSecond / 30, cv::Mat(), &T90, level_);
+  EXPECT_TRUE(limiter_.limit(Eigen::Vector3d(0.0, -1.0, 0.0)).unseen);
+  // W -x is on the right of a body yawed 90 deg.
+  limiter_.add_remembered_point(Eigen::Vector3f(-1.5f, 0.0f, 0.0f), 0);  // seen before the loss
+  EXPECT_LT(limiter_.free_distance_m(limiter_.bin_of_heading_azimuth(M_PI / 2 + 0.01)), 0.0);
+  limiter_.add_remembered_point(Eigen::Vector3f(-1.5f, 0.0f, 0.0f), 2 * kSecond / 30);
+  EXPECT_NEAR(limiter_.free_distance_m(limiter_.bin_of_heading_azimuth(M_PI / 2 + 0.01)), 1.5,
+              0.01);
+}
+
 TEST_F(SeenSpaceTest, TravelShrinksKeptBinsAndAJumpForgetsThem) {
   limiter_.update(0, wall(3.0), &(static_cast<const Eigen::Isometry3d&>(camera_pose(0.0))), level_);
   // Moved 0.25 m forward, depth missing this frame: the kept wall is at most 2.75 m away.
@@ -214,7 +230,7 @@ TEST_F(SeenSpaceTest, UpdateAndLimitAllocateNothing) {
   for (int i = 1; i < 20; ++i) {
     const Eigen::Isometry3d Ti = camera_pose(0.01 * i, Eigen::Vector3d(0.01 * i, 0.0, 0.0));
     limiter_.update(i * kSecond / 30, depth, &Ti, level_);
-    limiter_.add_remembered_point(Eigen::Vector3f(-1.0f, 0.0f, 0.0f));
+    limiter_.add_remembered_point(Eigen::Vector3f(-1.0f, 0.0f, 0.0f), i * kSecond / 30);
     const LimitedCommand c = limiter_.limit(Eigen::Vector3d(1.0, 0.5, 0.0));
     EXPECT_TRUE(c.v_horizontal_mps.allFinite());
     limiter_.heading_limits(limits);

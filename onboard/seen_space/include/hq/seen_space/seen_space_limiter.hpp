@@ -15,9 +15,12 @@
 ///    is no data (near surfaces read invalid on RGB-D sensors).
 ///  - kept from earlier frames: bins turn with the vehicle's yaw (the odometry pose), and a
 ///    bin's distance shrinks by the horizontal distance travelled since (the distance to what
-///    was seen cannot shrink faster); a bin not seen for max_age_s goes back to no data.
+///    was seen cannot shrink faster); a bin not seen for max_age_s goes back to no data. A
+///    frame without a pose (tracking lost) breaks the chain of poses: the yaw turned meanwhile
+///    is unknown, so every kept bin is forgotten when the pose comes back.
 ///  - from the obstacle memory (onboard/obstacle_memory): every remembered point in the band
-///    bounds its bin's distance, whether that bin is otherwise seen or not.
+///    bounds its bin's distance, whether that bin is otherwise seen or not; points last seen
+///    before a tracking loss are not trusted (their place relative to the vehicle is not).
 ///
 /// Braking model: with reaction time t_r (frame latency, the velocity loop's lag) and
 /// deceleration a, a vehicle at speed v needs v t_r + v^2 / (2 a) to stop; with the free
@@ -124,9 +127,10 @@ class SeenSpaceLimiter {
                          const Eigen::Isometry3d* T_world_camera,
                          const Eigen::Matrix3d& R_horizontal_body);
 
-  /// After update(): a remembered obstacle point in W (the memory's map) bounds its bin. Points
-  /// outside the vertical band or beyond max_range_m are ignored.
-  void add_remembered_point(const Eigen::Vector3f& p_world_m);
+  /// After update(): a remembered obstacle point in W (the memory's map), last seen at
+  /// t_seen_ns, bounds its bin. Points outside the vertical band or beyond max_range_m, and
+  /// points seen before the last tracking loss, are ignored.
+  void add_remembered_point(const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns);
 
   /// Limits the horizontal part of a command in H (current heading). Non-finite input gives
   /// zero. Allocates nothing.
@@ -166,6 +170,8 @@ class SeenSpaceLimiter {
   std::array<int, kMaxBins> frame_total_{};
 
   bool have_pose_ = false;
+  bool pose_chain_broken_ = false;   ///< An update without a pose since the last one with.
+  std::int64_t t_pose_since_ns_ = 0;  ///< First pose after the last tracking loss.
   Eigen::Matrix3d R_H_W_prev_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d p_W_body_prev_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d R_H_W_ = Eigen::Matrix3d::Identity();  ///< Of the last update with a pose.
