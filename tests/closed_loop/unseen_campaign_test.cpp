@@ -59,6 +59,8 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
     s.start_airborne(1.0);
     s.sim.seed = seed + static_cast<std::uint64_t>(run);
     s.onboard.seen_space.enabled = limiter;
+    // HQ_UNSEEN_CREEP=0.15: the same campaign with a creep speed towards no data.
+    if (const char* c = std::getenv("HQ_UNSEEN_CREEP")) s.onboard.seen_space.creep_speed_mps = std::atof(c);
     s.script.end_s = kSettleS + kSegments * kSegmentS + 1.0;
     s.step(0.0, Eigen::Vector3d::Zero(), 0.0, modes::Mode::kTeleop);
     for (int k = 0; k < kSegments; ++k) {
@@ -113,6 +115,8 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
 }
 
 std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
+  // HQ_UNSEEN_RUNS=N flies more runs per world (the README figures); the test keeps it short.
+  if (const char* n = std::getenv("HQ_UNSEEN_RUNS")) runs_per_world = std::max(1, std::atoi(n));
   std::vector<WorldRow> rows;
   std::uint32_t seed = 1600;
   const char* only = std::getenv("HQ_UNSEEN_WORLD");
@@ -135,7 +139,7 @@ std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
 }
 
 TEST(UnseenCampaign, RandomInEnvelopeCommandsNeverCollideNorFlyAway) {
-  for (const WorldRow& r : campaign(true, 3)) {
+  for (const WorldRow& r : campaign(true, 4)) {
     EXPECT_EQ(r.collision_ticks, 0) << r.world;
     EXPECT_EQ(r.fly_aways, 0) << r.world;
     EXPECT_GT(r.min_clearance_m, 0.0) << r.world;
@@ -144,7 +148,7 @@ TEST(UnseenCampaign, RandomInEnvelopeCommandsNeverCollideNorFlyAway) {
 }
 
 // The same campaign without the limiter: the figure the closing note compares with.
-TEST(UnseenCampaign, DISABLED_WithoutTheLimiterForComparison) { campaign(false, 3); }
+TEST(UnseenCampaign, DISABLED_WithoutTheLimiterForComparison) { campaign(false, 4); }
 
 /// The case: hold v along H-x (45 deg off the camera axis) in the arena.
 std::unique_ptr<ClosedLoop> along_h_x(double speed_mps, bool limiter) {

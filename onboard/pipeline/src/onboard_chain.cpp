@@ -176,6 +176,9 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
                               !takeoff_complete_);
   out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
   // Issue 16: what this frame and the memory have seen limits the operator's command.
+  v_est_for_limit_mps_ = out.estimate.usable()
+                             ? out.estimate.v_horizontal_mps
+                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   out.seen_space = seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_world_cur : nullptr,
                                       R_HQ);
   if (out.seen_space.updated && config_.memory.enabled && odometry.ok()) {
@@ -234,6 +237,9 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.estimate.unavailable_for_s = std::max(out.estimate.unavailable_for_s, silence_s);
   out.obstacles.reason = "no frame";
   // No frame: the seen space only ages (no pose to turn it with).
+  v_est_for_limit_mps_ = out.estimate.usable()
+                             ? out.estimate.v_horizontal_mps
+                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
   apply_operator_limit(&out);
   const Eigen::Vector3d v_est_mps =
@@ -254,7 +260,8 @@ void OnboardChain::apply_operator_limit(ChainOutput* out) {
     seen_space_.heading_limits(out->seen_space_limits_mps);
   }
   if (!have_operator_command_) return;
-  const seen_space::LimitedCommand limited = seen_space_.limit(operator_command_.v_horizontal_mps);
+  const seen_space::LimitedCommand limited =
+      seen_space_.limit(operator_command_.v_horizontal_mps, v_est_for_limit_mps_);
   modes::OperatorCommand flown = operator_command_;  // same stamp: the teleop timeout holds
   flown.v_horizontal_mps = limited.v_horizontal_mps;
   modes_.set_operator_command(flown);

@@ -89,6 +89,13 @@ double SeenSpaceLimiter::max_speed_mps(double free_m) const {
   return a * (-t_r + std::sqrt(t_r * t_r + 2.0 * stop_m / a));
 }
 
+double SeenSpaceLimiter::max_speed_mps(double free_m, double v_now_mps) const {
+  const double stop_m = free_m - vehicle_radius_m_ - config_.margin_m -
+                        std::max(0.0, v_now_mps) * config_.reaction_s;
+  if (!(stop_m > 0.0)) return 0.0;
+  return std::sqrt(2.0 * config_.brake_accel_mps2 * stop_m);
+}
+
 double SeenSpaceLimiter::free_distance_m(int b, bool* obstacle) const {
   if (obstacle != nullptr) *obstacle = false;
   if (b < 0 || b >= config_.bins) return -1.0;
@@ -247,7 +254,8 @@ void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m,
   memory_m_[b] = std::min(memory_m_[b], static_cast<float>(r_m));
 }
 
-LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps) const {
+LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps,
+                                       const Eigen::Vector3d& v_est_horizontal_mps) const {
   LimitedCommand out;
   if (!v_horizontal_mps.allFinite()) {
     out.limited = true;
@@ -261,13 +269,22 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps) 
   const double window = config_.no_data_half_angle_deg * M_PI / 180.0 + 0.5 * bin_width_rad_;
   double v_max = out.v_max_mps;
   bool unseen = false;
+  const bool have_v_est = v_est_horizontal_mps.head<2>().allFinite();
   for (int b = 0; b < config_.bins; ++b) {
     const double theta = wrap_pi((b + 0.5) * bin_width_rad_ - heading);
     bool obstacle = false;
     const double d = free_distance_m(b, &obstacle);
     if (d >= 0.0 && obstacle) {
       const double c = std::cos(theta);
-      if (c > 1e-3) v_max = std::min(v_max, max_speed_mps(d) / c);
+      if (c <= 1e-3) continue;
+      double v_bin = max_speed_mps(d);
+      if (have_v_est) {
+        // The vehicle's own speed towards this bin flies the reaction distance.
+        const double a = (b + 0.5) * bin_width_rad_ - yaw_rad_;  // the bin's azimuth in H
+        v_bin = max_speed_mps(d, v_est_horizontal_mps.x() * std::cos(a) +
+                                     v_est_horizontal_mps.y() * std::sin(a));
+      }
+      v_max = std::min(v_max, v_bin / c);
       continue;
     }
     if (std::abs(theta) > window) continue;

@@ -101,6 +101,24 @@ TEST_F(SeenSpaceTest, WallAheadLimitsForwardToTheBrakingSpeedAndUnseenBackToCree
   EXPECT_LT(diagonal.v_horizontal_mps.head<2>().norm(), 1e-9);
 }
 
+TEST_F(SeenSpaceTest, AVehicleFasterThanItsCommandGetsALowerCommand) {
+  const Eigen::Isometry3d T = camera_pose(0.0);
+  limiter_.update(0, wall(2.0), &T, level_);
+  const double plain = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0)).v_horizontal_mps.x();
+  const double slow = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(0.2, 0.0, 0.0))
+                          .v_horizontal_mps.x();
+  const double fast = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(1.8, 0.0, 0.0))
+                          .v_horizontal_mps.x();
+  EXPECT_GT(slow, fast);
+  EXPECT_NEAR(fast, std::sqrt(2.0 * config_.brake_accel_mps2 *
+                              (2.0 - kRadius - config_.margin_m - 1.8 * config_.reaction_s)),
+              0.05);
+  // Moving away from the wall: no reaction distance towards it.
+  const double away = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(-0.5, 0.0, 0.0))
+                          .v_horizontal_mps.x();
+  EXPECT_GT(away, plain);
+}
+
 TEST_F(SeenSpaceTest, CreepSpeedIsConfigurable) {
   SeenSpaceConfig config = config_;
   config.creep_speed_mps = 0.15;

@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -218,6 +219,8 @@ class OnboardChain {
   bool gyro_since_frame_ = false;
   modes::OperatorCommand operator_command_;  ///< As the operator sent it, before the limit.
   bool have_operator_command_ = false;
+  /// The last usable velocity estimate (NaN when none): the limiter's reaction distance.
+  Eigen::Vector3d v_est_for_limit_mps_ = Eigen::Vector3d::Constant(NAN);
   bool in_safe_hover_ = false;
   std::int64_t t_safe_hover_start_ns_ = 0;
   bool lost_estimate_landing_ = false;  ///< Landing because the safe hover lasted too long.

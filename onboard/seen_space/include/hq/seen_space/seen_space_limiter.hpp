@@ -26,6 +26,10 @@
 /// deceleration a, a vehicle at speed v needs v t_r + v^2 / (2 a) to stop; with the free
 /// distance d minus vehicle_radius_m and margin_m that gives
 ///   v_max(d) = a (-t_r + sqrt(t_r^2 + 2 (d - radius - margin) / a)).
+/// When the current velocity estimate is known, the reaction distance is flown at the
+/// vehicle's own speed towards the bin, v_par (as PX4 does): v_max = sqrt(2 a (d - radius -
+/// margin - v_par t_r)), so a vehicle faster than its command (the loop lags) gets a lower
+/// command, and the velocity loop brakes harder.
 /// A bin holding an obstacle (a surface in the band, or a remembered point) at angle theta from
 /// the command direction (|theta| < 90 deg) limits the command's component towards it:
 /// |v| cos(theta) <= v_max(d) (PX4 projects the same way, so sliding along a wall stays
@@ -46,6 +50,7 @@
 #include <opencv2/core.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 
 namespace hq::config {
@@ -133,11 +138,16 @@ class SeenSpaceLimiter {
   void add_remembered_point(const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns);
 
   /// Limits the horizontal part of a command in H (current heading). Non-finite input gives
-  /// zero. Allocates nothing.
-  [[nodiscard]] LimitedCommand limit(const Eigen::Vector3d& v_horizontal_mps) const;
+  /// zero. v_est_horizontal_mps, when finite, is the vehicle's velocity now (H): the reaction
+  /// distance uses it. Allocates nothing.
+  [[nodiscard]] LimitedCommand limit(const Eigen::Vector3d& v_horizontal_mps,
+                                     const Eigen::Vector3d& v_est_horizontal_mps =
+                                         Eigen::Vector3d::Constant(NAN)) const;
 
   /// Braking model: the largest speed that stops within free distance free_m.
   [[nodiscard]] double max_speed_mps(double free_m) const;
+  /// The same with the reaction distance flown at v_now_mps (>= 0) towards the obstacle.
+  [[nodiscard]] double max_speed_mps(double free_m, double v_now_mps) const;
 
   /// Bin b's free distance including remembered points, or a negative value for no data.
   /// obstacle (optional) tells whether that distance ends at a surface.
