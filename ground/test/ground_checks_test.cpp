@@ -30,6 +30,7 @@ link::LinkConfig private_link() {
   link::LinkConfig config;
   config.domain_id = 1 + static_cast<int>((getpid() + 100) % 200);
   config.station_id = 1;
+  config.security.enabled = false;  // a plain DDS domain of its own; security has its own tests
   return config;
 }
 

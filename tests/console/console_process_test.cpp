@@ -279,13 +279,14 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   Keyboard keys;
   if (!keys.usable()) GTEST_SKIP() << "no XTest (libXtst.so.6) on this display";
   Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "60", "--domain-id", domain},
+                   "onboard/sim/worlds/arena.yaml", "--duration-s", "60", "--domain-id", domain,
+                   "--insecure"},
                   dir / "onboard.out");
   const fs::path shot = dir / "link_lost.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";
-  Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--domain-id", domain, "--duration-s",
-                  "60", "--record", recording.string(), "--screenshot", shot.string(),
+  Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--domain-id", domain, "--insecure",
+                  "--duration-s", "60", "--record", recording.string(), "--screenshot", shot.string(),
                   "--state-json", state.string()},
                  dir / "ground.out");
   ASSERT_TRUE(keys.focus("hq-ground", 10.0)) << slurp(dir / "ground.out");

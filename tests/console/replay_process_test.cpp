@@ -90,13 +90,13 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
   const fs::path recording = dir / "recording";
   {
     Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                    "ground/config/demo_hand.yaml", "--domain-id", domain, "--duration-s", "9",
+                    "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure", "--duration-s", "9",
                     "--headless", "--record", recording.string()},
                    (dir / "ground.out").string());
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
                      "onboard/sim/worlds/arena.yaml", "--duration-s", "5", "--domain-id", domain,
-                     "--link-log", (dir / "link.csv").string()},
+                     "--insecure", "--link-log", (dir / "link.csv").string()},
                     (dir / "onboard.out").string());
     ASSERT_EQ(onboard.wait_exit(40.0), 0) << slurp(dir / "onboard.out");
     ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");

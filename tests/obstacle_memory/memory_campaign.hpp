@@ -107,6 +107,10 @@ inline Scenario memory_scenario(const MemoryRun& r, bool memory_enabled, const s
   s.sim.seed = 5000u + 100u * static_cast<std::uint64_t>(r.kind) +
                static_cast<std::uint64_t>(r.index);
   s.onboard.memory.enabled = memory_enabled;
+  // These runs measure the memory's push on a vehicle driven out of view; the seen-space
+  // limiter (issue 16) refuses that drive itself, so it is off here (its own campaign is
+  // tests/closed_loop/unseen_campaign_test.cpp).
+  s.onboard.seen_space.enabled = false;
 
   // The camera heading in the world (NWU): NED yaw + alpha, with NWU y = -NED east.
   const double heading = r.start_yaw_rad + camera_heading_rad(s.vehicle.R_body_camera);

@@ -292,6 +292,9 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.roll_rad = static_cast<float>(out.estimate.roll_rad);
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
   s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
+  // Issue 16: the command as flown after the seen-space limit, so the ground can show the cut
+  // and render it.
+  s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_horizontal_mps);
   s.mode = to_link_mode(out.mode.mode);
   s.estimator_health = out.safe_hover                                 ? hq_msgs_HEALTH_LOST
                        : (!out.estimate.ok() || extras.vehicle_degraded) ? hq_msgs_HEALTH_DEGRADED
@@ -302,6 +305,10 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.session_id = session_id();
   s.commanding_station_id = link_state.commanding_station_id;
   s.operator_input = operator_input(link_state, out.mode.mode, out.mode.landed);
+  // A command the fail-safe lets through may still be cut by the seen-space limit.
+  if (s.operator_input == hq_msgs_INPUT_FLOWN && out.command_limited) {
+    s.operator_input = hq_msgs_INPUT_LIMITED_UNSEEN;
+  }
   s.obstacle_points_body_m._length = 0;
   last_cloud_size_ = 0;
   if (cloud.memory != nullptr && options_.obstacle_cloud_rate_hz > 0.0 &&

@@ -209,6 +209,33 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   EXPECT_FLOAT_EQ(state.height_m, 1.02F);
   EXPECT_FLOAT_EQ(state.clearance_m, 0.6F);
   EXPECT_TRUE(link::validate(state).ok);
+
+  // Issue 16: a teleop command cut by the seen-space limit goes out as flown, and says so.
+  out.mode.mode = modes::Mode::kTeleop;
+  out.v_cmd_flown_horizontal_mps = {0.4, 0.0, -0.1};
+  out.command_limited = true;
+  // A fresh command from the station: the fail-safe flies it, the limit cuts it.
+  link::VelocityCommand fresh{};
+  fresh.vehicle_id = 1;
+  fresh.station_id = 1;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    ground.commands.write(fresh);
+    bridge.publish_state(out);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info) && state.operator_input == hq_msgs_INPUT_LIMITED_UNSEEN;
+  }));
+  EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.x, 0.4F);
+  EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.z, -0.1F);
+  EXPECT_EQ(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
+  EXPECT_TRUE(link::validate(state).ok);
+  out.command_limited = false;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    ground.commands.write(fresh);
+    bridge.publish_state(out);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info) && state.operator_input == hq_msgs_INPUT_FLOWN;
+  }));
+  EXPECT_NE(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
 }
 
 // GIVEN two bridges (a vehicle and its restart) THEN their sessions differ and the state of each

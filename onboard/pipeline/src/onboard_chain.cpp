@@ -16,6 +16,7 @@ void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read("gyro_rotation_prior", out.gyro_rotation_prior);
   section.read_positive("gyro_prior_sigma_radps", out.gyro_prior_sigma_radps, 10.0);
   section.read("landed_height_m", out.landed_height_m, 0.0, 2.0);
+  section.read_positive("safe_hover_land_s", out.safe_hover_land_s, 600.0);
   section.finish();
 }
 
@@ -43,6 +44,8 @@ OnboardConfig load_onboard_config(const std::string& path) {
   obstacles::read_config(obstacles, out.obstacles);
   config::StrictMap memory = root.child("memory");
   obstacle_memory::read_config(memory, out.memory);
+  config::StrictMap seen_space = root.child("seen_space");
+  seen_space::read_config(seen_space, out.seen_space);
   config::StrictMap control = root.child("control");
   control::read_config(control, out.control);
   config::StrictMap modes = root.child("modes");
@@ -80,6 +83,8 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       estimator_(config.estimator, vehicle.R_body_camera, vehicle.p_body_camera_m),
       memory_(config.memory, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
       obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
+      seen_space_(config.seen_space, camera, vehicle.R_body_camera, vehicle.p_body_camera_m,
+                  config.obstacles.vehicle_radius_m),
       modes_(config.modes, config.control, vehicle),
       R_body_camera_(vehicle.R_body_camera) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
@@ -184,6 +189,18 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
                               !takeoff_complete_);
   out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
   update_height(t_ns, out.obstacles.floor_height_m, out);
+  // Issue 16: what this frame and the memory have seen limits the operator's command.
+  v_est_for_limit_mps_ = out.estimate.usable()
+                             ? out.estimate.v_horizontal_mps
+                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  out.seen_space = seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_world_cur : nullptr,
+                                      R_HQ);
+  if (out.seen_space.updated && config_.memory.enabled && odometry.ok()) {
+    memory_.for_each_point([this](const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns) {
+      seen_space_.add_remembered_point(p_world_m, t_seen_ns);
+    });
+  }
+  apply_operator_limit(&out);
   const std::int64_t t_obstacles_ns = now_ns();
 
   // Without an estimate the PID gets a non-finite measurement on purpose: the velocity
@@ -201,6 +218,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   if (out.safe_hover) {
     out.safe_hover_reason = out.estimate.usable() ? out.mode.control.reason : out.estimate.reason;
   }
+  escalate_safe_hover(out);
   have_frame_ = true;
   t_last_frame_ns_ = t_ns;
 
@@ -233,6 +251,12 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.estimate = estimator_.between_frames(t_ns, "camera timed out");
   out.estimate.unavailable_for_s = std::max(out.estimate.unavailable_for_s, silence_s);
   out.obstacles.reason = "no frame";
+  // No frame: the seen space only ages (no pose to turn it with).
+  v_est_for_limit_mps_ = out.estimate.usable()
+                             ? out.estimate.v_horizontal_mps
+                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
+  apply_operator_limit(&out);
   const Eigen::Vector3d v_est_mps =
       out.estimate.usable() ? out.estimate.v_horizontal_mps
                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
@@ -243,6 +267,7 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.degraded = true;
   out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
   if (out.safe_hover) out.safe_hover_reason = "camera timed out: hover on IMU attitude only";
+  escalate_safe_hover(out);
   return out;
 }
 
@@ -283,13 +308,54 @@ void OnboardChain::finish_output(ChainOutput& out) const {
   out.clearance_m = out.obstacles.min_clearance_m;
 }
 
-void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
-  modes_.set_operator_command(command);
+void OnboardChain::apply_operator_limit(ChainOutput* out) {
+  if (out != nullptr) {
+    out->seen_space_bins = seen_space_.bins();
+    seen_space_.heading_limits(out->seen_space_limits_mps);
+  }
+  if (!have_operator_command_) return;
+  const seen_space::LimitedCommand limited =
+      seen_space_.limit(operator_command_.v_horizontal_mps, v_est_for_limit_mps_);
+  modes::OperatorCommand flown = operator_command_;  // same stamp: the teleop timeout holds
+  flown.v_horizontal_mps = limited.v_horizontal_mps;
+  modes_.set_operator_command(flown);
+  if (out == nullptr) return;
+  out->v_cmd_flown_horizontal_mps = limited.v_horizontal_mps;
+  out->command_limited = limited.limited;
+  out->command_unseen = limited.unseen;
 }
 
-modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) { return modes_.request_mode(mode); }
+void OnboardChain::escalate_safe_hover(ChainOutput& out) {
+  if (out.estimate.usable()) lost_estimate_landing_ = false;
+  if (!out.safe_hover) {
+    in_safe_hover_ = false;
+    return;
+  }
+  if (!in_safe_hover_) {
+    in_safe_hover_ = true;
+    t_safe_hover_start_ns_ = out.t_ns;
+  }
+  const double hover_s = 1e-9 * static_cast<double>(out.t_ns - t_safe_hover_start_ns_);
+  if (hover_s >= config_.chain.safe_hover_land_s && modes_.mode() != modes::Mode::kLand) {
+    modes_.request_mode(modes::Mode::kLand);
+    lost_estimate_landing_ = true;
+    out.safe_hover_landing = true;
+  }
+}
+
+void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
+  if (!command.v_horizontal_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
+  operator_command_ = command;
+  have_operator_command_ = true;
+  apply_operator_limit(nullptr);
+}
+
+modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) { return request_mode(ModeRequest{mode, std::nullopt}); }
 
 modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
+  if (lost_estimate_landing_ && request.mode != modes::Mode::kLand) {
+    return {false, "no velocity estimate: landing after the safe hover (chain.safe_hover_land_s)"};
+  }
   if (request.marker) {
     if (request.marker->marker_id < 0) return {false, "marker target id is negative"};
     if (!markers_) {

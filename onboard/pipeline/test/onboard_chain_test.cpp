@@ -248,6 +248,80 @@ TEST_F(LandedChainOnRenderedPlane, StartsLandedWithMotorsIdleAndTakesOffOnAClimb
   EXPECT_TRUE(setpoint_finite(out));
 }
 
+TEST_F(ChainOnRenderedPlane, OperatorCommandIsLimitedToTheSeenSpace) {
+  // GIVEN the default camera (looking straight down at the plane 2 m below): it proves no
+  // horizontal free space beyond a few cm around the vehicle (issue 16).
+  for (int k = 0; k < 12; ++k) frame(k);
+  // WHEN the operator asks for 1 m/s sideways and a climb
+  chain_.set_operator_command({12 * kFramePeriodNs, Eigen::Vector3d(0.0, 1.0, -0.2), 0.0});
+  const ChainOutput out = frame(12);
+  // THEN the horizontal part is cut to the creep speed (0), the climb passes, and the chain
+  // says so with the per-bin limits.
+  EXPECT_TRUE(out.command_limited);
+  EXPECT_NEAR(out.v_cmd_flown_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
+  EXPECT_DOUBLE_EQ(out.v_cmd_flown_horizontal_mps.z(), -0.2);
+  EXPECT_EQ(out.seen_space_bins, 72);
+  EXPECT_TRUE(out.seen_space.updated);
+  for (int b = 0; b < out.seen_space_bins; ++b) EXPECT_EQ(out.seen_space_limits_mps[b], 0.0f);
+  // The mode controller got the limited command: v*_des has no horizontal part.
+  EXPECT_NEAR(out.mode.v_star_des_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
+}
+
+class UnlimitedChainOnRenderedPlane : public ChainOnRenderedPlane {
+ protected:
+  UnlimitedChainOnRenderedPlane() : ChainOnRenderedPlane(unlimited()) {}
+  static OnboardConfig unlimited() {
+    OnboardConfig config = airborne_config();
+    config.seen_space.enabled = false;
+    return config;
+  }
+};
+
+TEST_F(UnlimitedChainOnRenderedPlane, DisabledLimiterPassesTheCommand) {
+  for (int k = 0; k < 12; ++k) frame(k);
+  chain_.set_operator_command({12 * kFramePeriodNs, Eigen::Vector3d(0.0, 1.0, -0.2), 0.0});
+  const ChainOutput out = frame(12);
+  EXPECT_FALSE(out.command_limited);
+  EXPECT_DOUBLE_EQ(out.v_cmd_flown_horizontal_mps.y(), 1.0);
+}
+
+TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {
+  // Airborne, no frame ever: the safe hover; after chain.safe_hover_land_s of it the chain
+  // lands (blind descent) and refuses to go back to teleop while there is no estimate.
+  OnboardConfig config = airborne_config();
+  config.chain.safe_hover_land_s = 2.0;
+  OnboardChain chain(config, control::VehicleConfig{}, kCamera);
+  chain.request_mode(modes::Mode::kTeleop);
+  const std::int64_t tick_ns = 5'000'000;
+  std::int64_t t_first_hover_ns = -1;
+  std::int64_t t_land_ns = -1;
+  std::int64_t t_landed_ns = -1;
+  for (std::int64_t t = tick_ns; t <= 10'000'000'000; t += tick_ns) {
+    const auto out = chain.on_tick(t);
+    if (!out) continue;
+    if (out->safe_hover && t_first_hover_ns < 0) t_first_hover_ns = t;
+    if (out->safe_hover_landing) t_land_ns = t;
+    if (out->mode.landed && t_landed_ns < 0) {
+      t_landed_ns = t;
+      EXPECT_EQ(out->mode.control.setpoint.thrust_n, 0.0);
+    }
+    if (t_land_ns > 0 && t > t_land_ns && t_landed_ns < 0) {  // from the step after the request
+      EXPECT_TRUE(out->mode.blind_descent);
+      EXPECT_LT(out->mode.control.setpoint.thrust_n, control::kGravityMps2);
+    }
+  }
+  ASSERT_GT(t_first_hover_ns, 0);
+  ASSERT_GT(t_land_ns, 0) << "the safe hover never escalated";
+  EXPECT_NEAR(1e-9 * static_cast<double>(t_land_ns - t_first_hover_ns), 2.0, 0.01);
+  EXPECT_EQ(chain.mode(), modes::Mode::kLand);
+  ASSERT_GT(t_landed_ns, 0) << "the blind descent never ended landed";
+  EXPECT_NEAR(1e-9 * static_cast<double>(t_landed_ns - t_land_ns), config.modes.blind_descent_s,
+              0.02);
+  const modes::ModeSwitch back = chain.request_mode(modes::Mode::kTeleop);
+  EXPECT_FALSE(back.accepted);
+  EXPECT_THAT(back.reason, HasSubstr("landing"));
+}
+
 TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
   // Airborne, no frame ever and no IMU: nothing to coast on, the safe hover.
   OnboardChain airborne(airborne_config(), control::VehicleConfig{}, kCamera);
@@ -286,6 +360,9 @@ std::string load_error(const std::string& path) {
 
 TEST(LoadOnboardConfig, ReadsTheDefaultFileIntoEveryComponent) {
   const OnboardConfig config = load_onboard_config("config/onboard.yaml");
+  EXPECT_TRUE(config.seen_space.enabled);
+  EXPECT_EQ(config.seen_space.bins, 72);
+  EXPECT_DOUBLE_EQ(config.chain.safe_hover_land_s, 5.0);
   // influence_distance_m is now the clearance to the vehicle's sphere (1.0 m in the file).
   EXPECT_DOUBLE_EQ(config.obstacles.influence_distance_m, 1.0);
   EXPECT_DOUBLE_EQ(config.obstacles.vehicle_radius_m, 0.35);

@@ -111,6 +111,13 @@ class ObstacleMemory {
   /// evenly strided over the map. Returns the number written. Allocates nothing.
   int telemetry_cloud(std::span<Eigen::Vector3f> p_world_m) const;
 
+  /// Calls visit(p_world_m, t_ns) (an Eigen::Vector3f in W, when last seen) for every point of
+  /// the map, e.g. for the seen-space limiter (issue 16). Allocates nothing.
+  template <typename Visit>
+  void for_each_point(Visit&& visit) const {
+    for (const MapPoint& entry : entries_) visit(entry.p_world_m, entry.t_ns);
+  }
+
   /// Writes the map as PCD (binary) or PLY (binary) by the path's extension (.pcd / .ply),
   /// points in W (m). @throws hq::InputError naming the path if it cannot be written.
   void save(const std::string& path) const;

@@ -16,10 +16,13 @@
 #include "hq/obstacle_memory/obstacle_memory.hpp"
 #include "hq/obstacles/obstacle_field.hpp"
 #include "hq/odometry/dense_odometry.hpp"
+#include "hq/seen_space/seen_space_limiter.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -42,10 +45,15 @@ struct ChainConfig {
   /// Height of the body origin above the floor when standing on it (landing gear): the
   /// height estimate starts here at every take-off.
   double landed_height_m = 0.08;
+  /// Safe hover (no usable velocity) for longer than this lands (issue 16): the IMU holds the
+  /// attitude but not the position, so hovering blind forever ends in a drift into a wall.
+  /// The land is the modes' blind descent; other mode requests are refused until the estimate
+  /// is back.
+  double safe_hover_land_s = 5.0;
 };
 
 /// Reads the `chain:` section {camera_timeout_s, takeoff_height_m, gyro_rotation_prior,
-/// gyro_prior_sigma_radps, landed_height_m} strictly.
+/// gyro_prior_sigma_radps, landed_height_m, safe_hover_land_s} strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -54,6 +62,7 @@ struct OnboardConfig {
   estimator::VelocityEstimatorConfig estimator;
   obstacles::ObstacleConfig obstacles;
   obstacle_memory::MemoryConfig memory;
+  seen_space::SeenSpaceConfig seen_space;  ///< Issue 16: no motion into unseen space.
   control::VelocityControllerConfig control;
   modes::ModesConfig modes;
   ChainConfig chain;
@@ -62,7 +71,7 @@ struct OnboardConfig {
 };
 
 /// Loads an on-board config file strictly: sections odometry, estimator, obstacles, memory,
-/// control, modes and chain, each handed to its component's read_config (an absent section keeps that
+/// seen_space, control, modes and chain, each handed to its component's read_config (an absent section keeps that
 /// component's defaults; an unknown section or key is an error). Throws hq::InputError naming
 /// file, key, value and expectation.
 OnboardConfig load_onboard_config(const std::string& path);
@@ -125,6 +134,19 @@ struct ChainOutput {
   HeightSource height_source = HeightSource::kNone;
   /// Closest obstacle clearance the field saw this step (m); -1 when none.
   double clearance_m = -1.0;
+  /// Issue 16: the safe hover lasted chain.safe_hover_land_s, so the chain asked to land.
+  bool safe_hover_landing = false;
+  /// Issue 16, the seen-space limit on the operator's command (teleop), for the operator to
+  /// feel and see: the command as flown (before the mode ramp and v_obs), whether it was cut,
+  /// and whether by a direction with no data (creep speed).
+  seen_space::SeenSpaceUpdate seen_space;
+  Eigen::Vector3d v_cmd_flown_horizontal_mps = Eigen::Vector3d::Zero();
+  bool command_limited = false;
+  bool command_unseen = false;
+  /// Allowed speed per direction in H, bin 0 along the heading then clockwise, for
+  /// seen_space_bins bins (m/s; the creep speed where nothing is known).
+  std::array<float, seen_space::kMaxBins> seen_space_limits_mps{};
+  int seen_space_bins = 0;
   StageDurations durations;
 };
 
@@ -166,7 +188,8 @@ class OnboardChain {
   /// stands).
   std::optional<ChainOutput> on_tick(std::int64_t t_ns);
 
-  /// The operator's latest command (used in teleop mode).
+  /// The operator's latest command (used in teleop mode). The mode controller gets it limited
+  /// to the seen space (issue 16), again on every frame with that frame's view.
   void set_operator_command(const modes::OperatorCommand& command);
   /// Requests a flight mode; see ModeController::request_mode.
   modes::ModeSwitch request_mode(modes::Mode mode);
@@ -192,6 +215,11 @@ class OnboardChain {
   void update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out);
   /// Fills out.flight_state and out.clearance_m after the mode step.
   void finish_output(ChainOutput& out) const;
+  /// Hands the operator's command, limited to the seen space, to the modes; fills out's
+  /// command fields and per-bin limits when out is given.
+  void apply_operator_limit(ChainOutput* out);
+  /// Issue 16: counts the safe hover and lands once it lasted safe_hover_land_s.
+  void escalate_safe_hover(ChainOutput& out);
 
   OnboardConfig config_;
   const Clock* clock_;
@@ -199,6 +227,7 @@ class OnboardChain {
   estimator::VelocityEstimator estimator_;
   obstacle_memory::ObstacleMemory memory_;
   obstacles::ObstacleField obstacles_;
+  seen_space::SeenSpaceLimiter seen_space_;
   modes::ModeController modes_;
   std::unique_ptr<marker_modes::MarkerStage> markers_;
   bool have_frame_ = false;
@@ -214,6 +243,13 @@ class OnboardChain {
   Eigen::Matrix3d R_prev_cur_body_ = Eigen::Matrix3d::Identity();  ///< gyro since last frame
   std::int64_t t_last_imu_ns_ = -1;
   bool gyro_since_frame_ = false;
+  modes::OperatorCommand operator_command_;  ///< As the operator sent it, before the limit.
+  bool have_operator_command_ = false;
+  /// The last usable velocity estimate (NaN when none): the limiter's reaction distance.
+  Eigen::Vector3d v_est_for_limit_mps_ = Eigen::Vector3d::Constant(NAN);
+  bool in_safe_hover_ = false;
+  std::int64_t t_safe_hover_start_ns_ = 0;
+  bool lost_estimate_landing_ = false;  ///< Landing because the safe hover lasted too long.
 };
 
 }  // namespace hq::pipeline
