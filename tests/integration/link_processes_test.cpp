@@ -491,12 +491,11 @@ TEST_F(LinkProcesses, HostileCommandsFromAStationNotListedAreRejected) {
               rejected, out("fuzz.out").c_str());
 }
 
-// KNOWN FAILURE, kept visible (issue 16): a stronger station the vehicle is allowed to follow
-// (no link.stations) flies it with in-envelope commands, full speed (1.8 m/s) ahead then 4 Hz
-// side to side; in the arena the vehicle hits a wall (66 collision ticks, clearance -0.35 m,
-// velocity estimate available 33 % of airborne frames). Ownership works (it follows station
-// 7, station 1 is told); the obstacle layer does not stop this input. Enable once it does.
-TEST_F(LinkProcesses, DISABLED_HostileInEnvelopeCommandsOfAnAllowedStationHitNothing) {
+// (h) Issue 16: a stronger station the vehicle is allowed to follow (no link.stations) flies it
+// with in-envelope commands, full speed (1.8 m/s) ahead then 4 Hz side to side. Ownership
+// passes to it (station 1 is told), and the seen-space limit keeps it off the walls: before the
+// limit, the arena run hit a wall (66 collision ticks, clearance -0.35 m).
+TEST_F(LinkProcesses, HostileInEnvelopeCommandsOfAnAllowedStationHitNothing) {
   Process onboard(onboard_args(12.0), (dir_ / "onboard.out").string());
   ASSERT_TRUE(onboard.started());
   Process ground(ground_args(), (dir_ / "ground.out").string());
