@@ -429,6 +429,10 @@ FlightRecorder::~FlightRecorder() {
   }
 }
 
+const std::vector<std::string>& FlightRecorder::attachments_skipped() const {
+  return impl_->report.attachments_skipped;  // written only by the constructor
+}
+
 bool FlightRecorder::push(const GroundSample& sample) noexcept {
   Impl& d = *impl_;
   if (d.stopping.load(std::memory_order_relaxed)) return false;

@@ -101,6 +101,8 @@ class FlightRecorder {
 
   /// True once a write failed; error() then names the file and reason. Any thread.
   [[nodiscard]] bool failed() const noexcept { return failed_.load(std::memory_order_acquire); }
+  /// Attachment files that could not be read ("path: reason"), known from construction.
+  [[nodiscard]] const std::vector<std::string>& attachments_skipped() const;
   /// Valid once failed() is true (written once, before failed_ is set).
   [[nodiscard]] const std::string& error() const noexcept { return error_; }
 
