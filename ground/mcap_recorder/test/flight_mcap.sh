@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# hq-ground --record as a process against a simulated vehicle (hq-onboard --source sim --link),
+# its flight.mcap read by independent readers (check_flight.cjs: @mcap/core,
+# @foxglove/omgidl-parser, @foxglove/omgidl-serialization from npm): a flight that ends normally
+# (counts and stamps as hq-ground reports them) and one killed with SIGKILL (still readable,
+# at most about the last second lost).
+# Usage: flight_mcap.sh HQ_ONBOARD HQ_GROUND WORK_DIR   (run from the repository root; WORK_DIR
+# holds node_modules). Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
+set -euo pipefail
+onboard=$1
+ground=$2
+work=$3
+
+command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
+command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
+here=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$work"
+work=$(cd "$work" && pwd)
+packages=('@mcap/core@2' '@mcap/support@1' '@foxglove/omgidl-parser@1'
+          '@foxglove/omgidl-serialization@1')
+if [ ! -f "$work/node_modules/@foxglove/omgidl-serialization/package.json" ] ||
+   [ ! -f "$work/node_modules/@mcap/support/package.json" ]; then
+  if ! npm install --no-audit --no-fund --prefix "$work" "${packages[@]}" \
+       >"$work/npm-install.log" 2>&1; then
+    echo "SKIPPED: npm install ${packages[*]} failed (see $work/npm-install.log)"
+    tail -5 "$work/npm-install.log"
+    exit 77
+  fi
+fi
+version() { node -p "require('$work/node_modules/$1/package.json').version"; }
+echo "node $(node --version), @mcap/core $(version @mcap/core)," \
+     "@foxglove/omgidl-serialization $(version @foxglove/omgidl-serialization)"
+
+# Loopback only, in a domain of this run's own.
+export CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces></General></Domain></CycloneDDS>'
+domain=$((1 + $$ % 200))
+tmp=$(mktemp -d)
+vehicle_pid=""
+cleanup() {
+  if [ -n "$vehicle_pid" ]; then kill "$vehicle_pid" 2>/dev/null || true; fi
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+
+"$onboard" --source sim --link --world onboard/sim/worlds/arena.yaml --duration-s 14 \
+           --domain-id "$domain" >"$tmp/onboard.out" 2>&1 &
+vehicle_pid=$!
+ground_args=(--device sim --headless --haptics-config ground/config/demo_hand.yaml
+             --domain-id "$domain")
+
+# A flight that ends normally.
+"$ground" "${ground_args[@]}" --duration-s 4 --record "$tmp/flight" >"$tmp/ground.out" \
+          2>"$tmp/ground.err" || { cat "$tmp/ground.err"; exit 1; }
+grep -E '^  mcap ' "$tmp/ground.out"
+node "$here/check_flight.cjs" "$work/node_modules" "$tmp/flight/flight.mcap" "$tmp/ground.out"
+
+# A flight whose ground station is killed with SIGKILL.
+"$ground" "${ground_args[@]}" --duration-s 60 --record "$tmp/killed" >"$tmp/killed.out" \
+          2>"$tmp/killed.err" &
+ground_pid=$!
+sleep 3.5
+kill -KILL "$ground_pid"
+kill_ns=$(date +%s%N)
+wait "$ground_pid" 2>/dev/null || true
+ls -l "$tmp/killed/flight.mcap"
+node "$here/check_flight.cjs" "$work/node_modules" "$tmp/killed/flight.mcap" --killed "$kill_ns"
+echo "flight.mcap read by @mcap/core and decoded with @foxglove/omgidl-serialization: passed"
