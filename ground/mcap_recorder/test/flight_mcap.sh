@@ -4,12 +4,14 @@
 # @foxglove/omgidl-parser, @foxglove/omgidl-serialization from npm): a flight that ends normally
 # (counts and stamps as hq-ground reports them) and one killed with SIGKILL (still readable,
 # at most about the last second lost).
-# Usage: flight_mcap.sh HQ_ONBOARD HQ_GROUND WORK_DIR   (run from the repository root; WORK_DIR
+# The project's own reader (hq-mcap-read) reads both files too, the killed one by recovery.
+# Usage: flight_mcap.sh HQ_ONBOARD HQ_GROUND HQ_MCAP_READ WORK_DIR   (run from the repository root; WORK_DIR
 # holds node_modules). Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
 set -euo pipefail
 onboard=$1
 ground=$2
-work=$3
+mcap_read=$3
+work=$4
 
 command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
 command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
@@ -53,6 +55,8 @@ ground_args=(--device sim --headless --haptics-config ground/config/demo_hand.ya
           2>"$tmp/ground.err" || { cat "$tmp/ground.err"; exit 1; }
 grep -E '^  mcap ' "$tmp/ground.out"
 node "$here/check_flight.cjs" "$work/node_modules" "$tmp/flight/flight.mcap" "$tmp/ground.out"
+"$mcap_read" "$tmp/flight/flight.mcap" | tee "$tmp/read.out"
+grep -q ' channels, summary,' "$tmp/read.out"
 
 # A flight whose ground station is killed with SIGKILL.
 "$ground" "${ground_args[@]}" --duration-s 60 --record "$tmp/killed" >"$tmp/killed.out" \
@@ -64,4 +68,6 @@ kill_ns=$(date +%s%N)
 wait "$ground_pid" 2>/dev/null || true
 ls -l "$tmp/killed/flight.mcap"
 node "$here/check_flight.cjs" "$work/node_modules" "$tmp/killed/flight.mcap" --killed "$kill_ns"
+"$mcap_read" "$tmp/killed/flight.mcap" | tee "$tmp/read.out"
+grep -q 'no summary (recovered)' "$tmp/read.out"
 echo "flight.mcap read by @mcap/core and decoded with @foxglove/omgidl-serialization: passed"
