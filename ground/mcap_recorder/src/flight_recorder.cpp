@@ -2,6 +2,8 @@
 
 #include <dds/dds.h>
 #include <dds/ddsi/ddsi_serdata.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <array>
 #include <chrono>
@@ -359,6 +361,10 @@ struct FlightRecorder::Impl {
   }
 
   void run() {
+    // Below the flight's threads: on a loaded machine the scheduler serves the haptic loop and
+    // the command tick first; the recorder catches up from DDS histories and its queue. (Linux
+    // nice is per thread; raising it needs no privilege. Failure only costs that preference.)
+    static_cast<void>(setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10));
     std::array<dds_attach_t, kLinkTopicCount + 1> triggered{};
     while (!stopping.load(std::memory_order_acquire)) {
       // 100 ms: the ground queue has no DDS condition, so it is drained at least this often.
