@@ -406,6 +406,7 @@ int run(int argc, char** argv) {
   // pushes one GroundSample per tick into a lock-free queue. A folder it cannot write to is told
   // and the flight goes on without it.
   std::unique_ptr<hq::mcap_recorder::FlightRecorder> mcap;
+  std::string mcap_off;  // why there is no MCAP record despite --record
   if (!o.record_dir.empty()) {
     hq::mcap_recorder::FlightRecorderOptions mo;
     mo.path = o.record_dir + "/flight.mcap";
@@ -419,13 +420,15 @@ int run(int argc, char** argv) {
         std::fprintf(stderr, "hq-ground: mcap: attachment skipped: %s\n", skipped.c_str());
       }
     } catch (const hq::InputError& e) {
-      std::fprintf(stderr, "hq-ground: mcap recording off: %s\n", e.what());
+      mcap_off = std::string("mcap recording off: ") + e.what();
+      std::fprintf(stderr, "hq-ground: %s\n", mcap_off.c_str());
     }
   }
   hq::ground::GroundStation ground(link, recorder.get());
   hq::console::ConsoleModel model;
   ModelFeed feed(model, ground);
   ground.set_observer(&feed);
+  if (!mcap_off.empty()) model.on_event(dds_time(), 2, mcap_off.c_str());
   model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
   hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
   const hq::haptics::RealtimeGrant grant = loop.start();
@@ -723,6 +726,7 @@ int run(int argc, char** argv) {
     }
     if (!r.error.empty()) std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
   }
+  if (!mcap_off.empty()) std::printf("  %-40s %s\n", "mcap", mcap_off.c_str());
   if (recorder && !recorder->close()) throw hq::InputError("recording: " + recorder->error());
   return 0;
 }

@@ -128,10 +128,19 @@ enum TopicIndex : std::size_t {
   kLinkTopicCount
 };
 
+// A flight record is never overwritten (as the CSV recorder refuses a folder holding one).
+const FlightRecorderOptions& checked_new(const FlightRecorderOptions& options) {
+  if (access(options.path.c_str(), F_OK) == 0) {
+    throw InputError(options.path + ": exists; refusing to overwrite a flight record, expected a "
+                     "new file");
+  }
+  return options;
+}
+
 struct FlightRecorder::Impl {
   explicit Impl(FlightRecorder& owner, const FlightRecorderOptions& options)
       : owner(owner),
-        options(options),
+        options(checked_new(options)),
         participant(options.link.domain_id),
         topics(participant),
         state_reader(participant, topics.vehicle_state, link::vehicle_state_qos()),

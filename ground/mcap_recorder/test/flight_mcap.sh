@@ -2,8 +2,9 @@
 # hq-ground --record as a process against a simulated vehicle (hq-onboard --source sim --link),
 # its flight.mcap read by independent readers (check_flight.cjs: @mcap/core,
 # @foxglove/omgidl-parser, @foxglove/omgidl-serialization from npm): a flight that ends normally
-# (counts and stamps as hq-ground reports them) and one killed with SIGKILL (still readable,
-# at most about the last second lost).
+# (counts and stamps as hq-ground reports them), one killed with SIGKILL (still readable,
+# at most about the last second lost), and one into a folder whose flight.mcap exists (told,
+# not overwritten, the flight goes on).
 # The project's own reader (hq-mcap-read) reads both files too, the killed one by recovery.
 # Usage: flight_mcap.sh HQ_ONBOARD HQ_GROUND HQ_MCAP_READ WORK_DIR   (run from the repository root; WORK_DIR
 # holds node_modules). Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
@@ -70,4 +71,12 @@ ls -l "$tmp/killed/flight.mcap"
 node "$here/check_flight.cjs" "$work/node_modules" "$tmp/killed/flight.mcap" --killed "$kill_ns"
 "$mcap_read" "$tmp/killed/flight.mcap" | tee "$tmp/read.out"
 grep -q 'no summary (recovered)' "$tmp/read.out"
+# A flight.mcap already there: never overwritten; told, and the flight goes on (exit 0).
+mkdir -p "$tmp/taken"
+echo "an earlier flight" >"$tmp/taken/flight.mcap"
+"$ground" "${ground_args[@]}" --duration-s 1.5 --record "$tmp/taken" >"$tmp/taken.out" \
+          2>"$tmp/taken.err" || { cat "$tmp/taken.err"; exit 1; }
+grep 'mcap recording off: .*flight.mcap: exists' "$tmp/taken.err"
+grep -q 'an earlier flight' "$tmp/taken/flight.mcap"
+grep -qE '^  sent +[1-9][0-9]* commands' "$tmp/taken.out"
 echo "flight.mcap read by @mcap/core and decoded with @foxglove/omgidl-serialization: passed"

@@ -339,6 +339,14 @@ TEST_F(FlightRecorderTest, UnwritableFolderIsAClearError) {
   EXPECT_NE(message.find("/nonexistent_hq_dir/flight.mcap"), std::string::npos) << message;
 }
 
+TEST_F(FlightRecorderTest, ExistingFlightRecordIsRefusedNotTruncated) {
+  std::ofstream(options_.path) << "an earlier flight";
+  const std::string message =
+      testing::input_error_message([&] { FlightRecorder recorder(options_); });
+  EXPECT_NE(message.find("flight.mcap: exists"), std::string::npos) << message;
+  EXPECT_EQ(fs::file_size(options_.path), 17u);
+}
+
 TEST_F(FlightRecorderTest, WriteFailureMidFlightStopsRecordingAndSaysWhy) {
   // A file size limit stands in for a full disk: write(2) fails with EFBIG mid-flight.
   std::signal(SIGXFSZ, SIG_IGN);

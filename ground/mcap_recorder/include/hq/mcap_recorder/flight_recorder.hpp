@@ -45,7 +45,7 @@ struct AttachmentFile {
 };
 
 struct FlightRecorderOptions {
-  std::string path;                ///< The .mcap file to create (truncated if present).
+  std::string path;                ///< The .mcap file to create (must not exist).
   link::LinkConfig link;           ///< domain_id: the domain the station flies on.
   std::vector<AttachmentFile> attachments;  ///< Unreadable ones are skipped and reported.
   std::size_t ground_queue_capacity = 4096;  ///< GroundSample slots (about 4 s at 1 kHz).
@@ -90,7 +90,8 @@ class FlightRecorder {
  public:
   /// Creates the file, the DDS participant and readers, writes schemas, channels and
   /// attachments, and starts the recording thread.
-  /// @throws hq::InputError if the file cannot be created or a DDS call fails.
+  /// @throws hq::InputError if the file exists (never overwritten) or cannot be created, or a
+  /// DDS call fails.
   explicit FlightRecorder(const FlightRecorderOptions& options);
   /// Stops and closes (errors swallowed: call close() to see them).
   ~FlightRecorder();
