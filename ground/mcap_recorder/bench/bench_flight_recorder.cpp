@@ -7,9 +7,8 @@
 // points, 20 KB camera frames at 33 Hz, and the reader of the commands). Each phase lasts
 // --duration-s.
 //   hq-bench-flight-recorder [--duration-s 5] [--out /tmp/bench_flight.mcap]
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
+#include "hq/link/link.hpp"
+#include "hq/mcap_recorder/flight_recorder.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -18,12 +17,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <spawn.h>
 #include <string>
+#include <sys/wait.h>
 #include <thread>
+#include <unistd.h>
 #include <vector>
-
-#include "hq/link/link.hpp"
-#include "hq/mcap_recorder/flight_recorder.hpp"
 
 namespace {
 
@@ -94,16 +93,19 @@ int main(int argc, char** argv) {
          0);
   hq::mcap_recorder::FlightRecorderOptions options;
   options.path = out;
-  options.link.domain_id = 201 + static_cast<int>(std::chrono::steady_clock::now()
-                                                      .time_since_epoch().count() % 20);
+  options.link.domain_id =
+      201 + static_cast<int>(std::chrono::steady_clock::now().time_since_epoch().count() % 20);
 
   if (vehicle_domain >= 0) return run_vehicle(vehicle_domain, duration_s);
   // The vehicle in a process of its own, as hq-onboard: it reads the commands (a remote
   // reader, as in flight) and publishes states and frames.
   const std::string domain_arg = std::to_string(options.link.domain_id);
   const std::string vehicle_duration = std::to_string(2 * duration_s + 3);
-  char* child_argv[] = {argv[0], const_cast<char*>("--vehicle"), const_cast<char*>(domain_arg.c_str()),
-                        const_cast<char*>("--duration-s"), const_cast<char*>(vehicle_duration.c_str()),
+  char* child_argv[] = {argv[0],
+                        const_cast<char*>("--vehicle"),
+                        const_cast<char*>(domain_arg.c_str()),
+                        const_cast<char*>("--duration-s"),
+                        const_cast<char*>(vehicle_duration.c_str()),
                         nullptr};
   pid_t vehicle_pid = 0;
   if (posix_spawn(&vehicle_pid, argv[0], nullptr, nullptr, child_argv, environ) != 0) {
@@ -113,8 +115,7 @@ int main(int argc, char** argv) {
   hq::link::Participant participant(options.link.domain_id);
   hq::link::Topics topics(participant);
   hq::link::Writer<hq::link::VelocityCommand> command_writer(
-      participant, topics.command,
-      hq::link::command_qos(options.link, hq::link::End::kWriter));
+      participant, topics.command, hq::link::command_qos(options.link, hq::link::End::kWriter));
   for (int i = 0; i < 500 && command_writer.matched_readers() == 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
@@ -155,12 +156,13 @@ int main(int argc, char** argv) {
   kill(vehicle_pid, SIGTERM);
   waitpid(vehicle_pid, nullptr, 0);
   const hq::mcap_recorder::RecorderReport& r = recorder->close();
-  std::printf("hq-bench-flight-recorder: %.1f s at 1 kHz, recorder wrote %llu messages, %llu "
-              "bytes to %s, %llu ground samples dropped%s%s\n",
-              duration_s, static_cast<unsigned long long>(r.messages),
-              static_cast<unsigned long long>(r.bytes), out.c_str(),
-              static_cast<unsigned long long>(r.ground_samples_dropped),
-              r.error.empty() ? "" : ", error: ", r.error.c_str());
+  std::printf(
+      "hq-bench-flight-recorder: %.1f s at 1 kHz, recorder wrote %llu messages, %llu "
+      "bytes to %s, %llu ground samples dropped%s%s\n",
+      duration_s, static_cast<unsigned long long>(r.messages),
+      static_cast<unsigned long long>(r.bytes), out.c_str(),
+      static_cast<unsigned long long>(r.ground_samples_dropped),
+      r.error.empty() ? "" : ", error: ", r.error.c_str());
   print("command's DDS write, no recorder", write_alone_ns);
   print("command's DDS write, recorder reading it", write_ns);
   print("FlightRecorder::push()", push_ns);

@@ -1,9 +1,11 @@
 #include "hq/mcap_recorder/flight_recorder.hpp"
 
+#include "hq/base/error.hpp"
+#include "hq/link/link.hpp"
+
+#include "json_schemas.hpp"
 #include <dds/dds.h>
 #include <dds/ddsi/ddsi_serdata.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include <array>
 #include <chrono>
@@ -14,11 +16,9 @@
 #include <iterator>
 #include <span>
 #include <sstream>
+#include <sys/resource.h>
 #include <thread>
-
-#include "hq/base/error.hpp"
-#include "hq/link/link.hpp"
-#include "json_schemas.hpp"
+#include <unistd.h>
 
 namespace hq::mcap_recorder {
 namespace {
@@ -76,16 +76,16 @@ class Json {
     text_.push_back('"');
     std::size_t i = 0;
     for (; i + 3 <= data.size(); i += 3) {
-      const std::uint32_t v = (std::uint32_t{data[i]} << 16) | (std::uint32_t{data[i + 1]} << 8) |
-                              data[i + 2];
+      const std::uint32_t v =
+          (std::uint32_t{data[i]} << 16) | (std::uint32_t{data[i + 1]} << 8) | data[i + 2];
       const char quad[4] = {kAlphabet[(v >> 18) & 63], kAlphabet[(v >> 12) & 63],
                             kAlphabet[(v >> 6) & 63], kAlphabet[v & 63]};
       text_.append(quad, 4);
     }
     if (i < data.size()) {
       const bool two = i + 1 < data.size();
-      const std::uint32_t v = (std::uint32_t{data[i]} << 16) |
-                              (two ? std::uint32_t{data[i + 1]} << 8 : 0u);
+      const std::uint32_t v =
+          (std::uint32_t{data[i]} << 16) | (two ? std::uint32_t{data[i + 1]} << 8 : 0u);
       const char quad[4] = {kAlphabet[(v >> 18) & 63], kAlphabet[(v >> 12) & 63],
                             two ? kAlphabet[(v >> 6) & 63] : '=', '='};
       text_.append(quad, 4);
@@ -131,7 +131,8 @@ enum TopicIndex : std::size_t {
 // A flight record is never overwritten (as the CSV recorder refuses a folder holding one).
 const FlightRecorderOptions& checked_new(const FlightRecorderOptions& options) {
   if (access(options.path.c_str(), F_OK) == 0) {
-    throw InputError(options.path + ": exists; refusing to overwrite a flight record, expected a "
+    throw InputError(options.path +
+                     ": exists; refusing to overwrite a flight record, expected a "
                      "new file");
   }
   return options;
@@ -150,13 +151,13 @@ struct FlightRecorder::Impl {
         command_reader(participant, topics.command,
                        link::command_qos(options.link, link::End::kReader)),
         mode_reader(participant, topics.mode_request, link::mode_request_qos()),
-        conditions{link::ReadCondition(state_reader), link::ReadCondition(camera_reader),
-                   link::ReadCondition(event_reader), link::ReadCondition(heartbeat_reader),
+        conditions{link::ReadCondition(state_reader),   link::ReadCondition(camera_reader),
+                   link::ReadCondition(event_reader),   link::ReadCondition(heartbeat_reader),
                    link::ReadCondition(command_reader), link::ReadCondition(mode_reader)},
         stop_condition(participant),
         waitset(participant),
         ring(std::max<std::size_t>(options.ground_queue_capacity, 2)) {
-    readers = {state_reader.handle(),   camera_reader.handle(),  event_reader.handle(),
+    readers = {state_reader.handle(),     camera_reader.handle(),  event_reader.handle(),
                heartbeat_reader.handle(), command_reader.handle(), mode_reader.handle()};
     for (std::size_t i = 0; i < conditions.size(); ++i) {
       waitset.attach(conditions[i].handle(), static_cast<dds_attach_t>(i));
@@ -181,27 +182,27 @@ struct FlightRecorder::Impl {
         {"/hq/mode_request", "hq_msgs::ModeRequest"},
     }};
     static constexpr std::array<const char*, kLinkTopicCount> kDdsTopic = {
-        "hq_vehicle_state", "hq_camera_frame", "hq_event",
+        "hq_vehicle_state", "hq_camera_frame",     "hq_event",
         "hq_heartbeat",     "hq_velocity_command", "hq_mode_request"};
     for (std::size_t i = 0; i < kLinkTopicCount; ++i) {
       const std::uint16_t schema = writer.add_schema(kLink[i].second, "omgidl", as_bytes(idl));
-      link_channel[i] = add_channel(schema, kLink[i].first, "cdr",
-                                    {{"dds_topic", kDdsTopic[i]}, {"domain_id",
-                                      std::to_string(options.link.domain_id)}});
+      link_channel[i] = add_channel(
+          schema, kLink[i].first, "cdr",
+          {{"dds_topic", kDdsTopic[i]}, {"domain_id", std::to_string(options.link.domain_id)}});
     }
-    const std::uint16_t image_schema = writer.add_schema(
-        "foxglove.CompressedImage", "jsonschema", as_bytes(kCompressedImageSchema));
+    const std::uint16_t image_schema = writer.add_schema("foxglove.CompressedImage", "jsonschema",
+                                                         as_bytes(kCompressedImageSchema));
     image_channel = add_channel(image_schema, "/camera/image/compressed", "json", {});
     depth_channel = add_channel(image_schema, "/camera/depth_preview/compressed", "json", {});
     cloud_channel = add_channel(
         writer.add_schema("foxglove.PointCloud", "jsonschema", as_bytes(kPointCloudSchema)),
         "/obstacles", "json", {{"frame", "body (FRD: x forward, y right, z down)"}});
-    haptics_channel = add_channel(
-        writer.add_schema("hq_ground.Haptics", "jsonschema", as_bytes(kHapticsSchema)),
-        "/ground/haptics", "json", {});
-    link_latency_channel = add_channel(
-        writer.add_schema("hq_ground.Link", "jsonschema", as_bytes(kLinkSchema)), "/ground/link",
-        "json", {});
+    haptics_channel =
+        add_channel(writer.add_schema("hq_ground.Haptics", "jsonschema", as_bytes(kHapticsSchema)),
+                    "/ground/haptics", "json", {});
+    link_latency_channel =
+        add_channel(writer.add_schema("hq_ground.Link", "jsonschema", as_bytes(kLinkSchema)),
+                    "/ground/link", "json", {});
 
     for (const AttachmentFile& a : options.attachments) {
       std::ifstream in(a.path, std::ios::binary);
@@ -322,7 +323,8 @@ struct FlightRecorder::Impl {
   void write_images(std::int64_t log_ns, std::int64_t publish_ns) {
     const auto& f = *camera_sample;
     if (f.rgb_jpeg._length > 0) {
-      write_image(image_channel, "camera", log_ns, publish_ns, {f.rgb_jpeg._buffer, f.rgb_jpeg._length});
+      write_image(image_channel, "camera", log_ns, publish_ns,
+                  {f.rgb_jpeg._buffer, f.rgb_jpeg._length});
     }
     if (f.depth_preview._length > 0) {
       write_image(depth_channel, "camera", log_ns, publish_ns,

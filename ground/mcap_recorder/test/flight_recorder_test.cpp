@@ -4,9 +4,11 @@
 // a file read while the recorder still runs (what a SIGKILL leaves), and write failures.
 #include "hq/mcap_recorder/flight_recorder.hpp"
 
+#include "hq/link/link.hpp"
+#include "hq/mcap/mcap.hpp"
+#include "hq/testing/input_error.hpp"
+
 #include <gtest/gtest.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <csignal>
@@ -14,11 +16,9 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sys/resource.h>
 #include <thread>
-
-#include "hq/link/link.hpp"
-#include "hq/mcap/mcap.hpp"
-#include "hq/testing/input_error.hpp"
+#include <unistd.h>
 
 namespace hq::mcap_recorder {
 namespace {
@@ -117,8 +117,7 @@ const mcap::Channel* channel_of(const mcap::McapReader& r, const std::string& to
   return nullptr;
 }
 
-std::vector<const mcap::Message*> messages_of(const mcap::McapReader& r,
-                                              const std::string& topic) {
+std::vector<const mcap::Message*> messages_of(const mcap::McapReader& r, const std::string& topic) {
   std::vector<const mcap::Message*> out;
   const mcap::Channel* c = channel_of(r, topic);
   if (c == nullptr) return out;

@@ -1,10 +1,10 @@
 // hq-mcap-read FILE: reads an MCAP file with hq::mcap::McapReader (recovering a file without
 // summary, as a SIGKILLed recorder leaves it) and prints what it found; exit 1 when it holds
 // no message, 2 when the reader refuses it. For flight_mcap.sh.
-#include <cstdio>
-
 #include "hq/base/error.hpp"
 #include "hq/mcap/mcap.hpp"
+
+#include <cstdio>
 
 int main(int argc, char** argv) {
   if (argc != 2) {

@@ -26,15 +26,15 @@
 /// scans without the summary) still reads the rest. A failed write (disk full) stops recording,
 /// failed() turns true and error() says why; the flight goes on.
 
+#include "hq/link/config.hpp"
+#include "hq/mcap/mcap.hpp"
+
 #include <atomic>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include "hq/link/config.hpp"
-#include "hq/mcap/mcap.hpp"
 
 namespace hq::mcap_recorder {
 
@@ -45,24 +45,24 @@ struct AttachmentFile {
 };
 
 struct FlightRecorderOptions {
-  std::string path;                ///< The .mcap file to create (must not exist).
-  link::LinkConfig link;           ///< domain_id: the domain the station flies on.
-  std::vector<AttachmentFile> attachments;  ///< Unreadable ones are skipped and reported.
+  std::string path;                          ///< The .mcap file to create (must not exist).
+  link::LinkConfig link;                     ///< domain_id: the domain the station flies on.
+  std::vector<AttachmentFile> attachments;   ///< Unreadable ones are skipped and reported.
   std::size_t ground_queue_capacity = 4096;  ///< GroundSample slots (about 4 s at 1 kHz).
-  mcap::WriterOptions writer;      ///< chunk_time_limit_ns bounds what a SIGKILL loses.
+  mcap::WriterOptions writer;                ///< chunk_time_limit_ns bounds what a SIGKILL loses.
 };
 
 /// What the ground side knew at one command tick (pushed by the flight loop).
 struct GroundSample {
-  std::int64_t t_ns = 0;            ///< dds_time() when the command was sent
+  std::int64_t t_ns = 0;  ///< dds_time() when the command was sent
   bool command_valid = false;
   float v_cmd_H_mps[3] = {0, 0, 0};
   float yaw_rate_cmd_radps = 0;
-  float p_D_m[3] = {0, 0, 0};       ///< haptic device position
-  float F_D_n[3] = {0, 0, 0};       ///< force rendered on the hand
-  float latency_ms = -1;            ///< latest vehicle state one-way latency (stamps)
-  float round_trip_ms = -1;         ///< latest heartbeat round trip
-  float state_age_ms = -1;          ///< latest state's age through the clock offset
+  float p_D_m[3] = {0, 0, 0};  ///< haptic device position
+  float F_D_n[3] = {0, 0, 0};  ///< force rendered on the hand
+  float latency_ms = -1;       ///< latest vehicle state one-way latency (stamps)
+  float round_trip_ms = -1;    ///< latest heartbeat round trip
+  float state_age_ms = -1;     ///< latest state's age through the clock offset
 };
 
 /// Per channel, what was written (for the exit summary and the tests' independent readers).
@@ -79,11 +79,11 @@ struct RecorderReport {
   std::uint32_t channels = 0;
   std::uint64_t bytes = 0;
   std::uint32_t attachments = 0;
-  std::uint64_t ground_samples_dropped = 0;  ///< queue full
-  std::uint64_t samples_not_written = 0;     ///< taken after a write failure
-  std::vector<ChannelReport> per_channel;    ///< by channel id
+  std::uint64_t ground_samples_dropped = 0;      ///< queue full
+  std::uint64_t samples_not_written = 0;         ///< taken after a write failure
+  std::vector<ChannelReport> per_channel;        ///< by channel id
   std::vector<std::string> attachments_skipped;  ///< "path: reason"
-  std::string error;                         ///< first failure, or empty
+  std::string error;                             ///< first failure, or empty
 };
 
 class FlightRecorder {
