@@ -115,6 +115,15 @@ std::string media_type_of(const std::string& path) {
   return "application/octet-stream";
 }
 
+// The link's reader QoS with a deeper history: the link's readers keep the latest sample only
+// (the controller wants nothing older), but the recorder wants every sample and its thread runs
+// niced, so it may be late on a loaded machine. History depth is the reader's own business (not
+// part of QoS matching), so the writers see a reader like any other.
+link::Qos recording(link::Qos qos, int depth) {
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, depth);
+  return qos;
+}
+
 }  // namespace
 
 // The link topics the recorder takes, in channel-id order.
@@ -144,13 +153,14 @@ struct FlightRecorder::Impl {
         options(checked_new(options)),
         participant(options.link.domain_id),
         topics(participant),
-        state_reader(participant, topics.vehicle_state, link::vehicle_state_qos()),
-        camera_reader(participant, topics.camera, link::camera_qos()),
-        event_reader(participant, topics.event, link::event_qos()),
-        heartbeat_reader(participant, topics.heartbeat, link::heartbeat_qos(options.link)),
+        state_reader(participant, topics.vehicle_state, recording(link::vehicle_state_qos(), 64)),
+        camera_reader(participant, topics.camera, recording(link::camera_qos(), 16)),
+        event_reader(participant, topics.event, recording(link::event_qos(), 64)),
+        heartbeat_reader(participant, topics.heartbeat,
+                         recording(link::heartbeat_qos(options.link), 32)),
         command_reader(participant, topics.command,
-                       link::command_qos(options.link, link::End::kReader)),
-        mode_reader(participant, topics.mode_request, link::mode_request_qos()),
+                       recording(link::command_qos(options.link, link::End::kReader), 128)),
+        mode_reader(participant, topics.mode_request, recording(link::mode_request_qos(), 32)),
         conditions{link::ReadCondition(state_reader),   link::ReadCondition(camera_reader),
                    link::ReadCondition(event_reader),   link::ReadCondition(heartbeat_reader),
                    link::ReadCondition(command_reader), link::ReadCondition(mode_reader)},

@@ -313,6 +313,31 @@ TEST_F(FlightRecorderTest, FileOnDiskIsReadableWhileRecordingAsAfterSigkill) {
   EXPECT_TRUE(recorder.close().error.empty());
 }
 
+TEST_F(FlightRecorderTest, BurstFasterThanTheRecorderTakesIsKeptWhole) {
+  // The link's own readers keep only the latest state; the recorder's keep a history, so a
+  // burst arriving while its (niced) thread is elsewhere is recorded whole.
+  FlightRecorder recorder(options_);
+  Publishers pub(options_.link);
+  ASSERT_TRUE(wait_matched(pub));
+  constexpr int kBurst = 50;
+  link::Sample<link::VehicleState> state;
+  link::VelocityCommand command{};
+  for (int i = 0; i < kBurst; ++i) {
+    state->vehicle_id = 1;
+    state->sequence_number = static_cast<unsigned>(i);
+    ASSERT_TRUE(pub.state.write(*state));
+    command.vehicle_id = 1;
+    command.sequence_number = static_cast<unsigned>(i);
+    ASSERT_TRUE(pub.command.write(command));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_TRUE(recorder.close().error.empty());
+  const mcap::McapReader r(options_.path);
+  EXPECT_EQ(messages_of(r, "/hq/vehicle_state").size(), static_cast<std::size_t>(kBurst));
+  EXPECT_EQ(messages_of(r, "/hq/velocity_command").size(), static_cast<std::size_t>(kBurst));
+  EXPECT_EQ(messages_of(r, "/obstacles").size(), static_cast<std::size_t>(kBurst));
+}
+
 TEST_F(FlightRecorderTest, FullGroundQueueDropsAndCountsWithoutBlocking) {
   options_.ground_queue_capacity = 8;
   FlightRecorder recorder(options_);
