@@ -19,6 +19,7 @@
 #include "hq/console/console_window.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
+#include "hq/mcap_recorder/flight_recorder.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/ground/ground_station.hpp"
@@ -597,7 +598,8 @@ int run(int argc, char** argv) {
   app.add_option("--command-rate-hz", o.command_rate_hz, "velocity commands sent per second")
       ->check(CLI::Range(5.0, 1000.0));
   app.add_option("--record", o.record_dir,
-                 "record the flight here (telemetry, commands, events CSV; camera as TUM rgb/)");
+                 "record the flight here (telemetry, commands, events CSV; camera as TUM rgb/; "
+                 "everything also in flight.mcap)");
   app.add_option("--replay", o.replay_dir, "play a recording back into the console; no link");
   app.add_option("--speed", o.speed, "replay speed factor")->check(CLI::Range(0.25, 8.0));
   app.add_option("--seek", o.seek_s, "replay: start this many seconds into the recording")
@@ -665,11 +667,34 @@ int run(int argc, char** argv) {
 
   std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
   if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
+  // The MCAP flight record: a DDS subscriber on its own thread, so the command path below only
+  // pushes one GroundSample per tick into a lock-free queue. A folder it cannot write to is told
+  // and the flight goes on without it.
+  std::unique_ptr<hq::mcap_recorder::FlightRecorder> mcap;
+  std::string mcap_off;  // why there is no MCAP record despite --record
+  if (!o.record_dir.empty()) {
+    hq::mcap_recorder::FlightRecorderOptions mo;
+    mo.path = o.record_dir + "/flight.mcap";
+    mo.link = link;
+    for (const std::string& path : {o.haptics_path, o.vehicle_path, o.link_config_path}) {
+      if (!path.empty()) mo.attachments.push_back({path, ""});
+    }
+    try {
+      mcap = std::make_unique<hq::mcap_recorder::FlightRecorder>(mo);
+      for (const std::string& skipped : mcap->attachments_skipped()) {
+        std::fprintf(stderr, "hq-ground: mcap: attachment skipped: %s\n", skipped.c_str());
+      }
+    } catch (const hq::InputError& e) {
+      mcap_off = std::string("mcap recording off: ") + e.what();
+      std::fprintf(stderr, "hq-ground: %s\n", mcap_off.c_str());
+    }
+  }
   hq::ground::GroundStation ground(link, recorder.get());
   ground.set_log(stdout);  // control lost / vehicle restarted: said once each, on stdout
   hq::console::ConsoleModel model;
   ModelFeed feed(model, ground);
   ground.set_observer(&feed);
+  if (!mcap_off.empty()) model.on_event(dds_time(), 2, mcap_off.c_str());
   model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
   hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
   const hq::haptics::RealtimeGrant grant = loop.start();
@@ -706,6 +731,7 @@ int run(int argc, char** argv) {
     bool take_off_cli_sent = false;
     bool was_connected = true;
     bool recording_failure_told = false;
+    bool mcap_failure_told = false;
     std::int64_t last_state_ns = 0;
     std::uint64_t last_states = 0;
     std::uint64_t last_frames = 0;
@@ -771,6 +797,22 @@ int run(int argc, char** argv) {
       ground.send_command(now_ns, hand.command, valid);
       const std::int64_t wall_ns = dds_time();  // the clock of the recorded receipts
       if (recorder) recorder->command(wall_ns, hand.command, valid);
+      if (mcap) {
+        const hq::ground::LinkStatus& st = ground.status();
+        hq::mcap_recorder::GroundSample g;
+        g.t_ns = wall_ns;
+        g.command_valid = valid;
+        for (int i = 0; i < 3; ++i) {
+          g.v_cmd_H_mps[i] = valid ? static_cast<float>(hand.command.v_H_mps[i]) : 0.0F;
+          g.p_D_m[i] = static_cast<float>(hand.p_D_m[i]);
+          g.F_D_n[i] = static_cast<float>(hand.F_D_n[i]);
+        }
+        g.yaw_rate_cmd_radps = valid ? static_cast<float>(hand.command.yaw_rate_radps) : 0.0F;
+        g.latency_ms = st.have_state ? 1e-6F * static_cast<float>(st.last_latency_ns) : -1.0F;
+        g.round_trip_ms = 1e-6F * static_cast<float>(st.round_trip_ns);
+        g.state_age_ms = 1e-6F * static_cast<float>(st.last_state_age_ns);
+        mcap->push(g);  // never blocks; dropped and counted when full
+      }
       const Eigen::Vector3d v = valid ? hand.command.v_H_mps : Eigen::Vector3d::Zero();
       model.on_command(wall_ns,
                        {static_cast<float>(v.x()), static_cast<float>(v.y()),
@@ -890,6 +932,11 @@ int run(int argc, char** argv) {
           std::fprintf(stderr, "\nhq-ground: recording: %s\n", recorder->error().c_str());
           model.on_event(dds_time(), 2, ("recording: " + recorder->error()).c_str());
         }
+        if (mcap && mcap->failed() && !mcap_failure_told) {
+          mcap_failure_told = true;
+          std::fprintf(stderr, "\nhq-ground: %s\n", mcap->error().c_str());
+          model.on_event(dds_time(), 2, mcap->error().c_str());
+        }
         next_status_ns += status_period_ns;
       }
     }
@@ -986,6 +1033,41 @@ int run(int argc, char** argv) {
     write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0, max_force_n,
                      loop.passivity().min_energy_j());
   }
+  if (mcap) {
+    char value[64];
+    hq::mcap::KeyValues summary;
+    const auto put = [&](const char* key, double v) {
+      std::snprintf(value, sizeof value, "%.6g", v);
+      summary[key] = value;
+    };
+    put("duration_s", 1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - start_ns));
+    put("commands_sent", static_cast<double>(s.commands_sent));
+    put("mode_requests_sent", static_cast<double>(s.mode_requests_sent));
+    put("states_received", static_cast<double>(s.states));
+    put("events_received", static_cast<double>(s.events));
+    put("camera_frames_received", static_cast<double>(s.camera_frames));
+    put("state_latency_p50_ms", ground.latency().quantile_ms(0.5));
+    put("state_latency_p99_ms", ground.latency().quantile_ms(0.99));
+    put("state_loss_percent", 100.0 * ground.state_loss());
+    put("haptic_period_jitter_p99_us", timing.period.quantile_us(0.99));
+    put("device_losses", static_cast<double>(device_losses));
+    summary["last_vehicle_mode"] = s.have_state ? hq::ground::to_string(s.state.mode) : "-";
+    summary["last_event"] = s.last_event.data();
+    const hq::mcap_recorder::RecorderReport& r = mcap->close(summary);
+    std::printf("  %-40s %llu messages, %u channels, %llu bytes, %u attachments, %llu ground "
+                "samples dropped\n",
+                "mcap", static_cast<unsigned long long>(r.messages), r.channels,
+                static_cast<unsigned long long>(r.bytes), r.attachments,
+                static_cast<unsigned long long>(r.ground_samples_dropped));
+    for (const hq::mcap_recorder::ChannelReport& c : r.per_channel) {
+      std::printf("  mcap channel %s %llu %lld %lld\n", c.topic.c_str(),
+                  static_cast<unsigned long long>(c.messages),
+                  static_cast<long long>(c.first_log_time_ns),
+                  static_cast<long long>(c.last_log_time_ns));
+    }
+    if (!r.error.empty()) std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
+  }
+  if (!mcap_off.empty()) std::printf("  %-40s %s\n", "mcap", mcap_off.c_str());
   if (recorder && !recorder->close()) throw hq::InputError("recording: " + recorder->error());
   return 0;
 }

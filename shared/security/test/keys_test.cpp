@@ -69,6 +69,10 @@ TEST_F(Keys, PermissionsGrantOnlyTheVehiclesOwnPartitionAndTopics) {
   const std::string published = xml.substr(publish, subscribe - publish);
   EXPECT_NE(published.find("hq_velocity_command"), std::string::npos);
   EXPECT_EQ(published.find("hq_vehicle_state"), std::string::npos);
+  // It reads what its vehicles send, and the commands they receive (its flight record).
+  const std::string subscribed = xml.substr(subscribe, xml.find("</subscribe>") - subscribe);
+  EXPECT_NE(subscribed.find("hq_vehicle_state"), std::string::npos);
+  EXPECT_NE(subscribed.find("hq_velocity_command"), std::string::npos);
   EXPECT_NE(xml.find("<default>DENY</default>"), std::string::npos);
 
   station.vehicles.clear();

@@ -19,7 +19,8 @@
 /// grant topics only in the partitions of the vehicles named: a vehicle publishes its state,
 /// camera, events and heartbeats and subscribes to commands, mode requests and heartbeats in
 /// its own partition; a station does the reverse in the partitions of the vehicles it is listed
-/// for. Access control refuses the writer of a topic/partition not granted when it is created
+/// for, and also reads the commands and mode requests there, so that its flight record (MCAP)
+/// holds what every station asked of its vehicle, not only its own. Access control refuses the writer of a topic/partition not granted when it is created
 /// locally, and refuses to match a remote one, so a station without a grant cannot deliver a
 /// single command.
 

@@ -1,0 +1,412 @@
+// The flight recorder against real DDS writers on loopback (a domain of this test process's
+// own): samples in, MCAP out, read back with hq::mcap::McapReader: counts, stamps, CDR bytes
+// decoded here by hand (independently of Cyclone), the Foxglove channels, the ground queue,
+// a file read while the recorder still runs (what a SIGKILL leaves), and write failures.
+#include "hq/mcap_recorder/flight_recorder.hpp"
+
+#include "hq/link/link.hpp"
+#include "hq/mcap/mcap.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sys/resource.h>
+#include <thread>
+#include <unistd.h>
+
+namespace hq::mcap_recorder {
+namespace {
+
+namespace fs = std::filesystem;
+
+class FlightRecorderTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    setenv("CYCLONEDDS_URI",
+           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+           "</Interfaces></General></Domain></CycloneDDS>",
+           1);
+    options_.link.domain_id = 1 + static_cast<int>(getpid() % 200);
+    options_.link.security.enabled = false;  // the test's writers share this process: plain DDS
+    dir_ = fs::temp_directory_path() /
+           ("hq_mcap_recorder_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    options_.path = (dir_ / "flight.mcap").string();
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  FlightRecorderOptions options_;
+  fs::path dir_;
+};
+
+// The link's writers, as hq-onboard and hq-ground create them.
+struct Publishers {
+  explicit Publishers(const link::LinkConfig& config)
+      : participant(config.domain_id),
+        topics(participant),
+        state(participant, topics.vehicle_state, link::vehicle_state_qos()),
+        camera(participant, topics.camera, link::camera_qos()),
+        event(participant, topics.event, link::event_qos()),
+        heartbeat(participant, topics.heartbeat, link::heartbeat_qos(config)),
+        command(participant, topics.command, link::command_qos(config, link::End::kWriter)),
+        mode(participant, topics.mode_request, link::mode_request_qos()) {}
+  bool all_matched() const {
+    return state.matched_readers() > 0 && camera.matched_readers() > 0 &&
+           event.matched_readers() > 0 && heartbeat.matched_readers() > 0 &&
+           command.matched_readers() > 0 && mode.matched_readers() > 0;
+  }
+  link::Participant participant;
+  link::Topics topics;
+  link::Writer<link::VehicleState> state;
+  link::Writer<link::CameraFrame> camera;
+  link::Writer<link::Event> event;
+  link::Writer<link::Heartbeat> heartbeat;
+  link::Writer<link::VelocityCommand> command;
+  link::Writer<link::ModeRequest> mode;
+};
+
+bool wait_matched(const Publishers& p) {
+  for (int i = 0; i < 300 && !p.all_matched(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return p.all_matched();
+}
+
+// Little-endian CDR (XCDR1 plain or XCDR2 plain, final types): alignment relative to the end
+// of the 4-byte encapsulation header, at most 4 for XCDR2 and 8 for XCDR1.
+class CdrIn {
+ public:
+  explicit CdrIn(const std::vector<std::uint8_t>& data) : data_(data) {
+    EXPECT_GE(data.size(), 4u);
+    EXPECT_EQ(data[0], 0x00);
+    // 0x01: CDR_LE (XCDR1), 0x07: PLAIN_CDR2_LE.
+    EXPECT_TRUE(data[1] == 0x01 || data[1] == 0x07) << "representation " << int{data[1]};
+    max_align_ = data[1] == 0x07 ? 4 : 8;
+  }
+  template <typename T>
+  T get() {
+    const std::size_t align = std::min(sizeof(T), max_align_);
+    at_ = (at_ + align - 1) / align * align;
+    T v{};
+    if (4 + at_ + sizeof(T) > data_.size()) {
+      ADD_FAILURE() << "CDR too short";
+      return v;
+    }
+    std::memcpy(&v, data_.data() + 4 + at_, sizeof(T));
+    at_ += sizeof(T);
+    return v;
+  }
+
+ private:
+  const std::vector<std::uint8_t>& data_;
+  std::size_t at_ = 0;
+  std::size_t max_align_ = 8;
+};
+
+const mcap::Channel* channel_of(const mcap::McapReader& r, const std::string& topic) {
+  for (const mcap::Channel& c : r.channels()) {
+    if (c.topic == topic) return &c;
+  }
+  return nullptr;
+}
+
+std::vector<const mcap::Message*> messages_of(const mcap::McapReader& r, const std::string& topic) {
+  std::vector<const mcap::Message*> out;
+  const mcap::Channel* c = channel_of(r, topic);
+  if (c == nullptr) return out;
+  for (const mcap::Message& m : r.messages()) {
+    if (m.channel_id == c->id) out.push_back(&m);
+  }
+  return out;
+}
+
+constexpr std::int64_t kSourceStampBase_ns = 1'700'000'000'000'000'000;
+
+TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChannels) {
+  const fs::path config = dir_ / "vehicle.yaml";
+  std::ofstream(config) << "vehicle:\n  mass_kg: 0.5\n";
+  options_.attachments = {{config.string(), ""}, {(dir_ / "missing.yaml").string(), ""}};
+  FlightRecorder recorder(options_);
+  Publishers pub(options_.link);
+  ASSERT_TRUE(wait_matched(pub));
+
+  constexpr int kCount = 40;
+  link::Sample<link::VehicleState> state;
+  link::reserve(state->obstacle_points_body_m, 3);
+  link::Sample<link::CameraFrame> frame;
+  link::reserve(frame->rgb_jpeg, 5);
+  for (int i = 0; i < kCount; ++i) {
+    const dds_time_t stamp = kSourceStampBase_ns + i * 1'000'000;
+    link::VelocityCommand command{};
+    command.vehicle_id = 1;
+    command.station_id = 7;
+    command.sequence_number = 100u + static_cast<unsigned>(i);
+    command.t_ns = 5'000 + i;
+    command.v_H_mps = {0.25F * static_cast<float>(i), -1.0F, 0.5F};
+    command.yaw_rate_radps = 0.125F;
+    ASSERT_GE(dds_write_ts(pub.command.handle(), &command, stamp), 0);
+
+    state->vehicle_id = 1;
+    state->sequence_number = static_cast<unsigned>(i);
+    state->obstacle_points_body_m._length = 3;
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      state->obstacle_points_body_m._buffer[k] = {1.0F + static_cast<float>(k), 2.0F, -0.5F};
+    }
+    ASSERT_GE(dds_write_ts(pub.state.handle(), &*state, stamp), 0);
+
+    frame->vehicle_id = 1;
+    frame->sequence_number = static_cast<unsigned>(i);
+    const std::uint8_t jpeg[5] = {0xFF, 0xD8, 0xFF, static_cast<std::uint8_t>(i), 0xD9};
+    std::memcpy(frame->rgb_jpeg._buffer, jpeg, 5);
+    frame->rgb_jpeg._length = 5;
+    ASSERT_GE(dds_write_ts(pub.camera.handle(), &*frame, stamp), 0);
+
+    link::Heartbeat heartbeat{};
+    heartbeat.vehicle_id = 1;
+    heartbeat.sequence_number = static_cast<unsigned>(i);
+    ASSERT_GE(dds_write_ts(pub.heartbeat.handle(), &heartbeat, stamp), 0);
+
+    if (i % 10 == 0) {
+      link::Event event{};
+      event.vehicle_id = 1;
+      event.sequence_number = static_cast<unsigned>(i);
+      std::snprintf(event.text, sizeof event.text, "event %d", i);
+      ASSERT_GE(dds_write_ts(pub.event.handle(), &event, stamp), 0);
+      link::ModeRequest mode{};
+      mode.vehicle_id = 1;
+      mode.requested_mode = hq_msgs_MODE_HOVER;
+      ASSERT_GE(dds_write_ts(pub.mode.handle(), &mode, stamp), 0);
+    }
+    GroundSample g;
+    g.t_ns = dds_time();
+    g.command_valid = true;
+    g.F_D_n[2] = 1.5F;
+    g.latency_ms = 2.0F;
+    EXPECT_TRUE(recorder.push(g));
+    // Paced like a link (the state and camera readers keep the latest sample only).
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const RecorderReport& report = recorder.close({{"duration_s", "1.5"}});
+  EXPECT_TRUE(report.error.empty()) << report.error;
+  EXPECT_FALSE(recorder.failed());
+  EXPECT_EQ(report.attachments, 1u);
+  ASSERT_EQ(report.attachments_skipped.size(), 1u);
+  EXPECT_NE(report.attachments_skipped[0].find("missing.yaml"), std::string::npos);
+
+  const mcap::McapReader r(options_.path);
+  EXPECT_TRUE(r.report().has_summary);
+  EXPECT_EQ(r.statistics().message_count, report.messages);
+  EXPECT_EQ(r.channels().size(), report.channels);
+  EXPECT_EQ(fs::file_size(options_.path), report.bytes);
+  for (const ChannelReport& c : report.per_channel) {
+    const auto got = messages_of(r, c.topic);
+    EXPECT_EQ(got.size(), c.messages) << c.topic;
+    if (!got.empty()) {
+      EXPECT_EQ(got.front()->log_time_ns, c.first_log_time_ns) << c.topic;
+      EXPECT_EQ(got.back()->log_time_ns, c.last_log_time_ns) << c.topic;
+    }
+  }
+  // Reliable topics: every sample; best-effort ones on loopback, paced: nearly all.
+  EXPECT_EQ(messages_of(r, "/hq/event").size(), 4u);
+  EXPECT_EQ(messages_of(r, "/hq/mode_request").size(), 4u);
+  EXPECT_GE(messages_of(r, "/hq/velocity_command").size(), kCount * 9u / 10u);
+  EXPECT_GE(messages_of(r, "/hq/vehicle_state").size(), kCount * 9u / 10u);
+  EXPECT_EQ(messages_of(r, "/camera/image/compressed").size(),
+            messages_of(r, "/hq/camera_frame").size());
+  EXPECT_EQ(messages_of(r, "/obstacles").size(), messages_of(r, "/hq/vehicle_state").size());
+  EXPECT_EQ(messages_of(r, "/ground/haptics").size(), static_cast<std::size_t>(kCount));
+  EXPECT_EQ(messages_of(r, "/ground/link").size(), static_cast<std::size_t>(kCount));
+
+  // Schema: the IDL as omgidl, named by its module-qualified type.
+  const mcap::Channel* commands = channel_of(r, "/hq/velocity_command");
+  ASSERT_NE(commands, nullptr);
+  EXPECT_EQ(commands->message_encoding, "cdr");
+  const mcap::Schema* schema = r.schema(commands->schema_id);
+  ASSERT_NE(schema, nullptr);
+  EXPECT_EQ(schema->name, "hq_msgs::VelocityCommand");
+  EXPECT_EQ(schema->encoding, "omgidl");
+  EXPECT_EQ(std::string(schema->data.begin(), schema->data.end()), link_idl_text());
+  EXPECT_NE(link_idl_text().find("struct VelocityCommand"), std::string::npos);
+
+  // The CDR as Cyclone serialised it: decoded here field by field; publish time is the
+  // source timestamp the writer gave, log time the receipt (after it on this host's clock).
+  std::uint64_t previous_sequence = 0;
+  for (const mcap::Message* m : messages_of(r, "/hq/velocity_command")) {
+    CdrIn in(m->data);
+    EXPECT_EQ(in.get<std::uint32_t>(), 1u);
+    EXPECT_EQ(in.get<std::uint32_t>(), 7u);
+    const auto sequence = in.get<std::uint64_t>();
+    const auto t_ns = in.get<std::int64_t>();
+    const float vx = in.get<float>();
+    EXPECT_EQ(in.get<float>(), -1.0F);
+    EXPECT_EQ(in.get<float>(), 0.5F);
+    EXPECT_EQ(in.get<float>(), 0.125F);
+    const auto i = static_cast<std::int64_t>(sequence) - 100;
+    ASSERT_GE(i, 0);
+    ASSERT_LT(i, kCount);
+    EXPECT_GT(sequence, previous_sequence);
+    previous_sequence = sequence;
+    EXPECT_EQ(t_ns, 5'000 + i);
+    EXPECT_EQ(vx, 0.25F * static_cast<float>(i));
+    EXPECT_EQ(m->publish_time_ns, kSourceStampBase_ns + i * 1'000'000);
+    EXPECT_GT(m->log_time_ns, 1'600'000'000'000'000'000);
+  }
+
+  // Foxglove channels: JSON with the right schema names and base64 payloads.
+  const mcap::Channel* image = channel_of(r, "/camera/image/compressed");
+  ASSERT_NE(image, nullptr);
+  EXPECT_EQ(image->message_encoding, "json");
+  EXPECT_EQ(r.schema(image->schema_id)->name, "foxglove.CompressedImage");
+  const auto images = messages_of(r, "/camera/image/compressed");
+  ASSERT_FALSE(images.empty());
+  const std::string first_image(images[0]->data.begin(), images[0]->data.end());
+  EXPECT_NE(first_image.find("\"format\":\"jpeg\""), std::string::npos) << first_image;
+  EXPECT_NE(first_image.find("\"data\":\"/9j/"), std::string::npos) << first_image;  // FF D8 FF
+  const auto clouds = messages_of(r, "/obstacles");
+  ASSERT_FALSE(clouds.empty());
+  EXPECT_EQ(r.schema(channel_of(r, "/obstacles")->schema_id)->name, "foxglove.PointCloud");
+  const std::string cloud(clouds[0]->data.begin(), clouds[0]->data.end());
+  // (1, 2, -0.5) as float32 LE: 0000803F 00000040 000000BF -> "AACAPwAAAEAAAAC/".
+  EXPECT_NE(cloud.find("\"data\":\"AACAPwAAAEAAAAC/"), std::string::npos) << cloud;
+  EXPECT_NE(cloud.find("\"point_stride\":12"), std::string::npos);
+
+  ASSERT_EQ(r.attachments().size(), 1u);
+  EXPECT_EQ(r.attachments()[0].name, config.string());
+  EXPECT_EQ(r.attachments()[0].media_type, "application/yaml");
+  std::map<std::string, mcap::KeyValues> metadata;
+  for (const mcap::Metadata& m : r.metadata()) metadata[m.name] = m.values;
+  EXPECT_EQ(metadata["flight_summary"]["duration_s"], "1.5");
+  EXPECT_EQ(metadata["recorder"]["/hq/event.messages"], "4");
+}
+
+TEST_F(FlightRecorderTest, FileOnDiskIsReadableWhileRecordingAsAfterSigkill) {
+  options_.writer.chunk_time_limit_ns = 200'000'000;
+  FlightRecorder recorder(options_);
+  Publishers pub(options_.link);
+  ASSERT_TRUE(wait_matched(pub));
+  link::Heartbeat heartbeat{};
+  heartbeat.vehicle_id = 3;
+  const auto start = std::chrono::steady_clock::now();
+  int sent = 0;
+  while (std::chrono::steady_clock::now() - start < std::chrono::milliseconds(1200)) {
+    heartbeat.sequence_number = static_cast<unsigned>(sent++);
+    ASSERT_TRUE(pub.heartbeat.write(heartbeat));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  // Not closed: no summary, as a killed process leaves it. Everything but the open chunk
+  // (at most chunk_time_limit_ns plus a wake period old) is on disk.
+  const mcap::McapReader r(options_.path);
+  EXPECT_FALSE(r.report().has_summary);
+  const auto got = messages_of(r, "/hq/heartbeat");
+  EXPECT_GE(got.size(), static_cast<std::size_t>(sent) * 6 / 10) << "of " << sent;
+  for (std::size_t i = 1; i < got.size(); ++i) {
+    EXPECT_EQ(got[i]->sequence, got[i - 1]->sequence + 1);
+  }
+  EXPECT_TRUE(recorder.close().error.empty());
+}
+
+TEST_F(FlightRecorderTest, BurstFasterThanTheRecorderTakesIsKeptWhole) {
+  // The link's own readers keep only the latest state; the recorder's keep a history, so a
+  // burst arriving while its (niced) thread is elsewhere is recorded whole.
+  FlightRecorder recorder(options_);
+  Publishers pub(options_.link);
+  ASSERT_TRUE(wait_matched(pub));
+  constexpr int kBurst = 50;
+  link::Sample<link::VehicleState> state;
+  link::VelocityCommand command{};
+  for (int i = 0; i < kBurst; ++i) {
+    state->vehicle_id = 1;
+    state->sequence_number = static_cast<unsigned>(i);
+    ASSERT_TRUE(pub.state.write(*state));
+    command.vehicle_id = 1;
+    command.sequence_number = static_cast<unsigned>(i);
+    ASSERT_TRUE(pub.command.write(command));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_TRUE(recorder.close().error.empty());
+  const mcap::McapReader r(options_.path);
+  EXPECT_EQ(messages_of(r, "/hq/vehicle_state").size(), static_cast<std::size_t>(kBurst));
+  EXPECT_EQ(messages_of(r, "/hq/velocity_command").size(), static_cast<std::size_t>(kBurst));
+  EXPECT_EQ(messages_of(r, "/obstacles").size(), static_cast<std::size_t>(kBurst));
+}
+
+TEST_F(FlightRecorderTest, FullGroundQueueDropsAndCountsWithoutBlocking) {
+  options_.ground_queue_capacity = 8;
+  FlightRecorder recorder(options_);
+  constexpr int kPushed = 20'000;
+  int refused = 0;
+  GroundSample g;
+  for (int i = 0; i < kPushed; ++i) {
+    g.t_ns = 1'700'000'000'000'000'000 + i;
+    if (!recorder.push(g)) ++refused;
+  }
+  const RecorderReport& report = recorder.close();
+  EXPECT_GT(refused, 0);  // 20000 pushes outrun a thread draining every 100 ms
+  EXPECT_EQ(report.ground_samples_dropped, static_cast<std::uint64_t>(refused));
+  const mcap::McapReader r(options_.path);
+  EXPECT_EQ(messages_of(r, "/ground/haptics").size(), static_cast<std::size_t>(kPushed - refused));
+  EXPECT_FALSE(recorder.push(g));  // closed
+}
+
+TEST_F(FlightRecorderTest, UnwritableFolderIsAClearError) {
+  options_.path = "/nonexistent_hq_dir/flight.mcap";
+  const std::string message =
+      testing::input_error_message([&] { FlightRecorder recorder(options_); });
+  EXPECT_NE(message.find("/nonexistent_hq_dir/flight.mcap"), std::string::npos) << message;
+}
+
+TEST_F(FlightRecorderTest, ExistingFlightRecordIsRefusedNotTruncated) {
+  std::ofstream(options_.path) << "an earlier flight";
+  const std::string message =
+      testing::input_error_message([&] { FlightRecorder recorder(options_); });
+  EXPECT_NE(message.find("flight.mcap: exists"), std::string::npos) << message;
+  EXPECT_EQ(fs::file_size(options_.path), 17u);
+}
+
+TEST_F(FlightRecorderTest, WriteFailureMidFlightStopsRecordingAndSaysWhy) {
+  // A file size limit stands in for a full disk: write(2) fails with EFBIG mid-flight.
+  std::signal(SIGXFSZ, SIG_IGN);
+  rlimit saved{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+  rlimit limited = saved;
+  limited.rlim_cur = 64 * 1024;
+  options_.writer.chunk_size_bytes = 8 * 1024;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limited), 0);
+  {
+    FlightRecorder recorder(options_);
+    Publishers pub(options_.link);
+    ASSERT_TRUE(wait_matched(pub));
+    link::Sample<link::CameraFrame> frame;
+    link::reserve(frame->rgb_jpeg, 20'000);
+    frame->rgb_jpeg._length = 20'000;
+    std::memset(frame->rgb_jpeg._buffer, 0x5A, 20'000);
+    for (int i = 0; i < 100 && !recorder.failed(); ++i) {
+      frame->sequence_number = static_cast<unsigned>(i);
+      ASSERT_TRUE(pub.camera.write(*frame));
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      GroundSample g;
+      const auto t0 = std::chrono::steady_clock::now();
+      recorder.push(g);
+      EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(5));
+    }
+    EXPECT_TRUE(recorder.failed());
+    EXPECT_NE(recorder.error().find("flight.mcap"), std::string::npos) << recorder.error();
+    EXPECT_NE(recorder.error().find("File too large"), std::string::npos) << recorder.error();
+    const RecorderReport& report = recorder.close();
+    EXPECT_EQ(report.error, recorder.error());
+  }
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &saved), 0);
+  std::signal(SIGXFSZ, SIG_DFL);
+}
+
+}  // namespace
+}  // namespace hq::mcap_recorder
