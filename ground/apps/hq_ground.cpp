@@ -366,6 +366,22 @@ hq::console::WindowOptions window_options(const Options& o) {
   return window_options;
 }
 
+// The window's last frame: the screenshot if asked for, and its statistics on stdout.
+hq::console::WindowStats close_window(const Options& o, hq::console::ConsoleWindow& window,
+                                      hq::console::ConsoleModel& model,
+                                      hq::console::Snapshot& snap) {
+  model.snapshot(snap);
+  if (!o.screenshot_path.empty()) {
+    window.save_screenshot(snap, o.screenshot_path);
+    std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
+  }
+  const hq::console::WindowStats st = window.stats();
+  std::printf("  %-40s %.1f fps over %llu frames (render p50 %.2f ms, max %.2f ms; GL %s)\n",
+              "console", st.fps, static_cast<unsigned long long>(st.frames), st.render_ms_p50,
+              st.render_ms_max, st.gl_renderer.c_str());
+  return st;
+}
+
 // Runs the console window on this (the main) thread until `done`, the duration or a quit;
 // returns its statistics. Requests go to `requests` for the flying thread.
 hq::console::WindowStats run_window(const Options& o, const std::string& title,
@@ -406,16 +422,7 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
       break;
     }
   }
-  model.snapshot(snap);
-  if (!o.screenshot_path.empty()) {
-    window.save_screenshot(snap, o.screenshot_path);
-    std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
-  }
-  const hq::console::WindowStats st = window.stats();
-  std::printf("  %-40s %.1f fps over %llu frames (render p50 %.2f ms, max %.2f ms; GL %s)\n",
-              "console", st.fps, static_cast<unsigned long long>(st.frames), st.render_ms_p50,
-              st.render_ms_max, st.gl_renderer.c_str());
-  return st;
+  return close_window(o, window, model, snap);
 }
 
 // "T:KEY,..." of --keys: each key typed T seconds after the window opens, in time order.
@@ -468,16 +475,7 @@ hq::console::WindowStats run_replay_window(const Options& o, hq::console::Consol
     if (actions.replay_seek_by_s != 0) control.seek_by_s.fetch_add(actions.replay_seek_by_s);
     if (o.duration_s > 0 && elapsed_s >= o.duration_s) break;
   }
-  model.snapshot(snap);
-  if (!o.screenshot_path.empty()) {
-    window.save_screenshot(snap, o.screenshot_path);
-    std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
-  }
-  const hq::console::WindowStats st = window.stats();
-  std::printf("  %-40s %.1f fps over %llu frames (render p50 %.2f ms, max %.2f ms; GL %s)\n",
-              "console", st.fps, static_cast<unsigned long long>(st.frames), st.render_ms_p50,
-              st.render_ms_max, st.gl_renderer.c_str());
-  return st;
+  return close_window(o, window, model, snap);
 }
 
 int run_replay(const Options& o) {
