@@ -3,7 +3,7 @@
 # hq::config::resolve_data_path() finds them from the executable's own location.
 
 set(HQ_PROGRAMS hq-onboard hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate
-                hq-velocity-eval)
+                hq-velocity-eval hq-keys)
 install(TARGETS ${HQ_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 
 set(HQ_DATA_DESTINATION ${CMAKE_INSTALL_DATADIR}/haptiquad)

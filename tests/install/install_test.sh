@@ -11,7 +11,7 @@ trap 'rm -rf "$tmp"' EXIT
 prefix=$tmp/prefix
 
 "$cmake" --install "$build" --prefix "$prefix" >/dev/null
-for program in hq-onboard hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate; do
+for program in hq-onboard hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate hq-keys; do
   [ -x "$prefix/bin/$program" ] || { echo "FAIL: $program not installed in $prefix/bin"; exit 1; }
 done
 for file in config/onboard.yaml config/haptics.yaml calib/tum_fr1.yaml \
