@@ -114,9 +114,9 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
       cloud_W_[i] = {static_cast<float>(x_W_m_ + c * x - s * y),
                      static_cast<float>(y_W_m_ + s * x + c * y)};
     }
-  } else {
-    cloud_count_ = 0;
   }
+  // The cloud rides on one state a second (BridgeOptions::obstacle_cloud_rate_hz); the states
+  // between carry none, and the cloud, already placed in W, stands until the next one.
 }
 
 void ConsoleModel::on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps,

@@ -61,6 +61,25 @@ TEST(ConsoleModel, SamplesAndSnapshotsAllocateNothingAfterConstruction) {
   EXPECT_EQ(s.jpeg_size, jpeg.size());
 }
 
+// The vehicle sends its remembered cloud on one state a second: the states between carry none
+// and must not blank the top view; the next cloud replaces it.
+TEST(ConsoleModel, ObstacleCloudStandsUntilTheNextCloud) {
+  ConsoleModel m;
+  Snapshot s = m.make_snapshot();
+  std::vector<float> cloud(3 * 40, 1.0F);
+  m.on_state(0, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "hover", "ok", "ok", cloud.data(), 40);
+  for (int i = 1; i < 30; ++i) {
+    m.on_state(i * 33'000'000LL, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "hover", "ok", "ok",
+               nullptr, 0);
+  }
+  m.snapshot(s);
+  EXPECT_EQ(s.cloud_count, 40U);
+  m.on_state(1'000'000'000LL, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "hover", "ok", "ok",
+             cloud.data(), 7);
+  m.snapshot(s);
+  EXPECT_EQ(s.cloud_count, 7U);
+}
+
 TEST(ConsoleModel, CameraFrameCarriesItsExposureAndReceiptForTheVideoLatency) {
   ConsoleModel m;
   Snapshot s = m.make_snapshot();
