@@ -521,16 +521,20 @@ bool GroundStation::poll() {
   link::Event event{};
   while (event_reader_.take(event, info)) {
     if (event.vehicle_id != config_.vehicle_id) continue;
-    if (status_.vehicle_session == 0 || event.session_id != status_.vehicle_session) {
+    if (status_.vehicle_session == 0) {
+      if (early_event_count_ < early_events_.size()) {
+        early_events_[early_event_count_++] = event;
+      } else {
+        ++status_.events_rejected;
+      }
+      continue;
+    }
+    if (event.session_id != status_.vehicle_session) {
       // Not the vehicle we follow: forged, or its predecessor's (TRANSIENT_LOCAL history).
       ++status_.events_rejected;
       continue;
     }
-    ++status_.events;
-    std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
-    const std::int64_t now = dds_time();
-    if (recorder_ != nullptr) recorder_->event(now, event);
-    if (observer_ != nullptr) observer_->on_event(now, event);
+    deliver_event(event);
   }
   while (camera_reader_.take(*camera_sample_, info)) {
     if (camera_sample_->vehicle_id != config_.vehicle_id) continue;
@@ -550,6 +554,25 @@ bool GroundStation::poll() {
     }
   }
   return fresh;
+}
+
+void GroundStation::deliver_event(const link::Event& event) {
+  ++status_.events;
+  std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
+  const std::int64_t now = dds_time();
+  if (recorder_ != nullptr) recorder_->event(now, event);
+  if (observer_ != nullptr) observer_->on_event(now, event);
+}
+
+void GroundStation::release_early_events() {
+  for (std::size_t i = 0; i < early_event_count_; ++i) {
+    if (early_events_[i].session_id == status_.vehicle_session) {
+      deliver_event(early_events_[i]);
+    } else {
+      ++status_.events_rejected;
+    }
+  }
+  early_event_count_ = 0;
 }
 
 // What this cannot catch: a forger that copies the live session and sends plausible values with
@@ -589,6 +612,7 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receip
       status_.waiting_for_vehicle = false;
       send_mode_request(monotonic_now_ns(), pending_mode_, pending_marker_, pending_take_off_);
     }
+    release_early_events();
   }
   if (last_state_sequence_ != 0 && s.sequence_number <= last_state_sequence_) {
     // Overtaken on the way (jitter) or replayed: older than what the loop already has. If it
@@ -689,6 +713,7 @@ void GroundStation::select_vehicle(std::uint32_t vehicle_id) {
   status_.commanding_station_id = 0;
   pending_request_ = false;
   status_.waiting_for_vehicle = false;
+  early_event_count_ = 0;
 }
 
 bool GroundStation::poll_until(std::int64_t deadline_ns) {

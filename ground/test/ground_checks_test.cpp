@@ -187,6 +187,41 @@ TEST(GroundChecks, RequestsWaitForTheSessionAndForgedStatesAndEventsAreRejected)
 // GIVEN a station flying vehicle 1, WHEN the vehicle reports station 9 as its commander, THEN
 // the station says it lost control (once); WHEN the vehicle restarts (a new session after the
 // old one went quiet), THEN it is followed, counted and nothing is re-sent.
+// GIVEN events that reach the station before the vehicle's first state (its transient-local
+// history does), WHEN the first state arrives, THEN those of its session are shown and recorded,
+// and one of another session is still rejected.
+TEST(GroundChecks, EventsBeforeTheFirstStateAreHeldUntilTheSessionIsKnown) {
+  const link::LinkConfig config = private_link();
+  GroundStation station(config);
+  FakeVehicle vehicle(config);
+  constexpr std::uint64_t kSession = 0x5e55'1011'cafeULL;
+  link::Event early{};
+  early.vehicle_id = 1;
+  early.session_id = kSession;
+  std::snprintf(early.text, sizeof early.text, "landed and at rest");
+  link::Event stale = early;
+  stale.session_id = kSession + 7;
+  std::snprintf(stale.text, sizeof stale.text, "of a previous instance");
+  vehicle.events.write(stale);
+  vehicle.events.write(early);
+  // Both taken (held), nothing shown yet: the session is unknown.
+  const auto held_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
+  while (std::chrono::steady_clock::now() < held_until) {
+    station.poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_EQ(station.status().events, 0U);
+  EXPECT_EQ(station.status().events_rejected, 0U);
+  link::VehicleState state = good_state(kSession, 1);
+  ASSERT_TRUE(poll_until(station, [&] {
+    vehicle.states.write(state);
+    return station.status().have_state;
+  }));
+  EXPECT_EQ(station.status().events, 1U);
+  EXPECT_EQ(station.status().events_rejected, 1U);
+  EXPECT_STREQ(station.status().last_event.data(), "landed and at rest");
+}
+
 TEST(GroundChecks, LostControlIsShownAndARestartIsFollowedWithoutResending) {
   const link::LinkConfig config = private_link();
   GroundStation station(config);

@@ -254,6 +254,15 @@ class GroundStation {
   hq_msgs_Mode pending_mode_ = hq_msgs_MODE_HOVER;
   MarkerChoice pending_marker_;
   bool pending_take_off_ = false;
+  /// Events that arrive before the vehicle's first state (its transient-local history reaches
+  /// a new reader before the first periodic state): held until the session is known, then
+  /// delivered if they are of it. Bounded; beyond kEarlyEvents they are rejected.
+  static constexpr std::size_t kEarlyEvents = 8;
+  std::array<link::Event, kEarlyEvents> early_events_{};
+  std::size_t early_event_count_ = 0;
+  void deliver_event(const link::Event& event);
+  /// Delivers the held events of the session just learned; rejects the rest.
+  void release_early_events();
   void note_echo(const link::Heartbeat& heartbeat);
   link::Participant participant_;
   link::Topics topics_;
