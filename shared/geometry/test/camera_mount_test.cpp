@@ -48,5 +48,25 @@ TEST(CameraHeading, RejectsANonRotationAndAVerticalCamera) {
               HasSubstr("vertical"));
 }
 
+TEST(CameraMount, HoldsTheHeadingAndRefusesAnImpossibleLeverArm) {
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  T_B_C.linear() = mount(0.5, -0.2, 0.0);
+  T_B_C.translation() = Eigen::Vector3d(0.1, 0.0, -0.05);
+  const CameraMount camera_mount(T_B_C);
+  EXPECT_NEAR(camera_mount.heading_rad(), 0.5, 1e-9);
+  EXPECT_TRUE(camera_mount.p_B_C_m().isApprox(T_B_C.translation()));
+
+  T_B_C.translation() = Eigen::Vector3d(3.0, 0.0, 0.0);
+  EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),
+              HasSubstr("within 2 m"));
+  T_B_C.translation() = Eigen::Vector3d(std::nan(""), 0.0, 0.0);
+  EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),
+              HasSubstr("finite"));
+  T_B_C.translation().setZero();
+  T_B_C.linear() = 2.0 * Eigen::Matrix3d::Identity();
+  EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),
+              HasSubstr("not a rotation"));
+}
+
 }  // namespace
 }  // namespace hq::geometry
