@@ -6,11 +6,21 @@
 // subprocess on a generated script, plus report.md linking them. No shell is involved and no
 // path reaches gnuplot's script: gnuplot is spawned with an argument vector in the output
 // folder, and the script names only the fixed file names there.
-//   hq-report <recording-dir> [--out DIR] [--format png|svg]
+// The recording is a flight record (a .mcap, or a folder's flight.mcap) or, without one, the
+// CSV files of older recordings (hq::console::load_recording). Two more jobs on flight records:
+// --csv exports the CSV files gnuplot users had (hq::ground::TelemetryRecorder writes them, so
+// the columns are the recorder's own), --recover rewrites a file whose writer was killed into a
+// complete indexed one.
+//   hq-report <recording-dir | flight.mcap> [--out DIR] [--format png|svg]
+//   hq-report <recording-dir | flight.mcap> --csv OUT_DIR
+//   hq-report --recover IN.mcap OUT.mcap
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
+#include "hq/console/flight_mcap.hpp"
 #include "hq/console/flight_report.hpp"
 #include "hq/console/recording.hpp"
+#include "hq/ground/ground_station.hpp"
+#include "hq/mcap/mcap.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -27,6 +37,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -135,283 +146,375 @@ std::string number_or_nan(double v) {
   return text;
 }
 
-int run(int argc, char** argv) {
-  CLI::App app{"hq-report: flight report of an hq-ground recording"};
-  std::string dir;
+struct Options {
+  std::string recording;
   std::string out_dir;
   std::string format = "png";
-  app.add_option("recording", dir, "recording directory (hq-ground --record)")->required();
-  app.add_option("--out", out_dir, "output directory (default: <recording>/report)");
-  app.add_option("--format", format, "figure format")->check(CLI::IsMember({"png", "svg"}));
+  std::string csv_dir;
+  std::vector<std::string> recover;  ///< IN.mcap OUT.mcap
+};
+
+constexpr const char* kUsage =
+    "usage: hq-report <recording-dir | flight.mcap> [--out DIR] [--format png|svg] | "
+    "<recording-dir | flight.mcap> --csv OUT_DIR | --recover IN.mcap OUT.mcap";
+
+// Returns an exit code when parsing ends the run (--help, a bad argument).
+std::optional<int> parse_options(int argc, char** argv, Options& o) {
+  CLI::App app{"hq-report: flight report of an hq-ground recording"};
+  app.add_option("recording", o.recording,
+                 "recording: a folder (hq-ground --record) or its flight.mcap");
+  app.add_option("--out", o.out_dir, "output directory (default: <recording>/report)");
+  app.add_option("--format", o.format, "figure format")->check(CLI::IsMember({"png", "svg"}));
+  app.add_option("--csv", o.csv_dir,
+                 "export the flight record as the CSV files of hq-ground --record into this new "
+                 "folder (no report)");
+  app.add_option("--recover", o.recover,
+                 "rewrite IN.mcap (a writer killed: no summary) into a complete OUT.mcap")
+      ->expected(2);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  if (out_dir.empty()) out_dir = (fs::path(dir) / "report").string();
+  if (o.recover.empty() && o.recording.empty()) {
+    throw hq::InputError(std::string("no recording given (") + kUsage + ")");
+  }
+  return std::nullopt;
+}
+
+// Loads the recording, prints what could not be read, and refuses one without states.
+hq::console::Recording load_checked(const std::string& path) {
   hq::console::Recording r;
   try {
-    r = hq::console::load_recording(dir);
+    r = hq::console::load_recording(path);
   } catch (const hq::InputError& e) {
-    throw hq::InputError(std::string(e.what()) +
-                         " (usage: hq-report <recording-dir> [--out DIR] [--format png|svg])");
+    throw hq::InputError(std::string(e.what()) + " (" + kUsage + ")");
   }
   for (const std::string& p : r.problems) std::fprintf(stderr, "hq-report: %s\n", p.c_str());
   for (const std::string& c : r.absent_columns) {
     std::fprintf(stderr, "hq-report: column absent (older layout): %s\n", c.c_str());
   }
   if (r.states.empty()) {
-    throw hq::InputError(dir + "/telemetry.csv: no readable vehicle state, nothing to report");
+    throw hq::InputError((r.from_mcap ? r.directory + ": /hq/vehicle_state"
+                                      : path + "/telemetry.csv") +
+                         ": no readable vehicle state, nothing to report");
   }
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw hq::InputError("--out " + out_dir + ": cannot create: " + ec.message());
+  return r;
+}
 
-  const hq::console::ReportFigures fig = hq::console::compute_report(r);
-  // One data file for gnuplot: a blank line between vehicle sessions breaks every trace there
-  // (a restarted vehicle's track is not joined to its predecessor's).
-  // Times on the replay's timeline (from the recording's earliest stamp), so that the page and
-  // hq-ground --replay name the same instant alike.
-  const std::int64_t t0_ns = fig.timeline.t0_ns;
-  Summary sum;
-  const std::string data_name = "flight.dat";
-  const std::string data_path = (fs::path(out_dir) / data_name).string();
-  std::ofstream data(data_path);
-  if (!data) throw hq::InputError(data_path + ": cannot open for writing");
-  data << "# t_s v_est_x v_est_y v_est_z v_cmd_x v_cmd_y v_cmd_z v_obs_x v_obs_y v_obs_z "
-          "yaw_cmd yaw_meas x_W y_W cloud_nearest_m latency_ms v_truth_x v_truth_y v_truth_z "
-          "p_W_x p_W_y height_m clearance_m session (NaN: absent)\n";
-  double yaw = 0;
-  double x = 0;
-  double y = 0;
-  std::size_t session = 0;
-  for (std::size_t i = 0; i < r.states.size(); ++i) {
-    const hq::console::RecordedState& s = r.states[i];
-    const double t_s = 1e-9 * static_cast<double>(s.receipt_ns - t0_ns);
-    const bool new_session =
-        session + 1 < fig.sessions.size() &&
-        s.receipt_ns - t0_ns >= static_cast<std::int64_t>(std::llround(fig.sessions[session + 1].start_s * 1e9));
-    if (new_session) {
-      ++session;
-      yaw = x = y = 0;  // a new vehicle: its own dead-reckoned track from its own start
-      data << '\n';
-    } else if (i > 0) {
-      // Dead reckoning as the console's top view: p_W += R_z(yaw) v_H dt (a gap of more than a
-      // second is not bridged).
-      const double dt = std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0);
-      yaw += s.omega_body_radps[2] * dt;
-      x += (std::cos(yaw) * s.v_H_mps[0] - std::sin(yaw) * s.v_H_mps[1]) * dt;
-      y += (std::sin(yaw) * s.v_H_mps[0] + std::cos(yaw) * s.v_H_mps[1]) * dt;
-    }
-    const hq::console::RecordedCommand* c = command_at(r.commands, s.receipt_ns);
-    const std::array<float, 3> v_cmd = c ? c->v_H_mps : std::array<float, 3>{};
-    const float yaw_cmd = c ? c->yaw_rate_radps : 0.0F;
-    if (std::string_view(s.mode) == "teleop" && c != nullptr) {
-      for (std::size_t a = 0; a < 3; ++a) {
-        const double e = s.v_H_mps[a] - v_cmd[a];
-        sum.rms_tracking_mps[a] += e * e;
-      }
-      ++sum.tracking_samples;
-    }
-    sum.max_v_obs_mps = std::max(sum.max_v_obs_mps,
-                                 static_cast<double>(std::hypot(s.v_obs_H_mps[0], s.v_obs_H_mps[1], s.v_obs_H_mps[2])));
-    if (s.truth_valid) {
-      for (std::size_t a = 0; a < 3; ++a) {
-        const double e = s.v_H_mps[a] - s.v_truth_H_mps[a];
-        sum.rmse_truth_mps[a] += e * e;
-      }
-      ++sum.truth_samples;
-    }
-    sum.position_samples += s.position_valid ? 1 : 0;
-    data << t_s << ' ' << s.v_H_mps[0] << ' ' << s.v_H_mps[1] << ' ' << s.v_H_mps[2] << ' '
-         << v_cmd[0] << ' ' << v_cmd[1] << ' ' << v_cmd[2] << ' ' << s.v_obs_H_mps[0] << ' '
-         << s.v_obs_H_mps[1] << ' ' << s.v_obs_H_mps[2] << ' ' << yaw_cmd << ' '
-         << s.omega_body_radps[2] << ' ' << x << ' ' << y << ' '
-         << number_or_nan(s.closest_obstacle_m) << ' ' << s.latency_ms;
-    // gnuplot leaves NaN points out, so absent truth or position breaks the trace there.
+// Adds one state's contribution to the summary figures.
+void accumulate(const hq::console::RecordedState& s, const hq::console::RecordedCommand* c,
+                Summary& sum) {
+  if (std::string_view(s.mode) == "teleop" && c != nullptr) {
     for (std::size_t a = 0; a < 3; ++a) {
-      data << ' ' << (s.truth_valid ? std::to_string(s.v_truth_H_mps[a]) : "NaN");
+      const double e = s.v_H_mps[a] - c->v_H_mps[a];
+      sum.rms_tracking_mps[a] += e * e;
     }
-    for (std::size_t a = 0; a < 2; ++a) {
-      data << ' ' << (s.position_valid ? std::to_string(s.p_W_m[a]) : "NaN");
-    }
-    data << ' ' << number_or_nan(s.height_m) << ' ' << number_or_nan(s.clearance_m) << ' '
-         << session << '\n';
+    ++sum.tracking_samples;
   }
-  data.close();
-  if (!data) throw hq::InputError(data_path + ": write failed (disk full?)");
+  sum.max_v_obs_mps =
+      std::max(sum.max_v_obs_mps, static_cast<double>(std::hypot(
+                                      s.v_obs_H_mps[0], s.v_obs_H_mps[1], s.v_obs_H_mps[2])));
+  if (s.truth_valid) {
+    for (std::size_t a = 0; a < 3; ++a) {
+      const double e = s.v_H_mps[a] - s.v_truth_H_mps[a];
+      sum.rmse_truth_mps[a] += e * e;
+    }
+    ++sum.truth_samples;
+  }
+  sum.position_samples += s.position_valid ? 1 : 0;
+}
+
+void finish(Summary& sum) {
   for (double& v : sum.rms_tracking_mps) {
     v = sum.tracking_samples > 0 ? std::sqrt(v / static_cast<double>(sum.tracking_samples)) : NAN;
   }
   for (double& v : sum.rmse_truth_mps) {
     v = sum.truth_samples > 0 ? std::sqrt(v / static_cast<double>(sum.truth_samples)) : NAN;
   }
+}
+
+// Dead reckoning as the console's top view: p_W += R_z(yaw) v_H dt; a new vehicle session
+// starts its own track from its own start.
+struct DeadReckoning {
+  double yaw = 0;
+  double x = 0;
+  double y = 0;
+  void step(const hq::console::RecordedState& s, double dt_s) {
+    yaw += s.omega_body_radps[2] * dt_s;
+    x += (std::cos(yaw) * s.v_H_mps[0] - std::sin(yaw) * s.v_H_mps[1]) * dt_s;
+    y += (std::sin(yaw) * s.v_H_mps[0] + std::cos(yaw) * s.v_H_mps[1]) * dt_s;
+  }
+};
+
+void write_data_row(std::ofstream& data, double t_s, const hq::console::RecordedState& s,
+                    const hq::console::RecordedCommand* c, const DeadReckoning& track,
+                    std::size_t session) {
+  const std::array<float, 3> v_cmd = c ? c->v_H_mps : std::array<float, 3>{};
+  const float yaw_cmd = c ? c->yaw_rate_radps : 0.0F;
+  data << t_s << ' ' << s.v_H_mps[0] << ' ' << s.v_H_mps[1] << ' ' << s.v_H_mps[2] << ' '
+       << v_cmd[0] << ' ' << v_cmd[1] << ' ' << v_cmd[2] << ' ' << s.v_obs_H_mps[0] << ' '
+       << s.v_obs_H_mps[1] << ' ' << s.v_obs_H_mps[2] << ' ' << yaw_cmd << ' '
+       << s.omega_body_radps[2] << ' ' << track.x << ' ' << track.y << ' '
+       << number_or_nan(s.closest_obstacle_m) << ' ' << s.latency_ms;
+  // gnuplot leaves NaN points out, so absent truth or position breaks the trace there.
+  for (std::size_t a = 0; a < 3; ++a) {
+    data << ' ' << (s.truth_valid ? std::to_string(s.v_truth_H_mps[a]) : "NaN");
+  }
+  for (std::size_t a = 0; a < 2; ++a) {
+    data << ' ' << (s.position_valid ? std::to_string(s.p_W_m[a]) : "NaN");
+  }
+  data << ' ' << number_or_nan(s.height_m) << ' ' << number_or_nan(s.clearance_m) << ' '
+       << session << '\n';
+}
+
+// One data file for gnuplot: a blank line between vehicle sessions breaks every trace there
+// (a restarted vehicle's track is not joined to its predecessor's). Times on the replay's
+// timeline (from the recording's earliest stamp), so that the page and hq-ground --replay name
+// the same instant alike. Returns the summary figures over the states.
+Summary write_data_file(const hq::console::Recording& r, const hq::console::ReportFigures& fig,
+                        const std::string& data_path) {
+  const std::int64_t t0_ns = fig.timeline.t0_ns;
+  std::ofstream data(data_path);
+  if (!data) throw hq::InputError(data_path + ": cannot open for writing");
+  data << "# t_s v_est_x v_est_y v_est_z v_cmd_x v_cmd_y v_cmd_z v_obs_x v_obs_y v_obs_z "
+          "yaw_cmd yaw_meas x_W y_W cloud_nearest_m latency_ms v_truth_x v_truth_y v_truth_z "
+          "p_W_x p_W_y height_m clearance_m session (NaN: absent)\n";
+  Summary sum;
+  DeadReckoning track;
+  std::size_t session = 0;
+  for (std::size_t i = 0; i < r.states.size(); ++i) {
+    const hq::console::RecordedState& s = r.states[i];
+    const bool new_session =
+        session + 1 < fig.sessions.size() &&
+        s.receipt_ns - t0_ns >=
+            static_cast<std::int64_t>(std::llround(fig.sessions[session + 1].start_s * 1e9));
+    if (new_session) {
+      ++session;
+      track = {};
+      data << '\n';
+    } else if (i > 0) {
+      // A gap of more than a second is not bridged.
+      track.step(s, std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns),
+                             1.0));
+    }
+    const hq::console::RecordedCommand* c = command_at(r.commands, s.receipt_ns);
+    accumulate(s, c, sum);
+    write_data_row(data, 1e-9 * static_cast<double>(s.receipt_ns - t0_ns), s, c, track, session);
+  }
+  data.close();
+  if (!data) throw hq::InputError(data_path + ": write failed (disk full?)");
+  finish(sum);
+  return sum;
+}
+
+const char* const kFigures[] = {"velocity_H", "v_obs", "yaw_rate", "height", "clearance",
+                                "latency", "top_view"};
+
+// gnuplot refuses a plot whose points are all undefined: an empty frame that says so.
+constexpr const char* kNoData =
+    "set label 99 'not in this recording' at graph 0.4, graph 0.5\nset yrange [0:1]\n"
+    "plot -1 notitle\nunset label 99\nset autoscale y\n";
+
+void write_time_plots(std::ofstream& gp, const std::string& format,
+                      const hq::console::ReportFigures& fig, const Summary& sum) {
   const bool have_clearance = std::isfinite(fig.closest_clearance_m);
   const bool have_height = fig.height_states > 0;
   const bool have_cloud = std::isfinite(fig.closest_cloud_point_m);
-  // gnuplot refuses a plot whose points are all undefined: an empty frame that says so.
-  const char* const kNoData =
-      "set label 99 'not in this recording' at graph 0.4, graph 0.5\nset yrange [0:1]\n"
-      "plot -1 notitle\nunset label 99\nset autoscale y\n";
+  gp << "set output '" << ("velocity_H." + format) << "'\n"
+     << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded"
+     << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";
+  const char* axes[3] = {"x", "y", "z"};
+  for (int a = 0; a < 3; ++a) {
+    gp << "set ylabel 'v_" << axes[a] << " [m/s]'\n" << (a == 2 ? "set xlabel 't [s]'\n" : "")
+       << "plot d u 1:" << 2 + a << " w l lw 2 t 'estimated', d u 1:" << 5 + a
+       << " w l lw 2 dt 2 t 'commanded'";
+    if (sum.truth_samples > 0) gp << ", d u 1:" << 17 + a << " w l lw 1 t 'truth'";
+    gp << '\n';
+  }
+  gp << "unset multiplot\n";
+  gp << "set output '" << ("v_obs." + format) << "'\n"
+     << "set title 'Obstacle repulsion v_{obs} in H (Fig. 8)'\nset xlabel 't [s]'\n"
+     << "set ylabel '[m/s]'\nplot d u 1:8 w l lw 2 t 'x', d u 1:9 w l lw 2 t 'y', d u 1:10 w l "
+        "lw 2 t 'z'\n";
+  gp << "set output '" << ("yaw_rate." + format) << "'\n"
+     << "set title 'Yaw rate: commanded vs measured'\nset ylabel '[rad/s]'\n"
+     << "plot d u 1:11 w l lw 2 dt 2 t 'commanded', d u 1:12 w l lw 2 t 'measured (gyro z)'\n";
+  gp << "set output '" << ("height." + format) << "'\n"
+     << "set title 'Height above the floor (vehicle)" << (have_height ? "" : ": not recorded")
+     << "'\nset ylabel '[m]'\n"
+     << (have_height ? "plot d u 1:22 w l lw 2 t 'height_m'\n" : kNoData);
+  gp << "set output '" << ("clearance." + format) << "'\n"
+     << "set title 'Closest obstacle'\nset ylabel '[m]'\n"
+     << (have_clearance && have_cloud
+             ? "plot d u 1:23 w l lw 2 t 'clearance (vehicle)', d u 1:15 w p pt 7 ps 0.3 t "
+               "'nearest cloud point from the body origin'\n"
+         : have_clearance ? "plot d u 1:23 w l lw 2 t 'clearance (vehicle)'\n"
+         : have_cloud     ? "plot d u 1:15 w p pt 7 ps 0.3 t 'nearest cloud point from the body "
+                            "origin (the vehicle sent no clearance)'\n"
+                          : kNoData);
+  gp << "set output '" << ("latency." + format) << "'\n"
+     << "set title 'Vehicle state latency (one way)'\nset ylabel '[ms]'\n"
+     << "plot d u 1:16 w l t 'latency'\n";
+}
 
-  // The gnuplot script: time plots over the mode bands, event marks and restarts.
+void write_top_view(std::ofstream& gp, const std::string& format, const Summary& sum) {
+  gp << "unset object\nunset arrow\nunset label\nset autoscale x\nunset xrange\n";
+  gp << "set output '" << ("top_view." + format) << "'\n"
+     << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts); one track per "
+        "vehicle session"
+     << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "'\n"
+     << "set size ratio -1\nset xlabel 'east y_W [m]'\nset ylabel 'north x_W [m]'\n"
+     << "set autoscale\n"
+     << "plot d u 14:13 w l lw 2 t 'track (dead-reckoned)', d u (column(14)):(column(13)) "
+        "every ::0::0 w p pt 7 ps 2 t 'start'";
+  if (sum.position_samples > 0) gp << ", d u 21:20 w p pt 7 ps 0.4 t 'vehicle position p_W'";
+  gp << '\n';
+}
+
+// The gnuplot script (time plots over the mode bands, event marks and restarts; the top view)
+// run in out_dir.
+void draw_figures(const std::string& out_dir, const std::string& format,
+                  const std::string& data_name, const hq::console::ReportFigures& fig,
+                  const Summary& sum) {
   const std::string terminal = format == "png" ? "pngcairo size 1000,700" : "svg size 1000,700";
   const std::string script_path = (fs::path(out_dir) / "report.gp").string();
-  std::vector<std::string> figures = {"velocity_H", "v_obs", "yaw_rate", "height", "clearance",
-                                      "latency", "top_view"};
   {
     std::ofstream gp(script_path);
     if (!gp) throw hq::InputError(script_path + ": cannot open for writing");
     gp << "set terminal " << terminal << "\nset grid\nset key outside top center horizontal\n"
-       << "d = '" << data_name << "'\nset xrange [0:" << std::max(fig.timeline.duration_s, 1e-3) << "]\n"
+       << "d = '" << data_name << "'\nset xrange [0:" << std::max(fig.timeline.duration_s, 1e-3)
+       << "]\n"
        << "# Mode bands (teleop green, hover blue, land orange, marker purple, explore teal),\n"
        << "# event ticks (grey info, amber warning, red error), vehicle restarts (red).\n"
        << band_script(fig.timeline);
-    gp << "set output '" << ("velocity_H." + format) << "'\n"
-       << "set multiplot layout 3,1 title 'Velocity in H: estimated vs commanded"
-       << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";
-    const char* axes[3] = {"x", "y", "z"};
-    for (int a = 0; a < 3; ++a) {
-      gp << "set ylabel 'v_" << axes[a] << " [m/s]'\n" << (a == 2 ? "set xlabel 't [s]'\n" : "")
-         << "plot d u 1:" << 2 + a << " w l lw 2 t 'estimated', d u 1:" << 5 + a
-         << " w l lw 2 dt 2 t 'commanded'";
-      if (sum.truth_samples > 0) gp << ", d u 1:" << 17 + a << " w l lw 1 t 'truth'";
-      gp << '\n';
-    }
-    gp << "unset multiplot\n";
-    gp << "set output '" << ("v_obs." + format) << "'\n"
-       << "set title 'Obstacle repulsion v_{obs} in H (Fig. 8)'\nset xlabel 't [s]'\n"
-       << "set ylabel '[m/s]'\nplot d u 1:8 w l lw 2 t 'x', d u 1:9 w l lw 2 t 'y', d u 1:10 w l "
-          "lw 2 t 'z'\n";
-    gp << "set output '" << ("yaw_rate." + format) << "'\n"
-       << "set title 'Yaw rate: commanded vs measured'\nset ylabel '[rad/s]'\n"
-       << "plot d u 1:11 w l lw 2 dt 2 t 'commanded', d u 1:12 w l lw 2 t 'measured (gyro z)'\n";
-    gp << "set output '" << ("height." + format) << "'\n"
-       << "set title 'Height above the floor (vehicle)" << (have_height ? "" : ": not recorded")
-       << "'\nset ylabel '[m]'\n"
-       << (have_height ? "plot d u 1:22 w l lw 2 t 'height_m'\n" : kNoData);
-    gp << "set output '" << ("clearance." + format) << "'\n"
-       << "set title 'Closest obstacle'\nset ylabel '[m]'\n"
-       << (have_clearance && have_cloud
-               ? "plot d u 1:23 w l lw 2 t 'clearance (vehicle)', d u 1:15 w p pt 7 ps 0.3 t "
-                 "'nearest cloud point from the body origin'\n"
-           : have_clearance ? "plot d u 1:23 w l lw 2 t 'clearance (vehicle)'\n"
-           : have_cloud ? "plot d u 1:15 w p pt 7 ps 0.3 t 'nearest cloud point from the body "
-                          "origin (the vehicle sent no clearance)'\n"
-                        : kNoData);
-    gp << "set output '" << ("latency." + format) << "'\n"
-       << "set title 'Vehicle state latency (one way)'\nset ylabel '[ms]'\n"
-       << "plot d u 1:16 w l t 'latency'\n";
-    gp << "unset object\nunset arrow\nunset label\nset autoscale x\nunset xrange\n";
-    gp << "set output '" << ("top_view." + format) << "'\n"
-       << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts); one track per vehicle session"
-       << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "'\n"
-       << "set size ratio -1\nset xlabel 'east y_W [m]'\nset ylabel 'north x_W [m]'\n"
-       << "set autoscale\n"
-       << "plot d u 14:13 w l lw 2 t 'track (dead-reckoned)', d u (column(14)):(column(13)) "
-          "every ::0::0 w p pt 7 ps 2 t 'start'";
-    if (sum.position_samples > 0) gp << ", d u 21:20 w p pt 7 ps 0.4 t 'vehicle position p_W'";
-    gp << '\n';
+    write_time_plots(gp, format, fig, sum);
+    write_top_view(gp, format, sum);
   }
   const int rc = run_in({"gnuplot", "report.gp"}, out_dir, "gnuplot.log");
   if (rc != 0) {
     throw hq::InputError(script_path + ": gnuplot failed (exit " + std::to_string(rc) + "), see " +
                          (fs::path(out_dir) / "gnuplot.log").string());
   }
+}
 
-  // The page: the same rows in Markdown (report.md) and HTML (report.html), figures embedded.
-  std::vector<std::pair<std::string, std::string>> rows;
+using Rows = std::vector<std::pair<std::string, std::string>>;
+
+template <typename... Values>
+void add_row(Rows& rows, const char* name, const char* format_text, Values... values) {
   char text[512];
-  const auto row = [&](const char* name, const char* format_text, auto... values) {
-    std::snprintf(text, sizeof text, format_text, values...);
-    rows.emplace_back(name, text);
-  };
-  row("duration", "%.1f s (ground receipt, first to last state), %zu states, %zu commands, %zu "
-                  "camera frames",
-      fig.duration_s, r.states.size(), r.commands.size(), r.rgb.size());
-  {
-    std::string list;
-    for (std::size_t i = 0; i < fig.sessions.size(); ++i) {
-      const hq::console::SessionFigures& s = fig.sessions[i];
-      std::snprintf(text, sizeof text, "%s%s %zu: %.1f-%.1f s, %zu states, %.1f s on the vehicle's clock, %llu lost%s",
-                    list.empty() ? "" : "; ", i == 0 ? "session" : "vehicle restarted, session",
-                    i + 1, s.start_s, s.end_s, s.states, s.vehicle_duration_s,
-                    static_cast<unsigned long long>(s.states_lost),
-                    s.session_id != 0 ? "" : " (no session id)");
-      list += text;
-    }
-    std::snprintf(text, sizeof text, "%zu: %s", fig.sessions.size(), list.c_str());
-    rows.emplace_back("vehicle sessions (restarts)", text);
+  std::snprintf(text, sizeof text, format_text, values...);
+  rows.emplace_back(name, text);
+}
+
+std::string sessions_text(const hq::console::ReportFigures& fig) {
+  std::string list;
+  char text[512];
+  for (std::size_t i = 0; i < fig.sessions.size(); ++i) {
+    const hq::console::SessionFigures& s = fig.sessions[i];
+    std::snprintf(text, sizeof text,
+                  "%s%s %zu: %.1f-%.1f s, %zu states, %.1f s on the vehicle's clock, %llu lost%s",
+                  list.empty() ? "" : "; ", i == 0 ? "session" : "vehicle restarted, session",
+                  i + 1, s.start_s, s.end_s, s.states, s.vehicle_duration_s,
+                  static_cast<unsigned long long>(s.states_lost),
+                  s.session_id != 0 ? "" : " (no session id)");
+    list += text;
   }
-  row("tracking error RMS (teleop, v_est - v_cmd in H)", "x %.3f, y %.3f, z %.3f m/s over %zu states",
-      sum.rms_tracking_mps[0], sum.rms_tracking_mps[1], sum.rms_tracking_mps[2],
-      sum.tracking_samples);
-  if (sum.truth_samples > 0) {
-    row("velocity estimate RMSE vs truth (simulator, v_est - v_truth in H)",
-        "x %.3f, y %.3f, z %.3f m/s over %zu states", sum.rmse_truth_mps[0], sum.rmse_truth_mps[1],
-        sum.rmse_truth_mps[2], sum.truth_samples);
-  } else {
-    rows.emplace_back("velocity estimate RMSE vs truth", "no truth in this recording");
+  return std::to_string(fig.sessions.size()) + ": " + list;
+}
+
+std::string mode_changes_text(const hq::console::ReportFigures& fig) {
+  std::string list;
+  char text[512];
+  for (const hq::console::ModeChange& c : fig.mode_changes) {
+    std::snprintf(text, sizeof text, "%s%.2f s: %s -> %s", list.empty() ? "" : "; ", c.t_s,
+                  c.from, c.to);
+    list += text;
   }
-  if (have_clearance) {
-    row("closest obstacle (vehicle's clearance)", "%.3f m at %.1f s", fig.closest_clearance_m,
-        fig.closest_clearance_at_s);
+  std::snprintf(text, sizeof text, "%zu (initial mode %s)%s", fig.mode_changes.size(),
+                fig.initial_mode, list.empty() ? "" : ": ");
+  return text + list;
+}
+
+std::string link_incidents_text(const hq::console::ReportFigures& fig, std::size_t problems) {
+  std::string lost;
+  char text[512];
+  for (const double t_s : fig.link_lost_events_s) {
+    std::snprintf(text, sizeof text, "%s%.1f s", lost.empty() ? "" : ", ", t_s);
+    lost += text;
+  }
+  std::snprintf(text, sizeof text,
+                "%llu states lost (within sessions), largest gap %.0f ms at %.1f s, %zu "
+                "ground-heartbeat-lost event(s)%s%s, %zu warning/error events, %zu unreadable "
+                "recording lines",
+                static_cast<unsigned long long>(fig.states_lost), 1e3 * fig.largest_gap_s,
+                fig.largest_gap_at_s, fig.link_lost_events_s.size(), lost.empty() ? "" : " at ",
+                lost.c_str(), fig.warnings, problems);
+  return text;
+}
+
+void add_obstacle_rows(Rows& rows, const hq::console::ReportFigures& fig) {
+  if (std::isfinite(fig.closest_clearance_m)) {
+    add_row(rows, "closest obstacle (vehicle's clearance)", "%.3f m at %.1f s",
+            fig.closest_clearance_m, fig.closest_clearance_at_s);
   } else {
     rows.emplace_back("closest obstacle (vehicle's clearance)",
                       "not recorded (the vehicle sent no clearance)");
   }
   if (std::isfinite(fig.closest_cloud_point_m)) {
-    row("nearest cloud point from the body origin (not a clearance)", "%.3f m",
-        fig.closest_cloud_point_m);
+    add_row(rows, "nearest cloud point from the body origin (not a clearance)", "%.3f m",
+            fig.closest_cloud_point_m);
   }
-  if (have_height) {
-    row("height above the floor", "max %.2f m over %zu states", fig.max_height_m,
-        fig.height_states);
+  if (fig.height_states > 0) {
+    add_row(rows, "height above the floor", "max %.2f m over %zu states", fig.max_height_m,
+            fig.height_states);
   } else {
     rows.emplace_back("height above the floor", "not recorded");
   }
-  row("largest v_obs", "%.3f m/s", sum.max_v_obs_mps);
-  {
-    std::string list;
-    for (const hq::console::ModeChange& c : fig.mode_changes) {
-      std::snprintf(text, sizeof text, "%s%.2f s: %s -> %s", list.empty() ? "" : "; ", c.t_s,
-                    c.from, c.to);
-      list += text;
-    }
-    std::snprintf(text, sizeof text, "%zu (initial mode %s)%s%s", fig.mode_changes.size(),
-                  fig.initial_mode, list.empty() ? "" : ": ", list.c_str());
-    rows.emplace_back("mode changes", text);
-  }
-  {
-    std::string lost;
-    for (const double t_s : fig.link_lost_events_s) {
-      std::snprintf(text, sizeof text, "%s%.1f s", lost.empty() ? "" : ", ", t_s);
-      lost += text;
-    }
-    std::snprintf(text, sizeof text,
-                  "%llu states lost (within sessions), largest gap %.0f ms at %.1f s, %zu "
-                  "ground-heartbeat-lost event(s)%s%s, %zu warning/error events, %zu unreadable "
-                  "recording lines",
-                  static_cast<unsigned long long>(fig.states_lost), 1e3 * fig.largest_gap_s,
-                  fig.largest_gap_at_s, fig.link_lost_events_s.size(),
-                  lost.empty() ? "" : " at ", lost.c_str(), fig.warnings, r.problem_count);
-    rows.emplace_back("link incidents", text);
-  }
-  row("latency (one way)", "p50 %.2f ms, p99 %.2f ms, max %.2f ms", fig.latency_p50_ms,
-      fig.latency_p99_ms, fig.latency_max_ms);
+}
 
-  const std::string md_path = (fs::path(out_dir) / "report.md").string();
+// The page's rows, the same in Markdown and HTML.
+Rows report_rows(const hq::console::Recording& r, const hq::console::ReportFigures& fig,
+                 const Summary& sum) {
+  Rows rows;
+  add_row(rows, "duration",
+          "%.1f s (ground receipt, first to last state), %zu states, %zu commands, %zu camera "
+          "frames",
+          fig.duration_s, r.states.size(), r.commands.size(), r.rgb.size());
+  rows.emplace_back("vehicle sessions (restarts)", sessions_text(fig));
+  add_row(rows, "tracking error RMS (teleop, v_est - v_cmd in H)",
+          "x %.3f, y %.3f, z %.3f m/s over %zu states", sum.rms_tracking_mps[0],
+          sum.rms_tracking_mps[1], sum.rms_tracking_mps[2], sum.tracking_samples);
+  if (sum.truth_samples > 0) {
+    add_row(rows, "velocity estimate RMSE vs truth (simulator, v_est - v_truth in H)",
+            "x %.3f, y %.3f, z %.3f m/s over %zu states", sum.rmse_truth_mps[0],
+            sum.rmse_truth_mps[1], sum.rmse_truth_mps[2], sum.truth_samples);
+  } else {
+    rows.emplace_back("velocity estimate RMSE vs truth", "no truth in this recording");
+  }
+  add_obstacle_rows(rows, fig);
+  add_row(rows, "largest v_obs", "%.3f m/s", sum.max_v_obs_mps);
+  rows.emplace_back("mode changes", mode_changes_text(fig));
+  rows.emplace_back("link incidents", link_incidents_text(fig, r.problem_count));
+  add_row(rows, "latency (one way)", "p50 %.2f ms, p99 %.2f ms, max %.2f ms", fig.latency_p50_ms,
+          fig.latency_p99_ms, fig.latency_max_ms);
+  return rows;
+}
+
+void write_markdown(const std::string& md_path, const std::string& title,
+                    const hq::console::Recording& r, const Rows& rows,
+                    const std::string& format) {
   std::FILE* md = std::fopen(md_path.c_str(), "w");
   if (md == nullptr) throw hq::InputError(md_path + ": cannot open for writing");
-  std::fprintf(md, "# Flight report: %s\n\n", dir.c_str());
+  std::fprintf(md, "# Flight report: %s\n\n", title.c_str());
   std::fprintf(md, "| figure | value |\n| --- | --- |\n");
-  for (const auto& [name, value] : rows) std::fprintf(md, "| %s | %s |\n", name.c_str(), value.c_str());
+  for (const auto& [name, value] : rows) {
+    std::fprintf(md, "| %s | %s |\n", name.c_str(), value.c_str());
+  }
   std::fprintf(md, "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
                    "orange, marker purple, explore teal), event ticks at the top (grey info, "
                    "amber warning, red error), vehicle restarts as red lines.\n\n");
-  for (const std::string& name : figures) {
-    std::fprintf(md, "![%s](%s.%s)\n\n", name.c_str(), name.c_str(), format.c_str());
-  }
+  for (const char* name : kFigures) std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
   if (!r.absent_columns.empty()) {
     std::fprintf(md, "## Columns absent (older recording layout)\n\n");
     for (const std::string& c : r.absent_columns) std::fprintf(md, "- %s\n", c.c_str());
@@ -422,37 +525,149 @@ int run(int argc, char** argv) {
     for (const std::string& p : r.problems) std::fprintf(md, "- %s\n", p.c_str());
   }
   if (std::fclose(md) != 0) throw hq::InputError(md_path + ": write failed");
+}
 
-  // HTML: the same table and figures, one page to open in a browser.
-  const auto html_escape = [](const std::string& in) {
-    std::string out;
-    for (const char ch : in) {
-      if (ch == '<') out += "&lt;";
-      else if (ch == '>') out += "&gt;";
-      else if (ch == '&') out += "&amp;";
-      else out += ch;
+std::string html_escape(const std::string& in) {
+  std::string out;
+  for (const char ch : in) {
+    if (ch == '<') {
+      out += "&lt;";
+    } else if (ch == '>') {
+      out += "&gt;";
+    } else if (ch == '&') {
+      out += "&amp;";
+    } else {
+      out += ch;
     }
-    return out;
-  };
-  const std::string html_path = (fs::path(out_dir) / "report.html").string();
+  }
+  return out;
+}
+
+// The same table and figures, one page to open in a browser.
+void write_html(const std::string& html_path, const std::string& title, const Rows& rows,
+                const std::string& format) {
   std::ofstream html(html_path);
   html << "<!doctype html><html><head><meta charset='utf-8'><title>Flight report</title>"
           "<style>body{font-family:sans-serif;max-width:1050px;margin:auto}td,th{border:1px solid "
           "#ccc;padding:4px}table{border-collapse:collapse}</style></head><body>\n<h1>Flight report: "
-       << html_escape(dir) << "</h1>\n<table><tr><th>figure</th><th>value</th></tr>\n";
+       << html_escape(title) << "</h1>\n<table><tr><th>figure</th><th>value</th></tr>\n";
   for (const auto& [name, value] : rows) {
     html << "<tr><td>" << html_escape(name) << "</td><td>" << html_escape(value) << "</td></tr>\n";
   }
   html << "</table>\n";
-  for (const std::string& name : figures) {
+  for (const char* name : kFigures) {
     html << "<p><img src='" << name << "." << format << "' alt='" << name << "'></p>\n";
   }
   html << "</body></html>\n";
   html.close();
   if (!html) throw hq::InputError(html_path + ": write failed");
-  std::printf("hq-report: %s (and report.html; figures %s in %s)\n", md_path.c_str(),
-              format.c_str(), out_dir.c_str());
+}
+
+int write_report(const Options& o) {
+  const hq::console::Recording r = load_checked(o.recording);
+  const std::string out_dir =
+      !o.out_dir.empty() ? o.out_dir
+      : fs::is_regular_file(o.recording)
+          ? (fs::path(o.recording).parent_path() / "report").string()
+          : (fs::path(o.recording) / "report").string();
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw hq::InputError("--out " + out_dir + ": cannot create: " + ec.message());
+  const hq::console::ReportFigures fig = hq::console::compute_report(r);
+  const std::string data_name = "flight.dat";
+  const Summary sum = write_data_file(r, fig, (fs::path(out_dir) / data_name).string());
+  draw_figures(out_dir, o.format, data_name, fig, sum);
+  const Rows rows = report_rows(r, fig, sum);
+  const std::string md_path = (fs::path(out_dir) / "report.md").string();
+  write_markdown(md_path, o.recording, r, rows, o.format);
+  write_html((fs::path(out_dir) / "report.html").string(), o.recording, rows, o.format);
+  std::printf("hq-report: %s (and report.html; figures %s in %s; read from %s)\n",
+              md_path.c_str(), o.format.c_str(), out_dir.c_str(),
+              r.from_mcap ? r.directory.c_str() : "the CSV files");
   return 0;
+}
+
+// The flight record's samples written by the CSV recorder itself: the columns are its own.
+class CsvExport : public hq::console::FlightSampleSink {
+ public:
+  explicit CsvExport(const std::string& dir) : recorder_(dir) {}
+  void on_state(std::int64_t log_ns, std::int64_t publish_ns,
+                const hq::link::VehicleState& s) override {
+    recorder_.state(log_ns, log_ns - publish_ns, s);
+  }
+  void on_camera(std::int64_t log_ns, const hq::link::CameraFrame& f) override {
+    recorder_.camera(log_ns, f);
+  }
+  void on_event(std::int64_t log_ns, const hq::link::Event& e) override {
+    recorder_.event(log_ns, e);
+  }
+  void on_mode_request(std::int64_t log_ns, const hq::link::ModeRequest& m) override {
+    recorder_.mode_request(log_ns, m.requested_mode);
+  }
+  void on_command(std::int64_t t_ns, bool valid, const std::array<float, 3>& v_H_mps,
+                  float yaw_rate_radps) override {
+    hq::haptics::VelocityCommand c;
+    c.v_H_mps = {v_H_mps[0], v_H_mps[1], v_H_mps[2]};
+    c.yaw_rate_radps = yaw_rate_radps;
+    recorder_.command(t_ns, c, valid);
+  }
+  void on_problem(const std::string& text) override {
+    std::fprintf(stderr, "hq-report: %s\n", text.c_str());
+  }
+  hq::ground::TelemetryRecorder& recorder() { return recorder_; }
+
+ private:
+  hq::ground::TelemetryRecorder recorder_;
+};
+
+int export_csv(const Options& o) {
+  const std::string mcap_path = hq::console::find_flight_mcap(o.recording);
+  if (mcap_path.empty()) {
+    throw hq::InputError(o.recording + ": no flight.mcap to export (--csv reads a flight record; "
+                                       "a CSV recording is already CSV)");
+  }
+  const hq::mcap::McapReader reader(mcap_path);
+  CsvExport out(o.csv_dir);
+  const hq::console::FlightCounts n = hq::console::read_flight(reader, mcap_path, out);
+  if (!out.recorder().close()) throw hq::InputError("--csv: " + out.recorder().error());
+  std::printf("hq-report: %s -> %s: %zu states, %zu commands, %zu mode requests, %zu events, "
+              "%zu camera frames%s\n",
+              mcap_path.c_str(), o.csv_dir.c_str(), n.states, n.commands, n.mode_requests,
+              n.events, n.frames,
+              reader.report().has_summary ? "" : " (no summary: recovered by scanning)");
+  return n.undecodable == 0 ? 0 : 1;
+}
+
+int recover_file(const Options& o) {
+  const hq::mcap::RecoveryReport r = hq::mcap::recover(o.recover[0], o.recover[1]);
+  std::printf("hq-report: %s -> %s: %s\n", o.recover[0].c_str(), o.recover[1].c_str(),
+              r.read.has_summary ? "had a summary already (rewritten as it was)"
+                                 : "no summary (writer killed?), recovered by scanning");
+  std::printf("  messages   %llu recovered, %u channels, %u attachments, %u metadata\n",
+              static_cast<unsigned long long>(r.written.message_count), r.written.channel_count,
+              r.written.attachment_count, r.written.metadata_count);
+  std::printf("  time span  %.3f s (log time %lld .. %lld ns)\n",
+              1e-9 * static_cast<double>(r.last_log_time_ns - r.first_log_time_ns),
+              static_cast<long long>(r.first_log_time_ns),
+              static_cast<long long>(r.last_log_time_ns));
+  std::printf("  dropped    %llu bytes at the tail (an incomplete record)%s\n",
+              static_cast<unsigned long long>(r.bytes_dropped),
+              r.messages_without_channel > 0
+                  ? (", " + std::to_string(r.messages_without_channel) +
+                     " messages without a channel record")
+                        .c_str()
+                  : "");
+  std::printf("  written    %llu bytes, %u chunks, with summary and indexes\n",
+              static_cast<unsigned long long>(r.bytes_written), r.written.chunk_count);
+  return 0;
+}
+
+int run(int argc, char** argv) {
+  Options o;
+  if (const std::optional<int> exit_code = parse_options(argc, argv, o)) return *exit_code;
+  if (!o.recover.empty()) return recover_file(o);
+  if (!o.csv_dir.empty()) return export_csv(o);
+  return write_report(o);
 }
 
 }  // namespace

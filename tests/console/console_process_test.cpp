@@ -164,48 +164,8 @@ void use_loopback_dds() {
          1);
 }
 
-TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) {
-  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
-  const std::string domain = std::to_string(1 + (getpid() + 101) % 200);
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  // The window placement file goes to the test's folder, never the user's.
-  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
-  // A display of our own: the first free number from 90 (a lock file marks a used one).
-  int display = 90 + getpid() % 50;
-  while (fs::exists("/tmp/.X" + std::to_string(display) + "-lock")) ++display;
-  std::string display_name = ":";  // appended: GCC 12 -Wrestrict false positive on "+"
-  display_name.append(std::to_string(display));
-  Process xvfb({kXvfb, display_name, "-screen", "0", "1600x1000x24", "-nolisten", "tcp"},
-               dir / "xvfb.out");
-  for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(display)); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  setenv("DISPLAY", display_name.c_str(), 1);
-
-  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "11", "--domain-id", domain,
-                   "--insecure"},
-                  dir / "onboard.out");
-  const fs::path shot = dir / "console.png";
-  const fs::path state = dir / "state.json";
-  const fs::path recording = dir / "recording";
-  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure", "--duration-s", "8",
-                  "--record", recording.string(), "--screenshot", shot.string(), "--state-json",
-                  state.string()},
-                 dir / "ground.out");
-  ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
-  ASSERT_EQ(onboard.wait_exit(20.0), 0) << slurp(dir / "onboard.out");
-
-  // THEN the console drew the flight: frames decoded, plots filled, the vehicle's mode shown.
-  const std::string json = slurp(state);
-  ASSERT_FALSE(json.empty()) << slurp(dir / "ground.out");
+// The console drew the flight: frames decoded, plots filled, the vehicle's mode shown.
+void expect_console_drew_the_flight(const std::string& json) {
   EXPECT_GT(json_number(json, "camera_frames_decoded"), 20) << json;  // ~10 Hz over ~7 s
   EXPECT_GT(json_number(json, "plot_samples_drawn"), 100) << json;   // frame rate over ~7 s
   EXPECT_GT(json_number(json, "frames"), 50) << json;
@@ -225,11 +185,10 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   EXPECT_GE(json_number(json, "markers_latest"), 0) << json;
   EXPECT_LE(json_number(json, "markers_latest"), 16) << json;
   EXPECT_GE(json_number(json, "marker_detections"), 0) << json;
-  ASSERT_TRUE(fs::exists(shot));
-  EXPECT_GT(fs::file_size(shot), 20'000U);  // a PNG of a 1600x960 console, not a blank
-  std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(), json_number(json, "fps"));
+}
 
-  // hq-report on the recording writes the figures and the page.
+// hq-report on the recording writes the figures and the page.
+void expect_report_written(const fs::path& dir, const fs::path& recording) {
   const fs::path report = dir / "report";
   Process reporter({HQ_REPORT_EXE, recording.string(), "--out", report.string()},
                    dir / "report.out");
@@ -241,10 +200,14 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
     EXPECT_GT(fs::file_size(report / f), std::string_view(f) == "report.md" ? 300U : 5000U) << f;
   }
   EXPECT_NE(slurp(report / "report.md").find("tracking error RMS"), std::string::npos);
+}
 
-  // A truncated copy replays what is readable and names the cut line.
+// A truncated copy of the CSV files (an older recording: no flight.mcap) replays what is
+// readable and names the cut line.
+void expect_truncated_csv_replay(const fs::path& dir, const fs::path& recording) {
   const fs::path cut = dir / "truncated";
   fs::copy(recording, cut, fs::copy_options::recursive);
+  fs::remove(cut / "flight.mcap");
   const std::string telemetry = slurp(cut / "telemetry.csv");
   std::ofstream(cut / "telemetry.csv") << telemetry.substr(0, telemetry.size() - 25);
   const std::size_t lines = static_cast<std::size_t>(
@@ -263,6 +226,44 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   EXPECT_GT(json_number(rjson, "plot_samples"), 100) << rjson;
   EXPECT_GT(json_number(rjson, "camera_frames_received"), 20) << rjson;
   EXPECT_EQ(json_number(rjson, "replay_problems"), 1) << rjson;
+}
+
+TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) {
+  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
+  use_loopback_dds();
+  const std::string domain = std::to_string(1 + (getpid() + 101) % 200);
+  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // The window placement file goes to the test's folder, never the user's.
+  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
+  const XvfbDisplay display(dir, "1600x1000x24");
+
+  // GIVEN a simulated flight flown through the console window and recorded.
+  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
+                   "onboard/sim/worlds/arena.yaml", "--duration-s", "11", "--domain-id", domain,
+                   "--insecure"},
+                  dir / "onboard.out");
+  const fs::path shot = dir / "console.png";
+  const fs::path state = dir / "state.json";
+  const fs::path recording = dir / "recording";
+  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
+                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure", "--duration-s", "8",
+                  "--record", recording.string(), "--screenshot", shot.string(), "--state-json",
+                  state.string()},
+                 dir / "ground.out");
+  ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
+  ASSERT_EQ(onboard.wait_exit(20.0), 0) << slurp(dir / "onboard.out");
+
+  // THEN the console drew it, hq-report reports it, a truncated old-layout copy replays.
+  const std::string json = slurp(state);
+  ASSERT_FALSE(json.empty()) << slurp(dir / "ground.out");
+  expect_console_drew_the_flight(json);
+  ASSERT_TRUE(fs::exists(shot));
+  EXPECT_GT(fs::file_size(shot), 20'000U);  // a PNG of a 1600x960 console, not a blank
+  std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(), json_number(json, "fps"));
+  expect_report_written(dir, recording);
+  expect_truncated_csv_replay(dir, recording);
 }
 
 TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLossBanner) {

@@ -6,16 +6,25 @@
 //   - the replay window under a private Xvfb, driven by typed keys (--keys): Space pauses, Left
 //     seeks back 5 s; its clock and rates through --state-json;
 //   - a headless replay to the end: the end-of-recording state, counts of the replayed data.
+// The recording folder holds flight.mcap, which replay and hq-report prefer; its CSV export
+// (hq-report --csv) reports the same flight. And a disk that fills mid-flight: the record stops
+// with a message, the flight does not. (A recorder killed with SIGKILL:
+// mcap_recorder.flight_mcap_independent_readers.)
 #include <gtest/gtest.h>
 
+#include "hq/mcap/mcap.hpp"
 #include "hq/testing/process.hpp"
 
+#include <signal.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -75,45 +84,41 @@ int vehicle_mode_changes(const fs::path& link_log) {
 
 const char* const kXvfb = "/usr/bin/Xvfb";
 
-TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
-  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
+void use_loopback_dds() {
   setenv("CYCLONEDDS_URI",
          "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
          "</Interfaces></General></Domain></CycloneDDS>",
          1);
-  const std::string domain = std::to_string(1 + (getpid() + 57) % 200);
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "replay_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+}
 
-  // GIVEN a flight recorded from before the vehicle's first state to after its last.
-  const fs::path recording = dir / "recording";
-  {
-    Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                    "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure", "--duration-s", "9",
-                    "--headless", "--record", recording.string()},
-                   (dir / "ground.out").string());
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-    Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                     "onboard/sim/worlds/arena.yaml", "--duration-s", "5", "--domain-id", domain,
-                     "--insecure", "--link-log", (dir / "link.csv").string()},
-                    (dir / "onboard.out").string());
-    ASSERT_EQ(onboard.wait_exit(40.0), 0) << slurp(dir / "onboard.out");
-    ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
-  }
+// Runs hq-report with `args`; its output in dir/<name>.out.
+std::string run_report(const fs::path& dir, const std::string& name,
+                       const std::vector<std::string>& args, int expected_exit = 0) {
+  std::vector<std::string> argv = {HQ_REPORT_EXE};
+  argv.insert(argv.end(), args.begin(), args.end());
+  Process reporter(argv, (dir / (name + ".out")).string());
+  EXPECT_EQ(reporter.wait_exit(60.0), expected_exit) << slurp(dir / (name + ".out"));
+  return slurp(dir / (name + ".out"));
+}
+
+// GIVEN a flight recorded from before the vehicle's first state to after its last.
+void record_flight(const fs::path& dir, const fs::path& recording, const std::string& domain) {
+  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
+                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure",
+                  "--duration-s", "9", "--headless", "--record", recording.string()},
+                 (dir / "ground.out").string());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
+                   "onboard/sim/worlds/arena.yaml", "--duration-s", "5", "--domain-id", domain,
+                   "--insecure", "--link-log", (dir / "link.csv").string()},
+                  (dir / "onboard.out").string());
+  ASSERT_EQ(onboard.wait_exit(40.0), 0) << slurp(dir / "onboard.out");
+  ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
+}
+
+// THEN the report's figures are the vehicle's where both measure the same thing.
+void expect_report_matches_vehicle(const std::string& page, const fs::path& dir) {
   const std::string vehicle = slurp(dir / "onboard.out");
-
-  // WHEN reported, THEN its figures are the vehicle's where both measure the same thing.
-  const fs::path report = dir / "report";
-  {
-    Process reporter({HQ_REPORT_EXE, recording.string(), "--out", report.string()},
-                     (dir / "report.out").string());
-    ASSERT_EQ(reporter.wait_exit(30.0), 0) << slurp(dir / "report.out");
-  }
-  const std::string page = slurp(report / "report.md");
-  for (const char* f : {"height.png", "clearance.png", "latency.png", "report.html"}) {
-    EXPECT_TRUE(fs::exists(report / f)) << f;
-  }
   // One vehicle session whose span on the vehicle's clock is the vehicle's flight (its first
   // state may go out a frame or two before the ground has discovered it).
   const double vehicle_flight_s = number_after(vehicle, "flight +");
@@ -121,8 +126,7 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
   EXPECT_NE(page.find("| vehicle sessions (restarts) | 1: "), std::string::npos) << page;
   std::smatch m;
   ASSERT_TRUE(std::regex_search(page, m, std::regex("([0-9.]+) s on the vehicle's clock"))) << page;
-  const double session_s = std::stod(m[1]);
-  EXPECT_NEAR(session_s, vehicle_flight_s, 0.5) << page;
+  EXPECT_NEAR(std::stod(m[1]), vehicle_flight_s, 0.5) << page;
   // Mode changes: the count is the list, and the vehicle's own log has as many.
   const double changes = number_after(page, "\\| mode changes \\| ");
   EXPECT_EQ(changes, vehicle_mode_changes(dir / "link.csv")) << page;
@@ -138,48 +142,91 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
   } else {
     EXPECT_NEAR(report_clearance_m, vehicle_clearance_m, 0.05) << page << vehicle;
   }
+}
 
-  // The replay window under a private display: 1280x800.
+// The folder's flight.mcap is what hq-report reads; its CSV export reports the same flight.
+void expect_mcap_report_and_csv_export(const fs::path& dir, const fs::path& recording) {
+  const fs::path report = dir / "report";
+  const std::string said =
+      run_report(dir, "report", {recording.string(), "--out", report.string()});
+  EXPECT_NE(said.find("read from " + (recording / "flight.mcap").string()), std::string::npos)
+      << said;
+  const std::string page = slurp(report / "report.md");
+  for (const char* f : {"height.png", "clearance.png", "latency.png", "report.html"}) {
+    EXPECT_TRUE(fs::exists(report / f)) << f;
+  }
+  expect_report_matches_vehicle(page, dir);
+
+  const fs::path csv = dir / "exported";
+  const std::string exported =
+      run_report(dir, "export", {(recording / "flight.mcap").string(), "--csv", csv.string()});
+  const double states = number_after(exported, "-> [^:]+: ");
+  EXPECT_GT(states, 100) << exported;  // ~30 Hz over ~5 s
+  EXPECT_GT(number_after(exported, "states, "), 100) << exported;  // commands at 50 Hz
+  for (const char* f : {"telemetry.csv", "commands.csv", "events.csv", "mode_requests.csv",
+                        "rgb.txt"}) {
+    EXPECT_TRUE(fs::exists(csv / f)) << f;
+  }
+  const fs::path csv_report = dir / "csv_report";
+  run_report(dir, "csv_report", {csv.string(), "--out", csv_report.string()});
+  const std::string csv_page = slurp(csv_report / "report.md");
+  EXPECT_NE(csv_page.find("| vehicle sessions (restarts) | 1: "), std::string::npos) << csv_page;
+  EXPECT_EQ(number_after(csv_page, "\\| mode changes \\| "),
+            number_after(page, "\\| mode changes \\| "))
+      << csv_page << page;
+  EXPECT_EQ(number_after(csv_page, " s \\(ground receipt, first to last state\\), "), states)
+      << csv_page;
+}
+
+// A private Xvfb (1280x800), DISPLAY set; the Process keeps it alive.
+std::unique_ptr<Process> start_display(const fs::path& dir) {
   int display = 120 + getpid() % 50;
   while (fs::exists("/tmp/.X" + std::to_string(display) + "-lock")) ++display;
   std::string display_name = ":";
   display_name.append(std::to_string(display));
-  Process xvfb({kXvfb, display_name, "-screen", "0", "1280x800x24", "-nolisten", "tcp"},
-               (dir / "xvfb.out").string());
+  auto xvfb = std::make_unique<Process>(
+      std::vector<std::string>{kXvfb, display_name, "-screen", "0", "1280x800x24", "-nolisten",
+                               "tcp"},
+      (dir / "xvfb.out").string());
   for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(display)); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   setenv("DISPLAY", display_name.c_str(), 1);
+  return xvfb;
+}
 
-  // WHEN it plays from 2 s, THEN the rates are those of the replayed data (non-zero).
-  const fs::path playing = dir / "playing.json";
-  {
-    Process replay({HQ_GROUND_EXE, "--replay", recording.string(), "--seek", "2",
-                    "--window-size", "1280x800", "--duration-s", "2", "--state-json",
-                    playing.string()},
-                   (dir / "replay_playing.out").string());
-    ASSERT_EQ(replay.wait_exit(30.0), 0) << slurp(dir / "replay_playing.out");
-  }
-  std::string json = slurp(playing);
+// hq-ground --replay with `extra` arguments; returns its --state-json.
+std::string replay(const fs::path& dir, const fs::path& recording, const std::string& name,
+                   std::vector<std::string> extra) {
+  const fs::path json = dir / (name + ".json");
+  std::vector<std::string> args = {HQ_GROUND_EXE, "--replay", recording.string()};
+  args.insert(args.end(), extra.begin(), extra.end());
+  args.insert(args.end(), {"--state-json", json.string()});
+  Process p(args, (dir / (name + ".out")).string());
+  EXPECT_EQ(p.wait_exit(30.0), 0) << slurp(dir / (name + ".out"));
+  return slurp(json);
+}
+
+// WHEN it plays from 2 s, THEN the rates are those of the replayed data (non-zero).
+void expect_replay_plays(const fs::path& dir, const fs::path& recording) {
+  const std::string json =
+      replay(dir, recording, "replay_playing",
+             {"--seek", "2", "--window-size", "1280x800", "--duration-s", "2"});
   EXPECT_EQ(json_bool(json, "playing"), 1) << json;
   EXPECT_GT(json_number(json, "position_s"), 3.5) << json;
   EXPECT_GT(json_number(json, "state_rate_hz"), 15) << json;  // ~30 Hz recorded
   EXPECT_GT(json_number(json, "camera_rate_hz"), 3) << json;  // ~10 Hz recorded
   EXPECT_GT(json_number(json, "states_received"), 30) << json;
+}
 
-  // WHEN Space pauses it and Left seeks 5 s back, THEN it stays paused there, showing only the
-  // states up to the new position (the model was rebuilt, not left with the later ones).
-  const fs::path paused = dir / "paused.json";
+// WHEN Space pauses it and Left seeks 5 s back, THEN it stays paused there, showing only the
+// states up to the new position (the model was rebuilt, not left with the later ones).
+void expect_replay_pauses_and_seeks(const fs::path& dir, const fs::path& recording) {
   const fs::path shot = dir / "replay_paused.png";
-  {
-    Process replay({HQ_GROUND_EXE, "--replay", recording.string(), "--seek", "6",
-                    "--window-size", "1280x800", "--duration-s", "3", "--keys",
-                    "1.0:Space,1.5:Left", "--screenshot", shot.string(), "--state-json",
-                    paused.string()},
-                   (dir / "replay_paused.out").string());
-    ASSERT_EQ(replay.wait_exit(30.0), 0) << slurp(dir / "replay_paused.out");
-  }
-  json = slurp(paused);
+  const std::string json =
+      replay(dir, recording, "replay_paused",
+             {"--seek", "6", "--window-size", "1280x800", "--duration-s", "3", "--keys",
+              "1.0:Space,1.5:Left", "--screenshot", shot.string()});
   EXPECT_EQ(json_bool(json, "playing"), 0) << json;
   EXPECT_EQ(json_bool(json, "at_end"), 0) << json;
   const double position_s = json_number(json, "position_s");
@@ -190,20 +237,75 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
   // ~30 states/s up to the position; never the ~180 of the vehicle's whole flight.
   EXPECT_LT(json_number(json, "states_received"), 32 * position_s + 5) << json;
   EXPECT_GT(fs::file_size(shot), 20'000U);
+}
 
-  // WHEN a headless replay plays to the end, THEN it says so, with every event counted.
-  const fs::path end = dir / "end.json";
-  {
-    Process replay({HQ_GROUND_EXE, "--replay", recording.string(), "--speed", "8", "--headless",
-                    "--state-json", end.string()},
-                   (dir / "replay_end.out").string());
-    ASSERT_EQ(replay.wait_exit(30.0), 0) << slurp(dir / "replay_end.out");
-  }
-  json = slurp(end);
+// WHEN a headless replay plays to the end, THEN it says so, with every event counted.
+void expect_replay_ends(const fs::path& dir, const fs::path& recording) {
+  const std::string json =
+      replay(dir, recording, "replay_end", {"--speed", "8", "--headless"});
   EXPECT_EQ(json_bool(json, "at_end"), 1) << json;
   EXPECT_NEAR(json_number(json, "position_s"), json_number(json, "duration_s"), 1e-3) << json;
   EXPECT_EQ(json_number(json, "link_events"), json_number(json, "events")) << json;
+  EXPECT_GT(json_number(json, "camera_frames_received"), 20) << json;  // from the MCAP
   EXPECT_NE(slurp(dir / "replay_end.out").find("(end of recording)"), std::string::npos);
+}
+
+TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
+  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
+  use_loopback_dds();
+  const std::string domain = std::to_string(1 + (getpid() + 57) % 200);
+  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "replay_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path recording = dir / "recording";
+  record_flight(dir, recording, domain);
+  ASSERT_FALSE(HasFatalFailure());
+  ASSERT_TRUE(fs::exists(recording / "flight.mcap"));
+  expect_mcap_report_and_csv_export(dir, recording);
+  const std::unique_ptr<Process> xvfb = start_display(dir);
+  expect_replay_plays(dir, recording);
+  expect_replay_pauses_and_seeks(dir, recording);
+  expect_replay_ends(dir, recording);
+}
+
+// GIVEN hq-ground recording with a file size limit standing in for a full disk (write(2) fails
+// with EFBIG once flight.mcap reaches it), WHEN it flies, THEN the flight record stops with a
+// message naming the file and reason, the operator's event and exit summary say so, and the
+// command stream never stalls (its rate is the configured one to the end).
+TEST(RecordingProcesses, FullDiskStopsTheFlightRecordNotTheFlight) {
+  use_loopback_dds();
+  const std::string domain = std::to_string(1 + (getpid() + 131) % 200);
+  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "full_disk_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
+                   "onboard/sim/worlds/arena.yaml", "--duration-s", "10", "--domain-id", domain,
+                   "--insecure"},
+                  (dir / "onboard.out").string());
+  // The limit and the ignored SIGXFSZ are inherited through posix_spawn by hq-ground only.
+  rlimit saved{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+  rlimit limited = saved;
+  limited.rlim_cur = 256 * 1024;  // the MCAP passes it in ~3 s, the CSV files never do
+  std::signal(SIGXFSZ, SIG_IGN);
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limited), 0);
+  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
+                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure",
+                  "--duration-s", "7", "--headless", "--record", (dir / "flight").string()},
+                 (dir / "ground.out").string());
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &saved), 0);
+  std::signal(SIGXFSZ, SIG_DFL);
+  ASSERT_EQ(ground.wait_exit(40.0), 0) << slurp(dir / "ground.out");
+  onboard.signal(SIGINT);
+  const std::string out = slurp(dir / "ground.out");
+  EXPECT_NE(out.find("flight.mcap: recording stopped: "), std::string::npos) << out;
+  EXPECT_NE(out.find("File too large"), std::string::npos) << out;
+  EXPECT_NE(out.find("  mcap error"), std::string::npos) << out;  // the exit summary
+  // 50 Hz commands over 7 s, less start-up: no stall at the failure.
+  EXPECT_GT(number_after(out, "sent +"), 300) << out;
+  // What reached the disk before the limit still opens.
+  const hq::mcap::McapReader reader((dir / "flight" / "flight.mcap").string());
+  EXPECT_GT(reader.messages().size(), 10U);
 }
 
 }  // namespace

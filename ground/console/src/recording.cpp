@@ -1,7 +1,10 @@
 #include "hq/console/recording.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/console/flight_mcap.hpp"
 #include "hq/console/replay_player.hpp"
+
+#include "recording_internal.hpp"
 
 #include <time.h>
 
@@ -37,11 +40,6 @@ const char* intern_flight(std::string_view text) {
     if (text == name) return name;
   }
   return nullptr;
-}
-
-void add_problem(Recording& r, const std::string& text) {
-  if (r.problems.size() < Recording::kMaxProblems) r.problems.push_back(text);
-  ++r.problem_count;
 }
 
 std::vector<std::string_view> split(std::string_view line, std::size_t max_fields) {
@@ -280,7 +278,7 @@ void read_frame_list(Recording& r, const std::string& name, std::vector<Recorded
     }
     const auto t_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
     order.check(t_ns, line_number);
-    out.push_back({t_ns, frame.string()});
+    out.push_back({t_ns, frame.string(), {}});
   }
 }
 
@@ -299,155 +297,162 @@ const char* intern(std::string_view text) {
   return kNames.back();
 }
 
-Recording load_recording(const std::string& directory) {
-  if (!fs::is_directory(directory)) {
-    throw InputError(directory + ": " + (fs::exists(directory) ? "not a directory" : "not found") +
-                     ", expected a recording folder written by hq-ground --record");
-  }
-  if (!fs::exists(fs::path(directory) / "telemetry.csv") &&
-      !fs::exists(fs::path(directory) / "rgb.txt")) {
-    throw InputError(directory + ": neither telemetry.csv nor rgb.txt: not an hq-ground recording");
-  }
-  Recording r;
-  r.directory = directory;
-  std::vector<std::pair<std::string, std::int64_t>> starts;  // "file:line", first stamp
+namespace {
 
-  const std::vector<std::string> state_columns = {
-      "receipt_ns",   "latency_us",   "sequence",     "t_ns",          "v_H_x_mps",
-      "v_H_y_mps",    "v_H_z_mps",    "omega_x_radps", "omega_y_radps", "omega_z_radps",
-      "roll_rad",     "pitch_rad",    "v_obs_x_mps",  "v_obs_y_mps",   "v_obs_z_mps",
-      "mode",         "estimator_health", "link_health",
-      // Optional from here: later layouts (older recordings lack them).
-      "closest_obstacle_m", "position_valid", "p_W_x_m", "p_W_y_m", "p_W_z_m", "yaw_W_rad",
-      "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
-      "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
-      "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
-      "v_cmd_flown_H_z_mps", "clearance_m"};
-  constexpr std::size_t kRequiredStateColumns = 18;
-  CsvFile telemetry(r, "telemetry.csv", state_columns, false, kRequiredStateColumns);
-  telemetry.check_stamps(starts).read([&](const auto& f, std::string& error) {
+using FileStarts = std::vector<std::pair<std::string, std::int64_t>>;  // "file:line", first stamp
+
+const std::vector<std::string> kStateColumns = {
+    "receipt_ns",   "latency_us",   "sequence",     "t_ns",          "v_H_x_mps",
+    "v_H_y_mps",    "v_H_z_mps",    "omega_x_radps", "omega_y_radps", "omega_z_radps",
+    "roll_rad",     "pitch_rad",    "v_obs_x_mps",  "v_obs_y_mps",   "v_obs_z_mps",
+    "mode",         "estimator_health", "link_health",
+    // Optional from here: later layouts (older recordings lack them).
+    "closest_obstacle_m", "position_valid", "p_W_x_m", "p_W_y_m", "p_W_z_m", "yaw_W_rad",
+    "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
+    "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
+    "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
+    "v_cmd_flown_H_z_mps", "clearance_m"};
+constexpr std::size_t kRequiredStateColumns = 18;
+
+using Fields = std::vector<std::string_view>;
+
+// Columns 0-17: every layout has them.
+bool parse_state_core(const Fields& f, RecordedState& s, std::string& error) {
+  double latency_us = 0;
+  if (!parse_integer(f[0], s.receipt_ns)) {
+    error = "receipt_ns = '" + std::string(f[0]) + "', expected an integer";
+    return false;
+  }
+  if (!parse_double(f[1], latency_us) || !parse_integer(f[2], s.sequence) ||
+      !parse_integer(f[3], s.vehicle_t_ns)) {
+    error = "latency_us, sequence or t_ns is not a number";
+    return false;
+  }
+  s.latency_ms = 1e-3 * latency_us;
+  std::array<float, 11> values{};
+  if (!parse_floats(f, 4, kStateColumns, values, error)) return false;
+  s.v_H_mps = {values[0], values[1], values[2]};
+  s.omega_body_radps = {values[3], values[4], values[5]};
+  s.roll_rad = values[6];
+  s.pitch_rad = values[7];
+  s.v_obs_H_mps = {values[8], values[9], values[10]};
+  for (std::size_t i = 15; i < 18; ++i) {
+    if (!known_name(f[i])) {
+      error = kStateColumns[i] + " = '" + std::string(f[i]) + "', expected a mode/health name";
+      return false;
+    }
+  }
+  s.mode = intern(f[15]);
+  s.estimator_health = intern(f[16]);
+  s.link_health = intern(f[17]);
+  return true;
+}
+
+// Columns 18-28: cloud distance, marker pose, truth, marker count (each flag with its values:
+// a layout has all of a group or none).
+bool parse_state_pose_truth(const CsvFile& file, const Fields& f, RecordedState& s,
+                            std::string& error) {
+  s.closest_obstacle_m = std::numeric_limits<double>::quiet_NaN();
+  if (file.has(18) && !parse_double(f[18], s.closest_obstacle_m, true)) {
+    error = "closest_obstacle_m = '" + std::string(f[18]) + "', expected a number or nan";
+    return false;
+  }
+  int flag = 0;
+  if (file.has(19) && file.has(23)) {
+    std::array<float, 4> pose{};
+    if (!parse_integer(f[19], flag) || !parse_floats(f, 20, kStateColumns, pose, error)) {
+      if (error.empty()) error = "position_valid = '" + std::string(f[19]) + "', expected 0/1";
+      return false;
+    }
+    s.position_valid = flag != 0;
+    s.p_W_m = {pose[0], pose[1], pose[2]};
+    s.yaw_W_rad = pose[3];
+  }
+  if (file.has(24) && file.has(27)) {
+    if (!parse_integer(f[24], flag) || !parse_floats(f, 25, kStateColumns, s.v_truth_H_mps, error)) {
+      if (error.empty()) error = "truth_valid = '" + std::string(f[24]) + "', expected 0/1";
+      return false;
+    }
+    s.truth_valid = flag != 0;
+  }
+  if (file.has(28) && (!parse_integer(f[28], s.markers_n) || s.markers_n < 0)) {
+    error = "markers_n = '" + std::string(f[28]) + "', expected a count";
+    return false;
+  }
+  return true;
+}
+
+// Columns 29-39: the vehicle's flight fields.
+bool parse_state_flight(const CsvFile& file, const Fields& f, RecordedState& s,
+                        std::string& error) {
+  if (!file.has(29) || !file.has(39)) return true;
+  int armed = 0;
+  double height = 0;
+  double clearance = 0;
+  const char* flight = intern_flight(f[31]);
+  const char* source = intern_flight(f[33]);
+  const char* input = intern_flight(f[35]);
+  if (!parse_integer(f[29], s.session_id) || !parse_integer(f[30], s.commanding_station_id) ||
+      flight == nullptr || !parse_integer(f[32], armed) || source == nullptr ||
+      !parse_double(f[34], height, true) || input == nullptr ||
+      !parse_floats(f, 36, kStateColumns, s.v_cmd_flown_H_mps, error) ||
+      !parse_double(f[39], clearance, true)) {
+    if (error.empty()) error = "session_id .. clearance_m: a field is not a number or a known name";
+    return false;
+  }
+  // A vehicle that does not fill them sends zeros: session 0 marks that.
+  s.flight_fields = s.session_id != 0;
+  if (!s.flight_fields) {
+    s.v_cmd_flown_H_mps = {};
+    return true;
+  }
+  s.flight_state = flight;
+  s.motors_armed = armed;
+  s.height_source = source;
+  s.operator_input = input;
+  if (std::string_view(source) != "none" && std::isfinite(height)) s.height_m = height;
+  if (std::isfinite(clearance) && clearance >= 0) s.clearance_m = clearance;
+  return true;
+}
+
+void read_states(Recording& r, FileStarts& starts) {
+  CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
+  telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
     RecordedState s;
-    double latency_us = 0;
-    if (!parse_integer(f[0], s.receipt_ns)) {
-      error = "receipt_ns = '" + std::string(f[0]) + "', expected an integer";
+    if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
+        !parse_state_flight(telemetry, f, s, error)) {
       return false;
-    }
-    if (!parse_double(f[1], latency_us) || !parse_integer(f[2], s.sequence) ||
-        !parse_integer(f[3], s.vehicle_t_ns)) {
-      error = "latency_us, sequence or t_ns is not a number";
-      return false;
-    }
-    s.latency_ms = 1e-3 * latency_us;
-    std::array<float, 11> values{};
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      double v = 0;
-      if (!parse_double(f[4 + i], v)) {
-        error = state_columns[4 + i] + " = '" + std::string(f[4 + i]) +
-                "', expected a finite number";
-        return false;
-      }
-      values[i] = static_cast<float>(v);
-    }
-    s.v_H_mps = {values[0], values[1], values[2]};
-    s.omega_body_radps = {values[3], values[4], values[5]};
-    s.roll_rad = values[6];
-    s.pitch_rad = values[7];
-    s.v_obs_H_mps = {values[8], values[9], values[10]};
-    for (std::size_t i = 15; i < 18; ++i) {
-      if (!known_name(f[i])) {
-        error = state_columns[i] + " = '" + std::string(f[i]) + "', expected a mode/health name";
-        return false;
-      }
-    }
-    s.mode = intern(f[15]);
-    s.estimator_health = intern(f[16]);
-    s.link_health = intern(f[17]);
-    s.closest_obstacle_m = std::numeric_limits<double>::quiet_NaN();
-    if (telemetry.has(18) && !parse_double(f[18], s.closest_obstacle_m, true)) {
-      error = "closest_obstacle_m = '" + std::string(f[18]) + "', expected a number or nan";
-      return false;
-    }
-    // Each flag with its values: a layout has all of a group or none.
-    int flag = 0;
-    if (telemetry.has(19) && telemetry.has(23)) {
-      std::array<float, 4> pose{};
-      if (!parse_integer(f[19], flag) || !parse_floats(f, 20, state_columns, pose, error)) {
-        if (error.empty()) error = "position_valid = '" + std::string(f[19]) + "', expected 0/1";
-        return false;
-      }
-      s.position_valid = flag != 0;
-      s.p_W_m = {pose[0], pose[1], pose[2]};
-      s.yaw_W_rad = pose[3];
-    }
-    if (telemetry.has(24) && telemetry.has(27)) {
-      if (!parse_integer(f[24], flag) ||
-          !parse_floats(f, 25, state_columns, s.v_truth_H_mps, error)) {
-        if (error.empty()) error = "truth_valid = '" + std::string(f[24]) + "', expected 0/1";
-        return false;
-      }
-      s.truth_valid = flag != 0;
-    }
-    if (telemetry.has(28) && (!parse_integer(f[28], s.markers_n) || s.markers_n < 0)) {
-      error = "markers_n = '" + std::string(f[28]) + "', expected a count";
-      return false;
-    }
-    if (telemetry.has(29) && telemetry.has(39)) {
-      int armed = 0;
-      double height = 0;
-      double clearance = 0;
-      const char* flight = intern_flight(f[31]);
-      const char* source = intern_flight(f[33]);
-      const char* input = intern_flight(f[35]);
-      if (!parse_integer(f[29], s.session_id) || !parse_integer(f[30], s.commanding_station_id) ||
-          flight == nullptr || !parse_integer(f[32], armed) || source == nullptr ||
-          !parse_double(f[34], height, true) || input == nullptr ||
-          !parse_floats(f, 36, state_columns, s.v_cmd_flown_H_mps, error) ||
-          !parse_double(f[39], clearance, true)) {
-        if (error.empty()) {
-          error = "session_id .. clearance_m: a field is not a number or a known name";
-        }
-        return false;
-      }
-      // A vehicle that does not fill them sends zeros: session 0 marks that.
-      s.flight_fields = s.session_id != 0;
-      if (s.flight_fields) {
-        s.flight_state = flight;
-        s.motors_armed = armed;
-        s.height_source = source;
-        s.operator_input = input;
-        if (std::string_view(source) != "none" && std::isfinite(height)) s.height_m = height;
-        if (std::isfinite(clearance) && clearance >= 0) s.clearance_m = clearance;
-      } else {
-        s.v_cmd_flown_H_mps = {};
-      }
     }
     r.states.push_back(s);
     return true;
   });
+}
 
-  const std::vector<std::string> command_columns = {"t_ns", "v_H_x_mps", "v_H_y_mps",
-                                                    "v_H_z_mps", "yaw_rate_radps", "valid"};
-  CsvFile(r, "commands.csv", command_columns)
-      .check_stamps(starts)
-      .read([&](const auto& f, std::string& error) {
-        RecordedCommand c;
-        int valid = 0;
-        if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
-          error = "t_ns or valid is not an integer";
-          return false;
-        }
-        std::array<float, 4> v{};
-        if (!parse_floats(f, 1, command_columns, v, error)) return false;
-        c.v_H_mps = {v[0], v[1], v[2]};
-        c.yaw_rate_radps = v[3];
-        c.valid = valid != 0;
-        r.commands.push_back(c);
-        return true;
-      });
+void read_commands(Recording& r, FileStarts& starts) {
+  const std::vector<std::string> columns = {"t_ns",      "v_H_x_mps",      "v_H_y_mps",
+                                            "v_H_z_mps", "yaw_rate_radps", "valid"};
+  CsvFile(r, "commands.csv", columns).check_stamps(starts).read([&](const Fields& f,
+                                                                    std::string& error) {
+    RecordedCommand c;
+    int valid = 0;
+    if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
+      error = "t_ns or valid is not an integer";
+      return false;
+    }
+    std::array<float, 4> v{};
+    if (!parse_floats(f, 1, columns, v, error)) return false;
+    c.v_H_mps = {v[0], v[1], v[2]};
+    c.yaw_rate_radps = v[3];
+    c.valid = valid != 0;
+    r.commands.push_back(c);
+    return true;
+  });
+}
 
+void read_mode_requests(Recording& r, FileStarts& starts) {
   CsvFile(r, "mode_requests.csv", {"t_ns", "mode"})
       .check_stamps(starts)
-      .read([&](const auto& f, std::string& error) {
+      .read([&](const Fields& f, std::string& error) {
         RecordedModeRequest m;
         if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
           error = "expected \"t_ns,mode\"";
@@ -457,28 +462,30 @@ Recording load_recording(const std::string& directory) {
         r.mode_requests.push_back(m);
         return true;
       });
+}
 
+void read_events(Recording& r, FileStarts& starts) {
   CsvFile events(r, "events.csv", {"receipt_ns", "severity", "text", "code"}, true, 3);
-  events.check_stamps(starts).read([&](const auto& f, std::string& error) {
-        RecordedEvent e;
-        if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity) ||
-            (events.has(3) && !parse_integer(f[3], e.code))) {
-          error = "receipt_ns, severity or code is not an integer";
-          return false;
-        }
-        std::string_view text = f[2];
-        if (text.size() >= 2 && text.front() == '"' && text.back() == '"') {
-          text = text.substr(1, text.size() - 2);
-        }
-        e.text = text;
-        r.events.push_back(std::move(e));
-        return true;
-      });
+  events.check_stamps(starts).read([&](const Fields& f, std::string& error) {
+    RecordedEvent e;
+    if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity) ||
+        (events.has(3) && !parse_integer(f[3], e.code))) {
+      error = "receipt_ns, severity or code is not an integer";
+      return false;
+    }
+    std::string_view text = f[2];
+    if (text.size() >= 2 && text.front() == '"' && text.back() == '"') {
+      text = text.substr(1, text.size() - 2);
+    }
+    e.text = text;
+    r.events.push_back(std::move(e));
+    return true;
+  });
+}
 
-  read_frame_list(r, "rgb.txt", r.rgb, true, starts);
-  read_frame_list(r, "depth_preview.txt", r.depth_preview, false, starts);
-  // Each file is in order; a file that starts far from the others (one garbled row alone in
-  // it) would still stretch the merged timeline.
+// Each file is in order; a file that starts far from the others (one garbled row alone in it)
+// would still stretch the merged timeline.
+void check_file_starts(const FileStarts& starts) {
   const auto [earliest, latest] =
       std::minmax_element(starts.begin(), starts.end(),
                           [](const auto& a, const auto& b) { return a.second < b.second; });
@@ -490,7 +497,71 @@ Recording load_recording(const std::string& directory) {
                      ", expected the files of one recording to start within " +
                      seconds_text(kMaxStampGapNs) + " (a garbled stamp?)");
   }
+}
+
+bool has_csv_recording(const std::string& directory) {
+  return fs::exists(fs::path(directory) / "telemetry.csv") ||
+         fs::exists(fs::path(directory) / "rgb.txt");
+}
+
+Recording load_csv_recording(const std::string& directory) {
+  Recording r;
+  r.directory = directory;
+  FileStarts starts;
+  read_states(r, starts);
+  read_commands(r, starts);
+  read_mode_requests(r, starts);
+  read_events(r, starts);
+  read_frame_list(r, "rgb.txt", r.rgb, true, starts);
+  read_frame_list(r, "depth_preview.txt", r.depth_preview, false, starts);
+  check_file_starts(starts);
   return r;
+}
+
+// A folder's flight.mcap, or its CSV files when the MCAP is unreadable or empty of states
+// (a recorder that failed early): the CSV recorder ran beside it.
+Recording load_folder_mcap(const std::string& directory, const std::string& mcap_path) {
+  std::string why;
+  try {
+    Recording r = load_mcap_recording(mcap_path);
+    if (!r.states.empty() || !has_csv_recording(directory)) return r;
+    why = "holds no vehicle state";
+  } catch (const InputError& e) {
+    if (!has_csv_recording(directory)) throw;
+    why = std::string("unreadable (") + e.what() + ")";
+  }
+  Recording r = load_csv_recording(directory);
+  add_problem(r, "flight.mcap " + why + "; the CSV files were read instead");
+  return r;
+}
+
+}  // namespace
+
+std::string find_flight_mcap(const std::string& path) {
+  if (fs::is_regular_file(path)) return path;
+  const fs::path in_folder = fs::path(path) / "flight.mcap";
+  return fs::is_directory(path) && fs::exists(in_folder) ? in_folder.string() : "";
+}
+
+Recording load_recording(const std::string& path) {
+  if (fs::is_regular_file(path)) {
+    if (!is_mcap_file(path)) {
+      throw InputError(path + ": not an MCAP file (no MCAP magic), expected a flight.mcap or a "
+                              "recording folder written by hq-ground --record");
+    }
+    return load_mcap_recording(path);
+  }
+  if (!fs::is_directory(path)) {
+    throw InputError(path + ": not found, expected a recording folder written by hq-ground "
+                            "--record (or its flight.mcap)");
+  }
+  const std::string mcap_path = find_flight_mcap(path);
+  if (!mcap_path.empty()) return load_folder_mcap(path, mcap_path);
+  if (!has_csv_recording(path)) {
+    throw InputError(path + ": neither flight.mcap, telemetry.csv nor rgb.txt: not an hq-ground "
+                            "recording");
+  }
+  return load_csv_recording(path);
 }
 
 bool replay(const Recording& recording, ConsoleModel& model, double speed,

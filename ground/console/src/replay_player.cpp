@@ -224,16 +224,44 @@ ReplayStatus ReplayPlayer::status() const {
   return s;
 }
 
-void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
-  const Recording& r = recording_;
-  const std::int64_t t = position_ns();
-  if (fed_any_ && t < fed_ns_) {
+void ReplayPlayer::rewind_if_behind(ConsoleModel& model, std::int64_t t_ns) {
+  if (fed_any_ && t_ns < fed_ns_) {
     model.reset();
     is_ = ic_ = ie_ = ir_ = 0;
     next_session_ = 0;
   }
   fed_any_ = true;
-  fed_ns_ = t;
+  fed_ns_ = t_ns;
+}
+
+void ReplayPlayer::feed_state(ConsoleModel& model) {
+  const RecordedState& s = recording_.states[is_];
+  if (next_session_ < timeline_.sessions.size() &&
+      timeline_.sessions[next_session_].first_state == is_) {
+    const SessionStart& start = timeline_.sessions[next_session_++];
+    if (start.first_state > 0) {
+      model.start_new_track();
+      char text[160];
+      std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session",
+                    start.t_s, start.why);
+      model.on_event(s.receipt_ns, 1, text);
+    }
+  }
+  ++is_;
+  // Marker poses are not recorded (only their count): the replay shows none.
+  StateExtras extras;
+  extras.position_valid = s.position_valid;
+  extras.p_W_m = s.p_W_m;
+  extras.yaw_W_rad = s.yaw_W_rad;
+  extras.truth_valid = s.truth_valid;
+  extras.v_truth_H_mps = s.v_truth_H_mps;
+  model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad,
+                 s.pitch_rad, s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health, nullptr,
+                 0, extras);
+}
+
+void ReplayPlayer::feed_streams(ConsoleModel& model, std::int64_t t_ns) {
+  const Recording& r = recording_;
   constexpr std::int64_t kNone = std::numeric_limits<std::int64_t>::max();
   // States, commands and events in their merged time order (a command sets the plot's v_cmd
   // for the states after it).
@@ -242,62 +270,57 @@ void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
     const std::int64_t tc = ic_ < r.commands.size() ? r.commands[ic_].t_ns : kNone;
     const std::int64_t te = ie_ < r.events.size() ? r.events[ie_].receipt_ns : kNone;
     const std::int64_t next = std::min({ts, tc, te});
-    if (next == kNone || next > t) break;
+    if (next == kNone || next > t_ns) break;
     if (next == tc) {
       const RecordedCommand& c = r.commands[ic_++];
       model.on_command(c.t_ns, c.v_H_mps, c.yaw_rate_radps);
     } else if (next == ts) {
-      const RecordedState& s = r.states[is_];
-      if (next_session_ < timeline_.sessions.size() &&
-          timeline_.sessions[next_session_].first_state == is_) {
-        const SessionStart& start = timeline_.sessions[next_session_++];
-        if (start.first_state > 0) {
-          model.start_new_track();
-          char text[160];
-          std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session",
-                        start.t_s, start.why);
-          model.on_event(s.receipt_ns, 1, text);
-        }
-      }
-      ++is_;
-      // Marker poses are not recorded (only their count): the replay shows none.
-      StateExtras extras;
-      extras.position_valid = s.position_valid;
-      extras.p_W_m = s.p_W_m;
-      extras.yaw_W_rad = s.yaw_W_rad;
-      extras.truth_valid = s.truth_valid;
-      extras.v_truth_H_mps = s.v_truth_H_mps;
-      model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad,
-                     s.pitch_rad, s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health,
-                     nullptr, 0, extras);
+      feed_state(model);
     } else {
       const RecordedEvent& e = r.events[ie_++];
       model.on_event(e.receipt_ns, e.severity, e.text.c_str());
     }
   }
-  // Camera: only the newest frame passed is read and shown.
-  const std::size_t frames = count_until(r.rgb, t, frame_ns);
-  if (frames > ir_) {
-    ir_ = frames;
-    const RecordedFrame& f = r.rgb[frames - 1];
-    std::ifstream in(f.path, std::ios::binary);
-    jpeg_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    if (jpeg_.empty()) {
-      ++frames_missing;
-    } else {
-      depth_.clear();
-      // The depth preview received with this frame, if any (same receipt stamp).
-      const auto d = std::lower_bound(
-          r.depth_preview.begin(), r.depth_preview.end(), f.t_ns,
-          [](const RecordedFrame& a, std::int64_t x) { return a.t_ns < x; });
-      if (d != r.depth_preview.end() && d->t_ns == f.t_ns) {
-        std::ifstream din(d->path, std::ios::binary);
-        depth_.assign(std::istreambuf_iterator<char>(din), std::istreambuf_iterator<char>());
-      }
-      model.on_camera(f.t_ns, jpeg_.data(), jpeg_.size(), depth_.empty() ? nullptr : depth_.data(),
-                      depth_.size());
-    }
+}
+
+namespace {
+
+// The image in memory (an MCAP recording) or its file (a CSV one), into a reused buffer.
+void load_image(const RecordedFrame& f, std::vector<std::uint8_t>& out) {
+  if (!f.data.empty()) {
+    out.assign(f.data.begin(), f.data.end());
+    return;
   }
+  std::ifstream in(f.path, std::ios::binary);
+  out.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+void ReplayPlayer::feed_camera(ConsoleModel& model, std::int64_t t_ns,
+                               std::uint64_t& frames_missing) {
+  const Recording& r = recording_;
+  // Only the newest frame passed is read and shown.
+  const std::size_t frames = count_until(r.rgb, t_ns, frame_ns);
+  if (frames <= ir_) return;
+  ir_ = frames;
+  const RecordedFrame& f = r.rgb[frames - 1];
+  load_image(f, jpeg_);
+  if (jpeg_.empty()) {
+    ++frames_missing;
+    return;
+  }
+  depth_.clear();
+  // The depth preview received with this frame, if any (same receipt stamp).
+  const auto d =
+      std::lower_bound(r.depth_preview.begin(), r.depth_preview.end(), f.t_ns,
+                       [](const RecordedFrame& a, std::int64_t x) { return a.t_ns < x; });
+  if (d != r.depth_preview.end() && d->t_ns == f.t_ns) load_image(*d, depth_);
+  model.on_camera(f.t_ns, jpeg_.data(), jpeg_.size(), depth_.empty() ? nullptr : depth_.data(),
+                  depth_.size());
+}
+
+void ReplayPlayer::publish_status(ConsoleModel& model) const {
   const ReplayCounts c = counts();
   LinkHealth link;
   link.states = c.states;
@@ -322,8 +345,16 @@ void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
   status.speed = speed_;
   status.playing = playing_;
   status.at_end = at_end();
-  status.sessions = c.sessions;
+  status.sessions = c.sessions;  // as status(), without counting twice
   model.on_replay(status);
+}
+
+void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
+  const std::int64_t t_ns = position_ns();
+  rewind_if_behind(model, t_ns);
+  feed_streams(model, t_ns);
+  feed_camera(model, t_ns, frames_missing);
+  publish_status(model);
 }
 
 void format_clock(double t_s, char* out, std::size_t size) {

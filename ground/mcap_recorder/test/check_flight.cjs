@@ -7,6 +7,9 @@
 //   node check_flight.cjs MODULES FILE.mcap --killed KILL_NS
 //       no summary expected; the last message is at most 1.5 s older than the SIGKILL at
 //       KILL_NS (the host's real-time clock, as dds_time() and the log times)
+//   node check_flight.cjs MODULES FILE.mcap --recovered KILL_NS
+//       the killed file as hq-report --recover rewrote it: read through its summary and
+//       indexes, the same 1.5 s bound
 'use strict';
 const fs = require('fs');
 const path = require('path');
@@ -67,6 +70,7 @@ async function readAll(bytes, handlers, killed) {
 (async () => {
   const bytes = new Uint8Array(fs.readFileSync(mcapPath));
   const killed = expected === '--killed';
+  const recovered = expected === '--recovered';
   const handlers = await loadDecompressHandlers();
   const { channels, schemas, messages, metadata, attachments } =
       await readAll(bytes, handlers, killed);
@@ -143,7 +147,7 @@ async function readAll(bytes, handlers, killed) {
   check(count('/camera/image/compressed') === count('/hq/camera_frame'), 'images != frames');
   check(count('/obstacles') === count('/hq/vehicle_state'), 'clouds != states');
 
-  if (killed) {
+  if (killed || recovered) {
     let last = 0n;
     for (const m of messages) if (m.logTime > last) last = m.logTime;
     const lost_s = Number(BigInt(killNs) - last) / 1e9;
@@ -174,7 +178,8 @@ async function readAll(bytes, handlers, killed) {
   }
   console.log(`${path.basename(mcapPath)}: ${messages.length} messages on ${channels.size} ` +
               `channels, ${decoders.size} cdr channels decoded with their omgidl schema, ` +
-              `${attachments} attachments${killed ? ' (killed: streamed without summary)' : ''}: ` +
+              `${attachments} attachments${killed ? ' (killed: streamed without summary)' : ''}` +
+              `${recovered ? ' (recovered: read through its new summary)' : ''}: ` +
               JSON.stringify(decoded));
   if (failures > 0) {
     console.error(`${failures} failure(s)`);

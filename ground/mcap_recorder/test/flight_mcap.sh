@@ -5,14 +5,17 @@
 # (counts and stamps as hq-ground reports them), one killed with SIGKILL (still readable,
 # at most about the last second lost), and one into a folder whose flight.mcap exists (told,
 # not overwritten, the flight goes on).
-# The project's own reader (hq-mcap-read) reads both files too, the killed one by recovery.
-# Usage: flight_mcap.sh HQ_ONBOARD HQ_GROUND HQ_MCAP_READ WORK_DIR   (run from the repository root; WORK_DIR
-# holds node_modules). Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
+# The project's own reader (hq-mcap-read) reads both files too, the killed one by recovery; the
+# killed one is reported by hq-report (replay's reader) and rewritten by hq-report --recover into
+# a complete file that @mcap/core reads through its summary and indexes.
+# Usage: flight_mcap.sh HQ_ONBOARD HQ_GROUND HQ_MCAP_READ WORK_DIR HQ_REPORT   (run from the
+# repository root; WORK_DIR holds node_modules). Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
 set -euo pipefail
 onboard=$1
 ground=$2
 mcap_read=$3
 work=$4
+report=$5
 
 command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
 command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
@@ -71,6 +74,19 @@ ls -l "$tmp/killed/flight.mcap"
 node "$here/check_flight.cjs" "$work/node_modules" "$tmp/killed/flight.mcap" --killed "$kill_ns"
 "$mcap_read" "$tmp/killed/flight.mcap" | tee "$tmp/read.out"
 grep -q 'no summary (recovered)' "$tmp/read.out"
+# hq-report reads it as replay does, and --recover makes it whole: same messages, with a summary.
+if command -v gnuplot >/dev/null; then
+  "$report" "$tmp/killed/flight.mcap" --out "$tmp/killed-report" >"$tmp/report.out" 2>&1 ||
+    { cat "$tmp/report.out"; exit 1; }
+  grep -q 'no summary (the recorder was killed?)' "$tmp/killed-report/report.md"
+fi
+"$report" --recover "$tmp/killed/flight.mcap" "$tmp/recovered.mcap" | tee "$tmp/recover.out"
+grep -q 'no summary (writer killed?), recovered by scanning' "$tmp/recover.out"
+recovered=$(sed -n 's/^  messages *\([0-9]*\) recovered.*/\1/p' "$tmp/recover.out")
+"$mcap_read" "$tmp/recovered.mcap" | tee "$tmp/read-recovered.out"
+grep -q ": $recovered messages, [0-9]* channels, summary," "$tmp/read-recovered.out" ||
+  { echo "recovered.mcap: expected $recovered messages with a summary"; exit 1; }
+node "$here/check_flight.cjs" "$work/node_modules" "$tmp/recovered.mcap" --recovered "$kill_ns"
 # A flight.mcap already there: never overwritten; told, and the flight goes on (exit 0).
 mkdir -p "$tmp/taken"
 echo "an earlier flight" >"$tmp/taken/flight.mcap"

@@ -1,9 +1,11 @@
 // The flight recorder against real DDS writers on loopback (a domain of this test process's
 // own): samples in, MCAP out, read back with hq::mcap::McapReader: counts, stamps, CDR bytes
-// decoded here by hand (independently of Cyclone), the Foxglove channels, the ground queue,
+// decoded here by hand (independently of Cyclone) and by the console's reader (replay,
+// hq-report), the Foxglove channels, the ground queue,
 // a file read while the recorder still runs (what a SIGKILL leaves), and write failures.
 #include "hq/mcap_recorder/flight_recorder.hpp"
 
+#include "hq/console/recording.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/input_error.hpp"
@@ -130,15 +132,11 @@ std::vector<const mcap::Message*> messages_of(const mcap::McapReader& r, const s
 
 constexpr std::int64_t kSourceStampBase_ns = 1'700'000'000'000'000'000;
 
-TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChannels) {
-  const fs::path config = dir_ / "vehicle.yaml";
-  std::ofstream(config) << "vehicle:\n  mass_kg: 0.5\n";
-  options_.attachments = {{config.string(), ""}, {(dir_ / "missing.yaml").string(), ""}};
-  FlightRecorder recorder(options_);
-  Publishers pub(options_.link);
-  ASSERT_TRUE(wait_matched(pub));
+constexpr int kCount = 40;
 
-  constexpr int kCount = 40;
+// Sample i of every link topic (events and mode requests every 10th), source-stamped, and a
+// ground sample, paced like a link (the state and camera readers keep the latest sample only).
+void publish_flight(Publishers& pub, FlightRecorder& recorder) {
   link::Sample<link::VehicleState> state;
   link::reserve(state->obstacle_points_body_m, 3);
   link::Sample<link::CameraFrame> frame;
@@ -191,22 +189,17 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
     g.F_D_n[2] = 1.5F;
     g.latency_ms = 2.0F;
     EXPECT_TRUE(recorder.push(g));
-    // Paced like a link (the state and camera readers keep the latest sample only).
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const RecorderReport& report = recorder.close({{"duration_s", "1.5"}});
-  EXPECT_TRUE(report.error.empty()) << report.error;
-  EXPECT_FALSE(recorder.failed());
-  EXPECT_EQ(report.attachments, 1u);
-  ASSERT_EQ(report.attachments_skipped.size(), 1u);
-  EXPECT_NE(report.attachments_skipped[0].find("missing.yaml"), std::string::npos);
+}
 
-  const mcap::McapReader r(options_.path);
+// The file holds what the recorder reports, channel by channel.
+void expect_counts_as_reported(const mcap::McapReader& r, const RecorderReport& report,
+                               const std::string& path) {
   EXPECT_TRUE(r.report().has_summary);
   EXPECT_EQ(r.statistics().message_count, report.messages);
   EXPECT_EQ(r.channels().size(), report.channels);
-  EXPECT_EQ(fs::file_size(options_.path), report.bytes);
+  EXPECT_EQ(fs::file_size(path), report.bytes);
   for (const ChannelReport& c : report.per_channel) {
     const auto got = messages_of(r, c.topic);
     EXPECT_EQ(got.size(), c.messages) << c.topic;
@@ -225,8 +218,12 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
   EXPECT_EQ(messages_of(r, "/obstacles").size(), messages_of(r, "/hq/vehicle_state").size());
   EXPECT_EQ(messages_of(r, "/ground/haptics").size(), static_cast<std::size_t>(kCount));
   EXPECT_EQ(messages_of(r, "/ground/link").size(), static_cast<std::size_t>(kCount));
+}
 
-  // Schema: the IDL as omgidl, named by its module-qualified type.
+// The CDR as Cyclone serialised it: decoded here field by field; publish time is the source
+// timestamp the writer gave, log time the receipt (after it on this host's clock). The schema
+// is the IDL as omgidl, named by its module-qualified type.
+void expect_commands_as_cdr(const mcap::McapReader& r) {
   const mcap::Channel* commands = channel_of(r, "/hq/velocity_command");
   ASSERT_NE(commands, nullptr);
   EXPECT_EQ(commands->message_encoding, "cdr");
@@ -236,9 +233,6 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
   EXPECT_EQ(schema->encoding, "omgidl");
   EXPECT_EQ(std::string(schema->data.begin(), schema->data.end()), link_idl_text());
   EXPECT_NE(link_idl_text().find("struct VelocityCommand"), std::string::npos);
-
-  // The CDR as Cyclone serialised it: decoded here field by field; publish time is the
-  // source timestamp the writer gave, log time the receipt (after it on this host's clock).
   std::uint64_t previous_sequence = 0;
   for (const mcap::Message* m : messages_of(r, "/hq/velocity_command")) {
     CdrIn in(m->data);
@@ -260,8 +254,10 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
     EXPECT_EQ(m->publish_time_ns, kSourceStampBase_ns + i * 1'000'000);
     EXPECT_GT(m->log_time_ns, 1'600'000'000'000'000'000);
   }
+}
 
-  // Foxglove channels: JSON with the right schema names and base64 payloads.
+// Foxglove channels: JSON with the right schema names and base64 payloads.
+void expect_foxglove_channels(const mcap::McapReader& r) {
   const mcap::Channel* image = channel_of(r, "/camera/image/compressed");
   ASSERT_NE(image, nullptr);
   EXPECT_EQ(image->message_encoding, "json");
@@ -278,7 +274,29 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
   // (1, 2, -0.5) as float32 LE: 0000803F 00000040 000000BF -> "AACAPwAAAEAAAAC/".
   EXPECT_NE(cloud.find("\"data\":\"AACAPwAAAEAAAAC/"), std::string::npos) << cloud;
   EXPECT_NE(cloud.find("\"point_stride\":12"), std::string::npos);
+}
 
+TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChannels) {
+  const fs::path config = dir_ / "vehicle.yaml";
+  std::ofstream(config) << "vehicle:\n  mass_kg: 0.5\n";
+  options_.attachments = {{config.string(), ""}, {(dir_ / "missing.yaml").string(), ""}};
+  FlightRecorder recorder(options_);
+  Publishers pub(options_.link);
+  ASSERT_TRUE(wait_matched(pub));
+  publish_flight(pub, recorder);
+  ASSERT_FALSE(HasFatalFailure());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const RecorderReport& report = recorder.close({{"duration_s", "1.5"}});
+  EXPECT_TRUE(report.error.empty()) << report.error;
+  EXPECT_FALSE(recorder.failed());
+  EXPECT_EQ(report.attachments, 1u);
+  ASSERT_EQ(report.attachments_skipped.size(), 1u);
+  EXPECT_NE(report.attachments_skipped[0].find("missing.yaml"), std::string::npos);
+
+  const mcap::McapReader r(options_.path);
+  expect_counts_as_reported(r, report, options_.path);
+  expect_commands_as_cdr(r);
+  expect_foxglove_channels(r);
   ASSERT_EQ(r.attachments().size(), 1u);
   EXPECT_EQ(r.attachments()[0].name, config.string());
   EXPECT_EQ(r.attachments()[0].media_type, "application/yaml");
@@ -286,6 +304,66 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
   for (const mcap::Metadata& m : r.metadata()) metadata[m.name] = m.values;
   EXPECT_EQ(metadata["flight_summary"]["duration_s"], "1.5");
   EXPECT_EQ(metadata["recorder"]["/hq/event.messages"], "4");
+}
+
+// What Cyclone serialised, decoded back through the console's reader (hq::console's
+// load_recording: the replay's and hq-report's source), field for field as sent.
+TEST_F(FlightRecorderTest, RecordedSamplesReadBackAsTheReplaysRecording) {
+  FlightRecorder recorder(options_);
+  Publishers pub(options_.link);
+  ASSERT_TRUE(wait_matched(pub));
+  link::Sample<link::VehicleState> state;
+  link::reserve(state->obstacle_points_body_m, 2);
+  link::Sample<link::CameraFrame> frame;
+  link::reserve(frame->rgb_jpeg, 4);
+  for (int i = 0; i < 10; ++i) {
+    state->vehicle_id = 1;
+    state->sequence_number = 50u + static_cast<unsigned>(i);
+    state->v_H_mps = {0.5F, -0.25F * static_cast<float>(i), 0.125F};
+    state->mode = hq_msgs_MODE_TELEOP;
+    state->obstacle_points_body_m._length = 2;
+    state->obstacle_points_body_m._buffer[0] = {0.0F, 3.0F, 4.0F};
+    state->obstacle_points_body_m._buffer[1] = {2.0F, 0.0F, 0.0F};
+    state->session_id = 99;
+    state->flight_state = hq_msgs_FLIGHT_AIRBORNE;
+    state->height_source = hq_msgs_HEIGHT_DEPTH;
+    state->height_m = 1.5F;
+    state->clearance_m = 0.75F;
+    ASSERT_TRUE(pub.state.write(*state));
+    const std::uint8_t jpeg[4] = {0xFF, 0xD8, static_cast<std::uint8_t>(i), 0xD9};
+    std::memcpy(frame->rgb_jpeg._buffer, jpeg, 4);
+    frame->rgb_jpeg._length = 4;
+    ASSERT_TRUE(pub.camera.write(*frame));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  link::Event event{};
+  event.vehicle_id = 1;
+  event.severity = hq_msgs_SEVERITY_WARNING;
+  event.code = 7;
+  std::snprintf(event.text, sizeof event.text, "ground heartbeat lost");
+  ASSERT_TRUE(pub.event.write(event));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(recorder.close().error.empty());
+
+  const console::Recording r = console::load_recording(options_.path);
+  EXPECT_EQ(r.problem_count, 0u) << (r.problems.empty() ? "" : r.problems[0]);
+  ASSERT_GE(r.states.size(), 9u);
+  const console::RecordedState& s = r.states.back();
+  EXPECT_EQ(s.sequence, 59u);
+  EXPECT_EQ(s.v_H_mps[1], -2.25F);
+  EXPECT_STREQ(s.mode, "teleop");
+  EXPECT_DOUBLE_EQ(s.closest_obstacle_m, 2.0);
+  EXPECT_EQ(s.session_id, 99u);
+  EXPECT_STREQ(s.flight_state, "airborne");
+  EXPECT_DOUBLE_EQ(s.height_m, 1.5);
+  EXPECT_DOUBLE_EQ(s.clearance_m, 0.75);
+  EXPECT_GE(s.latency_ms, 0.0);
+  ASSERT_GE(r.rgb.size(), 9u);
+  EXPECT_EQ(r.rgb.back().data, (std::vector<std::uint8_t>{0xFF, 0xD8, 9, 0xD9}));
+  ASSERT_EQ(r.events.size(), 1u);
+  EXPECT_EQ(r.events[0].text, "ground heartbeat lost");
+  EXPECT_EQ(r.events[0].severity, 1);
+  EXPECT_EQ(r.events[0].code, 7);
 }
 
 TEST_F(FlightRecorderTest, FileOnDiskIsReadableWhileRecordingAsAfterSigkill) {

@@ -163,6 +163,52 @@ class ReaderImpl {
     return path_ + ": " + what + " at offset " + std::to_string(offset);
   }
 
+  // Where the summary's indexes point.
+  struct IndexedOffsets {
+    std::vector<std::uint64_t> chunks;
+    std::vector<std::uint64_t> attachments;
+    std::vector<std::uint64_t> metadata;
+  };
+
+  // The summary section's records: schemas, channels and statistics are taken, the indexes'
+  // offsets returned.
+  IndexedOffsets read_summary_section(Bytes bytes, std::uint64_t summary_start,
+                                      std::uint64_t summary_end) {
+    IndexedOffsets offsets;
+    RawRecord rec;
+    for (std::uint64_t at = summary_start; at < summary_end; at = rec.end()) {
+      if (!record_at(bytes.first(summary_end), at, rec)) {
+        throw InputError(where("summary record", at) + ": runs past the summary section");
+      }
+      Fields g(rec.content, where("summary record", at));
+      switch (rec.opcode) {
+        case kSchema:
+          add_schema(g);
+          break;
+        case kChannel:
+          add_channel(g);
+          break;
+        case kStatistics:
+          read_statistics(g);
+          break;
+        case kChunkIndex:
+          g.u64();  // message_start_time
+          g.u64();  // message_end_time
+          offsets.chunks.push_back(g.u64());
+          break;
+        case kAttachmentIndex:
+          offsets.attachments.push_back(g.u64());
+          break;
+        case kMetadataIndex:
+          offsets.metadata.push_back(g.u64());
+          break;
+        default:
+          break;
+      }
+    }
+    return offsets;
+  }
+
   // Footer, summary and DataEnd; false when the file has none (the caller then scans).
   bool read_with_summary(Bytes bytes) {
     const std::size_t footer_bytes = kRecordPrefixBytes + kFooterContentBytes;
@@ -194,45 +240,13 @@ class ReaderImpl {
     check_data_end(bytes, summary_start);
 
     const std::uint64_t summary_end = summary_offset_start != 0 ? summary_offset_start : footer_at;
-    std::vector<std::uint64_t> chunk_offsets;
-    std::vector<std::uint64_t> attachment_offsets;
-    std::vector<std::uint64_t> metadata_offsets;
-    RawRecord rec;
-    for (std::uint64_t at = summary_start; at < summary_end; at = rec.end()) {
-      if (!record_at(bytes.first(summary_end), at, rec)) {
-        throw InputError(where("summary record", at) + ": runs past the summary section");
-      }
-      Fields g(rec.content, where("summary record", at));
-      switch (rec.opcode) {
-        case kSchema:
-          add_schema(g);
-          break;
-        case kChannel:
-          add_channel(g);
-          break;
-        case kStatistics:
-          read_statistics(g);
-          break;
-        case kChunkIndex:
-          g.u64();  // message_start_time
-          g.u64();  // message_end_time
-          chunk_offsets.push_back(g.u64());
-          break;
-        case kAttachmentIndex:
-          attachment_offsets.push_back(g.u64());
-          break;
-        case kMetadataIndex:
-          metadata_offsets.push_back(g.u64());
-          break;
-        default:
-          break;
-      }
-    }
+    const IndexedOffsets offsets = read_summary_section(bytes, summary_start, summary_end);
+    const std::vector<std::uint64_t>& chunk_offsets = offsets.chunks;
     for (const std::uint64_t at : chunk_offsets) read_record_at(bytes, at, kChunk, "Chunk");
-    for (const std::uint64_t at : attachment_offsets) {
+    for (const std::uint64_t at : offsets.attachments) {
       read_record_at(bytes, at, kAttachment, "Attachment");
     }
-    for (const std::uint64_t at : metadata_offsets) {
+    for (const std::uint64_t at : offsets.metadata) {
       read_record_at(bytes, at, kMetadata, "Metadata");
     }
     // Messages may also sit outside chunks (unchunked writers), where no index points: when the

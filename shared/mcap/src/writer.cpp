@@ -221,18 +221,73 @@ struct McapWriter::Impl {
     chunk_channels.clear();
   }
 
-  void write_summary_and_footer() {
-    flush_chunk();
-    sync_channel_counts();
-    record.clear();
-    const std::size_t data_end_at = begin_record(record, kDataEnd);
-    put_u32(record, data_crc);
-    end_record(record, data_end_at);
-    write_all(record);
-    in_data_section = false;
+  void put_statistics() {
+    const std::size_t at = begin_record(record, kStatistics);
+    put_u64(record, stats.message_count);
+    put_u16(record, stats.schema_count);
+    put_u32(record, stats.channel_count);
+    put_u32(record, stats.attachment_count);
+    put_u32(record, stats.metadata_count);
+    put_u32(record, stats.chunk_count);
+    put_u64(record, stats.message_start_time_ns);
+    put_u64(record, stats.message_end_time_ns);
+    put_u32(record, static_cast<std::uint32_t>(stats.channel_message_counts.size() * 10));
+    for (const auto& [id, count] : stats.channel_message_counts) {
+      put_u16(record, id);
+      put_u64(record, count);
+    }
+    end_record(record, at);
+  }
 
-    const std::uint64_t summary_start = position;
-    std::vector<std::pair<Opcode, std::pair<std::uint64_t, std::uint64_t>>> groups;
+  void put_chunk_indexes() {
+    for (const ChunkIndexEntry& c : chunk_indexes) {
+      const std::size_t at = begin_record(record, kChunkIndex);
+      put_u64(record, c.message_start_time);
+      put_u64(record, c.message_end_time);
+      put_u64(record, c.chunk_start_offset);
+      put_u64(record, c.chunk_length);
+      put_u32(record, static_cast<std::uint32_t>(c.message_index_offsets.size() * 10));
+      for (const auto& [id, offset] : c.message_index_offsets) {
+        put_u16(record, id);
+        put_u64(record, offset);
+      }
+      put_u64(record, c.message_index_length);
+      put_string(record, c.compressed ? "zstd" : "");
+      put_u64(record, c.compressed_size);
+      put_u64(record, c.uncompressed_size);
+      end_record(record, at);
+    }
+  }
+
+  void put_attachment_indexes() {
+    for (const AttachmentIndexEntry& a : attachment_indexes) {
+      const std::size_t at = begin_record(record, kAttachmentIndex);
+      put_u64(record, a.offset);
+      put_u64(record, a.length);
+      put_u64(record, a.log_time);
+      put_u64(record, a.create_time);
+      put_u64(record, a.data_size);
+      put_string(record, a.name);
+      put_string(record, a.media_type);
+      end_record(record, at);
+    }
+  }
+
+  void put_metadata_indexes() {
+    for (const MetadataIndexEntry& m : metadata_indexes) {
+      const std::size_t at = begin_record(record, kMetadataIndex);
+      put_u64(record, m.offset);
+      put_u64(record, m.length);
+      put_string(record, m.name);
+      end_record(record, at);
+    }
+  }
+
+  using SummaryGroups = std::vector<std::pair<Opcode, std::pair<std::uint64_t, std::uint64_t>>>;
+
+  // The summary section, one group of records per opcode; returns where each group lies.
+  SummaryGroups write_summary() {
+    SummaryGroups groups;
     auto group = [&](Opcode opcode, auto&& fill) {
       record.clear();
       fill();
@@ -246,65 +301,25 @@ struct McapWriter::Impl {
     group(kChannel, [&] {
       for (const Channel& c : channels) put_channel(record, c);
     });
-    group(kStatistics, [&] {
-      const std::size_t at = begin_record(record, kStatistics);
-      put_u64(record, stats.message_count);
-      put_u16(record, stats.schema_count);
-      put_u32(record, stats.channel_count);
-      put_u32(record, stats.attachment_count);
-      put_u32(record, stats.metadata_count);
-      put_u32(record, stats.chunk_count);
-      put_u64(record, stats.message_start_time_ns);
-      put_u64(record, stats.message_end_time_ns);
-      put_u32(record, static_cast<std::uint32_t>(stats.channel_message_counts.size() * 10));
-      for (const auto& [id, count] : stats.channel_message_counts) {
-        put_u16(record, id);
-        put_u64(record, count);
-      }
-      end_record(record, at);
-    });
-    group(kChunkIndex, [&] {
-      for (const ChunkIndexEntry& c : chunk_indexes) {
-        const std::size_t at = begin_record(record, kChunkIndex);
-        put_u64(record, c.message_start_time);
-        put_u64(record, c.message_end_time);
-        put_u64(record, c.chunk_start_offset);
-        put_u64(record, c.chunk_length);
-        put_u32(record, static_cast<std::uint32_t>(c.message_index_offsets.size() * 10));
-        for (const auto& [id, offset] : c.message_index_offsets) {
-          put_u16(record, id);
-          put_u64(record, offset);
-        }
-        put_u64(record, c.message_index_length);
-        put_string(record, c.compressed ? "zstd" : "");
-        put_u64(record, c.compressed_size);
-        put_u64(record, c.uncompressed_size);
-        end_record(record, at);
-      }
-    });
-    group(kAttachmentIndex, [&] {
-      for (const AttachmentIndexEntry& a : attachment_indexes) {
-        const std::size_t at = begin_record(record, kAttachmentIndex);
-        put_u64(record, a.offset);
-        put_u64(record, a.length);
-        put_u64(record, a.log_time);
-        put_u64(record, a.create_time);
-        put_u64(record, a.data_size);
-        put_string(record, a.name);
-        put_string(record, a.media_type);
-        end_record(record, at);
-      }
-    });
-    group(kMetadataIndex, [&] {
-      for (const MetadataIndexEntry& m : metadata_indexes) {
-        const std::size_t at = begin_record(record, kMetadataIndex);
-        put_u64(record, m.offset);
-        put_u64(record, m.length);
-        put_string(record, m.name);
-        end_record(record, at);
-      }
-    });
+    group(kStatistics, [&] { put_statistics(); });
+    group(kChunkIndex, [&] { put_chunk_indexes(); });
+    group(kAttachmentIndex, [&] { put_attachment_indexes(); });
+    group(kMetadataIndex, [&] { put_metadata_indexes(); });
+    return groups;
+  }
 
+  void write_summary_and_footer() {
+    flush_chunk();
+    sync_channel_counts();
+    record.clear();
+    const std::size_t data_end_at = begin_record(record, kDataEnd);
+    put_u32(record, data_crc);
+    end_record(record, data_end_at);
+    write_all(record);
+    in_data_section = false;
+
+    const std::uint64_t summary_start = position;
+    const SummaryGroups groups = write_summary();
     const std::uint64_t summary_offset_start = position;
     record.clear();
     for (const auto& [opcode, extent] : groups) {

@@ -4,7 +4,8 @@
 # (footer, summary, chunk indexes, seeking by topic and time, CRCs) and McapStreamReader (every
 # record in order, CRCs), and everything is checked against what the writer reports (JSON); and
 # files @mcap/core's McapWriter produced (zstd chunks, no chunks) are read by hq::mcap, whole
-# and cut in half.
+# and cut in half. A file without summary rewritten by hq::mcap::recover (hq-report --recover)
+# is read by both of @mcap/core's readers like any complete file.
 # Usage: conformance.sh HQ_MCAP_CONFORMANCE_BINARY WORK_DIR   (WORK_DIR holds node_modules)
 # Exit 77 (ctest: skipped) when node, npm or the packages are unavailable.
 set -euo pipefail
@@ -32,7 +33,7 @@ echo "node $(node --version), @mcap/core $core, @mcap/support $support"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 "$tool" write "$tmp"
-for name in zstd none nosummary; do
+for name in zstd none nosummary recovered; do
   node "$here/conformance.cjs" "$work/node_modules" read "$tmp/$name.mcap" "$tmp/$name.json"
 done
 for chunks in zstd none; do

@@ -3,7 +3,8 @@
 //       Writes DIR/zstd.mcap (zstd chunks), DIR/none.mcap (uncompressed chunks) and
 //       DIR/nosummary.mcap (the bytes on disk after a flush, before close: what a killed writer
 //       leaves), each with a .json of what the writer reports: channels, schemas, statistics
-//       and every message's stamps and bytes.
+//       and every message's stamps and bytes; and DIR/recovered.mcap, nosummary.mcap rewritten
+//       by hq::mcap::recover (hq-report --recover) into a complete indexed file.
 //   hq-mcap-conformance check FILE.mcap FILE.txt
 //       Reads a file @mcap/core wrote and checks it against the values it listed; then the
 //       file cut in half (no summary) must recover a prefix of the messages.
@@ -43,10 +44,9 @@ struct Written {
   std::uint32_t sum;
 };
 
-void write_json(const std::string& path, const hq::mcap::McapWriter& writer,
+void write_json(const std::string& path, const hq::mcap::Statistics& s,
                 const std::vector<std::string>& topics, const std::vector<std::string>& schemas,
                 const std::vector<Written>& messages, bool with_summary) {
-  const hq::mcap::Statistics& s = writer.statistics();
   std::ofstream out(path);
   out << "{\n\"summary\": " << (with_summary ? "true" : "false") << ",\n";
   out << "\"channels\": [";
@@ -132,10 +132,15 @@ void write_files(const std::string& dir, const std::string& name, Compression co
   if (keep_unclosed_copy) {
     const std::string copy = dir + "/nosummary.mcap";
     std::filesystem::copy_file(path, copy, std::filesystem::copy_options::overwrite_existing);
-    write_json(dir + "/nosummary.json", writer, topics, schemas, messages, false);
+    write_json(dir + "/nosummary.json", writer.statistics(), topics, schemas, messages, false);
+    // hq-report --recover's rewrite of it: the same messages, now with a summary and indexes.
+    const std::string recovered = dir + "/recovered.mcap";
+    std::filesystem::remove(recovered);
+    const hq::mcap::RecoveryReport report = hq::mcap::recover(copy, recovered);
+    write_json(dir + "/recovered.json", report.written, topics, schemas, messages, true);
   }
   writer.close();
-  write_json(dir + "/" + name + ".json", writer, topics, schemas, messages, true);
+  write_json(dir + "/" + name + ".json", writer.statistics(), topics, schemas, messages, true);
 }
 
 int failures = 0;
@@ -169,79 +174,102 @@ void expect_messages(const std::vector<hq::mcap::Message>& got, const std::vecto
   }
 }
 
-int check(const std::string& mcap_path, const std::string& values_path) {
-  std::ifstream in(values_path);
+// What @mcap/core's writer listed (conformance.cjs write): one line per record.
+struct Expected {
   std::vector<Written> messages;
   std::size_t channels = 0;
   std::size_t attachments = 0;
   std::size_t metadata = 0;
   std::uint64_t stat_messages = 0;
   std::uint64_t stat_chunks = 0;
-  const hq::mcap::McapReader reader(mcap_path);
+};
+
+void check_channel(const hq::mcap::McapReader& reader, std::istringstream& f) {
+  unsigned id = 0;
+  unsigned schema_id = 0;
+  std::string topic;
+  std::string encoding;
+  std::string schema;
+  std::size_t metadata_size = 0;
+  f >> id >> schema_id >> topic >> encoding >> schema >> metadata_size;
+  const hq::mcap::Channel* c = reader.channel(static_cast<std::uint16_t>(id));
+  expect(c != nullptr, "channel " + std::to_string(id) + " missing");
+  if (c == nullptr) return;
+  expect(c->schema_id == schema_id && c->topic == topic && c->message_encoding == encoding &&
+             c->metadata.size() == metadata_size,
+         "channel " + std::to_string(id) + " is " + c->topic + " " + c->message_encoding);
+  const hq::mcap::Schema* s = reader.schema(c->schema_id);
+  expect((s == nullptr ? std::string("-") : s->name) == schema,
+         "channel " + topic + ": schema differs from " + schema);
+}
+
+void check_attachment(const hq::mcap::McapReader& reader, std::istringstream& f,
+                      std::size_t index) {
+  std::string name;
+  std::string media_type;
+  std::size_t size = 0;
+  f >> name >> media_type >> size;
+  const bool found = index < reader.attachments().size();
+  expect(found && reader.attachments()[index].name == name &&
+             reader.attachments()[index].media_type == media_type &&
+             reader.attachments()[index].data.size() == size,
+         "attachment " + name + " differs");
+}
+
+void check_metadata(const hq::mcap::McapReader& reader, std::istringstream& f, std::size_t index) {
+  std::string name;
+  std::size_t count = 0;
+  f >> name >> count;
+  const bool found = index < reader.metadata().size();
+  expect(found && reader.metadata()[index].name == name &&
+             reader.metadata()[index].values.size() == count,
+         "metadata " + name + " differs");
+}
+
+// Reads the listing, checking channels, attachments and metadata as they come.
+Expected read_listing(const hq::mcap::McapReader& reader, const std::string& values_path) {
+  std::ifstream in(values_path);
+  Expected e;
   std::string line;
   while (std::getline(in, line)) {
     std::istringstream f(line);
     std::string kind;
     f >> kind;
     if (kind == "channel") {
-      unsigned id = 0;
-      unsigned schema_id = 0;
-      std::string topic;
-      std::string encoding;
-      std::string schema;
-      std::size_t metadata_size = 0;
-      f >> id >> schema_id >> topic >> encoding >> schema >> metadata_size;
-      const hq::mcap::Channel* c = reader.channel(static_cast<std::uint16_t>(id));
-      expect(c != nullptr, "channel " + std::to_string(id) + " missing");
-      if (c == nullptr) continue;
-      expect(c->schema_id == schema_id && c->topic == topic && c->message_encoding == encoding &&
-                 c->metadata.size() == metadata_size,
-             "channel " + std::to_string(id) + " is " + c->topic + " " + c->message_encoding);
-      const hq::mcap::Schema* s = reader.schema(c->schema_id);
-      expect((s == nullptr ? std::string("-") : s->name) == schema,
-             "channel " + topic + ": schema differs from " + schema);
-      ++channels;
+      check_channel(reader, f);
+      ++e.channels;
     } else if (kind == "message") {
       Written w{};
       unsigned channel = 0;
       f >> channel >> w.sequence >> w.log_time_ns >> w.publish_time_ns >> w.size >> w.sum;
       w.channel_id = static_cast<std::uint16_t>(channel);
-      messages.push_back(w);
+      e.messages.push_back(w);
     } else if (kind == "attachment") {
-      std::string name;
-      std::string media_type;
-      std::size_t size = 0;
-      f >> name >> media_type >> size;
-      const bool found = attachments < reader.attachments().size();
-      expect(found && reader.attachments()[attachments].name == name &&
-                 reader.attachments()[attachments].media_type == media_type &&
-                 reader.attachments()[attachments].data.size() == size,
-             "attachment " + name + " differs");
-      ++attachments;
+      check_attachment(reader, f, e.attachments++);
     } else if (kind == "metadata") {
-      std::string name;
-      std::size_t count = 0;
-      f >> name >> count;
-      const bool found = metadata < reader.metadata().size();
-      expect(found && reader.metadata()[metadata].name == name &&
-                 reader.metadata()[metadata].values.size() == count,
-             "metadata " + name + " differs");
-      ++metadata;
+      check_metadata(reader, f, e.metadata++);
     } else if (kind == "statistics") {
-      f >> stat_messages >> stat_chunks;
+      f >> e.stat_messages >> e.stat_chunks;
     }
   }
+  return e;
+}
+
+void check_indexed(const hq::mcap::McapReader& reader, const Expected& e) {
   expect(reader.report().has_summary, "summary not read");
   expect(reader.profile() == "theirs", "profile " + reader.profile());
-  expect(reader.channels().size() == channels, "channel count");
-  expect(reader.attachments().size() == attachments, "attachment count");
-  expect(reader.metadata().size() == metadata, "metadata count");
-  expect(reader.statistics().message_count == stat_messages, "statistics: message count");
-  expect(reader.statistics().chunk_count == stat_chunks, "statistics: chunk count");
-  expect(reader.report().chunk_count == stat_chunks, "chunks read");
-  expect_messages(reader.messages(), messages, messages.size(), "indexed");
+  expect(reader.channels().size() == e.channels, "channel count");
+  expect(reader.attachments().size() == e.attachments, "attachment count");
+  expect(reader.metadata().size() == e.metadata, "metadata count");
+  expect(reader.statistics().message_count == e.stat_messages, "statistics: message count");
+  expect(reader.statistics().chunk_count == e.stat_chunks, "statistics: chunk count");
+  expect(reader.report().chunk_count == e.stat_chunks, "chunks read");
+  expect_messages(reader.messages(), e.messages, e.messages.size(), "indexed");
+}
 
-  // The same file without its summary, as a killed writer would leave it.
+// The same file without its summary, as a killed writer would leave it: a prefix recovered.
+void check_cut(const hq::mcap::McapReader& reader, const std::string& mcap_path,
+               const Expected& e) {
   const std::string cut = mcap_path + ".cut";
   const auto size = std::filesystem::file_size(mcap_path);
   std::filesystem::copy_file(mcap_path, cut, std::filesystem::copy_options::overwrite_existing);
@@ -249,14 +277,21 @@ int check(const std::string& mcap_path, const std::string& values_path) {
   const hq::mcap::McapReader recovered(cut);
   expect(!recovered.report().has_summary && recovered.report().truncated, "cut file: report");
   expect(!recovered.messages().empty(), "cut file: nothing recovered");
-  expect_messages(recovered.messages(), messages, recovered.messages().size(), "cut file");
+  expect_messages(recovered.messages(), e.messages, recovered.messages().size(), "cut file");
   std::printf(
       "%s: hq::mcap read %zu messages in %llu chunks, %zu channels, %zu attachments, "
       "%zu metadata; cut at %llu of %llu bytes: %zu messages recovered\n",
       mcap_path.c_str(), reader.messages().size(),
-      static_cast<unsigned long long>(reader.report().chunk_count), channels, attachments, metadata,
-      static_cast<unsigned long long>(recovered.report().valid_end_bytes),
+      static_cast<unsigned long long>(reader.report().chunk_count), e.channels, e.attachments,
+      e.metadata, static_cast<unsigned long long>(recovered.report().valid_end_bytes),
       static_cast<unsigned long long>(size), recovered.messages().size());
+}
+
+int check(const std::string& mcap_path, const std::string& values_path) {
+  const hq::mcap::McapReader reader(mcap_path);
+  const Expected expected = read_listing(reader, values_path);
+  check_indexed(reader, expected);
+  check_cut(reader, mcap_path, expected);
   return failures == 0 ? 0 : 1;
 }
 

@@ -227,6 +227,40 @@ TEST(McapReader, FileWithoutSummaryIsScannedWithItsAttachmentsAndMetadata) {
   EXPECT_EQ(reader.statistics().channel_message_counts.at(1), 50u);
 }
 
+TEST(Recover, CutFileBecomesACompleteIndexedFileWithEverythingRecovered) {
+  const TempDir dir;
+  const std::string path = dir.file("killed.mcap");
+  const Recording written = write_recording(path, Compression::kZstd, 8 * 1024ULL);
+  const std::vector<std::uint8_t> bytes = read_file(path);
+  // GIVEN a file cut in the middle of a record (a writer killed mid-flight),
+  write_file(path, bytes, bytes.size() * 3 / 5 + 3);
+  const McapReader cut(path);
+  ASSERT_TRUE(cut.report().truncated);
+  // WHEN recovered, THEN the output has a summary and exactly what the cut file held.
+  const RecoveryReport report = recover(path, dir.file("recovered.mcap"));
+  EXPECT_FALSE(report.read.has_summary);
+  EXPECT_EQ(report.bytes_dropped, cut.report().file_size_bytes - cut.report().valid_end_bytes);
+  EXPECT_GT(report.bytes_dropped, 0u);
+  EXPECT_EQ(report.messages_without_channel, 0u);
+  EXPECT_EQ(report.written.message_count, cut.messages().size());
+  EXPECT_EQ(report.written.channel_count, 3u);
+  EXPECT_EQ(report.first_log_time_ns, written.messages.front().log_time_ns);
+  EXPECT_EQ(report.last_log_time_ns, cut.messages().back().log_time_ns);
+  const McapReader recovered(dir.file("recovered.mcap"));
+  EXPECT_TRUE(recovered.report().has_summary);
+  EXPECT_FALSE(recovered.report().truncated);
+  EXPECT_EQ(recovered.profile(), "hq");
+  EXPECT_EQ(report.bytes_written, fs::file_size(dir.file("recovered.mcap")));
+  expect_same_messages(recovered.messages(), written.messages, cut.messages().size());
+  ASSERT_EQ(recovered.channels().size(), 3u);
+  EXPECT_EQ(recovered.channels()[0].metadata.at("frame"), "H");
+  EXPECT_EQ(recovered.schema(recovered.channels()[1].schema_id)->name, "hq.Image");
+  EXPECT_EQ(recovered.metadata().size(), cut.metadata().size());
+  // AND an existing output is never overwritten.
+  EXPECT_THAT(testing::input_error_message([&] { recover(path, dir.file("recovered.mcap")); }),
+              HasSubstr("recovered.mcap: exists"));
+}
+
 // The compression field of every top-level Chunk record (opcode 0x06), walking the records.
 std::vector<std::string> chunk_compressions(const std::vector<std::uint8_t>& bytes) {
   std::vector<std::string> out;

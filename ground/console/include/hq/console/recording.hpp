@@ -1,8 +1,12 @@
 #pragma once
-/// Reading back a flight recorded by hq-ground --record (hq::ground::TelemetryRecorder's
-/// layout) and replaying it into a ConsoleModel. A damaged recording is read as far as it goes:
-/// every unreadable line is skipped and named ("telemetry.csv:17: ..."), so replay and
-/// hq-report show what survives and say what did not.
+/// Reading back a flight recorded by hq-ground --record and replaying it into a ConsoleModel.
+/// Two sources, one Recording: the flight record DIR/flight.mcap (ground/mcap_recorder; the
+/// link's samples as received, decoded with the IDL's generated descriptors, see
+/// flight_mcap.hpp) or, for recordings from before it, the CSV files beside it
+/// (hq::ground::TelemetryRecorder's layout). A damaged recording is read as far as it goes:
+/// every unreadable line or message is skipped and named ("telemetry.csv:17: ...",
+/// "flight.mcap: /hq/vehicle_state message 17: ..."), so replay and hq-report show what
+/// survives and say what did not.
 
 #include "hq/console/console_model.hpp"
 
@@ -75,11 +79,13 @@ struct RecordedEvent {
 
 struct RecordedFrame {
   std::int64_t t_ns = 0;  ///< Receipt on the ground clock.
-  std::string path;       ///< Absolute or relative to the working directory.
+  std::string path;       ///< Absolute or relative to the working directory (CSV recordings).
+  std::vector<std::uint8_t> data;  ///< The image itself (MCAP recordings); empty: read `path`.
 };
 
 struct Recording {
-  std::string directory;
+  std::string directory;  ///< The folder (CSV) or the .mcap file read.
+  bool from_mcap = false;
   std::vector<RecordedState> states;
   std::vector<RecordedCommand> commands;
   std::vector<RecordedModeRequest> mode_requests;
@@ -94,11 +100,22 @@ struct Recording {
   static constexpr std::size_t kMaxProblems = 100;
 };
 
-/// Reads `directory`. @throws hq::InputError if it is not a directory, holds neither
-/// telemetry.csv nor rgb.txt (nothing of an hq-ground recording), or has a stamp out of time
+/// The flight record to read for `path`: `path` itself if it is a file, DIR/flight.mcap if the
+/// folder holds one, else "" (a CSV recording, or nothing).
+std::string find_flight_mcap(const std::string& path);
+
+/// Reads a recording: `path` is a .mcap file or a recording folder; a folder's flight.mcap is
+/// preferred, its CSV files are read when it has none, when it cannot be read (named in
+/// problems) or holds no vehicle state. From an MCAP: the states, frames and events of the
+/// vehicle with the most states (others named in problems; the recorder took every vehicle on
+/// the domain, the CSV only the station's), the recording station's commands
+/// (/ground/haptics), every mode request; latency is log time minus publish time.
+/// @throws hq::InputError if `path` is neither a folder nor an MCAP file, a folder holds
+/// neither flight.mcap, telemetry.csv nor rgb.txt (nothing of an hq-ground recording), an MCAP
+/// file cannot be read (hq::mcap::McapReader's error), or a CSV file has a stamp out of time
 /// order, more than an hour after its file's previous one, or a file starting more than an
 /// hour from the others (file:line named). Every other defect is a problem in the result.
-Recording load_recording(const std::string& directory);
+Recording load_recording(const std::string& path);
 
 /// The static name among the link's mode and health names equal to `text`, else "invalid".
 const char* intern(std::string_view text);

@@ -111,12 +111,19 @@ class ReplayPlayer {
 
   /// Brings `model` to the position: forwards by feeding what lies between, backwards by
   /// model.reset() and feeding from the start. Of the camera frames passed only the newest is
-  /// read from disk; one missing or unreadable counts in frames_missing. Also sets the model's
-  /// LinkHealth (counts()) and ReplayStatus.
+  /// shown (read from disk in a CSV recording); one missing or unreadable counts in
+  /// frames_missing. Also sets the model's LinkHealth (counts()) and ReplayStatus.
   void feed(ConsoleModel& model, std::uint64_t& frames_missing);
 
  private:
   [[nodiscard]] std::int64_t position_ns() const;
+  // feed()'s stages: back to the start if the position moved back; states, commands and
+  // events up to t_ns; the newest camera frame; counts and replay status.
+  void rewind_if_behind(ConsoleModel& model, std::int64_t t_ns);
+  void feed_streams(ConsoleModel& model, std::int64_t t_ns);
+  void feed_state(ConsoleModel& model);
+  void feed_camera(ConsoleModel& model, std::int64_t t_ns, std::uint64_t& frames_missing);
+  void publish_status(ConsoleModel& model) const;
 
   const Recording& recording_;
   Timeline timeline_;

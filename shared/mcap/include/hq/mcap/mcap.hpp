@@ -170,6 +170,25 @@ class McapReader {
   friend class ReaderImpl;
 };
 
+/// What recover() read and wrote.
+struct RecoveryReport {
+  ReadReport read;                   ///< how the input was read (summary or scan, truncated)
+  std::uint64_t bytes_dropped = 0;   ///< input bytes after the last complete record (a cut tail)
+  std::uint64_t messages_without_channel = 0;  ///< read but not written: no Channel record
+  std::int64_t first_log_time_ns = 0;  ///< of the messages written; 0 without messages
+  std::int64_t last_log_time_ns = 0;
+  Statistics written;                ///< the output's Statistics record
+  std::uint64_t bytes_written = 0;
+};
+
+/// Rewrites `in_path`, typically a file whose writer was killed (no summary, maybe a cut tail),
+/// into `out_path` as a complete, indexed file: every schema, channel, message (its sequence
+/// and stamps kept), attachment and metadata record McapReader recovered, with a summary.
+/// Channel and schema ids are renumbered in file order. @throws hq::InputError if the input is
+/// unreadable (as McapReader), `out_path` exists (never overwritten) or a write fails.
+RecoveryReport recover(const std::string& in_path, const std::string& out_path,
+                       const WriterOptions& options = {});
+
 /// CRC-32 (IEEE 802.3, reflected, as zlib): crc32_update(0, ...) starts, chaining continues.
 std::uint32_t crc32_update(std::uint32_t crc, Bytes data);
 
