@@ -49,7 +49,10 @@ void point_at(Sequence& sequence, Element* buffer, std::uint32_t length) {
 
 link::Qos ros2_qos() {
   link::Qos qos;
-  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  // A write never waits for a slow ROS reader (Cyclone throttles a reliable writer whose
+  // unacknowledged data passes its high-water mark): the bridge writes on the vehicle's
+  // control step, and a late sample is dropped instead.
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
   dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
   dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kRosDepth);
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
