@@ -566,8 +566,9 @@ namespace {
 
 // GIVEN ROS 2 on WHEN a ROS teleop node sends TwistStamped on cmd_vel_in THEN the vehicle
 // follows it as station 250 (converted FLU -> H); a native station's commands take over and the
-// ROS ones are dropped and counted; a NaN from ROS is rejected like any station's; once the
-// native station has been silent for its lease, the ROS commands fly again.
+// ROS ones are dropped and counted; a NaN or out-of-envelope value from ROS is rejected like
+// any station's; once the native station has been silent for its lease, the ROS commands fly
+// again.
 TEST(LinkBridge, Ros2CommandsAreTheWeakestStation) {
   link::LinkConfig config = private_link();
   config.ros2.enabled = true;
@@ -617,6 +618,15 @@ TEST(LinkBridge, Ros2CommandsAreTheWeakestStation) {
     twists.write(bad);
     return bridge.failsafe().counters().commands_rejected > rejected;
   }));
+  // Beyond the envelope (2 m/s forward by default): rejected too, never clipped. (NaN samples
+  // still queued may be rejected first: wait for the envelope's reason.)
+  ros2_bridge::TwistStamped too_fast = twist;
+  too_fast.twist.linear.x = 5.0;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    twists.write(too_fast);
+    return std::string(bridge.failsafe().last_command_rejection()) ==
+           "v_H_mps.x outside envelope max_v_x_mps";
+  })) << bridge.failsafe().last_command_rejection();
   EXPECT_EQ(state.commanding_station_id, 1U);  // a rejected command takes nothing over
   ASSERT_TRUE(poll_until(bridge, requests, [&] {
     twists.write(twist);
