@@ -78,6 +78,7 @@ int run_sim_link(const Options& o) {
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
   const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
   hq::link_bridge::LinkBridge& bridge = *link_bridge;
+  if (bridge.ros2() != nullptr) bridge.ros2()->set_camera(sim_config.camera.pinhole);
 
   std::FILE* log = nullptr;
   if (!o.link_log_path.empty()) {

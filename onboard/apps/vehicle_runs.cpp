@@ -221,6 +221,11 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
                static_cast<unsigned long long>(bridge->session_id()),
                stations.empty() ? "any station" : ("stations " + stations).c_str(),
                hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
+  if (const hq::ros2_bridge::Ros2Bridge* ros = bridge->ros2()) {
+    std::fprintf(stderr, "hq-onboard: ROS 2 topics rt/%s/{odom,imu,obstacles,camera/...}, rt/tf; "
+                 "TwistStamped on rt/%s/cmd_vel_in as station %u (lowest priority)\n",
+                 ros->ros_namespace().c_str(), ros->ros_namespace().c_str(), link.ros2.station_id);
+  }
   return bridge;
 }
 
@@ -244,6 +249,14 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
   std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
               count(bridge.states_sent()), count(bridge.camera_frames_sent()),
               count(bridge.events_sent()));
+  if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {
+    const hq::ros2_bridge::Ros2Counters& r = ros->counters();
+    std::printf("  %-40s %llu states, %llu clouds, %llu images; cmd_vel_in %llu taken, %llu "
+                "overridden by a native station\n",
+                "ROS 2 published", count(r.states_published), count(r.clouds_published),
+                count(r.images_published), count(r.commands_received),
+                count(r.commands_overridden));
+  }
 }
 
 int run_vehicle(const Options& o) {
@@ -347,6 +360,7 @@ int run_vehicle(const Options& o) {
   std::unique_ptr<hq::link_bridge::LinkOperatorPort> link_port;
   if (o.link) {
     bridge = make_link_bridge(o);
+    if (bridge->ros2() != nullptr) bridge->ros2()->set_camera(source->camera());
     Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
     T_body_camera.linear() = vehicle.R_body_camera;
     T_body_camera.translation() = vehicle.p_body_camera_m;

@@ -127,6 +127,9 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   event_->session_id = session_id();
   jpeg_params_ = {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality};
   jpeg_.reserve(hq_msgs_kMaxJpegBytes);
+  if (link_.ros2.enabled) {
+    ros2_ = std::make_unique<ros2_bridge::Ros2Bridge>(participant_, link_);
+  }
   if (link_.impairment.active()) {  // tests and demos over an emulated slow link
     command_reader_.impair(link_.impairment, 11);
     mode_reader_.impair(link_.impairment, 12);
@@ -138,7 +141,22 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
                                       std::vector<pipeline::ModeRequest>& mode_requests) {
   dds_sample_info_t info{};
   link::VelocityCommand command{};
-  while (command_reader_.take(command, info)) failsafe_.on_command(t_ns, command);
+  while (command_reader_.take(command, info)) {
+    if (failsafe_.on_command(t_ns, command).accepted) {
+      have_native_command_ = true;
+      last_native_command_t_ns_ = t_ns;
+    }
+  }
+  if (ros2_ != nullptr) {
+    // The ROS 2 station is the weakest: a native station commanding within its lease wins.
+    while (ros2_->take_command(command)) {
+      if (have_native_command_ && t_ns - last_native_command_t_ns_ <= link_.command_lease_ns) {
+        ros2_->count_overridden();
+        continue;
+      }
+      failsafe_.on_command(t_ns, command);
+    }
+  }
   link::Heartbeat heartbeat{};
   while (heartbeat_reader_.take(heartbeat, info)) {
     if (failsafe_.on_heartbeat(t_ns, heartbeat).accepted) {
@@ -358,6 +376,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.v_truth_H_mps = s.truth_valid ? to_msg(extras.v_truth_horizontal_mps)
                                   : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   state_writer_.write(s);
+  if (ros2_ != nullptr) ros2_->publish_state(s);
 }
 
 bool LinkBridge::publish_camera(std::int64_t t_ns, const cv::Mat& image_bgr) {
@@ -373,7 +392,9 @@ bool LinkBridge::publish_camera(std::int64_t t_ns, const cv::Mat& image_bgr) {
   std::memcpy(f.rgb_jpeg._buffer, jpeg_.data(), jpeg_.size());
   f.rgb_jpeg._length = static_cast<std::uint32_t>(jpeg_.size());
   f.depth_preview._length = 0;
-  return camera_writer_.write(f);
+  const bool sent = camera_writer_.write(f);
+  if (ros2_ != nullptr) ros2_->publish_camera(f);  // the same JPEG bytes, no second encoding
+  return sent;
 }
 
 }  // namespace hq::link_bridge

@@ -560,3 +560,109 @@ TEST(LinkBridge, PassesMarkerRequestsOnAndAcknowledgesTheChainsAnswer) {
 
 }  // namespace
 }  // namespace hq::link_bridge
+
+namespace hq::link_bridge {
+namespace {
+
+// GIVEN ROS 2 on WHEN a ROS teleop node sends TwistStamped on cmd_vel_in THEN the vehicle
+// follows it as station 250 (converted FLU -> H); a native station's commands take over and the
+// ROS ones are dropped and counted; a NaN or out-of-envelope value from ROS is rejected like
+// any station's; once the native station has been silent for its lease, the ROS commands fly
+// again.
+TEST(LinkBridge, Ros2CommandsAreTheWeakestStation) {
+  link::LinkConfig config = private_link();
+  config.ros2.enabled = true;
+  LinkBridge bridge(config, FailsafeConfig{});
+  ASSERT_NE(bridge.ros2(), nullptr);
+  Ground ground(config);
+  link::Topic<ros2_bridge::TwistStamped> twist_topic(ground.participant, "rt/hq1/cmd_vel_in");
+  link::Writer<ros2_bridge::TwistStamped> twists(ground.participant, twist_topic,
+                                                 ros2_bridge::ros2_qos());
+  std::string frame = "base_link";
+  ros2_bridge::TwistStamped twist{};
+  twist.header.frame_id = frame.data();
+  twist.twist.linear = {0.3, 0.1, 0.0};
+  twist.twist.angular = {0.0, 0.0, 0.2};
+  std::vector<pipeline::ModeRequest> requests;
+  const FailsafeState& state = bridge.failsafe().state();
+
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    twists.write(twist);
+    return state.commanding_station_id == 250 && !state.hold;
+  }));
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_horizontal_mps.x()), 0.3F);
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_horizontal_mps.y()), -0.1F);
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.yaw_rate_radps), -0.2F);
+
+  link::VelocityCommand native{};
+  native.vehicle_id = 1;
+  native.station_id = 1;
+  native.v_H_mps = {0.05F, 0.0F, 0.0F};
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    ground.commands.write(native);
+    twists.write(twist);
+    return state.commanding_station_id == 1 && bridge.ros2()->counters().commands_overridden > 2;
+  }));
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_horizontal_mps.x()), 0.05F);
+
+  // The native station stops; past its lease (500 ms) a NaN from ROS is rejected and counted.
+  const std::int64_t quiet_until_ns = now_ns() + config.command_lease_ns + 100'000'000;
+  while (now_ns() < quiet_until_ns) {
+    bridge.poll(now_ns(), requests);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const std::uint64_t rejected = bridge.failsafe().counters().commands_rejected;
+  ros2_bridge::TwistStamped bad = twist;
+  bad.twist.linear.y = std::numeric_limits<double>::quiet_NaN();
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    twists.write(bad);
+    return bridge.failsafe().counters().commands_rejected > rejected;
+  }));
+  // Beyond the envelope (2 m/s forward by default): rejected too, never clipped. (NaN samples
+  // still queued may be rejected first: wait for the envelope's reason.)
+  ros2_bridge::TwistStamped too_fast = twist;
+  too_fast.twist.linear.x = 5.0;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    twists.write(too_fast);
+    return std::string(bridge.failsafe().last_command_rejection()) ==
+           "v_H_mps.x outside envelope max_v_x_mps";
+  })) << bridge.failsafe().last_command_rejection();
+  EXPECT_EQ(state.commanding_station_id, 1U);  // a rejected command takes nothing over
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    twists.write(twist);
+    return state.commanding_station_id == 250 && !state.hold;
+  }));
+}
+
+// ROS 2 on: the vehicle state also goes out as odometry on rt/<ns>/odom.
+TEST(LinkBridge, Ros2OdometryGoesOutWithTheState) {
+  link::LinkConfig config = private_link();
+  config.ros2.enabled = true;
+  config.ros2.ros_namespace = "quad";
+  LinkBridge bridge(config, FailsafeConfig{});
+  link::Participant ros(config.domain_id);
+  link::Topic<ros2_bridge::Odometry> topic(ros, "rt/quad/odom");
+  link::Reader<ros2_bridge::Odometry> odom(ros, topic, ros2_bridge::ros2_qos());
+  link::Sample<ros2_bridge::Odometry> sample;
+  pipeline::ChainOutput out;
+  out.t_ns = 1'500'000'000;
+  out.estimate.v_horizontal_mps = {0.4, 0.0, 0.0};
+  std::vector<pipeline::ModeRequest> requests;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    bridge.publish_state(out);
+    dds_sample_info_t info{};
+    return odom.take(*sample, info);
+  }));
+  EXPECT_STREQ(sample->child_frame_id, "quad/base_link");
+  EXPECT_NEAR(sample->twist.twist.linear.x, 0.4, 1e-6);
+  EXPECT_EQ(sample->header.stamp.sec, 1);
+  EXPECT_EQ(bridge.ros2()->counters().states_published, bridge.states_sent());
+}
+
+TEST(LinkBridge, NoRos2TopicsUnlessAskedFor) {
+  LinkBridge bridge(private_link(), FailsafeConfig{});
+  EXPECT_EQ(bridge.ros2(), nullptr);
+}
+
+}  // namespace
+}  // namespace hq::link_bridge

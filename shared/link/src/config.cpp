@@ -1,5 +1,6 @@
 #include "hq/link/config.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -24,7 +25,53 @@ void read_ms(config::StrictMap& map, const std::string& key, std::int64_t& value
   value_ns = ms_to_ns(ms);
 }
 
+bool valid_ros_namespace(const std::string& ns) {
+  if (ns.empty() || ns.front() == '/' || ns.back() == '/') return false;
+  bool segment_start = true;
+  for (const char c : ns) {
+    if (c == '/') {
+      if (segment_start) return false;  // "a//b"
+      segment_start = true;
+      continue;
+    }
+    const bool letter = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
+    const bool digit = c >= '0' && c <= '9';
+    if (!letter && !(digit && !segment_start)) return false;
+    segment_start = false;
+  }
+  return true;
+}
+
+template <typename Fail>
+void check_ros2(const LinkConfig& config, const Fail& fail) {
+  const Ros2Config& r = config.ros2;
+  if (!r.ros_namespace.empty() && !valid_ros_namespace(r.ros_namespace)) {
+    fail("ros2.namespace", "\"" + r.ros_namespace + "\"",
+         "ROS name segments [A-Za-z_][A-Za-z0-9_]* joined by '/' (no leading '/')");
+  }
+  if (r.station_id == 0) fail("ros2.station_id", "0", ">= 1 (0 means no station)");
+  if (!r.enabled) return;
+  if (config.security.enabled) {
+    throw InputError(
+        "link.ros2.enabled with DDS Security on: the ROS 2 topics need plain DDS (--insecure, "
+        "link.security.enabled: false). A secured vehicle keeps its endpoints in its vehicle "
+        "partition and its permissions grant only the hq_* topics, so no ROS 2 node could "
+        "read or command it");
+  }
+  if (!config.stations.empty() &&
+      std::find(config.stations.begin(), config.stations.end(), r.station_id) ==
+          config.stations.end()) {
+    fail("ros2.station_id", std::to_string(r.station_id),
+         "one of link.stations (the ROS 2 commands come as this station)");
+  }
+}
+
 }  // namespace
+
+std::string ros2_namespace(const LinkConfig& config) {
+  return config.ros2.ros_namespace.empty() ? "hq" + std::to_string(config.vehicle_id)
+                                           : config.ros2.ros_namespace;
+}
 
 const char* const kDefaultSecurityLibraryDir = HQ_DDS_SECURITY_LIBRARY_DIR;
 
@@ -77,6 +124,13 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
     security.read(key, *value, {});
   }
   security.finish();
+  config::StrictMap ros2 = section.child("ros2");
+  ros2.read("enabled", out.ros2.enabled);
+  ros2.read("namespace", out.ros2.ros_namespace, {});
+  int ros2_station = static_cast<int>(out.ros2.station_id);
+  ros2.read("station_id", ros2_station, 1, kMaxId);
+  out.ros2.station_id = static_cast<std::uint32_t>(ros2_station);
+  ros2.finish();
   section.finish();
 }
 
@@ -120,6 +174,9 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides) {
                  "identity in --security-dir (default vehicle_<vehicle id> / station_<station id>)");
   app.add_flag("--insecure", overrides.insecure,
                "plain DDS without authentication or encryption: loopback demo and tests only");
+  app.add_flag("--ros2", overrides.ros2,
+               "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
+               "rt/tf and take TwistStamped on cmd_vel_in (link.ros2.enabled; needs --insecure)");
   app.add_option("--link-impair", overrides.link_impair,
                  "impair received samples for tests and demos: "
                  "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N] (one way, this process's side)");
@@ -146,6 +203,7 @@ void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
     }
     config.security.enabled = false;
   }
+  if (overrides.ros2) config.ros2.enabled = true;
   check_config(config);
 }
 
@@ -178,6 +236,7 @@ void check_config(const LinkConfig& config) {
   check_period("command_lease_ms", config.command_lease_ns);
   check_period("heartbeat_lease_ms", config.heartbeat_lease_ns);
   check_impairment(config.impairment, "link.impair");
+  check_ros2(config, fail);
 }
 
 }  // namespace hq::link

@@ -208,3 +208,71 @@ TEST(LinkConfig, SecurityFromTheCommandLine) {
 
 }  // namespace
 }  // namespace hq::link
+
+namespace hq::link {
+namespace {
+
+LinkConfig with_args(LinkConfig config, std::vector<std::string> args) {
+  CLI::App app;
+  LinkOverrides overrides;
+  add_link_options(app, overrides);
+  std::reverse(args.begin(), args.end());  // CLI11 parses a reversed vector
+  app.parse(args);
+  apply_overrides(overrides, config);
+  return config;
+}
+
+// ROS 2 topics are off unless asked for; the namespace defaults to hq<vehicle id>.
+TEST(LinkConfig, Ros2IsOffByDefaultAndReadFromYaml) {
+  const LinkConfig defaults = from_yaml("{vehicle_id: 4}");
+  EXPECT_FALSE(defaults.ros2.enabled);
+  EXPECT_EQ(ros2_namespace(defaults), "hq4");
+  const LinkConfig config = from_yaml(
+      "{security: {enabled: false}, ros2: {enabled: true, namespace: fleet/quad_2, "
+      "station_id: 77}}");
+  EXPECT_TRUE(config.ros2.enabled);
+  EXPECT_EQ(ros2_namespace(config), "fleet/quad_2");
+  EXPECT_EQ(config.ros2.station_id, 77u);
+  EXPECT_NO_THROW(check_config(config));
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{ros2: {enable: true}}"); }),
+              HasSubstr("enable"));
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{ros2: {station_id: 0}}"); }),
+              HasSubstr("link.ros2.station_id = 0"));
+}
+
+TEST(LinkConfig, Ros2NamespaceMustBeARosName) {
+  for (const char* bad : {"/hq1", "hq1/", "1hq", "hq-1", "a//b", "hq 1", "a/2b"}) {
+    LinkConfig config;
+    config.ros2.ros_namespace = bad;
+    EXPECT_THAT(hq::testing::input_error_message([&] { check_config(config); }),
+                HasSubstr("link.ros2.namespace = \"" + std::string(bad) + "\""))
+        << bad;
+  }
+  for (const char* good : {"hq1", "_x", "fleet/quad_2", "A/b9/_c"}) {
+    LinkConfig config;
+    config.ros2.ros_namespace = good;
+    EXPECT_NO_THROW(check_config(config)) << good;
+  }
+}
+
+// Security decision: ROS 2 topics need plain DDS; asking for both is refused with the reason.
+TEST(LinkConfig, Ros2NeedsInsecureAndSaysWhy) {
+  EXPECT_TRUE(with_args({}, {"--ros2", "--insecure"}).ros2.enabled);
+  EXPECT_FALSE(with_args({}, {"--insecure"}).ros2.enabled);
+  const std::string message =
+      hq::testing::input_error_message([] { with_args({}, {"--ros2"}); });
+  EXPECT_THAT(message, HasSubstr("link.ros2.enabled with DDS Security on"));
+  EXPECT_THAT(message, HasSubstr("--insecure"));
+}
+
+// The ROS 2 station commands like any station: it must be allowed when link.stations is given.
+TEST(LinkConfig, Ros2StationMustBeAnAllowedStation) {
+  EXPECT_THAT(hq::testing::input_error_message([] {
+                with_args({}, {"--ros2", "--insecure", "--stations", "1,2"});
+              }),
+              HasSubstr("link.ros2.station_id = 250, expected one of link.stations"));
+  EXPECT_NO_THROW(with_args({}, {"--ros2", "--insecure", "--stations", "1,250"}));
+}
+
+}  // namespace
+}  // namespace hq::link

@@ -13,6 +13,7 @@
 #include "hq/modes/mode_controller.hpp"
 #include "hq/obstacle_memory/obstacle_memory.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
+#include "hq/ros2_bridge/ros2_bridge.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -20,6 +21,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -97,7 +99,8 @@ struct StateExtras {
 
 class LinkBridge {
  public:
-  /// Creates participant, topics, readers and writers on link.domain_id for link.vehicle_id.
+  /// Creates participant, topics, readers and writers on link.domain_id for link.vehicle_id,
+  /// and with link.ros2.enabled the ROS 2 topics (ros2_bridge.hpp) on the same participant.
   /// Draws this vehicle's session id (non-zero, std::random_device) unless failsafe.session_id
   /// is already set (tests); it goes out in every state, heartbeat and event, and mode requests
   /// must carry it. link.stations, if any, are the stations allowed to command.
@@ -108,7 +111,11 @@ class LinkBridge {
   /// Takes every pending sample (receipt time t_ns), appends accepted mode requests with their
   /// marker tasks (and a land request when the heartbeat is lost) to `mode_requests`, publishes
   /// the heartbeat when due, and returns the fail-safe state whose command the chain must fly.
-  /// A request whose marker task is malformed (to_mode_request) is refused with a
+  /// With ROS 2 on, cmd_vel_in commands are the station link.ros2.station_id of the lowest
+  /// priority: taken through the same fail-safe (checks, hold, hold-to-land, heartbeat loss:
+  /// its commands stand in for heartbeats), but dropped and counted while a native station's
+  /// command was accepted within command_lease_ms, as DDS exclusive ownership would if they
+  /// shared a topic. A request whose marker task is malformed (to_mode_request) is refused with a
   /// kMarkerTaskRefused event and not requested.
   const FailsafeState& poll(std::int64_t t_ns, std::vector<pipeline::ModeRequest>& mode_requests);
 
@@ -136,6 +143,9 @@ class LinkBridge {
                      const char* text);
 
   [[nodiscard]] const Failsafe& failsafe() const { return failsafe_; }
+  /// The ROS 2 topics, null unless link.ros2.enabled.
+  [[nodiscard]] ros2_bridge::Ros2Bridge* ros2() { return ros2_.get(); }
+  [[nodiscard]] const ros2_bridge::Ros2Bridge* ros2() const { return ros2_.get(); }
   [[nodiscard]] std::uint64_t session_id() const { return failsafe_.config().session_id; }
   [[nodiscard]] std::uint64_t camera_frames_sent() const { return camera_sent_; }
   [[nodiscard]] std::uint64_t states_sent() const { return state_sequence_; }
@@ -159,6 +169,9 @@ class LinkBridge {
   link::Writer<link::CameraFrame> camera_writer_;
   link::Writer<link::Event> event_writer_;
   link::Writer<link::Heartbeat> heartbeat_writer_;
+  std::unique_ptr<ros2_bridge::Ros2Bridge> ros2_;
+  bool have_native_command_ = false;            ///< A native station's command was accepted.
+  std::int64_t last_native_command_t_ns_ = 0;   ///< When the last one was.
 
   link::Sample<link::VehicleState> state_;
   link::Sample<link::CameraFrame> camera_;

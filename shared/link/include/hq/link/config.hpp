@@ -6,12 +6,17 @@
 ///          envelope: {max_v_x_mps: 2.0, max_v_y_mps: 2.0, max_v_z_mps: 1.0,
 ///                     max_yaw_rate_radps: 1.5},
 ///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1},   # tests and demos only
-///          security: {enabled: true, keys_dir: keys, identity: vehicle_1}}
+///          security: {enabled: true, keys_dir: keys, identity: vehicle_1},
+///          ros2: {enabled: false, namespace: hq1, station_id: 250}}
 /// security: DDS Security (hq/security/keys.hpp) is on unless `enabled: false` or --insecure;
 /// keys come from `keys_dir` laid out by hq-keys (identity defaults to vehicle_<vehicle_id> on
 /// board, station_<station_id> on the ground) and/or the single paths identity_ca, certificate,
 /// private_key, governance, permissions, permissions_ca (relative to the working directory),
 /// which override the keys_dir ones. library_dir is where Cyclone's plugins are.
+/// ros2 (on board only): ROS 2-compatible topics beside the link's (onboard/ros2_bridge), and
+/// TwistStamped commands taken as the station `station_id` of the lowest priority. Needs plain
+/// DDS (--insecure): a secured vehicle puts its endpoints in its vehicle partition and its
+/// permissions grant only the hq_* topics, so no ROS 2 node could match them.
 
 #include <cstdint>
 #include <optional>
@@ -48,6 +53,19 @@ struct SecurityConfig {
   [[nodiscard]] bool has_keys() const;
 };
 
+struct Ros2Config {
+  bool enabled = false;       ///< Publish rt/<namespace>/... and take cmd_vel_in (--ros2).
+  /// ROS namespace of the topics (rt/<namespace>/odom); empty: "hq<vehicle_id>". Segments of
+  /// [A-Za-z_][A-Za-z0-9_]* joined by '/', no leading or trailing '/'.
+  std::string ros_namespace;
+  /// The station id ROS 2 commands are taken as (in link.stations when that list is given).
+  std::uint32_t station_id = 250;
+};
+
+/// The ROS namespace in use: config.ros2.ros_namespace, or "hq<vehicle_id>" when empty.
+struct LinkConfig;
+std::string ros2_namespace(const LinkConfig& config);
+
 struct LinkConfig {
   int domain_id = 0;                ///< DDS domain, 0..kMaxDomainId.
   std::uint32_t vehicle_id = 1;     ///< Key of every topic: which vehicle this is / commands.
@@ -61,6 +79,7 @@ struct LinkConfig {
   CommandEnvelope envelope;         ///< Limits applied by validate(VelocityCommand).
   ImpairmentConfig impairment;      ///< Receive-side link impairment (none by default).
   SecurityConfig security;          ///< DDS Security (on by default).
+  Ros2Config ros2;                  ///< ROS 2 topics beside the link's (off by default).
 };
 
 /// Reads a `link:` mapping strictly (unknown keys, out-of-range values throw hq::InputError
@@ -83,11 +102,12 @@ struct LinkOverrides {
   std::optional<std::string> security_dir;  ///< keys_dir
   std::optional<std::string> identity;      ///< identity in keys_dir
   bool insecure = false;                    ///< security.enabled = false
+  bool ros2 = false;                        ///< ros2.enabled = true
 };
 
 /// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --stations,
 /// --command-deadline-ms (range-checked by CLI11), --link-impair (checked by apply_overrides),
-/// --security-dir, --identity and --insecure to `app`, storing into
+/// --security-dir, --identity, --insecure and --ros2 to `app`, storing into
 /// `overrides` (which must outlive parsing).
 void add_link_options(CLI::App& app, LinkOverrides& overrides);
 

@@ -1,0 +1,154 @@
+#pragma once
+/// ROS 2-compatible topics beside the link (link.ros2, --ros2): what a ROS 2 machine with
+/// rmw_cyclonedds on the same DDS domain sees as ROS topics, in ROS's frames (ros_frames.hpp),
+/// with ROS's naming (DDS topic rt/<ns>/<name>, type pkg::msg::dds_::Type_), XCDR1 and ROS's
+/// default QoS (reliable, volatile, keep last 10):
+///
+/// | ROS topic                            | type                      | from                        |
+/// |--------------------------------------|---------------------------|-----------------------------|
+/// | /<ns>/odom                           | nav_msgs/Odometry         | every vehicle state         |
+/// | /<ns>/imu                            | sensor_msgs/Imu           | every vehicle state         |
+/// | /tf                                  | tf2_msgs/TFMessage        | every vehicle state         |
+/// | /<ns>/obstacles                      | sensor_msgs/PointCloud2   | states carrying the cloud   |
+/// | /<ns>/camera/image/compressed        | sensor_msgs/CompressedImage | every camera frame sent    |
+/// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once set_camera() |
+/// | /<ns>/cmd_vel_in (read)              | geometry_msgs/TwistStamped | ROS teleop -> take_command |
+///
+/// Frame ids: <ns>/odom (ENU world E), <ns>/base_link (FLU body F), <ns>/camera_optical (C,
+/// already ROS's optical convention). Stamps are the vehicle state's t_ns (the chain's clock).
+///
+/// Odometry: the pose is the marker filter's while it is anchored (VehicleState.position_valid,
+/// marker map W NED -> E); otherwise position 0 and pose.covariance[0] = -1 (ROS: "no estimate"),
+/// the orientation then from roll and pitch with yaw 0 (heading unknown: E's x is the heading).
+/// The twist is the estimated velocity in the child frame F (v_H rotated by roll and pitch) and
+/// the gyro rates; its covariance unknown (zeros), or twist.covariance[0] = -1 while the
+/// estimator is lost. Imu: the same orientation and rates; no acceleration (linear_acceleration
+/// covariance[0] = -1). /tf: <ns>/odom -> <ns>/base_link, the odometry's pose.
+///
+/// The bridge writes on the LinkBridge's own participant, from the same calls that publish the
+/// link's state and camera (no thread, no extra JPEG encoding: the image is the link's bytes).
+/// Publishing allocates nothing of its own: frame ids, the cloud and the image point at buffers
+/// sized at construction.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/link/link.hpp"
+#include "ros2_msgs.h"
+
+namespace hq::link {
+#define HQ_ROS2_TOPIC(Type)                                                   \
+  template <>                                                                 \
+  struct TopicTraits<Type> {                                                  \
+    static const dds_topic_descriptor_t& descriptor() { return Type##_desc; } \
+    static constexpr const char* kName = "";                                  \
+  }
+HQ_ROS2_TOPIC(nav_msgs_msg_dds__Odometry_);
+HQ_ROS2_TOPIC(sensor_msgs_msg_dds__Imu_);
+HQ_ROS2_TOPIC(tf2_msgs_msg_dds__TFMessage_);
+HQ_ROS2_TOPIC(sensor_msgs_msg_dds__PointCloud2_);
+HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CompressedImage_);
+HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CameraInfo_);
+HQ_ROS2_TOPIC(geometry_msgs_msg_dds__TwistStamped_);
+#undef HQ_ROS2_TOPIC
+}  // namespace hq::link
+
+namespace hq::ros2_bridge {
+
+using Odometry = nav_msgs_msg_dds__Odometry_;
+using Imu = sensor_msgs_msg_dds__Imu_;
+using TfMessage = tf2_msgs_msg_dds__TFMessage_;
+using TransformStamped = geometry_msgs_msg_dds__TransformStamped_;
+using PointCloud2 = sensor_msgs_msg_dds__PointCloud2_;
+using PointField = sensor_msgs_msg_dds__PointField_;
+using CompressedImage = sensor_msgs_msg_dds__CompressedImage_;
+using CameraInfo = sensor_msgs_msg_dds__CameraInfo_;
+using TwistStamped = geometry_msgs_msg_dds__TwistStamped_;
+
+/// ROS 2's default QoS (rmw_qos_profile_default: reliable, volatile, keep last 10) with XCDR1,
+/// the representation rmw_cyclonedds reads and writes.
+link::Qos ros2_qos();
+/// The command reader's: as ros2_qos() but best-effort, so it matches reliable and best-effort
+/// ROS publishers alike (a retransmitted command would be late anyway).
+link::Qos ros2_command_qos();
+
+/// The DDS topic of ROS topic `name` in namespace `ns`: "rt/<ns>/<name>".
+std::string dds_topic_name(const std::string& ns, const std::string& name);
+
+struct Ros2Counters {
+  std::uint64_t states_published = 0;
+  std::uint64_t clouds_published = 0;
+  std::uint64_t images_published = 0;
+  std::uint64_t commands_received = 0;    ///< TwistStamped samples taken from cmd_vel_in.
+  std::uint64_t commands_overridden = 0;  ///< Of those: dropped, a native station commands.
+};
+
+class Ros2Bridge {
+ public:
+  /// Creates the topics, writers and the cmd_vel_in reader on `participant` for
+  /// link::ros2_namespace(config). hq::InputError naming the DDS call on failure.
+  Ros2Bridge(const link::Participant& participant, const link::LinkConfig& config);
+
+  /// Odometry, Imu and /tf of one vehicle state; the obstacle cloud when the state carries one.
+  void publish_state(const link::VehicleState& state);
+  /// The link's JPEG as a CompressedImage, and the CameraInfo once set_camera() was called.
+  void publish_camera(const link::CameraFrame& frame);
+  /// Intrinsics of the frames sent (undistorted pinhole: D zeros, R identity, P = [K|0]).
+  void set_camera(const geometry::PinholeCamera& camera);
+
+  /// The next ROS command from cmd_vel_in as the link's command in H (command_from_twist) from
+  /// station link.ros2.station_id, unstamped (t_ns 0: ROS stamps are another clock, often 0);
+  /// false when none is pending. Values are not checked here: the fail-safe rejects and counts
+  /// NaN, Inf and out-of-envelope ones as for any station.
+  bool take_command(link::VelocityCommand& command);
+  /// Counts a taken command dropped because a native station commands (lowest priority).
+  void count_overridden() { ++counters_.commands_overridden; }
+
+  [[nodiscard]] const Ros2Counters& counters() const { return counters_; }
+  [[nodiscard]] const std::string& ros_namespace() const { return namespace_; }
+  [[nodiscard]] const std::string& odom_frame() const { return odom_frame_; }
+  [[nodiscard]] const std::string& body_frame() const { return body_frame_; }
+
+ private:
+  std::string namespace_;
+  std::uint32_t vehicle_id_;
+  std::uint32_t station_id_;
+  // Frame ids and fixed strings the samples point at (never freed by Cyclone: the samples are
+  // plain structs, not link::Sample).
+  std::string odom_frame_, body_frame_, camera_frame_, jpeg_format_, distortion_model_;
+  std::string field_x_, field_y_, field_z_;
+
+  link::Topic<Odometry> odom_topic_;
+  link::Topic<Imu> imu_topic_;
+  link::Topic<TfMessage> tf_topic_;
+  link::Topic<PointCloud2> cloud_topic_;
+  link::Topic<CompressedImage> image_topic_;
+  link::Topic<CameraInfo> info_topic_;
+  link::Topic<TwistStamped> command_topic_;
+  link::Writer<Odometry> odom_writer_;
+  link::Writer<Imu> imu_writer_;
+  link::Writer<TfMessage> tf_writer_;
+  link::Writer<PointCloud2> cloud_writer_;
+  link::Writer<CompressedImage> image_writer_;
+  link::Writer<CameraInfo> info_writer_;
+  link::Reader<TwistStamped> command_reader_;
+
+  Odometry odom_{};
+  Imu imu_{};
+  TransformStamped transform_{};
+  TfMessage tf_{};
+  PointCloud2 cloud_{};
+  PointField fields_[3]{};
+  std::vector<std::uint8_t> cloud_data_;  ///< 12 bytes per point, sized for the IDL bound.
+  CompressedImage image_{};
+  CameraInfo info_{};
+  bool have_camera_ = false;
+  double distortion_[5]{};
+  link::Sample<TwistStamped> twist_;
+  std::uint64_t command_sequence_ = 0;
+  Ros2Counters counters_;
+};
+
+}  // namespace hq::ros2_bridge

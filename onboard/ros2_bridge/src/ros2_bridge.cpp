@@ -1,0 +1,219 @@
+#include "hq/ros2_bridge/ros2_bridge.hpp"
+
+#include <cmath>
+#include <cstring>
+
+#include "hq/ros2_bridge/ros_frames.hpp"
+
+namespace hq::ros2_bridge {
+namespace {
+
+constexpr int kRosDepth = 10;             // rmw_qos_profile_default's history depth
+constexpr std::uint8_t kFloat32 = 7;      // sensor_msgs/PointField FLOAT32
+constexpr std::uint32_t kPointStep = 12;  // x, y, z float32
+
+builtin_interfaces_msg_dds__Time_ to_time(std::int64_t t_ns) {
+  // ROS Time: seconds and a nanosecond part in [0, 1e9), also for negative stamps.
+  std::int64_t sec = t_ns / 1'000'000'000;
+  std::int64_t nsec = t_ns % 1'000'000'000;
+  if (nsec < 0) {
+    nsec += 1'000'000'000;
+    --sec;
+  }
+  return {static_cast<std::int32_t>(sec), static_cast<std::uint32_t>(nsec)};
+}
+
+geometry_msgs_msg_dds__Vector3_ to_vector3(const Eigen::Vector3d& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+geometry_msgs_msg_dds__Quaternion_ to_quaternion(const Eigen::Quaterniond& q) {
+  return {q.x(), q.y(), q.z(), q.w()};
+}
+
+Eigen::Vector3d from_msg(const hq_msgs_Vector3f& v) {
+  return {static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z)};
+}
+
+char* c_str(std::string& s) { return s.data(); }
+
+template <typename Sequence, typename Element>
+void point_at(Sequence& sequence, Element* buffer, std::uint32_t length) {
+  sequence._buffer = buffer;
+  sequence._length = length;
+  sequence._maximum = length;
+  sequence._release = false;  // ours: Cyclone never frees it
+}
+
+}  // namespace
+
+link::Qos ros2_qos() {
+  link::Qos qos;
+  // A write never waits for a slow ROS reader (Cyclone throttles a reliable writer whose
+  // unacknowledged data passes its high-water mark): the bridge writes on the vehicle's
+  // control step, and a late sample is dropped instead.
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kRosDepth);
+  const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
+  dds_qset_data_representation(qos.get(), 1, &xcdr1);
+  return qos;
+}
+
+link::Qos ros2_command_qos() {
+  link::Qos qos = ros2_qos();
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+  return qos;
+}
+
+std::string dds_topic_name(const std::string& ns, const std::string& name) {
+  return "rt/" + ns + "/" + name;
+}
+
+Ros2Bridge::Ros2Bridge(const link::Participant& participant, const link::LinkConfig& config)
+    : namespace_(link::ros2_namespace(config)),
+      vehicle_id_(config.vehicle_id),
+      station_id_(config.ros2.station_id),
+      odom_frame_(namespace_ + "/odom"),
+      body_frame_(namespace_ + "/base_link"),
+      camera_frame_(namespace_ + "/camera_optical"),
+      jpeg_format_("jpeg"),
+      distortion_model_("plumb_bob"),
+      field_x_("x"),
+      field_y_("y"),
+      field_z_("z"),
+      odom_topic_(participant, dds_topic_name(namespace_, "odom")),
+      imu_topic_(participant, dds_topic_name(namespace_, "imu")),
+      tf_topic_(participant, "rt/tf"),
+      cloud_topic_(participant, dds_topic_name(namespace_, "obstacles")),
+      image_topic_(participant, dds_topic_name(namespace_, "camera/image/compressed")),
+      info_topic_(participant, dds_topic_name(namespace_, "camera/camera_info")),
+      command_topic_(participant, dds_topic_name(namespace_, "cmd_vel_in")),
+      odom_writer_(participant, odom_topic_, ros2_qos()),
+      imu_writer_(participant, imu_topic_, ros2_qos()),
+      tf_writer_(participant, tf_topic_, ros2_qos()),
+      cloud_writer_(participant, cloud_topic_, ros2_qos()),
+      image_writer_(participant, image_topic_, ros2_qos()),
+      info_writer_(participant, info_topic_, ros2_qos()),
+      command_reader_(participant, command_topic_, ros2_command_qos()) {
+  odom_.header.frame_id = c_str(odom_frame_);
+  odom_.child_frame_id = c_str(body_frame_);
+  imu_.header.frame_id = c_str(body_frame_);
+  transform_.header.frame_id = c_str(odom_frame_);
+  transform_.child_frame_id = c_str(body_frame_);
+  point_at(tf_.transforms, &transform_, 1);
+
+  cloud_.header.frame_id = c_str(body_frame_);
+  fields_[0] = {c_str(field_x_), 0, kFloat32, 1};
+  fields_[1] = {c_str(field_y_), 4, kFloat32, 1};
+  fields_[2] = {c_str(field_z_), 8, kFloat32, 1};
+  point_at(cloud_.fields, fields_, 3);
+  cloud_.height = 1;
+  cloud_.is_bigendian = false;
+  cloud_.point_step = kPointStep;
+  cloud_.is_dense = true;  // the link bridge sends finite points only
+  cloud_data_.resize(static_cast<std::size_t>(hq_msgs_kMaxObstaclePoints) * kPointStep);
+
+  image_.header.frame_id = c_str(camera_frame_);
+  image_.format = c_str(jpeg_format_);
+  info_.header.frame_id = c_str(camera_frame_);
+  info_.distortion_model = c_str(distortion_model_);
+  point_at(info_.d, distortion_, 5);
+}
+
+void Ros2Bridge::set_camera(const geometry::PinholeCamera& camera) {
+  info_.width = static_cast<std::uint32_t>(camera.width);
+  info_.height = static_cast<std::uint32_t>(camera.height);
+  const double k[9] = {camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1};
+  const double r[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const double p[12] = {camera.fx, 0, camera.cx, 0, 0, camera.fy, camera.cy, 0, 0, 0, 1, 0};
+  std::memcpy(info_.k, k, sizeof k);
+  std::memcpy(info_.r, r, sizeof r);
+  std::memcpy(info_.p, p, sizeof p);
+  have_camera_ = true;
+}
+
+void Ros2Bridge::publish_state(const link::VehicleState& s) {
+  const auto stamp = to_time(s.t_ns);
+  const double roll_rad = s.roll_rad;
+  const double pitch_rad = s.pitch_rad;
+  const bool pose_known = s.position_valid;
+  const Eigen::Quaterniond q_E_F_ =
+      q_E_F(roll_rad, pitch_rad, pose_known ? static_cast<double>(s.yaw_W_rad) : 0.0);
+  const Eigen::Vector3d p_E_m = pose_known ? enu_from_ned(from_msg(s.p_W_m))
+                                           : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d v_F_mps = v_F_from_v_H(from_msg(s.v_H_mps), roll_rad, pitch_rad);
+  const Eigen::Vector3d omega_F_radps = flu_from_frd(from_msg(s.omega_body_radps));
+
+  odom_.header.stamp = stamp;
+  odom_.pose.pose.position = {p_E_m.x(), p_E_m.y(), p_E_m.z()};
+  odom_.pose.pose.orientation = to_quaternion(q_E_F_);
+  std::fill(std::begin(odom_.pose.covariance), std::end(odom_.pose.covariance), 0.0);
+  if (!pose_known) odom_.pose.covariance[0] = -1.0;
+  odom_.twist.twist.linear = to_vector3(v_F_mps);
+  odom_.twist.twist.angular = to_vector3(omega_F_radps);
+  std::fill(std::begin(odom_.twist.covariance), std::end(odom_.twist.covariance), 0.0);
+  if (static_cast<int>(s.estimator_health) == static_cast<int>(hq_msgs_HEALTH_LOST)) {
+    odom_.twist.covariance[0] = -1.0;
+  }
+  odom_writer_.write(odom_);
+
+  imu_.header.stamp = stamp;
+  imu_.orientation = odom_.pose.pose.orientation;
+  imu_.angular_velocity = odom_.twist.twist.angular;
+  imu_.linear_acceleration = {0.0, 0.0, 0.0};
+  imu_.linear_acceleration_covariance[0] = -1.0;  // the state carries no acceleration
+  imu_writer_.write(imu_);
+
+  transform_.header.stamp = stamp;
+  transform_.transform.translation = {p_E_m.x(), p_E_m.y(), p_E_m.z()};
+  transform_.transform.rotation = odom_.pose.pose.orientation;
+  tf_writer_.write(tf_);
+  ++counters_.states_published;
+
+  const std::uint32_t n = s.obstacle_points_body_m._length;
+  if (n == 0 || n > hq_msgs_kMaxObstaclePoints) return;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f p_F_m =
+        flu_from_frd(from_msg(s.obstacle_points_body_m._buffer[i])).cast<float>();
+    std::memcpy(&cloud_data_[static_cast<std::size_t>(i) * kPointStep], p_F_m.data(),
+                kPointStep);
+  }
+  cloud_.header.stamp = stamp;
+  cloud_.width = n;
+  cloud_.row_step = n * kPointStep;
+  point_at(cloud_.data, cloud_data_.data(), n * kPointStep);
+  cloud_writer_.write(cloud_);
+  ++counters_.clouds_published;
+}
+
+void Ros2Bridge::publish_camera(const link::CameraFrame& frame) {
+  const auto stamp = to_time(frame.t_ns);
+  image_.header.stamp = stamp;
+  point_at(image_.data, frame.rgb_jpeg._buffer, frame.rgb_jpeg._length);
+  image_writer_.write(image_);
+  ++counters_.images_published;
+  if (!have_camera_) return;
+  info_.header.stamp = stamp;
+  info_writer_.write(info_);
+}
+
+bool Ros2Bridge::take_command(link::VelocityCommand& command) {
+  dds_sample_info_t info{};
+  if (!command_reader_.take(*twist_, info)) return false;
+  ++counters_.commands_received;
+  const auto& t = twist_->twist;
+  const HorizontalCommand c =
+      command_from_twist({t.linear.x, t.linear.y, t.linear.z}, t.angular.z);
+  command = {};
+  command.vehicle_id = vehicle_id_;
+  command.station_id = station_id_;
+  command.sequence_number = ++command_sequence_;
+  command.t_ns = 0;
+  command.v_H_mps = {static_cast<float>(c.v_H_mps.x()), static_cast<float>(c.v_H_mps.y()),
+                     static_cast<float>(c.v_H_mps.z())};
+  command.yaw_rate_radps = static_cast<float>(c.yaw_rate_radps);
+  return true;
+}
+
+}  // namespace hq::ros2_bridge

@@ -1,0 +1,182 @@
+// Decodes the raw CDR a vehicle with --ros2 published (dumped by hq_ros2_probe) with an
+// independent ROS 2 decoder: @foxglove/rosmsg parses the ROS 2 .msg definitions below (the
+// ROS 2 message texts, comments and constants left out), @foxglove/rosmsg2-serialization reads
+// the CDR. A field out of place, a wrong type or a non-XCDR1 encoding fails the decode or the
+// checks of plausible values: frame ids, increasing stamps, unit quaternions, and the odometry's
+// twist equal to the native state's v_H in the ROS body frame FLU.
+// Usage: node decode_ros2.cjs NODE_MODULES DUMP_DIR NAMESPACE
+'use strict';
+const path = require('path');
+const fs = require('fs');
+const [modules, dir, ns] = process.argv.slice(2);
+const { parse } = require(path.join(modules, '@foxglove/rosmsg'));
+const { MessageReader } = require(path.join(modules, '@foxglove/rosmsg2-serialization'));
+
+const SEP = '\n================================================================================\n';
+const MSGS = {
+  'builtin_interfaces/Time': 'int32 sec\nuint32 nanosec',
+  'std_msgs/Header': 'builtin_interfaces/Time stamp\nstring frame_id',
+  'geometry_msgs/Vector3': 'float64 x\nfloat64 y\nfloat64 z',
+  'geometry_msgs/Point': 'float64 x\nfloat64 y\nfloat64 z',
+  'geometry_msgs/Quaternion': 'float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1',
+  'geometry_msgs/Pose': 'Point position\nQuaternion orientation',
+  'geometry_msgs/PoseWithCovariance': 'Pose pose\nfloat64[36] covariance',
+  'geometry_msgs/Twist': 'Vector3 linear\nVector3 angular',
+  'geometry_msgs/TwistWithCovariance': 'Twist twist\nfloat64[36] covariance',
+  'geometry_msgs/Transform': 'Vector3 translation\nQuaternion rotation',
+  'geometry_msgs/TransformStamped':
+      'std_msgs/Header header\nstring child_frame_id\nTransform transform',
+  'nav_msgs/Odometry':
+      'std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n' +
+      'geometry_msgs/TwistWithCovariance twist',
+  'sensor_msgs/Imu':
+      'std_msgs/Header header\ngeometry_msgs/Quaternion orientation\n' +
+      'float64[9] orientation_covariance\ngeometry_msgs/Vector3 angular_velocity\n' +
+      'float64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\n' +
+      'float64[9] linear_acceleration_covariance',
+  'sensor_msgs/CompressedImage': 'std_msgs/Header header\nstring format\nuint8[] data',
+  'sensor_msgs/RegionOfInterest':
+      'uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify',
+  'sensor_msgs/CameraInfo':
+      'std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\n' +
+      'float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\n' +
+      'uint32 binning_y\nRegionOfInterest roi',
+  'sensor_msgs/PointField':
+      'uint8 INT8=1\nuint8 INT16=2\nuint8 FLOAT32=7\nstring name\nuint32 offset\n' +
+      'uint8 datatype\nuint32 count',
+  'sensor_msgs/PointCloud2':
+      'std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\n' +
+      'bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense',
+  'tf2_msgs/TFMessage': 'geometry_msgs/TransformStamped[] transforms',
+};
+
+// The message text as rosbag2 stores it: the type's own, then every other type after a
+// separator and "MSG: pkg/Type" (unused ones are harmless).
+function reader(type) {
+  let text = MSGS[type];
+  for (const [name, body] of Object.entries(MSGS)) {
+    if (name !== type) text += SEP + 'MSG: ' + name + '\n' + body;
+  }
+  return new MessageReader(parse(text, { ros2: true }));
+}
+
+function records(file) {
+  const bytes = fs.readFileSync(path.join(dir, file));
+  const out = [];
+  for (let at = 0; at + 4 <= bytes.length;) {
+    const n = bytes.readUInt32LE(at);
+    out.push(bytes.subarray(at + 4, at + 4 + n));
+    at += 4 + n;
+  }
+  return out;
+}
+
+let failures = 0;
+function check(ok, what) {
+  if (!ok) {
+    console.log('FAIL: ' + what);
+    ++failures;
+  }
+}
+const stampNs = (s) => BigInt(s.sec) * 1000000000n + BigInt(s.nanosec ?? s.nsec);
+function increasing(msgs, name) {
+  for (let i = 1; i < msgs.length; ++i) {
+    if (stampNs(msgs[i].header.stamp) <= stampNs(msgs[i - 1].header.stamp)) {
+      check(false, `${name}: stamp ${i} not after stamp ${i - 1}`);
+      return;
+    }
+  }
+}
+const unit = (q) => Math.abs(Math.hypot(q.x, q.y, q.z, q.w) - 1) < 1e-6;
+
+function decodeAll(file, type, min) {
+  const cdr = records(file);
+  // XCDR1 little-endian (CDR_LE): the encapsulation rmw_cyclonedds writes and reads.
+  for (const c of cdr) check(c[0] === 0 && c[1] === 1, `${file}: encapsulation ${c[0]} ${c[1]}`);
+  const r = reader(type);
+  const msgs = cdr.map((c) => r.readMessage(c));
+  console.log(`${type}: ${msgs.length} decoded from ${file}`);
+  check(msgs.length >= min, `${file}: ${msgs.length} samples, expected >= ${min}`);
+  return msgs;
+}
+
+// Odometry: frames, stamps, the unknown pose marked, the twist = v_H in FLU (v_F_from_v_H).
+const odom = decodeAll('odom.cdr', 'nav_msgs/Odometry', 20);
+increasing(odom, 'odom');
+const states = new Map();
+for (const line of fs.readFileSync(path.join(dir, 'states.csv'), 'utf8').trim().split('\n').slice(1)) {
+  const [t, vx, vy, vz, roll, pitch] = line.split(',');
+  states.set(BigInt(t), { v: [+vx, +vy, +vz], roll: +roll, pitch: +pitch });
+}
+let compared = 0;
+let moving = 0;
+for (const o of odom) {
+  check(o.header.frame_id === `${ns}/odom`, `odom frame_id ${o.header.frame_id}`);
+  check(o.child_frame_id === `${ns}/base_link`, `odom child_frame_id ${o.child_frame_id}`);
+  check(o.pose.covariance.length === 36 && o.pose.covariance[0] === -1,
+        'odom pose.covariance[0] = -1 (no marker pose in this world)');
+  check(unit(o.pose.pose.orientation), 'odom orientation is a unit quaternion');
+  const s = states.get(stampNs(o.header.stamp));
+  if (!s) continue;
+  // v_B = R_H_B^T v_H, R_H_B = R_y(pitch) R_x(roll); v_F = (x, -y, -z).
+  const [cr, sr, cp, sp] = [Math.cos(s.roll), Math.sin(s.roll), Math.cos(s.pitch), Math.sin(s.pitch)];
+  const [x, y, z] = s.v;
+  const bx = cp * x - sp * z;
+  const by = sr * sp * x + cr * y + sr * cp * z;
+  const bz = cr * sp * x - sr * y + cr * cp * z;
+  const v = o.twist.twist.linear;
+  const err = Math.hypot(v.x - bx, v.y + by, v.z + bz);
+  check(err < 1e-4, `odom twist ${JSON.stringify(v)} vs state v_F (${bx}, ${-by}, ${-bz})`);
+  ++compared;
+  if (Math.hypot(x, y) > 0.05) ++moving;
+}
+console.log(`odom: twist checked against ${compared} native states, ${moving} of them moving`);
+check(compared >= 10, `odom: only ${compared} samples matched a native state by stamp`);
+check(moving >= 1, 'odom: the vehicle never moved while odometry was recorded');
+
+const imu = decodeAll('imu.cdr', 'sensor_msgs/Imu', 5);
+increasing(imu, 'imu');
+for (const m of imu) {
+  check(m.header.frame_id === `${ns}/base_link`, `imu frame_id ${m.header.frame_id}`);
+  check(m.linear_acceleration_covariance[0] === -1, 'imu: no acceleration, covariance[0] = -1');
+  check(unit(m.orientation), 'imu orientation is a unit quaternion');
+}
+
+const tf = decodeAll('tf.cdr', 'tf2_msgs/TFMessage', 5);
+for (const m of tf) {
+  check(m.transforms.length === 1, 'tf: one transform');
+  const t = m.transforms[0];
+  check(t.header.frame_id === `${ns}/odom` && t.child_frame_id === `${ns}/base_link`,
+        `tf ${t.header.frame_id} -> ${t.child_frame_id}`);
+  check(unit(t.transform.rotation), 'tf rotation is a unit quaternion');
+}
+
+const clouds = decodeAll('obstacles.cdr', 'sensor_msgs/PointCloud2', 1);
+for (const c of clouds) {
+  check(c.header.frame_id === `${ns}/base_link`, `cloud frame_id ${c.header.frame_id}`);
+  check(c.fields.map((f) => `${f.name}:${f.offset}:${f.datatype}`).join(' ') ===
+        'x:0:7 y:4:7 z:8:7', 'cloud fields x, y, z float32');
+  check(c.height === 1 && c.point_step === 12 && c.row_step === 12 * c.width &&
+        c.data.length === c.row_step, 'cloud sizes agree');
+  const view = new DataView(c.data.buffer, c.data.byteOffset, c.data.byteLength);
+  let finite = true;
+  for (let i = 0; i < c.data.length; i += 4) finite = finite && isFinite(view.getFloat32(i, true));
+  check(finite && c.width > 0, `cloud of ${c.width} finite points`);
+}
+
+const images = decodeAll('image.cdr', 'sensor_msgs/CompressedImage', 1);
+for (const m of images) {
+  check(m.format === 'jpeg' && m.data[0] === 0xff && m.data[1] === 0xd8, 'image is a JPEG');
+  check(m.header.frame_id === `${ns}/camera_optical`, `image frame_id ${m.header.frame_id}`);
+}
+const infos = decodeAll('camera_info.cdr', 'sensor_msgs/CameraInfo', 1);
+for (const m of infos) {
+  check(m.width > 0 && m.height > 0 && m.k[0] > 0 && m.k[8] === 1 && m.d.length === 5,
+        `camera_info ${m.width}x${m.height} fx ${m.k[0]}`);
+}
+
+if (failures > 0) {
+  console.log(`${failures} check(s) failed`);
+  process.exit(1);
+}
+console.log('all ROS 2 topics decoded and plausible');

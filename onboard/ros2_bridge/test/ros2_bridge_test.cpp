@@ -1,0 +1,268 @@
+// The bridge on a private loopback domain: the DDS names and types a ROS 2 machine sees, the
+// values in ROS frames, XCDR1 on the wire, and cmd_vel_in as the link's command.
+#include "hq/ros2_bridge/ros2_bridge.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <dds/ddsi/ddsi_serdata.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "hq/ros2_bridge/ros_frames.hpp"
+#include "link_test_support.hpp"
+
+namespace hq::ros2_bridge {
+namespace {
+
+using link::test::private_domain_id;
+using link::test::take_within;
+
+link::LinkConfig ros2_config() {
+  link::LinkConfig config;
+  config.domain_id = private_domain_id();
+  config.vehicle_id = 3;
+  config.security.enabled = false;
+  config.ros2.enabled = true;
+  return config;
+}
+
+std::string type_name(dds_entity_t topic) {
+  std::array<char, 256> name{};
+  dds_get_type_name(topic, name.data(), name.size());
+  return name.data();
+}
+
+// "" for an entity that is not a topic (dds_get_name fails on it).
+std::string topic_name(dds_entity_t topic) {
+  std::array<char, 256> name{};
+  if (dds_get_name(topic, name.data(), name.size()) < 0) return "";
+  return name.data();
+}
+
+struct Fixture {
+  link::LinkConfig config = ros2_config();
+  link::Participant participant{config.domain_id};
+  Ros2Bridge bridge{participant, config};
+};
+
+template <typename T>
+struct Probe {
+  Probe(const link::Participant& p, const std::string& name)
+      : topic(p, name), reader(p, topic, ros2_qos()) {}
+  link::Topic<T> topic;
+  link::Reader<T> reader;
+  link::Sample<T> sample;
+};
+
+link::VehicleState level_state() {
+  link::VehicleState s{};
+  s.vehicle_id = 3;
+  s.t_ns = 12'345'678'901;
+  s.v_H_mps = {1.0F, 0.5F, -0.25F};  // forward, right, up (NED z -)
+  s.omega_body_radps = {0.1F, 0.2F, 0.3F};
+  s.estimator_health = hq_msgs_HEALTH_OK;
+  return s;
+}
+
+// The DDS topic and type names are rmw_cyclonedds's: rt/<ns>/<topic>, pkg::msg::dds_::Type_.
+TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
+  Fixture f;
+  EXPECT_EQ(f.bridge.ros_namespace(), "hq3");
+  const std::pair<const char*, const char*> expected[] = {
+      {"rt/hq3/odom", "nav_msgs::msg::dds_::Odometry_"},
+      {"rt/hq3/imu", "sensor_msgs::msg::dds_::Imu_"},
+      {"rt/tf", "tf2_msgs::msg::dds_::TFMessage_"},
+      {"rt/hq3/obstacles", "sensor_msgs::msg::dds_::PointCloud2_"},
+      {"rt/hq3/camera/image/compressed", "sensor_msgs::msg::dds_::CompressedImage_"},
+      {"rt/hq3/camera/camera_info", "sensor_msgs::msg::dds_::CameraInfo_"},
+      {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"}};
+  // The participant's topics are among its children.
+  std::array<dds_entity_t, 64> children{};
+  const dds_return_t n = dds_get_children(f.participant.handle(), children.data(), children.size());
+  ASSERT_GT(n, 0);
+  for (const auto& [name, type] : expected) {
+    bool found = false;
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (topic_name(children[i]) != name) continue;
+      found = true;
+      EXPECT_EQ(type_name(children[i]), type) << name;
+    }
+    EXPECT_TRUE(found) << name;
+  }
+}
+
+// GIVEN a level vehicle flying forward-right and climbing WHEN its state is published THEN the
+// odometry's twist is that velocity in FLU, the rates flipped likewise, the stamp split into
+// sec and nanosec, and the unknown pose marked with covariance[0] = -1.
+TEST(Ros2Bridge, OdometryIsInRosFramesAndMarksTheUnknownPose) {
+  Fixture f;
+  Probe<Odometry> odom(f.participant, "rt/hq3/odom");
+  Probe<Imu> imu(f.participant, "rt/hq3/imu");
+  Probe<TfMessage> tf(f.participant, "rt/tf");
+  f.bridge.publish_state(level_state());
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
+  const Odometry& o = *odom.sample;
+  EXPECT_EQ(o.header.stamp.sec, 12);
+  EXPECT_EQ(o.header.stamp.nanosec, 345'678'901U);
+  EXPECT_STREQ(o.header.frame_id, "hq3/odom");
+  EXPECT_STREQ(o.child_frame_id, "hq3/base_link");
+  EXPECT_DOUBLE_EQ(o.twist.twist.linear.x, 1.0);
+  EXPECT_DOUBLE_EQ(o.twist.twist.linear.y, -0.5);  // right -> -left
+  EXPECT_DOUBLE_EQ(o.twist.twist.linear.z, 0.25);  // up
+  EXPECT_NEAR(o.twist.twist.angular.z, -0.3, 1e-6);
+  EXPECT_EQ(o.pose.covariance[0], -1.0);
+  EXPECT_EQ(o.twist.covariance[0], 0.0);
+  EXPECT_EQ(o.pose.pose.position.x, 0.0);
+  // Yaw unknown, taken as 0: NED yaw 0 faces north, ENU's y.
+  const Eigen::Quaterniond q(o.pose.pose.orientation.w, o.pose.pose.orientation.x,
+                             o.pose.pose.orientation.y, o.pose.pose.orientation.z);
+  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-9);
+
+  ASSERT_TRUE(take_within(f.participant, imu.reader, *imu.sample));
+  EXPECT_STREQ(imu.sample->header.frame_id, "hq3/base_link");
+  EXPECT_NEAR(imu.sample->angular_velocity.y, -0.2, 1e-6);
+  EXPECT_EQ(imu.sample->linear_acceleration_covariance[0], -1.0);
+
+  ASSERT_TRUE(take_within(f.participant, tf.reader, *tf.sample));
+  ASSERT_EQ(tf.sample->transforms._length, 1U);
+  const TransformStamped& t = tf.sample->transforms._buffer[0];
+  EXPECT_STREQ(t.header.frame_id, "hq3/odom");
+  EXPECT_STREQ(t.child_frame_id, "hq3/base_link");
+  EXPECT_DOUBLE_EQ(t.transform.rotation.w, o.pose.pose.orientation.w);
+}
+
+// With the marker filter anchored, the pose is W's NED position in ENU with its yaw, and the
+// covariance no longer says "unknown"; a lost estimator marks the twist instead.
+TEST(Ros2Bridge, MarkerPoseGoesOutInEnu) {
+  Fixture f;
+  Probe<Odometry> odom(f.participant, "rt/hq3/odom");
+  link::VehicleState s = level_state();
+  s.position_valid = true;
+  s.p_W_m = {2.0F, -1.0F, -1.5F};  // 2 m north, 1 m west, 1.5 m up
+  s.yaw_W_rad = static_cast<float>(M_PI / 2);  // facing east
+  s.estimator_health = hq_msgs_HEALTH_LOST;
+  f.bridge.publish_state(s);
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
+  const Odometry& o = *odom.sample;
+  EXPECT_DOUBLE_EQ(o.pose.pose.position.x, -1.0);
+  EXPECT_DOUBLE_EQ(o.pose.pose.position.y, 2.0);
+  EXPECT_DOUBLE_EQ(o.pose.pose.position.z, 1.5);
+  EXPECT_EQ(o.pose.covariance[0], 0.0);
+  EXPECT_EQ(o.twist.covariance[0], -1.0);
+  const Eigen::Quaterniond q(o.pose.pose.orientation.w, o.pose.pose.orientation.x,
+                             o.pose.pose.orientation.y, o.pose.pose.orientation.z);
+  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 1e-6);
+}
+
+// The state's cloud (body FRD) goes out as a PointCloud2 of float32 x, y, z in FLU.
+TEST(Ros2Bridge, ObstacleCloudIsAPointCloud2InFlu) {
+  Fixture f;
+  Probe<PointCloud2> cloud(f.participant, "rt/hq3/obstacles");
+  link::Sample<link::VehicleState> s;
+  *s = level_state();
+  link::reserve(s->obstacle_points_body_m, 2);
+  s->obstacle_points_body_m._buffer[0] = {1.0F, 2.0F, 3.0F};
+  s->obstacle_points_body_m._buffer[1] = {-4.0F, 0.5F, -0.25F};
+  s->obstacle_points_body_m._length = 2;
+  f.bridge.publish_state(*s);
+  ASSERT_TRUE(take_within(f.participant, cloud.reader, *cloud.sample));
+  const PointCloud2& c = *cloud.sample;
+  EXPECT_EQ(c.height, 1U);
+  EXPECT_EQ(c.width, 2U);
+  EXPECT_EQ(c.point_step, 12U);
+  EXPECT_EQ(c.row_step, 24U);
+  ASSERT_EQ(c.fields._length, 3U);
+  EXPECT_STREQ(c.fields._buffer[2].name, "z");
+  EXPECT_EQ(c.fields._buffer[2].offset, 8U);
+  EXPECT_EQ(c.fields._buffer[2].datatype, 7);
+  ASSERT_EQ(c.data._length, 24U);
+  float xyz[6];
+  std::memcpy(xyz, c.data._buffer, sizeof xyz);
+  EXPECT_THAT(xyz, ::testing::ElementsAre(1.0F, -2.0F, -3.0F, -4.0F, -0.5F, 0.25F));
+  EXPECT_EQ(f.bridge.counters().clouds_published, 1U);
+}
+
+TEST(Ros2Bridge, CameraGoesOutAsCompressedImageWithCameraInfo) {
+  Fixture f;
+  Probe<CompressedImage> image(f.participant, "rt/hq3/camera/image/compressed");
+  Probe<CameraInfo> info(f.participant, "rt/hq3/camera/camera_info");
+  geometry::PinholeCamera camera;
+  camera.fx = 500;
+  camera.fy = 510;
+  camera.cx = 319.5;
+  camera.cy = 239.5;
+  camera.width = 640;
+  camera.height = 480;
+  f.bridge.set_camera(camera);
+  link::Sample<link::CameraFrame> frame;
+  frame->t_ns = 2'000'000'000;
+  link::reserve(frame->rgb_jpeg, 4);
+  const std::uint8_t jpeg[4] = {0xFF, 0xD8, 0xFF, 0xD9};
+  std::memcpy(frame->rgb_jpeg._buffer, jpeg, 4);
+  frame->rgb_jpeg._length = 4;
+  f.bridge.publish_camera(*frame);
+  ASSERT_TRUE(take_within(f.participant, image.reader, *image.sample));
+  EXPECT_STREQ(image.sample->format, "jpeg");
+  EXPECT_STREQ(image.sample->header.frame_id, "hq3/camera_optical");
+  ASSERT_EQ(image.sample->data._length, 4U);
+  EXPECT_EQ(image.sample->data._buffer[1], 0xD8);
+  ASSERT_TRUE(take_within(f.participant, info.reader, *info.sample));
+  EXPECT_EQ(info.sample->width, 640U);
+  EXPECT_EQ(info.sample->k[0], 500.0);
+  EXPECT_EQ(info.sample->k[5], 239.5);
+  EXPECT_EQ(info.sample->p[2], 319.5);
+  EXPECT_EQ(info.sample->d._length, 5U);
+  EXPECT_EQ(info.sample->header.stamp.sec, 2);
+}
+
+// XCDR1, as rmw_cyclonedds writes and reads: the serialized sample starts with the CDR_LE
+// encapsulation 00 01 (XCDR2 would be 00 07).
+TEST(Ros2Bridge, WritesXcdr1) {
+  Fixture f;
+  link::Topic<Odometry> topic(f.participant, "rt/hq3/odom");
+  const dds_entity_t reader =
+      dds_create_reader(f.participant.handle(), topic.handle(), ros2_qos().get(), nullptr);
+  ASSERT_GT(reader, 0);
+  f.bridge.publish_state(level_state());
+  ddsi_serdata* sample = nullptr;
+  dds_sample_info_t info{};
+  for (int i = 0; i < 500 && dds_takecdr(reader, &sample, 1, &info, DDS_ANY_STATE) <= 0; ++i) {
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  ASSERT_NE(sample, nullptr);
+  std::uint8_t header[4]{};
+  ddsi_serdata_to_ser(sample, 0, 4, header);
+  ddsi_serdata_unref(sample);
+  EXPECT_EQ(header[0], 0x00);
+  EXPECT_EQ(header[1], 0x01);
+}
+
+// A TwistStamped on cmd_vel_in becomes the link's command in H from the ROS 2 station.
+TEST(Ros2Bridge, CmdVelInBecomesALinkCommandInH) {
+  Fixture f;
+  link::Topic<TwistStamped> topic(f.participant, "rt/hq3/cmd_vel_in");
+  link::Writer<TwistStamped> writer(f.participant, topic, ros2_qos());
+  std::string frame = "base_link";
+  TwistStamped twist{};
+  twist.header.frame_id = frame.data();
+  twist.twist.linear = {0.5, 0.2, 0.1};
+  twist.twist.angular = {0.0, 0.0, 0.4};
+  ASSERT_TRUE(writer.write(twist)) << writer.last_error();
+  link::VelocityCommand command{};
+  for (int i = 0; i < 500 && !f.bridge.take_command(command); ++i) dds_sleepfor(DDS_MSECS(10));
+  EXPECT_EQ(command.vehicle_id, 3U);
+  EXPECT_EQ(command.station_id, 250U);
+  EXPECT_EQ(command.t_ns, 0);
+  EXPECT_FLOAT_EQ(command.v_H_mps.x, 0.5F);
+  EXPECT_FLOAT_EQ(command.v_H_mps.y, -0.2F);
+  EXPECT_FLOAT_EQ(command.v_H_mps.z, -0.1F);
+  EXPECT_FLOAT_EQ(command.yaw_rate_radps, -0.4F);
+  EXPECT_EQ(f.bridge.counters().commands_received, 1U);
+}
+
+}  // namespace
+}  // namespace hq::ros2_bridge
