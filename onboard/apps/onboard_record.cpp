@@ -24,6 +24,8 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
   link::apply_overrides(o.link_overrides, options.link);
   // Without --link the vehicle has no link: whoever else flies on the domain is not ours.
   options.record_link = o.link || o.source_kind == "sim";
+  // Nothing is taken from DDS then, so no keys are needed for the log's idle participant.
+  if (!options.record_link) options.link.security.enabled = false;
   for (const std::string& file : {o.config_path, o.vehicle_path, o.camera_path}) {
     if (!file.empty()) options.attachments.push_back({config::resolve_data_path(file), ""});
   }

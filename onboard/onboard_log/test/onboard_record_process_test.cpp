@@ -204,6 +204,37 @@ TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
   EXPECT_NE(slurp(file("onboard.out")).find(dir), std::string::npos) << slurp(file("onboard.out"));
 }
 
+// GIVEN a replay without --link (and without keys) WHEN it is recorded THEN the vehicle's own
+// channels are filled, the link channels are there and empty (nobody else's traffic is taken).
+TEST_F(OnboardRecordProcess, WithoutTheLinkOnlyTheVehiclesOwnChannelsAreFilled) {
+  const fs::path sequence = file("sequence");
+  Process record({HQ_SIM_EXE, "--world", "onboard/sim/worlds/room.yaml", "--duration-s", "2",
+                  "--record", sequence.string(), "--script", "circle"},
+                 file("sim.out"));
+  ASSERT_EQ(record.wait_exit(60.0), 0) << slurp(file("sim.out"));
+  Process onboard({HQ_ONBOARD_EXE, "--source", "replay", sequence.string(), "--camera",
+                   (sequence / "camera.yaml").string(), "--record", file("record").string()},
+                  file("onboard.out"));
+  ASSERT_EQ(onboard.wait_exit(40.0), 0) << slurp(file("onboard.out"));
+  const std::string out = slurp(file("onboard.out"));
+  const double frames = number_after(out, R"(hq-onboard: ([0-9]+) frames from)").value_or(0);
+  EXPECT_GE(frames, 40) << out;
+  const std::map<std::string, std::uint64_t> reported = reported_counts(out);
+  ASSERT_TRUE(reported.count("/hq/vehicle_state")) << out;
+  EXPECT_EQ(reported.at("/hq/vehicle_state"), 0u);
+  EXPECT_EQ(reported.at("/hq/velocity_command"), 0u);
+  EXPECT_EQ(reported.at("/onboard/timing"), static_cast<std::uint64_t>(frames));
+  EXPECT_GT(reported.at("/onboard/imu"), static_cast<std::uint64_t>(frames));
+  const hq::mcap::McapReader r((file("record") / "onboard.mcap").string());
+  std::uint64_t onboard_messages = 0;
+  for (const hq::mcap::Message& m : r.messages()) {
+    const std::string& topic = r.channel(m.channel_id)->topic;
+    ASSERT_EQ(topic.rfind("/onboard/", 0), 0u) << topic;
+    ++onboard_messages;
+  }
+  EXPECT_GT(onboard_messages, 3 * static_cast<std::uint64_t>(frames));
+}
+
 // GIVEN a file-size limit far below the flight's log (a full disk's EFBIG) WHEN the write
 // fails mid-flight THEN the vehicle tells the ground in an event and flies the replay to its end.
 TEST_F(OnboardRecordProcess, DiskFullMidFlightIsAnEventAndTheFlightGoesOn) {
