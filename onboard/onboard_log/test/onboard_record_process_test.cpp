@@ -239,7 +239,10 @@ TEST_F(OnboardRecordProcess, WithoutTheLinkOnlyTheVehiclesOwnChannelsAreFilled) 
 // fails mid-flight THEN the vehicle tells the ground in an event and flies the replay to its end.
 TEST_F(OnboardRecordProcess, DiskFullMidFlightIsAnEventAndTheFlightGoesOn) {
   const fs::path record = file("record");
-  ASSERT_EQ(fly({"/bin/bash", "-c", "ulimit -f 256 && exec \"$0\" \"$@\""}, record.string(),
+  // 96 KB: the header (IDL schemas, attachments) is about 52 KB, so the first or second chunk
+  // (one a second) fails, well before the 3 s replay ends even when the log's niced thread
+  // lags on a loaded machine (a failure found only at close is not told in flight).
+  ASSERT_EQ(fly({"/bin/bash", "-c", "ulimit -f 96 && exec \"$0\" \"$@\""}, record.string(),
                 file("ground_record").string()),
             0)
       << slurp(file("onboard.out"));
@@ -259,10 +262,11 @@ TEST_F(OnboardRecordProcess, DiskFullMidFlightIsAnEventAndTheFlightGoesOn) {
     told += data.find("on-board record stopped (flying on)") != std::string::npos ? 1 : 0;
   }
   EXPECT_EQ(told, 1) << ground;
-  // What was written before the failure is still readable (no summary: recovered).
+  // What reached the disk before the failure still opens (no summary: recovered, the cut
+  // chunk dropped cleanly), with every channel the header declared.
   const hq::mcap::McapReader r((record / "onboard.mcap").string());
   EXPECT_FALSE(r.report().has_summary);
-  EXPECT_GT(r.messages().size(), 0u);
+  EXPECT_EQ(r.channels().size(), 14u);
 }
 
 }  // namespace
