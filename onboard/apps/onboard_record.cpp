@@ -1,10 +1,10 @@
 // hq-onboard --record DIR: the on-board MCAP flight log (onboard/onboard_log), set up and
 // closed here so each run mode adds a few lines only.
 
-#include "onboard_runs.hpp"
-
 #include "hq/config/data_path.hpp"
 #include "hq/link/config.hpp"
+
+#include "onboard_runs.hpp"
 
 #include <csignal>
 #include <cstdio>
@@ -19,8 +19,8 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
   std::signal(SIGXFSZ, SIG_IGN);
   onboard_log::OnboardRecorderOptions options;
   options.dir = o.record_dir;
-  options.link = o.link_config_path.empty() ? link::LinkConfig{}
-                                            : link::load_link_config(o.link_config_path);
+  options.link =
+      o.link_config_path.empty() ? link::LinkConfig{} : link::load_link_config(o.link_config_path);
   link::apply_overrides(o.link_overrides, options.link);
   // Without --link the vehicle has no link: whoever else flies on the domain is not ours.
   options.record_link = o.link || o.source_kind == "sim";

@@ -17,8 +17,8 @@ class GroundSource final : public flight_log::LocalSource {
   explicit GroundSource(std::size_t capacity) : queue_(capacity) {}
 
   void add_channels(flight_log::ChannelWriter& out) override {
-    haptics_channel_ = out.add_json_channel("/ground/haptics", "hq_ground.Haptics",
-                                            kHapticsSchema, {});
+    haptics_channel_ =
+        out.add_json_channel("/ground/haptics", "hq_ground.Haptics", kHapticsSchema, {});
     link_channel_ = out.add_json_channel("/ground/link", "hq_ground.Link", kLinkSchema, {});
   }
 

@@ -147,10 +147,11 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long long>(report.local_samples_dropped),
                 report.error.empty() ? "no error" : report.error.c_str());
   }
-  std::printf("vehicle's own channels (every step a frame, 1 kHz IMU): %.1f MB per minute of "
-              "flight (%.1f MB for %d steps; + link samples, mostly camera JPEGs)\n",
-              1e-6 * static_cast<double>(size_bytes) * per_minute_steps,
-              1e-6 * static_cast<double>(size_bytes), steps);
+  std::printf(
+      "vehicle's own channels (every step a frame, 1 kHz IMU): %.1f MB per minute of "
+      "flight (%.1f MB for %d steps; + link samples, mostly camera JPEGs)\n",
+      1e-6 * static_cast<double>(size_bytes) * per_minute_steps,
+      1e-6 * static_cast<double>(size_bytes), steps);
   std::filesystem::remove_all(out_dir);
   return 0;
 }

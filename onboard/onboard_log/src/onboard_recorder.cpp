@@ -102,8 +102,8 @@ class OnboardSource final : public flight_log::LocalSource {
                                         {{"frame", "B (FRD body)"}});
     odometry_channel_ = out.add_json_channel("/onboard/odometry", "hq_onboard.Odometry",
                                              kOdometrySchema, {{"frame", "C (camera optical)"}});
-    estimator_channel_ = out.add_json_channel("/onboard/estimator", "hq_onboard.Estimator",
-                                              kEstimatorSchema, {});
+    estimator_channel_ =
+        out.add_json_channel("/onboard/estimator", "hq_onboard.Estimator", kEstimatorSchema, {});
     control_channel_ =
         out.add_json_channel("/onboard/control", "hq_onboard.Control", kControlSchema, {});
     timing_channel_ =
@@ -123,9 +123,7 @@ class OnboardSource final : public flight_log::LocalSource {
     steps_.drain([&](const StepSample& s) { write_step(out, s); });
   }
 
-  [[nodiscard]] std::uint64_t dropped() const override {
-    return steps_.dropped() + imu_.dropped();
-  }
+  [[nodiscard]] std::uint64_t dropped() const override { return steps_.dropped() + imu_.dropped(); }
   [[nodiscard]] const char* dropped_key() const override { return "onboard_samples_dropped"; }
 
   void push_step(const StepSample& s) noexcept {

@@ -9,8 +9,6 @@
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -21,6 +19,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 namespace {
@@ -66,7 +65,8 @@ class OnboardRecordProcess : public ::testing::Test {
     const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
     const int salt = static_cast<int>(std::hash<std::string>{}(test) % 89);
     domain_ = std::to_string(1 + (getpid() + salt + 101) % 200);
-    dir_ = fs::temp_directory_path() / ("hq_onboard_record_" + std::to_string(getpid()) + "_" + test);
+    dir_ =
+        fs::temp_directory_path() / ("hq_onboard_record_" + std::to_string(getpid()) + "_" + test);
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -85,9 +85,17 @@ class OnboardRecordProcess : public ::testing::Test {
                     "--record", sequence.string(), "--script", "circle"},
                    file("sim.out"));
     EXPECT_EQ(record.wait_exit(60.0), 0) << slurp(file("sim.out"));
-    std::vector<std::string> ground_args = {
-        HQ_GROUND_EXE, "--device", "sim",     "--headless", "--haptics-config",
-        "ground/config/demo_hand.yaml", "--domain-id", domain_, "--insecure", "--duration-s", "7"};
+    std::vector<std::string> ground_args = {HQ_GROUND_EXE,
+                                            "--device",
+                                            "sim",
+                                            "--headless",
+                                            "--haptics-config",
+                                            "ground/config/demo_hand.yaml",
+                                            "--domain-id",
+                                            domain_,
+                                            "--insecure",
+                                            "--duration-s",
+                                            "7"};
     if (!ground_record_dir.empty()) {
       ground_args.push_back("--record");
       ground_args.push_back(ground_record_dir);
@@ -184,10 +192,9 @@ TEST_F(OnboardRecordProcess, RecordedFlightReadsBackWithNpmReaders) {
   ASSERT_EQ(probe_code, 0) << slurp(file("npm.out"));
   const fs::path record = file("record");
   ASSERT_EQ(fly({}, record.string()), 0) << slurp(file("onboard.out"));
-  const std::string check = "bash " + script + " " + HQ_NPM_CHECKERS_DIR + " " +
-                            (record / "onboard.mcap").string() + " " +
-                            file("onboard.out").string() + " > " + file("npm.out").string() +
-                            " 2>&1";
+  const std::string check =
+      "bash " + script + " " + HQ_NPM_CHECKERS_DIR + " " + (record / "onboard.mcap").string() +
+      " " + file("onboard.out").string() + " > " + file("npm.out").string() + " 2>&1";
   EXPECT_EQ(WEXITSTATUS(std::system(check.c_str())), 0) << slurp(file("npm.out"));
 }
 
@@ -196,10 +203,10 @@ TEST_F(OnboardRecordProcess, RecordedFlightReadsBackWithNpmReaders) {
 TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
   std::ofstream(file("a_file")) << "not a folder";
   const std::string dir = (file("a_file") / "flight").string();
-  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--world", "onboard/sim/worlds/arena.yaml",
-                   "--link", "--duration-s", "5", "--domain-id", domain_, "--insecure",
-                   "--record", dir},
-                  file("onboard.out"));
+  Process onboard(
+      {HQ_ONBOARD_EXE, "--source", "sim", "--world", "onboard/sim/worlds/arena.yaml", "--link",
+       "--duration-s", "5", "--domain-id", domain_, "--insecure", "--record", dir},
+      file("onboard.out"));
   EXPECT_EQ(onboard.wait_exit(20.0), 2) << slurp(file("onboard.out"));
   EXPECT_NE(slurp(file("onboard.out")).find(dir), std::string::npos) << slurp(file("onboard.out"));
 }

@@ -102,9 +102,9 @@ TEST_F(OnboardRecorderTest, StepsAndImuAreWrittenAsTheirChannelsWithTheLinkOnes)
   const mcap::McapReader r(report.path);
   std::vector<std::string> topics;
   for (const mcap::Channel& c : r.channels()) topics.push_back(c.topic);
-  for (const char* t : {"/hq/vehicle_state", "/hq/velocity_command", "/hq/mode_request",
-                        "/onboard/imu", "/onboard/odometry", "/onboard/estimator",
-                        "/onboard/control", "/onboard/timing"}) {
+  for (const char* t :
+       {"/hq/vehicle_state", "/hq/velocity_command", "/hq/mode_request", "/onboard/imu",
+        "/onboard/odometry", "/onboard/estimator", "/onboard/control", "/onboard/timing"}) {
     EXPECT_NE(std::find(topics.begin(), topics.end(), t), topics.end()) << t;
   }
   const auto m = by_topic(r);
@@ -160,9 +160,9 @@ TEST_F(OnboardRecorderTest, PushingAllocatesNothingAndAFullQueueDropsAndCounts) 
   const mcap::McapReader r(report.path);
   const auto m = by_topic(r);
   // Every step and sample pushed is either written or counted as dropped.
-  EXPECT_EQ(m.at("/onboard/control").size() + m.at("/onboard/imu").size() +
-                report.local_samples_dropped,
-            2 * (2000u + kWarm));
+  EXPECT_EQ(
+      m.at("/onboard/control").size() + m.at("/onboard/imu").size() + report.local_samples_dropped,
+      2 * (2000u + kWarm));
 }
 
 TEST_F(OnboardRecorderTest, AFolderThatCannotBeMadeIsNamedAtStartUp) {

@@ -4,7 +4,6 @@
 #include "hq/flight_log/json.hpp"
 #include "hq/flight_log/link_log.hpp"
 #include "hq/flight_log/spsc_queue.hpp"
-
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/input_error.hpp"
 
@@ -141,9 +140,9 @@ TEST_F(LinkLogTest, LocalSamplesAreWrittenOnTheLogsThreadWithTheLinkChannels) {
   const mcap::McapReader r(options_.path);
   std::vector<std::string> topics;
   for (const mcap::Channel& c : r.channels()) topics.push_back(c.topic);
-  for (const char* topic : {"/hq/vehicle_state", "/hq/camera_frame", "/hq/event", "/hq/heartbeat",
-                            "/hq/velocity_command", "/hq/mode_request", "/obstacles",
-                            "/test/values"}) {
+  for (const char* topic :
+       {"/hq/vehicle_state", "/hq/camera_frame", "/hq/event", "/hq/heartbeat",
+        "/hq/velocity_command", "/hq/mode_request", "/obstacles", "/test/values"}) {
     EXPECT_NE(std::find(topics.begin(), topics.end(), topic), topics.end()) << topic;
   }
   ASSERT_EQ(r.messages().size(), static_cast<std::size_t>(kSamples));

@@ -33,12 +33,12 @@
 namespace hq::onboard_log {
 
 struct OnboardRecorderOptions {
-  std::string dir;        ///< Created if missing; the file is dir/onboard.mcap (must not exist).
-  link::LinkConfig link;  ///< The vehicle's link (domain, keys when secured).
+  std::string dir;          ///< Created if missing; the file is dir/onboard.mcap (must not exist).
+  link::LinkConfig link;    ///< The vehicle's link (domain, keys when secured).
   bool record_link = true;  ///< False without --link: only the vehicle's own channels.
   std::vector<flight_log::AttachmentFile> attachments;  ///< vehicle config, camera calibration
-  std::size_t step_queue_capacity = 1024;  ///< Chain outputs (about 5 s at 200 Hz).
-  std::size_t imu_queue_capacity = 4096;   ///< IMU samples (about 4 s at 1 kHz).
+  std::size_t step_queue_capacity = 1024;               ///< Chain outputs (about 5 s at 200 Hz).
+  std::size_t imu_queue_capacity = 4096;                ///< IMU samples (about 4 s at 1 kHz).
   mcap::WriterOptions writer;
 };
 

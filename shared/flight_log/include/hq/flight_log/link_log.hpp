@@ -100,7 +100,7 @@ class LocalSource {
 };
 
 struct LinkLogOptions {
-  std::string path;  ///< The .mcap file to create (must not exist).
+  std::string path;       ///< The .mcap file to create (must not exist).
   link::LinkConfig link;  ///< domain_id, and the keys when the link is secured.
   security::Role role = security::Role::kStation;  ///< The identity the log's participant uses.
   std::vector<AttachmentFile> attachments;         ///< Unreadable ones are skipped and reported.
