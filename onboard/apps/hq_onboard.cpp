@@ -12,6 +12,7 @@
 //              [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
 //   hq-onboard --source sitl [--fc mavlink:udp:127.0.0.1:14560] [--channel sitl] [--link]
 //   hq-onboard --source openni2|freenect [--fc none|mavlink:serial:/dev/ttyACM0:921600] [--link]
+//   hq-onboard ... --record DIR        the on-board MCAP flight log, DIR/onboard.mcap
 //
 // Every source but the in-process sim runs through one VehicleRuntime (onboard/vehicle) with a
 // flight controller (--fc): none (replay, bench), or MAVLink to PX4/ArduPilot or hq-sim --sitl.
@@ -112,6 +113,9 @@ int run(int argc, char** argv) {
         };
         return ends(".pcd") || ends(".ply") ? "" : path + ": expected a .pcd or .ply file";
       });
+  app.add_option("--record", o.record_dir,
+                 "write the flight's on-board MCAP log to DIR/onboard.mcap (link samples as CDR, "
+                 "IMU, estimates, setpoints, stage timings)");
   app.add_option("--link-log", o.link_log_path,
                  "sim --link: per-step CSV of mode, command and heartbeat ages, truth");
   try {

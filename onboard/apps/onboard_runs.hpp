@@ -5,6 +5,7 @@
 
 #include "hq/link/config.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
+#include "hq/onboard_log/onboard_recorder.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 
 #include <atomic>
@@ -51,6 +52,7 @@ struct Options {
   std::string sitl_channel = "sitl";  ///< hq-sim --sitl's default: /hq-sitl.
   double sitl_wait_s = 10.0;
   double fc_lost_exit_s = -1.0;  ///< Stop after the FC is lost this long; 0 never; < 0 default.
+  std::string record_dir;  ///< --record: DIR/onboard.mcap, the on-board flight log.
 };
 
 /// Set by SIGINT/SIGTERM; runs that last (sim --link, cameras) stop cleanly when it is.
@@ -66,6 +68,14 @@ std::unique_ptr<link_bridge::LinkBridge> make_link_bridge(const Options& o);
 /// The link's lines of an exit summary: commands, mode requests and heartbeats accepted and
 /// rejected, fail-safes, what was published.
 void print_link_summary(const link_bridge::LinkBridge& bridge);
+
+/// --record DIR: the on-board MCAP log (null without --record), created before the flight so
+/// an unwritable folder stops the start with hq::InputError naming it.
+std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o);
+/// Closes the log with the run summary (plus session id, duration, steps and IMU samples
+/// pushed) as its metadata and prints the record's lines of the exit summary.
+void close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
+                    const link_bridge::LinkBridge* bridge);
 
 /// replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
 int run_vehicle(const Options& o);

@@ -20,6 +20,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -76,6 +77,8 @@ int run_sim_link(const Options& o) {
   sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  // --record: before the link, so an unwritable folder stops the start.
+  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
   const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
   hq::link_bridge::LinkBridge& bridge = *link_bridge;
   if (bridge.ros2() != nullptr) bridge.ros2()->set_camera(sim_config.camera.pinhole);
@@ -106,7 +109,11 @@ int run_sim_link(const Options& o) {
   T_body_camera.translation() = vehicle.p_body_camera_m;
   LoggedLinkPort port(bridge, loop.chain(), T_body_camera, log);
   port.set_simulator(&loop.simulator());
-  loop.set_operator_port(&port);
+  // --record: the recorder behind the port (chain outputs; the simulator's IMU is not tapped).
+  std::optional<hq::onboard_log::RecordingPort> record_port;
+  if (recorder) record_port.emplace(&port, *recorder);
+  loop.set_operator_port(record_port ? static_cast<hq::vehicle::OperatorPort*>(&*record_port)
+                                     : &port);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,
@@ -132,12 +139,23 @@ int run_sim_link(const Options& o) {
   for (const std::string& refusal : loop.refusals()) {
     std::printf("  mode request refused at %s\n", refusal.c_str());
   }
+  if (recorder) {
+    close_recorder(*recorder,
+                   {{"source", "simulator " + world.name},
+                    {"steps", std::to_string(loop.samples().size())},
+                    {"collision_ticks", std::to_string(summary.collision_ticks)}},
+                   &bridge);
+  }
   return summary.collision_ticks == 0 ? 0 : 3;
 }
 
 int run_sim(const Options& o) {
   if (o.world_path.empty() || o.script_path.empty()) {
     throw hq::InputError("--source sim needs --world <world.yaml> and --script <timeline.yaml>");
+  }
+  if (!o.record_dir.empty()) {
+    throw hq::InputError("--record " + o.record_dir +
+                         ": --source sim records with --link (a scripted run has its CSV, --csv)");
   }
   const hq::sim::World world = hq::sim::load_world(o.world_path);
   hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);

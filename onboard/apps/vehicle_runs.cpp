@@ -281,6 +281,8 @@ int run_vehicle(const Options& o) {
 
   hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  // --record: before the source and the link, so an unwritable folder stops the start.
+  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
 
   // The frame source.
   std::unique_ptr<hq::sources::FrameSource> source;
@@ -370,7 +372,16 @@ int run_vehicle(const Options& o) {
   RunPort port(link_port.get(), csv, live);
   std::unique_ptr<SitlTruth> truth;
   if (sitl_source != nullptr) truth = std::make_unique<SitlTruth>(*sitl_source);
-  hq::vehicle::VehicleRuntime runtime(chain, *source, *fc, &port, truth.get());
+  // --record: the recorder behind the port (chain outputs) and the FC (IMU samples).
+  std::optional<hq::onboard_log::RecordingPort> record_port;
+  std::optional<hq::onboard_log::RecordingFlightController> record_fc;
+  if (recorder) {
+    record_port.emplace(&port, *recorder);
+    record_fc.emplace(*fc, *recorder);
+  }
+  hq::vehicle::VehicleRuntime runtime(
+      chain, *source, record_fc ? static_cast<hq::vehicle::FlightController&>(*record_fc) : *fc,
+      record_port ? static_cast<hq::vehicle::OperatorPort*>(&*record_port) : &port, truth.get());
 
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
@@ -450,6 +461,17 @@ int run_vehicle(const Options& o) {
   if (bridge) print_link_summary(*bridge);
   std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
   port.timing.print(stdout);
+  if (recorder) {
+    close_recorder(*recorder,
+                   {{"source", source->describe()},
+                    {"frames", std::to_string(port.frames)},
+                    {"camera_timeout_steps", std::to_string(port.ticks)},
+                    {"estimates_ok", std::to_string(port.ok)},
+                    {"frames_out_of_order_dropped", std::to_string(rc.frames_out_of_order)},
+                    {"imu_overflow_dropped", std::to_string(rc.imu_overflow)},
+                    {"setpoints", std::to_string(rc.setpoints)}},
+                   bridge.get());
+  }
   // A vehicle that lost its flight controller did not end well: say so in the exit status.
   return runtime.status().fc_lost ? 4 : 0;
 }

@@ -1,354 +1,30 @@
 #include "hq/mcap_recorder/flight_recorder.hpp"
 
-#include "hq/base/error.hpp"
-#include "hq/link/link.hpp"
+#include "hq/flight_log/spsc_queue.hpp"
 
-#include "json_schemas.hpp"
-#include <dds/dds.h>
-#include <dds/ddsi/ddsi_serdata.h>
+#include "ground_schemas.hpp"
 
-#include <array>
-#include <chrono>
-#include <cmath>
-#include <cstdio>
-#include <cstring>
-#include <fstream>
-#include <iterator>
-#include <span>
-#include <sstream>
-#include <sys/resource.h>
-#include <thread>
-#include <unistd.h>
+#include <atomic>
+#include <optional>
 
 namespace hq::mcap_recorder {
 namespace {
 
-mcap::Bytes as_bytes(const std::string& text) {
-  return {reinterpret_cast<const std::uint8_t*>(text.data()), text.size()};
-}
-
-std::int64_t steady_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
-// Appends to a reused string: after the first messages of each size, no allocation.
-class Json {
+// What only the ground knows, one GroundSample per command tick, written as /ground/haptics and
+// /ground/link on the link log's thread.
+class GroundSource final : public flight_log::LocalSource {
  public:
-  std::string& text() { return text_; }
-  void clear() { text_.clear(); }
-  void raw(const char* s) { text_.append(s); }
-  void number(double v) {
-    if (!std::isfinite(v)) {
-      text_.append("null");  // JSON has no NaN; a NaN never leaves a component anyway
-      return;
-    }
-    char buf[32];
-    const int n = std::snprintf(buf, sizeof buf, "%.9g", v);
-    text_.append(buf, static_cast<std::size_t>(n));
-  }
-  void integer(long long v) {
-    char buf[24];
-    const int n = std::snprintf(buf, sizeof buf, "%lld", v);
-    text_.append(buf, static_cast<std::size_t>(n));
-  }
-  void stamp(std::int64_t t_ns) {
-    raw("{\"sec\":");
-    integer(t_ns / 1'000'000'000);
-    raw(",\"nsec\":");
-    integer(t_ns % 1'000'000'000);
-    raw("}");
-  }
-  void vector3(const float v[3]) {
-    raw("{\"x\":");
-    number(v[0]);
-    raw(",\"y\":");
-    number(v[1]);
-    raw(",\"z\":");
-    number(v[2]);
-    raw("}");
-  }
-  // RFC 4648 base64, as JSON-encoded bytes fields of Foxglove schemas expect.
-  void base64(std::span<const std::uint8_t> data) {
-    static constexpr char kAlphabet[] =
-        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    text_.push_back('"');
-    std::size_t i = 0;
-    for (; i + 3 <= data.size(); i += 3) {
-      const std::uint32_t v =
-          (std::uint32_t{data[i]} << 16) | (std::uint32_t{data[i + 1]} << 8) | data[i + 2];
-      const char quad[4] = {kAlphabet[(v >> 18) & 63], kAlphabet[(v >> 12) & 63],
-                            kAlphabet[(v >> 6) & 63], kAlphabet[v & 63]};
-      text_.append(quad, 4);
-    }
-    if (i < data.size()) {
-      const bool two = i + 1 < data.size();
-      const std::uint32_t v =
-          (std::uint32_t{data[i]} << 16) | (two ? std::uint32_t{data[i + 1]} << 8 : 0u);
-      const char quad[4] = {kAlphabet[(v >> 18) & 63], kAlphabet[(v >> 12) & 63],
-                            two ? kAlphabet[(v >> 6) & 63] : '=', '='};
-      text_.append(quad, 4);
-    }
-    text_.push_back('"');
+  explicit GroundSource(std::size_t capacity) : queue_(capacity) {}
+
+  void add_channels(flight_log::ChannelWriter& out) override {
+    haptics_channel_ =
+        out.add_json_channel("/ground/haptics", "hq_ground.Haptics", kHapticsSchema, {});
+    link_channel_ = out.add_json_channel("/ground/link", "hq_ground.Link", kLinkSchema, {});
   }
 
- private:
-  std::string text_;
-};
-
-// JPEG (FF D8) or PNG (89 'P' 'N' 'G'), as foxglove.CompressedImage's format names them.
-const char* image_format(std::span<const std::uint8_t> data) {
-  if (data.size() >= 4 && data[0] == 0x89 && data[1] == 'P' && data[2] == 'N' && data[3] == 'G') {
-    return "png";
-  }
-  return "jpeg";
-}
-
-std::string media_type_of(const std::string& path) {
-  const auto ends = [&](const char* suffix) {
-    const std::size_t n = std::strlen(suffix);
-    return path.size() >= n && path.compare(path.size() - n, n, suffix) == 0;
-  };
-  if (ends(".yaml") || ends(".yml")) return "application/yaml";
-  if (ends(".json")) return "application/json";
-  return "application/octet-stream";
-}
-
-// The link's reader QoS with a deeper history: the link's readers keep the latest sample only
-// (the controller wants nothing older), but the recorder wants every sample and its thread runs
-// niced, so it may be late on a loaded machine. History depth is the reader's own business (not
-// part of QoS matching), so the writers see a reader like any other.
-link::Qos recording(link::Qos qos, int depth) {
-  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, depth);
-  return qos;
-}
-
-}  // namespace
-
-// The link topics the recorder takes, in channel-id order.
-enum TopicIndex : std::size_t {
-  kVehicleState,
-  kCameraFrame,
-  kEvent,
-  kHeartbeat,
-  kVelocityCommand,
-  kModeRequest,
-  kLinkTopicCount
-};
-
-// A flight record is never overwritten (as the CSV recorder refuses a folder holding one).
-const FlightRecorderOptions& checked_new(const FlightRecorderOptions& options) {
-  if (access(options.path.c_str(), F_OK) == 0) {
-    throw InputError(options.path +
-                     ": exists; refusing to overwrite a flight record, expected a "
-                     "new file");
-  }
-  return options;
-}
-
-struct FlightRecorder::Impl {
-  explicit Impl(FlightRecorder& owner, const FlightRecorderOptions& options)
-      : owner(owner),
-        options(checked_new(options)),
-        // The station's own identity when the link is secured (its permissions let it read
-        // every link topic of its vehicles); plain DDS otherwise.
-        participant(options.link, security::Role::kStation),
-        topics(participant),
-        state_reader(participant, topics.vehicle_state, recording(link::vehicle_state_qos(), 64)),
-        camera_reader(participant, topics.camera, recording(link::camera_qos(), 16)),
-        event_reader(participant, topics.event, recording(link::event_qos(), 64)),
-        heartbeat_reader(participant, topics.heartbeat,
-                         recording(link::heartbeat_qos(options.link), 32)),
-        command_reader(participant, topics.command,
-                       recording(link::command_qos(options.link, link::End::kReader), 128)),
-        mode_reader(participant, topics.mode_request, recording(link::mode_request_qos(), 32)),
-        conditions{link::ReadCondition(state_reader),   link::ReadCondition(camera_reader),
-                   link::ReadCondition(event_reader),   link::ReadCondition(heartbeat_reader),
-                   link::ReadCondition(command_reader), link::ReadCondition(mode_reader)},
-        stop_condition(participant),
-        waitset(participant),
-        ring(std::max<std::size_t>(options.ground_queue_capacity, 2)) {
-    readers = {state_reader.handle(),     camera_reader.handle(),  event_reader.handle(),
-               heartbeat_reader.handle(), command_reader.handle(), mode_reader.handle()};
-    for (std::size_t i = 0; i < conditions.size(); ++i) {
-      waitset.attach(conditions[i].handle(), static_cast<dds_attach_t>(i));
-    }
-    waitset.attach(stop_condition.handle(), static_cast<dds_attach_t>(kLinkTopicCount));
-    link::reserve(state_sample->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
-    link::reserve(state_sample->markers, hq_msgs_kMaxMarkersInState);
-    link::reserve(camera_sample->rgb_jpeg, hq_msgs_kMaxJpegBytes);
-    link::reserve(camera_sample->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
-    cdr.reserve(64 * 1024);
-    json.text().reserve(512 * 1024);
-
-    writer.open(options.path, options.writer);
-    report.path = options.path;
-    const std::string& idl = link_idl_text();
-    static constexpr std::array<std::pair<const char*, const char*>, kLinkTopicCount> kLink = {{
-        {"/hq/vehicle_state", "hq_msgs::VehicleState"},
-        {"/hq/camera_frame", "hq_msgs::CameraFrame"},
-        {"/hq/event", "hq_msgs::Event"},
-        {"/hq/heartbeat", "hq_msgs::Heartbeat"},
-        {"/hq/velocity_command", "hq_msgs::VelocityCommand"},
-        {"/hq/mode_request", "hq_msgs::ModeRequest"},
-    }};
-    static constexpr std::array<const char*, kLinkTopicCount> kDdsTopic = {
-        "hq_vehicle_state", "hq_camera_frame",     "hq_event",
-        "hq_heartbeat",     "hq_velocity_command", "hq_mode_request"};
-    for (std::size_t i = 0; i < kLinkTopicCount; ++i) {
-      const std::uint16_t schema = writer.add_schema(kLink[i].second, "omgidl", as_bytes(idl));
-      link_channel[i] = add_channel(
-          schema, kLink[i].first, "cdr",
-          {{"dds_topic", kDdsTopic[i]}, {"domain_id", std::to_string(options.link.domain_id)}});
-    }
-    const std::uint16_t image_schema = writer.add_schema("foxglove.CompressedImage", "jsonschema",
-                                                         as_bytes(kCompressedImageSchema));
-    image_channel = add_channel(image_schema, "/camera/image/compressed", "json", {});
-    depth_channel = add_channel(image_schema, "/camera/depth_preview/compressed", "json", {});
-    cloud_channel = add_channel(
-        writer.add_schema("foxglove.PointCloud", "jsonschema", as_bytes(kPointCloudSchema)),
-        "/obstacles", "json", {{"frame", "body (FRD: x forward, y right, z down)"}});
-    haptics_channel =
-        add_channel(writer.add_schema("hq_ground.Haptics", "jsonschema", as_bytes(kHapticsSchema)),
-                    "/ground/haptics", "json", {});
-    link_latency_channel =
-        add_channel(writer.add_schema("hq_ground.Link", "jsonschema", as_bytes(kLinkSchema)),
-                    "/ground/link", "json", {});
-
-    for (const AttachmentFile& a : options.attachments) {
-      std::ifstream in(a.path, std::ios::binary);
-      if (!in) {
-        report.attachments_skipped.push_back(a.path + ": cannot be read");
-        continue;
-      }
-      const std::string content((std::istreambuf_iterator<char>(in)),
-                                std::istreambuf_iterator<char>());
-      const std::string type = a.media_type.empty() ? media_type_of(a.path) : a.media_type;
-      writer.add_attachment(a.path, type, as_bytes(content), dds_time());
-      ++report.attachments;
-    }
-    writer.flush();
-    last_flush_ns = steady_ns();
-  }
-
-  std::uint16_t add_channel(std::uint16_t schema, const char* topic, const char* encoding,
-                            const mcap::KeyValues& metadata) {
-    const std::uint16_t id = writer.add_channel(schema, topic, encoding, metadata);
-    if (report.per_channel.size() <= id) report.per_channel.resize(id + 1u);
-    report.per_channel[id].topic = topic;
-    return id;
-  }
-
-  void write(std::uint16_t channel, std::int64_t log_ns, std::int64_t publish_ns,
-             mcap::Bytes data) {
-    if (owner.failed()) {
-      ++report.samples_not_written;
-      return;
-    }
-    ChannelReport& c = report.per_channel[channel];
-    try {
-      writer.write(channel, static_cast<std::uint32_t>(c.messages), log_ns, publish_ns, data);
-    } catch (const std::exception& e) {
-      fail(e.what());
-      ++report.samples_not_written;
-      return;
-    }
-    if (c.messages == 0) c.first_log_time_ns = log_ns;
-    c.last_log_time_ns = log_ns;
-    ++c.messages;
-  }
-
-  void fail(const std::string& what) {
-    if (owner.failed()) return;
-    owner.error_ = options.path + ": recording stopped: " + what;
-    report.error = owner.error_;
-    owner.failed_.store(true, std::memory_order_release);
-  }
-
-  // Takes every sample a reader holds as serialized CDR (encapsulation header included, as
-  // MCAP's "cdr" encoding expects) and writes it; derives the Foxglove channels from states
-  // and frames.
-  void drain(std::size_t topic) {
-    constexpr std::uint32_t kBatch = 16;
-    std::array<ddsi_serdata*, kBatch> samples{};
-    std::array<dds_sample_info_t, kBatch> infos{};
-    for (;;) {
-      const dds_return_t n =
-          dds_takecdr(readers[topic], samples.data(), kBatch, infos.data(), DDS_ANY_STATE);
-      if (n <= 0) return;
-      const std::int64_t log_ns = dds_time();
-      for (std::size_t i = 0; i < static_cast<std::size_t>(n); ++i) {
-        ddsi_serdata* sample = samples[i];
-        if (infos[i].valid_data) {
-          const std::uint32_t size = ddsi_serdata_size(sample);
-          cdr.resize(size);
-          ddsi_serdata_to_ser(sample, 0, size, cdr.data());
-          write(link_channel[topic], log_ns, infos[i].source_timestamp, cdr);
-          if (topic == kVehicleState && !owner.failed() &&
-              ddsi_serdata_to_sample(sample, &*state_sample, nullptr, nullptr)) {
-            write_cloud(log_ns, infos[i].source_timestamp);
-          } else if (topic == kCameraFrame && !owner.failed() &&
-                     ddsi_serdata_to_sample(sample, &*camera_sample, nullptr, nullptr)) {
-            write_images(log_ns, infos[i].source_timestamp);
-          }
-        }
-        ddsi_serdata_unref(sample);
-      }
-      if (static_cast<std::uint32_t>(n) < kBatch) return;
-    }
-  }
-
-  void write_cloud(std::int64_t log_ns, std::int64_t publish_ns) {
-    const auto& points = state_sample->obstacle_points_body_m;
-    json.clear();
-    json.raw("{\"timestamp\":");
-    json.stamp(log_ns);
-    json.raw(
-        ",\"frame_id\":\"body\",\"pose\":{\"position\":{\"x\":0,\"y\":0,\"z\":0},"
-        "\"orientation\":{\"x\":0,\"y\":0,\"z\":0,\"w\":1}},\"point_stride\":12,\"fields\":["
-        "{\"name\":\"x\",\"offset\":0,\"type\":7},{\"name\":\"y\",\"offset\":4,\"type\":7},"
-        "{\"name\":\"z\",\"offset\":8,\"type\":7}],\"data\":");
-    // Vector3f is three packed little-endian floats: Foxglove's FLOAT32 (7) fields as they are.
-    static_assert(sizeof(hq_msgs_Vector3f) == 12);
-    json.base64({reinterpret_cast<const std::uint8_t*>(points._buffer),
-                 std::size_t{points._length} * sizeof(hq_msgs_Vector3f)});
-    json.raw("}");
-    write(cloud_channel, log_ns, publish_ns, as_bytes(json.text()));
-  }
-
-  void write_image(std::uint16_t channel, const char* frame_id, std::int64_t log_ns,
-                   std::int64_t publish_ns, std::span<const std::uint8_t> data) {
-    json.clear();
-    json.raw("{\"timestamp\":");
-    json.stamp(log_ns);
-    json.raw(",\"frame_id\":\"");
-    json.raw(frame_id);
-    json.raw("\",\"format\":\"");
-    json.raw(image_format(data));
-    json.raw("\",\"data\":");
-    json.base64(data);
-    json.raw("}");
-    write(channel, log_ns, publish_ns, as_bytes(json.text()));
-  }
-
-  void write_images(std::int64_t log_ns, std::int64_t publish_ns) {
-    const auto& f = *camera_sample;
-    if (f.rgb_jpeg._length > 0) {
-      write_image(image_channel, "camera", log_ns, publish_ns,
-                  {f.rgb_jpeg._buffer, f.rgb_jpeg._length});
-    }
-    if (f.depth_preview._length > 0) {
-      write_image(depth_channel, "camera", log_ns, publish_ns,
-                  {f.depth_preview._buffer, f.depth_preview._length});
-    }
-  }
-
-  void drain_ground() {
-    const std::size_t head = ring_head.load(std::memory_order_acquire);
-    std::size_t tail = ring_tail.load(std::memory_order_relaxed);
-    for (; tail != head; ++tail) {
-      const GroundSample& g = ring[tail % ring.size()];
+  void drain(flight_log::ChannelWriter& out) override {
+    queue_.drain([&](const GroundSample& g) {
+      flight_log::Json& json = out.json();
       json.clear();
       json.raw("{\"timestamp\":");
       json.stamp(g.t_ns);
@@ -362,7 +38,7 @@ struct FlightRecorder::Impl {
       json.raw(",\"F_D_n\":");
       json.vector3(g.F_D_n);
       json.raw("}");
-      write(haptics_channel, g.t_ns, g.t_ns, as_bytes(json.text()));
+      out.write_json(haptics_channel_, g.t_ns, g.t_ns);
       json.clear();
       json.raw("{\"timestamp\":");
       json.stamp(g.t_ns);
@@ -373,82 +49,47 @@ struct FlightRecorder::Impl {
       json.raw(",\"state_age_ms\":");
       json.number(g.state_age_ms);
       json.raw("}");
-      write(link_latency_channel, g.t_ns, g.t_ns, as_bytes(json.text()));
-    }
-    ring_tail.store(tail, std::memory_order_release);
+      out.write_json(link_channel_, g.t_ns, g.t_ns);
+    });
   }
 
-  void drain_all() {
-    for (std::size_t i = 0; i < kLinkTopicCount; ++i) drain(i);
-    drain_ground();
-  }
+  [[nodiscard]] std::uint64_t dropped() const override { return queue_.dropped(); }
+  [[nodiscard]] const char* dropped_key() const override { return "ground_samples_dropped"; }
 
-  void run() {
-    // Below the flight's threads: on a loaded machine the scheduler serves the haptic loop and
-    // the command tick first; the recorder catches up from DDS histories and its queue. (Linux
-    // nice is per thread; raising it needs no privilege. Failure only costs that preference.)
-    static_cast<void>(setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10));
-    std::array<dds_attach_t, kLinkTopicCount + 1> triggered{};
-    while (!stopping.load(std::memory_order_acquire)) {
-      // 100 ms: the ground queue has no DDS condition, so it is drained at least this often.
-      waitset.wait(triggered, DDS_MSECS(100));
-      drain_all();
-      // At least one chunk a second reaches the file, even when few messages arrive, so a
-      // SIGKILL loses at most about a second.
-      const std::int64_t now_ns = steady_ns();
-      if (now_ns - last_flush_ns >= options.writer.chunk_time_limit_ns && !owner.failed()) {
-        last_flush_ns = now_ns;
-        try {
-          writer.flush();
-        } catch (const std::exception& e) {
-          fail(e.what());
-        }
-      }
-    }
-    drain_all();
-  }
+  bool push(const GroundSample& sample) noexcept { return queue_.push(sample); }
 
-  FlightRecorder& owner;
-  FlightRecorderOptions options;
-  mcap::McapWriter writer;
-  link::Participant participant;
-  link::Topics topics;
-  link::Reader<link::VehicleState> state_reader;
-  link::Reader<link::CameraFrame> camera_reader;
-  link::Reader<link::Event> event_reader;
-  link::Reader<link::Heartbeat> heartbeat_reader;
-  link::Reader<link::VelocityCommand> command_reader;
-  link::Reader<link::ModeRequest> mode_reader;
-  std::array<link::ReadCondition, kLinkTopicCount> conditions;
-  link::GuardCondition stop_condition;
-  link::WaitSet waitset;
-  std::array<dds_entity_t, kLinkTopicCount> readers{};
-  std::array<std::uint16_t, kLinkTopicCount> link_channel{};
-  std::uint16_t image_channel = 0;
-  std::uint16_t depth_channel = 0;
-  std::uint16_t cloud_channel = 0;
-  std::uint16_t haptics_channel = 0;
-  std::uint16_t link_latency_channel = 0;
-  link::Sample<link::VehicleState> state_sample;
-  link::Sample<link::CameraFrame> camera_sample;
-  std::vector<std::uint8_t> cdr;
-  Json json;
-  // Single-producer (flight loop) single-consumer (recorder thread) ring of ground samples.
-  std::vector<GroundSample> ring;
-  alignas(64) std::atomic<std::size_t> ring_head{0};
-  alignas(64) std::atomic<std::size_t> ring_tail{0};
-  std::atomic<std::uint64_t> ground_dropped{0};
-  std::atomic<bool> stopping{false};
+ private:
+  flight_log::SpscQueue<GroundSample> queue_;
+  std::uint16_t haptics_channel_ = 0;
+  std::uint16_t link_channel_ = 0;
+};
+
+flight_log::LinkLogOptions link_log_options(const FlightRecorderOptions& options) {
+  flight_log::LinkLogOptions o;
+  o.path = options.path;
+  o.link = options.link;
+  // The station's own identity when the link is secured (its permissions let it read every
+  // link topic of its vehicles); plain DDS otherwise.
+  o.role = security::Role::kStation;
+  o.attachments = options.attachments;
+  o.writer = options.writer;
+  return o;
+}
+
+}  // namespace
+
+struct FlightRecorder::Impl {
+  explicit Impl(const FlightRecorderOptions& options)
+      : ground(options.ground_queue_capacity), log(link_log_options(options), &ground) {}
+
+  GroundSource ground;
+  flight_log::LinkLog log;
   std::atomic<bool> closed{false};
-  std::int64_t last_flush_ns = 0;
   RecorderReport report;
-  std::thread thread;
 };
 
 FlightRecorder::FlightRecorder(const FlightRecorderOptions& options)
-    : impl_(std::make_unique<Impl>(*this, options)) {
-  impl_->thread = std::thread([this] { impl_->run(); });
-}
+    : impl_(std::make_unique<Impl>(options)) {}
 
 FlightRecorder::~FlightRecorder() {
   try {
@@ -458,54 +99,24 @@ FlightRecorder::~FlightRecorder() {
   }
 }
 
+bool FlightRecorder::failed() const noexcept { return impl_->log.failed(); }
+
+const std::string& FlightRecorder::error() const noexcept { return impl_->log.error(); }
+
 const std::vector<std::string>& FlightRecorder::attachments_skipped() const {
-  return impl_->report.attachments_skipped;  // written only by the constructor
+  return impl_->log.attachments_skipped();
 }
 
 bool FlightRecorder::push(const GroundSample& sample) noexcept {
-  Impl& d = *impl_;
-  if (d.stopping.load(std::memory_order_relaxed)) return false;
-  const std::size_t head = d.ring_head.load(std::memory_order_relaxed);
-  if (head - d.ring_tail.load(std::memory_order_acquire) >= d.ring.size()) {
-    d.ground_dropped.fetch_add(1, std::memory_order_relaxed);
-    return false;
-  }
-  d.ring[head % d.ring.size()] = sample;
-  d.ring_head.store(head + 1, std::memory_order_release);
-  return true;
+  if (impl_->closed.load(std::memory_order_relaxed)) return false;
+  return impl_->ground.push(sample);
 }
 
 const RecorderReport& FlightRecorder::close(const mcap::KeyValues& summary) {
   Impl& d = *impl_;
   if (d.closed.exchange(true)) return d.report;
-  d.stopping.store(true, std::memory_order_release);
-  try {
-    d.stop_condition.set(true);
-  } catch (const std::exception&) {
-    // The thread wakes within its 100 ms wait timeout anyway.
-  }
-  if (d.thread.joinable()) d.thread.join();
-  d.report.ground_samples_dropped = d.ground_dropped.load();
-  if (!failed()) {
-    try {
-      if (!summary.empty()) d.writer.add_metadata("flight_summary", summary);
-      mcap::KeyValues counts;
-      for (const ChannelReport& c : d.report.per_channel) {
-        counts[c.topic + ".messages"] = std::to_string(c.messages);
-        counts[c.topic + ".first_log_time_ns"] = std::to_string(c.first_log_time_ns);
-        counts[c.topic + ".last_log_time_ns"] = std::to_string(c.last_log_time_ns);
-      }
-      counts["ground_samples_dropped"] = std::to_string(d.report.ground_samples_dropped);
-      d.writer.add_metadata("recorder", counts);
-      d.writer.close();
-    } catch (const std::exception& e) {
-      d.fail(e.what());
-    }
-  }
-  const mcap::Statistics& s = d.writer.statistics();
-  d.report.messages = s.message_count;
-  d.report.channels = s.channel_count;
-  d.report.bytes = d.writer.bytes_written();
+  static_cast<flight_log::RecorderReport&>(d.report) = d.log.close(summary);
+  d.report.ground_samples_dropped = d.report.local_samples_dropped;
   return d.report;
 }
 

@@ -376,12 +376,13 @@ std::string permissions_xml(const IdentityRequest& request) {
                                                    "hq_event", "hq_heartbeat"};
   const std::vector<const char*> station_writes = {"hq_velocity_command", "hq_mode_request",
                                                    "hq_heartbeat"};
-  // A station also reads what stations write (its flight recorder records every command and
-  // mode request its vehicles receive); it still cannot write what a vehicle writes.
-  std::vector<const char*> station_reads = vehicle_writes;
-  station_reads.insert(station_reads.end(), {"hq_velocity_command", "hq_mode_request"});
+  // Both ends read every link topic of their vehicles: each has a flight log (hq-ground
+  // --record, hq-onboard --record) that records what was sent both ways, on a participant of its
+  // own. Neither can write what the other end writes.
+  std::vector<const char*> all_reads = vehicle_writes;
+  all_reads.insert(all_reads.end(), {"hq_velocity_command", "hq_mode_request"});
   const auto& publishes = vehicle ? vehicle_writes : station_writes;
-  const auto& subscribes = vehicle ? station_writes : station_reads;
+  const auto& subscribes = all_reads;
   const auto criteria = [&](const char* kind, const std::vector<const char*>& topics) {
     std::ostringstream xml;
     xml << "        <" << kind << ">\n          <topics>\n";

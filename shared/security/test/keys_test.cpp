@@ -80,6 +80,27 @@ TEST_F(Keys, PermissionsGrantOnlyTheVehiclesOwnPartitionAndTopics) {
             std::string::npos);
 }
 
+TEST_F(Keys, AVehicleReadsItsOwnTopicsForItsFlightLogButWritesNoCommand) {
+  IdentityRequest request;
+  request.role = Role::kVehicle;
+  request.id = 3;
+  request.validity = valid_for_days(now_s(), 1);
+  const std::string xml = permissions_xml(request);
+  const std::size_t publish = xml.find("<publish>");
+  const std::size_t subscribe = xml.find("<subscribe>");
+  ASSERT_NE(publish, std::string::npos);
+  ASSERT_NE(subscribe, std::string::npos);
+  const std::string published = xml.substr(publish, subscribe - publish);
+  EXPECT_NE(published.find("hq_vehicle_state"), std::string::npos);
+  EXPECT_EQ(published.find("hq_velocity_command"), std::string::npos);
+  const std::string subscribed = xml.substr(subscribe, xml.find("</subscribe>") - subscribe);
+  for (const char* topic : {"hq_vehicle_state", "hq_camera_frame", "hq_event", "hq_heartbeat",
+                            "hq_velocity_command", "hq_mode_request"}) {
+    EXPECT_NE(subscribed.find(topic), std::string::npos) << topic;
+  }
+  EXPECT_NE(xml.find("<partition>hq_vehicle_3</partition>"), std::string::npos);
+}
+
 TEST_F(Keys, GovernanceEncryptsEveryLinkTopic) {
   const std::string xml = governance_xml(DomainRange{});
   EXPECT_NE(xml.find("<topic_expression>hq_*</topic_expression>"), std::string::npos);

@@ -1,15 +1,12 @@
 #pragma once
-/// One MCAP file per flight (https://mcap.dev/spec), written beside hq-ground's CSV recording.
-///
-/// The recorder is a DDS subscriber of its own (a second participant on the station's domain),
-/// so the station's command path gains no file I/O and no lock (only Cyclone's delivery of the
-/// station's own samples to a reader in the same process, about 8 us a command as measured by
-/// hq-bench-flight-recorder): every link sample is taken as
-/// the serialized CDR Cyclone received (dds_takecdr) and written unchanged, with the IDL as an
-/// "omgidl" schema, on its own thread. The same thread derives what Foxglove's panels draw (the
-/// camera as foxglove.CompressedImage, the obstacle cloud as foxglove.PointCloud, both JSON) and
-/// writes what only the ground knows (haptic forces, link latency), handed over through a
-/// bounded lock-free queue that drops and counts when full, never blocks.
+/// One MCAP file per flight (https://mcap.dev/spec), written beside hq-ground's CSV recording:
+/// the shared link log (hq/flight_log/link_log.hpp: every link sample as CDR, the camera and the
+/// obstacle cloud for Foxglove, on a thread and DDS participant of its own, crash-safe chunks)
+/// plus what only the ground knows (haptic forces, link latency), handed over from the command
+/// tick through a bounded lock-free queue that drops and counts when full, never blocks. The
+/// command path gains no file I/O and no lock (only Cyclone's delivery of the station's own
+/// samples to a reader in the same process, about 8 us a command as measured by
+/// hq-bench-flight-recorder).
 ///
 /// Channels (message encoding / schema encoding):
 ///   /hq/vehicle_state /hq/camera_frame /hq/event /hq/heartbeat /hq/velocity_command
@@ -21,28 +18,23 @@
 /// log_time is the ground's receipt (dds_time(), the CSV recording's receipt_ns clock);
 /// publish_time the sample's DDS source timestamp (the writer's dds_time()).
 ///
-/// Crash safety: chunks are closed at least once a second and written with write(2), so a
-/// SIGKILLed hq-ground loses about the last second and hq::mcap::McapReader (or any reader that
-/// scans without the summary) still reads the rest. A failed write (disk full) stops recording,
-/// failed() turns true and error() says why; the flight goes on.
+/// A failed write (disk full) stops recording, failed() turns true and error() says why; the
+/// flight goes on.
 
+#include "hq/flight_log/link_log.hpp"
 #include "hq/link/config.hpp"
 #include "hq/mcap/mcap.hpp"
 
-#include <atomic>
 #include <cstdint>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace hq::mcap_recorder {
 
-/// A file stored as an MCAP attachment (vehicle config, camera calibration, haptics config).
-struct AttachmentFile {
-  std::string path;
-  std::string media_type = "application/yaml";
-};
+using flight_log::AttachmentFile;
+using flight_log::ChannelReport;
+using flight_log::link_idl_text;
 
 struct FlightRecorderOptions {
   std::string path;                          ///< The .mcap file to create (must not exist).
@@ -65,25 +57,9 @@ struct GroundSample {
   float state_age_ms = -1;     ///< latest state's age through the clock offset
 };
 
-/// Per channel, what was written (for the exit summary and the tests' independent readers).
-struct ChannelReport {
-  std::string topic;
-  std::uint64_t messages = 0;
-  std::int64_t first_log_time_ns = 0;
-  std::int64_t last_log_time_ns = 0;
-};
-
-struct RecorderReport {
-  std::string path;
-  std::uint64_t messages = 0;
-  std::uint32_t channels = 0;
-  std::uint64_t bytes = 0;
-  std::uint32_t attachments = 0;
-  std::uint64_t ground_samples_dropped = 0;      ///< queue full
-  std::uint64_t samples_not_written = 0;         ///< taken after a write failure
-  std::vector<ChannelReport> per_channel;        ///< by channel id
-  std::vector<std::string> attachments_skipped;  ///< "path: reason"
-  std::string error;                             ///< first failure, or empty
+/// The link log's report, with the ground queue's drops under their own name.
+struct RecorderReport : flight_log::RecorderReport {
+  std::uint64_t ground_samples_dropped = 0;  ///< queue full
 };
 
 class FlightRecorder {
@@ -103,11 +79,11 @@ class FlightRecorder {
   bool push(const GroundSample& sample) noexcept;
 
   /// True once a write failed; error() then names the file and reason. Any thread.
-  [[nodiscard]] bool failed() const noexcept { return failed_.load(std::memory_order_acquire); }
+  [[nodiscard]] bool failed() const noexcept;
   /// Attachment files that could not be read ("path: reason"), known from construction.
   [[nodiscard]] const std::vector<std::string>& attachments_skipped() const;
   /// Valid once failed() is true (written once, before failed_ is set).
-  [[nodiscard]] const std::string& error() const noexcept { return error_; }
+  [[nodiscard]] const std::string& error() const noexcept;
 
   /// Stops the thread after taking what DDS still holds, writes `summary` as the
   /// "flight_summary" metadata, the recorder's own counts as "recorder" metadata, and the
@@ -117,11 +93,6 @@ class FlightRecorder {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  std::atomic<bool> failed_{false};
-  std::string error_;
 };
-
-/// The link IDL (shared/link/idl/haptiquad.idl) as compiled in, the omgidl schema's text.
-const std::string& link_idl_text();
 
 }  // namespace hq::mcap_recorder

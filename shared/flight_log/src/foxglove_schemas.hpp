@@ -1,9 +1,9 @@
 #pragma once
-/// JSON Schemas of the recorder's JSON channels. The foxglove.* ones follow Foxglove's schemas
+/// JSON Schemas of the link log's Foxglove JSON channels, following Foxglove's schemas
 /// (https://docs.foxglove.dev/docs/visualization/message-schemas): with message encoding "json"
 /// bytes fields are base64 strings, which is what Foxglove's Image and 3D panels decode.
 
-namespace hq::mcap_recorder {
+namespace hq::flight_log {
 
 inline constexpr const char* kTimeSchema =
     R"j({"type":"object","properties":{"sec":{"type":"integer","minimum":0},)j"
@@ -31,18 +31,4 @@ inline constexpr const char* kVector3Schema =
     R"j({"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},)j"
     R"j("z":{"type":"number"}}})j";
 
-inline constexpr const char* kHapticsSchema =
-    R"j({"title":"hq_ground.Haptics","description":"The haptic loop at one command tick: )j"
-    R"j(velocity command sent (H frame), device position and force rendered (D frame, NED)",)j"
-    R"j("type":"object","properties":{"timestamp":{"type":"object"},)j"
-    R"j("command_valid":{"type":"boolean"},"v_cmd_H_mps":{"type":"object"},)j"
-    R"j("yaw_rate_cmd_radps":{"type":"number"},"p_D_m":{"type":"object"},)j"
-    R"j("F_D_n":{"type":"object"}}})j";
-
-inline constexpr const char* kLinkSchema =
-    R"j({"title":"hq_ground.Link","description":"Link latency as the ground saw it at one )j"
-    R"j(command tick (ms; -1: not known yet)","type":"object","properties":{)j"
-    R"j("timestamp":{"type":"object"},"latency_ms":{"type":["number","null"]},)j"
-    R"j("round_trip_ms":{"type":["number","null"]},"state_age_ms":{"type":["number","null"]}}})j";
-
-}  // namespace hq::mcap_recorder
+}  // namespace hq::flight_log

@@ -1,0 +1,55 @@
+// hq-onboard --record DIR: the on-board MCAP flight log (onboard/onboard_log), set up and
+// closed here so each run mode adds a few lines only.
+
+#include "hq/config/data_path.hpp"
+#include "hq/link/config.hpp"
+
+#include "onboard_runs.hpp"
+
+#include <csignal>
+#include <cstdio>
+#include <string>
+
+namespace hq::onboard_app {
+
+std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
+  if (o.record_dir.empty()) return nullptr;
+  // A file-size limit (ulimit -f) then fails the write with EFBIG, which the log reports as it
+  // does a full disk, instead of SIGXFSZ killing the flight.
+  std::signal(SIGXFSZ, SIG_IGN);
+  onboard_log::OnboardRecorderOptions options;
+  options.dir = o.record_dir;
+  options.link =
+      o.link_config_path.empty() ? link::LinkConfig{} : link::load_link_config(o.link_config_path);
+  link::apply_overrides(o.link_overrides, options.link);
+  // Without --link the vehicle has no link: whoever else flies on the domain is not ours.
+  options.record_link = o.link || o.source_kind == "sim";
+  // Nothing is taken from DDS then, so no keys are needed for the log's idle participant.
+  if (!options.record_link) options.link.security.enabled = false;
+  for (const std::string& file : {o.config_path, o.vehicle_path, o.camera_path}) {
+    if (!file.empty()) options.attachments.push_back({config::resolve_data_path(file), ""});
+  }
+  auto recorder = std::make_unique<onboard_log::OnboardRecorder>(options);
+  std::fprintf(stderr, "hq-onboard: recording the flight to %s\n", recorder->path().c_str());
+  for (const std::string& skipped : recorder->attachments_skipped()) {
+    std::fprintf(stderr, "hq-onboard: record attachment skipped: %s\n", skipped.c_str());
+  }
+  return recorder;
+}
+
+void close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
+                    const link_bridge::LinkBridge* bridge) {
+  char session[24] = "none";
+  if (bridge != nullptr) {
+    std::snprintf(session, sizeof session, "%016llx",
+                  static_cast<unsigned long long>(bridge->session_id()));
+  }
+  summary["session_id"] = session;
+  summary["duration_s"] = std::to_string(recorder.seconds_since_start());
+  summary["steps_recorded"] = std::to_string(recorder.steps_pushed());
+  summary["imu_samples_recorded"] = std::to_string(recorder.imu_pushed());
+  const flight_log::RecorderReport& report = recorder.close(summary);
+  onboard_log::print_report(stdout, report);
+}
+
+}  // namespace hq::onboard_app

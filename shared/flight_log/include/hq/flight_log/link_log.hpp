@@ -1,0 +1,148 @@
+#pragma once
+/// One MCAP file per flight (https://mcap.dev/spec), as both processes write it: hq-ground's
+/// flight.mcap (ground/mcap_recorder) and hq-onboard's onboard.mcap (onboard/onboard_log).
+///
+/// LinkLog is a DDS subscriber of its own (a second participant on the link's domain, secured
+/// as the process's role), so the flight's own paths gain no file I/O and no lock: every link
+/// sample is taken as the serialized CDR Cyclone received (dds_takecdr) and written unchanged,
+/// with the IDL as an "omgidl" schema, on the log's own thread (niced). The same thread derives
+/// what Foxglove's panels draw (the camera as foxglove.CompressedImage, the obstacle cloud as
+/// foxglove.PointCloud, both JSON) and writes what only the process knows: a LocalSource adds
+/// its channels and drains its bounded lock-free queues (SpscQueue) there.
+///
+/// Channels (message encoding / schema encoding):
+///   /hq/vehicle_state /hq/camera_frame /hq/event /hq/heartbeat /hq/velocity_command
+///   /hq/mode_request                      cdr / omgidl (schema "hq_msgs::<Type>")
+///   /camera/image/compressed              json / jsonschema foxglove.CompressedImage
+///   /camera/depth_preview/compressed      json / jsonschema foxglove.CompressedImage
+///   /obstacles                            json / jsonschema foxglove.PointCloud (frame "body")
+///   the LocalSource's                     json / jsonschema
+/// log_time of link samples is the receipt (dds_time()); publish_time the sample's DDS source
+/// timestamp (the writer's dds_time()).
+///
+/// Crash safety: chunks are closed at least once a second and written with write(2), so a
+/// SIGKILLed process loses about the last second and hq::mcap::McapReader (or any reader that
+/// scans without the summary) still reads the rest. A failed write (disk full) stops recording,
+/// failed() turns true and error() says why; the flight goes on.
+
+#include "hq/flight_log/json.hpp"
+#include "hq/link/config.hpp"
+#include "hq/mcap/mcap.hpp"
+#include "hq/security/keys.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hq::flight_log {
+
+/// A file stored as an MCAP attachment (vehicle config, camera calibration, haptics config).
+struct AttachmentFile {
+  std::string path;
+  std::string media_type = "application/yaml";  ///< Empty: from the file name.
+};
+
+/// Per channel, what was written (for the exit summary and the tests' independent readers).
+struct ChannelReport {
+  std::string topic;
+  std::uint64_t messages = 0;
+  std::int64_t first_log_time_ns = 0;
+  std::int64_t last_log_time_ns = 0;
+};
+
+struct RecorderReport {
+  std::string path;
+  std::uint64_t messages = 0;
+  std::uint32_t channels = 0;
+  std::uint64_t bytes = 0;
+  std::uint32_t attachments = 0;
+  std::uint64_t local_samples_dropped = 0;       ///< the LocalSource's queues were full
+  std::uint64_t samples_not_written = 0;         ///< taken after a write failure
+  std::vector<ChannelReport> per_channel;        ///< by channel id
+  std::vector<std::string> attachments_skipped;  ///< "path: reason"
+  std::string error;                             ///< first failure, or empty
+};
+
+/// What a LocalSource writes through, on the log's thread (and in its constructor).
+class ChannelWriter {
+ public:
+  virtual ~ChannelWriter() = default;
+  /// A json channel with a jsonschema schema; returns its channel id.
+  virtual std::uint16_t add_json_channel(const char* topic, const char* schema_name,
+                                         const char* json_schema,
+                                         const mcap::KeyValues& metadata) = 0;
+  /// One message; after a write failure it is counted as not written, never thrown.
+  virtual void write(std::uint16_t channel, std::int64_t log_ns, std::int64_t publish_ns,
+                     mcap::Bytes data) = 0;
+  /// write() of json() as it stands.
+  void write_json(std::uint16_t channel, std::int64_t log_ns, std::int64_t publish_ns);
+  /// A reused buffer for the message being built.
+  Json& json() { return json_; }
+
+ private:
+  Json json_;
+};
+
+/// What only the process knows, handed over from its hot path through bounded queues.
+class LocalSource {
+ public:
+  virtual ~LocalSource() = default;
+  /// In LinkLog's constructor, after the link channels: add this source's channels.
+  virtual void add_channels(ChannelWriter& out) = 0;
+  /// On the log's thread (at least every 100 ms, and once at close): write what was queued.
+  virtual void drain(ChannelWriter& out) = 0;
+  /// Samples the queues refused (full). Any thread.
+  [[nodiscard]] virtual std::uint64_t dropped() const = 0;
+  /// Metadata key for dropped() in the "recorder" record, e.g. "ground_samples_dropped".
+  [[nodiscard]] virtual const char* dropped_key() const = 0;
+};
+
+struct LinkLogOptions {
+  std::string path;       ///< The .mcap file to create (must not exist).
+  link::LinkConfig link;  ///< domain_id, and the keys when the link is secured.
+  security::Role role = security::Role::kStation;  ///< The identity the log's participant uses.
+  std::vector<AttachmentFile> attachments;         ///< Unreadable ones are skipped and reported.
+  mcap::WriterOptions writer;  ///< chunk_time_limit_ns bounds what a SIGKILL loses.
+  /// False: the link channels are declared but nothing is taken from DDS (a process without a
+  /// link must not record whoever else flies on the domain).
+  bool record_link = true;
+};
+
+class LinkLog {
+ public:
+  /// Creates the file, the DDS participant and readers, writes schemas, channels (the link's,
+  /// then `local`'s) and attachments, and starts the log's thread. `local` (may be null) is not
+  /// owned and must outlive the log.
+  /// @throws hq::InputError if the file exists (never overwritten) or cannot be created, or a
+  /// DDS call fails.
+  LinkLog(const LinkLogOptions& options, LocalSource* local);
+  /// Stops and closes (errors swallowed: call close() to see them).
+  ~LinkLog();
+  LinkLog(const LinkLog&) = delete;
+  LinkLog& operator=(const LinkLog&) = delete;
+
+  /// True once a write failed; error() then names the file and reason. Any thread.
+  [[nodiscard]] bool failed() const noexcept { return failed_.load(std::memory_order_acquire); }
+  /// Valid once failed() is true (written once, before failed_ is set).
+  [[nodiscard]] const std::string& error() const noexcept { return error_; }
+  /// Attachment files that could not be read ("path: reason"), known from construction.
+  [[nodiscard]] const std::vector<std::string>& attachments_skipped() const;
+
+  /// Stops the thread after taking what DDS and the local queues still hold, writes `summary`
+  /// as the "flight_summary" metadata, the log's own counts as "recorder" metadata, and the
+  /// summary section. Idempotent; returns the report (error non-empty if anything failed).
+  const RecorderReport& close(const mcap::KeyValues& summary = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::atomic<bool> failed_{false};
+  std::string error_;
+};
+
+/// The link IDL (shared/link/idl/haptiquad.idl) as compiled in, the omgidl schema's text.
+const std::string& link_idl_text();
+
+}  // namespace hq::flight_log

@@ -1,0 +1,175 @@
+// The pieces both flight logs share: the bounded queue (order, drops counted, never blocking),
+// the JSON builder (base64 as RFC 4648, NaN as null), and the link log with a local source:
+// its channels, its queue drained by the log's thread, read back with hq::mcap::McapReader.
+#include "hq/flight_log/json.hpp"
+#include "hq/flight_log/link_log.hpp"
+#include "hq/flight_log/spsc_queue.hpp"
+#include "hq/mcap/mcap.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace hq::flight_log {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Sample {
+  std::int64_t t_ns = 0;
+  double value = 0.0;
+};
+
+TEST(SpscQueue, DrainsInPushOrderAndCountsWhatAFullQueueRefuses) {
+  SpscQueue<Sample> queue(4);
+  for (int i = 0; i < 6; ++i) queue.push({i, 0.5 * i});
+  EXPECT_EQ(queue.dropped(), 2u);
+  std::vector<std::int64_t> seen;
+  EXPECT_EQ(queue.drain([&](const Sample& s) { seen.push_back(s.t_ns); }), 4u);
+  EXPECT_EQ(seen, (std::vector<std::int64_t>{0, 1, 2, 3}));
+  EXPECT_TRUE(queue.push({7, 0}));  // slots freed by the drain
+  seen.clear();
+  queue.drain([&](const Sample& s) { seen.push_back(s.t_ns); });
+  EXPECT_EQ(seen, (std::vector<std::int64_t>{7}));
+}
+
+TEST(SpscQueue, AProducerAndAConsumerThreadLoseNothingButWhatIsCounted) {
+  SpscQueue<Sample> queue(64);
+  constexpr int kPushed = 200'000;
+  int refused = 0;
+  std::atomic<bool> done{false};
+  std::vector<std::int64_t> seen;
+  seen.reserve(kPushed);
+  std::thread consumer([&] {
+    while (!done.load()) queue.drain([&](const Sample& s) { seen.push_back(s.t_ns); });
+    queue.drain([&](const Sample& s) { seen.push_back(s.t_ns); });
+  });
+  for (int i = 0; i < kPushed; ++i) {
+    if (!queue.push({i, 0})) ++refused;
+  }
+  done = true;
+  consumer.join();
+  EXPECT_EQ(seen.size() + static_cast<std::size_t>(refused), static_cast<std::size_t>(kPushed));
+  EXPECT_EQ(queue.dropped(), static_cast<std::uint64_t>(refused));
+  for (std::size_t i = 1; i < seen.size(); ++i) ASSERT_LT(seen[i - 1], seen[i]);
+}
+
+TEST(Json, Base64IsRfc4648WithPaddingAndNonFiniteIsNull) {
+  Json j;
+  const std::uint8_t text[] = {'f', 'o', 'o', 'b', 'a'};
+  j.base64({text, 5});
+  EXPECT_EQ(j.text(), "\"Zm9vYmE=\"");
+  j.clear();
+  j.base64({text, 4});
+  EXPECT_EQ(j.text(), "\"Zm9vYg==\"");
+  j.clear();
+  j.number(NAN);
+  j.raw(",");
+  j.number(0.25);
+  j.raw(",");
+  j.stamp(3'000'000'007);
+  j.raw(",");
+  j.string("a\"b");
+  EXPECT_EQ(j.text(), "null,0.25,{\"sec\":3,\"nsec\":7},\"a\\\"b\"");
+}
+
+class CountingSource final : public LocalSource {
+ public:
+  void add_channels(ChannelWriter& out) override {
+    channel_ = out.add_json_channel("/test/values", "test.Value",
+                                    R"({"type":"object","properties":{"value":{}}})", {});
+  }
+  void drain(ChannelWriter& out) override {
+    queue.drain([&](const Sample& s) {
+      out.json().clear();
+      out.json().raw("{\"value\":");
+      out.json().number(s.value);
+      out.json().raw("}");
+      out.write_json(channel_, s.t_ns, s.t_ns);
+    });
+  }
+  [[nodiscard]] std::uint64_t dropped() const override { return queue.dropped(); }
+  [[nodiscard]] const char* dropped_key() const override { return "test_samples_dropped"; }
+
+  SpscQueue<Sample> queue{4096};
+
+ private:
+  std::uint16_t channel_ = 0;
+};
+
+class LinkLogTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    setenv("CYCLONEDDS_URI",
+           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+           "</Interfaces></General></Domain></CycloneDDS>",
+           1);
+    options_.link.domain_id = 1 + static_cast<int>((getpid() + 31) % 200);
+    options_.link.security.enabled = false;
+    options_.role = security::Role::kVehicle;
+    dir_ = fs::temp_directory_path() /
+           ("hq_flight_log_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    options_.path = (dir_ / "log.mcap").string();
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  LinkLogOptions options_;
+  fs::path dir_;
+};
+
+TEST_F(LinkLogTest, LocalSamplesAreWrittenOnTheLogsThreadWithTheLinkChannels) {
+  CountingSource source;
+  LinkLog log(options_, &source);
+  constexpr int kSamples = 500;
+  for (int i = 0; i < kSamples; ++i) source.queue.push({1'000'000'000 + i * 1'000'000, 0.5 * i});
+  const RecorderReport& report = log.close({{"frames", "500"}});
+  EXPECT_TRUE(report.error.empty()) << report.error;
+  EXPECT_EQ(report.local_samples_dropped, 0u);
+
+  const mcap::McapReader r(options_.path);
+  std::vector<std::string> topics;
+  for (const mcap::Channel& c : r.channels()) topics.push_back(c.topic);
+  for (const char* topic :
+       {"/hq/vehicle_state", "/hq/camera_frame", "/hq/event", "/hq/heartbeat",
+        "/hq/velocity_command", "/hq/mode_request", "/obstacles", "/test/values"}) {
+    EXPECT_NE(std::find(topics.begin(), topics.end(), topic), topics.end()) << topic;
+  }
+  ASSERT_EQ(r.messages().size(), static_cast<std::size_t>(kSamples));
+  const mcap::Message& last = r.messages().back();
+  EXPECT_EQ(std::string(last.data.begin(), last.data.end()), "{\"value\":249.5}");
+  EXPECT_EQ(last.log_time_ns, 1'000'000'000 + (kSamples - 1) * 1'000'000);
+  bool found = false;
+  for (const mcap::Metadata& m : r.metadata()) {
+    if (m.name == "recorder") {
+      found = true;
+      EXPECT_EQ(m.values.at("/test/values.messages"), "500");
+      EXPECT_EQ(m.values.at("test_samples_dropped"), "0");
+    }
+    if (m.name == "flight_summary") {
+      EXPECT_EQ(m.values.at("frames"), "500");
+    }
+  }
+  EXPECT_TRUE(found);
+}
+
+TEST_F(LinkLogTest, UnwritableFolderIsAClearErrorNamingThePath) {
+  options_.path = "/proc/hq_no_such_folder/log.mcap";
+  CountingSource source;
+  const std::string message =
+      hq::testing::input_error_message([&] { LinkLog log(options_, &source); });
+  EXPECT_NE(message.find("/proc/hq_no_such_folder/log.mcap"), std::string::npos) << message;
+}
+
+}  // namespace
+}  // namespace hq::flight_log
