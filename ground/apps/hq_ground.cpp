@@ -218,6 +218,53 @@ std::string json_string(const std::string& text) {
   return out + "\"";
 }
 
+// The window's figures in the state JSON (null without a window: --headless).
+void write_window_json(std::FILE* f, const hq::console::WindowStats* window) {
+  if (window != nullptr) {
+    std::fprintf(f,
+                 "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
+                 "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
+                 "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
+                 "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
+                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
+                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
+                 "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
+                 "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
+                 "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
+                 static_cast<unsigned long long>(window->frames), window->fps,
+                 window->render_ms_p50, window->render_ms_max,
+                 static_cast<unsigned long long>(window->camera_frames_decoded),
+                 static_cast<unsigned long long>(window->camera_decode_failures),
+                 window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
+                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
+                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
+                 window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px,
+                 window->y_px, window->width_px, window->height_px, window->display_width_px,
+                 window->display_height_px,
+                 static_cast<unsigned long long>(window->link_lost_banner_frames),
+                 static_cast<unsigned long long>(window->take_off_hint_frames));
+  } else {
+    std::fprintf(f, "  \"window\": null\n");
+  }
+}
+
+// Ownership and the checks on what the vehicle sends, in the state JSON.
+void write_ownership_json(std::FILE* f, const hq::console::LinkHealth& link) {
+  std::fprintf(f,
+               "  \"control_lost\": %s,\n  \"commanding_station_id\": %u,\n"
+               "  \"own_station_id\": %u,\n  \"vehicle_session\": \"%016llx\",\n"
+               "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
+               "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
+               "  \"events_rejected\": %llu,\n",
+               link.control_lost ? "true" : "false", link.commanding_station,
+               link.own_station, static_cast<unsigned long long>(link.vehicle_session),
+               link.waiting_for_vehicle ? "true" : "false",
+               static_cast<unsigned long long>(link.states_rejected),
+               static_cast<unsigned long long>(link.states_implausible),
+               static_cast<unsigned long long>(link.states_wrong_session),
+               static_cast<unsigned long long>(link.events_rejected));
+}
+
 // The console's own state at exit, for tests and scripts (--state-json).
 void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                       const hq::console::WindowStats* window, std::uint64_t replay_problems,
@@ -273,20 +320,7 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  s.replay.playing ? "true" : "false", s.replay.at_end ? "true" : "false",
                  s.replay.sessions);
   }
-  // Ownership and the checks on what the vehicle sends (issue 16).
-  std::fprintf(f,
-               "  \"control_lost\": %s,\n  \"commanding_station_id\": %u,\n"
-               "  \"own_station_id\": %u,\n  \"vehicle_session\": \"%016llx\",\n"
-               "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
-               "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
-               "  \"events_rejected\": %llu,\n",
-               s.link.control_lost ? "true" : "false", s.link.commanding_station,
-               s.link.own_station, static_cast<unsigned long long>(s.link.vehicle_session),
-               s.link.waiting_for_vehicle ? "true" : "false",
-               static_cast<unsigned long long>(s.link.states_rejected),
-               static_cast<unsigned long long>(s.link.states_implausible),
-               static_cast<unsigned long long>(s.link.states_wrong_session),
-               static_cast<unsigned long long>(s.link.events_rejected));
+  write_ownership_json(f, s.link);
   if (max_force_n >= 0.0) {
     std::fprintf(f, "  \"max_force_n\": %.4f,\n  \"passivity_min_energy_j\": %.5f,\n",
                  max_force_n, min_passivity_energy_j);
@@ -294,32 +328,7 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
                static_cast<unsigned long long>(replay_problems),
                static_cast<unsigned long long>(replay_frames_missing));
-  if (window != nullptr) {
-    std::fprintf(f,
-                 "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
-                 "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
-                 "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
-                 "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
-                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
-                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
-                 "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
-                 "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
-                 "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
-                 static_cast<unsigned long long>(window->frames), window->fps,
-                 window->render_ms_p50, window->render_ms_max,
-                 static_cast<unsigned long long>(window->camera_frames_decoded),
-                 static_cast<unsigned long long>(window->camera_decode_failures),
-                 window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
-                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
-                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
-                 window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px,
-                 window->y_px, window->width_px, window->height_px, window->display_width_px,
-                 window->display_height_px,
-                 static_cast<unsigned long long>(window->link_lost_banner_frames),
-                 static_cast<unsigned long long>(window->take_off_hint_frames));
-  } else {
-    std::fprintf(f, "  \"window\": null\n");
-  }
+  write_window_json(f, window);
   std::fprintf(f, "}\n");
   std::fclose(f);
 }

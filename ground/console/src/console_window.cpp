@@ -703,6 +703,67 @@ struct ConsoleWindow::Impl {
     stats.mode_shown = s.mode;
   }
 
+  // The window's events: quit, the flight keys (keyboard flying), the replay's keys, and the
+  // mode keys (T teleop, H hover, L land, M marker, X explore, U take off, Esc quit).
+  void poll_events(UiActions& actions) {
+    SDL_Event event;
+    while (SDL_PollEvent(&event) != 0) {
+      ImGui_ImplSDL2_ProcessEvent(&event);
+      if (event.type == SDL_QUIT) actions.quit = true;
+      if (flight_keys != nullptr) flight_key_event(event);
+      const bool typed = event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard;
+      if (typed && replay != nullptr && event.key.keysym.sym != SDLK_ESCAPE) {
+        // Replay: its keys, and no mode requests (there is no vehicle to ask).
+        replay_key(event.key.keysym.sym, actions);
+        continue;
+      }
+      if (typed && event.key.repeat == 0) mode_key(event.key.keysym.sym, actions);
+    }
+  }
+
+  void flight_key_event(const SDL_Event& event) {
+    // Key ups always count (a key released over a text field must not stay held).
+    const std::uint32_t key = event.type == SDL_KEYDOWN || event.type == SDL_KEYUP
+                                  ? flight_key_for_scancode(event.key.keysym.scancode)
+                                  : 0;
+    if (event.type == SDL_KEYUP) flight_keys->release(key);
+    if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard) flight_keys->press(key);
+    if (event.type == SDL_WINDOWEVENT && event.window.event == SDL_WINDOWEVENT_FOCUS_LOST) {
+      flight_keys->release_all();
+    }
+  }
+
+  static void mode_key(SDL_Keycode key, UiActions& actions) {
+    switch (key) {
+      case SDLK_t: actions.mode_request = "teleop"; break;
+      case SDLK_h: actions.mode_request = "hover"; break;
+      case SDLK_l: actions.mode_request = "land"; break;
+      case SDLK_m: actions.mode_request = "marker"; break;
+      case SDLK_x: actions.mode_request = "explore"; break;
+      case SDLK_u: actions.take_off = true; break;
+      case SDLK_ESCAPE: actions.quit = true; break;
+      default: break;
+    }
+  }
+
+  // The frame's render time and the frame rate, then a sleep to the next slot (never a busy
+  // wait, the haptic loop and the link share these cores).
+  void pace(Clock::time_point begin) {
+    const Clock::time_point end = Clock::now();
+    render_ms[stats.frames % render_ms.size()] =
+        std::chrono::duration<float, std::milli>(end - begin).count();
+    ++stats.frames;
+    const double elapsed_s = std::chrono::duration<double>(end - first_frame).count();
+    if (elapsed_s > 0) stats.fps = static_cast<double>(stats.frames - 1) / elapsed_s;
+    next_frame += std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / max_fps));
+    if (next_frame > end) {
+      std::this_thread::sleep_until(next_frame);
+    } else {
+      next_frame = end;
+    }
+  }
+
   // The floor: one empty ImGui window, no text, no plots, no texture.
   void draw_bare(int w, int h) {
     ImGui::SetNextWindowPos(ImVec2(0, 0), ImGuiCond_Always);
@@ -1022,43 +1083,7 @@ ConsoleWindow::~ConsoleWindow() {
 UiActions ConsoleWindow::frame(const Snapshot& s) {
   Impl& m = *impl_;
   UiActions actions;
-  SDL_Event event;
-  while (SDL_PollEvent(&event) != 0) {
-    ImGui_ImplSDL2_ProcessEvent(&event);
-    if (event.type == SDL_QUIT) actions.quit = true;
-    if (m.flight_keys != nullptr) {
-      // Key ups always count (a key released over a text field must not stay held).
-      const std::uint32_t key = event.type == SDL_KEYDOWN || event.type == SDL_KEYUP
-                                    ? flight_key_for_scancode(event.key.keysym.scancode)
-                                    : 0;
-      if (event.type == SDL_KEYUP) m.flight_keys->release(key);
-      if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard) {
-        m.flight_keys->press(key);
-      }
-      if (event.type == SDL_WINDOWEVENT && event.window.event == SDL_WINDOWEVENT_FOCUS_LOST) {
-        m.flight_keys->release_all();
-      }
-    }
-    if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard && m.replay != nullptr &&
-        event.key.keysym.sym != SDLK_ESCAPE) {
-      // Replay: its keys, and no mode requests (there is no vehicle to ask).
-      replay_key(event.key.keysym.sym, actions);
-      continue;
-    }
-    if (event.type == SDL_KEYDOWN && event.key.repeat == 0 &&
-        !ImGui::GetIO().WantCaptureKeyboard) {
-      switch (event.key.keysym.sym) {
-        case SDLK_t: actions.mode_request = "teleop"; break;
-        case SDLK_h: actions.mode_request = "hover"; break;
-        case SDLK_l: actions.mode_request = "land"; break;
-        case SDLK_m: actions.mode_request = "marker"; break;
-        case SDLK_x: actions.mode_request = "explore"; break;
-        case SDLK_u: actions.take_off = true; break;
-        case SDLK_ESCAPE: actions.quit = true; break;
-        default: break;
-      }
-    }
-  }
+  m.poll_events(actions);
   const Clock::time_point begin = Clock::now();
   if (m.stats.frames == 0) {
     m.first_frame = begin;
@@ -1094,21 +1119,7 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
     glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, m.pixels.data());
   }
   SDL_GL_SwapWindow(m.window);
-  const Clock::time_point end = Clock::now();
-  m.render_ms[m.stats.frames % m.render_ms.size()] =
-      std::chrono::duration<float, std::milli>(end - begin).count();
-  ++m.stats.frames;
-  const double elapsed_s = std::chrono::duration<double>(end - m.first_frame).count();
-  if (elapsed_s > 0) m.stats.fps = static_cast<double>(m.stats.frames - 1) / elapsed_s;
-  // Hold the frame rate: sleep to the next slot (never a busy wait, the haptic loop and the
-  // link share these cores).
-  m.next_frame += std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(1.0 / m.max_fps));
-  if (m.next_frame > end) {
-    std::this_thread::sleep_until(m.next_frame);
-  } else {
-    m.next_frame = end;
-  }
+  m.pace(begin);
   return actions;
 }
 
