@@ -584,6 +584,42 @@ struct ConsoleWindow::Impl {
     ImGui::End();
   }
 
+  // The markers the camera sees, placed in W through R_QC, p_QC and the vehicle's pose.
+  template <typename ToPx>
+  void top_view_markers(ImDrawList* draw, const Snapshot& s, const ToPx& to_px) const {
+    const float yaw = s.yaw_W_rad;
+    const std::array<float, 9>& R = options.R_body_camera;
+    for (std::size_t i = 0; i < s.marker_count; ++i) {
+      const std::array<float, 3>& c = s.markers[i].p_camera_marker_m;
+      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_body_camera_m[0];
+      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_body_camera_m[1];
+      const float x_W = s.position_W.x_W_m + std::cos(yaw) * qx - std::sin(yaw) * qy;
+      const float y_W = s.position_W.y_W_m + std::sin(yaw) * qx + std::cos(yaw) * qy;
+      const ImVec2 mp = to_px(x_W, y_W);
+      draw->AddRect(ImVec2(mp.x - 5, mp.y - 5), ImVec2(mp.x + 5, mp.y + 5), kMarker, 0, 0, 2.0F);
+      char id[16];
+      std::snprintf(id, sizeof id, "%d", s.markers[i].id);
+      draw->AddText(ImVec2(mp.x + 7, mp.y - 7), kMarker, id);
+    }
+  }
+
+  // The top view's legend. Two short lines so that a narrow panel does not cut the yaw off.
+  static void top_view_legend(ImDrawList* draw, ImVec2 origin, const Snapshot& s) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
+                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
+    std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
+                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
+                  static_cast<double>(s.yaw_W_rad) * 57.29578, s.cloud_count);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + ImGui::GetFontSize()),
+                  IM_COL32(220, 220, 220, 255), text);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 2 * ImGui::GetFontSize()),
+                  IM_COL32(255, 255, 255, 255), "white: body x");
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 3 * ImGui::GetFontSize()), kCameraAxis,
+                  "yellow: camera axis, W flies it");
+  }
+
   void top_view_panel(const Snapshot& s) {
     // A fixed window name (ImGui keys windows by it); what the track is comes in the text.
     ImGui::Begin("Top view");
@@ -644,37 +680,12 @@ struct ConsoleWindow::Impl {
                             along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 40));
     draw->AddLine(p, along(camera_yaw - half_fov, reach_px), IM_COL32(255, 200, 60, 120));
     draw->AddLine(p, along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 120));
-    const std::array<float, 9>& R = options.R_body_camera;
-    for (std::size_t i = 0; i < s.marker_count; ++i) {
-      const std::array<float, 3>& c = s.markers[i].p_camera_marker_m;
-      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_body_camera_m[0];
-      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_body_camera_m[1];
-      const float x_W = s.position_W.x_W_m + std::cos(yaw) * qx - std::sin(yaw) * qy;
-      const float y_W = s.position_W.y_W_m + std::sin(yaw) * qx + std::cos(yaw) * qy;
-      const ImVec2 mp = to_px(x_W, y_W);
-      draw->AddRect(ImVec2(mp.x - 5, mp.y - 5), ImVec2(mp.x + 5, mp.y + 5), kMarker, 0, 0, 2.0F);
-      char id[16];
-      std::snprintf(id, sizeof id, "%d", s.markers[i].id);
-      draw->AddText(ImVec2(mp.x + 7, mp.y - 7), kMarker, id);
-    }
+    top_view_markers(draw, s, to_px);
     draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
     arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25), IM_COL32(255, 255, 255, 255));
     arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40), kCameraAxis);
     draw->PopClipRect();
-    // Two short lines so that a narrow panel does not cut the yaw off.
-    char text[160];
-    std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
-                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
-    std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
-                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
-                  static_cast<double>(yaw) * 57.29578, s.cloud_count);
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + ImGui::GetFontSize()),
-                  IM_COL32(220, 220, 220, 255), text);
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 2 * ImGui::GetFontSize()),
-                  IM_COL32(255, 255, 255, 255), "white: body x");
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 3 * ImGui::GetFontSize()), kCameraAxis,
-                  "yellow: camera axis, W flies it");
+    top_view_legend(draw, origin, s);
     ImGui::End();
   }
 
