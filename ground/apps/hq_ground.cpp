@@ -23,6 +23,7 @@
 #include "hq/control/vehicle_config.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/ground/ground_station.hpp"
+#include "hq/ground/operator_station.hpp"
 #include "hq/ground/window_keyboard.hpp"
 #include "hq/haptics/haptic_device.hpp"
 #include "hq/haptics/haptic_loop.hpp"
@@ -128,16 +129,6 @@ const char* flight_state_name(int state) {
   }
 }
 
-// What the window asks of the flying thread.
-struct UiRequests {
-  std::atomic<int> mode{-1};  ///< hq_msgs_Mode, -1: none.
-  /// With a marker mode request: hq_msgs_MarkerTask and target id (the window's marker panel).
-  std::atomic<int> marker_task{hq_msgs_MARKER_TASK_NONE};
-  std::atomic<int> marker_id{0};
-  std::atomic<std::int64_t> vehicle{-1};
-  std::atomic<bool> take_off{false};  ///< The window's take-off button or key.
-};
-
 int mode_of(const char* name) {
   static constexpr std::array<std::pair<const char*, int>, 5> kModes = {
       {{"teleop", hq_msgs_MODE_TELEOP},
@@ -227,6 +218,53 @@ std::string json_string(const std::string& text) {
   return out + "\"";
 }
 
+// The window's figures in the state JSON (null without a window: --headless).
+void write_window_json(std::FILE* f, const hq::console::WindowStats* window) {
+  if (window != nullptr) {
+    std::fprintf(f,
+                 "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
+                 "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
+                 "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
+                 "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
+                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
+                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
+                 "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
+                 "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
+                 "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
+                 static_cast<unsigned long long>(window->frames), window->fps,
+                 window->render_ms_p50, window->render_ms_max,
+                 static_cast<unsigned long long>(window->camera_frames_decoded),
+                 static_cast<unsigned long long>(window->camera_decode_failures),
+                 window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
+                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
+                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
+                 window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px,
+                 window->y_px, window->width_px, window->height_px, window->display_width_px,
+                 window->display_height_px,
+                 static_cast<unsigned long long>(window->link_lost_banner_frames),
+                 static_cast<unsigned long long>(window->take_off_hint_frames));
+  } else {
+    std::fprintf(f, "  \"window\": null\n");
+  }
+}
+
+// Ownership and the checks on what the vehicle sends, in the state JSON.
+void write_ownership_json(std::FILE* f, const hq::console::LinkHealth& link) {
+  std::fprintf(f,
+               "  \"control_lost\": %s,\n  \"commanding_station_id\": %u,\n"
+               "  \"own_station_id\": %u,\n  \"vehicle_session\": \"%016llx\",\n"
+               "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
+               "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
+               "  \"events_rejected\": %llu,\n",
+               link.control_lost ? "true" : "false", link.commanding_station,
+               link.own_station, static_cast<unsigned long long>(link.vehicle_session),
+               link.waiting_for_vehicle ? "true" : "false",
+               static_cast<unsigned long long>(link.states_rejected),
+               static_cast<unsigned long long>(link.states_implausible),
+               static_cast<unsigned long long>(link.states_wrong_session),
+               static_cast<unsigned long long>(link.events_rejected));
+}
+
 // The console's own state at exit, for tests and scripts (--state-json).
 void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                       const hq::console::WindowStats* window, std::uint64_t replay_problems,
@@ -282,20 +320,7 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                  s.replay.playing ? "true" : "false", s.replay.at_end ? "true" : "false",
                  s.replay.sessions);
   }
-  // Ownership and the checks on what the vehicle sends (issue 16).
-  std::fprintf(f,
-               "  \"control_lost\": %s,\n  \"commanding_station_id\": %u,\n"
-               "  \"own_station_id\": %u,\n  \"vehicle_session\": \"%016llx\",\n"
-               "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
-               "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
-               "  \"events_rejected\": %llu,\n",
-               s.link.control_lost ? "true" : "false", s.link.commanding_station,
-               s.link.own_station, static_cast<unsigned long long>(s.link.vehicle_session),
-               s.link.waiting_for_vehicle ? "true" : "false",
-               static_cast<unsigned long long>(s.link.states_rejected),
-               static_cast<unsigned long long>(s.link.states_implausible),
-               static_cast<unsigned long long>(s.link.states_wrong_session),
-               static_cast<unsigned long long>(s.link.events_rejected));
+  write_ownership_json(f, s.link);
   if (max_force_n >= 0.0) {
     std::fprintf(f, "  \"max_force_n\": %.4f,\n  \"passivity_min_energy_j\": %.5f,\n",
                  max_force_n, min_passivity_energy_j);
@@ -303,32 +328,7 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
                static_cast<unsigned long long>(replay_problems),
                static_cast<unsigned long long>(replay_frames_missing));
-  if (window != nullptr) {
-    std::fprintf(f,
-                 "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
-                 "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
-                 "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
-                 "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
-                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
-                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
-                 "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
-                 "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
-                 "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
-                 static_cast<unsigned long long>(window->frames), window->fps,
-                 window->render_ms_p50, window->render_ms_max,
-                 static_cast<unsigned long long>(window->camera_frames_decoded),
-                 static_cast<unsigned long long>(window->camera_decode_failures),
-                 window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
-                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
-                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
-                 window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px,
-                 window->y_px, window->width_px, window->height_px, window->display_width_px,
-                 window->display_height_px,
-                 static_cast<unsigned long long>(window->link_lost_banner_frames),
-                 static_cast<unsigned long long>(window->take_off_hint_frames));
-  } else {
-    std::fprintf(f, "  \"window\": null\n");
-  }
+  write_window_json(f, window);
   std::fprintf(f, "}\n");
   std::fclose(f);
 }
@@ -385,7 +385,7 @@ hq::console::WindowStats close_window(const Options& o, hq::console::ConsoleWind
 // Runs the console window on this (the main) thread until `done`, the duration or a quit;
 // returns its statistics. Requests go to `requests` for the flying thread.
 hq::console::WindowStats run_window(const Options& o, const std::string& title,
-                                    hq::console::ConsoleModel& model, UiRequests& requests,
+                                    hq::console::ConsoleModel& model, hq::ground::OperatorRequests& requests,
                                     const std::atomic<bool>& done, hq::console::Snapshot& snap,
                                     hq::console::FlightKeys* flight_keys = nullptr) {
   hq::console::ConsoleWindow window(title, window_options(o));
@@ -558,32 +558,9 @@ int run_replay(const Options& o) {
   return 0;
 }
 
-void print_status(std::FILE* out, bool live, double t_s, const hq::ground::GroundStation& ground,
-                  const hq::haptics::LoopOutput& hand) {
-  const hq::ground::LinkStatus& s = ground.status();
-  const double age_s = ground.state_age_s();
-  const char* link = !s.have_state ? "waiting" : age_s < 0.2 ? "ok" : age_s < 2.0 ? "STALE" : "LOST";
-  const auto& v = hand.command.v_H_mps;
-  std::fprintf(out,
-               "%st %6.1f s  link %-7s  vehicle %-7s est %-8s vlink %-8s  latency %5.2f ms  "
-               "rtt %4.0f ms  age %4.0f ms  loss %4.1f %%  "
-               "cmd [%+.2f %+.2f %+.2f] yaw %+.2f  |F| %.1f N  %s%s",
-               live ? "\r" : "", t_s, link,
-               s.have_state ? hq::ground::to_string(s.state.mode) : "-",
-               s.have_state ? hq::ground::to_string(s.state.estimator_health) : "-",
-               s.have_state ? hq::ground::to_string(s.state.link_health) : "-",
-               1e-6 * static_cast<double>(s.last_latency_ns),
-               1e-6 * static_cast<double>(s.round_trip_ns),
-               1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * ground.state_loss(), v.x(),
-               v.y(), v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
-               hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
-  std::fprintf(out, live ? "\033[K" : "\n");
-  std::fflush(out);
-}
-
-int run(int argc, char** argv) {
+// The command line; an exit status when it is told to stop (--help, a parse error).
+std::optional<int> parse_options(int argc, char** argv, Options& o) {
   CLI::App app{"hq-ground: haptic teleoperation of a vehicle over the DDS link"};
-  Options o;
   app.add_option("--device", o.device, "haptic device")
       ->check(CLI::IsMember({"sim", "keyboard", "joystick", "forcedim"}));
   app.add_flag("--headless", o.headless, "no live status line: one status line per second");
@@ -630,14 +607,10 @@ int run(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  std::signal(SIGINT, request_stop);
-  std::signal(SIGTERM, request_stop);
-  if (!o.headless) require_display(o.replay_dir.empty() ? "--device" : "--replay");
-  if (!o.replay_dir.empty()) return run_replay(o);
-  if (o.headless && !o.screenshot_path.empty()) {
-    throw hq::InputError("--screenshot " + o.screenshot_path + ": needs the console (no --headless)");
-  }
+  return std::nullopt;
+}
 
+hq::link::LinkConfig load_link(const Options& o) {
   hq::link::LinkConfig link = o.link_config_path.empty()
                                   ? hq::link::LinkConfig{}
                                   : hq::link::load_link_config(o.link_config_path);
@@ -649,320 +622,55 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "hq-ground: received samples impaired: %s\n",
                  hq::link::describe(link.impairment).c_str());
   }
-  const hq::haptics::HapticsConfig haptics = hq::haptics::load_haptics_config(o.haptics_path);
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
-  hq::haptics::DeviceOptions device_options;
-  device_options.config = haptics;
-  device_options.terminal_fd = STDIN_FILENO;
-  // Keyboard flying: from the console window's key events when it is open, from the terminal
-  // in raw mode when --headless.
-  hq::console::FlightKeys flight_keys;
-  const bool window_keyboard = o.device == "keyboard" && !o.headless;
-  std::unique_ptr<hq::haptics::HapticDevice> device =
-      window_keyboard
-          ? std::make_unique<hq::ground::WindowKeyboardDevice>(haptics.keyboard, flight_keys)
-          : hq::haptics::open_device(o.device, device_options);
+  return link;
+}
 
-  std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
-  if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
-  // The MCAP flight record: a DDS subscriber on its own thread, so the command path below only
-  // pushes one GroundSample per tick into a lock-free queue. A folder it cannot write to is told
-  // and the flight goes on without it.
-  std::unique_ptr<hq::mcap_recorder::FlightRecorder> mcap;
-  std::string mcap_off;  // why there is no MCAP record despite --record
-  if (!o.record_dir.empty()) {
-    hq::mcap_recorder::FlightRecorderOptions mo;
-    mo.path = o.record_dir + "/flight.mcap";
-    mo.link = link;
-    for (const std::string& path : {o.haptics_path, o.vehicle_path, o.link_config_path}) {
-      if (!path.empty()) mo.attachments.push_back({path, ""});
-    }
-    try {
-      mcap = std::make_unique<hq::mcap_recorder::FlightRecorder>(mo);
-      for (const std::string& skipped : mcap->attachments_skipped()) {
-        std::fprintf(stderr, "hq-ground: mcap: attachment skipped: %s\n", skipped.c_str());
-      }
-    } catch (const hq::InputError& e) {
-      mcap_off = std::string("mcap recording off: ") + e.what();
-      std::fprintf(stderr, "hq-ground: %s\n", mcap_off.c_str());
-    }
+// The MCAP flight record: a DDS subscriber on its own thread, so the command path only pushes
+// one GroundSample per tick into a lock-free queue. A folder it cannot write to is told (in
+// `off`) and the flight goes on without it.
+std::unique_ptr<hq::mcap_recorder::FlightRecorder> open_mcap(const Options& o,
+                                                             const hq::link::LinkConfig& link,
+                                                             std::string& off) {
+  if (o.record_dir.empty()) return nullptr;
+  hq::mcap_recorder::FlightRecorderOptions mo;
+  mo.path = o.record_dir + "/flight.mcap";
+  mo.link = link;
+  for (const std::string& path : {o.haptics_path, o.vehicle_path, o.link_config_path}) {
+    if (!path.empty()) mo.attachments.push_back({path, ""});
   }
-  hq::ground::GroundStation ground(link, recorder.get());
-  ground.set_log(stdout);  // control lost / vehicle restarted: said once each, on stdout
-  hq::console::ConsoleModel model;
-  ModelFeed feed(model, ground);
-  ground.set_observer(&feed);
-  if (!mcap_off.empty()) model.on_event(dds_time(), 2, mcap_off.c_str());
-  model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
-  hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
-  const hq::haptics::RealtimeGrant grant = loop.start();
-  std::fprintf(stderr,
-               "hq-ground: device %s, domain %d, vehicle %u, station %u (strength %d); haptic "
-               "loop: %s\n",
-               device->name(), link.domain_id, link.vehicle_id, link.station_id,
-               link.station_strength, grant.summary.c_str());
+  try {
+    auto mcap = std::make_unique<hq::mcap_recorder::FlightRecorder>(mo);
+    for (const std::string& skipped : mcap->attachments_skipped()) {
+      std::fprintf(stderr, "hq-ground: mcap: attachment skipped: %s\n", skipped.c_str());
+    }
+    return mcap;
+  } catch (const hq::InputError& e) {
+    off = std::string("mcap recording off: ") + e.what();
+    std::fprintf(stderr, "hq-ground: %s\n", off.c_str());
+    return nullptr;
+  }
+}
 
-  const bool live = false;  // the console window replaced the terminal's live status line
-  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / o.command_rate_hz));
-  const std::int64_t start_ns = hq::haptics::monotonic_now_ns();
-  std::uint64_t device_losses = 0;
-  double max_state_gap_s = 0.0;
-  double max_force_n = 0.0;  // the largest force the hand felt (at the command rate)
-  UiRequests requests;
-  std::atomic<bool> flying_done{false};
-  hq::console::LinkLossMonitor link_loss(o.link_lost_after_s);
-  // The flight: commands, link and haptic feedback. On its own thread when the console is up,
-  // so that drawing never delays a command or the feedback's vehicle state.
-  hq::ground::MarkerChoice marker_cli;
+hq::ground::OperatorStationOptions station_options(const Options& o,
+                                                   const hq::link::LinkConfig& link) {
+  hq::ground::OperatorStationOptions so;
+  so.command_rate_hz = o.command_rate_hz;
+  so.duration_s = o.duration_s;
+  so.headless = o.headless;
+  so.take_off = o.take_off;
   if (!o.marker_task.empty()) {
-    marker_cli.task = hq::ground::marker_task_of(o.marker_task).value_or(hq_msgs_MARKER_TASK_NONE);
-    marker_cli.target_id = o.marker_id;
+    so.marker.task = hq::ground::marker_task_of(o.marker_task).value_or(hq_msgs_MARKER_TASK_NONE);
+    so.marker.target_id = o.marker_id;
   }
-  const auto fly = [&] {
-    std::int64_t next_ns = start_ns + period_ns;
-    std::int64_t next_heartbeat_ns = start_ns;
-    std::int64_t next_status_ns = start_ns;
-    std::int64_t next_health_ns = start_ns;
-    const std::int64_t status_period_ns = live ? 200'000'000 : 1'000'000'000;
-    hq::ground::ModeToggle toggle;
-    bool marker_cli_sent = false;
-    bool take_off_cli_sent = false;
-    bool was_connected = true;
-    bool recording_failure_told = false;
-    bool mcap_failure_told = false;
-    std::int64_t last_state_ns = 0;
-    std::uint64_t last_states = 0;
-    std::uint64_t last_frames = 0;
-    while (!g_stop && !flying_done) {
-      // Wait for the next command tick, taking vehicle states the moment they arrive so the
-      // force feedback gets them at once and their receipt time is exact.
-      const bool fresh = ground.poll_until(next_ns);
-      const std::int64_t now_ns = hq::haptics::monotonic_now_ns();
-      if (fresh) {
-        const hq::link::VehicleState& s = ground.status().state;
-        hq::haptics::VehicleEstimate estimate;
-        // Stamped with when the vehicle measured it (through the heartbeat clock offset), so
-        // the force law's fade sees the link's delay; the receipt time until the offset is known.
-        const std::int64_t age_ns = ground.status().last_state_age_ns;
-        estimate.t_ns = now_ns - std::max<std::int64_t>(age_ns, 0);
-        estimate.valid = static_cast<int>(s.estimator_health) != hq_msgs_HEALTH_LOST;
-        estimate.v_H_mps = {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z};
-        estimate.yaw_rate_radps = s.omega_body_radps.z;
-        loop.set_vehicle_estimate(estimate);
-        if (last_state_ns != 0) {
-          max_state_gap_s =
-              std::max(max_state_gap_s, 1e-9 * static_cast<double>(now_ns - last_state_ns));
-        }
-        last_state_ns = now_ns;
-      }
-      if (now_ns < next_ns) continue;
-      next_ns += period_ns;
-      const double t_s = 1e-9 * static_cast<double>(now_ns - start_ns);
-      if (o.duration_s > 0.0 && t_s >= o.duration_s) break;
-      // The link-loss alarm: told once per loss on stdout, in the console's events and in the
-      // recording (so a replay shows it), and counted for the summary.
-      const hq::console::LinkLossMonitor::Change loss =
-          link_loss.update(ground.status().have_state ? ground.state_age_s() : -1.0);
-      if (loss != hq::console::LinkLossMonitor::Change::kNone) {
-        const bool lost = loss == hq::console::LinkLossMonitor::Change::kLost;
-        hq::link::Event e{};
-        e.vehicle_id = ground.vehicle_id();
-        e.t_ns = now_ns;
-        e.severity = lost ? hq_msgs_SEVERITY_ERROR : hq_msgs_SEVERITY_INFO;
-        if (lost) {
-          std::snprintf(e.text, sizeof e.text,
-                        "VEHICLE LINK LOST: no vehicle state for %.1f s (ground)",
-                        link_loss.last_loss_s());
-        } else {
-          std::snprintf(e.text, sizeof e.text, "vehicle link regained after %.1f s (ground)",
-                        link_loss.last_loss_s());
-        }
-        std::printf("hq-ground: t %.1f s: %s\n", t_s, e.text);
-        std::fflush(stdout);
-        const std::int64_t event_wall_ns = dds_time();
-        model.on_event(event_wall_ns, lost ? 2 : 0, e.text);
-        if (recorder) recorder->event(event_wall_ns, e);
-      }
+  so.link_lost_after_s = o.link_lost_after_s;
+  so.station_id = link.station_id;
+  return so;
+}
 
-      const hq::haptics::LoopOutput hand = loop.latest();
-      if (was_connected && !hand.device_connected) {
-        ++device_losses;
-        std::fprintf(stderr, "\nhq-ground: device lost (%s): sending zero commands\n",
-                     hand.status.data());
-      }
-      was_connected = hand.device_connected;
-      const bool valid = hand.command_valid && hand.device_connected;
-      ground.send_command(now_ns, hand.command, valid);
-      const std::int64_t wall_ns = dds_time();  // the clock of the recorded receipts
-      if (recorder) recorder->command(wall_ns, hand.command, valid);
-      if (mcap) {
-        const hq::ground::LinkStatus& st = ground.status();
-        hq::mcap_recorder::GroundSample g;
-        g.t_ns = wall_ns;
-        g.command_valid = valid;
-        for (int i = 0; i < 3; ++i) {
-          g.v_cmd_H_mps[i] = valid ? static_cast<float>(hand.command.v_H_mps[i]) : 0.0F;
-          g.p_D_m[i] = static_cast<float>(hand.p_D_m[i]);
-          g.F_D_n[i] = static_cast<float>(hand.F_D_n[i]);
-        }
-        g.yaw_rate_cmd_radps = valid ? static_cast<float>(hand.command.yaw_rate_radps) : 0.0F;
-        g.latency_ms = st.have_state ? 1e-6F * static_cast<float>(st.last_latency_ns) : -1.0F;
-        g.round_trip_ms = 1e-6F * static_cast<float>(st.round_trip_ns);
-        g.state_age_ms = 1e-6F * static_cast<float>(st.last_state_age_ns);
-        mcap->push(g);  // never blocks; dropped and counted when full
-      }
-      const Eigen::Vector3d v = valid ? hand.command.v_H_mps : Eigen::Vector3d::Zero();
-      model.on_command(wall_ns,
-                       {static_cast<float>(v.x()), static_cast<float>(v.y()),
-                        static_cast<float>(v.z())},
-                       valid ? static_cast<float>(hand.command.yaw_rate_radps) : 0.0F);
-      hq::console::HapticState h;
-      h.valid = true;
-      for (int i = 0; i < 3; ++i) {
-        h.p_D_m[static_cast<std::size_t>(i)] = static_cast<float>(hand.p_D_m[i]);
-        h.F_D_n[static_cast<std::size_t>(i)] = static_cast<float>(hand.F_D_n[i]);
-      }
-      max_force_n = std::max(max_force_n, hand.F_D_n.norm());
-      h.buttons = hand.buttons;
-      h.connected = hand.device_connected;
-      h.cue_weight = static_cast<float>(hand.cue_weight);
-      h.passivity_energy_j = static_cast<float>(hand.passivity_energy_j);
-      h.status = hand.status;
-      model.on_haptics(h);
-
-      const hq_msgs_Mode vehicle_mode =
-          ground.status().have_state ? ground.status().state.mode : hq_msgs_MODE_HOVER;
-      std::optional<hq_msgs_Mode> mode = toggle.on_buttons(hand.buttons, vehicle_mode);
-      if (const int ui_mode = requests.mode.exchange(-1); ui_mode >= 0) {
-        mode = static_cast<hq_msgs_Mode>(ui_mode);
-      }
-      // Take-off (the window's button or key, or --take-off once the vehicle is heard from):
-      // the vehicle climbs to its take-off height, then flies teleop.
-      bool take_off = requests.take_off.exchange(false);
-      if (o.take_off && !take_off_cli_sent && ground.status().have_state) {
-        take_off = true;
-        take_off_cli_sent = true;
-      }
-      if (take_off) mode = hq_msgs_MODE_TELEOP;
-      // --marker-task: one marker mode request once the vehicle is heard from.
-      if (!mode && marker_cli.task != hq_msgs_MARKER_TASK_NONE && !marker_cli_sent &&
-          ground.status().have_state) {
-        mode = hq_msgs_MODE_MARKER;
-        marker_cli_sent = true;
-      }
-      if (mode) {
-        // A marker request carries the window's last marker choice, else the command line's.
-        hq::ground::MarkerChoice marker;
-        if (*mode == hq_msgs_MODE_MARKER) {
-          const int ui_task = requests.marker_task.exchange(hq_msgs_MARKER_TASK_NONE);
-          marker = marker_cli;
-          if (ui_task != hq_msgs_MARKER_TASK_NONE) {
-            marker.task = static_cast<hq_msgs_MarkerTask>(ui_task);
-            marker.target_id = requests.marker_id.load();
-          }
-        }
-        const bool sent = ground.request_mode(now_ns, *mode, marker, take_off);
-        if (marker.task != hq_msgs_MARKER_TASK_NONE) {
-          static constexpr std::array<const char*, 4> kTaskNames = {"none", "hold", "goto", "land"};
-          std::fprintf(stderr, "%shq-ground: marker task %s on marker %d\n", live ? "\n" : "",
-                       kTaskNames[static_cast<std::size_t>(marker.task) % kTaskNames.size()],
-                       static_cast<int>(marker.target_id));
-        }
-        if (recorder) recorder->mode_request(wall_ns, *mode);
-        std::fprintf(stderr, "%shq-ground: t %.1f s: requesting %smode %s%s\n", live ? "\n" : "",
-                     t_s, take_off ? "take-off, then " : "", hq::ground::to_string(*mode),
-                     sent ? "" : " (waiting for vehicle)");
-      }
-      if (const std::int64_t id = requests.vehicle.exchange(-1); id >= 0) {
-        ground.select_vehicle(static_cast<std::uint32_t>(id));
-      }
-      if (now_ns >= next_heartbeat_ns) {
-        ground.send_heartbeat(now_ns);
-        next_heartbeat_ns += 100'000'000;  // 10 Hz, well inside the vehicle's 2 s timeout
-      }
-      if (now_ns >= next_health_ns) {
-        const hq::ground::LinkStatus& st = ground.status();
-        hq::console::LinkHealth health;
-        health.latency_p50_ms = ground.latency().quantile_ms(0.5);
-        health.latency_p99_ms = ground.latency().quantile_ms(0.99);
-        health.last_latency_ms = 1e-6 * static_cast<double>(st.last_latency_ns);
-        health.state_age_s = st.have_state ? ground.state_age_s() : -1.0;
-        health.round_trip_ms = 1e-6 * static_cast<double>(st.round_trip_ns);
-        health.round_trip_p50_ms = ground.round_trip().quantile_ms(0.5);
-        health.round_trip_p99_ms = ground.round_trip().quantile_ms(0.99);
-        health.state_one_way_ms = 1e-6 * static_cast<double>(st.last_state_age_ns);
-        health.state_one_way_p99_ms = ground.state_age().quantile_ms(0.99);
-        health.state_loss_percent = 100.0 * ground.state_loss();
-        health.state_rate_hz = 4.0 * static_cast<double>(st.states - last_states);
-        health.camera_rate_hz = 4.0 * static_cast<double>(st.camera_frames - last_frames);
-        last_states = st.states;
-        last_frames = st.camera_frames;
-        health.states = st.states;
-        health.camera_frames = st.camera_frames;
-        health.events = st.events;
-        health.commands_sent = st.commands_sent;
-        health.write_failures = st.write_failures;
-        health.sequence_gaps = st.state_sequence_gaps;
-        health.states_rejected = st.states_rejected;
-        health.states_implausible = st.states_implausible;
-        health.states_wrong_session = st.states_wrong_session;
-        health.events_rejected = st.events_rejected;
-        health.vehicle_session = st.vehicle_session;
-        health.waiting_for_vehicle = st.waiting_for_vehicle;
-        health.control_lost = st.control_lost;
-        health.commanding_station = st.commanding_station_id;
-        health.own_station = link.station_id;
-        health.heartbeat_seen = st.have_vehicle_heartbeat;
-        health.vehicle_ids = st.vehicle_ids_seen;
-        health.vehicle_id_count = st.vehicle_ids_seen_count;
-        health.selected_vehicle = ground.vehicle_id();
-        health.link_lost = link_loss.lost();
-        health.link_losses = link_loss.losses();
-        health.longest_loss_s = link_loss.longest_s();
-        model.on_link(health);
-        next_health_ns += 250'000'000;  // 4 Hz: rates above are per quarter second
-      }
-      if (now_ns >= next_status_ns) {
-        if (o.headless) print_status(stderr, live, t_s, ground, hand);
-        if (recorder && !recorder->flush() && !recording_failure_told) {
-          // Told once, on the console and the terminal; flying goes on, the exit status says it.
-          recording_failure_told = true;
-          std::fprintf(stderr, "\nhq-ground: recording: %s\n", recorder->error().c_str());
-          model.on_event(dds_time(), 2, ("recording: " + recorder->error()).c_str());
-        }
-        if (mcap && mcap->failed() && !mcap_failure_told) {
-          mcap_failure_told = true;
-          std::fprintf(stderr, "\nhq-ground: %s\n", mcap->error().c_str());
-          model.on_event(dds_time(), 2, mcap->error().c_str());
-        }
-        next_status_ns += status_period_ns;
-      }
-    }
-    flying_done = true;
-  };
-  std::printf("hq-ground summary\n");
-  hq::console::Snapshot snap = model.make_snapshot();
-  std::optional<hq::console::WindowStats> window;
-  if (o.headless) {
-    fly();
-  } else {
-    std::thread flying(fly);
-    try {
-      window = run_window(o, "hq-ground: operator console", model, requests, flying_done, snap,
-                          window_keyboard ? &flight_keys : nullptr);
-    } catch (...) {
-      flying_done = true;
-      flying.join();
-      throw;
-    }
-    flying_done = true;
-    flying.join();
-  }
-  loop.stop();
-  if (live) std::fprintf(stderr, "\n");
-
+// Link figures of the summary.
+void print_link_summary(const hq::ground::GroundStation& ground,
+                        const hq::ground::OperatorStation& station) {
   const hq::ground::LinkStatus& s = ground.status();
-  const hq::haptics::LoopTimingReport& timing = loop.timing();
   std::printf("  %-40s %llu commands, %llu mode requests, %llu heartbeats, %llu failed\n", "sent",
               static_cast<unsigned long long>(s.commands_sent),
               static_cast<unsigned long long>(s.mode_requests_sent),
@@ -983,13 +691,23 @@ int run(int argc, char** argv) {
               static_cast<long long>(ground.state_age().count()));
   std::printf("  %-40s %.1f %% (%llu reordered, dropped as older)\n", "vehicle state loss",
               100.0 * ground.state_loss(), static_cast<unsigned long long>(s.states_reordered));
-  std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states", 1e3 * max_state_gap_s);
+  std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states",
+              1e3 * station.stats().max_state_gap_s);
+  const hq::console::LinkLossMonitor& link_loss = station.link_loss();
   std::printf("  %-40s %u, longest %.1f s (alarm after %.1f s without a state)\n",
               "vehicle link losses", link_loss.losses(), link_loss.longest_s(),
               link_loss.lost_after_s());
   std::printf("  %-40s %s\n", "last vehicle mode",
               s.have_state ? hq::ground::to_string(s.state.mode) : "-");
   std::printf("  %-40s %s\n", "last event", s.last_event.data());
+}
+
+// Haptic loop, checks and ownership figures of the summary.
+void print_hand_summary(const hq::ground::GroundStation& ground,
+                        const hq::ground::OperatorStation& station,
+                        const hq::haptics::HapticLoop& loop, std::uint32_t station_id) {
+  const hq::ground::LinkStatus& s = ground.status();
+  const hq::haptics::LoopTimingReport& timing = loop.timing();
   std::printf("  %-40s p50 %.1f us, p99 %.1f us, max %.1f us, %lld missed\n",
               "haptic loop period jitter", timing.period.quantile_us(0.5),
               timing.period.quantile_us(0.99), timing.period.max_us(),
@@ -999,7 +717,8 @@ int run(int argc, char** argv) {
   std::printf("  %-40s %.4f J dissipated (%s)\n", "passivity controller",
               loop.passivity_controller().dissipated_j(),
               loop.passivity_controller().enabled() ? "on" : "off");
-  std::printf("  %-40s %llu\n", "device losses", static_cast<unsigned long long>(device_losses));
+  std::printf("  %-40s %llu\n", "device losses",
+              static_cast<unsigned long long>(station.stats().device_losses));
   std::printf("  %-40s %llu missing, %llu rejected (%llu invalid, %llu implausible, %llu of "
               "another session, %llu sequence jumps)\n",
               "vehicle states lost", static_cast<unsigned long long>(s.state_sequence_gaps),
@@ -1013,61 +732,170 @@ int run(int argc, char** argv) {
               static_cast<unsigned long long>(s.vehicle_session),
               static_cast<unsigned long long>(s.vehicle_restarts));
   std::printf("  %-40s %s (commander: station %u, this station %u, %llu losses)\n", "control",
-              s.control_lost ? "LOST" : "held", s.commanding_station_id, link.station_id,
+              s.control_lost ? "LOST" : "held", s.commanding_station_id, station_id,
               static_cast<unsigned long long>(s.control_losses));
-  std::printf("  %-40s %.3f N\n", "largest force on the hand", max_force_n);
+  std::printf("  %-40s %.3f N\n", "largest force on the hand", station.stats().max_force_n);
+}
+
+// --state-json of a flight: the station's final word, not the console's last 4 Hz copy.
+void write_flight_state_json(const Options& o, const hq::ground::GroundStation& ground,
+                             const hq::ground::OperatorStation& station,
+                             const hq::haptics::HapticLoop& loop, std::uint32_t station_id,
+                             hq::console::ConsoleModel& model, hq::console::Snapshot& snap,
+                             const std::optional<hq::console::WindowStats>& window) {
+  const hq::ground::LinkStatus& s = ground.status();
+  model.snapshot(snap);
+  snap.link.control_lost = s.control_lost;
+  snap.link.commanding_station = s.commanding_station_id;
+  snap.link.own_station = station_id;
+  snap.link.vehicle_session = s.vehicle_session;
+  snap.link.waiting_for_vehicle = s.waiting_for_vehicle;
+  snap.link.states_rejected = s.states_rejected;
+  snap.link.states_implausible = s.states_implausible;
+  snap.link.states_wrong_session = s.states_wrong_session;
+  snap.link.events_rejected = s.events_rejected;
+  write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0,
+                   station.stats().max_force_n, loop.passivity().min_energy_j());
+}
+
+// Closes the MCAP record with the flight's summary and prints what it wrote.
+void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::GroundStation& ground,
+                const hq::ground::OperatorStation& station, const hq::haptics::HapticLoop& loop) {
+  const hq::ground::LinkStatus& s = ground.status();
+  char value[64];
+  hq::mcap::KeyValues summary;
+  const auto put = [&](const char* key, double v) {
+    std::snprintf(value, sizeof value, "%.6g", v);
+    summary[key] = value;
+  };
+  put("duration_s",
+      1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - station.start_ns()));
+  put("commands_sent", static_cast<double>(s.commands_sent));
+  put("mode_requests_sent", static_cast<double>(s.mode_requests_sent));
+  put("states_received", static_cast<double>(s.states));
+  put("events_received", static_cast<double>(s.events));
+  put("camera_frames_received", static_cast<double>(s.camera_frames));
+  put("state_latency_p50_ms", ground.latency().quantile_ms(0.5));
+  put("state_latency_p99_ms", ground.latency().quantile_ms(0.99));
+  put("state_loss_percent", 100.0 * ground.state_loss());
+  put("haptic_period_jitter_p99_us", loop.timing().period.quantile_us(0.99));
+  put("device_losses", static_cast<double>(station.stats().device_losses));
+  summary["last_vehicle_mode"] = s.have_state ? hq::ground::to_string(s.state.mode) : "-";
+  summary["last_event"] = s.last_event.data();
+  const hq::mcap_recorder::RecorderReport& r = mcap.close(summary);
+  std::printf("  %-40s %llu messages, %u channels, %llu bytes, %u attachments, %llu ground "
+              "samples dropped\n",
+              "mcap", static_cast<unsigned long long>(r.messages), r.channels,
+              static_cast<unsigned long long>(r.bytes), r.attachments,
+              static_cast<unsigned long long>(r.ground_samples_dropped));
+  for (const hq::mcap_recorder::ChannelReport& c : r.per_channel) {
+    std::printf("  mcap channel %s %llu %lld %lld\n", c.topic.c_str(),
+                static_cast<unsigned long long>(c.messages),
+                static_cast<long long>(c.first_log_time_ns),
+                static_cast<long long>(c.last_log_time_ns));
+  }
+  if (!r.error.empty()) std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
+}
+
+// The flight: the operator station on its own thread when the console is up, so that drawing
+// never delays a command or the feedback's vehicle state; on this thread when headless.
+std::optional<hq::console::WindowStats> fly(const Options& o,
+                                            hq::ground::OperatorStation& station,
+                                            hq::console::ConsoleModel& model,
+                                            hq::console::Snapshot& snap,
+                                            hq::console::FlightKeys* flight_keys) {
+  std::atomic<bool> flying_done{false};
+  if (o.headless) {
+    station.run(g_stop, flying_done);
+    return std::nullopt;
+  }
+  std::thread flying([&] {
+    station.run(g_stop, flying_done);
+    flying_done = true;
+  });
+  std::optional<hq::console::WindowStats> window;
+  try {
+    window = run_window(o, "hq-ground: operator console", model, station.requests(), flying_done,
+                        snap, flight_keys);
+  } catch (...) {
+    flying_done = true;
+    flying.join();
+    throw;
+  }
+  flying_done = true;
+  flying.join();
+  return window;
+}
+
+int run_live(const Options& o) {
+  const hq::link::LinkConfig link = load_link(o);
+  const hq::haptics::HapticsConfig haptics = hq::haptics::load_haptics_config(o.haptics_path);
+  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  hq::haptics::DeviceOptions device_options;
+  device_options.config = haptics;
+  device_options.terminal_fd = STDIN_FILENO;
+  // Keyboard flying: from the console window's key events when it is open, from the terminal
+  // in raw mode when --headless.
+  hq::console::FlightKeys flight_keys;
+  const bool window_keyboard = o.device == "keyboard" && !o.headless;
+  std::unique_ptr<hq::haptics::HapticDevice> device =
+      window_keyboard
+          ? std::make_unique<hq::ground::WindowKeyboardDevice>(haptics.keyboard, flight_keys)
+          : hq::haptics::open_device(o.device, device_options);
+
+  std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
+  if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
+  std::string mcap_off;  // why there is no MCAP record despite --record
+  std::unique_ptr<hq::mcap_recorder::FlightRecorder> mcap = open_mcap(o, link, mcap_off);
+  hq::ground::GroundStation ground(link, recorder.get());
+  ground.set_log(stdout);  // control lost / vehicle restarted: said once each, on stdout
+  hq::console::ConsoleModel model;
+  ModelFeed feed(model, ground);
+  ground.set_observer(&feed);
+  if (!mcap_off.empty()) model.on_event(dds_time(), 2, mcap_off.c_str());
+  model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
+  hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
+  const hq::haptics::RealtimeGrant grant = loop.start();
+  std::fprintf(stderr,
+               "hq-ground: device %s, domain %d, vehicle %u, station %u (strength %d); haptic "
+               "loop: %s\n",
+               device->name(), link.domain_id, link.vehicle_id, link.station_id,
+               link.station_strength, grant.summary.c_str());
+
+  hq::ground::SystemClock clock;
+  hq::ground::OperatorOutputs outputs;
+  outputs.recorder = recorder.get();
+  outputs.mcap = mcap.get();
+  hq::ground::OperatorStation station(station_options(o, link), ground, loop, model, clock,
+                                      outputs);
+  std::printf("hq-ground summary\n");
+  hq::console::Snapshot snap = model.make_snapshot();
+  const std::optional<hq::console::WindowStats> window =
+      fly(o, station, model, snap, window_keyboard ? &flight_keys : nullptr);
+  loop.stop();
+
+  print_link_summary(ground, station);
+  print_hand_summary(ground, station, loop, link.station_id);
   if (!o.state_json_path.empty()) {
-    model.snapshot(snap);
-    // The final word of the station, not the console's last 4 Hz copy.
-    snap.link.control_lost = s.control_lost;
-    snap.link.commanding_station = s.commanding_station_id;
-    snap.link.own_station = link.station_id;
-    snap.link.vehicle_session = s.vehicle_session;
-    snap.link.waiting_for_vehicle = s.waiting_for_vehicle;
-    snap.link.states_rejected = s.states_rejected;
-    snap.link.states_implausible = s.states_implausible;
-    snap.link.states_wrong_session = s.states_wrong_session;
-    snap.link.events_rejected = s.events_rejected;
-    write_state_json(o.state_json_path, snap, window ? &*window : nullptr, 0, 0, max_force_n,
-                     loop.passivity().min_energy_j());
+    write_flight_state_json(o, ground, station, loop, link.station_id, model, snap, window);
   }
-  if (mcap) {
-    char value[64];
-    hq::mcap::KeyValues summary;
-    const auto put = [&](const char* key, double v) {
-      std::snprintf(value, sizeof value, "%.6g", v);
-      summary[key] = value;
-    };
-    put("duration_s", 1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - start_ns));
-    put("commands_sent", static_cast<double>(s.commands_sent));
-    put("mode_requests_sent", static_cast<double>(s.mode_requests_sent));
-    put("states_received", static_cast<double>(s.states));
-    put("events_received", static_cast<double>(s.events));
-    put("camera_frames_received", static_cast<double>(s.camera_frames));
-    put("state_latency_p50_ms", ground.latency().quantile_ms(0.5));
-    put("state_latency_p99_ms", ground.latency().quantile_ms(0.99));
-    put("state_loss_percent", 100.0 * ground.state_loss());
-    put("haptic_period_jitter_p99_us", timing.period.quantile_us(0.99));
-    put("device_losses", static_cast<double>(device_losses));
-    summary["last_vehicle_mode"] = s.have_state ? hq::ground::to_string(s.state.mode) : "-";
-    summary["last_event"] = s.last_event.data();
-    const hq::mcap_recorder::RecorderReport& r = mcap->close(summary);
-    std::printf("  %-40s %llu messages, %u channels, %llu bytes, %u attachments, %llu ground "
-                "samples dropped\n",
-                "mcap", static_cast<unsigned long long>(r.messages), r.channels,
-                static_cast<unsigned long long>(r.bytes), r.attachments,
-                static_cast<unsigned long long>(r.ground_samples_dropped));
-    for (const hq::mcap_recorder::ChannelReport& c : r.per_channel) {
-      std::printf("  mcap channel %s %llu %lld %lld\n", c.topic.c_str(),
-                  static_cast<unsigned long long>(c.messages),
-                  static_cast<long long>(c.first_log_time_ns),
-                  static_cast<long long>(c.last_log_time_ns));
-    }
-    if (!r.error.empty()) std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
-  }
+  if (mcap) close_mcap(*mcap, ground, station, loop);
   if (!mcap_off.empty()) std::printf("  %-40s %s\n", "mcap", mcap_off.c_str());
   if (recorder && !recorder->close()) throw hq::InputError("recording: " + recorder->error());
   return 0;
+}
+
+int run(int argc, char** argv) {
+  Options o;
+  if (const std::optional<int> status = parse_options(argc, argv, o)) return *status;
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  if (!o.headless) require_display(o.replay_dir.empty() ? "--device" : "--replay");
+  if (!o.replay_dir.empty()) return run_replay(o);
+  if (o.headless && !o.screenshot_path.empty()) {
+    throw hq::InputError("--screenshot " + o.screenshot_path + ": needs the console (no --headless)");
+  }
+  return run_live(o);
 }
 
 }  // namespace

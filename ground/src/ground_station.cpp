@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/base/quantile.hpp"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -94,15 +95,9 @@ void LatencyStats::add(std::int64_t latency_ns) {
 
 double LatencyStats::quantile_ms(double q) const {
   if (count_ == 0) return 0.0;
-  const auto target = static_cast<std::int64_t>(std::ceil(q * static_cast<double>(count_)));
-  std::int64_t seen = 0;
-  for (std::size_t i = 0; i < bins_.size(); ++i) {
-    seen += bins_[i];
-    if (seen >= std::max<std::int64_t>(target, 1)) {
-      return 1e-6 * static_cast<double>(bin_ns_) * static_cast<double>(i + 1);
-    }
-  }
-  return 1e-6 * static_cast<double>(bin_ns_) * static_cast<double>(bins_.size());
+  // The upper edge of the bin; the last bin's when the quantile lies beyond the range.
+  const std::size_t b = histogram_quantile_bin(bins_, count_, q);
+  return 1e-6 * static_cast<double>(bin_ns_) * static_cast<double>(std::min(b + 1, bins_.size()));
 }
 
 namespace {
@@ -170,6 +165,51 @@ const char* operator_input_name(hq_msgs_OperatorInput v) {
   return "unknown";
 }
 
+// The files' heads: the '#' lines naming frames, clocks and units, then the columns.
+constexpr const char* kTelemetryHeader =
+    "# hq-ground telemetry v1: one row per vehicle state received.\n"
+    "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
+    "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
+    "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
+    "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
+    "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
+    "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
+    "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
+    "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
+    "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
+    "# session_id: the vehicle process's session (a new value: the vehicle restarted);\n"
+    "# commanding_station_id: the station it obeys (0 none); flight_state, motors_armed;\n"
+    "# height_m above the floor from height_source (none: meaningless);\n"
+    "# operator_input: what the vehicle did with the command; v_cmd_flown_H: the\n"
+    "# command as flown (m/s); clearance_m: the vehicle's closest obstacle clearance\n"
+    "# (m, < 0: none seen).\n"
+    "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
+    "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
+    "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
+    "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
+    "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n,"
+    "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
+    "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
+    "clearance_m\n";
+constexpr const char* kEventsHeader =
+    "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
+    "# severity 0 info 1 warning 2 error.\n"
+    "receipt_ns,sequence,t_ns,severity,code,text\n";
+constexpr const char* kCommandsHeader =
+    "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
+    "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
+    "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
+    "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n";
+constexpr const char* kModesHeader =
+    "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
+    "t_ns,mode\n";
+constexpr const char* kRgbListHeader =
+    "# color images (JPEG as received)\n"
+    "# timestamp filename (timestamp: receipt on the ground clock, s)\n";
+constexpr const char* kDepthListHeader =
+    "# depth colour-map previews (not metric depth)\n"
+    "# timestamp filename (timestamp: receipt on the ground clock, s)\n";
+
 }  // namespace
 
 TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(directory) {
@@ -201,58 +241,12 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
   rgb_list_ = open_for_writing(directory + "/rgb.txt");
   depth_list_ = open_for_writing(directory + "/depth_preview.txt");
   closer.armed = false;
-  written(std::fprintf(
-              telemetry_,
-              "# hq-ground telemetry v1: one row per vehicle state received.\n"
-              "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
-              "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
-              "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
-              "# omega: body gyro rates (FRD), rad/s; v_obs_H: obstacle repulsion in H, m/s;\n"
-              "# closest_obstacle_m: nearest point of the sent cloud (nan: no cloud).\n"
-              "# position_valid 1: p_W (m) and yaw_W (rad) are the marker filter's pose in the\n"
-              "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
-              "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
-              "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
-              "# session_id: the vehicle process's session (a new value: the vehicle restarted);\n"
-              "# commanding_station_id: the station it obeys (0 none); flight_state, motors_armed;\n"
-              "# height_m above the floor from height_source (none: meaningless);\n"
-              "# operator_input: what the vehicle did with the command; v_cmd_flown_H: the\n"
-              "# command as flown (m/s); clearance_m: the vehicle's closest obstacle clearance\n"
-              "# (m, < 0: none seen).\n"
-              "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
-              "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
-              "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
-              "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
-              "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n,"
-              "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
-              "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
-              "clearance_m\n"),
-          "telemetry.csv");
-  written(
-      std::fprintf(events_,
-                   "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
-                   "# severity 0 info 1 warning 2 error.\n"
-                   "receipt_ns,sequence,t_ns,severity,code,text\n"),
-      "events.csv");
-  written(std::fprintf(
-              commands_,
-              "# hq-ground commands v1: one row per velocity command sent (eqs. 6-10 of the core\n"
-              "# paper). t_ns: ground clock (dds_time, ns); v_H: desired velocity in H (NED,\n"
-              "# m/s); yaw_rate: desired yaw rate (rad/s, + turns right); valid 0: zero sent.\n"
-              "t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,yaw_rate_radps,valid\n"),
-          "commands.csv");
-  written(std::fprintf(modes_,
-                       "# hq-ground mode requests v1: t_ns ground clock (dds_time, ns).\n"
-                       "t_ns,mode\n"),
-          "mode_requests.csv");
-  written(std::fprintf(rgb_list_,
-                       "# color images (JPEG as received)\n"
-                       "# timestamp filename (timestamp: receipt on the ground clock, s)\n"),
-          "rgb.txt");
-  written(std::fprintf(depth_list_,
-                       "# depth colour-map previews (not metric depth)\n"
-                       "# timestamp filename (timestamp: receipt on the ground clock, s)\n"),
-          "depth_preview.txt");
+  written(std::fputs(kTelemetryHeader, telemetry_), "telemetry.csv");
+  written(std::fputs(kEventsHeader, events_), "events.csv");
+  written(std::fputs(kCommandsHeader, commands_), "commands.csv");
+  written(std::fputs(kModesHeader, modes_), "mode_requests.csv");
+  written(std::fputs(kRgbListHeader, rgb_list_), "rgb.txt");
+  written(std::fputs(kDepthListHeader, depth_list_), "depth_preview.txt");
   path_.reserve(directory.size() + 64);
 }
 

@@ -3,6 +3,8 @@
 #include "hq/testing/input_error.hpp"
 #include "hq/testing/process.hpp"
 
+#include "hq/testing/files.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -81,18 +83,10 @@ TEST(MarkerTaskOf, NamesTheCommandLineTasksAndRejectsOthers) {
 
 namespace fs = std::filesystem;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("hq_ground_" + std::to_string(getpid()) + "_" + name);
-  fs::remove_all(dir);
-  return dir;
-}
+using hq::testing::slurp;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+fs::path fresh_dir(const std::string& name) {
+  return hq::testing::fresh_dir("hq_ground", name);
 }
 
 // GIVEN a folder that holds a recording, WHEN --record names it again, THEN it is refused and

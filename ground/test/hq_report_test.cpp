@@ -3,6 +3,8 @@
 #include "hq/ground/ground_station.hpp"
 #include "hq/testing/process.hpp"
 
+#include "hq/testing/files.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -22,18 +24,10 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("hq_report_" + std::to_string(getpid()) + "_" + name);
-  fs::remove_all(dir);
-  return dir;
-}
+using hq::testing::slurp;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+fs::path fresh_dir(const std::string& name) {
+  return hq::testing::fresh_dir("hq_report", name);
 }
 
 // Runs hq-report with an argument vector (no shell), output to `output` (default

@@ -3,6 +3,7 @@
 // what this machine's timer and scheduler give with nothing to do). A third thread plays the
 // ground's DDS side, reading commands and feeding vehicle estimates at 100 Hz. Not run by ctest.
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/haptic_loop.hpp"
@@ -35,11 +36,7 @@ void run_bare_loop(std::int64_t period_ns, const std::atomic<bool>& running, Bar
   std::int64_t deadline_ns = monotonic_now_ns() + period_ns;
   std::int64_t previous_ns = 0;
   while (running.load(std::memory_order_relaxed)) {
-    timespec ts{};
-    ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
-    ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
+    hq::sleep_until_monotonic_ns(deadline_ns);
     const std::int64_t wake_ns = monotonic_now_ns();
     out.wake.add(wake_ns - deadline_ns);
     if (previous_ns != 0) out.period.add(wake_ns - previous_ns - period_ns);

@@ -1,6 +1,8 @@
 #include "hq/haptics/haptic_loop.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/quantile.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -26,13 +28,6 @@ void copy_status(const char* text, std::array<char, 128>& out) {
   std::snprintf(out.data(), out.size(), "%s", text);
 }
 
-timespec to_timespec(std::int64_t t_ns) {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(t_ns / 1'000'000'000);
-  ts.tv_nsec = static_cast<long>(t_ns % 1'000'000'000);
-  return ts;
-}
-
 /// RLIMIT_MEMLOCK in KiB, -1 when unlimited.
 std::int64_t memlock_limit_kib() {
   rlimit limit{};
@@ -56,11 +51,7 @@ bool has_ipc_lock_capability() {
 
 }  // namespace
 
-std::int64_t monotonic_now_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+std::int64_t monotonic_now_ns() { return hq::monotonic_now_ns(); }
 
 JitterStats::JitterStats() : bins_(kHistogramRangeNs / kBinNs + 1, 0) {}
 
@@ -75,17 +66,10 @@ void JitterStats::add(std::int64_t error_ns) {
 
 double JitterStats::quantile_us(double q) const {
   if (count_ == 0) return 0.0;
-  const auto rank = static_cast<std::int64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * count_));
-  std::int64_t seen = 0;
-  for (std::size_t b = 0; b < bins_.size(); ++b) {
-    seen += bins_[b];
-    if (seen >= std::max<std::int64_t>(rank, 1)) {
-      // The last bin holds everything beyond the range: report the true maximum there.
-      if (b + 1 == bins_.size()) return max_us();
-      return 1e-3 * static_cast<double>((static_cast<std::int64_t>(b) + 1) * kBinNs);
-    }
-  }
-  return max_us();
+  const std::size_t b = histogram_quantile_bin(bins_, count_, q);
+  // The last bin holds everything beyond the range: report the true maximum there.
+  if (b + 1 >= bins_.size()) return max_us();
+  return 1e-3 * static_cast<double>((static_cast<std::int64_t>(b) + 1) * kBinNs);
 }
 
 void JitterStats::reset() {
@@ -248,9 +232,7 @@ void HapticLoop::run() {
   std::int64_t deadline_ns = monotonic_now_ns() + period_ns_;
   std::int64_t previous_wake_ns = 0;
   while (running_.load(std::memory_order_relaxed)) {
-    const timespec deadline = to_timespec(deadline_ns);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-    }
+    hq::sleep_until_monotonic_ns(deadline_ns);
     const std::int64_t wake_ns = monotonic_now_ns();
     timing_.wake.add(wake_ns - deadline_ns);
     if (previous_wake_ns != 0) timing_.period.add(wake_ns - previous_wake_ns - period_ns_);

@@ -7,6 +7,7 @@
 #include "hq/link_bridge/link_bridge.hpp"
 #include "hq/onboard_log/onboard_recorder.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
+#include "hq/pipeline/steady_clock.hpp"
 
 #include <atomic>
 #include <chrono>
@@ -16,14 +17,7 @@
 
 namespace hq::onboard_app {
 
-class SteadyClock final : public hq::pipeline::Clock {
- public:
-  std::int64_t now_ns() const override {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  }
-};
+using hq::pipeline::SteadyClock;
 
 struct Options {
   std::string source_kind;

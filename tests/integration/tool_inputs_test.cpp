@@ -82,6 +82,9 @@ TEST(ToolInputs, EveryLoaderExitsTwoNamingFileKeyAndValue) {
   const std::vector<BadFile> files = {
       {"a_directory.yaml", "", ": is a directory, expected a YAML file"},
       {"list_key.yaml", "[a, b]: 1\n", ":1: top level has key [a, b], which is a list"},
+      // yaml-cpp's bad conversion of a map to a key used to escape main: abort, status 134.
+      {"map_key.yaml", "{a: 1}: 1\n",
+       ":1: top level has key {a: 1}, which is a mapping, expected a scalar key"},
       {"duplicate.yaml", "name: one\nname: two\n",
        ":2: name = two duplicates the key on line 1, expected each key once"},
   };

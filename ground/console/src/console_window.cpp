@@ -584,6 +584,42 @@ struct ConsoleWindow::Impl {
     ImGui::End();
   }
 
+  // The markers the camera sees, placed in W through R_QC, p_QC and the vehicle's pose.
+  template <typename ToPx>
+  void top_view_markers(ImDrawList* draw, const Snapshot& s, const ToPx& to_px) const {
+    const float yaw = s.yaw_W_rad;
+    const std::array<float, 9>& R = options.R_body_camera;
+    for (std::size_t i = 0; i < s.marker_count; ++i) {
+      const std::array<float, 3>& c = s.markers[i].p_camera_marker_m;
+      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_body_camera_m[0];
+      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_body_camera_m[1];
+      const float x_W = s.position_W.x_W_m + std::cos(yaw) * qx - std::sin(yaw) * qy;
+      const float y_W = s.position_W.y_W_m + std::sin(yaw) * qx + std::cos(yaw) * qy;
+      const ImVec2 mp = to_px(x_W, y_W);
+      draw->AddRect(ImVec2(mp.x - 5, mp.y - 5), ImVec2(mp.x + 5, mp.y + 5), kMarker, 0, 0, 2.0F);
+      char id[16];
+      std::snprintf(id, sizeof id, "%d", s.markers[i].id);
+      draw->AddText(ImVec2(mp.x + 7, mp.y - 7), kMarker, id);
+    }
+  }
+
+  // The top view's legend. Two short lines so that a narrow panel does not cut the yaw off.
+  static void top_view_legend(ImDrawList* draw, ImVec2 origin, const Snapshot& s) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
+                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
+    std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
+                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
+                  static_cast<double>(s.yaw_W_rad) * 57.29578, s.cloud_count);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + ImGui::GetFontSize()),
+                  IM_COL32(220, 220, 220, 255), text);
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 2 * ImGui::GetFontSize()),
+                  IM_COL32(255, 255, 255, 255), "white: body x");
+    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 3 * ImGui::GetFontSize()), kCameraAxis,
+                  "yellow: camera axis, W flies it");
+  }
+
   void top_view_panel(const Snapshot& s) {
     // A fixed window name (ImGui keys windows by it); what the track is comes in the text.
     ImGui::Begin("Top view");
@@ -644,37 +680,12 @@ struct ConsoleWindow::Impl {
                             along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 40));
     draw->AddLine(p, along(camera_yaw - half_fov, reach_px), IM_COL32(255, 200, 60, 120));
     draw->AddLine(p, along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 120));
-    const std::array<float, 9>& R = options.R_body_camera;
-    for (std::size_t i = 0; i < s.marker_count; ++i) {
-      const std::array<float, 3>& c = s.markers[i].p_camera_marker_m;
-      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_body_camera_m[0];
-      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_body_camera_m[1];
-      const float x_W = s.position_W.x_W_m + std::cos(yaw) * qx - std::sin(yaw) * qy;
-      const float y_W = s.position_W.y_W_m + std::sin(yaw) * qx + std::cos(yaw) * qy;
-      const ImVec2 mp = to_px(x_W, y_W);
-      draw->AddRect(ImVec2(mp.x - 5, mp.y - 5), ImVec2(mp.x + 5, mp.y + 5), kMarker, 0, 0, 2.0F);
-      char id[16];
-      std::snprintf(id, sizeof id, "%d", s.markers[i].id);
-      draw->AddText(ImVec2(mp.x + 7, mp.y - 7), kMarker, id);
-    }
+    top_view_markers(draw, s, to_px);
     draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
     arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25), IM_COL32(255, 255, 255, 255));
     arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40), kCameraAxis);
     draw->PopClipRect();
-    // Two short lines so that a narrow panel does not cut the yaw off.
-    char text[160];
-    std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
-                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
-    std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
-                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
-                  static_cast<double>(yaw) * 57.29578, s.cloud_count);
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + ImGui::GetFontSize()),
-                  IM_COL32(220, 220, 220, 255), text);
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 2 * ImGui::GetFontSize()),
-                  IM_COL32(255, 255, 255, 255), "white: body x");
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 3 * ImGui::GetFontSize()), kCameraAxis,
-                  "yellow: camera axis, W flies it");
+    top_view_legend(draw, origin, s);
     ImGui::End();
   }
 
@@ -701,6 +712,67 @@ struct ConsoleWindow::Impl {
     events_panel(s);
     link_lost_banner(s, top, W);
     stats.mode_shown = s.mode;
+  }
+
+  // The window's events: quit, the flight keys (keyboard flying), the replay's keys, and the
+  // mode keys (T teleop, H hover, L land, M marker, X explore, U take off, Esc quit).
+  void poll_events(UiActions& actions) {
+    SDL_Event event;
+    while (SDL_PollEvent(&event) != 0) {
+      ImGui_ImplSDL2_ProcessEvent(&event);
+      if (event.type == SDL_QUIT) actions.quit = true;
+      if (flight_keys != nullptr) flight_key_event(event);
+      const bool typed = event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard;
+      if (typed && replay != nullptr && event.key.keysym.sym != SDLK_ESCAPE) {
+        // Replay: its keys, and no mode requests (there is no vehicle to ask).
+        replay_key(event.key.keysym.sym, actions);
+        continue;
+      }
+      if (typed && event.key.repeat == 0) mode_key(event.key.keysym.sym, actions);
+    }
+  }
+
+  void flight_key_event(const SDL_Event& event) {
+    // Key ups always count (a key released over a text field must not stay held).
+    const std::uint32_t key = event.type == SDL_KEYDOWN || event.type == SDL_KEYUP
+                                  ? flight_key_for_scancode(event.key.keysym.scancode)
+                                  : 0;
+    if (event.type == SDL_KEYUP) flight_keys->release(key);
+    if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard) flight_keys->press(key);
+    if (event.type == SDL_WINDOWEVENT && event.window.event == SDL_WINDOWEVENT_FOCUS_LOST) {
+      flight_keys->release_all();
+    }
+  }
+
+  static void mode_key(SDL_Keycode key, UiActions& actions) {
+    switch (key) {
+      case SDLK_t: actions.mode_request = "teleop"; break;
+      case SDLK_h: actions.mode_request = "hover"; break;
+      case SDLK_l: actions.mode_request = "land"; break;
+      case SDLK_m: actions.mode_request = "marker"; break;
+      case SDLK_x: actions.mode_request = "explore"; break;
+      case SDLK_u: actions.take_off = true; break;
+      case SDLK_ESCAPE: actions.quit = true; break;
+      default: break;
+    }
+  }
+
+  // The frame's render time and the frame rate, then a sleep to the next slot (never a busy
+  // wait, the haptic loop and the link share these cores).
+  void pace(Clock::time_point begin) {
+    const Clock::time_point end = Clock::now();
+    render_ms[stats.frames % render_ms.size()] =
+        std::chrono::duration<float, std::milli>(end - begin).count();
+    ++stats.frames;
+    const double elapsed_s = std::chrono::duration<double>(end - first_frame).count();
+    if (elapsed_s > 0) stats.fps = static_cast<double>(stats.frames - 1) / elapsed_s;
+    next_frame += std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / max_fps));
+    if (next_frame > end) {
+      std::this_thread::sleep_until(next_frame);
+    } else {
+      next_frame = end;
+    }
   }
 
   // The floor: one empty ImGui window, no text, no plots, no texture.
@@ -1022,43 +1094,7 @@ ConsoleWindow::~ConsoleWindow() {
 UiActions ConsoleWindow::frame(const Snapshot& s) {
   Impl& m = *impl_;
   UiActions actions;
-  SDL_Event event;
-  while (SDL_PollEvent(&event) != 0) {
-    ImGui_ImplSDL2_ProcessEvent(&event);
-    if (event.type == SDL_QUIT) actions.quit = true;
-    if (m.flight_keys != nullptr) {
-      // Key ups always count (a key released over a text field must not stay held).
-      const std::uint32_t key = event.type == SDL_KEYDOWN || event.type == SDL_KEYUP
-                                    ? flight_key_for_scancode(event.key.keysym.scancode)
-                                    : 0;
-      if (event.type == SDL_KEYUP) m.flight_keys->release(key);
-      if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard) {
-        m.flight_keys->press(key);
-      }
-      if (event.type == SDL_WINDOWEVENT && event.window.event == SDL_WINDOWEVENT_FOCUS_LOST) {
-        m.flight_keys->release_all();
-      }
-    }
-    if (event.type == SDL_KEYDOWN && !ImGui::GetIO().WantCaptureKeyboard && m.replay != nullptr &&
-        event.key.keysym.sym != SDLK_ESCAPE) {
-      // Replay: its keys, and no mode requests (there is no vehicle to ask).
-      replay_key(event.key.keysym.sym, actions);
-      continue;
-    }
-    if (event.type == SDL_KEYDOWN && event.key.repeat == 0 &&
-        !ImGui::GetIO().WantCaptureKeyboard) {
-      switch (event.key.keysym.sym) {
-        case SDLK_t: actions.mode_request = "teleop"; break;
-        case SDLK_h: actions.mode_request = "hover"; break;
-        case SDLK_l: actions.mode_request = "land"; break;
-        case SDLK_m: actions.mode_request = "marker"; break;
-        case SDLK_x: actions.mode_request = "explore"; break;
-        case SDLK_u: actions.take_off = true; break;
-        case SDLK_ESCAPE: actions.quit = true; break;
-        default: break;
-      }
-    }
-  }
+  m.poll_events(actions);
   const Clock::time_point begin = Clock::now();
   if (m.stats.frames == 0) {
     m.first_frame = begin;
@@ -1094,21 +1130,7 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
     glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, m.pixels.data());
   }
   SDL_GL_SwapWindow(m.window);
-  const Clock::time_point end = Clock::now();
-  m.render_ms[m.stats.frames % m.render_ms.size()] =
-      std::chrono::duration<float, std::milli>(end - begin).count();
-  ++m.stats.frames;
-  const double elapsed_s = std::chrono::duration<double>(end - m.first_frame).count();
-  if (elapsed_s > 0) m.stats.fps = static_cast<double>(m.stats.frames - 1) / elapsed_s;
-  // Hold the frame rate: sleep to the next slot (never a busy wait, the haptic loop and the
-  // link share these cores).
-  m.next_frame += std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(1.0 / m.max_fps));
-  if (m.next_frame > end) {
-    std::this_thread::sleep_until(m.next_frame);
-  } else {
-    m.next_frame = end;
-  }
+  m.pace(begin);
   return actions;
 }
 

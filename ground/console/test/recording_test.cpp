@@ -3,6 +3,8 @@
 #include "hq/ground/ground_station.hpp"
 #include "hq/testing/input_error.hpp"
 
+#include "hq/testing/files.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -19,11 +21,10 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
+using hq::testing::slurp;
+
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("hq_console_" + std::to_string(getpid()) + "_" + name);
-  fs::remove_all(dir);
-  return dir;
+  return hq::testing::fresh_dir("hq_console", name);
 }
 
 // GIVEN a recording written by the ground's recorder, WHEN read back, THEN every row returns.
@@ -217,17 +218,12 @@ TEST(Recording, ForeignDirectoryIsRejectedAndForeignCsvNamed) {
   fs::remove_all(dir);
 }
 
-std::string slurp_text(const fs::path& path) {
-  std::ifstream in(path);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
 // GIVEN one telemetry stamp garbled by a flipped digit (years ahead), WHEN loaded, THEN it is
 // rejected naming file:line and the gap, instead of a replay that waits for years.
 TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
   const fs::path dir = fresh_dir("garbled_stamp");
   write_recording(dir, 10);
-  std::string text = slurp_text(dir / "telemetry.csv");
+  std::string text = slurp(dir / "telemetry.csv");
   const std::size_t row = text.find("\n1099000000,");
   ASSERT_NE(row, std::string::npos);
   text.replace(row + 1, 10, "9099000000000000000");
@@ -243,7 +239,7 @@ TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
 TEST(Recording, StampGoingBackIsRejectedNamingFileAndLine) {
   const fs::path dir = fresh_dir("backwards_stamp");
   write_recording(dir, 10);
-  std::string text = slurp_text(dir / "commands.csv");
+  std::string text = slurp(dir / "commands.csv");
   const std::size_t row = text.find("\n1099000000,");
   ASSERT_NE(row, std::string::npos);
   text.replace(row + 1, 10, "1000000001");
@@ -258,7 +254,7 @@ TEST(Recording, StampGoingBackIsRejectedNamingFileAndLine) {
 TEST(Recording, FileStartingFarFromTheOthersIsRejected) {
   const fs::path dir = fresh_dir("far_file");
   write_recording(dir, 10);
-  std::string text = slurp_text(dir / "events.csv");
+  std::string text = slurp(dir / "events.csv");
   const std::size_t row = text.find("\n1100000000,");
   ASSERT_NE(row, std::string::npos);
   text.replace(row + 1, 10, "5100000000000000000");

@@ -7,8 +7,11 @@
 // points, 20 KB camera frames at 33 Hz, and the reader of the commands). Each phase lasts
 // --duration-s.
 //   hq-bench-flight-recorder [--duration-s 5] [--out /tmp/bench_flight.mcap]
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/quantile.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap_recorder/flight_recorder.hpp"
+#include "hq/testing/process.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -17,27 +20,19 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
-#include <spawn.h>
 #include <string>
-#include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
 #include <vector>
 
 namespace {
 
-std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
+std::int64_t now_ns() { return hq::monotonic_now_ns(); }
 
-void print(const char* what, std::vector<std::int64_t>& ns) {
-  std::sort(ns.begin(), ns.end());
-  const auto at = [&](double q) { return ns[static_cast<std::size_t>(q * (ns.size() - 1))]; };
-  std::printf("  %-44s p50 %6lld ns  p99 %6lld ns  p99.9 %7lld ns  max %8lld ns  (%zu)\n", what,
-              static_cast<long long>(at(0.5)), static_cast<long long>(at(0.99)),
-              static_cast<long long>(at(0.999)), static_cast<long long>(ns.back()), ns.size());
+void print(const char* what, const std::vector<std::int64_t>& ns) {
+  std::printf("  %-44s p50 %6.0f ns  p99 %6.0f ns  p99.9 %7.0f ns  max %8.0f ns  (%zu)\n", what,
+              hq::quantile(ns, 0.5), hq::quantile(ns, 0.99), hq::quantile(ns, 0.999),
+              hq::quantile(ns, 1.0), ns.size());
 }
 
 // The child: states at 100 Hz (512 obstacle points) and 20 KB camera frames at 33 Hz, and a
@@ -102,14 +97,10 @@ int main(int argc, char** argv) {
   // reader, as in flight) and publishes states and frames.
   const std::string domain_arg = std::to_string(options.link.domain_id);
   const std::string vehicle_duration = std::to_string(2 * duration_s + 3);
-  char* child_argv[] = {argv[0],
-                        const_cast<char*>("--vehicle"),
-                        const_cast<char*>(domain_arg.c_str()),
-                        const_cast<char*>("--duration-s"),
-                        const_cast<char*>(vehicle_duration.c_str()),
-                        nullptr};
-  pid_t vehicle_pid = 0;
-  if (posix_spawn(&vehicle_pid, argv[0], nullptr, nullptr, child_argv, environ) != 0) {
+  // Its output beside the record, so the two programs' lines do not interleave.
+  hq::testing::Process vehicle({argv[0], "--vehicle", domain_arg, "--duration-s", vehicle_duration},
+                               out + ".vehicle.txt");
+  if (!vehicle.started()) {
     std::fprintf(stderr, "hq-bench-flight-recorder: cannot start the vehicle process\n");
     return 1;
   }
@@ -154,8 +145,8 @@ int main(int argc, char** argv) {
   auto recorder = std::make_unique<hq::mcap_recorder::FlightRecorder>(options);
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // discovery
   fly(recorder.get(), write_ns, push_ns);
-  kill(vehicle_pid, SIGTERM);
-  waitpid(vehicle_pid, nullptr, 0);
+  vehicle.signal(SIGTERM);
+  vehicle.wait_exit(10.0);
   const hq::mcap_recorder::RecorderReport& r = recorder->close();
   std::printf(
       "hq-bench-flight-recorder: %.1f s at 1 kHz, recorder wrote %llu messages, %llu "

@@ -9,8 +9,10 @@
 #include "memory_campaign.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/pipeline/stage_timing.hpp"
+#include "hq/pipeline/steady_clock.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -25,14 +27,7 @@ namespace {
 using hq::closed_loop::testing::MemoryCase;
 using hq::closed_loop::testing::MemoryOutcome;
 
-class SteadyClock final : public hq::pipeline::Clock {
- public:
-  std::int64_t now_ns() const override {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  }
-};
+using hq::pipeline::SteadyClock;
 
 struct Column {
   int collisions = 0;
@@ -40,11 +35,7 @@ struct Column {
   int max_map_size = 0;
 };
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
-}
+using hq::quantile;
 
 void print_stage(const char* setting, const hq::pipeline::StageTimingLog& log) {
   const auto memory = log.statistics(2);

@@ -3,6 +3,7 @@
 // RgbdRenderer), beside PCL's own VoxelGrid + RadiusOutlierRemoval on the same frames (the
 // peer, on every 10th frame). Not run by ctest.
 //   hq-bench-memory [--seconds 600] [--world onboard/sim/worlds/room.yaml] [--config cfg.yaml]
+#include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/complementary_filter.hpp"
@@ -31,12 +32,6 @@ double ms_between(SteadyClock::time_point a, SteadyClock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  return values[k];
-}
 
 long rss_kib() {
   std::ifstream status("/proc/self/status");
@@ -141,10 +136,10 @@ int run(int argc, char** argv) {
   }
   const long rss_end_kib = rss_kib();
 
-  const double p50 = percentile(memory_ms, 0.5);
-  const double p99 = percentile(memory_ms, 0.99);
-  const double peer_p50 = percentile(peer_ms, 0.5);
-  const double peer_p99 = percentile(peer_ms, 0.99);
+  const double p50 = hq::quantile(memory_ms, 0.5);
+  const double p99 = hq::quantile(memory_ms, 0.99);
+  const double peer_p50 = hq::quantile(peer_ms, 0.5);
+  const double peer_p99 = hq::quantile(peer_ms, 0.99);
   std::printf("hq-bench-memory: %.0f s simulated flight, %zu frames at 320x240, %s\n", seconds,
               memory_ms.size(), world_path.c_str());
   std::printf("%-46s %9s %9s\n", "per frame (ms)", "p50", "p99");

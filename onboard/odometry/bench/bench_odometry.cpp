@@ -10,6 +10,7 @@
 // (a sequence folder with its own camera.yaml, as hq-sim records, uses that one).
 // Without sequence arguments it runs the bundled real sequences under ../shared/data/tum.
 #include "hq/base/error.hpp"
+#include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
@@ -186,13 +187,6 @@ LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera
   return sequence;
 }
 
-double percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const auto index = static_cast<std::size_t>(p * static_cast<double>(values.size() - 1) + 0.5);
-  return values[std::min(index, values.size() - 1)];
-}
-
 struct Row {
   double median_ms = 0, p90_ms = 0, rpe_trans_mps = 0, rpe_rot_degps = 0, ate_m = 0;
 };
@@ -216,8 +210,8 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     }
   }
   Row row;
-  row.median_ms = percentile(times_ms, 0.5);
-  row.p90_ms = percentile(times_ms, 0.9);
+  row.median_ms = hq::quantile(times_ms, 0.5);
+  row.p90_ms = hq::quantile(times_ms, 0.9);
   if (!sequence.ground_truth.empty()) {
     const auto rpe = hq::evaluation::relative_pose_error(sequence.ground_truth, trajectory);
     const auto ate = hq::evaluation::absolute_trajectory_error(sequence.ground_truth, trajectory);

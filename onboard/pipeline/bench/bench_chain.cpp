@@ -14,6 +14,7 @@
 #include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/stage_timing.hpp"
+#include "hq/pipeline/steady_clock.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/sources/tum_frame_source.hpp"
 
@@ -27,14 +28,7 @@
 
 namespace {
 
-class SteadyClock final : public hq::pipeline::Clock {
- public:
-  std::int64_t now_ns() const override {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  }
-};
+using hq::pipeline::SteadyClock;
 
 int run(int argc, char** argv) {
   CLI::App app{"hq-bench-chain: per-stage latency of the on-board chain on real frames"};

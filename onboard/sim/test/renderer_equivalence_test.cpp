@@ -3,6 +3,7 @@
 // hand-placed and random poses: same depth, same invalid-depth mask, same image.
 #include "hq/sim/rgbd_renderer.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/testing/allocation_counter.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +12,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-long hq_sim_test_allocations();
 
 namespace hq::sim {
 namespace {
@@ -181,9 +180,9 @@ TEST(RendererEquivalenceTest, RenderAllocatesNothingAfterTheFirstFrame) {
   const std::vector<Eigen::Isometry3d> poses = poses_in(world, 4);
   cv::Mat image, depth;
   renderer.render(poses[0], 0, image, depth);
-  const long before = hq_sim_test_allocations();
+  const long before = hq::testing::allocation_count();
   for (std::size_t i = 1; i < poses.size(); ++i) renderer.render(poses[i], i, image, depth);
-  EXPECT_EQ(hq_sim_test_allocations() - before, 0);
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
 }
 
 }  // namespace

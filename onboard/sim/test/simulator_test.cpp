@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 #include "hq/sim/tum_writer.hpp"
+#include "hq/testing/allocation_counter.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -12,9 +13,6 @@
 #include <fstream>
 #include <string>
 #include <vector>
-
-/// Allocations so far in this test binary (test/allocation_counter.cpp replaces operator new).
-long hq_sim_test_allocations();
 
 namespace hq::sim {
 namespace {
@@ -134,14 +132,14 @@ TEST(SimulatorTest, StepAndRenderAllocateNothingAfterTheFirstFrame) {
   std::vector<ImuSample> imu(1000);
   cv::Mat image, depth;
   sim.render_camera(image, depth);
-  const long before = hq_sim_test_allocations();
+  const long before = hq::testing::allocation_count();
   for (std::int64_t t = 0; t < 1000 * kMs; t += 5 * kMs) {
     sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
     sim.step_to(t + 5 * kMs);
     sim.take_imu(imu.data(), imu.size());
     if (sim.camera_due()) sim.render_camera(image, depth);
   }
-  EXPECT_EQ(hq_sim_test_allocations() - before, 0);
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
 }
 
 TEST(SimulatorTest, RecordsATumSequenceThatReadsBack) {

@@ -16,11 +16,14 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/link/link.hpp"
 
@@ -30,11 +33,7 @@ namespace {
 constexpr std::uint64_t kDone = ~std::uint64_t{0};
 constexpr int kWarmup = 200;
 
-std::int64_t now_ns() {
-  timespec t{};
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return std::int64_t{t.tv_sec} * 1'000'000'000 + t.tv_nsec;
-}
+std::int64_t now_ns() { return hq::monotonic_now_ns(); }
 
 // The command-path QoS variants measured, to show what each choice costs.
 enum class Variant { kCommand, kPlainBestEffort, kReliable };
@@ -77,14 +76,9 @@ Stats stats_of(std::vector<std::int64_t> values_ns) {
   Stats s;
   s.count = values_ns.size();
   if (values_ns.empty()) return s;
-  std::sort(values_ns.begin(), values_ns.end());
-  const auto at = [&](double q) {
-    return static_cast<double>(values_ns[static_cast<std::size_t>(q * (values_ns.size() - 1))]) *
-           1e-3;
-  };
-  s.p50_us = at(0.5);
-  s.p99_us = at(0.99);
-  s.max_us = static_cast<double>(values_ns.back()) * 1e-3;
+  s.p50_us = 1e-3 * quantile(values_ns, 0.5);
+  s.p99_us = 1e-3 * quantile(values_ns, 0.99);
+  s.max_us = 1e-3 * quantile(values_ns, 1.0);
   return s;
 }
 
@@ -150,15 +144,10 @@ void onboard_echo(const LinkConfig& config, int samples, std::int64_t* one_way_n
   frame->rgb_jpeg._length = kJpegBytes;
   for (std::uint32_t i = 0; i < kJpegBytes; ++i) frame->rgb_jpeg._buffer[i] = i * 131 % 256;
   constexpr std::int64_t kPeriodNs = 1'000'000'000 / 30;
-  timespec next{};
-  clock_gettime(CLOCK_MONOTONIC, &next);
+  std::int64_t next_ns = now_ns();
   for (int i = 0; i < frames; ++i) {
-    next.tv_nsec += kPeriodNs;
-    while (next.tv_nsec >= 1'000'000'000) {
-      next.tv_nsec -= 1'000'000'000;
-      ++next.tv_sec;
-    }
-    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
+    next_ns += kPeriodNs;
+    hq::sleep_until_monotonic_ns(next_ns);
     frame->sequence_number = static_cast<std::uint64_t>(i);
     frame->t_ns = now_ns();
     camera.write(*frame);
@@ -221,15 +210,10 @@ void security_station(const LinkConfig& config, int samples) {
   }
   VelocityCommand command{};
   command.vehicle_id = config.vehicle_id;
-  timespec next{};
-  clock_gettime(CLOCK_MONOTONIC, &next);
-  const auto tick = [&next] {
-    next.tv_nsec += 1'000'000;
-    if (next.tv_nsec >= 1'000'000'000) {
-      next.tv_nsec -= 1'000'000'000;
-      ++next.tv_sec;
-    }
-    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
+  std::int64_t next_ns = now_ns();
+  const auto tick = [&next_ns] {
+    next_ns += 1'000'000;
+    hq::sleep_until_monotonic_ns(next_ns);
   };
   for (int i = 0; i < kSecurityWarmup + samples; ++i) {
     tick();
@@ -422,20 +406,26 @@ void print(const char* label, const Stats& s) {
               s.p99_us, s.max_us, s.count);
 }
 
-int run(int argc, char** argv) {
+struct BenchOptions {
+  LinkConfig config;
+  int samples = 10'000;      ///< Command round trips per QoS variant.
+  double camera_s = 4.0;     ///< Camera stream duration.
+  int ddsperf_s = 5;         ///< ddsperf ping duration, 0: skipped.
+  int security_samples = 5'000;  ///< Commands measured plain and secured, 0: skipped.
+};
+
+// The command line; an exit status when told to stop (--help, a parse error).
+std::optional<int> parse_options(int argc, char** argv, BenchOptions& o) {
   CLI::App app("hq-bench-link: DDS command latency and camera throughput on loopback");
   LinkOverrides overrides;
   add_link_options(app, overrides);
-  int samples = 10'000;
-  double camera_s = 4.0;
-  int ddsperf_s = 5;
-  app.add_option("--samples", samples, "command round trips per QoS variant")
+  app.add_option("--samples", o.samples, "command round trips per QoS variant")
       ->check(CLI::Range(100, 1'000'000));
-  app.add_option("--camera-s", camera_s, "camera stream duration")->check(CLI::Range(0.5, 60.0));
-  app.add_option("--ddsperf-s", ddsperf_s, "ddsperf ping duration (0 skips it)")
+  app.add_option("--camera-s", o.camera_s, "camera stream duration")
+      ->check(CLI::Range(0.5, 60.0));
+  app.add_option("--ddsperf-s", o.ddsperf_s, "ddsperf ping duration (0 skips it)")
       ->check(CLI::Range(0, 60));
-  int security_samples = 5'000;
-  app.add_option("--security-samples", security_samples,
+  app.add_option("--security-samples", o.security_samples,
                  "commands (1 ms apart) measured plain and then secured (0 skips it)")
       ->check(CLI::Range(0, 1'000'000));
   try {
@@ -443,69 +433,87 @@ int run(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  LinkConfig config;
   if (!overrides.domain_id) overrides.domain_id = 150 + static_cast<int>(getpid() % 70);
-  apply_overrides(overrides, config);
-  // Loopback only, as the on-board/ground pair runs in the demo and tests.
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         0);
+  apply_overrides(overrides, o.config);
+  return std::nullopt;
+}
 
-  const std::size_t one_way_bytes = sizeof(std::int64_t) * kVariants.size() * samples;
-  auto* one_way_ns = static_cast<std::int64_t*>(
-      mmap(nullptr, one_way_bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
-  if (one_way_ns == MAP_FAILED) throw InputError("hq-bench-link: mmap failed");
-  std::fill(one_way_ns, one_way_ns + kVariants.size() * samples, std::int64_t{-1});
-  const int frames = static_cast<int>(camera_s * 30.0);
-
-  // DDS Security's cost: keys for vehicle_1 and station_1 in a temp dir; plain and secured
-  // each on a domain of its own (secured domains end at security::kMaxSecuredDomainId).
-  const std::string keys_dir = "/tmp/hq-bench-link-keys-" + std::to_string(getpid());
-  LinkConfig plain = config;
-  plain.security.enabled = false;
-  plain.domain_id = (config.domain_id + 2) % (security::kMaxSecuredDomainId + 1);
-  LinkConfig secured = config;
-  secured.security = SecurityConfig{};
-  secured.security.keys_dir = keys_dir;
-  secured.vehicle_id = 1;
-  secured.station_id = 1;
-  secured.domain_id = (config.domain_id + 3) % (security::kMaxSecuredDomainId + 1);
-  const std::size_t security_bytes = sizeof(std::int64_t) * 2 * std::max(security_samples, 1);
-  auto* security_ns = static_cast<std::int64_t*>(
-      mmap(nullptr, security_bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
-  if (security_ns == MAP_FAILED) throw InputError("hq-bench-link: mmap failed");
-  std::fill(security_ns, security_ns + 2 * std::max(security_samples, 1), std::int64_t{-1});
-  if (security_samples > 0) {
-    std::filesystem::remove_all(keys_dir);
-    const std::int64_t t_s = static_cast<std::int64_t>(std::time(nullptr));
-    security::make_ca(keys_dir, security::valid_for_days(t_s, 1));
-    security::make_governance(keys_dir, security::DomainRange{});
-    security::IdentityRequest request;
-    request.validity = security::valid_for_days(t_s, 1);
-    request.role = security::Role::kVehicle;
-    security::make_identity(keys_dir, request);
-    request.role = security::Role::kStation;
-    request.vehicles = {1};
-    security::make_identity(keys_dir, request);
+// Stamps the child processes write and the parent reads: shared anonymous memory, -1 = none.
+class SharedStamps {
+ public:
+  explicit SharedStamps(std::size_t count)
+      : count_(std::max<std::size_t>(count, 1)), bytes_(sizeof(std::int64_t) * count_) {
+    void* p = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw InputError("hq-bench-link: mmap failed");
+    ns_ = static_cast<std::int64_t*>(p);
+    std::fill(ns_, ns_ + count_, std::int64_t{-1});
+  }
+  ~SharedStamps() { munmap(ns_, bytes_); }
+  SharedStamps(const SharedStamps&) = delete;
+  SharedStamps& operator=(const SharedStamps&) = delete;
+  [[nodiscard]] std::int64_t* data() { return ns_; }
+  /// The stamps written among [first, first + count).
+  [[nodiscard]] std::vector<std::int64_t> written(std::size_t first, std::size_t count) const {
+    std::vector<std::int64_t> values;
+    for (std::size_t i = first; i < first + count; ++i) {
+      if (ns_[i] >= 0) values.push_back(ns_[i]);
+    }
+    return values;
   }
 
-  // Fork before any DDS entity exists: Cyclone's threads do not survive fork().
-  const pid_t child = fork();
-  if (child < 0) throw InputError("hq-bench-link: fork failed");
-  if (child == 0) {
-    onboard_echo(config, samples, one_way_ns);
-    std::_Exit(0);
-  }
-  std::array<pid_t, 2> security_children{-1, -1};
-  for (std::size_t k = 0; k < 2 && security_samples > 0; ++k) {
-    security_children[k] = fork();
-    if (security_children[k] < 0) throw InputError("hq-bench-link: fork failed");
-    if (security_children[k] == 0) {
+ private:
+  std::size_t count_;
+  std::size_t bytes_;
+  std::int64_t* ns_ = nullptr;
+};
+
+// DDS Security's cost: keys for vehicle_1 and station_1; plain and secured each on a domain of
+// its own (secured domains end at security::kMaxSecuredDomainId).
+struct SecurityPair {
+  LinkConfig plain;
+  LinkConfig secured;
+  std::string keys_dir;
+};
+
+SecurityPair security_pair(const LinkConfig& config, bool make_keys) {
+  SecurityPair pair;
+  pair.keys_dir = "/tmp/hq-bench-link-keys-" + std::to_string(getpid());
+  pair.plain = config;
+  pair.plain.security.enabled = false;
+  pair.plain.domain_id = (config.domain_id + 2) % (security::kMaxSecuredDomainId + 1);
+  pair.secured = config;
+  pair.secured.security = SecurityConfig{};
+  pair.secured.security.keys_dir = pair.keys_dir;
+  pair.secured.vehicle_id = 1;
+  pair.secured.station_id = 1;
+  pair.secured.domain_id = (config.domain_id + 3) % (security::kMaxSecuredDomainId + 1);
+  if (!make_keys) return pair;
+  std::filesystem::remove_all(pair.keys_dir);
+  const std::int64_t t_s = static_cast<std::int64_t>(std::time(nullptr));
+  security::make_ca(pair.keys_dir, security::valid_for_days(t_s, 1));
+  security::make_governance(pair.keys_dir, security::DomainRange{});
+  security::IdentityRequest request;
+  request.validity = security::valid_for_days(t_s, 1);
+  request.role = security::Role::kVehicle;
+  security::make_identity(pair.keys_dir, request);
+  request.role = security::Role::kStation;
+  request.vehicles = {1};
+  security::make_identity(pair.keys_dir, request);
+  return pair;
+}
+
+// The secured and plain vehicles, each a child process writing its one-way stamps.
+std::array<pid_t, 2> fork_security_vehicles(const BenchOptions& o, const SecurityPair& pair,
+                                            SharedStamps& security_ns) {
+  std::array<pid_t, 2> children{-1, -1};
+  for (std::size_t k = 0; k < 2 && o.security_samples > 0; ++k) {
+    children[k] = fork();
+    if (children[k] < 0) throw InputError("hq-bench-link: fork failed");
+    if (children[k] == 0) {
       int code = 0;
       try {
-        security_vehicle(k == 0 ? plain : secured, security_samples,
-                         security_ns + k * security_samples);
+        security_vehicle(k == 0 ? pair.plain : pair.secured, o.security_samples,
+                         security_ns.data() + k * o.security_samples);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "hq-bench-link: vehicle: %s\n", e.what());
         code = 2;
@@ -513,51 +521,26 @@ int run(int argc, char** argv) {
       std::_Exit(code);
     }
   }
-  std::vector<VariantResult> results;
-  CameraResult camera;
-  {
-    Participant participant(config.domain_id);
-    for (std::size_t v = 0; v < kVariants.size(); ++v) {
-      results.push_back(ground_ping(participant, config, v, samples));
-    }
-    camera = ground_camera(participant, config, frames);
-  }
-  int status = 0;
-  waitpid(child, &status, 0);
-  bool security_ok = true;
-  if (security_samples > 0) {
-    security_station(plain, security_samples);
-    security_station(secured, security_samples);
-    for (const pid_t pid : security_children) {
-      int s = 0;
-      waitpid(pid, &s, 0);
-      security_ok = security_ok && WIFEXITED(s) && WEXITSTATUS(s) == 0;
-    }
-    std::filesystem::remove_all(keys_dir);
-  }
+  return children;
+}
 
-  DdsperfResult ddsperf;
-  if (ddsperf_s > 0) ddsperf = run_ddsperf((config.domain_id + 1) % (kMaxDomainId + 1), ddsperf_s);
-
+void print_commands(const BenchOptions& o, const std::vector<VariantResult>& results,
+                    const SharedStamps& one_way_ns, const DdsperfResult& ddsperf) {
   std::printf("hq-bench-link: loopback, two processes, domain %d, %d samples per variant\n",
-              config.domain_id, samples);
+              o.config.domain_id, o.samples);
   if (ddsperf.ran) {
     std::printf("Cyclone ddsperf ping/pong floor (reliable, 12 B, listener; %zu one-second "
                 "lines, median of per-second percentiles):\n",
                 ddsperf.lines);
     print("ddsperf half round trip", ddsperf.half_round_trip);
-  } else if (ddsperf_s > 0) {
+  } else if (o.ddsperf_s > 0) {
     std::printf("ddsperf: not run or printed no latency (is cyclonedds-tools installed?)\n");
   }
+  const auto samples = static_cast<std::size_t>(o.samples);
   for (std::size_t v = 0; v < kVariants.size(); ++v) {
-    std::vector<std::int64_t> one_way;
-    for (int i = 0; i < samples; ++i) {
-      const std::int64_t value = one_way_ns[v * samples + i];
-      if (value >= 0) one_way.push_back(value);
-    }
     std::vector<std::int64_t> half(results[v].round_trip_ns);
     for (std::int64_t& h : half) h /= 2;
-    const Stats one = stats_of(one_way);
+    const Stats one = stats_of(one_way_ns.written(v * samples, samples));
     const Stats round = stats_of(results[v].round_trip_ns);
     const Stats halved = stats_of(half);
     std::printf("%s  (lost %d)\n", describe(kVariants[v]), results[v].lost);
@@ -570,34 +553,85 @@ int run(int argc, char** argv) {
                   halved.p99_us / ddsperf.half_round_trip.p99_us);
     }
   }
-  std::printf("camera 30 Hz, 40 KB frames, best-effort keep-last-1, %.1f s:\n", camera_s);
+}
+
+void print_camera(const BenchOptions& o, const CameraResult& camera) {
+  std::printf("camera 30 Hz, 40 KB frames, best-effort keep-last-1, %.1f s:\n", o.camera_s);
   std::printf("  received %d of %d (drop rate %.2f %%), %.2f Mbit/s\n", camera.received,
               camera.sent,
               100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
               camera.mbit_per_s);
   print("frame latency publish -> receipt", camera.latency);
-  if (security_samples > 0) {
-    std::printf("DDS Security's cost, hq_velocity_command with the command QoS, one way write -> "
-                "take, %d commands 1 ms apart after %d warm-up, plain (domain %d) then secured "
-                "(domain %d: authenticated, access-controlled, payload and metadata AES-GCM):\n",
-                security_samples, kSecurityWarmup, plain.domain_id, secured.domain_id);
-    std::array<Stats, 2> s;
-    for (std::size_t k = 0; k < 2; ++k) {
-      std::vector<std::int64_t> values;
-      for (int i = 0; i < security_samples; ++i) {
-        const std::int64_t value = security_ns[k * security_samples + i];
-        if (value >= 0) values.push_back(value);
-      }
-      s[k] = stats_of(values);
-      print(k == 0 ? "plain DDS" : "DDS Security", s[k]);
-    }
-    if (s[0].p50_us > 0) {
-      std::printf("  secured - plain: p50 %+.1f us  p99 %+.1f us\n", s[1].p50_us - s[0].p50_us,
-                  s[1].p99_us - s[0].p99_us);
-    }
+}
+
+void print_security(const BenchOptions& o, const SecurityPair& pair,
+                    const SharedStamps& security_ns) {
+  std::printf("DDS Security's cost, hq_velocity_command with the command QoS, one way write -> "
+              "take, %d commands 1 ms apart after %d warm-up, plain (domain %d) then secured "
+              "(domain %d: authenticated, access-controlled, payload and metadata AES-GCM):\n",
+              o.security_samples, kSecurityWarmup, pair.plain.domain_id, pair.secured.domain_id);
+  const auto samples = static_cast<std::size_t>(o.security_samples);
+  std::array<Stats, 2> s;
+  for (std::size_t k = 0; k < 2; ++k) {
+    s[k] = stats_of(security_ns.written(k * samples, samples));
+    print(k == 0 ? "plain DDS" : "DDS Security", s[k]);
   }
-  munmap(one_way_ns, one_way_bytes);
-  munmap(security_ns, security_bytes);
+  if (s[0].p50_us > 0) {
+    std::printf("  secured - plain: p50 %+.1f us  p99 %+.1f us\n", s[1].p50_us - s[0].p50_us,
+                s[1].p99_us - s[0].p99_us);
+  }
+}
+
+int run(int argc, char** argv) {
+  BenchOptions o;
+  if (const std::optional<int> status = parse_options(argc, argv, o)) return *status;
+  const LinkConfig& config = o.config;
+  // Loopback only, as the on-board/ground pair runs in the demo and tests.
+  setenv("CYCLONEDDS_URI",
+         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+         "</Interfaces></General></Domain></CycloneDDS>",
+         0);
+  SharedStamps one_way_ns(kVariants.size() * static_cast<std::size_t>(o.samples));
+  SharedStamps security_ns(2 * static_cast<std::size_t>(o.security_samples));
+  const SecurityPair pair = security_pair(config, o.security_samples > 0);
+
+  // Fork before any DDS entity exists: Cyclone's threads do not survive fork().
+  const pid_t child = fork();
+  if (child < 0) throw InputError("hq-bench-link: fork failed");
+  if (child == 0) {
+    onboard_echo(config, o.samples, one_way_ns.data());
+    std::_Exit(0);
+  }
+  const std::array<pid_t, 2> security_children = fork_security_vehicles(o, pair, security_ns);
+  std::vector<VariantResult> results;
+  CameraResult camera;
+  {
+    Participant participant(config.domain_id);
+    for (std::size_t v = 0; v < kVariants.size(); ++v) {
+      results.push_back(ground_ping(participant, config, v, o.samples));
+    }
+    camera = ground_camera(participant, config, static_cast<int>(o.camera_s * 30.0));
+  }
+  int status = 0;
+  waitpid(child, &status, 0);
+  bool security_ok = true;
+  if (o.security_samples > 0) {
+    security_station(pair.plain, o.security_samples);
+    security_station(pair.secured, o.security_samples);
+    for (const pid_t pid : security_children) {
+      int s = 0;
+      waitpid(pid, &s, 0);
+      security_ok = security_ok && WIFEXITED(s) && WEXITSTATUS(s) == 0;
+    }
+    std::filesystem::remove_all(pair.keys_dir);
+  }
+  DdsperfResult ddsperf;
+  if (o.ddsperf_s > 0) {
+    ddsperf = run_ddsperf((config.domain_id + 1) % (kMaxDomainId + 1), o.ddsperf_s);
+  }
+  print_commands(o, results, one_way_ns, ddsperf);
+  print_camera(o, camera);
+  if (o.security_samples > 0) print_security(o, pair, security_ns);
   return WIFEXITED(status) && WEXITSTATUS(status) == 0 && security_ok ? 0 : 1;
 }
 

@@ -188,7 +188,37 @@ class TelemetryRecorder {
   void written(int result, const char* file);
 };
 
-class GroundStation {
+/// The link as the operator station (OperatorStation) drives it: GroundStation over DDS, a fake
+/// in tests. Clocks as in GroundStation: deadlines and heartbeats on CLOCK_MONOTONIC.
+class VehicleLink {
+ public:
+  virtual ~VehicleLink() = default;
+  VehicleLink() = default;
+  VehicleLink(const VehicleLink&) = delete;
+  VehicleLink& operator=(const VehicleLink&) = delete;
+
+  /// Takes what arrives until a vehicle state does (true) or until `deadline_ns` (false).
+  virtual bool poll_until(std::int64_t deadline_ns) = 0;
+  [[nodiscard]] virtual const LinkStatus& status() const = 0;
+  /// Seconds since the last vehicle state (infinity before the first).
+  [[nodiscard]] virtual double state_age_s() const = 0;
+  [[nodiscard]] virtual std::uint32_t vehicle_id() const = 0;
+  virtual void select_vehicle(std::uint32_t vehicle_id) = 0;
+  /// One velocity command (zero when `valid` is false).
+  virtual void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command,
+                            bool valid) = 0;
+  /// A mode request; false while it waits for the vehicle (see GroundStation::request_mode).
+  virtual bool request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker,
+                            bool take_off) = 0;
+  virtual void send_heartbeat(std::int64_t t_ns) = 0;
+  [[nodiscard]] virtual const LatencyStats& latency() const = 0;
+  [[nodiscard]] virtual const LatencyStats& round_trip() const = 0;
+  [[nodiscard]] virtual const LatencyStats& state_age() const = 0;
+  /// Fraction of vehicle states missing by sequence number (0 before any).
+  [[nodiscard]] virtual double state_loss() const = 0;
+};
+
+class GroundStation final : public VehicleLink {
  public:
   /// @throws hq::InputError naming the DDS call that failed.
   explicit GroundStation(const link::LinkConfig& config, TelemetryRecorder* recorder = nullptr);
@@ -197,11 +227,12 @@ class GroundStation {
   /// null; must outlive the station or be reset first).
   void set_observer(LinkObserver* observer) { observer_ = observer; }
   /// Commands and listens to vehicle `vehicle_id` from now on (the console's selector).
-  void select_vehicle(std::uint32_t vehicle_id);
-  [[nodiscard]] std::uint32_t vehicle_id() const { return config_.vehicle_id; }
+  void select_vehicle(std::uint32_t vehicle_id) override;
+  [[nodiscard]] std::uint32_t vehicle_id() const override { return config_.vehicle_id; }
 
   /// Publishes one command of the haptic loop (zero when `valid` is false).
-  void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);
+  void send_command(std::int64_t t_ns, const haptics::VelocityCommand& command,
+                    bool valid) override;
   /// Requests `mode`, with a marker task for the vehicle's marker stage if `marker` has one,
   /// for the vehicle session last heard from. Before any session is known the request waits
   /// (status().waiting_for_vehicle; the latest one replaces an earlier one) and goes out when
@@ -209,29 +240,29 @@ class GroundStation {
   /// gets nothing re-sent: the station raises "vehicle restarted" and the operator asks again.
   /// With take_off, the vehicle takes off first and then flies `mode`.
   bool request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker = {},
-                    bool take_off = false);
+                    bool take_off = false) override;
   /// Where the ground's own notices (control lost, vehicle restarted) are printed once each
   /// (e.g. stdout); null: not printed. They also go to the recorder and the observer as events.
   void set_log(std::FILE* log) { log_ = log; }
   /// @param t_ns  on CLOCK_MONOTONIC (haptics::monotonic_now_ns()): the vehicle echoes it back
   /// for the round trip.
-  void send_heartbeat(std::int64_t t_ns);
+  void send_heartbeat(std::int64_t t_ns) override;
   /// Takes everything pending. Returns true if a new vehicle state arrived.
   bool poll();
   /// Blocks on a waitset until a vehicle state arrives (returns true at once) or until
   /// `deadline_ns` on CLOCK_MONOTONIC (false), taking whatever arrives in the meantime; so
   /// receipt times, and the latency figures, are not quantised by the caller's period.
-  bool poll_until(std::int64_t deadline_ns);
+  bool poll_until(std::int64_t deadline_ns) override;
 
-  [[nodiscard]] const LinkStatus& status() const { return status_; }
-  [[nodiscard]] const LatencyStats& latency() const { return latency_; }
+  [[nodiscard]] const LinkStatus& status() const override { return status_; }
+  [[nodiscard]] const LatencyStats& latency() const override { return latency_; }
   /// Heartbeat round trips and state ages over the flight (1 ms bins up to 10 s).
-  [[nodiscard]] const LatencyStats& round_trip() const { return round_trip_; }
-  [[nodiscard]] const LatencyStats& state_age() const { return state_age_; }
+  [[nodiscard]] const LatencyStats& round_trip() const override { return round_trip_; }
+  [[nodiscard]] const LatencyStats& state_age() const override { return state_age_; }
   /// Fraction of vehicle states missing by sequence number (0 before any).
-  [[nodiscard]] double state_loss() const;
+  [[nodiscard]] double state_loss() const override;
   /// Seconds since the last vehicle state (infinity before the first).
-  [[nodiscard]] double state_age_s() const;
+  [[nodiscard]] double state_age_s() const override;
 
  private:
   link::LinkConfig config_;
