@@ -100,7 +100,7 @@ static int run(int argc, char** argv) {
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     if (result.status == hq::odometry::TrackingStatus::kLost) ++lost;
-    trajectory.push_back({frame.t_ns, result.T_world_cur});
+    trajectory.push_back({frame.t_ns, result.T_O_C});
     std::fprintf(stderr, "frame %4zu  %-11s %6.2f ms  valid %.2f  iterations %2d%s  %s\n",
                  trajectory.size(), hq::odometry::to_string(result.status), ms, result.valid_ratio,
                  result.iterations, result.new_keyframe ? "  keyframe" : "", result.reason);

@@ -49,18 +49,17 @@ namespace {
 
 void write_csv_header(std::FILE* csv) {
   std::fprintf(csv,
-               "# hq-onboard per-step log. Frames: C camera optical (x right, y down, z forward);"
-               " Q body NED; H horizontal NED (Q without roll and pitch, yaw kept). SI units as "
-               "named; frame = 0 rows are camera-timeout steps between frames.\n");
+               "# hq-onboard per-step log. Frames (hq/geometry/frames.hpp): C camera optical (x "
+               "right, y down, z forward); B body FRD; H horizontal (B without roll and pitch, yaw "
+               "kept). SI units as named; frame = 0 rows are camera-timeout steps between "
+               "frames.\n");
   std::fprintf(csv,
-               "t_s,frame,tracking,valid_ratio,estimate_ok,v_camera_raw_x_mps,v_camera_raw_y_mps,"
-               "v_camera_raw_z_mps,v_camera_x_mps,v_camera_y_mps,v_camera_z_mps,v_body_x_mps,"
-               "v_body_y_mps,v_body_z_mps,v_horizontal_x_mps,v_horizontal_y_mps,"
-               "v_horizontal_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,near_hazard,"
-               "v_obs_horizontal_x_mps,v_obs_horizontal_y_mps,v_obs_horizontal_z_mps,mode,"
-               "v_des_horizontal_x_mps,v_des_horizontal_y_mps,v_des_horizontal_z_mps,"
-               "thrust_n,roll_cmd_rad,pitch_cmd_rad,yaw_rate_cmd_radps,safe_hover,total_ms,"
-               "reason\n");
+               "t_s,frame,tracking,valid_ratio,estimate_ok,v_C_raw_x_mps,v_C_raw_y_mps,"
+               "v_C_raw_z_mps,v_C_x_mps,v_C_y_mps,v_C_z_mps,v_B_x_mps,v_B_y_mps,v_B_z_mps,"
+               "v_H_x_mps,v_H_y_mps,v_H_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,"
+               "near_hazard,v_obs_H_x_mps,v_obs_H_y_mps,v_obs_H_z_mps,mode,v_des_H_x_mps,"
+               "v_des_H_y_mps,v_des_H_z_mps,thrust_n,roll_cmd_rad,pitch_cmd_rad,"
+               "yaw_rate_cmd_radps,safe_hover,total_ms,reason\n");
 }
 
 void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
@@ -72,10 +71,10 @@ void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
   std::fprintf(csv, "%.6f,%d,%s,%.4f,%d,", 1e-9 * static_cast<double>(out.t_ns), out.frame ? 1 : 0,
                out.frame ? hq::odometry::to_string(out.tracking) : "none", out.valid_ratio,
                e.ok() ? 1 : 0);
-  v3(e.v_camera_raw_mps);
-  v3(e.v_camera_mps);
-  v3(e.v_body_mps);
-  v3(e.v_horizontal_mps);
+  v3(e.v_C_raw_mps);
+  v3(e.v_C_mps);
+  v3(e.v_B_mps);
+  v3(e.v_H_mps);
   std::fprintf(csv, "%.6f,%.6f,%d,%d,", e.roll_rad, e.pitch_rad, out.obstacles.count,
                out.obstacles.near_hazard ? 1 : 0);
   v3(out.obstacles.v_obs_horizontal_mps);
@@ -185,7 +184,7 @@ std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& chann
 }  // namespace
 
 void print_status(const hq::pipeline::ChainOutput& out, int frames) {
-  const auto& v = out.estimate.v_horizontal_mps;
+  const auto& v = out.estimate.v_H_mps;
   const auto& s = out.mode.control.setpoint;
   // \033[K clears what a longer previous line left behind.
   std::fprintf(stderr,

@@ -259,11 +259,11 @@ TEST(OperatorPlayer, HoldsStepsAndTurnsCameraHeadingIntoH) {
   b.yaw_rate_radps = 0.3;
   script.steps = {a, b};
   OperatorPlayer player(script, M_PI / 4.0);
-  EXPECT_TRUE(player.command(500'000'000).v_horizontal_mps.isZero());
+  EXPECT_TRUE(player.command(500'000'000).v_H_mps.isZero());
   const modes::OperatorCommand held = player.command(2'500'000'000);
-  EXPECT_NEAR(held.v_horizontal_mps.x(), std::sqrt(0.5), 1e-12);  // eq. 6, alpha = 45 deg
-  EXPECT_NEAR(held.v_horizontal_mps.y(), std::sqrt(0.5), 1e-12);  // eq. 7
-  EXPECT_NEAR(held.v_horizontal_mps.z(), -0.5, 1e-12);
+  EXPECT_NEAR(held.v_H_mps.x(), std::sqrt(0.5), 1e-12);  // eq. 6, alpha = 45 deg
+  EXPECT_NEAR(held.v_H_mps.y(), std::sqrt(0.5), 1e-12);  // eq. 7
+  EXPECT_NEAR(held.v_H_mps.z(), -0.5, 1e-12);
   EXPECT_NEAR(held.yaw_rate_radps, 0.3, 1e-12);
   std::vector<modes::Mode> requests;
   player.take_mode_requests(1'500'000'000, requests);

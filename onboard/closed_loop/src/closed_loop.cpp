@@ -153,8 +153,8 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.landed = out.mode.landed;
   s.collision = truth.collision && !truth.on_ground;
   s.mode = out.mode.mode;
-  s.v_est_mps = out.estimate.v_horizontal_mps;
-  s.v_true_mps = truth.v_horizontal_mps;
+  s.v_est_mps = out.estimate.v_H_mps;
+  s.v_true_mps = truth.v_H_mps;
   s.v_star_des_mps = out.mode.v_star_des_horizontal_mps;
   s.v_des_mps = out.mode.v_des_horizontal_mps;
   s.v_obs_mps = out.obstacles.v_obs_horizontal_mps;

@@ -287,7 +287,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   link::VehicleState& s = *state_;
   s.sequence_number = ++state_sequence_;
   s.t_ns = out.t_ns;
-  s.v_H_mps = to_msg(out.estimate.v_horizontal_mps);
+  s.v_H_mps = to_msg(out.estimate.v_H_mps);
   s.omega_body_radps = to_msg(out.estimate.omega_body_radps);
   s.roll_rad = static_cast<float>(out.estimate.roll_rad);
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);

@@ -92,7 +92,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
     ground.commands.write(good);
     return bridge.failsafe().counters().commands_accepted > 0;
   }));
-  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_horizontal_mps.x()),
+  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_H_mps.x()),
                   0.25F);
 
   link::VelocityCommand bad = good;
@@ -168,7 +168,7 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
 
   pipeline::ChainOutput out;
   out.t_ns = 123;
-  out.estimate.v_horizontal_mps = {0.5, -0.25, 0.125};
+  out.estimate.v_H_mps = {0.5, -0.25, 0.125};
   out.mode.mode = modes::Mode::kLand;
   std::vector<pipeline::ModeRequest> requests;
   link::VehicleState state{};

@@ -108,8 +108,8 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   }
   modes::ModeCommand c;
   c.valid = true;
-  c.v_horizontal_mps = to_horizontal(v_world, yaw, config_.max_speed_mps);
-  if (task_ == MarkerTask::kLand && descending_) c.v_horizontal_mps.z() = config_.land_descent_mps;
+  c.v_H_mps = to_horizontal(v_world, yaw, config_.max_speed_mps);
+  if (task_ == MarkerTask::kLand && descending_) c.v_H_mps.z() = config_.land_descent_mps;
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
   return c;
@@ -133,7 +133,7 @@ modes::ModeCommand MarkerModeProvider::search(double yaw_rad, const Eigen::Vecto
   } else {
     yaw_hold_rad_ = yaw_rad + config_.search_yaw_rate_radps / config_.kp_yaw_per_s;
   }
-  c.v_horizontal_mps = to_horizontal(v_world, yaw_rad, config_.max_speed_mps);
+  c.v_H_mps = to_horizontal(v_world, yaw_rad, config_.max_speed_mps);
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw_rad, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
   return c;
@@ -216,7 +216,7 @@ modes::ModeCommand ExploreProvider::fly_to(const Eigen::Vector3d& p_target_m,
   const double yaw = navigation_.yaw_rad();
   modes::ModeCommand c;
   c.valid = true;
-  c.v_horizontal_mps =
+  c.v_H_mps =
       to_horizontal(gains.kp_position_per_s * (p_target_m - p), yaw, gains.max_speed_mps);
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_target_rad, yaw, gains.kp_yaw_per_s, gains.max_yaw_rate_radps);
@@ -249,7 +249,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
       }
       modes::ModeCommand c;
       c.valid = true;
-      c.v_horizontal_mps.z() = -config_.liftoff_climb_mps;
+      c.v_H_mps.z() = -config_.liftoff_climb_mps;
       return c;
     }
     case ExplorePhase::kSearch: {
@@ -334,7 +334,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
       const double yaw = navigation_.yaw_rad();
       Eigen::Vector3d v_world(back.x(), back.y(),
                               marker_mode_.config().kp_position_per_s * (z_target - p.z()));
-      c.v_horizontal_mps = to_horizontal(v_world, yaw, marker_mode_.config().max_speed_mps);
+      c.v_H_mps = to_horizontal(v_world, yaw, marker_mode_.config().max_speed_mps);
       c.yaw_rate_radps = yaw_rate_towards(std::atan2(back.y(), back.x()) - alpha, yaw,
                                           marker_mode_.config().kp_yaw_per_s,
                                           marker_mode_.config().max_yaw_rate_radps);

@@ -104,7 +104,7 @@ ModeSwitch ModeController::request_takeoff(Mode then) {
 }
 
 void ModeController::set_operator_command(const OperatorCommand& command) {
-  if (!command.v_horizontal_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
+  if (!command.v_H_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
   operator_command_ = command;
   have_operator_command_ = true;
 }
@@ -128,7 +128,7 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
       const double age_s = 1e-9 * static_cast<double>(t_ns - operator_command_.t_ns);
       if (have_operator_command_ && age_s <= config_.teleop_timeout_s) {
         source = Source::kOperator;
-        v_target = operator_command_.v_horizontal_mps;
+        v_target = operator_command_.v_H_mps;
         yaw_target = operator_command_.yaw_rate_radps;
       } else {
         out.teleop_timed_out = true;
@@ -158,10 +158,10 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
     case Mode::kExplore: {
       VelocityProvider* provider = (mode_ == Mode::kMarker) ? marker_ : explore_;
       const ModeCommand command = provider->desired(t_ns);
-      if (command.valid && command.v_horizontal_mps.allFinite() &&
+      if (command.valid && command.v_H_mps.allFinite() &&
           std::isfinite(command.yaw_rate_radps)) {
         source = Source::kProvider;
-        v_target = command.v_horizontal_mps;
+        v_target = command.v_H_mps;
         yaw_target = command.yaw_rate_radps;
       } else {
         out.provider_failed = true;

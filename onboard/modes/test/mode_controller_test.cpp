@@ -113,7 +113,7 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
 
   FixedProvider provider;
   provider.command.valid = true;
-  provider.command.v_horizontal_mps = Eigen::Vector3d(0.2, 0.0, 0.0);
+  provider.command.v_H_mps = Eigen::Vector3d(0.2, 0.0, 0.0);
   ASSERT_TRUE(modes.register_provider(Mode::kExplore, &provider));
   EXPECT_FALSE(modes.register_provider(Mode::kLand, &provider));
   EXPECT_TRUE(modes.request_mode(Mode::kExplore).accepted);
@@ -170,7 +170,7 @@ TEST(ModeController, ObstacleTermIsAddedInEveryMode) {
   const Eigen::Vector3d v_obs(-0.3, 0.1, -0.05);
   FixedProvider provider;
   provider.command.valid = true;
-  provider.command.v_horizontal_mps = Eigen::Vector3d(0.1, 0.1, 0.0);
+  provider.command.v_H_mps = Eigen::Vector3d(0.1, 0.1, 0.0);
   for (const Mode mode :
        {Mode::kTeleop, Mode::kHover, Mode::kLand, Mode::kMarker, Mode::kExplore}) {
     ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());

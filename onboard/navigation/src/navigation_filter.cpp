@@ -365,15 +365,15 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns,
   return result;
 }
 
-UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d& v_horizontal_mps,
+UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d& v_H_mps,
                                                const Matrix3d& covariance) {
-  if (!v_horizontal_mps.allFinite()) return reject("non-finite velocity");
+  if (!v_H_mps.allFinite()) return reject("non-finite velocity");
   if (!positive_definite<3>(covariance)) {
     return reject("velocity covariance not positive definite");
   }
   const UpdateResult stamp = check_stamp(t_ns);
   if (!stamp.accepted()) return reject(stamp.reason);
-  const Vector3d residual = v_horizontal_mps - predict_velocity_horizontal(state_);
+  const Vector3d residual = v_H_mps - predict_velocity_horizontal(state_);
   const UpdateResult result =
       correct<3>(residual, velocity_jacobian(state_), covariance, config_.velocity_gate_chi2);
   if (result.status == UpdateStatus::kGated) ++counters_.velocities_gated;
@@ -384,7 +384,7 @@ UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d
 UpdateResult NavigationFilter::update_velocity(const estimator::VelocityEstimate& estimate) {
   if (!estimate.ok()) return reject("velocity estimate unavailable");
   const double variance = config_.velocity_sigma_mps * config_.velocity_sigma_mps;
-  return update_velocity(estimate.t_ns, estimate.v_horizontal_mps, Matrix3d::Identity() * variance);
+  return update_velocity(estimate.t_ns, estimate.v_H_mps, Matrix3d::Identity() * variance);
 }
 
 NavigationHealth NavigationFilter::health() const {
@@ -404,7 +404,7 @@ Eigen::Isometry3d NavigationFilter::T_world_body() const {
   return T;
 }
 
-Vector3d NavigationFilter::v_horizontal_mps() const { return predict_velocity_horizontal(state_); }
+Vector3d NavigationFilter::v_H_mps() const { return predict_velocity_horizontal(state_); }
 
 const char* to_string(UpdateStatus status) {
   switch (status) {

@@ -457,13 +457,13 @@ TEST(NavigationFilter, AnchoringOnFirstMarkerKeepsVelocityInHorizontalFrame) {
   Scenario run;
   run.run_to(0.098);
   ASSERT_FALSE(run.filter_.health().anchored);
-  const Vector3d v_H_before = run.filter_.v_horizontal_mps();
+  const Vector3d v_H_before = run.filter_.v_H_mps();
   const Truth x = run.truth();
   const UpdateResult result =
       run.filter_.anchor_to_marker(run.t_ns_, run.marker_truth(x), run.marker_covariance());
   ASSERT_TRUE(result.accepted());
   EXPECT_TRUE(run.filter_.health().anchored);
-  EXPECT_LT((run.filter_.v_horizontal_mps() - v_H_before).norm(), 1e-12);
+  EXPECT_LT((run.filter_.v_H_mps() - v_H_before).norm(), 1e-12);
   EXPECT_LT((run.filter_.state().p_world_m - x.p_W).norm(), 1e-9);
   EXPECT_NEAR(yaw_rad(run.filter_.state().q_world_body.toRotationMatrix()), yaw_rad(x.R_WB), 1e-9);
 }

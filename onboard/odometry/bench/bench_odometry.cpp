@@ -116,7 +116,7 @@ class HaptiQuadMethod final : public Method {
   }
   Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
                           const hq::odometry::RotationPrior* gyro) override {
-    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro).T_world_cur;
+    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro).T_O_C;
   }
 
  private:
@@ -206,13 +206,13 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
       const auto start = std::chrono::steady_clock::now();
       const auto& gyro = sequence.gyro[i];
-      const Eigen::Isometry3d T_world_cur =
+      const Eigen::Isometry3d T_O_C =
           method.track(sequence.frames[i], gyro ? &*gyro : nullptr);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count();
       if (i > 0) times_ms.push_back(ms);  // the first frame only prepares a reference
-      trajectory.push_back({sequence.frames[i].t_ns, T_world_cur});
+      trajectory.push_back({sequence.frames[i].t_ns, T_O_C});
     }
   }
   Row row;

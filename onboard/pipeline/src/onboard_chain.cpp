@@ -152,7 +152,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   // Issue 7: markers, map and the error-state filter (timed with the estimator). Low over the
   // target, the marker and explore modes hand the touchdown to Mode::kLand.
   if (markers_) {
-    markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_world_cur);
+    markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_O_C);
     if (markers_->wants_land(modes_.mode())) modes_.request_mode(modes::Mode::kLand);
   }
   const std::int64_t t_estimator_ns = now_ns();
@@ -169,7 +169,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   } else {
     // The field's d0 is a clearance (|p| minus the vehicle radius): recall out to its reach.
     out.memory = memory_.update(
-        t_ns, depth_m, odometry.T_world_cur, R_HQ,
+        t_ns, depth_m, odometry.T_O_C, R_HQ,
         config_.obstacles.influence_distance_m + config_.obstacles.vehicle_radius_m);
   }
   const std::int64_t t_memory_ns = now_ns();
@@ -182,7 +182,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
     takeoff_complete_ = false;
   } else if (!takeoff_complete_ && out.estimate.usable() && have_frame_) {
     climb_since_takeoff_m_ -=
-        out.estimate.v_horizontal_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
+        out.estimate.v_H_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
     takeoff_complete_ = climb_since_takeoff_m_ >= config_.chain.takeoff_height_m;
   }
   obstacles_.set_ground_phase(modes_.landed() || modes_.mode() == modes::Mode::kLand ||
@@ -191,9 +191,9 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   update_height(t_ns, out.obstacles.floor_height_m, out);
   // Issue 16: what this frame and the memory have seen limits the operator's command.
   v_est_for_limit_mps_ = out.estimate.usable()
-                             ? out.estimate.v_horizontal_mps
+                             ? out.estimate.v_H_mps
                              : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  out.seen_space = seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_world_cur : nullptr,
+  out.seen_space = seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_O_C : nullptr,
                                       R_HQ);
   if (out.seen_space.updated && config_.memory.enabled && odometry.ok()) {
     memory_.for_each_point([this](const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns) {
@@ -207,7 +207,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   // controller's safe-hover path then commands a level hover (m g) and freezes its integral,
   // which is what the vehicle can do on IMU attitude alone.
   const Eigen::Vector3d v_est_mps =
-      out.estimate.usable() ? out.estimate.v_horizontal_mps
+      out.estimate.usable() ? out.estimate.v_H_mps
                         : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   out.mode = modes_.step(t_ns, v_est_mps, out.obstacles.v_obs_horizontal_mps);
   finish_output(out);
@@ -253,12 +253,12 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.obstacles.reason = "no frame";
   // No frame: the seen space only ages (no pose to turn it with).
   v_est_for_limit_mps_ = out.estimate.usable()
-                             ? out.estimate.v_horizontal_mps
+                             ? out.estimate.v_H_mps
                              : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
   apply_operator_limit(&out);
   const Eigen::Vector3d v_est_mps =
-      out.estimate.usable() ? out.estimate.v_horizontal_mps
+      out.estimate.usable() ? out.estimate.v_H_mps
                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
   // No depth means no v_obs either: zero.
@@ -286,7 +286,7 @@ void OnboardChain::update_height(std::int64_t t_ns, double floor_height_m, Chain
     height_known_ = true;
     out.height_source = HeightSource::kEstimate;
   } else if (height_known_ && out.estimate.usable()) {
-    height_m_ -= out.estimate.v_horizontal_mps.z() * dt_s;  // NED: climbing is -v_z
+    height_m_ -= out.estimate.v_H_mps.z() * dt_s;  // NED: climbing is -v_z
     out.height_source = HeightSource::kEstimate;
   } else {
     // No floor in view and no velocity to integrate: the height is not known any more.
@@ -315,12 +315,12 @@ void OnboardChain::apply_operator_limit(ChainOutput* out) {
   }
   if (!have_operator_command_) return;
   const seen_space::LimitedCommand limited =
-      seen_space_.limit(operator_command_.v_horizontal_mps, v_est_for_limit_mps_);
+      seen_space_.limit(operator_command_.v_H_mps, v_est_for_limit_mps_);
   modes::OperatorCommand flown = operator_command_;  // same stamp: the teleop timeout holds
-  flown.v_horizontal_mps = limited.v_horizontal_mps;
+  flown.v_H_mps = limited.v_H_mps;
   modes_.set_operator_command(flown);
   if (out == nullptr) return;
-  out->v_cmd_flown_horizontal_mps = limited.v_horizontal_mps;
+  out->v_cmd_flown_horizontal_mps = limited.v_H_mps;
   out->command_limited = limited.limited;
   out->command_unseen = limited.unseen;
 }
@@ -344,7 +344,7 @@ void OnboardChain::escalate_safe_hover(ChainOutput& out) {
 }
 
 void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
-  if (!command.v_horizontal_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
+  if (!command.v_H_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
   operator_command_ = command;
   have_operator_command_ = true;
   apply_operator_limit(nullptr);

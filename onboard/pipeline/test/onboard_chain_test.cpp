@@ -53,7 +53,7 @@ bool setpoint_finite(const ChainOutput& out) {
   const control::AttitudeSetpoint& s = out.mode.control.setpoint;
   return std::isfinite(s.thrust_n) && std::isfinite(s.roll_rad) && std::isfinite(s.pitch_rad) &&
          std::isfinite(s.yaw_rate_radps) && out.mode.v_des_horizontal_mps.allFinite() &&
-         out.estimate.v_horizontal_mps.allFinite() &&
+         out.estimate.v_H_mps.allFinite() &&
          out.obstacles.v_obs_horizontal_mps.allFinite();
 }
 
@@ -113,9 +113,9 @@ TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne
       ++ok;
       EXPECT_FALSE(out.safe_hover) << "frame " << k;
       EXPECT_FALSE(out.degraded) << "frame " << k;
-      EXPECT_NEAR(out.estimate.v_camera_raw_mps.x(), kSpeedMps, 0.03) << "frame " << k;
-      EXPECT_NEAR(out.estimate.v_camera_raw_mps.y(), 0.0, 0.03) << "frame " << k;
-      EXPECT_NEAR(out.estimate.v_camera_raw_mps.z(), 0.0, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_C_raw_mps.x(), kSpeedMps, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_C_raw_mps.y(), 0.0, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_C_raw_mps.z(), 0.0, 0.03) << "frame " << k;
     }
   }
   EXPECT_EQ(allocations, 0);
@@ -163,7 +163,7 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
     if (since_ok_s <= coast_s) {
       EXPECT_EQ(out.estimate.status, estimator::EstimateStatus::kInertial) << "frame " << k;
       EXPECT_FALSE(out.safe_hover) << "frame " << k;
-      EXPECT_TRUE(out.estimate.v_horizontal_mps.allFinite());
+      EXPECT_TRUE(out.estimate.v_H_mps.allFinite());
       ++coasting;
     } else {
       EXPECT_EQ(out.estimate.status, estimator::EstimateStatus::kUnavailable) << "frame " << k;

@@ -254,18 +254,18 @@ void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m,
   memory_m_[b] = std::min(memory_m_[b], static_cast<float>(r_m));
 }
 
-LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps,
+LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_H_mps,
                                        const Eigen::Vector3d& v_est_horizontal_mps) const {
   LimitedCommand out;
-  if (!v_horizontal_mps.allFinite()) {
+  if (!v_H_mps.allFinite()) {
     out.limited = true;
     return out;  // zero
   }
-  out.v_horizontal_mps = v_horizontal_mps;
-  const double speed = v_horizontal_mps.head<2>().norm();
+  out.v_H_mps = v_H_mps;
+  const double speed = v_H_mps.head<2>().norm();
   out.v_max_mps = std::numeric_limits<double>::infinity();
   if (!config_.enabled || speed < 1e-9) return out;
-  const double heading = std::atan2(v_horizontal_mps.y(), v_horizontal_mps.x()) + yaw_rad_;
+  const double heading = std::atan2(v_H_mps.y(), v_H_mps.x()) + yaw_rad_;
   const double window = config_.no_data_half_angle_deg * M_PI / 180.0 + 0.5 * bin_width_rad_;
   double v_max = out.v_max_mps;
   bool unseen = false;
@@ -299,8 +299,8 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps,
   out.v_max_mps = v_max;
   if (speed > v_max) {
     const double scale = v_max / speed;
-    out.v_horizontal_mps.x() *= scale;
-    out.v_horizontal_mps.y() *= scale;
+    out.v_H_mps.x() *= scale;
+    out.v_H_mps.y() *= scale;
     out.limited = true;
     out.unseen = unseen && v_max <= config_.creep_speed_mps;
   }

@@ -58,7 +58,7 @@ void read_config(config::StrictMap& section, ModesConfig& out);
 /// The operator's latest command (from the haptic mapping, eqs. 6-10), in H.
 struct OperatorCommand {
   std::int64_t t_ns = 0;
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   double yaw_rate_radps = 0.0;
 };
 
@@ -66,7 +66,7 @@ struct OperatorCommand {
 struct ModeCommand {
   bool valid = false;
   const char* reason = "";
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   double yaw_rate_radps = 0.0;
 };
 

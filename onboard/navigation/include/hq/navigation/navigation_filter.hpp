@@ -130,7 +130,7 @@ class NavigationFilter {
                              const Matrix6d& covariance);
 
   /// Vehicle velocity in H (core paper eq. 5) with its 3x3 covariance.
-  UpdateResult update_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_horizontal_mps,
+  UpdateResult update_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
                                const Eigen::Matrix3d& covariance);
   /// The core chain's estimate, with velocity_sigma_mps as its standard deviation.
   UpdateResult update_velocity(const estimator::VelocityEstimate& estimate);
@@ -142,7 +142,7 @@ class NavigationFilter {
   [[nodiscard]] NavigationHealth health() const;
   [[nodiscard]] Eigen::Isometry3d T_world_body() const;
   /// Velocity in H, what the velocity tracker consumes.
-  [[nodiscard]] Eigen::Vector3d v_horizontal_mps() const;
+  [[nodiscard]] Eigen::Vector3d v_H_mps() const;
   [[nodiscard]] const NavigationConfig& config() const { return config_; }
 
  private:

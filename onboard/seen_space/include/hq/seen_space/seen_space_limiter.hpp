@@ -108,7 +108,7 @@ struct SeenSpaceUpdate {
 
 /// The command after the limit, and why.
 struct LimitedCommand {
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();  ///< As flown (z unchanged).
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();  ///< As flown (z unchanged).
   bool limited = false;        ///< The horizontal speed was reduced.
   bool unseen = false;         ///< ... by a bin with no data (creep).
   double v_max_mps = 0.0;      ///< Allowed horizontal speed in the command's direction.
@@ -140,7 +140,7 @@ class SeenSpaceLimiter {
   /// Limits the horizontal part of a command in H (current heading). Non-finite input gives
   /// zero. v_est_horizontal_mps, when finite, is the vehicle's velocity now (H): the reaction
   /// distance uses it. Allocates nothing.
-  [[nodiscard]] LimitedCommand limit(const Eigen::Vector3d& v_horizontal_mps,
+  [[nodiscard]] LimitedCommand limit(const Eigen::Vector3d& v_H_mps,
                                      const Eigen::Vector3d& v_est_horizontal_mps =
                                          Eigen::Vector3d::Constant(NAN)) const;
 
