@@ -154,7 +154,7 @@ inline FlightResult fly(const haptics::HapticsConfig& haptics_config,
   r.collision_ticks = loop.collision_ticks();
   r.state_loss = source.state_loss();
   for (const FlightSample& s : loop.samples()) {
-    r.max_altitude_m = std::max(r.max_altitude_m, s.p_world_m.z());
+    r.max_altitude_m = std::max(r.max_altitude_m, s.p_N_m.z());
   }
   return r;
 }

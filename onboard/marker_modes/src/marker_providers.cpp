@@ -18,9 +18,9 @@ modes::ModeCommand invalid(const char* reason) {
 }
 
 /// v_W clipped to max_speed_mps, turned into H (v_H = R_WH^T v_W).
-Eigen::Vector3d to_horizontal(const Eigen::Vector3d& v_world_mps, double yaw_rad,
+Eigen::Vector3d to_horizontal(const Eigen::Vector3d& v_W_mps, double yaw_rad,
                               double max_speed_mps) {
-  Eigen::Vector3d v = v_world_mps;
+  Eigen::Vector3d v = v_W_mps;
   const double speed = v.norm();
   if (speed > max_speed_mps) v *= max_speed_mps / speed;
   return Eigen::AngleAxisd(-yaw_rad, Eigen::Vector3d::UnitZ()) * v;
@@ -80,13 +80,13 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   if (t_ns - t_last_ns_ > 200'000'000) have_yaw_ = false;
   t_last_ns_ = t_ns;
   if (!navigation_.pose_usable(config_.max_marker_age_s)) return invalid("no marker pose");
-  const std::optional<Eigen::Vector3d> p_marker = navigation_.p_world_marker_m(marker_id_);
+  const std::optional<Eigen::Vector3d> p_marker = navigation_.p_W_M_m(marker_id_);
   const double yaw = navigation_.yaw_rad();
   if (!have_yaw_) {
     yaw_hold_rad_ = yaw;
     have_yaw_ = true;
   }
-  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d p = navigation_.p_W_m();
   if (!p_marker) return search(yaw, p);
   const Eigen::Vector3d offset = *p_marker - p;
   horizontal_error_m_ = offset.head<2>().norm();
@@ -212,7 +212,7 @@ bool ExploreProvider::choose_goal(const Eigen::Vector2d& p_m) {
 modes::ModeCommand ExploreProvider::fly_to(const Eigen::Vector3d& p_target_m,
                                            double yaw_target_rad) const {
   const MarkerModeConfig& gains = marker_mode_.config();
-  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d p = navigation_.p_W_m();
   const double yaw = navigation_.yaw_rad();
   modes::ModeCommand c;
   c.valid = true;
@@ -235,7 +235,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
   }
   const double in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
   const bool have_pose = navigation_.pose_usable(marker_mode_.config().max_marker_age_s);
-  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d p = navigation_.p_W_m();
   const double height_m = -p.z();  // W: floor markers at z = 0, NED.
   const double z_target = -config_.height_m;
   const double alpha = navigation_.camera_heading_rad();

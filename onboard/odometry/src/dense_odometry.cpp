@@ -286,7 +286,6 @@ struct DenseOdometry::Impl {
     for (int l = finest; l < levels; ++l) {
       const geometry::PinholeCamera& cam = level_camera[l];
       const detail::Intrinsics k = intrinsics(l);
-      const float fx = k.fx, fy = k.fy, cx = k.cx, cy = k.cy;
       const cv::Mat& I = slot.intensity[l];
       const cv::Mat& D = slot.depth_m[l];
       ReferenceLevel& ref = reference_sets[set][l];
@@ -303,8 +302,9 @@ struct DenseOdometry::Impl {
           const float gy = 0.5f * (down[u] - up[u]);
           const bool textured = gx * gx + gy * gy >= min_gradient_sq;
           if (!textured && (stride == 0 || u % stride != 0 || v % stride != 0)) continue;
-          const float x = (static_cast<float>(u) - cx) * z / fx;
-          const float y = (static_cast<float>(v) - cy) * z / fy;
+          const Eigen::Vector3f p_C = cam.unproject(static_cast<float>(u), static_cast<float>(v), z);
+          const float x = p_C.x();
+          const float y = p_C.y();
           float J[6];
           detail::photometric_jacobian(x, y, z, gx, gy, k, J);
           ref.x[n] = x;

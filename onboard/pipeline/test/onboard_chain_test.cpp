@@ -258,8 +258,8 @@ TEST_F(ChainOnRenderedPlane, OperatorCommandIsLimitedToTheSeenSpace) {
   // THEN the horizontal part is cut to the creep speed (0), the climb passes, and the chain
   // says so with the per-bin limits.
   EXPECT_TRUE(out.command_limited);
-  EXPECT_NEAR(out.v_cmd_flown_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
-  EXPECT_DOUBLE_EQ(out.v_cmd_flown_horizontal_mps.z(), -0.2);
+  EXPECT_NEAR(out.v_cmd_flown_H_mps.head<2>().norm(), 0.0, 1e-9);
+  EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.z(), -0.2);
   EXPECT_EQ(out.seen_space_bins, 72);
   EXPECT_TRUE(out.seen_space.updated);
   for (int b = 0; b < out.seen_space_bins; ++b) EXPECT_EQ(out.seen_space_limits_mps[b], 0.0f);
@@ -282,7 +282,7 @@ TEST_F(UnlimitedChainOnRenderedPlane, DisabledLimiterPassesTheCommand) {
   chain_.set_operator_command({12 * kFramePeriodNs, Eigen::Vector3d(0.0, 1.0, -0.2), 0.0});
   const ChainOutput out = frame(12);
   EXPECT_FALSE(out.command_limited);
-  EXPECT_DOUBLE_EQ(out.v_cmd_flown_horizontal_mps.y(), 1.0);
+  EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.y(), 1.0);
 }
 
 TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {

@@ -183,9 +183,8 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   const int stride = config_.pixel_stride;
   for (int v = stride / 2; v < depth_m.rows; v += stride) {
     const auto* row = depth_m.ptr<float>(v);
-    const double y_n = (v - camera_.cy) / camera_.fy;
     for (int u = stride / 2; u < depth_m.cols; u += stride) {
-      const Eigen::Vector3d ray_H = R_HC * Eigen::Vector3d((u - camera_.cx) / camera_.fx, y_n, 1.0);
+      const Eigen::Vector3d ray_H = R_HC * camera_.ray(u, v);
       const float z = row[u];
       const bool valid = std::isfinite(z) && z >= config_.min_range_m && z > 0.0f;
       if (!valid) {
@@ -255,7 +254,7 @@ void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m,
 }
 
 LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_H_mps,
-                                       const Eigen::Vector3d& v_est_horizontal_mps) const {
+                                       const std::optional<Eigen::Vector3d>& v_est_H_mps) const {
   LimitedCommand out;
   if (!v_H_mps.allFinite()) {
     out.limited = true;
@@ -269,7 +268,7 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_H_mps,
   const double window = config_.no_data_half_angle_deg * M_PI / 180.0 + 0.5 * bin_width_rad_;
   double v_max = out.v_max_mps;
   bool unseen = false;
-  const bool have_v_est = v_est_horizontal_mps.head<2>().allFinite();
+  const bool have_v_est = v_est_H_mps.has_value() && v_est_H_mps->head<2>().allFinite();
   for (int b = 0; b < config_.bins; ++b) {
     const double theta = wrap_pi((b + 0.5) * bin_width_rad_ - heading);
     bool obstacle = false;
@@ -281,8 +280,7 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_H_mps,
       if (have_v_est) {
         // The vehicle's own speed towards this bin flies the reaction distance.
         const double a = (b + 0.5) * bin_width_rad_ - yaw_rad_;  // the bin's azimuth in H
-        v_bin = max_speed_mps(d, v_est_horizontal_mps.x() * std::cos(a) +
-                                     v_est_horizontal_mps.y() * std::sin(a));
+        v_bin = max_speed_mps(d, v_est_H_mps->x() * std::cos(a) + v_est_H_mps->y() * std::sin(a));
       }
       v_max = std::min(v_max, v_bin / c);
       continue;

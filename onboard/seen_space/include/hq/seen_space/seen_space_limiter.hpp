@@ -52,6 +52,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 namespace hq::config {
 class StrictMap;
@@ -138,11 +139,11 @@ class SeenSpaceLimiter {
   void add_remembered_point(const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns);
 
   /// Limits the horizontal part of a command in H (current heading). Non-finite input gives
-  /// zero. v_est_horizontal_mps, when finite, is the vehicle's velocity now (H): the reaction
-  /// distance uses it. Allocates nothing.
-  [[nodiscard]] LimitedCommand limit(const Eigen::Vector3d& v_H_mps,
-                                     const Eigen::Vector3d& v_est_horizontal_mps =
-                                         Eigen::Vector3d::Constant(NAN)) const;
+  /// zero. v_est_H_mps, when there is an estimate (and it is finite), is the vehicle's velocity
+  /// now (H): the reaction distance uses it. Allocates nothing.
+  [[nodiscard]] LimitedCommand limit(
+      const Eigen::Vector3d& v_H_mps,
+      const std::optional<Eigen::Vector3d>& v_est_H_mps = std::nullopt) const;
 
   /// Braking model: the largest speed that stops within free distance free_m.
   [[nodiscard]] double max_speed_mps(double free_m) const;
