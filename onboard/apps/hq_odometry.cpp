@@ -20,34 +20,37 @@
 namespace {
 volatile std::sig_atomic_t g_stop = 0;
 void request_stop(int /*signal*/) { g_stop = 1; }
-}  // namespace
 
-static int run(int argc, char** argv) {
-  CLI::App app{"Dense RGB-D odometry (DVO, Kerl 2013) over a TUM RGB-D sequence or a camera"};
+struct Options {
   std::string sequence_dir;
   std::string camera_path;
   std::string config_path;
   std::string source_spec;
   double seconds = 0.0;
   std::string out_path = "trajectory.txt";
+};
+
+void add_options(CLI::App& app, Options& o) {
   std::string kinds;
   for (const std::string& kind : hq::sources::available_camera_sources()) {
     kinds += (kinds.empty() ? "" : ", ") + kind;
   }
-  app.add_option("sequence-dir", sequence_dir, "TUM RGB-D sequence folder");
-  app.add_option("--source", source_spec,
+  app.add_option("sequence-dir", o.sequence_dir, "TUM RGB-D sequence folder");
+  app.add_option("--source", o.source_spec,
                  "live camera instead of a sequence: openni2[:uri] | freenect[:index] (this "
                  "build: " +
                      (kinds.empty() ? std::string("none") : kinds) + ")");
-  app.add_option("--seconds", seconds, "stop a live run after this long (0 = at Ctrl-C)")
+  app.add_option("--seconds", o.seconds, "stop a live run after this long (0 = at Ctrl-C)")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--camera", camera_path,
+  app.add_option("--camera", o.camera_path,
                  "camera file, e.g. calib/tum_fr1.yaml (required for a sequence; for a camera "
                  "it replaces the device's intrinsics)");
-  app.add_option("--config", config_path, "YAML with an odometry: section (optional)");
-  app.add_option("--out", out_path, "estimated trajectory, TUM format (camera in world)");
-  CLI11_PARSE(app, argc, argv);
+  app.add_option("--config", o.config_path, "YAML with an odometry: section (optional)");
+  app.add_option("--out", o.out_path,
+                 "estimated trajectory, TUM format (the camera C in the odometry origin O)");
+}
 
+hq::odometry::OdometryConfig load_config(const std::string& config_path) {
   hq::odometry::OdometryConfig config;
   if (!config_path.empty()) {
     hq::config::StrictMap root(hq::config::load_yaml_file(config_path), config_path);
@@ -55,32 +58,38 @@ static int run(int argc, char** argv) {
     hq::odometry::read_config(section, config);
     root.finish_sections();
   }
-  if (source_spec.empty() == sequence_dir.empty()) {
+  return config;
+}
+
+std::unique_ptr<hq::sources::FrameSource> open_source(const Options& o) {
+  if (o.source_spec.empty() == o.sequence_dir.empty()) {
     throw hq::InputError("give either a sequence directory or --source <camera>, not " +
-                         std::string(sequence_dir.empty() ? "neither" : "both"));
+                         std::string(o.sequence_dir.empty() ? "neither" : "both"));
   }
-  if (!sequence_dir.empty() && camera_path.empty()) {
+  if (!o.sequence_dir.empty() && o.camera_path.empty()) {
     throw hq::InputError("--camera is required with a sequence directory");
   }
-  std::unique_ptr<hq::sources::FrameSource> owned;
-  if (source_spec.empty()) {
-    owned = std::make_unique<hq::sources::TumFrameSource>(
-        sequence_dir, hq::config::load_camera_info(camera_path));
-  } else {
-    hq::sources::CameraSourceOptions options;
-    options.camera_file = camera_path;
-    owned = hq::sources::open_camera_source(source_spec, options);
-    std::signal(SIGINT, request_stop);
-    std::signal(SIGTERM, request_stop);
+  if (o.source_spec.empty()) {
+    return std::make_unique<hq::sources::TumFrameSource>(
+        o.sequence_dir, hq::config::load_camera_info(o.camera_path));
   }
-  hq::sources::FrameSource& source = *owned;
-  hq::odometry::DenseOdometry odometry(config, source.camera());
-  std::fprintf(stderr, "hq-odometry: %s\n", source.describe().c_str());
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  hq::sources::CameraSourceOptions options;
+  options.camera_file = o.camera_path;
+  std::unique_ptr<hq::sources::FrameSource> camera =
+      hq::sources::open_camera_source(o.source_spec, options);
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  return camera;
+}
 
+/// Tracks every frame until the end of the stream, --seconds or Ctrl-C; returns the poses
+/// T_O_C and counts lost frames.
+std::vector<hq::recording::StampedPose> track_all(hq::sources::FrameSource& source,
+                                                  hq::odometry::DenseOdometry& odometry,
+                                                  double seconds, int& lost) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   std::vector<hq::recording::StampedPose> trajectory;
   hq::sources::RgbdFrame frame;
-  int lost = 0;
   std::string last_error;
   while (g_stop == 0 && (seconds <= 0.0 || std::chrono::steady_clock::now() < end)) {
     const hq::sources::FrameStatus status = source.next(frame);
@@ -100,14 +109,32 @@ static int run(int argc, char** argv) {
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     if (result.status == hq::odometry::TrackingStatus::kLost) ++lost;
-    trajectory.push_back({frame.t_ns, result.T_world_cur});
+    trajectory.push_back({frame.t_ns, result.T_O_C});
     std::fprintf(stderr, "frame %4zu  %-11s %6.2f ms  valid %.2f  iterations %2d%s  %s\n",
                  trajectory.size(), hq::odometry::to_string(result.status), ms, result.valid_ratio,
                  result.iterations, result.new_keyframe ? "  keyframe" : "", result.reason);
   }
-  hq::recording::write_tum_trajectory(out_path, trajectory);
+  return trajectory;
+}
+
+}  // namespace
+
+static int run(int argc, char** argv) {
+  CLI::App app{"Dense RGB-D odometry (DVO, Kerl 2013) over a TUM RGB-D sequence or a camera"};
+  Options o;
+  add_options(app, o);
+  CLI11_PARSE(app, argc, argv);
+
+  const hq::odometry::OdometryConfig config = load_config(o.config_path);
+  const std::unique_ptr<hq::sources::FrameSource> source = open_source(o);
+  hq::odometry::DenseOdometry odometry(config, source->camera());
+  std::fprintf(stderr, "hq-odometry: %s\n", source->describe().c_str());
+  int lost = 0;
+  const std::vector<hq::recording::StampedPose> trajectory =
+      track_all(*source, odometry, o.seconds, lost);
+  hq::recording::write_tum_trajectory(o.out_path, trajectory);
   std::fprintf(stderr, "hq-odometry: %zu poses written to %s, %d lost\n", trajectory.size(),
-               out_path.c_str(), lost);
+               o.out_path.c_str(), lost);
   return 0;
 }
 

@@ -51,9 +51,8 @@ void request_stop(int /*signal*/) { g_stop = true; }
 
 namespace {
 
-int run(int argc, char** argv) {
-  CLI::App app{"hq-onboard: the on-board velocity chain of the core paper on a frame source"};
-  Options o;
+/// --source and what every vehicle run takes: files, the flight controller, the duration.
+void add_vehicle_options(CLI::App& app, Options& o) {
   std::string kinds =
       "replay (a TUM-layout sequence) | sim (closed loop in simulation) | sitl (hq-sim --sitl's "
       "frame channel)";
@@ -67,15 +66,6 @@ int run(int argc, char** argv) {
   app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_body_camera)");
   app.add_option("--csv", o.csv_path,
                  "replay: per-frame estimates and setpoints; sim: the Fig. 6-8 signals");
-  app.add_option("--world", o.world_path, "sim: world file (onboard/sim/worlds/*.yaml)");
-  app.add_option("--script", o.script_path,
-                 "sim: operator timeline (onboard/closed_loop/flights/*.yaml)");
-  app.add_option("--sim-config", o.sim_config_path, "sim: simulator config");
-  app.add_option("--resolution", o.resolution, "sim: camera WIDTHxHEIGHT (320x240, 640x480)");
-  app.add_option("--seed", o.seed, "sim: noise and gust seed (default: the world's)")
-      ->check(CLI::Range(0LL, 2147483647LL));
-  app.add_flag("--link", o.link,
-               "fly commanded by a ground station over DDS (sim: paced to real time)");
   app.add_option("--fc", o.fc_spec,
                  "flight controller: none | mavlink:udp:HOST:PORT | mavlink:serial:DEVICE:BAUD "
                  "(default: none; sitl: mavlink:udp:127.0.0.1:14560)");
@@ -91,6 +81,34 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 600.0));
   app.add_option("--duration-s", o.duration_s, "sim --link, sitl and cameras: run length")
       ->check(CLI::Range(0.1, 86400.0));
+  app.add_option("--record", o.record_dir,
+                 "write the flight's on-board MCAP log to DIR/onboard.mcap (link samples as CDR, "
+                 "IMU, estimates, setpoints, stage timings)");
+}
+
+/// The in-process simulator's world, script and camera.
+void add_sim_options(CLI::App& app, Options& o) {
+  app.add_option("--world", o.world_path, "sim: world file (onboard/sim/worlds/*.yaml)");
+  app.add_option("--script", o.script_path,
+                 "sim: operator timeline (onboard/closed_loop/flights/*.yaml)");
+  app.add_option("--sim-config", o.sim_config_path, "sim: simulator config");
+  app.add_option("--resolution", o.resolution, "sim: camera WIDTHxHEIGHT (320x240, 640x480)");
+  app.add_option("--seed", o.seed, "sim: noise and gust seed (default: the world's)")
+      ->check(CLI::Range(0LL, 2147483647LL));
+  app.add_option("--save-map", o.save_map_path,
+                 "sim: the obstacle memory's map at the end of the flight (.pcd or .ply)")
+      ->check([](const std::string& path) -> std::string {
+        const auto ends = [&](const char* ext) {
+          return path.size() > 4 && path.compare(path.size() - 4, 4, ext) == 0;
+        };
+        return ends(".pcd") || ends(".ply") ? "" : path + ": expected a .pcd or .ply file";
+      });
+}
+
+/// --link: the ground station over DDS and the on-board fail-safes.
+void add_ground_link_options(CLI::App& app, Options& o) {
+  app.add_flag("--link", o.link,
+               "fly commanded by a ground station over DDS (sim: paced to real time)");
   app.add_option("--link-config", o.link_config_path, "--link: YAML with a link: section");
   hq::link::add_link_options(app, o.link_overrides);
   app.add_option("--command-timeout-ms", o.command_timeout_ms,
@@ -105,19 +123,16 @@ int run(int argc, char** argv) {
   app.add_option("--camera-rate-hz", o.camera_rate_hz,
                  "--link: JPEG frames to the ground (0: none)")
       ->check(CLI::Range(0.0, 60.0));
-  app.add_option("--save-map", o.save_map_path,
-                 "sim: the obstacle memory's map at the end of the flight (.pcd or .ply)")
-      ->check([](const std::string& path) -> std::string {
-        const auto ends = [&](const char* ext) {
-          return path.size() > 4 && path.compare(path.size() - 4, 4, ext) == 0;
-        };
-        return ends(".pcd") || ends(".ply") ? "" : path + ": expected a .pcd or .ply file";
-      });
-  app.add_option("--record", o.record_dir,
-                 "write the flight's on-board MCAP log to DIR/onboard.mcap (link samples as CDR, "
-                 "IMU, estimates, setpoints, stage timings)");
   app.add_option("--link-log", o.link_log_path,
                  "sim --link: per-step CSV of mode, command and heartbeat ages, truth");
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-onboard: the on-board velocity chain of the core paper on a frame source"};
+  Options o;
+  add_vehicle_options(app, o);
+  add_sim_options(app, o);
+  add_ground_link_options(app, o);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

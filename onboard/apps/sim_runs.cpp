@@ -45,7 +45,7 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
     const hq::sim::TruthState& truth = sim_->truth();
     const hq::link_bridge::FailsafeState& f = bridge().failsafe().state();
     const hq::link_bridge::FailsafeCounters& c = bridge().failsafe().counters();
-    const Eigen::Vector3d& v = f.command.v_horizontal_mps;
+    const Eigen::Vector3d& v = f.command.v_H_mps;
     std::fprintf(log_,
                  "%.4f,%s,%d,%d,%.2f,%.2f,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,"
                  "%llu,%llu,%llu\n",
@@ -54,8 +54,8 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
                  f.command_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.command_age_ns),
                  f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
                  f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
-                 f.command.yaw_rate_radps, truth.v_horizontal_mps.x(),
-                 truth.v_horizontal_mps.y(), truth.v_horizontal_mps.z(),
+                 f.command.yaw_rate_radps, truth.v_H_mps.x(),
+                 truth.v_H_mps.y(), truth.v_H_mps.z(),
                  truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
                  out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
                  static_cast<unsigned long long>(c.commands_rejected),

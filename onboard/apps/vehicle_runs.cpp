@@ -49,18 +49,17 @@ namespace {
 
 void write_csv_header(std::FILE* csv) {
   std::fprintf(csv,
-               "# hq-onboard per-step log. Frames: C camera optical (x right, y down, z forward);"
-               " Q body NED; H horizontal NED (Q without roll and pitch, yaw kept). SI units as "
-               "named; frame = 0 rows are camera-timeout steps between frames.\n");
+               "# hq-onboard per-step log. Frames (hq/geometry/frames.hpp): C camera optical (x "
+               "right, y down, z forward); B body FRD; H horizontal (B without roll and pitch, yaw "
+               "kept). SI units as named; frame = 0 rows are camera-timeout steps between "
+               "frames.\n");
   std::fprintf(csv,
-               "t_s,frame,tracking,valid_ratio,estimate_ok,v_camera_raw_x_mps,v_camera_raw_y_mps,"
-               "v_camera_raw_z_mps,v_camera_x_mps,v_camera_y_mps,v_camera_z_mps,v_body_x_mps,"
-               "v_body_y_mps,v_body_z_mps,v_horizontal_x_mps,v_horizontal_y_mps,"
-               "v_horizontal_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,near_hazard,"
-               "v_obs_horizontal_x_mps,v_obs_horizontal_y_mps,v_obs_horizontal_z_mps,mode,"
-               "v_des_horizontal_x_mps,v_des_horizontal_y_mps,v_des_horizontal_z_mps,"
-               "thrust_n,roll_cmd_rad,pitch_cmd_rad,yaw_rate_cmd_radps,safe_hover,total_ms,"
-               "reason\n");
+               "t_s,frame,tracking,valid_ratio,estimate_ok,v_C_raw_x_mps,v_C_raw_y_mps,"
+               "v_C_raw_z_mps,v_C_x_mps,v_C_y_mps,v_C_z_mps,v_B_x_mps,v_B_y_mps,v_B_z_mps,"
+               "v_H_x_mps,v_H_y_mps,v_H_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,"
+               "near_hazard,v_obs_H_x_mps,v_obs_H_y_mps,v_obs_H_z_mps,mode,v_des_H_x_mps,"
+               "v_des_H_y_mps,v_des_H_z_mps,thrust_n,roll_cmd_rad,pitch_cmd_rad,"
+               "yaw_rate_cmd_radps,safe_hover,total_ms,reason\n");
 }
 
 void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
@@ -72,10 +71,10 @@ void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
   std::fprintf(csv, "%.6f,%d,%s,%.4f,%d,", 1e-9 * static_cast<double>(out.t_ns), out.frame ? 1 : 0,
                out.frame ? hq::odometry::to_string(out.tracking) : "none", out.valid_ratio,
                e.ok() ? 1 : 0);
-  v3(e.v_camera_raw_mps);
-  v3(e.v_camera_mps);
-  v3(e.v_body_mps);
-  v3(e.v_horizontal_mps);
+  v3(e.v_C_raw_mps);
+  v3(e.v_C_mps);
+  v3(e.v_B_mps);
+  v3(e.v_H_mps);
   std::fprintf(csv, "%.6f,%.6f,%d,%d,", e.roll_rad, e.pitch_rad, out.obstacles.count,
                out.obstacles.near_hazard ? 1 : 0);
   v3(out.obstacles.v_obs_horizontal_mps);
@@ -185,7 +184,7 @@ std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& chann
 }  // namespace
 
 void print_status(const hq::pipeline::ChainOutput& out, int frames) {
-  const auto& v = out.estimate.v_horizontal_mps;
+  const auto& v = out.estimate.v_H_mps;
   const auto& s = out.mode.control.setpoint;
   // \033[K clears what a longer previous line left behind.
   std::fprintf(stderr,
@@ -259,7 +258,10 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
   }
 }
 
-int run_vehicle(const Options& o) {
+namespace {
+
+/// --fc as given, or the default for the source; rejects combinations that cannot fly.
+std::string flight_controller_spec(const Options& o) {
   const bool replay = o.source_kind == "replay";
   const bool sitl = o.source_kind == "sitl";
   if (replay && (o.sequence_dir.empty() || o.camera_path.empty())) {
@@ -278,42 +280,52 @@ int run_vehicle(const Options& o) {
   if (sitl && fc_spec == "none") {
     throw hq::InputError("--source sitl needs the simulator's flight controller: --fc mavlink:udp:HOST:PORT");
   }
+  return fc_spec;
+}
 
-  hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
-  hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
-  // --record: before the source and the link, so an unwritable folder stops the start.
-  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
-
-  // The frame source.
+/// The frame source, with the kind-specific views the run needs (null when not that kind).
+struct OpenedSource {
   std::unique_ptr<hq::sources::FrameSource> source;
   hq::sources::TumFrameSource* tum = nullptr;
-  hq::sources::SitlFrameSource* sitl_source = nullptr;
-  if (replay) {
+  hq::sources::SitlFrameSource* sitl = nullptr;
+};
+
+OpenedSource open_source(const Options& o, const std::string& fc_spec,
+                         hq::pipeline::OnboardConfig& config) {
+  OpenedSource opened;
+  if (o.source_kind == "replay") {
     auto t = std::make_unique<hq::sources::TumFrameSource>(
         o.sequence_dir, hq::config::load_camera_info(o.camera_path));
-    tum = t.get();
-    source = std::move(t);
+    opened.tum = t.get();
+    opened.source = std::move(t);
     config.modes.start_landed = false;  // a recording starts in motion, not resting on the floor
-  } else if (sitl) {
+  } else if (o.source_kind == "sitl") {
     auto s = open_sitl(o.sitl_channel, o.sitl_wait_s);
-    sitl_source = s.get();
-    source = std::move(s);
+    opened.sitl = s.get();
+    opened.source = std::move(s);
   } else {
     // Anything else must be a camera this build has; parse_camera_spec says what is wrong.
     (void)hq::sources::parse_camera_spec(o.source_kind);
     hq::sources::CameraSourceOptions camera_options;
     camera_options.camera_file = o.camera_path;
-    source = std::make_unique<hq::sources::ThreadedFrameSource>(
+    opened.source = std::make_unique<hq::sources::ThreadedFrameSource>(
         hq::sources::open_camera_source(o.source_kind, camera_options));
     if (fc_spec == "none") config.modes.start_landed = false;  // carried by hand
   }
-  std::fprintf(stderr, "hq-onboard: %s\n", source->describe().c_str());
+  std::fprintf(stderr, "hq-onboard: %s\n", opened.source->describe().c_str());
+  return opened;
+}
 
-  // The flight controller.
+/// The flight controller: the recording's (or synthesised) IMU on replay, none for a hand-held
+/// camera, else MAVLink. The first two fly the camera as the body, so they set the vehicle's
+/// extrinsics to the camera-as-body ones.
+std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(
+    const Options& o, const std::string& fc_spec, const OpenedSource& opened,
+    hq::control::VehicleConfig& vehicle) {
   std::unique_ptr<hq::vehicle::FlightController> fc;
-  if (replay) {
+  if (opened.tum != nullptr) {
     const hq::pipeline::ReplayImu imu = hq::pipeline::load_replay_imu(
-        tum->sequence(), hq::pipeline::R_body_camera_for_camera_as_body());
+        opened.tum->sequence(), hq::pipeline::R_body_camera_for_camera_as_body());
     std::fprintf(stderr, "hq-onboard: %s\n", imu.description.c_str());
     if (imu.synthesised) {
       vehicle.R_body_camera = hq::pipeline::R_body_camera_for_camera_as_body();
@@ -334,7 +346,7 @@ int run_vehicle(const Options& o) {
     // A hand-held camera is the body; the Kinect's accelerometer is in its optical axes.
     vehicle.R_body_camera = hq::pipeline::R_body_camera_for_camera_as_body();
     vehicle.p_body_camera_m.setZero();
-    none->set_tilt_source(source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
+    none->set_tilt_source(opened.source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
     std::fprintf(stderr, "hq-onboard: camera-as-body, no gyro (zero rate), tilt from %s\n",
                  o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
                                                         : "a level-camera assumption");
@@ -346,103 +358,73 @@ int run_vehicle(const Options& o) {
     fc = std::make_unique<hq::vehicle::MavlinkFlightController>(fc_config);
   }
   std::fprintf(stderr, "hq-onboard: flight controller: %s\n", fc->describe().c_str());
+  return fc;
+}
 
-  std::FILE* csv = nullptr;
-  if (!o.csv_path.empty()) {
-    csv = std::fopen(o.csv_path.c_str(), "w");
-    if (!csv) throw hq::InputError(o.csv_path + ": cannot open for writing");
-    write_csv_header(csv);
+/// Recorded time, as fast as the chain goes (with --link: at the recording's own pace, so a
+/// ground station sees it as it happened); the clock jumps to the first frame and over gaps.
+void run_recorded_time(const Options& o, hq::vehicle::VehicleRuntime& runtime,
+                       const RunPort& port) {
+  std::int64_t t_ns = 0;
+  std::int64_t wall_minus_recorded_ns = 0;
+  bool paced = false;
+  while (!g_stop && runtime.step(t_ns)) {
+    const std::optional<std::int64_t> next = runtime.pending_frame_t_ns();
+    t_ns += 5'000'000;
+    if (next && *next > t_ns && (t_ns < *next - 1'000'000'000LL || port.frames == 0)) {
+      t_ns = *next;
+      paced = false;
+    }
+    if (o.link) {
+      if (!paced) wall_minus_recorded_ns = hq::monotonic_now_ns() - t_ns;
+      paced = true;
+      hq::sleep_until_monotonic_ns(t_ns + wall_minus_recorded_ns);
+    }
   }
-  const bool live = isatty(fileno(stderr)) != 0;
-  const SteadyClock clock;
-  hq::pipeline::OnboardChain chain(config, vehicle, source->camera(), &clock);
+}
 
-  // The operator link, when asked for.
-  std::unique_ptr<hq::link_bridge::LinkBridge> bridge;
-  std::unique_ptr<hq::link_bridge::LinkOperatorPort> link_port;
-  if (o.link) {
-    bridge = make_link_bridge(o);
-    if (bridge->ros2() != nullptr) bridge->ros2()->set_camera(source->camera());
-    Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
-    T_body_camera.linear() = vehicle.R_body_camera;
-    T_body_camera.translation() = vehicle.p_body_camera_m;
-    link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain,
-                                                                     T_body_camera, stdout);
-  }
-  RunPort port(link_port.get(), csv, live);
-  std::unique_ptr<SitlTruth> truth;
-  if (sitl_source != nullptr) truth = std::make_unique<SitlTruth>(*sitl_source);
-  // --record: the recorder behind the port (chain outputs) and the FC (IMU samples).
-  std::optional<hq::onboard_log::RecordingPort> record_port;
-  std::optional<hq::onboard_log::RecordingFlightController> record_fc;
-  if (recorder) {
-    record_port.emplace(&port, *recorder);
-    record_fc.emplace(*fc, *recorder);
-  }
-  hq::vehicle::VehicleRuntime runtime(
-      chain, *source, record_fc ? static_cast<hq::vehicle::FlightController&>(*record_fc) : *fc,
-      record_port ? static_cast<hq::vehicle::OperatorPort*>(&*record_port) : &port, truth.get());
-
-  std::signal(SIGINT, request_stop);
-  std::signal(SIGTERM, request_stop);
+/// Wall time: the loop wakes every millisecond (frames and FC input within 1 ms); a camera
+/// blocks only its own thread.
+void run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
   constexpr std::int64_t kLoopPeriodNs = 1'000'000;
-  if (replay) {
-    // Recorded time, as fast as the chain goes (with --link: at the recording's own pace, so a
-    // ground station sees it as it happened); the clock jumps to the first frame and over gaps.
-    std::int64_t t_ns = 0;
-    std::int64_t wall_minus_recorded_ns = 0;
-    bool paced = false;
-    while (!g_stop && runtime.step(t_ns)) {
-      const std::optional<std::int64_t> next = runtime.pending_frame_t_ns();
-      t_ns += 5'000'000;
-      if (next && *next > t_ns && (t_ns < *next - 1'000'000'000LL || port.frames == 0)) {
-        t_ns = *next;
-        paced = false;
+  const std::int64_t start_ns = hq::monotonic_now_ns();
+  const auto end_ns = start_ns + static_cast<std::int64_t>(o.duration_s * 1e9);
+  // In SITL the flight controller is the simulator: once it is gone for good there is no
+  // vehicle left to fly, so the process stops (a real companion keeps waiting for its FC).
+  const bool sitl = o.source_kind == "sitl";
+  const double fc_lost_exit_s = o.fc_lost_exit_s >= 0.0 ? o.fc_lost_exit_s : (sitl ? 3.0 : 0.0);
+  std::int64_t fc_lost_since_ns = -1;
+  std::int64_t next_ns = start_ns;
+  while (!g_stop && runtime.step(hq::monotonic_now_ns()) && hq::monotonic_now_ns() < end_ns) {
+    if (runtime.status().fc_lost) {
+      if (fc_lost_since_ns < 0) fc_lost_since_ns = hq::monotonic_now_ns();
+      if (fc_lost_exit_s > 0.0 &&
+          hq::monotonic_now_ns() - fc_lost_since_ns > static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
+        std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
+        break;
       }
-      if (o.link) {
-        if (!paced) wall_minus_recorded_ns = hq::monotonic_now_ns() - t_ns;
-        paced = true;
-        hq::sleep_until_monotonic_ns(t_ns + wall_minus_recorded_ns);
-      }
+    } else {
+      fc_lost_since_ns = -1;
     }
-  } else {
-    // Wall time: the loop wakes every millisecond (frames and FC input within 1 ms); a camera
-    // blocks only its own thread.
-    const std::int64_t start_ns = hq::monotonic_now_ns();
-    const auto end_ns = start_ns + static_cast<std::int64_t>(o.duration_s * 1e9);
-    // In SITL the flight controller is the simulator: once it is gone for good there is no
-    // vehicle left to fly, so the process stops (a real companion keeps waiting for its FC).
-    const double fc_lost_exit_s = o.fc_lost_exit_s >= 0.0 ? o.fc_lost_exit_s : (sitl ? 3.0 : 0.0);
-    std::int64_t fc_lost_since_ns = -1;
-    std::int64_t next_ns = start_ns;
-    while (!g_stop && runtime.step(hq::monotonic_now_ns()) && hq::monotonic_now_ns() < end_ns) {
-      if (runtime.status().fc_lost) {
-        if (fc_lost_since_ns < 0) fc_lost_since_ns = hq::monotonic_now_ns();
-        if (fc_lost_exit_s > 0.0 &&
-            hq::monotonic_now_ns() - fc_lost_since_ns > static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
-          std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
-          break;
-        }
-      } else {
-        fc_lost_since_ns = -1;
-      }
-      next_ns += kLoopPeriodNs;
-      const std::int64_t now_ns = hq::monotonic_now_ns();
-      if (next_ns < now_ns) next_ns = now_ns;  // late: no burst of catch-up steps
-      hq::sleep_until_monotonic_ns(next_ns);
-    }
+    next_ns += kLoopPeriodNs;
+    const std::int64_t now_ns = hq::monotonic_now_ns();
+    if (next_ns < now_ns) next_ns = now_ns;  // late: no burst of catch-up steps
+    hq::sleep_until_monotonic_ns(next_ns);
   }
-  if (live) std::fprintf(stderr, "\n");
-  if (csv && std::fclose(csv) != 0) throw hq::InputError(o.csv_path + ": write failed");
+}
 
+void print_run_summary(const Options& o, const std::string& fc_spec, const RunPort& port,
+                       const hq::sources::FrameSource& source,
+                       const hq::vehicle::FlightController& fc,
+                       const hq::vehicle::VehicleRuntime& runtime, bool csv) {
   const hq::vehicle::RuntimeCounters& rc = runtime.counters();
-  const hq::vehicle::FcCounters fcc = fc->counters();
+  const hq::vehicle::FcCounters fcc = fc.counters();
   std::printf(
       "hq-onboard: %d frames from %s, %d estimates ok, %d safe-hover setpoints, %d "
       "camera-timeout steps%s%s\n",
-      port.frames, source->describe().c_str(), port.ok, port.safe_hover, port.ticks,
+      port.frames, source.describe().c_str(), port.ok, port.safe_hover, port.ticks,
       csv ? ", log in " : "", o.csv_path.c_str());
-  std::printf("  %-40s %s\n", "flight controller", fc->describe().c_str());
+  std::printf("  %-40s %s\n", "flight controller", fc.describe().c_str());
   std::printf("  %-40s %llu sent (%llu withheld before the first estimate)\n", "setpoints",
               static_cast<unsigned long long>(rc.setpoints),
               static_cast<unsigned long long>(rc.setpoints_withheld));
@@ -458,12 +440,74 @@ int run_vehicle(const Options& o) {
                 runtime.status().fc_lost ? "LOST" : runtime.status().fc.connected ? "connected" : "never heard");
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
+}
+
+}  // namespace
+
+int run_vehicle(const Options& o) {
+  const std::string fc_spec = flight_controller_spec(o);
+  hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
+  hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  // --record: before the source and the link, so an unwritable folder stops the start.
+  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
+  const OpenedSource opened = open_source(o, fc_spec, config);
+  const std::unique_ptr<hq::vehicle::FlightController> fc =
+      open_flight_controller(o, fc_spec, opened, vehicle);
+
+  std::FILE* csv = nullptr;
+  if (!o.csv_path.empty()) {
+    csv = std::fopen(o.csv_path.c_str(), "w");
+    if (!csv) throw hq::InputError(o.csv_path + ": cannot open for writing");
+    write_csv_header(csv);
+  }
+  const bool live = isatty(fileno(stderr)) != 0;
+  const SteadyClock clock;
+  hq::pipeline::OnboardChain chain(config, vehicle, opened.source->camera(), &clock);
+
+  // The operator link, when asked for.
+  std::unique_ptr<hq::link_bridge::LinkBridge> bridge;
+  std::unique_ptr<hq::link_bridge::LinkOperatorPort> link_port;
+  if (o.link) {
+    bridge = make_link_bridge(o);
+    if (bridge->ros2() != nullptr) bridge->ros2()->set_camera(opened.source->camera());
+    Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+    T_B_C.linear() = vehicle.R_body_camera;
+    T_B_C.translation() = vehicle.p_body_camera_m;
+    link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain, T_B_C, stdout);
+  }
+  RunPort port(link_port.get(), csv, live);
+  std::unique_ptr<SitlTruth> truth;
+  if (opened.sitl != nullptr) truth = std::make_unique<SitlTruth>(*opened.sitl);
+  // --record: the recorder behind the port (chain outputs) and the FC (IMU samples).
+  std::optional<hq::onboard_log::RecordingPort> record_port;
+  std::optional<hq::onboard_log::RecordingFlightController> record_fc;
+  if (recorder) {
+    record_port.emplace(&port, *recorder);
+    record_fc.emplace(*fc, *recorder);
+  }
+  hq::vehicle::VehicleRuntime runtime(
+      chain, *opened.source,
+      record_fc ? static_cast<hq::vehicle::FlightController&>(*record_fc) : *fc,
+      record_port ? static_cast<hq::vehicle::OperatorPort*>(&*record_port) : &port, truth.get());
+
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  if (opened.tum != nullptr) {
+    run_recorded_time(o, runtime, port);
+  } else {
+    run_wall_time(o, runtime);
+  }
+  if (live) std::fprintf(stderr, "\n");
+  if (csv && std::fclose(csv) != 0) throw hq::InputError(o.csv_path + ": write failed");
+
+  print_run_summary(o, fc_spec, port, *opened.source, *fc, runtime, csv != nullptr);
   if (bridge) print_link_summary(*bridge);
   std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
   port.timing.print(stdout);
   if (recorder) {
+    const hq::vehicle::RuntimeCounters& rc = runtime.counters();
     close_recorder(*recorder,
-                   {{"source", source->describe()},
+                   {{"source", opened.source->describe()},
                     {"frames", std::to_string(port.frames)},
                     {"camera_timeout_steps", std::to_string(port.ticks)},
                     {"estimates_ok", std::to_string(port.ok)},

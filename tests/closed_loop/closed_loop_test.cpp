@@ -120,7 +120,7 @@ TEST(ClosedLoop, OneSecondCameraLossAndNanBurstKeepTheVehicleInPlace) {
   loop->run();
 
   for (const auto& [start_s, duration_s] : {std::pair{8.0, 1.0}, std::pair{12.0, 0.5}}) {
-    const Vec p0 = sample_at(*loop, start_s - 0.05).p_world_m;
+    const Vec p0 = sample_at(*loop, start_s - 0.05).p_N_m;
     double max_drift_m = 0.0;
     bool degraded = false;
     for (const FlightSample& x : loop->samples()) {
@@ -128,7 +128,7 @@ TEST(ClosedLoop, OneSecondCameraLossAndNanBurstKeepTheVehicleInPlace) {
       degraded = degraded || x.degraded;
       EXPECT_FALSE(x.safe_hover) << "t = " << x.t_s << ": the IMU coast should cover it";
       EXPECT_TRUE(x.airborne) << "t = " << x.t_s;
-      max_drift_m = std::max(max_drift_m, (x.p_world_m - p0).norm());
+      max_drift_m = std::max(max_drift_m, (x.p_N_m - p0).norm());
     }
     const FlightSample& after = sample_at(*loop, start_s + duration_s + 1.0);
     std::printf("camera fault at %.1f s for %.1f s: max drift %.3f m, estimate ok 1 s later: %s\n",
@@ -210,18 +210,18 @@ TEST(ClosedLoop, TakeOffRequestAloneEndsHoveringAtTargetHeightWithHeightNearTrut
     ASSERT_NE(x.height_source, pipeline::HeightSource::kNone) << "t = " << x.t_s;
     ++airborne_samples;
     depth_samples += x.height_source == pipeline::HeightSource::kDepth ? 1 : 0;
-    max_error_m = std::max(max_error_m, std::abs(x.height_m - x.p_world_m.z()));
+    max_error_m = std::max(max_error_m, std::abs(x.height_m - x.p_N_m.z()));
   }
   const FlightSample& last = loop->samples().back();
   std::printf("take-off: final height %.3f m (truth %.3f m, target %.2f m), height error max "
               "%.3f m over %d airborne frames (%d from depth)\n",
-              last.height_m, last.p_world_m.z(), target_m, max_error_m, airborne_samples,
+              last.height_m, last.p_N_m.z(), target_m, max_error_m, airborne_samples,
               depth_samples);
   EXPECT_TRUE(saw_taking_off);
   EXPECT_EQ(last.flight_state, modes::FlightState::kAirborne);
   EXPECT_EQ(last.mode, modes::Mode::kHover);
   EXPECT_TRUE(last.airborne);
-  EXPECT_NEAR(last.p_world_m.z(), target_m, 0.1);
+  EXPECT_NEAR(last.p_N_m.z(), target_m, 0.1);
   EXPECT_GT(airborne_samples, 200);
   EXPECT_GT(depth_samples, airborne_samples / 2) << "the floor is in the camera's view";
   EXPECT_LT(max_error_m, 0.1);
@@ -259,11 +259,11 @@ TEST(OperatorPlayer, HoldsStepsAndTurnsCameraHeadingIntoH) {
   b.yaw_rate_radps = 0.3;
   script.steps = {a, b};
   OperatorPlayer player(script, M_PI / 4.0);
-  EXPECT_TRUE(player.command(500'000'000).v_horizontal_mps.isZero());
+  EXPECT_TRUE(player.command(500'000'000).v_H_mps.isZero());
   const modes::OperatorCommand held = player.command(2'500'000'000);
-  EXPECT_NEAR(held.v_horizontal_mps.x(), std::sqrt(0.5), 1e-12);  // eq. 6, alpha = 45 deg
-  EXPECT_NEAR(held.v_horizontal_mps.y(), std::sqrt(0.5), 1e-12);  // eq. 7
-  EXPECT_NEAR(held.v_horizontal_mps.z(), -0.5, 1e-12);
+  EXPECT_NEAR(held.v_H_mps.x(), std::sqrt(0.5), 1e-12);  // eq. 6, alpha = 45 deg
+  EXPECT_NEAR(held.v_H_mps.y(), std::sqrt(0.5), 1e-12);  // eq. 7
+  EXPECT_NEAR(held.v_H_mps.z(), -0.5, 1e-12);
   EXPECT_NEAR(held.yaw_rate_radps, 0.3, 1e-12);
   std::vector<modes::Mode> requests;
   player.take_mode_requests(1'500'000'000, requests);

@@ -74,7 +74,7 @@ class DelayedHapticOperator final : public OperatorSource {
     modes::OperatorCommand command;
     command.t_ns = t_ns;
     if (up_.have() && t_ns - up_.newest_arrived_ns() <= 200'000'000) {
-      command.v_horizontal_mps = up_.newest().v_H_mps;
+      command.v_H_mps = up_.newest().v_H_mps;
       command.yaw_rate_radps = up_.newest().yaw_rate_radps;
     }
     return command;
@@ -82,7 +82,7 @@ class DelayedHapticOperator final : public OperatorSource {
 
   void on_output(const pipeline::ChainOutput& out, const sim::TruthState& truth) override {
     State s;
-    s.v_H_mps = out.estimate.v_horizontal_mps;
+    s.v_H_mps = out.estimate.v_H_mps;
     s.yaw_rate_radps = out.estimate.omega_body_radps.z();  // as hq-ground reads the state
     if (s.v_H_mps.allFinite() && std::isfinite(s.yaw_rate_radps)) down_.send(out.t_ns, s);
     (void)truth;
@@ -154,7 +154,7 @@ inline FlightResult fly(const haptics::HapticsConfig& haptics_config,
   r.collision_ticks = loop.collision_ticks();
   r.state_loss = source.state_loss();
   for (const FlightSample& s : loop.samples()) {
-    r.max_altitude_m = std::max(r.max_altitude_m, s.p_world_m.z());
+    r.max_altitude_m = std::max(r.max_altitude_m, s.p_N_m.z());
   }
   return r;
 }

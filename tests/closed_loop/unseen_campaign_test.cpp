@@ -81,14 +81,14 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
     row.collision_ticks += loop->collision_ticks();
     if (loop->collision_ticks() > 0) ++row.collided_runs;
     row.min_clearance_m = std::min(row.min_clearance_m, loop->min_clearance_m());
-    const Eigen::Vector3d p0 = loop->samples().front().p_world_m;
+    const Eigen::Vector3d p0 = loop->samples().front().p_N_m;
     bool away = false;
     for (const FlightSample& f : loop->samples()) {
       row.max_true_speed_mps = std::max(row.max_true_speed_mps, f.v_true_mps.head<2>().norm());
-      row.max_flown_m = std::max(row.max_flown_m, (f.p_world_m - p0).head<2>().norm());
+      row.max_flown_m = std::max(row.max_flown_m, (f.p_N_m - p0).head<2>().norm());
       // Fly-away: faster than the envelope allows, or out of the world.
-      if (f.v_true_mps.head<2>().norm() > 2.5 || std::abs(f.p_world_m.x()) > inside_m.x() ||
-          std::abs(f.p_world_m.y()) > inside_m.y()) {
+      if (f.v_true_mps.head<2>().norm() > 2.5 || std::abs(f.p_N_m.x()) > inside_m.x() ||
+          std::abs(f.p_N_m.y()) > inside_m.y()) {
         away = true;
       }
     }
@@ -104,8 +104,8 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
         if (!f.frame) continue;
         std::printf("  t %.2f ok %d sh %d clr %.2f p %.2f %.2f vtrue %.2f %.2f vest %.2f %.2f "
                     "v* %.2f %.2f vobs %.2f %.2f\n",
-                    f.t_s, f.estimate_ok, f.safe_hover, f.clearance_m, f.p_world_m.x(),
-                    f.p_world_m.y(), f.v_true_mps.x(), f.v_true_mps.y(), f.v_est_mps.x(),
+                    f.t_s, f.estimate_ok, f.safe_hover, f.clearance_m, f.p_N_m.x(),
+                    f.p_N_m.y(), f.v_true_mps.x(), f.v_true_mps.y(), f.v_est_mps.x(),
                     f.v_est_mps.y(), f.v_star_des_mps.x(), f.v_star_des_mps.y(), f.v_obs_mps.x(),
                     f.v_obs_mps.y());
       }

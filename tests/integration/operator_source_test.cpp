@@ -28,7 +28,7 @@ class ScriptedSource final : public OperatorSource {
     modes::OperatorCommand command;
     command.t_ns = t_ns;
     const double t_s = 1e-9 * static_cast<double>(t_ns);
-    if (t_s >= 1.0 && t_s < 3.5) command.v_horizontal_mps.z() = -0.4;  // climb (NED)
+    if (t_s >= 1.0 && t_s < 3.5) command.v_H_mps.z() = -0.4;  // climb (NED)
     return command;
   }
   void on_mode_result(std::int64_t /*t_ns*/, modes::Mode mode,

@@ -184,7 +184,7 @@ class TimedPlayer final : public OperatorSource {
                    "clear %+.3f %s%s near %d p0 [%+.2f %+.2f %+.2f]\n",
                    1e-9 * static_cast<double>(out.t_ns), odometry::to_string(out.tracking),
                    m.map_size, m.count, nearest_m, out.obstacles.count, v_obs.x(), v_obs.y(),
-                   v_des.x(), v_des.y(), truth.v_horizontal_mps.x(), truth.v_horizontal_mps.y(),
+                   v_des.x(), v_des.y(), truth.v_H_mps.x(), truth.v_H_mps.y(),
                    truth.euler_rad.z() * 180.0 / M_PI, truth.clearance_m, m.updated ? "" : m.reason,
                    m.cleared ? " CLEARED" : "", out.obstacles.near_hazard ? 1 : 0,
                    m.count > 0 ? m.p_horizontal_m[0].x() : 0.0,

@@ -47,7 +47,7 @@ SequenceRun run_sequence(const std::string& dir, hq::odometry::ReferenceMode mod
   while (source.next(frame) == hq::sources::FrameStatus::kFrame) {
     const auto result = odometry.track(frame.t_ns, frame.gray, frame.depth_m);
     if (result.status == hq::odometry::TrackingStatus::kLost) ++run.lost;
-    run.trajectory.push_back({frame.t_ns, result.T_world_cur});
+    run.trajectory.push_back({frame.t_ns, result.T_O_C});
   }
   return run;
 }

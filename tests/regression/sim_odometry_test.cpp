@@ -81,7 +81,7 @@ SimRun fly_and_track(const Case& c) {
     const auto result = odometry.track(t_frame_ns, gray, depth_m);
     if (result.status == hq::odometry::TrackingStatus::kLost) ++run.lost;
     run.ground_truth.push_back({t_frame_ns, T_world_camera});
-    run.trajectory.push_back({t_frame_ns, result.T_world_cur});
+    run.trajectory.push_back({t_frame_ns, result.T_O_C});
   }
   run.dropped_frames = sim.dropped_frames();
   run.collided = sim.collided();

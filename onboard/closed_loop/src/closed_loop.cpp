@@ -153,8 +153,8 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.landed = out.mode.landed;
   s.collision = truth.collision && !truth.on_ground;
   s.mode = out.mode.mode;
-  s.v_est_mps = out.estimate.v_horizontal_mps;
-  s.v_true_mps = truth.v_horizontal_mps;
+  s.v_est_mps = out.estimate.v_H_mps;
+  s.v_true_mps = truth.v_H_mps;
   s.v_star_des_mps = out.mode.v_star_des_horizontal_mps;
   s.v_des_mps = out.mode.v_des_horizontal_mps;
   s.v_obs_mps = out.obstacles.v_obs_horizontal_mps;
@@ -162,7 +162,7 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.yaw_rate_gyro_radps = out.estimate.omega_body_radps.z();
   s.yaw_rate_true_radps = truth.omega_body_radps.z();
   s.clearance_m = truth.clearance_m;
-  s.p_world_m = truth.T_world_body.translation();
+  s.p_N_m = truth.T_world_body.translation();
   s.reason = out.safe_hover ? out.safe_hover_reason : "";
   s.flight_state = out.flight_state;
   s.height_m = out.height_m;

@@ -57,7 +57,7 @@ FlightSummary summarise(const ClosedLoop& loop) {
   s.yaw_rate_rmse_radps = n_ok > 0 ? std::sqrt(yaw_sq / n_ok) : std::nan("");
   if (first_airborne) {
     s.horizontal_drift_m =
-        (last_airborne->p_world_m.head<2>() - first_airborne->p_world_m.head<2>()).norm();
+        (last_airborne->p_N_m.head<2>() - first_airborne->p_N_m.head<2>()).norm();
   }
   return s;
 }
@@ -85,15 +85,16 @@ void write_figure_csv(const std::string& path, const std::vector<FlightSample>& 
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw InputError(path + ": cannot open for writing");
   std::fprintf(f,
-               "# Core paper Fig. 6-8 signals from a simulated flight. H: horizontal NED frame "
-               "(yaw only). est = on-board estimate, true = simulator, cmd = operator v*_des, "
-               "des = v*_des + v_obs. Yaw rates about NED z. SI units.\n");
+               "# Core paper Fig. 6-8 signals from a simulated flight. Frames "
+               "(hq/geometry/frames.hpp): H horizontal (yaw only, z down), N the simulator's NWU "
+               "world. est = on-board estimate, true = simulator, cmd = operator v*_des, "
+               "des = v*_des + v_obs. Yaw rates about z of H. SI units.\n");
   std::fprintf(f,
-               "t_s,frame,airborne,mode,estimate_ok,v_est_x_mps,v_est_y_mps,v_est_z_mps,"
-               "v_true_x_mps,v_true_y_mps,v_true_z_mps,v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,"
-               "v_des_x_mps,v_des_y_mps,v_des_z_mps,v_obs_x_mps,v_obs_y_mps,v_obs_z_mps,"
-               "yaw_rate_cmd_radps,yaw_rate_gyro_radps,yaw_rate_true_radps,clearance_m,"
-               "x_world_m,y_world_m,z_world_m,safe_hover,reason\n");
+               "t_s,frame,airborne,mode,estimate_ok,v_est_H_x_mps,v_est_H_y_mps,v_est_H_z_mps,"
+               "v_true_H_x_mps,v_true_H_y_mps,v_true_H_z_mps,v_cmd_H_x_mps,v_cmd_H_y_mps,"
+               "v_cmd_H_z_mps,v_des_H_x_mps,v_des_H_y_mps,v_des_H_z_mps,v_obs_H_x_mps,"
+               "v_obs_H_y_mps,v_obs_H_z_mps,yaw_rate_cmd_radps,yaw_rate_gyro_radps,"
+               "yaw_rate_true_radps,clearance_m,p_N_x_m,p_N_y_m,p_N_z_m,safe_hover,reason\n");
   for (const FlightSample& s : samples) {
     std::fprintf(f, "%.4f,%d,%d,%s,%d", s.t_s, s.frame ? 1 : 0, s.airborne ? 1 : 0,
                  modes::to_string(s.mode), s.estimate_ok ? 1 : 0);
@@ -102,8 +103,8 @@ void write_figure_csv(const std::string& path, const std::vector<FlightSample>& 
       std::fprintf(f, ",%.5f,%.5f,%.5f", v->x(), v->y(), v->z());
     }
     std::fprintf(f, ",%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%.4f,%d,\"%s\"\n", s.yaw_rate_cmd_radps,
-                 s.yaw_rate_gyro_radps, s.yaw_rate_true_radps, s.clearance_m, s.p_world_m.x(),
-                 s.p_world_m.y(), s.p_world_m.z(), s.safe_hover ? 1 : 0, s.reason);
+                 s.yaw_rate_gyro_radps, s.yaw_rate_true_radps, s.clearance_m, s.p_N_m.x(),
+                 s.p_N_m.y(), s.p_N_m.z(), s.safe_hover ? 1 : 0, s.reason);
   }
   if (std::fclose(f) != 0) throw InputError(path + ": write failed");
 }

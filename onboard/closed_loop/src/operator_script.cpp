@@ -86,7 +86,7 @@ OperatorPlayer::OperatorPlayer(OperatorScript script, double alpha_rad)
                    : Eigen::Vector3d(c * v.x() - s * v.y(), s * v.x() + c * v.y(), v.z());
     }
     if (step.yaw_rate_radps) yaw_rate_held = *step.yaw_rate_radps;
-    v_horizontal_mps_.push_back(v_held);
+    v_H_mps_.push_back(v_held);
     yaw_rate_radps_.push_back(yaw_rate_held);
   }
 }
@@ -97,7 +97,7 @@ modes::OperatorCommand OperatorPlayer::command(std::int64_t t_ns) const {
   const double t_s = 1e-9 * static_cast<double>(t_ns);
   for (std::size_t i = script_.steps.size(); i-- > 0;) {
     if (script_.steps[i].t_s <= t_s) {
-      command.v_horizontal_mps = v_horizontal_mps_[i];
+      command.v_H_mps = v_H_mps_[i];
       command.yaw_rate_radps = yaw_rate_radps_[i];
       break;
     }

@@ -67,7 +67,7 @@ vehicle::FcStatus SimFlightController::status(std::int64_t /*t_ns*/) const {
 
 std::optional<vehicle::TruthSample> SimFlightController::truth() const {
   const sim::TruthState& t = sim_.truth();
-  return vehicle::TruthSample{t.v_horizontal_mps, t.T_world_body.translation(), t.on_ground};
+  return vehicle::TruthSample{t.v_H_mps, t.T_world_body.translation(), t.on_ground};
 }
 
 SimCamera::SimCamera(sim::Simulator& sim, std::vector<CameraFault> faults,

@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
+#include "hq/geometry/camera_mount.hpp"
 
 #include <Eigen/Geometry>
 
@@ -72,6 +73,16 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
   root.finish();
   out.R_body_camera = R_body_camera_from_angles(yaw_rad, pitch_rad, roll_rad);
   out.p_body_camera_m = Eigen::Vector3d(p[0], p[1], p[2]);
+  // The one check of the mount every consumer relies on (a horizontal heading for eq. 9, a
+  // rigid transform), here where the file is read, so no component finds out in flight.
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  T_B_C.linear() = out.R_body_camera;
+  T_B_C.translation() = out.p_body_camera_m;
+  try {
+    (void)geometry::CameraMount(T_B_C);
+  } catch (const InputError& e) {
+    throw InputError(camera.describe("pitch_deg") + ": " + e.what());
+  }
 }
 
 VehicleConfig load_vehicle_config(const std::string& path) {

@@ -45,16 +45,18 @@ AttitudeSetpoint VelocityController::hover_setpoint() const {
 ControlOutput VelocityController::update(std::int64_t t_ns,
                                          const Eigen::Vector3d& v_des_horizontal_mps,
                                          double yaw_rate_des_radps,
-                                         const Eigen::Vector3d& v_est_horizontal_mps) {
+                                         const std::optional<Eigen::Vector3d>& v_est_H_mps) {
   ControlOutput out;
-  if (!v_des_horizontal_mps.allFinite() || !v_est_horizontal_mps.allFinite() ||
-      !std::isfinite(yaw_rate_des_radps)) {
+  const bool finite = v_des_horizontal_mps.allFinite() && std::isfinite(yaw_rate_des_radps) &&
+                      (!v_est_H_mps || v_est_H_mps->allFinite());
+  if (!v_est_H_mps || !finite) {
     out.setpoint = hover_setpoint();
     out.safe_hover = true;
-    out.reason = "non-finite velocity input: hover";
+    out.reason = finite ? "no velocity estimate: hover" : "non-finite velocity input: hover";
     have_previous_ = false;  // no derivative across the gap; the integral is kept frozen
     return out;
   }
+  const Eigen::Vector3d& v_est_horizontal_mps = *v_est_H_mps;
 
   const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_ns_);
   const bool step_valid = have_previous_ && dt_s > 0.0 && dt_s <= config_.max_dt_s;

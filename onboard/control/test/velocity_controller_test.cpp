@@ -168,6 +168,22 @@ TEST(VelocityController, NanEstimateGivesSafeHoverAndAFlag) {
   EXPECT_TRUE(controller.integral_m().allFinite());
 }
 
+TEST(VelocityController, NoEstimateGivesSafeHoverSayingSoAndKeepsTheIntegral) {
+  VelocityController controller(VelocityControllerConfig{}, test_vehicle());
+  for (int k = 0; k < 50; ++k) {
+    controller.update(k * kStepNs, Eigen::Vector3d(0.3, 0.0, 0.0), 0.0, Eigen::Vector3d::Zero());
+  }
+  const Eigen::Vector3d integral_before = controller.integral_m();
+  ASSERT_GT(integral_before.x(), 0.0);
+  const ControlOutput out =
+      controller.update(50 * kStepNs, Eigen::Vector3d(1.0, 0.0, 0.0), 0.3, std::nullopt);
+  EXPECT_TRUE(out.safe_hover);
+  EXPECT_STREQ(out.reason, "no velocity estimate: hover");
+  EXPECT_DOUBLE_EQ(out.setpoint.thrust_n, kGravityMps2);
+  EXPECT_EQ(out.setpoint.yaw_rate_radps, 0.0);
+  EXPECT_EQ(controller.integral_m(), integral_before);
+}
+
 TEST(VehicleConfig, ShippedCorePaperVehicleLoads) {
   const VehicleConfig vehicle = load_vehicle_config("calib/vehicle_core_paper.yaml");
   EXPECT_DOUBLE_EQ(vehicle.mass_kg, 1.0);
@@ -201,6 +217,24 @@ TEST(VehicleConfig, BadValueIsRejectedNamingTheKey) {
   }
   config::StrictMap missing(YAML::Load("{mass_kg: 1.0}"), "v.yaml");
   EXPECT_THROW(read_config(missing, vehicle), InputError);
+}
+
+// The mount is checked once, where the file is read: a camera looking straight down has no
+// heading for eq. 9, and the file says so instead of a component failing later.
+TEST(VehicleConfig, VerticalCameraIsRejectedWhereTheFileIsRead) {
+  const YAML::Node node = YAML::Load(
+      "{mass_kg: 1.0, limits: {max_tilt_deg: 30, min_thrust_n: 2, max_thrust_n: 20, "
+      "max_yaw_rate_degps: 90}, T_body_camera: {yaw_deg: 0, pitch_deg: -90, roll_deg: 0, "
+      "p_body_camera_m: [0.1, 0, 0]}}");
+  config::StrictMap root(node, "calib/down.yaml");
+  VehicleConfig vehicle;
+  try {
+    read_config(root, vehicle);
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("calib/down.yaml: T_body_camera.pitch_deg"));
+    EXPECT_THAT(e.what(), HasSubstr("within 3 deg of vertical"));
+  }
 }
 
 TEST(VelocityControllerConfig, BadValueIsRejectedNamingTheKey) {

@@ -76,7 +76,7 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
   return FilterStatus::kOk;
 }
 
-Eigen::Matrix3d ComplementaryFilter::R_world_body() const {
+Eigen::Matrix3d ComplementaryFilter::R_N_B() const {
   return Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix() * R_ned_body_;
 }
 

@@ -37,11 +37,11 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
 }
 
 VelocityEstimator::VelocityEstimator(const VelocityEstimatorConfig& config,
-                                     const Eigen::Matrix3d& R_body_camera,
-                                     const Eigen::Vector3d& p_body_camera_m)
+                                     const Eigen::Matrix3d& R_B_C,
+                                     const Eigen::Vector3d& p_B_C_m)
     : config_(config),
-      R_QC_(R_body_camera),
-      p_QC_(p_body_camera_m),
+      R_B_C_(R_B_C),
+      p_B_C_m_(p_B_C_m),
       attitude_(config.complementary),
       gyro_low_pass_(config.gyro_cutoff_hz),
       pose_filter_(config.one_euro_position, config.one_euro_rotation) {}
@@ -56,11 +56,11 @@ void VelocityEstimator::reset() {
   coast_anchored_ = false;
 }
 
-void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_horizontal_mps) {
+void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps) {
   coast_anchored_ = config_.inertial_coast_s > 0.0;
   t_coast_anchor_ns_ = t_ns;
   t_coast_ns_ = attitude_.initialized() ? attitude_.t_ns() : t_ns;
-  coast_v_horizontal_mps_ = v_horizontal_mps;
+  coast_v_H_mps_ = v_H_mps;
 }
 
 void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
@@ -78,13 +78,13 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
   // omega_hat of Fig. 4: the low-passed gyro, with the complementary filter's bias removed.
   gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
   if (coast_anchored_ && t_ns > t_coast_ns_) {
-    // H_a = R_HQ Q_f + g e_z (NED): specific force rotated with the filter's roll and pitch.
+    // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch.
     const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_),
                                  config_.complementary.max_dt_s);
     const Eigen::Vector3d a_H =
         R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
         Eigen::Vector3d(0.0, 0.0, kGravityMps2);
-    coast_v_horizontal_mps_ += a_H * dt_s;
+    coast_v_H_mps_ += a_H * dt_s;
     t_coast_ns_ = t_ns;
   }
   return status;
@@ -106,19 +106,19 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
                          1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <=
                              config_.max_imu_age_s;
   if (coast_anchored_ && imu_fresh && coast_s <= config_.inertial_coast_s &&
-      coast_v_horizontal_mps_.allFinite()) {
+      coast_v_H_mps_.allFinite()) {
     estimate.status = EstimateStatus::kInertial;
-    estimate.v_horizontal_mps = coast_v_horizontal_mps_;
+    estimate.v_H_mps = coast_v_H_mps_;
     estimate.omega_body_radps = gyro_low_pass_.value();
   }
   return estimate;
 }
 
-void VelocityEstimator::reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_C0_Ck) {
+void VelocityEstimator::reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_Ck) {
   pose_filter_.reset();
-  pose_filter_.update(t_ns, T_C0_Ck);
-  T_C0_Ck_prev_filtered_ = pose_filter_.pose();
-  T_C0_Ck_prev_raw_ = T_C0_Ck;
+  pose_filter_.update(t_ns, T_O_Ck);
+  T_O_Ck_prev_filtered_ = pose_filter_.pose();
+  T_O_Ck_prev_raw_ = T_O_Ck;
   have_previous_ = pose_filter_.initialized();
   t_prev_frame_ns_ = t_ns;
   t_seed_ns_ = t_ns;
@@ -132,7 +132,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   }
   if (odometry.status == odometry::TrackingStatus::kFirstFrame) {
     // A new odometry reference: the pose chain restarts, so no velocity across it.
-    reseed(t_ns, odometry.T_world_cur);
+    reseed(t_ns, odometry.T_O_C);
     return unavailable(t_ns, "first odometry frame");
   }
   if (!odometry.ok()) {
@@ -147,7 +147,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     have_previous_ = false;
     return unavailable(t_ns, "odometry mean_weighted_error above max_mean_error");
   }
-  if (!odometry.T_world_cur.matrix().allFinite()) {
+  if (!odometry.T_O_C.matrix().allFinite()) {
     have_previous_ = false;
     return unavailable(t_ns, "odometry pose not finite");
   }
@@ -155,27 +155,27 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
   if (!have_previous_ || dt_s > config_.max_frame_gap_s) {
     // Eq. 2 needs two consecutive accepted poses.
-    reseed(t_ns, odometry.T_world_cur);
+    reseed(t_ns, odometry.T_O_C);
     return unavailable(t_ns, "waiting for a second accepted odometry frame");
   }
   if (!(dt_s > 0.0)) return unavailable(t_ns, "odometry stamp not after the previous frame");
-  if (!accepted(pose_filter_.update(t_ns, odometry.T_world_cur))) {
+  if (!accepted(pose_filter_.update(t_ns, odometry.T_O_C))) {
     return unavailable(t_ns, "odometry pose rejected by the pose filter");
   }
 
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
-  // eq. 1 (raw, for evaluation): Ck_v_Ck = R_Ck_C0 (C0_p_Ck - C0_p_Ck-1) / dT.
-  const Eigen::Isometry3d& T_raw = odometry.T_world_cur;
-  estimate.v_camera_raw_mps =
-      T_raw.linear().transpose() * (T_raw.translation() - T_C0_Ck_prev_raw_.translation()) / dt_s;
+  // eq. 1 (raw, for evaluation): v_Ck = R_O_Ck^T (p_O_Ck - p_O_Ck-1) / dT.
+  const Eigen::Isometry3d& T_raw = odometry.T_O_C;
+  estimate.v_C_raw_mps =
+      T_raw.linear().transpose() * (T_raw.translation() - T_O_Ck_prev_raw_.translation()) / dt_s;
   // eq. 2 of the core paper, not eq. 1: differentiating the 1€-filtered pose keeps noise out of v.
   const Eigen::Isometry3d& T_hat = pose_filter_.pose();
   const Eigen::Vector3d v_C = T_hat.linear().transpose() *
-                              (T_hat.translation() - T_C0_Ck_prev_filtered_.translation()) / dt_s;
-  estimate.v_camera_mps = v_C;
-  T_C0_Ck_prev_filtered_ = T_hat;
-  T_C0_Ck_prev_raw_ = T_raw;
+                              (T_hat.translation() - T_O_Ck_prev_filtered_.translation()) / dt_s;
+  estimate.v_C_mps = v_C;
+  T_O_Ck_prev_filtered_ = T_hat;
+  T_O_Ck_prev_raw_ = T_raw;
   t_prev_frame_ns_ = t_ns;
 
   if (1e-9 * static_cast<double>(t_ns - t_seed_ns_) < config_.warmup_s) {
@@ -187,24 +187,25 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   if (1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) > config_.max_imu_age_s) {
     return unavailable(t_ns, "IMU samples too old");
   }
-  const Eigen::Vector3d& omega_Q = gyro_low_pass_.value();
-  // eq. 4: Q_v_Q = R_QC Ck_v_Ck - Q_omega_Q x Q_p_C (removes the lever-arm velocity of O_C).
-  const Eigen::Vector3d v_Q = R_QC_ * v_C - omega_Q.cross(p_QC_);
+  const Eigen::Vector3d& omega_B = gyro_low_pass_.value();
+  // eq. 4: Q_v_Q = R_QC Ck_v_Ck - Q_omega_Q x Q_p_C, i.e. v_B = R_B_C v_C - omega_B x p_B_C
+  // (removes the lever-arm velocity of the camera's centre).
+  const Eigen::Vector3d v_B = R_B_C_ * v_C - omega_B.cross(p_B_C_m_);
   const double roll_rad = attitude_.roll_rad();
   const double pitch_rad = attitude_.pitch_rad();
-  // eq. 5: H_v_Q = R_HQ Q_v_Q with R_HQ = Ry(theta) Rx(phi).
-  const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_Q;
+  // eq. 5: H_v_Q = R_HQ Q_v_Q, i.e. v_H = R_H_B v_B with R_H_B = Ry(theta) Rx(phi).
+  const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_B;
 
   const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
   if (coast_anchored_ && coast_s <= config_.inertial_coast_s &&
-      (v_H - coast_v_horizontal_mps_).norm() > config_.max_imu_disagreement_mps) {
+      (v_H - coast_v_H_mps_).norm() > config_.max_imu_disagreement_mps) {
     return unavailable(t_ns, "odometry velocity disagrees with the IMU");
   }
   estimate.status = EstimateStatus::kOk;
   estimate.reason = "";
-  estimate.v_body_mps = v_Q;
-  estimate.v_horizontal_mps = v_H;
-  estimate.omega_body_radps = omega_Q;
+  estimate.v_B_mps = v_B;
+  estimate.v_H_mps = v_H;
+  estimate.omega_body_radps = omega_B;
   estimate.roll_rad = roll_rad;
   estimate.pitch_rad = pitch_rad;
   estimate.unavailable_for_s = 0.0;

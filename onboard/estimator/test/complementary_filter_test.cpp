@@ -29,15 +29,15 @@ TEST(HorizontalFrame, LevelVehicleGivesIdentity) {
 TEST(HorizontalFrame, PitchedVehicleMovingForwardInH) {
   // GIVEN a vehicle pitched 10 deg nose down (NED pitch -10 deg) moving 1 m/s forward in H.
   const double pitch = -10.0 * kDeg;
-  const Eigen::Matrix3d R_HQ = R_horizontal_body(0.0, pitch);
-  const Eigen::Vector3d v_Q = R_HQ.transpose() * Eigen::Vector3d(1.0, 0.0, 0.0);
+  const Eigen::Matrix3d R_H_B = R_horizontal_body(0.0, pitch);
+  const Eigen::Vector3d v_B = R_H_B.transpose() * Eigen::Vector3d(1.0, 0.0, 0.0);
   // THEN the body sees most of it along its nose and the rest towards its belly's opposite:
-  // body z (down through the belly) leans backwards, so v_Q.z = sin(pitch) < 0.
-  EXPECT_NEAR(v_Q.x(), std::cos(10.0 * kDeg), 1e-12);
-  EXPECT_NEAR(v_Q.y(), 0.0, 1e-12);
-  EXPECT_NEAR(v_Q.z(), -std::sin(10.0 * kDeg), 1e-12);
+  // body z (down through the belly) leans backwards, so v_B.z = sin(pitch) < 0.
+  EXPECT_NEAR(v_B.x(), std::cos(10.0 * kDeg), 1e-12);
+  EXPECT_NEAR(v_B.y(), 0.0, 1e-12);
+  EXPECT_NEAR(v_B.z(), -std::sin(10.0 * kDeg), 1e-12);
   // AND the body nose axis in H points forward and down (NED z > 0).
-  EXPECT_GT(R_HQ.col(0).z(), 0.0);
+  EXPECT_GT(R_H_B.col(0).z(), 0.0);
   // Rolled right: body y axis in H points right and down.
   const Eigen::Matrix3d R_roll = R_horizontal_body(20.0 * kDeg, 0.0);
   EXPECT_NEAR(R_roll.col(1).z(), std::sin(20.0 * kDeg), 1e-12);
@@ -57,7 +57,7 @@ TEST(ComplementaryFilter, ConvergesToTheTrueRollAndPitchFromAStaticTiltedAcceler
   EXPECT_NEAR(filter.roll_rad(), roll, 0.05 * kDeg);
   EXPECT_NEAR(filter.pitch_rad(), pitch, 0.05 * kDeg);
   // World NWU = Rx(pi) NED: the body z (down) axis points to -Z_W, tilted.
-  EXPECT_LT(filter.R_world_body().col(2).z(), -0.9);
+  EXPECT_LT(filter.R_N_B().col(2).z(), -0.9);
 }
 
 TEST(ComplementaryFilter, InitialisesFromTheAccelerometer) {

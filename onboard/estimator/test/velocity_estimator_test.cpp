@@ -39,19 +39,19 @@ struct Motion {
   double yaw0_rad = 0.0;
   double yaw_rate_radps = 0.0;
   Eigen::Vector3d v_ned_mps = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d R_QC = default_R_body_camera();
-  Eigen::Vector3d p_QC = Eigen::Vector3d(0.12, 0.06, 0.04);
+  Eigen::Matrix3d R_B_C = default_R_body_camera();
+  Eigen::Vector3d p_B_C_m = Eigen::Vector3d(0.12, 0.06, 0.04);
 
   [[nodiscard]] Eigen::Matrix3d R_tilt() const { return R_horizontal_body(roll_rad, pitch_rad); }
   [[nodiscard]] double yaw(double t_s) const { return yaw0_rad + yaw_rate_radps * t_s; }
   [[nodiscard]] Eigen::Isometry3d T_ned_camera(double t_s) const {
-    Eigen::Isometry3d T_NQ = Eigen::Isometry3d::Identity();
-    T_NQ.linear() = rz(yaw(t_s)) * R_tilt();
-    T_NQ.translation() = Eigen::Vector3d(1.0, 2.0, -1.5) + v_ned_mps * t_s;
-    Eigen::Isometry3d T_QC = Eigen::Isometry3d::Identity();
-    T_QC.linear() = R_QC;
-    T_QC.translation() = p_QC;
-    return T_NQ * T_QC;
+    Eigen::Isometry3d T_ned_B = Eigen::Isometry3d::Identity();
+    T_ned_B.linear() = rz(yaw(t_s)) * R_tilt();
+    T_ned_B.translation() = Eigen::Vector3d(1.0, 2.0, -1.5) + v_ned_mps * t_s;
+    Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+    T_B_C.linear() = R_B_C;
+    T_B_C.translation() = p_B_C_m;
+    return T_ned_B * T_B_C;
   }
   [[nodiscard]] Eigen::Vector3d gyro() const {
     return R_tilt().transpose() * Eigen::Vector3d(0.0, 0.0, yaw_rate_radps);
@@ -67,7 +67,7 @@ struct Motion {
     odometry::OdometryResult result;
     result.status = first ? odometry::TrackingStatus::kFirstFrame : odometry::TrackingStatus::kOk;
     result.t_ns = t_ns;
-    result.T_world_cur = T_ned_camera(0.0).inverse() * T_ned_camera(t_s);
+    result.T_O_C = T_ned_camera(0.0).inverse() * T_ned_camera(t_s);
     result.valid_ratio = 0.4;
     result.mean_weighted_error = 50.0;
     return result;
@@ -91,16 +91,16 @@ TEST(VelocityEstimator, LeverArmTermCancelsThePureRotationOfTheBody) {
   // GIVEN a vehicle yawing at 1 rad/s about its centre, camera 0.14 m off the centre.
   Motion motion;
   motion.yaw_rate_radps = 1.0;
-  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate estimate = run(estimator, motion, 3.0);
   ASSERT_TRUE(estimate.ok()) << estimate.reason;
-  // THEN the camera itself moves at |omega x p_QC| ...
-  const double camera_speed = (motion.R_QC * estimate.v_camera_mps).norm();
-  const double lever_speed = motion.gyro().cross(motion.p_QC).norm();
+  // THEN the camera itself moves at |omega x p_B_C_m| ...
+  const double camera_speed = (motion.R_B_C * estimate.v_C_mps).norm();
+  const double lever_speed = motion.gyro().cross(motion.p_B_C_m).norm();
   EXPECT_NEAR(camera_speed, lever_speed, 0.1 * lever_speed);
   // ... AND eq. 4 removes it: the body centre is still (measured 0.005 m/s of 0.134 m/s).
-  EXPECT_LT(estimate.v_body_mps.norm(), 0.01) << estimate.v_body_mps.transpose();
-  EXPECT_LT(estimate.v_horizontal_mps.norm(), 0.01);
+  EXPECT_LT(estimate.v_B_mps.norm(), 0.01) << estimate.v_B_mps.transpose();
+  EXPECT_LT(estimate.v_H_mps.norm(), 0.01);
   EXPECT_NEAR(estimate.omega_body_radps.z(), 1.0, 1e-6);
 }
 
@@ -108,13 +108,13 @@ TEST(VelocityEstimator, ConstantVelocityCameraTrajectoryGivesTheRightHorizontalV
   Motion motion;
   motion.yaw0_rad = 30.0 * kDeg;
   motion.v_ned_mps = Eigen::Vector3d(0.5, -0.3, -0.2);  // climbing: NED z < 0
-  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate estimate = run(estimator, motion, 3.0);
   ASSERT_TRUE(estimate.ok()) << estimate.reason;
-  EXPECT_LT((estimate.v_horizontal_mps - motion.v_horizontal(3.0)).norm(), 1e-3)
-      << estimate.v_horizontal_mps.transpose() << " vs " << motion.v_horizontal(3.0).transpose();
+  EXPECT_LT((estimate.v_H_mps - motion.v_horizontal(3.0)).norm(), 1e-3)
+      << estimate.v_H_mps.transpose() << " vs " << motion.v_horizontal(3.0).transpose();
   // The raw eq. 1 velocity is exact on a noise-free trajectory too.
-  EXPECT_LT((motion.R_QC * estimate.v_camera_raw_mps - estimate.v_body_mps).norm(), 1e-6);
+  EXPECT_LT((motion.R_B_C * estimate.v_C_raw_mps - estimate.v_B_mps).norm(), 1e-6);
 }
 
 TEST(VelocityEstimator, Eq5RemovesRollAndPitchOfATiltedVehicle) {
@@ -124,7 +124,7 @@ TEST(VelocityEstimator, Eq5RemovesRollAndPitchOfATiltedVehicle) {
   motion.pitch_rad = -12.0 * kDeg;
   motion.yaw0_rad = -60.0 * kDeg;
   motion.v_ned_mps = Eigen::Vector3d(0.4, 0.4, 0.0);
-  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate estimate = run(estimator, motion, 3.0);
   ASSERT_TRUE(estimate.ok()) << estimate.reason;
   EXPECT_NEAR(estimate.roll_rad, motion.roll_rad, 1e-3);
@@ -133,15 +133,15 @@ TEST(VelocityEstimator, Eq5RemovesRollAndPitchOfATiltedVehicle) {
   const Eigen::Vector3d v_body_true =
       (rz(motion.yaw(3.0)) * motion.R_tilt()).transpose() * motion.v_ned_mps;
   EXPECT_GT(std::abs(v_body_true.z()), 0.04);
-  EXPECT_LT((estimate.v_body_mps - v_body_true).norm(), 2e-3);
-  EXPECT_LT((estimate.v_horizontal_mps - motion.v_horizontal(3.0)).norm(), 2e-3)
-      << estimate.v_horizontal_mps.transpose();
+  EXPECT_LT((estimate.v_B_mps - v_body_true).norm(), 2e-3);
+  EXPECT_LT((estimate.v_H_mps - motion.v_horizontal(3.0)).norm(), 2e-3)
+      << estimate.v_H_mps.transpose();
 }
 
 TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
   Motion motion;
   motion.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
-  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate last_ok = run(estimator, motion, 1.0);
   ASSERT_TRUE(last_ok.ok());
   const std::int64_t t_last_ok_ns = last_ok.t_ns;
@@ -163,8 +163,8 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
     // value instead of going to zero; the motion has no acceleration, so it stays there.
     EXPECT_EQ(estimate.status, EstimateStatus::kInertial);
     EXPECT_TRUE(estimate.usable());
-    EXPECT_LT((estimate.v_horizontal_mps - last_ok.v_horizontal_mps).norm(), 2e-3)
-        << estimate.v_horizontal_mps.transpose();
+    EXPECT_LT((estimate.v_H_mps - last_ok.v_H_mps).norm(), 2e-3)
+        << estimate.v_H_mps.transpose();
     EXPECT_NEAR(estimate.unavailable_for_s, 1e-9 * static_cast<double>(t_ns - t_last_ok_ns), 1e-9);
     EXPECT_GT(estimate.unavailable_for_s, previous);
     previous = estimate.unavailable_for_s;
@@ -186,14 +186,14 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
   EXPECT_GE(1e-9 * static_cast<double>(recovered.t_ns - t_seed_ns), config.warmup_s);
   EXPECT_EQ(recovered.unavailable_for_s, 0.0);
   // First estimate after the 0.2 s warm-up: measured 0.284 m/s for the true 0.3.
-  EXPECT_NEAR(recovered.v_horizontal_mps.x(), 0.3, 0.03);
+  EXPECT_NEAR(recovered.v_H_mps.x(), 0.3, 0.03);
 }
 
 TEST(VelocityEstimator, NoImuMeansUnavailable) {
   Motion motion;
   VelocityEstimatorConfig config;
   config.warmup_s = 0.0;
-  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   estimator.update(0, motion.odometry_at(0.0, 0, true));
   const VelocityEstimate estimate = estimator.update(
       kImuPerFrame * kImuNs, motion.odometry_at(0.03, kImuPerFrame * kImuNs, false));
@@ -205,7 +205,7 @@ TEST(VelocityEstimator, UpdatesAllocateNothing) {
   Motion motion;
   motion.yaw_rate_radps = 0.5;
   motion.v_ned_mps = Eigen::Vector3d(0.2, 0.1, 0.0);
-  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   std::array<odometry::OdometryResult, 60> frames;
   for (int i = 0; i < 60; ++i) {
     frames[i] = motion.odometry_at(i * 0.03, i * kImuPerFrame * kImuNs, i == 0);
@@ -247,7 +247,7 @@ TEST(VelocityEstimator, WithoutTheCoastRejectedOdometryIsUnavailable) {
   motion.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
   VelocityEstimatorConfig config;
   config.inertial_coast_s = 0.0;  // disables the coast
-  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate last_ok = run(estimator, motion, 1.0);
   ASSERT_TRUE(last_ok.ok());
   const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
@@ -257,7 +257,7 @@ TEST(VelocityEstimator, WithoutTheCoastRejectedOdometryIsUnavailable) {
   const VelocityEstimate estimate = estimator.update(t_ns, lost);
   EXPECT_EQ(estimate.status, EstimateStatus::kUnavailable);
   EXPECT_FALSE(estimate.usable());
-  EXPECT_TRUE(estimate.v_horizontal_mps.isZero());
+  EXPECT_TRUE(estimate.v_H_mps.isZero());
 }
 
 // Loses odometry after `good_s` of the motion and then feeds the IMU a specific force that
@@ -304,7 +304,7 @@ TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
   motion.v_ned_mps = Eigen::Vector3d(0.3, -0.2, 0.0);
   VelocityEstimatorConfig config;
   config.inertial_coast_s = 0.6;
-  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   const double a_z = -1.0;  // NED: climbing faster
   const CoastRun coast = coast_after_loss(estimator, motion, 1.0, 1.0, a_z);
   ASSERT_TRUE(coast.last_ok.ok()) << coast.last_ok.reason;
@@ -320,16 +320,16 @@ TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
       EXPECT_STREQ(estimate.reason, "odometry lost");
       const double accel_s = 1e-9 * static_cast<double>(estimate.t_ns - coast.t_accel_start_ns);
       const Eigen::Vector3d expected =
-          coast.last_ok.v_horizontal_mps + Eigen::Vector3d(0.0, 0.0, a_z * accel_s);
-      EXPECT_LT((estimate.v_horizontal_mps - expected).norm(), 5e-3)
-          << coast_s << ": " << estimate.v_horizontal_mps.transpose() << " vs "
+          coast.last_ok.v_H_mps + Eigen::Vector3d(0.0, 0.0, a_z * accel_s);
+      EXPECT_LT((estimate.v_H_mps - expected).norm(), 5e-3)
+          << coast_s << ": " << estimate.v_H_mps.transpose() << " vs "
           << expected.transpose();
       EXPECT_NEAR(estimate.unavailable_for_s, coast_s, 1e-9);
       ++inertial;
     } else {
       // ... AND after it: unavailable, zero velocity.
       EXPECT_EQ(estimate.status, EstimateStatus::kUnavailable) << coast_s;
-      EXPECT_TRUE(estimate.v_horizontal_mps.isZero());
+      EXPECT_TRUE(estimate.v_H_mps.isZero());
       ++unavailable;
     }
   }
@@ -340,7 +340,7 @@ TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
 TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
   Motion motion;  // level, at rest
   VelocityEstimatorConfig config;
-  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   std::int64_t t_ns = 0;
   for (; t_ns <= 500'000'000; t_ns += kImuNs) {
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
@@ -353,7 +353,7 @@ TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
   const VelocityEstimate at_rest = estimator.between_frames(t_ns, "no frame");
   EXPECT_EQ(at_rest.status, EstimateStatus::kInertial);
   EXPECT_STREQ(at_rest.reason, "no frame");
-  EXPECT_TRUE(at_rest.v_horizontal_mps.isZero());
+  EXPECT_TRUE(at_rest.v_H_mps.isZero());
   // THEN a take-off climb at 2 m/s^2 for 0.5 s is followed on the IMU from zero.
   const std::int64_t t_anchor_ns = t_ns;
   for (int k = 1; k <= 100; ++k) {
@@ -362,20 +362,20 @@ TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
   }
   const VelocityEstimate climbing = estimator.between_frames(t_ns, "no frame");
   ASSERT_EQ(climbing.status, EstimateStatus::kInertial);
-  EXPECT_NEAR(climbing.v_horizontal_mps.z(), -2.0 * 0.5, 1e-6);
-  EXPECT_NEAR(climbing.v_horizontal_mps.head<2>().norm(), 0.0, 1e-6);
+  EXPECT_NEAR(climbing.v_H_mps.z(), -2.0 * 0.5, 1e-6);
+  EXPECT_NEAR(climbing.v_H_mps.head<2>().norm(), 0.0, 1e-6);
 
   // AND after flight at 0.3 m/s, hold_at_rest forgets that velocity.
   Motion flying;
   flying.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
-  VelocityEstimator moving(config, flying.R_QC, flying.p_QC);
+  VelocityEstimator moving(config, flying.R_B_C, flying.p_B_C_m);
   const VelocityEstimate last_ok = run(moving, flying, 1.0);
   ASSERT_TRUE(last_ok.ok());
-  ASSERT_GT(moving.between_frames(last_ok.t_ns, "no frame").v_horizontal_mps.norm(), 0.25);
+  ASSERT_GT(moving.between_frames(last_ok.t_ns, "no frame").v_H_mps.norm(), 0.25);
   moving.hold_at_rest(last_ok.t_ns);
   const VelocityEstimate held = moving.between_frames(last_ok.t_ns, "no frame");
   EXPECT_EQ(held.status, EstimateStatus::kInertial);
-  EXPECT_TRUE(held.v_horizontal_mps.isZero());
+  EXPECT_TRUE(held.v_H_mps.isZero());
 }
 
 // Flies the motion, then from `jump_s` on reports odometry displaced by jump_C_m in the camera
@@ -384,7 +384,7 @@ VelocityEstimate first_jumped_frame(const VelocityEstimatorConfig& config,
                                     const Eigen::Vector3d& jump_C_m) {
   Motion motion;
   motion.v_ned_mps = Eigen::Vector3d(0.3, 0.0, 0.0);
-  VelocityEstimator estimator(config, motion.R_QC, motion.p_QC);
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate last_ok = run(estimator, motion, 1.0);
   EXPECT_TRUE(last_ok.ok());
   const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
@@ -392,7 +392,7 @@ VelocityEstimate first_jumped_frame(const VelocityEstimatorConfig& config,
     estimator.update_imu(t, motion.gyro(), motion.accel(1e-9 * t));
   }
   odometry::OdometryResult jumped = motion.odometry_at(1e-9 * t_ns, t_ns, false);
-  jumped.T_world_cur.translation() += jumped.T_world_cur.linear() * jump_C_m;
+  jumped.T_O_C.translation() += jumped.T_O_C.linear() * jump_C_m;
   return estimator.update(t_ns, jumped);
 }
 
@@ -405,13 +405,13 @@ TEST(VelocityEstimator, OdometryVelocityDisagreeingWithTheImuIsRejected) {
   EXPECT_STREQ(rejected.reason, "odometry velocity disagrees with the IMU");
   // THEN the coast carries on from the last good velocity instead.
   EXPECT_EQ(rejected.status, EstimateStatus::kInertial);
-  EXPECT_NEAR(rejected.v_horizontal_mps.x(), 0.3, 0.01);
+  EXPECT_NEAR(rejected.v_H_mps.x(), 0.3, 0.01);
   // A gate wider than the jumped velocity lets the same frame through.
   VelocityEstimatorConfig wide;
   wide.max_imu_disagreement_mps = 100.0;
   const VelocityEstimate accepted = first_jumped_frame(wide, jump_C_m);
   ASSERT_TRUE(accepted.ok()) << accepted.reason;
-  EXPECT_GT((accepted.v_horizontal_mps - Eigen::Vector3d(0.3, 0.0, 0.0)).norm(),
+  EXPECT_GT((accepted.v_H_mps - Eigen::Vector3d(0.3, 0.0, 0.0)).norm(),
             VelocityEstimatorConfig{}.max_imu_disagreement_mps);
   // A small jump within the gate is accepted too.
   EXPECT_TRUE(first_jumped_frame(VelocityEstimatorConfig{}, 0.01 * jump_C_m).ok());

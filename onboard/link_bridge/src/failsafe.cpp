@@ -129,7 +129,7 @@ Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& com
     }
   }
   last_command_.t_ns = t_ns;
-  last_command_.v_horizontal_mps = {command.v_H_mps.x, command.v_H_mps.y, command.v_H_mps.z};
+  last_command_.v_H_mps = {command.v_H_mps.x, command.v_H_mps.y, command.v_H_mps.z};
   last_command_.yaw_rate_radps = command.yaw_rate_radps;
   last_command_t_ns_ = t_ns;
   have_command_ = true;

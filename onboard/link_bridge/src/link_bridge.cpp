@@ -117,7 +117,7 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
   }
   link::reserve(state_->obstacle_points_body_m,
                 static_cast<std::uint32_t>(options_.max_obstacle_points));
-  cloud_world_m_.resize(static_cast<std::size_t>(options_.max_obstacle_points));
+  cloud_O_m_.resize(static_cast<std::size_t>(options_.max_obstacle_points));
   link::reserve(state_->markers, hq_msgs_kMaxMarkersInState);
   link::reserve(camera_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   camera_->vehicle_id = link_.vehicle_id;
@@ -305,14 +305,14 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   link::VehicleState& s = *state_;
   s.sequence_number = ++state_sequence_;
   s.t_ns = out.t_ns;
-  s.v_H_mps = to_msg(out.estimate.v_horizontal_mps);
+  s.v_H_mps = to_msg(out.estimate.v_H_mps);
   s.omega_body_radps = to_msg(out.estimate.omega_body_radps);
   s.roll_rad = static_cast<float>(out.estimate.roll_rad);
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
   s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
   // Issue 16: the command as flown after the seen-space limit, so the ground can show the cut
   // and render it.
-  s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_horizontal_mps);
+  s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_H_mps);
   s.mode = to_link_mode(out.mode.mode);
   s.estimator_health = out.safe_hover                                 ? hq_msgs_HEALTH_LOST
                        : (!out.estimate.ok() || extras.vehicle_degraded) ? hq_msgs_HEALTH_DEGRADED
@@ -330,15 +330,15 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.obstacle_points_body_m._length = 0;
   last_cloud_size_ = 0;
   if (cloud.memory != nullptr && options_.obstacle_cloud_rate_hz > 0.0 &&
-      out.t_ns >= next_cloud_ns_ && cloud.T_world_body.matrix().allFinite()) {
+      out.t_ns >= next_cloud_ns_ && cloud.T_O_B.matrix().allFinite()) {
     next_cloud_ns_ = out.t_ns + period_ns(options_.obstacle_cloud_rate_hz);
-    // The map is in W; the IDL field is in Q: p_Q = T_QW p_W. The memory strides its map down
+    // The map is in O; the IDL field is in B: p_B = T_B_O p_O. The memory strides its map down
     // to the buffer's size; a non-finite point (never expected) is dropped, not sent.
-    const Eigen::Isometry3f T_body_world = cloud.T_world_body.inverse().cast<float>();
-    const int n = cloud.memory->telemetry_cloud(cloud_world_m_);
+    const Eigen::Isometry3f T_B_O = cloud.T_O_B.inverse().cast<float>();
+    const int n = cloud.memory->telemetry_cloud(cloud_O_m_);
     std::uint32_t count = 0;
     for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3f p_body_m = T_body_world * cloud_world_m_[static_cast<std::size_t>(i)];
+      const Eigen::Vector3f p_body_m = T_B_O * cloud_O_m_[static_cast<std::size_t>(i)];
       if (!p_body_m.allFinite()) continue;
       s.obstacle_points_body_m._buffer[count++] = {p_body_m.x(), p_body_m.y(), p_body_m.z()};
     }
@@ -348,9 +348,9 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   }
   // Position, markers and truth come from outside the chain's output (the marker stage, the
   // simulator); a non-finite value goes out as absent rather than as garbage.
-  s.position_valid = extras.position_valid && extras.p_world_m.allFinite() &&
+  s.position_valid = extras.position_valid && extras.p_W_m.allFinite() &&
                      std::isfinite(extras.yaw_rad);
-  s.p_W_m = s.position_valid ? to_msg(extras.p_world_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
+  s.p_W_m = s.position_valid ? to_msg(extras.p_W_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   s.yaw_W_rad = s.position_valid ? static_cast<float>(extras.yaw_rad) : 0.0F;
   std::uint32_t markers = 0;
   for (const markers::MarkerDetection& d : extras.markers) {
@@ -372,8 +372,8 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
                                                                           : hq_msgs_HEIGHT_ESTIMATE;
   s.height_m = height_ok ? static_cast<float>(out.height_m) : 0.0F;
   s.clearance_m = std::isfinite(out.clearance_m) ? static_cast<float>(out.clearance_m) : -1.0F;
-  s.truth_valid = extras.truth_valid && extras.v_truth_horizontal_mps.allFinite();
-  s.v_truth_H_mps = s.truth_valid ? to_msg(extras.v_truth_horizontal_mps)
+  s.truth_valid = extras.truth_valid && extras.v_truth_H_mps.allFinite();
+  s.v_truth_H_mps = s.truth_valid ? to_msg(extras.v_truth_H_mps)
                                   : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   state_writer_.write(s);
   if (ros2_ != nullptr) ros2_->publish_state(s);

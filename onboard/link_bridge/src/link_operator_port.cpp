@@ -6,8 +6,8 @@
 namespace hq::link_bridge {
 
 LinkOperatorPort::LinkOperatorPort(LinkBridge& bridge, const pipeline::OnboardChain& chain,
-                                   const Eigen::Isometry3d& T_body_camera, std::FILE* log)
-    : bridge_(bridge), chain_(chain), T_camera_body_(T_body_camera.inverse()), log_(log) {}
+                                   const Eigen::Isometry3d& T_B_C, std::FILE* log)
+    : bridge_(bridge), chain_(chain), T_C_B_(T_B_C.inverse()), log_(log) {}
 
 modes::OperatorCommand LinkOperatorPort::poll(std::int64_t t_ns,
                                               std::vector<pipeline::ModeRequest>& requests) {
@@ -43,21 +43,22 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
                                  const vehicle::VehicleStatus& status) {
   StateExtras extras;
   if (chain_.config().memory.enabled) {
-    if (const auto T_world_camera = chain_.memory().T_world_camera()) {
+    // The memory's world is the odometry origin O.
+    if (const auto T_O_C = chain_.memory().T_world_camera()) {
       extras.cloud.memory = &chain_.memory();
-      extras.cloud.T_world_body = *T_world_camera * T_camera_body_;
+      extras.cloud.T_O_B = *T_O_C * T_C_B_;
     }
   }
   if (const marker_modes::MarkerStage* markers = chain_.markers()) {
     const marker_modes::MarkerNavigation& navigation = markers->navigation();
     extras.position_valid = navigation.pose_usable(kPositionMaxAgeS);
-    extras.p_world_m = navigation.p_world_m();
+    extras.p_W_m = navigation.p_W_m();
     extras.yaw_rad = navigation.yaw_rad();
     extras.markers = navigation.detections();
   }
   if (status.truth) {
     extras.truth_valid = true;
-    extras.v_truth_horizontal_mps = status.truth->v_H_mps;
+    extras.v_truth_H_mps = status.truth->v_H_mps;
   }
   extras.vehicle_degraded = status.degraded();
   // Spinning: the chain off the floor (landed is motors idle, thrust 0) and, when a flight

@@ -64,7 +64,7 @@ TEST(Failsafe, HoldsZeroVelocityUntilTheFirstCommand) {
   EXPECT_TRUE(s.hold);
   EXPECT_FALSE(s.have_command);
   EXPECT_EQ(s.command_age_ns, -1);
-  EXPECT_EQ(s.command.v_horizontal_mps.norm(), 0.0);
+  EXPECT_EQ(s.command.v_H_mps.norm(), 0.0);
   EXPECT_FALSE(s.heartbeat_lost);  // nobody seen yet: nobody to lose
 }
 
@@ -76,14 +76,14 @@ TEST(Failsafe, FreshCommandPassesThenHoldsZeroAfterTheTimeout) {
   const FailsafeState& fresh = failsafe.update(1150 * kMs);
   EXPECT_FALSE(fresh.hold);
   EXPECT_EQ(fresh.command_age_ns, 150 * kMs);
-  EXPECT_FLOAT_EQ(static_cast<float>(fresh.command.v_horizontal_mps.x()), 0.5F);
+  EXPECT_FLOAT_EQ(static_cast<float>(fresh.command.v_H_mps.x()), 0.5F);
   EXPECT_EQ(fresh.command.t_ns, 1000 * kMs);
 
   EXPECT_FALSE(failsafe.update(1200 * kMs).hold);  // exactly at the timeout: still fresh
   const FailsafeState& held = failsafe.update(1201 * kMs);
   EXPECT_TRUE(held.hold);
   EXPECT_TRUE(held.hold_started);
-  EXPECT_EQ(held.command.v_horizontal_mps.norm(), 0.0);
+  EXPECT_EQ(held.command.v_H_mps.norm(), 0.0);
   EXPECT_EQ(held.command.yaw_rate_radps, 0.0);
   EXPECT_EQ(held.command.t_ns, 1201 * kMs);  // stamped now: flown as a fresh zero command
   EXPECT_FALSE(failsafe.update(1300 * kMs).hold_started);  // the edge is reported once
@@ -169,9 +169,9 @@ TEST(Failsafe, NonFiniteOrOutOfEnvelopeCommandsAreRejectedCountedAndNotFlown) {
 
   // The last good command is still what flies, and its age is not refreshed by bad samples.
   const FailsafeState& s = failsafe.update(100 * kMs);
-  EXPECT_FLOAT_EQ(static_cast<float>(s.command.v_horizontal_mps.x()), 0.4F);
+  EXPECT_FLOAT_EQ(static_cast<float>(s.command.v_H_mps.x()), 0.4F);
   EXPECT_EQ(s.command_age_ns, 100 * kMs);
-  EXPECT_TRUE(s.command.v_horizontal_mps.allFinite());
+  EXPECT_TRUE(s.command.v_H_mps.allFinite());
   EXPECT_TRUE(failsafe.update(201 * kMs).hold);
 }
 
@@ -183,7 +183,7 @@ TEST(Failsafe, HugeSequenceNumbersDoNotLockOutTheStation) {
   link::VelocityCommand real = command(0.3F);
   real.sequence_number = 5;
   EXPECT_TRUE(failsafe.on_command(10 * kMs, real).accepted);
-  EXPECT_FLOAT_EQ(static_cast<float>(failsafe.update(20 * kMs).command.v_horizontal_mps.x()),
+  EXPECT_FLOAT_EQ(static_cast<float>(failsafe.update(20 * kMs).command.v_H_mps.x()),
                   0.3F);
 }
 
@@ -444,13 +444,13 @@ TEST(FailsafeStamps, BurstOfStaleCommandsAfterAStallMovesNothing) {
   EXPECT_EQ(failsafe.counters().commands_stale, 70u);
   EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("older than its deadline"));
   EXPECT_TRUE(during.hold);
-  EXPECT_EQ(during.command.v_horizontal_mps.norm(), 0.0);
+  EXPECT_EQ(during.command.v_H_mps.norm(), 0.0);
   // ... and it resumes on the first fresh command
   ASSERT_TRUE(
       failsafe.on_command(2100 * kMs, stamped(0.2F, 2050 * kMs + kStationAheadNs)).accepted);
   const FailsafeState& resumed = failsafe.update(2100 * kMs);
   EXPECT_FALSE(resumed.hold);
-  EXPECT_FLOAT_EQ(static_cast<float>(resumed.command.v_horizontal_mps.x()), 0.2F);
+  EXPECT_FLOAT_EQ(static_cast<float>(resumed.command.v_H_mps.x()), 0.2F);
 }
 
 TEST(FailsafeStamps, ReorderedOlderCommandIsRejected) {

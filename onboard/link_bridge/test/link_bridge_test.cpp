@@ -77,6 +77,21 @@ bool poll_until(LinkBridge& bridge, std::vector<pipeline::ModeRequest>& requests
   return false;
 }
 
+// Publishes `out` (after a fresh command from the station, when given) until the ground takes
+// a state that `wanted` accepts, into `state`; false after 5 s.
+template <typename Wanted>
+bool publish_until(LinkBridge& bridge, Ground& ground, const pipeline::ChainOutput& out,
+                   link::VehicleState& state, Wanted wanted, const StateExtras& extras = {},
+                   const link::VelocityCommand* fresh = nullptr) {
+  std::vector<pipeline::ModeRequest> requests;
+  return poll_until(bridge, requests, [&] {
+    if (fresh != nullptr) ground.commands.write(*fresh);
+    bridge.publish_state(out, extras);
+    dds_sample_info_t info{};
+    return ground.states.take(state, info) && wanted(state);
+  });
+}
+
 TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
   const link::LinkConfig config = private_link();
   LinkBridge bridge(config, FailsafeConfig{});
@@ -92,7 +107,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
     ground.commands.write(good);
     return bridge.failsafe().counters().commands_accepted > 0;
   }));
-  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_horizontal_mps.x()),
+  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_H_mps.x()),
                   0.25F);
 
   link::VelocityCommand bad = good;
@@ -168,15 +183,10 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
 
   pipeline::ChainOutput out;
   out.t_ns = 123;
-  out.estimate.v_horizontal_mps = {0.5, -0.25, 0.125};
+  out.estimate.v_H_mps = {0.5, -0.25, 0.125};
   out.mode.mode = modes::Mode::kLand;
-  std::vector<pipeline::ModeRequest> requests;
   link::VehicleState state{};
-  ASSERT_TRUE(poll_until(bridge, requests, [&] {
-    bridge.publish_state(out);
-    dds_sample_info_t info{};
-    return ground.states.take(state, info);
-  }));
+  ASSERT_TRUE(publish_until(bridge, ground, out, state, [](const auto&) { return true; }));
   EXPECT_EQ(state.mode, hq_msgs_MODE_LAND);
   EXPECT_FLOAT_EQ(state.v_H_mps.y, -0.25F);
   EXPECT_EQ(state.link_health, hq_msgs_HEALTH_DEGRADED);  // no command yet: holding
@@ -199,42 +209,44 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   out.clearance_m = 0.6;
   StateExtras extras;
   extras.motors_armed = true;
-  ASSERT_TRUE(poll_until(bridge, requests, [&] {
-    bridge.publish_state(out, extras);
-    dds_sample_info_t info{};
-    return ground.states.take(state, info) && state.flight_state == hq_msgs_FLIGHT_AIRBORNE;
-  }));
+  ASSERT_TRUE(publish_until(
+      bridge, ground, out, state,
+      [](const link::VehicleState& s) { return s.flight_state == hq_msgs_FLIGHT_AIRBORNE; },
+      extras));
   EXPECT_TRUE(state.motors_armed);
   EXPECT_EQ(state.height_source, hq_msgs_HEIGHT_DEPTH);
   EXPECT_FLOAT_EQ(state.height_m, 1.02F);
   EXPECT_FLOAT_EQ(state.clearance_m, 0.6F);
   EXPECT_TRUE(link::validate(state).ok);
+}
 
-  // Issue 16: a teleop command cut by the seen-space limit goes out as flown, and says so.
+// Issue 16: a teleop command cut by the seen-space limit goes out as flown, and says so.
+TEST(LinkBridge, PublishesTheCommandAsFlownAndWhetherTheSeenSpaceCutIt) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  pipeline::ChainOutput out;
   out.mode.mode = modes::Mode::kTeleop;
-  out.v_cmd_flown_horizontal_mps = {0.4, 0.0, -0.1};
+  out.v_cmd_flown_H_mps = {0.4, 0.0, -0.1};
   out.command_limited = true;
   // A fresh command from the station: the fail-safe flies it, the limit cuts it.
   link::VelocityCommand fresh{};
   fresh.vehicle_id = 1;
   fresh.station_id = 1;
-  ASSERT_TRUE(poll_until(bridge, requests, [&] {
-    ground.commands.write(fresh);
-    bridge.publish_state(out);
-    dds_sample_info_t info{};
-    return ground.states.take(state, info) && state.operator_input == hq_msgs_INPUT_LIMITED_UNSEEN;
-  }));
+  link::VehicleState state{};
+  ASSERT_TRUE(publish_until(
+      bridge, ground, out, state,
+      [](const link::VehicleState& s) { return s.operator_input == hq_msgs_INPUT_LIMITED_UNSEEN; },
+      {}, &fresh));
   EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.x, 0.4F);
   EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.z, -0.1F);
   EXPECT_EQ(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
   EXPECT_TRUE(link::validate(state).ok);
   out.command_limited = false;
-  ASSERT_TRUE(poll_until(bridge, requests, [&] {
-    ground.commands.write(fresh);
-    bridge.publish_state(out);
-    dds_sample_info_t info{};
-    return ground.states.take(state, info) && state.operator_input == hq_msgs_INPUT_FLOWN;
-  }));
+  ASSERT_TRUE(publish_until(
+      bridge, ground, out, state,
+      [](const link::VehicleState& s) { return s.operator_input == hq_msgs_INPUT_FLOWN; }, {},
+      &fresh));
   EXPECT_NE(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
 }
 
@@ -268,6 +280,56 @@ TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {
 // Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
 // The memory holds a wall 2 m along the camera's optical axis; whatever pose the body has in the
 // memory's world, the published points must sit 2 m along that axis seen from the body.
+/// An obstacle memory that has seen a wall 2 m along the optical axis of the core paper's camera
+/// mount (45 deg right, 30 deg down, calib/vehicle_core_paper.yaml), from a camera pose T_O_C
+/// rotated and moved so that O, C and B all differ.
+struct RememberedWall {
+  RememberedWall() : memory(config, camera_for_wall(), R_B_C_core_paper(), p_B_C_m) {
+    T_O_C.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())
+                         .toRotationMatrix();
+    T_O_C.translation() = Eigen::Vector3d(1.5, -2.0, 0.4);
+    const cv::Mat wall(camera.height, camera.width, CV_32FC1, cv::Scalar(2.0F));
+    for (int i = 0; i < 3; ++i) {
+      (void)memory.update(i * 33'000'000LL, wall, T_O_C, Eigen::Matrix3d::Identity(), 1.35);
+    }
+  }
+  static geometry::PinholeCamera camera_for_wall() {
+    geometry::PinholeCamera c;
+    c.width = 160;
+    c.height = 120;
+    c.fx = c.fy = 120.0;
+    c.cx = 79.5;
+    c.cy = 59.5;
+    return c;
+  }
+  static Eigen::Matrix3d R_B_C_core_paper() {
+    const Eigen::Matrix3d R_B_forward =
+        (Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()) *
+         Eigen::AngleAxisd(-M_PI / 6, Eigen::Vector3d::UnitY()))
+            .toRotationMatrix();
+    Eigen::Matrix3d optical_to_forward;  // optical (x right, y down, z forward) -> FRD body
+    optical_to_forward << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+    return R_B_forward * optical_to_forward;
+  }
+  /// The body's pose in the memory's world (the odometry origin O).
+  [[nodiscard]] Eigen::Isometry3d T_O_B() const {
+    Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+    T_B_C.linear() = R_B_C;
+    T_B_C.translation() = p_B_C_m;
+    return T_O_C * T_B_C.inverse();
+  }
+
+  geometry::PinholeCamera camera = camera_for_wall();
+  Eigen::Matrix3d R_B_C = R_B_C_core_paper();
+  Eigen::Vector3d p_B_C_m{0.10, 0.05, 0.03};
+  obstacle_memory::MemoryConfig config;
+  obstacle_memory::ObstacleMemory memory;
+  Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
+};
+
+// Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
+// The memory holds a wall 2 m along the camera's optical axis; whatever pose the body has in the
+// memory's world, the published points must sit 2 m along that axis seen from the body.
 TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
   const link::LinkConfig config = private_link();
   BridgeOptions options;
@@ -275,40 +337,11 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
   options.max_obstacle_points = 300;
   LinkBridge bridge(config, FailsafeConfig{}, options);
   Ground ground(config);
+  const RememberedWall wall;
+  ASSERT_GT(wall.memory.size(), options.max_obstacle_points);  // the bound limits the cloud
 
-  geometry::PinholeCamera camera;
-  camera.width = 160;
-  camera.height = 120;
-  camera.fx = camera.fy = 120.0;
-  camera.cx = 79.5;
-  camera.cy = 59.5;
-  // The core paper's mount: 45 deg right, 30 deg down (calib/vehicle_core_paper.yaml).
-  const Eigen::Matrix3d R_QC_forward =
-      (Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()) *
-       Eigen::AngleAxisd(-M_PI / 6, Eigen::Vector3d::UnitY()))
-          .toRotationMatrix();
-  Eigen::Matrix3d optical_to_forward;  // optical (x right, y down, z forward) -> NED-like body
-  optical_to_forward << 0, 0, 1, 1, 0, 0, 0, 1, 0;
-  const Eigen::Matrix3d R_QC = R_QC_forward * optical_to_forward;
-  const Eigen::Vector3d p_QC(0.10, 0.05, 0.03);
-  obstacle_memory::MemoryConfig memory_config;
-  obstacle_memory::ObstacleMemory memory(memory_config, camera, R_QC, p_QC);
-  const cv::Mat wall(camera.height, camera.width, CV_32FC1, cv::Scalar(2.0F));
-  // The camera's pose in the memory's world W: rotated and moved, so that W, C and Q differ.
-  Eigen::Isometry3d T_WC = Eigen::Isometry3d::Identity();
-  T_WC.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())
-                      .toRotationMatrix();
-  T_WC.translation() = Eigen::Vector3d(1.5, -2.0, 0.4);
-  for (int i = 0; i < 3; ++i) {
-    (void)memory.update(i * 33'000'000LL, wall, T_WC, Eigen::Matrix3d::Identity(), 1.35);
-  }
-  ASSERT_GT(memory.size(), options.max_obstacle_points);  // the bound is what limits the cloud
-
-  Eigen::Isometry3d T_QC = Eigen::Isometry3d::Identity();
-  T_QC.linear() = R_QC;
-  T_QC.translation() = p_QC;
   StateExtras source;
-  source.cloud = {&memory, T_WC * T_QC.inverse()};
+  source.cloud = {&wall.memory, wall.T_O_B()};
   pipeline::ChainOutput out;
   // 2 s of 100 Hz states on a stamp clock: clouds at 0 s and 1 s only.
   for (int i = 0; i < 200; ++i) {
@@ -335,19 +368,20 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
   EXPECT_GE(cloud._length, static_cast<std::uint32_t>(options.max_obstacle_points) / 2);
   EXPECT_TRUE(link::validate(*state).ok);
   for (std::uint32_t i = 0; i < cloud._length; ++i) {
-    const Eigen::Vector3d p_Q(cloud._buffer[i].x, cloud._buffer[i].y, cloud._buffer[i].z);
-    ASSERT_TRUE(p_Q.allFinite()) << i;
+    const Eigen::Vector3d p_B(cloud._buffer[i].x, cloud._buffer[i].y, cloud._buffer[i].z);
+    ASSERT_TRUE(p_B.allFinite()) << i;
     // Back into the camera: on the wall, within the voxel leaf.
-    const Eigen::Vector3d p_C = R_QC.transpose() * (p_Q - p_QC);
-    EXPECT_NEAR(p_C.z(), 2.0, memory_config.leaf_m) << i;
-    EXPECT_LT(std::abs(p_C.x()), 2.0 * camera.cx / camera.fx + memory_config.leaf_m) << i;
+    const Eigen::Vector3d p_C = wall.R_B_C.transpose() * (p_B - wall.p_B_C_m);
+    EXPECT_NEAR(p_C.z(), 2.0, wall.config.leaf_m) << i;
+    EXPECT_LT(std::abs(p_C.x()), 2.0 * wall.camera.cx / wall.camera.fx + wall.config.leaf_m)
+        << i;
   }
 
   // No memory, or a non-finite pose: an empty cloud, still a state.
   out.t_ns += 10'000'000'000LL;
   bridge.publish_state(out, {});
   EXPECT_EQ(bridge.last_cloud_size(), 0);
-  source.cloud.T_world_body.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  source.cloud.T_O_B.translation().x() = std::numeric_limits<double>::quiet_NaN();
   bridge.publish_state(out, source);
   EXPECT_EQ(bridge.last_cloud_size(), 0);
 }
@@ -388,11 +422,11 @@ TEST(LinkBridge, PublishesPositionMarkersAndTruthOnlyWhenGivenAndFinite) {
       Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   StateExtras extras;
   extras.position_valid = true;
-  extras.p_world_m = Eigen::Vector3d(1.0, 2.0, -1.0);
+  extras.p_W_m = Eigen::Vector3d(1.0, 2.0, -1.0);
   extras.yaw_rad = 0.5;
   extras.markers = detections;
   extras.truth_valid = true;
-  extras.v_truth_horizontal_mps = Eigen::Vector3d(0.3, 0.0, -0.1);
+  extras.v_truth_H_mps = Eigen::Vector3d(0.3, 0.0, -0.1);
 
   link::Sample<link::VehicleState> state;
   std::vector<pipeline::ModeRequest> requests;
@@ -418,8 +452,8 @@ TEST(LinkBridge, PublishesPositionMarkersAndTruthOnlyWhenGivenAndFinite) {
   EXPECT_TRUE(link::validate(*state).ok);
 
   // A non-finite position or truth is sent as absent, never as garbage.
-  extras.p_world_m.x() = std::numeric_limits<double>::quiet_NaN();
-  extras.v_truth_horizontal_mps.y() = std::numeric_limits<double>::infinity();
+  extras.p_W_m.x() = std::numeric_limits<double>::quiet_NaN();
+  extras.v_truth_H_mps.y() = std::numeric_limits<double>::infinity();
   extras.markers = {};
   publish_and_take(extras);
   EXPECT_FALSE(state->position_valid);
@@ -590,8 +624,8 @@ TEST(LinkBridge, Ros2CommandsAreTheWeakestStation) {
     twists.write(twist);
     return state.commanding_station_id == 250 && !state.hold;
   }));
-  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_horizontal_mps.x()), 0.3F);
-  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_horizontal_mps.y()), -0.1F);
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_H_mps.x()), 0.3F);
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_H_mps.y()), -0.1F);
   EXPECT_FLOAT_EQ(static_cast<float>(state.command.yaw_rate_radps), -0.2F);
 
   link::VelocityCommand native{};
@@ -603,7 +637,7 @@ TEST(LinkBridge, Ros2CommandsAreTheWeakestStation) {
     twists.write(twist);
     return state.commanding_station_id == 1 && bridge.ros2()->counters().commands_overridden > 2;
   }));
-  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_horizontal_mps.x()), 0.05F);
+  EXPECT_FLOAT_EQ(static_cast<float>(state.command.v_H_mps.x()), 0.05F);
 
   // The native station stops; past its lease (500 ms) a NaN from ROS is rejected and counted.
   const std::int64_t quiet_until_ns = now_ns() + config.command_lease_ns + 100'000'000;
@@ -646,7 +680,7 @@ TEST(LinkBridge, Ros2OdometryGoesOutWithTheState) {
   link::Sample<ros2_bridge::Odometry> sample;
   pipeline::ChainOutput out;
   out.t_ns = 1'500'000'000;
-  out.estimate.v_horizontal_mps = {0.4, 0.0, 0.0};
+  out.estimate.v_H_mps = {0.4, 0.0, 0.0};
   std::vector<pipeline::ModeRequest> requests;
   ASSERT_TRUE(poll_until(bridge, requests, [&] {
     bridge.publish_state(out);

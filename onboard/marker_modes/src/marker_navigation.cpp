@@ -102,7 +102,7 @@ void MarkerNavigation::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_rad
     navigation::NominalState start;
     const double roll = std::atan2(-accel_mps2.y(), -accel_mps2.z());
     const double pitch = std::atan2(accel_mps2.x(), std::hypot(accel_mps2.y(), accel_mps2.z()));
-    start.q_world_body = Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+    start.q_W_B = Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
                          Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
     filter_.initialize(t_ns, start);
   }
@@ -111,7 +111,7 @@ void MarkerNavigation::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_rad
 
 void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                                 const estimator::VelocityEstimate& estimate, bool odometry_ok,
-                                const Eigen::Isometry3d& T_odom_camera) {
+                                const Eigen::Isometry3d& T_O_C) {
   if (!filter_.health().initialized) return;
   if (estimate.ok()) filter_.update_velocity(estimate);
   detections_last_frame_ = 0;
@@ -129,7 +129,7 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
   if (detections.empty()) return;
   have_detection_ = true;
   t_last_detection_ns_ = t_ns;
-  map_.add_frame(t_ns, detections, T_odom_camera, motion_covariance);
+  map_.add_frame(t_ns, detections, T_O_C, motion_covariance);
   // The providers run per control step and must not allocate: the box is kept here.
   have_box_ = false;
   for (int id : map_.ids()) {
@@ -143,22 +143,22 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
     const std::optional<Eigen::Isometry3d> T_map_marker = map_.T_map_marker(d.id);
     if (!T_map_marker) continue;
     const Eigen::Isometry3d T_marker_camera = d.T_camera_marker.inverse();
-    Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
-    T_world_camera.linear() = R_world_map() * T_map_marker->linear() * T_marker_camera.linear();
-    T_world_camera.translation() = R_world_map() * (*T_map_marker * T_marker_camera.translation());
+    Eigen::Isometry3d T_W_C = Eigen::Isometry3d::Identity();
+    T_W_C.linear() = R_world_map() * T_map_marker->linear() * T_marker_camera.linear();
+    T_W_C.translation() = R_world_map() * (*T_map_marker * T_marker_camera.translation());
     // Detection noise xi (right perturbation of T_CM, in M) mapped to the camera pose:
     // T_MC' = exp(-xi) T_MC, so dp_M = -v + [p_MC]x omega and theta_C = -R_MC^T omega.
     Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
-    const Eigen::Matrix3d R_world_marker = R_world_map() * T_map_marker->linear();
-    J.block<3, 3>(0, 0) = -R_world_marker;
-    J.block<3, 3>(0, 3) = R_world_marker * skew(T_marker_camera.translation());
+    const Eigen::Matrix3d R_W_M = R_world_map() * T_map_marker->linear();
+    J.block<3, 3>(0, 0) = -R_W_M;
+    J.block<3, 3>(0, 3) = R_W_M * skew(T_marker_camera.translation());
     J.block<3, 3>(3, 3) = -T_marker_camera.linear().transpose();
     navigation::Matrix6d covariance = J * d.covariance * J.transpose();
     const double sp = config_.map_position_sigma_m;
     const double sr = config_.map_rotation_sigma_rad;
     covariance.topLeftCorner<3, 3>() += sp * sp * Eigen::Matrix3d::Identity();
     covariance.bottomRightCorner<3, 3>() += sr * sr * Eigen::Matrix3d::Identity();
-    filter_.update_marker(t_ns, T_world_camera, covariance);
+    filter_.update_marker(t_ns, T_W_C, covariance);
   }
 }
 
@@ -168,10 +168,10 @@ bool MarkerNavigation::pose_usable(double max_age_s) const {
 }
 
 double MarkerNavigation::yaw_rad() const {
-  return navigation::yaw_rad(filter_.state().q_world_body.toRotationMatrix());
+  return navigation::yaw_rad(filter_.state().q_W_B.toRotationMatrix());
 }
 
-std::optional<Eigen::Vector3d> MarkerNavigation::p_world_marker_m(int id) const {
+std::optional<Eigen::Vector3d> MarkerNavigation::p_W_M_m(int id) const {
   const std::optional<Eigen::Isometry3d> T = map_.T_map_marker(id);
   if (!T) return std::nullopt;
   return Eigen::Vector3d(R_world_map() * T->translation());
@@ -182,12 +182,13 @@ double MarkerNavigation::time_since_detection_s(std::int64_t t_ns) const {
   return 1e-9 * static_cast<double>(t_ns - t_last_detection_ns_);
 }
 
-bool MarkerNavigation::in_view(const Eigen::Vector3d& p_world_m, double range_m) const {
-  const Eigen::Isometry3d T_world_camera = filter_.T_world_body() * T_body_camera_;
-  const Eigen::Vector3d p_C = T_world_camera.inverse() * p_world_m;
+bool MarkerNavigation::in_view(const Eigen::Vector3d& p_W_m, double range_m) const {
+  const Eigen::Isometry3d T_W_C = filter_.T_W_B() * T_body_camera_;
+  const Eigen::Vector3d p_C = T_W_C.inverse() * p_W_m;
   if (!(p_C.z() > 0.1) || p_C.norm() > range_m) return false;
-  const double u = camera_.fx * p_C.x() / p_C.z() + camera_.cx;
-  const double v = camera_.fy * p_C.y() / p_C.z() + camera_.cy;
+  const Eigen::Vector2d uv = camera_.project(p_C);
+  const double u = uv.x();
+  const double v = uv.y();
   const double margin_u = 0.1 * camera_.width;
   const double margin_v = 0.1 * camera_.height;
   return u > margin_u && u < camera_.width - margin_u && v > margin_v &&

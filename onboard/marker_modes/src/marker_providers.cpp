@@ -18,9 +18,9 @@ modes::ModeCommand invalid(const char* reason) {
 }
 
 /// v_W clipped to max_speed_mps, turned into H (v_H = R_WH^T v_W).
-Eigen::Vector3d to_horizontal(const Eigen::Vector3d& v_world_mps, double yaw_rad,
+Eigen::Vector3d to_horizontal(const Eigen::Vector3d& v_W_mps, double yaw_rad,
                               double max_speed_mps) {
-  Eigen::Vector3d v = v_world_mps;
+  Eigen::Vector3d v = v_W_mps;
   const double speed = v.norm();
   if (speed > max_speed_mps) v *= max_speed_mps / speed;
   return Eigen::AngleAxisd(-yaw_rad, Eigen::Vector3d::UnitZ()) * v;
@@ -80,13 +80,13 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   if (t_ns - t_last_ns_ > 200'000'000) have_yaw_ = false;
   t_last_ns_ = t_ns;
   if (!navigation_.pose_usable(config_.max_marker_age_s)) return invalid("no marker pose");
-  const std::optional<Eigen::Vector3d> p_marker = navigation_.p_world_marker_m(marker_id_);
+  const std::optional<Eigen::Vector3d> p_marker = navigation_.p_W_M_m(marker_id_);
   const double yaw = navigation_.yaw_rad();
   if (!have_yaw_) {
     yaw_hold_rad_ = yaw;
     have_yaw_ = true;
   }
-  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d p = navigation_.p_W_m();
   if (!p_marker) return search(yaw, p);
   const Eigen::Vector3d offset = *p_marker - p;
   horizontal_error_m_ = offset.head<2>().norm();
@@ -108,8 +108,8 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   }
   modes::ModeCommand c;
   c.valid = true;
-  c.v_horizontal_mps = to_horizontal(v_world, yaw, config_.max_speed_mps);
-  if (task_ == MarkerTask::kLand && descending_) c.v_horizontal_mps.z() = config_.land_descent_mps;
+  c.v_H_mps = to_horizontal(v_world, yaw, config_.max_speed_mps);
+  if (task_ == MarkerTask::kLand && descending_) c.v_H_mps.z() = config_.land_descent_mps;
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
   return c;
@@ -133,7 +133,7 @@ modes::ModeCommand MarkerModeProvider::search(double yaw_rad, const Eigen::Vecto
   } else {
     yaw_hold_rad_ = yaw_rad + config_.search_yaw_rate_radps / config_.kp_yaw_per_s;
   }
-  c.v_horizontal_mps = to_horizontal(v_world, yaw_rad, config_.max_speed_mps);
+  c.v_H_mps = to_horizontal(v_world, yaw_rad, config_.max_speed_mps);
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw_rad, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
   return c;
@@ -212,11 +212,11 @@ bool ExploreProvider::choose_goal(const Eigen::Vector2d& p_m) {
 modes::ModeCommand ExploreProvider::fly_to(const Eigen::Vector3d& p_target_m,
                                            double yaw_target_rad) const {
   const MarkerModeConfig& gains = marker_mode_.config();
-  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d p = navigation_.p_W_m();
   const double yaw = navigation_.yaw_rad();
   modes::ModeCommand c;
   c.valid = true;
-  c.v_horizontal_mps =
+  c.v_H_mps =
       to_horizontal(gains.kp_position_per_s * (p_target_m - p), yaw, gains.max_speed_mps);
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_target_rad, yaw, gains.kp_yaw_per_s, gains.max_yaw_rate_radps);
@@ -235,7 +235,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
   }
   const double in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
   const bool have_pose = navigation_.pose_usable(marker_mode_.config().max_marker_age_s);
-  const Eigen::Vector3d p = navigation_.p_world_m();
+  const Eigen::Vector3d p = navigation_.p_W_m();
   const double height_m = -p.z();  // W: floor markers at z = 0, NED.
   const double z_target = -config_.height_m;
   const double alpha = navigation_.camera_heading_rad();
@@ -249,7 +249,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
       }
       modes::ModeCommand c;
       c.valid = true;
-      c.v_horizontal_mps.z() = -config_.liftoff_climb_mps;
+      c.v_H_mps.z() = -config_.liftoff_climb_mps;
       return c;
     }
     case ExplorePhase::kSearch: {
@@ -334,7 +334,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
       const double yaw = navigation_.yaw_rad();
       Eigen::Vector3d v_world(back.x(), back.y(),
                               marker_mode_.config().kp_position_per_s * (z_target - p.z()));
-      c.v_horizontal_mps = to_horizontal(v_world, yaw, marker_mode_.config().max_speed_mps);
+      c.v_H_mps = to_horizontal(v_world, yaw, marker_mode_.config().max_speed_mps);
       c.yaw_rate_radps = yaw_rate_towards(std::atan2(back.y(), back.x()) - alpha, yaw,
                                           marker_mode_.config().kp_yaw_per_s,
                                           marker_mode_.config().max_yaw_rate_radps);

@@ -109,7 +109,7 @@ int tag_depth_points(const cv::Mat& depth_m, const geometry::PinholeCamera& came
       if (u < 0 || v < 0 || u >= depth_m.cols || v >= depth_m.rows) continue;
       const double z = depth_m.at<float>(v, u);
       if (!std::isfinite(z) || z <= 0.0) continue;
-      p_C[n++] = Eigen::Vector3d(z * (u - camera.cx) / camera.fx, z * (v - camera.cy) / camera.fy, z);
+      p_C[n++] = camera.unproject(static_cast<double>(u), static_cast<double>(v), z);
     }
   }
   return n;
@@ -187,14 +187,11 @@ double corner_reprojection(const geometry::PinholeCamera& camera,
   double sum_sq = 0.0;
   for (int k = 0; k < 4; ++k) {
     const Eigen::Vector3d p_C = T_camera_marker * p_M[static_cast<std::size_t>(k)];
-    const double inv_z = 1.0 / p_C.z();
-    const Eigen::Vector2d uv(camera.fx * p_C.x() * inv_z + camera.cx,
-                             camera.fy * p_C.y() * inv_z + camera.cy);
+    Eigen::Matrix<double, 2, 3> d_uv_d_pC;
+    const Eigen::Vector2d uv =
+        camera.project(p_C, d_residual_d_xi != nullptr ? &d_uv_d_pC : nullptr);
     sum_sq += (uv - corners_px[static_cast<std::size_t>(k)]).squaredNorm();
     if (d_residual_d_xi != nullptr) {
-      Eigen::Matrix<double, 2, 3> d_uv_d_pC;
-      d_uv_d_pC << camera.fx * inv_z, 0.0, -camera.fx * p_C.x() * inv_z * inv_z, 0.0,
-          camera.fy * inv_z, -camera.fy * p_C.y() * inv_z * inv_z;
       // p_C = R (p_M + v + omega x p_M) + t for T * exp(xi) to first order.
       Eigen::Matrix<double, 3, 6> d_pC_d_xi;
       d_pC_d_xi.leftCols<3>() = R_CM;
@@ -348,9 +345,8 @@ bool MarkerDetector::refine_with_plane(MarkerDetection& d, const Eigen::Vector3d
     chi2 = 0.0;
     for (int k = 0; k < 4; ++k) {
       const Eigen::Vector3d q = T * p_M[static_cast<std::size_t>(k)];
-      const Eigen::Vector2d r = (Eigen::Vector2d(camera_.fx * q.x() / q.z() + camera_.cx,
-                                                 camera_.fy * q.y() / q.z() + camera_.cy) -
-                                 d.corners_px[static_cast<std::size_t>(k)]) / sigma_px;
+      const Eigen::Vector2d r =
+          (camera_.project(q) - d.corners_px[static_cast<std::size_t>(k)]) / sigma_px;
       const Eigen::Matrix<double, 2, 6> Jk = J_corners.middleRows<2>(2 * k) / sigma_px;
       H += Jk.transpose() * Jk;
       g += Jk.transpose() * r;

@@ -101,7 +101,7 @@ struct MarkerMap::Impl {
 
   // Odometry since the last keyframe.
   bool have_odometry = false;
-  Eigen::Isometry3d T_odom_camera_prev = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_C_prev = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_kf_camera = Eigen::Isometry3d::Identity();  // accumulated motion
   Matrix6d kf_motion_covariance = Matrix6d::Zero();
 
@@ -165,12 +165,12 @@ MarkerMap::MarkerMap(MarkerMap&&) noexcept = default;
 MarkerMap& MarkerMap::operator=(MarkerMap&&) noexcept = default;
 
 void MarkerMap::add_frame(std::int64_t t_ns, const std::vector<MarkerDetection>& detections,
-                          const Eigen::Isometry3d& T_odom_camera,
+                          const Eigen::Isometry3d& T_O_C,
                           const Matrix6d& motion_covariance) {
   Impl& m = *impl_;
-  if (!finite_pose(T_odom_camera) || !motion_covariance.allFinite()) {
+  if (!finite_pose(T_O_C) || !motion_covariance.allFinite()) {
     throw InputError("MarkerMap::add_frame(t_ns=" + std::to_string(t_ns) +
-                     "): T_odom_camera or its covariance is not finite");
+                     "): T_O_C or its covariance is not finite");
   }
   for (const MarkerDetection& d : detections) {
     if (!finite_pose(d.T_camera_marker) || !d.covariance.allFinite()) {
@@ -182,12 +182,12 @@ void MarkerMap::add_frame(std::int64_t t_ns, const std::vector<MarkerDetection>&
   // Accumulate odometry since the last keyframe: T = T_hat exp(xi) composed with an increment
   // gives Sigma' = Ad(T_inc^-1) Sigma Ad(T_inc^-1)^T + Sigma_inc.
   if (m.have_odometry) {
-    const Eigen::Isometry3d T_inc = m.T_odom_camera_prev.inverse() * T_odom_camera;
+    const Eigen::Isometry3d T_inc = m.T_O_C_prev.inverse() * T_O_C;
     const Matrix6d Ad = geometry::adjoint(T_inc.inverse());
     m.kf_motion_covariance = Ad * m.kf_motion_covariance * Ad.transpose() + motion_covariance;
     m.T_kf_camera = m.T_kf_camera * T_inc;
   }
-  m.T_odom_camera_prev = T_odom_camera;
+  m.T_O_C_prev = T_O_C;
   m.have_odometry = true;
   if (detections.empty()) return;
 

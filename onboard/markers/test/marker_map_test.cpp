@@ -28,7 +28,7 @@ using ::testing::HasSubstr;
 struct FrameRecord {
   std::int64_t t_ns = 0;
   std::vector<MarkerDetection> detections;
-  Eigen::Isometry3d T_odom_camera = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
 };
 
 constexpr double kOdomSigmaM = 0.004;     // per frame
@@ -54,7 +54,7 @@ class MarkerMapFlight : public ::testing::Test {
     frames_ = new std::vector<FrameRecord>();
     std::mt19937 rng(9);
     std::normal_distribution<double> noise(0.0, 1.0);
-    Eigen::Isometry3d T_odom_camera = Eigen::Isometry3d::Identity();
+    Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
     Eigen::Isometry3d T_world_camera_prev = Eigen::Isometry3d::Identity();
     cv::Mat image;
     cv::Mat depth_m;
@@ -73,16 +73,16 @@ class MarkerMapFlight : public ::testing::Test {
         detector.detect(image, depth_m);
         f.detections = detector.detections();
         if (index == 0) {
-          T_odom_camera = T_world_camera;
+          T_O_C = T_world_camera;
         } else {
           geometry::Vector6d xi;
           for (int i = 0; i < 3; ++i) xi(i) = kOdomSigmaM * noise(rng);
           for (int i = 3; i < 6; ++i) xi(i) = kOdomSigmaRad * noise(rng);
           xi(4) += kOdomYawBiasRad;  // camera y is down: a rotation about it is a yaw
-          T_odom_camera = T_odom_camera * (T_world_camera_prev.inverse() * T_world_camera) *
+          T_O_C = T_O_C * (T_world_camera_prev.inverse() * T_world_camera) *
                           geometry::exp_se3(xi);
         }
-        f.T_odom_camera = T_odom_camera;
+        f.T_O_C = T_O_C;
         T_world_camera_prev = T_world_camera;
         frames_->push_back(f);
         ++index;
@@ -120,7 +120,7 @@ class MarkerMapFlight : public ::testing::Test {
   static MarkerMap build(const MarkerMapConfig& config) {
     MarkerMap map(config);
     for (const FrameRecord& f : *frames_) {
-      map.add_frame(f.t_ns, f.detections, f.T_odom_camera, odometry_covariance());
+      map.add_frame(f.t_ns, f.detections, f.T_O_C, odometry_covariance());
     }
     return map;
   }

@@ -104,12 +104,13 @@ ModeSwitch ModeController::request_takeoff(Mode then) {
 }
 
 void ModeController::set_operator_command(const OperatorCommand& command) {
-  if (!command.v_horizontal_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
+  if (!command.v_H_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
   operator_command_ = command;
   have_operator_command_ = true;
 }
 
-ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_horizontal_mps,
+ModeOutput ModeController::step(std::int64_t t_ns,
+                                const std::optional<Eigen::Vector3d>& v_est_H_mps,
                                 const Eigen::Vector3d& v_obs_horizontal_mps) {
   ModeOutput out;
   out.mode = mode_;
@@ -128,7 +129,7 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
       const double age_s = 1e-9 * static_cast<double>(t_ns - operator_command_.t_ns);
       if (have_operator_command_ && age_s <= config_.teleop_timeout_s) {
         source = Source::kOperator;
-        v_target = operator_command_.v_horizontal_mps;
+        v_target = operator_command_.v_H_mps;
         yaw_target = operator_command_.yaw_rate_radps;
       } else {
         out.teleop_timed_out = true;
@@ -158,10 +159,10 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
     case Mode::kExplore: {
       VelocityProvider* provider = (mode_ == Mode::kMarker) ? marker_ : explore_;
       const ModeCommand command = provider->desired(t_ns);
-      if (command.valid && command.v_horizontal_mps.allFinite() &&
+      if (command.valid && command.v_H_mps.allFinite() &&
           std::isfinite(command.yaw_rate_radps)) {
         source = Source::kProvider;
-        v_target = command.v_horizontal_mps;
+        v_target = command.v_H_mps;
         yaw_target = command.yaw_rate_radps;
       } else {
         out.provider_failed = true;
@@ -221,8 +222,8 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
       v_obs_horizontal_mps.allFinite() ? v_obs_horizontal_mps : Eigen::Vector3d::Zero();
   out.v_des_horizontal_mps = v_star_mps_ + v_obs;
   out.control =
-      controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_horizontal_mps);
-  if (mode_ == Mode::kLand) land_step(dt_s, v_est_horizontal_mps, out);
+      controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_H_mps);
+  if (mode_ == Mode::kLand) land_step(dt_s, v_est_H_mps, out);
   out.flight_state = out.landed           ? FlightState::kLanded
                      : mode_ == Mode::kLand ? FlightState::kLanding
                      : takeoff_active_      ? FlightState::kTakingOff
@@ -230,9 +231,9 @@ ModeOutput ModeController::step(std::int64_t t_ns, const Eigen::Vector3d& v_est_
   return out;
 }
 
-void ModeController::land_step(double dt_s, const Eigen::Vector3d& v_est_horizontal_mps,
+void ModeController::land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps,
                                ModeOutput& out) {
-  if (!v_est_horizontal_mps.allFinite()) {
+  if (!v_est_H_mps || !v_est_H_mps->allFinite()) {
     // No velocity to close the loop on: sink level at a fixed fraction of hover thrust; the
     // floor ends it.
     out.blind_descent = true;
@@ -245,7 +246,7 @@ void ModeController::land_step(double dt_s, const Eigen::Vector3d& v_est_horizon
     // Held by the floor: not sinking although the PID, its integral winding against the floor,
     // asks for well under hover thrust (a hover in mid-air keeps it near m g).
     const bool held_by_floor =
-        v_est_horizontal_mps.z() < config_.touchdown_speed_mps &&
+        v_est_H_mps->z() < config_.touchdown_speed_mps &&
         out.control.setpoint.thrust_n < kTouchdownThrustRatio * controller_.hover_setpoint().thrust_n;
     touchdown_timer_s_ = held_by_floor ? touchdown_timer_s_ + dt_s : 0.0;
     if (touchdown_timer_s_ >= config_.touchdown_s) landed_ = true;

@@ -113,7 +113,7 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
 
   FixedProvider provider;
   provider.command.valid = true;
-  provider.command.v_horizontal_mps = Eigen::Vector3d(0.2, 0.0, 0.0);
+  provider.command.v_H_mps = Eigen::Vector3d(0.2, 0.0, 0.0);
   ASSERT_TRUE(modes.register_provider(Mode::kExplore, &provider));
   EXPECT_FALSE(modes.register_provider(Mode::kLand, &provider));
   EXPECT_TRUE(modes.request_mode(Mode::kExplore).accepted);
@@ -170,7 +170,7 @@ TEST(ModeController, ObstacleTermIsAddedInEveryMode) {
   const Eigen::Vector3d v_obs(-0.3, 0.1, -0.05);
   FixedProvider provider;
   provider.command.valid = true;
-  provider.command.v_horizontal_mps = Eigen::Vector3d(0.1, 0.1, 0.0);
+  provider.command.v_H_mps = Eigen::Vector3d(0.1, 0.1, 0.0);
   for (const Mode mode :
        {Mode::kTeleop, Mode::kHover, Mode::kLand, Mode::kMarker, Mode::kExplore}) {
     ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
@@ -321,12 +321,12 @@ TEST(ModeController, BlindDescentSinksLevelAndLandsAfterBlindDescentS) {
   config.blind_descent_s = 1.0;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
-  const Eigen::Vector3d nan_v = Eigen::Vector3d::Constant(std::nan(""));
+  const std::optional<Eigen::Vector3d> no_estimate;  // what the chain gives without one
   ModeOutput out;
   int k = 0;
   // WHEN land has no velocity estimate: level, blind_descent_thrust_ratio m g ...
   for (; 1e-9 * static_cast<double>(k * kStepNs) < config.blind_descent_s - 1.5 * kDt; ++k) {
-    out = modes.step(k * kStepNs, nan_v, Eigen::Vector3d::Zero());
+    out = modes.step(k * kStepNs, no_estimate, Eigen::Vector3d::Zero());
     ASSERT_TRUE(out.blind_descent) << k;
     ASSERT_FALSE(out.landed) << k;
     ASSERT_NEAR(out.control.setpoint.thrust_n, 0.8 * hover_thrust_n(), 1e-9);
@@ -335,7 +335,7 @@ TEST(ModeController, BlindDescentSinksLevelAndLandsAfterBlindDescentS) {
   }
   // THEN landed once blind_descent_s has passed, motors idle.
   for (int i = 0; i < 3 && !out.landed; ++i, ++k) {
-    out = modes.step(k * kStepNs, nan_v, Eigen::Vector3d::Zero());
+    out = modes.step(k * kStepNs, no_estimate, Eigen::Vector3d::Zero());
   }
   EXPECT_TRUE(out.landed);
   EXPECT_TRUE(modes.landed());
@@ -347,12 +347,12 @@ TEST(ModeController, AnEstimateBackRestartsTheBlindDescentTimer) {
   config.blind_descent_s = 1.0;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
-  const Eigen::Vector3d nan_v = Eigen::Vector3d::Constant(std::nan(""));
+  const std::optional<Eigen::Vector3d> no_estimate;  // what the chain gives without one
   ModeOutput out;
   // 0.75 s blind, 0.05 s with a (descending) estimate, 0.75 s blind: 1.5 s blind in all.
   for (int k = 0; k < 300; ++k) {
     const bool blind = k < 150 || k >= 160;
-    out = modes.step(k * kStepNs, blind ? nan_v : Eigen::Vector3d(0.0, 0.0, 0.3),
+    out = modes.step(k * kStepNs, blind ? no_estimate : std::optional<Eigen::Vector3d>(Eigen::Vector3d(0.0, 0.0, 0.3)),
                      Eigen::Vector3d::Zero());
     ASSERT_FALSE(out.landed) << k;
   }

@@ -30,8 +30,8 @@ double seconds(std::int64_t dt_ns) { return static_cast<double>(dt_ns) / kNsPerS
 bool is_finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 bool nominal_finite(const NominalState& s) {
-  return s.p_world_m.allFinite() && s.v_world_mps.allFinite() &&
-         s.q_world_body.coeffs().allFinite() && s.gyro_bias_radps.allFinite() &&
+  return s.p_W_m.allFinite() && s.v_W_mps.allFinite() &&
+         s.q_W_B.coeffs().allFinite() && s.gyro_bias_radps.allFinite() &&
          s.accel_bias_mps2.allFinite();
 }
 
@@ -88,18 +88,18 @@ NavigationConfig load_navigation_config(const std::string& path) {
   return out;
 }
 
-double yaw_rad(const Matrix3d& R_world_body) {
-  return std::atan2(R_world_body(1, 0), R_world_body(0, 0));
+double yaw_rad(const Matrix3d& R_W_B) {
+  return std::atan2(R_W_B(1, 0), R_W_B(0, 0));
 }
 
-Matrix3d R_world_horizontal(const Matrix3d& R_world_body) { return rot_z(yaw_rad(R_world_body)); }
+Matrix3d R_W_H(const Matrix3d& R_W_B) { return rot_z(yaw_rad(R_W_B)); }
 
 Eigen::Matrix<double, 6, kErrorStateSize> marker_jacobian(const NominalState& state,
                                                           const Matrix3d& R_body_camera,
                                                           const Vector3d& p_body_camera_m) {
   // p_WC = p_WB + R_WB p_BC and R_WC = R_WB R_BC with R_WB = R̂ Exp(dtheta):
   // dp_WC = dp - R̂ [p_BC]x dtheta;  log(R̂_WCᵀ R_WC) = R_BCᵀ dtheta.
-  const Matrix3d R = state.q_world_body.toRotationMatrix();
+  const Matrix3d R = state.q_W_B.toRotationMatrix();
   Eigen::Matrix<double, 6, kErrorStateSize> H = Eigen::Matrix<double, 6, kErrorStateSize>::Zero();
   H.block<3, 3>(0, kIndexPosition).setIdentity();
   H.block<3, 3>(0, kIndexAttitude) = -R * hat(p_body_camera_m);
@@ -109,17 +109,17 @@ Eigen::Matrix<double, 6, kErrorStateSize> marker_jacobian(const NominalState& st
 
 Vector3d predict_velocity_horizontal(const NominalState& state) {
   // eq. 5 of the core paper with the whole rotation: H_v = R_WHᵀ W_v.
-  return R_world_horizontal(state.q_world_body.toRotationMatrix()).transpose() * state.v_world_mps;
+  return R_W_H(state.q_W_B.toRotationMatrix()).transpose() * state.v_W_mps;
 }
 
 Eigen::Matrix<double, 3, kErrorStateSize> velocity_jacobian(const NominalState& state) {
-  const Matrix3d R = state.q_world_body.toRotationMatrix();
+  const Matrix3d R = state.q_W_B.toRotationMatrix();
   const double psi = yaw_rad(R);
   const double pitch = std::asin(std::clamp(-R(2, 0), -1.0, 1.0));
   const double cos_pitch = std::max(std::cos(pitch), kMinCosPitch);
   const double tan_pitch = std::sin(pitch) / cos_pitch;
   const Matrix3d R_WH_T = rot_z(psi).transpose();
-  const Vector3d h = R_WH_T * state.v_world_mps;
+  const Vector3d h = R_WH_T * state.v_W_mps;
   // ZYX Euler kinematics: psi_dot = (s_theta c_psi w_x + s_theta s_psi w_y) / c_theta + w_z for a
   // world-frame rate w; a local error dtheta is the world rotation R̂ dtheta.
   const Eigen::RowVector3d d_psi_d_theta_world(tan_pitch * std::cos(psi), tan_pitch * std::sin(psi),
@@ -134,8 +134,8 @@ Eigen::Matrix<double, 3, kErrorStateSize> velocity_jacobian(const NominalState& 
 }
 
 NavigationFilter::NavigationFilter(const NavigationConfig& config,
-                                   const Eigen::Isometry3d& T_body_camera)
-    : config_(config), R_BC_(T_body_camera.linear()), p_BC_(T_body_camera.translation()) {}
+                                   const Eigen::Isometry3d& T_B_C)
+    : config_(config), R_B_C_(T_B_C.linear()), p_B_C_m_(T_B_C.translation()) {}
 
 UpdateResult NavigationFilter::reject(const char* reason) {
   ++counters_.inputs_rejected;
@@ -146,7 +146,7 @@ UpdateResult NavigationFilter::reject(const char* reason) {
 UpdateResult NavigationFilter::initialize(std::int64_t t_ns, const NominalState& state) {
   if (!nominal_finite(state)) return reject("non-finite initial state");
   state_ = state;
-  state_.q_world_body.normalize();
+  state_.q_W_B.normalize();
   P_.setZero();
   const auto set_block = [this](int index, double sigma) {
     P_.block<3, 3>(index, index) = Matrix3d::Identity() * sigma * sigma;
@@ -166,38 +166,38 @@ UpdateResult NavigationFilter::initialize(std::int64_t t_ns, const NominalState&
 }
 
 UpdateResult NavigationFilter::anchor_to_marker(std::int64_t t_ns,
-                                                const Eigen::Isometry3d& T_world_camera,
+                                                const Eigen::Isometry3d& T_W_C,
                                                 const Matrix6d& covariance) {
-  if (!is_finite(T_world_camera)) return reject("non-finite marker pose");
+  if (!is_finite(T_W_C)) return reject("non-finite marker pose");
   if (!positive_definite<6>(covariance)) return reject("marker covariance not positive definite");
   Matrix3d R_WC;
-  if (!clean_rotation(T_world_camera.linear(), R_WC))
+  if (!clean_rotation(T_W_C.linear(), R_WC))
     return reject("marker rotation not a rotation");
   if (initialized_) {
     const UpdateResult stamp = check_stamp(t_ns);
     if (!stamp.accepted()) return reject(stamp.reason);
   } else {
     NominalState start;
-    start.q_world_body = Eigen::Quaterniond(R_WC * R_BC_.transpose());
-    start.p_world_m = T_world_camera.translation() - R_WC * R_BC_.transpose() * p_BC_;
+    start.q_W_B = Eigen::Quaterniond(R_WC * R_B_C_.transpose());
+    start.p_W_m = T_W_C.translation() - R_WC * R_B_C_.transpose() * p_B_C_m_;
     initialize(t_ns, start);
   }
-  const Matrix3d R_old = state_.q_world_body.toRotationMatrix();
-  const Vector3d v_H = R_world_horizontal(R_old).transpose() * state_.v_world_mps;
-  const Matrix3d R_new = R_WC * R_BC_.transpose();
+  const Matrix3d R_old = state_.q_W_B.toRotationMatrix();
+  const Vector3d v_H = R_W_H(R_old).transpose() * state_.v_W_mps;
+  const Matrix3d R_new = R_WC * R_B_C_.transpose();
   // Bumpless: the velocity keeps its H coordinates, so it turns with the new yaw.
-  const Matrix3d R_WH_new = R_world_horizontal(R_new);
-  const Matrix3d R_turn = R_WH_new * R_world_horizontal(R_old).transpose();
-  state_.q_world_body = Eigen::Quaterniond(R_new).normalized();
-  state_.p_world_m = T_world_camera.translation() - R_new * p_BC_;
-  state_.v_world_mps = R_WH_new * v_H;
+  const Matrix3d R_WH_new = R_W_H(R_new);
+  const Matrix3d R_turn = R_WH_new * R_W_H(R_old).transpose();
+  state_.q_W_B = Eigen::Quaterniond(R_new).normalized();
+  state_.p_W_m = T_W_C.translation() - R_new * p_B_C_m_;
+  state_.v_W_mps = R_WH_new * v_H;
 
   // Pose error of the body from the camera's: dtheta_B = R_BC dtheta_C,
   // dp_B = dp_C + R̂ [p_BC]x dtheta_B; pose blocks decorrelated from the rest.
   Matrix6d A = Matrix6d::Zero();
   A.block<3, 3>(0, 0).setIdentity();
-  A.block<3, 3>(0, 3) = R_new * hat(p_BC_) * R_BC_;
-  A.block<3, 3>(3, 3) = R_BC_;
+  A.block<3, 3>(0, 3) = R_new * hat(p_B_C_m_) * R_B_C_;
+  A.block<3, 3>(3, 3) = R_B_C_;
   const Matrix6d pose_cov = A * covariance * A.transpose();
   ErrorCovariance P_new = ErrorCovariance::Zero();
   // Velocity rows turn with the yaw; biases are untouched.
@@ -240,14 +240,14 @@ UpdateResult NavigationFilter::predict(std::int64_t t_ns, const Vector3d& gyro_r
   // Mean of the two samples bounding the interval; biases removed.
   const Vector3d omega = 0.5 * (gyro_prev_radps_ + gyro_radps) - state_.gyro_bias_radps;
   const Vector3d f = 0.5 * (accel_prev_mps2_ + accel_mps2) - state_.accel_bias_mps2;
-  const Matrix3d R0 = state_.q_world_body.toRotationMatrix();
+  const Matrix3d R0 = state_.q_W_B.toRotationMatrix();
   const Matrix3d dR = exp_so3(omega * dt);
   const Matrix3d R_mid = R0 * exp_so3(0.5 * dt * omega);
   const Vector3d a_world = R_mid * f + Vector3d(0.0, 0.0, config_.gravity_mps2);
 
-  state_.p_world_m += state_.v_world_mps * dt + 0.5 * a_world * dt * dt;
-  state_.v_world_mps += a_world * dt;
-  state_.q_world_body = Eigen::Quaterniond(R0 * dR).normalized();
+  state_.p_W_m += state_.v_W_mps * dt + 0.5 * a_world * dt * dt;
+  state_.v_W_mps += a_world * dt;
+  state_.q_W_B = Eigen::Quaterniond(R0 * dR).normalized();
 
   // Error dynamics (local attitude error, Solà 2017 §5.3.3), first order in dt.
   ErrorCovariance F = ErrorCovariance::Identity();
@@ -304,11 +304,11 @@ UpdateResult NavigationFilter::correct(const Eigen::Matrix<double, kDim, 1>& res
   ErrorCovariance P_new = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();
 
   NominalState next = state_;
-  next.p_world_m += dx.template segment<3>(kIndexPosition);
-  next.v_world_mps += dx.template segment<3>(kIndexVelocity);
+  next.p_W_m += dx.template segment<3>(kIndexPosition);
+  next.v_W_mps += dx.template segment<3>(kIndexVelocity);
   const Vector3d dtheta = dx.template segment<3>(kIndexAttitude);
-  next.q_world_body =
-      Eigen::Quaterniond(next.q_world_body.toRotationMatrix() * exp_so3(dtheta)).normalized();
+  next.q_W_B =
+      Eigen::Quaterniond(next.q_W_B.toRotationMatrix() * exp_so3(dtheta)).normalized();
   next.gyro_bias_radps += dx.template segment<3>(kIndexGyroBias);
   next.accel_bias_mps2 += dx.template segment<3>(kIndexAccelBias);
   // Reset of the error state: dtheta+ = dtheta - dtheta_hat, whose Jacobian for the attitude
@@ -325,27 +325,27 @@ UpdateResult NavigationFilter::correct(const Eigen::Matrix<double, kDim, 1>& res
 }
 
 UpdateResult NavigationFilter::update_marker(std::int64_t t_ns,
-                                             const Eigen::Isometry3d& T_world_camera,
+                                             const Eigen::Isometry3d& T_W_C,
                                              const Matrix6d& covariance) {
   if (!initialized_ || !counters_.anchored) {
-    return anchor_to_marker(t_ns, T_world_camera, covariance);
+    return anchor_to_marker(t_ns, T_W_C, covariance);
   }
-  if (!is_finite(T_world_camera)) return reject("non-finite marker pose");
+  if (!is_finite(T_W_C)) return reject("non-finite marker pose");
   if (!positive_definite<6>(covariance)) return reject("marker covariance not positive definite");
   Matrix3d R_meas;
-  if (!clean_rotation(T_world_camera.linear(), R_meas)) {
+  if (!clean_rotation(T_W_C.linear(), R_meas)) {
     return reject("marker rotation not a rotation");
   }
   const UpdateResult stamp = check_stamp(t_ns);
   if (!stamp.accepted()) return reject(stamp.reason);
 
-  const Matrix3d R_WB = state_.q_world_body.toRotationMatrix();
-  const Matrix3d R_WC_pred = R_WB * R_BC_;
-  const Vector3d p_WC_pred = state_.p_world_m + R_WB * p_BC_;
+  const Matrix3d R_WB = state_.q_W_B.toRotationMatrix();
+  const Matrix3d R_WC_pred = R_WB * R_B_C_;
+  const Vector3d p_WC_pred = state_.p_W_m + R_WB * p_B_C_m_;
   Eigen::Matrix<double, 6, 1> residual;
-  residual.head<3>() = T_world_camera.translation() - p_WC_pred;
+  residual.head<3>() = T_W_C.translation() - p_WC_pred;
   residual.tail<3>() = log_so3(geometry::orthonormalize(R_WC_pred.transpose() * R_meas));
-  const UpdateResult result = correct<6>(residual, marker_jacobian(state_, R_BC_, p_BC_),
+  const UpdateResult result = correct<6>(residual, marker_jacobian(state_, R_B_C_, p_B_C_m_),
                                          covariance, config_.marker_gate_chi2);
   if (result.status == UpdateStatus::kGated) {
     ++counters_.markers_gated;
@@ -353,7 +353,7 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns,
     if (config_.reanchor_after_gated_markers > 0 &&
         consecutive_gated_markers_ >= config_.reanchor_after_gated_markers) {
       // Consistently gated markers: the filter has diverged from the map; trust the map.
-      return anchor_to_marker(t_ns, T_world_camera, covariance);
+      return anchor_to_marker(t_ns, T_W_C, covariance);
     }
     return result;
   }
@@ -365,15 +365,15 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns,
   return result;
 }
 
-UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d& v_horizontal_mps,
+UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d& v_H_mps,
                                                const Matrix3d& covariance) {
-  if (!v_horizontal_mps.allFinite()) return reject("non-finite velocity");
+  if (!v_H_mps.allFinite()) return reject("non-finite velocity");
   if (!positive_definite<3>(covariance)) {
     return reject("velocity covariance not positive definite");
   }
   const UpdateResult stamp = check_stamp(t_ns);
   if (!stamp.accepted()) return reject(stamp.reason);
-  const Vector3d residual = v_horizontal_mps - predict_velocity_horizontal(state_);
+  const Vector3d residual = v_H_mps - predict_velocity_horizontal(state_);
   const UpdateResult result =
       correct<3>(residual, velocity_jacobian(state_), covariance, config_.velocity_gate_chi2);
   if (result.status == UpdateStatus::kGated) ++counters_.velocities_gated;
@@ -384,7 +384,7 @@ UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d
 UpdateResult NavigationFilter::update_velocity(const estimator::VelocityEstimate& estimate) {
   if (!estimate.ok()) return reject("velocity estimate unavailable");
   const double variance = config_.velocity_sigma_mps * config_.velocity_sigma_mps;
-  return update_velocity(estimate.t_ns, estimate.v_horizontal_mps, Matrix3d::Identity() * variance);
+  return update_velocity(estimate.t_ns, estimate.v_H_mps, Matrix3d::Identity() * variance);
 }
 
 NavigationHealth NavigationFilter::health() const {
@@ -397,14 +397,14 @@ NavigationHealth NavigationFilter::health() const {
   return health;
 }
 
-Eigen::Isometry3d NavigationFilter::T_world_body() const {
+Eigen::Isometry3d NavigationFilter::T_W_B() const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = state_.q_world_body.toRotationMatrix();
-  T.translation() = state_.p_world_m;
+  T.linear() = state_.q_W_B.toRotationMatrix();
+  T.translation() = state_.p_W_m;
   return T;
 }
 
-Vector3d NavigationFilter::v_horizontal_mps() const { return predict_velocity_horizontal(state_); }
+Vector3d NavigationFilter::v_H_mps() const { return predict_velocity_horizontal(state_); }
 
 const char* to_string(UpdateStatus status) {
   switch (status) {

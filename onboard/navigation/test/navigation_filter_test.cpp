@@ -68,7 +68,7 @@ Truth figure_eight(double t) {
 }
 
 /// Camera looking forward: optical z = body x, x = body y, y = body z.
-Eigen::Isometry3d T_body_camera() {
+Eigen::Isometry3d T_B_C() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() << 0, 0, 1, 1, 0, 0, 0, 1, 0;
   T.translation() = Vector3d(0.1, 0.0, 0.05);
@@ -91,14 +91,14 @@ struct ScenarioOptions {
 class Scenario {
  public:
   explicit Scenario(const ScenarioOptions& options = {})
-      : options_(options), filter_(NavigationConfig{}, T_body_camera()), rng_(options.seed) {
+      : options_(options), filter_(NavigationConfig{}, T_B_C()), rng_(options.seed) {
     // Unanchored start: yaw off by 0.3 rad, position unknown, velocity right in H.
     const Truth x = figure_eight(0.0);
     NominalState start;
     const Matrix3d R_start = euler_zyx(0.01, -0.01, 0.3) * x.R_WB;
-    start.q_world_body = Eigen::Quaterniond(R_start);
-    start.v_world_mps =
-        R_world_horizontal(R_start) * R_world_horizontal(x.R_WB).transpose() * x.v_W;
+    start.q_W_B = Eigen::Quaterniond(R_start);
+    start.v_W_mps =
+        R_W_H(R_start) * R_W_H(x.R_WB).transpose() * x.v_W;
     filter_.initialize(0, start);
   }
 
@@ -122,7 +122,7 @@ class Scenario {
     last_predict_ = filter_.predict(t_ns_, gyro, accel);
     if (t_ns_ >= next_velocity_ns_) {
       next_velocity_ns_ += kVelocityPeriodNs;
-      const Vector3d v_H = R_world_horizontal(x.R_WB).transpose() * x.v_W;
+      const Vector3d v_H = R_W_H(x.R_WB).transpose() * x.v_W;
       const Vector3d measured = v_H + noise(options_.velocity_sigma_mps);
       raw_velocity_sq_ += (measured - v_H).squaredNorm();
       ++raw_velocity_n_;
@@ -146,7 +146,7 @@ class Scenario {
     Eigen::Isometry3d T_WB = Eigen::Isometry3d::Identity();
     T_WB.linear() = x.R_WB;
     T_WB.translation() = x.p_W;
-    return T_WB * T_body_camera();
+    return T_WB * T_B_C();
   }
 
   Matrix6d marker_covariance() const {
@@ -162,13 +162,13 @@ class Scenario {
   /// Error statistics at 10 Hz, accumulated after `settle_s`.
   void sample_errors(const Truth& x) {
     const NominalState& s = filter_.state();
-    position_error_m_ = (x.p_W - s.p_world_m).norm();
-    velocity_error_mps_ = (x.v_W - s.v_world_mps).norm();
+    position_error_m_ = (x.p_W - s.p_W_m).norm();
+    velocity_error_mps_ = (x.v_W - s.v_W_mps).norm();
     if (to_s(t_ns_) < settle_s_ || !accumulate_) return;
     Eigen::Matrix<double, 9, 1> e;
-    e.segment<3>(0) = x.p_W - s.p_world_m;
-    e.segment<3>(3) = x.v_W - s.v_world_mps;
-    e.segment<3>(6) = geometry::log_so3(s.q_world_body.toRotationMatrix().transpose() * x.R_WB);
+    e.segment<3>(0) = x.p_W - s.p_W_m;
+    e.segment<3>(3) = x.v_W - s.v_W_mps;
+    e.segment<3>(6) = geometry::log_so3(s.q_W_B.toRotationMatrix().transpose() * x.R_WB);
     const Eigen::Matrix<double, 9, 9> P9 = filter_.covariance().topLeftCorner<9, 9>();
     nees_sum_ += e.dot(P9.ldlt().solve(e));
     position_sq_ += e.segment<3>(0).squaredNorm();
@@ -219,9 +219,9 @@ TEST(SyntheticTrajectory, BodyRatesAndVelocityMatchTheTrajectory) {
 
 NominalState tilted_state() {
   NominalState s;
-  s.p_world_m = Vector3d(0.4, -0.2, -1.1);
-  s.v_world_mps = Vector3d(0.7, -0.3, 0.2);
-  s.q_world_body = Eigen::Quaterniond(euler_zyx(0.2, -0.25, 1.1));
+  s.p_W_m = Vector3d(0.4, -0.2, -1.1);
+  s.v_W_mps = Vector3d(0.7, -0.3, 0.2);
+  s.q_W_B = Eigen::Quaterniond(euler_zyx(0.2, -0.25, 1.1));
   return s;
 }
 
@@ -229,9 +229,9 @@ NominalState perturbed(const NominalState& s, int index, double eps) {
   Eigen::Matrix<double, kErrorStateSize, 1> dx = Eigen::Matrix<double, kErrorStateSize, 1>::Zero();
   dx(index) = eps;
   NominalState out = s;
-  out.p_world_m += dx.segment<3>(kIndexPosition);
-  out.v_world_mps += dx.segment<3>(kIndexVelocity);
-  out.q_world_body = Eigen::Quaterniond(s.q_world_body.toRotationMatrix() *
+  out.p_W_m += dx.segment<3>(kIndexPosition);
+  out.v_W_mps += dx.segment<3>(kIndexVelocity);
+  out.q_W_B = Eigen::Quaterniond(s.q_W_B.toRotationMatrix() *
                                         geometry::exp_so3(dx.segment<3>(kIndexAttitude)));
   return out;
 }
@@ -252,13 +252,13 @@ TEST(MeasurementModels, VelocityJacobianMatchesNumericIncludingYaw) {
 
 TEST(MeasurementModels, MarkerJacobianMatchesNumeric) {
   const NominalState s = tilted_state();
-  const Eigen::Isometry3d T_BC = T_body_camera();
+  const Eigen::Isometry3d T_BC = T_B_C();
   const auto H = marker_jacobian(s, T_BC.linear(), T_BC.translation());
-  const Matrix3d R_WC0 = s.q_world_body.toRotationMatrix() * T_BC.linear();
+  const Matrix3d R_WC0 = s.q_W_B.toRotationMatrix() * T_BC.linear();
   const auto h = [&](const NominalState& x) {
     Eigen::Matrix<double, 6, 1> out;
-    const Matrix3d R = x.q_world_body.toRotationMatrix();
-    out.head<3>() = x.p_world_m + R * T_BC.translation();
+    const Matrix3d R = x.q_W_B.toRotationMatrix();
+    out.head<3>() = x.p_W_m + R * T_BC.translation();
     out.tail<3>() = geometry::log_so3(R_WC0.transpose() * R * T_BC.linear());
     return out;
   };
@@ -334,9 +334,9 @@ TEST(NavigationFilter, OutlierMarkerIsGatedAndCountedWithoutTouchingTheState) {
   EXPECT_EQ(result.status, UpdateStatus::kGated);
   EXPECT_THAT(result.reason, HasSubstr("Mahalanobis"));
   EXPECT_EQ(run.filter_.health().markers_gated, gated_before + 1);
-  EXPECT_EQ(run.filter_.state().p_world_m, before.p_world_m);
-  EXPECT_EQ(run.filter_.state().v_world_mps, before.v_world_mps);
-  EXPECT_EQ(run.filter_.state().q_world_body.coeffs(), before.q_world_body.coeffs());
+  EXPECT_EQ(run.filter_.state().p_W_m, before.p_W_m);
+  EXPECT_EQ(run.filter_.state().v_W_mps, before.v_W_mps);
+  EXPECT_EQ(run.filter_.state().q_W_B.coeffs(), before.q_W_B.coeffs());
   EXPECT_EQ(run.filter_.covariance(), P_before);
   run.run_to(12.0);
   EXPECT_LT(run.position_error_m_, 3.0 * run.options_.marker_sigma_m);
@@ -429,9 +429,9 @@ TEST(NavigationFilter, NonFiniteInputsAreRejectedWithReasonAndStateUntouched) {
   EXPECT_THAT(results[2].reason, HasSubstr("non-finite marker"));
   EXPECT_THAT(results[5].reason, HasSubstr("non-finite velocity"));
   EXPECT_EQ(run.filter_.health().inputs_rejected, 7);
-  EXPECT_EQ(run.filter_.state().p_world_m, before.p_world_m);
-  EXPECT_EQ(run.filter_.state().v_world_mps, before.v_world_mps);
-  EXPECT_EQ(run.filter_.state().q_world_body.coeffs(), before.q_world_body.coeffs());
+  EXPECT_EQ(run.filter_.state().p_W_m, before.p_W_m);
+  EXPECT_EQ(run.filter_.state().v_W_mps, before.v_W_mps);
+  EXPECT_EQ(run.filter_.state().q_W_B.coeffs(), before.q_W_B.coeffs());
   EXPECT_EQ(run.filter_.covariance(), P_before);
   EXPECT_EQ(run.filter_.t_ns(), t);
   // And it keeps working on good data.
@@ -441,7 +441,7 @@ TEST(NavigationFilter, NonFiniteInputsAreRejectedWithReasonAndStateUntouched) {
 }
 
 TEST(NavigationFilter, StaleAndUninitialisedInputsAreRejected) {
-  NavigationFilter filter(NavigationConfig{}, T_body_camera());
+  NavigationFilter filter(NavigationConfig{}, T_B_C());
   EXPECT_THAT(filter.predict(0, Vector3d::Zero(), Vector3d(0, 0, -kGravity)).reason,
               HasSubstr("not initialised"));
   filter.initialize(1'000'000'000, NominalState{});
@@ -457,15 +457,15 @@ TEST(NavigationFilter, AnchoringOnFirstMarkerKeepsVelocityInHorizontalFrame) {
   Scenario run;
   run.run_to(0.098);
   ASSERT_FALSE(run.filter_.health().anchored);
-  const Vector3d v_H_before = run.filter_.v_horizontal_mps();
+  const Vector3d v_H_before = run.filter_.v_H_mps();
   const Truth x = run.truth();
   const UpdateResult result =
       run.filter_.anchor_to_marker(run.t_ns_, run.marker_truth(x), run.marker_covariance());
   ASSERT_TRUE(result.accepted());
   EXPECT_TRUE(run.filter_.health().anchored);
-  EXPECT_LT((run.filter_.v_horizontal_mps() - v_H_before).norm(), 1e-12);
-  EXPECT_LT((run.filter_.state().p_world_m - x.p_W).norm(), 1e-9);
-  EXPECT_NEAR(yaw_rad(run.filter_.state().q_world_body.toRotationMatrix()), yaw_rad(x.R_WB), 1e-9);
+  EXPECT_LT((run.filter_.v_H_mps() - v_H_before).norm(), 1e-12);
+  EXPECT_LT((run.filter_.state().p_W_m - x.p_W).norm(), 1e-9);
+  EXPECT_NEAR(yaw_rad(run.filter_.state().q_W_B.toRotationMatrix()), yaw_rad(x.R_WB), 1e-9);
 }
 
 TEST(NavigationFilter, NeesAveragedOverTheRunIsConsistent) {

@@ -117,7 +117,7 @@ class HaptiQuadMethod final : public Method {
   }
   Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
                           const hq::odometry::RotationPrior* gyro) override {
-    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro).T_world_cur;
+    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro).T_O_C;
   }
 
  private:
@@ -136,7 +136,7 @@ class OpenCvMethod final : public Method {
     odometry_ = cv::rgbd::Odometry::create(type_);
     odometry_->setCameraMatrix(K);
     previous_.release();
-    T_world_cur_.setIdentity();
+    T_O_C_.setIdentity();
   }
   Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
                           const hq::odometry::RotationPrior* /*gyro*/) override {
@@ -150,11 +150,11 @@ class OpenCvMethod final : public Method {
         for (int r = 0; r < 4; ++r) {
           for (int c = 0; c < 4; ++c) T_cur_prev(r, c) = Rt.at<double>(r, c);
         }
-        T_world_cur_ = T_world_cur_ * Eigen::Isometry3d(T_cur_prev.inverse());
+        T_O_C_ = T_O_C_ * Eigen::Isometry3d(T_cur_prev.inverse());
       }
     }
     previous_ = current;
-    return T_world_cur_;
+    return T_O_C_;
   }
 
  private:
@@ -162,7 +162,7 @@ class OpenCvMethod final : public Method {
   std::string type_;
   cv::Ptr<cv::rgbd::Odometry> odometry_;
   cv::Ptr<cv::rgbd::OdometryFrame> previous_;
-  Eigen::Isometry3d T_world_cur_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_C_ = Eigen::Isometry3d::Identity();
 };
 
 LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera,
@@ -200,13 +200,13 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
       const auto start = std::chrono::steady_clock::now();
       const auto& gyro = sequence.gyro[i];
-      const Eigen::Isometry3d T_world_cur =
+      const Eigen::Isometry3d T_O_C =
           method.track(sequence.frames[i], gyro ? &*gyro : nullptr);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count();
       if (i > 0) times_ms.push_back(ms);  // the first frame only prepares a reference
-      trajectory.push_back({sequence.frames[i].t_ns, T_world_cur});
+      trajectory.push_back({sequence.frames[i].t_ns, T_O_C});
     }
   }
   Row row;
@@ -220,6 +220,62 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     row.ate_m = ate.trans_m.rmse;
   }
   return row;
+}
+
+/// Every method compared: the shipped defaults, each term on and off in the three reference
+/// modes, the defaults at full resolution, then OpenCV's three (unless only_haptiquad).
+std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride, bool only_haptiquad) {
+  std::vector<std::unique_ptr<Method>> methods;
+  // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
+  hq::odometry::OdometryConfig defaults;
+  defaults.depth_point_stride = depth_point_stride;
+  methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
+  // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
+  for (const int mode_index : {0, 1, 2}) {
+    const auto mode = mode_index == 0 ? hq::odometry::ReferenceMode::kFrameToFrame
+                                      : hq::odometry::ReferenceMode::kFrameToKeyframe;
+    for (const int variant : {0, 1, 2, 3}) {
+      hq::odometry::OdometryConfig c;
+      c.reference_mode = mode;
+      c.keyframe_check = mode_index == 2;
+      c.use_depth_term = (variant & 1) != 0;
+      c.use_rotation_prior = (variant & 2) != 0;
+      c.depth_point_stride = depth_point_stride;
+      const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
+      const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
+      std::string name = modes[mode_index];
+      methods.push_back(std::make_unique<HaptiQuadMethod>(name + names[variant], c));
+    }
+  }
+  hq::odometry::OdometryConfig full = defaults;
+  full.finest_level = 0;
+  methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 640", full));
+  if (!only_haptiquad) {
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
+    methods.push_back(
+        std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+  }
+  return methods;
+}
+
+/// One table: every method on one sequence; speedup against the method at reference_index.
+void print_sequence_table(const LoadedSequence& sequence,
+                          const std::vector<std::unique_ptr<Method>>& methods,
+                          std::size_t reference_index, int passes) {
+  std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n", sequence.name.c_str(),
+              sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
+  std::printf("%-24s %9s %9s %11s %11s %9s %10s\n", "method", "median_ms", "p90_ms", "rpe_t_m/s",
+              "rpe_r_deg/s", "ate_m", "speedup");
+  std::vector<Row> rows;
+  for (const auto& method : methods) rows.push_back(run(*method, sequence, passes));
+  const double reference_ms = rows[reference_index].median_ms;
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    const Row& r = rows[m];
+    std::printf("%-24s %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx\n", methods[m]->name().c_str(),
+                r.median_ms, r.p90_ms, r.rpe_trans_mps, r.rpe_rot_degps, r.ate_m,
+                reference_ms / r.median_ms);
+  }
 }
 
 }  // namespace
@@ -261,39 +317,10 @@ static int run_benchmarks(int argc, char** argv) {
     std::sort(sequence_dirs.begin(), sequence_dirs.end());
   }
   const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
-
-  std::vector<std::unique_ptr<Method>> methods;
-  // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
-  hq::odometry::OdometryConfig defaults;
-  defaults.depth_point_stride = depth_point_stride;
-  methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
-  // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
-  for (const int mode_index : {0, 1, 2}) {
-    const auto mode = mode_index == 0 ? hq::odometry::ReferenceMode::kFrameToFrame
-                                      : hq::odometry::ReferenceMode::kFrameToKeyframe;
-    for (const int variant : {0, 1, 2, 3}) {
-      hq::odometry::OdometryConfig c;
-      c.reference_mode = mode;
-      c.keyframe_check = mode_index == 2;
-      c.use_depth_term = (variant & 1) != 0;
-      c.use_rotation_prior = (variant & 2) != 0;
-      c.depth_point_stride = depth_point_stride;
-      const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
-      const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
-      std::string name = modes[mode_index];
-      methods.push_back(std::make_unique<HaptiQuadMethod>(name + names[variant], c));
-    }
-  }
-  hq::odometry::OdometryConfig full = defaults;
-  full.finest_level = 0;
-  methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 640", full));
-  const std::size_t opencv_rgbd = only_haptiquad ? 0 : methods.size();
-  if (!only_haptiquad) {
-    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
-    methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
-    methods.push_back(
-        std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
-  }
+  const std::vector<std::unique_ptr<Method>> methods =
+      make_methods(depth_point_stride, only_haptiquad);
+  // OpenCV's RgbdOdometry follows the HaptiQuad methods; without it, the defaults.
+  const std::size_t opencv_rgbd = only_haptiquad ? 0 : methods.size() - 3;
 
   for (const std::string& dir : sequence_dirs) {
     // A simulator recording carries its own camera.yaml; TUM folders use --camera.
@@ -302,19 +329,7 @@ static int run_benchmarks(int argc, char** argv) {
         load(dir, std::filesystem::exists(own_camera) ? hq::config::load_camera_info(own_camera)
                                                       : camera,
              skip_s);
-    std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n", sequence.name.c_str(),
-                sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
-    std::printf("%-24s %9s %9s %11s %11s %9s %10s\n", "method", "median_ms", "p90_ms", "rpe_t_m/s",
-                "rpe_r_deg/s", "ate_m", "speedup");
-    std::vector<Row> rows;
-    for (auto& method : methods) rows.push_back(run(*method, sequence, passes));
-    const double reference_ms = rows[opencv_rgbd].median_ms;
-    for (std::size_t m = 0; m < methods.size(); ++m) {
-      const Row& r = rows[m];
-      std::printf("%-24s %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx\n", methods[m]->name().c_str(),
-                  r.median_ms, r.p90_ms, r.rpe_trans_mps, r.rpe_rot_degps, r.ate_m,
-                  reference_ms / r.median_ms);
-    }
+    print_sequence_table(sequence, methods, opencv_rgbd, passes);
   }
   std::printf("\nspeedup = OpenCV RgbdOdometry median / method median, same run.\n");
   return 0;

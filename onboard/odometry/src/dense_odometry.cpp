@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -79,25 +81,90 @@ const char* to_string(TrackingStatus status) {
   return "unknown";
 }
 
+namespace {
+
+// Range checks of validate(): each names where.key, the value and what was expected.
+class ConfigChecker {
+ public:
+  explicit ConfigChecker(const std::string& where) : where_(where) {}
+
+  void in_range(const char* key, double value, double min, double max) const {
+    if (!(value >= min && value <= max)) {
+      fail(key, value, "expected in [" + text(min) + ", " + text(max) + "]");
+    }
+  }
+  void positive(const char* key, double value, double max) const {
+    if (!(value > 0.0)) fail(key, value, "expected > 0");
+    if (!(value <= max)) fail(key, value, "expected in [0, " + text(max) + "]");
+  }
+  [[noreturn]] void fail(const char* key, double value, const std::string& expected) const {
+    throw InputError(where_ + "." + key + " = " + text(value) + ", " + expected);
+  }
+  static std::string text(double value) {
+    std::ostringstream s;
+    s << value;
+    return s.str();
+  }
+
+ private:
+  const std::string& where_;
+};
+
+// "file: odometry" of a section, the prefix validate() puts before each key.
+std::string section_name(const config::StrictMap& section) {
+  std::string where = section.describe("");
+  if (!where.empty() && where.back() == '.') where.pop_back();
+  return where;
+}
+
+}  // namespace
+
+void validate(const OdometryConfig& c, const std::string& where) {
+  const ConfigChecker check(where);
+  check.in_range("pyramid_levels", c.pyramid_levels, 1, kMaxLevels);
+  check.in_range("finest_level", c.finest_level, 0, kMaxLevels - 1);
+  if (c.finest_level >= c.pyramid_levels) {
+    check.fail("finest_level", c.finest_level,
+               "expected < pyramid_levels (" + std::to_string(c.pyramid_levels) + ")");
+  }
+  check.in_range("max_iterations_per_level", c.max_iterations_per_level, 1, 200);
+  check.positive("step_tolerance", c.step_tolerance, 1.0);
+  check.positive("min_depth_m", c.min_depth_m, 100.0);
+  check.positive("max_depth_m", c.max_depth_m, 1000.0);
+  if (c.max_depth_m <= c.min_depth_m) {
+    check.fail("max_depth_m", c.max_depth_m,
+               "expected > min_depth_m (" + ConfigChecker::text(c.min_depth_m) + ")");
+  }
+  check.in_range("min_gradient", c.min_gradient, 0.0, 255.0);
+  check.positive("student_t_dof", c.student_t_dof, 1000.0);
+  check.in_range("min_valid_ratio", c.min_valid_ratio, 0.0, 1.0);
+  check.in_range("motion_prior_precision", c.motion_prior_precision, 0.0, 1e6);
+  check.in_range("keyframe_entropy_ratio", c.keyframe_entropy_ratio, 0.0, 1.0);
+  check.in_range("max_keyframe_age", c.max_keyframe_age, 1, 100000);
+  check.positive("keyframe_check_max_translation_m", c.keyframe_check_max_translation_m, 10.0);
+  check.positive("keyframe_check_max_rotation_deg", c.keyframe_check_max_rotation_deg, 180.0);
+  check.positive("depth_noise_per_m", c.depth_noise_per_m, 1.0);
+  check.in_range("depth_point_stride", c.depth_point_stride, 1, 64);
+  check.positive("depth_max_spread_ratio", c.depth_max_spread_ratio, 1.0);
+  check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0,
+                 1e6);
+}
+
 void read_config(config::StrictMap& section, OdometryConfig& out) {
-  section.read("pyramid_levels", out.pyramid_levels, 1, kMaxLevels);
-  section.read("finest_level", out.finest_level, 0, kMaxLevels - 1);
-  if (out.finest_level >= out.pyramid_levels) {
-    throw InputError(section.describe("finest_level") + " = " + std::to_string(out.finest_level) +
-                     ", expected < pyramid_levels (" + std::to_string(out.pyramid_levels) + ")");
-  }
-  section.read("max_iterations_per_level", out.max_iterations_per_level, 1, 200);
-  section.read_positive("step_tolerance", out.step_tolerance, 1.0);
-  section.read_positive("min_depth_m", out.min_depth_m, 100.0);
-  section.read_positive("max_depth_m", out.max_depth_m, 1000.0);
-  if (out.max_depth_m <= out.min_depth_m) {
-    throw InputError(section.describe("max_depth_m") + ", expected > min_depth_m");
-  }
-  section.read("min_gradient", out.min_gradient, 0.0, 255.0);
-  section.read_positive("student_t_dof", out.student_t_dof, 1000.0);
-  section.read("min_valid_ratio", out.min_valid_ratio, 0.0, 1.0);
+  // Types and keys here; every range in validate(), which the constructor runs as well.
+  constexpr double kAny = std::numeric_limits<double>::infinity();
+  constexpr int kAnyInt = std::numeric_limits<int>::max();
+  section.read("pyramid_levels", out.pyramid_levels, -kAnyInt, kAnyInt);
+  section.read("finest_level", out.finest_level, -kAnyInt, kAnyInt);
+  section.read("max_iterations_per_level", out.max_iterations_per_level, -kAnyInt, kAnyInt);
+  section.read("step_tolerance", out.step_tolerance, -kAny, kAny);
+  section.read("min_depth_m", out.min_depth_m, -kAny, kAny);
+  section.read("max_depth_m", out.max_depth_m, -kAny, kAny);
+  section.read("min_gradient", out.min_gradient, -kAny, kAny);
+  section.read("student_t_dof", out.student_t_dof, -kAny, kAny);
+  section.read("min_valid_ratio", out.min_valid_ratio, -kAny, kAny);
   section.read("use_motion_prior", out.use_motion_prior);
-  section.read("motion_prior_precision", out.motion_prior_precision, 0.0, 1e6);
+  section.read("motion_prior_precision", out.motion_prior_precision, -kAny, kAny);
   section.read("initialize_with_previous_motion", out.initialize_with_previous_motion);
   section.read("estimate_brightness_offset", out.estimate_brightness_offset);
   std::string mode = out.reference_mode == ReferenceMode::kFrameToFrame ? "frame_to_frame"
@@ -105,20 +172,22 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("reference_mode", mode, {"frame_to_frame", "frame_to_keyframe"});
   out.reference_mode =
       mode == "frame_to_frame" ? ReferenceMode::kFrameToFrame : ReferenceMode::kFrameToKeyframe;
-  section.read("keyframe_entropy_ratio", out.keyframe_entropy_ratio, 0.0, 1.0);
-  section.read("max_keyframe_age", out.max_keyframe_age, 1, 100000);
+  section.read("keyframe_entropy_ratio", out.keyframe_entropy_ratio, -kAny, kAny);
+  section.read("max_keyframe_age", out.max_keyframe_age, -kAnyInt, kAnyInt);
   section.read("keyframe_check", out.keyframe_check);
-  section.read_positive("keyframe_check_max_translation_m", out.keyframe_check_max_translation_m,
-                        10.0);
-  section.read_positive("keyframe_check_max_rotation_deg", out.keyframe_check_max_rotation_deg,
-                        180.0);
+  section.read("keyframe_check_max_translation_m", out.keyframe_check_max_translation_m, -kAny,
+               kAny);
+  section.read("keyframe_check_max_rotation_deg", out.keyframe_check_max_rotation_deg, -kAny,
+               kAny);
   section.read("use_depth_term", out.use_depth_term);
-  section.read_positive("depth_noise_per_m", out.depth_noise_per_m, 1.0);
-  section.read("depth_point_stride", out.depth_point_stride, 1, 64);
-  section.read_positive("depth_max_spread_ratio", out.depth_max_spread_ratio, 1.0);
+  section.read("depth_noise_per_m", out.depth_noise_per_m, -kAny, kAny);
+  section.read("depth_point_stride", out.depth_point_stride, -kAnyInt, kAnyInt);
+  section.read("depth_max_spread_ratio", out.depth_max_spread_ratio, -kAny, kAny);
   section.read("use_rotation_prior", out.use_rotation_prior);
-  section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, 0.0, 1e6);
+  section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, -kAny,
+               kAny);
   section.finish();
+  validate(out, section_name(section));
 }
 
 struct DenseOdometry::Impl {
@@ -155,7 +224,7 @@ struct DenseOdometry::Impl {
   // Scale matrix of (intensity, depth) residuals (Kerl IROS 2013, eq. 13).
   double sigma_ii = 0.0, sigma_iz = 0.0, sigma_zz = 0.0;
 
-  Eigen::Isometry3d T_world_reference = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_ref = Eigen::Isometry3d::Identity();
   // Last accepted estimate of the current frame in the reference (constant-velocity guess).
   Eigen::Isometry3d T_ref_last = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d last_motion = Eigen::Isometry3d::Identity();  // T_prev_cur of last frame
@@ -169,8 +238,9 @@ struct DenseOdometry::Impl {
   }
 
   Impl(const OdometryConfig& c, const geometry::PinholeCamera& cam) : config(c), camera(cam) {
-    levels = std::clamp(config.pyramid_levels, 1, kMaxLevels);
-    finest = std::clamp(config.finest_level, 0, levels - 1);
+    validate(config);
+    levels = config.pyramid_levels;
+    finest = config.finest_level;
     int capacity = 0;
     for (int l = 0; l < levels; ++l) {
       level_camera[l] = camera.at_level(l);
@@ -216,7 +286,6 @@ struct DenseOdometry::Impl {
     for (int l = finest; l < levels; ++l) {
       const geometry::PinholeCamera& cam = level_camera[l];
       const detail::Intrinsics k = intrinsics(l);
-      const float fx = k.fx, fy = k.fy, cx = k.cx, cy = k.cy;
       const cv::Mat& I = slot.intensity[l];
       const cv::Mat& D = slot.depth_m[l];
       ReferenceLevel& ref = reference_sets[set][l];
@@ -233,8 +302,9 @@ struct DenseOdometry::Impl {
           const float gy = 0.5f * (down[u] - up[u]);
           const bool textured = gx * gx + gy * gy >= min_gradient_sq;
           if (!textured && (stride == 0 || u % stride != 0 || v % stride != 0)) continue;
-          const float x = (static_cast<float>(u) - cx) * z / fx;
-          const float y = (static_cast<float>(v) - cy) * z / fy;
+          const Eigen::Vector3f p_C = cam.unproject(static_cast<float>(u), static_cast<float>(v), z);
+          const float x = p_C.x();
+          const float y = p_C.y();
           float J[6];
           detail::photometric_jacobian(x, y, z, gx, gy, k, J);
           ref.x[n] = x;
@@ -534,13 +604,13 @@ struct DenseOdometry::Impl {
            std::max(6, static_cast<int>(config.min_valid_ratio * pixels));
   }
 
-  void make_reference(int slot_index, const Eigen::Isometry3d& T_world_cur) {
+  void make_reference(int slot_index, const Eigen::Isometry3d& T_O_C) {
     reference_slot = slot_index;
     prepare_reference(slots[slot_index], kReferenceSet);
     previous_slot = slot_index;
     has_previous = false;
     has_reference = reference_usable();
-    T_world_reference = T_world_cur;
+    T_O_ref = T_O_C;
     T_ref_last.setIdentity();
     keyframe_age = 0;
     keyframe_first_entropy = 0.0;
@@ -554,275 +624,254 @@ struct DenseOdometry::Impl {
     double weighted_error = 0.0;
   };
 
+  // What one alignment starts from and is pulled towards: the constant-velocity prediction
+  // (Kerl 2013's motion prior) and the gyro's rotation (the rotation prior).
+  struct Prediction {
+    bool predict = false;    // the motion prior around T_ref_predicted applies
+    bool use_prior = false;  // the gyro prior around R_ref_prior applies
+    Eigen::Isometry3d T_ref_predicted = Eigen::Isometry3d::Identity();
+    Eigen::Matrix3d R_ref_prior = Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d prior_information = Eigen::Matrix3d::Zero();
+  };
+
+  int finest_pixels() const { return level_camera[finest].width * level_camera[finest].height; }
+
+  // The data term of one iteration: the robust weights' scale (started from the residuals on a
+  // level's first iteration, then re-estimated) and the normal equations; returns the mean
+  // weighted error. variance: the photometric one, kept across levels for the prior's cost.
+  double weigh_and_accumulate(int level, int count, const Counts& counts, double& level_variance,
+                              double& variance, NormalEquations& out) {
+    const int valid = counts.any;
+    if (!config.use_depth_term) {
+      if (level_variance == 0.0) {
+        double sum = 0.0;
+        for (int i = 0; i < count; ++i) sum += residual[i] * residual[i];
+        level_variance = std::max(sum / valid, 1.0);
+      }
+      variance = estimate_variance(count, valid, level_variance);
+      level_variance = variance;
+      return accumulate(level, count, variance, out) / valid;
+    }
+    if (sigma_ii == 0.0) {
+      double sum_i = 0.0, sum_z = 0.0;
+      for (int i = 0; i < count; ++i) {
+        sum_i += mask[i] * residual[i] * residual[i];
+        sum_z += depth_mask[i] * depth_residual[i] * depth_residual[i];
+      }
+      sigma_ii = std::max(sum_i / std::max(counts.photometric, 1), 1.0);
+      sigma_zz = std::max(sum_z / std::max(counts.depth, 1), 1e-3);
+      sigma_iz = 0.0;
+    }
+    estimate_scale_matrix(count);
+    return accumulate_with_depth(level, count, out) / valid;
+  }
+
+  // The gyro prior's cost in the data term's units (intensity^2 per point): a step towards the
+  // gyro may raise the data cost and still lower the total.
+  double prior_cost(const Eigen::Isometry3d& T_cur_ref, const Prediction& p, double variance,
+                    int valid) const {
+    const Eigen::Vector3d d =
+        geometry::log_so3(T_cur_ref.linear().transpose() * p.R_ref_prior.transpose());
+    const double scale = config.use_depth_term ? sigma_ii : variance;
+    return d.dot(p.prior_information * d) * scale / valid;
+  }
+
+  // One Gauss-Newton step (twist delta, brightness offset) from the data term and the priors.
+  void solve_step(const NormalEquations& normal, const Eigen::Isometry3d& T_cur_ref,
+                  const Prediction& p, Vector6d& delta, double& delta_offset) const {
+    Matrix6d A = normal.H;
+    Vector6d b = normal.g;
+    if (config.use_motion_prior && p.predict) {
+      // Kerl 2013: a Gaussian prior around the constant-velocity prediction.
+      // Scaled to this level's data term: coarse levels have fewer, smaller gradients, and a
+      // prior at full finest-level strength would pin them to the prediction.
+      const double level_scale = normal.H.trace() / last_information.trace();
+      const Matrix6d P = config.motion_prior_precision * level_scale * last_information;
+      // T_ref_cur moves as exp(delta) T_ref_cur, so its deviation from the prediction is
+      // delta + d with d = log(T_ref_cur T_ref_predicted^-1).
+      const Vector6d d = geometry::log_se3(T_cur_ref.inverse() * p.T_ref_predicted.inverse());
+      A += P;
+      b -= P * d;
+    }
+    if (p.use_prior) {
+      // The gyro prior on the rotation part: T_ref_cur's rotation moves as exp(omega) R, so
+      // its deviation from the gyro's is omega + log(R R_prior^T).
+      const Eigen::Vector3d d =
+          geometry::log_so3(T_cur_ref.linear().transpose() * p.R_ref_prior.transpose());
+      A.bottomRightCorner<3, 3>() += p.prior_information;
+      b.tail<3>() -= p.prior_information * d;
+    }
+    delta_offset = 0.0;
+    if (!config.estimate_brightness_offset) {
+      delta = A.ldlt().solve(b);
+      return;
+    }
+    // Auto-exposure shifts every intensity alike; an offset absorbs it instead of the
+    // pose (Engel et al. use an affine model for the same reason).
+    Eigen::Matrix<double, 7, 7> A7;
+    A7.topLeftCorner<6, 6>() = A;
+    A7.topRightCorner<6, 1>() = normal.H_pose_offset;
+    A7.bottomLeftCorner<1, 6>() = normal.H_pose_offset.transpose();
+    A7(6, 6) = normal.H_offset;
+    Eigen::Matrix<double, 7, 1> b7;
+    b7.head<6>() = b;
+    b7(6) = normal.g_offset;
+    const Eigen::Matrix<double, 7, 1> x = A7.ldlt().solve(b7);
+    delta = x.head<6>();
+    delta_offset = x(6);
+  }
+
+  // Iteratively re-weighted Gauss-Newton on one pyramid level, continuing from T_cur_ref and
+  // brightness_offset; out keeps the last accepted iteration's normal equations and error.
+  void solve_level(int level, const FrameSlot& current, const Prediction& p,
+                   Eigen::Isometry3d& T_cur_ref, float& brightness_offset, double& variance,
+                   Alignment& out) {
+    const int count = reference_sets[active_set][level].count;
+    double previous_cost = std::numeric_limits<double>::infinity();
+    double previous_weighted_error = out.weighted_error;
+    Eigen::Isometry3d T_previous = T_cur_ref;
+    double level_variance = 0.0;
+    sigma_ii = 0.0;
+    float offset_previous = brightness_offset;
+    // A pixel at level l spans 2^l pixels of level 0: a step that moves the image by a fixed
+    // fraction of a pixel is worth less at coarse levels, so they stop sooner.
+    const double tolerance = config.step_tolerance * static_cast<double>(1 << (level - finest));
+    for (int it = 0; it < config.max_iterations_per_level; ++it) {
+      const Counts counts = compute_residuals(level, current, T_cur_ref, brightness_offset);
+      out.valid = counts.any;
+      if (out.valid < 6) break;
+      NormalEquations candidate;
+      out.weighted_error =
+          weigh_and_accumulate(level, count, counts, level_variance, variance, candidate);
+      ++out.iterations;
+      double cost = out.weighted_error;
+      if (p.use_prior) cost += prior_cost(T_cur_ref, p, variance, out.valid);
+      if (cost > previous_cost) {
+        // The last step made the fit worse: undo it and stop refining this level.
+        T_cur_ref = T_previous;
+        brightness_offset = offset_previous;
+        out.weighted_error = previous_weighted_error;
+        break;
+      }
+      previous_cost = cost;
+      previous_weighted_error = out.weighted_error;
+      out.normal = candidate;
+      Vector6d delta;
+      double delta_offset = 0.0;
+      solve_step(out.normal, T_cur_ref, p, delta, delta_offset);
+      if (!delta.allFinite() || !std::isfinite(delta_offset)) break;
+      T_previous = T_cur_ref;
+      offset_previous = brightness_offset;
+      brightness_offset += static_cast<float>(delta_offset);
+      T_cur_ref = T_cur_ref * geometry::exp_se3(-delta);
+      if (delta.squaredNorm() < tolerance * tolerance) break;
+    }
+  }
+
   // Coarse-to-fine iteratively re-weighted Gauss-Newton of the current frame against the
   // active reference set, from T_cur_ref.
-  Alignment align(const FrameSlot& current, Eigen::Isometry3d T_cur_ref,
-                  const Eigen::Isometry3d& T_ref_predicted, bool predict, bool use_prior,
-                  const Eigen::Matrix3d& R_ref_prior, const Eigen::Matrix3d& prior_information) {
-    NormalEquations normal;
+  Alignment align(const FrameSlot& current, Eigen::Isometry3d T_cur_ref, const Prediction& p) {
+    Alignment out;
     float brightness_offset = 0.0f;
     double variance = 0.0;
-    int valid = 0;
-    int iterations = 0;
-    double weighted_error = 0.0;
     for (int level = levels - 1; level >= finest; --level) {
-      const int count = reference_sets[active_set][level].count;
-      double previous_error = std::numeric_limits<double>::infinity();
-      double previous_weighted_error = weighted_error;
-      Eigen::Isometry3d T_previous = T_cur_ref;
-      double level_variance = 0.0;
-      sigma_ii = 0.0;
-      float offset_previous = brightness_offset;
-      // A pixel at level l spans 2^l pixels of level 0: a step that moves the image by a fixed
-      // fraction of a pixel is worth less at coarse levels, so they stop sooner.
-      const double tolerance = config.step_tolerance * static_cast<double>(1 << (level - finest));
-      for (int it = 0; it < config.max_iterations_per_level; ++it) {
-        const Counts counts = compute_residuals(level, current, T_cur_ref, brightness_offset);
-        valid = counts.any;
-        if (valid < 6) break;
-        NormalEquations candidate;
-        if (!config.use_depth_term) {
-          if (level_variance == 0.0) {
-            double sum = 0.0;
-            for (int i = 0; i < count; ++i) sum += residual[i] * residual[i];
-            level_variance = std::max(sum / valid, 1.0);
-          }
-          variance = estimate_variance(count, valid, level_variance);
-          level_variance = variance;
-          weighted_error = accumulate(level, count, variance, candidate) / valid;
-        } else {
-          if (sigma_ii == 0.0) {
-            double sum_i = 0.0, sum_z = 0.0;
-            for (int i = 0; i < count; ++i) {
-              sum_i += mask[i] * residual[i] * residual[i];
-              sum_z += depth_mask[i] * depth_residual[i] * depth_residual[i];
-            }
-            sigma_ii = std::max(sum_i / std::max(counts.photometric, 1), 1.0);
-            sigma_zz = std::max(sum_z / std::max(counts.depth, 1), 1e-3);
-            sigma_iz = 0.0;
-          }
-          estimate_scale_matrix(count);
-          weighted_error = accumulate_with_depth(level, count, candidate) / valid;
-        }
-        ++iterations;
-        // The gyro prior's cost joins the test below, in the data term's units (intensity^2 per
-        // point): a step towards the gyro may raise the data cost and still lower the total.
-        double cost = weighted_error;
-        if (use_prior) {
-          const Eigen::Vector3d d = geometry::log_so3(T_cur_ref.linear().transpose() *
-                                                      R_ref_prior.transpose());
-          const double scale = config.use_depth_term ? sigma_ii : variance;
-          cost += d.dot(prior_information * d) * scale / valid;
-        }
-        if (cost > previous_error) {
-          // The last step made the fit worse: undo it and stop refining this level.
-          T_cur_ref = T_previous;
-          brightness_offset = offset_previous;
-          weighted_error = previous_weighted_error;
-          break;
-        }
-        previous_error = cost;
-        previous_weighted_error = weighted_error;
-        normal = candidate;
-        Matrix6d A = normal.H;
-        Vector6d b = normal.g;
-        if (config.use_motion_prior && predict) {
-          // Kerl 2013: a Gaussian prior around the constant-velocity prediction.
-          // Scaled to this level's data term: coarse levels have fewer, smaller gradients, and a
-          // prior at full finest-level strength would pin them to the prediction.
-          const double level_scale = normal.H.trace() / last_information.trace();
-          const Matrix6d P = config.motion_prior_precision * level_scale * last_information;
-          // T_ref_cur moves as exp(delta) T_ref_cur, so its deviation from the prediction is
-          // delta + d with d = log(T_ref_cur T_ref_predicted^-1).
-          const Vector6d d = geometry::log_se3(T_cur_ref.inverse() * T_ref_predicted.inverse());
-          A += P;
-          b -= P * d;
-        }
-        if (use_prior) {
-          // The gyro prior on the rotation part: T_ref_cur's rotation moves as exp(omega) R, so
-          // its deviation from the gyro's is omega + log(R R_prior^T).
-          const Eigen::Vector3d d = geometry::log_so3(T_cur_ref.linear().transpose() *
-                                                      R_ref_prior.transpose());
-          A.bottomRightCorner<3, 3>() += prior_information;
-          b.tail<3>() -= prior_information * d;
-        }
-        Vector6d delta;
-        double delta_offset = 0.0;
-        if (config.estimate_brightness_offset) {
-          // Auto-exposure shifts every intensity alike; an offset absorbs it instead of the
-          // pose (Engel et al. use an affine model for the same reason).
-          Eigen::Matrix<double, 7, 7> A7;
-          A7.topLeftCorner<6, 6>() = A;
-          A7.topRightCorner<6, 1>() = normal.H_pose_offset;
-          A7.bottomLeftCorner<1, 6>() = normal.H_pose_offset.transpose();
-          A7(6, 6) = normal.H_offset;
-          Eigen::Matrix<double, 7, 1> b7;
-          b7.head<6>() = b;
-          b7(6) = normal.g_offset;
-          const Eigen::Matrix<double, 7, 1> x = A7.ldlt().solve(b7);
-          delta = x.head<6>();
-          delta_offset = x(6);
-        } else {
-          delta = A.ldlt().solve(b);
-        }
-        if (!delta.allFinite() || !std::isfinite(delta_offset)) break;
-        T_previous = T_cur_ref;
-        offset_previous = brightness_offset;
-        brightness_offset += static_cast<float>(delta_offset);
-        T_cur_ref = T_cur_ref * geometry::exp_se3(-delta);
-        if (delta.squaredNorm() < tolerance * tolerance) break;
-      }
+      solve_level(level, current, p, T_cur_ref, brightness_offset, variance, out);
     }
-
-    Alignment out;
     out.T_cur_ref = T_cur_ref;
-    out.normal = normal;
-    out.valid = valid;
-    out.iterations = iterations;
-    out.weighted_error = weighted_error;
     return out;
   }
 
-  OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
-                       const RotationPrior* prior) {
-    OdometryResult result;
-    result.t_ns = t_ns;
-    result.T_world_cur = T_world_reference * T_ref_last;
-    if (gray.type() != CV_8UC1 || depth_m.type() != CV_32FC1 || gray.cols != camera.width ||
-        gray.rows != camera.height || depth_m.size() != gray.size()) {
-      return lost(result, "input is not CV_8UC1 gray and CV_32FC1 depth of the camera's size");
-    }
-    int current_slot = 0;
-    while (current_slot == reference_slot || current_slot == previous_slot) ++current_slot;
-    FrameSlot& current = slots[current_slot];
-    build_pyramid(current, gray, depth_m);
-
-    if (!has_reference) {
-      make_reference(current_slot, result.T_world_cur);
-      result.status = has_reference ? TrackingStatus::kFirstFrame : TrackingStatus::kLost;
-      result.reason = has_reference ? "first frame: became the reference"
-                                    : "no usable depth: too few pixels with depth and gradient";
-      result.new_keyframe = has_reference;
-      return result;
-    }
-
-    // Constant-velocity initial guess (and prior mean) for T_ref_cur.
+  // Constant-velocity initial guess (and prior mean) for T_ref_cur, with the gyro's rotation.
+  Prediction predict_motion(const RotationPrior* prior) const {
+    Prediction p;
     // Frame to frame only: against a keyframe, the part of each step that the optimiser leaves
     // uncorrected is carried into the next prediction, so the predicted velocity random-walks
     // (measured on a simulated circle: RPE 69 m/s with it, 1 mm/s without).
-    const bool predict = has_motion && config.initialize_with_previous_motion &&
-                         config.reference_mode == ReferenceMode::kFrameToFrame;
-    Eigen::Isometry3d T_ref_predicted = predict ? T_ref_last * last_motion : T_ref_last;
+    p.predict = has_motion && config.initialize_with_previous_motion &&
+                config.reference_mode == ReferenceMode::kFrameToFrame;
+    p.T_ref_predicted = p.predict ? T_ref_last * last_motion : T_ref_last;
     // The gyro's rotation since the previous frame replaces the predicted one: photometric
     // alignment fails first under fast yaw, where the gyro is at its best.
-    const bool use_prior = config.use_rotation_prior && prior != nullptr &&
-                           prior->R_prev_cur.allFinite() && prior->information.allFinite();
-    Eigen::Matrix3d R_ref_prior = Eigen::Matrix3d::Identity();
-    Eigen::Matrix3d prior_information = Eigen::Matrix3d::Zero();
-    if (use_prior) {
-      R_ref_prior = T_ref_last.linear() * prior->R_prev_cur;
-      prior_information = config.rotation_prior_information_scale * prior->information;
-      T_ref_predicted.linear() = R_ref_prior;
+    p.use_prior = config.use_rotation_prior && prior != nullptr &&
+                  prior->R_prev_cur.allFinite() && prior->information.allFinite();
+    if (p.use_prior) {
+      p.R_ref_prior = T_ref_last.linear() * prior->R_prev_cur;
+      p.prior_information = config.rotation_prior_information_scale * prior->information;
+      p.T_ref_predicted.linear() = p.R_ref_prior;
     }
-    Eigen::Isometry3d T_cur_ref_guess = T_ref_predicted.inverse();
+    return p;
+  }
 
-    // Keyframe check: align to the previous frame as well, start the keyframe alignment from
-    // that, and re-anchor on the previous frame when the two disagree.
-    Alignment to_previous;
-    bool previous_ok = false;
-    if (keyframe_check() && has_previous) {
-      active_set = kPreviousSet;
-      Eigen::Isometry3d T_prev_predicted = has_motion && config.initialize_with_previous_motion
-                                               ? last_motion
-                                               : Eigen::Isometry3d::Identity();
-      if (use_prior) T_prev_predicted.linear() = prior->R_prev_cur;
-      to_previous =
-          align(current, T_prev_predicted.inverse(), T_prev_predicted, false, use_prior,
-                use_prior ? prior->R_prev_cur : Eigen::Matrix3d::Identity(), prior_information);
-      active_set = kReferenceSet;
-      const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-      previous_ok =
-          to_previous.T_cur_ref.matrix().allFinite() && to_previous.normal.H.allFinite() &&
-          to_previous.valid >= 6 &&
-          static_cast<double>(to_previous.valid) / finest_pixels >= config.min_valid_ratio;
-      if (previous_ok) T_cur_ref_guess = (T_ref_last * to_previous.T_cur_ref.inverse()).inverse();
-    }
+  // Keyframe check, first half: aligns the current frame to the previous one (prepared in set
+  // 1). Returns whether that alignment is usable as the keyframe alignment's start and check.
+  bool align_to_previous(const FrameSlot& current, const Prediction& to_reference,
+                         const RotationPrior* prior, Alignment& to_previous) {
+    Prediction p;
+    p.use_prior = to_reference.use_prior;
+    p.prior_information = to_reference.prior_information;
+    if (p.use_prior) p.R_ref_prior = prior->R_prev_cur;
+    p.T_ref_predicted = has_motion && config.initialize_with_previous_motion
+                            ? last_motion
+                            : Eigen::Isometry3d::Identity();
+    if (p.use_prior) p.T_ref_predicted.linear() = prior->R_prev_cur;
+    active_set = kPreviousSet;
+    to_previous = align(current, p.T_ref_predicted.inverse(), p);
+    active_set = kReferenceSet;
+    return to_previous.T_cur_ref.matrix().allFinite() && to_previous.normal.H.allFinite() &&
+           to_previous.valid >= 6 &&
+           static_cast<double>(to_previous.valid) / finest_pixels() >= config.min_valid_ratio;
+  }
 
-    Alignment a = align(current, T_cur_ref_guess, T_ref_predicted, predict, use_prior, R_ref_prior,
-                        prior_information);
-    bool re_anchor = false;
-    if (previous_ok) {
-      const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-      const bool keyframe_ok =
-          a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
-          static_cast<double>(a.valid) / finest_pixels >= config.min_valid_ratio;
-      // T_prev_cur through the keyframe chain against the direct one.
-      const Eigen::Isometry3d chain = T_ref_last.inverse() * a.T_cur_ref.inverse();
-      const Eigen::Isometry3d difference = to_previous.T_cur_ref * chain;
-      re_anchor = !keyframe_ok ||
-                  difference.translation().norm() > config.keyframe_check_max_translation_m ||
-                  geometry::log_so3(difference.linear()).norm() >
-                      config.keyframe_check_max_rotation_deg * M_PI / 180.0;
-    }
-    if (re_anchor) {
-      // The keyframe chain broke (Kerl IROS 2013 re-anchors on such failures): this frame's
-      // pose comes from the previous frame, and this frame becomes the keyframe.
-      const NormalEquations& normal = to_previous.normal;
-      const Eigen::Isometry3d T_prev_cur = to_previous.T_cur_ref.inverse();
-      const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-      result.iterations = a.iterations + to_previous.iterations;
-      result.valid_ratio = static_cast<double>(to_previous.valid) / finest_pixels;
-      result.mean_weighted_error = to_previous.weighted_error;
-      result.status = TrackingStatus::kOk;
-      result.reason = "";
-      result.T_ref_cur = T_prev_cur;
-      result.information = normal.H;
-      if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
-        result.information -=
-            normal.H_pose_offset * normal.H_pose_offset.transpose() / normal.H_offset;
-      }
-      result.T_world_cur = T_world_reference * T_ref_last * T_prev_cur;
-      last_motion = T_prev_cur;
-      last_information = normal.H;
-      has_motion = true;
-      make_reference(current_slot, result.T_world_cur);
-      result.new_keyframe = has_reference;
-      return result;
-    }
-    if (previous_ok) a.iterations += to_previous.iterations;
+  // Keyframe check, second half: T_prev_cur through the keyframe chain against the direct one.
+  bool keyframe_chain_broke(const Alignment& a, const Alignment& to_previous) const {
+    const bool keyframe_ok = a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
+                             static_cast<double>(a.valid) / finest_pixels() >=
+                                 config.min_valid_ratio;
+    const Eigen::Isometry3d chain = T_ref_last.inverse() * a.T_cur_ref.inverse();
+    const Eigen::Isometry3d difference = to_previous.T_cur_ref * chain;
+    return !keyframe_ok ||
+           difference.translation().norm() > config.keyframe_check_max_translation_m ||
+           geometry::log_so3(difference.linear()).norm() >
+               config.keyframe_check_max_rotation_deg * M_PI / 180.0;
+  }
 
-    const Eigen::Isometry3d& T_cur_ref = a.T_cur_ref;
-    const NormalEquations& normal = a.normal;
-    result.iterations = a.iterations;
-    const int finest_pixels = level_camera[finest].width * level_camera[finest].height;
-    result.valid_ratio = static_cast<double>(a.valid) / finest_pixels;
-    result.mean_weighted_error = a.weighted_error;
-    const bool converged_numbers =
-        T_cur_ref.matrix().allFinite() && normal.H.allFinite() && a.valid >= 6;
-    if (!converged_numbers || result.valid_ratio < config.min_valid_ratio) {
-      // Keep flying on the newest frame: it becomes the reference if it has depth.
-      const Eigen::Isometry3d T_world_cur = result.T_world_cur;
-      OdometryResult out = lost(result, "too few reference pixels visible in the current frame");
-      make_reference(current_slot, T_world_cur);
-      return out;
+  // The information of the pose twist: with the offset estimated, its Schur complement.
+  Matrix6d pose_information(const NormalEquations& normal) const {
+    Matrix6d information = normal.H;
+    if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
+      information -= normal.H_pose_offset * normal.H_pose_offset.transpose() / normal.H_offset;
     }
+    return information;
+  }
 
-    const Eigen::Isometry3d T_ref_cur = T_cur_ref.inverse();
+  // The keyframe chain broke (Kerl IROS 2013 re-anchors on such failures): this frame's pose
+  // comes from the previous frame, and this frame becomes the keyframe.
+  OdometryResult re_anchor_on_previous(OdometryResult result, const Alignment& a,
+                                       const Alignment& to_previous, int current_slot) {
+    const NormalEquations& normal = to_previous.normal;
+    const Eigen::Isometry3d T_prev_cur = to_previous.T_cur_ref.inverse();
+    result.iterations = a.iterations + to_previous.iterations;
+    result.valid_ratio = static_cast<double>(to_previous.valid) / finest_pixels();
+    result.mean_weighted_error = to_previous.weighted_error;
     result.status = TrackingStatus::kOk;
     result.reason = "";
-    result.T_ref_cur = T_ref_cur;
-    // With the offset estimated, the pose information is its Schur complement.
-    result.information = normal.H;
-    if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
-      result.information -= normal.H_pose_offset * normal.H_pose_offset.transpose() /
-                            normal.H_offset;
-    }
-    result.T_world_cur = T_world_reference * T_ref_cur;
-
-    last_motion = T_ref_last.inverse() * T_ref_cur;
+    result.T_ref_cur = T_prev_cur;
+    result.information = pose_information(normal);
+    result.T_O_C = T_O_ref * T_ref_last * T_prev_cur;
+    last_motion = T_prev_cur;
     last_information = normal.H;
     has_motion = true;
+    make_reference(current_slot, result.T_O_C);
+    result.new_keyframe = has_reference;
+    return result;
+  }
 
+  // After a good alignment: the next frame's reference is this frame (frame to frame, or a
+  // keyframe that has aged or lost too much information) or stays, with this frame prepared
+  // as the previous one for the keyframe check.
+  void update_reference(int current_slot, const FrameSlot& current,
+                        const Eigen::Isometry3d& T_ref_cur, const NormalEquations& normal,
+                        OdometryResult& result) {
     bool new_reference = true;
     if (config.reference_mode == ReferenceMode::kFrameToKeyframe) {
       ++keyframe_age;
@@ -833,18 +882,88 @@ struct DenseOdometry::Impl {
                       (keyframe_age > 1 && ratio < config.keyframe_entropy_ratio);
     }
     if (new_reference) {
-      make_reference(current_slot, result.T_world_cur);
+      make_reference(current_slot, result.T_O_C);
       // The motion of this frame relative to its predecessor stays the prediction.
       result.new_keyframe = has_reference;
-    } else {
-      T_ref_last = T_ref_cur;
-      previous_slot = current_slot;
-      if (keyframe_check()) {
-        prepare_reference(current, kPreviousSet);
-        has_previous = true;
-      }
+      return;
     }
+    T_ref_last = T_ref_cur;
+    previous_slot = current_slot;
+    if (keyframe_check()) {
+      prepare_reference(current, kPreviousSet);
+      has_previous = true;
+    }
+  }
+
+  // The outcome of the alignment to the reference: lost if it did not converge on enough
+  // pixels (the frame then becomes the reference), else the pose and the next reference.
+  OdometryResult accept(OdometryResult result, const Alignment& a, int current_slot,
+                        const FrameSlot& current) {
+    const Eigen::Isometry3d& T_cur_ref = a.T_cur_ref;
+    const NormalEquations& normal = a.normal;
+    result.iterations = a.iterations;
+    result.valid_ratio = static_cast<double>(a.valid) / finest_pixels();
+    result.mean_weighted_error = a.weighted_error;
+    const bool converged_numbers =
+        T_cur_ref.matrix().allFinite() && normal.H.allFinite() && a.valid >= 6;
+    if (!converged_numbers || result.valid_ratio < config.min_valid_ratio) {
+      // Keep flying on the newest frame: it becomes the reference if it has depth.
+      const Eigen::Isometry3d T_O_C = result.T_O_C;
+      OdometryResult out = lost(result, "too few reference pixels visible in the current frame");
+      make_reference(current_slot, T_O_C);
+      return out;
+    }
+    const Eigen::Isometry3d T_ref_cur = T_cur_ref.inverse();
+    result.status = TrackingStatus::kOk;
+    result.reason = "";
+    result.T_ref_cur = T_ref_cur;
+    result.information = pose_information(normal);
+    result.T_O_C = T_O_ref * T_ref_cur;
+    last_motion = T_ref_last.inverse() * T_ref_cur;
+    last_information = normal.H;
+    has_motion = true;
+    update_reference(current_slot, current, T_ref_cur, normal, result);
     return result;
+  }
+
+  OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
+                       const RotationPrior* prior) {
+    OdometryResult result;
+    result.t_ns = t_ns;
+    result.T_O_C = T_O_ref * T_ref_last;
+    if (gray.type() != CV_8UC1 || depth_m.type() != CV_32FC1 || gray.cols != camera.width ||
+        gray.rows != camera.height || depth_m.size() != gray.size()) {
+      return lost(result, "input is not CV_8UC1 gray and CV_32FC1 depth of the camera's size");
+    }
+    int current_slot = 0;
+    while (current_slot == reference_slot || current_slot == previous_slot) ++current_slot;
+    FrameSlot& current = slots[current_slot];
+    build_pyramid(current, gray, depth_m);
+
+    if (!has_reference) {
+      make_reference(current_slot, result.T_O_C);
+      result.status = has_reference ? TrackingStatus::kFirstFrame : TrackingStatus::kLost;
+      result.reason = has_reference ? "first frame: became the reference"
+                                    : "no usable depth: too few pixels with depth and gradient";
+      result.new_keyframe = has_reference;
+      return result;
+    }
+
+    const Prediction p = predict_motion(prior);
+    Eigen::Isometry3d T_cur_ref_guess = p.T_ref_predicted.inverse();
+    // Keyframe check: align to the previous frame as well, start the keyframe alignment from
+    // that, and re-anchor on the previous frame when the two disagree.
+    Alignment to_previous;
+    const bool previous_ok =
+        keyframe_check() && has_previous && align_to_previous(current, p, prior, to_previous);
+    if (previous_ok) T_cur_ref_guess = (T_ref_last * to_previous.T_cur_ref.inverse()).inverse();
+
+    Alignment a = align(current, T_cur_ref_guess, p);
+    if (previous_ok && keyframe_chain_broke(a, to_previous)) {
+      return re_anchor_on_previous(result, a, to_previous, current_slot);
+    }
+    if (previous_ok) a.iterations += to_previous.iterations;
+    return accept(result, a, current_slot, current);
   }
 };
 
@@ -867,7 +986,7 @@ void DenseOdometry::reset() {
   impl_->has_reference = false;
   impl_->has_motion = false;
   impl_->has_previous = false;
-  impl_->T_world_reference.setIdentity();
+  impl_->T_O_ref.setIdentity();
   impl_->T_ref_last.setIdentity();
 }
 

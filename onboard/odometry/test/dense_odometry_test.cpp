@@ -88,8 +88,8 @@ TEST_P(KnownMotion, SmallMotionOfTexturedPlaneIsRecovered) {
     const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
     ASSERT_TRUE(r.ok()) << r.reason;
     // THEN the accumulated pose follows the truth to a millimetre and a tenth of a degree
-    EXPECT_LT(translation_error(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
-    EXPECT_LT(rotation_error_rad(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(translation_error(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
   }
 }
 
@@ -116,8 +116,8 @@ TEST(DenseOdometry, KeyframeCheckKeepsTheKeyframeChainOnKnownMotion) {
     ASSERT_TRUE(r.ok()) << r.reason;
     keyframes += r.new_keyframe ? 1 : 0;
     // THEN the poses follow the truth and the chain agrees with each step: no re-anchoring
-    EXPECT_LT(translation_error(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
-    EXPECT_LT(rotation_error_rad(r.T_world_cur, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(translation_error(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
   }
   EXPECT_LT(keyframes, 6);
 }
@@ -202,7 +202,7 @@ TEST(DenseOdometry, AllInvalidDepthReportsTrackingLost) {
   const OdometryResult second = odometry.track(1, f.gray, no_depth);
   EXPECT_EQ(second.status, TrackingStatus::kLost);
   EXPECT_TRUE(second.T_ref_cur.matrix().allFinite());
-  EXPECT_TRUE(second.T_world_cur.matrix().allFinite());
+  EXPECT_TRUE(second.T_O_C.matrix().allFinite());
 }
 
 TEST(DenseOdometry, NanAndOutOfRangeDepthIsSkippedNotPropagated) {
@@ -297,6 +297,27 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{max_iterations: 3}", "odometry.max_iterations is not a known key");
   expect_error("{depth_noise_per_m: 0}", "odometry.depth_noise_per_m = 0, expected > 0");
   expect_error("{depth_point_stride: 0}", "odometry.depth_point_stride");
+  expect_error("{min_depth_m: 2.0, max_depth_m: 1.5}",
+               "onboard.yaml: odometry.max_depth_m = 1.5, expected > min_depth_m (2)");
+}
+
+TEST(OdometryConfig, ConstructorRejectsWhatTheReaderRejectsInsteadOfClamping) {
+  const geometry::PinholeCamera camera{100.0, 100.0, 31.5, 23.5, 64, 48};
+  OdometryConfig too_fine;
+  too_fine.pyramid_levels = 3;
+  too_fine.finest_level = 3;
+  try {
+    const DenseOdometry odometry(too_fine, camera);
+    FAIL() << "finest_level 3 of 3 levels accepted";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("OdometryConfig.finest_level = 3, expected < pyramid_levels (3)"));
+  }
+  OdometryConfig too_deep;
+  too_deep.pyramid_levels = 9;
+  EXPECT_THROW(DenseOdometry(too_deep, camera), InputError);
+  OdometryConfig not_a_number;
+  not_a_number.student_t_dof = std::nan("");
+  EXPECT_THROW(DenseOdometry(not_a_number, camera), InputError);
 }
 
 }  // namespace

@@ -68,12 +68,12 @@ StepSample make_step(const pipeline::ChainOutput& out, const vehicle::VehicleSta
   s.tracking = out.frame ? odometry::to_string(out.tracking) : "none";
   s.tracking_reason = out.tracking_reason != nullptr ? out.tracking_reason : "";
   s.valid_ratio = out.valid_ratio;
-  copy3(e.v_camera_raw_mps, s.v_C_raw_mps);
-  copy3(e.v_camera_mps, s.v_C_mps);
+  copy3(e.v_C_raw_mps, s.v_C_raw_mps);
+  copy3(e.v_C_mps, s.v_C_mps);
   s.estimate_status = estimator::to_string(e.status);
   s.estimate_reason = e.reason != nullptr ? e.reason : "";
-  copy3(e.v_body_mps, s.v_B_mps);
-  copy3(e.v_horizontal_mps, s.v_H_mps);
+  copy3(e.v_B_mps, s.v_B_mps);
+  copy3(e.v_H_mps, s.v_H_mps);
   copy3(e.omega_body_radps, s.omega_B_radps);
   s.roll_rad = e.roll_rad;
   s.pitch_rad = e.pitch_rad;

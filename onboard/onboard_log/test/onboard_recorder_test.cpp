@@ -54,8 +54,8 @@ pipeline::ChainOutput output(std::int64_t t_ns, bool frame) {
   out.tracking = odometry::TrackingStatus::kOk;
   out.valid_ratio = 0.75;
   out.estimate.status = estimator::EstimateStatus::kOk;
-  out.estimate.v_horizontal_mps = Eigen::Vector3d(0.5, -0.25, 0.125);
-  out.estimate.v_body_mps = Eigen::Vector3d(0.5, 0.0, 0.0);
+  out.estimate.v_H_mps = Eigen::Vector3d(0.5, -0.25, 0.125);
+  out.estimate.v_B_mps = Eigen::Vector3d(0.5, 0.0, 0.0);
   out.estimate.roll_rad = 0.0625;
   out.mode.mode = modes::Mode::kTeleop;
   out.mode.control.setpoint.thrust_n = 12.5;

@@ -86,7 +86,7 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
       seen_space_(config.seen_space, camera, vehicle.R_body_camera, vehicle.p_body_camera_m,
                   config.obstacles.vehicle_radius_m),
       modes_(config.modes, config.control, vehicle),
-      R_body_camera_(vehicle.R_body_camera) {
+      R_B_C_(vehicle.R_body_camera) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
   takeoff_complete_ = !config.modes.start_landed;
   if (config.markers.enabled) {
@@ -101,7 +101,7 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2) {
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
   if (config_.chain.gyro_rotation_prior) {
-    // The body's rotation since the last frame, bias removed: R_Qprev_Qcur.
+    // The body's rotation since the last frame, bias removed: R_Bprev_Bcur.
     if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {
       const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_last_imu_ns_), 0.1);
       const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().gyro_bias_radps();
@@ -119,17 +119,13 @@ Eigen::Matrix3d OnboardChain::R_horizontal_body() const {
   return estimator::R_horizontal_body(attitude.roll_rad(), attitude.pitch_rad());
 }
 
-ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m) {
-  ChainOutput out;
-  out.t_ns = t_ns;
-  out.frame = true;
-  const std::int64_t t_arrival_ns = now_ns();
-
+odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, const cv::Mat& gray,
+                                                      const cv::Mat& depth_m) {
   odometry::RotationPrior gyro;
   const bool use_gyro = config_.chain.gyro_rotation_prior && gyro_since_frame_ && have_frame_;
   if (use_gyro) {
-    // R_CprevCcur = R_CQ R_QprevQcur R_QC.
-    gyro.R_prev_cur = R_body_camera_.transpose() * R_prev_cur_body_ * R_body_camera_;
+    // R_Cprev_Ccur = R_C_B R_Bprev_Bcur R_B_C.
+    gyro.R_prev_cur = R_B_C_.transpose() * R_prev_cur_body_ * R_B_C_;
     const auto interval_ns = std::max<std::int64_t>(t_ns - t_last_frame_ns_, 1);
     const double sigma_rad =
         config_.chain.gyro_prior_sigma_radps * 1e-9 * static_cast<double>(interval_ns);
@@ -137,14 +133,13 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   }
   R_prev_cur_body_.setIdentity();
   gyro_since_frame_ = false;
-  const odometry::OdometryResult odometry =
-      odometry_.track(t_ns, gray, depth_m, use_gyro ? &gyro : nullptr);
-  out.tracking = odometry.status;
-  out.tracking_reason = odometry.reason;
-  out.valid_ratio = odometry.valid_ratio;
-  const std::int64_t t_odometry_ns = now_ns();
+  return odometry_.track(t_ns, gray, depth_m, use_gyro ? &gyro : nullptr);
+}
 
-  // Fig. 4: odometry poses and IMU into H_v_Q (eqs. 1-5).
+void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray,
+                                     const cv::Mat& depth_m,
+                                     const odometry::OdometryResult& odometry, ChainOutput& out) {
+  // Fig. 4: odometry poses and IMU into v_H (eqs. 1-5).
   // Landed with motors idle the vehicle is at rest: a zero-velocity update, so that the take-off
   // can climb on the IMU until the floor is far enough for the depth camera.
   if (modes_.landed()) estimator_.hold_at_rest(t_ns);
@@ -152,14 +147,16 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   // Issue 7: markers, map and the error-state filter (timed with the estimator). Low over the
   // target, the marker and explore modes hand the touchdown to Mode::kLand.
   if (markers_) {
-    markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_world_cur);
+    markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_O_C);
     if (markers_->wants_land(modes_.mode())) modes_.request_mode(modes::Mode::kLand);
   }
-  const std::int64_t t_estimator_ns = now_ns();
+}
 
+void OnboardChain::update_memory(std::int64_t t_ns, const cv::Mat& depth_m,
+                                 const odometry::OdometryResult& odometry,
+                                 const Eigen::Matrix3d& R_H_B, ChainOutput& out) {
   // Issue 10: the memory places this depth at the odometry pose and returns what it remembers
   // outside the view; without tracking there is no pose to place or recall it with.
-  const Eigen::Matrix3d R_HQ = R_horizontal_body();
   if (!config_.memory.enabled) {
     out.memory.reason = "memory disabled";
   } else if (!odometry.ok()) {
@@ -169,11 +166,14 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
   } else {
     // The field's d0 is a clearance (|p| minus the vehicle radius): recall out to its reach.
     out.memory = memory_.update(
-        t_ns, depth_m, odometry.T_world_cur, R_HQ,
+        t_ns, depth_m, odometry.T_O_C, R_H_B,
         config_.obstacles.influence_distance_m + config_.obstacles.vehicle_radius_m);
   }
-  const std::int64_t t_memory_ns = now_ns();
+}
 
+void OnboardChain::sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
+                                   const odometry::OdometryResult& odometry,
+                                   const Eigen::Matrix3d& R_H_B, ChainOutput& out) {
   // §3.1: depth minima into the repulsive v_obs in H, with the attitude the estimator holds,
   // plus the remembered points outside the view under the same law.
   // The take-off ends once, at takeoff_height_m of climb; descending later does not restart it.
@@ -182,34 +182,57 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const
     takeoff_complete_ = false;
   } else if (!takeoff_complete_ && out.estimate.usable() && have_frame_) {
     climb_since_takeoff_m_ -=
-        out.estimate.v_horizontal_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
+        out.estimate.v_H_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
     takeoff_complete_ = climb_since_takeoff_m_ >= config_.chain.takeoff_height_m;
   }
   obstacles_.set_ground_phase(modes_.landed() || modes_.mode() == modes::Mode::kLand ||
                               !takeoff_complete_);
-  out.obstacles = obstacles_.compute(depth_m, R_HQ, out.memory.remembered());
+  out.obstacles = obstacles_.compute(depth_m, R_H_B, out.memory.remembered());
   update_height(t_ns, out.obstacles.floor_height_m, out);
   // Issue 16: what this frame and the memory have seen limits the operator's command.
-  v_est_for_limit_mps_ = out.estimate.usable()
-                             ? out.estimate.v_horizontal_mps
-                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  out.seen_space = seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_world_cur : nullptr,
-                                      R_HQ);
+  v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
+  out.seen_space =
+      seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_O_C : nullptr, R_H_B);
   if (out.seen_space.updated && config_.memory.enabled && odometry.ok()) {
-    memory_.for_each_point([this](const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns) {
-      seen_space_.add_remembered_point(p_world_m, t_seen_ns);
+    memory_.for_each_point([this](const Eigen::Vector3f& p_O_m, std::int64_t t_seen_ns) {
+      seen_space_.add_remembered_point(p_O_m, t_seen_ns);
     });
   }
   apply_operator_limit(&out);
+}
+
+std::optional<Eigen::Vector3d> OnboardChain::usable_v_H_mps(
+    const estimator::VelocityEstimate& estimate) {
+  if (!estimate.usable()) return std::nullopt;
+  return estimate.v_H_mps;
+}
+
+ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m) {
+  ChainOutput out;
+  out.t_ns = t_ns;
+  out.frame = true;
+  const std::int64_t t_arrival_ns = now_ns();
+
+  const odometry::OdometryResult odometry = track_odometry(t_ns, gray, depth_m);
+  out.tracking = odometry.status;
+  out.tracking_reason = odometry.reason;
+  out.valid_ratio = odometry.valid_ratio;
+  const std::int64_t t_odometry_ns = now_ns();
+
+  estimate_velocity(t_ns, gray, depth_m, odometry, out);
+  const std::int64_t t_estimator_ns = now_ns();
+
+  const Eigen::Matrix3d R_H_B = R_horizontal_body();
+  update_memory(t_ns, depth_m, odometry, R_H_B, out);
+  const std::int64_t t_memory_ns = now_ns();
+
+  sense_obstacles(t_ns, depth_m, odometry, R_H_B, out);
   const std::int64_t t_obstacles_ns = now_ns();
 
-  // Without an estimate the PID gets a non-finite measurement on purpose: the velocity
-  // controller's safe-hover path then commands a level hover (m g) and freezes its integral,
-  // which is what the vehicle can do on IMU attitude alone.
-  const Eigen::Vector3d v_est_mps =
-      out.estimate.usable() ? out.estimate.v_horizontal_mps
-                        : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  out.mode = modes_.step(t_ns, v_est_mps, out.obstacles.v_obs_horizontal_mps);
+  // Without an estimate the PID gets none (nullopt): the velocity controller's safe-hover path
+  // then commands a level hover (m g) and freezes its integral, which is what the vehicle can
+  // do on IMU attitude alone.
+  out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), out.obstacles.v_obs_horizontal_mps);
   finish_output(out);
   const std::int64_t t_control_ns = now_ns();
 
@@ -252,17 +275,12 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.estimate.unavailable_for_s = std::max(out.estimate.unavailable_for_s, silence_s);
   out.obstacles.reason = "no frame";
   // No frame: the seen space only ages (no pose to turn it with).
-  v_est_for_limit_mps_ = out.estimate.usable()
-                             ? out.estimate.v_horizontal_mps
-                             : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
   out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
   apply_operator_limit(&out);
-  const Eigen::Vector3d v_est_mps =
-      out.estimate.usable() ? out.estimate.v_horizontal_mps
-                            : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
   // No depth means no v_obs either: zero.
-  out.mode = modes_.step(t_ns, v_est_mps, Eigen::Vector3d::Zero());
+  out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), Eigen::Vector3d::Zero());
   finish_output(out);
   out.degraded = true;
   out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
@@ -286,7 +304,7 @@ void OnboardChain::update_height(std::int64_t t_ns, double floor_height_m, Chain
     height_known_ = true;
     out.height_source = HeightSource::kEstimate;
   } else if (height_known_ && out.estimate.usable()) {
-    height_m_ -= out.estimate.v_horizontal_mps.z() * dt_s;  // NED: climbing is -v_z
+    height_m_ -= out.estimate.v_H_mps.z() * dt_s;  // NED: climbing is -v_z
     out.height_source = HeightSource::kEstimate;
   } else {
     // No floor in view and no velocity to integrate: the height is not known any more.
@@ -315,12 +333,12 @@ void OnboardChain::apply_operator_limit(ChainOutput* out) {
   }
   if (!have_operator_command_) return;
   const seen_space::LimitedCommand limited =
-      seen_space_.limit(operator_command_.v_horizontal_mps, v_est_for_limit_mps_);
+      seen_space_.limit(operator_command_.v_H_mps, v_est_for_limit_H_mps_);
   modes::OperatorCommand flown = operator_command_;  // same stamp: the teleop timeout holds
-  flown.v_horizontal_mps = limited.v_horizontal_mps;
+  flown.v_H_mps = limited.v_H_mps;
   modes_.set_operator_command(flown);
   if (out == nullptr) return;
-  out->v_cmd_flown_horizontal_mps = limited.v_horizontal_mps;
+  out->v_cmd_flown_H_mps = limited.v_H_mps;
   out->command_limited = limited.limited;
   out->command_unseen = limited.unseen;
 }
@@ -344,7 +362,7 @@ void OnboardChain::escalate_safe_hover(ChainOutput& out) {
 }
 
 void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
-  if (!command.v_horizontal_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
+  if (!command.v_H_mps.allFinite() || !std::isfinite(command.yaw_rate_radps)) return;
   operator_command_ = command;
   have_operator_command_ = true;
   apply_operator_limit(nullptr);

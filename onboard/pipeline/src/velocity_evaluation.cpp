@@ -34,8 +34,8 @@ Shifted squared_errors(const std::vector<VelocitySample>& samples,
   Shifted out;
   for (const VelocitySample& sample : samples) {
     const Eigen::Vector3d v_true = *true_camera_velocity(truth, sample.t_ns - shift_ns, h_ns);
-    out.sq_raw += (sample.v_camera_raw_mps - v_true).cwiseAbs2();
-    out.sq_filtered += (sample.v_camera_filtered_mps - v_true).cwiseAbs2();
+    out.sq_raw += (sample.v_C_raw_mps - v_true).cwiseAbs2();
+    out.sq_filtered += (sample.v_C_mps - v_true).cwiseAbs2();
   }
   return out;
 }
@@ -142,7 +142,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
     if (out.estimate.ok()) {
       ++replay.ok_estimates;
       replay.samples.push_back(
-          {frame.t_ns, out.estimate.v_camera_raw_mps, out.estimate.v_camera_mps});
+          {frame.t_ns, out.estimate.v_C_raw_mps, out.estimate.v_C_mps});
     }
   }
   replay.imu.samples.clear();

@@ -53,7 +53,7 @@ bool setpoint_finite(const ChainOutput& out) {
   const control::AttitudeSetpoint& s = out.mode.control.setpoint;
   return std::isfinite(s.thrust_n) && std::isfinite(s.roll_rad) && std::isfinite(s.pitch_rad) &&
          std::isfinite(s.yaw_rate_radps) && out.mode.v_des_horizontal_mps.allFinite() &&
-         out.estimate.v_horizontal_mps.allFinite() &&
+         out.estimate.v_H_mps.allFinite() &&
          out.obstacles.v_obs_horizontal_mps.allFinite();
 }
 
@@ -113,9 +113,9 @@ TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne
       ++ok;
       EXPECT_FALSE(out.safe_hover) << "frame " << k;
       EXPECT_FALSE(out.degraded) << "frame " << k;
-      EXPECT_NEAR(out.estimate.v_camera_raw_mps.x(), kSpeedMps, 0.03) << "frame " << k;
-      EXPECT_NEAR(out.estimate.v_camera_raw_mps.y(), 0.0, 0.03) << "frame " << k;
-      EXPECT_NEAR(out.estimate.v_camera_raw_mps.z(), 0.0, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_C_raw_mps.x(), kSpeedMps, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_C_raw_mps.y(), 0.0, 0.03) << "frame " << k;
+      EXPECT_NEAR(out.estimate.v_C_raw_mps.z(), 0.0, 0.03) << "frame " << k;
     }
   }
   EXPECT_EQ(allocations, 0);
@@ -163,7 +163,7 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
     if (since_ok_s <= coast_s) {
       EXPECT_EQ(out.estimate.status, estimator::EstimateStatus::kInertial) << "frame " << k;
       EXPECT_FALSE(out.safe_hover) << "frame " << k;
-      EXPECT_TRUE(out.estimate.v_horizontal_mps.allFinite());
+      EXPECT_TRUE(out.estimate.v_H_mps.allFinite());
       ++coasting;
     } else {
       EXPECT_EQ(out.estimate.status, estimator::EstimateStatus::kUnavailable) << "frame " << k;
@@ -258,8 +258,8 @@ TEST_F(ChainOnRenderedPlane, OperatorCommandIsLimitedToTheSeenSpace) {
   // THEN the horizontal part is cut to the creep speed (0), the climb passes, and the chain
   // says so with the per-bin limits.
   EXPECT_TRUE(out.command_limited);
-  EXPECT_NEAR(out.v_cmd_flown_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
-  EXPECT_DOUBLE_EQ(out.v_cmd_flown_horizontal_mps.z(), -0.2);
+  EXPECT_NEAR(out.v_cmd_flown_H_mps.head<2>().norm(), 0.0, 1e-9);
+  EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.z(), -0.2);
   EXPECT_EQ(out.seen_space_bins, 72);
   EXPECT_TRUE(out.seen_space.updated);
   for (int b = 0; b < out.seen_space_bins; ++b) EXPECT_EQ(out.seen_space_limits_mps[b], 0.0f);
@@ -282,7 +282,7 @@ TEST_F(UnlimitedChainOnRenderedPlane, DisabledLimiterPassesTheCommand) {
   chain_.set_operator_command({12 * kFramePeriodNs, Eigen::Vector3d(0.0, 1.0, -0.2), 0.0});
   const ChainOutput out = frame(12);
   EXPECT_FALSE(out.command_limited);
-  EXPECT_DOUBLE_EQ(out.v_cmd_flown_horizontal_mps.y(), 1.0);
+  EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.y(), 1.0);
 }
 
 TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {

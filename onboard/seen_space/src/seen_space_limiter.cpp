@@ -47,8 +47,8 @@ SeenSpaceLimiter::SeenSpaceLimiter(const SeenSpaceConfig& config,
                                    const Eigen::Vector3d& p_body_camera_m, double vehicle_radius_m)
     : config_(config),
       camera_(camera),
-      R_QC_(R_body_camera),
-      p_QC_(p_body_camera_m),
+      R_B_C_(R_body_camera),
+      p_B_C_m_(p_body_camera_m),
       vehicle_radius_m_(vehicle_radius_m) {
   if (config.bins < 8 || config.bins > kMaxBins) {
     throw InputError("seen_space.bins: " + std::to_string(config.bins) + ", expected 8.." +
@@ -106,8 +106,8 @@ double SeenSpaceLimiter::free_distance_m(int b, bool* obstacle) const {
 }
 
 SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth_m,
-                                         const Eigen::Isometry3d* T_world_camera,
-                                         const Eigen::Matrix3d& R_horizontal_body) {
+                                         const Eigen::Isometry3d* T_O_C,
+                                         const Eigen::Matrix3d& R_H_B) {
   SeenSpaceUpdate out;
   t_now_ns_ = t_ns;
   memory_m_.fill(kNone);
@@ -121,8 +121,8 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     out.reason = "seen_space disabled";
     return out;
   }
-  const bool pose_ok = T_world_camera != nullptr && T_world_camera->matrix().allFinite() &&
-                       R_horizontal_body.allFinite();
+  const bool pose_ok = T_O_C != nullptr && T_O_C->matrix().allFinite() &&
+                       R_H_B.allFinite();
   if (!pose_ok) {
     pose_chain_broken_ = true;
     out.reason = "no pose";
@@ -130,12 +130,12 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     return out;
   }
 
-  // The pose of H in W, and of the body origin: R_HW = R_HQ R_QC R_CW.
-  const Eigen::Matrix3d R_WC = T_world_camera->linear();
-  const Eigen::Matrix3d R_HC = R_horizontal_body * R_QC_;
-  const Eigen::Matrix3d R_H_W = R_HC * R_WC.transpose();
-  const Eigen::Vector3d p_C_body = -R_QC_.transpose() * p_QC_;
-  const Eigen::Vector3d p_W_body = *T_world_camera * p_C_body;
+  // The pose of H in O, and of the body origin: R_H_O = R_H_B R_B_C R_C_O.
+  const Eigen::Matrix3d R_O_C = T_O_C->linear();
+  const Eigen::Matrix3d R_HC = R_H_B * R_B_C_;
+  const Eigen::Matrix3d R_H_O = R_HC * R_O_C.transpose();
+  const Eigen::Vector3d p_C_B = -R_B_C_.transpose() * p_B_C_m_;
+  const Eigen::Vector3d p_O_B = *T_O_C * p_C_B;
   if (have_pose_ && pose_chain_broken_) {
     // Tracking came back: how far the vehicle turned and moved meanwhile is unknown.
     for (int b = 0; b < n; ++b) bins_[b].seen = false;
@@ -145,9 +145,9 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   pose_chain_broken_ = false;
   if (have_pose_) {
     // Yaw turns the bins: a world-fixed direction keeps its bin. R_Hcur_Hprev = Rz(-dpsi).
-    const Eigen::Matrix3d R_cur_prev = R_H_W * R_H_W_prev_.transpose();
+    const Eigen::Matrix3d R_cur_prev = R_H_O * R_H_O_prev_.transpose();
     yaw_rad_ = wrap_pi(yaw_rad_ + std::atan2(R_cur_prev(0, 1), R_cur_prev(0, 0)));
-    const Eigen::Vector3d dp_H = R_H_W * (p_W_body - p_W_body_prev_);
+    const Eigen::Vector3d dp_H = R_H_O * (p_O_B - p_O_B_prev_);
     const double travel_m = dp_H.head<2>().norm();
     if (!(travel_m <= config_.max_pose_jump_m)) {
       for (int b = 0; b < n; ++b) bins_[b].seen = false;
@@ -160,10 +160,10 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     }
   }
   have_pose_ = true;
-  R_H_W_prev_ = R_H_W;
-  p_W_body_prev_ = p_W_body;
-  R_H_W_ = R_H_W;
-  p_W_body_ = p_W_body;
+  R_H_O_prev_ = R_H_O;
+  p_O_B_prev_ = p_O_B;
+  R_H_O_ = R_H_O;
+  p_O_B_ = p_O_B;
 
   out.updated = true;
   if (depth_m.empty() || depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
@@ -177,15 +177,14 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   std::fill_n(frame_free_m_.begin(), n, 0.0f);
   std::fill_n(frame_valid_.begin(), n, 0);
   std::fill_n(frame_total_.begin(), n, 0);
-  const Eigen::Vector3d o_H = R_horizontal_body * p_QC_;  // camera centre from the body, in H
+  const Eigen::Vector3d o_H = R_H_B * p_B_C_m_;  // camera centre from the body, in H
   const double band = config_.vertical_band_m;
   const double max_range = config_.max_range_m;
   const int stride = config_.pixel_stride;
   for (int v = stride / 2; v < depth_m.rows; v += stride) {
     const auto* row = depth_m.ptr<float>(v);
-    const double y_n = (v - camera_.cy) / camera_.fy;
     for (int u = stride / 2; u < depth_m.cols; u += stride) {
-      const Eigen::Vector3d ray_H = R_HC * Eigen::Vector3d((u - camera_.cx) / camera_.fx, y_n, 1.0);
+      const Eigen::Vector3d ray_H = R_HC * camera_.ray(u, v);
       const float z = row[u];
       const bool valid = std::isfinite(z) && z >= config_.min_range_m && z > 0.0f;
       if (!valid) {
@@ -242,11 +241,11 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   return out;
 }
 
-void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m,
+void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_O_m,
                                             std::int64_t t_seen_ns) {
-  if (!config_.enabled || !have_pose_ || pose_chain_broken_ || !p_world_m.allFinite()) return;
+  if (!config_.enabled || !have_pose_ || pose_chain_broken_ || !p_O_m.allFinite()) return;
   if (t_seen_ns < t_pose_since_ns_) return;
-  const Eigen::Vector3d p_H = R_H_W_ * (p_world_m.cast<double>() - p_W_body_);
+  const Eigen::Vector3d p_H = R_H_O_ * (p_O_m.cast<double>() - p_O_B_);
   if (std::abs(p_H.z()) > config_.vertical_band_m) return;
   const double r_m = p_H.head<2>().norm();
   if (r_m > config_.max_range_m || r_m < 1e-6) return;
@@ -254,22 +253,22 @@ void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_world_m,
   memory_m_[b] = std::min(memory_m_[b], static_cast<float>(r_m));
 }
 
-LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps,
-                                       const Eigen::Vector3d& v_est_horizontal_mps) const {
+LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_H_mps,
+                                       const std::optional<Eigen::Vector3d>& v_est_H_mps) const {
   LimitedCommand out;
-  if (!v_horizontal_mps.allFinite()) {
+  if (!v_H_mps.allFinite()) {
     out.limited = true;
     return out;  // zero
   }
-  out.v_horizontal_mps = v_horizontal_mps;
-  const double speed = v_horizontal_mps.head<2>().norm();
+  out.v_H_mps = v_H_mps;
+  const double speed = v_H_mps.head<2>().norm();
   out.v_max_mps = std::numeric_limits<double>::infinity();
   if (!config_.enabled || speed < 1e-9) return out;
-  const double heading = std::atan2(v_horizontal_mps.y(), v_horizontal_mps.x()) + yaw_rad_;
+  const double heading = std::atan2(v_H_mps.y(), v_H_mps.x()) + yaw_rad_;
   const double window = config_.no_data_half_angle_deg * M_PI / 180.0 + 0.5 * bin_width_rad_;
   double v_max = out.v_max_mps;
   bool unseen = false;
-  const bool have_v_est = v_est_horizontal_mps.head<2>().allFinite();
+  const bool have_v_est = v_est_H_mps.has_value() && v_est_H_mps->head<2>().allFinite();
   for (int b = 0; b < config_.bins; ++b) {
     const double theta = wrap_pi((b + 0.5) * bin_width_rad_ - heading);
     bool obstacle = false;
@@ -281,8 +280,7 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps,
       if (have_v_est) {
         // The vehicle's own speed towards this bin flies the reaction distance.
         const double a = (b + 0.5) * bin_width_rad_ - yaw_rad_;  // the bin's azimuth in H
-        v_bin = max_speed_mps(d, v_est_horizontal_mps.x() * std::cos(a) +
-                                     v_est_horizontal_mps.y() * std::sin(a));
+        v_bin = max_speed_mps(d, v_est_H_mps->x() * std::cos(a) + v_est_H_mps->y() * std::sin(a));
       }
       v_max = std::min(v_max, v_bin / c);
       continue;
@@ -299,8 +297,8 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_horizontal_mps,
   out.v_max_mps = v_max;
   if (speed > v_max) {
     const double scale = v_max / speed;
-    out.v_horizontal_mps.x() *= scale;
-    out.v_horizontal_mps.y() *= scale;
+    out.v_H_mps.x() *= scale;
+    out.v_H_mps.y() *= scale;
     out.limited = true;
     out.unseen = unseen && v_max <= config_.creep_speed_mps;
   }

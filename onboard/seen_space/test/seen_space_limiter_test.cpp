@@ -82,40 +82,40 @@ TEST_F(SeenSpaceTest, WallAheadLimitsForwardToTheBrakingSpeedAndUnseenBackToCree
   const LimitedCommand forward = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.3));
   EXPECT_TRUE(forward.limited);
   EXPECT_FALSE(forward.unseen);
-  EXPECT_NEAR(forward.v_horizontal_mps.x(), limiter_.max_speed_mps(2.0), 0.05);
-  EXPECT_LT(forward.v_horizontal_mps.x(), 1.8);  // below the 2 m/s asked
-  EXPECT_DOUBLE_EQ(forward.v_horizontal_mps.z(), 0.3) << "vertical passes";
+  EXPECT_NEAR(forward.v_H_mps.x(), limiter_.max_speed_mps(2.0), 0.05);
+  EXPECT_LT(forward.v_H_mps.x(), 1.8);  // below the 2 m/s asked
+  EXPECT_DOUBLE_EQ(forward.v_H_mps.z(), 0.3) << "vertical passes";
 
   const LimitedCommand slow = limiter_.limit(Eigen::Vector3d(0.3, 0.0, 0.0));
   EXPECT_FALSE(slow.limited);
-  EXPECT_DOUBLE_EQ(slow.v_horizontal_mps.x(), 0.3);
+  EXPECT_DOUBLE_EQ(slow.v_H_mps.x(), 0.3);
 
   const LimitedCommand back = limiter_.limit(Eigen::Vector3d(-1.0, 0.0, 0.0));
   EXPECT_TRUE(back.limited);
   EXPECT_TRUE(back.unseen);
-  EXPECT_DOUBLE_EQ(back.v_horizontal_mps.head<2>().norm(), config_.creep_speed_mps);
+  EXPECT_DOUBLE_EQ(back.v_H_mps.head<2>().norm(), config_.creep_speed_mps);
 
   // 45 deg off the camera axis, outside its +-29 deg: unseen.
   const LimitedCommand diagonal = limiter_.limit(Eigen::Vector3d(0.7, 0.7, 0.0));
   EXPECT_TRUE(diagonal.unseen);
-  EXPECT_LT(diagonal.v_horizontal_mps.head<2>().norm(), 1e-9);
+  EXPECT_LT(diagonal.v_H_mps.head<2>().norm(), 1e-9);
 }
 
 TEST_F(SeenSpaceTest, AVehicleFasterThanItsCommandGetsALowerCommand) {
   const Eigen::Isometry3d T = camera_pose(0.0);
   limiter_.update(0, wall(2.0), &T, level_);
-  const double plain = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0)).v_horizontal_mps.x();
+  const double plain = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0)).v_H_mps.x();
   const double slow = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(0.2, 0.0, 0.0))
-                          .v_horizontal_mps.x();
+                          .v_H_mps.x();
   const double fast = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(1.8, 0.0, 0.0))
-                          .v_horizontal_mps.x();
+                          .v_H_mps.x();
   EXPECT_GT(slow, fast);
   EXPECT_NEAR(fast, std::sqrt(2.0 * config_.brake_accel_mps2 *
                               (2.0 - kRadius - config_.margin_m - 1.8 * config_.reaction_s)),
               0.05);
   // Moving away from the wall: no reaction distance towards it.
   const double away = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(-0.5, 0.0, 0.0))
-                          .v_horizontal_mps.x();
+                          .v_H_mps.x();
   EXPECT_GT(away, plain);
 }
 
@@ -126,7 +126,7 @@ TEST_F(SeenSpaceTest, CreepSpeedIsConfigurable) {
   const Eigen::Isometry3d T = camera_pose(0.0);
   limiter.update(0, wall(2.0), &T, level_);
   const LimitedCommand back = limiter.limit(Eigen::Vector3d(-1.0, 0.0, 0.0));
-  EXPECT_NEAR(back.v_horizontal_mps.x(), -0.15, 1e-9);
+  EXPECT_NEAR(back.v_H_mps.x(), -0.15, 1e-9);
 }
 
 TEST_F(SeenSpaceTest, ADirectionCoveredOnlyByMemoryUsesTheMemory) {
@@ -144,8 +144,8 @@ TEST_F(SeenSpaceTest, ADirectionCoveredOnlyByMemoryUsesTheMemory) {
   const LimitedCommand back = limiter_.limit(Eigen::Vector3d(-2.0, 0.0, 0.0));
   EXPECT_TRUE(back.limited);
   EXPECT_FALSE(back.unseen);
-  EXPECT_NEAR(-back.v_horizontal_mps.x(), limiter_.max_speed_mps(1.5), 0.05);
-  EXPECT_GT(-back.v_horizontal_mps.x(), 0.3);
+  EXPECT_NEAR(-back.v_H_mps.x(), limiter_.max_speed_mps(1.5), 0.05);
+  EXPECT_GT(-back.v_H_mps.x(), 0.3);
   // The memory is per frame: the next update without it is unseen behind again.
   limiter_.update(kSecond / 30, wall(3.0), &T, level_);
   EXPECT_TRUE(limiter_.limit(Eigen::Vector3d(-2.0, 0.0, 0.0)).unseen);
@@ -161,7 +161,7 @@ TEST_F(SeenSpaceTest, SeenSpaceAgesBackToNoData) {
                   level_);
   const LimitedCommand aged = limiter_.limit(Eigen::Vector3d(1.0, 0.0, 0.0));
   EXPECT_TRUE(aged.unseen);
-  EXPECT_EQ(aged.v_horizontal_mps.x(), 0.0);
+  EXPECT_EQ(aged.v_H_mps.x(), 0.0);
 }
 
 TEST_F(SeenSpaceTest, NanDepthIsNoData) {
@@ -173,10 +173,10 @@ TEST_F(SeenSpaceTest, NanDepthIsNoData) {
   EXPECT_EQ(u.covered_bins, 0);
   const LimitedCommand forward = limiter_.limit(Eigen::Vector3d(1.0, 0.0, 0.0));
   EXPECT_TRUE(forward.unseen);
-  EXPECT_EQ(forward.v_horizontal_mps.x(), 0.0);
+  EXPECT_EQ(forward.v_H_mps.x(), 0.0);
   // A non-finite command is zero, not NaN.
   const LimitedCommand bad = limiter_.limit(Eigen::Vector3d(std::nan(""), 0.0, 0.0));
-  EXPECT_TRUE(bad.v_horizontal_mps.allFinite());
+  EXPECT_TRUE(bad.v_H_mps.allFinite());
 }
 
 TEST_F(SeenSpaceTest, FloorBelowTheBandIsFreeSpaceNotAWall) {
@@ -208,7 +208,7 @@ TEST_F(SeenSpaceTest, YawTurnsTheBinsWithTheWorld) {
   EXPECT_NEAR(limiter_.yaw_rad(), M_PI / 2, 1e-9);
   const LimitedCommand left = limiter_.limit(Eigen::Vector3d(0.0, -2.0, 0.0));
   EXPECT_FALSE(left.unseen);
-  EXPECT_NEAR(-left.v_horizontal_mps.y(), limiter_.max_speed_mps(2.0), 0.05);
+  EXPECT_NEAR(-left.v_H_mps.y(), limiter_.max_speed_mps(2.0), 0.05);
   EXPECT_TRUE(limiter_.limit(Eigen::Vector3d(1.0, 0.0, 0.0)).unseen) << "ahead is unseen now";
 }
 
@@ -250,7 +250,7 @@ TEST_F(SeenSpaceTest, UpdateAndLimitAllocateNothing) {
     limiter_.update(i * kSecond / 30, depth, &Ti, level_);
     limiter_.add_remembered_point(Eigen::Vector3f(-1.0f, 0.0f, 0.0f), i * kSecond / 30);
     const LimitedCommand c = limiter_.limit(Eigen::Vector3d(1.0, 0.5, 0.0));
-    EXPECT_TRUE(c.v_horizontal_mps.allFinite());
+    EXPECT_TRUE(c.v_H_mps.allFinite());
     limiter_.heading_limits(limits);
   }
   EXPECT_EQ(testing::allocation_count() - before, 0);

@@ -305,7 +305,7 @@ void Simulator::update_truth() {
   // H: NED, yaw only (core paper §3), so R_world_H = Rx(pi) Rz(psi).
   const Eigen::Matrix3d R_world_horizontal =
       R_world_body_from_euler(0.0, 0.0, truth_.euler_rad.z());
-  truth_.v_horizontal_mps = R_world_horizontal.transpose() * s.v_world_mps;
+  truth_.v_H_mps = R_world_horizontal.transpose() * s.v_world_mps;
   truth_.clearance_m = distance_to_obstacles(world_, s.p_world_m) - config_.vehicle_radius_m;
   truth_.collision = truth_.clearance_m < 0.0;
   truth_.on_ground = s.on_ground;

@@ -253,7 +253,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
       // Stamped with the host clock of its exposure: wall origin + simulated time.
       const TruthState& now_truth = sim.truth();
       frame_channel::SitlTruth frame_truth;
-      const Eigen::Vector3d& v_H = now_truth.v_horizontal_mps;
+      const Eigen::Vector3d& v_H = now_truth.v_H_mps;
       const Eigen::Vector3d& p_W = now_truth.T_world_body.translation();
       frame_truth.v_H_mps = {v_H.x(), v_H.y(), v_H.z()};
       frame_truth.p_W_m = {p_W.x(), p_W.y(), p_W.z()};

@@ -68,7 +68,7 @@ TEST(SimulatorTest, CollisionFlagWhenFlownIntoAWall) {
   EXPECT_GE(previous_clearance, 0.0);
   EXPECT_NEAR(x_at_collision, 3.0 - config.vehicle_radius_m, 0.02);
   // Truth in H: flying north with yaw 0 is +x in H (NED).
-  EXPECT_GT(sim.truth().v_horizontal_mps.x(), 0.5);
+  EXPECT_GT(sim.truth().v_H_mps.x(), 0.5);
 }
 
 TEST(SimulatorTest, ProducesImuAtItsRateAndFramesAtThirtyHertz) {

@@ -62,7 +62,7 @@ class OperatorPlayer {
  private:
   OperatorScript script_;
   double alpha_rad_;
-  std::vector<Eigen::Vector3d> v_horizontal_mps_;  ///< Per step, held values resolved in H.
+  std::vector<Eigen::Vector3d> v_H_mps_;  ///< Per step, held values resolved in H.
   std::vector<double> yaw_rate_radps_;
   std::size_t next_mode_step_ = 0;
 };

@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <optional>
 
 namespace hq::control {
 
@@ -54,9 +55,11 @@ class VelocityController {
  public:
   VelocityController(const VelocityControllerConfig& config, const VehicleConfig& vehicle);
 
-  /// One control step. All vectors in H (NED). Non-finite input gives the safe hover setpoint.
+  /// One control step. All vectors in H (z down). No estimate (nullopt) or non-finite input
+  /// gives the safe hover setpoint, with the reason.
   ControlOutput update(std::int64_t t_ns, const Eigen::Vector3d& v_des_horizontal_mps,
-                       double yaw_rate_des_radps, const Eigen::Vector3d& v_est_horizontal_mps);
+                       double yaw_rate_des_radps,
+                       const std::optional<Eigen::Vector3d>& v_est_H_mps);
 
   /// Thrust m g, level, no yaw rate.
   [[nodiscard]] AttitudeSetpoint hover_setpoint() const;

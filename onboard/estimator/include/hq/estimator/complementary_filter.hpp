@@ -3,10 +3,12 @@
 /// (Mahony, Hamel, Pflimlin, IEEE TAC 2008), and a first-order low-pass for gyro rates. Both give
 /// the roll/pitch and omega estimates of the core paper, §3.2 and Fig. 4.
 ///
-/// Conventions: N is the gravity-aligned NED frame with the filter's (unobservable, drifting)
-/// yaw; Q (= B) the NED body frame. R_ned_body = Rz(psi) Ry(theta) Rx(phi) (ZYX, aerospace),
-/// so roll phi and pitch theta are the core paper's. The core paper's world W is NWU:
-/// R_world_body = Rx(pi) R_ned_body, as its R_WQ = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
+/// Frames (hq/geometry/frames.hpp): B the body, FRD (the core paper's Q); N the level NWU world
+/// (the core paper's W) with the filter's (unobservable, drifting) yaw. The filter integrates
+/// in the gravity-aligned NED frame that shares N's yaw (N turned by Rx(pi), no letter of its
+/// own): R_ned_body = Rz(psi) Ry(theta) Rx(phi) (ZYX, aerospace), so roll phi and pitch theta
+/// are the core paper's, and R_N_B = Rx(pi) R_ned_body, as its R_WQ = Rx(pi) Rz(psi) Ry(theta)
+/// Rx(phi).
 
 #include "hq/estimator/one_euro_filter.hpp"
 
@@ -19,9 +21,10 @@ namespace hq::estimator {
 /// Standard gravity (m/s^2).
 inline constexpr double kGravityMps2 = 9.80665;
 
-/// R_HQ: body Q into the horizontal frame H (Q with roll and pitch removed, yaw kept, origin at
-/// Q, Z_H along gravity), R_HQ = Ry(pitch) Rx(roll), so v_H = R_HQ v_Q (eq. 5 of the core paper;
-/// the paper prints R_QH = Rz(theta) Rx(phi), which we read as this rotation's transpose).
+/// R_H_B (the core paper's R_HQ): body B into the horizontal frame H (B with roll and pitch
+/// removed, yaw kept, origin at B, z_H along gravity), R_H_B = Ry(pitch) Rx(roll), so
+/// v_H = R_H_B v_B (eq. 5 of the core paper; the paper prints R_QH = Rz(theta) Rx(phi), which
+/// we read as this rotation's transpose).
 Eigen::Matrix3d R_horizontal_body(double roll_rad, double pitch_rad);
 
 struct ComplementaryConfig {
@@ -41,15 +44,15 @@ class ComplementaryFilter {
  public:
   explicit ComplementaryFilter(const ComplementaryConfig& config = {});
 
-  /// One IMU sample in the body frame Q (NED). accel is the specific force (at rest it points
+  /// One IMU sample in the body frame B (FRD). accel is the specific force (at rest it points
   /// up, i.e. -z for a level vehicle). Non-finite input is rejected and reported.
   FilterStatus update(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                       const Eigen::Vector3d& accel_mps2);
 
-  /// Body Q in the gravity-aligned NED frame N.
+  /// Body B in the gravity-aligned NED frame with N's yaw.
   [[nodiscard]] const Eigen::Matrix3d& R_ned_body() const { return R_ned_body_; }
-  /// Body Q in the core paper's world W (NWU), yaw as integrated by the filter.
-  [[nodiscard]] Eigen::Matrix3d R_world_body() const;
+  /// Body B in N (NWU, the core paper's W), yaw as integrated by the filter.
+  [[nodiscard]] Eigen::Matrix3d R_N_B() const;
   [[nodiscard]] double roll_rad() const;
   [[nodiscard]] double pitch_rad() const;
   [[nodiscard]] const Eigen::Vector3d& gyro_bias_radps() const { return bias_radps_; }

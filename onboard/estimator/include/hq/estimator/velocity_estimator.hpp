@@ -3,8 +3,10 @@
 /// of the core paper: 1€-filtered camera poses (eq. 2), lever-arm compensation with the
 /// low-passed gyro (eq. 4), rotation into H with complementary-filter roll/pitch (eq. 5).
 ///
-/// Legend: W world, Q (= B) body NED, H horizontal NED (yaw kept), C camera (optical: z forward,
-/// x right, y down). Pure: stamps and data in, estimate out; nothing allocated per update.
+/// Frames (hq/geometry/frames.hpp): B body FRD (the core paper's Q), H horizontal (yaw kept),
+/// C camera (optical: z forward, x right, y down), Ck the camera at frame k, O the odometry
+/// origin (= C0). Comments citing an equation keep the paper's letters (Q_v_Q is v_B).
+/// Pure: stamps and data in, estimate out; nothing allocated per update.
 
 #include "hq/estimator/complementary_filter.hpp"
 #include "hq/estimator/one_euro_filter.hpp"
@@ -17,10 +19,10 @@
 namespace hq::estimator {
 
 struct VelocityEstimatorConfig {
-  OneEuroConfig one_euro_position{1.0, 2.0, 1.0};  ///< On C0_p_Ck (m): beta in Hz per m/s.
-  OneEuroConfig one_euro_rotation{1.0, 1.0, 1.0};  ///< On R_C0_Ck: beta in Hz per rad/s.
+  OneEuroConfig one_euro_position{1.0, 2.0, 1.0};  ///< On p_O_Ck (m): beta in Hz per m/s.
+  OneEuroConfig one_euro_rotation{1.0, 1.0, 1.0};  ///< On R_O_Ck: beta in Hz per rad/s.
   ComplementaryConfig complementary;
-  double gyro_cutoff_hz = 15.0;    ///< Low-pass on omega_Q before eq. 4.
+  double gyro_cutoff_hz = 15.0;    ///< Low-pass on omega_B before eq. 4.
   double min_valid_ratio = 0.05;   ///< Odometry with fewer usable pixels is rejected.
   double max_mean_error = 2500.0;  ///< Odometry mean weighted error (intensity^2) bound.
   double max_frame_gap_s = 0.5;    ///< Longer gaps re-seed the pose filter (no eq. 2 over it).
@@ -28,7 +30,7 @@ struct VelocityEstimatorConfig {
   double warmup_s = 0.2;           ///< After a (re)seed the 1€ speed starts at 0 and eq. 2
                                    ///< reads low (0.05 of 0.3 m/s on the first frame); no
                                    ///< estimate until the filter has run this long.
-  /// Without usable odometry, H_v_Q is propagated from the last good value (or from rest on the
+  /// Without usable odometry, v_H is propagated from the last good value (or from rest on the
   /// ground) with the accelerometer for at most this long; an MPU-class bias of 0.05 m/s^2
   /// grows to 0.1 m/s in 2 s. 0 disables the coast.
   double inertial_coast_s = 2.0;
@@ -43,7 +45,7 @@ struct VelocityEstimatorConfig {
 /// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
-/// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, H_v_Q propagated on the IMU from
+/// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from
 /// the last good value for at most inertial_coast_s (degraded but flyable). kUnavailable:
 /// neither; the velocities are zero and not to be used.
 enum class EstimateStatus { kOk, kInertial, kUnavailable };
@@ -54,10 +56,10 @@ struct VelocityEstimate {
   std::int64_t t_ns = 0;
   EstimateStatus status = EstimateStatus::kUnavailable;
   const char* reason = "";                                     ///< Static text.
-  Eigen::Vector3d v_camera_mps = Eigen::Vector3d::Zero();      ///< eq. 2: Ck_v_Ck, filtered.
-  Eigen::Vector3d v_camera_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1: raw poses.
-  Eigen::Vector3d v_body_mps = Eigen::Vector3d::Zero();        ///< eq. 4: Q_v_Q.
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();  ///< eq. 5: H_v_Q.
+  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();      ///< eq. 2: v_Ck in Ck, filtered.
+  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1: raw poses.
+  Eigen::Vector3d v_B_mps = Eigen::Vector3d::Zero();        ///< eq. 4 (the paper's Q_v_Q).
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();  ///< eq. 5 (the paper's H_v_Q).
   Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();  ///< low-passed, bias removed.
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
@@ -70,16 +72,16 @@ struct VelocityEstimate {
 
 class VelocityEstimator {
  public:
-  /// @param R_body_camera, p_body_camera_m  extrinsics R_QC and Q_p_C (constant).
-  VelocityEstimator(const VelocityEstimatorConfig& config, const Eigen::Matrix3d& R_body_camera,
-                    const Eigen::Vector3d& p_body_camera_m);
+  /// @param R_B_C, p_B_C_m  the camera's extrinsics (the paper's R_QC and Q_p_C), constant.
+  VelocityEstimator(const VelocityEstimatorConfig& config, const Eigen::Matrix3d& R_B_C,
+                    const Eigen::Vector3d& p_B_C_m);
 
-  /// IMU sample at IMU rate, body frame Q (NED); accel is specific force. Rejected samples
+  /// IMU sample at IMU rate, body frame B (FRD); accel is specific force. Rejected samples
   /// (NaN, non-increasing stamp) are reported and ignored.
   FilterStatus update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2);
 
-  /// One odometry frame (its T_world_cur is the camera pose C0_T_Ck). Rejected or first frames
+  /// One odometry frame (its T_O_C is the pose of Ck in O). Rejected or first frames
   /// give kUnavailable with a reason; never a made-up number.
   VelocityEstimate update(std::int64_t t_ns, const odometry::OdometryResult& odometry);
 
@@ -98,18 +100,18 @@ class VelocityEstimator {
   /// No odometry velocity this frame: the inertial coast if it is still within its horizon,
   /// else kUnavailable; `reason` says why odometry was not used.
   VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
-  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_horizontal_mps);
+  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps);
   /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
-  void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_C0_Ck);
+  void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_Ck);
 
   VelocityEstimatorConfig config_;
-  Eigen::Matrix3d R_QC_;
-  Eigen::Vector3d p_QC_;
+  Eigen::Matrix3d R_B_C_;
+  Eigen::Vector3d p_B_C_m_;
   ComplementaryFilter attitude_;
   LowPassFilter<3> gyro_low_pass_;
   PoseOneEuroFilter pose_filter_;
-  Eigen::Isometry3d T_C0_Ck_prev_filtered_ = Eigen::Isometry3d::Identity();
-  Eigen::Isometry3d T_C0_Ck_prev_raw_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_Ck_prev_filtered_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_Ck_prev_raw_ = Eigen::Isometry3d::Identity();
   bool have_previous_ = false;
   std::int64_t t_prev_frame_ns_ = 0;
   std::int64_t t_seed_ns_ = 0;
@@ -120,7 +122,7 @@ class VelocityEstimator {
   bool coast_anchored_ = false;
   std::int64_t t_coast_anchor_ns_ = 0;
   std::int64_t t_coast_ns_ = 0;  ///< Stamp of the last IMU sample integrated.
-  Eigen::Vector3d coast_v_horizontal_mps_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d coast_v_H_mps_ = Eigen::Vector3d::Zero();
 };
 
 const char* to_string(EstimateStatus status);

@@ -69,12 +69,12 @@ struct BridgeOptions {
   int max_obstacle_points = static_cast<int>(hq_msgs_kMaxObstaclePoints);
 };
 
-/// What the bridge needs to send the memory's cloud: the map (points in the world W of the
-/// estimate) and where the body is in W, to express the cloud in the body frame Q as the IDL
-/// field obstacle_points_body_m says.
+/// What the bridge needs to send the memory's cloud: the map (points in the odometry origin O,
+/// hq/geometry/frames.hpp) and where the body is in O, to express the cloud in the body frame B
+/// as the IDL field obstacle_points_body_m says.
 struct ObstacleCloudSource {
   const obstacle_memory::ObstacleMemory* memory = nullptr;  ///< Not owned; null = no cloud.
-  Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_O_B = Eigen::Isometry3d::Identity();
 };
 
 /// What the vehicle state carries beyond the chain's output, each flagged absent unless given.
@@ -82,13 +82,13 @@ struct StateExtras {
   ObstacleCloudSource cloud;
   /// The marker filter's pose while it is anchored (marker modes), in the map frame W.
   bool position_valid = false;
-  Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();
   double yaw_rad = 0.0;
   /// Markers detected in the latest frame (at most kMaxMarkersInState are sent).
   std::span<const markers::MarkerDetection> markers;
   /// Simulator truth of the velocity in H: only ever set when the vehicle is the simulator.
   bool truth_valid = false;
-  Eigen::Vector3d v_truth_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_truth_H_mps = Eigen::Vector3d::Zero();
   /// The vehicle cannot fly as commanded (its flight controller lost or not in offboard): the
   /// state says degraded whatever the estimate.
   bool vehicle_degraded = false;
@@ -176,7 +176,7 @@ class LinkBridge {
   link::Sample<link::VehicleState> state_;
   link::Sample<link::CameraFrame> camera_;
   link::Sample<link::Event> event_;
-  std::vector<Eigen::Vector3f> cloud_world_m_;  // telemetry_cloud() output, sized once
+  std::vector<Eigen::Vector3f> cloud_O_m_;  // telemetry_cloud() output, sized once
   std::vector<unsigned char> jpeg_;
   std::vector<int> jpeg_params_;
 

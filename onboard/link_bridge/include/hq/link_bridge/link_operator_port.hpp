@@ -23,10 +23,10 @@ class LinkOperatorPort : public vehicle::OperatorPort {
   static constexpr double kPositionMaxAgeS = 5.0;
 
   /// @param chain  the chain whose obstacle memory and marker stage go out with the state;
-  ///               T_body_camera its extrinsics (the vehicle's own, not a simulator's truth).
+  ///               T_B_C its camera's extrinsics (the vehicle's own, not a simulator's truth).
   /// @param log    optional: fail-safe transitions are printed here (e.g. stdout).
   LinkOperatorPort(LinkBridge& bridge, const pipeline::OnboardChain& chain,
-                   const Eigen::Isometry3d& T_body_camera, std::FILE* log = nullptr);
+                   const Eigen::Isometry3d& T_B_C, std::FILE* log = nullptr);
 
   modes::OperatorCommand poll(std::int64_t t_ns,
                               std::vector<pipeline::ModeRequest>& requests) override;
@@ -41,7 +41,7 @@ class LinkOperatorPort : public vehicle::OperatorPort {
  private:
   LinkBridge& bridge_;
   const pipeline::OnboardChain& chain_;
-  Eigen::Isometry3d T_camera_body_;
+  Eigen::Isometry3d T_C_B_;
   std::FILE* log_;
 };
 

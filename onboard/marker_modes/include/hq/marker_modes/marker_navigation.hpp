@@ -98,25 +98,25 @@ class MarkerNavigation {
               const Eigen::Vector3d& accel_mps2);
 
   /// One frame: detection (unless hidden), the map, the velocity update from the chain's
-  /// estimate, and a marker update per mapped detection. T_odom_camera: the odometry pose
+  /// estimate, and a marker update per mapped detection. T_O_C: the odometry pose
   /// (valid only when odometry_ok).
   void on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                 const estimator::VelocityEstimate& estimate, bool odometry_ok,
-                const Eigen::Isometry3d& T_odom_camera);
+                const Eigen::Isometry3d& T_O_C);
 
   /// Markers ignored (a camera fault on the detector, or a test hiding them).
   void set_markers_hidden(bool hidden) { hidden_ = hidden; }
 
   /// The filter is anchored on a marker and has seen one within max_age_s.
   [[nodiscard]] bool pose_usable(double max_age_s) const;
-  [[nodiscard]] Eigen::Vector3d p_world_m() const { return filter_.state().p_world_m; }
+  [[nodiscard]] Eigen::Vector3d p_W_m() const { return filter_.state().p_W_m; }
   [[nodiscard]] double yaw_rad() const;
   /// Marker centre in W, if mapped.
-  [[nodiscard]] std::optional<Eigen::Vector3d> p_world_marker_m(int id) const;
+  [[nodiscard]] std::optional<Eigen::Vector3d> p_W_M_m(int id) const;
   /// Seconds since a frame last had a detection (large before the first).
   [[nodiscard]] double time_since_detection_s(std::int64_t t_ns) const;
   /// Is p_W (a point in W) in the camera's view within range_m, at the filter's pose?
-  [[nodiscard]] bool in_view(const Eigen::Vector3d& p_world_m, double range_m) const;
+  [[nodiscard]] bool in_view(const Eigen::Vector3d& p_W_m, double range_m) const;
   /// The camera heading alpha (eq. 9): the yaw of the optical axis in the body frame.
   [[nodiscard]] double camera_heading_rad() const { return camera_heading_rad_; }
 

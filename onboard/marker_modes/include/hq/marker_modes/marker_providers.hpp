@@ -115,8 +115,8 @@ class MarkerStage {
   }
   void on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                 const estimator::VelocityEstimate& estimate, bool odometry_ok,
-                const Eigen::Isometry3d& T_odom_camera) {
-    navigation_.on_frame(t_ns, gray, depth_m, estimate, odometry_ok, T_odom_camera);
+                const Eigen::Isometry3d& T_O_C) {
+    navigation_.on_frame(t_ns, gray, depth_m, estimate, odometry_ok, T_O_C);
   }
   /// In `mode`, the active provider wants the touchdown (Mode::kLand) now.
   [[nodiscard]] bool wants_land(modes::Mode mode) const;

@@ -56,14 +56,14 @@ class MarkerMap {
   MarkerMap(const MarkerMap&) = delete;
   MarkerMap& operator=(const MarkerMap&) = delete;
 
-  /// One camera frame: its detections and the odometry pose of the camera T_odom_camera with
+  /// One camera frame: its detections and the odometry pose of the camera T_O_C with
   /// the covariance of the motion since the previous frame (right perturbation, (v, omega)).
   /// The first marker ever seen defines the map frame. New markers are placed by chaining
   /// (through a known marker of the same frame, else through odometry); every
   /// optimise_every_keyframes keyframes a bounded optimisation runs. Throws hq::InputError on a
   /// non-finite pose or covariance.
   void add_frame(std::int64_t t_ns, const std::vector<MarkerDetection>& detections,
-                 const Eigen::Isometry3d& T_odom_camera, const geometry::Matrix6d& motion_covariance);
+                 const Eigen::Isometry3d& T_O_C, const geometry::Matrix6d& motion_covariance);
 
   /// Full optimisation (up to `max_iterations`, config.full_iterations if <= 0).
   MapOptimisation optimise(int max_iterations = 0);

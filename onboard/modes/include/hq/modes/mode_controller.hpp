@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <optional>
 
 namespace hq::config {
 class StrictMap;
@@ -58,7 +59,7 @@ void read_config(config::StrictMap& section, ModesConfig& out);
 /// The operator's latest command (from the haptic mapping, eqs. 6-10), in H.
 struct OperatorCommand {
   std::int64_t t_ns = 0;
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   double yaw_rate_radps = 0.0;
 };
 
@@ -66,7 +67,7 @@ struct OperatorCommand {
 struct ModeCommand {
   bool valid = false;
   const char* reason = "";
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   double yaw_rate_radps = 0.0;
 };
 
@@ -123,8 +124,9 @@ class ModeController {
   /// which case a take-off climbs on until a height is known again.
   void set_height_m(double height_m) { height_m_ = height_m; }
 
-  /// One control step. v_est and v_obs in H. Allocates nothing.
-  ModeOutput step(std::int64_t t_ns, const Eigen::Vector3d& v_est_horizontal_mps,
+  /// One control step. v_est and v_obs in H; no v_est (nullopt: no usable estimate) gives the
+  /// velocity controller's safe hover, and in land the blind descent. Allocates nothing.
+  ModeOutput step(std::int64_t t_ns, const std::optional<Eigen::Vector3d>& v_est_H_mps,
                   const Eigen::Vector3d& v_obs_horizontal_mps);
 
   [[nodiscard]] Mode mode() const { return mode_; }
@@ -136,7 +138,8 @@ class ModeController {
  private:
   enum class Source { kOperator, kHover, kLand, kProvider, kTakeoff };
   /// Touchdown detection and the blind descent of Mode::kLand.
-  void land_step(double dt_s, const Eigen::Vector3d& v_est_horizontal_mps, ModeOutput& out);
+  void land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps,
+                 ModeOutput& out);
 
   ModesConfig config_;
   control::VelocityController controller_;

@@ -67,9 +67,9 @@ NavigationConfig load_navigation_config(const std::string& path);
 
 /// Nominal (whole) state.
 struct NominalState {
-  Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
-  Eigen::Vector3d v_world_mps = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond q_world_body = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_W_mps = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_W_B = Eigen::Quaterniond::Identity();
   Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();
   Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();
 };
@@ -104,8 +104,8 @@ struct NavigationHealth {
 
 class NavigationFilter {
  public:
-  /// @param T_body_camera  camera extrinsics (B <- C).
-  NavigationFilter(const NavigationConfig& config, const Eigen::Isometry3d& T_body_camera);
+  /// @param T_B_C  camera extrinsics (B <- C).
+  NavigationFilter(const NavigationConfig& config, const Eigen::Isometry3d& T_B_C);
 
   /// Starts from a nominal state (e.g. level attitude from the accelerometer, zero velocity)
   /// with the configured initial covariance; position and yaw stay unanchored until a marker.
@@ -114,7 +114,7 @@ class NavigationFilter {
   /// Sets position and full attitude from a camera pose in the map with its covariance
   /// (see update_marker) while keeping the velocity in H, so the velocity output does not jump
   /// (bumpless switch from velocity-only to marker-referenced flight). Initialises if needed.
-  UpdateResult anchor_to_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_world_camera,
+  UpdateResult anchor_to_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_W_C,
                                 const Matrix6d& covariance);
 
   /// Mechanisation over (t_prev, t_ns] with the mean of the previous and this sample: gyro in
@@ -123,14 +123,14 @@ class NavigationFilter {
   UpdateResult predict(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                        const Eigen::Vector3d& accel_mps2);
 
-  /// Marker pose T_world_camera (from a detection through the marker map). Covariance order
+  /// Marker pose T_W_C (from a detection through the marker map). Covariance order
   /// (p, theta): p_world_camera error in W (m), then rotation error local to C (rad) with
   /// R_meas = R_true Exp(theta). Anchors instead if the filter is not yet anchored.
-  UpdateResult update_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_world_camera,
+  UpdateResult update_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_W_C,
                              const Matrix6d& covariance);
 
   /// Vehicle velocity in H (core paper eq. 5) with its 3x3 covariance.
-  UpdateResult update_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_horizontal_mps,
+  UpdateResult update_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
                                const Eigen::Matrix3d& covariance);
   /// The core chain's estimate, with velocity_sigma_mps as its standard deviation.
   UpdateResult update_velocity(const estimator::VelocityEstimate& estimate);
@@ -140,9 +140,9 @@ class NavigationFilter {
   [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
   /// Health at the filter's current time.
   [[nodiscard]] NavigationHealth health() const;
-  [[nodiscard]] Eigen::Isometry3d T_world_body() const;
+  [[nodiscard]] Eigen::Isometry3d T_W_B() const;
   /// Velocity in H, what the velocity tracker consumes.
-  [[nodiscard]] Eigen::Vector3d v_horizontal_mps() const;
+  [[nodiscard]] Eigen::Vector3d v_H_mps() const;
   [[nodiscard]] const NavigationConfig& config() const { return config_; }
 
  private:
@@ -154,8 +154,8 @@ class NavigationFilter {
   UpdateResult reject(const char* reason);
 
   NavigationConfig config_;
-  Eigen::Matrix3d R_BC_;
-  Eigen::Vector3d p_BC_;
+  Eigen::Matrix3d R_B_C_;
+  Eigen::Vector3d p_B_C_m_;
   NominalState state_;
   ErrorCovariance P_ = ErrorCovariance::Identity();
   std::int64_t t_ns_ = 0;
@@ -169,8 +169,8 @@ class NavigationFilter {
 };
 
 /// Yaw psi of R_WB (ZYX Euler, core paper §3) and the rotation R_WH = Rz(psi).
-double yaw_rad(const Eigen::Matrix3d& R_world_body);
-Eigen::Matrix3d R_world_horizontal(const Eigen::Matrix3d& R_world_body);
+double yaw_rad(const Eigen::Matrix3d& R_W_B);
+Eigen::Matrix3d R_W_H(const Eigen::Matrix3d& R_W_B);
 
 /// Measurement models with their Jacobians w.r.t. the error state (exposed for tests and for
 /// callers that fuse their own measurements).

@@ -83,7 +83,14 @@ struct RotationPrior {
   Eigen::Matrix3d information = Eigen::Matrix3d::Identity();  ///< rad^-2, symmetric PSD.
 };
 
-/// Reads the `odometry:` section of a YAML config strictly (unknown keys rejected).
+/// Checks every field's range and their relations; throws hq::InputError naming where.key, the
+/// value and the expectation ("onboard.yaml: odometry.finest_level = 5, expected <
+/// pyramid_levels (4)"). read_config and the DenseOdometry constructor both run it, so no value
+/// is clamped silently.
+void validate(const OdometryConfig& config, const std::string& where = "OdometryConfig");
+
+/// Reads the `odometry:` section of a YAML config strictly (unknown keys rejected), then
+/// validate()s it.
 void read_config(config::StrictMap& section, OdometryConfig& out);
 
 /// One frame's outcome. Never contains NaN: on failure the pose is identity and status kLost.
@@ -92,7 +99,8 @@ struct OdometryResult {
   const char* reason = "";          ///< Static text saying why, when status != kOk.
   std::int64_t t_ns = 0;
   Eigen::Isometry3d T_ref_cur = Eigen::Isometry3d::Identity();  ///< current camera in reference.
-  Eigen::Isometry3d T_world_cur = Eigen::Isometry3d::Identity(); ///< accumulated camera pose.
+  /// The camera pose in the odometry origin O (= C0, hq/geometry/frames.hpp), accumulated.
+  Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
   Matrix6d information = Matrix6d::Zero();  ///< (v, omega) order, of T_ref_cur's twist.
   double valid_ratio = 0.0;         ///< usable finest-level pixels / finest-level pixels.
   double mean_weighted_error = 0.0; ///< final mean of w * r^2 (intensity units^2).
@@ -105,6 +113,7 @@ struct OdometryResult {
 class DenseOdometry {
  public:
   /// @param camera  intrinsics of the (undistorted) input images; sizes every buffer.
+  /// @throws hq::InputError if validate(config) does.
   DenseOdometry(const OdometryConfig& config, const geometry::PinholeCamera& camera);
   ~DenseOdometry();
   DenseOdometry(const DenseOdometry&) = delete;

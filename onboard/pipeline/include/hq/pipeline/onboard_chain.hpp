@@ -140,7 +140,7 @@ struct ChainOutput {
   /// feel and see: the command as flown (before the mode ramp and v_obs), whether it was cut,
   /// and whether by a direction with no data (creep speed).
   seen_space::SeenSpaceUpdate seen_space;
-  Eigen::Vector3d v_cmd_flown_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_cmd_flown_H_mps = Eigen::Vector3d::Zero();
   bool command_limited = false;
   bool command_unseen = false;
   /// Allowed speed per direction in H, bin 0 along the heading then clockwise, for
@@ -167,13 +167,13 @@ struct ModeRequest {
 class OnboardChain {
  public:
   /// @param camera   intrinsics of the undistorted frames given to on_frame().
-  /// @param vehicle  mass, limits and extrinsics T_body_camera (R_QC, Q_p_C).
+  /// @param vehicle  mass, limits and the camera mount T_B_C (the paper's R_QC, Q_p_C).
   /// @param clock    optional, not owned, must outlive the chain; null disables stage timing.
   /// @throws hq::InputError if the components reject the camera or config.
   OnboardChain(const OnboardConfig& config, const control::VehicleConfig& vehicle,
                const geometry::PinholeCamera& camera, const Clock* clock = nullptr);
 
-  /// One IMU sample in the body frame Q (NED): gyro (rad/s) and specific force (m/s^2).
+  /// One IMU sample in the body frame B (FRD): gyro (rad/s) and specific force (m/s^2).
   /// Non-finite or out-of-order samples are ignored by the estimator.
   void on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
               const Eigen::Vector3d& accel_mps2);
@@ -208,8 +208,25 @@ class OnboardChain {
 
  private:
   [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
-  /// Current R_HQ from the complementary filter (identity before its first sample).
+  /// Current R_H_B from the complementary filter (identity before its first sample).
   [[nodiscard]] Eigen::Matrix3d R_horizontal_body() const;
+  /// on_frame's stages, in order. The odometry with the gyro's rotation since the last frame.
+  odometry::OdometryResult track_odometry(std::int64_t t_ns, const cv::Mat& gray,
+                                          const cv::Mat& depth_m);
+  /// The velocity estimate (eqs. 1-5) and the marker stage into out.estimate.
+  void estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
+                         const odometry::OdometryResult& odometry, ChainOutput& out);
+  /// The obstacle memory (issue 10) into out.memory.
+  void update_memory(std::int64_t t_ns, const cv::Mat& depth_m,
+                     const odometry::OdometryResult& odometry, const Eigen::Matrix3d& R_H_B,
+                     ChainOutput& out);
+  /// Take-off phase, obstacle field (v_obs), height and the seen space (issue 16) with the
+  /// operator's command limited to it.
+  void sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
+                       const odometry::OdometryResult& odometry, const Eigen::Matrix3d& R_H_B,
+                       ChainOutput& out);
+  /// The estimate's v_H when it is usable (odometry or inertial coast), else none.
+  static std::optional<Eigen::Vector3d> usable_v_H_mps(const estimator::VelocityEstimate& estimate);
   /// Updates the height above the floor from the floor in view (NaN: none) or the estimate,
   /// hands it to the mode controller and fills out.height_m/height_source.
   void update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out);
@@ -239,14 +256,14 @@ class OnboardChain {
   std::int64_t t_height_ns_ = 0;
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
-  Eigen::Matrix3d R_body_camera_;  ///< R_QC, to turn the body's rotation into the camera's.
+  Eigen::Matrix3d R_B_C_;  ///< To turn the body's rotation into the camera's.
   Eigen::Matrix3d R_prev_cur_body_ = Eigen::Matrix3d::Identity();  ///< gyro since last frame
   std::int64_t t_last_imu_ns_ = -1;
   bool gyro_since_frame_ = false;
   modes::OperatorCommand operator_command_;  ///< As the operator sent it, before the limit.
   bool have_operator_command_ = false;
-  /// The last usable velocity estimate (NaN when none): the limiter's reaction distance.
-  Eigen::Vector3d v_est_for_limit_mps_ = Eigen::Vector3d::Constant(NAN);
+  /// The last usable velocity estimate (none when unusable): the limiter's reaction distance.
+  std::optional<Eigen::Vector3d> v_est_for_limit_H_mps_;
   bool in_safe_hover_ = false;
   std::int64_t t_safe_hover_start_ns_ = 0;
   bool lost_estimate_landing_ = false;  ///< Landing because the safe hover lasted too long.

@@ -41,7 +41,8 @@
 /// floor and the modes' land handles touchdown (documented in README).
 ///
 /// Pure core: data and time in, limit out; buffers are fixed arrays, nothing allocates.
-/// Legend: W world of the odometry, C camera (optical), Q body NED, H horizontal NED.
+/// Frames (hq/geometry/frames.hpp): O the odometry origin (the obstacle memory's world), C camera
+/// (optical), B body FRD (the core paper's Q), H horizontal (z down).
 
 #include "hq/geometry/pinhole_camera.hpp"
 
@@ -52,6 +53,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 namespace hq::config {
 class StrictMap;
@@ -108,7 +110,7 @@ struct SeenSpaceUpdate {
 
 /// The command after the limit, and why.
 struct LimitedCommand {
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();  ///< As flown (z unchanged).
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();  ///< As flown (z unchanged).
   bool limited = false;        ///< The horizontal speed was reduced.
   bool unseen = false;         ///< ... by a bin with no data (creep).
   double v_max_mps = 0.0;      ///< Allowed horizontal speed in the command's direction.
@@ -116,7 +118,7 @@ struct LimitedCommand {
 
 class SeenSpaceLimiter {
  public:
-  /// @param R_body_camera, p_body_camera_m  extrinsics R_QC, Q_p_C.
+  /// @param R_body_camera, p_body_camera_m  extrinsics R_B_C, p_B_C (the paper's R_QC, Q_p_C).
   /// @param vehicle_radius_m  the obstacle field's bounding sphere (obstacles.vehicle_radius_m).
   /// @throws hq::InputError if config or camera are inconsistent.
   SeenSpaceLimiter(const SeenSpaceConfig& config, const geometry::PinholeCamera& camera,
@@ -126,23 +128,23 @@ class SeenSpaceLimiter {
   /// Ages the bins, turns and shrinks them with the pose change, and writes the bins this
   /// depth frame covers. Without a pose (tracking lost) only ageing happens.
   /// @param depth_m  CV_32FC1 camera-sized, metres; 0 / NaN / out of range = no depth.
-  /// @param T_world_camera  odometry pose; null = not tracking.
-  /// @param R_horizontal_body  R_HQ from the attitude estimate.
+  /// @param T_O_C  the odometry pose of the camera; null = not tracking.
+  /// @param R_H_B  from the attitude estimate (the paper's R_HQ).
   SeenSpaceUpdate update(std::int64_t t_ns, const cv::Mat& depth_m,
-                         const Eigen::Isometry3d* T_world_camera,
-                         const Eigen::Matrix3d& R_horizontal_body);
+                         const Eigen::Isometry3d* T_O_C,
+                         const Eigen::Matrix3d& R_H_B);
 
-  /// After update(): a remembered obstacle point in W (the memory's map), last seen at
+  /// After update(): a remembered obstacle point in O (the memory's map), last seen at
   /// t_seen_ns, bounds its bin. Points outside the vertical band or beyond max_range_m, and
   /// points seen before the last tracking loss, are ignored.
-  void add_remembered_point(const Eigen::Vector3f& p_world_m, std::int64_t t_seen_ns);
+  void add_remembered_point(const Eigen::Vector3f& p_O_m, std::int64_t t_seen_ns);
 
   /// Limits the horizontal part of a command in H (current heading). Non-finite input gives
-  /// zero. v_est_horizontal_mps, when finite, is the vehicle's velocity now (H): the reaction
-  /// distance uses it. Allocates nothing.
-  [[nodiscard]] LimitedCommand limit(const Eigen::Vector3d& v_horizontal_mps,
-                                     const Eigen::Vector3d& v_est_horizontal_mps =
-                                         Eigen::Vector3d::Constant(NAN)) const;
+  /// zero. v_est_H_mps, when there is an estimate (and it is finite), is the vehicle's velocity
+  /// now (H): the reaction distance uses it. Allocates nothing.
+  [[nodiscard]] LimitedCommand limit(
+      const Eigen::Vector3d& v_H_mps,
+      const std::optional<Eigen::Vector3d>& v_est_H_mps = std::nullopt) const;
 
   /// Braking model: the largest speed that stops within free distance free_m.
   [[nodiscard]] double max_speed_mps(double free_m) const;
@@ -167,8 +169,8 @@ class SeenSpaceLimiter {
 
   SeenSpaceConfig config_;
   geometry::PinholeCamera camera_;
-  Eigen::Matrix3d R_QC_;
-  Eigen::Vector3d p_QC_;
+  Eigen::Matrix3d R_B_C_;
+  Eigen::Vector3d p_B_C_m_;
   double vehicle_radius_m_;
   double bin_width_rad_;
   std::array<Bin, kMaxBins> bins_{};
@@ -182,10 +184,10 @@ class SeenSpaceLimiter {
   bool have_pose_ = false;
   bool pose_chain_broken_ = false;   ///< An update without a pose since the last one with.
   std::int64_t t_pose_since_ns_ = 0;  ///< First pose after the last tracking loss.
-  Eigen::Matrix3d R_H_W_prev_ = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d p_W_body_prev_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d R_H_W_ = Eigen::Matrix3d::Identity();  ///< Of the last update with a pose.
-  Eigen::Vector3d p_W_body_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d R_H_O_prev_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p_O_B_prev_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d R_H_O_ = Eigen::Matrix3d::Identity();  ///< Of the last update with a pose.
+  Eigen::Vector3d p_O_B_ = Eigen::Vector3d::Zero();
   double yaw_rad_ = 0.0;  ///< Heading of H in the fixed frame of the bins.
   std::int64_t t_now_ns_ = 0;
 };

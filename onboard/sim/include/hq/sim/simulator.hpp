@@ -55,7 +55,7 @@ struct TruthState {
   Eigen::Vector3d v_world_mps = Eigen::Vector3d::Zero();
   Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();
   /// Velocity in the horizontal frame H (NED, yaw only; core paper §3): what eq. 5 estimates.
-  Eigen::Vector3d v_horizontal_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   Eigen::Vector3d a_world_mps2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d euler_rad = Eigen::Vector3d::Zero();  ///< roll, pitch, yaw.
   double clearance_m = 0.0;  ///< centre to nearest obstacle surface minus vehicle radius.
