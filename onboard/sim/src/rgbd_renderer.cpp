@@ -225,12 +225,11 @@ void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d
       v1 = cam.height - 1;
       return;
     }
-    const double u = cam.fx * p.x() / p.z() + cam.cx;
-    const double v = cam.fy * p.y() / p.z() + cam.cy;
-    min_u = std::min(min_u, u);
-    max_u = std::max(max_u, u);
-    min_v = std::min(min_v, v);
-    max_v = std::max(max_v, v);
+    const Eigen::Vector2d uv = cam.project(p);
+    min_u = std::min(min_u, uv.x());
+    max_u = std::max(max_u, uv.x());
+    min_v = std::min(min_v, uv.y());
+    max_v = std::max(max_v, uv.y());
   }
   u0 = static_cast<int>(std::clamp(std::floor(min_u) - 1.0, 0.0, cam.width - 1.0));
   u1 = static_cast<int>(std::clamp(std::ceil(max_u) + 1.0, -1.0, cam.width - 1.0));
@@ -248,8 +247,9 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
   ray_c_.resize(static_cast<std::size_t>(3 * n));
   for (int v = 0; v < cam.height; ++v) {
     for (int u = 0; u < cam.width; ++u) {
-      const double x = (u - cam.cx) / cam.fx;
-      const double y = (v - cam.cy) / cam.fy;
+      const Eigen::Vector3d ray_C = cam.ray(u, v);
+      const double x = ray_C.x();
+      const double y = ray_C.y();
       const std::size_t i = static_cast<std::size_t>(3 * (v * cam.width + u));
       ray_c_[i] = static_cast<float>(x);
       ray_c_[i + 1] = static_cast<float>(y);
@@ -399,12 +399,11 @@ class Footprint {
 
  private:
   void add_point(const Eigen::Vector3d& p) {
-    const double u = cam_.fx * p.x() / p.z() + cam_.cx;
-    const double v = cam_.fy * p.y() / p.z() + cam_.cy;
-    min_u_ = std::min(min_u_, u);
-    max_u_ = std::max(max_u_, u);
-    min_v_ = std::min(min_v_, v);
-    max_v_ = std::max(max_v_, v);
+    const Eigen::Vector2d uv = cam_.project(p);
+    min_u_ = std::min(min_u_, uv.x());
+    max_u_ = std::max(max_u_, uv.x());
+    min_v_ = std::min(min_v_, uv.y());
+    max_v_ = std::max(max_v_, uv.y());
   }
 
   const geometry::PinholeCamera& cam_;
@@ -786,24 +785,19 @@ void colour_and_depth(const ShadeConstants& k, const RowStage& row, int n) {
   }
 }
 
-}  // namespace
+/// The z-buffer render() fills: per pixel the nearest hit's t (z in C) and its hit code.
+struct ZBuffer {
+  float* t;
+  std::int32_t* code;
+  int width;
+};
 
-void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
-                          cv::Mat& image, cv::Mat& depth_m) {
-  const geometry::PinholeCamera& cam = params_.pinhole;
-  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
-  depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_world_camera);
-  Scene& sc = *scene_;
-  sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
-  const int width = cam.width;
+/// Visibility of the rectangles: each tests only the pixels of its footprint and z-tests its
+/// hits. Primitives go in the reference's order with the same strict comparisons, so the same
+/// one wins a tie.
+void zbuffer_rects(const SceneTables& sc, const ZBuffer& zb) {
+  const int width = zb.width;
   const float* ray_x = sc.ray_x.data();
-
-  // 1. Visibility: each primitive tests only the pixels of its footprint and z-tests its hits
-  // into (hit_t_, hit_code_). Primitives go in the reference's order with the same strict
-  // comparisons, so the same one wins a tie.
-  std::fill(hit_t_.begin(), hit_t_.end(), kNoHit);
-  std::fill(hit_code_.begin(), hit_code_.end(), kNoCode);
   for (std::size_t i = 0; i < sc.rects.size(); ++i) {
     const RectC& r = sc.rects[i];
     const PixelBox& fp = r.footprint;
@@ -815,8 +809,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       const float n_y = r.n_c.y() * y + r.n_c.z();
       const float u_y = r.u_c.y() * y + r.u_c.z();
       const float v_y = r.v_c.y() * y + r.v_c.z();
-      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       const int u_end = fp.u1 + 1;  // a < bound lets the vectoriser count the iterations
       for (int u = fp.u0; u < u_end; ++u) {
         const float x = ray_x[u];
@@ -834,13 +828,19 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
     }
   }
+}
+
+/// Visibility of the boxes (slab test), after the rectangles.
+void zbuffer_boxes(const SceneTables& sc, const ZBuffer& zb) {
+  const int width = zb.width;
+  const float* ray_x = sc.ray_x.data();
   for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
     const BoxC& b = sc.boxes[i];
     const PixelBox& fp = b.footprint;
     for (int v = fp.v0; v <= fp.v1; ++v) {
       const float y = sc.ray_y[static_cast<std::size_t>(v)];
-      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       for (int u = fp.u0; u <= fp.u1; ++u) {
         const Vec3f d(ray_x[u], y, 1.0f);
         const Vec3f dl = b.R_local_camera * d;
@@ -865,6 +865,12 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
     }
   }
+}
+
+/// Visibility of the cylinders (side, then top), after the boxes.
+void zbuffer_cylinders(const SceneTables& sc, const ZBuffer& zb) {
+  const int width = zb.width;
+  const float* ray_x = sc.ray_x.data();
   for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
     const CylinderC& c = sc.cylinders[i];
     const PixelBox& fp = c.footprint;
@@ -872,8 +878,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
     const std::int32_t top_code = hit_code(HitKind::kCylinderTop, static_cast<int>(i), 0);
     for (int v = fp.v0; v <= fp.v1; ++v) {
       const float y = sc.ray_y[static_cast<std::size_t>(v)];
-      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       for (int u = fp.u0; u <= fp.u1; ++u) {
         const Vec3f dw = sc.R_world_camera * Vec3f(ray_x[u], y, 1.0f);
         const float a = dw.x() * dw.x() + dw.y() * dw.y();
@@ -900,170 +906,250 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
     }
   }
+}
+
+/// One row of the shading stages' buffers (SceneTables' row_* vectors).
+struct ShadeRow {
+  float *s_m, *w_m, *shade, *cos_incidence;
+  float *b, *g, *r;  // albedo
+  float *depth_draw, *image_draw;
+  std::int32_t *level_b, *level_g, *level_r, *level_gray;  // planes of width
+};
+
+ShadeRow shade_row(SceneTables& sc, int width) {
+  ShadeRow row{};
+  row.s_m = sc.row_s.data();
+  row.w_m = sc.row_w.data();
+  row.shade = sc.row_shade.data();
+  row.cos_incidence = sc.row_cos.data();
+  row.b = sc.row_b.data();
+  row.g = sc.row_g.data();
+  row.r = sc.row_r.data();
+  row.depth_draw = sc.row_depth_draw.data();
+  row.image_draw = sc.row_image_draw.data();
+  row.level_b = sc.row_levels.data();
+  row.level_g = row.level_b + width;
+  row.level_r = row.level_g + width;
+  row.level_gray = row.level_r + width;
+  return row;
+}
+
+/// surface_coordinates_row() for one pixel whose hit is not on a run of one rectangle.
+inline void surface_coordinates_pixel(const SceneTables& sc, const ShadeConstants& k,
+                                      std::int32_t code, float x, float y, float t,
+                                      float ray_scale, float& s_m, float& w_m, float& shade,
+                                      float& cos_incidence) {
+  const Vec3f d(x, y, 1.0f);
+  const int index = (code >> 3) & 0x1fffff;
+  const int face = code & 7;
+  switch (static_cast<HitKind>(code >> 24)) {
+    case HitKind::kRect: {
+      const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
+      s_m = t * rc.u_c.dot(d) - rc.u_dot_c;
+      w_m = t * rc.v_c.dot(d) - rc.v_dot_c;
+      shade = rc.shade;
+      cos_incidence = -rc.n_c.dot(d) * ray_scale;
+      break;
+    }
+    case HitKind::kBox: {
+      const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
+      // dl first, as the reference: Eigen folds t * (R * d) into the product, which
+      // rounds differently.
+      const Vec3f dl = bc.R_local_camera * d;
+      const Vec3f p = bc.o_local + t * dl;
+      const int axis = face / 2;
+      s_m = p[axis == 0 ? 1 : 0];
+      w_m = p[axis == 2 ? 1 : 2];
+      shade = bc.face_shade[face];
+      cos_incidence = -bc.face_normal_c[face].dot(d) * ray_scale;
+      break;
+    }
+    case HitKind::kCylinderSide: {
+      const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+      const Vec3f dw = sc.R_world_camera * d;
+      s_m = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
+      w_m = c.oz + t * dw.z();
+      const float angle = s_m / c.radius;
+      const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
+      shade = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
+      cos_incidence = -n.dot(dw) * ray_scale;
+      break;
+    }
+    case HitKind::kCylinderTop: {
+      const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+      const Vec3f dw = sc.R_world_camera * d;
+      s_m = c.ox + t * dw.x();
+      w_m = c.oy + t * dw.y();
+      shade = c.top_shade;
+      cos_incidence = -dw.z() * ray_scale;
+      break;
+    }
+    case HitKind::kNone:
+      break;
+  }
+}
+
+/// Row v's winners' surface coordinates, light and incidence, recomputed from their t by the
+/// reference's expressions.
+void surface_coordinates_row(const SceneTables& sc, const ShadeConstants& k, int v, int width,
+                             const float* t_row, const std::int32_t* code_row,
+                             const ShadeRow& out) {
+  const float* ray_x = sc.ray_x.data();
+  const float y = sc.ray_y[static_cast<std::size_t>(v)];
+  const float* inv_norm_row = sc.inv_norm.data() + static_cast<std::ptrdiff_t>(v) * width;
+  float* s_m = out.s_m;
+  float* w_m = out.w_m;
+  float* shade = out.shade;
+  float* cos_incidence = out.cos_incidence;
+  for (int u0 = 0; u0 < width;) {
+    const std::int32_t run_code = code_row[u0];
+    int u1 = u0 + 1;
+    while (u1 < width && code_row[u1] == run_code) ++u1;
+    if (run_code != kNoCode && static_cast<HitKind>(run_code >> 24) == HitKind::kRect) {
+      // A run on one rectangle (most pixels: floor and walls), vectorised. Its dots sum as
+      // x_term + (y_term + z_term), Eigen's order, so the row-constant part is hoisted
+      // without changing a bit.
+      const RectC& rc = sc.rects[static_cast<std::size_t>((run_code >> 3) & 0x1fffff)];
+      const float u_y = rc.u_c.y() * y + rc.u_c.z();
+      const float v_y = rc.v_c.y() * y + rc.v_c.z();
+      const float n_y = rc.n_c.y() * y + rc.n_c.z();
+#pragma omp simd
+      for (int u = u0; u < u1; ++u) {
+        const float x = ray_x[u];
+        s_m[u] = t_row[u] * (rc.u_c.x() * x + u_y) - rc.u_dot_c;
+        w_m[u] = t_row[u] * (rc.v_c.x() * x + v_y) - rc.v_dot_c;
+        shade[u] = rc.shade;
+        cos_incidence[u] = -(rc.n_c.x() * x + n_y) * inv_norm_row[u];
+      }
+      u0 = u1;
+      continue;
+    }
+    for (int u = u0; u < u1; ++u) {
+      s_m[u] = 0.0f;
+      w_m[u] = 0.0f;
+      if (code_row[u] == kNoCode) continue;
+      surface_coordinates_pixel(sc, k, code_row[u], ray_x[u], y, t_row[u], inv_norm_row[u],
+                                s_m[u], w_m[u], shade[u], cos_incidence[u]);
+    }
+    u0 = u1;
+  }
+}
+
+/// Row v's albedo over runs of one surface (a vectorised texture loop), then its markers.
+void albedo_row(SceneTables& sc, int width, const std::int32_t* code_row, const ShadeRow& out) {
+  const float* s_m = out.s_m;
+  const float* w_m = out.w_m;
+  float* b = out.b;
+  float* g = out.g;
+  float* r = out.r;
+  for (int u0 = 0; u0 < width;) {
+    const std::int32_t code = code_row[u0];
+    int u1 = u0 + 1;
+    while (u1 < width && code_row[u1] == code) ++u1;
+    if (code != kNoCode) {
+      const Surface* surface = surface_of(sc, code);
+      const Texture& texture =
+          surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
+      texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
+      if (surface != nullptr && !surface->markers.empty()) {
+        // Only the markers near this run (a floor may carry dozens) are tested per pixel.
+        int* near = sc.near_markers.data();
+        const int count = markers_near_run(sc, *surface, s_m + u0, w_m + u0, u1 - u0, near);
+        for (int u = u0; count > 0 && u < u1; ++u) {
+          paint_markers(sc, near, count, s_m[u], w_m[u], b[u], g[u], r[u]);
+        }
+      }
+    }
+    u0 = u1;
+  }
+}
+
+/// Row v's standard normal draws of depth and image noise.
+void noise_row(const SceneTables& sc, const ShadeConstants& k, int v, int width,
+               const ShadeRow& out) {
+  float* depth_draw = out.depth_draw;
+  float* image_draw = out.image_draw;
+  // A zero sigma adds sigma * draw = +-0, which changes no value: the draws can be 0 then.
+  const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
+  if (k.sigma_disparity > 0.0f) {
+    noise_draws(sc.frame_key, first, 0ull, width, depth_draw);
+  } else {
+    std::fill(depth_draw, depth_draw + width, 0.0f);
+  }
+  if (k.image_sigma > 0.0f) {
+    noise_draws(sc.frame_key, first, 1ull, width, image_draw);
+  } else {
+    std::fill(image_draw, image_draw + width, 0.0f);
+  }
+}
+
+/// The row's intensity planes into the image row (interleaved BGR, or gray).
+void write_image_row(const ShadeConstants& k, int width, const ShadeRow& row, std::uint8_t* out) {
+  const std::int32_t* level_b = row.level_b;
+  const std::int32_t* level_g = row.level_g;
+  const std::int32_t* level_r = row.level_r;
+  const std::int32_t* level_gray = row.level_gray;
+  if (k.channels == 1) {
+#pragma omp simd
+    for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
+  } else {
+    for (int u = 0; u < width; ++u) {
+      out[3 * u] = static_cast<std::uint8_t>(level_b[u]);
+      out[3 * u + 1] = static_cast<std::uint8_t>(level_g[u]);
+      out[3 * u + 2] = static_cast<std::uint8_t>(level_r[u]);
+    }
+  }
+}
+
+}  // namespace
+
+void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+                          cv::Mat& image, cv::Mat& depth_m) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
+  depth_m.create(cam.height, cam.width, CV_32F);
+  prepare_frame(T_world_camera);
+  Scene& sc = *scene_;
+  sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
+  const int width = cam.width;
+
+  // 1. Visibility: each primitive tests only the pixels of its footprint and z-tests its hits
+  // into (hit_t_, hit_code_).
+  std::fill(hit_t_.begin(), hit_t_.end(), kNoHit);
+  std::fill(hit_code_.begin(), hit_code_.end(), kNoCode);
+  const ZBuffer zb{hit_t_.data(), hit_code_.data(), width};
+  zbuffer_rects(sc, zb);
+  zbuffer_boxes(sc, zb);
+  zbuffer_cylinders(sc, zb);
 
   // 2. Shading, once per pixel and row by row in stages: the winner's surface coordinates,
-  // light and incidence (recomputed from its t by the reference's expressions); albedo over
-  // runs of one surface (a vectorised texture loop) and its markers; then colour, depth model
-  // and noise. The same operations as shade_pixel() in the same order: the same bits.
+  // light and incidence; albedo and markers; noise draws; then colour, depth model and noise.
+  // The same operations as shade_pixel() in the same order: the same bits.
   const ShadeConstants k = shade_constants(params_);
-  float* s_m = sc.row_s.data();
-  float* w_m = sc.row_w.data();
-  float* shade = sc.row_shade.data();
-  float* cos_incidence = sc.row_cos.data();
-  float* b = sc.row_b.data();
-  float* g = sc.row_g.data();
-  float* r = sc.row_r.data();
-  float* depth_draw = sc.row_depth_draw.data();
-  float* image_draw = sc.row_image_draw.data();
-  std::int32_t* level_b = sc.row_levels.data();  // four planes of width
-  std::int32_t* level_g = level_b + width;
-  std::int32_t* level_r = level_g + width;
-  std::int32_t* level_gray = level_r + width;
+  const ShadeRow row = shade_row(sc, width);
   for (int v = 0; v < cam.height; ++v) {
-    const float y = sc.ray_y[static_cast<std::size_t>(v)];
-    const float* inv_norm_row = sc.inv_norm.data() + static_cast<std::ptrdiff_t>(v) * width;
     const float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
     const std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
-    for (int u0 = 0; u0 < width;) {
-      const std::int32_t run_code = code_row[u0];
-      int u1 = u0 + 1;
-      while (u1 < width && code_row[u1] == run_code) ++u1;
-      if (run_code != kNoCode && static_cast<HitKind>(run_code >> 24) == HitKind::kRect) {
-        // A run on one rectangle (most pixels: floor and walls), vectorised. Its dots sum as
-        // x_term + (y_term + z_term), Eigen's order, so the row-constant part is hoisted
-        // without changing a bit.
-        const RectC& rc = sc.rects[static_cast<std::size_t>((run_code >> 3) & 0x1fffff)];
-        const float u_y = rc.u_c.y() * y + rc.u_c.z();
-        const float v_y = rc.v_c.y() * y + rc.v_c.z();
-        const float n_y = rc.n_c.y() * y + rc.n_c.z();
-#pragma omp simd
-        for (int u = u0; u < u1; ++u) {
-          const float x = ray_x[u];
-          s_m[u] = t_row[u] * (rc.u_c.x() * x + u_y) - rc.u_dot_c;
-          w_m[u] = t_row[u] * (rc.v_c.x() * x + v_y) - rc.v_dot_c;
-          shade[u] = rc.shade;
-          cos_incidence[u] = -(rc.n_c.x() * x + n_y) * inv_norm_row[u];
-        }
-        u0 = u1;
-        continue;
-      }
-      for (int u = u0; u < u1; ++u) {
-        const std::int32_t code = code_row[u];
-        s_m[u] = 0.0f;
-        w_m[u] = 0.0f;
-        if (code == kNoCode) continue;
-        const Vec3f d(ray_x[u], y, 1.0f);
-        const float t = t_row[u];
-        const int index = (code >> 3) & 0x1fffff;
-        const int face = code & 7;
-        const float ray_scale = inv_norm_row[u];
-        switch (static_cast<HitKind>(code >> 24)) {
-          case HitKind::kRect: {
-            const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
-            s_m[u] = t * rc.u_c.dot(d) - rc.u_dot_c;
-            w_m[u] = t * rc.v_c.dot(d) - rc.v_dot_c;
-            shade[u] = rc.shade;
-            cos_incidence[u] = -rc.n_c.dot(d) * ray_scale;
-            break;
-          }
-          case HitKind::kBox: {
-            const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
-            // dl first, as the reference: Eigen folds t * (R * d) into the product, which
-            // rounds differently.
-            const Vec3f dl = bc.R_local_camera * d;
-            const Vec3f p = bc.o_local + t * dl;
-            const int axis = face / 2;
-            s_m[u] = p[axis == 0 ? 1 : 0];
-            w_m[u] = p[axis == 2 ? 1 : 2];
-            shade[u] = bc.face_shade[face];
-            cos_incidence[u] = -bc.face_normal_c[face].dot(d) * ray_scale;
-            break;
-          }
-          case HitKind::kCylinderSide: {
-            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-            const Vec3f dw = sc.R_world_camera * d;
-            s_m[u] = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
-            w_m[u] = c.oz + t * dw.z();
-            const float angle = s_m[u] / c.radius;
-            const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
-            shade[u] = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
-            cos_incidence[u] = -n.dot(dw) * ray_scale;
-            break;
-          }
-          case HitKind::kCylinderTop: {
-            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-            const Vec3f dw = sc.R_world_camera * d;
-            s_m[u] = c.ox + t * dw.x();
-            w_m[u] = c.oy + t * dw.y();
-            shade[u] = c.top_shade;
-            cos_incidence[u] = -dw.z() * ray_scale;
-            break;
-          }
-          case HitKind::kNone:
-            break;
-        }
-      }
-      u0 = u1;
-    }
-    for (int u0 = 0; u0 < width;) {
-      const std::int32_t code = code_row[u0];
-      int u1 = u0 + 1;
-      while (u1 < width && code_row[u1] == code) ++u1;
-      if (code != kNoCode) {
-        const Surface* surface = surface_of(sc, code);
-        const Texture& texture =
-            surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
-        texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
-        if (surface != nullptr && !surface->markers.empty()) {
-          // Only the markers near this run (a floor may carry dozens) are tested per pixel.
-          int* near = sc.near_markers.data();
-          const int count = markers_near_run(sc, *surface, s_m + u0, w_m + u0, u1 - u0, near);
-          for (int u = u0; count > 0 && u < u1; ++u) {
-            paint_markers(sc, near, count, s_m[u], w_m[u], b[u], g[u], r[u]);
-          }
-        }
-      }
-      u0 = u1;
-    }
-    // A zero sigma adds sigma * draw = +-0, which changes no value: the draws can be 0 then.
-    const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
-    if (k.sigma_disparity > 0.0f) {
-      noise_draws(sc.frame_key, first, 0ull, width, depth_draw);
-    } else {
-      std::fill(depth_draw, depth_draw + width, 0.0f);
-    }
-    if (k.image_sigma > 0.0f) {
-      noise_draws(sc.frame_key, first, 1ull, width, image_draw);
-    } else {
-      std::fill(image_draw, image_draw + width, 0.0f);
-    }
-    const RowStage row{code_row,
-                       t_row,
-                       shade,
-                       cos_incidence,
-                       b,
-                       g,
-                       r,
-                       depth_draw,
-                       image_draw,
-                       true_depth_m_.ptr<float>(v),
-                       depth_m.ptr<float>(v),
-                       level_b,
-                       level_g,
-                       level_r,
-                       level_gray};
-    colour_and_depth(k, row, width);
-    std::uint8_t* out = image.ptr<std::uint8_t>(v);
-    if (k.channels == 1) {
-#pragma omp simd
-      for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
-    } else {
-      for (int u = 0; u < width; ++u) {
-        out[3 * u] = static_cast<std::uint8_t>(level_b[u]);
-        out[3 * u + 1] = static_cast<std::uint8_t>(level_g[u]);
-        out[3 * u + 2] = static_cast<std::uint8_t>(level_r[u]);
-      }
-    }
+    surface_coordinates_row(sc, k, v, width, t_row, code_row, row);
+    albedo_row(sc, width, code_row, row);
+    noise_row(sc, k, v, width, row);
+    const RowStage stage{code_row,
+                         t_row,
+                         row.shade,
+                         row.cos_incidence,
+                         row.b,
+                         row.g,
+                         row.r,
+                         row.depth_draw,
+                         row.image_draw,
+                         true_depth_m_.ptr<float>(v),
+                         depth_m.ptr<float>(v),
+                         row.level_b,
+                         row.level_g,
+                         row.level_r,
+                         row.level_gray};
+    colour_and_depth(k, stage, width);
+    write_image_row(k, width, row, image.ptr<std::uint8_t>(v));
   }
   drop_depth_at_discontinuities_fast(depth_m);
 }
