@@ -117,7 +117,7 @@ struct SceneTables {
   std::vector<float> ray_y;     // per row: y / z
   std::vector<float> inv_norm;  // per pixel: 1 / |(x, y, 1)| (the same as in ray_c_)
   // Per frame (prepare_frame), shared by render() and render_reference().
-  Eigen::Matrix3f R_world_camera = Eigen::Matrix3f::Identity();
+  Eigen::Matrix3f R_N_C = Eigen::Matrix3f::Identity();
   Vec3f light = Vec3f::UnitZ();
   std::uint64_t frame_key = 0;
   // Per row of render()'s shading: surface coordinates, light, incidence cosine, albedo.
@@ -212,12 +212,12 @@ SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
 /// Image bounding box of a world-frame axis-aligned-in-local box given by 8 corners; the whole
 /// image if any corner is near or behind the camera. Lets a pixel skip primitives it cannot
 /// hit: the test is 4 compares instead of a slab or quadratic intersection.
-void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d& R_camera_world,
-                   const Eigen::Vector3d& o_world, const geometry::PinholeCamera& cam, int& u0,
+void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d& R_C_N,
+                   const Eigen::Vector3d& p_N_C, const geometry::PinholeCamera& cam, int& u0,
                    int& u1, int& v0, int& v1) {
   double min_u = 1e30, max_u = -1e30, min_v = 1e30, max_v = -1e30;
   for (int i = 0; i < 8; ++i) {
-    const Eigen::Vector3d p = R_camera_world * (corners_world[i] - o_world);
+    const Eigen::Vector3d p = R_C_N * (corners_world[i] - p_N_C);
     if (p.z() < 1e-3) {
       u0 = 0;
       v0 = 0;
@@ -236,6 +236,77 @@ void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d
   v0 = static_cast<int>(std::clamp(std::floor(min_v) - 1.0, 0.0, cam.height - 1.0));
   v1 = static_cast<int>(std::clamp(std::ceil(max_v) + 1.0, -1.0, cam.height - 1.0));
   if (max_u < 0.0 || max_v < 0.0) u1 = -1;  // entirely left of or above the image
+}
+
+/// The world's primitives and the planar surfaces (rectangles, then six faces per box) that
+/// can carry markers.
+void build_tables(SceneTables& sc, const World& world) {
+  sc.rects_world.push_back(world.floor);
+  sc.rects_world.insert(sc.rects_world.end(), world.walls.begin(), world.walls.end());
+  sc.boxes_world = world.boxes;
+  sc.cylinders_world = world.cylinders;
+  for (const Rectangle& r : sc.rects_world) {
+    Surface s;
+    s.texture = &r.texture;
+    sc.surfaces.push_back(s);
+  }
+  for (const Box& b : sc.boxes_world) {
+    for (int f = 0; f < 6; ++f) {
+      Surface s;
+      s.texture = &b.texture;
+      sc.surfaces.push_back(s);
+    }
+  }
+  sc.rects.resize(sc.rects_world.size());
+  sc.boxes.resize(sc.boxes_world.size());
+  sc.cylinders.resize(sc.cylinders_world.size());
+  for (std::size_t i = 0; i < sc.rects_world.size(); ++i) sc.rects[i].surface = static_cast<int>(i);
+  for (std::size_t i = 0; i < sc.boxes_world.size(); ++i) {
+    sc.boxes[i].surface0 = static_cast<int>(sc.rects_world.size() + 6 * i);
+  }
+  for (std::size_t i = 0; i < sc.cylinders_world.size(); ++i) {
+    sc.cylinders[i].texture = &sc.cylinders_world[i].texture;
+  }
+}
+
+/// Each marker onto the first rectangle or box face its centre and normal lie on; throws
+/// hq::InputError naming the marker if there is none.
+void place_markers(SceneTables& sc, const std::vector<Marker>& markers) {
+  const cv::Ptr<cv::aruco::Dictionary> dictionary =
+      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
+  for (std::size_t k = 0; k < markers.size(); ++k) {
+    const Marker& m = markers[k];
+    int surface = -1;
+    Eigen::Vector3d origin, normal, axis_s, axis_t;
+    for (std::size_t i = 0; i < sc.rects_world.size() && surface < 0; ++i) {
+      const Rectangle& r = sc.rects_world[i];
+      if (on_plane(r.center_m, r.normal, r.axis_u, r.axis_v, r.half_u_m, r.half_v_m, m)) {
+        surface = static_cast<int>(i);
+        origin = r.center_m;
+        axis_s = r.axis_u;
+        axis_t = r.axis_v;
+      }
+    }
+    for (std::size_t i = 0; i < sc.boxes_world.size() && surface < 0; ++i) {
+      const Box& b = sc.boxes_world[i];
+      for (int f = 0; f < 6 && surface < 0; ++f) {
+        box_face_frame(b, f, origin, normal, axis_s, axis_t);
+        const int a = f / 2 == 0 ? 1 : 0;
+        const int c = f / 2 == 2 ? 1 : 2;
+        if (on_plane(origin, normal, axis_s, axis_t, 0.5 * b.size_m[a], 0.5 * b.size_m[c], m) &&
+            m.normal_world.dot(normal) > 0.0) {
+          surface = sc.boxes[i].surface0 + f;
+        }
+      }
+    }
+    if (surface < 0) {
+      throw InputError("markers[" + std::to_string(k) + "] (id " + std::to_string(m.id) +
+                       "): centre lies on no wall, floor or box face with that normal");
+    }
+    sc.markers.push_back(make_marker(m, origin, axis_s, axis_t, dictionary));
+    sc.surfaces[static_cast<std::size_t>(surface)].markers.push_back(
+        static_cast<int>(sc.markers.size() - 1));
+  }
 }
 
 }  // namespace
@@ -277,68 +348,8 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
   for (int v = 0; v < cam.height; ++v) {
     sc.ray_y[static_cast<std::size_t>(v)] = ray_c_[3 * static_cast<std::size_t>(v * cam.width) + 1];
   }
-  sc.rects_world.push_back(world.floor);
-  sc.rects_world.insert(sc.rects_world.end(), world.walls.begin(), world.walls.end());
-  sc.boxes_world = world.boxes;
-  sc.cylinders_world = world.cylinders;
-  for (const Rectangle& r : sc.rects_world) {
-    Surface s;
-    s.texture = &r.texture;
-    sc.surfaces.push_back(s);
-  }
-  for (const Box& b : sc.boxes_world) {
-    for (int f = 0; f < 6; ++f) {
-      Surface s;
-      s.texture = &b.texture;
-      sc.surfaces.push_back(s);
-    }
-  }
-  sc.rects.resize(sc.rects_world.size());
-  sc.boxes.resize(sc.boxes_world.size());
-  sc.cylinders.resize(sc.cylinders_world.size());
-  for (std::size_t i = 0; i < sc.rects_world.size(); ++i) sc.rects[i].surface = static_cast<int>(i);
-  for (std::size_t i = 0; i < sc.boxes_world.size(); ++i) {
-    sc.boxes[i].surface0 = static_cast<int>(sc.rects_world.size() + 6 * i);
-  }
-  for (std::size_t i = 0; i < sc.cylinders_world.size(); ++i) {
-    sc.cylinders[i].texture = &sc.cylinders_world[i].texture;
-  }
-
-  const cv::Ptr<cv::aruco::Dictionary> dictionary =
-      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
-  for (std::size_t k = 0; k < world.markers.size(); ++k) {
-    const Marker& m = world.markers[k];
-    int surface = -1;
-    Eigen::Vector3d origin, normal, axis_s, axis_t;
-    for (std::size_t i = 0; i < sc.rects_world.size() && surface < 0; ++i) {
-      const Rectangle& r = sc.rects_world[i];
-      if (on_plane(r.center_m, r.normal, r.axis_u, r.axis_v, r.half_u_m, r.half_v_m, m)) {
-        surface = static_cast<int>(i);
-        origin = r.center_m;
-        axis_s = r.axis_u;
-        axis_t = r.axis_v;
-      }
-    }
-    for (std::size_t i = 0; i < sc.boxes_world.size() && surface < 0; ++i) {
-      const Box& b = sc.boxes_world[i];
-      for (int f = 0; f < 6 && surface < 0; ++f) {
-        box_face_frame(b, f, origin, normal, axis_s, axis_t);
-        const int a = f / 2 == 0 ? 1 : 0;
-        const int c = f / 2 == 2 ? 1 : 2;
-        if (on_plane(origin, normal, axis_s, axis_t, 0.5 * b.size_m[a], 0.5 * b.size_m[c], m) &&
-            m.normal_world.dot(normal) > 0.0) {
-          surface = sc.boxes[i].surface0 + f;
-        }
-      }
-    }
-    if (surface < 0) {
-      throw InputError("markers[" + std::to_string(k) + "] (id " + std::to_string(m.id) +
-                       "): centre lies on no wall, floor or box face with that normal");
-    }
-    sc.markers.push_back(make_marker(m, origin, axis_s, axis_t, dictionary));
-    sc.surfaces[static_cast<std::size_t>(surface)].markers.push_back(
-        static_cast<int>(sc.markers.size() - 1));
-  }
+  build_tables(sc, world);
+  place_markers(sc, world.markers);
 }
 
 RgbdRenderer::~RgbdRenderer() = default;
@@ -441,97 +452,122 @@ ShadeConstants shade_constants(const CameraParams& params) {
   return k;
 }
 
-}  // namespace
+/// The camera's pose and light for one frame, as prepare_frame() turns primitives into C.
+struct FrameView {
+  const geometry::PinholeCamera& cam;
+  Eigen::Matrix3d R_N_C;
+  Eigen::Matrix3d R_C_N;
+  Eigen::Vector3d p_N_C;
+  Eigen::Vector3d light_N;  // unit, towards the light
+  double ambient, diffuse;
 
-void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_world_camera) {
-  const geometry::PinholeCamera& cam = params_.pinhole;
-  Scene& sc = *scene_;
+  [[nodiscard]] float lambert(const Eigen::Vector3d& n_N) const {
+    return static_cast<float>(ambient + diffuse * std::max(0.0, n_N.dot(light_N)));
+  }
+  [[nodiscard]] Eigen::Vector3d to_camera(const Eigen::Vector3d& p_N) const {
+    return R_C_N * (p_N - p_N_C);
+  }
+};
 
-  // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
-  const Eigen::Matrix3d R_camera_world = T_world_camera.linear().transpose();
-  const Eigen::Vector3d o_world = T_world_camera.translation();
-  const Eigen::Vector3d light = params_.light_dir_world.normalized();
-  const auto lambert = [&](const Eigen::Vector3d& n_world) {
-    return static_cast<float>(params_.ambient +
-                              params_.diffuse * std::max(0.0, n_world.dot(light)));
-  };
-  const auto to_camera = [&](const Eigen::Vector3d& p_world) -> Eigen::Vector3d {
-    return R_camera_world * (p_world - o_world);
-  };
+void prepare_rects(SceneTables& sc, const FrameView& view) {
+  const geometry::PinholeCamera& cam = view.cam;
   for (std::size_t i = 0; i < sc.rects.size(); ++i) {
     const Rectangle& r = sc.rects_world[i];
     RectC& rc = sc.rects[i];
-    const Eigen::Vector3d c_c = R_camera_world * (r.center_m - o_world);
+    const Eigen::Vector3d c_c = view.R_C_N * (r.center_m - view.p_N_C);
     Eigen::Vector3d n_world = r.normal;
-    if (n_world.dot(o_world - r.center_m) < 0.0) n_world = -n_world;  // the side we see
-    rc.n_c = (R_camera_world * n_world).cast<float>();
-    rc.u_c = (R_camera_world * r.axis_u).cast<float>();
-    rc.v_c = (R_camera_world * r.axis_v).cast<float>();
+    if (n_world.dot(view.p_N_C - r.center_m) < 0.0) n_world = -n_world;  // the side we see
+    rc.n_c = (view.R_C_N * n_world).cast<float>();
+    rc.u_c = (view.R_C_N * r.axis_u).cast<float>();
+    rc.v_c = (view.R_C_N * r.axis_v).cast<float>();
     rc.n_dot_c = rc.n_c.dot(c_c.cast<float>());
     rc.u_dot_c = rc.u_c.dot(c_c.cast<float>());
     rc.v_dot_c = rc.v_c.dot(c_c.cast<float>());
     rc.half_u = static_cast<float>(r.half_u_m);
     rc.half_v = static_cast<float>(r.half_v_m);
-    rc.shade = lambert(n_world);
+    rc.shade = view.lambert(n_world);
     const Eigen::Vector3d du = r.half_u_m * r.axis_u;
     const Eigen::Vector3d dv = r.half_v_m * r.axis_v;
     const Eigen::Vector3d quad[4] = {
-        to_camera(r.center_m - du - dv), to_camera(r.center_m + du - dv),
-        to_camera(r.center_m + du + dv), to_camera(r.center_m - du + dv)};
+        view.to_camera(r.center_m - du - dv), view.to_camera(r.center_m + du - dv),
+        view.to_camera(r.center_m + du + dv), view.to_camera(r.center_m - du + dv)};
     Footprint footprint(cam);
     footprint.add_polygon(quad, 4);
     rc.footprint = footprint.pixels();
   }
+}
+
+void prepare_boxes(SceneTables& sc, const FrameView& view) {
+  const geometry::PinholeCamera& cam = view.cam;
   for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
     const Box& b = sc.boxes_world[i];
     BoxC& bc = sc.boxes[i];
     const Eigen::Matrix3d R_world_local = box_R_world_local(b);
-    bc.R_local_camera = (R_world_local.transpose() * T_world_camera.linear()).cast<float>();
-    bc.o_local = (R_world_local.transpose() * (o_world - b.center_m)).cast<float>();
+    bc.R_local_camera = (R_world_local.transpose() * view.R_N_C).cast<float>();
+    bc.o_local = (R_world_local.transpose() * (view.p_N_C - b.center_m)).cast<float>();
     bc.half = (0.5 * b.size_m).cast<float>();
     for (int f = 0; f < 6; ++f) {
       const Eigen::Vector3d n_world = (f % 2 == 0 ? 1.0 : -1.0) * R_world_local.col(f / 2);
-      bc.face_shade[f] = lambert(n_world);
-      bc.face_normal_c[f] = (R_camera_world * n_world).cast<float>();
+      bc.face_shade[f] = view.lambert(n_world);
+      bc.face_normal_c[f] = (view.R_C_N * n_world).cast<float>();
     }
     Eigen::Vector3d corners[8];
     Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d sign((k & 1) ? 1.0 : -1.0, (k & 2) ? 1.0 : -1.0, (k & 4) ? 1.0 : -1.0);
       corners[k] = b.center_m + R_world_local * (0.5 * b.size_m.cwiseProduct(sign));
-      corners_c[k] = to_camera(corners[k]);
+      corners_c[k] = view.to_camera(corners[k]);
     }
-    screen_bounds(corners, R_camera_world, o_world, cam, bc.u0, bc.u1, bc.v0, bc.v1);
+    screen_bounds(corners, view.R_C_N, view.p_N_C, cam, bc.u0, bc.u1, bc.v0, bc.v1);
     Footprint footprint(cam);
     footprint.add_box(corners_c);
     bc.footprint = footprint.pixels();
   }
+}
+
+void prepare_cylinders(SceneTables& sc, const FrameView& view) {
+  const geometry::PinholeCamera& cam = view.cam;
   for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
     const Cylinder& c = sc.cylinders_world[i];
     CylinderC& cc = sc.cylinders[i];
-    cc.ox = static_cast<float>(o_world.x() - c.center_m.x());
-    cc.oy = static_cast<float>(o_world.y() - c.center_m.y());
-    cc.oz = static_cast<float>(o_world.z() - c.base_z_m);
+    cc.ox = static_cast<float>(view.p_N_C.x() - c.center_m.x());
+    cc.oy = static_cast<float>(view.p_N_C.y() - c.center_m.y());
+    cc.oz = static_cast<float>(view.p_N_C.z() - c.base_z_m);
     cc.radius = static_cast<float>(c.radius_m);
     cc.height = static_cast<float>(c.height_m);
-    cc.top_shade = lambert(Eigen::Vector3d::UnitZ());
+    cc.top_shade = view.lambert(Eigen::Vector3d::UnitZ());
     Eigen::Vector3d corners[8];
     Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       corners[k] = Eigen::Vector3d(c.center_m.x() + ((k & 1) ? c.radius_m : -c.radius_m),
                                    c.center_m.y() + ((k & 2) ? c.radius_m : -c.radius_m),
                                    c.base_z_m + ((k & 4) ? c.height_m : 0.0));
-      corners_c[k] = to_camera(corners[k]);
+      corners_c[k] = view.to_camera(corners[k]);
     }
-    screen_bounds(corners, R_camera_world, o_world, cam, cc.u0, cc.u1, cc.v0, cc.v1);
+    screen_bounds(corners, view.R_C_N, view.p_N_C, cam, cc.u0, cc.u1, cc.v0, cc.v1);
     Footprint footprint(cam);
     footprint.add_box(corners_c);  // the cylinder's bounding box
     cc.footprint = footprint.pixels();
   }
+}
+
+}  // namespace
+
+void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C) {
+  Scene& sc = *scene_;
+  // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
+  const Eigen::Vector3d light = params_.light_dir_world.normalized();
+  const FrameView view{params_.pinhole,    T_N_C.linear(), T_N_C.linear().transpose(),
+                       T_N_C.translation(), light,          params_.ambient,
+                       params_.diffuse};
+  prepare_rects(sc, view);
+  prepare_boxes(sc, view);
+  prepare_cylinders(sc, view);
+  const Eigen::Vector3d& p_N_C = view.p_N_C;
   for (SurfaceMarker& m : sc.markers) {
-    m.visible = m.normal_world.dot(o_world.cast<float>() - m.center_world) > 0.0f;
+    m.visible = m.normal_world.dot(p_N_C.cast<float>() - m.center_world) > 0.0f;
   }
-  sc.R_world_camera = T_world_camera.linear().cast<float>();
+  sc.R_N_C = T_N_C.linear().cast<float>();
   sc.light = light.cast<float>();
 }
 
@@ -572,7 +608,7 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
         texture = c.texture;
         const float angle = hit.s / c.radius;
         const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
-        const Vec3f dw = sc.R_world_camera * d;
+        const Vec3f dw = sc.R_N_C * d;
         shade = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
         cos_incidence = -n.dot(dw) * ray[2];
         break;
@@ -581,7 +617,7 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
         const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
         texture = c.texture;
         shade = c.top_shade;
-        cos_incidence = -(sc.R_world_camera * d).z() * ray[2];
+        cos_incidence = -(sc.R_N_C * d).z() * ray[2];
         break;
       }
       case HitKind::kNone:
@@ -881,7 +917,7 @@ void zbuffer_cylinders(const SceneTables& sc, const ZBuffer& zb) {
       float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
       std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       for (int u = fp.u0; u <= fp.u1; ++u) {
-        const Vec3f dw = sc.R_world_camera * Vec3f(ray_x[u], y, 1.0f);
+        const Vec3f dw = sc.R_N_C * Vec3f(ray_x[u], y, 1.0f);
         const float a = dw.x() * dw.x() + dw.y() * dw.y();
         const float b = c.ox * dw.x() + c.oy * dw.y();
         const float cc = c.ox * c.ox + c.oy * c.oy - c.radius * c.radius;
@@ -966,7 +1002,7 @@ inline void surface_coordinates_pixel(const SceneTables& sc, const ShadeConstant
     }
     case HitKind::kCylinderSide: {
       const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-      const Vec3f dw = sc.R_world_camera * d;
+      const Vec3f dw = sc.R_N_C * d;
       s_m = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
       w_m = c.oz + t * dw.z();
       const float angle = s_m / c.radius;
@@ -977,7 +1013,7 @@ inline void surface_coordinates_pixel(const SceneTables& sc, const ShadeConstant
     }
     case HitKind::kCylinderTop: {
       const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-      const Vec3f dw = sc.R_world_camera * d;
+      const Vec3f dw = sc.R_N_C * d;
       s_m = c.ox + t * dw.x();
       w_m = c.oy + t * dw.y();
       shade = c.top_shade;
@@ -1103,12 +1139,12 @@ void write_image_row(const ShadeConstants& k, int width, const ShadeRow& row, st
 
 }  // namespace
 
-void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
                           cv::Mat& image, cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_world_camera);
+  prepare_frame(T_N_C);
   Scene& sc = *scene_;
   sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
   const int width = cam.width;
@@ -1154,15 +1190,15 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
   drop_depth_at_discontinuities_fast(depth_m);
 }
 
-void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_world_camera,
+void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C,
                                     std::uint64_t frame_index, cv::Mat& image, cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_world_camera);
+  prepare_frame(T_N_C);
   Scene& sc = *scene_;
   sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
-  const Eigen::Matrix3f& R_world_camera = sc.R_world_camera;
+  const Eigen::Matrix3f& R_N_C = sc.R_N_C;
   const ShadeConstants k = shade_constants(params_);
 
   for (int v = 0; v < cam.height; ++v) {
@@ -1213,7 +1249,7 @@ void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_world_camera,
         hit = Hit{t_near, HitKind::kBox, static_cast<int>(i), face, p[a], p[c]};
       }
       if (!sc.cylinders.empty()) {
-        const Vec3f dw = R_world_camera * d;
+        const Vec3f dw = R_N_C * d;
         for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
           const CylinderC& c = sc.cylinders[i];
           if (u < c.u0 || u > c.u1 || v < c.v0 || v > c.v1) continue;

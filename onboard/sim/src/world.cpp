@@ -398,7 +398,9 @@ Marker read_marker(StrictMap m) {
   m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);
   m.finish();
   const Eigen::Vector3d n(normal[0], normal[1], normal[2]);
-  if (n.norm() < 1e-6) throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
+  if (n.norm() < 1e-6) {
+    throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
+  }
   marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
   marker.normal_world = n.normalized();
   return marker;
@@ -445,8 +447,9 @@ void read_marker_grid(StrictMap& map, World& world) {
         marker.id = first_id + r * cols + c;
         marker.size_m = size_m;
         // Row index grows along world -x so that ids read like text seen from the start.
-        marker.center_world_m = Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
-                                                center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
+        marker.center_world_m =
+            Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
+                            center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
         marker.normal_world = Eigen::Vector3d::UnitZ();
         world.markers.push_back(marker);
       }
