@@ -504,11 +504,13 @@ struct PlaneDepth {
 };
 
 TEST(SupportSurface, NormalOfAPlaneIsItsNormalWithEitherStencilAndOneSidedAtHoles) {
-  // GIVEN a floor 1 m below a camera looking 30 deg down (C: y down)
+  // GIVEN a floor 1 m below a camera looking forward and 30 deg down (H: z down)
   const geometry::PinholeCamera camera = test_camera();
+  Eigen::Matrix3d R_forward_optical;
+  R_forward_optical << 0, 0, 1, 1, 0, 0, 0, 1, 0;
   const Eigen::Matrix3d R_H_C =
-      Eigen::AngleAxisd(-30.0 * kDeg, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  PlaneDepth floor{camera, R_H_C.transpose() * Eigen::Vector3d::UnitY(), 1.0, {}};
+      Eigen::AngleAxisd(-30.0 * kDeg, Eigen::Vector3d::UnitY()).matrix() * R_forward_optical;
+  PlaneDepth floor{camera, R_H_C.transpose() * Eigen::Vector3d::UnitZ(), 1.0, {}};
   Eigen::Vector3d p_C;
   ASSERT_TRUE(floor(320, 400, p_C));
   for (const NormalStencil stencil :
@@ -525,7 +527,7 @@ TEST(SupportSurface, NormalOfAPlaneIsItsNormalWithEitherStencilAndOneSidedAtHole
     }
   }
   // AND a wall (normal horizontal in H) is not one; without neighbours there is no normal.
-  PlaneDepth wall{camera, R_H_C.transpose() * Eigen::Vector3d::UnitZ(), 2.0, {}};
+  PlaneDepth wall{camera, R_H_C.transpose() * Eigen::Vector3d::UnitX(), 2.0, {}};
   ASSERT_TRUE(wall(320, 240, p_C));
   Eigen::Vector3d n_C;
   ASSERT_TRUE(surface_normal_C(wall, 320, 240, camera.width, camera.height, 8,

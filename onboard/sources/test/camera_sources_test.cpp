@@ -161,11 +161,11 @@ TEST(TumRecorder, OptionsAddGroundTruthAndGyroLabelTheListsAndMayReplaceARecordi
   // GIVEN a recorder with the simulator's options
   const std::string dir = fresh_dir("recorder_options");
   geometry::PinholeCamera camera;
-  camera.width = 4;
-  camera.height = 3;
-  camera.fx = camera.fy = 2.0;
-  camera.cx = 1.5;
-  camera.cy = 1.0;
+  camera.width = 16;
+  camera.height = 12;
+  camera.fx = camera.fy = 20.0;
+  camera.cx = 7.5;
+  camera.cy = 5.5;
   TumRecordingOptions options;
   options.description = "unit";
   options.ground_truth = true;
@@ -182,8 +182,8 @@ TEST(TumRecorder, OptionsAddGroundTruthAndGyroLabelTheListsAndMayReplaceARecordi
     TumRecorder recorder(dir, camera, options);
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.translation() = Eigen::Vector3d(1.0, 2.0, 3.0);
-    recorder.write_frame(1'500'000'000, cv::Mat(3, 4, CV_8UC3, cv::Scalar(1, 2, 3)),
-                         cv::Mat(3, 4, CV_32F, cv::Scalar(1.0f)));
+    recorder.write_frame(1'500'000'000, cv::Mat(12, 16, CV_8UC3, cv::Scalar(1, 2, 3)),
+                         cv::Mat(12, 16, CV_32F, cv::Scalar(1.0f)));
     recorder.write_ground_truth(1'500'000'000, T);
     recorder.write_gyro(1'500'000'000, Eigen::Vector3d(0.1, 0.2, 0.3));
     recorder.close();
@@ -206,7 +206,7 @@ TEST(TumRecorder, OptionsAddGroundTruthAndGyroLabelTheListsAndMayReplaceARecordi
   EXPECT_EQ(gyro[3], "1.500000 0.100000 0.200000 0.300000");
   EXPECT_EQ(lines(dir + "/rgb.txt").back(), "1.500000 rgb/1.500000.png");
   EXPECT_EQ(lines(dir + "/camera.yaml").back(), "# mount");
-  EXPECT_DOUBLE_EQ(config::load_camera_info(dir + "/camera.yaml").cx, 1.5);
+  EXPECT_DOUBLE_EQ(config::load_camera_info(dir + "/camera.yaml").cx, 7.5);
 }
 
 TEST(CalibFiles, NominalCameraFilesLoadAt640x480) {
