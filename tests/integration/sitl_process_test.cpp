@@ -219,25 +219,9 @@ class SitlProcess : public ::testing::Test {
   fs::path dir_;
 };
 
-TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAndDisarms) {
-  const int port = test_port(0);
-  const std::string channel = test_channel("flight");
-  const fs::path out = dir_ / "sim.out";
-  Process sim(sim_args(port, channel), out.string());
-  ASSERT_TRUE(sim.started());
-  Companion companion(port);
-  companion.channel_ = channel;
-
-  // GIVEN hq-sim up (it answers once it learns our address from a heartbeat).
-  companion.run_for(1.5);
-  const std::string banner = slurp(out);
-  const double max_thrust_n = number_after(banner, "max thrust");
-  const double hover_n = number_after(banner, "hover");
-  ASSERT_GT(max_thrust_n, 0.0) << banner;
-  ASSERT_GT(hover_n, 0.0) << banner;
-  const float hover = static_cast<float>(hover_n / max_thrust_n);
-
-  // THEN IMU at 500 Hz with increasing stamps, frames with increasing recent host stamps.
+/// THEN IMU at 500 Hz with increasing stamps, frames with increasing recent host stamps, and
+/// IMU time_usec on the frames' time origin; the vehicle on the ground, disarmed.
+void expect_sensor_streams(Companion& companion) {
   const long imu_before = companion.imu_count_;
   const std::uint64_t usec_before = companion.last_imu_usec_;
   companion.run_for(1.0);
@@ -263,6 +247,50 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   EXPECT_GE(companion.heartbeats_, 2);
   EXPECT_GE(companion.attitudes_, 80);
   EXPECT_FALSE(companion.armed());
+}
+
+/// The companion's velocity report: the channel's true v_H rotated by the FC's yaw into NED.
+mav::VisionSpeedEstimate true_velocity_ned(const Companion& companion) {
+  const auto& truth = companion.last_frame_.truth;
+  const double yaw = companion.last_attitude_ ? companion.last_attitude_->yaw_rad : 0.0;
+  mav::VisionSpeedEstimate v;
+  v.x_mps = static_cast<float>(std::cos(yaw) * truth.v_H_mps[0] - std::sin(yaw) * truth.v_H_mps[1]);
+  v.y_mps = static_cast<float>(std::sin(yaw) * truth.v_H_mps[0] + std::cos(yaw) * truth.v_H_mps[1]);
+  v.z_mps = static_cast<float>(truth.v_H_mps[2]);
+  return v;
+}
+
+/// WHEN the setpoints stop (heartbeats go on), THEN LAND, touchdown and disarm.
+void expect_lands_on_setpoint_loss(Companion& companion) {
+  companion.run_for(1.0);
+  EXPECT_THAT(companion.texts_, HasSubstr("offboard setpoints lost: landing"));
+  EXPECT_EQ(companion.custom_mode(), 4u << 16 | 6u << 24) << "AUTO.LAND";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (companion.armed() && std::chrono::steady_clock::now() < deadline) companion.run_for(0.2);
+  EXPECT_FALSE(companion.armed());
+  EXPECT_TRUE(companion.last_frame_.truth.on_ground);
+  EXPECT_THAT(companion.texts_, HasSubstr("landed: disarmed"));
+}
+
+TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAndDisarms) {
+  const int port = test_port(0);
+  const std::string channel = test_channel("flight");
+  const fs::path out = dir_ / "sim.out";
+  Process sim(sim_args(port, channel), out.string());
+  ASSERT_TRUE(sim.started());
+  Companion companion(port);
+  companion.channel_ = channel;
+
+  // GIVEN hq-sim up (it answers once it learns our address from a heartbeat).
+  companion.run_for(1.5);
+  const std::string banner = slurp(out);
+  const double max_thrust_n = number_after(banner, "max thrust");
+  const double hover_n = number_after(banner, "hover");
+  ASSERT_GT(max_thrust_n, 0.0) << banner;
+  ASSERT_GT(hover_n, 0.0) << banner;
+  const float hover = static_cast<float>(hover_n / max_thrust_n);
+  expect_sensor_streams(companion);
+  ASSERT_FALSE(HasFatalFailure());
 
   // WHEN setpoints stream, OFFBOARD is requested and the vehicle armed.
   // Altitude hold on the channel's truth: climb to 1.5 m, then hover there.
@@ -286,32 +314,14 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   EXPECT_THAT(companion.texts_, HasSubstr("armed"));
 
   // THEN it climbs and keeps flying on hover setpoints; the companion reports its velocity.
-  auto fly_and_report = [&] {
+  companion.run_for(3.0, [&] {
     fly();
-    const auto& truth = companion.last_frame_.truth;
-    const double yaw = companion.last_attitude_ ? companion.last_attitude_->yaw_rad : 0.0;
-    mav::VisionSpeedEstimate v;  // v_H rotated by yaw into NED
-    v.x_mps =
-        static_cast<float>(std::cos(yaw) * truth.v_H_mps[0] - std::sin(yaw) * truth.v_H_mps[1]);
-    v.y_mps =
-        static_cast<float>(std::sin(yaw) * truth.v_H_mps[0] + std::cos(yaw) * truth.v_H_mps[1]);
-    v.z_mps = static_cast<float>(truth.v_H_mps[2]);
-    companion.send(v);
-  };
-  companion.run_for(3.0, fly_and_report);
+    companion.send(true_velocity_ned(companion));
+  });
   EXPECT_FALSE(companion.last_frame_.truth.on_ground);
   EXPECT_NEAR(companion.last_frame_.truth.p_W_m[2], 1.5, 0.5) << slurp(out);
   EXPECT_TRUE(companion.armed());
-
-  // WHEN the setpoints stop (heartbeats go on), THEN LAND, touchdown and disarm.
-  companion.run_for(1.0);
-  EXPECT_THAT(companion.texts_, HasSubstr("offboard setpoints lost: landing"));
-  EXPECT_EQ(companion.custom_mode(), 4u << 16 | 6u << 24) << "AUTO.LAND";
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (companion.armed() && std::chrono::steady_clock::now() < deadline) companion.run_for(0.2);
-  EXPECT_FALSE(companion.armed());
-  EXPECT_TRUE(companion.last_frame_.truth.on_ground);
-  EXPECT_THAT(companion.texts_, HasSubstr("landed: disarmed"));
+  expect_lands_on_setpoint_loss(companion);
 
   // SIGTERM: a clean end with the summary, the channel unlinked.
   sim.signal(SIGTERM);
@@ -345,46 +355,23 @@ class CountingSink final : public hq::vehicle::FcSink {
   std::string events;
 };
 
-// The vehicle's MavlinkFlightController (onboard/vehicle) against the SITL FC: the contract both
-// sides were written to, checked end to end.
-TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetpointLoss) {
-  const int port = test_port(3);
-  const std::string channel = test_channel("vehicle");
-  const fs::path out = dir_ / "sim.out";
-  Process sim(sim_args(port, channel), out.string());
-  ASSERT_TRUE(sim.started());
-  std::unique_ptr<hq::frame_channel::FrameChannelReader> frames;
-  for (int i = 0; i < 100 && !frames; ++i) {
-    try {
-      frames = std::make_unique<hq::frame_channel::FrameChannelReader>(channel);
-    } catch (const hq::InputError&) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-  }
-  ASSERT_TRUE(frames) << slurp(out);
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  const std::string banner = slurp(out);
-  const double hover_n = number_after(banner, "hover");
-  ASSERT_GT(hover_n, 0.0) << banner;
-
-  hq::vehicle::MavlinkFcConfig config;
-  config.transport = "udp:127.0.0.1:" + std::to_string(port);
-  config.max_thrust_n = number_after(banner, "max thrust");
-  hq::vehicle::MavlinkFlightController fc(config);
+/// The vehicle's 50 Hz loop around its MAVLink FC client: poll, newest frame, and with
+/// setpoints on, a setpoint (altitude hold at 1.5 m on the frames' truth) and a velocity
+/// estimate (the truth's v_H, which the client turns into NED with the FC's yaw).
+struct VehicleLoop {
+  hq::vehicle::MavlinkFlightController& fc;
+  hq::frame_channel::FrameChannelReader& frames;
+  double hover_n;
   CountingSink sink;
   cv::Mat image, depth;
   hq::frame_channel::FrameInfo frame;
-  frame.truth.p_W_m = {0.0, 0.0, 0.08};
 
-  // The vehicle's 50 Hz loop for `seconds`: poll, newest frame, setpoint (altitude hold on truth)
-  // and velocity estimate (the truth's v_H, which the client turns into NED with the FC's yaw).
-  auto run_for = [&](double seconds, bool setpoints, auto at_start) {
-    at_start();
+  void run_for(double seconds, bool setpoints) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
     while (std::chrono::steady_clock::now() < end) {
       const std::int64_t t_ns = hq::monotonic_now_ns();
       fc.poll(t_ns, sink);
-      frames->take_latest(image, depth, frame);
+      frames.take_latest(image, depth, frame);
       if (setpoints) {
         const double v_up_mps = -frame.truth.v_H_mps[2];
         const double a_up_mps2 = 2.0 * (1.5 - frame.truth.p_W_m[2]) - 2.5 * v_up_mps;
@@ -398,9 +385,45 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
-  };
-  auto nothing = [] {};
-  run_for(1.0, true, nothing);
+  }
+};
+
+/// The frame channel `channel` once hq-sim has created it (up to 5 s), else nullptr.
+std::unique_ptr<hq::frame_channel::FrameChannelReader> open_channel(const std::string& channel) {
+  for (int i = 0; i < 100; ++i) {
+    try {
+      return std::make_unique<hq::frame_channel::FrameChannelReader>(channel);
+    } catch (const hq::InputError&) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  return nullptr;
+}
+
+// The vehicle's MavlinkFlightController (onboard/vehicle) against the SITL FC: the contract both
+// sides were written to, checked end to end.
+TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetpointLoss) {
+  const int port = test_port(3);
+  const std::string channel = test_channel("vehicle");
+  const fs::path out = dir_ / "sim.out";
+  Process sim(sim_args(port, channel), out.string());
+  ASSERT_TRUE(sim.started());
+  const std::unique_ptr<hq::frame_channel::FrameChannelReader> frames = open_channel(channel);
+  ASSERT_TRUE(frames) << slurp(out);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::string banner = slurp(out);
+  const double hover_n = number_after(banner, "hover");
+  ASSERT_GT(hover_n, 0.0) << banner;
+
+  hq::vehicle::MavlinkFcConfig config;
+  config.transport = "udp:127.0.0.1:" + std::to_string(port);
+  config.max_thrust_n = number_after(banner, "max thrust");
+  hq::vehicle::MavlinkFlightController fc(config);
+  VehicleLoop loop{fc, *frames, hover_n, {}, {}, {}, {}};
+  loop.frame.truth.p_W_m = {0.0, 0.0, 0.08};
+  const CountingSink& sink = loop.sink;
+
+  loop.run_for(1.0, true);
   const std::int64_t now_ns = hq::monotonic_now_ns();
   EXPECT_TRUE(fc.status(now_ns).connected) << sink.events;
   EXPECT_GT(sink.imu, 350) << "about 500 Hz";
@@ -408,25 +431,26 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   EXPECT_NEAR(static_cast<double>(sink.last_imu_ns), static_cast<double>(now_ns), 100e6)
       << "IMU stamped on the runtime clock";
 
-  run_for(5.0, true, [&] { fc.request_arm_offboard(hq::monotonic_now_ns()); });
+  fc.request_arm_offboard(hq::monotonic_now_ns());
+  loop.run_for(5.0, true);
   const hq::vehicle::FcStatus flying = fc.status(hq::monotonic_now_ns());
   EXPECT_TRUE(flying.armed) << sink.events << slurp(out);
   EXPECT_TRUE(flying.offboard);
   EXPECT_GT(flying.battery_v, 14.0);
-  EXPECT_FALSE(frame.truth.on_ground);
-  EXPECT_NEAR(frame.truth.p_W_m[2], 1.5, 0.5);
+  EXPECT_FALSE(loop.frame.truth.on_ground);
+  EXPECT_NEAR(loop.frame.truth.p_W_m[2], 1.5, 0.5);
 
   // Setpoints stop: the SITL FC lands and disarms; the client reports it.
-  run_for(1.0, false, nothing);
+  loop.run_for(1.0, false);
   EXPECT_FALSE(fc.status(hq::monotonic_now_ns()).offboard);
   EXPECT_THAT(sink.events, HasSubstr("offboard setpoints lost: landing"));
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while (fc.status(hq::monotonic_now_ns()).armed &&
          std::chrono::steady_clock::now() < deadline) {
-    run_for(0.2, false, nothing);
+    loop.run_for(0.2, false);
   }
   EXPECT_FALSE(fc.status(hq::monotonic_now_ns()).armed) << sink.events;
-  EXPECT_TRUE(frame.truth.on_ground);
+  EXPECT_TRUE(loop.frame.truth.on_ground);
 
   sim.signal(SIGTERM);
   ASSERT_EQ(sim.wait_exit(10.0), 0) << slurp(out);

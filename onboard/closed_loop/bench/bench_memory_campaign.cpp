@@ -49,45 +49,29 @@ void print_stage(const char* setting, const hq::pipeline::StageTimingLog& log) {
               total.median_ms, total.p99_ms, memory.median_ms / std::max(total.median_ms, 1e-9));
 }
 
-int run(int argc, char** argv) {
-  CLI::App app{"hq-bench-memory-campaign: obstacles outside the view, memory off against on"};
-  int runs = 20;
-  unsigned seed = 20261126;
-  app.add_option("--runs", runs, "runs per case")->check(CLI::Range(1, 1000));
-  app.add_option("--seed", seed, "campaign seed");
-  std::string trace;
-  app.add_option("--trace", trace,
-                 "CASE:INDEX (e.g. back-up:0): fly that run only, memory off then on, one line "
-                 "per frame");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
-
-  const hq::sim::World room = hq::sim::load_world("onboard/sim/worlds/room.yaml");
-  const SteadyClock clock;
-  if (!trace.empty()) {
-    const auto colon = trace.find(':');
-    for (const MemoryCase kind : hq::closed_loop::testing::kMemoryCases) {
-      if (colon == std::string::npos ||
-          trace.substr(0, colon) != hq::closed_loop::testing::to_string(kind)) {
-        continue;
-      }
-      const auto r =
-          hq::closed_loop::testing::draw_memory_run(kind, std::stoi(trace.substr(colon + 1)), seed);
-      for (int on = 0; on < 2; ++on) {
-        std::printf("--- %s memory %s\n", trace.c_str(), on ? "on" : "off");
-        hq::closed_loop::testing::fly_memory_run(r, on == 1, room, nullptr, nullptr, stdout);
-      }
-      return 0;
+/// --trace CASE:INDEX: that run only, memory off then on, one line per frame.
+int trace_one(const std::string& trace, unsigned seed, const hq::sim::World& room) {
+  const auto colon = trace.find(':');
+  for (const MemoryCase kind : hq::closed_loop::testing::kMemoryCases) {
+    if (colon == std::string::npos ||
+        trace.substr(0, colon) != hq::closed_loop::testing::to_string(kind)) {
+      continue;
     }
-    throw hq::InputError("--trace " + trace + ": expected CASE:INDEX with CASE one of back-up, "
-                         "sideways, yaw-close");
+    const auto r =
+        hq::closed_loop::testing::draw_memory_run(kind, std::stoi(trace.substr(colon + 1)), seed);
+    for (int on = 0; on < 2; ++on) {
+      std::printf("--- %s memory %s\n", trace.c_str(), on ? "on" : "off");
+      hq::closed_loop::testing::fly_memory_run(r, on == 1, room, nullptr, nullptr, stdout);
+    }
+    return 0;
   }
-  hq::pipeline::StageTimingLog timing[2];
-  Column columns[3][2];
-  const auto wall_start = std::chrono::steady_clock::now();
+  throw hq::InputError("--trace " + trace + ": expected CASE:INDEX with CASE one of back-up, "
+                       "sideways, yaw-close");
+}
+
+/// Every case's runs, each flown with the memory off and on; one line per run.
+void fly_campaign(int runs, unsigned seed, const hq::sim::World& room, const SteadyClock& clock,
+                  Column (&columns)[3][2], hq::pipeline::StageTimingLog (&timing)[2]) {
   for (int c = 0; c < 3; ++c) {
     const MemoryCase kind = hq::closed_loop::testing::kMemoryCases[c];
     for (int i = 0; i < runs; ++i) {
@@ -110,18 +94,18 @@ int run(int argc, char** argv) {
       std::fflush(stdout);
     }
   }
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+}
 
-  std::printf("\nobstacle memory campaign, %d runs per case, seed %u, 320x240 (%.0f s wall)\n",
-              runs, seed, wall_s);
+/// Collisions and closest distances per case, memory off beside on.
+void print_columns(int runs, const Column (&columns)[3][2]) {
   std::printf("closest distance = box surface to the %.2f m vehicle sphere (m)\n",
               hq::closed_loop::testing::kVehicleRadiusM);
   std::printf("%-10s | %-36s | %-36s\n", "case", "memory off", "memory on");
   std::printf("%-10s | %10s %7s %7s %8s | %10s %7s %7s %8s\n", "", "collisions", "min", "p10",
               "median", "collisions", "min", "p10", "median");
   for (int c = 0; c < 3; ++c) {
-    std::printf("%-10s |", hq::closed_loop::testing::to_string(hq::closed_loop::testing::kMemoryCases[c]));
+    std::printf("%-10s |",
+                hq::closed_loop::testing::to_string(hq::closed_loop::testing::kMemoryCases[c]));
     for (int on = 0; on < 2; ++on) {
       const Column& col = columns[c][on];
       std::printf(" %4d/%-5d %+7.3f %+7.3f %+8.3f %s", col.collisions, runs,
@@ -132,6 +116,37 @@ int run(int argc, char** argv) {
   int largest_map = 0;
   for (const auto& row : columns) largest_map = std::max(largest_map, row[1].max_map_size);
   std::printf("largest memory map in any run: %d points\n", largest_map);
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-bench-memory-campaign: obstacles outside the view, memory off against on"};
+  int runs = 20;
+  unsigned seed = 20261126;
+  app.add_option("--runs", runs, "runs per case")->check(CLI::Range(1, 1000));
+  app.add_option("--seed", seed, "campaign seed");
+  std::string trace;
+  app.add_option("--trace", trace,
+                 "CASE:INDEX (e.g. back-up:0): fly that run only, memory off then on, one line "
+                 "per frame");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  const hq::sim::World room = hq::sim::load_world("onboard/sim/worlds/room.yaml");
+  if (!trace.empty()) return trace_one(trace, seed, room);
+  const SteadyClock clock;
+  hq::pipeline::StageTimingLog timing[2];
+  Column columns[3][2];
+  const auto wall_start = std::chrono::steady_clock::now();
+  fly_campaign(runs, seed, room, clock, columns, timing);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  std::printf("\nobstacle memory campaign, %d runs per case, seed %u, 320x240 (%.0f s wall)\n",
+              runs, seed, wall_s);
+  print_columns(runs, columns);
   std::printf("\nper-frame stage time over every frame of the campaign (wall clock, one thread):\n");
   print_stage("off", timing[0]);
   print_stage("on", timing[1]);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace hq::marker_modes {
 namespace {
@@ -233,113 +234,41 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
     started_ = true;
     enter(ExplorePhase::kLiftOff, t_ns);
   }
-  const double in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
-  const bool have_pose = navigation_.pose_usable(marker_mode_.config().max_marker_age_s);
-  const Eigen::Vector3d p = navigation_.p_W_m();
-  const double height_m = -p.z();  // W: floor markers at z = 0, NED.
-  const double z_target = -config_.height_m;
-  const double alpha = navigation_.camera_heading_rad();
+  // A phase either commands or hands over (a new phase, or a goal given up), and the new state
+  // is asked in the same call, so a phase change costs no step. Every hand-over chain ends
+  // within a few passes (a phase entered now has spent 0 s in it); the bound only keeps a
+  // future cycle from spinning.
+  constexpr int kMaxPasses = 8;
+  for (int pass = 0; pass < kMaxPasses; ++pass) {
+    if (std::optional<modes::ModeCommand> c = step(t_ns)) return *c;
+  }
+  return invalid("explore: phase changes did not settle");
+}
 
+std::optional<modes::ModeCommand> ExploreProvider::step(std::int64_t t_ns) {
+  StepInputs in;
+  in.in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
+  in.have_pose = navigation_.pose_usable(marker_mode_.config().max_marker_age_s);
+  in.p_W_m = navigation_.p_W_m();
+  in.z_target_m = -config_.height_m;
+  in.alpha_rad = navigation_.camera_heading_rad();
   switch (phase_) {
-    case ExplorePhase::kLiftOff: {
-      // Seed: climb to the working height; on the RGB-D velocity alone until a marker anchors.
-      if ((have_pose && height_m > config_.height_m - 0.1) || in_phase_s > config_.liftoff_max_s) {
-        enter(have_pose ? ExplorePhase::kExplore : ExplorePhase::kSearch, t_ns);
-        return desired(t_ns);
-      }
-      modes::ModeCommand c;
-      c.valid = true;
-      c.v_H_mps.z() = -config_.liftoff_climb_mps;
-      return c;
-    }
+    case ExplorePhase::kLiftOff:
+      return lift_off(t_ns, in);
     case ExplorePhase::kSearch: {
-      if (have_pose) {
+      if (in.have_pose) {
         enter(ExplorePhase::kExplore, t_ns);
-        return desired(t_ns);
+        return std::nullopt;
       }
       modes::ModeCommand c;
       c.valid = true;
       c.yaw_rate_radps = config_.search_yaw_rate_radps;
       return c;
     }
-    case ExplorePhase::kExplore: {
-      if (!exploring_started_) {
-        exploring_started_ = true;
-        t_explore_ns_ = t_ns;
-      }
-      // Lost the markers for long (e.g. facing empty floor beyond the field): steer back to
-      // the map's centre on the filter's dead-reckoned pose, as at the edge.
-      if (!have_pose) {
-        ++edge_events_;
-        enter(ExplorePhase::kEdge, t_ns);
-        return desired(t_ns);
-      }
-      mark_seen();
-      Eigen::Vector2d lo;
-      Eigen::Vector2d hi;
-      if (map_box(lo, hi) && navigation_.time_since_detection_s(t_ns) > config_.edge_timeout_s) {
-        const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config_.edge_margin_m);
-        if ((p.head<2>().array() < (lo - margin).array()).any() ||
-            (p.head<2>().array() > (hi + margin).array()).any()) {
-          ++edge_events_;
-          enter(ExplorePhase::kEdge, t_ns);
-          return desired(t_ns);
-        }
-      }
-      const int previous_goal = have_goal_ ? goal_i_ * kCells + goal_j_ : -1;
-      if (exploring_for_s(t_ns) > config_.budget_s || !choose_goal(p.head<2>())) {
-        enter(config_.land_at_end ? ExplorePhase::kNavigate : ExplorePhase::kDone, t_ns);
-        marker_mode_.set_task(MarkerTask::kGoTo, marker_mode_.config().target_id);
-        return desired(t_ns);
-      }
-      if (goal_i_ * kCells + goal_j_ != previous_goal) t_goal_ns_ = t_ns;
-      // Stand off from the goal cell with the camera facing it: the forward, down-tilted camera
-      // sees the floor from about a metre ahead.
-      const Eigen::Vector2d goal = cell_centre(goal_i_, goal_j_);
-      const Eigen::Vector2d to_goal = goal - p.head<2>();
-      const double distance = to_goal.norm();
-      const Eigen::Vector2d dir =
-          distance > 1e-3 ? Eigen::Vector2d(to_goal / distance) : Eigen::Vector2d::UnitX();
-      // A goal not seen within goal_timeout_s is given up (e.g. in the blind zone below).
-      if (1e-9 * static_cast<double>(t_ns - t_goal_ns_) > config_.goal_timeout_s) {
-        seen_[static_cast<std::size_t>(goal_i_ * kCells + goal_j_)] = 2;
-        return desired(t_ns);
-      }
-      // Never back up: behind the forward camera nothing is seen (nor the obstacle field's
-      // depth). The stand-off stays within the mapped box grown by a cell, away from the walls.
-      Eigen::Vector2d stand = distance > config_.view_distance_m
-                                  ? Eigen::Vector2d(goal - config_.view_distance_m * dir)
-                                  : Eigen::Vector2d(p.head<2>());
-      if (map_box(lo, hi)) {
-        stand = stand.cwiseMax(lo - Eigen::Vector2d::Constant(config_.cell_m))
-                    .cwiseMin(hi + Eigen::Vector2d::Constant(config_.cell_m));
-      }
-      const double yaw_target = std::atan2(dir.y(), dir.x()) - alpha;
-      return fly_to(Eigen::Vector3d(stand.x(), stand.y(), z_target), yaw_target);
-    }
-    case ExplorePhase::kEdge: {
-      // Seed: the edge of the map -> counter-steer back towards its centre until a marker shows.
-      if (navigation_.time_since_detection_s(t_ns) < 0.1 && in_phase_s > 0.3) {
-        enter(ExplorePhase::kExplore, t_ns);
-        return desired(t_ns);
-      }
-      Eigen::Vector2d lo;
-      Eigen::Vector2d hi;
-      if (!map_box(lo, hi)) return invalid("explore: no map");
-      const Eigen::Vector2d centre = 0.5 * (lo + hi);
-      Eigen::Vector2d back = centre - p.head<2>();
-      if (back.norm() > 1e-6) back *= config_.counter_steer_mps / back.norm();
-      modes::ModeCommand c;
-      c.valid = true;
-      const double yaw = navigation_.yaw_rad();
-      Eigen::Vector3d v_world(back.x(), back.y(),
-                              marker_mode_.config().kp_position_per_s * (z_target - p.z()));
-      c.v_H_mps = to_horizontal(v_world, yaw, marker_mode_.config().max_speed_mps);
-      c.yaw_rate_radps = yaw_rate_towards(std::atan2(back.y(), back.x()) - alpha, yaw,
-                                          marker_mode_.config().kp_yaw_per_s,
-                                          marker_mode_.config().max_yaw_rate_radps);
-      return c;
-    }
+    case ExplorePhase::kExplore:
+      return explore(t_ns, in);
+    case ExplorePhase::kEdge:
+      return counter_steer(t_ns, in);
     case ExplorePhase::kNavigate: {
       const modes::ModeCommand c = marker_mode_.desired(t_ns);
       if (c.valid && marker_mode_.horizontal_error_m() < 0.1) {
@@ -351,11 +280,111 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
     case ExplorePhase::kLand:
       return marker_mode_.desired(t_ns);
     case ExplorePhase::kDone: {
-      if (!have_pose) return invalid("explore: no marker pose");
-      return fly_to(Eigen::Vector3d(p.x(), p.y(), z_target), navigation_.yaw_rad());
+      if (!in.have_pose) return invalid("explore: no marker pose");
+      return fly_to(Eigen::Vector3d(in.p_W_m.x(), in.p_W_m.y(), in.z_target_m),
+                    navigation_.yaw_rad());
     }
   }
   return invalid("explore: unknown phase");
+}
+
+std::optional<modes::ModeCommand> ExploreProvider::lift_off(std::int64_t t_ns,
+                                                            const StepInputs& in) {
+  // Seed: climb to the working height; on the RGB-D velocity alone until a marker anchors.
+  const double height_m = -in.p_W_m.z();  // W: floor markers at z = 0, NED.
+  if ((in.have_pose && height_m > config_.height_m - 0.1) ||
+      in.in_phase_s > config_.liftoff_max_s) {
+    enter(in.have_pose ? ExplorePhase::kExplore : ExplorePhase::kSearch, t_ns);
+    return std::nullopt;
+  }
+  modes::ModeCommand c;
+  c.valid = true;
+  c.v_H_mps.z() = -config_.liftoff_climb_mps;
+  return c;
+}
+
+std::optional<modes::ModeCommand> ExploreProvider::explore(std::int64_t t_ns,
+                                                           const StepInputs& in) {
+  const Eigen::Vector3d& p = in.p_W_m;
+  if (!exploring_started_) {
+    exploring_started_ = true;
+    t_explore_ns_ = t_ns;
+  }
+  // Lost the markers for long (e.g. facing empty floor beyond the field): steer back to
+  // the map's centre on the filter's dead-reckoned pose, as at the edge.
+  if (!in.have_pose) {
+    ++edge_events_;
+    enter(ExplorePhase::kEdge, t_ns);
+    return std::nullopt;
+  }
+  mark_seen();
+  Eigen::Vector2d lo;
+  Eigen::Vector2d hi;
+  if (map_box(lo, hi) && navigation_.time_since_detection_s(t_ns) > config_.edge_timeout_s) {
+    const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config_.edge_margin_m);
+    if ((p.head<2>().array() < (lo - margin).array()).any() ||
+        (p.head<2>().array() > (hi + margin).array()).any()) {
+      ++edge_events_;
+      enter(ExplorePhase::kEdge, t_ns);
+      return std::nullopt;
+    }
+  }
+  const int previous_goal = have_goal_ ? goal_i_ * kCells + goal_j_ : -1;
+  if (exploring_for_s(t_ns) > config_.budget_s || !choose_goal(p.head<2>())) {
+    enter(config_.land_at_end ? ExplorePhase::kNavigate : ExplorePhase::kDone, t_ns);
+    marker_mode_.set_task(MarkerTask::kGoTo, marker_mode_.config().target_id);
+    return std::nullopt;
+  }
+  if (goal_i_ * kCells + goal_j_ != previous_goal) t_goal_ns_ = t_ns;
+  // Stand off from the goal cell with the camera facing it: the forward, down-tilted camera
+  // sees the floor from about a metre ahead.
+  const Eigen::Vector2d goal = cell_centre(goal_i_, goal_j_);
+  const Eigen::Vector2d to_goal = goal - p.head<2>();
+  const double distance = to_goal.norm();
+  const Eigen::Vector2d dir =
+      distance > 1e-3 ? Eigen::Vector2d(to_goal / distance) : Eigen::Vector2d::UnitX();
+  // A goal not seen within goal_timeout_s is given up (e.g. in the blind zone below), and the
+  // next one chosen on the next pass.
+  if (1e-9 * static_cast<double>(t_ns - t_goal_ns_) > config_.goal_timeout_s) {
+    seen_[static_cast<std::size_t>(goal_i_ * kCells + goal_j_)] = 2;
+    return std::nullopt;
+  }
+  // Never back up: behind the forward camera nothing is seen (nor the obstacle field's
+  // depth). The stand-off stays within the mapped box grown by a cell, away from the walls.
+  Eigen::Vector2d stand = distance > config_.view_distance_m
+                              ? Eigen::Vector2d(goal - config_.view_distance_m * dir)
+                              : Eigen::Vector2d(p.head<2>());
+  if (map_box(lo, hi)) {
+    stand = stand.cwiseMax(lo - Eigen::Vector2d::Constant(config_.cell_m))
+                .cwiseMin(hi + Eigen::Vector2d::Constant(config_.cell_m));
+  }
+  const double yaw_target = std::atan2(dir.y(), dir.x()) - in.alpha_rad;
+  return fly_to(Eigen::Vector3d(stand.x(), stand.y(), in.z_target_m), yaw_target);
+}
+
+std::optional<modes::ModeCommand> ExploreProvider::counter_steer(std::int64_t t_ns,
+                                                                 const StepInputs& in) {
+  // Seed: the edge of the map -> counter-steer back towards its centre until a marker shows.
+  if (navigation_.time_since_detection_s(t_ns) < 0.1 && in.in_phase_s > 0.3) {
+    enter(ExplorePhase::kExplore, t_ns);
+    return std::nullopt;
+  }
+  Eigen::Vector2d lo;
+  Eigen::Vector2d hi;
+  if (!map_box(lo, hi)) return invalid("explore: no map");
+  const Eigen::Vector2d centre = 0.5 * (lo + hi);
+  Eigen::Vector2d back = centre - in.p_W_m.head<2>();
+  if (back.norm() > 1e-6) back *= config_.counter_steer_mps / back.norm();
+  modes::ModeCommand c;
+  c.valid = true;
+  const double yaw = navigation_.yaw_rad();
+  const MarkerModeConfig& gains = marker_mode_.config();
+  const Eigen::Vector3d v_W(back.x(), back.y(),
+                            gains.kp_position_per_s * (in.z_target_m - in.p_W_m.z()));
+  c.v_H_mps = to_horizontal(v_W, yaw, gains.max_speed_mps);
+  c.yaw_rate_radps = yaw_rate_towards(std::atan2(back.y(), back.x()) - in.alpha_rad, yaw,
+                                      gains.kp_yaw_per_s, gains.max_yaw_rate_radps);
+  return c;
 }
 
 }  // namespace hq::marker_modes

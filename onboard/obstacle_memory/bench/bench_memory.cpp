@@ -46,6 +46,87 @@ long rss_kib() {
   return -1;
 }
 
+/// The peer: the same frame through PCL's filters, cloud building included as in the memory.
+double pcl_peer_ms(const cv::Mat& depth, const hq::geometry::PinholeCamera& camera,
+                   const Eigen::Isometry3d& T_O_C, const hq::obstacle_memory::MemoryConfig& config,
+                   pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud,
+                   pcl::PointCloud<pcl::PointXYZ>::Ptr& voxels,
+                   pcl::PointCloud<pcl::PointXYZ>& cleaned) {
+  const auto start = SteadyClock::now();
+  const auto leaf = static_cast<float>(config.leaf_m);
+  cloud->clear();
+  const Eigen::Isometry3f T_O_C_f = T_O_C.cast<float>();
+  for (int v = 0; v < depth.rows; v += config.pixel_stride) {
+    const auto* row = depth.ptr<float>(v);
+    for (int u = 0; u < depth.cols; u += config.pixel_stride) {
+      const float z = row[u];
+      if (!(z >= config.min_range_m && z <= config.max_range_m)) continue;
+      const Eigen::Vector3f p_C = camera.ray(u, v).cast<float>() * z;
+      const Eigen::Vector3f p_O = T_O_C_f * p_C;
+      cloud->push_back(pcl::PointXYZ(p_O.x(), p_O.y(), p_O.z()));
+    }
+  }
+  pcl::VoxelGrid<pcl::PointXYZ> grid;
+  grid.setInputCloud(cloud);
+  grid.setLeafSize(leaf, leaf, leaf);
+  grid.filter(*voxels);
+  pcl::RadiusOutlierRemoval<pcl::PointXYZ> outliers;
+  outliers.setInputCloud(voxels);
+  outliers.setRadiusSearch(1.75 * leaf);
+  outliers.setMinNeighborsInRadius(config.min_neighbors);
+  outliers.filter(cleaned);
+  return ms_between(start, SteadyClock::now());
+}
+
+/// What one flight measured.
+struct FlightFigures {
+  std::vector<double> memory_ms, peer_ms;
+  int map_size_at_10s = -1;
+  int max_map_size = 0;
+  long clears = 0;
+};
+
+/// The scripted circle for `seconds`, every frame into the memory, every 10th also into PCL.
+FlightFigures fly(double seconds, const hq::sim::World& world,
+                  const hq::obstacle_memory::MemoryConfig& memory_config,
+                  hq::obstacle_memory::ObstacleMemory& memory) {
+  const hq::sim::SimConfig sim_config = hq::sim::default_sim_config(320, 240);
+  hq::sim::Simulator sim(sim_config, world);
+  const hq::sim::FlightScript script =
+      hq::sim::script_for_world(world, hq::sim::FlightScript::Kind::kCircle);
+  FlightFigures f;
+  f.memory_ms.reserve(static_cast<std::size_t>(seconds * 31.0));
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  pcl::PointCloud<pcl::PointXYZ>::Ptr voxels(new pcl::PointCloud<pcl::PointXYZ>);
+  pcl::PointCloud<pcl::PointXYZ> cleaned;
+  cv::Mat image, depth;
+  const auto end_ns = static_cast<std::int64_t>(seconds * 1e9);
+  for (std::int64_t t_ns = 0; t_ns < end_ns; t_ns += hq::sim::kScriptControlPeriodNs) {
+    sim.set_command(hq::sim::scripted_command(sim, script, 1e-9 * static_cast<double>(t_ns)));
+    sim.step_to(t_ns);
+    if (!sim.camera_due()) continue;
+    sim.render_camera(image, depth);
+    const hq::sim::TruthState& truth = sim.truth();
+    const Eigen::Matrix3d R_H_B =
+        hq::estimator::R_horizontal_body(truth.euler_rad.x(), truth.euler_rad.y());
+    // The simulator's truth stands in for the odometry: its N is the memory's O here.
+    const Eigen::Isometry3d T_O_C = sim.camera_T_world_camera();
+    const auto t0 = SteadyClock::now();
+    const hq::obstacle_memory::MemoryUpdate update =
+        memory.update(sim.camera_t_ns(), depth, T_O_C, R_H_B, 1.2);
+    const auto t1 = SteadyClock::now();
+    f.memory_ms.push_back(ms_between(t0, t1));
+    f.max_map_size = std::max(f.max_map_size, update.map_size);
+    f.clears += update.cleared ? 1 : 0;
+    if (f.map_size_at_10s < 0 && t_ns >= 10'000'000'000) f.map_size_at_10s = update.map_size;
+    if (f.memory_ms.size() % 10 == 0) {
+      f.peer_ms.push_back(pcl_peer_ms(depth, sim_config.camera.pinhole, T_O_C, memory_config,
+                                      cloud, voxels, cleaned));
+    }
+  }
+  return f;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"hq-bench-memory: obstacle memory cost over a simulated flight"};
   double seconds = 600.0;
@@ -68,80 +149,20 @@ int run(int argc, char** argv) {
   }
   const hq::sim::World world = hq::sim::load_world(world_path);
   const hq::sim::SimConfig sim_config = hq::sim::default_sim_config(320, 240);
-  hq::sim::Simulator sim(sim_config, world);
-  const hq::sim::FlightScript script =
-      hq::sim::script_for_world(world, hq::sim::FlightScript::Kind::kCircle);
-  const Eigen::Isometry3d& T_body_camera = sim_config.camera.T_body_camera;
+  const Eigen::Isometry3d& T_B_C = sim_config.camera.T_body_camera;
   hq::obstacle_memory::ObstacleMemory memory(memory_config, sim_config.camera.pinhole,
-                                             T_body_camera.linear(),
-                                             T_body_camera.translation());
-  const float leaf = static_cast<float>(memory_config.leaf_m);
+                                             T_B_C.linear(), T_B_C.translation());
 
   const long rss_start_kib = rss_kib();
-  std::vector<double> memory_ms, peer_ms;
-  memory_ms.reserve(static_cast<std::size_t>(seconds * 31.0));
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  pcl::PointCloud<pcl::PointXYZ>::Ptr voxels(new pcl::PointCloud<pcl::PointXYZ>);
-  pcl::PointCloud<pcl::PointXYZ> cleaned;
-  cv::Mat image, depth;
-  int map_size_at_10s = -1;
-  int max_map_size = 0;
-  long clears = 0;
-  const auto end_ns = static_cast<std::int64_t>(seconds * 1e9);
-  for (std::int64_t t_ns = 0; t_ns < end_ns; t_ns += hq::sim::kScriptControlPeriodNs) {
-    sim.set_command(hq::sim::scripted_command(sim, script, 1e-9 * static_cast<double>(t_ns)));
-    sim.step_to(t_ns);
-    if (!sim.camera_due()) continue;
-    sim.render_camera(image, depth);
-    const hq::sim::TruthState& truth = sim.truth();
-    const Eigen::Matrix3d R_HQ =
-        hq::estimator::R_horizontal_body(truth.euler_rad.x(), truth.euler_rad.y());
-    const auto t0 = SteadyClock::now();
-    const hq::obstacle_memory::MemoryUpdate update =
-        memory.update(sim.camera_t_ns(), depth, sim.camera_T_world_camera(), R_HQ, 1.2);
-    const auto t1 = SteadyClock::now();
-    memory_ms.push_back(ms_between(t0, t1));
-    max_map_size = std::max(max_map_size, update.map_size);
-    clears += update.cleared ? 1 : 0;
-    if (map_size_at_10s < 0 && t_ns >= 10'000'000'000) map_size_at_10s = update.map_size;
-
-    if (memory_ms.size() % 10 == 0) {
-      // Peer: the same frame through PCL's filters (cloud building included, as above).
-      const auto p0 = SteadyClock::now();
-      cloud->clear();
-      const hq::geometry::PinholeCamera& K = sim_config.camera.pinhole;
-      const Eigen::Isometry3f T_WC = sim.camera_T_world_camera().cast<float>();
-      for (int v = 0; v < depth.rows; v += memory_config.pixel_stride) {
-        const auto* row = depth.ptr<float>(v);
-        for (int u = 0; u < depth.cols; u += memory_config.pixel_stride) {
-          const float z = row[u];
-          if (!(z >= memory_config.min_range_m && z <= memory_config.max_range_m)) continue;
-          const Eigen::Vector3f p_C(static_cast<float>((u - K.cx) / K.fx) * z,
-                                    static_cast<float>((v - K.cy) / K.fy) * z, z);
-          const Eigen::Vector3f p_W = T_WC * p_C;
-          cloud->push_back(pcl::PointXYZ(p_W.x(), p_W.y(), p_W.z()));
-        }
-      }
-      pcl::VoxelGrid<pcl::PointXYZ> grid;
-      grid.setInputCloud(cloud);
-      grid.setLeafSize(leaf, leaf, leaf);
-      grid.filter(*voxels);
-      pcl::RadiusOutlierRemoval<pcl::PointXYZ> outliers;
-      outliers.setInputCloud(voxels);
-      outliers.setRadiusSearch(1.75 * leaf);
-      outliers.setMinNeighborsInRadius(memory_config.min_neighbors);
-      outliers.filter(cleaned);
-      peer_ms.push_back(ms_between(p0, SteadyClock::now()));
-    }
-  }
+  const FlightFigures f = fly(seconds, world, memory_config, memory);
   const long rss_end_kib = rss_kib();
 
-  const double p50 = hq::quantile(memory_ms, 0.5);
-  const double p99 = hq::quantile(memory_ms, 0.99);
-  const double peer_p50 = hq::quantile(peer_ms, 0.5);
-  const double peer_p99 = hq::quantile(peer_ms, 0.99);
+  const double p50 = hq::quantile(f.memory_ms, 0.5);
+  const double p99 = hq::quantile(f.memory_ms, 0.99);
+  const double peer_p50 = hq::quantile(f.peer_ms, 0.5);
+  const double peer_p99 = hq::quantile(f.peer_ms, 0.99);
   std::printf("hq-bench-memory: %.0f s simulated flight, %zu frames at 320x240, %s\n", seconds,
-              memory_ms.size(), world_path.c_str());
+              f.memory_ms.size(), world_path.c_str());
   std::printf("%-46s %9s %9s\n", "per frame (ms)", "p50", "p99");
   std::printf("%-46s %9.3f %9.3f\n", "ObstacleMemory::update (all of it)", p50, p99);
   std::printf("%-46s %9.3f %9.3f\n", "peer: cloud + pcl::VoxelGrid + RadiusOutlierRem.", peer_p50,
@@ -149,7 +170,7 @@ int run(int argc, char** argv) {
   std::printf("ratio peer / memory (p50): %.2f; target <= 2 ms/frame: %s\n",
               p50 > 0.0 ? peer_p50 / p50 : 0.0, p99 <= 2.0 ? "met (p99)" : "NOT met (p99)");
   std::printf("map points: at 10 s %d, max %d, at end %d (capacity %d); pose-jump clears %ld\n",
-              map_size_at_10s, max_map_size, memory.size(), memory_config.capacity, clears);
+              f.map_size_at_10s, f.max_map_size, memory.size(), memory_config.capacity, f.clears);
   std::printf("memory: buffers %.2f MiB (fixed); process RSS %ld KiB at start, %ld KiB at end\n",
               static_cast<double>(memory.memory_bytes()) / (1024.0 * 1024.0), rss_start_kib,
               rss_end_kib);

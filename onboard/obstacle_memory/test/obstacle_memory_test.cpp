@@ -18,6 +18,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace hq::obstacle_memory {
@@ -243,8 +245,9 @@ TEST(ObstacleMemory, DownSamplingMatchesPclVoxelGrid) {
     for (int u = 0; u < 320; ++u) {
       const float z = 0.8f + 0.004f * static_cast<float>(u) + 0.002f * static_cast<float>(v);
       depth.at<float>(v, u) = z;
-      cloud.push_back(pcl::PointXYZ(static_cast<float>((u - camera.cx) / camera.fx) * z,
-                                    static_cast<float>((v - camera.cy) / camera.fy) * z, z));
+      const Eigen::Vector3d ray_C = camera.ray(u, v);
+      cloud.push_back(pcl::PointXYZ(static_cast<float>(ray_C.x()) * z,
+                                    static_cast<float>(ray_C.y()) * z, z));
     }
   }
   const MemoryUpdate update = memory.update(0, depth, camera_pose(0.0), kLevel, kD0);
@@ -336,6 +339,48 @@ TEST(ObstacleMemoryConfig, ReadsEveryKeyAndRejectsBadOnes) {
   EXPECT_THAT(message("{leaf: 0.1}"), HasSubstr("leaf"));
 }
 
+TEST(ObstacleMemoryConfig, ReaderAndConstructorRefuseTheSameConfigAlike) {
+  // GIVEN configs each out of range in one field, or inconsistent across two, as YAML and as
+  // the same values set in code
+  struct Case {
+    std::string yaml;
+    std::string expected;
+    void (*set)(MemoryConfig&);
+  };
+  const std::vector<Case> cases = {
+      {"{sectors: 2}", "memory.sectors = 2", [](MemoryConfig& c) { c.sectors = 2; }},
+      {"{pixel_stride: 0}", "memory.pixel_stride = 0", [](MemoryConfig& c) { c.pixel_stride = 0; }},
+      {"{capacity: 0}", "memory.capacity = 0", [](MemoryConfig& c) { c.capacity = 0; }},
+      {"{min_range_m: 3, max_range_m: 2}", "memory.max_range_m = 2",
+       [](MemoryConfig& c) {
+         c.min_range_m = 3.0;
+         c.max_range_m = 2.0;
+       }},
+      {"{max_pose_jump_deg: 0.01}", "memory.max_pose_jump_deg = 0.01",
+       [](MemoryConfig& c) { c.max_pose_jump_rad = 0.01 * M_PI / 180.0; }},
+      {"{support_normal_max_deg: 91}", "memory.support_normal_max_deg = 91",
+       [](MemoryConfig& c) { c.support_normal_max_rad = 91.0 * M_PI / 180.0; }},
+  };
+  for (const Case& c : cases) {
+    // WHEN read from a file, and WHEN handed to the constructor
+    const std::string from_file = hq::testing::input_error_message([&] {
+      config::StrictMap map(YAML::Load(c.yaml), "onboard.yaml", "memory");
+      MemoryConfig read;
+      read_config(map, read);
+    });
+    MemoryConfig direct;
+    c.set(direct);
+    const std::string from_constructor = hq::testing::input_error_message([&] {
+      ObstacleMemory(direct, test_camera(), forward_R_body_camera(), Eigen::Vector3d::Zero());
+    });
+    // THEN both refuse it naming the key and value; the file's message also names the file
+    EXPECT_THAT(from_file, HasSubstr("onboard.yaml: " + c.expected)) << c.yaml;
+    EXPECT_THAT(from_constructor, HasSubstr(c.expected)) << c.yaml;
+  }
+  // AND the defaults pass.
+  EXPECT_NO_THROW(validate(MemoryConfig{}));
+}
+
 TEST(ObstacleMemory, RejectsAnUnusableCameraOrExtrinsics) {
   geometry::PinholeCamera camera = test_camera();
   camera.fx = 0.0;
@@ -372,7 +417,7 @@ TEST(ObstacleMemory, FloorIsNotRememberedAWallIs) {
     cv::Mat floor = no_depth();
     for (int v = 0; v < camera.height; ++v) {
       for (int u = 0; u < camera.width; ++u) {
-        const Eigen::Vector3d ray_C((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+        const Eigen::Vector3d ray_C = camera.ray(u, v);
         const double down = (R_HC * ray_C).z();  // H z is down
         if (down > 1e-3) floor.at<float>(v, u) = static_cast<float>(0.4 / down);
       }

@@ -1,5 +1,7 @@
 #include "hq/obstacles/obstacle_field.hpp"
 
+#include "hq/obstacles/support_surface.hpp"
+
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
 
@@ -8,8 +10,8 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
-#include <numbers>
 #include <limits>
+#include <numbers>
 #include <string>
 
 namespace hq::obstacles {
@@ -43,15 +45,23 @@ void read_config(config::StrictMap& section, ObstacleConfig& out) {
   section.finish();
 }
 
-ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::PinholeCamera& camera,
-                             const Eigen::Matrix3d& R_body_camera,
-                             const Eigen::Vector3d& p_body_camera_m)
-    : config_(config), camera_(camera), R_QC_(R_body_camera), p_QC_(p_body_camera_m) {
+void check_camera(const char* component, const geometry::PinholeCamera& camera,
+                  const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m) {
   if (camera.width <= 0 || camera.height <= 0 || !(camera.fx > 0.0) || !(camera.fy > 0.0)) {
-    throw InputError("obstacles: camera " + std::to_string(camera.width) + "x" +
+    throw InputError(std::string(component) + ": camera " + std::to_string(camera.width) + "x" +
                      std::to_string(camera.height) + " fx " + std::to_string(camera.fx) +
                      ", expected a positive size and focal length");
   }
+  if (!R_B_C.allFinite() || !p_B_C_m.allFinite() ||
+      (R_B_C.transpose() * R_B_C - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6) {
+    throw InputError(std::string(component) + ": R_body_camera is not a rotation");
+  }
+}
+
+ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::PinholeCamera& camera,
+                             const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m)
+    : config_(config), camera_(camera), R_B_C_(R_B_C), p_B_C_m_(p_B_C_m) {
+  check_camera("obstacles", camera, R_B_C, p_B_C_m);
   if (config.cell_px < 1 || config.cell_px > std::min(camera.width, camera.height)) {
     throw InputError("obstacles.cell_px = " + std::to_string(config.cell_px) +
                      ", expected in [1, " + std::to_string(std::min(camera.width, camera.height)) +
@@ -64,20 +74,14 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
                      ", expected max_points <= " + std::to_string(kMaxObstaclePoints) +
                      " and speckle_rank in [1, " + std::to_string(kMaxSpeckleRank) + "]");
   }
-  if (!R_QC_.allFinite() || !p_QC_.allFinite() ||
-      (R_QC_.transpose() * R_QC_ - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6) {
-    throw InputError("obstacles: R_body_camera is not a rotation");
-  }
   cells_x_ = camera.width / config.cell_px;
   cells_y_ = camera.height / config.cell_px;
   radius_cells_ = static_cast<int>(std::ceil(config.suppression_radius_px / config.cell_px));
   ray_norm_.resize(static_cast<std::size_t>(camera.width) * camera.height);
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
-      const double x = (u - camera.cx) / camera.fx;
-      const double y = (v - camera.cy) / camera.fy;
       ray_norm_[static_cast<std::size_t>(v) * camera.width + u] =
-          static_cast<float>(std::sqrt(x * x + y * y + 1.0));
+          static_cast<float>(camera.ray(u, v).norm());
     }
   }
   cells_.resize(static_cast<std::size_t>(cells_x_) * cells_y_);
@@ -115,45 +119,32 @@ void ObstacleField::add_support_push(ObstacleResult& result, double height_m) co
       config_.gain * (1.0 / height - 1.0 / config_.support_influence_m) / (height * height);
 }
 
+Eigen::Vector3d ObstacleField::cell_point_C(const Cell& cell) const {
+  const double z =
+      cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
+  return camera_.unproject(cell.u, cell.v, z);
+}
+
 bool ObstacleField::on_support_surface(const cv::Mat& depth_m, int u, int v,
-                                      const Eigen::Matrix3d& R_HC,
-                                      const Eigen::Vector3d& p_H) const {
+                                       const Eigen::Matrix3d& R_HC,
+                                       const Eigen::Vector3d& p_H) const {
   if (!(p_H.z() > 0.0)) return false;
-  // Surface normal from neighbours half a cell away: central differences where both sides have
-  // depth, one-sided where only one has (a minimum often sits where depth ends, at the
-  // sensor's minimum range or an occluding edge).
-  const int step = std::max(1, config_.cell_px / 2);
-  const auto point = [&](int pu, int pv, Eigen::Vector3d& p) {
-    if (pu < 0 || pv < 0 || pu >= camera_.width || pv >= camera_.height) return false;
-    const float z = depth_m.at<float>(pv, pu);
+  const auto point_at = [&](int pu, int pv, Eigen::Vector3d& p) {
+    const float z = depth_m.ptr<float>(pv)[pu];
     if (!is_valid_depth(z)) return false;
-    p = Eigen::Vector3d((pu - camera_.cx) / camera_.fx * z, (pv - camera_.cy) / camera_.fy * z, z);
+    p = camera_.unproject(static_cast<double>(pu), static_cast<double>(pv), static_cast<double>(z));
     return true;
   };
-  Eigen::Vector3d centre;
-  if (!point(u, v, centre)) return false;
-  const auto difference = [&](int du, int dv, Eigen::Vector3d& d) {
-    Eigen::Vector3d plus, minus;
-    const bool has_plus = point(u + du, v + dv, plus);
-    const bool has_minus = point(u - du, v - dv, minus);
-    if (has_plus && has_minus) {
-      d = plus - minus;
-    } else if (has_plus) {
-      d = plus - centre;
-    } else if (has_minus) {
-      d = centre - minus;
-    } else {
-      return false;
-    }
-    return true;
-  };
-  Eigen::Vector3d along_u, along_v;
-  if (!difference(step, 0, along_u) || !difference(0, step, along_v)) return false;
-  const Eigen::Vector3d normal_C = along_u.cross(along_v);
-  const double norm = normal_C.norm();
-  if (!(norm > 0.0)) return false;
-  const double vertical = std::abs((R_HC * normal_C).z()) / norm;
-  return vertical > std::cos(config_.support_normal_max_deg * std::numbers::pi / 180.0);
+  Eigen::Vector3d centre, normal_C;
+  if (!point_at(u, v, centre)) return false;
+  // Neighbours half a cell away.
+  const int step = std::max(1, config_.cell_px / 2);
+  if (!surface_normal_C(point_at, u, v, camera_.width, camera_.height, step,
+                        NormalStencil::kCentralWhereBoth, centre, normal_C)) {
+    return false;
+  }
+  return is_support_normal(R_HC, normal_C,
+                           std::cos(config_.support_normal_max_deg * std::numbers::pi / 180.0));
 }
 
 double ObstacleField::floor_height(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
@@ -168,11 +159,7 @@ double ObstacleField::floor_height(const cv::Mat& depth_m, const Eigen::Matrix3d
     for (int cx = 0; cx < cells_x_; ++cx) {
       const Cell& cell = cells_[static_cast<std::size_t>(cy) * cells_x_ + cx];
       if (!std::isfinite(cell.range_m)) continue;
-      const double z =
-          cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
-      const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
-                                (cell.v - camera_.cy) / camera_.fy * z, z);
-      const Eigen::Vector3d p_H = R_HC * p_C + p_HC;
+      const Eigen::Vector3d p_H = R_HC * cell_point_C(cell) + p_HC;
       if (on_support_surface(depth_m, cell.u, cell.v, R_HC, p_H)) support_z_m_.push_back(p_H.z());
     }
   }
@@ -183,27 +170,12 @@ double ObstacleField::floor_height(const cv::Mat& depth_m, const Eigen::Matrix3d
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
-                                      const Eigen::Matrix3d& R_horizontal_body,
-                                      std::span<const Eigen::Vector3d> remembered_p_horizontal_m) {
-  ObstacleResult result;
-  if (depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
-      depth_m.rows != camera_.height) {
-    result.reason = "depth image is not CV_32FC1 of the camera's size";
-    return result;
-  }
-  if (!R_horizontal_body.allFinite()) {
-    result.reason = "R_horizontal_body is not finite";
-    return result;
-  }
-  const Eigen::Matrix3d R_HC = R_horizontal_body * R_QC_;
-  const Eigen::Vector3d p_HC = R_horizontal_body * p_QC_;
+void ObstacleField::min_pool(const cv::Mat& depth_m) {
+  // A cell's value is the k-th smallest valid range (distance along the ray, not z, so that a
+  // fronto-parallel wall has one nearest point): fewer than k pixels nearer than the rest, i.e.
+  // isolated speckle, cannot make a cell near.
   const int k = config_.speckle_rank;
   const auto max_range = static_cast<float>(config_.max_range_m);
-
-  // Min-pool into cells. A cell's value is the k-th smallest valid range (distance along the
-  // ray, not z, so that a fronto-parallel wall has one nearest point): fewer than k pixels
-  // nearer than the rest, i.e. isolated speckle, cannot make a cell near.
   for (int cy = 0; cy < cells_y_; ++cy) {
     for (int cx = 0; cx < cells_x_; ++cx) {
       std::array<float, kMaxSpeckleRank> smallest;
@@ -238,11 +210,12 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
       }
     }
   }
+}
 
-  result.floor_height_m = floor_height(depth_m, R_HC, p_HC);
-
-  // Near-range hazard: a structured-light sensor returns nothing for surfaces nearer than its
-  // minimum range, which must not read as free space.
+bool ObstacleField::check_near_range(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                                     const Eigen::Vector3d& p_HC, ObstacleResult& result) const {
+  // A structured-light sensor returns nothing for surfaces nearer than its minimum range,
+  // which must not read as free space.
   const int window_w =
       std::max(1, static_cast<int>(config_.central_window_fraction * camera_.width));
   const int window_h =
@@ -261,19 +234,22 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
   result.nan_fraction = static_cast<double>(nan) / (window_w * window_h);
   if (result.nan_fraction > 0.5) {
     result.reason = "depth frame corrupt: mostly NaN";
-    return result;
+    return false;
   }
   result.central_invalid_fraction = static_cast<double>(invalid) / (window_w * window_h);
   result.near_hazard = result.central_invalid_fraction > config_.near_invalid_fraction;
   if (result.near_hazard && !ground_phase_) {
     add_point(result, R_HC * Eigen::Vector3d(0.0, 0.0, config_.min_range_m) + p_HC, true);
   }
+  return true;
+}
 
+void ObstacleField::find_minima() {
   // Local minima within the suppression radius; ties go to the lower index so that a plateau
   // yields one point. Only cells that can be within d0 of the body are candidates.
   minima_.clear();
   const double candidate_range_m =
-      config_.influence_distance_m + config_.vehicle_radius_m + p_QC_.norm();
+      config_.influence_distance_m + config_.vehicle_radius_m + p_B_C_m_.norm();
   const int r2 = radius_cells_ * radius_cells_;
   for (int cy = 0; cy < cells_y_; ++cy) {
     for (int cx = 0; cx < cells_x_; ++cx) {
@@ -303,13 +279,13 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
     return cells_[static_cast<std::size_t>(a)].range_m <
            cells_[static_cast<std::size_t>(b)].range_m;
   });
+}
+
+void ObstacleField::push_from_minima(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                                     const Eigen::Vector3d& p_HC, ObstacleResult& result) const {
   for (const int index : minima_) {
     const Cell& cell = cells_[static_cast<std::size_t>(index)];
-    const double z =
-        cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
-    const Eigen::Vector3d p_C((cell.u - camera_.cx) / camera_.fx * z,
-                              (cell.v - camera_.cy) / camera_.fy * z, z);
-    const Eigen::Vector3d p_H = R_HC * p_C + p_HC;
+    const Eigen::Vector3d p_H = R_HC * cell_point_C(cell) + p_HC;
     // Taking off or landing, whatever is below the vehicle is the floor it leaves or seeks.
     if (ground_phase_ && p_H.z() > 0.0) continue;
     if (on_support_surface(depth_m, cell.u, cell.v, R_HC, p_H)) {
@@ -319,9 +295,13 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
     }
     add_point(result, p_H, false);
   }
-  // Remembered obstacles outside the view: the same Khatib term per point, after the view's
-  // minima so that the listed points stay nearest-first within the view.
-  for (const Eigen::Vector3d& p_H : remembered_p_horizontal_m) {
+}
+
+void ObstacleField::push_from_remembered(std::span<const Eigen::Vector3d> p_H_m,
+                                         ObstacleResult& result) const {
+  // The same Khatib term per point, after the view's minima so that the listed points stay
+  // nearest-first within the view.
+  for (const Eigen::Vector3d& p_H : p_H_m) {
     if (!p_H.allFinite() || (ground_phase_ && p_H.z() > 0.0)) continue;
     // The memory keeps only points in a band around the vehicle's height (floor and ceiling
     // excluded there), and a camera looking 30 deg down remembers an obstacle by its face below
@@ -329,6 +309,29 @@ ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
     // offset.
     add_point(result, Eigen::Vector3d(p_H.x(), p_H.y(), 0.0), false, true);
   }
+}
+
+ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
+                                      const Eigen::Matrix3d& R_horizontal_body,
+                                      std::span<const Eigen::Vector3d> remembered_p_horizontal_m) {
+  ObstacleResult result;
+  if (depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
+      depth_m.rows != camera_.height) {
+    result.reason = "depth image is not CV_32FC1 of the camera's size";
+    return result;
+  }
+  if (!R_horizontal_body.allFinite()) {
+    result.reason = "R_horizontal_body is not finite";
+    return result;
+  }
+  const Eigen::Matrix3d R_HC = R_horizontal_body * R_B_C_;
+  const Eigen::Vector3d p_HC = R_horizontal_body * p_B_C_m_;
+  min_pool(depth_m);
+  result.floor_height_m = floor_height(depth_m, R_HC, p_HC);
+  if (!check_near_range(depth_m, R_HC, p_HC, result)) return result;
+  find_minima();
+  push_from_minima(depth_m, R_HC, p_HC, result);
+  push_from_remembered(remembered_p_horizontal_m, result);
 
   const double speed = result.v_obs_horizontal_mps.norm();
   if (speed > config_.max_repulsive_speed_mps) {

@@ -1,5 +1,7 @@
 #include "hq/obstacles/obstacle_field.hpp"
 
+#include "hq/obstacles/support_surface.hpp"
+
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/testing/allocation_counter.hpp"
@@ -313,7 +315,7 @@ cv::Mat floor_below(const Eigen::Matrix3d& R_HC, double height_m) {
   cv::Mat depth(camera.height, camera.width, CV_32FC1, cv::Scalar(0.0f));
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
-      const Eigen::Vector3d ray_C((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+      const Eigen::Vector3d ray_C = camera.ray(u, v);
       const double down = (R_HC * ray_C).z();
       if (down > 0.0) depth.at<float>(v, u) = static_cast<float>(height_m / down);
     }
@@ -481,6 +483,74 @@ TEST(ObstacleConfig, ZeroGainIsRejected) {
   ObstacleConfig config;
   EXPECT_THAT(hq::testing::input_error_message([&] { read_config(section, config); }),
               HasSubstr("config/onboard.yaml: obstacles.gain = 0, expected > 0"));
+}
+
+
+// A plane seen by a camera at the origin: points z / (n . ray) along each pixel's ray.
+struct PlaneDepth {
+  geometry::PinholeCamera camera;
+  Eigen::Vector3d n_C;  // plane n . p = d
+  double d;
+  std::vector<int> holes_u;  // columns without depth
+
+  bool operator()(int u, int v, Eigen::Vector3d& p_C) const {
+    for (int hole : holes_u) {
+      if (u == hole) return false;
+    }
+    const Eigen::Vector3d ray_C = camera.ray(u, v);
+    p_C = camera.unproject(u, v, d / n_C.dot(ray_C));
+    return true;
+  }
+};
+
+TEST(SupportSurface, NormalOfAPlaneIsItsNormalWithEitherStencilAndOneSidedAtHoles) {
+  // GIVEN a floor 1 m below a camera looking forward and 30 deg down (H: z down)
+  const geometry::PinholeCamera camera = test_camera();
+  Eigen::Matrix3d R_forward_optical;
+  R_forward_optical << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  const Eigen::Matrix3d R_H_C =
+      Eigen::AngleAxisd(-30.0 * kDeg, Eigen::Vector3d::UnitY()).matrix() * R_forward_optical;
+  PlaneDepth floor{camera, R_H_C.transpose() * Eigen::Vector3d::UnitZ(), 1.0, {}};
+  Eigen::Vector3d p_C;
+  ASSERT_TRUE(floor(320, 400, p_C));
+  for (const NormalStencil stencil :
+       {NormalStencil::kCentralWhereBoth, NormalStencil::kOneSided}) {
+    // WHEN its normal is estimated, with all neighbours and with the +u neighbour missing
+    for (const std::vector<int>& holes : {std::vector<int>{}, std::vector<int>{328}}) {
+      floor.holes_u = holes;
+      Eigen::Vector3d n_C;
+      ASSERT_TRUE(surface_normal_C(floor, 320, 400, camera.width, camera.height, 8, stencil, p_C,
+                                   n_C));
+      // THEN it is the plane's normal (up to sign), a support surface within 1 deg of vertical
+      EXPECT_NEAR(std::abs(n_C.normalized().dot(floor.n_C)), 1.0, 1e-9);
+      EXPECT_TRUE(is_support_normal(R_H_C, n_C, std::cos(1.0 * kDeg)));
+    }
+  }
+  // AND a wall (normal horizontal in H) is not one; without neighbours there is no normal.
+  PlaneDepth wall{camera, R_H_C.transpose() * Eigen::Vector3d::UnitX(), 2.0, {}};
+  ASSERT_TRUE(wall(320, 240, p_C));
+  Eigen::Vector3d n_C;
+  ASSERT_TRUE(surface_normal_C(wall, 320, 240, camera.width, camera.height, 8,
+                               NormalStencil::kCentralWhereBoth, p_C, n_C));
+  EXPECT_FALSE(is_support_normal(R_H_C, n_C, std::cos(25.0 * kDeg)));
+  wall.holes_u = {312, 328};
+  EXPECT_FALSE(surface_normal_C(wall, 320, 240, camera.width, camera.height, 8,
+                                NormalStencil::kOneSided, p_C, n_C));
+}
+
+TEST(CheckCamera, NamesTheComponentForABadCameraOrMount) {
+  geometry::PinholeCamera camera = test_camera();
+  EXPECT_NO_THROW(check_camera("x", camera, default_R_body_camera(), Eigen::Vector3d::Zero()));
+  camera.fy = 0.0;
+  EXPECT_THAT(hq::testing::input_error_message([&] {
+                check_camera("seen", camera, default_R_body_camera(), Eigen::Vector3d::Zero());
+              }),
+              HasSubstr("seen: camera 640x480"));
+  EXPECT_THAT(hq::testing::input_error_message([&] {
+                check_camera("seen", test_camera(), default_R_body_camera(),
+                             Eigen::Vector3d(std::nan(""), 0.0, 0.0));
+              }),
+              HasSubstr("seen: R_body_camera is not a rotation"));
 }
 
 }  // namespace

@@ -43,8 +43,8 @@ void install_stop_handlers() {
   sigaction(SIGTERM, &action, nullptr);
 }
 
-int run(int argc, char** argv) {
-  CLI::App app{"hq-sim: scripted flight in a simulated world, recorded as a TUM RGB-D sequence"};
+/// The command line.
+struct Options {
   std::string world_path;
   std::string config_path = "onboard/sim/config/sim.yaml";
   std::string record_dir;
@@ -52,58 +52,47 @@ int run(int argc, char** argv) {
   std::string script_kind = "hover";
   double duration_s = 10.0;
   long long seed = -1;
-  app.add_option("--world", world_path, "world YAML (onboard/sim/worlds/*.yaml)")->required();
-  app.add_option("--config", config_path,
-                 "sim config YAML (run from the repository root for the default)");
-  app.add_option("--duration-s", duration_s, "simulated seconds")->check(CLI::Range(0.1, 3600.0));
-  app.add_option("--record", record_dir, "output directory (TUM RGB-D layout)");
-  app.add_option("--resolution", resolution, "WIDTHxHEIGHT, e.g. 320x240 or 640x480");
-  app.add_option("--seed", seed, "noise and gust seed (default: the world's seed)")
-      ->check(CLI::Range(0LL, 2147483647LL));
-  app.add_option("--script", script_kind, "hover | circle")
-      ->check(CLI::IsMember({"hover", "circle"}));
   bool sitl = false;
   hq::sim::SitlOptions sitl_options;
-  app.add_flag("--sitl", sitl,
+  double yaw_rate_degps = -1.0;
+};
+
+void add_options(CLI::App& app, Options& o) {
+  app.add_option("--world", o.world_path, "world YAML (onboard/sim/worlds/*.yaml)")->required();
+  app.add_option("--config", o.config_path,
+                 "sim config YAML (run from the repository root for the default)");
+  app.add_option("--duration-s", o.duration_s, "simulated seconds")
+      ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--record", o.record_dir, "output directory (TUM RGB-D layout)");
+  app.add_option("--resolution", o.resolution, "WIDTHxHEIGHT, e.g. 320x240 or 640x480");
+  app.add_option("--seed", o.seed, "noise and gust seed (default: the world's seed)")
+      ->check(CLI::Range(0LL, 2147483647LL));
+  app.add_option("--script", o.script_kind, "hover | circle")
+      ->check(CLI::IsMember({"hover", "circle"}));
+  app.add_flag("--sitl", o.sitl,
                "run as a real-time SITL process: MAVLink flight controller, frames in shared "
                "memory (without --duration-s: until SIGINT/SIGTERM)");
-  app.add_option("--mavlink", sitl_options.mavlink_spec,
+  app.add_option("--mavlink", o.sitl_options.mavlink_spec,
                  "with --sitl: MAVLink transport spec (udp-listen:[HOST:]PORT, udp:HOST:PORT, "
                  "serial:DEV:BAUD)");
-  app.add_option("--channel", sitl_options.channel,
+  app.add_option("--channel", o.sitl_options.channel,
                  "with --sitl: frame channel name, shared memory /hq-<name>");
-  double yaw_rate_degps = -1.0;
-  app.add_option("--yaw-rate-degps", yaw_rate_degps,
+  app.add_option("--yaw-rate-degps", o.yaw_rate_degps,
                  "yaw rate of the circle script (default: the script's slow turn)")
       ->check(CLI::Range(0.0, 360.0));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+}
 
-  const hq::sim::World world = hq::sim::load_world(world_path);
-  hq::sim::SimConfig config = hq::sim::load_sim_config(config_path);
-  hq::sim::set_resolution(config, resolution, "--resolution");
-  config.seed = seed >= 0 ? static_cast<std::uint64_t>(seed) : world.seed;
-
-  hq::sim::Simulator sim(config, world);
-  if (sitl) {
-    sitl_options.duration_s = app.count("--duration-s") > 0 ? duration_s : 0.0;
-    install_stop_handlers();
-    return hq::sim::run_sitl(sim, sitl_options, g_stop);
-  }
-  if (app.count("--mavlink") > 0 || app.count("--channel") > 0) {
-    throw hq::InputError("--mavlink and --channel need --sitl");
-  }
+/// The scripted flight as fast as it simulates, recorded in the TUM layout when asked.
+int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Options& o) {
+  const hq::sim::SimConfig& config = sim.config();
   hq::sim::FlightScript script = hq::sim::script_for_world(
-      world, script_kind == "circle" ? hq::sim::FlightScript::Kind::kCircle
-                                     : hq::sim::FlightScript::Kind::kHover);
-  if (yaw_rate_degps >= 0.0) script.circle_yaw_rate_radps = yaw_rate_degps * M_PI / 180.0;
+      world, o.script_kind == "circle" ? hq::sim::FlightScript::Kind::kCircle
+                                       : hq::sim::FlightScript::Kind::kHover);
+  if (o.yaw_rate_degps >= 0.0) script.circle_yaw_rate_radps = o.yaw_rate_degps * M_PI / 180.0;
 
   std::unique_ptr<hq::sim::TumWriter> writer;
-  if (!record_dir.empty()) {
-    writer = std::make_unique<hq::sim::TumWriter>(record_dir, config.camera.pinhole,
+  if (!o.record_dir.empty()) {
+    writer = std::make_unique<hq::sim::TumWriter>(o.record_dir, config.camera.pinhole,
                                                   config.camera.T_body_camera);
   }
   std::vector<hq::sim::ImuSample> imu(2000);
@@ -111,7 +100,7 @@ int run(int argc, char** argv) {
   std::size_t frames = 0;
   std::size_t imu_samples = 0;
   double min_clearance_m = 1e9;
-  const auto end_ns = static_cast<std::int64_t>(std::llround(duration_s * 1e9));
+  const auto end_ns = static_cast<std::int64_t>(std::llround(o.duration_s * 1e9));
   for (std::int64_t t = 0; t <= end_ns; t += hq::sim::kScriptControlPeriodNs) {
     sim.set_command(hq::sim::scripted_command(sim, script, static_cast<double>(t) * 1e-9));
     sim.step_to(t);
@@ -122,27 +111,55 @@ int run(int argc, char** argv) {
     }
     if (sim.camera_due()) {
       const std::int64_t t_frame = sim.camera_t_ns();
-      const Eigen::Isometry3d T_world_camera = sim.camera_T_world_camera();
+      const Eigen::Isometry3d T_N_C = sim.camera_T_world_camera();
       sim.render_camera(image, depth);
-      if (writer) writer->write_frame(t_frame, image, depth, T_world_camera);
+      if (writer) writer->write_frame(t_frame, image, depth, T_N_C);
       ++frames;
     }
-    if (!sim.truth().on_ground)
+    if (!sim.truth().on_ground) {
       min_clearance_m = std::min(min_clearance_m, sim.truth().clearance_m);
+    }
   }
   if (writer) writer->close();
 
-  const Eigen::Vector3d p = sim.truth().T_world_body.translation();
+  const Eigen::Vector3d p_N_m = sim.truth().T_world_body.translation();
   std::printf(
       "hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
       "%lld dropped frames\n",
-      world.name.c_str(), script_kind.c_str(), static_cast<unsigned long long>(config.seed),
-      duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples,
-      static_cast<long long>(sim.dropped_frames()));
-  std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n", p.x(),
-              p.y(), p.z(), min_clearance_m, sim.collided() ? "YES" : "no");
-  if (writer) std::printf("recorded to %s\n", record_dir.c_str());
+      world.name.c_str(), o.script_kind.c_str(), static_cast<unsigned long long>(config.seed),
+      o.duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height,
+      imu_samples, static_cast<long long>(sim.dropped_frames()));
+  std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n",
+              p_N_m.x(), p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
+  if (writer) std::printf("recorded to %s\n", o.record_dir.c_str());
   return 0;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"hq-sim: scripted flight in a simulated world, recorded as a TUM RGB-D sequence"};
+  Options o;
+  add_options(app, o);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  const hq::sim::World world = hq::sim::load_world(o.world_path);
+  hq::sim::SimConfig config = hq::sim::load_sim_config(o.config_path);
+  hq::sim::set_resolution(config, o.resolution, "--resolution");
+  config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
+
+  hq::sim::Simulator sim(config, world);
+  if (o.sitl) {
+    o.sitl_options.duration_s = app.count("--duration-s") > 0 ? o.duration_s : 0.0;
+    install_stop_handlers();
+    return hq::sim::run_sitl(sim, o.sitl_options, g_stop);
+  }
+  if (app.count("--mavlink") > 0 || app.count("--channel") > 0) {
+    throw hq::InputError("--mavlink and --channel need --sitl");
+  }
+  return fly_script(sim, world, o);
 }
 
 }  // namespace

@@ -117,7 +117,7 @@ struct SceneTables {
   std::vector<float> ray_y;     // per row: y / z
   std::vector<float> inv_norm;  // per pixel: 1 / |(x, y, 1)| (the same as in ray_c_)
   // Per frame (prepare_frame), shared by render() and render_reference().
-  Eigen::Matrix3f R_world_camera = Eigen::Matrix3f::Identity();
+  Eigen::Matrix3f R_N_C = Eigen::Matrix3f::Identity();
   Vec3f light = Vec3f::UnitZ();
   std::uint64_t frame_key = 0;
   // Per row of render()'s shading: surface coordinates, light, incidence cosine, albedo.
@@ -212,12 +212,12 @@ SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
 /// Image bounding box of a world-frame axis-aligned-in-local box given by 8 corners; the whole
 /// image if any corner is near or behind the camera. Lets a pixel skip primitives it cannot
 /// hit: the test is 4 compares instead of a slab or quadratic intersection.
-void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d& R_camera_world,
-                   const Eigen::Vector3d& o_world, const geometry::PinholeCamera& cam, int& u0,
+void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d& R_C_N,
+                   const Eigen::Vector3d& p_N_C, const geometry::PinholeCamera& cam, int& u0,
                    int& u1, int& v0, int& v1) {
   double min_u = 1e30, max_u = -1e30, min_v = 1e30, max_v = -1e30;
   for (int i = 0; i < 8; ++i) {
-    const Eigen::Vector3d p = R_camera_world * (corners_world[i] - o_world);
+    const Eigen::Vector3d p = R_C_N * (corners_world[i] - p_N_C);
     if (p.z() < 1e-3) {
       u0 = 0;
       v0 = 0;
@@ -225,12 +225,11 @@ void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d
       v1 = cam.height - 1;
       return;
     }
-    const double u = cam.fx * p.x() / p.z() + cam.cx;
-    const double v = cam.fy * p.y() / p.z() + cam.cy;
-    min_u = std::min(min_u, u);
-    max_u = std::max(max_u, u);
-    min_v = std::min(min_v, v);
-    max_v = std::max(max_v, v);
+    const Eigen::Vector2d uv = cam.project(p);
+    min_u = std::min(min_u, uv.x());
+    max_u = std::max(max_u, uv.x());
+    min_v = std::min(min_v, uv.y());
+    max_v = std::max(max_v, uv.y());
   }
   u0 = static_cast<int>(std::clamp(std::floor(min_u) - 1.0, 0.0, cam.width - 1.0));
   u1 = static_cast<int>(std::clamp(std::ceil(max_u) + 1.0, -1.0, cam.width - 1.0));
@@ -239,44 +238,9 @@ void screen_bounds(const Eigen::Vector3d corners_world[8], const Eigen::Matrix3d
   if (max_u < 0.0 || max_v < 0.0) u1 = -1;  // entirely left of or above the image
 }
 
-}  // namespace
-
-RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::uint64_t seed)
-    : params_(params), seed_(seed), scene_(std::make_unique<Scene>()) {
-  const geometry::PinholeCamera& cam = params_.pinhole;
-  const int n = cam.width * cam.height;
-  ray_c_.resize(static_cast<std::size_t>(3 * n));
-  for (int v = 0; v < cam.height; ++v) {
-    for (int u = 0; u < cam.width; ++u) {
-      const double x = (u - cam.cx) / cam.fx;
-      const double y = (v - cam.cy) / cam.fy;
-      const std::size_t i = static_cast<std::size_t>(3 * (v * cam.width + u));
-      ray_c_[i] = static_cast<float>(x);
-      ray_c_[i + 1] = static_cast<float>(y);
-      ray_c_[i + 2] = static_cast<float>(1.0 / std::sqrt(x * x + y * y + 1.0));
-    }
-  }
-  true_depth_m_.create(cam.height, cam.width, CV_32F);
-  hit_t_.resize(static_cast<std::size_t>(n));
-  hit_code_.resize(static_cast<std::size_t>(n));
-
-  Scene& sc = *scene_;
-  sc.ray_x.resize(static_cast<std::size_t>(cam.width));
-  for (std::vector<float>* row : {&sc.row_s, &sc.row_w, &sc.row_shade, &sc.row_cos, &sc.row_b,
-                                  &sc.row_g, &sc.row_r, &sc.row_depth_draw, &sc.row_image_draw}) {
-    row->resize(static_cast<std::size_t>(cam.width));
-  }
-  sc.inverse_depth.resize(static_cast<std::size_t>(n));
-  sc.inv_norm.resize(static_cast<std::size_t>(n));
-  sc.near_markers.resize(world.markers.size());
-  for (std::size_t i = 0; i < sc.inv_norm.size(); ++i) sc.inv_norm[i] = ray_c_[3 * i + 2];
-  sc.row_levels.resize(4 * static_cast<std::size_t>(cam.width));
-  sc.ray_y.resize(static_cast<std::size_t>(cam.height));
-  for (int u = 0; u < cam.width; ++u)
-    sc.ray_x[static_cast<std::size_t>(u)] = ray_c_[3 * static_cast<std::size_t>(u)];
-  for (int v = 0; v < cam.height; ++v) {
-    sc.ray_y[static_cast<std::size_t>(v)] = ray_c_[3 * static_cast<std::size_t>(v * cam.width) + 1];
-  }
+/// The world's primitives and the planar surfaces (rectangles, then six faces per box) that
+/// can carry markers.
+void build_tables(SceneTables& sc, const World& world) {
   sc.rects_world.push_back(world.floor);
   sc.rects_world.insert(sc.rects_world.end(), world.walls.begin(), world.walls.end());
   sc.boxes_world = world.boxes;
@@ -303,11 +267,15 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
   for (std::size_t i = 0; i < sc.cylinders_world.size(); ++i) {
     sc.cylinders[i].texture = &sc.cylinders_world[i].texture;
   }
+}
 
+/// Each marker onto the first rectangle or box face its centre and normal lie on; throws
+/// hq::InputError naming the marker if there is none.
+void place_markers(SceneTables& sc, const std::vector<Marker>& markers) {
   const cv::Ptr<cv::aruco::Dictionary> dictionary =
       cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
-  for (std::size_t k = 0; k < world.markers.size(); ++k) {
-    const Marker& m = world.markers[k];
+  for (std::size_t k = 0; k < markers.size(); ++k) {
+    const Marker& m = markers[k];
     int surface = -1;
     Eigen::Vector3d origin, normal, axis_s, axis_t;
     for (std::size_t i = 0; i < sc.rects_world.size() && surface < 0; ++i) {
@@ -339,6 +307,49 @@ RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::
     sc.surfaces[static_cast<std::size_t>(surface)].markers.push_back(
         static_cast<int>(sc.markers.size() - 1));
   }
+}
+
+}  // namespace
+
+RgbdRenderer::RgbdRenderer(const CameraParams& params, const World& world, std::uint64_t seed)
+    : params_(params), seed_(seed), scene_(std::make_unique<Scene>()) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  const int n = cam.width * cam.height;
+  ray_c_.resize(static_cast<std::size_t>(3 * n));
+  for (int v = 0; v < cam.height; ++v) {
+    for (int u = 0; u < cam.width; ++u) {
+      const Eigen::Vector3d ray_C = cam.ray(u, v);
+      const double x = ray_C.x();
+      const double y = ray_C.y();
+      const std::size_t i = static_cast<std::size_t>(3 * (v * cam.width + u));
+      ray_c_[i] = static_cast<float>(x);
+      ray_c_[i + 1] = static_cast<float>(y);
+      ray_c_[i + 2] = static_cast<float>(1.0 / std::sqrt(x * x + y * y + 1.0));
+    }
+  }
+  true_depth_m_.create(cam.height, cam.width, CV_32F);
+  hit_t_.resize(static_cast<std::size_t>(n));
+  hit_code_.resize(static_cast<std::size_t>(n));
+
+  Scene& sc = *scene_;
+  sc.ray_x.resize(static_cast<std::size_t>(cam.width));
+  for (std::vector<float>* row : {&sc.row_s, &sc.row_w, &sc.row_shade, &sc.row_cos, &sc.row_b,
+                                  &sc.row_g, &sc.row_r, &sc.row_depth_draw, &sc.row_image_draw}) {
+    row->resize(static_cast<std::size_t>(cam.width));
+  }
+  sc.inverse_depth.resize(static_cast<std::size_t>(n));
+  sc.inv_norm.resize(static_cast<std::size_t>(n));
+  sc.near_markers.resize(world.markers.size());
+  for (std::size_t i = 0; i < sc.inv_norm.size(); ++i) sc.inv_norm[i] = ray_c_[3 * i + 2];
+  sc.row_levels.resize(4 * static_cast<std::size_t>(cam.width));
+  sc.ray_y.resize(static_cast<std::size_t>(cam.height));
+  for (int u = 0; u < cam.width; ++u)
+    sc.ray_x[static_cast<std::size_t>(u)] = ray_c_[3 * static_cast<std::size_t>(u)];
+  for (int v = 0; v < cam.height; ++v) {
+    sc.ray_y[static_cast<std::size_t>(v)] = ray_c_[3 * static_cast<std::size_t>(v * cam.width) + 1];
+  }
+  build_tables(sc, world);
+  place_markers(sc, world.markers);
 }
 
 RgbdRenderer::~RgbdRenderer() = default;
@@ -399,12 +410,11 @@ class Footprint {
 
  private:
   void add_point(const Eigen::Vector3d& p) {
-    const double u = cam_.fx * p.x() / p.z() + cam_.cx;
-    const double v = cam_.fy * p.y() / p.z() + cam_.cy;
-    min_u_ = std::min(min_u_, u);
-    max_u_ = std::max(max_u_, u);
-    min_v_ = std::min(min_v_, v);
-    max_v_ = std::max(max_v_, v);
+    const Eigen::Vector2d uv = cam_.project(p);
+    min_u_ = std::min(min_u_, uv.x());
+    max_u_ = std::max(max_u_, uv.x());
+    min_v_ = std::min(min_v_, uv.y());
+    max_v_ = std::max(max_v_, uv.y());
   }
 
   const geometry::PinholeCamera& cam_;
@@ -442,97 +452,122 @@ ShadeConstants shade_constants(const CameraParams& params) {
   return k;
 }
 
-}  // namespace
+/// The camera's pose and light for one frame, as prepare_frame() turns primitives into C.
+struct FrameView {
+  const geometry::PinholeCamera& cam;
+  Eigen::Matrix3d R_N_C;
+  Eigen::Matrix3d R_C_N;
+  Eigen::Vector3d p_N_C;
+  Eigen::Vector3d light_N;  // unit, towards the light
+  double ambient, diffuse;
 
-void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_world_camera) {
-  const geometry::PinholeCamera& cam = params_.pinhole;
-  Scene& sc = *scene_;
+  [[nodiscard]] float lambert(const Eigen::Vector3d& n_N) const {
+    return static_cast<float>(ambient + diffuse * std::max(0.0, n_N.dot(light_N)));
+  }
+  [[nodiscard]] Eigen::Vector3d to_camera(const Eigen::Vector3d& p_N) const {
+    return R_C_N * (p_N - p_N_C);
+  }
+};
 
-  // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
-  const Eigen::Matrix3d R_camera_world = T_world_camera.linear().transpose();
-  const Eigen::Vector3d o_world = T_world_camera.translation();
-  const Eigen::Vector3d light = params_.light_dir_world.normalized();
-  const auto lambert = [&](const Eigen::Vector3d& n_world) {
-    return static_cast<float>(params_.ambient +
-                              params_.diffuse * std::max(0.0, n_world.dot(light)));
-  };
-  const auto to_camera = [&](const Eigen::Vector3d& p_world) -> Eigen::Vector3d {
-    return R_camera_world * (p_world - o_world);
-  };
+void prepare_rects(SceneTables& sc, const FrameView& view) {
+  const geometry::PinholeCamera& cam = view.cam;
   for (std::size_t i = 0; i < sc.rects.size(); ++i) {
     const Rectangle& r = sc.rects_world[i];
     RectC& rc = sc.rects[i];
-    const Eigen::Vector3d c_c = R_camera_world * (r.center_m - o_world);
+    const Eigen::Vector3d c_c = view.R_C_N * (r.center_m - view.p_N_C);
     Eigen::Vector3d n_world = r.normal;
-    if (n_world.dot(o_world - r.center_m) < 0.0) n_world = -n_world;  // the side we see
-    rc.n_c = (R_camera_world * n_world).cast<float>();
-    rc.u_c = (R_camera_world * r.axis_u).cast<float>();
-    rc.v_c = (R_camera_world * r.axis_v).cast<float>();
+    if (n_world.dot(view.p_N_C - r.center_m) < 0.0) n_world = -n_world;  // the side we see
+    rc.n_c = (view.R_C_N * n_world).cast<float>();
+    rc.u_c = (view.R_C_N * r.axis_u).cast<float>();
+    rc.v_c = (view.R_C_N * r.axis_v).cast<float>();
     rc.n_dot_c = rc.n_c.dot(c_c.cast<float>());
     rc.u_dot_c = rc.u_c.dot(c_c.cast<float>());
     rc.v_dot_c = rc.v_c.dot(c_c.cast<float>());
     rc.half_u = static_cast<float>(r.half_u_m);
     rc.half_v = static_cast<float>(r.half_v_m);
-    rc.shade = lambert(n_world);
+    rc.shade = view.lambert(n_world);
     const Eigen::Vector3d du = r.half_u_m * r.axis_u;
     const Eigen::Vector3d dv = r.half_v_m * r.axis_v;
     const Eigen::Vector3d quad[4] = {
-        to_camera(r.center_m - du - dv), to_camera(r.center_m + du - dv),
-        to_camera(r.center_m + du + dv), to_camera(r.center_m - du + dv)};
+        view.to_camera(r.center_m - du - dv), view.to_camera(r.center_m + du - dv),
+        view.to_camera(r.center_m + du + dv), view.to_camera(r.center_m - du + dv)};
     Footprint footprint(cam);
     footprint.add_polygon(quad, 4);
     rc.footprint = footprint.pixels();
   }
+}
+
+void prepare_boxes(SceneTables& sc, const FrameView& view) {
+  const geometry::PinholeCamera& cam = view.cam;
   for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
     const Box& b = sc.boxes_world[i];
     BoxC& bc = sc.boxes[i];
     const Eigen::Matrix3d R_world_local = box_R_world_local(b);
-    bc.R_local_camera = (R_world_local.transpose() * T_world_camera.linear()).cast<float>();
-    bc.o_local = (R_world_local.transpose() * (o_world - b.center_m)).cast<float>();
+    bc.R_local_camera = (R_world_local.transpose() * view.R_N_C).cast<float>();
+    bc.o_local = (R_world_local.transpose() * (view.p_N_C - b.center_m)).cast<float>();
     bc.half = (0.5 * b.size_m).cast<float>();
     for (int f = 0; f < 6; ++f) {
       const Eigen::Vector3d n_world = (f % 2 == 0 ? 1.0 : -1.0) * R_world_local.col(f / 2);
-      bc.face_shade[f] = lambert(n_world);
-      bc.face_normal_c[f] = (R_camera_world * n_world).cast<float>();
+      bc.face_shade[f] = view.lambert(n_world);
+      bc.face_normal_c[f] = (view.R_C_N * n_world).cast<float>();
     }
     Eigen::Vector3d corners[8];
     Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d sign((k & 1) ? 1.0 : -1.0, (k & 2) ? 1.0 : -1.0, (k & 4) ? 1.0 : -1.0);
       corners[k] = b.center_m + R_world_local * (0.5 * b.size_m.cwiseProduct(sign));
-      corners_c[k] = to_camera(corners[k]);
+      corners_c[k] = view.to_camera(corners[k]);
     }
-    screen_bounds(corners, R_camera_world, o_world, cam, bc.u0, bc.u1, bc.v0, bc.v1);
+    screen_bounds(corners, view.R_C_N, view.p_N_C, cam, bc.u0, bc.u1, bc.v0, bc.v1);
     Footprint footprint(cam);
     footprint.add_box(corners_c);
     bc.footprint = footprint.pixels();
   }
+}
+
+void prepare_cylinders(SceneTables& sc, const FrameView& view) {
+  const geometry::PinholeCamera& cam = view.cam;
   for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
     const Cylinder& c = sc.cylinders_world[i];
     CylinderC& cc = sc.cylinders[i];
-    cc.ox = static_cast<float>(o_world.x() - c.center_m.x());
-    cc.oy = static_cast<float>(o_world.y() - c.center_m.y());
-    cc.oz = static_cast<float>(o_world.z() - c.base_z_m);
+    cc.ox = static_cast<float>(view.p_N_C.x() - c.center_m.x());
+    cc.oy = static_cast<float>(view.p_N_C.y() - c.center_m.y());
+    cc.oz = static_cast<float>(view.p_N_C.z() - c.base_z_m);
     cc.radius = static_cast<float>(c.radius_m);
     cc.height = static_cast<float>(c.height_m);
-    cc.top_shade = lambert(Eigen::Vector3d::UnitZ());
+    cc.top_shade = view.lambert(Eigen::Vector3d::UnitZ());
     Eigen::Vector3d corners[8];
     Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       corners[k] = Eigen::Vector3d(c.center_m.x() + ((k & 1) ? c.radius_m : -c.radius_m),
                                    c.center_m.y() + ((k & 2) ? c.radius_m : -c.radius_m),
                                    c.base_z_m + ((k & 4) ? c.height_m : 0.0));
-      corners_c[k] = to_camera(corners[k]);
+      corners_c[k] = view.to_camera(corners[k]);
     }
-    screen_bounds(corners, R_camera_world, o_world, cam, cc.u0, cc.u1, cc.v0, cc.v1);
+    screen_bounds(corners, view.R_C_N, view.p_N_C, cam, cc.u0, cc.u1, cc.v0, cc.v1);
     Footprint footprint(cam);
     footprint.add_box(corners_c);  // the cylinder's bounding box
     cc.footprint = footprint.pixels();
   }
+}
+
+}  // namespace
+
+void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C) {
+  Scene& sc = *scene_;
+  // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
+  const Eigen::Vector3d light = params_.light_dir_world.normalized();
+  const FrameView view{params_.pinhole,    T_N_C.linear(), T_N_C.linear().transpose(),
+                       T_N_C.translation(), light,          params_.ambient,
+                       params_.diffuse};
+  prepare_rects(sc, view);
+  prepare_boxes(sc, view);
+  prepare_cylinders(sc, view);
+  const Eigen::Vector3d& p_N_C = view.p_N_C;
   for (SurfaceMarker& m : sc.markers) {
-    m.visible = m.normal_world.dot(o_world.cast<float>() - m.center_world) > 0.0f;
+    m.visible = m.normal_world.dot(p_N_C.cast<float>() - m.center_world) > 0.0f;
   }
-  sc.R_world_camera = T_world_camera.linear().cast<float>();
+  sc.R_N_C = T_N_C.linear().cast<float>();
   sc.light = light.cast<float>();
 }
 
@@ -573,7 +608,7 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
         texture = c.texture;
         const float angle = hit.s / c.radius;
         const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
-        const Vec3f dw = sc.R_world_camera * d;
+        const Vec3f dw = sc.R_N_C * d;
         shade = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
         cos_incidence = -n.dot(dw) * ray[2];
         break;
@@ -582,7 +617,7 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
         const CylinderC& c = sc.cylinders[static_cast<std::size_t>(hit.index)];
         texture = c.texture;
         shade = c.top_shade;
-        cos_incidence = -(sc.R_world_camera * d).z() * ray[2];
+        cos_incidence = -(sc.R_N_C * d).z() * ray[2];
         break;
       }
       case HitKind::kNone:
@@ -786,24 +821,19 @@ void colour_and_depth(const ShadeConstants& k, const RowStage& row, int n) {
   }
 }
 
-}  // namespace
+/// The z-buffer render() fills: per pixel the nearest hit's t (z in C) and its hit code.
+struct ZBuffer {
+  float* t;
+  std::int32_t* code;
+  int width;
+};
 
-void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
-                          cv::Mat& image, cv::Mat& depth_m) {
-  const geometry::PinholeCamera& cam = params_.pinhole;
-  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
-  depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_world_camera);
-  Scene& sc = *scene_;
-  sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
-  const int width = cam.width;
+/// Visibility of the rectangles: each tests only the pixels of its footprint and z-tests its
+/// hits. Primitives go in the reference's order with the same strict comparisons, so the same
+/// one wins a tie.
+void zbuffer_rects(const SceneTables& sc, const ZBuffer& zb) {
+  const int width = zb.width;
   const float* ray_x = sc.ray_x.data();
-
-  // 1. Visibility: each primitive tests only the pixels of its footprint and z-tests its hits
-  // into (hit_t_, hit_code_). Primitives go in the reference's order with the same strict
-  // comparisons, so the same one wins a tie.
-  std::fill(hit_t_.begin(), hit_t_.end(), kNoHit);
-  std::fill(hit_code_.begin(), hit_code_.end(), kNoCode);
   for (std::size_t i = 0; i < sc.rects.size(); ++i) {
     const RectC& r = sc.rects[i];
     const PixelBox& fp = r.footprint;
@@ -815,8 +845,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       const float n_y = r.n_c.y() * y + r.n_c.z();
       const float u_y = r.u_c.y() * y + r.u_c.z();
       const float v_y = r.v_c.y() * y + r.v_c.z();
-      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       const int u_end = fp.u1 + 1;  // a < bound lets the vectoriser count the iterations
       for (int u = fp.u0; u < u_end; ++u) {
         const float x = ray_x[u];
@@ -834,13 +864,19 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
     }
   }
+}
+
+/// Visibility of the boxes (slab test), after the rectangles.
+void zbuffer_boxes(const SceneTables& sc, const ZBuffer& zb) {
+  const int width = zb.width;
+  const float* ray_x = sc.ray_x.data();
   for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
     const BoxC& b = sc.boxes[i];
     const PixelBox& fp = b.footprint;
     for (int v = fp.v0; v <= fp.v1; ++v) {
       const float y = sc.ray_y[static_cast<std::size_t>(v)];
-      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       for (int u = fp.u0; u <= fp.u1; ++u) {
         const Vec3f d(ray_x[u], y, 1.0f);
         const Vec3f dl = b.R_local_camera * d;
@@ -865,6 +901,12 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
     }
   }
+}
+
+/// Visibility of the cylinders (side, then top), after the boxes.
+void zbuffer_cylinders(const SceneTables& sc, const ZBuffer& zb) {
+  const int width = zb.width;
+  const float* ray_x = sc.ray_x.data();
   for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
     const CylinderC& c = sc.cylinders[i];
     const PixelBox& fp = c.footprint;
@@ -872,10 +914,10 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
     const std::int32_t top_code = hit_code(HitKind::kCylinderTop, static_cast<int>(i), 0);
     for (int v = fp.v0; v <= fp.v1; ++v) {
       const float y = sc.ray_y[static_cast<std::size_t>(v)];
-      float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
-      std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
+      float* t_row = zb.t + static_cast<std::ptrdiff_t>(v) * width;
+      std::int32_t* code_row = zb.code + static_cast<std::ptrdiff_t>(v) * width;
       for (int u = fp.u0; u <= fp.u1; ++u) {
-        const Vec3f dw = sc.R_world_camera * Vec3f(ray_x[u], y, 1.0f);
+        const Vec3f dw = sc.R_N_C * Vec3f(ray_x[u], y, 1.0f);
         const float a = dw.x() * dw.x() + dw.y() * dw.y();
         const float b = c.ox * dw.x() + c.oy * dw.y();
         const float cc = c.ox * c.ox + c.oy * c.oy - c.radius * c.radius;
@@ -900,183 +942,263 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_world_camera, std::uint64_t
       }
     }
   }
+}
+
+/// One row of the shading stages' buffers (SceneTables' row_* vectors).
+struct ShadeRow {
+  float *s_m, *w_m, *shade, *cos_incidence;
+  float *b, *g, *r;  // albedo
+  float *depth_draw, *image_draw;
+  std::int32_t *level_b, *level_g, *level_r, *level_gray;  // planes of width
+};
+
+ShadeRow shade_row(SceneTables& sc, int width) {
+  ShadeRow row{};
+  row.s_m = sc.row_s.data();
+  row.w_m = sc.row_w.data();
+  row.shade = sc.row_shade.data();
+  row.cos_incidence = sc.row_cos.data();
+  row.b = sc.row_b.data();
+  row.g = sc.row_g.data();
+  row.r = sc.row_r.data();
+  row.depth_draw = sc.row_depth_draw.data();
+  row.image_draw = sc.row_image_draw.data();
+  row.level_b = sc.row_levels.data();
+  row.level_g = row.level_b + width;
+  row.level_r = row.level_g + width;
+  row.level_gray = row.level_r + width;
+  return row;
+}
+
+/// surface_coordinates_row() for one pixel whose hit is not on a run of one rectangle.
+inline void surface_coordinates_pixel(const SceneTables& sc, const ShadeConstants& k,
+                                      std::int32_t code, float x, float y, float t,
+                                      float ray_scale, float& s_m, float& w_m, float& shade,
+                                      float& cos_incidence) {
+  const Vec3f d(x, y, 1.0f);
+  const int index = (code >> 3) & 0x1fffff;
+  const int face = code & 7;
+  switch (static_cast<HitKind>(code >> 24)) {
+    case HitKind::kRect: {
+      const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
+      s_m = t * rc.u_c.dot(d) - rc.u_dot_c;
+      w_m = t * rc.v_c.dot(d) - rc.v_dot_c;
+      shade = rc.shade;
+      cos_incidence = -rc.n_c.dot(d) * ray_scale;
+      break;
+    }
+    case HitKind::kBox: {
+      const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
+      // dl first, as the reference: Eigen folds t * (R * d) into the product, which
+      // rounds differently.
+      const Vec3f dl = bc.R_local_camera * d;
+      const Vec3f p = bc.o_local + t * dl;
+      const int axis = face / 2;
+      s_m = p[axis == 0 ? 1 : 0];
+      w_m = p[axis == 2 ? 1 : 2];
+      shade = bc.face_shade[face];
+      cos_incidence = -bc.face_normal_c[face].dot(d) * ray_scale;
+      break;
+    }
+    case HitKind::kCylinderSide: {
+      const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+      const Vec3f dw = sc.R_N_C * d;
+      s_m = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
+      w_m = c.oz + t * dw.z();
+      const float angle = s_m / c.radius;
+      const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
+      shade = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
+      cos_incidence = -n.dot(dw) * ray_scale;
+      break;
+    }
+    case HitKind::kCylinderTop: {
+      const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
+      const Vec3f dw = sc.R_N_C * d;
+      s_m = c.ox + t * dw.x();
+      w_m = c.oy + t * dw.y();
+      shade = c.top_shade;
+      cos_incidence = -dw.z() * ray_scale;
+      break;
+    }
+    case HitKind::kNone:
+      break;
+  }
+}
+
+/// Row v's winners' surface coordinates, light and incidence, recomputed from their t by the
+/// reference's expressions.
+void surface_coordinates_row(const SceneTables& sc, const ShadeConstants& k, int v, int width,
+                             const float* t_row, const std::int32_t* code_row,
+                             const ShadeRow& out) {
+  const float* ray_x = sc.ray_x.data();
+  const float y = sc.ray_y[static_cast<std::size_t>(v)];
+  const float* inv_norm_row = sc.inv_norm.data() + static_cast<std::ptrdiff_t>(v) * width;
+  float* s_m = out.s_m;
+  float* w_m = out.w_m;
+  float* shade = out.shade;
+  float* cos_incidence = out.cos_incidence;
+  for (int u0 = 0; u0 < width;) {
+    const std::int32_t run_code = code_row[u0];
+    int u1 = u0 + 1;
+    while (u1 < width && code_row[u1] == run_code) ++u1;
+    if (run_code != kNoCode && static_cast<HitKind>(run_code >> 24) == HitKind::kRect) {
+      // A run on one rectangle (most pixels: floor and walls), vectorised. Its dots sum as
+      // x_term + (y_term + z_term), Eigen's order, so the row-constant part is hoisted
+      // without changing a bit.
+      const RectC& rc = sc.rects[static_cast<std::size_t>((run_code >> 3) & 0x1fffff)];
+      const float u_y = rc.u_c.y() * y + rc.u_c.z();
+      const float v_y = rc.v_c.y() * y + rc.v_c.z();
+      const float n_y = rc.n_c.y() * y + rc.n_c.z();
+#pragma omp simd
+      for (int u = u0; u < u1; ++u) {
+        const float x = ray_x[u];
+        s_m[u] = t_row[u] * (rc.u_c.x() * x + u_y) - rc.u_dot_c;
+        w_m[u] = t_row[u] * (rc.v_c.x() * x + v_y) - rc.v_dot_c;
+        shade[u] = rc.shade;
+        cos_incidence[u] = -(rc.n_c.x() * x + n_y) * inv_norm_row[u];
+      }
+      u0 = u1;
+      continue;
+    }
+    for (int u = u0; u < u1; ++u) {
+      s_m[u] = 0.0f;
+      w_m[u] = 0.0f;
+      if (code_row[u] == kNoCode) continue;
+      surface_coordinates_pixel(sc, k, code_row[u], ray_x[u], y, t_row[u], inv_norm_row[u],
+                                s_m[u], w_m[u], shade[u], cos_incidence[u]);
+    }
+    u0 = u1;
+  }
+}
+
+/// Row v's albedo over runs of one surface (a vectorised texture loop), then its markers.
+void albedo_row(SceneTables& sc, int width, const std::int32_t* code_row, const ShadeRow& out) {
+  const float* s_m = out.s_m;
+  const float* w_m = out.w_m;
+  float* b = out.b;
+  float* g = out.g;
+  float* r = out.r;
+  for (int u0 = 0; u0 < width;) {
+    const std::int32_t code = code_row[u0];
+    int u1 = u0 + 1;
+    while (u1 < width && code_row[u1] == code) ++u1;
+    if (code != kNoCode) {
+      const Surface* surface = surface_of(sc, code);
+      const Texture& texture =
+          surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
+      texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
+      if (surface != nullptr && !surface->markers.empty()) {
+        // Only the markers near this run (a floor may carry dozens) are tested per pixel.
+        int* near = sc.near_markers.data();
+        const int count = markers_near_run(sc, *surface, s_m + u0, w_m + u0, u1 - u0, near);
+        for (int u = u0; count > 0 && u < u1; ++u) {
+          paint_markers(sc, near, count, s_m[u], w_m[u], b[u], g[u], r[u]);
+        }
+      }
+    }
+    u0 = u1;
+  }
+}
+
+/// Row v's standard normal draws of depth and image noise.
+void noise_row(const SceneTables& sc, const ShadeConstants& k, int v, int width,
+               const ShadeRow& out) {
+  float* depth_draw = out.depth_draw;
+  float* image_draw = out.image_draw;
+  // A zero sigma adds sigma * draw = +-0, which changes no value: the draws can be 0 then.
+  const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
+  if (k.sigma_disparity > 0.0f) {
+    noise_draws(sc.frame_key, first, 0ull, width, depth_draw);
+  } else {
+    std::fill(depth_draw, depth_draw + width, 0.0f);
+  }
+  if (k.image_sigma > 0.0f) {
+    noise_draws(sc.frame_key, first, 1ull, width, image_draw);
+  } else {
+    std::fill(image_draw, image_draw + width, 0.0f);
+  }
+}
+
+/// The row's intensity planes into the image row (interleaved BGR, or gray).
+void write_image_row(const ShadeConstants& k, int width, const ShadeRow& row, std::uint8_t* out) {
+  const std::int32_t* level_b = row.level_b;
+  const std::int32_t* level_g = row.level_g;
+  const std::int32_t* level_r = row.level_r;
+  const std::int32_t* level_gray = row.level_gray;
+  if (k.channels == 1) {
+#pragma omp simd
+    for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
+  } else {
+    for (int u = 0; u < width; ++u) {
+      out[3 * u] = static_cast<std::uint8_t>(level_b[u]);
+      out[3 * u + 1] = static_cast<std::uint8_t>(level_g[u]);
+      out[3 * u + 2] = static_cast<std::uint8_t>(level_r[u]);
+    }
+  }
+}
+
+}  // namespace
+
+void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
+                          cv::Mat& image, cv::Mat& depth_m) {
+  const geometry::PinholeCamera& cam = params_.pinhole;
+  image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
+  depth_m.create(cam.height, cam.width, CV_32F);
+  prepare_frame(T_N_C);
+  Scene& sc = *scene_;
+  sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
+  const int width = cam.width;
+
+  // 1. Visibility: each primitive tests only the pixels of its footprint and z-tests its hits
+  // into (hit_t_, hit_code_).
+  std::fill(hit_t_.begin(), hit_t_.end(), kNoHit);
+  std::fill(hit_code_.begin(), hit_code_.end(), kNoCode);
+  const ZBuffer zb{hit_t_.data(), hit_code_.data(), width};
+  zbuffer_rects(sc, zb);
+  zbuffer_boxes(sc, zb);
+  zbuffer_cylinders(sc, zb);
 
   // 2. Shading, once per pixel and row by row in stages: the winner's surface coordinates,
-  // light and incidence (recomputed from its t by the reference's expressions); albedo over
-  // runs of one surface (a vectorised texture loop) and its markers; then colour, depth model
-  // and noise. The same operations as shade_pixel() in the same order: the same bits.
+  // light and incidence; albedo and markers; noise draws; then colour, depth model and noise.
+  // The same operations as shade_pixel() in the same order: the same bits.
   const ShadeConstants k = shade_constants(params_);
-  float* s_m = sc.row_s.data();
-  float* w_m = sc.row_w.data();
-  float* shade = sc.row_shade.data();
-  float* cos_incidence = sc.row_cos.data();
-  float* b = sc.row_b.data();
-  float* g = sc.row_g.data();
-  float* r = sc.row_r.data();
-  float* depth_draw = sc.row_depth_draw.data();
-  float* image_draw = sc.row_image_draw.data();
-  std::int32_t* level_b = sc.row_levels.data();  // four planes of width
-  std::int32_t* level_g = level_b + width;
-  std::int32_t* level_r = level_g + width;
-  std::int32_t* level_gray = level_r + width;
+  const ShadeRow row = shade_row(sc, width);
   for (int v = 0; v < cam.height; ++v) {
-    const float y = sc.ray_y[static_cast<std::size_t>(v)];
-    const float* inv_norm_row = sc.inv_norm.data() + static_cast<std::ptrdiff_t>(v) * width;
     const float* t_row = hit_t_.data() + static_cast<std::ptrdiff_t>(v) * width;
     const std::int32_t* code_row = hit_code_.data() + static_cast<std::ptrdiff_t>(v) * width;
-    for (int u0 = 0; u0 < width;) {
-      const std::int32_t run_code = code_row[u0];
-      int u1 = u0 + 1;
-      while (u1 < width && code_row[u1] == run_code) ++u1;
-      if (run_code != kNoCode && static_cast<HitKind>(run_code >> 24) == HitKind::kRect) {
-        // A run on one rectangle (most pixels: floor and walls), vectorised. Its dots sum as
-        // x_term + (y_term + z_term), Eigen's order, so the row-constant part is hoisted
-        // without changing a bit.
-        const RectC& rc = sc.rects[static_cast<std::size_t>((run_code >> 3) & 0x1fffff)];
-        const float u_y = rc.u_c.y() * y + rc.u_c.z();
-        const float v_y = rc.v_c.y() * y + rc.v_c.z();
-        const float n_y = rc.n_c.y() * y + rc.n_c.z();
-#pragma omp simd
-        for (int u = u0; u < u1; ++u) {
-          const float x = ray_x[u];
-          s_m[u] = t_row[u] * (rc.u_c.x() * x + u_y) - rc.u_dot_c;
-          w_m[u] = t_row[u] * (rc.v_c.x() * x + v_y) - rc.v_dot_c;
-          shade[u] = rc.shade;
-          cos_incidence[u] = -(rc.n_c.x() * x + n_y) * inv_norm_row[u];
-        }
-        u0 = u1;
-        continue;
-      }
-      for (int u = u0; u < u1; ++u) {
-        const std::int32_t code = code_row[u];
-        s_m[u] = 0.0f;
-        w_m[u] = 0.0f;
-        if (code == kNoCode) continue;
-        const Vec3f d(ray_x[u], y, 1.0f);
-        const float t = t_row[u];
-        const int index = (code >> 3) & 0x1fffff;
-        const int face = code & 7;
-        const float ray_scale = inv_norm_row[u];
-        switch (static_cast<HitKind>(code >> 24)) {
-          case HitKind::kRect: {
-            const RectC& rc = sc.rects[static_cast<std::size_t>(index)];
-            s_m[u] = t * rc.u_c.dot(d) - rc.u_dot_c;
-            w_m[u] = t * rc.v_c.dot(d) - rc.v_dot_c;
-            shade[u] = rc.shade;
-            cos_incidence[u] = -rc.n_c.dot(d) * ray_scale;
-            break;
-          }
-          case HitKind::kBox: {
-            const BoxC& bc = sc.boxes[static_cast<std::size_t>(index)];
-            // dl first, as the reference: Eigen folds t * (R * d) into the product, which
-            // rounds differently.
-            const Vec3f dl = bc.R_local_camera * d;
-            const Vec3f p = bc.o_local + t * dl;
-            const int axis = face / 2;
-            s_m[u] = p[axis == 0 ? 1 : 0];
-            w_m[u] = p[axis == 2 ? 1 : 2];
-            shade[u] = bc.face_shade[face];
-            cos_incidence[u] = -bc.face_normal_c[face].dot(d) * ray_scale;
-            break;
-          }
-          case HitKind::kCylinderSide: {
-            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-            const Vec3f dw = sc.R_world_camera * d;
-            s_m[u] = std::atan2(c.oy + t * dw.y(), c.ox + t * dw.x()) * c.radius;
-            w_m[u] = c.oz + t * dw.z();
-            const float angle = s_m[u] / c.radius;
-            const Vec3f n(std::cos(angle), std::sin(angle), 0.0f);
-            shade[u] = k.ambient + k.diffuse * std::max(0.0f, n.dot(sc.light));
-            cos_incidence[u] = -n.dot(dw) * ray_scale;
-            break;
-          }
-          case HitKind::kCylinderTop: {
-            const CylinderC& c = sc.cylinders[static_cast<std::size_t>(index)];
-            const Vec3f dw = sc.R_world_camera * d;
-            s_m[u] = c.ox + t * dw.x();
-            w_m[u] = c.oy + t * dw.y();
-            shade[u] = c.top_shade;
-            cos_incidence[u] = -dw.z() * ray_scale;
-            break;
-          }
-          case HitKind::kNone:
-            break;
-        }
-      }
-      u0 = u1;
-    }
-    for (int u0 = 0; u0 < width;) {
-      const std::int32_t code = code_row[u0];
-      int u1 = u0 + 1;
-      while (u1 < width && code_row[u1] == code) ++u1;
-      if (code != kNoCode) {
-        const Surface* surface = surface_of(sc, code);
-        const Texture& texture =
-            surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
-        texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
-        if (surface != nullptr && !surface->markers.empty()) {
-          // Only the markers near this run (a floor may carry dozens) are tested per pixel.
-          int* near = sc.near_markers.data();
-          const int count = markers_near_run(sc, *surface, s_m + u0, w_m + u0, u1 - u0, near);
-          for (int u = u0; count > 0 && u < u1; ++u) {
-            paint_markers(sc, near, count, s_m[u], w_m[u], b[u], g[u], r[u]);
-          }
-        }
-      }
-      u0 = u1;
-    }
-    // A zero sigma adds sigma * draw = +-0, which changes no value: the draws can be 0 then.
-    const std::uint64_t first = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(width);
-    if (k.sigma_disparity > 0.0f) {
-      noise_draws(sc.frame_key, first, 0ull, width, depth_draw);
-    } else {
-      std::fill(depth_draw, depth_draw + width, 0.0f);
-    }
-    if (k.image_sigma > 0.0f) {
-      noise_draws(sc.frame_key, first, 1ull, width, image_draw);
-    } else {
-      std::fill(image_draw, image_draw + width, 0.0f);
-    }
-    const RowStage row{code_row,
-                       t_row,
-                       shade,
-                       cos_incidence,
-                       b,
-                       g,
-                       r,
-                       depth_draw,
-                       image_draw,
-                       true_depth_m_.ptr<float>(v),
-                       depth_m.ptr<float>(v),
-                       level_b,
-                       level_g,
-                       level_r,
-                       level_gray};
-    colour_and_depth(k, row, width);
-    std::uint8_t* out = image.ptr<std::uint8_t>(v);
-    if (k.channels == 1) {
-#pragma omp simd
-      for (int u = 0; u < width; ++u) out[u] = static_cast<std::uint8_t>(level_gray[u]);
-    } else {
-      for (int u = 0; u < width; ++u) {
-        out[3 * u] = static_cast<std::uint8_t>(level_b[u]);
-        out[3 * u + 1] = static_cast<std::uint8_t>(level_g[u]);
-        out[3 * u + 2] = static_cast<std::uint8_t>(level_r[u]);
-      }
-    }
+    surface_coordinates_row(sc, k, v, width, t_row, code_row, row);
+    albedo_row(sc, width, code_row, row);
+    noise_row(sc, k, v, width, row);
+    const RowStage stage{code_row,
+                         t_row,
+                         row.shade,
+                         row.cos_incidence,
+                         row.b,
+                         row.g,
+                         row.r,
+                         row.depth_draw,
+                         row.image_draw,
+                         true_depth_m_.ptr<float>(v),
+                         depth_m.ptr<float>(v),
+                         row.level_b,
+                         row.level_g,
+                         row.level_r,
+                         row.level_gray};
+    colour_and_depth(k, stage, width);
+    write_image_row(k, width, row, image.ptr<std::uint8_t>(v));
   }
   drop_depth_at_discontinuities_fast(depth_m);
 }
 
-void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_world_camera,
+void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C,
                                     std::uint64_t frame_index, cv::Mat& image, cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_world_camera);
+  prepare_frame(T_N_C);
   Scene& sc = *scene_;
   sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
-  const Eigen::Matrix3f& R_world_camera = sc.R_world_camera;
+  const Eigen::Matrix3f& R_N_C = sc.R_N_C;
   const ShadeConstants k = shade_constants(params_);
 
   for (int v = 0; v < cam.height; ++v) {
@@ -1127,7 +1249,7 @@ void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_world_camera,
         hit = Hit{t_near, HitKind::kBox, static_cast<int>(i), face, p[a], p[c]};
       }
       if (!sc.cylinders.empty()) {
-        const Vec3f dw = R_world_camera * d;
+        const Vec3f dw = R_N_C * d;
         for (std::size_t i = 0; i < sc.cylinders.size(); ++i) {
           const CylinderC& c = sc.cylinders[i];
           if (u < c.u0 || u > c.u1 || v < c.v0 || v > c.v1) continue;

@@ -77,6 +77,139 @@ void set_resolution(SimConfig& config, const std::string& width_x_height,
   config.camera.pinhole = pinhole_from_fov(width, height, hfov_rad);
 }
 
+namespace {
+
+/// vehicle: the quadrotor's parameters; mass and tilt limit come from the vehicle file if one
+/// is named, and the rotors must lift what that file says the vehicle can.
+void read_vehicle(config::StrictMap& section, const control::VehicleConfig& vehicle_file,
+                  SimConfig& out) {
+  config::StrictMap v = section.child("vehicle");
+  QuadrotorParams& p = out.vehicle;
+  reject_with_vehicle_file(v, "mass_kg", out);
+  reject_with_vehicle_file(v, "max_tilt_deg", out);
+  v.read_positive("mass_kg", p.mass_kg, 100.0);
+  read_vec3(v, "inertia_kgm2", p.inertia_kgm2);
+  if (!(p.inertia_kgm2.minCoeff() > 0.0)) {
+    throw InputError(v.describe("inertia_kgm2") + " has a value <= 0, expected > 0");
+  }
+  v.read_positive("arm_length_m", p.arm_length_m, 5.0);
+  v.read_positive("thrust_coefficient", p.thrust_coefficient, 1.0);
+  v.read_positive("torque_coefficient", p.torque_coefficient, 1.0);
+  v.read_positive("max_rotor_speed_radps", p.max_rotor_speed_radps, 1e5);
+  v.read_positive("motor_time_constant_s", p.motor_time_constant_s, 10.0);
+  v.read("linear_drag_nspm", p.linear_drag_nspm, 0.0, 100.0);
+  v.read("rest_height_m", p.rest_height_m, 0.0, 5.0);
+  v.read_positive("attitude_natural_hz", p.attitude_natural_hz, 100.0);
+  v.read_positive("attitude_damping", p.attitude_damping, 10.0);
+  v.read_positive("yaw_rate_gain_per_s", p.yaw_rate_gain_per_s, 1000.0);
+  v.read_deg_as_rad("max_tilt_deg", p.max_tilt_rad, 1.0, 80.0);
+  read_vec3(v, "wind_mean_mps", p.wind_mean_mps);
+  v.read("gust_sigma_mps", p.gust_sigma_mps, 0.0, 20.0);
+  v.read_positive("gust_time_constant_s", p.gust_time_constant_s, 1000.0);
+  v.finish();
+  const double max_thrust_n =
+      4.0 * p.thrust_coefficient * p.max_rotor_speed_radps * p.max_rotor_speed_radps;
+  if (max_thrust_n < 1.2 * p.mass_kg * kGravityMps2) {
+    throw InputError(v.describe("max_rotor_speed_radps") + " = " +
+                     std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
+                     std::to_string(max_thrust_n) + " N, expected >= 1.2 * weight");
+  }
+  if (!out.vehicle_file.empty() && max_thrust_n < vehicle_file.max_thrust_n) {
+    throw InputError(v.describe("max_rotor_speed_radps") + " = " +
+                     std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
+                     std::to_string(max_thrust_n) + " N, expected >= max_thrust_n of " +
+                     out.vehicle_file);
+  }
+}
+
+/// imu: noise model and rate (a divisor of the dynamics rate, so samples fall on steps).
+void read_imu(config::StrictMap& section, SimConfig& out) {
+  config::StrictMap m = section.child("imu");
+  ImuParams& p = out.imu;
+  m.read("rate_hz", p.rate_hz, 200.0, 500.0);
+  m.read("gyro_noise_density", p.gyro_noise_density, 0.0, 1.0);
+  m.read("gyro_random_walk", p.gyro_random_walk, 0.0, 1.0);
+  m.read("accel_noise_density", p.accel_noise_density, 0.0, 10.0);
+  m.read("accel_random_walk", p.accel_random_walk, 0.0, 10.0);
+  m.read("gyro_initial_bias_sigma_radps", p.gyro_initial_bias_sigma_radps, 0.0, 1.0);
+  m.read("accel_initial_bias_sigma_mps2", p.accel_initial_bias_sigma_mps2, 0.0, 5.0);
+  const double ratio = out.dynamics_rate_hz / p.rate_hz;
+  if (std::abs(ratio - std::round(ratio)) > 1e-9) {
+    throw InputError(
+        m.describe("rate_hz") + " = " + std::to_string(p.rate_hz) +
+        ", expected a divisor of dynamics_rate_hz = " + std::to_string(out.dynamics_rate_hz));
+  }
+  m.finish();
+}
+
+/// camera.depth: the structured-light model.
+void read_depth_sensor(config::StrictMap& c, DepthSensorParams& q) {
+  config::StrictMap d = c.child("depth");
+  d.read("min_range_m", q.min_range_m, 0.0, 100.0);
+  d.read_positive("max_range_m", q.max_range_m, 100.0);
+  if (q.max_range_m <= q.min_range_m) {
+    throw InputError(d.describe("max_range_m") + " = " + std::to_string(q.max_range_m) +
+                     ", expected > min_range_m = " + std::to_string(q.min_range_m));
+  }
+  d.read("noise_sigma_per_m2", q.noise_sigma_per_m2, 0.0, 1.0);
+  d.read_positive("baseline_m", q.baseline_m, 10.0);
+  d.read_positive("disparity_focal_px", q.disparity_focal_px, 1e5);
+  d.read("disparity_subpixels", q.disparity_subpixels, 0, 1024);
+  d.read("edge_jump_ratio", q.edge_jump_ratio, 0.0, 10.0);
+  d.read("dark_albedo", q.dark_albedo, 0.0, 1.0);
+  d.read_deg_as_rad("grazing_max_deg", q.grazing_max_rad, 0.0, 90.0);
+  d.finish();
+}
+
+/// camera: image size and field of view, image model, mount (unless the vehicle file has it)
+/// and depth sensor.
+/// camera.T_body_camera: lever arm and the core paper's mount angles (§2: 45 deg right, 30 deg
+/// down), defaults those of default_sim_config().
+void read_camera_mount(config::StrictMap& c, Eigen::Isometry3d& T_body_camera) {
+  config::StrictMap t = c.child("T_body_camera");
+  Eigen::Vector3d p_body_camera_m = T_body_camera.translation();
+  double yaw_right_rad = 45.0 * kPi / 180.0;
+  double tilt_down_rad = 30.0 * kPi / 180.0;
+  double optical_roll_rad = 0.0;
+  read_vec3(t, "p_body_camera_m", p_body_camera_m);
+  t.read_deg_as_rad("yaw_right_deg", yaw_right_rad, -180.0, 180.0);
+  t.read_deg_as_rad("tilt_down_deg", tilt_down_rad, -90.0, 90.0);
+  t.read_deg_as_rad("optical_roll_deg", optical_roll_rad, -180.0, 180.0);
+  t.finish();
+  T_body_camera =
+      make_T_body_camera(p_body_camera_m, yaw_right_rad, tilt_down_rad, optical_roll_rad);
+}
+
+void read_camera(config::StrictMap& section, SimConfig& out) {
+  config::StrictMap c = section.child("camera");
+  CameraParams& p = out.camera;
+  int width = p.pinhole.width;
+  int height = p.pinhole.height;
+  double hfov_rad = 2.0 * std::atan(0.5 * width / p.pinhole.fx);
+  c.read("width", width, 16, 4096);
+  c.read("height", height, 16, 4096);
+  c.read_deg_as_rad("hfov_deg", hfov_rad, 10.0, 170.0);
+  p.pinhole = pinhole_from_fov(width, height, hfov_rad);
+  if (!(p.pinhole.fx >= config::kMinFocalPx && p.pinhole.fx <= config::kMaxFocalPx)) {
+    std::ostringstream message;
+    message << c.describe("hfov_deg") << " = " << hfov_rad * 180.0 / M_PI << " with width "
+            << width << " gives fx = " << p.pinhole.fx << " px, expected in ["
+            << config::kMinFocalPx << ", " << config::kMaxFocalPx << "] px";
+    throw InputError(message.str());
+  }
+  c.read_positive("rate_hz", p.rate_hz, 1000.0);
+  c.read("gray", p.gray);
+  c.read("image_noise_sigma", p.image_noise_sigma, 0.0, 50.0);
+  c.read("ambient", p.ambient, 0.0, 1.0);
+  c.read("diffuse", p.diffuse, 0.0, 1.0);
+  reject_with_vehicle_file(c, "T_body_camera", out);
+  if (out.vehicle_file.empty()) read_camera_mount(c, p.T_body_camera);
+  read_depth_sensor(c, p.depth);
+  c.finish();
+}
+
+}  // namespace
+
 void read_config(config::StrictMap& section, SimConfig& out) {
   section.read_positive("dynamics_rate_hz", out.dynamics_rate_hz, 100000.0);
   if (out.dynamics_rate_hz < 500.0) {
@@ -97,121 +230,9 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     out.camera.T_body_camera.linear() = vehicle_file.R_body_camera;
     out.camera.T_body_camera.translation() = vehicle_file.p_body_camera_m;
   }
-
-  {
-    config::StrictMap v = section.child("vehicle");
-    QuadrotorParams& p = out.vehicle;
-    reject_with_vehicle_file(v, "mass_kg", out);
-    reject_with_vehicle_file(v, "max_tilt_deg", out);
-    v.read_positive("mass_kg", p.mass_kg, 100.0);
-    read_vec3(v, "inertia_kgm2", p.inertia_kgm2);
-    if (!(p.inertia_kgm2.minCoeff() > 0.0)) {
-      throw InputError(v.describe("inertia_kgm2") + " has a value <= 0, expected > 0");
-    }
-    v.read_positive("arm_length_m", p.arm_length_m, 5.0);
-    v.read_positive("thrust_coefficient", p.thrust_coefficient, 1.0);
-    v.read_positive("torque_coefficient", p.torque_coefficient, 1.0);
-    v.read_positive("max_rotor_speed_radps", p.max_rotor_speed_radps, 1e5);
-    v.read_positive("motor_time_constant_s", p.motor_time_constant_s, 10.0);
-    v.read("linear_drag_nspm", p.linear_drag_nspm, 0.0, 100.0);
-    v.read("rest_height_m", p.rest_height_m, 0.0, 5.0);
-    v.read_positive("attitude_natural_hz", p.attitude_natural_hz, 100.0);
-    v.read_positive("attitude_damping", p.attitude_damping, 10.0);
-    v.read_positive("yaw_rate_gain_per_s", p.yaw_rate_gain_per_s, 1000.0);
-    v.read_deg_as_rad("max_tilt_deg", p.max_tilt_rad, 1.0, 80.0);
-    read_vec3(v, "wind_mean_mps", p.wind_mean_mps);
-    v.read("gust_sigma_mps", p.gust_sigma_mps, 0.0, 20.0);
-    v.read_positive("gust_time_constant_s", p.gust_time_constant_s, 1000.0);
-    v.finish();
-    const double max_thrust_n =
-        4.0 * p.thrust_coefficient * p.max_rotor_speed_radps * p.max_rotor_speed_radps;
-    if (max_thrust_n < 1.2 * p.mass_kg * kGravityMps2) {
-      throw InputError(v.describe("max_rotor_speed_radps") + " = " +
-                       std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
-                       std::to_string(max_thrust_n) + " N, expected >= 1.2 * weight");
-    }
-    if (!out.vehicle_file.empty() && max_thrust_n < vehicle_file.max_thrust_n) {
-      throw InputError(v.describe("max_rotor_speed_radps") + " = " +
-                       std::to_string(p.max_rotor_speed_radps) + ": maximum thrust " +
-                       std::to_string(max_thrust_n) + " N, expected >= max_thrust_n of " +
-                       out.vehicle_file);
-    }
-  }
-  {
-    config::StrictMap m = section.child("imu");
-    ImuParams& p = out.imu;
-    m.read("rate_hz", p.rate_hz, 200.0, 500.0);
-    m.read("gyro_noise_density", p.gyro_noise_density, 0.0, 1.0);
-    m.read("gyro_random_walk", p.gyro_random_walk, 0.0, 1.0);
-    m.read("accel_noise_density", p.accel_noise_density, 0.0, 10.0);
-    m.read("accel_random_walk", p.accel_random_walk, 0.0, 10.0);
-    m.read("gyro_initial_bias_sigma_radps", p.gyro_initial_bias_sigma_radps, 0.0, 1.0);
-    m.read("accel_initial_bias_sigma_mps2", p.accel_initial_bias_sigma_mps2, 0.0, 5.0);
-    const double ratio = out.dynamics_rate_hz / p.rate_hz;
-    if (std::abs(ratio - std::round(ratio)) > 1e-9) {
-      throw InputError(
-          m.describe("rate_hz") + " = " + std::to_string(p.rate_hz) +
-          ", expected a divisor of dynamics_rate_hz = " + std::to_string(out.dynamics_rate_hz));
-    }
-    m.finish();
-  }
-  {
-    config::StrictMap c = section.child("camera");
-    CameraParams& p = out.camera;
-    int width = p.pinhole.width;
-    int height = p.pinhole.height;
-    double hfov_rad = 2.0 * std::atan(0.5 * width / p.pinhole.fx);
-    c.read("width", width, 16, 4096);
-    c.read("height", height, 16, 4096);
-    c.read_deg_as_rad("hfov_deg", hfov_rad, 10.0, 170.0);
-    p.pinhole = pinhole_from_fov(width, height, hfov_rad);
-    if (!(p.pinhole.fx >= config::kMinFocalPx && p.pinhole.fx <= config::kMaxFocalPx)) {
-      std::ostringstream message;
-      message << c.describe("hfov_deg") << " = " << hfov_rad * 180.0 / M_PI << " with width "
-              << width << " gives fx = " << p.pinhole.fx << " px, expected in ["
-              << config::kMinFocalPx << ", " << config::kMaxFocalPx << "] px";
-      throw InputError(message.str());
-    }
-    c.read_positive("rate_hz", p.rate_hz, 1000.0);
-    c.read("gray", p.gray);
-    c.read("image_noise_sigma", p.image_noise_sigma, 0.0, 50.0);
-    c.read("ambient", p.ambient, 0.0, 1.0);
-    c.read("diffuse", p.diffuse, 0.0, 1.0);
-    reject_with_vehicle_file(c, "T_body_camera", out);
-    if (out.vehicle_file.empty()) {
-      config::StrictMap t = c.child("T_body_camera");
-      Eigen::Vector3d p_body_camera_m = p.T_body_camera.translation();
-      double yaw_right_rad = 45.0 * kPi / 180.0;
-      double tilt_down_rad = 30.0 * kPi / 180.0;
-      double optical_roll_rad = 0.0;
-      read_vec3(t, "p_body_camera_m", p_body_camera_m);
-      t.read_deg_as_rad("yaw_right_deg", yaw_right_rad, -180.0, 180.0);
-      t.read_deg_as_rad("tilt_down_deg", tilt_down_rad, -90.0, 90.0);
-      t.read_deg_as_rad("optical_roll_deg", optical_roll_rad, -180.0, 180.0);
-      t.finish();
-      p.T_body_camera =
-          make_T_body_camera(p_body_camera_m, yaw_right_rad, tilt_down_rad, optical_roll_rad);
-    }
-    {
-      config::StrictMap d = c.child("depth");
-      DepthSensorParams& q = p.depth;
-      d.read("min_range_m", q.min_range_m, 0.0, 100.0);
-      d.read_positive("max_range_m", q.max_range_m, 100.0);
-      if (q.max_range_m <= q.min_range_m) {
-        throw InputError(d.describe("max_range_m") + " = " + std::to_string(q.max_range_m) +
-                         ", expected > min_range_m = " + std::to_string(q.min_range_m));
-      }
-      d.read("noise_sigma_per_m2", q.noise_sigma_per_m2, 0.0, 1.0);
-      d.read_positive("baseline_m", q.baseline_m, 10.0);
-      d.read_positive("disparity_focal_px", q.disparity_focal_px, 1e5);
-      d.read("disparity_subpixels", q.disparity_subpixels, 0, 1024);
-      d.read("edge_jump_ratio", q.edge_jump_ratio, 0.0, 10.0);
-      d.read("dark_albedo", q.dark_albedo, 0.0, 1.0);
-      d.read_deg_as_rad("grazing_max_deg", q.grazing_max_rad, 0.0, 90.0);
-      d.finish();
-    }
-    c.finish();
-  }
+  read_vehicle(section, vehicle_file, out);
+  read_imu(section, out);
+  read_camera(section, out);
   section.finish();
 }
 

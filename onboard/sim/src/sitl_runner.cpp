@@ -169,10 +169,17 @@ class RenderWorker {
 };
 
 
-}  // namespace
+/// What one run counts, for the closing summary.
+struct SitlRunStats {
+  std::int64_t max_lag_ns = 0;
+  std::int64_t collision_ticks = 0;
+  std::int64_t frames_skipped = 0;
+  double min_clearance_m = 1e9;
+  double max_speed_mps = 0.0;
+  std::uint64_t messages_received = 0;
+};
 
-int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>& stop) {
-  const SimConfig& config = sim.config();
+frame_channel::ChannelGeometry channel_geometry(const SimConfig& config) {
   const geometry::PinholeCamera& pinhole = config.camera.pinhole;
   frame_channel::ChannelGeometry geometry;
   geometry.width = pinhole.width;
@@ -182,131 +189,90 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
   geometry.fy = pinhole.fy;
   geometry.cx = pinhole.cx;
   geometry.cy = pinhole.cy;
-  frame_channel::FrameChannelWriter channel(options.channel, geometry);
-  ensure_listen_port_free(options.mavlink_spec);
-  const std::unique_ptr<mavlink::Transport> transport =
-      mavlink::open_transport(options.mavlink_spec);
-  if (options.tick_ns <= 0) {
-    throw InputError("sitl: tick_ns = " + std::to_string(options.tick_ns) + ", expected > 0");
-  }
+  return geometry;
+}
 
-  SitlAutopilot autopilot(config.vehicle, options.autopilot);
-  TransportSink sink(*transport);
-  mavlink::Parser parser;
+void print_banner(const Simulator& sim, const frame_channel::FrameChannelWriter& channel,
+                  const mavlink::Transport& transport, const SitlAutopilot& autopilot) {
+  const SimConfig& config = sim.config();
+  const geometry::PinholeCamera& pinhole = config.camera.pinhole;
   std::printf(
       "hq-sim --sitl: %s, seed %llu, %dx%d %s-D at %.0f Hz on %s; MAVLink %s (system 1, "
       "component 1, PX4); max thrust %.2f N (4 x %.3g x %.0f^2), hover %.2f N\n",
       sim.world().name.c_str(), static_cast<unsigned long long>(config.seed), pinhole.width,
       pinhole.height, config.camera.gray ? "gray" : "BGR", config.camera.rate_hz,
-      channel.name().c_str(), transport->describe().c_str(), autopilot.max_thrust_n(),
+      channel.name().c_str(), transport.describe().c_str(), autopilot.max_thrust_n(),
       config.vehicle.thrust_coefficient, config.vehicle.max_rotor_speed_radps,
       config.vehicle.mass_kg * 9.81);
   std::fflush(stdout);
+}
 
-  std::vector<ImuSample> imu(2000);
-  std::array<std::uint8_t, 2048> rx{};
-  auto renderer = std::make_unique<RenderWorker>(config, sim.world(), channel);
-  const std::int64_t end_ns =
-      options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * 1e9))
-                               : -1;
-  const std::int64_t wall_origin_ns = monotonic_now_ns();
-  channel.set_time_origin(wall_origin_ns);  // frame stamps and IMU time_usec share it
-  std::int64_t max_lag_ns = 0;
-  std::int64_t next_status_wall_ns = wall_origin_ns + 1'000'000'000;
-  std::int64_t collision_ticks = 0;
-  std::int64_t frames_skipped = 0;
-  double min_clearance_m = 1e9;
-  double max_speed_mps = 0.0;
-  std::uint64_t messages_received = 0;
-
-  std::int64_t t_ns = sim.t_ns();
-  while (!stop.load() && (end_ns < 0 || t_ns < end_ns)) {
-    const std::int64_t t_next_ns = t_ns + options.tick_ns;
-    // Absolute deadlines: the simulation never runs ahead of the wall clock, and a slow tick
-    // (a render) is caught up instead of delaying every later one.
-    const std::int64_t deadline_ns = wall_origin_ns + t_next_ns;
-    const std::int64_t now_ns = monotonic_now_ns();
-    if (now_ns < deadline_ns) {
-      sleep_until_monotonic_ns(deadline_ns, &stop);
-    } else {
-      max_lag_ns = std::max(max_lag_ns, now_ns - deadline_ns);
-    }
-
-    const TruthState& truth = sim.truth();
-    for (std::size_t n = transport->receive(rx); n > 0; n = transport->receive(rx)) {
-      parser.feed(std::span<const std::uint8_t>(rx.data(), n),
-                  [&](const mavlink::FrameHeader& header, const mavlink::Message& message) {
-                    ++messages_received;
-                    autopilot.on_message(t_ns, header.system_id, header.component_id, message,
-                                         truth, sink);
-                  });
-      if (transport->datagrams()) parser.end_of_datagram();
-    }
-    sim.set_command(autopilot.update(t_ns, truth, sink));
-    sim.step_to(t_next_ns);
-    t_ns = sim.t_ns();
-
-    const std::size_t n_imu = sim.take_imu(imu.data(), imu.size());
-    for (std::size_t i = 0; i < n_imu; ++i) autopilot.send_imu(imu[i], sink);
-
-    if (sim.camera_due()) {
-      // Stamped with the host clock of its exposure: wall origin + simulated time.
-      const TruthState& now_truth = sim.truth();
-      frame_channel::SitlTruth frame_truth;
-      const Eigen::Vector3d& v_H = now_truth.v_H_mps;
-      const Eigen::Vector3d& p_W = now_truth.T_world_body.translation();
-      frame_truth.v_H_mps = {v_H.x(), v_H.y(), v_H.z()};
-      frame_truth.p_W_m = {p_W.x(), p_W.y(), p_W.z()};
-      frame_truth.on_ground = now_truth.on_ground;
-      if (!renderer->submit(sim.camera_T_world_camera(), sim.camera_frame_index(),
-                            wall_origin_ns + sim.camera_t_ns(), frame_truth)) {
-        ++frames_skipped;
-      }
-      sim.hand_off_camera();
-    }
-    channel.heartbeat();
-
-    const TruthState& after = sim.truth();
-    if (!after.on_ground) {
-      if (after.collision) ++collision_ticks;
-      min_clearance_m = std::min(min_clearance_m, after.clearance_m);
-    }
-    max_speed_mps = std::max(max_speed_mps, after.v_world_mps.norm());
-
-    const std::int64_t wall_ns = monotonic_now_ns();
-    if (options.status_lines && wall_ns >= next_status_wall_ns) {
-      next_status_wall_ns += 1'000'000'000;
-      std::fprintf(stderr, "hq-sim: t %.1f s, RT %.2f, %s %s, altitude %.2f m\n",
-                   static_cast<double>(t_ns) * 1e-9,
-                   static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
-                   autopilot.armed() ? "armed" : "disarmed",
-                   sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
-    }
+/// Hands every datagram waiting on the transport to the autopilot.
+void receive_mavlink(mavlink::Transport& transport, mavlink::Parser& parser,
+                     SitlAutopilot& autopilot, std::int64_t t_ns, const TruthState& truth,
+                     MessageSink& sink, std::span<std::uint8_t> rx, SitlRunStats& stats) {
+  for (std::size_t n = transport.receive(rx); n > 0; n = transport.receive(rx)) {
+    parser.feed(std::span<const std::uint8_t>(rx.data(), n),
+                [&](const mavlink::FrameHeader& header, const mavlink::Message& message) {
+                  ++stats.messages_received;
+                  autopilot.on_message(t_ns, header.system_id, header.component_id, message,
+                                       truth, sink);
+                });
+    if (transport.datagrams()) parser.end_of_datagram();
   }
+}
 
-  const double wall_s =
-      static_cast<double>(monotonic_now_ns() - wall_origin_ns) * 1e-9;
-  renderer->finish();
-  const std::int64_t frames = renderer->published();
-  const double render_s = renderer->render_s();
-  const double sim_s = static_cast<double>(t_ns) * 1e-9;
+/// Submits the due camera frame, stamped with the host clock of its exposure (wall origin +
+/// simulated time), with the truth the onboard side is scored against.
+void publish_camera(Simulator& sim, RenderWorker& renderer, std::int64_t wall_origin_ns,
+                    SitlRunStats& stats) {
+  const TruthState& truth = sim.truth();
+  frame_channel::SitlTruth frame_truth;
+  const Eigen::Vector3d& v_H = truth.v_H_mps;
+  const Eigen::Vector3d& p_N = truth.T_world_body.translation();
+  frame_truth.v_H_mps = {v_H.x(), v_H.y(), v_H.z()};
+  frame_truth.p_W_m = {p_N.x(), p_N.y(), p_N.z()};
+  frame_truth.on_ground = truth.on_ground;
+  if (!renderer.submit(sim.camera_T_world_camera(), sim.camera_frame_index(),
+                       wall_origin_ns + sim.camera_t_ns(), frame_truth)) {
+    ++stats.frames_skipped;
+  }
+  sim.hand_off_camera();
+}
+
+void account_truth(const TruthState& truth, SitlRunStats& stats) {
+  if (!truth.on_ground) {
+    if (truth.collision) ++stats.collision_ticks;
+    stats.min_clearance_m = std::min(stats.min_clearance_m, truth.clearance_m);
+  }
+  stats.max_speed_mps = std::max(stats.max_speed_mps, truth.v_W_mps.norm());
+}
+
+void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
+                   const mavlink::Parser& parser, const TransportSink& sink,
+                   const RenderWorker& renderer, const SitlRunStats& stats, double wall_s) {
+  const std::int64_t frames = renderer.published();
+  const double render_s = renderer.render_s();
+  const double sim_s = static_cast<double>(sim.t_ns()) * 1e-9;
   const mavlink::ParserCounters& pc = parser.counters();
   const SitlAutopilotStats& st = autopilot.stats();
   std::printf("simulated %.2f s in %.2f s wall: real-time factor %.3f, largest lag %.1f ms\n",
               sim_s, wall_s, wall_s > 0.0 ? sim_s / wall_s : 0.0,
-              static_cast<double>(max_lag_ns) * 1e-6);
+              static_cast<double>(stats.max_lag_ns) * 1e-6);
   std::printf("frames published %lld (render %.1f ms mean), skipped while rendering %lld\n",
               static_cast<long long>(frames), frames > 0 ? 1e3 * render_s / frames : 0.0,
-              static_cast<long long>(frames_skipped));
+              static_cast<long long>(stats.frames_skipped));
   char clearance[32] = "n/a (never airborne)";
-  if (min_clearance_m < 1e8) std::snprintf(clearance, sizeof(clearance), "%.2f m", min_clearance_m);
+  if (stats.min_clearance_m < 1e8) {
+    std::snprintf(clearance, sizeof(clearance), "%.2f m", stats.min_clearance_m);
+  }
   std::printf("collision ticks airborne %lld, smallest clearance %s, max true speed %.2f m/s\n",
-              static_cast<long long>(collision_ticks), clearance, max_speed_mps);
+              static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);
   std::printf(
       "mavlink: sent %llu, send failures %llu, received %llu, dropped %llu (bad crc %llu, "
       "unknown id %llu, truncated %llu, bad length %llu)\n",
       static_cast<unsigned long long>(sink.sent()), static_cast<unsigned long long>(sink.failed()),
-      static_cast<unsigned long long>(messages_received),
+      static_cast<unsigned long long>(stats.messages_received),
       static_cast<unsigned long long>(pc.dropped()), static_cast<unsigned long long>(pc.bad_crc),
       static_cast<unsigned long long>(pc.unknown_id), static_cast<unsigned long long>(pc.truncated),
       static_cast<unsigned long long>(pc.bad_length));
@@ -328,6 +294,76 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
               autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
               sim.truth().T_world_body.translation().z());
   std::fflush(stdout);
+}
+
+}  // namespace
+
+int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>& stop) {
+  const SimConfig& config = sim.config();
+  frame_channel::FrameChannelWriter channel(options.channel, channel_geometry(config));
+  ensure_listen_port_free(options.mavlink_spec);
+  const std::unique_ptr<mavlink::Transport> transport =
+      mavlink::open_transport(options.mavlink_spec);
+  if (options.tick_ns <= 0) {
+    throw InputError("sitl: tick_ns = " + std::to_string(options.tick_ns) + ", expected > 0");
+  }
+
+  SitlAutopilot autopilot(config.vehicle, options.autopilot);
+  TransportSink sink(*transport);
+  mavlink::Parser parser;
+  print_banner(sim, channel, *transport, autopilot);
+
+  std::vector<ImuSample> imu(2000);
+  std::array<std::uint8_t, 2048> rx{};
+  auto renderer = std::make_unique<RenderWorker>(config, sim.world(), channel);
+  const std::int64_t end_ns =
+      options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * 1e9))
+                               : -1;
+  const std::int64_t wall_origin_ns = monotonic_now_ns();
+  channel.set_time_origin(wall_origin_ns);  // frame stamps and IMU time_usec share it
+  std::int64_t next_status_wall_ns = wall_origin_ns + 1'000'000'000;
+  SitlRunStats stats;
+
+  std::int64_t t_ns = sim.t_ns();
+  while (!stop.load() && (end_ns < 0 || t_ns < end_ns)) {
+    const std::int64_t t_next_ns = t_ns + options.tick_ns;
+    // Absolute deadlines: the simulation never runs ahead of the wall clock, and a slow tick
+    // (a render) is caught up instead of delaying every later one.
+    const std::int64_t deadline_ns = wall_origin_ns + t_next_ns;
+    const std::int64_t now_ns = monotonic_now_ns();
+    if (now_ns < deadline_ns) {
+      sleep_until_monotonic_ns(deadline_ns, &stop);
+    } else {
+      stats.max_lag_ns = std::max(stats.max_lag_ns, now_ns - deadline_ns);
+    }
+
+    const TruthState& truth = sim.truth();
+    receive_mavlink(*transport, parser, autopilot, t_ns, truth, sink, rx, stats);
+    sim.set_command(autopilot.update(t_ns, truth, sink));
+    sim.step_to(t_next_ns);
+    t_ns = sim.t_ns();
+
+    const std::size_t n_imu = sim.take_imu(imu.data(), imu.size());
+    for (std::size_t i = 0; i < n_imu; ++i) autopilot.send_imu(imu[i], sink);
+    if (sim.camera_due()) publish_camera(sim, *renderer, wall_origin_ns, stats);
+    channel.heartbeat();
+
+    const TruthState& after = sim.truth();
+    account_truth(after, stats);
+    const std::int64_t wall_ns = monotonic_now_ns();
+    if (options.status_lines && wall_ns >= next_status_wall_ns) {
+      next_status_wall_ns += 1'000'000'000;
+      std::fprintf(stderr, "hq-sim: t %.1f s, RT %.2f, %s %s, altitude %.2f m\n",
+                   static_cast<double>(t_ns) * 1e-9,
+                   static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
+                   autopilot.armed() ? "armed" : "disarmed",
+                   sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
+    }
+  }
+
+  const double wall_s = static_cast<double>(monotonic_now_ns() - wall_origin_ns) * 1e-9;
+  renderer->finish();
+  print_summary(sim, autopilot, parser, sink, *renderer, stats, wall_s);
   return 0;
 }
 

@@ -284,6 +284,182 @@ double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_
   return best;
 }
 
+namespace {
+
+/// start: where the vehicle stands (on the floor, checked by read_floor()).
+void read_start(StrictMap& map, World& world) {
+  StrictMap start = map.child("start");
+  double xy[2] = {0.0, 0.0};
+  start.read_list("xy_m", xy, 2);
+  check_within(start, "xy_m", xy, 2);
+  world.start_world_m = Eigen::Vector3d(xy[0], xy[1], 0.0);
+  start.read_deg_as_rad("yaw_deg", world.start_yaw_rad, -180.0, 180.0);
+  start.finish();
+}
+
+/// floor: the rectangle at z = 0; the start must lie on it.
+void read_floor(StrictMap& map, const std::string& path, std::uint32_t& salt, World& world) {
+  StrictMap floor = map.child("floor");
+  double half[2] = {20.0, 20.0};
+  floor.read_list("half_size_m", half, 2);
+  check_positive(floor, "half_size_m", half, 2);
+  check_within(floor, "half_size_m", half, 2);
+  world.floor.center_m = Eigen::Vector3d::Zero();
+  world.floor.normal = Eigen::Vector3d::UnitZ();
+  world.floor.axis_u = Eigen::Vector3d::UnitX();
+  world.floor.axis_v = Eigen::Vector3d::UnitY();
+  world.floor.half_u_m = half[0];
+  world.floor.half_v_m = half[1];
+  world.floor.texture = read_texture(floor.child("texture"), salt++);
+  floor.finish();
+  const Eigen::Vector2d start = world.start_world_m.head<2>();
+  if (std::abs(start.x()) > half[0] || std::abs(start.y()) > half[1]) {
+    std::ostringstream message;
+    message << path << ": start.xy_m = [" << start.x() << ", " << start.y()
+            << "], expected on the floor (|x| <= " << half[0] << ", |y| <= " << half[1]
+            << " m, floor.half_size_m)";
+    throw InputError(message.str());
+  }
+}
+
+/// Rejects a world with more primitives than the renderer can draw, before reading any.
+void check_primitive_count(const YAML::Node& root, const std::string& path) {
+  std::size_t count = 0;
+  std::string counts;
+  for (const char* key : {"walls", "boxes", "cylinders", "markers"}) {
+    const std::size_t n = sequence(root, key, path).size();
+    count += n;
+    counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + key;
+  }
+  if (count > kMaxPrimitives) {
+    throw InputError(path + ": " + std::to_string(count) + " primitives (" + counts +
+                     "), expected at most " + std::to_string(kMaxPrimitives));
+  }
+}
+
+Rectangle read_wall(StrictMap w, std::uint32_t& salt) {
+  double from[2] = {0, 0};
+  double to[2] = {0, 0};
+  double height_m = 2.5;
+  w.require_list("from_m", from, 2);
+  w.require_list("to_m", to, 2);
+  check_within(w, "from_m", from, 2);
+  check_within(w, "to_m", to, 2);
+  w.read_positive("height_m", height_m, 100.0);
+  if (std::hypot(to[0] - from[0], to[1] - from[1]) < 1e-3) {
+    throw InputError(w.describe("to_m") + " equals from_m, expected a wall of length > 0");
+  }
+  Rectangle wall = wall_between({from[0], from[1]}, {to[0], to[1]}, height_m);
+  wall.texture = read_texture(w.child("texture"), salt++);
+  w.finish();
+  return wall;
+}
+
+Box read_box(StrictMap b, std::uint32_t& salt) {
+  Box box;
+  double center[3] = {0, 0, 0};
+  double size[3] = {1, 1, 1};
+  b.require_list("center_m", center, 3);
+  b.require_list("size_m", size, 3);
+  check_within(b, "center_m", center, 3);
+  check_positive(b, "size_m", size, 3);
+  check_within(b, "size_m", size, 3);
+  b.read_deg_as_rad("yaw_deg", box.yaw_rad, -180.0, 180.0);
+  box.center_m = Eigen::Vector3d(center[0], center[1], center[2]);
+  box.size_m = Eigen::Vector3d(size[0], size[1], size[2]);
+  box.texture = read_texture(b.child("texture"), salt++);
+  b.finish();
+  return box;
+}
+
+Cylinder read_cylinder(StrictMap c, std::uint32_t& salt) {
+  Cylinder cyl;
+  double center[2] = {0, 0};
+  c.require_list("center_m", center, 2);
+  check_within(c, "center_m", center, 2);
+  c.read_positive("radius_m", cyl.radius_m, 100.0);
+  c.read_positive("height_m", cyl.height_m, 100.0);
+  c.read("base_z_m", cyl.base_z_m, -10.0, 100.0);
+  cyl.center_m = Eigen::Vector2d(center[0], center[1]);
+  cyl.texture = read_texture(c.child("texture"), salt++);
+  c.finish();
+  return cyl;
+}
+
+Marker read_marker(StrictMap m) {
+  Marker marker;
+  double center[3] = {0, 0, 0};
+  double normal[3] = {0, 0, 1};
+  m.require("id", marker.id, 0, 586);  // AprilTag 36h11 has 587 codes.
+  m.require_list("center_m", center, 3);
+  check_within(m, "center_m", center, 3);
+  m.read_list("normal", normal, 3);
+  m.read_positive("size_m", marker.size_m, 10.0);
+  m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);
+  m.finish();
+  const Eigen::Vector3d n(normal[0], normal[1], normal[2]);
+  if (n.norm() < 1e-6) {
+    throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
+  }
+  marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
+  marker.normal_world = n.normalized();
+  return marker;
+}
+
+/// One list of the world file, each entry read by read_entry(StrictMap) in file order (the
+/// texture salts follow that order, so the textures do too).
+template <typename ReadEntry>
+void read_list(const YAML::Node& root, const char* key, const std::string& path,
+               ReadEntry&& read_entry) {
+  const YAML::Node entries = sequence(root, key, path);
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    read_entry(StrictMap(entries[i], path, std::string(key) + "[" + std::to_string(i) + "]"));
+  }
+}
+
+/// marker_grid: rows x cols tags on the floor, ids in reading order from the start.
+void read_marker_grid(StrictMap& map, World& world) {
+  StrictMap grid = map.child("marker_grid");
+  if (grid.has("rows")) {
+    int rows = 0;
+    int cols = 0;
+    int first_id = 0;
+    double spacing_m = 0.6;
+    double size_m = 0.2;
+    double center[2] = {0, 0};
+    grid.require("rows", rows, 1, 24);
+    grid.require("cols", cols, 1, 24);
+    grid.read("first_id", first_id, 0, 586);
+    grid.read_positive("spacing_m", spacing_m, 10.0);
+    grid.read_positive("size_m", size_m, 10.0);
+    grid.read_list("center_m", center, 2);
+    if (first_id + rows * cols > 587) {
+      throw InputError(grid.describe("first_id") + " = " + std::to_string(first_id) +
+                       ", expected first_id + rows * cols <= 587 (AprilTag 36h11 codes)");
+    }
+    if (size_m * 1.5 > spacing_m) {
+      throw InputError(grid.describe("spacing_m") + " = " + std::to_string(spacing_m) +
+                       ", expected >= 1.5 * size_m so tags and their white margins do not overlap");
+    }
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < cols; ++c) {
+        Marker marker;
+        marker.id = first_id + r * cols + c;
+        marker.size_m = size_m;
+        // Row index grows along world -x so that ids read like text seen from the start.
+        marker.center_world_m =
+            Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
+                            center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
+        marker.normal_world = Eigen::Vector3d::UnitZ();
+        world.markers.push_back(marker);
+      }
+    }
+  }
+  grid.finish();
+}
+
+}  // namespace
+
 World load_world(const std::string& path) {
   const YAML::Node root = config::load_yaml_file(path);
   YAML::Node scalars = YAML::Clone(root);
@@ -291,176 +467,26 @@ World load_world(const std::string& path) {
   for (const char* key : list_keys) scalars.remove(key);
 
   World world;
-  std::uint32_t salt = 1;
+  std::uint32_t salt = 1;  // one per texture, in file order: floor, walls, boxes, cylinders
   StrictMap map(scalars, path);
   world.name = path;
   map.read("name", world.name, {});
   int seed = 1;
   map.read("seed", seed, 0, 2147483647);
   world.seed = static_cast<std::uint64_t>(seed);
-
-  {
-    StrictMap start = map.child("start");
-    double xy[2] = {0.0, 0.0};
-    start.read_list("xy_m", xy, 2);
-    check_within(start, "xy_m", xy, 2);
-    world.start_world_m = Eigen::Vector3d(xy[0], xy[1], 0.0);
-    start.read_deg_as_rad("yaw_deg", world.start_yaw_rad, -180.0, 180.0);
-    start.finish();
-  }
-  {
-    StrictMap floor = map.child("floor");
-    double half[2] = {20.0, 20.0};
-    floor.read_list("half_size_m", half, 2);
-    check_positive(floor, "half_size_m", half, 2);
-    check_within(floor, "half_size_m", half, 2);
-    world.floor.center_m = Eigen::Vector3d::Zero();
-    world.floor.normal = Eigen::Vector3d::UnitZ();
-    world.floor.axis_u = Eigen::Vector3d::UnitX();
-    world.floor.axis_v = Eigen::Vector3d::UnitY();
-    world.floor.half_u_m = half[0];
-    world.floor.half_v_m = half[1];
-    world.floor.texture = read_texture(floor.child("texture"), salt++);
-    floor.finish();
-    const Eigen::Vector2d start = world.start_world_m.head<2>();
-    if (std::abs(start.x()) > half[0] || std::abs(start.y()) > half[1]) {
-      std::ostringstream message;
-      message << path << ": start.xy_m = [" << start.x() << ", " << start.y()
-              << "], expected on the floor (|x| <= " << half[0] << ", |y| <= " << half[1]
-              << " m, floor.half_size_m)";
-      throw InputError(message.str());
-    }
-  }
-  {
-    std::size_t count = 0;
-    std::string counts;
-    for (const char* key : {"walls", "boxes", "cylinders", "markers"}) {
-      const std::size_t n = sequence(root, key, path).size();
-      count += n;
-      counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + key;
-    }
-    if (count > kMaxPrimitives) {
-      throw InputError(path + ": " + std::to_string(count) + " primitives (" + counts +
-                       "), expected at most " + std::to_string(kMaxPrimitives));
-    }
-  }
-
-  const YAML::Node walls = sequence(root, "walls", path);
-  for (std::size_t i = 0; i < walls.size(); ++i) {
-    StrictMap w(walls[i], path, "walls[" + std::to_string(i) + "]");
-    double from[2] = {0, 0};
-    double to[2] = {0, 0};
-    double height_m = 2.5;
-    w.require_list("from_m", from, 2);
-    w.require_list("to_m", to, 2);
-    check_within(w, "from_m", from, 2);
-    check_within(w, "to_m", to, 2);
-    w.read_positive("height_m", height_m, 100.0);
-    if (std::hypot(to[0] - from[0], to[1] - from[1]) < 1e-3) {
-      throw InputError(w.describe("to_m") + " equals from_m, expected a wall of length > 0");
-    }
-    Rectangle wall = wall_between({from[0], from[1]}, {to[0], to[1]}, height_m);
-    wall.texture = read_texture(w.child("texture"), salt++);
-    w.finish();
-    world.walls.push_back(wall);
-  }
-
-  const YAML::Node boxes = sequence(root, "boxes", path);
-  for (std::size_t i = 0; i < boxes.size(); ++i) {
-    StrictMap b(boxes[i], path, "boxes[" + std::to_string(i) + "]");
-    Box box;
-    double center[3] = {0, 0, 0};
-    double size[3] = {1, 1, 1};
-    b.require_list("center_m", center, 3);
-    b.require_list("size_m", size, 3);
-    check_within(b, "center_m", center, 3);
-    check_positive(b, "size_m", size, 3);
-    check_within(b, "size_m", size, 3);
-    b.read_deg_as_rad("yaw_deg", box.yaw_rad, -180.0, 180.0);
-    box.center_m = Eigen::Vector3d(center[0], center[1], center[2]);
-    box.size_m = Eigen::Vector3d(size[0], size[1], size[2]);
-    box.texture = read_texture(b.child("texture"), salt++);
-    b.finish();
-    world.boxes.push_back(box);
-  }
-
-  const YAML::Node cylinders = sequence(root, "cylinders", path);
-  for (std::size_t i = 0; i < cylinders.size(); ++i) {
-    StrictMap c(cylinders[i], path, "cylinders[" + std::to_string(i) + "]");
-    Cylinder cyl;
-    double center[2] = {0, 0};
-    c.require_list("center_m", center, 2);
-    check_within(c, "center_m", center, 2);
-    c.read_positive("radius_m", cyl.radius_m, 100.0);
-    c.read_positive("height_m", cyl.height_m, 100.0);
-    c.read("base_z_m", cyl.base_z_m, -10.0, 100.0);
-    cyl.center_m = Eigen::Vector2d(center[0], center[1]);
-    cyl.texture = read_texture(c.child("texture"), salt++);
-    c.finish();
-    world.cylinders.push_back(cyl);
-  }
-
-  const YAML::Node markers = sequence(root, "markers", path);
-  for (std::size_t i = 0; i < markers.size(); ++i) {
-    StrictMap m(markers[i], path, "markers[" + std::to_string(i) + "]");
-    Marker marker;
-    double center[3] = {0, 0, 0};
-    double normal[3] = {0, 0, 1};
-    m.require("id", marker.id, 0, 586);  // AprilTag 36h11 has 587 codes.
-    m.require_list("center_m", center, 3);
-    check_within(m, "center_m", center, 3);
-    m.read_list("normal", normal, 3);
-    m.read_positive("size_m", marker.size_m, 10.0);
-    m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);
-    m.finish();
-    const Eigen::Vector3d n(normal[0], normal[1], normal[2]);
-    if (n.norm() < 1e-6)
-      throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
-    marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
-    marker.normal_world = n.normalized();
-    world.markers.push_back(marker);
-  }
-
-  {
-    StrictMap grid = map.child("marker_grid");
-    if (grid.has("rows")) {
-      int rows = 0;
-      int cols = 0;
-      int first_id = 0;
-      double spacing_m = 0.6;
-      double size_m = 0.2;
-      double center[2] = {0, 0};
-      grid.require("rows", rows, 1, 24);
-      grid.require("cols", cols, 1, 24);
-      grid.read("first_id", first_id, 0, 586);
-      grid.read_positive("spacing_m", spacing_m, 10.0);
-      grid.read_positive("size_m", size_m, 10.0);
-      grid.read_list("center_m", center, 2);
-      if (first_id + rows * cols > 587) {
-        throw InputError(grid.describe("first_id") + " = " + std::to_string(first_id) +
-                         ", expected first_id + rows * cols <= 587 (AprilTag 36h11 codes)");
-      }
-      if (size_m * 1.5 > spacing_m) {
-        throw InputError(
-            grid.describe("spacing_m") + " = " + std::to_string(spacing_m) +
-            ", expected >= 1.5 * size_m so tags and their white margins do not overlap");
-      }
-      for (int r = 0; r < rows; ++r) {
-        for (int c = 0; c < cols; ++c) {
-          Marker marker;
-          marker.id = first_id + r * cols + c;
-          marker.size_m = size_m;
-          // Row index grows along world -x so that ids read like text seen from the start.
-          marker.center_world_m =
-              Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
-                              center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
-          marker.normal_world = Eigen::Vector3d::UnitZ();
-          world.markers.push_back(marker);
-        }
-      }
-    }
-    grid.finish();
-  }
+  read_start(map, world);
+  read_floor(map, path, salt, world);
+  check_primitive_count(root, path);
+  read_list(root, "walls", path,
+            [&](StrictMap entry) { world.walls.push_back(read_wall(std::move(entry), salt)); });
+  read_list(root, "boxes", path,
+            [&](StrictMap entry) { world.boxes.push_back(read_box(std::move(entry), salt)); });
+  read_list(root, "cylinders", path, [&](StrictMap entry) {
+    world.cylinders.push_back(read_cylinder(std::move(entry), salt));
+  });
+  read_list(root, "markers", path,
+            [&](StrictMap entry) { world.markers.push_back(read_marker(std::move(entry))); });
+  read_marker_grid(map, world);
   map.finish();
   return world;
 }

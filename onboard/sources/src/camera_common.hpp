@@ -1,5 +1,5 @@
 #pragma once
-// Pieces shared by the camera adapters: intrinsics, device clocks, retry pacing.
+// Pieces shared by the camera adapters: intrinsics, device clocks, the reconnect loop.
 
 #include "hq/config/camera_info.hpp"
 #include "hq/sources/camera_sources.hpp"
@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdint>
 #include <string>
+#include <utility>
 
 namespace hq::sources::detail {
 
@@ -40,14 +41,37 @@ class DeviceClock {
   std::int64_t anchor_ns_ = 0;
 };
 
-/// Paces reopen attempts after a device loss.
-class RetryPacer {
+/// The reconnect loop of a camera adapter: after a loss the device is reopened at most once per
+/// retry interval, and error() says why there is no frame. Used as
+///   if (!open_ && !reconnect_.reopen([&](std::string& why) { return open_device(why); },
+///                                    error_)) return FrameStatus::kNoFrame;
+///   ... on a read failure: close the device, error_ = reconnect_.lost(why).
+class Reconnector {
  public:
-  explicit RetryPacer(std::int64_t interval_ns) : interval_(interval_ns) {}
-  /// True if an attempt is due now (and starts the next interval).
-  bool due();
+  Reconnector(std::string name, std::int64_t retry_interval_ns)
+      : name_(std::move(name)), interval_(retry_interval_ns) {}
+
+  /// Tries open_device(std::string& why) if an attempt is due. True once it opened; otherwise
+  /// error holds why (the attempt's reason and "; retrying", or is left as the loss said).
+  template <typename OpenDevice>
+  bool reopen(OpenDevice&& open_device, std::string& error) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_) return false;
+    next_ = now + interval_;
+    std::string why;
+    if (open_device(why)) return true;
+    error = why + "; retrying";
+    return false;
+  }
+
+  /// error() after the device was lost for `why`.
+  [[nodiscard]] std::string lost(const std::string& why) const {
+    return name_ + ": device lost (" + why + "); retrying every " +
+           std::to_string(interval_.count() / 1'000'000) + " ms";
+  }
 
  private:
+  std::string name_;
   std::chrono::nanoseconds interval_;
   std::chrono::steady_clock::time_point next_{};
 };

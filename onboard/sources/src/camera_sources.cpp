@@ -136,13 +136,6 @@ std::int64_t DeviceClock::to_ns(std::uint64_t ticks) {
   return anchor_ns_ + unwrapped_ticks_ * ns_num_ / ns_den_;
 }
 
-bool RetryPacer::due() {
-  const auto now = std::chrono::steady_clock::now();
-  if (now < next_) return false;
-  next_ = now + interval_;
-  return true;
-}
-
 }  // namespace detail
 
 }  // namespace hq::sources

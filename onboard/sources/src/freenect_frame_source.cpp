@@ -110,7 +110,7 @@ class FreenectFrameSource final : public CameraSource {
         undistorter_(camera_),
         fakenect_(running_on_fakenect()),
         clock_(kNsPerTickNum, kNsPerTickDen, kTickBits),
-        retry_(options.retry_interval_ns) {
+        reconnect_(name_, options.retry_interval_ns) {
     if (fakenect_) check_fakenect_dump();
     video_rgb_.create(kHeight, kWidth, CV_8UC3);
     depth_raw_.create(kHeight, kWidth, CV_16UC1);
@@ -131,13 +131,9 @@ class FreenectFrameSource final : public CameraSource {
 
   FrameStatus next(RgbdFrame& frame) override {
     if (end_of_dump_) return FrameStatus::kEndOfStream;
-    if (device_ == nullptr) {
-      if (!retry_.due()) return FrameStatus::kNoFrame;
-      std::string why;
-      if (!open_device(why)) {
-        error_ = why + "; retrying";
-        return FrameStatus::kNoFrame;
-      }
+    if (device_ == nullptr &&
+        !reconnect_.reopen([this](std::string& why) { return open_device(why); }, error_)) {
+      return FrameStatus::kNoFrame;
     }
     const auto deadline =
         std::chrono::steady_clock::now() + std::chrono::nanoseconds(options_.frame_timeout_ns);
@@ -223,8 +219,7 @@ class FreenectFrameSource final : public CameraSource {
 
   FrameStatus lose(const std::string& why) {
     close_device();
-    error_ = name_ + ": device lost (" + why + "); retrying every " +
-             std::to_string(options_.retry_interval_ns / 1'000'000) + " ms";
+    error_ = reconnect_.lost(why);
     return FrameStatus::kNoFrame;
   }
 
@@ -302,7 +297,7 @@ class FreenectFrameSource final : public CameraSource {
   config::Undistorter undistorter_;
   bool fakenect_;
   DeviceClock clock_;
-  RetryPacer retry_;
+  Reconnector reconnect_;
   freenect_context* context_ = nullptr;
   freenect_device* device_ = nullptr;
   bool has_motor_ = false;

@@ -39,7 +39,7 @@ class Openni2FrameSource final : public CameraSource {
         options_(options),
         is_file_(uri.size() > 4 && uri.compare(uri.size() - 4, 4, ".oni") == 0),
         clock_(kNsPerUsNum, 1, 64),
-        retry_(options.retry_interval_ns) {
+        reconnect_(name_, options.retry_interval_ns) {
     if (is_file_ && !std::ifstream(uri)) {
       throw InputError(name_ + ": cannot read the .oni file (missing or unreadable)");
     }
@@ -77,13 +77,9 @@ class Openni2FrameSource final : public CameraSource {
 
   FrameStatus next(RgbdFrame& frame) override {
     if (end_of_file_) return FrameStatus::kEndOfStream;
-    if (!open_) {
-      if (!retry_.due()) return FrameStatus::kNoFrame;
-      std::string why;
-      if (!open_device(why)) {
-        error_ = why + "; retrying";
-        return FrameStatus::kNoFrame;
-      }
+    if (!open_ &&
+        !reconnect_.reopen([this](std::string& why) { return open_device(why); }, error_)) {
+      return FrameStatus::kNoFrame;
     }
     const auto deadline =
         std::chrono::steady_clock::now() + std::chrono::nanoseconds(options_.frame_timeout_ns);
@@ -280,8 +276,7 @@ class Openni2FrameSource final : public CameraSource {
 
   FrameStatus lose(const std::string& why) {
     close_device();
-    error_ = name_ + ": device lost (" + why + "); retrying every " +
-             std::to_string(options_.retry_interval_ns / 1'000'000) + " ms";
+    error_ = reconnect_.lost(why);
     return FrameStatus::kNoFrame;
   }
 
@@ -307,7 +302,7 @@ class Openni2FrameSource final : public CameraSource {
   config::CameraInfo camera_;
   std::optional<config::Undistorter> undistorter_;
   DeviceClock clock_;
-  RetryPacer retry_;
+  Reconnector reconnect_;
   openni::Device device_;
   openni::VideoStream depth_, colour_;
   openni::VideoFrameRef depth_frame_, colour_frame_;

@@ -20,6 +20,13 @@ void open_list(std::ofstream& file, const std::string& path, const std::string& 
   file << header;
 }
 
+/// A plain TUM recording (images, lists, accelerometer) labelled with where it came from.
+TumRecordingOptions labelled(const std::string& description) {
+  TumRecordingOptions options;
+  options.description = description;
+  return options;
+}
+
 }  // namespace
 
 std::string TumRecorder::stamp(std::int64_t t_ns) {
@@ -33,8 +40,12 @@ std::string TumRecorder::stamp(std::int64_t t_ns) {
 
 TumRecorder::TumRecorder(const std::string& dir, const geometry::PinholeCamera& camera,
                          const std::string& description)
+    : TumRecorder(dir, camera, labelled(description)) {}
+
+TumRecorder::TumRecorder(const std::string& dir, const geometry::PinholeCamera& camera,
+                         const TumRecordingOptions& options)
     : dir_(dir) {
-  if (std::filesystem::exists(dir_ + "/rgb.txt")) {
+  if (!options.replace_existing && std::filesystem::exists(dir_ + "/rgb.txt")) {
     throw InputError(dir_ + "/rgb.txt: exists already; record into a new directory");
   }
   std::error_code error;
@@ -42,28 +53,42 @@ TumRecorder::TumRecorder(const std::string& dir, const geometry::PinholeCamera& 
   if (!error) std::filesystem::create_directories(dir_ + "/depth", error);
   if (error)
     throw InputError(dir_ + ": cannot create the recording directories: " + error.message());
-  const std::string from = "# file: '" + description + "'\n";
-  open_list(rgb_, dir_ + "/rgb.txt", "# color images\n" + from + "# timestamp filename\n");
-  open_list(depth_, dir_ + "/depth.txt", "# depth maps\n" + from + "# timestamp filename\n");
+  const std::string from = "# file: '" + options.description + "'";
+  open_list(rgb_, dir_ + "/rgb.txt", "# color images\n" + from + "\n# timestamp filename\n");
+  open_list(depth_, dir_ + "/depth.txt", "# depth maps\n" + from + "\n# timestamp filename\n");
+  if (options.ground_truth) {
+    open_list(groundtruth_, dir_ + "/groundtruth.txt",
+              "# ground truth trajectory\n" + from + "\n# timestamp tx ty tz qx qy qz qw\n");
+  }
   open_list(accelerometer_, dir_ + "/accelerometer.txt",
-            "# accelerometer data\n" + from + "# timestamp ax ay az\n");
+            "# accelerometer data\n" + from + options.accel_note + "\n# timestamp ax ay az\n");
+  if (options.gyro) {
+    open_list(gyro_, dir_ + "/gyro.txt",
+              "# gyroscope data\n" + from + options.gyro_note + "\n# timestamp wx wy wz\n");
+  }
   std::ofstream info(dir_ + "/camera.yaml");
-  info << "# Intrinsics of the recorded (already undistorted) images, from " << description
-       << "\nimage_width: " << camera.width << "\nimage_height: " << camera.height
-       << "\ncamera_name: hq_record\ncamera_matrix: {rows: 3, cols: 3, data: [" << camera.fx
-       << ", 0, " << camera.cx << ", 0, " << camera.fy << ", " << camera.cy
+  info << "# Intrinsics of the recorded (already undistorted) images, from "
+       << options.description << "\nimage_width: " << camera.width
+       << "\nimage_height: " << camera.height << "\ncamera_name: " << options.camera_name
+       << "\ncamera_matrix: {rows: 3, cols: 3, data: [" << camera.fx << ", 0, " << camera.cx
+       << ", 0, " << camera.fy << ", " << camera.cy
        << ", 0, 0, 1]}\ndistortion_model: plumb_bob\n"
        << "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
-       << "depth_scale_units_per_m: 5000\n";
+       << "depth_scale_units_per_m: 5000\n"
+       << options.camera_comment;
   if (!info) throw InputError(dir_ + "/camera.yaml: cannot write");
 }
 
 void TumRecorder::write_frame(const RgbdFrame& frame) {
-  const std::string t = stamp(frame.t_ns);
+  write_frame(frame.t_ns, frame.bgr, frame.depth_m);
+}
+
+void TumRecorder::write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::Mat& depth_m) {
+  const std::string t = stamp(t_ns);
   const std::string rgb_name = "rgb/" + t + ".png";
   const std::string depth_name = "depth/" + t + ".png";
-  frame.depth_m.convertTo(depth_u16_, CV_16U, kDepthUnitsPerM);  // rounds and saturates
-  if (!cv::imwrite(dir_ + "/" + rgb_name, frame.bgr)) {
+  depth_m.convertTo(depth_u16_, CV_16U, kDepthUnitsPerM);  // rounds and saturates
+  if (!cv::imwrite(dir_ + "/" + rgb_name, image)) {
     throw InputError(dir_ + "/" + rgb_name + ": cannot write");
   }
   if (!cv::imwrite(dir_ + "/" + depth_name, depth_u16_)) {
@@ -81,8 +106,25 @@ void TumRecorder::write_accel(const recording::AccelSample& sample) {
   accelerometer_ << line;
 }
 
+void TumRecorder::write_gyro(std::int64_t t_ns, const Eigen::Vector3d& omega_radps) {
+  char line[160];
+  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f\n", stamp(t_ns).c_str(), omega_radps.x(),
+                omega_radps.y(), omega_radps.z());
+  gyro_ << line;
+}
+
+void TumRecorder::write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d& T_world_camera) {
+  const Eigen::Quaterniond q(T_world_camera.linear());
+  const Eigen::Vector3d& p = T_world_camera.translation();
+  char line[256];
+  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n",
+                stamp(t_ns).c_str(), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+  groundtruth_ << line;
+}
+
 void TumRecorder::close() {
-  for (std::ofstream* f : {&rgb_, &depth_, &accelerometer_}) {
+  for (std::ofstream* f : {&rgb_, &depth_, &accelerometer_, &gyro_, &groundtruth_}) {
+    if (!f->is_open()) continue;
     f->flush();
     if (!*f) throw InputError(dir_ + ": writing the recording lists failed");
     f->close();

@@ -11,6 +11,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 
 namespace hq::sources {
 namespace {
@@ -153,6 +155,58 @@ TEST(TumRecorder, RecordingReadsBackAsTheSameTumSequence) {
   EXPECT_FALSE(info.has_distortion());
   EXPECT_THAT(input_error_message([&] { TumRecorder again(dir, source.camera(), "test"); }),
               HasSubstr("rgb.txt: exists already"));
+}
+
+TEST(TumRecorder, OptionsAddGroundTruthAndGyroLabelTheListsAndMayReplaceARecording) {
+  // GIVEN a recorder with the simulator's options
+  const std::string dir = fresh_dir("recorder_options");
+  geometry::PinholeCamera camera;
+  camera.width = 16;
+  camera.height = 12;
+  camera.fx = camera.fy = 20.0;
+  camera.cx = 7.5;
+  camera.cy = 5.5;
+  TumRecordingOptions options;
+  options.description = "unit";
+  options.ground_truth = true;
+  options.gyro = true;
+  options.gyro_note = " (rad/s)";
+  options.camera_comment = "# mount\n";
+  for (int run = 0; run < 2; ++run) {
+    // WHEN one frame, its pose and an IMU sample are written, twice into the same folder
+    if (run == 1) {
+      EXPECT_THAT(input_error_message([&] { TumRecorder refused(dir, camera, "unit"); }),
+                  HasSubstr("rgb.txt: exists already"));
+      options.replace_existing = true;
+    }
+    TumRecorder recorder(dir, camera, options);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(1.0, 2.0, 3.0);
+    recorder.write_frame(1'500'000'000, cv::Mat(12, 16, CV_8UC3, cv::Scalar(1, 2, 3)),
+                         cv::Mat(12, 16, CV_32F, cv::Scalar(1.0f)));
+    recorder.write_ground_truth(1'500'000'000, T);
+    recorder.write_gyro(1'500'000'000, Eigen::Vector3d(0.1, 0.2, 0.3));
+    recorder.close();
+    EXPECT_EQ(recorder.frames(), 1u);
+  }
+  // THEN the lists hold one entry each (the second run replaced the first), labelled
+  const auto lines = [](const std::string& path) {
+    std::ifstream file(path);
+    std::vector<std::string> out;
+    for (std::string line; std::getline(file, line);) out.push_back(line);
+    return out;
+  };
+  const std::vector<std::string> gt = lines(dir + "/groundtruth.txt");
+  ASSERT_EQ(gt.size(), 4u);
+  EXPECT_EQ(gt[1], "# file: 'unit'");
+  EXPECT_EQ(gt[3], "1.500000 1.000000 2.000000 3.000000 0.000000 0.000000 0.000000 1.000000");
+  const std::vector<std::string> gyro = lines(dir + "/gyro.txt");
+  ASSERT_EQ(gyro.size(), 4u);
+  EXPECT_EQ(gyro[1], "# file: 'unit' (rad/s)");
+  EXPECT_EQ(gyro[3], "1.500000 0.100000 0.200000 0.300000");
+  EXPECT_EQ(lines(dir + "/rgb.txt").back(), "1.500000 rgb/1.500000.png");
+  EXPECT_EQ(lines(dir + "/camera.yaml").back(), "# mount");
+  EXPECT_DOUBLE_EQ(config::load_camera_info(dir + "/camera.yaml").cx, 7.5);
 }
 
 TEST(CalibFiles, NominalCameraFilesLoadAt640x480) {

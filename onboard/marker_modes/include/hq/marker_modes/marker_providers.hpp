@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 
 namespace hq::marker_modes {
 
@@ -81,6 +82,19 @@ class ExploreProvider final : public modes::VelocityProvider {
   void mark_seen();
   bool choose_goal(const Eigen::Vector2d& p_m);
   void enter(ExplorePhase phase, std::int64_t t_ns);
+  /// What every phase reads once per pass: time in the phase, pose (W, NED), targets.
+  struct StepInputs {
+    double in_phase_s = 0.0;
+    bool have_pose = false;
+    Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();
+    double z_target_m = 0.0;  ///< The working height as z in W (NED: negative).
+    double alpha_rad = 0.0;   ///< The camera's heading relative to the body's.
+  };
+  /// One pass of desired(): the phase's command, or nullopt after it handed over.
+  std::optional<modes::ModeCommand> step(std::int64_t t_ns);
+  std::optional<modes::ModeCommand> lift_off(std::int64_t t_ns, const StepInputs& in);
+  std::optional<modes::ModeCommand> explore(std::int64_t t_ns, const StepInputs& in);
+  std::optional<modes::ModeCommand> counter_steer(std::int64_t t_ns, const StepInputs& in);
   modes::ModeCommand fly_to(const Eigen::Vector3d& p_target_m, double yaw_target_rad) const;
 
   ExploreConfig config_;

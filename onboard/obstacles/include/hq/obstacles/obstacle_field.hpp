@@ -3,8 +3,9 @@
 /// local minima of the depth image, a standard repulsive potential per minimum (Khatib 1986),
 /// summed into v_obs, which is added to the desired velocity: v_des = v*_des + v_obs.
 ///
-/// Frames: C camera (optical: z forward, x right, y down), Q body NED, H horizontal NED (Q with
-/// roll and pitch removed). All buffers are sized at construction; compute() allocates nothing.
+/// Frames (hq/geometry/frames.hpp): C camera (optical: z forward, x right, y down), B body FRD
+/// (the core paper's Q), H horizontal (B with roll and pitch removed). All buffers are sized at
+/// construction; compute() allocates nothing.
 
 #include "hq/geometry/pinhole_camera.hpp"
 
@@ -55,6 +56,11 @@ struct ObstacleConfig {
 /// Reads the `obstacles:` section strictly.
 void read_config(config::StrictMap& section, ObstacleConfig& out);
 
+/// What the obstacle field and memory need of their camera: a positive image size and focal
+/// length, R_B_C a rotation and p_B_C_m finite. @throws hq::InputError naming component.
+void check_camera(const char* component, const geometry::PinholeCamera& camera,
+                  const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m);
+
 /// One obstacle point: a local depth minimum, or the near-range hazard.
 struct ObstaclePoint {
   Eigen::Vector3d p_horizontal_m = Eigen::Vector3d::Zero();  ///< In H, from the body origin.
@@ -84,10 +90,10 @@ struct ObstacleResult {
 
 class ObstacleField {
  public:
-  /// @param R_body_camera, p_body_camera_m  extrinsics R_QC, Q_p_C.
+  /// @param R_B_C, p_B_C_m  the camera's extrinsics in the body frame.
   /// @throws hq::InputError if the camera or config are inconsistent.
   ObstacleField(const ObstacleConfig& config, const geometry::PinholeCamera& camera,
-                const Eigen::Matrix3d& R_body_camera, const Eigen::Vector3d& p_body_camera_m);
+                const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m);
 
   /// @param depth_m  CV_32FC1, camera size, metres; 0 / NaN / out of range = no depth.
   /// @param R_horizontal_body  R_HQ from the attitude estimate.
@@ -113,6 +119,23 @@ class ObstacleField {
     int v;
   };
 
+  // The stages of compute(), in order.
+  /// Each cell's speckle_rank-th smallest range into cells_.
+  void min_pool(const cv::Mat& depth_m);
+  /// Near-range hazard from the central window's invalid depth; false (with the reason) when
+  /// the frame is mostly NaN.
+  bool check_near_range(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                        const Eigen::Vector3d& p_HC, ObstacleResult& result) const;
+  /// The cells that are local minima within the suppression radius, nearest first.
+  void find_minima();
+  /// Each minimum's push: Khatib on an obstacle, upwards from a support surface.
+  void push_from_minima(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                        const Eigen::Vector3d& p_HC, ObstacleResult& result) const;
+  /// Each remembered point's push, on its horizontal offset.
+  void push_from_remembered(std::span<const Eigen::Vector3d> p_H_m, ObstacleResult& result) const;
+  /// The point in C of a cell's nearest range.
+  [[nodiscard]] Eigen::Vector3d cell_point_C(const Cell& cell) const;
+
   /// Adds the repulsive velocity of a point at p_H (Khatib: eta (1/d - 1/d0) / d^2 away).
   void add_point(ObstacleResult& result, const Eigen::Vector3d& p_H, bool hazard,
                  bool remembered = false) const;
@@ -131,8 +154,8 @@ class ObstacleField {
   ObstacleConfig config_;
   bool ground_phase_ = false;
   geometry::PinholeCamera camera_;
-  Eigen::Matrix3d R_QC_;
-  Eigen::Vector3d p_QC_;
+  Eigen::Matrix3d R_B_C_;
+  Eigen::Vector3d p_B_C_m_;
   int cells_x_ = 0;
   int cells_y_ = 0;
   int radius_cells_ = 0;

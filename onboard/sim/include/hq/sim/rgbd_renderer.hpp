@@ -56,16 +56,17 @@ class RgbdRenderer {
   RgbdRenderer(const RgbdRenderer&) = delete;
   RgbdRenderer& operator=(const RgbdRenderer&) = delete;
 
-  /// Renders the view from T_world_camera. frame_index selects the noise realisation, so the
-  /// same (seed, frame_index, pose) gives identical images. image: CV_8UC3 BGR (CV_8UC1 if
-  /// gray); depth_m: CV_32F metres, 0 = invalid. Reuses the buffers if already sized.
-  void render(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index, cv::Mat& image,
+  /// Renders the view from T_N_C (the camera in the simulator's world N). frame_index selects
+  /// the noise realisation, so the same (seed, frame_index, pose) gives identical images.
+  /// image: CV_8UC3 BGR (CV_8UC1 if gray); depth_m: CV_32F metres, 0 = invalid. Reuses the
+  /// buffers if already sized.
+  void render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
               cv::Mat& depth_m);
 
   /// The per-pixel ray caster render() replaced (every ray against every primitive, shading
   /// the nearest): same outputs, several times slower. Kept as the reference render() is
   /// tested and benchmarked against; not for simulation.
-  void render_reference(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+  void render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
                         cv::Mat& image, cv::Mat& depth_m);
 
   [[nodiscard]] const CameraParams& params() const { return params_; }
@@ -80,7 +81,7 @@ class RgbdRenderer {
   std::vector<float> hit_t_;      ///< per pixel: nearest hit's t (z in C), +inf if none.
   std::vector<std::int32_t> hit_code_;  ///< per pixel: which primitive and face won, -1 none.
 
-  void prepare_frame(const Eigen::Isometry3d& T_world_camera);
+  void prepare_frame(const Eigen::Isometry3d& T_N_C);
   void drop_depth_at_discontinuities(cv::Mat& depth_m) const;  ///< the reference's
   void drop_depth_at_discontinuities_fast(cv::Mat& depth_m);
 };

@@ -8,38 +8,38 @@
 
 #include "hq/geometry/pinhole_camera.hpp"
 #include "hq/sim/imu.hpp"
+#include "hq/sources/tum_recorder.hpp"
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 #include <cstdint>
-#include <fstream>
 #include <string>
 
 namespace hq::sim {
 
+/// hq-sim's recording: sources::TumRecorder with ground truth and gyro, labelled 'hq-sim'.
 class TumWriter {
  public:
   /// Creates dir, dir/rgb, dir/depth and the list files with TUM's comment headers, plus
-  /// camera.yaml (camera_info layout with T_body_camera). Throws hq::InputError if it cannot.
+  /// camera.yaml (camera_info layout with T_body_camera); a recording already in dir is
+  /// written over. Throws hq::InputError if it cannot.
   TumWriter(const std::string& dir, const geometry::PinholeCamera& camera,
             const Eigen::Isometry3d& T_body_camera);
 
-  /// One RGB-D frame and the camera's true pose at t_ns. image: CV_8UC3 BGR or CV_8UC1;
-  /// depth_m: CV_32F metres.
+  /// One RGB-D frame and the camera's true pose T_N_C (N: the simulator's NWU world) at t_ns.
+  /// image: CV_8UC3 BGR or CV_8UC1; depth_m: CV_32F metres.
   void write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::Mat& depth_m,
-                   const Eigen::Isometry3d& T_world_camera);
+                   const Eigen::Isometry3d& T_N_C);
   void write_imu(const ImuSample& sample);
   /// Flushes the list files; throws hq::InputError if any write failed.
-  void close();
+  void close() { recorder_.close(); }
 
   /// "12.345678": TUM's seconds with 6 decimals from nanoseconds.
-  static std::string stamp(std::int64_t t_ns);
+  static std::string stamp(std::int64_t t_ns) { return sources::TumRecorder::stamp(t_ns); }
 
  private:
-  std::string dir_;
-  std::ofstream rgb_, depth_, groundtruth_, accelerometer_, gyro_;
-  cv::Mat depth_u16_;
+  sources::TumRecorder recorder_;
 };
 
 }  // namespace hq::sim

@@ -10,6 +10,7 @@
 #include "hq/recording/tum_io.hpp"
 #include "hq/sources/frame_source.hpp"
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 #include <cstddef>
@@ -19,18 +20,41 @@
 
 namespace hq::sources {
 
+/// How a recording is labelled and what it holds beyond TUM's images, lists and accelerometer.
+struct TumRecordingOptions {
+  std::string description;                ///< Every list's "# file: '<description>'" line.
+  std::string camera_name = "hq_record";  ///< camera.yaml's camera_name.
+  /// Write over a recording already in dir (a simulator rerun) instead of refusing.
+  bool replace_existing = false;
+  bool ground_truth = false;  ///< groundtruth.txt: the camera's true pose per frame.
+  bool gyro = false;          ///< gyro.txt ("timestamp wx wy wz"), beyond TUM.
+  std::string accel_note;     ///< Appended to the accelerometer's file line: frame and units.
+  std::string gyro_note;      ///< Likewise for gyro.txt.
+  std::string camera_comment;  ///< Comment lines appended to camera.yaml (e.g. the mount).
+};
+
 class TumRecorder {
  public:
   /// Creates dir (and rgb/, depth/), the list files and camera.yaml. Throws hq::InputError if
   /// dir already holds an rgb.txt (no silent overwrite) or cannot be written.
   TumRecorder(const std::string& dir, const geometry::PinholeCamera& camera,
               const std::string& description);
+  /// The same with the lists and labels of options.
+  TumRecorder(const std::string& dir, const geometry::PinholeCamera& camera,
+              const TumRecordingOptions& options);
 
   /// Writes one frame; depth beyond 13.1 m (65535 / 5000) saturates. Throws hq::InputError if a
   /// PNG cannot be written.
   void write_frame(const RgbdFrame& frame);
+  /// The same from an image (CV_8UC3 BGR or CV_8UC1) and depth (CV_32F metres) taken at t_ns.
+  void write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::Mat& depth_m);
   /// Appends one accelerometer line.
   void write_accel(const recording::AccelSample& sample);
+  /// Appends one gyro.txt line. @pre options.gyro.
+  void write_gyro(std::int64_t t_ns, const Eigen::Vector3d& omega_radps);
+  /// Appends the camera's pose T_world_camera at t_ns to groundtruth.txt ("timestamp tx ty tz
+  /// qx qy qz qw", TUM's layout). @pre options.ground_truth.
+  void write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d& T_world_camera);
   /// Flushes the lists; throws hq::InputError if any write failed.
   void close();
 
@@ -40,7 +64,7 @@ class TumRecorder {
 
  private:
   std::string dir_;
-  std::ofstream rgb_, depth_, accelerometer_;
+  std::ofstream rgb_, depth_, accelerometer_, gyro_, groundtruth_;
   cv::Mat depth_u16_;
   std::size_t frames_ = 0;
 };
