@@ -245,7 +245,7 @@ void account_truth(const TruthState& truth, SitlRunStats& stats) {
     if (truth.collision) ++stats.collision_ticks;
     stats.min_clearance_m = std::min(stats.min_clearance_m, truth.clearance_m);
   }
-  stats.max_speed_mps = std::max(stats.max_speed_mps, truth.v_W_mps.norm());
+  stats.max_speed_mps = std::max(stats.max_speed_mps, truth.v_world_mps.norm());
 }
 
 void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
