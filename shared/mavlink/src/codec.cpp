@@ -385,7 +385,7 @@ bool Parser::decode_candidate(FrameHeader& header, Message& message) {
   std::memcpy(payload, buf_ + header_size, v2 ? length : std::min(length, info.base_len));
   decode_payload(info.variant_index, payload, message);
   header.v1 = !v2;
-  header.signed_ = v2 && (buf_[2] & kIncompatSigned) != 0;
+  header.is_signed = v2 && (buf_[2] & kIncompatSigned) != 0;
   header.sequence = v2 ? buf_[4] : buf_[2];
   header.system_id = v2 ? buf_[5] : buf_[3];
   header.component_id = v2 ? buf_[6] : buf_[4];

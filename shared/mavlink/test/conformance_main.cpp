@@ -371,7 +371,7 @@ int check(const std::string& frames_path, const std::string& text_path) {
     const Decoded& d = decoded[i];
     const std::string context =
         "message " + std::to_string(i) + " (id " + std::to_string(e.id) + ", " + e.kind + ")";
-    const std::string kind = d.header.v1 ? "v1" : d.header.signed_ ? "signed" : "v2";
+    const std::string kind = d.header.v1 ? "v1" : d.header.is_signed ? "signed" : "v2";
     if (message_id(d.message) != e.id || d.header.system_id != e.sysid ||
         d.header.component_id != e.compid || kind != e.kind) {
       std::cerr << context << ": header mismatch: id " << message_id(d.message) << " sysid "
