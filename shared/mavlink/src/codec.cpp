@@ -328,7 +328,8 @@ std::size_t Parser::accumulate(std::span<const std::uint8_t> bytes, bool& comple
     }
     // After a failed candidate the buffer may already hold more than this frame.
     const std::size_t take = size_ >= need ? 0 : std::min(need - size_, bytes.size() - used);
-    std::memcpy(buf_ + size_, bytes.data() + used, take);
+    // memcpy from the null data() of an empty span is undefined even for 0 bytes (UBSan).
+    if (take > 0) std::memcpy(buf_ + size_, bytes.data() + used, take);
     size_ += take;
     used += take;
     if (size_ < need) return used;  // all input used, the frame continues in the next chunk
