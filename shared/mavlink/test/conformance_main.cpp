@@ -7,7 +7,9 @@
 
 #include "hq/mavlink/codec.hpp"
 
+#include <bit>
 #include <cinttypes>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -259,8 +261,10 @@ struct CheckFields {
   static bool equal(const std::string& token, T v) {
     char* end = nullptr;
     if constexpr (std::is_floating_point_v<T>) {
-      const float want = static_cast<float>(std::strtod(token.c_str(), &end));
-      return *end == 0 && std::memcmp(&want, &v, sizeof(float)) == 0;
+      // Bit for bit, so NaN payloads and -0 count; the width is T's (float or double).
+      using Bits = std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint64_t>;
+      const T want = static_cast<T>(std::strtod(token.c_str(), &end));
+      return *end == 0 && std::bit_cast<Bits>(want) == std::bit_cast<Bits>(v);
     } else if constexpr (std::is_unsigned_v<T>) {
       return std::strtoull(token.c_str(), &end, 10) == v && *end == 0;
     } else {
