@@ -14,6 +14,7 @@ HQ_PACKAGES=(
   libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
   xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev dpkg-dev
   openssl libssl-dev
+  clang-format clang-tidy
 )
 
 hq_install() {

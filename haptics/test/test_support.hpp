@@ -18,7 +18,7 @@ inline Eigen::Matrix3d core_paper_R_body_camera() {
 
 /// Writes `text` to a fresh file under /tmp and returns its path.
 inline std::string write_temp_yaml(const std::string& name, const std::string& text) {
-  const std::string path = "/tmp/hq_haptics_test_" + name + ".yaml";
+  std::string path = "/tmp/hq_haptics_test_" + name + ".yaml";
   std::ofstream(path) << text;
   return path;
 }

@@ -96,6 +96,8 @@ class CallFc final : public hq::vehicle::FlightController {
   [[nodiscard]] hq::vehicle::FcStatus status(std::int64_t) const override { return {}; }
   [[nodiscard]] std::string describe() const override { return "in-process call"; }
   std::int64_t last_call_ns = 0;
+
+ private:
   std::int64_t next_imu_ns_ = -1;
 };
 

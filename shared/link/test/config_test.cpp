@@ -101,7 +101,7 @@ TEST(LinkConfig, CommandLineOverridesYaml) {
   EXPECT_EQ(config.command_deadline_ns, 40'000'000);
 }
 
-// Issue 16: the stations allowed to command, from the file or --stations; 0 and junk refused.
+// The stations allowed to command, from the file or --stations; 0 and junk refused.
 TEST(LinkConfig, StationsFromYamlAndTheCommandLine) {
   EXPECT_TRUE(from_yaml("{}").stations.empty());  // any station
   LinkConfig config = from_yaml("{stations: [1, 4]}");

@@ -328,7 +328,8 @@ std::size_t Parser::accumulate(std::span<const std::uint8_t> bytes, bool& comple
     }
     // After a failed candidate the buffer may already hold more than this frame.
     const std::size_t take = size_ >= need ? 0 : std::min(need - size_, bytes.size() - used);
-    std::memcpy(buf_ + size_, bytes.data() + used, take);
+    // memcpy from the null data() of an empty span is undefined even for 0 bytes (UBSan).
+    if (take > 0) std::memcpy(buf_ + size_, bytes.data() + used, take);
     size_ += take;
     used += take;
     if (size_ < need) return used;  // all input used, the frame continues in the next chunk
@@ -385,7 +386,7 @@ bool Parser::decode_candidate(FrameHeader& header, Message& message) {
   std::memcpy(payload, buf_ + header_size, v2 ? length : std::min(length, info.base_len));
   decode_payload(info.variant_index, payload, message);
   header.v1 = !v2;
-  header.signed_ = v2 && (buf_[2] & kIncompatSigned) != 0;
+  header.is_signed = v2 && (buf_[2] & kIncompatSigned) != 0;
   header.sequence = v2 ? buf_[4] : buf_[2];
   header.system_id = v2 ? buf_[5] : buf_[3];
   header.component_id = v2 ? buf_[6] : buf_[4];

@@ -119,7 +119,7 @@ TEST(Codec, EveryMessageRoundTripsWithItsHeader) {
     EXPECT_EQ(got[0].header.component_id, 42);
     EXPECT_EQ(got[0].header.sequence, expected_sequence++);
     EXPECT_FALSE(got[0].header.v1);
-    EXPECT_FALSE(got[0].header.signed_);
+    EXPECT_FALSE(got[0].header.is_signed);
     std::visit([&](const auto& m) { EXPECT_EQ(got[0].header.message_id, m.kId); }, message);
   }
   EXPECT_EQ(parser.counters().frames, every_message().size());
@@ -258,9 +258,9 @@ TEST(Codec, SignedFrameSignatureIsSkipped) {
   Parser parser;
   const auto got = feed(parser, frame);
   ASSERT_EQ(got.size(), 2u);
-  EXPECT_TRUE(got[0].header.signed_);
+  EXPECT_TRUE(got[0].header.is_signed);
   EXPECT_FLOAT_EQ(std::get<Attitude>(got[0].message).yaw_rad, 0.3f);
-  EXPECT_FALSE(got[1].header.signed_);
+  EXPECT_FALSE(got[1].header.is_signed);
   EXPECT_EQ(parser.counters().garbage_bytes, 0u);
 }
 

@@ -7,7 +7,9 @@
 
 #include "hq/mavlink/codec.hpp"
 
+#include <bit>
 #include <cinttypes>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -259,8 +261,10 @@ struct CheckFields {
   static bool equal(const std::string& token, T v) {
     char* end = nullptr;
     if constexpr (std::is_floating_point_v<T>) {
-      const float want = static_cast<float>(std::strtod(token.c_str(), &end));
-      return *end == 0 && std::memcmp(&want, &v, sizeof(float)) == 0;
+      // Bit for bit, so NaN payloads and -0 count; the width is T's (float or double).
+      using Bits = std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint64_t>;
+      const T want = static_cast<T>(std::strtod(token.c_str(), &end));
+      return *end == 0 && std::bit_cast<Bits>(want) == std::bit_cast<Bits>(v);
     } else if constexpr (std::is_unsigned_v<T>) {
       return std::strtoull(token.c_str(), &end, 10) == v && *end == 0;
     } else {
@@ -371,7 +375,7 @@ int check(const std::string& frames_path, const std::string& text_path) {
     const Decoded& d = decoded[i];
     const std::string context =
         "message " + std::to_string(i) + " (id " + std::to_string(e.id) + ", " + e.kind + ")";
-    const std::string kind = d.header.v1 ? "v1" : d.header.signed_ ? "signed" : "v2";
+    const std::string kind = d.header.v1 ? "v1" : d.header.is_signed ? "signed" : "v2";
     if (message_id(d.message) != e.id || d.header.system_id != e.sysid ||
         d.header.component_id != e.compid || kind != e.kind) {
       std::cerr << context << ": header mismatch: id " << message_id(d.message) << " sysid "

@@ -26,8 +26,8 @@ struct FrameHeader {
   std::uint8_t system_id = 0;
   std::uint8_t component_id = 0;
   std::uint32_t message_id = 0;
-  bool v1 = false;      ///< Arrived as a MAVLink 1 frame (0xFE).
-  bool signed_ = false; ///< Carried a signature (skipped, not verified).
+  bool v1 = false;         ///< Arrived as a MAVLink 1 frame (0xFE).
+  bool is_signed = false;  ///< Carried a signature (skipped, not verified).
 };
 
 /// CRC-16/MCRF4XX (X.25) as MAVLink accumulates it.
