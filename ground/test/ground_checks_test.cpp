@@ -1,4 +1,4 @@
-// The ground's checks on what it receives and its side of ownership (issue 16): vehicle states
+// The ground's checks on what it receives and its side of ownership: vehicle states
 // are checked (finite, plausible, one session, sequence) before anything uses them; events count
 // only from the vehicle's session; mode requests carry the session and wait for it; a station
 // that another station took the vehicle from says so. Over DDS on a private loopback domain, a

@@ -190,7 +190,7 @@ int run_sim(const Options& o) {
   std::printf("per-stage time from frame arrival to setpoint:\n");
   loop.timing().print(stdout);
   if (!o.save_map_path.empty()) {
-    // Issue 10: the obstacle memory's map at the end of the flight (points in the world of the
+    // The obstacle memory's map at the end of the flight (points in the world of the
     // odometry), for PCL's viewers and CloudCompare.
     loop.chain().memory().save(o.save_map_path);
     std::printf("obstacle memory map (%d points) written to %s\n", loop.chain().memory().size(),

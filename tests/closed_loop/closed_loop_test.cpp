@@ -80,7 +80,7 @@ TEST(ClosedLoop, VelocityStepRisesFastWithBoundedOvershoot) {
   Scenario s = room_takeoff(11.0);
   s.script.frame = CommandFrame::kHorizontal;
   // The velocity loop's step response along H-x, 45 deg off the camera: the seen-space limiter
-  // (issue 16) would refuse the step, so it is off for this measurement of the loop.
+  // would refuse the step, so it is off for this measurement of the loop.
   s.onboard.seen_space.enabled = false;
   constexpr double kStepMps = 0.5;
   s.step(6.0, Vec(kStepMps, 0, 0));

@@ -1,4 +1,4 @@
-// Issue 16, no motion into unseen space: seeded random in-envelope operator commands (every
+// No motion into unseen space: seeded random in-envelope operator commands (every
 // direction about the vehicle, 45 deg off the camera included, speeds up to the link's 2 m/s,
 // with random yaw rates) in every world with obstacles, flown by the real chain against the
 // simulator in lock-step. With the seen-space limiter (config/onboard.yaml seen_space) no run

@@ -246,7 +246,7 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
               slurp((dir_ / "fuzz.out").string()).c_str());
 }
 
-// Issue 16 (ownership, sessions, escalation, checked telemetry). Each < 20 s.
+// Ownership, sessions, escalation, checked telemetry. Each < 20 s.
 
 // (a) GIVEN station 1 (hq-ground, strength 100) flying in teleop, WHEN a weaker station 2 sends
 // well-formed hover/land requests for the vehicle's current session, THEN they are rejected (it
@@ -491,7 +491,7 @@ TEST_F(LinkProcesses, HostileCommandsFromAStationNotListedAreRejected) {
               rejected, out("fuzz.out").c_str());
 }
 
-// (h) Issue 16: a stronger station the vehicle is allowed to follow (no link.stations) flies it
+// (h) A stronger station the vehicle is allowed to follow (no link.stations) flies it
 // with in-envelope commands, full speed (1.8 m/s) ahead then 4 Hz side to side. Ownership
 // passes to it (station 1 is told), and the seen-space limit keeps it off the walls: before the
 // limit, the arena run hit a wall (66 collision ticks, clearance -0.35 m).

@@ -1,4 +1,4 @@
-// Marker mode in the simulated closed loop (issue 7): hold over a marker after a bumpless switch
+// Marker mode in the simulated closed loop: hold over a marker after a bumpless switch
 // from velocity-only flight, markers hidden for 5 s (bounded drift, then recovery), zero
 // collisions. Figures printed; the seed (marker-EKF) holds to a few centimetres.
 

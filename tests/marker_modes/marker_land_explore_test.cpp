@@ -1,4 +1,4 @@
-// Landing on a marker and exploring the marker field in the simulated closed loop (issue 7).
+// Landing on a marker and exploring the marker field in the simulated closed loop.
 // Figures printed against the seeds: the smartphone seed maps 80 % of its markers in 2 min and
 // lands within about 0.2 m; the target here is >= 90 % in 120 s and <= 0.10 m.
 

@@ -1,5 +1,5 @@
 #pragma once
-// The obstacle-memory campaign of issue 10: the vehicle first sees a box, then the operator moves
+// The obstacle-memory campaign: the vehicle first sees a box, then the operator moves
 // it towards the box while the box is outside the camera's view (the camera looks 45 deg right
 // and 30 deg down, core paper Fig. 3). Three cases:
 //   back-up:   face the box, yaw 180 deg, then command backwards (about the camera heading);
@@ -108,7 +108,7 @@ inline Scenario memory_scenario(const MemoryRun& r, bool memory_enabled, const s
                static_cast<std::uint64_t>(r.index);
   s.onboard.memory.enabled = memory_enabled;
   // These runs measure the memory's push on a vehicle driven out of view; the seen-space
-  // limiter (issue 16) refuses that drive itself, so it is off here (its own campaign is
+  // limiter refuses that drive itself, so it is off here (its own campaign is
   // tests/closed_loop/unseen_campaign_test.cpp).
   s.onboard.seen_space.enabled = false;
 

@@ -1,4 +1,4 @@
-// Issue 10 in closed loop: seeded flights of the memory campaign (memory_campaign.hpp) where the
+// Seeded flights of the memory campaign (memory_campaign.hpp) where the
 // vehicle moves towards a box that has left the camera's view. With memory on none collides;
 // with memory off (the core paper's view-only field) at least one does, so the memory is what
 // keeps the vehicle off the box. The full side-by-side table is hq-bench-memory-campaign.

@@ -1,4 +1,4 @@
-// Issue 10: the obstacle memory's map saved at the end of a simulated flight (what
+// The obstacle memory's map saved at the end of a simulated flight (what
 // hq-onboard --save-map writes) reads back with PCL's own readers: every point, finite, and
 // within the memory's radius of where the vehicle flew.
 

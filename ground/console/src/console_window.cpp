@@ -932,7 +932,7 @@ struct ConsoleWindow::Impl {
         actions.vehicle_id = s.link.vehicle_ids[i];
       }
     }
-    // Marker mode with a chosen target (issue 7): each button asks for Mode marker with a task.
+    // Marker mode with a chosen target: each button asks for Mode marker with a task.
     ImGui::Text("marker:");
     ImGui::SameLine();
     ImGui::SetNextItemWidth(100);

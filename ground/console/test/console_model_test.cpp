@@ -93,7 +93,7 @@ TEST(ConsoleModel, CameraFrameCarriesItsExposureAndReceiptForTheVideoLatency) {
   EXPECT_EQ(s.camera_receipt_ns, 1'080'000'000);
 }
 
-// Issue 16: a station that lost control says so, loudly, naming who commands; nothing otherwise.
+// A station that lost control says so, loudly, naming who commands; nothing otherwise.
 TEST(ConsoleModel, ControlBannerNamesTheCommandingStation) {
   LinkHealth link;
   char text[192];

@@ -1,4 +1,4 @@
-// hq-bench-memory-campaign: issue 10's campaign, the vehicle moving towards a box it saw but no
+// hq-bench-memory-campaign: the obstacle-memory campaign, the vehicle moving towards a box it saw but no
 // longer sees (backing up, sideways, after a yaw while close), each seeded run flown with the
 // obstacle memory off and on (same world, noise and script). Prints collisions and the closest
 // distance distribution side by side, then the chain's stage timings with each setting (the

@@ -310,7 +310,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.roll_rad = static_cast<float>(out.estimate.roll_rad);
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
   s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
-  // Issue 16: the command as flown after the seen-space limit, so the ground can show the cut
+  // The command as flown after the seen-space limit, so the ground can show the cut
   // and render it.
   s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_H_mps);
   s.mode = to_link_mode(out.mode.mode);

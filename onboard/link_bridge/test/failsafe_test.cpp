@@ -213,7 +213,7 @@ TEST(Failsafe, MalformedModeRequestsAreRejectedAndValidOnesMapped) {
   EXPECT_EQ(failsafe.counters().mode_requests_accepted, 2U);
 }
 
-// Ownership (issue 16): requests and heartbeats count only from the commanding station.
+// Ownership: requests and heartbeats count only from the commanding station.
 TEST(FailsafeOwnership, WeakerStationsRequestsAreIgnoredWhileTheStrongerCommands) {
   // GIVEN station 2's commands are delivered (DDS gave it the command instance)
   Failsafe failsafe(session_config());

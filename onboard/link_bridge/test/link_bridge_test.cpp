@@ -220,7 +220,7 @@ TEST(LinkBridge, PublishesStateAndRateLimitedCamera) {
   EXPECT_TRUE(link::validate(state).ok);
 }
 
-// Issue 16: a teleop command cut by the seen-space limit goes out as flown, and says so.
+// A teleop command cut by the seen-space limit goes out as flown, and says so.
 TEST(LinkBridge, PublishesTheCommandAsFlownAndWhetherTheSeenSpaceCutIt) {
   const link::LinkConfig config = private_link();
   LinkBridge bridge(config, FailsafeConfig{});
@@ -277,7 +277,7 @@ TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {
   EXPECT_EQ(state.operator_input, hq_msgs_INPUT_FLOWN);
 }
 
-// Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
+// The memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
 // The memory holds a wall 2 m along the camera's optical axis; whatever pose the body has in the
 // memory's world, the published points must sit 2 m along that axis seen from the body.
 /// An obstacle memory that has seen a wall 2 m along the optical axis of the core paper's camera
@@ -327,7 +327,7 @@ struct RememberedWall {
   Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
 };
 
-// Issue 10: the memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
+// The memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
 // The memory holds a wall 2 m along the camera's optical axis; whatever pose the body has in the
 // memory's world, the published points must sit 2 m along that axis seen from the body.
 TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {

@@ -144,7 +144,7 @@ void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray,
   // can climb on the IMU until the floor is far enough for the depth camera.
   if (modes_.landed()) estimator_.hold_at_rest(t_ns);
   out.estimate = estimator_.update(t_ns, odometry);
-  // Issue 7: markers, map and the error-state filter (timed with the estimator). Low over the
+  // Markers, map and the error-state filter (timed with the estimator). Low over the
   // target, the marker and explore modes hand the touchdown to Mode::kLand.
   if (markers_) {
     markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_O_C);
@@ -155,7 +155,7 @@ void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray,
 void OnboardChain::update_memory(std::int64_t t_ns, const cv::Mat& depth_m,
                                  const odometry::OdometryResult& odometry,
                                  const Eigen::Matrix3d& R_H_B, ChainOutput& out) {
-  // Issue 10: the memory places this depth at the odometry pose and returns what it remembers
+  // The memory places this depth at the odometry pose and returns what it remembers
   // outside the view; without tracking there is no pose to place or recall it with.
   if (!config_.memory.enabled) {
     out.memory.reason = "memory disabled";
@@ -189,7 +189,7 @@ void OnboardChain::sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
                               !takeoff_complete_);
   out.obstacles = obstacles_.compute(depth_m, R_H_B, out.memory.remembered());
   update_height(t_ns, out.obstacles.floor_height_m, out);
-  // Issue 16: what this frame and the memory have seen limits the operator's command.
+  // What this frame and the memory have seen limits the operator's command.
   v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
   out.seen_space =
       seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_O_C : nullptr, R_H_B);

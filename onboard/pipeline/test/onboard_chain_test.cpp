@@ -250,7 +250,7 @@ TEST_F(LandedChainOnRenderedPlane, StartsLandedWithMotorsIdleAndTakesOffOnAClimb
 
 TEST_F(ChainOnRenderedPlane, OperatorCommandIsLimitedToTheSeenSpace) {
   // GIVEN the default camera (looking straight down at the plane 2 m below): it proves no
-  // horizontal free space beyond a few cm around the vehicle (issue 16).
+  // horizontal free space beyond a few cm around the vehicle.
   for (int k = 0; k < 12; ++k) frame(k);
   // WHEN the operator asks for 1 m/s sideways and a climb
   chain_.set_operator_command({12 * kFramePeriodNs, Eigen::Vector3d(0.0, 1.0, -0.2), 0.0});

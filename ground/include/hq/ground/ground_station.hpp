@@ -28,7 +28,7 @@ class ModeToggle {
   std::uint32_t previous_ = 0;
 };
 
-/// The marker a mode request asks the vehicle's marker mode to fly to (issue 7); NONE: none.
+/// The marker a mode request asks the vehicle's marker mode to fly to; NONE: none.
 struct MarkerChoice {
   hq_msgs_MarkerTask task = hq_msgs_MARKER_TASK_NONE;
   std::int32_t target_id = 0;

@@ -62,7 +62,7 @@ struct BridgeOptions {
   /// Rejections are summarised in one event per this period, not one per sample, so that a
   /// flood of bad samples cannot flood the reliable event topic.
   double rejection_report_period_s = 1.0;
-  /// The remembered obstacle cloud rides on the vehicle state at most this often (issue 10),
+  /// The remembered obstacle cloud rides on the vehicle state at most this often,
   /// so the console can draw a top view; 0 = never. Between clouds the state carries none.
   double obstacle_cloud_rate_hz = 1.0;
   /// Points per cloud, 1..hq_msgs_kMaxObstaclePoints (the IDL bound).

@@ -1,5 +1,5 @@
 #pragma once
-/// The marker stage of the on-board chain (issue 7): AprilTag detection on each frame, the
+/// The marker stage of the on-board chain: AprilTag detection on each frame, the
 /// marker map built online, and the error-state filter (IMU predict, RGB-D velocity and marker
 /// pose updates) whose pose the marker and explore modes fly on.
 ///

@@ -1,5 +1,5 @@
 #pragma once
-/// The marker and explore modes as VelocityProviders of the one ModeController (issue 7): each
+/// The marker and explore modes as VelocityProviders of the one ModeController: each
 /// turns the filter's pose in the marker map into v*_des in H and a yaw rate; the controller
 /// adds v_obs and ramps every switch, so the obstacle field and bumpless switching hold here too.
 

@@ -1,5 +1,5 @@
 #pragma once
-/// Error-state Kalman filter for marker-referenced flight (issue 7, "State estimation"): the
+/// Error-state Kalman filter for marker-referenced flight: the
 /// marker-EKF's INS mechanisation with error-state correction (position, velocity, attitude)
 /// extended by gyro and accelerometer biases, predicted with the IMU and corrected by marker
 /// poses (through the marker map) and by the RGB-D velocity in H of the core chain (eq. 5).

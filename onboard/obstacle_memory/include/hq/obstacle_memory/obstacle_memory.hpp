@@ -1,5 +1,5 @@
 #pragma once
-/// Short-term obstacle memory (issue 10): the core paper's obstacle field (§3.1) sees only the
+/// Short-term obstacle memory: the core paper's obstacle field (§3.1) sees only the
 /// camera's view, so an obstacle that leaves it is forgotten. Each frame's valid depth becomes a
 /// cloud in the odometry origin O (the odometry's camera pose T_O_C), is
 /// down-sampled on a voxel grid, cleaned of speckle, and merged into a bounded local map that
@@ -123,7 +123,7 @@ class ObstacleMemory {
   int telemetry_cloud(std::span<Eigen::Vector3f> p_O_m) const;
 
   /// Calls visit(p_O_m, t_ns) (an Eigen::Vector3f in O, when last seen) for every point of
-  /// the map, e.g. for the seen-space limiter (issue 16). Allocates nothing.
+  /// the map, e.g. for the seen-space limiter. Allocates nothing.
   template <typename Visit>
   void for_each_point(Visit&& visit) const {
     for (const MapPoint& entry : entries_) visit(entry.p_O_m, entry.t_ns);

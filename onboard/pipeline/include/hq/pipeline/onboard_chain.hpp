@@ -45,7 +45,7 @@ struct ChainConfig {
   /// Height of the body origin above the floor when standing on it (landing gear): the
   /// height estimate starts here at every take-off.
   double landed_height_m = 0.08;
-  /// Safe hover (no usable velocity) for longer than this lands (issue 16): the IMU holds the
+  /// Safe hover (no usable velocity) for longer than this lands: the IMU holds the
   /// attitude but not the position, so hovering blind forever ends in a drift into a wall.
   /// The land is the modes' blind descent; other mode requests are refused until the estimate
   /// is back.
@@ -62,11 +62,11 @@ struct OnboardConfig {
   estimator::VelocityEstimatorConfig estimator;
   obstacles::ObstacleConfig obstacles;
   obstacle_memory::MemoryConfig memory;
-  seen_space::SeenSpaceConfig seen_space;  ///< Issue 16: no motion into unseen space.
+  seen_space::SeenSpaceConfig seen_space;  ///< No motion into unseen space.
   control::VelocityControllerConfig control;
   modes::ModesConfig modes;
   ChainConfig chain;
-  /// Issue 7: the marker stage and the marker/explore providers; off unless markers.enabled.
+  /// The marker stage and the marker/explore providers; off unless markers.enabled.
   marker_modes::MarkerModesConfig markers;
 };
 
@@ -134,9 +134,9 @@ struct ChainOutput {
   HeightSource height_source = HeightSource::kNone;
   /// Closest obstacle clearance the field saw this step (m); -1 when none.
   double clearance_m = -1.0;
-  /// Issue 16: the safe hover lasted chain.safe_hover_land_s, so the chain asked to land.
+  /// The safe hover lasted chain.safe_hover_land_s, so the chain asked to land.
   bool safe_hover_landing = false;
-  /// Issue 16, the seen-space limit on the operator's command (teleop), for the operator to
+  /// The seen-space limit on the operator's command (teleop), for the operator to
   /// feel and see: the command as flown (before the mode ramp and v_obs), whether it was cut,
   /// and whether by a direction with no data (creep speed).
   seen_space::SeenSpaceUpdate seen_space;
@@ -189,7 +189,7 @@ class OnboardChain {
   std::optional<ChainOutput> on_tick(std::int64_t t_ns);
 
   /// The operator's latest command (used in teleop mode). The mode controller gets it limited
-  /// to the seen space (issue 16), again on every frame with that frame's view.
+  /// to the seen space, again on every frame with that frame's view.
   void set_operator_command(const modes::OperatorCommand& command);
   /// Requests a flight mode; see ModeController::request_mode.
   modes::ModeSwitch request_mode(modes::Mode mode);
@@ -216,11 +216,11 @@ class OnboardChain {
   /// The velocity estimate (eqs. 1-5) and the marker stage into out.estimate.
   void estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                          const odometry::OdometryResult& odometry, ChainOutput& out);
-  /// The obstacle memory (issue 10) into out.memory.
+  /// The obstacle memory into out.memory.
   void update_memory(std::int64_t t_ns, const cv::Mat& depth_m,
                      const odometry::OdometryResult& odometry, const Eigen::Matrix3d& R_H_B,
                      ChainOutput& out);
-  /// Take-off phase, obstacle field (v_obs), height and the seen space (issue 16) with the
+  /// Take-off phase, obstacle field (v_obs), height and the seen space with the
   /// operator's command limited to it.
   void sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
                        const odometry::OdometryResult& odometry, const Eigen::Matrix3d& R_H_B,
@@ -235,7 +235,7 @@ class OnboardChain {
   /// Hands the operator's command, limited to the seen space, to the modes; fills out's
   /// command fields and per-bin limits when out is given.
   void apply_operator_limit(ChainOutput* out);
-  /// Issue 16: counts the safe hover and lands once it lasted safe_hover_land_s.
+  /// Counts the safe hover and lands once it lasted safe_hover_land_s.
   void escalate_safe_hover(ChainOutput& out);
 
   OnboardConfig config_;

@@ -1,5 +1,5 @@
 #pragma once
-/// No motion into unseen space (issue 16): the operator's horizontal command is limited, per
+/// No motion into unseen space: the operator's horizontal command is limited, per
 /// direction in H, to the speed from which the vehicle can stop within the space it has seen.
 /// The idea is PX4's collision prevention (a horizontal bin histogram of free distances, bins
 /// without data refuse motion: CP_GO_NO_DATA = 0); the obstacle field (§3.1 of the core paper)
