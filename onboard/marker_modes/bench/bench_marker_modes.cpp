@@ -137,7 +137,7 @@ int run(const Options& o) {
 int main(int argc, char** argv) {
   return hq::run_tool("hq-bench-marker-modes", argc, argv, [](int c, char** v) {
     Options o;
-    CLI::App app{"Issue-7 campaign: seeded landings on a marker and explore flights"};
+    CLI::App app{"Marker-modes campaign: seeded landings on a marker and explore flights"};
     app.add_option("--landings", o.landings, "seeded landing runs")->check(CLI::Range(0, 1000));
     app.add_option("--explores", o.explores, "seeded explore flights")->check(CLI::Range(0, 100));
     app.add_option("--explore-seed", o.explore_seed, "first seed of the explore flights");
