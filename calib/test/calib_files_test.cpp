@@ -1,8 +1,8 @@
-#include <filesystem>
+#include "hq/config/camera_info.hpp"
 
 #include <gtest/gtest.h>
 
-#include "hq/config/camera_info.hpp"
+#include <filesystem>
 
 namespace {
 

@@ -19,7 +19,6 @@
 #include "hq/console/console_window.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
-#include "hq/mcap_recorder/flight_recorder.hpp"
 #include "hq/control/vehicle_config.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/ground/ground_station.hpp"
@@ -30,18 +29,15 @@
 #include "hq/haptics/haptics_config.hpp"
 #include "hq/link/config.hpp"
 #include "hq/link/link.hpp"
+#include "hq/mcap_recorder/flight_recorder.hpp"
 
 #include <CLI/CLI.hpp>
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <array>
-#include <chrono>
-#include <string_view>
-#include <utility>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -49,7 +45,10 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
+#include <unistd.h>
+#include <utility>
 
 namespace {
 
@@ -68,9 +67,9 @@ struct Options {
   std::string record_dir;
   std::string replay_dir;
   double speed = 1.0;
-  double seek_s = 0.0;   ///< Replay: start here (s from the recording's start).
-  bool paused = false;   ///< Replay: start paused.
-  std::string keys;      ///< "T:KEY,...": keys typed into the window T s after it opens.
+  double seek_s = 0.0;  ///< Replay: start here (s from the recording's start).
+  bool paused = false;  ///< Replay: start paused.
+  std::string keys;     ///< "T:KEY,...": keys typed into the window T s after it opens.
   std::string screenshot_path;
   std::string state_json_path;
   double max_fps = 60.0;
@@ -78,8 +77,8 @@ struct Options {
   int marker_id = 0;
   bool take_off = false;  ///< Ask the vehicle to take off (then teleop) once it is heard from.
   double link_lost_after_s = 0.5;  ///< Link-loss alarm: no vehicle state for longer.
-  std::string window_size;  ///< "WxH"; empty: from the display.
-  std::string window_ini;   ///< Window size/position file; empty: the default, "none": off.
+  std::string window_size;         ///< "WxH"; empty: from the display.
+  std::string window_ini;          ///< Window size/position file; empty: the default, "none": off.
   bool bare_window = false;  ///< Measurement: an empty window, the console's frame-rate floor.
 };
 
@@ -165,10 +164,10 @@ class ModelFeed : public hq::ground::LinkObserver {
     const std::size_t count = std::min<std::size_t>(s.markers._length, markers_.size());
     for (std::size_t i = 0; i < count; ++i) {
       const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
-      markers_[i] = {m.id,
-                     {m.p_camera_marker_m.x, m.p_camera_marker_m.y, m.p_camera_marker_m.z},
-                     {m.q_camera_marker.w, m.q_camera_marker.x, m.q_camera_marker.y,
-                      m.q_camera_marker.z}};
+      markers_[i] = {
+          m.id,
+          {m.p_camera_marker_m.x, m.p_camera_marker_m.y, m.p_camera_marker_m.z},
+          {m.q_camera_marker.w, m.q_camera_marker.x, m.q_camera_marker.y, m.q_camera_marker.z}};
     }
     extras.markers = markers_.data();
     extras.marker_count = count;
@@ -182,14 +181,13 @@ class ModelFeed : public hq::ground::LinkObserver {
                                : "-";
     extras.operator_input = operator_input_warning(static_cast<int>(s.operator_input));
     extras.clearance_m = s.clearance_m;
-    model_.on_state(receipt_ns, 1e-6 * static_cast<double>(latency_ns),
-                    {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
-                    {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z},
-                    s.roll_rad, s.pitch_rad, {s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z},
-                    hq::ground::to_string(s.mode), hq::ground::to_string(s.estimator_health),
-                    hq::ground::to_string(s.link_health),
-                    reinterpret_cast<const float*>(s.obstacle_points_body_m._buffer),
-                    s.obstacle_points_body_m._length, extras);
+    model_.on_state(
+        receipt_ns, 1e-6 * static_cast<double>(latency_ns), {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
+        {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z}, s.roll_rad, s.pitch_rad,
+        {s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z}, hq::ground::to_string(s.mode),
+        hq::ground::to_string(s.estimator_health), hq::ground::to_string(s.link_health),
+        reinterpret_cast<const float*>(s.obstacle_points_body_m._buffer),
+        s.obstacle_points_body_m._length, extras);
   }
   void on_camera(std::int64_t receipt_ns, const hq::link::CameraFrame& f) override {
     // The exposure on our clock through the heartbeat clock offset (video latency).
@@ -221,28 +219,27 @@ std::string json_string(const std::string& text) {
 // The window's figures in the state JSON (null without a window: --headless).
 void write_window_json(std::FILE* f, const hq::console::WindowStats* window) {
   if (window != nullptr) {
-    std::fprintf(f,
-                 "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
-                 "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
-                 "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
-                 "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
-                 "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
-                 "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
-                 "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
-                 "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
-                 "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
-                 static_cast<unsigned long long>(window->frames), window->fps,
-                 window->render_ms_p50, window->render_ms_max,
-                 static_cast<unsigned long long>(window->camera_frames_decoded),
-                 static_cast<unsigned long long>(window->camera_decode_failures),
-                 window->camera_width_px, window->camera_height_px, window->plot_samples_drawn,
-                 json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
-                 window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
-                 window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px,
-                 window->y_px, window->width_px, window->height_px, window->display_width_px,
-                 window->display_height_px,
-                 static_cast<unsigned long long>(window->link_lost_banner_frames),
-                 static_cast<unsigned long long>(window->take_off_hint_frames));
+    std::fprintf(
+        f,
+        "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
+        "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
+        "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
+        "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
+        "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
+        "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
+        "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
+        "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
+        "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
+        static_cast<unsigned long long>(window->frames), window->fps, window->render_ms_p50,
+        window->render_ms_max, static_cast<unsigned long long>(window->camera_frames_decoded),
+        static_cast<unsigned long long>(window->camera_decode_failures), window->camera_width_px,
+        window->camera_height_px, window->plot_samples_drawn,
+        json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
+        window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
+        window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px, window->y_px,
+        window->width_px, window->height_px, window->display_width_px, window->display_height_px,
+        static_cast<unsigned long long>(window->link_lost_banner_frames),
+        static_cast<unsigned long long>(window->take_off_hint_frames));
   } else {
     std::fprintf(f, "  \"window\": null\n");
   }
@@ -256,8 +253,8 @@ void write_ownership_json(std::FILE* f, const hq::console::LinkHealth& link) {
                "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
                "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
                "  \"events_rejected\": %llu,\n",
-               link.control_lost ? "true" : "false", link.commanding_station,
-               link.own_station, static_cast<unsigned long long>(link.vehicle_session),
+               link.control_lost ? "true" : "false", link.commanding_station, link.own_station,
+               static_cast<unsigned long long>(link.vehicle_session),
                link.waiting_for_vehicle ? "true" : "false",
                static_cast<unsigned long long>(link.states_rejected),
                static_cast<unsigned long long>(link.states_implausible),
@@ -280,10 +277,9 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                static_cast<unsigned long long>(s.link.camera_frames));
   std::fprintf(f, "  \"plot_samples\": %zu,\n  \"plot_samples_total\": %llu,\n", s.plot_count,
                static_cast<unsigned long long>(s.plot_total));
-  std::fprintf(f, "  \"track_points\": %zu,\n  \"events\": %zu,\n", s.track_count,
-               s.event_count);
-  std::fprintf(f, "  \"position_W_m\": [%.3f, %.3f],\n",
-               static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m));
+  std::fprintf(f, "  \"track_points\": %zu,\n  \"events\": %zu,\n", s.track_count, s.event_count);
+  std::fprintf(f, "  \"position_W_m\": [%.3f, %.3f],\n", static_cast<double>(s.position_W.x_W_m),
+               static_cast<double>(s.position_W.y_W_m));
   std::fprintf(f,
                "  \"position_from_vehicle\": %s,\n  \"position_states\": %llu,\n"
                "  \"truth\": %s,\n  \"markers_latest\": %zu,\n  \"marker_detections\": %llu,\n",
@@ -308,10 +304,9 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
     std::fprintf(f, "%s%u", i > 0 ? ", " : "", s.link.vehicle_ids[i]);
   }
   std::fprintf(f, "],\n  \"latency_p50_ms\": %.3f,\n", s.link.latency_p50_ms);
-  std::fprintf(f,
-               "  \"state_rate_hz\": %.2f,\n  \"camera_rate_hz\": %.2f,\n  \"link_events\": %llu,\n",
-               s.link.state_rate_hz, s.link.camera_rate_hz,
-               static_cast<unsigned long long>(s.link.events));
+  std::fprintf(
+      f, "  \"state_rate_hz\": %.2f,\n  \"camera_rate_hz\": %.2f,\n  \"link_events\": %llu,\n",
+      s.link.state_rate_hz, s.link.camera_rate_hz, static_cast<unsigned long long>(s.link.events));
   if (s.replay.active) {
     std::fprintf(f,
                  "  \"replay\": {\"position_s\": %.3f, \"duration_s\": %.3f, \"speed\": %.2f, "
@@ -322,8 +317,8 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   }
   write_ownership_json(f, s.link);
   if (max_force_n >= 0.0) {
-    std::fprintf(f, "  \"max_force_n\": %.4f,\n  \"passivity_min_energy_j\": %.5f,\n",
-                 max_force_n, min_passivity_energy_j);
+    std::fprintf(f, "  \"max_force_n\": %.4f,\n  \"passivity_min_energy_j\": %.5f,\n", max_force_n,
+                 min_passivity_energy_j);
   }
   std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
                static_cast<unsigned long long>(replay_problems),
@@ -385,7 +380,8 @@ hq::console::WindowStats close_window(const Options& o, hq::console::ConsoleWind
 // Runs the console window on this (the main) thread until `done`, the duration or a quit;
 // returns its statistics. Requests go to `requests` for the flying thread.
 hq::console::WindowStats run_window(const Options& o, const std::string& title,
-                                    hq::console::ConsoleModel& model, hq::ground::OperatorRequests& requests,
+                                    hq::console::ConsoleModel& model,
+                                    hq::ground::OperatorRequests& requests,
                                     const std::atomic<bool>& done, hq::console::Snapshot& snap,
                                     hq::console::FlightKeys* flight_keys = nullptr) {
   hq::console::ConsoleWindow window(title, window_options(o));
@@ -397,8 +393,8 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     const hq::console::UiActions actions = window.frame(snap);
     if (actions.quit) break;
     if (actions.marker_task != nullptr) {
-      requests.marker_task = hq::ground::marker_task_of(actions.marker_task)
-                                 .value_or(hq_msgs_MARKER_TASK_NONE);
+      requests.marker_task =
+          hq::ground::marker_task_of(actions.marker_task).value_or(hq_msgs_MARKER_TASK_NONE);
       requests.marker_id = actions.marker_id;
     }
     if (actions.mode_request != nullptr) requests.mode = mode_of(actions.mode_request);
@@ -417,8 +413,7 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
                    st.video_display_p50_ms);
       next_print += std::chrono::seconds(1);
     }
-    if (o.duration_s > 0 &&
-        std::chrono::duration<double>(now - start).count() >= o.duration_s) {
+    if (o.duration_s > 0 && std::chrono::duration<double>(now - start).count() >= o.duration_s) {
       break;
     }
   }
@@ -531,8 +526,9 @@ int run_replay(const Options& o) {
   if (o.headless) {
     const auto start = std::chrono::steady_clock::now();
     while (!g_stop && !at_end &&
-           (o.duration_s <= 0 || std::chrono::duration<double>(std::chrono::steady_clock::now() -
-                                                              start).count() < o.duration_s)) {
+           (o.duration_s <= 0 ||
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() <
+                o.duration_s)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   } else {
@@ -545,12 +541,13 @@ int run_replay(const Options& o) {
   model.snapshot(snap);
   char clock[16];
   hq::console::format_clock(snap.replay.position_s, clock, sizeof clock);
-  std::printf("  %-40s %llu states, %llu camera frames (%llu missing), %zu problems, at %s of "
-              "%.1f s%s\n",
-              "replayed", static_cast<unsigned long long>(snap.plot_total),
-              static_cast<unsigned long long>(snap.link.camera_frames),
-              static_cast<unsigned long long>(frames_missing.load()), recording.problem_count,
-              clock, snap.replay.duration_s, snap.replay.at_end ? " (end of recording)" : "");
+  std::printf(
+      "  %-40s %llu states, %llu camera frames (%llu missing), %zu problems, at %s of "
+      "%.1f s%s\n",
+      "replayed", static_cast<unsigned long long>(snap.plot_total),
+      static_cast<unsigned long long>(snap.link.camera_frames),
+      static_cast<unsigned long long>(frames_missing.load()), recording.problem_count, clock,
+      snap.replay.duration_s, snap.replay.at_end ? " (end of recording)" : "");
   if (!o.state_json_path.empty()) {
     write_state_json(o.state_json_path, snap, window ? &*window : nullptr, recording.problem_count,
                      frames_missing.load());
@@ -719,14 +716,15 @@ void print_hand_summary(const hq::ground::GroundStation& ground,
               loop.passivity_controller().enabled() ? "on" : "off");
   std::printf("  %-40s %llu\n", "device losses",
               static_cast<unsigned long long>(station.stats().device_losses));
-  std::printf("  %-40s %llu missing, %llu rejected (%llu invalid, %llu implausible, %llu of "
-              "another session, %llu sequence jumps)\n",
-              "vehicle states lost", static_cast<unsigned long long>(s.state_sequence_gaps),
-              static_cast<unsigned long long>(s.states_rejected),
-              static_cast<unsigned long long>(s.states_invalid),
-              static_cast<unsigned long long>(s.states_implausible),
-              static_cast<unsigned long long>(s.states_wrong_session),
-              static_cast<unsigned long long>(s.states_sequence_jump));
+  std::printf(
+      "  %-40s %llu missing, %llu rejected (%llu invalid, %llu implausible, %llu of "
+      "another session, %llu sequence jumps)\n",
+      "vehicle states lost", static_cast<unsigned long long>(s.state_sequence_gaps),
+      static_cast<unsigned long long>(s.states_rejected),
+      static_cast<unsigned long long>(s.states_invalid),
+      static_cast<unsigned long long>(s.states_implausible),
+      static_cast<unsigned long long>(s.states_wrong_session),
+      static_cast<unsigned long long>(s.states_sequence_jump));
   std::printf("  %-40s %llu rejected (not of session %016llx); %llu vehicle restarts\n",
               "vehicle events", static_cast<unsigned long long>(s.events_rejected),
               static_cast<unsigned long long>(s.vehicle_session),
@@ -783,11 +781,12 @@ void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::Groun
   summary["last_vehicle_mode"] = s.have_state ? hq::ground::to_string(s.state.mode) : "-";
   summary["last_event"] = s.last_event.data();
   const hq::mcap_recorder::RecorderReport& r = mcap.close(summary);
-  std::printf("  %-40s %llu messages, %u channels, %llu bytes, %u attachments, %llu ground "
-              "samples dropped\n",
-              "mcap", static_cast<unsigned long long>(r.messages), r.channels,
-              static_cast<unsigned long long>(r.bytes), r.attachments,
-              static_cast<unsigned long long>(r.ground_samples_dropped));
+  std::printf(
+      "  %-40s %llu messages, %u channels, %llu bytes, %u attachments, %llu ground "
+      "samples dropped\n",
+      "mcap", static_cast<unsigned long long>(r.messages), r.channels,
+      static_cast<unsigned long long>(r.bytes), r.attachments,
+      static_cast<unsigned long long>(r.ground_samples_dropped));
   for (const hq::mcap_recorder::ChannelReport& c : r.per_channel) {
     std::printf("  mcap channel %s %llu %lld %lld\n", c.topic.c_str(),
                 static_cast<unsigned long long>(c.messages),
@@ -799,8 +798,7 @@ void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::Groun
 
 // The flight: the operator station on its own thread when the console is up, so that drawing
 // never delays a command or the feedback's vehicle state; on this thread when headless.
-std::optional<hq::console::WindowStats> fly(const Options& o,
-                                            hq::ground::OperatorStation& station,
+std::optional<hq::console::WindowStats> fly(const Options& o, hq::ground::OperatorStation& station,
                                             hq::console::ConsoleModel& model,
                                             hq::console::Snapshot& snap,
                                             hq::console::FlightKeys* flight_keys) {
@@ -844,7 +842,8 @@ int run_live(const Options& o) {
           : hq::haptics::open_device(o.device, device_options);
 
   std::unique_ptr<hq::ground::TelemetryRecorder> recorder;
-  if (!o.record_dir.empty()) recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
+  if (!o.record_dir.empty())
+    recorder = std::make_unique<hq::ground::TelemetryRecorder>(o.record_dir);
   std::string mcap_off;  // why there is no MCAP record despite --record
   std::unique_ptr<hq::mcap_recorder::FlightRecorder> mcap = open_mcap(o, link, mcap_off);
   hq::ground::GroundStation ground(link, recorder.get());
@@ -893,7 +892,8 @@ int run(int argc, char** argv) {
   if (!o.headless) require_display(o.replay_dir.empty() ? "--device" : "--replay");
   if (!o.replay_dir.empty()) return run_replay(o);
   if (o.headless && !o.screenshot_path.empty()) {
-    throw hq::InputError("--screenshot " + o.screenshot_path + ": needs the console (no --headless)");
+    throw hq::InputError("--screenshot " + o.screenshot_path +
+                         ": needs the console (no --headless)");
   }
   return run_live(o);
 }

@@ -24,21 +24,20 @@
 
 #include <CLI/CLI.hpp>
 
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <spawn.h>
 #include <string>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
 
 extern char** environ;
@@ -126,7 +125,9 @@ std::string band_script(const hq::console::Timeline& t) {
     std::snprintf(line, sizeof line,
                   "set arrow %d from %.3f, graph 0.92 to %.3f, graph 1 nohead lw 2 lc rgb '%s'\n",
                   arrow++, e.t_s, e.t_s,
-                  e.severity >= 2 ? "#e03030" : e.severity == 1 ? "#e0a000" : "#808080");
+                  e.severity >= 2   ? "#e03030"
+                  : e.severity == 1 ? "#e0a000"
+                                    : "#808080");
     gp += line;
   }
   for (std::size_t i = 1; i < t.sessions.size(); ++i) {
@@ -195,9 +196,9 @@ hq::console::Recording load_checked(const std::string& path) {
     std::fprintf(stderr, "hq-report: column absent (older layout): %s\n", c.c_str());
   }
   if (r.states.empty()) {
-    throw hq::InputError((r.from_mcap ? r.directory + ": /hq/vehicle_state"
-                                      : path + "/telemetry.csv") +
-                         ": no readable vehicle state, nothing to report");
+    throw hq::InputError(
+        (r.from_mcap ? r.directory + ": /hq/vehicle_state" : path + "/telemetry.csv") +
+        ": no readable vehicle state, nothing to report");
   }
   return r;
 }
@@ -212,9 +213,9 @@ void accumulate(const hq::console::RecordedState& s, const hq::console::Recorded
     }
     ++sum.tracking_samples;
   }
-  sum.max_v_obs_mps =
-      std::max(sum.max_v_obs_mps, static_cast<double>(std::hypot(
-                                      s.v_obs_H_mps[0], s.v_obs_H_mps[1], s.v_obs_H_mps[2])));
+  sum.max_v_obs_mps = std::max(
+      sum.max_v_obs_mps,
+      static_cast<double>(std::hypot(s.v_obs_H_mps[0], s.v_obs_H_mps[1], s.v_obs_H_mps[2])));
   if (s.truth_valid) {
     for (std::size_t a = 0; a < 3; ++a) {
       const double e = s.v_H_mps[a] - s.v_truth_H_mps[a];
@@ -264,8 +265,8 @@ void write_data_row(std::ofstream& data, double t_s, const hq::console::Recorded
   for (std::size_t a = 0; a < 2; ++a) {
     data << ' ' << (s.position_valid ? std::to_string(s.p_W_m[a]) : "NaN");
   }
-  data << ' ' << number_or_nan(s.height_m) << ' ' << number_or_nan(s.clearance_m) << ' '
-       << session << '\n';
+  data << ' ' << number_or_nan(s.height_m) << ' ' << number_or_nan(s.clearance_m) << ' ' << session
+       << '\n';
 }
 
 // One data file for gnuplot: a blank line between vehicle sessions breaks every trace there
@@ -295,8 +296,8 @@ Summary write_data_file(const hq::console::Recording& r, const hq::console::Repo
       data << '\n';
     } else if (i > 0) {
       // A gap of more than a second is not bridged.
-      track.step(s, std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns),
-                             1.0));
+      track.step(
+          s, std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0));
     }
     const hq::console::RecordedCommand* c = command_at(r.commands, s.receipt_ns);
     accumulate(s, c, sum);
@@ -308,8 +309,8 @@ Summary write_data_file(const hq::console::Recording& r, const hq::console::Repo
   return sum;
 }
 
-const char* const kFigures[] = {"velocity_H", "v_obs", "yaw_rate", "height", "clearance",
-                                "latency", "top_view"};
+const char* const kFigures[] = {"velocity_H", "v_obs",   "yaw_rate", "height",
+                                "clearance",  "latency", "top_view"};
 
 // gnuplot refuses a plot whose points are all undefined: an empty frame that says so.
 constexpr const char* kNoData =
@@ -326,9 +327,9 @@ void write_time_plots(std::ofstream& gp, const std::string& format,
      << (sum.truth_samples > 0 ? " vs simulator truth" : "") << " (Fig. 6-8)'\n";
   const char* axes[3] = {"x", "y", "z"};
   for (int a = 0; a < 3; ++a) {
-    gp << "set ylabel 'v_" << axes[a] << " [m/s]'\n" << (a == 2 ? "set xlabel 't [s]'\n" : "")
-       << "plot d u 1:" << 2 + a << " w l lw 2 t 'estimated', d u 1:" << 5 + a
-       << " w l lw 2 dt 2 t 'commanded'";
+    gp << "set ylabel 'v_" << axes[a] << " [m/s]'\n"
+       << (a == 2 ? "set xlabel 't [s]'\n" : "") << "plot d u 1:" << 2 + a
+       << " w l lw 2 t 'estimated', d u 1:" << 5 + a << " w l lw 2 dt 2 t 'commanded'";
     if (sum.truth_samples > 0) gp << ", d u 1:" << 17 + a << " w l lw 1 t 'truth'";
     gp << '\n';
   }
@@ -427,8 +428,8 @@ std::string mode_changes_text(const hq::console::ReportFigures& fig) {
   std::string list;
   char text[512];
   for (const hq::console::ModeChange& c : fig.mode_changes) {
-    std::snprintf(text, sizeof text, "%s%.2f s: %s -> %s", list.empty() ? "" : "; ", c.t_s,
-                  c.from, c.to);
+    std::snprintf(text, sizeof text, "%s%.2f s: %s -> %s", list.empty() ? "" : "; ", c.t_s, c.from,
+                  c.to);
     list += text;
   }
   std::snprintf(text, sizeof text, "%zu (initial mode %s)%s", fig.mode_changes.size(),
@@ -502,8 +503,7 @@ Rows report_rows(const hq::console::Recording& r, const hq::console::ReportFigur
 }
 
 void write_markdown(const std::string& md_path, const std::string& title,
-                    const hq::console::Recording& r, const Rows& rows,
-                    const std::string& format) {
+                    const hq::console::Recording& r, const Rows& rows, const std::string& format) {
   std::FILE* md = std::fopen(md_path.c_str(), "w");
   if (md == nullptr) throw hq::InputError(md_path + ": cannot open for writing");
   std::fprintf(md, "# Flight report: %s\n\n", title.c_str());
@@ -511,10 +511,12 @@ void write_markdown(const std::string& md_path, const std::string& title,
   for (const auto& [name, value] : rows) {
     std::fprintf(md, "| %s | %s |\n", name.c_str(), value.c_str());
   }
-  std::fprintf(md, "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
-                   "orange, marker purple, explore teal), event ticks at the top (grey info, "
-                   "amber warning, red error), vehicle restarts as red lines.\n\n");
-  for (const char* name : kFigures) std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
+  std::fprintf(md,
+               "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
+               "orange, marker purple, explore teal), event ticks at the top (grey info, "
+               "amber warning, red error), vehicle restarts as red lines.\n\n");
+  for (const char* name : kFigures)
+    std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
   if (!r.absent_columns.empty()) {
     std::fprintf(md, "## Columns absent (older recording layout)\n\n");
     for (const std::string& c : r.absent_columns) std::fprintf(md, "- %s\n", c.c_str());
@@ -549,7 +551,8 @@ void write_html(const std::string& html_path, const std::string& title, const Ro
   std::ofstream html(html_path);
   html << "<!doctype html><html><head><meta charset='utf-8'><title>Flight report</title>"
           "<style>body{font-family:sans-serif;max-width:1050px;margin:auto}td,th{border:1px solid "
-          "#ccc;padding:4px}table{border-collapse:collapse}</style></head><body>\n<h1>Flight report: "
+          "#ccc;padding:4px}table{border-collapse:collapse}</style></head><body>\n<h1>Flight "
+          "report: "
        << html_escape(title) << "</h1>\n<table><tr><th>figure</th><th>value</th></tr>\n";
   for (const auto& [name, value] : rows) {
     html << "<tr><td>" << html_escape(name) << "</td><td>" << html_escape(value) << "</td></tr>\n";
@@ -565,11 +568,10 @@ void write_html(const std::string& html_path, const std::string& title, const Ro
 
 int write_report(const Options& o) {
   const hq::console::Recording r = load_checked(o.recording);
-  const std::string out_dir =
-      !o.out_dir.empty() ? o.out_dir
-      : fs::is_regular_file(o.recording)
-          ? (fs::path(o.recording).parent_path() / "report").string()
-          : (fs::path(o.recording) / "report").string();
+  const std::string out_dir = !o.out_dir.empty() ? o.out_dir
+                              : fs::is_regular_file(o.recording)
+                                  ? (fs::path(o.recording).parent_path() / "report").string()
+                                  : (fs::path(o.recording) / "report").string();
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec) throw hq::InputError("--out " + out_dir + ": cannot create: " + ec.message());
@@ -581,8 +583,8 @@ int write_report(const Options& o) {
   const std::string md_path = (fs::path(out_dir) / "report.md").string();
   write_markdown(md_path, o.recording, r, rows, o.format);
   write_html((fs::path(out_dir) / "report.html").string(), o.recording, rows, o.format);
-  std::printf("hq-report: %s (and report.html; figures %s in %s; read from %s)\n",
-              md_path.c_str(), o.format.c_str(), out_dir.c_str(),
+  std::printf("hq-report: %s (and report.html; figures %s in %s; read from %s)\n", md_path.c_str(),
+              o.format.c_str(), out_dir.c_str(),
               r.from_mcap ? r.directory.c_str() : "the CSV files");
   return 0;
 }
@@ -623,18 +625,19 @@ class CsvExport : public hq::console::FlightSampleSink {
 int export_csv(const Options& o) {
   const std::string mcap_path = hq::console::find_flight_mcap(o.recording);
   if (mcap_path.empty()) {
-    throw hq::InputError(o.recording + ": no flight.mcap to export (--csv reads a flight record; "
-                                       "a CSV recording is already CSV)");
+    throw hq::InputError(o.recording +
+                         ": no flight.mcap to export (--csv reads a flight record; "
+                         "a CSV recording is already CSV)");
   }
   const hq::mcap::McapReader reader(mcap_path);
   CsvExport out(o.csv_dir);
   const hq::console::FlightCounts n = hq::console::read_flight(reader, mcap_path, out);
   if (!out.recorder().close()) throw hq::InputError("--csv: " + out.recorder().error());
-  std::printf("hq-report: %s -> %s: %zu states, %zu commands, %zu mode requests, %zu events, "
-              "%zu camera frames%s\n",
-              mcap_path.c_str(), o.csv_dir.c_str(), n.states, n.commands, n.mode_requests,
-              n.events, n.frames,
-              reader.report().has_summary ? "" : " (no summary: recovered by scanning)");
+  std::printf(
+      "hq-report: %s -> %s: %zu states, %zu commands, %zu mode requests, %zu events, "
+      "%zu camera frames%s\n",
+      mcap_path.c_str(), o.csv_dir.c_str(), n.states, n.commands, n.mode_requests, n.events,
+      n.frames, reader.report().has_summary ? "" : " (no summary: recovered by scanning)");
   return n.undecodable == 0 ? 0 : 1;
 }
 
@@ -652,11 +655,10 @@ int recover_file(const Options& o) {
               static_cast<long long>(r.last_log_time_ns));
   std::printf("  dropped    %llu bytes at the tail (an incomplete record)%s\n",
               static_cast<unsigned long long>(r.bytes_dropped),
-              r.messages_without_channel > 0
-                  ? (", " + std::to_string(r.messages_without_channel) +
-                     " messages without a channel record")
-                        .c_str()
-                  : "");
+              r.messages_without_channel > 0 ? (", " + std::to_string(r.messages_without_channel) +
+                                                " messages without a channel record")
+                                                   .c_str()
+                                             : "");
   std::printf("  written    %llu bytes, %u chunks, with summary and indexes\n",
               static_cast<unsigned long long>(r.bytes_written), r.written.chunk_count);
   return 0;

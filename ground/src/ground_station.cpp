@@ -4,16 +4,15 @@
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/quantile.hpp"
 
-#include <sys/stat.h>
-#include <unistd.h>
-#include <time.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
 
 namespace hq::ground {
 
@@ -30,21 +29,31 @@ std::optional<hq_msgs_Mode> ModeToggle::on_buttons(std::uint32_t buttons,
 
 const char* to_string(hq_msgs_Mode mode) {
   switch (static_cast<int>(mode)) {
-    case hq_msgs_MODE_TELEOP: return "teleop";
-    case hq_msgs_MODE_HOVER: return "hover";
-    case hq_msgs_MODE_LAND: return "land";
-    case hq_msgs_MODE_MARKER: return "marker";
-    case hq_msgs_MODE_EXPLORE: return "explore";
-    default: return "invalid";
+    case hq_msgs_MODE_TELEOP:
+      return "teleop";
+    case hq_msgs_MODE_HOVER:
+      return "hover";
+    case hq_msgs_MODE_LAND:
+      return "land";
+    case hq_msgs_MODE_MARKER:
+      return "marker";
+    case hq_msgs_MODE_EXPLORE:
+      return "explore";
+    default:
+      return "invalid";
   }
 }
 
 const char* to_string(hq_msgs_Health health) {
   switch (static_cast<int>(health)) {
-    case hq_msgs_HEALTH_OK: return "ok";
-    case hq_msgs_HEALTH_DEGRADED: return "degraded";
-    case hq_msgs_HEALTH_LOST: return "lost";
-    default: return "invalid";
+    case hq_msgs_HEALTH_OK:
+      return "ok";
+    case hq_msgs_HEALTH_DEGRADED:
+      return "degraded";
+    case hq_msgs_HEALTH_LOST:
+      return "lost";
+    default:
+      return "invalid";
   }
 }
 
@@ -135,32 +144,46 @@ double closest_obstacle_m(const link::VehicleState& s) {
 // a value the recorder does not know (a newer vehicle) goes out as "unknown".
 const char* flight_state_name(hq_msgs_FlightState v) {
   switch (v) {
-    case hq_msgs_FLIGHT_LANDED: return "landed";
-    case hq_msgs_FLIGHT_TAKING_OFF: return "taking_off";
-    case hq_msgs_FLIGHT_AIRBORNE: return "airborne";
-    case hq_msgs_FLIGHT_LANDING: return "landing";
+    case hq_msgs_FLIGHT_LANDED:
+      return "landed";
+    case hq_msgs_FLIGHT_TAKING_OFF:
+      return "taking_off";
+    case hq_msgs_FLIGHT_AIRBORNE:
+      return "airborne";
+    case hq_msgs_FLIGHT_LANDING:
+      return "landing";
   }
   return "unknown";
 }
 
 const char* height_source_name(hq_msgs_HeightSource v) {
   switch (v) {
-    case hq_msgs_HEIGHT_NONE: return "none";
-    case hq_msgs_HEIGHT_DEPTH: return "depth";
-    case hq_msgs_HEIGHT_ESTIMATE: return "estimate";
+    case hq_msgs_HEIGHT_NONE:
+      return "none";
+    case hq_msgs_HEIGHT_DEPTH:
+      return "depth";
+    case hq_msgs_HEIGHT_ESTIMATE:
+      return "estimate";
   }
   return "unknown";
 }
 
 const char* operator_input_name(hq_msgs_OperatorInput v) {
   switch (v) {
-    case hq_msgs_INPUT_FLOWN: return "flown";
-    case hq_msgs_INPUT_NONE: return "none";
-    case hq_msgs_INPUT_IGNORED_MODE: return "ignored_mode";
-    case hq_msgs_INPUT_IGNORED_LANDED: return "ignored_landed";
-    case hq_msgs_INPUT_IGNORED_NOT_OWNER: return "ignored_not_owner";
-    case hq_msgs_INPUT_IGNORED_FAILSAFE: return "ignored_failsafe";
-    case hq_msgs_INPUT_LIMITED_UNSEEN: return "limited_unseen";
+    case hq_msgs_INPUT_FLOWN:
+      return "flown";
+    case hq_msgs_INPUT_NONE:
+      return "none";
+    case hq_msgs_INPUT_IGNORED_MODE:
+      return "ignored_mode";
+    case hq_msgs_INPUT_IGNORED_LANDED:
+      return "ignored_landed";
+    case hq_msgs_INPUT_IGNORED_NOT_OWNER:
+      return "ignored_not_owner";
+    case hq_msgs_INPUT_IGNORED_FAILSAFE:
+      return "ignored_failsafe";
+    case hq_msgs_INPUT_LIMITED_UNSEEN:
+      return "limited_unseen";
   }
   return "unknown";
 }
@@ -228,8 +251,8 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
     bool armed = true;
     ~Closer() {
       if (!armed) return;
-      for (std::FILE* f : {r->telemetry_, r->events_, r->commands_, r->modes_, r->rgb_list_,
-                           r->depth_list_}) {
+      for (std::FILE* f :
+           {r->telemetry_, r->events_, r->commands_, r->modes_, r->rgb_list_, r->depth_list_}) {
         if (f != nullptr) std::fclose(f);
       }
     }
@@ -429,8 +452,8 @@ std::optional<hq_msgs_MarkerTask> marker_task_of(std::string_view name) {
   return std::nullopt;
 }
 
-bool GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode,
-                                 const MarkerChoice& marker, bool take_off) {
+bool GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker,
+                                 bool take_off) {
   if (status_.vehicle_session == 0) {
     // A request needs the session it is for; the latest one waits for the vehicle.
     const bool told = pending_request_;
@@ -583,8 +606,8 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receip
   if (!plausible(s).ok) return reject(status_.states_implausible);
   if (s.session_id == 0) return reject(status_.states_wrong_session);  // no vehicle draws 0
   if (s.session_id != status_.vehicle_session) {
-    const bool live = status_.vehicle_session != 0 &&
-                      receipt_ns - session_receipt_ns_ <= kSessionLiveNs;
+    const bool live =
+        status_.vehicle_session != 0 && receipt_ns - session_receipt_ns_ <= kSessionLiveNs;
     if (live) return reject(status_.states_wrong_session);
     // The current session went quiet: a new vehicle process (a restart) took its place.
     const bool restart = status_.vehicle_session != 0;
@@ -693,7 +716,8 @@ void GroundStation::note_vehicle(std::uint32_t vehicle_id) {
   auto& ids = status_.vehicle_ids_seen;
   const auto end = ids.begin() + static_cast<std::ptrdiff_t>(status_.vehicle_ids_seen_count);
   if (std::find(ids.begin(), end, vehicle_id) != end) return;
-  if (status_.vehicle_ids_seen_count < ids.size()) ids[status_.vehicle_ids_seen_count++] = vehicle_id;
+  if (status_.vehicle_ids_seen_count < ids.size())
+    ids[status_.vehicle_ids_seen_count++] = vehicle_id;
 }
 
 void GroundStation::select_vehicle(std::uint32_t vehicle_id) {

@@ -158,13 +158,11 @@ bool OperatorStation::send_command(const haptics::LoopOutput& hand, std::int64_t
 }
 
 // The command sent and the hand (position, force, buttons) into the console.
-void OperatorStation::show_hand(const haptics::LoopOutput& hand, bool valid,
-                                std::int64_t wall_ns) {
+void OperatorStation::show_hand(const haptics::LoopOutput& hand, bool valid, std::int64_t wall_ns) {
   const Eigen::Vector3d v = valid ? hand.command.v_H_mps : Eigen::Vector3d::Zero();
-  model_.on_command(wall_ns,
-                    {static_cast<float>(v.x()), static_cast<float>(v.y()),
-                     static_cast<float>(v.z())},
-                    valid ? static_cast<float>(hand.command.yaw_rate_radps) : 0.0F);
+  model_.on_command(
+      wall_ns, {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())},
+      valid ? static_cast<float>(hand.command.yaw_rate_radps) : 0.0F);
   console::HapticState h;
   h.valid = true;
   for (int i = 0; i < 3; ++i) {
@@ -287,26 +285,26 @@ void OperatorStation::report_status(std::int64_t now_ns, double t_s,
   if (options_.headless && log != nullptr) {
     const LinkStatus& s = link_.status();
     const auto& v = hand.command.v_H_mps;
-    std::fprintf(log,
-                 "t %6.1f s  link %-7s  vehicle %-7s est %-8s vlink %-8s  latency %5.2f ms  "
-                 "rtt %4.0f ms  age %4.0f ms  loss %4.1f %%  "
-                 "cmd [%+.2f %+.2f %+.2f] yaw %+.2f  |F| %.1f N  %s%s\n",
-                 t_s, link_word(s, link_.state_age_s()),
-                 s.have_state ? to_string(s.state.mode) : "-",
-                 s.have_state ? to_string(s.state.estimator_health) : "-",
-                 s.have_state ? to_string(s.state.link_health) : "-",
-                 1e-6 * static_cast<double>(s.last_latency_ns),
-                 1e-6 * static_cast<double>(s.round_trip_ns),
-                 1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * link_.state_loss(),
-                 v.x(), v.y(), v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
-                 hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
+    std::fprintf(
+        log,
+        "t %6.1f s  link %-7s  vehicle %-7s est %-8s vlink %-8s  latency %5.2f ms  "
+        "rtt %4.0f ms  age %4.0f ms  loss %4.1f %%  "
+        "cmd [%+.2f %+.2f %+.2f] yaw %+.2f  |F| %.1f N  %s%s\n",
+        t_s, link_word(s, link_.state_age_s()), s.have_state ? to_string(s.state.mode) : "-",
+        s.have_state ? to_string(s.state.estimator_health) : "-",
+        s.have_state ? to_string(s.state.link_health) : "-",
+        1e-6 * static_cast<double>(s.last_latency_ns), 1e-6 * static_cast<double>(s.round_trip_ns),
+        1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * link_.state_loss(), v.x(), v.y(),
+        v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
+        hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
     std::fflush(log);
   }
   TelemetryRecorder* recorder = outputs_.recorder;
   if (recorder != nullptr && !recorder->flush() && !recording_failure_told_) {
     // Told once, on the console and the terminal; flying goes on, the exit status says it.
     recording_failure_told_ = true;
-    if (log != nullptr) std::fprintf(log, "\nhq-ground: recording: %s\n", recorder->error().c_str());
+    if (log != nullptr)
+      std::fprintf(log, "\nhq-ground: recording: %s\n", recorder->error().c_str());
     model_.on_event(clock_.wall_ns(), 2, ("recording: " + recorder->error()).c_str());
   }
   mcap_recorder::FlightRecorder* mcap = outputs_.mcap;

@@ -46,8 +46,8 @@ bool WindowKeyboardDevice::read(std::int64_t t_ns, haptics::DeviceSample& out) {
   }
   connected_ = true;
   const Eigen::Vector3d target = key_target_D_m(keys_.held(), config_);
-  const double dt_s = have_last_ ? std::max(1e-9 * static_cast<double>(t_ns - last_t_ns_), 0.0)
-                                 : 0.0;
+  const double dt_s =
+      have_last_ ? std::max(1e-9 * static_cast<double>(t_ns - last_t_ns_), 0.0) : 0.0;
   last_t_ns_ = t_ns;
   have_last_ = true;
   const double max_step_m = config_.range_m * dt_s / kSlewTime_s;

@@ -8,14 +8,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <string>
 #include <thread>
+#include <unistd.h>
 
 namespace hq::ground {
 namespace {
@@ -101,8 +100,7 @@ TEST(Plausible, RejectsMagnitudesNoVehicleHasAndAcceptsAFlyingOne) {
                 s.clearance_m = std::numeric_limits<float>::infinity();
               }).reason,
               HasSubstr("clearance_m"));
-  EXPECT_THAT(rejected([](link::VehicleState& s) { s.p_W_m.x = 1e9F; }).reason,
-              HasSubstr("p_W_m"));
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.p_W_m.x = 1e9F; }).reason, HasSubstr("p_W_m"));
 }
 
 // GIVEN a station that asked for teleop before any vehicle was heard, WHEN the vehicle's first

@@ -1,21 +1,19 @@
 #include "hq/ground/ground_station.hpp"
 
+#include "hq/testing/files.hpp"
 #include "hq/testing/input_error.hpp"
 #include "hq/testing/process.hpp"
-
-#include "hq/testing/files.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <signal.h>
-#include <sys/resource.h>
-#include <unistd.h>
-
 #include <filesystem>
 #include <fstream>
+#include <signal.h>
 #include <sstream>
 #include <string>
+#include <sys/resource.h>
+#include <unistd.h>
 
 namespace hq::ground {
 namespace {
@@ -68,8 +66,7 @@ TEST(LatencyStats, CoarseBinsReachSeconds) {
 }
 
 TEST(TelemetryRecorder, UnwritableDirectoryIsNamed) {
-  EXPECT_THAT(hq::testing::input_error_message(
-                  [] { TelemetryRecorder r("/proc/no/such/dir"); }),
+  EXPECT_THAT(hq::testing::input_error_message([] { TelemetryRecorder r("/proc/no/such/dir"); }),
               HasSubstr("--record /proc/no/such/dir"));
 }
 
@@ -85,9 +82,7 @@ namespace fs = std::filesystem;
 
 using hq::testing::slurp;
 
-fs::path fresh_dir(const std::string& name) {
-  return hq::testing::fresh_dir("hq_ground", name);
-}
+fs::path fresh_dir(const std::string& name) { return hq::testing::fresh_dir("hq_ground", name); }
 
 // GIVEN a folder that holds a recording, WHEN --record names it again, THEN it is refused and
 // the recording is untouched (it used to be truncated).

@@ -1,21 +1,19 @@
 // hq-report on recordings written by the ground's own recorder: the truth RMSE line of a
 // simulated flight, and an older layout whose absent columns the page names.
 #include "hq/ground/ground_station.hpp"
-#include "hq/testing/process.hpp"
-
 #include "hq/testing/files.hpp"
+#include "hq/testing/process.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
 
 namespace hq::ground {
@@ -26,9 +24,7 @@ using ::testing::HasSubstr;
 
 using hq::testing::slurp;
 
-fs::path fresh_dir(const std::string& name) {
-  return hq::testing::fresh_dir("hq_report", name);
-}
+fs::path fresh_dir(const std::string& name) { return hq::testing::fresh_dir("hq_report", name); }
 
 // Runs hq-report with an argument vector (no shell), output to `output` (default
 // <recording>/report.out).

@@ -50,8 +50,8 @@ class FakeLink final : public VehicleLink {
 
   bool poll_until(std::int64_t deadline_ns) override {
     std::int64_t until_ns = deadline_ns;
-    const bool arrives = next_arrival_ < arrivals_.size() &&
-                         arrivals_[next_arrival_].at_ns <= deadline_ns;
+    const bool arrives =
+        next_arrival_ < arrivals_.size() && arrivals_[next_arrival_].at_ns <= deadline_ns;
     if (arrives) until_ns = std::max(clock_.now_ns, arrivals_[next_arrival_].at_ns);
     while (clock_.now_ns < until_ns) {
       clock_.now_ns = std::min(clock_.now_ns + kMsNs, until_ns);

@@ -1,13 +1,15 @@
+#include "hq/ground/window_keyboard.hpp"
+
 #include "hq/console/console_window.hpp"
 #include "hq/console/flight_keys.hpp"
-#include "hq/ground/window_keyboard.hpp"
 #include "hq/haptics/teleop_mapping.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
 
-#include <SDL2/SDL_scancode.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <SDL2/SDL_scancode.h>
 
 namespace hq::ground {
 namespace {
@@ -25,9 +27,11 @@ haptics::MappedCommand settled_command(std::uint32_t held) {
   keys.press(held);
   haptics::DeviceSample sample;
   for (int i = 0; i <= 500; ++i) EXPECT_TRUE(device.read(i * kMs, sample));
-  const haptics::TeleopMapping mapping(haptics::MappingConfig{}, Eigen::Matrix3d(
-      // Camera looking forward along body x (optical z forward, x right, y down): alpha = 0.
-      (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished()));
+  const haptics::TeleopMapping mapping(
+      haptics::MappingConfig{},
+      Eigen::Matrix3d(
+          // Camera looking forward along body x (optical z forward, x right, y down): alpha = 0.
+          (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished()));
   return mapping.map(sample.p_D_m);
 }
 
@@ -59,8 +63,7 @@ TEST(WindowKeyboard, KeysGiveTheIntendedCommandThroughTheMapping) {
   EXPECT_GT(settled_command(console::kKeyYawRight).command.yaw_rate_radps, 0.1);
   EXPECT_LT(settled_command(console::kKeyYawLeft).command.yaw_rate_radps, -0.1);
   // Opposite keys cancel.
-  const haptics::MappedCommand both =
-      settled_command(console::kKeyForward | console::kKeyBack);
+  const haptics::MappedCommand both = settled_command(console::kKeyForward | console::kKeyBack);
   EXPECT_NEAR(both.command.v_H_mps.norm(), 0.0, 1e-12);
 }
 

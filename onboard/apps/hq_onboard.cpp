@@ -29,14 +29,13 @@
 // Fig. 6-8.
 //
 
-#include "onboard_runs.hpp"
-
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/data_path.hpp"
 #include "hq/link/config.hpp"
 #include "hq/sources/camera_sources.hpp"
 
+#include "onboard_runs.hpp"
 #include <CLI/CLI.hpp>
 
 #include <atomic>
@@ -57,11 +56,14 @@ void add_vehicle_options(CLI::App& app, Options& o) {
       "replay (a TUM-layout sequence) | sim (closed loop in simulation) | sitl (hq-sim --sitl's "
       "frame channel)";
   for (const std::string& camera : hq::sources::available_camera_sources()) {
-    kinds += " | " + camera + (camera == "openni2" ? "[:uri] (Xtion, .oni)" : "[:index] (Kinect v1)");
+    kinds +=
+        " | " + camera + (camera == "openni2" ? "[:uri] (Xtion, .oni)" : "[:index] (Kinect v1)");
   }
   app.add_option("--source", o.source_kind, "frame source: " + kinds)->required();
   app.add_option("sequence-dir", o.sequence_dir, "sequence folder for --source replay");
-  app.add_option("--camera", o.camera_path, "replay: camera file, e.g. calib/tum_fr1.yaml; cameras: intrinsics instead of the device's");
+  app.add_option(
+      "--camera", o.camera_path,
+      "replay: camera file, e.g. calib/tum_fr1.yaml; cameras: intrinsics instead of the device's");
   app.add_option("--config", o.config_path, "on-board config");
   app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_body_camera)");
   app.add_option("--csv", o.csv_path,
@@ -143,8 +145,9 @@ int run(int argc, char** argv) {
                hq::config::resolve_data_path(o.config_path).c_str());
   if (o.source_kind == "sim") {
     if (!o.fc_spec.empty()) {
-      throw hq::InputError("--source sim is its own flight controller; for MAVLink run hq-sim "
-                           "--sitl and hq-onboard --source sitl --fc mavlink:udp:HOST:PORT");
+      throw hq::InputError(
+          "--source sim is its own flight controller; for MAVLink run hq-sim "
+          "--sitl and hq-onboard --source sitl --fc mavlink:udp:HOST:PORT");
     }
     return o.link ? run_sim_link(o) : run_sim(o);
   }

@@ -1,8 +1,6 @@
 // hq-onboard in simulation: the closed loop flown by a scripted operator on simulated time
 // (--source sim), or paced to wall time and flown by a ground station over DDS (--link).
 
-#include "onboard_runs.hpp"
-
 #include "hq/base/error.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/flight_summary.hpp"
@@ -14,6 +12,7 @@
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
 
+#include "onboard_runs.hpp"
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -54,8 +53,7 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
                  f.command_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.command_age_ns),
                  f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
                  f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
-                 f.command.yaw_rate_radps, truth.v_H_mps.x(),
-                 truth.v_H_mps.y(), truth.v_H_mps.z(),
+                 f.command.yaw_rate_radps, truth.v_H_mps.x(), truth.v_H_mps.y(), truth.v_H_mps.z(),
                  truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
                  out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
                  static_cast<unsigned long long>(c.commands_rejected),
@@ -101,7 +99,8 @@ int run_sim_link(const Options& o) {
   options.realtime = true;
   hq::closed_loop::ClosedLoop loop(
       sim_config, world, config, vehicle,
-      hq::closed_loop::OperatorPlayer(script, hq::closed_loop::camera_heading_rad(vehicle.R_body_camera)),
+      hq::closed_loop::OperatorPlayer(script,
+                                      hq::closed_loop::camera_heading_rad(vehicle.R_body_camera)),
       options);
   // The vehicle's own extrinsics (not the simulator's truth) place the cloud in the body.
   Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
@@ -134,7 +133,8 @@ int run_sim_link(const Options& o) {
   const bool on_ground = loop.simulator().truth().on_ground;
   print_link_summary(bridge);
   std::printf("  %-40s %.1f ms\n", "largest lag behind real time", 1e3 * loop.max_realtime_lag_s());
-  std::printf("  %-40s %s (vehicle believes %s)\n", "final state", on_ground ? "on the ground" : "in the air",
+  std::printf("  %-40s %s (vehicle believes %s)\n", "final state",
+              on_ground ? "on the ground" : "in the air",
               landed ? "landed, motors idle" : "flying");
   for (const std::string& refusal : loop.refusals()) {
     std::printf("  mode request refused at %s\n", refusal.c_str());
@@ -163,8 +163,9 @@ int run_sim(const Options& o) {
   sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
-  hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(o.script_path),
-                                         hq::closed_loop::camera_heading_rad(vehicle.R_body_camera));
+  hq::closed_loop::OperatorPlayer player(
+      hq::closed_loop::load_operator_script(o.script_path),
+      hq::closed_loop::camera_heading_rad(vehicle.R_body_camera));
   const SteadyClock clock;
   hq::closed_loop::ClosedLoopOptions options;
   options.clock = &clock;

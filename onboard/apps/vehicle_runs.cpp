@@ -14,8 +14,6 @@
 // A live camera without a flight controller has no gyro: the chain gets zero rate and, for
 // tilt, the Kinect's accelerometer or else a level vehicle, with the camera as the body.
 
-#include "onboard_runs.hpp"
-
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
@@ -31,7 +29,7 @@
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
 
-#include <unistd.h>
+#include "onboard_runs.hpp"
 
 #include <cerrno>
 #include <csignal>
@@ -40,6 +38,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <unistd.h>
 #include <utility>
 #include <vector>
 
@@ -124,8 +123,8 @@ class RunPort final : public hq::vehicle::OperatorPort {
     if (link_ != nullptr) {
       link_->on_event(t_ns, severity, text);
     } else {
-      std::fprintf(stderr, "%shq-onboard: %.*s\n", live_ ? "\n" : "",
-                   static_cast<int>(text.size()), text.data());
+      std::fprintf(stderr, "%shq-onboard: %.*s\n", live_ ? "\n" : "", static_cast<int>(text.size()),
+                   text.data());
     }
     ++events;
   }
@@ -162,8 +161,7 @@ class SitlTruth final : public hq::vehicle::TruthSource {
 };
 
 /// hq-sim may still be starting: its frame channel is waited for, not failed on at once.
-std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& channel,
-                                                        double wait_s) {
+std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& channel, double wait_s) {
   const std::int64_t end_ns = hq::monotonic_now_ns() + static_cast<std::int64_t>(wait_s * 1e9);
   bool said = false;
   while (true) {
@@ -174,7 +172,8 @@ std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& chann
         throw hq::InputError(std::string(e.what()) + " (waited " + std::to_string(wait_s) +
                              " s for hq-sim --sitl)");
       }
-      if (!said) std::fprintf(stderr, "hq-onboard: waiting for hq-sim's frame channel: %s\n", e.what());
+      if (!said)
+        std::fprintf(stderr, "hq-onboard: waiting for hq-sim's frame channel: %s\n", e.what());
       said = true;
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
@@ -215,13 +214,16 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
   for (const std::uint32_t id : link.stations) {
     stations += (stations.empty() ? "" : ",") + std::to_string(id);
   }
-  std::fprintf(stderr, "hq-onboard: link on domain %d as vehicle %u, session %016llx, "
-               "commanded by %s, %s\n", link.domain_id, link.vehicle_id,
+  std::fprintf(stderr,
+               "hq-onboard: link on domain %d as vehicle %u, session %016llx, "
+               "commanded by %s, %s\n",
+               link.domain_id, link.vehicle_id,
                static_cast<unsigned long long>(bridge->session_id()),
                stations.empty() ? "any station" : ("stations " + stations).c_str(),
                hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge->ros2()) {
-    std::fprintf(stderr, "hq-onboard: ROS 2 topics rt/%s/{odom,imu,obstacles,camera/...}, rt/tf; "
+    std::fprintf(stderr,
+                 "hq-onboard: ROS 2 topics rt/%s/{odom,imu,obstacles,camera/...}, rt/tf; "
                  "TwistStamped on rt/%s/cmd_vel_in as station %u (lowest priority)\n",
                  ros->ros_namespace().c_str(), ros->ros_namespace().c_str(), link.ros2.station_id);
   }
@@ -235,26 +237,27 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
               count(c.commands_accepted), count(c.commands_rejected));
   std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
               count(c.mode_requests_accepted), count(c.mode_requests_rejected));
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats",
-              count(c.heartbeats_accepted), count(c.heartbeats_rejected));
+  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats", count(c.heartbeats_accepted),
+              count(c.heartbeats_rejected));
   std::printf("  %-40s %llu holds, %llu land requests (%llu after a hold)\n", "fail-safes",
               count(c.holds), count(c.land_requests), count(c.land_requests_hold));
-  std::printf("  %-40s station %u, %llu changes; rejected: %llu commands not allowed, %llu "
-              "requests not from it, %llu for another session; %llu foreign heartbeats\n",
-              "commanding station", bridge.failsafe().state().commanding_station_id,
-              count(c.commander_changes), count(c.commands_not_allowed),
-              count(c.mode_requests_not_commander), count(c.mode_requests_wrong_session),
-              count(c.heartbeats_not_commander));
+  std::printf(
+      "  %-40s station %u, %llu changes; rejected: %llu commands not allowed, %llu "
+      "requests not from it, %llu for another session; %llu foreign heartbeats\n",
+      "commanding station", bridge.failsafe().state().commanding_station_id,
+      count(c.commander_changes), count(c.commands_not_allowed),
+      count(c.mode_requests_not_commander), count(c.mode_requests_wrong_session),
+      count(c.heartbeats_not_commander));
   std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
               count(bridge.states_sent()), count(bridge.camera_frames_sent()),
               count(bridge.events_sent()));
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {
     const hq::ros2_bridge::Ros2Counters& r = ros->counters();
-    std::printf("  %-40s %llu states, %llu clouds, %llu images; cmd_vel_in %llu taken, %llu "
-                "overridden by a native station\n",
-                "ROS 2 published", count(r.states_published), count(r.clouds_published),
-                count(r.images_published), count(r.commands_received),
-                count(r.commands_overridden));
+    std::printf(
+        "  %-40s %llu states, %llu clouds, %llu images; cmd_vel_in %llu taken, %llu "
+        "overridden by a native station\n",
+        "ROS 2 published", count(r.states_published), count(r.clouds_published),
+        count(r.images_published), count(r.commands_received), count(r.commands_overridden));
   }
 }
 
@@ -278,7 +281,8 @@ std::string flight_controller_spec(const Options& o) {
                          fc_spec);
   }
   if (sitl && fc_spec == "none") {
-    throw hq::InputError("--source sitl needs the simulator's flight controller: --fc mavlink:udp:HOST:PORT");
+    throw hq::InputError(
+        "--source sitl needs the simulator's flight controller: --fc mavlink:udp:HOST:PORT");
   }
   return fc_spec;
 }
@@ -349,7 +353,7 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(
     none->set_tilt_source(opened.source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
     std::fprintf(stderr, "hq-onboard: camera-as-body, no gyro (zero rate), tilt from %s\n",
                  o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
-                                                        : "a level-camera assumption");
+                                                         : "a level-camera assumption");
     fc = std::move(none);
   } else {
     hq::vehicle::MavlinkFcConfig fc_config;
@@ -398,8 +402,8 @@ void run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
   while (!g_stop && runtime.step(hq::monotonic_now_ns()) && hq::monotonic_now_ns() < end_ns) {
     if (runtime.status().fc_lost) {
       if (fc_lost_since_ns < 0) fc_lost_since_ns = hq::monotonic_now_ns();
-      if (fc_lost_exit_s > 0.0 &&
-          hq::monotonic_now_ns() - fc_lost_since_ns > static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
+      if (fc_lost_exit_s > 0.0 && hq::monotonic_now_ns() - fc_lost_since_ns >
+                                      static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
         std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
         break;
       }
@@ -437,7 +441,9 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
     std::printf("  %-40s %llu IMU samples, %llu arm requests, FC %s\n", "flight controller input",
                 static_cast<unsigned long long>(rc.imu_samples),
                 static_cast<unsigned long long>(rc.arm_requests),
-                runtime.status().fc_lost ? "LOST" : runtime.status().fc.connected ? "connected" : "never heard");
+                runtime.status().fc_lost        ? "LOST"
+                : runtime.status().fc.connected ? "connected"
+                                                : "never heard");
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
 }

@@ -5,16 +5,16 @@
 //   hq-keys check DIR --identity vehicle_1
 // The layout and what the permissions allow: hq/security/keys.hpp.
 
+#include "hq/base/error.hpp"
+#include "hq/base/tool_main.hpp"
+#include "hq/security/keys.hpp"
+
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
 #include <ctime>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-
-#include "hq/base/error.hpp"
-#include "hq/base/tool_main.hpp"
-#include "hq/security/keys.hpp"
 
 namespace {
 
@@ -57,8 +57,7 @@ int run(int argc, char** argv) {
   init->add_option("--days", ca_days, "CA validity in days")
       ->check(CLI::Range(1, 36500))
       ->capture_default_str();
-  init->add_option("--domains", ca_domains, "DDS domain ids: ID or MIN-MAX")
-      ->capture_default_str();
+  init->add_option("--domains", ca_domains, "DDS domain ids: ID or MIN-MAX")->capture_default_str();
 
   std::string role;
   std::uint32_t id = 1;
@@ -76,8 +75,9 @@ int run(int argc, char** argv) {
   identity->add_option("--days", identity_days, "validity in days")
       ->check(CLI::Range(1, 36500))
       ->capture_default_str();
-  identity->add_option("--start-days-ago", start_days_ago,
-                       "start the validity this many days ago (to test expired certificates)")
+  identity
+      ->add_option("--start-days-ago", start_days_ago,
+                   "start the validity this many days ago (to test expired certificates)")
       ->check(CLI::Range(0, 36500));
   identity->add_option("--domains", identity_domains, "DDS domain ids: ID or MIN-MAX")
       ->capture_default_str();
@@ -96,9 +96,10 @@ int run(int argc, char** argv) {
   if (init->parsed()) {
     hq::security::make_ca(dir, hq::security::valid_for_days(now_s(), ca_days));
     hq::security::make_governance(dir, parse_domains(ca_domains));
-    std::printf("hq-keys: CA %s/ca.pem (key ca.key.pem: keep it off the vehicle), governance "
-                "%s/governance.p7s\n",
-                dir.c_str(), dir.c_str());
+    std::printf(
+        "hq-keys: CA %s/ca.pem (key ca.key.pem: keep it off the vehicle), governance "
+        "%s/governance.p7s\n",
+        dir.c_str(), dir.c_str());
   } else if (identity->parsed()) {
     hq::security::IdentityRequest request;
     request.role = role == "vehicle" ? hq::security::Role::kVehicle : hq::security::Role::kStation;

@@ -4,7 +4,6 @@
 // collisions, and the distribution of closest distances printed.
 
 #include "scenario.hpp"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -89,7 +88,9 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
   }
   std::vector<double> sorted = clearances;
   std::sort(sorted.begin(), sorted.end());
-  const auto at = [&](double q) { return sorted[static_cast<std::size_t>(q * (sorted.size() - 1))]; };
+  const auto at = [&](double q) {
+    return sorted[static_cast<std::size_t>(q * (sorted.size() - 1))];
+  };
   std::printf("closest distance (surface to the 0.35 m vehicle sphere) over %zu approaches:\n",
               sorted.size());
   std::printf("  min %.3f  p10 %.3f  median %.3f  p90 %.3f  max %.3f m; collisions %d\n", at(0.0),

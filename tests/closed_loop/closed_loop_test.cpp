@@ -2,11 +2,10 @@
 // on-board chain (odometry, estimator, obstacles, modes, PID) against the simulator's truth.
 // Bounds are set from measured runs (figures printed) with margin for other seeds.
 
-#include "scenario.hpp"
-
 #include "hq/closed_loop/flight_summary.hpp"
 #include "hq/testing/input_error.hpp"
 
+#include "scenario.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -64,9 +63,10 @@ TEST(ClosedLoop, HoversThirtySecondsWithSmallEstimateErrorAndDrift) {
   const Vec rmse = (sum_sq / n).cwiseSqrt();
   const double drift_m = (p_end - p_start).head<2>().norm();
   const double climb_m = std::abs(p_end.z() - p_start.z());
-  std::printf("hover 30 s: velocity RMSE x %.4f y %.4f z %.4f m/s, drift %.3f m horizontal, "
-              "%.3f m vertical\n",
-              rmse.x(), rmse.y(), rmse.z(), drift_m, climb_m);
+  std::printf(
+      "hover 30 s: velocity RMSE x %.4f y %.4f z %.4f m/s, drift %.3f m horizontal, "
+      "%.3f m vertical\n",
+      rmse.x(), rmse.y(), rmse.z(), drift_m, climb_m);
   // Measured at seed 5: about 0.01 m/s per axis and a few centimetres of drift.
   EXPECT_LT(rmse.x(), 0.03);
   EXPECT_LT(rmse.y(), 0.03);
@@ -103,9 +103,10 @@ TEST(ClosedLoop, VelocityStepRisesFastWithBoundedOvershoot) {
   const double rise_s = t90 - t10;
   const double overshoot = peak / kStepMps - 1.0;
   const double tail_error = std::abs(sample_at(*loop, 8.9).v_true_mps.x() - kStepMps);
-  std::printf("step 0.5 m/s: rise (10-90 %%) %.2f s, overshoot %.1f %%, error after 2.9 s %.3f "
-              "m/s\n",
-              rise_s, 100.0 * overshoot, tail_error);
+  std::printf(
+      "step 0.5 m/s: rise (10-90 %%) %.2f s, overshoot %.1f %%, error after 2.9 s %.3f "
+      "m/s\n",
+      rise_s, 100.0 * overshoot, tail_error);
   // The mode ramp alone (1 m/s^2) takes 0.4 s of the rise; measured about 0.6 s and 10 %.
   EXPECT_LT(rise_s, 1.2);
   EXPECT_LT(overshoot, 0.30);
@@ -213,10 +214,10 @@ TEST(ClosedLoop, TakeOffRequestAloneEndsHoveringAtTargetHeightWithHeightNearTrut
     max_error_m = std::max(max_error_m, std::abs(x.height_m - x.p_N_m.z()));
   }
   const FlightSample& last = loop->samples().back();
-  std::printf("take-off: final height %.3f m (truth %.3f m, target %.2f m), height error max "
-              "%.3f m over %d airborne frames (%d from depth)\n",
-              last.height_m, last.p_N_m.z(), target_m, max_error_m, airborne_samples,
-              depth_samples);
+  std::printf(
+      "take-off: final height %.3f m (truth %.3f m, target %.2f m), height error max "
+      "%.3f m over %d airborne frames (%d from depth)\n",
+      last.height_m, last.p_N_m.z(), target_m, max_error_m, airborne_samples, depth_samples);
   EXPECT_TRUE(saw_taking_off);
   EXPECT_EQ(last.flight_state, modes::FlightState::kAirborne);
   EXPECT_EQ(last.mode, modes::Mode::kHover);
@@ -234,17 +235,16 @@ TEST(OperatorScript, RejectsBadFilesNamingStepAndKey) {
     std::ofstream(path) << text;
     return hq::testing::input_error_message([&] { (void)load_operator_script(path); });
   };
-  EXPECT_THAT(message_for("end_s: 5\nsteps: [{t_s: 1}, {t_s: 1}]\n"),
-              HasSubstr("steps[1].t_s"));
+  EXPECT_THAT(message_for("end_s: 5\nsteps: [{t_s: 1}, {t_s: 1}]\n"), HasSubstr("steps[1].t_s"));
   EXPECT_THAT(message_for("end_s: 5\nsteps: [{t_s: 1, mode: fly}]\n"), HasSubstr("mode"));
   EXPECT_THAT(message_for("end_s: 5\nsteps: [{t_s: 1, v_mps: [0, .nan, 0]}]\n"),
               HasSubstr("v_mps"));
   EXPECT_THAT(message_for("end_s: 5\nsteps: [{t_s: 6}]\n"), HasSubstr("steps[0].t_s"));
   EXPECT_THAT(message_for("end_s: 5\nsteps: [{t_s: 1, speed: 2}]\n"), HasSubstr("speed"));
   EXPECT_THAT(message_for("end_s: 5\n"), HasSubstr("steps"));
-  EXPECT_THAT(hq::testing::input_error_message(
-                  [] { (void)load_operator_script("no/such/script.yaml"); }),
-              HasSubstr("no/such/script.yaml"));
+  EXPECT_THAT(
+      hq::testing::input_error_message([] { (void)load_operator_script("no/such/script.yaml"); }),
+      HasSubstr("no/such/script.yaml"));
 }
 
 TEST(OperatorPlayer, HoldsStepsAndTurnsCameraHeadingIntoH) {

@@ -42,9 +42,9 @@ struct Scenario {
   }
 
   [[nodiscard]] std::unique_ptr<ClosedLoop> make() const {
-    return std::make_unique<ClosedLoop>(sim, world, onboard, vehicle,
-                                        OperatorPlayer(script, camera_heading_rad(vehicle.R_body_camera)),
-                                        options);
+    return std::make_unique<ClosedLoop>(
+        sim, world, onboard, vehicle,
+        OperatorPlayer(script, camera_heading_rad(vehicle.R_body_camera)), options);
   }
 };
 

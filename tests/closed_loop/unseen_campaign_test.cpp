@@ -9,7 +9,6 @@
 // --gtest_filter='*Disabled*'` flies the same campaign with seen_space.enabled false.
 
 #include "scenario.hpp"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -60,7 +59,8 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
     s.sim.seed = seed + static_cast<std::uint64_t>(run);
     s.onboard.seen_space.enabled = limiter;
     // HQ_UNSEEN_CREEP=0.15: the same campaign with a creep speed towards no data.
-    if (const char* c = std::getenv("HQ_UNSEEN_CREEP")) s.onboard.seen_space.creep_speed_mps = std::atof(c);
+    if (const char* c = std::getenv("HQ_UNSEEN_CREEP"))
+      s.onboard.seen_space.creep_speed_mps = std::atof(c);
     s.script.end_s = kSettleS + kSegments * kSegmentS + 1.0;
     s.step(0.0, Eigen::Vector3d::Zero(), 0.0, modes::Mode::kTeleop);
     for (int k = 0; k < kSegments; ++k) {
@@ -102,12 +102,12 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
       }
       for (const FlightSample& f : loop->samples()) {
         if (!f.frame) continue;
-        std::printf("  t %.2f ok %d sh %d clr %.2f p %.2f %.2f vtrue %.2f %.2f vest %.2f %.2f "
-                    "v* %.2f %.2f vobs %.2f %.2f\n",
-                    f.t_s, f.estimate_ok, f.safe_hover, f.clearance_m, f.p_N_m.x(),
-                    f.p_N_m.y(), f.v_true_mps.x(), f.v_true_mps.y(), f.v_est_mps.x(),
-                    f.v_est_mps.y(), f.v_star_des_mps.x(), f.v_star_des_mps.y(), f.v_obs_mps.x(),
-                    f.v_obs_mps.y());
+        std::printf(
+            "  t %.2f ok %d sh %d clr %.2f p %.2f %.2f vtrue %.2f %.2f vest %.2f %.2f "
+            "v* %.2f %.2f vobs %.2f %.2f\n",
+            f.t_s, f.estimate_ok, f.safe_hover, f.clearance_m, f.p_N_m.x(), f.p_N_m.y(),
+            f.v_true_mps.x(), f.v_true_mps.y(), f.v_est_mps.x(), f.v_est_mps.y(),
+            f.v_star_des_mps.x(), f.v_star_des_mps.y(), f.v_obs_mps.x(), f.v_obs_mps.y());
       }
     }
   }
@@ -122,14 +122,15 @@ std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
   const char* only = std::getenv("HQ_UNSEEN_WORLD");
   for (const char* w : {"arena", "room", "nostructure_texture", "structure_notexture"}) {
     if (only != nullptr && std::string(only) != w) continue;
-    rows.push_back(fly(std::string("onboard/sim/worlds/") + w + ".yaml", runs_per_world, limiter,
-                       seed));
+    rows.push_back(
+        fly(std::string("onboard/sim/worlds/") + w + ".yaml", runs_per_world, limiter, seed));
     seed += 100;
   }
   std::printf("random in-envelope commands, seen_space %s:\n", limiter ? "on" : "off");
-  std::printf("| world | runs | runs collided | collision ticks | fly-aways | min clearance m | "
-              "max true speed m/s | farthest from start m |\n| --- | ---: | ---: | ---: | ---: | "
-              "---: | ---: | ---: |\n");
+  std::printf(
+      "| world | runs | runs collided | collision ticks | fly-aways | min clearance m | "
+      "max true speed m/s | farthest from start m |\n| --- | ---: | ---: | ---: | ---: | "
+      "---: | ---: | ---: |\n");
   for (const WorldRow& r : rows) {
     std::printf("| %s | %d | %d | %d | %d | %.2f | %.2f | %.2f |\n", r.world.c_str(), r.runs,
                 r.collided_runs, r.collision_ticks, r.fly_aways, r.min_clearance_m,
@@ -172,9 +173,10 @@ TEST(UnseenCampaign, IssueCaseAlongHxInTheArenaDoesNotCollide) {
     for (const FlightSample& f : loop->samples()) {
       max_speed = std::max(max_speed, f.v_true_mps.head<2>().norm());
     }
-    std::printf("H-x at %.1f m/s, seen_space on: collision ticks %d, min clearance %.2f m, "
-                "max true speed %.2f m/s\n",
-                speed, loop->collision_ticks(), loop->min_clearance_m(), max_speed);
+    std::printf(
+        "H-x at %.1f m/s, seen_space on: collision ticks %d, min clearance %.2f m, "
+        "max true speed %.2f m/s\n",
+        speed, loop->collision_ticks(), loop->min_clearance_m(), max_speed);
     EXPECT_EQ(loop->collision_ticks(), 0) << speed;
     EXPECT_GT(loop->min_clearance_m(), 0.0) << speed;
     // Unseen direction, creep 0: the command is refused, the vehicle holds.
@@ -189,9 +191,10 @@ TEST(UnseenCampaign, DISABLED_IssueCaseWithoutTheLimiter) {
     for (const FlightSample& f : loop->samples()) {
       max_speed = std::max(max_speed, f.v_true_mps.head<2>().norm());
     }
-    std::printf("H-x at %.1f m/s, seen_space off: collision ticks %d, min clearance %.2f m, "
-                "max true speed %.2f m/s\n",
-                speed, loop->collision_ticks(), loop->min_clearance_m(), max_speed);
+    std::printf(
+        "H-x at %.1f m/s, seen_space off: collision ticks %d, min clearance %.2f m, "
+        "max true speed %.2f m/s\n",
+        speed, loop->collision_ticks(), loop->min_clearance_m(), max_speed);
   }
 }
 

@@ -3,29 +3,27 @@
 // domain, under a private Xvfb display. Asserts on the console's own state (--state-json), keeps
 // its screenshot in the build directory, reports the recording with hq-report and replays a
 // truncated copy of it.
-#include <gtest/gtest.h>
-
 #include "hq/testing/process.hpp"
+
+#include <gtest/gtest.h>
 
 #include <X11/Xlib.h>
 #include <X11/keysym.h>
-#include <dlfcn.h>
-#include <signal.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <dlfcn.h>
 #include <filesystem>
-#include <memory>
 #include <fstream>
+#include <memory>
 #include <regex>
+#include <signal.h>
 #include <sstream>
 #include <string>
 #include <string_view>
 #include <thread>
+#include <unistd.h>
 #include <vector>
-
 
 namespace {
 
@@ -167,7 +165,7 @@ void use_loopback_dds() {
 // The console drew the flight: frames decoded, plots filled, the vehicle's mode shown.
 void expect_console_drew_the_flight(const std::string& json) {
   EXPECT_GT(json_number(json, "camera_frames_decoded"), 20) << json;  // ~10 Hz over ~7 s
-  EXPECT_GT(json_number(json, "plot_samples_drawn"), 100) << json;   // frame rate over ~7 s
+  EXPECT_GT(json_number(json, "plot_samples_drawn"), 100) << json;    // frame rate over ~7 s
   EXPECT_GT(json_number(json, "frames"), 50) << json;
   EXPECT_EQ(json_text(json, "mode_shown"), "teleop") << json;  // the scripted hand's request
   EXPECT_GT(json_number(json, "camera_width_px"), 0) << json;
@@ -193,8 +191,8 @@ void expect_report_written(const fs::path& dir, const fs::path& recording) {
   Process reporter({HQ_REPORT_EXE, recording.string(), "--out", report.string()},
                    dir / "report.out");
   ASSERT_EQ(reporter.wait_exit(30.0), 0) << slurp(dir / "report.out");
-  for (const char* f : {"report.md", "velocity_H.png", "v_obs.png", "yaw_rate.png",
-                        "top_view.png"}) {
+  for (const char* f :
+       {"report.md", "velocity_H.png", "v_obs.png", "yaw_rate.png", "top_view.png"}) {
     ASSERT_TRUE(fs::exists(report / f)) << f;
     // A page with its table, figures with curves (gnuplot's empty frame is ~3 KB).
     EXPECT_GT(fs::file_size(report / f), std::string_view(f) == "report.md" ? 300U : 5000U) << f;
@@ -210,8 +208,8 @@ void expect_truncated_csv_replay(const fs::path& dir, const fs::path& recording)
   fs::remove(cut / "flight.mcap");
   const std::string telemetry = slurp(cut / "telemetry.csv");
   std::ofstream(cut / "telemetry.csv") << telemetry.substr(0, telemetry.size() - 25);
-  const std::size_t lines = static_cast<std::size_t>(
-      std::count(telemetry.begin(), telemetry.end(), '\n'));
+  const std::size_t lines =
+      static_cast<std::size_t>(std::count(telemetry.begin(), telemetry.end(), '\n'));
   const fs::path replay_state = dir / "replay.json";
   Process replay({HQ_GROUND_EXE, "--replay", cut.string(), "--speed", "8", "--headless",
                   "--state-json", replay_state.string()},
@@ -219,7 +217,8 @@ void expect_truncated_csv_replay(const fs::path& dir, const fs::path& recording)
   ASSERT_EQ(replay.wait_exit(30.0), 0) << slurp(dir / "replay.out");
   const std::string replay_out = slurp(dir / "replay.out");
   // The cut line is named, whatever the recording's column count (it grows with the state).
-  const std::size_t named = replay_out.find("telemetry.csv:" + std::to_string(lines) + ": expected ");
+  const std::size_t named =
+      replay_out.find("telemetry.csv:" + std::to_string(lines) + ": expected ");
   ASSERT_NE(named, std::string::npos) << replay_out;
   EXPECT_NE(replay_out.find("(truncated last line)", named), std::string::npos) << replay_out;
   const std::string rjson = slurp(replay_state);
@@ -240,18 +239,18 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   const XvfbDisplay display(dir, "1600x1000x24");
 
   // GIVEN a simulated flight flown through the console window and recorded.
-  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "11", "--domain-id", domain,
-                   "--insecure"},
-                  dir / "onboard.out");
+  Process onboard(
+      {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world", "onboard/sim/worlds/arena.yaml",
+       "--duration-s", "11", "--domain-id", domain, "--insecure"},
+      dir / "onboard.out");
   const fs::path shot = dir / "console.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";
-  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure", "--duration-s", "8",
-                  "--record", recording.string(), "--screenshot", shot.string(), "--state-json",
-                  state.string()},
-                 dir / "ground.out");
+  Process ground(
+      {HQ_GROUND_EXE, "--device", "sim", "--haptics-config", "ground/config/demo_hand.yaml",
+       "--domain-id", domain, "--insecure", "--duration-s", "8", "--record", recording.string(),
+       "--screenshot", shot.string(), "--state-json", state.string()},
+      dir / "ground.out");
   ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
   ASSERT_EQ(onboard.wait_exit(20.0), 0) << slurp(dir / "onboard.out");
 
@@ -279,16 +278,16 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   const XvfbDisplay display(dir, "1280x720x24");
   Keyboard keys;
   if (!keys.usable()) GTEST_SKIP() << "no XTest (libXtst.so.6) on this display";
-  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "60", "--domain-id", domain,
-                   "--insecure"},
-                  dir / "onboard.out");
+  Process onboard(
+      {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world", "onboard/sim/worlds/arena.yaml",
+       "--duration-s", "60", "--domain-id", domain, "--insecure"},
+      dir / "onboard.out");
   const fs::path shot = dir / "link_lost.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";
   Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--domain-id", domain, "--insecure",
-                  "--duration-s", "60", "--record", recording.string(), "--screenshot", shot.string(),
-                  "--state-json", state.string()},
+                  "--duration-s", "60", "--record", recording.string(), "--screenshot",
+                  shot.string(), "--state-json", state.string()},
                  dir / "ground.out");
   ASSERT_TRUE(keys.focus("hq-ground", 10.0)) << slurp(dir / "ground.out");
   // WHEN the operator presses U once the vehicle is up, flies forward a little with W, ...
@@ -357,8 +356,7 @@ TEST(ConsoleProcesses, WindowedGroundWithoutADisplaySaysUseHeadlessAndExits2) {
   unsetenv("WAYLAND_DISPLAY");
   unsetenv("SDL_VIDEODRIVER");
   const auto start = std::chrono::steady_clock::now();
-  Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--duration-s", "5"},
-                 dir / "ground.out");
+  Process ground({HQ_GROUND_EXE, "--device", "keyboard", "--duration-s", "5"}, dir / "ground.out");
   EXPECT_EQ(ground.wait_exit(10.0), 2);
   const double took_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

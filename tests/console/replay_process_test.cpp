@@ -10,14 +10,10 @@
 // (hq-report --csv) reports the same flight. And a disk that fills mid-flight: the record stops
 // with a message, the flight does not. (A recorder killed with SIGKILL:
 // mcap_recorder.flight_mcap_independent_readers.)
-#include <gtest/gtest.h>
-
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/process.hpp"
 
-#include <signal.h>
-#include <sys/resource.h>
-#include <unistd.h>
+#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cmath>
@@ -26,9 +22,12 @@
 #include <fstream>
 #include <memory>
 #include <regex>
+#include <signal.h>
 #include <sstream>
 #include <string>
+#include <sys/resource.h>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 namespace {
@@ -161,10 +160,10 @@ void expect_mcap_report_and_csv_export(const fs::path& dir, const fs::path& reco
   const std::string exported =
       run_report(dir, "export", {(recording / "flight.mcap").string(), "--csv", csv.string()});
   const double states = number_after(exported, "-> [^:]+: ");
-  EXPECT_GT(states, 100) << exported;  // ~30 Hz over ~5 s
+  EXPECT_GT(states, 100) << exported;                              // ~30 Hz over ~5 s
   EXPECT_GT(number_after(exported, "states, "), 100) << exported;  // commands at 50 Hz
-  for (const char* f : {"telemetry.csv", "commands.csv", "events.csv", "mode_requests.csv",
-                        "rgb.txt"}) {
+  for (const char* f :
+       {"telemetry.csv", "commands.csv", "events.csv", "mode_requests.csv", "rgb.txt"}) {
     EXPECT_TRUE(fs::exists(csv / f)) << f;
   }
   const fs::path csv_report = dir / "csv_report";
@@ -184,10 +183,10 @@ std::unique_ptr<Process> start_display(const fs::path& dir) {
   while (fs::exists("/tmp/.X" + std::to_string(display) + "-lock")) ++display;
   std::string display_name = ":";
   display_name.append(std::to_string(display));
-  auto xvfb = std::make_unique<Process>(
-      std::vector<std::string>{kXvfb, display_name, "-screen", "0", "1280x800x24", "-nolisten",
-                               "tcp"},
-      (dir / "xvfb.out").string());
+  auto xvfb =
+      std::make_unique<Process>(std::vector<std::string>{kXvfb, display_name, "-screen", "0",
+                                                         "1280x800x24", "-nolisten", "tcp"},
+                                (dir / "xvfb.out").string());
   for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(display)); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
@@ -223,10 +222,9 @@ void expect_replay_plays(const fs::path& dir, const fs::path& recording) {
 // states up to the new position (the model was rebuilt, not left with the later ones).
 void expect_replay_pauses_and_seeks(const fs::path& dir, const fs::path& recording) {
   const fs::path shot = dir / "replay_paused.png";
-  const std::string json =
-      replay(dir, recording, "replay_paused",
-             {"--seek", "6", "--window-size", "1280x800", "--duration-s", "3", "--keys",
-              "1.0:Space,1.5:Left", "--screenshot", shot.string()});
+  const std::string json = replay(dir, recording, "replay_paused",
+                                  {"--seek", "6", "--window-size", "1280x800", "--duration-s", "3",
+                                   "--keys", "1.0:Space,1.5:Left", "--screenshot", shot.string()});
   EXPECT_EQ(json_bool(json, "playing"), 0) << json;
   EXPECT_EQ(json_bool(json, "at_end"), 0) << json;
   const double position_s = json_number(json, "position_s");
@@ -241,8 +239,7 @@ void expect_replay_pauses_and_seeks(const fs::path& dir, const fs::path& recordi
 
 // WHEN a headless replay plays to the end, THEN it says so, with every event counted.
 void expect_replay_ends(const fs::path& dir, const fs::path& recording) {
-  const std::string json =
-      replay(dir, recording, "replay_end", {"--speed", "8", "--headless"});
+  const std::string json = replay(dir, recording, "replay_end", {"--speed", "8", "--headless"});
   EXPECT_EQ(json_bool(json, "at_end"), 1) << json;
   EXPECT_NEAR(json_number(json, "position_s"), json_number(json, "duration_s"), 1e-3) << json;
   EXPECT_EQ(json_number(json, "link_events"), json_number(json, "events")) << json;
@@ -278,10 +275,10 @@ TEST(RecordingProcesses, FullDiskStopsTheFlightRecordNotTheFlight) {
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "full_disk_test";
   fs::remove_all(dir);
   fs::create_directories(dir);
-  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "10", "--domain-id", domain,
-                   "--insecure"},
-                  (dir / "onboard.out").string());
+  Process onboard(
+      {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world", "onboard/sim/worlds/arena.yaml",
+       "--duration-s", "10", "--domain-id", domain, "--insecure"},
+      (dir / "onboard.out").string());
   // The limit and the ignored SIGXFSZ are inherited through posix_spawn by hq-ground only.
   rlimit saved{};
   ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);

@@ -51,7 +51,7 @@ struct Tally {
   const char* topic;
   const char* attack;
   std::uint64_t sent = 0;
-  std::uint64_t refused = 0;  // by our own writer (Cyclone's serialiser refuses bad enums)
+  std::uint64_t refused = 0;   // by our own writer (Cyclone's serialiser refuses bad enums)
   std::int64_t accepted = -1;  // as seen from the vehicle's states/events; -1: not observable
   std::int64_t rejected = -1;
   void count(bool ok) { ok ? ++sent : ++refused; }
@@ -249,9 +249,15 @@ void Fuzzer::send_malformed(std::uint64_t i) {
     c.vehicle_id = config_.vehicle_id;
     const float bad = kSpecials[static_cast<std::size_t>(pick_(rng_))];
     switch (i % 4) {
-      case 1: c.v_H_mps.x = bad; break;
-      case 2: c.v_H_mps.z = bad; break;
-      default: c.yaw_rate_radps = bad; break;
+      case 1:
+        c.v_H_mps.x = bad;
+        break;
+      case 2:
+        c.v_H_mps.z = bad;
+        break;
+      default:
+        c.yaw_rate_radps = bad;
+        break;
     }
   }
   malformed_commands_.count(commands_.write(c));
@@ -264,8 +270,8 @@ void Fuzzer::send_malformed(std::uint64_t i) {
     m.requested_mode = hq_msgs_MODE_LAND;  // valid, but not for this vehicle
   } else {
     m.vehicle_id = config_.vehicle_id;
-    m.requested_mode = static_cast<hq_msgs_Mode>(
-        i % 2 == 0 ? 5 + static_cast<int>(rng_() % 1000) : -1 - static_cast<int>(rng_() % 1000));
+    m.requested_mode = static_cast<hq_msgs_Mode>(i % 2 == 0 ? 5 + static_cast<int>(rng_() % 1000)
+                                                            : -1 - static_cast<int>(rng_() % 1000));
   }
   if (i % 20 == 0) malformed_requests_.count(modes_.write(m));  // reliable: keep the rate sane
 
@@ -377,8 +383,12 @@ void Fuzzer::send_forged_state(std::int64_t t_ns) {
       s.sequence_number = 1;  // backwards
       s.v_H_mps = {-12.0F, 0.0F, 0.0F};
       break;
-    case 3: s.v_H_mps = {std::numeric_limits<float>::quiet_NaN(), 0.0F, 0.0F}; break;
-    case 4: s.v_H_mps = {1e6F, 1e6F, 0.0F}; break;
+    case 3:
+      s.v_H_mps = {std::numeric_limits<float>::quiet_NaN(), 0.0F, 0.0F};
+      break;
+    case 4:
+      s.v_H_mps = {1e6F, 1e6F, 0.0F};
+      break;
     default:
       s.roll_rad = 7.0F;
       s.v_obs_H_mps = {0.0F, 900.0F, 0.0F};
@@ -404,14 +414,14 @@ void Fuzzer::report() const {
   hostile_commands.accepted = static_cast<std::int64_t>(states_followed_);
   Tally owner_requests = owner_requests_;
   owner_requests.rejected = static_cast<std::int64_t>(requests_rejected_seen_);
-  std::printf("hq-link-fuzz: attacks %s as station %u (strength %d) on vehicle %u, session "
-              "%016llx; the vehicle named this station its commander in %llu of %llu states "
-              "(%llu change events)\n",
-              o_.attacks_text.c_str(), config_.station_id, config_.station_strength,
-              config_.vehicle_id, static_cast<unsigned long long>(session_),
-              static_cast<unsigned long long>(states_followed_),
-              static_cast<unsigned long long>(states_seen_),
-              static_cast<unsigned long long>(commander_events_));
+  std::printf(
+      "hq-link-fuzz: attacks %s as station %u (strength %d) on vehicle %u, session "
+      "%016llx; the vehicle named this station its commander in %llu of %llu states "
+      "(%llu change events)\n",
+      o_.attacks_text.c_str(), config_.station_id, config_.station_strength, config_.vehicle_id,
+      static_cast<unsigned long long>(session_), static_cast<unsigned long long>(states_followed_),
+      static_cast<unsigned long long>(states_seen_),
+      static_cast<unsigned long long>(commander_events_));
   std::printf("  %-14s %-32s %10s %8s %16s %16s\n", "topic", "attack", "sent", "refused",
               "seen accepted", "seen rejected");
   std::uint64_t sent = 0;

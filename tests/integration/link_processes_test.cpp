@@ -2,25 +2,23 @@
 // --device sim with a scripted hand, in a private DDS domain per test process. Assertions come
 // from hq-onboard's per-step link log (--link-log), written on simulated time that hq-onboard
 // paces to wall time.
-#include <gtest/gtest.h>
-
 #include "hq/testing/process.hpp"
 
-#include <unistd.h>
+#include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <unistd.h>
 #include <vector>
-
 
 namespace {
 
@@ -114,20 +112,46 @@ class LinkProcesses : public ::testing::Test {
     if (!HasFailure()) std::filesystem::remove_all(dir_);
   }
   std::vector<std::string> onboard_args(double duration_s) const {
-    return {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
-            "onboard/sim/worlds/arena.yaml", "--duration-s", std::to_string(duration_s),
-            "--domain-id", domain_, "--insecure", "--link-log", (dir_ / "link.csv").string()};
+    return {HQ_ONBOARD_EXE,
+            "--source",
+            "sim",
+            "--link",
+            "--world",
+            "onboard/sim/worlds/arena.yaml",
+            "--duration-s",
+            std::to_string(duration_s),
+            "--domain-id",
+            domain_,
+            "--insecure",
+            "--link-log",
+            (dir_ / "link.csv").string()};
   }
   std::vector<std::string> ground_args(double duration_s = 60.0) const {
-    return {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config",
-            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--insecure", "--duration-s",
+    return {HQ_GROUND_EXE,
+            "--device",
+            "sim",
+            "--headless",
+            "--haptics-config",
+            "ground/config/demo_hand.yaml",
+            "--domain-id",
+            domain_,
+            "--insecure",
+            "--duration-s",
             std::to_string(duration_s)};
   }
   std::vector<std::string> fuzz_args(const std::string& attacks, int station_id, int strength,
                                      double duration_s) const {
-    return {HQ_LINK_FUZZ_EXE, "--domain-id", domain_, "--attacks", attacks, "--station-id",
-            std::to_string(station_id), "--station-strength", std::to_string(strength),
-            "--duration-s", std::to_string(duration_s)};
+    return {HQ_LINK_FUZZ_EXE,
+            "--domain-id",
+            domain_,
+            "--attacks",
+            attacks,
+            "--station-id",
+            std::to_string(station_id),
+            "--station-strength",
+            std::to_string(strength),
+            "--duration-s",
+            std::to_string(duration_s)};
   }
   std::string log_path() const { return (dir_ / "link.csv").string(); }
   std::string out(const char* name) const { return slurp((dir_ / name).string()); }
@@ -183,10 +207,12 @@ TEST_F(LinkProcesses, GroundKilledMidFlightHoldsWithin200msThenLandsAfter2s) {
   const std::size_t land_at = out.find("fail-safe land");
   ASSERT_NE(hold_at, std::string::npos) << out;
   ASSERT_NE(land_at, std::string::npos) << out;
-  ASSERT_EQ(std::sscanf(out.c_str() + out.rfind("t ", hold_at), "t %lf s: fail-safe hold, command age %lf",
-                        &hold_t_s, &hold_age_ms), 2);
-  ASSERT_EQ(std::sscanf(out.c_str() + out.rfind("t ", land_at), "t %lf s: fail-safe land, heartbeat age %lf",
-                        &land_t_s, &land_age_ms), 2);
+  ASSERT_EQ(std::sscanf(out.c_str() + out.rfind("t ", hold_at),
+                        "t %lf s: fail-safe hold, command age %lf", &hold_t_s, &hold_age_ms),
+            2);
+  ASSERT_EQ(std::sscanf(out.c_str() + out.rfind("t ", land_at),
+                        "t %lf s: fail-safe land, heartbeat age %lf", &land_t_s, &land_age_ms),
+            2);
   EXPECT_GT(hold_age_ms, 200.0);
   EXPECT_LE(hold_age_ms, 205.0);
   EXPECT_GT(land_age_ms, 2000.0);
@@ -208,10 +234,11 @@ TEST_F(LinkProcesses, GroundKilledMidFlightHoldsWithin200msThenLandsAfter2s) {
   ASSERT_LT(touchdown, rows.size()) << "still in the air at the end";
   EXPECT_FALSE(rows.back().airborne);
   for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
-  std::printf("[ figures  ] hold at command age %.1f ms; land at heartbeat age %.1f ms, %.2f s "
-              "after the hold; on the ground %.2f s after the land request (from %.2f m)\n",
-              hold_age_ms, land_age_ms, land_t_s - hold_t_s, rows[touchdown].t_s - land_t_s,
-              rows[land].altitude_m);
+  std::printf(
+      "[ figures  ] hold at command age %.1f ms; land at heartbeat age %.1f ms, %.2f s "
+      "after the hold; on the ground %.2f s after the land request (from %.2f m)\n",
+      hold_age_ms, land_age_ms, land_t_s - hold_t_s, rows[touchdown].t_s - land_t_s,
+      rows[land].altitude_m);
 }
 
 TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
@@ -219,9 +246,9 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
   ASSERT_TRUE(onboard.started());
   Process ground(ground_args(), (dir_ / "ground.out").string());
   ASSERT_TRUE(ground.started());
-  ASSERT_TRUE(wait_for_row((dir_ / "link.csv").string(), 10.0,
-                           [](const Row& r) { return r.airborne && r.altitude_m > 0.5; }))
-      << slurp((dir_ / "onboard.out").string());
+  ASSERT_TRUE(wait_for_row((dir_ / "link.csv").string(), 10.0, [](const Row& r) {
+    return r.airborne && r.altitude_m > 0.5;
+  })) << slurp((dir_ / "onboard.out").string());
   Process fuzz({HQ_LINK_FUZZ_EXE, "--domain-id", domain_, "--duration-s", "4"},
                (dir_ / "fuzz.out").string());
   ASSERT_TRUE(fuzz.started());
@@ -303,18 +330,23 @@ TEST_F(LinkProcesses, ForeignHeartbeatsDoNotKeepAVehicleWhoseCommanderWasKilledI
   const std::size_t hold_at = onboard_out.find("fail-safe hold");
   const std::size_t land_at = onboard_out.find("fail-safe land, heartbeat age");
   ASSERT_NE(hold_at, std::string::npos) << onboard_out;
-  ASSERT_NE(land_at, std::string::npos) << "foreign heartbeats kept the link alive\n" << onboard_out;
-  ASSERT_EQ(std::sscanf(onboard_out.c_str() + onboard_out.rfind("t ", hold_at), "t %lf", &hold_t_s), 1);
+  ASSERT_NE(land_at, std::string::npos) << "foreign heartbeats kept the link alive\n"
+                                        << onboard_out;
+  ASSERT_EQ(std::sscanf(onboard_out.c_str() + onboard_out.rfind("t ", hold_at), "t %lf", &hold_t_s),
+            1);
   ASSERT_EQ(std::sscanf(onboard_out.c_str() + onboard_out.rfind("t ", land_at),
-                        "t %lf s: fail-safe land, heartbeat age %lf", &land_t_s, &age_ms), 2);
+                        "t %lf s: fail-safe land, heartbeat age %lf", &land_t_s, &age_ms),
+            2);
   EXPECT_LT(land_t_s - hold_t_s, 2.1);  // the heartbeat's 2 s, not the hold's 5 s
   EXPECT_NEAR(age_ms, 2000.0, 10.0);
   const std::vector<Row> rows = read_log(log_path());
   ASSERT_GT(rows.size(), 100U);
   EXPECT_FALSE(rows.back().airborne) << "still in the air at the end";
   for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
-  std::printf("[ figures  ] hold at %.2f s, land at %.2f s (heartbeat age %.1f ms) with station "
-              "666 sending heartbeats\n", hold_t_s, land_t_s, age_ms);
+  std::printf(
+      "[ figures  ] hold at %.2f s, land at %.2f s (heartbeat age %.1f ms) with station "
+      "666 sending heartbeats\n",
+      hold_t_s, land_t_s, age_ms);
 }
 
 // (c) GIVEN heartbeats that never time out (60 s), WHEN the commands stop, THEN the vehicle
@@ -423,11 +455,11 @@ TEST_F(LinkProcesses, ForgedStatesAreRejectedAndTheHandsForceStaysBounded) {
   EXPECT_GT(number("passivity_min_energy_j"), -0.05) << json;
   const std::string ground_out = out("ground.out");
   EXPECT_EQ(ground_out.find("FORGED"), std::string::npos) << "a forged event was shown";
-  std::printf("[ figures  ] ground: %.0f states rejected (%.0f other session, %.0f implausible), "
-              "max force %.3f N, passivity min %.4f J\n%s",
-              number("states_rejected"), number("states_wrong_session"),
-              number("states_implausible"), number("max_force_n"),
-              number("passivity_min_energy_j"), out("fuzz.out").c_str());
+  std::printf(
+      "[ figures  ] ground: %.0f states rejected (%.0f other session, %.0f implausible), "
+      "max force %.3f N, passivity min %.4f J\n%s",
+      number("states_rejected"), number("states_wrong_session"), number("states_implausible"),
+      number("max_force_n"), number("passivity_min_energy_j"), out("fuzz.out").c_str());
 }
 
 // (f) GIVEN hq-ground station 1 flying, WHEN a second hq-ground (station 2) with the highest

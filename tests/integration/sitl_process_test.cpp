@@ -445,8 +445,7 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   EXPECT_FALSE(fc.status(hq::monotonic_now_ns()).offboard);
   EXPECT_THAT(sink.events, HasSubstr("offboard setpoints lost: landing"));
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (fc.status(hq::monotonic_now_ns()).armed &&
-         std::chrono::steady_clock::now() < deadline) {
+  while (fc.status(hq::monotonic_now_ns()).armed && std::chrono::steady_clock::now() < deadline) {
     loop.run_for(0.2, false);
   }
   EXPECT_FALSE(fc.status(hq::monotonic_now_ns()).armed) << sink.events;

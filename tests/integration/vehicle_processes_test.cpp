@@ -8,25 +8,24 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <signal.h>
-#include <sys/mman.h>
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <regex>
+#include <signal.h>
 #include <sstream>
 #include <string>
+#include <sys/mman.h>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 namespace {
 
-using ::testing::HasSubstr;
 using hq::testing::Process;
+using ::testing::HasSubstr;
 
 std::string slurp(const std::filesystem::path& path) {
   std::ifstream in(path);
@@ -83,18 +82,38 @@ class VehicleProcesses : public ::testing::Test {
     if (!HasFailure()) std::filesystem::remove_all(dir_);
   }
   std::vector<std::string> sim_args(double duration_s) const {
-    return {HQ_SIM_EXE, "--sitl", "--world", "onboard/sim/worlds/arena.yaml", "--duration-s",
-            std::to_string(duration_s), "--mavlink", "udp-listen:" + port_, "--channel",
-            channel_};
+    return {HQ_SIM_EXE,     "--sitl",
+            "--world",      "onboard/sim/worlds/arena.yaml",
+            "--duration-s", std::to_string(duration_s),
+            "--mavlink",    "udp-listen:" + port_,
+            "--channel",    channel_};
   }
   std::vector<std::string> onboard_args(double duration_s) const {
-    return {HQ_ONBOARD_EXE, "--source", "sitl", "--fc", "mavlink:udp:127.0.0.1:" + port_,
-            "--channel", channel_, "--link", "--domain-id", domain_, "--insecure", "--duration-s",
+    return {HQ_ONBOARD_EXE,
+            "--source",
+            "sitl",
+            "--fc",
+            "mavlink:udp:127.0.0.1:" + port_,
+            "--channel",
+            channel_,
+            "--link",
+            "--domain-id",
+            domain_,
+            "--insecure",
+            "--duration-s",
             std::to_string(duration_s)};
   }
   std::vector<std::string> ground_args(double duration_s) const {
-    return {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config",
-            "ground/config/demo_hand.yaml", "--domain-id", domain_, "--insecure", "--duration-s",
+    return {HQ_GROUND_EXE,
+            "--device",
+            "sim",
+            "--headless",
+            "--haptics-config",
+            "ground/config/demo_hand.yaml",
+            "--domain-id",
+            domain_,
+            "--insecure",
+            "--duration-s",
             std::to_string(duration_s)};
   }
   std::filesystem::path file(const char* name) const { return dir_ / name; }
@@ -161,7 +180,8 @@ TEST_F(VehicleProcesses, KillingTheGroundHoldsThenLandsThroughMavlink) {
   ASSERT_TRUE(sim.started() && onboard.started() && ground.started());
   // Airborne: hq-sim's status line reads an altitude well above the floor.
   const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(25);
-  while (std::chrono::steady_clock::now() < end && sim_altitude(file("sim.out")).value_or(0) < 0.6) {
+  while (std::chrono::steady_clock::now() < end &&
+         sim_altitude(file("sim.out")).value_or(0) < 0.6) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
   ASSERT_GE(sim_altitude(file("sim.out")).value_or(0), 0.6) << slurp(file("sim.out"));
@@ -198,10 +218,10 @@ TEST_F(VehicleProcesses, ReplayWithLinkReachesTheGround) {
                   "--insecure", "--duration-s", "12"},
                  file("ground.out"));
   std::this_thread::sleep_for(std::chrono::seconds(1));
-  Process onboard({HQ_ONBOARD_EXE, "--source", "replay", sequence.string(), "--camera",
-                   (sequence / "camera.yaml").string(), "--link", "--domain-id", domain_,
-                   "--insecure"},
-                  file("onboard.out"));
+  Process onboard(
+      {HQ_ONBOARD_EXE, "--source", "replay", sequence.string(), "--camera",
+       (sequence / "camera.yaml").string(), "--link", "--domain-id", domain_, "--insecure"},
+      file("onboard.out"));
   EXPECT_EQ(onboard.wait_exit(60.0), 0) << slurp(file("onboard.out"));
   EXPECT_EQ(ground.wait_exit(30.0), 0) << slurp(file("ground.out"));
   const std::string onboard_out = slurp(file("onboard.out"));
@@ -210,9 +230,9 @@ TEST_F(VehicleProcesses, ReplayWithLinkReachesTheGround) {
       << onboard_out;
   EXPECT_GT(number_after(ground_out, R"(received +([0-9]+) states)").value_or(0.0), 100.0)
       << ground_out;
-  EXPECT_GT(number_after(ground_out, R"(states, [0-9]+ events, ([0-9]+) camera frames)")
-                .value_or(0.0),
-            20.0)
+  EXPECT_GT(
+      number_after(ground_out, R"(states, [0-9]+ events, ([0-9]+) camera frames)").value_or(0.0),
+      20.0)
       << ground_out;
 }
 

@@ -9,11 +9,10 @@
 // of a case is the same flight whatever the number of runs, and the same with memory off or on.
 // Shared by hq_obstacle_memory_campaign_test and hq-bench-memory-campaign.
 
-#include "../closed_loop/scenario.hpp"
-
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/sim/world.hpp"
 
+#include "../closed_loop/scenario.hpp"
 #include <Eigen/Core>
 
 #include <algorithm>
@@ -46,12 +45,12 @@ inline const char* to_string(MemoryCase c) {
 struct MemoryRun {
   MemoryCase kind = MemoryCase::kBackUp;
   int index = 0;
-  double speed_mps = 0.5;       ///< The operator's push, 0.3-0.8 m/s.
-  double start_yaw_rad = 0.0;   ///< NED yaw of the body at the start.
-  double distance_m = 1.7;      ///< Body centre to the box's near face along the camera heading.
+  double speed_mps = 0.5;      ///< The operator's push, 0.3-0.8 m/s.
+  double start_yaw_rad = 0.0;  ///< NED yaw of the body at the start.
+  double distance_m = 1.7;     ///< Body centre to the box's near face along the camera heading.
   Eigen::Vector3d box_size_m = Eigen::Vector3d(0.5, 0.5, 1.6);
   double box_yaw_rad = 0.0;
-  double turn_rad = 0.0;        ///< Yaw to the left before the push (positive = left).
+  double turn_rad = 0.0;  ///< Yaw to the left before the push (positive = left).
 };
 
 inline constexpr double kYawRateRadps = 80.0 * M_PI / 180.0;  ///< Below the 90 deg/s limit.
@@ -104,8 +103,8 @@ inline Scenario memory_scenario(const MemoryRun& r, bool memory_enabled, const s
   s.world.start_world_m = Eigen::Vector3d(0.0, 0.0, kAltitudeM);
   s.world.start_yaw_rad = r.start_yaw_rad;
   s.start_airborne(kAltitudeM);
-  s.sim.seed = 5000u + 100u * static_cast<std::uint64_t>(r.kind) +
-               static_cast<std::uint64_t>(r.index);
+  s.sim.seed =
+      5000u + 100u * static_cast<std::uint64_t>(r.kind) + static_cast<std::uint64_t>(r.index);
   s.onboard.memory.enabled = memory_enabled;
   // These runs measure the memory's push on a vehicle driven out of view; the seen-space
   // limiter refuses that drive itself, so it is off here (its own campaign is
@@ -148,11 +147,10 @@ inline Scenario memory_scenario(const MemoryRun& r, bool memory_enabled, const s
   t += 0.75;
   // The box's bearing from the camera heading after the turn: behind (back-up) or turn_rad to
   // the right (left turns); [forward, right, down] about the camera heading.
-  const Eigen::Vector3d push =
-      r.kind == MemoryCase::kBackUp
-          ? Eigen::Vector3d(-r.speed_mps, 0, 0)
-          : Eigen::Vector3d(r.speed_mps * std::cos(r.turn_rad), r.speed_mps * std::sin(r.turn_rad),
-                            0);
+  const Eigen::Vector3d push = r.kind == MemoryCase::kBackUp
+                                   ? Eigen::Vector3d(-r.speed_mps, 0, 0)
+                                   : Eigen::Vector3d(r.speed_mps * std::cos(r.turn_rad),
+                                                     r.speed_mps * std::sin(r.turn_rad), 0);
   s.step(t, push);
   t += (to_contact_m + 0.3) / r.speed_mps;
   s.step(t, zero);
@@ -178,18 +176,17 @@ class TimedPlayer final : public OperatorSource {
       const double nearest_m = m.count > 0 ? m.p_horizontal_m[0].norm() : NAN;
       const Eigen::Vector3d& v_obs = out.obstacles.v_obs_horizontal_mps;
       const Eigen::Vector3d& v_des = out.mode.v_des_horizontal_mps;
-      std::fprintf(trace_,
-                   "t %6.2f track %-5s map %5d recalled %2d nearest %5.2f view %2d "
-                   "v_obs [%+.2f %+.2f] v_des [%+.2f %+.2f] v_true [%+.2f %+.2f] yaw %+6.1f "
-                   "clear %+.3f %s%s near %d p0 [%+.2f %+.2f %+.2f]\n",
-                   1e-9 * static_cast<double>(out.t_ns), odometry::to_string(out.tracking),
-                   m.map_size, m.count, nearest_m, out.obstacles.count, v_obs.x(), v_obs.y(),
-                   v_des.x(), v_des.y(), truth.v_H_mps.x(), truth.v_H_mps.y(),
-                   truth.euler_rad.z() * 180.0 / M_PI, truth.clearance_m, m.updated ? "" : m.reason,
-                   m.cleared ? " CLEARED" : "", out.obstacles.near_hazard ? 1 : 0,
-                   m.count > 0 ? m.p_horizontal_m[0].x() : 0.0,
-                   m.count > 0 ? m.p_horizontal_m[0].y() : 0.0,
-                   m.count > 0 ? m.p_horizontal_m[0].z() : 0.0);
+      std::fprintf(
+          trace_,
+          "t %6.2f track %-5s map %5d recalled %2d nearest %5.2f view %2d "
+          "v_obs [%+.2f %+.2f] v_des [%+.2f %+.2f] v_true [%+.2f %+.2f] yaw %+6.1f "
+          "clear %+.3f %s%s near %d p0 [%+.2f %+.2f %+.2f]\n",
+          1e-9 * static_cast<double>(out.t_ns), odometry::to_string(out.tracking), m.map_size,
+          m.count, nearest_m, out.obstacles.count, v_obs.x(), v_obs.y(), v_des.x(), v_des.y(),
+          truth.v_H_mps.x(), truth.v_H_mps.y(), truth.euler_rad.z() * 180.0 / M_PI,
+          truth.clearance_m, m.updated ? "" : m.reason, m.cleared ? " CLEARED" : "",
+          out.obstacles.near_hazard ? 1 : 0, m.count > 0 ? m.p_horizontal_m[0].x() : 0.0,
+          m.count > 0 ? m.p_horizontal_m[0].y() : 0.0, m.count > 0 ? m.p_horizontal_m[0].z() : 0.0);
     }
     if (frames_++ > 0 && timing_ != nullptr) timing_->add(out.durations);
     max_map_size_ = std::max(max_map_size_, out.memory.map_size);
@@ -211,13 +208,13 @@ struct MemoryOutcome {
 };
 
 /// Flies one run. With `clock` the chain's stages are timed into `timing`.
-inline MemoryOutcome fly_memory_run(const MemoryRun& r, bool memory_enabled,
-                                    const sim::World& room, const pipeline::Clock* clock = nullptr,
+inline MemoryOutcome fly_memory_run(const MemoryRun& r, bool memory_enabled, const sim::World& room,
+                                    const pipeline::Clock* clock = nullptr,
                                     pipeline::StageTimingLog* timing = nullptr,
                                     std::FILE* trace = nullptr) {
   Scenario s = memory_scenario(r, memory_enabled, room);
-  TimedPlayer player(OperatorPlayer(s.script, camera_heading_rad(s.vehicle.R_body_camera)),
-                     timing, trace);
+  TimedPlayer player(OperatorPlayer(s.script, camera_heading_rad(s.vehicle.R_body_camera)), timing,
+                     trace);
   s.options.clock = clock;
   s.options.operator_source = &player;
   auto loop = s.make();

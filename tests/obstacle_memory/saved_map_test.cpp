@@ -3,16 +3,14 @@
 // within the memory's radius of where the vehicle flew.
 
 #include "memory_campaign.hpp"
-
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
 #include <pcl/point_types.h>
 
-#include <unistd.h>
-
 #include <cstdio>
 #include <string>
+#include <unistd.h>
 
 namespace hq::closed_loop {
 namespace {
@@ -33,8 +31,8 @@ TEST(SavedMap, PcdAndPlyReadBackWithTheMemorysPointsInPlausibleBounds) {
     const std::string path = stem + ext;
     memory.save(path);
     pcl::PointCloud<pcl::PointXYZ> cloud;
-    const int status = ext == ".pcd" ? pcl::io::loadPCDFile(path, cloud)
-                                     : pcl::io::loadPLYFile(path, cloud);
+    const int status =
+        ext == ".pcd" ? pcl::io::loadPCDFile(path, cloud) : pcl::io::loadPLYFile(path, cloud);
     std::remove(path.c_str());
     ASSERT_EQ(status, 0) << path;
     EXPECT_EQ(static_cast<int>(cloud.size()), memory.size()) << ext;

@@ -141,15 +141,16 @@ INSTANTIATE_TEST_SUITE_P(KeyframeDefaults, OdometryOnSimulatedCircle,
 // m/s) and the keyframe drift 2x (0.00113 -> 0.00051 m/s).
 INSTANTIATE_TEST_SUITE_P(DepthTerm, OdometryOnSimulatedCircle,
                          ::testing::Values(Case{"frame_to_frame_depth",
-                                                hq::odometry::ReferenceMode::kFrameToFrame, true,
+                                                hq::odometry::ReferenceMode::kFrameToFrame,
+                                                true,
                                                 {0.00838, 0.0105, 0.3516, 0.44, 0.00751, 0.0094},
                                                 true},
-                                           Case{"frame_to_keyframe_depth",
-                                                hq::odometry::ReferenceMode::kFrameToKeyframe,
-                                                true,
-                                                {0.00051, 0.00064, 0.0124, 0.0155, 0.00039,
-                                                 0.00049},
-                                                true}),
+                                           Case{
+                                               "frame_to_keyframe_depth",
+                                               hq::odometry::ReferenceMode::kFrameToKeyframe,
+                                               true,
+                                               {0.00051, 0.00064, 0.0124, 0.0155, 0.00039, 0.00049},
+                                               true}),
                          case_name);
 
 }  // namespace

@@ -42,9 +42,9 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
                             const std::array<float, 3>& v_H_mps,
                             const std::array<float, 3>& omega_body_radps, float roll_rad,
                             float pitch_rad, const std::array<float, 3>& v_obs_H_mps,
-                            const char* mode, const char* estimator_health,
-                            const char* link_health, const float* cloud_body_m,
-                            std::size_t cloud_points, const StateExtras& extras) {
+                            const char* mode, const char* estimator_health, const char* link_health,
+                            const float* cloud_body_m, std::size_t cloud_points,
+                            const StateExtras& extras) {
   const std::lock_guard<std::mutex> lock(mutex_);
   const double t_s = seconds(t_ns);
   const bool position = extras.position_valid && std::isfinite(extras.p_W_m[0]) &&

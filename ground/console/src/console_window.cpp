@@ -1,30 +1,30 @@
 #include "hq/console/console_window.hpp"
 
 #include "hq/base/error.hpp"
-#include "replay_strip.hpp"
 
-#include <GL/gl.h>
-#include <SDL.h>
-#include <imgui.h>
-#include <backends/imgui_impl_opengl3.h>
-#include <backends/imgui_impl_sdl.h>
+#include "replay_strip.hpp"
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <GL/gl.h>
+#include <SDL.h>
 #include <algorithm>
 #include <array>
+#include <backends/imgui_impl_opengl3.h>
+#include <backends/imgui_impl_sdl.h>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <filesystem>
 #include <ctime>
+#include <filesystem>
+#include <imgui.h>
 #include <limits>
-#include <optional>
-#include <condition_variable>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -145,8 +145,7 @@ class FrameDecoder {
   }
 
   // UI thread (GL context): uploads the newest decoded frame if it is not `uploaded` yet.
-  void upload_latest(std::uint64_t& uploaded, Texture& camera, Texture& depth,
-                     WindowStats& stats) {
+  void upload_latest(std::uint64_t& uploaded, Texture& camera, Texture& depth, WindowStats& stats) {
     const std::lock_guard<std::mutex> lock(mutex_);
     stats.camera_frames_decoded = frames_decoded_;
     stats.camera_decode_failures = decode_failures_;
@@ -257,7 +256,7 @@ class FrameDecoder {
   std::uint64_t frames_decoded_ = 0;
   std::uint64_t decode_failures_ = 0;
   std::uint64_t depth_decoded_ = 0;
-  MsHistogram video_;    // UI thread only (upload_latest)
+  MsHistogram video_;  // UI thread only (upload_latest)
   MsHistogram link_;
   MsHistogram decode_;
   MsHistogram display_;
@@ -480,7 +479,8 @@ struct ConsoleWindow::Impl {
       const float avail = ImGui::GetContentRegionAvail().x;
       const bool with_depth = depth.id != 0;
       const float w = with_depth ? avail * 0.66F : avail;
-      const float h = w * static_cast<float>(camera.height_px) / static_cast<float>(camera.width_px);
+      const float h =
+          w * static_cast<float>(camera.height_px) / static_cast<float>(camera.width_px);
       const ImVec2 origin = ImGui::GetCursorScreenPos();
       ImGui::Image(texture_id(camera.id), ImVec2(w, h));
       if (with_depth) {
@@ -522,10 +522,11 @@ struct ConsoleWindow::Impl {
                     "arrows: lateral/vertical in H; rings: forward speed");
     }
     if (stats.video_p50_ms >= 0) {
-      ImGui::Text("video exposure->display %.0f ms (p50 %.0f, p99 %.0f): vehicle+link %.0f, "
-                  "pick-up+decode %.0f, to display %.0f (p50s)",
-                  stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms,
-                  stats.video_link_p50_ms, stats.video_decode_p50_ms, stats.video_display_p50_ms);
+      ImGui::Text(
+          "video exposure->display %.0f ms (p50 %.0f, p99 %.0f): vehicle+link %.0f, "
+          "pick-up+decode %.0f, to display %.0f (p50s)",
+          stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms, stats.video_link_p50_ms,
+          stats.video_decode_p50_ms, stats.video_display_p50_ms);
     }
     ImGui::TextColored(ImColor(kCommanded), "commanded");
     ImGui::SameLine();
@@ -746,14 +747,29 @@ struct ConsoleWindow::Impl {
 
   static void mode_key(SDL_Keycode key, UiActions& actions) {
     switch (key) {
-      case SDLK_t: actions.mode_request = "teleop"; break;
-      case SDLK_h: actions.mode_request = "hover"; break;
-      case SDLK_l: actions.mode_request = "land"; break;
-      case SDLK_m: actions.mode_request = "marker"; break;
-      case SDLK_x: actions.mode_request = "explore"; break;
-      case SDLK_u: actions.take_off = true; break;
-      case SDLK_ESCAPE: actions.quit = true; break;
-      default: break;
+      case SDLK_t:
+        actions.mode_request = "teleop";
+        break;
+      case SDLK_h:
+        actions.mode_request = "hover";
+        break;
+      case SDLK_l:
+        actions.mode_request = "land";
+        break;
+      case SDLK_m:
+        actions.mode_request = "marker";
+        break;
+      case SDLK_x:
+        actions.mode_request = "explore";
+        break;
+      case SDLK_u:
+        actions.take_off = true;
+        break;
+      case SDLK_ESCAPE:
+        actions.quit = true;
+        break;
+      default:
+        break;
     }
   }
 
@@ -766,8 +782,8 @@ struct ConsoleWindow::Impl {
     ++stats.frames;
     const double elapsed_s = std::chrono::duration<double>(end - first_frame).count();
     if (elapsed_s > 0) stats.fps = static_cast<double>(stats.frames - 1) / elapsed_s;
-    next_frame += std::chrono::duration_cast<Clock::duration>(
-        std::chrono::duration<double>(1.0 / max_fps));
+    next_frame +=
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / max_fps));
     if (next_frame > end) {
       std::this_thread::sleep_until(next_frame);
     } else {
@@ -813,9 +829,8 @@ struct ConsoleWindow::Impl {
     ImGui::SetNextWindowPos(ImVec2(0, 0), ImGuiCond_Always);
     ImGui::SetNextWindowSize(ImVec2(width, 0), ImGuiCond_Always);
     ImGui::Begin("Status", nullptr,
-                 ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoMove |
-                     ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
-                     ImGuiWindowFlags_NoSavedSettings);
+                 ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                     ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoSavedSettings);
     const double stale = stale_s(s);
     const bool landed = std::strcmp(s.flight_state, "landed") == 0;
     const ImU32 flight_colour = landed ? IM_COL32(230, 200, 80, 255)
@@ -925,8 +940,9 @@ struct ConsoleWindow::Impl {
     for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
       ImGui::SameLine();
       char label[32];
-      std::snprintf(label, sizeof label, "%s%u", s.link.vehicle_ids[i] == s.link.selected_vehicle
-                                                     ? "* " : "", s.link.vehicle_ids[i]);
+      std::snprintf(label, sizeof label, "%s%u",
+                    s.link.vehicle_ids[i] == s.link.selected_vehicle ? "* " : "",
+                    s.link.vehicle_ids[i]);
       if (ImGui::Button(label)) {
         actions.select_vehicle = true;
         actions.vehicle_id = s.link.vehicle_ids[i];
@@ -970,17 +986,20 @@ struct ConsoleWindow::Impl {
   void link_panel(const Snapshot& s) {
     ImGui::Begin("Link health");
     const LinkHealth& l = s.link;
-    const char* state = s.replay.active ? (s.replay.at_end ? "END OF RECORDING" : "replayed")
-                        : l.state_age_s < 0 ? "waiting" : l.state_age_s < 0.2 ? "ok"
-                        : l.state_age_s < 2.0 ? "STALE" : "LOST";
+    const char* state = s.replay.active       ? (s.replay.at_end ? "END OF RECORDING" : "replayed")
+                        : l.state_age_s < 0   ? "waiting"
+                        : l.state_age_s < 0.2 ? "ok"
+                        : l.state_age_s < 2.0 ? "STALE"
+                                              : "LOST";
     ImGui::Text("states: %s (age %.2f s)  heartbeat %s", state, l.state_age_s,
                 l.heartbeat_seen ? "seen" : "none");
     ImGui::Text("latency last %.2f ms  p50 %.2f  p99 %.2f", l.last_latency_ms, l.latency_p50_ms,
                 l.latency_p99_ms);
-    ImGui::Text("round trip %.0f ms (p50 %.0f, p99 %.0f)  state age %.0f ms (p99 %.0f)  "
-                "loss %.1f %%",
-                l.round_trip_ms, l.round_trip_p50_ms, l.round_trip_p99_ms, l.state_one_way_ms,
-                l.state_one_way_p99_ms, l.state_loss_percent);
+    ImGui::Text(
+        "round trip %.0f ms (p50 %.0f, p99 %.0f)  state age %.0f ms (p99 %.0f)  "
+        "loss %.1f %%",
+        l.round_trip_ms, l.round_trip_p50_ms, l.round_trip_p99_ms, l.state_one_way_ms,
+        l.state_one_way_p99_ms, l.state_loss_percent);
     ImGui::Text("rates: states %.1f Hz  camera %.1f Hz", l.state_rate_hz, l.camera_rate_hz);
     ImGui::Text("received %llu states, %llu frames, %llu events",
                 static_cast<unsigned long long>(l.states),
@@ -1069,7 +1088,8 @@ ConsoleWindow::ConsoleWindow(const std::string& title, const WindowOptions& opti
   ImGui::StyleColorsDark();
   impl_->imgui_sdl = ImGui_ImplSDL2_InitForOpenGL(impl_->window, impl_->gl);
   impl_->imgui_gl = ImGui_ImplOpenGL3_Init("#version 330");
-  if (!impl_->imgui_sdl || !impl_->imgui_gl) throw InputError("ImGui backend initialisation failed");
+  if (!impl_->imgui_sdl || !impl_->imgui_gl)
+    throw InputError("ImGui backend initialisation failed");
   const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   impl_->stats.gl_renderer = renderer != nullptr ? renderer : "?";
 }

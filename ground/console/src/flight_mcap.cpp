@@ -22,11 +22,16 @@ struct Encapsulation {
 
 Encapsulation encapsulation(mcap::Bytes message) {
   switch ((unsigned{message[0]} << 8) | message[1]) {
-    case 0x0000: return {1, false};  // CDR_BE
-    case 0x0001: return {1, true};   // CDR_LE
-    case 0x0006: return {2, false};  // PLAIN_CDR2_BE
-    case 0x0007: return {2, true};   // PLAIN_CDR2_LE
-    default: return {};
+    case 0x0000:
+      return {1, false};  // CDR_BE
+    case 0x0001:
+      return {1, true};  // CDR_LE
+    case 0x0006:
+      return {2, false};  // PLAIN_CDR2_BE
+    case 0x0007:
+      return {2, true};  // PLAIN_CDR2_LE
+    default:
+      return {};
   }
 }
 
@@ -127,7 +132,8 @@ bool dispatch(Kind kind, const mcap::Message& m, Decoders& d, FlightSampleSink& 
       ++counts.commands;
       return true;
     }
-    case Kind::kNone: return true;
+    case Kind::kNone:
+      return true;
   }
   return true;
 }
@@ -144,9 +150,10 @@ bool decode_cdr(mcap::Bytes message, link::Sample<T>& out, std::vector<std::uint
   const Encapsulation e = encapsulation(message);
   if (e.xcdr_version == 0) {
     char text[96];
-    std::snprintf(text, sizeof text,
-                  "CDR encapsulation 0x%02x%02x, expected XCDR1 or plain XCDR2 (0000/0001/0006/0007)",
-                  message[0], message[1]);
+    std::snprintf(
+        text, sizeof text,
+        "CDR encapsulation 0x%02x%02x, expected XCDR1 or plain XCDR2 (0000/0001/0006/0007)",
+        message[0], message[1]);
     error = text;
     return false;
   }
@@ -169,14 +176,14 @@ bool decode_cdr(mcap::Bytes message, link::Sample<T>& out, std::vector<std::uint
   return true;
 }
 
-template bool decode_cdr(mcap::Bytes, link::Sample<link::VehicleState>&,
-                         std::vector<std::uint8_t>&, std::string&);
-template bool decode_cdr(mcap::Bytes, link::Sample<link::CameraFrame>&,
-                         std::vector<std::uint8_t>&, std::string&);
+template bool decode_cdr(mcap::Bytes, link::Sample<link::VehicleState>&, std::vector<std::uint8_t>&,
+                         std::string&);
+template bool decode_cdr(mcap::Bytes, link::Sample<link::CameraFrame>&, std::vector<std::uint8_t>&,
+                         std::string&);
 template bool decode_cdr(mcap::Bytes, link::Sample<link::Event>&, std::vector<std::uint8_t>&,
                          std::string&);
-template bool decode_cdr(mcap::Bytes, link::Sample<link::ModeRequest>&,
-                         std::vector<std::uint8_t>&, std::string&);
+template bool decode_cdr(mcap::Bytes, link::Sample<link::ModeRequest>&, std::vector<std::uint8_t>&,
+                         std::string&);
 template bool decode_cdr(mcap::Bytes, link::Sample<link::VelocityCommand>&,
                          std::vector<std::uint8_t>&, std::string&);
 

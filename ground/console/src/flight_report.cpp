@@ -67,7 +67,8 @@ ReportFigures compute_report(const Recording& r) {
                                     : std::min(f.closest_cloud_point_m, s.closest_obstacle_m);
     }
     if (std::isfinite(s.height_m)) {
-      f.max_height_m = std::isnan(f.max_height_m) ? s.height_m : std::max(f.max_height_m, s.height_m);
+      f.max_height_m =
+          std::isnan(f.max_height_m) ? s.height_m : std::max(f.max_height_m, s.height_m);
       ++f.height_states;
     }
     latencies.push_back(s.latency_ms);

@@ -6,8 +6,6 @@
 
 #include "recording_internal.hpp"
 
-#include <time.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -19,6 +17,7 @@
 #include <map>
 #include <sstream>
 #include <thread>
+#include <time.h>
 
 namespace hq::console {
 
@@ -30,10 +29,21 @@ constexpr std::array<const char*, 9> kNames = {"teleop", "hover",    "land", "ma
                                                "ok",     "degraded", "lost", "invalid"};
 
 // The recorder's names of the link's flight enums (ground_station.cpp), static for RecordedState.
-constexpr std::array<const char*, 15> kFlightNames = {
-    "landed",       "taking_off",     "airborne",          "landing",          "none",
-    "depth",        "estimate",       "flown",             "ignored_mode",     "ignored_landed",
-    "ignored_not_owner", "ignored_failsafe", "limited_unseen", "unknown", "invalid"};
+constexpr std::array<const char*, 15> kFlightNames = {"landed",
+                                                      "taking_off",
+                                                      "airborne",
+                                                      "landing",
+                                                      "none",
+                                                      "depth",
+                                                      "estimate",
+                                                      "flown",
+                                                      "ignored_mode",
+                                                      "ignored_landed",
+                                                      "ignored_not_owner",
+                                                      "ignored_failsafe",
+                                                      "limited_unseen",
+                                                      "unknown",
+                                                      "invalid"};
 
 const char* intern_flight(std::string_view text) {
   for (const char* name : kFlightNames) {
@@ -168,8 +178,7 @@ class CsvFile {
         }
         continue;
       }
-      const std::vector<std::string_view> fields =
-          split(line, last_text_ ? header_fields : 1000);
+      const std::vector<std::string_view> fields = split(line, last_text_ ? header_fields : 1000);
       if (fields.size() != header_fields) {
         add_problem(recording_, where + ": expected " + std::to_string(header_fields) +
                                     " fields, got " + std::to_string(fields.size()) +
@@ -302,10 +311,9 @@ namespace {
 using FileStarts = std::vector<std::pair<std::string, std::int64_t>>;  // "file:line", first stamp
 
 const std::vector<std::string> kStateColumns = {
-    "receipt_ns",   "latency_us",   "sequence",     "t_ns",          "v_H_x_mps",
-    "v_H_y_mps",    "v_H_z_mps",    "omega_x_radps", "omega_y_radps", "omega_z_radps",
-    "roll_rad",     "pitch_rad",    "v_obs_x_mps",  "v_obs_y_mps",   "v_obs_z_mps",
-    "mode",         "estimator_health", "link_health",
+    "receipt_ns", "latency_us", "sequence", "t_ns", "v_H_x_mps", "v_H_y_mps", "v_H_z_mps",
+    "omega_x_radps", "omega_y_radps", "omega_z_radps", "roll_rad", "pitch_rad", "v_obs_x_mps",
+    "v_obs_y_mps", "v_obs_z_mps", "mode", "estimator_health", "link_health",
     // Optional from here: later layouts (older recordings lack them).
     "closest_obstacle_m", "position_valid", "p_W_x_m", "p_W_y_m", "p_W_z_m", "yaw_W_rad",
     "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
@@ -369,7 +377,8 @@ bool parse_state_pose_truth(const CsvFile& file, const Fields& f, RecordedState&
     s.yaw_W_rad = pose[3];
   }
   if (file.has(24) && file.has(27)) {
-    if (!parse_integer(f[24], flag) || !parse_floats(f, 25, kStateColumns, s.v_truth_H_mps, error)) {
+    if (!parse_integer(f[24], flag) ||
+        !parse_floats(f, 25, kStateColumns, s.v_truth_H_mps, error)) {
       if (error.empty()) error = "truth_valid = '" + std::string(f[24]) + "', expected 0/1";
       return false;
     }
@@ -431,22 +440,23 @@ void read_states(Recording& r, FileStarts& starts) {
 void read_commands(Recording& r, FileStarts& starts) {
   const std::vector<std::string> columns = {"t_ns",      "v_H_x_mps",      "v_H_y_mps",
                                             "v_H_z_mps", "yaw_rate_radps", "valid"};
-  CsvFile(r, "commands.csv", columns).check_stamps(starts).read([&](const Fields& f,
-                                                                    std::string& error) {
-    RecordedCommand c;
-    int valid = 0;
-    if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
-      error = "t_ns or valid is not an integer";
-      return false;
-    }
-    std::array<float, 4> v{};
-    if (!parse_floats(f, 1, columns, v, error)) return false;
-    c.v_H_mps = {v[0], v[1], v[2]};
-    c.yaw_rate_radps = v[3];
-    c.valid = valid != 0;
-    r.commands.push_back(c);
-    return true;
-  });
+  CsvFile(r, "commands.csv", columns)
+      .check_stamps(starts)
+      .read([&](const Fields& f, std::string& error) {
+        RecordedCommand c;
+        int valid = 0;
+        if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
+          error = "t_ns or valid is not an integer";
+          return false;
+        }
+        std::array<float, 4> v{};
+        if (!parse_floats(f, 1, columns, v, error)) return false;
+        c.v_H_mps = {v[0], v[1], v[2]};
+        c.yaw_rate_radps = v[3];
+        c.valid = valid != 0;
+        r.commands.push_back(c);
+        return true;
+      });
 }
 
 void read_mode_requests(Recording& r, FileStarts& starts) {
@@ -546,20 +556,23 @@ std::string find_flight_mcap(const std::string& path) {
 Recording load_recording(const std::string& path) {
   if (fs::is_regular_file(path)) {
     if (!is_mcap_file(path)) {
-      throw InputError(path + ": not an MCAP file (no MCAP magic), expected a flight.mcap or a "
-                              "recording folder written by hq-ground --record");
+      throw InputError(path +
+                       ": not an MCAP file (no MCAP magic), expected a flight.mcap or a "
+                       "recording folder written by hq-ground --record");
     }
     return load_mcap_recording(path);
   }
   if (!fs::is_directory(path)) {
-    throw InputError(path + ": not found, expected a recording folder written by hq-ground "
-                            "--record (or its flight.mcap)");
+    throw InputError(path +
+                     ": not found, expected a recording folder written by hq-ground "
+                     "--record (or its flight.mcap)");
   }
   const std::string mcap_path = find_flight_mcap(path);
   if (!mcap_path.empty()) return load_folder_mcap(path, mcap_path);
   if (!has_csv_recording(path)) {
-    throw InputError(path + ": neither flight.mcap, telemetry.csv nor rgb.txt: not an hq-ground "
-                            "recording");
+    throw InputError(path +
+                     ": neither flight.mcap, telemetry.csv nor rgb.txt: not an hq-ground "
+                     "recording");
   }
   return load_csv_recording(path);
 }

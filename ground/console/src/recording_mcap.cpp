@@ -31,16 +31,19 @@ const char* health_name(hq_msgs_Health v) {
 
 template <std::size_t N>
 const char* name_of(const std::array<const char*, N>& names, int v) {
-  return v >= 0 && static_cast<std::size_t>(v) < N ? names[static_cast<std::size_t>(v)]
-                                                    : "unknown";
+  return v >= 0 && static_cast<std::size_t>(v) < N ? names[static_cast<std::size_t>(v)] : "unknown";
 }
 
 constexpr std::array<const char*, 4> kFlightStates = {"landed", "taking_off", "airborne",
                                                       "landing"};
 constexpr std::array<const char*, 3> kHeightSources = {"none", "depth", "estimate"};
-constexpr std::array<const char*, 7> kOperatorInputs = {
-    "flown",          "none",          "ignored_mode",  "ignored_landed",
-    "ignored_not_owner", "ignored_failsafe", "limited_unseen"};
+constexpr std::array<const char*, 7> kOperatorInputs = {"flown",
+                                                        "none",
+                                                        "ignored_mode",
+                                                        "ignored_landed",
+                                                        "ignored_not_owner",
+                                                        "ignored_failsafe",
+                                                        "limited_unseen"};
 
 std::array<float, 3> array3(const hq_msgs_Vector3f& v) { return {v.x, v.y, v.z}; }
 
@@ -166,8 +169,9 @@ class RecordingBuilder : public FlightSampleSink {
   // One vehicle's track: the one the recording has most states of.
   void keep_main_vehicle() {
     if (states_of_.size() <= 1) return;
-    const auto main = std::max_element(states_of_.begin(), states_of_.end(),
-                                       [](const auto& a, const auto& b) { return a.second < b.second; });
+    const auto main =
+        std::max_element(states_of_.begin(), states_of_.end(),
+                         [](const auto& a, const auto& b) { return a.second < b.second; });
     std::string others;
     for (const auto& [vehicle, count] : states_of_) {
       if (vehicle == main->first) continue;
@@ -200,11 +204,11 @@ Recording load_mcap_recording(const std::string& mcap_path) {
   r.from_mcap = true;
   const std::string name = std::filesystem::path(mcap_path).filename().string();
   if (!reader.report().has_summary) {
-    add_problem(r, name + ": no summary (the recorder was killed?): " +
-                       std::to_string(reader.messages().size()) + " messages recovered, " +
-                       std::to_string(reader.report().file_size_bytes -
-                                      reader.report().valid_end_bytes) +
-                       " bytes at the tail dropped");
+    add_problem(
+        r, name + ": no summary (the recorder was killed?): " +
+               std::to_string(reader.messages().size()) + " messages recovered, " +
+               std::to_string(reader.report().file_size_bytes - reader.report().valid_end_bytes) +
+               " bytes at the tail dropped");
   }
   RecordingBuilder builder(r);
   read_flight(reader, name, builder);

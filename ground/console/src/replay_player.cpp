@@ -203,8 +203,8 @@ ReplayCounts ReplayPlayer::counts() const {
       latency_window_.push_back(r.states[i].latency_ms);
     }
     if (!latency_window_.empty()) {
-      const auto mid = latency_window_.begin() +
-                       static_cast<std::ptrdiff_t>(latency_window_.size() / 2);
+      const auto mid =
+          latency_window_.begin() + static_cast<std::ptrdiff_t>(latency_window_.size() / 2);
       std::nth_element(latency_window_.begin(), mid, latency_window_.end());
       c.latency_p50_ms = *mid;
     }
@@ -242,8 +242,8 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
     if (start.first_state > 0) {
       model.start_new_track();
       char text[160];
-      std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session",
-                    start.t_s, start.why);
+      std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session", start.t_s,
+                    start.why);
       model.on_event(s.receipt_ns, 1, text);
     }
   }
@@ -255,9 +255,8 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
   extras.yaw_W_rad = s.yaw_W_rad;
   extras.truth_valid = s.truth_valid;
   extras.v_truth_H_mps = s.v_truth_H_mps;
-  model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad,
-                 s.pitch_rad, s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health, nullptr,
-                 0, extras);
+  model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad, s.pitch_rad,
+                 s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health, nullptr, 0, extras);
 }
 
 void ReplayPlayer::feed_streams(ConsoleModel& model, std::int64_t t_ns) {
@@ -332,11 +331,10 @@ void ReplayPlayer::publish_status(ConsoleModel& model) const {
   link.last_latency_ms = c.latency_last_ms;
   link.latency_p50_ms = c.latency_p50_ms;
   link.state_age_s = c.state_age_s;
-  link.state_loss_percent =
-      c.states + c.sequence_gaps > 0
-          ? 100.0 * static_cast<double>(c.sequence_gaps) /
-                static_cast<double>(c.states + c.sequence_gaps)
-          : 0.0;
+  link.state_loss_percent = c.states + c.sequence_gaps > 0
+                                ? 100.0 * static_cast<double>(c.sequence_gaps) /
+                                      static_cast<double>(c.states + c.sequence_gaps)
+                                : 0.0;
   model.on_link(link);
   ReplayStatus status;
   status.active = true;

@@ -1,11 +1,10 @@
 #include "replay_strip.hpp"
 
 #include <SDL.h>
-#include <imgui.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <imgui.h>
 #include <string_view>
 
 namespace hq::console {
@@ -33,12 +32,23 @@ ImU32 severity_colour(int severity) {
 
 bool replay_key(int sdl_keycode, UiActions& actions) {
   switch (sdl_keycode) {
-    case SDLK_SPACE: actions.replay_toggle = true; return true;
-    case SDLK_LEFTBRACKET: --actions.replay_speed_step; return true;
-    case SDLK_RIGHTBRACKET: ++actions.replay_speed_step; return true;
-    case SDLK_LEFT: actions.replay_seek_by_s -= kSeekStepS; return true;
-    case SDLK_RIGHT: actions.replay_seek_by_s += kSeekStepS; return true;
-    default: return false;
+    case SDLK_SPACE:
+      actions.replay_toggle = true;
+      return true;
+    case SDLK_LEFTBRACKET:
+      --actions.replay_speed_step;
+      return true;
+    case SDLK_RIGHTBRACKET:
+      ++actions.replay_speed_step;
+      return true;
+    case SDLK_LEFT:
+      actions.replay_seek_by_s -= kSeekStepS;
+      return true;
+    case SDLK_RIGHT:
+      actions.replay_seek_by_s += kSeekStepS;
+      return true;
+    default:
+      return false;
   }
 }
 
@@ -93,7 +103,8 @@ void draw_replay_strip(const Timeline& timeline, const Snapshot& s, UiActions& a
   const auto x_of = [&](double t_s) {
     return origin.x + static_cast<float>(std::clamp(t_s / duration_s, 0.0, 1.0)) * bar_w;
   };
-  draw->AddRectFilled(origin, ImVec2(origin.x + bar_w, origin.y + bar_h), IM_COL32(40, 40, 48, 255));
+  draw->AddRectFilled(origin, ImVec2(origin.x + bar_w, origin.y + bar_h),
+                      IM_COL32(40, 40, 48, 255));
   for (const ModeBand& b : timeline.bands) {
     draw->AddRectFilled(ImVec2(x_of(b.start_s), origin.y + 3),
                         ImVec2(std::max(x_of(b.end_s), x_of(b.start_s) + 1), origin.y + bar_h - 3),

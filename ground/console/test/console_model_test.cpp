@@ -18,7 +18,8 @@ TEST(ConsoleModel, TopViewIntegratesVelocityInHRotatedByGyroYaw) {
   ConsoleModel m;
   // 1 s straight ahead at 1 m/s, then turning at pi/2 rad/s for 1 s at the same speed in H.
   for (int i = 0; i <= 100; ++i) add_state(m, i * 10'000'000LL, 1.0F, 0.0F);
-  for (int i = 101; i <= 200; ++i) add_state(m, i * 10'000'000LL, 1.0F, static_cast<float>(M_PI / 2));
+  for (int i = 101; i <= 200; ++i)
+    add_state(m, i * 10'000'000LL, 1.0F, static_cast<float>(M_PI / 2));
   Snapshot s = m.make_snapshot();
   m.snapshot(s);
   EXPECT_EQ(s.plot_count, 201U);
@@ -49,8 +50,8 @@ TEST(ConsoleModel, SamplesAndSnapshotsAllocateNothingAfterConstruction) {
   const long before = hq::testing::allocation_count();
   for (int i = 0; i < 5000; ++i) {
     m.on_command(i * 1'000'000LL, {0.1F, 0, 0}, 0.0F);
-    m.on_state(i * 1'000'000LL, 1.0, {0.1F, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "hover", "ok",
-               "ok", cloud.data(), 500);
+    m.on_state(i * 1'000'000LL, 1.0, {0.1F, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "hover", "ok", "ok",
+               cloud.data(), 500);
     if (i % 10 == 0) m.on_camera(i * 1'000'000LL, jpeg.data(), jpeg.size(), nullptr, 0);
     m.on_event(i * 1'000'000LL, 0, "event");
     if (i % 16 == 0) m.snapshot(s);

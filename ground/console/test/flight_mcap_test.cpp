@@ -4,22 +4,21 @@
 // camera frames from memory in the replay, damaged messages named, a folder's MCAP preferred
 // over its CSV files and the CSV files read when the MCAP is unreadable.
 #include "hq/console/flight_mcap.hpp"
+
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
-
 #include "hq/ground/ground_station.hpp"
 #include "hq/mcap/mcap.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 namespace hq::console {
@@ -81,11 +80,11 @@ std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2
   // XCDR2 puts a DHEADER (the byte size) before a sequence of structs.
   if (xcdr2) c.put<std::uint32_t>(4 + 2 * 12);
   c.put<std::uint32_t>(2).vec3(3.0F, 4.0F, 0.0F).vec3(1.0F, 0.0F, 0.0F);  // cloud: nearest 1 m
-  c.put<std::uint8_t>(1).vec3(1.5F, -2.5F, -1.0F).put(0.7F);               // position
+  c.put<std::uint8_t>(1).vec3(1.5F, -2.5F, -1.0F).put(0.7F);              // position
   if (xcdr2) c.put<std::uint32_t>(4 + 32);
   c.put<std::uint32_t>(1).put<std::int32_t>(9).vec3(0, 0, 1).put(1.0F).vec3(0, 0, 0);  // 1 marker
-  c.put<std::uint8_t>(1).vec3(0.11F * f, -0.19F, 0.29F);                   // truth
-  c.put<std::uint64_t>(0xABCDEF).put<std::uint32_t>(7).put<std::uint32_t>(2);  // airborne
+  c.put<std::uint8_t>(1).vec3(0.11F * f, -0.19F, 0.29F);                               // truth
+  c.put<std::uint64_t>(0xABCDEF).put<std::uint32_t>(7).put<std::uint32_t>(2);          // airborne
   c.put<std::uint8_t>(1).put<std::uint32_t>(1).put(1.25F).put<std::uint32_t>(6);  // depth, limited
   c.vec3(0.2F, 0.0F, 0.0F).put(0.85F);
   return c.bytes();

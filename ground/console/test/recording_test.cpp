@@ -1,19 +1,17 @@
 #include "hq/console/recording.hpp"
 
 #include "hq/ground/ground_station.hpp"
-#include "hq/testing/input_error.hpp"
-
 #include "hq/testing/files.hpp"
+#include "hq/testing/input_error.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <unistd.h>
 
 namespace hq::console {
 namespace {
@@ -23,9 +21,7 @@ using ::testing::HasSubstr;
 
 using hq::testing::slurp;
 
-fs::path fresh_dir(const std::string& name) {
-  return hq::testing::fresh_dir("hq_console", name);
-}
+fs::path fresh_dir(const std::string& name) { return hq::testing::fresh_dir("hq_console", name); }
 
 // GIVEN a recording written by the ground's recorder, WHEN read back, THEN every row returns.
 void write_recording(const fs::path& dir, int states) {
@@ -169,12 +165,11 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
   EXPECT_FALSE(r.states[1].truth_valid);
   EXPECT_EQ(r.states[1].markers_n, -1);
   EXPECT_TRUE(std::isnan(r.states[1].closest_obstacle_m));
-  EXPECT_THAT(r.absent_columns,
-              ::testing::IsSupersetOf({"telemetry.csv: closest_obstacle_m",
-                                       "telemetry.csv: position_valid",
-                                       "telemetry.csv: truth_valid",
-                                       "telemetry.csv: v_truth_H_x_mps",
-                                       "telemetry.csv: markers_n"}));
+  EXPECT_THAT(
+      r.absent_columns,
+      ::testing::IsSupersetOf({"telemetry.csv: closest_obstacle_m", "telemetry.csv: position_valid",
+                               "telemetry.csv: truth_valid", "telemetry.csv: v_truth_H_x_mps",
+                               "telemetry.csv: markers_n"}));
   // 11 of the second layout's columns and 11 of the flight fields' (session .. clearance).
   EXPECT_EQ(r.absent_columns.size(), 22U);
   EXPECT_FALSE(r.states[1].flight_fields);

@@ -1,6 +1,5 @@
 #include "hq/console/console_model.hpp"
 #include "hq/link/messages.hpp"
-
 #include "hq/testing/allocation_counter.hpp"
 
 #include <gmock/gmock.h>

@@ -1,12 +1,10 @@
-// hq-bench-memory-campaign: the obstacle-memory campaign, the vehicle moving towards a box it saw but no
-// longer sees (backing up, sideways, after a yaw while close), each seeded run flown with the
-// obstacle memory off and on (same world, noise and script). Prints collisions and the closest
+// hq-bench-memory-campaign: the obstacle-memory campaign, the vehicle moving towards a box it saw
+// but no longer sees (backing up, sideways, after a yaw while close), each seeded run flown with
+// the obstacle memory off and on (same world, noise and script). Prints collisions and the closest
 // distance distribution side by side, then the chain's stage timings with each setting (the
 // memory stage beside the odometry stage and the whole chain measured in the same flights).
 //   hq-bench-memory-campaign [--runs 20] [--seed 20261126]
 // Run from the repository root (configs are read from config/ and onboard/).
-
-#include "memory_campaign.hpp"
 
 #include "hq/base/error.hpp"
 #include "hq/base/quantile.hpp"
@@ -14,12 +12,13 @@
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/pipeline/steady_clock.hpp"
 
+#include "memory_campaign.hpp"
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
-#include <string>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 namespace {
@@ -41,12 +40,13 @@ void print_stage(const char* setting, const hq::pipeline::StageTimingLog& log) {
   const auto memory = log.statistics(2);
   const auto odometry = log.statistics(0);
   const auto total = log.statistics(5);
-  std::printf("  memory %-3s  %7zu frames  memory stage median %.3f p99 %.3f max %.3f ms;"
-              "  odometry median %.3f ms (memory/odometry %.2f);  total median %.3f p99 %.3f ms"
-              " (memory/total %.2f)\n",
-              setting, log.size(), memory.median_ms, memory.p99_ms, memory.max_ms,
-              odometry.median_ms, memory.median_ms / std::max(odometry.median_ms, 1e-9),
-              total.median_ms, total.p99_ms, memory.median_ms / std::max(total.median_ms, 1e-9));
+  std::printf(
+      "  memory %-3s  %7zu frames  memory stage median %.3f p99 %.3f max %.3f ms;"
+      "  odometry median %.3f ms (memory/odometry %.2f);  total median %.3f p99 %.3f ms"
+      " (memory/total %.2f)\n",
+      setting, log.size(), memory.median_ms, memory.p99_ms, memory.max_ms, odometry.median_ms,
+      memory.median_ms / std::max(odometry.median_ms, 1e-9), total.median_ms, total.p99_ms,
+      memory.median_ms / std::max(total.median_ms, 1e-9));
 }
 
 /// --trace CASE:INDEX: that run only, memory off then on, one line per frame.
@@ -65,7 +65,8 @@ int trace_one(const std::string& trace, unsigned seed, const hq::sim::World& roo
     }
     return 0;
   }
-  throw hq::InputError("--trace " + trace + ": expected CASE:INDEX with CASE one of back-up, "
+  throw hq::InputError("--trace " + trace +
+                       ": expected CASE:INDEX with CASE one of back-up, "
                        "sideways, yaw-close");
 }
 
@@ -78,19 +79,20 @@ void fly_campaign(int runs, unsigned seed, const hq::sim::World& room, const Ste
       const auto r = hq::closed_loop::testing::draw_memory_run(kind, i, seed);
       MemoryOutcome outcome[2];
       for (int on = 0; on < 2; ++on) {
-        outcome[on] = hq::closed_loop::testing::fly_memory_run(r, on == 1, room, &clock,
-                                                               &timing[on]);
+        outcome[on] =
+            hq::closed_loop::testing::fly_memory_run(r, on == 1, room, &clock, &timing[on]);
         Column& col = columns[c][on];
         col.collisions += outcome[on].collided ? 1 : 0;
         col.clearance_m.push_back(outcome[on].min_clearance_m);
         col.max_map_size = std::max(col.max_map_size, outcome[on].max_map_size);
       }
-      std::printf("%-9s run %2d: %.2f m/s, box %.2f x %.2f at %.2f m, turn %3.0f deg: "
-                  "closest off %+.3f%s  on %+.3f%s\n",
-                  hq::closed_loop::testing::to_string(kind), i, r.speed_mps, r.box_size_m.x(),
-                  r.box_size_m.y(), r.distance_m, r.turn_rad * 180.0 / M_PI,
-                  outcome[0].min_clearance_m, outcome[0].collided ? " COLLIDED" : "",
-                  outcome[1].min_clearance_m, outcome[1].collided ? " COLLIDED" : "");
+      std::printf(
+          "%-9s run %2d: %.2f m/s, box %.2f x %.2f at %.2f m, turn %3.0f deg: "
+          "closest off %+.3f%s  on %+.3f%s\n",
+          hq::closed_loop::testing::to_string(kind), i, r.speed_mps, r.box_size_m.x(),
+          r.box_size_m.y(), r.distance_m, r.turn_rad * 180.0 / M_PI, outcome[0].min_clearance_m,
+          outcome[0].collided ? " COLLIDED" : "", outcome[1].min_clearance_m,
+          outcome[1].collided ? " COLLIDED" : "");
       std::fflush(stdout);
     }
   }
@@ -147,7 +149,8 @@ int run(int argc, char** argv) {
   std::printf("\nobstacle memory campaign, %d runs per case, seed %u, 320x240 (%.0f s wall)\n",
               runs, seed, wall_s);
   print_columns(runs, columns);
-  std::printf("\nper-frame stage time over every frame of the campaign (wall clock, one thread):\n");
+  std::printf(
+      "\nper-frame stage time over every frame of the campaign (wall clock, one thread):\n");
   print_stage("off", timing[0]);
   print_stage("on", timing[1]);
   std::printf("memory on: chain stages\n");
@@ -157,4 +160,6 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) { return hq::run_tool("hq-bench-memory-campaign", argc, argv, run); }
+int main(int argc, char** argv) {
+  return hq::run_tool("hq-bench-memory-campaign", argc, argv, run);
+}

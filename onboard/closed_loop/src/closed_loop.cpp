@@ -3,12 +3,11 @@
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
 
-#include <time.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <limits>
+#include <time.h>
 #include <utility>
 
 namespace hq::closed_loop {
@@ -41,8 +40,8 @@ class ClosedLoop::Port final : public vehicle::OperatorPort {
     if (o.operator_port != nullptr) o.operator_port->on_mode_result(t_ns, request, result);
     if (o.operator_source != nullptr) o.operator_source->on_mode_result(t_ns, request.mode, result);
     if (!result.accepted) {
-      loop_.refusals_.push_back(std::to_string(1e-9 * static_cast<double>(t_ns)) + " s: " +
-                                modes::to_string(request.mode) + ": " + result.reason);
+      loop_.refusals_.push_back(std::to_string(1e-9 * static_cast<double>(t_ns)) +
+                                " s: " + modes::to_string(request.mode) + ": " + result.reason);
     }
   }
 
@@ -76,8 +75,7 @@ ClosedLoop::ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world
                        const control::VehicleConfig& vehicle, OperatorPlayer player,
                        ClosedLoopOptions options)
     : sim_(std::make_unique<sim::Simulator>(sim_config, world)),
-      chain_(std::make_unique<pipeline::OnboardChain>(onboard, vehicle,
-                                                      sim_config.camera.pinhole,
+      chain_(std::make_unique<pipeline::OnboardChain>(onboard, vehicle, sim_config.camera.pinhole,
                                                       options.clock)),
       player_(std::move(player)),
       options_(std::move(options)) {
@@ -92,8 +90,8 @@ ClosedLoop::ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world
   if (options_.operator_port != nullptr && options_.operator_source != nullptr) {
     throw InputError("closed loop: give an operator_port or an operator_source, not both");
   }
-  fc_ = std::make_unique<SimFlightController>(*sim_,
-                                              std::llround(options_.processing_delay_s * 1e9));
+  fc_ =
+      std::make_unique<SimFlightController>(*sim_, std::llround(options_.processing_delay_s * 1e9));
   SimCamera::ImageObserver observer;
   if (options_.operator_source != nullptr) {
     observer = [source = options_.operator_source](std::int64_t t_ns, const cv::Mat& image) {

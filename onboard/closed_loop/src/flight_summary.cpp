@@ -74,7 +74,8 @@ void print_summary(std::FILE* out, const std::string& title, const FlightSummary
   row3("velocity estimate RMSE vs truth (H)", s.velocity_rmse_mps, "m/s");
   row3("tracking RMSE, v_des vs truth (H)", s.tracking_rmse_mps, "m/s");
   row3("tracking RMSE, operator v*_des vs truth", s.operator_tracking_rmse_mps, "m/s");
-  std::fprintf(out, "  %-40s %.3f rad/s\n", "yaw rate RMSE, command vs gyro", s.yaw_rate_rmse_radps);
+  std::fprintf(out, "  %-40s %.3f rad/s\n", "yaw rate RMSE, command vs gyro",
+               s.yaw_rate_rmse_radps);
   std::fprintf(out, "  %-40s %.3f m\n", "closest distance (clearance)", s.min_clearance_m);
   std::fprintf(out, "  %-40s %d\n", "collision ticks", s.collision_ticks);
   std::fprintf(out, "  %-40s %.2f m/s\n", "max true speed", s.max_speed_true_mps);

@@ -70,8 +70,7 @@ std::optional<vehicle::TruthSample> SimFlightController::truth() const {
   return vehicle::TruthSample{t.v_H_mps, t.T_world_body.translation(), t.on_ground};
 }
 
-SimCamera::SimCamera(sim::Simulator& sim, std::vector<CameraFault> faults,
-                     ImageObserver observer)
+SimCamera::SimCamera(sim::Simulator& sim, std::vector<CameraFault> faults, ImageObserver observer)
     : sim_(sim), faults_(std::move(faults)), observer_(std::move(observer)) {}
 
 const CameraFault* SimCamera::active_fault(std::int64_t t_ns) const {

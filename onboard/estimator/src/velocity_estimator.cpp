@@ -37,8 +37,7 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
 }
 
 VelocityEstimator::VelocityEstimator(const VelocityEstimatorConfig& config,
-                                     const Eigen::Matrix3d& R_B_C,
-                                     const Eigen::Vector3d& p_B_C_m)
+                                     const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m)
     : config_(config),
       R_B_C_(R_B_C),
       p_B_C_m_(p_B_C_m),
@@ -79,8 +78,8 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
   gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
   if (coast_anchored_ && t_ns > t_coast_ns_) {
     // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch.
-    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_),
-                                 config_.complementary.max_dt_s);
+    const double dt_s =
+        std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_), config_.complementary.max_dt_s);
     const Eigen::Vector3d a_H =
         R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
         Eigen::Vector3d(0.0, 0.0, kGravityMps2);
@@ -102,9 +101,9 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
     estimate.pitch_rad = attitude_.pitch_rad();
   }
   const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
-  const bool imu_fresh = attitude_.initialized() && gyro_low_pass_.initialized() &&
-                         1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <=
-                             config_.max_imu_age_s;
+  const bool imu_fresh =
+      attitude_.initialized() && gyro_low_pass_.initialized() &&
+      1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
   if (coast_anchored_ && imu_fresh && coast_s <= config_.inertial_coast_s &&
       coast_v_H_mps_.allFinite()) {
     estimate.status = EstimateStatus::kInertial;

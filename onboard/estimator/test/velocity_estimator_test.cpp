@@ -163,8 +163,7 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
     // value instead of going to zero; the motion has no acceleration, so it stays there.
     EXPECT_EQ(estimate.status, EstimateStatus::kInertial);
     EXPECT_TRUE(estimate.usable());
-    EXPECT_LT((estimate.v_H_mps - last_ok.v_H_mps).norm(), 2e-3)
-        << estimate.v_H_mps.transpose();
+    EXPECT_LT((estimate.v_H_mps - last_ok.v_H_mps).norm(), 2e-3) << estimate.v_H_mps.transpose();
     EXPECT_NEAR(estimate.unavailable_for_s, 1e-9 * static_cast<double>(t_ns - t_last_ok_ns), 1e-9);
     EXPECT_GT(estimate.unavailable_for_s, previous);
     previous = estimate.unavailable_for_s;
@@ -322,8 +321,7 @@ TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
       const Eigen::Vector3d expected =
           coast.last_ok.v_H_mps + Eigen::Vector3d(0.0, 0.0, a_z * accel_s);
       EXPECT_LT((estimate.v_H_mps - expected).norm(), 5e-3)
-          << coast_s << ": " << estimate.v_H_mps.transpose() << " vs "
-          << expected.transpose();
+          << coast_s << ": " << estimate.v_H_mps.transpose() << " vs " << expected.transpose();
       EXPECT_NEAR(estimate.unavailable_for_s, coast_s, 1e-9);
       ++inertial;
     } else {

@@ -43,22 +43,38 @@ void check_config(const FailsafeConfig& config) {
 bool to_mode(hq_msgs_Mode value, modes::Mode& mode) {
   // The enum arrived off the wire: any integer is possible, so compare before converting.
   switch (static_cast<int>(value)) {
-    case hq_msgs_MODE_TELEOP: mode = modes::Mode::kTeleop; return true;
-    case hq_msgs_MODE_HOVER: mode = modes::Mode::kHover; return true;
-    case hq_msgs_MODE_LAND: mode = modes::Mode::kLand; return true;
-    case hq_msgs_MODE_MARKER: mode = modes::Mode::kMarker; return true;
-    case hq_msgs_MODE_EXPLORE: mode = modes::Mode::kExplore; return true;
-    default: return false;
+    case hq_msgs_MODE_TELEOP:
+      mode = modes::Mode::kTeleop;
+      return true;
+    case hq_msgs_MODE_HOVER:
+      mode = modes::Mode::kHover;
+      return true;
+    case hq_msgs_MODE_LAND:
+      mode = modes::Mode::kLand;
+      return true;
+    case hq_msgs_MODE_MARKER:
+      mode = modes::Mode::kMarker;
+      return true;
+    case hq_msgs_MODE_EXPLORE:
+      mode = modes::Mode::kExplore;
+      return true;
+    default:
+      return false;
   }
 }
 
 hq_msgs_Mode to_link_mode(modes::Mode mode) {
   switch (mode) {
-    case modes::Mode::kTeleop: return hq_msgs_MODE_TELEOP;
-    case modes::Mode::kHover: return hq_msgs_MODE_HOVER;
-    case modes::Mode::kLand: return hq_msgs_MODE_LAND;
-    case modes::Mode::kMarker: return hq_msgs_MODE_MARKER;
-    case modes::Mode::kExplore: return hq_msgs_MODE_EXPLORE;
+    case modes::Mode::kTeleop:
+      return hq_msgs_MODE_TELEOP;
+    case modes::Mode::kHover:
+      return hq_msgs_MODE_HOVER;
+    case modes::Mode::kLand:
+      return hq_msgs_MODE_LAND;
+    case modes::Mode::kMarker:
+      return hq_msgs_MODE_MARKER;
+    case modes::Mode::kExplore:
+      return hq_msgs_MODE_EXPLORE;
   }
   return hq_msgs_MODE_HOVER;
 }

@@ -105,15 +105,15 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
                      ", expected in [1, 100]");
   }
   if (!(options_.obstacle_cloud_rate_hz >= 0.0 && options_.obstacle_cloud_rate_hz <= 30.0)) {
-    throw InputError("link bridge: obstacle_cloud_rate_hz = " +
-                     std::to_string(options_.obstacle_cloud_rate_hz) +
-                     ", expected in [0, 30] (0 = no obstacle cloud)");
+    throw InputError(
+        "link bridge: obstacle_cloud_rate_hz = " + std::to_string(options_.obstacle_cloud_rate_hz) +
+        ", expected in [0, 30] (0 = no obstacle cloud)");
   }
   if (options_.max_obstacle_points < 1 ||
       options_.max_obstacle_points > static_cast<int>(hq_msgs_kMaxObstaclePoints)) {
-    throw InputError("link bridge: max_obstacle_points = " +
-                     std::to_string(options_.max_obstacle_points) + ", expected in [1, " +
-                     std::to_string(hq_msgs_kMaxObstaclePoints) + "] (the IDL bound)");
+    throw InputError(
+        "link bridge: max_obstacle_points = " + std::to_string(options_.max_obstacle_points) +
+        ", expected in [1, " + std::to_string(hq_msgs_kMaxObstaclePoints) + "] (the IDL bound)");
   }
   link::reserve(state_->obstacle_points_body_m,
                 static_cast<std::uint32_t>(options_.max_obstacle_points));
@@ -174,8 +174,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
       if (!routed.accepted) {
         char text[hq_msgs_kMaxEventText + 1];
         std::snprintf(text, sizeof text, "mode %s with marker %ld refused: %s",
-                      modes::to_string(mode), static_cast<long>(request.target_id),
-                      routed.reason);
+                      modes::to_string(mode), static_cast<long>(request.target_id), routed.reason);
         publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
         continue;
       }
@@ -185,8 +184,8 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
       // that talks to a previous instance, sees why its request did nothing.
       char text[hq_msgs_kMaxEventText + 1];
       std::snprintf(text, sizeof text, "mode request of station %u (session %016llx) rejected: %s",
-                    request.station_id,
-                    static_cast<unsigned long long>(request.vehicle_session_id), verdict.reason);
+                    request.station_id, static_cast<unsigned long long>(request.vehicle_session_id),
+                    verdict.reason);
       publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, text);
     }
   }
@@ -269,12 +268,12 @@ void LinkBridge::acknowledge(std::int64_t t_ns, const pipeline::ModeRequest& req
     const char* task = marker_modes::to_string(request.marker->task);
     const int id = request.marker->marker_id;
     if (result.accepted) {
-      std::snprintf(text, sizeof text, "mode %s accepted: marker task %s on marker %d", mode,
-                    task, id);
+      std::snprintf(text, sizeof text, "mode %s accepted: marker task %s on marker %d", mode, task,
+                    id);
       publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text);
     } else {
-      std::snprintf(text, sizeof text, "mode %s with marker task %s on marker %d refused: %s",
-                    mode, task, id, result.reason);
+      std::snprintf(text, sizeof text, "mode %s with marker task %s on marker %d refused: %s", mode,
+                    task, id, result.reason);
       publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
     }
     return;
@@ -314,7 +313,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   // and render it.
   s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_H_mps);
   s.mode = to_link_mode(out.mode.mode);
-  s.estimator_health = out.safe_hover                                 ? hq_msgs_HEALTH_LOST
+  s.estimator_health = out.safe_hover                                    ? hq_msgs_HEALTH_LOST
                        : (!out.estimate.ok() || extras.vehicle_degraded) ? hq_msgs_HEALTH_DEGRADED
                                                                          : hq_msgs_HEALTH_OK;
   s.link_health = link_state.heartbeat_lost ? hq_msgs_HEALTH_LOST
@@ -348,8 +347,8 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   }
   // Position, markers and truth come from outside the chain's output (the marker stage, the
   // simulator); a non-finite value goes out as absent rather than as garbage.
-  s.position_valid = extras.position_valid && extras.p_W_m.allFinite() &&
-                     std::isfinite(extras.yaw_rad);
+  s.position_valid =
+      extras.position_valid && extras.p_W_m.allFinite() && std::isfinite(extras.yaw_rad);
   s.p_W_m = s.position_valid ? to_msg(extras.p_W_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   s.yaw_W_rad = s.position_valid ? static_cast<float>(extras.yaw_rad) : 0.0F;
   std::uint32_t markers = 0;
@@ -357,7 +356,8 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
     if (markers == hq_msgs_kMaxMarkersInState) break;
     const Eigen::Quaterniond q(d.T_camera_marker.linear());
     if (!d.T_camera_marker.matrix().allFinite()) continue;
-    s.markers._buffer[markers++] = {d.id, to_msg(d.T_camera_marker.translation()),
+    s.markers._buffer[markers++] = {d.id,
+                                    to_msg(d.T_camera_marker.translation()),
                                     {static_cast<float>(q.w()), static_cast<float>(q.x()),
                                      static_cast<float>(q.y()), static_cast<float>(q.z())}};
   }
@@ -365,16 +365,16 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.flight_state = to_link_flight_state(out.flight_state);
   s.motors_armed = extras.motors_armed;
   // validate() rejects NaN: the chain never gives one, and a none source goes out as 0.
-  const bool height_ok = out.height_source != pipeline::HeightSource::kNone &&
-                         std::isfinite(out.height_m);
-  s.height_source = !height_ok ? hq_msgs_HEIGHT_NONE
+  const bool height_ok =
+      out.height_source != pipeline::HeightSource::kNone && std::isfinite(out.height_m);
+  s.height_source = !height_ok                                            ? hq_msgs_HEIGHT_NONE
                     : out.height_source == pipeline::HeightSource::kDepth ? hq_msgs_HEIGHT_DEPTH
                                                                           : hq_msgs_HEIGHT_ESTIMATE;
   s.height_m = height_ok ? static_cast<float>(out.height_m) : 0.0F;
   s.clearance_m = std::isfinite(out.clearance_m) ? static_cast<float>(out.clearance_m) : -1.0F;
   s.truth_valid = extras.truth_valid && extras.v_truth_H_mps.allFinite();
-  s.v_truth_H_mps = s.truth_valid ? to_msg(extras.v_truth_H_mps)
-                                  : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
+  s.v_truth_H_mps =
+      s.truth_valid ? to_msg(extras.v_truth_H_mps) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   state_writer_.write(s);
   if (ros2_ != nullptr) ros2_->publish_state(s);
 }

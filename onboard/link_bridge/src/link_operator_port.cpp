@@ -63,8 +63,8 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
   extras.vehicle_degraded = status.degraded();
   // Spinning: the chain off the floor (landed is motors idle, thrust 0) and, when a flight
   // controller reports, it armed (the simulator's always is; a real one may be disarmed).
-  extras.motors_armed = out.flight_state != modes::FlightState::kLanded &&
-                        (!status.fc.connected || status.fc.armed);
+  extras.motors_armed =
+      out.flight_state != modes::FlightState::kLanded && (!status.fc.connected || status.fc.armed);
   bridge_.publish_state(out, extras);
 }
 
@@ -78,11 +78,10 @@ void LinkOperatorPort::on_event(std::int64_t t_ns, vehicle::FcSeverity severity,
   const std::size_t n = std::min(text.size(), sizeof buffer - 1);
   std::memcpy(buffer, text.data(), n);
   buffer[n] = '\0';
-  const hq_msgs_Severity link_severity = severity == vehicle::FcSeverity::kError
-                                             ? hq_msgs_SEVERITY_ERROR
-                                         : severity == vehicle::FcSeverity::kWarning
-                                             ? hq_msgs_SEVERITY_WARNING
-                                             : hq_msgs_SEVERITY_INFO;
+  const hq_msgs_Severity link_severity =
+      severity == vehicle::FcSeverity::kError     ? hq_msgs_SEVERITY_ERROR
+      : severity == vehicle::FcSeverity::kWarning ? hq_msgs_SEVERITY_WARNING
+                                                  : hq_msgs_SEVERITY_INFO;
   bridge_.publish_event(t_ns, link_severity, EventCode::kVehicle, buffer);
   if (log_ != nullptr) {
     std::fprintf(log_, "hq-onboard: t %.3f s: %s\n", 1e-9 * static_cast<double>(t_ns), buffer);

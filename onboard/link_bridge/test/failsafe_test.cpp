@@ -183,8 +183,7 @@ TEST(Failsafe, HugeSequenceNumbersDoNotLockOutTheStation) {
   link::VelocityCommand real = command(0.3F);
   real.sequence_number = 5;
   EXPECT_TRUE(failsafe.on_command(10 * kMs, real).accepted);
-  EXPECT_FLOAT_EQ(static_cast<float>(failsafe.update(20 * kMs).command.v_H_mps.x()),
-                  0.3F);
+  EXPECT_FLOAT_EQ(static_cast<float>(failsafe.update(20 * kMs).command.v_H_mps.x()), 0.3F);
 }
 
 TEST(Failsafe, MalformedModeRequestsAreRejectedAndValidOnesMapped) {
@@ -221,7 +220,8 @@ TEST(FailsafeOwnership, WeakerStationsRequestsAreIgnoredWhileTheStrongerCommands
   EXPECT_EQ(failsafe.update(0).commanding_station_id, 2U);
   // WHEN station 1 (weaker: its commands never arrive) asks for hover
   modes::Mode mode = modes::Mode::kTeleop;
-  const Verdict weak = failsafe.on_mode_request(10 * kMs, mode_request(1, hq_msgs_MODE_HOVER), mode);
+  const Verdict weak =
+      failsafe.on_mode_request(10 * kMs, mode_request(1, hq_msgs_MODE_HOVER), mode);
   // THEN it is rejected and counted; the commander's request is accepted
   EXPECT_FALSE(weak.accepted);
   EXPECT_THAT(weak.reason, HasSubstr("does not command"));

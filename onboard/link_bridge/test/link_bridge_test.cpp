@@ -6,14 +6,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <string>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 namespace hq::link_bridge {
@@ -107,8 +106,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
     ground.commands.write(good);
     return bridge.failsafe().counters().commands_accepted > 0;
   }));
-  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_H_mps.x()),
-                  0.25F);
+  EXPECT_FLOAT_EQ(static_cast<float>(bridge.failsafe().state().command.v_H_mps.x()), 0.25F);
 
   link::VelocityCommand bad = good;
   bad.v_H_mps.y = std::numeric_limits<float>::quiet_NaN();
@@ -162,8 +160,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
       rejected_mode = rejected_mode || t.find("Mode enum") != std::string::npos;
       rejected_command = rejected_command || t.find("NaN or Inf") != std::string::npos;
       rejected_session = rejected_session || t.find("another vehicle session") != std::string::npos;
-      rejected_station =
-          rejected_station || t.find("station 2 (session") != std::string::npos;
+      rejected_station = rejected_station || t.find("station 2 (session") != std::string::npos;
     }
     return ack && rejected_mode && rejected_command && rejected_session && rejected_station;
   })) << ::testing::PrintToString(texts);
@@ -285,8 +282,8 @@ TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {
 /// rotated and moved so that O, C and B all differ.
 struct RememberedWall {
   RememberedWall() : memory(config, camera_for_wall(), R_B_C_core_paper(), p_B_C_m) {
-    T_O_C.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())
-                         .toRotationMatrix();
+    T_O_C.linear() =
+        Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 1.0).normalized()).toRotationMatrix();
     T_O_C.translation() = Eigen::Vector3d(1.5, -2.0, 0.4);
     const cv::Mat wall(camera.height, camera.width, CV_32FC1, cv::Scalar(2.0F));
     for (int i = 0; i < 3; ++i) {
@@ -303,10 +300,9 @@ struct RememberedWall {
     return c;
   }
   static Eigen::Matrix3d R_B_C_core_paper() {
-    const Eigen::Matrix3d R_B_forward =
-        (Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()) *
-         Eigen::AngleAxisd(-M_PI / 6, Eigen::Vector3d::UnitY()))
-            .toRotationMatrix();
+    const Eigen::Matrix3d R_B_forward = (Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()) *
+                                         Eigen::AngleAxisd(-M_PI / 6, Eigen::Vector3d::UnitY()))
+                                            .toRotationMatrix();
     Eigen::Matrix3d optical_to_forward;  // optical (x right, y down, z forward) -> FRD body
     optical_to_forward << 0, 0, 1, 1, 0, 0, 0, 1, 0;
     return R_B_forward * optical_to_forward;
@@ -373,8 +369,7 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
     // Back into the camera: on the wall, within the voxel leaf.
     const Eigen::Vector3d p_C = wall.R_B_C.transpose() * (p_B - wall.p_B_C_m);
     EXPECT_NEAR(p_C.z(), 2.0, wall.config.leaf_m) << i;
-    EXPECT_LT(std::abs(p_C.x()), 2.0 * wall.camera.cx / wall.camera.fx + wall.config.leaf_m)
-        << i;
+    EXPECT_LT(std::abs(p_C.x()), 2.0 * wall.camera.cx / wall.camera.fx + wall.config.leaf_m) << i;
   }
 
   // No memory, or a non-finite pose: an empty cloud, still a state.
@@ -499,16 +494,16 @@ link::ModeRequest marker_request(hq_msgs_MarkerTask task, std::int32_t target_id
 // or target is refused with its reason and NONE carries no task.
 TEST(ToModeRequest, CarriesTheMarkerTaskOrRefusesAMalformedOne) {
   pipeline::ModeRequest out;
-  Verdict v = to_mode_request(marker_request(hq_msgs_MARKER_TASK_LAND, 7), modes::Mode::kMarker,
-                              out);
+  Verdict v =
+      to_mode_request(marker_request(hq_msgs_MARKER_TASK_LAND, 7), modes::Mode::kMarker, out);
   EXPECT_TRUE(v.accepted) << v.reason;
   EXPECT_EQ(out.mode, modes::Mode::kMarker);
   ASSERT_TRUE(out.marker.has_value());
   EXPECT_EQ(out.marker->task, marker_modes::MarkerTask::kLand);
   EXPECT_EQ(out.marker->marker_id, 7);
-  EXPECT_TRUE(to_mode_request(marker_request(hq_msgs_MARKER_TASK_NONE, 0), modes::Mode::kMarker,
-                              out)
-                  .accepted);
+  EXPECT_TRUE(
+      to_mode_request(marker_request(hq_msgs_MARKER_TASK_NONE, 0), modes::Mode::kMarker, out)
+          .accepted);
   EXPECT_FALSE(out.marker.has_value());
   v = to_mode_request(marker_request(static_cast<hq_msgs_MarkerTask>(9), 3), modes::Mode::kMarker,
                       out);

@@ -1,9 +1,9 @@
 #include "hq/marker_modes/marker_navigation.hpp"
 
 #include "hq/base/error.hpp"
-#include "hq/geometry/camera_mount.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/velocity_estimator.hpp"
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/geometry/lie.hpp"
 
 #include <cmath>
@@ -103,7 +103,7 @@ void MarkerNavigation::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_rad
     const double roll = std::atan2(-accel_mps2.y(), -accel_mps2.z());
     const double pitch = std::atan2(accel_mps2.x(), std::hypot(accel_mps2.y(), accel_mps2.z()));
     start.q_W_B = Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                         Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+                  Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
     filter_.initialize(t_ns, start);
   }
   filter_.predict(t_ns, gyro_radps, accel_mps2);

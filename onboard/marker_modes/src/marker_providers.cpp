@@ -217,8 +217,7 @@ modes::ModeCommand ExploreProvider::fly_to(const Eigen::Vector3d& p_target_m,
   const double yaw = navigation_.yaw_rad();
   modes::ModeCommand c;
   c.valid = true;
-  c.v_H_mps =
-      to_horizontal(gains.kp_position_per_s * (p_target_m - p), yaw, gains.max_speed_mps);
+  c.v_H_mps = to_horizontal(gains.kp_position_per_s * (p_target_m - p), yaw, gains.max_speed_mps);
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_target_rad, yaw, gains.kp_yaw_per_s, gains.max_yaw_rate_radps);
   return c;

@@ -101,8 +101,7 @@ int run(int argc, char** argv) {
   });
   std::printf("hq-bench-markers: %d frames 640x480 of %s, 3 passes, one thread\n", kFrames,
               world_path.c_str());
-  std::printf("%-34s %9s %9s %12s %8s\n", "detector", "median ms", "p90 ms", "tags/frame",
-              "ratio");
+  std::printf("%-34s %9s %9s %12s %8s\n", "detector", "median ms", "p90 ms", "tags/frame", "ratio");
   auto row = [&](const char* name, const Stats& s) {
     std::printf("%-34s %9.2f %9.2f %12.2f %8.2f\n", name, s.median_ms, s.p90_ms,
                 s.detections_per_frame, s.median_ms / aruco.median_ms);

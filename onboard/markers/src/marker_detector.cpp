@@ -50,7 +50,8 @@ vpDetectorAprilTag::vpAprilTagFamily family_of(const std::string& name) {
 Eigen::Isometry3d to_eigen(const vpHomogeneousMatrix& m) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) T.linear()(r, c) = m[static_cast<unsigned>(r)][static_cast<unsigned>(c)];
+    for (int c = 0; c < 3; ++c)
+      T.linear()(r, c) = m[static_cast<unsigned>(r)][static_cast<unsigned>(c)];
     T.translation()(r) = m[static_cast<unsigned>(r)][3];
   }
   return T;
@@ -153,7 +154,8 @@ MarkerDetectorConfig load_marker_detector_config(const std::string& path) {
       throw InputError(path + ": markers.tag_size_overrides is not a list of {id, size_m}");
     }
     for (std::size_t i = 0; i < list.size(); ++i) {
-      config::StrictMap item(list[i], path, "markers.tag_size_overrides[" + std::to_string(i) + "]");
+      config::StrictMap item(list[i], path,
+                             "markers.tag_size_overrides[" + std::to_string(i) + "]");
       int id = 0;
       double size_m = 0.0;
       item.require("id", id, 0, 100000);
@@ -218,12 +220,10 @@ MarkerDetector::MarkerDetector(const MarkerDetectorConfig& config,
     : config_(config), camera_(camera) {
   const bool finite = std::isfinite(camera.fx) && std::isfinite(camera.fy) &&
                       std::isfinite(camera.cx) && std::isfinite(camera.cy);
-  if (!finite || camera.fx <= 0.0 || camera.fy <= 0.0 || camera.width <= 0 ||
-      camera.height <= 0) {
+  if (!finite || camera.fx <= 0.0 || camera.fy <= 0.0 || camera.width <= 0 || camera.height <= 0) {
     throw InputError("MarkerDetector: camera intrinsics fx=" + std::to_string(camera.fx) +
-                     " fy=" + std::to_string(camera.fy) + " size " +
-                     std::to_string(camera.width) + "x" + std::to_string(camera.height) +
-                     ", expected positive and finite");
+                     " fy=" + std::to_string(camera.fy) + " size " + std::to_string(camera.width) +
+                     "x" + std::to_string(camera.height) + ", expected positive and finite");
   }
   impl_ = std::make_unique<Impl>(family_of(config.family));
   impl_->detector.setAprilTagQuadDecimate(static_cast<float>(config.quad_decimate));

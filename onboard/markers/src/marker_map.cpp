@@ -165,8 +165,7 @@ MarkerMap::MarkerMap(MarkerMap&&) noexcept = default;
 MarkerMap& MarkerMap::operator=(MarkerMap&&) noexcept = default;
 
 void MarkerMap::add_frame(std::int64_t t_ns, const std::vector<MarkerDetection>& detections,
-                          const Eigen::Isometry3d& T_O_C,
-                          const Matrix6d& motion_covariance) {
+                          const Eigen::Isometry3d& T_O_C, const Matrix6d& motion_covariance) {
   Impl& m = *impl_;
   if (!finite_pose(T_O_C) || !motion_covariance.allFinite()) {
     throw InputError("MarkerMap::add_frame(t_ns=" + std::to_string(t_ns) +
@@ -239,7 +238,8 @@ void MarkerMap::add_frame(std::int64_t t_ns, const std::vector<MarkerDetection>&
   for (const MarkerDetection& d : detections) {
     Node* marker = m.marker(d.id);
     if (marker == nullptr) marker = &m.add_marker(d.id, T_map_camera * d.T_camera_marker);
-    m.edges.push_back({&camera, marker, d.T_camera_marker, sqrt_information_of(d.covariance + floor)});
+    m.edges.push_back(
+        {&camera, marker, d.T_camera_marker, sqrt_information_of(d.covariance + floor)});
   }
   m.T_kf_camera = Eigen::Isometry3d::Identity();
   m.kf_motion_covariance.setZero();
@@ -283,8 +283,8 @@ void MarkerMap::save(const std::string& path) const {
     out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << id;
     out << YAML::Key << "p_map_marker_m" << YAML::Value << YAML::Flow << YAML::BeginSeq << n.p[0]
         << n.p[1] << n.p[2] << YAML::EndSeq;
-    out << YAML::Key << "q_map_marker_xyzw" << YAML::Value << YAML::Flow << YAML::BeginSeq
-        << q.x() << q.y() << q.z() << q.w() << YAML::EndSeq << YAML::EndMap;
+    out << YAML::Key << "q_map_marker_xyzw" << YAML::Value << YAML::Flow << YAML::BeginSeq << q.x()
+        << q.y() << q.z() << q.w() << YAML::EndSeq << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
   std::ofstream file(path);
@@ -300,8 +300,9 @@ MarkerMap MarkerMap::load(const std::string& path, const MarkerMapConfig& config
   top.finish();
   const YAML::Node list = root["markers"];
   if (!list || !list.IsSequence()) {
-    throw InputError(path + ": markers is missing or not a list of {id, p_map_marker_m, "
-                            "q_map_marker_xyzw}");
+    throw InputError(path +
+                     ": markers is missing or not a list of {id, p_map_marker_m, "
+                     "q_map_marker_xyzw}");
   }
   MarkerMap map(config);
   for (std::size_t i = 0; i < list.size(); ++i) {
@@ -314,7 +315,8 @@ MarkerMap MarkerMap::load(const std::string& path, const MarkerMapConfig& config
     item.require_list("q_map_marker_xyzw", q, 4);
     item.finish();
     if (map.contains(id)) {
-      throw InputError(item.describe("id") + " = " + std::to_string(id) + ", expected each id once");
+      throw InputError(item.describe("id") + " = " + std::to_string(id) +
+                       ", expected each id once");
     }
     const Eigen::Vector3d p_m(p[0], p[1], p[2]);
     const Eigen::Quaterniond q_xyzw(q[3], q[0], q[1], q[2]);

@@ -3,8 +3,8 @@
 
 #include "hq/recording/data_dir.hpp"
 #include "hq/testing/input_error.hpp"
-#include "sim_marker_truth.hpp"
 
+#include "sim_marker_truth.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -94,7 +94,7 @@ TEST(MarkerDetectorRealPhoto, DetectsTheTwelveTagsWithTheirReferencePoses) {
   // so the tolerances allow for a different detector build and refinement, not for metrology.
   // Measured: corners within 0.003 px, position within 0.3 mm, rotation within 0.1 deg.
   constexpr double kCornerTolPx = 0.5;
-  constexpr double kPositionTolM = 0.002;    // 0.4 % of the 0.37-0.56 m distances
+  constexpr double kPositionTolM = 0.002;  // 0.4 % of the 0.37-0.56 m distances
   constexpr double kAngleTolRad = 0.5 * M_PI / 180.0;
   double max_pos_m = 0;
   double max_angle_rad = 0;
@@ -111,8 +111,8 @@ TEST(MarkerDetectorRealPhoto, DetectsTheTwelveTagsWithTheirReferencePoses) {
     const double dist_m =
         std::abs(d.T_camera_marker.translation().norm() - T_ref.translation().norm());
     const double angle_rad = test::angle_between_rad(T_ref.linear(), d.T_camera_marker.linear());
-    const double normal_rad = std::acos(std::clamp(
-        d.T_camera_marker.linear().col(2).dot(T_ref.linear().col(2)), -1.0, 1.0));
+    const double normal_rad = std::acos(
+        std::clamp(d.T_camera_marker.linear().col(2).dot(T_ref.linear().col(2)), -1.0, 1.0));
     EXPECT_LT(pos_m, kPositionTolM) << "id " << d.id;
     EXPECT_LT(dist_m, kPositionTolM) << "id " << d.id;
     EXPECT_LT(angle_rad, kAngleTolRad) << "id " << d.id;
@@ -123,9 +123,10 @@ TEST(MarkerDetectorRealPhoto, DetectsTheTwelveTagsWithTheirReferencePoses) {
     max_angle_rad = std::max(max_angle_rad, angle_rad);
     max_normal_rad = std::max(max_normal_rad, normal_rad);
   }
-  std::printf("[ visp photo ] 12/12 tags; vs reference pose: max position %.2f mm, "
-              "max rotation %.3f deg, max normal %.3f deg\n",
-              1e3 * max_pos_m, max_angle_rad * 180 / M_PI, max_normal_rad * 180 / M_PI);
+  std::printf(
+      "[ visp photo ] 12/12 tags; vs reference pose: max position %.2f mm, "
+      "max rotation %.3f deg, max normal %.3f deg\n",
+      1e3 * max_pos_m, max_angle_rad * 180 / M_PI, max_normal_rad * 180 / M_PI);
 }
 
 TEST(MarkerDetectorRealPhoto, FindsTheExpectedTagsInOutdoorPhotos) {
@@ -143,8 +144,8 @@ TEST(MarkerDetectorRealPhoto, FindsTheExpectedTagsInOutdoorPhotos) {
   MarkerDetector detector(MarkerDetectorConfig{}, camera);
   int expected_total = 0;
   int matched_total = 0;
-  for (const char* name : {"33369213973_9d9bb4cc96_c", "34085369442_304b6bafd9_c",
-                           "34139872896_defdb2f8d9_c"}) {
+  for (const char* name :
+       {"33369213973_9d9bb4cc96_c", "34085369442_304b6bafd9_c", "34139872896_defdb2f8d9_c"}) {
     const cv::Mat image = cv::imread(dir + "/" + name + ".jpg", cv::IMREAD_COLOR);
     ASSERT_FALSE(image.empty()) << name;
     ASSERT_TRUE(detector.detect(image).ok);
@@ -210,8 +211,9 @@ TEST(MarkerDetector, BadImagesGiveAReasonNotACrash) {
 TEST(MarkerDetector, NonFiniteIntrinsicsAreRejected) {
   geometry::PinholeCamera camera = visp_photo_camera();
   camera.fx = std::nan("");
-  EXPECT_THAT(testing::input_error_message([&] { MarkerDetector d(MarkerDetectorConfig{}, camera); }),
-              HasSubstr("expected positive and finite"));
+  EXPECT_THAT(
+      testing::input_error_message([&] { MarkerDetector d(MarkerDetectorConfig{}, camera); }),
+      HasSubstr("expected positive and finite"));
 }
 
 std::string write_temp(const std::string& name, const std::string& text) {
@@ -221,10 +223,10 @@ std::string write_temp(const std::string& name, const std::string& text) {
 }
 
 TEST(MarkerDetectorConfig, ReadsFamilySizeAndOverrides) {
-  const std::string path = write_temp(
-      "hq_markers_ok.yaml",
-      "markers: {family: 25h9, tag_size_m: 0.15, quad_decimate: 2.0,\n"
-      "          tag_size_overrides: [{id: 3, size_m: 0.1}, {id: 7, size_m: 0.05}]}\n");
+  const std::string path =
+      write_temp("hq_markers_ok.yaml",
+                 "markers: {family: 25h9, tag_size_m: 0.15, quad_decimate: 2.0,\n"
+                 "          tag_size_overrides: [{id: 3, size_m: 0.1}, {id: 7, size_m: 0.05}]}\n");
   const MarkerDetectorConfig c = load_marker_detector_config(path);
   EXPECT_EQ(c.family, "25h9");
   EXPECT_DOUBLE_EQ(c.tag_size_m, 0.15);
@@ -244,8 +246,9 @@ TEST(MarkerDetectorConfig, BadValuesNameFileAndKey) {
               AllOf(HasSubstr("hq_markers_bad.yaml"), HasSubstr("markers.family")));
   EXPECT_THAT(message("markers: {tag_size_m: -0.2}\n"), HasSubstr("markers.tag_size_m"));
   EXPECT_THAT(message("markers: {tag_size: 0.2}\n"), HasSubstr("markers.tag_size"));
-  EXPECT_THAT(message("markers: {tag_size_overrides: [{id: 3, size_m: 0.1}, {id: 3, size_m: 0.2}]}\n"),
-              HasSubstr("markers.tag_size_overrides[1].id"));
+  EXPECT_THAT(
+      message("markers: {tag_size_overrides: [{id: 3, size_m: 0.1}, {id: 3, size_m: 0.2}]}\n"),
+      HasSubstr("markers.tag_size_overrides[1].id"));
   EXPECT_THAT(message("markers: {tag_size_overrides: [{id: 3}]}\n"),
               HasSubstr("markers.tag_size_overrides[0].size_m"));
   EXPECT_THAT(message("markers: {tag_size_overrides: 3}\n"), HasSubstr("not a list"));
@@ -264,7 +267,8 @@ TEST(CornerReprojection, AnalyticJacobianMatchesNumeric) {
     const auto p_M = tag_corners_marker_m(0.1);
     for (int k = 0; k < 4; ++k) {
       const Eigen::Vector3d p = T_x * p_M[k];
-      r.segment<2>(2 * k) << camera.fx * p.x() / p.z() + camera.cx, camera.fy * p.y() / p.z() + camera.cy;
+      r.segment<2>(2 * k) << camera.fx * p.x() / p.z() + camera.cx,
+          camera.fy * p.y() / p.z() + camera.cy;
     }
     return r;
   };

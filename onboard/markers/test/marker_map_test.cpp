@@ -7,9 +7,9 @@
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
 #include "hq/testing/input_error.hpp"
+
 #include "sim_marker_truth.hpp"
 #include "sim_views.hpp"
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -31,9 +31,9 @@ struct FrameRecord {
   Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
 };
 
-constexpr double kOdomSigmaM = 0.004;     // per frame
-constexpr double kOdomSigmaRad = 0.004;   // per frame
-constexpr double kOdomYawBiasRad = 0.003; // per frame: a slow heading drift
+constexpr double kOdomSigmaM = 0.004;      // per frame
+constexpr double kOdomSigmaRad = 0.004;    // per frame
+constexpr double kOdomYawBiasRad = 0.003;  // per frame: a slow heading drift
 
 geometry::Matrix6d odometry_covariance() {
   geometry::Matrix6d c = geometry::Matrix6d::Zero();
@@ -79,8 +79,7 @@ class MarkerMapFlight : public ::testing::Test {
           for (int i = 0; i < 3; ++i) xi(i) = kOdomSigmaM * noise(rng);
           for (int i = 3; i < 6; ++i) xi(i) = kOdomSigmaRad * noise(rng);
           xi(4) += kOdomYawBiasRad;  // camera y is down: a rotation about it is a yaw
-          T_O_C = T_O_C * (T_world_camera_prev.inverse() * T_world_camera) *
-                          geometry::exp_se3(xi);
+          T_O_C = T_O_C * (T_world_camera_prev.inverse() * T_world_camera) * geometry::exp_se3(xi);
         }
         f.T_O_C = T_O_C;
         T_world_camera_prev = T_world_camera;
@@ -148,10 +147,10 @@ TEST_F(MarkerMapFlight, OptimisationReducesTheChainedDrift) {
               1e3 * before.max_m);
   std::printf("[ marker map ] incremental     : mean %.1f max %.1f mm\n", 1e3 * online.mean_m,
               1e3 * online.max_m);
-  std::printf("[ marker map ] optimised       : mean %.1f max %.1f mm (%d iterations, cost "
-              "%.1f -> %.1f)\n",
-              1e3 * after.mean_m, 1e3 * after.max_m, run.iterations, run.initial_cost,
-              run.final_cost);
+  std::printf(
+      "[ marker map ] optimised       : mean %.1f max %.1f mm (%d iterations, cost "
+      "%.1f -> %.1f)\n",
+      1e3 * after.mean_m, 1e3 * after.max_m, run.iterations, run.initial_cost, run.final_cost);
   EXPECT_GE(before.mapped, 20);
   EXPECT_EQ(after.mapped, before.mapped);
   EXPECT_LT(run.final_cost, run.initial_cost);
@@ -189,19 +188,24 @@ TEST(MarkerMapFile, CorruptFilesNameFileAndKey) {
     const std::string path = write_temp(text);
     return testing::input_error_message([&] { MarkerMap::load(path); });
   };
-  EXPECT_THAT(message("markers: [{id: 1, p_map_marker_m: [0, 0], q_map_marker_xyzw: [0, 0, 0, 1]}]\n"),
-              AllOf(HasSubstr("hq_map_bad.yaml"), HasSubstr("markers[0].p_map_marker_m")));
-  EXPECT_THAT(message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 2]}]\n"),
-              HasSubstr("markers[0].q_map_marker_xyzw has norm 2"));
-  EXPECT_THAT(message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1]},\n"
-                      "          {id: 1, p_map_marker_m: [1, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1]}]\n"),
-              HasSubstr("markers[1].id = 1, expected each id once"));
-  EXPECT_THAT(message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1], "
-                      "colour: red}]\n"),
-              HasSubstr("markers[0].colour"));
+  EXPECT_THAT(
+      message("markers: [{id: 1, p_map_marker_m: [0, 0], q_map_marker_xyzw: [0, 0, 0, 1]}]\n"),
+      AllOf(HasSubstr("hq_map_bad.yaml"), HasSubstr("markers[0].p_map_marker_m")));
+  EXPECT_THAT(
+      message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 2]}]\n"),
+      HasSubstr("markers[0].q_map_marker_xyzw has norm 2"));
+  EXPECT_THAT(
+      message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1]},\n"
+              "          {id: 1, p_map_marker_m: [1, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1]}]\n"),
+      HasSubstr("markers[1].id = 1, expected each id once"));
+  EXPECT_THAT(
+      message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1], "
+              "colour: red}]\n"),
+      HasSubstr("markers[0].colour"));
   EXPECT_THAT(message("marker: []\n"), HasSubstr("marker"));
-  EXPECT_THAT(message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1]\n"),
-              HasSubstr("hq_map_bad.yaml"));
+  EXPECT_THAT(
+      message("markers: [{id: 1, p_map_marker_m: [0, 0, 0], q_map_marker_xyzw: [0, 0, 0, 1]\n"),
+      HasSubstr("hq_map_bad.yaml"));
   EXPECT_THAT(testing::input_error_message([] { MarkerMap::load("/nonexistent/map.yaml"); }),
               HasSubstr("/nonexistent/map.yaml"));
 }
@@ -210,9 +214,8 @@ TEST(MarkerMap, NonFiniteInputIsRejected) {
   MarkerMap map;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation().x() = std::nan("");
-  EXPECT_THAT(testing::input_error_message([&] {
-                map.add_frame(5, {}, T, geometry::Matrix6d::Identity());
-              }),
+  EXPECT_THAT(testing::input_error_message(
+                  [&] { map.add_frame(5, {}, T, geometry::Matrix6d::Identity()); }),
               HasSubstr("t_ns=5"));
   std::vector<MarkerDetection> detections(1);
   detections[0].id = 4;

@@ -1,12 +1,11 @@
 // Detection accuracy against the simulator's exact marker poses, with and without depth.
 #include "hq/markers/marker_detector.hpp"
-
 #include "hq/sim/rgbd_renderer.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+
 #include "sim_marker_truth.hpp"
 #include "sim_views.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -65,8 +64,8 @@ TEST_F(MarkerSimTest, PosesMatchTruthAndDepthDoesNotMakeThemWorse) {
   for (int frame = 0; frame < 16; ++frame) {
     const Eigen::Vector3d target(xy(rng), xy(rng), 0.0);
     const double a = yaw(rng);
-    const Eigen::Vector3d c = target + Eigen::Vector3d(back(rng) * std::cos(a),
-                                                       back(rng) * std::sin(a), height(rng));
+    const Eigen::Vector3d c =
+        target + Eigen::Vector3d(back(rng) * std::cos(a), back(rng) * std::sin(a), height(rng));
     const Eigen::Isometry3d T_world_camera = test::look_at(c, target);
     renderer.render(T_world_camera, static_cast<std::uint64_t>(frame), image, depth_m);
     // WHEN both detectors run on the frame
@@ -84,7 +83,8 @@ TEST_F(MarkerSimTest, PosesMatchTruthAndDepthDoesNotMakeThemWorse) {
         const Eigen::Isometry3d T_true = T_world_camera.inverse() * test::T_world_marker(*truth);
         errors.position_m.push_back(
             (d.T_camera_marker.translation() - T_true.translation()).norm());
-        errors.angle_rad.push_back(test::angle_between_rad(T_true.linear(), d.T_camera_marker.linear()));
+        errors.angle_rad.push_back(
+            test::angle_between_rad(T_true.linear(), d.T_camera_marker.linear()));
         if (d.used_depth) ++errors.depth_used;
       }
     }
@@ -93,12 +93,18 @@ TEST_F(MarkerSimTest, PosesMatchTruthAndDepthDoesNotMakeThemWorse) {
   ASSERT_EQ(image_errors.position_m.size(), depth_errors.position_m.size());
   std::printf("[ sim markers ] %d detections in 16 frames 640x480 (%d used depth)\n", seen,
               depth_errors.depth_used);
-  std::printf("[ sim markers ] image only : position mean %.1f max %.1f mm, angle mean %.2f max %.2f deg\n",
-              1e3 * image_errors.mean(image_errors.position_m), 1e3 * image_errors.max(image_errors.position_m),
-              image_errors.mean(image_errors.angle_rad) * 180 / M_PI, image_errors.max(image_errors.angle_rad) * 180 / M_PI);
-  std::printf("[ sim markers ] with depth : position mean %.1f max %.1f mm, angle mean %.2f max %.2f deg\n",
-              1e3 * depth_errors.mean(depth_errors.position_m), 1e3 * depth_errors.max(depth_errors.position_m),
-              depth_errors.mean(depth_errors.angle_rad) * 180 / M_PI, depth_errors.max(depth_errors.angle_rad) * 180 / M_PI);
+  std::printf(
+      "[ sim markers ] image only : position mean %.1f max %.1f mm, angle mean %.2f max %.2f deg\n",
+      1e3 * image_errors.mean(image_errors.position_m),
+      1e3 * image_errors.max(image_errors.position_m),
+      image_errors.mean(image_errors.angle_rad) * 180 / M_PI,
+      image_errors.max(image_errors.angle_rad) * 180 / M_PI);
+  std::printf(
+      "[ sim markers ] with depth : position mean %.1f max %.1f mm, angle mean %.2f max %.2f deg\n",
+      1e3 * depth_errors.mean(depth_errors.position_m),
+      1e3 * depth_errors.max(depth_errors.position_m),
+      depth_errors.mean(depth_errors.angle_rad) * 180 / M_PI,
+      depth_errors.max(depth_errors.angle_rad) * 180 / M_PI);
   EXPECT_GE(seen, 40);
   EXPECT_GT(depth_errors.depth_used, seen / 2);
   // Bounds beside the measured figures (seed 5, 16 frames): image only 4.9 mm mean position,

@@ -11,7 +11,7 @@ namespace {
 constexpr double kTouchdownThrustRatio = 0.9;
 /// The take-off's climb ends this near its target height (the slow final approach covers it).
 constexpr double kTakeoffReachedM = 0.02;
-}
+}  // namespace
 
 const char* to_string(Mode mode) {
   switch (mode) {
@@ -143,10 +143,10 @@ ModeOutput ModeController::step(std::int64_t t_ns,
         const double to_go_m = std::isfinite(height_m_)
                                    ? config_.takeoff_target_height_m - height_m_
                                    : config_.takeoff_slowdown_m;
-        const double climb_mps = std::clamp(
-            config_.takeoff_speed_mps * to_go_m / config_.takeoff_slowdown_m,
-            std::min(2.0 * config_.takeoff_climb_mps, config_.takeoff_speed_mps),
-            config_.takeoff_speed_mps);
+        const double climb_mps =
+            std::clamp(config_.takeoff_speed_mps * to_go_m / config_.takeoff_slowdown_m,
+                       std::min(2.0 * config_.takeoff_climb_mps, config_.takeoff_speed_mps),
+                       config_.takeoff_speed_mps);
         source = Source::kTakeoff;
         v_target = Eigen::Vector3d(0.0, 0.0, -climb_mps);
       }
@@ -159,8 +159,7 @@ ModeOutput ModeController::step(std::int64_t t_ns,
     case Mode::kExplore: {
       VelocityProvider* provider = (mode_ == Mode::kMarker) ? marker_ : explore_;
       const ModeCommand command = provider->desired(t_ns);
-      if (command.valid && command.v_H_mps.allFinite() &&
-          std::isfinite(command.yaw_rate_radps)) {
+      if (command.valid && command.v_H_mps.allFinite() && std::isfinite(command.yaw_rate_radps)) {
         source = Source::kProvider;
         v_target = command.v_H_mps;
         yaw_target = command.yaw_rate_radps;
@@ -221,10 +220,9 @@ ModeOutput ModeController::step(std::int64_t t_ns,
   const Eigen::Vector3d v_obs =
       v_obs_horizontal_mps.allFinite() ? v_obs_horizontal_mps : Eigen::Vector3d::Zero();
   out.v_des_horizontal_mps = v_star_mps_ + v_obs;
-  out.control =
-      controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_H_mps);
+  out.control = controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_H_mps);
   if (mode_ == Mode::kLand) land_step(dt_s, v_est_H_mps, out);
-  out.flight_state = out.landed           ? FlightState::kLanded
+  out.flight_state = out.landed             ? FlightState::kLanded
                      : mode_ == Mode::kLand ? FlightState::kLanding
                      : takeoff_active_      ? FlightState::kTakingOff
                                             : FlightState::kAirborne;
@@ -245,9 +243,9 @@ void ModeController::land_step(double dt_s, const std::optional<Eigen::Vector3d>
     blind_descent_timer_s_ = 0.0;
     // Held by the floor: not sinking although the PID, its integral winding against the floor,
     // asks for well under hover thrust (a hover in mid-air keeps it near m g).
-    const bool held_by_floor =
-        v_est_H_mps->z() < config_.touchdown_speed_mps &&
-        out.control.setpoint.thrust_n < kTouchdownThrustRatio * controller_.hover_setpoint().thrust_n;
+    const bool held_by_floor = v_est_H_mps->z() < config_.touchdown_speed_mps &&
+                               out.control.setpoint.thrust_n <
+                                   kTouchdownThrustRatio * controller_.hover_setpoint().thrust_n;
     touchdown_timer_s_ = held_by_floor ? touchdown_timer_s_ + dt_s : 0.0;
     if (touchdown_timer_s_ >= config_.touchdown_s) landed_ = true;
   }

@@ -352,8 +352,10 @@ TEST(ModeController, AnEstimateBackRestartsTheBlindDescentTimer) {
   // 0.75 s blind, 0.05 s with a (descending) estimate, 0.75 s blind: 1.5 s blind in all.
   for (int k = 0; k < 300; ++k) {
     const bool blind = k < 150 || k >= 160;
-    out = modes.step(k * kStepNs, blind ? no_estimate : std::optional<Eigen::Vector3d>(Eigen::Vector3d(0.0, 0.0, 0.3)),
-                     Eigen::Vector3d::Zero());
+    out = modes.step(
+        k * kStepNs,
+        blind ? no_estimate : std::optional<Eigen::Vector3d>(Eigen::Vector3d(0.0, 0.0, 0.3)),
+        Eigen::Vector3d::Zero());
     ASSERT_FALSE(out.landed) << k;
   }
   EXPECT_TRUE(out.blind_descent);

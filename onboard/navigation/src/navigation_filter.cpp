@@ -30,9 +30,8 @@ double seconds(std::int64_t dt_ns) { return static_cast<double>(dt_ns) / kNsPerS
 bool is_finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 bool nominal_finite(const NominalState& s) {
-  return s.p_W_m.allFinite() && s.v_W_mps.allFinite() &&
-         s.q_W_B.coeffs().allFinite() && s.gyro_bias_radps.allFinite() &&
-         s.accel_bias_mps2.allFinite();
+  return s.p_W_m.allFinite() && s.v_W_mps.allFinite() && s.q_W_B.coeffs().allFinite() &&
+         s.gyro_bias_radps.allFinite() && s.accel_bias_mps2.allFinite();
 }
 
 /// Symmetric positive definite within what LLT can tell.
@@ -88,9 +87,7 @@ NavigationConfig load_navigation_config(const std::string& path) {
   return out;
 }
 
-double yaw_rad(const Matrix3d& R_W_B) {
-  return std::atan2(R_W_B(1, 0), R_W_B(0, 0));
-}
+double yaw_rad(const Matrix3d& R_W_B) { return std::atan2(R_W_B(1, 0), R_W_B(0, 0)); }
 
 Matrix3d R_W_H(const Matrix3d& R_W_B) { return rot_z(yaw_rad(R_W_B)); }
 
@@ -133,8 +130,7 @@ Eigen::Matrix<double, 3, kErrorStateSize> velocity_jacobian(const NominalState& 
   return H;
 }
 
-NavigationFilter::NavigationFilter(const NavigationConfig& config,
-                                   const Eigen::Isometry3d& T_B_C)
+NavigationFilter::NavigationFilter(const NavigationConfig& config, const Eigen::Isometry3d& T_B_C)
     : config_(config), R_B_C_(T_B_C.linear()), p_B_C_m_(T_B_C.translation()) {}
 
 UpdateResult NavigationFilter::reject(const char* reason) {
@@ -165,14 +161,12 @@ UpdateResult NavigationFilter::initialize(std::int64_t t_ns, const NominalState&
   return UpdateResult{UpdateStatus::kAccepted, "initialised", 0.0};
 }
 
-UpdateResult NavigationFilter::anchor_to_marker(std::int64_t t_ns,
-                                                const Eigen::Isometry3d& T_W_C,
+UpdateResult NavigationFilter::anchor_to_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_W_C,
                                                 const Matrix6d& covariance) {
   if (!is_finite(T_W_C)) return reject("non-finite marker pose");
   if (!positive_definite<6>(covariance)) return reject("marker covariance not positive definite");
   Matrix3d R_WC;
-  if (!clean_rotation(T_W_C.linear(), R_WC))
-    return reject("marker rotation not a rotation");
+  if (!clean_rotation(T_W_C.linear(), R_WC)) return reject("marker rotation not a rotation");
   if (initialized_) {
     const UpdateResult stamp = check_stamp(t_ns);
     if (!stamp.accepted()) return reject(stamp.reason);
@@ -307,8 +301,7 @@ UpdateResult NavigationFilter::correct(const Eigen::Matrix<double, kDim, 1>& res
   next.p_W_m += dx.template segment<3>(kIndexPosition);
   next.v_W_mps += dx.template segment<3>(kIndexVelocity);
   const Vector3d dtheta = dx.template segment<3>(kIndexAttitude);
-  next.q_W_B =
-      Eigen::Quaterniond(next.q_W_B.toRotationMatrix() * exp_so3(dtheta)).normalized();
+  next.q_W_B = Eigen::Quaterniond(next.q_W_B.toRotationMatrix() * exp_so3(dtheta)).normalized();
   next.gyro_bias_radps += dx.template segment<3>(kIndexGyroBias);
   next.accel_bias_mps2 += dx.template segment<3>(kIndexAccelBias);
   // Reset of the error state: dtheta+ = dtheta - dtheta_hat, whose Jacobian for the attitude
@@ -324,8 +317,7 @@ UpdateResult NavigationFilter::correct(const Eigen::Matrix<double, kDim, 1>& res
   return UpdateResult{UpdateStatus::kAccepted, "updated", nis};
 }
 
-UpdateResult NavigationFilter::update_marker(std::int64_t t_ns,
-                                             const Eigen::Isometry3d& T_W_C,
+UpdateResult NavigationFilter::update_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_W_C,
                                              const Matrix6d& covariance) {
   if (!initialized_ || !counters_.anchored) {
     return anchor_to_marker(t_ns, T_W_C, covariance);

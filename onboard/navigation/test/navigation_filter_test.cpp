@@ -97,8 +97,7 @@ class Scenario {
     NominalState start;
     const Matrix3d R_start = euler_zyx(0.01, -0.01, 0.3) * x.R_WB;
     start.q_W_B = Eigen::Quaterniond(R_start);
-    start.v_W_mps =
-        R_W_H(R_start) * R_W_H(x.R_WB).transpose() * x.v_W;
+    start.v_W_mps = R_W_H(R_start) * R_W_H(x.R_WB).transpose() * x.v_W;
     filter_.initialize(0, start);
   }
 
@@ -232,7 +231,7 @@ NominalState perturbed(const NominalState& s, int index, double eps) {
   out.p_W_m += dx.segment<3>(kIndexPosition);
   out.v_W_mps += dx.segment<3>(kIndexVelocity);
   out.q_W_B = Eigen::Quaterniond(s.q_W_B.toRotationMatrix() *
-                                        geometry::exp_so3(dx.segment<3>(kIndexAttitude)));
+                                 geometry::exp_so3(dx.segment<3>(kIndexAttitude)));
   return out;
 }
 

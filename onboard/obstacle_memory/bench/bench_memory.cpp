@@ -32,7 +32,6 @@ double ms_between(SteadyClock::time_point a, SteadyClock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-
 long rss_kib() {
   std::ifstream status("/proc/self/status");
   std::string key;
@@ -120,8 +119,8 @@ FlightFigures fly(double seconds, const hq::sim::World& world,
     f.clears += update.cleared ? 1 : 0;
     if (f.map_size_at_10s < 0 && t_ns >= 10'000'000'000) f.map_size_at_10s = update.map_size;
     if (f.memory_ms.size() % 10 == 0) {
-      f.peer_ms.push_back(pcl_peer_ms(depth, sim_config.camera.pinhole, T_O_C, memory_config,
-                                      cloud, voxels, cleaned));
+      f.peer_ms.push_back(pcl_peer_ms(depth, sim_config.camera.pinhole, T_O_C, memory_config, cloud,
+                                      voxels, cleaned));
     }
   }
   return f;
@@ -132,7 +131,8 @@ int run(int argc, char** argv) {
   double seconds = 600.0;
   std::string world_path = "onboard/sim/worlds/room.yaml";
   std::string config_path;
-  app.add_option("--seconds", seconds, "simulated flight length (s)")->check(CLI::Range(1.0, 7200.0));
+  app.add_option("--seconds", seconds, "simulated flight length (s)")
+      ->check(CLI::Range(1.0, 7200.0));
   app.add_option("--world", world_path, "world file");
   app.add_option("--config", config_path, "on-board config: its memory section");
   try {

@@ -6,7 +6,6 @@
 #include "hq/obstacles/support_surface.hpp"
 
 #include <Eigen/Geometry>
-
 #include <pcl/exceptions.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
@@ -43,7 +42,8 @@ std::size_t hash_slot(std::uint64_t key, std::size_t mask) {
 bool valid_depth(float z) { return std::isfinite(z) && z > 0.0f; }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 }  // namespace
 
@@ -80,12 +80,11 @@ void validate(const MemoryConfig& c, const ConfigKeyName& name_or_default) {
   expect(c.max_age_s > 0.0 && c.max_age_s <= 3600.0, name, "max_age_s", c.max_age_s,
          "in (0, 3600]");
   expect(c.radius_m > 0.0 && c.radius_m <= 100.0, name, "radius_m", c.radius_m, "in (0, 100]");
-  expect(c.capacity >= 1 && c.capacity <= 1000000, name, "capacity", c.capacity,
-         "in [1, 1000000]");
+  expect(c.capacity >= 1 && c.capacity <= 1000000, name, "capacity", c.capacity, "in [1, 1000000]");
   expect(c.max_pose_jump_m > 0.0 && c.max_pose_jump_m <= 100.0, name, "max_pose_jump_m",
          c.max_pose_jump_m, "in (0, 100]");
-  expect(c.max_pose_jump_rad >= 0.1 * kRadPerDeg && c.max_pose_jump_rad <= 180.0 * kRadPerDeg,
-         name, "max_pose_jump_deg", c.max_pose_jump_rad / kRadPerDeg, "in [0.1, 180]");
+  expect(c.max_pose_jump_rad >= 0.1 * kRadPerDeg && c.max_pose_jump_rad <= 180.0 * kRadPerDeg, name,
+         "max_pose_jump_deg", c.max_pose_jump_rad / kRadPerDeg, "in [0.1, 180]");
   expect(c.vertical_band_m > 0.0 && c.vertical_band_m <= 100.0, name, "vertical_band_m",
          c.vertical_band_m, "in (0, 100]");
   expect(c.support_normal_max_rad >= 0.0 && c.support_normal_max_rad <= 90.0 * kRadPerDeg, name,
@@ -137,7 +136,8 @@ ObstacleMemory::ObstacleMemory(const MemoryConfig& config, const geometry::Pinho
   const std::size_t samples =
       static_cast<std::size_t>((camera.width + config.pixel_stride - 1) / config.pixel_stride) *
       static_cast<std::size_t>((camera.height + config.pixel_stride - 1) / config.pixel_stride);
-  frame_table_.assign(power_of_two_at_least(2 * samples), FrameVoxel{kEmptyKey, Eigen::Vector3f::Zero(), 0});
+  frame_table_.assign(power_of_two_at_least(2 * samples),
+                      FrameVoxel{kEmptyKey, Eigen::Vector3f::Zero(), 0});
   frame_used_.reserve(samples);
   kept_voxels_.reserve(samples);
   entries_.reserve(static_cast<std::size_t>(config.capacity));
@@ -255,9 +255,8 @@ void ObstacleMemory::voxelise(const cv::Mat& depth_m, const Eigen::Isometry3d& T
       // depth in ~2 mm steps, which over adjacent pixels (3 mm apart) tilts a floor's normal by
       // tens of degrees. Without a normal the sample is unknown surface, most often the ragged
       // edge of depth at the sensor's minimum range on the floor ahead: not remembered.
-      if (!obstacles::surface_normal_C(point_at, u, v, camera_.width, camera_.height,
-                                       kNormalStepPx, obstacles::NormalStencil::kOneSided, p_C,
-                                       n_C) ||
+      if (!obstacles::surface_normal_C(point_at, u, v, camera_.width, camera_.height, kNormalStepPx,
+                                       obstacles::NormalStencil::kOneSided, p_C, n_C) ||
           obstacles::is_support_normal(R_H_C, n_C, cos_max_tilt)) {
         continue;
       }
@@ -313,8 +312,7 @@ void ObstacleMemory::age_and_pool(std::int64_t t_ns, const cv::Mat& depth_m,
   const Eigen::Isometry3d T_C_O = T_O_C.inverse();
   const Eigen::Matrix3f R_C_O = T_C_O.linear().cast<float>();
   const Eigen::Vector3f p_C_O = T_C_O.translation().cast<float>();
-  const Eigen::Vector3f p_O_B =
-      (T_O_C * (-R_B_C_.transpose() * p_B_C_m_)).cast<float>();
+  const Eigen::Vector3f p_O_B = (T_O_C * (-R_B_C_.transpose() * p_B_C_m_)).cast<float>();
   const Eigen::Matrix3d R_H_C = R_H_B * R_B_C_;
   const Eigen::Vector3d p_H_C = R_H_B * p_B_C_m_;
   const auto radius2 = static_cast<float>(config_.radius_m * config_.radius_m);
@@ -349,8 +347,8 @@ void ObstacleMemory::age_and_pool(std::int64_t t_ns, const cv::Mat& depth_m,
     if (std::abs(p_H.z()) > config_.vertical_band_m) continue;
     const double d = p_H.norm();
     if (!(d < influence_distance_m)) continue;
-    int sector = static_cast<int>(std::floor((std::atan2(p_H.y(), p_H.x()) + M_PI) *
-                                             sectors_per_rad));
+    int sector =
+        static_cast<int>(std::floor((std::atan2(p_H.y(), p_H.x()) + M_PI) * sectors_per_rad));
     sector = std::clamp(sector, 0, config_.sectors - 1);
     if (d < sector_distance_m_[static_cast<std::size_t>(sector)]) {
       sector_distance_m_[static_cast<std::size_t>(sector)] = static_cast<float>(d);
@@ -435,11 +433,11 @@ MemoryUpdate ObstacleMemory::update(std::int64_t t_ns, const cv::Mat& depth_m,
     return out;
   }
   forget_on_pose_jump(T_O_C, out);
-  voxelise(depth_m, T_O_C, R_H_B);                // 1. depth into voxels in O
-  out.speckle_removed = remove_speckle(t_ns);     // 2. isolated voxels dropped
+  voxelise(depth_m, T_O_C, R_H_B);                                  // 1. depth into voxels in O
+  out.speckle_removed = remove_speckle(t_ns);                       // 2. isolated voxels dropped
   age_and_pool(t_ns, depth_m, T_O_C, R_H_B, influence_distance_m);  // 3. forget, pool
-  out.inserted = merge_frame();                   // 4. this frame into the map
-  pick_sector_minima(out);                        // 5. what the field gets
+  out.inserted = merge_frame();                                     // 4. this frame into the map
+  pick_sector_minima(out);                                          // 5. what the field gets
   out.updated = true;
   out.map_size = size();
   return out;
@@ -466,7 +464,7 @@ void ObstacleMemory::save(const std::string& path) const {
   int status = -1;
   try {
     if (ends_with(path, ".pcd")) {
-    // PCL's binary writer refuses an empty cloud; ASCII writes a valid empty file.
+      // PCL's binary writer refuses an empty cloud; ASCII writes a valid empty file.
       status = cloud.empty() ? pcl::io::savePCDFileASCII(path, cloud)
                              : pcl::io::savePCDFileBinary(path, cloud);
     } else {

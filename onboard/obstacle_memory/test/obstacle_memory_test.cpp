@@ -80,8 +80,8 @@ TEST(ObstacleMemory, WallRememberedOnTheLeftAfterAYawRight) {
   // THEN the wall is remembered on its left (NED body y < 0), about 1 m away.
   MemoryUpdate update;
   for (int i = 1; i <= 9; ++i) {
-    update = memory.update(i * kFrameNs, no_depth(), camera_pose(i * 10.0 * M_PI / 180.0), kLevel,
-                           kD0);
+    update =
+        memory.update(i * kFrameNs, no_depth(), camera_pose(i * 10.0 * M_PI / 180.0), kLevel, kD0);
   }
   ASSERT_TRUE(update.updated) << update.reason;
   ASSERT_GE(update.count, 1);
@@ -163,9 +163,8 @@ TEST(ObstacleMemory, BadDepthNeverEntersTheMap) {
   EXPECT_EQ(update.inserted, 0);
   EXPECT_EQ(memory.size(), 0);
 
-  const MemoryUpdate wrong_type =
-      memory.update(kFrameNs, cv::Mat(240, 320, CV_16UC1, cv::Scalar(1000)), camera_pose(0.0),
-                    kLevel, kD0);
+  const MemoryUpdate wrong_type = memory.update(
+      kFrameNs, cv::Mat(240, 320, CV_16UC1, cv::Scalar(1000)), camera_pose(0.0), kLevel, kD0);
   EXPECT_FALSE(wrong_type.updated);
   EXPECT_THAT(wrong_type.reason, HasSubstr("CV_32FC1"));
 }
@@ -186,17 +185,17 @@ TEST(ObstacleMemory, NonFinitePoseIsRejectedAndTheMapKept) {
 TEST(ObstacleMemory, PoseJumpClearsTheMapAndSaysSo) {
   ObstacleMemory memory = make_memory();
   ASSERT_TRUE(memory.update(0, wall(1.0f), camera_pose(0.0), kLevel, kD0).updated);
-  const MemoryUpdate small = memory.update(kFrameNs, no_depth(), camera_pose(0.0, {0.1, 0, 0}),
-                                           kLevel, kD0);
+  const MemoryUpdate small =
+      memory.update(kFrameNs, no_depth(), camera_pose(0.0, {0.1, 0, 0}), kLevel, kD0);
   EXPECT_FALSE(small.cleared);
   EXPECT_GT(small.map_size, 0);
-  const MemoryUpdate jump = memory.update(2 * kFrameNs, no_depth(),
-                                          camera_pose(0.0, {1.1, 0, 0}), kLevel, kD0);
+  const MemoryUpdate jump =
+      memory.update(2 * kFrameNs, no_depth(), camera_pose(0.0, {1.1, 0, 0}), kLevel, kD0);
   EXPECT_TRUE(jump.cleared);
   EXPECT_EQ(jump.clear_count, 1);
   EXPECT_EQ(jump.map_size, 0);
-  const MemoryUpdate turn = memory.update(3 * kFrameNs, wall(1.0f),
-                                          camera_pose(1.0, {1.1, 0, 0}), kLevel, kD0);
+  const MemoryUpdate turn =
+      memory.update(3 * kFrameNs, wall(1.0f), camera_pose(1.0, {1.1, 0, 0}), kLevel, kD0);
   EXPECT_TRUE(turn.cleared);  // 57 deg in one frame
   EXPECT_EQ(turn.clear_count, 2);
   EXPECT_EQ(turn.map_size, turn.inserted);  // only the new frame
@@ -246,8 +245,8 @@ TEST(ObstacleMemory, DownSamplingMatchesPclVoxelGrid) {
       const float z = 0.8f + 0.004f * static_cast<float>(u) + 0.002f * static_cast<float>(v);
       depth.at<float>(v, u) = z;
       const Eigen::Vector3d ray_C = camera.ray(u, v);
-      cloud.push_back(pcl::PointXYZ(static_cast<float>(ray_C.x()) * z,
-                                    static_cast<float>(ray_C.y()) * z, z));
+      cloud.push_back(
+          pcl::PointXYZ(static_cast<float>(ray_C.x()) * z, static_cast<float>(ray_C.y()) * z, z));
     }
   }
   const MemoryUpdate update = memory.update(0, depth, camera_pose(0.0), kLevel, kD0);
@@ -307,8 +306,7 @@ TEST(ObstacleMemory, SaveNamesTheBadPath) {
   EXPECT_THAT(hq::testing::input_error_message([&] { memory.save("/tmp/map.xyz"); }),
               HasSubstr("/tmp/map.xyz: unknown extension, expected .pcd or .ply"));
   ASSERT_TRUE(memory.update(0, wall(2.0f), camera_pose(0.0), kLevel, kD0).updated);
-  EXPECT_THAT(hq::testing::input_error_message(
-                  [&] { memory.save("/nonexistent-dir/map.pcd"); }),
+  EXPECT_THAT(hq::testing::input_error_message([&] { memory.save("/nonexistent-dir/map.pcd"); }),
               HasSubstr("/nonexistent-dir/map.pcd"));
 }
 

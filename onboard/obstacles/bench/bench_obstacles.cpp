@@ -98,8 +98,7 @@ void run(int width, int height, int frame_count) {
     const cv::Mat& depth = frames[static_cast<std::size_t>(i) % frames.size()];
     const Clock::time_point start = Clock::now();
     const double cpu_start = thread_cpu_ms();
-    const hq::obstacles::ObstacleResult result =
-        field.compute(depth, Eigen::Matrix3d::Identity());
+    const hq::obstacles::ObstacleResult result = field.compute(depth, Eigen::Matrix3d::Identity());
     cpu_ms.push_back(thread_cpu_ms() - cpu_start);
     wall_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
     checksum += result.v_obs_horizontal_mps.norm() + result.count;

@@ -1,9 +1,8 @@
 #include "hq/obstacles/obstacle_field.hpp"
 
-#include "hq/obstacles/support_surface.hpp"
-
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
+#include "hq/obstacles/support_surface.hpp"
 
 #include <Eigen/Geometry>
 

@@ -1,9 +1,8 @@
 #include "hq/obstacles/obstacle_field.hpp"
 
-#include "hq/obstacles/support_surface.hpp"
-
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
+#include "hq/obstacles/support_surface.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
 
@@ -223,9 +222,9 @@ TEST(ObstacleField, RememberedPointPushesAsAColumnOnItsHorizontalOffset) {
   ASSERT_EQ(result.count, 1);  // the NaN point is skipped
   EXPECT_TRUE(result.points[0].remembered);
   EXPECT_FALSE(seen.points[0].remembered);
-  const ObstacleResult column = field.compute(
-      wall(6.0f), Eigen::Matrix3d::Identity(),
-      std::array<Eigen::Vector3d, 1>{Eigen::Vector3d(p.x(), p.y(), 0.0)});
+  const ObstacleResult column =
+      field.compute(wall(6.0f), Eigen::Matrix3d::Identity(),
+                    std::array<Eigen::Vector3d, 1>{Eigen::Vector3d(p.x(), p.y(), 0.0)});
   EXPECT_LT((result.v_obs_horizontal_mps - column.v_obs_horizontal_mps).norm(), 1e-12);
   EXPECT_EQ(result.v_obs_horizontal_mps.z(), 0.0);
   EXPECT_GT(result.v_obs_horizontal_mps.head<2>().norm(),
@@ -251,8 +250,7 @@ TEST(ObstacleField, RememberedPointsAddToTheViewAndSaturate) {
   EXPECT_NEAR(result.v_obs_horizontal_mps.norm(), expected, 1e-9);
   // Inside the vehicle's sphere (the propellers touch it): saturated.
   const std::array<Eigen::Vector3d, 1> touching = {Eigen::Vector3d(-0.06, 0.0, 0.0)};
-  const ObstacleResult saturated =
-      field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), touching);
+  const ObstacleResult saturated = field.compute(wall(6.0f), Eigen::Matrix3d::Identity(), touching);
   EXPECT_NEAR(saturated.v_obs_horizontal_mps.norm(), ObstacleConfig{}.max_repulsive_speed_mps,
               1e-9);
 }
@@ -485,7 +483,6 @@ TEST(ObstacleConfig, ZeroGainIsRejected) {
               HasSubstr("config/onboard.yaml: obstacles.gain = 0, expected > 0"));
 }
 
-
 // A plane seen by a camera at the origin: points z / (n . ray) along each pixel's ray.
 struct PlaneDepth {
   geometry::PinholeCamera camera;
@@ -513,14 +510,13 @@ TEST(SupportSurface, NormalOfAPlaneIsItsNormalWithEitherStencilAndOneSidedAtHole
   PlaneDepth floor{camera, R_H_C.transpose() * Eigen::Vector3d::UnitZ(), 1.0, {}};
   Eigen::Vector3d p_C;
   ASSERT_TRUE(floor(320, 400, p_C));
-  for (const NormalStencil stencil :
-       {NormalStencil::kCentralWhereBoth, NormalStencil::kOneSided}) {
+  for (const NormalStencil stencil : {NormalStencil::kCentralWhereBoth, NormalStencil::kOneSided}) {
     // WHEN its normal is estimated, with all neighbours and with the +u neighbour missing
     for (const std::vector<int>& holes : {std::vector<int>{}, std::vector<int>{328}}) {
       floor.holes_u = holes;
       Eigen::Vector3d n_C;
-      ASSERT_TRUE(surface_normal_C(floor, 320, 400, camera.width, camera.height, 8, stencil, p_C,
-                                   n_C));
+      ASSERT_TRUE(
+          surface_normal_C(floor, 320, 400, camera.width, camera.height, 8, stencil, p_C, n_C));
       // THEN it is the plane's normal (up to sign), a support surface within 1 deg of vertical
       EXPECT_NEAR(std::abs(n_C.normalized().dot(floor.n_C)), 1.0, 1e-9);
       EXPECT_TRUE(is_support_normal(R_H_C, n_C, std::cos(1.0 * kDeg)));

@@ -27,12 +27,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <optional>
-#include <random>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -66,8 +66,8 @@ std::optional<Eigen::Isometry3d> pose_at(const std::vector<hq::recording::Stampe
   T.linear() = Eigen::Quaterniond(prev->T_world_sensor.linear())
                    .slerp(s, Eigen::Quaterniond(next->T_world_sensor.linear()))
                    .toRotationMatrix();
-  T.translation() = (1.0 - s) * prev->T_world_sensor.translation() +
-                    s * next->T_world_sensor.translation();
+  T.translation() =
+      (1.0 - s) * prev->T_world_sensor.translation() + s * next->T_world_sensor.translation();
   return T;
 }
 
@@ -80,8 +80,8 @@ void synthesise_gyro(LoadedSequence& sequence) {
     const auto a = pose_at(sequence.ground_truth, sequence.frames[i - 1].t_ns);
     const auto b = pose_at(sequence.ground_truth, sequence.frames[i].t_ns);
     if (!a || !b) continue;
-    const double dt_s = 1e-9 * static_cast<double>(sequence.frames[i].t_ns -
-                                                   sequence.frames[i - 1].t_ns);
+    const double dt_s =
+        1e-9 * static_cast<double>(sequence.frames[i].t_ns - sequence.frames[i - 1].t_ns);
     // Integrated white noise: sigma = density sqrt(dt); the bias integrates to bias dt.
     const double sigma = kGyroNoiseDensity * std::sqrt(dt_s);
     const Eigen::Vector3d noise(gaussian(rng), gaussian(rng), gaussian(rng));
@@ -165,8 +165,7 @@ class OpenCvMethod final : public Method {
   Eigen::Isometry3d T_O_C_ = Eigen::Isometry3d::Identity();
 };
 
-LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera,
-                    double skip_s) {
+LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera, double skip_s) {
   hq::sources::TumFrameSource source(dir, camera);
   LoadedSequence sequence;
   sequence.name = std::filesystem::path(dir).filename().string();
@@ -200,8 +199,7 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
       const auto start = std::chrono::steady_clock::now();
       const auto& gyro = sequence.gyro[i];
-      const Eigen::Isometry3d T_O_C =
-          method.track(sequence.frames[i], gyro ? &*gyro : nullptr);
+      const Eigen::Isometry3d T_O_C = method.track(sequence.frames[i], gyro ? &*gyro : nullptr);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count();
@@ -253,8 +251,7 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride, bool o
   if (!only_haptiquad) {
     methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdOdometry", "RgbdOdometry"));
     methods.push_back(std::make_unique<OpenCvMethod>("opencv ICPOdometry", "ICPOdometry"));
-    methods.push_back(
-        std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
+    methods.push_back(std::make_unique<OpenCvMethod>("opencv RgbdICPOdometry", "RgbdICPOdometry"));
   }
   return methods;
 }
@@ -290,8 +287,7 @@ static int run_benchmarks(int argc, char** argv) {
   bool only_haptiquad = false;
   int depth_point_stride = hq::odometry::OdometryConfig{}.depth_point_stride;
   app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
-  app.add_option("--camera", camera_path,
-                 "camera file of sequences without their own camera.yaml");
+  app.add_option("--camera", camera_path, "camera file of sequences without their own camera.yaml");
   app.add_option("--passes", passes, "times each sequence is run per method")
       ->check(CLI::PositiveNumber);
   app.add_option("--skip-s", skip_s,
@@ -325,10 +321,10 @@ static int run_benchmarks(int argc, char** argv) {
   for (const std::string& dir : sequence_dirs) {
     // A simulator recording carries its own camera.yaml; TUM folders use --camera.
     const std::string own_camera = dir + "/camera.yaml";
-    const LoadedSequence sequence =
-        load(dir, std::filesystem::exists(own_camera) ? hq::config::load_camera_info(own_camera)
-                                                      : camera,
-             skip_s);
+    const LoadedSequence sequence = load(
+        dir,
+        std::filesystem::exists(own_camera) ? hq::config::load_camera_info(own_camera) : camera,
+        skip_s);
     print_sequence_table(sequence, methods, opencv_rgbd, passes);
   }
   std::printf("\nspeedup = OpenCV RgbdOdometry median / method median, same run.\n");

@@ -1,5 +1,12 @@
 #include "hq/odometry/dense_odometry.hpp"
 
+#include "hq/config/strict_yaml.hpp"
+#include "hq/geometry/lie.hpp"
+
+#include "kernels.hpp"
+#include "pyramid.hpp"
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -7,13 +14,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Cholesky>
-
-#include "hq/config/strict_yaml.hpp"
-#include "hq/geometry/lie.hpp"
-#include "kernels.hpp"
-#include "pyramid.hpp"
 
 namespace hq::odometry {
 
@@ -29,8 +29,8 @@ using Vector6d = geometry::Vector6d;
 // One prepared pyramid level of the reference frame, structure of arrays so that the warp and
 // accumulation loops stream through memory.
 struct ReferenceLevel {
-  std::vector<float> x, y, z;    // 3D point in the reference camera frame, metres
-  std::vector<float> intensity;  // I_ref at the pixel
+  std::vector<float> x, y, z;      // 3D point in the reference camera frame, metres
+  std::vector<float> intensity;    // I_ref at the pixel
   std::vector<float> photometric;  // 1 if the pixel has gradient (a photometric residual), else 0
   std::array<std::vector<float>, 6> jacobian;  // d I_ref(pi(exp(xi) p)) / d xi at xi = 0
   int count = 0;
@@ -146,8 +146,7 @@ void validate(const OdometryConfig& c, const std::string& where) {
   check.positive("depth_noise_per_m", c.depth_noise_per_m, 1.0);
   check.in_range("depth_point_stride", c.depth_point_stride, 1, 64);
   check.positive("depth_max_spread_ratio", c.depth_max_spread_ratio, 1.0);
-  check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0,
-                 1e6);
+  check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0, 1e6);
 }
 
 void read_config(config::StrictMap& section, OdometryConfig& out) {
@@ -167,8 +166,8 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("motion_prior_precision", out.motion_prior_precision, -kAny, kAny);
   section.read("initialize_with_previous_motion", out.initialize_with_previous_motion);
   section.read("estimate_brightness_offset", out.estimate_brightness_offset);
-  std::string mode = out.reference_mode == ReferenceMode::kFrameToFrame ? "frame_to_frame"
-                                                                         : "frame_to_keyframe";
+  std::string mode =
+      out.reference_mode == ReferenceMode::kFrameToFrame ? "frame_to_frame" : "frame_to_keyframe";
   section.read("reference_mode", mode, {"frame_to_frame", "frame_to_keyframe"});
   out.reference_mode =
       mode == "frame_to_frame" ? ReferenceMode::kFrameToFrame : ReferenceMode::kFrameToKeyframe;
@@ -177,8 +176,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("keyframe_check", out.keyframe_check);
   section.read("keyframe_check_max_translation_m", out.keyframe_check_max_translation_m, -kAny,
                kAny);
-  section.read("keyframe_check_max_rotation_deg", out.keyframe_check_max_rotation_deg, -kAny,
-               kAny);
+  section.read("keyframe_check_max_rotation_deg", out.keyframe_check_max_rotation_deg, -kAny, kAny);
   section.read("use_depth_term", out.use_depth_term);
   section.read("depth_noise_per_m", out.depth_noise_per_m, -kAny, kAny);
   section.read("depth_point_stride", out.depth_point_stride, -kAnyInt, kAnyInt);
@@ -302,7 +300,8 @@ struct DenseOdometry::Impl {
           const float gy = 0.5f * (down[u] - up[u]);
           const bool textured = gx * gx + gy * gy >= min_gradient_sq;
           if (!textured && (stride == 0 || u % stride != 0 || v % stride != 0)) continue;
-          const Eigen::Vector3f p_C = cam.unproject(static_cast<float>(u), static_cast<float>(v), z);
+          const Eigen::Vector3f p_C =
+              cam.unproject(static_cast<float>(u), static_cast<float>(v), z);
           const float x = p_C.x();
           const float y = p_C.y();
           float J[6];
@@ -397,12 +396,11 @@ struct DenseOdometry::Impl {
         const float v = k.fy * qy * inv_z + k.cy;
         if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
           if (photometric[i] > 0.0f) {
-            r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] -
-                brightness_offset;
+            r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = 1.0f;
           }
-          ok = detail::depth_residual_at(depth, depth_stride, k, T, ref.x[i], ref.y[i],
-                                         ref.z[i], qx, qy, qz, u, v, noise, spread, rz, J);
+          ok = detail::depth_residual_at(depth, depth_stride, k, T, ref.x[i], ref.y[i], ref.z[i],
+                                         qx, qy, qz, u, v, noise, spread, rz, J);
         }
       }
       depth_residual[i] = ok ? rz : 0.0f;
@@ -792,8 +790,8 @@ struct DenseOdometry::Impl {
     p.T_ref_predicted = p.predict ? T_ref_last * last_motion : T_ref_last;
     // The gyro's rotation since the previous frame replaces the predicted one: photometric
     // alignment fails first under fast yaw, where the gyro is at its best.
-    p.use_prior = config.use_rotation_prior && prior != nullptr &&
-                  prior->R_prev_cur.allFinite() && prior->information.allFinite();
+    p.use_prior = config.use_rotation_prior && prior != nullptr && prior->R_prev_cur.allFinite() &&
+                  prior->information.allFinite();
     if (p.use_prior) {
       p.R_ref_prior = T_ref_last.linear() * prior->R_prev_cur;
       p.prior_information = config.rotation_prior_information_scale * prior->information;
@@ -824,9 +822,9 @@ struct DenseOdometry::Impl {
 
   // Keyframe check, second half: T_prev_cur through the keyframe chain against the direct one.
   bool keyframe_chain_broke(const Alignment& a, const Alignment& to_previous) const {
-    const bool keyframe_ok = a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
-                             static_cast<double>(a.valid) / finest_pixels() >=
-                                 config.min_valid_ratio;
+    const bool keyframe_ok =
+        a.T_cur_ref.matrix().allFinite() && a.valid >= 6 &&
+        static_cast<double>(a.valid) / finest_pixels() >= config.min_valid_ratio;
     const Eigen::Isometry3d chain = T_ref_last.inverse() * a.T_cur_ref.inverse();
     const Eigen::Isometry3d difference = to_previous.T_cur_ref * chain;
     return !keyframe_ok ||
@@ -977,8 +975,8 @@ OdometryResult DenseOdometry::track(std::int64_t t_ns, const cv::Mat& gray,
   return impl_->track(t_ns, gray, depth_m, nullptr);
 }
 
-OdometryResult DenseOdometry::track(std::int64_t t_ns, const cv::Mat& gray,
-                                    const cv::Mat& depth_m, const RotationPrior* prior) {
+OdometryResult DenseOdometry::track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
+                                    const RotationPrior* prior) {
   return impl_->track(t_ns, gray, depth_m, prior);
 }
 

@@ -145,10 +145,10 @@ void accumulate_rows_impl(const float* const* J, const float* r_in, const float*
   const float* j5 = J[5];
   for (int start = 0; start < count; start += kAccumulationBlock) {
     const int end = std::min(count, start + kAccumulationBlock);
-    float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0,
-          h14 = 0, h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0,
-          h44 = 0, h45 = 0, h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0,
-          o0 = 0, o1 = 0, o2 = 0, o3 = 0, o4 = 0, o5 = 0, oo = 0, go = 0;
+    float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0,
+          h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0, h44 = 0, h45 = 0,
+          h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0, o0 = 0, o1 = 0, o2 = 0,
+          o3 = 0, o4 = 0, o5 = 0, oo = 0, go = 0;
 #pragma omp simd reduction(+ : h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, \
                                h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e, \
                                o0, o1, o2, o3, o4, o5, oo, go)
@@ -158,15 +158,42 @@ void accumulate_rows_impl(const float* const* J, const float* r_in, const float*
       const float a0 = j0[i], a1 = j1[i], a2 = j2[i], a3 = j3[i], a4 = j4[i], a5 = j5[i];
       const float c = kOffsetJacobian ? offset_jacobian[i] : 1.0f;
       const float w0 = w * a0, w1 = w * a1, w2 = w * a2, w3 = w * a3, w4 = w * a4, w5 = w * a5;
-      h00 += w0 * a0; h01 += w0 * a1; h02 += w0 * a2; h03 += w0 * a3; h04 += w0 * a4;
-      h05 += w0 * a5; h11 += w1 * a1; h12 += w1 * a2; h13 += w1 * a3; h14 += w1 * a4;
-      h15 += w1 * a5; h22 += w2 * a2; h23 += w2 * a3; h24 += w2 * a4; h25 += w2 * a5;
-      h33 += w3 * a3; h34 += w3 * a4; h35 += w3 * a5; h44 += w4 * a4; h45 += w4 * a5;
+      h00 += w0 * a0;
+      h01 += w0 * a1;
+      h02 += w0 * a2;
+      h03 += w0 * a3;
+      h04 += w0 * a4;
+      h05 += w0 * a5;
+      h11 += w1 * a1;
+      h12 += w1 * a2;
+      h13 += w1 * a3;
+      h14 += w1 * a4;
+      h15 += w1 * a5;
+      h22 += w2 * a2;
+      h23 += w2 * a3;
+      h24 += w2 * a4;
+      h25 += w2 * a5;
+      h33 += w3 * a3;
+      h34 += w3 * a4;
+      h35 += w3 * a5;
+      h44 += w4 * a4;
+      h45 += w4 * a5;
       h55 += w5 * a5;
-      g0 += w0 * r; g1 += w1 * r; g2 += w2 * r; g3 += w3 * r; g4 += w4 * r; g5 += w5 * r;
+      g0 += w0 * r;
+      g1 += w1 * r;
+      g2 += w2 * r;
+      g3 += w3 * r;
+      g4 += w4 * r;
+      g5 += w5 * r;
       e += w * r * r;
-      o0 += c * w0; o1 += c * w1; o2 += c * w2; o3 += c * w3; o4 += c * w4; o5 += c * w5;
-      oo += c * c * w; go += c * w * r;
+      o0 += c * w0;
+      o1 += c * w1;
+      o2 += c * w2;
+      o3 += c * w3;
+      o4 += c * w4;
+      o5 += c * w5;
+      oo += c * c * w;
+      go += c * w * r;
     }
     const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
                              h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};

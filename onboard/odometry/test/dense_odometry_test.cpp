@@ -1,18 +1,17 @@
 #include "hq/odometry/dense_odometry.hpp"
 
-#include <cmath>
-#include <limits>
-#include <tuple>
+#include "hq/config/strict_yaml.hpp"
+#include "hq/geometry/lie.hpp"
+#include "hq/testing/allocation_counter.hpp"
 
+#include "rendered_plane.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "hq/config/strict_yaml.hpp"
-#include "hq/geometry/lie.hpp"
-#include "hq/testing/allocation_counter.hpp"
-#include "rendered_plane.hpp"
-
+#include <cmath>
+#include <limits>
+#include <tuple>
 
 namespace hq::odometry {
 namespace {
@@ -310,7 +309,8 @@ TEST(OdometryConfig, ConstructorRejectsWhatTheReaderRejectsInsteadOfClamping) {
     const DenseOdometry odometry(too_fine, camera);
     FAIL() << "finest_level 3 of 3 levels accepted";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("OdometryConfig.finest_level = 3, expected < pyramid_levels (3)"));
+    EXPECT_THAT(e.what(),
+                HasSubstr("OdometryConfig.finest_level = 3, expected < pyramid_levels (3)"));
   }
   OdometryConfig too_deep;
   too_deep.pyramid_levels = 9;

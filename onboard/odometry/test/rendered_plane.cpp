@@ -16,16 +16,15 @@ double texture(double x, double y) {
 }  // namespace
 
 void render_textured_plane(const geometry::PinholeCamera& camera,
-                           const Eigen::Isometry3d& T_world_camera, double plane_z_m,
-                           cv::Mat& gray, cv::Mat& depth_m) {
+                           const Eigen::Isometry3d& T_world_camera, double plane_z_m, cv::Mat& gray,
+                           cv::Mat& depth_m) {
   gray.create(camera.height, camera.width, CV_8UC1);
   depth_m.create(camera.height, camera.width, CV_32FC1);
   const Eigen::Matrix3d R = T_world_camera.linear();
   const Eigen::Vector3d o = T_world_camera.translation();
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
-      const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy,
-                                     1.0);
+      const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
       const Eigen::Vector3d d_world = R * d_camera;
       const double s = d_world.z() != 0.0 ? (plane_z_m - o.z()) / d_world.z() : -1.0;
       if (s <= 0.0) {

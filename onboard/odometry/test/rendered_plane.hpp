@@ -1,17 +1,17 @@
 #pragma once
 // A textured plane rendered exactly by ray casting: frames with known motion for odometry tests.
 
+#include "hq/geometry/pinhole_camera.hpp"
+
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
-
-#include "hq/geometry/pinhole_camera.hpp"
 
 namespace hq::odometry::test {
 
 /// Renders the plane z_world = plane_z_m, textured with smooth sinusoids, as seen by a camera
 /// at T_world_camera (optical frame). gray CV_8UC1, depth_m CV_32FC1 (0 where the ray misses).
 void render_textured_plane(const geometry::PinholeCamera& camera,
-                           const Eigen::Isometry3d& T_world_camera, double plane_z_m,
-                           cv::Mat& gray, cv::Mat& depth_m);
+                           const Eigen::Isometry3d& T_world_camera, double plane_z_m, cv::Mat& gray,
+                           cv::Mat& depth_m);
 
 }  // namespace hq::odometry::test

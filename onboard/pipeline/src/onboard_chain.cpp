@@ -136,8 +136,7 @@ odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, const c
   return odometry_.track(t_ns, gray, depth_m, use_gyro ? &gyro : nullptr);
 }
 
-void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray,
-                                     const cv::Mat& depth_m,
+void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                                      const odometry::OdometryResult& odometry, ChainOutput& out) {
   // Fig. 4: odometry poses and IMU into v_H (eqs. 1-5).
   // Landed with motors idle the vehicle is at rest: a zero-velocity update, so that the take-off
@@ -165,9 +164,9 @@ void OnboardChain::update_memory(std::int64_t t_ns, const cv::Mat& depth_m,
     out.memory.clear_count = memory_.clear_count();
   } else {
     // The field's d0 is a clearance (|p| minus the vehicle radius): recall out to its reach.
-    out.memory = memory_.update(
-        t_ns, depth_m, odometry.T_O_C, R_H_B,
-        config_.obstacles.influence_distance_m + config_.obstacles.vehicle_radius_m);
+    out.memory =
+        memory_.update(t_ns, depth_m, odometry.T_O_C, R_H_B,
+                       config_.obstacles.influence_distance_m + config_.obstacles.vehicle_radius_m);
   }
 }
 
@@ -368,7 +367,9 @@ void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
   apply_operator_limit(nullptr);
 }
 
-modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) { return request_mode(ModeRequest{mode, std::nullopt}); }
+modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) {
+  return request_mode(ModeRequest{mode, std::nullopt});
+}
 
 modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
   if (lost_estimate_landing_ && request.mode != modes::Mode::kLand) {
@@ -381,7 +382,8 @@ modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
     }
     markers_->marker_mode().set_task(request.marker->task, request.marker->marker_id);
   }
-  return request.take_off ? modes_.request_takeoff(request.mode) : modes_.request_mode(request.mode);
+  return request.take_off ? modes_.request_takeoff(request.mode)
+                          : modes_.request_mode(request.mode);
 }
 
 }  // namespace hq::pipeline

@@ -141,8 +141,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
     ++replay.frames;
     if (out.estimate.ok()) {
       ++replay.ok_estimates;
-      replay.samples.push_back(
-          {frame.t_ns, out.estimate.v_C_raw_mps, out.estimate.v_C_mps});
+      replay.samples.push_back({frame.t_ns, out.estimate.v_C_raw_mps, out.estimate.v_C_mps});
     }
   }
   replay.imu.samples.clear();

@@ -53,8 +53,7 @@ bool setpoint_finite(const ChainOutput& out) {
   const control::AttitudeSetpoint& s = out.mode.control.setpoint;
   return std::isfinite(s.thrust_n) && std::isfinite(s.roll_rad) && std::isfinite(s.pitch_rad) &&
          std::isfinite(s.yaw_rate_radps) && out.mode.v_des_horizontal_mps.allFinite() &&
-         out.estimate.v_H_mps.allFinite() &&
-         out.obstacles.v_obs_horizontal_mps.allFinite();
+         out.estimate.v_H_mps.allFinite() && out.obstacles.v_obs_horizontal_mps.allFinite();
 }
 
 /// modes.start_landed is true by default (motors idle until a climb request); the tests of

@@ -1,9 +1,9 @@
 #include "hq/ros2_bridge/ros2_bridge.hpp"
 
+#include "hq/ros2_bridge/ros_frames.hpp"
+
 #include <cmath>
 #include <cstring>
-
-#include "hq/ros2_bridge/ros_frames.hpp"
 
 namespace hq::ros2_bridge {
 namespace {
@@ -140,8 +140,8 @@ void Ros2Bridge::publish_state(const link::VehicleState& s) {
   const bool pose_known = s.position_valid;
   const Eigen::Quaterniond q_E_F_ =
       q_E_F(roll_rad, pitch_rad, pose_known ? static_cast<double>(s.yaw_W_rad) : 0.0);
-  const Eigen::Vector3d p_E_m = pose_known ? enu_from_ned(from_msg(s.p_W_m))
-                                           : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d p_E_m =
+      pose_known ? enu_from_ned(from_msg(s.p_W_m)) : Eigen::Vector3d::Zero();
   const Eigen::Vector3d v_F_mps = v_F_from_v_H(from_msg(s.v_H_mps), roll_rad, pitch_rad);
   const Eigen::Vector3d omega_F_radps = flu_from_frd(from_msg(s.omega_body_radps));
 
@@ -176,8 +176,7 @@ void Ros2Bridge::publish_state(const link::VehicleState& s) {
   for (std::uint32_t i = 0; i < n; ++i) {
     const Eigen::Vector3f p_F_m =
         flu_from_frd(from_msg(s.obstacle_points_body_m._buffer[i])).cast<float>();
-    std::memcpy(&cloud_data_[static_cast<std::size_t>(i) * kPointStep], p_F_m.data(),
-                kPointStep);
+    std::memcpy(&cloud_data_[static_cast<std::size_t>(i) * kPointStep], p_F_m.data(), kPointStep);
   }
   cloud_.header.stamp = stamp;
   cloud_.width = n;
@@ -203,8 +202,7 @@ bool Ros2Bridge::take_command(link::VelocityCommand& command) {
   if (!command_reader_.take(*twist_, info)) return false;
   ++counters_.commands_received;
   const auto& t = twist_->twist;
-  const HorizontalCommand c =
-      command_from_twist({t.linear.x, t.linear.y, t.linear.z}, t.angular.z);
+  const HorizontalCommand c = command_from_twist({t.linear.x, t.linear.y, t.linear.z}, t.angular.z);
   command = {};
   command.vehicle_id = vehicle_id_;
   command.station_id = station_id_;

@@ -29,8 +29,7 @@ Eigen::Quaterniond q_E_F(double roll_rad, double pitch_rad, double yaw_rad) {
 
 Eigen::Vector3d v_F_from_v_H(const Eigen::Vector3d& v_H_mps, double roll_rad, double pitch_rad) {
   // H is B with roll and pitch taken out: R_H_B = R_ned_body(roll, pitch, 0).
-  const Eigen::Vector3d v_B_mps =
-      R_ned_body(roll_rad, pitch_rad, 0.0).transpose() * v_H_mps;
+  const Eigen::Vector3d v_B_mps = R_ned_body(roll_rad, pitch_rad, 0.0).transpose() * v_H_mps;
   return flu_from_frd(v_B_mps);
 }
 

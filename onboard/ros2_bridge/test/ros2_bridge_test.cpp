@@ -2,18 +2,17 @@
 // values in ROS frames, XCDR1 on the wire, and cmd_vel_in as the link's command.
 #include "hq/ros2_bridge/ros2_bridge.hpp"
 
+#include "hq/ros2_bridge/ros_frames.hpp"
+
+#include "link_test_support.hpp"
+#include <dds/ddsi/ddsi_serdata.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include <dds/ddsi/ddsi_serdata.h>
 
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <string>
-
-#include "hq/ros2_bridge/ros_frames.hpp"
-#include "link_test_support.hpp"
 
 namespace hq::ros2_bridge {
 namespace {
@@ -142,7 +141,7 @@ TEST(Ros2Bridge, MarkerPoseGoesOutInEnu) {
   Probe<Odometry> odom(f.participant, "rt/hq3/odom");
   link::VehicleState s = level_state();
   s.position_valid = true;
-  s.p_W_m = {2.0F, -1.0F, -1.5F};  // 2 m north, 1 m west, 1.5 m up
+  s.p_W_m = {2.0F, -1.0F, -1.5F};              // 2 m north, 1 m west, 1.5 m up
   s.yaw_W_rad = static_cast<float>(M_PI / 2);  // facing east
   s.estimator_health = hq_msgs_HEALTH_LOST;
   f.bridge.publish_state(s);

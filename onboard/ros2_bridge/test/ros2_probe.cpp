@@ -10,6 +10,9 @@
 // DIR/<topic>.cdr (records: uint32 little-endian length, bytes) and writes each native state's
 // stamp, v_H and attitude to DIR/states.csv, for the independent decoder (decode_ros2.cjs).
 // Exit 0 when both phases were seen, 1 naming the phase that was not, 2 on bad arguments.
+#include "hq/link/link.hpp"
+#include "hq/ros2_bridge/ros2_bridge.hpp"
+
 #include <dds/dds.h>
 #include <dds/ddsi/ddsi_serdata.h>
 
@@ -22,9 +25,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include "hq/link/link.hpp"
-#include "hq/ros2_bridge/ros2_bridge.hpp"
 
 namespace {
 
@@ -56,10 +56,10 @@ struct RawDump {
           const std::uint32_t size = ddsi_serdata_size(samples_cdr[i]);
           std::vector<unsigned char> bytes(size);
           ddsi_serdata_to_ser(samples_cdr[i], 0, size, bytes.data());
-          const unsigned char length[4] = {
-              static_cast<unsigned char>(size & 0xFF), static_cast<unsigned char>((size >> 8) & 0xFF),
-              static_cast<unsigned char>((size >> 16) & 0xFF),
-              static_cast<unsigned char>((size >> 24) & 0xFF)};
+          const unsigned char length[4] = {static_cast<unsigned char>(size & 0xFF),
+                                           static_cast<unsigned char>((size >> 8) & 0xFF),
+                                           static_cast<unsigned char>((size >> 16) & 0xFF),
+                                           static_cast<unsigned char>((size >> 24) & 0xFF)};
           std::fwrite(length, 1, 4, file);
           std::fwrite(bytes.data(), 1, bytes.size(), file);
           ++samples;
@@ -99,11 +99,16 @@ int main(int argc, char** argv) {
   Args a;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
-    if (key == "--domain-id") a.domain_id = std::atoi(argv[i + 1]);
-    else if (key == "--out") a.out = argv[i + 1];
-    else if (key == "--ns") a.ns = argv[i + 1];
-    else if (key == "--seconds") a.seconds = std::atof(argv[i + 1]);
-    else if (key == "--heading-deg") a.heading_deg = std::atof(argv[i + 1]);
+    if (key == "--domain-id")
+      a.domain_id = std::atoi(argv[i + 1]);
+    else if (key == "--out")
+      a.out = argv[i + 1];
+    else if (key == "--ns")
+      a.ns = argv[i + 1];
+    else if (key == "--seconds")
+      a.seconds = std::atof(argv[i + 1]);
+    else if (key == "--heading-deg")
+      a.heading_deg = std::atof(argv[i + 1]);
     else {
       std::fprintf(stderr, "hq_ros2_probe: unknown option %s\n", key.c_str());
       return 2;
@@ -120,11 +125,11 @@ int main(int argc, char** argv) {
     Participant participant(config.domain_id);
     hq::link::Topics topics(participant);
     hq::link::Reader<hq::link::VehicleState> states(participant, topics.vehicle_state,
-                                                   hq::link::vehicle_state_qos());
+                                                    hq::link::vehicle_state_qos());
     hq::link::Writer<hq::link::ModeRequest> requests(participant, topics.mode_request,
-                                                    hq::link::mode_request_qos());
+                                                     hq::link::mode_request_qos());
     hq::link::Writer<hq::link::Heartbeat> heartbeats(participant, topics.heartbeat,
-                                                    hq::link::heartbeat_qos(config));
+                                                     hq::link::heartbeat_qos(config));
     hq::link::Writer<hq::link::VelocityCommand> commands(
         participant, topics.command, hq::link::command_qos(config, hq::link::End::kWriter));
 
@@ -237,11 +242,12 @@ int main(int argc, char** argv) {
             phase = Phase::kNative;
             phase_start_ns = t_ns;
           } else if (t_ns - phase_start_ns > 5'000'000'000) {
-            std::printf("probe: FAILED: the ROS 2 command was not flown within 5 s "
-                        "(commanding station %u, v_cmd_flown_H x %.2f, operator input %d, "
-                        "mode %d)\n",
-                        state->commanding_station_id, state->v_cmd_flown_H_mps.x,
-                        static_cast<int>(state->operator_input), static_cast<int>(state->mode));
+            std::printf(
+                "probe: FAILED: the ROS 2 command was not flown within 5 s "
+                "(commanding station %u, v_cmd_flown_H x %.2f, operator input %d, "
+                "mode %d)\n",
+                state->commanding_station_id, state->v_cmd_flown_H_mps.x,
+                static_cast<int>(state->operator_input), static_cast<int>(state->mode));
             return 1;
           }
           break;
@@ -259,9 +265,10 @@ int main(int argc, char** argv) {
                         1e-9 * (t_ns - phase_start_ns));
             phase = Phase::kDone;
           } else if (t_ns - phase_start_ns > 5'000'000'000) {
-            std::printf("probe: FAILED: the native station did not take over within 5 s "
-                        "(commanding station %u, v_cmd_flown_H x %.2f)\n",
-                        state->commanding_station_id, state->v_cmd_flown_H_mps.x);
+            std::printf(
+                "probe: FAILED: the native station did not take over within 5 s "
+                "(commanding station %u, v_cmd_flown_H x %.2f)\n",
+                state->commanding_station_id, state->v_cmd_flown_H_mps.x);
             return 1;
           }
           break;
@@ -279,9 +286,8 @@ int main(int argc, char** argv) {
     }
     std::fclose(csv);
     if (phase != Phase::kDone) {
-      std::printf("probe: FAILED: %s\n", phase == Phase::kTakeOff
-                                             ? "the vehicle never got airborne"
-                                             : "ran out of time");
+      std::printf("probe: FAILED: %s\n",
+                  phase == Phase::kTakeOff ? "the vehicle never got airborne" : "ran out of time");
       return 1;
     }
     return 0;

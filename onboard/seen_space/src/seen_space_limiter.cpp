@@ -61,8 +61,7 @@ SeenSpaceLimiter::SeenSpaceLimiter(const SeenSpaceConfig& config,
   if (!(camera.fx > 0.0 && camera.fy > 0.0 && camera.width > 0 && camera.height > 0)) {
     throw InputError("seen_space: camera intrinsics must be positive (fx, fy, width, height)");
   }
-  if (!R_body_camera.allFinite() || !p_body_camera_m.allFinite() ||
-      !(vehicle_radius_m >= 0.0)) {
+  if (!R_body_camera.allFinite() || !p_body_camera_m.allFinite() || !(vehicle_radius_m >= 0.0)) {
     throw InputError("seen_space: camera extrinsics and vehicle radius must be finite");
   }
   bin_width_rad_ = kTwoPi / config.bins;
@@ -90,8 +89,8 @@ double SeenSpaceLimiter::max_speed_mps(double free_m) const {
 }
 
 double SeenSpaceLimiter::max_speed_mps(double free_m, double v_now_mps) const {
-  const double stop_m = free_m - vehicle_radius_m_ - config_.margin_m -
-                        std::max(0.0, v_now_mps) * config_.reaction_s;
+  const double stop_m =
+      free_m - vehicle_radius_m_ - config_.margin_m - std::max(0.0, v_now_mps) * config_.reaction_s;
   if (!(stop_m > 0.0)) return 0.0;
   return std::sqrt(2.0 * config_.brake_accel_mps2 * stop_m);
 }
@@ -121,8 +120,7 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     out.reason = "seen_space disabled";
     return out;
   }
-  const bool pose_ok = T_O_C != nullptr && T_O_C->matrix().allFinite() &&
-                       R_H_B.allFinite();
+  const bool pose_ok = T_O_C != nullptr && T_O_C->matrix().allFinite() && R_H_B.allFinite();
   if (!pose_ok) {
     pose_chain_broken_ = true;
     out.reason = "no pose";
@@ -241,8 +239,7 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   return out;
 }
 
-void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_O_m,
-                                            std::int64_t t_seen_ns) {
+void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_O_m, std::int64_t t_seen_ns) {
   if (!config_.enabled || !have_pose_ || pose_chain_broken_ || !p_O_m.allFinite()) return;
   if (t_seen_ns < t_pose_since_ns_) return;
   const Eigen::Vector3d p_H = R_H_O_ * (p_O_m.cast<double>() - p_O_B_);
@@ -287,8 +284,7 @@ LimitedCommand SeenSpaceLimiter::limit(const Eigen::Vector3d& v_H_mps,
     }
     if (std::abs(theta) > window) continue;
     // Free up to d at most, then unknown; no data: unknown from here.
-    const double v_bin =
-        std::max(config_.creep_speed_mps, d >= 0.0 ? max_speed_mps(d) : 0.0);
+    const double v_bin = std::max(config_.creep_speed_mps, d >= 0.0 ? max_speed_mps(d) : 0.0);
     if (v_bin < v_max) {
       v_max = v_bin;
       unseen = v_bin <= config_.creep_speed_mps;

@@ -40,7 +40,8 @@ Eigen::Matrix3d R_body_camera() {
 }
 
 /// Camera pose for a body at p_W (W = NED-like, z down) with yaw psi (clockwise).
-Eigen::Isometry3d camera_pose(double yaw_rad, const Eigen::Vector3d& p_W = Eigen::Vector3d::Zero()) {
+Eigen::Isometry3d camera_pose(double yaw_rad,
+                              const Eigen::Vector3d& p_W = Eigen::Vector3d::Zero()) {
   Eigen::Isometry3d T_W_Q = Eigen::Isometry3d::Identity();
   T_W_Q.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   T_W_Q.translation() = p_W;
@@ -56,7 +57,8 @@ cv::Mat wall(double distance_m) {
 
 class SeenSpaceTest : public ::testing::Test {
  protected:
-  SeenSpaceTest() : limiter_(config_, test_camera(), R_body_camera(), Eigen::Vector3d::Zero(), kRadius) {}
+  SeenSpaceTest()
+      : limiter_(config_, test_camera(), R_body_camera(), Eigen::Vector3d::Zero(), kRadius) {}
   SeenSpaceConfig config_;
   SeenSpaceLimiter limiter_;
   const Eigen::Matrix3d level_ = Eigen::Matrix3d::Identity();
@@ -105,24 +107,26 @@ TEST_F(SeenSpaceTest, AVehicleFasterThanItsCommandGetsALowerCommand) {
   const Eigen::Isometry3d T = camera_pose(0.0);
   limiter_.update(0, wall(2.0), &T, level_);
   const double plain = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0)).v_H_mps.x();
-  const double slow = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(0.2, 0.0, 0.0))
-                          .v_H_mps.x();
-  const double fast = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(1.8, 0.0, 0.0))
-                          .v_H_mps.x();
+  const double slow =
+      limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(0.2, 0.0, 0.0)).v_H_mps.x();
+  const double fast =
+      limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(1.8, 0.0, 0.0)).v_H_mps.x();
   EXPECT_GT(slow, fast);
-  EXPECT_NEAR(fast, std::sqrt(2.0 * config_.brake_accel_mps2 *
-                              (2.0 - kRadius - config_.margin_m - 1.8 * config_.reaction_s)),
+  EXPECT_NEAR(fast,
+              std::sqrt(2.0 * config_.brake_accel_mps2 *
+                        (2.0 - kRadius - config_.margin_m - 1.8 * config_.reaction_s)),
               0.05);
   // Moving away from the wall: no reaction distance towards it.
-  const double away = limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(-0.5, 0.0, 0.0))
-                          .v_H_mps.x();
+  const double away =
+      limiter_.limit(Eigen::Vector3d(2.0, 0.0, 0.0), Eigen::Vector3d(-0.5, 0.0, 0.0)).v_H_mps.x();
   EXPECT_GT(away, plain);
 }
 
 TEST_F(SeenSpaceTest, CreepSpeedIsConfigurable) {
   SeenSpaceConfig config = config_;
   config.creep_speed_mps = 0.15;
-  SeenSpaceLimiter limiter(config, test_camera(), R_body_camera(), Eigen::Vector3d::Zero(), kRadius);
+  SeenSpaceLimiter limiter(config, test_camera(), R_body_camera(), Eigen::Vector3d::Zero(),
+                           kRadius);
   const Eigen::Isometry3d T = camera_pose(0.0);
   limiter.update(0, wall(2.0), &T, level_);
   const LimitedCommand back = limiter.limit(Eigen::Vector3d(-1.0, 0.0, 0.0));
@@ -189,7 +193,8 @@ TEST_F(SeenSpaceTest, FloorBelowTheBandIsFreeSpaceNotAWall) {
   const Eigen::Matrix3d R_HC = R_pitch * R_body_camera();
   for (int v = 0; v < 240; ++v) {
     for (int u = 0; u < 320; ++u) {
-      const Eigen::Vector3d ray = Eigen::Vector3d((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
+      const Eigen::Vector3d ray =
+          Eigen::Vector3d((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
       const double down = (R_HC * ray).z();
       if (down > 1e-3) floor.at<float>(v, u) = static_cast<float>(1.0 / down);  // depth = z_C
     }
@@ -254,7 +259,9 @@ TEST_F(SeenSpaceTest, UpdateAndLimitAllocateNothing) {
     limiter_.heading_limits(limits);
   }
   EXPECT_EQ(testing::allocation_count() - before, 0);
-  EXPECT_NEAR(limits[0], limiter_.max_speed_mps(limiter_.free_distance_m(limiter_.bin_of_heading_azimuth(0.02))), 0.5);
+  EXPECT_NEAR(
+      limits[0],
+      limiter_.max_speed_mps(limiter_.free_distance_m(limiter_.bin_of_heading_azimuth(0.02))), 0.5);
 }
 
 TEST(SeenSpaceConfigTest, ReadsStrictlyWithRanges) {

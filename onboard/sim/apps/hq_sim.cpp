@@ -61,8 +61,7 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--world", o.world_path, "world YAML (onboard/sim/worlds/*.yaml)")->required();
   app.add_option("--config", o.config_path,
                  "sim config YAML (run from the repository root for the default)");
-  app.add_option("--duration-s", o.duration_s, "simulated seconds")
-      ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--duration-s", o.duration_s, "simulated seconds")->check(CLI::Range(0.1, 3600.0));
   app.add_option("--record", o.record_dir, "output directory (TUM RGB-D layout)");
   app.add_option("--resolution", o.resolution, "WIDTHxHEIGHT, e.g. 320x240 or 640x480");
   app.add_option("--seed", o.seed, "noise and gust seed (default: the world's seed)")
@@ -127,10 +126,10 @@ int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Optio
       "hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
       "%lld dropped frames\n",
       world.name.c_str(), o.script_kind.c_str(), static_cast<unsigned long long>(config.seed),
-      o.duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height,
-      imu_samples, static_cast<long long>(sim.dropped_frames()));
-  std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n",
-              p_N_m.x(), p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
+      o.duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples,
+      static_cast<long long>(sim.dropped_frames()));
+  std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n", p_N_m.x(),
+              p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
   if (writer) std::printf("recorded to %s\n", o.record_dir.c_str());
   return 0;
 }

@@ -557,7 +557,7 @@ void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C) {
   Scene& sc = *scene_;
   // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
   const Eigen::Vector3d light = params_.light_dir_world.normalized();
-  const FrameView view{params_.pinhole,    T_N_C.linear(), T_N_C.linear().transpose(),
+  const FrameView view{params_.pinhole,     T_N_C.linear(), T_N_C.linear().transpose(),
                        T_N_C.translation(), light,          params_.ambient,
                        params_.diffuse};
   prepare_rects(sc, view);
@@ -972,9 +972,8 @@ ShadeRow shade_row(SceneTables& sc, int width) {
 
 /// surface_coordinates_row() for one pixel whose hit is not on a run of one rectangle.
 inline void surface_coordinates_pixel(const SceneTables& sc, const ShadeConstants& k,
-                                      std::int32_t code, float x, float y, float t,
-                                      float ray_scale, float& s_m, float& w_m, float& shade,
-                                      float& cos_incidence) {
+                                      std::int32_t code, float x, float y, float t, float ray_scale,
+                                      float& s_m, float& w_m, float& shade, float& cos_incidence) {
   const Vec3f d(x, y, 1.0f);
   const int index = (code >> 3) & 0x1fffff;
   const int face = code & 7;
@@ -1064,8 +1063,8 @@ void surface_coordinates_row(const SceneTables& sc, const ShadeConstants& k, int
       s_m[u] = 0.0f;
       w_m[u] = 0.0f;
       if (code_row[u] == kNoCode) continue;
-      surface_coordinates_pixel(sc, k, code_row[u], ray_x[u], y, t_row[u], inv_norm_row[u],
-                                s_m[u], w_m[u], shade[u], cos_incidence[u]);
+      surface_coordinates_pixel(sc, k, code_row[u], ray_x[u], y, t_row[u], inv_norm_row[u], s_m[u],
+                                w_m[u], shade[u], cos_incidence[u]);
     }
     u0 = u1;
   }
@@ -1084,8 +1083,7 @@ void albedo_row(SceneTables& sc, int width, const std::int32_t* code_row, const 
     while (u1 < width && code_row[u1] == code) ++u1;
     if (code != kNoCode) {
       const Surface* surface = surface_of(sc, code);
-      const Texture& texture =
-          surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
+      const Texture& texture = surface != nullptr ? *surface->texture : *cylinder_texture(sc, code);
       texture.albedo_span(s_m + u0, w_m + u0, u1 - u0, b + u0, g + u0, r + u0);
       if (surface != nullptr && !surface->markers.empty()) {
         // Only the markers near this run (a floor may carry dozens) are tested per pixel.
@@ -1139,8 +1137,8 @@ void write_image_row(const ShadeConstants& k, int width, const ShadeRow& row, st
 
 }  // namespace
 
-void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
-                          cv::Mat& image, cv::Mat& depth_m) {
+void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
+                          cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);
@@ -1190,8 +1188,8 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_in
   drop_depth_at_discontinuities_fast(depth_m);
 }
 
-void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C,
-                                    std::uint64_t frame_index, cv::Mat& image, cv::Mat& depth_m) {
+void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
+                                    cv::Mat& image, cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);

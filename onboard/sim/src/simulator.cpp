@@ -63,8 +63,7 @@ SimConfig default_sim_config(int width, int height) {
   return config;
 }
 
-void set_resolution(SimConfig& config, const std::string& width_x_height,
-                    const std::string& what) {
+void set_resolution(SimConfig& config, const std::string& width_x_height, const std::string& what) {
   int width = 0;
   int height = 0;
   char tail = 0;
@@ -192,9 +191,9 @@ void read_camera(config::StrictMap& section, SimConfig& out) {
   p.pinhole = pinhole_from_fov(width, height, hfov_rad);
   if (!(p.pinhole.fx >= config::kMinFocalPx && p.pinhole.fx <= config::kMaxFocalPx)) {
     std::ostringstream message;
-    message << c.describe("hfov_deg") << " = " << hfov_rad * 180.0 / M_PI << " with width "
-            << width << " gives fx = " << p.pinhole.fx << " px, expected in ["
-            << config::kMinFocalPx << ", " << config::kMaxFocalPx << "] px";
+    message << c.describe("hfov_deg") << " = " << hfov_rad * 180.0 / M_PI << " with width " << width
+            << " gives fx = " << p.pinhole.fx << " px, expected in [" << config::kMinFocalPx << ", "
+            << config::kMaxFocalPx << "] px";
     throw InputError(message.str());
   }
   c.read_positive("rate_hz", p.rate_hz, 1000.0);

@@ -168,7 +168,6 @@ class RenderWorker {
   std::thread thread_;  // last: starts once everything above is constructed
 };
 
-
 /// What one run counts, for the closing summary.
 struct SitlRunStats {
   std::int64_t max_lag_ns = 0;
@@ -212,12 +211,11 @@ void receive_mavlink(mavlink::Transport& transport, mavlink::Parser& parser,
                      SitlAutopilot& autopilot, std::int64_t t_ns, const TruthState& truth,
                      MessageSink& sink, std::span<std::uint8_t> rx, SitlRunStats& stats) {
   for (std::size_t n = transport.receive(rx); n > 0; n = transport.receive(rx)) {
-    parser.feed(std::span<const std::uint8_t>(rx.data(), n),
-                [&](const mavlink::FrameHeader& header, const mavlink::Message& message) {
-                  ++stats.messages_received;
-                  autopilot.on_message(t_ns, header.system_id, header.component_id, message,
-                                       truth, sink);
-                });
+    parser.feed(std::span<const std::uint8_t>(rx.data(), n), [&](const mavlink::FrameHeader& header,
+                                                                 const mavlink::Message& message) {
+      ++stats.messages_received;
+      autopilot.on_message(t_ns, header.system_id, header.component_id, message, truth, sink);
+    });
     if (transport.datagrams()) parser.end_of_datagram();
   }
 }

@@ -67,11 +67,10 @@ TumRecorder::TumRecorder(const std::string& dir, const geometry::PinholeCamera& 
               "# gyroscope data\n" + from + options.gyro_note + "\n# timestamp wx wy wz\n");
   }
   std::ofstream info(dir_ + "/camera.yaml");
-  info << "# Intrinsics of the recorded (already undistorted) images, from "
-       << options.description << "\nimage_width: " << camera.width
-       << "\nimage_height: " << camera.height << "\ncamera_name: " << options.camera_name
-       << "\ncamera_matrix: {rows: 3, cols: 3, data: [" << camera.fx << ", 0, " << camera.cx
-       << ", 0, " << camera.fy << ", " << camera.cy
+  info << "# Intrinsics of the recorded (already undistorted) images, from " << options.description
+       << "\nimage_width: " << camera.width << "\nimage_height: " << camera.height
+       << "\ncamera_name: " << options.camera_name << "\ncamera_matrix: {rows: 3, cols: 3, data: ["
+       << camera.fx << ", 0, " << camera.cx << ", 0, " << camera.fy << ", " << camera.cy
        << ", 0, 0, 1]}\ndistortion_model: plumb_bob\n"
        << "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
        << "depth_scale_units_per_m: 5000\n"
@@ -117,8 +116,8 @@ void TumRecorder::write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d&
   const Eigen::Quaterniond q(T_world_camera.linear());
   const Eigen::Vector3d& p = T_world_camera.translation();
   char line[256];
-  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n",
-                stamp(t_ns).c_str(), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n", stamp(t_ns).c_str(),
+                p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
   groundtruth_ << line;
 }
 

@@ -11,7 +11,6 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -319,7 +318,8 @@ TEST(Fakenect, HqOnboardOnTheKinectReachesAGroundStationOverTheLink) {
   EXPECT_THAT(output, HasSubstr("link on domain " + domain));
   EXPECT_EQ(ground.wait_exit(20.0), 0);
   std::ifstream in(dir + "/ground.out");
-  const std::string ground_out((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string ground_out((std::istreambuf_iterator<char>(in)),
+                               std::istreambuf_iterator<char>());
   // The dump has 5 frames, each a state; those sent before discovery completes are lost (the
   // state topic keeps no history), so at least one reaches the station.
   const std::size_t at = ground_out.find("received");

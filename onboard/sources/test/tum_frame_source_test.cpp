@@ -1,9 +1,9 @@
 #include "hq/sources/tum_frame_source.hpp"
 
+#include "hq/recording/data_dir.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include "hq/recording/data_dir.hpp"
 
 namespace hq::sources {
 namespace {

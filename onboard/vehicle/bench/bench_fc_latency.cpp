@@ -14,21 +14,19 @@
 #include "hq/vehicle/vehicle_runtime.hpp"
 
 #include "rendered_plane.hpp"
-
 #include <CLI/CLI.hpp>
-
-#include <time.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <functional>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <string>
 #include <thread>
+#include <time.h>
+#include <unistd.h>
 #include <vector>
 
 namespace {

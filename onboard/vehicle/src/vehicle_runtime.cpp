@@ -209,8 +209,7 @@ void VehicleRuntime::deliver(const pipeline::ChainOutput& out) {
     fc_.send_setpoint(out.t_ns, out.mode.control.setpoint);
     ++counters_.setpoints;
     if (out.frame && out.estimate.ok()) {
-      fc_.send_velocity_estimate(out.t_ns, out.estimate.v_H_mps,
-                                 config_.velocity_variance_m2ps2);
+      fc_.send_velocity_estimate(out.t_ns, out.estimate.v_H_mps, config_.velocity_variance_m2ps2);
     }
   } else {
     ++counters_.setpoints_withheld;

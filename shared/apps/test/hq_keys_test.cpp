@@ -5,17 +5,15 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <openssl/pem.h>
-#include <openssl/x509.h>
-
-#include <unistd.h>
-
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <openssl/pem.h>
+#include <openssl/x509.h>
 #include <sstream>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 namespace {
@@ -73,8 +71,8 @@ class HqKeys : public ::testing::Test {
 TEST_F(HqKeys, MakesACheckedLayoutWithTheValidityAskedFor) {
   ASSERT_EQ(run({"init", keys_}), 0) << output_;
   ASSERT_EQ(run({"identity", keys_, "--role", "vehicle", "--id", "4"}), 0) << output_;
-  ASSERT_EQ(run({"identity", keys_, "--role", "station", "--id", "2", "--vehicles", "4,5",
-                 "--days", "30"}),
+  ASSERT_EQ(run({"identity", keys_, "--role", "station", "--id", "2", "--vehicles", "4,5", "--days",
+                 "30"}),
             0)
       << output_;
   EXPECT_THAT(output_, HasSubstr("CN=station_2,O=HaptiQuad"));

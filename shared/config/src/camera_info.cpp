@@ -1,12 +1,12 @@
 #include "hq/config/camera_info.hpp"
 
-#include <cmath>
-#include <sstream>
+#include "hq/config/strict_yaml.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "hq/config/strict_yaml.hpp"
+#include <cmath>
+#include <sstream>
 
 namespace hq::config {
 

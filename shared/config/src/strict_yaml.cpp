@@ -4,10 +4,10 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstring>
-#include <fstream>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <optional>
 #include <sstream>
 #include <unordered_map>
@@ -143,8 +143,8 @@ void StrictMap::read(const std::string& key, double& value, double min, double m
   const std::optional<YAML::Node> node = find(key);
   if (!node) return;
   const double v = parse_double(*node, describe(key));
-  if (v < min || v > max) throw InputError(describe(key) + " = " + to_text(*node) + ", " +
-                                           range_text(min, max));
+  if (v < min || v > max)
+    throw InputError(describe(key) + " = " + to_text(*node) + ", " + range_text(min, max));
   value = v;
 }
 
@@ -153,8 +153,8 @@ void StrictMap::read_positive(const std::string& key, double& value, double max)
   if (!node) return;
   const double v = parse_double(*node, describe(key));
   if (!(v > 0.0)) throw InputError(describe(key) + " = " + to_text(*node) + ", expected > 0");
-  if (v > max) throw InputError(describe(key) + " = " + to_text(*node) + ", " +
-                                range_text(0.0, max));
+  if (v > max)
+    throw InputError(describe(key) + " = " + to_text(*node) + ", " + range_text(0.0, max));
   value = v;
 }
 
@@ -185,8 +185,8 @@ void StrictMap::read(const std::string& key, std::string& value,
                      const std::vector<std::string>& allowed) {
   const std::optional<YAML::Node> node = find(key);
   if (!node) return;
-  if (!node->IsScalar()) throw InputError(describe(key) + " = " + to_text(*node) +
-                                          ", expected a string");
+  if (!node->IsScalar())
+    throw InputError(describe(key) + " = " + to_text(*node) + ", expected a string");
   const std::string v = node->Scalar();
   if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), v) == allowed.end()) {
     std::string options;

@@ -2,13 +2,13 @@
 
 #include "hq/base/error.hpp"
 
-#include <filesystem>
-#include <fstream>
-#include <unistd.h>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
 
 namespace hq::config {
 namespace {
@@ -33,8 +33,9 @@ class CameraFile : public ::testing::Test {
   // One file per test case and process: ctest runs the cases of this fixture in parallel.
   std::filesystem::path path_ =
       std::filesystem::temp_directory_path() /
-      ("hq_camera_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
-       "_" + std::to_string(getpid()) + ".yaml");
+      ("hq_camera_test_" +
+       std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+       std::to_string(getpid()) + ".yaml");
 };
 
 constexpr const char* kGood = R"(image_width: 640

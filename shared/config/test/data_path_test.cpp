@@ -1,16 +1,15 @@
 #include "hq/config/data_path.hpp"
-#include "hq/config/strict_yaml.hpp"
 
+#include "hq/config/strict_yaml.hpp"
 #include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-
 #include <unistd.h>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 namespace hq::config {
 namespace {

@@ -2,23 +2,22 @@
 
 #include "hq/testing/input_error.hpp"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
 namespace hq::config {
 namespace {
 
-using ::testing::HasSubstr;
 using hq::testing::input_error_message;
-
+using ::testing::HasSubstr;
 
 TEST(StrictMap, ReadsTypedValuesAndKeepsDefaultsForAbsentKeys) {
-  const YAML::Node node = YAML::Load(
-      "{gain: 2.5, count: 3, enabled: true, mode: fast, angle_deg: 90, p_m: [1, 2, 3]}");
+  const YAML::Node node =
+      YAML::Load("{gain: 2.5, count: 3, enabled: true, mode: fast, angle_deg: 90, p_m: [1, 2, 3]}");
   StrictMap map(node, "test.yaml");
   double gain = 0, absent = 7.0, angle = 0;
   int count = 0;
@@ -55,7 +54,8 @@ TEST(StrictMap, RejectsUnknownKeysMissingKeysAndWrongTypes) {
   StrictMap unknown(YAML::Load("{gain: 1, gian: 2}"), "a.yaml");
   double gain = 0;
   unknown.read("gain", gain, 0, 10);
-  EXPECT_THAT(input_error_message([&] { unknown.finish(); }), HasSubstr("a.yaml: gian is not a known key"));
+  EXPECT_THAT(input_error_message([&] { unknown.finish(); }),
+              HasSubstr("a.yaml: gian is not a known key"));
 
   StrictMap missing(YAML::Load("{}"), "b.yaml");
   EXPECT_THAT(input_error_message([&] { missing.require("mass_kg", gain, 0, 10); }),
@@ -67,8 +67,10 @@ TEST(StrictMap, RejectsUnknownKeysMissingKeysAndWrongTypes) {
   double list[3];
   EXPECT_THAT(input_error_message([&] { wrong.read("mass_kg", gain, 0, 10); }),
               HasSubstr("c.yaml: mass_kg = heavy, expected a number"));
-  EXPECT_THAT(input_error_message([&] { wrong.read("n", n, 0, 10); }), HasSubstr("expected an integer"));
-  EXPECT_THAT(input_error_message([&] { wrong.read("flag", flag); }), HasSubstr("expected true or false"));
+  EXPECT_THAT(input_error_message([&] { wrong.read("n", n, 0, 10); }),
+              HasSubstr("expected an integer"));
+  EXPECT_THAT(input_error_message([&] { wrong.read("flag", flag); }),
+              HasSubstr("expected true or false"));
   EXPECT_THAT(input_error_message([&] { wrong.read_list("list", list, 3); }),
               HasSubstr("c.yaml: list has 2 values, expected 3"));
 }
@@ -78,7 +80,9 @@ TEST(StrictMap, RejectsNonFiniteNumbersAndUnknownChoices) {
   double x = 0;
   std::string mode;
   EXPECT_THAT(input_error_message([&] { map.read("x", x, -1, 1); }), HasSubstr("expected finite"));
-  EXPECT_THAT(input_error_message([&] { map.read("mode", mode, {"a", "b"}); }),
+  EXPECT_THAT(input_error_message([&] {
+                map.read("mode", mode, {"a", "b"});
+              }),
               HasSubstr("d.yaml: mode = warp, expected one of a | b"));
 }
 
@@ -89,7 +93,8 @@ TEST(LoadYamlFile, MissingAndMalformedFilesNameTheFile) {
   std::ofstream(path) << "a: [1, 2\nb: 3\n";
   EXPECT_THAT(input_error_message([&] { load_yaml_file(path.string()); }),
               HasSubstr(path.string() + ":"));
-  EXPECT_THAT(input_error_message([&] { load_yaml_file(path.string()); }), HasSubstr("not valid YAML"));
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path.string()); }),
+              HasSubstr("not valid YAML"));
   std::filesystem::remove(path);
 }
 

@@ -20,8 +20,8 @@ double camera_heading_rad(const Eigen::Matrix3d& R_B_C) {
       R_B_C.determinant() > 0.0;
   if (!is_rotation) {
     std::ostringstream message;
-    message << "R_B_C is not a rotation matrix: [" << R_B_C.row(0) << "; "
-            << R_B_C.row(1) << "; " << R_B_C.row(2) << "]";
+    message << "R_B_C is not a rotation matrix: [" << R_B_C.row(0) << "; " << R_B_C.row(1) << "; "
+            << R_B_C.row(2) << "]";
     throw InputError(message.str());
   }
   const Eigen::Vector3d viewing_B = R_B_C.col(2);

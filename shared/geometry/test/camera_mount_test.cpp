@@ -2,10 +2,9 @@
 
 #include "hq/testing/input_error.hpp"
 
+#include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include <Eigen/Geometry>
 
 #include <cmath>
 #include <numbers>
@@ -60,8 +59,7 @@ TEST(CameraMount, HoldsTheHeadingAndRefusesAnImpossibleLeverArm) {
   EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),
               HasSubstr("within 2 m"));
   T_B_C.translation() = Eigen::Vector3d(std::nan(""), 0.0, 0.0);
-  EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),
-              HasSubstr("finite"));
+  EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }), HasSubstr("finite"));
   T_B_C.translation().setZero();
   T_B_C.linear() = 2.0 * Eigen::Matrix3d::Identity();
   EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),

@@ -1,9 +1,10 @@
-#include <random>
+#include "hq/geometry/lie.hpp"
+
+#include "hq/geometry/pinhole_camera.hpp"
 
 #include <gtest/gtest.h>
 
-#include "hq/geometry/lie.hpp"
-#include "hq/geometry/pinhole_camera.hpp"
+#include <random>
 
 namespace hq::geometry {
 namespace {

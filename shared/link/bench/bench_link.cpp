@@ -3,10 +3,12 @@
 // and drop rate at 30 Hz, and the cost of DDS Security on the command path (plain beside
 // secured in the same run). Prints figures; asserts nothing.
 
-#include <sys/mman.h>
-#include <sys/wait.h>
-#include <time.h>
-#include <unistd.h>
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/quantile.hpp"
+#include "hq/base/tool_main.hpp"
+#include "hq/link/link.hpp"
+
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <array>
@@ -18,14 +20,11 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <sys/mman.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-
-#include "hq/base/monotonic_clock.hpp"
-#include "hq/base/quantile.hpp"
-#include "hq/base/tool_main.hpp"
-#include "hq/link/link.hpp"
 
 namespace hq::link {
 namespace {
@@ -195,8 +194,8 @@ void security_station(const LinkConfig& config, int samples) {
   Participant participant(config, security::Role::kStation);
   Topic<VelocityCommand> topic(participant);
   Writer<VelocityCommand> writer(participant, topic, command_qos(config, End::kWriter));
-  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS),
-        "dds_set_status_mask", "bench command writer");
+  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS), "dds_set_status_mask",
+        "bench command writer");
   WaitSet waitset(participant);
   waitset.attach(writer.handle(), 1);
   std::array<dds_attach_t, 1> triggered{};
@@ -247,8 +246,8 @@ VariantResult ground_ping(Participant& participant, const LinkConfig& config, st
   WaitSet waitset(participant);
   ReadCondition condition(reader);
   waitset.attach(condition.handle(), 1);
-  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS),
-        "dds_set_status_mask", "bench writer");
+  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS), "dds_set_status_mask",
+        "bench writer");
   WaitSet match_waitset(participant);
   match_waitset.attach(writer.handle(), 1);
   std::array<dds_attach_t, 1> triggered{};
@@ -266,8 +265,7 @@ VariantResult ground_ping(Participant& participant, const LinkConfig& config, st
   dds_sample_info_t info{};
   // Warm-up samples use indices past `samples` so the echo side does not record them.
   for (int i = -kWarmup; i < samples; ++i) {
-    command.sequence_number =
-        static_cast<std::uint64_t>(i < 0 ? samples + (i + kWarmup) : i);
+    command.sequence_number = static_cast<std::uint64_t>(i < 0 ? samples + (i + kWarmup) : i);
     command.t_ns = now_ns();
     writer.write(command);
     bool got = false;
@@ -318,7 +316,8 @@ CameraResult ground_camera(Participant& participant, const LinkConfig& config, i
   match_waitset.attach(reader.handle(), 1);
   const std::int64_t match_deadline = now_ns() + DDS_SECS(10);
   while (reader.matched_writers() == 0) {
-    if (now_ns() > match_deadline) throw InputError("hq-bench-link: camera publisher never matched");
+    if (now_ns() > match_deadline)
+      throw InputError("hq-bench-link: camera publisher never matched");
     match_waitset.wait(triggered, DDS_MSECS(10));
   }
   Heartbeat go{};
@@ -370,8 +369,8 @@ double parse_us(const std::string& line, const std::string& key) {
 DdsperfResult run_ddsperf(int domain_id, int duration_s) {
   DdsperfResult result;
   const std::string domain = std::to_string(domain_id);
-  const std::string pong = "ddsperf -i " + domain + " -D " + std::to_string(duration_s + 2) +
-                           " pong >/dev/null 2>&1 &";
+  const std::string pong =
+      "ddsperf -i " + domain + " -D " + std::to_string(duration_s + 2) + " pong >/dev/null 2>&1 &";
   const std::string ping =
       "ddsperf -i " + domain + " -D " + std::to_string(duration_s) + " ping 2>/dev/null";
   if (std::system(pong.c_str()) != 0) return result;
@@ -386,8 +385,7 @@ DdsperfResult run_ddsperf(int domain_id, int duration_s) {
     p50.push_back(parse_us(line, "50%"));
     p99.push_back(parse_us(line, "99%"));
     result.half_round_trip.max_us = std::max(result.half_round_trip.max_us, parse_us(line, "max"));
-    result.half_round_trip.count +=
-        static_cast<std::size_t>(std::max(0.0, parse_us(line, "cnt")));
+    result.half_round_trip.count += static_cast<std::size_t>(std::max(0.0, parse_us(line, "cnt")));
   }
   pclose(out);
   // ddsperf prints percentiles per second; the median of those is reported.
@@ -408,9 +406,9 @@ void print(const char* label, const Stats& s) {
 
 struct BenchOptions {
   LinkConfig config;
-  int samples = 10'000;      ///< Command round trips per QoS variant.
-  double camera_s = 4.0;     ///< Camera stream duration.
-  int ddsperf_s = 5;         ///< ddsperf ping duration, 0: skipped.
+  int samples = 10'000;          ///< Command round trips per QoS variant.
+  double camera_s = 4.0;         ///< Camera stream duration.
+  int ddsperf_s = 5;             ///< ddsperf ping duration, 0: skipped.
   int security_samples = 5'000;  ///< Commands measured plain and secured, 0: skipped.
 };
 
@@ -421,8 +419,7 @@ std::optional<int> parse_options(int argc, char** argv, BenchOptions& o) {
   add_link_options(app, overrides);
   app.add_option("--samples", o.samples, "command round trips per QoS variant")
       ->check(CLI::Range(100, 1'000'000));
-  app.add_option("--camera-s", o.camera_s, "camera stream duration")
-      ->check(CLI::Range(0.5, 60.0));
+  app.add_option("--camera-s", o.camera_s, "camera stream duration")->check(CLI::Range(0.5, 60.0));
   app.add_option("--ddsperf-s", o.ddsperf_s, "ddsperf ping duration (0 skips it)")
       ->check(CLI::Range(0, 60));
   app.add_option("--security-samples", o.security_samples,
@@ -529,9 +526,10 @@ void print_commands(const BenchOptions& o, const std::vector<VariantResult>& res
   std::printf("hq-bench-link: loopback, two processes, domain %d, %d samples per variant\n",
               o.config.domain_id, o.samples);
   if (ddsperf.ran) {
-    std::printf("Cyclone ddsperf ping/pong floor (reliable, 12 B, listener; %zu one-second "
-                "lines, median of per-second percentiles):\n",
-                ddsperf.lines);
+    std::printf(
+        "Cyclone ddsperf ping/pong floor (reliable, 12 B, listener; %zu one-second "
+        "lines, median of per-second percentiles):\n",
+        ddsperf.lines);
     print("ddsperf half round trip", ddsperf.half_round_trip);
   } else if (o.ddsperf_s > 0) {
     std::printf("ddsperf: not run or printed no latency (is cyclonedds-tools installed?)\n");
@@ -558,18 +556,18 @@ void print_commands(const BenchOptions& o, const std::vector<VariantResult>& res
 void print_camera(const BenchOptions& o, const CameraResult& camera) {
   std::printf("camera 30 Hz, 40 KB frames, best-effort keep-last-1, %.1f s:\n", o.camera_s);
   std::printf("  received %d of %d (drop rate %.2f %%), %.2f Mbit/s\n", camera.received,
-              camera.sent,
-              100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
+              camera.sent, 100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
               camera.mbit_per_s);
   print("frame latency publish -> receipt", camera.latency);
 }
 
 void print_security(const BenchOptions& o, const SecurityPair& pair,
                     const SharedStamps& security_ns) {
-  std::printf("DDS Security's cost, hq_velocity_command with the command QoS, one way write -> "
-              "take, %d commands 1 ms apart after %d warm-up, plain (domain %d) then secured "
-              "(domain %d: authenticated, access-controlled, payload and metadata AES-GCM):\n",
-              o.security_samples, kSecurityWarmup, pair.plain.domain_id, pair.secured.domain_id);
+  std::printf(
+      "DDS Security's cost, hq_velocity_command with the command QoS, one way write -> "
+      "take, %d commands 1 ms apart after %d warm-up, plain (domain %d) then secured "
+      "(domain %d: authenticated, access-controlled, payload and metadata AES-GCM):\n",
+      o.security_samples, kSecurityWarmup, pair.plain.domain_id, pair.secured.domain_id);
   const auto samples = static_cast<std::size_t>(o.security_samples);
   std::array<Stats, 2> s;
   for (std::size_t k = 0; k < 2; ++k) {

@@ -58,9 +58,8 @@ void check_ros2(const LinkConfig& config, const Fail& fail) {
         "partition and its permissions grant only the hq_* topics, so no ROS 2 node could "
         "read or command it");
   }
-  if (!config.stations.empty() &&
-      std::find(config.stations.begin(), config.stations.end(), r.station_id) ==
-          config.stations.end()) {
+  if (!config.stations.empty() && std::find(config.stations.begin(), config.stations.end(),
+                                            r.station_id) == config.stations.end()) {
     fail("ros2.station_id", std::to_string(r.station_id),
          "one of link.stations (the ROS 2 commands come as this station)");
   }
@@ -170,8 +169,9 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides) {
       ->check(CLI::Range(kMinPeriodMs, kMaxPeriodMs));
   app.add_option("--security-dir", overrides.security_dir,
                  "DDS Security keys made by hq-keys (link.security.keys_dir)");
-  app.add_option("--identity", overrides.identity,
-                 "identity in --security-dir (default vehicle_<vehicle id> / station_<station id>)");
+  app.add_option(
+      "--identity", overrides.identity,
+      "identity in --security-dir (default vehicle_<vehicle id> / station_<station id>)");
   app.add_flag("--insecure", overrides.insecure,
                "plain DDS without authentication or encryption: loopback demo and tests only");
   app.add_flag("--ros2", overrides.ros2,
@@ -187,7 +187,8 @@ void apply_overrides(const LinkOverrides& overrides, LinkConfig& config) {
   if (overrides.vehicle_id) config.vehicle_id = *overrides.vehicle_id;
   if (overrides.station_id) config.station_id = *overrides.station_id;
   if (overrides.station_strength) config.station_strength = *overrides.station_strength;
-  if (overrides.stations) config.stations.assign(overrides.stations->begin(), overrides.stations->end());
+  if (overrides.stations)
+    config.stations.assign(overrides.stations->begin(), overrides.stations->end());
   if (overrides.command_deadline_ms) {
     if (!std::isfinite(*overrides.command_deadline_ms)) {
       throw InputError("--command-deadline-ms: expected a finite number");

@@ -1,12 +1,10 @@
+#include "hq/base/error.hpp"
 #include "hq/link/link.hpp"
-
-#include <unistd.h>
 
 #include <ctime>
 #include <filesystem>
 #include <string>
-
-#include "hq/base/error.hpp"
+#include <unistd.h>
 
 namespace hq::link {
 
@@ -39,8 +37,7 @@ void on_liveliness_changed(dds_entity_t reader, const dds_liveliness_changed_sta
                            void* arg) {
   handler_of(arg).on_liveliness_changed(reader, status);
 }
-void on_liveliness_lost(dds_entity_t writer, const dds_liveliness_lost_status_t status,
-                        void* arg) {
+void on_liveliness_lost(dds_entity_t writer, const dds_liveliness_lost_status_t status, void* arg) {
   handler_of(arg).on_liveliness_lost(writer, status);
 }
 void on_subscription_matched(dds_entity_t reader, const dds_subscription_matched_status_t status,
@@ -105,7 +102,8 @@ Qos security_qos(const SecurityConfig& security, const security::IdentityFiles& 
                           const char* finalize) {
     const std::string path = security.library_dir + "/" + file;
     if (::access(path.c_str(), R_OK) != 0) {
-      throw InputError(path + ": DDS Security plugin missing (Debian package libddsc0debian; "
+      throw InputError(path +
+                       ": DDS Security plugin missing (Debian package libddsc0debian; "
                        "or set link.security.library_dir)");
     }
     const std::string prefix = std::string("dds.sec.") + kind + ".library.";
@@ -132,10 +130,8 @@ Qos security_qos(const SecurityConfig& security, const security::IdentityFiles& 
 
 security::IdentityFiles security_files(const LinkConfig& config, security::Role role) {
   const SecurityConfig& s = config.security;
-  const std::uint32_t id =
-      role == security::Role::kVehicle ? config.vehicle_id : config.station_id;
-  const std::string identity =
-      s.identity.empty() ? security::identity_name(role, id) : s.identity;
+  const std::uint32_t id = role == security::Role::kVehicle ? config.vehicle_id : config.station_id;
+  const std::string identity = s.identity.empty() ? security::identity_name(role, id) : s.identity;
   security::IdentityFiles files;
   if (!s.keys_dir.empty()) files = security::files_in(s.keys_dir, identity);
   const auto take = [](std::string& dst, const std::string& src) {
@@ -165,14 +161,14 @@ Participant::Participant(const LinkConfig& config, security::Role role)
     : domain_id_(config.domain_id) {
   const std::string where = "domain " + std::to_string(config.domain_id);
   if (!config.security.enabled) {
-    entity_ = Entity(check(create_participant(config.domain_id, nullptr),
-                           "dds_create_participant", where));
+    entity_ = Entity(
+        check(create_participant(config.domain_id, nullptr), "dds_create_participant", where));
     return;
   }
   const char* role_flag = role == security::Role::kVehicle ? "vehicle" : "station";
   if (!config.security.has_keys()) {
-    const std::string id = std::to_string(role == security::Role::kVehicle ? config.vehicle_id
-                                                                            : config.station_id);
+    const std::string id =
+        std::to_string(role == security::Role::kVehicle ? config.vehicle_id : config.station_id);
     throw InputError(
         std::string("link.security: DDS Security is on and no keys are configured. Make them "
                     "(hq-keys init KEYS && hq-keys identity KEYS --role ") +
@@ -219,8 +215,8 @@ void GuardCondition::set(bool triggered) {
 }
 
 WaitSet::WaitSet(const Participant& participant)
-    : entity_(check(dds_create_waitset(participant.handle()), "dds_create_waitset",
-                    "participant")) {}
+    : entity_(
+          check(dds_create_waitset(participant.handle()), "dds_create_waitset", "participant")) {}
 
 void WaitSet::attach(dds_entity_t condition, dds_attach_t token) {
   check(dds_waitset_attach(entity_.handle(), condition, token), "dds_waitset_attach",

@@ -1,9 +1,9 @@
 #include "hq/link/qos.hpp"
 
+#include "hq/base/error.hpp"
+
 #include <string>
 #include <utility>
-
-#include "hq/base/error.hpp"
 
 namespace hq::link {
 

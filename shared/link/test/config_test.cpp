@@ -1,16 +1,16 @@
-#include <unistd.h>
+#include "hq/link/config.hpp"
+
+#include "hq/testing/input_error.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <unistd.h>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
-#include "hq/link/config.hpp"
-#include "hq/testing/input_error.hpp"
 
 namespace hq::link {
 namespace {
@@ -44,28 +44,26 @@ TEST(LinkConfig, ReadsEveryKey) {
 }
 
 TEST(LinkConfig, RejectsOutOfRangeDomainNamingFileKeyAndRange) {
-  const std::string message = hq::testing::input_error_message([] { from_yaml("{domain_id: 300}"); });
+  const std::string message =
+      hq::testing::input_error_message([] { from_yaml("{domain_id: 300}"); });
   EXPECT_THAT(message, HasSubstr("link.yaml: link.domain_id = 300, expected in [0, 232]"));
 }
 
 TEST(LinkConfig, RejectsUnknownKey) {
-  const std::string message =
-      hq::testing::input_error_message([] { from_yaml("{domian_id: 3}"); });
+  const std::string message = hq::testing::input_error_message([] { from_yaml("{domian_id: 3}"); });
   EXPECT_THAT(message, HasSubstr("domian_id"));
 }
 
 TEST(LinkConfig, RejectsNonPositiveEnvelopeAndTinyDeadline) {
-  EXPECT_THAT(hq::testing::input_error_message(
-                  [] { from_yaml("{envelope: {max_v_z_mps: 0}}"); }),
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{envelope: {max_v_z_mps: 0}}"); }),
               HasSubstr("link.envelope.max_v_z_mps = 0, expected > 0"));
   EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{command_deadline_ms: 0.1}"); }),
               HasSubstr("link.command_deadline_ms = 0.1"));
 }
 
 TEST(LinkConfig, LoadsLinkSectionOfFile) {
-  const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("hq_link_config_" + std::to_string(getpid()) +
-                                                ".yaml");
+  const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                     ("hq_link_config_" + std::to_string(getpid()) + ".yaml");
   std::ofstream(path) << "other: {x: 1}\nlink: {vehicle_id: 4, station_strength: 10}\n";
   const LinkConfig config = load_link_config(path.string());
   std::filesystem::remove(path);
@@ -91,7 +89,7 @@ TEST(LinkConfig, CommandLineOverridesYaml) {
   LinkOverrides overrides;
   add_link_options(app, overrides);
   std::vector<std::string> args = {"--command-deadline-ms", "40", "--station-strength", "90",
-                                   "--domain-id", "12"};
+                                   "--domain-id",           "12"};
   std::reverse(args.begin(), args.end());  // CLI11 parses a reversed vector
   app.parse(args);
   apply_overrides(overrides, config);
@@ -259,8 +257,7 @@ TEST(LinkConfig, Ros2NamespaceMustBeARosName) {
 TEST(LinkConfig, Ros2NeedsInsecureAndSaysWhy) {
   EXPECT_TRUE(with_args({}, {"--ros2", "--insecure"}).ros2.enabled);
   EXPECT_FALSE(with_args({}, {"--insecure"}).ros2.enabled);
-  const std::string message =
-      hq::testing::input_error_message([] { with_args({}, {"--ros2"}); });
+  const std::string message = hq::testing::input_error_message([] { with_args({}, {"--ros2"}); });
   EXPECT_THAT(message, HasSubstr("link.ros2.enabled with DDS Security on"));
   EXPECT_THAT(message, HasSubstr("--insecure"));
 }

@@ -1,13 +1,13 @@
-#include <array>
-#include <string>
-#include <utility>
+#include "hq/link/link.hpp"
+#include "hq/testing/input_error.hpp"
 
+#include "link_test_support.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "hq/link/link.hpp"
-#include "hq/testing/input_error.hpp"
-#include "link_test_support.hpp"
+#include <array>
+#include <string>
+#include <utility>
 
 namespace hq::link {
 namespace {
@@ -86,8 +86,7 @@ TEST(Entities, AttachingDeletedEntityThrowsNamingCall) {
   GuardCondition guard(participant);
   const dds_entity_t handle = guard.handle();
   ASSERT_GE(dds_delete(handle), 0);
-  const std::string message =
-      hq::testing::input_error_message([&] { waitset.attach(handle, 1); });
+  const std::string message = hq::testing::input_error_message([&] { waitset.attach(handle, 1); });
   EXPECT_THAT(message, HasSubstr("dds_waitset_attach(entity " + std::to_string(handle) + "): "));
 }
 

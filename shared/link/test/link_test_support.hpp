@@ -2,13 +2,12 @@
 // Test support: a private DDS domain per test process over loopback only, and waits that block
 // on a waitset with a timeout (never sleep-poll).
 
-#include <unistd.h>
+#include "hq/link/link.hpp"
 
 #include <array>
 #include <chrono>
 #include <cstdlib>
-
-#include "hq/link/link.hpp"
+#include <unistd.h>
 
 namespace hq::link::test {
 
@@ -53,8 +52,8 @@ bool take_within(const Participant& participant, Reader<T>& reader, T& sample,
 template <typename T>
 bool wait_for_readers(const Participant& participant, Writer<T>& writer, std::uint32_t count,
                       dds_duration_t timeout = kPatience) {
-  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS),
-        "dds_set_status_mask", "writer");
+  check(dds_set_status_mask(writer.handle(), DDS_PUBLICATION_MATCHED_STATUS), "dds_set_status_mask",
+        "writer");
   WaitSet waitset(participant);
   waitset.attach(writer.handle(), 1);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout);

@@ -1,11 +1,11 @@
+#include "hq/link/link.hpp"
+
+#include "link_test_support.hpp"
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
-
-#include <gtest/gtest.h>
-
-#include "hq/link/link.hpp"
-#include "link_test_support.hpp"
 
 namespace hq::link {
 namespace {
@@ -38,8 +38,7 @@ struct TwoStations {
   Topic<VelocityCommand> vehicle_topic{vehicle};
   Topic<VelocityCommand> primary_topic{primary_station};
   Topic<VelocityCommand> backup_topic{backup_station};
-  Reader<VelocityCommand> reader{vehicle, vehicle_topic,
-                                 command_qos(primary_config, End::kReader)};
+  Reader<VelocityCommand> reader{vehicle, vehicle_topic, command_qos(primary_config, End::kReader)};
   Writer<VelocityCommand> primary{primary_station, primary_topic,
                                   command_qos(primary_config, End::kWriter)};
   Writer<VelocityCommand> backup{backup_station, backup_topic,
@@ -76,8 +75,9 @@ TEST(Qos, ExclusiveOwnershipDeliversOnlyStrongestStationUntilItsWriterIsDeleted)
   bool backup_arrived = false;
   for (int i = 0; i < 50 && !backup_arrived; ++i) {
     ASSERT_TRUE(stations.backup.write(command_from(2, 100 + i)));
-    backup_arrived = test::take_within(stations.vehicle, stations.reader, received, DDS_MSECS(100))
-                     && received.station_id == 2;
+    backup_arrived =
+        test::take_within(stations.vehicle, stations.reader, received, DDS_MSECS(100)) &&
+        received.station_id == 2;
   }
   EXPECT_TRUE(backup_arrived);
 }
@@ -99,8 +99,9 @@ TEST(Qos, BackupTakesOverWhenPrimaryLivelinessLapses) {
   bool backup_arrived = false;
   for (int i = 0; i < 100 && !backup_arrived; ++i) {
     ASSERT_TRUE(stations.backup.write(command_from(2, 100 + i)));
-    backup_arrived = test::take_within(stations.vehicle, stations.reader, received, DDS_MSECS(50))
-                     && received.station_id == 2;
+    backup_arrived =
+        test::take_within(stations.vehicle, stations.reader, received, DDS_MSECS(50)) &&
+        received.station_id == 2;
   }
   EXPECT_TRUE(backup_arrived);
 }

@@ -1,31 +1,30 @@
 // DDS Security on the link, real Cyclone DDS on loopback with keys made by hq::security (the
 // code of hq-keys) in a temp dir: a permitted station commands its vehicle; nobody else delivers
 // a single command, and a station cannot publish vehicle state.
+#include "hq/security/keys.hpp"
+#include "hq/testing/input_error.hpp"
+
+#include "link_test_support.hpp"
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <arpa/inet.h>
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
 #include <linux/if_packet.h>
 #include <net/ethernet.h>
 #include <net/if.h>
+#include <optional>
+#include <span>
+#include <string>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <algorithm>
-#include <array>
-#include <cstdio>
-#include <cstring>
-#include <optional>
-#include <span>
 #include <vector>
-#include <cstdlib>
-#include <ctime>
-#include <filesystem>
-#include <string>
-
-#include <gtest/gtest.h>
-
-#include "hq/security/keys.hpp"
-#include "hq/testing/input_error.hpp"
-#include "link_test_support.hpp"
 
 namespace hq::link {
 namespace {
@@ -45,9 +44,9 @@ std::int64_t now_s() { return static_cast<std::int64_t>(std::time(nullptr)); }
 class Secured : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = (std::filesystem::temp_directory_path() /
-            ("hq_link_security_" + std::to_string(getpid())))
-               .string();
+    dir_ =
+        (std::filesystem::temp_directory_path() / ("hq_link_security_" + std::to_string(getpid())))
+            .string();
     std::filesystem::remove_all(dir_);
     security::make_ca(dir_, security::valid_for_days(now_s(), 1));
     security::make_governance(dir_, security::DomainRange{});
@@ -62,8 +61,8 @@ class Secured : public ::testing::Test {
     request.role = role;
     request.id = id;
     request.vehicles = std::move(vehicles);
-    request.validity = start_s == 0 ? security::valid_for_days(now_s(), 1)
-                                    : security::Validity{start_s, end_s};
+    request.validity =
+        start_s == 0 ? security::valid_for_days(now_s(), 1) : security::Validity{start_s, end_s};
     security::make_identity(dir.empty() ? dir_ : dir, request);
   }
 
@@ -114,8 +113,8 @@ class Secured : public ::testing::Test {
   // Whether vehicle 1 (secured as vehicle_1 unless `c` says otherwise) takes a command within
   // `within`; `during` runs once the vehicle's reader exists (so the station sends).
   template <typename During = void (*)()>
-  bool vehicle_takes_a_command(dds_duration_t within, std::optional<LinkConfig> plain = {},
-                               During during = [] {}) const {
+  bool vehicle_takes_a_command(
+      dds_duration_t within, std::optional<LinkConfig> plain = {}, During during = [] {}) const {
     const LinkConfig c = plain ? *plain : config("");
     Participant vehicle(c, Role::kVehicle);
     EXPECT_EQ(vehicle.secured(), !plain);
@@ -186,9 +185,8 @@ TEST_F(Secured, StationCannotPublishVehicleState) {
   Participant station(c, Role::kStation);
   Topics topics(station);
   EXPECT_NO_THROW(Writer<VelocityCommand>(station, topics.command, command_qos(c, End::kWriter)));
-  const std::string message = testing::input_error_message([&] {
-    Writer<VehicleState> writer(station, topics.vehicle_state, vehicle_state_qos());
-  });
+  const std::string message = testing::input_error_message(
+      [&] { Writer<VehicleState> writer(station, topics.vehicle_state, vehicle_state_qos()); });
   EXPECT_NE(message.find("dds_create_writer(hq_vehicle_state): Not Allowed By Security"),
             std::string::npos)
       << message;

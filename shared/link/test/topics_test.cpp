@@ -1,11 +1,11 @@
-#include <cstring>
-#include <string>
-
-#include <gtest/gtest.h>
-
 #include "hq/link/link.hpp"
 #include "hq/testing/allocation_counter.hpp"
+
 #include "link_test_support.hpp"
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <string>
 
 namespace hq::link {
 namespace {

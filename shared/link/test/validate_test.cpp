@@ -1,10 +1,10 @@
-#include <cmath>
-#include <limits>
+#include "hq/link/messages.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "hq/link/messages.hpp"
+#include <cmath>
+#include <limits>
 
 namespace hq::link {
 namespace {

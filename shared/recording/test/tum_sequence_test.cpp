@@ -1,8 +1,8 @@
 #include "hq/recording/tum_sequence.hpp"
 
 #include "hq/base/error.hpp"
-#include "hq/testing/input_error.hpp"
 #include "hq/recording/data_dir.hpp"
+#include "hq/testing/input_error.hpp"
 
 #include "temp_dir.hpp"
 #include <gmock/gmock.h>

@@ -1,7 +1,6 @@
 #include "hq/security/keys.hpp"
 
-#include <sys/stat.h>
-#include <unistd.h>
+#include "hq/base/error.hpp"
 
 #include <cerrno>
 #include <cstdio>
@@ -10,8 +9,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <sstream>
-
 #include <openssl/bio.h>
 #include <openssl/bn.h>
 #include <openssl/err.h>
@@ -21,8 +18,9 @@
 #include <openssl/rand.h>
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
-
-#include "hq/base/error.hpp"
+#include <sstream>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace hq::security {
 
@@ -162,11 +160,11 @@ Owned<X509> make_cert(EVP_PKEY* key, const std::string& common_name, const Valid
           "BN_rand", "serial");
   require(BN_to_ASN1_INTEGER(serial.get(), X509_get_serialNumber(cert.get())) != nullptr,
           "BN_to_ASN1_INTEGER", "serial");
-  require(ASN1_TIME_set(X509_getm_notBefore(cert.get()), static_cast<time_t>(validity.not_before_s)) !=
-              nullptr,
+  require(ASN1_TIME_set(X509_getm_notBefore(cert.get()),
+                        static_cast<time_t>(validity.not_before_s)) != nullptr,
           "ASN1_TIME_set", "notBefore");
-  require(ASN1_TIME_set(X509_getm_notAfter(cert.get()), static_cast<time_t>(validity.not_after_s)) !=
-              nullptr,
+  require(ASN1_TIME_set(X509_getm_notAfter(cert.get()),
+                        static_cast<time_t>(validity.not_after_s)) != nullptr,
           "ASN1_TIME_set", "notAfter");
   X509_NAME* subject = X509_get_subject_name(cert.get());
   add_name_entry(subject, "CN", common_name);
@@ -177,7 +175,8 @@ Owned<X509> make_cert(EVP_PKEY* key, const std::string& common_name, const Valid
           "X509_set_issuer_name", "failed");
   if (issuer == nullptr) {
     add_extension(cert.get(), signer, NID_basic_constraints, "critical,CA:TRUE");
-    add_extension(cert.get(), signer, NID_key_usage, "critical,keyCertSign,cRLSign,digitalSignature");
+    add_extension(cert.get(), signer, NID_key_usage,
+                  "critical,keyCertSign,cRLSign,digitalSignature");
   } else {
     add_extension(cert.get(), signer, NID_basic_constraints, "critical,CA:FALSE");
     add_extension(cert.get(), signer, NID_key_usage, "critical,digitalSignature,keyAgreement");
@@ -223,8 +222,8 @@ void check_domains(const DomainRange& domains) {
   if (domains.min_id < 0 || domains.max_id > kMaxSecuredDomainId ||
       domains.min_id > domains.max_id) {
     throw InputError("domains " + std::to_string(domains.min_id) + "-" +
-                     std::to_string(domains.max_id) + ": expected 0 <= min <= max <= " +
-                     std::to_string(kMaxSecuredDomainId) +
+                     std::to_string(domains.max_id) +
+                     ": expected 0 <= min <= max <= " + std::to_string(kMaxSecuredDomainId) +
                      " (the largest id Cyclone's access control accepts)");
   }
 }
@@ -274,8 +273,7 @@ void check_times(X509* cert, const std::string& path, const char* what, std::int
 }
 
 // Verifies an S/MIME signed document against `ca` (and nothing else).
-void check_signed(const std::string& path, const char* what, X509* ca,
-                  const std::string& ca_path) {
+void check_signed(const std::string& path, const char* what, X509* ca, const std::string& ca_path) {
   const std::string text = read_file(path);
   Owned<BIO> in(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
   BIO* content_raw = nullptr;
@@ -308,8 +306,8 @@ std::string subject_name(Role role, std::uint32_t id) {
 
 IdentityFiles files_in(const std::string& keys_dir, const std::string& identity) {
   const std::string own = keys_dir + "/" + identity + "/";
-  return {keys_dir + "/ca.pem",           own + "cert.pem",          own + "key.pem",
-          keys_dir + "/governance.p7s",   own + "permissions.p7s",   keys_dir + "/ca.pem"};
+  return {keys_dir + "/ca.pem",         own + "cert.pem",        own + "key.pem",
+          keys_dir + "/governance.p7s", own + "permissions.p7s", keys_dir + "/ca.pem"};
 }
 
 Validity valid_for_days(std::int64_t now_s, int days) {
@@ -464,8 +462,7 @@ void check_identity(const IdentityFiles& files, std::int64_t now_s) {
   }
   const Owned<X509> permissions_ca = load_cert(files.permissions_ca);
   check_times(permissions_ca.get(), files.permissions_ca, "permissions CA certificate", now_s);
-  check_signed(files.governance, "governance document", permissions_ca.get(),
-               files.permissions_ca);
+  check_signed(files.governance, "governance document", permissions_ca.get(), files.permissions_ca);
   check_signed(files.permissions, "permissions document", permissions_ca.get(),
                files.permissions_ca);
 }

@@ -2,17 +2,16 @@
 // file and the problem for every way an identity can be broken.
 #include "hq/security/keys.hpp"
 
-#include <unistd.h>
+#include "hq/testing/input_error.hpp"
+
+#include <gtest/gtest.h>
 
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <string>
-
-#include <gtest/gtest.h>
-
-#include "hq/testing/input_error.hpp"
+#include <unistd.h>
 
 namespace hq::security {
 namespace {
@@ -107,8 +106,9 @@ TEST_F(Keys, GovernanceEncryptsEveryLinkTopic) {
   EXPECT_NE(xml.find("<data_protection_kind>ENCRYPT</data_protection_kind>"), std::string::npos);
   EXPECT_NE(xml.find("<allow_unauthenticated_participants>false"), std::string::npos);
   EXPECT_NE(xml.find("<enable_join_access_control>true"), std::string::npos);
-  EXPECT_NE(testing::input_error_message([] { governance_xml(DomainRange{5, 231}); })
-                .find("expected 0 <= min <= max <= 230"),
+  EXPECT_NE(testing::input_error_message([] {
+              governance_xml(DomainRange{5, 231});
+            }).find("expected 0 <= min <= max <= 230"),
             std::string::npos);
 }
 

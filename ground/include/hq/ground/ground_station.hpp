@@ -106,7 +106,7 @@ struct LinkStatus {
   std::int64_t last_state_age_ns = -1;
   std::uint64_t heartbeats_sent = 0;
   std::uint64_t write_failures = 0;
-  std::array<char, 161> last_event{};  ///< Text of the latest event.
+  std::array<char, 161> last_event{};     ///< Text of the latest event.
   std::uint64_t state_sequence_gaps = 0;  ///< States missing between consecutive sequences.
   std::uint64_t states_reordered = 0;     ///< Arrived after a newer one: dropped, not missing.
   /// States of the selected vehicle rejected: all reasons below, never handed to the loop.
@@ -118,7 +118,7 @@ struct LinkStatus {
   std::uint64_t events_rejected = 0;       ///< Events not of the current vehicle session.
   /// The vehicle session (VehicleState.session_id) followed; 0 before the first state.
   std::uint64_t vehicle_session = 0;
-  std::uint64_t vehicle_restarts = 0;      ///< New sessions after the first.
+  std::uint64_t vehicle_restarts = 0;  ///< New sessions after the first.
   /// A mode request waits for the vehicle's session (nothing heard yet): sent once it is.
   bool waiting_for_vehicle = false;
   /// The vehicle reports another station as its commander: this station lost control.
@@ -279,7 +279,7 @@ class GroundStation final : public VehicleLink {
   void send_mode_request(std::int64_t t_ns, hq_msgs_Mode mode, const MarkerChoice& marker,
                          bool take_off);
   std::FILE* log_ = nullptr;
-  std::uint64_t session_id_ = 0;  ///< This station's own, in its heartbeats.
+  std::uint64_t session_id_ = 0;         ///< This station's own, in its heartbeats.
   std::int64_t session_receipt_ns_ = 0;  ///< Last accepted state of the current session.
   bool pending_request_ = false;
   hq_msgs_Mode pending_mode_ = hq_msgs_MODE_HOVER;

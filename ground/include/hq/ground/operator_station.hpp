@@ -59,7 +59,7 @@ struct OperatorStationOptions {
 
 /// Where the station writes besides the link and the console (all optional).
 struct OperatorOutputs {
-  TelemetryRecorder* recorder = nullptr;         ///< CSV recording.
+  TelemetryRecorder* recorder = nullptr;          ///< CSV recording.
   mcap_recorder::FlightRecorder* mcap = nullptr;  ///< MCAP record: one GroundSample per tick.
   std::FILE* out = stdout;                        ///< Link lost / regained lines.
   std::FILE* log = stderr;                        ///< Requests, device loss, status lines.
@@ -100,8 +100,8 @@ class OperatorStation {
   void watch_link_loss(std::int64_t now_ns, double t_s);
   bool send_command(const haptics::LoopOutput& hand, std::int64_t now_ns, std::int64_t wall_ns);
   void show_hand(const haptics::LoopOutput& hand, bool valid, std::int64_t wall_ns);
-  void request_modes(const haptics::LoopOutput& hand, std::int64_t now_ns,
-                     std::int64_t wall_ns, double t_s);
+  void request_modes(const haptics::LoopOutput& hand, std::int64_t now_ns, std::int64_t wall_ns,
+                     double t_s);
   void send_heartbeat(std::int64_t now_ns);
   void report_health(std::int64_t now_ns);
   void report_status(std::int64_t now_ns, double t_s, const haptics::LoopOutput& hand);

@@ -63,11 +63,11 @@ struct LoopOutput {
   Eigen::Vector3d F_D_n = Eigen::Vector3d::Zero();
   std::uint32_t buttons = 0;
   bool device_connected = false;
-  double cue_weight = 0.0;         ///< 0 when the vehicle state is stale.
-  double passivity_energy_j = 0;   ///< PassivityObserver::energy_j() at this tick.
-  double channel_energy_j = 0;     ///< PassivityController::energy_j() of the device port.
+  double cue_weight = 0.0;                ///< 0 when the vehicle state is stale.
+  double passivity_energy_j = 0;          ///< PassivityObserver::energy_j() at this tick.
+  double channel_energy_j = 0;            ///< PassivityController::energy_j() of the device port.
   double passivity_damping_ns_per_m = 0;  ///< The controller's damper at this tick.
-  std::array<char, 128> status{};  ///< Device status, or why the command is zero.
+  std::array<char, 128> status{};         ///< Device status, or why the command is zero.
 };
 
 struct LoopTimingReport {

@@ -29,9 +29,9 @@ struct PlotSample {
   float yaw_rate_cmd_radps = 0;
   float yaw_rate_meas_radps = 0;  ///< Gyro z (FRD).
   float latency_ms = 0;
-  float state_age_ms = 0;   ///< One-way age from the vehicle stamp (0: unknown).
-  float round_trip_ms = 0;  ///< Heartbeat round trip at that time (0: none yet).
-  bool truth_valid = false;            ///< Simulator truth present in this sample.
+  float state_age_ms = 0;                ///< One-way age from the vehicle stamp (0: unknown).
+  float round_trip_ms = 0;               ///< Heartbeat round trip at that time (0: none yet).
+  bool truth_valid = false;              ///< Simulator truth present in this sample.
   std::array<float, 3> v_truth_H_mps{};  ///< Simulator truth velocity in H.
 };
 
@@ -58,8 +58,8 @@ struct StateExtras {
   /// Flight: static texts (the link's enums by name); "-" when the state carried none.
   const char* flight_state = "-";
   bool motors_armed = false;
-  bool height_valid = false;  ///< False: the vehicle does not know its height.
-  float height_m = 0;         ///< Body above the floor.
+  bool height_valid = false;        ///< False: the vehicle does not know its height.
+  float height_m = 0;               ///< Body above the floor.
   const char* height_source = "-";  ///< "depth" or "estimate".
   /// What the vehicle does with the operator's input, as a warning ("" when flown as is).
   const char* operator_input = "";
@@ -92,11 +92,11 @@ struct LinkHealth {
   double latency_p50_ms = 0;
   double latency_p99_ms = 0;
   double last_latency_ms = 0;
-  double state_age_s = -1;  ///< < 0: no state yet.
-  double round_trip_ms = -1;      ///< Latest heartbeat round trip; < 0: none yet.
-  double round_trip_p50_ms = 0;   ///< Over the flight.
+  double state_age_s = -1;       ///< < 0: no state yet.
+  double round_trip_ms = -1;     ///< Latest heartbeat round trip; < 0: none yet.
+  double round_trip_p50_ms = 0;  ///< Over the flight.
   double round_trip_p99_ms = 0;
-  double state_one_way_ms = -1;   ///< Latest state's age at receipt (vehicle stamp); < 0: none.
+  double state_one_way_ms = -1;  ///< Latest state's age at receipt (vehicle stamp); < 0: none.
   double state_one_way_p99_ms = 0;
   double state_loss_percent = 0;  ///< States missing by sequence number, over the flight.
   double state_rate_hz = 0;
@@ -134,8 +134,8 @@ struct ReplayStatus {
   double duration_s = 0;
   double speed = 1;
   bool playing = false;
-  bool at_end = false;          ///< Stopped at the end of the recording (not a live link).
-  std::size_t sessions = 0;     ///< Vehicle sessions begun up to position_s.
+  bool at_end = false;       ///< Stopped at the end of the recording (not a live link).
+  std::size_t sessions = 0;  ///< Vehicle sessions begun up to position_s.
 };
 
 /// The loud line a station that lost control shows ("CONTROL LOST: station 7 commands vehicle
@@ -167,7 +167,6 @@ class LinkLossMonitor {
   double previous_age_s_ = -1;
 };
 
-
 /// The UI's copy; buffers sized by ConsoleModel::make_snapshot(), reused on every copy.
 struct Snapshot {
   std::vector<PlotSample> plot;  ///< Oldest first, plot_count valid.
@@ -183,7 +182,7 @@ struct Snapshot {
   std::size_t jpeg_size = 0;
   std::vector<std::uint8_t> depth;
   std::size_t depth_size = 0;
-  std::uint64_t camera_sequence = 0;  ///< Bumps with every frame (decode only when it moves).
+  std::uint64_t camera_sequence = 0;     ///< Bumps with every frame (decode only when it moves).
   std::int64_t camera_exposure_ns = -1;  ///< Its exposure on CLOCK_MONOTONIC; -1 unknown.
   std::int64_t camera_receipt_ns = -1;   ///< Its receipt on CLOCK_MONOTONIC; -1 unknown.
   bool have_state = false;
@@ -217,7 +216,7 @@ struct Snapshot {
 class ConsoleModel {
  public:
   struct Capacity {
-    std::size_t plot = 4096;   ///< ~2 min at 30 states/s.
+    std::size_t plot = 4096;  ///< ~2 min at 30 states/s.
     std::size_t track = 16384;
     std::size_t cloud = 2048;  ///< hq_msgs_kMaxObstaclePoints.
     std::size_t events = 256;

@@ -44,8 +44,8 @@ struct UiActions {
 
 struct WindowStats {
   std::uint64_t frames = 0;
-  double fps = 0;               ///< Frames shown per second since the first frame.
-  double render_ms_p50 = 0;     ///< Time to build and draw one frame (without the frame cap).
+  double fps = 0;            ///< Frames shown per second since the first frame.
+  double render_ms_p50 = 0;  ///< Time to build and draw one frame (without the frame cap).
   double render_ms_max = 0;
   std::uint64_t camera_frames_decoded = 0;
   std::uint64_t camera_decode_failures = 0;

@@ -13,12 +13,12 @@ namespace hq::console {
 
 /// Bits of FlightKeys::held().
 enum FlightKey : std::uint32_t {
-  kKeyForward = 1u << 0,    ///< W, up arrow.
-  kKeyBack = 1u << 1,       ///< S, down arrow.
-  kKeyYawLeft = 1u << 2,    ///< Q, A, left arrow (the mapping has no lateral axis, eq. 10).
-  kKeyYawRight = 1u << 3,   ///< E, D, right arrow.
-  kKeyClimb = 1u << 4,      ///< Page up.
-  kKeyDescend = 1u << 5,    ///< Page down.
+  kKeyForward = 1u << 0,   ///< W, up arrow.
+  kKeyBack = 1u << 1,      ///< S, down arrow.
+  kKeyYawLeft = 1u << 2,   ///< Q, A, left arrow (the mapping has no lateral axis, eq. 10).
+  kKeyYawRight = 1u << 3,  ///< E, D, right arrow.
+  kKeyClimb = 1u << 4,     ///< Page up.
+  kKeyDescend = 1u << 5,   ///< Page down.
 };
 
 class FlightKeys {

@@ -44,9 +44,9 @@ struct ReportFigures {
   double duration_s = 0;  ///< First to last state, ground receipt time.
   std::size_t states = 0;
   std::vector<SessionFigures> sessions;
-  std::uint64_t states_lost = 0;  ///< Over all sessions.
-  double largest_gap_s = 0;       ///< Between consecutive states (across a restart too).
-  double largest_gap_at_s = 0;    ///< Where it began.
+  std::uint64_t states_lost = 0;           ///< Over all sessions.
+  double largest_gap_s = 0;                ///< Between consecutive states (across a restart too).
+  double largest_gap_at_s = 0;             ///< Where it began.
   std::vector<double> link_lost_events_s;  ///< The vehicle's "ground heartbeat lost" events.
   const char* initial_mode = "-";
   std::vector<ModeChange> mode_changes;

@@ -50,7 +50,7 @@ struct RecordedState {
   std::uint32_t commanding_station_id = 0;
   const char* flight_state = "unknown";  ///< "landed", "taking_off", "airborne", "landing".
   int motors_armed = -1;
-  const char* height_source = "unknown";  ///< "none", "depth", "estimate".
+  const char* height_source = "unknown";                       ///< "none", "depth", "estimate".
   double height_m = std::numeric_limits<double>::quiet_NaN();  ///< NaN: unknown or source none.
   const char* operator_input = "unknown";  ///< "flown", "ignored_mode", ... (the IDL's names).
   std::array<float, 3> v_cmd_flown_H_mps{};
@@ -121,8 +121,9 @@ Recording load_recording(const std::string& path);
 const char* intern(std::string_view text);
 
 /// Replays `recording` into `model` on its recorded timeline scaled by 1/`speed` (clamped to
-/// ReplayPlayer's 0.25x..8x), from the calling thread, until its end or `stop`. JPEGs are read from disk as their time comes (a
-/// missing or unreadable one is counted in `frames_missing`). Returns false if stopped.
+/// ReplayPlayer's 0.25x..8x), from the calling thread, until its end or `stop`. JPEGs are read from
+/// disk as their time comes (a missing or unreadable one is counted in `frames_missing`). Returns
+/// false if stopped.
 bool replay(const Recording& recording, ConsoleModel& model, double speed,
             const std::atomic<bool>& stop, std::atomic<std::uint64_t>& frames_missing);
 

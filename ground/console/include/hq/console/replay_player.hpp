@@ -35,7 +35,7 @@ struct EventMark {
 
 struct SessionStart {
   double t_s = 0;
-  std::size_t first_state = 0;  ///< Index into Recording::states.
+  std::size_t first_state = 0;   ///< Index into Recording::states.
   std::uint64_t session_id = 0;  ///< 0: unknown (recording without sessions).
   const char* why = "";          ///< "first", "new session_id", "sequence restarted", ...
 };
@@ -64,8 +64,8 @@ struct ReplayCounts {
   std::size_t commands = 0;
   std::size_t events = 0;  ///< Recorded events plus "vehicle restarted" lines: those shown.
   std::size_t frames = 0;
-  double state_rate_hz = 0;   ///< States in the last second of recording time.
-  double camera_rate_hz = 0;  ///< Frames in the last second of recording time.
+  double state_rate_hz = 0;         ///< States in the last second of recording time.
+  double camera_rate_hz = 0;        ///< Frames in the last second of recording time.
   std::uint64_t sequence_gaps = 0;  ///< States missing by sequence number within sessions.
   std::size_t sessions = 0;
   double latency_p50_ms = 0;  ///< Over the states of the last second.
@@ -152,7 +152,7 @@ void format_clock(double t_s, char* out, std::size_t size);
 /// each kind wins.
 struct ReplayControl {
   std::atomic<int> toggles{0};
-  std::atomic<int> speed_steps{0};  ///< +1 faster, -1 slower, summed.
+  std::atomic<int> speed_steps{0};    ///< +1 faster, -1 slower, summed.
   std::atomic<double> seek_to_s{-1};  ///< < 0: none.
   std::atomic<double> seek_by_s{0};
   /// Applies and clears what is pending.

@@ -93,7 +93,7 @@ struct FlightSample {
   double yaw_rate_true_radps = 0.0;
   double clearance_m = 0.0;
   Eigen::Vector3d p_N_m = Eigen::Vector3d::Zero();  ///< Truth, in the simulator's NWU world N.
-  const char* reason = "";                               ///< Static text when safe_hover.
+  const char* reason = "";                          ///< Static text when safe_hover.
   /// The vehicle's own flight state and height above the floor (ChainOutput).
   modes::FlightState flight_state = modes::FlightState::kLanded;
   double height_m = 0.0;
@@ -129,7 +129,9 @@ class ClosedLoop {
   /// Stage durations of every frame after the first (all zero without options.clock).
   [[nodiscard]] const pipeline::StageTimingLog& timing() const { return timing_; }
   /// With options.realtime: the largest lag of a control tick behind its wall-clock time.
-  [[nodiscard]] double max_realtime_lag_s() const { return 1e-9 * static_cast<double>(max_lag_ns_); }
+  [[nodiscard]] double max_realtime_lag_s() const {
+    return 1e-9 * static_cast<double>(max_lag_ns_);
+  }
 
   [[nodiscard]] sim::Simulator& simulator() { return *sim_; }
   [[nodiscard]] pipeline::OnboardChain& chain() { return *chain_; }

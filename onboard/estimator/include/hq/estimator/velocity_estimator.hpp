@@ -56,10 +56,10 @@ struct VelocityEstimate {
   std::int64_t t_ns = 0;
   EstimateStatus status = EstimateStatus::kUnavailable;
   const char* reason = "";                                     ///< Static text.
-  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();      ///< eq. 2: v_Ck in Ck, filtered.
-  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1: raw poses.
-  Eigen::Vector3d v_B_mps = Eigen::Vector3d::Zero();        ///< eq. 4 (the paper's Q_v_Q).
-  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();  ///< eq. 5 (the paper's H_v_Q).
+  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();           ///< eq. 2: v_Ck in Ck, filtered.
+  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();       ///< eq. 1: raw poses.
+  Eigen::Vector3d v_B_mps = Eigen::Vector3d::Zero();           ///< eq. 4 (the paper's Q_v_Q).
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();           ///< eq. 5 (the paper's H_v_Q).
   Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();  ///< low-passed, bias removed.
   double roll_rad = 0.0;
   double pitch_rad = 0.0;

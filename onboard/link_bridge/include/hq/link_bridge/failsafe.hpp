@@ -53,14 +53,14 @@
 namespace hq::link_bridge {
 
 struct FailsafeConfig {
-  std::uint32_t vehicle_id = 1;                        ///< Messages for other vehicles: rejected.
-  std::int64_t command_timeout_ns = 200'000'000;       ///< Older command: hold zero velocity.
-  std::int64_t heartbeat_timeout_ns = 2'000'000'000;   ///< No heartbeat this long: land.
-  std::int64_t command_max_delay_ns = 250'000'000;     ///< Later than the least delay + this.
-  std::int64_t command_reanchor_ns = 1'000'000'000;  ///< All stale this long: new clock.
+  std::uint32_t vehicle_id = 1;                       ///< Messages for other vehicles: rejected.
+  std::int64_t command_timeout_ns = 200'000'000;      ///< Older command: hold zero velocity.
+  std::int64_t heartbeat_timeout_ns = 2'000'000'000;  ///< No heartbeat this long: land.
+  std::int64_t command_max_delay_ns = 250'000'000;    ///< Later than the least delay + this.
+  std::int64_t command_reanchor_ns = 1'000'000'000;   ///< All stale this long: new clock.
   /// Holding (no fresh command) this long after the hold began: land. 0.1 s .. 600 s.
   std::int64_t hold_to_land_ns = 5'000'000'000;
-  link::CommandEnvelope envelope;                      ///< Accepted command magnitudes.
+  link::CommandEnvelope envelope;  ///< Accepted command magnitudes.
   /// This vehicle's session: mode requests must carry it (LinkBridge draws it at random).
   std::uint64_t session_id = 0;
   /// Station ids allowed to command (link.stations); empty: any station.
@@ -81,33 +81,33 @@ struct FailsafeState {
   std::int64_t t_ns = 0;
   /// The command to hand the chain: the last accepted one, or zero velocity while holding.
   modes::OperatorCommand command;
-  bool have_command = false;          ///< A command was ever accepted.
-  bool hold = true;                   ///< No fresh command: zero velocity.
-  bool heartbeat_lost = false;        ///< A commander was seen, silent for heartbeat_timeout.
-  bool hold_expired = false;          ///< Holding for hold_to_land after a command was flown.
+  bool have_command = false;    ///< A command was ever accepted.
+  bool hold = true;             ///< No fresh command: zero velocity.
+  bool heartbeat_lost = false;  ///< A commander was seen, silent for heartbeat_timeout.
+  bool hold_expired = false;    ///< Holding for hold_to_land after a command was flown.
   /// True on the one step the vehicle must land: the heartbeat loss or the hold expiry starts
   /// (only the first of the two while both last: one land request per episode).
   bool request_land = false;
-  bool land_for_heartbeat = false;    ///< request_land because of the heartbeat loss.
-  bool land_for_hold = false;         ///< request_land because the hold expired.
-  bool hold_started = false;          ///< True on the step fresh commands stop.
+  bool land_for_heartbeat = false;  ///< request_land because of the heartbeat loss.
+  bool land_for_hold = false;       ///< request_land because the hold expired.
+  bool hold_started = false;        ///< True on the step fresh commands stop.
   /// The station followed (0: none yet) and the one whose well-formed command came last.
   std::uint32_t commanding_station_id = 0;
   std::uint32_t last_command_station_id = 0;
-  bool commander_changed = false;     ///< True on the step the commander changed.
-  std::int64_t command_age_ns = -1;   ///< Since the last accepted command; -1 if none yet.
-  std::int64_t heartbeat_age_ns = -1; ///< Since the last heartbeat; -1 if none yet.
+  bool commander_changed = false;      ///< True on the step the commander changed.
+  std::int64_t command_age_ns = -1;    ///< Since the last accepted command; -1 if none yet.
+  std::int64_t heartbeat_age_ns = -1;  ///< Since the last heartbeat; -1 if none yet.
 };
 
 struct FailsafeCounters {
   std::uint64_t commands_accepted = 0;
-  std::uint64_t commands_rejected = 0;   ///< All rejections, the stale ones included.
-  std::uint64_t commands_stale = 0;      ///< Older than their deadline or than one accepted.
+  std::uint64_t commands_rejected = 0;  ///< All rejections, the stale ones included.
+  std::uint64_t commands_stale = 0;     ///< Older than their deadline or than one accepted.
   std::uint64_t mode_requests_accepted = 0;
   std::uint64_t mode_requests_rejected = 0;
   std::uint64_t heartbeats_accepted = 0;
   std::uint64_t heartbeats_rejected = 0;
-  std::uint64_t holds = 0;        ///< Times fresh commands stopped.
+  std::uint64_t holds = 0;  ///< Times fresh commands stopped.
   std::uint64_t land_requests = 0;
   std::uint64_t land_requests_hold = 0;  ///< Of land_requests: the hold expired.
   /// Of the rejections above: from a station not allowed to command (link.stations).

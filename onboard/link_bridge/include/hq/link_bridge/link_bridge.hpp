@@ -17,7 +17,6 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-
 #include <opencv2/core.hpp>
 
 #include <cstdint>
@@ -56,9 +55,9 @@ Verdict to_mode_request(const link::ModeRequest& request, modes::Mode mode,
                         pipeline::ModeRequest& out);
 
 struct BridgeOptions {
-  double camera_rate_hz = 10.0;        ///< JPEG frames to the operator at most this often.
-  int jpeg_quality = 70;               ///< cv::imencode quality, 1..100.
-  double heartbeat_rate_hz = 10.0;     ///< The vehicle's own heartbeat.
+  double camera_rate_hz = 10.0;     ///< JPEG frames to the operator at most this often.
+  int jpeg_quality = 70;            ///< cv::imencode quality, 1..100.
+  double heartbeat_rate_hz = 10.0;  ///< The vehicle's own heartbeat.
   /// Rejections are summarised in one event per this period, not one per sample, so that a
   /// flood of bad samples cannot flood the reliable event topic.
   double rejection_report_period_s = 1.0;
@@ -170,8 +169,8 @@ class LinkBridge {
   link::Writer<link::Event> event_writer_;
   link::Writer<link::Heartbeat> heartbeat_writer_;
   std::unique_ptr<ros2_bridge::Ros2Bridge> ros2_;
-  bool have_native_command_ = false;            ///< A native station's command was accepted.
-  std::int64_t last_native_command_t_ns_ = 0;   ///< When the last one was.
+  bool have_native_command_ = false;           ///< A native station's command was accepted.
+  std::int64_t last_native_command_t_ns_ = 0;  ///< When the last one was.
 
   link::Sample<link::VehicleState> state_;
   link::Sample<link::CameraFrame> camera_;

@@ -3,8 +3,9 @@
 /// refined with the depth of the tag's plane where the RGB-D camera has it.
 ///
 /// Marker frame M is ViSP's tag frame: origin at the tag centre, z out of the tag (towards a
-/// viewer in front of it), x and y in the tag plane (y down the printed tag image). Covariances are of the right perturbation
-/// xi = (v, omega) in M: T_camera_marker = T_hat * exp_se3(xi) (hq/geometry/lie.hpp order).
+/// viewer in front of it), x and y in the tag plane (y down the printed tag image). Covariances are
+/// of the right perturbation xi = (v, omega) in M: T_camera_marker = T_hat * exp_se3(xi)
+/// (hq/geometry/lie.hpp order).
 
 #include "hq/geometry/lie.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
@@ -58,8 +59,8 @@ struct MarkerDetection {
   double tag_size_m = 0.0;
   Eigen::Isometry3d T_camera_marker = Eigen::Isometry3d::Identity();
   geometry::Matrix6d covariance = geometry::Matrix6d::Identity();  ///< of xi (see top).
-  std::array<Eigen::Vector2d, 4> corners_px{};  ///< ViSP's corner order.
-  double reprojection_rms_px = 0.0;             ///< of the 4 corners at the final pose.
+  std::array<Eigen::Vector2d, 4> corners_px{};                     ///< ViSP's corner order.
+  double reprojection_rms_px = 0.0;  ///< of the 4 corners at the final pose.
   /// Pose refined jointly with the depth of the tag plane (else from the corners only).
   bool used_depth = false;
 };

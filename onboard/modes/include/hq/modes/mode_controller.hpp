@@ -89,12 +89,12 @@ struct ModeOutput {
   Eigen::Vector3d v_star_des_horizontal_mps = Eigen::Vector3d::Zero();  ///< After the ramp.
   double yaw_rate_des_radps = 0.0;
   Eigen::Vector3d v_des_horizontal_mps = Eigen::Vector3d::Zero();  ///< v*_des + v_obs.
-  bool teleop_timed_out = false;   ///< In teleop, the command was stale: hovering.
-  bool provider_failed = false;    ///< Marker/explore provider gave no command: hovering.
-  bool ramping = false;            ///< A switch ramp is in progress.
-  bool landed = false;             ///< On the ground, motors idle (setpoint thrust 0).
-  bool blind_descent = false;      ///< Landing without a velocity estimate.
-  bool taking_off = false;  ///< Climbing to takeoff_target_height_m after request_takeoff().
+  bool teleop_timed_out = false;  ///< In teleop, the command was stale: hovering.
+  bool provider_failed = false;   ///< Marker/explore provider gave no command: hovering.
+  bool ramping = false;           ///< A switch ramp is in progress.
+  bool landed = false;            ///< On the ground, motors idle (setpoint thrust 0).
+  bool blind_descent = false;     ///< Landing without a velocity estimate.
+  bool taking_off = false;        ///< Climbing to takeoff_target_height_m after request_takeoff().
   FlightState flight_state = FlightState::kLanded;
   /// The operator's command is not flown this step (landed, taking off, or not in teleop).
   bool operator_ignored = false;
@@ -138,8 +138,7 @@ class ModeController {
  private:
   enum class Source { kOperator, kHover, kLand, kProvider, kTakeoff };
   /// Touchdown detection and the blind descent of Mode::kLand.
-  void land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps,
-                 ModeOutput& out);
+  void land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps, ModeOutput& out);
 
   ModesConfig config_;
   control::VelocityController controller_;

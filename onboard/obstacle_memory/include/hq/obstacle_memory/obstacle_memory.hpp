@@ -37,23 +37,23 @@ inline constexpr int kMaxRememberedPoints = 16;
 inline constexpr int kMaxTelemetryPoints = 2048;
 
 struct MemoryConfig {
-  bool enabled = true;            ///< Off: the chain neither builds nor uses the memory.
-  double leaf_m = 0.1;            ///< Voxel edge of the down-sampling and of the map.
-  int pixel_stride = 2;           ///< Depth is sampled every n-th pixel in u and v.
-  double min_range_m = 0.4;       ///< Nearer depth is not inserted (sensor minimum).
-  double max_range_m = 4.0;       ///< Farther depth is not inserted (noise grows with z^2).
-  int min_neighbors = 2;          ///< Speckle: a frame voxel needs this many of its 26 neighbours.
-  double max_age_s = 10.0;        ///< Points not re-observed for longer are forgotten.
-  double radius_m = 4.0;          ///< Points farther from the vehicle are forgotten.
-  int capacity = 20000;           ///< Map size bound (points); the oldest go first.
-  double max_pose_jump_m = 0.3;   ///< A larger pose step between frames clears the map.
+  bool enabled = true;           ///< Off: the chain neither builds nor uses the memory.
+  double leaf_m = 0.1;           ///< Voxel edge of the down-sampling and of the map.
+  int pixel_stride = 2;          ///< Depth is sampled every n-th pixel in u and v.
+  double min_range_m = 0.4;      ///< Nearer depth is not inserted (sensor minimum).
+  double max_range_m = 4.0;      ///< Farther depth is not inserted (noise grows with z^2).
+  int min_neighbors = 2;         ///< Speckle: a frame voxel needs this many of its 26 neighbours.
+  double max_age_s = 10.0;       ///< Points not re-observed for longer are forgotten.
+  double radius_m = 4.0;         ///< Points farther from the vehicle are forgotten.
+  int capacity = 20000;          ///< Map size bound (points); the oldest go first.
+  double max_pose_jump_m = 0.3;  ///< A larger pose step between frames clears the map.
   double max_pose_jump_rad = 0.35;  ///< Same for rotation (YAML max_pose_jump_deg).
-  double vertical_band_m = 0.5;   ///< Only points with |z_H| below this push (no floor/ceiling).
+  double vertical_band_m = 0.5;     ///< Only points with |z_H| below this push (no floor/ceiling).
   /// Depth on a surface whose normal is within this angle of vertical (a floor, a table top) is
   /// not remembered: horizontal motion cannot hit it, and the field handles it in view.
   double support_normal_max_rad = 0.436;  ///< 25 deg (YAML support_normal_max_deg).
-  int sectors = 24;               ///< Azimuth sectors of H for min-pooling remembered points.
-  int max_points = 4;             ///< Nearest sector minima handed to the field.
+  int sectors = 24;    ///< Azimuth sectors of H for min-pooling remembered points.
+  int max_points = 4;  ///< Nearest sector minima handed to the field.
 };
 
 /// Names a config key in a message: "onboard.yaml: memory.leaf_m" from read_config(),

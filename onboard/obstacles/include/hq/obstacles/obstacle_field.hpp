@@ -28,26 +28,26 @@ namespace hq::obstacles {
 inline constexpr int kMaxObstaclePoints = 64;
 
 struct ObstacleConfig {
-  int cell_px = 16;                      ///< Side of the min-pool cells (pixels).
-  int speckle_rank = 3;                  ///< A cell's value is its k-th smallest valid range.
-  double suppression_radius_px = 48.0;   ///< Non-minimum suppression radius on the cell grid.
+  int cell_px = 16;                     ///< Side of the min-pool cells (pixels).
+  int speckle_rank = 3;                 ///< A cell's value is its k-th smallest valid range.
+  double suppression_radius_px = 48.0;  ///< Non-minimum suppression radius on the cell grid.
   /// The potential acts on the clearance d = |p| - vehicle_radius_m (surface to the vehicle's
   /// bounding sphere, propellers included), so the push grows without bound as the propellers,
   /// not the body centre, reach the surface.
   double vehicle_radius_m = 0.35;
-  double influence_distance_m = 1.0;     ///< d0 (clearance): farther points exert nothing.
+  double influence_distance_m = 1.0;  ///< d0 (clearance): farther points exert nothing.
   /// |v_obs| saturates here; above the operator's speed envelope so that no command can push
   /// the vehicle through an obstacle it sees.
   double max_repulsive_speed_mps = 1.5;
-  double gain = 0.05;        ///< eta of the potential (m^3/s): v = eta (1/d - 1/d0) / d^2.
+  double gain = 0.05;  ///< eta of the potential (m^3/s): v = eta (1/d - 1/d0) / d^2.
   /// A minimum on a surface whose normal is within this angle of vertical, below the vehicle,
   /// is a support surface (the floor, a table top): it pushes only upwards, on the height
   /// above it, and only within support_influence_m, so the floor a down-looking camera always
   /// sees does not shove the vehicle sideways.
   double support_normal_max_deg = 25.0;
   double support_influence_m = 0.3;
-  double min_range_m = 0.4;  ///< Sensor minimum range: nearer surfaces read invalid.
-  double max_range_m = 8.0;  ///< Depth beyond this is ignored.
+  double min_range_m = 0.4;              ///< Sensor minimum range: nearer surfaces read invalid.
+  double max_range_m = 8.0;              ///< Depth beyond this is ignored.
   double near_invalid_fraction = 0.6;    ///< Invalid fraction of the central window = hazard.
   double central_window_fraction = 0.4;  ///< Central window side / image side.
   int max_points = 16;                   ///< Nearest minima kept (<= kMaxObstaclePoints).
@@ -161,7 +161,7 @@ class ObstacleField {
   int radius_cells_ = 0;
   std::vector<float> ray_norm_;  // |K^-1 (u, v, 1)| per pixel: range = depth * ray_norm
   std::vector<Cell> cells_;
-  std::vector<int> minima_;  // cell indices of local minima, capacity cells_
+  std::vector<int> minima_;          // cell indices of local minima, capacity cells_
   std::vector<double> support_z_m_;  // floor candidates' heights, capacity cells_
 };
 

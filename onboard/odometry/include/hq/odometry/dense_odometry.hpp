@@ -7,15 +7,15 @@
 /// equations in one pass. All buffers are sized at construction: after the first frame,
 /// track() allocates nothing.
 
-#include <cstdint>
-#include <memory>
-#include <string>
+#include "hq/geometry/pinhole_camera.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
-#include "hq/geometry/pinhole_camera.hpp"
+#include <cstdint>
+#include <memory>
+#include <string>
 
 namespace hq::config {
 class StrictMap;
@@ -28,7 +28,7 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 enum class TrackingStatus {
   kFirstFrame,  ///< No reference yet: this frame became the reference, pose is identity.
   kOk,
-  kLost,        ///< Too few usable pixels or no convergence; T_ref_cur is identity.
+  kLost,  ///< Too few usable pixels or no convergence; T_ref_cur is identity.
 };
 
 /// Which frame the current one is aligned against.
@@ -38,22 +38,22 @@ enum class ReferenceMode {
 };
 
 struct OdometryConfig {
-  int pyramid_levels = 4;          ///< Levels built: 0 = input resolution.
-  int finest_level = 1;            ///< Finest level optimised (1 = half resolution, as DVO).
+  int pyramid_levels = 4;  ///< Levels built: 0 = input resolution.
+  int finest_level = 1;    ///< Finest level optimised (1 = half resolution, as DVO).
   int max_iterations_per_level = 20;
-  double step_tolerance = 2e-4;    ///< Stop the finest level when |delta xi| (m, rad) falls
-                                   ///< below this; level l stops at 2^(l - finest) times it.
+  double step_tolerance = 2e-4;  ///< Stop the finest level when |delta xi| (m, rad) falls
+                                 ///< below this; level l stops at 2^(l - finest) times it.
   double min_depth_m = 0.3;
   double max_depth_m = 6.0;
-  double min_gradient = 4.0;       ///< Reference pixels with smaller |grad I| (0..255 units)
-                                   ///< carry no photometric information and are skipped.
-  double student_t_dof = 5.0;      ///< nu of the Student-t weights (Kerl 2013).
-  double min_valid_ratio = 0.02;   ///< Fraction of finest-level pixels that must be usable.
-  bool use_motion_prior = false;   ///< Constant-velocity prior term (Kerl 2013, eq. 16).
+  double min_gradient = 4.0;            ///< Reference pixels with smaller |grad I| (0..255 units)
+                                        ///< carry no photometric information and are skipped.
+  double student_t_dof = 5.0;           ///< nu of the Student-t weights (Kerl 2013).
+  double min_valid_ratio = 0.02;        ///< Fraction of finest-level pixels that must be usable.
+  bool use_motion_prior = false;        ///< Constant-velocity prior term (Kerl 2013, eq. 16).
   double motion_prior_precision = 1.0;  ///< Prior information = this x last frame's information.
   bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion
                                                 ///< (frame-to-frame only; also gates the prior).
-  bool estimate_brightness_offset = true;   ///< Also estimate a global intensity offset.
+  bool estimate_brightness_offset = true;       ///< Also estimate a global intensity offset.
   ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
   int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
@@ -66,9 +66,9 @@ struct OdometryConfig {
   /// Adds DVO-SLAM's depth residual (Kerl, Sturm, Cremers IROS 2013, eq. 11-13) to the same
   /// Gauss-Newton, with the bivariate Student-t weights of the pair (intensity, depth).
   bool use_depth_term = false;
-  double depth_noise_per_m = 0.0015;   ///< sigma_z = this x z^2 (m), the Kinect noise model.
-  int depth_point_stride = 2;          ///< Pixels without photometric gradient still add a depth
-                                       ///< residual on this grid (1 = every pixel).
+  double depth_noise_per_m = 0.0015;     ///< sigma_z = this x z^2 (m), the Kinect noise model.
+  int depth_point_stride = 2;            ///< Pixels without photometric gradient still add a depth
+                                         ///< residual on this grid (1 = every pixel).
   double depth_max_spread_ratio = 0.05;  ///< Depth residual skipped where the four sampled
                                          ///< depths spread by more than this fraction.
   /// Uses a RotationPrior given to track() as initial guess and prior (else it is ignored).
@@ -96,16 +96,16 @@ void read_config(config::StrictMap& section, OdometryConfig& out);
 /// One frame's outcome. Never contains NaN: on failure the pose is identity and status kLost.
 struct OdometryResult {
   TrackingStatus status = TrackingStatus::kLost;
-  const char* reason = "";          ///< Static text saying why, when status != kOk.
+  const char* reason = "";  ///< Static text saying why, when status != kOk.
   std::int64_t t_ns = 0;
   Eigen::Isometry3d T_ref_cur = Eigen::Isometry3d::Identity();  ///< current camera in reference.
   /// The camera pose in the odometry origin O (= C0, hq/geometry/frames.hpp), accumulated.
   Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
   Matrix6d information = Matrix6d::Zero();  ///< (v, omega) order, of T_ref_cur's twist.
-  double valid_ratio = 0.0;         ///< usable finest-level pixels / finest-level pixels.
-  double mean_weighted_error = 0.0; ///< final mean of w * r^2 (intensity units^2).
-  int iterations = 0;               ///< Gauss-Newton iterations over all levels.
-  bool new_keyframe = false;        ///< This frame became the reference for the next ones.
+  double valid_ratio = 0.0;                 ///< usable finest-level pixels / finest-level pixels.
+  double mean_weighted_error = 0.0;         ///< final mean of w * r^2 (intensity units^2).
+  int iterations = 0;                       ///< Gauss-Newton iterations over all levels.
+  bool new_keyframe = false;                ///< This frame became the reference for the next ones.
 
   [[nodiscard]] bool ok() const { return status == TrackingStatus::kOk; }
 };

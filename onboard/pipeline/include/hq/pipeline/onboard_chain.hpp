@@ -71,9 +71,9 @@ struct OnboardConfig {
 };
 
 /// Loads an on-board config file strictly: sections odometry, estimator, obstacles, memory,
-/// seen_space, control, modes and chain, each handed to its component's read_config (an absent section keeps that
-/// component's defaults; an unknown section or key is an error). Throws hq::InputError naming
-/// file, key, value and expectation.
+/// seen_space, control, modes and chain, each handed to its component's read_config (an absent
+/// section keeps that component's defaults; an unknown section or key is an error). Throws
+/// hq::InputError naming file, key, value and expectation.
 OnboardConfig load_onboard_config(const std::string& path);
 
 /// Monotonic time source for stage timing, injected so the chain itself reads no clock.
@@ -95,8 +95,8 @@ struct StageDurations {
 
 /// Stage names in StageDurations order, for tables.
 inline constexpr int kStageCount = 6;
-inline constexpr const char* kStageNames[kStageCount] = {"odometry", "estimator", "memory",
-                                                         "obstacles", "control", "total"};
+inline constexpr const char* kStageNames[kStageCount] = {"odometry",  "estimator", "memory",
+                                                         "obstacles", "control",   "total"};
 /// The duration of stage i (0..kStageCount-1) in kStageNames order.
 std::int64_t stage_ns(const StageDurations& durations, int i);
 
@@ -250,8 +250,8 @@ class OnboardChain {
   bool have_frame_ = false;
   std::int64_t t_last_frame_ns_ = 0;
   double climb_since_takeoff_m_ = 0.0;  ///< Integrated -v_z of usable estimates since take-off.
-  bool takeoff_complete_ = false;      ///< Climbed takeoff_height_m since leaving the ground.
-  double height_m_ = 0.0;              ///< Body above the floor (see ChainOutput::height_m).
+  bool takeoff_complete_ = false;       ///< Climbed takeoff_height_m since leaving the ground.
+  double height_m_ = 0.0;               ///< Body above the floor (see ChainOutput::height_m).
   bool height_known_ = false;
   std::int64_t t_height_ns_ = 0;
   bool have_tick_ = false;

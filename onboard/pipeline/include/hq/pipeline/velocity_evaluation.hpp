@@ -24,8 +24,8 @@ namespace hq::pipeline {
 /// One frame's camera velocity from the estimator (only frames whose estimate was kOk).
 struct VelocitySample {
   std::int64_t t_ns = 0;
-  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();       ///< eq. 1.
-  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();  ///< eq. 2.
+  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1.
+  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();      ///< eq. 2.
 };
 
 struct LagSearch {

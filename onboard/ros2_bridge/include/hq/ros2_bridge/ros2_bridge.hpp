@@ -4,15 +4,16 @@
 /// with ROS's naming (DDS topic rt/<ns>/<name>, type pkg::msg::dds_::Type_), XCDR1 and ROS's
 /// default QoS (reliable, volatile, keep last 10):
 ///
-/// | ROS topic                            | type                      | from                        |
+/// | ROS topic                            | type                      | from |
 /// |--------------------------------------|---------------------------|-----------------------------|
-/// | /<ns>/odom                           | nav_msgs/Odometry         | every vehicle state         |
-/// | /<ns>/imu                            | sensor_msgs/Imu           | every vehicle state         |
-/// | /tf                                  | tf2_msgs/TFMessage        | every vehicle state         |
-/// | /<ns>/obstacles                      | sensor_msgs/PointCloud2   | states carrying the cloud   |
-/// | /<ns>/camera/image/compressed        | sensor_msgs/CompressedImage | every camera frame sent    |
-/// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once set_camera() |
-/// | /<ns>/cmd_vel_in (read)              | geometry_msgs/TwistStamped | ROS teleop -> take_command |
+/// | /<ns>/odom                           | nav_msgs/Odometry         | every vehicle state | |
+/// /<ns>/imu                            | sensor_msgs/Imu           | every vehicle state         |
+/// | /tf                                  | tf2_msgs/TFMessage        | every vehicle state | |
+/// /<ns>/obstacles                      | sensor_msgs/PointCloud2   | states carrying the cloud   |
+/// | /<ns>/camera/image/compressed        | sensor_msgs/CompressedImage | every camera frame sent |
+/// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once
+/// set_camera() | | /<ns>/cmd_vel_in (read)              | geometry_msgs/TwistStamped | ROS teleop
+/// -> take_command |
 ///
 /// Frame ids: <ns>/odom (ENU world E), <ns>/base_link (FLU body F), <ns>/camera_optical (C,
 /// already ROS's optical convention). Stamps are the vehicle state's t_ns (the chain's clock).
@@ -30,13 +31,14 @@
 /// Publishing allocates nothing of its own: frame ids, the cloud and the image point at buffers
 /// sized at construction.
 
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/link/link.hpp"
+
+#include "ros2_msgs.h"
+
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include "hq/geometry/pinhole_camera.hpp"
-#include "hq/link/link.hpp"
-#include "ros2_msgs.h"
 
 namespace hq::link {
 #define HQ_ROS2_TOPIC(Type)                                                   \

@@ -34,7 +34,6 @@ struct HorizontalCommand {
   Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   double yaw_rate_radps = 0.0;
 };
-HorizontalCommand command_from_twist(const Eigen::Vector3d& linear_F_mps,
-                                     double angular_z_F_radps);
+HorizontalCommand command_from_twist(const Eigen::Vector3d& linear_F_mps, double angular_z_F_radps);
 
 }  // namespace hq::ros2_bridge

@@ -65,11 +65,11 @@ namespace hq::seen_space {
 inline constexpr int kMaxBins = 120;
 
 struct SeenSpaceConfig {
-  bool enabled = true;             ///< Off: commands pass unchanged (to compare).
-  int bins = 72;                   ///< Azimuth bins over 360 deg (72: 5 deg, as PX4).
-  int pixel_stride = 4;            ///< Depth sampled every n-th pixel in u and v.
-  double min_range_m = 0.4;        ///< Nearer depth is invalid (sensor minimum).
-  double max_range_m = 4.0;        ///< Free space is never claimed farther than this.
+  bool enabled = true;       ///< Off: commands pass unchanged (to compare).
+  int bins = 72;             ///< Azimuth bins over 360 deg (72: 5 deg, as PX4).
+  int pixel_stride = 4;      ///< Depth sampled every n-th pixel in u and v.
+  double min_range_m = 0.4;  ///< Nearer depth is invalid (sensor minimum).
+  double max_range_m = 4.0;  ///< Free space is never claimed farther than this.
   /// Points within this height of the body origin are obstacles (vehicle_radius plus a little:
   /// lower or higher surfaces cannot touch the sphere in horizontal motion).
   double vertical_band_m = 0.45;
@@ -93,11 +93,11 @@ void read_config(config::StrictMap& section, SeenSpaceConfig& out);
 /// One bin: the free distance in its direction, or no data.
 struct Bin {
   bool seen = false;
-  float free_m = 0.0f;          ///< Horizontal free distance from the body origin (when seen).
+  float free_m = 0.0f;  ///< Horizontal free distance from the body origin (when seen).
   /// free_m ends at a surface; otherwise it is where the evidence of free space ends (rays
   /// that left the band, max range), which says nothing about what lies beyond.
   bool obstacle = false;
-  std::int64_t t_seen_ns = 0;   ///< Last frame that covered it.
+  std::int64_t t_seen_ns = 0;  ///< Last frame that covered it.
 };
 
 /// What the frame update did.
@@ -111,9 +111,9 @@ struct SeenSpaceUpdate {
 /// The command after the limit, and why.
 struct LimitedCommand {
   Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();  ///< As flown (z unchanged).
-  bool limited = false;        ///< The horizontal speed was reduced.
-  bool unseen = false;         ///< ... by a bin with no data (creep).
-  double v_max_mps = 0.0;      ///< Allowed horizontal speed in the command's direction.
+  bool limited = false;                               ///< The horizontal speed was reduced.
+  bool unseen = false;                                ///< ... by a bin with no data (creep).
+  double v_max_mps = 0.0;  ///< Allowed horizontal speed in the command's direction.
 };
 
 class SeenSpaceLimiter {
@@ -130,8 +130,7 @@ class SeenSpaceLimiter {
   /// @param depth_m  CV_32FC1 camera-sized, metres; 0 / NaN / out of range = no depth.
   /// @param T_O_C  the odometry pose of the camera; null = not tracking.
   /// @param R_H_B  from the attitude estimate (the paper's R_HQ).
-  SeenSpaceUpdate update(std::int64_t t_ns, const cv::Mat& depth_m,
-                         const Eigen::Isometry3d* T_O_C,
+  SeenSpaceUpdate update(std::int64_t t_ns, const cv::Mat& depth_m, const Eigen::Isometry3d* T_O_C,
                          const Eigen::Matrix3d& R_H_B);
 
   /// After update(): a remembered obstacle point in O (the memory's map), last seen at
@@ -182,7 +181,7 @@ class SeenSpaceLimiter {
   std::array<int, kMaxBins> frame_total_{};
 
   bool have_pose_ = false;
-  bool pose_chain_broken_ = false;   ///< An update without a pose since the last one with.
+  bool pose_chain_broken_ = false;    ///< An update without a pose since the last one with.
   std::int64_t t_pose_since_ns_ = 0;  ///< First pose after the last tracking loss.
   Eigen::Matrix3d R_H_O_prev_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d p_O_B_prev_ = Eigen::Vector3d::Zero();

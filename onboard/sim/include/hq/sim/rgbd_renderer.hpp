@@ -66,8 +66,8 @@ class RgbdRenderer {
   /// The per-pixel ray caster render() replaced (every ray against every primitive, shading
   /// the nearest): same outputs, several times slower. Kept as the reference render() is
   /// tested and benchmarked against; not for simulation.
-  void render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
-                        cv::Mat& image, cv::Mat& depth_m);
+  void render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
+                        cv::Mat& depth_m);
 
   [[nodiscard]] const CameraParams& params() const { return params_; }
 

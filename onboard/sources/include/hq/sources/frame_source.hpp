@@ -1,14 +1,14 @@
 #pragma once
 /// Where RGB-D frames come from (recording, simulator, camera): the on-board chain's input port.
 
-#include <cstdint>
-#include <optional>
-#include <string>
+#include "hq/geometry/pinhole_camera.hpp"
+#include "hq/recording/tum_io.hpp"
 
 #include <opencv2/core.hpp>
 
-#include "hq/geometry/pinhole_camera.hpp"
-#include "hq/recording/tum_io.hpp"
+#include <cstdint>
+#include <optional>
+#include <string>
 
 namespace hq::sources {
 

@@ -1,12 +1,12 @@
 #pragma once
 /// Frames from a recorded sequence in the TUM RGB-D layout.
 
-#include <cstddef>
-#include <string>
-
 #include "hq/config/camera_info.hpp"
 #include "hq/recording/tum_sequence.hpp"
 #include "hq/sources/frame_source.hpp"
+
+#include <cstddef>
+#include <string>
 
 namespace hq::sources {
 

@@ -26,10 +26,10 @@ struct TumRecordingOptions {
   std::string camera_name = "hq_record";  ///< camera.yaml's camera_name.
   /// Write over a recording already in dir (a simulator rerun) instead of refusing.
   bool replace_existing = false;
-  bool ground_truth = false;  ///< groundtruth.txt: the camera's true pose per frame.
-  bool gyro = false;          ///< gyro.txt ("timestamp wx wy wz"), beyond TUM.
-  std::string accel_note;     ///< Appended to the accelerometer's file line: frame and units.
-  std::string gyro_note;      ///< Likewise for gyro.txt.
+  bool ground_truth = false;   ///< groundtruth.txt: the camera's true pose per frame.
+  bool gyro = false;           ///< gyro.txt ("timestamp wx wy wz"), beyond TUM.
+  std::string accel_note;      ///< Appended to the accelerometer's file line: frame and units.
+  std::string gyro_note;       ///< Likewise for gyro.txt.
   std::string camera_comment;  ///< Comment lines appended to camera.yaml (e.g. the mount).
 };
 

@@ -49,7 +49,7 @@ class FcSink {
 struct FcStatus {
   bool connected = false;  ///< Heard from within the heartbeat timeout.
   bool armed = false;
-  bool offboard = false;   ///< In the mode that flies our setpoints (PX4 OFFBOARD, GUIDED_NOGPS).
+  bool offboard = false;  ///< In the mode that flies our setpoints (PX4 OFFBOARD, GUIDED_NOGPS).
   std::int64_t heartbeat_age_ns = -1;  ///< -1: never heard.
   double battery_v = -1.0;             ///< -1: unknown.
   int battery_pct = -1;                ///< -1: unknown.

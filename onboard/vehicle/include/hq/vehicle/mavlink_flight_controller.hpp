@@ -29,7 +29,7 @@ struct MavlinkFcConfig {
   std::uint8_t component_id = 191;                ///< MAV_COMP_ID_ONBOARD_COMPUTER.
   /// Nothing from the FC (heartbeat, IMU, attitude: any message) for longer: not connected.
   double heartbeat_timeout_s = 1.0;
-  double heartbeat_rate_hz = 1.0;                 ///< Our HEARTBEAT, sent from poll().
+  double heartbeat_rate_hz = 1.0;  ///< Our HEARTBEAT, sent from poll().
   /// Collective thrust at full throttle, to normalise SET_ATTITUDE_TARGET's thrust (the simulated
   /// vehicle's 4 rotors give 32.9 N).
   double max_thrust_n = 32.9;

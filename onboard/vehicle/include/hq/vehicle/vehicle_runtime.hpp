@@ -71,8 +71,8 @@ class OperatorPort {
   virtual void on_frame(const sources::RgbdFrame& /*frame*/) {}
   /// Runtime events: the FC lost, disarmed or out of offboard, the setpoint stream started.
   /// The text is valid only during the call.
-  virtual void on_event(std::int64_t /*t_ns*/, FcSeverity /*severity*/,
-                        std::string_view /*text*/) {}
+  virtual void on_event(std::int64_t /*t_ns*/, FcSeverity /*severity*/, std::string_view /*text*/) {
+  }
 };
 
 struct RuntimeConfig {
@@ -90,7 +90,7 @@ struct RuntimeCounters {
   std::uint64_t frames_out_of_order = 0;  ///< Not newer than the previous frame: dropped.
   std::uint64_t ticks = 0;                ///< Chain outputs between frames.
   std::uint64_t setpoints = 0;
-  std::uint64_t setpoints_withheld = 0;   ///< Before the first estimate (airborne start).
+  std::uint64_t setpoints_withheld = 0;  ///< Before the first estimate (airborne start).
   std::uint64_t imu_samples = 0;
   std::uint64_t imu_overflow = 0;
   std::uint64_t arm_requests = 0;
@@ -100,8 +100,8 @@ class VehicleRuntime final : private FcSink {
  public:
   /// Nothing is owned; all must outlive the runtime. op and truth may be null.
   /// @throws hq::InputError for a config out of range.
-  VehicleRuntime(pipeline::OnboardChain& chain, sources::FrameSource& source,
-                 FlightController& fc, OperatorPort* op, const TruthSource* truth = nullptr,
+  VehicleRuntime(pipeline::OnboardChain& chain, sources::FrameSource& source, FlightController& fc,
+                 OperatorPort* op, const TruthSource* truth = nullptr,
                  const RuntimeConfig& config = {});
 
   /// One step at t_ns (non-decreasing). Returns false once the frame source has ended and its

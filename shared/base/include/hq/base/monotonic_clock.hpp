@@ -3,11 +3,10 @@
 /// (frames from the SITL channel, MAVLink stamps mapped onto the companion, link latencies), and
 /// absolute sleeps on it, so a late wake-up is never added to the next period.
 
-#include <time.h>
-
 #include <atomic>
 #include <cerrno>
 #include <cstdint>
+#include <time.h>
 
 namespace hq {
 

@@ -2,11 +2,11 @@
 /// hq::Result<T>: a value or the reason there is none, for callers that branch on failure.
 /// Shaped like std::expected so that it can become that under C++23.
 
+#include "hq/base/error.hpp"
+
 #include <string>
 #include <utility>
 #include <variant>
-
-#include "hq/base/error.hpp"
 
 namespace hq {
 
@@ -18,7 +18,7 @@ struct Error {
 template <typename T>
 class Result {
  public:
-  Result(T value) : storage_(std::in_place_index<0>, std::move(value)) {}  // NOLINT: implicit
+  Result(T value) : storage_(std::in_place_index<0>, std::move(value)) {}      // NOLINT: implicit
   Result(Error error) : storage_(std::in_place_index<1>, std::move(error)) {}  // NOLINT: implicit
 
   [[nodiscard]] bool has_value() const { return storage_.index() == 0; }

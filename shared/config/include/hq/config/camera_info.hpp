@@ -11,13 +11,13 @@
 ///   distortion_coefficients: {rows: 1, cols: 5, data: [k1, k2, p1, p2, k3]}
 ///   depth_scale_units_per_m: 5000     # optional HaptiQuad extension
 
-#include <string>
-#include <vector>
+#include "hq/base/error.hpp"
+#include "hq/geometry/pinhole_camera.hpp"
 
 #include <opencv2/core.hpp>
 
-#include "hq/base/error.hpp"
-#include "hq/geometry/pinhole_camera.hpp"
+#include <string>
+#include <vector>
 
 namespace hq::config {
 
@@ -56,7 +56,7 @@ class Undistorter {
 
  private:
   bool identity_ = true;
-  cv::Mat map_x_, map_y_;    // fixed-point maps for bilinear colour
+  cv::Mat map_x_, map_y_;  // fixed-point maps for bilinear colour
   cv::Mat map_x_nn_, map_y_nn_;
 };
 

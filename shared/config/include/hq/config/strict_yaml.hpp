@@ -4,13 +4,13 @@
 /// naming file, key path, value and expectation, e.g.
 ///   config/onboard.yaml: obstacles.influence_distance_m = -1.2, expected > 0
 
-#include <optional>
-#include <string>
-#include <vector>
+#include "hq/base/error.hpp"
 
 #include <yaml-cpp/yaml.h>
 
-#include "hq/base/error.hpp"
+#include <optional>
+#include <string>
+#include <vector>
 
 namespace hq::config {
 
@@ -28,7 +28,7 @@ void check_keys(const YAML::Node& node, const std::string& where, const std::str
 /// given to --link-config): a loader that reads one of them accepts the others, read
 /// elsewhere, and rejects any other top-level key (StrictMap::finish_sections).
 inline const std::vector<std::string> kSharedFileSections = {
-    "odometry", "estimator", "obstacles", "memory", "control",   "modes",
+    "odometry", "estimator", "obstacles", "memory",     "control",   "modes",
     "chain",    "markers",   "link",      "navigation", "seen_space"};
 
 /// A YAML mapping read strictly. Create it, read keys with the typed getters (a missing key

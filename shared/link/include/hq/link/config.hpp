@@ -18,16 +18,16 @@
 /// DDS (--insecure): a secured vehicle puts its endpoints in its vehicle partition and its
 /// permissions grant only the hq_* topics, so no ROS 2 node could match them.
 
+#include "hq/config/strict_yaml.hpp"
+#include "hq/link/impairment.hpp"
+#include "hq/link/messages.hpp"
+
+#include <CLI/CLI.hpp>
+
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-
-#include "hq/config/strict_yaml.hpp"
-#include "hq/link/impairment.hpp"
-#include "hq/link/messages.hpp"
 
 namespace hq::link {
 
@@ -38,10 +38,10 @@ inline constexpr int kMaxDomainId = 232;
 extern const char* const kDefaultSecurityLibraryDir;
 
 struct SecurityConfig {
-  bool enabled = true;        ///< Off only for the loopback demo and tests (--insecure).
-  std::string keys_dir;       ///< A directory made by hq-keys.
-  std::string identity;       ///< Folder in keys_dir; empty: from the role and id.
-  std::string identity_ca;    ///< Each file below overrides the keys_dir one when set.
+  bool enabled = true;      ///< Off only for the loopback demo and tests (--insecure).
+  std::string keys_dir;     ///< A directory made by hq-keys.
+  std::string identity;     ///< Folder in keys_dir; empty: from the role and id.
+  std::string identity_ca;  ///< Each file below overrides the keys_dir one when set.
   std::string certificate;
   std::string private_key;
   std::string governance;
@@ -54,7 +54,7 @@ struct SecurityConfig {
 };
 
 struct Ros2Config {
-  bool enabled = false;       ///< Publish rt/<namespace>/... and take cmd_vel_in (--ros2).
+  bool enabled = false;  ///< Publish rt/<namespace>/... and take cmd_vel_in (--ros2).
   /// ROS namespace of the topics (rt/<namespace>/odom); empty: "hq<vehicle_id>". Segments of
   /// [A-Za-z_][A-Za-z0-9_]* joined by '/', no leading or trailing '/'.
   std::string ros_namespace;
@@ -67,19 +67,19 @@ struct LinkConfig;
 std::string ros2_namespace(const LinkConfig& config);
 
 struct LinkConfig {
-  int domain_id = 0;                ///< DDS domain, 0..kMaxDomainId.
-  std::uint32_t vehicle_id = 1;     ///< Key of every topic: which vehicle this is / commands.
-  std::uint32_t station_id = 1;     ///< This ground station (unused on board).
-  int station_strength = 100;       ///< EXCLUSIVE ownership strength of this station's commands.
-  std::int64_t command_deadline_ns = 100'000'000;  ///< Expected command period bound.
-  std::int64_t command_lease_ns = 500'000'000;     ///< Liveliness lease of a command writer.
-  std::int64_t heartbeat_lease_ns = 1'000'000'000; ///< Liveliness lease of heartbeat writers.
+  int domain_id = 0;             ///< DDS domain, 0..kMaxDomainId.
+  std::uint32_t vehicle_id = 1;  ///< Key of every topic: which vehicle this is / commands.
+  std::uint32_t station_id = 1;  ///< This ground station (unused on board).
+  int station_strength = 100;    ///< EXCLUSIVE ownership strength of this station's commands.
+  std::int64_t command_deadline_ns = 100'000'000;   ///< Expected command period bound.
+  std::int64_t command_lease_ns = 500'000'000;      ///< Liveliness lease of a command writer.
+  std::int64_t heartbeat_lease_ns = 1'000'000'000;  ///< Liveliness lease of heartbeat writers.
   /// On board: station ids whose commands, mode requests and heartbeats count; empty = any.
   std::vector<std::uint32_t> stations;
-  CommandEnvelope envelope;         ///< Limits applied by validate(VelocityCommand).
-  ImpairmentConfig impairment;      ///< Receive-side link impairment (none by default).
-  SecurityConfig security;          ///< DDS Security (on by default).
-  Ros2Config ros2;                  ///< ROS 2 topics beside the link's (off by default).
+  CommandEnvelope envelope;     ///< Limits applied by validate(VelocityCommand).
+  ImpairmentConfig impairment;  ///< Receive-side link impairment (none by default).
+  SecurityConfig security;      ///< DDS Security (on by default).
+  Ros2Config ros2;              ///< ROS 2 topics beside the link's (off by default).
 };
 
 /// Reads a `link:` mapping strictly (unknown keys, out-of-range values throw hq::InputError
@@ -98,11 +98,11 @@ struct LinkOverrides {
   std::optional<int> station_strength;
   std::optional<double> command_deadline_ms;
   std::optional<std::vector<int>> stations;  ///< --stations 1,2
-  std::optional<std::string> link_impair;  ///< "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N]"
-  std::optional<std::string> security_dir;  ///< keys_dir
-  std::optional<std::string> identity;      ///< identity in keys_dir
-  bool insecure = false;                    ///< security.enabled = false
-  bool ros2 = false;                        ///< ros2.enabled = true
+  std::optional<std::string> link_impair;    ///< "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N]"
+  std::optional<std::string> security_dir;   ///< keys_dir
+  std::optional<std::string> identity;       ///< identity in keys_dir
+  bool insecure = false;                     ///< security.enabled = false
+  bool ros2 = false;                         ///< ros2.enabled = true
 };
 
 /// Adds --domain-id, --vehicle-id, --station-id, --station-strength, --stations,

@@ -11,6 +11,14 @@
 /// (destroyed first). Handles are never reused while the process lives, so deleting an already
 /// deleted child is harmless.
 
+#include "hq/link/config.hpp"
+#include "hq/link/impairment.hpp"
+#include "hq/link/messages.hpp"
+#include "hq/link/qos.hpp"
+#include "hq/security/keys.hpp"
+
+#include <dds/dds.h>
+
 #include <cstdint>
 #include <cstring>
 #include <span>
@@ -18,14 +26,6 @@
 #include <type_traits>
 #include <utility>
 #include <vector>
-
-#include <dds/dds.h>
-
-#include "hq/link/config.hpp"
-#include "hq/link/impairment.hpp"
-#include "hq/link/messages.hpp"
-#include "hq/link/qos.hpp"
-#include "hq/security/keys.hpp"
 
 namespace hq::link {
 
@@ -301,7 +301,7 @@ class Reader {
   [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
   [[nodiscard]] const std::string& name() const { return name_; }
 
- /// Impairs this reader (impairment.hpp): from now on take() hands a sample out only at its
+  /// Impairs this reader (impairment.hpp): from now on take() hands a sample out only at its
   /// impaired arrival time on dds_time()'s clock, reordered by jitter, or never if dropped.
   /// Sizes the stage's ring of `capacity` samples once; their sequence buffers grow on first use.
   void impair(const ImpairmentConfig& config, std::uint32_t salt, std::size_t capacity = 64) {

@@ -2,21 +2,30 @@
 /// The QoS of every link topic, in one place. Reader and writer of a topic get the same policies
 /// (so requested and offered always match); writers add the ownership strength.
 ///
-/// | topic            | reliability | history | durability      | other                      | why |
+/// | topic            | reliability | history | durability      | other                      | why
+/// |
 /// |------------------|-------------|---------|-----------------|----------------------------|-----|
-/// | velocity command | best-effort | last 1  | volatile        | deadline (100 ms), owner-  | a late command is worse than none: a retransmission arrives after the next fresh sample; the deadline tells the vehicle the stream stopped; EXCLUSIVE ownership + manual-by-topic liveliness (500 ms lease, asserted by each write) lets a backup station take over only when the primary stops commanding |
-/// |                  |             |         |                 | ship EXCLUSIVE + strength, |     |
-/// |                  |             |         |                 | liveliness manual-by-topic |     |
-/// | mode request     | reliable    | last 4  | transient-local | -                          | a mode change must not be lost, and a vehicle that (re)joins must still see the last request |
-/// | event            | reliable    | last 32 | transient-local | -                          | a ground that joins late sees recent warnings; events are rare so reliability costs nothing |
-/// | vehicle state    | best-effort | last 1  | volatile        | -                          | streamed at the control rate; only the newest is of use to the haptic loop |
-/// | camera frame     | best-effort | last 1  | volatile        | -                          | large and periodic: retransmitting a stale 40 KB frame would delay the next one |
-/// | heartbeat        | best-effort | last 1  | volatile        | liveliness automatic,      | a lost heartbeat is replaced by the next; liveliness-changed on the reader reports a dead peer process without parsing stamps |
-/// |                  |             |         |                 | lease heartbeat_lease_ms   |     |
-
-#include <dds/dds.h>
+/// | velocity command | best-effort | last 1  | volatile        | deadline (100 ms), owner-  | a
+/// late command is worse than none: a retransmission arrives after the next fresh sample; the
+/// deadline tells the vehicle the stream stopped; EXCLUSIVE ownership + manual-by-topic liveliness
+/// (500 ms lease, asserted by each write) lets a backup station take over only when the primary
+/// stops commanding | |                  |             |         |                 | ship EXCLUSIVE
+/// + strength, |     | |                  |             |         |                 | liveliness
+/// manual-by-topic |     | | mode request     | reliable    | last 4  | transient-local | - | a
+/// mode change must not be lost, and a vehicle that (re)joins must still see the last request | |
+/// event            | reliable    | last 32 | transient-local | -                          | a
+/// ground that joins late sees recent warnings; events are rare so reliability costs nothing | |
+/// vehicle state    | best-effort | last 1  | volatile        | -                          |
+/// streamed at the control rate; only the newest is of use to the haptic loop | | camera frame |
+/// best-effort | last 1  | volatile        | -                          | large and periodic:
+/// retransmitting a stale 40 KB frame would delay the next one | | heartbeat        | best-effort |
+/// last 1  | volatile        | liveliness automatic,      | a lost heartbeat is replaced by the
+/// next; liveliness-changed on the reader reports a dead peer process without parsing stamps | | |
+/// |         |                 | lease heartbeat_lease_ms   |     |
 
 #include "hq/link/config.hpp"
+
+#include <dds/dds.h>
 
 namespace hq::link {
 

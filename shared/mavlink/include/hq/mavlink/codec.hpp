@@ -50,13 +50,13 @@ class Encoder {
 
 /// What the parser threw away, by reason.
 struct ParserCounters {
-  std::uint64_t frames = 0;          ///< Valid frames of a known message handed on.
-  std::uint64_t v1_frames = 0;       ///< Of those, MAVLink 1 frames.
-  std::uint64_t bad_crc = 0;         ///< Checksum mismatch (the parser resynchronises).
-  std::uint64_t unknown_id = 0;      ///< Well-framed, but a message this codec does not know.
-  std::uint64_t truncated = 0;       ///< A frame cut short by the end of a datagram.
-  std::uint64_t bad_length = 0;      ///< Payload longer than the message allows, or bad flags.
-  std::uint64_t garbage_bytes = 0;   ///< Bytes skipped while looking for a start byte.
+  std::uint64_t frames = 0;         ///< Valid frames of a known message handed on.
+  std::uint64_t v1_frames = 0;      ///< Of those, MAVLink 1 frames.
+  std::uint64_t bad_crc = 0;        ///< Checksum mismatch (the parser resynchronises).
+  std::uint64_t unknown_id = 0;     ///< Well-framed, but a message this codec does not know.
+  std::uint64_t truncated = 0;      ///< A frame cut short by the end of a datagram.
+  std::uint64_t bad_length = 0;     ///< Payload longer than the message allows, or bad flags.
+  std::uint64_t garbage_bytes = 0;  ///< Bytes skipped while looking for a start byte.
   [[nodiscard]] std::uint64_t dropped() const {
     return bad_crc + unknown_id + truncated + bad_length;
   }
@@ -97,7 +97,8 @@ void Parser::feed(std::span<const std::uint8_t> bytes, OnMessage&& on_message) {
     bool complete = false;
     bytes = bytes.subspan(accumulate(bytes, complete));
     while (complete) {
-      if (decode_candidate(header, message)) on_message(std::as_const(header), std::as_const(message));
+      if (decode_candidate(header, message))
+        on_message(std::as_const(header), std::as_const(message));
       complete = false;
       accumulate({}, complete);  // the buffer may already hold the next frame
     }

@@ -29,9 +29,9 @@ struct SysStatus {
   std::uint32_t onboard_control_sensors_enabled = 0;
   std::uint32_t onboard_control_sensors_health = 0;
   std::uint16_t load_permille = 0;
-  std::uint16_t voltage_battery_mv = 0;   ///< UINT16_MAX: unknown.
-  std::int16_t current_battery_ca = -1;   ///< centiampere; -1: unknown.
-  std::int8_t battery_remaining_pct = -1; ///< -1: unknown.
+  std::uint16_t voltage_battery_mv = 0;    ///< UINT16_MAX: unknown.
+  std::int16_t current_battery_ca = -1;    ///< centiampere; -1: unknown.
+  std::int8_t battery_remaining_pct = -1;  ///< -1: unknown.
   std::uint16_t drop_rate_comm_cpct = 0;
   std::uint16_t errors_comm = 0;
   std::array<std::uint16_t, 4> errors_count{};
@@ -118,8 +118,8 @@ struct HighresImu {
 /// STATUSTEXT (253).
 struct Statustext {
   static constexpr std::uint32_t kId = 253;
-  std::uint8_t severity = 0;      ///< MAV_SEVERITY.
-  std::array<char, 50> text{};    ///< Not NUL-terminated when all 50 are used.
+  std::uint8_t severity = 0;    ///< MAV_SEVERITY.
+  std::array<char, 50> text{};  ///< Not NUL-terminated when all 50 are used.
   // Extensions.
   std::uint16_t id = 0;
   std::uint8_t chunk_seq = 0;

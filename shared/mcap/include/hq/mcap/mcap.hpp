@@ -172,12 +172,12 @@ class McapReader {
 
 /// What recover() read and wrote.
 struct RecoveryReport {
-  ReadReport read;                   ///< how the input was read (summary or scan, truncated)
-  std::uint64_t bytes_dropped = 0;   ///< input bytes after the last complete record (a cut tail)
+  ReadReport read;                  ///< how the input was read (summary or scan, truncated)
+  std::uint64_t bytes_dropped = 0;  ///< input bytes after the last complete record (a cut tail)
   std::uint64_t messages_without_channel = 0;  ///< read but not written: no Channel record
-  std::int64_t first_log_time_ns = 0;  ///< of the messages written; 0 without messages
+  std::int64_t first_log_time_ns = 0;          ///< of the messages written; 0 without messages
   std::int64_t last_log_time_ns = 0;
-  Statistics written;                ///< the output's Statistics record
+  Statistics written;  ///< the output's Statistics record
   std::uint64_t bytes_written = 0;
 };
 

@@ -20,9 +20,9 @@
 /// camera, events and heartbeats and subscribes to commands, mode requests and heartbeats in
 /// its own partition; a station does the reverse in the partitions of the vehicles it is listed
 /// for, and also reads the commands and mode requests there, so that its flight record (MCAP)
-/// holds what every station asked of its vehicle, not only its own. Access control refuses the writer of a topic/partition not granted when it is created
-/// locally, and refuses to match a remote one, so a station without a grant cannot deliver a
-/// single command.
+/// holds what every station asked of its vehicle, not only its own. Access control refuses the
+/// writer of a topic/partition not granted when it is created locally, and refuses to match a
+/// remote one, so a station without a grant cannot deliver a single command.
 
 #include <cstdint>
 #include <string>
@@ -42,12 +42,12 @@ std::string subject_name(Role role, std::uint32_t id);
 
 /// The files Cyclone's plugins read, as absolute or relative paths.
 struct IdentityFiles {
-  std::string identity_ca;      ///< CA that signed every identity certificate (PEM).
-  std::string certificate;      ///< This participant's certificate (PEM).
-  std::string private_key;      ///< Its private key (PEM, unencrypted).
-  std::string governance;       ///< Signed governance document (S/MIME).
-  std::string permissions;      ///< Signed permissions document of this identity (S/MIME).
-  std::string permissions_ca;   ///< CA that signed governance and permissions (PEM).
+  std::string identity_ca;     ///< CA that signed every identity certificate (PEM).
+  std::string certificate;     ///< This participant's certificate (PEM).
+  std::string private_key;     ///< Its private key (PEM, unencrypted).
+  std::string governance;      ///< Signed governance document (S/MIME).
+  std::string permissions;     ///< Signed permissions document of this identity (S/MIME).
+  std::string permissions_ca;  ///< CA that signed governance and permissions (PEM).
 };
 
 /// The files of `identity` in a keys directory laid out by hq-keys.
@@ -83,7 +83,7 @@ struct IdentityRequest {
   std::uint32_t id = 1;
   /// Vehicles a station may command (ignored for a vehicle, which has only its own id).
   std::vector<std::uint32_t> vehicles;
-  Validity validity;             ///< Of the certificate and of the permissions grant.
+  Validity validity;  ///< Of the certificate and of the permissions grant.
   DomainRange domains;
 };
 

@@ -2,12 +2,11 @@
 /// Files of a test: a fresh folder of its own under the temporary directory and a whole file read
 /// back as text (what a program under test wrote).
 
-#include <unistd.h>
-
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <unistd.h>
 
 namespace hq::testing {
 

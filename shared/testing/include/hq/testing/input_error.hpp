@@ -1,11 +1,11 @@
 #pragma once
 /// For error-path tests: the message of the hq::InputError that f throws.
 
-#include <string>
+#include "hq/base/error.hpp"
 
 #include <gtest/gtest.h>
 
-#include "hq/base/error.hpp"
+#include <string>
 
 namespace hq::testing {
 
