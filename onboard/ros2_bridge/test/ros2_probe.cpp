@@ -22,6 +22,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -93,204 +94,270 @@ struct Args {
   double heading_deg = 45.0;  ///< The camera's heading in B (calib/vehicle_core_paper.yaml).
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
+/// Parses --key value pairs; prints what is wrong and returns nullopt on bad arguments.
+std::optional<Args> parse_args(int argc, char** argv) {
   Args a;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
-    if (key == "--domain-id")
+    if (key == "--domain-id") {
       a.domain_id = std::atoi(argv[i + 1]);
-    else if (key == "--out")
+    } else if (key == "--out") {
       a.out = argv[i + 1];
-    else if (key == "--ns")
+    } else if (key == "--ns") {
       a.ns = argv[i + 1];
-    else if (key == "--seconds")
+    } else if (key == "--seconds") {
       a.seconds = std::atof(argv[i + 1]);
-    else if (key == "--heading-deg")
+    } else if (key == "--heading-deg") {
       a.heading_deg = std::atof(argv[i + 1]);
-    else {
+    } else {
       std::fprintf(stderr, "hq_ros2_probe: unknown option %s\n", key.c_str());
-      return 2;
+      return std::nullopt;
     }
   }
   if (a.out.empty()) {
     std::fprintf(stderr, "hq_ros2_probe: --out DIR is required\n");
-    return 2;
+    return std::nullopt;
   }
-  try {
+  return a;
+}
+
+/// The native station and the ROS 2 node of the test, stepped every 20 ms through three phases.
+class Probe {
+ public:
+  explicit Probe(const Args& a)
+      : a_(a),
+        participant_(a.domain_id),
+        topics_(participant_),
+        states_(participant_, topics_.vehicle_state, hq::link::vehicle_state_qos()),
+        requests_(participant_, topics_.mode_request, hq::link::mode_request_qos()),
+        heartbeats_(participant_, topics_.heartbeat, hq::link::heartbeat_qos(insecure(a))),
+        commands_(participant_, topics_.command,
+                  hq::link::command_qos(insecure(a), hq::link::End::kWriter)),
+        twist_topic_(participant_, hq::ros2_bridge::dds_topic_name(a.ns, "cmd_vel_in")),
+        twists_(participant_, twist_topic_, hq::ros2_bridge::ros2_qos()),
+        cos_heading_(static_cast<float>(std::cos(a.heading_deg * M_PI / 180.0))),
+        sin_heading_(static_cast<float>(std::sin(a.heading_deg * M_PI / 180.0))) {
+    open_dumps();
+    twist_frame_ = a.ns + "/base_link";
+    twist_.header.frame_id = twist_frame_.data();
+    // Along the heading, in H: (cos, sin) right of forward; in the ROS body FLU y is left.
+    twist_.twist.linear = {0.3 * cos_heading_, -0.3 * sin_heading_, 0.0};
+    csv_ = std::fopen((a.out + "/states.csv").c_str(), "w");
+    if (csv_ == nullptr) throw hq::InputError(a.out + "/states.csv: cannot open for writing");
+    std::fprintf(csv_, "t_ns,v_H_x,v_H_y,v_H_z,roll_rad,pitch_rad\n");
+  }
+
+  /// Exit status: 0 when both phases were seen, 1 naming the one that was not.
+  int run() {
+    phase_start_ns_ = now_ns();
+    const std::int64_t end_ns = now_ns() + static_cast<std::int64_t>(a_.seconds * 1e9);
+    while (now_ns() < end_ns && phase_ != Phase::kDone) {
+      const std::int64_t t_ns = now_ns();
+      take_states();
+      send_heartbeat(t_ns);
+      if (!step(t_ns)) return 1;
+      for (RawDump& d : dumps_) d.drain();
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    close_files();
+    if (phase_ != Phase::kDone) {
+      std::printf("probe: FAILED: %s\n",
+                  phase_ == Phase::kTakeOff ? "the vehicle never got airborne" : "ran out of time");
+      return 1;
+    }
+    return 0;
+  }
+
+ private:
+  enum class Phase { kTakeOff, kRos, kNative, kDone };
+
+  static hq::link::LinkConfig insecure(const Args& a) {
     hq::link::LinkConfig config;
     config.domain_id = a.domain_id;
     config.security.enabled = false;
-    Participant participant(config.domain_id);
-    hq::link::Topics topics(participant);
-    hq::link::Reader<hq::link::VehicleState> states(participant, topics.vehicle_state,
-                                                    hq::link::vehicle_state_qos());
-    hq::link::Writer<hq::link::ModeRequest> requests(participant, topics.mode_request,
-                                                     hq::link::mode_request_qos());
-    hq::link::Writer<hq::link::Heartbeat> heartbeats(participant, topics.heartbeat,
-                                                     hq::link::heartbeat_qos(config));
-    hq::link::Writer<hq::link::VelocityCommand> commands(
-        participant, topics.command, hq::link::command_qos(config, hq::link::End::kWriter));
+    return config;
+  }
 
+  void open_dumps() {
     using namespace hq::ros2_bridge;
-    const auto rt = [&](const char* name) { return dds_topic_name(a.ns, name); };
-    const auto file = [&](const char* name) { return a.out + "/" + name + ".cdr"; };
-    std::vector<hq::link::Topic<Odometry>> odom_topics;
-    std::vector<hq::link::Topic<Imu>> imu_topics;
-    std::vector<hq::link::Topic<TfMessage>> tf_topics;
-    std::vector<hq::link::Topic<PointCloud2>> cloud_topics;
-    std::vector<hq::link::Topic<CompressedImage>> image_topics;
-    std::vector<hq::link::Topic<CameraInfo>> info_topics;
-    odom_topics.reserve(1);
-    imu_topics.reserve(1);
-    tf_topics.reserve(1);
-    cloud_topics.reserve(1);
-    image_topics.reserve(1);
-    info_topics.reserve(1);
-    std::vector<RawDump> dumps;
-    dumps.push_back(raw_dump(participant, odom_topics, rt("odom"), file("odom"), 400));
-    dumps.push_back(raw_dump(participant, imu_topics, rt("imu"), file("imu"), 40));
-    dumps.push_back(raw_dump(participant, tf_topics, "rt/tf", file("tf"), 40));
-    dumps.push_back(raw_dump(participant, cloud_topics, rt("obstacles"), file("obstacles"), 10));
-    dumps.push_back(
-        raw_dump(participant, image_topics, rt("camera/image/compressed"), file("image"), 10));
-    dumps.push_back(
-        raw_dump(participant, info_topics, rt("camera/camera_info"), file("camera_info"), 10));
+    const auto rt = [&](const char* name) { return dds_topic_name(a_.ns, name); };
+    const auto file = [&](const char* name) { return a_.out + "/" + name + ".cdr"; };
+    dumps_.push_back(raw_dump(participant_, odom_topics_, rt("odom"), file("odom"), 400));
+    dumps_.push_back(raw_dump(participant_, imu_topics_, rt("imu"), file("imu"), 40));
+    dumps_.push_back(raw_dump(participant_, tf_topics_, "rt/tf", file("tf"), 40));
+    dumps_.push_back(raw_dump(participant_, cloud_topics_, rt("obstacles"), file("obstacles"), 10));
+    dumps_.push_back(
+        raw_dump(participant_, image_topics_, rt("camera/image/compressed"), file("image"), 10));
+    dumps_.push_back(
+        raw_dump(participant_, info_topics_, rt("camera/camera_info"), file("camera_info"), 10));
+  }
 
-    hq::link::Topic<TwistStamped> twist_topic(participant, rt("cmd_vel_in"));
-    hq::link::Writer<TwistStamped> twists(participant, twist_topic, ros2_qos());
-    std::string twist_frame = a.ns + "/base_link";
-    TwistStamped twist{};
-    twist.header.frame_id = twist_frame.data();
-    // Along the heading, in H: (cos, sin) right of forward; in the ROS body FLU y is left.
-    const float c = static_cast<float>(std::cos(a.heading_deg * M_PI / 180.0));
-    const float s = static_cast<float>(std::sin(a.heading_deg * M_PI / 180.0));
-    twist.twist.linear = {0.3 * c, -0.3 * s, 0.0};
-
-    std::FILE* csv = std::fopen((a.out + "/states.csv").c_str(), "w");
-    if (csv == nullptr) throw hq::InputError(a.out + "/states.csv: cannot open for writing");
-    std::fprintf(csv, "t_ns,v_H_x,v_H_y,v_H_z,roll_rad,pitch_rad\n");
-
-    enum class Phase { kTakeOff, kRos, kNative, kDone };
-    Phase phase = Phase::kTakeOff;
-    std::uint64_t session = 0;
-    std::uint64_t sequence = 0;
-    std::int64_t phase_start_ns = now_ns();
-    std::int64_t next_request_ns = 0;
-    std::int64_t next_heartbeat_ns = 0;
-    int ros_seen = 0;
-    int native_seen = 0;
-    const std::int64_t end_ns = now_ns() + static_cast<std::int64_t>(a.seconds * 1e9);
-    hq::link::Sample<hq::link::VehicleState> state;
-    bool have_state = false;
-    while (now_ns() < end_ns && phase != Phase::kDone) {
-      const std::int64_t t_ns = now_ns();
-      dds_sample_info_t info{};
-      while (states.take(*state, info)) {
-        have_state = true;
-        session = state->session_id;
-        std::fprintf(csv, "%lld,%.6f,%.6f,%.6f,%.6f,%.6f\n", static_cast<long long>(state->t_ns),
-                     state->v_H_mps.x, state->v_H_mps.y, state->v_H_mps.z, state->roll_rad,
-                     state->pitch_rad);
-        const auto& v = state->v_cmd_flown_H_mps;
-        if (phase == Phase::kRos && state->commanding_station_id == 250 &&
-            std::abs(v.x - 0.3F * c) < 0.02F && std::abs(v.y - 0.3F * s) < 0.02F) {
-          ++ros_seen;
-        }
-        if (phase == Phase::kNative && state->commanding_station_id == 1 &&
-            std::abs(v.x - 0.1F * c) < 0.02F && std::abs(v.y - 0.1F * s) < 0.02F) {
-          ++native_seen;
-        }
-      }
-      if (t_ns >= next_heartbeat_ns) {
-        next_heartbeat_ns = t_ns + 100'000'000;
-        hq::link::Heartbeat h{};
-        h.vehicle_id = 1;
-        h.role = hq_msgs_ROLE_GROUND;
-        h.sender_id = 1;
-        h.sequence_number = ++sequence;
-        h.t_ns = t_ns;
-        h.session_id = 42;
-        heartbeats.write(h);
-      }
-      switch (phase) {
-        case Phase::kTakeOff:
-          if (have_state && t_ns >= next_request_ns) {
-            next_request_ns = t_ns + 1'000'000'000;
-            hq::link::ModeRequest r{};
-            r.vehicle_id = 1;
-            r.station_id = 1;
-            r.sequence_number = ++sequence;
-            r.t_ns = t_ns;
-            r.requested_mode = hq_msgs_MODE_TELEOP;
-            r.vehicle_session_id = session;
-            r.take_off = true;
-            requests.write(r);
-          }
-          if (have_state && state->flight_state == hq_msgs_FLIGHT_AIRBORNE) {
-            std::printf("probe: airborne after %.1f s\n", 1e-9 * (t_ns - phase_start_ns));
-            phase = Phase::kRos;
-            phase_start_ns = t_ns;
-          }
-          break;
-        case Phase::kRos:
-          twists.write(twist);
-          if (ros_seen >= 10) {
-            std::printf("probe: ROS 2 cmd_vel_in flown by station 250 after %.1f s\n",
-                        1e-9 * (t_ns - phase_start_ns));
-            phase = Phase::kNative;
-            phase_start_ns = t_ns;
-          } else if (t_ns - phase_start_ns > 5'000'000'000) {
-            std::printf(
-                "probe: FAILED: the ROS 2 command was not flown within 5 s "
-                "(commanding station %u, v_cmd_flown_H x %.2f, operator input %d, "
-                "mode %d)\n",
-                state->commanding_station_id, state->v_cmd_flown_H_mps.x,
-                static_cast<int>(state->operator_input), static_cast<int>(state->mode));
-            return 1;
-          }
-          break;
-        case Phase::kNative: {
-          twists.write(twist);  // the ROS node goes on: the native station must win anyway
-          hq::link::VelocityCommand command{};
-          command.vehicle_id = 1;
-          command.station_id = 1;
-          command.sequence_number = ++sequence;
-          command.t_ns = t_ns;
-          command.v_H_mps = {0.1F * c, 0.1F * s, 0.0F};
-          commands.write(command);
-          if (native_seen >= 10) {
-            std::printf("probe: native station 1 overrode the ROS 2 node after %.1f s\n",
-                        1e-9 * (t_ns - phase_start_ns));
-            phase = Phase::kDone;
-          } else if (t_ns - phase_start_ns > 5'000'000'000) {
-            std::printf(
-                "probe: FAILED: the native station did not take over within 5 s "
-                "(commanding station %u, v_cmd_flown_H x %.2f)\n",
-                state->commanding_station_id, state->v_cmd_flown_H_mps.x);
-            return 1;
-          }
-          break;
-        }
-        case Phase::kDone:
-          break;
-      }
-      for (RawDump& d : dumps) d.drain();
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  /// Every new state: into states.csv, and counted when it shows the phase's commander flying
+  /// the phase's command.
+  void take_states() {
+    dds_sample_info_t info{};
+    while (states_.take(*state_, info)) {
+      have_state_ = true;
+      session_ = state_->session_id;
+      std::fprintf(csv_, "%lld,%.6f,%.6f,%.6f,%.6f,%.6f\n", static_cast<long long>(state_->t_ns),
+                   state_->v_H_mps.x, state_->v_H_mps.y, state_->v_H_mps.z, state_->roll_rad,
+                   state_->pitch_rad);
+      if (phase_ == Phase::kRos && flies(250, 0.3F)) ++ros_seen_;
+      if (phase_ == Phase::kNative && flies(1, 0.1F)) ++native_seen_;
     }
-    for (RawDump& d : dumps) {
+  }
+
+  [[nodiscard]] bool flies(std::uint32_t station_id, float speed_mps) const {
+    const auto& v = state_->v_cmd_flown_H_mps;
+    return state_->commanding_station_id == station_id &&
+           std::abs(v.x - speed_mps * cos_heading_) < 0.02F &&
+           std::abs(v.y - speed_mps * sin_heading_) < 0.02F;
+  }
+
+  void send_heartbeat(std::int64_t t_ns) {
+    if (t_ns < next_heartbeat_ns_) return;
+    next_heartbeat_ns_ = t_ns + 100'000'000;
+    hq::link::Heartbeat h{};
+    h.vehicle_id = 1;
+    h.role = hq_msgs_ROLE_GROUND;
+    h.sender_id = 1;
+    h.sequence_number = ++sequence_;
+    h.t_ns = t_ns;
+    h.session_id = 42;
+    heartbeats_.write(h);
+  }
+
+  /// One step of the current phase; false when the phase failed (said on stdout).
+  bool step(std::int64_t t_ns) {
+    switch (phase_) {
+      case Phase::kTakeOff:
+        step_take_off(t_ns);
+        return true;
+      case Phase::kRos:
+        return step_ros(t_ns);
+      case Phase::kNative:
+        return step_native(t_ns);
+      case Phase::kDone:
+        return true;
+    }
+    return true;
+  }
+
+  void step_take_off(std::int64_t t_ns) {
+    if (have_state_ && t_ns >= next_request_ns_) {
+      next_request_ns_ = t_ns + 1'000'000'000;
+      hq::link::ModeRequest r{};
+      r.vehicle_id = 1;
+      r.station_id = 1;
+      r.sequence_number = ++sequence_;
+      r.t_ns = t_ns;
+      r.requested_mode = hq_msgs_MODE_TELEOP;
+      r.vehicle_session_id = session_;
+      r.take_off = true;
+      requests_.write(r);
+    }
+    if (have_state_ && state_->flight_state == hq_msgs_FLIGHT_AIRBORNE) {
+      std::printf("probe: airborne after %.1f s\n", 1e-9 * (t_ns - phase_start_ns_));
+      next_phase(Phase::kRos, t_ns);
+    }
+  }
+
+  bool step_ros(std::int64_t t_ns) {
+    twists_.write(twist_);
+    if (ros_seen_ >= 10) {
+      std::printf("probe: ROS 2 cmd_vel_in flown by station 250 after %.1f s\n",
+                  1e-9 * (t_ns - phase_start_ns_));
+      next_phase(Phase::kNative, t_ns);
+    } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
+      std::printf(
+          "probe: FAILED: the ROS 2 command was not flown within 5 s "
+          "(commanding station %u, v_cmd_flown_H x %.2f, operator input %d, mode %d)\n",
+          state_->commanding_station_id, state_->v_cmd_flown_H_mps.x,
+          static_cast<int>(state_->operator_input), static_cast<int>(state_->mode));
+      return false;
+    }
+    return true;
+  }
+
+  bool step_native(std::int64_t t_ns) {
+    twists_.write(twist_);  // the ROS node goes on: the native station must win anyway
+    hq::link::VelocityCommand command{};
+    command.vehicle_id = 1;
+    command.station_id = 1;
+    command.sequence_number = ++sequence_;
+    command.t_ns = t_ns;
+    command.v_H_mps = {0.1F * cos_heading_, 0.1F * sin_heading_, 0.0F};
+    commands_.write(command);
+    if (native_seen_ >= 10) {
+      std::printf("probe: native station 1 overrode the ROS 2 node after %.1f s\n",
+                  1e-9 * (t_ns - phase_start_ns_));
+      next_phase(Phase::kDone, t_ns);
+    } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
+      std::printf(
+          "probe: FAILED: the native station did not take over within 5 s "
+          "(commanding station %u, v_cmd_flown_H x %.2f)\n",
+          state_->commanding_station_id, state_->v_cmd_flown_H_mps.x);
+      return false;
+    }
+    return true;
+  }
+
+  void next_phase(Phase phase, std::int64_t t_ns) {
+    phase_ = phase;
+    phase_start_ns_ = t_ns;
+  }
+
+  void close_files() {
+    for (RawDump& d : dumps_) {
       d.drain();
       std::printf("probe: %s: %d samples\n", d.name.c_str(), d.samples);
       std::fclose(d.file);
     }
-    std::fclose(csv);
-    if (phase != Phase::kDone) {
-      std::printf("probe: FAILED: %s\n",
-                  phase == Phase::kTakeOff ? "the vehicle never got airborne" : "ran out of time");
-      return 1;
-    }
-    return 0;
+    std::fclose(csv_);
+  }
+
+  Args a_;
+  Participant participant_;
+  hq::link::Topics topics_;
+  hq::link::Reader<hq::link::VehicleState> states_;
+  hq::link::Writer<hq::link::ModeRequest> requests_;
+  hq::link::Writer<hq::link::Heartbeat> heartbeats_;
+  hq::link::Writer<hq::link::VelocityCommand> commands_;
+  hq::link::Topic<hq::ros2_bridge::TwistStamped> twist_topic_;
+  hq::link::Writer<hq::ros2_bridge::TwistStamped> twists_;
+  // One topic each, in vectors so raw_dump can create them in place (a Topic does not move).
+  std::vector<hq::link::Topic<hq::ros2_bridge::Odometry>> odom_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::Imu>> imu_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::TfMessage>> tf_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::PointCloud2>> cloud_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::CompressedImage>> image_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::CameraInfo>> info_topics_;
+  std::vector<RawDump> dumps_;
+  std::string twist_frame_;
+  hq::ros2_bridge::TwistStamped twist_{};
+  float cos_heading_;
+  float sin_heading_;
+  std::FILE* csv_ = nullptr;
+  hq::link::Sample<hq::link::VehicleState> state_;
+  bool have_state_ = false;
+  Phase phase_ = Phase::kTakeOff;
+  std::uint64_t session_ = 0;
+  std::uint64_t sequence_ = 0;
+  std::int64_t phase_start_ns_ = 0;
+  std::int64_t next_request_ns_ = 0;
+  std::int64_t next_heartbeat_ns_ = 0;
+  int ros_seen_ = 0;
+  int native_seen_ = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::optional<Args> args = parse_args(argc, argv);
+  if (!args) return 2;
+  try {
+    Probe probe(*args);
+    return probe.run();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "hq_ros2_probe: %s\n", e.what());
     return 2;
