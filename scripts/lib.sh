@@ -9,7 +9,7 @@ BUILD_DIR=${BUILD_DIR:-$HQ_ROOT/build}
 HQ_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev libcli11-dev
-  libgtest-dev libgmock-dev libzstd-dev
+  libgtest-dev libgmock-dev libzstd-dev nlohmann-json3-dev libfmt-dev
   cyclonedds-dev cyclonedds-tools libpcl-dev libvisp-dev libceres-dev
   libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
   xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev dpkg-dev

@@ -42,8 +42,11 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <fmt/format.h>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -207,124 +210,116 @@ class ModelFeed : public hq::ground::LinkObserver {
   std::array<hq::console::MarkerView, hq::console::kMaxMarkerViews> markers_{};
 };
 
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) >= 0x20) out += c;
-  }
-  return out + "\"";
+// A figure with the decimals the state JSON has always shown (printf's %.3f before it was
+// written with nlohmann), still a JSON number: readers parse it, they need not see the noise of
+// a double's last digits. NaN and infinity stay so and are written as null (JSON has neither).
+double decimals(double v, int places) {
+  const double scale = std::pow(10.0, places);
+  return std::round(v * scale) / scale;
 }
 
 // The window's figures in the state JSON (null without a window: --headless).
-void write_window_json(std::FILE* f, const hq::console::WindowStats* window) {
-  if (window != nullptr) {
-    std::fprintf(
-        f,
-        "  \"window\": {\"frames\": %llu, \"fps\": %.2f, \"render_ms_p50\": %.3f, "
-        "\"render_ms_max\": %.3f, \"camera_frames_decoded\": %llu, "
-        "\"camera_decode_failures\": %llu, \"camera_width_px\": %d, "
-        "\"camera_height_px\": %d, \"plot_samples_drawn\": %zu, \"mode_shown\": %s, "
-        "\"gl_renderer\": %s, \"video_p50_ms\": %.1f, \"video_p99_ms\": %.1f, "
-        "\"video_link_p50_ms\": %.1f, \"video_decode_p50_ms\": %.1f, "
-        "\"video_display_p50_ms\": %.1f, \"x_px\": %d, \"y_px\": %d, \"width_px\": %d, "
-        "\"height_px\": %d, \"display_width_px\": %d, \"display_height_px\": %d, "
-        "\"link_lost_banner_frames\": %llu, \"take_off_hint_frames\": %llu}\n",
-        static_cast<unsigned long long>(window->frames), window->fps, window->render_ms_p50,
-        window->render_ms_max, static_cast<unsigned long long>(window->camera_frames_decoded),
-        static_cast<unsigned long long>(window->camera_decode_failures), window->camera_width_px,
-        window->camera_height_px, window->plot_samples_drawn,
-        json_string(window->mode_shown).c_str(), json_string(window->gl_renderer).c_str(),
-        window->video_p50_ms, window->video_p99_ms, window->video_link_p50_ms,
-        window->video_decode_p50_ms, window->video_display_p50_ms, window->x_px, window->y_px,
-        window->width_px, window->height_px, window->display_width_px, window->display_height_px,
-        static_cast<unsigned long long>(window->link_lost_banner_frames),
-        static_cast<unsigned long long>(window->take_off_hint_frames));
-  } else {
-    std::fprintf(f, "  \"window\": null\n");
-  }
+nlohmann::ordered_json window_json(const hq::console::WindowStats* window) {
+  if (window == nullptr) return nullptr;
+  const hq::console::WindowStats& w = *window;
+  return {{"frames", w.frames},
+          {"fps", decimals(w.fps, 2)},
+          {"render_ms_p50", decimals(w.render_ms_p50, 3)},
+          {"render_ms_max", decimals(w.render_ms_max, 3)},
+          {"camera_frames_decoded", w.camera_frames_decoded},
+          {"camera_decode_failures", w.camera_decode_failures},
+          {"camera_width_px", w.camera_width_px},
+          {"camera_height_px", w.camera_height_px},
+          {"plot_samples_drawn", w.plot_samples_drawn},
+          {"mode_shown", w.mode_shown},
+          {"gl_renderer", w.gl_renderer},
+          {"video_p50_ms", decimals(w.video_p50_ms, 1)},
+          {"video_p99_ms", decimals(w.video_p99_ms, 1)},
+          {"video_link_p50_ms", decimals(w.video_link_p50_ms, 1)},
+          {"video_decode_p50_ms", decimals(w.video_decode_p50_ms, 1)},
+          {"video_display_p50_ms", decimals(w.video_display_p50_ms, 1)},
+          {"x_px", w.x_px},
+          {"y_px", w.y_px},
+          {"width_px", w.width_px},
+          {"height_px", w.height_px},
+          {"display_width_px", w.display_width_px},
+          {"display_height_px", w.display_height_px},
+          {"link_lost_banner_frames", w.link_lost_banner_frames},
+          {"take_off_hint_frames", w.take_off_hint_frames}};
 }
 
 // Ownership and the checks on what the vehicle sends, in the state JSON.
-void write_ownership_json(std::FILE* f, const hq::console::LinkHealth& link) {
-  std::fprintf(f,
-               "  \"control_lost\": %s,\n  \"commanding_station_id\": %u,\n"
-               "  \"own_station_id\": %u,\n  \"vehicle_session\": \"%016llx\",\n"
-               "  \"waiting_for_vehicle\": %s,\n  \"states_rejected\": %llu,\n"
-               "  \"states_implausible\": %llu,\n  \"states_wrong_session\": %llu,\n"
-               "  \"events_rejected\": %llu,\n",
-               link.control_lost ? "true" : "false", link.commanding_station, link.own_station,
-               static_cast<unsigned long long>(link.vehicle_session),
-               link.waiting_for_vehicle ? "true" : "false",
-               static_cast<unsigned long long>(link.states_rejected),
-               static_cast<unsigned long long>(link.states_implausible),
-               static_cast<unsigned long long>(link.states_wrong_session),
-               static_cast<unsigned long long>(link.events_rejected));
+void add_ownership_json(nlohmann::ordered_json& j, const hq::console::LinkHealth& link) {
+  j["control_lost"] = link.control_lost;
+  j["commanding_station_id"] = link.commanding_station;
+  j["own_station_id"] = link.own_station;
+  j["vehicle_session"] = fmt::format("{:016x}", link.vehicle_session);
+  j["waiting_for_vehicle"] = link.waiting_for_vehicle;
+  j["states_rejected"] = link.states_rejected;
+  j["states_implausible"] = link.states_implausible;
+  j["states_wrong_session"] = link.states_wrong_session;
+  j["events_rejected"] = link.events_rejected;
 }
 
-// The console's own state at exit, for tests and scripts (--state-json).
+// The console's own state at exit, for tests and scripts (--state-json). Keys in this order,
+// one top-level key a line (tests that only search the text rely on `"key": value`).
 void write_state_json(const std::string& path, const hq::console::Snapshot& s,
                       const hq::console::WindowStats* window, std::uint64_t replay_problems,
                       std::uint64_t replay_frames_missing, double max_force_n = -1.0,
                       double min_passivity_energy_j = 0.0) {
+  nlohmann::ordered_json j;
+  j["source"] = s.source.data();
+  j["have_state"] = s.have_state;
+  j["mode"] = s.mode;
+  j["states_received"] = s.link.states;
+  j["camera_frames_received"] = s.link.camera_frames;
+  j["plot_samples"] = s.plot_count;
+  j["plot_samples_total"] = s.plot_total;
+  j["track_points"] = s.track_count;
+  j["events"] = s.event_count;
+  j["position_W_m"] = {decimals(s.position_W.x_W_m, 3), decimals(s.position_W.y_W_m, 3)};
+  j["position_from_vehicle"] = s.position_from_vehicle;
+  j["position_states"] = s.position_states;
+  j["truth"] = s.have_truth;
+  j["markers_latest"] = s.marker_count;
+  j["marker_detections"] = s.marker_detections;
+  j["flight_state"] = s.flight_state;
+  j["motors_armed"] = s.motors_armed;
+  j["height_valid"] = s.height_valid;
+  j["height_m"] = decimals(s.height_m, 3);
+  j["height_source"] = s.height_source;
+  j["operator_input"] = s.operator_input;
+  j["clearance_m"] = decimals(s.clearance_m, 3);
+  j["link_lost"] = s.link.link_lost;
+  j["stale_s"] = decimals(s.link.state_age_s, 3);
+  j["link_losses"] = s.link.link_losses;
+  j["longest_link_loss_s"] = decimals(s.link.longest_loss_s, 3);
+  j["vehicle_ids"] = std::span(s.link.vehicle_ids.data(), s.link.vehicle_id_count);
+  j["latency_p50_ms"] = decimals(s.link.latency_p50_ms, 3);
+  j["state_rate_hz"] = decimals(s.link.state_rate_hz, 2);
+  j["camera_rate_hz"] = decimals(s.link.camera_rate_hz, 2);
+  j["link_events"] = s.link.events;
+  if (s.replay.active) {
+    j["replay"] = {{"position_s", decimals(s.replay.position_s, 3)},
+                   {"duration_s", decimals(s.replay.duration_s, 3)},
+                   {"speed", decimals(s.replay.speed, 2)},
+                   {"playing", s.replay.playing},
+                   {"at_end", s.replay.at_end},
+                   {"sessions", s.replay.sessions}};
+  }
+  add_ownership_json(j, s.link);
+  if (max_force_n >= 0.0) {
+    j["max_force_n"] = decimals(max_force_n, 4);
+    j["passivity_min_energy_j"] = decimals(min_passivity_energy_j, 5);
+  }
+  j["replay_problems"] = replay_problems;
+  j["replay_frames_missing"] = replay_frames_missing;
+  j["window"] = window_json(window);
+
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (f == nullptr) throw hq::InputError(path + ": cannot open for writing (--state-json)");
-  std::fprintf(f, "{\n  \"source\": %s,\n", json_string(s.source.data()).c_str());
-  std::fprintf(f, "  \"have_state\": %s,\n  \"mode\": %s,\n", s.have_state ? "true" : "false",
-               json_string(s.mode).c_str());
-  std::fprintf(f, "  \"states_received\": %llu,\n  \"camera_frames_received\": %llu,\n",
-               static_cast<unsigned long long>(s.link.states),
-               static_cast<unsigned long long>(s.link.camera_frames));
-  std::fprintf(f, "  \"plot_samples\": %zu,\n  \"plot_samples_total\": %llu,\n", s.plot_count,
-               static_cast<unsigned long long>(s.plot_total));
-  std::fprintf(f, "  \"track_points\": %zu,\n  \"events\": %zu,\n", s.track_count, s.event_count);
-  std::fprintf(f, "  \"position_W_m\": [%.3f, %.3f],\n", static_cast<double>(s.position_W.x_W_m),
-               static_cast<double>(s.position_W.y_W_m));
-  std::fprintf(f,
-               "  \"position_from_vehicle\": %s,\n  \"position_states\": %llu,\n"
-               "  \"truth\": %s,\n  \"markers_latest\": %zu,\n  \"marker_detections\": %llu,\n",
-               s.position_from_vehicle ? "true" : "false",
-               static_cast<unsigned long long>(s.position_states), s.have_truth ? "true" : "false",
-               s.marker_count, static_cast<unsigned long long>(s.marker_detections));
-  std::fprintf(f,
-               "  \"flight_state\": %s,\n  \"motors_armed\": %s,\n  \"height_valid\": %s,\n"
-               "  \"height_m\": %.3f,\n  \"height_source\": %s,\n  \"operator_input\": %s,\n"
-               "  \"clearance_m\": %.3f,\n",
-               json_string(s.flight_state).c_str(), s.motors_armed ? "true" : "false",
-               s.height_valid ? "true" : "false", static_cast<double>(s.height_m),
-               json_string(s.height_source).c_str(), json_string(s.operator_input).c_str(),
-               static_cast<double>(s.clearance_m));
-  std::fprintf(f,
-               "  \"link_lost\": %s,\n  \"stale_s\": %.3f,\n  \"link_losses\": %u,\n"
-               "  \"longest_link_loss_s\": %.3f,\n",
-               s.link.link_lost ? "true" : "false", s.link.state_age_s, s.link.link_losses,
-               s.link.longest_loss_s);
-  std::fprintf(f, "  \"vehicle_ids\": [");
-  for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
-    std::fprintf(f, "%s%u", i > 0 ? ", " : "", s.link.vehicle_ids[i]);
-  }
-  std::fprintf(f, "],\n  \"latency_p50_ms\": %.3f,\n", s.link.latency_p50_ms);
-  std::fprintf(
-      f, "  \"state_rate_hz\": %.2f,\n  \"camera_rate_hz\": %.2f,\n  \"link_events\": %llu,\n",
-      s.link.state_rate_hz, s.link.camera_rate_hz, static_cast<unsigned long long>(s.link.events));
-  if (s.replay.active) {
-    std::fprintf(f,
-                 "  \"replay\": {\"position_s\": %.3f, \"duration_s\": %.3f, \"speed\": %.2f, "
-                 "\"playing\": %s, \"at_end\": %s, \"sessions\": %zu},\n",
-                 s.replay.position_s, s.replay.duration_s, s.replay.speed,
-                 s.replay.playing ? "true" : "false", s.replay.at_end ? "true" : "false",
-                 s.replay.sessions);
-  }
-  write_ownership_json(f, s.link);
-  if (max_force_n >= 0.0) {
-    std::fprintf(f, "  \"max_force_n\": %.4f,\n  \"passivity_min_energy_j\": %.5f,\n", max_force_n,
-                 min_passivity_energy_j);
-  }
-  std::fprintf(f, "  \"replay_problems\": %llu,\n  \"replay_frames_missing\": %llu,\n",
-               static_cast<unsigned long long>(replay_problems),
-               static_cast<unsigned long long>(replay_frames_missing));
-  write_window_json(f, window);
-  std::fprintf(f, "}\n");
+  // Texts from the link (mode, events) are not trusted to be UTF-8: replaced, never thrown on.
+  fmt::print(f, "{}\n", j.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace));
   std::fclose(f);
 }
 
@@ -371,9 +366,8 @@ hq::console::WindowStats close_window(const Options& o, hq::console::ConsoleWind
     std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
   }
   const hq::console::WindowStats st = window.stats();
-  std::printf("  %-40s %.1f fps over %llu frames (render p50 %.2f ms, max %.2f ms; GL %s)\n",
-              "console", st.fps, static_cast<unsigned long long>(st.frames), st.render_ms_p50,
-              st.render_ms_max, st.gl_renderer.c_str());
+  fmt::print("  {:<40} {:.1f} fps over {} frames (render p50 {:.2f} ms, max {:.2f} ms; GL {})\n",
+             "console", st.fps, st.frames, st.render_ms_p50, st.render_ms_max, st.gl_renderer);
   return st;
 }
 
@@ -403,14 +397,13 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_print) {
       const hq::console::WindowStats st = window.stats();
-      std::fprintf(stderr,
-                   "hq-ground: console %.1f fps (render p50 %.2f ms), %llu frames decoded, video "
-                   "exposure->display p50 %.0f ms p99 %.0f ms (vehicle+link %.0f, decode %.0f, "
-                   "display %.0f)\n",
-                   st.fps, st.render_ms_p50,
-                   static_cast<unsigned long long>(st.camera_frames_decoded), st.video_p50_ms,
-                   st.video_p99_ms, st.video_link_p50_ms, st.video_decode_p50_ms,
-                   st.video_display_p50_ms);
+      fmt::print(stderr,
+                 "hq-ground: console {:.1f} fps (render p50 {:.2f} ms), {} frames decoded, video "
+                 "exposure->display p50 {:.0f} ms p99 {:.0f} ms (vehicle+link {:.0f}, decode "
+                 "{:.0f}, display {:.0f})\n",
+                 st.fps, st.render_ms_p50, st.camera_frames_decoded, st.video_p50_ms,
+                 st.video_p99_ms, st.video_link_p50_ms, st.video_decode_p50_ms,
+                 st.video_display_p50_ms);
       next_print += std::chrono::seconds(1);
     }
     if (o.duration_s > 0 && std::chrono::duration<double>(now - start).count() >= o.duration_s) {
@@ -541,13 +534,11 @@ int run_replay(const Options& o) {
   model.snapshot(snap);
   char clock[16];
   hq::console::format_clock(snap.replay.position_s, clock, sizeof clock);
-  std::printf(
-      "  %-40s %llu states, %llu camera frames (%llu missing), %zu problems, at %s of "
-      "%.1f s%s\n",
-      "replayed", static_cast<unsigned long long>(snap.plot_total),
-      static_cast<unsigned long long>(snap.link.camera_frames),
-      static_cast<unsigned long long>(frames_missing.load()), recording.problem_count, clock,
-      snap.replay.duration_s, snap.replay.at_end ? " (end of recording)" : "");
+  fmt::print(
+      "  {:<40} {} states, {} camera frames ({} missing), {} problems, at {} of {:.1f} s{}\n",
+      "replayed", snap.plot_total, snap.link.camera_frames, frames_missing.load(),
+      recording.problem_count, clock, snap.replay.duration_s,
+      snap.replay.at_end ? " (end of recording)" : "");
   if (!o.state_json_path.empty()) {
     write_state_json(o.state_json_path, snap, window ? &*window : nullptr, recording.problem_count,
                      frames_missing.load());
@@ -668,35 +659,30 @@ hq::ground::OperatorStationOptions station_options(const Options& o,
 void print_link_summary(const hq::ground::GroundStation& ground,
                         const hq::ground::OperatorStation& station) {
   const hq::ground::LinkStatus& s = ground.status();
-  std::printf("  %-40s %llu commands, %llu mode requests, %llu heartbeats, %llu failed\n", "sent",
-              static_cast<unsigned long long>(s.commands_sent),
-              static_cast<unsigned long long>(s.mode_requests_sent),
-              static_cast<unsigned long long>(s.heartbeats_sent),
-              static_cast<unsigned long long>(s.write_failures));
-  std::printf("  %-40s %llu states, %llu events, %llu camera frames (%.1f KB)\n", "received",
-              static_cast<unsigned long long>(s.states), static_cast<unsigned long long>(s.events),
-              static_cast<unsigned long long>(s.camera_frames),
-              1e-3 * static_cast<double>(s.camera_bytes));
-  std::printf("  %-40s p50 %.2f ms, p99 %.2f ms over %lld\n", "vehicle state latency (one way)",
-              ground.latency().quantile_ms(0.5), ground.latency().quantile_ms(0.99),
-              static_cast<long long>(ground.latency().count()));
-  std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "heartbeat round trip",
-              ground.round_trip().quantile_ms(0.5), ground.round_trip().quantile_ms(0.99),
-              static_cast<long long>(ground.round_trip().count()));
-  std::printf("  %-40s p50 %.0f ms, p99 %.0f ms over %lld\n", "vehicle state age (one way)",
-              ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
-              static_cast<long long>(ground.state_age().count()));
-  std::printf("  %-40s %.1f %% (%llu reordered, dropped as older)\n", "vehicle state loss",
-              100.0 * ground.state_loss(), static_cast<unsigned long long>(s.states_reordered));
-  std::printf("  %-40s %.1f ms\n", "largest gap between vehicle states",
-              1e3 * station.stats().max_state_gap_s);
+  fmt::print("  {:<40} {} commands, {} mode requests, {} heartbeats, {} failed\n", "sent",
+             s.commands_sent, s.mode_requests_sent, s.heartbeats_sent, s.write_failures);
+  fmt::print("  {:<40} {} states, {} events, {} camera frames ({:.1f} KB)\n", "received", s.states,
+             s.events, s.camera_frames, 1e-3 * static_cast<double>(s.camera_bytes));
+  fmt::print("  {:<40} p50 {:.2f} ms, p99 {:.2f} ms over {}\n", "vehicle state latency (one way)",
+             ground.latency().quantile_ms(0.5), ground.latency().quantile_ms(0.99),
+             ground.latency().count());
+  fmt::print("  {:<40} p50 {:.0f} ms, p99 {:.0f} ms over {}\n", "heartbeat round trip",
+             ground.round_trip().quantile_ms(0.5), ground.round_trip().quantile_ms(0.99),
+             ground.round_trip().count());
+  fmt::print("  {:<40} p50 {:.0f} ms, p99 {:.0f} ms over {}\n", "vehicle state age (one way)",
+             ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
+             ground.state_age().count());
+  fmt::print("  {:<40} {:.1f} % ({} reordered, dropped as older)\n", "vehicle state loss",
+             100.0 * ground.state_loss(), s.states_reordered);
+  fmt::print("  {:<40} {:.1f} ms\n", "largest gap between vehicle states",
+             1e3 * station.stats().max_state_gap_s);
   const hq::console::LinkLossMonitor& link_loss = station.link_loss();
-  std::printf("  %-40s %u, longest %.1f s (alarm after %.1f s without a state)\n",
-              "vehicle link losses", link_loss.losses(), link_loss.longest_s(),
-              link_loss.lost_after_s());
-  std::printf("  %-40s %s\n", "last vehicle mode",
-              s.have_state ? hq::ground::to_string(s.state.mode) : "-");
-  std::printf("  %-40s %s\n", "last event", s.last_event.data());
+  fmt::print("  {:<40} {}, longest {:.1f} s (alarm after {:.1f} s without a state)\n",
+             "vehicle link losses", link_loss.losses(), link_loss.longest_s(),
+             link_loss.lost_after_s());
+  fmt::print("  {:<40} {}\n", "last vehicle mode",
+             s.have_state ? hq::ground::to_string(s.state.mode) : "-");
+  fmt::print("  {:<40} {}\n", "last event", s.last_event.data());
 }
 
 // Haptic loop, checks and ownership figures of the summary.
@@ -705,34 +691,26 @@ void print_hand_summary(const hq::ground::GroundStation& ground,
                         const hq::haptics::HapticLoop& loop, std::uint32_t station_id) {
   const hq::ground::LinkStatus& s = ground.status();
   const hq::haptics::LoopTimingReport& timing = loop.timing();
-  std::printf("  %-40s p50 %.1f us, p99 %.1f us, max %.1f us, %lld missed\n",
-              "haptic loop period jitter", timing.period.quantile_us(0.5),
-              timing.period.quantile_us(0.99), timing.period.max_us(),
-              static_cast<long long>(timing.missed_deadlines));
-  std::printf("  %-40s %.4f J (>= 0: passive), min %.4f J\n", "passivity observer energy",
-              loop.passivity().energy_j(), loop.passivity().min_energy_j());
-  std::printf("  %-40s %.4f J dissipated (%s)\n", "passivity controller",
-              loop.passivity_controller().dissipated_j(),
-              loop.passivity_controller().enabled() ? "on" : "off");
-  std::printf("  %-40s %llu\n", "device losses",
-              static_cast<unsigned long long>(station.stats().device_losses));
-  std::printf(
-      "  %-40s %llu missing, %llu rejected (%llu invalid, %llu implausible, %llu of "
-      "another session, %llu sequence jumps)\n",
-      "vehicle states lost", static_cast<unsigned long long>(s.state_sequence_gaps),
-      static_cast<unsigned long long>(s.states_rejected),
-      static_cast<unsigned long long>(s.states_invalid),
-      static_cast<unsigned long long>(s.states_implausible),
-      static_cast<unsigned long long>(s.states_wrong_session),
-      static_cast<unsigned long long>(s.states_sequence_jump));
-  std::printf("  %-40s %llu rejected (not of session %016llx); %llu vehicle restarts\n",
-              "vehicle events", static_cast<unsigned long long>(s.events_rejected),
-              static_cast<unsigned long long>(s.vehicle_session),
-              static_cast<unsigned long long>(s.vehicle_restarts));
-  std::printf("  %-40s %s (commander: station %u, this station %u, %llu losses)\n", "control",
-              s.control_lost ? "LOST" : "held", s.commanding_station_id, station_id,
-              static_cast<unsigned long long>(s.control_losses));
-  std::printf("  %-40s %.3f N\n", "largest force on the hand", station.stats().max_force_n);
+  fmt::print("  {:<40} p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us, {} missed\n",
+             "haptic loop period jitter", timing.period.quantile_us(0.5),
+             timing.period.quantile_us(0.99), timing.period.max_us(), timing.missed_deadlines);
+  fmt::print("  {:<40} {:.4f} J (>= 0: passive), min {:.4f} J\n", "passivity observer energy",
+             loop.passivity().energy_j(), loop.passivity().min_energy_j());
+  fmt::print("  {:<40} {:.4f} J dissipated ({})\n", "passivity controller",
+             loop.passivity_controller().dissipated_j(),
+             loop.passivity_controller().enabled() ? "on" : "off");
+  fmt::print("  {:<40} {}\n", "device losses", station.stats().device_losses);
+  fmt::print(
+      "  {:<40} {} missing, {} rejected ({} invalid, {} implausible, {} of another session, {} "
+      "sequence jumps)\n",
+      "vehicle states lost", s.state_sequence_gaps, s.states_rejected, s.states_invalid,
+      s.states_implausible, s.states_wrong_session, s.states_sequence_jump);
+  fmt::print("  {:<40} {} rejected (not of session {:016x}); {} vehicle restarts\n",
+             "vehicle events", s.events_rejected, s.vehicle_session, s.vehicle_restarts);
+  fmt::print("  {:<40} {} (commander: station {}, this station {}, {} losses)\n", "control",
+             s.control_lost ? "LOST" : "held", s.commanding_station_id, station_id,
+             s.control_losses);
+  fmt::print("  {:<40} {:.3f} N\n", "largest force on the hand", station.stats().max_force_n);
 }
 
 // --state-json of a flight: the station's final word, not the console's last 4 Hz copy.
@@ -760,12 +738,8 @@ void write_flight_state_json(const Options& o, const hq::ground::GroundStation& 
 void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::GroundStation& ground,
                 const hq::ground::OperatorStation& station, const hq::haptics::HapticLoop& loop) {
   const hq::ground::LinkStatus& s = ground.status();
-  char value[64];
   hq::mcap::KeyValues summary;
-  const auto put = [&](const char* key, double v) {
-    std::snprintf(value, sizeof value, "%.6g", v);
-    summary[key] = value;
-  };
+  const auto put = [&](const char* key, double v) { summary[key] = fmt::format("{:.6g}", v); };
   put("duration_s",
       1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - station.start_ns()));
   put("commands_sent", static_cast<double>(s.commands_sent));
@@ -781,17 +755,12 @@ void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::Groun
   summary["last_vehicle_mode"] = s.have_state ? hq::ground::to_string(s.state.mode) : "-";
   summary["last_event"] = s.last_event.data();
   const hq::mcap_recorder::RecorderReport& r = mcap.close(summary);
-  std::printf(
-      "  %-40s %llu messages, %u channels, %llu bytes, %u attachments, %llu ground "
-      "samples dropped\n",
-      "mcap", static_cast<unsigned long long>(r.messages), r.channels,
-      static_cast<unsigned long long>(r.bytes), r.attachments,
-      static_cast<unsigned long long>(r.ground_samples_dropped));
+  fmt::print(
+      "  {:<40} {} messages, {} channels, {} bytes, {} attachments, {} ground samples dropped\n",
+      "mcap", r.messages, r.channels, r.bytes, r.attachments, r.ground_samples_dropped);
   for (const hq::mcap_recorder::ChannelReport& c : r.per_channel) {
-    std::printf("  mcap channel %s %llu %lld %lld\n", c.topic.c_str(),
-                static_cast<unsigned long long>(c.messages),
-                static_cast<long long>(c.first_log_time_ns),
-                static_cast<long long>(c.last_log_time_ns));
+    fmt::print("  mcap channel {} {} {} {}\n", c.topic, c.messages, c.first_log_time_ns,
+               c.last_log_time_ns);
   }
   if (!r.error.empty()) std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
 }

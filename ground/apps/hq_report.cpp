@@ -32,7 +32,9 @@
 #include <cstring>
 #include <fcntl.h>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
+#include <iterator>
 #include <optional>
 #include <spawn.h>
 #include <string>
@@ -402,72 +404,61 @@ void draw_figures(const std::string& out_dir, const std::string& format,
 using Rows = std::vector<std::pair<std::string, std::string>>;
 
 template <typename... Values>
-void add_row(Rows& rows, const char* name, const char* format_text, Values... values) {
-  char text[512];
-  std::snprintf(text, sizeof text, format_text, values...);
-  rows.emplace_back(name, text);
+void add_row(Rows& rows, const char* name, fmt::format_string<Values...> format_text,
+             Values&&... values) {
+  rows.emplace_back(name, fmt::format(format_text, std::forward<Values>(values)...));
 }
 
 std::string sessions_text(const hq::console::ReportFigures& fig) {
   std::string list;
-  char text[512];
   for (std::size_t i = 0; i < fig.sessions.size(); ++i) {
     const hq::console::SessionFigures& s = fig.sessions[i];
-    std::snprintf(text, sizeof text,
-                  "%s%s %zu: %.1f-%.1f s, %zu states, %.1f s on the vehicle's clock, %llu lost%s",
-                  list.empty() ? "" : "; ", i == 0 ? "session" : "vehicle restarted, session",
-                  i + 1, s.start_s, s.end_s, s.states, s.vehicle_duration_s,
-                  static_cast<unsigned long long>(s.states_lost),
-                  s.session_id != 0 ? "" : " (no session id)");
-    list += text;
+    fmt::format_to(
+        std::back_inserter(list),
+        "{}{} {}: {:.1f}-{:.1f} s, {} states, {:.1f} s on the vehicle's clock, {} lost{}",
+        list.empty() ? "" : "; ", i == 0 ? "session" : "vehicle restarted, session", i + 1,
+        s.start_s, s.end_s, s.states, s.vehicle_duration_s, s.states_lost,
+        s.session_id != 0 ? "" : " (no session id)");
   }
   return std::to_string(fig.sessions.size()) + ": " + list;
 }
 
 std::string mode_changes_text(const hq::console::ReportFigures& fig) {
   std::string list;
-  char text[512];
   for (const hq::console::ModeChange& c : fig.mode_changes) {
-    std::snprintf(text, sizeof text, "%s%.2f s: %s -> %s", list.empty() ? "" : "; ", c.t_s, c.from,
-                  c.to);
-    list += text;
+    fmt::format_to(std::back_inserter(list), "{}{:.2f} s: {} -> {}", list.empty() ? "" : "; ",
+                   c.t_s, c.from, c.to);
   }
-  std::snprintf(text, sizeof text, "%zu (initial mode %s)%s", fig.mode_changes.size(),
-                fig.initial_mode, list.empty() ? "" : ": ");
-  return text + list;
+  return fmt::format("{} (initial mode {}){}{}", fig.mode_changes.size(), fig.initial_mode,
+                     list.empty() ? "" : ": ", list);
 }
 
 std::string link_incidents_text(const hq::console::ReportFigures& fig, std::size_t problems) {
   std::string lost;
-  char text[512];
   for (const double t_s : fig.link_lost_events_s) {
-    std::snprintf(text, sizeof text, "%s%.1f s", lost.empty() ? "" : ", ", t_s);
-    lost += text;
+    fmt::format_to(std::back_inserter(lost), "{}{:.1f} s", lost.empty() ? "" : ", ", t_s);
   }
-  std::snprintf(text, sizeof text,
-                "%llu states lost (within sessions), largest gap %.0f ms at %.1f s, %zu "
-                "ground-heartbeat-lost event(s)%s%s, %zu warning/error events, %zu unreadable "
-                "recording lines",
-                static_cast<unsigned long long>(fig.states_lost), 1e3 * fig.largest_gap_s,
-                fig.largest_gap_at_s, fig.link_lost_events_s.size(), lost.empty() ? "" : " at ",
-                lost.c_str(), fig.warnings, problems);
-  return text;
+  return fmt::format(
+      "{} states lost (within sessions), largest gap {:.0f} ms at {:.1f} s, {} "
+      "ground-heartbeat-lost event(s){}{}, {} warning/error events, {} unreadable recording lines",
+      fig.states_lost, 1e3 * fig.largest_gap_s, fig.largest_gap_at_s, fig.link_lost_events_s.size(),
+      lost.empty() ? "" : " at ", lost, fig.warnings, problems);
 }
 
 void add_obstacle_rows(Rows& rows, const hq::console::ReportFigures& fig) {
   if (std::isfinite(fig.closest_clearance_m)) {
-    add_row(rows, "closest obstacle (vehicle's clearance)", "%.3f m at %.1f s",
+    add_row(rows, "closest obstacle (vehicle's clearance)", "{:.3f} m at {:.1f} s",
             fig.closest_clearance_m, fig.closest_clearance_at_s);
   } else {
     rows.emplace_back("closest obstacle (vehicle's clearance)",
                       "not recorded (the vehicle sent no clearance)");
   }
   if (std::isfinite(fig.closest_cloud_point_m)) {
-    add_row(rows, "nearest cloud point from the body origin (not a clearance)", "%.3f m",
+    add_row(rows, "nearest cloud point from the body origin (not a clearance)", "{:.3f} m",
             fig.closest_cloud_point_m);
   }
   if (fig.height_states > 0) {
-    add_row(rows, "height above the floor", "max %.2f m over %zu states", fig.max_height_m,
+    add_row(rows, "height above the floor", "max {:.2f} m over {} states", fig.max_height_m,
             fig.height_states);
   } else {
     rows.emplace_back("height above the floor", "not recorded");
@@ -479,26 +470,26 @@ Rows report_rows(const hq::console::Recording& r, const hq::console::ReportFigur
                  const Summary& sum) {
   Rows rows;
   add_row(rows, "duration",
-          "%.1f s (ground receipt, first to last state), %zu states, %zu commands, %zu camera "
+          "{:.1f} s (ground receipt, first to last state), {} states, {} commands, {} camera "
           "frames",
           fig.duration_s, r.states.size(), r.commands.size(), r.rgb.size());
   rows.emplace_back("vehicle sessions (restarts)", sessions_text(fig));
   add_row(rows, "tracking error RMS (teleop, v_est - v_cmd in H)",
-          "x %.3f, y %.3f, z %.3f m/s over %zu states", sum.rms_tracking_mps[0],
+          "x {:.3f}, y {:.3f}, z {:.3f} m/s over {} states", sum.rms_tracking_mps[0],
           sum.rms_tracking_mps[1], sum.rms_tracking_mps[2], sum.tracking_samples);
   if (sum.truth_samples > 0) {
     add_row(rows, "velocity estimate RMSE vs truth (simulator, v_est - v_truth in H)",
-            "x %.3f, y %.3f, z %.3f m/s over %zu states", sum.rmse_truth_mps[0],
+            "x {:.3f}, y {:.3f}, z {:.3f} m/s over {} states", sum.rmse_truth_mps[0],
             sum.rmse_truth_mps[1], sum.rmse_truth_mps[2], sum.truth_samples);
   } else {
     rows.emplace_back("velocity estimate RMSE vs truth", "no truth in this recording");
   }
   add_obstacle_rows(rows, fig);
-  add_row(rows, "largest v_obs", "%.3f m/s", sum.max_v_obs_mps);
+  add_row(rows, "largest v_obs", "{:.3f} m/s", sum.max_v_obs_mps);
   rows.emplace_back("mode changes", mode_changes_text(fig));
   rows.emplace_back("link incidents", link_incidents_text(fig, r.problem_count));
-  add_row(rows, "latency (one way)", "p50 %.2f ms, p99 %.2f ms, max %.2f ms", fig.latency_p50_ms,
-          fig.latency_p99_ms, fig.latency_max_ms);
+  add_row(rows, "latency (one way)", "p50 {:.2f} ms, p99 {:.2f} ms, max {:.2f} ms",
+          fig.latency_p50_ms, fig.latency_p99_ms, fig.latency_max_ms);
   return rows;
 }
 
@@ -646,21 +637,18 @@ int recover_file(const Options& o) {
   std::printf("hq-report: %s -> %s: %s\n", o.recover[0].c_str(), o.recover[1].c_str(),
               r.read.has_summary ? "had a summary already (rewritten as it was)"
                                  : "no summary (writer killed?), recovered by scanning");
-  std::printf("  messages   %llu recovered, %u channels, %u attachments, %u metadata\n",
-              static_cast<unsigned long long>(r.written.message_count), r.written.channel_count,
-              r.written.attachment_count, r.written.metadata_count);
-  std::printf("  time span  %.3f s (log time %lld .. %lld ns)\n",
-              1e-9 * static_cast<double>(r.last_log_time_ns - r.first_log_time_ns),
-              static_cast<long long>(r.first_log_time_ns),
-              static_cast<long long>(r.last_log_time_ns));
-  std::printf("  dropped    %llu bytes at the tail (an incomplete record)%s\n",
-              static_cast<unsigned long long>(r.bytes_dropped),
-              r.messages_without_channel > 0 ? (", " + std::to_string(r.messages_without_channel) +
-                                                " messages without a channel record")
-                                                   .c_str()
-                                             : "");
-  std::printf("  written    %llu bytes, %u chunks, with summary and indexes\n",
-              static_cast<unsigned long long>(r.bytes_written), r.written.chunk_count);
+  fmt::print("  messages   {} recovered, {} channels, {} attachments, {} metadata\n",
+             r.written.message_count, r.written.channel_count, r.written.attachment_count,
+             r.written.metadata_count);
+  fmt::print("  time span  {:.3f} s (log time {} .. {} ns)\n",
+             1e-9 * static_cast<double>(r.last_log_time_ns - r.first_log_time_ns),
+             r.first_log_time_ns, r.last_log_time_ns);
+  fmt::print("  dropped    {} bytes at the tail (an incomplete record){}\n", r.bytes_dropped,
+             r.messages_without_channel > 0
+                 ? fmt::format(", {} messages without a channel record", r.messages_without_channel)
+                 : std::string());
+  fmt::print("  written    {} bytes, {} chunks, with summary and indexes\n", r.bytes_written,
+             r.written.chunk_count);
   return 0;
 }
 

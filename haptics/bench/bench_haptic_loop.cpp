@@ -14,6 +14,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <fmt/format.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/prctl.h>
@@ -116,14 +117,11 @@ int run(int argc, char** argv) {
               "p99", "max", "p50", "p99", "max");
   print_row("|period - nominal|", timing.period, bare.period);
   print_row("wake - deadline", timing.wake, bare.wake);
-  std::printf("\nperiods: loop %lld, floor %lld; missed deadlines: loop %lld, floor %lld\n",
-              static_cast<long long>(timing.period.count()),
-              static_cast<long long>(bare.period.count()),
-              static_cast<long long>(timing.missed_deadlines), static_cast<long long>(bare.missed));
+  fmt::print("\nperiods: loop {}, floor {}; missed deadlines: loop {}, floor {}\n",
+             timing.period.count(), bare.period.count(), timing.missed_deadlines, bare.missed);
   std::printf("real-time: %s\n", grant.fifo ? "SCHED_FIFO granted" : "NOT granted (SCHED_OTHER)");
-  std::printf("last tick %llu: passivity E %.4f J, status \"%s\"\n",
-              static_cast<unsigned long long>(last.tick), last.passivity_energy_j,
-              last.status.data());
+  fmt::print("last tick {}: passivity E {:.4f} J, status \"{}\"\n", last.tick,
+             last.passivity_energy_j, last.status.data());
   return 0;
 }
 

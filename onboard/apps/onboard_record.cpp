@@ -8,6 +8,7 @@
 
 #include <csignal>
 #include <cstdio>
+#include <fmt/format.h>
 #include <string>
 
 namespace hq::onboard_app {
@@ -39,12 +40,8 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
 
 void close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
                     const link_bridge::LinkBridge* bridge) {
-  char session[24] = "none";
-  if (bridge != nullptr) {
-    std::snprintf(session, sizeof session, "%016llx",
-                  static_cast<unsigned long long>(bridge->session_id()));
-  }
-  summary["session_id"] = session;
+  summary["session_id"] =
+      bridge != nullptr ? fmt::format("{:016x}", bridge->session_id()) : std::string("none");
   summary["duration_s"] = std::to_string(recorder.seconds_since_start());
   summary["steps_recorded"] = std::to_string(recorder.steps_pushed());
   summary["imu_samples_recorded"] = std::to_string(recorder.imu_pushed());

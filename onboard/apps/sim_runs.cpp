@@ -19,6 +19,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <utility>
@@ -170,10 +171,9 @@ int run_sim(const Options& o) {
   hq::closed_loop::ClosedLoopOptions options;
   options.clock = &clock;
   hq::closed_loop::ClosedLoop loop(sim_config, world, config, vehicle, std::move(player), options);
-  std::fprintf(stderr, "hq-onboard: simulated %s, %dx%d, seed %llu, script %s (%.1f s)\n",
-               world.name.c_str(), sim_config.camera.pinhole.width,
-               sim_config.camera.pinhole.height, static_cast<unsigned long long>(sim_config.seed),
-               o.script_path.c_str(), loop.player().script().end_s);
+  fmt::print(stderr, "hq-onboard: simulated {}, {}x{}, seed {}, script {} ({:.1f} s)\n", world.name,
+             sim_config.camera.pinhole.width, sim_config.camera.pinhole.height, sim_config.seed,
+             o.script_path, loop.player().script().end_s);
   const auto wall_start = std::chrono::steady_clock::now();
   loop.run();
   const double wall_s =

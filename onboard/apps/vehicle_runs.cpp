@@ -34,6 +34,7 @@
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <fmt/format.h>
 #include <memory>
 #include <optional>
 #include <string>
@@ -232,32 +233,29 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
 
 void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
   const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
-  const auto count = [](std::uint64_t n) { return static_cast<unsigned long long>(n); };
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "velocity commands",
-              count(c.commands_accepted), count(c.commands_rejected));
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "mode requests",
-              count(c.mode_requests_accepted), count(c.mode_requests_rejected));
-  std::printf("  %-40s %llu accepted, %llu rejected\n", "heartbeats", count(c.heartbeats_accepted),
-              count(c.heartbeats_rejected));
-  std::printf("  %-40s %llu holds, %llu land requests (%llu after a hold)\n", "fail-safes",
-              count(c.holds), count(c.land_requests), count(c.land_requests_hold));
-  std::printf(
-      "  %-40s station %u, %llu changes; rejected: %llu commands not allowed, %llu "
-      "requests not from it, %llu for another session; %llu foreign heartbeats\n",
-      "commanding station", bridge.failsafe().state().commanding_station_id,
-      count(c.commander_changes), count(c.commands_not_allowed),
-      count(c.mode_requests_not_commander), count(c.mode_requests_wrong_session),
-      count(c.heartbeats_not_commander));
-  std::printf("  %-40s %llu states, %llu camera frames, %llu events\n", "published",
-              count(bridge.states_sent()), count(bridge.camera_frames_sent()),
-              count(bridge.events_sent()));
+  fmt::print("  {:<40} {} accepted, {} rejected\n", "velocity commands", c.commands_accepted,
+             c.commands_rejected);
+  fmt::print("  {:<40} {} accepted, {} rejected\n", "mode requests", c.mode_requests_accepted,
+             c.mode_requests_rejected);
+  fmt::print("  {:<40} {} accepted, {} rejected\n", "heartbeats", c.heartbeats_accepted,
+             c.heartbeats_rejected);
+  fmt::print("  {:<40} {} holds, {} land requests ({} after a hold)\n", "fail-safes", c.holds,
+             c.land_requests, c.land_requests_hold);
+  fmt::print(
+      "  {:<40} station {}, {} changes; rejected: {} commands not allowed, {} requests not from "
+      "it, {} for another session; {} foreign heartbeats\n",
+      "commanding station", bridge.failsafe().state().commanding_station_id, c.commander_changes,
+      c.commands_not_allowed, c.mode_requests_not_commander, c.mode_requests_wrong_session,
+      c.heartbeats_not_commander);
+  fmt::print("  {:<40} {} states, {} camera frames, {} events\n", "published", bridge.states_sent(),
+             bridge.camera_frames_sent(), bridge.events_sent());
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {
     const hq::ros2_bridge::Ros2Counters& r = ros->counters();
-    std::printf(
-        "  %-40s %llu states, %llu clouds, %llu images; cmd_vel_in %llu taken, %llu "
-        "overridden by a native station\n",
-        "ROS 2 published", count(r.states_published), count(r.clouds_published),
-        count(r.images_published), count(r.commands_received), count(r.commands_overridden));
+    fmt::print(
+        "  {:<40} {} states, {} clouds, {} images; cmd_vel_in {} taken, {} overridden by a "
+        "native station\n",
+        "ROS 2 published", r.states_published, r.clouds_published, r.images_published,
+        r.commands_received, r.commands_overridden);
   }
 }
 
@@ -429,21 +427,16 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
       port.frames, source.describe().c_str(), port.ok, port.safe_hover, port.ticks,
       csv ? ", log in " : "", o.csv_path.c_str());
   std::printf("  %-40s %s\n", "flight controller", fc.describe().c_str());
-  std::printf("  %-40s %llu sent (%llu withheld before the first estimate)\n", "setpoints",
-              static_cast<unsigned long long>(rc.setpoints),
-              static_cast<unsigned long long>(rc.setpoints_withheld));
+  fmt::print("  {:<40} {} sent ({} withheld before the first estimate)\n", "setpoints",
+             rc.setpoints, rc.setpoints_withheld);
   if (fc_spec != "none") {
-    std::printf("  %-40s %llu sent, %llu received, %llu dropped, %llu send failures\n",
-                "MAVLink messages", static_cast<unsigned long long>(fcc.messages_sent),
-                static_cast<unsigned long long>(fcc.messages_received),
-                static_cast<unsigned long long>(fcc.frames_dropped),
-                static_cast<unsigned long long>(fcc.send_failures));
-    std::printf("  %-40s %llu IMU samples, %llu arm requests, FC %s\n", "flight controller input",
-                static_cast<unsigned long long>(rc.imu_samples),
-                static_cast<unsigned long long>(rc.arm_requests),
-                runtime.status().fc_lost        ? "LOST"
-                : runtime.status().fc.connected ? "connected"
-                                                : "never heard");
+    fmt::print("  {:<40} {} sent, {} received, {} dropped, {} send failures\n", "MAVLink messages",
+               fcc.messages_sent, fcc.messages_received, fcc.frames_dropped, fcc.send_failures);
+    fmt::print("  {:<40} {} IMU samples, {} arm requests, FC {}\n", "flight controller input",
+               rc.imu_samples, rc.arm_requests,
+               runtime.status().fc_lost        ? "LOST"
+               : runtime.status().fc.connected ? "connected"
+                                               : "never heard");
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
 }

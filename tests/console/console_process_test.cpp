@@ -5,6 +5,7 @@
 // truncated copy of it.
 #include "hq/testing/process.hpp"
 
+#include "state_json.hpp"
 #include <gtest/gtest.h>
 
 #include <X11/Xlib.h>
@@ -16,7 +17,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <regex>
 #include <signal.h>
 #include <sstream>
 #include <string>
@@ -36,31 +36,10 @@ std::string slurp(const fs::path& path) {
   return ss.str();
 }
 
-// A number in the state JSON, -1 if absent.
-double json_number(const std::string& json, const std::string& key) {
-  std::string pattern = "\"";  // appended, not concatenated: GCC 12 -Wrestrict false positive
-  pattern.append(key).append("\": (-?[0-9.]+)");
-  const std::regex re(pattern);
-  std::smatch m;
-  return std::regex_search(json, m, re) ? std::stod(m[1]) : -1;
-}
-
-std::string json_text(const std::string& json, const std::string& key) {
-  std::string pattern = "\"";
-  pattern.append(key).append("\": \"([^\"]*)\"");
-  const std::regex re(pattern);
-  std::smatch m;
-  return std::regex_search(json, m, re) ? std::string(m[1]) : "";
-}
-
-// A boolean in the state JSON: 1 true, 0 false, -1 absent.
-int json_bool(const std::string& json, const std::string& key) {
-  std::string pattern = "\"";
-  pattern.append(key).append("\": (true|false)");
-  const std::regex re(pattern);
-  std::smatch m;
-  return std::regex_search(json, m, re) ? (m[1] == "true" ? 1 : 0) : -1;
-}
+using hq::console_test::parse_state;
+using hq::console_test::state_flag;
+using hq::console_test::state_number;
+using hq::console_test::state_text;
 
 using hq::testing::Process;
 
@@ -164,25 +143,28 @@ void use_loopback_dds() {
 
 // The console drew the flight: frames decoded, plots filled, the vehicle's mode shown.
 void expect_console_drew_the_flight(const std::string& json) {
-  EXPECT_GT(json_number(json, "camera_frames_decoded"), 20) << json;  // ~10 Hz over ~7 s
-  EXPECT_GT(json_number(json, "plot_samples_drawn"), 100) << json;    // frame rate over ~7 s
-  EXPECT_GT(json_number(json, "frames"), 50) << json;
-  EXPECT_EQ(json_text(json, "mode_shown"), "teleop") << json;  // the scripted hand's request
-  EXPECT_GT(json_number(json, "camera_width_px"), 0) << json;
+  const nlohmann::json parsed = parse_state(json);
+  EXPECT_GT(state_number(parsed, "/window/camera_frames_decoded"), 20) << json;  // ~10 Hz over ~7 s
+  EXPECT_GT(state_number(parsed, "/window/plot_samples_drawn"), 100)
+      << json;  // frame rate over ~7 s
+  EXPECT_GT(state_number(parsed, "/window/frames"), 50) << json;
+  EXPECT_EQ(state_text(parsed, "/window/mode_shown"), "teleop")
+      << json;  // the scripted hand's request
+  EXPECT_GT(state_number(parsed, "/window/camera_width_px"), 0) << json;
   // The state's position, marker and truth fields reach the console: the flags are shown, a
   // position flag agrees with the count of states that carried one, and a marker count of the
   // latest state within the link's bound.
-  const int from_vehicle = json_bool(json, "position_from_vehicle");
+  const int from_vehicle = state_flag(parsed, "/position_from_vehicle");
   ASSERT_GE(from_vehicle, 0) << json;
   if (from_vehicle == 1) {
-    EXPECT_GT(json_number(json, "position_states"), 0) << json;
+    EXPECT_GT(state_number(parsed, "/position_states"), 0) << json;
   }
-  EXPECT_GE(json_number(json, "position_states"), 0) << json;
+  EXPECT_GE(state_number(parsed, "/position_states"), 0) << json;
   // The vehicle is the simulator: its truth trace must reach the velocity plots.
-  EXPECT_EQ(json_bool(json, "truth"), 1) << json;
-  EXPECT_GE(json_number(json, "markers_latest"), 0) << json;
-  EXPECT_LE(json_number(json, "markers_latest"), 16) << json;
-  EXPECT_GE(json_number(json, "marker_detections"), 0) << json;
+  EXPECT_EQ(state_flag(parsed, "/truth"), 1) << json;
+  EXPECT_GE(state_number(parsed, "/markers_latest"), 0) << json;
+  EXPECT_LE(state_number(parsed, "/markers_latest"), 16) << json;
+  EXPECT_GE(state_number(parsed, "/marker_detections"), 0) << json;
 }
 
 // hq-report on the recording writes the figures and the page.
@@ -222,9 +204,10 @@ void expect_truncated_csv_replay(const fs::path& dir, const fs::path& recording)
   ASSERT_NE(named, std::string::npos) << replay_out;
   EXPECT_NE(replay_out.find("(truncated last line)", named), std::string::npos) << replay_out;
   const std::string rjson = slurp(replay_state);
-  EXPECT_GT(json_number(rjson, "plot_samples"), 100) << rjson;
-  EXPECT_GT(json_number(rjson, "camera_frames_received"), 20) << rjson;
-  EXPECT_EQ(json_number(rjson, "replay_problems"), 1) << rjson;
+  const nlohmann::json replay_parsed = parse_state(rjson);
+  EXPECT_GT(state_number(replay_parsed, "/plot_samples"), 100) << rjson;
+  EXPECT_GT(state_number(replay_parsed, "/camera_frames_received"), 20) << rjson;
+  EXPECT_EQ(state_number(replay_parsed, "/replay_problems"), 1) << rjson;
 }
 
 TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) {
@@ -260,7 +243,8 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   expect_console_drew_the_flight(json);
   ASSERT_TRUE(fs::exists(shot));
   EXPECT_GT(fs::file_size(shot), 20'000U);  // a PNG of a 1600x960 console, not a blank
-  std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(), json_number(json, "fps"));
+  std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(),
+              state_number(parse_state(json), "/window/fps"));
   expect_report_written(dir, recording);
   expect_truncated_csv_replay(dir, recording);
 }
@@ -314,38 +298,42 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   const std::string json = slurp(state);
   const std::string out = slurp(dir / "ground.out");
   ASSERT_FALSE(json.empty()) << out;
+  const nlohmann::json parsed = parse_state(json);
   // THEN the console showed the take-off: the last state before the loss says airborne, motors
   // on, at the take-off height (1.0 m in config/onboard.yaml) within 0.15 m, from a source named
-  EXPECT_EQ(json_text(json, "flight_state"), "airborne") << json;
-  EXPECT_EQ(json_bool(json, "motors_armed"), 1) << json;
-  EXPECT_EQ(json_bool(json, "height_valid"), 1) << json;
-  EXPECT_NEAR(json_number(json, "height_m"), 1.0, 0.15) << json;
-  EXPECT_NE(json_text(json, "height_source"), "-") << json;
+  EXPECT_EQ(state_text(parsed, "/flight_state"), "airborne") << json;
+  EXPECT_EQ(state_flag(parsed, "/motors_armed"), 1) << json;
+  EXPECT_EQ(state_flag(parsed, "/height_valid"), 1) << json;
+  EXPECT_NEAR(state_number(parsed, "/height_m"), 1.0, 0.15) << json;
+  EXPECT_NE(state_text(parsed, "/height_source"), "-") << json;
   // and the loss: the banner drawn, the state stale for more than 2 s, one loss counted, said
   // on stdout and recorded as an event for the replay
-  EXPECT_EQ(json_bool(json, "link_lost"), 1) << json;
-  EXPECT_GT(json_number(json, "stale_s"), 2.0) << json;
-  EXPECT_EQ(json_number(json, "link_losses"), 1) << json;
-  EXPECT_GT(json_number(json, "link_lost_banner_frames"), 3) << json;
+  EXPECT_EQ(state_flag(parsed, "/link_lost"), 1) << json;
+  EXPECT_GT(state_number(parsed, "/stale_s"), 2.0) << json;
+  EXPECT_EQ(state_number(parsed, "/link_losses"), 1) << json;
+  EXPECT_GT(state_number(parsed, "/window/link_lost_banner_frames"), 3) << json;
   EXPECT_NE(out.find("VEHICLE LINK LOST"), std::string::npos) << out;
   EXPECT_NE(slurp(recording / "events.csv").find("VEHICLE LINK LOST"), std::string::npos);
   ASSERT_TRUE(fs::exists(shot));
   EXPECT_GT(fs::file_size(shot), 20'000U);
   // and the window fits the 1280x720 display, inside it
-  EXPECT_GE(json_number(json, "x_px"), 0) << json;
-  EXPECT_GE(json_number(json, "y_px"), 0) << json;
-  EXPECT_LE(json_number(json, "x_px") + json_number(json, "width_px"), 1280) << json;
-  EXPECT_LE(json_number(json, "y_px") + json_number(json, "height_px"), 720) << json;
-  EXPECT_GT(json_number(json, "take_off_hint_frames"), 0) << json;
+  ASSERT_TRUE(parsed.contains("window") && parsed["window"].is_object()) << json;
+  EXPECT_GE(state_number(parsed, "/window/x_px"), 0) << json;
+  EXPECT_GE(state_number(parsed, "/window/y_px"), 0) << json;
+  EXPECT_LE(state_number(parsed, "/window/x_px") + state_number(parsed, "/window/width_px"), 1280)
+      << json;
+  EXPECT_LE(state_number(parsed, "/window/y_px") + state_number(parsed, "/window/height_px"), 720)
+      << json;
+  EXPECT_GT(state_number(parsed, "/window/take_off_hint_frames"), 0) << json;
   // and its placement is remembered for the next run, in XDG_CONFIG_HOME (here the test's)
   EXPECT_EQ(slurp(dir / "config" / "haptiquad" / "console.ini"),
-            "window " + std::to_string(static_cast<int>(json_number(json, "x_px"))) + " " +
-                std::to_string(static_cast<int>(json_number(json, "y_px"))) + " " +
-                std::to_string(static_cast<int>(json_number(json, "width_px"))) + " " +
-                std::to_string(static_cast<int>(json_number(json, "height_px"))) + "\n");
+            "window " + std::to_string(static_cast<int>(state_number(parsed, "/window/x_px"))) +
+                " " + std::to_string(static_cast<int>(state_number(parsed, "/window/y_px"))) + " " +
+                std::to_string(static_cast<int>(state_number(parsed, "/window/width_px"))) + " " +
+                std::to_string(static_cast<int>(state_number(parsed, "/window/height_px"))) + "\n");
   std::printf("console take-off: height %.2f m (%s), stale %.1f s, %.1f fps; screenshot %s\n",
-              json_number(json, "height_m"), json_text(json, "height_source").c_str(),
-              json_number(json, "stale_s"), json_number(json, "fps"), shot.c_str());
+              state_number(parsed, "/height_m"), state_text(parsed, "/height_source").c_str(),
+              state_number(parsed, "/stale_s"), state_number(parsed, "/window/fps"), shot.c_str());
 }
 
 TEST(ConsoleProcesses, WindowedGroundWithoutADisplaySaysUseHeadlessAndExits2) {

@@ -13,6 +13,7 @@
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/process.hpp"
 
+#include "state_json.hpp"
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -50,18 +51,9 @@ double number_after(const std::string& text, const std::string& pattern) {
   return std::regex_search(text, m, std::regex(re)) ? std::stod(m[1]) : std::nan("");
 }
 
-double json_number(const std::string& json, const std::string& key) {
-  std::string pattern = "\"";
-  pattern.append(key).append("\": ");
-  return number_after(json, pattern);
-}
-
-int json_bool(const std::string& json, const std::string& key) {
-  std::string pattern = "\"";
-  pattern.append(key).append("\": (true|false)");
-  std::smatch m;
-  return std::regex_search(json, m, std::regex(pattern)) ? (m[1] == "true" ? 1 : 0) : -1;
-}
+using hq::console_test::parse_state;
+using hq::console_test::state_flag;
+using hq::console_test::state_number;
 
 // Mode transitions in the vehicle's own link log (hq-onboard --link-log: t_s,mode,...).
 int vehicle_mode_changes(const fs::path& link_log) {
@@ -211,11 +203,12 @@ void expect_replay_plays(const fs::path& dir, const fs::path& recording) {
   const std::string json =
       replay(dir, recording, "replay_playing",
              {"--seek", "2", "--window-size", "1280x800", "--duration-s", "2"});
-  EXPECT_EQ(json_bool(json, "playing"), 1) << json;
-  EXPECT_GT(json_number(json, "position_s"), 3.5) << json;
-  EXPECT_GT(json_number(json, "state_rate_hz"), 15) << json;  // ~30 Hz recorded
-  EXPECT_GT(json_number(json, "camera_rate_hz"), 3) << json;  // ~10 Hz recorded
-  EXPECT_GT(json_number(json, "states_received"), 30) << json;
+  const nlohmann::json parsed = parse_state(json);
+  EXPECT_EQ(state_flag(parsed, "/replay/playing"), 1) << json;
+  EXPECT_GT(state_number(parsed, "/replay/position_s"), 3.5) << json;
+  EXPECT_GT(state_number(parsed, "/state_rate_hz"), 15) << json;  // ~30 Hz recorded
+  EXPECT_GT(state_number(parsed, "/camera_rate_hz"), 3) << json;  // ~10 Hz recorded
+  EXPECT_GT(state_number(parsed, "/states_received"), 30) << json;
 }
 
 // WHEN Space pauses it and Left seeks 5 s back, THEN it stays paused there, showing only the
@@ -225,25 +218,29 @@ void expect_replay_pauses_and_seeks(const fs::path& dir, const fs::path& recordi
   const std::string json = replay(dir, recording, "replay_paused",
                                   {"--seek", "6", "--window-size", "1280x800", "--duration-s", "3",
                                    "--keys", "1.0:Space,1.5:Left", "--screenshot", shot.string()});
-  EXPECT_EQ(json_bool(json, "playing"), 0) << json;
-  EXPECT_EQ(json_bool(json, "at_end"), 0) << json;
-  const double position_s = json_number(json, "position_s");
+  const nlohmann::json parsed = parse_state(json);
+  EXPECT_EQ(state_flag(parsed, "/replay/playing"), 0) << json;
+  EXPECT_EQ(state_flag(parsed, "/replay/at_end"), 0) << json;
+  const double position_s = state_number(parsed, "/replay/position_s");
   // Paused after 1 s of the window (plus its start-up), then 5 s back from 6 + that.
   EXPECT_GT(position_s, 1.9) << json;
   EXPECT_LT(position_s, 4.5) << json;
-  EXPECT_GT(json_number(json, "state_rate_hz"), 15) << json;
+  EXPECT_GT(state_number(parsed, "/state_rate_hz"), 15) << json;
   // ~30 states/s up to the position; never the ~180 of the vehicle's whole flight.
-  EXPECT_LT(json_number(json, "states_received"), 32 * position_s + 5) << json;
+  EXPECT_LT(state_number(parsed, "/states_received"), 32 * position_s + 5) << json;
   EXPECT_GT(fs::file_size(shot), 20'000U);
 }
 
 // WHEN a headless replay plays to the end, THEN it says so, with every event counted.
 void expect_replay_ends(const fs::path& dir, const fs::path& recording) {
   const std::string json = replay(dir, recording, "replay_end", {"--speed", "8", "--headless"});
-  EXPECT_EQ(json_bool(json, "at_end"), 1) << json;
-  EXPECT_NEAR(json_number(json, "position_s"), json_number(json, "duration_s"), 1e-3) << json;
-  EXPECT_EQ(json_number(json, "link_events"), json_number(json, "events")) << json;
-  EXPECT_GT(json_number(json, "camera_frames_received"), 20) << json;  // from the MCAP
+  const nlohmann::json parsed = parse_state(json);
+  EXPECT_EQ(state_flag(parsed, "/replay/at_end"), 1) << json;
+  EXPECT_NEAR(state_number(parsed, "/replay/position_s"),
+              state_number(parsed, "/replay/duration_s"), 1e-3)
+      << json;
+  EXPECT_EQ(state_number(parsed, "/link_events"), state_number(parsed, "/events")) << json;
+  EXPECT_GT(state_number(parsed, "/camera_frames_received"), 20) << json;  // from the MCAP
   EXPECT_NE(slurp(dir / "replay_end.out").find("(end of recording)"), std::string::npos);
 }
 

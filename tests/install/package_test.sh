@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the .deb with CPack and checks what it holds and what it depends on: the programs in
-# /usr/bin, the shipped files in /usr/share/haptiquad, and Debian's Cyclone DDS and OpenCV
+# /usr/bin, the shipped files in /usr/share/haptiquad, and Debian's Cyclone DDS, OpenCV and fmt
 # libraries found by dpkg-shlibdeps.
 #   package_test.sh BUILD_DIR CPACK_COMMAND
 set -euo pipefail
@@ -22,7 +22,7 @@ for path in ./usr/bin/hq-onboard ./usr/bin/hq-ground ./usr/bin/hq-sim \
   grep -q " $path\$" <<<"$contents" || { echo "FAIL: $path not in $(basename "$deb")"; exit 1; }
 done
 depends=$(dpkg-deb -f "$deb" Depends)
-for library in libddsc0debian libopencv-core; do
+for library in libddsc0debian libopencv-core libfmt9; do
   grep -q "$library" <<<"$depends" || { echo "FAIL: Depends lacks $library: $depends"; exit 1; }
 done
 echo "$(basename "$deb"): $(stat -c %s "$deb") bytes; Depends: $depends"

@@ -4,9 +4,9 @@
 #include <dds/ddsrt/endian.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string_view>
 
 namespace hq::console {
@@ -35,33 +35,35 @@ Encapsulation encapsulation(mcap::Bytes message) {
   }
 }
 
-// "/ground/haptics" JSON as the recorder writes it: the number after "key": from `from` on.
-bool json_number(std::string_view text, std::string_view key, std::size_t& from, double& out) {
-  std::string quoted = "\"";
-  quoted.append(key).append("\":");
-  const std::size_t at = text.find(quoted, from);
-  if (at == std::string_view::npos) return false;
-  from = at + quoted.size();
-  const std::string number(text.substr(from, 32));
-  char* end = nullptr;
-  out = std::strtod(number.c_str(), &end);
-  return end != number.c_str() && std::isfinite(out);
+// A finite number at `key` of a JSON object; false if absent, not a number, or null (the
+// recorder's NaN).
+bool finite_number(const nlohmann::json& object, const char* key, double& out) {
+  const auto it = object.find(key);
+  if (it == object.end() || !it->is_number()) return false;
+  out = it->get<double>();
+  return std::isfinite(out);
 }
 
-bool parse_ground_command(std::string_view json, bool& valid, std::array<float, 3>& v_H_mps,
+// One "/ground/haptics" message (hq_ground.Haptics): command_valid, v_cmd_H_mps {x,y,z},
+// yaw_rate_cmd_radps. False if it is not JSON or lacks one of them.
+bool parse_ground_command(std::string_view text, bool& valid, std::array<float, 3>& v_H_mps,
                           float& yaw_rate_radps) {
-  const std::size_t valid_at = json.find("\"command_valid\":");
-  if (valid_at == std::string_view::npos) return false;
-  valid = json.substr(valid_at + 16, 4) == "true";
-  std::size_t at = json.find("\"v_cmd_H_mps\":");
-  if (at == std::string_view::npos) return false;
+  const nlohmann::json json = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!json.is_object()) return false;  // also a discarded (unparsable) value
+  const auto valid_it = json.find("command_valid");
+  const auto v_it = json.find("v_cmd_H_mps");
+  if (valid_it == json.end() || !valid_it->is_boolean() || v_it == json.end() ||
+      !v_it->is_object()) {
+    return false;
+  }
+  valid = valid_it->get<bool>();
   double v = 0;
+  static constexpr std::array<const char*, 3> kAxes = {"x", "y", "z"};
   for (std::size_t i = 0; i < 3; ++i) {
-    static constexpr std::array<const char*, 3> kAxes = {"x", "y", "z"};
-    if (!json_number(json, kAxes[i], at, v)) return false;
+    if (!finite_number(*v_it, kAxes[i], v)) return false;
     v_H_mps[i] = static_cast<float>(v);
   }
-  if (!json_number(json, "yaw_rate_cmd_radps", at, v)) return false;
+  if (!finite_number(json, "yaw_rate_cmd_radps", v)) return false;
   yaw_rate_radps = static_cast<float>(v);
   return true;
 }

@@ -148,7 +148,9 @@ struct FlightFile {
                   "{\"x\":%.3f,\"y\":0,\"z\":-0.25},\"yaw_rate_cmd_radps\":0.125,\"p_D_m\":{\"x\""
                   ":0,\"y\":0,\"z\":0},\"F_D_n\":{\"x\":0,\"y\":0,\"z\":1.5}}",
                   valid ? "true" : "false", static_cast<double>(vx));
-    const std::string text = json;
+    command_text(t_ns, json);
+  }
+  void command_text(std::int64_t t_ns, const std::string& text) {
     writer.write(haptics, sequence++, t_ns, t_ns, as_bytes(text));
   }
   mcap::McapWriter writer;
@@ -295,6 +297,38 @@ TEST(FlightMcap, DamagedMessagesAreNamedAndTheRestIsRead) {
                                        "bytes does not fit the IDL type"));
   EXPECT_THAT(r.problems[1], HasSubstr("message 3: CDR encapsulation 0x000b"));
   EXPECT_THAT(r.problems[2], HasSubstr("message 4: CDR of"));
+  fs::remove_all(dir);
+}
+
+// /ground/haptics is read as JSON, not searched as text: any key order and spacing, exponents;
+// what is not the recorder's message (cut, a null where the recorder wrote a NaN, a key
+// missing) is named and skipped.
+TEST(FlightMcap, HapticsMessagesAreReadAsJson) {
+  const fs::path dir = fresh_dir("haptics_json");
+  const std::string path = (dir / "flight.mcap").string();
+  {
+    FlightFile f(path);
+    f.command_text(kT0_ns, R"({ "yaw_rate_cmd_radps" : -1.25e-1, "v_cmd_H_mps" : )"
+                           R"({ "z" : 2E-3, "y" : -0.5, "x" : 1.5e+0 }, "command_valid" : true })");
+    f.command_text(kT0_ns + 1, R"({"command_valid":true,"v_cmd_H_mps":{"x":0.1,"y":0)");
+    f.command_text(kT0_ns + 2, R"({"command_valid":true,"v_cmd_H_mps":{"x":null,"y":0,"z":0},)"
+                               R"("yaw_rate_cmd_radps":0})");
+    f.command_text(kT0_ns + 3, R"({"command_valid":false,"v_cmd_H_mps":{"x":0,"y":0,"z":0}})");
+    f.writer.close();
+  }
+  const Recording r = load_recording(path);
+  ASSERT_EQ(r.commands.size(), 1U);
+  EXPECT_TRUE(r.commands[0].valid);
+  EXPECT_FLOAT_EQ(r.commands[0].v_H_mps[0], 1.5F);
+  EXPECT_FLOAT_EQ(r.commands[0].v_H_mps[1], -0.5F);
+  EXPECT_FLOAT_EQ(r.commands[0].v_H_mps[2], 0.002F);
+  EXPECT_FLOAT_EQ(r.commands[0].yaw_rate_radps, -0.125F);
+  ASSERT_EQ(r.problems.size(), 3U);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_THAT(r.problems[i],
+                HasSubstr("flight.mcap: /ground/haptics message " + std::to_string(i + 1) +
+                          ": not the recorder's haptics JSON"));
+  }
   fs::remove_all(dir);
 }
 

@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fmt/format.h>
 #include <memory>
 #include <string>
 #include <thread>
@@ -148,13 +149,11 @@ int main(int argc, char** argv) {
   vehicle.signal(SIGTERM);
   vehicle.wait_exit(10.0);
   const hq::mcap_recorder::RecorderReport& r = recorder->close();
-  std::printf(
-      "hq-bench-flight-recorder: %.1f s at 1 kHz, recorder wrote %llu messages, %llu "
-      "bytes to %s, %llu ground samples dropped%s%s\n",
-      duration_s, static_cast<unsigned long long>(r.messages),
-      static_cast<unsigned long long>(r.bytes), out.c_str(),
-      static_cast<unsigned long long>(r.ground_samples_dropped),
-      r.error.empty() ? "" : ", error: ", r.error.c_str());
+  fmt::print(
+      "hq-bench-flight-recorder: {:.1f} s at 1 kHz, recorder wrote {} messages, {} bytes to {}, "
+      "{} ground samples dropped{}{}\n",
+      duration_s, r.messages, r.bytes, out, r.ground_samples_dropped,
+      r.error.empty() ? "" : ", error: ", r.error);
   print("command's DDS write, no recorder", write_alone_ns);
   print("command's DDS write, recorder reading it", write_ns);
   print("FlightRecorder::push()", push_ns);

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sys/resource.h>
 #include <thread>
 #include <unistd.h>
@@ -265,15 +266,21 @@ void expect_foxglove_channels(const mcap::McapReader& r) {
   const auto images = messages_of(r, "/camera/image/compressed");
   ASSERT_FALSE(images.empty());
   const std::string first_image(images[0]->data.begin(), images[0]->data.end());
-  EXPECT_NE(first_image.find("\"format\":\"jpeg\""), std::string::npos) << first_image;
-  EXPECT_NE(first_image.find("\"data\":\"/9j/"), std::string::npos) << first_image;  // FF D8 FF
+  const nlohmann::json image_json = nlohmann::json::parse(first_image, nullptr, false);
+  ASSERT_TRUE(image_json.is_object()) << first_image;
+  EXPECT_EQ(image_json.value("format", ""), "jpeg") << first_image;
+  EXPECT_EQ(image_json.value("frame_id", ""), "camera") << first_image;
+  EXPECT_TRUE(image_json.value("data", "").starts_with("/9j/")) << first_image;  // FF D8 FF
   const auto clouds = messages_of(r, "/obstacles");
   ASSERT_FALSE(clouds.empty());
   EXPECT_EQ(r.schema(channel_of(r, "/obstacles")->schema_id)->name, "foxglove.PointCloud");
   const std::string cloud(clouds[0]->data.begin(), clouds[0]->data.end());
+  const nlohmann::json cloud_json = nlohmann::json::parse(cloud, nullptr, false);
+  ASSERT_TRUE(cloud_json.is_object()) << cloud;
   // (1, 2, -0.5) as float32 LE: 0000803F 00000040 000000BF -> "AACAPwAAAEAAAAC/".
-  EXPECT_NE(cloud.find("\"data\":\"AACAPwAAAEAAAAC/"), std::string::npos) << cloud;
-  EXPECT_NE(cloud.find("\"point_stride\":12"), std::string::npos);
+  EXPECT_TRUE(cloud_json.value("data", "").starts_with("AACAPwAAAEAAAAC/")) << cloud;
+  EXPECT_EQ(cloud_json.value("point_stride", 0), 12) << cloud;
+  EXPECT_EQ(cloud_json.value("frame_id", ""), "body") << cloud;
 }
 
 TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChannels) {

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <memory>
 #include <string>
 #include <vector>
@@ -86,9 +87,9 @@ int run(const Options& o) {
     failed += ok ? 0 : 1;
     collisions += r.loop->collision_ticks();
     errors.push_back(e);
-    std::printf("landing seed %3llu: %s at %5.1f s, horizontal error %.3f m, collision ticks %d\n",
-                static_cast<unsigned long long>(seed), ok ? "landed" : "NOT landed", t, e,
-                r.loop->collision_ticks());
+    fmt::print(
+        "landing seed {:3}: {} at {:5.1f} s, horizontal error {:.3f} m, collision ticks {}\n", seed,
+        ok ? "landed" : "NOT landed", t, e, r.loop->collision_ticks());
   }
   if (!errors.empty()) {
     std::sort(errors.begin(), errors.end());
@@ -116,13 +117,11 @@ int run(const Options& o) {
     const Eigen::Vector3d p = r.loop->simulator().truth().T_world_body.translation();
     int mapped = 0;
     for (int id : stage.navigation().map().ids()) mapped += marker_truth(r.world, id).allFinite();
-    std::printf(
-        "explore seed %llu: %d/%d mapped (%d spurious ids), 90 %% after %.1f s of exploration, "
-        "landed %d "
-        "with error %.3f m, edge events %d, collision ticks %d, phase %s, mode %s, %.1f s "
-        "exploring\n",
-        static_cast<unsigned long long>(seed), mapped, total,
-        static_cast<int>(stage.navigation().map().ids().size()) - mapped, t90,
+    fmt::print(
+        "explore seed {}: {}/{} mapped ({} spurious ids), 90 % after {:.1f} s of exploration, "
+        "landed {} with error {:.3f} m, edge events {}, collision ticks {}, phase {}, mode {}, "
+        "{:.1f} s exploring\n",
+        seed, mapped, total, static_cast<int>(stage.navigation().map().ids().size()) - mapped, t90,
         landed(*r.loop) ? 1 : 0, (p - marker_truth(r.world, o.target_id)).head<2>().norm(),
         stage.explore().edge_events(), r.loop->collision_ticks(),
         hq::marker_modes::to_string(stage.explore().phase()),

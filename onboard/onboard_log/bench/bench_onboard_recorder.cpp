@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fmt/format.h>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -33,9 +34,8 @@ std::int64_t now_ns() {
 void print(const char* what, std::vector<std::int64_t>& ns) {
   std::sort(ns.begin(), ns.end());
   const auto at = [&](double q) { return ns[static_cast<std::size_t>(q * (ns.size() - 1))]; };
-  std::printf("  %-52s p50 %6lld ns  p90 %6lld ns  p99 %7lld ns  max %8lld ns  (%zu)\n", what,
-              static_cast<long long>(at(0.5)), static_cast<long long>(at(0.9)),
-              static_cast<long long>(at(0.99)), static_cast<long long>(ns.back()), ns.size());
+  fmt::print("  {:<52} p50 {:6} ns  p90 {:6} ns  p99 {:7} ns  max {:8} ns  ({})\n", what, at(0.5),
+             at(0.9), at(0.99), ns.back(), ns.size());
 }
 
 // The runtime's port without a link: what on_output costs without the recorder.
@@ -142,10 +142,8 @@ int main(int argc, char** argv) {
     const hq::flight_log::RecorderReport& report = recorder.close();
     size_bytes = static_cast<std::int64_t>(report.bytes);
     per_minute_steps = 60.0 * 200.0 / steps;
-    std::printf("recorded %llu messages, %llu dropped, %s\n",
-                static_cast<unsigned long long>(report.messages),
-                static_cast<unsigned long long>(report.local_samples_dropped),
-                report.error.empty() ? "no error" : report.error.c_str());
+    fmt::print("recorded {} messages, {} dropped, {}\n", report.messages,
+               report.local_samples_dropped, report.error.empty() ? "no error" : report.error);
   }
   std::printf(
       "vehicle's own channels (every step a frame, 1 kHz IMU): %.1f MB per minute of "

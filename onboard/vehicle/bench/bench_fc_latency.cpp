@@ -21,6 +21,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <functional>
 #include <memory>
 #include <string>
@@ -254,12 +255,10 @@ int run(int argc, char** argv) {
     // Setpoints sent during warm-up came first on the wire.
     const std::size_t skip = static_cast<std::size_t>(sent_before);
     if (receipts.size() < skip + arrivals.size()) {
-      std::fprintf(stderr,
-                   "hq-bench-fc-latency: %zu setpoints sent, %zu received (FC %s, %llu send "
-                   "failures)\n",
-                   skip + arrivals.size(), receipts.size(),
-                   fc.status(now_ns()).connected ? "connected" : "not heard",
-                   static_cast<unsigned long long>(fc.counters().send_failures));
+      fmt::print(
+          stderr, "hq-bench-fc-latency: {} setpoints sent, {} received (FC {}, {} send failures)\n",
+          skip + arrivals.size(), receipts.size(),
+          fc.status(now_ns()).connected ? "connected" : "not heard", fc.counters().send_failures);
     }
     for (std::size_t k = 0; k < arrivals.size() && skip + k < receipts.size(); ++k) {
       wire_us.push_back(1e-3 * static_cast<double>(receipts[skip + k] - arrivals[k]));

@@ -10,9 +10,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -79,6 +81,37 @@ TEST(Json, Base64IsRfc4648WithPaddingAndNonFiniteIsNull) {
   j.raw(",");
   j.string("a\"b");
   EXPECT_EQ(j.text(), "null,0.25,{\"sec\":3,\"nsec\":7},\"a\\\"b\"");
+}
+
+// What the builder writes is JSON a real parser (nlohmann) reads back: float-exact numbers
+// (%.9g), escaped quotes and backslashes, control characters left out, NaN and infinity as null.
+TEST(Json, AParserReadsItBackFloatExact) {
+  const std::array<float, 3> v = {0.1F, -1.17549435e-38F, 3.40282347e38F};
+  Json j;
+  j.raw("{\"timestamp\":");
+  j.stamp(1'700'000'000'123'456'789);
+  j.raw(",\"v\":");
+  j.vector3(v);
+  j.raw(",\"third\":");
+  j.number(1.0F / 3.0F);
+  j.raw(",\"inf\":");
+  j.number(INFINITY);
+  j.raw(",\"count\":");
+  j.integer(-9'000'000'000'000'000'000LL);
+  j.raw(",\"text\":");
+  j.string("a \"quoted\" back\\slash\n");
+  j.raw("}");
+  const nlohmann::json parsed = nlohmann::json::parse(j.text(), nullptr, false);
+  ASSERT_TRUE(parsed.is_object()) << j.text();
+  EXPECT_EQ(parsed["timestamp"]["sec"], 1'700'000'000);
+  EXPECT_EQ(parsed["timestamp"]["nsec"], 123'456'789);
+  EXPECT_EQ(static_cast<float>(parsed["v"]["x"].get<double>()), v[0]);
+  EXPECT_EQ(static_cast<float>(parsed["v"]["y"].get<double>()), v[1]);
+  EXPECT_EQ(static_cast<float>(parsed["v"]["z"].get<double>()), v[2]);
+  EXPECT_EQ(static_cast<float>(parsed["third"].get<double>()), 1.0F / 3.0F);
+  EXPECT_TRUE(parsed["inf"].is_null());
+  EXPECT_EQ(parsed["count"].get<std::int64_t>(), -9'000'000'000'000'000'000LL);
+  EXPECT_EQ(parsed["text"], "a \"quoted\" back\\slash");
 }
 
 class CountingSource final : public LocalSource {

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <type_traits>
@@ -167,50 +168,32 @@ std::uint32_t message_id(const Message& m) {
   return std::visit([](const auto& v) { return v.kId; }, m);
 }
 
-// JSON writer for one message's fields.
+// One message's fields as a JSON object, under their names in fields()' order. Floats go as
+// their exact double value (node compares Math.fround of it); uint64 as a decimal string,
+// beyond a JSON number's exact range (node compares as BigInt).
 struct JsonFields {
-  std::ostream& os;
-  bool first = true;
-  void key(const char* name) {
-    os << (first ? "" : ", ") << '"' << name << "\": ";
-    first = false;
-  }
+  nlohmann::ordered_json& object;
   template <typename T>
-  static void number(std::ostream& os, T v) {
+  static nlohmann::ordered_json number(T v) {
     if constexpr (std::is_floating_point_v<T>) {
-      char buf[32];
-      std::snprintf(buf, sizeof(buf), "%.9g", static_cast<double>(v));
-      os << buf;
+      return static_cast<double>(v);
     } else if constexpr (std::is_same_v<T, std::uint64_t>) {
-      os << '"' << v << '"';  // beyond a JSON number's exact range: node compares as BigInt
+      return std::to_string(v);
     } else {
-      os << static_cast<std::int64_t>(v);
+      return static_cast<std::int64_t>(v);
     }
   }
   void operator()(const char* name, const std::array<char, 50>& text) {
-    key(name);
-    os << '"';
-    for (const char c : text) {
-      if (c == 0) break;
-      if (c == '"' || c == '\\') os << '\\';
-      os << c;
-    }
-    os << '"';
+    object[name] = std::string(text.data(), strnlen(text.data(), text.size()));
   }
   template <typename T, std::size_t N>
   void operator()(const char* name, const std::array<T, N>& values) {
-    key(name);
-    os << '[';
-    for (std::size_t i = 0; i < N; ++i) {
-      if (i) os << ", ";
-      number(os, values[i]);
-    }
-    os << ']';
+    nlohmann::ordered_json& array = object[name] = nlohmann::ordered_json::array();
+    for (const T v : values) array.push_back(number(v));
   }
   template <typename T>
   void operator()(const char* name, T v) {
-    key(name);
-    number(os, v);
+    object[name] = number(v);
   }
 };
 
@@ -223,19 +206,19 @@ int write(const std::string& frames_path, const std::string& json_path) {
   }
   Encoder encoder(17, 191);
   std::array<std::uint8_t, kMaxFrameSize> buffer{};
-  json << "[\n";
-  bool first = true;
+  nlohmann::ordered_json messages = nlohmann::ordered_json::array();
   for (const Message& m : chosen_messages()) {
     const std::size_t n = encoder.encode(m, buffer);
     frames.write(reinterpret_cast<const char*>(buffer.data()), static_cast<std::streamsize>(n));
-    json << (first ? "" : ",\n") << "{\"msgid\": " << message_id(m)
-         << ", \"sysid\": 17, \"compid\": 191, \"payload_length\": " << int(buffer[1])
-         << ", \"fields\": {";
-    first = false;
-    std::visit([&](const auto& v) { fields(v, JsonFields{json}); }, m);
-    json << "}}";
+    nlohmann::ordered_json& message = messages.emplace_back();
+    message["msgid"] = message_id(m);
+    message["sysid"] = 17;
+    message["compid"] = 191;
+    message["payload_length"] = buffer[1];
+    nlohmann::ordered_json& values = message["fields"] = nlohmann::ordered_json::object();
+    std::visit([&](const auto& v) { fields(v, JsonFields{values}); }, m);
   }
-  json << "\n]\n";
+  json << messages.dump(1) << "\n";
   return frames && json ? 0 : 2;
 }
 
