@@ -57,7 +57,7 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
     s.sim.seed = static_cast<std::uint64_t>(1000 + run);
 
     // The camera heading in the world (NWU): NED yaw + alpha, with NWU y = -NED east.
-    const double heading = a.yaw_rad + camera_heading_rad(s.vehicle.R_body_camera);
+    const double heading = a.yaw_rad + s.vehicle.camera.heading_rad();
     const Eigen::Vector2d dir(std::cos(heading), -std::sin(heading));
     sim::Box box;
     box.size_m = a.box_size_m;

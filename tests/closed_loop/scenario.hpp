@@ -44,7 +44,7 @@ struct Scenario {
   [[nodiscard]] std::unique_ptr<ClosedLoop> make() const {
     return std::make_unique<ClosedLoop>(
         sim, world, onboard, vehicle,
-        OperatorPlayer(script, camera_heading_rad(vehicle.R_body_camera)), options);
+        OperatorPlayer(script, vehicle.camera.heading_rad()), options);
   }
 };
 

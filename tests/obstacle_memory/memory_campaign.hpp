@@ -112,7 +112,7 @@ inline Scenario memory_scenario(const MemoryRun& r, bool memory_enabled, const s
   s.onboard.seen_space.enabled = false;
 
   // The camera heading in the world (NWU): NED yaw + alpha, with NWU y = -NED east.
-  const double heading = r.start_yaw_rad + camera_heading_rad(s.vehicle.R_body_camera);
+  const double heading = r.start_yaw_rad + s.vehicle.camera.heading_rad();
   const Eigen::Vector2d dir(std::cos(heading), -std::sin(heading));
   sim::Box box;
   box.size_m = r.box_size_m;
@@ -213,7 +213,7 @@ inline MemoryOutcome fly_memory_run(const MemoryRun& r, bool memory_enabled, con
                                     pipeline::StageTimingLog* timing = nullptr,
                                     std::FILE* trace = nullptr) {
   Scenario s = memory_scenario(r, memory_enabled, room);
-  TimedPlayer player(OperatorPlayer(s.script, camera_heading_rad(s.vehicle.R_body_camera)), timing,
+  TimedPlayer player(OperatorPlayer(s.script, s.vehicle.camera.heading_rad()), timing,
                      trace);
   s.options.clock = clock;
   s.options.operator_source = &player;
