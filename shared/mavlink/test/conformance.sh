@@ -12,7 +12,8 @@ work=$2
 here=$(cd "$(dirname "$0")" && pwd)
 source "$here/../../../scripts/lib.sh"
 hq_npm_checkers "$work" 'node-mavlink@2'
-echo "node $(node --version), node-mavlink $(hq_npm_version "$work" node-mavlink)"
+version=$(hq_npm_version "$work" node-mavlink)
+echo "node $(node --version), node-mavlink $version"
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

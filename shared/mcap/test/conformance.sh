@@ -16,8 +16,8 @@ here=$(cd "$(dirname "$0")" && pwd)
 source "$here/../../../scripts/lib.sh"
 hq_npm_checkers "$work" '@mcap/core@2' '@mcap/support@1'
 work=$(cd "$work" && pwd)
-echo "node $(node --version), @mcap/core $(hq_npm_version "$work" @mcap/core)," \
-     "@mcap/support $(hq_npm_version "$work" @mcap/support)"
+core=$(hq_npm_version "$work" @mcap/core)
+echo "node $(node --version), @mcap/core $core, @mcap/support $(hq_npm_version "$work" @mcap/support)"
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
