@@ -50,3 +50,37 @@ hq_build() {
     "$@" >/dev/null
   cmake --build "$BUILD_DIR" -j "$(nproc)"
 }
+
+# Cyclone DDS on the loopback interface only, for the demos and test scripts that run both ends
+# of the link on this machine: no other DDS process on the network sees (or commands) them.
+hq_loopback_dds() {
+  export CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces></General></Domain></CycloneDDS>'
+}
+
+# hq_npm_checkers WORK_DIR PACKAGE@VERSION...: the npm packages a test script's independent
+# checker needs, installed into WORK_DIR/node_modules (in the build tree) unless all are there.
+# Without node or npm, or when the install fails, prints "SKIPPED: <reason>" and exits 77
+# (ctest: skipped), so a test script calls it before doing anything else.
+hq_npm_checkers() {
+  local work=$1
+  shift
+  command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
+  command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
+  mkdir -p "$work"
+  local spec name missing=0
+  for spec in "$@"; do
+    name=${spec%@*}  # @mcap/core@2 -> @mcap/core, node-mavlink@2 -> node-mavlink
+    [ -f "$work/node_modules/$name/package.json" ] || missing=1
+  done
+  [ "$missing" -eq 0 ] && return 0
+  if ! npm install --no-audit --no-fund --prefix "$work" "$@" >"$work/npm-install.log" 2>&1; then
+    echo "SKIPPED: npm install $* failed (see $work/npm-install.log)"
+    tail -5 "$work/npm-install.log"
+    exit 77
+  fi
+}
+
+# hq_npm_version WORK_DIR PACKAGE: the installed version of PACKAGE, for the scripts' first line.
+hq_npm_version() {
+  node -p "require('$1/node_modules/$2/package.json').version"
+}

@@ -344,14 +344,14 @@ hq::console::WindowOptions window_options(const Options& o) {
                             : o.window_ini.empty() ? hq::console::default_window_ini_path()
                                                    : o.window_ini;
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
-  window_options.camera_heading_rad = hq::geometry::camera_heading_rad(vehicle.R_body_camera);
+  window_options.camera_heading_rad = vehicle.camera.heading_rad();
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
       window_options.R_body_camera[static_cast<std::size_t>(3 * r + c)] =
-          static_cast<float>(vehicle.R_body_camera(r, c));
+          static_cast<float>(vehicle.camera.R_B_C()(r, c));
     }
     window_options.p_body_camera_m[static_cast<std::size_t>(r)] =
-        static_cast<float>(vehicle.p_body_camera_m[r]);
+        static_cast<float>(vehicle.camera.p_B_C_m()[r]);
   }
   return window_options;
 }
@@ -822,7 +822,7 @@ int run_live(const Options& o) {
   ground.set_observer(&feed);
   if (!mcap_off.empty()) model.on_event(dds_time(), 2, mcap_off.c_str());
   model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
-  hq::haptics::HapticLoop loop(*device, haptics, vehicle.R_body_camera);
+  hq::haptics::HapticLoop loop(*device, haptics, vehicle.camera.R_B_C());
   const hq::haptics::RealtimeGrant grant = loop.start();
   std::fprintf(stderr,
                "hq-ground: device %s, domain %d, vehicle %u, station %u (strength %d); haptic "

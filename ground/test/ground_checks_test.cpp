@@ -4,6 +4,7 @@
 // that another station took the vehicle from says so. Over DDS on a private loopback domain, a
 // fake vehicle writing what a broken or hostile one would.
 #include "hq/ground/ground_station.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -22,12 +23,9 @@ namespace {
 using ::testing::HasSubstr;
 
 link::LinkConfig private_link() {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
+  hq::testing::use_loopback_dds();
   link::LinkConfig config;
-  config.domain_id = 1 + static_cast<int>((getpid() + 100) % 200);
+  config.domain_id = hq::testing::private_domain_id(100);
   config.station_id = 1;
   config.security.enabled = false;  // a plain DDS domain of its own; security has its own tests
   return config;

@@ -40,7 +40,7 @@ int run(int argc, char** argv) {
 
     hq::haptics::HapticsConfig shipped = hq::haptics::load_haptics_config(haptics_path);
     const Eigen::Matrix3d R_body_camera =
-        hq::control::load_vehicle_config(vehicle_path).R_body_camera;
+        hq::control::load_vehicle_config(vehicle_path).camera.R_B_C();
     // The stiff law: what a user raising the cue's gain for a crisper feel gets. Fade off, so
     // the delayed cue stays on at every delay and the passivity controller is all that acts.
     hq::haptics::HapticsConfig stiff = shipped;

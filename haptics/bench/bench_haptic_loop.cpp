@@ -74,7 +74,7 @@ int run(int argc, char** argv) {
   const hq::haptics::HapticsConfig config = hq::haptics::load_haptics_config(config_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(vehicle_path);
   hq::haptics::SimulatedDevice device(config.sim);
-  hq::haptics::HapticLoop loop(device, config, vehicle.R_body_camera);
+  hq::haptics::HapticLoop loop(device, config, vehicle.camera.R_B_C());
 
   const hq::haptics::RealtimeGrant grant = loop.start();
   std::atomic<bool> running{true};

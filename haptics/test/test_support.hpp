@@ -13,7 +13,7 @@
 namespace hq::haptics::test {
 
 inline Eigen::Matrix3d core_paper_R_body_camera() {
-  return control::load_vehicle_config("calib/vehicle_core_paper.yaml").R_body_camera;
+  return control::load_vehicle_config("calib/vehicle_core_paper.yaml").camera.R_B_C();
 }
 
 /// Writes `text` to a fresh file under /tmp and returns its path.

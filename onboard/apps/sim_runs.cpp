@@ -100,14 +100,9 @@ int run_sim_link(const Options& o) {
   options.realtime = true;
   hq::closed_loop::ClosedLoop loop(
       sim_config, world, config, vehicle,
-      hq::closed_loop::OperatorPlayer(script,
-                                      hq::closed_loop::camera_heading_rad(vehicle.R_body_camera)),
-      options);
+      hq::closed_loop::OperatorPlayer(script, vehicle.camera.heading_rad()), options);
   // The vehicle's own extrinsics (not the simulator's truth) place the cloud in the body.
-  Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
-  T_body_camera.linear() = vehicle.R_body_camera;
-  T_body_camera.translation() = vehicle.p_body_camera_m;
-  LoggedLinkPort port(bridge, loop.chain(), T_body_camera, log);
+  LoggedLinkPort port(bridge, loop.chain(), vehicle.camera.T_B_C(), log);
   port.set_simulator(&loop.simulator());
   // --record: the recorder behind the port (chain outputs; the simulator's IMU is not tapped).
   std::optional<hq::onboard_log::RecordingPort> record_port;
@@ -164,9 +159,8 @@ int run_sim(const Options& o) {
   sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
-  hq::closed_loop::OperatorPlayer player(
-      hq::closed_loop::load_operator_script(o.script_path),
-      hq::closed_loop::camera_heading_rad(vehicle.R_body_camera));
+  hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(o.script_path),
+                                         vehicle.camera.heading_rad());
   const SteadyClock clock;
   hq::closed_loop::ClosedLoopOptions options;
   options.clock = &clock;

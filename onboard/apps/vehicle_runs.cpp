@@ -330,8 +330,7 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(
         opened.tum->sequence(), hq::pipeline::R_body_camera_for_camera_as_body());
     std::fprintf(stderr, "hq-onboard: %s\n", imu.description.c_str());
     if (imu.synthesised) {
-      vehicle.R_body_camera = hq::pipeline::R_body_camera_for_camera_as_body();
-      vehicle.p_body_camera_m.setZero();
+      vehicle.camera = hq::pipeline::camera_as_body_mount();
       std::fprintf(stderr,
                    "hq-onboard: body frame = the camera's NED-equivalent (camera-as-body "
                    "extrinsics); %s supplies mass and limits only\n",
@@ -346,8 +345,7 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(
   } else if (fc_spec == "none") {
     auto none = std::make_unique<hq::vehicle::NoFlightController>();
     // A hand-held camera is the body; the Kinect's accelerometer is in its optical axes.
-    vehicle.R_body_camera = hq::pipeline::R_body_camera_for_camera_as_body();
-    vehicle.p_body_camera_m.setZero();
+    vehicle.camera = hq::pipeline::camera_as_body_mount();
     none->set_tilt_source(opened.source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
     std::fprintf(stderr, "hq-onboard: camera-as-body, no gyro (zero rate), tilt from %s\n",
                  o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
@@ -469,10 +467,8 @@ int run_vehicle(const Options& o) {
   if (o.link) {
     bridge = make_link_bridge(o);
     if (bridge->ros2() != nullptr) bridge->ros2()->set_camera(opened.source->camera());
-    Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
-    T_B_C.linear() = vehicle.R_body_camera;
-    T_B_C.translation() = vehicle.p_body_camera_m;
-    link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain, T_B_C, stdout);
+    link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain,
+                                                                    vehicle.camera.T_B_C(), stdout);
   }
   RunPort port(link_port.get(), csv, live);
   std::unique_ptr<SitlTruth> truth;

@@ -56,19 +56,8 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
     s.start_airborne(1.0);
     s.sim.seed = static_cast<std::uint64_t>(1000 + run);
 
-    // The camera heading in the world (NWU): NED yaw + alpha, with NWU y = -NED east.
-    const double heading = a.yaw_rad + camera_heading_rad(s.vehicle.R_body_camera);
-    const Eigen::Vector2d dir(std::cos(heading), -std::sin(heading));
-    sim::Box box;
-    box.size_m = a.box_size_m;
-    box.yaw_rad = a.box_yaw_rad;
-    const double half_depth = 0.5 * std::max(box.size_m.x(), box.size_m.y());
-    box.center_m << (a.distance_m + half_depth) * dir, 0.5 * box.size_m.z();
-    box.texture.kind = sim::Texture::Kind::kNoise;
-    box.texture.scale_m = 0.06f;
-    box.texture.contrast = 0.5f;
-    box.texture.salt = static_cast<std::uint32_t>(run + 17);
-    s.world.boxes.push_back(box);
+    s.add_box_in_view(a.yaw_rad, a.distance_m, a.box_size_m, a.box_yaw_rad,
+                      static_cast<std::uint32_t>(run + 17));
 
     // Settle 1.5 s, then push forward for long enough to travel 1.5x the distance.
     const double push_s = 1.5 * (a.distance_m + 0.5) / a.speed_mps;

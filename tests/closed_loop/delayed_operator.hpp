@@ -139,11 +139,11 @@ inline FlightResult fly(const haptics::HapticsConfig& haptics_config,
       control::load_vehicle_config("calib/vehicle_core_paper.yaml");
   OperatorScript script;
   script.end_s = end_s;
-  DelayedHapticOperator source(haptics_config, vehicle.R_body_camera, link);
+  DelayedHapticOperator source(haptics_config, vehicle.camera.R_B_C(), link);
   ClosedLoopOptions options;
   options.operator_source = &source;
   ClosedLoop loop(sim_config, world, onboard, vehicle,
-                  OperatorPlayer(script, camera_heading_rad(vehicle.R_body_camera)), options);
+                  OperatorPlayer(script, vehicle.camera.heading_rad()), options);
   loop.run();
   FlightResult r;
   r.min_energy_j = source.loop().passivity().min_energy_j();

@@ -9,6 +9,11 @@
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
 
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -41,10 +46,29 @@ struct Scenario {
     script.steps.push_back(s);
   }
 
+  /// Adds a box with noise texture `salt` whose near face is distance_m in front of the camera
+  /// of a vehicle at the world's start with NED yaw start_yaw_rad (the camera heading in the
+  /// NWU world is yaw + alpha, with NWU y = -NED east).
+  void add_box_in_view(double start_yaw_rad, double distance_m, const Eigen::Vector3d& size_m,
+                       double box_yaw_rad, std::uint32_t salt) {
+    const double heading = start_yaw_rad + vehicle.camera.heading_rad();
+    const Eigen::Vector2d dir(std::cos(heading), -std::sin(heading));
+    sim::Box box;
+    box.size_m = size_m;
+    box.yaw_rad = box_yaw_rad;
+    const double half_depth = 0.5 * std::max(box.size_m.x(), box.size_m.y());
+    box.center_m << (distance_m + half_depth) * dir, 0.5 * box.size_m.z();
+    box.texture.kind = sim::Texture::Kind::kNoise;
+    box.texture.scale_m = 0.06f;
+    box.texture.contrast = 0.5f;
+    box.texture.salt = salt;
+    world.boxes.push_back(box);
+  }
+
   [[nodiscard]] std::unique_ptr<ClosedLoop> make() const {
-    return std::make_unique<ClosedLoop>(
-        sim, world, onboard, vehicle,
-        OperatorPlayer(script, camera_heading_rad(vehicle.R_body_camera)), options);
+    return std::make_unique<ClosedLoop>(sim, world, onboard, vehicle,
+                                        OperatorPlayer(script, vehicle.camera.heading_rad()),
+                                        options);
   }
 };
 

@@ -3,6 +3,7 @@
 // domain, under a private Xvfb display. Asserts on the console's own state (--state-json), keeps
 // its screenshot in the build directory, reports the recording with hq-report and replays a
 // truncated copy of it.
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
 #include "state_json.hpp"
@@ -134,12 +135,7 @@ class Keyboard {
   FakeKey fake_key_ = nullptr;
 };
 
-void use_loopback_dds() {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
-}
+using hq::testing::use_loopback_dds;
 
 // The console drew the flight: frames decoded, plots filled, the vehicle's mode shown.
 void expect_console_drew_the_flight(const std::string& json) {
@@ -213,7 +209,7 @@ void expect_truncated_csv_replay(const fs::path& dir, const fs::path& recording)
 TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) {
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
-  const std::string domain = std::to_string(1 + (getpid() + 101) % 200);
+  const std::string domain = std::to_string(hq::testing::private_domain_id(101));
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_test";
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -252,7 +248,7 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
 TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLossBanner) {
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
-  const std::string domain = std::to_string(1 + (getpid() + 57) % 200);
+  const std::string domain = std::to_string(hq::testing::private_domain_id(57));
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_takeoff_test";
   fs::remove_all(dir);
   fs::create_directories(dir);

@@ -11,6 +11,7 @@
 // with a message, the flight does not. (A recorder killed with SIGKILL:
 // mcap_recorder.flight_mcap_independent_readers.)
 #include "hq/mcap/mcap.hpp"
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
 #include "state_json.hpp"
@@ -75,12 +76,7 @@ int vehicle_mode_changes(const fs::path& link_log) {
 
 const char* const kXvfb = "/usr/bin/Xvfb";
 
-void use_loopback_dds() {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
-}
+using hq::testing::use_loopback_dds;
 
 // Runs hq-report with `args`; its output in dir/<name>.out.
 std::string run_report(const fs::path& dir, const std::string& name,
@@ -247,7 +243,7 @@ void expect_replay_ends(const fs::path& dir, const fs::path& recording) {
 TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
-  const std::string domain = std::to_string(1 + (getpid() + 57) % 200);
+  const std::string domain = std::to_string(hq::testing::private_domain_id(57));
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "replay_test";
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -268,7 +264,7 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
 // command stream never stalls (its rate is the configured one to the end).
 TEST(RecordingProcesses, FullDiskStopsTheFlightRecordNotTheFlight) {
   use_loopback_dds();
-  const std::string domain = std::to_string(1 + (getpid() + 131) % 200);
+  const std::string domain = std::to_string(hq::testing::private_domain_id(131));
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "full_disk_test";
   fs::remove_all(dir);
   fs::create_directories(dir);

@@ -5,6 +5,7 @@
 #include "hq/ground/ground_station.hpp"
 #include "hq/link/impairment.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,12 +25,9 @@ std::int64_t monotonic_ns() {
 }
 
 TEST(LinkDelay, RoundTripStateAgeAndCommandsOverAnImpairedLink) {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
+  hq::testing::use_loopback_dds();
   link::LinkConfig config;
-  config.domain_id = 1 + static_cast<int>(getpid() % 200);
+  config.domain_id = hq::testing::private_domain_id(0);
   config.security.enabled = false;  // ground and vehicle in one process: plain DDS
   config.impairment = link::parse_impairment("delay_ms=100,jitter_ms=10,seed=3");
   ground::GroundStation ground(config);

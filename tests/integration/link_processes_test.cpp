@@ -2,7 +2,9 @@
 // --device sim with a scripted hand, in a private DDS domain per test process. Assertions come
 // from hq-onboard's per-step link log (--link-log), written on simulated time that hq-onboard
 // paces to wall time.
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
+#include "hq/testing/vehicle_processes.hpp"
 
 #include <gtest/gtest.h>
 
@@ -71,12 +73,7 @@ std::vector<Row> read_log(const std::string& path) {
   return rows;
 }
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using hq::testing::slurp;
 
 using hq::testing::Process;
 
@@ -98,11 +95,8 @@ class LinkProcesses : public ::testing::Test {
   void SetUp() override {
     // Loopback only, and a domain of our own: parallel ctest runs and other engineers'
     // processes on this machine never see these samples.
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
-    domain_ = std::to_string(1 + getpid() % 200);
+    hq::testing::use_loopback_dds();
+    domain_ = std::to_string(hq::testing::private_domain_id(0));
     dir_ = std::filesystem::temp_directory_path() /
            ("hq_link_it_" + std::to_string(getpid()) + "_" +
             ::testing::UnitTest::GetInstance()->current_test_info()->name());
@@ -127,17 +121,7 @@ class LinkProcesses : public ::testing::Test {
             (dir_ / "link.csv").string()};
   }
   std::vector<std::string> ground_args(double duration_s = 60.0) const {
-    return {HQ_GROUND_EXE,
-            "--device",
-            "sim",
-            "--headless",
-            "--haptics-config",
-            "ground/config/demo_hand.yaml",
-            "--domain-id",
-            domain_,
-            "--insecure",
-            "--duration-s",
-            std::to_string(duration_s)};
+    return hq::testing::scripted_ground_args(HQ_GROUND_EXE, domain_, duration_s);
   }
   std::vector<std::string> fuzz_args(const std::string& attacks, int station_id, int strength,
                                      double duration_s) const {

@@ -72,7 +72,7 @@ TEST(OperatorSource, CommandsTheFlightInsteadOfTheScript) {
   ClosedLoopOptions options;
   options.operator_source = &source;
   ClosedLoop loop(sim_config, world, onboard, vehicle,
-                  OperatorPlayer(script, camera_heading_rad(vehicle.R_body_camera)), options);
+                  OperatorPlayer(script, vehicle.camera.heading_rad()), options);
   loop.run();
 
   EXPECT_EQ(source.polls, 6.0 / 0.005);  // one poll per control tick

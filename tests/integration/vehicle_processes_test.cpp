@@ -3,6 +3,9 @@
 // and hq-ground --device sim with the scripted hand (the operator), in a private DDS domain, a
 // private UDP port and frame channel per test. Also a recorded sequence replayed with --link.
 // Assertions come from the three programs' own summaries and status lines.
+#include "hq/testing/vehicle_processes.hpp"
+
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
 #include <gmock/gmock.h>
@@ -24,36 +27,11 @@
 
 namespace {
 
+using hq::testing::number_after;
 using hq::testing::Process;
+using hq::testing::slurp;
+using hq::testing::wait_for_text;
 using ::testing::HasSubstr;
-
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-/// The first number captured by `pattern` in `text` (the last match), if any.
-std::optional<double> number_after(const std::string& text, const std::string& pattern) {
-  const std::regex re(pattern);
-  std::optional<double> value;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
-       ++it) {
-    value = std::stod((*it)[1].str());
-  }
-  return value;
-}
-
-/// Waits until `file` contains `needle`; false after timeout_s.
-bool wait_for_text(const std::filesystem::path& file, const std::string& needle, double timeout_s) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (std::chrono::steady_clock::now() < end) {
-    if (slurp(file).find(needle) != std::string::npos) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  return false;
-}
 
 /// The altitude of hq-sim's latest status line ("..., altitude 1.23 m").
 std::optional<double> sim_altitude(const std::filesystem::path& sim_output) {
@@ -63,13 +41,10 @@ std::optional<double> sim_altitude(const std::filesystem::path& sim_output) {
 class VehicleProcesses : public ::testing::Test {
  protected:
   void SetUp() override {
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
+    hq::testing::use_loopback_dds();
     const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
     const int salt = static_cast<int>(std::hash<std::string>{}(test) % 97);
-    domain_ = std::to_string(1 + (getpid() + salt) % 200);
+    domain_ = std::to_string(hq::testing::private_domain_id(0, test, 97));
     port_ = std::to_string(20000 + (getpid() * 7 + salt * 13) % 20000);
     channel_ = "hq-it-" + std::to_string(getpid()) + "-" + std::to_string(salt);
     dir_ = std::filesystem::temp_directory_path() /
@@ -104,17 +79,7 @@ class VehicleProcesses : public ::testing::Test {
             std::to_string(duration_s)};
   }
   std::vector<std::string> ground_args(double duration_s) const {
-    return {HQ_GROUND_EXE,
-            "--device",
-            "sim",
-            "--headless",
-            "--haptics-config",
-            "ground/config/demo_hand.yaml",
-            "--domain-id",
-            domain_,
-            "--insecure",
-            "--duration-s",
-            std::to_string(duration_s)};
+    return hq::testing::scripted_ground_args(HQ_GROUND_EXE, domain_, duration_s);
   }
   std::filesystem::path file(const char* name) const { return dir_ / name; }
 

@@ -49,7 +49,7 @@ inline Flight make_flight(const std::string& script, std::uint64_t seed,
   const control::VehicleConfig vehicle =
       control::load_vehicle_config("calib/vehicle_core_paper.yaml");
   closed_loop::OperatorPlayer player(closed_loop::load_operator_script(script),
-                                     closed_loop::camera_heading_rad(vehicle.R_body_camera));
+                                     vehicle.camera.heading_rad());
   f.loop = std::make_unique<closed_loop::ClosedLoop>(sim_config, f.world, config, vehicle,
                                                      std::move(player), options);
   return f;

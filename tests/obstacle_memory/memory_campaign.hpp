@@ -111,19 +111,8 @@ inline Scenario memory_scenario(const MemoryRun& r, bool memory_enabled, const s
   // tests/closed_loop/unseen_campaign_test.cpp).
   s.onboard.seen_space.enabled = false;
 
-  // The camera heading in the world (NWU): NED yaw + alpha, with NWU y = -NED east.
-  const double heading = r.start_yaw_rad + camera_heading_rad(s.vehicle.R_body_camera);
-  const Eigen::Vector2d dir(std::cos(heading), -std::sin(heading));
-  sim::Box box;
-  box.size_m = r.box_size_m;
-  box.yaw_rad = r.box_yaw_rad;
-  const double half_depth = 0.5 * std::max(box.size_m.x(), box.size_m.y());
-  box.center_m << (r.distance_m + half_depth) * dir, 0.5 * box.size_m.z();
-  box.texture.kind = sim::Texture::Kind::kNoise;
-  box.texture.scale_m = 0.06f;
-  box.texture.contrast = 0.5f;
-  box.texture.salt = static_cast<std::uint32_t>(31 * static_cast<int>(r.kind) + r.index + 17);
-  s.world.boxes.push_back(box);
+  s.add_box_in_view(r.start_yaw_rad, r.distance_m, r.box_size_m, r.box_yaw_rad,
+                    static_cast<std::uint32_t>(31 * static_cast<int>(r.kind) + r.index + 17));
 
   // Settle 1.5 s facing the box (the memory sees it), then the case's moves. Yaw left is a
   // negative NED yaw rate. The push lasts long enough to reach the box plus 0.3 m.
@@ -213,8 +202,7 @@ inline MemoryOutcome fly_memory_run(const MemoryRun& r, bool memory_enabled, con
                                     pipeline::StageTimingLog* timing = nullptr,
                                     std::FILE* trace = nullptr) {
   Scenario s = memory_scenario(r, memory_enabled, room);
-  TimedPlayer player(OperatorPlayer(s.script, camera_heading_rad(s.vehicle.R_body_camera)), timing,
-                     trace);
+  TimedPlayer player(OperatorPlayer(s.script, s.vehicle.camera.heading_rad()), timing, trace);
   s.options.clock = clock;
   s.options.operator_source = &player;
   auto loop = s.make();

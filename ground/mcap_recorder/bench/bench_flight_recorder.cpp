@@ -11,6 +11,7 @@
 #include "hq/base/quantile.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap_recorder/flight_recorder.hpp"
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
 #include <algorithm>
@@ -83,10 +84,7 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[i], "--out") == 0) out = argv[i + 1];
     if (std::strcmp(argv[i], "--vehicle") == 0) vehicle_domain = std::atoi(argv[i + 1]);
   }
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         0);
+  hq::testing::use_loopback_dds(/*keep_existing=*/true);
   hq::mcap_recorder::FlightRecorderOptions options;
   options.path = out;
   options.link.domain_id =

@@ -17,28 +17,16 @@ mcap_read=$3
 work=$4
 report=$5
 
-command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
-command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
 here=$(cd "$(dirname "$0")" && pwd)
-mkdir -p "$work"
+source "$here/../../../scripts/lib.sh"
+hq_npm_checkers "$work" '@mcap/core@2' '@mcap/support@1' '@foxglove/omgidl-parser@1' \
+  '@foxglove/omgidl-serialization@1'
 work=$(cd "$work" && pwd)
-packages=('@mcap/core@2' '@mcap/support@1' '@foxglove/omgidl-parser@1'
-          '@foxglove/omgidl-serialization@1')
-if [ ! -f "$work/node_modules/@foxglove/omgidl-serialization/package.json" ] ||
-   [ ! -f "$work/node_modules/@mcap/support/package.json" ]; then
-  if ! npm install --no-audit --no-fund --prefix "$work" "${packages[@]}" \
-       >"$work/npm-install.log" 2>&1; then
-    echo "SKIPPED: npm install ${packages[*]} failed (see $work/npm-install.log)"
-    tail -5 "$work/npm-install.log"
-    exit 77
-  fi
-fi
-version() { node -p "require('$work/node_modules/$1/package.json').version"; }
-echo "node $(node --version), @mcap/core $(version @mcap/core)," \
-     "@foxglove/omgidl-serialization $(version @foxglove/omgidl-serialization)"
+echo "node $(node --version), @mcap/core $(hq_npm_version "$work" @mcap/core)," \
+     "@foxglove/omgidl-serialization $(hq_npm_version "$work" @foxglove/omgidl-serialization)"
 
 # Loopback only, in a domain of this run's own.
-export CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces></General></Domain></CycloneDDS>'
+hq_loopback_dds
 domain=$((1 + $$ % 200))
 tmp=$(mktemp -d)
 vehicle_pid=""

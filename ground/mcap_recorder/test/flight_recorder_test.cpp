@@ -9,6 +9,7 @@
 #include "hq/link/link.hpp"
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <gtest/gtest.h>
 
@@ -31,11 +32,8 @@ namespace fs = std::filesystem;
 class FlightRecorderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
-    options_.link.domain_id = 1 + static_cast<int>(getpid() % 200);
+    hq::testing::use_loopback_dds();
+    options_.link.domain_id = hq::testing::private_domain_id(0);
     options_.link.security.enabled = false;  // the test's writers share this process: plain DDS
     dir_ = fs::temp_directory_path() /
            ("hq_mcap_recorder_" + std::to_string(getpid()) + "_" +

@@ -33,6 +33,14 @@ Eigen::Matrix3d R_body_camera_from_angles(double yaw_rad, double pitch_rad, doub
          R_forward_optical;
 }
 
+geometry::CameraMount camera_mount_from_angles(double yaw_rad, double pitch_rad, double roll_rad,
+                                               const Eigen::Vector3d& p_B_C_m) {
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  T_B_C.linear() = R_body_camera_from_angles(yaw_rad, pitch_rad, roll_rad);
+  T_B_C.translation() = p_B_C_m;
+  return geometry::CameraMount(T_B_C);
+}
+
 void read_config(config::StrictMap& root, VehicleConfig& out) {
   require_positive(root, "mass_kg", out.mass_kg, 100.0);
   config::StrictMap limits = root.child("limits");
@@ -71,15 +79,13 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
   }
   camera.finish();
   root.finish();
-  out.R_body_camera = R_body_camera_from_angles(yaw_rad, pitch_rad, roll_rad);
-  out.p_body_camera_m = Eigen::Vector3d(p[0], p[1], p[2]);
-  // The one check of the mount every consumer relies on (a horizontal heading for eq. 9, a
-  // rigid transform), here where the file is read, so no component finds out in flight.
-  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
-  T_B_C.linear() = out.R_body_camera;
-  T_B_C.translation() = out.p_body_camera_m;
+  // The one check of the mount every consumer relies on (a rigid transform, and a horizontal
+  // heading for eq. 9), here where the file is read, so no component finds out in flight.
   try {
-    (void)geometry::CameraMount(T_B_C);
+    const geometry::CameraMount mount =
+        camera_mount_from_angles(yaw_rad, pitch_rad, roll_rad, Eigen::Vector3d(p[0], p[1], p[2]));
+    (void)mount.heading_rad();
+    out.camera = mount;
   } catch (const InputError& e) {
     throw InputError(camera.describe("pitch_deg") + ": " + e.what());
   }

@@ -189,16 +189,16 @@ TEST(VehicleConfig, ShippedCorePaperVehicleLoads) {
   EXPECT_DOUBLE_EQ(vehicle.mass_kg, 1.0);
   EXPECT_NEAR(vehicle.max_tilt_rad, 30.0 * kDeg, 1e-12);
   // The optical axis looks 45 deg right and 30 deg down in Q (NED: z down is positive).
-  const Eigen::Vector3d axis = vehicle.R_body_camera.col(2);
+  const Eigen::Vector3d axis = vehicle.camera.R_B_C().col(2);
   EXPECT_TRUE(
       axis.isApprox(Eigen::Vector3d(std::cos(30 * kDeg) * std::cos(45 * kDeg),
                                     std::cos(30 * kDeg) * std::sin(45 * kDeg), std::sin(30 * kDeg)),
                     1e-12));
   // Image "right" (optical x) stays horizontal with zero camera roll; "down" (y) points down-ish.
-  EXPECT_NEAR(vehicle.R_body_camera.col(0).z(), 0.0, 1e-12);
-  EXPECT_GT(vehicle.R_body_camera.col(1).z(), 0.0);
-  EXPECT_NEAR(vehicle.R_body_camera.determinant(), 1.0, 1e-12);
-  EXPECT_TRUE(vehicle.p_body_camera_m.isApprox(Eigen::Vector3d(0.10, 0.05, 0.03)));
+  EXPECT_NEAR(vehicle.camera.R_B_C().col(0).z(), 0.0, 1e-12);
+  EXPECT_GT(vehicle.camera.R_B_C().col(1).z(), 0.0);
+  EXPECT_NEAR(vehicle.camera.R_B_C().determinant(), 1.0, 1e-12);
+  EXPECT_TRUE(vehicle.camera.p_B_C_m().isApprox(Eigen::Vector3d(0.10, 0.05, 0.03)));
 }
 
 TEST(VehicleConfig, BadValueIsRejectedNamingTheKey) {

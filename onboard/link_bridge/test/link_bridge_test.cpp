@@ -2,6 +2,7 @@
 #include "hq/link_bridge/link_bridge.hpp"
 
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -21,12 +22,9 @@ namespace {
 using ::testing::HasSubstr;
 
 link::LinkConfig private_link() {
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
+  hq::testing::use_loopback_dds();
   link::LinkConfig config;
-  config.domain_id = 1 + static_cast<int>(getpid() % 200);
+  config.domain_id = hq::testing::private_domain_id(0);
   config.security.enabled = false;  // the test's ground shares this process: plain DDS
   return config;
 }
@@ -474,7 +472,7 @@ pipeline::OnboardConfig chain_config(bool markers_enabled) {
 // A forward-looking camera (eq. 9 needs a horizontal viewing direction).
 control::VehicleConfig forward_camera_vehicle() {
   control::VehicleConfig vehicle;
-  vehicle.R_body_camera = control::R_body_camera_from_angles(0.0, 0.0, 0.0);
+  vehicle.camera = control::camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
   return vehicle;
 }
 

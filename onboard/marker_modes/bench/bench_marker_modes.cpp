@@ -49,9 +49,8 @@ Run make_run(const Options& o, const std::string& script, std::uint64_t seed) {
   config.markers.marker_mode.target_id = o.target_id;
   const hq::control::VehicleConfig vehicle =
       hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml");
-  hq::closed_loop::OperatorPlayer player(
-      hq::closed_loop::load_operator_script(script),
-      hq::closed_loop::camera_heading_rad(vehicle.R_body_camera));
+  hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(script),
+                                         vehicle.camera.heading_rad());
   r.loop = std::make_unique<hq::closed_loop::ClosedLoop>(sim_config, r.world, config, vehicle,
                                                          std::move(player));
   return r;

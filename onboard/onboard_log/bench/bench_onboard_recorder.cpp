@@ -10,6 +10,7 @@
 //   hq-bench-onboard-recorder [--steps 20000] [--out DIR]
 #include "hq/link/link.hpp"
 #include "hq/onboard_log/onboard_recorder.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -108,11 +109,8 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[i], "--steps") == 0) steps = std::max(100, std::atoi(argv[i + 1]));
     if (std::strcmp(argv[i], "--out") == 0) out_dir = argv[i + 1];
   }
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         0);
-  const int domain_id = 1 + static_cast<int>(getpid() % 200);
+  hq::testing::use_loopback_dds(/*keep_existing=*/true);
+  const int domain_id = hq::testing::private_domain_id(0);
   std::filesystem::remove_all(out_dir);
   std::printf("hq-bench-onboard-recorder: %d steps (200 Hz, 5 IMU samples each), domain %d\n",
               steps, domain_id);

@@ -5,7 +5,9 @@
 // unwritable folder stops the start naming it; a write failure mid-flight (a file-size limit
 // standing in for a full disk) is an event to the ground and the flight goes on.
 #include "hq/mcap/mcap.hpp"
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
+#include "hq/testing/vehicle_processes.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,25 +26,10 @@
 
 namespace {
 
+using hq::testing::number_after;
 using hq::testing::Process;
+using hq::testing::slurp;
 namespace fs = std::filesystem;
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::optional<double> number_after(const std::string& text, const std::string& pattern) {
-  const std::regex re(pattern);
-  std::optional<double> value;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
-       ++it) {
-    value = std::stod((*it)[1].str());
-  }
-  return value;
-}
 
 /// "  record /topic   N messages" lines of hq-onboard's exit summary.
 std::map<std::string, std::uint64_t> reported_counts(const std::string& text) {
@@ -58,13 +45,9 @@ std::map<std::string, std::uint64_t> reported_counts(const std::string& text) {
 class OnboardRecordProcess : public ::testing::Test {
  protected:
   void SetUp() override {
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
+    hq::testing::use_loopback_dds();
     const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    const int salt = static_cast<int>(std::hash<std::string>{}(test) % 89);
-    domain_ = std::to_string(1 + (getpid() + salt + 101) % 200);
+    domain_ = std::to_string(hq::testing::private_domain_id(101, test, 89));
     dir_ =
         fs::temp_directory_path() / ("hq_onboard_record_" + std::to_string(getpid()) + "_" + test);
     fs::remove_all(dir_);
@@ -85,17 +68,8 @@ class OnboardRecordProcess : public ::testing::Test {
                     "--record", sequence.string(), "--script", "circle"},
                    file("sim.out"));
     EXPECT_EQ(record.wait_exit(60.0), 0) << slurp(file("sim.out"));
-    std::vector<std::string> ground_args = {HQ_GROUND_EXE,
-                                            "--device",
-                                            "sim",
-                                            "--headless",
-                                            "--haptics-config",
-                                            "ground/config/demo_hand.yaml",
-                                            "--domain-id",
-                                            domain_,
-                                            "--insecure",
-                                            "--duration-s",
-                                            "7"};
+    std::vector<std::string> ground_args =
+        hq::testing::scripted_ground_args(HQ_GROUND_EXE, domain_, 7.0);
     if (!ground_record_dir.empty()) {
       ground_args.push_back("--record");
       ground_args.push_back(ground_record_dir);

@@ -6,6 +6,7 @@
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <gtest/gtest.h>
 
@@ -28,11 +29,8 @@ namespace fs = std::filesystem;
 class OnboardRecorderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
-    options_.link.domain_id = 1 + static_cast<int>((getpid() + 57) % 200);
+    hq::testing::use_loopback_dds();
+    options_.link.domain_id = hq::testing::private_domain_id(57);
     options_.link.security.enabled = false;
     dir_ = fs::temp_directory_path() /
            ("hq_onboard_log_" + std::to_string(getpid()) + "_" +

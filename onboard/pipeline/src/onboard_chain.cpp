@@ -80,18 +80,18 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
     : config_(config),
       clock_(clock),
       odometry_(config.odometry, camera),
-      estimator_(config.estimator, vehicle.R_body_camera, vehicle.p_body_camera_m),
-      memory_(config.memory, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
-      obstacles_(config.obstacles, camera, vehicle.R_body_camera, vehicle.p_body_camera_m),
-      seen_space_(config.seen_space, camera, vehicle.R_body_camera, vehicle.p_body_camera_m,
+      estimator_(config.estimator, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m()),
+      memory_(config.memory, camera, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m()),
+      obstacles_(config.obstacles, camera, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m()),
+      seen_space_(config.seen_space, camera, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m(),
                   config.obstacles.vehicle_radius_m),
       modes_(config.modes, config.control, vehicle),
-      R_B_C_(vehicle.R_body_camera) {
+      R_B_C_(vehicle.camera.R_B_C()) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
   takeoff_complete_ = !config.modes.start_landed;
   if (config.markers.enabled) {
     markers_ = std::make_unique<marker_modes::MarkerStage>(
-        config.markers, camera, vehicle.R_body_camera, vehicle.p_body_camera_m);
+        config.markers, camera, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m());
     modes_.register_provider(modes::Mode::kMarker, &markers_->marker_mode());
     modes_.register_provider(modes::Mode::kExplore, &markers_->explore());
   }

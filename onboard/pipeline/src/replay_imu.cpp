@@ -36,6 +36,10 @@ Eigen::Matrix3d R_body_camera_for_camera_as_body() {
   return control::R_body_camera_from_angles(0.0, 0.0, 0.0);
 }
 
+geometry::CameraMount camera_as_body_mount() {
+  return control::camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
+}
+
 std::vector<ImuMeasurement> synthesise_imu(
     const std::vector<recording::StampedPose>& T_world_camera, const Eigen::Matrix3d& R_body_camera,
     const ImuSynthesis& synthesis) {

@@ -121,8 +121,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
   control::VehicleConfig replay_vehicle = vehicle;
   if (replay.imu.synthesised) {
     // The synthesised IMU lives on the camera: the camera is the body (see replay_imu.hpp).
-    replay_vehicle.R_body_camera = R_body_camera_for_camera_as_body();
-    replay_vehicle.p_body_camera_m.setZero();
+    replay_vehicle.camera = camera_as_body_mount();
   }
   // A recording is replayed from its first frame in motion (hand-held or in flight): never a
   // vehicle resting on the floor with its motors idle.

@@ -8,6 +8,7 @@
 #        serialization (npm, installed into WORK_DIR); exit 77 (ctest: skipped) without npm.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
+source "$here/../../../scripts/lib.sh"
 
 if [ "$1" = "--decode" ]; then
   dump=$2
@@ -15,20 +16,10 @@ if [ "$1" = "--decode" ]; then
   command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
   command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
   [ -f "$dump/odom.cdr" ] || { echo "no dump in $dump: the flight test did not run"; exit 1; }
-  mkdir -p "$work"
+  hq_npm_checkers "$work" '@foxglove/rosmsg@5' '@foxglove/rosmsg2-serialization@3'
   work=$(cd "$work" && pwd)
-  packages=('@foxglove/rosmsg@5' '@foxglove/rosmsg2-serialization@3')
-  if [ ! -f "$work/node_modules/@foxglove/rosmsg2-serialization/package.json" ]; then
-    if ! npm install --no-audit --no-fund --prefix "$work" "${packages[@]}" \
-         >"$work/npm-install.log" 2>&1; then
-      echo "SKIPPED: npm install ${packages[*]} failed (see $work/npm-install.log)"
-      tail -5 "$work/npm-install.log"
-      exit 77
-    fi
-  fi
-  version() { node -p "require('$work/node_modules/$1/package.json').version"; }
-  echo "node $(node --version), @foxglove/rosmsg $(version @foxglove/rosmsg)," \
-       "@foxglove/rosmsg2-serialization $(version @foxglove/rosmsg2-serialization)"
+  echo "node $(node --version), @foxglove/rosmsg $(hq_npm_version "$work" @foxglove/rosmsg)," \
+       "@foxglove/rosmsg2-serialization $(hq_npm_version "$work" @foxglove/rosmsg2-serialization)"
   exec node "$here/decode_ros2.cjs" "$work/node_modules" "$dump" hq1
 fi
 
@@ -38,7 +29,7 @@ dump=$3
 rm -rf "$dump"
 mkdir -p "$dump"
 # Loopback only, in a domain of this run's own.
-export CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces></General></Domain></CycloneDDS>'
+hq_loopback_dds
 domain=$((1 + $$ % 200))
 vehicle_pid=""
 cleanup() { if [ -n "$vehicle_pid" ]; then kill "$vehicle_pid" 2>/dev/null || true; fi; }

@@ -225,9 +225,7 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     vehicle_file = control::load_vehicle_config(out.vehicle_file);
     out.vehicle.mass_kg = vehicle_file.mass_kg;
     out.vehicle.max_tilt_rad = vehicle_file.max_tilt_rad;
-    out.camera.T_body_camera.setIdentity();
-    out.camera.T_body_camera.linear() = vehicle_file.R_body_camera;
-    out.camera.T_body_camera.translation() = vehicle_file.p_body_camera_m;
+    out.camera.T_body_camera = vehicle_file.camera.T_B_C();
   }
   read_vehicle(section, vehicle_file, out);
   read_imu(section, out);

@@ -15,8 +15,17 @@ namespace hq::sim {
 
 namespace {
 
-std::uint32_t hash2(std::int32_t x, std::int32_t y, std::uint32_t salt) {
-  // Integer avalanche hash (a variant of the Murmur3 finaliser) of the lattice cell.
+/// std::floor for |x| < 2^31 without a library call, so that loops using it vectorise with
+/// plain SSE2: truncation, one down for negative non-integers. Same value (up to the sign of a
+/// zero, which the callers only ever subtract or add).
+[[gnu::always_inline]] inline float floor_small(float x) {
+  const auto truncated = static_cast<float>(static_cast<std::int32_t>(x));
+  return truncated - (truncated > x ? 1.0f : 0.0f);  // a select, not a branch
+}
+
+/// A random value in [0, 1] for a lattice cell: an integer avalanche hash (a variant of the
+/// Murmur3 finaliser) of the cell, inlined so the callers' loops vectorise.
+[[gnu::always_inline]] inline float lattice(std::int32_t x, std::int32_t y, std::uint32_t salt) {
   std::uint32_t h = static_cast<std::uint32_t>(x) * 0x8da6b343u ^
                     static_cast<std::uint32_t>(y) * 0xd8163841u ^ salt * 0xcb1ab31fu;
   h ^= h >> 16;
@@ -24,17 +33,13 @@ std::uint32_t hash2(std::int32_t x, std::int32_t y, std::uint32_t salt) {
   h ^= h >> 13;
   h *= 0xc2b2ae35u;
   h ^= h >> 16;
-  return h;
-}
-
-float lattice(std::int32_t x, std::int32_t y, std::uint32_t salt) {
-  return static_cast<float>(hash2(x, y, salt) & 0xffffu) * (1.0f / 65535.0f);
+  return static_cast<float>(static_cast<std::int32_t>(h & 0xffffu)) * (1.0f / 65535.0f);
 }
 
 /// Value noise in [0, 1]: smooth interpolation of random lattice values (cell = 1 unit).
-float value_noise(float x, float y, std::uint32_t salt) {
-  const float fx = std::floor(x);
-  const float fy = std::floor(y);
+[[gnu::always_inline]] inline float value_noise(float x, float y, std::uint32_t salt) {
+  const float fx = floor_small(x);
+  const float fy = floor_small(y);
   const auto ix = static_cast<std::int32_t>(fx);
   const auto iy = static_cast<std::int32_t>(fy);
   float ax = x - fx;
@@ -50,43 +55,44 @@ float value_noise(float x, float y, std::uint32_t salt) {
   return a + (b - a) * ay;
 }
 
-/// std::floor for |x| < 2^31 without a library call, so that loops using it vectorise with
-/// plain SSE2: truncation, one down for negative non-integers. Same value (up to the sign of a
-/// zero, which the callers only ever subtract or add).
-[[gnu::always_inline]] inline float floor_small(float x) {
-  const auto truncated = static_cast<float>(static_cast<std::int32_t>(x));
-  return truncated - (truncated > x ? 1.0f : 0.0f);  // a select, not a branch
+/// The pattern in [0, 1] of one texture kind at (s, t) in units of the texture's scale: the
+/// one definition albedo() and albedo_span() both evaluate, so they agree bit for bit.
+template <Texture::Kind kKind>
+[[gnu::always_inline]] inline float pattern_at(float s, float t, std::uint32_t salt) {
+  if constexpr (kKind == Texture::Kind::kChecker) {
+    const auto k =
+        static_cast<std::int32_t>(floor_small(s)) + static_cast<std::int32_t>(floor_small(t));
+    const float pattern = (k & 1) != 0 ? 1.0f : 0.0f;
+    // Fine noise inside the squares keeps photometric gradients away from the edges too.
+    return 0.8f * pattern + 0.2f * value_noise(s * 6.0f, t * 6.0f, salt);
+  } else if constexpr (kKind == Texture::Kind::kNoise) {
+    return 0.65f * value_noise(s, t, salt) + 0.35f * value_noise(s * 4.0f, t * 4.0f, salt + 1u);
+  } else {
+    const float phase = s - floor_small(s);
+    const float pattern = phase < 0.5f ? 1.0f : 0.0f;
+    return 0.8f * pattern + 0.2f * value_noise(s * 5.0f, t * 5.0f, salt);
+  }
 }
 
-[[gnu::always_inline]] inline float lattice_inline(std::int32_t x, std::int32_t y,
-                                                   std::uint32_t salt) {
-  std::uint32_t h = static_cast<std::uint32_t>(x) * 0x8da6b343u ^
-                    static_cast<std::uint32_t>(y) * 0xd8163841u ^ salt * 0xcb1ab31fu;
-  h ^= h >> 16;
-  h *= 0x85ebca6bu;
-  h ^= h >> 13;
-  h *= 0xc2b2ae35u;
-  h ^= h >> 16;
-  return static_cast<float>(static_cast<std::int32_t>(h & 0xffffu)) * (1.0f / 65535.0f);
-}
-
-/// value_noise() with floor_small and the hash inlined: the same operations in the same order.
-[[gnu::always_inline]] inline float value_noise_inline(float x, float y, std::uint32_t salt) {
-  const float fx = floor_small(x);
-  const float fy = floor_small(y);
-  const auto ix = static_cast<std::int32_t>(fx);
-  const auto iy = static_cast<std::int32_t>(fy);
-  float ax = x - fx;
-  float ay = y - fy;
-  ax = ax * ax * (3.0f - 2.0f * ax);
-  ay = ay * ay * (3.0f - 2.0f * ay);
-  const float v00 = lattice_inline(ix, iy, salt);
-  const float v10 = lattice_inline(ix + 1, iy, salt);
-  const float v01 = lattice_inline(ix, iy + 1, salt);
-  const float v11 = lattice_inline(ix + 1, iy + 1, salt);
-  const float a = v00 + (v10 - v00) * ax;
-  const float b = v01 + (v11 - v01) * ax;
-  return a + (b - a) * ay;
+/// pattern_at<kKind> at n points, the kind hoisted out of the loop so it vectorises.
+template <Texture::Kind kKind>
+[[gnu::always_inline]] inline void albedo_loop(const Texture& texture, const float* s_m,
+                                               const float* t_m, int n, float* b, float* g,
+                                               float* r) {
+  const float inv = 1.0f / texture.scale_m;
+  const float cb = texture.color_bgr[0];
+  const float cg = texture.color_bgr[1];
+  const float cr = texture.color_bgr[2];
+  // Locals, not members: the stores to b, g, r could otherwise alias them.
+  const float contrast = texture.contrast;
+  const std::uint32_t salt = texture.salt;
+#pragma omp simd
+  for (int i = 0; i < n; ++i) {
+    const float f = 1.0f - contrast * pattern_at<kKind>(s_m[i] * inv, t_m[i] * inv, salt);
+    b[i] = cb * f;
+    g[i] = cg * f;
+    r[i] = cr * f;
+  }
 }
 
 }  // namespace
@@ -95,48 +101,15 @@ float value_noise(float x, float y, std::uint32_t salt) {
 // where the CPU has it. No FMA: the avx2 target does not enable it, so values are unchanged.
 HQ_SIM_CLONES_AVX2 void Texture::albedo_span(const float* s_m, const float* t_m, int n, float* b,
                                              float* g, float* r) const {
-  const float inv = 1.0f / scale_m;
-  const float cb = color_bgr[0];
-  const float cg = color_bgr[1];
-  const float cr = color_bgr[2];
-  const std::uint32_t salt_1 = salt + 1u;
-  // The kind is hoisted out of the loops; each body is albedo()'s case, operation for operation.
-  const auto finish = [&](int i, float pattern) {
-    const float f = 1.0f - contrast * pattern;
-    b[i] = cb * f;
-    g[i] = cg * f;
-    r[i] = cr * f;
-  };
   switch (kind) {
     case Kind::kChecker:
-#pragma omp simd
-      for (int i = 0; i < n; ++i) {
-        const auto k = static_cast<std::int32_t>(floor_small(s_m[i] * inv)) +
-                       static_cast<std::int32_t>(floor_small(t_m[i] * inv));
-        float pattern = (k & 1) != 0 ? 1.0f : 0.0f;
-        pattern = 0.8f * pattern +
-                  0.2f * value_noise_inline(s_m[i] * inv * 6.0f, t_m[i] * inv * 6.0f, salt);
-        finish(i, pattern);
-      }
+      albedo_loop<Kind::kChecker>(*this, s_m, t_m, n, b, g, r);
       break;
     case Kind::kNoise:
-#pragma omp simd
-      for (int i = 0; i < n; ++i) {
-        const float pattern =
-            0.65f * value_noise_inline(s_m[i] * inv, t_m[i] * inv, salt) +
-            0.35f * value_noise_inline(s_m[i] * inv * 4.0f, t_m[i] * inv * 4.0f, salt_1);
-        finish(i, pattern);
-      }
+      albedo_loop<Kind::kNoise>(*this, s_m, t_m, n, b, g, r);
       break;
     case Kind::kStripes:
-#pragma omp simd
-      for (int i = 0; i < n; ++i) {
-        const float phase = s_m[i] * inv - floor_small(s_m[i] * inv);
-        float pattern = phase < 0.5f ? 1.0f : 0.0f;
-        pattern = 0.8f * pattern +
-                  0.2f * value_noise_inline(s_m[i] * inv * 5.0f, t_m[i] * inv * 5.0f, salt);
-        finish(i, pattern);
-      }
+      albedo_loop<Kind::kStripes>(*this, s_m, t_m, n, b, g, r);
       break;
   }
 }
@@ -145,24 +118,15 @@ Eigen::Vector3f Texture::albedo(float s_m, float t_m) const {
   const float inv = 1.0f / scale_m;
   float pattern = 0.0f;
   switch (kind) {
-    case Kind::kChecker: {
-      const auto i = static_cast<std::int32_t>(std::floor(s_m * inv)) +
-                     static_cast<std::int32_t>(std::floor(t_m * inv));
-      pattern = (i & 1) != 0 ? 1.0f : 0.0f;
-      // Fine noise inside the squares keeps photometric gradients away from the edges too.
-      pattern = 0.8f * pattern + 0.2f * value_noise(s_m * inv * 6.0f, t_m * inv * 6.0f, salt);
+    case Kind::kChecker:
+      pattern = pattern_at<Kind::kChecker>(s_m * inv, t_m * inv, salt);
       break;
-    }
     case Kind::kNoise:
-      pattern = 0.65f * value_noise(s_m * inv, t_m * inv, salt) +
-                0.35f * value_noise(s_m * inv * 4.0f, t_m * inv * 4.0f, salt + 1u);
+      pattern = pattern_at<Kind::kNoise>(s_m * inv, t_m * inv, salt);
       break;
-    case Kind::kStripes: {
-      const float phase = s_m * inv - std::floor(s_m * inv);
-      pattern = phase < 0.5f ? 1.0f : 0.0f;
-      pattern = 0.8f * pattern + 0.2f * value_noise(s_m * inv * 5.0f, t_m * inv * 5.0f, salt);
+    case Kind::kStripes:
+      pattern = pattern_at<Kind::kStripes>(s_m * inv, t_m * inv, salt);
       break;
-    }
   }
   return color_bgr * (1.0f - contrast * pattern);
 }

@@ -7,6 +7,7 @@
 #include "hq/sources/camera_sources.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
 #include <gmock/gmock.h>
@@ -293,11 +294,8 @@ TEST(Fakenect, HqOnboardOnTheKinectReachesAGroundStationOverTheLink) {
   if (!data) GTEST_SKIP() << "no real data: " << recording::data_dir_search_description();
   const std::string dir = fresh_dir("onboard_link");
   (void)write_dump(*data + "/tum/rgbd_dataset_freiburg1_360", dir);
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         1);
-  const std::string domain = std::to_string(1 + (getpid() + 101) % 200);
+  hq::testing::use_loopback_dds();
+  const std::string domain = std::to_string(hq::testing::private_domain_id(101));
   hq::testing::Process ground({HQ_GROUND_EXE, "--device", "sim", "--headless", "--domain-id",
                                domain, "--insecure", "--duration-s", "6"},
                               dir + "/ground.out");

@@ -6,6 +6,7 @@
 #include "hq/flight_log/spsc_queue.hpp"
 #include "hq/mcap/mcap.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <gtest/gtest.h>
 
@@ -141,11 +142,8 @@ class CountingSource final : public LocalSource {
 class LinkLogTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
-    options_.link.domain_id = 1 + static_cast<int>((getpid() + 31) % 200);
+    hq::testing::use_loopback_dds();
+    options_.link.domain_id = hq::testing::private_domain_id(31);
     options_.link.security.enabled = false;
     options_.role = security::Role::kVehicle;
     dir_ = fs::temp_directory_path() /

@@ -52,6 +52,7 @@ TEST(CameraMount, HoldsTheHeadingAndRefusesAnImpossibleLeverArm) {
   T_B_C.linear() = mount(0.5, -0.2, 0.0);
   T_B_C.translation() = Eigen::Vector3d(0.1, 0.0, -0.05);
   const CameraMount camera_mount(T_B_C);
+  EXPECT_TRUE(camera_mount.has_heading());
   EXPECT_NEAR(camera_mount.heading_rad(), 0.5, 1e-9);
   EXPECT_TRUE(camera_mount.p_B_C_m().isApprox(T_B_C.translation()));
 
@@ -64,6 +65,22 @@ TEST(CameraMount, HoldsTheHeadingAndRefusesAnImpossibleLeverArm) {
   T_B_C.linear() = 2.0 * Eigen::Matrix3d::Identity();
   EXPECT_THAT(testing::input_error_message([&] { (void)CameraMount(T_B_C); }),
               HasSubstr("not a rotation"));
+}
+
+// A down-looking camera is a mount the chain flies (eqs. 4-5 and the obstacle field hold for any
+// rotation); only eq. 9 needs a heading, and asking for it names why there is none.
+TEST(CameraMount, AcceptsADownLookingCameraWhichHasNoHeading) {
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  T_B_C.linear() = mount(0.3, -std::numbers::pi / 2, 0.0);
+  T_B_C.translation() = Eigen::Vector3d(0.0, 0.0, 0.1);
+  const CameraMount down(T_B_C);
+  EXPECT_FALSE(down.has_heading());
+  EXPECT_TRUE(down.R_B_C().col(2).isApprox(Eigen::Vector3d::UnitZ(), 1e-12));
+  EXPECT_THAT(testing::input_error_message([&] { (void)down.heading_rad(); }),
+              HasSubstr("within 3 deg of vertical"));
+  const CameraMount looking_down = CameraMount::looking_down();
+  EXPECT_FALSE(looking_down.has_heading());
+  EXPECT_TRUE(looking_down.T_B_C().isApprox(Eigen::Isometry3d::Identity()));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/link/link.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -585,10 +586,7 @@ int run(int argc, char** argv) {
   if (const std::optional<int> status = parse_options(argc, argv, o)) return *status;
   const LinkConfig& config = o.config;
   // Loopback only, as the on-board/ground pair runs in the demo and tests.
-  setenv("CYCLONEDDS_URI",
-         "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-         "</Interfaces></General></Domain></CycloneDDS>",
-         0);
+  hq::testing::use_loopback_dds(/*keep_existing=*/true);
   SharedStamps one_way_ns(kVariants.size() * static_cast<std::size_t>(o.samples));
   SharedStamps security_ns(2 * static_cast<std::size_t>(o.security_samples));
   const SecurityPair pair = security_pair(config, o.security_samples > 0);

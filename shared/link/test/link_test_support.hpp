@@ -3,6 +3,7 @@
 // on a waitset with a timeout (never sleep-poll).
 
 #include "hq/link/link.hpp"
+#include "hq/testing/loopback_dds.hpp"
 
 #include <array>
 #include <chrono>
@@ -15,11 +16,8 @@ namespace hq::link::test {
 // keeps parallel ctest runs, and other engineers' processes, from seeing each other's samples.
 inline int private_domain_id() {
   static const int domain_id = [] {
-    setenv("CYCLONEDDS_URI",
-           "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
-           "</Interfaces></General></Domain></CycloneDDS>",
-           1);
-    return 1 + static_cast<int>(getpid() % 200);
+    hq::testing::use_loopback_dds();
+    return hq::testing::private_domain_id(0);
   }();
   return domain_id;
 }

@@ -9,18 +9,10 @@ set -euo pipefail
 tool=$1
 work=$2
 
-command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
-command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
 here=$(cd "$(dirname "$0")" && pwd)
-mkdir -p "$work"
-if [ ! -f "$work/node_modules/node-mavlink/package.json" ]; then
-  if ! npm install --no-audit --no-fund --prefix "$work" 'node-mavlink@2' >"$work/npm-install.log" 2>&1; then
-    echo "SKIPPED: npm install node-mavlink failed (see $work/npm-install.log)"
-    tail -5 "$work/npm-install.log"
-    exit 77
-  fi
-fi
-version=$(node -p "require('$work/node_modules/node-mavlink/package.json').version")
+source "$here/../../../scripts/lib.sh"
+hq_npm_checkers "$work" 'node-mavlink@2'
+version=$(hq_npm_version "$work" node-mavlink)
 echo "node $(node --version), node-mavlink $version"
 
 tmp=$(mktemp -d)

@@ -12,23 +12,12 @@ set -euo pipefail
 tool=$1
 work=$2
 
-command -v node >/dev/null || { echo "SKIPPED: node is not installed"; exit 77; }
-command -v npm >/dev/null || { echo "SKIPPED: npm is not installed"; exit 77; }
 here=$(cd "$(dirname "$0")" && pwd)
-mkdir -p "$work"
+source "$here/../../../scripts/lib.sh"
+hq_npm_checkers "$work" '@mcap/core@2' '@mcap/support@1'
 work=$(cd "$work" && pwd)
-if [ ! -f "$work/node_modules/@mcap/core/package.json" ] ||
-   [ ! -f "$work/node_modules/@mcap/support/package.json" ]; then
-  if ! npm install --no-audit --no-fund --prefix "$work" '@mcap/core@2' '@mcap/support@1' \
-       >"$work/npm-install.log" 2>&1; then
-    echo "SKIPPED: npm install @mcap/core @mcap/support failed (see $work/npm-install.log)"
-    tail -5 "$work/npm-install.log"
-    exit 77
-  fi
-fi
-core=$(node -p "require('$work/node_modules/@mcap/core/package.json').version")
-support=$(node -p "require('$work/node_modules/@mcap/support/package.json').version")
-echo "node $(node --version), @mcap/core $core, @mcap/support $support"
+core=$(hq_npm_version "$work" @mcap/core)
+echo "node $(node --version), @mcap/core $core, @mcap/support $(hq_npm_version "$work" @mcap/support)"
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

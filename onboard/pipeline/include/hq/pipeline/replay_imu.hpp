@@ -4,6 +4,7 @@
 /// synthesised from the ground truth, because TUM RGB-D has no gyro and the bundled fr1_360 has
 /// no accelerometer.txt either.
 
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/recording/tum_io.hpp"
 #include "hq/recording/tum_sequence.hpp"
 
@@ -49,6 +50,8 @@ std::optional<Eigen::Isometry3d> interpolate_pose(const std::vector<recording::S
 /// NED-equivalent (x = optical z forward, y = optical x right, z = optical y down), i.e.
 /// R_QC = R_forward_optical = [e_y e_z e_x] and Q_p_C = 0.
 Eigen::Matrix3d R_body_camera_for_camera_as_body();
+/// The same as a mount: R_body_camera_for_camera_as_body(), no lever arm.
+geometry::CameraMount camera_as_body_mount();
 
 /// Synthesises IMU samples at synthesis.rate_hz over the ground truth's span from
 /// T_world_camera poses (world z up, as TUM's mocap frame and the simulator's NWU world are):
