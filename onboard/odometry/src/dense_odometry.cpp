@@ -549,8 +549,8 @@ struct DenseOdometry::Impl {
   // Sigma^-1 = U U^T, U upper triangular, the pair's term w r^T Sigma^-1 r splits into two
   // rows: e1 = r_I / sqrt(Sigma_II) (u11^2 = 1 / Sigma_II), which leaves the intensity rows as
   // they are and keeps their precomputed Jacobians, and e2 = u12 r_I + u22 r_Z, whose Jacobian
-  // is recomputed in place in the depth buffers. Returns sum w r^T Sigma^-1 r x Sigma_II
-  // (intensity units^2, comparable across iterations as the intensity-only error).
+  // is formed inside its accumulation (detail::accumulate_depth_rows). Returns sum w r^T Sigma^-1 r
+  // x Sigma_II (intensity units^2, comparable across iterations as the intensity-only error).
   double accumulate_with_depth(int level, int count, NormalEquations& out) {
     const auto nu = static_cast<float>(config.student_t_dof);
     const double det = sigma_ii * sigma_zz - sigma_iz * sigma_iz;
