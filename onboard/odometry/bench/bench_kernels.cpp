@@ -1,6 +1,8 @@
 // hq-bench-odometry-kernels: Google Benchmark of DenseOdometry's per-point kernels on a
 // 320x240 level's worth of points (76800): the warp + intensity sample, the depth residual
-// with its Jacobian, and the one-pass normal-equation accumulation. Built, not run by ctest.
+// with its Jacobian (whole, and split as the odometry runs it: the gather, then the rows formed
+// inside their accumulation), and the one-pass normal-equation accumulation. Built, not run by
+// ctest.
 #include "kernels.hpp"
 #include <benchmark/benchmark.h>
 
@@ -85,6 +87,57 @@ void BM_DepthResidualAndJacobian(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kPoints);
 }
 BENCHMARK(BM_DepthResidualAndJacobian);
+
+// The gather half of the depth residual as DenseOdometry runs it: residual and d r / d q only.
+void BM_DepthSample(benchmark::State& state) {
+  const Scene& s = scene();
+  std::vector<float> residual(kPoints);
+  std::vector<float> a[3];
+  for (auto& c : a) c.assign(kPoints, 0.0f);
+  for (auto _ : state) {
+    for (int i = 0; i < kPoints; ++i) {
+      float qx, qy, qz;
+      kWarp.apply(s.x[i], s.y[i], s.z[i], qx, qy, qz);
+      const float u = kK.fx * qx / qz + kK.cx;
+      const float v = kK.fy * qy / qz + kK.cy;
+      float d[3] = {0.0f, 0.0f, 0.0f};
+      if (u >= 0.0f && v >= 0.0f && u < kWidth - 1.001f && v < kHeight - 1.001f) {
+        depth_sample_at(s.depth.data(), kWidth, kK, qx, qy, qz, u, v, 0.0015f, 0.05f, residual[i],
+                        d);
+      }
+      a[0][i] = d[0];
+      a[1][i] = d[1];
+      a[2][i] = d[2];
+    }
+    benchmark::DoNotOptimize(residual.data());
+    benchmark::DoNotOptimize(a[0].data());
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_DepthSample);
+
+// The whitened depth rows formed inside their accumulation (the other half of the depth term).
+void BM_AccumulateDepthRows(benchmark::State& state) {
+  const Scene& s = scene();
+  DepthRows rows;
+  for (int k = 0; k < 3; ++k) rows.d_rz_d_q[k] = s.J[k].data();
+  rows.px = s.x.data();
+  rows.py = s.y.data();
+  rows.pz = s.z.data();
+  rows.rz = s.intensity.data();
+  rows.ri = s.intensity.data();
+  for (int k = 0; k < 6; ++k) rows.ji[k] = s.J[k].data();
+  rows.c_z = s.w.data();
+  rows.c_i = s.o.data();
+  rows.T = kWarp;
+  for (auto _ : state) {
+    RowSums sums;
+    accumulate_depth_rows(rows, s.w.data(), kPoints, sums);
+    benchmark::DoNotOptimize(sums);
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_AccumulateDepthRows);
 
 void BM_AccumulateRows(benchmark::State& state) {
   const Scene& s = scene();

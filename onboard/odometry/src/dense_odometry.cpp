@@ -32,11 +32,14 @@ struct ReferenceLevel {
   std::vector<float> x, y, z;      // 3D point in the reference camera frame, metres
   std::vector<float> intensity;    // I_ref at the pixel
   std::vector<float> photometric;  // 1 if the pixel has gradient (a photometric residual), else 0
+  std::vector<float> depth_point;  // 1 if the point may carry a depth residual, else 0
   std::array<std::vector<float>, 6> jacobian;  // d I_ref(pi(exp(xi) p)) / d xi at xi = 0
   int count = 0;
 
   void reserve(int capacity) {
-    for (auto* v : {&x, &y, &z, &intensity, &photometric}) v->assign(capacity, 0.0f);
+    for (auto* v : {&x, &y, &z, &intensity, &photometric, &depth_point}) {
+      v->assign(capacity, 0.0f);
+    }
     for (auto& j : jacobian) j.assign(capacity, 0.0f);
     count = 0;
   }
@@ -146,6 +149,12 @@ void validate(const OdometryConfig& c, const std::string& where) {
   check.positive("depth_noise_per_m", c.depth_noise_per_m, 1.0);
   check.in_range("depth_point_stride", c.depth_point_stride, 1, 64);
   check.positive("depth_max_spread_ratio", c.depth_max_spread_ratio, 1.0);
+  check.in_range("depth_levels", c.depth_levels, 0, kMaxLevels);
+  if (c.depth_levels > c.pyramid_levels - c.finest_level) {
+    check.fail("depth_levels", c.depth_levels,
+               "expected <= pyramid_levels - finest_level (" +
+                   std::to_string(c.pyramid_levels - c.finest_level) + ")");
+  }
   check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0, 1e6);
 }
 
@@ -181,6 +190,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("depth_noise_per_m", out.depth_noise_per_m, -kAny, kAny);
   section.read("depth_point_stride", out.depth_point_stride, -kAnyInt, kAnyInt);
   section.read("depth_max_spread_ratio", out.depth_max_spread_ratio, -kAny, kAny);
+  section.read("depth_levels", out.depth_levels, -kAnyInt, kAnyInt);
   section.read("use_rotation_prior", out.use_rotation_prior);
   section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, -kAny,
                kAny);
@@ -218,7 +228,11 @@ struct DenseOdometry::Impl {
   std::vector<float> depth_mask;
   std::vector<float> depth_weight;
   std::vector<float> depth_offset_jacobian;  // d (whitened depth row) / d brightness offset
-  std::array<std::vector<float>, 6> depth_jacobian;
+  // d r_Z / d q per point, from compute_residuals; the depth rows' Jacobians are formed from
+  // it inside their accumulation.
+  std::array<std::vector<float>, 3> depth_jacobian;
+  std::vector<float> depth_whitening;  // c_z of the whitened depth row
+  detail::Warp warp{};                 // T_cur_ref of the last compute_residuals
   // Scale matrix of (intensity, depth) residuals (Kerl IROS 2013, eq. 13).
   double sigma_ii = 0.0, sigma_iz = 0.0, sigma_zz = 0.0;
 
@@ -230,6 +244,12 @@ struct DenseOdometry::Impl {
   bool has_motion = false;
   double keyframe_first_entropy = 0.0;
   int keyframe_age = 0;
+
+  // Whether the depth residual acts on this level (the finest depth_levels levels).
+  bool depth_at(int level) const {
+    return config.use_depth_term &&
+           (config.depth_levels == 0 || level < finest + config.depth_levels);
+  }
 
   bool keyframe_check() const {
     return config.reference_mode == ReferenceMode::kFrameToKeyframe && config.keyframe_check;
@@ -255,7 +275,7 @@ struct DenseOdometry::Impl {
       }
     }
     for (auto* v : {&residual, &mask, &weight, &depth_residual, &depth_mask, &depth_weight,
-                    &depth_offset_jacobian}) {
+                    &depth_offset_jacobian, &depth_whitening}) {
       v->assign(capacity, 0.0f);
     }
     for (auto& j : depth_jacobian) j.assign(capacity, 0.0f);
@@ -278,10 +298,12 @@ struct DenseOdometry::Impl {
   // once per reference, not per iteration (the inverse compositional trick).
   void prepare_reference(const FrameSlot& slot, int set) {
     const auto min_gradient_sq = static_cast<float>(config.min_gradient * config.min_gradient);
-    // With the depth term, pixels without gradient still constrain the pose through their
-    // depth (a textureless wall fixes its normal's translation and two rotations).
-    const int stride = config.use_depth_term ? std::max(1, config.depth_point_stride) : 0;
+    const auto spread = static_cast<float>(config.depth_max_spread_ratio);
     for (int l = finest; l < levels; ++l) {
+      // With the depth term, pixels without gradient still constrain the pose through their
+      // depth (a textureless wall fixes its normal's translation and two rotations).
+      const bool depth_level = depth_at(l);
+      const int stride = depth_level ? std::max(1, config.depth_point_stride) : 0;
       const geometry::PinholeCamera& cam = level_camera[l];
       const detail::Intrinsics k = intrinsics(l);
       const cv::Mat& I = slot.intensity[l];
@@ -300,6 +322,16 @@ struct DenseOdometry::Impl {
           const float gy = 0.5f * (down[u] - up[u]);
           const bool textured = gx * gx + gy * gy >= min_gradient_sq;
           if (!textured && (stride == 0 || u % stride != 0 || v % stride != 0)) continue;
+          // A depth residual needs a surface around the reference pixel: at an occlusion edge
+          // or beside missing depth, the pixel's depth (often a mixed one) and the current
+          // depth's gradient there belong to no surface.
+          bool surface = depth_level;
+          if (surface) {
+            const float n[4] = {depth[u - 1], depth[u + 1], D.ptr<float>(v - 1)[u],
+                                D.ptr<float>(v + 1)[u]};
+            for (const float d : n) surface = surface && d > 0.0f && std::abs(d - z) <= spread * z;
+          }
+          if (!textured && !surface) continue;
           const Eigen::Vector3f p_C =
               cam.unproject(static_cast<float>(u), static_cast<float>(v), z);
           const float x = p_C.x();
@@ -311,6 +343,7 @@ struct DenseOdometry::Impl {
           ref.z[n] = z;
           ref.intensity[n] = row[u];
           ref.photometric[n] = textured ? 1.0f : 0.0f;
+          ref.depth_point[n] = surface ? 1.0f : 0.0f;
           for (int j = 0; j < 6; ++j) ref.jacobian[j][n] = textured ? J[j] : 0.0f;
           ++n;
         }
@@ -350,7 +383,7 @@ struct DenseOdometry::Impl {
     const auto stride = static_cast<int>(image.step1());
     const float* photometric = ref.photometric.data();
     Counts counts;
-    if (!config.use_depth_term) {
+    if (!depth_at(level)) {
       for (int i = 0; i < ref.count; ++i) {
         float qx, qy, qz;
         T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
@@ -380,10 +413,15 @@ struct DenseOdometry::Impl {
     const auto depth_stride = static_cast<int>(depth_image.step1());
     const auto noise = static_cast<float>(config.depth_noise_per_m);
     const auto spread = static_cast<float>(config.depth_max_spread_ratio);
-    float* jz[6];
-    for (int j = 0; j < 6; ++j) jz[j] = depth_jacobian[j].data();
+    // The gather only: residuals and d r_Z / d q here; the depth rows' Jacobians are formed
+    // vectorised in accumulate_with_depth, which needs this warp's rotation.
+    warp = T;
+    const float* depth_point = ref.depth_point.data();
+    float* a0 = depth_jacobian[0].data();
+    float* a1 = depth_jacobian[1].data();
+    float* a2 = depth_jacobian[2].data();
     for (int i = 0; i < ref.count; ++i) {
-      float J[6];
+      float a[3] = {0.0f, 0.0f, 0.0f};
       float rz = 0.0f;
       float r = 0.0f;
       float m = 0.0f;
@@ -399,13 +437,18 @@ struct DenseOdometry::Impl {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = 1.0f;
           }
-          ok = detail::depth_residual_at(depth, depth_stride, k, T, ref.x[i], ref.y[i], ref.z[i],
-                                         qx, qy, qz, u, v, noise, spread, rz, J);
+          if (depth_point[i] > 0.0f) {
+            ok = detail::depth_sample_at(depth, depth_stride, k, qx, qy, qz, u, v, noise, spread,
+                                         rz, a);
+            if (!ok) a[0] = a[1] = a[2] = 0.0f;
+          }
         }
       }
       depth_residual[i] = ok ? rz : 0.0f;
       depth_mask[i] = ok ? 1.0f : 0.0f;
-      for (int j = 0; j < 6; ++j) jz[j][i] = ok ? J[j] : 0.0f;
+      a0[i] = a[0];
+      a1[i] = a[1];
+      a2[i] = a[2];
       residual[i] = r;
       mask[i] = m;
       counts.photometric += m > 0.0f ? 1 : 0;
@@ -506,8 +549,8 @@ struct DenseOdometry::Impl {
   // Sigma^-1 = U U^T, U upper triangular, the pair's term w r^T Sigma^-1 r splits into two
   // rows: e1 = r_I / sqrt(Sigma_II) (u11^2 = 1 / Sigma_II), which leaves the intensity rows as
   // they are and keeps their precomputed Jacobians, and e2 = u12 r_I + u22 r_Z, whose Jacobian
-  // is recomputed in place in the depth buffers. Returns sum w r^T Sigma^-1 r x Sigma_II
-  // (intensity units^2, comparable across iterations as the intensity-only error).
+  // is formed inside its accumulation (detail::accumulate_depth_rows). Returns sum w r^T Sigma^-1 r
+  // x Sigma_II (intensity units^2, comparable across iterations as the intensity-only error).
   double accumulate_with_depth(int level, int count, NormalEquations& out) {
     const auto nu = static_cast<float>(config.student_t_dof);
     const double det = sigma_ii * sigma_zz - sigma_iz * sigma_iz;
@@ -520,25 +563,14 @@ struct DenseOdometry::Impl {
     const float u22 = std::sqrt(i_zz);
     const float u12 = i_iz / u22;
     const ReferenceLevel& ref = reference_sets[active_set][level];
-    float* ri = residual.data();
-    float* rz = depth_residual.data();
+    const float* ri = residual.data();
+    const float* rz = depth_residual.data();
     const float* mi = mask.data();
     const float* mz = depth_mask.data();
     float* wi = weight.data();
     float* wz = depth_weight.data();
-    float* oz = depth_offset_jacobian.data();
-    const float* ji0 = ref.jacobian[0].data();
-    const float* ji1 = ref.jacobian[1].data();
-    const float* ji2 = ref.jacobian[2].data();
-    const float* ji3 = ref.jacobian[3].data();
-    const float* ji4 = ref.jacobian[4].data();
-    const float* ji5 = ref.jacobian[5].data();
-    float* jz0 = depth_jacobian[0].data();
-    float* jz1 = depth_jacobian[1].data();
-    float* jz2 = depth_jacobian[2].data();
-    float* jz3 = depth_jacobian[3].data();
-    float* jz4 = depth_jacobian[4].data();
-    float* jz5 = depth_jacobian[5].data();
+    float* cz = depth_whitening.data();
+    float* ci = depth_offset_jacobian.data();
 #pragma omp simd
     for (int i = 0; i < count; ++i) {
       const float both = mi[i] * mz[i];
@@ -549,25 +581,26 @@ struct DenseOdometry::Impl {
       wi[i] = (w_b + w_i) * inv_ii;
       wz[i] = w_b + w_z;
       // Depth row: both residuals -> u12 r_I + u22 r_Z; depth alone -> r_Z / sqrt(Sigma_ZZ).
-      const float c_z = both * u22 + (mz[i] - both) * inv_sd_z;
-      const float c_i = both * u12;
-      rz[i] = c_z * rz[i] + c_i * ri[i];
-      jz0[i] = c_z * jz0[i] + c_i * ji0[i];
-      jz1[i] = c_z * jz1[i] + c_i * ji1[i];
-      jz2[i] = c_z * jz2[i] + c_i * ji2[i];
-      jz3[i] = c_z * jz3[i] + c_i * ji3[i];
-      jz4[i] = c_z * jz4[i] + c_i * ji4[i];
-      jz5[i] = c_z * jz5[i] + c_i * ji5[i];
-      oz[i] = c_i;
+      cz[i] = both * u22 + (mz[i] - both) * inv_sd_z;
+      ci[i] = both * u12;
     }
     const float* J[6] = {ref.jacobian[0].data(), ref.jacobian[1].data(), ref.jacobian[2].data(),
                          ref.jacobian[3].data(), ref.jacobian[4].data(), ref.jacobian[5].data()};
     detail::RowSums sums;
     detail::accumulate_rows(J, ri, wi, count, sums);
-    const float* Jz[6] = {depth_jacobian[0].data(), depth_jacobian[1].data(),
-                          depth_jacobian[2].data(), depth_jacobian[3].data(),
-                          depth_jacobian[4].data(), depth_jacobian[5].data()};
-    detail::accumulate_rows(Jz, rz, wz, count, sums, oz);
+    // The depth rows are formed inside their accumulation, never stored.
+    detail::DepthRows rows;
+    for (int k = 0; k < 3; ++k) rows.d_rz_d_q[k] = depth_jacobian[k].data();
+    rows.px = ref.x.data();
+    rows.py = ref.y.data();
+    rows.pz = ref.z.data();
+    rows.rz = rz;
+    rows.ri = ri;
+    for (int k = 0; k < 6; ++k) rows.ji[k] = J[k];
+    rows.c_z = cz;
+    rows.c_i = ci;
+    rows.T = warp;
+    detail::accumulate_depth_rows(rows, wz, count, sums);
     store(sums, 1.0, out);
     return sums.weighted_error * sigma_ii;
   }
@@ -640,7 +673,7 @@ struct DenseOdometry::Impl {
   double weigh_and_accumulate(int level, int count, const Counts& counts, double& level_variance,
                               double& variance, NormalEquations& out) {
     const int valid = counts.any;
-    if (!config.use_depth_term) {
+    if (!depth_at(level)) {
       if (level_variance == 0.0) {
         double sum = 0.0;
         for (int i = 0; i < count; ++i) sum += residual[i] * residual[i];
@@ -666,11 +699,11 @@ struct DenseOdometry::Impl {
 
   // The gyro prior's cost in the data term's units (intensity^2 per point): a step towards the
   // gyro may raise the data cost and still lower the total.
-  double prior_cost(const Eigen::Isometry3d& T_cur_ref, const Prediction& p, double variance,
-                    int valid) const {
+  double prior_cost(int level, const Eigen::Isometry3d& T_cur_ref, const Prediction& p,
+                    double variance, int valid) const {
     const Eigen::Vector3d d =
         geometry::log_so3(T_cur_ref.linear().transpose() * p.R_ref_prior.transpose());
-    const double scale = config.use_depth_term ? sigma_ii : variance;
+    const double scale = depth_at(level) ? sigma_ii : variance;
     return d.dot(p.prior_information * d) * scale / valid;
   }
 
@@ -743,7 +776,7 @@ struct DenseOdometry::Impl {
           weigh_and_accumulate(level, count, counts, level_variance, variance, candidate);
       ++out.iterations;
       double cost = out.weighted_error;
-      if (p.use_prior) cost += prior_cost(T_cur_ref, p, variance, out.valid);
+      if (p.use_prior) cost += prior_cost(level, T_cur_ref, p, variance, out.valid);
       if (cost > previous_cost) {
         // The last step made the fit worse: undo it and stop refining this level.
         T_cur_ref = T_previous;

@@ -61,13 +61,17 @@ inline float sample_bilinear(const float* data, int stride, float u, float v) {
 /// with q = T_cur_ref p and sigma_z = noise_per_m * q_z^2 (Kinect depth noise grows with z^2).
 /// Its Jacobian needs D_cur's gradient at pi(q), so it is taken forward, on the current frame:
 /// J = (grad D * d pi / d q - e_z^T) R [I, -[p]x] / sigma_z, with grad D the gradient of the
-/// bilinear interpolant, so J is the exact derivative of the sampled residual. Returns false
-/// (r, J untouched) when q leaves the image or the four depths are missing or span an edge.
-/// This form takes q = T p and its projection (u, v), already checked to lie in the image.
-inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& k, const Warp& T,
-                              float px, float py, float pz, float qx, float qy, float qz, float u,
-                              float v, float noise_per_m, float max_spread_ratio, float& residual,
-                              float* d_residual_d_xi) {
+/// bilinear interpolant, so J is the exact derivative of the sampled residual.
+///
+/// In two parts, so that the gather (this one) stays small and the Jacobian's products run
+/// vectorised over all points afterwards (depth_jacobian_from): this samples D_cur around the
+/// projection (u, v) of q (already checked to lie in the image) and returns r and d r / d q (a
+/// row in the current camera). Returns false (outputs untouched) when a depth of the four is
+/// missing or they spread by more than max_spread_ratio (an occlusion edge, where neither the
+/// interpolated depth nor its gradient belongs to a surface).
+inline bool depth_sample_at(const float* depth, int stride, const Intrinsics& k, float qx, float qy,
+                            float qz, float u, float v, float noise_per_m, float max_spread_ratio,
+                            float& residual, float* d_residual_d_q) {
   const float inv_z = 1.0f / qz;
   const int u0 = static_cast<int>(u);
   const int v0 = static_cast<int>(v);
@@ -85,21 +89,41 @@ inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& 
   const float dd_dv = bottom - top;
   const float inv_sigma = 1.0f / (noise_per_m * qz * qz);
   residual = (d - qz) * inv_sigma;
-  // a = d r / d q (times sigma_z), row vector in the current camera.
   const float ax = dd_du * k.fx * inv_z;
   const float ay = dd_dv * k.fy * inv_z;
-  const float az = -(ax * qx + ay * qy) * inv_z - 1.0f;
-  // b = a R: the same derivative with respect to the reference point p.
-  const float bx = (ax * T.r00 + ay * T.r10 + az * T.r20) * inv_sigma;
-  const float by = (ax * T.r01 + ay * T.r11 + az * T.r21) * inv_sigma;
-  const float bz = (ax * T.r02 + ay * T.r12 + az * T.r22) * inv_sigma;
-  // r(delta) = r(T exp(-delta) p) ~ r - b [I, -[p]x] delta: J = [b, p x b].
+  d_residual_d_q[0] = ax * inv_sigma;
+  d_residual_d_q[1] = ay * inv_sigma;
+  d_residual_d_q[2] = (-(ax * qx + ay * qy) * inv_z - 1.0f) * inv_sigma;
+  return true;
+}
+
+/// The depth residual's Jacobian from depth_sample_at's d r / d q: b = (d r / d q) R is the
+/// derivative with respect to the reference point p, and r(delta) = r(T exp(-delta) p) ~ r - b
+/// [I, -[p]x] delta gives J = [b, p x b].
+inline void depth_jacobian_from(float ax, float ay, float az, const Warp& T, float px, float py,
+                                float pz, float* d_residual_d_xi) {
+  const float bx = ax * T.r00 + ay * T.r10 + az * T.r20;
+  const float by = ax * T.r01 + ay * T.r11 + az * T.r21;
+  const float bz = ax * T.r02 + ay * T.r12 + az * T.r22;
   d_residual_d_xi[0] = bx;
   d_residual_d_xi[1] = by;
   d_residual_d_xi[2] = bz;
   d_residual_d_xi[3] = py * bz - pz * by;
   d_residual_d_xi[4] = pz * bx - px * bz;
   d_residual_d_xi[5] = px * by - py * bx;
+}
+
+/// Both parts at once: r and J of the warped point q = T p whose projection is (u, v).
+inline bool depth_residual_at(const float* depth, int stride, const Intrinsics& k, const Warp& T,
+                              float px, float py, float pz, float qx, float qy, float qz, float u,
+                              float v, float noise_per_m, float max_spread_ratio, float& residual,
+                              float* d_residual_d_xi) {
+  float a[3];
+  if (!depth_sample_at(depth, stride, k, qx, qy, qz, u, v, noise_per_m, max_spread_ratio, residual,
+                       a)) {
+    return false;
+  }
+  depth_jacobian_from(a[0], a[1], a[2], T, px, py, pz, d_residual_d_xi);
   return true;
 }
 
@@ -219,6 +243,108 @@ inline void accumulate_rows(const float* const* J, const float* r, const float* 
     accumulate_rows_impl<true>(J, r, w, offset_jacobian, count, out);
   } else {
     accumulate_rows_impl<false>(J, r, w, nullptr, count, out);
+  }
+}
+
+/// The whitened depth rows of the bivariate t (DenseOdometry's accumulate_with_depth), formed
+/// in the accumulation instead of stored: row i is c_z[i] (r_Z, J_Z) + c_i[i] (r_I, J_I), with
+/// J_Z = depth_jacobian_from(d_rz_d_q[.][i], T, p_i) and c_i[i] also the offset's Jacobian.
+struct DepthRows {
+  const float* d_rz_d_q[3];   ///< d r_Z / d q per point (depth_sample_at), 0 without depth
+  const float *px, *py, *pz;  ///< reference points
+  const float* rz;            ///< depth residuals
+  const float* ri;            ///< intensity residuals
+  const float* ji[6];         ///< intensity Jacobians
+  const float* c_z;           ///< whitening coefficient of the depth residual
+  const float* c_i;           ///< whitening coefficient of the intensity residual
+  Warp T{};                   ///< T_cur_ref of the residuals
+};
+
+inline void accumulate_depth_rows(const DepthRows& d, const float* w_in, int count, RowSums& out) {
+  // The loop of accumulate_rows_impl with the row formed in place: one pass, no stores.
+  const float* qx = d.d_rz_d_q[0];
+  const float* qy = d.d_rz_d_q[1];
+  const float* qz = d.d_rz_d_q[2];
+  const float *px = d.px, *py = d.py, *pz = d.pz, *rz = d.rz, *ri = d.ri, *c_z = d.c_z,
+              *c_i = d.c_i;
+  const float *j0 = d.ji[0], *j1 = d.ji[1], *j2 = d.ji[2], *j3 = d.ji[3], *j4 = d.ji[4],
+              *j5 = d.ji[5];
+  const Warp T = d.T;
+  for (int start = 0; start < count; start += kAccumulationBlock) {
+    const int end = std::min(count, start + kAccumulationBlock);
+    float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0,
+          h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0, h44 = 0, h45 = 0,
+          h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0, o0 = 0, o1 = 0, o2 = 0,
+          o3 = 0, o4 = 0, o5 = 0, oo = 0, go = 0;
+#pragma omp simd reduction(+ : h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, \
+                               h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e, \
+                               o0, o1, o2, o3, o4, o5, oo, go)
+    for (int i = start; i < end; ++i) {
+      // b = (d r_Z / d q) R, J_Z = [b, p x b] (depth_jacobian_from, written out), and the
+      // whitened row c_z (r_Z, J_Z) + c_i (r_I, J_I) whose offset Jacobian is c_i.
+      const float bx = qx[i] * T.r00 + qy[i] * T.r10 + qz[i] * T.r20;
+      const float by = qx[i] * T.r01 + qy[i] * T.r11 + qz[i] * T.r21;
+      const float bz = qx[i] * T.r02 + qy[i] * T.r12 + qz[i] * T.r22;
+      const float cz = c_z[i];
+      const float c = c_i[i];
+      const float a0 = cz * bx + c * j0[i];
+      const float a1 = cz * by + c * j1[i];
+      const float a2 = cz * bz + c * j2[i];
+      const float a3 = cz * (py[i] * bz - pz[i] * by) + c * j3[i];
+      const float a4 = cz * (pz[i] * bx - px[i] * bz) + c * j4[i];
+      const float a5 = cz * (px[i] * by - py[i] * bx) + c * j5[i];
+      const float r = cz * rz[i] + c * ri[i];
+      const float w = w_in[i];
+      const float w0 = w * a0, w1 = w * a1, w2 = w * a2, w3 = w * a3, w4 = w * a4, w5 = w * a5;
+      h00 += w0 * a0;
+      h01 += w0 * a1;
+      h02 += w0 * a2;
+      h03 += w0 * a3;
+      h04 += w0 * a4;
+      h05 += w0 * a5;
+      h11 += w1 * a1;
+      h12 += w1 * a2;
+      h13 += w1 * a3;
+      h14 += w1 * a4;
+      h15 += w1 * a5;
+      h22 += w2 * a2;
+      h23 += w2 * a3;
+      h24 += w2 * a4;
+      h25 += w2 * a5;
+      h33 += w3 * a3;
+      h34 += w3 * a4;
+      h35 += w3 * a5;
+      h44 += w4 * a4;
+      h45 += w4 * a5;
+      h55 += w5 * a5;
+      g0 += w0 * r;
+      g1 += w1 * r;
+      g2 += w2 * r;
+      g3 += w3 * r;
+      g4 += w4 * r;
+      g5 += w5 * r;
+      e += w * r * r;
+      o0 += c * w0;
+      o1 += c * w1;
+      o2 += c * w2;
+      o3 += c * w3;
+      o4 += c * w4;
+      o5 += c * w5;
+      oo += c * c * w;
+      go += c * w * r;
+    }
+    const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
+                             h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};
+    for (int k = 0; k < 21; ++k) out.H[k] += block[k];
+    const float gb[6] = {g0, g1, g2, g3, g4, g5};
+    const float ob[6] = {o0, o1, o2, o3, o4, o5};
+    for (int k = 0; k < 6; ++k) {
+      out.g[k] += gb[k];
+      out.pose_offset[k] += ob[k];
+    }
+    out.weighted_error += e;
+    out.offset += oo;
+    out.g_offset += go;
   }
 }
 

@@ -97,6 +97,26 @@ INSTANTIATE_TEST_SUITE_P(BothReferenceModesWithAndWithoutDepth, KnownMotion,
                                                               ReferenceMode::kFrameToKeyframe),
                                             ::testing::Bool()));
 
+TEST(DenseOdometry, DepthTermOnTheFinestLevelOnlyRecoversKnownMotion) {
+  // The coarse levels then align intensity alone; the motion is still recovered.
+  OdometryConfig config;
+  config.use_depth_term = true;
+  config.depth_levels = 1;
+  DenseOdometry odometry(config, kCamera);
+  const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  Frame f = render(T_world_camera);
+  ASSERT_EQ(odometry.track(0, f.gray, f.depth_m).status, TrackingStatus::kFirstFrame);
+  for (int k = 1; k <= 3; ++k) {
+    T_world_camera = T_world_camera * step;
+    f = render(T_world_camera);
+    const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    EXPECT_LT(translation_error(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+  }
+}
+
 TEST(DenseOdometry, KeyframeCheckKeepsTheKeyframeChainOnKnownMotion) {
   // GIVEN frame to keyframe with the check, a camera moving 1 cm and 0.4 deg per frame
   OdometryConfig config;
@@ -267,7 +287,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   const YAML::Node good = YAML::Load(
       "{finest_level: 0, reference_mode: frame_to_keyframe, use_motion_prior: true,"
       " use_depth_term: true, depth_point_stride: 3, use_rotation_prior: false,"
-      " keyframe_check: true, keyframe_check_max_rotation_deg: 1.0}");
+      " keyframe_check: true, keyframe_check_max_rotation_deg: 1.0, depth_levels: 2}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
@@ -279,6 +299,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_FALSE(config.use_rotation_prior);
   EXPECT_TRUE(config.keyframe_check);
   EXPECT_DOUBLE_EQ(config.keyframe_check_max_rotation_deg, 1.0);
+  EXPECT_EQ(config.depth_levels, 2);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
@@ -296,6 +317,9 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{max_iterations: 3}", "odometry.max_iterations is not a known key");
   expect_error("{depth_noise_per_m: 0}", "odometry.depth_noise_per_m = 0, expected > 0");
   expect_error("{depth_point_stride: 0}", "odometry.depth_point_stride");
+  expect_error("{depth_levels: 4}",  // 4 levels, finest 1: three optimised levels
+               "odometry.depth_levels = 4, expected <= pyramid_levels - finest_level (3)");
+  expect_error("{depth_levels: -1}", "odometry.depth_levels = -1");
   expect_error("{min_depth_m: 2.0, max_depth_m: 1.5}",
                "onboard.yaml: odometry.max_depth_m = 1.5, expected > min_depth_m (2)");
 }

@@ -162,5 +162,66 @@ TEST(AccumulateRows, MatchesDenseSums) {
   EXPECT_NEAR(sums.offset, oo, 1e-3 * oo);
 }
 
+TEST(AccumulateDepthRows, MatchesRowsFormedExplicitly) {
+  // The fused depth rows against the same rows built with depth_jacobian_from and summed by
+  // accumulate_rows: the whitened row c_z (r_Z, J_Z) + c_i (r_I, J_I), offset Jacobian c_i.
+  constexpr int kRows = 600;
+  const Warp T{0.9998f,  -0.0175f, 0.0087f, 0.0174f, 0.9998f, 0.0052f,
+               -0.0088f, -0.0050f, 0.9999f, 0.01f,   -0.005f, 0.02f};
+  std::vector<float> q[3], p[3], ji[6], jrow[6], rz(kRows), ri(kRows), cz(kRows), ci(kRows),
+      w(kRows), r(kRows);
+  for (auto* v : {&q[0], &q[1], &q[2], &p[0], &p[1], &p[2]}) v->resize(kRows);
+  for (int k = 0; k < 6; ++k) {
+    ji[k].resize(kRows);
+    jrow[k].resize(kRows);
+  }
+  for (int i = 0; i < kRows; ++i) {
+    const auto f = static_cast<float>(i);
+    for (int k = 0; k < 3; ++k) {
+      q[k][i] = std::sin(0.07f * f * static_cast<float>(k + 1));
+      p[k][i] = (k == 2 ? 2.0f : 0.0f) + std::cos(0.11f * f * static_cast<float>(k + 2));
+    }
+    for (int k = 0; k < 6; ++k) ji[k][i] = std::cos(0.03f * f * static_cast<float>(k + 1));
+    rz[i] = std::sin(0.05f * f);
+    ri[i] = std::cos(0.09f * f);
+    cz[i] = (i % 7 == 0) ? 0.0f : 0.8f;   // some rows without depth
+    ci[i] = (i % 3 == 0) ? 0.0f : -0.3f;  // some with depth alone
+    w[i] = 0.5f + 0.4f * std::sin(0.3f * f);
+    float jz[6];
+    depth_jacobian_from(q[0][i], q[1][i], q[2][i], T, p[0][i], p[1][i], p[2][i], jz);
+    for (int k = 0; k < 6; ++k) jrow[k][i] = cz[i] * jz[k] + ci[i] * ji[k][i];
+    r[i] = cz[i] * rz[i] + ci[i] * ri[i];
+  }
+  const float* J[6] = {jrow[0].data(), jrow[1].data(), jrow[2].data(),
+                       jrow[3].data(), jrow[4].data(), jrow[5].data()};
+  RowSums expected;
+  accumulate_rows(J, r.data(), w.data(), kRows, expected, ci.data());
+  DepthRows rows;
+  for (int k = 0; k < 3; ++k) rows.d_rz_d_q[k] = q[k].data();
+  rows.px = p[0].data();
+  rows.py = p[1].data();
+  rows.pz = p[2].data();
+  rows.rz = rz.data();
+  rows.ri = ri.data();
+  for (int k = 0; k < 6; ++k) rows.ji[k] = ji[k].data();
+  rows.c_z = cz.data();
+  rows.c_i = ci.data();
+  rows.T = T;
+  RowSums fused;
+  accumulate_depth_rows(rows, w.data(), kRows, fused);
+  for (int k = 0; k < 21; ++k)
+    EXPECT_NEAR(fused.H[k], expected.H[k], 1e-4 * (1.0 + std::abs(expected.H[k])));
+  for (int k = 0; k < 6; ++k) {
+    EXPECT_NEAR(fused.g[k], expected.g[k], 1e-4 * (1.0 + std::abs(expected.g[k])));
+    EXPECT_NEAR(fused.pose_offset[k], expected.pose_offset[k],
+                1e-4 * (1.0 + std::abs(expected.pose_offset[k])));
+  }
+  EXPECT_NEAR(fused.offset, expected.offset, 1e-4 * (1.0 + expected.offset));
+  EXPECT_NEAR(fused.g_offset, expected.g_offset, 1e-4 * (1.0 + std::abs(expected.g_offset)));
+  EXPECT_NEAR(fused.weighted_error, expected.weighted_error,
+              1e-4 * (1.0 + expected.weighted_error));
+  EXPECT_GT(expected.H[0], 1.0);  // the rows are not all zero
+}
+
 }  // namespace
 }  // namespace hq::odometry::detail
