@@ -14,14 +14,14 @@ namespace hq::link::test {
 // Every discovered test runs in its own process (gtest_discover_tests); a pid-based domain id
 // keeps parallel ctest runs, and other engineers' processes, from seeing each other's samples.
 inline int private_domain_id() {
-  static const int domain_id = [] {
+  static const int kDomainId = [] {
     setenv("CYCLONEDDS_URI",
            "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
            "</Interfaces></General></Domain></CycloneDDS>",
            1);
     return 1 + static_cast<int>(getpid() % 200);
   }();
-  return domain_id;
+  return kDomainId;
 }
 
 // Generous bound for anything that should happen at once on loopback; only a failure waits it.
