@@ -119,12 +119,12 @@ int tag_depth_points(const cv::Mat& depth_m, const geometry::PinholeCamera& came
 }  // namespace
 
 const std::vector<std::string>& tag_families() {
-  static const std::vector<std::string> names = [] {
+  static const std::vector<std::string> kNames = [] {
     std::vector<std::string> out;
     for (const FamilyName& f : kFamilies) out.emplace_back(f.name);
     return out;
   }();
-  return names;
+  return kNames;
 }
 
 void read_config(config::StrictMap& section, MarkerDetectorConfig& out) {
@@ -189,16 +189,16 @@ double corner_reprojection(const geometry::PinholeCamera& camera,
   double sum_sq = 0.0;
   for (int k = 0; k < 4; ++k) {
     const Eigen::Vector3d p_C = T_camera_marker * p_M[static_cast<std::size_t>(k)];
-    Eigen::Matrix<double, 2, 3> d_uv_d_pC;
+    Eigen::Matrix<double, 2, 3> d_uv_d_p_C;
     const Eigen::Vector2d uv =
-        camera.project(p_C, d_residual_d_xi != nullptr ? &d_uv_d_pC : nullptr);
+        camera.project(p_C, d_residual_d_xi != nullptr ? &d_uv_d_p_C : nullptr);
     sum_sq += (uv - corners_px[static_cast<std::size_t>(k)]).squaredNorm();
     if (d_residual_d_xi != nullptr) {
       // p_C = R (p_M + v + omega x p_M) + t for T * exp(xi) to first order.
-      Eigen::Matrix<double, 3, 6> d_pC_d_xi;
-      d_pC_d_xi.leftCols<3>() = R_CM;
-      d_pC_d_xi.rightCols<3>() = -R_CM * geometry::hat(p_M[static_cast<std::size_t>(k)]);
-      d_residual_d_xi->middleRows<2>(2 * k) = d_uv_d_pC * d_pC_d_xi;
+      Eigen::Matrix<double, 3, 6> d_p_C_d_xi;
+      d_p_C_d_xi.leftCols<3>() = R_CM;
+      d_p_C_d_xi.rightCols<3>() = -R_CM * geometry::hat(p_M[static_cast<std::size_t>(k)]);
+      d_residual_d_xi->middleRows<2>(2 * k) = d_uv_d_p_C * d_p_C_d_xi;
     }
   }
   return std::sqrt(sum_sq / 4.0);
@@ -277,9 +277,9 @@ DetectionStatus MarkerDetector::detect(const cv::Mat& image, const cv::Mat& dept
     for (std::size_t k = 0; k < 4; ++k) {
       d.corners_px[k] = Eigen::Vector2d(polygon[k].get_u(), polygon[k].get_v());
     }
-    vpHomogeneousMatrix cMo;
-    if (!im.detector.getPose(i, d.tag_size_m, im.cam, cMo)) continue;
-    d.T_camera_marker = to_eigen(cMo);
+    vpHomogeneousMatrix visp_T_C_M;
+    if (!im.detector.getPose(i, d.tag_size_m, im.cam, visp_T_C_M)) continue;
+    d.T_camera_marker = to_eigen(visp_T_C_M);
 
     if (use_depth && valid_depth_ratio(depth_m, d.corners_px) >= config_.min_valid_depth_ratio) {
       // ViSP's plane-based pose (computePlanarObjectPoseFromRGBD) seeds the fusion: it ends
@@ -288,11 +288,11 @@ DetectionStatus MarkerDetector::detect(const cv::Mat& image, const cv::Mat& dept
       im.sizes[d.id] = d.tag_size_m;
       const std::vector<std::vector<vpPoint>> points =
           im.detector.getTagsPoints3D(std::vector<int>{d.id}, im.sizes);
-      vpHomogeneousMatrix cMo_depth;
+      vpHomogeneousMatrix visp_T_C_M_depth;
       double confidence = 0.0;
       if (vpPose::computePlanarObjectPoseFromRGBD(im.depth_vp, polygon, im.cam, points[0],
-                                                  cMo_depth, &confidence)) {
-        const Eigen::Isometry3d T = to_eigen(cMo_depth);
+                                                  visp_T_C_M_depth, &confidence)) {
+        const Eigen::Isometry3d T = to_eigen(visp_T_C_M_depth);
         if (T.matrix().allFinite() && T.translation().z() > 0.0) d.T_camera_marker = T;
       }
       const int n_points =
@@ -312,8 +312,8 @@ DetectionStatus MarkerDetector::detect(const cv::Mat& image, const cv::Mat& dept
       const double sigma2_sample = 8.0 * d.reprojection_rms_px * d.reprojection_rms_px / 2.0;
       const double sigma2 =
           std::max(sigma2_sample, config_.corner_sigma_floor_px * config_.corner_sigma_floor_px);
-      const Matrix6d JtJ = J.transpose() * J;
-      d.covariance = sigma2 * JtJ.ldlt().solve(Matrix6d::Identity());
+      const Matrix6d Jt_J = J.transpose() * J;
+      d.covariance = sigma2 * Jt_J.ldlt().solve(Matrix6d::Identity());
     }
     if (!d.covariance.allFinite()) continue;
     detections_.push_back(d);

@@ -217,7 +217,7 @@ TEST(MarkerDetector, NonFiniteIntrinsicsAreRejected) {
 }
 
 std::string write_temp(const std::string& name, const std::string& text) {
-  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  std::string path = (std::filesystem::temp_directory_path() / name).string();
   std::ofstream(path) << text;
   return path;
 }

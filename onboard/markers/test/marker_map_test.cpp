@@ -47,11 +47,11 @@ geometry::Matrix6d odometry_covariance() {
 class MarkerMapFlight : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    world_ = new sim::World(sim::load_world("onboard/sim/worlds/marker_grid.yaml"));
+    world = new sim::World(sim::load_world("onboard/sim/worlds/marker_grid.yaml"));
     const sim::CameraParams camera = sim::default_sim_config(640, 480).camera;
-    sim::RgbdRenderer renderer(camera, *world_, 21);
+    sim::RgbdRenderer renderer(camera, *world, 21);
     MarkerDetector detector(MarkerDetectorConfig{}, camera.pinhole);
-    frames_ = new std::vector<FrameRecord>();
+    frames = new std::vector<FrameRecord>();
     std::mt19937 rng(9);
     std::normal_distribution<double> noise(0.0, 1.0);
     Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
@@ -83,14 +83,14 @@ class MarkerMapFlight : public ::testing::Test {
         }
         f.T_O_C = T_O_C;
         T_world_camera_prev = T_world_camera;
-        frames_->push_back(f);
+        frames->push_back(f);
         ++index;
       }
     }
   }
   static void TearDownTestSuite() {
-    delete world_;
-    delete frames_;
+    delete world;
+    delete frames;
   }
 
   struct MapError {
@@ -102,10 +102,10 @@ class MarkerMapFlight : public ::testing::Test {
     MapError e;
     const int gauge = map.ids().front();
     Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
-    for (const sim::Marker& m : world_->markers) {
+    for (const sim::Marker& m : world->markers) {
       if (m.id == gauge) T_world_map = test::T_world_marker(m);
     }
-    for (const sim::Marker& m : world_->markers) {
+    for (const sim::Marker& m : world->markers) {
       const auto T = map.T_map_marker(m.id);
       if (!T) continue;
       const double err = ((T_world_map * *T).translation() - m.center_world_m).norm();
@@ -118,17 +118,17 @@ class MarkerMapFlight : public ::testing::Test {
   }
   static MarkerMap build(const MarkerMapConfig& config) {
     MarkerMap map(config);
-    for (const FrameRecord& f : *frames_) {
+    for (const FrameRecord& f : *frames) {
       map.add_frame(f.t_ns, f.detections, f.T_O_C, odometry_covariance());
     }
     return map;
   }
 
-  static sim::World* world_;
-  static std::vector<FrameRecord>* frames_;
+  static sim::World* world;
+  static std::vector<FrameRecord>* frames;
 };
-sim::World* MarkerMapFlight::world_ = nullptr;
-std::vector<FrameRecord>* MarkerMapFlight::frames_ = nullptr;
+sim::World* MarkerMapFlight::world = nullptr;
+std::vector<FrameRecord>* MarkerMapFlight::frames = nullptr;
 
 TEST_F(MarkerMapFlight, OptimisationReducesTheChainedDrift) {
   MarkerMapConfig chained_only;
@@ -141,8 +141,8 @@ TEST_F(MarkerMapFlight, OptimisationReducesTheChainedDrift) {
   MarkerMap incremental = build(MarkerMapConfig{});
   const MapError online = error_of(incremental);
 
-  std::printf("[ marker map ] %zu frames, %d keyframes, %d of %zu markers mapped\n",
-              frames_->size(), map.keyframes(), before.mapped, world_->markers.size());
+  std::printf("[ marker map ] %zu frames, %d keyframes, %d of %zu markers mapped\n", frames->size(),
+              map.keyframes(), before.mapped, world->markers.size());
   std::printf("[ marker map ] chained (before): mean %.1f max %.1f mm\n", 1e3 * before.mean_m,
               1e3 * before.max_m);
   std::printf("[ marker map ] incremental     : mean %.1f max %.1f mm\n", 1e3 * online.mean_m,
@@ -165,7 +165,7 @@ TEST_F(MarkerMapFlight, OptimisationReducesTheChainedDrift) {
 TEST_F(MarkerMapFlight, SavedMapLoadsBackIdentically) {
   MarkerMap map = build(MarkerMapConfig{});
   map.optimise();
-  const std::string path = (std::filesystem::temp_directory_path() / "hq_marker_map.yaml").string();
+  std::string path = (std::filesystem::temp_directory_path() / "hq_marker_map.yaml").string();
   map.save(path);
   const MarkerMap loaded = MarkerMap::load(path);
   ASSERT_EQ(loaded.ids(), map.ids());
@@ -178,7 +178,7 @@ TEST_F(MarkerMapFlight, SavedMapLoadsBackIdentically) {
 }
 
 std::string write_temp(const std::string& text) {
-  const std::string path = (std::filesystem::temp_directory_path() / "hq_map_bad.yaml").string();
+  std::string path = (std::filesystem::temp_directory_path() / "hq_map_bad.yaml").string();
   std::ofstream(path) << text;
   return path;
 }

@@ -109,16 +109,9 @@ void ModeController::set_operator_command(const OperatorCommand& command) {
   have_operator_command_ = true;
 }
 
-ModeOutput ModeController::step(std::int64_t t_ns,
-                                const std::optional<Eigen::Vector3d>& v_est_H_mps,
-                                const Eigen::Vector3d& v_obs_horizontal_mps) {
-  ModeOutput out;
-  out.mode = mode_;
-
-  // The mode's own command (v*_des before the ramp).
-  Source source = Source::kHover;
-  Eigen::Vector3d v_target = Eigen::Vector3d::Zero();
-  double yaw_target = 0.0;
+// The mode's own command (v*_des before the ramp).
+ModeController::Target ModeController::target(std::int64_t t_ns, ModeOutput& out) {
+  Target wanted;
   if (takeoff_active_ && std::isfinite(height_m_) &&
       height_m_ >= config_.takeoff_target_height_m - kTakeoffReachedM) {
     // At the take-off height: the requested mode takes over (ramping from the slow final climb).
@@ -128,9 +121,9 @@ ModeOutput ModeController::step(std::int64_t t_ns,
     case Mode::kTeleop: {
       const double age_s = 1e-9 * static_cast<double>(t_ns - operator_command_.t_ns);
       if (have_operator_command_ && age_s <= config_.teleop_timeout_s) {
-        source = Source::kOperator;
-        v_target = operator_command_.v_H_mps;
-        yaw_target = operator_command_.yaw_rate_radps;
+        wanted.source = Source::kOperator;
+        wanted.v_H_mps = operator_command_.v_H_mps;
+        wanted.yaw_rate_radps = operator_command_.yaw_rate_radps;
       } else {
         out.teleop_timed_out = true;
       }
@@ -147,28 +140,41 @@ ModeOutput ModeController::step(std::int64_t t_ns,
             std::clamp(config_.takeoff_speed_mps * to_go_m / config_.takeoff_slowdown_m,
                        std::min(2.0 * config_.takeoff_climb_mps, config_.takeoff_speed_mps),
                        config_.takeoff_speed_mps);
-        source = Source::kTakeoff;
-        v_target = Eigen::Vector3d(0.0, 0.0, -climb_mps);
+        wanted.source = Source::kTakeoff;
+        wanted.v_H_mps = Eigen::Vector3d(0.0, 0.0, -climb_mps);
       }
       break;
     case Mode::kLand:
-      source = Source::kLand;
-      v_target = Eigen::Vector3d(0.0, 0.0, config_.land_speed_mps);
+      wanted.source = Source::kLand;
+      wanted.v_H_mps = Eigen::Vector3d(0.0, 0.0, config_.land_speed_mps);
       break;
     case Mode::kMarker:
     case Mode::kExplore: {
       VelocityProvider* provider = (mode_ == Mode::kMarker) ? marker_ : explore_;
       const ModeCommand command = provider->desired(t_ns);
       if (command.valid && command.v_H_mps.allFinite() && std::isfinite(command.yaw_rate_radps)) {
-        source = Source::kProvider;
-        v_target = command.v_H_mps;
-        yaw_target = command.yaw_rate_radps;
+        wanted.source = Source::kProvider;
+        wanted.v_H_mps = command.v_H_mps;
+        wanted.yaw_rate_radps = command.yaw_rate_radps;
       } else {
         out.provider_failed = true;
       }
       break;
     }
   }
+  return wanted;
+}
+
+ModeOutput ModeController::step(std::int64_t t_ns,
+                                const std::optional<Eigen::Vector3d>& v_est_H_mps,
+                                const Eigen::Vector3d& v_obs_horizontal_mps) {
+  ModeOutput out;
+  out.mode = mode_;
+
+  const Target wanted = target(t_ns, out);
+  const Source source = wanted.source;
+  const Eigen::Vector3d& v_target = wanted.v_H_mps;
+  const double yaw_target = wanted.yaw_rate_radps;
   // A change of source inside a mode (teleop timing out, a provider failing) ramps too.
   if (source != last_source_) ramping_ = true;
   last_source_ = source;

@@ -235,20 +235,20 @@ UpdateResult NavigationFilter::predict(std::int64_t t_ns, const Vector3d& gyro_r
   const Vector3d omega = 0.5 * (gyro_prev_radps_ + gyro_radps) - state_.gyro_bias_radps;
   const Vector3d f = 0.5 * (accel_prev_mps2_ + accel_mps2) - state_.accel_bias_mps2;
   const Matrix3d R0 = state_.q_W_B.toRotationMatrix();
-  const Matrix3d dR = exp_so3(omega * dt);
+  const Matrix3d delta_R = exp_so3(omega * dt);
   const Matrix3d R_mid = R0 * exp_so3(0.5 * dt * omega);
   const Vector3d a_world = R_mid * f + Vector3d(0.0, 0.0, config_.gravity_mps2);
 
   state_.p_W_m += state_.v_W_mps * dt + 0.5 * a_world * dt * dt;
   state_.v_W_mps += a_world * dt;
-  state_.q_W_B = Eigen::Quaterniond(R0 * dR).normalized();
+  state_.q_W_B = Eigen::Quaterniond(R0 * delta_R).normalized();
 
   // Error dynamics (local attitude error, Solà 2017 §5.3.3), first order in dt.
   ErrorCovariance F = ErrorCovariance::Identity();
   F.block<3, 3>(kIndexPosition, kIndexVelocity) = Matrix3d::Identity() * dt;
   F.block<3, 3>(kIndexVelocity, kIndexAttitude) = -R_mid * hat(f) * dt;
   F.block<3, 3>(kIndexVelocity, kIndexAccelBias) = -R_mid * dt;
-  F.block<3, 3>(kIndexAttitude, kIndexAttitude) = dR.transpose();
+  F.block<3, 3>(kIndexAttitude, kIndexAttitude) = delta_R.transpose();
   F.block<3, 3>(kIndexAttitude, kIndexGyroBias) = -Matrix3d::Identity() * dt;
   ErrorCovariance P_next = F * P_ * F.transpose();
   const auto add_noise = [&P_next, dt](int index, double density) {

@@ -187,7 +187,13 @@ class Scenario {
   }
   [[nodiscard]] double mean_nees() const { return nees_sum_ / samples_; }
   [[nodiscard]] Truth truth() const { return figure_eight(to_s(t_ns_)); }
+  NavigationFilter& filter() { return filter_; }
+  [[nodiscard]] const ScenarioOptions& options() const { return options_; }
+  [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
+  [[nodiscard]] double position_error_m() const { return position_error_m_; }
+  [[nodiscard]] long samples() const { return samples_; }
 
+ private:
   ScenarioOptions options_;
   NavigationFilter filter_;
   std::mt19937_64 rng_;
@@ -272,7 +278,7 @@ TEST(MeasurementModels, MarkerJacobianMatchesNumeric) {
 TEST(NavigationFilter, TracksFigureEightWithMarkersAndVelocity) {
   Scenario run;
   run.run_to(30.0);
-  const NavigationHealth health = run.filter_.health();
+  const NavigationHealth health = run.filter().health();
   std::printf(
       "figure-eight 30 s: position RMS %.4f m (raw marker %.4f m), velocity RMS %.4f m/s "
       "(raw RGB-D %.4f m/s), sigma_p %.4f m, markers %ld accepted %ld gated, velocities %ld "
@@ -293,26 +299,26 @@ TEST(NavigationFilter, TracksFigureEightWithMarkersAndVelocity) {
 TEST(NavigationFilter, BiasesConvergeTowardsTheInjectedOnes) {
   Scenario run;
   run.run_to(5.0);
-  const Vector3d bg_error_5s = run.filter_.state().gyro_bias_radps - run.options_.gyro_bias_radps;
-  const Vector3d ba_error_5s = run.filter_.state().accel_bias_mps2 - run.options_.accel_bias_mps2;
+  const Vector3d bg_error_5s = run.filter().state().gyro_bias_radps - run.options().gyro_bias_radps;
+  const Vector3d ba_error_5s = run.filter().state().accel_bias_mps2 - run.options().accel_bias_mps2;
   run.run_to(40.0);
-  const NominalState& s = run.filter_.state();
-  const Vector3d bg_error = s.gyro_bias_radps - run.options_.gyro_bias_radps;
-  const Vector3d ba_error = s.accel_bias_mps2 - run.options_.accel_bias_mps2;
-  const ErrorCovariance& P = run.filter_.covariance();
+  const NominalState& s = run.filter().state();
+  const Vector3d bg_error = s.gyro_bias_radps - run.options().gyro_bias_radps;
+  const Vector3d ba_error = s.accel_bias_mps2 - run.options().accel_bias_mps2;
+  const ErrorCovariance& P = run.filter().covariance();
   std::printf("gyro bias est [%.4f %.4f %.4f] true [%.4f %.4f %.4f] rad/s, |error| %.4f at 5 s\n",
               s.gyro_bias_radps.x(), s.gyro_bias_radps.y(), s.gyro_bias_radps.z(),
-              run.options_.gyro_bias_radps.x(), run.options_.gyro_bias_radps.y(),
-              run.options_.gyro_bias_radps.z(), bg_error_5s.norm());
+              run.options().gyro_bias_radps.x(), run.options().gyro_bias_radps.y(),
+              run.options().gyro_bias_radps.z(), bg_error_5s.norm());
   std::printf("accel bias est [%.4f %.4f %.4f] true [%.4f %.4f %.4f] m/s^2, |error| %.4f at 5 s\n",
               s.accel_bias_mps2.x(), s.accel_bias_mps2.y(), s.accel_bias_mps2.z(),
-              run.options_.accel_bias_mps2.x(), run.options_.accel_bias_mps2.y(),
-              run.options_.accel_bias_mps2.z(), ba_error_5s.norm());
+              run.options().accel_bias_mps2.x(), run.options().accel_bias_mps2.y(),
+              run.options().accel_bias_mps2.z(), ba_error_5s.norm());
   std::printf("bias |error| at 40 s: gyro %.5f rad/s (of %.4f), accel %.4f m/s^2 (of %.4f)\n",
-              bg_error.norm(), run.options_.gyro_bias_radps.norm(), ba_error.norm(),
-              run.options_.accel_bias_mps2.norm());
-  EXPECT_LT(bg_error.norm(), 0.2 * run.options_.gyro_bias_radps.norm());
-  EXPECT_LT(ba_error.norm(), 0.3 * run.options_.accel_bias_mps2.norm());
+              bg_error.norm(), run.options().gyro_bias_radps.norm(), ba_error.norm(),
+              run.options().accel_bias_mps2.norm());
+  EXPECT_LT(bg_error.norm(), 0.2 * run.options().gyro_bias_radps.norm());
+  EXPECT_LT(ba_error.norm(), 0.3 * run.options().accel_bias_mps2.norm());
   for (int i = 0; i < 3; ++i) {
     EXPECT_LT(std::abs(bg_error(i)), 4.0 * std::sqrt(P(kIndexGyroBias + i, kIndexGyroBias + i)));
     EXPECT_LT(std::abs(ba_error(i)), 4.0 * std::sqrt(P(kIndexAccelBias + i, kIndexAccelBias + i)));
@@ -322,83 +328,83 @@ TEST(NavigationFilter, BiasesConvergeTowardsTheInjectedOnes) {
 TEST(NavigationFilter, OutlierMarkerIsGatedAndCountedWithoutTouchingTheState) {
   Scenario run;
   run.run_to(10.0);
-  const NominalState before = run.filter_.state();
-  const ErrorCovariance P_before = run.filter_.covariance();
+  const NominalState before = run.filter().state();
+  const ErrorCovariance P_before = run.filter().covariance();
   Eigen::Isometry3d T_WC = run.marker_truth(run.truth());
   T_WC.translation() += Vector3d(1.0, 0.0, 0.0);
-  const long gated_before = run.filter_.health().markers_gated;
-  const UpdateResult result = run.filter_.update_marker(run.t_ns_, T_WC, run.marker_covariance());
+  const long gated_before = run.filter().health().markers_gated;
+  const UpdateResult result = run.filter().update_marker(run.t_ns(), T_WC, run.marker_covariance());
   std::printf("outlier marker 1 m off: NIS %.1f against gate %.2f\n", result.nis,
-              run.filter_.config().marker_gate_chi2);
+              run.filter().config().marker_gate_chi2);
   EXPECT_EQ(result.status, UpdateStatus::kGated);
   EXPECT_THAT(result.reason, HasSubstr("Mahalanobis"));
-  EXPECT_EQ(run.filter_.health().markers_gated, gated_before + 1);
-  EXPECT_EQ(run.filter_.state().p_W_m, before.p_W_m);
-  EXPECT_EQ(run.filter_.state().v_W_mps, before.v_W_mps);
-  EXPECT_EQ(run.filter_.state().q_W_B.coeffs(), before.q_W_B.coeffs());
-  EXPECT_EQ(run.filter_.covariance(), P_before);
+  EXPECT_EQ(run.filter().health().markers_gated, gated_before + 1);
+  EXPECT_EQ(run.filter().state().p_W_m, before.p_W_m);
+  EXPECT_EQ(run.filter().state().v_W_mps, before.v_W_mps);
+  EXPECT_EQ(run.filter().state().q_W_B.coeffs(), before.q_W_B.coeffs());
+  EXPECT_EQ(run.filter().covariance(), P_before);
   run.run_to(12.0);
-  EXPECT_LT(run.position_error_m_, 3.0 * run.options_.marker_sigma_m);
+  EXPECT_LT(run.position_error_m(), 3.0 * run.options().marker_sigma_m);
 }
 
 TEST(NavigationFilter, MarkersWithheldFiveSecondsDriftBoundedThenReconverge) {
   Scenario run;
   run.run_to(15.0);
   // Steady-state bound: twice the position sigma with markers (about the RMS of the first test).
-  const double sigma_with_markers = run.filter_.health().position_sigma_m;
+  const double sigma_with_markers = run.filter().health().position_sigma_m;
   const double bound_m = 2.0 * sigma_with_markers;
-  ASSERT_LT(run.position_error_m_, bound_m);
+  ASSERT_LT(run.position_error_m(), bound_m);
   double sigma_prev = sigma_with_markers;
   bool monotonic = true;
   // GIVEN no marker from 15 s on, WHEN flying 6 s on IMU and RGB-D velocity only.
-  const long velocities_before = run.filter_.health().velocities_accepted;
+  const long velocities_before = run.filter().health().velocities_accepted;
   for (int i = 1; i <= 60; ++i) {
     run.run_to(15.0 + 0.1 * i, false);
-    const double sigma = run.filter_.health().position_sigma_m;
+    const double sigma = run.filter().health().position_sigma_m;
     monotonic = monotonic && sigma > sigma_prev;
     sigma_prev = sigma;
     if (i == 49) {
-      EXPECT_FALSE(run.filter_.health().degraded) << "4.9 s without marker";
+      EXPECT_FALSE(run.filter().health().degraded) << "4.9 s without marker";
     }
   }
-  const NavigationHealth gap = run.filter_.health();
+  const NavigationHealth gap = run.filter().health();
   std::printf(
       "6 s without markers: drift %.4f m, sigma_p %.4f m, time since marker %.2f s, "
       "velocities accepted meanwhile %ld\n",
-      run.position_error_m_, gap.position_sigma_m, gap.time_since_marker_s,
+      run.position_error_m(), gap.position_sigma_m, gap.time_since_marker_s,
       gap.velocities_accepted - velocities_before);
   EXPECT_TRUE(monotonic) << "position sigma must grow without markers";
   EXPECT_TRUE(gap.degraded);
   EXPECT_GE(gap.time_since_marker_s, 5.0);
   EXPECT_GT(gap.velocities_accepted - velocities_before, 150);
-  EXPECT_LT(run.position_error_m_, 0.3);
-  EXPECT_LT(run.position_error_m_, 3.0 * gap.position_sigma_m);
-  ASSERT_GT(run.position_error_m_, bound_m) << "the gap must have left the bound to test recovery";
+  EXPECT_LT(run.position_error_m(), 0.3);
+  EXPECT_LT(run.position_error_m(), 3.0 * gap.position_sigma_m);
+  ASSERT_GT(run.position_error_m(), bound_m) << "the gap must have left the bound to test recovery";
   // WHEN markers return THEN the error falls back below the bound within a second, and two
   // seconds later the covariance is back near its value with markers.
   double recovered_after_s = -1.0;
   for (int i = 1; i <= 20; ++i) {
     run.run_to(21.0 + 0.1 * i, true);
-    if (recovered_after_s < 0 && run.position_error_m_ < bound_m) recovered_after_s = 0.1 * i;
+    if (recovered_after_s < 0 && run.position_error_m() < bound_m) recovered_after_s = 0.1 * i;
   }
   std::printf(
       "markers back: error below %.4f m (2 sigma_p before the gap) after %.1f s, "
       "sigma_p %.4f m\n",
-      bound_m, recovered_after_s, run.filter_.health().position_sigma_m);
+      bound_m, recovered_after_s, run.filter().health().position_sigma_m);
   EXPECT_GT(recovered_after_s, 0.0);
   EXPECT_LE(recovered_after_s, 1.0);
-  EXPECT_FALSE(run.filter_.health().degraded);
-  EXPECT_LT(run.filter_.health().position_sigma_m, 1.5 * sigma_with_markers);
+  EXPECT_FALSE(run.filter().health().degraded);
+  EXPECT_LT(run.filter().health().position_sigma_m, 1.5 * sigma_with_markers);
 }
 
 TEST(NavigationFilter, NonFiniteInputsAreRejectedWithReasonAndStateUntouched) {
   Scenario run;
   run.run_to(3.0);
-  const NominalState before = run.filter_.state();
-  const ErrorCovariance P_before = run.filter_.covariance();
+  const NominalState before = run.filter().state();
+  const ErrorCovariance P_before = run.filter().covariance();
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
-  const std::int64_t t = run.t_ns_;
+  const std::int64_t t = run.t_ns();
   const Vector3d ok(0.0, 0.0, -kGravity);
   Eigen::Isometry3d T_WC = run.marker_truth(run.truth());
   Eigen::Isometry3d T_nan = T_WC;
@@ -410,13 +416,13 @@ TEST(NavigationFilter, NonFiniteInputsAreRejectedWithReasonAndStateUntouched) {
   Matrix3d V_inf = run.velocity_covariance();
   V_inf(0, 0) = inf;
   const UpdateResult results[] = {
-      run.filter_.predict(t + kImuPeriodNs, Vector3d(nan, 0, 0), ok),
-      run.filter_.predict(t + kImuPeriodNs, Vector3d::Zero(), Vector3d(0, inf, 0)),
-      run.filter_.update_marker(t, T_nan, run.marker_covariance()),
-      run.filter_.update_marker(t, T_inf, run.marker_covariance()),
-      run.filter_.update_marker(t, T_WC, C_nan),
-      run.filter_.update_velocity(t, Vector3d(0, nan, 0), run.velocity_covariance()),
-      run.filter_.update_velocity(t, Vector3d::Zero(), V_inf),
+      run.filter().predict(t + kImuPeriodNs, Vector3d(nan, 0, 0), ok),
+      run.filter().predict(t + kImuPeriodNs, Vector3d::Zero(), Vector3d(0, inf, 0)),
+      run.filter().update_marker(t, T_nan, run.marker_covariance()),
+      run.filter().update_marker(t, T_inf, run.marker_covariance()),
+      run.filter().update_marker(t, T_WC, C_nan),
+      run.filter().update_velocity(t, Vector3d(0, nan, 0), run.velocity_covariance()),
+      run.filter().update_velocity(t, Vector3d::Zero(), V_inf),
   };
   for (const UpdateResult& r : results) {
     EXPECT_EQ(r.status, UpdateStatus::kRejected) << r.reason;
@@ -427,16 +433,16 @@ TEST(NavigationFilter, NonFiniteInputsAreRejectedWithReasonAndStateUntouched) {
   EXPECT_THAT(results[0].reason, HasSubstr("non-finite IMU"));
   EXPECT_THAT(results[2].reason, HasSubstr("non-finite marker"));
   EXPECT_THAT(results[5].reason, HasSubstr("non-finite velocity"));
-  EXPECT_EQ(run.filter_.health().inputs_rejected, 7);
-  EXPECT_EQ(run.filter_.state().p_W_m, before.p_W_m);
-  EXPECT_EQ(run.filter_.state().v_W_mps, before.v_W_mps);
-  EXPECT_EQ(run.filter_.state().q_W_B.coeffs(), before.q_W_B.coeffs());
-  EXPECT_EQ(run.filter_.covariance(), P_before);
-  EXPECT_EQ(run.filter_.t_ns(), t);
+  EXPECT_EQ(run.filter().health().inputs_rejected, 7);
+  EXPECT_EQ(run.filter().state().p_W_m, before.p_W_m);
+  EXPECT_EQ(run.filter().state().v_W_mps, before.v_W_mps);
+  EXPECT_EQ(run.filter().state().q_W_B.coeffs(), before.q_W_B.coeffs());
+  EXPECT_EQ(run.filter().covariance(), P_before);
+  EXPECT_EQ(run.filter().t_ns(), t);
   // And it keeps working on good data.
   run.run_to(6.0);
-  EXPECT_TRUE(run.filter_.covariance().allFinite());
-  EXPECT_LT(run.position_error_m_, 3.0 * run.options_.marker_sigma_m);
+  EXPECT_TRUE(run.filter().covariance().allFinite());
+  EXPECT_LT(run.position_error_m(), 3.0 * run.options().marker_sigma_m);
 }
 
 TEST(NavigationFilter, StaleAndUninitialisedInputsAreRejected) {
@@ -455,31 +461,31 @@ TEST(NavigationFilter, AnchoringOnFirstMarkerKeepsVelocityInHorizontalFrame) {
   // yaw, THEN the velocity the tracker reads (in H) does not jump.
   Scenario run;
   run.run_to(0.098);
-  ASSERT_FALSE(run.filter_.health().anchored);
-  const Vector3d v_H_before = run.filter_.v_H_mps();
+  ASSERT_FALSE(run.filter().health().anchored);
+  const Vector3d v_H_before = run.filter().v_H_mps();
   const Truth x = run.truth();
   const UpdateResult result =
-      run.filter_.anchor_to_marker(run.t_ns_, run.marker_truth(x), run.marker_covariance());
+      run.filter().anchor_to_marker(run.t_ns(), run.marker_truth(x), run.marker_covariance());
   ASSERT_TRUE(result.accepted());
-  EXPECT_TRUE(run.filter_.health().anchored);
-  EXPECT_LT((run.filter_.v_H_mps() - v_H_before).norm(), 1e-12);
-  EXPECT_LT((run.filter_.state().p_W_m - x.p_W).norm(), 1e-9);
-  EXPECT_NEAR(yaw_rad(run.filter_.state().q_W_B.toRotationMatrix()), yaw_rad(x.R_WB), 1e-9);
+  EXPECT_TRUE(run.filter().health().anchored);
+  EXPECT_LT((run.filter().v_H_mps() - v_H_before).norm(), 1e-12);
+  EXPECT_LT((run.filter().state().p_W_m - x.p_W).norm(), 1e-9);
+  EXPECT_NEAR(yaw_rad(run.filter().state().q_W_B.toRotationMatrix()), yaw_rad(x.R_WB), 1e-9);
 }
 
 TEST(NavigationFilter, NeesAveragedOverTheRunIsConsistent) {
   double nees_total = 0.0;
   long samples = 0;
-  const int kRuns = 4;
+  constexpr int kRuns = 4;
   for (int r = 0; r < kRuns; ++r) {
     ScenarioOptions options;
     options.seed = 100 + static_cast<std::uint64_t>(r);
     Scenario run(options);
     run.run_to(30.0);
     std::printf("seed %d: mean NEES (p, v, theta; 9 dof) %.2f over %ld samples\n", 100 + r,
-                run.mean_nees(), run.samples_);
-    nees_total += run.mean_nees() * static_cast<double>(run.samples_);
-    samples += run.samples_;
+                run.mean_nees(), run.samples());
+    nees_total += run.mean_nees() * static_cast<double>(run.samples());
+    samples += run.samples();
   }
   // About 1000 samples, correlated in time: a loose band around the 9-dof mean.
   const double mean = nees_total / static_cast<double>(samples);
@@ -495,7 +501,7 @@ TEST(NavigationFilter, PredictAndUpdatesAllocateNothing) {
   run.run_to(3.0);
   const long allocations = hq::testing::allocation_count() - before;
   EXPECT_EQ(allocations, 0);
-  EXPECT_GT(run.filter_.health().markers_accepted, 20);
+  EXPECT_GT(run.filter().health().markers_accepted, 20);
 }
 
 std::string write_yaml(const std::string& name, const std::string& text) {

@@ -104,6 +104,55 @@ double SeenSpaceLimiter::free_distance_m(int b, bool* obstacle) const {
   return std::isfinite(d) ? static_cast<double>(d) : -1.0;
 }
 
+void SeenSpaceLimiter::scan_depth(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
+                                  const Eigen::Vector3d& o_H) {
+  const int n = config_.bins;
+  std::fill_n(frame_obstacle_m_.begin(), n, kNone);
+  std::fill_n(frame_free_m_.begin(), n, 0.0f);
+  std::fill_n(frame_valid_.begin(), n, 0);
+  std::fill_n(frame_total_.begin(), n, 0);
+  const double band = config_.vertical_band_m;
+  const double max_range = config_.max_range_m;
+  const int stride = config_.pixel_stride;
+  for (int v = stride / 2; v < depth_m.rows; v += stride) {
+    const auto* row = depth_m.ptr<float>(v);
+    for (int u = stride / 2; u < depth_m.cols; u += stride) {
+      const Eigen::Vector3d ray_H = R_HC * camera_.ray(u, v);
+      const float z = row[u];
+      const bool valid = std::isfinite(z) && z >= config_.min_range_m && z > 0.0f;
+      if (!valid) {
+        if (ray_H.head<2>().squaredNorm() < 1e-12) continue;  // straight down: no azimuth
+        const int b = bin_of_fixed_azimuth(std::atan2(ray_H.y(), ray_H.x()) + yaw_rad_);
+        ++frame_total_[b];
+        continue;
+      }
+      const Eigen::Vector3d p_H = o_H + static_cast<double>(z) * ray_H;
+      const double r_m = p_H.head<2>().norm();
+      if (r_m < 1e-6) continue;
+      const int b = bin_of_fixed_azimuth(std::atan2(p_H.y(), p_H.x()) + yaw_rad_);
+      ++frame_total_[b];
+      ++frame_valid_[b];
+      if (std::abs(p_H.z()) <= band) {
+        if (r_m <= max_range) {
+          frame_obstacle_m_[b] = std::min(frame_obstacle_m_[b], static_cast<float>(r_m));
+        } else {
+          frame_free_m_[b] = static_cast<float>(max_range);
+        }
+        continue;
+      }
+      // Above or below the band: free until the ray left it (from the camera centre).
+      double free_m = 0.0;
+      if (std::abs(o_H.z()) <= band) {
+        const double z_exit = p_H.z() > 0.0 ? band : -band;
+        const double f = (z_exit - o_H.z()) / (p_H.z() - o_H.z());
+        free_m = (o_H.head<2>() + f * (p_H.head<2>() - o_H.head<2>())).norm();
+      }
+      free_m = std::min(free_m, max_range);
+      frame_free_m_[b] = std::max(frame_free_m_[b], static_cast<float>(free_m));
+    }
+  }
+}
+
 SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth_m,
                                          const Eigen::Isometry3d* T_O_C,
                                          const Eigen::Matrix3d& R_H_B) {
@@ -171,51 +220,8 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     return out;
   }
 
-  std::fill_n(frame_obstacle_m_.begin(), n, kNone);
-  std::fill_n(frame_free_m_.begin(), n, 0.0f);
-  std::fill_n(frame_valid_.begin(), n, 0);
-  std::fill_n(frame_total_.begin(), n, 0);
   const Eigen::Vector3d o_H = R_H_B * p_B_C_m_;  // camera centre from the body, in H
-  const double band = config_.vertical_band_m;
-  const double max_range = config_.max_range_m;
-  const int stride = config_.pixel_stride;
-  for (int v = stride / 2; v < depth_m.rows; v += stride) {
-    const auto* row = depth_m.ptr<float>(v);
-    for (int u = stride / 2; u < depth_m.cols; u += stride) {
-      const Eigen::Vector3d ray_H = R_HC * camera_.ray(u, v);
-      const float z = row[u];
-      const bool valid = std::isfinite(z) && z >= config_.min_range_m && z > 0.0f;
-      if (!valid) {
-        if (ray_H.head<2>().squaredNorm() < 1e-12) continue;  // straight down: no azimuth
-        const int b = bin_of_fixed_azimuth(std::atan2(ray_H.y(), ray_H.x()) + yaw_rad_);
-        ++frame_total_[b];
-        continue;
-      }
-      const Eigen::Vector3d p_H = o_H + static_cast<double>(z) * ray_H;
-      const double r_m = p_H.head<2>().norm();
-      if (r_m < 1e-6) continue;
-      const int b = bin_of_fixed_azimuth(std::atan2(p_H.y(), p_H.x()) + yaw_rad_);
-      ++frame_total_[b];
-      ++frame_valid_[b];
-      if (std::abs(p_H.z()) <= band) {
-        if (r_m <= max_range) {
-          frame_obstacle_m_[b] = std::min(frame_obstacle_m_[b], static_cast<float>(r_m));
-        } else {
-          frame_free_m_[b] = static_cast<float>(max_range);
-        }
-        continue;
-      }
-      // Above or below the band: free until the ray left it (from the camera centre).
-      double free_m = 0.0;
-      if (std::abs(o_H.z()) <= band) {
-        const double z_exit = p_H.z() > 0.0 ? band : -band;
-        const double f = (z_exit - o_H.z()) / (p_H.z() - o_H.z());
-        free_m = (o_H.head<2>() + f * (p_H.head<2>() - o_H.head<2>())).norm();
-      }
-      free_m = std::min(free_m, max_range);
-      frame_free_m_[b] = std::max(frame_free_m_[b], static_cast<float>(free_m));
-    }
-  }
+  scan_depth(depth_m, R_HC, o_H);
   for (int b = 0; b < n; ++b) {
     if (frame_total_[b] == 0) continue;  // outside the view: the kept value stands
     Bin& bin = bins_[b];

@@ -41,7 +41,7 @@ ToolRun evaluate(const std::string& gt_text, const std::string& est_text) {
   return {code, ss.str()};
 }
 
-const char* kGroundTruth =
+constexpr const char* kGroundTruth =
     "1.0 0 0 0 0 0 0 1\n"
     "1.5 1 0 0 0 0 0 1\n"
     "2.0 2 0 0 0 0 0 1\n";

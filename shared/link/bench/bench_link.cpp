@@ -72,7 +72,7 @@ struct Stats {
   std::size_t count = 0;
 };
 
-Stats stats_of(std::vector<std::int64_t> values_ns) {
+Stats stats_of(const std::vector<std::int64_t>& values_ns) {
   Stats s;
   s.count = values_ns.size();
   if (values_ns.empty()) return s;

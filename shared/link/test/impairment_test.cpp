@@ -83,7 +83,7 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
   std::array<dds_attach_t, 1> triggered{};
   int got = 0;
   double min_delay_ms = 1e9;
-  const int kSent = 40;
+  constexpr int kSent = 40;
   for (int i = 1; i <= kSent; ++i) {
     sent->vehicle_id = 1;
     sent->sequence_number = static_cast<unsigned long long>(i);

@@ -15,11 +15,11 @@ namespace hq::link::test {
 // Every discovered test runs in its own process (gtest_discover_tests); a pid-based domain id
 // keeps parallel ctest runs, and other engineers' processes, from seeing each other's samples.
 inline int private_domain_id() {
-  static const int domain_id = [] {
+  static const int kDomainId = [] {
     hq::testing::use_loopback_dds();
     return hq::testing::private_domain_id(0);
   }();
-  return domain_id;
+  return kDomainId;
 }
 
 // Generous bound for anything that should happen at once on loopback; only a failure waits it.

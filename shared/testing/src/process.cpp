@@ -14,6 +14,7 @@ namespace hq::testing {
 
 Process::Process(const std::vector<std::string>& args, const std::string& output_path) {
   std::vector<char*> argv;
+  argv.reserve(args.size() + 1);  // the arguments and the terminating nullptr
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
   posix_spawn_file_actions_t actions;

@@ -137,6 +137,15 @@ class ModeController {
 
  private:
   enum class Source { kOperator, kHover, kLand, kProvider, kTakeoff };
+  /// What the current mode (or the take-off) asks for, before the ramp: v*_des in H.
+  struct Target {
+    Source source = Source::kHover;
+    Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
+    double yaw_rate_radps = 0.0;
+  };
+  /// The mode's own command at t_ns; ends the take-off at its height, sets out.teleop_timed_out
+  /// and out.provider_failed.
+  Target target(std::int64_t t_ns, ModeOutput& out);
   /// Touchdown detection and the blind descent of Mode::kLand.
   void land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps, ModeOutput& out);
 

@@ -165,6 +165,10 @@ class SeenSpaceLimiter {
 
  private:
   [[nodiscard]] int bin_of_fixed_azimuth(double azimuth_rad) const;
+  /// This frame's nearest obstacle, free distance and pixel counts per bin (the frame_ scratch)
+  /// from every pixel_stride-th depth pixel; R_HC rotates camera rays into H, o_H is the camera
+  /// centre from the body origin in H.
+  void scan_depth(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC, const Eigen::Vector3d& o_H);
 
   SeenSpaceConfig config_;
   geometry::PinholeCamera camera_;
