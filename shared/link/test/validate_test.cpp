@@ -1,27 +1,17 @@
 #include "hq/link/messages.hpp"
+#include "hq/testing/wire_enum.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdint>
-#include <cstring>
 #include <limits>
 
 namespace hq::link {
 namespace {
 
+using hq::testing::wire_enum;
 using ::testing::HasSubstr;
-
-// What a broken sender puts on the wire: any integer in an enum field's bytes, as the
-// deserializer copies it (a static_cast outside the enum's range has an unspecified result).
-template <typename Enum>
-Enum wire_enum(std::int32_t value) {
-  static_assert(sizeof(Enum) == sizeof(value));
-  Enum field;
-  std::memcpy(&field, &value, sizeof(field));
-  return field;
-}
 
 VelocityCommand good_command() {
   VelocityCommand command{};
