@@ -32,7 +32,9 @@ std::int64_t now_ns() {
 
 void print(const char* what, std::vector<std::int64_t>& ns) {
   std::sort(ns.begin(), ns.end());
-  const auto at = [&](double q) { return ns[static_cast<std::size_t>(q * (ns.size() - 1))]; };
+  const auto at = [&](double q) {
+    return ns[static_cast<std::size_t>(q * static_cast<double>(ns.size() - 1))];
+  };
   std::printf("  %-52s p50 %6lld ns  p90 %6lld ns  p99 %7lld ns  max %8lld ns  (%zu)\n", what,
               static_cast<long long>(at(0.5)), static_cast<long long>(at(0.9)),
               static_cast<long long>(at(0.99)), static_cast<long long>(ns.back()), ns.size());
