@@ -44,10 +44,12 @@ hq_install_checkers() {
 }
 
 hq_build() {
-  local werror=OFF
-  [ "${CI:-}" = "true" ] && werror=ON
+  local werror=OFF ci=()
+  # CI: warnings are errors, and the strict set (cmake/HqWarnings.cmake) is on even in a build
+  # folder whose cache predates its default.
+  [ "${CI:-}" = "true" ] && werror=ON ci=(-DHQ_STRICT_WARNINGS=ON)
   cmake -S "$HQ_ROOT" -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DHQ_WERROR=$werror \
-    "$@" >/dev/null
+    "${ci[@]}" "$@" >/dev/null
   cmake --build "$BUILD_DIR" -j "$(nproc)"
 }
 

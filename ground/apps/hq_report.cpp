@@ -35,6 +35,7 @@
 #include <fmt/format.h>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <optional>
 #include <spawn.h>
 #include <string>
@@ -230,10 +231,12 @@ void accumulate(const hq::console::RecordedState& s, const hq::console::Recorded
 
 void finish(Summary& sum) {
   for (double& v : sum.rms_tracking_mps) {
-    v = sum.tracking_samples > 0 ? std::sqrt(v / static_cast<double>(sum.tracking_samples)) : NAN;
+    v = sum.tracking_samples > 0 ? std::sqrt(v / static_cast<double>(sum.tracking_samples))
+                                 : std::numeric_limits<double>::quiet_NaN();
   }
   for (double& v : sum.rmse_truth_mps) {
-    v = sum.truth_samples > 0 ? std::sqrt(v / static_cast<double>(sum.truth_samples)) : NAN;
+    v = sum.truth_samples > 0 ? std::sqrt(v / static_cast<double>(sum.truth_samples))
+                              : std::numeric_limits<double>::quiet_NaN();
   }
 }
 
@@ -244,9 +247,11 @@ struct DeadReckoning {
   double x = 0;
   double y = 0;
   void step(const hq::console::RecordedState& s, double dt_s) {
-    yaw += s.omega_body_radps[2] * dt_s;
-    x += (std::cos(yaw) * s.v_H_mps[0] - std::sin(yaw) * s.v_H_mps[1]) * dt_s;
-    y += (std::sin(yaw) * s.v_H_mps[0] + std::cos(yaw) * s.v_H_mps[1]) * dt_s;
+    yaw += static_cast<double>(s.omega_body_radps[2]) * dt_s;
+    const auto vx = static_cast<double>(s.v_H_mps[0]);
+    const auto vy = static_cast<double>(s.v_H_mps[1]);
+    x += (std::cos(yaw) * vx - std::sin(yaw) * vy) * dt_s;
+    y += (std::sin(yaw) * vx + std::cos(yaw) * vy) * dt_s;
   }
 };
 

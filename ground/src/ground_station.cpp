@@ -60,9 +60,17 @@ const char* to_string(hq_msgs_Health health) {
 namespace {
 
 double norm(const hq_msgs_Vector3f& v) {
-  return std::sqrt(static_cast<double>(v.x) * v.x + static_cast<double>(v.y) * v.y +
-                   static_cast<double>(v.z) * v.z);
+  const auto x = static_cast<double>(v.x);
+  const auto y = static_cast<double>(v.y);
+  const auto z = static_cast<double>(v.z);
+  return std::sqrt(x * x + y * y + z * z);
 }
+
+// |x| of a link field (float) against a double bound.
+double magnitude(float x) { return std::abs(static_cast<double>(x)); }
+
+// A link field (float) as the double printf's %f reads.
+double as_double(float x) { return static_cast<double>(x); }
 
 }  // namespace
 
@@ -80,12 +88,12 @@ link::Validation plausible(const link::VehicleState& s) {
   if (!(norm(s.omega_body_radps) <= kMaxPlausibleRateRadps)) {
     return {false, "omega_body_radps beyond 35 rad/s"};
   }
-  if (!(std::abs(s.roll_rad) < M_PI) || !(std::abs(s.pitch_rad) < M_PI)) {
+  if (!(magnitude(s.roll_rad) < M_PI) || !(magnitude(s.pitch_rad) < M_PI)) {
     return {false, "roll_rad or pitch_rad outside (-pi, pi)"};
   }
-  if (!(std::abs(s.yaw_W_rad) <= 2.0 * M_PI)) return {false, "yaw_W_rad outside [-2 pi, 2 pi]"};
-  if (!(std::abs(s.height_m) <= kMaxPlausibleHeightM)) return {false, "height_m beyond 1000 m"};
-  if (!(std::abs(s.clearance_m) <= kMaxPlausibleDistanceM)) {
+  if (!(magnitude(s.yaw_W_rad) <= 2.0 * M_PI)) return {false, "yaw_W_rad outside [-2 pi, 2 pi]"};
+  if (!(magnitude(s.height_m) <= kMaxPlausibleHeightM)) return {false, "height_m beyond 1000 m"};
+  if (!(magnitude(s.clearance_m) <= kMaxPlausibleDistanceM)) {
     return {false, "clearance_m not finite or beyond 100 km"};
   }
   if (!(norm(s.p_W_m) <= kMaxPlausibleDistanceM)) return {false, "p_W_m beyond 100 km"};
@@ -134,8 +142,10 @@ double closest_obstacle_m(const link::VehicleState& s) {
   double best_sq = std::numeric_limits<double>::infinity();
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
-    best_sq = std::min(best_sq, static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y +
-                                    static_cast<double>(p.z) * p.z);
+    const auto x = static_cast<double>(p.x);
+    const auto y = static_cast<double>(p.y);
+    const auto z = static_cast<double>(p.z);
+    best_sq = std::min(best_sq, x * x + y * y + z * z);
   }
   return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
 }
@@ -316,16 +326,20 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           "%.4f,%.4f,%.4f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
-          s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z, s.omega_body_radps.x, s.omega_body_radps.y,
-          s.omega_body_radps.z, s.roll_rad, s.pitch_rad, s.v_obs_H_mps.x, s.v_obs_H_mps.y,
-          s.v_obs_H_mps.z, to_string(s.mode), to_string(s.estimator_health),
-          to_string(s.link_health), s.vehicle_id, closest_obstacle_m(s), s.position_valid ? 1 : 0,
-          s.p_W_m.x, s.p_W_m.y, s.p_W_m.z, s.yaw_W_rad, s.truth_valid ? 1 : 0, s.v_truth_H_mps.x,
-          s.v_truth_H_mps.y, s.v_truth_H_mps.z, s.markers._length,
-          static_cast<unsigned long long>(s.session_id), s.commanding_station_id,
+          as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
+          as_double(s.omega_body_radps.x), as_double(s.omega_body_radps.y),
+          as_double(s.omega_body_radps.z), as_double(s.roll_rad), as_double(s.pitch_rad),
+          as_double(s.v_obs_H_mps.x), as_double(s.v_obs_H_mps.y), as_double(s.v_obs_H_mps.z),
+          to_string(s.mode), to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
+          closest_obstacle_m(s), s.position_valid ? 1 : 0, as_double(s.p_W_m.x),
+          as_double(s.p_W_m.y), as_double(s.p_W_m.z), as_double(s.yaw_W_rad), s.truth_valid ? 1 : 0,
+          as_double(s.v_truth_H_mps.x), as_double(s.v_truth_H_mps.y), as_double(s.v_truth_H_mps.z),
+          s.markers._length, static_cast<unsigned long long>(s.session_id), s.commanding_station_id,
           flight_state_name(s.flight_state), s.motors_armed ? 1 : 0,
-          height_source_name(s.height_source), s.height_m, operator_input_name(s.operator_input),
-          s.v_cmd_flown_H_mps.x, s.v_cmd_flown_H_mps.y, s.v_cmd_flown_H_mps.z, s.clearance_m),
+          height_source_name(s.height_source), as_double(s.height_m),
+          operator_input_name(s.operator_input), as_double(s.v_cmd_flown_H_mps.x),
+          as_double(s.v_cmd_flown_H_mps.y), as_double(s.v_cmd_flown_H_mps.z),
+          as_double(s.clearance_m)),
       "telemetry.csv");
 }
 

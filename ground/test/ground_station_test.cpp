@@ -3,6 +3,7 @@
 #include "hq/testing/files.hpp"
 #include "hq/testing/input_error.hpp"
 #include "hq/testing/process.hpp"
+#include "hq/testing/wire_enum.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -42,8 +43,8 @@ TEST(ModeToggle, Button1LandsAndWinsOverAToggle) {
 
 TEST(GroundStation, ModeNamesCoverOutOfRangeValues) {
   EXPECT_STREQ(to_string(hq_msgs_MODE_LAND), "land");
-  EXPECT_STREQ(to_string(static_cast<hq_msgs_Mode>(42)), "invalid");
-  EXPECT_STREQ(to_string(static_cast<hq_msgs_Health>(-3)), "invalid");
+  EXPECT_STREQ(to_string(hq::testing::wire_enum<hq_msgs_Mode>(42)), "invalid");
+  EXPECT_STREQ(to_string(hq::testing::wire_enum<hq_msgs_Health>(-3)), "invalid");
 }
 
 TEST(LatencyStats, QuantilesFollowTheSamples) {
@@ -120,7 +121,7 @@ TEST(TelemetryRecorder, FullDiskIsReportedByFlushAndClose) {
     TelemetryRecorder recorder(dir.string());
     for (int i = 0; i < 2000 && flushed; ++i) {
       link::VehicleState s{};
-      s.sequence_number = static_cast<unsigned long long>(i + 1);
+      s.sequence_number = static_cast<std::uint64_t>(i + 1);
       recorder.state(1'000'000'000LL + i * 1'000'000LL, 0, s);
       if (i % 100 == 99) flushed = recorder.flush();
     }

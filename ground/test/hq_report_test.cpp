@@ -41,7 +41,7 @@ void record_flight(const fs::path& dir) {
   TelemetryRecorder recorder(dir.string());
   for (int i = 0; i < 10; ++i) {
     link::VehicleState s{};
-    s.sequence_number = static_cast<unsigned long long>(i + 1);
+    s.sequence_number = static_cast<std::uint64_t>(i + 1);
     s.t_ns = i * 50'000'000LL;
     s.mode = hq_msgs_MODE_TELEOP;
     recorder.state(1'000'000'000LL + s.t_ns, 1'000'000, s);
@@ -58,7 +58,7 @@ TEST(HqReport, RecordingWithTruthHasTheTruthRmseLine) {
     TelemetryRecorder recorder(dir.string());
     for (int i = 0; i < 40; ++i) {
       link::VehicleState s{};
-      s.sequence_number = static_cast<unsigned long long>(i + 1);
+      s.sequence_number = static_cast<std::uint64_t>(i + 1);
       s.t_ns = i * 50'000'000LL;
       s.mode = hq_msgs_MODE_TELEOP;
       s.truth_valid = true;

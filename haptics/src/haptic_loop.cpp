@@ -109,8 +109,8 @@ void HapticLoop::tick(std::int64_t t_ns) {
   DeviceSample sample;
   const bool read_ok = device_.read(t_ns, sample);
   out.device_connected = read_ok;
-  const double dt_s =
-      have_last_ ? 1e-9 * static_cast<double>(t_ns - last_t_ns_) : 1e-9 * period_ns_;
+  const double dt_s = have_last_ ? 1e-9 * static_cast<double>(t_ns - last_t_ns_)
+                                 : 1e-9 * static_cast<double>(period_ns_);
 
   if (!read_ok || !sample.p_D_m.allFinite() || !(dt_s > 0.0)) {
     // Device lost or reading unusable: zero command and no force until it comes back.

@@ -78,7 +78,7 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
   std::vector<double> sorted = clearances;
   std::sort(sorted.begin(), sorted.end());
   const auto at = [&](double q) {
-    return sorted[static_cast<std::size_t>(q * (sorted.size() - 1))];
+    return sorted[static_cast<std::size_t>(q * static_cast<double>(sorted.size() - 1))];
   };
   std::printf("closest distance (surface to the 0.35 m vehicle sphere) over %zu approaches:\n",
               sorted.size());

@@ -92,9 +92,11 @@ class DelayedHapticOperator final : public OperatorSource {
   }
 
   [[nodiscard]] const haptics::HapticLoop& loop() const { return loop_; }
-  [[nodiscard]] double force_rms_n() const { return std::sqrt(force_sq_ / std::max(ticks_, 1L)); }
+  [[nodiscard]] double force_rms_n() const {
+    return std::sqrt(force_sq_ / static_cast<double>(std::max(ticks_, 1L)));
+  }
   [[nodiscard]] double tracking_rms_mps() const {
-    return std::sqrt(track_sq_ / std::max(outputs_, 1L));
+    return std::sqrt(track_sq_ / static_cast<double>(std::max(outputs_, 1L)));
   }
   [[nodiscard]] double state_loss() const { return down_.loss_fraction(); }
 

@@ -62,8 +62,8 @@ std::vector<Row> read_log(const std::string& path) {
     r.heartbeat_age_ms = std::stod(f[5]);
     r.hold = f[6] == "1";
     r.heartbeat_lost = f[7] == "1";
-    for (int i = 0; i < 3; ++i) r.v_cmd[i] = std::stod(f[8 + i]);
-    for (int i = 0; i < 3; ++i) r.v_true[i] = std::stod(f[12 + i]);
+    for (std::size_t i = 0; i < 3; ++i) r.v_cmd[i] = std::stod(f[8 + i]);
+    for (std::size_t i = 0; i < 3; ++i) r.v_true[i] = std::stod(f[12 + i]);
     r.altitude_m = std::stod(f[15]);
     r.collision = f[16] == "1";
     r.commands_rejected = std::stol(f[19]);

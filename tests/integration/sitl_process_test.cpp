@@ -252,7 +252,8 @@ void expect_sensor_streams(Companion& companion) {
 /// The companion's velocity report: the channel's true v_H rotated by the FC's yaw into NED.
 mav::VisionSpeedEstimate true_velocity_ned(const Companion& companion) {
   const auto& truth = companion.last_frame_.truth;
-  const double yaw = companion.last_attitude_ ? companion.last_attitude_->yaw_rad : 0.0;
+  const double yaw =
+      companion.last_attitude_ ? static_cast<double>(companion.last_attitude_->yaw_rad) : 0.0;
   mav::VisionSpeedEstimate v;
   v.x_mps = static_cast<float>(std::cos(yaw) * truth.v_H_mps[0] - std::sin(yaw) * truth.v_H_mps[1]);
   v.y_mps = static_cast<float>(std::sin(yaw) * truth.v_H_mps[0] + std::cos(yaw) * truth.v_H_mps[1]);

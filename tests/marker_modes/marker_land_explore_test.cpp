@@ -133,7 +133,7 @@ TEST(ExploreMode, MapsTheMarkerFieldThenLandsOnTheTarget) {
 
   // Navigation to the target marker and landing on it.
   const int id = f.stage().marker_mode().config().target_id;
-  for (t = f.loop->simulator().t_ns() * 1e-9; t < 175.0; t += 0.2) {
+  for (t = static_cast<double>(f.loop->simulator().t_ns()) * 1e-9; t < 175.0; t += 0.2) {
     f.loop->run_until(t);
     if (!f.loop->samples().empty() && f.loop->samples().back().landed &&
         f.loop->chain().mode() == modes::Mode::kLand) {

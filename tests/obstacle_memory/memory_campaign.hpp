@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -162,7 +163,8 @@ class TimedPlayer final : public OperatorSource {
     if (!out.frame) return;
     if (trace_ != nullptr) {
       const auto& m = out.memory;
-      const double nearest_m = m.count > 0 ? m.p_horizontal_m[0].norm() : NAN;
+      const double nearest_m =
+          m.count > 0 ? m.p_horizontal_m[0].norm() : std::numeric_limits<double>::quiet_NaN();
       const Eigen::Vector3d& v_obs = out.obstacles.v_obs_horizontal_mps;
       const Eigen::Vector3d& v_des = out.mode.v_des_horizontal_mps;
       std::fprintf(

@@ -50,7 +50,9 @@ TEST(SavedMap, PcdAndPlyReadBackWithTheMemorysPointsInPlausibleBounds) {
       hi = hi.cwiseMax(v);
     }
     std::printf("%s: %zu points, bounds [%.2f %.2f %.2f] .. [%.2f %.2f %.2f] m\n", ext.c_str(),
-                cloud.size(), lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+                cloud.size(), static_cast<double>(lo.x()), static_cast<double>(lo.y()),
+                static_cast<double>(lo.z()), static_cast<double>(hi.x()),
+                static_cast<double>(hi.y()), static_cast<double>(hi.z()));
     EXPECT_GT((hi - lo).norm(), 1.0) << ext;
   }
 }

@@ -60,12 +60,16 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
     // Dead reckoning for the top view (see the header): yaw from the gyro's z rate, then
     // v_W = R_z(yaw) v_H. A gap of more than a second is not bridged.
     const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - last_state_ns_), 1.0);
-    if (std::isfinite(omega_body_radps[2])) yaw_W_rad_ += omega_body_radps[2] * dt_s;
+    if (std::isfinite(omega_body_radps[2])) {
+      yaw_W_rad_ += static_cast<double>(omega_body_radps[2]) * dt_s;
+    }
     const double c = std::cos(yaw_W_rad_);
     const double s = std::sin(yaw_W_rad_);
     if (std::isfinite(v_H_mps[0]) && std::isfinite(v_H_mps[1])) {
-      x_W_m_ += (c * v_H_mps[0] - s * v_H_mps[1]) * dt_s;
-      y_W_m_ += (s * v_H_mps[0] + c * v_H_mps[1]) * dt_s;
+      const auto vx = static_cast<double>(v_H_mps[0]);
+      const auto vy = static_cast<double>(v_H_mps[1]);
+      x_W_m_ += (c * vx - s * vy) * dt_s;
+      y_W_m_ += (s * vx + c * vy) * dt_s;
     }
   }
   have_state_ = true;

@@ -671,7 +671,8 @@ struct ConsoleWindow::Impl {
     // The camera's field of view as a wedge along its axis (W flies along the camera axis,
     // eq. 9's alpha), then the markers it sees placed through R_QC and the heading.
     const float yaw = s.yaw_W_rad;
-    const auto camera_yaw = static_cast<float>(yaw + options.camera_heading_rad);
+    const auto camera_yaw =
+        static_cast<float>(static_cast<double>(yaw) + options.camera_heading_rad);
     const auto half_fov = static_cast<float>(options.camera_hfov_rad / 2);
     const float reach_px = 0.35F * std::min(size.x, size.y);
     const auto along = [&](float heading, float length) {

@@ -57,8 +57,10 @@ double closest_cloud_point_m(const link::VehicleState& s) {
   double best_sq = std::numeric_limits<double>::infinity();
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
-    best_sq = std::min(best_sq, static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y +
-                                    static_cast<double>(p.z) * p.z);
+    const auto x = static_cast<double>(p.x);
+    const auto y = static_cast<double>(p.y);
+    const auto z = static_cast<double>(p.z);
+    best_sq = std::min(best_sq, x * x + y * y + z * z);
   }
   return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
 }

@@ -39,7 +39,8 @@ TEST(ConsoleModel, RingsKeepTheNewestSamplesOldestFirst) {
   m.snapshot(s);
   ASSERT_EQ(s.plot_count, 8U);
   EXPECT_EQ(s.plot_total, 20U);
-  for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(s.plot[i].v_est_H_mps[0], 12.0F + i);
+  for (std::size_t i = 0; i < 8; ++i)
+    EXPECT_EQ(s.plot[i].v_est_H_mps[0], 12.0F + static_cast<float>(i));
 }
 
 TEST(ConsoleModel, SamplesAndSnapshotsAllocateNothingAfterConstruction) {

@@ -73,7 +73,9 @@ class CdrOut {
 std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2 = false) {
   const auto f = static_cast<float>(i);
   CdrOut c(xcdr2);
-  c.put<std::uint32_t>(vehicle).put<std::uint64_t>(100 + i).put<std::int64_t>(5'000'000LL * i);
+  c.put<std::uint32_t>(vehicle)
+      .put<std::uint64_t>(static_cast<std::uint64_t>(100 + i))
+      .put<std::int64_t>(5'000'000LL * i);
   c.vec3(0.1F * f, -0.2F, 0.3F).vec3(0.01F, 0.02F, 0.03F * f).put(0.05F).put(-0.06F);
   c.vec3(0.4F, 0.0F, -0.1F);
   c.put<std::uint32_t>(i < 5 ? 1 : 0).put<std::uint32_t>(0).put<std::uint32_t>(1);  // hover|teleop
@@ -94,7 +96,9 @@ std::vector<std::uint8_t> camera_frame(std::uint32_t vehicle, int i,
                                        const std::vector<std::uint8_t>& jpeg,
                                        const std::vector<std::uint8_t>& depth) {
   CdrOut c(false);
-  c.put<std::uint32_t>(vehicle).put<std::uint64_t>(i).put<std::int64_t>(i);
+  c.put<std::uint32_t>(vehicle)
+      .put<std::uint64_t>(static_cast<std::uint64_t>(i))
+      .put<std::int64_t>(i);
   c.put<std::uint16_t>(640).put<std::uint16_t>(480).octets(jpeg).octets(depth);
   return c.bytes();
 }

@@ -28,7 +28,7 @@ void write_recording(const fs::path& dir, int states) {
   ground::TelemetryRecorder recorder(dir.string());
   for (int i = 0; i < states; ++i) {
     link::VehicleState s{};
-    s.sequence_number = static_cast<unsigned long long>(i + 1);
+    s.sequence_number = static_cast<std::uint64_t>(i + 1);
     s.t_ns = i * 33'000'000LL;
     s.v_H_mps = {0.1F * static_cast<float>(i), 0, 0};
     s.mode = i < 5 ? hq_msgs_MODE_HOVER : hq_msgs_MODE_TELEOP;
@@ -64,7 +64,7 @@ TEST(Recording, RoundTripsPositionTruthAndMarkerCount) {
     hq_msgs_MarkerInCamera seen[3]{};
     for (int i = 0; i < 3; ++i) {
       link::VehicleState s{};
-      s.sequence_number = static_cast<unsigned long long>(i + 1);
+      s.sequence_number = static_cast<std::uint64_t>(i + 1);
       s.mode = hq_msgs_MODE_MARKER;
       s.position_valid = i != 1;
       s.p_W_m = {1.5F + static_cast<float>(i), -0.25F, -1.125F};

@@ -175,8 +175,9 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
   const std::int64_t t_seed_ns = t_ns;
   VelocityEstimate recovered;
   for (; !recovered.ok() && t_ns < t_seed_ns + 1'000'000'000; t_ns += kImuPerFrame * kImuNs) {
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
-    recovered = estimator.update(t_ns, motion.odometry_at(1e-9 * t_ns, t_ns, false));
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
+    recovered =
+        estimator.update(t_ns, motion.odometry_at(1e-9 * static_cast<double>(t_ns), t_ns, false));
     if (!recovered.ok()) {
       EXPECT_GT(recovered.unavailable_for_s, previous);
     }
@@ -207,13 +208,15 @@ TEST(VelocityEstimator, UpdatesAllocateNothing) {
   VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   std::array<odometry::OdometryResult, 60> frames;
   for (int i = 0; i < 60; ++i) {
-    frames[i] = motion.odometry_at(i * 0.03, i * kImuPerFrame * kImuNs, i == 0);
+    frames[static_cast<std::size_t>(i)] =
+        motion.odometry_at(i * 0.03, i * kImuPerFrame * kImuNs, i == 0);
   }
   const long before = hq::testing::allocation_count();
   for (int i = 0; i < 60 * kImuPerFrame; ++i) {
     const std::int64_t t_ns = i * kImuNs;
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
-    if (i % kImuPerFrame == 0) estimator.update(t_ns, frames[i / kImuPerFrame]);
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
+    if (i % kImuPerFrame == 0)
+      estimator.update(t_ns, frames[static_cast<std::size_t>(i / kImuPerFrame)]);
   }
   EXPECT_EQ(hq::testing::allocation_count() - before, 0);
 }
@@ -250,8 +253,8 @@ TEST(VelocityEstimator, WithoutTheCoastRejectedOdometryIsUnavailable) {
   const VelocityEstimate last_ok = run(estimator, motion, 1.0);
   ASSERT_TRUE(last_ok.ok());
   const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
-  estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
-  odometry::OdometryResult lost = motion.odometry_at(1e-9 * t_ns, t_ns, false);
+  estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
+  odometry::OdometryResult lost = motion.odometry_at(1e-9 * static_cast<double>(t_ns), t_ns, false);
   lost.status = odometry::TrackingStatus::kLost;
   const VelocityEstimate estimate = estimator.update(t_ns, lost);
   EXPECT_EQ(estimate.status, EstimateStatus::kUnavailable);
@@ -341,7 +344,7 @@ TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
   VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   std::int64_t t_ns = 0;
   for (; t_ns <= 500'000'000; t_ns += kImuNs) {
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * t_ns));
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
   }
   t_ns -= kImuNs;
   // GIVEN no odometry ever: nothing to coast from.
@@ -387,9 +390,10 @@ VelocityEstimate first_jumped_frame(const VelocityEstimatorConfig& config,
   EXPECT_TRUE(last_ok.ok());
   const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
   for (std::int64_t t = last_ok.t_ns + kImuNs; t <= t_ns; t += kImuNs) {
-    estimator.update_imu(t, motion.gyro(), motion.accel(1e-9 * t));
+    estimator.update_imu(t, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t)));
   }
-  odometry::OdometryResult jumped = motion.odometry_at(1e-9 * t_ns, t_ns, false);
+  odometry::OdometryResult jumped =
+      motion.odometry_at(1e-9 * static_cast<double>(t_ns), t_ns, false);
   jumped.T_O_C.translation() += jumped.T_O_C.linear() * jump_C_m;
   return estimator.update(t_ns, jumped);
 }

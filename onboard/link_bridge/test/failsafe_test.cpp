@@ -2,6 +2,7 @@
 
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/testing/wire_enum.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -140,7 +141,7 @@ TEST(Failsafe, VehicleHeartbeatsAndOtherVehiclesDoNotKeepTheLinkAlive) {
   other.vehicle_id = 7;
   EXPECT_THAT(failsafe.on_heartbeat(1500 * kMs, other).reason, HasSubstr("another vehicle"));
   link::Heartbeat bad_role = ground_heartbeat();
-  bad_role.role = static_cast<hq_msgs_Role>(77);
+  bad_role.role = hq::testing::wire_enum<hq_msgs_Role>(77);
   EXPECT_FALSE(failsafe.on_heartbeat(1500 * kMs, bad_role).accepted);
   EXPECT_EQ(failsafe.counters().heartbeats_rejected, 2U);  // a vehicle's is ignored, not counted
   EXPECT_TRUE(failsafe.update(2001 * kMs).request_land);

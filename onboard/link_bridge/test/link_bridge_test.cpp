@@ -3,6 +3,7 @@
 
 #include "hq/testing/input_error.hpp"
 #include "hq/testing/loopback_dds.hpp"
+#include "hq/testing/wire_enum.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -118,7 +119,7 @@ TEST(LinkBridge, TakesGoodSamplesRejectsMalformedOnesAndReportsThem) {
   request.vehicle_id = 1;
   request.station_id = 1;
   request.vehicle_session_id = bridge.session_id();
-  request.requested_mode = static_cast<hq_msgs_Mode>(99);
+  request.requested_mode = hq::testing::wire_enum<hq_msgs_Mode>(99);
   ground.mode_requests.write(request);
   request.requested_mode = hq_msgs_MODE_HOVER;
   request.vehicle_session_id = bridge.session_id() + 1;  // made to a previous instance
@@ -503,8 +504,8 @@ TEST(ToModeRequest, CarriesTheMarkerTaskOrRefusesAMalformedOne) {
       to_mode_request(marker_request(hq_msgs_MARKER_TASK_NONE, 0), modes::Mode::kMarker, out)
           .accepted);
   EXPECT_FALSE(out.marker.has_value());
-  v = to_mode_request(marker_request(static_cast<hq_msgs_MarkerTask>(9), 3), modes::Mode::kMarker,
-                      out);
+  v = to_mode_request(marker_request(hq::testing::wire_enum<hq_msgs_MarkerTask>(9), 3),
+                      modes::Mode::kMarker, out);
   EXPECT_FALSE(v.accepted);
   EXPECT_THAT(v.reason, HasSubstr("MarkerTask enum"));
   v = to_mode_request(marker_request(hq_msgs_MARKER_TASK_HOLD, -2), modes::Mode::kMarker, out);

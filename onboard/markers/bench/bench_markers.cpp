@@ -30,11 +30,11 @@ struct Stats {
   double detections_per_frame = 0;
 };
 
-Stats time_frames(int n, const std::function<int(int)>& detect_frame) {
+Stats time_frames(std::size_t n, const std::function<int(std::size_t)>& detect_frame) {
   std::vector<double> ms;
   int detections = 0;
   for (int pass = 0; pass < 3; ++pass) {
-    for (int i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < n; ++i) {
       const auto start = Clock::now();
       const int found = detect_frame(i);
       ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
@@ -42,7 +42,8 @@ Stats time_frames(int n, const std::function<int(int)>& detect_frame) {
     }
   }
   std::sort(ms.begin(), ms.end());
-  return {ms[ms.size() / 2], ms[ms.size() * 9 / 10], static_cast<double>(detections) / n};
+  return {ms[ms.size() / 2], ms[ms.size() * 9 / 10],
+          static_cast<double>(detections) / static_cast<double>(n)};
 }
 
 int run(int argc, char** argv) {
@@ -50,14 +51,14 @@ int run(int argc, char** argv) {
   const hq::sim::World world = hq::sim::load_world(world_path);
   const hq::sim::CameraParams camera = hq::sim::default_sim_config(640, 480).camera;
   hq::sim::RgbdRenderer renderer(camera, world, 3);
-  constexpr int kFrames = 30;
+  constexpr std::size_t kFrames = 30;
   std::vector<cv::Mat> images(kFrames);
   std::vector<cv::Mat> grays(kFrames);
   std::vector<cv::Mat> depths(kFrames);
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> xy(-1.2, 1.2);
   std::uniform_real_distribution<double> yaw(-M_PI, M_PI);
-  for (int i = 0; i < kFrames; ++i) {
+  for (std::size_t i = 0; i < kFrames; ++i) {
     const Eigen::Vector3d target(xy(rng), xy(rng), 0.0);
     const double a = yaw(rng);
     const Eigen::Vector3d c = target + Eigen::Vector3d(0.8 * std::cos(a), 0.8 * std::sin(a), 1.1);
@@ -83,23 +84,23 @@ int run(int argc, char** argv) {
   std::vector<std::vector<cv::Point2f>> corners;
   std::vector<int> ids;
 
-  const Stats visp = time_frames(kFrames, [&](int i) {
+  const Stats visp = time_frames(kFrames, [&](std::size_t i) {
     detector_image.detect(grays[i]);
     return static_cast<int>(detector_image.detections().size());
   });
-  const Stats visp_depth = time_frames(kFrames, [&](int i) {
+  const Stats visp_depth = time_frames(kFrames, [&](std::size_t i) {
     detector_depth.detect(grays[i], depths[i]);
     return static_cast<int>(detector_depth.detections().size());
   });
-  const Stats visp_decimated = time_frames(kFrames, [&](int i) {
+  const Stats visp_decimated = time_frames(kFrames, [&](std::size_t i) {
     detector_decimated.detect(grays[i], depths[i]);
     return static_cast<int>(detector_decimated.detections().size());
   });
-  const Stats aruco = time_frames(kFrames, [&](int i) {
+  const Stats aruco = time_frames(kFrames, [&](std::size_t i) {
     cv::aruco::detectMarkers(grays[i], dictionary, corners, ids, parameters);
     return static_cast<int>(ids.size());
   });
-  std::printf("hq-bench-markers: %d frames 640x480 of %s, 3 passes, one thread\n", kFrames,
+  std::printf("hq-bench-markers: %zu frames 640x480 of %s, 3 passes, one thread\n", kFrames,
               world_path.c_str());
   std::printf("%-34s %9s %9s %12s %8s\n", "detector", "median ms", "p90 ms", "tags/frame", "ratio");
   auto row = [&](const char* name, const Stats& s) {

@@ -102,7 +102,7 @@ TEST(MarkerDetectorRealPhoto, DetectsTheTwelveTagsWithTheirReferencePoses) {
   for (const MarkerDetection& d : detector.detections()) {
     ASSERT_TRUE(truth.T_camera_marker.count(d.id)) << "unexpected id " << d.id;
     EXPECT_FALSE(d.used_depth);
-    for (int k = 0; k < 4; ++k) {
+    for (std::size_t k = 0; k < 4; ++k) {
       EXPECT_LT((d.corners_px[k] - truth.corners_px.at(d.id)[k]).norm(), kCornerTolPx)
           << "id " << d.id << " corner " << k;
     }
@@ -266,7 +266,7 @@ TEST(CornerReprojection, AnalyticJacobianMatchesNumeric) {
     Eigen::Matrix<double, 8, 1> r;
     const auto p_M = tag_corners_marker_m(0.1);
     for (int k = 0; k < 4; ++k) {
-      const Eigen::Vector3d p = T_x * p_M[k];
+      const Eigen::Vector3d p = T_x * p_M[static_cast<std::size_t>(k)];
       r.segment<2>(2 * k) << camera.fx * p.x() / p.z() + camera.cx,
           camera.fy * p.y() / p.z() + camera.cy;
     }

@@ -179,13 +179,19 @@ class Scenario {
     return Vector3d(normal_(rng_), normal_(rng_), normal_(rng_)) * sigma;
   }
 
-  [[nodiscard]] double position_rms() const { return std::sqrt(position_sq_ / samples_); }
-  [[nodiscard]] double velocity_rms() const { return std::sqrt(velocity_sq_ / samples_); }
-  [[nodiscard]] double raw_marker_rms() const { return std::sqrt(raw_marker_sq_ / raw_marker_n_); }
-  [[nodiscard]] double raw_velocity_rms() const {
-    return std::sqrt(raw_velocity_sq_ / raw_velocity_n_);
+  [[nodiscard]] double position_rms() const {
+    return std::sqrt(position_sq_ / static_cast<double>(samples_));
   }
-  [[nodiscard]] double mean_nees() const { return nees_sum_ / samples_; }
+  [[nodiscard]] double velocity_rms() const {
+    return std::sqrt(velocity_sq_ / static_cast<double>(samples_));
+  }
+  [[nodiscard]] double raw_marker_rms() const {
+    return std::sqrt(raw_marker_sq_ / static_cast<double>(raw_marker_n_));
+  }
+  [[nodiscard]] double raw_velocity_rms() const {
+    return std::sqrt(raw_velocity_sq_ / static_cast<double>(raw_velocity_n_));
+  }
+  [[nodiscard]] double mean_nees() const { return nees_sum_ / static_cast<double>(samples_); }
   [[nodiscard]] Truth truth() const { return figure_eight(to_s(t_ns_)); }
   NavigationFilter& filter() { return filter_; }
   [[nodiscard]] const ScenarioOptions& options() const { return options_; }

@@ -59,7 +59,8 @@ double pcl_peer_ms(const cv::Mat& depth, const hq::geometry::PinholeCamera& came
     const auto* row = depth.ptr<float>(v);
     for (int u = 0; u < depth.cols; u += config.pixel_stride) {
       const float z = row[u];
-      if (!(z >= config.min_range_m && z <= config.max_range_m)) continue;
+      const auto z_m = static_cast<double>(z);
+      if (!(z_m >= config.min_range_m && z_m <= config.max_range_m)) continue;
       const Eigen::Vector3f p_C = camera.ray(u, v).cast<float>() * z;
       const Eigen::Vector3f p_O = T_O_C_f * p_C;
       cloud->push_back(pcl::PointXYZ(p_O.x(), p_O.y(), p_O.z()));
@@ -71,7 +72,7 @@ double pcl_peer_ms(const cv::Mat& depth, const hq::geometry::PinholeCamera& came
   grid.filter(*voxels);
   pcl::RadiusOutlierRemoval<pcl::PointXYZ> outliers;
   outliers.setInputCloud(voxels);
-  outliers.setRadiusSearch(1.75 * leaf);
+  outliers.setRadiusSearch(1.75 * static_cast<double>(leaf));
   outliers.setMinNeighborsInRadius(config.min_neighbors);
   outliers.filter(cleaned);
   return ms_between(start, SteadyClock::now());

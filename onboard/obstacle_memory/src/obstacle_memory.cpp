@@ -350,7 +350,7 @@ void ObstacleMemory::age_and_pool(std::int64_t t_ns, const cv::Mat& depth_m,
     int sector =
         static_cast<int>(std::floor((std::atan2(p_H.y(), p_H.x()) + M_PI) * sectors_per_rad));
     sector = std::clamp(sector, 0, config_.sectors - 1);
-    if (d < sector_distance_m_[static_cast<std::size_t>(sector)]) {
+    if (d < static_cast<double>(sector_distance_m_[static_cast<std::size_t>(sector)])) {
       sector_distance_m_[static_cast<std::size_t>(sector)] = static_cast<float>(d);
       sector_point_[static_cast<std::size_t>(sector)] = p_H;
     }

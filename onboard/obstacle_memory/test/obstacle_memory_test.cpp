@@ -207,8 +207,9 @@ TEST(ObstacleMemory, MapStaysWithinCapacity) {
   config.max_age_s = 100.0;
   ObstacleMemory memory = make_memory(config);
   for (int i = 0; i < 40; ++i) {
-    const MemoryUpdate update = memory.update(i * kFrameNs, wall(1.0f + 0.02f * (i % 5)),
-                                              camera_pose(i * 0.3), kLevel, kD0);
+    const MemoryUpdate update =
+        memory.update(i * kFrameNs, wall(1.0f + 0.02f * static_cast<float>(i % 5)),
+                      camera_pose(i * 0.3), kLevel, kD0);
     ASSERT_TRUE(update.updated);
     ASSERT_LE(update.map_size, 500);
   }

@@ -22,6 +22,8 @@ constexpr double kMinDistanceM = 0.05;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 bool is_valid_depth(float z) { return std::isfinite(z) && z > 0.0f; }
+// Row-major index of pixel (u, v) or cell (cx, cy); both are >= 0 and image sizes fit an int.
+std::size_t flat_index(int x, int y, int width) { return static_cast<std::size_t>(y * width + x); }
 }  // namespace
 
 void read_config(config::StrictMap& section, ObstacleConfig& out) {
@@ -76,14 +78,13 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
   cells_x_ = camera.width / config.cell_px;
   cells_y_ = camera.height / config.cell_px;
   radius_cells_ = static_cast<int>(std::ceil(config.suppression_radius_px / config.cell_px));
-  ray_norm_.resize(static_cast<std::size_t>(camera.width) * camera.height);
+  ray_norm_.resize(static_cast<std::size_t>(camera.width * camera.height));
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
-      ray_norm_[static_cast<std::size_t>(v) * camera.width + u] =
-          static_cast<float>(camera.ray(u, v).norm());
+      ray_norm_[flat_index(u, v, camera.width)] = static_cast<float>(camera.ray(u, v).norm());
     }
   }
-  cells_.resize(static_cast<std::size_t>(cells_x_) * cells_y_);
+  cells_.resize(static_cast<std::size_t>(cells_x_ * cells_y_));
   minima_.reserve(cells_.size());
   support_z_m_.reserve(cells_.size());
 }
@@ -119,8 +120,7 @@ void ObstacleField::add_support_push(ObstacleResult& result, double height_m) co
 }
 
 Eigen::Vector3d ObstacleField::cell_point_C(const Cell& cell) const {
-  const double z =
-      cell.range_m / ray_norm_[static_cast<std::size_t>(cell.v) * camera_.width + cell.u];
+  const double z = cell.range_m / ray_norm_[flat_index(cell.u, cell.v, camera_.width)];
   return camera_.unproject(cell.u, cell.v, z);
 }
 
@@ -156,7 +156,7 @@ double ObstacleField::floor_height(const cv::Mat& depth_m, const Eigen::Matrix3d
   support_z_m_.clear();
   for (int cy = cells_y_ / 2; cy < cells_y_; ++cy) {
     for (int cx = 0; cx < cells_x_; ++cx) {
-      const Cell& cell = cells_[static_cast<std::size_t>(cy) * cells_x_ + cx];
+      const Cell& cell = cells_[flat_index(cx, cy, cells_x_)];
       if (!std::isfinite(cell.range_m)) continue;
       const Eigen::Vector3d p_H = R_HC * cell_point_C(cell) + p_HC;
       if (on_support_surface(depth_m, cell.u, cell.v, R_HC, p_H)) support_z_m_.push_back(p_H.z());
@@ -173,23 +173,23 @@ void ObstacleField::min_pool(const cv::Mat& depth_m) {
   // A cell's value is the k-th smallest valid range (distance along the ray, not z, so that a
   // fronto-parallel wall has one nearest point): fewer than k pixels nearer than the rest, i.e.
   // isolated speckle, cannot make a cell near.
-  const int k = config_.speckle_rank;
+  const auto k = static_cast<std::size_t>(config_.speckle_rank);  // in [1, kMaxSpeckleRank]
   const auto max_range = static_cast<float>(config_.max_range_m);
   for (int cy = 0; cy < cells_y_; ++cy) {
     for (int cx = 0; cx < cells_x_; ++cx) {
       std::array<float, kMaxSpeckleRank> smallest;
       std::array<int, kMaxSpeckleRank> smallest_index;
-      int n = 0;
+      std::size_t n = 0;
       for (int v = cy * config_.cell_px; v < (cy + 1) * config_.cell_px; ++v) {
         const auto* row = depth_m.ptr<float>(v);
-        const float* norms = &ray_norm_[static_cast<std::size_t>(v) * camera_.width];
+        const float* norms = &ray_norm_[flat_index(0, v, camera_.width)];
         for (int u = cx * config_.cell_px; u < (cx + 1) * config_.cell_px; ++u) {
           const float z = row[u];
           if (!is_valid_depth(z) || z > max_range) continue;
           const float range = z * norms[u];
           if (n == k && range >= smallest[k - 1]) continue;
           // Insertion into the sorted k smallest.
-          int i = (n < k) ? n++ : k - 1;
+          std::size_t i = (n < k) ? n++ : k - 1;
           while (i > 0 && smallest[i - 1] > range) {
             smallest[i] = smallest[i - 1];
             smallest_index[i] = smallest_index[i - 1];
@@ -199,7 +199,7 @@ void ObstacleField::min_pool(const cv::Mat& depth_m) {
           smallest_index[i] = v * camera_.width + u;
         }
       }
-      Cell& cell = cells_[static_cast<std::size_t>(cy) * cells_x_ + cx];
+      Cell& cell = cells_[flat_index(cx, cy, cells_x_)];
       if (n == k) {
         cell.range_m = smallest[k - 1];
         cell.u = smallest_index[k - 1] % camera_.width;
@@ -254,7 +254,7 @@ void ObstacleField::find_minima() {
     for (int cx = 0; cx < cells_x_; ++cx) {
       const int index = cy * cells_x_ + cx;
       const float range = cells_[static_cast<std::size_t>(index)].range_m;
-      if (!(range < candidate_range_m)) continue;
+      if (!(static_cast<double>(range) < candidate_range_m)) continue;
       bool is_minimum = true;
       for (int dy = -radius_cells_; dy <= radius_cells_ && is_minimum; ++dy) {
         const int ny = cy + dy;

@@ -36,12 +36,14 @@ struct Scene {
     for (auto& j : J) j.assign(kPoints, 0.1f);
     for (int v = 0; v < kHeight; ++v) {
       for (int u = 0; u < kWidth; ++u) {
-        const int i = v * kWidth + u;
-        image[i] = 128.0f + 60.0f * std::sin(0.2f * u) * std::cos(0.15f * v);
-        depth[i] = 1.5f + 0.002f * u + 0.001f * v;
+        const auto i = static_cast<std::size_t>(v * kWidth + u);
+        const auto u_px = static_cast<float>(u);
+        const auto v_px = static_cast<float>(v);
+        image[i] = 128.0f + 60.0f * std::sin(0.2f * u_px) * std::cos(0.15f * v_px);
+        depth[i] = 1.5f + 0.002f * u_px + 0.001f * v_px;
         z[i] = depth[i];
-        x[i] = (static_cast<float>(u) - kK.cx) * z[i] / kK.fx;
-        y[i] = (static_cast<float>(v) - kK.cy) * z[i] / kK.fy;
+        x[i] = (u_px - kK.cx) * z[i] / kK.fx;
+        y[i] = (v_px - kK.cy) * z[i] / kK.fy;
         intensity[i] = image[i];
       }
     }
@@ -57,7 +59,7 @@ void BM_WarpAndSampleIntensity(benchmark::State& state) {
   const Scene& s = scene();
   std::vector<float> residual(kPoints);
   for (auto _ : state) {
-    for (int i = 0; i < kPoints; ++i) {
+    for (std::size_t i = 0; i < residual.size(); ++i) {
       float qx, qy, qz;
       kWarp.apply(s.x[i], s.y[i], s.z[i], qx, qy, qz);
       const float u = kK.fx * qx / qz + kK.cx;
@@ -77,7 +79,7 @@ void BM_DepthResidualAndJacobian(benchmark::State& state) {
   std::vector<float> residual(kPoints);
   std::vector<float> jacobian(6 * kPoints);
   for (auto _ : state) {
-    for (int i = 0; i < kPoints; ++i) {
+    for (std::size_t i = 0; i < residual.size(); ++i) {
       depth_residual(s.depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK, kWarp, s.x[i],
                      s.y[i], s.z[i], 0.15f, 0.0015f, 0.05f, residual[i], &jacobian[6 * i]);
     }

@@ -514,7 +514,7 @@ struct DenseOdometry::Impl {
       }
       const double next_ii = n_i > 0 ? std::max<double>(a_ii / n_i, 1e-6) : sigma_ii;
       const double next_zz = n_z > 0 ? std::max<double>(a_zz / n_z, 1e-6) : sigma_zz;
-      double next_iz = n_b > 0 ? a_iz / n_b : 0.0;
+      double next_iz = n_b > 0 ? static_cast<double>(a_iz / n_b) : 0.0;
       // Keep Sigma positive definite when few points carry both residuals.
       const double bound = 0.95 * std::sqrt(next_ii * next_zz);
       next_iz = std::clamp(next_iz, -bound, bound);
@@ -676,7 +676,7 @@ struct DenseOdometry::Impl {
     if (!depth_at(level)) {
       if (level_variance == 0.0) {
         double sum = 0.0;
-        for (int i = 0; i < count; ++i) sum += residual[i] * residual[i];
+        for (int i = 0; i < count; ++i) sum += static_cast<double>(residual[i] * residual[i]);
         level_variance = std::max(sum / valid, 1.0);
       }
       variance = estimate_variance(count, valid, level_variance);
@@ -686,8 +686,8 @@ struct DenseOdometry::Impl {
     if (sigma_ii == 0.0) {
       double sum_i = 0.0, sum_z = 0.0;
       for (int i = 0; i < count; ++i) {
-        sum_i += mask[i] * residual[i] * residual[i];
-        sum_z += depth_mask[i] * depth_residual[i] * depth_residual[i];
+        sum_i += static_cast<double>(mask[i] * residual[i] * residual[i]);
+        sum_z += static_cast<double>(depth_mask[i] * depth_residual[i] * depth_residual[i]);
       }
       sigma_ii = std::max(sum_i / std::max(counts.photometric, 1), 1.0);
       sigma_zz = std::max(sum_z / std::max(counts.depth, 1), 1e-3);

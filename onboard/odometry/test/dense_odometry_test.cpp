@@ -276,7 +276,8 @@ TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
     odometry.track(0, frames[0].gray, frames[0].depth_m);
     const long before = hq::testing::allocation_count();
     for (int k = 1; k < 4; ++k) {
-      const OdometryResult r = odometry.track(k, frames[k].gray, frames[k].depth_m, &gyro);
+      const Frame& frame = frames[static_cast<std::size_t>(k)];
+      const OdometryResult r = odometry.track(k, frame.gray, frame.depth_m, &gyro);
       EXPECT_TRUE(r.ok()) << r.reason;
     }
     EXPECT_EQ(hq::testing::allocation_count() - before, 0) << "variant " << variant;

@@ -16,6 +16,11 @@ namespace {
 constexpr int kWidth = 64;
 constexpr int kHeight = 48;
 const Intrinsics kK{50.0f, 52.0f, 31.5f, 23.5f};
+// kK in double, for the reference projections the kernels are checked against.
+const auto kFx = static_cast<double>(kK.fx);
+const auto kFy = static_cast<double>(kK.fy);
+const auto kCx = static_cast<double>(kK.cx);
+const auto kCy = static_cast<double>(kK.cy);
 
 Warp warp_of(const Eigen::Isometry3d& T) {
   const Eigen::Matrix3d& R = T.linear();
@@ -37,7 +42,10 @@ std::vector<float> smooth_depth() {
   std::vector<float> d(kWidth * kHeight);
   for (int v = 0; v < kHeight; ++v) {
     for (int u = 0; u < kWidth; ++u) {
-      d[v * kWidth + u] = 2.0f + 0.01f * u - 0.005f * v + 0.0002f * u * v;
+      const auto u_px = static_cast<float>(u);
+      const auto v_px = static_cast<float>(v);
+      d[static_cast<std::size_t>(v * kWidth + u)] =
+          2.0f + 0.01f * u_px - 0.005f * v_px + 0.0002f * u_px * v_px;
     }
   }
   return d;
@@ -54,7 +62,7 @@ TEST(DepthResidual, AnalyticJacobianMatchesNumericDerivative) {
   for (const Eigen::Vector2d& uv :
        {Eigen::Vector2d(20.3, 15.6), Eigen::Vector2d(40.7, 30.4), Eigen::Vector2d(12.45, 35.55)}) {
     const double z = 2.0 + 0.01 * uv.x() - 0.005 * uv.y() + 0.0002 * uv.x() * uv.y();
-    const Eigen::Vector3d q((uv.x() - kK.cx) * z / kK.fx, (uv.y() - kK.cy) * z / kK.fy, z);
+    const Eigen::Vector3d q((uv.x() - kCx) * z / kFx, (uv.y() - kCy) * z / kFy, z);
     const Eigen::Vector3d p = T.inverse() * q;
     const auto residual_at = [&](const geometry::Vector6d& delta, float* J) {
       float r = 0.0f;
@@ -109,10 +117,10 @@ TEST(PhotometricJacobian, MatchesNumericDerivativeOfTheWarpedReference) {
        {Eigen::Vector3d(0.1, 0.05, 2.1), Eigen::Vector3d(-0.4, 0.2, 1.9)}) {
     const auto I_at = [&](const geometry::Vector6d& xi) {
       const Eigen::Vector3d q = geometry::exp_se3(xi) * p;
-      return intensity(kK.fx * q.x() / q.z() + kK.cx, kK.fy * q.y() / q.z() + kK.cy);
+      return intensity(kFx * q.x() / q.z() + kCx, kFy * q.y() / q.z() + kCy);
     };
-    const double u = kK.fx * p.x() / p.z() + kK.cx;
-    const double v = kK.fy * p.y() / p.z() + kK.cy;
+    const double u = kFx * p.x() / p.z() + kCx;
+    const double v = kFy * p.y() / p.z() + kCy;
     const auto gx = static_cast<float>(0.5 * (intensity(u + 1, v) - intensity(u - 1, v)));
     const auto gy = static_cast<float>(0.5 * (intensity(u, v + 1) - intensity(u, v - 1)));
     float J[6];
@@ -137,18 +145,19 @@ TEST(AccumulateRows, MatchesDenseSums) {
   Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
   double oo = 0.0;
   for (int i = 0; i < kRows; ++i) {
+    const auto n = static_cast<std::size_t>(i);
     Eigen::Matrix<double, 6, 1> row;
     for (int k = 0; k < 6; ++k) {
-      j[k][i] = std::sin(0.1f * static_cast<float>(i * (k + 1)));
-      row(k) = j[k][i];
+      j[k][n] = std::sin(0.1f * static_cast<float>(i * (k + 1)));
+      row(k) = j[k][n];
     }
-    r[i] = std::cos(0.05f * static_cast<float>(i));
-    w[i] = 0.5f +
+    r[n] = std::cos(0.05f * static_cast<float>(i));
+    w[n] = 0.5f +
            0.5f * std::sin(0.3f * static_cast<float>(i)) * std::sin(0.3f * static_cast<float>(i));
-    o[i] = 0.25f;
-    H += w[i] * row * row.transpose();
-    g += w[i] * row * r[i];
-    oo += w[i] * o[i] * o[i];
+    o[n] = 0.25f;
+    H += w[n] * row * row.transpose();
+    g += w[n] * row * r[n];
+    oo += static_cast<double>(w[n] * o[n] * o[n]);
   }
   const float* J[6] = {j[0].data(), j[1].data(), j[2].data(),
                        j[3].data(), j[4].data(), j[5].data()};

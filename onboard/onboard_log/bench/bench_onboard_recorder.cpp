@@ -34,7 +34,9 @@ std::int64_t now_ns() {
 
 void print(const char* what, std::vector<std::int64_t>& ns) {
   std::sort(ns.begin(), ns.end());
-  const auto at = [&](double q) { return ns[static_cast<std::size_t>(q * (ns.size() - 1))]; };
+  const auto at = [&](double q) {
+    return ns[static_cast<std::size_t>(q * static_cast<double>(ns.size() - 1))];
+  };
   fmt::print("  {:<52} p50 {:6} ns  p90 {:6} ns  p99 {:7} ns  max {:8} ns  ({})\n", what, at(0.5),
              at(0.9), at(0.99), ns.back(), ns.size());
 }

@@ -11,13 +11,14 @@ StageTimingLog::StageTimingLog(std::size_t frames) {
 
 void StageTimingLog::add(const StageDurations& durations) {
   for (int i = 0; i < kStageCount; ++i) {
-    stages_[i].push_back(1e-6 * static_cast<double>(stage_ns(durations, i)));
+    stages_[static_cast<std::size_t>(i)].push_back(1e-6 *
+                                                   static_cast<double>(stage_ns(durations, i)));
   }
 }
 
 StageStatistics StageTimingLog::statistics(int stage) const {
   StageStatistics out;
-  std::vector<double> sorted = stages_[stage];
+  std::vector<double> sorted = stages_[static_cast<std::size_t>(stage)];
   if (sorted.empty()) return out;
   std::sort(sorted.begin(), sorted.end());
   // Nearest-rank percentiles: the value at or below which p of the samples lie.

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 
 namespace hq::pipeline {
 
@@ -113,7 +114,8 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
   if (spacing_ns.empty()) {
     throw InputError(sequence_dir + ": 1 frame, expected at least 2 to differentiate poses");
   }
-  std::nth_element(spacing_ns.begin(), spacing_ns.begin() + spacing_ns.size() / 2,
+  std::nth_element(spacing_ns.begin(),
+                   spacing_ns.begin() + static_cast<std::ptrdiff_t>(spacing_ns.size() / 2),
                    spacing_ns.end());
   replay.frame_interval_ns = spacing_ns[spacing_ns.size() / 2];
 

@@ -261,7 +261,9 @@ TEST_F(ChainOnRenderedPlane, OperatorCommandIsLimitedToTheSeenSpace) {
   EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.z(), -0.2);
   EXPECT_EQ(out.seen_space_bins, 72);
   EXPECT_TRUE(out.seen_space.updated);
-  for (int b = 0; b < out.seen_space_bins; ++b) EXPECT_EQ(out.seen_space_limits_mps[b], 0.0f);
+  for (int b = 0; b < out.seen_space_bins; ++b) {
+    EXPECT_EQ(out.seen_space_limits_mps[static_cast<std::size_t>(b)], 0.0f);
+  }
   // The mode controller got the limited command: v*_des has no horizontal part.
   EXPECT_NEAR(out.mode.v_star_des_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
 }

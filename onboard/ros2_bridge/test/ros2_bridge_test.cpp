@@ -85,7 +85,7 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
   ASSERT_GT(n, 0);
   for (const auto& [name, type] : expected) {
     bool found = false;
-    for (dds_return_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < static_cast<std::size_t>(n); ++i) {
       if (topic_name(children[i]) != name) continue;
       found = true;
       EXPECT_EQ(type_name(children[i]), type) << name;

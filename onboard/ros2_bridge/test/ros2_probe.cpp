@@ -52,7 +52,7 @@ struct RawDump {
       const dds_return_t n =
           dds_takecdr(reader, samples_cdr.data(), samples_cdr.size(), infos.data(), DDS_ANY_STATE);
       if (n <= 0) return;
-      for (dds_return_t i = 0; i < n; ++i) {
+      for (std::size_t i = 0; i < static_cast<std::size_t>(n); ++i) {
         if (infos[i].valid_data && samples < max_samples) {
           const std::uint32_t size = ddsi_serdata_size(samples_cdr[i]);
           std::vector<unsigned char> bytes(size);
@@ -141,7 +141,8 @@ class Probe {
     twist_frame_ = a.ns + "/base_link";
     twist_.header.frame_id = twist_frame_.data();
     // Along the heading, in H: (cos, sin) right of forward; in the ROS body FLU y is left.
-    twist_.twist.linear = {0.3 * cos_heading_, -0.3 * sin_heading_, 0.0};
+    twist_.twist.linear = {0.3 * static_cast<double>(cos_heading_),
+                           -0.3 * static_cast<double>(sin_heading_), 0.0};
     csv_ = std::fopen((a.out + "/states.csv").c_str(), "w");
     if (csv_ == nullptr) throw hq::InputError(a.out + "/states.csv: cannot open for writing");
     std::fprintf(csv_, "t_ns,v_H_x,v_H_y,v_H_z,roll_rad,pitch_rad\n");
@@ -200,8 +201,9 @@ class Probe {
       have_state_ = true;
       session_ = state_->session_id;
       std::fprintf(csv_, "%lld,%.6f,%.6f,%.6f,%.6f,%.6f\n", static_cast<long long>(state_->t_ns),
-                   state_->v_H_mps.x, state_->v_H_mps.y, state_->v_H_mps.z, state_->roll_rad,
-                   state_->pitch_rad);
+                   static_cast<double>(state_->v_H_mps.x), static_cast<double>(state_->v_H_mps.y),
+                   static_cast<double>(state_->v_H_mps.z), static_cast<double>(state_->roll_rad),
+                   static_cast<double>(state_->pitch_rad));
       if (phase_ == Phase::kRos && flies(250, 0.3F)) ++ros_seen_;
       if (phase_ == Phase::kNative && flies(1, 0.1F)) ++native_seen_;
     }
@@ -257,7 +259,8 @@ class Probe {
       requests_.write(r);
     }
     if (have_state_ && state_->flight_state == hq_msgs_FLIGHT_AIRBORNE) {
-      std::printf("probe: airborne after %.1f s\n", 1e-9 * (t_ns - phase_start_ns_));
+      std::printf("probe: airborne after %.1f s\n",
+                  1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kRos, t_ns);
     }
   }
@@ -266,13 +269,13 @@ class Probe {
     twists_.write(twist_);
     if (ros_seen_ >= 10) {
       std::printf("probe: ROS 2 cmd_vel_in flown by station 250 after %.1f s\n",
-                  1e-9 * (t_ns - phase_start_ns_));
+                  1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kNative, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
       std::printf(
           "probe: FAILED: the ROS 2 command was not flown within 5 s "
           "(commanding station %u, v_cmd_flown_H x %.2f, operator input %d, mode %d)\n",
-          state_->commanding_station_id, state_->v_cmd_flown_H_mps.x,
+          state_->commanding_station_id, static_cast<double>(state_->v_cmd_flown_H_mps.x),
           static_cast<int>(state_->operator_input), static_cast<int>(state_->mode));
       return false;
     }
@@ -290,13 +293,13 @@ class Probe {
     commands_.write(command);
     if (native_seen_ >= 10) {
       std::printf("probe: native station 1 overrode the ROS 2 node after %.1f s\n",
-                  1e-9 * (t_ns - phase_start_ns_));
+                  1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kDone, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
       std::printf(
           "probe: FAILED: the native station did not take over within 5 s "
           "(commanding station %u, v_cmd_flown_H x %.2f)\n",
-          state_->commanding_station_id, state_->v_cmd_flown_H_mps.x);
+          state_->commanding_station_id, static_cast<double>(state_->v_cmd_flown_H_mps.x));
       return false;
     }
     return true;

@@ -98,15 +98,16 @@ double SeenSpaceLimiter::max_speed_mps(double free_m, double v_now_mps) const {
 double SeenSpaceLimiter::free_distance_m(int b, bool* obstacle) const {
   if (obstacle != nullptr) *obstacle = false;
   if (b < 0 || b >= config_.bins) return -1.0;
-  const float seen_m = bins_[b].seen ? bins_[b].free_m : kNone;
-  const float d = std::min(seen_m, memory_m_[b]);
-  if (obstacle != nullptr) *obstacle = memory_m_[b] <= seen_m || bins_[b].obstacle;
+  const auto i = static_cast<std::size_t>(b);
+  const float seen_m = bins_[i].seen ? bins_[i].free_m : kNone;
+  const float d = std::min(seen_m, memory_m_[i]);
+  if (obstacle != nullptr) *obstacle = memory_m_[i] <= seen_m || bins_[i].obstacle;
   return std::isfinite(d) ? static_cast<double>(d) : -1.0;
 }
 
 void SeenSpaceLimiter::scan_depth(const cv::Mat& depth_m, const Eigen::Matrix3d& R_HC,
                                   const Eigen::Vector3d& o_H) {
-  const int n = config_.bins;
+  const auto n = static_cast<std::size_t>(config_.bins);
   std::fill_n(frame_obstacle_m_.begin(), n, kNone);
   std::fill_n(frame_free_m_.begin(), n, 0.0f);
   std::fill_n(frame_valid_.begin(), n, 0);
@@ -119,17 +120,20 @@ void SeenSpaceLimiter::scan_depth(const cv::Mat& depth_m, const Eigen::Matrix3d&
     for (int u = stride / 2; u < depth_m.cols; u += stride) {
       const Eigen::Vector3d ray_H = R_HC * camera_.ray(u, v);
       const float z = row[u];
-      const bool valid = std::isfinite(z) && z >= config_.min_range_m && z > 0.0f;
+      const bool valid =
+          std::isfinite(z) && static_cast<double>(z) >= config_.min_range_m && z > 0.0f;
       if (!valid) {
         if (ray_H.head<2>().squaredNorm() < 1e-12) continue;  // straight down: no azimuth
-        const int b = bin_of_fixed_azimuth(std::atan2(ray_H.y(), ray_H.x()) + yaw_rad_);
+        const auto b = static_cast<std::size_t>(
+            bin_of_fixed_azimuth(std::atan2(ray_H.y(), ray_H.x()) + yaw_rad_));
         ++frame_total_[b];
         continue;
       }
       const Eigen::Vector3d p_H = o_H + static_cast<double>(z) * ray_H;
       const double r_m = p_H.head<2>().norm();
       if (r_m < 1e-6) continue;
-      const int b = bin_of_fixed_azimuth(std::atan2(p_H.y(), p_H.x()) + yaw_rad_);
+      const auto b =
+          static_cast<std::size_t>(bin_of_fixed_azimuth(std::atan2(p_H.y(), p_H.x()) + yaw_rad_));
       ++frame_total_[b];
       ++frame_valid_[b];
       if (std::abs(p_H.z()) <= band) {
@@ -159,10 +163,10 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   SeenSpaceUpdate out;
   t_now_ns_ = t_ns;
   memory_m_.fill(kNone);
-  const int n = config_.bins;
+  const auto n = static_cast<std::size_t>(config_.bins);
   // Ageing: what was not seen again for max_age_s is no data again.
   const auto max_age_ns = static_cast<std::int64_t>(config_.max_age_s * 1e9);
-  for (int b = 0; b < n; ++b) {
+  for (std::size_t b = 0; b < n; ++b) {
     if (bins_[b].seen && t_ns - bins_[b].t_seen_ns > max_age_ns) bins_[b].seen = false;
   }
   if (!config_.enabled) {
@@ -173,7 +177,7 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   if (!pose_ok) {
     pose_chain_broken_ = true;
     out.reason = "no pose";
-    for (int b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
+    for (std::size_t b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
     return out;
   }
 
@@ -185,7 +189,7 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   const Eigen::Vector3d p_O_B = *T_O_C * p_C_B;
   if (have_pose_ && pose_chain_broken_) {
     // Tracking came back: how far the vehicle turned and moved meanwhile is unknown.
-    for (int b = 0; b < n; ++b) bins_[b].seen = false;
+    for (std::size_t b = 0; b < n; ++b) bins_[b].seen = false;
     have_pose_ = false;
   }
   if (!have_pose_) t_pose_since_ns_ = t_ns;
@@ -197,11 +201,11 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     const Eigen::Vector3d dp_H = R_H_O * (p_O_B - p_O_B_prev_);
     const double travel_m = dp_H.head<2>().norm();
     if (!(travel_m <= config_.max_pose_jump_m)) {
-      for (int b = 0; b < n; ++b) bins_[b].seen = false;
+      for (std::size_t b = 0; b < n; ++b) bins_[b].seen = false;
     } else {
       // The distance to anything seen cannot have shrunk by more than the travel.
       const auto shrink = static_cast<float>(travel_m);
-      for (int b = 0; b < n; ++b) {
+      for (std::size_t b = 0; b < n; ++b) {
         if (bins_[b].seen) bins_[b].free_m = std::max(0.0f, bins_[b].free_m - shrink);
       }
     }
@@ -216,13 +220,13 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
   if (depth_m.empty() || depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
       depth_m.rows != camera_.height) {
     out.reason = "depth missing or not camera-sized CV_32FC1";
-    for (int b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
+    for (std::size_t b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
     return out;
   }
 
   const Eigen::Vector3d o_H = R_H_B * p_B_C_m_;  // camera centre from the body, in H
   scan_depth(depth_m, R_HC, o_H);
-  for (int b = 0; b < n; ++b) {
+  for (std::size_t b = 0; b < n; ++b) {
     if (frame_total_[b] == 0) continue;  // outside the view: the kept value stands
     Bin& bin = bins_[b];
     if (std::isfinite(frame_obstacle_m_[b])) {
@@ -241,7 +245,7 @@ SeenSpaceUpdate SeenSpaceLimiter::update(std::int64_t t_ns, const cv::Mat& depth
     bin.t_seen_ns = t_ns;
     ++out.covered_bins;
   }
-  for (int b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
+  for (std::size_t b = 0; b < n; ++b) out.seen_bins += bins_[b].seen ? 1 : 0;
   return out;
 }
 
@@ -252,7 +256,8 @@ void SeenSpaceLimiter::add_remembered_point(const Eigen::Vector3f& p_O_m, std::i
   if (std::abs(p_H.z()) > config_.vertical_band_m) return;
   const double r_m = p_H.head<2>().norm();
   if (r_m > config_.max_range_m || r_m < 1e-6) return;
-  const int b = bin_of_fixed_azimuth(std::atan2(p_H.y(), p_H.x()) + yaw_rad_);
+  const auto b =
+      static_cast<std::size_t>(bin_of_fixed_azimuth(std::atan2(p_H.y(), p_H.x()) + yaw_rad_));
   memory_m_[b] = std::min(memory_m_[b], static_cast<float>(r_m));
 }
 
@@ -311,7 +316,8 @@ void SeenSpaceLimiter::heading_limits(std::array<float, kMaxBins>& out_mps) cons
   for (int i = 0; i < config_.bins; ++i) {
     const int b = bin_of_heading_azimuth((i + 0.5) * bin_width_rad_);
     const double d = free_distance_m(b);
-    out_mps[i] = static_cast<float>(d >= 0.0 ? max_speed_mps(d) : config_.creep_speed_mps);
+    out_mps[static_cast<std::size_t>(i)] =
+        static_cast<float>(d >= 0.0 ? max_speed_mps(d) : config_.creep_speed_mps);
   }
 }
 

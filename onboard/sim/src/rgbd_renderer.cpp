@@ -358,7 +358,7 @@ namespace {
 
 /// Footprints are cut at this depth, below the smallest accepted hit (t is z in C: the rays
 /// have z = 1), so a face crossing the camera's plane keeps the part in front of it.
-constexpr double kFootprintNearZ = 0.5 * kMinT;
+constexpr double kFootprintNearZ = 0.5 * static_cast<double>(kMinT);
 
 /// Pixel bounding rectangle of convex polygons given in camera coordinates, each cut at
 /// z = kFootprintNearZ (Sutherland-Hodgman against that one plane) before projection. A ray
@@ -649,7 +649,8 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
       float disparity = k.fb / z_true;
       if (k.sigma_disparity > 0.0f) {
         disparity +=
-            k.sigma_disparity * gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel)));
+            k.sigma_disparity *
+            gaussian_from_hash(splitmix64(sc.frame_key ^ (2 * static_cast<std::uint64_t>(pixel))));
       }
       if (k.subpixels > 0.0f) disparity = std::round(disparity * k.subpixels) / k.subpixels;
       if (disparity > 0.0f) {
@@ -662,7 +663,8 @@ inline void shade_pixel(const SceneTables& sc, const ShadeConstants& k, const Hi
   depth_out = depth;
   const float noise =
       k.image_sigma > 0.0f
-          ? k.image_sigma * gaussian_from_hash(splitmix64(sc.frame_key ^ (2ull * pixel + 1ull)))
+          ? k.image_sigma * gaussian_from_hash(splitmix64(
+                                sc.frame_key ^ (2 * static_cast<std::uint64_t>(pixel) + 1)))
           : 0.0f;
   for (int c = 0; c < k.channels; ++c) {
     const float value = k.channels == 1 ? 0.114f * pixel_value[0] + 0.587f * pixel_value[1] +
@@ -1228,14 +1230,14 @@ void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_
         float t_near = -kNoHit;
         float t_far = kNoHit;
         int axis = 0;
-        for (int k = 0; k < 3; ++k) {
-          const float inv = 1.0f / dl[k];
-          float t0 = (-b.half[k] - b.o_local[k]) * inv;
-          float t1 = (b.half[k] - b.o_local[k]) * inv;
+        for (int slab = 0; slab < 3; ++slab) {
+          const float inv = 1.0f / dl[slab];
+          float t0 = (-b.half[slab] - b.o_local[slab]) * inv;
+          float t1 = (b.half[slab] - b.o_local[slab]) * inv;
           if (t0 > t1) std::swap(t0, t1);
           if (t0 > t_near) {
             t_near = t0;
-            axis = k;
+            axis = slab;
           }
           t_far = std::min(t_far, t1);
         }

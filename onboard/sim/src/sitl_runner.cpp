@@ -258,7 +258,8 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
               sim_s, wall_s, wall_s > 0.0 ? sim_s / wall_s : 0.0,
               static_cast<double>(stats.max_lag_ns) * 1e-6);
   std::printf("frames published %lld (render %.1f ms mean), skipped while rendering %lld\n",
-              static_cast<long long>(frames), frames > 0 ? 1e3 * render_s / frames : 0.0,
+              static_cast<long long>(frames),
+              frames > 0 ? 1e3 * render_s / static_cast<double>(frames) : 0.0,
               static_cast<long long>(stats.frames_skipped));
   char clearance[32] = "n/a (never airborne)";
   if (stats.min_clearance_m < 1e8) {

@@ -114,7 +114,7 @@ TEST(WorldTest, TexturesAreDeterministicAndTextured) {
   float min_v = 1.0f;
   float max_v = 0.0f;
   for (int i = 0; i < 200; ++i) {
-    const float v = t.albedo(0.013f * i, 0.007f * i).x();
+    const float v = t.albedo(0.013f * static_cast<float>(i), 0.007f * static_cast<float>(i)).x();
     min_v = std::min(min_v, v);
     max_v = std::max(max_v, v);
   }
@@ -147,7 +147,7 @@ TEST(WorldTest, AlbedoSpanEqualsAlbedoBitForBit) {
     texture.scale_m = 0.2f;
     std::vector<float> b(s.size()), g(s.size()), r(s.size());
     texture.albedo_span(s.data(), t.data(), n, b.data(), g.data(), r.data());
-    for (int i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < s.size(); ++i) {
       const Eigen::Vector3f expected = texture.albedo(s[i], t[i]);
       ASSERT_EQ(b[i], expected[0]) << "kind " << static_cast<int>(kind) << " at " << s[i];
       ASSERT_EQ(g[i], expected[1]);

@@ -118,7 +118,7 @@ class FreenectFrameSource final : public CameraSource {
     depth_m_raw_.create(kHeight, kWidth, CV_32FC1);
     for (int raw = 0; raw < static_cast<int>(raw11_to_m_.size()); ++raw) {
       const double inverse_z = kRaw11A * raw + kRaw11B;
-      raw11_to_m_[raw] =
+      raw11_to_m_[static_cast<std::size_t>(raw)] =
           raw < kInvalidRaw11 && inverse_z > 0.0 ? static_cast<float>(1.0 / inverse_z) : 0.0f;
     }
     std::string why;

@@ -136,8 +136,10 @@ class Openni2FrameSource final : public CameraSource {
     info.name = "openni2_fov";
     info.width = options_.width;
     info.height = options_.height;
-    info.fx = 0.5 * info.width / std::tan(0.5 * colour_.getHorizontalFieldOfView());
-    info.fy = 0.5 * info.height / std::tan(0.5 * colour_.getVerticalFieldOfView());
+    info.fx =
+        0.5 * info.width / std::tan(0.5 * static_cast<double>(colour_.getHorizontalFieldOfView()));
+    info.fy =
+        0.5 * info.height / std::tan(0.5 * static_cast<double>(colour_.getVerticalFieldOfView()));
     info.cx = 0.5 * (info.width - 1);
     info.cy = 0.5 * (info.height - 1);
     info.distortion.assign(5, 0.0);
@@ -259,10 +261,10 @@ class Openni2FrameSource final : public CameraSource {
       return false;
     }
     const cv::Mat rgb(h, w, CV_8UC3, const_cast<void*>(colour_frame_.getData()),
-                      colour_frame_.getStrideInBytes());
+                      static_cast<std::size_t>(colour_frame_.getStrideInBytes()));
     cv::cvtColor(rgb, bgr_raw_, cv::COLOR_RGB2BGR);
     const cv::Mat depth(h, w, CV_16UC1, const_cast<void*>(depth_frame_.getData()),
-                        depth_frame_.getStrideInBytes());
+                        static_cast<std::size_t>(depth_frame_.getStrideInBytes()));
     const double m_per_unit =
         depth_frame_.getVideoMode().getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM ? 1e-4
                                                                                           : 1e-3;

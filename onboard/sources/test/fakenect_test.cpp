@@ -91,7 +91,7 @@ std::string fresh_dir(const std::string& name) {
 
 std::uint16_t metres_to_raw11(float z_m) {
   if (!(z_m > 0.0f)) return 2047;  // the Kinect's "no depth"
-  const long raw = std::lround((1.0 / z_m - kRaw11B) / kRaw11A);
+  const long raw = std::lround((1.0 / static_cast<double>(z_m) - kRaw11B) / kRaw11A);
   return static_cast<std::uint16_t>(std::clamp(raw, 0L, 2046L));
 }
 
@@ -115,12 +115,13 @@ Dump write_dump(const std::string& tum_dir, const std::string& dir) {
     const recording::RgbdFrameFiles& files = sequence.frame(i);
     sequence.load(i, bgr, depth_u16);
     recording::depth_to_metres(depth_u16, 5000.0, depth_m);
-    const auto ticks_since_0 =
-        static_cast<std::uint64_t>(std::llround((files.t_ns - t0_ns) * 1e-9 * kTicksPerS));
+    const auto ticks_since_0 = static_cast<std::uint64_t>(
+        std::llround(static_cast<double>(files.t_ns - t0_ns) * 1e-9 * kTicksPerS));
     const auto ticks = static_cast<std::uint32_t>((std::uint64_t{1} << 32) - kTicksBeforeWrap +
                                                   ticks_since_0);  // wraps modulo 2^32
     char name[96];
-    std::snprintf(name, sizeof(name), "a-%f-%u.dump", files.depth_t_ns * 1e-9, ticks);
+    std::snprintf(name, sizeof(name), "a-%f-%u.dump", static_cast<double>(files.depth_t_ns) * 1e-9,
+                  ticks);
     const std::int16_t tilt[6] = {kAccelRaw[0], kAccelRaw[1], kAccelRaw[2], 0, 0, 0};
     std::ofstream(dir + "/" + name, std::ios::binary)
         .write(reinterpret_cast<const char*>(tilt), 12);  // sizeof(freenect_raw_tilt_state)
@@ -130,13 +131,14 @@ Dump write_dump(const std::string& tum_dir, const std::string& dir) {
         raw.at<std::uint16_t>(v, u) = metres_to_raw11(depth_m.at<float>(v, u));
       }
     }
-    std::snprintf(name, sizeof(name), "d-%f-%u.pgm", files.depth_t_ns * 1e-9, ticks);
+    std::snprintf(name, sizeof(name), "d-%f-%u.pgm", static_cast<double>(files.depth_t_ns) * 1e-9,
+                  ticks);
     std::ofstream depth_file(dir + "/" + name, std::ios::binary);
     depth_file << "P5 640 480 65535\n";
     depth_file.write(reinterpret_cast<const char*>(raw.data), 640 * 480 * 2);
     index << name << '\n';
     cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-    std::snprintf(name, sizeof(name), "r-%f-%u.ppm", files.t_ns * 1e-9, ticks);
+    std::snprintf(name, sizeof(name), "r-%f-%u.ppm", static_cast<double>(files.t_ns) * 1e-9, ticks);
     std::ofstream colour_file(dir + "/" + name, std::ios::binary);
     colour_file << "P6 640 480 255\n";
     colour_file.write(reinterpret_cast<const char*>(rgb.data), 640 * 480 * 3);
@@ -195,7 +197,11 @@ TEST(Fakenect, ReplaysTumFramesWithDeviceStampsDepthAndAccelerometer) {
         const float z_out = frame.depth_m.at<float>(v, u);
         expected_valid += z > 0.0f;
         valid += z_out > 0.0f;
-        if (z > 0.0f && std::abs(z_out - z) > 0.5 * -kRaw11A * z * z * 1.01 + 1e-5) ++mismatched;
+        const auto z_d = static_cast<double>(z);
+        if (z > 0.0f &&
+            static_cast<double>(std::abs(z_out - z)) > 0.5 * -kRaw11A * z_d * z_d * 1.01 + 1e-5) {
+          ++mismatched;
+        }
       }
     }
     EXPECT_EQ(mismatched, 0) << "frame " << i;

@@ -52,8 +52,8 @@ class RenderedFrames final : public hq::sources::FrameSource {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.translation().x() = 0.3 * k / 30.0;
       T.translation().y() = 0.05 * std::sin(0.2 * k);
-      hq::odometry::test::render_textured_plane(kCamera, T, 2.0, frames_[k].gray,
-                                                frames_[k].depth_m);
+      hq::sources::RgbdFrame& frame = frames_[static_cast<std::size_t>(k)];
+      hq::odometry::test::render_textured_plane(kCamera, T, 2.0, frame.gray, frame.depth_m);
     }
   }
   hq::sources::FrameStatus next(hq::sources::RgbdFrame& frame) override {
@@ -174,7 +174,9 @@ Figures figures(std::vector<double> us) {
   f.n = us.size();
   if (us.empty()) return f;
   std::sort(us.begin(), us.end());
-  const auto at = [&](double q) { return us[static_cast<std::size_t>(q * (us.size() - 1))]; };
+  const auto at = [&](double q) {
+    return us[static_cast<std::size_t>(q * static_cast<double>(us.size() - 1))];
+  };
   f.p50_us = at(0.5);
   f.p90_us = at(0.9);
   f.p99_us = at(0.99);

@@ -26,7 +26,7 @@ TEST(EvaluateFiles, SyntheticGroundTruthAndEstimateGiveKnownFigures) {
   // (1, 2, 3) m that overestimates the speed by 2 %: 0.01 m/s of drift along x.
   std::vector<StampedPose> gt;
   for (std::int64_t k = 0; k <= 300; ++k) {
-    const double t_s = k * 0.01;
+    const double t_s = static_cast<double>(k) * 0.01;
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = Eigen::AngleAxisd(0.2 * t_s, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     T.translation() = Eigen::Vector3d(0.5 * t_s, 0.0, 1.0);
@@ -35,7 +35,7 @@ TEST(EvaluateFiles, SyntheticGroundTruthAndEstimateGiveKnownFigures) {
   std::vector<StampedPose> est;
   for (std::int64_t k = 0; k < 90; ++k) {
     const std::int64_t t_ns = 1'000'000'000'000 + 4'000'000 + k * 30'000'000;
-    const double t_s = (t_ns - 1'000'000'000'000) * 1e-9;
+    const double t_s = static_cast<double>(t_ns - 1'000'000'000'000) * 1e-9;
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = Eigen::AngleAxisd(0.2 * t_s, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     T.translation() = Eigen::Vector3d(0.51 * t_s + 1.0, 2.0, 4.0);

@@ -103,7 +103,7 @@ TEST(TrajectoryError, ExtraTranslationPerStepGivesExactRpe) {
   std::vector<StampedPose> est;
   for (std::int64_t k = 0; k <= 40; ++k) {
     const std::int64_t t_ns = kT0Ns + k * 50'000'000;
-    const Eigen::Vector3d p_m(0.2 * k, -0.1 * k, 1.0);
+    const Eigen::Vector3d p_m(0.2 * static_cast<double>(k), -0.1 * static_cast<double>(k), 1.0);
     gt.push_back({t_ns, make_pose(Eigen::Vector3d::Zero(), p_m)});
     est.push_back(
         {t_ns, make_pose(Eigen::Vector3d::Zero(),
@@ -128,7 +128,7 @@ TEST(TrajectoryError, RotationRateErrorGivesDegreesPerSecond) {
   std::vector<StampedPose> est;
   for (std::int64_t k = 0; k < 90; ++k) {
     const std::int64_t t_ns = kT0Ns + k * 33'333'333;
-    const double t_s = k * 0.033333333;
+    const double t_s = static_cast<double>(k) * 0.033333333;
     gt.push_back({t_ns, make_pose(Eigen::Vector3d(0, 0, 0.2 * t_s), Eigen::Vector3d::Zero())});
     est.push_back({t_ns, make_pose(Eigen::Vector3d(0, 0, 0.3 * t_s), Eigen::Vector3d::Zero())});
   }

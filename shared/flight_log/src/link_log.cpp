@@ -90,10 +90,10 @@ void ChannelWriter::write_json(std::uint16_t channel, std::int64_t log_ns,
 }
 
 struct LinkLog::Impl final : ChannelWriter {
-  Impl(LinkLog& owner, const LinkLogOptions& options, LocalSource* local)
-      : owner(owner),
-        options(checked_new(options)),
-        local(local),
+  Impl(LinkLog& owning_log, const LinkLogOptions& requested, LocalSource* local_source)
+      : owner(owning_log),
+        options(checked_new(requested)),
+        local(local_source),
         // The process's own identity when the link is secured; plain DDS otherwise.
         participant(options.link, options.role),
         topics(participant),

@@ -171,7 +171,9 @@ void copy_rows(const cv::Mat& src, unsigned char* dst) {
     std::memcpy(dst, src.data, row_bytes * static_cast<std::size_t>(src.rows));
     return;
   }
-  for (int r = 0; r < src.rows; ++r) std::memcpy(dst + r * row_bytes, src.ptr(r), row_bytes);
+  for (int r = 0; r < src.rows; ++r) {
+    std::memcpy(dst + static_cast<std::size_t>(r) * row_bytes, src.ptr(r), row_bytes);
+  }
 }
 
 }  // namespace

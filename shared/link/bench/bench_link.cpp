@@ -119,7 +119,7 @@ void onboard_echo(const LinkConfig& config, int samples, std::int64_t* one_way_n
       writer.write(command);
       if (index == kDone) break;
       if (index < static_cast<std::uint64_t>(samples)) {
-        one_way_ns[v * samples + index] = t_receipt_ns - command.t_ns;
+        one_way_ns[v * static_cast<std::size_t>(samples) + index] = t_receipt_ns - command.t_ns;
       }
     }
   }
@@ -511,7 +511,7 @@ std::array<pid_t, 2> fork_security_vehicles(const BenchOptions& o, const Securit
       int code = 0;
       try {
         security_vehicle(k == 0 ? pair.plain : pair.secured, o.security_samples,
-                         security_ns.data() + k * o.security_samples);
+                         security_ns.data() + k * static_cast<std::size_t>(o.security_samples));
       } catch (const std::exception& e) {
         std::fprintf(stderr, "hq-bench-link: vehicle: %s\n", e.what());
         code = 2;

@@ -8,6 +8,9 @@ namespace {
 
 constexpr Validation kOk{};
 
+// The link carries float, the envelope is double: compare in double so a limit is never rounded.
+bool exceeds(float value, double limit) { return static_cast<double>(std::abs(value)) > limit; }
+
 bool finite(const hq_msgs_Vector3f& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
@@ -39,16 +42,16 @@ Validation validate(const VelocityCommand& command, const CommandEnvelope& envel
   if (!std::isfinite(command.v_H_mps.y)) return {false, "v_H_mps.y is NaN or Inf"};
   if (!std::isfinite(command.v_H_mps.z)) return {false, "v_H_mps.z is NaN or Inf"};
   if (!std::isfinite(command.yaw_rate_radps)) return {false, "yaw_rate_radps is NaN or Inf"};
-  if (std::abs(command.v_H_mps.x) > envelope.max_v_x_mps) {
+  if (exceeds(command.v_H_mps.x, envelope.max_v_x_mps)) {
     return {false, "v_H_mps.x outside envelope max_v_x_mps"};
   }
-  if (std::abs(command.v_H_mps.y) > envelope.max_v_y_mps) {
+  if (exceeds(command.v_H_mps.y, envelope.max_v_y_mps)) {
     return {false, "v_H_mps.y outside envelope max_v_y_mps"};
   }
-  if (std::abs(command.v_H_mps.z) > envelope.max_v_z_mps) {
+  if (exceeds(command.v_H_mps.z, envelope.max_v_z_mps)) {
     return {false, "v_H_mps.z outside envelope max_v_z_mps"};
   }
-  if (std::abs(command.yaw_rate_radps) > envelope.max_yaw_rate_radps) {
+  if (exceeds(command.yaw_rate_radps, envelope.max_yaw_rate_radps)) {
     return {false, "yaw_rate_radps outside envelope max_yaw_rate_radps"};
   }
   return kOk;

@@ -86,7 +86,7 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
   constexpr int kSent = 40;
   for (int i = 1; i <= kSent; ++i) {
     sent->vehicle_id = 1;
-    sent->sequence_number = static_cast<unsigned long long>(i);
+    sent->sequence_number = static_cast<std::uint64_t>(i);
     sent->t_ns = dds_time();
     for (std::uint32_t p = 0; p < 3; ++p) {
       sent->obstacle_points_body_m._buffer[p] = {static_cast<float>(i), static_cast<float>(p), 0};

@@ -47,9 +47,9 @@ struct TwoStations {
   // Both write `rounds` commands alternately; returns how many of each the vehicle took.
   void exchange(int rounds, int& from_primary, int& from_backup) {
     VelocityCommand received{};
-    for (int i = 0; i < rounds; ++i) {
-      ASSERT_TRUE(primary.write(command_from(1, i)));
-      ASSERT_TRUE(backup.write(command_from(2, i)));
+    for (std::uint64_t sequence = 0; sequence < static_cast<std::uint64_t>(rounds); ++sequence) {
+      ASSERT_TRUE(primary.write(command_from(1, sequence)));
+      ASSERT_TRUE(backup.write(command_from(2, sequence)));
       // The primary's command always follows; waiting for it also collects any backup one.
       while (test::take_within(vehicle, reader, received, DDS_MSECS(200))) {
         if (received.station_id == 1) ++from_primary;
@@ -73,8 +73,8 @@ TEST(Qos, ExclusiveOwnershipDeliversOnlyStrongestStationUntilItsWriterIsDeleted)
   { Writer<VelocityCommand> gone(std::move(stations.primary)); }
   VelocityCommand received{};
   bool backup_arrived = false;
-  for (int i = 0; i < 50 && !backup_arrived; ++i) {
-    ASSERT_TRUE(stations.backup.write(command_from(2, 100 + i)));
+  for (std::uint64_t sequence = 0; sequence < 50 && !backup_arrived; ++sequence) {
+    ASSERT_TRUE(stations.backup.write(command_from(2, 100 + sequence)));
     backup_arrived =
         test::take_within(stations.vehicle, stations.reader, received, DDS_MSECS(100)) &&
         received.station_id == 2;
@@ -97,8 +97,8 @@ TEST(Qos, BackupTakesOverWhenPrimaryLivelinessLapses) {
   // lapses the backup's commands arrive
   VelocityCommand received{};
   bool backup_arrived = false;
-  for (int i = 0; i < 100 && !backup_arrived; ++i) {
-    ASSERT_TRUE(stations.backup.write(command_from(2, 100 + i)));
+  for (std::uint64_t sequence = 0; sequence < 100 && !backup_arrived; ++sequence) {
+    ASSERT_TRUE(stations.backup.write(command_from(2, 100 + sequence)));
     backup_arrived =
         test::take_within(stations.vehicle, stations.reader, received, DDS_MSECS(50)) &&
         received.station_id == 2;

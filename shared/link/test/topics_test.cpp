@@ -105,7 +105,8 @@ TEST(Topics, CameraFrameRoundTripWith40KbJpeg) {
   constexpr std::uint32_t kJpegBytes = 40'000;
   reserve(sent->rgb_jpeg, kJpegBytes);
   sent->rgb_jpeg._length = kJpegBytes;
-  for (std::uint32_t i = 0; i < kJpegBytes; ++i) sent->rgb_jpeg._buffer[i] = i % 251;
+  for (std::uint32_t i = 0; i < kJpegBytes; ++i)
+    sent->rgb_jpeg._buffer[i] = static_cast<std::uint8_t>(i % 251);
   reserve(sent->depth_preview, 100);
   sent->depth_preview._length = 100;
   std::memset(sent->depth_preview._buffer, 0xAB, 100);

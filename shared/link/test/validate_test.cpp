@@ -1,4 +1,5 @@
 #include "hq/link/messages.hpp"
+#include "hq/testing/wire_enum.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 namespace hq::link {
 namespace {
 
+using hq::testing::wire_enum;
 using ::testing::HasSubstr;
 
 VelocityCommand good_command() {
@@ -69,10 +71,10 @@ TEST(Validate, ModeRequestWithOutOfRangeEnumIsRejected) {
   ModeRequest request{};
   request.requested_mode = hq_msgs_MODE_EXPLORE;
   EXPECT_TRUE(validate(request).ok);
-  request.requested_mode = static_cast<hq_msgs_Mode>(5);
+  request.requested_mode = wire_enum<hq_msgs_Mode>(5);
   EXPECT_FALSE(validate(request).ok);
   EXPECT_THAT(validate(request).reason, HasSubstr("requested_mode outside Mode enum"));
-  request.requested_mode = static_cast<hq_msgs_Mode>(-1);
+  request.requested_mode = wire_enum<hq_msgs_Mode>(-1);
   EXPECT_FALSE(validate(request).ok);
 }
 
@@ -83,10 +85,10 @@ TEST(Validate, ModeRequestMarkerTaskIsCheckedForEnumAndTargetId) {
   request.marker_task = hq_msgs_MARKER_TASK_LAND;
   request.target_id = 7;
   EXPECT_TRUE(validate(request).ok) << validate(request).reason;
-  request.marker_task = static_cast<hq_msgs_MarkerTask>(4);
+  request.marker_task = wire_enum<hq_msgs_MarkerTask>(4);
   EXPECT_FALSE(validate(request).ok);
   EXPECT_THAT(validate(request).reason, HasSubstr("marker_task outside MarkerTask enum"));
-  request.marker_task = static_cast<hq_msgs_MarkerTask>(-1);
+  request.marker_task = wire_enum<hq_msgs_MarkerTask>(-1);
   EXPECT_THAT(validate(request).reason, HasSubstr("marker_task outside MarkerTask enum"));
   request.marker_task = hq_msgs_MARKER_TASK_GO_TO;
   request.target_id = -1;
@@ -98,7 +100,7 @@ TEST(Validate, HeartbeatWithOutOfRangeRoleIsRejected) {
   Heartbeat beat{};
   beat.role = hq_msgs_ROLE_VEHICLE;
   EXPECT_TRUE(validate(beat).ok);
-  beat.role = static_cast<hq_msgs_Role>(7);
+  beat.role = wire_enum<hq_msgs_Role>(7);
   EXPECT_THAT(validate(beat).reason, HasSubstr("role outside Role enum"));
 }
 
@@ -108,7 +110,7 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   state.omega_body_radps.z = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THAT(validate(state).reason, HasSubstr("omega_body_radps"));
   state = VehicleState{};
-  state.link_health = static_cast<hq_msgs_Health>(3);
+  state.link_health = wire_enum<hq_msgs_Health>(3);
   EXPECT_THAT(validate(state).reason, HasSubstr("link_health"));
   state = VehicleState{};
   hq_msgs_Vector3f points[2] = {{0.0F, 0.0F, 0.0F}, {1.0F, std::nanf(""), 0.0F}};

@@ -87,7 +87,8 @@ std::vector<Message> every_message() {
   vse.x_mps = 1.5f;
   vse.y_mps = -2.5f;
   vse.z_mps = 0.25f;
-  for (int i = 0; i < 9; ++i) vse.covariance[static_cast<std::size_t>(i)] = 0.01f * (i + 1);
+  for (int i = 0; i < 9; ++i)
+    vse.covariance[static_cast<std::size_t>(i)] = 0.01f * static_cast<float>(i + 1);
   vse.reset_counter = 3;
   HighresImu imu{0x1122334455667ull, 0.1f, -0.2f, -9.81f, 0.01f,  0.02f, -0.03f, 0.2f, 0.0f, 0.4f,
                  1013.25f,           0.5f, 120.f, 25.5f,  0x1FFF, 2};

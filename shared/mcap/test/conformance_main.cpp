@@ -109,7 +109,7 @@ void write_files(const std::string& dir, const std::string& name, Compression co
     data.resize(size);
     std::uint32_t sum = 0;
     for (std::size_t i = 0; i < size; ++i) {
-      data[i] = static_cast<std::uint8_t>((t_ns / 1000 + i * 7) & 0xFF);
+      data[i] = static_cast<std::uint8_t>((static_cast<std::uint64_t>(t_ns / 1000) + i * 7) & 0xFF);
       sum += data[i];
     }
     // Jitter in publish time so that log and publish stamps differ.

@@ -206,8 +206,8 @@ TEST_P(RoundTrip, FileTruncatedAnywhereRecoversAPrefixOfTheMessages) {
 
 INSTANTIATE_TEST_SUITE_P(Compressions, RoundTrip,
                          ::testing::Values(Compression::kZstd, Compression::kNone),
-                         [](const auto& info) {
-                           return info.param == Compression::kZstd ? "zstd" : "none";
+                         [](const auto& param_info) {
+                           return param_info.param == Compression::kZstd ? "zstd" : "none";
                          });
 
 TEST(McapReader, FileWithoutSummaryIsScannedWithItsAttachmentsAndMetadata) {
@@ -266,7 +266,7 @@ std::vector<std::string> chunk_compressions(const std::vector<std::uint8_t>& byt
   std::vector<std::string> out;
   auto u64 = [&](std::size_t at) {
     std::uint64_t v = 0;
-    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(bytes[at + i]) << (8 * i);
+    for (std::size_t i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(bytes[at + i]) << (8 * i);
     return v;
   };
   for (std::size_t at = 8; at + 9 <= bytes.size(); at += 9 + u64(at + 1)) {
@@ -350,7 +350,8 @@ std::size_t first_chunk_offset(const std::vector<std::uint8_t>& bytes) {
   std::size_t at = 8;
   while (at + 9 <= bytes.size()) {
     std::uint64_t length = 0;
-    for (int i = 0; i < 8; ++i) length |= static_cast<std::uint64_t>(bytes[at + 1 + i]) << (8 * i);
+    for (std::size_t i = 0; i < 8; ++i)
+      length |= static_cast<std::uint64_t>(bytes[at + 1 + i]) << (8 * i);
     if (bytes[at] == 0x06) return at;
     at += 9 + length;
   }
