@@ -108,6 +108,8 @@ class Method {
   virtual void reset(const hq::geometry::PinholeCamera& camera) = 0;
   virtual Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
                                   const hq::odometry::RotationPrior* gyro) = 0;
+  /// The last track()'s full result (HaptiQuad only): its information is what --nees checks.
+  virtual const hq::odometry::OdometryResult* last_result() const { return nullptr; }
 };
 
 class HaptiQuadMethod final : public Method {
@@ -120,13 +122,16 @@ class HaptiQuadMethod final : public Method {
   }
   Eigen::Isometry3d track(const hq::sources::RgbdFrame& frame,
                           const hq::odometry::RotationPrior* gyro) override {
-    return odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro).T_O_C;
+    last_ = odometry_->track(frame.t_ns, frame.gray, frame.depth_m, gyro);
+    return last_.T_O_C;
   }
+  const hq::odometry::OdometryResult* last_result() const override { return &last_; }
 
  private:
   std::string name_;
   hq::odometry::OdometryConfig config_;
   std::unique_ptr<hq::odometry::DenseOdometry> odometry_;
+  hq::odometry::OdometryResult last_;
 };
 
 class OpenCvMethod final : public Method {
@@ -203,6 +208,12 @@ struct Row {
   // The same over consecutive frames only: each frame-to-frame motion once.
   double steps_trans_mm = 0, steps_rot_deg = 0;
   int steps = 0;
+  // Consistency of the returned information (HaptiQuad, first pass): per tracked frame, the
+  // rotation error e of T_ref_cur against the truth and e^T (Sigma_rr)^-1 e / 3, Sigma = the
+  // inverse of the returned 6x6 information (the rotation's marginal). A consistent estimator
+  // has mean 1; the same for the translation block.
+  double nees_rot_mean = 0, nees_rot_median = 0, nees_trans_mean = 0, nees_trans_median = 0;
+  int nees_count = 0;
 };
 
 /// Relative pose errors of every frame pair i < j (all_pairs) or of consecutive frames only.
@@ -231,13 +242,56 @@ void pair_errors(const LoadedSequence& sequence,
   rot_deg = count > 0 ? std::sqrt(sum_r / count) : 0.0;
 }
 
+/// Row::nees_*: one more pass, scoring each tracked frame's T_ref_cur and information against
+/// the truth. The reference is the frame that last became one (first frame, lost, keyframe).
+void nees(Method& method, const LoadedSequence& sequence, Row& row) {
+  if (sequence.ground_truth.empty()) return;
+  method.reset(sequence.camera);
+  std::vector<double> rot, trans;
+  std::size_t reference = 0;
+  for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
+    const auto& gyro = sequence.gyro[i];
+    method.track(sequence.frames[i], gyro ? &*gyro : nullptr);
+    const hq::odometry::OdometryResult* r = method.last_result();
+    if (r == nullptr) return;
+    if (r->ok()) {
+      const auto a = pose_at(sequence.ground_truth, sequence.frames[reference].t_ns);
+      const auto b = pose_at(sequence.ground_truth, sequence.frames[i].t_ns);
+      const Eigen::LDLT<hq::odometry::Matrix6d> ldlt(r->information);
+      if (a && b && ldlt.info() == Eigen::Success) {
+        const Eigen::Isometry3d truth = a->inverse() * *b;
+        const hq::odometry::Matrix6d covariance = ldlt.solve(hq::odometry::Matrix6d::Identity());
+        const Eigen::Vector3d e_rot =
+            hq::geometry::log_so3(truth.linear().transpose() * r->T_ref_cur.linear());
+        const Eigen::Vector3d e_trans = r->T_ref_cur.translation() - truth.translation();
+        const Eigen::Matrix3d cov_v = covariance.topLeftCorner<3, 3>();
+        const Eigen::Matrix3d cov_w = covariance.bottomRightCorner<3, 3>();
+        rot.push_back(e_rot.dot(cov_w.ldlt().solve(e_rot)) / 3.0);
+        trans.push_back(e_trans.dot(cov_v.ldlt().solve(e_trans)) / 3.0);
+      }
+    }
+    if (r->status != hq::odometry::TrackingStatus::kOk || r->new_keyframe) reference = i;
+  }
+  if (rot.empty()) return;
+  const auto mean = [](const std::vector<double>& v) {
+    double sum = 0.0;
+    for (double x : v) sum += x;
+    return sum / static_cast<double>(v.size());
+  };
+  row.nees_count = static_cast<int>(rot.size());
+  row.nees_rot_mean = mean(rot);
+  row.nees_trans_mean = mean(trans);
+  row.nees_rot_median = hq::quantile(rot, 0.5);
+  row.nees_trans_median = hq::quantile(trans, 0.5);
+}
+
 double thread_cpu_ms() {
   timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
 }
 
-Row run(Method& method, const LoadedSequence& sequence, int passes) {
+Row run(Method& method, const LoadedSequence& sequence, int passes, bool with_nees) {
   std::vector<double> times_ms;
   std::vector<double> cpu_ms;
   std::vector<hq::recording::StampedPose> trajectory;
@@ -261,6 +315,7 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
     }
   }
   Row row;
+  if (with_nees) nees(method, sequence, row);
   row.median_ms = hq::quantile(times_ms, 0.5);
   row.p90_ms = hq::quantile(times_ms, 0.9);
   row.median_cpu_ms = hq::quantile(cpu_ms, 0.5);
@@ -278,11 +333,14 @@ Row run(Method& method, const LoadedSequence& sequence, int passes) {
 
 /// Every method compared: the shipped defaults, each term on and off in the three reference
 /// modes, the defaults at full resolution, then OpenCV's three (unless only_haptiquad).
-std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride, bool only_haptiquad) {
+std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride,
+                                                  double vision_information_scale,
+                                                  bool only_haptiquad) {
   std::vector<std::unique_ptr<Method>> methods;
   // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
   hq::odometry::OdometryConfig defaults;
   defaults.depth_point_stride = depth_point_stride;
+  defaults.vision_information_scale = vision_information_scale;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
   // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
   for (const int mode_index : {0, 1, 2}) {
@@ -295,6 +353,7 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride, bool o
       c.use_depth_term = (variant & 1) != 0;
       c.use_rotation_prior = (variant & 2) != 0;
       c.depth_point_stride = depth_point_stride;
+      c.vision_information_scale = vision_information_scale;
       const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
       const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
       std::string name = modes[mode_index];
@@ -308,6 +367,7 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride, bool o
   finest_depth.use_depth_term = true;
   finest_depth.depth_levels = 1;
   finest_depth.depth_point_stride = depth_point_stride;
+  finest_depth.vision_information_scale = vision_information_scale;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq f2kf I+D(finest)+gyro", finest_depth));
   hq::odometry::OdometryConfig full = defaults;
   full.finest_level = 0;
@@ -323,14 +383,14 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride, bool o
 /// One table: every method on one sequence; speedup against the method at reference_index.
 void print_sequence_table(const LoadedSequence& sequence,
                           const std::vector<std::unique_ptr<Method>>& methods,
-                          std::size_t reference_index, int passes) {
+                          std::size_t reference_index, int passes, bool with_nees) {
   std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n", sequence.name.c_str(),
               sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
   std::printf("%-24s %9s %9s %9s %11s %11s %9s %10s %9s %9s %9s %9s\n", "method", "median_ms",
               "p90_ms", "cpu_ms", "rpe_t_m/s", "rpe_r_deg/s", "ate_m", "speedup", "pairs_mm",
               "pairs_deg", "steps_mm", "steps_deg");
   std::vector<Row> rows;
-  for (const auto& method : methods) rows.push_back(run(*method, sequence, passes));
+  for (const auto& method : methods) rows.push_back(run(*method, sequence, passes, with_nees));
   const double reference_ms = rows[reference_index].median_ms;
   for (std::size_t m = 0; m < methods.size(); ++m) {
     const Row& r = rows[m];
@@ -338,6 +398,12 @@ void print_sequence_table(const LoadedSequence& sequence,
                 methods[m]->name().c_str(), r.median_ms, r.p90_ms, r.median_cpu_ms, r.rpe_trans_mps,
                 r.rpe_rot_degps, r.ate_m, reference_ms / r.median_ms, r.pairs_trans_mm,
                 r.pairs_rot_deg, r.steps_trans_mm, r.steps_rot_deg);
+    if (with_nees && r.nees_count > 0) {
+      std::printf(
+          "  nees over %d frames: rotation mean %.1f median %.2f, translation mean %.1f "
+          "median %.2f\n",
+          r.nees_count, r.nees_rot_mean, r.nees_rot_median, r.nees_trans_mean, r.nees_trans_median);
+    }
   }
   if (!rows.empty()) {
     std::printf(
@@ -374,6 +440,14 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_option("--depth-point-stride", depth_point_stride,
                  "odometry.depth_point_stride of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
+  double vision_information_scale = hq::odometry::OdometryConfig{}.vision_information_scale;
+  app.add_option("--vision-information-scale", vision_information_scale,
+                 "odometry.vision_information_scale of every HaptiQuad variant")
+      ->check(CLI::PositiveNumber);
+  bool with_nees = false;
+  app.add_flag("--nees", with_nees,
+               "one more pass per HaptiQuad method: the returned information's consistency "
+               "(NEES) against the ground truth");
   CLI11_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
@@ -391,7 +465,7 @@ static int run_benchmarks(int argc, char** argv) {
   }
   const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
   std::vector<std::unique_ptr<Method>> methods;
-  for (auto& method : make_methods(depth_point_stride, only_haptiquad)) {
+  for (auto& method : make_methods(depth_point_stride, vision_information_scale, only_haptiquad)) {
     const std::string name = method->name();
     const bool wanted =
         method_filters.empty() ||
@@ -415,7 +489,7 @@ static int run_benchmarks(int argc, char** argv) {
         dir,
         std::filesystem::exists(own_camera) ? hq::config::load_camera_info(own_camera) : camera,
         skip_s);
-    print_sequence_table(sequence, methods, opencv_rgbd, passes);
+    print_sequence_table(sequence, methods, opencv_rgbd, passes, with_nees);
   }
   std::printf(
       "\nspeedup = OpenCV RgbdOdometry (else the first method) median / method median, same "

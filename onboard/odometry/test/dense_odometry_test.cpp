@@ -163,6 +163,82 @@ TEST(DenseOdometry, GyroPriorCarriesAFastYaw) {
   }
 }
 
+TEST(DenseOdometry, GyroPriorIsWeighedAgainstTheScaledVisionInformation) {
+  // GIVEN a small motion and a gyro rotation 0.3 deg off about a tilted axis, whose
+  // information is 0.04 x the independent-pixel vision information's rotation marginal
+  const Eigen::Isometry3d truth = pose(0.01, 0.005, 0.0, 0.002, -0.003, 0.01);
+  Frame a = render(Eigen::Isometry3d::Identity());
+  Frame b = render(truth);
+  // Sensor noise: without it the robust scale follows the misalignment the prior causes, so the
+  // data term's information would shrink as the prior pulls and the fusion would not be linear.
+  cv::RNG rng(7);
+  for (cv::Mat* gray : {&a.gray, &b.gray}) {
+    cv::Mat noise(gray->size(), CV_16SC1);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 4.0);
+    cv::Mat sum;
+    gray->convertTo(sum, CV_16SC1);
+    sum += noise;
+    sum.convertTo(*gray, CV_8UC1);
+  }
+  // Run to convergence: the comparison is of minima, not of where an iteration stopped.
+  const auto converging = [](double scale) {
+    OdometryConfig config;
+    config.vision_information_scale = scale;
+    config.step_tolerance = 1e-9;
+    config.max_iterations_per_level = 100;
+    return config;
+  };
+  const auto vision_only = [&](double scale) {
+    const OdometryConfig config = converging(scale);
+    DenseOdometry odometry(config, kCamera);
+    odometry.track(0, a.gray, a.depth_m);
+    return odometry.track(1, b.gray, b.depth_m);
+  };
+  const OdometryResult unscaled = vision_only(1.0);
+  ASSERT_TRUE(unscaled.ok()) << unscaled.reason;
+  const Matrix6d covariance = unscaled.information.inverse();
+  const Eigen::Matrix3d marginal = covariance.bottomRightCorner<3, 3>().inverse();
+  RotationPrior gyro;
+  const Eigen::Vector3d bias = Eigen::Vector3d(1.0, 2.0, -2.0).normalized() * 5e-3;
+  gyro.R_prev_cur = geometry::exp_so3(bias) * truth.linear();
+  gyro.information = 0.04 * marginal;
+  double moved_rad[2] = {0.0, 0.0};
+  for (const double scale : {1.0, 0.04}) {
+    const OdometryResult vision = vision_only(scale);
+    ASSERT_TRUE(vision.ok()) << vision.reason;
+    // THEN the returned information is scale x the independent-pixel one
+    EXPECT_TRUE(vision.information.isApprox(scale * unscaled.information, 1e-3)) << scale;
+    // WHEN the frame is tracked with the prior
+    DenseOdometry odometry(converging(scale), kCamera);
+    odometry.track(0, a.gray, a.depth_m);
+    const OdometryResult fused = odometry.track(1, b.gray, b.depth_m, &gyro);
+    ASSERT_TRUE(fused.ok()) << fused.reason;
+    // THEN the rotation moves from the vision-only one towards the gyro's along the linear
+    // fusion of the returned information with the prior's: about 4 % of the way at scale 1,
+    // half of it at 0.04. The size of the move is within a factor 2 of the linear one, not
+    // equal: the Student-t reweighting's Hessian overstates the robust cost's curvature away
+    // from its minimum (measured 1.3-1.8x).
+    const Eigen::Vector3d d =
+        geometry::log_so3(gyro.R_prev_cur * vision.T_ref_cur.linear().transpose());
+    Matrix6d A = vision.information;
+    A.bottomRightCorner<3, 3>() += gyro.information;
+    geometry::Vector6d rhs = geometry::Vector6d::Zero();
+    rhs.tail<3>() = gyro.information * d;
+    const Eigen::Vector3d expected = A.ldlt().solve(rhs).tail<3>();
+    const Eigen::Vector3d moved =
+        geometry::log_so3(fused.T_ref_cur.linear() * vision.T_ref_cur.linear().transpose());
+    EXPECT_GT(expected.norm(), (scale == 1.0 ? 0.02 : 0.3) * d.norm()) << scale;
+    EXPECT_GT(moved.dot(expected), 0.95 * moved.norm() * expected.norm())
+        << "scale " << scale << " moved " << moved.transpose() << " expected "
+        << expected.transpose();
+    EXPECT_GT(moved.norm(), 0.7 * expected.norm()) << scale;
+    EXPECT_LT(moved.norm(), 2.0 * expected.norm()) << scale;
+    moved_rad[scale == 1.0 ? 0 : 1] = moved.norm();
+  }
+  // AND the honest (smaller) vision information lets the same prior pull several times more
+  EXPECT_GT(moved_rad[1], 5.0 * moved_rad[0]);
+}
+
 TEST(DenseOdometry, NonFiniteGyroPriorIsIgnored) {
   const Eigen::Isometry3d truth = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.0);
   const Frame a = render(Eigen::Isometry3d::Identity());
