@@ -97,7 +97,7 @@ void BM_DepthSample(benchmark::State& state) {
   std::vector<float> a[3];
   for (auto& c : a) c.assign(kPoints, 0.0f);
   for (auto _ : state) {
-    for (int i = 0; i < kPoints; ++i) {
+    for (std::size_t i = 0; i < static_cast<std::size_t>(kPoints); ++i) {
       float qx, qy, qz;
       kWarp.apply(s.x[i], s.y[i], s.z[i], qx, qy, qz);
       const float u = kK.fx * qx / qz + kK.cx;

@@ -332,9 +332,9 @@ struct DenseOdometry::Impl {
           // depth's gradient there belong to no surface.
           bool surface = depth_level;
           if (surface) {
-            const float n[4] = {depth[u - 1], depth[u + 1], D.ptr<float>(v - 1)[u],
-                                D.ptr<float>(v + 1)[u]};
-            for (const float d : n) surface = surface && d > 0.0f && std::abs(d - z) <= spread * z;
+            const float neighbours[4] = {depth[u - 1], depth[u + 1], D.ptr<float>(v - 1)[u],
+                                         D.ptr<float>(v + 1)[u]};
+            for (const float d : neighbours) surface = surface && d > 0.0f && std::abs(d - z) <= spread * z;
           }
           if (!textured && !surface) continue;
           const Eigen::Vector3f p_C =

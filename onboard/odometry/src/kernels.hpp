@@ -335,16 +335,16 @@ inline void accumulate_depth_rows(const DepthRows& d, const float* w_in, int cou
     }
     const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
                              h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};
-    for (int k = 0; k < 21; ++k) out.H[k] += block[k];
+    for (int k = 0; k < 21; ++k) out.H[k] += static_cast<double>(block[k]);
     const float gb[6] = {g0, g1, g2, g3, g4, g5};
     const float ob[6] = {o0, o1, o2, o3, o4, o5};
     for (int k = 0; k < 6; ++k) {
-      out.g[k] += gb[k];
-      out.pose_offset[k] += ob[k];
+      out.g[k] += static_cast<double>(gb[k]);
+      out.pose_offset[k] += static_cast<double>(ob[k]);
     }
-    out.weighted_error += e;
-    out.offset += oo;
-    out.g_offset += go;
+    out.weighted_error += static_cast<double>(e);
+    out.offset += static_cast<double>(oo);
+    out.g_offset += static_cast<double>(go);
   }
 }
 

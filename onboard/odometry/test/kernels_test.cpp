@@ -184,7 +184,7 @@ TEST(AccumulateDepthRows, MatchesRowsFormedExplicitly) {
     ji[k].resize(kRows);
     jrow[k].resize(kRows);
   }
-  for (int i = 0; i < kRows; ++i) {
+  for (std::size_t i = 0; i < static_cast<std::size_t>(kRows); ++i) {
     const auto f = static_cast<float>(i);
     for (int k = 0; k < 3; ++k) {
       q[k][i] = std::sin(0.07f * f * static_cast<float>(k + 1));
