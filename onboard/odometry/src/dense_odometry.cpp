@@ -334,7 +334,8 @@ struct DenseOdometry::Impl {
           if (surface) {
             const float neighbours[4] = {depth[u - 1], depth[u + 1], D.ptr<float>(v - 1)[u],
                                          D.ptr<float>(v + 1)[u]};
-            for (const float d : neighbours) surface = surface && d > 0.0f && std::abs(d - z) <= spread * z;
+            for (const float d : neighbours)
+              surface = surface && d > 0.0f && std::abs(d - z) <= spread * z;
           }
           if (!textured && !surface) continue;
           const Eigen::Vector3f p_C =
