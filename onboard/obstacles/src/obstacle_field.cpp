@@ -23,7 +23,10 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 bool is_valid_depth(float z) { return std::isfinite(z) && z > 0.0f; }
 // Row-major index of pixel (u, v) or cell (cx, cy); both are >= 0 and image sizes fit an int.
-std::size_t flat_index(int x, int y, int width) { return static_cast<std::size_t>(y * width + x); }
+std::size_t flat_index(int x, int y, int width) {
+  return static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+         static_cast<std::size_t>(x);
+}
 }  // namespace
 
 void read_config(config::StrictMap& section, ObstacleConfig& out) {
@@ -78,13 +81,14 @@ ObstacleField::ObstacleField(const ObstacleConfig& config, const geometry::Pinho
   cells_x_ = camera.width / config.cell_px;
   cells_y_ = camera.height / config.cell_px;
   radius_cells_ = static_cast<int>(std::ceil(config.suppression_radius_px / config.cell_px));
-  ray_norm_.resize(static_cast<std::size_t>(camera.width * camera.height));
+  ray_norm_.resize(static_cast<std::size_t>(camera.width) *
+                   static_cast<std::size_t>(camera.height));
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
       ray_norm_[flat_index(u, v, camera.width)] = static_cast<float>(camera.ray(u, v).norm());
     }
   }
-  cells_.resize(static_cast<std::size_t>(cells_x_ * cells_y_));
+  cells_.resize(static_cast<std::size_t>(cells_x_) * static_cast<std::size_t>(cells_y_));
   minima_.reserve(cells_.size());
   support_z_m_.reserve(cells_.size());
 }
