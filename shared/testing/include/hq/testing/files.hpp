@@ -13,8 +13,8 @@ namespace hq::testing {
 /// TMPDIR/<prefix>_<pid>_<name>, removed if it exists (not created): one per test and process,
 /// so parallel test binaries never share one.
 inline std::filesystem::path fresh_dir(const std::string& prefix, const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    (prefix + "_" + std::to_string(getpid()) + "_" + name);
+  std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                              (prefix + "_" + std::to_string(getpid()) + "_" + name);
   std::filesystem::remove_all(dir);
   return dir;
 }
