@@ -23,6 +23,7 @@
 #include "hq/sources/tum_frame_source.hpp"
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 #include <opencv2/rgbd.hpp>
 
@@ -91,9 +92,10 @@ void synthesise_gyro(LoadedSequence& sequence) {
     const Eigen::Vector3d error = sigma * noise + bias * dt_s;
     hq::odometry::RotationPrior prior;
     prior.R_prev_cur = a->linear().transpose() * b->linear() * hq::geometry::exp_so3(error);
-    // Covariance: the white noise plus the bias the filter may still have.
-    const double var = sigma * sigma + std::pow(kGyroResidualBiasRadps * dt_s, 2) +
-                       kGyroNoiseDensity * kGyroNoiseDensity / kGyroRateHz;
+    // Information of the white noise (integrated over the interval and over one sample); the
+    // residual bias is the odometry's to allow for (odometry.gyro_bias_sigma_radps, which is
+    // kGyroResidualBiasRadps by default).
+    const double var = sigma * sigma + kGyroNoiseDensity * kGyroNoiseDensity / kGyroRateHz;
     prior.information = Eigen::Matrix3d::Identity() / var;
     sequence.gyro[i] = prior;
   }
@@ -214,6 +216,12 @@ struct Row {
   // has mean 1; the same for the translation block.
   double nees_rot_mean = 0, nees_rot_median = 0, nees_trans_mean = 0, nees_trans_median = 0;
   int nees_count = 0;
+  // After the last frame: the honest scale in use and the gyro bias estimate.
+  double final_vision_scale = 0;
+  // Per tracked frame, the standard deviation of the translation along its least constrained
+  // direction (the returned information's): median and largest, mm.
+  double translation_sigma_median_mm = 0, translation_sigma_max_mm = 0;
+  Eigen::Vector3d final_gyro_bias_radps = Eigen::Vector3d::Zero();
 };
 
 /// Relative pose errors of every frame pair i < j (all_pairs) or of consecutive frames only.
@@ -247,7 +255,7 @@ void pair_errors(const LoadedSequence& sequence,
 void nees(Method& method, const LoadedSequence& sequence, Row& row) {
   if (sequence.ground_truth.empty()) return;
   method.reset(sequence.camera);
-  std::vector<double> rot, trans;
+  std::vector<double> rot, trans, sigma_mm;
   std::size_t reference = 0;
   for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
     const auto& gyro = sequence.gyro[i];
@@ -267,10 +275,16 @@ void nees(Method& method, const LoadedSequence& sequence, Row& row) {
         const Eigen::Matrix3d cov_v = covariance.topLeftCorner<3, 3>();
         const Eigen::Matrix3d cov_w = covariance.bottomRightCorner<3, 3>();
         rot.push_back(e_rot.dot(cov_w.ldlt().solve(e_rot)) / 3.0);
+        sigma_mm.push_back(
+            1e3 *
+            std::sqrt(
+                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov_v).eigenvalues().maxCoeff()));
         trans.push_back(e_trans.dot(cov_v.ldlt().solve(e_trans)) / 3.0);
       }
     }
     if (r->status != hq::odometry::TrackingStatus::kOk || r->new_keyframe) reference = i;
+    row.final_vision_scale = r->vision_information_scale;
+    row.final_gyro_bias_radps = r->gyro_bias_radps;
   }
   if (rot.empty()) return;
   const auto mean = [](const std::vector<double>& v) {
@@ -283,6 +297,8 @@ void nees(Method& method, const LoadedSequence& sequence, Row& row) {
   row.nees_trans_mean = mean(trans);
   row.nees_rot_median = hq::quantile(rot, 0.5);
   row.nees_trans_median = hq::quantile(trans, 0.5);
+  row.translation_sigma_median_mm = hq::quantile(sigma_mm, 0.5);
+  row.translation_sigma_max_mm = hq::quantile(sigma_mm, 1.0);
 }
 
 double thread_cpu_ms() {
@@ -335,12 +351,17 @@ Row run(Method& method, const LoadedSequence& sequence, int passes, bool with_ne
 /// modes, the defaults at full resolution, then OpenCV's three (unless only_haptiquad).
 std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride,
                                                   double vision_information_scale,
+                                                  bool estimate_gyro_bias, bool adapt_vision,
+                                                  double gyro_bias_sigma_radps,
                                                   bool only_haptiquad) {
   std::vector<std::unique_ptr<Method>> methods;
   // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
   hq::odometry::OdometryConfig defaults;
   defaults.depth_point_stride = depth_point_stride;
   defaults.vision_information_scale = vision_information_scale;
+  defaults.estimate_gyro_bias = estimate_gyro_bias;
+  defaults.adapt_vision_information = adapt_vision;
+  defaults.gyro_bias_sigma_radps = gyro_bias_sigma_radps;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
   // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
   for (const int mode_index : {0, 1, 2}) {
@@ -354,6 +375,9 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride,
       c.use_rotation_prior = (variant & 2) != 0;
       c.depth_point_stride = depth_point_stride;
       c.vision_information_scale = vision_information_scale;
+      c.estimate_gyro_bias = estimate_gyro_bias;
+      c.adapt_vision_information = adapt_vision;
+      c.gyro_bias_sigma_radps = gyro_bias_sigma_radps;
       const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
       const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
       std::string name = modes[mode_index];
@@ -368,6 +392,9 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride,
   finest_depth.depth_levels = 1;
   finest_depth.depth_point_stride = depth_point_stride;
   finest_depth.vision_information_scale = vision_information_scale;
+  finest_depth.estimate_gyro_bias = estimate_gyro_bias;
+  finest_depth.adapt_vision_information = adapt_vision;
+  finest_depth.gyro_bias_sigma_radps = gyro_bias_sigma_radps;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq f2kf I+D(finest)+gyro", finest_depth));
   hq::odometry::OdometryConfig full = defaults;
   full.finest_level = 0;
@@ -403,6 +430,14 @@ void print_sequence_table(const LoadedSequence& sequence,
           "  nees over %d frames: rotation mean %.1f median %.2f, translation mean %.1f "
           "median %.2f\n",
           r.nees_count, r.nees_rot_mean, r.nees_rot_median, r.nees_trans_mean, r.nees_trans_median);
+      std::printf(
+          "  translation sigma, least constrained direction: median %.2f mm, largest %.2f mm\n",
+          r.translation_sigma_median_mm, r.translation_sigma_max_mm);
+      std::printf(
+          "  after the last frame: vision information scale %.3g, gyro bias %.4f %.4f %.4f "
+          "rad/s\n",
+          r.final_vision_scale, r.final_gyro_bias_radps.x(), r.final_gyro_bias_radps.y(),
+          r.final_gyro_bias_radps.z());
     }
   }
   if (!rows.empty()) {
@@ -444,6 +479,16 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_option("--vision-information-scale", vision_information_scale,
                  "odometry.vision_information_scale of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
+  bool estimate_gyro_bias = hq::odometry::OdometryConfig{}.estimate_gyro_bias;
+  app.add_option("--estimate-gyro-bias", estimate_gyro_bias,
+                 "odometry.estimate_gyro_bias of every HaptiQuad variant (true/false)");
+  double gyro_bias_sigma_radps = hq::odometry::OdometryConfig{}.gyro_bias_sigma_radps;
+  app.add_option("--gyro-bias-sigma", gyro_bias_sigma_radps,
+                 "odometry.gyro_bias_sigma_radps of every HaptiQuad variant")
+      ->check(CLI::PositiveNumber);
+  bool adapt_vision = hq::odometry::OdometryConfig{}.adapt_vision_information;
+  app.add_option("--adapt-vision-information", adapt_vision,
+                 "odometry.adapt_vision_information of every HaptiQuad variant (true/false)");
   bool with_nees = false;
   app.add_flag("--nees", with_nees,
                "one more pass per HaptiQuad method: the returned information's consistency "
@@ -465,7 +510,8 @@ static int run_benchmarks(int argc, char** argv) {
   }
   const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
   std::vector<std::unique_ptr<Method>> methods;
-  for (auto& method : make_methods(depth_point_stride, vision_information_scale, only_haptiquad)) {
+  for (auto& method : make_methods(depth_point_stride, vision_information_scale, estimate_gyro_bias,
+                                   adapt_vision, gyro_bias_sigma_radps, only_haptiquad)) {
     const std::string name = method->name();
     const bool wanted =
         method_filters.empty() ||

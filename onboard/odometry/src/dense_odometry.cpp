@@ -6,6 +6,7 @@
 #include "kernels.hpp"
 #include "pyramid.hpp"
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <array>
@@ -60,6 +61,17 @@ struct NormalEquations {
   double g_offset = 0.0;
 };
 
+// The range of one frame's sample of the vision's overconfidence (adapt_vision_information),
+// averaged in the log domain. A consistent vision's samples are chi-square(3) / 3, below 0.01
+// with probability 5e-4: the floor keeps the samples where the gyro's own uncertainty exceeds
+// the disagreement (the moment estimate is then negative) from dominating the average, the
+// ceiling bounds a frame where vision slipped. Not tuning values.
+constexpr double kMinOverconfidenceSample = 0.01;
+// An information matrix whose smallest eigenvalue is below this fraction of its largest is
+// singular to double precision: some direction is not measured at all.
+constexpr double kSingularEigenvalueRatio = 1e-12;
+constexpr double kMaxOverconfidenceSample = 1e6;
+
 double entropy_of(const Matrix6d& information) {
   // Differential entropy of a Gaussian up to a constant: -0.5 ln det(information).
   const Eigen::LLT<Matrix6d> llt(information);
@@ -69,6 +81,51 @@ double entropy_of(const Matrix6d& information) {
   for (int i = 0; i < 6; ++i) log_det += 2.0 * std::log(L(i, i));
   return -0.5 * log_det;
 }
+
+// The residual rate bias of the gyro rotations given to track() (camera axes, rad/s): a random
+// walk, observed each frame through the vision-only rotation against the gyro's.
+class GyroBiasFilter {
+ public:
+  void reset(double initial_sigma_radps) {
+    bias_.setZero();
+    covariance_ = Eigen::Matrix3d::Identity() * initial_sigma_radps * initial_sigma_radps;
+    t_ns_ = -1;
+  }
+
+  // The random walk up to t_ns.
+  void propagate(std::int64_t t_ns, double random_walk) {
+    if (t_ns_ >= 0 && t_ns > t_ns_) {
+      const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+      covariance_.diagonal().array() += random_walk * random_walk * dt_s;
+    }
+    t_ns_ = t_ns;
+  }
+
+  // innovation: the observed bias minus the estimate (rad/s), with its noise covariance. Returns
+  // false, leaving the estimate, for a non-finite or gated observation.
+  bool update(const Eigen::Vector3d& innovation, const Eigen::Matrix3d& noise, double gate_chi2) {
+    const Eigen::Matrix3d S = covariance_ + noise;
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(S);
+    if (!innovation.allFinite() || !S.allFinite() || ldlt.info() != Eigen::Success ||
+        !ldlt.isPositive()) {
+      return false;
+    }
+    if (innovation.dot(ldlt.solve(innovation)) > gate_chi2) return false;
+    const Eigen::Matrix3d gain = ldlt.solve(covariance_).transpose();  // P S^-1, S symmetric
+    bias_ += gain * innovation;
+    const Eigen::Matrix3d updated = (Eigen::Matrix3d::Identity() - gain) * covariance_;
+    covariance_ = 0.5 * (updated + updated.transpose());
+    return true;
+  }
+
+  [[nodiscard]] const Eigen::Vector3d& bias() const { return bias_; }
+  [[nodiscard]] const Eigen::Matrix3d& covariance() const { return covariance_; }
+
+ private:
+  Eigen::Vector3d bias_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
+  std::int64_t t_ns_ = -1;
+};
 
 }  // namespace
 
@@ -143,6 +200,7 @@ void validate(const OdometryConfig& c, const std::string& where) {
   check.in_range("min_valid_ratio", c.min_valid_ratio, 0.0, 1.0);
   check.in_range("motion_prior_precision", c.motion_prior_precision, 0.0, 1e6);
   check.in_range("keyframe_entropy_ratio", c.keyframe_entropy_ratio, 0.0, 1.0);
+  check.in_range("keyframe_min_valid_ratio", c.keyframe_min_valid_ratio, 0.0, 1.0);
   check.in_range("max_keyframe_age", c.max_keyframe_age, 1, 100000);
   check.positive("keyframe_check_max_translation_m", c.keyframe_check_max_translation_m, 10.0);
   check.positive("keyframe_check_max_rotation_deg", c.keyframe_check_max_rotation_deg, 180.0);
@@ -157,6 +215,12 @@ void validate(const OdometryConfig& c, const std::string& where) {
   }
   check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0, 1e6);
   check.positive("vision_information_scale", c.vision_information_scale, 1.0);
+  check.positive("gyro_bias_sigma_radps", c.gyro_bias_sigma_radps, 1.0);
+  check.in_range("gyro_bias_random_walk", c.gyro_bias_random_walk, 0.0, 1.0);
+  check.positive("gyro_bias_gate_chi2", c.gyro_bias_gate_chi2, 1e6);
+  check.in_range("vision_information_frames", c.vision_information_frames, 1, 100000);
+  check.in_range("vision_only_iterations", c.vision_only_iterations, 1, 200);
+  check.positive("max_translation_sigma_m", c.max_translation_sigma_m, 100.0);
 }
 
 void read_config(config::StrictMap& section, OdometryConfig& out) {
@@ -182,6 +246,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   out.reference_mode =
       mode == "frame_to_frame" ? ReferenceMode::kFrameToFrame : ReferenceMode::kFrameToKeyframe;
   section.read("keyframe_entropy_ratio", out.keyframe_entropy_ratio, -kAny, kAny);
+  section.read("keyframe_min_valid_ratio", out.keyframe_min_valid_ratio, -kAny, kAny);
   section.read("max_keyframe_age", out.max_keyframe_age, -kAnyInt, kAnyInt);
   section.read("keyframe_check", out.keyframe_check);
   section.read("keyframe_check_max_translation_m", out.keyframe_check_max_translation_m, -kAny,
@@ -196,6 +261,14 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, -kAny,
                kAny);
   section.read("vision_information_scale", out.vision_information_scale, -kAny, kAny);
+  section.read("estimate_gyro_bias", out.estimate_gyro_bias);
+  section.read("gyro_bias_sigma_radps", out.gyro_bias_sigma_radps, -kAny, kAny);
+  section.read("gyro_bias_random_walk", out.gyro_bias_random_walk, -kAny, kAny);
+  section.read("gyro_bias_gate_chi2", out.gyro_bias_gate_chi2, -kAny, kAny);
+  section.read("adapt_vision_information", out.adapt_vision_information);
+  section.read("vision_information_frames", out.vision_information_frames, -kAnyInt, kAnyInt);
+  section.read("vision_only_iterations", out.vision_only_iterations, -kAnyInt, kAnyInt);
+  section.read("max_translation_sigma_m", out.max_translation_sigma_m, -kAny, kAny);
   section.finish();
   validate(out, section_name(section));
 }
@@ -243,10 +316,26 @@ struct DenseOdometry::Impl {
   Eigen::Isometry3d T_ref_last = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d last_motion = Eigen::Isometry3d::Identity();  // T_prev_cur of last frame
   Matrix6d last_information = Matrix6d::Zero();
-  // Covariance (rad^2, left perturbation in the reference) of T_ref_last's rotation, from its
-  // honest information; zero when T_ref_last is the reference itself.
-  Eigen::Matrix3d last_rotation_covariance = Eigen::Matrix3d::Zero();
+  // The gyro rotations since the reference, chained with the bias estimate removed: the
+  // rotation prior's mean (frame to keyframe as frame to frame). Independent of the vision,
+  // unlike the last estimate times the gyro step, whose error is the same keyframe's vision
+  // error again and would be counted twice. A frame without a gyro step breaks the chain until
+  // the next reference.
+  struct GyroChain {
+    Eigen::Matrix3d R_ref_cur = Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d noise_covariance = Eigen::Matrix3d::Zero();  // white noise, reference axes
+    double span_s = 0.0;
+    bool intact = true;
+  };
+  GyroChain gyro_chain;  // up to the last accepted frame
   bool has_motion = false;
+  GyroBiasFilter gyro_bias;
+  std::int64_t last_frame_t_ns = -1;  // any frame's, for the gyro step's interval
+  // The data term's honest share of its independent-pixel information: the configured one,
+  // then (adapt_vision_information) as the gyro observes it.
+  double vision_scale = 1.0;
+  int vision_scale_samples = 0;
+  double log_overconfidence = 0.0;  // running mean of the samples' logs
   double keyframe_first_entropy = 0.0;
   int keyframe_age = 0;
 
@@ -262,6 +351,8 @@ struct DenseOdometry::Impl {
 
   Impl(const OdometryConfig& c, const geometry::PinholeCamera& cam) : config(c), camera(cam) {
     validate(config);
+    gyro_bias.reset(config.gyro_bias_sigma_radps);
+    vision_scale = config.vision_information_scale;
     levels = config.pyramid_levels;
     finest = config.finest_level;
     int capacity = 0;
@@ -649,7 +740,7 @@ struct DenseOdometry::Impl {
     has_reference = reference_usable();
     T_O_ref = T_O_C;
     T_ref_last.setIdentity();
-    last_rotation_covariance.setZero();
+    gyro_chain = GyroChain{};
     keyframe_age = 0;
     keyframe_first_entropy = 0.0;
   }
@@ -657,6 +748,8 @@ struct DenseOdometry::Impl {
   struct Alignment {
     Eigen::Isometry3d T_cur_ref = Eigen::Isometry3d::Identity();
     NormalEquations normal;
+    float brightness_offset = 0.0f;
+    double variance = 0.0;  // the photometric one, as solve_level() keeps it
     int valid = 0;
     int iterations = 0;
     double weighted_error = 0.0;
@@ -667,21 +760,17 @@ struct DenseOdometry::Impl {
   struct Prediction {
     bool predict = false;    // the motion prior around T_ref_predicted applies
     bool use_prior = false;  // the gyro prior around R_ref_prior applies
+    // A step that raises the cost is undone and ends the level. The cost is re-weighted every
+    // iteration, so from a start near the minimum (vision_only()) it may rise on the first step
+    // of a good descent; there the step tolerance alone ends it.
+    bool stop_on_rising_cost = true;
+    int max_iterations = 0;  // per level; 0: config.max_iterations_per_level
     Eigen::Isometry3d T_ref_predicted = Eigen::Isometry3d::Identity();
     Eigen::Matrix3d R_ref_prior = Eigen::Matrix3d::Identity();
     Eigen::Matrix3d prior_information = Eigen::Matrix3d::Zero();
     // The gyro step's alone (data-term units), for the alignment to the previous frame.
     Eigen::Matrix3d step_information = Eigen::Matrix3d::Zero();
   };
-
-  // The rotation block of the covariance of an information matrix (zero if not invertible).
-  static Eigen::Matrix3d rotation_covariance(const Matrix6d& information) {
-    const Eigen::LDLT<Matrix6d> ldlt(information);
-    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Eigen::Matrix3d::Zero();
-    const Matrix6d covariance = ldlt.solve(Matrix6d::Identity());
-    return covariance.allFinite() ? Eigen::Matrix3d(covariance.bottomRightCorner<3, 3>())
-                                  : Eigen::Matrix3d::Zero();
-  }
 
   int finest_pixels() const { return level_camera[finest].width * level_camera[finest].height; }
 
@@ -785,7 +874,9 @@ struct DenseOdometry::Impl {
     // A pixel at level l spans 2^l pixels of level 0: a step that moves the image by a fixed
     // fraction of a pixel is worth less at coarse levels, so they stop sooner.
     const double tolerance = config.step_tolerance * static_cast<double>(1 << (level - finest));
-    for (int it = 0; it < config.max_iterations_per_level; ++it) {
+    const int max_iterations =
+        p.max_iterations > 0 ? p.max_iterations : config.max_iterations_per_level;
+    for (int it = 0; it < max_iterations; ++it) {
       const Counts counts = compute_residuals(level, current, T_cur_ref, brightness_offset);
       out.valid = counts.any;
       if (out.valid < 6) break;
@@ -795,7 +886,7 @@ struct DenseOdometry::Impl {
       ++out.iterations;
       double cost = out.weighted_error;
       if (p.use_prior) cost += prior_cost(level, T_cur_ref, p, variance, out.valid);
-      if (cost > previous_cost) {
+      if (cost > previous_cost && p.stop_on_rising_cost) {
         // The last step made the fit worse: undo it and stop refining this level.
         T_cur_ref = T_previous;
         brightness_offset = offset_previous;
@@ -821,17 +912,56 @@ struct DenseOdometry::Impl {
   // active reference set, from T_cur_ref.
   Alignment align(const FrameSlot& current, Eigen::Isometry3d T_cur_ref, const Prediction& p) {
     Alignment out;
-    float brightness_offset = 0.0f;
-    double variance = 0.0;
     for (int level = levels - 1; level >= finest; --level) {
-      solve_level(level, current, p, T_cur_ref, brightness_offset, variance, out);
+      solve_level(level, current, p, T_cur_ref, out.brightness_offset, out.variance, out);
     }
     out.T_cur_ref = T_cur_ref;
     return out;
   }
 
+  // The vision's own minimum near a joint one: the finest level again, without the priors.
+  Alignment vision_only(const FrameSlot& current, const Alignment& joint) {
+    Alignment out = joint;
+    Prediction p;
+    p.stop_on_rising_cost = false;
+    p.max_iterations = config.vision_only_iterations;
+    solve_level(finest, current, p, out.T_cur_ref, out.brightness_offset, out.variance, out);
+    return out;
+  }
+
+  // This frame's gyro: its step since the previous frame and the chain since the reference, bias
+  // estimate removed, each with its covariance (white noise plus the bias still unknown).
+  struct GyroSteps {
+    Eigen::Matrix3d R_prev_cur = Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d step_covariance = Eigen::Matrix3d::Zero();   // current axes, rad^2
+    GyroChain chain;                                             // extended by the step
+    Eigen::Matrix3d chain_covariance = Eigen::Matrix3d::Zero();  // reference axes, rad^2
+  };
+
+  // The bias still unknown adds P_b dt^2 to a step and, being the same in every step,
+  // R P_b R^T span^2 to the chain.
+  bool gyro_steps(const RotationPrior& prior, double step_s, GyroSteps& out) const {
+    const Eigen::LDLT<Eigen::Matrix3d> information(prior.information);
+    if (!prior.R_prev_cur.allFinite() || !prior.information.allFinite() || step_s <= 0.0 ||
+        information.info() != Eigen::Success || !information.isPositive()) {
+      return false;
+    }
+    const Eigen::Matrix3d noise = information.solve(Eigen::Matrix3d::Identity());
+    if (!noise.allFinite()) return false;
+    out.R_prev_cur = prior.R_prev_cur * geometry::exp_so3(-gyro_bias.bias() * step_s);
+    out.step_covariance = noise + gyro_bias.covariance() * step_s * step_s;
+    out.chain = gyro_chain;
+    out.chain.R_ref_cur = gyro_chain.R_ref_cur * out.R_prev_cur;
+    const Eigen::Matrix3d& R = out.chain.R_ref_cur;
+    out.chain.noise_covariance += R * noise * R.transpose();
+    out.chain.span_s += step_s;
+    out.chain_covariance = out.chain.noise_covariance + R * gyro_bias.covariance() * R.transpose() *
+                                                            out.chain.span_s * out.chain.span_s;
+    return out.chain.intact;
+  }
+
   // Constant-velocity initial guess (and prior mean) for T_ref_cur, with the gyro's rotation.
-  Prediction predict_motion(const RotationPrior* prior) const {
+  Prediction predict_motion(const GyroSteps* gyro) const {
     Prediction p;
     // Frame to frame only: against a keyframe, the part of each step that the optimiser leaves
     // uncorrected is carried into the next prediction, so the predicted velocity random-walks
@@ -839,46 +969,40 @@ struct DenseOdometry::Impl {
     p.predict = has_motion && config.initialize_with_previous_motion &&
                 config.reference_mode == ReferenceMode::kFrameToFrame;
     p.T_ref_predicted = p.predict ? T_ref_last * last_motion : T_ref_last;
-    // The gyro's rotation since the previous frame replaces the predicted one: photometric
+    // The gyro's rotation since the reference replaces the predicted one: photometric
     // alignment fails first under fast yaw, where the gyro is at its best.
-    p.use_prior = config.use_rotation_prior && prior != nullptr && prior->R_prev_cur.allFinite() &&
-                  prior->information.allFinite();
+    p.use_prior = config.use_rotation_prior && gyro != nullptr;
     if (p.use_prior) {
-      p.R_ref_prior = T_ref_last.linear() * prior->R_prev_cur;
+      p.R_ref_prior = gyro->chain.R_ref_cur;
       // The data term's normal equations carry the independent-pixel information; weighing
-      // the prior against vision_information_scale x that equals dividing the prior by it,
-      // one 3x3 here instead of rescaling every iteration's 6x6 (and the costs stay in the
-      // data term's units).
-      p.step_information = config.rotation_prior_information_scale * prior->information /
-                           config.vision_information_scale;
-      // Frame to keyframe, the prior's mean chains the last estimate in the keyframe with the
-      // gyro step, so its covariance is the sum of both: (C + P^-1)^-1 = P (I + C P)^-1, which
-      // also holds for a singular P. Without it the prior is as sure of the chained rotation as
-      // of one gyro step and carries the last estimate's error into this one (measured: 1.5-2.5x
-      // less rotation lost in simulation at vision_information_scale 0.04, README).
-      const Eigen::Matrix3d& R = T_ref_last.linear();
-      const Eigen::Matrix3d P =
-          R * (config.rotation_prior_information_scale * prior->information) * R.transpose();
-      const Eigen::Matrix3d chained =
-          P * (Eigen::Matrix3d::Identity() + last_rotation_covariance * P).inverse();
-      p.prior_information = 0.5 * (chained + chained.transpose()) / config.vision_information_scale;
+      // the prior against the honest scale x that equals dividing the prior by the scale, one
+      // 3x3 here instead of rescaling every iteration's 6x6 (and the costs stay in the data
+      // term's units).
+      const double prior_weight = config.rotation_prior_information_scale / vision_scale;
+      p.prior_information = prior_weight * symmetric_inverse(gyro->chain_covariance);
+      p.step_information = prior_weight * symmetric_inverse(gyro->step_covariance);
       p.T_ref_predicted.linear() = p.R_ref_prior;
     }
     return p;
   }
 
+  static Eigen::Matrix3d symmetric_inverse(const Eigen::Matrix3d& covariance) {
+    const Eigen::Matrix3d inverse = covariance.inverse();
+    return 0.5 * (inverse + inverse.transpose());
+  }
+
   // Keyframe check, first half: aligns the current frame to the previous one (prepared in set
   // 1). Returns whether that alignment is usable as the keyframe alignment's start and check.
   bool align_to_previous(const FrameSlot& current, const Prediction& to_reference,
-                         const RotationPrior* prior, Alignment& to_previous) {
+                         const GyroSteps* gyro, Alignment& to_previous) {
     Prediction p;
     p.use_prior = to_reference.use_prior;
     p.prior_information = to_reference.step_information;
-    if (p.use_prior) p.R_ref_prior = prior->R_prev_cur;
+    if (p.use_prior) p.R_ref_prior = gyro->R_prev_cur;
     p.T_ref_predicted = has_motion && config.initialize_with_previous_motion
                             ? last_motion
                             : Eigen::Isometry3d::Identity();
-    if (p.use_prior) p.T_ref_predicted.linear() = prior->R_prev_cur;
+    if (p.use_prior) p.T_ref_predicted.linear() = gyro->R_prev_cur;
     active_set = kPreviousSet;
     to_previous = align(current, p.T_ref_predicted.inverse(), p);
     active_set = kReferenceSet;
@@ -903,11 +1027,109 @@ struct DenseOdometry::Impl {
   // The information of the pose twist: with the offset estimated, its Schur complement, times
   // vision_information_scale (the data term's honest share of the independent-pixel one).
   Matrix6d pose_information(const NormalEquations& normal) const {
+    return vision_scale * independent_pixel_information(normal);
+  }
+  Matrix6d independent_pixel_information(const NormalEquations& normal) const {
     Matrix6d information = normal.H;
     if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
       information -= normal.H_pose_offset * normal.H_pose_offset.transpose() / normal.H_offset;
     }
-    return config.vision_information_scale * information;
+    return information;
+  }
+
+  // What one alignment that used the gyro prior says about the gyro and about the vision: the
+  // vision's own minimum near it (vision_only()), against the gyro chain's rotation. One
+  // Gauss-Newton step of the data term from the joint minimum would be cheaper but goes about
+  // half the way: the Student-t reweighted Hessian overstates the robust cost's curvature there.
+  struct GyroObservation {
+    Eigen::Vector3d bias_innovation = Eigen::Vector3d::Zero();    // rad/s, camera axes
+    Eigen::Matrix3d vision_covariance = Eigen::Matrix3d::Zero();  // independent pixels, ditto
+    Eigen::Matrix3d gyro_covariance = Eigen::Matrix3d::Zero();    // the chain's white noise
+    double span_s = 0.0;
+    double overconfidence = 1.0;  // this frame's sample of 1 / the vision's honest scale
+  };
+
+  bool observe_gyro(const Alignment& vision_alignment, const Prediction& p, const GyroSteps& gyro,
+                    GyroObservation& out) const {
+    const Matrix6d H = independent_pixel_information(vision_alignment.normal);
+    const Eigen::LDLT<Matrix6d> data(H);
+    if (!p.use_prior || gyro.chain.span_s <= 0.0 || data.info() != Eigen::Success ||
+        !data.isPositive()) {
+      return false;
+    }
+    const Eigen::Isometry3d& T_cur_ref_vision = vision_alignment.T_cur_ref;
+    // Reference axes: R_vision = exp(e) R_chain. A bias left over, b - b_estimate in camera
+    // axes, turns the chain by about R (b - b_estimate) span.
+    const Eigen::Vector3d e =
+        geometry::log_so3(T_cur_ref_vision.linear().transpose() * p.R_ref_prior.transpose());
+    const Eigen::Matrix3d vision_covariance =
+        data.solve(Matrix6d::Identity()).bottomRightCorner<3, 3>();
+    const Eigen::LDLT<Eigen::Matrix3d> vision(vision_covariance);
+    if (!e.allFinite() || vision.info() != Eigen::Success || !vision.isPositive()) return false;
+    // E[e e^T] = k C + G for vision overconfident by k: the moment estimate of k from this
+    // frame, k = (e^T C^-1 e - tr(C^-1 G)) / 3. A consistent vision's samples scatter below 1
+    // as often as above, so they are only kept in range here; the scale is bounded once
+    // averaged (no better than independent pixels).
+    const double k = (e.dot(vision.solve(e)) - vision.solve(gyro.chain_covariance).trace()) / 3.0;
+    out.overconfidence = std::clamp(k, kMinOverconfidenceSample, kMaxOverconfidenceSample);
+    const Eigen::Matrix3d& R = gyro.chain.R_ref_cur;
+    out.span_s = gyro.chain.span_s;
+    out.bias_innovation = -R.transpose() * e / out.span_s;
+    out.vision_covariance = R.transpose() * vision_covariance * R;
+    out.gyro_covariance = R.transpose() * gyro.chain.noise_covariance * R;
+    return out.bias_innovation.allFinite() && std::isfinite(out.overconfidence);
+  }
+
+  // Learns from a gyro observation of a frame that tracked: the vision's honest scale from every
+  // such frame, and the gyro bias from the last frame against each reference (the observations
+  // within one keyframe share its vision and chain errors, so only one of them is independent).
+  // The scale is a running geometric mean of the frames' samples (one frame where vision
+  // slipped moves it by a factor, not a multiple) over the last vision_information_frames; the
+  // configured scale holds until the first sample.
+  void learn_from_gyro(const GyroObservation& o, bool learn_bias) {
+    if (config.adapt_vision_information) {
+      vision_scale_samples = std::min(vision_scale_samples + 1, config.vision_information_frames);
+      const double alpha = 1.0 / vision_scale_samples;
+      log_overconfidence = (1.0 - alpha) * log_overconfidence + alpha * std::log(o.overconfidence);
+      // A consistent vision's samples are chi-square(3) / 3, whose log has mean
+      // psi(3/2) + ln(2/3) = -0.369: the geometric mean is 0.69 of the mean.
+      constexpr double kChiSquare3GeometricMean = 0.6915;
+      vision_scale = std::min(1.0, kChiSquare3GeometricMean / std::exp(log_overconfidence));
+    }
+    // Frame to frame the vision's own per-step rotation error is a drift, as constant as a
+    // bias and indistinguishable from one (measured in simulation: f2f with the depth term
+    // learnt its 0.2 deg/s drift as the gyro's bias); against a keyframe it is bounded, so
+    // learn_bias is the last frame against each keyframe only.
+    if (learn_bias) {
+      // Weighed with the scale that includes this frame: the first frames of a vision far
+      // more overconfident than the configured scale must not teach the bias its error.
+      const Eigen::Matrix3d noise =
+          (o.vision_covariance / vision_scale + o.gyro_covariance) / (o.span_s * o.span_s);
+      gyro_bias.update(o.bias_innovation, noise, config.gyro_bias_gate_chi2);
+    }
+  }
+
+  // Whether the translation's standard deviation along its least constrained direction exceeds
+  // max_translation_sigma_m under the configured honest scale (not the learnt one, which also
+  // carries the gyro's disagreement: this is about the scene's geometry and texture).
+  bool translation_unconstrained(const NormalEquations& normal) const {
+    // Eigen-decomposed rather than factorised: an LDLT solves a singular system by zeroing
+    // the unconstrained directions, which would read as perfectly known.
+    const Eigen::SelfAdjointEigenSolver<Matrix6d> information(
+        config.vision_information_scale * independent_pixel_information(normal));
+    const Vector6d& values = information.eigenvalues();
+    if (information.info() != Eigen::Success || !values.allFinite() ||
+        values.minCoeff() <= kSingularEigenvalueRatio * values.maxCoeff()) {
+      return true;
+    }
+    const Eigen::Matrix<double, 3, 6> V_t = information.eigenvectors().topRows<3>();
+    const Eigen::Matrix3d covariance = V_t * values.cwiseInverse().asDiagonal() * V_t.transpose();
+    const double largest =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance, Eigen::EigenvaluesOnly)
+            .eigenvalues()
+            .maxCoeff();
+    return !std::isfinite(largest) ||
+           largest > config.max_translation_sigma_m * config.max_translation_sigma_m;
   }
 
   // The keyframe chain broke (Kerl IROS 2013 re-anchors on such failures): this frame's pose
@@ -932,20 +1154,32 @@ struct DenseOdometry::Impl {
     return result;
   }
 
+  // Whether a frame aligned with these normal equations becomes the next reference: frame to
+  // frame always; frame to keyframe when the keyframe has aged, its alignments' entropy has
+  // fallen by keyframe_entropy_ratio from the first one's (DVO-SLAM), or the alignment used
+  // less of the image than keyframe_min_valid_ratio (a keyframe with little in view, as the
+  // floor right after take-off, or one the motion has mostly left).
+  bool reference_ends_with(const NormalEquations& normal, int valid) const {
+    if (config.reference_mode == ReferenceMode::kFrameToFrame) return true;
+    const int age = keyframe_age + 1;
+    const double entropy = entropy_of(normal.H);
+    const double first = age == 1 ? entropy : keyframe_first_entropy;
+    const double ratio = first != 0.0 ? entropy / first : 0.0;
+    return age >= config.max_keyframe_age || (age > 1 && ratio < config.keyframe_entropy_ratio) ||
+           static_cast<double>(valid) / finest_pixels() < config.keyframe_min_valid_ratio;
+  }
+
   // After a good alignment: the next frame's reference is this frame (frame to frame, or a
   // keyframe that has aged or lost too much information) or stays, with this frame prepared
   // as the previous one for the keyframe check.
   void update_reference(int current_slot, const FrameSlot& current,
-                        const Eigen::Isometry3d& T_ref_cur, const NormalEquations& normal,
+                        const Eigen::Isometry3d& T_ref_cur, const Alignment& a,
                         OdometryResult& result) {
-    bool new_reference = true;
+    const NormalEquations& normal = a.normal;
+    const bool new_reference = reference_ends_with(normal, a.valid);
     if (config.reference_mode == ReferenceMode::kFrameToKeyframe) {
       ++keyframe_age;
-      const double entropy = entropy_of(normal.H);
-      if (keyframe_age == 1) keyframe_first_entropy = entropy;
-      const double ratio = keyframe_first_entropy != 0.0 ? entropy / keyframe_first_entropy : 0.0;
-      new_reference = keyframe_age >= config.max_keyframe_age ||
-                      (keyframe_age > 1 && ratio < config.keyframe_entropy_ratio);
+      if (keyframe_age == 1) keyframe_first_entropy = entropy_of(normal.H);
     }
     if (new_reference) {
       make_reference(current_slot, result.T_O_C);
@@ -954,7 +1188,6 @@ struct DenseOdometry::Impl {
       return;
     }
     T_ref_last = T_ref_cur;
-    last_rotation_covariance = rotation_covariance(result.information);
     previous_slot = current_slot;
     if (keyframe_check()) {
       prepare_reference(current, kPreviousSet);
@@ -980,6 +1213,15 @@ struct DenseOdometry::Impl {
       make_reference(current_slot, T_O_C);
       return out;
     }
+    if (translation_unconstrained(normal)) {
+      // A textureless wall seen with the depth term: translation along it is not measured,
+      // and a pose from it would read as standing still while the vehicle slides.
+      const Eigen::Isometry3d T_O_C = result.T_O_C;
+      OdometryResult out = lost(
+          result, "degenerate: the scene does not constrain the translation in some direction");
+      make_reference(current_slot, T_O_C);
+      return out;
+    }
     const Eigen::Isometry3d T_ref_cur = T_cur_ref.inverse();
     result.status = TrackingStatus::kOk;
     result.reason = "";
@@ -989,7 +1231,7 @@ struct DenseOdometry::Impl {
     last_motion = T_ref_last.inverse() * T_ref_cur;
     last_information = normal.H;
     has_motion = true;
-    update_reference(current_slot, current, T_ref_cur, normal, result);
+    update_reference(current_slot, current, T_ref_cur, a, result);
     return result;
   }
 
@@ -1006,6 +1248,11 @@ struct DenseOdometry::Impl {
     while (current_slot == reference_slot || current_slot == previous_slot) ++current_slot;
     FrameSlot& current = slots[current_slot];
     build_pyramid(current, gray, depth_m);
+    const double step_s =
+        last_frame_t_ns >= 0 ? 1e-9 * static_cast<double>(t_ns - last_frame_t_ns) : 0.0;
+    last_frame_t_ns = t_ns;
+    result.gyro_bias_radps = gyro_bias.bias();
+    result.vision_information_scale = vision_scale;
 
     if (!has_reference) {
       make_reference(current_slot, result.T_O_C);
@@ -1016,13 +1263,20 @@ struct DenseOdometry::Impl {
       return result;
     }
 
-    const Prediction p = predict_motion(prior);
+    // The gyro, with the bias estimate removed and its uncertainty allowed for, before anything
+    // uses it. The chain is kept when this frame is accepted against the same reference.
+    if (config.estimate_gyro_bias) gyro_bias.propagate(t_ns, config.gyro_bias_random_walk);
+    GyroSteps steps;
+    const bool have_gyro = prior != nullptr && gyro_steps(*prior, step_s, steps);
+    const GyroSteps* gyro = have_gyro ? &steps : nullptr;
+
+    const Prediction p = predict_motion(gyro);
     Eigen::Isometry3d T_cur_ref_guess = p.T_ref_predicted.inverse();
     // Keyframe check: align to the previous frame as well, start the keyframe alignment from
     // that, and re-anchor on the previous frame when the two disagree.
     Alignment to_previous;
     const bool previous_ok =
-        keyframe_check() && has_previous && align_to_previous(current, p, prior, to_previous);
+        keyframe_check() && has_previous && align_to_previous(current, p, gyro, to_previous);
     if (previous_ok) T_cur_ref_guess = (T_ref_last * to_previous.T_cur_ref.inverse()).inverse();
 
     Alignment a = align(current, T_cur_ref_guess, p);
@@ -1030,7 +1284,25 @@ struct DenseOdometry::Impl {
       return re_anchor_on_previous(result, a, to_previous, current_slot);
     }
     if (previous_ok) a.iterations += to_previous.iterations;
-    return accept(result, a, current_slot, current);
+    // The vision's own rotation costs a few more iterations: found only for what learns from it.
+    const bool learn_bias = config.estimate_gyro_bias &&
+                            config.reference_mode == ReferenceMode::kFrameToKeyframe &&
+                            reference_ends_with(a.normal, a.valid);
+    GyroObservation observation;
+    const bool observed = (learn_bias || config.adapt_vision_information) && have_gyro &&
+                          p.use_prior &&
+                          observe_gyro(vision_only(current, a), p, steps, observation);
+    // Before accept(): a new reference starts a new chain.
+    if (have_gyro) {
+      gyro_chain = steps.chain;
+    } else {
+      gyro_chain.intact = false;
+    }
+    result = accept(result, a, current_slot, current);
+    if (observed && result.ok()) learn_from_gyro(observation, learn_bias);
+    result.gyro_bias_radps = gyro_bias.bias();
+    result.vision_information_scale = vision_scale;
+    return result;
   }
 };
 
@@ -1055,7 +1327,12 @@ void DenseOdometry::reset() {
   impl_->has_previous = false;
   impl_->T_O_ref.setIdentity();
   impl_->T_ref_last.setIdentity();
-  impl_->last_rotation_covariance.setZero();
+  impl_->gyro_chain = {};
+  impl_->gyro_bias.reset(impl_->config.gyro_bias_sigma_radps);
+  impl_->vision_scale = impl_->config.vision_information_scale;
+  impl_->vision_scale_samples = 0;
+  impl_->log_overconfidence = 0.0;
+  impl_->last_frame_t_ns = -1;
 }
 
 const OdometryConfig& DenseOdometry::config() const { return impl_->config; }

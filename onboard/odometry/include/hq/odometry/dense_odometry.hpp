@@ -54,9 +54,14 @@ struct OdometryConfig {
   bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion
                                                 ///< (frame-to-frame only; also gates the prior).
   bool estimate_brightness_offset = true;       ///< Also estimate a global intensity offset.
-  ReferenceMode reference_mode = ReferenceMode::kFrameToFrame;
+  /// Frame to keyframe with the gyro is the default (README, "Dense odometry in brief").
+  ReferenceMode reference_mode = ReferenceMode::kFrameToKeyframe;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
   int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
+  /// New keyframe when the alignment used less than this fraction of the finest-level pixels:
+  /// a keyframe with little in view (the floor just after take-off) or one the motion has
+  /// mostly left (measured: 0.15-0.26 in steady flight in simulation).
+  double keyframe_min_valid_ratio = 0.05;
   /// Keyframe check: each frame is also aligned to its predecessor; when T_prev_cur through
   /// the keyframe disagrees with it by more than these, the frame re-anchors on its predecessor
   /// and becomes the keyframe.
@@ -65,6 +70,8 @@ struct OdometryConfig {
   double keyframe_check_max_rotation_deg = 0.5;
   /// Adds DVO-SLAM's depth residual (Kerl, Sturm, Cremers IROS 2013, eq. 11-13) to the same
   /// Gauss-Newton, with the bivariate Student-t weights of the pair (intensity, depth).
+  /// Off by default: in the closed-loop campaigns a textureless world still "tracks" on depth
+  /// alone and the vehicle flew off at up to 12 m/s, where intensity alone is lost and hovers.
   bool use_depth_term = false;
   double depth_noise_per_m = 0.0015;     ///< sigma_z = this x z^2 (m), the Kinect noise model.
   int depth_point_stride = 2;            ///< Pixels without photometric gradient still add a depth
@@ -86,15 +93,47 @@ struct OdometryConfig {
   /// (interpolation, blur, the pyramid, model error), so the independent-pixel Hessian is
   /// overconfident: on the six simulated flights (exact truth, no gyro) the mean rotation NEES
   /// e^T Sigma_rr^-1 e / 3 of each frame's T_ref_cur was 7-220, geometric mean 25 over 18
-  /// runs (`hq-bench-odometry --nees`, README "Honest information"), i.e. 0.04. The default
-  /// stays 1: with 0.04 the gyro rows gain on fr1_360 but lose rotation in simulation, where
-  /// the synthetic gyro's constant residual bias, not white per step, is what the stronger
-  /// prior lets through.
-  double vision_information_scale = 1.0;
+  /// runs (`hq-bench-odometry --nees`, README "Honest information"), i.e. 0.04; on real Kinect
+  /// frames (fr1_360) 1500-6000. With a gyro it is only the start: adapt_vision_information.
+  double vision_information_scale = 0.04;
+  /// The gyro rotations given to track() carry white noise (their information) and a rate
+  /// bias left over by the caller's estimate, which is this component's: per axis it is
+  /// allowed for as gyro_bias_sigma_radps x the frame interval in every prior, and
+  /// (estimate_gyro_bias, frame to keyframe) estimated from the vision's own rotation against
+  /// each keyframe by a 3-state Kalman filter (bias as a random walk), removed from each prior,
+  /// and then allowed for only as far as the filter is unsure of it. Frame to frame it is not
+  /// estimated: the vision's per-step drift is as constant as a bias and indistinguishable. The
+  /// caller's bias estimate (the complementary filter's) cannot see yaw, and a bias is an error
+  /// correlated over every step that no per-step weighting of the prior averages out.
+  bool estimate_gyro_bias = true;
+  double gyro_bias_sigma_radps = 0.005;  ///< Per axis, before (or without) the estimate.
+  double gyro_bias_random_walk = 2e-4;   ///< rad/s/sqrt(s): how fast the bias may drift.
+  /// Observations whose squared Mahalanobis distance exceeds this are not used (3 degrees of
+  /// freedom: 16.27 rejects 0.1 % of consistent ones): a frame where vision slipped must not
+  /// teach the filter a bias.
+  double gyro_bias_gate_chi2 = 16.27;
+  /// With a gyro prior, vision_information_scale becomes only where the honest scale starts:
+  /// each tracked frame's vision-only rotation against the gyro's gives a moment estimate of
+  /// the data term's overconfidence (innovation-based adaptive estimation, Mehra 1972), averaged
+  /// in the log domain over the last vision_information_frames frames. Off by default: it
+  /// cannot tell which of the two is wrong when they disagree. On real Kinect frames (fr1_360,
+  /// gyro synthesised from the ground truth) it trusted the gyro 1000x more than the vision and
+  /// the chain's velocity got worse (eq. 1 |v| RMSE 0.101 -> 0.146 m/s, README).
+  bool adapt_vision_information = false;
+  int vision_information_frames = 30;
+  /// Gauss-Newton iterations of the finest level without the prior, from the joint minimum,
+  /// that find the vision's own rotation for the two estimates above (frames with a gyro only).
+  int vision_only_iterations = 3;
+  /// A frame whose translation is this unsure (standard deviation along the least constrained
+  /// direction, under vision_information_scale) is lost, not tracked: with the depth term a
+  /// textureless wall still "tracks", but says nothing of the motion along it.
+  double max_translation_sigma_m = 0.02;
 };
 
 /// Rotation of the current camera in the previous frame's camera, integrated from the gyro
-/// by the caller (bias removed), with its information: a prior on the twist's rotation part.
+/// by the caller (its bias estimate removed), with the information of its white noise: a
+/// prior on the twist's rotation part. The residual bias is the odometry's to allow for
+/// (OdometryConfig::gyro_bias_sigma_radps, estimate_gyro_bias), not part of the information.
 struct RotationPrior {
   Eigen::Matrix3d R_prev_cur = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d information = Eigen::Matrix3d::Identity();  ///< rad^-2, symmetric PSD.
@@ -123,6 +162,10 @@ struct OdometryResult {
   double mean_weighted_error = 0.0;         ///< final mean of w * r^2 (intensity units^2).
   int iterations = 0;                       ///< Gauss-Newton iterations over all levels.
   bool new_keyframe = false;                ///< This frame became the reference for the next ones.
+  /// The gyro rate bias removed from the rotation prior (camera axes, rad/s), after this frame.
+  Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();
+  /// The data term's honest scale in use after this frame (see adapt_vision_information).
+  double vision_information_scale = 1.0;
 
   [[nodiscard]] bool ok() const { return status == TrackingStatus::kOk; }
 };
@@ -145,7 +188,8 @@ class DenseOdometry {
   OdometryResult track(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                        const RotationPrior* prior);
 
-  /// Forgets the reference and the motion history (next frame is a first frame).
+  /// Forgets the reference, the motion history and the gyro bias estimate (next frame is a
+  /// first frame).
   void reset();
 
   [[nodiscard]] const OdometryConfig& config() const;
