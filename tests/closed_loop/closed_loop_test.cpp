@@ -124,9 +124,13 @@ TEST(ClosedLoop, OneSecondCameraLossAndNanBurstKeepTheVehicleInPlace) {
     const Vec p0 = sample_at(*loop, start_s - 0.05).p_N_m;
     double max_drift_m = 0.0;
     bool degraded = false;
+    bool odometry_throughout = true;
     for (const FlightSample& x : loop->samples()) {
       if (x.t_s < start_s + 0.1 || x.t_s > start_s + duration_s) continue;
       degraded = degraded || x.degraded;
+      odometry_throughout = odometry_throughout && x.estimate_ok;
+      EXPECT_NE(x.degraded, x.estimate_ok) << "t = " << x.t_s << ": degraded is said exactly "
+                                           << "when the velocity is not the odometry's";
       EXPECT_FALSE(x.safe_hover) << "t = " << x.t_s << ": the IMU coast should cover it";
       EXPECT_TRUE(x.airborne) << "t = " << x.t_s;
       max_drift_m = std::max(max_drift_m, (x.p_N_m - p0).norm());
@@ -134,7 +138,13 @@ TEST(ClosedLoop, OneSecondCameraLossAndNanBurstKeepTheVehicleInPlace) {
     const FlightSample& after = sample_at(*loop, start_s + duration_s + 1.0);
     std::printf("camera fault at %.1f s for %.1f s: max drift %.3f m, estimate ok 1 s later: %s\n",
                 start_s, duration_s, max_drift_m, after.estimate_ok ? "yes" : "no");
-    EXPECT_TRUE(degraded) << "the chain must say its estimate is degraded";
+    // Without frames nothing tracks; through NaN depth frame-to-keyframe odometry may keep
+    // tracking on its keyframe's depth, and then there is nothing to say.
+    if (start_s == 8.0) {
+      EXPECT_FALSE(odometry_throughout);
+    }
+    EXPECT_TRUE(degraded || odometry_throughout)
+        << "the chain must say its estimate is degraded when it is not the odometry's";
     EXPECT_LT(max_drift_m, 0.25);
     EXPECT_TRUE(after.estimate_ok);
   }

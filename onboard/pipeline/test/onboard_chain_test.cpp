@@ -136,17 +136,23 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
   for (int k = 0; k < 12; ++k) {
     if (frame(k).estimate.ok()) t_last_ok_ns = (k + 1) * kFramePeriodNs;
   }
-  // The odometry takes depth from its reference (the previous frame), so the first depthless
-  // frame still tracks; from the second on nothing can.
-  const ChainOutput first_depthless = frame(12, false);
-  EXPECT_TRUE(setpoint_finite(first_depthless));
-  if (first_depthless.estimate.ok()) t_last_ok_ns = 13 * kFramePeriodNs;
+  // The odometry takes depth from its reference (a keyframe), so depthless frames still track
+  // on it until a new reference is due, which has no depth; from then on nothing can.
+  int first_lost = 12;
+  const int max_keyframe_age = chain_.config().odometry.max_keyframe_age;
+  for (; first_lost <= 12 + max_keyframe_age; ++first_lost) {
+    const ChainOutput depthless = frame(first_lost, false);
+    EXPECT_TRUE(setpoint_finite(depthless));
+    if (depthless.tracking != odometry::TrackingStatus::kOk) break;
+    if (depthless.estimate.ok()) t_last_ok_ns = (first_lost + 1) * kFramePeriodNs;
+  }
+  ASSERT_LE(first_lost, 12 + max_keyframe_age) << "the odometry never stopped tracking";
   ASSERT_GT(t_last_ok_ns, 0);
   const double coast_s = chain_.config().estimator.inertial_coast_s;
   long allocations = 0;
   int coasting = 0;
   int hovering = 0;
-  for (int k = 13; k < 13 + static_cast<int>((coast_s + 0.5) * 30.0); ++k) {
+  for (int k = first_lost + 1; k < first_lost + 1 + static_cast<int>((coast_s + 0.5) * 30.0); ++k) {
     const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
     feed_imu(chain_, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns);
     depth_.setTo(0.0f);
