@@ -54,10 +54,10 @@ TEST(VelocityOnRecordedDepth, RawAndFilteredRmseStayWithinMeasuredBounds) {
   print("fr1_360", replay, e);
   EXPECT_EQ(replay.frames, 5);
   EXPECT_EQ(e.samples, 1);  // warm-up 0.2 s: only the fifth frame (0.268 s) is past it
-  // Measured 0.1011 / 0.0805 with frame to keyframe and the gyro (0.1085 / 0.0815 frame to
+  // Measured 0.0934 / 0.0755 with frame to keyframe and the gyro (0.1085 / 0.0815 frame to
   // frame without it, the default before).
-  EXPECT_LT(e.raw_norm_mps(), 0.127);
-  EXPECT_LT(e.filtered_norm_mps(), 0.101);
+  EXPECT_LT(e.raw_norm_mps(), 0.117);
+  EXPECT_LT(e.filtered_norm_mps(), 0.095);
 }
 
 /// Position hold plus a feed-forward velocity profile flown on truth, converted to the
@@ -173,27 +173,27 @@ TEST(VelocityOnSimulatedFlight, InHoverFilteredBeatsRaw) {
   EXPECT_FALSE(run.replay.imu.synthesised) << "the simulator records gyro.txt, accelerometer.txt";
   EXPECT_GE(e.samples, 290);  // measured 293 of 301 frames
   EXPECT_LT(e.filtered_norm_mps(), e.raw_norm_mps());
-  // Measured 0.0054 / 0.0037 with frame to keyframe and the gyro (0.0100 / 0.0092 frame to
+  // Measured 0.0067 / 0.0038 with frame to keyframe and the gyro (0.0100 / 0.0092 frame to
   // frame without it, the default before).
-  EXPECT_LT(e.raw_norm_mps(), 0.0068);
-  EXPECT_LT(e.filtered_norm_mps(), 0.0047);
+  EXPECT_LT(e.raw_norm_mps(), 0.0084);
+  EXPECT_LT(e.filtered_norm_mps(), 0.0048);
 }
 
 TEST(VelocityOnSimulatedFlight, InManoeuvresTheFilterAddsLag) {
   // GIVEN 10 s of sinusoidal manoeuvres (|v| RMS 0.36 m/s), THEN both stay within their
   // measured RMSE and the filter delays eq. 2. Measured with config/onboard.yaml (1€ position
   // min_cutoff 1 Hz, beta 2): here the lag dominates and eq. 2 is WORSE than eq. 1 at zero
-  // shift (0.0548 vs 0.0181 m/s; frame to frame without the gyro, the default before: 0.0577
+  // shift (0.0546 vs 0.0207 m/s; frame to frame without the gyro, the default before: 0.0577
   // vs 0.0335). Not asserted either way: it is a tuning finding, reported with
   // B-onboard-chain.
   const SimulatedEvaluation run = fly_and_evaluate("manoeuvre", 1.0);
   const VelocityErrors& e = run.errors;
   EXPECT_GE(e.samples, 290);                          // measured 293 of 301 frames
   EXPECT_GT(e.truth_rms_mps, 0.3);                    // measured 0.363
-  EXPECT_LT(e.raw_norm_mps(), 0.023);                 // measured 0.0181
-  EXPECT_LT(e.filtered_norm_mps(), 0.069);            // measured 0.0548
-  EXPECT_GT(e.filtered_lag_ms, e.raw_lag_ms + 20.0);  // measured 81 vs 17 ms
-  EXPECT_LE(e.filtered_lag_ms, 95.0);                 // measured 81 ms
+  EXPECT_LT(e.raw_norm_mps(), 0.026);                 // measured 0.0207
+  EXPECT_LT(e.filtered_norm_mps(), 0.069);            // measured 0.0546
+  EXPECT_GT(e.filtered_lag_ms, e.raw_lag_ms + 20.0);  // measured 80 vs 17 ms
+  EXPECT_LE(e.filtered_lag_ms, 95.0);                 // measured 80 ms
   // A backward difference lags h/2 = 16.5 ms: at most 17 on the search's 1 ms grid (measured
   // 17; 13 frame to frame without the gyro, whose errors partly led the motion).
   EXPECT_LE(e.raw_lag_ms, 17.0);
