@@ -40,6 +40,16 @@ Frame render(const Eigen::Isometry3d& T_world_camera) {
   return f;
 }
 
+/// Gaussian sensor noise of sigma grey levels added to an image, saturating at 0 and 255.
+void add_sensor_noise(cv::Mat& gray, cv::RNG& rng, double sigma) {
+  cv::Mat noise(gray.size(), CV_16SC1);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
+  cv::Mat sum;
+  gray.convertTo(sum, CV_16SC1);
+  sum += noise;
+  sum.convertTo(gray, CV_8UC1);
+}
+
 double translation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.translation() - b.translation()).norm();
 }
@@ -172,14 +182,7 @@ TEST(DenseOdometry, GyroPriorIsWeighedAgainstTheScaledVisionInformation) {
   // Sensor noise: without it the robust scale follows the misalignment the prior causes, so the
   // data term's information would shrink as the prior pulls and the fusion would not be linear.
   cv::RNG rng(7);
-  for (cv::Mat* gray : {&a.gray, &b.gray}) {
-    cv::Mat noise(gray->size(), CV_16SC1);
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, 4.0);
-    cv::Mat sum;
-    gray->convertTo(sum, CV_16SC1);
-    sum += noise;
-    sum.convertTo(*gray, CV_8UC1);
-  }
+  for (cv::Mat* gray : {&a.gray, &b.gray}) add_sensor_noise(*gray, rng, 4.0);
   // Run to convergence: the comparison is of minima, not of where an iteration stopped.
   const auto converging = [](double scale) {
     OdometryConfig config;
@@ -261,23 +264,22 @@ struct BiasedGyroFlight {
     prior.information = Eigen::Matrix3d::Identity() / (sigma_rad * sigma_rad);
     return prior;
   }
+  /// Frames 0..last with 6 grey levels of sensor noise, so that a prior's pull shows in the pose.
+  static std::vector<Frame> noisy_frames(int last, std::uint64_t seed) {
+    cv::RNG rng(seed);
+    std::vector<Frame> frames;
+    for (int k = 0; k <= last; ++k) {
+      frames.push_back(render(truth(k)));
+      add_sensor_noise(frames.back().gray, rng, 6.0);
+    }
+    return frames;
+  }
 };
 
 TEST(DenseOdometry, GyroBiasIsEstimatedFromTheVisionAndRemovedFromThePrior) {
   // GIVEN 2 s of frames and a gyro whose residual bias (0.028 rad/s) is within the allowance
   const BiasedGyroFlight flight;
-  std::vector<Frame> frames;
-  // Sensor noise, so that the prior's pull shows in the pose.
-  cv::RNG rng(11);
-  for (int k = 0; k <= 60; ++k) {
-    Frame frame = render(BiasedGyroFlight::truth(k));
-    cv::Mat noise(frame.gray.size(), CV_16SC1), sum;
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, 6.0);
-    frame.gray.convertTo(sum, CV_16SC1);
-    sum += noise;
-    sum.convertTo(frame.gray, CV_8UC1);
-    frames.push_back(frame);
-  }
+  const std::vector<Frame> frames = BiasedGyroFlight::noisy_frames(60, 11);
   double second_second_rms_rad[2] = {0.0, 0.0};
   for (const bool estimate : {true, false}) {
     OdometryConfig config;
@@ -338,18 +340,7 @@ TEST(DenseOdometry, GyroStepFarFromTheVisionTeachesNoBias) {
 
 TEST(DenseOdometry, VisionInformationScaleIsLearntFromTheGyro) {
   // GIVEN noisy frames and an exact gyro claiming almost no noise, no bias allowed
-  const BiasedGyroFlight flight;
-  cv::RNG rng(5);
-  std::vector<Frame> frames;
-  for (int k = 0; k <= 40; ++k) {
-    Frame frame = render(BiasedGyroFlight::truth(k));
-    cv::Mat noise(frame.gray.size(), CV_16SC1), sum;
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, 6.0);
-    frame.gray.convertTo(sum, CV_16SC1);
-    sum += noise;
-    sum.convertTo(frame.gray, CV_8UC1);
-    frames.push_back(frame);
-  }
+  const std::vector<Frame> frames = BiasedGyroFlight::noisy_frames(40, 5);
   const auto step = [](int k) {
     return BiasedGyroFlight::truth(k - 1).inverse() * BiasedGyroFlight::truth(k);
   };
