@@ -348,36 +348,23 @@ Row run(Method& method, const LoadedSequence& sequence, int passes, bool with_ne
 }
 
 /// Every method compared: the shipped defaults, each term on and off in the three reference
-/// modes, the defaults at full resolution, then OpenCV's three (unless only_haptiquad).
-std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride,
-                                                  double vision_information_scale,
-                                                  bool estimate_gyro_bias, bool adapt_vision,
-                                                  double gyro_bias_sigma_radps,
+/// modes, the defaults at full resolution, then OpenCV's three (unless only_haptiquad). Every
+/// HaptiQuad variant starts from `defaults` (OdometryConfig{} with the command line's settings).
+std::vector<std::unique_ptr<Method>> make_methods(const hq::odometry::OdometryConfig& defaults,
                                                   bool only_haptiquad) {
   std::vector<std::unique_ptr<Method>> methods;
   // The defaults (config/onboard.yaml) first, then each term on and off in both modes.
-  hq::odometry::OdometryConfig defaults;
-  defaults.depth_point_stride = depth_point_stride;
-  defaults.vision_information_scale = vision_information_scale;
-  defaults.estimate_gyro_bias = estimate_gyro_bias;
-  defaults.adapt_vision_information = adapt_vision;
-  defaults.gyro_bias_sigma_radps = gyro_bias_sigma_radps;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq default 320", defaults));
   // Frame to frame, frame to keyframe, frame to keyframe with the keyframe check.
   for (const int mode_index : {0, 1, 2}) {
     const auto mode = mode_index == 0 ? hq::odometry::ReferenceMode::kFrameToFrame
                                       : hq::odometry::ReferenceMode::kFrameToKeyframe;
     for (const int variant : {0, 1, 2, 3}) {
-      hq::odometry::OdometryConfig c;
+      hq::odometry::OdometryConfig c = defaults;
       c.reference_mode = mode;
       c.keyframe_check = mode_index == 2;
       c.use_depth_term = (variant & 1) != 0;
       c.use_rotation_prior = (variant & 2) != 0;
-      c.depth_point_stride = depth_point_stride;
-      c.vision_information_scale = vision_information_scale;
-      c.estimate_gyro_bias = estimate_gyro_bias;
-      c.adapt_vision_information = adapt_vision;
-      c.gyro_bias_sigma_radps = gyro_bias_sigma_radps;
       const char* names[] = {"I", "I+D", "I+gyro", "I+D+gyro"};
       const char* modes[] = {"hq f2f ", "hq f2kf ", "hq f2kf+check "};
       std::string name = modes[mode_index];
@@ -386,15 +373,11 @@ std::vector<std::unique_ptr<Method>> make_methods(int depth_point_stride,
   }
   // The depth term on the finest level only (odometry.depth_levels: 1), frame to keyframe with
   // the gyro: the coarse levels' depth is what real Kinect depth makes the least of.
-  hq::odometry::OdometryConfig finest_depth;
+  hq::odometry::OdometryConfig finest_depth = defaults;
   finest_depth.reference_mode = hq::odometry::ReferenceMode::kFrameToKeyframe;
   finest_depth.use_depth_term = true;
+  finest_depth.use_rotation_prior = true;
   finest_depth.depth_levels = 1;
-  finest_depth.depth_point_stride = depth_point_stride;
-  finest_depth.vision_information_scale = vision_information_scale;
-  finest_depth.estimate_gyro_bias = estimate_gyro_bias;
-  finest_depth.adapt_vision_information = adapt_vision;
-  finest_depth.gyro_bias_sigma_radps = gyro_bias_sigma_radps;
   methods.push_back(std::make_unique<HaptiQuadMethod>("hq f2kf I+D(finest)+gyro", finest_depth));
   hq::odometry::OdometryConfig full = defaults;
   full.finest_level = 0;
@@ -458,7 +441,8 @@ static int run_benchmarks(int argc, char** argv) {
   int passes = 10;
   double skip_s = 0.0;
   bool only_haptiquad = false;
-  int depth_point_stride = hq::odometry::OdometryConfig{}.depth_point_stride;
+  // What every HaptiQuad variant shares; the options below set it.
+  hq::odometry::OdometryConfig defaults;
   app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
   app.add_option("--camera", camera_path, "camera file of sequences without their own camera.yaml");
   app.add_option("--passes", passes, "times each sequence is run per method")
@@ -472,22 +456,18 @@ static int run_benchmarks(int argc, char** argv) {
                  "run only the methods whose name contains this text (repeatable; exact name "
                  "match when the text ends with '$')")
       ->allow_extra_args(false);  // one text per --method: sequence folders may follow
-  app.add_option("--depth-point-stride", depth_point_stride,
+  app.add_option("--depth-point-stride", defaults.depth_point_stride,
                  "odometry.depth_point_stride of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
-  double vision_information_scale = hq::odometry::OdometryConfig{}.vision_information_scale;
-  app.add_option("--vision-information-scale", vision_information_scale,
+  app.add_option("--vision-information-scale", defaults.vision_information_scale,
                  "odometry.vision_information_scale of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
-  bool estimate_gyro_bias = hq::odometry::OdometryConfig{}.estimate_gyro_bias;
-  app.add_option("--estimate-gyro-bias", estimate_gyro_bias,
+  app.add_option("--estimate-gyro-bias", defaults.estimate_gyro_bias,
                  "odometry.estimate_gyro_bias of every HaptiQuad variant (true/false)");
-  double gyro_bias_sigma_radps = hq::odometry::OdometryConfig{}.gyro_bias_sigma_radps;
-  app.add_option("--gyro-bias-sigma", gyro_bias_sigma_radps,
+  app.add_option("--gyro-bias-sigma", defaults.gyro_bias_sigma_radps,
                  "odometry.gyro_bias_sigma_radps of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
-  bool adapt_vision = hq::odometry::OdometryConfig{}.adapt_vision_information;
-  app.add_option("--adapt-vision-information", adapt_vision,
+  app.add_option("--adapt-vision-information", defaults.adapt_vision_information,
                  "odometry.adapt_vision_information of every HaptiQuad variant (true/false)");
   bool with_nees = false;
   app.add_flag("--nees", with_nees,
@@ -510,8 +490,7 @@ static int run_benchmarks(int argc, char** argv) {
   }
   const hq::config::CameraInfo camera = hq::config::load_camera_info(camera_path);
   std::vector<std::unique_ptr<Method>> methods;
-  for (auto& method : make_methods(depth_point_stride, vision_information_scale, estimate_gyro_bias,
-                                   adapt_vision, gyro_bias_sigma_radps, only_haptiquad)) {
+  for (auto& method : make_methods(defaults, only_haptiquad)) {
     const std::string name = method->name();
     const bool wanted =
         method_filters.empty() ||
