@@ -17,6 +17,7 @@ void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read_positive("gyro_prior_sigma_radps", out.gyro_prior_sigma_radps, 10.0);
   section.read("landed_height_m", out.landed_height_m, 0.0, 2.0);
   section.read_positive("safe_hover_land_s", out.safe_hover_land_s, 600.0);
+  section.read("hold_on_inertial_coast", out.hold_on_inertial_coast);
   section.finish();
 }
 
@@ -190,6 +191,7 @@ void OnboardChain::sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
   update_height(t_ns, out.obstacles.floor_height_m, out);
   // What this frame and the memory have seen limits the operator's command.
   v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
+  velocity_from_odometry_ = out.estimate.ok();
   out.seen_space =
       seen_space_.update(t_ns, depth_m, odometry.ok() ? &odometry.T_O_C : nullptr, R_H_B);
   if (out.seen_space.updated && config_.memory.enabled && odometry.ok()) {
@@ -275,6 +277,7 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.obstacles.reason = "no frame";
   // No frame: the seen space only ages (no pose to turn it with).
   v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
+  velocity_from_odometry_ = out.estimate.ok();
   out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
   apply_operator_limit(&out);
   update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
@@ -335,10 +338,16 @@ void OnboardChain::apply_operator_limit(ChainOutput* out) {
       seen_space_.limit(operator_command_.v_H_mps, v_est_for_limit_H_mps_);
   modes::OperatorCommand flown = operator_command_;  // same stamp: the teleop timeout holds
   flown.v_H_mps = limited.v_H_mps;
+  bool held = false;
+  if (config_.chain.hold_on_inertial_coast && !velocity_from_odometry_ &&
+      flown.v_H_mps.head<2>().squaredNorm() > 0.0) {
+    flown.v_H_mps.head<2>().setZero();
+    held = true;
+  }
   modes_.set_operator_command(flown);
   if (out == nullptr) return;
-  out->v_cmd_flown_H_mps = limited.v_H_mps;
-  out->command_limited = limited.limited;
+  out->v_cmd_flown_H_mps = flown.v_H_mps;
+  out->command_limited = limited.limited || held;
   out->command_unseen = limited.unseen;
 }
 

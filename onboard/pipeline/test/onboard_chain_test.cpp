@@ -292,6 +292,45 @@ TEST_F(UnlimitedChainOnRenderedPlane, DisabledLimiterPassesTheCommand) {
   EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.y(), 1.0);
 }
 
+TEST(OnboardChainCoast, OperatorsHorizontalCommandIsHeldOnTheCoastClimbIsFlown) {
+  for (const bool hold : {true, false}) {
+    // GIVEN a chain without the seen-space limit (nothing else cuts the command) that tracked,
+    // then lost its odometry (depth all invalid): the inertial coast
+    OnboardConfig config = airborne_config();
+    config.seen_space.enabled = false;
+    config.chain.hold_on_inertial_coast = hold;
+    FakeClock clock;
+    OnboardChain chain(config, control::VehicleConfig{}, kCamera, &clock);
+    cv::Mat gray, depth;
+    ChainOutput out;
+    int k = 0;
+    for (; k < 60; ++k) {
+      const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
+      feed_imu(chain, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns);
+      odometry::test::render_textured_plane(kCamera, camera_pose_at(t_ns), kPlaneZ, gray, depth);
+      if (k >= 12) depth.setTo(0.0f);
+      out = chain.on_frame(t_ns, gray, depth);
+      if (k >= 12 && out.estimate.status == estimator::EstimateStatus::kInertial) break;
+    }
+    ASSERT_EQ(out.estimate.status, estimator::EstimateStatus::kInertial) << "never coasted";
+    // WHEN the operator asks for 1 m/s sideways and a climb
+    ++k;
+    const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
+    chain.set_operator_command({t_ns, Eigen::Vector3d(0.0, 1.0, -0.2), 0.0});
+    feed_imu(chain, t_ns - kFramePeriodNs + kImuPeriodNs, t_ns);
+    out = chain.on_frame(t_ns, gray, depth);
+    ASSERT_EQ(out.estimate.status, estimator::EstimateStatus::kInertial);
+    // THEN (hold_on_inertial_coast) the vehicle brakes to a hold and says the command is cut;
+    // the climb is flown. Without the hold, the command is flown blind.
+    EXPECT_EQ(out.command_limited, hold);
+    EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.y(), hold ? 0.0 : 1.0);
+    EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.z(), -0.2);
+    if (hold) {
+      EXPECT_NEAR(out.mode.v_star_des_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
+    }
+  }
+}
+
 TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {
   // Airborne, no frame ever: the safe hover; after chain.safe_hover_land_s of it the chain
   // lands (blind descent) and refuses to go back to teleop while there is no estimate.
@@ -389,13 +428,15 @@ TEST(LoadOnboardConfig, OdometryAndChainSectionsReachTheirComponents) {
   const std::string path = write_temp_yaml(
       "sections",
       "odometry: {pyramid_levels: 3, use_depth_term: true}\n"
-      "chain: {camera_timeout_s: 0.7, gyro_rotation_prior: true, gyro_prior_sigma_radps: 0.02}\n");
+      "chain: {camera_timeout_s: 0.7, gyro_rotation_prior: true, gyro_prior_sigma_radps: 0.02,"
+      " hold_on_inertial_coast: false}\n");
   const OnboardConfig config = load_onboard_config(path);
   EXPECT_EQ(config.odometry.pyramid_levels, 3);
   EXPECT_TRUE(config.odometry.use_depth_term);
   EXPECT_DOUBLE_EQ(config.chain.camera_timeout_s, 0.7);
   EXPECT_TRUE(config.chain.gyro_rotation_prior);
   EXPECT_DOUBLE_EQ(config.chain.gyro_prior_sigma_radps, 0.02);
+  EXPECT_FALSE(config.chain.hold_on_inertial_coast);
 }
 
 TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {

@@ -54,10 +54,19 @@ struct ChainConfig {
   /// The land is the modes' blind descent; other mode requests are refused until the estimate
   /// is back.
   double safe_hover_land_s = 5.0;
+  /// While the velocity is the inertial coast's, not the odometry's, the operator's horizontal
+  /// command is not flown: the vehicle brakes to a hold on the IMU, so that the level safe hover
+  /// after the coast starts near standstill. Followed, a command accelerates the vehicle blind
+  /// and the safe hover (which cannot brake) carries it on: in the unseen-space campaign with
+  /// the depth term, a vehicle that lost its odometry beside a textureless wall reached 1.6 m/s
+  /// on the coast and drifted into the wall. Climb and descent are still flown (the take-off
+  /// climbs on the coast until the floor is beyond the sensor's minimum range).
+  bool hold_on_inertial_coast = true;
 };
 
 /// Reads the `chain:` section {camera_timeout_s, takeoff_height_m, gyro_rotation_prior,
-/// gyro_prior_sigma_radps, landed_height_m, safe_hover_land_s} strictly.
+/// gyro_prior_sigma_radps, landed_height_m, safe_hover_land_s, hold_on_inertial_coast}
+/// strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -268,6 +277,7 @@ class OnboardChain {
   bool have_operator_command_ = false;
   /// The last usable velocity estimate (none when unusable): the limiter's reaction distance.
   std::optional<Eigen::Vector3d> v_est_for_limit_H_mps_;
+  bool velocity_from_odometry_ = false;  // the last estimate's (hold_on_inertial_coast)
   bool in_safe_hover_ = false;
   std::int64_t t_safe_hover_start_ns_ = 0;
   bool lost_estimate_landing_ = false;  ///< Landing because the safe hover lasted too long.
