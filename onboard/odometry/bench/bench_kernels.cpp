@@ -90,9 +90,13 @@ void BM_DepthResidualAndJacobian(benchmark::State& state) {
 }
 BENCHMARK(BM_DepthResidualAndJacobian);
 
-// The gather half of the depth residual as DenseOdometry runs it: residual and d r / d q only.
+// The gather half of the depth residual as DenseOdometry runs it: residual and d r / d q only,
+// d r / d q from the current depth's gradient (arg 0) or from the reference normal, rotated
+// into the current camera (arg 1, depth_jacobian_from_normals).
 void BM_DepthSample(benchmark::State& state) {
   const Scene& s = scene();
+  const bool from_normals = state.range(0) != 0;
+  const auto cos_75 = static_cast<float>(std::cos(75.0 * M_PI / 180.0));
   std::vector<float> residual(kPoints);
   std::vector<float> a[3];
   for (auto& c : a) c.assign(kPoints, 0.0f);
@@ -104,8 +108,15 @@ void BM_DepthSample(benchmark::State& state) {
       const float v = kK.fy * qy / qz + kK.cy;
       float d[3] = {0.0f, 0.0f, 0.0f};
       if (u >= 0.0f && v >= 0.0f && u < kWidth - 1.001f && v < kHeight - 1.001f) {
-        depth_sample_at(s.depth.data(), kWidth, kK, qx, qy, qz, u, v, 0.0015f, 0.05f, residual[i],
-                        d);
+        if (from_normals) {
+          float nx, ny, nz;
+          kWarp.rotate(0.0f, 0.0f, -1.0f, nx, ny, nz);
+          depth_sample_on_surface(s.depth.data(), kWidth, qx, qy, qz, u, v, nx, ny, nz, cos_75,
+                                  0.0015f, 0.05f, residual[i], d);
+        } else {
+          depth_sample_at(s.depth.data(), kWidth, kK, qx, qy, qz, u, v, 0.0015f, 0.05f, residual[i],
+                          d);
+        }
       }
       a[0][i] = d[0];
       a[1][i] = d[1];
@@ -116,7 +127,7 @@ void BM_DepthSample(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * kPoints);
 }
-BENCHMARK(BM_DepthSample);
+BENCHMARK(BM_DepthSample)->Arg(0)->Arg(1);
 
 // The whitened depth rows formed inside their accumulation (the other half of the depth term).
 void BM_AccumulateDepthRows(benchmark::State& state) {

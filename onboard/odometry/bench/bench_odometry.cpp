@@ -467,6 +467,8 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_option("--gyro-bias-sigma", defaults.gyro_bias_sigma_radps,
                  "odometry.gyro_bias_sigma_radps of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
+  app.add_option("--depth-jacobian-from-normals", defaults.depth_jacobian_from_normals,
+                 "odometry.depth_jacobian_from_normals of every HaptiQuad variant (true/false)");
   app.add_option("--adapt-vision-information", defaults.adapt_vision_information,
                  "odometry.adapt_vision_information of every HaptiQuad variant (true/false)");
   bool with_nees = false;

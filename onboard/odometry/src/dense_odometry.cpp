@@ -34,11 +34,12 @@ struct ReferenceLevel {
   std::vector<float> intensity;    // I_ref at the pixel
   std::vector<float> photometric;  // 1 if the pixel has gradient (a photometric residual), else 0
   std::vector<float> depth_point;  // 1 if the point may carry a depth residual, else 0
+  std::vector<float> nx, ny, nz;   // its surface's unit normal (depth_jacobian_from_normals)
   std::array<std::vector<float>, 6> jacobian;  // d I_ref(pi(exp(xi) p)) / d xi at xi = 0
   int count = 0;
 
   void reserve(int capacity) {
-    for (auto* v : {&x, &y, &z, &intensity, &photometric, &depth_point}) {
+    for (auto* v : {&x, &y, &z, &intensity, &photometric, &depth_point, &nx, &ny, &nz}) {
       v->assign(capacity, 0.0f);
     }
     for (auto& j : jacobian) j.assign(capacity, 0.0f);
@@ -59,6 +60,8 @@ struct NormalEquations {
   Vector6d H_pose_offset = Vector6d::Zero();
   double H_offset = 0.0;
   double g_offset = 0.0;
+  // The depth rows' share of H's translation block (zero without the depth term).
+  Eigen::Matrix3d H_depth_translation = Eigen::Matrix3d::Zero();
 };
 
 // The range of one frame's sample of the vision's overconfidence (adapt_vision_information),
@@ -213,6 +216,10 @@ void validate(const OdometryConfig& c, const std::string& where) {
                "expected <= pyramid_levels - finest_level (" +
                    std::to_string(c.pyramid_levels - c.finest_level) + ")");
   }
+  check.in_range("depth_normal_smoothing_levels", c.depth_normal_smoothing_levels, 0, kMaxLevels);
+  check.in_range("depth_max_incidence_deg", c.depth_max_incidence_deg, 1.0, 89.0);
+  check.in_range("min_translation_information_ratio", c.min_translation_information_ratio, 0.0,
+                 1.0);
   check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0, 1e6);
   check.positive("vision_information_scale", c.vision_information_scale, 1.0);
   check.positive("gyro_bias_sigma_radps", c.gyro_bias_sigma_radps, 1.0);
@@ -257,6 +264,12 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("depth_point_stride", out.depth_point_stride, -kAnyInt, kAnyInt);
   section.read("depth_max_spread_ratio", out.depth_max_spread_ratio, -kAny, kAny);
   section.read("depth_levels", out.depth_levels, -kAnyInt, kAnyInt);
+  section.read("depth_jacobian_from_normals", out.depth_jacobian_from_normals);
+  section.read("depth_normal_smoothing_levels", out.depth_normal_smoothing_levels, -kAnyInt,
+               kAnyInt);
+  section.read("depth_max_incidence_deg", out.depth_max_incidence_deg, -kAny, kAny);
+  section.read("min_translation_information_ratio", out.min_translation_information_ratio, -kAny,
+               kAny);
   section.read("use_rotation_prior", out.use_rotation_prior);
   section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, -kAny,
                kAny);
@@ -338,6 +351,8 @@ struct DenseOdometry::Impl {
   double log_overconfidence = 0.0;  // running mean of the samples' logs
   double keyframe_first_entropy = 0.0;
   int keyframe_age = 0;
+  float min_cos_incidence = 0.0f;              // of depth_max_incidence_deg
+  std::array<cv::Mat, kMaxLevels> normal_map;  // of the reference being prepared
 
   // Whether the depth residual acts on this level (the finest depth_levels levels).
   bool depth_at(int level) const {
@@ -353,6 +368,7 @@ struct DenseOdometry::Impl {
     validate(config);
     gyro_bias.reset(config.gyro_bias_sigma_radps);
     vision_scale = config.vision_information_scale;
+    min_cos_incidence = static_cast<float>(std::cos(config.depth_max_incidence_deg * M_PI / 180.0));
     levels = config.pyramid_levels;
     finest = config.finest_level;
     int capacity = 0;
@@ -360,6 +376,7 @@ struct DenseOdometry::Impl {
       level_camera[l] = camera.at_level(l);
       const int w = level_camera[l].width;
       const int h = level_camera[l].height;
+      if (config.depth_jacobian_from_normals && l >= finest) normal_map[l].create(h, w, CV_32FC3);
       for (auto& slot : slots) {
         slot.intensity[l].create(h, w, CV_32FC1);
         slot.depth_m[l].create(h, w, CV_32FC1);
@@ -395,6 +412,14 @@ struct DenseOdometry::Impl {
   void prepare_reference(const FrameSlot& slot, int set) {
     const auto min_gradient_sq = static_cast<float>(config.min_gradient * config.min_gradient);
     const auto spread = static_cast<float>(config.depth_max_spread_ratio);
+    if (config.depth_jacobian_from_normals) {
+      int computed = -1;  // normal_source() never decreases with the level
+      for (int l = finest; l < levels; ++l) {
+        if (!depth_at(l) || normal_source(l) == computed) continue;
+        computed = normal_source(l);
+        compute_normals(slot, computed);
+      }
+    }
     for (int l = finest; l < levels; ++l) {
       // With the depth term, pixels without gradient still constrain the pose through their
       // depth (a textureless wall fixes its normal's translation and two rotations).
@@ -428,9 +453,13 @@ struct DenseOdometry::Impl {
             for (const float d : neighbours)
               surface = surface && d > 0.0f && std::abs(d - z) <= spread * z;
           }
-          if (!textured && !surface) continue;
           const Eigen::Vector3f p_C =
               cam.unproject(static_cast<float>(u), static_cast<float>(v), z);
+          Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+          if (surface && config.depth_jacobian_from_normals) {
+            surface = surface_normal(l, p_C, normal);
+          }
+          if (!textured && !surface) continue;
           const float x = p_C.x();
           const float y = p_C.y();
           float J[6];
@@ -441,12 +470,74 @@ struct DenseOdometry::Impl {
           ref.intensity[n] = row[u];
           ref.photometric[n] = textured ? 1.0f : 0.0f;
           ref.depth_point[n] = surface ? 1.0f : 0.0f;
+          ref.nx[n] = normal.x();
+          ref.ny[n] = normal.y();
+          ref.nz[n] = normal.z();
           for (int j = 0; j < 6; ++j) ref.jacobian[j][n] = textured ? J[j] : 0.0f;
           ++n;
         }
       }
       ref.count = n;
     }
+  }
+
+  // Unit surface normals of one level's depth (CV_32FC3, zero where unknown): central
+  // differences of its block means, none beside missing depth or across an edge.
+  void compute_normals(const FrameSlot& slot, int level) {
+    const geometry::PinholeCamera& cam = level_camera[level];
+    const cv::Mat& D = slot.depth_m[level];
+    cv::Mat& out = normal_map[level];
+    for (int v = 0; v < cam.height; ++v) {
+      auto* row = out.ptr<cv::Vec3f>(v);
+      std::fill(row, row + cam.width, cv::Vec3f(0.0f, 0.0f, 0.0f));
+    }
+    const auto spread_ratio = static_cast<float>(config.depth_max_spread_ratio);
+    for (int v = 1; v < cam.height - 1; ++v) {
+      const float* row = D.ptr<float>(v);
+      const float* above = D.ptr<float>(v - 1);
+      const float* below = D.ptr<float>(v + 1);
+      auto* n = out.ptr<cv::Vec3f>(v);
+      for (int u = 1; u < cam.width - 1; ++u) {
+        const float centre = row[u];
+        const float spread = spread_ratio * centre;
+        bool surface = centre > 0.0f;
+        for (const float d : {row[u - 1], row[u + 1], above[u], below[u]}) {
+          surface = surface && d > 0.0f && std::abs(d - centre) <= spread;
+        }
+        if (!surface) continue;
+        const auto fu = static_cast<float>(u);
+        const auto fv = static_cast<float>(v);
+        const Eigen::Vector3f along_u =
+            cam.unproject(fu + 1.0f, fv, row[u + 1]) - cam.unproject(fu - 1.0f, fv, row[u - 1]);
+        const Eigen::Vector3f along_v =
+            cam.unproject(fu, fv + 1.0f, below[u]) - cam.unproject(fu, fv - 1.0f, above[u]);
+        const Eigen::Vector3f normal = along_u.cross(along_v);
+        const float length = normal.norm();
+        if (length > 0.0f) n[u] = cv::Vec3f(normal.x(), normal.y(), normal.z()) / length;
+      }
+    }
+  }
+
+  // The normal of the surface through the reference point p_C, from the normal map of the
+  // level depth_normal_smoothing_levels coarser (block means: less noise); false where it has
+  // none or sees the surface more obliquely than depth_max_incidence_deg (the ray-to-plane
+  // factor of the Jacobian, 1 / cos, is unbounded).
+  bool surface_normal(int level, const Eigen::Vector3f& p_C, Eigen::Vector3f& normal) const {
+    const int source = normal_source(level);
+    const geometry::PinholeCamera& cam = level_camera[source];
+    const double u = cam.fx * static_cast<double>(p_C.x() / p_C.z()) + cam.cx;
+    const double v = cam.fy * static_cast<double>(p_C.y() / p_C.z()) + cam.cy;
+    const auto iu = static_cast<int>(std::lround(u));
+    const auto iv = static_cast<int>(std::lround(v));
+    if (iu < 0 || iv < 0 || iu >= cam.width || iv >= cam.height) return false;
+    const cv::Vec3f& n = normal_map[source].at<cv::Vec3f>(iv, iu);
+    normal = Eigen::Vector3f(n[0], n[1], n[2]);
+    return std::abs(normal.dot(p_C)) >= min_cos_incidence * p_C.norm() &&
+           normal.squaredNorm() > 0.5f;
+  }
+
+  int normal_source(int level) const {
+    return std::min(level + config.depth_normal_smoothing_levels, levels - 1);
   }
 
   detail::Intrinsics intrinsics(int level) const {
@@ -514,6 +605,7 @@ struct DenseOdometry::Impl {
     // vectorised in accumulate_with_depth, which needs this warp's rotation.
     warp = T;
     const float* depth_point = ref.depth_point.data();
+    const bool from_normals = config.depth_jacobian_from_normals;
     float* a0 = depth_jacobian[0].data();
     float* a1 = depth_jacobian[1].data();
     float* a2 = depth_jacobian[2].data();
@@ -534,7 +626,13 @@ struct DenseOdometry::Impl {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = 1.0f;
           }
-          if (depth_point[i] > 0.0f) {
+          if (depth_point[i] > 0.0f && from_normals) {
+            float nx, ny, nz;
+            T.rotate(ref.nx[i], ref.ny[i], ref.nz[i], nx, ny, nz);
+            ok = detail::depth_sample_on_surface(depth, depth_stride, qx, qy, qz, u, v, nx, ny, nz,
+                                                 min_cos_incidence, noise, spread, rz, a);
+            if (!ok) a[0] = a[1] = a[2] = 0.0f;
+          } else if (depth_point[i] > 0.0f) {
             ok = detail::depth_sample_at(depth, depth_stride, k, qx, qy, qz, u, v, noise, spread,
                                          rz, a);
             if (!ok) a[0] = a[1] = a[2] = 0.0f;
@@ -697,8 +795,15 @@ struct DenseOdometry::Impl {
     rows.c_z = cz;
     rows.c_i = ci;
     rows.T = warp;
+    // H's upper triangle is row-major: (0,0) (0,1) (0,2) at 0-2, (1,1) (1,2) at 6-7, (2,2) at 11.
+    constexpr int kTranslation[6] = {0, 1, 2, 6, 7, 11};
+    double intensity_only[6];
+    for (int k = 0; k < 6; ++k) intensity_only[k] = sums.H[kTranslation[k]];
     detail::accumulate_depth_rows(rows, wz, count, sums);
     store(sums, 1.0, out);
+    double d[6];
+    for (int k = 0; k < 6; ++k) d[k] = sums.H[kTranslation[k]] - intensity_only[k];
+    out.H_depth_translation << d[0], d[1], d[2], d[1], d[3], d[4], d[2], d[4], d[5];
     return sums.weighted_error * sigma_ii;
   }
 
@@ -1122,6 +1227,17 @@ struct DenseOdometry::Impl {
         values.minCoeff() <= kSingularEigenvalueRatio * values.maxCoeff()) {
       return true;
     }
+    // The depth rows' noise floor: their Jacobians' noise adds about this share of their
+    // best direction's information to every direction (min_translation_information_ratio).
+    const double depth_best = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
+                                  normal.H_depth_translation, Eigen::EigenvaluesOnly)
+                                  .eigenvalues()
+                                  .maxCoeff();
+    const double weakest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
+                               normal.H.topLeftCorner<3, 3>(), Eigen::EigenvaluesOnly)
+                               .eigenvalues()
+                               .minCoeff();
+    if (!(weakest > config.min_translation_information_ratio * depth_best)) return true;
     const Eigen::Matrix<double, 3, 6> V_t = information.eigenvectors().topRows<3>();
     const Eigen::Matrix3d covariance = V_t * values.cwiseInverse().asDiagonal() * V_t.transpose();
     const double largest =

@@ -24,6 +24,11 @@ struct Warp {
     qy = r10 * px + r11 * py + r12 * pz + ty;
     qz = r20 * px + r21 * py + r22 * pz + tz;
   }
+  void rotate(float px, float py, float pz, float& qx, float& qy, float& qz) const {
+    qx = r00 * px + r01 * py + r02 * pz;
+    qy = r10 * px + r11 * py + r12 * pz;
+    qz = r20 * px + r21 * py + r22 * pz;
+  }
 };
 
 /// d I_ref(pi(exp(xi) p)) / d xi at xi = 0 (inverse compositional: the reference's gradient
@@ -56,6 +61,32 @@ inline float sample_bilinear(const float* data, int stride, float u, float v) {
   return top + dv * (bottom - top);
 }
 
+/// D_cur bilinearly interpolated at (u, v) (already checked to lie in the image), and the
+/// interpolant's gradient in pixels. False (outputs untouched) when a depth of the four is
+/// missing or they spread by more than max_spread_ratio (an occlusion edge, where neither the
+/// interpolated depth nor its gradient belongs to a surface).
+struct DepthSample {
+  float depth, d_du, d_dv;
+};
+inline bool sample_depth_surface(const float* depth, int stride, float u, float v,
+                                 float max_spread_ratio, DepthSample& out) {
+  const int u0 = static_cast<int>(u);
+  const int v0 = static_cast<int>(v);
+  const float du = u - static_cast<float>(u0);
+  const float dv = v - static_cast<float>(v0);
+  const float* p = depth + v0 * stride + u0;
+  const float d00 = p[0], d01 = p[1], d10 = p[stride], d11 = p[stride + 1];
+  const float lo = std::min(std::min(d00, d01), std::min(d10, d11));
+  const float hi = std::max(std::max(d00, d01), std::max(d10, d11));
+  if (!(lo > 0.0f) || hi - lo > max_spread_ratio * lo) return false;
+  const float top = d00 + du * (d01 - d00);
+  const float bottom = d10 + du * (d11 - d10);
+  out.depth = top + dv * (bottom - top);
+  out.d_du = (d01 - d00) + dv * ((d11 - d10) - (d01 - d00));
+  out.d_dv = bottom - top;
+  return true;
+}
+
 /// Depth residual of DVO-SLAM (Kerl, Sturm, Cremers, IROS 2013, eq. 11): the current depth at
 /// the warped reference point against that point's depth, r = (D_cur(pi(q)) - q_z) / sigma_z
 /// with q = T_cur_ref p and sigma_z = noise_per_m * q_z^2 (Kinect depth noise grows with z^2).
@@ -72,28 +103,43 @@ inline float sample_bilinear(const float* data, int stride, float u, float v) {
 inline bool depth_sample_at(const float* depth, int stride, const Intrinsics& k, float qx, float qy,
                             float qz, float u, float v, float noise_per_m, float max_spread_ratio,
                             float& residual, float* d_residual_d_q) {
+  DepthSample d;
+  if (!sample_depth_surface(depth, stride, u, v, max_spread_ratio, d)) return false;
   const float inv_z = 1.0f / qz;
-  const int u0 = static_cast<int>(u);
-  const int v0 = static_cast<int>(v);
-  const float du = u - static_cast<float>(u0);
-  const float dv = v - static_cast<float>(v0);
-  const float* p = depth + v0 * stride + u0;
-  const float d00 = p[0], d01 = p[1], d10 = p[stride], d11 = p[stride + 1];
-  const float lo = std::min(std::min(d00, d01), std::min(d10, d11));
-  const float hi = std::max(std::max(d00, d01), std::max(d10, d11));
-  if (!(lo > 0.0f) || hi - lo > max_spread_ratio * lo) return false;
-  const float top = d00 + du * (d01 - d00);
-  const float bottom = d10 + du * (d11 - d10);
-  const float d = top + dv * (bottom - top);
-  const float dd_du = (d01 - d00) + dv * ((d11 - d10) - (d01 - d00));
-  const float dd_dv = bottom - top;
   const float inv_sigma = 1.0f / (noise_per_m * qz * qz);
-  residual = (d - qz) * inv_sigma;
-  const float ax = dd_du * k.fx * inv_z;
-  const float ay = dd_dv * k.fy * inv_z;
+  residual = (d.depth - qz) * inv_sigma;
+  const float ax = d.d_du * k.fx * inv_z;
+  const float ay = d.d_dv * k.fy * inv_z;
   d_residual_d_q[0] = ax * inv_sigma;
   d_residual_d_q[1] = ay * inv_sigma;
   d_residual_d_q[2] = (-(ax * qx + ay * qy) * inv_z - 1.0f) * inv_sigma;
+  return true;
+}
+
+/// As depth_sample_at, with d r / d q from the surface's unit normal n (current camera axes)
+/// instead of D_cur's gradient: where the current surface is the plane n.x = n.q through q, the
+/// depth it shows at pi(x) is z_x (n.q) / (n.x), so r(x) = z_x (n.q - n.x) / (n.x) and d r / d q
+/// = -(q_z / n.q) n^T, divided by sigma_z. Exact on a plane, and free of the depth map's noise,
+/// which the gradient of a single depth map is mostly made of. Returns false (outputs
+/// untouched) as depth_sample_at, and where the surface is seen at more than the angle whose
+/// cosine is min_cos_incidence (the factor q_z / n.q grows without bound).
+inline bool depth_sample_on_surface(const float* depth, int stride, float qx, float qy, float qz,
+                                    float u, float v, float nx, float ny, float nz,
+                                    float min_cos_incidence, float noise_per_m,
+                                    float max_spread_ratio, float& residual,
+                                    float* d_residual_d_q) {
+  const float n_dot_q = nx * qx + ny * qy + nz * qz;
+  if (!(std::abs(n_dot_q) >= min_cos_incidence * std::sqrt(qx * qx + qy * qy + qz * qz))) {
+    return false;
+  }
+  DepthSample d;
+  if (!sample_depth_surface(depth, stride, u, v, max_spread_ratio, d)) return false;
+  const float inv_sigma = 1.0f / (noise_per_m * qz * qz);
+  residual = (d.depth - qz) * inv_sigma;
+  const float factor = -qz / n_dot_q * inv_sigma;
+  d_residual_d_q[0] = factor * nx;
+  d_residual_d_q[1] = factor * ny;
+  d_residual_d_q[2] = factor * nz;
   return true;
 }
 

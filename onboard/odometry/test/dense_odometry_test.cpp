@@ -504,6 +504,59 @@ TEST(DenseOdometry, TexturelessWallWithTheDepthTermIsLostAsDegenerate) {
   EXPECT_THAT(r.reason, HasSubstr("degenerate")) << r.reason;
 }
 
+TEST(DenseOdometry, NoisyPlainWallIsLostAsDegenerateNotTrackedAsAStandstill) {
+  // GIVEN a plain wall, 0.6 m away (a vehicle beside it), with Kinect-like depth noise and
+  // image noise: the noise is what the depth and intensity gradients are made of
+  const auto noisy_wall = [](cv::RNG& rng) {
+    Frame f;
+    f.gray = cv::Mat(kCamera.height, kCamera.width, CV_8UC1, cv::Scalar(120));
+    add_sensor_noise(f.gray, rng, 2.0);
+    f.depth_m = cv::Mat(kCamera.height, kCamera.width, CV_32FC1);
+    rng.fill(f.depth_m, cv::RNG::NORMAL, 0.6, 0.0015 * 0.6 * 0.6);
+    return f;
+  };
+  const auto second_frame = [&](double min_ratio) {
+    OdometryConfig config;
+    config.use_depth_term = true;
+    config.depth_jacobian_from_normals = true;
+    config.min_translation_information_ratio = min_ratio;
+    DenseOdometry odometry(config, kCamera);
+    cv::RNG rng(7);
+    const Frame a = noisy_wall(rng);
+    const Frame b = noisy_wall(rng);
+    odometry.track(0, a.gray, a.depth_m);
+    return odometry.track(33'333'333, b.gray, b.depth_m);
+  };
+  // WHEN the second frame is tracked without and with the information ratio's bound
+  const OdometryResult absolute_bound_only = second_frame(0.0);
+  const OdometryResult with_ratio = second_frame(0.01);
+  // THEN the noise passes the absolute bound on the translation's sigma (it "constrains" the
+  // motion along the wall), and the ratio to the wall normal's information does not
+  EXPECT_TRUE(absolute_bound_only.ok()) << absolute_bound_only.reason;
+  EXPECT_EQ(with_ratio.status, TrackingStatus::kLost);
+  EXPECT_THAT(with_ratio.reason, HasSubstr("degenerate")) << with_ratio.reason;
+}
+
+TEST(DenseOdometry, DepthJacobianFromNormalsTracksAsTheGradientOne) {
+  // GIVEN the textured scene and a translation with rotation
+  const Frame a = render(Eigen::Isometry3d::Identity());
+  const Eigen::Isometry3d T_ref_cur = pose(0.02, -0.01, 0.015, 0.01, -0.015, 0.02);
+  const Frame b = render(T_ref_cur);
+  for (const bool from_normals : {false, true}) {
+    OdometryConfig config;
+    config.use_depth_term = true;
+    config.depth_jacobian_from_normals = from_normals;
+    DenseOdometry odometry(config, kCamera);
+    odometry.track(0, a.gray, a.depth_m);
+    // WHEN it is tracked with each of the depth residual's Jacobians
+    const OdometryResult r = odometry.track(33'333'333, b.gray, b.depth_m);
+    // THEN both find the motion (the same minimum: only the Gauss-Newton steps differ)
+    ASSERT_TRUE(r.ok()) << r.reason;
+    EXPECT_LT(translation_error(r.T_ref_cur, T_ref_cur), 0.002) << from_normals;
+    EXPECT_LT(rotation_error_rad(r.T_ref_cur, T_ref_cur), 0.002) << from_normals;
+  }
+}
+
 TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
   for (const int variant : {0, 1, 2}) {
     const ReferenceMode mode =
@@ -513,6 +566,8 @@ TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
     config.keyframe_check = variant == 2;
     config.use_motion_prior = true;
     config.use_depth_term = true;
+    // Normals are computed for every reference, and the check prepares one per frame.
+    config.depth_jacobian_from_normals = variant == 2;
     DenseOdometry odometry(config, kCamera);
     RotationPrior gyro;
     std::vector<Frame> frames;
@@ -533,7 +588,9 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
       "{finest_level: 0, reference_mode: frame_to_keyframe, use_motion_prior: true,"
       " use_depth_term: true, depth_point_stride: 3, use_rotation_prior: false,"
       " keyframe_check: true, keyframe_check_max_rotation_deg: 1.0, depth_levels: 2,"
-      " estimate_gyro_bias: false, gyro_bias_random_walk: 0.001}");
+      " estimate_gyro_bias: false, gyro_bias_random_walk: 0.001,"
+      " depth_jacobian_from_normals: false, depth_normal_smoothing_levels: 1,"
+      " depth_max_incidence_deg: 60, min_translation_information_ratio: 0.02}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
@@ -548,6 +605,10 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_EQ(config.depth_levels, 2);
   EXPECT_FALSE(config.estimate_gyro_bias);
   EXPECT_DOUBLE_EQ(config.gyro_bias_random_walk, 0.001);
+  EXPECT_FALSE(config.depth_jacobian_from_normals);
+  EXPECT_EQ(config.depth_normal_smoothing_levels, 1);
+  EXPECT_DOUBLE_EQ(config.depth_max_incidence_deg, 60.0);
+  EXPECT_DOUBLE_EQ(config.min_translation_information_ratio, 0.02);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
@@ -571,6 +632,10 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{gyro_bias_sigma_radps: 0}", "odometry.gyro_bias_sigma_radps = 0, expected > 0");
   expect_error("{gyro_bias_gate_chi2: .nan}", "odometry.gyro_bias_gate_chi2");
   expect_error("{estimate_gyro_bias: maybe}", "odometry.estimate_gyro_bias");
+  expect_error("{depth_max_incidence_deg: 90}", "odometry.depth_max_incidence_deg = 90");
+  expect_error("{depth_normal_smoothing_levels: -1}", "odometry.depth_normal_smoothing_levels");
+  expect_error("{min_translation_information_ratio: 1.5}",
+               "odometry.min_translation_information_ratio = 1.5");
   expect_error("{min_depth_m: 2.0, max_depth_m: 1.5}",
                "onboard.yaml: odometry.max_depth_m = 1.5, expected > min_depth_m (2)");
 }

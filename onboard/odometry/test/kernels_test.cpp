@@ -51,6 +51,27 @@ std::vector<float> smooth_depth() {
   return d;
 }
 
+// residual_at(delta, J) is the residual under T_cur_ref exp(-delta), and its analytic
+// Jacobian into J when J is not null; at delta = 0 the point lies on the surface (r = 0, so the
+// noise model's 1 / z^2, held fixed within an iteration, does not enter the derivative). Checks
+// J against central differences, r(delta) ~ r(0) - J delta; returns the axes checked.
+template <typename ResidualAt>
+int expect_jacobian_matches_numeric(const ResidualAt& residual_at, double relative_tolerance) {
+  float J[6];
+  const double r0 = residual_at(geometry::Vector6d::Zero(), J);
+  EXPECT_TRUE(std::isfinite(r0));
+  EXPECT_NEAR(r0, 0.0, 0.05);
+  constexpr double kStep = 1e-3;
+  for (int k = 0; k < 6; ++k) {
+    geometry::Vector6d e = geometry::Vector6d::Zero();
+    e(k) = kStep;
+    const double numeric = -(residual_at(e, nullptr) - residual_at(-e, nullptr)) / (2 * kStep);
+    EXPECT_NEAR(J[k], numeric, relative_tolerance * std::max(1.0, std::abs(numeric)))
+        << "axis " << k;
+  }
+  return 6;
+}
+
 TEST(DepthResidual, AnalyticJacobianMatchesNumericDerivative) {
   const std::vector<float> depth = smooth_depth();
   const Eigen::Isometry3d T = some_pose();
@@ -74,19 +95,7 @@ TEST(DepthResidual, AnalyticJacobianMatchesNumericDerivative) {
       EXPECT_TRUE(ok);
       return static_cast<double>(r);
     };
-    float J[6];
-    const double r0 = residual_at(geometry::Vector6d::Zero(), J);
-    EXPECT_TRUE(std::isfinite(r0));
-    EXPECT_NEAR(r0, 0.0, 0.05);
-    constexpr double kStep = 1e-3;
-    for (int k = 0; k < 6; ++k) {
-      geometry::Vector6d e = geometry::Vector6d::Zero();
-      e(k) = kStep;
-      // r(delta) ~ r(0) - J delta
-      const double numeric = -(residual_at(e, nullptr) - residual_at(-e, nullptr)) / (2 * kStep);
-      EXPECT_NEAR(J[k], numeric, 1e-2 * std::max(1.0, std::abs(numeric))) << "axis " << k;
-      ++checked;
-    }
+    checked += expect_jacobian_matches_numeric(residual_at, 1e-2);
   }
   EXPECT_EQ(checked, 18);
 }
@@ -106,6 +115,71 @@ TEST(DepthResidual, MissingDepthOrEdgeIsRejected) {
   depth[26 * kWidth + 34] = 4.0f;  // an occlusion edge: 2 m against 4 m
   EXPECT_FALSE(depth_residual(depth.data(), kWidth, kWidth - 1.001f, kHeight - 1.001f, kK,
                               warp_of(T), px, py, pz, 0.1f, 0.0015f, 0.05f, r, J));
+}
+
+// The depth a camera at the origin sees of the plane n.x = c at every pixel: c / (n . ray).
+std::vector<float> plane_depth(const Eigen::Vector3d& n, double c) {
+  std::vector<float> d(kWidth * kHeight);
+  for (int v = 0; v < kHeight; ++v) {
+    for (int u = 0; u < kWidth; ++u) {
+      const Eigen::Vector3d ray((u - kCx) / kFx, (v - kCy) / kFy, 1.0);
+      d[static_cast<std::size_t>(v * kWidth + u)] = static_cast<float>(c / n.dot(ray));
+    }
+  }
+  return d;
+}
+
+TEST(DepthResidual, SurfaceNormalJacobianMatchesNumericDerivativeOnAPlane) {
+  // A plane tilted against the view, 2 m ahead; its normal in the current camera's axes.
+  const Eigen::Vector3d n_cur = Eigen::Vector3d(0.3, -0.2, -1.0).normalized();
+  const double c = n_cur.dot(Eigen::Vector3d(0.0, 0.0, 2.0));
+  const std::vector<float> depth = plane_depth(n_cur, c);
+  const Eigen::Isometry3d T = some_pose();
+  const Eigen::Vector3d n_ref = T.linear().transpose() * n_cur;  // as the reference holds it
+  const auto cos_75 = static_cast<float>(std::cos(75.0 * M_PI / 180.0));
+  int checked = 0;
+  for (const Eigen::Vector2d& uv :
+       {Eigen::Vector2d(20.3, 15.6), Eigen::Vector2d(40.7, 30.4), Eigen::Vector2d(12.45, 35.55)}) {
+    const Eigen::Vector3d ray((uv.x() - kCx) / kFx, (uv.y() - kCy) / kFy, 1.0);
+    const Eigen::Vector3d p = T.inverse() * (ray * c / n_cur.dot(ray));
+    const auto residual_at = [&](const geometry::Vector6d& delta, float* J) {
+      const Warp W = warp_of(T * geometry::exp_se3(-delta));
+      float qx, qy, qz, nx, ny, nz;
+      W.apply(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), qx,
+              qy, qz);
+      W.rotate(static_cast<float>(n_ref.x()), static_cast<float>(n_ref.y()),
+               static_cast<float>(n_ref.z()), nx, ny, nz);
+      const float u = kK.fx * qx / qz + kK.cx;
+      const float v = kK.fy * qy / qz + kK.cy;
+      float r = 0.0f;
+      float a[3] = {0.0f, 0.0f, 0.0f};
+      EXPECT_TRUE(depth_sample_on_surface(depth.data(), kWidth, qx, qy, qz, u, v, nx, ny, nz,
+                                          cos_75, 0.0015f, 0.5f, r, a));
+      if (J != nullptr) {
+        depth_jacobian_from(a[0], a[1], a[2], W, static_cast<float>(p.x()),
+                            static_cast<float>(p.y()), static_cast<float>(p.z()), J);
+      }
+      return static_cast<double>(r);
+    };
+    // The bilinear interpolant of a plane's depth is the plane only at the pixels.
+    checked += expect_jacobian_matches_numeric(residual_at, 2e-2);
+  }
+  EXPECT_EQ(checked, 18);
+}
+
+TEST(DepthResidual, SurfaceSeenAtGrazingIncidenceIsRejected) {
+  const std::vector<float> depth = smooth_depth();
+  float r = 0.0f;
+  float a[3];
+  // q straight ahead at 2 m: a fronto-parallel normal is accepted, one at 80 deg is not.
+  const auto cos_75 = static_cast<float>(std::cos(75.0 * M_PI / 180.0));
+  const float qx = 0.0f, qy = 0.0f, qz = 2.0f, u = 31.5f, v = 23.5f;
+  EXPECT_TRUE(depth_sample_on_surface(depth.data(), kWidth, qx, qy, qz, u, v, 0.0f, 0.0f, -1.0f,
+                                      cos_75, 0.0015f, 0.5f, r, a));
+  const auto s80 = static_cast<float>(std::sin(80.0 * M_PI / 180.0));
+  const auto c80 = static_cast<float>(std::cos(80.0 * M_PI / 180.0));
+  EXPECT_FALSE(depth_sample_on_surface(depth.data(), kWidth, qx, qy, qz, u, v, s80, 0.0f, -c80,
+                                       cos_75, 0.0015f, 0.5f, r, a));
 }
 
 // I_ref smooth enough that central differences are its exact gradient at the pixel.

@@ -84,6 +84,20 @@ struct OdometryConfig {
   /// level loses less rotation, but the coarse levels' depth is what carries textureless scenes
   /// and fast yaw without the gyro in simulation, so every level is the default.
   int depth_levels = 0;
+  /// The depth residual's Jacobian from the reference surface's normal, d r / d q = -(q_z /
+  /// n.q) n^T / sigma_z (point-to-plane along the viewing ray: exact for a locally planar
+  /// surface), instead of the current depth's gradient. The gradient of a single depth map of a
+  /// plane is mostly noise (its noise against the plane's true gradient is about
+  /// f sigma_z / z: 0.15 at 1 m on Kinect v1 at 320x240, 0.8 at 2 m), and a noisy Jacobian
+  /// claims information the scene does not hold. The normals come from the depth
+  /// depth_normal_smoothing_levels pyramid levels coarser (block means). Measured (README):
+  /// better in simulation (frame to frame most, the textureless world most of all), worse on
+  /// the real fr1_360 frames (f2kf I+D+gyro 0.0276 -> 0.0305 m/s), so off by default.
+  bool depth_jacobian_from_normals = false;
+  int depth_normal_smoothing_levels = 2;
+  /// Surfaces seen more obliquely than this (normal against the viewing ray) add no depth
+  /// residual: the ray-to-plane factor 1 / cos grows without bound, and such depth is poor.
+  double depth_max_incidence_deg = 75.0;
   /// Uses a RotationPrior given to track() as initial guess and prior (else it is ignored).
   bool use_rotation_prior = true;
   double rotation_prior_information_scale = 1.0;  ///< Prior information = this x the given one.
@@ -128,6 +142,16 @@ struct OdometryConfig {
   /// direction, under vision_information_scale) is lost, not tracked: with the depth term a
   /// textureless wall still "tracks", but says nothing of the motion along it.
   double max_translation_sigma_m = 0.02;
+  /// ... or whose translation information (rotation held) along its least constrained
+  /// direction is under this share of what the depth rows give their best direction: the
+  /// depth Jacobians' own noise adds about that much to every direction (with normals, about
+  /// their angular noise squared), so a plain wall's depth "constrains" the motion along it
+  /// past any absolute bound. Scale-free, and no bound without the depth term. Measured in the
+  /// unseen-space campaign with the depth term and depth_jacobian_from_normals (README): at
+  /// 0.01 no wrong frame was accepted (259 of 5690 before), but it also loses the textureless
+  /// world's slow circle, which the depth term tracks, and noise-free synthetic depth (whose
+  /// re-estimated scale makes its information 10^4 times the intensity's): 0 (off) by default.
+  double min_translation_information_ratio = 0.0;
 };
 
 /// Rotation of the current camera in the previous frame's camera, integrated from the gyro
