@@ -626,15 +626,16 @@ struct DenseOdometry::Impl {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = 1.0f;
           }
-          if (depth_point[i] > 0.0f && from_normals) {
-            float nx, ny, nz;
-            T.rotate(ref.nx[i], ref.ny[i], ref.nz[i], nx, ny, nz);
-            ok = detail::depth_sample_on_surface(depth, depth_stride, qx, qy, qz, u, v, nx, ny, nz,
-                                                 min_cos_incidence, noise, spread, rz, a);
-            if (!ok) a[0] = a[1] = a[2] = 0.0f;
-          } else if (depth_point[i] > 0.0f) {
-            ok = detail::depth_sample_at(depth, depth_stride, k, qx, qy, qz, u, v, noise, spread,
-                                         rz, a);
+          if (depth_point[i] > 0.0f) {
+            if (from_normals) {
+              float nx, ny, nz;
+              T.rotate(ref.nx[i], ref.ny[i], ref.nz[i], nx, ny, nz);
+              ok = detail::depth_sample_on_surface(depth, depth_stride, qx, qy, qz, u, v, nx, ny,
+                                                   nz, min_cos_incidence, noise, spread, rz, a);
+            } else {
+              ok = detail::depth_sample_at(depth, depth_stride, k, qx, qy, qz, u, v, noise, spread,
+                                           rz, a);
+            }
             if (!ok) a[0] = a[1] = a[2] = 0.0f;
           }
         }
@@ -1214,6 +1215,21 @@ struct DenseOdometry::Impl {
     }
   }
 
+  // min_translation_information_ratio: the depth rows' noise floor. Their Jacobians' noise adds
+  // about that share of their best direction's information to every direction. Off at 0.
+  bool translation_information_too_weak(const NormalEquations& normal) const {
+    if (config.min_translation_information_ratio <= 0.0) return false;
+    const double depth_best = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
+                                  normal.H_depth_translation, Eigen::EigenvaluesOnly)
+                                  .eigenvalues()
+                                  .maxCoeff();
+    const double weakest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
+                               normal.H.topLeftCorner<3, 3>(), Eigen::EigenvaluesOnly)
+                               .eigenvalues()
+                               .minCoeff();
+    return !(weakest > config.min_translation_information_ratio * depth_best);
+  }
+
   // Whether the translation's standard deviation along its least constrained direction exceeds
   // max_translation_sigma_m under the configured honest scale (not the learnt one, which also
   // carries the gyro's disagreement: this is about the scene's geometry and texture).
@@ -1227,17 +1243,7 @@ struct DenseOdometry::Impl {
         values.minCoeff() <= kSingularEigenvalueRatio * values.maxCoeff()) {
       return true;
     }
-    // The depth rows' noise floor: their Jacobians' noise adds about this share of their
-    // best direction's information to every direction (min_translation_information_ratio).
-    const double depth_best = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
-                                  normal.H_depth_translation, Eigen::EigenvaluesOnly)
-                                  .eigenvalues()
-                                  .maxCoeff();
-    const double weakest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
-                               normal.H.topLeftCorner<3, 3>(), Eigen::EigenvaluesOnly)
-                               .eigenvalues()
-                               .minCoeff();
-    if (!(weakest > config.min_translation_information_ratio * depth_best)) return true;
+    if (translation_information_too_weak(normal)) return true;
     const Eigen::Matrix<double, 3, 6> V_t = information.eigenvectors().topRows<3>();
     const Eigen::Matrix3d covariance = V_t * values.cwiseInverse().asDiagonal() * V_t.transpose();
     const double largest =
