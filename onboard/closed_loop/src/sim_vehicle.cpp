@@ -87,6 +87,7 @@ sources::FrameStatus SimCamera::next(sources::RgbdFrame& frame) {
     return sources::FrameStatus::kNoFrame;
   }
   frame.t_ns = sim_.camera_t_ns();
+  frame.depth_t_ns = frame.t_ns;  // rendered together
   sim_.render_camera(image_, frame.depth_m);
   if (observer_) observer_(frame.t_ns, image_);
   const CameraFault* fault = active_fault(frame.t_ns);

@@ -45,6 +45,7 @@ sources::FrameStatus SimFrameSource::next(sources::RgbdFrame& frame) {
   imu_count_ += sim_.take_imu(imu_.data() + imu_count_, imu_.size() - imu_count_);
 
   frame.t_ns = sim_.camera_t_ns();
+  frame.depth_t_ns = frame.t_ns;  // rendered together
   T_world_camera_ = sim_.camera_T_world_camera();
   if (sim_.config().camera.gray) {
     sim_.render_camera(frame.gray, frame.depth_m);

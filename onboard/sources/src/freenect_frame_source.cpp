@@ -156,6 +156,7 @@ class FreenectFrameSource final : public CameraSource {
     }
     video_new_ = depth_new_ = false;
     frame.t_ns = clock_.to_ns(video_ticks_);
+    frame.depth_t_ns = clock_.to_ns(depth_ticks_);
     cv::cvtColor(video_rgb_, bgr_raw_, cv::COLOR_RGB2BGR);
     convert_depth();
     undistorter_.apply_color(bgr_raw_, frame.bgr);
@@ -190,9 +191,10 @@ class FreenectFrameSource final : public CameraSource {
     self->video_new_ = true;
   }
 
-  static void on_depth(freenect_device* device, void* data, uint32_t /*ticks*/) {
+  static void on_depth(freenect_device* device, void* data, uint32_t ticks) {
     auto* self = static_cast<FreenectFrameSource*>(freenect_get_user(device));
     std::memcpy(self->depth_raw_.data, data, kWidth * kHeight * 2);
+    self->depth_ticks_ = ticks;
     self->depth_new_ = true;
   }
 
@@ -304,6 +306,7 @@ class FreenectFrameSource final : public CameraSource {
   bool end_of_dump_ = false;
   bool video_new_ = false, depth_new_ = false;
   std::uint32_t video_ticks_ = 0;
+  std::uint32_t depth_ticks_ = 0;
   cv::Mat video_rgb_, depth_raw_, bgr_raw_, depth_m_raw_;
   std::array<float, 2048> raw11_to_m_{};
   std::optional<recording::AccelSample> accel_;

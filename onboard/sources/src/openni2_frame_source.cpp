@@ -273,6 +273,7 @@ class Openni2FrameSource final : public CameraSource {
     undistorter_->apply_depth(depth_m_raw_, frame.depth_m);
     cv::cvtColor(frame.bgr, frame.gray, cv::COLOR_BGR2GRAY);
     frame.t_ns = clock_.to_ns(colour_frame_.getTimestamp());
+    frame.depth_t_ns = clock_.to_ns(depth_frame_.getTimestamp());
     return true;
   }
 

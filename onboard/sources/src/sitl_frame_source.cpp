@@ -24,6 +24,7 @@ FrameStatus SitlFrameSource::next(RgbdFrame& frame) {
   }
   if (colour) cv::cvtColor(frame.bgr, frame.gray, cv::COLOR_BGR2GRAY);
   frame.t_ns = info_.t_ns;
+  frame.depth_t_ns = info_.t_ns;  // rendered together
   delivered_ = true;
   error_.clear();
   return FrameStatus::kFrame;

@@ -65,6 +65,7 @@ FrameStatus ThreadedFrameSource::next(RgbdFrame& frame) {
   front_ = middle_.exchange(front_) & ~kFresh;
   const RgbdFrame& taken = slots_[front_];
   frame.t_ns = taken.t_ns;
+  frame.depth_t_ns = taken.depth_t_ns;
   taken.bgr.copyTo(frame.bgr);
   taken.gray.copyTo(frame.gray);
   taken.depth_m.copyTo(frame.depth_m);

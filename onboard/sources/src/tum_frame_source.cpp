@@ -23,6 +23,7 @@ FrameStatus TumFrameSource::next(RgbdFrame& frame) {
   undistorter_.apply_depth(raw_depth_m_, frame.depth_m);
   cv::cvtColor(frame.bgr, frame.gray, cv::COLOR_BGR2GRAY);
   frame.t_ns = sequence_.frame(i).t_ns;
+  frame.depth_t_ns = sequence_.frame(i).depth_t_ns;
   return FrameStatus::kFrame;
 }
 

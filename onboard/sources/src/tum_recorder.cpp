@@ -79,13 +79,19 @@ TumRecorder::TumRecorder(const std::string& dir, const geometry::PinholeCamera& 
 }
 
 void TumRecorder::write_frame(const RgbdFrame& frame) {
-  write_frame(frame.t_ns, frame.bgr, frame.depth_m);
+  write_frame(frame.t_ns, frame.depth_exposure_ns(), frame.bgr, frame.depth_m);
 }
 
 void TumRecorder::write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::Mat& depth_m) {
+  write_frame(t_ns, t_ns, image, depth_m);
+}
+
+void TumRecorder::write_frame(std::int64_t t_ns, std::int64_t depth_t_ns, const cv::Mat& image,
+                              const cv::Mat& depth_m) {
   const std::string t = stamp(t_ns);
+  const std::string t_depth = stamp(depth_t_ns);
   const std::string rgb_name = "rgb/" + t + ".png";
-  const std::string depth_name = "depth/" + t + ".png";
+  const std::string depth_name = "depth/" + t_depth + ".png";
   depth_m.convertTo(depth_u16_, CV_16U, kDepthUnitsPerM);  // rounds and saturates
   if (!cv::imwrite(dir_ + "/" + rgb_name, image)) {
     throw InputError(dir_ + "/" + rgb_name + ": cannot write");
@@ -94,7 +100,7 @@ void TumRecorder::write_frame(std::int64_t t_ns, const cv::Mat& image, const cv:
     throw InputError(dir_ + "/" + depth_name + ": cannot write");
   }
   rgb_ << t << ' ' << rgb_name << '\n';
-  depth_ << t << ' ' << depth_name << '\n';
+  depth_ << t_depth << ' ' << depth_name << '\n';
   ++frames_;
 }
 

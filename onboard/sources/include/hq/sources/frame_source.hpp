@@ -18,6 +18,13 @@ struct RgbdFrame {
   cv::Mat bgr;            ///< CV_8UC3
   cv::Mat gray;           ///< CV_8UC1
   cv::Mat depth_m;        ///< CV_32FC1 metres, 0 = no depth
+  /// Depth exposure stamp, same clock. Cameras without a shared trigger (Kinect v1) take the
+  /// two a few milliseconds apart; 0 means taken with the colour (t_ns).
+  std::int64_t depth_t_ns = 0;
+
+  [[nodiscard]] std::int64_t depth_exposure_ns() const {
+    return depth_t_ns != 0 ? depth_t_ns : t_ns;
+  }
 };
 
 enum class FrameStatus { kFrame, kEndOfStream, kNoFrame };

@@ -48,6 +48,9 @@ class TumRecorder {
   void write_frame(const RgbdFrame& frame);
   /// The same from an image (CV_8UC3 BGR or CV_8UC1) and depth (CV_32F metres) taken at t_ns.
   void write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::Mat& depth_m);
+  /// The same with the depth map's own exposure stamp (depth.txt lists it).
+  void write_frame(std::int64_t t_ns, std::int64_t depth_t_ns, const cv::Mat& image,
+                   const cv::Mat& depth_m);
   /// Appends one accelerometer line.
   void write_accel(const recording::AccelSample& sample);
   /// Appends one gyro.txt line. @pre options.gyro.
