@@ -1,10 +1,13 @@
 // hq-bench-odometry-kernels: Google Benchmark of DenseOdometry's per-point kernels on a
 // 320x240 level's worth of points (76800): the warp + intensity sample, the depth residual
 // with its Jacobian (whole, and split as the odometry runs it: the gather, then the rows formed
-// inside their accumulation), and the one-pass normal-equation accumulation. Built, not run by
-// ctest.
+// inside their accumulation), the one-pass normal-equation accumulation, and the depth map
+// turned to the colour's exposure beside a plain copy of it. Built, not run by ctest.
 #include "kernels.hpp"
+#include "pyramid.hpp"
+#include <Eigen/Geometry>
 #include <benchmark/benchmark.h>
+#include <opencv2/core.hpp>
 
 #include <cmath>
 #include <vector>
@@ -166,6 +169,35 @@ void BM_AccumulateRows(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kPoints);
 }
 BENCHMARK(BM_AccumulateRows)->Arg(0)->Arg(1);
+
+// A 320x240 depth map turned by 0.2 deg (Kinect v1's 5 ms at 40 deg/s), and its floor: the
+// sanitising copy every frame's depth gets anyway.
+void BM_RotateDepth(benchmark::State& state) {
+  const Scene& s = scene();
+  const cv::Mat src(kHeight, kWidth, CV_32FC1, const_cast<float*>(s.depth.data()));
+  cv::Mat dst(kHeight, kWidth, CV_32FC1);
+  const Eigen::Matrix3f R =
+      Eigen::AngleAxisf(0.0035f, Eigen::Vector3f(0.1f, 1.0f, 0.05f).normalized())
+          .toRotationMatrix();
+  for (auto _ : state) {
+    rotate_depth(src, dst, kK.fx, kK.fy, kK.cx, kK.cy, R, 0.05f);
+    benchmark::DoNotOptimize(dst.data);
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_RotateDepth);
+
+void BM_SanitizeDepth(benchmark::State& state) {
+  const Scene& s = scene();
+  const cv::Mat src(kHeight, kWidth, CV_32FC1, const_cast<float*>(s.depth.data()));
+  cv::Mat dst(kHeight, kWidth, CV_32FC1);
+  for (auto _ : state) {
+    sanitize_depth(src, dst, 0.3f, 6.0f);
+    benchmark::DoNotOptimize(dst.data);
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_SanitizeDepth);
 
 }  // namespace
 

@@ -6,7 +6,8 @@
 // HaptiQuad runs as intensity only, + depth term, + gyro prior, + both, frame to frame and
 // frame to keyframe. The gyro is synthesised from the ground truth (TUM has none): the true
 // rotation between frames plus white noise and a constant residual bias, as a complementary
-// filter's bias estimate leaves it.
+// filter's bias estimate leaves it; it also gives the rotation between each frame's depth and
+// colour exposures (odometry.align_depth_to_colour; --align-depth-to-colour false to compare).
 //
 //   hq-bench-odometry [--passes N] [--camera calib/tum_fr1.yaml] [sequence-dir ...]
 // (a sequence folder with its own camera.yaml, as hq-sim records, uses that one).
@@ -80,17 +81,32 @@ void synthesise_gyro(LoadedSequence& sequence) {
   std::normal_distribution<double> gaussian(0.0, 1.0);
   const Eigen::Vector3d bias = Eigen::Vector3d::Constant(kGyroResidualBiasRadps);
   sequence.gyro.assign(sequence.frames.size(), std::nullopt);
-  for (std::size_t i = 1; i < sequence.frames.size(); ++i) {
-    const auto a = pose_at(sequence.ground_truth, sequence.frames[i - 1].t_ns);
-    const auto b = pose_at(sequence.ground_truth, sequence.frames[i].t_ns);
-    if (!a || !b) continue;
+  for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
+    const hq::sources::RgbdFrame& frame = sequence.frames[i];
+    // The rotation from the depth's exposure to the colour's (Kinect v1 stamps them apart).
+    const auto colour = pose_at(sequence.ground_truth, frame.t_ns);
+    const auto depth = pose_at(sequence.ground_truth, frame.depth_exposure_ns());
+    if (!colour || !depth) continue;
+    hq::odometry::RotationPrior prior;
+    const double lead_s = 1e-9 * static_cast<double>(frame.t_ns - frame.depth_exposure_ns());
+    const Eigen::Vector3d lead_noise(gaussian(rng), gaussian(rng), gaussian(rng));
+    prior.R_depth_colour =
+        depth->linear().transpose() * colour->linear() *
+        hq::geometry::exp_so3(kGyroNoiseDensity * std::sqrt(std::abs(lead_s)) * lead_noise +
+                              bias * lead_s);
+    prior.information.setZero();  // a first frame: no rotation since a previous one
+    const auto a = i > 0 ? pose_at(sequence.ground_truth, sequence.frames[i - 1].t_ns) : colour;
+    const auto& b = colour;
+    if (i == 0 || !a) {
+      sequence.gyro[i] = prior;
+      continue;
+    }
     const double dt_s =
         1e-9 * static_cast<double>(sequence.frames[i].t_ns - sequence.frames[i - 1].t_ns);
     // Integrated white noise: sigma = density sqrt(dt); the bias integrates to bias dt.
     const double sigma = kGyroNoiseDensity * std::sqrt(dt_s);
     const Eigen::Vector3d noise(gaussian(rng), gaussian(rng), gaussian(rng));
     const Eigen::Vector3d error = sigma * noise + bias * dt_s;
-    hq::odometry::RotationPrior prior;
     prior.R_prev_cur = a->linear().transpose() * b->linear() * hq::geometry::exp_so3(error);
     // Information of the white noise (integrated over the interval and over one sample); the
     // residual bias is the odometry's to allow for (odometry.gyro_bias_sigma_radps, which is
@@ -188,6 +204,7 @@ LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera
     if (static_cast<double>(frame.t_ns - first_ns) < skip_s * 1e9) continue;
     hq::sources::RgbdFrame copy;
     copy.t_ns = frame.t_ns;
+    copy.depth_t_ns = frame.depth_t_ns;
     copy.gray = frame.gray.clone();
     copy.depth_m = frame.depth_m.clone();
     sequence.frames.push_back(std::move(copy));
@@ -469,6 +486,8 @@ static int run_benchmarks(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--depth-jacobian-from-normals", defaults.depth_jacobian_from_normals,
                  "odometry.depth_jacobian_from_normals of every HaptiQuad variant (true/false)");
+  app.add_option("--align-depth-to-colour", defaults.align_depth_to_colour,
+                 "odometry.align_depth_to_colour of every HaptiQuad variant (true/false)");
   app.add_option("--adapt-vision-information", defaults.adapt_vision_information,
                  "odometry.adapt_vision_information of every HaptiQuad variant (true/false)");
   bool with_nees = false;

@@ -24,6 +24,8 @@ constexpr int kMaxLevels = 6;
 // Blocks whose depths spread by more than this fraction are treated as occlusion edges.
 constexpr float kDepthEdgeSpreadRatio = 0.05f;
 constexpr int kScaleIterations = 5;
+// A depth turn under this moves no pixel by a thousandth of one at 640x480: skipped.
+constexpr double kMinDepthTurnRad = 2e-6;
 
 using Vector6d = geometry::Vector6d;
 
@@ -270,6 +272,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("depth_max_incidence_deg", out.depth_max_incidence_deg, -kAny, kAny);
   section.read("min_translation_information_ratio", out.min_translation_information_ratio, -kAny,
                kAny);
+  section.read("align_depth_to_colour", out.align_depth_to_colour);
   section.read("use_rotation_prior", out.use_rotation_prior);
   section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, -kAny,
                kAny);
@@ -353,6 +356,7 @@ struct DenseOdometry::Impl {
   int keyframe_age = 0;
   float min_cos_incidence = 0.0f;              // of depth_max_incidence_deg
   std::array<cv::Mat, kMaxLevels> normal_map;  // of the reference being prepared
+  cv::Mat turned_depth;  // the finest level's depth turned to the colour's exposure
 
   // Whether the depth residual acts on this level (the finest depth_levels levels).
   bool depth_at(int level) const {
@@ -377,6 +381,7 @@ struct DenseOdometry::Impl {
       const int w = level_camera[l].width;
       const int h = level_camera[l].height;
       if (config.depth_jacobian_from_normals && l >= finest) normal_map[l].create(h, w, CV_32FC3);
+      if (l == finest) turned_depth.create(h, w, CV_32FC1);
       for (auto& slot : slots) {
         slot.intensity[l].create(h, w, CV_32FC1);
         slot.depth_m[l].create(h, w, CV_32FC1);
@@ -405,6 +410,29 @@ struct DenseOdometry::Impl {
       detail::downsample_intensity(src, slot.intensity[l]);
       detail::downsample_depth(slot.depth_m[l - 1], slot.depth_m[l], kDepthEdgeSpreadRatio);
     }
+  }
+
+  // Turns the depth, from the finest level used up, to the colour image's exposure (the
+  // rotation between the two; coarser levels rebuilt from the turned one).
+  void align_depth(FrameSlot& slot, const Eigen::Matrix3d& R_depth_colour) {
+    const detail::Intrinsics k = intrinsics(finest);
+    detail::rotate_depth(slot.depth_m[finest], turned_depth, k.fx, k.fy, k.cx, k.cy,
+                         R_depth_colour.cast<float>(), kDepthEdgeSpreadRatio);
+    std::swap(turned_depth, slot.depth_m[finest]);  // headers only: both stay allocated
+    for (int l = finest + 1; l < levels; ++l) {
+      detail::downsample_depth(slot.depth_m[l - 1], slot.depth_m[l], kDepthEdgeSpreadRatio);
+    }
+  }
+
+  // Whether a frame's depth is turned: by a finite rotation matrix that moves a pixel at all.
+  bool should_align_depth(const RotationPrior* prior) const {
+    if (prior == nullptr || !config.align_depth_to_colour) return false;
+    const Eigen::Matrix3d& R = prior->R_depth_colour;
+    if (!R.allFinite() || !(R * R.transpose()).isIdentity(1e-6) || R.determinant() < 0.0) {
+      return false;
+    }
+    const double angle = Eigen::AngleAxisd(R).angle();
+    return angle > kMinDepthTurnRad;
   }
 
   // Selects pixels with depth and gradient, and precomputes their points and Jacobians: done
@@ -1047,6 +1075,7 @@ struct DenseOdometry::Impl {
   // The bias still unknown adds P_b dt^2 to a step and, being the same in every step,
   // R P_b R^T span^2 to the chain.
   bool gyro_steps(const RotationPrior& prior, double step_s, GyroSteps& out) const {
+    if (prior.information.isZero()) return false;  // R_depth_colour alone
     const Eigen::LDLT<Eigen::Matrix3d> information(prior.information);
     if (!prior.R_prev_cur.allFinite() || !prior.information.allFinite() || step_s <= 0.0 ||
         information.info() != Eigen::Success || !information.isPositive()) {
@@ -1370,6 +1399,7 @@ struct DenseOdometry::Impl {
     while (current_slot == reference_slot || current_slot == previous_slot) ++current_slot;
     FrameSlot& current = slots[current_slot];
     build_pyramid(current, gray, depth_m);
+    if (should_align_depth(prior)) align_depth(current, prior->R_depth_colour);
     const double step_s =
         last_frame_t_ns >= 0 ? 1e-9 * static_cast<double>(t_ns - last_frame_t_ns) : 0.0;
     last_frame_t_ns = t_ns;

@@ -5,6 +5,7 @@
 
 #include "hq/geometry/lie.hpp"
 
+#include "pyramid.hpp"
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -180,6 +181,69 @@ TEST(DepthResidual, SurfaceSeenAtGrazingIncidenceIsRejected) {
   const auto c80 = static_cast<float>(std::cos(80.0 * M_PI / 180.0));
   EXPECT_FALSE(depth_sample_on_surface(depth.data(), kWidth, qx, qy, qz, u, v, s80, 0.0f, -c80,
                                        cos_75, 0.0015f, 0.5f, r, a));
+}
+
+// A depth map taken a moment before the colour image, turned to the colour's exposure: on a
+// plane the result is the plane as the turned camera sees it (a rotation is a homography).
+TEST(RotateDepth, PlaneSeenByTheTurnedCameraIsThePlane) {
+  const Eigen::Vector3d n_src = Eigen::Vector3d(0.3, -0.2, -1.0).normalized();
+  const double c = n_src.dot(Eigen::Vector3d(0.0, 0.0, 2.0));
+  // 0.6 deg about a tilted axis: about 0.5 px here, 2 px at 640x480 (Kinect v1's 5 ms at
+  // 120 deg/s).
+  const Eigen::Matrix3d R_src_dst = geometry::exp_so3(Eigen::Vector3d(0.006, -0.008, 0.004));
+  std::vector<float> src_depth = plane_depth(n_src, c);
+  const std::vector<float> expected = plane_depth(R_src_dst.transpose() * n_src, c);
+  const cv::Mat src(kHeight, kWidth, CV_32FC1, src_depth.data());
+  cv::Mat dst(kHeight, kWidth, CV_32FC1, cv::Scalar(-1.0f));
+  rotate_depth(src, dst, kK.fx, kK.fy, kK.cx, kK.cy, R_src_dst.cast<float>(), 0.05f);
+  int valid = 0;
+  double worst = 0.0;
+  for (int v = 0; v < kHeight; ++v) {
+    for (int u = 0; u < kWidth; ++u) {
+      const float z = dst.at<float>(v, u);
+      ASSERT_GE(z, 0.0f) << u << "," << v;  // every pixel written
+      if (z == 0.0f) continue;
+      ++valid;
+      const double truth = static_cast<double>(expected[static_cast<std::size_t>(v * kWidth + u)]);
+      worst = std::max(worst, std::abs(static_cast<double>(z) - truth) / truth);
+    }
+  }
+  // Only rays leaving the source image have no depth: a border of about a pixel.
+  EXPECT_GT(valid, (kWidth - 3) * (kHeight - 3));
+  EXPECT_LT(worst, 2e-4);
+  // Without the turn, the depth is off by the rotation's share of the plane's slope.
+  double unturned = 0.0;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    unturned = std::max(unturned, std::abs(static_cast<double>(src_depth[i] - expected[i])) /
+                                      static_cast<double>(expected[i]));
+  }
+  EXPECT_GT(unturned, 20.0 * worst);
+}
+
+TEST(RotateDepth, OcclusionEdgeGetsNoSurfaceInBetweenAndNoDepthStaysNone) {
+  // A box edge: 1 m on the left, 3 m on the right, and a hole without depth.
+  cv::Mat src(kHeight, kWidth, CV_32FC1, cv::Scalar(3.0f));
+  src.colRange(0, kWidth / 2).setTo(1.0f);
+  src(cv::Rect(10, 10, 6, 6)).setTo(0.0f);
+  const Eigen::Matrix3d R_src_dst = geometry::exp_so3(Eigen::Vector3d(0.003, 0.013, 0.0));
+  cv::Mat dst(kHeight, kWidth, CV_32FC1);
+  rotate_depth(src, dst, kK.fx, kK.fy, kK.cx, kK.cy, R_src_dst.cast<float>(), 0.05f);
+  int near = 0, far = 0;
+  for (int v = 0; v < kHeight; ++v) {
+    for (int u = 0; u < kWidth; ++u) {
+      const float z = dst.at<float>(v, u);
+      // Turned, a fronto-parallel surface is tilted by the turn: its depth within 1 % here.
+      const bool is_near = std::abs(z - 1.0f) < 0.01f;
+      const bool is_far = std::abs(z - 3.0f) < 0.03f;
+      EXPECT_TRUE(z == 0.0f || is_near || is_far) << u << "," << v << ": " << z;
+      near += is_near ? 1 : 0;
+      far += is_far ? 1 : 0;
+    }
+  }
+  EXPECT_GT(near, kWidth * kHeight / 3);
+  EXPECT_GT(far, kWidth * kHeight / 3);
+  // The hole moved with the view (0.65 px right and 0.15 px down) but is still there.
+  EXPECT_EQ(dst.at<float>(12, 12), 0.0f);
 }
 
 // I_ref smooth enough that central differences are its exact gradient at the pixel.

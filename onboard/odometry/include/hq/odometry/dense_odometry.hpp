@@ -98,6 +98,10 @@ struct OdometryConfig {
   /// Surfaces seen more obliquely than this (normal against the viewing ray) add no depth
   /// residual: the ray-to-plane factor 1 / cos grows without bound, and such depth is poor.
   double depth_max_incidence_deg = 75.0;
+  /// Turns each frame's depth by the gyro's RotationPrior::R_depth_colour to the colour
+  /// image's exposure before anything uses it (a rotation only: the translation in those few
+  /// milliseconds is not known to the gyro). Independent of use_rotation_prior.
+  bool align_depth_to_colour = true;
   /// Uses a RotationPrior given to track() as initial guess and prior (else it is ignored).
   bool use_rotation_prior = true;
   double rotation_prior_information_scale = 1.0;  ///< Prior information = this x the given one.
@@ -158,9 +162,18 @@ struct OdometryConfig {
 /// by the caller (its bias estimate removed), with the information of its white noise: a
 /// prior on the twist's rotation part. The residual bias is the odometry's to allow for
 /// (OdometryConfig::gyro_bias_sigma_radps, estimate_gyro_bias), not part of the information.
+///
+/// R_depth_colour: the camera at the colour image's exposure in the camera at the depth map's,
+/// integrated from the gyro over the time between the two (identity when they are taken
+/// together). Cameras without a shared trigger (Kinect v1, whose TUM recordings stamp depth
+/// 3.7-7.7 ms before colour) see the depth from where the camera was a moment earlier; with
+/// OdometryConfig::align_depth_to_colour the depth is turned to the colour's exposure.
 struct RotationPrior {
   Eigen::Matrix3d R_prev_cur = Eigen::Matrix3d::Identity();
-  Eigen::Matrix3d information = Eigen::Matrix3d::Identity();  ///< rad^-2, symmetric PSD.
+  /// rad^-2, symmetric PSD; zero: no rotation since the previous frame is known (a first
+  /// frame), only R_depth_colour.
+  Eigen::Matrix3d information = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_depth_colour = Eigen::Matrix3d::Identity();
 };
 
 /// Checks every field's range and their relations; throws hq::InputError naming where.key, the
