@@ -15,6 +15,7 @@ void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read("takeoff_height_m", out.takeoff_height_m, 0.0, 10.0);
   section.read("gyro_rotation_prior", out.gyro_rotation_prior);
   section.read_positive("gyro_prior_sigma_radps", out.gyro_prior_sigma_radps, 10.0);
+  section.read("depth_colour_max_offset_s", out.depth_colour_max_offset_s, 0.0, 1.0);
   section.read("landed_height_m", out.landed_height_m, 0.0, 2.0);
   section.read_positive("safe_hover_land_s", out.safe_hover_land_s, 600.0);
   section.read("hold_on_inertial_coast", out.hold_on_inertial_coast);
@@ -108,6 +109,7 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
       const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().gyro_bias_radps();
       R_prev_cur_body_ = R_prev_cur_body_ * geometry::exp_so3(omega * dt_s);
       gyro_since_frame_ = true;
+      if (omega.allFinite()) omega_body_radps_ = omega;
     }
     t_last_imu_ns_ = t_ns;
   }
@@ -120,9 +122,18 @@ Eigen::Matrix3d OnboardChain::R_horizontal_body() const {
   return estimator::R_horizontal_body(attitude.roll_rad(), attitude.pitch_rad());
 }
 
-odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, const cv::Mat& gray,
-                                                      const cv::Mat& depth_m) {
+odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, std::int64_t depth_t_ns,
+                                                      const cv::Mat& gray, const cv::Mat& depth_m) {
   odometry::RotationPrior gyro;
+  gyro.information.setZero();  // no prior unless the gyro ran since the last frame
+  // The depth's exposure to the colour's, at the latest rate (a few milliseconds).
+  const double depth_lead_s = 1e-9 * static_cast<double>(t_ns - depth_t_ns);
+  const bool align_depth = config_.chain.gyro_rotation_prior && t_last_imu_ns_ >= 0 &&
+                           std::abs(depth_lead_s) <= config_.chain.depth_colour_max_offset_s;
+  if (align_depth) {
+    gyro.R_depth_colour =
+        R_B_C_.transpose() * geometry::exp_so3(omega_body_radps_ * depth_lead_s) * R_B_C_;
+  }
   const bool use_gyro = config_.chain.gyro_rotation_prior && gyro_since_frame_ && have_frame_;
   if (use_gyro) {
     // R_Cprev_Ccur = R_C_B R_Bprev_Bcur R_B_C.
@@ -134,7 +145,7 @@ odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, const c
   }
   R_prev_cur_body_.setIdentity();
   gyro_since_frame_ = false;
-  return odometry_.track(t_ns, gray, depth_m, use_gyro ? &gyro : nullptr);
+  return odometry_.track(t_ns, gray, depth_m, use_gyro || align_depth ? &gyro : nullptr);
 }
 
 void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
@@ -209,12 +220,17 @@ std::optional<Eigen::Vector3d> OnboardChain::usable_v_H_mps(
 }
 
 ChainOutput OnboardChain::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m) {
+  return on_frame(t_ns, t_ns, gray, depth_m);
+}
+
+ChainOutput OnboardChain::on_frame(std::int64_t t_ns, std::int64_t depth_t_ns, const cv::Mat& gray,
+                                   const cv::Mat& depth_m) {
   ChainOutput out;
   out.t_ns = t_ns;
   out.frame = true;
   const std::int64_t t_arrival_ns = now_ns();
 
-  const odometry::OdometryResult odometry = track_odometry(t_ns, gray, depth_m);
+  const odometry::OdometryResult odometry = track_odometry(t_ns, depth_t_ns, gray, depth_m);
   out.tracking = odometry.status;
   out.tracking_reason = odometry.reason;
   out.valid_ratio = odometry.valid_ratio;

@@ -138,7 +138,8 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
       const ImuMeasurement& m = replay.imu.samples[next_imu++];
       chain.on_imu(m.t_ns, m.gyro_radps, m.accel_mps2);
     }
-    const ChainOutput out = chain.on_frame(frame.t_ns, frame.gray, frame.depth_m);
+    const ChainOutput out =
+        chain.on_frame(frame.t_ns, frame.depth_exposure_ns(), frame.gray, frame.depth_m);
     ++replay.frames;
     if (out.estimate.ok()) {
       ++replay.ok_estimates;

@@ -3,6 +3,7 @@
 #include "hq/pipeline/onboard_chain.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/geometry/lie.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
 #include "rendered_plane.hpp"
@@ -10,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -331,6 +333,55 @@ TEST(OnboardChainCoast, OperatorsHorizontalCommandIsHeldOnTheCoastClimbIsFlown) 
   }
 }
 
+TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro) {
+  // GIVEN a camera panning at 30 deg/s (a yaw) while gliding at 0.3 m/s over the plane, whose
+  // depth maps lead their colour images by 3 and 8 ms in turn (Kinect v1 in TUM fr1_360:
+  // 3.7-7.7 ms), the depth term on, and the gyro
+  const Eigen::Vector3d omega_C_radps(0.0, 30.0 * M_PI / 180.0, 0.0);
+  const auto pose_at = [&](std::int64_t t_ns) {
+    Eigen::Isometry3d T = camera_pose_at(t_ns);
+    T.linear() = geometry::exp_so3(omega_C_radps * 1e-9 * static_cast<double>(t_ns));
+    return T;
+  };
+  const control::VehicleConfig vehicle;
+  const Eigen::Vector3d omega_B_radps = vehicle.camera.R_B_C() * omega_C_radps;
+  double rms_error_mps[2] = {0.0, 0.0};
+  for (const bool with_depth_stamp : {false, true}) {
+    OnboardConfig config = airborne_config();
+    config.odometry.use_depth_term = true;
+    OnboardChain chain(config, vehicle, kCamera);
+    cv::Mat gray, depth, unused_gray;
+    double sum_sq = 0.0;
+    int ok = 0;
+    for (int k = 0; k < 16; ++k) {
+      const std::int64_t t_ns = (k + 1) * kFramePeriodNs;
+      for (std::int64_t t = t_ns - kFramePeriodNs + kImuPeriodNs; t <= t_ns; t += kImuPeriodNs) {
+        chain.on_imu(t, omega_B_radps, Eigen::Vector3d(0.0, 0.0, -9.80665));
+      }
+      const std::int64_t depth_t_ns = t_ns - (k % 2 == 0 ? 3'000'000 : 8'000'000);
+      odometry::test::render_textured_plane(kCamera, pose_at(t_ns), kPlaneZ, gray, unused_gray);
+      odometry::test::render_textured_plane(kCamera, pose_at(depth_t_ns), kPlaneZ, unused_gray,
+                                            depth);
+      // WHEN the chain is told the depth's own stamp, and when it is not
+      const ChainOutput out = with_depth_stamp ? chain.on_frame(t_ns, depth_t_ns, gray, depth)
+                                               : chain.on_frame(t_ns, gray, depth);
+      if (!out.estimate.ok()) continue;
+      const Eigen::Vector3d v_C_true =
+          pose_at(t_ns).linear().transpose() * Eigen::Vector3d(kSpeedMps, 0.0, 0.0);
+      sum_sq += (out.estimate.v_C_raw_mps - v_C_true).squaredNorm();
+      ++ok;
+    }
+    ASSERT_GE(ok, 8) << "with the depth stamp: " << with_depth_stamp;
+    rms_error_mps[with_depth_stamp ? 1 : 0] = std::sqrt(sum_sq / ok);
+  }
+  std::printf("camera velocity RMS error: %.4f m/s without the depth stamp, %.4f with\n",
+              rms_error_mps[0], rms_error_mps[1]);
+  // THEN with it, eq. 1's velocity is the motion's; without, each frame's 5 ms of pan between
+  // the two leads (0.15 deg) shows in it
+  EXPECT_LT(rms_error_mps[1], 0.01);
+  EXPECT_GT(rms_error_mps[0], 10.0 * rms_error_mps[1]);
+}
+
 TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {
   // Airborne, no frame ever: the safe hover; after chain.safe_hover_land_s of it the chain
   // lands (blind descent) and refuses to go back to teleop while there is no estimate.
@@ -429,7 +480,7 @@ TEST(LoadOnboardConfig, OdometryAndChainSectionsReachTheirComponents) {
       "sections",
       "odometry: {pyramid_levels: 3, use_depth_term: true}\n"
       "chain: {camera_timeout_s: 0.7, gyro_rotation_prior: true, gyro_prior_sigma_radps: 0.02,"
-      " hold_on_inertial_coast: false}\n");
+      " hold_on_inertial_coast: false, depth_colour_max_offset_s: 0.03}\n");
   const OnboardConfig config = load_onboard_config(path);
   EXPECT_EQ(config.odometry.pyramid_levels, 3);
   EXPECT_TRUE(config.odometry.use_depth_term);
@@ -437,6 +488,7 @@ TEST(LoadOnboardConfig, OdometryAndChainSectionsReachTheirComponents) {
   EXPECT_TRUE(config.chain.gyro_rotation_prior);
   EXPECT_DOUBLE_EQ(config.chain.gyro_prior_sigma_radps, 0.02);
   EXPECT_FALSE(config.chain.hold_on_inertial_coast);
+  EXPECT_DOUBLE_EQ(config.chain.depth_colour_max_offset_s, 0.03);
 }
 
 TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {
@@ -453,6 +505,8 @@ TEST(LoadOnboardConfig, ErrorsNameFileAndKey) {
               HasSubstr("chain.takeoff_height_m = -0.5, expected in [0, 10]"));
   EXPECT_THAT(load_error(write_temp_yaml("gyro", "chain: {gyro_prior_sigma_radps: 0}\n")),
               HasSubstr("chain.gyro_prior_sigma_radps"));
+  EXPECT_THAT(load_error(write_temp_yaml("lead", "chain: {depth_colour_max_offset_s: -0.01}\n")),
+              HasSubstr("chain.depth_colour_max_offset_s = -0.01"));
   EXPECT_THAT(load_error(write_temp_yaml("nested", "estimator: {complementary: {k_q: 1}}\n")),
               HasSubstr("estimator.complementary.k_q"));
   EXPECT_THAT(load_error("no/such/onboard.yaml"), HasSubstr("no/such/onboard.yaml"));

@@ -93,7 +93,8 @@ bool VehicleRuntime::step(std::int64_t t_ns) {
       have_frame_ = true;
       t_last_frame_ns_ = frame_.t_ns;
       ++counters_.frames;
-      const pipeline::ChainOutput out = chain_.on_frame(frame_.t_ns, frame_.gray, frame_.depth_m);
+      const pipeline::ChainOutput out =
+          chain_.on_frame(frame_.t_ns, frame_.depth_exposure_ns(), frame_.gray, frame_.depth_m);
       if (op_ != nullptr) op_->on_frame(frame_);
       deliver(out);
     }

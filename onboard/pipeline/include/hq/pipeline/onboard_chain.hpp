@@ -46,6 +46,10 @@ struct ChainConfig {
   /// yaw) is the odometry's to allow for and estimate (odometry.gyro_bias_sigma_radps,
   /// estimate_gyro_bias).
   double gyro_prior_sigma_radps = 0.01;
+  /// A frame whose depth was taken at most this long before or after its colour has its depth
+  /// turned to the colour's exposure by the gyro (odometry.align_depth_to_colour); a larger gap
+  /// is a wrong stamp, not a camera's, and is left alone. With gyro_rotation_prior.
+  double depth_colour_max_offset_s = 0.05;
   /// Height of the body origin above the floor when standing on it (landing gear): the
   /// height estimate starts here at every take-off.
   double landed_height_m = 0.08;
@@ -65,8 +69,8 @@ struct ChainConfig {
 };
 
 /// Reads the `chain:` section {camera_timeout_s, takeoff_height_m, gyro_rotation_prior,
-/// gyro_prior_sigma_radps, landed_height_m, safe_hover_land_s, hold_on_inertial_coast}
-/// strictly.
+/// gyro_prior_sigma_radps, depth_colour_max_offset_s, landed_height_m, safe_hover_land_s,
+/// hold_on_inertial_coast} strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -194,6 +198,10 @@ class OnboardChain {
   /// Runs the whole chain on one frame. gray CV_8UC1, depth_m CV_32FC1 (metres, 0 = none), both
   /// camera-sized. Without a usable estimate the setpoint is the controller's safe hover.
   ChainOutput on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m);
+  /// The same for a camera that takes its depth map at depth_t_ns, apart from the colour
+  /// (Kinect v1): the depth is turned to the colour's exposure with the gyro.
+  ChainOutput on_frame(std::int64_t t_ns, std::int64_t depth_t_ns, const cv::Mat& gray,
+                       const cv::Mat& depth_m);
 
   /// Between frames (e.g. from the IMU loop): once no frame has arrived for longer than
   /// chain.camera_timeout_s (or none ever did), steps the mode controller on the inertial coast
@@ -224,8 +232,8 @@ class OnboardChain {
   /// Current R_H_B from the complementary filter (identity before its first sample).
   [[nodiscard]] Eigen::Matrix3d R_horizontal_body() const;
   /// on_frame's stages, in order. The odometry with the gyro's rotation since the last frame.
-  odometry::OdometryResult track_odometry(std::int64_t t_ns, const cv::Mat& gray,
-                                          const cv::Mat& depth_m);
+  odometry::OdometryResult track_odometry(std::int64_t t_ns, std::int64_t depth_t_ns,
+                                          const cv::Mat& gray, const cv::Mat& depth_m);
   /// The velocity estimate (eqs. 1-5) and the marker stage into out.estimate.
   void estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, const cv::Mat& depth_m,
                          const odometry::OdometryResult& odometry, ChainOutput& out);
@@ -273,6 +281,7 @@ class OnboardChain {
   Eigen::Matrix3d R_prev_cur_body_ = Eigen::Matrix3d::Identity();  ///< gyro since last frame
   std::int64_t t_last_imu_ns_ = -1;
   bool gyro_since_frame_ = false;
+  Eigen::Vector3d omega_body_radps_ = Eigen::Vector3d::Zero();  ///< latest rate, bias removed
   modes::OperatorCommand operator_command_;  ///< As the operator sent it, before the limit.
   bool have_operator_command_ = false;
   /// The last usable velocity estimate (none when unusable): the limiter's reaction distance.
