@@ -447,6 +447,35 @@ TEST(DenseOdometry, DepthTakenBeforeTheColourIsTurnedToItByTheGyro) {
   EXPECT_GT(rotation_error[0], 1e-3);
 }
 
+TEST(DenseOdometry, DepthTurnThatIsNoRotationIsIgnored) {
+  // GIVEN a known motion and R_depth_colour that is NaN, a reflection or not orthonormal
+  const Eigen::Isometry3d truth = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.0);
+  const Frame a = render(Eigen::Isometry3d::Identity());
+  const Frame b = render(truth);
+  Eigen::Matrix3d nan = Eigen::Matrix3d::Identity();
+  nan(1, 2) = std::numeric_limits<double>::quiet_NaN();
+  const Eigen::Matrix3d turn = geometry::exp_so3(Eigen::Vector3d(0.0, 0.01, 0.0));
+  const Eigen::Matrix3d reflection = turn * Eigen::Vector3d(1.0, 1.0, -1.0).asDiagonal();
+  const Eigen::Matrix3d scaled = 1.01 * turn;
+  const auto track_with = [&](const Eigen::Matrix3d& R) {
+    RotationPrior gyro;
+    gyro.information.setZero();
+    gyro.R_depth_colour = R;
+    DenseOdometry odometry({}, kCamera);
+    odometry.track(0, a.gray, a.depth_m, &gyro);
+    return odometry.track(1, b.gray, b.depth_m, &gyro);
+  };
+  const OdometryResult as_taken = track_with(Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(as_taken.ok()) << as_taken.reason;
+  EXPECT_LT(translation_error(as_taken.T_ref_cur, truth), 1e-3);
+  for (const Eigen::Matrix3d& R : {nan, reflection, scaled}) {
+    // WHEN tracked with it, THEN the depth is used as it came
+    const OdometryResult r = track_with(R);
+    ASSERT_TRUE(r.ok()) << r.reason;
+    EXPECT_TRUE(r.T_ref_cur.isApprox(as_taken.T_ref_cur, 1e-12)) << R;
+  }
+}
+
 TEST(DenseOdometry, LargerMotionConvergesThroughThePyramid) {
   DenseOdometry odometry({}, kCamera);
   const Eigen::Isometry3d truth = pose(0.06, 0.03, -0.04, 0.02, -0.03, 0.025);

@@ -346,7 +346,10 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
   const control::VehicleConfig vehicle;
   const Eigen::Vector3d omega_B_radps = vehicle.camera.R_B_C() * omega_C_radps;
   double rms_error_mps[2] = {0.0, 0.0};
-  for (const bool with_depth_stamp : {false, true}) {
+  // (and a depth stamp 1 s off, a wrong stamp rather than a camera's gap, is not used)
+  double wrong_stamp_rms_mps = 0.0;
+  for (const int variant : {0, 1, 2}) {
+    const bool with_depth_stamp = variant == 1;
     OnboardConfig config = airborne_config();
     config.odometry.use_depth_term = true;
     OnboardChain chain(config, vehicle, kCamera);
@@ -364,15 +367,17 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
                                             depth);
       // WHEN the chain is told the depth's own stamp, and when it is not
       const ChainOutput out = with_depth_stamp ? chain.on_frame(t_ns, depth_t_ns, gray, depth)
-                                               : chain.on_frame(t_ns, gray, depth);
+                              : variant == 2
+                                  ? chain.on_frame(t_ns, t_ns - 1'000'000'000, gray, depth)
+                                  : chain.on_frame(t_ns, gray, depth);
       if (!out.estimate.ok()) continue;
       const Eigen::Vector3d v_C_true =
           pose_at(t_ns).linear().transpose() * Eigen::Vector3d(kSpeedMps, 0.0, 0.0);
       sum_sq += (out.estimate.v_C_raw_mps - v_C_true).squaredNorm();
       ++ok;
     }
-    ASSERT_GE(ok, 8) << "with the depth stamp: " << with_depth_stamp;
-    rms_error_mps[with_depth_stamp ? 1 : 0] = std::sqrt(sum_sq / ok);
+    ASSERT_GE(ok, 8) << "variant " << variant;
+    (variant == 2 ? wrong_stamp_rms_mps : rms_error_mps[variant]) = std::sqrt(sum_sq / ok);
   }
   std::printf("camera velocity RMS error: %.4f m/s without the depth stamp, %.4f with\n",
               rms_error_mps[0], rms_error_mps[1]);
@@ -380,6 +385,7 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
   // the two leads (0.15 deg) shows in it
   EXPECT_LT(rms_error_mps[1], 0.01);
   EXPECT_GT(rms_error_mps[0], 10.0 * rms_error_mps[1]);
+  EXPECT_DOUBLE_EQ(wrong_stamp_rms_mps, rms_error_mps[0]);
 }
 
 TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {
