@@ -33,6 +33,7 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read("warmup_s", out.warmup_s, 0.0, 10.0);
   section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
   section.read_positive("max_imu_disagreement_mps", out.max_imu_disagreement_mps, 100.0);
+  section.read("unseen_accel_time_constant_s", out.unseen_accel_time_constant_s, 0.0, 600.0);
   section.finish();
 }
 
@@ -53,17 +54,36 @@ void VelocityEstimator::reset() {
   ever_ok_ = false;
   ever_updated_ = false;
   coast_anchored_ = false;
+  coast_from_odometry_ = false;
+  unseen_accel_H_mps2_.setZero();
 }
 
-void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps) {
+void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
+                                     bool from_odometry) {
   coast_anchored_ = config_.inertial_coast_s > 0.0;
   t_coast_anchor_ns_ = t_ns;
   t_coast_ns_ = attitude_.initialized() ? attitude_.t_ns() : t_ns;
   coast_v_H_mps_ = v_H_mps;
+  coast_from_odometry_ = from_odometry;
+}
+
+void VelocityEstimator::learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps) {
+  // Only between two tracked frames: the coast then predicted this frame's velocity from the
+  // last one's with the accelerometer and what it has learnt, and the rest is what it missed.
+  const double span_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  if (config_.unseen_accel_time_constant_s <= 0.0 || !coast_anchored_ || !coast_from_odometry_ ||
+      !(span_s > 0.0) || span_s > config_.max_frame_gap_s) {
+    return;
+  }
+  // The coast already added what was learnt: this frame's sample is that plus its miss.
+  const Eigen::Vector3d missed_mps2 = (v_H_mps - coast_v_H_mps_) / span_s + unseen_accel_H_mps2_;
+  if (!missed_mps2.allFinite()) return;
+  unseen_accel_H_mps2_ += span_s / (config_.unseen_accel_time_constant_s + span_s) *
+                          (missed_mps2 - unseen_accel_H_mps2_);
 }
 
 void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
-  anchor_coast(t_ns, Eigen::Vector3d::Zero());
+  anchor_coast(t_ns, Eigen::Vector3d::Zero(), false);
 }
 
 VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char* reason) {
@@ -82,7 +102,7 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
         std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_), config_.complementary.max_dt_s);
     const Eigen::Vector3d a_H =
         R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
-        Eigen::Vector3d(0.0, 0.0, kGravityMps2);
+        Eigen::Vector3d(0.0, 0.0, kGravityMps2) + unseen_accel_H_mps2_;
     coast_v_H_mps_ += a_H * dt_s;
     t_coast_ns_ = t_ns;
   }
@@ -210,7 +230,8 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.unavailable_for_s = 0.0;
   ever_ok_ = true;
   t_last_ok_ns_ = t_ns;
-  anchor_coast(t_ns, v_H);
+  learn_unseen_accel(t_ns, v_H);
+  anchor_coast(t_ns, v_H, true);
   return estimate;
 }
 

@@ -38,11 +38,18 @@ struct VelocityEstimatorConfig {
   /// match near the sensor's range limits, not a manoeuvre: 1 m/s of disagreement takes 0.5 s
   /// at the tilt limit to build up from IMU error alone).
   double max_imu_disagreement_mps = 1.0;
+  /// The acceleration the accelerometer does not see (its bias, and the tilt error the
+  /// complementary filter makes of it: a vehicle held "level" on a biased accelerometer
+  /// accelerates while the IMU reads nothing) is learnt while the odometry tracks, from how far
+  /// each frame's velocity lands from the coast's prediction, low-passed with this time
+  /// constant, and added to the coast. 0: not learnt.
+  double unseen_accel_time_constant_s = 5.0;
 };
 
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
-/// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps}.
+/// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps,
+/// unseen_accel_time_constant_s}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
 /// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from
@@ -94,13 +101,19 @@ class VelocityEstimator {
   VelocityEstimate between_frames(std::int64_t t_ns, const char* reason);
 
   [[nodiscard]] const ComplementaryFilter& attitude() const { return attitude_; }
+  /// The acceleration in H the accelerometer misses, as learnt so far (m/s^2).
+  [[nodiscard]] const Eigen::Vector3d& unseen_accel_H_mps2() const { return unseen_accel_H_mps2_; }
   void reset();
 
  private:
   /// No odometry velocity this frame: the inertial coast if it is still within its horizon,
   /// else kUnavailable; `reason` says why odometry was not used.
   VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
-  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps);
+  /// from_odometry: v_H_mps is a tracked frame's (the next one's may teach the unseen
+  /// acceleration), not a rest assumption.
+  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps, bool from_odometry);
+  /// A tracked frame's velocity against the coast's prediction of it: unseen_accel_H_mps2_.
+  void learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps);
   /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
   void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_Ck);
 
@@ -123,6 +136,8 @@ class VelocityEstimator {
   std::int64_t t_coast_anchor_ns_ = 0;
   std::int64_t t_coast_ns_ = 0;  ///< Stamp of the last IMU sample integrated.
   Eigen::Vector3d coast_v_H_mps_ = Eigen::Vector3d::Zero();
+  bool coast_from_odometry_ = false;
+  Eigen::Vector3d unseen_accel_H_mps2_ = Eigen::Vector3d::Zero();
 };
 
 const char* to_string(EstimateStatus status);
