@@ -3,8 +3,16 @@
 #include "hq/config/strict_yaml.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace hq::estimator {
+namespace {
+
+// A learnt unseen acceleration beyond this many unseen_accel_sigma_mps2 is no accelerometer's:
+// the odometry that taught it was wrong.
+constexpr double kUnseenAccelBoundSigmas = 3.0;
+
+}  // namespace
 
 const char* to_string(EstimateStatus status) {
   switch (status) {
@@ -34,6 +42,8 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
   section.read_positive("max_imu_disagreement_mps", out.max_imu_disagreement_mps, 100.0);
   section.read("unseen_accel_time_constant_s", out.unseen_accel_time_constant_s, 0.0, 600.0);
+  section.read("unseen_accel_sigma_mps2", out.unseen_accel_sigma_mps2, 0.0, 10.0);
+  section.read_positive("coast_max_velocity_error_mps", out.coast_max_velocity_error_mps, 10.0);
   section.finish();
 }
 
@@ -56,6 +66,7 @@ void VelocityEstimator::reset() {
   coast_anchored_ = false;
   coast_from_odometry_ = false;
   unseen_accel_H_mps2_.setZero();
+  unseen_accel_learnt_s_ = 0.0;
 }
 
 void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
@@ -80,6 +91,23 @@ void VelocityEstimator::learn_unseen_accel(std::int64_t t_ns, const Eigen::Vecto
   if (!missed_mps2.allFinite()) return;
   unseen_accel_H_mps2_ += span_s / (config_.unseen_accel_time_constant_s + span_s) *
                           (missed_mps2 - unseen_accel_H_mps2_);
+  unseen_accel_learnt_s_ += span_s;
+  const double bound_mps2 = kUnseenAccelBoundSigmas * config_.unseen_accel_sigma_mps2;
+  const double learnt_mps2 = unseen_accel_H_mps2_.norm();
+  if (config_.unseen_accel_sigma_mps2 > 0.0 && learnt_mps2 > bound_mps2) {
+    unseen_accel_H_mps2_ *= bound_mps2 / learnt_mps2;
+  }
+}
+
+double VelocityEstimator::coast_horizon_s() const {
+  if (config_.unseen_accel_sigma_mps2 <= 0.0) return config_.inertial_coast_s;
+  // The low-pass has learnt all but exp(-t / tau) of a constant unseen acceleration.
+  const double unlearnt_share =
+      config_.unseen_accel_time_constant_s > 0.0
+          ? std::exp(-unseen_accel_learnt_s_ / config_.unseen_accel_time_constant_s)
+          : 1.0;
+  const double unlearnt_mps2 = config_.unseen_accel_sigma_mps2 * unlearnt_share;
+  return std::min(config_.inertial_coast_s, config_.coast_max_velocity_error_mps / unlearnt_mps2);
 }
 
 void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
@@ -124,8 +152,7 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   const bool imu_fresh =
       attitude_.initialized() && gyro_low_pass_.initialized() &&
       1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
-  if (coast_anchored_ && imu_fresh && coast_s <= config_.inertial_coast_s &&
-      coast_v_H_mps_.allFinite()) {
+  if (coast_anchored_ && imu_fresh && coast_s <= coast_horizon_s() && coast_v_H_mps_.allFinite()) {
     estimate.status = EstimateStatus::kInertial;
     estimate.v_H_mps = coast_v_H_mps_;
     estimate.omega_body_radps = gyro_low_pass_.value();
@@ -216,7 +243,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_B;
 
   const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
-  if (coast_anchored_ && coast_s <= config_.inertial_coast_s &&
+  if (coast_anchored_ && coast_s <= coast_horizon_s() &&
       (v_H - coast_v_H_mps_).norm() > config_.max_imu_disagreement_mps) {
     return unavailable(t_ns, "odometry velocity disagrees with the IMU");
   }

@@ -342,11 +342,16 @@ TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
 // A level vehicle accelerating along north at accel_mps2 while its accelerometer reads rest (its
 // bias held "level" by the filter: the acceleration it misses). Tracked for tracked_s, then
 // lost for lost_s; returns the coast's north velocity error against the truth at the end.
-double coast_error_with_unseen_accel(double time_constant_s, double accel_mps2, double tracked_s,
-                                     double lost_s, Eigen::Vector3d* learnt = nullptr) {
+struct UnseenAccelRun {
+  double coast_error_mps = 0.0;  ///< The coast's north velocity error against the truth.
+  Eigen::Vector3d learnt_mps2 = Eigen::Vector3d::Zero();
+  EstimateStatus last_status = EstimateStatus::kUnavailable;
+  double coast_horizon_s = 0.0;
+};
+
+UnseenAccelRun fly_with_unseen_accel(const VelocityEstimatorConfig& config, double accel_mps2,
+                                     double tracked_s, double lost_s) {
   const Motion motion;  // level, yaw 0: H is NED
-  VelocityEstimatorConfig config;
-  config.unseen_accel_time_constant_s = time_constant_s;
   VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   const auto T_ned_camera = [&](double t_s) {
     Eigen::Isometry3d T = motion.T_ned_camera(0.0);
@@ -370,9 +375,24 @@ double coast_error_with_unseen_accel(double time_constant_s, double accel_mps2, 
     odometry.mean_weighted_error = 50.0;
     last = estimator.update(t_ns, odometry);
   }
-  if (learnt != nullptr) *learnt = estimator.unseen_accel_H_mps2();
-  EXPECT_EQ(last.status, EstimateStatus::kInertial);
-  return std::abs(last.v_H_mps.x() - accel_mps2 * (tracked_s + lost_s));
+  UnseenAccelRun run;
+  run.coast_error_mps = std::abs(last.v_H_mps.x() - accel_mps2 * (tracked_s + lost_s));
+  run.learnt_mps2 = estimator.unseen_accel_H_mps2();
+  run.last_status = last.status;
+  run.coast_horizon_s = estimator.coast_horizon_s();
+  return run;
+}
+
+double coast_error_with_unseen_accel(double time_constant_s, double accel_mps2, double tracked_s,
+                                     double lost_s, Eigen::Vector3d* learnt = nullptr) {
+  VelocityEstimatorConfig config;
+  config.unseen_accel_time_constant_s = time_constant_s;
+  // Not learning, the coast would be cut short (below): compared over the same coast here.
+  if (time_constant_s <= 0.0) config.unseen_accel_sigma_mps2 = 0.0;
+  const UnseenAccelRun run = fly_with_unseen_accel(config, accel_mps2, tracked_s, lost_s);
+  if (learnt != nullptr) *learnt = run.learnt_mps2;
+  EXPECT_EQ(run.last_status, EstimateStatus::kInertial);
+  return run.coast_error_mps;
 }
 
 TEST(VelocityEstimator, AccelerationTheAccelerometerMissesIsLearntAndCoastedOn) {
@@ -389,6 +409,43 @@ TEST(VelocityEstimator, AccelerationTheAccelerometerMissesIsLearntAndCoastedOn) 
   EXPECT_NEAR(learnt.y(), 0.0, 0.002);
   EXPECT_NEAR(not_learning, 0.08 * 1.5, 0.01);
   EXPECT_LT(learning, 0.2 * not_learning);
+}
+
+TEST(VelocityEstimator, CoastBeforeTheOdometryHasCheckedTheAccelerometerIsShort) {
+  // GIVEN the default 0.1 m/s^2 that may go unseen and 0.1 m/s the coast may gather from it
+  const VelocityEstimatorConfig config;
+  // WHEN the odometry is lost a few frames after the start, nothing learnt yet
+  const UnseenAccelRun early_09 = fly_with_unseen_accel(config, 0.0, 0.3, 0.9);
+  const UnseenAccelRun early_11 = fly_with_unseen_accel(config, 0.0, 0.3, 1.1);
+  // THEN the coast lasts 0.1 / (0.1 x exp(-0.06 s / 5 s)) = 1.01 s, not inertial_coast_s: an
+  // accelerometer nothing has checked drives the vehicle at its bias while it holds "still"
+  std::printf("coast horizon after 0.3 s tracked: %.3f s\n", early_09.coast_horizon_s);
+  EXPECT_NEAR(early_09.coast_horizon_s, 1.0, 0.05);
+  EXPECT_EQ(early_09.last_status, EstimateStatus::kInertial);
+  EXPECT_EQ(early_11.last_status, EstimateStatus::kUnavailable);
+  // AND after 20 s tracked (all but 2 % learnt) the whole inertial_coast_s is flown
+  const UnseenAccelRun learnt = fly_with_unseen_accel(config, 0.0, 20.0, 1.9);
+  EXPECT_EQ(learnt.coast_horizon_s, config.inertial_coast_s);
+  EXPECT_EQ(learnt.last_status, EstimateStatus::kInertial);
+  // AND with unseen_accel_sigma_mps2 0 (an accelerometer trusted as it is) it is never cut
+  VelocityEstimatorConfig trusted;
+  trusted.unseen_accel_sigma_mps2 = 0.0;
+  EXPECT_EQ(fly_with_unseen_accel(trusted, 0.0, 0.3, 1.9).last_status, EstimateStatus::kInertial);
+}
+
+TEST(VelocityEstimator, LearntUnseenAccelerationIsBoundedToWhatAnAccelerometerCanMiss) {
+  // GIVEN odometry that says the vehicle accelerates at 1.5 m/s^2 while the IMU reads rest
+  // (wrong but accepted: within max_imu_disagreement_mps of the coast frame to frame)
+  const VelocityEstimatorConfig config;
+  const UnseenAccelRun run = fly_with_unseen_accel(config, 1.5, 20.0, 0.1);
+  // THEN what is learnt stops at 3 x unseen_accel_sigma_mps2, not at 1.5
+  std::printf("learnt %.3f m/s^2 of 1.5\n", run.learnt_mps2.norm());
+  EXPECT_NEAR(run.learnt_mps2.norm(), 3.0 * config.unseen_accel_sigma_mps2, 1e-9);
+  EXPECT_GT(run.learnt_mps2.x(), 0.0);
+  // AND without the bound it would have learnt it
+  VelocityEstimatorConfig unbounded;
+  unbounded.unseen_accel_sigma_mps2 = 0.0;
+  EXPECT_NEAR(fly_with_unseen_accel(unbounded, 1.5, 20.0, 0.1).learnt_mps2.x(), 1.5, 0.1);
 }
 
 TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
@@ -475,12 +532,16 @@ TEST(VelocityEstimator, OdometryVelocityDisagreeingWithTheImuIsRejected) {
 TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   VelocityEstimatorConfig config;
   config::StrictMap section(YAML::Load("{inertial_coast_s: 1.5, max_imu_disagreement_mps: 2,"
-                                       " unseen_accel_time_constant_s: 0}"),
+                                       " unseen_accel_time_constant_s: 0,"
+                                       " unseen_accel_sigma_mps2: 0.2,"
+                                       " coast_max_velocity_error_mps: 0.3}"),
                             "config/onboard.yaml", "estimator");
   read_config(section, config);
   EXPECT_EQ(config.inertial_coast_s, 1.5);
   EXPECT_EQ(config.max_imu_disagreement_mps, 2.0);
   EXPECT_EQ(config.unseen_accel_time_constant_s, 0.0);
+  EXPECT_EQ(config.unseen_accel_sigma_mps2, 0.2);
+  EXPECT_EQ(config.coast_max_velocity_error_mps, 0.3);
   const auto error = [](const char* yaml) {
     config::StrictMap bad(YAML::Load(yaml), "config/onboard.yaml", "estimator");
     VelocityEstimatorConfig out;
@@ -495,6 +556,10 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
               HasSubstr("estimator.max_imu_disagreement_mps = 0, expected > 0"));
   EXPECT_THAT(error("{unseen_accel_time_constant_s: .nan}"),
               HasSubstr("estimator.unseen_accel_time_constant_s"));
+  EXPECT_THAT(error("{unseen_accel_sigma_mps2: -0.1}"),
+              HasSubstr("estimator.unseen_accel_sigma_mps2 = -0.1, expected in [0, 10]"));
+  EXPECT_THAT(error("{coast_max_velocity_error_mps: 0}"),
+              HasSubstr("estimator.coast_max_velocity_error_mps = 0, expected > 0"));
 }
 
 }  // namespace

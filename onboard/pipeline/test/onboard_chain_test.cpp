@@ -131,8 +131,9 @@ TEST_F(ChainOnRenderedPlane, GivesFiniteSetpointAndAllocatesNothingAfterFrameOne
 
 TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
   // GIVEN a tracking chain, WHEN depth goes all-invalid, THEN the estimate coasts on the IMU
-  // (kInertial, degraded, the velocity loop still closed) for estimator.inertial_coast_s after
-  // the last ok estimate, and only after that is the setpoint the level m g safe hover.
+  // (kInertial, degraded, the velocity loop still closed) for the coast's horizon after the
+  // last ok estimate (inertial_coast_s, shortened because a few frames have checked little of
+  // the accelerometer), and only after that is the setpoint the level m g safe hover.
   // Nothing is NaN and the lost path allocates nothing.
   std::int64_t t_last_ok_ns = -1;
   for (int k = 0; k < 12; ++k) {
@@ -150,7 +151,9 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
   }
   ASSERT_LE(first_lost, 12 + max_keyframe_age) << "the odometry never stopped tracking";
   ASSERT_GT(t_last_ok_ns, 0);
-  const double coast_s = chain_.config().estimator.inertial_coast_s;
+  const double coast_s = chain_.estimator().coast_horizon_s();
+  EXPECT_GT(coast_s, 0.9);
+  EXPECT_LT(coast_s, chain_.config().estimator.inertial_coast_s);
   long allocations = 0;
   int coasting = 0;
   int hovering = 0;
@@ -183,7 +186,7 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
       ++hovering;
     }
   }
-  EXPECT_GE(coasting, 50);
+  EXPECT_GE(coasting, static_cast<int>(coast_s * 30.0) - 2);
   EXPECT_GE(hovering, 10);
   EXPECT_EQ(allocations, 0) << "the lost path allocates nothing either";
 }

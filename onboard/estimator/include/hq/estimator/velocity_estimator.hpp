@@ -44,12 +44,23 @@ struct VelocityEstimatorConfig {
   /// each frame's velocity lands from the coast's prediction, low-passed with this time
   /// constant, and added to the coast. 0: not learnt.
   double unseen_accel_time_constant_s = 5.0;
+  /// How much acceleration the accelerometer may miss before the odometry has checked it: its
+  /// bias and the level's error (an MPU-class 0.05 m/s^2 per axis gives a horizontal norm under
+  /// 0.1 nine times in ten). What is still unlearnt, this x exp(-tracked time / the time
+  /// constant), sets how long a coast may last (coast_max_velocity_error_mps); what is learnt
+  /// is bounded to three times it, so that wrong but accepted odometry cannot teach the coast
+  /// an acceleration no accelerometer misses. 0: neither.
+  double unseen_accel_sigma_mps2 = 0.1;
+  /// The coast ends (the vehicle hovers level) once the velocity error it may have gathered
+  /// from the unlearnt acceleration reaches this: a coast one tracked frame after a start is
+  /// 1 s, not inertial_coast_s, because nothing has checked the accelerometer yet.
+  double coast_max_velocity_error_mps = 0.1;
 };
 
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
 /// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps,
-/// unseen_accel_time_constant_s}.
+/// unseen_accel_time_constant_s, unseen_accel_sigma_mps2, coast_max_velocity_error_mps}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
 /// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from
@@ -103,6 +114,9 @@ class VelocityEstimator {
   [[nodiscard]] const ComplementaryFilter& attitude() const { return attitude_; }
   /// The acceleration in H the accelerometer misses, as learnt so far (m/s^2).
   [[nodiscard]] const Eigen::Vector3d& unseen_accel_H_mps2() const { return unseen_accel_H_mps2_; }
+  /// How long a coast may last now: inertial_coast_s, shortened while the accelerometer's
+  /// unseen acceleration is not yet learnt (unseen_accel_sigma_mps2).
+  [[nodiscard]] double coast_horizon_s() const;
   void reset();
 
  private:
@@ -138,6 +152,7 @@ class VelocityEstimator {
   Eigen::Vector3d coast_v_H_mps_ = Eigen::Vector3d::Zero();
   bool coast_from_odometry_ = false;
   Eigen::Vector3d unseen_accel_H_mps2_ = Eigen::Vector3d::Zero();
+  double unseen_accel_learnt_s_ = 0.0;  ///< Tracked time the learning has seen since reset.
 };
 
 const char* to_string(EstimateStatus status);
