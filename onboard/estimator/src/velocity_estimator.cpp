@@ -11,6 +11,8 @@ namespace {
 // A learnt unseen acceleration beyond this many unseen_accel_sigma_mps2 is no accelerometer's:
 // the odometry that taught it was wrong.
 constexpr double kUnseenAccelBoundSigmas = 3.0;
+// The heading rate is singular at 90 deg of pitch, which no flying multirotor reaches.
+constexpr double kMinCosPitch = 0.05;
 
 }  // namespace
 
@@ -67,6 +69,7 @@ void VelocityEstimator::reset() {
   coast_from_odometry_ = false;
   unseen_accel_H_mps2_.setZero();
   unseen_accel_learnt_s_ = 0.0;
+  coasting_ = false;
 }
 
 void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
@@ -120,7 +123,11 @@ VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char
 
 FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                                            const Eigen::Vector3d& accel_mps2) {
-  const FilterStatus status = attitude_.update(t_ns, gyro_radps, accel_mps2);
+  // On the coast the vehicle flies on this attitude's view of the accelerometer: levelled on a
+  // thrust that is not gravity, it would hide the very tilt the velocity loop commands.
+  const FilterStatus status =
+      attitude_.update(t_ns, gyro_radps, accel_mps2,
+                       coasting_ ? AccelReference::kUnknown : AccelReference::kUnaccelerated);
   if (!accepted(status)) return status;
   // omega_hat of Fig. 4: the low-passed gyro, with the complementary filter's bias removed.
   gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
@@ -128,9 +135,22 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
     // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch.
     const double dt_s =
         std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_), config_.complementary.max_dt_s);
-    const Eigen::Vector3d a_H =
-        R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
-        Eigen::Vector3d(0.0, 0.0, kGravityMps2) + unseen_accel_H_mps2_;
+    const double roll_rad = attitude_.roll_rad();
+    const double pitch_rad = attitude_.pitch_rad();
+    const Eigen::Vector3d a_H = R_horizontal_body(roll_rad, pitch_rad) * accel_mps2 +
+                                Eigen::Vector3d(0.0, 0.0, kGravityMps2) + unseen_accel_H_mps2_;
+    // H turns with the heading: a velocity fixed in the world turns the other way in H,
+    // v_H' = Rz(d psi)^T v_H, with the Euler heading rate psi' = (q s_phi + r c_phi) / c_theta.
+    const Eigen::Vector3d omega_B = gyro_radps - attitude_.gyro_bias_radps();
+    const double heading_rate_radps =
+        (omega_B.y() * std::sin(roll_rad) + omega_B.z() * std::cos(roll_rad)) /
+        std::max(std::cos(pitch_rad), kMinCosPitch);
+    const double turn_rad = heading_rate_radps * dt_s;
+    const double c = std::cos(turn_rad);
+    const double s = std::sin(turn_rad);
+    const Eigen::Vector3d v = coast_v_H_mps_;
+    coast_v_H_mps_.x() = c * v.x() + s * v.y();
+    coast_v_H_mps_.y() = -s * v.x() + c * v.y();
     coast_v_H_mps_ += a_H * dt_s;
     t_coast_ns_ = t_ns;
   }
@@ -152,7 +172,9 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   const bool imu_fresh =
       attitude_.initialized() && gyro_low_pass_.initialized() &&
       1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
+  coasting_ = false;
   if (coast_anchored_ && imu_fresh && coast_s <= coast_horizon_s() && coast_v_H_mps_.allFinite()) {
+    coasting_ = true;
     estimate.status = EstimateStatus::kInertial;
     estimate.v_H_mps = coast_v_H_mps_;
     estimate.omega_body_radps = gyro_low_pass_.value();
@@ -256,6 +278,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.pitch_rad = pitch_rad;
   estimate.unavailable_for_s = 0.0;
   ever_ok_ = true;
+  coasting_ = false;
   t_last_ok_ns_ = t_ns;
   learn_unseen_accel(t_ns, v_H);
   anchor_coast(t_ns, v_H, true);
