@@ -45,8 +45,7 @@ void ComplementaryFilter::initialize(const Eigen::Vector3d& accel_mps2) {
 }
 
 FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
-                                         const Eigen::Vector3d& accel_mps2,
-                                         AccelReference reference) {
+                                         const Eigen::Vector3d& accel_mps2) {
   if (!gyro_radps.allFinite() || !accel_mps2.allFinite()) {
     return FilterStatus::kRejectedNonFinite;
   }
@@ -64,8 +63,7 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
   // The accelerometer is trusted only near 1 g, where it measures mostly gravity.
   Eigen::Vector3d omega_mes = Eigen::Vector3d::Zero();
   const double norm = accel_mps2.norm();
-  if (reference == AccelReference::kUnaccelerated &&
-      std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 && norm > 1e-3) {
+  if (std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 && norm > 1e-3) {
     const Eigen::Vector3d v = -accel_mps2 / norm;
     const Eigen::Vector3d v_hat = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
     omega_mes = v.cross(v_hat);

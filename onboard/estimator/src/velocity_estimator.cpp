@@ -69,7 +69,6 @@ void VelocityEstimator::reset() {
   coast_from_odometry_ = false;
   unseen_accel_H_mps2_.setZero();
   unseen_accel_learnt_s_ = 0.0;
-  coasting_ = false;
 }
 
 void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
@@ -123,11 +122,7 @@ VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char
 
 FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                                            const Eigen::Vector3d& accel_mps2) {
-  // On the coast the vehicle flies on this attitude's view of the accelerometer: levelled on a
-  // thrust that is not gravity, it would hide the very tilt the velocity loop commands.
-  const FilterStatus status =
-      attitude_.update(t_ns, gyro_radps, accel_mps2,
-                       coasting_ ? AccelReference::kUnknown : AccelReference::kUnaccelerated);
+  const FilterStatus status = attitude_.update(t_ns, gyro_radps, accel_mps2);
   if (!accepted(status)) return status;
   // omega_hat of Fig. 4: the low-passed gyro, with the complementary filter's bias removed.
   gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
@@ -172,9 +167,7 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   const bool imu_fresh =
       attitude_.initialized() && gyro_low_pass_.initialized() &&
       1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
-  coasting_ = false;
   if (coast_anchored_ && imu_fresh && coast_s <= coast_horizon_s() && coast_v_H_mps_.allFinite()) {
-    coasting_ = true;
     estimate.status = EstimateStatus::kInertial;
     estimate.v_H_mps = coast_v_H_mps_;
     estimate.omega_body_radps = gyro_low_pass_.value();
@@ -278,7 +271,6 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.pitch_rad = pitch_rad;
   estimate.unavailable_for_s = 0.0;
   ever_ok_ = true;
-  coasting_ = false;
   t_last_ok_ns_ = t_ns;
   learn_unseen_accel(t_ns, v_H);
   anchor_coast(t_ns, v_H, true);

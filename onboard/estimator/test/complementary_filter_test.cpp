@@ -86,25 +86,6 @@ TEST(ComplementaryFilter, EstimatesAConstantGyroBias) {
   EXPECT_NEAR(filter.pitch_rad(), 0.0, 0.05 * kDeg);
 }
 
-TEST(ComplementaryFilter, UnknownAccelerationLeavesTheTiltToTheGyro) {
-  // GIVEN a multirotor rolled 10 deg, accelerating sideways on its thrust: its accelerometer
-  // reads the thrust along body -z, not gravity
-  const double roll = 10.0 * kDeg;
-  const Eigen::Vector3d thrust_only(0.0, 0.0, -kGravityMps2 / std::cos(roll));
-  const auto roll_after_2_s = [&](AccelReference reference) {
-    ComplementaryFilter filter;
-    filter.update(0, Eigen::Vector3d::Zero(), static_accel(roll, 0.0));  // the true attitude
-    for (int k = 1; k <= 200 * 2; ++k) {
-      filter.update(k * kImuNs, Eigen::Vector3d::Zero(), thrust_only, reference);
-    }
-    return filter.roll_rad();
-  };
-  // THEN taken for gravity it levels the estimate (exp(-k_p t): 1.4 deg left after 2 s) ...
-  EXPECT_LT(roll_after_2_s(AccelReference::kUnaccelerated), 3.0 * kDeg);
-  // ... AND with the acceleration unknown the gyro keeps the true roll
-  EXPECT_NEAR(roll_after_2_s(AccelReference::kUnknown), roll, 1e-9);
-}
-
 TEST(ComplementaryFilter, RejectsNanAndKeepsState) {
   ComplementaryFilter filter;
   filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.1, 0.0));

@@ -39,13 +39,6 @@ struct ComplementaryConfig {
 /// Reads {k_p, k_i, accel_tolerance_mps2, max_bias_radps, max_dt_s, init_from_accel}.
 void read_config(config::StrictMap& section, ComplementaryConfig& out);
 
-/// What the accelerometer measures besides gravity. A multirotor's accelerometer reads its
-/// thrust (and drag), so it points along gravity only while the vehicle does not accelerate.
-enum class AccelReference {
-  kUnaccelerated,  ///< Taken as not accelerating: the accelerometer is gravity (Mahony's case).
-  kUnknown,        ///< May be accelerating, nothing says how: the gyro alone, the bias held.
-};
-
 /// Mahony 2008 explicit complementary filter with bias (its eq. 32 with one vector, gravity).
 class ComplementaryFilter {
  public:
@@ -54,8 +47,7 @@ class ComplementaryFilter {
   /// One IMU sample in the body frame B (FRD). accel is the specific force (at rest it points
   /// up, i.e. -z for a level vehicle). Non-finite input is rejected and reported.
   FilterStatus update(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
-                      const Eigen::Vector3d& accel_mps2,
-                      AccelReference reference = AccelReference::kUnaccelerated);
+                      const Eigen::Vector3d& accel_mps2);
 
   /// Body B in the gravity-aligned NED frame with N's yaw.
   [[nodiscard]] const Eigen::Matrix3d& R_ned_body() const { return R_ned_body_; }

@@ -153,9 +153,6 @@ class VelocityEstimator {
   bool coast_from_odometry_ = false;
   Eigen::Vector3d unseen_accel_H_mps2_ = Eigen::Vector3d::Zero();
   double unseen_accel_learnt_s_ = 0.0;  ///< Tracked time the learning has seen since reset.
-  /// The last frame's estimate was the inertial coast: nothing measures the acceleration, so
-  /// the accelerometer is no gravity reference for the attitude.
-  bool coasting_ = false;
 };
 
 const char* to_string(EstimateStatus status);
