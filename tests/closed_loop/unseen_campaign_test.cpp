@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -44,6 +45,11 @@ struct WorldRow {
 };
 
 constexpr int kSegments = 4;
+// The campaign's worlds, in order; each flies its own seeds, kFirstWorldSeed + 100 x its index.
+constexpr std::array<const char*, 4> kWorlds = {"arena", "room", "nostructure_texture",
+                                                "structure_notexture"};
+constexpr std::uint32_t kFirstWorldSeed = 1600;
+constexpr std::uint32_t kSeedStepPerWorld = 100;
 constexpr double kSegmentS = 2.5;
 constexpr double kSettleS = 1.5;
 
@@ -152,12 +158,12 @@ std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
   // figures); the test keeps it short.
   runs_per_world = runs_from_environment(runs_per_world);
   std::vector<WorldRow> rows;
-  std::uint32_t seed = seed_from_environment(1600);
+  std::uint32_t seed = seed_from_environment(kFirstWorldSeed);
   const char* only = std::getenv("HQ_UNSEEN_WORLD");
   // Each world keeps its seed when HQ_UNSEEN_WORLD flies it alone.
-  for (const char* w : {"arena", "room", "nostructure_texture", "structure_notexture"}) {
+  for (const char* w : kWorlds) {
     const std::uint32_t world_seed = seed;
-    seed += 100;
+    seed += kSeedStepPerWorld;
     if (only != nullptr && std::string(only) != w) continue;
     rows.push_back(
         fly(std::string("onboard/sim/worlds/") + w + ".yaml", runs_per_world, limiter, world_seed));
@@ -193,9 +199,9 @@ TEST(UnseenCampaign, RandomInEnvelopeCommandsNeverCollideNorFlyAway) {
 // which is why the depth term is not the default and this test asserts no fly-away, not no
 // collision. Same seeds as the campaign's structure_notexture.
 TEST(UnseenCampaign, DepthTermWithNormalsAndTheRatioBoundNeverFliesAway) {
-  const WorldRow r =
-      fly("onboard/sim/worlds/structure_notexture.yaml", runs_from_environment(4), true,
-          seed_from_environment(1600) + 300, Odometry::kDepthTermWithNormalsAndRatioBound);
+  const WorldRow r = fly("onboard/sim/worlds/structure_notexture.yaml", runs_from_environment(4),
+                         true, seed_from_environment(kFirstWorldSeed) + 3 * kSeedStepPerWorld,
+                         Odometry::kDepthTermWithNormalsAndRatioBound);
   std::printf(
       "structure_notexture, depth term with normals and ratio bound: %d of %d runs collided, "
       "%d fly-aways, min clearance %.2f m, max true speed %.2f m/s, coast error RMS %.3f m/s "
