@@ -153,6 +153,8 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.mode = out.mode.mode;
   s.v_est_mps = out.estimate.v_H_mps;
   s.v_true_mps = truth.v_H_mps;
+  s.roll_pitch_est_rad = {out.estimate.roll_rad, out.estimate.pitch_rad};
+  s.roll_pitch_true_rad = truth.euler_rad.head<2>();
   s.v_star_des_mps = out.mode.v_star_des_horizontal_mps;
   s.v_des_mps = out.mode.v_des_horizontal_mps;
   s.v_obs_mps = out.obstacles.v_obs_horizontal_mps;

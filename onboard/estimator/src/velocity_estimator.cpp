@@ -2,6 +2,8 @@
 
 #include "hq/config/strict_yaml.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 
@@ -141,12 +143,8 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
         (omega_B.y() * std::sin(roll_rad) + omega_B.z() * std::cos(roll_rad)) /
         std::max(std::cos(pitch_rad), kMinCosPitch);
     const double turn_rad = heading_rate_radps * dt_s;
-    const double c = std::cos(turn_rad);
-    const double s = std::sin(turn_rad);
-    const Eigen::Vector3d v = coast_v_H_mps_;
-    coast_v_H_mps_.x() = c * v.x() + s * v.y();
-    coast_v_H_mps_.y() = -s * v.x() + c * v.y();
-    coast_v_H_mps_ += a_H * dt_s;
+    coast_v_H_mps_ = Eigen::AngleAxisd(-turn_rad, Eigen::Vector3d::UnitZ()) * coast_v_H_mps_ +
+                     a_H * dt_s;
     t_coast_ns_ = t_ns;
   }
   return status;

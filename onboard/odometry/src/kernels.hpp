@@ -190,7 +190,7 @@ inline bool depth_residual(const float* depth, int stride, float max_u, float ma
 }
 
 /// Sums of one pass over weighted rows: H = sum w J J^T (upper triangle, row-major), g = sum w
-/// J r, and for a seventh parameter with Jacobian 1 (the brightness offset) its cross terms.
+/// J r, and for a seventh parameter with Jacobian c (the brightness offset) its cross terms.
 struct RowSums {
   double H[21] = {};
   double g[6] = {};
@@ -200,19 +200,21 @@ struct RowSums {
   double weighted_error = 0.0;  ///< sum w r^2
 };
 
+/// One row of the normal equations: d r / d xi, the residual and the brightness offset's
+/// Jacobian.
+struct Row {
+  float j0, j1, j2, j3, j4, j5, r, offset_jacobian;
+};
+
 // Rows accumulate in float within a block, then into double: float alone loses digits over
 // 10^5 pixels, double everywhere halves the throughput of the inner loop.
 inline constexpr int kAccumulationBlock = 256;
 
-template <bool kOffsetJacobian>
-void accumulate_rows_impl(const float* const* J, const float* r_in, const float* w_in,
-                          const float* offset_jacobian, int count, RowSums& out) {
-  const float* j0 = J[0];
-  const float* j1 = J[1];
-  const float* j2 = J[2];
-  const float* j3 = J[3];
-  const float* j4 = J[4];
-  const float* j5 = J[5];
+/// Accumulates the rows form_row(i), i < count, with weights w[i] into `out` in one pass; 36
+/// independent sums let the compiler vectorise across rows once form_row is inlined, so a row
+/// formed from stored arrays is never stored itself.
+template <class FormRow>
+void accumulate_formed_rows(const float* w_in, int count, RowSums& out, FormRow form_row) {
   for (int start = 0; start < count; start += kAccumulationBlock) {
     const int end = std::min(count, start + kAccumulationBlock);
     float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0,
@@ -223,10 +225,11 @@ void accumulate_rows_impl(const float* const* J, const float* r_in, const float*
                                h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e, \
                                o0, o1, o2, o3, o4, o5, oo, go)
     for (int i = start; i < end; ++i) {
-      const float r = r_in[i];
+      const Row row = form_row(i);
+      const float a0 = row.j0, a1 = row.j1, a2 = row.j2, a3 = row.j3, a4 = row.j4, a5 = row.j5;
+      const float r = row.r;
+      const float c = row.offset_jacobian;
       const float w = w_in[i];
-      const float a0 = j0[i], a1 = j1[i], a2 = j2[i], a3 = j3[i], a4 = j4[i], a5 = j5[i];
-      const float c = kOffsetJacobian ? offset_jacobian[i] : 1.0f;
       const float w0 = w * a0, w1 = w * a1, w2 = w * a2, w3 = w * a3, w4 = w * a4, w5 = w * a5;
       h00 += w0 * a0;
       h01 += w0 * a1;
@@ -280,15 +283,19 @@ void accumulate_rows_impl(const float* const* J, const float* r_in, const float*
   }
 }
 
-/// Accumulates `count` rows J[k][i], r[i] with weights w[i] into `out` in one pass; 36
-/// independent sums let the compiler vectorise across rows. The brightness offset's Jacobian
-/// is offset_jacobian[i], or 1 for every row when it is null.
+/// Accumulates `count` stored rows J[k][i], r[i] with weights w[i] into `out` in one pass. The
+/// brightness offset's Jacobian is offset_jacobian[i], or 1 for every row when it is null.
 inline void accumulate_rows(const float* const* J, const float* r, const float* w, int count,
                             RowSums& out, const float* offset_jacobian = nullptr) {
+  const float *j0 = J[0], *j1 = J[1], *j2 = J[2], *j3 = J[3], *j4 = J[4], *j5 = J[5];
   if (offset_jacobian != nullptr) {
-    accumulate_rows_impl<true>(J, r, w, offset_jacobian, count, out);
+    accumulate_formed_rows(w, count, out, [=](int i) {
+      return Row{j0[i], j1[i], j2[i], j3[i], j4[i], j5[i], r[i], offset_jacobian[i]};
+    });
   } else {
-    accumulate_rows_impl<false>(J, r, w, nullptr, count, out);
+    accumulate_formed_rows(w, count, out, [=](int i) {
+      return Row{j0[i], j1[i], j2[i], j3[i], j4[i], j5[i], r[i], 1.0f};
+    });
   }
 }
 
@@ -306,8 +313,7 @@ struct DepthRows {
   Warp T{};                   ///< T_cur_ref of the residuals
 };
 
-inline void accumulate_depth_rows(const DepthRows& d, const float* w_in, int count, RowSums& out) {
-  // The loop of accumulate_rows_impl with the row formed in place: one pass, no stores.
+inline void accumulate_depth_rows(const DepthRows& d, const float* w, int count, RowSums& out) {
   const float* qx = d.d_rz_d_q[0];
   const float* qy = d.d_rz_d_q[1];
   const float* qz = d.d_rz_d_q[2];
@@ -316,82 +322,23 @@ inline void accumulate_depth_rows(const DepthRows& d, const float* w_in, int cou
   const float *j0 = d.ji[0], *j1 = d.ji[1], *j2 = d.ji[2], *j3 = d.ji[3], *j4 = d.ji[4],
               *j5 = d.ji[5];
   const Warp T = d.T;
-  for (int start = 0; start < count; start += kAccumulationBlock) {
-    const int end = std::min(count, start + kAccumulationBlock);
-    float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0,
-          h15 = 0, h22 = 0, h23 = 0, h24 = 0, h25 = 0, h33 = 0, h34 = 0, h35 = 0, h44 = 0, h45 = 0,
-          h55 = 0, g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, e = 0, o0 = 0, o1 = 0, o2 = 0,
-          o3 = 0, o4 = 0, o5 = 0, oo = 0, go = 0;
-#pragma omp simd reduction(+ : h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, \
-                               h24, h25, h33, h34, h35, h44, h45, h55, g0, g1, g2, g3, g4, g5, e, \
-                               o0, o1, o2, o3, o4, o5, oo, go)
-    for (int i = start; i < end; ++i) {
-      // b = (d r_Z / d q) R, J_Z = [b, p x b] (depth_jacobian_from, written out), and the
-      // whitened row c_z (r_Z, J_Z) + c_i (r_I, J_I) whose offset Jacobian is c_i.
-      const float bx = qx[i] * T.r00 + qy[i] * T.r10 + qz[i] * T.r20;
-      const float by = qx[i] * T.r01 + qy[i] * T.r11 + qz[i] * T.r21;
-      const float bz = qx[i] * T.r02 + qy[i] * T.r12 + qz[i] * T.r22;
-      const float cz = c_z[i];
-      const float c = c_i[i];
-      const float a0 = cz * bx + c * j0[i];
-      const float a1 = cz * by + c * j1[i];
-      const float a2 = cz * bz + c * j2[i];
-      const float a3 = cz * (py[i] * bz - pz[i] * by) + c * j3[i];
-      const float a4 = cz * (pz[i] * bx - px[i] * bz) + c * j4[i];
-      const float a5 = cz * (px[i] * by - py[i] * bx) + c * j5[i];
-      const float r = cz * rz[i] + c * ri[i];
-      const float w = w_in[i];
-      const float w0 = w * a0, w1 = w * a1, w2 = w * a2, w3 = w * a3, w4 = w * a4, w5 = w * a5;
-      h00 += w0 * a0;
-      h01 += w0 * a1;
-      h02 += w0 * a2;
-      h03 += w0 * a3;
-      h04 += w0 * a4;
-      h05 += w0 * a5;
-      h11 += w1 * a1;
-      h12 += w1 * a2;
-      h13 += w1 * a3;
-      h14 += w1 * a4;
-      h15 += w1 * a5;
-      h22 += w2 * a2;
-      h23 += w2 * a3;
-      h24 += w2 * a4;
-      h25 += w2 * a5;
-      h33 += w3 * a3;
-      h34 += w3 * a4;
-      h35 += w3 * a5;
-      h44 += w4 * a4;
-      h45 += w4 * a5;
-      h55 += w5 * a5;
-      g0 += w0 * r;
-      g1 += w1 * r;
-      g2 += w2 * r;
-      g3 += w3 * r;
-      g4 += w4 * r;
-      g5 += w5 * r;
-      e += w * r * r;
-      o0 += c * w0;
-      o1 += c * w1;
-      o2 += c * w2;
-      o3 += c * w3;
-      o4 += c * w4;
-      o5 += c * w5;
-      oo += c * c * w;
-      go += c * w * r;
-    }
-    const float block[21] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15,
-                             h22, h23, h24, h25, h33, h34, h35, h44, h45, h55};
-    for (int k = 0; k < 21; ++k) out.H[k] += static_cast<double>(block[k]);
-    const float gb[6] = {g0, g1, g2, g3, g4, g5};
-    const float ob[6] = {o0, o1, o2, o3, o4, o5};
-    for (int k = 0; k < 6; ++k) {
-      out.g[k] += static_cast<double>(gb[k]);
-      out.pose_offset[k] += static_cast<double>(ob[k]);
-    }
-    out.weighted_error += static_cast<double>(e);
-    out.offset += static_cast<double>(oo);
-    out.g_offset += static_cast<double>(go);
-  }
+  accumulate_formed_rows(w, count, out, [=](int i) {
+    // b = (d r_Z / d q) R, J_Z = [b, p x b] (depth_jacobian_from, written out), and the
+    // whitened row c_z (r_Z, J_Z) + c_i (r_I, J_I) whose offset Jacobian is c_i.
+    const float bx = qx[i] * T.r00 + qy[i] * T.r10 + qz[i] * T.r20;
+    const float by = qx[i] * T.r01 + qy[i] * T.r11 + qz[i] * T.r21;
+    const float bz = qx[i] * T.r02 + qy[i] * T.r12 + qz[i] * T.r22;
+    const float cz = c_z[i];
+    const float c = c_i[i];
+    return Row{cz * bx + c * j0[i],
+               cz * by + c * j1[i],
+               cz * bz + c * j2[i],
+               cz * (py[i] * bz - pz[i] * by) + c * j3[i],
+               cz * (pz[i] * bx - px[i] * bz) + c * j4[i],
+               cz * (px[i] * by - py[i] * bx) + c * j5[i],
+               cz * rz[i] + c * ri[i],
+               c};
+  });
 }
 
 }  // namespace hq::odometry::detail

@@ -85,6 +85,10 @@ struct FlightSample {
   modes::Mode mode = modes::Mode::kHover;
   Eigen::Vector3d v_est_mps = Eigen::Vector3d::Zero();
   Eigen::Vector3d v_true_mps = Eigen::Vector3d::Zero();
+  /// Roll and pitch (NED, ZYX Euler): the estimator's, which levels the inertial coast's
+  /// acceleration, and the truth's.
+  Eigen::Vector2d roll_pitch_est_rad = Eigen::Vector2d::Zero();
+  Eigen::Vector2d roll_pitch_true_rad = Eigen::Vector2d::Zero();
   Eigen::Vector3d v_star_des_mps = Eigen::Vector3d::Zero();  ///< The operator's, after ramps.
   Eigen::Vector3d v_des_mps = Eigen::Vector3d::Zero();       ///< v*_des + v_obs.
   Eigen::Vector3d v_obs_mps = Eigen::Vector3d::Zero();
