@@ -143,8 +143,8 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
         (omega_B.y() * std::sin(roll_rad) + omega_B.z() * std::cos(roll_rad)) /
         std::max(std::cos(pitch_rad), kMinCosPitch);
     const double turn_rad = heading_rate_radps * dt_s;
-    coast_v_H_mps_ = Eigen::AngleAxisd(-turn_rad, Eigen::Vector3d::UnitZ()) * coast_v_H_mps_ +
-                     a_H * dt_s;
+    coast_v_H_mps_ =
+        Eigen::AngleAxisd(-turn_rad, Eigen::Vector3d::UnitZ()) * coast_v_H_mps_ + a_H * dt_s;
     t_coast_ns_ = t_ns;
   }
   return status;
