@@ -196,11 +196,11 @@ std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
       "| tilt error RMS deg, coast / tracked |\n"
       "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
   for (const WorldRow& r : rows) {
-    std::printf("| %s | %d | %d | %d | %d | %.2f | %.2f | %.2f | %d | %.3f / %.2f | %.2f / %.2f |\n",
-                r.world.c_str(), r.runs, r.collided_runs, r.collision_ticks, r.fly_aways,
-                r.min_clearance_m, r.max_true_speed_mps, r.max_flown_m, r.coast_frames,
-                r.coast_rms_mps(), r.max_coast_error_mps, r.coast_tilt_rms_deg(),
-                r.tracked_tilt_rms_deg());
+    std::printf(
+        "| %s | %d | %d | %d | %d | %.2f | %.2f | %.2f | %d | %.3f / %.2f | %.2f / %.2f |\n",
+        r.world.c_str(), r.runs, r.collided_runs, r.collision_ticks, r.fly_aways, r.min_clearance_m,
+        r.max_true_speed_mps, r.max_flown_m, r.coast_frames, r.coast_rms_mps(),
+        r.max_coast_error_mps, r.coast_tilt_rms_deg(), r.tracked_tilt_rms_deg());
   }
   return rows;
 }
