@@ -21,6 +21,9 @@ void read_config(config::StrictMap& section, ComplementaryConfig& out) {
   section.read("max_bias_radps", out.max_bias_radps, 0.0, 10.0);
   section.read_positive("max_dt_s", out.max_dt_s, 10.0);
   section.read("init_from_accel", out.init_from_accel);
+  section.read("velocity_k_p", out.velocity_k_p, 0.0, 100.0);
+  section.read("velocity_k_i", out.velocity_k_i, 0.0, 100.0);
+  section.read("accel_levelling_pause_s", out.accel_levelling_pause_s, 0.0, 100.0);
   section.finish();
 }
 
@@ -28,6 +31,7 @@ ComplementaryFilter::ComplementaryFilter(const ComplementaryConfig& config) : co
 
 void ComplementaryFilter::reset() {
   initialized_ = false;
+  velocity_aided_ = false;
   R_ned_body_.setIdentity();
   bias_radps_.setZero();
 }
@@ -63,7 +67,11 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
   // The accelerometer is trusted only near 1 g, where it measures mostly gravity.
   Eigen::Vector3d omega_mes = Eigen::Vector3d::Zero();
   const double norm = accel_mps2.norm();
-  if (std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 && norm > 1e-3) {
+  const bool levelling_paused =
+      velocity_aided_ &&
+      1e-9 * static_cast<double>(t_ns - t_velocity_aided_ns_) < config_.accel_levelling_pause_s;
+  if (!levelling_paused && std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 &&
+      norm > 1e-3) {
     const Eigen::Vector3d v = -accel_mps2 / norm;
     const Eigen::Vector3d v_hat = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
     omega_mes = v.cross(v_hat);
@@ -74,6 +82,27 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
   bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
   t_ns_ = t_ns;
   return FilterStatus::kOk;
+}
+
+bool ComplementaryFilter::level_on_velocity(std::int64_t t_ns,
+                                            const Eigen::Vector3d& accel_error_H_mps2,
+                                            double span_s) {
+  if (!initialized_ || !accel_error_H_mps2.allFinite() || !(span_s > 0.0) ||
+      accel_error_H_mps2.head<2>().norm() > config_.accel_tolerance_mps2) {
+    return false;
+  }
+  const Eigen::Vector3d down_B = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d horizontal_error_H(accel_error_H_mps2.x(), accel_error_H_mps2.y(), 0.0);
+  const Eigen::Vector3d error_B =
+      R_horizontal_body(roll_rad(), pitch_rad()).transpose() * horizontal_error_H;
+  const Eigen::Vector3d omega_mes = (error_B / kGravityMps2).cross(down_B);
+  R_ned_body_ = geometry::orthonormalize(
+      R_ned_body_ * geometry::exp_so3(config_.velocity_k_p * span_s * omega_mes));
+  bias_radps_ -= config_.velocity_k_i * omega_mes * span_s;
+  bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
+  velocity_aided_ = true;
+  t_velocity_aided_ns_ = t_ns;
+  return true;
 }
 
 Eigen::Matrix3d ComplementaryFilter::R_N_B() const {

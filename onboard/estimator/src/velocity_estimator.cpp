@@ -74,24 +74,28 @@ void VelocityEstimator::reset() {
 }
 
 void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
-                                     bool from_odometry) {
+                                     bool from_odometry, const Eigen::Vector3d& v_H_raw_mps) {
   coast_anchored_ = config_.inertial_coast_s > 0.0;
   t_coast_anchor_ns_ = t_ns;
   t_coast_ns_ = attitude_.initialized() ? attitude_.t_ns() : t_ns;
   coast_v_H_mps_ = v_H_mps;
+  coast_v_H_raw_mps_ = v_H_raw_mps;
   coast_from_odometry_ = from_odometry;
 }
 
-void VelocityEstimator::learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps) {
+void VelocityEstimator::learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps) {
   // Only between two tracked frames: the coast then predicted this frame's velocity from the
   // last one's with the accelerometer and what it has learnt, and the rest is what it missed.
+  // Eq. 1's velocities, as level_on_velocity's: under a 1 rad/s yaw the 1-euro filter's lag
+  // turns with H and taught 0.01 m/s^2 the accelerometer did not miss.
   const double span_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
   if (config_.unseen_accel_time_constant_s <= 0.0 || !coast_anchored_ || !coast_from_odometry_ ||
       !(span_s > 0.0) || span_s > config_.max_frame_gap_s) {
     return;
   }
   // The coast already added what was learnt: this frame's sample is that plus its miss.
-  const Eigen::Vector3d missed_mps2 = (v_H_mps - coast_v_H_mps_) / span_s + unseen_accel_H_mps2_;
+  const Eigen::Vector3d missed_mps2 =
+      (v_H_raw_mps - coast_v_H_raw_mps_) / span_s + unseen_accel_H_mps2_;
   if (!missed_mps2.allFinite()) return;
   unseen_accel_H_mps2_ += span_s / (config_.unseen_accel_time_constant_s + span_s) *
                           (missed_mps2 - unseen_accel_H_mps2_);
@@ -100,6 +104,18 @@ void VelocityEstimator::learn_unseen_accel(std::int64_t t_ns, const Eigen::Vecto
   const double learnt_mps2 = unseen_accel_H_mps2_.norm();
   if (config_.unseen_accel_sigma_mps2 > 0.0 && learnt_mps2 > bound_mps2) {
     unseen_accel_H_mps2_ *= bound_mps2 / learnt_mps2;
+  }
+}
+
+void VelocityEstimator::level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps) {
+  // Between two tracked frames the coast integrated the accelerometer levelled by the filter's
+  // roll and pitch; what it missed of the velocity is, to first order, their tilt error. Eq.
+  // 1's velocities, not the 1-euro filtered ones: the filter's lag (0.05-0.16 s) would read
+  // every change of acceleration as a tilt.
+  const double span_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  if (coast_anchored_ && coast_from_odometry_ && span_s > 0.0 &&
+      span_s <= config_.max_frame_gap_s) {
+    attitude_.level_on_velocity(t_ns, (v_H_raw_mps - coast_v_H_raw_mps_) / span_s, span_s);
   }
 }
 
@@ -115,7 +131,7 @@ double VelocityEstimator::coast_horizon_s() const {
 }
 
 void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
-  anchor_coast(t_ns, Eigen::Vector3d::Zero(), false);
+  anchor_coast(t_ns, Eigen::Vector3d::Zero(), false, Eigen::Vector3d::Zero());
 }
 
 VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char* reason) {
@@ -142,9 +158,9 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
     const double heading_rate_radps =
         (omega_B.y() * std::sin(roll_rad) + omega_B.z() * std::cos(roll_rad)) /
         std::max(std::cos(pitch_rad), kMinCosPitch);
-    const double turn_rad = heading_rate_radps * dt_s;
-    coast_v_H_mps_ =
-        Eigen::AngleAxisd(-turn_rad, Eigen::Vector3d::UnitZ()) * coast_v_H_mps_ + a_H * dt_s;
+    const Eigen::AngleAxisd turn(-heading_rate_radps * dt_s, Eigen::Vector3d::UnitZ());
+    coast_v_H_mps_ = turn * coast_v_H_mps_ + a_H * dt_s;
+    coast_v_H_raw_mps_ = turn * coast_v_H_raw_mps_ + a_H * dt_s;
     t_coast_ns_ = t_ns;
   }
   return status;
@@ -228,6 +244,13 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   const Eigen::Isometry3d& T_raw = odometry.T_O_C;
   estimate.v_C_raw_mps =
       T_raw.linear().transpose() * (T_raw.translation() - T_O_Ck_prev_raw_.translation()) / dt_s;
+  // The body's mean velocity over the same interval, in its frame at the end (what
+  // level_on_velocity compares): over it the camera's lever arm swept (I - R_Bk_Bk-1) p_B_C, a
+  // chord, not omega x p_B_C, which under a 1 rad/s yaw is 2 mm/s apart and reads as a tilt.
+  const Eigen::Matrix3d R_Bk_Bkprev =
+      R_B_C_ * T_raw.linear().transpose() * T_O_Ck_prev_raw_.linear() * R_B_C_.transpose();
+  const Eigen::Vector3d v_B_raw =
+      R_B_C_ * estimate.v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_Bkprev) * p_B_C_m_ / dt_s;
   // eq. 2 of the core paper, not eq. 1: differentiating the 1€-filtered pose keeps noise out of v.
   const Eigen::Isometry3d& T_hat = pose_filter_.pose();
   const Eigen::Vector3d v_C = T_hat.linear().transpose() *
@@ -270,8 +293,10 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.unavailable_for_s = 0.0;
   ever_ok_ = true;
   t_last_ok_ns_ = t_ns;
-  learn_unseen_accel(t_ns, v_H);
-  anchor_coast(t_ns, v_H, true);
+  const Eigen::Vector3d v_H_raw = R_horizontal_body(roll_rad, pitch_rad) * v_B_raw;
+  level_on_velocity(t_ns, v_H_raw);
+  learn_unseen_accel(t_ns, v_H_raw);
+  anchor_coast(t_ns, v_H, true, v_H_raw);
   return estimate;
 }
 

@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
 
 namespace hq::estimator {
 namespace {
@@ -86,6 +87,83 @@ TEST(ComplementaryFilter, EstimatesAConstantGyroBias) {
   EXPECT_NEAR(filter.pitch_rad(), 0.0, 0.05 * kDeg);
 }
 
+// A multirotor accelerating at accel_mps2 along NED x for duration_s, its thrust tilted to do it
+// (pitch -atan(a / g)), so that its accelerometer reads the thrust alone, straight down the
+// body's -z. Every frame_s the filter is told how far the velocity it integrated from that
+// accelerometer, levelled with its own roll and pitch, missed the true one (what
+// VelocityEstimator does with the odometry's). Returns the estimated pitch's error in degrees.
+double pitch_error_deg_accelerating(const ComplementaryConfig& config, double accel_mps2,
+                                    double duration_s, bool velocity_aided) {
+  const double pitch = -std::atan2(accel_mps2, kGravityMps2);
+  const Eigen::Vector3d thrust_B(0.0, 0.0, -std::hypot(accel_mps2, kGravityMps2));
+  ComplementaryFilter filter(config);
+  filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.0, pitch));  // starts right
+  constexpr int kImuPerFrame = 6;                                       // 33 Hz frames
+  Eigen::Vector3d integrated_dv_H = Eigen::Vector3d::Zero();
+  const int steps = static_cast<int>(duration_s * 1e9 / kImuNs);
+  for (int k = 1; k <= steps; ++k) {
+    filter.update(k * kImuNs, Eigen::Vector3d::Zero(), thrust_B);
+    integrated_dv_H += (R_horizontal_body(filter.roll_rad(), filter.pitch_rad()) * thrust_B +
+                        Eigen::Vector3d(0.0, 0.0, kGravityMps2)) *
+                       1e-9 * kImuNs;
+    if (velocity_aided && k % kImuPerFrame == 0) {
+      const double span_s = 1e-9 * kImuNs * kImuPerFrame;
+      const Eigen::Vector3d true_dv_H(accel_mps2 * span_s, 0.0, 0.0);
+      EXPECT_TRUE(
+          filter.level_on_velocity(k * kImuNs, (true_dv_H - integrated_dv_H) / span_s, span_s));
+      integrated_dv_H.setZero();
+    }
+  }
+  EXPECT_NEAR(filter.roll_rad(), 0.0, 0.01 * kDeg);
+  return (filter.pitch_rad() - pitch) / kDeg;
+}
+
+TEST(ComplementaryFilter, MeasuredVelocityKeepsTheTiltTheAccelerometerLevelsAway) {
+  // GIVEN a multirotor accelerating at 1.5 m/s^2 for 10 s (pitched 8.7 deg): its
+  // accelerometer reads the thrust, which looks level
+  const ComplementaryConfig config;  // velocity aiding and the levelling's pause on
+  // WHEN the filter has only the accelerometer, it levels onto the thrust, as Mahony's
+  // filter assumes an unaccelerated body
+  ComplementaryConfig accel_only = config;
+  accel_only.velocity_k_p = 0.0;
+  accel_only.velocity_k_i = 0.0;
+  const double accel_only_deg = pitch_error_deg_accelerating(accel_only, 1.5, 10.0, false);
+  // AND when a measured velocity tells it what its levelled accelerometer missed
+  const double aided_deg = pitch_error_deg_accelerating(config, 1.5, 10.0, true);
+  // AND with the accelerometer's proportional levelling left on beside the velocity's
+  ComplementaryConfig both = config;
+  both.accel_levelling_pause_s = 0.0;
+  both.k_i = 0.0;
+  const double both_deg = pitch_error_deg_accelerating(both, 1.5, 10.0, true);
+  std::printf(
+      "pitch error after 10 s at 1.5 m/s^2: %.3f deg accelerometer only, %.3f aided, "
+      "%.3f both\n",
+      accel_only_deg, aided_deg, both_deg);
+  // THEN alone it has lost the whole tilt (and its bias loop, which takes the levelling for a
+  // gyro bias, a little more)
+  const double tilt_deg = std::atan2(1.5, kGravityMps2) / kDeg;
+  EXPECT_GT(std::abs(accel_only_deg), tilt_deg);
+  // AND aided it keeps the true tilt
+  EXPECT_LT(std::abs(aided_deg), 0.05);
+  // AND the two levellings pull apart: k_p / (k_p + velocity_k_p), half, of the tilt is lost
+  EXPECT_NEAR(std::abs(both_deg), 0.5 * tilt_deg, 0.2);
+}
+
+TEST(ComplementaryFilter, VelocityAidingNotATiltIsNotUsed) {
+  ComplementaryFilter filter;
+  EXPECT_FALSE(filter.level_on_velocity(0, Eigen::Vector3d::Zero(), 0.03));  // not started
+  filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.0, 0.0));
+  const double pitch = filter.pitch_rad();
+  EXPECT_FALSE(filter.level_on_velocity(kImuNs, Eigen::Vector3d(NAN, 0.0, 0.0), 0.03));
+  EXPECT_FALSE(filter.level_on_velocity(kImuNs, Eigen::Vector3d(0.1, 0.0, 0.0), 0.0));
+  // More than accel_tolerance_mps2 (3) is a wrong velocity, not a tilt.
+  EXPECT_FALSE(filter.level_on_velocity(kImuNs, Eigen::Vector3d(3.5, 0.0, 0.0), 0.03));
+  EXPECT_EQ(filter.pitch_rad(), pitch);
+  EXPECT_TRUE(filter.level_on_velocity(kImuNs, Eigen::Vector3d(1.0, 0.0, 0.0), 0.03));
+  // Missing +x acceleration: the body is pitched further nose down than estimated.
+  EXPECT_LT(filter.pitch_rad(), pitch);
+}
+
 TEST(ComplementaryFilter, RejectsNanAndKeepsState) {
   ComplementaryFilter filter;
   filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.1, 0.0));
@@ -122,6 +200,25 @@ TEST(ComplementaryConfig, BadValueIsRejectedNamingTheKey) {
     FAIL() << "expected hq::InputError";
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("estimator.complementary.k_i = -0.5"));
+  }
+}
+
+TEST(ComplementaryConfig, VelocityAidingKeysAreReadAndRangeChecked) {
+  ComplementaryConfig config;
+  config::StrictMap section(
+      YAML::Load("{velocity_k_p: 0.5, velocity_k_i: 0.01, accel_levelling_pause_s: 3}"),
+      "config/onboard.yaml", "estimator.complementary");
+  read_config(section, config);
+  EXPECT_EQ(config.velocity_k_p, 0.5);
+  EXPECT_EQ(config.velocity_k_i, 0.01);
+  EXPECT_EQ(config.accel_levelling_pause_s, 3.0);
+  config::StrictMap negative(YAML::Load("{accel_levelling_pause_s: -1}"), "config/onboard.yaml",
+                             "estimator.complementary");
+  try {
+    read_config(negative, config);
+    FAIL() << "expected hq::InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("estimator.complementary.accel_levelling_pause_s = -1"));
   }
 }
 

@@ -34,9 +34,20 @@ struct ComplementaryConfig {
   double max_bias_radps = 0.2;        ///< Bias estimate clamped per axis.
   double max_dt_s = 0.1;              ///< A larger gap re-initialises from the accelerometer.
   bool init_from_accel = true;        ///< First sample sets roll/pitch from the accelerometer.
+  /// Gains on the tilt that a measured velocity gives (level_on_velocity): 0 turns it off.
+  double velocity_k_p = 1.0;  ///< 1/s
+  /// 0: wrong but accepted odometry velocities (the depth term's in a plain corner) taught the
+  /// gyro a bias that tilted the next coast 2.5 deg off; the accelerometer's term learns it.
+  double velocity_k_i = 0.0;  ///< 1/s^2
+  /// After a velocity-aided correction the accelerometer's own levelling stays off this long:
+  /// a multirotor's accelerometer reads its thrust, not gravity, whenever it accelerates, and
+  /// the two levellings pulling apart lose k_p / (k_p + velocity_k_p) of every tilt. At least
+  /// the inertial coast's length, so a coast keeps the attitude tracking gave it.
+  double accel_levelling_pause_s = 2.0;
 };
 
-/// Reads {k_p, k_i, accel_tolerance_mps2, max_bias_radps, max_dt_s, init_from_accel}.
+/// Reads {k_p, k_i, accel_tolerance_mps2, max_bias_radps, max_dt_s, init_from_accel,
+/// velocity_k_p, velocity_k_i, accel_levelling_pause_s}.
 void read_config(config::StrictMap& section, ComplementaryConfig& out);
 
 /// Mahony 2008 explicit complementary filter with bias (its eq. 32 with one vector, gravity).
@@ -48,6 +59,17 @@ class ComplementaryFilter {
   /// up, i.e. -z for a level vehicle). Non-finite input is rejected and reported.
   FilterStatus update(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                       const Eigen::Vector3d& accel_mps2);
+
+  /// Velocity-aided levelling (the tilt a velocity measurement sees; cf. Hua 2010,
+  /// velocity-aided attitude estimation). accel_error_H is the horizontal frame H's acceleration
+  /// that this filter's roll and pitch missed over the last span_s: a velocity measured at both
+  /// ends minus what the specific force, rotated into H with this filter's attitude, integrated
+  /// to. A tilt error delta (body) puts g R_H_B (u x delta) into it, u the body's down, so
+  /// (R_H_B^T a / g) x u is delta's observable part, corrected with velocity_k_p and
+  /// velocity_k_i as Mahony's accelerometer term. Errors beyond accel_tolerance_mps2 are not
+  /// used (not a tilt: a wrong velocity). Returns whether it was used.
+  bool level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& accel_error_H_mps2,
+                         double span_s);
 
   /// Body B in the gravity-aligned NED frame with N's yaw.
   [[nodiscard]] const Eigen::Matrix3d& R_ned_body() const { return R_ned_body_; }
@@ -68,6 +90,8 @@ class ComplementaryFilter {
   Eigen::Vector3d bias_radps_ = Eigen::Vector3d::Zero();
   bool initialized_ = false;
   std::int64_t t_ns_ = 0;
+  bool velocity_aided_ = false;
+  std::int64_t t_velocity_aided_ns_ = 0;
 };
 
 /// First-order low-pass of an N-vector with irregular dt: y += dt / (tau + dt) (x - y).

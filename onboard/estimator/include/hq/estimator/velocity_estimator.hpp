@@ -125,9 +125,16 @@ class VelocityEstimator {
   VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
   /// from_odometry: v_H_mps is a tracked frame's (the next one's may teach the unseen
   /// acceleration), not a rest assumption.
-  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps, bool from_odometry);
-  /// A tracked frame's velocity against the coast's prediction of it: unseen_accel_H_mps2_.
-  void learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps);
+  /// v_H_raw_mps is the same frame's unfiltered (eq. 1) velocity, which a second coast
+  /// integrates for level_on_velocity.
+  void anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps, bool from_odometry,
+                    const Eigen::Vector3d& v_H_raw_mps);
+  /// A tracked frame's unfiltered (eq. 1) velocity against the coast's prediction of it from
+  /// the last one levels the attitude (ComplementaryFilter::level_on_velocity).
+  void level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps);
+  /// A tracked frame's unfiltered (eq. 1) velocity against the coast's prediction of it:
+  /// unseen_accel_H_mps2_.
+  void learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps);
   /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
   void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_Ck);
 
@@ -151,6 +158,9 @@ class VelocityEstimator {
   std::int64_t t_coast_ns_ = 0;  ///< Stamp of the last IMU sample integrated.
   Eigen::Vector3d coast_v_H_mps_ = Eigen::Vector3d::Zero();
   bool coast_from_odometry_ = false;
+  /// The same coast from the anchoring frame's unfiltered velocity: what level_on_velocity
+  /// compares the next frame's with.
+  Eigen::Vector3d coast_v_H_raw_mps_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d unseen_accel_H_mps2_ = Eigen::Vector3d::Zero();
   double unseen_accel_learnt_s_ = 0.0;  ///< Tracked time the learning has seen since reset.
 };
