@@ -103,16 +103,23 @@ struct Dump {
 /// Writes the bundled TUM frames as fakenect-record would have recorded them: per frame an
 /// accelerometer state, the depth (11-bit raw, host-endian uint16 after a P5 line) and the
 /// colour (RGB after a P6 line), named <type>-<seconds>-<device ticks>.<ext> and listed in
-/// INDEX.txt in replay order.
-Dump write_dump(const std::string& tum_dir, const std::string& dir) {
+/// INDEX.txt in replay order. passes > 1 records the frames that many times over, one frame
+/// period apart, for a replay long enough to outlast DDS discovery.
+Dump write_dump(const std::string& tum_dir, const std::string& dir, int passes = 1) {
   const recording::TumSequence sequence(tum_dir);
   Dump dump;
   std::ofstream index(dir + "/INDEX.txt");
   const std::int64_t t0_ns = sequence.frame(0).t_ns;
+  const std::int64_t pass_ns =
+      sequence.frame(sequence.size() - 1).t_ns - t0_ns + (sequence.frame(1).t_ns - t0_ns);
   cv::Mat bgr, depth_u16, depth_m, rgb;
   cv::Mat raw(480, 640, CV_16UC1);
-  for (std::size_t i = 0; i < sequence.size(); ++i) {
-    const recording::RgbdFrameFiles& files = sequence.frame(i);
+  for (std::size_t k = 0; k < static_cast<std::size_t>(passes) * sequence.size(); ++k) {
+    const std::size_t i = k % sequence.size();
+    const std::int64_t offset_ns = static_cast<std::int64_t>(k / sequence.size()) * pass_ns;
+    recording::RgbdFrameFiles files = sequence.frame(i);
+    files.t_ns += offset_ns;
+    files.depth_t_ns += offset_ns;
     sequence.load(i, bgr, depth_u16);
     recording::depth_to_metres(depth_u16, 5000.0, depth_m);
     const auto ticks_since_0 = static_cast<std::uint64_t>(
@@ -299,7 +306,10 @@ TEST(Fakenect, HqOnboardOnTheKinectReachesAGroundStationOverTheLink) {
   const auto data = recording::find_data_dir();
   if (!data) GTEST_SKIP() << "no real data: " << recording::data_dir_search_description();
   const std::string dir = fresh_dir("onboard_link");
-  (void)write_dump(*data + "/tum/rgbd_dataset_freiburg1_360", dir);
+  // The vehicle sends a state per frame and the state topic keeps no history: five frames
+  // (0.13 s) could all go out before discovery under load, so the dump plays them six times.
+  constexpr int kPasses = 6;
+  (void)write_dump(*data + "/tum/rgbd_dataset_freiburg1_360", dir, kPasses);
   hq::testing::use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(101));
   hq::testing::Process ground({HQ_GROUND_EXE, "--device", "sim", "--headless", "--domain-id",
@@ -318,14 +328,14 @@ TEST(Fakenect, HqOnboardOnTheKinectReachesAGroundStationOverTheLink) {
   while (std::fgets(buffer, sizeof buffer, pipe)) output += buffer;
   const int status = pclose(pipe);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
-  EXPECT_THAT(output, HasSubstr("5 frames from"));
+  EXPECT_THAT(output, HasSubstr(std::to_string(5 * kPasses) + " frames from"));
   EXPECT_THAT(output, HasSubstr("link on domain " + domain));
   EXPECT_EQ(ground.wait_exit(20.0), 0);
   std::ifstream in(dir + "/ground.out");
   const std::string ground_out((std::istreambuf_iterator<char>(in)),
                                std::istreambuf_iterator<char>());
-  // The dump has 5 frames, each a state; those sent before discovery completes are lost (the
-  // state topic keeps no history), so at least one reaches the station.
+  // Each frame is a state; those sent before discovery completes are lost, so at least one of
+  // the 30 reaches the station.
   const std::size_t at = ground_out.find("received");
   ASSERT_NE(at, std::string::npos) << ground_out;
   EXPECT_GE(std::atoi(ground_out.c_str() + ground_out.find_first_of("0123456789", at)), 1)
