@@ -247,10 +247,10 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   // The body's mean velocity over the same interval, in its frame at the end (what
   // level_on_velocity compares): over it the camera's lever arm swept (I - R_Bk_Bk-1) p_B_C, a
   // chord, not omega x p_B_C, which under a 1 rad/s yaw is 2 mm/s apart and reads as a tilt.
-  const Eigen::Matrix3d R_Bk_Bkprev =
+  const Eigen::Matrix3d R_Bk_B_prev =
       R_B_C_ * T_raw.linear().transpose() * T_O_Ck_prev_raw_.linear() * R_B_C_.transpose();
   const Eigen::Vector3d v_B_raw =
-      R_B_C_ * estimate.v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_Bkprev) * p_B_C_m_ / dt_s;
+      R_B_C_ * estimate.v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_B_prev) * p_B_C_m_ / dt_s;
   // eq. 2 of the core paper, not eq. 1: differentiating the 1€-filtered pose keeps noise out of v.
   const Eigen::Isometry3d& T_hat = pose_filter_.pose();
   const Eigen::Vector3d v_C = T_hat.linear().transpose() *
