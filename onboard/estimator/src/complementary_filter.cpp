@@ -87,7 +87,9 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
 bool ComplementaryFilter::level_on_velocity(std::int64_t t_ns,
                                             const Eigen::Vector3d& accel_error_H_mps2,
                                             double span_s) {
-  if (!initialized_ || !accel_error_H_mps2.allFinite() || !(span_s > 0.0) ||
+  // Off, it must not pause the accelerometer's levelling either.
+  const bool off = config_.velocity_k_p <= 0.0 && config_.velocity_k_i <= 0.0;
+  if (off || !initialized_ || !accel_error_H_mps2.allFinite() || !(span_s > 0.0) ||
       accel_error_H_mps2.head<2>().norm() > config_.accel_tolerance_mps2) {
     return false;
   }

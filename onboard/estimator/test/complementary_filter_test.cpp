@@ -164,6 +164,24 @@ TEST(ComplementaryFilter, VelocityAidingNotATiltIsNotUsed) {
   EXPECT_LT(filter.pitch_rad(), pitch);
 }
 
+TEST(ComplementaryFilter, VelocityAidingTurnedOffLeavesTheAccelerometerLevelling) {
+  // GIVEN velocity_k_p and velocity_k_i 0, a filter pitched 10 deg off a level accelerometer
+  ComplementaryConfig config;
+  config.velocity_k_p = 0.0;
+  config.velocity_k_i = 0.0;
+  ComplementaryFilter filter(config);
+  filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.0, 10.0 * kDeg));
+  ASSERT_NEAR(filter.pitch_rad(), 10.0 * kDeg, 1e-9);
+  // WHEN velocity errors keep arriving, as the estimator sends them every tracked frame
+  for (int k = 1; k <= 2000; ++k) {
+    EXPECT_FALSE(filter.level_on_velocity(k * kImuNs, Eigen::Vector3d(0.5, 0.0, 0.0), 0.03));
+    filter.update(k * kImuNs, Eigen::Vector3d::Zero(), static_accel(0.0, 0.0));
+  }
+  // THEN nothing pauses the accelerometer: 10 s at k_p 1 level it (paused, it would stay at
+  // 10 deg; the bias loop's swing is still 0.35 deg)
+  EXPECT_NEAR(filter.pitch_rad(), 0.0, 0.5 * kDeg);
+}
+
 TEST(ComplementaryFilter, RejectsNanAndKeepsState) {
   ComplementaryFilter filter;
   filter.update(0, Eigen::Vector3d::Zero(), static_accel(0.1, 0.0));
