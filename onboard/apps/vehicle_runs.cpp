@@ -424,6 +424,12 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
       "camera-timeout steps%s%s\n",
       port.frames, source.describe().c_str(), port.ok, port.safe_hover, port.ticks,
       csv ? ", log in " : "", o.csv_path.c_str());
+  // A live camera does not wait for the chain: a frame the chain was too busy to take is
+  // replaced by the next one, and said here.
+  if (const auto* threaded = dynamic_cast<const hq::sources::ThreadedFrameSource*>(&source)) {
+    fmt::print("  {:<40} {} (a newer one arrived while the chain was busy)\n",
+               "camera frames skipped", threaded->skipped());
+  }
   std::printf("  %-40s %s\n", "flight controller", fc.describe().c_str());
   fmt::print("  {:<40} {} sent ({} withheld before the first estimate)\n", "setpoints",
              rc.setpoints, rc.setpoints_withheld);
