@@ -45,6 +45,7 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read("warmup_s", out.warmup_s, 0.0, 10.0);
   section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
   section.read_positive("max_imu_disagreement_mps", out.max_imu_disagreement_mps, 100.0);
+  section.read("imu_disagreement_growth_mps2", out.imu_disagreement_growth_mps2, 0.0, 100.0);
   section.read("unseen_accel_time_constant_s", out.unseen_accel_time_constant_s, 0.0, 600.0);
   section.read("unseen_accel_sigma_mps2", out.unseen_accel_sigma_mps2, 0.0, 10.0);
   section.read_positive("coast_max_velocity_error_mps", out.coast_max_velocity_error_mps, 10.0);
@@ -128,6 +129,11 @@ double VelocityEstimator::coast_horizon_s() const {
           : 1.0;
   const double unlearnt_mps2 = config_.unseen_accel_sigma_mps2 * unlearnt_share;
   return std::min(config_.inertial_coast_s, config_.coast_max_velocity_error_mps / unlearnt_mps2);
+}
+
+double VelocityEstimator::imu_gate_mps(std::int64_t t_ns) const {
+  const double coast_s = std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_));
+  return config_.max_imu_disagreement_mps + config_.imu_disagreement_growth_mps2 * coast_s;
 }
 
 void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
@@ -278,9 +284,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   // eq. 5: H_v_Q = R_HQ Q_v_Q, i.e. v_H = R_H_B v_B with R_H_B = Ry(theta) Rx(phi).
   const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_B;
 
-  const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
-  if (coast_anchored_ && coast_s <= coast_horizon_s() &&
-      (v_H - coast_v_H_mps_).norm() > config_.max_imu_disagreement_mps) {
+  if (coast_anchored_ && (v_H - coast_v_H_mps_).norm() > imu_gate_mps(t_ns)) {
     return unavailable(t_ns, "odometry velocity disagrees with the IMU");
   }
   estimate.status = EstimateStatus::kOk;

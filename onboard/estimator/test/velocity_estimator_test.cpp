@@ -591,9 +591,53 @@ TEST(VelocityEstimator, OdometryVelocityDisagreeingWithTheImuIsRejected) {
   EXPECT_TRUE(first_jumped_frame(VelocityEstimatorConfig{}, 0.01 * jump_C_m).ok());
 }
 
+// Hovers tracked for 1 s, loses the odometry for lost_s, then has it back for 0.4 s reporting
+// returned_v_mps along x while the IMU says rest; returns the last estimate.
+VelocityEstimate estimate_after_a_loss(const VelocityEstimatorConfig& config, double lost_s,
+                                       double returned_v_mps) {
+  const Motion motion;  // level, at rest
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
+  const double return_s = 1.0 + lost_s;
+  VelocityEstimate last;
+  const int steps = static_cast<int>((return_s + 0.4) * 1e9 / kImuNs);
+  for (int k = 0; k <= steps; ++k) {
+    const std::int64_t t_ns = k * kImuNs;
+    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
+    if (k % kImuPerFrame != 0) continue;
+    odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
+    if (t_s > 1.0 && t_s < return_s) odometry.status = odometry::TrackingStatus::kLost;
+    if (t_s >= return_s) odometry.T_O_C.translation().x() += returned_v_mps * (t_s - return_s);
+    last = estimator.update(t_ns, odometry);
+  }
+  return last;
+}
+
+TEST(VelocityEstimator, OdometryReturningAfterTheCoastHasEndedIsCheckedAgainstTheImu) {
+  // GIVEN a loss of 1.5 s, longer than the coast (1.2 s after 1 s tracked): the vehicle hovers
+  // level on no estimate, the IMU still integrating from the last good velocity (rest)
+  const VelocityEstimatorConfig config;
+  // WHEN the odometry comes back with 1.8 m/s the accelerometer never saw
+  const VelocityEstimate wrong = estimate_after_a_loss(config, 1.5, 1.8);
+  // THEN it is rejected: the gate has widened by 0.3 m/s^2 x 1.7 s to 1.0 m/s, not opened
+  std::printf("gate after the loss: %s (%s)\n", to_string(wrong.status), wrong.reason);
+  EXPECT_FALSE(wrong.ok());
+  EXPECT_STREQ(wrong.reason, "odometry velocity disagrees with the IMU");
+  // AND odometry that agrees with the IMU is taken back
+  EXPECT_TRUE(estimate_after_a_loss(config, 1.5, 0.0).ok());
+  // AND after a loss long enough for the coast to be that far off (5 s: a 2.1 m/s gate) the
+  // same velocity is taken, so a drifted coast cannot keep the vehicle blind for ever
+  EXPECT_TRUE(estimate_after_a_loss(config, 5.0, 1.8).ok());
+  // AND without the widening the gate stays at max_imu_disagreement_mps
+  VelocityEstimatorConfig fixed;
+  fixed.imu_disagreement_growth_mps2 = 0.0;
+  EXPECT_FALSE(estimate_after_a_loss(fixed, 5.0, 1.8).ok());
+}
+
 TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   VelocityEstimatorConfig config;
   config::StrictMap section(YAML::Load("{inertial_coast_s: 1.5, max_imu_disagreement_mps: 2,"
+                                       " imu_disagreement_growth_mps2: 0.5,"
                                        " unseen_accel_time_constant_s: 0,"
                                        " unseen_accel_sigma_mps2: 0.2,"
                                        " coast_max_velocity_error_mps: 0.3}"),
@@ -601,6 +645,7 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   read_config(section, config);
   EXPECT_EQ(config.inertial_coast_s, 1.5);
   EXPECT_EQ(config.max_imu_disagreement_mps, 2.0);
+  EXPECT_EQ(config.imu_disagreement_growth_mps2, 0.5);
   EXPECT_EQ(config.unseen_accel_time_constant_s, 0.0);
   EXPECT_EQ(config.unseen_accel_sigma_mps2, 0.2);
   EXPECT_EQ(config.coast_max_velocity_error_mps, 0.3);
@@ -616,6 +661,8 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
               HasSubstr("estimator.inertial_coast_s = 11, expected in [0, 10]"));
   EXPECT_THAT(error("{max_imu_disagreement_mps: 0}"),
               HasSubstr("estimator.max_imu_disagreement_mps = 0, expected > 0"));
+  EXPECT_THAT(error("{imu_disagreement_growth_mps2: -1}"),
+              HasSubstr("estimator.imu_disagreement_growth_mps2 = -1, expected in [0, 100]"));
   EXPECT_THAT(error("{unseen_accel_time_constant_s: .nan}"),
               HasSubstr("estimator.unseen_accel_time_constant_s"));
   EXPECT_THAT(error("{unseen_accel_sigma_mps2: -0.1}"),

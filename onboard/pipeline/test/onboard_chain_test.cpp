@@ -476,7 +476,8 @@ TEST(LoadOnboardConfig, ReadsTheDefaultFileIntoEveryComponent) {
   EXPECT_DOUBLE_EQ(config.obstacles.support_influence_m, 0.3);
   EXPECT_DOUBLE_EQ(config.estimator.one_euro_position.beta, 2.0);
   EXPECT_DOUBLE_EQ(config.estimator.inertial_coast_s, 2.0);
-  EXPECT_DOUBLE_EQ(config.estimator.max_imu_disagreement_mps, 1.0);
+  EXPECT_DOUBLE_EQ(config.estimator.max_imu_disagreement_mps, 0.5);
+  EXPECT_DOUBLE_EQ(config.estimator.imu_disagreement_growth_mps2, 0.3);
   EXPECT_DOUBLE_EQ(config.control.kp_xy_per_s, 3.0);
   EXPECT_DOUBLE_EQ(config.modes.teleop_timeout_s, 0.5);
   EXPECT_TRUE(config.modes.start_landed);

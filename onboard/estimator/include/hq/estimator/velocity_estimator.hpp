@@ -34,10 +34,15 @@ struct VelocityEstimatorConfig {
   /// ground) with the accelerometer for at most this long; an MPU-class bias of 0.05 m/s^2
   /// grows to 0.1 m/s in 2 s. 0 disables the coast.
   double inertial_coast_s = 2.0;
-  /// An odometry velocity further than this from the IMU-propagated one is rejected (a wrong
-  /// match near the sensor's range limits, not a manoeuvre: 1 m/s of disagreement takes 0.5 s
-  /// at the tilt limit to build up from IMU error alone).
-  double max_imu_disagreement_mps = 1.0;
+  /// An odometry velocity further than this from the IMU-propagated one at the coast's anchor
+  /// (the last accepted frame, or rest) is rejected: a wrong match, not a manoeuvre, which the
+  /// accelerometer sees. The gate widens by imu_disagreement_growth_mps2 per second since the
+  /// anchor, as the coast's own error may, and stays shut after the coast has ended: a vehicle
+  /// lost for a second must not take the first velocity it is offered. Tighter than this
+  /// rejects good frames: eq. 2's velocity still lags after a warm-up (README "The gate").
+  double max_imu_disagreement_mps = 0.5;
+  /// How fast the coast's velocity may go wrong: three times unseen_accel_sigma_mps2 (0.1).
+  double imu_disagreement_growth_mps2 = 0.3;
   /// The acceleration the accelerometer does not see (its bias, and the tilt error the
   /// complementary filter makes of it: a vehicle held "level" on a biased accelerometer
   /// accelerates while the IMU reads nothing) is learnt while the odometry tracks, from how far
@@ -60,7 +65,8 @@ struct VelocityEstimatorConfig {
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
 /// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps,
-/// unseen_accel_time_constant_s, unseen_accel_sigma_mps2, coast_max_velocity_error_mps}.
+/// imu_disagreement_growth_mps2, unseen_accel_time_constant_s, unseen_accel_sigma_mps2,
+/// coast_max_velocity_error_mps}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
 /// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from
@@ -117,6 +123,8 @@ class VelocityEstimator {
   /// How long a coast may last now: inertial_coast_s, shortened while the accelerometer's
   /// unseen acceleration is not yet learnt (unseen_accel_sigma_mps2).
   [[nodiscard]] double coast_horizon_s() const;
+  /// How far an odometry velocity may be from the coast's now and be accepted.
+  [[nodiscard]] double imu_gate_mps(std::int64_t t_ns) const;
   void reset();
 
  private:
