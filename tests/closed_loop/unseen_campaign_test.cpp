@@ -154,10 +154,12 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
         if (!f.frame) continue;
         std::printf(
             "  t %.2f ok %d sh %d clr %.2f p %.2f %.2f vtrue %.2f %.2f vest %.2f %.2f "
-            "v* %.2f %.2f vobs %.2f %.2f\n",
+            "v* %.2f %.2f vobs %.2f %.2f tilt err deg %.2f %.2f\n",
             f.t_s, f.estimate_ok, f.safe_hover, f.clearance_m, f.p_N_m.x(), f.p_N_m.y(),
             f.v_true_mps.x(), f.v_true_mps.y(), f.v_est_mps.x(), f.v_est_mps.y(),
-            f.v_star_des_mps.x(), f.v_star_des_mps.y(), f.v_obs_mps.x(), f.v_obs_mps.y());
+            f.v_star_des_mps.x(), f.v_star_des_mps.y(), f.v_obs_mps.x(), f.v_obs_mps.y(),
+            (f.roll_pitch_est_rad.x() - f.roll_pitch_true_rad.x()) * 180.0 / M_PI,
+            (f.roll_pitch_est_rad.y() - f.roll_pitch_true_rad.y()) * 180.0 / M_PI);
       }
     }
   }

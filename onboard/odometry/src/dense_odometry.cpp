@@ -380,11 +380,21 @@ struct DenseOdometry::Impl {
       level_camera[l] = camera.at_level(l);
       const int w = level_camera[l].width;
       const int h = level_camera[l].height;
-      if (config.depth_jacobian_from_normals && l >= finest) normal_map[l].create(h, w, CV_32FC3);
-      if (l == finest) turned_depth.create(h, w, CV_32FC1);
+      // Each image is written once here: its pages are then mapped before the first frame,
+      // not faulted in one by one during the first frames' tracking.
+      if (config.depth_jacobian_from_normals && l >= finest) {
+        normal_map[l].create(h, w, CV_32FC3);
+        normal_map[l] = cv::Scalar::all(0.0);
+      }
+      if (l == finest) {
+        turned_depth.create(h, w, CV_32FC1);
+        turned_depth = 0.0f;
+      }
       for (auto& slot : slots) {
         slot.intensity[l].create(h, w, CV_32FC1);
+        slot.intensity[l] = 0.0f;
         slot.depth_m[l].create(h, w, CV_32FC1);
+        slot.depth_m[l] = 0.0f;
       }
       if (l >= finest) {
         reference_sets[kReferenceSet][l].reserve(w * h);
