@@ -1,8 +1,8 @@
 #include "hq/sim/rgbd_renderer.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/target_clones.hpp"
 
-#include "target_clones.hpp"
 #include <opencv2/aruco.hpp>
 
 #include <algorithm>
@@ -745,8 +745,8 @@ int markers_near_run(const SceneTables& sc, const Surface& surface, const float*
 /// depth, 1: image): shade_pixel()'s hash per pixel. Built also for AVX-512 (a native 64-bit
 /// multiply) and AVX2, picked at load time; integer work but for the last scaling, which
 /// -ffp-contract=off keeps from fusing.
-HQ_SIM_CLONES_AVX512 void noise_draws(std::uint64_t frame_key, std::uint64_t first,
-                                      std::uint64_t odd, int n, float* draw) {
+HQ_CLONES_AVX512 void noise_draws(std::uint64_t frame_key, std::uint64_t first, std::uint64_t odd,
+                                  int n, float* draw) {
 #pragma omp simd
   for (int u = 0; u < n; ++u) {
     const std::uint64_t pixel = first + static_cast<std::uint64_t>(u);

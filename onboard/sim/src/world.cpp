@@ -1,9 +1,9 @@
 #include "hq/sim/world.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/target_clones.hpp"
 #include "hq/config/strict_yaml.hpp"
 
-#include "target_clones.hpp"
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -99,8 +99,8 @@ template <Texture::Kind kKind>
 
 // Also built for AVX2 (8 lanes, a native 32-bit multiply for the hash) and picked at load time
 // where the CPU has it. No FMA: the avx2 target does not enable it, so values are unchanged.
-HQ_SIM_CLONES_AVX2 void Texture::albedo_span(const float* s_m, const float* t_m, int n, float* b,
-                                             float* g, float* r) const {
+HQ_CLONES_AVX2 void Texture::albedo_span(const float* s_m, const float* t_m, int n, float* b,
+                                         float* g, float* r) const {
   switch (kind) {
     case Kind::kChecker:
       albedo_loop<Kind::kChecker>(*this, s_m, t_m, n, b, g, r);
