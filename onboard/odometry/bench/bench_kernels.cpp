@@ -2,7 +2,11 @@
 // 320x240 level's worth of points (76800): the warp + intensity sample, the depth residual
 // with its Jacobian (whole, and split as the odometry runs it: the gather, then the rows formed
 // inside their accumulation), the one-pass normal-equation accumulation, and the depth map
-// turned to the colour's exposure beside a plain copy of it. Built, not run by ctest.
+// turned to the colour's exposure beside a plain copy of it. Built, not run by ctest. The
+// benchmarks are multi-versioned as the odometry's functions that inline these kernels are, so
+// they time the build the odometry runs on this machine.
+#include "hq/base/target_clones.hpp"
+
 #include "kernels.hpp"
 #include "pyramid.hpp"
 #include <Eigen/Geometry>
@@ -58,7 +62,7 @@ const Scene& scene() {
   return s;
 }
 
-void BM_WarpAndSampleIntensity(benchmark::State& state) {
+HQ_CLONES_X86_64_V3 void BM_WarpAndSampleIntensity(benchmark::State& state) {
   const Scene& s = scene();
   std::vector<float> residual(kPoints);
   for (auto _ : state) {
@@ -77,7 +81,7 @@ void BM_WarpAndSampleIntensity(benchmark::State& state) {
 }
 BENCHMARK(BM_WarpAndSampleIntensity);
 
-void BM_DepthResidualAndJacobian(benchmark::State& state) {
+HQ_CLONES_X86_64_V3 void BM_DepthResidualAndJacobian(benchmark::State& state) {
   const Scene& s = scene();
   std::vector<float> residual(kPoints);
   std::vector<float> jacobian(6 * kPoints);
@@ -96,7 +100,7 @@ BENCHMARK(BM_DepthResidualAndJacobian);
 // The gather half of the depth residual as DenseOdometry runs it: residual and d r / d q only,
 // d r / d q from the current depth's gradient (arg 0) or from the reference normal, rotated
 // into the current camera (arg 1, depth_jacobian_from_normals).
-void BM_DepthSample(benchmark::State& state) {
+HQ_CLONES_X86_64_V3 void BM_DepthSample(benchmark::State& state) {
   const Scene& s = scene();
   const bool from_normals = state.range(0) != 0;
   const auto cos_75 = static_cast<float>(std::cos(75.0 * M_PI / 180.0));
@@ -133,7 +137,7 @@ void BM_DepthSample(benchmark::State& state) {
 BENCHMARK(BM_DepthSample)->Arg(0)->Arg(1);
 
 // The whitened depth rows formed inside their accumulation (the other half of the depth term).
-void BM_AccumulateDepthRows(benchmark::State& state) {
+HQ_CLONES_X86_64_V3 void BM_AccumulateDepthRows(benchmark::State& state) {
   const Scene& s = scene();
   DepthRows rows;
   for (int k = 0; k < 3; ++k) rows.d_rz_d_q[k] = s.J[k].data();
@@ -155,7 +159,7 @@ void BM_AccumulateDepthRows(benchmark::State& state) {
 }
 BENCHMARK(BM_AccumulateDepthRows);
 
-void BM_AccumulateRows(benchmark::State& state) {
+HQ_CLONES_X86_64_V3 void BM_AccumulateRows(benchmark::State& state) {
   const Scene& s = scene();
   const float* J[6] = {s.J[0].data(), s.J[1].data(), s.J[2].data(),
                        s.J[3].data(), s.J[4].data(), s.J[5].data()};
@@ -198,6 +202,20 @@ void BM_SanitizeDepth(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kPoints);
 }
 BENCHMARK(BM_SanitizeDepth);
+
+// One pyramid level down from the 320x240 depth (items: the source's pixels, as the
+// sanitising copy above counts them).
+void BM_DownsampleDepth(benchmark::State& state) {
+  const Scene& s = scene();
+  const cv::Mat src(kHeight, kWidth, CV_32FC1, const_cast<float*>(s.depth.data()));
+  cv::Mat dst(kHeight / 2, kWidth / 2, CV_32FC1);
+  for (auto _ : state) {
+    downsample_depth(src, dst, 0.05f);
+    benchmark::DoNotOptimize(dst.data);
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+BENCHMARK(BM_DownsampleDepth);
 
 }  // namespace
 

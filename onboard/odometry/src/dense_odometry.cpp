@@ -1,5 +1,6 @@
 #include "hq/odometry/dense_odometry.hpp"
 
+#include "hq/base/target_clones.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/geometry/lie.hpp"
 
@@ -409,16 +410,22 @@ struct DenseOdometry::Impl {
     for (auto& j : depth_jacobian) j.assign(capacity, 0.0f);
   }
 
-  void build_pyramid(FrameSlot& slot, const cv::Mat& gray, const cv::Mat& depth_m) {
+  // A depth that align_depth will turn is built only down to the finest level used: the
+  // coarser levels are rebuilt from the turned one there.
+  void build_pyramid(FrameSlot& slot, const cv::Mat& gray, const cv::Mat& depth_m,
+                     bool depth_to_be_turned) {
     const auto min_depth = static_cast<float>(config.min_depth_m);
     const auto max_depth = static_cast<float>(config.max_depth_m);
     detail::sanitize_depth(depth_m, slot.depth_m[0], min_depth, max_depth);
     if (finest == 0) gray.convertTo(slot.intensity[0], CV_32F);
+    const int depth_levels_built = depth_to_be_turned ? finest + 1 : levels;
     for (int l = 1; l < levels; ++l) {
       // Level 1 straight from the 8-bit input: one pass instead of convert-then-average.
       const cv::Mat& src = (l == 1) ? gray : slot.intensity[l - 1];
       detail::downsample_intensity(src, slot.intensity[l]);
-      detail::downsample_depth(slot.depth_m[l - 1], slot.depth_m[l], kDepthEdgeSpreadRatio);
+      if (l < depth_levels_built) {
+        detail::downsample_depth(slot.depth_m[l - 1], slot.depth_m[l], kDepthEdgeSpreadRatio);
+      }
     }
   }
 
@@ -447,6 +454,7 @@ struct DenseOdometry::Impl {
 
   // Selects pixels with depth and gradient, and precomputes their points and Jacobians: done
   // once per reference, not per iteration (the inverse compositional trick).
+  HQ_CLONES_X86_64_V3
   void prepare_reference(const FrameSlot& slot, int set) {
     const auto min_gradient_sq = static_cast<float>(config.min_gradient * config.min_gradient);
     const auto spread = static_cast<float>(config.depth_max_spread_ratio);
@@ -592,6 +600,7 @@ struct DenseOdometry::Impl {
 
   // Warps every reference point with T_cur_ref, samples the current image (and, with the depth
   // term, the current depth), stores residuals and masks; points that leave the image get mask 0.
+  HQ_CLONES_X86_64_V3
   Counts compute_residuals(int level, const FrameSlot& current, const Eigen::Isometry3d& T_cur_ref,
                            float brightness_offset) {
     const geometry::PinholeCamera& cam = level_camera[level];
@@ -693,6 +702,7 @@ struct DenseOdometry::Impl {
   }
 
   // Student-t scale by fixed-point iteration (Kerl 2013, eq. 12) over the points with mask 1.
+  HQ_CLONES_X86_64_V3
   double estimate_variance(int count, int valid, double initial_variance) const {
     const auto nu = static_cast<float>(config.student_t_dof);
     const float* r = residual.data();
@@ -718,6 +728,7 @@ struct DenseOdometry::Impl {
   // (Kerl IROS 2013, eq. 13): Sigma = 1/n sum w r r^T, w = (nu + 2) / (nu + r^T Sigma^-1 r).
   // Points with only one residual (no gradient, or no current depth) use that residual's
   // marginal, a univariate t with the matching diagonal entry.
+  HQ_CLONES_X86_64_V3
   void estimate_scale_matrix(int count) {
     const auto nu = static_cast<float>(config.student_t_dof);
     const float* ri = residual.data();
@@ -762,6 +773,7 @@ struct DenseOdometry::Impl {
   }
 
   // Normal equations of the intensity residuals alone: Student-t weights then one pass.
+  HQ_CLONES_X86_64_V3
   double accumulate(int level, int count, double variance, NormalEquations& out) {
     const auto nu = static_cast<float>(config.student_t_dof);
     const auto inv_var = static_cast<float>(1.0 / variance);
@@ -785,6 +797,7 @@ struct DenseOdometry::Impl {
   // they are and keeps their precomputed Jacobians, and e2 = u12 r_I + u22 r_Z, whose Jacobian
   // is formed inside its accumulation (detail::accumulate_depth_rows). Returns sum w r^T Sigma^-1 r
   // x Sigma_II (intensity units^2, comparable across iterations as the intensity-only error).
+  HQ_CLONES_X86_64_V3
   double accumulate_with_depth(int level, int count, NormalEquations& out) {
     const auto nu = static_cast<float>(config.student_t_dof);
     const double det = sigma_ii * sigma_zz - sigma_iz * sigma_iz;
@@ -1408,8 +1421,9 @@ struct DenseOdometry::Impl {
     int current_slot = 0;
     while (current_slot == reference_slot || current_slot == previous_slot) ++current_slot;
     FrameSlot& current = slots[current_slot];
-    build_pyramid(current, gray, depth_m);
-    if (should_align_depth(prior)) align_depth(current, prior->R_depth_colour);
+    const bool turn_depth = should_align_depth(prior);
+    build_pyramid(current, gray, depth_m, turn_depth);
+    if (turn_depth) align_depth(current, prior->R_depth_colour);
     const double step_s =
         last_frame_t_ns >= 0 ? 1e-9 * static_cast<double>(t_ns - last_frame_t_ns) : 0.0;
     last_frame_t_ns = t_ns;

@@ -212,9 +212,11 @@ inline constexpr int kAccumulationBlock = 256;
 
 /// Accumulates the rows form_row(i), i < count, with weights w[i] into `out` in one pass; 36
 /// independent sums let the compiler vectorise across rows once form_row is inlined, so a row
-/// formed from stored arrays is never stored itself.
+/// formed from stored arrays is never stored itself. Always inlined, so it is built for the
+/// target of the (multi-versioned, hq/base/target_clones.hpp) function that accumulates.
 template <class FormRow>
-void accumulate_formed_rows(const float* w_in, int count, RowSums& out, FormRow form_row) {
+[[gnu::always_inline]] inline void accumulate_formed_rows(const float* w_in, int count,
+                                                          RowSums& out, FormRow form_row) {
   for (int start = 0; start < count; start += kAccumulationBlock) {
     const int end = std::min(count, start + kAccumulationBlock);
     float h00 = 0, h01 = 0, h02 = 0, h03 = 0, h04 = 0, h05 = 0, h11 = 0, h12 = 0, h13 = 0, h14 = 0,
@@ -285,8 +287,10 @@ void accumulate_formed_rows(const float* w_in, int count, RowSums& out, FormRow 
 
 /// Accumulates `count` stored rows J[k][i], r[i] with weights w[i] into `out` in one pass. The
 /// brightness offset's Jacobian is offset_jacobian[i], or 1 for every row when it is null.
-inline void accumulate_rows(const float* const* J, const float* r, const float* w, int count,
-                            RowSums& out, const float* offset_jacobian = nullptr) {
+/// Always inlined, as accumulate_formed_rows.
+[[gnu::always_inline]] inline void accumulate_rows(const float* const* J, const float* r,
+                                                   const float* w, int count, RowSums& out,
+                                                   const float* offset_jacobian = nullptr) {
   const float *j0 = J[0], *j1 = J[1], *j2 = J[2], *j3 = J[3], *j4 = J[4], *j5 = J[5];
   if (offset_jacobian != nullptr) {
     accumulate_formed_rows(w, count, out, [=](int i) {
@@ -313,7 +317,8 @@ struct DepthRows {
   Warp T{};                   ///< T_cur_ref of the residuals
 };
 
-inline void accumulate_depth_rows(const DepthRows& d, const float* w, int count, RowSums& out) {
+[[gnu::always_inline]] inline void accumulate_depth_rows(const DepthRows& d, const float* w,
+                                                         int count, RowSums& out) {
   const float* qx = d.d_rz_d_q[0];
   const float* qy = d.d_rz_d_q[1];
   const float* qz = d.d_rz_d_q[2];

@@ -1,13 +1,16 @@
 #include "pyramid.hpp"
 
+#include "hq/base/target_clones.hpp"
+
 #include <algorithm>
 #include <cmath>
 
 namespace hq::odometry::detail {
 
 namespace {
+// Always inlined into the multi-versioned downsample_intensity, so built for its target.
 template <typename T>
-void downsample_mean(const cv::Mat& src, cv::Mat& dst) {
+[[gnu::always_inline]] inline void downsample_mean(const cv::Mat& src, cv::Mat& dst) {
   for (int y = 0; y < dst.rows; ++y) {
     const T* row0 = src.ptr<T>(2 * y);
     const T* row1 = src.ptr<T>(2 * y + 1);
@@ -21,7 +24,7 @@ void downsample_mean(const cv::Mat& src, cv::Mat& dst) {
 }
 }  // namespace
 
-void downsample_intensity(const cv::Mat& src, cv::Mat& dst) {
+HQ_CLONES_X86_64_V3 void downsample_intensity(const cv::Mat& src, cv::Mat& dst) {
   if (src.type() == CV_8UC1) {
     downsample_mean<unsigned char>(src, dst);
   } else {
@@ -29,39 +32,40 @@ void downsample_intensity(const cv::Mat& src, cv::Mat& dst) {
   }
 }
 
-void downsample_depth(const cv::Mat& src, cv::Mat& dst, float max_spread_ratio) {
+HQ_CLONES_X86_64_V3 void downsample_depth(const cv::Mat& src, cv::Mat& dst,
+                                          float max_spread_ratio) {
   for (int y = 0; y < dst.rows; ++y) {
     const float* row0 = src.ptr<float>(2 * y);
     const float* row1 = src.ptr<float>(2 * y + 1);
     float* out = dst.ptr<float>(y);
+    // Branch-free (selects, not ifs), so the row vectorises; an invalid depth adds 0 to the
+    // sum, counts 0 and is never the nearest.
+#pragma omp simd
     for (int x = 0; x < dst.cols; ++x) {
       const int x2 = 2 * x;
-      const float d[4] = {row0[x2], row0[x2 + 1], row1[x2], row1[x2 + 1]};
-      float sum = 0.0f;
-      float nearest = 1e30f;
-      float farthest = 0.0f;
-      int count = 0;
-      for (float v : d) {
-        if (v > 0.0f) {
-          sum += v;
-          nearest = std::min(nearest, v);
-          farthest = std::max(farthest, v);
-          ++count;
-        }
-      }
-      if (count == 0) {
-        out[x] = 0.0f;
-      } else if (farthest - nearest > max_spread_ratio * nearest) {
-        out[x] = nearest;
-      } else {
-        out[x] = sum / static_cast<float>(count);
-      }
+      const float d0 = row0[x2], d1 = row0[x2 + 1], d2 = row1[x2], d3 = row1[x2 + 1];
+      const float v0 = d0 > 0.0f ? d0 : 0.0f, v1 = d1 > 0.0f ? d1 : 0.0f;
+      const float v2 = d2 > 0.0f ? d2 : 0.0f, v3 = d3 > 0.0f ? d3 : 0.0f;
+      const float count = (d0 > 0.0f ? 1.0f : 0.0f) + (d1 > 0.0f ? 1.0f : 0.0f) +
+                          (d2 > 0.0f ? 1.0f : 0.0f) + (d3 > 0.0f ? 1.0f : 0.0f);
+      const float sum = ((v0 + v1) + v2) + v3;
+      constexpr float kNone = 1e30f;
+      const float n0 = d0 > 0.0f ? d0 : kNone, n1 = d1 > 0.0f ? d1 : kNone;
+      const float n2 = d2 > 0.0f ? d2 : kNone, n3 = d3 > 0.0f ? d3 : kNone;
+      const float near01 = n0 < n1 ? n0 : n1, near23 = n2 < n3 ? n2 : n3;
+      const float nearest = near01 < near23 ? near01 : near23;
+      const float far01 = v0 > v1 ? v0 : v1, far23 = v2 > v3 ? v2 : v3;
+      const float farthest = far01 > far23 ? far01 : far23;
+      const float mean = sum / (count > 0.0f ? count : 1.0f);
+      const float kept = (farthest - nearest > max_spread_ratio * nearest) ? nearest : mean;
+      out[x] = count > 0.0f ? kept : 0.0f;
     }
   }
 }
 
-void rotate_depth(const cv::Mat& src, cv::Mat& dst, float fx, float fy, float cx, float cy,
-                  const Eigen::Matrix3f& R_src_dst, float max_spread_ratio) {
+HQ_CLONES_X86_64_V3 void rotate_depth(const cv::Mat& src, cv::Mat& dst, float fx, float fy,
+                                      float cx, float cy, const Eigen::Matrix3f& R_src_dst,
+                                      float max_spread_ratio) {
   const auto max_su = static_cast<float>(src.cols - 1);
   const auto max_sv = static_cast<float>(src.rows - 1);
   // The bilinear cell's top-left corner stays one pixel inside, so its four loads are in src.
@@ -134,7 +138,8 @@ void rotate_depth(const cv::Mat& src, cv::Mat& dst, float fx, float fy, float cx
   }
 }
 
-void sanitize_depth(const cv::Mat& src, cv::Mat& dst, float min_m, float max_m) {
+HQ_CLONES_X86_64_V3 void sanitize_depth(const cv::Mat& src, cv::Mat& dst, float min_m,
+                                        float max_m) {
   for (int y = 0; y < src.rows; ++y) {
     const float* in = src.ptr<float>(y);
     float* out = dst.ptr<float>(y);

@@ -246,6 +246,37 @@ TEST(RotateDepth, OcclusionEdgeGetsNoSurfaceInBetweenAndNoDepthStaysNone) {
   EXPECT_EQ(dst.at<float>(12, 12), 0.0f);
 }
 
+// Each 2x2 block, every case the pyramid meets: all valid, some missing, none, and an
+// occlusion edge, where the nearest surface is kept instead of a depth floating between.
+TEST(DownsampleDepth, BlockMeanOfValidDepthsNearestAcrossAnEdgeNoneWhenEmpty) {
+  cv::Mat src(4, 10, CV_32FC1);
+  const float blocks[5][4] = {{1.0f, 1.02f, 0.98f, 1.0f},  // one surface: the mean
+                              {2.0f, 0.0f, 2.04f, 0.0f},   // half missing: the valid ones' mean
+                              {0.0f, 0.0f, 0.0f, 0.0f},    // none: no depth
+                              {3.0f, 1.0f, 3.0f, 3.0f},    // an edge: the nearest
+                              {0.0f, 4.0f, 0.0f, 0.0f}};   // one left: itself
+  for (int b = 0; b < 5; ++b) {
+    src.at<float>(0, 2 * b) = blocks[b][0];
+    src.at<float>(0, 2 * b + 1) = blocks[b][1];
+    src.at<float>(1, 2 * b) = blocks[b][2];
+    src.at<float>(1, 2 * b + 1) = blocks[b][3];
+  }
+  src.row(0).copyTo(src.row(2));
+  src.row(1).copyTo(src.row(3));
+  cv::Mat dst(2, 5, CV_32FC1, cv::Scalar(-1.0f));
+  downsample_depth(src, dst, 0.05f);
+  for (int y = 0; y < 2; ++y) {
+    EXPECT_FLOAT_EQ(dst.at<float>(y, 0), 1.0f);
+    EXPECT_FLOAT_EQ(dst.at<float>(y, 1), 2.02f);
+    EXPECT_EQ(dst.at<float>(y, 2), 0.0f);
+    EXPECT_EQ(dst.at<float>(y, 3), 1.0f);
+    EXPECT_EQ(dst.at<float>(y, 4), 4.0f);
+  }
+  // Within the spread the far pixels are averaged in: a wider ratio is a mean again.
+  downsample_depth(src, dst, 5.0f);
+  EXPECT_FLOAT_EQ(dst.at<float>(0, 3), 2.5f);
+}
+
 // I_ref smooth enough that central differences are its exact gradient at the pixel.
 double intensity(double u, double v) { return 100.0 + 2.0 * u - 1.5 * v; }
 
