@@ -34,6 +34,7 @@ void ComplementaryFilter::reset() {
   velocity_aided_ = false;
   R_ned_body_.setIdentity();
   bias_radps_.setZero();
+  vision_bias_radps_.setZero();
 }
 
 void ComplementaryFilter::initialize(const Eigen::Vector3d& accel_mps2) {
@@ -76,7 +77,8 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
     const Eigen::Vector3d v_hat = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
     omega_mes = v.cross(v_hat);
   }
-  const Eigen::Vector3d omega_rad = (gyro_radps - bias_radps_ + config_.k_p * omega_mes) * dt_s;
+  const Eigen::Vector3d omega_rad =
+      (gyro_radps - bias_radps_ - vision_bias_radps_ + config_.k_p * omega_mes) * dt_s;
   R_ned_body_ = geometry::orthonormalize(R_ned_body_ * geometry::exp_so3(omega_rad));
   bias_radps_ -= config_.k_i * omega_mes * dt_s;
   bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
@@ -105,6 +107,12 @@ bool ComplementaryFilter::level_on_velocity(std::int64_t t_ns,
   velocity_aided_ = true;
   t_velocity_aided_ns_ = t_ns;
   return true;
+}
+
+void ComplementaryFilter::set_vision_gyro_bias(const Eigen::Vector3d& bias_radps) {
+  if (!bias_radps.allFinite()) return;
+  vision_bias_radps_ =
+      bias_radps.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
 }
 
 Eigen::Matrix3d ComplementaryFilter::R_N_B() const {

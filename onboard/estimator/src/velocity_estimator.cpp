@@ -49,6 +49,7 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read("unseen_accel_time_constant_s", out.unseen_accel_time_constant_s, 0.0, 600.0);
   section.read("unseen_accel_sigma_mps2", out.unseen_accel_sigma_mps2, 0.0, 10.0);
   section.read_positive("coast_max_velocity_error_mps", out.coast_max_velocity_error_mps, 10.0);
+  section.read("gyro_bias_from_odometry", out.gyro_bias_from_odometry);
   section.finish();
 }
 
@@ -297,6 +298,11 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.unavailable_for_s = 0.0;
   ever_ok_ = true;
   t_last_ok_ns_ = t_ns;
+  // The odometry's bias is the rest after the levelling's (OnboardChain removes that one from
+  // the gyro it gives the odometry); taken from accepted frames only.
+  if (config_.gyro_bias_from_odometry) {
+    attitude_.set_vision_gyro_bias(R_B_C_ * odometry.gyro_bias_radps);
+  }
   const Eigen::Vector3d v_H_raw = R_horizontal_body(roll_rad, pitch_rad) * v_B_raw;
   level_on_velocity(t_ns, v_H_raw);
   learn_unseen_accel(t_ns, v_H_raw);

@@ -634,13 +634,47 @@ TEST(VelocityEstimator, OdometryReturningAfterTheCoastHasEndedIsCheckedAgainstTh
   EXPECT_FALSE(estimate_after_a_loss(fixed, 5.0, 1.8).ok());
 }
 
+// The attitude's whole gyro bias less what its levelling learnt, after 2 s of frames that
+// carry the odometry's bias estimate b_C (camera axes), with valid_ratio each.
+Eigen::Vector3d vision_bias_in_the_attitude(const VelocityEstimatorConfig& config,
+                                            const Eigen::Vector3d& b_C, double valid_ratio) {
+  const Motion motion;  // the camera 45 deg right and 30 deg down: its axes are not B's
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
+  for (int k = 0; k <= static_cast<int>(2e9 / kImuNs); ++k) {
+    const std::int64_t t_ns = k * kImuNs;
+    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
+    if (k % kImuPerFrame != 0) continue;
+    odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
+    odometry.gyro_bias_radps = b_C;
+    odometry.valid_ratio = valid_ratio;
+    estimator.update(t_ns, odometry);
+  }
+  return estimator.attitude().gyro_bias_radps() - estimator.attitude().levelling_gyro_bias_radps();
+}
+
+TEST(VelocityEstimator, OdometrysGyroBiasReachesTheAttitudeInBodyAxes) {
+  const Eigen::Vector3d b_C(0.004, -0.006, 0.01);
+  const Motion motion;
+  // Accepted frames hand it over, turned from the camera's axes into the body's.
+  EXPECT_TRUE(vision_bias_in_the_attitude(VelocityEstimatorConfig{}, b_C, 0.4)
+                  .isApprox(motion.R_B_C * b_C, 1e-9));
+  // Rejected frames (too little of the image in use) do not.
+  EXPECT_TRUE(vision_bias_in_the_attitude(VelocityEstimatorConfig{}, b_C, 0.01).isZero());
+  // Nor does anything when it is turned off.
+  VelocityEstimatorConfig off;
+  off.gyro_bias_from_odometry = false;
+  EXPECT_TRUE(vision_bias_in_the_attitude(off, b_C, 0.4).isZero());
+}
+
 TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   VelocityEstimatorConfig config;
   config::StrictMap section(YAML::Load("{inertial_coast_s: 1.5, max_imu_disagreement_mps: 2,"
                                        " imu_disagreement_growth_mps2: 0.5,"
                                        " unseen_accel_time_constant_s: 0,"
                                        " unseen_accel_sigma_mps2: 0.2,"
-                                       " coast_max_velocity_error_mps: 0.3}"),
+                                       " coast_max_velocity_error_mps: 0.3,"
+                                       " gyro_bias_from_odometry: false}"),
                             "config/onboard.yaml", "estimator");
   read_config(section, config);
   EXPECT_EQ(config.inertial_coast_s, 1.5);
@@ -649,6 +683,7 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   EXPECT_EQ(config.unseen_accel_time_constant_s, 0.0);
   EXPECT_EQ(config.unseen_accel_sigma_mps2, 0.2);
   EXPECT_EQ(config.coast_max_velocity_error_mps, 0.3);
+  EXPECT_FALSE(config.gyro_bias_from_odometry);
   const auto error = [](const char* yaml) {
     config::StrictMap bad(YAML::Load(yaml), "config/onboard.yaml", "estimator");
     VelocityEstimatorConfig out;
@@ -669,6 +704,8 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
               HasSubstr("estimator.unseen_accel_sigma_mps2 = -0.1, expected in [0, 10]"));
   EXPECT_THAT(error("{coast_max_velocity_error_mps: 0}"),
               HasSubstr("estimator.coast_max_velocity_error_mps = 0, expected > 0"));
+  EXPECT_THAT(error("{gyro_bias_from_odometry: 3}"),
+              HasSubstr("estimator.gyro_bias_from_odometry"));
 }
 
 }  // namespace

@@ -106,7 +106,8 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
     // The body's rotation since the last frame, bias removed: R_Bprev_Bcur.
     if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {
       const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_last_imu_ns_), 0.1);
-      const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().gyro_bias_radps();
+      // Less the levelling's bias only: the rest is what the odometry itself estimates.
+      const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().levelling_gyro_bias_radps();
       R_prev_cur_body_ = R_prev_cur_body_ * geometry::exp_so3(omega * dt_s);
       gyro_since_frame_ = true;
       if (omega.allFinite()) omega_body_radps_ = omega;

@@ -77,7 +77,17 @@ class ComplementaryFilter {
   [[nodiscard]] Eigen::Matrix3d R_N_B() const;
   [[nodiscard]] double roll_rad() const;
   [[nodiscard]] double pitch_rad() const;
-  [[nodiscard]] const Eigen::Vector3d& gyro_bias_radps() const { return bias_radps_; }
+  /// The gyro residual bias the vision measured beyond this filter's own estimate (the
+  /// odometry's, turned into B): added to it from now on. Non-finite input is ignored; bounded
+  /// per axis by max_bias_radps. The accelerometer (k_i) cannot see a yaw bias and learns a tilt
+  /// one slowly, and while the velocity aids the levelling it is paused: a coast then drifts
+  /// at whatever bias is left (about 0.8 deg/s in the unseen-space campaign).
+  void set_vision_gyro_bias(const Eigen::Vector3d& bias_radps);
+  /// The whole gyro bias estimate: what the levelling learnt plus what the vision measured.
+  [[nodiscard]] Eigen::Vector3d gyro_bias_radps() const { return bias_radps_ + vision_bias_radps_; }
+  /// The bias the levelling (accelerometer, velocity) learnt alone: the odometry's gyro prior is
+  /// corrected by this one, so that what the odometry estimates is the rest.
+  [[nodiscard]] const Eigen::Vector3d& levelling_gyro_bias_radps() const { return bias_radps_; }
   [[nodiscard]] bool initialized() const { return initialized_; }
   [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
   void reset();
@@ -88,6 +98,7 @@ class ComplementaryFilter {
   ComplementaryConfig config_;
   Eigen::Matrix3d R_ned_body_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d bias_radps_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d vision_bias_radps_ = Eigen::Vector3d::Zero();
   bool initialized_ = false;
   std::int64_t t_ns_ = 0;
   bool velocity_aided_ = false;

@@ -60,13 +60,17 @@ struct VelocityEstimatorConfig {
   /// from the unlearnt acceleration reaches this: a coast one tracked frame after a start is
   /// 1 s, not inertial_coast_s, because nothing has checked the accelerometer yet.
   double coast_max_velocity_error_mps = 0.1;
+  /// Each accepted frame hands the odometry's estimate of the gyro's residual bias (from the
+  /// vision's rotation against the gyro's, odometry.estimate_gyro_bias) to the attitude filter
+  /// (ComplementaryFilter::set_vision_gyro_bias), so a coast's attitude does not drift at it.
+  bool gyro_bias_from_odometry = true;
 };
 
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
 /// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps,
 /// imu_disagreement_growth_mps2, unseen_accel_time_constant_s, unseen_accel_sigma_mps2,
-/// coast_max_velocity_error_mps}.
+/// coast_max_velocity_error_mps, gyro_bias_from_odometry}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
 /// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from

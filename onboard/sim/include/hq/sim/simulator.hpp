@@ -99,6 +99,8 @@ class Simulator {
   [[nodiscard]] const SimConfig& config() const { return config_; }
   [[nodiscard]] const World& world() const { return world_; }
   [[nodiscard]] const Quadrotor& vehicle() const { return vehicle_; }
+  /// The IMU model, whose biases are truth the estimators' can be checked against.
+  [[nodiscard]] const ImuModel& imu() const { return imu_; }
 
  private:
   void physics_step();
