@@ -37,7 +37,8 @@ struct ChainConfig {
   /// sensor's minimum range: the obstacle field's near-range hazard and floor push are off.
   double takeoff_height_m = 0.5;
   /// Gives the odometry the gyro's rotation between frames (bias from the complementary
-  /// filter) as its initial guess and a prior on the rotation (odometry.use_rotation_prior).
+  /// filter's levelling; the odometry estimates the rest) as its initial guess and a prior on
+  /// the rotation (odometry.use_rotation_prior).
   bool gyro_rotation_prior = true;
   /// Per-axis rate error of that rotation other than a bias: white noise, the camera-IMU time
   /// offset and the gyro low-pass filter's lag (under fast yaw these dominate: measured through
