@@ -206,6 +206,18 @@ void VelocityEstimator::reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_C
   t_seed_ns_ = t_ns;
 }
 
+const char* VelocityEstimator::unusable_odometry(const odometry::OdometryResult& odometry) const {
+  if (!odometry.ok()) return "odometry lost";
+  if (odometry.valid_ratio < config_.min_valid_ratio) {
+    return "odometry valid_ratio below min_valid_ratio";
+  }
+  if (!(odometry.mean_weighted_error <= config_.max_mean_error)) {
+    return "odometry mean_weighted_error above max_mean_error";
+  }
+  if (!odometry.T_O_C.matrix().allFinite()) return "odometry pose not finite";
+  return nullptr;
+}
+
 VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
                                            const odometry::OdometryResult& odometry) {
   if (!ever_updated_) {
@@ -217,21 +229,9 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     reseed(t_ns, odometry.T_O_C);
     return unavailable(t_ns, "first odometry frame");
   }
-  if (!odometry.ok()) {
+  if (const char* reason = unusable_odometry(odometry)) {
     have_previous_ = false;
-    return unavailable(t_ns, "odometry lost");
-  }
-  if (odometry.valid_ratio < config_.min_valid_ratio) {
-    have_previous_ = false;
-    return unavailable(t_ns, "odometry valid_ratio below min_valid_ratio");
-  }
-  if (!(odometry.mean_weighted_error <= config_.max_mean_error)) {
-    have_previous_ = false;
-    return unavailable(t_ns, "odometry mean_weighted_error above max_mean_error");
-  }
-  if (!odometry.T_O_C.matrix().allFinite()) {
-    have_previous_ = false;
-    return unavailable(t_ns, "odometry pose not finite");
+    return unavailable(t_ns, reason);
   }
 
   const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);

@@ -135,6 +135,9 @@ class VelocityEstimator {
   /// No odometry velocity this frame: the inertial coast if it is still within its horizon,
   /// else kUnavailable; `reason` says why odometry was not used.
   VelocityEstimate unavailable(std::int64_t t_ns, const char* reason);
+  /// Why a tracked frame's odometry cannot be used (lost, too little of the image, too large an
+  /// error, a non-finite pose), or null when it can.
+  [[nodiscard]] const char* unusable_odometry(const odometry::OdometryResult& odometry) const;
   /// from_odometry: v_H_mps is a tracked frame's (the next one's may teach the unseen
   /// acceleration), not a rest assumption.
   /// v_H_raw_mps is the same frame's unfiltered (eq. 1) velocity, which a second coast
