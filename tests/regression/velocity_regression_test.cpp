@@ -44,9 +44,12 @@ TEST(VelocityOnRecordedDepth, RawAndFilteredRmseStayWithinMeasuredBounds) {
   if (!data) GTEST_SKIP() << "no real data: " << hq::recording::data_dir_search_description();
   const std::string dir = *data + "/tum/rgbd_dataset_freiburg1_360";
   if (!std::filesystem::exists(dir)) GTEST_SKIP() << dir << " absent";
+  auto config = hq::pipeline::load_onboard_config("config/onboard.yaml");
+  // The warm-up leaves one frame, and a velocity is used only once a second frame agrees with
+  // the IMU (estimator.reacquire_frames): a safety rule, not the accuracy measured here.
+  config.estimator.reacquire_frames = 1;
   const auto replay = hq::pipeline::replay_velocity(
-      dir, hq::config::load_camera_info("calib/tum_fr1.yaml"),
-      hq::pipeline::load_onboard_config("config/onboard.yaml"),
+      dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
       hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   ASSERT_TRUE(replay.imu.synthesised) << "fr1_360 has no IMU files";
   const VelocityErrors e = hq::pipeline::evaluate_velocity(replay.samples, replay.ground_truth,

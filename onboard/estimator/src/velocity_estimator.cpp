@@ -46,6 +46,7 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
   section.read_positive("max_imu_disagreement_mps", out.max_imu_disagreement_mps, 100.0);
   section.read("imu_disagreement_growth_mps2", out.imu_disagreement_growth_mps2, 0.0, 100.0);
+  section.read("reacquire_frames", out.reacquire_frames, 1, 30);
   section.read("unseen_accel_time_constant_s", out.unseen_accel_time_constant_s, 0.0, 600.0);
   section.read("unseen_accel_sigma_mps2", out.unseen_accel_sigma_mps2, 0.0, 10.0);
   section.read_positive("coast_max_velocity_error_mps", out.coast_max_velocity_error_mps, 10.0);
@@ -67,6 +68,7 @@ void VelocityEstimator::reset() {
   gyro_low_pass_.reset();
   pose_filter_.reset();
   have_previous_ = false;
+  agreeing_frames_ = 0;
   ever_ok_ = false;
   ever_updated_ = false;
   coast_anchored_ = false;
@@ -224,6 +226,9 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     ever_updated_ = true;
     t_first_update_ns_ = t_ns;
   }
+  // Any return before the gate has passed breaks the run of agreeing frames.
+  const int agreed_before = agreeing_frames_;
+  agreeing_frames_ = 0;
   if (odometry.status == odometry::TrackingStatus::kFirstFrame) {
     // A new odometry reference: the pose chain restarts, so no velocity across it.
     reseed(t_ns, odometry.T_O_C);
@@ -287,6 +292,10 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
 
   if (coast_anchored_ && (v_H - coast_v_H_mps_).norm() > imu_gate_mps(t_ns)) {
     return unavailable(t_ns, "odometry velocity disagrees with the IMU");
+  }
+  agreeing_frames_ = std::min(agreed_before + 1, config_.reacquire_frames);
+  if (agreeing_frames_ < config_.reacquire_frames) {
+    return unavailable(t_ns, "odometry re-acquired, waiting for the next frame to agree");
   }
   estimate.status = EstimateStatus::kOk;
   estimate.reason = "";

@@ -143,10 +143,11 @@ TEST(ComplementaryFilter, MeasuredVelocityKeepsTheTiltTheAccelerometerLevelsAway
   // gyro bias, a little more)
   const double tilt_deg = std::atan2(1.5, kGravityMps2) / kDeg;
   EXPECT_GT(std::abs(accel_only_deg), tilt_deg);
-  // AND aided it keeps the true tilt
-  EXPECT_LT(std::abs(aided_deg), 0.05);
-  // AND the two levellings pull apart: k_p / (k_p + velocity_k_p), half, of the tilt is lost
-  EXPECT_NEAR(std::abs(both_deg), 0.5 * tilt_deg, 0.2);
+  // AND aided it keeps the true tilt (within 1 %: 0.053 of 8.7 deg at velocity_k_p 0.3, the
+  // rest of the first seconds' transient at its 3 s time constant)
+  EXPECT_LT(std::abs(aided_deg), 0.01 * tilt_deg);
+  // AND the two levellings pull apart: k_p / (k_p + velocity_k_p) of the tilt is lost
+  EXPECT_NEAR(std::abs(both_deg), config.k_p / (config.k_p + config.velocity_k_p) * tilt_deg, 0.2);
 }
 
 TEST(ComplementaryFilter, VelocityAidingNotATiltIsNotUsed) {

@@ -634,6 +634,49 @@ TEST(VelocityEstimator, OdometryReturningAfterTheCoastHasEndedIsCheckedAgainstTh
   EXPECT_FALSE(estimate_after_a_loss(fixed, 5.0, 1.8).ok());
 }
 
+// Hovers tracked for 1 s, loses the odometry for 0.5 s, then has it back, drifting at 0.4 m/s
+// along x (within the IMU gate) while the IMU says rest, for the pose filter's warm-up and
+// `returned_frames` frames after it, and loses it again. Whether any estimate after the first
+// loss was ok.
+bool taken_after_a_loss(const VelocityEstimatorConfig& config, int returned_frames) {
+  const Motion motion;  // level, at rest
+  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
+  constexpr double kReturnS = 1.5;
+  const double frame_s = kImuPerFrame * 1e-9 * static_cast<double>(kImuNs);
+  const double lost_again_s = kReturnS + config.warmup_s + (returned_frames - 0.5) * frame_s;
+  bool taken = false;
+  for (int k = 0; k <= static_cast<int>(2.5e9 / kImuNs); ++k) {
+    const std::int64_t t_ns = k * kImuNs;
+    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
+    if (k % kImuPerFrame != 0) continue;
+    odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
+    if (t_s > 1.0 && (t_s < kReturnS || t_s > lost_again_s)) {
+      odometry.status = odometry::TrackingStatus::kLost;
+    }
+    if (t_s >= kReturnS) odometry.T_O_C.translation().x() += 0.4 * (t_s - kReturnS);
+    const VelocityEstimate estimate = estimator.update(t_ns, odometry);
+    if (t_s > 1.0 && estimate.ok()) taken = true;
+  }
+  return taken;
+}
+
+TEST(VelocityEstimator, OneFrameBetweenLostOnesIsNotTaken) {
+  // GIVEN the default config: a frame must be followed by one more that agrees
+  const VelocityEstimatorConfig config;
+  ASSERT_EQ(config.reacquire_frames, 2);
+  // WHEN the odometry returns after a loss for one frame past its warm-up, wrong by 0.4 m/s but
+  // inside the gate, and is lost again
+  // THEN its velocity is never used: the vehicle keeps coasting on the IMU
+  EXPECT_FALSE(taken_after_a_loss(config, 1));
+  // AND when it stays, the second frame is taken
+  EXPECT_TRUE(taken_after_a_loss(config, 2));
+  // AND with reacquire_frames 1 (before) the lone frame was taken
+  VelocityEstimatorConfig first_frame;
+  first_frame.reacquire_frames = 1;
+  EXPECT_TRUE(taken_after_a_loss(first_frame, 1));
+}
+
 // The attitude's whole gyro bias less what its levelling learnt, after 2 s of frames that
 // carry the odometry's bias estimate b_C (camera axes), with valid_ratio each.
 Eigen::Vector3d vision_bias_in_the_attitude(const VelocityEstimatorConfig& config,
@@ -671,6 +714,7 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   VelocityEstimatorConfig config;
   config::StrictMap section(YAML::Load("{inertial_coast_s: 1.5, max_imu_disagreement_mps: 2,"
                                        " imu_disagreement_growth_mps2: 0.5,"
+                                       " reacquire_frames: 3,"
                                        " unseen_accel_time_constant_s: 0,"
                                        " unseen_accel_sigma_mps2: 0.2,"
                                        " coast_max_velocity_error_mps: 0.3,"
@@ -680,6 +724,7 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
   EXPECT_EQ(config.inertial_coast_s, 1.5);
   EXPECT_EQ(config.max_imu_disagreement_mps, 2.0);
   EXPECT_EQ(config.imu_disagreement_growth_mps2, 0.5);
+  EXPECT_EQ(config.reacquire_frames, 3);
   EXPECT_EQ(config.unseen_accel_time_constant_s, 0.0);
   EXPECT_EQ(config.unseen_accel_sigma_mps2, 0.2);
   EXPECT_EQ(config.coast_max_velocity_error_mps, 0.3);
@@ -696,6 +741,8 @@ TEST(VelocityEstimatorConfig, CoastKeysAreReadAndRangeChecked) {
               HasSubstr("estimator.inertial_coast_s = 11, expected in [0, 10]"));
   EXPECT_THAT(error("{max_imu_disagreement_mps: 0}"),
               HasSubstr("estimator.max_imu_disagreement_mps = 0, expected > 0"));
+  EXPECT_THAT(error("{reacquire_frames: 0}"),
+              HasSubstr("estimator.reacquire_frames = 0, expected in [1, 30]"));
   EXPECT_THAT(error("{imu_disagreement_growth_mps2: -1}"),
               HasSubstr("estimator.imu_disagreement_growth_mps2 = -1, expected in [0, 100]"));
   EXPECT_THAT(error("{unseen_accel_time_constant_s: .nan}"),

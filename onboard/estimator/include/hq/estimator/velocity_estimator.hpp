@@ -43,6 +43,11 @@ struct VelocityEstimatorConfig {
   double max_imu_disagreement_mps = 0.5;
   /// How fast the coast's velocity may go wrong: three times unseen_accel_sigma_mps2 (0.1).
   double imu_disagreement_growth_mps2 = 0.3;
+  /// Consecutive frames that must pass that gate before their velocity is used, after any
+  /// frame that was not (a start, a loss, a rejection). One wrong frame between lost ones is
+  /// how the depth term flew off in the textureless world (README "Re-acquired twice"): alone
+  /// it passed the gate, and the vehicle chased its 0.6 m/s. 1: the first frame is taken.
+  int reacquire_frames = 2;
   /// The acceleration the accelerometer does not see (its bias, and the tilt error the
   /// complementary filter makes of it: a vehicle held "level" on a biased accelerometer
   /// accelerates while the IMU reads nothing) is learnt while the odometry tracks, from how far
@@ -69,8 +74,8 @@ struct VelocityEstimatorConfig {
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
 /// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps,
-/// imu_disagreement_growth_mps2, unseen_accel_time_constant_s, unseen_accel_sigma_mps2,
-/// coast_max_velocity_error_mps, gyro_bias_from_odometry}.
+/// imu_disagreement_growth_mps2, reacquire_frames, unseen_accel_time_constant_s,
+/// unseen_accel_sigma_mps2, coast_max_velocity_error_mps, gyro_bias_from_odometry}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
 /// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from
@@ -162,6 +167,7 @@ class VelocityEstimator {
   Eigen::Isometry3d T_O_Ck_prev_filtered_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_O_Ck_prev_raw_ = Eigen::Isometry3d::Identity();
   bool have_previous_ = false;
+  int agreeing_frames_ = 0;  ///< Consecutive frames that passed the IMU gate, up to now.
   std::int64_t t_prev_frame_ns_ = 0;
   std::int64_t t_seed_ns_ = 0;
   bool ever_ok_ = false;
