@@ -221,7 +221,7 @@ TEST(UnseenCampaign, RandomInEnvelopeCommandsNeverCollideNorFlyAway) {
 // 3.8-5.9 m/s. With normals, the ratio bound, the coast's hold and a coast no longer than what
 // it knows of its accelerometer, these four runs do not fly away (one touches the corner's wall,
 // -0.10 m, since the attitude levels on the odometry's velocity: README "The attitude, levelled
-// on the odometry"); flown wider (HQ_UNSEEN_RUNS=16) 4 of 48 still collide and 2 fly away
+// on the odometry"); flown wider (HQ_UNSEEN_RUNS=16) 2 of 48 still collide and 2 fly away
 // (README "Re-acquired twice"), which is why the depth term is not the default and this test
 // asserts no fly-away, not no collision. Same seeds as the campaign's structure_notexture.
 TEST(UnseenCampaign, DepthTermWithNormalsAndTheRatioBoundNeverFliesAway) {

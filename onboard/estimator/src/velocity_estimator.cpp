@@ -246,9 +246,6 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     return unavailable(t_ns, "waiting for a second accepted odometry frame");
   }
   if (!(dt_s > 0.0)) return unavailable(t_ns, "odometry stamp not after the previous frame");
-  if (!accepted(pose_filter_.update(t_ns, odometry.T_O_C))) {
-    return unavailable(t_ns, "odometry pose rejected by the pose filter");
-  }
 
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
@@ -263,6 +260,21 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
       R_B_C_ * T_raw.linear().transpose() * T_O_Ck_prev_raw_.linear() * R_B_C_.transpose();
   const Eigen::Vector3d v_B_raw =
       R_B_C_ * estimate.v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_B_prev) * p_B_C_m_ / dt_s;
+  // The gate, on eq. 1's velocity before the 1-euro filter sees the pose: a run of wrong frames
+  // rejected only after filtering still dragged the filter, and the first right frame after it
+  // carried half their error through the gate (README "Re-acquired twice"). A rejected pose
+  // restarts the filter instead, warm-up included; the warm-up's frames are checked too.
+  if (coast_anchored_ && attitude_.initialized()) {
+    const Eigen::Vector3d v_H_raw =
+        R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
+    if ((v_H_raw - coast_v_H_raw_mps_).norm() > imu_gate_mps(t_ns)) {
+      reseed(t_ns, odometry.T_O_C);
+      return unavailable(t_ns, "odometry velocity disagrees with the IMU");
+    }
+  }
+  if (!accepted(pose_filter_.update(t_ns, odometry.T_O_C))) {
+    return unavailable(t_ns, "odometry pose rejected by the pose filter");
+  }
   // eq. 2 of the core paper, not eq. 1: differentiating the 1€-filtered pose keeps noise out of v.
   const Eigen::Isometry3d& T_hat = pose_filter_.pose();
   const Eigen::Vector3d v_C = T_hat.linear().transpose() *

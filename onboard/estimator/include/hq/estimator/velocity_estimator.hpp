@@ -41,8 +41,10 @@ struct VelocityEstimatorConfig {
   /// lost for a second must not take the first velocity it is offered. Tighter than this
   /// rejects good frames: eq. 2's velocity still lags after a warm-up (README "The gate").
   double max_imu_disagreement_mps = 0.5;
-  /// How fast the coast's velocity may go wrong: three times unseen_accel_sigma_mps2 (0.1).
-  double imu_disagreement_growth_mps2 = 0.3;
+  /// How fast the coast's velocity may go wrong: about twice what the campaigns measure (0.084
+  /// m/s RMS over coasts of up to 2 s). At 0.3 the gate was 1 m/s wide after 1.7 s lost, and
+  /// the depth term's wrong returns came through it (README "Re-acquired twice").
+  double imu_disagreement_growth_mps2 = 0.15;
   /// Consecutive frames that must pass that gate before their velocity is used, after any
   /// frame that was not (a start, a loss, a rejection). One wrong frame between lost ones is
   /// how the depth term flew off in the textureless world (README "Re-acquired twice"): alone
