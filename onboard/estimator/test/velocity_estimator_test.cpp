@@ -592,25 +592,38 @@ TEST(VelocityEstimator, OdometryVelocityDisagreeingWithTheImuIsRejected) {
   EXPECT_TRUE(first_jumped_frame(VelocityEstimatorConfig{}, 0.01 * jump_C_m).ok());
 }
 
-// Hovers tracked for 1 s, loses the odometry for lost_s, then has it back for 0.4 s reporting
-// returned_v_mps along x while the IMU says rest; returns the last estimate.
-VelocityEstimate estimate_after_a_loss(const VelocityEstimatorConfig& config, double lost_s,
-                                       double returned_v_mps) {
-  const Motion motion;  // level, at rest
+// Hovers level at rest for duration_s, the IMU at 200 Hz and a frame every kImuPerFrame samples,
+// the true odometry of each frame changed by edit(t_s, odometry) and each estimate handed to
+// seen(t_s, estimate).
+template <typename Edit, typename Seen>
+void hover(const VelocityEstimatorConfig& config, double duration_s, Edit edit, Seen seen) {
+  const Motion motion;
   VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
-  const double return_s = 1.0 + lost_s;
-  VelocityEstimate last;
-  const int steps = static_cast<int>((return_s + 0.4) * 1e9 / kImuNs);
+  const int steps = static_cast<int>(duration_s * 1e9 / kImuNs);
   for (int k = 0; k <= steps; ++k) {
     const std::int64_t t_ns = k * kImuNs;
     const double t_s = 1e-9 * static_cast<double>(t_ns);
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
     if (k % kImuPerFrame != 0) continue;
     odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
-    if (t_s > 1.0 && t_s < return_s) odometry.status = odometry::TrackingStatus::kLost;
-    if (t_s >= return_s) odometry.T_O_C.translation().x() += returned_v_mps * (t_s - return_s);
-    last = estimator.update(t_ns, odometry);
+    edit(t_s, odometry);
+    seen(t_s, estimator.update(t_ns, odometry));
   }
+}
+
+// Hovers tracked for 1 s, loses the odometry for lost_s, then has it back for 0.4 s reporting
+// returned_v_mps along x while the IMU says rest; returns the last estimate.
+VelocityEstimate estimate_after_a_loss(const VelocityEstimatorConfig& config, double lost_s,
+                                       double returned_v_mps) {
+  const double return_s = 1.0 + lost_s;
+  VelocityEstimate last;
+  hover(
+      config, return_s + 0.4,
+      [&](double t_s, odometry::OdometryResult& odometry) {
+        if (t_s > 1.0 && t_s < return_s) odometry.status = odometry::TrackingStatus::kLost;
+        if (t_s >= return_s) odometry.T_O_C.translation().x() += returned_v_mps * (t_s - return_s);
+      },
+      [&](double, const VelocityEstimate& estimate) { last = estimate; });
   return last;
 }
 
@@ -640,25 +653,21 @@ TEST(VelocityEstimator, OdometryReturningAfterTheCoastHasEndedIsCheckedAgainstTh
 // `returned_frames` frames after it, and loses it again. Whether any estimate after the first
 // loss was ok.
 bool taken_after_a_loss(const VelocityEstimatorConfig& config, int returned_frames) {
-  const Motion motion;  // level, at rest
-  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   constexpr double kReturnS = 1.5;
   const double frame_s = kImuPerFrame * 1e-9 * static_cast<double>(kImuNs);
   const double lost_again_s = kReturnS + config.warmup_s + (returned_frames - 0.5) * frame_s;
   bool taken = false;
-  for (int k = 0; k <= static_cast<int>(2.5e9 / kImuNs); ++k) {
-    const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
-    if (k % kImuPerFrame != 0) continue;
-    odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
-    if (t_s > 1.0 && (t_s < kReturnS || t_s > lost_again_s)) {
-      odometry.status = odometry::TrackingStatus::kLost;
-    }
-    if (t_s >= kReturnS) odometry.T_O_C.translation().x() += 0.4 * (t_s - kReturnS);
-    const VelocityEstimate estimate = estimator.update(t_ns, odometry);
-    if (t_s > 1.0 && estimate.ok()) taken = true;
-  }
+  hover(
+      config, 2.5,
+      [&](double t_s, odometry::OdometryResult& odometry) {
+        if (t_s > 1.0 && (t_s < kReturnS || t_s > lost_again_s)) {
+          odometry.status = odometry::TrackingStatus::kLost;
+        }
+        if (t_s >= kReturnS) odometry.T_O_C.translation().x() += 0.4 * (t_s - kReturnS);
+      },
+      [&](double t_s, const VelocityEstimate& estimate) {
+        if (t_s > 1.0 && estimate.ok()) taken = true;
+      });
   return taken;
 }
 
@@ -682,23 +691,19 @@ TEST(VelocityEstimator, OneFrameBetweenLostOnesIsNotTaken) {
 // wrong match, far outside the IMU gate), then reports rest again from where it slid to. The
 // fastest velocity any ok estimate after 1 s gave, and whether there was one.
 std::pair<double, bool> fastest_taken_after_a_slide(const VelocityEstimatorConfig& config) {
-  const Motion motion;  // level, at rest
-  VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   double fastest_mps = 0.0;
   bool any = false;
-  for (int k = 0; k <= static_cast<int>(2.5e9 / kImuNs); ++k) {
-    const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
-    if (k % kImuPerFrame != 0) continue;
-    odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
-    odometry.T_O_C.translation().x() += 1.5 * std::clamp(t_s - 1.0, 0.0, 0.3);
-    const VelocityEstimate estimate = estimator.update(t_ns, odometry);
-    if (t_s > 1.0 && estimate.ok()) {
-      any = true;
-      fastest_mps = std::max(fastest_mps, estimate.v_H_mps.norm());
-    }
-  }
+  hover(
+      config, 2.5,
+      [](double t_s, odometry::OdometryResult& odometry) {
+        odometry.T_O_C.translation().x() += 1.5 * std::clamp(t_s - 1.0, 0.0, 0.3);
+      },
+      [&](double t_s, const VelocityEstimate& estimate) {
+        if (t_s > 1.0 && estimate.ok()) {
+          any = true;
+          fastest_mps = std::max(fastest_mps, estimate.v_H_mps.norm());
+        }
+      });
   return {fastest_mps, any};
 }
 
