@@ -220,6 +220,27 @@ const char* VelocityEstimator::unusable_odometry(const odometry::OdometryResult&
   return nullptr;
 }
 
+Eigen::Vector3d VelocityEstimator::raw_body_velocity(const Eigen::Isometry3d& T_raw, double dt_s,
+                                                     Eigen::Vector3d& v_C_raw_mps) const {
+  // eq. 1 (raw, for evaluation): v_Ck = R_O_Ck^T (p_O_Ck - p_O_Ck-1) / dT.
+  v_C_raw_mps =
+      T_raw.linear().transpose() * (T_raw.translation() - T_O_Ck_prev_raw_.translation()) / dt_s;
+  // The body's mean velocity over the same interval, in its frame at the end (what
+  // level_on_velocity compares): over it the camera's lever arm swept (I - R_Bk_Bk-1) p_B_C, a
+  // chord, not omega x p_B_C, which under a 1 rad/s yaw is 2 mm/s apart and reads as a tilt.
+  const Eigen::Matrix3d R_Bk_B_prev =
+      R_B_C_ * T_raw.linear().transpose() * T_O_Ck_prev_raw_.linear() * R_B_C_.transpose();
+  return R_B_C_ * v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_B_prev) * p_B_C_m_ / dt_s;
+}
+
+bool VelocityEstimator::raw_velocity_disagrees_with_the_imu(std::int64_t t_ns,
+                                                            const Eigen::Vector3d& v_B_raw) const {
+  if (!coast_anchored_ || !attitude_.initialized()) return false;
+  const Eigen::Vector3d v_H_raw =
+      R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
+  return (v_H_raw - coast_v_H_raw_mps_).norm() > imu_gate_mps(t_ns);
+}
+
 VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
                                            const odometry::OdometryResult& odometry) {
   if (!ever_updated_) {
@@ -249,28 +270,15 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
 
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
-  // eq. 1 (raw, for evaluation): v_Ck = R_O_Ck^T (p_O_Ck - p_O_Ck-1) / dT.
   const Eigen::Isometry3d& T_raw = odometry.T_O_C;
-  estimate.v_C_raw_mps =
-      T_raw.linear().transpose() * (T_raw.translation() - T_O_Ck_prev_raw_.translation()) / dt_s;
-  // The body's mean velocity over the same interval, in its frame at the end (what
-  // level_on_velocity compares): over it the camera's lever arm swept (I - R_Bk_Bk-1) p_B_C, a
-  // chord, not omega x p_B_C, which under a 1 rad/s yaw is 2 mm/s apart and reads as a tilt.
-  const Eigen::Matrix3d R_Bk_B_prev =
-      R_B_C_ * T_raw.linear().transpose() * T_O_Ck_prev_raw_.linear() * R_B_C_.transpose();
-  const Eigen::Vector3d v_B_raw =
-      R_B_C_ * estimate.v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_B_prev) * p_B_C_m_ / dt_s;
+  const Eigen::Vector3d v_B_raw = raw_body_velocity(T_raw, dt_s, estimate.v_C_raw_mps);
   // The gate, on eq. 1's velocity before the 1-euro filter sees the pose: a run of wrong frames
   // rejected only after filtering still dragged the filter, and the first right frame after it
   // carried half their error through the gate (README "Re-acquired twice"). A rejected pose
   // restarts the filter instead, warm-up included; the warm-up's frames are checked too.
-  if (coast_anchored_ && attitude_.initialized()) {
-    const Eigen::Vector3d v_H_raw =
-        R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
-    if ((v_H_raw - coast_v_H_raw_mps_).norm() > imu_gate_mps(t_ns)) {
-      reseed(t_ns, odometry.T_O_C);
-      return unavailable(t_ns, "odometry velocity disagrees with the IMU");
-    }
+  if (raw_velocity_disagrees_with_the_imu(t_ns, v_B_raw)) {
+    reseed(t_ns, T_raw);
+    return unavailable(t_ns, "odometry velocity disagrees with the IMU");
   }
   if (!accepted(pose_filter_.update(t_ns, odometry.T_O_C))) {
     return unavailable(t_ns, "odometry pose rejected by the pose filter");

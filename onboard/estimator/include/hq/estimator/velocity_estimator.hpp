@@ -154,6 +154,13 @@ class VelocityEstimator {
   /// A tracked frame's unfiltered (eq. 1) velocity against the coast's prediction of it from
   /// the last one levels the attitude (ComplementaryFilter::level_on_velocity).
   void level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps);
+  /// Eq. 1's camera velocity since the previous frame (into v_C_raw_mps) and the body's mean
+  /// velocity over it, lever arm removed.
+  Eigen::Vector3d raw_body_velocity(const Eigen::Isometry3d& T_raw, double dt_s,
+                                    Eigen::Vector3d& v_C_raw_mps) const;
+  /// The IMU gate on eq. 1's velocity: false while there is no coast to compare with.
+  [[nodiscard]] bool raw_velocity_disagrees_with_the_imu(std::int64_t t_ns,
+                                                         const Eigen::Vector3d& v_B_raw) const;
   /// A tracked frame's unfiltered (eq. 1) velocity against the coast's prediction of it:
   /// unseen_accel_H_mps2_.
   void learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps);
