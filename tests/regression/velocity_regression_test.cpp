@@ -15,7 +15,9 @@
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/tum_writer.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/testing/input_error.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -61,6 +63,25 @@ TEST(VelocityOnRecordedDepth, RawAndFilteredRmseStayWithinMeasuredBounds) {
   // frame without it, the default before).
   EXPECT_LT(e.raw_norm_mps(), 0.117);
   EXPECT_LT(e.filtered_norm_mps(), 0.095);
+}
+
+TEST(VelocityOnRecordedDepth, ASequenceTooShortForTheEstimatorSaysWhichValuesToLower) {
+  const auto data = hq::recording::find_data_dir();
+  if (!data) GTEST_SKIP() << "no real data: " << hq::recording::data_dir_search_description();
+  const std::string dir = *data + "/tum/rgbd_dataset_freiburg1_360";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << dir << " absent";
+  // GIVEN the shipped config: after the warm-up only fr1_360's fifth frame is left, and a
+  // velocity is used once a second frame agrees
+  const std::string message = hq::testing::input_error_message([&] {
+    hq::pipeline::replay_velocity(
+        dir, hq::config::load_camera_info("calib/tum_fr1.yaml"),
+        hq::pipeline::load_onboard_config("config/onboard.yaml"),
+        hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+  });
+  // THEN the error names the sequence and the two values, not an empty evaluation
+  EXPECT_THAT(message, ::testing::HasSubstr("rgbd_dataset_freiburg1_360: none of its 5 frames"));
+  EXPECT_THAT(message, ::testing::HasSubstr("estimator.warmup_s (0.2 s)"));
+  EXPECT_THAT(message, ::testing::HasSubstr("estimator.reacquire_frames (2)"));
 }
 
 /// Position hold plus a feed-forward velocity profile flown on truth, converted to the

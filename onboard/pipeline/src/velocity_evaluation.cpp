@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <fmt/format.h>
 
 namespace hq::pipeline {
 
@@ -147,6 +148,14 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
     }
   }
   replay.imu.samples.clear();
+  if (replay.ok_estimates == 0) {
+    // The chain's own start-up rules, not bad data: say which values to lower.
+    throw InputError(fmt::format(
+        "{}: none of its {} frames gave a usable velocity; the estimator waits "
+        "estimator.warmup_s ({} s) after a start, then for estimator.reacquire_frames ({}) "
+        "frames that agree with the IMU: a sequence this short needs a config with less",
+        sequence_dir, replay.frames, config.estimator.warmup_s, config.estimator.reacquire_frames));
+  }
   return replay;
 }
 

@@ -73,7 +73,9 @@ struct SequenceReplay {
 /// Replays a TUM-layout sequence (undistorted with `camera`) through an OnboardChain with its
 /// IMU (load_replay_imu; a synthesised IMU makes the camera the body), collecting eq. 1 and 2.
 /// @param vehicle  used when the sequence has its own IMU files (its extrinsics must be the
-///                 recording's). Throws hq::InputError for unreadable data or no ground truth.
+///                 recording's). Throws hq::InputError for unreadable data, no ground truth,
+///                 or no usable velocity in the whole sequence (too short for the estimator's
+///                 warm-up and reacquire_frames).
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
                                const OnboardConfig& config, const control::VehicleConfig& vehicle);
 
