@@ -94,6 +94,9 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
       s.onboard.odometry.use_depth_term = true;
       s.onboard.odometry.depth_jacobian_from_normals = true;
       s.onboard.odometry.min_translation_information_ratio = 0.01;
+      // HQ_UNSEEN_REMAP=0.01: with odometry.degenerate_step_ratio (README "Remapped steps").
+      if (const char* r = std::getenv("HQ_UNSEEN_REMAP"))
+        s.onboard.odometry.degenerate_step_ratio = std::atof(r);
     }
     // HQ_UNSEEN_CREEP=0.15: the same campaign with a creep speed towards no data.
     if (const char* c = std::getenv("HQ_UNSEEN_CREEP"))

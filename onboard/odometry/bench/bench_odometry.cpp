@@ -484,6 +484,9 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_option("--gyro-bias-sigma", defaults.gyro_bias_sigma_radps,
                  "odometry.gyro_bias_sigma_radps of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
+  app.add_option("--degenerate-step-ratio", defaults.degenerate_step_ratio,
+                 "odometry.degenerate_step_ratio of every HaptiQuad variant")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--depth-jacobian-from-normals", defaults.depth_jacobian_from_normals,
                  "odometry.depth_jacobian_from_normals of every HaptiQuad variant (true/false)");
   app.add_option("--align-depth-to-colour", defaults.align_depth_to_colour,

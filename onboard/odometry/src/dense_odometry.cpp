@@ -29,6 +29,8 @@ constexpr int kScaleIterations = 5;
 constexpr double kMinDepthTurnRad = 2e-6;
 
 using Vector6d = geometry::Vector6d;
+using Matrix7d = Eigen::Matrix<double, 7, 7>;  // the twist and the brightness offset
+using Vector7d = Eigen::Matrix<double, 7, 1>;
 
 // One prepared pyramid level of the reference frame, structure of arrays so that the warp and
 // accumulation loops stream through memory.
@@ -223,6 +225,7 @@ void validate(const OdometryConfig& c, const std::string& where) {
   check.in_range("depth_max_incidence_deg", c.depth_max_incidence_deg, 1.0, 89.0);
   check.in_range("min_translation_information_ratio", c.min_translation_information_ratio, 0.0,
                  1.0);
+  check.in_range("degenerate_step_ratio", c.degenerate_step_ratio, 0.0, 1.0);
   check.in_range("rotation_prior_information_scale", c.rotation_prior_information_scale, 0.0, 1e6);
   check.positive("vision_information_scale", c.vision_information_scale, 1.0);
   check.positive("gyro_bias_sigma_radps", c.gyro_bias_sigma_radps, 1.0);
@@ -273,6 +276,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("depth_max_incidence_deg", out.depth_max_incidence_deg, -kAny, kAny);
   section.read("min_translation_information_ratio", out.min_translation_information_ratio, -kAny,
                kAny);
+  section.read("degenerate_step_ratio", out.degenerate_step_ratio, -kAny, kAny);
   section.read("align_depth_to_colour", out.align_depth_to_colour);
   section.read("use_rotation_prior", out.use_rotation_prior);
   section.read("rotation_prior_information_scale", out.rotation_prior_information_scale, -kAny,
@@ -996,24 +1000,47 @@ struct DenseOdometry::Impl {
       A.bottomRightCorner<3, 3>() += p.prior_information;
       b.tail<3>() -= p.prior_information * d;
     }
-    delta_offset = 0.0;
-    if (!config.estimate_brightness_offset) {
-      delta = A.ldlt().solve(b);
-      return;
-    }
     // Auto-exposure shifts every intensity alike; an offset absorbs it instead of the
-    // pose (Engel et al. use an affine model for the same reason).
-    Eigen::Matrix<double, 7, 7> A7;
+    // pose (Engel et al. use an affine model for the same reason). Without it the offset's
+    // row is the identity's and its step 0.
+    Matrix7d A7 = Matrix7d::Identity();
+    Vector7d b7 = Vector7d::Zero();
     A7.topLeftCorner<6, 6>() = A;
-    A7.topRightCorner<6, 1>() = normal.H_pose_offset;
-    A7.bottomLeftCorner<1, 6>() = normal.H_pose_offset.transpose();
-    A7(6, 6) = normal.H_offset;
-    Eigen::Matrix<double, 7, 1> b7;
     b7.head<6>() = b;
-    b7(6) = normal.g_offset;
-    const Eigen::Matrix<double, 7, 1> x = A7.ldlt().solve(b7);
+    if (config.estimate_brightness_offset) {
+      A7.topRightCorner<6, 1>() = normal.H_pose_offset;
+      A7.bottomLeftCorner<1, 6>() = normal.H_pose_offset.transpose();
+      A7(6, 6) = normal.H_offset;
+      b7(6) = normal.g_offset;
+    }
+    const Vector7d x = solve_remapped(A7, b7);
     delta = x.head<6>();
-    delta_offset = x(6);
+    delta_offset = config.estimate_brightness_offset ? x(6) : 0.0;
+  }
+
+  // A7 x = b7, with no step along the translation directions degenerate_step_ratio calls
+  // unobserved: in the basis of the translation block's eigenvectors their rows become the
+  // identity's and their right-hand sides 0.
+  Vector7d solve_remapped(Matrix7d A7, Vector7d b7) const {
+    if (config.degenerate_step_ratio <= 0.0) return A7.ldlt().solve(b7);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translation(A7.topLeftCorner<3, 3>());
+    const Eigen::Vector3d& values = translation.eigenvalues();  // ascending
+    int degenerate = 0;
+    while (degenerate < 2 && !(values(degenerate) > config.degenerate_step_ratio * values(2))) {
+      ++degenerate;
+    }
+    if (degenerate == 0 || translation.info() != Eigen::Success) return A7.ldlt().solve(b7);
+    Matrix7d Q = Matrix7d::Identity();
+    Q.topLeftCorner<3, 3>() = translation.eigenvectors();
+    Matrix7d A_rotated = Q.transpose() * A7 * Q;
+    Vector7d b_rotated = Q.transpose() * b7;
+    for (int i = 0; i < degenerate; ++i) {
+      A_rotated.row(i).setZero();
+      A_rotated.col(i).setZero();
+      A_rotated(i, i) = 1.0;
+      b_rotated(i) = 0.0;
+    }
+    return Q * A_rotated.ldlt().solve(b_rotated);
   }
 
   // Iteratively re-weighted Gauss-Newton on one pyramid level, continuing from T_cur_ref and

@@ -640,6 +640,7 @@ TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
     config.use_depth_term = true;
     // Normals are computed for every reference, and the check prepares one per frame.
     config.depth_jacobian_from_normals = variant == 2;
+    config.degenerate_step_ratio = variant == 1 ? 0.01 : 0.0;
     DenseOdometry odometry(config, kCamera);
     RotationPrior gyro;
     gyro.R_depth_colour = geometry::exp_so3(Eigen::Vector3d(0.0, 1e-3, 0.0));  // turned in place
@@ -664,6 +665,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
       " estimate_gyro_bias: false, gyro_bias_random_walk: 0.001,"
       " depth_jacobian_from_normals: false, depth_normal_smoothing_levels: 1,"
       " depth_max_incidence_deg: 60, min_translation_information_ratio: 0.02,"
+      " degenerate_step_ratio: 0.005,"
       " align_depth_to_colour: false}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
@@ -683,6 +685,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_EQ(config.depth_normal_smoothing_levels, 1);
   EXPECT_DOUBLE_EQ(config.depth_max_incidence_deg, 60.0);
   EXPECT_DOUBLE_EQ(config.min_translation_information_ratio, 0.02);
+  EXPECT_DOUBLE_EQ(config.degenerate_step_ratio, 0.005);
   EXPECT_FALSE(config.align_depth_to_colour);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
@@ -710,6 +713,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{align_depth_to_colour: 1.5}", "odometry.align_depth_to_colour");
   expect_error("{depth_max_incidence_deg: 90}", "odometry.depth_max_incidence_deg = 90");
   expect_error("{depth_normal_smoothing_levels: -1}", "odometry.depth_normal_smoothing_levels");
+  expect_error("{degenerate_step_ratio: -0.1}", "odometry.degenerate_step_ratio = -0.1");
   expect_error("{min_translation_information_ratio: 1.5}",
                "odometry.min_translation_information_ratio = 1.5");
   expect_error("{min_depth_m: 2.0, max_depth_m: 1.5}",

@@ -2,7 +2,7 @@
 // records it in the TUM RGB-D layout (with IMU), giving the odometry team ground-truthed runs.
 //   hq-sim --world onboard/sim/worlds/arena.yaml --duration-s 10 --record out_dir
 //          [--resolution 640x480] [--seed N] [--script hover|circle] [--yaw-rate-degps R]
-//          [--config onboard/sim/config/sim.yaml]
+//          [--start-yaw-deg Y] [--config onboard/sim/config/sim.yaml]
 // hq-sim --sitl: the same simulator as a separate SITL process, paced to real time, playing a
 // PX4-like flight controller over MAVLink and publishing its RGB-D frames into shared memory
 // for hq-onboard --source sitl (SIGINT/SIGTERM or --duration-s end it with a summary).
@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <signal.h>
 #include <string>
 #include <vector>
@@ -55,6 +56,7 @@ struct Options {
   bool sitl = false;
   hq::sim::SitlOptions sitl_options;
   double yaw_rate_degps = -1.0;
+  std::optional<double> start_yaw_deg;
 };
 
 void add_options(CLI::App& app, Options& o) {
@@ -79,6 +81,9 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--yaw-rate-degps", o.yaw_rate_degps,
                  "yaw rate of the circle script (default: the script's slow turn)")
       ->check(CLI::Range(0.0, 360.0));
+  app.add_option("--start-yaw-deg", o.start_yaw_deg,
+                 "vehicle heading at the start (default: the world's start.yaw_deg)")
+      ->check(CLI::Range(-180.0, 180.0));
 }
 
 /// The scripted flight as fast as it simulates, recorded in the TUM layout when asked.
@@ -144,7 +149,8 @@ int run(int argc, char** argv) {
     return app.exit(e);
   }
 
-  const hq::sim::World world = hq::sim::load_world(o.world_path);
+  hq::sim::World world = hq::sim::load_world(o.world_path);
+  if (o.start_yaw_deg) world.start_yaw_rad = *o.start_yaw_deg * M_PI / 180.0;
   hq::sim::SimConfig config = hq::sim::load_sim_config(o.config_path);
   hq::sim::set_resolution(config, o.resolution, "--resolution");
   config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;

@@ -156,6 +156,14 @@ struct OdometryConfig {
   /// world's slow circle, which the depth term tracks, and noise-free synthetic depth (whose
   /// re-estimated scale makes its information 10^4 times the intensity's): 0 (off) by default.
   double min_translation_information_ratio = 0.0;
+  /// A Gauss-Newton step leaves the translation alone along directions whose information
+  /// (rotation held) on that level and iteration is under this share of the best direction's:
+  /// they keep the prediction (Zhang, Kaess and Singh, ICRA 2016, "solution remapping"). A
+  /// plain wall and the floor say nothing of the motion along their common line, and without
+  /// this the coarsest level's first step, taken before the robust scales are known, moved
+  /// the pose 2-4 cm along it per frame of a hover, which the finer levels could not undo
+  /// (README "Remapped steps"). 0: off.
+  double degenerate_step_ratio = 0.0;
 };
 
 /// Rotation of the current camera in the previous frame's camera, integrated from the gyro
