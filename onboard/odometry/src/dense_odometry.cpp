@@ -1021,7 +1021,7 @@ struct DenseOdometry::Impl {
   // A7 x = b7, with no step along the translation directions degenerate_step_ratio calls
   // unobserved: in the basis of the translation block's eigenvectors their rows become the
   // identity's and their right-hand sides 0.
-  Vector7d solve_remapped(Matrix7d A7, Vector7d b7) const {
+  Vector7d solve_remapped(const Matrix7d& A7, const Vector7d& b7) const {
     if (config.degenerate_step_ratio <= 0.0) return A7.ldlt().solve(b7);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translation(A7.topLeftCorner<3, 3>());
     const Eigen::Vector3d& values = translation.eigenvalues();  // ascending
