@@ -224,7 +224,7 @@ TEST(UnseenCampaign, RandomInEnvelopeCommandsNeverCollideNorFlyAway) {
 // plain wall its gradient Jacobian claimed the motion along the wall, and the vehicle reached
 // 3.8-5.9 m/s. With normals, the ratio bound, the coast's hold, a coast no longer than what it
 // knows of its accelerometer and remapped steps, these four runs do not fly away; flown wider
-// (HQ_UNSEEN_RUNS=16, seven seeds) 7 of 112 still collide and 2 fly away (README "Remapped
+// (HQ_UNSEEN_RUNS=16, ten seeds) 10 of 160 still collide and 2 fly away (README "Remapped
 // steps"), which is why the depth term is not the default and this test asserts no fly-away,
 // not no collision. Same seeds as the campaign's structure_notexture.
 TEST(UnseenCampaign, DepthTermWithItsGuardsNeverFliesAway) {

@@ -1024,12 +1024,13 @@ struct DenseOdometry::Impl {
   Vector7d solve_remapped(const Matrix7d& A7, const Vector7d& b7) const {
     if (config.degenerate_step_ratio <= 0.0) return A7.ldlt().solve(b7);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translation(A7.topLeftCorner<3, 3>());
+    if (translation.info() != Eigen::Success) return A7.ldlt().solve(b7);
     const Eigen::Vector3d& values = translation.eigenvalues();  // ascending
     int degenerate = 0;
     while (degenerate < 2 && !(values(degenerate) > config.degenerate_step_ratio * values(2))) {
       ++degenerate;
     }
-    if (degenerate == 0 || translation.info() != Eigen::Success) return A7.ldlt().solve(b7);
+    if (degenerate == 0) return A7.ldlt().solve(b7);
     Matrix7d Q = Matrix7d::Identity();
     Q.topLeftCorner<3, 3>() = translation.eigenvectors();
     Matrix7d A_rotated = Q.transpose() * A7 * Q;
