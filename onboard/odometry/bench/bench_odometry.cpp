@@ -215,6 +215,7 @@ LoadedSequence load(const std::string& dir, const hq::config::CameraInfo& camera
 
 struct Row {
   double median_ms = 0, p90_ms = 0, rpe_trans_mps = 0, rpe_rot_degps = 0, ate_m = 0;
+  double rpe_window_s = 0;  ///< The RPE's window: 1 s, or the sequence's span when shorter.
   // The thread's CPU time per frame: on a machine shared with other jobs, wall time also
   // counts the time the thread waited for a core.
   double median_cpu_ms = 0;
@@ -357,6 +358,7 @@ Row run(Method& method, const LoadedSequence& sequence, int passes, bool with_ne
     const auto ate = hq::evaluation::absolute_trajectory_error(sequence.ground_truth, trajectory);
     row.rpe_trans_mps = rpe.trans_mps.rmse;
     row.rpe_rot_degps = rpe.rot_degps.rmse;
+    row.rpe_window_s = rpe.delta_s;
     row.ate_m = ate.trans_m.rmse;
     pair_errors(sequence, trajectory, true, row.pairs_trans_mm, row.pairs_rot_deg, row.pairs);
     pair_errors(sequence, trajectory, false, row.steps_trans_mm, row.steps_rot_deg, row.steps);
@@ -407,6 +409,22 @@ std::vector<std::unique_ptr<Method>> make_methods(const hq::odometry::OdometryCo
   return methods;
 }
 
+/// What the ground truth itself cannot tell apart: its noise per pose (from its own samples)
+/// carried to a pair of poses (two independent ends) and to the RPE over its window.
+void print_ground_truth_floor(const LoadedSequence& sequence, double rpe_window_s) {
+  if (sequence.ground_truth.empty()) return;
+  const hq::evaluation::PoseNoise noise = hq::evaluation::ground_truth_noise(sequence.ground_truth);
+  if (noise.differences == 0 || !(rpe_window_s > 0.0)) return;
+  const double pair_mm = std::sqrt(2.0) * noise.trans_m * 1e3;
+  const double pair_deg = std::sqrt(2.0) * noise.rot_deg;
+  std::printf(
+      "ground truth noise per pose (third differences of its %zu poses): %.3f mm, %.3f deg; "
+      "floor of a pair's error %.2f mm, %.3f deg; of the RPE over %.2f s %.4f m/s, %.3f "
+      "deg/s\n",
+      sequence.ground_truth.size(), noise.trans_m * 1e3, noise.rot_deg, pair_mm, pair_deg,
+      rpe_window_s, pair_mm * 1e-3 / rpe_window_s, pair_deg / rpe_window_s);
+}
+
 /// One table: every method on one sequence; speedup against the method at reference_index.
 void print_sequence_table(const LoadedSequence& sequence,
                           const std::vector<std::unique_ptr<Method>>& methods,
@@ -445,6 +463,7 @@ void print_sequence_table(const LoadedSequence& sequence,
         "pairs: RMSE over all %d frame pairs i < j; steps: over the %d consecutive pairs "
         "(mm, deg, not per second)\n",
         rows.front().pairs, rows.front().steps);
+    print_ground_truth_floor(sequence, rows.front().rpe_window_s);
   }
 }
 

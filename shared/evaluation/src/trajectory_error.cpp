@@ -21,6 +21,8 @@ constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 // delta_s; it arises only at the ends of the sequence or across gaps in the estimate.
 constexpr double kMinWindowFraction = 0.5;
 constexpr double kMaxWindowFraction = 1.5;
+// ground_truth_noise: an interval this much longer than the median one is a gap in the record.
+constexpr double kMaxRegularInterval = 1.5;
 
 void check_trajectory(const std::vector<StampedPose>& poses, const char* name) {
   for (std::size_t i = 0; i < poses.size(); ++i) {
@@ -203,6 +205,53 @@ AteResult absolute_trajectory_error(const std::vector<StampedPose>& gt,
   }
   result.trans_m = error_stats(std::move(errors_m));
   return result;
+}
+
+PoseNoise ground_truth_noise(const std::vector<StampedPose>& gt) {
+  check_trajectory(gt, "ground truth");
+  PoseNoise noise;
+  if (gt.size() < 4) return noise;
+  std::vector<std::int64_t> intervals_ns;
+  for (std::size_t k = 1; k < gt.size(); ++k) intervals_ns.push_back(gt[k].t_ns - gt[k - 1].t_ns);
+  std::vector<std::int64_t> sorted = intervals_ns;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const auto median_ns = static_cast<double>(sorted[sorted.size() / 2]);
+  // Step k (pose k to k+1) as a rate times the median interval: translation in the world,
+  // rotation in the body frame (constant for a constant body rate).
+  struct Step {
+    Eigen::Vector3d translation;
+    Eigen::Vector3d rotation;
+    bool regular;
+  };
+  std::vector<Step> steps;
+  for (std::size_t k = 0; k + 1 < gt.size(); ++k) {
+    const double scale = median_ns / static_cast<double>(intervals_ns[k]);
+    const Eigen::Isometry3d& a = gt[k].T_world_sensor;
+    const Eigen::Isometry3d& b = gt[k + 1].T_world_sensor;
+    const Eigen::AngleAxisd body(
+        Eigen::Quaterniond(a.linear().transpose() * b.linear()).normalized());
+    steps.push_back({scale * (b.translation() - a.translation()),
+                     scale * body.angle() * body.axis(),
+                     static_cast<double>(intervals_ns[k]) <= kMaxRegularInterval * median_ns});
+  }
+  double sum_t = 0.0;
+  double sum_r = 0.0;
+  for (std::size_t k = 0; k + 2 < steps.size(); ++k) {
+    if (!steps[k].regular || !steps[k + 1].regular || !steps[k + 2].regular) continue;
+    // The second difference of the steps is the third of the poses.
+    sum_t += (steps[k + 2].translation - 2.0 * steps[k + 1].translation + steps[k].translation)
+                 .squaredNorm();
+    sum_r +=
+        (steps[k + 2].rotation - 2.0 * steps[k + 1].rotation + steps[k].rotation).squaredNorm();
+    ++noise.differences;
+  }
+  if (noise.differences == 0) return noise;
+  constexpr double kThirdDifferenceGain = 20.0;  // 1 + 9 + 9 + 1: weights 1, -3, 3, -1
+  const double n = kThirdDifferenceGain * noise.differences;
+  noise.trans_m = std::sqrt(sum_t / n);
+  noise.rot_deg = std::sqrt(sum_r / n) * kRadToDeg;
+  return noise;
 }
 
 }  // namespace hq::evaluation

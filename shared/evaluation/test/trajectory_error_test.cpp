@@ -7,6 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
 
 namespace hq::evaluation {
 namespace {
@@ -238,6 +241,67 @@ TEST(TrajectoryError, NonFiniteOrUnorderedPosesAreInputErrors) {
               HasSubstr("delta_s = 0.000000, expected finite and > 0"));
   EXPECT_THAT(input_error_message([&] { associate_poses(gt, gt, -1.0); }),
               HasSubstr("max_dt_s = -1.000000"));
+}
+
+// The helix with white noise of sigma per axis on every pose's position and rotation vector.
+std::vector<StampedPose> noisy_helix(int count, double rate_hz, double sigma_m, double sigma_rad,
+                                     std::uint64_t seed) {
+  std::vector<StampedPose> poses = helix(count, rate_hz);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (StampedPose& pose : poses) {
+    const Eigen::Vector3d dp(normal(rng), normal(rng), normal(rng));
+    const Eigen::Vector3d dr(normal(rng), normal(rng), normal(rng));
+    pose.T_world_sensor.translation() += sigma_m * dp;
+    pose.T_world_sensor.linear() =
+        pose.T_world_sensor.linear() * make_pose(sigma_rad * dr, Eigen::Vector3d::Zero()).linear();
+  }
+  return poses;
+}
+
+TEST(GroundTruthNoise, WhiteNoiseOnEachPoseIsRecovered) {
+  // GIVEN 2000 poses at 100 Hz with 0.5 mm and 0.05 deg of noise per axis
+  constexpr double kSigmaM = 0.5e-3;
+  constexpr double kSigmaDeg = 0.05;
+  const auto poses = noisy_helix(2000, 100.0, kSigmaM, kSigmaDeg * kPi / 180.0, 7);
+  // WHEN its own noise is estimated
+  const PoseNoise noise = ground_truth_noise(poses);
+  // THEN the RMS lengths are sqrt(3) sigma, to the sampling error of 1997 differences
+  EXPECT_EQ(noise.differences, 1997);
+  EXPECT_NEAR(noise.trans_m, std::sqrt(3.0) * kSigmaM, 0.08 * std::sqrt(3.0) * kSigmaM);
+  EXPECT_NEAR(noise.rot_deg, std::sqrt(3.0) * kSigmaDeg, 0.08 * std::sqrt(3.0) * kSigmaDeg);
+}
+
+TEST(GroundTruthNoise, SmoothMotionWithJitteredStampsHasNone) {
+  // GIVEN the noise-free helix sampled at 100 Hz +- 1 ms (poses at their true stamps), with a
+  // 50 ms gap in the record
+  std::vector<StampedPose> poses;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> jitter(-1e-3, 1e-3);
+  for (int k = 0; k < 500; ++k) {
+    if (k >= 200 && k < 205) continue;
+    const double t_s = k / 100.0 + jitter(rng);
+    poses.push_back({kT0Ns + static_cast<std::int64_t>(std::llround(t_s * 1e9)),
+                     make_pose(Eigen::Vector3d(0.1 * std::sin(t_s), 0.05, 0.4 * t_s + 0.2),
+                               Eigen::Vector3d(std::cos(t_s), std::sin(t_s), 0.3 * t_s))});
+  }
+  // WHEN its noise is estimated
+  const PoseNoise noise = ground_truth_noise(poses);
+  // THEN the jitter and the gap, which would each show as a millimetre, leave a floor far
+  // below the noise of any motion capture
+  EXPECT_GT(noise.differences, 480);
+  EXPECT_LT(noise.differences, 495);
+  EXPECT_LT(noise.trans_m, 2e-5);
+  EXPECT_LT(noise.rot_deg, 2e-3);
+}
+
+TEST(GroundTruthNoise, TooFewPosesGiveNoFigureAndBadPosesAnInputError) {
+  EXPECT_EQ(ground_truth_noise(helix(3, 100.0)).differences, 0);
+  EXPECT_EQ(ground_truth_noise(helix(4, 100.0)).differences, 1);
+  std::vector<StampedPose> poses = helix(10, 100.0);
+  poses[6].T_world_sensor.translation().x() = std::nan("");
+  EXPECT_THAT(input_error_message([&] { ground_truth_noise(poses); }),
+              HasSubstr("ground truth pose 6"));
 }
 
 }  // namespace
