@@ -2,7 +2,8 @@
 // frames, in one process and one run, one thread each. Prints median / p90 ms per frame (the
 // odometry call only; loading and undistortion excluded), the thread's median CPU ms per frame
 // (fairer on a shared machine), RPE / ATE against ground truth, and the relative pose error of
-// every frame pair (pairs) and of consecutive frames (steps), which rank short sequences.
+// every frame pair (pairs) and of consecutive frames (steps), which rank short sequences, and
+// under each table the floor the ground truth's own noise sets on those figures.
 // HaptiQuad runs as intensity only, + depth term, + gyro prior, + both, frame to frame and
 // frame to keyframe. The gyro is synthesised from the ground truth (TUM has none): the true
 // rotation between frames plus white noise and a constant residual bias, as a complementary
