@@ -78,6 +78,18 @@ static int run(int argc, char** argv) {
   print_row("RPE trans", "m/s", rpe.trans_mps);
   print_row("RPE rot", "deg/s", rpe.rot_degps);
   print_row("ATE", "m", ate.trans_m);
+  // The ground truth's own noise: two estimates whose errors differ by less are not ranked by it.
+  const hq::evaluation::PoseNoise noise = hq::evaluation::ground_truth_noise(gt);
+  if (noise.differences == 0) {
+    std::printf("ground truth noise: not estimated (needs 4 or more evenly spaced poses)\n");
+  } else {
+    const double pair_m = std::sqrt(2.0) * noise.trans_m;
+    const double pair_deg = std::sqrt(2.0) * noise.rot_deg;
+    std::printf(
+        "ground truth noise per pose %.6f m, %.4f deg (third differences of its poses): "
+        "floor of the RPE %.6f m/s, %.4f deg/s\n",
+        noise.trans_m, noise.rot_deg, pair_m / rpe.delta_s, pair_deg / rpe.delta_s);
+  }
   return 0;
 }
 

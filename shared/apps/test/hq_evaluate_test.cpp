@@ -74,6 +74,24 @@ TEST(HqEvaluate, MatchingTrajectoriesReportZeroError) {
   const ToolRun r = evaluate(kGroundTruth, kGroundTruth);
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("ATE        m        0.000000"));
+  EXPECT_THAT(r.output, HasSubstr("ground truth noise: not estimated (needs 4 or more"));
+}
+
+TEST(HqEvaluate, ReportsTheFloorTheGroundTruthsOwnNoiseSets) {
+  // GIVEN a ground truth moving at 1 m/s whose pose 3 is 1 mm off its line: the four third
+  // differences that contain it are 1, 3, 3 and 1 mm, of the 6 that 9 poses give
+  std::string truth;
+  for (int k = 0; k < 9; ++k) {
+    const double x = 0.1 * k + (k == 3 ? 0.001 : 0.0);
+    truth += std::to_string(1.0 + 0.1 * k) + " " + std::to_string(x) + " 0 0 0 0 0 1\n";
+  }
+  // WHEN evaluated against itself
+  const ToolRun r = evaluate(truth, truth);
+  // THEN sqrt((1 + 9 + 9 + 1) mm^2 / (20 x 6)) = 0.408 mm per pose, and over the 0.8 s window
+  // sqrt(2) of that per 0.8 s
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("ground truth noise per pose 0.000408 m, 0.0000 deg"));
+  EXPECT_THAT(r.output, HasSubstr("floor of the RPE 0.000722 m/s"));
 }
 
 }  // namespace
