@@ -83,12 +83,11 @@ static int run(int argc, char** argv) {
   if (noise.differences == 0) {
     std::printf("ground truth noise: not estimated (needs 4 or more evenly spaced poses)\n");
   } else {
-    const double pair_m = std::sqrt(2.0) * noise.trans_m;
-    const double pair_deg = std::sqrt(2.0) * noise.rot_deg;
     std::printf(
         "ground truth noise per pose %.6f m, %.4f deg (third differences of its poses): "
         "floor of the RPE %.6f m/s, %.4f deg/s\n",
-        noise.trans_m, noise.rot_deg, pair_m / rpe.delta_s, pair_deg / rpe.delta_s);
+        noise.trans_m, noise.rot_deg, noise.pair_trans_m() / rpe.delta_s,
+        noise.pair_rot_deg() / rpe.delta_s);
   }
   return 0;
 }

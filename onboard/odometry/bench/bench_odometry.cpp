@@ -416,8 +416,8 @@ void print_ground_truth_floor(const LoadedSequence& sequence, double rpe_window_
   if (sequence.ground_truth.empty()) return;
   const hq::evaluation::PoseNoise noise = hq::evaluation::ground_truth_noise(sequence.ground_truth);
   if (noise.differences == 0 || !(rpe_window_s > 0.0)) return;
-  const double pair_mm = std::sqrt(2.0) * noise.trans_m * 1e3;
-  const double pair_deg = std::sqrt(2.0) * noise.rot_deg;
+  const double pair_mm = noise.pair_trans_m() * 1e3;
+  const double pair_deg = noise.pair_rot_deg();
   std::printf(
       "ground truth noise per pose (third differences of its %zu poses): %.3f mm, %.3f deg; "
       "floor of a pair's error %.2f mm, %.3f deg; of the RPE over %.2f s %.4f m/s, %.3f "

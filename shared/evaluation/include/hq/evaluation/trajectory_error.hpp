@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cmath>
 #include <cstddef>
 #include <utility>
 #include <vector>
@@ -64,13 +65,17 @@ AteResult absolute_trajectory_error(const std::vector<recording::StampedPose>& g
 /// A ground truth's own noise per pose, estimated from its samples alone. White noise n_k on
 /// each pose gives the third difference of the positions (and of the orientation, through the
 /// body-frame steps log(R_k^T R_k+1)) a variance of 20 E|n|^2, while motion of constant
-/// acceleration gives it none. Motion capture jitters (TUM fr1_360 at 100 Hz: about 0.065 deg
-/// and 0.13 mm per pose), so a relative pose between two of its poses is uncertain by about
+/// acceleration gives it none. Motion capture jitters (TUM fr1_360 at 100 Hz: about 0.066 deg
+/// and 0.15 mm per pose), so a relative pose between two of its poses is uncertain by about
 /// sqrt(2) times these: estimates whose errors differ by less cannot be ranked on it.
 struct PoseNoise {
   double trans_m = 0;   ///< RMS length of one pose's position noise, m.
   double rot_deg = 0;   ///< RMS angle of one pose's rotation noise, deg.
   int differences = 0;  ///< Third differences used; 0 (and 0 noise) with none available.
+
+  /// The same for the relative pose between two poses, whose noises are independent.
+  [[nodiscard]] double pair_trans_m() const { return std::sqrt(2.0) * trans_m; }
+  [[nodiscard]] double pair_rot_deg() const { return std::sqrt(2.0) * rot_deg; }
 };
 
 /// PoseNoise of gt. Steps are scaled to the median sample interval, so jittered stamps of
