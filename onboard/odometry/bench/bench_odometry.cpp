@@ -36,6 +36,7 @@
 #include <ctime>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <random>
@@ -411,19 +412,44 @@ std::vector<std::unique_ptr<Method>> make_methods(const hq::odometry::OdometryCo
 }
 
 /// What the ground truth itself cannot tell apart: its noise per pose (from its own samples)
-/// carried to a pair of poses (two independent ends) and to the RPE over its window.
-void print_ground_truth_floor(const LoadedSequence& sequence, double rpe_window_s) {
-  if (sequence.ground_truth.empty()) return;
+/// carried to a pair of poses (two independent ends) and to the RPE over its window; then, per
+/// figure, the methods within that floor of the best one (those the data cannot rank apart).
+void print_ground_truth_floor(const LoadedSequence& sequence,
+                              const std::vector<std::unique_ptr<Method>>& methods,
+                              const std::vector<Row>& rows) {
+  if (sequence.ground_truth.empty() || rows.empty()) return;
   const hq::evaluation::PoseNoise noise = hq::evaluation::ground_truth_noise(sequence.ground_truth);
-  if (noise.differences == 0 || !(rpe_window_s > 0.0)) return;
+  const double window_s = rows.front().rpe_window_s;
+  if (noise.differences == 0 || !(window_s > 0.0)) return;
   const double pair_mm = noise.pair_trans_m() * 1e3;
   const double pair_deg = noise.pair_rot_deg();
   std::printf(
       "ground truth noise per pose (third differences of its %zu poses): %.3f mm, %.3f deg; "
       "floor of a pair's error %.2f mm, %.3f deg; of the RPE over %.2f s %.4f m/s, %.3f "
       "deg/s\n",
-      sequence.ground_truth.size(), noise.trans_m * 1e3, noise.rot_deg, pair_mm, pair_deg,
-      rpe_window_s, pair_mm * 1e-3 / rpe_window_s, pair_deg / rpe_window_s);
+      sequence.ground_truth.size(), noise.trans_m * 1e3, noise.rot_deg, pair_mm, pair_deg, window_s,
+      pair_mm * 1e-3 / window_s, pair_deg / window_s);
+  struct Figure {
+    const char* name;
+    double Row::*value;
+    double floor;
+  };
+  const Figure figures[] = {{"rpe_t_m/s", &Row::rpe_trans_mps, pair_mm * 1e-3 / window_s},
+                            {"rpe_r_deg/s", &Row::rpe_rot_degps, pair_deg / window_s},
+                            {"pairs_mm", &Row::pairs_trans_mm, pair_mm},
+                            {"pairs_deg", &Row::pairs_rot_deg, pair_deg},
+                            {"steps_mm", &Row::steps_trans_mm, pair_mm},
+                            {"steps_deg", &Row::steps_rot_deg, pair_deg}};
+  for (const Figure& f : figures) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Row& r : rows) best = std::min(best, r.*f.value);
+    std::string within;
+    for (std::size_t m = 0; m < rows.size(); ++m) {
+      if (rows[m].*f.value > best + f.floor) continue;
+      within += (within.empty() ? "" : ", ") + methods[m]->name();
+    }
+    std::printf("  best within the floor, %s: %s\n", f.name, within.c_str());
+  }
 }
 
 /// One table: every method on one sequence; speedup against the method at reference_index.
@@ -464,7 +490,7 @@ void print_sequence_table(const LoadedSequence& sequence,
         "pairs: RMSE over all %d frame pairs i < j; steps: over the %d consecutive pairs "
         "(mm, deg, not per second)\n",
         rows.front().pairs, rows.front().steps);
-    print_ground_truth_floor(sequence, rows.front().rpe_window_s);
+    print_ground_truth_floor(sequence, methods, rows);
   }
 }
 
