@@ -423,23 +423,23 @@ void print_ground_truth_floor(const LoadedSequence& sequence,
   if (noise.differences == 0 || !(window_s > 0.0)) return;
   const double pair_mm = noise.pair_trans_m() * 1e3;
   const double pair_deg = noise.pair_rot_deg();
+  const double rpe_mps = noise.pair_trans_m() / window_s;
+  const double rpe_degps = pair_deg / window_s;
   std::printf(
       "ground truth noise per pose (third differences of its %zu poses): %.3f mm, %.3f deg; "
       "floor of a pair's error %.2f mm, %.3f deg; of the RPE over %.2f s %.4f m/s, %.3f "
       "deg/s\n",
       sequence.ground_truth.size(), noise.trans_m * 1e3, noise.rot_deg, pair_mm, pair_deg, window_s,
-      pair_mm * 1e-3 / window_s, pair_deg / window_s);
+      rpe_mps, rpe_degps);
   struct Figure {
     const char* name;
     double Row::*value;
     double floor;
   };
-  const Figure figures[] = {{"rpe_t_m/s", &Row::rpe_trans_mps, pair_mm * 1e-3 / window_s},
-                            {"rpe_r_deg/s", &Row::rpe_rot_degps, pair_deg / window_s},
-                            {"pairs_mm", &Row::pairs_trans_mm, pair_mm},
-                            {"pairs_deg", &Row::pairs_rot_deg, pair_deg},
-                            {"steps_mm", &Row::steps_trans_mm, pair_mm},
-                            {"steps_deg", &Row::steps_rot_deg, pair_deg}};
+  const Figure figures[] = {
+      {"rpe_t_m/s", &Row::rpe_trans_mps, rpe_mps}, {"rpe_r_deg/s", &Row::rpe_rot_degps, rpe_degps},
+      {"pairs_mm", &Row::pairs_trans_mm, pair_mm}, {"pairs_deg", &Row::pairs_rot_deg, pair_deg},
+      {"steps_mm", &Row::steps_trans_mm, pair_mm}, {"steps_deg", &Row::steps_rot_deg, pair_deg}};
   for (const Figure& f : figures) {
     double best = std::numeric_limits<double>::infinity();
     for (const Row& r : rows) best = std::min(best, r.*f.value);
