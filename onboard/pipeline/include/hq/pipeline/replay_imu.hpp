@@ -1,9 +1,11 @@
 #pragma once
-/// IMU for replaying recorded sequences through the chain: read from the sequence when it has
-/// accelerometer.txt and gyro.txt (the simulator writes both, body NED frame Q), otherwise
-/// synthesised from the ground truth, because TUM RGB-D has no gyro and the bundled fr1_360 has
-/// no accelerometer.txt either.
+/// IMU for replaying recorded sequences through the chain. A sequence with accelerometer.txt and
+/// gyro.txt (the simulator writes both, body frame Q, NED) is replayed as recorded. TUM RGB-D has
+/// no gyro: its IMU is what a named MEMS IMU riding on the camera would have measured, derived
+/// from a smooth fit of the motion capture (hq/evaluation/trajectory_spline.hpp) with that IMU's
+/// datasheet noise, and the Kinect's own accelerometer (fr1, fr2) where the sequence has one.
 
+#include "hq/evaluation/trajectory_spline.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/recording/tum_io.hpp"
 #include "hq/recording/tum_sequence.hpp"
@@ -25,20 +27,42 @@ struct ImuMeasurement {
   Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();  ///< Specific force.
 };
 
-/// Parameters of the synthesised IMU.
+/// A MEMS IMU's errors: white noise from its datasheet; what the datasheet does not give (the
+/// bias random walk, the bias left after the flight controller's start-up calibration) is
+/// assumed and said so in describe().
+struct MemsImuModel {
+  std::string name;
+  double rate_hz = 200.0;                 ///< Samples the flight controller hands on.
+  double gyro_noise_density_radps = 0.0;  ///< rad/s/sqrt(Hz)
+  double accel_noise_density_mps2 = 0.0;  ///< m/s^2/sqrt(Hz)
+  double gyro_bias_random_walk = 0.0;     ///< rad/s^2/sqrt(Hz) (assumed)
+  double accel_bias_random_walk = 0.0;    ///< m/s^3/sqrt(Hz) (assumed)
+  double gyro_turn_on_bias_radps = 0.0;   ///< per axis, after calibration (assumed)
+  double accel_turn_on_bias_mps2 = 0.0;   ///< per axis, after calibration (assumed)
+};
+
+/// Bosch BMI088, the IMU of most current PX4 flight controllers (Pixhawk 6C/6X, Holybro,
+/// CUAV): datasheet BST-BMI088-DS001, gyro 0.014 deg/s/sqrt(Hz), accelerometer 190 ug/sqrt(Hz)
+/// (its noisiest axis, z).
+MemsImuModel bmi088();
+/// One line: the model's name and every figure, datasheet and assumed ones told apart.
+std::string describe(const MemsImuModel& model);
+
+/// How a replay's IMU is made where the sequence has none of its own.
 struct ImuSynthesis {
-  double rate_hz = 200.0;
-  double gyro_noise_density = 1.7e-4;  ///< rad/s/sqrt(Hz): white noise, sigma = this sqrt(rate).
-  double accel_difference_s = 0.05;    ///< Step of the second difference giving a_W: 5 ms
-                                       ///< steps would amplify mocap noise 100-fold.
+  MemsImuModel imu = bmi088();
+  evaluation::TrajectorySplineConfig spline;
+  /// Use the sequence's recorded accelerometer (TUM's Kinect) rather than the model's, where
+  /// it has one: a real sensor, noise, bias and misalignment included.
+  bool recorded_accelerometer = true;
   std::uint64_t seed = 1;
 };
 
 /// Where a replay's IMU came from.
 struct ReplayImu {
   std::vector<ImuMeasurement> samples;  ///< Increasing stamps.
-  bool synthesised = false;
-  std::string description;  ///< One line for stderr.
+  bool synthesised = false;             ///< The gyro, at least, made from the ground truth.
+  std::string description;              ///< Lines for stderr: the sources and the IMU model.
 };
 
 /// Ground-truth pose at t_ns: position linear, rotation slerp between the neighbouring poses.
@@ -53,23 +77,48 @@ Eigen::Matrix3d R_body_camera_for_camera_as_body();
 /// The same as a mount: R_body_camera_for_camera_as_body(), no lever arm.
 geometry::CameraMount camera_as_body_mount();
 
-/// Synthesises IMU samples at synthesis.rate_hz over the ground truth's span from
-/// T_world_camera poses (world z up, as TUM's mocap frame and the simulator's NWU world are):
-///   gyro  = body rate log(R_WQ(t - d/2)^T R_WQ(t + d/2)) / d, d = 1 / rate, plus white noise;
-///   accel = R_WQ^T (a_W - g_W), g_W = (0, 0, -g), a_W the second difference of the
-///           interpolated positions over accel_difference_s.
-/// R_WQ = R_WC R_QC^T. Throws hq::InputError if the ground truth spans less than 2 samples.
+/// The Kinect v1's accelerometer axes A in its optical frame C: x left, y up, z forward, i.e.
+/// C turned half a turn about its optical axis (TUM's accelerometer.txt, checked against the
+/// motion capture by gravity_from_accelerometer).
+Eigen::Matrix3d R_camera_kinect_accel();
+
+/// Gravity in the ground truth's world frame, as a recorded accelerometer sees it: the mean of
+/// a_W - R_W_A f_A over the samples within the fit (R_W_A = R_W_C R_C_A), scaled to standard
+/// gravity (the direction is what a tilted motion-capture frame changes; a consumer
+/// accelerometer's scale is no better than a few per cent).
+struct GravityEstimate {
+  Eigen::Vector3d g_W_mps2 = Eigen::Vector3d::Zero();
+  double tilt_from_world_down_deg = 0.0;  ///< Angle between g_W and the world's -z.
+  int samples = 0;
+};
+/// Throws hq::InputError when no sample lies within the fit, or when the gravity found is more
+/// than 15 deg from the world's down: then R_C_A is not the recording's accelerometer axes.
+GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+                                           const std::vector<recording::AccelSample>& accel,
+                                           const Eigen::Matrix3d& R_C_A);
+
+/// IMU samples at synthesis.imu.rate_hz over the fit's span, in the body frame Q (R_body_camera
+/// is R_QC, the camera the tracked sensor, no lever arm):
+///   gyro  = R_QC omega_C + bias + white noise;
+///   accel = R_QC R_WC^T (a_W - g_W) + bias + white noise, or, with recorded_accel, the
+///           recorded specific force R_QC R_C_A f_A averaged over the sample's period (as a
+///           flight controller's accelerometer filter decimates) instead.
+/// Biases start at +-turn_on (random sign per axis) and walk. Deterministic for a seed.
 std::vector<ImuMeasurement> synthesise_imu(
-    const std::vector<recording::StampedPose>& T_world_camera, const Eigen::Matrix3d& R_body_camera,
-    const ImuSynthesis& synthesis = {});
+    const evaluation::TrajectorySpline& T_world_camera, const Eigen::Matrix3d& R_body_camera,
+    const Eigen::Vector3d& g_W_mps2, const ImuSynthesis& synthesis = {},
+    const std::vector<recording::AccelSample>* recorded_accel = nullptr,
+    const Eigen::Matrix3d& R_C_A = Eigen::Matrix3d::Identity());
 
 /// Reads dir/gyro.txt ("t wx wy wz", s and rad/s, the simulator's extension of TUM). Throws
 /// hq::InputError naming path:line.
 std::vector<recording::AccelSample> read_gyro_file(const std::string& path);
 
 /// The IMU of a sequence: accelerometer.txt + gyro.txt paired by stamp when both exist (body
-/// frame Q of the recording), else synthesised from its ground truth with R_body_camera (use
-/// R_body_camera_for_camera_as_body() for TUM). Throws hq::InputError if neither is possible.
+/// frame Q of the recording); else synthesised from its ground truth with R_body_camera (use
+/// R_body_camera_for_camera_as_body() for TUM), gravity and the accelerometer from
+/// accelerometer.txt where there is one (Kinect axes), gravity along the world's -z where not.
+/// Throws hq::InputError if neither is possible.
 ReplayImu load_replay_imu(const recording::TumSequence& sequence,
                           const Eigen::Matrix3d& R_body_camera, const ImuSynthesis& synthesis = {});
 
