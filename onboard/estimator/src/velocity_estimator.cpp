@@ -2,6 +2,7 @@
 
 #include "hq/config/strict_yaml.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -15,6 +16,9 @@ namespace {
 constexpr double kUnseenAccelBoundSigmas = 3.0;
 // The heading rate is singular at 90 deg of pitch, which no flying multirotor reaches.
 constexpr double kMinCosPitch = 0.05;
+// A landed vehicle's velocity is zero but for the frame's vibration and the floor's give.
+constexpr double kRestVelocitySigmaMps = 0.01;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 }  // namespace
 
@@ -44,11 +48,17 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read_positive("max_imu_age_s", out.max_imu_age_s, 10.0);
   section.read("warmup_s", out.warmup_s, 0.0, 10.0);
   section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
-  section.read_positive("max_imu_disagreement_mps", out.max_imu_disagreement_mps, 100.0);
-  section.read("imu_disagreement_growth_mps2", out.imu_disagreement_growth_mps2, 0.0, 100.0);
+  std::string output =
+      out.velocity_output == VelocityEstimatorConfig::VelocityOutput::kFused ? "fused" : "one_euro";
+  section.read("velocity_output", output, {"fused", "one_euro"});
+  out.velocity_output = output == "fused" ? VelocityEstimatorConfig::VelocityOutput::kFused
+                                          : VelocityEstimatorConfig::VelocityOutput::kOneEuro;
+  section.read_positive("vision_position_sigma_m", out.vision_position_sigma_m, 1.0);
+  section.read_positive("accel_noise_density_mps2", out.accel_noise_density_mps2, 10.0);
+  section.read_positive("velocity_gate_chi2", out.velocity_gate_chi2, 1e6);
   section.read("reacquire_frames", out.reacquire_frames, 1, 30);
-  section.read("unseen_accel_time_constant_s", out.unseen_accel_time_constant_s, 0.0, 600.0);
   section.read("unseen_accel_sigma_mps2", out.unseen_accel_sigma_mps2, 0.0, 10.0);
+  section.read("unseen_accel_random_walk", out.unseen_accel_random_walk, 0.0, 10.0);
   section.read_positive("coast_max_velocity_error_mps", out.coast_max_velocity_error_mps, 10.0);
   section.read("gyro_bias_from_odometry", out.gyro_bias_from_odometry);
   section.finish();
@@ -73,42 +83,20 @@ void VelocityEstimator::reset() {
   ever_updated_ = false;
   coast_anchored_ = false;
   coast_from_odometry_ = false;
+  P_.setZero();
+  lag_moment_H_.setZero();
   unseen_accel_H_mps2_.setZero();
-  unseen_accel_learnt_s_ = 0.0;
+  motion_accel_H_mps2_.setZero();
 }
 
 void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
                                      bool from_odometry, const Eigen::Vector3d& v_H_raw_mps) {
-  coast_anchored_ = config_.inertial_coast_s > 0.0;
+  coast_anchored_ = true;
   t_coast_anchor_ns_ = t_ns;
   t_coast_ns_ = attitude_.initialized() ? attitude_.t_ns() : t_ns;
   coast_v_H_mps_ = v_H_mps;
   coast_v_H_raw_mps_ = v_H_raw_mps;
   coast_from_odometry_ = from_odometry;
-}
-
-void VelocityEstimator::learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps) {
-  // Only between two tracked frames: the coast then predicted this frame's velocity from the
-  // last one's with the accelerometer and what it has learnt, and the rest is what it missed.
-  // Eq. 1's velocities, as level_on_velocity's: under a 1 rad/s yaw the 1-euro filter's lag
-  // turns with H and taught 0.01 m/s^2 the accelerometer did not miss.
-  const double span_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
-  if (config_.unseen_accel_time_constant_s <= 0.0 || !coast_anchored_ || !coast_from_odometry_ ||
-      !(span_s > 0.0) || span_s > config_.max_frame_gap_s) {
-    return;
-  }
-  // The coast already added what was learnt: this frame's sample is that plus its miss.
-  const Eigen::Vector3d missed_mps2 =
-      (v_H_raw_mps - coast_v_H_raw_mps_) / span_s + unseen_accel_H_mps2_;
-  if (!missed_mps2.allFinite()) return;
-  unseen_accel_H_mps2_ += span_s / (config_.unseen_accel_time_constant_s + span_s) *
-                          (missed_mps2 - unseen_accel_H_mps2_);
-  unseen_accel_learnt_s_ += span_s;
-  const double bound_mps2 = kUnseenAccelBoundSigmas * config_.unseen_accel_sigma_mps2;
-  const double learnt_mps2 = unseen_accel_H_mps2_.norm();
-  if (config_.unseen_accel_sigma_mps2 > 0.0 && learnt_mps2 > bound_mps2) {
-    unseen_accel_H_mps2_ *= bound_mps2 / learnt_mps2;
-  }
 }
 
 void VelocityEstimator::level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps) {
@@ -125,22 +113,30 @@ void VelocityEstimator::level_on_velocity(std::int64_t t_ns, const Eigen::Vector
 
 double VelocityEstimator::coast_horizon_s() const {
   if (config_.unseen_accel_sigma_mps2 <= 0.0) return config_.inertial_coast_s;
-  // The low-pass has learnt all but exp(-t / tau) of a constant unseen acceleration.
-  const double unlearnt_share =
-      config_.unseen_accel_time_constant_s > 0.0
-          ? std::exp(-unseen_accel_learnt_s_ / config_.unseen_accel_time_constant_s)
-          : 1.0;
-  const double unlearnt_mps2 = config_.unseen_accel_sigma_mps2 * unlearnt_share;
+  // Before the filter has seen a frame, the unseen acceleration is as unknown as its prior.
+  const double unlearnt_mps2 = coast_anchored_
+                                   ? std::sqrt(P_.bottomRightCorner<3, 3>().diagonal().maxCoeff())
+                                   : config_.unseen_accel_sigma_mps2;
+  if (!(unlearnt_mps2 > 0.0)) return config_.inertial_coast_s;
   return std::min(config_.inertial_coast_s, config_.coast_max_velocity_error_mps / unlearnt_mps2);
 }
 
-double VelocityEstimator::imu_gate_mps(std::int64_t t_ns) const {
-  const double coast_s = std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_));
-  return config_.max_imu_disagreement_mps + config_.imu_disagreement_growth_mps2 * coast_s;
+void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
+  if (!coast_anchored_) start_filter();
+  motion_accel_H_mps2_.setZero();
+  anchor_coast(t_ns, Eigen::Vector3d::Zero(), false, Eigen::Vector3d::Zero());
+  // Known: the velocity, not the unseen acceleration (no odometry has checked it).
+  P_.topLeftCorner<3, 3>() =
+      kRestVelocitySigmaMps * kRestVelocitySigmaMps * Eigen::Matrix3d::Identity();
+  P_.topRightCorner<3, 3>().setZero();
+  P_.bottomLeftCorner<3, 3>().setZero();
 }
 
-void VelocityEstimator::hold_at_rest(std::int64_t t_ns) {
-  anchor_coast(t_ns, Eigen::Vector3d::Zero(), false, Eigen::Vector3d::Zero());
+void VelocityEstimator::start_filter() {
+  P_.setZero();
+  const double sigma_u = config_.unseen_accel_sigma_mps2;
+  P_.bottomRightCorner<3, 3>() = sigma_u * sigma_u * Eigen::Matrix3d::Identity();
+  unseen_accel_H_mps2_.setZero();
 }
 
 VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char* reason) {
@@ -149,18 +145,35 @@ VelocityEstimate VelocityEstimator::between_frames(std::int64_t t_ns, const char
 
 FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                                            const Eigen::Vector3d& accel_mps2) {
-  const FilterStatus status = attitude_.update(t_ns, gyro_radps, accel_mps2);
+  // The accelerometer levels the attitude on gravity: what it reads of the vehicle's own
+  // acceleration (the fused velocity's, as PX4's attitude estimator compensates with GPS
+  // velocity) is taken out first, or every manoeuvre tilts the attitude.
+  Eigen::Vector3d gravity_reading_mps2 = accel_mps2;
+  if (attitude_.initialized() && accel_mps2.allFinite()) {
+    gravity_reading_mps2 -=
+        R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()).transpose() *
+        motion_accel_H_mps2_;
+  }
+  const FilterStatus status = attitude_.update(t_ns, gyro_radps, gravity_reading_mps2);
   if (!accepted(status)) return status;
   // omega_hat of Fig. 4: the low-passed gyro, with the complementary filter's bias removed.
   gyro_low_pass_.update(t_ns, gyro_radps - attitude_.gyro_bias_radps());
+  if (have_previous_ && t_ns > t_prev_frame_ns_ && t_ns > t_lag_moment_ns_) {
+    // The acceleration weighted by its time since the previous frame (velocity_at_frame_H).
+    const double dt_s =
+        std::min(1e-9 * static_cast<double>(t_ns - std::max(t_lag_moment_ns_, t_prev_frame_ns_)),
+                 config_.complementary.max_dt_s);
+    const double since_frame_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
+    lag_moment_H_ += since_frame_s * dt_s * acceleration_H(accel_mps2);
+    t_lag_moment_ns_ = t_ns;
+  }
   if (coast_anchored_ && t_ns > t_coast_ns_) {
     // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch.
     const double dt_s =
         std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_), config_.complementary.max_dt_s);
     const double roll_rad = attitude_.roll_rad();
     const double pitch_rad = attitude_.pitch_rad();
-    const Eigen::Vector3d a_H = R_horizontal_body(roll_rad, pitch_rad) * accel_mps2 +
-                                Eigen::Vector3d(0.0, 0.0, kGravityMps2) + unseen_accel_H_mps2_;
+    const Eigen::Vector3d a_H = acceleration_H(accel_mps2);
     // H turns with the heading: a velocity fixed in the world turns the other way in H,
     // v_H' = Rz(d psi)^T v_H, with the Euler heading rate psi' = (q s_phi + r c_phi) / c_theta.
     const Eigen::Vector3d omega_B = gyro_radps - attitude_.gyro_bias_radps();
@@ -170,6 +183,10 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
     const Eigen::AngleAxisd turn(-heading_rate_radps * dt_s, Eigen::Vector3d::UnitZ());
     coast_v_H_mps_ = turn * coast_v_H_mps_ + a_H * dt_s;
     coast_v_H_raw_mps_ = turn * coast_v_H_raw_mps_ + a_H * dt_s;
+    // Held in H as the world's velocity would be: the next frame's acceleration is a change in
+    // the world, not H's turn.
+    v_H_fused_last_mps_ = turn * v_H_fused_last_mps_;
+    propagate_covariance(turn.toRotationMatrix(), dt_s);
     t_coast_ns_ = t_ns;
   }
   return status;
@@ -190,9 +207,13 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   const bool imu_fresh =
       attitude_.initialized() && gyro_low_pass_.initialized() &&
       1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
-  if (coast_anchored_ && imu_fresh && coast_s <= coast_horizon_s() && coast_v_H_mps_.allFinite()) {
+  if (coast_anchored_ && config_.inertial_coast_s > 0.0 && imu_fresh &&
+      coast_s <= coast_horizon_s() && coast_v_H_mps_.allFinite()) {
     estimate.status = EstimateStatus::kInertial;
     estimate.v_H_mps = coast_v_H_mps_;
+    estimate.v_B_mps =
+        R_horizontal_body(estimate.roll_rad, estimate.pitch_rad).transpose() * coast_v_H_mps_;
+    estimate.v_H_covariance = P_.topLeftCorner<3, 3>();
     estimate.omega_body_radps = gyro_low_pass_.value();
   }
   return estimate;
@@ -206,6 +227,8 @@ void VelocityEstimator::reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_C
   have_previous_ = pose_filter_.initialized();
   t_prev_frame_ns_ = t_ns;
   t_seed_ns_ = t_ns;
+  lag_moment_H_.setZero();
+  t_lag_moment_ns_ = t_ns;
 }
 
 const char* VelocityEstimator::unusable_odometry(const odometry::OdometryResult& odometry) const {
@@ -233,12 +256,85 @@ Eigen::Vector3d VelocityEstimator::raw_body_velocity(const Eigen::Isometry3d& T_
   return R_B_C_ * v_C_raw_mps - (Eigen::Matrix3d::Identity() - R_Bk_B_prev) * p_B_C_m_ / dt_s;
 }
 
-bool VelocityEstimator::raw_velocity_disagrees_with_the_imu(std::int64_t t_ns,
-                                                            const Eigen::Vector3d& v_B_raw) const {
-  if (!coast_anchored_ || !attitude_.initialized()) return false;
-  const Eigen::Vector3d v_H_raw =
-      R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
-  return (v_H_raw - coast_v_H_raw_mps_).norm() > imu_gate_mps(t_ns);
+Eigen::Vector3d VelocityEstimator::acceleration_H(const Eigen::Vector3d& accel_mps2) const {
+  // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch,
+  // and what the accelerometer misses, as learnt.
+  return R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
+         Eigen::Vector3d(0.0, 0.0, kGravityMps2) + unseen_accel_H_mps2_;
+}
+
+Eigen::Vector3d VelocityEstimator::velocity_at_frame_H(const Eigen::Vector3d& v_H_mean_mps,
+                                                       double dt_s) const {
+  return v_H_mean_mps + lag_moment_H_ / dt_s;
+}
+
+Eigen::Matrix3d VelocityEstimator::measurement_covariance_H(
+    const odometry::OdometryResult& odometry, double dt_s) const {
+  const double sigma_m = config_.vision_position_sigma_m;
+  Eigen::Matrix3d position_C = sigma_m * sigma_m * Eigen::Matrix3d::Identity();
+  // The odometry's own translation covariance (marginal, of T_ref_cur's twist): it only says
+  // more than the floor along directions the view hardly constrains.
+  const Eigen::LDLT<odometry::Matrix6d> information(odometry.information);
+  if (information.info() == Eigen::Success && information.isPositive() &&
+      odometry.information.allFinite() && odometry.information.diagonal().minCoeff() > 0.0) {
+    const odometry::Matrix6d covariance = information.solve(odometry::Matrix6d::Identity());
+    if (covariance.allFinite()) {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(
+          covariance.topLeftCorner<3, 3>().eval());
+      const Eigen::Vector3d floored = eigen.eigenvalues().cwiseMax(sigma_m * sigma_m);
+      position_C = eigen.eigenvectors() * floored.asDiagonal() * eigen.eigenvectors().transpose();
+    }
+  }
+  // Two poses' errors over dt, turned into H.
+  const Eigen::Matrix3d R_H_C =
+      R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * R_B_C_;
+  return 2.0 / (dt_s * dt_s) * R_H_C * position_C * R_H_C.transpose();
+}
+
+void VelocityEstimator::propagate_covariance(const Eigen::Matrix3d& R_turn, double dt_s) {
+  // v' = R_turn v + (a + u) dt, u' = u: F = [R_turn, dt I; 0, I].
+  Matrix6d F = Matrix6d::Identity();
+  F.topLeftCorner<3, 3>() = R_turn;
+  F.topRightCorner<3, 3>() = dt_s * Eigen::Matrix3d::Identity();
+  P_ = F * P_ * F.transpose();
+  // The accelerometer's white noise on the velocity; the unseen acceleration's random walk.
+  const double q_a = config_.accel_noise_density_mps2;
+  P_.diagonal().head<3>().array() += q_a * q_a * dt_s;
+  if (config_.unseen_accel_sigma_mps2 > 0.0) {
+    const double q_u = config_.unseen_accel_random_walk;
+    P_.diagonal().tail<3>().array() += q_u * q_u * dt_s;
+  }
+}
+
+double VelocityEstimator::innovation_chi2(const Eigen::Vector3d& z_H_mps,
+                                          const Eigen::Matrix3d& R_H) const {
+  if (!coast_anchored_ || !attitude_.initialized()) return 0.0;
+  const Eigen::Vector3d innovation = z_H_mps - coast_v_H_mps_;
+  const Eigen::Matrix3d S = P_.topLeftCorner<3, 3>() + R_H;
+  return innovation.dot(S.ldlt().solve(innovation));
+}
+
+void VelocityEstimator::fuse(const Eigen::Vector3d& z_H_mps, const Eigen::Matrix3d& R_H) {
+  if (!coast_anchored_) {
+    start_filter();
+    coast_v_H_mps_ = z_H_mps;
+    P_.topLeftCorner<3, 3>() = R_H;
+    return;
+  }
+  // Kalman update with H = [I 0]: K = P H^T S^-1 = P.leftCols<3>() S^-1.
+  const Eigen::Matrix3d S = P_.topLeftCorner<3, 3>() + R_H;
+  const Eigen::Matrix<double, 6, 3> PHt = P_.leftCols<3>();
+  const Eigen::Matrix<double, 6, 3> K = S.ldlt().solve(PHt.transpose()).transpose();
+  const Eigen::Vector3d innovation = z_H_mps - coast_v_H_mps_;
+  const Eigen::Matrix<double, 6, 1> correction = K * innovation;
+  coast_v_H_mps_ += correction.head<3>();
+  const Matrix6d P = P_ - K * PHt.transpose();
+  P_ = 0.5 * (P + P.transpose());
+  if (config_.unseen_accel_sigma_mps2 <= 0.0) return;
+  unseen_accel_H_mps2_ += correction.tail<3>();
+  const double bound_mps2 = kUnseenAccelBoundSigmas * config_.unseen_accel_sigma_mps2;
+  const double learnt_mps2 = unseen_accel_H_mps2_.norm();
+  if (learnt_mps2 > bound_mps2) unseen_accel_H_mps2_ *= bound_mps2 / learnt_mps2;
 }
 
 VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
@@ -272,13 +368,22 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.t_ns = t_ns;
   const Eigen::Isometry3d& T_raw = odometry.T_O_C;
   const Eigen::Vector3d v_B_raw = raw_body_velocity(T_raw, dt_s, estimate.v_C_raw_mps);
+  const bool have_attitude = attitude_.initialized() && gyro_low_pass_.initialized();
   // The gate, on eq. 1's velocity before the 1-euro filter sees the pose: a run of wrong frames
   // rejected only after filtering still dragged the filter, and the first right frame after it
-  // carried half their error through the gate (README "Re-acquired twice"). A rejected pose
-  // restarts the filter instead, warm-up included; the warm-up's frames are checked too.
-  if (raw_velocity_disagrees_with_the_imu(t_ns, v_B_raw)) {
+  // carried half their error through the gate (docs: the estimator's decisions). A rejected
+  // pose restarts the filter instead, warm-up included.
+  const Eigen::Matrix3d R_H = measurement_covariance_H(odometry, dt_s);
+  const Eigen::Vector3d v_H_mean_raw =
+      R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
+  const Eigen::Vector3d z_H = velocity_at_frame_H(v_H_mean_raw, dt_s);
+  estimate.innovation_chi2 = have_attitude ? innovation_chi2(z_H, R_H) : 0.0;
+  if (estimate.innovation_chi2 > config_.velocity_gate_chi2) {
     reseed(t_ns, T_raw);
-    return unavailable(t_ns, "odometry velocity disagrees with the IMU");
+    VelocityEstimate rejected = unavailable(t_ns, "odometry velocity disagrees with the IMU");
+    rejected.v_C_raw_mps = estimate.v_C_raw_mps;
+    rejected.innovation_chi2 = estimate.innovation_chi2;
+    return rejected;
   }
   if (!accepted(pose_filter_.update(t_ns, odometry.T_O_C))) {
     return unavailable(t_ns, "odometry pose rejected by the pose filter");
@@ -291,36 +396,53 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   T_O_Ck_prev_filtered_ = T_hat;
   T_O_Ck_prev_raw_ = T_raw;
   t_prev_frame_ns_ = t_ns;
+  lag_moment_H_.setZero();
+  t_lag_moment_ns_ = t_ns;
 
-  if (1e-9 * static_cast<double>(t_ns - t_seed_ns_) < config_.warmup_s) {
+  const bool one_euro_output =
+      config_.velocity_output == VelocityEstimatorConfig::VelocityOutput::kOneEuro;
+  const bool warming_up = 1e-9 * static_cast<double>(t_ns - t_seed_ns_) < config_.warmup_s;
+  if (one_euro_output && warming_up) {
     return unavailable(t_ns, "pose filter warming up after a (re)start");
   }
-  if (!attitude_.initialized() || !gyro_low_pass_.initialized()) {
-    return unavailable(t_ns, "no IMU sample yet");
-  }
+  if (!have_attitude) return unavailable(t_ns, "no IMU sample yet");
   if (1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) > config_.max_imu_age_s) {
     return unavailable(t_ns, "IMU samples too old");
   }
   const Eigen::Vector3d& omega_B = gyro_low_pass_.value();
   // eq. 4: Q_v_Q = R_QC Ck_v_Ck - Q_omega_Q x Q_p_C, i.e. v_B = R_B_C v_C - omega_B x p_B_C
   // (removes the lever-arm velocity of the camera's centre).
-  const Eigen::Vector3d v_B = R_B_C_ * v_C - omega_B.cross(p_B_C_m_);
+  const Eigen::Vector3d v_B_one_euro = R_B_C_ * v_C - omega_B.cross(p_B_C_m_);
   const double roll_rad = attitude_.roll_rad();
   const double pitch_rad = attitude_.pitch_rad();
   // eq. 5: H_v_Q = R_HQ Q_v_Q, i.e. v_H = R_H_B v_B with R_H_B = Ry(theta) Rx(phi).
-  const Eigen::Vector3d v_H = R_horizontal_body(roll_rad, pitch_rad) * v_B;
+  const Eigen::Matrix3d R_H_B = R_horizontal_body(roll_rad, pitch_rad);
+  if (!warming_up) estimate.v_H_one_euro_mps = R_H_B * v_B_one_euro;
 
-  if (coast_anchored_ && (v_H - coast_v_H_mps_).norm() > imu_gate_mps(t_ns)) {
-    return unavailable(t_ns, "odometry velocity disagrees with the IMU");
-  }
   agreeing_frames_ = std::min(agreed_before + 1, config_.reacquire_frames);
   if (agreeing_frames_ < config_.reacquire_frames) {
     return unavailable(t_ns, "odometry re-acquired, waiting for the next frame to agree");
   }
+  const bool had_filter = coast_anchored_ && t_coast_anchor_ns_ < t_ns;
+  const double since_anchor_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  fuse(z_H, R_H);
+  motion_accel_H_mps2_.setZero();
+  if (had_filter && coast_from_odometry_ && since_anchor_s <= config_.max_frame_gap_s) {
+    // The fused velocity's change since the last frame it took.
+    motion_accel_H_mps2_ = (coast_v_H_mps_ - v_H_fused_last_mps_) / since_anchor_s;
+  }
+  v_H_fused_last_mps_ = coast_v_H_mps_;
   estimate.status = EstimateStatus::kOk;
   estimate.reason = "";
-  estimate.v_B_mps = v_B;
-  estimate.v_H_mps = v_H;
+  if (one_euro_output) {
+    estimate.v_H_mps = estimate.v_H_one_euro_mps;
+    estimate.v_B_mps = v_B_one_euro;
+    estimate.v_H_covariance = R_H;
+  } else {
+    estimate.v_H_mps = coast_v_H_mps_;
+    estimate.v_B_mps = R_H_B.transpose() * coast_v_H_mps_;
+    estimate.v_H_covariance = P_.topLeftCorner<3, 3>();
+  }
   estimate.omega_body_radps = omega_B;
   estimate.roll_rad = roll_rad;
   estimate.pitch_rad = pitch_rad;
@@ -332,10 +454,8 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   if (config_.gyro_bias_from_odometry) {
     attitude_.set_vision_gyro_bias(R_B_C_ * odometry.gyro_bias_radps);
   }
-  const Eigen::Vector3d v_H_raw = R_horizontal_body(roll_rad, pitch_rad) * v_B_raw;
-  level_on_velocity(t_ns, v_H_raw);
-  learn_unseen_accel(t_ns, v_H_raw);
-  anchor_coast(t_ns, v_H, true, v_H_raw);
+  level_on_velocity(t_ns, v_H_mean_raw);
+  anchor_coast(t_ns, coast_v_H_mps_, true, v_H_mean_raw);
   return estimate;
 }
 

@@ -476,8 +476,9 @@ TEST(LoadOnboardConfig, ReadsTheDefaultFileIntoEveryComponent) {
   EXPECT_DOUBLE_EQ(config.obstacles.support_influence_m, 0.3);
   EXPECT_DOUBLE_EQ(config.estimator.one_euro_position.beta, 2.0);
   EXPECT_DOUBLE_EQ(config.estimator.inertial_coast_s, 2.0);
-  EXPECT_DOUBLE_EQ(config.estimator.max_imu_disagreement_mps, 0.5);
-  EXPECT_DOUBLE_EQ(config.estimator.imu_disagreement_growth_mps2, 0.15);
+  EXPECT_DOUBLE_EQ(config.estimator.velocity_gate_chi2, 16.27);
+  EXPECT_EQ(config.estimator.velocity_output,
+            estimator::VelocityEstimatorConfig::VelocityOutput::kFused);
   EXPECT_EQ(config.estimator.reacquire_frames, 2);
   EXPECT_DOUBLE_EQ(config.control.kp_xy_per_s, 3.0);
   EXPECT_DOUBLE_EQ(config.modes.teleop_timeout_s, 0.5);

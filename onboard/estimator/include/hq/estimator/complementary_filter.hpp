@@ -35,10 +35,13 @@ struct ComplementaryConfig {
   double max_dt_s = 0.1;              ///< A larger gap re-initialises from the accelerometer.
   bool init_from_accel = true;        ///< First sample sets roll/pitch from the accelerometer.
   /// Gains on the tilt that a measured velocity gives (level_on_velocity): 0 turns it off.
-  /// A 3 s time constant: the gyro's bias comes from the vision (set_vision_gyro_bias), so the
-  /// levelling need not outrun it, and a frame's velocity error e tilts the attitude by only
-  /// velocity_k_p e / g, which the next coast turns into velocity_k_p e of acceleration.
-  double velocity_k_p = 0.3;  ///< 1/s
+  /// Off by default: each frame's velocity difference carries the odometry's noise over one
+  /// frame interval, which on real Kinect frames (0.06 m/s per axis, fr1/xyz) is 1.8 m/s^2 of
+  /// apparent acceleration, and at 0.3 it tilted the attitude enough to throw the fused
+  /// velocity 0.24 m/s RMS off on the whole fr1/xyz (0.06 without). The fused filter's unseen
+  /// acceleration (VelocityEstimatorConfig::unseen_accel_sigma_mps2) carries a tilt's effect on
+  /// the velocity instead, weighed by the measurement's noise.
+  double velocity_k_p = 0.0;  ///< 1/s
   /// 0: wrong but accepted odometry velocities (the depth term's in a plain corner) taught the
   /// gyro a bias that tilted the next coast 2.5 deg off; the accelerometer's term learns it.
   double velocity_k_i = 0.0;  ///< 1/s^2

@@ -34,17 +34,28 @@ struct VelocityEstimatorConfig {
   /// ground) with the accelerometer for at most this long; an MPU-class bias of 0.05 m/s^2
   /// grows to 0.1 m/s in 2 s. 0 disables the coast.
   double inertial_coast_s = 2.0;
-  /// An odometry velocity further than this from the IMU-propagated one at the coast's anchor
-  /// (the last accepted frame, or rest) is rejected: a wrong match, not a manoeuvre, which the
-  /// accelerometer sees. The gate widens by imu_disagreement_growth_mps2 per second since the
-  /// anchor, as the coast's own error may, and stays shut after the coast has ended: a vehicle
-  /// lost for a second must not take the first velocity it is offered. Tighter than this
-  /// rejects good frames: eq. 2's velocity still lags after a warm-up (README "The gate").
-  double max_imu_disagreement_mps = 0.5;
-  /// How fast the coast's velocity may go wrong: about twice what the campaigns measure (0.084
-  /// m/s RMS over coasts of up to 2 s). At 0.3 the gate was 1 m/s wide after 1.7 s lost, and
-  /// the depth term's wrong returns came through it (README "Re-acquired twice").
-  double imu_disagreement_growth_mps2 = 0.15;
+  /// The velocity the chain flies on is a Kalman filter's: the IMU's acceleration predicts it
+  /// between frames (the high frequencies, no lag) and each frame's odometry velocity corrects
+  /// it (the low frequencies, no drift). kFused: that filter's velocity, at the frame's time.
+  /// kOneEuro: the core paper's eq. 2-5 on 1-euro filtered poses, which lags 30-150 ms on real
+  /// recordings (the filter keeps running for the record either way).
+  enum class VelocityOutput { kFused, kOneEuro };
+  VelocityOutput velocity_output = VelocityOutput::kFused;
+  /// The odometry's position error per frame and axis (m): a frame's velocity (eq. 1, two
+  /// poses dt apart) is measured with sqrt(2) this / dt of noise, more where the odometry's own
+  /// covariance says so (a degenerate direction). 1 mm: the DVO pair error on fr1 (the bench's
+  /// pairs, 1.5-3 mm over two poses); 30 Hz frames then give 0.043 m/s per axis.
+  double vision_position_sigma_m = 0.001;
+  /// The accelerometer's white noise on the airframe (m/s^2/sqrt(Hz)): the sensor's (BMI088
+  /// 0.002) and the motors' vibration. 0.035 is PX4 EKF2's EKF2_ACC_NOISE (0.35 m/s^2 per
+  /// 100 Hz step).
+  double accel_noise_density_mps2 = 0.035;
+  /// An odometry velocity whose innovation against the IMU-propagated one has a squared
+  /// Mahalanobis distance above this (3 degrees of freedom: 16.27 rejects 0.1 % of consistent
+  /// ones) is rejected: a wrong match, not a manoeuvre, which the accelerometer sees. The
+  /// covariance is the filter's, which grows over a coast with the accelerometer's noise and
+  /// its unseen acceleration (unseen_accel_sigma_mps2), and the frame's measurement noise.
+  double velocity_gate_chi2 = 16.27;
   /// Consecutive frames that must pass that gate before their velocity is used, after any
   /// frame that was not (a start, a loss, a rejection). One wrong frame between lost ones is
   /// how the depth term flew off in the textureless world (README "Re-acquired twice"): alone
@@ -52,17 +63,18 @@ struct VelocityEstimatorConfig {
   int reacquire_frames = 2;
   /// The acceleration the accelerometer does not see (its bias, and the tilt error the
   /// complementary filter makes of it: a vehicle held "level" on a biased accelerometer
-  /// accelerates while the IMU reads nothing) is learnt while the odometry tracks, from how far
-  /// each frame's velocity lands from the coast's prediction, low-passed with this time
-  /// constant, and added to the coast. 0: not learnt.
-  double unseen_accel_time_constant_s = 5.0;
-  /// How much acceleration the accelerometer may miss before the odometry has checked it: its
-  /// bias and the level's error (an MPU-class 0.05 m/s^2 per axis gives a horizontal norm under
-  /// 0.1 nine times in ten). What is still unlearnt, this x exp(-tracked time / the time
-  /// constant), sets how long a coast may last (coast_max_velocity_error_mps); what is learnt
-  /// is bounded to three times it, so that wrong but accepted odometry cannot teach the coast
-  /// an acceleration no accelerometer misses. 0: neither.
+  /// accelerates while the IMU reads nothing) is the fused filter's second state, in H,
+  /// estimated from how far each frame's velocity lands from the IMU's prediction and added to
+  /// every prediction. This is how much it may be before the odometry has checked it: its
+  /// prior standard deviation per axis (an MPU-class bias of 0.05 m/s^2 and the level's error
+  /// give a horizontal norm under 0.1 nine times in ten). What is still unlearnt (the filter's
+  /// standard deviation of it) sets how long a coast may last (coast_max_velocity_error_mps);
+  /// the estimate is bounded to three times it, so that wrong but accepted odometry cannot
+  /// teach the coast an acceleration no accelerometer misses. 0: none (not estimated).
   double unseen_accel_sigma_mps2 = 0.1;
+  /// How fast it may change (m/s^2/sqrt(s)): the tilt error drifts with the gyro's residual
+  /// bias (0.1 deg/s tilts gravity's share by 0.017 m/s^3) and the airframe's manoeuvres.
+  double unseen_accel_random_walk = 0.02;
   /// The coast ends (the vehicle hovers level) once the velocity error it may have gathered
   /// from the unlearnt acceleration reaches this: a coast one tracked frame after a start is
   /// 1 s, not inertial_coast_s, because nothing has checked the accelerometer yet.
@@ -75,14 +87,16 @@ struct VelocityEstimatorConfig {
 
 /// Reads the `estimator:` section: {one_euro_position: {...}, one_euro_rotation: {...},
 /// complementary: {...}, gyro_cutoff_hz, min_valid_ratio, max_mean_error, max_frame_gap_s,
-/// max_imu_age_s, warmup_s, inertial_coast_s, max_imu_disagreement_mps,
-/// imu_disagreement_growth_mps2, reacquire_frames, unseen_accel_time_constant_s,
-/// unseen_accel_sigma_mps2, coast_max_velocity_error_mps, gyro_bias_from_odometry}.
+/// max_imu_age_s, warmup_s, inertial_coast_s, velocity_output (fused | one_euro),
+/// vision_position_sigma_m, accel_noise_density_mps2, velocity_gate_chi2, reacquire_frames,
+/// unseen_accel_sigma_mps2, unseen_accel_random_walk, coast_max_velocity_error_mps,
+/// gyro_bias_from_odometry}.
 void read_config(config::StrictMap& section, VelocityEstimatorConfig& out);
 
-/// kOk: from odometry (eqs. 1-5). kInertial: odometry unusable, v_H propagated on the IMU from
-/// the last good value for at most inertial_coast_s (degraded but flyable). kUnavailable:
-/// neither; the velocities are zero and not to be used.
+/// kOk: this frame's odometry velocity was used (eqs. 1-5, fused with the IMU). kInertial:
+/// odometry unusable, v_H propagated on the IMU from the last good value for at most
+/// inertial_coast_s (degraded but flyable). kUnavailable: neither; the velocities are zero and
+/// not to be used.
 enum class EstimateStatus { kOk, kInertial, kUnavailable };
 
 /// One velocity estimate. Unless ok(), reason says why odometry is not used and
@@ -90,11 +104,20 @@ enum class EstimateStatus { kOk, kInertial, kUnavailable };
 struct VelocityEstimate {
   std::int64_t t_ns = 0;
   EstimateStatus status = EstimateStatus::kUnavailable;
-  const char* reason = "";                                     ///< Static text.
-  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();           ///< eq. 2: v_Ck in Ck, filtered.
-  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();       ///< eq. 1: raw poses.
-  Eigen::Vector3d v_B_mps = Eigen::Vector3d::Zero();           ///< eq. 4 (the paper's Q_v_Q).
-  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();           ///< eq. 5 (the paper's H_v_Q).
+  const char* reason = "";                                ///< Static text.
+  Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();      ///< eq. 2: v_Ck in Ck, filtered.
+  Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1: raw poses.
+  /// The velocity to fly on (VelocityEstimatorConfig::velocity_output): eq. 4 and 5 of the
+  /// fused velocity, or of eq. 2's.
+  Eigen::Vector3d v_B_mps = Eigen::Vector3d::Zero();  ///< eq. 4 (the paper's Q_v_Q).
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();  ///< eq. 5 (the paper's H_v_Q).
+  /// Eq. 5 of eq. 2's 1-euro velocity, whichever velocity_output is (zero until the 1-euro
+  /// filter has warmed up).
+  Eigen::Vector3d v_H_one_euro_mps = Eigen::Vector3d::Zero();
+  /// v_H_mps's covariance (m^2/s^2): the fused filter's, or the measurement's for kOneEuro.
+  Eigen::Matrix3d v_H_covariance = Eigen::Matrix3d::Zero();
+  /// The frame's squared Mahalanobis distance against the IMU's prediction (0 without one).
+  double innovation_chi2 = 0.0;
   Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();  ///< low-passed, bias removed.
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
@@ -134,8 +157,9 @@ class VelocityEstimator {
   /// How long a coast may last now: inertial_coast_s, shortened while the accelerometer's
   /// unseen acceleration is not yet learnt (unseen_accel_sigma_mps2).
   [[nodiscard]] double coast_horizon_s() const;
-  /// How far an odometry velocity may be from the coast's now and be accepted.
-  [[nodiscard]] double imu_gate_mps(std::int64_t t_ns) const;
+  /// The IMU-propagated velocity's covariance now (m^2/s^2): what an odometry velocity is
+  /// gated against, with its own noise.
+  [[nodiscard]] Eigen::Matrix3d velocity_covariance() const { return P_.topLeftCorner<3, 3>(); }
   void reset();
 
  private:
@@ -158,12 +182,29 @@ class VelocityEstimator {
   /// velocity over it, lever arm removed.
   Eigen::Vector3d raw_body_velocity(const Eigen::Isometry3d& T_raw, double dt_s,
                                     Eigen::Vector3d& v_C_raw_mps) const;
-  /// The IMU gate on eq. 1's velocity: false while there is no coast to compare with.
-  [[nodiscard]] bool raw_velocity_disagrees_with_the_imu(std::int64_t t_ns,
-                                                         const Eigen::Vector3d& v_B_raw) const;
-  /// A tracked frame's unfiltered (eq. 1) velocity against the coast's prediction of it:
-  /// unseen_accel_H_mps2_.
-  void learn_unseen_accel(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps);
+  /// The acceleration in H the coast integrates: specific force levelled, gravity, and the
+  /// unseen acceleration learnt.
+  [[nodiscard]] Eigen::Vector3d acceleration_H(const Eigen::Vector3d& accel_mps2) const;
+  /// Eq. 1's velocity measures the mean over the frame interval; this is the velocity at the
+  /// frame's time it implies, with the IMU's acceleration over the interval
+  /// (v(t_k) = mean + 1/dt int (t - t_k-1) a dt), in H.
+  [[nodiscard]] Eigen::Vector3d velocity_at_frame_H(const Eigen::Vector3d& v_H_mean_mps,
+                                                    double dt_s) const;
+  /// The frame velocity's noise in H: vision_position_sigma_m, or the odometry's own
+  /// covariance where larger, over two poses dt apart.
+  [[nodiscard]] Eigen::Matrix3d measurement_covariance_H(const odometry::OdometryResult& odometry,
+                                                         double dt_s) const;
+  /// The squared Mahalanobis distance of a frame velocity against the IMU's prediction (0
+  /// while there is none).
+  [[nodiscard]] double innovation_chi2(const Eigen::Vector3d& z_H_mps,
+                                       const Eigen::Matrix3d& R_H) const;
+  /// The fused filter's covariance over one IMU step: the heading's turn, the accelerometer's
+  /// noise, the unseen acceleration's walk.
+  void propagate_covariance(const Eigen::Matrix3d& R_turn, double dt_s);
+  /// Starts the fused filter: the unseen acceleration zero with its prior.
+  void start_filter();
+  /// Kalman update of the fused velocity with a frame velocity (its first value without one).
+  void fuse(const Eigen::Vector3d& z_H_mps, const Eigen::Matrix3d& R_H);
   /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
   void reseed(std::int64_t t_ns, const Eigen::Isometry3d& T_O_Ck);
 
@@ -186,13 +227,22 @@ class VelocityEstimator {
   bool coast_anchored_ = false;
   std::int64_t t_coast_anchor_ns_ = 0;
   std::int64_t t_coast_ns_ = 0;  ///< Stamp of the last IMU sample integrated.
+  /// The fused filter: velocity (the coast between frames) and unseen acceleration
+  /// (unseen_accel_H_mps2_), both in H, and their joint covariance in that order.
   Eigen::Vector3d coast_v_H_mps_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Zero();
+  /// int (t - t_prev_frame) a_H dt over the IMU samples since the previous frame.
+  Eigen::Vector3d lag_moment_H_ = Eigen::Vector3d::Zero();
+  std::int64_t t_lag_moment_ns_ = 0;  ///< Stamp of the last IMU sample in lag_moment_H_.
   bool coast_from_odometry_ = false;
   /// The same coast from the anchoring frame's unfiltered velocity: what level_on_velocity
   /// compares the next frame's with.
   Eigen::Vector3d coast_v_H_raw_mps_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d unseen_accel_H_mps2_ = Eigen::Vector3d::Zero();
-  double unseen_accel_learnt_s_ = 0.0;  ///< Tracked time the learning has seen since reset.
+  /// The vehicle's own acceleration in H, taken out of the accelerometer before it levels the
+  /// attitude.
+  Eigen::Vector3d motion_accel_H_mps2_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_H_fused_last_mps_ = Eigen::Vector3d::Zero();  ///< After the last update.
 };
 
 const char* to_string(EstimateStatus status);
