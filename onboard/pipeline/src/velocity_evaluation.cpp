@@ -28,6 +28,7 @@ namespace {
 struct Shifted {
   Eigen::Vector3d sq_raw = Eigen::Vector3d::Zero();
   Eigen::Vector3d sq_filtered = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sq_flown = Eigen::Vector3d::Zero();
 };
 
 Shifted squared_errors(const std::vector<VelocitySample>& samples,
@@ -38,6 +39,7 @@ Shifted squared_errors(const std::vector<VelocitySample>& samples,
     const Eigen::Vector3d v_true = *true_camera_velocity(truth, sample.t_ns - shift_ns, h_ns);
     out.sq_raw += (sample.v_C_raw_mps - v_true).cwiseAbs2();
     out.sq_filtered += (sample.v_C_mps - v_true).cwiseAbs2();
+    out.sq_flown += (sample.v_C_flown_mps - v_true).cwiseAbs2();
   }
   return out;
 }
@@ -73,6 +75,7 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
   const Shifted at_zero = squared_errors(usable, T_world_camera, frame_interval_ns, 0);
   errors.rmse_raw_mps = (at_zero.sq_raw / n).cwiseSqrt();
   errors.rmse_filtered_mps = (at_zero.sq_filtered / n).cwiseSqrt();
+  errors.rmse_flown_mps = (at_zero.sq_flown / n).cwiseSqrt();
   double truth_sq = 0.0;
   for (const VelocitySample& sample : usable) {
     truth_sq += true_camera_velocity(T_world_camera, sample.t_ns, frame_interval_ns)->squaredNorm();
@@ -81,6 +84,7 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
 
   double best_filtered = at_zero.sq_filtered.sum();
   double best_raw = at_zero.sq_raw.sum();
+  double best_flown = at_zero.sq_flown.sum();
   errors.rmse_filtered_at_lag_mps = errors.rmse_filtered_mps;
   for (std::int64_t shift = step_ns; shift <= max_shift_ns; shift += step_ns) {
     const Shifted e = squared_errors(usable, T_world_camera, frame_interval_ns, shift);
@@ -93,12 +97,17 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
       best_raw = e.sq_raw.sum();
       errors.raw_lag_ms = 1e-6 * static_cast<double>(shift);
     }
+    if (e.sq_flown.sum() < best_flown) {
+      best_flown = e.sq_flown.sum();
+      errors.flown_lag_ms = 1e-6 * static_cast<double>(shift);
+    }
   }
   return errors;
 }
 
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
-                               const OnboardConfig& config, const control::VehicleConfig& vehicle) {
+                               const OnboardConfig& config, const control::VehicleConfig& vehicle,
+                               const ImuSynthesis& synthesis) {
   sources::TumFrameSource source(sequence_dir, camera);
   const recording::TumSequence& sequence = source.sequence();
   if (!sequence.has_ground_truth()) {
@@ -120,7 +129,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
                    spacing_ns.end());
   replay.frame_interval_ns = spacing_ns[spacing_ns.size() / 2];
 
-  replay.imu = load_replay_imu(sequence, R_body_camera_for_camera_as_body());
+  replay.imu = load_replay_imu(sequence, R_body_camera_for_camera_as_body(), synthesis);
   control::VehicleConfig replay_vehicle = vehicle;
   if (replay.imu.synthesised) {
     // The synthesised IMU lives on the camera: the camera is the body (see replay_imu.hpp).
@@ -144,17 +153,34 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
     ++replay.frames;
     if (out.estimate.ok()) {
       ++replay.ok_estimates;
-      replay.samples.push_back({frame.t_ns, out.estimate.v_C_raw_mps, out.estimate.v_C_mps});
+      replay.mean_innovation_chi2 += out.estimate.innovation_chi2;
+      // The flown body velocity as the camera's centre moves (eq. 4 undone).
+      const Eigen::Vector3d v_C_flown =
+          replay_vehicle.camera.R_B_C().transpose() *
+          (out.estimate.v_B_mps +
+           out.estimate.omega_body_radps.cross(replay_vehicle.camera.p_B_C_m()));
+      replay.samples.push_back(
+          {frame.t_ns, out.estimate.v_C_raw_mps, out.estimate.v_C_mps, v_C_flown});
+    } else {
+      if (out.estimate.usable()) ++replay.inertial_estimates;
+      ++replay.unavailable_reasons[out.estimate.reason];
     }
   }
   replay.imu.samples.clear();
+  if (replay.ok_estimates > 0) replay.mean_innovation_chi2 /= replay.ok_estimates;
   if (replay.ok_estimates == 0) {
     // The chain's own start-up rules, not bad data: say which values to lower.
+    const bool one_euro = config.estimator.velocity_output ==
+                          estimator::VelocityEstimatorConfig::VelocityOutput::kOneEuro;
+    const std::string warm_up =
+        one_euro ? fmt::format("estimator.warmup_s ({} s) after a start, then for ",
+                               config.estimator.warmup_s)
+                 : std::string("a second frame after a start, then for ");
     throw InputError(fmt::format(
-        "{}: none of its {} frames gave a usable velocity; the estimator waits "
-        "estimator.warmup_s ({} s) after a start, then for estimator.reacquire_frames ({}) "
-        "frames that agree with the IMU: a sequence this short needs a config with less",
-        sequence_dir, replay.frames, config.estimator.warmup_s, config.estimator.reacquire_frames));
+        "{}: none of its {} frames gave a usable velocity; the estimator waits {}"
+        "estimator.reacquire_frames ({}) frames that agree with the IMU: a sequence this short "
+        "needs a config with less",
+        sequence_dir, replay.frames, warm_up, config.estimator.reacquire_frames));
   }
   return replay;
 }

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +27,8 @@ struct VelocitySample {
   std::int64_t t_ns = 0;
   Eigen::Vector3d v_C_raw_mps = Eigen::Vector3d::Zero();  ///< eq. 1.
   Eigen::Vector3d v_C_mps = Eigen::Vector3d::Zero();      ///< eq. 2.
+  /// The velocity the chain flies on (the IMU-fused one by default), as the camera's.
+  Eigen::Vector3d v_C_flown_mps = Eigen::Vector3d::Zero();
 };
 
 struct LagSearch {
@@ -38,15 +41,18 @@ struct VelocityErrors {
   double frame_interval_s = 0.0;  ///< h of the central difference.
   Eigen::Vector3d rmse_raw_mps = Eigen::Vector3d::Zero();       ///< eq. 1, per camera axis.
   Eigen::Vector3d rmse_filtered_mps = Eigen::Vector3d::Zero();  ///< eq. 2, per camera axis.
+  Eigen::Vector3d rmse_flown_mps = Eigen::Vector3d::Zero();     ///< flown, per camera axis.
   double truth_rms_mps = 0.0;  ///< |v_true| RMS over the samples: the scale of the errors.
   /// Shift s minimising the filtered RMSE (3-axis) of v_est(t) against v_true(t - s).
   double filtered_lag_ms = 0.0;
-  double raw_lag_ms = 0.0;  ///< Same for eq. 1 (a backward difference already lags by h/2).
+  double raw_lag_ms = 0.0;    ///< Same for eq. 1 (a backward difference already lags by h/2).
+  double flown_lag_ms = 0.0;  ///< Same for the flown velocity.
   Eigen::Vector3d rmse_filtered_at_lag_mps = Eigen::Vector3d::Zero();
 
   /// 3-axis RMSE: sqrt(sum of the per-axis mean squares).
   [[nodiscard]] double raw_norm_mps() const { return rmse_raw_mps.norm(); }
   [[nodiscard]] double filtered_norm_mps() const { return rmse_filtered_mps.norm(); }
+  [[nodiscard]] double flown_norm_mps() const { return rmse_flown_mps.norm(); }
 };
 
 /// Truth v_C at t_ns (see the file comment); nullopt where t -+ h leaves the ground truth.
@@ -67,7 +73,18 @@ struct SequenceReplay {
   std::int64_t frame_interval_ns = 0;                ///< Median spacing of all frames.
   int frames = 0;
   int ok_estimates = 0;
+  int inertial_estimates = 0;  ///< Frames the estimate coasted on the IMU instead.
+  /// Mean squared Mahalanobis distance of the used frames' velocities against the IMU's
+  /// prediction (NIS): 3 for a filter whose covariances are right, more when overconfident.
+  double mean_innovation_chi2 = 0.0;
+  /// Why the other frames had no odometry velocity: the estimate's reason, counted.
+  std::map<std::string, int> unavailable_reasons;
   ReplayImu imu;  ///< samples emptied after use; description and synthesised kept.
+
+  /// Share of frames with an odometry velocity (kOk), 0..1.
+  [[nodiscard]] double availability() const {
+    return frames > 0 ? static_cast<double>(ok_estimates) / frames : 0.0;
+  }
 };
 
 /// Replays a TUM-layout sequence (undistorted with `camera`) through an OnboardChain with its
@@ -77,6 +94,7 @@ struct SequenceReplay {
 ///                 or no usable velocity in the whole sequence (too short for the estimator's
 ///                 warm-up and reacquire_frames).
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
-                               const OnboardConfig& config, const control::VehicleConfig& vehicle);
+                               const OnboardConfig& config, const control::VehicleConfig& vehicle,
+                               const ImuSynthesis& synthesis = {});
 
 }  // namespace hq::pipeline
