@@ -27,9 +27,10 @@ struct VelocityEstimatorConfig {
   double max_mean_error = 2500.0;  ///< Odometry mean weighted error (intensity^2) bound.
   double max_frame_gap_s = 0.5;    ///< Longer gaps re-seed the pose filter (no eq. 2 over it).
   double max_imu_age_s = 0.2;      ///< Attitude older than this makes the estimate unavailable.
-  double warmup_s = 0.2;           ///< After a (re)seed the 1€ speed starts at 0 and eq. 2
-                                   ///< reads low (0.05 of 0.3 m/s on the first frame); no
-                                   ///< estimate until the filter has run this long.
+  /// After a (re)seed the 1€ speed starts at 0 and eq. 2 reads low (0.05 of 0.3 m/s on the
+  /// first frame): with velocity_output one_euro no estimate until the filter has run this
+  /// long, and v_H_one_euro_mps stays zero meanwhile.
+  double warmup_s = 0.2;
   /// Without usable odometry, v_H is propagated from the last good value (or from rest on the
   /// ground) with the accelerometer for at most this long; an MPU-class bias of 0.05 m/s^2
   /// grows to 0.1 m/s in 2 s. 0 disables the coast.
