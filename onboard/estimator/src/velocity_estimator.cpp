@@ -93,6 +93,8 @@ void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v
                                      bool from_odometry, const Eigen::Vector3d& v_H_raw_mps) {
   coast_anchored_ = true;
   t_coast_anchor_ns_ = t_ns;
+  coast_horizon_at_anchor_s_ =
+      horizon_for_unlearnt(std::sqrt(P_.bottomRightCorner<3, 3>().diagonal().maxCoeff()));
   t_coast_ns_ = attitude_.initialized() ? attitude_.t_ns() : t_ns;
   coast_v_H_mps_ = v_H_mps;
   coast_v_H_raw_mps_ = v_H_raw_mps;
@@ -112,12 +114,16 @@ void VelocityEstimator::level_on_velocity(std::int64_t t_ns, const Eigen::Vector
 }
 
 double VelocityEstimator::coast_horizon_s() const {
-  if (config_.unseen_accel_sigma_mps2 <= 0.0) return config_.inertial_coast_s;
-  // Before the filter has seen a frame, the unseen acceleration is as unknown as its prior.
-  const double unlearnt_mps2 = coast_anchored_
-                                   ? std::sqrt(P_.bottomRightCorner<3, 3>().diagonal().maxCoeff())
-                                   : config_.unseen_accel_sigma_mps2;
-  if (!(unlearnt_mps2 > 0.0)) return config_.inertial_coast_s;
+  // A coast's length is set when it starts: the unseen acceleration's uncertainty still grows
+  // during it, but that growth is what the horizon already allowed for.
+  if (coast_anchored_) return coast_horizon_at_anchor_s_;
+  return horizon_for_unlearnt(config_.unseen_accel_sigma_mps2);
+}
+
+double VelocityEstimator::horizon_for_unlearnt(double unlearnt_mps2) const {
+  if (config_.unseen_accel_sigma_mps2 <= 0.0 || !(unlearnt_mps2 > 0.0)) {
+    return config_.inertial_coast_s;
+  }
   return std::min(config_.inertial_coast_s, config_.coast_max_velocity_error_mps / unlearnt_mps2);
 }
 
@@ -193,6 +199,9 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
 }
 
 VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* reason) {
+  // Without a frame taken nothing measures the motion's acceleration any more: held, the last
+  // one tilted the attitude through a whole coast (8 deg in 1.9 s in the unseen campaign).
+  motion_accel_H_mps2_.setZero();
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
   estimate.status = EstimateStatus::kUnavailable;

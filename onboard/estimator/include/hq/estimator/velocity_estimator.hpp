@@ -202,6 +202,8 @@ class VelocityEstimator {
   /// The fused filter's covariance over one IMU step: the heading's turn, the accelerometer's
   /// noise, the unseen acceleration's walk.
   void propagate_covariance(const Eigen::Matrix3d& R_turn, double dt_s);
+  /// How long a coast may last with this much of the unseen acceleration unlearnt (m/s^2).
+  [[nodiscard]] double horizon_for_unlearnt(double unlearnt_mps2) const;
   /// Starts the fused filter: the unseen acceleration zero with its prior.
   void start_filter();
   /// Kalman update of the fused velocity with a frame velocity (its first value without one).
@@ -227,7 +229,8 @@ class VelocityEstimator {
   std::int64_t t_first_update_ns_ = 0;
   bool coast_anchored_ = false;
   std::int64_t t_coast_anchor_ns_ = 0;
-  std::int64_t t_coast_ns_ = 0;  ///< Stamp of the last IMU sample integrated.
+  double coast_horizon_at_anchor_s_ = 0.0;  ///< coast_horizon_s() of the coast under way.
+  std::int64_t t_coast_ns_ = 0;             ///< Stamp of the last IMU sample integrated.
   /// The fused filter: velocity (the coast between frames) and unseen acceleration
   /// (unseen_accel_H_mps2_), both in H, and their joint covariance in that order.
   Eigen::Vector3d coast_v_H_mps_ = Eigen::Vector3d::Zero();
