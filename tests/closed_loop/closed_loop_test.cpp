@@ -197,7 +197,10 @@ TEST(ClosedLoop, LongCameraLossCoastsForABoundedTimeThenSafeHovers) {
   const double coast_s = first_safe_hover_s - last_ok_s;
   std::printf("4 s camera loss: IMU coast %.2f s (inertial_coast_s %.1f), then safe hover\n",
               coast_s, s.onboard.estimator.inertial_coast_s);
-  EXPECT_GE(coast_s, s.onboard.estimator.inertial_coast_s);
+  // The coast's length is what the fused filter still does not know of the accelerometer
+  // allows, at most inertial_coast_s: after 8 s tracked its unseen acceleration is known to
+  // 0.05 m/s^2 (its random walk against the frames' noise), which allows 1.97 s of the 2.
+  EXPECT_GE(coast_s, 0.95 * s.onboard.estimator.inertial_coast_s);
   EXPECT_LE(coast_s, s.onboard.estimator.inertial_coast_s + 0.05);
   EXPECT_TRUE(sample_at(*loop, 11.9).airborne);
   EXPECT_TRUE(sample_at(*loop, 13.9).estimate_ok) << "odometry resumes when frames return";

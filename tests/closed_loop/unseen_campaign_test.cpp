@@ -33,7 +33,8 @@ struct WorldRow {
   int fly_aways = 0;
   double min_clearance_m = 1e9;
   double max_true_speed_mps = 0.0;
-  double max_flown_m = 0.0;  ///< Largest horizontal distance from the start: it did move.
+  double max_command_mps = 0.0;  ///< The fastest horizontal speed the operator asked for.
+  double max_flown_m = 0.0;      ///< Largest horizontal distance from the start: it did move.
   /// The inertial coast's horizontal velocity error against the truth, over every frame flown
   /// on it: a figure that moves smoothly where collisions are rare events.
   int coast_frames = 0;
@@ -110,6 +111,7 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
       const double angle_rad =
           u(rng) < 0.5 ? 2.0 * M_PI * u(rng) : (u(rng) - 0.5) * 70.0 * M_PI / 180.0;
       const double speed_mps = 0.3 + 1.7 * u(rng);
+      row.max_command_mps = std::max(row.max_command_mps, speed_mps);
       const double yaw_rate_radps = u(rng) < 0.5 ? 0.0 : (u(rng) - 0.5) * 2.0;
       s.step(kSettleS + k * kSegmentS,
              Eigen::Vector3d(speed_mps * std::cos(angle_rad), speed_mps * std::sin(angle_rad), 0.0),
@@ -147,9 +149,9 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
       }
     }
     if (away) ++row.fly_aways;
-    if (std::getenv("HQ_UNSEEN_DEBUG") != nullptr && loop->collision_ticks() > 0) {
-      std::printf("%s run %d collided (yaw %.0f deg)\n", world.name.c_str(), run,
-                  s.world.start_yaw_rad * 180 / M_PI);
+    if (std::getenv("HQ_UNSEEN_DEBUG") != nullptr && (loop->collision_ticks() > 0 || away)) {
+      std::printf("%s run %d %s (yaw %.0f deg)\n", world.name.c_str(), run,
+                  away ? "flew away" : "collided", s.world.start_yaw_rad * 180 / M_PI);
       for (const OperatorStep& st : s.script.steps) {
         std::printf("  step t %.1f v %.2f %.2f yaw %.2f\n", st.t_s, st.v_mps->x(), st.v_mps->y(),
                     st.yaw_rate_radps.value_or(0.0));
@@ -233,12 +235,15 @@ TEST(UnseenCampaign, DepthTermWithItsGuardsNeverFliesAway) {
                          Odometry::kDepthTermWithItsGuards);
   std::printf(
       "structure_notexture, depth term with its guards: %d of %d runs collided, "
-      "%d fly-aways, min clearance %.2f m, max true speed %.2f m/s, coast error RMS %.3f m/s "
-      "over %d frames\n",
+      "%d fly-aways, min clearance %.2f m, max true speed %.2f m/s (asked up to %.2f), coast "
+      "error RMS %.3f m/s over %d frames\n",
       r.collided_runs, r.runs, r.fly_aways, r.min_clearance_m, r.max_true_speed_mps,
-      r.coast_rms_mps(), r.coast_frames);
+      r.max_command_mps, r.coast_rms_mps(), r.coast_frames);
   EXPECT_EQ(r.fly_aways, 0);
-  EXPECT_LT(r.max_true_speed_mps, 1.0);
+  // Never faster than the operator asked (it flew off at 3.8-5.9 m/s): with the fused
+  // velocity it flies what is asked where the view allows (1.14 m/s of 1.17 asked, measured;
+  // under 1 m/s with the lagging 1-euro velocity before).
+  EXPECT_LT(r.max_true_speed_mps, r.max_command_mps + 0.1);
 }
 
 // The same campaign without the limiter: the figure the closing note compares with.
