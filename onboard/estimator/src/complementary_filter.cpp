@@ -109,6 +109,11 @@ bool ComplementaryFilter::level_on_velocity(std::int64_t t_ns,
   return true;
 }
 
+void ComplementaryFilter::pause_levelling(std::int64_t t_ns) {
+  velocity_aided_ = true;
+  t_velocity_aided_ns_ = t_ns;
+}
+
 void ComplementaryFilter::set_vision_gyro_bias(const Eigen::Vector3d& bias_radps) {
   if (!bias_radps.allFinite()) return;
   vision_bias_radps_ =

@@ -87,6 +87,7 @@ void VelocityEstimator::reset() {
   lag_moment_H_.setZero();
   unseen_accel_H_mps2_.setZero();
   motion_accel_H_mps2_.setZero();
+  coast_levelling_paused_ = false;
 }
 
 void VelocityEstimator::anchor_coast(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
@@ -201,7 +202,13 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
 VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* reason) {
   // Without a frame taken nothing measures the motion's acceleration any more: held, the last
   // one tilted the attitude through a whole coast (8 deg in 1.9 s in the unseen campaign).
+  // Nor may the accelerometer level on it: a coast keeps the attitude tracking gave it, which
+  // carries what the accelerometer misses (a bias held level is a tilt).
   motion_accel_H_mps2_.setZero();
+  if (coast_from_odometry_ && !coast_levelling_paused_) {
+    attitude_.pause_levelling(t_coast_anchor_ns_);
+    coast_levelling_paused_ = true;
+  }
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
   estimate.status = EstimateStatus::kUnavailable;
@@ -465,6 +472,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   }
   level_on_velocity(t_ns, v_H_mean_raw);
   anchor_coast(t_ns, coast_v_H_mps_, true, v_H_mean_raw);
+  coast_levelling_paused_ = false;
   return estimate;
 }
 

@@ -77,6 +77,12 @@ class ComplementaryFilter {
   bool level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& accel_error_H_mps2,
                          double span_s);
 
+  /// Keeps the attitude tracking gave it: the accelerometer's own levelling pauses for
+  /// accel_levelling_pause_s from t_ns, as after a velocity-aided correction. For a coast,
+  /// where nothing measures the vehicle's acceleration any more and the accelerometer would
+  /// level on it.
+  void pause_levelling(std::int64_t t_ns);
+
   /// Body B in the gravity-aligned NED frame with N's yaw.
   [[nodiscard]] const Eigen::Matrix3d& R_ned_body() const { return R_ned_body_; }
   /// Body B in N (NWU, the core paper's W), yaw as integrated by the filter.

@@ -247,6 +247,7 @@ class VelocityEstimator {
   /// attitude.
   Eigen::Vector3d motion_accel_H_mps2_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d v_H_fused_last_mps_ = Eigen::Vector3d::Zero();  ///< After the last update.
+  bool coast_levelling_paused_ = false;  ///< This coast has paused the accelerometer's levelling.
 };
 
 const char* to_string(EstimateStatus status);
