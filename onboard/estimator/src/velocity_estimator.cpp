@@ -11,6 +11,8 @@
 namespace hq::estimator {
 namespace {
 
+using VelocityOutput = VelocityEstimatorConfig::VelocityOutput;
+
 // A learnt unseen acceleration beyond this many unseen_accel_sigma_mps2 is no accelerometer's:
 // the odometry that taught it was wrong.
 constexpr double kUnseenAccelBoundSigmas = 3.0;
@@ -48,11 +50,9 @@ void read_config(config::StrictMap& section, VelocityEstimatorConfig& out) {
   section.read_positive("max_imu_age_s", out.max_imu_age_s, 10.0);
   section.read("warmup_s", out.warmup_s, 0.0, 10.0);
   section.read("inertial_coast_s", out.inertial_coast_s, 0.0, 10.0);
-  std::string output =
-      out.velocity_output == VelocityEstimatorConfig::VelocityOutput::kFused ? "fused" : "one_euro";
+  std::string output = out.velocity_output == VelocityOutput::kFused ? "fused" : "one_euro";
   section.read("velocity_output", output, {"fused", "one_euro"});
-  out.velocity_output = output == "fused" ? VelocityEstimatorConfig::VelocityOutput::kFused
-                                          : VelocityEstimatorConfig::VelocityOutput::kOneEuro;
+  out.velocity_output = output == "fused" ? VelocityOutput::kFused : VelocityOutput::kOneEuro;
   section.read_positive("vision_position_sigma_m", out.vision_position_sigma_m, 1.0);
   section.read_positive("accel_noise_density_mps2", out.accel_noise_density_mps2, 10.0);
   section.read_positive("velocity_gate_chi2", out.velocity_gate_chi2, 1e6);
@@ -371,7 +371,6 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     have_previous_ = false;
     return unavailable(t_ns, reason);
   }
-
   const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
   if (!have_previous_ || dt_s > config_.max_frame_gap_s) {
     // Eq. 2 needs two consecutive accepted poses.
@@ -379,16 +378,13 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     return unavailable(t_ns, "waiting for a second accepted odometry frame");
   }
   if (!(dt_s > 0.0)) return unavailable(t_ns, "odometry stamp not after the previous frame");
-
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
   const Eigen::Isometry3d& T_raw = odometry.T_O_C;
   const Eigen::Vector3d v_B_raw = raw_body_velocity(T_raw, dt_s, estimate.v_C_raw_mps);
   const bool have_attitude = attitude_.initialized() && gyro_low_pass_.initialized();
-  // The gate, on eq. 1's velocity before the 1-euro filter sees the pose: a run of wrong frames
-  // rejected only after filtering still dragged the filter, and the first right frame after it
-  // carried half their error through the gate (docs: the estimator's decisions). A rejected
-  // pose restarts the filter instead, warm-up included.
+  // The gate, before the 1-euro filter sees the pose: wrong frames rejected only after it still
+  // dragged it. A rejected pose restarts the filter instead.
   const Eigen::Matrix3d R_H = measurement_covariance_H(odometry, dt_s);
   const Eigen::Vector3d v_H_mean_raw =
       R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
@@ -414,9 +410,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   t_prev_frame_ns_ = t_ns;
   lag_moment_H_.setZero();
   t_lag_moment_ns_ = t_ns;
-
-  const bool one_euro_output =
-      config_.velocity_output == VelocityEstimatorConfig::VelocityOutput::kOneEuro;
+  const bool one_euro_output = config_.velocity_output == VelocityOutput::kOneEuro;
   const bool warming_up = 1e-9 * static_cast<double>(t_ns - t_seed_ns_) < config_.warmup_s;
   if (one_euro_output && warming_up) {
     return unavailable(t_ns, "pose filter warming up after a (re)start");
@@ -434,20 +428,11 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   // eq. 5: H_v_Q = R_HQ Q_v_Q, i.e. v_H = R_H_B v_B with R_H_B = Ry(theta) Rx(phi).
   const Eigen::Matrix3d R_H_B = R_horizontal_body(roll_rad, pitch_rad);
   if (!warming_up) estimate.v_H_one_euro_mps = R_H_B * v_B_one_euro;
-
   agreeing_frames_ = std::min(agreed_before + 1, config_.reacquire_frames);
   if (agreeing_frames_ < config_.reacquire_frames) {
     return unavailable(t_ns, "odometry re-acquired, waiting for the next frame to agree");
   }
-  const bool had_filter = coast_anchored_ && t_coast_anchor_ns_ < t_ns;
-  const double since_anchor_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
-  fuse(z_H, R_H);
-  motion_accel_H_mps2_.setZero();
-  if (had_filter && coast_from_odometry_ && since_anchor_s <= config_.max_frame_gap_s) {
-    // The fused velocity's change since the last frame it took.
-    motion_accel_H_mps2_ = (coast_v_H_mps_ - v_H_fused_last_mps_) / since_anchor_s;
-  }
-  v_H_fused_last_mps_ = coast_v_H_mps_;
+  take_frame(t_ns, z_H, R_H, v_H_mean_raw, odometry.gyro_bias_radps);
   estimate.status = EstimateStatus::kOk;
   estimate.reason = "";
   if (one_euro_output) {
@@ -463,17 +448,32 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   estimate.roll_rad = roll_rad;
   estimate.pitch_rad = pitch_rad;
   estimate.unavailable_for_s = 0.0;
+  return estimate;
+}
+
+void VelocityEstimator::take_frame(std::int64_t t_ns, const Eigen::Vector3d& z_H_mps,
+                                   const Eigen::Matrix3d& R_H,
+                                   const Eigen::Vector3d& v_H_mean_raw_mps,
+                                   const Eigen::Vector3d& gyro_bias_C_radps) {
+  const bool had_filter = coast_anchored_ && t_coast_anchor_ns_ < t_ns;
+  const double since_anchor_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  fuse(z_H_mps, R_H);
+  motion_accel_H_mps2_.setZero();
+  if (had_filter && coast_from_odometry_ && since_anchor_s <= config_.max_frame_gap_s) {
+    // The fused velocity's change since the last frame it took.
+    motion_accel_H_mps2_ = (coast_v_H_mps_ - v_H_fused_last_mps_) / since_anchor_s;
+  }
+  v_H_fused_last_mps_ = coast_v_H_mps_;
   ever_ok_ = true;
   t_last_ok_ns_ = t_ns;
   // The odometry's bias is the rest after the levelling's (OnboardChain removes that one from
   // the gyro it gives the odometry); taken from accepted frames only.
   if (config_.gyro_bias_from_odometry) {
-    attitude_.set_vision_gyro_bias(R_B_C_ * odometry.gyro_bias_radps);
+    attitude_.set_vision_gyro_bias(R_B_C_ * gyro_bias_C_radps);
   }
-  level_on_velocity(t_ns, v_H_mean_raw);
-  anchor_coast(t_ns, coast_v_H_mps_, true, v_H_mean_raw);
+  level_on_velocity(t_ns, v_H_mean_raw_mps);
+  anchor_coast(t_ns, coast_v_H_mps_, true, v_H_mean_raw_mps);
   coast_levelling_paused_ = false;
-  return estimate;
 }
 
 }  // namespace hq::estimator

@@ -206,6 +206,11 @@ class VelocityEstimator {
   [[nodiscard]] double horizon_for_unlearnt(double unlearnt_mps2) const;
   /// Starts the fused filter: the unseen acceleration zero with its prior.
   void start_filter();
+  /// A frame velocity that passed every check: fused, and what follows from it (the motion's
+  /// acceleration, the gyro bias, the coast's anchor).
+  void take_frame(std::int64_t t_ns, const Eigen::Vector3d& z_H_mps, const Eigen::Matrix3d& R_H,
+                  const Eigen::Vector3d& v_H_mean_raw_mps,
+                  const Eigen::Vector3d& gyro_bias_C_radps);
   /// Kalman update of the fused velocity with a frame velocity (its first value without one).
   void fuse(const Eigen::Vector3d& z_H_mps, const Eigen::Matrix3d& R_H);
   /// Restarts the pose filter at this pose: velocity resumes after the next accepted frame.
