@@ -185,6 +185,33 @@ std::vector<ImuMeasurement> synthesise_imu(
   return out;
 }
 
+AccelerometerChoice choose_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+                                         const std::vector<recording::AccelSample>* accel,
+                                         bool use_recorded) {
+  AccelerometerChoice choice;
+  choice.g_W_mps2 = Eigen::Vector3d(0.0, 0.0, -kStandardGravityMps2);
+  if (accel == nullptr) {
+    choice.description = "gravity ASSUMED along the ground truth's -z (no accelerometer.txt)";
+    return choice;
+  }
+  try {
+    const GravityEstimate g =
+        gravity_from_accelerometer(T_world_camera, *accel, R_camera_kinect_accel());
+    choice.g_W_mps2 = g.g_W_mps2;
+    choice.description = fmt::format(
+        "gravity from accelerometer.txt ({} samples, Kinect axes): {:.2f} deg from the ground "
+        "truth's -z",
+        g.samples, g.tilt_from_world_down_deg);
+    if (use_recorded) choice.recorded = accel;
+  } catch (const InputError& e) {
+    // Another sensor's axes, or no overlap with the ground truth: the model's accelerometer
+    // replays the sequence instead, and says why.
+    choice.description = fmt::format(
+        "accelerometer.txt NOT USED ({}); gravity ASSUMED along the ground truth's -z", e.what());
+  }
+  return choice;
+}
+
 std::vector<recording::AccelSample> read_gyro_file(const std::string& path) {
   // Same layout as accelerometer.txt ("t x y z"), so the same strict reader applies.
   return recording::read_tum_accelerometer(path);
@@ -236,19 +263,12 @@ ReplayImu load_replay_imu(const recording::TumSequence& sequence,
       "{:.3f} deg RMS)",
       1e3 * synthesis.spline.knot_spacing_s, 1e3 * spline.residual_rms_m(),
       spline.residual_rms_deg());
-  Eigen::Vector3d g_W_mps2(0.0, 0.0, -kStandardGravityMps2);
-  std::string gravity = "gravity ASSUMED along the ground truth's -z (no accelerometer.txt)";
-  const std::vector<recording::AccelSample>* recorded = nullptr;
-  if (sequence.has_accelerometer()) {
-    const GravityEstimate g =
-        gravity_from_accelerometer(spline, sequence.accelerometer(), R_camera_kinect_accel());
-    g_W_mps2 = g.g_W_mps2;
-    gravity = fmt::format(
-        "gravity from accelerometer.txt ({} samples, Kinect axes): {:.2f} deg from the ground "
-        "truth's -z",
-        g.samples, g.tilt_from_world_down_deg);
-    if (synthesis.recorded_accelerometer) recorded = &sequence.accelerometer();
-  }
+  const AccelerometerChoice accel = choose_accelerometer(
+      spline, sequence.has_accelerometer() ? &sequence.accelerometer() : nullptr,
+      synthesis.recorded_accelerometer);
+  const Eigen::Vector3d& g_W_mps2 = accel.g_W_mps2;
+  const std::string& gravity = accel.description;
+  const std::vector<recording::AccelSample>* recorded = accel.recorded;
   imu.samples =
       synthesise_imu(spline, R_body_camera, g_W_mps2, synthesis, recorded, R_camera_kinect_accel());
   imu.description = fmt::format(

@@ -199,6 +199,32 @@ TEST(GravityFromAccelerometer, FindsATiltedWorldsGravityAndReplaysTheRecording) 
               HasSubstr("the accelerometer's axes are not the ones assumed"));
 }
 
+TEST(ChooseAccelerometer, ReplaysARecordInKinectAxesAndSaysWhyNotOtherwise) {
+  const auto gt = trajectory(3.0, 0.4, [](double t) {
+    return Eigen::Vector3d(0.3 * std::sin(2.0 * t), 0.1 * t, 1.0 + 0.1 * std::cos(3.0 * t));
+  });
+  const evaluation::TrajectorySpline spline = evaluation::TrajectorySpline::fit(gt);
+  const auto record = kinect_record(spline, kGravityDownW);
+  // GIVEN a Kinect record: its gravity, and the record itself when asked for
+  const AccelerometerChoice kinect = choose_accelerometer(spline, &record, true);
+  EXPECT_EQ(kinect.recorded, &record);
+  EXPECT_LT((kinect.g_W_mps2 - kGravityDownW).norm(), 1e-3);
+  EXPECT_THAT(kinect.description, HasSubstr("gravity from accelerometer.txt"));
+  EXPECT_EQ(choose_accelerometer(spline, &record, false).recorded, nullptr);
+  // GIVEN a record in other axes (gravity upside down in Kinect axes): not used, and why
+  std::vector<recording::AccelSample> flipped = record;
+  for (recording::AccelSample& a : flipped) a.accel_mps2 = -a.accel_mps2;
+  const AccelerometerChoice other = choose_accelerometer(spline, &flipped, true);
+  EXPECT_EQ(other.recorded, nullptr);
+  EXPECT_EQ(other.g_W_mps2, kGravityDownW);
+  EXPECT_THAT(other.description, HasSubstr("accelerometer.txt NOT USED"));
+  EXPECT_THAT(other.description, HasSubstr("not the ones assumed"));
+  // GIVEN none: gravity assumed, and said to be
+  const AccelerometerChoice none = choose_accelerometer(spline, nullptr, true);
+  EXPECT_EQ(none.recorded, nullptr);
+  EXPECT_THAT(none.description, HasSubstr("ASSUMED"));
+}
+
 TEST(SynthesiseImu, TooShortGroundTruthIsAnError) {
   const std::vector<StampedPose> one = {{0, Eigen::Isometry3d::Identity()}};
   EXPECT_THAT(hq::testing::input_error_message([&] { evaluation::TrajectorySpline::fit(one); }),

@@ -97,6 +97,21 @@ GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T
                                            const std::vector<recording::AccelSample>& accel,
                                            const Eigen::Matrix3d& R_C_A);
 
+/// Where the replay's gravity and accelerometer come from.
+struct AccelerometerChoice {
+  Eigen::Vector3d g_W_mps2 = Eigen::Vector3d::Zero();
+  /// The recorded samples to replay (Kinect axes), or null: the IMU model's.
+  const std::vector<recording::AccelSample>* recorded = nullptr;
+  std::string description;  ///< One clause for ReplayImu::description.
+};
+/// With a recorded accelerometer (null: none), gravity from it and, if use_recorded, the record
+/// itself; when its gravity is not the motion capture's down (another sensor's axes) or it
+/// does not overlap the ground truth, neither, and the description says why. Without one,
+/// gravity along the world's -z, said to be assumed.
+AccelerometerChoice choose_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+                                         const std::vector<recording::AccelSample>* accel,
+                                         bool use_recorded);
+
 /// IMU samples at synthesis.imu.rate_hz over the fit's span, in the body frame Q (R_body_camera
 /// is R_QC, the camera the tracked sensor, no lever arm):
 ///   gyro  = R_QC omega_C + bias + white noise;
