@@ -45,10 +45,11 @@ struct ComplementaryConfig {
   /// 0: wrong but accepted odometry velocities (the depth term's in a plain corner) taught the
   /// gyro a bias that tilted the next coast 2.5 deg off; the accelerometer's term learns it.
   double velocity_k_i = 0.0;  ///< 1/s^2
-  /// After a velocity-aided correction the accelerometer's own levelling stays off this long:
-  /// a multirotor's accelerometer reads its thrust, not gravity, whenever it accelerates, and
-  /// the two levellings pulling apart lose k_p / (k_p + velocity_k_p) of every tilt. At least
-  /// the inertial coast's length, so a coast keeps the attitude tracking gave it.
+  /// After a velocity-aided correction, or from the last frame a coast started after
+  /// (pause_levelling), the accelerometer's own levelling stays off this long: a multirotor's
+  /// accelerometer reads its thrust, not gravity, whenever it accelerates, and the two
+  /// levellings pulling apart lose k_p / (k_p + velocity_k_p) of every tilt. At least the
+  /// inertial coast's length, so a coast keeps the attitude tracking gave it.
   double accel_levelling_pause_s = 2.0;
 };
 
