@@ -107,7 +107,9 @@ float gaussian_from_hash(std::uint64_t h) {
 struct SceneTables {
   std::vector<Rectangle> rects_world;  // floor first, then walls
   std::vector<Box> boxes_world;
-  std::vector<Cylinder> cylinders_world;
+  std::vector<Cylinder> cylinders_world;  // the world's, then one per person (moved per frame)
+  std::vector<Walker> people;             // person i is cylinders_world[first_person + i]
+  std::size_t first_person = 0;
   std::vector<Surface> surfaces;  // rects, then 6 per box
   std::vector<SurfaceMarker> markers;
   std::vector<RectC> rects;
@@ -245,6 +247,11 @@ void build_tables(SceneTables& sc, const World& world) {
   sc.rects_world.insert(sc.rects_world.end(), world.walls.begin(), world.walls.end());
   sc.boxes_world = world.boxes;
   sc.cylinders_world = world.cylinders;
+  // A person is a cylinder of its own, its centre set per frame (place_people()): the tables
+  // are sized here, so no frame allocates.
+  sc.people = world.people;
+  sc.first_person = sc.cylinders_world.size();
+  for (const Walker& walker : world.people) sc.cylinders_world.push_back(body_at(walker, 0.0));
   for (const Rectangle& r : sc.rects_world) {
     Surface s;
     s.texture = &r.texture;
@@ -551,10 +558,19 @@ void prepare_cylinders(SceneTables& sc, const FrameView& view) {
   }
 }
 
+/// Each person's cylinder where the person is at t_s. Its texture coordinates are relative to
+/// the cylinder (angle about its axis, height above its base), so the clothes move with it.
+void place_people(SceneTables& sc, double t_s) {
+  for (std::size_t i = 0; i < sc.people.size(); ++i) {
+    sc.cylinders_world[sc.first_person + i].center_m = body_at(sc.people[i], t_s).center_m;
+  }
+}
+
 }  // namespace
 
-void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C) {
+void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C, double t_s) {
   Scene& sc = *scene_;
+  place_people(sc, t_s);
   // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
   const Eigen::Vector3d light = params_.light_dir_world.normalized();
   const FrameView view{params_.pinhole,     T_N_C.linear(), T_N_C.linear().transpose(),
@@ -1139,12 +1155,12 @@ void write_image_row(const ShadeConstants& k, int width, const ShadeRow& row, st
 
 }  // namespace
 
-void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
-                          cv::Mat& depth_m) {
+void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, double t_s, std::uint64_t frame_index,
+                          cv::Mat& image, cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_N_C);
+  prepare_frame(T_N_C, t_s);
   Scene& sc = *scene_;
   sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
   const int width = cam.width;
@@ -1190,12 +1206,12 @@ void RgbdRenderer::render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_in
   drop_depth_at_discontinuities_fast(depth_m);
 }
 
-void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index,
-                                    cv::Mat& image, cv::Mat& depth_m) {
+void RgbdRenderer::render_reference(const Eigen::Isometry3d& T_N_C, double t_s,
+                                    std::uint64_t frame_index, cv::Mat& image, cv::Mat& depth_m) {
   const geometry::PinholeCamera& cam = params_.pinhole;
   image.create(cam.height, cam.width, params_.gray ? CV_8UC1 : CV_8UC3);
   depth_m.create(cam.height, cam.width, CV_32F);
-  prepare_frame(T_N_C);
+  prepare_frame(T_N_C, t_s);
   Scene& sc = *scene_;
   sc.frame_key = splitmix64(seed_ ^ splitmix64(frame_index + 0x51ed27ull));
   const Eigen::Matrix3f& R_N_C = sc.R_N_C;

@@ -324,7 +324,10 @@ void Simulator::update_truth() {
   const Eigen::Matrix3d R_world_horizontal =
       R_world_body_from_euler(0.0, 0.0, truth_.euler_rad.z());
   truth_.v_H_mps = R_world_horizontal.transpose() * s.v_world_mps;
-  truth_.clearance_m = distance_to_obstacles(world_, s.p_world_m) - config_.vehicle_radius_m;
+  // At this step's time: a person walking into the vehicle is a collision too.
+  truth_.clearance_m =
+      distance_to_obstacles(world_, s.p_world_m, static_cast<double>(t_ns_) * 1e-9) -
+      config_.vehicle_radius_m;
   truth_.collision = truth_.clearance_m < 0.0;
   truth_.on_ground = s.on_ground;
   collided_ = collided_ || truth_.collision;
@@ -340,7 +343,8 @@ std::size_t Simulator::take_imu(ImuSample* out, std::size_t capacity) {
 }
 
 void Simulator::render_camera(cv::Mat& image, cv::Mat& depth_m) {
-  renderer_.render(camera_pose_, frame_index_, image, depth_m);
+  renderer_.render(camera_pose_, static_cast<double>(camera_t_ns_) * 1e-9, frame_index_, image,
+                   depth_m);
   camera_due_ = false;
 }
 

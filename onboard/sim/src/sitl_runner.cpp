@@ -108,13 +108,15 @@ class RenderWorker {
   RenderWorker& operator=(const RenderWorker&) = delete;
 
   /// Hands over the due frame; false (skipped) while the previous one is still rendering.
-  bool submit(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index, std::int64_t t_ns,
-              const frame_channel::SitlTruth& truth) {
+  /// sim_t_ns: the simulated time the frame shows (where the people are); t_ns: its stamp.
+  bool submit(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
+              std::int64_t sim_t_ns, std::int64_t t_ns, const frame_channel::SitlTruth& truth) {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       if (pending_ || busy_) return false;
       job_.T_world_camera = T_world_camera;
       job_.frame_index = frame_index;
+      job_.sim_t_ns = sim_t_ns;
       job_.t_ns = t_ns;
       job_.truth = truth;
       pending_ = true;
@@ -130,6 +132,7 @@ class RenderWorker {
   struct Job {
     Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
     std::uint64_t frame_index = 0;
+    std::int64_t sim_t_ns = 0;
     std::int64_t t_ns = 0;
     frame_channel::SitlTruth truth;
   };
@@ -146,7 +149,8 @@ class RenderWorker {
         busy_ = true;
       }
       const std::int64_t start_ns = monotonic_now_ns();
-      renderer_.render(job.T_world_camera, job.frame_index, image_, depth_m_);
+      renderer_.render(job.T_world_camera, static_cast<double>(job.sim_t_ns) * 1e-9,
+                       job.frame_index, image_, depth_m_);
       render_s_ += static_cast<double>(monotonic_now_ns() - start_ns) * 1e-9;
       if (channel_.publish(job.t_ns, image_, depth_m_, &job.truth)) ++published_;
       const std::lock_guard<std::mutex> lock(mutex_);
@@ -231,7 +235,7 @@ void publish_camera(Simulator& sim, RenderWorker& renderer, std::int64_t wall_or
   frame_truth.v_H_mps = {v_H.x(), v_H.y(), v_H.z()};
   frame_truth.p_W_m = {p_N.x(), p_N.y(), p_N.z()};
   frame_truth.on_ground = truth.on_ground;
-  if (!renderer.submit(sim.camera_T_world_camera(), sim.camera_frame_index(),
+  if (!renderer.submit(sim.camera_T_world_camera(), sim.camera_frame_index(), sim.camera_t_ns(),
                        wall_origin_ns + sim.camera_t_ns(), frame_truth)) {
     ++stats.frames_skipped;
   }

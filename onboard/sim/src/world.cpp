@@ -238,14 +238,39 @@ double distance_to_cylinder(const Cylinder& c, const Eigen::Vector3d& p) {
 
 }  // namespace
 
-double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m) {
+Cylinder body_at(const Walker& walker, double t_s) {
+  Cylinder body;
+  body.center_m = walker.from_m;
+  body.radius_m = walker.radius_m;
+  body.base_z_m = 0.0;
+  body.height_m = walker.height_m;
+  body.texture = walker.texture;
+  const Eigen::Vector2d along = walker.to_m - walker.from_m;
+  const double length_m = along.norm();
+  if (!(length_m > 0.0)) return body;  // load_world() rejects it; a hand-made one stands still
+  // The distance walked, folded onto one lap out and back (2 L); fmod keeps the sign of t_s.
+  const double lap_m = 2.0 * length_m;
+  double on_lap_m = std::fmod(walker.speed_mps * (t_s + walker.phase_s), lap_m);
+  if (on_lap_m < 0.0) on_lap_m += lap_m;
+  const double from_start_m = on_lap_m <= length_m ? on_lap_m : lap_m - on_lap_m;
+  body.center_m = walker.from_m + (from_start_m / length_m) * along;
+  return body;
+}
+
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m, double t_s) {
   double best = 1e9;
   for (const Rectangle& wall : world.walls)
     best = std::min(best, distance_to_rectangle(wall, p_world_m));
   for (const Box& box : world.boxes) best = std::min(best, distance_to_box(box, p_world_m));
   for (const Cylinder& c : world.cylinders)
     best = std::min(best, distance_to_cylinder(c, p_world_m));
+  for (const Walker& walker : world.people)
+    best = std::min(best, distance_to_cylinder(body_at(walker, t_s), p_world_m));
   return best;
+}
+
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m) {
+  return distance_to_obstacles(world, p_world_m, 0.0);
 }
 
 namespace {
@@ -290,7 +315,7 @@ void read_floor(StrictMap& map, const std::string& path, std::uint32_t& salt, Wo
 void check_primitive_count(const YAML::Node& root, const std::string& path) {
   std::size_t count = 0;
   std::string counts;
-  for (const char* key : {"walls", "boxes", "cylinders", "markers"}) {
+  for (const char* key : {"walls", "boxes", "cylinders", "markers", "people"}) {
     const std::size_t n = sequence(root, key, path).size();
     count += n;
     counts += (counts.empty() ? "" : ", ") + std::to_string(n) + " " + key;
@@ -348,6 +373,33 @@ Cylinder read_cylinder(StrictMap c, std::uint32_t& salt) {
   cyl.texture = read_texture(c.child("texture"), salt++);
   c.finish();
   return cyl;
+}
+
+// Walking pace, not a sprint: a person faster than this is a typo in the world file.
+constexpr double kMaxWalkingSpeedMps = 3.0;
+// A phase is an offset within the run; hq-sim runs at most an hour.
+constexpr double kMaxPhaseS = 3600.0;
+
+Walker read_walker(StrictMap p, std::uint32_t& salt) {
+  Walker walker;
+  double from[2] = {0, 0};
+  double to[2] = {0, 0};
+  p.require_list("from_m", from, 2);
+  p.require_list("to_m", to, 2);
+  check_within(p, "from_m", from, 2);
+  check_within(p, "to_m", to, 2);
+  p.read_positive("speed_mps", walker.speed_mps, kMaxWalkingSpeedMps);
+  p.read("phase_s", walker.phase_s, -kMaxPhaseS, kMaxPhaseS);
+  p.read_positive("radius_m", walker.radius_m, 1.0);
+  p.read_positive("height_m", walker.height_m, 3.0);
+  if (std::hypot(to[0] - from[0], to[1] - from[1]) < 1e-3) {
+    throw InputError(p.describe("to_m") + " equals from_m, expected a walk of length > 0");
+  }
+  walker.from_m = Eigen::Vector2d(from[0], from[1]);
+  walker.to_m = Eigen::Vector2d(to[0], to[1]);
+  walker.texture = read_texture(p.child("texture"), salt++);
+  p.finish();
+  return walker;
 }
 
 Marker read_marker(StrictMap m) {
@@ -427,11 +479,12 @@ void read_marker_grid(StrictMap& map, World& world) {
 World load_world(const std::string& path) {
   const YAML::Node root = config::load_yaml_file(path);
   YAML::Node scalars = YAML::Clone(root);
-  const char* list_keys[] = {"walls", "boxes", "cylinders", "markers"};
+  const char* list_keys[] = {"walls", "boxes", "cylinders", "markers", "people"};
   for (const char* key : list_keys) scalars.remove(key);
 
   World world;
-  std::uint32_t salt = 1;  // one per texture, in file order: floor, walls, boxes, cylinders
+  // One per texture, in file order: floor, walls, boxes, cylinders, people.
+  std::uint32_t salt = 1;
   StrictMap map(scalars, path);
   world.name = path;
   map.read("name", world.name, {});
@@ -450,6 +503,8 @@ World load_world(const std::string& path) {
   });
   read_list(root, "markers", path,
             [&](StrictMap entry) { world.markers.push_back(read_marker(std::move(entry))); });
+  read_list(root, "people", path,
+            [&](StrictMap entry) { world.people.push_back(read_walker(std::move(entry), salt)); });
   read_marker_grid(map, world);
   map.finish();
   return world;

@@ -1,6 +1,7 @@
 // render() (footprint-limited visibility into a z-buffer, one shading pass) against
 // render_reference() (every pixel's ray against every primitive), on the shipped worlds from
-// hand-placed and random poses: same depth, same invalid-depth mask, same image.
+// hand-placed and random poses at different times (the people move): same depth, same
+// invalid-depth mask, same image.
 #include "hq/sim/rgbd_renderer.hpp"
 #include "hq/sim/world.hpp"
 #include "hq/testing/allocation_counter.hpp"
@@ -17,6 +18,8 @@ namespace hq::sim {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// Between poses: the people walk about half a metre, into and out of view.
+constexpr double kFramePeriodS = 0.43;
 
 /// Camera at p_world with the given yaw (about world z, 0 = looking along +x), pitch (down
 /// positive) and roll about the optical axis.
@@ -44,6 +47,13 @@ std::vector<Eigen::Isometry3d> poses_in(const World& world, int random_count) {
       camera_pose({2.6, -1.7, 1.2}, -0.6, 0.1, -0.2),
       camera_pose({-2.5, 1.9, 0.4}, 0.02, -0.2, 0.0),
   };
+  for (const Walker& walker : world.people) {  // from the start, looking at the walk's middle
+    const Eigen::Vector3d eye(world.start_world_m.x(), world.start_world_m.y(), 1.0);
+    const Eigen::Vector2d middle = 0.5 * (walker.from_m + walker.to_m);
+    const double yaw_rad = std::atan2(middle.y() - eye.y(), middle.x() - eye.x());
+    poses.push_back(camera_pose(eye, yaw_rad, 0.25, 0.0));
+    poses.push_back(camera_pose(eye, yaw_rad + 0.3, 0.5, 0.1));
+  }
   if (!world.boxes.empty()) {  // 5 cm in front of a box's -x face, looking at it
     const Box& b = world.boxes.front();
     const Eigen::Vector3d toward =
@@ -152,8 +162,9 @@ TEST_P(RendererEquivalence, MatchesTheReferenceRayCasterNoiseFreeAndNoisy) {
     Difference diff;
     cv::Mat image, depth, image_ref, depth_ref;
     for (std::size_t i = 0; i < poses.size(); ++i) {
-      renderer.render(poses[i], i, image, depth);
-      renderer.render_reference(poses[i], i, image_ref, depth_ref);
+      const double t_s = kFramePeriodS * static_cast<double>(i);
+      renderer.render(poses[i], t_s, i, image, depth);
+      renderer.render_reference(poses[i], t_s, i, image_ref, depth_ref);
       Difference one;
       accumulate(image, depth, image_ref, depth_ref, one);
       EXPECT_EQ(one.depth_differs_inside, 0) << "pose " << i;
@@ -172,17 +183,21 @@ TEST_P(RendererEquivalence, MatchesTheReferenceRayCasterNoiseFreeAndNoisy) {
 }
 
 INSTANTIATE_TEST_SUITE_P(ShippedWorlds, RendererEquivalence,
-                         ::testing::Values("arena", "room", "marker_grid"));
+                         ::testing::Values("arena", "room", "marker_grid", "people"));
 
 TEST(RendererEquivalenceTest, RenderAllocatesNothingAfterTheFirstFrame) {
-  const World world = load_world("onboard/sim/worlds/room.yaml");
-  RgbdRenderer renderer(camera(160, 120, true), world, 5);
-  const std::vector<Eigen::Isometry3d> poses = poses_in(world, 4);
-  cv::Mat image, depth;
-  renderer.render(poses[0], 0, image, depth);
-  const long before = hq::testing::allocation_count();
-  for (std::size_t i = 1; i < poses.size(); ++i) renderer.render(poses[i], i, image, depth);
-  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
+  for (const char* name : {"room", "people"}) {
+    const World world = load_world(std::string("onboard/sim/worlds/") + name + ".yaml");
+    RgbdRenderer renderer(camera(160, 120, true), world, 5);
+    const std::vector<Eigen::Isometry3d> poses = poses_in(world, 4);
+    cv::Mat image, depth;
+    renderer.render(poses[0], 0.0, 0, image, depth);
+    const long before = hq::testing::allocation_count();
+    for (std::size_t i = 1; i < poses.size(); ++i) {
+      renderer.render(poses[i], kFramePeriodS * static_cast<double>(i), i, image, depth);
+    }
+    EXPECT_EQ(hq::testing::allocation_count() - before, 0) << name;
+  }
 }
 
 }  // namespace

@@ -265,6 +265,99 @@ TEST_F(RendererFixture, SameSeedGivesIdenticalImagesAndAnotherSeedDoesNot) {
   EXPECT_EQ(image_a.data, data);
 }
 
+/// A person walking (0.4 m radius) from (4, -1) to (4, 1) at 1 m/s before a wall at x = 5.5.
+World world_with_a_walker() {
+  World world = base_world();
+  world.walls.push_back(wall_at_x(5.5));
+  Walker walker;
+  walker.from_m = Eigen::Vector2d(4.0, -1.0);
+  walker.to_m = Eigen::Vector2d(4.0, 1.0);
+  walker.speed_mps = 1.0;
+  walker.radius_m = 0.4;
+  walker.texture.kind = Texture::Kind::kStripes;
+  walker.texture.scale_m = 0.1f;
+  walker.texture.contrast = 0.8f;
+  world.people.push_back(walker);
+  return world;
+}
+
+// GIVEN a person crossing the view 4 m ahead, WHEN rendered at t = 0 (the person at y = -1)
+// and t = 1 s (y = 0) and t = 3 s (back at y = 0), THEN the depth along a ray is the nearer of
+// the wall and the person's circle where the person is then.
+TEST_F(RendererFixture, PersonMovesAcrossTheViewAtTheFramesTime) {
+  const World world = world_with_a_walker();
+  const CameraParams params = noise_free_camera(161, 121);
+  RgbdRenderer renderer(params, world, 1);
+  const Eigen::Isometry3d T = looking_north({0.0, 0.0, 1.0});
+  // Pixel (60, 114) looks along world (1, a, 0): a = -(114 - cx) / fx, towards y = -1 at x = 4.
+  const geometry::PinholeCamera& cam = params.pinhole;
+  const int u = 114;
+  const double a = -(u - cam.cx) / cam.fx;
+  // Nearest s with |(s, a s) - c| = r: the depth, as the ray's x component is 1 (z in C).
+  const auto depth_to_circle = [&](const Eigen::Vector2d& c, double r) {
+    const double qa = 1.0 + a * a;
+    const double qb = c.x() + a * c.y();
+    const double qc = c.squaredNorm() - r * r;
+    return (qb - std::sqrt(qb * qb - qa * qc)) / qa;
+  };
+  const double on_person_m = depth_to_circle({4.0, -1.0}, 0.4);
+  ASSERT_GT(on_person_m, 3.6);
+  ASSERT_LT(on_person_m, 4.0);
+
+  renderer.render(T, 0.0, 0, image_, depth_);
+  EXPECT_NEAR(centre_depth(depth_), 5.5, 1e-3);  // the wall beside the person
+  EXPECT_NEAR(depth_.at<float>(60, u), on_person_m, 1e-3);
+  renderer.render(T, 1.0, 1, image_, depth_);
+  EXPECT_NEAR(centre_depth(depth_), 4.0 - 0.4, 1e-3);
+  EXPECT_NEAR(depth_.at<float>(60, u), 5.5, 1e-3);  // the person has left the ray
+  renderer.render(T, 3.0, 3, image_, depth_);       // on the way back
+  EXPECT_NEAR(centre_depth(depth_), 4.0 - 0.4, 1e-3);
+  renderer.render(T, 2.0, 2, image_, depth_);  // at the far end, y = 1
+  EXPECT_NEAR(centre_depth(depth_), 5.5, 1e-3);
+  // The reference ray caster puts the person in the same place.
+  cv::Mat image_ref, depth_ref;
+  renderer.render_reference(T, 0.0, 0, image_ref, depth_ref);
+  EXPECT_NEAR(depth_ref.at<float>(60, u), on_person_m, 1e-3);
+  // Without a time the people stand where they are at t = 0.
+  renderer.render(T, 0, image_, depth_);
+  EXPECT_NEAR(depth_.at<float>(60, u), on_person_m, 1e-3);
+}
+
+// GIVEN the camera moving sideways with the person, THEN the person's pixels are the same: the
+// clothes are fixed to the body, not to the world (a world-fixed texture would slide).
+TEST_F(RendererFixture, PersonsTextureMovesWithThePerson) {
+  const World world = world_with_a_walker();
+  const CameraParams params = noise_free_camera(161, 121);
+  RgbdRenderer renderer(params, world, 1);
+  cv::Mat image_a, depth_a, image_b, depth_b;
+  renderer.render(looking_north({0.0, 0.0, 1.0}), 1.0, 0, image_a, depth_a);  // person at y = 0
+  renderer.render(looking_north({0.0, 0.5, 1.0}), 1.5, 0, image_b, depth_b);  // at y = 0.5
+  int person_pixels = 0;
+  double max_difference = 0.0;
+  double min_level = 255.0;
+  double max_level = 0.0;
+  // Above the horizon no floor is seen; the wall is 5.5 m away, the person nearer than 4.4 m.
+  for (int v = 0; v <= 60; ++v) {
+    for (int u = 0; u < image_a.cols; ++u) {
+      const float z_a = depth_a.at<float>(v, u);
+      const float z_b = depth_b.at<float>(v, u);
+      if (!(z_a > 0.0f && z_a < 4.5f && z_b > 0.0f && z_b < 4.5f)) continue;
+      ++person_pixels;
+      const cv::Vec3b pa = image_a.at<cv::Vec3b>(v, u);
+      const cv::Vec3b pb = image_b.at<cv::Vec3b>(v, u);
+      for (int k = 0; k < 3; ++k) {
+        max_difference = std::max(
+            max_difference, std::abs(static_cast<double>(pa[k]) - static_cast<double>(pb[k])));
+      }
+      min_level = std::min(min_level, static_cast<double>(pa[1]));
+      max_level = std::max(max_level, static_cast<double>(pa[1]));
+    }
+  }
+  EXPECT_GT(person_pixels, 500);           // 28 px wide, 29 rows above the horizon
+  EXPECT_GT(max_level - min_level, 40.0);  // textured, so a sliding texture would show
+  EXPECT_LE(max_difference, 1.0);
+}
+
 TEST_F(RendererFixture, GrayModeGivesOneChannel) {
   World world = base_world();
   world.walls.push_back(wall_at_x(3.0));

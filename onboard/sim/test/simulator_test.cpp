@@ -1,6 +1,7 @@
 #include "hq/sim/simulator.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/sim/scripted_flight.hpp"
 #include "hq/sim/tum_writer.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
@@ -8,7 +9,9 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -69,6 +72,91 @@ TEST(SimulatorTest, CollisionFlagWhenFlownIntoAWall) {
   EXPECT_NEAR(x_at_collision, 3.0 - config.vehicle_radius_m, 0.02);
   // Truth in H: flying north with yaw 0 is +x in H (NED).
   EXPECT_GT(sim.truth().v_H_mps.x(), 0.5);
+}
+
+// GIVEN a vehicle resting at the origin and a person walking at 1 m/s from 3 m ahead through it,
+// THEN the clearance follows the person, and the run records a collision once they overlap
+// (person radius + vehicle radius = 0.6 m, so from t = 2.4 s).
+TEST(SimulatorTest, PersonWalkingIntoAVehicleStandingStillIsACollision) {
+  World world;
+  world.floor.half_u_m = world.floor.half_v_m = 10.0;
+  Walker walker;
+  walker.from_m = Eigen::Vector2d(3.0, 0.0);
+  walker.to_m = Eigen::Vector2d(-3.0, 0.0);
+  walker.speed_mps = 1.0;
+  world.people.push_back(walker);
+  SimConfig config = default_sim_config(32, 24);
+  config.vehicle.gust_sigma_mps = 0.0;
+  Simulator sim(config, world);
+  const double reach_m = walker.radius_m + config.vehicle_radius_m;
+  EXPECT_NEAR(sim.truth().clearance_m, 3.0 - reach_m, 1e-9);
+  sim.step_to(2000 * kMs);
+  EXPECT_TRUE(sim.truth().on_ground);
+  EXPECT_NEAR(sim.truth().T_world_body.translation().head<2>().norm(), 0.0, 1e-9);  // still
+  EXPECT_NEAR(sim.truth().clearance_m, 1.0 - reach_m, 1e-9);
+  sim.step_to(2390 * kMs);
+  EXPECT_FALSE(sim.collided());
+  EXPECT_NEAR(sim.truth().clearance_m, 0.01, 1e-9);
+  sim.step_to(2410 * kMs);
+  EXPECT_TRUE(sim.truth().collision);
+  EXPECT_TRUE(sim.collided());
+  EXPECT_NEAR(sim.truth().clearance_m, -0.01, 1e-9);
+  sim.step_to(6000 * kMs);  // walked through and back out: the collision stays on record
+  EXPECT_FALSE(sim.truth().collision);
+  EXPECT_TRUE(sim.collided());
+}
+
+// The simulator renders each frame with the people where they are at the frame's stamp: its
+// image is a lone renderer's at camera_t_ns(), and differs from one with the people at t = 0.
+TEST(SimulatorTest, FramesShowThePeopleWhereTheyAreAtTheFramesTime) {
+  const World world = load_world("onboard/sim/worlds/people.yaml");
+  SimConfig config = default_sim_config(80, 60);
+  Simulator sim(config, world);
+  for (std::int64_t t = 0; t < 3000 * kMs; t += 10 * kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
+    sim.step_to(t + 10 * kMs);
+  }
+  ASSERT_TRUE(sim.camera_due());
+  const double t_frame_s = static_cast<double>(sim.camera_t_ns()) * 1e-9;
+  ASSERT_GT(t_frame_s, 2.9);
+  const Eigen::Isometry3d T = sim.camera_T_world_camera();
+  const std::uint64_t frame_index = sim.camera_frame_index();
+  cv::Mat image, depth;
+  sim.render_camera(image, depth);
+
+  RgbdRenderer renderer(config.camera, world, config.seed * 3u + 3u);  // the simulator's seed
+  cv::Mat image_then, depth_then, image_at_start, depth_at_start;
+  renderer.render(T, t_frame_s, frame_index, image_then, depth_then);
+  renderer.render(T, 0.0, frame_index, image_at_start, depth_at_start);
+  EXPECT_EQ(cv::norm(image, image_then, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(depth, depth_then, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(depth, depth_at_start, cv::NORM_INF), 0.5);  // a person moved in the view
+}
+
+// The people of worlds/people.yaml keep clear of the vehicle on hq-sim's hover and circle (the
+// world file says >= 0.6 m; these bounds leave 0.05 m for the flight's own wobble).
+TEST(SimulatorTest, PeopleWorldsWalksKeepClearOfTheScriptedFlights) {
+  const World world = load_world("onboard/sim/worlds/people.yaml");
+  World people_only;
+  people_only.people = world.people;
+  for (const FlightScript::Kind kind : {FlightScript::Kind::kHover, FlightScript::Kind::kCircle}) {
+    Simulator sim(default_sim_config(32, 24), world);
+    const FlightScript script = script_for_world(world, kind);
+    double min_clearance_m = 1e9;
+    for (std::int64_t t = 0; t <= 16000 * kMs; t += kScriptControlPeriodNs) {
+      sim.set_command(scripted_command(sim, script, static_cast<double>(t) * 1e-9));
+      sim.step_to(t);
+      min_clearance_m =
+          std::min(min_clearance_m,
+                   distance_to_obstacles(people_only, sim.truth().T_world_body.translation(),
+                                         static_cast<double>(sim.t_ns()) * 1e-9) -
+                       sim.config().vehicle_radius_m);
+    }
+    std::printf("people.yaml, %s: min clearance to the people %.3f m\n",
+                kind == FlightScript::Kind::kHover ? "hover" : "circle", min_clearance_m);
+    EXPECT_FALSE(sim.collided());
+    EXPECT_GT(min_clearance_m, kind == FlightScript::Kind::kHover ? 1.9 : 0.55);
+  }
 }
 
 TEST(SimulatorTest, ProducesImuAtItsRateAndFramesAtThirtyHertz) {

@@ -106,6 +106,144 @@ TEST(WorldTest, DistanceToObstaclesIsExactForEachPrimitive) {
   EXPECT_NEAR(distance_to_obstacles(arena, {2.5, 1.0, 1.0}), 0.5, 1e-9);  // north wall x = 3
 }
 
+TEST(WorldTest, PeopleWorldIsTheRoomWithTwoPeople) {
+  const World room = load_world("onboard/sim/worlds/room.yaml");
+  const World people = load_world("onboard/sim/worlds/people.yaml");
+  EXPECT_EQ(people.name, "people");
+  EXPECT_TRUE(room.people.empty());
+  EXPECT_EQ(people.walls.size(), room.walls.size());
+  EXPECT_EQ(people.boxes.size(), room.boxes.size());
+  EXPECT_EQ(people.cylinders.size(), room.cylinders.size());
+  EXPECT_EQ(people.markers.size(), room.markers.size());
+  EXPECT_EQ(people.start_world_m, room.start_world_m);
+  ASSERT_EQ(people.people.size(), 2u);
+  const Walker& near = people.people[0];
+  EXPECT_EQ(near.from_m, Eigen::Vector2d(-1.0, 0.3));
+  EXPECT_EQ(near.to_m, Eigen::Vector2d(-2.1, -0.6));
+  EXPECT_DOUBLE_EQ(near.speed_mps, 1.0);
+  EXPECT_DOUBLE_EQ(near.phase_s, 0.0);
+  const Walker& far = people.people[1];
+  EXPECT_DOUBLE_EQ(far.speed_mps, 1.4);
+  EXPECT_DOUBLE_EQ(far.phase_s, 1.3);
+  // Person-sized by default, standing on the floor.
+  EXPECT_DOUBLE_EQ(far.radius_m, 0.25);
+  EXPECT_DOUBLE_EQ(far.height_m, 1.75);
+  EXPECT_DOUBLE_EQ(body_at(far, 2.0).base_z_m, 0.0);
+  // Each texture its own salt, after the room's: the room's textures are unchanged.
+  EXPECT_EQ(people.cylinders.back().texture.salt, room.cylinders.back().texture.salt);
+  EXPECT_EQ(far.texture.salt, near.texture.salt + 1u);
+  EXPECT_GT(near.texture.salt, room.cylinders.back().texture.salt);
+  EXPECT_EQ(far.texture.kind, Texture::Kind::kChecker);
+  EXPECT_NO_THROW(Simulator(default_sim_config(32, 24), people));
+}
+
+// Nobody walks through the furniture or the walls: over two minutes of walking, each person's
+// axis keeps its radius plus 0.18 m (measured: 0.20) from every static obstacle, ankle to head.
+TEST(WorldTest, PeopleWalkClearOfTheFurniture) {
+  World furniture = load_world("onboard/sim/worlds/people.yaml");
+  const std::vector<Walker> people = furniture.people;
+  furniture.people.clear();
+  for (const Walker& walker : people) {
+    double min_gap_m = 1e9;
+    for (int i = 0; i <= 12000; ++i) {
+      const Cylinder body = body_at(walker, 0.01 * i);
+      for (const double z_m : {0.1, 0.5, 0.9, 1.7}) {
+        const Eigen::Vector3d axis_m(body.center_m.x(), body.center_m.y(), z_m);
+        min_gap_m = std::min(min_gap_m, distance_to_obstacles(furniture, axis_m) - body.radius_m);
+      }
+    }
+    EXPECT_GT(min_gap_m, 0.18) << "person walking from " << walker.from_m.transpose();
+  }
+}
+
+TEST(WorldTest, PeopleErrorsNameTheFileAndKey) {
+  const std::string good = "people:\n  - {from_m: [0, 0], to_m: [2, 0]}\n";
+  EXPECT_EQ(error_of(good), "no error");
+  EXPECT_THAT(error_of(good + "  - {from_m: [0, 1], to_m: [2, 1], speed_mps: 0}\n"),
+              HasSubstr("hq_sim_world_test.yaml: people[1].speed_mps = 0, expected > 0"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0], to_m: [2, 0], speed_mps: 3.5}\n"),
+              HasSubstr("people[0].speed_mps = 3.5, expected in [0, 3]"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0], to_m: [2, 0], phase_s: -4000}\n"),
+              HasSubstr("people[0].phase_s = -4000, expected in [-3600, 3600]"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0], to_m: [2, 0], radius_m: -0.1}\n"),
+              HasSubstr("people[0].radius_m = -0.1, expected > 0"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0], to_m: [2, 0], height_m: 4}\n"),
+              HasSubstr("people[0].height_m = 4, expected in [0, 3]"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [1, 1], to_m: [1, 1]}\n"),
+              HasSubstr("people[0].to_m equals from_m, expected a walk of length > 0"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0]}\n"), HasSubstr("people[0].to_m is missing"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 2000], to_m: [2, 0]}\n"),
+              HasSubstr("people[0].from_m[1] = 2000, expected within +-1000 m"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0], to_m: [2, 0], speed: 1}\n"),
+              HasSubstr("people[0].speed is not a known key"));
+  EXPECT_THAT(error_of("people:\n  - {from_m: [0, 0], to_m: [2, 0], texture: {type: fur}}\n"),
+              HasSubstr("people[0].texture.type = fur, expected one of"));
+  EXPECT_THAT(error_of("people: {from_m: [0, 0]}\n"), HasSubstr("people is not a list"));
+}
+
+// A walk of 2 m along +y from (1, 1) at 1 m/s, out at t = 0, back from t = 2 s: a lap is 4 s.
+TEST(WorldTest, BodyAtWalksBackAndForthAlongItsSegment) {
+  Walker walker;
+  walker.from_m = Eigen::Vector2d(1.0, 1.0);
+  walker.to_m = Eigen::Vector2d(1.0, 3.0);
+  walker.speed_mps = 1.0;
+  walker.radius_m = 0.3;
+  walker.height_m = 1.6;
+  const auto y_at = [&](double t_s) { return body_at(walker, t_s).center_m.y(); };
+  EXPECT_EQ(body_at(walker, 0.0).center_m, Eigen::Vector2d(1.0, 1.0));
+  EXPECT_DOUBLE_EQ(y_at(0.5), 1.5);
+  EXPECT_DOUBLE_EQ(y_at(2.0), 3.0);    // turns at to_m
+  EXPECT_DOUBLE_EQ(y_at(2.5), 2.5);    // on the way back
+  EXPECT_DOUBLE_EQ(y_at(4.0), 1.0);    // one lap
+  EXPECT_DOUBLE_EQ(y_at(9.25), 2.25);  // two laps and 1.25 s
+  EXPECT_DOUBLE_EQ(y_at(-0.5), 1.5);   // before the start, the walk continues backwards
+  EXPECT_DOUBLE_EQ(body_at(walker, 0.5).center_m.x(), 1.0);
+  // The phase shifts the walk in time; the speed scales it.
+  walker.phase_s = 1.0;
+  EXPECT_DOUBLE_EQ(y_at(0.5), 2.5);
+  EXPECT_DOUBLE_EQ(y_at(1.5), 2.5);
+  walker.phase_s = 0.0;
+  walker.speed_mps = 0.5;
+  EXPECT_DOUBLE_EQ(y_at(1.0), 1.5);
+  EXPECT_DOUBLE_EQ(y_at(5.0), 2.5);
+  // A diagonal walk: (0, 0) -> (3, 4) is 5 m; at 1 m/s, 2.5 s is half way and 7.5 s too.
+  walker.from_m = Eigen::Vector2d(0.0, 0.0);
+  walker.to_m = Eigen::Vector2d(3.0, 4.0);
+  walker.speed_mps = 1.0;
+  EXPECT_NEAR((body_at(walker, 2.5).center_m - Eigen::Vector2d(1.5, 2.0)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((body_at(walker, 7.5).center_m - Eigen::Vector2d(1.5, 2.0)).norm(), 0.0, 1e-12);
+  const Cylinder body = body_at(walker, 1.0);
+  EXPECT_DOUBLE_EQ(body.radius_m, 0.3);
+  EXPECT_DOUBLE_EQ(body.height_m, 1.6);
+  EXPECT_DOUBLE_EQ(body.base_z_m, 0.0);
+}
+
+TEST(WorldTest, DistanceToObstaclesCountsPeopleWhereTheyAreAtThatTime) {
+  World world;
+  Walker walker;  // (0, 0) -> (4, 0) at 2 m/s: at (2, 0) at t = 1 s, back at (0, 0) at t = 4 s
+  walker.from_m = Eigen::Vector2d(0.0, 0.0);
+  walker.to_m = Eigen::Vector2d(4.0, 0.0);
+  walker.speed_mps = 2.0;
+  walker.radius_m = 0.25;
+  walker.height_m = 1.75;
+  world.people.push_back(walker);
+  const Eigen::Vector3d p(2.0, 1.0, 1.0);
+  EXPECT_NEAR(distance_to_obstacles(world, p, 1.0), 0.75, 1e-12);
+  EXPECT_NEAR(distance_to_obstacles(world, p, 0.0), std::sqrt(5.0) - 0.25, 1e-12);
+  EXPECT_NEAR(distance_to_obstacles(world, p, 4.0), std::sqrt(5.0) - 0.25, 1e-12);
+  EXPECT_EQ(distance_to_obstacles(world, p), distance_to_obstacles(world, p, 0.0));
+  EXPECT_NEAR(distance_to_obstacles(world, {2.0, 0.1, 1.0}, 1.0), -0.15, 1e-12);  // inside
+  EXPECT_NEAR(distance_to_obstacles(world, {2.0, 0.0, 2.75}, 1.0), 1.0, 1e-12);   // above
+  // The nearest of people and static obstacles.
+  Cylinder pillar;
+  pillar.center_m = Eigen::Vector2d(2.0, 1.5);
+  pillar.radius_m = 0.2;
+  pillar.height_m = 3.0;
+  world.cylinders.push_back(pillar);
+  EXPECT_NEAR(distance_to_obstacles(world, p, 1.0), 0.3, 1e-12);
+  EXPECT_NEAR(distance_to_obstacles(world, p, 0.0), 0.3, 1e-12);
+}
+
 TEST(WorldTest, TexturesAreDeterministicAndTextured) {
   Texture t;
   t.kind = Texture::Kind::kNoise;
@@ -210,7 +348,7 @@ TEST(WorldTest, PositionsAndPrimitiveCountHavePhysicalBounds) {
   for (int i = 0; i < 10001; ++i) many += "  - {center_m: [0, 0, 1], size_m: [1, 1, 1]}\n";
   EXPECT_THAT(error_of(many),
               HasSubstr("hq_sim_world_test.yaml: 10001 primitives (0 walls, 10001 boxes, 0 "
-                        "cylinders, 0 markers), expected at most 10000"));
+                        "cylinders, 0 markers, 0 people), expected at most 10000"));
 }
 
 TEST(WorldTest, SimCameraFocalLengthHasPhysicalBounds) {

@@ -1,9 +1,10 @@
 #pragma once
 /// Ray-cast RGB-D camera for the simulated worlds: per-pixel rays precomputed once in the
 /// camera frame C (optical: z forward, x right, y down), analytic intersections tested only on
-/// the pixels a primitive's projection covers (z-buffered), one shading pass per pixel with
-/// procedural textures and AprilTag 36h11 bitmaps, and a structured-light depth model (Khoshelham
-/// and Oude Elberink 2012: disparity noise and quantisation, sigma_z growing with z^2, no depth at
+/// the pixels a primitive's projection covers (z-buffered; people are cylinders moved each frame
+/// to where they are at its time), one shading pass per pixel with procedural textures and
+/// AprilTag 36h11 bitmaps, and a structured-light depth model (Khoshelham and Oude Elberink
+/// 2012: disparity noise and quantisation, sigma_z growing with z^2, no depth at
 /// discontinuities, on dark or grazing surfaces). One thread; render() allocates nothing.
 
 #include "hq/geometry/pinhole_camera.hpp"
@@ -56,18 +57,29 @@ class RgbdRenderer {
   RgbdRenderer(const RgbdRenderer&) = delete;
   RgbdRenderer& operator=(const RgbdRenderer&) = delete;
 
-  /// Renders the view from T_N_C (the camera in the simulator's world N). frame_index selects
-  /// the noise realisation, so the same (seed, frame_index, pose) gives identical images.
+  /// Renders the view from T_N_C (the camera in the simulator's world N) at time t_s (seconds
+  /// since the run started: where the world's people are). frame_index selects the noise
+  /// realisation, so the same (seed, frame_index, pose, t_s) gives identical images.
   /// image: CV_8UC3 BGR (CV_8UC1 if gray); depth_m: CV_32F metres, 0 = invalid. Reuses the
   /// buffers if already sized.
-  void render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
+  void render(const Eigen::Isometry3d& T_N_C, double t_s, std::uint64_t frame_index, cv::Mat& image,
               cv::Mat& depth_m);
+  /// render() at t_s = 0: a world without people looks the same at any time.
+  void render(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
+              cv::Mat& depth_m) {
+    render(T_N_C, 0.0, frame_index, image, depth_m);
+  }
 
   /// The per-pixel ray caster render() replaced (every ray against every primitive, shading
   /// the nearest): same outputs, several times slower. Kept as the reference render() is
   /// tested and benchmarked against; not for simulation.
+  void render_reference(const Eigen::Isometry3d& T_N_C, double t_s, std::uint64_t frame_index,
+                        cv::Mat& image, cv::Mat& depth_m);
+  /// render_reference() at t_s = 0.
   void render_reference(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, cv::Mat& image,
-                        cv::Mat& depth_m);
+                        cv::Mat& depth_m) {
+    render_reference(T_N_C, 0.0, frame_index, image, depth_m);
+  }
 
   [[nodiscard]] const CameraParams& params() const { return params_; }
 
@@ -81,7 +93,7 @@ class RgbdRenderer {
   std::vector<float> hit_t_;      ///< per pixel: nearest hit's t (z in C), +inf if none.
   std::vector<std::int32_t> hit_code_;  ///< per pixel: which primitive and face won, -1 none.
 
-  void prepare_frame(const Eigen::Isometry3d& T_N_C);
+  void prepare_frame(const Eigen::Isometry3d& T_N_C, double t_s);
   void drop_depth_at_discontinuities(cv::Mat& depth_m) const;  ///< the reference's
   void drop_depth_at_discontinuities_fast(cv::Mat& depth_m);
 };

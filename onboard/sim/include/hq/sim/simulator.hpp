@@ -58,8 +58,9 @@ struct TruthState {
   Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
   Eigen::Vector3d a_world_mps2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d euler_rad = Eigen::Vector3d::Zero();  ///< roll, pitch, yaw.
-  double clearance_m = 0.0;  ///< centre to nearest obstacle surface minus vehicle radius.
-  bool collision = false;    ///< clearance_m < 0 at this step.
+  /// Centre to nearest obstacle surface (people where they are at t_ns) minus vehicle radius.
+  double clearance_m = 0.0;
+  bool collision = false;  ///< clearance_m < 0 at this step.
   bool on_ground = true;
 };
 
@@ -83,7 +84,8 @@ class Simulator {
   /// Stamp and camera pose of the due frame (the physics step at or after its nominal time).
   [[nodiscard]] std::int64_t camera_t_ns() const { return camera_t_ns_; }
   [[nodiscard]] const Eigen::Isometry3d& camera_T_world_camera() const { return camera_pose_; }
-  /// Renders the due frame (image BGR CV_8UC3 or gray, depth CV_32F metres) and clears the flag.
+  /// Renders the due frame (image BGR CV_8UC3 or gray, depth CV_32F metres), the world's people
+  /// where they are at camera_t_ns(), and clears the flag.
   void render_camera(cv::Mat& image, cv::Mat& depth_m);
   /// Noise realisation of the due frame (RgbdRenderer::render's frame_index).
   [[nodiscard]] std::uint64_t camera_frame_index() const { return frame_index_; }

@@ -1,7 +1,8 @@
 #pragma once
 /// Simulated worlds: textured planes, boxes and vertical cylinders with AprilTag 36h11 markers,
-/// read strictly from YAML. World frame W is NWU (z up), as in the core paper §3; the floor is
-/// the plane z = 0.
+/// and people walking among them, read strictly from YAML. World frame W is NWU (z up), as in
+/// the core paper §3; the floor is the plane z = 0. Time t_s is seconds since the run started
+/// (the Simulator's time).
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -65,6 +66,18 @@ struct Cylinder {
   Texture texture;
 };
 
+/// A person: a textured vertical cylinder standing on the floor that walks back and forth
+/// along the segment from_m -> to_m at a constant speed, turning round at each end at once.
+struct Walker {
+  Eigen::Vector2d from_m = Eigen::Vector2d::Zero();  ///< where it is at t_s + phase_s = 0.
+  Eigen::Vector2d to_m = Eigen::Vector2d::UnitX();   ///< the other end; != from_m.
+  double speed_mps = 1.0;                            ///< in (0, 3]: walking pace.
+  double phase_s = 0.0;    ///< at t_s it stands where a phase of 0 puts it at t_s + phase_s.
+  double radius_m = 0.25;  ///< of the body's cylinder (shoulder half-width).
+  double height_m = 1.75;
+  Texture texture;  ///< clothes: fixed to the body, so they move with it.
+};
+
 struct World {
   std::string name;
   std::uint64_t seed = 1;  ///< default seed of runs in this world.
@@ -73,6 +86,7 @@ struct World {
   std::vector<Box> boxes;
   std::vector<Cylinder> cylinders;
   std::vector<Marker> markers;
+  std::vector<Walker> people;
   Eigen::Vector3d start_world_m = Eigen::Vector3d::Zero();  ///< vehicle position on the floor.
   double start_yaw_rad = 0.0;  ///< yaw of the vehicle (NED heading from world x) at start.
 };
@@ -81,8 +95,14 @@ struct World {
 /// naming the file and the key, e.g. `arena.yaml: boxes[0].size_m[2] = -1, expected > 0`.
 World load_world(const std::string& path);
 
-/// Signed distance (m) from a point to the nearest obstacle surface (walls, boxes, cylinders;
-/// the floor is excluded: ground contact handles it). Negative inside a box or cylinder.
+/// The cylinder `walker` occupies at t_s (ping-pong along its segment; any t_s, also < 0).
+Cylinder body_at(const Walker& walker, double t_s);
+
+/// Signed distance (m) from a point to the nearest obstacle surface at t_s (walls, boxes,
+/// cylinders, and the people where they are then; the floor is excluded: ground contact
+/// handles it). Negative inside a box, cylinder or person.
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m, double t_s);
+/// distance_to_obstacles() at t_s = 0: the people stand where the run starts them.
 double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m);
 
 }  // namespace hq::sim
