@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <string>
 
 namespace hq::closed_loop {
 namespace {
@@ -74,6 +75,63 @@ TEST(ClosedLoop, HoversThirtySecondsWithSmallEstimateErrorAndDrift) {
   EXPECT_LT(drift_m, 0.30);
   EXPECT_LT(climb_m, 0.20);
   EXPECT_EQ(loop->collision_ticks(), 0);
+}
+
+/// Velocity estimate RMSE (per axis) and horizontal drift of a take-off and hover in `world`
+/// from 6 s on, and whether anything touched the vehicle.
+struct HoverFigures {
+  Vec rmse_mps = Vec::Zero();
+  double drift_m = 0.0;
+  double available = 0.0;
+  int collision_ticks = 0;
+};
+
+HoverFigures hover_in(const std::string& world, double end_s) {
+  Scenario s = room_takeoff(end_s);
+  s.world = sim::load_world(world);
+  auto loop = s.make();
+  loop->run_until(6.0);
+  const Vec p_start = loop->simulator().truth().T_world_body.translation();
+  loop->run();
+  HoverFigures f;
+  f.drift_m = (loop->simulator().truth().T_world_body.translation() - p_start).head<2>().norm();
+  Vec sum_sq = Vec::Zero();
+  int frames = 0;
+  int with_estimate = 0;
+  for (const FlightSample& x : loop->samples()) {
+    if (x.t_s < 6.0 || !x.frame) continue;
+    ++frames;
+    if (!x.estimate_ok) continue;
+    ++with_estimate;
+    sum_sq += (x.v_est_mps - x.v_true_mps).cwiseAbs2();
+  }
+  f.rmse_mps = (sum_sq / std::max(with_estimate, 1)).cwiseSqrt();
+  f.available = static_cast<double>(with_estimate) / std::max(frames, 1);
+  f.collision_ticks = loop->collision_ticks();
+  return f;
+}
+
+TEST(ClosedLoop, HoversAsStillWithPeopleWalkingThroughTheViewAsWithout) {
+  // GIVEN the same take-off and hover in the room, alone and with two people walking through
+  // the camera's view (people.yaml: the room and them)
+  const HoverFigures alone = hover_in("onboard/sim/worlds/room.yaml", 26.0);
+  const HoverFigures people = hover_in("onboard/sim/worlds/people.yaml", 26.0);
+  std::printf(
+      "hover 20 s alone: velocity RMSE %.4f %.4f %.4f m/s, drift %.3f m, %.1f %% estimated\n"
+      "with people:      velocity RMSE %.4f %.4f %.4f m/s, drift %.3f m, %.1f %% estimated\n",
+      alone.rmse_mps.x(), alone.rmse_mps.y(), alone.rmse_mps.z(), alone.drift_m,
+      100.0 * alone.available, people.rmse_mps.x(), people.rmse_mps.y(), people.rmse_mps.z(),
+      people.drift_m, 100.0 * people.available);
+  // THEN nothing touches the vehicle, and the people cost its velocity estimate at most a
+  // fifth (the goal: 1.2x) and 0.3 mm/s: measured 1.14x (1.8x with
+  // Kerl's fixed-point scale of the robust weights)
+  EXPECT_EQ(alone.collision_ticks, 0);
+  EXPECT_EQ(people.collision_ticks, 0);
+  EXPECT_GT(people.available, 0.98);
+  for (int axis = 0; axis < 3; ++axis) {
+    EXPECT_LT(people.rmse_mps[axis], 1.2 * alone.rmse_mps[axis] + 0.0003) << "axis " << axis;
+  }
+  EXPECT_LT(people.drift_m, 0.30);
 }
 
 // How far the attitude filter's gyro bias (whole, body axes) is from the simulated IMU's

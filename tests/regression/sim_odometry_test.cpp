@@ -131,10 +131,14 @@ std::string case_name(const ::testing::TestParamInfo<Case>& info) { return info.
 // Measured with seed 7 over 241 frames (3 s to 11 s).
 constexpr Bounds kKeyframeBounds{0.00113, 0.0014, 0.0287, 0.035, 0.00075, 0.0009};
 INSTANTIATE_TEST_SUITE_P(ReferenceModes, OdometryOnSimulatedCircle,
+                         // Frame to frame: 0.02397 m/s, 0.9234 deg/s, ATE 0.01639 m before
+                         // the robust weights' median scale and the moving pixels left out of
+                         // new references, which cost this low-texture circle 15 % and gain
+                         // the real fr1/xyz as much (0.0237 -> 0.0195 m/s, docs/odometry.md).
                          ::testing::Values(Case{"frame_to_frame",
                                                 hq::odometry::ReferenceMode::kFrameToFrame,
                                                 true,
-                                                {0.02397, 0.029, 0.9234, 1.10, 0.01639, 0.020}},
+                                                {0.02745, 0.034, 1.0342, 1.29, 0.03085, 0.0386}},
                                            Case{"frame_to_keyframe_no_prediction",
                                                 hq::odometry::ReferenceMode::kFrameToKeyframe,
                                                 false, kKeyframeBounds}),
@@ -191,6 +195,34 @@ TEST(OdometryFacingAPlainWallAndTheFloor, RemappedStepsKeepAHoverStill) {
   // Measured (seed 7, 241 frames, 320x240): free 0.1508 m/s, remapped 0.0037.
   EXPECT_GT(free_steps, 0.03);  // the scene still shows what the remapping is for
   EXPECT_LT(remapped, 0.0046);
+}
+
+// The circle flown again with two people walking through the camera's view (people.yaml: the
+// room and them; the near one fills up to half the image at 0.7-1.5 m), odometry alone (no
+// gyro). Measured (seed 7, 241 frames): alone 0.00104 m/s 0.0284 deg/s; with people 0.00512
+// m/s 0.1087 deg/s (4.9x and 3.8x; the goal is 1.2x). Before: 0.686 m/s, 7.36 deg/s (Kerl's
+// fixed-point scale of the robust weights), 0.119 with the median scale, 0.0292 with the
+// depth consistency check too, the rest from leaving moving pixels out of new keyframes.
+TEST(OdometryWithPeopleWalkingThroughTheView, RpeStaysNearTheSameCircleWithoutThem) {
+  const Case c{"frame_to_keyframe", hq::odometry::ReferenceMode::kFrameToKeyframe, true, {}};
+  Flight alone;
+  Flight with_people;
+  with_people.world = "onboard/sim/worlds/people.yaml";
+  const SimRun a = fly_and_track(c, alone);
+  const SimRun p = fly_and_track(c, with_people);
+  EXPECT_FALSE(p.collided);
+  EXPECT_EQ(p.lost, 0);
+  const auto rpe_alone = hq::evaluation::relative_pose_error(a.ground_truth, a.trajectory, 1.0);
+  const auto rpe_people = hq::evaluation::relative_pose_error(p.ground_truth, p.trajectory, 1.0);
+  std::printf(
+      "room circle alone: RPE %.5f m/s %.4f deg/s; with people: %.5f m/s %.4f deg/s (%.1fx, "
+      "%.1fx)\n",
+      rpe_alone.trans_mps.rmse, rpe_alone.rot_degps.rmse, rpe_people.trans_mps.rmse,
+      rpe_people.rot_degps.rmse, rpe_people.trans_mps.rmse / rpe_alone.trans_mps.rmse,
+      rpe_people.rot_degps.rmse / rpe_alone.rot_degps.rmse);
+  EXPECT_LT(rpe_people.trans_mps.rmse, 0.0064);
+  EXPECT_LT(rpe_people.rot_degps.rmse, 0.136);
+  EXPECT_LT(rpe_alone.trans_mps.rmse, 0.0014);
 }
 
 }  // namespace

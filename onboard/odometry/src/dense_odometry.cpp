@@ -25,6 +25,11 @@ constexpr int kMaxLevels = 6;
 // Blocks whose depths spread by more than this fraction are treated as occlusion edges.
 constexpr float kDepthEdgeSpreadRatio = 0.05f;
 constexpr int kScaleIterations = 5;
+// The median |r| is read from a histogram over [0, this range) in intensity units (0-255): a
+// median beyond it means nothing is aligned, and the fixed point takes over.
+constexpr float kResidualHistogramRange = 64.0f;
+constexpr int kResidualHistogramBins = 1024;
+constexpr float kMadToSigma = 1.4826f;  // sigma of a normal distribution over its median |r|
 // A depth turn under this moves no pixel by a thousandth of one at 640x480: skipped.
 constexpr double kMinDepthTurnRad = 2e-6;
 
@@ -212,6 +217,9 @@ void validate(const OdometryConfig& c, const std::string& where) {
   check.in_range("max_keyframe_age", c.max_keyframe_age, 1, 100000);
   check.positive("keyframe_check_max_translation_m", c.keyframe_check_max_translation_m, 10.0);
   check.positive("keyframe_check_max_rotation_deg", c.keyframe_check_max_rotation_deg, 180.0);
+  check.in_range("occlusion_depth_ratio", c.occlusion_depth_ratio, 0.0, 10.0);
+  check.in_range("moving_residual_sigmas", c.moving_residual_sigmas, 0.0, 100.0);
+  check.in_range("max_moving_ratio", c.max_moving_ratio, 0.0, 1.0);
   check.positive("depth_noise_per_m", c.depth_noise_per_m, 1.0);
   check.in_range("depth_point_stride", c.depth_point_stride, 1, 64);
   check.positive("depth_max_spread_ratio", c.depth_max_spread_ratio, 1.0);
@@ -266,6 +274,9 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
                kAny);
   section.read("keyframe_check_max_rotation_deg", out.keyframe_check_max_rotation_deg, -kAny, kAny);
   section.read("use_depth_term", out.use_depth_term);
+  section.read("occlusion_depth_ratio", out.occlusion_depth_ratio, -kAny, kAny);
+  section.read("moving_residual_sigmas", out.moving_residual_sigmas, -kAny, kAny);
+  section.read("max_moving_ratio", out.max_moving_ratio, -kAny, kAny);
   section.read("depth_noise_per_m", out.depth_noise_per_m, -kAny, kAny);
   section.read("depth_point_stride", out.depth_point_stride, -kAnyInt, kAnyInt);
   section.read("depth_max_spread_ratio", out.depth_max_spread_ratio, -kAny, kAny);
@@ -317,8 +328,14 @@ struct DenseOdometry::Impl {
 
   // Per-point work buffers, sized for the finest optimised level. mask: 1 where the residual
   // exists; weight: its robust weight including the scale.
+  // Per level, pixels of the frame about to become the reference that the last alignment saw
+  // move on their own (moving_pixels()); prepare_reference() leaves them out. 1 = moving.
+  std::array<cv::Mat, kMaxLevels> moving;
+  bool moving_known = false;
   std::vector<float> residual;
   std::vector<float> mask;
+  std::vector<std::uint32_t> residual_histogram =
+      std::vector<std::uint32_t>(kResidualHistogramBins);  // |r| counts for the median scale
   std::vector<float> weight;
   std::vector<float> depth_residual;
   std::vector<float> depth_mask;
@@ -402,6 +419,8 @@ struct DenseOdometry::Impl {
         slot.depth_m[l] = 0.0f;
       }
       if (l >= finest) {
+        moving[l].create(h, w, CV_8UC1);
+        moving[l] = 0;
         reference_sets[kReferenceSet][l].reserve(w * h);
         if (keyframe_check()) reference_sets[kPreviousSet][l].reserve(w * h);
         capacity = std::max(capacity, w * h);
@@ -480,15 +499,17 @@ struct DenseOdometry::Impl {
       const cv::Mat& I = slot.intensity[l];
       const cv::Mat& D = slot.depth_m[l];
       ReferenceLevel& ref = reference_sets[set][l];
+      const bool skip_moving = moving_known && set == kReferenceSet;
       int n = 0;
       for (int v = 1; v < cam.height - 1; ++v) {
         const float* row = I.ptr<float>(v);
         const float* up = I.ptr<float>(v - 1);
         const float* down = I.ptr<float>(v + 1);
         const float* depth = D.ptr<float>(v);
+        const std::uint8_t* moved = moving[l].ptr<std::uint8_t>(v);
         for (int u = 1; u < cam.width - 1; ++u) {
           const float z = depth[u];
-          if (z <= 0.0f) continue;
+          if (z <= 0.0f || (skip_moving && moved[u] != 0)) continue;
           const float gx = 0.5f * (row[u + 1] - row[u - 1]);
           const float gy = 0.5f * (down[u] - up[u]);
           const bool textured = gx * gx + gy * gy >= min_gradient_sq;
@@ -621,6 +642,11 @@ struct DenseOdometry::Impl {
     const auto* data = reinterpret_cast<const float*>(image.data);
     const auto stride = static_cast<int>(image.step1());
     const float* photometric = ref.photometric.data();
+    const cv::Mat& depth_image = current.depth_m[level];
+    const auto* depth = reinterpret_cast<const float*>(depth_image.data);
+    const auto depth_stride = static_cast<int>(depth_image.step1());
+    const auto occlusion_ratio = static_cast<float>(config.occlusion_depth_ratio);
+    const bool reject_occluded = occlusion_ratio > 0.0f;
     Counts counts;
     if (!depth_at(level)) {
       for (int i = 0; i < ref.count; ++i) {
@@ -632,7 +658,9 @@ struct DenseOdometry::Impl {
           const float inv_z = 1.0f / qz;
           const float u = k.fx * qx * inv_z + k.cx;
           const float v = k.fy * qy * inv_z + k.cy;
-          if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
+          if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v &&
+              !(reject_occluded &&
+                detail::depth_disagrees(depth, depth_stride, u, v, qz, occlusion_ratio))) {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = photometric[i];
           }
@@ -647,9 +675,6 @@ struct DenseOdometry::Impl {
 
     // Intensity and depth in one pass over the points and one warp; points without gradient
     // skip the intensity sample.
-    const cv::Mat& depth_image = current.depth_m[level];
-    const auto* depth = reinterpret_cast<const float*>(depth_image.data);
-    const auto depth_stride = static_cast<int>(depth_image.step1());
     const auto noise = static_cast<float>(config.depth_noise_per_m);
     const auto spread = static_cast<float>(config.depth_max_spread_ratio);
     // The gather only: residuals and d r_Z / d q here; the depth rows' Jacobians are formed
@@ -672,7 +697,9 @@ struct DenseOdometry::Impl {
         const float inv_z = 1.0f / qz;
         const float u = k.fx * qx * inv_z + k.cx;
         const float v = k.fy * qy * inv_z + k.cy;
-        if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v) {
+        if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v &&
+            !(reject_occluded &&
+              detail::depth_disagrees(depth, depth_stride, u, v, qz, occlusion_ratio))) {
           if (photometric[i] > 0.0f) {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = 1.0f;
@@ -705,9 +732,47 @@ struct DenseOdometry::Impl {
     return counts;
   }
 
+  // The Student-t weights' scale from the median absolute residual of the points with mask 1
+  // (sigma = 1.4826 median |r|): it holds while up to half of them belong to something moving
+  // by itself. Kerl's fixed point (eq. 12) averages every residual into the scale, so a person
+  // filling a third of the view widened it until their pixels kept their weight and pulled the
+  // camera along (simulated people world 0.124 against 0.023 m/s, README). The median comes
+  // from a histogram of |r| (one pass, no sort); beyond its range, from the fixed point.
+  double estimate_variance(int count, int valid, double initial_variance) {
+    std::fill(residual_histogram.begin(), residual_histogram.end(), 0U);
+    const float* r = residual.data();
+    const float* m = mask.data();
+    constexpr float kBinsPerUnit =
+        static_cast<float>(kResidualHistogramBins) / kResidualHistogramRange;
+    int in_use = 0;
+    for (int i = 0; i < count; ++i) {
+      if (m[i] <= 0.0f) continue;
+      ++in_use;
+      const float bin = std::abs(r[i]) * kBinsPerUnit;
+      if (bin < static_cast<float>(kResidualHistogramBins)) {
+        ++residual_histogram[static_cast<std::size_t>(bin)];
+      }
+    }
+    const auto half = static_cast<std::uint32_t>(in_use / 2);
+    std::uint32_t below = 0;
+    for (int b = 0; b < kResidualHistogramBins; ++b) {
+      const std::uint32_t in_bin = residual_histogram[static_cast<std::size_t>(b)];
+      if (below + in_bin > half) {
+        // Linear within the bin.
+        const float fraction =
+            (static_cast<float>(half - below) + 0.5f) / static_cast<float>(in_bin);
+        const float median = (static_cast<float>(b) + fraction) / kBinsPerUnit;
+        const float sigma = kMadToSigma * median;
+        return std::max(sigma * sigma, 1e-6f);
+      }
+      below += in_bin;
+    }
+    return student_t_variance(count, valid, initial_variance);
+  }
+
   // Student-t scale by fixed-point iteration (Kerl 2013, eq. 12) over the points with mask 1.
   HQ_CLONES_X86_64_V3
-  double estimate_variance(int count, int valid, double initial_variance) const {
+  double student_t_variance(int count, int valid, double initial_variance) const {
     const auto nu = static_cast<float>(config.student_t_dof);
     const float* r = residual.data();
     const float* m = mask.data();
@@ -896,6 +961,7 @@ struct DenseOdometry::Impl {
   void make_reference(int slot_index, const Eigen::Isometry3d& T_O_C) {
     reference_slot = slot_index;
     prepare_reference(slots[slot_index], kReferenceSet);
+    moving_known = false;
     previous_slot = slot_index;
     has_previous = false;
     has_reference = reference_usable();
@@ -932,6 +998,66 @@ struct DenseOdometry::Impl {
     // The gyro step's alone (data-term units), for the alignment to the previous frame.
     Eigen::Matrix3d step_information = Eigen::Matrix3d::Zero();
   };
+
+  // Marks the pixels of `current` that the final alignment a saw move on their own: where a
+  // reference point lands with a photometric residual beyond moving_residual_sigmas of the
+  // robust scale, or with a depth that disagrees (odometry.occlusion_depth_ratio), and their
+  // four neighbours; coarser levels by the 2x2 maximum. When current becomes the reference,
+  // a person already seen walking is left out of it, so that the next frames are not aligned
+  // to them. Nothing is marked when more than max_moving_ratio of the points would be: then
+  // the alignment itself, not the scene, is in doubt.
+  void mark_moving_pixels(const FrameSlot& current, const Alignment& a) {
+    moving_known = false;
+    if (config.moving_residual_sigmas <= 0.0) return;
+    compute_residuals(finest, current, a.T_cur_ref, a.brightness_offset);
+    const ReferenceLevel& ref = reference_sets[active_set][finest];
+    const detail::Intrinsics k = intrinsics(finest);
+    const geometry::PinholeCamera& cam = level_camera[finest];
+    const Eigen::Matrix3f R = a.T_cur_ref.linear().cast<float>();
+    const Eigen::Vector3f t = a.T_cur_ref.translation().cast<float>();
+    const detail::Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
+                         R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
+    const auto limit = static_cast<float>(config.moving_residual_sigmas * std::sqrt(a.variance));
+    cv::Mat& marks = moving[finest];
+    marks = 0;
+    int marked = 0;
+    int used = 0;
+    for (int i = 0; i < ref.count; ++i) {
+      if (ref.photometric[i] <= 0.0f) continue;
+      float qx, qy, qz;
+      T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
+      if (qz <= 0.0f) continue;
+      const int u = static_cast<int>(k.fx * qx / qz + k.cx + 0.5f);
+      const int v = static_cast<int>(k.fy * qy / qz + k.cy + 0.5f);
+      if (u < 1 || v < 1 || u >= cam.width - 1 || v >= cam.height - 1) continue;
+      ++used;
+      // mask 0 inside the image: the depth disagreed (or the sample fell off the last column)
+      const bool moved =
+          mask[i] > 0.0f ? std::abs(residual[i]) > limit : config.occlusion_depth_ratio > 0.0;
+      if (!moved) continue;
+      ++marked;
+      marks.at<std::uint8_t>(v, u) = 1;
+      marks.at<std::uint8_t>(v - 1, u) = 1;
+      marks.at<std::uint8_t>(v + 1, u) = 1;
+      marks.at<std::uint8_t>(v, u - 1) = 1;
+      marks.at<std::uint8_t>(v, u + 1) = 1;
+    }
+    if (used == 0 || marked > config.max_moving_ratio * used) return;
+    for (int l = finest + 1; l < levels; ++l) {
+      const cv::Mat& fine = moving[l - 1];
+      cv::Mat& coarse = moving[l];
+      for (int v = 0; v < coarse.rows; ++v) {
+        for (int u = 0; u < coarse.cols; ++u) {
+          const int fu = std::min(2 * u, fine.cols - 2);
+          const int fv = std::min(2 * v, fine.rows - 2);
+          coarse.at<std::uint8_t>(v, u) =
+              fine.at<std::uint8_t>(fv, fu) | fine.at<std::uint8_t>(fv, fu + 1) |
+              fine.at<std::uint8_t>(fv + 1, fu) | fine.at<std::uint8_t>(fv + 1, fu + 1);
+        }
+      }
+    }
+    moving_known = true;
+  }
 
   int finest_pixels() const { return level_camera[finest].width * level_camera[finest].height; }
 
@@ -1384,6 +1510,7 @@ struct DenseOdometry::Impl {
       if (keyframe_age == 1) keyframe_first_entropy = entropy_of(normal.H);
     }
     if (new_reference) {
+      mark_moving_pixels(current, a);
       make_reference(current_slot, result.T_O_C);
       // The motion of this frame relative to its predecessor stays the prediction.
       result.new_keyframe = has_reference;

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace hq::odometry::detail {
 
@@ -59,6 +60,26 @@ inline float sample_bilinear(const float* data, int stride, float u, float v) {
   const float top = p[0] + du * (p[1] - p[0]);
   const float bottom = p[stride] + du * (p[stride + 1] - p[stride]);
   return top + dv * (bottom - top);
+}
+
+/// True when the warped point's depth q_z lies outside the range of the current frame's four
+/// depths around (u, v) (already checked to lie in the image; missing ones skipped), widened by
+/// max_ratio: the point is hidden behind something nearer, or was on something that has moved.
+/// The range, not one sample, so that a slanted surface (the floor seen from close by, where a
+/// coarse level's pixel spans centimetres of depth) is not taken for an occlusion.
+inline bool depth_disagrees(const float* depth, int stride, float u, float v, float qz,
+                            float max_ratio) {
+  const float* p = depth + static_cast<int>(v) * stride + static_cast<int>(u);
+  const float d[4] = {p[0], p[1], p[stride], p[stride + 1]};
+  float lo = std::numeric_limits<float>::max();
+  float hi = 0.0f;
+  for (const float z : d) {
+    if (z > 0.0f) {
+      lo = std::min(lo, z);
+      hi = std::max(hi, z);
+    }
+  }
+  return hi > 0.0f && (qz < lo * (1.0f - max_ratio) || qz > hi * (1.0f + max_ratio));
 }
 
 /// D_cur bilinearly interpolated at (u, v) (already checked to lie in the image), and the

@@ -108,6 +108,59 @@ INSTANTIATE_TEST_SUITE_P(BothReferenceModesWithAndWithoutDepth, KnownMotion,
                                                               ReferenceMode::kFrameToKeyframe),
                                             ::testing::Bool()));
 
+/// Final pose error (m) of odometry following a camera that moves 1 cm and 0.3 deg per frame
+/// over the textured plane while a nearer band (a person, 0.5 m wide, 1 m from the camera,
+/// a third of the view) walks across the view at 1.2 m/s, 4 cm per frame.
+double pose_error_with_a_person_crossing(double occlusion_depth_ratio, ReferenceMode mode,
+                                         double moving_residual_sigmas = 4.0) {
+  OdometryConfig config;
+  config.reference_mode = mode;
+  config.occlusion_depth_ratio = occlusion_depth_ratio;
+  config.moving_residual_sigmas = moving_residual_sigmas;
+  DenseOdometry odometry(config, kCamera);
+  const Eigen::Isometry3d step = pose(0.01, 0.004, 0.0, 0.002, -0.003, 0.004);
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  constexpr double kPersonZ = 1.0;
+  constexpr double kPersonWidth = 0.5;
+  double person_left = -0.45;
+  double error_m = 0.0;
+  for (int k = 0; k <= 12; ++k) {
+    Frame f = render(T_world_camera);
+    test::render_moving_band(kCamera, T_world_camera, kPersonZ, person_left, kPersonWidth, f.gray,
+                             f.depth_m);
+    const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
+    if (k > 0) {
+      EXPECT_TRUE(r.ok()) << r.reason;
+      error_m = translation_error(r.T_O_C, T_world_camera);
+    }
+    T_world_camera = T_world_camera * step;
+    person_left += 0.04;
+  }
+  return error_m;
+}
+
+TEST(DenseOdometry, SomethingMovingAcrossAThirdOfTheViewDoesNotCarryTheCameraAlong) {
+  // GIVEN a person crossing a third of the view while the camera moves 12 cm
+  for (const ReferenceMode mode : {ReferenceMode::kFrameToFrame, ReferenceMode::kFrameToKeyframe}) {
+    // WHEN the odometry tracks with the depth consistency check, without it, and without the
+    // moving pixels left out of new references (the median scale is on in all)
+    const double without = pose_error_with_a_person_crossing(0.0, mode);
+    const double with = pose_error_with_a_person_crossing(0.1, mode);
+    const double unmarked = pose_error_with_a_person_crossing(0.1, mode, 0.0);
+    std::printf(
+        "%s: pose error after 12 frames %.2f mm; without the depth check %.2f mm, without "
+        "leaving moving pixels out %.2f mm\n",
+        mode == ReferenceMode::kFrameToFrame ? "frame to frame" : "frame to keyframe", 1e3 * with,
+        1e3 * without, 1e3 * unmarked);
+    // THEN the person's pixels do not pull the camera along: measured 2.1 / 1.9 mm; without
+    // the check 27 / 79 mm, without the marks 4.3 / 1.9 mm (and 650 / 713 mm with Kerl's
+    // fixed-point scale of the weights)
+    EXPECT_LT(with, 0.2 * without);
+    EXPECT_LT(with, 3e-3);
+    if (mode == ReferenceMode::kFrameToFrame) EXPECT_LT(with, 0.7 * unmarked);
+  }
+}
+
 TEST(DenseOdometry, DepthTermOnTheFinestLevelOnlyRecoversKnownMotion) {
   // The coarse levels then align intensity alone; the motion is still recovered.
   OdometryConfig config;
@@ -220,9 +273,10 @@ TEST(DenseOdometry, GyroPriorIsWeighedAgainstTheScaledVisionInformation) {
     ASSERT_TRUE(fused.ok()) << fused.reason;
     // THEN the rotation moves from the vision-only one towards the gyro's along the linear
     // fusion of the returned information with the prior's: about 4 % of the way at scale 1,
-    // half of it at 0.04. The size of the move is within a factor 2 of the linear one, not
+    // half of it at 0.04. The size of the move is within a factor 2.5 of the linear one, not
     // equal: the Student-t reweighting's Hessian overstates the robust cost's curvature away
-    // from its minimum (measured 1.3-1.8x).
+    // from its minimum (measured 1.3-1.8x with Kerl's fixed-point scale, up to 2.2x with the
+    // median scale, whose tighter weights curve the cost more).
     const Eigen::Vector3d d =
         geometry::log_so3(gyro.R_prev_cur * vision.T_ref_cur.linear().transpose());
     Matrix6d A = vision.information;
@@ -237,7 +291,7 @@ TEST(DenseOdometry, GyroPriorIsWeighedAgainstTheScaledVisionInformation) {
         << "scale " << scale << " moved " << moved.transpose() << " expected "
         << expected.transpose();
     EXPECT_GT(moved.norm(), 0.7 * expected.norm()) << scale;
-    EXPECT_LT(moved.norm(), 2.0 * expected.norm()) << scale;
+    EXPECT_LT(moved.norm(), 2.5 * expected.norm()) << scale;
     moved_rad[scale == 1.0 ? 0 : 1] = moved.norm();
   }
   // AND the honest (smaller) vision information lets the same prior pull several times more
@@ -666,7 +720,8 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
       " depth_jacobian_from_normals: false, depth_normal_smoothing_levels: 1,"
       " depth_max_incidence_deg: 60, min_translation_information_ratio: 0.02,"
       " degenerate_step_ratio: 0.005,"
-      " align_depth_to_colour: false}");
+      " align_depth_to_colour: false, occlusion_depth_ratio: 0.2, moving_residual_sigmas: 5,"
+      " max_moving_ratio: 0.3}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
@@ -687,6 +742,9 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_DOUBLE_EQ(config.min_translation_information_ratio, 0.02);
   EXPECT_DOUBLE_EQ(config.degenerate_step_ratio, 0.005);
   EXPECT_FALSE(config.align_depth_to_colour);
+  EXPECT_DOUBLE_EQ(config.occlusion_depth_ratio, 0.2);
+  EXPECT_DOUBLE_EQ(config.moving_residual_sigmas, 5.0);
+  EXPECT_DOUBLE_EQ(config.max_moving_ratio, 0.3);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
@@ -707,6 +765,9 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{depth_levels: 4}",  // 4 levels, finest 1: three optimised levels
                "odometry.depth_levels = 4, expected <= pyramid_levels - finest_level (3)");
   expect_error("{depth_levels: -1}", "odometry.depth_levels = -1");
+  expect_error("{occlusion_depth_ratio: -0.1}", "odometry.occlusion_depth_ratio = -0.1");
+  expect_error("{moving_residual_sigmas: .nan}", "odometry.moving_residual_sigmas");
+  expect_error("{max_moving_ratio: 1.5}", "odometry.max_moving_ratio = 1.5");
   expect_error("{gyro_bias_sigma_radps: 0}", "odometry.gyro_bias_sigma_radps = 0, expected > 0");
   expect_error("{gyro_bias_gate_chi2: .nan}", "odometry.gyro_bias_gate_chi2");
   expect_error("{estimate_gyro_bias: maybe}", "odometry.estimate_gyro_bias");

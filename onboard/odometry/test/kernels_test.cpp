@@ -130,6 +130,25 @@ std::vector<float> plane_depth(const Eigen::Vector3d& n, double c) {
   return d;
 }
 
+TEST(DepthConsistency, OnlyAPointOutsideTheFourDepthsRangeDisagrees) {
+  // GIVEN a 2x2 patch of a slanted surface (1.0 to 1.3 m) and one with a depth missing
+  const std::vector<float> slanted = {1.0f, 1.1f, 1.2f, 1.3f};
+  const std::vector<float> one_missing = {0.0f, 2.0f, 2.0f, 2.0f};
+  const std::vector<float> none = {0.0f, 0.0f, 0.0f, 0.0f};
+  // WHEN points at various depths are warped into it (10 % allowed beyond the range)
+  // THEN anything within the range widened by 10 % agrees, however steep the slant
+  EXPECT_FALSE(depth_disagrees(slanted.data(), 2, 0.5f, 0.5f, 1.25f, 0.1f));
+  EXPECT_FALSE(depth_disagrees(slanted.data(), 2, 0.5f, 0.5f, 0.91f, 0.1f));
+  EXPECT_FALSE(depth_disagrees(slanted.data(), 2, 0.5f, 0.5f, 1.42f, 0.1f));
+  // AND a point hidden behind the surface, or in front of it (it moved), disagrees
+  EXPECT_TRUE(depth_disagrees(slanted.data(), 2, 0.5f, 0.5f, 1.45f, 0.1f));
+  EXPECT_TRUE(depth_disagrees(slanted.data(), 2, 0.5f, 0.5f, 0.85f, 0.1f));
+  // AND missing depths are skipped; with none, nothing can disagree
+  EXPECT_TRUE(depth_disagrees(one_missing.data(), 2, 0.2f, 0.2f, 1.0f, 0.1f));
+  EXPECT_FALSE(depth_disagrees(one_missing.data(), 2, 0.2f, 0.2f, 2.1f, 0.1f));
+  EXPECT_FALSE(depth_disagrees(none.data(), 2, 0.5f, 0.5f, 1.0f, 0.1f));
+}
+
 TEST(DepthResidual, SurfaceNormalJacobianMatchesNumericDerivativeOnAPlane) {
   // A plane tilted against the view, 2 m ahead; its normal in the current camera's axes.
   const Eigen::Vector3d n_cur = Eigen::Vector3d(0.3, -0.2, -1.0).normalized();

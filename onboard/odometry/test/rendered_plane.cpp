@@ -40,4 +40,26 @@ void render_textured_plane(const geometry::PinholeCamera& camera,
   }
 }
 
+void render_moving_band(const geometry::PinholeCamera& camera,
+                        const Eigen::Isometry3d& T_world_camera, double band_z_m, double left_m,
+                        double width_m, cv::Mat& gray, cv::Mat& depth_m) {
+  const Eigen::Matrix3d R = T_world_camera.linear();
+  const Eigen::Vector3d o = T_world_camera.translation();
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+      const Eigen::Vector3d d_world = R * d_camera;
+      const double s = d_world.z() != 0.0 ? (band_z_m - o.z()) / d_world.z() : -1.0;
+      if (s <= 0.0) continue;
+      const Eigen::Vector3d p = o + s * d_world;
+      const double along = p.x() - left_m;
+      if (along < 0.0 || along > width_m) continue;
+      // Its own pattern, coarser than the plane's and shifted: the band is not the plane.
+      gray.at<unsigned char>(v, u) = static_cast<unsigned char>(
+          std::clamp(std::lround(texture(0.7 * along + 3.0, 0.7 * p.y() - 2.0)), 0L, 255L));
+      depth_m.at<float>(v, u) = static_cast<float>(s);
+    }
+  }
+}
+
 }  // namespace hq::odometry::test

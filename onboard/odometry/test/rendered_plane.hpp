@@ -14,4 +14,11 @@ void render_textured_plane(const geometry::PinholeCamera& camera,
                            const Eigen::Isometry3d& T_world_camera, double plane_z_m, cv::Mat& gray,
                            cv::Mat& depth_m);
 
+/// A band x_world in [left_m, left_m + width_m] of the plane z_world = band_z_m, nearer than the
+/// textured plane and textured in its own coordinates (so it carries its pattern as it moves),
+/// drawn over gray and depth_m: an object moving independently of the scene, e.g. a person.
+void render_moving_band(const geometry::PinholeCamera& camera,
+                        const Eigen::Isometry3d& T_world_camera, double band_z_m, double left_m,
+                        double width_m, cv::Mat& gray, cv::Mat& depth_m);
+
 }  // namespace hq::odometry::test

@@ -68,6 +68,21 @@ struct OdometryConfig {
   bool keyframe_check = false;
   double keyframe_check_max_translation_m = 0.01;
   double keyframe_check_max_rotation_deg = 0.5;
+  /// A reference point whose warped depth disagrees with the current frame's depth at the same
+  /// pixel by more than this fraction of it adds no residual in that iteration: something came
+  /// between (a person walking into view) or the point itself moved away. The Student-t weights
+  /// only down-weight such points; a crowd of them (a person filling a third of the view)
+  /// shifts the minimum. 0 = off. Well above the Kinect's depth noise (0.6 % at 4 m) and the
+  /// misalignment of a coarse level's first iterations.
+  double occlusion_depth_ratio = 0.1;
+  /// A frame about to become the reference leaves out the pixels its own alignment saw move:
+  /// where a reference point landed with a photometric residual beyond this many robust
+  /// sigmas, or with disagreeing depth (a person walking, seen in one frame, is not aligned to
+  /// in the next). 0 = off.
+  double moving_residual_sigmas = 4.0;
+  /// ... unless more than this share of the points would be left out: then the alignment, not
+  /// the scene, is in doubt.
+  double max_moving_ratio = 0.5;
   /// Adds DVO-SLAM's depth residual (Kerl, Sturm, Cremers IROS 2013, eq. 11-13) to the same
   /// Gauss-Newton, with the bivariate Student-t weights of the pair (intensity, depth).
   /// Off by default: in the closed-loop campaigns a textureless world still "tracks" on depth
