@@ -623,56 +623,95 @@ struct DenseOdometry::Impl {
     int any = 0;          // points with either
   };
 
+  // What warping the reference points into the current frame at one level needs.
+  struct WarpSetup {
+    detail::Intrinsics k;
+    detail::Warp T;
+    float max_u, max_v, min_z;
+    const float* data;  // current intensity
+    int stride;
+    const float* depth;  // current depth
+    int depth_stride;
+    float occlusion_ratio;
+    bool reject_occluded;
+  };
+
+  WarpSetup warp_setup(int level, const FrameSlot& current,
+                       const Eigen::Isometry3d& T_cur_ref) const {
+    const geometry::PinholeCamera& cam = level_camera[level];
+    const Eigen::Matrix3f R = T_cur_ref.linear().cast<float>();
+    const Eigen::Vector3f t = T_cur_ref.translation().cast<float>();
+    const cv::Mat& image = current.intensity[level];
+    const cv::Mat& depth_image = current.depth_m[level];
+    const auto occlusion_ratio = static_cast<float>(config.occlusion_depth_ratio);
+    return {intrinsics(level),
+            {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2), t.x(),
+             t.y(), t.z()},
+            static_cast<float>(cam.width - 1) - 1e-3f,
+            static_cast<float>(cam.height - 1) - 1e-3f,
+            static_cast<float>(config.min_depth_m) * 0.5f,
+            reinterpret_cast<const float*>(image.data),
+            static_cast<int>(image.step1()),
+            reinterpret_cast<const float*>(depth_image.data),
+            static_cast<int>(depth_image.step1()),
+            occlusion_ratio,
+            occlusion_ratio > 0.0f};
+  }
+
+  // compute_residuals() of a level without the depth term.
+  HQ_CLONES_X86_64_V3
+  Counts compute_intensity_residuals(int level, const FrameSlot& current,
+                                     const Eigen::Isometry3d& T_cur_ref, float brightness_offset) {
+    const WarpSetup w = warp_setup(level, current, T_cur_ref);
+    const detail::Intrinsics& k = w.k;
+    const detail::Warp& T = w.T;
+    const ReferenceLevel& ref = reference_sets[active_set][level];
+    const float* photometric = ref.photometric.data();
+    Counts counts;
+    for (int i = 0; i < ref.count; ++i) {
+      float qx, qy, qz;
+      T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
+      float r = 0.0f;
+      float m = 0.0f;
+      if (qz > w.min_z) {
+        const float inv_z = 1.0f / qz;
+        const float u = k.fx * qx * inv_z + k.cx;
+        const float v = k.fy * qy * inv_z + k.cy;
+        if (u >= 0.0f && v >= 0.0f && u < w.max_u && v < w.max_v &&
+            !(w.reject_occluded &&
+              detail::depth_disagrees(w.depth, w.depth_stride, u, v, qz, w.occlusion_ratio))) {
+          r = detail::sample_bilinear(w.data, w.stride, u, v) - ref.intensity[i] -
+              brightness_offset;
+          m = photometric[i];
+        }
+      }
+      residual[i] = r;
+      mask[i] = m;
+      counts.photometric += m > 0.0f ? 1 : 0;
+    }
+    counts.any = counts.photometric;
+    return counts;
+  }
+
   // Warps every reference point with T_cur_ref, samples the current image (and, with the depth
-  // term, the current depth), stores residuals and masks; points that leave the image get mask 0.
+  // term, the current depth), stores residuals and masks; points that leave the image, or whose
+  // depth disagrees with the current one (occlusion_depth_ratio), get mask 0.
   HQ_CLONES_X86_64_V3
   Counts compute_residuals(int level, const FrameSlot& current, const Eigen::Isometry3d& T_cur_ref,
                            float brightness_offset) {
-    const geometry::PinholeCamera& cam = level_camera[level];
-    const detail::Intrinsics k = intrinsics(level);
-    const ReferenceLevel& ref = reference_sets[active_set][level];
-    const Eigen::Matrix3f R = T_cur_ref.linear().cast<float>();
-    const Eigen::Vector3f t = T_cur_ref.translation().cast<float>();
-    const detail::Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
-                         R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
-    const auto max_u = static_cast<float>(cam.width - 1) - 1e-3f;
-    const auto max_v = static_cast<float>(cam.height - 1) - 1e-3f;
-    const auto min_z = static_cast<float>(config.min_depth_m) * 0.5f;
-    const cv::Mat& image = current.intensity[level];
-    const auto* data = reinterpret_cast<const float*>(image.data);
-    const auto stride = static_cast<int>(image.step1());
-    const float* photometric = ref.photometric.data();
-    const cv::Mat& depth_image = current.depth_m[level];
-    const auto* depth = reinterpret_cast<const float*>(depth_image.data);
-    const auto depth_stride = static_cast<int>(depth_image.step1());
-    const auto occlusion_ratio = static_cast<float>(config.occlusion_depth_ratio);
-    const bool reject_occluded = occlusion_ratio > 0.0f;
-    Counts counts;
     if (!depth_at(level)) {
-      for (int i = 0; i < ref.count; ++i) {
-        float qx, qy, qz;
-        T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-        float r = 0.0f;
-        float m = 0.0f;
-        if (qz > min_z) {
-          const float inv_z = 1.0f / qz;
-          const float u = k.fx * qx * inv_z + k.cx;
-          const float v = k.fy * qy * inv_z + k.cy;
-          if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v &&
-              !(reject_occluded &&
-                detail::depth_disagrees(depth, depth_stride, u, v, qz, occlusion_ratio))) {
-            r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
-            m = photometric[i];
-          }
-        }
-        residual[i] = r;
-        mask[i] = m;
-        counts.photometric += m > 0.0f ? 1 : 0;
-      }
-      counts.any = counts.photometric;
-      return counts;
+      return compute_intensity_residuals(level, current, T_cur_ref, brightness_offset);
     }
-
+    const WarpSetup w = warp_setup(level, current, T_cur_ref);
+    const detail::Intrinsics& k = w.k;
+    const detail::Warp& T = w.T;
+    const float* data = w.data;
+    const float* depth = w.depth;
+    const int stride = w.stride;
+    const int depth_stride = w.depth_stride;
+    const ReferenceLevel& ref = reference_sets[active_set][level];
+    const float* photometric = ref.photometric.data();
+    Counts counts;
     // Intensity and depth in one pass over the points and one warp; points without gradient
     // skip the intensity sample.
     const auto noise = static_cast<float>(config.depth_noise_per_m);
@@ -693,13 +732,13 @@ struct DenseOdometry::Impl {
       bool ok = false;
       float qx, qy, qz;
       T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-      if (qz > min_z) {
+      if (qz > w.min_z) {
         const float inv_z = 1.0f / qz;
         const float u = k.fx * qx * inv_z + k.cx;
         const float v = k.fy * qy * inv_z + k.cy;
-        if (u >= 0.0f && v >= 0.0f && u < max_u && v < max_v &&
-            !(reject_occluded &&
-              detail::depth_disagrees(depth, depth_stride, u, v, qz, occlusion_ratio))) {
+        if (u >= 0.0f && v >= 0.0f && u < w.max_u && v < w.max_v &&
+            !(w.reject_occluded &&
+              detail::depth_disagrees(depth, depth_stride, u, v, qz, w.occlusion_ratio))) {
           if (photometric[i] > 0.0f) {
             r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
             m = 1.0f;
@@ -1027,8 +1066,8 @@ struct DenseOdometry::Impl {
       float qx, qy, qz;
       T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
       if (qz <= 0.0f) continue;
-      const int u = static_cast<int>(k.fx * qx / qz + k.cx + 0.5f);
-      const int v = static_cast<int>(k.fy * qy / qz + k.cy + 0.5f);
+      const auto u = static_cast<int>(std::lround(k.fx * qx / qz + k.cx));
+      const auto v = static_cast<int>(std::lround(k.fy * qy / qz + k.cy));
       if (u < 1 || v < 1 || u >= cam.width - 1 || v >= cam.height - 1) continue;
       ++used;
       // mask 0 inside the image: the depth disagreed (or the sample fell off the last column)
