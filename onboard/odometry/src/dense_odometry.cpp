@@ -634,6 +634,18 @@ struct DenseOdometry::Impl {
     int depth_stride;
     float occlusion_ratio;
     bool reject_occluded;
+
+    // Projects q (the warped point, current camera) to (u, v): true when it lands inside the
+    // image and its depth agrees with the current frame's there.
+    [[nodiscard]] bool visible(float qx, float qy, float qz, float& u, float& v) const {
+      if (!(qz > min_z)) return false;
+      const float inv_z = 1.0f / qz;
+      u = k.fx * qx * inv_z + k.cx;
+      v = k.fy * qy * inv_z + k.cy;
+      return u >= 0.0f && v >= 0.0f && u < max_u && v < max_v &&
+             !(reject_occluded &&
+               detail::depth_disagrees(depth, depth_stride, u, v, qz, occlusion_ratio));
+    }
   };
 
   WarpSetup warp_setup(int level, const FrameSlot& current,
@@ -663,7 +675,6 @@ struct DenseOdometry::Impl {
   Counts compute_intensity_residuals(int level, const FrameSlot& current,
                                      const Eigen::Isometry3d& T_cur_ref, float brightness_offset) {
     const WarpSetup w = warp_setup(level, current, T_cur_ref);
-    const detail::Intrinsics& k = w.k;
     const detail::Warp& T = w.T;
     const ReferenceLevel& ref = reference_sets[active_set][level];
     const float* photometric = ref.photometric.data();
@@ -673,17 +684,10 @@ struct DenseOdometry::Impl {
       T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
       float r = 0.0f;
       float m = 0.0f;
-      if (qz > w.min_z) {
-        const float inv_z = 1.0f / qz;
-        const float u = k.fx * qx * inv_z + k.cx;
-        const float v = k.fy * qy * inv_z + k.cy;
-        if (u >= 0.0f && v >= 0.0f && u < w.max_u && v < w.max_v &&
-            !(w.reject_occluded &&
-              detail::depth_disagrees(w.depth, w.depth_stride, u, v, qz, w.occlusion_ratio))) {
-          r = detail::sample_bilinear(w.data, w.stride, u, v) - ref.intensity[i] -
-              brightness_offset;
-          m = photometric[i];
-        }
+      float u, v;
+      if (w.visible(qx, qy, qz, u, v)) {
+        r = detail::sample_bilinear(w.data, w.stride, u, v) - ref.intensity[i] - brightness_offset;
+        m = photometric[i];
       }
       residual[i] = r;
       mask[i] = m;
@@ -732,29 +736,23 @@ struct DenseOdometry::Impl {
       bool ok = false;
       float qx, qy, qz;
       T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-      if (qz > w.min_z) {
-        const float inv_z = 1.0f / qz;
-        const float u = k.fx * qx * inv_z + k.cx;
-        const float v = k.fy * qy * inv_z + k.cy;
-        if (u >= 0.0f && v >= 0.0f && u < w.max_u && v < w.max_v &&
-            !(w.reject_occluded &&
-              detail::depth_disagrees(depth, depth_stride, u, v, qz, w.occlusion_ratio))) {
-          if (photometric[i] > 0.0f) {
-            r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
-            m = 1.0f;
+      float u, v;
+      if (w.visible(qx, qy, qz, u, v)) {
+        if (photometric[i] > 0.0f) {
+          r = detail::sample_bilinear(data, stride, u, v) - ref.intensity[i] - brightness_offset;
+          m = 1.0f;
+        }
+        if (depth_point[i] > 0.0f) {
+          if (from_normals) {
+            float nx, ny, nz;
+            T.rotate(ref.nx[i], ref.ny[i], ref.nz[i], nx, ny, nz);
+            ok = detail::depth_sample_on_surface(depth, depth_stride, qx, qy, qz, u, v, nx, ny, nz,
+                                                 min_cos_incidence, noise, spread, rz, a);
+          } else {
+            ok = detail::depth_sample_at(depth, depth_stride, k, qx, qy, qz, u, v, noise, spread,
+                                         rz, a);
           }
-          if (depth_point[i] > 0.0f) {
-            if (from_normals) {
-              float nx, ny, nz;
-              T.rotate(ref.nx[i], ref.ny[i], ref.nz[i], nx, ny, nz);
-              ok = detail::depth_sample_on_surface(depth, depth_stride, qx, qy, qz, u, v, nx, ny,
-                                                   nz, min_cos_incidence, noise, spread, rz, a);
-            } else {
-              ok = detail::depth_sample_at(depth, depth_stride, k, qx, qy, qz, u, v, noise, spread,
-                                           rz, a);
-            }
-            if (!ok) a[0] = a[1] = a[2] = 0.0f;
-          }
+          if (!ok) a[0] = a[1] = a[2] = 0.0f;
         }
       }
       depth_residual[i] = ok ? rz : 0.0f;

@@ -13,6 +13,19 @@ double texture(double x, double y) {
                    0.2 * std::sin(7.0 * (x + y)) + 0.2 * std::cos(17.0 * x - 11.0 * y);
   return 128.0 + 110.0 * v;
 }
+
+// Where the ray of pixel (u, v) meets the plane z_world = plane_z_m: its distance s along the
+// ray (the depth: the ray's camera z is 1) and the point; false when it does not.
+bool ray_meets_plane(const geometry::PinholeCamera& camera, const Eigen::Isometry3d& T_world_camera,
+                     int u, int v, double plane_z_m, double& s, Eigen::Vector3d& p) {
+  const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+  const Eigen::Vector3d d_world = T_world_camera.linear() * d_camera;
+  const Eigen::Vector3d& o = T_world_camera.translation();
+  s = d_world.z() != 0.0 ? (plane_z_m - o.z()) / d_world.z() : -1.0;
+  if (s <= 0.0) return false;
+  p = o + s * d_world;
+  return true;
+}
 }  // namespace
 
 void render_textured_plane(const geometry::PinholeCamera& camera,
@@ -20,19 +33,15 @@ void render_textured_plane(const geometry::PinholeCamera& camera,
                            cv::Mat& depth_m) {
   gray.create(camera.height, camera.width, CV_8UC1);
   depth_m.create(camera.height, camera.width, CV_32FC1);
-  const Eigen::Matrix3d R = T_world_camera.linear();
-  const Eigen::Vector3d o = T_world_camera.translation();
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
-      const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
-      const Eigen::Vector3d d_world = R * d_camera;
-      const double s = d_world.z() != 0.0 ? (plane_z_m - o.z()) / d_world.z() : -1.0;
-      if (s <= 0.0) {
+      double s = 0.0;
+      Eigen::Vector3d p;
+      if (!ray_meets_plane(camera, T_world_camera, u, v, plane_z_m, s, p)) {
         gray.at<unsigned char>(v, u) = 0;
         depth_m.at<float>(v, u) = 0.0f;
         continue;
       }
-      const Eigen::Vector3d p = o + s * d_world;
       gray.at<unsigned char>(v, u) =
           static_cast<unsigned char>(std::clamp(std::lround(texture(p.x(), p.y())), 0L, 255L));
       depth_m.at<float>(v, u) = static_cast<float>(s);  // d_camera.z() == 1
@@ -43,15 +52,11 @@ void render_textured_plane(const geometry::PinholeCamera& camera,
 void render_moving_band(const geometry::PinholeCamera& camera,
                         const Eigen::Isometry3d& T_world_camera, double band_z_m, double left_m,
                         double width_m, cv::Mat& gray, cv::Mat& depth_m) {
-  const Eigen::Matrix3d R = T_world_camera.linear();
-  const Eigen::Vector3d o = T_world_camera.translation();
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
-      const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
-      const Eigen::Vector3d d_world = R * d_camera;
-      const double s = d_world.z() != 0.0 ? (band_z_m - o.z()) / d_world.z() : -1.0;
-      if (s <= 0.0) continue;
-      const Eigen::Vector3d p = o + s * d_world;
+      double s = 0.0;
+      Eigen::Vector3d p;
+      if (!ray_meets_plane(camera, T_world_camera, u, v, band_z_m, s, p)) continue;
       const double along = p.x() - left_m;
       if (along < 0.0 || along > width_m) continue;
       // Its own pattern, coarser than the plane's and shifted: the band is not the plane.
