@@ -157,7 +157,9 @@ TEST(DenseOdometry, SomethingMovingAcrossAThirdOfTheViewDoesNotCarryTheCameraAlo
     // fixed-point scale of the weights)
     EXPECT_LT(with, 0.2 * without);
     EXPECT_LT(with, 3e-3);
-    if (mode == ReferenceMode::kFrameToFrame) EXPECT_LT(with, 0.7 * unmarked);
+    if (mode == ReferenceMode::kFrameToFrame) {
+      EXPECT_LT(with, 0.7 * unmarked);
+    }
   }
 }
 
