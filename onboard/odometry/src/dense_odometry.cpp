@@ -329,7 +329,7 @@ struct DenseOdometry::Impl {
   // Per-point work buffers, sized for the finest optimised level. mask: 1 where the residual
   // exists; weight: its robust weight including the scale.
   // Per level, pixels of the frame about to become the reference that the last alignment saw
-  // move on their own (moving_pixels()); prepare_reference() leaves them out. 1 = moving.
+  // move on their own (mark_moving_pixels()); prepare_reference() leaves them out. 1 = moving.
   std::array<cv::Mat, kMaxLevels> moving;
   bool moving_known = false;
   std::vector<float> residual;
@@ -773,7 +773,7 @@ struct DenseOdometry::Impl {
   // (sigma = 1.4826 median |r|): it holds while up to half of them belong to something moving
   // by itself. Kerl's fixed point (eq. 12) averages every residual into the scale, so a person
   // filling a third of the view widened it until their pixels kept their weight and pulled the
-  // camera along (simulated people world 0.124 against 0.023 m/s, README). The median comes
+  // camera along (people.yaml's circle: docs/odometry.md). The median comes
   // from a histogram of |r| (one pass, no sort); beyond its range, from the fixed point.
   double estimate_variance(int count, int valid, double initial_variance) {
     std::fill(residual_histogram.begin(), residual_histogram.end(), 0U);
@@ -1048,12 +1048,10 @@ struct DenseOdometry::Impl {
     if (config.moving_residual_sigmas <= 0.0) return;
     compute_residuals(finest, current, a.T_cur_ref, a.brightness_offset);
     const ReferenceLevel& ref = reference_sets[active_set][finest];
-    const detail::Intrinsics k = intrinsics(finest);
+    const WarpSetup w = warp_setup(finest, current, a.T_cur_ref);
+    const detail::Intrinsics& k = w.k;
+    const detail::Warp& T = w.T;
     const geometry::PinholeCamera& cam = level_camera[finest];
-    const Eigen::Matrix3f R = a.T_cur_ref.linear().cast<float>();
-    const Eigen::Vector3f t = a.T_cur_ref.translation().cast<float>();
-    const detail::Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
-                         R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
     const auto limit = static_cast<float>(config.moving_residual_sigmas * std::sqrt(a.variance));
     cv::Mat& marks = moving[finest];
     marks = 0;
