@@ -115,11 +115,14 @@ void ClosedLoop::run_until(double t_s) {
   while (t_ns_ + options_.control_period_ns <= end_ns) {
     t_ns_ += options_.control_period_ns;
     if (options_.realtime) pace(t_ns_);
+    const int hard_impacts_before = sim_->hard_floor_impacts();
     runtime_->step(t_ns_);
     const sim::TruthState& truth = sim_->truth();
     if (!truth.on_ground) {
       min_clearance_m_ = std::min(min_clearance_m_, truth.clearance_m);
       if (truth.collision) ++collision_ticks_;
+    } else if (sim_->hard_floor_impacts() > hard_impacts_before) {
+      ++collision_ticks_;  // a fall onto the floor, seen between two control ticks
     }
   }
 }

@@ -21,6 +21,8 @@ FlightSummary summarise(const ClosedLoop& loop) {
   const std::vector<FlightSample>& samples = loop.samples();
   s.min_clearance_m = loop.min_clearance_m() < 1e8 ? loop.min_clearance_m() : std::nan("");
   s.collision_ticks = loop.collision_ticks();
+  s.floor_impacts = loop.simulator().floor_impacts();
+  s.max_floor_impact_speed_mps = loop.simulator().max_floor_impact_speed_mps();
   if (samples.empty()) return s;
   s.duration_s = samples.back().t_s;
 
@@ -78,6 +80,8 @@ void print_summary(std::FILE* out, const std::string& title, const FlightSummary
                s.yaw_rate_rmse_radps);
   std::fprintf(out, "  %-40s %.3f m\n", "closest distance (clearance)", s.min_clearance_m);
   std::fprintf(out, "  %-40s %d\n", "collision ticks", s.collision_ticks);
+  std::fprintf(out, "  %-40s %d, fastest %.2f m/s\n", "floor contacts (falls count as collisions)",
+               s.floor_impacts, s.max_floor_impact_speed_mps);
   std::fprintf(out, "  %-40s %.2f m/s\n", "max true speed", s.max_speed_true_mps);
   std::fprintf(out, "  %-40s %.2f s\n", "time in safe hover (airborne)", s.safe_hover_s);
 }

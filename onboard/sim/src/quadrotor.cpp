@@ -139,8 +139,10 @@ void Quadrotor::step(double dt_s) {
   const Eigen::Vector3d omega_dot = (tau - w.cross(J.cwiseProduct(w))).cwiseQuotient(J);
 
   // Ground contact: the floor pushes back as long as the vehicle presses on it.
+  state_.floor_impact_speed_mps = 0.0;
   const bool touching = state_.p_world_m.z() <= params_.rest_height_m + 1e-9;
   if (touching && a_world.z() <= 0.0 && state_.v_world_mps.z() <= 0.0) {
+    state_.floor_impact_speed_mps = -state_.v_world_mps.z();
     const double yaw = euler_from_R_world_body(R).z();
     state_.q_world_body = Eigen::Quaterniond(R_world_body_from_euler(0.0, 0.0, yaw));
     state_.v_world_mps.setZero();
@@ -168,6 +170,7 @@ void Quadrotor::step(double dt_s) {
     // Landing: the floor stops the descent (inelastic contact).
     state_.p_world_m.z() = params_.rest_height_m;
     a_world.z() += -state_.v_world_mps.z() / dt_s;
+    state_.floor_impact_speed_mps = std::max(0.0, -state_.v_world_mps.z());
     state_.v_world_mps.z() = 0.0;
   }
   state_.a_world_mps2 = a_world;

@@ -328,8 +328,16 @@ void Simulator::update_truth() {
   truth_.clearance_m =
       distance_to_obstacles(world_, s.p_world_m, static_cast<double>(t_ns_) * 1e-9) -
       config_.vehicle_radius_m;
-  truth_.collision = truth_.clearance_m < 0.0;
   truth_.on_ground = s.on_ground;
+  // Impacts with the floor count too (issue 39: a fall from 11.8 m read "collision ticks 0").
+  truth_.floor_impact_speed_mps = s.floor_impact_speed_mps;
+  if (s.floor_impact_speed_mps > 1e-3) {
+    ++floor_impacts_;
+    max_floor_impact_speed_mps_ = std::max(max_floor_impact_speed_mps_, s.floor_impact_speed_mps);
+  }
+  const bool hard_impact = s.floor_impact_speed_mps > kHardFloorImpactSpeedMps;
+  hard_floor_impacts_ += hard_impact ? 1 : 0;
+  truth_.collision = truth_.clearance_m < 0.0 || hard_impact;
   collided_ = collided_ || truth_.collision;
 }
 

@@ -271,6 +271,9 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
   }
   std::printf("collision ticks airborne %lld, smallest clearance %s, max true speed %.2f m/s\n",
               static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);
+  std::printf("floor contacts %d (fastest %.2f m/s), falls (faster than %.1f m/s) %d\n",
+              sim.floor_impacts(), sim.max_floor_impact_speed_mps(), kHardFloorImpactSpeedMps,
+              sim.hard_floor_impacts());
   std::printf(
       "mavlink: sent %llu, send failures %llu, received %llu, dropped %llu (bad crc %llu, "
       "unknown id %llu, truncated %llu, bad length %llu)\n",

@@ -74,6 +74,50 @@ TEST(SimulatorTest, CollisionFlagWhenFlownIntoAWall) {
   EXPECT_GT(sim.truth().v_H_mps.x(), 0.5);
 }
 
+// Issue 39: a vehicle that idled its motors in the air hit the floor at 11-13 m/s, and the flight
+// summary read "collision ticks 0". Every time the floor stops the vehicle is counted with its
+// speed; a gentle touchdown is not a collision, a fall is.
+TEST(SimulatorTest, FloorImpactsAreCountedWithTheirSpeedAndAFallIsACollision) {
+  const World world = load_world("onboard/sim/worlds/arena.yaml");
+  SimConfig config = default_sim_config(32, 24);
+  config.vehicle.gust_sigma_mps = 0.0;
+  Simulator sim(config, world);
+  std::int64_t t = 0;
+  for (; t < 4000 * kMs; t += 10 * kMs) {
+    sim.set_command(hold_altitude(sim, 1.0, 0.0, 0.0));
+    sim.step_to(t + 10 * kMs);
+  }
+  ASSERT_FALSE(sim.truth().on_ground);
+  // A slow descent to the floor (0.3 m/s): one touchdown, no collision.
+  const double m = config.vehicle.mass_kg;
+  for (; t < 12000 * kMs && !sim.truth().on_ground; t += 10 * kMs) {
+    const TruthState& s = sim.truth();
+    sim.set_command({m * (9.81 + 2.5 * (-0.3 - s.v_world_mps.z())), 0.0, 0.0, 0.0});
+    sim.step_to(t + 10 * kMs);
+  }
+  ASSERT_TRUE(sim.truth().on_ground);
+  EXPECT_EQ(sim.floor_impacts(), 1);
+  EXPECT_NEAR(sim.max_floor_impact_speed_mps(), 0.3, 0.1);
+  EXPECT_FALSE(sim.collided());
+  // Up to 3 m, then the motors off: a fall at about sqrt(2 g 3) = 7.7 m/s is a collision.
+  for (const std::int64_t end = t + 8000 * kMs; t < end; t += 10 * kMs) {
+    sim.set_command(hold_altitude(sim, 3.0, 0.0, 0.0));
+    sim.step_to(t + 10 * kMs);
+  }
+  ASSERT_NEAR(sim.truth().T_world_body.translation().z(), 3.0, 0.1);
+  bool hit = false;
+  for (const std::int64_t end = t + 2000 * kMs; t < end; t += kMs) {
+    sim.set_command({0.0, 0.0, 0.0, 0.0});
+    sim.step_to(t + kMs);
+    hit = hit || sim.truth().collision;
+  }
+  EXPECT_TRUE(sim.truth().on_ground);
+  EXPECT_EQ(sim.floor_impacts(), 2);
+  EXPECT_GT(sim.max_floor_impact_speed_mps(), 7.0);
+  EXPECT_TRUE(hit);
+  EXPECT_TRUE(sim.collided());
+}
+
 // GIVEN a vehicle resting at the origin and a person walking at 1 m/s from 3 m ahead through it,
 // THEN the clearance follows the person, and the run records a collision once they overlap
 // (person radius + vehicle radius = 0.6 m, so from t = 2.4 s).

@@ -138,6 +138,7 @@ class ClosedLoop {
   }
 
   [[nodiscard]] sim::Simulator& simulator() { return *sim_; }
+  [[nodiscard]] const sim::Simulator& simulator() const { return *sim_; }
   [[nodiscard]] pipeline::OnboardChain& chain() { return *chain_; }
   [[nodiscard]] const vehicle::VehicleRuntime& runtime() const { return *runtime_; }
   [[nodiscard]] const SimFlightController& flight_controller() const { return *fc_; }

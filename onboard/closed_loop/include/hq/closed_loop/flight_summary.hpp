@@ -28,6 +28,8 @@ struct FlightSummary {
   double yaw_rate_rmse_radps = NAN;  ///< Commanded against the gyro, as Fig. 8.
   double min_clearance_m = NAN;      ///< Surface to vehicle sphere, over every physics tick.
   int collision_ticks = 0;
+  int floor_impacts = 0;  ///< touchdowns and impacts, each once
+  double max_floor_impact_speed_mps = 0.0;
   double max_speed_true_mps = 0.0;
   /// Horizontal distance between first and last airborne truth position (for hovers).
   double horizontal_drift_m = NAN;

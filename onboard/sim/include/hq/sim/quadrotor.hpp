@@ -50,6 +50,8 @@ struct QuadrotorState {
   Eigen::Vector3d a_world_mps2 = Eigen::Vector3d::Zero();  ///< of the last step.
   std::array<double, 4> rotor_speed_radps{};
   bool on_ground = true;
+  /// Speed at which the floor stopped the vehicle in the last step (m/s), 0 when it did not.
+  double floor_impact_speed_mps = 0.0;
 };
 
 /// Rotation R_world_body of NED body Euler angles in the NWU world (core paper §3).

@@ -60,9 +60,15 @@ struct TruthState {
   Eigen::Vector3d euler_rad = Eigen::Vector3d::Zero();  ///< roll, pitch, yaw.
   /// Centre to nearest obstacle surface (people where they are at t_ns) minus vehicle radius.
   double clearance_m = 0.0;
-  bool collision = false;  ///< clearance_m < 0 at this step.
+  bool collision = false;  ///< clearance_m < 0, or a hard floor impact, at this step.
   bool on_ground = true;
+  /// Speed at which the floor stopped the vehicle at this step (m/s), 0 when it did not.
+  double floor_impact_speed_mps = 0.0;
 };
+
+/// A floor impact faster than this is a crash, counted as a collision (a landing's touchdown
+/// is 0.3 m/s; PX4's default landing speed is 0.7 m/s).
+inline constexpr double kHardFloorImpactSpeedMps = 1.5;
 
 class Simulator {
  public:
@@ -98,6 +104,11 @@ class Simulator {
   [[nodiscard]] const TruthState& truth() const { return truth_; }
   /// True if a collision happened at any step so far.
   [[nodiscard]] bool collided() const { return collided_; }
+  /// Times the floor stopped the vehicle (touchdowns and impacts), and the fastest of them.
+  [[nodiscard]] int floor_impacts() const { return floor_impacts_; }
+  [[nodiscard]] double max_floor_impact_speed_mps() const { return max_floor_impact_speed_mps_; }
+  /// Floor impacts faster than kHardFloorImpactSpeedMps: crashes.
+  [[nodiscard]] int hard_floor_impacts() const { return hard_floor_impacts_; }
   [[nodiscard]] const SimConfig& config() const { return config_; }
   [[nodiscard]] const World& world() const { return world_; }
   [[nodiscard]] const Quadrotor& vehicle() const { return vehicle_; }
@@ -131,6 +142,9 @@ class Simulator {
   std::size_t imu_count_ = 0;
   TruthState truth_;
   bool collided_ = false;
+  int floor_impacts_ = 0;
+  int hard_floor_impacts_ = 0;
+  double max_floor_impact_speed_mps_ = 0.0;
 };
 
 }  // namespace hq::sim
