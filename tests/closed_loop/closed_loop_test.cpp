@@ -162,6 +162,36 @@ TEST(ClosedLoop, GyroBiasTheOdometryMeasuresReachesTheAttitude) {
   EXPECT_LT(with_odometry, 0.5 * levelling_alone);
 }
 
+// Issue 39: an allowed station holding full climb took the vehicle past the depth sensor's
+// range and the walls, where it decided it had landed and fell from 11.8 m. The envelope's
+// ceiling (modes.max_height_m) stops the climb; the vehicle neither falls nor hits anything.
+TEST(ClosedLoop, FullClimbHeldStopsAtTheCeilingAndNeverFalls) {
+  Scenario s = room_takeoff(25.0);
+  s.script.frame = CommandFrame::kHorizontal;
+  s.step(4.0, Vec(0, 0, -1.0));  // full climb, held to the end
+  auto loop = s.make();
+  loop->run();
+  double highest_m = 0.0;
+  bool landed_in_the_air = false;
+  for (const FlightSample& x : loop->samples()) {
+    highest_m = std::max(highest_m, x.p_N_m.z());
+    landed_in_the_air = landed_in_the_air || (x.landed && x.p_N_m.z() > 0.5);
+  }
+  const FlightSummary summary = summarise(*loop);
+  std::printf(
+      "full climb held 21 s: highest %.2f m (ceiling %.1f m), collision ticks %d, "
+      "floor contacts %d (fastest %.2f m/s)\n",
+      highest_m, s.onboard.modes.max_height_m, summary.collision_ticks, summary.floor_impacts,
+      summary.max_floor_impact_speed_mps);
+  // The body's height above the floor, measured by the depth of a tilted camera, is within a
+  // few centimetres of the truth here.
+  EXPECT_LT(highest_m, s.onboard.modes.max_height_m + 0.2);
+  EXPECT_GT(highest_m, s.onboard.modes.max_height_m - 0.3);  // it did climb to it
+  EXPECT_FALSE(landed_in_the_air);
+  EXPECT_EQ(summary.collision_ticks, 0);
+  EXPECT_EQ(loop->simulator().hard_floor_impacts(), 0);
+}
+
 TEST(ClosedLoop, VelocityStepRisesFastWithBoundedOvershoot) {
   Scenario s = room_takeoff(11.0);
   s.script.frame = CommandFrame::kHorizontal;

@@ -54,6 +54,11 @@ void read_config(config::StrictMap& section, ModesConfig& out) {
   section.read_positive("touchdown_s", out.touchdown_s, 10.0);
   section.read("blind_descent_thrust_ratio", out.blind_descent_thrust_ratio, 0.5, 1.0);
   section.read_positive("blind_descent_s", out.blind_descent_s, 30.0);
+  section.read_positive("touchdown_max_height_m", out.touchdown_max_height_m, 5.0);
+  section.read("impact_specific_force_mps2", out.impact_specific_force_mps2, 10.0, 100.0);
+  section.read_positive("still_specific_force_mps2", out.still_specific_force_mps2, 5.0);
+  section.read_positive("max_height_m", out.max_height_m, 100.0);
+  section.read_positive("ceiling_slowdown_m", out.ceiling_slowdown_m, 10.0);
   section.read_positive("takeoff_target_height_m", out.takeoff_target_height_m, 10.0);
   section.read_positive("takeoff_speed_mps", out.takeoff_speed_mps, 2.0);
   section.read_positive("takeoff_slowdown_m", out.takeoff_slowdown_m, 5.0);
@@ -101,6 +106,35 @@ ModeSwitch ModeController::request_takeoff(Mode then) {
   takeoff_then_ = then;
   ramping_ = true;
   return verdict;
+}
+
+void ModeController::set_specific_force_H(const Eigen::Vector3d& f_H_mps2) {
+  if (!f_H_mps2.allFinite()) return;
+  f_H_mps2_ = f_H_mps2;
+  if (f_H_mps2.norm() > config_.impact_specific_force_mps2) impact_seen_ = true;
+}
+
+void ModeController::limit_to_envelope(Target& wanted, ModeOutput& out) const {
+  const double climb_mps = -wanted.v_H_mps.z();  // NED
+  if (climb_mps <= 0.0 || landed_) return;
+  double max_climb_mps = climb_mps;
+  if (!std::isfinite(height_m_)) {
+    // The take-off climbs on until the floor (or the integrated climb) gives a height.
+    if (wanted.source == Source::kTakeoff) return;
+    max_climb_mps = 0.0;
+    out.envelope_reason = "height unknown: no climb";
+  } else {
+    const double to_ceiling_m = config_.max_height_m - height_m_;
+    max_climb_mps =
+        std::max(0.0, climb_mps * std::min(1.0, to_ceiling_m / config_.ceiling_slowdown_m));
+    out.envelope_reason = "ceiling (modes.max_height_m)";
+  }
+  if (max_climb_mps >= climb_mps) {
+    out.envelope_reason = "";
+    return;
+  }
+  wanted.v_H_mps.z() = -max_climb_mps;
+  out.envelope_limited = true;
 }
 
 void ModeController::set_operator_command(const OperatorCommand& command) {
@@ -171,7 +205,8 @@ ModeOutput ModeController::step(std::int64_t t_ns,
   ModeOutput out;
   out.mode = mode_;
 
-  const Target wanted = target(t_ns, out);
+  Target wanted = target(t_ns, out);
+  limit_to_envelope(wanted, out);
   const Source source = wanted.source;
   const Eigen::Vector3d& v_target = wanted.v_H_mps;
   const double yaw_target = wanted.yaw_rate_radps;
@@ -235,24 +270,45 @@ ModeOutput ModeController::step(std::int64_t t_ns,
   return out;
 }
 
+bool ModeController::floor_evidence(double dt_s) {
+  // Still on the floor: the floor and the thrust together carry exactly m g, so the specific
+  // force is g, while the thrust alone (blind_descent_thrust_ratio m g) would give less.
+  const bool still =
+      std::abs(f_H_mps2_.norm() - control::kGravityMps2) < config_.still_specific_force_mps2;
+  still_timer_s_ = impact_seen_ && still ? still_timer_s_ + dt_s : 0.0;
+  return still_timer_s_ >= config_.touchdown_s;
+}
+
 void ModeController::land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps,
                                ModeOutput& out) {
   if (!v_est_H_mps || !v_est_H_mps->allFinite()) {
     // No velocity to close the loop on: sink level at a fixed fraction of hover thrust; the
     // floor ends it.
+    if (!out.blind_descent && blind_descent_timer_s_ == 0.0) {
+      impact_seen_ = false;
+      still_timer_s_ = 0.0;
+    }
     out.blind_descent = true;
     out.control.setpoint = controller_.hover_setpoint();
     out.control.setpoint.thrust_n *= config_.blind_descent_thrust_ratio;
     blind_descent_timer_s_ += dt_s;
-    if (blind_descent_timer_s_ >= config_.blind_descent_s) landed_ = true;
+    // The loss of the estimate is no evidence of the floor: a vehicle high up that idled its
+    // motors here would fall (issue 39: from 11.8 m at 11-13 m/s).
+    const bool near_floor = std::isfinite(height_m_) && height_m_ <= config_.touchdown_max_height_m;
+    const bool evidence = floor_evidence(dt_s) || near_floor;
+    if (blind_descent_timer_s_ >= config_.blind_descent_s && evidence) landed_ = true;
   } else {
     blind_descent_timer_s_ = 0.0;
+    impact_seen_ = false;
+    still_timer_s_ = 0.0;
     // Held by the floor: not sinking although the PID, its integral winding against the floor,
     // asks for well under hover thrust (a hover in mid-air keeps it near m g).
     const bool held_by_floor = v_est_H_mps->z() < config_.touchdown_speed_mps &&
                                out.control.setpoint.thrust_n <
                                    kTouchdownThrustRatio * controller_.hover_setpoint().thrust_n;
-    touchdown_timer_s_ = held_by_floor ? touchdown_timer_s_ + dt_s : 0.0;
+    const bool height_says_floor =
+        !std::isfinite(height_m_) || height_m_ <= config_.touchdown_max_height_m;
+    touchdown_timer_s_ = held_by_floor && height_says_floor ? touchdown_timer_s_ + dt_s : 0.0;
     if (touchdown_timer_s_ >= config_.touchdown_s) landed_ = true;
   }
   if (landed_) {

@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <string>
 
 namespace hq::modes {
@@ -197,6 +199,7 @@ TEST(ModeController, StartsLandedWithMotorsIdleUntilAClimbRequest) {
   // GIVEN the default configuration: on the ground, motors idle.
   const ModesConfig config;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  modes.set_height_m(0.5);  // known, below the ceiling: the envelope is not what is tested here
   EXPECT_TRUE(modes.landed());
   ModeOutput out;
   // WHEN hovering with a (sinking) estimate: nothing moves, the PID does not wind up.
@@ -315,11 +318,12 @@ TEST(ModeController, DescendingInMidAirNeverTouchesDown) {
   EXPECT_NEAR(plant.v_mps.z(), ModesConfig{}.land_speed_mps, 0.02);
 }
 
-TEST(ModeController, BlindDescentSinksLevelAndLandsAfterBlindDescentS) {
+TEST(ModeController, BlindDescentSinksLevelAndLandsNearTheFloorAfterBlindDescentS) {
   ModesConfig config = airborne_config();
   config.blind_descent_thrust_ratio = 0.8;
   config.blind_descent_s = 1.0;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  modes.set_height_m(0.2);  // below touchdown_max_height_m: the floor is there
   ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
   const std::optional<Eigen::Vector3d> no_estimate;  // what the chain gives without one
   ModeOutput out;
@@ -342,10 +346,119 @@ TEST(ModeController, BlindDescentSinksLevelAndLandsAfterBlindDescentS) {
   EXPECT_EQ(out.control.setpoint.thrust_n, 0.0);
 }
 
+// Issue 39: the estimate lost high up (or the height unknown) is no evidence of the floor; the
+// motors idled at 11.8 m and the vehicle hit the floor at 11-13 m/s.
+TEST(ModeController, BlindDescentHighUpNeverIdlesTheMotors) {
+  for (const double height_m : {11.8, std::numeric_limits<double>::quiet_NaN()}) {
+    ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+    modes.set_height_m(height_m);
+    ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+    for (int k = 0; k < 4000; ++k) {  // 20 s, blind_descent_s is 3
+      const ModeOutput out = modes.step(k * kStepNs, std::nullopt, Eigen::Vector3d::Zero());
+      ASSERT_FALSE(out.landed) << "height " << height_m << " step " << k;
+      ASSERT_NEAR(out.control.setpoint.thrust_n,
+                  ModesConfig{}.blind_descent_thrust_ratio * hover_thrust_n(), 1e-9);
+    }
+  }
+}
+
+// A point mass over a floor whose accelerometer feels the impact: specific force f = a - g.
+struct FallingOntoFloor {
+  PointMassOverFloor plant;
+  Eigen::Vector3d f_H_mps2 = Eigen::Vector3d(0.0, 0.0, -control::kGravityMps2);
+  void step(const control::AttitudeSetpoint& sp) {
+    const Eigen::Vector3d v_before = plant.mass.v_mps;
+    plant.step(sp);
+    f_H_mps2 = (plant.mass.v_mps - v_before) / kDt - Eigen::Vector3d(0, 0, control::kGravityMps2);
+  }
+};
+
+TEST(ModeController, BlindDescentLandsAfterAnImpactAndStillnessWithTheHeightUnknown) {
+  const ModesConfig config = airborne_config();
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  FallingOntoFloor vehicle;
+  vehicle.plant.z_m = -1.0;
+  double t_floor_s = -1.0;
+  double t_landed_s = -1.0;
+  for (int k = 0; k < 4000; ++k) {
+    modes.set_specific_force_H(vehicle.f_H_mps2);
+    const ModeOutput out = modes.step(k * kStepNs, std::nullopt, Eigen::Vector3d::Zero());
+    if (out.landed) {
+      t_landed_s = k * kDt;
+      break;
+    }
+    vehicle.step(out.control.setpoint);
+    if (vehicle.plant.on_floor && t_floor_s < 0.0) t_floor_s = k * kDt;
+  }
+  ASSERT_GT(t_floor_s, 0.0) << "never reached the floor";
+  ASSERT_GT(t_landed_s, 0.0) << "never landed on the floor";
+  EXPECT_GE(t_landed_s, config.blind_descent_s);
+  EXPECT_GE(t_landed_s - t_floor_s, config.touchdown_s - kDt);
+  EXPECT_LT(t_landed_s - t_floor_s, std::max(config.blind_descent_s, config.touchdown_s) + 0.1);
+}
+
+TEST(ModeController, TouchdownNeedsAHeightNearTheFloorWhenOneIsKnown) {
+  // GIVEN land with an estimate that stands still and a PID winding down against something
+  // (the floor test's conditions), but a height of 3 m: a vehicle held on a hand or a table
+  // edge, or an estimate stuck at zero in mid-air.
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+  modes.set_height_m(3.0);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  PointMassOverFloor plant;
+  for (int k = 0; k < 3000; ++k) {
+    const ModeOutput out = modes.step(k * kStepNs, plant.mass.v_mps, Eigen::Vector3d::Zero());
+    ASSERT_FALSE(out.landed) << k;
+    plant.step(out.control.setpoint);
+  }
+  EXPECT_TRUE(plant.on_floor);  // the floor did hold it: only the height said no
+}
+
+// Issue 39: a station allowed to command the vehicle held full climb; nothing stopped it.
+TEST(ModeController, AFullClimbStopsAtTheCeiling) {
+  const ModesConfig config = airborne_config();
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  PointMass plant;
+  double height_m = 1.0;
+  double highest_m = height_m;
+  ModeOutput out;
+  for (int k = 0; k < 4000; ++k) {  // 20 s at 1 m/s up
+    const std::int64_t t_ns = k * kStepNs;
+    modes.set_height_m(height_m);
+    modes.set_operator_command({t_ns, Eigen::Vector3d(0.0, 0.0, -1.0), 0.0});
+    out = modes.step(t_ns, plant.v_mps, Eigen::Vector3d::Zero());
+    plant.step(out.control.setpoint);
+    height_m -= plant.v_mps.z() * kDt;
+    highest_m = std::max(highest_m, height_m);
+  }
+  // Measured 6.2 cm above it: the switch ramp and the PID lag behind the slowdown.
+  EXPECT_LT(highest_m, config.max_height_m + 0.1);
+  EXPECT_GT(height_m, config.max_height_m - 0.1);  // it did climb to it
+  EXPECT_TRUE(out.envelope_limited);
+  EXPECT_THAT(out.envelope_reason, HasSubstr("ceiling"));
+}
+
+TEST(ModeController, NothingClimbsWithTheHeightUnknown) {
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  ModeOutput out;
+  for (int k = 0; k < 400; ++k) {
+    const std::int64_t t_ns = k * kStepNs;
+    modes.set_operator_command({t_ns, Eigen::Vector3d(0.5, 0.0, -1.0), 0.0});
+    out = modes.step(t_ns, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    ASSERT_GE(out.v_star_des_horizontal_mps.z(), 0.0) << k;
+  }
+  EXPECT_TRUE(out.envelope_limited);
+  EXPECT_THAT(out.envelope_reason, HasSubstr("height unknown"));
+  EXPECT_NEAR(out.v_star_des_horizontal_mps.x(), 0.5, 1e-9);  // the rest is flown
+}
+
 TEST(ModeController, AnEstimateBackRestartsTheBlindDescentTimer) {
   ModesConfig config = airborne_config();
   config.blind_descent_s = 1.0;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  modes.set_height_m(0.2);  // near the floor: only the timer holds the landing back
   ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
   const std::optional<Eigen::Vector3d> no_estimate;  // what the chain gives without one
   ModeOutput out;

@@ -102,6 +102,8 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleCo
 void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2) {
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
+  // The land detector's evidence of the floor (an impact, then the floor carrying the vehicle).
+  modes_.set_specific_force_H(R_horizontal_body() * accel_mps2);
   if (config_.chain.gyro_rotation_prior) {
     // The body's rotation since the last frame, bias removed: R_Bprev_Bcur.
     if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {

@@ -396,18 +396,29 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
   EXPECT_DOUBLE_EQ(wrong_stamp_rms_mps, rms_error_mps[0]);
 }
 
-TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {
+TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly) {
   // Airborne, no frame ever: the safe hover; after chain.safe_hover_land_s of it the chain
-  // lands (blind descent) and refuses to go back to teleop while there is no estimate.
+  // lands (blind descent) and refuses to go back to teleop while there is no estimate. The
+  // descent ends landed (motors idle) only once the accelerometer has felt the floor: an
+  // impact, then the floor carrying the vehicle; never from the estimate's loss alone (issue
+  // 39: idled at 11.8 m).
   OnboardConfig config = airborne_config();
   config.chain.safe_hover_land_s = 2.0;
   OnboardChain chain(config, control::VehicleConfig{}, kCamera);
   chain.request_mode(modes::Mode::kTeleop);
   const std::int64_t tick_ns = 5'000'000;
+  const std::int64_t t_impact_ns = 9'000'000'000;  // after the blind_descent_s of 3 s
   std::int64_t t_first_hover_ns = -1;
   std::int64_t t_land_ns = -1;
   std::int64_t t_landed_ns = -1;
-  for (std::int64_t t = tick_ns; t <= 10'000'000'000; t += tick_ns) {
+  for (std::int64_t t = tick_ns; t <= 12'000'000'000; t += tick_ns) {
+    // Specific force (body FRD, level): hovering m g, sinking on the blind descent's 0.9 m g,
+    // the floor's stop, then at rest on it.
+    const double f_up = t < t_land_ns + tick_ns || t_land_ns < 0 ? 9.80665
+                        : t < t_impact_ns                        ? 0.9 * 9.80665
+                        : t == t_impact_ns                       ? 40.0
+                                                                 : 9.80665;
+    chain.on_imu(t, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 0.0, -f_up));
     const auto out = chain.on_tick(t);
     if (!out) continue;
     if (out->safe_hover && t_first_hover_ns < 0) t_first_hover_ns = t;
@@ -420,17 +431,21 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsAfterTheConfiguredTime) {
       EXPECT_TRUE(out->mode.blind_descent);
       EXPECT_LT(out->mode.control.setpoint.thrust_n, control::kGravityMps2);
     }
+    if (t_land_ns > 0 && t == t_land_ns + 1'000'000'000) {
+      // Descending blind: no going back to teleop while there is no estimate.
+      const modes::ModeSwitch back = chain.request_mode(modes::Mode::kTeleop);
+      EXPECT_FALSE(back.accepted);
+      EXPECT_THAT(back.reason, HasSubstr("landing"));
+    }
   }
   ASSERT_GT(t_first_hover_ns, 0);
   ASSERT_GT(t_land_ns, 0) << "the safe hover never escalated";
   EXPECT_NEAR(1e-9 * static_cast<double>(t_land_ns - t_first_hover_ns), 2.0, 0.01);
   EXPECT_EQ(chain.mode(), modes::Mode::kLand);
   ASSERT_GT(t_landed_ns, 0) << "the blind descent never ended landed";
-  EXPECT_NEAR(1e-9 * static_cast<double>(t_landed_ns - t_land_ns), config.modes.blind_descent_s,
+  EXPECT_GE(t_landed_ns, t_impact_ns) << "landed before the floor was felt";
+  EXPECT_NEAR(1e-9 * static_cast<double>(t_landed_ns - t_impact_ns), config.modes.touchdown_s,
               0.02);
-  const modes::ModeSwitch back = chain.request_mode(modes::Mode::kTeleop);
-  EXPECT_FALSE(back.accepted);
-  EXPECT_THAT(back.reason, HasSubstr("landing"));
 }
 
 TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {

@@ -41,10 +41,23 @@ struct ModesConfig {
   /// vehicle: motors go idle (landed).
   double touchdown_speed_mps = 0.08;
   double touchdown_s = 1.0;
-  /// In land without a usable estimate: level, thrust this fraction of m g (sinks gently), and
-  /// landed after blind_descent_s.
+  /// In land without a usable estimate: level, thrust this fraction of m g (sinks gently).
+  /// Landed only on evidence of the floor (as PX4's land detector), never from the estimate's
+  /// loss alone: after at least blind_descent_s, either a known height below
+  /// touchdown_max_height_m, or an impact (specific force above impact_specific_force_mps2)
+  /// followed by touchdown_s of stillness (specific force within still_specific_force_mps2 of
+  /// g: the floor, not the thrust, carries the vehicle).
   double blind_descent_thrust_ratio = 0.9;
   double blind_descent_s = 3.0;
+  /// A touchdown needs the height, when known, below this (m above the floor).
+  double touchdown_max_height_m = 0.4;
+  double impact_specific_force_mps2 = 14.0;
+  double still_specific_force_mps2 = 0.4;
+  /// The flight envelope's ceiling (m above the floor): climbs slow down over the last
+  /// ceiling_slowdown_m and stop at it, and with the height unknown (floor beyond the depth
+  /// sensor's range and no velocity to integrate) nothing climbs.
+  double max_height_m = 2.0;
+  double ceiling_slowdown_m = 0.5;
   /// An explicit take-off (request_takeoff) climbs at takeoff_speed_mps to this height above
   /// the floor, slowing down over the last takeoff_slowdown_m so that it does not overshoot,
   /// then flies the mode asked for.
@@ -95,6 +108,9 @@ struct ModeOutput {
   bool landed = false;            ///< On the ground, motors idle (setpoint thrust 0).
   bool blind_descent = false;     ///< Landing without a velocity estimate.
   bool taking_off = false;        ///< Climbing to takeoff_target_height_m after request_takeoff().
+  /// The climb asked for was limited by the envelope (ceiling, or the height unknown).
+  bool envelope_limited = false;
+  const char* envelope_reason = "";  ///< Static text when limited.
   FlightState flight_state = FlightState::kLanded;
   /// The operator's command is not flown this step (landed, taking off, or not in teleop).
   bool operator_ignored = false;
@@ -124,6 +140,10 @@ class ModeController {
   /// which case a take-off climbs on until a height is known again.
   void set_height_m(double height_m) { height_m_ = height_m; }
 
+  /// The accelerometer's specific force in H (NED; at rest (0, 0, -g)) for the land detector.
+  /// Non-finite samples are ignored.
+  void set_specific_force_H(const Eigen::Vector3d& f_H_mps2);
+
   /// One control step. v_est and v_obs in H; no v_est (nullopt: no usable estimate) gives the
   /// velocity controller's safe hover, and in land the blind descent. Allocates nothing.
   ModeOutput step(std::int64_t t_ns, const std::optional<Eigen::Vector3d>& v_est_H_mps,
@@ -148,6 +168,10 @@ class ModeController {
   Target target(std::int64_t t_ns, ModeOutput& out);
   /// Touchdown detection and the blind descent of Mode::kLand.
   void land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps, ModeOutput& out);
+  /// Limits the target's climb to the envelope (ceiling; none with the height unknown).
+  void limit_to_envelope(Target& wanted, ModeOutput& out) const;
+  /// The blind descent's evidence of the floor: an impact, then stillness for touchdown_s.
+  [[nodiscard]] bool floor_evidence(double dt_s);
 
   ModesConfig config_;
   control::VelocityController controller_;
@@ -168,6 +192,9 @@ class ModeController {
   bool takeoff_active_ = false;
   Mode takeoff_then_ = Mode::kHover;
   double height_m_ = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector3d f_H_mps2_ = Eigen::Vector3d(0.0, 0.0, -control::kGravityMps2);
+  bool impact_seen_ = false;  // during this blind descent
+  double still_timer_s_ = 0.0;
 };
 
 }  // namespace hq::modes
