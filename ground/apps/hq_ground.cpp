@@ -702,9 +702,10 @@ void print_hand_summary(const hq::ground::GroundStation& ground,
   fmt::print("  {:<40} {}\n", "device losses", station.stats().device_losses);
   fmt::print(
       "  {:<40} {} missing, {} rejected ({} invalid, {} implausible, {} of another session, {} "
-      "sequence jumps)\n",
+      "sequence jumps), {} out of order, {} sequence resyncs\n",
       "vehicle states lost", s.state_sequence_gaps, s.states_rejected, s.states_invalid,
-      s.states_implausible, s.states_wrong_session, s.states_sequence_jump);
+      s.states_implausible, s.states_wrong_session, s.states_sequence_jump, s.states_reordered,
+      s.states_resynced);
   fmt::print("  {:<40} {} rejected (not of session {:016x}); {} vehicle restarts\n",
              "vehicle events", s.events_rejected, s.vehicle_session, s.vehicle_restarts);
   fmt::print("  {:<40} {} (commander: station {}, this station {}, {} losses)\n", "control",

@@ -529,7 +529,8 @@ bool GroundStation::poll() {
     note_vehicle(state_sample_->vehicle_id);
     if (state_sample_->vehicle_id != config_.vehicle_id) continue;  // another vehicle
     const std::int64_t now = dds_time();
-    if (!admit_state(*state_sample_, now)) continue;  // never reaches the loop or the record
+    if (!admit_state(*state_sample_, info.publication_handle, now))
+      continue;  // never reaches the loop or the record
     if (status_.have_clock_offset) {
       // The stamp on the ground's clock: vehicle time minus the offset.
       status_.last_state_age_ns =
@@ -610,7 +611,8 @@ void GroundStation::release_early_events() {
 // the next sequence number. Only the writer's identity tells it apart, and that is DDS
 // security's job (a permissions document granting VehicleState to the vehicle's certificate
 // only); with security on, such a writer is never matched and nothing here changes.
-bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receipt_ns) {
+bool GroundStation::admit_state(const link::VehicleState& s, std::uint64_t writer,
+                                std::int64_t receipt_ns) {
   const auto reject = [&](std::uint64_t& counter) {
     ++counter;
     ++status_.states_rejected;  // a sample the haptic loop must not see
@@ -626,7 +628,7 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receip
     // The current session went quiet: a new vehicle process (a restart) took its place.
     const bool restart = status_.vehicle_session != 0;
     status_.vehicle_session = s.session_id;
-    last_state_sequence_ = 0;
+    state_sequence_.reset();
     if (restart) {
       ++status_.vehicle_restarts;
       // Nothing is re-sent: what the operator asked of the previous instance may not suit this
@@ -645,23 +647,38 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::int64_t receip
     }
     release_early_events();
   }
-  if (last_state_sequence_ != 0 && s.sequence_number <= last_state_sequence_) {
-    // Overtaken on the way (jitter) or replayed: older than what the loop already has. If it
-    // was counted missing when the newer one came, it is not; it must not replace the newer.
-    ++status_.states_reordered;
-    if (status_.state_sequence_gaps > 0) --status_.state_sequence_gaps;
-    return false;
+  const link::SequenceCheck sequence = state_sequence_.check(s.sequence_number, writer, receipt_ns);
+  switch (sequence.verdict) {
+    case link::SequenceVerdict::kNext:
+      break;
+    case link::SequenceVerdict::kGap:
+      status_.state_sequence_gaps += sequence.missing;
+      break;
+    case link::SequenceVerdict::kBehind:
+      // Overtaken on the way (jitter) or replayed: older than what the loop already has. If it
+      // was counted missing when the newer one came, it is not; it must not replace the newer.
+      ++status_.states_reordered;
+      if (status_.state_sequence_gaps > 0) --status_.state_sequence_gaps;
+      return false;
+    case link::SequenceVerdict::kJump:
+      return reject(status_.states_sequence_jump);
+    case link::SequenceVerdict::kResync:
+      note_resync(s.sequence_number, sequence.abandoned);
+      break;
   }
-  if (last_state_sequence_ != 0 && s.sequence_number - last_state_sequence_ > kMaxSequenceJump) {
-    return reject(status_.states_sequence_jump);
-  }
-  if (last_state_sequence_ != 0 && s.sequence_number > last_state_sequence_ + 1) {
-    status_.state_sequence_gaps += s.sequence_number - last_state_sequence_ - 1;
-  }
-  last_state_sequence_ = s.sequence_number;
   session_receipt_ns_ = receipt_ns;
   note_control(s);
   return true;
+}
+
+void GroundStation::note_resync(std::uint64_t sequence, std::uint64_t abandoned) {
+  ++status_.states_resynced;
+  char text[128];
+  std::snprintf(text, sizeof text,
+                "vehicle %u states resynchronised at sequence %llu (was at %llu: forged or leapt)",
+                config_.vehicle_id, static_cast<unsigned long long>(sequence),
+                static_cast<unsigned long long>(abandoned));
+  notice(hq_msgs_SEVERITY_WARNING, kGroundEventSequenceResync, text);
 }
 
 void GroundStation::note_control(const link::VehicleState& s) {
@@ -738,7 +755,7 @@ void GroundStation::select_vehicle(std::uint32_t vehicle_id) {
   if (vehicle_id == config_.vehicle_id) return;
   config_.vehicle_id = vehicle_id;
   status_.have_state = false;
-  last_state_sequence_ = 0;
+  state_sequence_.reset();
   // Another vehicle: its own session, commander and pending requests.
   status_.vehicle_session = 0;
   status_.control_lost = false;

@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <string>
@@ -178,6 +179,67 @@ TEST(GroundChecks, RequestsWaitForTheSessionAndForgedStatesAndEventsAreRejected)
   EXPECT_EQ(s.state.sequence_number, last_good);
   EXPECT_FLOAT_EQ(s.state.v_H_mps.x, 0.3F);
   EXPECT_FALSE(s.control_lost);
+}
+
+// Writes `s` until the station has taken it (accepted, reordered or rejected): states are
+// keep-last 1, so one at a time. Re-written only every 100 ms: a copy written in a tight loop
+// would still be in flight and be taken as the next sample's.
+bool deliver(GroundStation& station, FakeVehicle& vehicle, const link::VehicleState& s) {
+  const auto taken = [&] {
+    const LinkStatus& status = station.status();
+    return status.states + status.states_rejected + status.states_reordered;
+  };
+  const std::uint64_t before = taken();
+  auto next_write = std::chrono::steady_clock::now();
+  return poll_until(station, [&] {
+    if (std::chrono::steady_clock::now() >= next_write) {
+      vehicle.states.write(s);
+      next_write += std::chrono::milliseconds(100);
+    }
+    return taken() > before;
+  });
+}
+
+// GIVEN a station following a vehicle, WHEN a forger that copied its session (insecure link)
+// sends one plausible state with a sequence number far ahead and stops, THEN the vehicle's real
+// states, continuing with their own lower numbers, are followed again within a few samples, and
+// the resync is counted and told; before, every real state was "old" for the rest of the flight.
+TEST(GroundChecks, RealStatesBehindAForgedSequenceAreFollowedAgainWithinAFewSamples) {
+  const link::LinkConfig config = private_link();
+  GroundStation station(config);
+  FakeVehicle vehicle(config);
+  constexpr std::uint64_t kSession = 0xf0f0'1234ULL;
+  std::uint64_t sequence = 1;
+  for (; sequence <= 5; ++sequence)
+    ASSERT_TRUE(deliver(station, vehicle, good_state(kSession, sequence)));
+  link::VehicleState forged = good_state(kSession, sequence + 5000);  // within kMaxSequenceJump
+  forged.v_H_mps.x = 7.0F;
+  ASSERT_TRUE(deliver(station, vehicle, forged));
+  // Indistinguishable from a real state without DDS security: it is taken.
+  EXPECT_EQ(station.status().state.sequence_number, forged.sequence_number);
+
+  constexpr int kBoundSamples = 30;
+  int samples_until_followed = -1;
+  for (int n = 1; n <= kBoundSamples; ++n, ++sequence) {
+    ASSERT_TRUE(deliver(station, vehicle, good_state(kSession, sequence)));
+    if (station.status().state.sequence_number == sequence) {
+      samples_until_followed = n;
+      break;
+    }
+  }
+  std::printf("real states followed again after %d samples (-1: not within %d)\n",
+              samples_until_followed, kBoundSamples);
+  ASSERT_GT(samples_until_followed, 0);
+  EXPECT_LE(samples_until_followed, 3);
+  const LinkStatus& s = station.status();
+  EXPECT_FLOAT_EQ(s.state.v_H_mps.x, 0.3F);
+  EXPECT_EQ(s.states_resynced, 1U);
+  EXPECT_GE(s.states_reordered, 2U);  // the real ones dropped before the resync
+  EXPECT_THAT(s.last_event.data(), HasSubstr("resynchronised"));
+  // From then on the real stream is simply followed.
+  ++sequence;
+  ASSERT_TRUE(deliver(station, vehicle, good_state(kSession, sequence)));
+  EXPECT_EQ(station.status().state.sequence_number, sequence);
 }
 
 // GIVEN a station flying vehicle 1, WHEN the vehicle reports station 9 as its commander, THEN

@@ -3,6 +3,7 @@
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/quantile.hpp"
+#include "hq/haptics/force_limit.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -138,28 +139,40 @@ void HapticLoop::tick(std::int64_t t_ns) {
       const std::lock_guard<std::mutex> lock(estimate_mutex_);
       estimate = estimate_;
     }
-    FeedbackForce force = feedback_.compute(t_ns, p_D_m, p_dot_D_mps_, mapped.command, estimate);
-    // The cue carries the link's delay and the saturation scales the centring spring in time:
-    // either can make the device port active, so the controller guards the whole force, with
-    // the velocity of the interval just measured.
-    force.F_D_n = controller_.apply(force.F_D_n, v_step_D_mps, dt_s);
-    device_.write_force(t_ns, force.F_D_n);
-    last_F_D_n_ = force.F_D_n;
+    const FeedbackForce force =
+        feedback_.compute(t_ns, p_D_m, p_dot_D_mps_, mapped.command, estimate);
+    // The cue carries the link's delay and the law's saturation scales the centring spring in
+    // time: either can make the device port active, so the controller guards the whole force,
+    // with the velocity of the interval just measured. It sees the law's force already
+    // saturated: against an unsaturated law (160 N from a forged state) the cap below would
+    // scale its damper to nothing.
+    const Eigen::Vector3d F_damper_D_n = controller_.damping_force(force.F_D_n, v_step_D_mps, dt_s);
+    // The cap comes last: whatever was added before it, the hand never gets more.
+    const LimitedForce limited =
+        limit_force(force.F_D_n + F_damper_D_n, config_.feedback.max_force_n);
+    controller_.hold(limited.F_D_n);
+    device_.write_force(t_ns, limited.F_D_n);
+    last_F_D_n_ = limited.F_D_n;
     last_p_D_m_ = p_D_m;
     have_last_ = true;
+    if (limited.saturated) ++force_saturated_ticks_;
+    if (!limited.finite) ++force_nonfinite_ticks_;
 
     out.command = mapped.command;
     out.command_valid = mapped.valid;
     out.p_D_m = p_D_m;
-    out.F_D_n = force.F_D_n;
+    out.F_D_n = limited.F_D_n;
+    out.force_saturated = limited.saturated;
     out.buttons = sample.buttons;
     out.cue_weight = force.cue_weight;
-    copy_status(device_.status(), out.status);
+    copy_status(limited.finite ? device_.status() : "force not finite: zero force", out.status);
   }
   last_t_ns_ = t_ns;
   out.passivity_energy_j = observer_.energy_j();
   out.channel_energy_j = controller_.energy_j();
   out.passivity_damping_ns_per_m = controller_.damping_ns_per_m();
+  out.force_saturated_ticks = force_saturated_ticks_;
+  out.force_nonfinite_ticks = force_nonfinite_ticks_;
   const std::lock_guard<std::mutex> lock(output_mutex_);
   output_ = out;
 }

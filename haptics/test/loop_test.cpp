@@ -5,8 +5,12 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <limits>
+#include <numbers>
 #include <thread>
 
 namespace hq::haptics {
@@ -107,6 +111,80 @@ TEST(HapticLoop, NanPositionGivesZeroCommandZeroForceAndStatus) {
   EXPECT_EQ(out.command.v_H_mps, Eigen::Vector3d::Zero());
   EXPECT_EQ(device.last_F_D_n, Eigen::Vector3d::Zero());
   EXPECT_THAT(out.status.data(), HasSubstr("not finite"));
+}
+
+/// An effector swung by the hand along x, 3 cm at 3 Hz (up to 0.57 m/s): fast enough that the
+/// passivity damper, at its cap, asks for more than the law's saturated force.
+class SwingingDevice final : public HapticDevice {
+ public:
+  bool read(std::int64_t t_ns, DeviceSample& out) override {
+    out.p_D_m = Eigen::Vector3d(
+        kAmplitudeM * std::sin(kOmegaRadps * 1e-9 * static_cast<double>(t_ns)), 0.0, 0.0);
+    return true;
+  }
+  void write_force(std::int64_t, const Eigen::Vector3d& F_D_n) override {
+    peak_force_n = std::max(peak_force_n, F_D_n.norm());
+    all_finite = all_finite && F_D_n.allFinite();
+  }
+  [[nodiscard]] const char* name() const override { return "swinging"; }
+  [[nodiscard]] bool connected() const override { return true; }
+  [[nodiscard]] static double v_x_mps(std::int64_t t_ns) {
+    return kAmplitudeM * kOmegaRadps * std::cos(kOmegaRadps * 1e-9 * static_cast<double>(t_ns));
+  }
+
+  static constexpr double kAmplitudeM = 0.03;
+  static constexpr double kOmegaRadps = 2.0 * std::numbers::pi * 3.0;
+  double peak_force_n = 0.0;
+  bool all_finite = true;
+};
+
+// GIVEN a forger's states (insecure link, copied session) claiming the vehicle flies at 20 m/s
+// (plausible, so admitted) along whichever way the hand moves, so the cue saturates and pushes
+// the hand along its own motion and the port turns active, WHEN the passivity damper adds its
+// term on top of the saturated cue, THEN the device is never commanded beyond max_force_n.
+TEST(HapticLoop, ForceOnTheHandNeverExceedsTheCapWhateverIsAddedBeforeIt) {
+  HapticsConfig config = pushing_config();
+  SwingingDevice device;
+  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  const double alpha_rad = loop.mapping().alpha_rad();
+  VehicleEstimate forged;
+  forged.valid = true;
+  double peak_damping_ns_per_m = 0.0;
+  for (int k = 0; k < 3000; ++k) {
+    const std::int64_t t_ns = k * test::kMsNs;
+    const double along = SwingingDevice::v_x_mps(t_ns) >= 0.0 ? 20.0 : -20.0;
+    forged.t_ns = t_ns;
+    forged.v_H_mps = Eigen::Vector3d(along * std::cos(alpha_rad), along * std::sin(alpha_rad), 0);
+    loop.set_vehicle_estimate(forged);
+    loop.tick(t_ns);
+    peak_damping_ns_per_m =
+        std::max(peak_damping_ns_per_m, loop.latest().passivity_damping_ns_per_m);
+  }
+  std::printf("force peak %.3f N (cap %.1f N), damper peak %.1f N s/m\n", device.peak_force_n,
+              config.feedback.max_force_n, peak_damping_ns_per_m);
+  EXPECT_GT(peak_damping_ns_per_m, 0.0);  // the damper did act: the case is the issue's
+  EXPECT_LE(device.peak_force_n, config.feedback.max_force_n + 1e-9);
+  EXPECT_GT(device.peak_force_n, 0.99 * config.feedback.max_force_n);  // the cap was reached
+  EXPECT_TRUE(device.all_finite);
+  EXPECT_GT(loop.latest().force_saturated_ticks, 0U);
+}
+
+// GIVEN a term of the force that turns NaN (here the law's damping, as a corrupted
+// configuration would make it), WHEN the loop runs with the effector moving, THEN the device is
+// commanded zero, never NaN, and the loop counts the ticks and says why in its status.
+TEST(HapticLoop, NonFiniteForceTermGivesZeroForceAndSaysSo) {
+  HapticsConfig config = pushing_config();
+  config.feedback.damping_ns_per_m = std::numeric_limits<double>::quiet_NaN();
+  SwingingDevice device;
+  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  for (int k = 0; k < 100; ++k) loop.tick(k * test::kMsNs);
+  const LoopOutput out = loop.latest();
+  EXPECT_TRUE(device.all_finite);
+  EXPECT_EQ(device.peak_force_n, 0.0);
+  EXPECT_EQ(out.F_D_n, Eigen::Vector3d::Zero());
+  EXPECT_EQ(out.force_nonfinite_ticks, 100U);  // NaN times a zero p_dot is NaN too
+  EXPECT_THAT(out.status.data(), HasSubstr("force not finite"));
+  EXPECT_TRUE(out.command_valid);  // the command does not depend on the force
 }
 
 TEST(HapticLoop, CueWeightFadesWhenEstimatesStop) {

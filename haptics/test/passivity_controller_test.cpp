@@ -117,6 +117,25 @@ TEST(PassivityController, DampingIsCappedAndNonFiniteInputGivesZero) {
   EXPECT_EQ(controller.energy_j(), energy_j);
 }
 
+// GIVEN the damper's term asked for alone and the force actually displayed held afterwards (a
+// loop that caps the force last), THEN E counts the work of the displayed force, not of the
+// force asked for: the next tick's E uses what the hand really got.
+TEST(PassivityController, HoldOfTheCappedForceKeepsTheEnergyExact) {
+  PassivityController split(60.0, true);
+  const Eigen::Vector3d F_law(8.0, 0, 0);
+  const Eigen::Vector3d v(0.3, 0, 0);  // pushed along its motion: active, the damper acts
+  const Eigen::Vector3d F_damper = split.damping_force(F_law, v, 1e-3);
+  ASSERT_LT(F_damper.x(), 0.0);
+  const Eigen::Vector3d F_displayed(-2.0, 0, 0);  // what a cap let through
+  split.hold(F_displayed);
+  const double energy_j = split.energy_j();
+  (void)split.damping_force(F_law, v, 1e-3);
+  EXPECT_NEAR(split.energy_j() - energy_j, -F_displayed.dot(v) * 1e-3, 1e-15);
+
+  PassivityController whole(60.0, true);
+  EXPECT_TRUE(whole.apply(F_law, v, 1e-3).isApprox(F_law + F_damper, 1e-15));
+}
+
 TEST(PassivityController, ApplyAllocatesNothing) {
   PassivityController controller(60.0, true);
   const long before = testing::allocation_count();

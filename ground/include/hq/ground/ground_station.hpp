@@ -6,6 +6,7 @@
 
 #include "hq/haptics/teleop_mapping.hpp"
 #include "hq/link/link.hpp"
+#include "hq/link/sequence_tracker.hpp"
 
 #include <array>
 #include <cstdint>
@@ -53,7 +54,8 @@ inline constexpr double kMaxPlausibleRateRadps = 35.0;  ///< 2000 deg/s, a gyro'
 inline constexpr double kMaxPlausibleHeightM = 1000.0;
 inline constexpr double kMaxPlausibleDistanceM = 100'000.0;
 /// A forward jump of the sequence number larger than this (~1 h of states at 30 Hz) is a
-/// forged sample, not lost ones: accepting it would make every real state after it "old".
+/// forged sample, not lost ones, and dropped, unless a consistent run follows it
+/// (link::SequenceTracker): a smaller forged jump is taken, and the real states resync after it.
 inline constexpr std::uint64_t kMaxSequenceJump = 100'000;
 /// The vehicle session whose states arrived this recently is live: a state of another session
 /// meanwhile is forged (or a second vehicle process with the same id) and rejected.
@@ -64,6 +66,7 @@ inline constexpr std::uint32_t kGroundEventControlLost = 1001;
 inline constexpr std::uint32_t kGroundEventControlRegained = 1002;
 inline constexpr std::uint32_t kGroundEventVehicleRestarted = 1003;
 inline constexpr std::uint32_t kGroundEventWaiting = 1004;
+inline constexpr std::uint32_t kGroundEventSequenceResync = 1005;
 
 /// Latencies in a fixed histogram (10 us bins up to 100 ms); add() allocates nothing.
 class LatencyStats {
@@ -109,6 +112,9 @@ struct LinkStatus {
   std::array<char, 161> last_event{};     ///< Text of the latest event.
   std::uint64_t state_sequence_gaps = 0;  ///< States missing between consecutive sequences.
   std::uint64_t states_reordered = 0;     ///< Arrived after a newer one: dropped, not missing.
+  /// The sequence followed was abandoned for a consistent run of dropped states (a forger's
+  /// number far ahead, then the vehicle's own again): link::SequenceTracker.
+  std::uint64_t states_resynced = 0;
   /// States of the selected vehicle rejected: all reasons below, never handed to the loop.
   std::uint64_t states_rejected = 0;
   std::uint64_t states_invalid = 0;        ///< Failing validate() (NaN, enums).
@@ -268,11 +274,14 @@ class GroundStation final : public VehicleLink {
   link::LinkConfig config_;
   TelemetryRecorder* recorder_;
   LinkObserver* observer_ = nullptr;
-  std::uint64_t last_state_sequence_ = 0;
+  link::SequenceTracker state_sequence_{{.max_forward_jump = kMaxSequenceJump}};
   void note_vehicle(std::uint32_t vehicle_id);
   /// Checks a state of the selected vehicle (session, sequence, values); false: rejected and
   /// counted. Adopts a new session when the current one is not live.
-  bool admit_state(const link::VehicleState& s, std::int64_t receipt_ns);
+  /// `writer`: the DDS publication handle, so a resync follows one writer's run.
+  bool admit_state(const link::VehicleState& s, std::uint64_t writer, std::int64_t receipt_ns);
+  /// Counts and tells a resync of the state sequence.
+  void note_resync(std::uint64_t sequence, std::uint64_t abandoned);
   void note_control(const link::VehicleState& s);
   /// A notice of the ground's own: printed to log_, recorded, shown.
   void notice(hq_msgs_Severity severity, std::uint32_t code, const char* text);

@@ -1,6 +1,6 @@
 #pragma once
 /// The 1 kHz haptic loop: read the device, map it to a velocity command (eq. 6-10), compute the
-/// force cue, write it, on absolute CLOCK_MONOTONIC deadlines in a thread of its own.
+/// force cue, cap it last, write it, on absolute CLOCK_MONOTONIC deadlines in a thread of its own.
 ///
 /// Other threads (the ground's DDS side) exchange data with it through two small
 /// mutex-protected snapshots: set_vehicle_estimate() in, latest() out. Critical sections are a
@@ -60,7 +60,12 @@ struct LoopOutput {
   VelocityCommand command;  ///< Zero whenever the device is lost or its reading unusable.
   bool command_valid = false;
   Eigen::Vector3d p_D_m = Eigen::Vector3d::Zero();
+  /// Force commanded to the device: |F_D_n| <= max_force_n, finite, the cap applied last.
   Eigen::Vector3d F_D_n = Eigen::Vector3d::Zero();
+  bool force_saturated = false;             ///< The cap scaled this tick's force down.
+  std::uint64_t force_saturated_ticks = 0;  ///< Ticks the cap scaled the force down.
+  /// Ticks some term of the force was NaN or infinite: zero force commanded, status says so.
+  std::uint64_t force_nonfinite_ticks = 0;
   std::uint32_t buttons = 0;
   bool device_connected = false;
   double cue_weight = 0.0;                ///< 0 when the vehicle state is stale.
@@ -127,6 +132,8 @@ class HapticLoop {
   Eigen::Vector3d p_dot_D_mps_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d last_F_D_n_ = Eigen::Vector3d::Zero();
   std::uint64_t tick_count_ = 0;
+  std::uint64_t force_saturated_ticks_ = 0;
+  std::uint64_t force_nonfinite_ticks_ = 0;
   LoopTimingReport timing_;
 
   mutable std::mutex estimate_mutex_;

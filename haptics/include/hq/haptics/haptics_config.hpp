@@ -33,7 +33,7 @@ struct FeedbackConfig {
   double velocity_stiffness_n_per_m = 80.0;  ///< K on the velocity error mapped back to D.
   double yaw_stiffness_n_per_m = 40.0;       ///< K on the yaw-rate error mapped back to D.
   double damping_ns_per_m = 6.0;             ///< B of -B p_dot.
-  double max_force_n = 8.0;                  ///< |F| saturates here.
+  double max_force_n = 8.0;                  ///< |F| saturates here (law and device cap).
   double stale_after_s = 0.1;                ///< Estimate older than this starts the fade.
   double fade_s = 0.5;                       ///< Cue weight goes 1 -> 0 over this time.
   double velocity_filter_hz = 60.0;          ///< Low-pass on the differentiated p for p_dot.

@@ -39,16 +39,28 @@ class PassivityController {
   PassivityController(double max_damping_ns_per_m, bool enabled);
 
   /// One tick: F_law_D_n the force the law asks for, v_D_mps the effector's velocity over the
-  /// last interval dt_s. Returns the force to display (F - alpha v); updates E with it.
-  /// Non-finite input returns zero force (held as such) and leaves E unchanged.
+  /// last interval dt_s. Returns the force to display (F - alpha v) and holds it: for callers
+  /// that display exactly that force. Non-finite input returns zero force (held as such) and
+  /// leaves E unchanged.
   Eigen::Vector3d apply(const Eigen::Vector3d& F_law_D_n, const Eigen::Vector3d& v_D_mps,
                         double dt_s);
+
+  /// The first half of apply() for a loop that caps the force after the damper: updates E with
+  /// the force held over the last interval and returns the damper's term -alpha v alone (zero on
+  /// non-finite input, E then unchanged). Follow it with hold() of the force displayed.
+  Eigen::Vector3d damping_force(const Eigen::Vector3d& F_law_D_n, const Eigen::Vector3d& v_D_mps,
+                                double dt_s);
+  /// The force the device displays this tick (after the cap, which may scale the damper's term
+  /// down): held over the next interval, so next tick's E is the work actually done. A deficit
+  /// the capped damper could not remove is carried to the next tick, as the cap on alpha is.
+  void hold(const Eigen::Vector3d& F_D_n);
 
   /// E of the port in joules (positive: absorbed from the operator).
   [[nodiscard]] double energy_j() const { return energy_j_; }
   /// min over t of E.
   [[nodiscard]] double min_energy_j() const { return min_energy_j_; }
-  /// Energy the controller's damper has dissipated (the price of passivity, in joules).
+  /// Energy the controller's damper was asked to dissipate (the price of passivity, in joules);
+  /// less when the device cap scaled its term down.
   [[nodiscard]] double dissipated_j() const { return dissipated_j_; }
   /// alpha of the last tick, N s/m.
   [[nodiscard]] double damping_ns_per_m() const { return alpha_ns_per_m_; }

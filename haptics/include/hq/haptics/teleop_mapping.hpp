@@ -13,7 +13,8 @@
 /// Force on the hand (Franchi et al. 2012b form): F = -K_c p - K M^+ (u_cmd - u_est) - B p_dot,
 /// u = (v_H, yaw_rate) and M the linear part of eq. 6-10, so M^+ maps a velocity error back to
 /// the device displacement that would command it; the cue weight fades to zero when the vehicle
-/// estimate goes stale; |F| is saturated.
+/// estimate goes stale; |F| is saturated. That saturation is the law's own; the device's cap is
+/// limit_force(), last in HapticLoop, after the passivity damper.
 
 #include "hq/haptics/haptics_config.hpp"
 
