@@ -102,8 +102,8 @@ Recording write_recording(const std::string& path, Compression compression,
   writer.add_attachment("calib.yaml", "application/yaml", as_bytes("K: [1, 2, 3]"), 1'000'000'000);
   writer.add_attachment("empty", "application/octet-stream", {}, 2'000'000'000, 7);
   writer.add_metadata("end", {});
-  r.statistics = writer.statistics();
   writer.close();
+  r.statistics = writer.statistics();
   return r;
 }
 
@@ -438,6 +438,38 @@ TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
   const McapReader reader(path);
   EXPECT_GT(reader.messages().size(), 300u);
   EXPECT_LE(reader.messages().size(), written);
+}
+
+// GIVEN a recording under way WHEN the disk fills (RLIMIT_FSIZE) THEN the writer's statistics
+// count the messages that reached the file, not those it was handed, and the failure is thrown.
+TEST(McapWriter, FullDiskCountsWhatReachedTheFileNotWhatWasHanded) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
+  rlimit limited = saved;
+  limited.rlim_cur = 100 * 1024ULL;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  McapWriter writer;
+  std::uint32_t handed = 0;
+  const std::string message = testing::input_error_message([&] {
+    writer.open(
+        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
+    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+    const std::vector<std::uint8_t> data = payload(300, 9);
+    for (; handed < 100'000; ++handed) writer.write(channel, handed, handed, handed, data);
+  });
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  ::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(message, path + ": write failed: File too large");
+  const McapReader reader(path);
+  ASSERT_GT(reader.messages().size(), 100u);
+  EXPECT_LT(reader.messages().size(), handed + 1u);  // the failed chunk's messages are not there
+  EXPECT_EQ(writer.statistics().message_count, reader.messages().size());
+  EXPECT_EQ(writer.statistics().channel_message_counts.at(0), reader.messages().size());
+  EXPECT_EQ(writer.statistics().chunk_count, reader.report().chunk_count);
+  EXPECT_EQ(writer.bytes_written(), fs::file_size(path));
 }
 
 TEST(McapReader, MissingFileAndNonMcapFileGiveClearErrors) {

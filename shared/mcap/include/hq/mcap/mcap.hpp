@@ -78,9 +78,11 @@ class McapWriter {
   /// Flushes, writes DataEnd, the summary section, SummaryOffset records, Footer and magic.
   void close();
 
-  /// What has been written so far (the Statistics record close() writes).
+  /// What has reached the file so far (the Statistics record close() writes): messages count
+  /// once their chunk is written, so after a failed write they are what the file holds, not
+  /// what write() was handed.
   [[nodiscard]] const Statistics& statistics() const;
-  /// Bytes written to the file so far.
+  /// Bytes written to the file so far (those of a failed write that did reach it included).
   [[nodiscard]] std::uint64_t bytes_written() const;
 
  private:
