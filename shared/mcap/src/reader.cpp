@@ -29,6 +29,12 @@ std::string hex32(std::uint32_t v) {
   return text.data();
 }
 
+std::string hex8(std::uint8_t v) {
+  std::array<char, 8> text{};
+  std::snprintf(text.data(), text.size(), "0x%02x", v);
+  return text.data();
+}
+
 // Read-only mapping of the whole file; the reader copies out what it keeps.
 class MappedFile {
  public:
@@ -512,7 +518,7 @@ class ReaderImpl {
         }
         settle(pending);
         pending.active = true;
-        pending.reason = where("record", at) + " (opcode " + hex32(bytes[at]) +
+        pending.reason = where("record", at) + " (opcode " + hex8(bytes[at]) +
                          "): damaged header; " + std::to_string(*next - at) +
                          " bytes skipped to the intact record at offset " + std::to_string(*next);
         pending.chunk = bytes[at] == kChunk;
