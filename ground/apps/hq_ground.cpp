@@ -13,6 +13,8 @@
 //   hq-ground --replay DIR [--speed X] [--seek S] [--paused] [--headless] [--duration-s N]
 //             [--screenshot PNG] [--state-json PATH] [--keys "T:KEY,..."]
 //             (replay window: Space play/pause, [ ] speed, Left/Right -/+5 s, click the bar)
+// Exit status: 0 a good run, 2 bad input, 5 a flight whose --record failed on the way (disk
+// full; the flight went on without it).
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/console_model.hpp"
@@ -735,8 +737,14 @@ void write_flight_state_json(const Options& o, const hq::ground::GroundStation& 
                    station.stats().max_force_n, loop.passivity().min_energy_j());
 }
 
-// Closes the MCAP record with the flight's summary and prints what it wrote.
-void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::GroundStation& ground,
+// Exit status of a flight that went well but whose record failed (disk full): the record is
+// not flight-critical, so the flight went on, but whoever started it must learn that its
+// record is incomplete.
+constexpr int kRecordFailedExitStatus = 5;
+
+// Closes the MCAP record with the flight's summary and prints what it wrote; false if the
+// record failed at any time in the flight or at close.
+bool close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::GroundStation& ground,
                 const hq::ground::OperatorStation& station, const hq::haptics::HapticLoop& loop) {
   const hq::ground::LinkStatus& s = ground.status();
   hq::mcap::KeyValues summary;
@@ -763,7 +771,10 @@ void close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::Groun
     fmt::print("  mcap channel {} {} {} {}\n", c.topic, c.messages, c.first_log_time_ns,
                c.last_log_time_ns);
   }
-  if (!r.error.empty()) std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
+  if (r.error.empty()) return true;
+  std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
+  std::fprintf(stderr, "hq-ground: the flight record failed: %s\n", r.error.c_str());
+  return false;
 }
 
 // The flight: the operator station on its own thread when the console is up, so that drawing
@@ -848,10 +859,21 @@ int run_live(const Options& o) {
   if (!o.state_json_path.empty()) {
     write_flight_state_json(o, ground, station, loop, link.station_id, model, snap, window);
   }
-  if (mcap) close_mcap(*mcap, ground, station, loop);
+  bool record_ok = !mcap || close_mcap(*mcap, ground, station, loop);
+  // A flight.mcap that could not be made at the start (one already there) was told then, and
+  // the CSV recording holds the flight: that is no failure of the record made.
   if (!mcap_off.empty()) std::printf("  %-40s %s\n", "mcap", mcap_off.c_str());
-  if (recorder && !recorder->close()) throw hq::InputError("recording: " + recorder->error());
-  return 0;
+  if (recorder && !recorder->close()) {
+    std::fprintf(stderr, "hq-ground: the flight record failed: recording: %s\n",
+                 recorder->error().c_str());
+    record_ok = false;
+  }
+  if (record_ok) return 0;
+  std::fprintf(stderr,
+               "hq-ground: the flight record is incomplete; exit status %d, the flight itself "
+               "went on\n",
+               kRecordFailedExitStatus);
+  return kRecordFailedExitStatus;
 }
 
 int run(int argc, char** argv) {

@@ -618,6 +618,21 @@ class CsvExport : public hq::console::FlightSampleSink {
   hq::ground::TelemetryRecorder recorder_;
 };
 
+// What a damaged file cost, on stderr: each warning names the file and the offset.
+void print_damage(const hq::mcap::ReadReport& r) {
+  for (const std::string& w : r.warnings)
+    std::fprintf(stderr, "hq-report: warning: %s\n", w.c_str());
+  if (!r.damaged()) return;
+  std::fprintf(stderr,
+               "hq-report: warning: damaged file: %llu chunks dropped (%llu messages%s), %llu "
+               "records and %llu bytes skipped; the rest is kept\n",
+               static_cast<unsigned long long>(r.chunks_dropped),
+               static_cast<unsigned long long>(r.messages_dropped),
+               r.chunks_dropped_uncounted > 0 ? " or more" : "",
+               static_cast<unsigned long long>(r.records_skipped),
+               static_cast<unsigned long long>(r.bytes_skipped));
+}
+
 int export_csv(const Options& o) {
   const std::string mcap_path = hq::console::find_flight_mcap(o.recording);
   if (mcap_path.empty()) {
@@ -626,6 +641,7 @@ int export_csv(const Options& o) {
                          "a CSV recording is already CSV)");
   }
   const hq::mcap::McapReader reader(mcap_path);
+  print_damage(reader.report());
   CsvExport out(o.csv_dir);
   const hq::console::FlightCounts n = hq::console::read_flight(reader, mcap_path, out);
   if (!out.recorder().close()) throw hq::InputError("--csv: " + out.recorder().error());
@@ -639,6 +655,7 @@ int export_csv(const Options& o) {
 
 int recover_file(const Options& o) {
   const hq::mcap::RecoveryReport r = hq::mcap::recover(o.recover[0], o.recover[1]);
+  print_damage(r.read);
   std::printf("hq-report: %s -> %s: %s\n", o.recover[0].c_str(), o.recover[1].c_str(),
               r.read.has_summary ? "had a summary already (rewritten as it was)"
                                  : "no summary (writer killed?), recovered by scanning");
@@ -652,6 +669,12 @@ int recover_file(const Options& o) {
              r.messages_without_channel > 0
                  ? fmt::format(", {} messages without a channel record", r.messages_without_channel)
                  : std::string());
+  if (r.read.damaged()) {
+    fmt::print("  damaged    {} chunks dropped ({}{} messages), {} records and {} bytes skipped\n",
+               r.read.chunks_dropped, r.read.messages_dropped,
+               r.read.chunks_dropped_uncounted > 0 ? " or more" : "", r.read.records_skipped,
+               r.read.bytes_skipped);
+  }
   fmt::print("  written    {} bytes, {} chunks, with summary and indexes\n", r.bytes_written,
              r.written.chunk_count);
   return 0;

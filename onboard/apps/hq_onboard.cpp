@@ -14,6 +14,9 @@
 //   hq-onboard --source openni2|freenect [--fc none|mavlink:serial:/dev/ttyACM0:921600] [--link]
 //   hq-onboard ... --record DIR        the on-board MCAP flight log, DIR/onboard.mcap
 //
+// Exit status: 0 a good run, 2 bad input, 3 a simulated collision, 4 the flight controller
+// lost, 5 a good flight whose --record failed (disk full; the flight went on without it).
+//
 // Every source but the in-process sim runs through one VehicleRuntime (onboard/vehicle) with a
 // flight controller (--fc): none (replay, bench), or MAVLink to PX4/ArduPilot or hq-sim --sitl.
 // --link works with every source.

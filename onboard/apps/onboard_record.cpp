@@ -38,7 +38,7 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
   return recorder;
 }
 
-void close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
+bool close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
                     const link_bridge::LinkBridge* bridge) {
   summary["session_id"] =
       bridge != nullptr ? fmt::format("{:016x}", bridge->session_id()) : std::string("none");
@@ -47,6 +47,12 @@ void close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summ
   summary["imu_samples_recorded"] = std::to_string(recorder.imu_pushed());
   const flight_log::RecorderReport& report = recorder.close(summary);
   onboard_log::print_report(stdout, report);
+  if (report.error.empty()) return true;
+  std::fprintf(stderr,
+               "hq-onboard: the flight record is incomplete (%s); exit status %d, the flight "
+               "itself went on\n",
+               report.error.c_str(), kRecordFailedExitStatus);
+  return false;
 }
 
 }  // namespace hq::onboard_app

@@ -66,10 +66,20 @@ void print_link_summary(const link_bridge::LinkBridge& bridge);
 /// --record DIR: the on-board MCAP log (null without --record), created before the flight so
 /// an unwritable folder stops the start with hq::InputError naming it.
 std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o);
+/// Exit status of a run whose flight went well but whose record failed (disk full): the record
+/// is not flight-critical, so the flight went on, but whoever started the run must learn that
+/// its record is incomplete.
+inline constexpr int kRecordFailedExitStatus = 5;
 /// Closes the log with the run summary (plus session id, duration, steps and IMU samples
-/// pushed) as its metadata and prints the record's lines of the exit summary.
-void close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
-                    const link_bridge::LinkBridge* bridge);
+/// pushed) as its metadata and prints the record's lines of the exit summary. Returns false,
+/// after saying so on stderr, when the record failed at any time in the flight or at close.
+[[nodiscard]] bool close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summary,
+                                  const link_bridge::LinkBridge* bridge);
+/// The run's exit status with the record's outcome: a failed flight keeps its own status, a
+/// good one with a failed record becomes kRecordFailedExitStatus.
+inline int with_record_status(int flight_status, bool record_ok) {
+  return flight_status == 0 && !record_ok ? kRecordFailedExitStatus : flight_status;
+}
 
 /// replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
 int run_vehicle(const Options& o);

@@ -135,14 +135,13 @@ int run_sim_link(const Options& o) {
   for (const std::string& refusal : loop.refusals()) {
     std::printf("  mode request refused at %s\n", refusal.c_str());
   }
-  if (recorder) {
-    close_recorder(*recorder,
-                   {{"source", "simulator " + world.name},
-                    {"steps", std::to_string(loop.samples().size())},
-                    {"collision_ticks", std::to_string(summary.collision_ticks)}},
-                   &bridge);
-  }
-  return summary.collision_ticks == 0 ? 0 : 3;
+  const bool record_ok =
+      !recorder || close_recorder(*recorder,
+                                  {{"source", "simulator " + world.name},
+                                   {"steps", std::to_string(loop.samples().size())},
+                                   {"collision_ticks", std::to_string(summary.collision_ticks)}},
+                                  &bridge);
+  return with_record_status(summary.collision_ticks == 0 ? 0 : 3, record_ok);
 }
 
 int run_sim(const Options& o) {

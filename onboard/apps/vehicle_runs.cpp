@@ -505,20 +505,22 @@ int run_vehicle(const Options& o) {
   if (bridge) print_link_summary(*bridge);
   std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
   port.timing.print(stdout);
+  bool record_ok = true;
   if (recorder) {
     const hq::vehicle::RuntimeCounters& rc = runtime.counters();
-    close_recorder(*recorder,
-                   {{"source", opened.source->describe()},
-                    {"frames", std::to_string(port.frames)},
-                    {"camera_timeout_steps", std::to_string(port.ticks)},
-                    {"estimates_ok", std::to_string(port.ok)},
-                    {"frames_out_of_order_dropped", std::to_string(rc.frames_out_of_order)},
-                    {"imu_overflow_dropped", std::to_string(rc.imu_overflow)},
-                    {"setpoints", std::to_string(rc.setpoints)}},
-                   bridge.get());
+    record_ok =
+        close_recorder(*recorder,
+                       {{"source", opened.source->describe()},
+                        {"frames", std::to_string(port.frames)},
+                        {"camera_timeout_steps", std::to_string(port.ticks)},
+                        {"estimates_ok", std::to_string(port.ok)},
+                        {"frames_out_of_order_dropped", std::to_string(rc.frames_out_of_order)},
+                        {"imu_overflow_dropped", std::to_string(rc.imu_overflow)},
+                        {"setpoints", std::to_string(rc.setpoints)}},
+                       bridge.get());
   }
   // A vehicle that lost its flight controller did not end well: say so in the exit status.
-  return runtime.status().fc_lost ? 4 : 0;
+  return with_record_status(runtime.status().fc_lost ? 4 : 0, record_ok);
 }
 
 }  // namespace hq::onboard_app

@@ -212,6 +212,8 @@ Recording load_mcap_recording(const std::string& mcap_path) {
                std::to_string(reader.report().file_size_bytes - reader.report().valid_end_bytes) +
                " bytes at the tail dropped");
   }
+  // A damaged chunk or record was left out: the replay and the report say what is missing.
+  for (const std::string& warning : reader.report().warnings) add_problem(r, warning);
   RecordingBuilder builder(r);
   read_flight(reader, name, builder);
   builder.keep_main_vehicle();

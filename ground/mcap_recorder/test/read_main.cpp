@@ -5,6 +5,7 @@
 #include "hq/mcap/mcap.hpp"
 
 #include <cstdio>
+#include <string>
 
 int main(int argc, char** argv) {
   if (argc != 2) {
@@ -20,6 +21,9 @@ int main(int argc, char** argv) {
                 report.truncated ? "truncated tail" : "ends on a record boundary",
                 static_cast<unsigned long long>(report.valid_end_bytes),
                 static_cast<unsigned long long>(report.file_size_bytes));
+    for (const std::string& w : report.warnings) {
+      std::fprintf(stderr, "hq-mcap-read: warning: %s\n", w.c_str());
+    }
     return r.messages().empty() ? 1 : 0;
   } catch (const hq::InputError& e) {
     std::fprintf(stderr, "hq-mcap-read: %s\n", e.what());

@@ -185,6 +185,25 @@ TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
   EXPECT_NE(slurp(file("onboard.out")).find(dir), std::string::npos) << slurp(file("onboard.out"));
 }
 
+// GIVEN a short simulated flight over the link whose record hits a file-size limit (a full
+// disk) WHEN it ends THEN the flight ran its full length, and the exit status (5) and stderr
+// say the record is incomplete.
+TEST_F(OnboardRecordProcess, SimRunWhoseRecordFailsExitsNonZeroAndSaysWhy) {
+  Process onboard(
+      {"/bin/bash", "-c", "ulimit -f 64 && exec \"$0\" \"$@\"", HQ_ONBOARD_EXE, "--source", "sim",
+       "--world", "onboard/sim/worlds/arena.yaml", "--link", "--duration-s", "3", "--domain-id",
+       domain_, "--insecure", "--record", file("record").string()},
+      file("onboard.out"));
+  const std::string out = [&] {
+    EXPECT_EQ(onboard.wait_exit(30.0), 5) << slurp(file("onboard.out"));
+    return slurp(file("onboard.out"));
+  }();
+  EXPECT_NE(out.find("on-board record FAILED"), std::string::npos) << out;
+  EXPECT_NE(out.find("hq-onboard: the flight record is incomplete ("), std::string::npos) << out;
+  EXPECT_NE(out.find("File too large"), std::string::npos) << out;
+  EXPECT_NE(out.find("flight summary over the link"), std::string::npos) << out;
+}
+
 // GIVEN a replay without --link (and without keys) WHEN it is recorded THEN the vehicle's own
 // channels are filled, the link channels are there and empty (nobody else's traffic is taken).
 TEST_F(OnboardRecordProcess, WithoutTheLinkOnlyTheVehiclesOwnChannelsAreFilled) {
@@ -217,7 +236,8 @@ TEST_F(OnboardRecordProcess, WithoutTheLinkOnlyTheVehiclesOwnChannelsAreFilled) 
 }
 
 // GIVEN a file-size limit far below the flight's log (a full disk's EFBIG) WHEN the write
-// fails mid-flight THEN the vehicle tells the ground in an event and flies the replay to its end.
+// fails mid-flight THEN the vehicle tells the ground in an event, flies the replay to its end,
+// and exits with status 5 saying on stderr that the record is incomplete.
 TEST_F(OnboardRecordProcess, DiskFullMidFlightIsAnEventAndTheFlightGoesOn) {
   const fs::path record = file("record");
   // 96 KB: the header (IDL schemas, attachments) is about 52 KB, so the first or second chunk
@@ -225,9 +245,10 @@ TEST_F(OnboardRecordProcess, DiskFullMidFlightIsAnEventAndTheFlightGoesOn) {
   // lags on a loaded machine (a failure found only at close is not told in flight).
   ASSERT_EQ(fly({"/bin/bash", "-c", "ulimit -f 96 && exec \"$0\" \"$@\""}, record.string(),
                 file("ground_record").string()),
-            0)
+            5)
       << slurp(file("onboard.out"));
   const std::string out = slurp(file("onboard.out"));
+  EXPECT_NE(out.find("hq-onboard: the flight record is incomplete ("), std::string::npos) << out;
   const std::string ground = slurp(file("ground.out"));
   // Sent through the link port (which prints what it publishes) to the ground.
   EXPECT_NE(out.find("s: on-board record stopped (flying on)"), std::string::npos) << out;

@@ -7,6 +7,7 @@
 #include <dds/dds.h>
 #include <dds/ddsi/ddsi_serdata.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstring>
@@ -193,13 +194,29 @@ struct LinkLog::Impl final : ChannelWriter {
     try {
       writer.write(channel, static_cast<std::uint32_t>(c.messages), log_ns, publish_ns, data);
     } catch (const std::exception& e) {
+      // Handed over all the same: its chunk may have reached the file before a later part
+      // failed, so count_written() asks the writer what the file holds.
       fail(e.what());
-      ++report.samples_not_written;
-      return;
     }
     if (c.messages == 0) c.first_log_time_ns = log_ns;
     c.last_log_time_ns = log_ns;
     ++c.messages;
+  }
+
+  // The report's counts are what reached the file: after a failed write, the messages handed
+  // over in the chunk that never got there are not written, whatever the sequence counters say.
+  void count_written() {
+    const mcap::Statistics& s = writer.statistics();
+    report.messages = s.message_count;
+    report.channels = s.channel_count;
+    report.bytes = writer.bytes_written();
+    for (std::size_t id = 0; id < report.per_channel.size(); ++id) {
+      const auto written = s.channel_message_counts.find(static_cast<std::uint16_t>(id));
+      const std::uint64_t n = written == s.channel_message_counts.end() ? 0 : written->second;
+      ChannelReport& c = report.per_channel[id];
+      report.samples_not_written += c.messages - std::min(c.messages, n);
+      c.messages = n;
+    }
   }
 
   void fail(const std::string& what) {
@@ -379,6 +396,7 @@ const RecorderReport& LinkLog::close(const mcap::KeyValues& summary) {
   if (d.local != nullptr) d.report.local_samples_dropped = d.local->dropped();
   if (!failed()) {
     try {
+      d.writer.flush();  // the last chunk reaches the file before its messages are counted
       if (!summary.empty()) d.writer.add_metadata("flight_summary", summary);
       mcap::KeyValues counts;
       for (const ChannelReport& c : d.report.per_channel) {
@@ -395,10 +413,7 @@ const RecorderReport& LinkLog::close(const mcap::KeyValues& summary) {
       d.fail(e.what());
     }
   }
-  const mcap::Statistics& s = d.writer.statistics();
-  d.report.messages = s.message_count;
-  d.report.channels = s.channel_count;
-  d.report.bytes = d.writer.bytes_written();
+  d.count_written();
   return d.report;
 }
 

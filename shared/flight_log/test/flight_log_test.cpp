@@ -14,9 +14,11 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <sys/resource.h>
 #include <thread>
 #include <unistd.h>
 #include <vector>
@@ -192,6 +194,45 @@ TEST_F(LinkLogTest, LocalSamplesAreWrittenOnTheLogsThreadWithTheLinkChannels) {
     }
   }
   EXPECT_TRUE(found);
+}
+
+// GIVEN a log under way WHEN the disk fills (RLIMIT_FSIZE) THEN the report counts what the
+// file holds (in total and per channel), the rest as not written, and names the failure.
+TEST_F(LinkLogTest, FullDiskReportsTheMessagesInTheFileNotThoseHandedOver) {
+  options_.writer.chunk_size_bytes = 16 * 1024;
+  options_.writer.compression = mcap::Compression::kNone;
+  CountingSource source;
+  LinkLog log(options_, &source);
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  rlimit limited = saved;
+  limited.rlim_cur = fs::file_size(options_.path) + 40 * 1024;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  constexpr int kSamples = 4000;
+  for (int i = 0; i < kSamples; ++i)
+    source.queue.push({1'000'000'000 + std::int64_t{i} * 1'000'000, 0.5 * i});
+  const RecorderReport& report = log.close();
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_NE(report.error.find("log.mcap: recording stopped: "), std::string::npos) << report.error;
+  EXPECT_NE(report.error.find("File too large"), std::string::npos) << report.error;
+
+  const mcap::McapReader r(options_.path);
+  ASSERT_GT(r.messages().size(), 0u);
+  ASSERT_LT(r.messages().size(), static_cast<std::size_t>(kSamples));
+  EXPECT_EQ(report.messages, r.messages().size());
+  std::uint64_t reported_per_channel = 0;
+  for (const ChannelReport& c : report.per_channel) reported_per_channel += c.messages;
+  EXPECT_EQ(reported_per_channel, r.messages().size());
+  std::string per_channel;
+  for (const ChannelReport& c : report.per_channel) {
+    per_channel += c.topic + " " + std::to_string(c.messages) + "\n";
+  }
+  // Each sample is in the file, refused by the queue or counted as not written.
+  EXPECT_EQ(report.messages + report.samples_not_written + report.local_samples_dropped,
+            static_cast<std::uint64_t>(kSamples))
+      << per_channel << report.samples_not_written;
 }
 
 TEST_F(LinkLogTest, UnwritableFolderIsAClearErrorNamingThePath) {

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <fcntl.h>
 #include <limits>
+#include <optional>
 #include <set>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -25,6 +26,12 @@ namespace {
 std::string hex32(std::uint32_t v) {
   std::array<char, 16> text{};
   std::snprintf(text.data(), text.size(), "0x%08x", v);
+  return text.data();
+}
+
+std::string hex8(std::uint8_t v) {
+  std::array<char, 8> text{};
+  std::snprintf(text.data(), text.size(), "0x%02x", v);
   return text.data();
 }
 
@@ -137,6 +144,44 @@ bool record_at(Bytes bytes, std::uint64_t offset, RawRecord& out) {
   return true;
 }
 
+bool is_known_opcode(std::uint8_t opcode) { return opcode >= kHeader && opcode <= kDataEnd; }
+
+// Messages the MessageIndex record at `at` lists (16 bytes an entry), or nullopt when no
+// well-formed one is there.
+std::optional<std::uint64_t> indexed_messages(Bytes bytes, std::uint64_t at) {
+  RawRecord rec;
+  if (!record_at(bytes, at, rec) || rec.opcode != kMessageIndex || rec.content.size() < 6) {
+    return std::nullopt;
+  }
+  std::uint32_t length = 0;
+  for (std::size_t i = 0; i < 4; ++i) length |= std::uint32_t{rec.content[2 + i]} << (8 * i);
+  if (length % 16 != 0 || length != rec.content.size() - 6) return std::nullopt;
+  return length / 16;
+}
+
+// A Chunk record's framing and payload look intact: cheap checks (the stored CRC of an
+// uncompressed payload, the zstd frame's stated size), for finding the way back after damage.
+bool chunk_looks_intact(const RawRecord& rec) {
+  try {
+    Fields f(rec.content, "");
+    f.u64();
+    f.u64();
+    const std::uint64_t uncompressed_size = f.u64();
+    const std::uint32_t uncompressed_crc = f.u32();
+    const std::string compression = f.string();
+    const Bytes payload = f.take(f.u64());
+    if (!f.done()) return false;
+    if (compression.empty()) {
+      return payload.size() == uncompressed_size &&
+             (uncompressed_crc == 0 || crc32_update(0, payload) == uncompressed_crc);
+    }
+    return compression == "zstd" &&
+           ZSTD_getFrameContentSize(payload.data(), payload.size()) == uncompressed_size;
+  } catch (const InputError&) {
+    return false;
+  }
+}
+
 }  // namespace
 
 class ReaderImpl {
@@ -150,7 +195,15 @@ class ReaderImpl {
     if (bytes.size() < kMagic.size() || !std::equal(kMagic.begin(), kMagic.end(), bytes.begin())) {
       throw InputError(path_ + ": not an MCAP file (no magic 0x89 MCAP0 at the start)");
     }
-    if (!read_with_summary(bytes)) scan(bytes);
+    bool indexed = false;
+    try {
+      indexed = read_with_summary(bytes);
+    } catch (const InputError& e) {
+      // The summary only repeats what the data section holds: read that instead.
+      warn(std::string(e.what()) + "; the summary is not used, the data section is scanned");
+      reset_content();
+    }
+    if (!indexed) scan(bytes);
     std::stable_sort(
         r_.messages_.begin(), r_.messages_.end(),
         [](const Message& a, const Message& b) { return a.log_time_ns < b.log_time_ns; });
@@ -159,16 +212,75 @@ class ReaderImpl {
   }
 
  private:
+  // A chunk the summary indexes, with where its MessageIndex records lie (to count what it
+  // held should it be damaged).
+  struct ChunkRef {
+    std::uint64_t offset = 0;
+    std::vector<std::uint64_t> message_index_offsets;
+  };
+  // Where the summary's indexes point.
+  struct IndexedOffsets {
+    std::vector<ChunkRef> chunks;
+    std::vector<std::uint64_t> attachments;
+    std::vector<std::uint64_t> metadata;
+  };
+
   std::string where(const char* what, std::uint64_t offset) const {
     return path_ + ": " + what + " at offset " + std::to_string(offset);
   }
 
-  // Where the summary's indexes point.
-  struct IndexedOffsets {
-    std::vector<std::uint64_t> chunks;
-    std::vector<std::uint64_t> attachments;
-    std::vector<std::uint64_t> metadata;
-  };
+  void warn(std::string text) { r_.report_.warnings.push_back(std::move(text)); }
+
+  // Everything read so far, for a fresh scan after an unusable summary (warnings kept).
+  void reset_content() {
+    std::vector<std::string> warnings = std::move(r_.report_.warnings);
+    r_.profile_.clear();
+    r_.library_.clear();
+    r_.schemas_.clear();
+    r_.channels_.clear();
+    r_.messages_.clear();
+    r_.attachments_.clear();
+    r_.metadata_.clear();
+    r_.statistics_ = Statistics{};
+    const std::uint64_t file_size_bytes = r_.report_.file_size_bytes;
+    r_.report_ = ReadReport{};
+    r_.report_.file_size_bytes = file_size_bytes;
+    r_.report_.warnings = std::move(warnings);
+    schema_ids_.clear();
+    channel_ids_.clear();
+    has_statistics_ = false;
+  }
+
+  void drop_chunk(const std::string& reason, std::optional<std::uint64_t> messages) {
+    ++r_.report_.chunks_dropped;
+    if (messages) {
+      r_.report_.messages_dropped += *messages;
+    } else {
+      ++r_.report_.chunks_dropped_uncounted;
+    }
+    warn(reason + "; chunk skipped, " +
+         (messages ? std::to_string(*messages) + " messages lost"
+                   : std::string("its message count unknown (no readable message index)")));
+  }
+
+  void skip_record(const std::string& reason) {
+    ++r_.report_.records_skipped;
+    warn(reason + "; record skipped");
+  }
+
+  ChunkRef read_chunk_index(Fields& g) {
+    g.u64();  // message_start_time
+    g.u64();  // message_end_time
+    ChunkRef chunk;
+    chunk.offset = g.u64();
+    g.u64();  // chunk_length
+    Fields index_offsets(g.take(g.u32()), g.where());
+    while (!index_offsets.done()) {
+      index_offsets.u16();  // channel id
+      chunk.message_index_offsets.push_back(index_offsets.u64());
+    }
+    return chunk;
+  }
 
   // The summary section's records: schemas, channels and statistics are taken, the indexes'
   // offsets returned.
@@ -183,18 +295,16 @@ class ReaderImpl {
       Fields g(rec.content, where("summary record", at));
       switch (rec.opcode) {
         case kSchema:
-          add_schema(g);
+          keep(parse_schema(g));
           break;
         case kChannel:
-          add_channel(g);
+          keep(parse_channel(g));
           break;
         case kStatistics:
           read_statistics(g);
           break;
         case kChunkIndex:
-          g.u64();  // message_start_time
-          g.u64();  // message_end_time
-          offsets.chunks.push_back(g.u64());
+          offsets.chunks.push_back(read_chunk_index(g));
           break;
         case kAttachmentIndex:
           offsets.attachments.push_back(g.u64());
@@ -209,22 +319,25 @@ class ReaderImpl {
     return offsets;
   }
 
-  // Footer, summary and DataEnd; false when the file has none (the caller then scans).
-  bool read_with_summary(Bytes bytes) {
+  // The footer's summary and summary-offset starts, checked against the summary CRC; nullopt
+  // when the file has no footer (a killed writer). @throws InputError when it is damaged.
+  std::optional<std::pair<std::uint64_t, std::uint64_t>> read_footer(Bytes bytes) {
     const std::size_t footer_bytes = kRecordPrefixBytes + kFooterContentBytes;
-    if (bytes.size() < 2 * kMagic.size() + footer_bytes) return false;
-    if (!std::equal(kMagic.begin(), kMagic.end(), bytes.end() - kMagic.size())) return false;
+    if (bytes.size() < 2 * kMagic.size() + footer_bytes) return std::nullopt;
+    if (!std::equal(kMagic.begin(), kMagic.end(), bytes.end() - kMagic.size())) {
+      return std::nullopt;
+    }
     const std::uint64_t footer_at = bytes.size() - kMagic.size() - footer_bytes;
     RawRecord footer;
     if (!record_at(bytes, footer_at, footer) || footer.opcode != kFooter ||
         footer.content.size() != kFooterContentBytes) {
-      return false;
+      return std::nullopt;
     }
     Fields f(footer.content, where("Footer", footer_at));
     const std::uint64_t summary_start = f.u64();
     const std::uint64_t summary_offset_start = f.u64();
     const std::uint32_t summary_crc = f.u32();
-    if (summary_start == 0) return false;
+    if (summary_start == 0) return std::nullopt;
     if (summary_start > footer_at || summary_offset_start > footer_at) {
       throw InputError(where("Footer", footer_at) + ": summary offset beyond the footer");
     }
@@ -236,28 +349,36 @@ class ReaderImpl {
                          " does not match the stored " + hex32(summary_crc));
       }
     }
+    return std::pair{summary_start, summary_offset_start != 0 ? summary_offset_start : footer_at};
+  }
+
+  // Footer, summary and DataEnd; false when the file has none (the caller then scans).
+  // @throws InputError when the footer or summary is damaged (the caller then scans).
+  bool read_with_summary(Bytes bytes) {
+    const auto summary = read_footer(bytes);
+    if (!summary) return false;
+    const auto [summary_start, summary_end] = *summary;
     read_header(bytes);
     check_data_end(bytes, summary_start);
-
-    const std::uint64_t summary_end = summary_offset_start != 0 ? summary_offset_start : footer_at;
     const IndexedOffsets offsets = read_summary_section(bytes, summary_start, summary_end);
-    const std::vector<std::uint64_t>& chunk_offsets = offsets.chunks;
-    for (const std::uint64_t at : chunk_offsets) read_record_at(bytes, at, kChunk, "Chunk");
+    for (const ChunkRef& chunk : offsets.chunks) read_indexed_chunk(bytes, chunk);
     for (const std::uint64_t at : offsets.attachments) {
-      read_record_at(bytes, at, kAttachment, "Attachment");
+      read_indexed_record(bytes, at, kAttachment, "Attachment");
     }
     for (const std::uint64_t at : offsets.metadata) {
-      read_record_at(bytes, at, kMetadata, "Metadata");
+      read_indexed_record(bytes, at, kMetadata, "Metadata");
     }
     // Messages may also sit outside chunks (unchunked writers), where no index points: when the
-    // chunks do not hold every message the statistics count, the data section is scanned.
-    if (chunk_offsets.empty() ||
-        (has_statistics_ && r_.messages_.size() != r_.statistics_.message_count)) {
-      r_.messages_.clear();
-      r_.attachments_.clear();
-      r_.metadata_.clear();
-      r_.report_.chunk_count = 0;
+    // chunks do not hold every message the statistics count, the data section is scanned. (A
+    // dropped chunk whose count is unknown leaves nothing to compare with.)
+    const bool counts_differ =
+        has_statistics_ && r_.report_.chunks_dropped_uncounted == 0 &&
+        r_.messages_.size() + r_.report_.messages_dropped != r_.statistics_.message_count;
+    if (offsets.chunks.empty() || counts_differ) {
+      const Statistics statistics = r_.statistics_;
+      reset_content();
       scan(bytes);
+      r_.statistics_ = statistics;
       r_.report_.truncated = false;
     }
     r_.report_.has_summary = true;
@@ -265,12 +386,37 @@ class ReaderImpl {
     return true;
   }
 
-  void read_record_at(Bytes bytes, std::uint64_t at, Opcode expected, const char* name) {
+  void read_indexed_chunk(Bytes bytes, const ChunkRef& chunk) {
+    RawRecord rec;
+    try {
+      if (!record_at(bytes, chunk.offset, rec) || rec.opcode != kChunk) {
+        throw InputError(where("Chunk", chunk.offset) +
+                         ": the summary's index points at no Chunk record (a damaged header)");
+      }
+      Fields f(rec.content, where("Chunk", rec.offset));
+      read_chunk(f, rec.offset);
+    } catch (const InputError& e) {
+      std::optional<std::uint64_t> messages = 0;
+      for (const std::uint64_t at : chunk.message_index_offsets) {
+        const std::optional<std::uint64_t> n = indexed_messages(bytes, at);
+        if (!n) {
+          messages.reset();
+          break;
+        }
+        *messages += *n;
+      }
+      if (chunk.message_index_offsets.empty()) messages.reset();
+      drop_chunk(e.what(), messages);
+    }
+  }
+
+  void read_indexed_record(Bytes bytes, std::uint64_t at, Opcode expected, const char* name) {
     RawRecord rec;
     if (!record_at(bytes, at, rec) || rec.opcode != expected) {
-      throw InputError(where(name, at) + ": the summary's index points at no " + name + " record");
+      skip_record(where(name, at) + ": the summary's index points at no " + name + " record");
+      return;
     }
-    handle(rec);
+    handle_or_skip(rec);
   }
 
   void read_header(Bytes bytes) {
@@ -292,40 +438,133 @@ class ReaderImpl {
     }
   }
 
+  // Says that something in the data section is damaged; the chunks' and attachments' own CRCs
+  // then say which, and only those are left out.
   void check_data_crc(Bytes bytes, const RawRecord& data_end) {
     Fields f(data_end.content, where("DataEnd", data_end.offset));
     const std::uint32_t stored = f.u32();
     if (stored == 0) return;
     const std::uint32_t crc = crc32_update(0, bytes.first(data_end.offset));
     if (crc != stored) {
-      throw InputError(where("DataEnd", data_end.offset) + ": data section CRC " + hex32(crc) +
-                       " does not match the stored " + hex32(stored));
+      warn(where("DataEnd", data_end.offset) + ": data section CRC " + hex32(crc) +
+           " does not match the stored " + hex32(stored) +
+           " (the data section is damaged; records failing their own checks are skipped)");
     }
   }
 
-  // No usable summary: every record from the start, stopping cleanly at a truncated tail.
+  // The first offset from `from` where a chain of well-formed records leads to an intact chunk
+  // or to the end of the data section: where the scan goes on after a damaged record header.
+  // A chain never starts at a Message record, so that a damaged chunk's own inner records are
+  // not taken for top-level ones.
+  std::optional<std::uint64_t> resync(Bytes bytes, std::uint64_t from) const {
+    for (std::uint64_t p = from; p < bytes.size(); ++p) {
+      if (!is_known_opcode(bytes[p]) || bytes[p] == kMessage) continue;
+      RawRecord rec;
+      for (std::uint64_t at = p; record_at(bytes, at, rec) && is_known_opcode(rec.opcode);
+           at = rec.end()) {
+        if (rec.opcode == kChunk) {
+          if (chunk_looks_intact(rec)) return p;
+          break;
+        }
+        if ((rec.opcode == kDataEnd && rec.content.size() == 4) ||
+            (rec.opcode == kFooter && rec.content.size() == kFooterContentBytes)) {
+          return p;
+        }
+      }
+    }
+    return std::nullopt;
+  }
+
+  // A record left out in a scan, settled once the records after it say what it was: a chunk
+  // when MessageIndex records follow (they count its messages) or its header said so.
+  struct PendingDrop {
+    bool active = false;
+    std::string reason;
+    bool chunk = false;
+    bool counted = false;
+    std::uint64_t messages = 0;
+  };
+
+  void settle(PendingDrop& pending) {
+    if (!pending.active) return;
+    if (pending.counted || pending.chunk) {
+      drop_chunk(pending.reason,
+                 pending.counted ? std::optional<std::uint64_t>(pending.messages) : std::nullopt);
+    } else {
+      skip_record(pending.reason);
+    }
+    pending = PendingDrop{};
+  }
+
+  [[nodiscard]] static bool framing_intact(Bytes bytes, std::uint64_t at, RawRecord& rec) {
+    return record_at(bytes, at, rec) && is_known_opcode(rec.opcode) &&
+           (rec.opcode != kFooter || rec.content.size() == kFooterContentBytes) &&
+           (rec.opcode != kDataEnd || rec.content.size() == 4);
+  }
+
+  // No usable summary: every record from the start. A damaged chunk is dropped (its messages
+  // counted from the MessageIndex records after it), a damaged record header stepped over to
+  // the next intact record, and the scan stops cleanly at a truncated tail.
   void scan(Bytes bytes) {
     std::uint64_t at = kMagic.size();
     RawRecord rec;
-    while (true) {
-      if (at == bytes.size()) break;
-      if (!record_at(bytes, at, rec)) {
-        r_.report_.truncated = true;
-        break;
+    PendingDrop pending;
+    while (at < bytes.size()) {
+      if (!framing_intact(bytes, at, rec)) {
+        const std::optional<std::uint64_t> next = resync(bytes, at + 1);
+        if (!next) {
+          r_.report_.truncated = true;  // a cut tail, not damage: nothing intact follows
+          break;
+        }
+        settle(pending);
+        pending.active = true;
+        pending.reason = where("record", at) + " (opcode " + hex8(bytes[at]) +
+                         "): damaged header; " + std::to_string(*next - at) +
+                         " bytes skipped to the intact record at offset " + std::to_string(*next);
+        pending.chunk = bytes[at] == kChunk;
+        r_.report_.bytes_skipped += *next - at;
+        at = *next;
+        continue;
       }
-      if (rec.opcode == kFooter) {
+      if (rec.opcode == kMessageIndex && pending.active) {
+        if (const std::optional<std::uint64_t> n = indexed_messages(bytes, at)) {
+          pending.messages += *n;
+          pending.counted = true;
+        }
+        at = rec.end();
+        continue;
+      }
+      settle(pending);
+      if (rec.opcode == kFooter || rec.opcode == kDataEnd) {
+        if (rec.opcode == kDataEnd) check_data_crc(bytes, rec);
         at = rec.end();
         break;
       }
-      if (rec.opcode == kDataEnd) {
-        check_data_crc(bytes, rec);
-        at = rec.end();
-        break;
+      if (rec.opcode == kChunk) {
+        try {
+          Fields f(rec.content, where("Chunk", rec.offset));
+          read_chunk(f, rec.offset);
+        } catch (const InputError& e) {
+          pending.active = true;
+          pending.reason = e.what();
+          pending.chunk = true;
+        }
+      } else {
+        handle_or_skip(rec);
       }
-      handle(rec);
       at = rec.end();
     }
+    settle(pending);
     r_.report_.valid_end_bytes = at;
+  }
+
+  // A data-section record outside chunks; one whose fields or CRC are wrong is left out.
+  void handle_or_skip(const RawRecord& rec) {
+    try {
+      handle(rec);
+    } catch (const InputError& e) {
+      skip_record(e.what());
+    }
   }
 
   // A data-section record (also from inside a chunk).
@@ -337,10 +576,10 @@ class ReaderImpl {
         r_.library_ = f.string();
         break;
       case kSchema:
-        add_schema(f);
+        keep(parse_schema(f));
         break;
       case kChannel:
-        add_channel(f);
+        keep(parse_channel(f));
         break;
       case kMessage:
         add_message(f);
@@ -363,23 +602,31 @@ class ReaderImpl {
     }
   }
 
-  void add_schema(Fields& f) {
+  static Schema parse_schema(Fields& f) {
     Schema s;
     s.id = f.u16();
     s.name = f.string();
     s.encoding = f.string();
     const Bytes data = f.take(f.u32());
     s.data.assign(data.begin(), data.end());
-    if (schema_ids_.insert(s.id).second) r_.schemas_.push_back(std::move(s));
+    return s;
   }
 
-  void add_channel(Fields& f) {
+  static Channel parse_channel(Fields& f) {
     Channel c;
     c.id = f.u16();
     c.schema_id = f.u16();
     c.topic = f.string();
     c.message_encoding = f.string();
     c.metadata = f.key_values();
+    return c;
+  }
+
+  void keep(Schema s) {
+    if (schema_ids_.insert(s.id).second) r_.schemas_.push_back(std::move(s));
+  }
+
+  void keep(Channel c) {
     if (channel_ids_.insert(c.id).second) r_.channels_.push_back(std::move(c));
   }
 
@@ -461,28 +708,43 @@ class ReaderImpl {
                          " does not match the stored " + hex32(uncompressed_crc));
       }
     }
-    RawRecord rec;
-    for (std::uint64_t at = 0; at < records.size(); at = rec.end()) {
-      if (!record_at(records, at, rec)) {
-        throw InputError(where("Chunk", offset) + ": record at chunk offset " + std::to_string(at) +
-                         " runs past the chunk");
-      }
-      Fields g(rec.content, where("Chunk", offset) + ", chunk offset " + std::to_string(at));
-      switch (rec.opcode) {
-        case kSchema:
-          add_schema(g);
-          break;
-        case kChannel:
-          add_channel(g);
-          break;
-        case kMessage:
-          add_message(g);
-          break;
-        default:
-          break;
-      }
-    }
+    read_chunk_records(records, offset);
     ++r_.report_.chunk_count;
+  }
+
+  // All of a chunk's records or none: a damaged one leaves nothing of its chunk behind.
+  void read_chunk_records(Bytes records, std::uint64_t offset) {
+    const std::size_t messages_before = r_.messages_.size();
+    std::vector<Schema> schemas;
+    std::vector<Channel> channels;
+    try {
+      RawRecord rec;
+      for (std::uint64_t at = 0; at < records.size(); at = rec.end()) {
+        if (!record_at(records, at, rec)) {
+          throw InputError(where("Chunk", offset) + ": record at chunk offset " +
+                           std::to_string(at) + " runs past the chunk");
+        }
+        Fields g(rec.content, where("Chunk", offset) + ", chunk offset " + std::to_string(at));
+        switch (rec.opcode) {
+          case kSchema:
+            schemas.push_back(parse_schema(g));
+            break;
+          case kChannel:
+            channels.push_back(parse_channel(g));
+            break;
+          case kMessage:
+            add_message(g);
+            break;
+          default:
+            break;
+        }
+      }
+    } catch (const InputError&) {
+      r_.messages_.resize(messages_before);
+      throw;
+    }
+    for (Schema& s : schemas) keep(std::move(s));
+    for (Channel& c : channels) keep(std::move(c));
   }
 
   void read_statistics(Fields& f) {

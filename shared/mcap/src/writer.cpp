@@ -142,8 +142,26 @@ struct McapWriter::Impl {
       if (n < 0) fail("write failed", errno);
       if (n == 0) fail("write failed", ENOSPC);
       done += static_cast<std::size_t>(n);
+      position += static_cast<std::size_t>(n);  // a failure later leaves these in the file
     }
-    position += size;
+  }
+
+  // The open chunk's messages are in the file: only now do they count (a full disk must not
+  // report what it refused).
+  void count_chunk_messages() {
+    std::uint64_t messages = 0;
+    for (const std::uint16_t id : chunk_channels) {
+      channel_counts[id] += message_index[id].size();
+      messages += message_index[id].size();
+    }
+    if (stats.message_count == 0) {
+      stats.message_start_time_ns = chunk_start_time;
+      stats.message_end_time_ns = chunk_end_time;
+    }
+    stats.message_start_time_ns = std::min(stats.message_start_time_ns, chunk_start_time);
+    stats.message_end_time_ns = std::max(stats.message_end_time_ns, chunk_end_time);
+    stats.message_count += messages;
+    ++stats.chunk_count;
   }
   void write_all(const std::vector<std::uint8_t>& bytes) { write_all(bytes.data(), bytes.size()); }
 
@@ -190,6 +208,7 @@ struct McapWriter::Impl {
     write_all(record);
     write_all(payload, payload_size);
     index.chunk_length = position - index.chunk_start_offset;
+    count_chunk_messages();
 
     // One MessageIndex per channel, after the chunk, entries in log-time order.
     std::sort(chunk_channels.begin(), chunk_channels.end());
@@ -216,7 +235,6 @@ struct McapWriter::Impl {
     write_all(record);
 
     chunk_indexes.push_back(std::move(index));
-    ++stats.chunk_count;
     chunk.clear();
     chunk_channels.clear();
   }
@@ -458,16 +476,6 @@ void McapWriter::write(std::uint16_t channel_id, std::uint32_t sequence, std::in
   put_u64(out, log_time);
   put_u64(out, static_cast<std::uint64_t>(publish_time_ns));
   put_raw(out, data.data(), data.size());
-
-  Statistics& s = w.stats;
-  if (s.message_count == 0) {
-    s.message_start_time_ns = log_time;
-    s.message_end_time_ns = log_time;
-  }
-  s.message_start_time_ns = std::min(s.message_start_time_ns, log_time);
-  s.message_end_time_ns = std::max(s.message_end_time_ns, log_time);
-  ++s.message_count;
-  ++w.channel_counts[channel_id];
 
   if (w.chunk.size() >= w.options.chunk_size_bytes ||
       std::chrono::steady_clock::now() - w.chunk_opened >=

@@ -102,8 +102,8 @@ Recording write_recording(const std::string& path, Compression compression,
   writer.add_attachment("calib.yaml", "application/yaml", as_bytes("K: [1, 2, 3]"), 1'000'000'000);
   writer.add_attachment("empty", "application/octet-stream", {}, 2'000'000'000, 7);
   writer.add_metadata("end", {});
-  r.statistics = writer.statistics();
   writer.close();
+  r.statistics = writer.statistics();
   return r;
 }
 
@@ -345,49 +345,171 @@ TEST(McapReader, MessagesComeInLogTimeOrder) {
   EXPECT_EQ(reader.messages().front().channel_id, 1);
 }
 
-// Offset of the first Chunk record: records follow the magic, each opcode + u64 length.
-std::size_t first_chunk_offset(const std::vector<std::uint8_t>& bytes) {
-  std::size_t at = 8;
-  while (at + 9 <= bytes.size()) {
-    std::uint64_t length = 0;
-    for (std::size_t i = 0; i < 8; ++i)
-      length |= static_cast<std::uint64_t>(bytes[at + 1 + i]) << (8 * i);
-    if (bytes[at] == 0x06) return at;
-    at += 9 + length;
+std::uint64_t u64_at(const std::vector<std::uint8_t>& bytes, std::size_t at) {
+  std::uint64_t v = 0;
+  for (std::size_t i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(bytes[at + i]) << (8 * i);
+  return v;
+}
+
+// Offsets of the top-level Chunk records, walking the records from the magic.
+std::vector<std::size_t> chunk_offsets(const std::vector<std::uint8_t>& bytes) {
+  std::vector<std::size_t> out;
+  for (std::size_t at = 8; at + 9 <= bytes.size(); at += 9 + u64_at(bytes, at + 1)) {
+    if (bytes[at] == 0x06) out.push_back(at);
   }
-  return 0;
+  return out;
 }
 
-TEST(McapReader, CorruptedChunkIsReportedWithItsCrc) {
+// Where a chunk's payload starts and how long it is: after opcode, length, start and end
+// times, uncompressed size and CRC, the compression string and the payload size.
+std::pair<std::size_t, std::size_t> chunk_payload(const std::vector<std::uint8_t>& bytes,
+                                                  std::size_t chunk) {
+  const std::size_t compression = chunk + 9 + 8 + 8 + 8 + 4;
+  const std::size_t size_field =
+      compression + 4 + (bytes[compression] | (bytes[compression + 1] << 8));
+  return {size_field + 8, u64_at(bytes, size_field)};
+}
+
+// Every message read is one that was written, in order: a subsequence.
+void expect_subsequence(const std::vector<Message>& got, const std::vector<Message>& want) {
+  std::size_t w = 0;
+  for (const Message& m : got) {
+    while (w < want.size() &&
+           !(want[w].channel_id == m.channel_id && want[w].sequence == m.sequence)) {
+      ++w;
+    }
+    ASSERT_LT(w, want.size()) << "read a message never written: channel " << m.channel_id
+                              << " sequence " << m.sequence;
+    EXPECT_EQ(want[w].data, m.data);
+    ++w;
+  }
+}
+
+// The footer and closing magic cut off: no summary, so the reader scans (as after a crash at
+// close, and as --recover reads a killed writer's file).
+std::string without_summary(const TempDir& dir, const std::vector<std::uint8_t>& bytes) {
+  const std::string cut = dir.file("no_summary.mcap");
+  write_file(cut, bytes, bytes.size() - (8 + 9 + 20) - 1);
+  return cut;
+}
+
+// What a reader of a file with exactly one damaged chunk must give: the other chunks' messages,
+// the lost ones counted, a warning naming the file and the chunk's offset.
+void expect_one_chunk_dropped(const McapReader& reader, const std::string& path, std::size_t chunk,
+                              const Recording& written) {
+  const ReadReport& report = reader.report();
+  EXPECT_EQ(report.chunks_dropped, 1u);
+  EXPECT_EQ(report.chunks_dropped_uncounted, 0u);
+  EXPECT_GT(report.messages_dropped, 0u);
+  EXPECT_EQ(reader.messages().size() + report.messages_dropped, written.messages.size());
+  EXPECT_GT(reader.messages().size(), written.messages.size() / 2);
+  expect_subsequence(reader.messages(), written.messages);
+  EXPECT_TRUE(report.damaged());
+  const std::string all = ::testing::PrintToString(report.warnings);
+  EXPECT_THAT(all, HasSubstr(path + ": "));
+  EXPECT_THAT(all, HasSubstr("offset " + std::to_string(chunk)));
+  EXPECT_THAT(all, HasSubstr(std::to_string(report.messages_dropped) + " messages lost"));
+}
+
+// GIVEN a valid file of many zstd chunks WHEN one bit flips inside one chunk's compressed data
+// THEN the reader, with the summary and by a scan, returns the other chunks' messages and
+// counts the dropped chunk and its messages; --recover writes what survived.
+TEST(McapReader, OneFlippedBitInCompressedDataCostsOnlyItsChunk) {
   const TempDir dir;
   const std::string path = dir.file("flight.mcap");
-  write_recording(path, Compression::kNone);
+  const Recording written = write_recording(path, Compression::kZstd);
   std::vector<std::uint8_t> bytes = read_file(path);
-  const std::size_t chunk = first_chunk_offset(bytes);
-  ASSERT_GT(chunk, 0u);
-  // A flipped bit in the first message's payload, well inside the uncompressed records.
-  const std::size_t inside = chunk + 9 + 8 + 8 + 8 + 4 + 4 + 8 + 9 + 30 + 5;
-  bytes[inside] ^= 0x10;
+  const std::vector<std::size_t> chunks = chunk_offsets(bytes);
+  ASSERT_GT(chunks.size(), 5u);
+  const std::size_t chunk = chunks[3];
+  const auto [payload_at, payload_size] = chunk_payload(bytes, chunk);
+  bytes[payload_at + payload_size / 2] ^= 0x04;
   write_file(path, bytes, bytes.size());
-  EXPECT_THAT(testing::input_error_message([&] { McapReader r(path); }),
-              HasSubstr("data section CRC"));
 
-  // Without the summary the chunk's own CRC catches it.
-  const std::string cut = dir.file("cut.mcap");
-  write_file(cut, bytes, bytes.size() - 40);
-  const std::string message = testing::input_error_message([&] { McapReader r(cut); });
-  EXPECT_THAT(message, HasSubstr("cut.mcap: Chunk at offset " + std::to_string(chunk)));
-  EXPECT_THAT(message, HasSubstr("uncompressed CRC"));
+  const McapReader indexed(path);
+  EXPECT_TRUE(indexed.report().has_summary);
+  expect_one_chunk_dropped(indexed, path, chunk, written);
+  EXPECT_THAT(::testing::PrintToString(indexed.report().warnings), HasSubstr("data section CRC"));
+
+  const std::string cut = without_summary(dir, bytes);
+  const McapReader scanned(cut);
+  EXPECT_FALSE(scanned.report().has_summary);
+  expect_one_chunk_dropped(scanned, cut, chunk, written);
+
+  const RecoveryReport recovered = recover(cut, dir.file("recovered.mcap"));
+  EXPECT_EQ(recovered.read.chunks_dropped, 1u);
+  EXPECT_EQ(recovered.written.message_count, scanned.messages().size());
+  EXPECT_EQ(McapReader(dir.file("recovered.mcap")).messages().size(), scanned.messages().size());
 }
 
-TEST(McapReader, CorruptedSummaryIsReported) {
+// GIVEN uncompressed chunks WHEN a bit flips in a message's record length inside one chunk
+// (with its CRC, and with the CRC left out as writers may) THEN only that chunk is dropped.
+TEST(McapReader, FlippedBitInARecordLengthInsideAChunkCostsOnlyItsChunk) {
   const TempDir dir;
   const std::string path = dir.file("flight.mcap");
-  write_recording(path, Compression::kZstd);
+  const Recording written = write_recording(path, Compression::kNone);
+  std::vector<std::uint8_t> bytes = read_file(path);
+  const std::vector<std::size_t> chunks = chunk_offsets(bytes);
+  ASSERT_GT(chunks.size(), 5u);
+  const std::size_t chunk = chunks[2];
+  const std::size_t first_record = chunk_payload(bytes, chunk).first;
+  ASSERT_EQ(bytes[first_record], 0x05);  // a Message record
+  bytes[first_record + 1 + 5] ^= 0x01;   // bit 40 of its length: far past the chunk's end
+  const std::vector<std::uint8_t> with_crc = bytes;
+  write_file(path, bytes, bytes.size());
+  expect_one_chunk_dropped(McapReader(path), path, chunk, written);
+
+  for (std::size_t i = 0; i < 4; ++i) bytes[chunk + 9 + 8 + 8 + 8 + i] = 0;  // "no CRC"
+  write_file(path, bytes, bytes.size());
+  const McapReader without_crc(path);
+  expect_one_chunk_dropped(without_crc, path, chunk, written);
+  EXPECT_THAT(::testing::PrintToString(without_crc.report().warnings),
+              HasSubstr("runs past the chunk"));
+  expect_one_chunk_dropped(McapReader(without_summary(dir, with_crc)), dir.file("no_summary.mcap"),
+                           chunk, written);
+}
+
+// GIVEN a file without its summary WHEN a bit flips in a chunk's own record header (its length
+// now runs past the end of the file) THEN the scan steps over it to the next intact record and
+// reads on, instead of taking the rest for a truncated tail.
+TEST(McapReader, FlippedBitInAChunkHeaderIsSteppedOver) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  const Recording written = write_recording(path, Compression::kZstd);
+  std::vector<std::uint8_t> bytes = read_file(path);
+  const std::vector<std::size_t> chunks = chunk_offsets(bytes);
+  ASSERT_GT(chunks.size(), 5u);
+  const std::size_t chunk = chunks[4];
+  bytes[chunk + 1 + 6] ^= 0x20;  // bit 53 of the record's length
+  write_file(path, bytes, bytes.size());
+  expect_one_chunk_dropped(McapReader(path), path, chunk, written);
+
+  const std::string cut = without_summary(dir, bytes);
+  const McapReader scanned(cut);
+  expect_one_chunk_dropped(scanned, cut, chunk, written);
+  EXPECT_FALSE(scanned.report().truncated);
+  EXPECT_GT(scanned.report().bytes_skipped, 0u);
+  EXPECT_EQ(scanned.attachments().size(), 2u);
+}
+
+// GIVEN a damaged summary (its CRC, or a chunk index pointing nowhere) WHEN read THEN the data
+// section is scanned instead and everything is there, with a warning saying so.
+TEST(McapReader, DamagedSummaryFallsBackToAScan) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  const Recording written = write_recording(path, Compression::kZstd);
   std::vector<std::uint8_t> bytes = read_file(path);
   bytes[bytes.size() - 8 - 4] ^= 0x01;  // the footer's summary CRC
   write_file(path, bytes, bytes.size());
-  EXPECT_THAT(testing::input_error_message([&] { McapReader r(path); }), HasSubstr("summary CRC"));
+  const McapReader reader(path);
+  EXPECT_FALSE(reader.report().has_summary);
+  expect_same_messages(reader.messages(), written.messages, written.messages.size());
+  EXPECT_EQ(reader.attachments().size(), 2u);
+  EXPECT_EQ(reader.metadata().size(), 2u);
+  ASSERT_EQ(reader.report().warnings.size(), 1u);
+  EXPECT_THAT(reader.report().warnings[0], HasSubstr(path + ": Footer at offset"));
+  EXPECT_THAT(reader.report().warnings[0], HasSubstr("summary CRC"));
+  EXPECT_THAT(reader.report().warnings[0], HasSubstr("data section is scanned"));
 }
 
 TEST(McapWriter, FullDiskGivesAClearError) {
@@ -438,6 +560,38 @@ TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
   const McapReader reader(path);
   EXPECT_GT(reader.messages().size(), 300u);
   EXPECT_LE(reader.messages().size(), written);
+}
+
+// GIVEN a recording under way WHEN the disk fills (RLIMIT_FSIZE) THEN the writer's statistics
+// count the messages that reached the file, not those it was handed, and the failure is thrown.
+TEST(McapWriter, FullDiskCountsWhatReachedTheFileNotWhatWasHanded) {
+  const TempDir dir;
+  const std::string path = dir.file("flight.mcap");
+  rlimit saved{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
+  rlimit limited = saved;
+  limited.rlim_cur = 100 * 1024ULL;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  McapWriter writer;
+  std::uint32_t handed = 0;
+  const std::string message = testing::input_error_message([&] {
+    writer.open(
+        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
+    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+    const std::vector<std::uint8_t> data = payload(300, 9);
+    for (; handed < 100'000; ++handed) writer.write(channel, handed, handed, handed, data);
+  });
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  ::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(message, path + ": write failed: File too large");
+  const McapReader reader(path);
+  ASSERT_GT(reader.messages().size(), 100u);
+  EXPECT_LT(reader.messages().size(), handed + 1u);  // the failed chunk's messages are not there
+  EXPECT_EQ(writer.statistics().message_count, reader.messages().size());
+  EXPECT_EQ(writer.statistics().channel_message_counts.at(0), reader.messages().size());
+  EXPECT_EQ(writer.statistics().chunk_count, reader.report().chunk_count);
+  EXPECT_EQ(writer.bytes_written(), fs::file_size(path));
 }
 
 TEST(McapReader, MissingFileAndNonMcapFileGiveClearErrors) {

@@ -52,6 +52,8 @@ struct ChannelReport {
   std::int64_t last_log_time_ns = 0;
 };
 
+/// Counts are of what reached the file: a message handed over in a chunk whose write failed
+/// (disk full) is not written.
 struct RecorderReport {
   std::string path;
   std::uint64_t messages = 0;
@@ -59,7 +61,7 @@ struct RecorderReport {
   std::uint64_t bytes = 0;
   std::uint32_t attachments = 0;
   std::uint64_t local_samples_dropped = 0;       ///< the LocalSource's queues were full
-  std::uint64_t samples_not_written = 0;         ///< taken after a write failure
+  std::uint64_t samples_not_written = 0;         ///< taken after a write failure or lost in it
   std::vector<ChannelReport> per_channel;        ///< by channel id
   std::vector<std::string> attachments_skipped;  ///< "path: reason"
   std::string error;                             ///< first failure, or empty

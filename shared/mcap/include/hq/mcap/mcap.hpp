@@ -78,9 +78,11 @@ class McapWriter {
   /// Flushes, writes DataEnd, the summary section, SummaryOffset records, Footer and magic.
   void close();
 
-  /// What has been written so far (the Statistics record close() writes).
+  /// What has reached the file so far (the Statistics record close() writes): messages count
+  /// once their chunk is written, so after a failed write they are what the file holds, not
+  /// what write() was handed.
   [[nodiscard]] const Statistics& statistics() const;
-  /// Bytes written to the file so far.
+  /// Bytes written to the file so far (those of a failed write that did reach it included).
   [[nodiscard]] std::uint64_t bytes_written() const;
 
  private:
@@ -124,20 +126,35 @@ struct Metadata {
   KeyValues values;
 };
 
-/// How the reader got its content.
+/// How the reader got its content, and what it had to leave out.
 struct ReadReport {
   bool has_summary = false;  ///< footer and summary present and used (seeking by index)
   bool truncated = false;    ///< the file ends inside a record (scan stopped cleanly there)
   std::uint64_t file_size_bytes = 0;
   std::uint64_t valid_end_bytes = 0;  ///< offset just after the last complete record read
-  std::uint64_t chunk_count = 0;
+  std::uint64_t chunk_count = 0;      ///< chunks read
   std::uint64_t messages_recovered = 0;
+  std::uint64_t chunks_dropped = 0;  ///< damaged chunks skipped (CRC, zstd data, record length)
+  /// Messages of the dropped chunks, as their MessageIndex records list them.
+  std::uint64_t messages_dropped = 0;
+  /// Dropped chunks whose MessageIndex records were unreadable too: messages_dropped is then a
+  /// lower bound.
+  std::uint64_t chunks_dropped_uncounted = 0;
+  std::uint64_t records_skipped = 0;  ///< other damaged records (attachment CRC, bad fields)
+  std::uint64_t bytes_skipped = 0;    ///< stepped over after a damaged record header
+  /// One line per damage, naming the file and the byte offset ("flight.mcap: Chunk at offset
+  /// 4711: uncompressed CRC ...; chunk skipped, 250 messages lost").
+  std::vector<std::string> warnings;
+  [[nodiscard]] bool damaged() const { return !warnings.empty(); }
 };
 
 /// Reads a whole MCAP file. With a valid footer and summary the messages are found through the
-/// chunk indexes; without one (a killed writer) the data section is scanned from the start and
-/// the scan stops cleanly at a truncated tail. CRC mismatches, bad magic and malformed records
-/// throw hq::InputError naming the path, the offset and what differs.
+/// chunk indexes; without one (a killed writer), or with a damaged one, the data section is
+/// scanned from the start and the scan stops cleanly at a truncated tail. Damage costs only what
+/// it touches: a chunk whose CRC, compressed data or inner record lengths are wrong is skipped
+/// and its messages counted as dropped; a damaged record header is stepped over to the next
+/// intact record; each is one line in report().warnings. Only a file that cannot be opened or
+/// is not MCAP throws hq::InputError.
 class McapReader {
  public:
   explicit McapReader(const std::string& path);
@@ -181,9 +198,10 @@ struct RecoveryReport {
   std::uint64_t bytes_written = 0;
 };
 
-/// Rewrites `in_path`, typically a file whose writer was killed (no summary, maybe a cut tail),
-/// into `out_path` as a complete, indexed file: every schema, channel, message (its sequence
-/// and stamps kept), attachment and metadata record McapReader recovered, with a summary.
+/// Rewrites `in_path`, typically a file whose writer was killed (no summary, maybe a cut tail) or
+/// a damaged one (read.warnings says what was dropped), into `out_path` as a complete, indexed
+/// file: every schema, channel, message (its sequence and stamps kept), attachment and metadata
+/// record McapReader recovered, with a summary.
 /// Channel and schema ids are renumbered in file order. @throws hq::InputError if the input is
 /// unreadable (as McapReader), `out_path` exists (never overwritten) or a write fails.
 RecoveryReport recover(const std::string& in_path, const std::string& out_path,
