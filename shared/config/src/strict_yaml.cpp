@@ -11,6 +11,7 @@
 #include <optional>
 #include <sstream>
 #include <unordered_map>
+#include <vector>
 
 namespace hq::config {
 
@@ -56,6 +57,50 @@ void check_keys(const YAML::Node& node, const std::string& where, const std::str
   }
 }
 
+namespace {
+std::string line_of(const YAML::Mark& mark) {
+  std::string text;
+  if (!mark.is_null()) text.append(":").append(std::to_string(mark.line + 1));
+  return text;
+}
+
+// Walks the tree as every loader will, an alias's subtree again wherever it is used, and stops
+// at kMaxYamlNodes: refusing a bomb costs no more than the budget, and a node that contains
+// itself (`a: &a [*a]`) ends the walk instead of the stack. The error names the top-level entry
+// whose expansion crosses the budget.
+void check_node_budget(const YAML::Node& root, const std::string& path) {
+  std::size_t count = 1;
+  std::vector<YAML::Node> pending;
+  for (auto entry = root.begin(); entry != root.end(); ++entry) {
+    pending = {entry->first, entry->second};
+    count += 2;
+    while (!pending.empty() && count <= kMaxYamlNodes) {
+      const YAML::Node node = pending.back();
+      pending.pop_back();
+      if (!node.IsMap() && !node.IsSequence()) continue;
+      for (auto child = node.begin(); child != node.end() && count <= kMaxYamlNodes; ++child) {
+        if (node.IsMap()) {
+          pending.push_back(child->first);
+          pending.push_back(child->second);
+          count += 2;
+        } else {
+          pending.push_back(*child);
+          ++count;
+        }
+      }
+    }
+    if (count > kMaxYamlNodes) {
+      const std::string key = entry->first.IsScalar() ? entry->first.Scalar() : "an entry";
+      throw InputError(path + line_of(entry->first.Mark()) + ": " + key + " expands past " +
+                       std::to_string(kMaxYamlNodes) +
+                       " YAML nodes (each alias counted wherever it is used), expected at most " +
+                       std::to_string(kMaxYamlNodes) + "; an alias bomb?");
+    }
+  }
+}
+
+}  // namespace
+
 YAML::Node load_yaml_file(const std::string& given_path) {
   const std::string path = resolve_data_path(given_path);
   std::error_code ec;
@@ -69,11 +114,14 @@ YAML::Node load_yaml_file(const std::string& given_path) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot read: " + std::strerror(errno));
   try {
-    YAML::Node node = YAML::Load(in);
-    if (!node.IsDefined() || node.IsNull()) return YAML::Node(YAML::NodeType::Map);
-    if (!node.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
-    check_keys(node, path, "", true);
-    return node;
+    // yaml-cpp shares an aliased node rather than copying it, so parsing is linear in the file;
+    // the walks after it are what a bomb makes long, hence the budget before any of them.
+    YAML::Node root = YAML::Load(in);
+    if (!root.IsDefined() || root.IsNull()) return YAML::Node(YAML::NodeType::Map);
+    if (!root.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
+    check_node_budget(root, path);
+    check_keys(root, path, "", true);
+    return root;
   } catch (const YAML::Exception& e) {
     std::ostringstream message;
     message << path << ":" << (e.mark.line + 1) << ": not valid YAML: " << e.msg;
