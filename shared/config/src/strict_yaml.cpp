@@ -99,6 +99,21 @@ void check_node_budget(const YAML::Node& root, const std::string& path) {
   }
 }
 
+// The one mapping a config file holds. yaml-cpp's Load reads the first document only and gives
+// an empty file as null, which read as "every setting at its default".
+YAML::Node single_mapping(const std::vector<YAML::Node>& documents, const std::string& path) {
+  if (documents.empty()) {
+    throw InputError(path + ": has no YAML document (empty or only comments), expected a mapping");
+  }
+  if (documents.size() > 1) {
+    throw InputError(path + line_of(documents[1].Mark()) +
+                     ": a second YAML document, expected one (`---` starts another)");
+  }
+  const YAML::Node& root = documents.front();
+  if (root.IsNull()) throw InputError(path + ": top level is null, expected a YAML mapping");
+  if (!root.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
+  return root;
+}
 }  // namespace
 
 YAML::Node load_yaml_file(const std::string& given_path) {
@@ -116,9 +131,7 @@ YAML::Node load_yaml_file(const std::string& given_path) {
   try {
     // yaml-cpp shares an aliased node rather than copying it, so parsing is linear in the file;
     // the walks after it are what a bomb makes long, hence the budget before any of them.
-    YAML::Node root = YAML::Load(in);
-    if (!root.IsDefined() || root.IsNull()) return YAML::Node(YAML::NodeType::Map);
-    if (!root.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
+    YAML::Node root = single_mapping(YAML::LoadAll(in), path);
     check_node_budget(root, path);
     check_keys(root, path, "", true);
     return root;

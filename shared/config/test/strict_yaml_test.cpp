@@ -217,6 +217,29 @@ TEST(LoadYamlFile, SelfReferenceIsRefusedNotWalkedForever) {
   EXPECT_THAT(input_error_message([&] { load_yaml_file(path); }), HasSubstr(path + ":"));
 }
 
+// An empty, comment-only or `~` file used to load as a mapping with no keys: every setting
+// silently its default.
+TEST(LoadYamlFile, EmptyCommentOnlyOrNullFileIsAnErrorNamingTheFile) {
+  const std::string empty = write_file("hq_yaml_empty.yaml", "");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(empty); }),
+              HasSubstr(empty + ": has no YAML document"));
+  const std::string comments = write_file("hq_yaml_comments.yaml", "# odometry:\n#  gain: 2\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(comments); }),
+              HasSubstr(comments + ": has no YAML document"));
+  const std::string null = write_file("hq_yaml_null.yaml", "~\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(null); }),
+              HasSubstr(null + ": top level is null, expected a YAML mapping"));
+}
+
+// yaml-cpp's Load reads the first document only: a second one was ignored without a word.
+TEST(LoadYamlFile, SecondDocumentIsAnErrorNamingFileAndLine) {
+  const std::string path = write_file("hq_yaml_two_docs.yaml",
+                                      "odometry: {max_iterations_per_level: 10}\n---\n"
+                                      "odometry: {max_iterations_per_level: 99}\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path); }),
+              HasSubstr(path + ":3: a second YAML document, expected one"));
+}
+
 // Every YAML file the repository ships passes the loader's file-level checks (one document, a
 // mapping, within the node budget, scalar keys once each).
 TEST(LoadYamlFile, EveryShippedYamlFileLoads) {

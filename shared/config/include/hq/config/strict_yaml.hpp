@@ -22,9 +22,10 @@ namespace hq::config {
 /// 300000. Counting stops at the budget: 10^6 nodes are walked in about 0.1 s.
 constexpr std::size_t kMaxYamlNodes = 1000000;
 
-/// Loads a YAML file; throws hq::InputError if it is missing, a directory, unreadable, not
-/// valid YAML, expands past kMaxYamlNodes, or has a key that is not a scalar or appears twice in
-/// one mapping (check_keys).
+/// Loads a YAML file; throws hq::InputError naming the file (and line where there is one) if it
+/// is missing, a directory, unreadable, not valid YAML, empty or only comments, null (`~`), not
+/// a mapping, holds more than one document, expands past kMaxYamlNodes, or has a key that is
+/// not a scalar or appears twice in one mapping (check_keys).
 YAML::Node load_yaml_file(const std::string& path);
 
 /// Throws hq::InputError naming file:line, key path and value if a mapping in `node` has a key
