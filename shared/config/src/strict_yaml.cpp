@@ -64,6 +64,9 @@ std::string line_of(const YAML::Mark& mark) {
   return text;
 }
 
+constexpr const char* kNullSectionText =
+    " is empty (null), expected a mapping (leave the key out for its defaults)";
+
 // Walks the tree as every loader will, an alias's subtree again wherever it is used, and stops
 // at kMaxYamlNodes: refusing a bomb costs no more than the budget, and a node that contains
 // itself (`a: &a [*a]`) ends the walk instead of the stack. The error names the top-level entry
@@ -146,9 +149,13 @@ YAML::Node load_yaml_file(const std::string& given_path) {
 
 StrictMap::StrictMap(const YAML::Node& node, std::string where, std::string prefix)
     : node_(node), where_(std::move(where)), prefix_(std::move(prefix)) {
-  if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap()) {
-    throw InputError(where_ + ": " + (prefix_.empty() ? std::string("top level") : prefix_) +
-                     " = " + to_text(node_) + ", expected a mapping");
+  const std::string name = prefix_.empty() ? std::string("top level") : prefix_;
+  if (node_.IsDefined() && node_.IsNull()) {
+    // `odometry:` with nothing under it read as "all defaults"; more likely lost indentation.
+    throw InputError(where_ + ": " + name + kNullSectionText);
+  }
+  if (node_.IsDefined() && !node_.IsMap()) {
+    throw InputError(where_ + ": " + name + " = " + to_text(node_) + ", expected a mapping");
   }
   // Maps built in memory (YAML::Load) have not been through load_yaml_file's check.
   check_keys(node_, where_, prefix_, false);
@@ -321,6 +328,14 @@ StrictMap StrictMap::child(const std::string& key) {
   const std::optional<YAML::Node> node = find(key);
   const std::string path = prefix_.empty() ? key : prefix_ + "." + key;
   if (!node) return StrictMap(YAML::Node(YAML::NodeType::Map), where_, path);
+  if (node->IsNull()) {
+    // The key's line: a null value's own mark is wherever the next token starts.
+    std::string line;
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      if (it->first.Scalar() == key) line = line_of(it->first.Mark());
+    }
+    throw InputError(where_ + line + ": " + path + kNullSectionText);
+  }
   return StrictMap(*node, where_, path);
 }
 

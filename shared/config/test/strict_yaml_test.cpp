@@ -240,6 +240,18 @@ TEST(LoadYamlFile, SecondDocumentIsAnErrorNamingFileAndLine) {
               HasSubstr(path + ":3: a second YAML document, expected one"));
 }
 
+// `odometry:` with nothing under it, or `odometry: ~`, read as "all defaults"; a section that is
+// meant to be defaults is left out.
+TEST(LoadYamlFile, NullSectionIsAnErrorNamingFileAndSection) {
+  for (const char* text : {"odometry:\nlink: {}\n", "odometry: ~\n"}) {
+    const std::string path = write_file("hq_yaml_null_section.yaml", text);
+    StrictMap root(load_yaml_file(path), path);
+    EXPECT_THAT(input_error_message([&] { static_cast<void>(root.child("odometry")); }),
+                HasSubstr(path + ":1: odometry is empty (null), expected a mapping"))
+        << text;
+  }
+}
+
 // Every YAML file the repository ships passes the loader's file-level checks (one document, a
 // mapping, within the node budget, scalar keys once each).
 TEST(LoadYamlFile, EveryShippedYamlFileLoads) {

@@ -46,6 +46,8 @@ inline const std::vector<std::string> kSharedFileSections = {
 class StrictMap {
  public:
   /// @param where  file name used in messages; @param prefix  key path of this map ("" at root).
+  /// Throws hq::InputError if `node` is neither absent nor a mapping; a null one (`odometry:`
+  /// with nothing under it, `odometry: ~`) included: a section meant as defaults is left out.
   StrictMap(const YAML::Node& node, std::string where, std::string prefix = "");
 
   /// Optional keys: absent keeps `value`. Range is inclusive unless stated.
