@@ -19,6 +19,16 @@ TEST(CalibFiles, EveryShippedCameraFileLoads) {
   EXPECT_EQ(loaded, 3) << "expected tum_fr1, tum_fr2 and tum_fr3";
 }
 
+// The depth cameras the vehicle flies give millimetres; TUM's PNGs 5000 units per metre.
+TEST(CalibFiles, EveryShippedCameraFileStatesItsDepthScale) {
+  EXPECT_DOUBLE_EQ(hq::config::load_camera_info("calib/kinect_v1.yaml").depth_scale_units_per_m,
+                   1000.0);
+  EXPECT_DOUBLE_EQ(
+      hq::config::load_camera_info("calib/xtion_pro_live.yaml").depth_scale_units_per_m, 1000.0);
+  EXPECT_DOUBLE_EQ(hq::config::load_camera_info("calib/tum_fr2.yaml").depth_scale_units_per_m,
+                   5000.0);
+}
+
 TEST(CalibFiles, Fr1MatchesTheTumCalibration) {
   const auto info = hq::config::load_camera_info("calib/tum_fr1.yaml");
   EXPECT_DOUBLE_EQ(info.fx, 517.3);

@@ -402,6 +402,19 @@ Walker read_walker(StrictMap p, std::uint32_t& salt) {
   return walker;
 }
 
+// A marker's normal is written as a unit vector; one farther from length 1 than rounding in
+// the file's digits is a typo in a direction, which normalising would hide.
+constexpr double kNormalLengthTolerance = 1e-3;
+// How far in front of a marker its face is probed for free space: more than the renderer's
+// 1 cm on-surface tolerance would reach across thin boxes, less would miss it.
+constexpr double kFaceProbeM = 0.01;
+
+std::string vector_text(const Eigen::Vector3d& v) {
+  std::ostringstream text;
+  text << "[" << v.x() << ", " << v.y() << ", " << v.z() << "]";
+  return text.str();
+}
+
 Marker read_marker(StrictMap m) {
   Marker marker;
   double center[3] = {0, 0, 0};
@@ -414,12 +427,46 @@ Marker read_marker(StrictMap m) {
   m.read_deg_as_rad("rotation_deg", marker.rotation_rad, -180.0, 180.0);
   m.finish();
   const Eigen::Vector3d n(normal[0], normal[1], normal[2]);
-  if (n.norm() < 1e-6) {
-    throw InputError(m.describe("normal") + " = [0, 0, 0], expected a direction");
+  if (!(std::abs(n.norm() - 1.0) <= kNormalLengthTolerance)) {
+    std::ostringstream message;
+    message << m.describe("normal") << " (id " << marker.id << ") = " << vector_text(n)
+            << " has length " << n.norm()
+            << ", expected a unit vector (|length - 1| <= " << kNormalLengthTolerance << ")";
+    throw InputError(message.str());
   }
   marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
   marker.normal_world = n.normalized();
   return marker;
+}
+
+/// What a marker's face looks into, just in front of it: "" for free space, else "the floor"
+/// or the solid it faces into. A flipped normal puts the printed side against its surface,
+/// where no camera sees it. Walls are two-sided, so a marker on one faces free space both ways.
+std::string faced_solid(const World& world, const Marker& marker) {
+  const Eigen::Vector3d front = marker.center_world_m + kFaceProbeM * marker.normal_world;
+  if (front.z() < 0.0) return "the floor";
+  for (std::size_t i = 0; i < world.boxes.size(); ++i) {
+    if (distance_to_box(world.boxes[i], front) < 0.0) return "boxes[" + std::to_string(i) + "]";
+  }
+  for (std::size_t i = 0; i < world.cylinders.size(); ++i) {
+    if (distance_to_cylinder(world.cylinders[i], front) < 0.0) {
+      return "cylinders[" + std::to_string(i) + "]";
+    }
+  }
+  return "";
+}
+
+/// The markers of the file's list, which are world.markers' first entries.
+void check_markers_face_free_space(const World& world, std::size_t listed,
+                                   const std::string& path) {
+  for (std::size_t k = 0; k < listed; ++k) {
+    const Marker& marker = world.markers[k];
+    const std::string solid = faced_solid(world, marker);
+    if (solid.empty()) continue;
+    throw InputError(path + ": markers[" + std::to_string(k) + "].normal (id " +
+                     std::to_string(marker.id) + ") = " + vector_text(marker.normal_world) +
+                     " faces into " + solid + ", expected it to face free space");
+  }
 }
 
 /// One list of the world file, each entry read by read_entry(StrictMap) in file order (the
@@ -503,6 +550,7 @@ World load_world(const std::string& path) {
   });
   read_list(root, "markers", path,
             [&](StrictMap entry) { world.markers.push_back(read_marker(std::move(entry))); });
+  check_markers_face_free_space(world, world.markers.size(), path);
   read_list(root, "people", path,
             [&](StrictMap entry) { world.people.push_back(read_walker(std::move(entry), salt)); });
   read_marker_grid(map, world);

@@ -351,6 +351,34 @@ TEST(WorldTest, PositionsAndPrimitiveCountHavePhysicalBounds) {
                         "cylinders, 0 markers, 0 people), expected at most 10000"));
 }
 
+// A normal of length 2 or 0.5 was normalised without a word: a typo in a direction is refused.
+TEST(WorldTest, MarkerNormalOfNonUnitLengthIsRefusedNamingIdAndFile) {
+  EXPECT_THAT(error_of("markers:\n  - {id: 7, center_m: [0, 0, 0], normal: [0, 0, 2]}\n"),
+              HasSubstr("hq_sim_world_test.yaml: markers[0].normal (id 7) = [0, 0, 2] has length "
+                        "2, expected a unit vector (|length - 1| <= 0.001)"));
+  EXPECT_THAT(error_of("markers:\n  - {id: 8, center_m: [0, 0, 0], normal: [0, 0, 0.99]}\n"),
+              HasSubstr("markers[0].normal (id 8) = [0, 0, 0.99] has length 0.99"));
+  EXPECT_NO_THROW(load_world(
+      write_temp("hq_sim_world_unit_normal_test.yaml",
+                 "markers:\n  - {id: 9, center_m: [0, 0, 0], normal: [0, 0, 0.9999]}\n")));
+}
+
+// A flipped normal faces into the floor or a box: the tag is printed on the side no camera can
+// see, and the marker modes wait for a marker that never appears.
+TEST(WorldTest, MarkerNormalFacingIntoTheFloorOrABoxIsRefused) {
+  EXPECT_THAT(error_of("markers:\n  - {id: 3, center_m: [1, 0, 0], normal: [0, 0, -1]}\n"),
+              HasSubstr("hq_sim_world_test.yaml: markers[0].normal (id 3) = [0, 0, -1] faces "
+                        "into the floor, expected it to face free space"));
+  EXPECT_THAT(error_of("boxes:\n  - {center_m: [0, 0, 0.5], size_m: [1, 1, 1]}\n"
+                       "markers:\n  - {id: 4, center_m: [0.5, 0, 0.5], normal: [-1, 0, 0]}\n"),
+              HasSubstr("markers[0].normal (id 4) = [-1, 0, 0] faces into boxes[0], expected it "
+                        "to face free space"));
+  EXPECT_NO_THROW(load_world(
+      write_temp("hq_sim_world_box_marker_test.yaml",
+                 "boxes:\n  - {center_m: [0, 0, 0.5], size_m: [1, 1, 1]}\n"
+                 "markers:\n  - {id: 4, center_m: [0.5, 0, 0.5], normal: [1, 0, 0]}\n")));
+}
+
 TEST(WorldTest, SimCameraFocalLengthHasPhysicalBounds) {
   const std::string path =
       write_temp("hq_sim_config_fov_test.yaml", "camera: {width: 16, height: 16, hfov_deg: 170}\n");

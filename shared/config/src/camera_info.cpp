@@ -74,8 +74,12 @@ CameraInfo load_camera_info(const std::string& path) {
   info.fy = K[4];
   info.cx = K[2];
   info.cy = K[5];
-  if (info.cx < 0 || info.cx > info.width || info.cy < 0 || info.cy > info.height) {
-    throw InputError(root.describe("camera_matrix") + ": principal point outside the image");
+  // Strictly inside: a principal point on the border (cx = 0) is a value left out, not a lens.
+  if (!(info.cx > 0.0 && info.cx < info.width && info.cy > 0.0 && info.cy < info.height)) {
+    std::ostringstream message;
+    message << root.describe("camera_matrix") << ": principal point (" << info.cx << ", " << info.cy
+            << "), expected 0 < cx < " << info.width << " and 0 < cy < " << info.height;
+    throw InputError(message.str());
   }
   root.read("distortion_model", info.distortion_model, {"plumb_bob", "none"});
   if (root.has("distortion_coefficients")) {
@@ -86,6 +90,13 @@ CameraInfo load_camera_info(const std::string& path) {
     root.skip("distortion_coefficients");
   }
   if (info.distortion_model == "none") info.distortion.clear();
+  // Required: TUM's PNGs hold 5000 units per metre, OpenNI2 and libfreenect millimetres (1000);
+  // a default fits one and scales the other's every depth by 5 without a word.
+  if (!root.has("depth_scale_units_per_m")) {
+    throw InputError(root.describe("depth_scale_units_per_m") +
+                     " is missing, expected the depth image's units per metre (1000 for "
+                     "OpenNI2 and libfreenect millimetres, 5000 for TUM RGB-D)");
+  }
   root.read_positive("depth_scale_units_per_m", info.depth_scale_units_per_m, 1e6);
   // Keys of the ROS layout that carry no extra information for a monocular camera.
   for (const char* ignored : {"rectification_matrix", "projection_matrix"}) {

@@ -11,6 +11,7 @@
 #include <optional>
 #include <sstream>
 #include <unordered_map>
+#include <vector>
 
 namespace hq::config {
 
@@ -56,6 +57,68 @@ void check_keys(const YAML::Node& node, const std::string& where, const std::str
   }
 }
 
+namespace {
+std::string line_of(const YAML::Mark& mark) {
+  std::string text;
+  if (!mark.is_null()) text.append(":").append(std::to_string(mark.line + 1));
+  return text;
+}
+
+constexpr const char* kNullSectionText =
+    " is empty (null), expected a mapping (leave the key out for its defaults)";
+
+// Walks the tree as every loader will, an alias's subtree again wherever it is used, and stops
+// at kMaxYamlNodes: refusing a bomb costs no more than the budget, and a node that contains
+// itself (`a: &a [*a]`) ends the walk instead of the stack. The error names the top-level entry
+// whose expansion crosses the budget.
+void check_node_budget(const YAML::Node& root, const std::string& path) {
+  std::size_t count = 1;
+  std::vector<YAML::Node> pending;
+  for (auto entry = root.begin(); entry != root.end(); ++entry) {
+    pending = {entry->first, entry->second};
+    count += 2;
+    while (!pending.empty() && count <= kMaxYamlNodes) {
+      const YAML::Node node = pending.back();
+      pending.pop_back();
+      if (!node.IsMap() && !node.IsSequence()) continue;
+      for (auto child = node.begin(); child != node.end() && count <= kMaxYamlNodes; ++child) {
+        if (node.IsMap()) {
+          pending.push_back(child->first);
+          pending.push_back(child->second);
+          count += 2;
+        } else {
+          pending.push_back(*child);
+          ++count;
+        }
+      }
+    }
+    if (count > kMaxYamlNodes) {
+      const std::string key = entry->first.IsScalar() ? entry->first.Scalar() : "an entry";
+      throw InputError(path + line_of(entry->first.Mark()) + ": " + key + " expands past " +
+                       std::to_string(kMaxYamlNodes) +
+                       " YAML nodes (each alias counted wherever it is used), expected at most " +
+                       std::to_string(kMaxYamlNodes) + "; an alias bomb?");
+    }
+  }
+}
+
+// The one mapping a config file holds. yaml-cpp's Load reads the first document only and gives
+// an empty file as null, which read as "every setting at its default".
+YAML::Node single_mapping(const std::vector<YAML::Node>& documents, const std::string& path) {
+  if (documents.empty()) {
+    throw InputError(path + ": has no YAML document (empty or only comments), expected a mapping");
+  }
+  if (documents.size() > 1) {
+    throw InputError(path + line_of(documents[1].Mark()) +
+                     ": a second YAML document, expected one (`---` starts another)");
+  }
+  const YAML::Node& root = documents.front();
+  if (root.IsNull()) throw InputError(path + ": top level is null, expected a YAML mapping");
+  if (!root.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
+  return root;
+}
+}  // namespace
+
 YAML::Node load_yaml_file(const std::string& given_path) {
   const std::string path = resolve_data_path(given_path);
   std::error_code ec;
@@ -69,11 +132,12 @@ YAML::Node load_yaml_file(const std::string& given_path) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot read: " + std::strerror(errno));
   try {
-    YAML::Node node = YAML::Load(in);
-    if (!node.IsDefined() || node.IsNull()) return YAML::Node(YAML::NodeType::Map);
-    if (!node.IsMap()) throw InputError(path + ": expected a YAML mapping at the top level");
-    check_keys(node, path, "", true);
-    return node;
+    // yaml-cpp shares an aliased node rather than copying it, so parsing is linear in the file;
+    // the walks after it are what a bomb makes long, hence the budget before any of them.
+    YAML::Node root = single_mapping(YAML::LoadAll(in), path);
+    check_node_budget(root, path);
+    check_keys(root, path, "", true);
+    return root;
   } catch (const YAML::Exception& e) {
     std::ostringstream message;
     message << path << ":" << (e.mark.line + 1) << ": not valid YAML: " << e.msg;
@@ -85,9 +149,13 @@ YAML::Node load_yaml_file(const std::string& given_path) {
 
 StrictMap::StrictMap(const YAML::Node& node, std::string where, std::string prefix)
     : node_(node), where_(std::move(where)), prefix_(std::move(prefix)) {
-  if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap()) {
-    throw InputError(where_ + ": " + (prefix_.empty() ? std::string("top level") : prefix_) +
-                     " = " + to_text(node_) + ", expected a mapping");
+  const std::string name = prefix_.empty() ? std::string("top level") : prefix_;
+  if (node_.IsDefined() && node_.IsNull()) {
+    // `odometry:` with nothing under it read as "all defaults"; more likely lost indentation.
+    throw InputError(where_ + ": " + name + kNullSectionText);
+  }
+  if (node_.IsDefined() && !node_.IsMap()) {
+    throw InputError(where_ + ": " + name + " = " + to_text(node_) + ", expected a mapping");
   }
   // Maps built in memory (YAML::Load) have not been through load_yaml_file's check.
   check_keys(node_, where_, prefix_, false);
@@ -260,6 +328,14 @@ StrictMap StrictMap::child(const std::string& key) {
   const std::optional<YAML::Node> node = find(key);
   const std::string path = prefix_.empty() ? key : prefix_ + "." + key;
   if (!node) return StrictMap(YAML::Node(YAML::NodeType::Map), where_, path);
+  if (node->IsNull()) {
+    // The key's line: a null value's own mark is wherever the next token starts.
+    std::string line;
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      if (it->first.Scalar() == key) line = line_of(it->first.Mark());
+    }
+    throw InputError(where_ + line + ": " + path + kNullSectionText);
+  }
   return StrictMap(*node, where_, path);
 }
 

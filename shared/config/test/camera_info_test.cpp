@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <unistd.h>
 
 namespace hq::config {
@@ -43,6 +44,7 @@ image_height: 480
 camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 501, 240, 0, 0, 1]}
 distortion_model: plumb_bob
 distortion_coefficients: {rows: 1, cols: 5, data: [0.1, -0.2, 0, 0, 0]}
+depth_scale_units_per_m: 5000
 )";
 
 TEST_F(CameraFile, LoadsTheRosLayout) {
@@ -111,6 +113,33 @@ TEST_F(CameraFile, FocalLengthOutsidePhysicalRangeIsNamed) {
   std::string huge = kGood;
   huge.replace(huge.find("501"), 3, "2e6");
   EXPECT_THAT(error_of(huge), HasSubstr("camera_matrix: fy = 2e+06, expected in [10, 10000] px"));
+}
+
+// kGood with the principal point at (cx, cy) and, if asked, without its depth scale.
+std::string camera_text(const std::string& cx, const std::string& cy, bool with_depth_scale) {
+  std::ostringstream text;
+  text << "image_width: 640\nimage_height: 480\n"
+       << "camera_matrix: {rows: 3, cols: 3, data: [500, 0, " << cx << ", 0, 501, " << cy
+       << ", 0, 0, 1]}\n";
+  if (with_depth_scale) text << "depth_scale_units_per_m: 5000\n";
+  return text.str();
+}
+
+// A camera file without a depth scale read TUM's 5000 units per metre; OpenNI2 and libfreenect
+// give millimetres (1000), so every depth was 5 times too small without a word.
+TEST_F(CameraFile, MissingDepthScaleIsAnError) {
+  EXPECT_NO_THROW(load_camera_info(write(camera_text("320", "240", true))));
+  EXPECT_THAT(error_of(camera_text("320", "240", false)),
+              HasSubstr(path_.string() + ": depth_scale_units_per_m is missing"));
+}
+
+// cx = 0 passed "inside the image": a principal point on the border is a missing value, not a
+// lens.
+TEST_F(CameraFile, PrincipalPointOnTheBorderIsRefused) {
+  EXPECT_THAT(error_of(camera_text("0", "240", true)),
+              HasSubstr(path_.string() + ": camera_matrix: principal point (0, 240), "
+                                         "expected 0 < cx < 640 and 0 < cy < 480"));
+  EXPECT_THAT(error_of(camera_text("320", "480", true)), HasSubstr("principal point (320, 480)"));
 }
 
 }  // namespace

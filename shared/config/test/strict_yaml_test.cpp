@@ -5,9 +5,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 namespace hq::config {
 namespace {
@@ -175,6 +180,91 @@ TEST(StrictMap, SharedSectionsCoverTheBundledOnboardConfig) {
   const YAML::Node root = load_yaml_file("config/onboard.yaml");
   StrictMap map(root, "config/onboard.yaml");
   map.finish_sections();
+}
+
+// "Billion laughs": each level lists the previous one ten times, so 10 levels are 10^10 nodes
+// once the aliases are expanded, in a file of a dozen lines.
+std::string alias_bomb(int levels) {
+  std::ostringstream text;
+  text << "l0: &l0 lol\n";
+  for (int level = 1; level <= levels; ++level) {
+    text << "l" << level << ": &l" << level << " [";
+    for (int i = 0; i < 10; ++i) text << (i > 0 ? ", " : "") << "*l" << level - 1;
+    text << "]\n";
+  }
+  return text.str();
+}
+
+// GIVEN a 10-level alias bomb, WHEN loaded, THEN it is refused naming the file, the line of the
+// entry that expands past the budget and the budget, instead of walking 10^10 nodes (every
+// loader was busy for minutes).
+TEST(LoadYamlFile, AliasBombIsRefusedNamingFileLineAndBudget) {
+  const std::string path = write_file("hq_yaml_bomb.yaml", alias_bomb(10));
+  const auto start = std::chrono::steady_clock::now();
+  const std::string message = input_error_message([&] { load_yaml_file(path); });
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("[ figures  ] 10-level alias bomb refused in %.3f s: %s\n", elapsed_s,
+              message.c_str());
+  EXPECT_THAT(message, HasSubstr(path + ":"));
+  EXPECT_THAT(message, HasSubstr(std::to_string(kMaxYamlNodes)));
+  EXPECT_LT(elapsed_s, 5.0) << "a generous bound that only catches a walk of the whole bomb";
+}
+
+// An alias may name the collection it sits in; a walk that follows it never ends.
+TEST(LoadYamlFile, SelfReferenceIsRefusedNotWalkedForever) {
+  const std::string path = write_file("hq_yaml_cycle.yaml", "a: &a [1, *a]\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path); }), HasSubstr(path + ":"));
+}
+
+// An empty, comment-only or `~` file used to load as a mapping with no keys: every setting
+// silently its default.
+TEST(LoadYamlFile, EmptyCommentOnlyOrNullFileIsAnErrorNamingTheFile) {
+  const std::string empty = write_file("hq_yaml_empty.yaml", "");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(empty); }),
+              HasSubstr(empty + ": has no YAML document"));
+  const std::string comments = write_file("hq_yaml_comments.yaml", "# odometry:\n#  gain: 2\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(comments); }),
+              HasSubstr(comments + ": has no YAML document"));
+  const std::string null = write_file("hq_yaml_null.yaml", "~\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(null); }),
+              HasSubstr(null + ": top level is null, expected a YAML mapping"));
+}
+
+// yaml-cpp's Load reads the first document only: a second one was ignored without a word.
+TEST(LoadYamlFile, SecondDocumentIsAnErrorNamingFileAndLine) {
+  const std::string path = write_file("hq_yaml_two_docs.yaml",
+                                      "odometry: {max_iterations_per_level: 10}\n---\n"
+                                      "odometry: {max_iterations_per_level: 99}\n");
+  EXPECT_THAT(input_error_message([&] { load_yaml_file(path); }),
+              HasSubstr(path + ":3: a second YAML document, expected one"));
+}
+
+// `odometry:` with nothing under it, or `odometry: ~`, read as "all defaults"; a section that is
+// meant to be defaults is left out.
+TEST(LoadYamlFile, NullSectionIsAnErrorNamingFileAndSection) {
+  for (const char* text : {"odometry:\nlink: {}\n", "odometry: ~\n"}) {
+    const std::string path = write_file("hq_yaml_null_section.yaml", text);
+    StrictMap root(load_yaml_file(path), path);
+    EXPECT_THAT(input_error_message([&] { static_cast<void>(root.child("odometry")); }),
+                HasSubstr(path + ":1: odometry is empty (null), expected a mapping"))
+        << text;
+  }
+}
+
+// Every YAML file the repository ships passes the loader's file-level checks (one document, a
+// mapping, within the node budget, scalar keys once each).
+TEST(LoadYamlFile, EveryShippedYamlFileLoads) {
+  int loaded = 0;
+  for (const char* folder : {"config", "calib", "onboard/sim/worlds", "onboard/sim/config",
+                             "onboard/closed_loop/flights", "ground/config"}) {
+    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+      if (entry.path().extension() != ".yaml") continue;
+      EXPECT_NO_THROW(load_yaml_file(entry.path().string())) << entry.path();
+      ++loaded;
+    }
+  }
+  EXPECT_GE(loaded, 20);
 }
 
 }  // namespace

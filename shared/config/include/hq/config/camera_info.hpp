@@ -9,7 +9,7 @@
 ///   camera_matrix: {rows: 3, cols: 3, data: [fx, 0, cx, 0, fy, cy, 0, 0, 1]}
 ///   distortion_model: plumb_bob
 ///   distortion_coefficients: {rows: 1, cols: 5, data: [k1, k2, p1, p2, k3]}
-///   depth_scale_units_per_m: 5000     # optional HaptiQuad extension
+///   depth_scale_units_per_m: 5000     # required HaptiQuad extension (1000 for millimetres)
 
 #include "hq/base/error.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
@@ -33,7 +33,7 @@ struct CameraInfo {
   double fx = 0.0, fy = 0.0, cx = 0.0, cy = 0.0;
   std::string distortion_model = "plumb_bob";
   std::vector<double> distortion;  ///< k1 k2 p1 p2 k3 for plumb_bob; empty or zeros = none.
-  double depth_scale_units_per_m = 5000.0;
+  double depth_scale_units_per_m = 5000.0;  ///< a file must state it; this is for cameras in code
 
   [[nodiscard]] bool has_distortion() const;
   /// Intrinsics of the undistorted image (same K: undistortion keeps the camera matrix).

@@ -8,14 +8,24 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cstddef>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace hq::config {
 
-/// Loads a YAML file; throws hq::InputError if it is missing, a directory, unreadable, not
-/// valid YAML, or has a key that is not a scalar or appears twice in one mapping (check_keys).
+/// Most nodes a file may hold, an alias counted again (with its whole subtree) wherever it is
+/// used. yaml-cpp shares an aliased node instead of copying it, so a "billion laughs" file of a
+/// dozen lines parses at once but is 10^10 nodes to every walk over it (minutes in each loader).
+/// The largest shipped file has about 450 nodes; a world at its 10000-primitive limit about
+/// 300000. Counting stops at the budget: 10^6 nodes are walked in about 0.1 s.
+constexpr std::size_t kMaxYamlNodes = 1000000;
+
+/// Loads a YAML file; throws hq::InputError naming the file (and line where there is one) if it
+/// is missing, a directory, unreadable, not valid YAML, empty or only comments, null (`~`), not
+/// a mapping, holds more than one document, expands past kMaxYamlNodes, or has a key that is
+/// not a scalar or appears twice in one mapping (check_keys).
 YAML::Node load_yaml_file(const std::string& path);
 
 /// Throws hq::InputError naming file:line, key path and value if a mapping in `node` has a key
@@ -36,6 +46,8 @@ inline const std::vector<std::string> kSharedFileSections = {
 class StrictMap {
  public:
   /// @param where  file name used in messages; @param prefix  key path of this map ("" at root).
+  /// Throws hq::InputError if `node` is neither absent nor a mapping; a null one (`odometry:`
+  /// with nothing under it, `odometry: ~`) included: a section meant as defaults is left out.
   StrictMap(const YAML::Node& node, std::string where, std::string prefix = "");
 
   /// Optional keys: absent keeps `value`. Range is inclusive unless stated.
