@@ -113,6 +113,8 @@ const char* operator_input_warning(int input) {
       return "commands ignored: fail-safe";
     case hq_msgs_INPUT_LIMITED_UNSEEN:
       return "slowed: unseen space";
+    case hq_msgs_INPUT_LIMITED_ENVELOPE:
+      return "slowed: flight envelope (ceiling)";
     default:
       return "";
   }

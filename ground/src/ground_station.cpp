@@ -194,6 +194,8 @@ const char* operator_input_name(hq_msgs_OperatorInput v) {
       return "ignored_failsafe";
     case hq_msgs_INPUT_LIMITED_UNSEEN:
       return "limited_unseen";
+    case hq_msgs_INPUT_LIMITED_ENVELOPE:
+      return "limited_envelope";
   }
   return "unknown";
 }

@@ -322,8 +322,10 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.session_id = session_id();
   s.commanding_station_id = link_state.commanding_station_id;
   s.operator_input = operator_input(link_state, out.mode.mode, out.mode.landed);
-  // A command the fail-safe lets through may still be cut by the seen-space limit.
-  if (s.operator_input == hq_msgs_INPUT_FLOWN && out.command_limited) {
+  // A command the fail-safe lets through may still be cut by the envelope or the seen space.
+  if (s.operator_input == hq_msgs_INPUT_FLOWN && out.command_envelope_limited) {
+    s.operator_input = hq_msgs_INPUT_LIMITED_ENVELOPE;
+  } else if (s.operator_input == hq_msgs_INPUT_FLOWN && out.command_limited) {
     s.operator_input = hq_msgs_INPUT_LIMITED_UNSEEN;
   }
   s.obstacle_points_body_m._length = 0;

@@ -246,6 +246,30 @@ TEST(LinkBridge, PublishesTheCommandAsFlownAndWhetherTheSeenSpaceCutIt) {
   EXPECT_NE(state.operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);
 }
 
+// A climb cut by the flight envelope's ceiling says so, apart from the seen space's cut.
+TEST(LinkBridge, SaysWhenTheFlightEnvelopeCutTheClimb) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  pipeline::ChainOutput out;
+  out.mode.mode = modes::Mode::kTeleop;
+  out.v_cmd_flown_H_mps = {0.0, 0.0, -0.05};
+  out.command_limited = true;
+  out.command_envelope_limited = true;
+  link::VelocityCommand fresh{};
+  fresh.vehicle_id = 1;
+  fresh.station_id = 1;
+  link::VehicleState state{};
+  ASSERT_TRUE(publish_until(
+      bridge, ground, out, state,
+      [](const link::VehicleState& s) {
+        return s.operator_input == hq_msgs_INPUT_LIMITED_ENVELOPE;
+      },
+      {}, &fresh));
+  EXPECT_FLOAT_EQ(state.v_cmd_flown_H_mps.z, -0.05F);
+  EXPECT_TRUE(link::validate(state).ok);
+}
+
 // GIVEN two bridges (a vehicle and its restart) THEN their sessions differ and the state of each
 // carries the station whose commands it flies.
 TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {

@@ -135,6 +135,7 @@ void ModeController::limit_to_envelope(Target& wanted, ModeOutput& out) const {
   }
   wanted.v_H_mps.z() = -max_climb_mps;
   out.envelope_limited = true;
+  out.envelope_max_climb_mps = max_climb_mps;
 }
 
 void ModeController::set_operator_command(const OperatorCommand& command) {

@@ -345,6 +345,14 @@ void OnboardChain::finish_output(ChainOutput& out) const {
     out.flight_state = modes::FlightState::kTakingOff;
   }
   out.clearance_m = out.obstacles.min_clearance_m;
+  // The operator feels the envelope's cut as the seen space's: the climb flown is what the
+  // vehicle does, and the command-versus-estimate cue pushes back on the rest.
+  if (out.mode.envelope_limited && out.mode.mode == modes::Mode::kTeleop && !out.mode.taking_off) {
+    out.v_cmd_flown_H_mps.z() =
+        std::max(out.v_cmd_flown_H_mps.z(), -out.mode.envelope_max_climb_mps);
+    out.command_limited = true;
+    out.command_envelope_limited = true;
+  }
 }
 
 void OnboardChain::apply_operator_limit(ChainOutput* out) {

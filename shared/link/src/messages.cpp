@@ -106,7 +106,7 @@ Validation validate(const VehicleState& state) {
   if (!in_enum(state.height_source, hq_msgs_HEIGHT_NONE, hq_msgs_HEIGHT_ESTIMATE)) {
     return {false, "height_source outside HeightSource enum"};
   }
-  if (!in_enum(state.operator_input, hq_msgs_INPUT_FLOWN, hq_msgs_INPUT_LIMITED_UNSEEN)) {
+  if (!in_enum(state.operator_input, hq_msgs_INPUT_FLOWN, hq_msgs_INPUT_LIMITED_ENVELOPE)) {
     return {false, "operator_input outside OperatorInput enum"};
   }
   if (!std::isfinite(state.height_m) || !std::isfinite(state.clearance_m)) {

@@ -110,7 +110,8 @@ struct ModeOutput {
   bool taking_off = false;        ///< Climbing to takeoff_target_height_m after request_takeoff().
   /// The climb asked for was limited by the envelope (ceiling, or the height unknown).
   bool envelope_limited = false;
-  const char* envelope_reason = "";  ///< Static text when limited.
+  double envelope_max_climb_mps = 0.0;  ///< The climb allowed when envelope_limited (NED: -z).
+  const char* envelope_reason = "";     ///< Static text when limited.
   FlightState flight_state = FlightState::kLanded;
   /// The operator's command is not flown this step (landed, taking off, or not in teleop).
   bool operator_ignored = false;

@@ -161,6 +161,9 @@ struct ChainOutput {
   Eigen::Vector3d v_cmd_flown_H_mps = Eigen::Vector3d::Zero();
   bool command_limited = false;
   bool command_unseen = false;
+  /// The operator's climb was limited by the flight envelope (modes.max_height_m, or the
+  /// height unknown); v_cmd_flown_H_mps shows the climb flown.
+  bool command_envelope_limited = false;
   /// Allowed speed per direction in H, bin 0 along the heading then clockwise, for
   /// seen_space_bins bins (m/s; the creep speed where nothing is known).
   std::array<float, seen_space::kMaxBins> seen_space_limits_mps{};
