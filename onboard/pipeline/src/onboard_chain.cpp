@@ -162,7 +162,9 @@ void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, con
   // target, the marker and explore modes hand the touchdown to Mode::kLand.
   if (markers_) {
     markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_O_C);
-    if (markers_->wants_land(modes_.mode())) modes_.request_mode(modes::Mode::kLand);
+    if (markers_->wants_land(modes_.mode())) {
+      modes_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
+    }
   }
 }
 
@@ -382,7 +384,7 @@ void OnboardChain::escalate_safe_hover(ChainOutput& out) {
   }
   const double hover_s = 1e-9 * static_cast<double>(out.t_ns - t_safe_hover_start_ns_);
   if (hover_s >= config_.chain.safe_hover_land_s && modes_.mode() != modes::Mode::kLand) {
-    modes_.request_mode(modes::Mode::kLand);
+    modes_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
     lost_estimate_landing_ = true;
     out.safe_hover_landing = true;
   }
@@ -395,14 +397,21 @@ void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
   apply_operator_limit(nullptr);
 }
 
-modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) {
-  return request_mode(ModeRequest{mode, std::nullopt});
+namespace {
+constexpr const char* kLostEstimateRefusal =
+    "no velocity estimate: landing after the safe hover (chain.safe_hover_land_s)";
+}  // namespace
+
+modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode, modes::RequestOrigin origin) {
+  if (origin == modes::RequestOrigin::kOperator)
+    return request_mode(ModeRequest{mode, std::nullopt});
+  if (lost_estimate_landing_ && mode != modes::Mode::kLand) return {false, kLostEstimateRefusal};
+  return modes_.request_mode(mode, origin);
 }
 
 modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
-  if (lost_estimate_landing_ && request.mode != modes::Mode::kLand) {
-    return {false, "no velocity estimate: landing after the safe hover (chain.safe_hover_land_s)"};
-  }
+  if (lost_estimate_landing_ && request.mode != modes::Mode::kLand)
+    return {false, kLostEstimateRefusal};
   if (request.marker) {
     if (request.marker->marker_id < 0) return {false, "marker target id is negative"};
     if (!markers_) {
@@ -411,7 +420,7 @@ modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
     markers_->marker_mode().set_task(request.marker->task, request.marker->marker_id);
   }
   return request.take_off ? modes_.request_takeoff(request.mode)
-                          : modes_.request_mode(request.mode);
+                          : modes_.request_mode(request.mode, modes::RequestOrigin::kOperator);
 }
 
 }  // namespace hq::pipeline

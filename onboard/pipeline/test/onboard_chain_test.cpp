@@ -245,7 +245,7 @@ TEST_F(LandedChainOnRenderedPlane, StartsLandedWithMotorsIdleAndTakesOffOnAClimb
     EXPECT_TRUE(setpoint_finite(out)) << "frame " << k;
   }
   // ... also in teleop with a horizontal command only.
-  ASSERT_TRUE(chain_.request_mode(modes::Mode::kTeleop).accepted);
+  ASSERT_TRUE(chain_.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator).accepted);
   chain_.set_operator_command({11 * kFramePeriodNs, Eigen::Vector3d(0.3, 0.0, 0.0), 0.0});
   ChainOutput out = frame(10);
   EXPECT_TRUE(out.mode.landed);
@@ -405,7 +405,7 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   OnboardConfig config = airborne_config();
   config.chain.safe_hover_land_s = 2.0;
   OnboardChain chain(config, control::VehicleConfig{}, kCamera);
-  chain.request_mode(modes::Mode::kTeleop);
+  chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
   const std::int64_t tick_ns = 5'000'000;
   const std::int64_t t_impact_ns = 9'000'000'000;  // after the blind_descent_s of 3 s
   std::int64_t t_first_hover_ns = -1;
@@ -433,7 +433,8 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
     }
     if (t_land_ns > 0 && t == t_land_ns + 1'000'000'000) {
       // Descending blind: no going back to teleop while there is no estimate.
-      const modes::ModeSwitch back = chain.request_mode(modes::Mode::kTeleop);
+      const modes::ModeSwitch back =
+          chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
       EXPECT_FALSE(back.accepted);
       EXPECT_THAT(back.reason, HasSubstr("landing"));
     }
