@@ -119,7 +119,14 @@ ModeSwitch ModeController::request_mode(Mode mode, RequestOrigin origin) {
     climb_target_height_m_ = config_.land_abort_min_height_m;
   }
   mode_ = mode;
-  mode_entered_ns_ = have_previous_ ? t_prev_ns_ : 0;
+  // The dwell holds an operator to their own choice. A mode the vehicle chose (a failsafe, the
+  // marker hand-over) the operator may answer at once, e.g. asking to fly again after the FC
+  // disarmed, or to hover out of a marker landing.
+  if (origin == RequestOrigin::kOperator) {
+    mode_entered_ns_ = have_previous_ ? t_prev_ns_ : 0;
+  } else {
+    mode_entered_ns_.reset();
+  }
   ramping_ = true;
   return {true, ""};
 }

@@ -639,6 +639,12 @@ TEST(ModeController, TheVehiclesOwnRequestsAreNotHeldToTheDwell) {
   EXPECT_EQ(modes.mode(), Mode::kLand);
   // ... and a request for the mode already flown is no change: accepted
   EXPECT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
+  // ... AND the operator may answer the vehicle's choice at once, but is then held to their own
+  modes.step(2 * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_TRUE(modes.request_mode(Mode::kHover, kOperator).accepted);
+  modes.step(3 * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_THAT(modes.request_mode(Mode::kTeleop, kOperator).reason,
+              HasSubstr("minimum dwell in hover 1.5 s, 0.0 s so far"));
 }
 
 // Land from `from_height_m` for 1.6 s (past the dwell), then an operator asks to hover; the

@@ -71,9 +71,9 @@ struct ModesConfig {
   double takeoff_target_height_m = 1.0;
   double takeoff_speed_mps = 0.5;
   double takeoff_slowdown_m = 0.3;
-  /// Operator mode changes in flight: refused until the current mode has been flown for
-  /// min_mode_dwell_s (0: no dwell), and, except to hover, beyond operator_mode_change_burst
-  /// changes at once, refilled at operator_mode_changes_per_min.
+  /// Operator mode changes in flight: refused until the current mode, when an operator chose it,
+  /// has been flown for min_mode_dwell_s (0: no dwell), and, except to hover, beyond
+  /// operator_mode_change_burst changes at once, refilled at operator_mode_changes_per_min.
   double min_mode_dwell_s = 1.5;
   double operator_mode_changes_per_min = 10.0;
   int operator_mode_change_burst = 3;
@@ -222,7 +222,8 @@ class ModeController {
   double still_timer_s_ = 0.0;
   double climb_target_height_m_ = 0.0;  // of the take-off or the land abort's climb
   bool land_abort_climb_ = false;
-  // The step time of the last change; none for the mode flown from the start, which nobody chose.
+  // The step time of the operator's change into the current mode; none when the start or the
+  // vehicle chose it.
   std::optional<std::int64_t> mode_entered_ns_;
   double operator_changes_left_ = 0.0;  // token bucket of the rate limit
   std::int64_t changes_refilled_ns_ = 0;
