@@ -397,21 +397,14 @@ void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
   apply_operator_limit(nullptr);
 }
 
-namespace {
-constexpr const char* kLostEstimateRefusal =
-    "no velocity estimate: landing after the safe hover (chain.safe_hover_land_s)";
-}  // namespace
-
 modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode, modes::RequestOrigin origin) {
-  if (origin == modes::RequestOrigin::kOperator)
-    return request_mode(ModeRequest{mode, std::nullopt});
-  if (lost_estimate_landing_ && mode != modes::Mode::kLand) return {false, kLostEstimateRefusal};
-  return modes_.request_mode(mode, origin);
+  return request_mode(ModeRequest{mode, std::nullopt, false, origin});
 }
 
 modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
-  if (lost_estimate_landing_ && request.mode != modes::Mode::kLand)
-    return {false, kLostEstimateRefusal};
+  if (lost_estimate_landing_ && request.mode != modes::Mode::kLand) {
+    return {false, "no velocity estimate: landing after the safe hover (chain.safe_hover_land_s)"};
+  }
   if (request.marker) {
     if (request.marker->marker_id < 0) return {false, "marker target id is negative"};
     if (!markers_) {
@@ -420,7 +413,7 @@ modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
     markers_->marker_mode().set_task(request.marker->task, request.marker->marker_id);
   }
   return request.take_off ? modes_.request_takeoff(request.mode)
-                          : modes_.request_mode(request.mode, modes::RequestOrigin::kOperator);
+                          : modes_.request_mode(request.mode, request.origin);
 }
 
 }  // namespace hq::pipeline

@@ -469,6 +469,24 @@ TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
   EXPECT_EQ(on_ground->mode.control.setpoint.thrust_n, 0.0);
 }
 
+TEST(OnboardChainModeRequests, OperatorsWaitTheDwellTheVehiclesOwnLandDoesNot) {
+  // GIVEN an airborne chain that an operator put in teleop, stepped (on the safe hover) since
+  OnboardChain chain(airborne_config(), control::VehicleConfig{}, kCamera);
+  ASSERT_TRUE(chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator).accepted);
+  chain.on_tick(1'000'000'000);
+  ASSERT_TRUE(chain.on_tick(1'400'000'000).has_value());
+  // THEN an operator's change within modes.min_mode_dwell_s is refused, saying why
+  const modes::ModeSwitch refused =
+      chain.request_mode(ModeRequest{modes::Mode::kHover, std::nullopt});
+  EXPECT_FALSE(refused.accepted);
+  EXPECT_THAT(refused.reason, HasSubstr("minimum dwell in teleop 1.5 s, 1.4 s so far"));
+  // ... AND the link failsafe's land, on the operator's path but the vehicle's own, is not
+  const ModeRequest failsafe_land{modes::Mode::kLand, std::nullopt, false,
+                                  modes::RequestOrigin::kVehicle};
+  EXPECT_TRUE(chain.request_mode(failsafe_land).accepted);
+  EXPECT_EQ(chain.mode(), modes::Mode::kLand);
+}
+
 std::string write_temp_yaml(const std::string& name, const std::string& text) {
   const std::string path =
       (std::filesystem::temp_directory_path() / ("hq_pipeline_test_" + name + ".yaml")).string();
