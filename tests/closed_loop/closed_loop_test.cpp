@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <vector>
 
 namespace hq::closed_loop {
 namespace {
@@ -190,6 +191,76 @@ TEST(ClosedLoop, FullClimbHeldStopsAtTheCeilingAndNeverFalls) {
   EXPECT_FALSE(landed_in_the_air);
   EXPECT_EQ(summary.collision_ticks, 0);
   EXPECT_EQ(loop->simulator().hard_floor_impacts(), 0);
+}
+
+/// Hover <-> land requested by the operator at 10 Hz from 6 s to 26 s after the room take-off.
+struct ToggleFlight {
+  FlightSummary summary;
+  int hard_floor_impacts = 0;
+  double lowest_m = 1e9;  // truth, after the take-off
+  double final_m = 0.0;
+  int mode_changes = 0;
+  bool landed = false;
+  std::vector<std::string> refusals;
+};
+
+ToggleFlight toggle_hover_land_at_10_hz(const modes::ModesConfig& modes) {
+  Scenario s = room_takeoff(28.0);
+  s.onboard.modes = modes;
+  for (int k = 0; k < 200; ++k) {
+    s.step(6.0 + 0.1 * k, std::nullopt, std::nullopt,
+           k % 2 == 0 ? modes::Mode::kLand : modes::Mode::kHover);
+  }
+  auto loop = s.make();
+  loop->run();
+  ToggleFlight f;
+  modes::Mode previous = modes::Mode::kTeleop;
+  for (const FlightSample& x : loop->samples()) {
+    if (x.t_s < 6.0) continue;
+    f.lowest_m = std::min(f.lowest_m, x.p_N_m.z());
+    f.landed = f.landed || x.landed;
+    f.mode_changes += x.mode != previous ? 1 : 0;
+    previous = x.mode;
+  }
+  f.final_m = loop->samples().back().p_N_m.z();
+  f.summary = summarise(*loop);
+  f.hard_floor_impacts = loop->simulator().hard_floor_impacts();
+  f.refusals = loop->refusals();
+  std::printf(
+      "hover<->land at 10 Hz for 20 s (dwell %.1f s): collision ticks %d, min clearance %.2f m, "
+      "hard floor impacts %d, lowest %.2f m, final %.2f m, %d mode changes, %zu refused\n",
+      modes.min_mode_dwell_s, f.summary.collision_ticks, f.summary.min_clearance_m,
+      f.hard_floor_impacts, f.lowest_m, f.final_m, f.mode_changes, f.refusals.size());
+  return f;
+}
+
+// Issue 39: valid requests toggled hover <-> land every 0.5 s sank the vehicle into a wall
+// (983-1135 collision ticks, clearance -0.35 m). The operator's changes wait a minimum dwell
+// per mode and a rate limit, and land -> hover low down climbs back first.
+TEST(ClosedLoop, HoverLandToggledAt10HzNeverSinksIntoAnything) {
+  const modes::ModesConfig config = Scenario{}.onboard.modes;
+  const ToggleFlight f = toggle_hover_land_at_10_hz(config);
+  EXPECT_EQ(f.summary.collision_ticks, 0);
+  EXPECT_EQ(f.hard_floor_impacts, 0);
+  EXPECT_FALSE(f.landed);
+  EXPECT_GT(f.lowest_m, 0.3);
+  EXPECT_GT(f.final_m, 0.5);
+  // The requests beyond the dwell were refused, saying so.
+  EXPECT_LE(f.mode_changes, static_cast<int>(20.0 / config.min_mode_dwell_s) + 1);
+  ASSERT_FALSE(f.refusals.empty());
+  EXPECT_THAT(f.refusals.front(), HasSubstr("mode change refused: minimum dwell in land"));
+}
+
+// The same without the hysteresis, as before issue 39's fix: run by hand for the figures
+// (--gtest_also_run_disabled_tests).
+TEST(ClosedLoop, DISABLED_HoverLandToggledAt10HzWithoutTheHysteresis) {
+  modes::ModesConfig config = Scenario{}.onboard.modes;
+  config.min_mode_dwell_s = 0.0;
+  config.operator_mode_changes_per_min = 1e5;
+  config.operator_mode_change_burst = 100;
+  config.land_abort_min_height_m = 1e-3;
+  const ToggleFlight f = toggle_hover_land_at_10_hz(config);
+  EXPECT_GT(f.summary.collision_ticks + f.hard_floor_impacts, 0);
 }
 
 TEST(ClosedLoop, VelocityStepRisesFastWithBoundedOvershoot) {

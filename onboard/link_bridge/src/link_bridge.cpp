@@ -203,7 +203,12 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
                   1e-6 * static_cast<double>(state.command_age_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHold, text);
   }
-  if (state.request_land) mode_requests.push_back({modes::Mode::kLand, std::nullopt});
+  // The failsafe's land is the vehicle's own: the operators' dwell and rate limit must not delay
+  // it (it is asked for once).
+  if (state.request_land) {
+    mode_requests.push_back(
+        {modes::Mode::kLand, std::nullopt, false, modes::RequestOrigin::kVehicle});
+  }
   if (state.land_for_heartbeat) {
     char text[96];
     std::snprintf(text, sizeof text, "no heartbeat from station %u for %.1f s: landing",

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace hq::modes {
 
@@ -62,13 +63,21 @@ void read_config(config::StrictMap& section, ModesConfig& out) {
   section.read_positive("takeoff_target_height_m", out.takeoff_target_height_m, 10.0);
   section.read_positive("takeoff_speed_mps", out.takeoff_speed_mps, 2.0);
   section.read_positive("takeoff_slowdown_m", out.takeoff_slowdown_m, 5.0);
+  section.read("min_mode_dwell_s", out.min_mode_dwell_s, 0.0, 10.0);
+  section.read_positive("operator_mode_changes_per_min", out.operator_mode_changes_per_min, 600.0);
+  section.read("operator_mode_change_burst", out.operator_mode_change_burst, 1, 100);
+  section.read_positive("land_abort_min_height_m", out.land_abort_min_height_m, 10.0);
   section.finish();
 }
 
 ModeController::ModeController(const ModesConfig& config,
                                const control::VelocityControllerConfig& control,
                                const control::VehicleConfig& vehicle)
-    : config_(config), controller_(control, vehicle), landed_(config.start_landed) {}
+    : config_(config),
+      controller_(control, vehicle),
+      landed_(config.start_landed),
+      climb_target_height_m_(config.takeoff_target_height_m),
+      operator_changes_left_(static_cast<double>(config.operator_mode_change_burst)) {}
 
 bool ModeController::register_provider(Mode mode, VelocityProvider* provider) {
   if (mode == Mode::kMarker) {
@@ -82,27 +91,87 @@ bool ModeController::register_provider(Mode mode, VelocityProvider* provider) {
   return false;
 }
 
-ModeSwitch ModeController::request_mode(Mode mode) {
+ModeSwitch ModeController::request_mode(Mode mode, RequestOrigin origin) {
   if (mode == Mode::kMarker && marker_ == nullptr) {
     return {false, "marker mode has no provider registered"};
   }
   if (mode == Mode::kExplore && explore_ == nullptr) {
     return {false, "explore mode has no provider registered"};
   }
-  // Any other mode request ends a take-off's climb where it is.
-  takeoff_active_ = false;
-  if (mode != mode_) {
-    mode_ = mode;
-    ramping_ = true;
+  if (mode == mode_) return {true, ""};  // nothing changes: no dwell, no rate, the climb goes on
+  if (origin == RequestOrigin::kOperator) {
+    const ModeSwitch verdict = operator_may_change(mode);
+    if (!verdict.accepted) return verdict;
   }
+  // A change of mode ends a take-off's climb where it is ...
+  takeoff_active_ = false;
+  land_abort_climb_ = false;
+  // ... except land -> hover low down, which climbs back to land_abort_min_height_m first. PX4
+  // either finishes the landing or, aborting it, climbs to a safe altitude (MIS_LND_ABRT_ALT).
+  // We climb: the operator asked to hover, so finishing the landing would refuse them, and a
+  // hover held where the descent stopped keeps every land -> hover -> land cycle's descent, the
+  // ratchet that sank the vehicle in issue 39, low in the ground effect and the clutter. After
+  // the climb no toggling sinks it below this height less one dwell's descent.
+  const bool low = std::isfinite(height_m_) && height_m_ < config_.land_abort_min_height_m;
+  if (mode_ == Mode::kLand && mode == Mode::kHover && !landed_ && low) {
+    takeoff_active_ = true;
+    land_abort_climb_ = true;
+    climb_target_height_m_ = config_.land_abort_min_height_m;
+  }
+  mode_ = mode;
+  // The dwell holds an operator to their own choice. A mode the vehicle chose (a failsafe, the
+  // marker hand-over) the operator may answer at once, e.g. asking to fly again after the FC
+  // disarmed, or to hover out of a marker landing.
+  if (origin == RequestOrigin::kOperator) {
+    mode_entered_ns_ = have_previous_ ? t_prev_ns_ : 0;
+  } else {
+    mode_entered_ns_.reset();
+  }
+  ramping_ = true;
+  return {true, ""};
+}
+
+ModeSwitch ModeController::operator_may_change(Mode to) {
+  // On the floor with the motors idle a change moves nothing; before the first step there is
+  // no time to measure a dwell by.
+  if (landed_ || !have_previous_) return {true, ""};
+  const double in_mode_s =
+      mode_entered_ns_ ? 1e-9 * static_cast<double>(t_prev_ns_ - *mode_entered_ns_) : 0.0;
+  if (mode_entered_ns_ && in_mode_s < config_.min_mode_dwell_s) {
+    std::snprintf(
+        refusal_, sizeof refusal_,
+        "mode change refused: minimum dwell in %s %.1f s, %.1f s so far (modes.min_mode_dwell_s)",
+        to_string(mode_), config_.min_mode_dwell_s, in_mode_s);
+    return {false, refusal_};
+  }
+  // Hover, the safe state, is held to the dwell only: were the rate limit to refuse it, an
+  // operator could not leave land (and its descent) or a mode flying somewhere unwanted.
+  if (to == Mode::kHover) return {true, ""};
+  // Token bucket: operator_mode_change_burst changes at once, refilled at the sustained rate.
+  const double since_refill_s = 1e-9 * static_cast<double>(t_prev_ns_ - changes_refilled_ns_);
+  operator_changes_left_ =
+      std::min(static_cast<double>(config_.operator_mode_change_burst),
+               operator_changes_left_ +
+                   std::max(0.0, since_refill_s) * config_.operator_mode_changes_per_min / 60.0);
+  changes_refilled_ns_ = t_prev_ns_;
+  if (operator_changes_left_ < 1.0) {
+    std::snprintf(refusal_, sizeof refusal_,
+                  "mode change refused: operator mode changes limited to %d at once and %.0f per "
+                  "minute (modes.operator_mode_changes_per_min)",
+                  config_.operator_mode_change_burst, config_.operator_mode_changes_per_min);
+    return {false, refusal_};
+  }
+  operator_changes_left_ -= 1.0;
   return {true, ""};
 }
 
 ModeSwitch ModeController::request_takeoff(Mode then) {
   if (then == Mode::kLand) return {false, "take-off refused: the mode after it is land"};
-  const ModeSwitch verdict = request_mode(then);
+  const ModeSwitch verdict = request_mode(then, RequestOrigin::kOperator);
   if (!verdict.accepted) return verdict;
   takeoff_active_ = true;
+  land_abort_climb_ = false;
+  climb_target_height_m_ = config_.takeoff_target_height_m;
   takeoff_then_ = then;
   ramping_ = true;
   return verdict;
@@ -148,9 +217,10 @@ void ModeController::set_operator_command(const OperatorCommand& command) {
 ModeController::Target ModeController::target(std::int64_t t_ns, ModeOutput& out) {
   Target wanted;
   if (takeoff_active_ && std::isfinite(height_m_) &&
-      height_m_ >= config_.takeoff_target_height_m - kTakeoffReachedM) {
+      height_m_ >= climb_target_height_m_ - kTakeoffReachedM) {
     // At the take-off height: the requested mode takes over (ramping from the slow final climb).
     takeoff_active_ = false;
+    land_abort_climb_ = false;
   }
   switch (takeoff_active_ ? Mode::kHover : mode_) {
     case Mode::kTeleop: {
@@ -168,9 +238,8 @@ ModeController::Target ModeController::target(std::int64_t t_ns, ModeOutput& out
       if (takeoff_active_) {
         // Climb at takeoff_speed_mps, proportionally slower over the last takeoff_slowdown_m
         // (a first-order approach, so no overshoot); without a height, climb slowly on.
-        const double to_go_m = std::isfinite(height_m_)
-                                   ? config_.takeoff_target_height_m - height_m_
-                                   : config_.takeoff_slowdown_m;
+        const double to_go_m = std::isfinite(height_m_) ? climb_target_height_m_ - height_m_
+                                                        : config_.takeoff_slowdown_m;
         const double climb_mps =
             std::clamp(config_.takeoff_speed_mps * to_go_m / config_.takeoff_slowdown_m,
                        std::min(2.0 * config_.takeoff_climb_mps, config_.takeoff_speed_mps),
@@ -216,6 +285,7 @@ ModeOutput ModeController::step(std::int64_t t_ns,
   last_source_ = source;
 
   out.taking_off = takeoff_active_;
+  out.land_abort_climb = land_abort_climb_;
   out.operator_ignored = takeoff_active_ || mode_ != Mode::kTeleop || landed_;
   if (landed_) {
     // On the ground only a climb request starts the motors; until then the PID is held reset

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <optional>
 #include <string>
@@ -20,6 +21,8 @@ namespace {
 using testing::HasSubstr;
 
 constexpr std::int64_t kStepNs = 5'000'000;  // 200 Hz
+constexpr RequestOrigin kOperator = RequestOrigin::kOperator;
+constexpr RequestOrigin kVehicle = RequestOrigin::kVehicle;
 constexpr double kDt = 5e-3;
 
 control::VehicleConfig test_vehicle() { return control::VehicleConfig{}; }
@@ -66,7 +69,7 @@ SwitchFigures teleop_to_land(double max_switch_accel_mps2) {
   ModesConfig config = airborne_config();
   config.max_switch_accel_mps2 = max_switch_accel_mps2;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
-  EXPECT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  EXPECT_TRUE(modes.request_mode(Mode::kTeleop, kOperator).accepted);
   PointMass plant;
   std::int64_t t_ns = 0;
   control::AttitudeSetpoint previous;
@@ -77,7 +80,7 @@ SwitchFigures teleop_to_land(double max_switch_accel_mps2) {
     previous = out.control.setpoint;
   }
   EXPECT_NEAR(plant.v_mps.x(), 1.0, 0.01);
-  EXPECT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  EXPECT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   SwitchFigures figures;
   for (int k = 0; k < 600; ++k, t_ns += kStepNs) {
     const ModeOutput out = modes.step(t_ns, plant.v_mps, Eigen::Vector3d::Zero());
@@ -107,10 +110,11 @@ TEST(ModeController, SwitchingIsBumpless) {
 
 TEST(ModeController, MarkerAndExploreNeedAProvider) {
   ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
-  const ModeSwitch refused = modes.request_mode(Mode::kMarker);
+  const ModeSwitch refused = modes.request_mode(Mode::kMarker, kOperator);
   EXPECT_FALSE(refused.accepted);
   EXPECT_THAT(refused.reason, HasSubstr("marker"));
-  EXPECT_THAT(modes.request_mode(Mode::kExplore).reason, HasSubstr("explore mode has no provider"));
+  EXPECT_THAT(modes.request_mode(Mode::kExplore, kOperator).reason,
+              HasSubstr("explore mode has no provider"));
   EXPECT_EQ(modes.mode(), Mode::kHover);
 
   FixedProvider provider;
@@ -118,7 +122,7 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
   provider.command.v_H_mps = Eigen::Vector3d(0.2, 0.0, 0.0);
   ASSERT_TRUE(modes.register_provider(Mode::kExplore, &provider));
   EXPECT_FALSE(modes.register_provider(Mode::kLand, &provider));
-  EXPECT_TRUE(modes.request_mode(Mode::kExplore).accepted);
+  EXPECT_TRUE(modes.request_mode(Mode::kExplore, kOperator).accepted);
   ModeOutput out;
   for (int k = 0; k < 100; ++k)
     out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
@@ -134,7 +138,7 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
 
 TEST(ModeController, StaleTeleopCommandFallsBackToHover) {
   ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
-  modes.request_mode(Mode::kTeleop);
+  modes.request_mode(Mode::kTeleop, kOperator);
   ModeOutput out;
   // GIVEN fresh commands for 1 s (the switch ramp reaches 0.5 m/s after 0.5 s).
   for (int k = 0; k <= 200; ++k) {
@@ -161,7 +165,7 @@ TEST(ModeController, LandDescendsAtTheConfiguredSpeed) {
   ModesConfig config = airborne_config();
   config.land_speed_mps = 0.4;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
-  modes.request_mode(Mode::kLand);
+  modes.request_mode(Mode::kLand, kOperator);
   PointMass plant;
   for (int k = 0; k < 2000; ++k)
     plant.step(modes.step(k * kStepNs, plant.v_mps, Eigen::Vector3d::Zero()).control.setpoint);
@@ -178,7 +182,7 @@ TEST(ModeController, ObstacleTermIsAddedInEveryMode) {
     ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
     modes.register_provider(Mode::kMarker, &provider);
     modes.register_provider(Mode::kExplore, &provider);
-    ASSERT_TRUE(modes.request_mode(mode).accepted);
+    ASSERT_TRUE(modes.request_mode(mode, kOperator).accepted);
     ModeOutput out;
     // In land an estimate stuck at zero reads as held by the floor (touchdown after
     // touchdown_s, motors idle): the estimate descends at the land speed, as in the air.
@@ -210,7 +214,7 @@ TEST(ModeController, StartsLandedWithMotorsIdleUntilAClimbRequest) {
   }
   // ... nor on zero teleop commands, nor on a horizontal one or a climb slower than
   // takeoff_climb_mps.
-  ASSERT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop, kOperator).accepted);
   const Eigen::Vector3d gentle[] = {Eigen::Vector3d::Zero(), Eigen::Vector3d(0.5, 0.0, 0.0),
                                     Eigen::Vector3d(0.0, 0.0, -0.5 * config.takeoff_climb_mps)};
   int k = 200;
@@ -267,7 +271,7 @@ struct PointMassOverFloor {
 TEST(ModeController, LandTouchesDownAfterTouchdownSHeldByTheFloor) {
   ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
   const ModesConfig config = airborne_config();
-  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   PointMassOverFloor plant;
   ModeOutput out;
   double t_floor_s = -1.0;
@@ -307,7 +311,7 @@ TEST(ModeController, DescendingInMidAirNeverTouchesDown) {
   // GIVEN land mode descending freely at land_speed_mps (thrust near m g, sinking faster than
   // touchdown_speed_mps): no touchdown however long it takes.
   ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
-  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   PointMass plant;
   ModeOutput out;
   for (int k = 0; k < 1200; ++k) {
@@ -324,7 +328,7 @@ TEST(ModeController, BlindDescentSinksLevelAndLandsNearTheFloorAfterBlindDescent
   config.blind_descent_s = 1.0;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   modes.set_height_m(0.2);  // below touchdown_max_height_m: the floor is there
-  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   const std::optional<Eigen::Vector3d> no_estimate;  // what the chain gives without one
   ModeOutput out;
   int k = 0;
@@ -352,7 +356,7 @@ TEST(ModeController, BlindDescentHighUpNeverIdlesTheMotors) {
   for (const double height_m : {11.8, std::numeric_limits<double>::quiet_NaN()}) {
     ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
     modes.set_height_m(height_m);
-    ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+    ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
     for (int k = 0; k < 4000; ++k) {  // 20 s, blind_descent_s is 3
       const ModeOutput out = modes.step(k * kStepNs, std::nullopt, Eigen::Vector3d::Zero());
       ASSERT_FALSE(out.landed) << "height " << height_m << " step " << k;
@@ -376,7 +380,7 @@ struct FallingOntoFloor {
 TEST(ModeController, BlindDescentLandsAfterAnImpactAndStillnessWithTheHeightUnknown) {
   const ModesConfig config = airborne_config();
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
-  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   FallingOntoFloor vehicle;
   vehicle.plant.z_m = -1.0;
   double t_floor_s = -1.0;
@@ -404,7 +408,7 @@ TEST(ModeController, TouchdownNeedsAHeightNearTheFloorWhenOneIsKnown) {
   // edge, or an estimate stuck at zero in mid-air.
   ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
   modes.set_height_m(3.0);
-  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   PointMassOverFloor plant;
   for (int k = 0; k < 3000; ++k) {
     const ModeOutput out = modes.step(k * kStepNs, plant.mass.v_mps, Eigen::Vector3d::Zero());
@@ -418,7 +422,7 @@ TEST(ModeController, TouchdownNeedsAHeightNearTheFloorWhenOneIsKnown) {
 TEST(ModeController, AFullClimbStopsAtTheCeiling) {
   const ModesConfig config = airborne_config();
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
-  ASSERT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop, kOperator).accepted);
   PointMass plant;
   double height_m = 1.0;
   double highest_m = height_m;
@@ -441,7 +445,7 @@ TEST(ModeController, AFullClimbStopsAtTheCeiling) {
 
 TEST(ModeController, NothingClimbsWithTheHeightUnknown) {
   ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
-  ASSERT_TRUE(modes.request_mode(Mode::kTeleop).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop, kOperator).accepted);
   ModeOutput out;
   for (int k = 0; k < 400; ++k) {
     const std::int64_t t_ns = k * kStepNs;
@@ -459,7 +463,7 @@ TEST(ModeController, AnEstimateBackRestartsTheBlindDescentTimer) {
   config.blind_descent_s = 1.0;
   ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
   modes.set_height_m(0.2);  // near the floor: only the timer holds the landing back
-  ASSERT_TRUE(modes.request_mode(Mode::kLand).accepted);
+  ASSERT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
   const std::optional<Eigen::Vector3d> no_estimate;  // what the chain gives without one
   ModeOutput out;
   // 0.75 s blind, 0.05 s with a (descending) estimate, 0.75 s blind: 1.5 s blind in all.
@@ -495,7 +499,7 @@ TEST(ModeController, TakeOffClimbsToTheTargetHeightThenFliesTheRequestedMode) {
   double height_m = 0.08;
   std::int64_t t_ns = 0;
   controller.set_height_m(height_m);
-  controller.request_mode(Mode::kTeleop);
+  controller.request_mode(Mode::kTeleop, kOperator);
   controller.set_operator_command({0, Eigen::Vector3d(0.5, 0, 0), 0});
   ModeOutput out = controller.step(t_ns, body.v_mps, Eigen::Vector3d::Zero());
   // THEN landed, teleop ignores it: no take-off without a climb or a take-off request
@@ -538,10 +542,159 @@ TEST(ModeController, TakeOffIntoLandIsRefusedAndAnotherModeRequestEndsTheClimb) 
   controller.set_height_m(0.3);
   ModeOutput out = controller.step(0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_FALSE(out.landed) << "a take-off starts the motors";
-  controller.request_mode(Mode::kLand);
+  controller.request_mode(Mode::kLand, kOperator);
   EXPECT_FALSE(controller.taking_off());
   out = controller.step(kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_EQ(out.flight_state, FlightState::kLanding);
+}
+
+// What 20 s of operator requests toggling hover <-> land at 10 Hz did to a vehicle starting
+// 1 m above the floor.
+struct ToggleFigures {
+  double lowest_m = 1e9;
+  double final_m = 0.0;
+  int accepted = 0;  // changes of mode
+  int refused = 0;
+  bool landed = false;
+  std::string dwell_reason;  // the first refusal for the dwell
+  std::string rate_reason;   // ... and for the rate limit
+};
+
+ToggleFigures toggle_hover_land_at_10_hz(const ModesConfig& config) {
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  PointMassOverFloor plant;
+  plant.z_m = -1.0;
+  ToggleFigures figures;
+  ModeOutput out;
+  for (int k = 0; k < 4000; ++k) {  // 20 s at 200 Hz, a request every 20 steps (0.1 s)
+    const double height_m = -plant.z_m;
+    modes.set_height_m(height_m);
+    if (k % 20 == 0) {
+      const Mode wanted = (k / 20) % 2 == 0 ? Mode::kLand : Mode::kHover;
+      const Mode before = modes.mode();
+      const ModeSwitch verdict = modes.request_mode(wanted, kOperator);
+      if (!verdict.accepted) ++figures.refused;
+      if (modes.mode() != before) ++figures.accepted;
+      const std::string reason = verdict.reason;
+      if (reason.find("dwell") != std::string::npos && figures.dwell_reason.empty()) {
+        figures.dwell_reason = reason;
+      }
+      if (reason.find("per minute") != std::string::npos && figures.rate_reason.empty()) {
+        figures.rate_reason = reason;
+      }
+    }
+    out = modes.step(k * kStepNs, plant.mass.v_mps, Eigen::Vector3d::Zero());
+    plant.step(out.control.setpoint);
+    figures.lowest_m = std::min(figures.lowest_m, -plant.z_m);
+  }
+  figures.final_m = -plant.z_m;
+  figures.landed = out.landed;
+  return figures;
+}
+
+TEST(ModeController, HoverLandToggledAt10HzNeitherSinksNorChangesFasterThanTheDwell) {
+  // GIVEN an operator toggling hover <-> land at 10 Hz for 20 s (issue 39: every 0.5 s sank the
+  // vehicle into a wall), with the shipped hysteresis and without it (today's behaviour)
+  const ToggleFigures held = toggle_hover_land_at_10_hz(airborne_config());
+  ModesConfig unheld_config = airborne_config();
+  unheld_config.min_mode_dwell_s = 0.0;
+  unheld_config.operator_mode_changes_per_min = 1e5;
+  unheld_config.operator_mode_change_burst = 100;
+  unheld_config.land_abort_min_height_m = 1e-3;
+  const ToggleFigures unheld = toggle_hover_land_at_10_hz(unheld_config);
+  std::printf(
+      "10 Hz hover<->land for 20 s from 1 m: with hysteresis lowest %.2f m, final %.2f m, "
+      "%d accepted, %d refused; without: lowest %.2f m, final %.2f m, landed %d\n",
+      held.lowest_m, held.final_m, held.accepted, held.refused, unheld.lowest_m, unheld.final_m,
+      static_cast<int>(unheld.landed));
+  // THEN without the hysteresis every toggle keeps some of land's descent: it sinks to the floor
+  EXPECT_LT(unheld.lowest_m, 0.05);
+  // ... AND with it the height stays bounded: no lower than land_abort_min_height_m less one
+  // dwell's descent at land_speed_mps (with the ramps), never landed, back up at the end
+  const ModesConfig config = airborne_config();
+  EXPECT_GT(held.lowest_m,
+            config.land_abort_min_height_m - config.min_mode_dwell_s * config.land_speed_mps - 0.1);
+  EXPECT_GT(held.final_m, config.land_abort_min_height_m - 0.5);
+  EXPECT_FALSE(held.landed);
+  // ... AND the requests beyond the limits are refused, saying why
+  EXPECT_LT(held.accepted, 20.0 / config.min_mode_dwell_s + 1);
+  EXPECT_GT(held.refused, 80);
+  EXPECT_THAT(held.dwell_reason,
+              HasSubstr("mode change refused: minimum dwell in land 1.5 s, 0.1 s so far"));
+  EXPECT_THAT(held.rate_reason, HasSubstr("10 per minute (modes.operator_mode_changes_per_min)"));
+}
+
+TEST(ModeController, TheVehiclesOwnRequestsAreNotHeldToTheDwell) {
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+  modes.step(0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop, kOperator).accepted);
+  modes.step(kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  // An operator's change 5 ms later is refused ...
+  const ModeSwitch refused = modes.request_mode(Mode::kHover, kOperator);
+  EXPECT_FALSE(refused.accepted);
+  EXPECT_THAT(refused.reason, HasSubstr("minimum dwell in teleop 1.5 s, 0.0 s so far"));
+  EXPECT_EQ(modes.mode(), Mode::kTeleop);
+  // ... the vehicle's own land (a lost estimate, a failsafe) is not
+  EXPECT_TRUE(modes.request_mode(Mode::kLand, kVehicle).accepted);
+  EXPECT_EQ(modes.mode(), Mode::kLand);
+  // ... and a request for the mode already flown is no change: accepted
+  EXPECT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
+  // ... AND the operator may answer the vehicle's choice at once, but is then held to their own
+  modes.step(2 * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_TRUE(modes.request_mode(Mode::kHover, kOperator).accepted);
+  modes.step(3 * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_THAT(modes.request_mode(Mode::kTeleop, kOperator).reason,
+              HasSubstr("minimum dwell in hover 1.5 s, 0.0 s so far"));
+}
+
+// Land from `from_height_m` for 1.6 s (past the dwell), then an operator asks to hover; the
+// flight afterwards for 6 s: its lowest and final heights and whether it climbed to abort.
+struct AbortFigures {
+  double lowest_m = 1e9;
+  double final_m = 0.0;
+  bool abort_climb_seen = false;
+  ModeOutput last;
+};
+
+AbortFigures land_then_hover(double from_height_m) {
+  ModeController modes(airborne_config(), control::VelocityControllerConfig{}, test_vehicle());
+  PointMassOverFloor plant;
+  plant.z_m = -from_height_m;
+  AbortFigures figures;
+  for (int k = 0; k < 1520; ++k) {
+    modes.set_height_m(-plant.z_m);
+    if (k == 0) {
+      EXPECT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
+    }
+    if (k == 320) {
+      EXPECT_TRUE(modes.request_mode(Mode::kHover, kOperator).accepted);
+    }
+    figures.last = modes.step(k * kStepNs, plant.mass.v_mps, Eigen::Vector3d::Zero());
+    plant.step(figures.last.control.setpoint);
+    if (k < 320) continue;
+    figures.lowest_m = std::min(figures.lowest_m, -plant.z_m);
+    figures.abort_climb_seen = figures.abort_climb_seen || figures.last.land_abort_climb;
+  }
+  figures.final_m = -plant.z_m;
+  return figures;
+}
+
+TEST(ModeController, LandThenHoverLowDownClimbsBackToTheAbortHeight) {
+  const ModesConfig config = airborne_config();
+  // GIVEN land from 0.9 m: 1.6 s later it is low (about 0.45 m), below land_abort_min_height_m
+  const AbortFigures low = land_then_hover(0.9);
+  // THEN hover first climbs back to the abort height (as a take-off), then hovers there (the
+  // ramp out of the climb overshoots it by 5 cm, measured)
+  EXPECT_TRUE(low.abort_climb_seen);
+  EXPECT_NEAR(low.final_m, config.land_abort_min_height_m, 0.1);  // as the take-off
+  EXPECT_EQ(low.last.flight_state, FlightState::kAirborne);
+  EXPECT_EQ(low.last.mode, Mode::kHover);
+  EXPECT_GT(low.lowest_m, 0.3);
+  // GIVEN land from 2 m: still above the abort height, the hover holds where the ramp stops it
+  const AbortFigures high = land_then_hover(2.0);
+  EXPECT_FALSE(high.abort_climb_seen);
+  EXPECT_GT(high.final_m, config.land_abort_min_height_m + 0.3);
+  EXPECT_LT(high.final_m, 2.0 - 0.3);
 }
 
 TEST(ModesConfig, LandingKeysAreReadAndRangeChecked) {
@@ -571,6 +724,27 @@ TEST(ModesConfig, LandingKeysAreReadAndRangeChecked) {
   EXPECT_THAT(modes_config_error("{blind_descent_thrust_ratio: 1.2}"),
               HasSubstr("modes.blind_descent_thrust_ratio = 1.2, expected in [0.5, 1]"));
   EXPECT_THAT(modes_config_error("{blind_descent_s: 31}"), HasSubstr("modes.blind_descent_s = 31"));
+}
+
+TEST(ModesConfig, HysteresisKeysAreReadAndRangeChecked) {
+  config::StrictMap section(
+      YAML::Load("{min_mode_dwell_s: 2.0, operator_mode_changes_per_min: 6, "
+                 "operator_mode_change_burst: 2, land_abort_min_height_m: 1.0}"),
+      "config/onboard.yaml", "modes");
+  ModesConfig config;
+  read_config(section, config);
+  EXPECT_EQ(config.min_mode_dwell_s, 2.0);
+  EXPECT_EQ(config.operator_mode_changes_per_min, 6.0);
+  EXPECT_EQ(config.operator_mode_change_burst, 2);
+  EXPECT_EQ(config.land_abort_min_height_m, 1.0);
+  EXPECT_THAT(modes_config_error("{min_mode_dwell_s: -1}"),
+              HasSubstr("modes.min_mode_dwell_s = -1, expected in [0, 10]"));
+  EXPECT_THAT(modes_config_error("{operator_mode_changes_per_min: 0}"),
+              HasSubstr("modes.operator_mode_changes_per_min = 0, expected > 0"));
+  EXPECT_THAT(modes_config_error("{operator_mode_change_burst: 0}"),
+              HasSubstr("modes.operator_mode_change_burst = 0"));
+  EXPECT_THAT(modes_config_error("{land_abort_min_height_m: 0}"),
+              HasSubstr("modes.land_abort_min_height_m = 0, expected > 0"));
 }
 
 TEST(ModesConfig, BadValueIsRejectedNamingTheKey) {

@@ -162,7 +162,9 @@ void OnboardChain::estimate_velocity(std::int64_t t_ns, const cv::Mat& gray, con
   // target, the marker and explore modes hand the touchdown to Mode::kLand.
   if (markers_) {
     markers_->on_frame(t_ns, gray, depth_m, out.estimate, odometry.ok(), odometry.T_O_C);
-    if (markers_->wants_land(modes_.mode())) modes_.request_mode(modes::Mode::kLand);
+    if (markers_->wants_land(modes_.mode())) {
+      modes_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
+    }
   }
 }
 
@@ -390,7 +392,7 @@ void OnboardChain::escalate_safe_hover(ChainOutput& out) {
   }
   const double hover_s = 1e-9 * static_cast<double>(out.t_ns - t_safe_hover_start_ns_);
   if (hover_s >= config_.chain.safe_hover_land_s && modes_.mode() != modes::Mode::kLand) {
-    modes_.request_mode(modes::Mode::kLand);
+    modes_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
     lost_estimate_landing_ = true;
     out.safe_hover_landing = true;
   }
@@ -403,8 +405,8 @@ void OnboardChain::set_operator_command(const modes::OperatorCommand& command) {
   apply_operator_limit(nullptr);
 }
 
-modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode) {
-  return request_mode(ModeRequest{mode, std::nullopt});
+modes::ModeSwitch OnboardChain::request_mode(modes::Mode mode, modes::RequestOrigin origin) {
+  return request_mode(ModeRequest{mode, std::nullopt, false, origin});
 }
 
 modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
@@ -419,7 +421,7 @@ modes::ModeSwitch OnboardChain::request_mode(const ModeRequest& request) {
     markers_->marker_mode().set_task(request.marker->task, request.marker->marker_id);
   }
   return request.take_off ? modes_.request_takeoff(request.mode)
-                          : modes_.request_mode(request.mode);
+                          : modes_.request_mode(request.mode, request.origin);
 }
 
 }  // namespace hq::pipeline

@@ -245,7 +245,7 @@ TEST_F(LandedChainOnRenderedPlane, StartsLandedWithMotorsIdleAndTakesOffOnAClimb
     EXPECT_TRUE(setpoint_finite(out)) << "frame " << k;
   }
   // ... also in teleop with a horizontal command only.
-  ASSERT_TRUE(chain_.request_mode(modes::Mode::kTeleop).accepted);
+  ASSERT_TRUE(chain_.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator).accepted);
   chain_.set_operator_command({11 * kFramePeriodNs, Eigen::Vector3d(0.3, 0.0, 0.0), 0.0});
   ChainOutput out = frame(10);
   EXPECT_TRUE(out.mode.landed);
@@ -405,7 +405,7 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   OnboardConfig config = airborne_config();
   config.chain.safe_hover_land_s = 2.0;
   OnboardChain chain(config, control::VehicleConfig{}, kCamera);
-  chain.request_mode(modes::Mode::kTeleop);
+  chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
   const std::int64_t tick_ns = 5'000'000;
   const std::int64_t t_impact_ns = 9'000'000'000;  // after the blind_descent_s of 3 s
   std::int64_t t_first_hover_ns = -1;
@@ -433,7 +433,8 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
     }
     if (t_land_ns > 0 && t == t_land_ns + 1'000'000'000) {
       // Descending blind: no going back to teleop while there is no estimate.
-      const modes::ModeSwitch back = chain.request_mode(modes::Mode::kTeleop);
+      const modes::ModeSwitch back =
+          chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
       EXPECT_FALSE(back.accepted);
       EXPECT_THAT(back.reason, HasSubstr("landing"));
     }
@@ -466,6 +467,24 @@ TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
   EXPECT_TRUE(on_ground->mode.landed);
   EXPECT_FALSE(on_ground->safe_hover);
   EXPECT_EQ(on_ground->mode.control.setpoint.thrust_n, 0.0);
+}
+
+TEST(OnboardChainModeRequests, OperatorsWaitTheDwellTheVehiclesOwnLandDoesNot) {
+  // GIVEN an airborne chain that an operator put in teleop, stepped (on the safe hover) since
+  OnboardChain chain(airborne_config(), control::VehicleConfig{}, kCamera);
+  ASSERT_TRUE(chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator).accepted);
+  chain.on_tick(1'000'000'000);
+  ASSERT_TRUE(chain.on_tick(1'400'000'000).has_value());
+  // THEN an operator's change within modes.min_mode_dwell_s is refused, saying why
+  const modes::ModeSwitch refused =
+      chain.request_mode(ModeRequest{modes::Mode::kHover, std::nullopt});
+  EXPECT_FALSE(refused.accepted);
+  EXPECT_THAT(refused.reason, HasSubstr("minimum dwell in teleop 1.5 s, 1.4 s so far"));
+  // ... AND the link failsafe's land, on the operator's path but the vehicle's own, is not
+  const ModeRequest failsafe_land{modes::Mode::kLand, std::nullopt, false,
+                                  modes::RequestOrigin::kVehicle};
+  EXPECT_TRUE(chain.request_mode(failsafe_land).accepted);
+  EXPECT_EQ(chain.mode(), modes::Mode::kLand);
 }
 
 std::string write_temp_yaml(const std::string& name, const std::string& text) {

@@ -176,7 +176,7 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
                   1e-6 * static_cast<double>(fc.heartbeat_age_ns));
     event(t_ns, FcSeverity::kError, text);
     arm_wanted_ = false;
-    if (!landed()) chain_.request_mode(modes::Mode::kHover);
+    if (!landed()) chain_.request_mode(modes::Mode::kHover, modes::RequestOrigin::kVehicle);
   }
   const bool flying_offboard = fc.connected && fc.armed && fc.offboard;
   if (was_flying_offboard_ && !flying_offboard && fc.connected) {
@@ -185,12 +185,12 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
     if (!fc.armed) {
       event(t_ns, FcSeverity::kError,
             "flight controller disarmed (its failsafe or the pilot): landing, not re-arming");
-      if (!landed()) chain_.request_mode(modes::Mode::kLand);
+      if (!landed()) chain_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
     } else {
       event(t_ns, FcSeverity::kError,
             "flight controller left offboard (its failsafe or the pilot's RC): our setpoints "
             "are not flown; holding, not re-entering offboard");
-      if (!landed()) chain_.request_mode(modes::Mode::kHover);
+      if (!landed()) chain_.request_mode(modes::Mode::kHover, modes::RequestOrigin::kVehicle);
     }
   }
   if (flying_offboard) status_.fc_override = false;

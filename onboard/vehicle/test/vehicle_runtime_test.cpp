@@ -191,7 +191,7 @@ TEST(VehicleRuntime, StreamsIdleSetpointsWhileLanded) {
 TEST(VehicleRuntime, SaysFlightControllerLostOnceAndHolds) {
   Rig rig(200);
   rig.fc.fc_status = {true, true, true, 0, -1.0, -1};
-  rig.chain.request_mode(modes::Mode::kTeleop);
+  rig.chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
   rig.run_until(10 * kFramePeriodNs);
   rig.fc.fc_status.connected = false;
   rig.fc.fc_status.heartbeat_age_ns = 1'200'000'000;
@@ -213,7 +213,7 @@ TEST(VehicleRuntime, SaysFlightControllerLostOnceAndHolds) {
 TEST(VehicleRuntime, NeverReArmsByItselfAfterTheFlightControllerTakesOver) {
   Rig rig(300);
   rig.fc.fc_status = {true, true, true, 0, -1.0, -1};
-  rig.chain.request_mode(modes::Mode::kTeleop);
+  rig.chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
   rig.run_until(10 * kFramePeriodNs);
   rig.fc.fc_status.offboard = false;
   rig.run_until(rig.t_ns + 10 * kFramePeriodNs);
@@ -259,7 +259,7 @@ TEST(VehicleRuntime, ArmsWhenTheFlightControllerIsHeardAfterTheOperatorsRequest)
 TEST(VehicleRuntime, LandsWhenTheFlightControllerDisarms) {
   Rig rig(100);
   rig.fc.fc_status = {true, true, true, 0, -1.0, -1};
-  rig.chain.request_mode(modes::Mode::kTeleop);
+  rig.chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
   rig.run_until(5 * kFramePeriodNs);
   rig.fc.fc_status.armed = false;
   rig.run_until(rig.t_ns + 2 * kFramePeriodNs);

@@ -23,6 +23,13 @@ namespace hq::modes {
 enum class Mode { kTeleop, kHover, kLand, kMarker, kExplore };
 const char* to_string(Mode mode);
 
+/// Who asks for a mode change. Operators (the haptic station, ground stations) are held to the
+/// hysteresis below (a minimum dwell per mode and a rate limit), so that requests toggled faster
+/// than the vehicle can act on them cannot ratchet it down (issue 39: hover <-> land every 0.5 s
+/// sank it into the room's clutter). The vehicle's own requests (land on a lost estimate, the
+/// flight controller's failsafes, the marker stage's hand-over to land) are never delayed.
+enum class RequestOrigin { kOperator, kVehicle };
+
 /// Where the vehicle is in its flight: on the floor with motors idle, climbing to its take-off
 /// height, flying, or descending in land mode until touchdown.
 enum class FlightState { kLanded, kTakingOff, kAirborne, kLanding };
@@ -64,6 +71,15 @@ struct ModesConfig {
   double takeoff_target_height_m = 1.0;
   double takeoff_speed_mps = 0.5;
   double takeoff_slowdown_m = 0.3;
+  /// Operator mode changes in flight: refused until the current mode, when an operator chose it,
+  /// has been flown for min_mode_dwell_s (0: no dwell), and, except to hover, beyond
+  /// operator_mode_change_burst changes at once, refilled at operator_mode_changes_per_min.
+  double min_mode_dwell_s = 1.5;
+  double operator_mode_changes_per_min = 10.0;
+  int operator_mode_change_burst = 3;
+  /// Land -> hover below this height (m above the floor) climbs back to it before hovering,
+  /// as PX4's landing abort climbs to MIS_LND_ABRT_ALT.
+  double land_abort_min_height_m = 0.8;
 };
 
 /// Reads the `modes:` section strictly.
@@ -94,7 +110,7 @@ class VelocityProvider {
 
 struct ModeSwitch {
   bool accepted = false;
-  const char* reason = "";  ///< Static text when refused.
+  const char* reason = "";  ///< When refused: valid until the next request.
 };
 
 struct ModeOutput {
@@ -108,6 +124,8 @@ struct ModeOutput {
   bool landed = false;            ///< On the ground, motors idle (setpoint thrust 0).
   bool blind_descent = false;     ///< Landing without a velocity estimate.
   bool taking_off = false;        ///< Climbing to takeoff_target_height_m after request_takeoff().
+  /// Climbing back to land_abort_min_height_m after land -> hover low down (also taking_off).
+  bool land_abort_climb = false;
   /// The climb asked for was limited by the envelope (ceiling, or the height unknown).
   bool envelope_limited = false;
   double envelope_max_climb_mps = 0.0;  ///< The climb allowed when envelope_limited (NED: -z).
@@ -128,13 +146,17 @@ class ModeController {
   /// @return false for other modes.
   bool register_provider(Mode mode, VelocityProvider* provider);
 
-  /// Requests a mode; refused (with a reason) for marker/explore without a provider.
-  ModeSwitch request_mode(Mode mode);
+  /// Requests a mode; refused (with a reason) for marker/explore without a provider, and, from an
+  /// operator in flight, within min_mode_dwell_s of the last change or (except to hover) beyond
+  /// the rate limit (the reason is valid until the next request). Land -> hover below
+  /// land_abort_min_height_m first climbs back to it. Allocates nothing.
+  ModeSwitch request_mode(Mode mode, RequestOrigin origin);
 
   void set_operator_command(const OperatorCommand& command);
 
   /// Take-off: from the floor (or in the air, a climb) to takeoff_target_height_m at
-  /// takeoff_speed_mps, then `then` (request_mode rules apply to it; refused otherwise).
+  /// takeoff_speed_mps, then `then` (request_mode's rules for an operator apply to it; refused
+  /// otherwise).
   ModeSwitch request_takeoff(Mode then);
 
   /// Height of the body above the floor (m) for the take-off's climb; NaN when unknown, in
@@ -173,6 +195,9 @@ class ModeController {
   void limit_to_envelope(Target& wanted, ModeOutput& out) const;
   /// The blind descent's evidence of the floor: an impact, then stillness for touchdown_s.
   [[nodiscard]] bool floor_evidence(double dt_s);
+  /// The operator hysteresis for a change to `to`: a refusal with its reason, or accepted (and
+  /// the change counted against the rate limit).
+  ModeSwitch operator_may_change(Mode to);
 
   ModesConfig config_;
   control::VelocityController controller_;
@@ -196,6 +221,14 @@ class ModeController {
   Eigen::Vector3d f_H_mps2_ = Eigen::Vector3d(0.0, 0.0, -control::kGravityMps2);
   bool impact_seen_ = false;  // during this blind descent
   double still_timer_s_ = 0.0;
+  double climb_target_height_m_ = 0.0;  // of the take-off or the land abort's climb
+  bool land_abort_climb_ = false;
+  // The step time of the operator's change into the current mode; none when the start or the
+  // vehicle chose it.
+  std::optional<std::int64_t> mode_entered_ns_;
+  double operator_changes_left_ = 0.0;  // token bucket of the rate limit
+  std::int64_t changes_refilled_ns_ = 0;
+  char refusal_[128] = {};
 };
 
 }  // namespace hq::modes

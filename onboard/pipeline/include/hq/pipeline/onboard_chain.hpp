@@ -183,6 +183,9 @@ struct ModeRequest {
   std::optional<MarkerTarget> marker;
   /// Take off first (ModeController::request_takeoff), then fly `mode`.
   bool take_off = false;
+  /// Operators are held to the modes' dwell and rate limit; what arrives on the operator's path
+  /// but is the vehicle's own safety (the link failsafe's land) is kVehicle, never held.
+  modes::RequestOrigin origin = modes::RequestOrigin::kOperator;
 };
 
 class OnboardChain {
@@ -216,9 +219,10 @@ class OnboardChain {
   /// The operator's latest command (used in teleop mode). The mode controller gets it limited
   /// to the seen space, again on every frame with that frame's view.
   void set_operator_command(const modes::OperatorCommand& command);
-  /// Requests a flight mode; see ModeController::request_mode.
-  modes::ModeSwitch request_mode(modes::Mode mode);
-  /// Requests a mode with its marker task: the task goes to the marker stage first, and the
+  /// Requests a flight mode; see ModeController::request_mode. Operators' requests are held to
+  /// the modes' dwell and rate limit; the vehicle's own (its failsafes) are not.
+  modes::ModeSwitch request_mode(modes::Mode mode, modes::RequestOrigin origin);
+  /// A mode request with its marker task: the task goes to the marker stage first, and the
   /// whole request is refused (with the reason) when the stage is off or the target invalid.
   modes::ModeSwitch request_mode(const ModeRequest& request);
 
