@@ -287,6 +287,30 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
               slurp((dir_ / "fuzz.out").string()).c_str());
 }
 
+// Every attack at once, both directions, on a plain link (issue 39 reported 936 collision ticks
+// for this run; on this code it hits nothing). hq-onboard exits 3 on any collision tick.
+TEST_F(LinkProcesses, AllAttacksAtOnceHitNothing) {
+  Process onboard(onboard_args(14.0), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(ground_args(), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  ASSERT_TRUE(wait_airborne()) << out("onboard.out");
+  Process fuzz(fuzz_args("malformed,commands,requests,replay,heartbeats,states", 666, 200, 8.0),
+               (dir_ / "fuzz.out").string());
+  ASSERT_TRUE(fuzz.started());
+  EXPECT_EQ(fuzz.wait_exit(30.0), 0) << out("fuzz.out");
+  EXPECT_EQ(onboard.wait_exit(30.0), 0) << out("onboard.out");
+  ground.kill_now();
+  const std::vector<Row> rows = read_log(log_path());
+  ASSERT_GT(rows.size(), 100U);
+  for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
+  const std::string onboard_out = out("onboard.out");
+  EXPECT_NE(onboard_out.find("collision ticks                          0\n"), std::string::npos)
+      << onboard_out;
+  std::printf("[ figures  ] %ld commands rejected; fuzzer:\n%s", rows.back().commands_rejected,
+              out("fuzz.out").c_str());
+}
+
 // Ownership, sessions, escalation, checked telemetry. Each < 20 s.
 
 // (a) GIVEN station 1 (hq-ground, strength 100) flying in teleop, WHEN a weaker station 2 sends
