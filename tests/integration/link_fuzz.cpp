@@ -20,8 +20,17 @@
 //              ahead) and forged events of another session.
 // What a process sends is all it can know directly; what the vehicle made of it is read back
 // from the vehicle's own states (who commands it) and events (its rejections), and printed in a
-// table of sent / refused by the writer / seen accepted / seen rejected per topic and attack.
-//   hq-link-fuzz --domain-id N [--vehicle-id 1] [--station-id 666] [--station-strength 200]
+// table of sent / refused / sent with no reader matched / seen accepted / seen rejected per topic
+// and attack.
+// Security as hq-ground: --insecure for plain DDS, or --security-dir KEYS [--identity NAME] to
+// attack as a station holding those credentials (default identity station_<station id>). What
+// the secured link refuses is counted, not fatal: a writer or reader its permissions deny (every
+// sample that writer would have sent counts as refused), and samples sent while no reader
+// matched (authentication failed, or a partition the permissions keep us out of). A run in
+// which no sample reached any reader did not test the vehicle: it says so and exits with
+// kExitNotReached, never 0.
+//   hq-link-fuzz --domain-id N (--insecure | --security-dir KEYS [--identity station_666])
+//                [--vehicle-id 1] [--station-id 666] [--station-strength 200]
 //                [--attacks malformed] [--duration-s 4] [--rate-hz 2000] [--seed 1]
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/tool_main.hpp"
@@ -43,18 +52,91 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 
 namespace {
+
+// The exit status of a run whose samples reached no reader at all: the vehicle was not tested,
+// which must not read as a pass (2 is bad input, as for every tool).
+constexpr int kExitNotReached = 3;
 
 // One row of the report.
 struct Tally {
   const char* topic;
   const char* attack;
   std::uint64_t sent = 0;
-  std::uint64_t refused = 0;   // by our own writer (Cyclone's serialiser refuses bad enums)
-  std::int64_t accepted = -1;  // as seen from the vehicle's states/events; -1: not observable
+  // Not put on the wire: by our own writer (Cyclone's serialiser refuses bad enums), or because
+  // the secured link denied the writer.
+  std::uint64_t refused = 0;
+  std::uint64_t unmatched = 0;  // sent while no reader was matched: delivered to nobody
+  std::int64_t accepted = -1;   // as seen from the vehicle's states/events; -1: not observable
   std::int64_t rejected = -1;
-  void count(bool ok) { ok ? ++sent : ++refused; }
+  [[nodiscard]] std::uint64_t reached() const { return sent - unmatched; }
+};
+
+// A writer the secured link may refuse to create (permissions): then the attack still runs and
+// every sample it would have written counts as refused, with the reason kept for the report.
+template <typename T>
+class AttackWriter {
+ public:
+  AttackWriter(const hq::link::Participant& participant, const hq::link::Topic<T>& topic,
+               const hq::link::Qos& qos) {
+    try {
+      writer_.emplace(participant, topic, qos);
+    } catch (const hq::InputError& e) {
+      refusal_ = e.what();
+    }
+  }
+
+  void write(const T& sample, Tally& tally) {
+    if (!writer_) {
+      ++tally.refused;
+      return;
+    }
+    // Asked before writing: a best-effort sample written with no reader matched went nowhere.
+    const bool matched = writer_->matched_readers() > 0;
+    if (!writer_->write(sample)) {
+      ++tally.refused;
+      return;
+    }
+    ++tally.sent;
+    if (!matched) ++tally.unmatched;
+  }
+
+  [[nodiscard]] const std::string& refusal() const { return refusal_; }
+  [[nodiscard]] const char* last_error() const { return writer_ ? writer_->last_error() : ""; }
+
+ private:
+  std::optional<hq::link::Writer<T>> writer_;
+  std::string refusal_;  // empty: created
+};
+
+// `qos` for a reader that ignores this participant's own writers: our forged states and events
+// must neither come back as the vehicle's nor count as having reached a reader.
+hq::link::Qos ignoring_own_writers(hq::link::Qos qos) {
+  dds_qset_ignorelocal(qos.get(), DDS_IGNORELOCAL_PARTICIPANT);
+  return qos;
+}
+
+// A reader the secured link may refuse to create: then what the vehicle made of the attack is
+// not observable, and the report says so instead of showing zeros.
+template <typename T>
+class WatchReader {
+ public:
+  WatchReader(const hq::link::Participant& participant, const hq::link::Topic<T>& topic,
+              const hq::link::Qos& qos) {
+    try {
+      reader_.emplace(participant, topic, qos);
+    } catch (const hq::InputError& e) {
+      refusal_ = e.what();
+    }
+  }
+  bool take(T& sample, dds_sample_info_t& info) { return reader_ && reader_->take(sample, info); }
+  [[nodiscard]] const std::string& refusal() const { return refusal_; }
+
+ private:
+  std::optional<hq::link::Reader<T>> reader_;
+  std::string refusal_;
 };
 
 struct FuzzOptions {
@@ -81,6 +163,16 @@ std::optional<int> parse_options(int argc, char** argv, FuzzOptions& o) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  // hq-link-fuzz reads no link YAML, so an identity can only come from --security-dir.
+  if (o.overrides.identity && !o.overrides.security_dir) {
+    throw hq::InputError("--identity " + *o.overrides.identity +
+                         ": needs --security-dir KEYS (the directory made by hq-keys)");
+  }
+  if (o.overrides.ros2 || o.overrides.link_impair || o.overrides.stations) {
+    throw hq::InputError(
+        "--ros2, --link-impair and --stations configure a vehicle or a receiving end: "
+        "hq-link-fuzz does not use them");
+  }
   std::stringstream ss(o.attacks_text);
   std::string a;
   const std::set<std::string> known = {"malformed", "commands",   "requests",
@@ -104,7 +196,7 @@ class Fuzzer {
   Fuzzer(const FuzzOptions& o, const hq::link::LinkConfig& config)
       : o_(o),
         config_(config),
-        participant_(config.domain_id),
+        participant_(config, hq::security::Role::kStation),
         topics_(participant_),
         commands_(participant_, topics_.command,
                   hq::link::command_qos(config, hq::link::End::kWriter)),
@@ -112,8 +204,9 @@ class Fuzzer {
         heartbeats_(participant_, topics_.heartbeat, hq::link::heartbeat_qos(config)),
         forged_states_(participant_, topics_.vehicle_state, hq::link::vehicle_state_qos()),
         forged_events_(participant_, topics_.event, hq::link::event_qos()),
-        states_(participant_, topics_.vehicle_state, hq::link::vehicle_state_qos()),
-        events_(participant_, topics_.event, hq::link::event_qos()),
+        states_(participant_, topics_.vehicle_state,
+                ignoring_own_writers(hq::link::vehicle_state_qos())),
+        events_(participant_, topics_.event, ignoring_own_writers(hq::link::event_qos())),
         rng_(o.seed) {
     hq::link::reserve(state_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
     std::snprintf(own_request_tag_, sizeof own_request_tag_, "mode request of station %u ",
@@ -123,7 +216,8 @@ class Fuzzer {
   }
 
   void run();
-  void report() const;
+  [[nodiscard]] int report() const;
+  void report_refusals() const;
 
  private:
   bool on(const char* attack) const { return o_.attacks.count(attack) > 0; }
@@ -146,14 +240,14 @@ class Fuzzer {
   hq::link::LinkConfig config_;
   hq::link::Participant participant_;
   hq::link::Topics topics_;
-  hq::link::Writer<hq::link::VelocityCommand> commands_;
-  hq::link::Writer<hq::link::ModeRequest> modes_;
-  hq::link::Writer<hq::link::Heartbeat> heartbeats_;
-  hq::link::Writer<hq::link::VehicleState> forged_states_;
-  hq::link::Writer<hq::link::Event> forged_events_;
+  AttackWriter<hq::link::VelocityCommand> commands_;
+  AttackWriter<hq::link::ModeRequest> modes_;
+  AttackWriter<hq::link::Heartbeat> heartbeats_;
+  AttackWriter<hq::link::VehicleState> forged_states_;
+  AttackWriter<hq::link::Event> forged_events_;
   // What the vehicle says: its session, who commands it, and its rejections.
-  hq::link::Reader<hq::link::VehicleState> states_;
-  hq::link::Reader<hq::link::Event> events_;
+  WatchReader<hq::link::VehicleState> states_;
+  WatchReader<hq::link::Event> events_;
   hq::link::Sample<hq::link::VehicleState> state_;
 
   Tally malformed_commands_{"command", "malformed"};
@@ -219,7 +313,7 @@ void Fuzzer::listen() {
   dds_sample_info_t info{};
   while (states_.take(*state_, info)) {
     if (state_->vehicle_id != config_.vehicle_id) continue;
-    // Our own forged states come back too (same participant): they carry kForgedMark.
+    // Ours are ignored by the reader; the mark also drops those of another fuzzer alongside.
     if (state_->session_id == 0 || state_->height_m == kForgedMark) continue;
     if (session_ == 0 ||
         (state_->session_id == session_ && state_->sequence_number > last_sequence_)) {
@@ -260,7 +354,7 @@ void Fuzzer::send_malformed(std::uint64_t i) {
         break;
     }
   }
-  malformed_commands_.count(commands_.write(c));
+  commands_.write(c, malformed_commands_);
 
   hq::link::ModeRequest m{};
   m.station_id = c.station_id;
@@ -273,14 +367,14 @@ void Fuzzer::send_malformed(std::uint64_t i) {
     m.requested_mode = static_cast<hq_msgs_Mode>(i % 2 == 0 ? 5 + static_cast<int>(rng_() % 1000)
                                                             : -1 - static_cast<int>(rng_() % 1000));
   }
-  if (i % 20 == 0) malformed_requests_.count(modes_.write(m));  // reliable: keep the rate sane
+  if (i % 20 == 0) modes_.write(m, malformed_requests_);  // reliable: keep the rate sane
 
   hq::link::Heartbeat h{};
   h.vehicle_id = i % 2 == 0 ? other_vehicle() : config_.vehicle_id;
   h.role = static_cast<hq_msgs_Role>(2 + static_cast<int>(rng_() % 100));
   h.sender_id = c.station_id;
   h.sequence_number = huge_sequence();
-  malformed_heartbeats_.count(heartbeats_.write(h));
+  heartbeats_.write(h, malformed_heartbeats_);
 }
 
 // The well-formed attacks run at 100 Hz (commands) and slower (the rest).
@@ -310,7 +404,7 @@ void Fuzzer::send_hostile_command(std::int64_t t_ns, std::int64_t phase_ms) {
   } else {
     c.v_H_mps = {0.0F, (phase_ms / 125) % 2 == 0 ? v_y : -v_y, 0.0F};  // 4 Hz side to side
   }
-  hostile_commands_.count(commands_.write(c));
+  commands_.write(c, hostile_commands_);
 }
 
 void Fuzzer::send_replayed_command(std::int64_t t_ns) {
@@ -320,7 +414,7 @@ void Fuzzer::send_replayed_command(std::int64_t t_ns) {
   c.sequence_number = ++command_sequence_;
   c.t_ns = t_ns - 5'000'000'000;  // recorded 5 s ago
   c.v_H_mps = {0.5F, 0.0F, 0.0F};
-  replayed_commands_.count(commands_.write(c));
+  commands_.write(c, replayed_commands_);
 }
 
 void Fuzzer::send_heartbeat(std::int64_t t_ns) {
@@ -331,7 +425,7 @@ void Fuzzer::send_heartbeat(std::int64_t t_ns) {
   h.sequence_number = ++heartbeat_sequence_;
   h.t_ns = t_ns;
   h.session_id = 0x666;
-  foreign_heartbeats_.count(heartbeats_.write(h));
+  heartbeats_.write(h, foreign_heartbeats_);
 }
 
 void Fuzzer::send_owner_request(std::int64_t t_ns) {
@@ -342,7 +436,7 @@ void Fuzzer::send_owner_request(std::int64_t t_ns) {
   m.t_ns = t_ns;
   m.requested_mode = (slow_ticks_ / 50) % 2 == 0 ? hq_msgs_MODE_HOVER : hq_msgs_MODE_LAND;
   m.vehicle_session_id = session_;
-  owner_requests_.count(modes_.write(m));
+  modes_.write(m, owner_requests_);
 }
 
 void Fuzzer::send_replayed_request(std::int64_t t_ns) {
@@ -353,7 +447,7 @@ void Fuzzer::send_replayed_request(std::int64_t t_ns) {
   m.t_ns = t_ns - 6'000'000'000;
   m.requested_mode = hq_msgs_MODE_LAND;
   m.vehicle_session_id = session_ != 0 ? session_ ^ 0x5a5a5a5a5a5a5a5aULL : 12345;
-  replayed_requests_.count(modes_.write(m));
+  modes_.write(m, replayed_requests_);
 }
 
 // Forged vehicle states to the ground, each of which would pull the operator's hand hard if the
@@ -395,7 +489,7 @@ void Fuzzer::send_forged_state(std::int64_t t_ns) {
       break;
   }
   if (s.session_id == 0) s.session_id = 0xbad;
-  state_forgeries_.count(forged_states_.write(s));
+  forged_states_.write(s, state_forgeries_);
   if (forged_sequence_ % 25 == 0) {
     hq::link::Event e{};
     e.vehicle_id = config_.vehicle_id;
@@ -404,46 +498,82 @@ void Fuzzer::send_forged_state(std::int64_t t_ns) {
     e.t_ns = t_ns;
     e.severity = hq_msgs_SEVERITY_ERROR;
     std::snprintf(e.text, sizeof e.text, "FORGED: motors failing, land now");
-    event_forgeries_.count(forged_events_.write(e));
+    forged_events_.write(e, event_forgeries_);
   }
 }
 
-// What can be seen of the vehicle's verdicts, per topic and attack.
-void Fuzzer::report() const {
+// What can be seen of the vehicle's verdicts, per topic and attack; the exit status: 0 if some
+// sample reached a reader, kExitNotReached if none did (the vehicle was not tested).
+int Fuzzer::report() const {
   Tally hostile_commands = hostile_commands_;
   hostile_commands.accepted = static_cast<std::int64_t>(states_followed_);
   Tally owner_requests = owner_requests_;
   owner_requests.rejected = static_cast<std::int64_t>(requests_rejected_seen_);
   std::printf(
-      "hq-link-fuzz: attacks %s as station %u (strength %d) on vehicle %u, session "
+      "hq-link-fuzz: attacks %s as station %u (strength %d) on vehicle %u over %s, session "
       "%016llx; the vehicle named this station its commander in %llu of %llu states "
       "(%llu change events)\n",
       o_.attacks_text.c_str(), config_.station_id, config_.station_strength, config_.vehicle_id,
+      hq::link::describe_security(config_, hq::security::Role::kStation).c_str(),
       static_cast<unsigned long long>(session_), static_cast<unsigned long long>(states_followed_),
       static_cast<unsigned long long>(states_seen_),
       static_cast<unsigned long long>(commander_events_));
-  std::printf("  %-14s %-32s %10s %8s %16s %16s\n", "topic", "attack", "sent", "refused",
-              "seen accepted", "seen rejected");
-  std::uint64_t sent = 0;
-  std::uint64_t refused = 0;
+  std::printf("  %-14s %-32s %10s %8s %10s %16s %16s\n", "topic", "attack", "sent", "refused",
+              "no reader", "seen accepted", "seen rejected");
+  Tally total{"", ""};
   const auto cell = [](std::int64_t v) { return v < 0 ? std::string("-") : std::to_string(v); };
   const std::array<const Tally*, 10> rows = {
       &malformed_commands_, &malformed_requests_, &malformed_heartbeats_, &hostile_commands,
       &owner_requests,      &replayed_requests_,  &replayed_commands_,    &foreign_heartbeats_,
       &state_forgeries_,    &event_forgeries_};
   for (const Tally* t : rows) {
-    sent += t->sent;
-    refused += t->refused;
+    total.sent += t->sent;
+    total.refused += t->refused;
+    total.unmatched += t->unmatched;
     if (t->sent + t->refused == 0) continue;
-    std::printf("  %-14s %-32s %10llu %8llu %16s %16s\n", t->topic, t->attack,
+    std::printf("  %-14s %-32s %10llu %8llu %10llu %16s %16s\n", t->topic, t->attack,
                 static_cast<unsigned long long>(t->sent),
-                static_cast<unsigned long long>(t->refused), cell(t->accepted).c_str(),
+                static_cast<unsigned long long>(t->refused),
+                static_cast<unsigned long long>(t->unmatched), cell(t->accepted).c_str(),
                 cell(t->rejected).c_str());
   }
+  report_refusals();
   // "malformed samples sent" is the line earlier tests and scripts read.
-  std::printf("hq-link-fuzz: %llu malformed samples sent, %llu refused by the writer (%s)\n",
-              static_cast<unsigned long long>(sent), static_cast<unsigned long long>(refused),
-              heartbeats_.last_error());
+  const std::string last_error = heartbeats_.last_error();
+  std::printf(
+      "hq-link-fuzz: %llu malformed samples sent, %llu refused%s, %llu of them sent "
+      "with no reader matched\n",
+      static_cast<unsigned long long>(total.sent), static_cast<unsigned long long>(total.refused),
+      last_error.empty() ? "" : (" (writer: " + last_error + ")").c_str(),
+      static_cast<unsigned long long>(total.unmatched));
+  if (total.reached() == 0) {
+    std::printf(
+        "hq-link-fuzz: NOT REACHED: no sample reached any reader and %llu vehicle states were "
+        "seen; the vehicle was not tested (no vehicle on domain %d, or the secured link refused "
+        "this participant: see the refusals above and Cyclone's log)\n",
+        static_cast<unsigned long long>(states_seen_), config_.domain_id);
+    return kExitNotReached;
+  }
+  std::printf("hq-link-fuzz: %llu samples reached a reader\n",
+              static_cast<unsigned long long>(total.reached()));
+  return 0;
+}
+
+// The writers and readers the secured link would not let this participant create; each reason
+// names the call and topic, e.g. "dds_create_writer(hq_vehicle_state): Not Allowed By Security".
+void Fuzzer::report_refusals() const {
+  const auto refused = [](const std::string& reason, const char* consequence) {
+    if (!reason.empty()) {
+      std::printf("  refused by the secured link: %s%s\n", reason.c_str(), consequence);
+    }
+  };
+  refused(commands_.refusal(), "");
+  refused(modes_.refusal(), "");
+  refused(heartbeats_.refusal(), "");
+  refused(forged_states_.refusal(), "");
+  refused(forged_events_.refusal(), "");
+  refused(states_.refusal(), " (the vehicle's verdicts are not observable)");
+  refused(events_.refusal(), " (the vehicle's rejections are not observable)");
 }
 
 int run(int argc, char** argv) {
@@ -455,8 +585,7 @@ int run(int argc, char** argv) {
   hq::link::apply_overrides(o.overrides, config);
   Fuzzer fuzzer(o, config);
   fuzzer.run();
-  fuzzer.report();
-  return 0;
+  return fuzzer.report();
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 #include <string>
 #include <thread>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -135,7 +136,34 @@ class LinkProcesses : public ::testing::Test {
             "--station-strength",
             std::to_string(strength),
             "--duration-s",
-            std::to_string(duration_s)};
+            std::to_string(duration_s),
+            "--insecure"};
+  }
+  // Keys made by hq-keys in dir_/keys: vehicle 1, station 1 for vehicle 1, station 2 for
+  // vehicle 2 only.
+  std::string make_keys() const {
+    const std::string keys = (dir_ / "keys").string();
+    const auto keys_tool = [&](std::vector<std::string> args) {
+      args.insert(args.begin(), HQ_KEYS_EXE);
+      Process p(args, (dir_ / "keys.out").string());
+      return p.wait_exit(30.0);
+    };
+    const std::vector<std::vector<std::string>> steps = {
+        {"init", keys},
+        {"identity", keys, "--role", "vehicle", "--id", "1"},
+        {"identity", keys, "--role", "station", "--id", "1", "--vehicles", "1"},
+        {"identity", keys, "--role", "station", "--id", "2", "--vehicles", "2"}};
+    for (const std::vector<std::string>& step : steps) {
+      EXPECT_EQ(keys_tool(step), 0) << out("keys.out");
+    }
+    return keys;
+  }
+  // `args` of a process with --insecure, secured by `keys` instead.
+  static std::vector<std::string> secured(std::vector<std::string> args, const std::string& keys) {
+    const auto insecure = std::find(args.begin(), args.end(), "--insecure");
+    *insecure = "--security-dir";
+    args.insert(insecure + 1, keys);
+    return args;
   }
   std::string log_path() const { return (dir_ / "link.csv").string(); }
   std::string out(const char* name) const { return slurp((dir_ / name).string()); }
@@ -235,7 +263,7 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
   ASSERT_TRUE(wait_for_row((dir_ / "link.csv").string(), 10.0, [](const Row& r) {
     return r.airborne && r.altitude_m > 0.5;
   })) << slurp((dir_ / "onboard.out").string());
-  Process fuzz({HQ_LINK_FUZZ_EXE, "--domain-id", domain_, "--duration-s", "4"},
+  Process fuzz({HQ_LINK_FUZZ_EXE, "--domain-id", domain_, "--duration-s", "4", "--insecure"},
                (dir_ / "fuzz.out").string());
   ASSERT_TRUE(fuzz.started());
   EXPECT_EQ(fuzz.wait_exit(20.0), 0) << slurp((dir_ / "fuzz.out").string());
@@ -257,6 +285,30 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
   std::printf("[ figures  ] %ld commands and %ld mode requests rejected; final altitude %.2f m\n%s",
               last.commands_rejected, last.mode_requests_rejected, last.altitude_m,
               slurp((dir_ / "fuzz.out").string()).c_str());
+}
+
+// Every attack at once, both directions, on a plain link (issue 39 reported 936 collision ticks
+// for this run; on this code it hits nothing). hq-onboard exits 3 on any collision tick.
+TEST_F(LinkProcesses, AllAttacksAtOnceHitNothing) {
+  Process onboard(onboard_args(14.0), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(ground_args(), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  ASSERT_TRUE(wait_airborne()) << out("onboard.out");
+  Process fuzz(fuzz_args("malformed,commands,requests,replay,heartbeats,states", 666, 200, 8.0),
+               (dir_ / "fuzz.out").string());
+  ASSERT_TRUE(fuzz.started());
+  EXPECT_EQ(fuzz.wait_exit(30.0), 0) << out("fuzz.out");
+  EXPECT_EQ(onboard.wait_exit(30.0), 0) << out("onboard.out");
+  ground.kill_now();
+  const std::vector<Row> rows = read_log(log_path());
+  ASSERT_GT(rows.size(), 100U);
+  for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
+  const std::string onboard_out = out("onboard.out");
+  EXPECT_NE(onboard_out.find("collision ticks                          0\n"), std::string::npos)
+      << onboard_out;
+  std::printf("[ figures  ] %ld commands rejected; fuzzer:\n%s", rows.back().commands_rejected,
+              out("fuzz.out").c_str());
 }
 
 // Ownership, sessions, escalation, checked telemetry. Each < 20 s.
@@ -534,21 +586,9 @@ TEST_F(LinkProcesses, HostileInEnvelopeCommandsOfAnAllowedStationHitNothing) {
 // commands; a station listed for another vehicle is refused, naming the writer; hq-onboard
 // without keys and without --insecure says how to make them.
 TEST_F(LinkProcesses, SecuredStationFliesItsVehicleOthersAreRefused) {
-  const std::string keys = (dir_ / "keys").string();
-  const auto keys_tool = [&](std::vector<std::string> args) {
-    args.insert(args.begin(), HQ_KEYS_EXE);
-    Process p(args, (dir_ / "keys.out").string());
-    return p.wait_exit(30.0);
-  };
-  ASSERT_EQ(keys_tool({"init", keys}), 0) << slurp((dir_ / "keys.out").string());
-  ASSERT_EQ(keys_tool({"identity", keys, "--role", "vehicle", "--id", "1"}), 0);
-  ASSERT_EQ(keys_tool({"identity", keys, "--role", "station", "--id", "1", "--vehicles", "1"}), 0);
-  ASSERT_EQ(keys_tool({"identity", keys, "--role", "station", "--id", "2", "--vehicles", "2"}), 0);
+  const std::string keys = make_keys();
   const auto secured = [&](std::vector<std::string> args) {
-    const auto insecure = std::find(args.begin(), args.end(), "--insecure");
-    *insecure = "--security-dir";
-    args.insert(insecure + 1, keys);
-    return args;
+    return LinkProcesses::secured(std::move(args), keys);
   };
 
   {
@@ -578,6 +618,57 @@ TEST_F(LinkProcesses, SecuredStationFliesItsVehicleOthersAreRefused) {
                            [](const Row& r) { return r.airborne && r.altitude_m > 0.5; }))
       << slurp((dir_ / "onboard.out").string()) << slurp((dir_ / "ground.out").string());
   EXPECT_EQ(onboard.wait_exit(30.0), 0) << slurp((dir_ / "onboard.out").string());
+}
+
+// hq-link-fuzz on a secured vehicle attacks with the credentials it is given and reports what
+// the secured link refused. Before, it ignored them and attacked on plain DDS: nothing arrived,
+// yet it printed "0 refused" and exited 0, so a secured fuzz run read as a pass.
+TEST_F(LinkProcesses, SecuredFuzzAttacksWithItsCredentialsAndReportsWhatWasRefused) {
+  const std::string keys = make_keys();
+  Process onboard(secured(onboard_args(14.0), keys), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  ASSERT_TRUE(wait_for_row(log_path(), 12.0, [](const Row&) { return true; }))
+      << out("onboard.out");
+  const auto run_fuzz = [&](std::vector<std::string> args, const char* name) {
+    Process fuzz(args, (dir_ / name).string());
+    return fuzz.wait_exit(20.0);
+  };
+
+  // Station 2's credentials grant vehicle 2 only: every writer and reader is refused, nothing
+  // reaches vehicle 1, and the run says it tested nothing.
+  EXPECT_EQ(
+      run_fuzz(secured(fuzz_args("malformed,commands,states", 2, 200, 3.0), keys), "other.out"), 3)
+      << out("other.out");
+  const std::string other = out("other.out");
+  EXPECT_NE(other.find("refused by the secured link: dds_create_writer(hq_velocity_command): "
+                       "Not Allowed By Security"),
+            std::string::npos)
+      << other;
+  EXPECT_NE(other.find("NOT REACHED"), std::string::npos) << other;
+
+  // No credentials at all: plain DDS never meets the secured vehicle.
+  EXPECT_EQ(run_fuzz(fuzz_args("malformed", 666, 200, 3.0), "plain.out"), 3) << out("plain.out");
+  EXPECT_NE(out("plain.out").find("NOT REACHED"), std::string::npos) << out("plain.out");
+
+  // Station 1's credentials, its samples claiming station 666: the malformed commands reach the
+  // vehicle (which rejects them) and its requests are rejected; the vehicle-state writer the
+  // station's permissions deny is refused, and the forgeries it would have sent are counted.
+  const long rejected_before = read_log(log_path()).back().commands_rejected;
+  std::vector<std::string> own =
+      secured(fuzz_args("malformed,requests,states", 666, 200, 3.0), keys);
+  own.insert(own.end(), {"--identity", "station_1"});
+  EXPECT_EQ(run_fuzz(own, "own.out"), 0) << out("own.out");
+  const std::string report = out("own.out");
+  EXPECT_NE(report.find("refused by the secured link: dds_create_writer(hq_vehicle_state): "
+                        "Not Allowed By Security"),
+            std::string::npos)
+      << report;
+  EXPECT_EQ(report.find("NOT REACHED"), std::string::npos) << report;
+  EXPECT_EQ(report.find(" 0 of 0 states"), std::string::npos) << "saw no vehicle state\n" << report;
+  ASSERT_EQ(onboard.wait_exit(30.0), 0) << out("onboard.out");
+  EXPECT_GT(read_log(log_path()).back().commands_rejected - rejected_before, 100) << report;
+  std::printf("[ figures  ] station 2 (vehicle 2's):\n%s[ figures  ] station 1's credentials:\n%s",
+              other.c_str(), report.c_str());
 }
 
 }  // namespace
