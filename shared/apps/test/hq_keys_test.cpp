@@ -107,4 +107,18 @@ TEST_F(HqKeys, BadRequestsExitTwoWithTheReason) {
   EXPECT_THAT(output_, HasSubstr(keys_ + "/vehicle_1/cert.pem: certificate expired"));
 }
 
+// GIVEN an identity whose permissions.p7s is another identity's (signed by the same CA), WHEN
+// checked, THEN it exits 2 naming both subjects.
+TEST_F(HqKeys, PermissionsForAnotherSubjectFailTheCheck) {
+  ASSERT_EQ(run({"init", keys_}), 0) << output_;
+  ASSERT_EQ(run({"identity", keys_, "--role", "vehicle", "--id", "4"}), 0);
+  ASSERT_EQ(run({"identity", keys_, "--role", "station", "--id", "2", "--vehicles", "4"}), 0);
+  fs::copy_file(keys_ + "/station_2/permissions.p7s", keys_ + "/vehicle_4/permissions.p7s",
+                fs::copy_options::overwrite_existing);
+  EXPECT_EQ(run({"check", keys_, "--identity", "vehicle_4"}), 2);
+  EXPECT_THAT(output_, HasSubstr(keys_ + "/vehicle_4/permissions.p7s: permissions document is "
+                                         "for subject \"CN=station_2,O=HaptiQuad\""));
+  EXPECT_THAT(output_, HasSubstr("\"CN=vehicle_4,O=HaptiQuad\""));
+}
+
 }  // namespace

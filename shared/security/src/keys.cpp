@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -18,9 +19,13 @@
 #include <openssl/rand.h>
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
+#include <optional>
 #include <sstream>
+#include <string_view>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <utility>
+#include <vector>
 
 namespace hq::security {
 
@@ -272,8 +277,10 @@ void check_times(X509* cert, const std::string& path, const char* what, std::int
   }
 }
 
-// Verifies an S/MIME signed document against `ca` (and nothing else).
-void check_signed(const std::string& path, const char* what, X509* ca, const std::string& ca_path) {
+// The content of an S/MIME signed document if its signature verifies against `ca` (and nothing
+// else); nullopt with the reason in `why` otherwise.
+std::optional<std::string> verified_content(const std::string& path, const char* what, X509* ca,
+                                            const std::string& ca_path, std::string& why) {
   const std::string text = read_file(path);
   Owned<BIO> in(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
   BIO* content_raw = nullptr;
@@ -285,9 +292,144 @@ void check_signed(const std::string& path, const char* what, X509* ca, const std
           ca_path);
   Owned<BIO> out = memory_bio();
   if (PKCS7_verify(p7.get(), nullptr, store.get(), content.get(), out.get(), PKCS7_TEXT) != 1) {
-    fail(path, std::string(what) + " signature does not verify against " + ca_path + " (" +
-                   openssl_reason() + ")");
+    why = openssl_reason();
+    return std::nullopt;
   }
+  return bio_text(out.get());
+}
+
+std::string check_signed(const std::string& path, const char* what, X509* ca,
+                         const std::string& ca_path) {
+  std::string why;
+  std::optional<std::string> content = verified_content(path, what, ca, ca_path, why);
+  if (!content) {
+    fail(path,
+         std::string(what) + " signature does not verify against " + ca_path + " (" + why + ")");
+  }
+  return *std::move(content);
+}
+
+// An X.509 name as (short attribute name, UTF-8 value) pairs in its order.
+using NameParts = std::vector<std::pair<std::string, std::string>>;
+
+NameParts name_parts(const X509_NAME* name) {
+  NameParts parts;
+  for (int i = 0; i < X509_NAME_entry_count(name); ++i) {
+    const X509_NAME_ENTRY* entry = X509_NAME_get_entry(name, i);
+    const int nid = OBJ_obj2nid(X509_NAME_ENTRY_get_object(entry));
+    unsigned char* utf8 = nullptr;
+    const int n = ASN1_STRING_to_UTF8(&utf8, X509_NAME_ENTRY_get_data(entry));
+    const std::string value =
+        n >= 0 ? std::string(reinterpret_cast<char*>(utf8), static_cast<std::size_t>(n)) : "";
+    OPENSSL_free(utf8);
+    parts.emplace_back(nid == NID_undef ? "?" : OBJ_nid2sn(nid), value);
+  }
+  return parts;
+}
+
+std::string trimmed(const std::string& text) {
+  const std::size_t first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos) return "";
+  return text.substr(first, text.find_last_not_of(" \t\r\n") - first + 1);
+}
+
+// A subject_name of a permissions grant ("CN=vehicle_1,O=HaptiQuad", RFC 4514 as the DDS
+// Security spec writes it) as name parts, attribute names as OpenSSL's short names so that
+// "commonName=" and "CN=" compare equal; backslash escapes are undone.
+NameParts name_parts(const std::string& text) {
+  NameParts parts;
+  std::string part;
+  const auto add = [&] {
+    const std::size_t eq = part.find('=');
+    const std::string key = trimmed(part.substr(0, eq));
+    const int nid = OBJ_txt2nid(key.c_str());
+    parts.emplace_back(nid == NID_undef ? key : OBJ_nid2sn(nid),
+                       eq == std::string::npos ? "" : trimmed(part.substr(eq + 1)));
+    part.clear();
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '\\' && i + 1 < text.size()) {
+      part += text[++i];
+    } else if (text[i] == ',') {
+      add();
+    } else {
+      part += text[i];
+    }
+  }
+  add();
+  return parts;
+}
+
+std::string name_text(const NameParts& parts) {
+  std::string text;
+  for (const auto& [key, value] : parts) text += (text.empty() ? "" : ",") + key + "=" + value;
+  return text;
+}
+
+// Whether two names hold the same attributes, in any order: equal as X.509 names.
+bool same_name(NameParts a, NameParts b) {
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  return a == b;
+}
+
+// Whether a grant's subject_name covers `subject` as Cyclone's access control decides it
+// (ac_check_subjects_are_equal): the text split at ',', '/' or '|' and at the first '=', every
+// attribute of the certificate's subject found by its short name, as written, with the same
+// value; order free, but no space trimmed and no long attribute name understood.
+bool cyclone_grants(const std::string& text, const NameParts& subject) {
+  NameParts granted;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find_first_of(",/|", start), text.size());
+    const std::string token = text.substr(start, end - start);
+    const std::size_t eq = token.find('=');
+    if (!token.empty() && eq != std::string::npos) {
+      granted.emplace_back(token.substr(0, eq), token.substr(eq + 1));
+    }
+    start = end + 1;
+  }
+  return std::all_of(subject.begin(), subject.end(), [&](const auto& part) {
+    return std::find(granted.begin(), granted.end(), part) != granted.end();
+  });
+}
+
+// Every <subject_name> of the grants in a permissions document.
+std::vector<std::string> permission_subjects(const std::string& xml) {
+  static constexpr std::string_view kOpen = "<subject_name>";
+  static constexpr std::string_view kClose = "</subject_name>";
+  std::vector<std::string> subjects;
+  for (std::size_t at = xml.find(kOpen); at != std::string::npos; at = xml.find(kOpen, at)) {
+    at += kOpen.size();
+    const std::size_t end = xml.find(kClose, at);
+    if (end == std::string::npos) break;
+    subjects.push_back(trimmed(xml.substr(at, end - at)));
+  }
+  return subjects;
+}
+
+// Access control grants a participant only what a grant for its certificate's subject allows:
+// permissions for another subject make Cyclone refuse the participant at creation.
+void check_permission_subject(const std::string& permissions, const std::string& path, X509* cert,
+                              const std::string& cert_path) {
+  const NameParts subject = name_parts(X509_get_subject_name(cert));
+  const std::vector<std::string> granted = permission_subjects(permissions);
+  for (const std::string& text : granted) {
+    if (cyclone_grants(text, subject)) return;
+  }
+  for (const std::string& text : granted) {
+    if (!same_name(name_parts(text), subject)) continue;
+    fail(path, "permissions subject \"" + text + "\" is the certificate " + cert_path +
+                   "'s subject as an X.509 name, but Cyclone's access control compares it "
+                   "attribute by attribute as written (short names, no spaces): write \"" +
+                   name_text(subject) + "\"");
+  }
+  std::string listed;
+  for (const std::string& text : granted) listed += (listed.empty() ? "\"" : ", \"") + text + "\"";
+  fail(path, "permissions document is for subject " +
+                 (listed.empty() ? std::string("(no <subject_name>)") : listed) +
+                 ", not for the certificate " + cert_path + "'s subject \"" + name_text(subject) +
+                 "\" (make this identity's permissions again with `hq-keys identity`)");
 }
 
 }  // namespace
@@ -463,8 +605,9 @@ void check_identity(const IdentityFiles& files, std::int64_t now_s) {
   const Owned<X509> permissions_ca = load_cert(files.permissions_ca);
   check_times(permissions_ca.get(), files.permissions_ca, "permissions CA certificate", now_s);
   check_signed(files.governance, "governance document", permissions_ca.get(), files.permissions_ca);
-  check_signed(files.permissions, "permissions document", permissions_ca.get(),
-               files.permissions_ca);
+  const std::string permissions = check_signed(files.permissions, "permissions document",
+                                               permissions_ca.get(), files.permissions_ca);
+  check_permission_subject(permissions, files.permissions, cert.get(), files.certificate);
 }
 
 }  // namespace hq::security

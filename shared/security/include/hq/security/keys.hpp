@@ -99,8 +99,9 @@ std::string permissions_xml(const IdentityRequest& request);
 /// Checks what Cyclone would otherwise reject with a terse "Error" (or not at all): every file
 /// exists and is readable; the certificate parses, is valid at `now_s` (not expired, not yet
 /// valid), was signed by identity_ca and matches private_key; the CAs are valid at `now_s`;
-/// governance and permissions are S/MIME signed by permissions_ca. Throws hq::InputError naming
-/// the file and the problem.
+/// governance and permissions are S/MIME signed by permissions_ca; the permissions grant the
+/// certificate's subject (compared as X.509 names). Throws hq::InputError naming the file and
+/// the problem.
 void check_identity(const IdentityFiles& files, std::int64_t now_s);
 
 }  // namespace hq::security
