@@ -432,6 +432,41 @@ void check_permission_subject(const std::string& permissions, const std::string&
                  "\" (make this identity's permissions again with `hq-keys identity`)");
 }
 
+// "SHA-256 12:AB:...": a CA's fingerprint, which tells apart two CAs of the same name (every
+// `hq-keys init` makes a "CN=HaptiQuad CA").
+std::string fingerprint(X509* cert) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int n = 0;
+  require(X509_digest(cert, EVP_sha256(), md, &n) == 1, "X509_digest", "SHA-256");
+  std::string text = "SHA-256 ";
+  char byte[4];
+  for (unsigned int i = 0; i < std::min(n, 8U); ++i) {
+    std::snprintf(byte, sizeof byte, i == 0 ? "%02X" : ":%02X", md[i]);
+    text += byte;
+  }
+  return text + ":...";
+}
+
+std::string ca_text(const std::string& path, X509* ca) {
+  return path + " (\"" + name_text(name_parts(X509_get_subject_name(ca))) + "\", " +
+         fingerprint(ca) + ")";
+}
+
+// Whether `cert` chains to `ca` at `now_s`, as a peer's authentication plugin verifies it.
+bool chains_to(X509* cert, X509* ca, std::int64_t now_s) {
+  Owned<X509_STORE> store(X509_STORE_new());
+  require(store != nullptr && X509_STORE_add_cert(store.get(), ca) == 1, "X509_STORE_add_cert",
+          "CA");
+  std::unique_ptr<X509_STORE_CTX, decltype(&X509_STORE_CTX_free)> ctx(X509_STORE_CTX_new(),
+                                                                      &X509_STORE_CTX_free);
+  require(ctx != nullptr && X509_STORE_CTX_init(ctx.get(), store.get(), cert, nullptr) == 1,
+          "X509_STORE_CTX_init", "failed");
+  X509_STORE_CTX_set_time(ctx.get(), 0, static_cast<time_t>(now_s));
+  const bool ok = X509_verify_cert(ctx.get()) == 1;
+  ERR_clear_error();
+  return ok;
+}
+
 }  // namespace
 
 std::string vehicle_partition(std::uint32_t vehicle_id) {
@@ -608,6 +643,68 @@ void check_identity(const IdentityFiles& files, std::int64_t now_s) {
   const std::string permissions = check_signed(files.permissions, "permissions document",
                                                permissions_ca.get(), files.permissions_ca);
   check_permission_subject(permissions, files.permissions, cert.get(), files.certificate);
+}
+
+namespace {
+
+// Why `from` cannot authenticate to `to` (empty when it can): `to` verifies `from`'s certificate
+// with its identity CA and `from`'s permissions with its permissions CA.
+std::string trust_problems(const Peer& from, const std::string& to_name, X509* to_identity_ca,
+                           const std::string& to_identity_ca_path, X509* to_permissions_ca,
+                           const std::string& to_permissions_ca_path, std::int64_t now_s) {
+  std::string problems;
+  const Owned<X509> cert = load_cert(from.files.certificate);
+  if (!chains_to(cert.get(), to_identity_ca, now_s)) {
+    const Owned<X509> own_ca = load_cert(from.files.identity_ca);
+    problems += from.name + "'s certificate " + from.files.certificate + " is signed by CA " +
+                ca_text(from.files.identity_ca, own_ca.get()) + ", " + to_name + " trusts CA " +
+                ca_text(to_identity_ca_path, to_identity_ca);
+  }
+  std::string why;
+  if (!verified_content(from.files.permissions, "permissions document", to_permissions_ca,
+                        to_permissions_ca_path, why)) {
+    const Owned<X509> own_ca = load_cert(from.files.permissions_ca);
+    problems += std::string(problems.empty() ? "" : "; ") + from.name + "'s permissions " +
+                from.files.permissions + " are signed by CA " +
+                ca_text(from.files.permissions_ca, own_ca.get()) + ", " + to_name +
+                " trusts permissions from CA " + ca_text(to_permissions_ca_path, to_permissions_ca);
+  }
+  return problems;
+}
+
+std::string trust_problems(const Peer& from, const Peer& to, std::int64_t now_s) {
+  const Owned<X509> identity_ca = load_cert(to.files.identity_ca);
+  const Owned<X509> permissions_ca = load_cert(to.files.permissions_ca);
+  return trust_problems(from, to.name, identity_ca.get(), to.files.identity_ca,
+                        permissions_ca.get(), to.files.permissions_ca, now_s);
+}
+
+[[noreturn]] void fail_handshake(const std::string& a, const std::string& b,
+                                 const std::string& problems) {
+  throw InputError("a handshake between " + a + " and " + b + " cannot succeed: " + problems +
+                   " (make both identities with one CA: `hq-keys identity` on the same keys "
+                   "directory)");
+}
+
+}  // namespace
+
+void check_handshake(const Peer& a, const Peer& b, std::int64_t now_s) {
+  check_identity(a.files, now_s);
+  check_identity(b.files, now_s);
+  const std::string a_to_b = trust_problems(a, b, now_s);
+  const std::string b_to_a = trust_problems(b, a, now_s);
+  if (a_to_b.empty() && b_to_a.empty()) return;
+  fail_handshake(a.name, b.name, a_to_b + (a_to_b.empty() || b_to_a.empty() ? "" : "; ") + b_to_a);
+}
+
+void check_trusted_by(const Peer& a, const std::string& peer_ca, std::int64_t now_s) {
+  check_identity(a.files, now_s);
+  check_readable(peer_ca, "peer's CA certificate");
+  const Owned<X509> ca = load_cert(peer_ca);
+  check_times(ca.get(), peer_ca, "peer's CA certificate", now_s);
+  const std::string problems =
+      trust_problems(a, "the peer", ca.get(), peer_ca, ca.get(), peer_ca, now_s);
+  if (!problems.empty()) fail_handshake(a.name, "a peer trusting " + peer_ca, problems);
 }
 
 }  // namespace hq::security

@@ -249,6 +249,45 @@ TEST_F(Keys, SubjectInAnotherOrderPassesOneWrittenOtherwiseIsRefusedAsCycloneDoe
   EXPECT_NE(message.find("write \"CN=vehicle_3,O=HaptiQuad\""), std::string::npos) << message;
 }
 
+TEST_F(Keys, PeersOfOneCaCanHandshake) {
+  const IdentityFiles vehicle_files = vehicle(now_s() - 60, now_s() + 86'400);
+  make_identity(dir_, station_for_vehicle_3());
+  EXPECT_NO_THROW(check_handshake({"station_1", files_in(dir_, "station_1")},
+                                  {"vehicle_3", vehicle_files}, now_s()));
+  EXPECT_NO_THROW(check_trusted_by({"vehicle_3", vehicle_files}, dir_ + "/ca.pem", now_s()));
+}
+
+// A complete keyset of another CA passes check_identity alone; only the peer's view tells.
+TEST_F(Keys, KeysetOfAnotherCaCannotHandshakeAndSaysWhichCaEachTrusts) {
+  const IdentityFiles vehicle_files = vehicle(now_s() - 60, now_s() + 86'400);
+  const std::string other = dir_ + "/other";
+  make_ca(other, valid_for_days(now_s(), 30));
+  make_governance(other, DomainRange{});
+  make_identity(other, station_for_vehicle_3());
+  const IdentityFiles station_files = files_in(other, "station_1");
+  ASSERT_NO_THROW(check_identity(station_files, now_s()));
+  const std::string message = testing::input_error_message([&] {
+    check_handshake({"station_1", station_files}, {"vehicle_3", vehicle_files}, now_s());
+  });
+  EXPECT_NE(message.find("a handshake between station_1 and vehicle_3 cannot succeed: "
+                         "station_1's certificate " +
+                         station_files.certificate + " is signed by CA " + other + "/ca.pem"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("vehicle_3 trusts CA " + dir_ + "/ca.pem"), std::string::npos) << message;
+  EXPECT_NE(message.find("vehicle_3's certificate"), std::string::npos) << message;
+  EXPECT_NE(message.find("station_1's permissions"), std::string::npos) << message;
+  EXPECT_NE(message.find("SHA-256 "), std::string::npos) << message;
+
+  const std::string one_way = testing::input_error_message([&] {
+    check_trusted_by({"station_1", station_files}, dir_ + "/ca.pem", now_s());
+  });
+  EXPECT_NE(one_way.find("station_1's certificate " + station_files.certificate +
+                         " is signed by CA " + other + "/ca.pem"),
+            std::string::npos)
+      << one_way;
+}
+
 TEST_F(Keys, ExistingCaIsNotOverwritten) {
   const std::string message =
       testing::input_error_message([&] { make_ca(dir_, valid_for_days(now_s(), 1)); });
