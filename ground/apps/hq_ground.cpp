@@ -13,8 +13,9 @@
 //   hq-ground --replay DIR [--speed X] [--seek S] [--paused] [--headless] [--duration-s N]
 //             [--screenshot PNG] [--state-json PATH] [--keys "T:KEY,..."]
 //             (replay window: Space play/pause, [ ] speed, Left/Right -/+5 s, click the bar)
-// Exit status: 0 a good run, 2 bad input, 5 a flight whose --record failed on the way (disk
-// full; the flight went on without it).
+// Exit status: 0 a good run, 2 bad input, 3 a secured run that never heard from its vehicle
+// (keys that fail the handshake), 5 a flight whose --record failed on the way (disk full; the
+// flight went on without it).
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/console_model.hpp"
@@ -32,6 +33,7 @@
 #include "hq/link/config.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap_recorder/flight_recorder.hpp"
+#include "hq/security/keys.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -739,6 +741,42 @@ void write_flight_state_json(const Options& o, const hq::ground::GroundStation& 
                    station.stats().max_force_n, loop.passivity().min_energy_j());
 }
 
+// Exit status of a secured run that never heard from its vehicle: DDS Security drops a peer
+// whose keys fail the handshake with only Cyclone's "handshake failed" log line, so a station
+// with keys of another CA would otherwise wait the whole run and exit 0.
+constexpr int kVehicleNeverReachedExitStatus = 3;
+
+// Whether anything of the vehicle arrived: a state (even one rejected), an event, a camera
+// frame or a heartbeat.
+bool heard_from_vehicle(const hq::ground::LinkStatus& s) {
+  return s.states > 0 || s.states_rejected > 0 || s.events > 0 || s.camera_frames > 0 ||
+         s.have_vehicle_heartbeat;
+}
+
+// Names both ends and how to check their keys. Cyclone 0.10 reports a failed handshake through
+// no status of its API, so silence for the whole run is the evidence, and said as such.
+void report_vehicle_never_reached(const hq::link::LinkConfig& link, double waited_s) {
+  const hq::security::IdentityFiles files =
+      hq::link::security_files(link, hq::security::Role::kStation);
+  const std::string station =
+      link.security.identity.empty()
+          ? hq::security::identity_name(hq::security::Role::kStation, link.station_id)
+          : link.security.identity;
+  const std::string vehicle =
+      hq::security::identity_name(hq::security::Role::kVehicle, link.vehicle_id);
+  const std::string keys = link.security.keys_dir.empty() ? "KEYS" : link.security.keys_dir;
+  std::fprintf(stderr,
+               "hq-ground: error: station %s (certificate %s) never reached vehicle %u (%s): "
+               "nothing of it arrived in %.1f s on domain %d. Either the vehicle is not "
+               "running there, or the DDS Security handshake failed (Cyclone logs only "
+               "\"handshake failed\"), e.g. with keys of another CA. Check both ends' keys "
+               "with `hq-keys check %s --identity %s --peer VEHICLE_KEYS/%s`; exit status "
+               "%d\n",
+               station.c_str(), files.certificate.c_str(), link.vehicle_id, vehicle.c_str(),
+               waited_s, link.domain_id, keys.c_str(), station.c_str(), vehicle.c_str(),
+               kVehicleNeverReachedExitStatus);
+}
+
 // Exit status of a flight that went well but whose record failed (disk full): the record is
 // not flight-critical, so the flight went on, but whoever started it must learn that its
 // record is incomplete.
@@ -869,6 +907,11 @@ int run_live(const Options& o) {
     std::fprintf(stderr, "hq-ground: the flight record failed: recording: %s\n",
                  recorder->error().c_str());
     record_ok = false;
+  }
+  if (link.security.enabled && !heard_from_vehicle(ground.status())) {
+    report_vehicle_never_reached(
+        link, 1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - station.start_ns()));
+    return kVehicleNeverReachedExitStatus;
   }
   if (record_ok) return 0;
   std::fprintf(stderr,

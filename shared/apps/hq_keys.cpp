@@ -2,7 +2,8 @@
 //   hq-keys init DIR [--days 3650] [--domains 0-230]
 //   hq-keys identity DIR --role vehicle --id 1 [--days 365]
 //   hq-keys identity DIR --role station --id 1 --vehicles 1,2 [--days 365]
-//   hq-keys check DIR --identity vehicle_1
+//   hq-keys check DIR --identity station_1 [--peer vehicle_1 | --peer OTHER_DIR/vehicle_1]
+//                 [--peer-ca PEER_CA.pem]
 // The layout and what the permissions allow: hq/security/keys.hpp.
 
 #include "hq/base/error.hpp"
@@ -39,7 +40,34 @@ hq::security::DomainRange parse_domains(const std::string& text) {
   return range;
 }
 
+// --peer: "vehicle_1" in the keys directory checked, or "OTHER_DIR/vehicle_1" in another one.
+hq::security::Peer peer_of(const std::string& dir, const std::string& peer) {
+  const std::size_t slash = peer.find_last_of('/');
+  if (slash == std::string::npos) return {peer, hq::security::files_in(dir, peer)};
+  const std::string name = peer.substr(slash + 1);
+  if (name.empty()) throw hq::InputError("--peer " + peer + ": expected [DIR/]IDENTITY");
+  return {name, hq::security::files_in(peer.substr(0, slash), name)};
+}
+
 std::int64_t now_s() { return static_cast<std::int64_t>(std::time(nullptr)); }
+
+// hq-keys check: the identity alone, then as each peer named would verify it.
+void run_check(const std::string& dir, const std::string& identity, const std::string& peer,
+               const std::string& peer_ca) {
+  const hq::security::Peer own{identity, hq::security::files_in(dir, identity)};
+  hq::security::check_identity(own.files, now_s());
+  if (!peer.empty()) {
+    const hq::security::Peer other = peer_of(dir, peer);
+    hq::security::check_handshake(own, other, now_s());
+    std::printf("hq-keys: %s and %s can complete a handshake\n", own.name.c_str(),
+                other.name.c_str());
+  }
+  if (!peer_ca.empty()) {
+    hq::security::check_trusted_by(own, peer_ca, now_s());
+    std::printf("hq-keys: a peer trusting %s accepts %s\n", peer_ca.c_str(), own.name.c_str());
+  }
+  std::printf("hq-keys: %s/%s ok\n", dir.c_str(), identity.c_str());
+}
 
 int run(int argc, char** argv) {
   CLI::App app{"hq-keys: DDS Security keys for the HaptiQuad link"};
@@ -83,9 +111,16 @@ int run(int argc, char** argv) {
       ->capture_default_str();
 
   std::string identity_to_check;
+  std::string peer;
+  std::string peer_ca;
   CLI::App* check = app.add_subcommand("check", "check an identity's files as the link does");
   check->add_option("DIR", dir, "keys directory")->required();
   check->add_option("--identity", identity_to_check, "e.g. vehicle_1, station_2")->required();
+  check->add_option("--peer", peer,
+                    "the other end: an identity in DIR (vehicle_1) or in another keys "
+                    "directory (OTHER_DIR/vehicle_1); checks that a handshake can succeed");
+  check->add_option("--peer-ca", peer_ca,
+                    "the CA certificate a peer trusts: checks that it accepts this identity");
 
   try {
     app.parse(argc, argv);
@@ -116,8 +151,7 @@ int run(int argc, char** argv) {
     std::printf("hq-keys: identity %s/%s (%s)\n", dir.c_str(), name.c_str(),
                 hq::security::subject_name(request.role, id).c_str());
   } else if (check->parsed()) {
-    hq::security::check_identity(hq::security::files_in(dir, identity_to_check), now_s());
-    std::printf("hq-keys: %s/%s ok\n", dir.c_str(), identity_to_check.c_str());
+    run_check(dir, identity_to_check, peer, peer_ca);
   }
   return 0;
 }

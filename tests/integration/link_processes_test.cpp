@@ -671,4 +671,40 @@ TEST_F(LinkProcesses, SecuredFuzzAttacksWithItsCredentialsAndReportsWhatWasRefus
               other.c_str(), report.c_str());
 }
 
+// GIVEN a vehicle with keys of one CA and a station with a complete keyset of another (each
+// passes `hq-keys check` alone), WHEN they run, THEN the handshake fails, the vehicle never
+// hears a command and the station exits 3 naming both identities and the check to run, instead
+// of waiting the whole run and exiting 0.
+TEST_F(LinkProcesses, SecuredStationWithAnotherCasKeysExitsNamingBothEnds) {
+  const auto keys_tool = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), HQ_KEYS_EXE);
+    Process p(args, (dir_ / "keys.out").string());
+    return p.wait_exit(30.0);
+  };
+  const std::string vehicle_keys = (dir_ / "vehicle_keys").string();
+  const std::string station_keys = (dir_ / "station_keys").string();
+  for (const std::string& keys : {vehicle_keys, station_keys}) {
+    ASSERT_EQ(keys_tool({"init", keys}), 0) << slurp((dir_ / "keys.out").string());
+  }
+  ASSERT_EQ(keys_tool({"identity", vehicle_keys, "--role", "vehicle", "--id", "1"}), 0);
+  ASSERT_EQ(
+      keys_tool({"identity", station_keys, "--role", "station", "--id", "1", "--vehicles", "1"}),
+      0);
+  Process onboard(secured(onboard_args(8.0), vehicle_keys), (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  Process ground(secured(ground_args(4.0), station_keys), (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  EXPECT_EQ(ground.wait_exit(30.0), 3) << out("ground.out");
+  const std::string said = out("ground.out");
+  EXPECT_NE(said.find("station station_1 (certificate " + station_keys +
+                      "/station_1/cert.pem) never reached vehicle 1 (vehicle_1)"),
+            std::string::npos)
+      << said;
+  EXPECT_NE(said.find("hq-keys check " + station_keys + " --identity station_1 --peer"),
+            std::string::npos)
+      << said;
+  onboard.wait_exit(30.0);
+  for (const Row& r : read_log(log_path())) EXPECT_FALSE(r.airborne) << r.t_s;
+}
+
 }  // namespace

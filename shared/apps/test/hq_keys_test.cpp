@@ -107,4 +107,46 @@ TEST_F(HqKeys, BadRequestsExitTwoWithTheReason) {
   EXPECT_THAT(output_, HasSubstr(keys_ + "/vehicle_1/cert.pem: certificate expired"));
 }
 
+// GIVEN two complete keysets made by two `hq-keys init`, each identity passes `check` alone;
+// WHEN checked against the other keyset's peer, THEN it exits 2 saying which CA each side has.
+TEST_F(HqKeys, KeysetOfAnotherCaFailsTheCheckAgainstItsPeer) {
+  const std::string vehicle_keys = (dir_ / "vehicle_keys").string();
+  ASSERT_EQ(run({"init", keys_}), 0) << output_;
+  ASSERT_EQ(run({"init", vehicle_keys}), 0) << output_;
+  ASSERT_EQ(run({"identity", keys_, "--role", "station", "--id", "1", "--vehicles", "1"}), 0);
+  ASSERT_EQ(run({"identity", keys_, "--role", "vehicle", "--id", "1"}), 0);
+  ASSERT_EQ(run({"identity", vehicle_keys, "--role", "vehicle", "--id", "1"}), 0);
+  EXPECT_EQ(run({"check", keys_, "--identity", "station_1"}), 0) << output_;
+  EXPECT_EQ(run({"check", vehicle_keys, "--identity", "vehicle_1"}), 0) << output_;
+
+  EXPECT_EQ(run({"check", keys_, "--identity", "station_1", "--peer", "vehicle_1"}), 0) << output_;
+  EXPECT_THAT(output_, HasSubstr("station_1 and vehicle_1 can complete a handshake"));
+
+  EXPECT_EQ(run({"check", keys_, "--identity", "station_1", "--peer", vehicle_keys + "/vehicle_1"}),
+            2);
+  EXPECT_THAT(output_,
+              HasSubstr("a handshake between station_1 and vehicle_1 cannot succeed: "
+                        "station_1's certificate " +
+                        keys_ + "/station_1/cert.pem is signed by CA " + keys_ + "/ca.pem"));
+  EXPECT_THAT(output_, HasSubstr("vehicle_1 trusts CA " + vehicle_keys + "/ca.pem"));
+
+  EXPECT_EQ(run({"check", keys_, "--identity", "station_1", "--peer-ca", vehicle_keys + "/ca.pem"}),
+            2);
+  EXPECT_THAT(output_, HasSubstr("cannot succeed: station_1's certificate"));
+}
+
+// GIVEN an identity whose permissions.p7s is another identity's (signed by the same CA), WHEN
+// checked, THEN it exits 2 naming both subjects.
+TEST_F(HqKeys, PermissionsForAnotherSubjectFailTheCheck) {
+  ASSERT_EQ(run({"init", keys_}), 0) << output_;
+  ASSERT_EQ(run({"identity", keys_, "--role", "vehicle", "--id", "4"}), 0);
+  ASSERT_EQ(run({"identity", keys_, "--role", "station", "--id", "2", "--vehicles", "4"}), 0);
+  fs::copy_file(keys_ + "/station_2/permissions.p7s", keys_ + "/vehicle_4/permissions.p7s",
+                fs::copy_options::overwrite_existing);
+  EXPECT_EQ(run({"check", keys_, "--identity", "vehicle_4"}), 2);
+  EXPECT_THAT(output_, HasSubstr(keys_ + "/vehicle_4/permissions.p7s: permissions document is "
+                                         "for subject \"CN=station_2,O=HaptiQuad\""));
+  EXPECT_THAT(output_, HasSubstr("\"CN=vehicle_4,O=HaptiQuad\""));
+}
+
 }  // namespace

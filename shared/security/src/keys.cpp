@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -18,9 +19,13 @@
 #include <openssl/rand.h>
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
+#include <optional>
 #include <sstream>
+#include <string_view>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <utility>
+#include <vector>
 
 namespace hq::security {
 
@@ -272,8 +277,10 @@ void check_times(X509* cert, const std::string& path, const char* what, std::int
   }
 }
 
-// Verifies an S/MIME signed document against `ca` (and nothing else).
-void check_signed(const std::string& path, const char* what, X509* ca, const std::string& ca_path) {
+// The content of an S/MIME signed document if its signature verifies against `ca` (and nothing
+// else); nullopt with the reason in `why` otherwise.
+std::optional<std::string> verified_content(const std::string& path, const char* what, X509* ca,
+                                            const std::string& ca_path, std::string& why) {
   const std::string text = read_file(path);
   Owned<BIO> in(BIO_new_mem_buf(text.data(), static_cast<int>(text.size())));
   BIO* content_raw = nullptr;
@@ -285,9 +292,179 @@ void check_signed(const std::string& path, const char* what, X509* ca, const std
           ca_path);
   Owned<BIO> out = memory_bio();
   if (PKCS7_verify(p7.get(), nullptr, store.get(), content.get(), out.get(), PKCS7_TEXT) != 1) {
-    fail(path, std::string(what) + " signature does not verify against " + ca_path + " (" +
-                   openssl_reason() + ")");
+    why = openssl_reason();
+    return std::nullopt;
   }
+  return bio_text(out.get());
+}
+
+std::string check_signed(const std::string& path, const char* what, X509* ca,
+                         const std::string& ca_path) {
+  std::string why;
+  std::optional<std::string> content = verified_content(path, what, ca, ca_path, why);
+  if (!content) {
+    fail(path,
+         std::string(what) + " signature does not verify against " + ca_path + " (" + why + ")");
+  }
+  return *std::move(content);
+}
+
+// An X.509 name as (short attribute name, UTF-8 value) pairs in its order.
+using NameParts = std::vector<std::pair<std::string, std::string>>;
+
+NameParts name_parts(const X509_NAME* name) {
+  NameParts parts;
+  for (int i = 0; i < X509_NAME_entry_count(name); ++i) {
+    const X509_NAME_ENTRY* entry = X509_NAME_get_entry(name, i);
+    const int nid = OBJ_obj2nid(X509_NAME_ENTRY_get_object(entry));
+    unsigned char* utf8 = nullptr;
+    const int n = ASN1_STRING_to_UTF8(&utf8, X509_NAME_ENTRY_get_data(entry));
+    const std::string value =
+        n >= 0 ? std::string(reinterpret_cast<char*>(utf8), static_cast<std::size_t>(n)) : "";
+    OPENSSL_free(utf8);
+    parts.emplace_back(nid == NID_undef ? "?" : OBJ_nid2sn(nid), value);
+  }
+  return parts;
+}
+
+std::string trimmed(const std::string& text) {
+  const std::size_t first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos) return "";
+  return text.substr(first, text.find_last_not_of(" \t\r\n") - first + 1);
+}
+
+// A subject_name of a permissions grant ("CN=vehicle_1,O=HaptiQuad", RFC 4514 as the DDS
+// Security spec writes it) as name parts, attribute names as OpenSSL's short names so that
+// "commonName=" and "CN=" compare equal; backslash escapes are undone.
+NameParts name_parts(const std::string& text) {
+  NameParts parts;
+  std::string part;
+  const auto add = [&] {
+    const std::size_t eq = part.find('=');
+    const std::string key = trimmed(part.substr(0, eq));
+    const int nid = OBJ_txt2nid(key.c_str());
+    parts.emplace_back(nid == NID_undef ? key : OBJ_nid2sn(nid),
+                       eq == std::string::npos ? "" : trimmed(part.substr(eq + 1)));
+    part.clear();
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '\\' && i + 1 < text.size()) {
+      part += text[++i];
+    } else if (text[i] == ',') {
+      add();
+    } else {
+      part += text[i];
+    }
+  }
+  add();
+  return parts;
+}
+
+std::string name_text(const NameParts& parts) {
+  std::string text;
+  for (const auto& [key, value] : parts) text += (text.empty() ? "" : ",") + key + "=" + value;
+  return text;
+}
+
+// Whether two names hold the same attributes, in any order: equal as X.509 names.
+bool same_name(NameParts a, NameParts b) {
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  return a == b;
+}
+
+// Whether a grant's subject_name covers `subject` as Cyclone's access control decides it
+// (ac_check_subjects_are_equal): the text split at ',', '/' or '|' and at the first '=', every
+// attribute of the certificate's subject found by its short name, as written, with the same
+// value; order free, but no space trimmed and no long attribute name understood.
+bool cyclone_grants(const std::string& text, const NameParts& subject) {
+  NameParts granted;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find_first_of(",/|", start), text.size());
+    const std::string token = text.substr(start, end - start);
+    const std::size_t eq = token.find('=');
+    if (!token.empty() && eq != std::string::npos) {
+      granted.emplace_back(token.substr(0, eq), token.substr(eq + 1));
+    }
+    start = end + 1;
+  }
+  return std::all_of(subject.begin(), subject.end(), [&](const auto& part) {
+    return std::find(granted.begin(), granted.end(), part) != granted.end();
+  });
+}
+
+// Every <subject_name> of the grants in a permissions document.
+std::vector<std::string> permission_subjects(const std::string& xml) {
+  static constexpr std::string_view kOpen = "<subject_name>";
+  static constexpr std::string_view kClose = "</subject_name>";
+  std::vector<std::string> subjects;
+  for (std::size_t at = xml.find(kOpen); at != std::string::npos; at = xml.find(kOpen, at)) {
+    at += kOpen.size();
+    const std::size_t end = xml.find(kClose, at);
+    if (end == std::string::npos) break;
+    subjects.push_back(trimmed(xml.substr(at, end - at)));
+  }
+  return subjects;
+}
+
+// Access control grants a participant only what a grant for its certificate's subject allows:
+// permissions for another subject make Cyclone refuse the participant at creation.
+void check_permission_subject(const std::string& permissions, const std::string& path, X509* cert,
+                              const std::string& cert_path) {
+  const NameParts subject = name_parts(X509_get_subject_name(cert));
+  const std::vector<std::string> granted = permission_subjects(permissions);
+  for (const std::string& text : granted) {
+    if (cyclone_grants(text, subject)) return;
+  }
+  for (const std::string& text : granted) {
+    if (!same_name(name_parts(text), subject)) continue;
+    fail(path, "permissions subject \"" + text + "\" is the certificate " + cert_path +
+                   "'s subject as an X.509 name, but Cyclone's access control compares it "
+                   "attribute by attribute as written (short names, no spaces): write \"" +
+                   name_text(subject) + "\"");
+  }
+  std::string listed;
+  for (const std::string& text : granted) listed += (listed.empty() ? "\"" : ", \"") + text + "\"";
+  fail(path, "permissions document is for subject " +
+                 (listed.empty() ? std::string("(no <subject_name>)") : listed) +
+                 ", not for the certificate " + cert_path + "'s subject \"" + name_text(subject) +
+                 "\" (make this identity's permissions again with `hq-keys identity`)");
+}
+
+// "SHA-256 12:AB:...": a CA's fingerprint, which tells apart two CAs of the same name (every
+// `hq-keys init` makes a "CN=HaptiQuad CA").
+std::string fingerprint(X509* cert) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int n = 0;
+  require(X509_digest(cert, EVP_sha256(), md, &n) == 1, "X509_digest", "SHA-256");
+  std::string text = "SHA-256 ";
+  char byte[4];
+  for (unsigned int i = 0; i < std::min(n, 8U); ++i) {
+    std::snprintf(byte, sizeof byte, i == 0 ? "%02X" : ":%02X", md[i]);
+    text += byte;
+  }
+  return text + ":...";
+}
+
+std::string ca_text(const std::string& path, X509* ca) {
+  return path + " (\"" + name_text(name_parts(X509_get_subject_name(ca))) + "\", " +
+         fingerprint(ca) + ")";
+}
+
+// Whether `cert` chains to `ca` at `now_s`, as a peer's authentication plugin verifies it.
+bool chains_to(X509* cert, X509* ca, std::int64_t now_s) {
+  Owned<X509_STORE> store(X509_STORE_new());
+  require(store != nullptr && X509_STORE_add_cert(store.get(), ca) == 1, "X509_STORE_add_cert",
+          "CA");
+  std::unique_ptr<X509_STORE_CTX, decltype(&X509_STORE_CTX_free)> ctx(X509_STORE_CTX_new(),
+                                                                      &X509_STORE_CTX_free);
+  require(ctx != nullptr && X509_STORE_CTX_init(ctx.get(), store.get(), cert, nullptr) == 1,
+          "X509_STORE_CTX_init", "failed");
+  X509_STORE_CTX_set_time(ctx.get(), 0, static_cast<time_t>(now_s));
+  const bool ok = X509_verify_cert(ctx.get()) == 1;
+  ERR_clear_error();
+  return ok;
 }
 
 }  // namespace
@@ -463,8 +640,71 @@ void check_identity(const IdentityFiles& files, std::int64_t now_s) {
   const Owned<X509> permissions_ca = load_cert(files.permissions_ca);
   check_times(permissions_ca.get(), files.permissions_ca, "permissions CA certificate", now_s);
   check_signed(files.governance, "governance document", permissions_ca.get(), files.permissions_ca);
-  check_signed(files.permissions, "permissions document", permissions_ca.get(),
-               files.permissions_ca);
+  const std::string permissions = check_signed(files.permissions, "permissions document",
+                                               permissions_ca.get(), files.permissions_ca);
+  check_permission_subject(permissions, files.permissions, cert.get(), files.certificate);
+}
+
+namespace {
+
+// Why `from` cannot authenticate to `to` (empty when it can): `to` verifies `from`'s certificate
+// with its identity CA and `from`'s permissions with its permissions CA.
+std::string trust_problems(const Peer& from, const std::string& to_name, X509* to_identity_ca,
+                           const std::string& to_identity_ca_path, X509* to_permissions_ca,
+                           const std::string& to_permissions_ca_path, std::int64_t now_s) {
+  std::string problems;
+  const Owned<X509> cert = load_cert(from.files.certificate);
+  if (!chains_to(cert.get(), to_identity_ca, now_s)) {
+    const Owned<X509> own_ca = load_cert(from.files.identity_ca);
+    problems += from.name + "'s certificate " + from.files.certificate + " is signed by CA " +
+                ca_text(from.files.identity_ca, own_ca.get()) + ", " + to_name + " trusts CA " +
+                ca_text(to_identity_ca_path, to_identity_ca);
+  }
+  std::string why;
+  if (!verified_content(from.files.permissions, "permissions document", to_permissions_ca,
+                        to_permissions_ca_path, why)) {
+    const Owned<X509> own_ca = load_cert(from.files.permissions_ca);
+    problems += std::string(problems.empty() ? "" : "; ") + from.name + "'s permissions " +
+                from.files.permissions + " are signed by CA " +
+                ca_text(from.files.permissions_ca, own_ca.get()) + ", " + to_name +
+                " trusts permissions from CA " + ca_text(to_permissions_ca_path, to_permissions_ca);
+  }
+  return problems;
+}
+
+std::string trust_problems(const Peer& from, const Peer& to, std::int64_t now_s) {
+  const Owned<X509> identity_ca = load_cert(to.files.identity_ca);
+  const Owned<X509> permissions_ca = load_cert(to.files.permissions_ca);
+  return trust_problems(from, to.name, identity_ca.get(), to.files.identity_ca,
+                        permissions_ca.get(), to.files.permissions_ca, now_s);
+}
+
+[[noreturn]] void fail_handshake(const std::string& a, const std::string& b,
+                                 const std::string& problems) {
+  throw InputError("a handshake between " + a + " and " + b + " cannot succeed: " + problems +
+                   " (make both identities with one CA: `hq-keys identity` on the same keys "
+                   "directory)");
+}
+
+}  // namespace
+
+void check_handshake(const Peer& a, const Peer& b, std::int64_t now_s) {
+  check_identity(a.files, now_s);
+  check_identity(b.files, now_s);
+  const std::string a_to_b = trust_problems(a, b, now_s);
+  const std::string b_to_a = trust_problems(b, a, now_s);
+  if (a_to_b.empty() && b_to_a.empty()) return;
+  fail_handshake(a.name, b.name, a_to_b + (a_to_b.empty() || b_to_a.empty() ? "" : "; ") + b_to_a);
+}
+
+void check_trusted_by(const Peer& a, const std::string& peer_ca, std::int64_t now_s) {
+  check_identity(a.files, now_s);
+  check_readable(peer_ca, "peer's CA certificate");
+  const Owned<X509> ca = load_cert(peer_ca);
+  check_times(ca.get(), peer_ca, "peer's CA certificate", now_s);
+  const std::string problems =
+      trust_problems(a, "the peer", ca.get(), peer_ca, ca.get(), peer_ca, now_s);
+  if (!problems.empty()) fail_handshake(a.name, "a peer trusting " + peer_ca, problems);
 }
 
 }  // namespace hq::security

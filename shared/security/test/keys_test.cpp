@@ -10,6 +10,9 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <openssl/pem.h>
+#include <openssl/pkcs7.h>
+#include <sstream>
 #include <string>
 #include <unistd.h>
 
@@ -168,6 +171,121 @@ TEST_F(Keys, TamperedPermissionsDoNotVerify) {
   const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
   EXPECT_NE(message.find(files.permissions), std::string::npos) << message;
   EXPECT_NE(message.find("signature does not verify"), std::string::npos) << message;
+}
+
+// `xml` signed by the CA in `dir` as hq-keys signs permissions (detached S/MIME, text).
+void sign_as_ca(const std::string& dir, const std::string& xml, const std::string& out_path) {
+  std::FILE* f = std::fopen((dir + "/ca.pem").c_str(), "r");
+  ASSERT_NE(f, nullptr);
+  X509* ca = PEM_read_X509(f, nullptr, nullptr, nullptr);
+  std::fclose(f);
+  f = std::fopen((dir + "/ca.key.pem").c_str(), "r");
+  ASSERT_NE(f, nullptr);
+  EVP_PKEY* key = PEM_read_PrivateKey(f, nullptr, nullptr, nullptr);
+  std::fclose(f);
+  ASSERT_NE(ca, nullptr);
+  ASSERT_NE(key, nullptr);
+  const int flags = PKCS7_DETACHED | PKCS7_TEXT | PKCS7_STREAM;
+  BIO* in = BIO_new_mem_buf(xml.data(), static_cast<int>(xml.size()));
+  PKCS7* p7 = PKCS7_sign(ca, key, nullptr, in, flags);
+  BIO* out = BIO_new_file(out_path.c_str(), "w");
+  EXPECT_EQ(SMIME_write_PKCS7(out, p7, in, flags), 1);
+  BIO_free(out);
+  PKCS7_free(p7);
+  BIO_free(in);
+  EVP_PKEY_free(key);
+  X509_free(ca);
+}
+
+IdentityRequest station_for_vehicle_3() {
+  IdentityRequest station;
+  station.role = Role::kStation;
+  station.id = 1;
+  station.vehicles = {3};
+  station.validity = valid_for_days(now_s(), 1);
+  return station;
+}
+
+// Cyclone's access control refuses a participant whose permissions grant another subject;
+// the signature alone verifies, so only the subject tells.
+TEST_F(Keys, PermissionsForAnotherSubjectAreRefusedNamingBoth) {
+  IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  make_identity(dir_, station_for_vehicle_3());
+  files.permissions = files_in(dir_, "station_1").permissions;
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.permissions), std::string::npos) << message;
+  EXPECT_NE(message.find("permissions document is for subject \"CN=station_1,O=HaptiQuad\""),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find(files.certificate + "'s subject \"CN=vehicle_3,O=HaptiQuad\""),
+            std::string::npos)
+      << message;
+}
+
+// Cyclone compares the attributes in any order, but as written: a subject equal as an X.509
+// name yet written with spaces or long names is refused by it, so by the check too.
+TEST_F(Keys, SubjectInAnotherOrderPassesOneWrittenOtherwiseIsRefusedAsCycloneDoes) {
+  const IdentityFiles files = vehicle(now_s() - 60, now_s() + 86'400);
+  IdentityRequest request;
+  request.role = Role::kVehicle;
+  request.id = 3;
+  request.validity = valid_for_days(now_s(), 1);
+  const std::string xml = permissions_xml(request);
+  const std::string subject = "CN=vehicle_3,O=HaptiQuad";
+  const auto signed_with_subject = [&](const std::string& written) {
+    std::string text = xml;
+    text.replace(text.find(subject), subject.size(), written);
+    sign_as_ca(dir_, text, files.permissions);
+  };
+  signed_with_subject("O=HaptiQuad,CN=vehicle_3");
+  EXPECT_NO_THROW(check_identity(files, now_s()));
+  signed_with_subject("O=HaptiQuad, commonName=vehicle_3");
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find("permissions subject \"O=HaptiQuad, commonName=vehicle_3\" is the "
+                         "certificate " +
+                         files.certificate + "'s subject as an X.509 name"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("write \"CN=vehicle_3,O=HaptiQuad\""), std::string::npos) << message;
+}
+
+TEST_F(Keys, PeersOfOneCaCanHandshake) {
+  const IdentityFiles vehicle_files = vehicle(now_s() - 60, now_s() + 86'400);
+  make_identity(dir_, station_for_vehicle_3());
+  EXPECT_NO_THROW(check_handshake({"station_1", files_in(dir_, "station_1")},
+                                  {"vehicle_3", vehicle_files}, now_s()));
+  EXPECT_NO_THROW(check_trusted_by({"vehicle_3", vehicle_files}, dir_ + "/ca.pem", now_s()));
+}
+
+// A complete keyset of another CA passes check_identity alone; only the peer's view tells.
+TEST_F(Keys, KeysetOfAnotherCaCannotHandshakeAndSaysWhichCaEachTrusts) {
+  const IdentityFiles vehicle_files = vehicle(now_s() - 60, now_s() + 86'400);
+  const std::string other = dir_ + "/other";
+  make_ca(other, valid_for_days(now_s(), 30));
+  make_governance(other, DomainRange{});
+  make_identity(other, station_for_vehicle_3());
+  const IdentityFiles station_files = files_in(other, "station_1");
+  ASSERT_NO_THROW(check_identity(station_files, now_s()));
+  const std::string message = testing::input_error_message([&] {
+    check_handshake({"station_1", station_files}, {"vehicle_3", vehicle_files}, now_s());
+  });
+  EXPECT_NE(message.find("a handshake between station_1 and vehicle_3 cannot succeed: "
+                         "station_1's certificate " +
+                         station_files.certificate + " is signed by CA " + other + "/ca.pem"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("vehicle_3 trusts CA " + dir_ + "/ca.pem"), std::string::npos) << message;
+  EXPECT_NE(message.find("vehicle_3's certificate"), std::string::npos) << message;
+  EXPECT_NE(message.find("station_1's permissions"), std::string::npos) << message;
+  EXPECT_NE(message.find("SHA-256 "), std::string::npos) << message;
+
+  const std::string one_way = testing::input_error_message([&] {
+    check_trusted_by({"station_1", station_files}, dir_ + "/ca.pem", now_s());
+  });
+  EXPECT_NE(one_way.find("station_1's certificate " + station_files.certificate +
+                         " is signed by CA " + other + "/ca.pem"),
+            std::string::npos)
+      << one_way;
 }
 
 TEST_F(Keys, ExistingCaIsNotOverwritten) {

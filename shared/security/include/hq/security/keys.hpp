@@ -99,8 +99,27 @@ std::string permissions_xml(const IdentityRequest& request);
 /// Checks what Cyclone would otherwise reject with a terse "Error" (or not at all): every file
 /// exists and is readable; the certificate parses, is valid at `now_s` (not expired, not yet
 /// valid), was signed by identity_ca and matches private_key; the CAs are valid at `now_s`;
-/// governance and permissions are S/MIME signed by permissions_ca. Throws hq::InputError naming
-/// the file and the problem.
+/// governance and permissions are S/MIME signed by permissions_ca; the permissions grant the
+/// certificate's subject (compared as X.509 names). Throws hq::InputError naming the file and
+/// the problem.
 void check_identity(const IdentityFiles& files, std::int64_t now_s);
+
+/// One end of a secured link: a name for messages (e.g. "station_1") and its files.
+struct Peer {
+  std::string name;
+  IdentityFiles files;
+};
+
+/// Whether the DDS Security handshake between `a` and `b` can succeed as far as their keys
+/// decide (Cyclone only logs "handshake failed" and drops the peer): check_identity of each,
+/// then each certificate chains to the identity CA the other trusts and each permissions
+/// document verifies against the permissions CA the other trusts. Throws hq::InputError
+/// "a handshake between A and B cannot succeed: A's certificate ... is signed by CA X, B trusts
+/// CA Y" naming the files and the CAs' fingerprints.
+void check_handshake(const Peer& a, const Peer& b, std::int64_t now_s);
+
+/// As check_handshake, one way: a peer that trusts `peer_ca` (PEM) as its identity and
+/// permissions CA, as hq-keys lays keys out, accepts `a`'s certificate and permissions.
+void check_trusted_by(const Peer& a, const std::string& peer_ca, std::int64_t now_s);
 
 }  // namespace hq::security
