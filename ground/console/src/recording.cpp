@@ -29,7 +29,7 @@ constexpr std::array<const char*, 9> kNames = {"teleop", "hover",    "land", "ma
                                                "ok",     "degraded", "lost", "invalid"};
 
 // The recorder's names of the link's flight enums (ground_station.cpp), static for RecordedState.
-constexpr std::array<const char*, 15> kFlightNames = {"landed",
+constexpr std::array<const char*, 16> kFlightNames = {"landed",
                                                       "taking_off",
                                                       "airborne",
                                                       "landing",
@@ -42,6 +42,7 @@ constexpr std::array<const char*, 15> kFlightNames = {"landed",
                                                       "ignored_not_owner",
                                                       "ignored_failsafe",
                                                       "limited_unseen",
+                                                      "limited_envelope",
                                                       "unknown",
                                                       "invalid"};
 

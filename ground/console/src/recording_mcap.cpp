@@ -37,13 +37,14 @@ const char* name_of(const std::array<const char*, N>& names, int v) {
 constexpr std::array<const char*, 4> kFlightStates = {"landed", "taking_off", "airborne",
                                                       "landing"};
 constexpr std::array<const char*, 3> kHeightSources = {"none", "depth", "estimate"};
-constexpr std::array<const char*, 7> kOperatorInputs = {"flown",
+constexpr std::array<const char*, 8> kOperatorInputs = {"flown",
                                                         "none",
                                                         "ignored_mode",
                                                         "ignored_landed",
                                                         "ignored_not_owner",
                                                         "ignored_failsafe",
-                                                        "limited_unseen"};
+                                                        "limited_unseen",
+                                                        "limited_envelope"};
 
 std::array<float, 3> array3(const hq_msgs_Vector3f& v) { return {v.x, v.y, v.z}; }
 
