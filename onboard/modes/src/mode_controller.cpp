@@ -355,7 +355,7 @@ void ModeController::land_step(double dt_s, const std::optional<Eigen::Vector3d>
   if (!v_est_H_mps || !v_est_H_mps->allFinite()) {
     // No velocity to close the loop on: sink level at a fixed fraction of hover thrust; the
     // floor ends it.
-    if (!out.blind_descent && blind_descent_timer_s_ == 0.0) {
+    if (blind_descent_timer_s_ == 0.0) {  // a new blind descent: only impacts from now count
       impact_seen_ = false;
       still_timer_s_ = 0.0;
     }
