@@ -16,8 +16,11 @@ namespace {
 
 using ::testing::HasSubstr;
 
+// Named after the test too: ctest runs this binary's tests in parallel processes, and two of
+// them writing one file read each other's halves.
 std::string write_temp(const std::string& name, const std::string& text) {
-  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const std::string path = (std::filesystem::temp_directory_path() / (test + "." + name)).string();
   std::ofstream(path) << text;
   return path;
 }
