@@ -142,7 +142,7 @@ class LinkProcesses : public ::testing::Test {
   // Keys made by hq-keys in dir_/keys: vehicle 1, station 1 for vehicle 1, station 2 for
   // vehicle 2 only.
   std::string make_keys() const {
-    const std::string keys = (dir_ / "keys").string();
+    std::string keys = (dir_ / "keys").string();
     const auto keys_tool = [&](std::vector<std::string> args) {
       args.insert(args.begin(), HQ_KEYS_EXE);
       Process p(args, (dir_ / "keys.out").string());
@@ -629,7 +629,7 @@ TEST_F(LinkProcesses, SecuredFuzzAttacksWithItsCredentialsAndReportsWhatWasRefus
   ASSERT_TRUE(onboard.started());
   ASSERT_TRUE(wait_for_row(log_path(), 12.0, [](const Row&) { return true; }))
       << out("onboard.out");
-  const auto run_fuzz = [&](std::vector<std::string> args, const char* name) {
+  const auto run_fuzz = [&](const std::vector<std::string>& args, const char* name) {
     Process fuzz(args, (dir_ / name).string());
     return fuzz.wait_exit(20.0);
   };

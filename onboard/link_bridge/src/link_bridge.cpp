@@ -164,31 +164,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
       echo_receipt_t_ns_ = t_ns;
     }
   }
-  link::ModeRequest request{};
-  while (mode_reader_.take(request, info)) {
-    modes::Mode mode = modes::Mode::kHover;
-    const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
-    if (verdict.accepted) {
-      pipeline::ModeRequest chain_request;
-      const Verdict routed = to_mode_request(request, mode, chain_request);
-      if (!routed.accepted) {
-        char text[hq_msgs_kMaxEventText + 1];
-        std::snprintf(text, sizeof text, "mode %s with marker %ld refused: %s",
-                      modes::to_string(mode), static_cast<long>(request.target_id), routed.reason);
-        publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
-        continue;
-      }
-      mode_requests.push_back(chain_request);
-    } else {
-      // Named with the station and sessions: the operator of a station that lost control, or
-      // that talks to a previous instance, sees why its request did nothing.
-      char text[hq_msgs_kMaxEventText + 1];
-      std::snprintf(text, sizeof text, "mode request of station %u (session %016llx) rejected: %s",
-                    request.station_id, static_cast<unsigned long long>(request.vehicle_session_id),
-                    verdict.reason);
-      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, text);
-    }
-  }
+  take_mode_requests(t_ns, mode_requests);
 
   const FailsafeState& state = failsafe_.update(t_ns);
   if (state.commander_changed) {
@@ -239,6 +215,36 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
     heartbeat_writer_.write(own);
   }
   return state;
+}
+
+void LinkBridge::take_mode_requests(std::int64_t t_ns,
+                                    std::vector<pipeline::ModeRequest>& mode_requests) {
+  dds_sample_info_t info{};
+  link::ModeRequest request{};
+  while (mode_reader_.take(request, info)) {
+    modes::Mode mode = modes::Mode::kHover;
+    const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
+    if (verdict.accepted) {
+      pipeline::ModeRequest chain_request;
+      const Verdict routed = to_mode_request(request, mode, chain_request);
+      if (!routed.accepted) {
+        char text[hq_msgs_kMaxEventText + 1];
+        std::snprintf(text, sizeof text, "mode %s with marker %ld refused: %s",
+                      modes::to_string(mode), static_cast<long>(request.target_id), routed.reason);
+        publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
+        continue;
+      }
+      mode_requests.push_back(chain_request);
+    } else {
+      // Named with the station and sessions: the operator of a station that lost control, or
+      // that talks to a previous instance, sees why its request did nothing.
+      char text[hq_msgs_kMaxEventText + 1];
+      std::snprintf(text, sizeof text, "mode request of station %u (session %016llx) rejected: %s",
+                    request.station_id, static_cast<unsigned long long>(request.vehicle_session_id),
+                    verdict.reason);
+      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, text);
+    }
+  }
 }
 
 void LinkBridge::report_rejections(std::int64_t t_ns) {

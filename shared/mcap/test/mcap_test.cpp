@@ -388,7 +388,7 @@ void expect_subsequence(const std::vector<Message>& got, const std::vector<Messa
 // The footer and closing magic cut off: no summary, so the reader scans (as after a crash at
 // close, and as --recover reads a killed writer's file).
 std::string without_summary(const TempDir& dir, const std::vector<std::uint8_t>& bytes) {
-  const std::string cut = dir.file("no_summary.mcap");
+  std::string cut = dir.file("no_summary.mcap");
   write_file(cut, bytes, bytes.size() - (8 + 9 + 20) - 1);
   return cut;
 }

@@ -151,6 +151,9 @@ class LinkBridge {
   [[nodiscard]] std::uint64_t events_sent() const { return event_sequence_; }
 
  private:
+  /// The stations' mode requests through the fail-safe into mode_requests (operator origin);
+  /// each refused one gets an event.
+  void take_mode_requests(std::int64_t t_ns, std::vector<pipeline::ModeRequest>& mode_requests);
   void report_rejections(std::int64_t t_ns);
   static FailsafeConfig with_session(FailsafeConfig config, const link::LinkConfig& link);
 
