@@ -531,29 +531,38 @@ TEST(McapWriter, MissingFolderGivesAClearError) {
               HasSubstr("not open"));
 }
 
+// Writes 300-byte messages to path under a file size limit of limit_bytes (a disk filling up:
+// RLIMIT_FSIZE, SIGXFSZ ignored, else the kernel kills the process) until the writer throws;
+// handed counts the messages handed to it. Returns the error's message.
+std::string write_until_the_file_limit(const std::string& path, rlim_t limit_bytes,
+                                       McapWriter& writer, std::uint32_t& handed) {
+  rlimit saved{};
+  if (::getrlimit(RLIMIT_FSIZE, &saved) != 0) return "getrlimit failed";
+  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
+  rlimit limited = saved;
+  limited.rlim_cur = limit_bytes;
+  if (::setrlimit(RLIMIT_FSIZE, &limited) != 0) return "setrlimit failed";
+  std::string message = testing::input_error_message([&] {
+    writer.open(
+        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
+    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
+    const std::vector<std::uint8_t> data = payload(300, 9);
+    for (; handed < 100'000; ++handed) writer.write(channel, handed, handed, handed, data);
+  });
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  ::signal(SIGXFSZ, old_handler);
+  return message;
+}
+
 // GIVEN a recording under way WHEN the file may grow no further (RLIMIT_FSIZE, as a full disk
 // mid-flight) THEN the chunk flush fails at once with the path and errno text, the writer is
 // closed, and what reached the file before still reads.
 TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
   const TempDir dir;
   const std::string path = dir.file("flight.mcap");
-  rlimit saved{};
-  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
-  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);  // else the kernel kills the process
-  rlimit limited = saved;
-  limited.rlim_cur = 200 * 1024ULL;
-  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
   McapWriter writer;
   std::uint32_t written = 0;
-  const std::string message = testing::input_error_message([&] {
-    writer.open(
-        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
-    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
-    const std::vector<std::uint8_t> data = payload(300, 9);
-    for (; written < 100'000; ++written) writer.write(channel, written, written, written, data);
-  });
-  ::setrlimit(RLIMIT_FSIZE, &saved);
-  ::signal(SIGXFSZ, old_handler);
+  const std::string message = write_until_the_file_limit(path, 200 * 1024ULL, writer, written);
   EXPECT_EQ(message, path + ": write failed: File too large");
   EXPECT_FALSE(writer.is_open());
   EXPECT_LT(written, 1000u);
@@ -567,23 +576,9 @@ TEST(McapWriter, DiskFullMidRecordingFailsClearlyAndKeepsWhatWasWritten) {
 TEST(McapWriter, FullDiskCountsWhatReachedTheFileNotWhatWasHanded) {
   const TempDir dir;
   const std::string path = dir.file("flight.mcap");
-  rlimit saved{};
-  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
-  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
-  rlimit limited = saved;
-  limited.rlim_cur = 100 * 1024ULL;
-  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
   McapWriter writer;
   std::uint32_t handed = 0;
-  const std::string message = testing::input_error_message([&] {
-    writer.open(
-        path, {.profile = "", .chunk_size_bytes = 16 * 1024ULL, .compression = Compression::kNone});
-    const std::uint16_t channel = writer.add_channel(0, "/state", "raw");
-    const std::vector<std::uint8_t> data = payload(300, 9);
-    for (; handed < 100'000; ++handed) writer.write(channel, handed, handed, handed, data);
-  });
-  ::setrlimit(RLIMIT_FSIZE, &saved);
-  ::signal(SIGXFSZ, old_handler);
+  const std::string message = write_until_the_file_limit(path, 100 * 1024ULL, writer, handed);
   EXPECT_EQ(message, path + ": write failed: File too large");
   const McapReader reader(path);
   ASSERT_GT(reader.messages().size(), 100u);
