@@ -259,6 +259,8 @@ void add_ownership_json(nlohmann::ordered_json& j, const hq::console::LinkHealth
   j["control_lost"] = link.control_lost;
   j["commanding_station_id"] = link.commanding_station;
   j["own_station_id"] = link.own_station;
+  j["intrusion_reports"] = link.intrusion_reports;
+  j["last_intrusion"] = link.last_intrusion.data();
   j["vehicle_session"] = fmt::format("{:016x}", link.vehicle_session);
   j["waiting_for_vehicle"] = link.waiting_for_vehicle;
   j["states_rejected"] = link.states_rejected;
@@ -717,6 +719,8 @@ void print_hand_summary(const hq::ground::GroundStation& ground,
   fmt::print("  {:<40} {} (commander: station {}, this station {}, {} losses)\n", "control",
              s.control_lost ? "LOST" : "held", s.commanding_station_id, station_id,
              s.control_losses);
+  fmt::print("  {:<40} {}{}{}\n", "intrusions the vehicle reported", s.intrusion_reports,
+             s.intrusion_reports > 0 ? "; last: " : "", s.last_intrusion.data());
   fmt::print("  {:<40} {:.3f} N\n", "largest force on the hand", station.stats().max_force_n);
 }
 
@@ -731,6 +735,8 @@ void write_flight_state_json(const Options& o, const hq::ground::GroundStation& 
   snap.link.control_lost = s.control_lost;
   snap.link.commanding_station = s.commanding_station_id;
   snap.link.own_station = station_id;
+  snap.link.intrusion_reports = s.intrusion_reports;
+  snap.link.last_intrusion = s.last_intrusion;
   snap.link.vehicle_session = s.vehicle_session;
   snap.link.waiting_for_vehicle = s.waiting_for_vehicle;
   snap.link.states_rejected = s.states_rejected;

@@ -592,6 +592,10 @@ bool GroundStation::poll() {
 
 void GroundStation::deliver_event(const link::Event& event) {
   ++status_.events;
+  if (event.code == link::kEventCodeIntrusion) {
+    ++status_.intrusion_reports;
+    std::snprintf(status_.last_intrusion.data(), status_.last_intrusion.size(), "%s", event.text);
+  }
   std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
   const std::int64_t now = dds_time();
   if (recorder_ != nullptr) recorder_->event(now, event);

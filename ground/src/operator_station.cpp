@@ -265,6 +265,8 @@ void OperatorStation::report_health(std::int64_t now_ns) {
   health.control_lost = st.control_lost;
   health.commanding_station = st.commanding_station_id;
   health.own_station = options_.station_id;
+  health.intrusion_reports = st.intrusion_reports;
+  health.last_intrusion = st.last_intrusion;
   health.heartbeat_seen = st.have_vehicle_heartbeat;
   health.vehicle_ids = st.vehicle_ids_seen;
   health.vehicle_id_count = st.vehicle_ids_seen_count;

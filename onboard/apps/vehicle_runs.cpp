@@ -247,6 +247,16 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
       "commanding station", bridge.failsafe().state().commanding_station_id, c.commander_changes,
       c.commands_not_allowed, c.mode_requests_not_commander, c.mode_requests_wrong_session,
       c.heartbeats_not_commander);
+  if (c.intrusions > 0) {
+    const hq::link_bridge::Intrusion& last = bridge.failsafe().last_intrusion();
+    fmt::print(
+        "  {:<40} {} refused; last: a {} claiming station {}, written by station {}'s "
+        "certificate (0: no station's)\n",
+        "intrusions", c.intrusions, last.kind, last.claimed_station_id, last.writer_station_id);
+  } else {
+    fmt::print("  {:<40} 0 (samples claiming another station than their certificate)\n",
+               "intrusions");
+  }
   fmt::print("  {:<40} {} states, {} camera frames, {} events\n", "published", bridge.states_sent(),
              bridge.camera_frames_sent(), bridge.events_sent());
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {

@@ -18,6 +18,9 @@
 //   states     to the ground: forged vehicle states (another session, NaN, huge magnitudes,
 //              attitudes beyond pi, the current session with a sequence going backwards or jumping
 //              ahead) and forged events of another session.
+// --claim-station N makes the well-formed samples claim station N while the writers stay this
+// identity's (--station-id): an allowed station speaking for another. On a secured link the
+// vehicle refuses them as intrusions and reports so (counted from its events).
 // What a process sends is all it can know directly; what the vehicle made of it is read back
 // from the vehicle's own states (who commands it) and events (its rejections), and printed in a
 // table of sent / refused / sent with no reader matched / seen accepted / seen rejected per topic
@@ -32,6 +35,7 @@
 //   hq-link-fuzz --domain-id N (--insecure | --security-dir KEYS [--identity station_666])
 //                [--vehicle-id 1] [--station-id 666] [--station-strength 200]
 //                [--attacks malformed] [--duration-s 4] [--rate-hz 2000] [--seed 1]
+//                [--claim-station N]
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/link/config.hpp"
@@ -146,6 +150,7 @@ struct FuzzOptions {
   unsigned seed = 1;
   std::string attacks_text = "malformed";
   std::set<std::string> attacks;
+  std::uint32_t claim_station = 0;  ///< The station id the well-formed samples claim; 0: ours.
 };
 
 // The command line; an exit status when told to stop (--help, a parse error).
@@ -156,6 +161,9 @@ std::optional<int> parse_options(int argc, char** argv, FuzzOptions& o) {
   app.add_option("--rate-hz", o.rate_hz, "malformed samples per second per topic")
       ->check(CLI::Range(1.0, 1e5));
   app.add_option("--seed", o.seed);
+  app.add_option("--claim-station", o.claim_station,
+                 "station id the well-formed samples claim (default: --station-id)")
+      ->check(CLI::Range(1U, 0xFFFFFFFFU));
   app.add_option("--attacks", o.attacks_text,
                  "comma-separated: malformed, commands, requests, replay, heartbeats, states");
   try {
@@ -210,9 +218,9 @@ class Fuzzer {
         rng_(o.seed) {
     hq::link::reserve(state_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
     std::snprintf(own_request_tag_, sizeof own_request_tag_, "mode request of station %u ",
-                  config.station_id);
+                  claimed_station());
     std::snprintf(own_commander_tag_, sizeof own_commander_tag_, "station %u commands",
-                  config.station_id);
+                  claimed_station());
   }
 
   void run();
@@ -221,6 +229,10 @@ class Fuzzer {
 
  private:
   bool on(const char* attack) const { return o_.attacks.count(attack) > 0; }
+  [[nodiscard]] std::uint32_t claimed_station() const {
+    return o_.claim_station != 0 ? o_.claim_station : config_.station_id;
+  }
+  [[nodiscard]] bool impersonating() const { return claimed_station() != config_.station_id; }
   std::uint32_t other_vehicle() {
     const auto id = static_cast<std::uint32_t>(rng_());
     return id == config_.vehicle_id ? id + 1 : id;
@@ -279,6 +291,7 @@ class Fuzzer {
   std::uint64_t states_followed_ = 0;  // states naming this station as the commander
   std::uint64_t requests_rejected_seen_ = 0;
   std::uint64_t commander_events_ = 0;
+  std::uint64_t intrusion_reports_ = 0;  // the vehicle's intrusion events
   std::uint64_t mode_sequence_ = 0;
   std::uint64_t command_sequence_ = 0;
   std::uint64_t heartbeat_sequence_ = 0;
@@ -320,7 +333,7 @@ void Fuzzer::listen() {
       session_ = state_->session_id;
       last_sequence_ = state_->sequence_number;
       ++states_seen_;
-      if (state_->commanding_station_id == config_.station_id) ++states_followed_;
+      if (state_->commanding_station_id == claimed_station()) ++states_followed_;
     }
   }
   hq::link::Event event{};
@@ -328,6 +341,7 @@ void Fuzzer::listen() {
     if (event.vehicle_id != config_.vehicle_id || event.session_id != session_) continue;
     if (std::strstr(event.text, own_request_tag_) != nullptr) ++requests_rejected_seen_;
     if (std::strstr(event.text, own_commander_tag_) != nullptr) ++commander_events_;
+    if (event.code == hq::link::kEventCodeIntrusion) ++intrusion_reports_;
   }
 }
 
@@ -394,7 +408,7 @@ void Fuzzer::send_well_formed(std::int64_t t_ns, std::int64_t start_ns) {
 void Fuzzer::send_hostile_command(std::int64_t t_ns, std::int64_t phase_ms) {
   hq::link::VelocityCommand c{};
   c.vehicle_id = config_.vehicle_id;
-  c.station_id = config_.station_id;
+  c.station_id = claimed_station();
   c.sequence_number = ++command_sequence_;
   c.t_ns = t_ns;
   const float v_x = 0.9F * static_cast<float>(config_.envelope.max_v_x_mps);
@@ -410,7 +424,7 @@ void Fuzzer::send_hostile_command(std::int64_t t_ns, std::int64_t phase_ms) {
 void Fuzzer::send_replayed_command(std::int64_t t_ns) {
   hq::link::VelocityCommand c{};
   c.vehicle_id = config_.vehicle_id;
-  c.station_id = config_.station_id;
+  c.station_id = claimed_station();
   c.sequence_number = ++command_sequence_;
   c.t_ns = t_ns - 5'000'000'000;  // recorded 5 s ago
   c.v_H_mps = {0.5F, 0.0F, 0.0F};
@@ -421,7 +435,7 @@ void Fuzzer::send_heartbeat(std::int64_t t_ns) {
   hq::link::Heartbeat h{};
   h.vehicle_id = config_.vehicle_id;
   h.role = hq_msgs_ROLE_GROUND;
-  h.sender_id = config_.station_id;
+  h.sender_id = claimed_station();
   h.sequence_number = ++heartbeat_sequence_;
   h.t_ns = t_ns;
   h.session_id = 0x666;
@@ -431,7 +445,7 @@ void Fuzzer::send_heartbeat(std::int64_t t_ns) {
 void Fuzzer::send_owner_request(std::int64_t t_ns) {
   hq::link::ModeRequest m{};
   m.vehicle_id = config_.vehicle_id;
-  m.station_id = config_.station_id;
+  m.station_id = claimed_station();
   m.sequence_number = ++mode_sequence_;
   m.t_ns = t_ns;
   m.requested_mode = (slow_ticks_ / 50) % 2 == 0 ? hq_msgs_MODE_HOVER : hq_msgs_MODE_LAND;
@@ -506,7 +520,8 @@ void Fuzzer::send_forged_state(std::int64_t t_ns) {
 // sample reached a reader, kExitNotReached if none did (the vehicle was not tested).
 int Fuzzer::report() const {
   Tally hostile_commands = hostile_commands_;
-  hostile_commands.accepted = static_cast<std::int64_t>(states_followed_);
+  // Speaking for another station, our commands cannot be told from its own in the states.
+  hostile_commands.accepted = impersonating() ? -1 : static_cast<std::int64_t>(states_followed_);
   Tally owner_requests = owner_requests_;
   owner_requests.rejected = static_cast<std::int64_t>(requests_rejected_seen_);
   std::printf(
@@ -518,6 +533,12 @@ int Fuzzer::report() const {
       static_cast<unsigned long long>(session_), static_cast<unsigned long long>(states_followed_),
       static_cast<unsigned long long>(states_seen_),
       static_cast<unsigned long long>(commander_events_));
+  if (impersonating()) {
+    std::printf(
+        "hq-link-fuzz: the samples claimed station %u; the vehicle reported %llu intrusion "
+        "events\n",
+        claimed_station(), static_cast<unsigned long long>(intrusion_reports_));
+  }
   std::printf("  %-14s %-32s %10s %8s %10s %16s %16s\n", "topic", "attack", "sent", "refused",
               "no reader", "seen accepted", "seen rejected");
   Tally total{"", ""};

@@ -654,9 +654,8 @@ TEST_F(LinkProcesses, SecuredFuzzAttacksWithItsCredentialsAndReportsWhatWasRefus
   // vehicle (which rejects them) and its requests are rejected; the vehicle-state writer the
   // station's permissions deny is refused, and the forgeries it would have sent are counted.
   const long rejected_before = read_log(log_path()).back().commands_rejected;
-  std::vector<std::string> own =
-      secured(fuzz_args("malformed,requests,states", 666, 200, 3.0), keys);
-  own.insert(own.end(), {"--identity", "station_1"});
+  std::vector<std::string> own = secured(fuzz_args("malformed,requests,states", 1, 200, 3.0), keys);
+  own.insert(own.end(), {"--identity", "station_1", "--claim-station", "666"});
   EXPECT_EQ(run_fuzz(own, "own.out"), 0) << out("own.out");
   const std::string report = out("own.out");
   EXPECT_NE(report.find("refused by the secured link: dds_create_writer(hq_vehicle_state): "
@@ -669,6 +668,75 @@ TEST_F(LinkProcesses, SecuredFuzzAttacksWithItsCredentialsAndReportsWhatWasRefus
   EXPECT_GT(read_log(log_path()).back().commands_rejected - rejected_before, 100) << report;
   std::printf("[ figures  ] station 2 (vehicle 2's):\n%s[ figures  ] station 1's credentials:\n%s",
               other.c_str(), report.c_str());
+}
+
+// GIVEN a secured vehicle that allows stations 1 and 3 (both certified for it) and station 1
+// flying it, WHEN station 3's certificate sends commands, mode requests (hover/land at 2 Hz) and
+// heartbeats claiming station 1, THEN the vehicle flies none of them: station 1 keeps command
+// and is never told it lost control, the vehicle reports the intrusion and station 1's console
+// shows it; and the shipped hq-ground told --identity station_3 --station-id 1 cannot start.
+// Before, the claim was taken at its word: the land request was obeyed mid-flight and the real
+// station kept showing "control held, 0 losses".
+TEST_F(LinkProcesses, AllowedStationSpeakingForAnotherIsRefusedAndReportedAsIntrusion) {
+  const std::string keys = make_keys();
+  {
+    Process keys_tool(
+        {HQ_KEYS_EXE, "identity", keys, "--role", "station", "--id", "3", "--vehicles", "1"},
+        (dir_ / "keys3.out").string());
+    ASSERT_EQ(keys_tool.wait_exit(30.0), 0) << out("keys3.out");
+  }
+  {
+    std::vector<std::string> args = secured(ground_args(), keys);
+    args.insert(args.end(), {"--identity", "station_3", "--station-id", "1"});
+    Process impostor(args, (dir_ / "impostor.out").string());
+    EXPECT_EQ(impostor.wait_exit(30.0), 2) << out("impostor.out");
+    EXPECT_NE(out("impostor.out").find("is station_id 1 this certificate's station"),
+              std::string::npos)
+        << out("impostor.out");
+  }
+  std::vector<std::string> vehicle = secured(onboard_args(16.0), keys);
+  vehicle.insert(vehicle.end(), {"--stations", "1,3"});
+  Process onboard(vehicle, (dir_ / "onboard.out").string());
+  ASSERT_TRUE(onboard.started());
+  std::vector<std::string> station = secured(ground_args(13.0), keys);
+  station.insert(station.end(), {"--state-json", (dir_ / "ground.json").string()});
+  Process ground(station, (dir_ / "ground.out").string());
+  ASSERT_TRUE(ground.started());
+  ASSERT_TRUE(wait_airborne()) << out("onboard.out") << out("ground.out");
+  std::vector<std::string> fuzz =
+      secured(fuzz_args("commands,requests,heartbeats", 3, 200, 5.0), keys);
+  fuzz.insert(fuzz.end(), {"--identity", "station_3", "--claim-station", "1"});
+  Process impostor(fuzz, (dir_ / "fuzz.out").string());
+  EXPECT_EQ(impostor.wait_exit(30.0), 0) << out("fuzz.out");
+  EXPECT_EQ(onboard.wait_exit(30.0), 0) << out("onboard.out");
+  EXPECT_EQ(ground.wait_exit(30.0), 0) << out("ground.out");
+
+  const std::vector<Row> rows = read_log(log_path());
+  ASSERT_FALSE(rows.empty());
+  int landed_after_airborne = 0;
+  bool airborne = false;
+  for (const Row& r : rows) {
+    airborne = airborne || r.airborne;
+    // Up to the station's own scripted landing at the end of its 13 s.
+    if (airborne && r.mode == "land" && r.t_s < 12.0) ++landed_after_airborne;
+  }
+  EXPECT_EQ(landed_after_airborne, 0) << "a forged land request was obeyed";
+  const std::string report = out("fuzz.out");
+  EXPECT_NE(report.find("the vehicle reported"), std::string::npos) << report;
+  EXPECT_EQ(report.find("reported 0 intrusion events"), std::string::npos) << report;
+  const std::string ground_said = out("ground.out");
+  EXPECT_NE(ground_said.find("INTRUSION"), std::string::npos) << ground_said;
+  EXPECT_NE(ground_said.find("written by station_3's certificate"), std::string::npos)
+      << ground_said;
+  EXPECT_NE(ground_said.find("held (commander: station 1, this station 1, 0 losses)"),
+            std::string::npos)
+      << ground_said;
+  EXPECT_NE(out("onboard.out").find("written by station 3's certificate"), std::string::npos)
+      << out("onboard.out");
+  const std::string json = out("ground.json");
+  EXPECT_NE(json.find("\"control_lost\": false"), std::string::npos) << json;
+  EXPECT_EQ(json.find("\"intrusion_reports\": 0"), std::string::npos) << json;
+  std::printf("[ figures  ] station_3 speaking for station 1:\n%s", report.c_str());
 }
 
 // GIVEN a vehicle with keys of one CA and a station with a complete keyset of another (each

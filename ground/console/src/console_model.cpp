@@ -284,6 +284,16 @@ bool control_banner(const LinkHealth& link, char* out, std::size_t size) {
   return true;
 }
 
+bool intrusion_banner(const LinkHealth& link, char* out, std::size_t size) {
+  if (size == 0) return false;
+  out[0] = '\0';
+  if (link.intrusion_reports == 0) return false;
+  std::snprintf(out, size, "vehicle %u reports an intrusion (%llu reports): %s",
+                link.selected_vehicle, static_cast<unsigned long long>(link.intrusion_reports),
+                link.last_intrusion.data());
+  return true;
+}
+
 LinkLossMonitor::Change LinkLossMonitor::update(double state_age_s) {
   Change change = Change::kNone;
   if (state_age_s < 0) {

@@ -914,6 +914,11 @@ struct ConsoleWindow::Impl {
     if (char banner[192]; control_banner(s.link, banner, sizeof banner)) {
       ImGui::TextColored(ImVec4(1, 0.15F, 0.15F, 1), "%s", banner);  // loud: the hand flies nothing
     }
+    if (char banner[256]; intrusion_banner(s.link, banner, sizeof banner)) {
+      ImGui::PushTextWrapPos(0);  // the certificate to revoke is at the end of a long line
+      ImGui::TextColored(ImVec4(1, 0.15F, 0.15F, 1), "%s", banner);
+      ImGui::PopTextWrapPos();
+    }
     ImGui::Text("source: %s", s.source.data());
     const double stale = stale_s(s);
     if (stale >= 0) {

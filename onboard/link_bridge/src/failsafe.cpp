@@ -116,7 +116,19 @@ Verdict Failsafe::reject(std::uint64_t& counter, const char* reason) {
   return {false, reason};
 }
 
-Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& command) {
+bool Failsafe::intrudes(const char* kind, std::uint32_t claimed, link::WriterStation writer) {
+  if (!writer.bound || writer.station_id == claimed) return false;
+  ++counters_.intrusions;
+  last_intrusion_ = {claimed, writer.station_id, kind};
+  return true;
+}
+
+Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& command,
+                             link::WriterStation writer) {
+  if (intrudes("command", command.station_id, writer)) {
+    last_command_rejection_ = "command claiming another station than its writer's certificate";
+    return reject(counters_.commands_rejected, last_command_rejection_);
+  }
   if (command.vehicle_id != config_.vehicle_id) {
     last_command_rejection_ = "command for another vehicle id";
     return reject(counters_.commands_rejected, last_command_rejection_);
@@ -189,7 +201,11 @@ const char* Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
 }
 
 Verdict Failsafe::on_mode_request(std::int64_t t_ns, const link::ModeRequest& request,
-                                  modes::Mode& mode) {
+                                  modes::Mode& mode, link::WriterStation writer) {
+  if (intrudes("mode request", request.station_id, writer)) {
+    return reject(counters_.mode_requests_rejected,
+                  "mode request claiming another station than its writer's certificate");
+  }
   if (request.vehicle_id != config_.vehicle_id) {
     return reject(counters_.mode_requests_rejected, "mode request for another vehicle id");
   }
@@ -222,7 +238,14 @@ Verdict Failsafe::on_mode_request(std::int64_t t_ns, const link::ModeRequest& re
   return {true, ""};
 }
 
-Verdict Failsafe::on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbeat) {
+Verdict Failsafe::on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbeat,
+                               link::WriterStation writer) {
+  // A vehicle's heartbeat (its own among them) has no station to claim.
+  if (static_cast<int>(heartbeat.role) == hq_msgs_ROLE_GROUND &&
+      intrudes("heartbeat", heartbeat.sender_id, writer)) {
+    return reject(counters_.heartbeats_rejected,
+                  "heartbeat claiming another station than its writer's certificate");
+  }
   if (heartbeat.vehicle_id != config_.vehicle_id) {
     return reject(counters_.heartbeats_rejected, "heartbeat for another vehicle id");
   }

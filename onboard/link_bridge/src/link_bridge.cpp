@@ -91,6 +91,7 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
       command_reader_(participant_, topics_.command, link::command_qos(link, link::End::kReader)),
       mode_reader_(participant_, topics_.mode_request, link::mode_request_qos()),
       heartbeat_reader_(participant_, topics_.heartbeat, link::heartbeat_qos(link)),
+      writers_(participant_.secured(), link.vehicle_id),
       state_writer_(participant_, topics_.vehicle_state, link::vehicle_state_qos()),
       camera_writer_(participant_, topics_.camera, link::camera_qos()),
       event_writer_(participant_, topics_.event, link::event_qos()),
@@ -142,7 +143,8 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   dds_sample_info_t info{};
   link::VelocityCommand command{};
   while (command_reader_.take(command, info)) {
-    if (failsafe_.on_command(t_ns, command).accepted) {
+    if (failsafe_.on_command(t_ns, command, writers_.station_of(command_reader_.handle(), info))
+            .accepted) {
       have_native_command_ = true;
       last_native_command_t_ns_ = t_ns;
     }
@@ -159,7 +161,9 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   }
   link::Heartbeat heartbeat{};
   while (heartbeat_reader_.take(heartbeat, info)) {
-    if (failsafe_.on_heartbeat(t_ns, heartbeat).accepted) {
+    if (failsafe_
+            .on_heartbeat(t_ns, heartbeat, writers_.station_of(heartbeat_reader_.handle(), info))
+            .accepted) {
       echo_t_ns_ = heartbeat.t_ns;  // echoed in our next heartbeat: the station's round trip
       echo_receipt_t_ns_ = t_ns;
     }
@@ -223,7 +227,8 @@ void LinkBridge::take_mode_requests(std::int64_t t_ns,
   link::ModeRequest request{};
   while (mode_reader_.take(request, info)) {
     modes::Mode mode = modes::Mode::kHover;
-    const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
+    const Verdict verdict = failsafe_.on_mode_request(
+        t_ns, request, mode, writers_.station_of(mode_reader_.handle(), info));
     if (verdict.accepted) {
       pipeline::ModeRequest chain_request;
       const Verdict routed = to_mode_request(request, mode, chain_request);
@@ -252,8 +257,25 @@ void LinkBridge::report_rejections(std::int64_t t_ns) {
   const FailsafeCounters& c = failsafe_.counters();
   const std::uint64_t commands = c.commands_rejected - reported_.commands_rejected;
   const std::uint64_t heartbeats = c.heartbeats_rejected - reported_.heartbeats_rejected;
-  if (commands == 0 && heartbeats == 0) return;
+  const std::uint64_t intrusions = c.intrusions - reported_.intrusions;
+  if (commands == 0 && heartbeats == 0 && intrusions == 0) return;
   char text[hq_msgs_kMaxEventText + 1];
+  if (intrusions > 0) {
+    // An allowed certificate speaking for another station: the operators must know, whatever
+    // the fail-safe did with it (refused), and which certificate to revoke.
+    const Intrusion& last = failsafe_.last_intrusion();
+    char writer[48] = "a certificate of no station";
+    if (last.writer_station_id != 0) {
+      std::snprintf(writer, sizeof writer, "station_%u's certificate", last.writer_station_id);
+    }
+    std::snprintf(text, sizeof text,
+                  "INTRUSION: %llu samples (%llu in total) claimed another station, refused; "
+                  "last: a %s claiming station %u, written by %s",
+                  static_cast<unsigned long long>(intrusions),
+                  static_cast<unsigned long long>(c.intrusions), last.kind, last.claimed_station_id,
+                  writer);
+    publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kIntrusion, text);
+  }
   if (commands > 0) {
     std::snprintf(text, sizeof text, "rejected %llu commands (%llu in total), last: %s",
                   static_cast<unsigned long long>(commands),

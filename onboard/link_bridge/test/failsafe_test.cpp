@@ -313,6 +313,46 @@ TEST(FailsafeOwnership, StationsNotListedCannotCommandRequestOrKeepTheLink) {
   EXPECT_EQ(failsafe.update(10 * kMs).commanding_station_id, 2U);
 }
 
+// GIVEN stations 1 and 3 both allowed, WHEN station 3's certificate writes samples claiming
+// station 1 (the shipped hq-ground could be told --station-id 1), THEN none of them counts: the
+// command is not flown, the request not obeyed, the heartbeat keeps nothing alive, and each is
+// an intrusion naming both stations. Station 1's own samples, and unbound ones (plain DDS),
+// pass as before.
+TEST(FailsafeIdentity, SamplesClaimingAnotherStationThanTheirCertificateAreIntrusions) {
+  FailsafeConfig config = session_config();
+  config.stations = {1, 3};
+  Failsafe failsafe(config);
+  modes::Mode mode = modes::Mode::kHover;
+  const link::WriterStation station_3{true, 3};
+  EXPECT_FALSE(failsafe.on_command(0, command_from(1, 0.5F), station_3).accepted);
+  EXPECT_THAT(failsafe.last_command_rejection(), HasSubstr("certificate"));
+  EXPECT_FALSE(
+      failsafe.on_mode_request(0, mode_request(1, hq_msgs_MODE_LAND), mode, station_3).accepted);
+  EXPECT_FALSE(failsafe.on_heartbeat(0, ground_heartbeat(1), station_3).accepted);
+  EXPECT_EQ(failsafe.counters().intrusions, 3U);
+  EXPECT_EQ(failsafe.counters().commands_rejected, 1U);
+  EXPECT_EQ(failsafe.counters().mode_requests_rejected, 1U);
+  EXPECT_EQ(failsafe.counters().heartbeats_rejected, 1U);
+  EXPECT_EQ(failsafe.last_intrusion().claimed_station_id, 1U);
+  EXPECT_EQ(failsafe.last_intrusion().writer_station_id, 3U);
+  EXPECT_STREQ(failsafe.last_intrusion().kind, "heartbeat");
+  EXPECT_EQ(failsafe.update(0).commanding_station_id, 0U);  // nobody took command
+
+  // A writer bound to no station (its partitions name none) cannot claim one either.
+  EXPECT_FALSE(failsafe.on_command(kMs, command_from(1, 0.5F), {true, 0}).accepted);
+  EXPECT_EQ(failsafe.counters().intrusions, 4U);
+
+  EXPECT_TRUE(failsafe.on_command(2 * kMs, command_from(1, 0.5F), {true, 1}).accepted);
+  EXPECT_TRUE(failsafe.on_command(3 * kMs, command_from(1, 0.5F)).accepted);  // unbound
+  EXPECT_EQ(failsafe.update(3 * kMs).commanding_station_id, 1U);
+  EXPECT_EQ(failsafe.counters().intrusions, 4U);
+  // The vehicle's own heartbeat claims no station: ignored as before, not an intrusion.
+  link::Heartbeat own = ground_heartbeat(1);
+  own.role = hq_msgs_ROLE_VEHICLE;
+  EXPECT_FALSE(failsafe.on_heartbeat(4 * kMs, own, {true, 0}).accepted);
+  EXPECT_EQ(failsafe.counters().intrusions, 4U);
+}
+
 TEST(FailsafeEscalation, HoldThenLandAfterHoldToLand) {
   FailsafeConfig config = session_config();
   config.hold_to_land_ns = 1000 * kMs;

@@ -8,9 +8,12 @@
 
 namespace hq::link {
 
-dds_return_t check(dds_return_t rc, const char* operation, const std::string& entity) {
+dds_return_t check(dds_return_t rc, const char* operation, const std::string& entity,
+                   const std::string& hint) {
   if (rc >= 0) return rc;
-  throw InputError(std::string(operation) + "(" + entity + "): " + dds_strretcode(rc));
+  std::string message = std::string(operation) + "(" + entity + "): " + dds_strretcode(rc);
+  if (rc == DDS_RETCODE_NOT_ALLOWED_BY_SECURITY && !hint.empty()) message += ": " + hint;
+  throw InputError(message);
 }
 
 void Entity::reset() {
@@ -197,11 +200,37 @@ Participant::Participant(const LinkConfig& config, security::Role role)
   }
   entity_ = Entity(handle);
   partition_ = security::vehicle_partition(config.vehicle_id);
+  if (role == security::Role::kStation) {
+    station_partition_ = security::station_partition(config.vehicle_id, config.station_id);
+    // A station writes its own topics in its vehicle's partition and its own station's.
+    writer_grant_hint_ = "the permissions of " + files.certificate +
+                         " do not grant writing this topic in partitions " + partition_ + " and " +
+                         station_partition_ +
+                         " (a station writes commands, mode requests and heartbeats only; is "
+                         "station_id " +
+                         std::to_string(config.station_id) +
+                         " this certificate's station, and vehicle " +
+                         std::to_string(config.vehicle_id) + " one it may command?)";
+  } else {
+    writer_grant_hint_ = "the permissions of " + files.certificate +
+                         " do not grant this topic in partition " + partition_;
+  }
 }
 
-Qos Participant::endpoint_qos(const Qos& qos) const {
+Qos Participant::reader_qos(const Qos& qos) const {
   Qos out = qos.copy();
   if (!partition_.empty()) dds_qset_partition1(out.get(), partition_.c_str());
+  return out;
+}
+
+Qos Participant::writer_qos(const Qos& qos) const {
+  Qos out = qos.copy();
+  if (station_partition_.empty()) {
+    if (!partition_.empty()) dds_qset_partition1(out.get(), partition_.c_str());
+    return out;
+  }
+  const char* partitions[] = {partition_.c_str(), station_partition_.c_str()};
+  dds_qset_partition(out.get(), 2, partitions);
   return out;
 }
 

@@ -1,6 +1,7 @@
 // DDS Security on the link, real Cyclone DDS on loopback with keys made by hq::security (the
 // code of hq-keys) in a temp dir: a permitted station commands its vehicle; nobody else delivers
 // a single command, and a station cannot publish vehicle state.
+#include "hq/link/writer_binding.hpp"
 #include "hq/security/keys.hpp"
 #include "hq/testing/input_error.hpp"
 
@@ -24,6 +25,7 @@
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 namespace hq::link {
@@ -81,7 +83,7 @@ class Secured : public ::testing::Test {
   // and a process of its own because Cyclone's access-control plugin keeps one local
   // permissions per domain and process: one identity per process, as hq-onboard and hq-ground.
   // Exit status 0 when it commanded, 3 when it could not create its participant or writer.
-  static pid_t spawn_station(const LinkConfig& c, double seconds) {
+  static pid_t spawn_station(const LinkConfig& c, double seconds, std::uint32_t claimed = 1) {
     const pid_t pid = fork();
     if (pid != 0) return pid;
     int code = 0;
@@ -91,6 +93,7 @@ class Secured : public ::testing::Test {
       Writer<VelocityCommand> writer(station, topics.command, command_qos(c, End::kWriter));
       VelocityCommand command{};
       command.vehicle_id = 1;
+      command.station_id = claimed;
       command.v_H_mps = kMarker;
       const std::int64_t end_ns = dds_time() + static_cast<std::int64_t>(seconds * 1e9);
       while (dds_time() < end_ns) {
@@ -123,6 +126,27 @@ class Secured : public ::testing::Test {
     during();
     VelocityCommand got{};
     return test::take_within(vehicle, commands, got, within) && got.v_H_mps.x == 0.25f;
+  }
+
+  // The first command vehicle 1 takes within `within`: its claimed station id, and the station
+  // the vehicle's WriterBinding finds behind its writer. Nullopt if none arrived.
+  std::optional<std::pair<std::uint32_t, WriterStation>> command_and_its_writer(
+      dds_duration_t within) const {
+    const LinkConfig c = config("");
+    Participant vehicle(c, Role::kVehicle);
+    Topics topics(vehicle);
+    Reader<VelocityCommand> commands(vehicle, topics.command, command_qos(c, End::kReader));
+    WriterBinding writers(vehicle.secured(), c.vehicle_id);
+    const std::int64_t end_ns = dds_time() + within;
+    VelocityCommand got{};
+    dds_sample_info_t info{};
+    while (dds_time() < end_ns) {
+      if (commands.take(got, info)) {
+        return std::pair{got.station_id, writers.station_of(commands.handle(), info)};
+      }
+      dds_sleepfor(DDS_MSECS(10));
+    }
+    return std::nullopt;
   }
 
   std::string dir_;
@@ -177,6 +201,53 @@ TEST_F(Secured, StationCannotCreateAWriterItIsNotGranted) {
   });
   EXPECT_NE(message.find("dds_create_writer(hq_velocity_command): Not Allowed By Security"),
             std::string::npos)
+      << message;
+}
+
+// GIVEN station_3 listed for vehicle 1 like station_1, WHEN it writes commands claiming
+// station 1, THEN the vehicle learns they come from station_3's certificate (its Failsafe then
+// refuses the claim: failsafe_test), while station_1's own commands are bound to station 1.
+TEST_F(Secured, VehicleKnowsWhichStationsCertificateWroteEachCommand) {
+  make(Role::kStation, 3, {1});
+  LinkConfig three = config("", "station_3");
+  three.station_id = 3;
+  pid_t station = spawn_station(three, 2.5, 1);
+  ASSERT_GT(station, 0);
+  auto seen = command_and_its_writer(kNothingWithin);
+  EXPECT_EQ(exit_code(station), 0);
+  ASSERT_TRUE(seen.has_value());
+  EXPECT_EQ(seen->first, 1U);  // the claim
+  EXPECT_TRUE(seen->second.bound);
+  EXPECT_EQ(seen->second.station_id, 3U);  // the certificate
+
+  station = spawn_station(config(""), 2.5, 1);
+  ASSERT_GT(station, 0);
+  seen = command_and_its_writer(kNothingWithin);
+  EXPECT_EQ(exit_code(station), 0);
+  ASSERT_TRUE(seen.has_value());
+  EXPECT_TRUE(seen->second.bound);
+  EXPECT_EQ(seen->second.station_id, 1U);
+
+  // Plain DDS binds nothing: there is no certificate to ask.
+  EXPECT_FALSE(WriterBinding(false, 1).station_of(0, dds_sample_info_t{}).bound);
+}
+
+// A station certified as station_3 that is told it is station 1 (hq-ground --identity
+// station_3 --station-id 1) cannot even create its writers: station 1's partition is not in its
+// grant, and the error says which certificate, which partitions and what to check.
+TEST_F(Secured, StationCannotWriteInAnotherStationsPartition) {
+  make(Role::kStation, 3, {1});
+  LinkConfig three = config("", "station_3");
+  three.station_id = 1;
+  Participant station(three, Role::kStation);
+  Topics topics(station);
+  const std::string message = testing::input_error_message([&] {
+    Writer<VelocityCommand> writer(station, topics.command, command_qos(three, End::kWriter));
+  });
+  EXPECT_NE(message.find("Not Allowed By Security"), std::string::npos) << message;
+  EXPECT_NE(message.find(dir_ + "/station_3/cert.pem"), std::string::npos) << message;
+  EXPECT_NE(message.find("hq_vehicle_1_station_1"), std::string::npos) << message;
+  EXPECT_NE(message.find("is station_id 1 this certificate's station"), std::string::npos)
       << message;
 }
 

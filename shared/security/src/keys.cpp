@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -432,6 +433,45 @@ void check_permission_subject(const std::string& permissions, const std::string&
                  "\" (make this identity's permissions again with `hq-keys identity`)");
 }
 
+// A station's writers are also in its station partitions (keys.hpp: per-station identity), so
+// its permissions must grant those for every vehicle they grant: a keyset made before identities
+// were bound to certificates would have every station writer refused at run time.
+void check_station_partitions(const std::string& permissions, const std::string& path, X509* cert) {
+  std::uint32_t station = 0;
+  for (const auto& [key, value] : name_parts(X509_get_subject_name(cert))) {
+    if (key != "CN" || value.rfind("station_", 0) != 0) continue;
+    const std::string_view digits = std::string_view(value).substr(8);
+    const auto [end, error] =
+        std::from_chars(digits.data(), digits.data() + digits.size(), station);
+    if (error != std::errc() || end != digits.data() + digits.size()) station = 0;
+  }
+  if (station == 0) return;  // not a station of the hq-keys layout
+  const std::size_t open = permissions.find("<publish>");
+  const std::size_t close = permissions.find("</publish>", open);
+  if (open == std::string::npos || close == std::string::npos) return;
+  const std::string publish = permissions.substr(open, close - open);
+  static constexpr std::string_view kPartition = "<partition>hq_vehicle_";
+  for (std::size_t at = publish.find(kPartition); at != std::string::npos;
+       at = publish.find(kPartition, at + 1)) {
+    const std::size_t begin = at + kPartition.size();
+    const std::size_t end = publish.find('<', begin);
+    std::uint32_t vehicle = 0;
+    const auto [digits_end, error] =
+        std::from_chars(publish.data() + begin, publish.data() + end, vehicle);
+    if (error != std::errc() || digits_end != publish.data() + end) continue;  // a station's
+    const std::string wanted = "<partition>" + station_partition(vehicle, station) + "</partition>";
+    if (publish.find(wanted) == std::string::npos) {
+      fail(path, "permissions of station_" + std::to_string(station) + " grant vehicle " +
+                     std::to_string(vehicle) + " but not its station partition " +
+                     station_partition(vehicle, station) +
+                     ", which binds what it writes to its certificate: made by an older "
+                     "hq-keys; make this identity again (hq-keys identity KEYS --role station "
+                     "--id " +
+                     std::to_string(station) + " --vehicles ...)");
+    }
+  }
+}
+
 // "SHA-256 12:AB:...": a CA's fingerprint, which tells apart two CAs of the same name (every
 // `hq-keys init` makes a "CN=HaptiQuad CA").
 std::string fingerprint(X509* cert) {
@@ -471,6 +511,23 @@ bool chains_to(X509* cert, X509* ca, std::int64_t now_s) {
 
 std::string vehicle_partition(std::uint32_t vehicle_id) {
   return "hq_vehicle_" + std::to_string(vehicle_id);
+}
+
+std::string station_partition(std::uint32_t vehicle_id, std::uint32_t station_id) {
+  return vehicle_partition(vehicle_id) + "_station_" + std::to_string(station_id);
+}
+
+std::uint32_t station_of_partition(std::string_view partition, std::uint32_t vehicle_id) {
+  const std::string prefix = vehicle_partition(vehicle_id) + "_station_";
+  if (partition.size() <= prefix.size() || partition.substr(0, prefix.size()) != prefix) return 0;
+  const std::string_view digits = partition.substr(prefix.size());
+  std::uint32_t id = 0;
+  const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
+  // Canonical decimal only: "07" or "7x" are not a partition hq-keys grants.
+  if (error != std::errc() || end != digits.data() + digits.size() || digits.front() == '0') {
+    return 0;
+  }
+  return id;
 }
 
 std::string identity_name(Role role, std::uint32_t id) {
@@ -558,13 +615,19 @@ std::string permissions_xml(const IdentityRequest& request) {
   all_reads.insert(all_reads.end(), {"hq_velocity_command", "hq_mode_request"});
   const auto& publishes = vehicle ? vehicle_writes : station_writes;
   const auto& subscribes = all_reads;
-  const auto criteria = [&](const char* kind, const std::vector<const char*>& topics) {
+  // A station publishes in its own station partitions as well (keys.hpp: per-station
+  // identity); access control wants every partition of a writer granted by one criterion.
+  const auto criteria = [&](const char* kind, const std::vector<const char*>& topics,
+                            bool with_station) {
     std::ostringstream xml;
     xml << "        <" << kind << ">\n          <topics>\n";
     for (const char* topic : topics) xml << "            <topic>" << topic << "</topic>\n";
     xml << "          </topics>\n          <partitions>\n";
     for (const std::uint32_t v : vehicles) {
       xml << "            <partition>" << vehicle_partition(v) << "</partition>\n";
+      if (with_station) {
+        xml << "            <partition>" << station_partition(v, request.id) << "</partition>\n";
+      }
     }
     xml << "          </partitions>\n        </" << kind << ">\n";
     return xml.str();
@@ -582,8 +645,8 @@ std::string permissions_xml(const IdentityRequest& request) {
       << "        <not_after>" << iso_utc(request.validity.not_after_s) << "</not_after>\n"
       << "      </validity>\n"
       << "      <allow_rule>\n"
-      << domains_xml(request.domains, "        ") << criteria("publish", publishes)
-      << criteria("subscribe", subscribes)
+      << domains_xml(request.domains, "        ") << criteria("publish", publishes, !vehicle)
+      << criteria("subscribe", subscribes, false)
       << "      </allow_rule>\n"
          "      <default>DENY</default>\n"
          "    </grant>\n"
@@ -643,6 +706,7 @@ void check_identity(const IdentityFiles& files, std::int64_t now_s) {
   const std::string permissions = check_signed(files.permissions, "permissions document",
                                                permissions_ca.get(), files.permissions_ca);
   check_permission_subject(permissions, files.permissions, cert.get(), files.certificate);
+  check_station_partitions(permissions, files.permissions, cert.get());
 }
 
 namespace {

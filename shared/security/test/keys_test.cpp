@@ -76,6 +76,11 @@ TEST_F(Keys, PermissionsGrantOnlyTheVehiclesOwnPartitionAndTopics) {
   EXPECT_NE(subscribed.find("hq_vehicle_state"), std::string::npos);
   EXPECT_NE(subscribed.find("hq_velocity_command"), std::string::npos);
   EXPECT_NE(xml.find("<default>DENY</default>"), std::string::npos);
+  // Its own station partitions, to publish in only: the certificate behind what it writes.
+  EXPECT_NE(published.find("<partition>hq_vehicle_1_station_2</partition>"), std::string::npos);
+  EXPECT_NE(published.find("<partition>hq_vehicle_4_station_2</partition>"), std::string::npos);
+  EXPECT_EQ(subscribed.find("_station_"), std::string::npos);
+  EXPECT_EQ(xml.find("<partition>hq_vehicle_1_station_1</partition>"), std::string::npos);
 
   station.vehicles.clear();
   EXPECT_NE(testing::input_error_message([&] { permissions_xml(station); }).find("no vehicles"),
@@ -101,6 +106,20 @@ TEST_F(Keys, AVehicleReadsItsOwnTopicsForItsFlightLogButWritesNoCommand) {
     EXPECT_NE(subscribed.find(topic), std::string::npos) << topic;
   }
   EXPECT_NE(xml.find("<partition>hq_vehicle_3</partition>"), std::string::npos);
+  EXPECT_EQ(xml.find("_station_"), std::string::npos);  // a vehicle speaks for no station
+}
+
+TEST_F(Keys, StationPartitionsNameTheirStationAndNothingElseParses) {
+  EXPECT_EQ(station_partition(1, 3), "hq_vehicle_1_station_3");
+  EXPECT_EQ(station_of_partition(station_partition(1, 3), 1), 3U);
+  EXPECT_EQ(station_of_partition(station_partition(12, 4000000000U), 12), 4000000000U);
+  EXPECT_EQ(station_of_partition(station_partition(2, 3), 1), 0U);  // another vehicle's
+  EXPECT_EQ(station_of_partition(station_partition(1, 3), 11), 0U);
+  for (const char* not_one : {"hq_vehicle_1", "hq_vehicle_1_station_", "hq_vehicle_1_station_03",
+                              "hq_vehicle_1_station_3x", "hq_vehicle_1_station_-3",
+                              "hq_vehicle_1_station_99999999999", "", "hq_vehicle_1_station_*"}) {
+    EXPECT_EQ(station_of_partition(not_one, 1), 0U) << not_one;
+  }
 }
 
 TEST_F(Keys, GovernanceEncryptsEveryLinkTopic) {
@@ -219,6 +238,25 @@ TEST_F(Keys, PermissionsForAnotherSubjectAreRefusedNamingBoth) {
       << message;
   EXPECT_NE(message.find(files.certificate + "'s subject \"CN=vehicle_3,O=HaptiQuad\""),
             std::string::npos)
+      << message;
+}
+
+// A station's permissions made before identities were bound to certificates grant no station
+// partition: every writer of it would be refused at run time. The check says so up front.
+TEST_F(Keys, StationPermissionsWithoutItsStationPartitionAreRefusedSayingWhy) {
+  make_identity(dir_, station_for_vehicle_3());
+  const IdentityFiles files = files_in(dir_, "station_1");
+  EXPECT_NO_THROW(check_identity(files, now_s()));
+  std::string old_grant = permissions_xml(station_for_vehicle_3());
+  const std::string own = "            <partition>hq_vehicle_3_station_1</partition>\n";
+  ASSERT_NE(old_grant.find(own), std::string::npos);
+  old_grant.erase(old_grant.find(own), own.size());
+  sign_as_ca(dir_, old_grant, files.permissions);
+  const std::string message = testing::input_error_message([&] { check_identity(files, now_s()); });
+  EXPECT_NE(message.find(files.permissions), std::string::npos) << message;
+  EXPECT_NE(message.find("not its station partition hq_vehicle_3_station_1"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("hq-keys identity KEYS --role station --id 1"), std::string::npos)
       << message;
 }
 

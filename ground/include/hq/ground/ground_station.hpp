@@ -131,6 +131,10 @@ struct LinkStatus {
   bool control_lost = false;
   std::uint32_t commanding_station_id = 0;  ///< As the vehicle reports it (0: none).
   std::uint64_t control_losses = 0;
+  /// The vehicle's intrusion reports (link::kEventCodeIntrusion): samples claiming a station
+  /// their writer's certificate is not, this one's id among them possibly.
+  std::uint64_t intrusion_reports = 0;
+  std::array<char, 161> last_intrusion{};           ///< Text of the latest one.
   std::array<std::uint32_t, 8> vehicle_ids_seen{};  ///< Ids of every vehicle heard from.
   std::size_t vehicle_ids_seen_count = 0;
 };

@@ -117,6 +117,9 @@ struct LinkHealth {
   bool control_lost = false;
   std::uint32_t commanding_station = 0;
   std::uint32_t own_station = 0;
+  /// The vehicle reported samples claiming a station their certificate is not (refused).
+  std::uint64_t intrusion_reports = 0;
+  std::array<char, 161> last_intrusion{};
   bool heartbeat_seen = false;
   std::array<std::uint32_t, 8> vehicle_ids{};
   std::size_t vehicle_id_count = 0;
@@ -141,6 +144,10 @@ struct ReplayStatus {
 /// The loud line a station that lost control shows ("CONTROL LOST: station 7 commands vehicle
 /// 1; this station 1 does not"), written into `out`; false (out empty) while in control.
 bool control_banner(const LinkHealth& link, char* out, std::size_t size);
+
+/// The loud line of a vehicle that reported an intrusion (another certificate speaking for a
+/// station; refused on board), written into `out`; false (out empty) if none was reported.
+bool intrusion_banner(const LinkHealth& link, char* out, std::size_t size);
 
 /// The link-loss alarm's logic: lost once the newest vehicle state is older than lost_after_s,
 /// regained at the next fresh state; counts the losses and keeps the longest. Pure: the age is

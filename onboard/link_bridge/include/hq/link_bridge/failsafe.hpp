@@ -37,14 +37,19 @@
 /// Sessions. Each vehicle process draws a random session id (LinkBridge); a mode request
 /// counts only if its vehicle_session_id is this session. A request made to a previous
 /// instance of the vehicle (kept by DDS as a TRANSIENT_LOCAL sample, or replayed) is rejected
-/// and counted, so a restarted vehicle obeys no stale request. The writer identity of a
-/// station (a forged station_id) is DDS security's job (permissions per topic), not this
-/// logic's: without security any process on the domain can claim any station id.
+/// and counted, so a restarted vehicle obeys no stale request.
+///
+/// Identity. Each message comes with the station its writer is bound to (link::WriterStation,
+/// from the writer's certificate on a secured link). A bound sample whose claimed station id is
+/// not its writer's is an intrusion: rejected before any other check and counted (intrusions,
+/// with the last claim and writer kept for the report), so an allowed station cannot speak for
+/// another. Without security nothing is bound: any process on the domain can claim any id.
 ///
 /// Sequence numbers are recorded, not used to drop samples: a hostile sample with a huge sequence
 /// number would otherwise lock the real station out for good.
 
 #include "hq/link/messages.hpp"
+#include "hq/link/writer_binding.hpp"
 #include "hq/modes/mode_controller.hpp"
 
 #include <cstdint>
@@ -118,6 +123,16 @@ struct FailsafeCounters {
   /// Well-formed ground heartbeats not from the commander: ignored (not in _rejected).
   std::uint64_t heartbeats_not_commander = 0;
   std::uint64_t commander_changes = 0;
+  /// Samples (commands, mode requests, heartbeats) claiming another station than the one their
+  /// writer's certificate is: rejected (and also in the kind's _rejected count).
+  std::uint64_t intrusions = 0;
+};
+
+/// The latest intrusion: who was claimed and who wrote it (0: a writer bound to no station).
+struct Intrusion {
+  std::uint32_t claimed_station_id = 0;
+  std::uint32_t writer_station_id = 0;
+  const char* kind = "";  ///< "command", "mode request" or "heartbeat".
 };
 
 class Failsafe {
@@ -125,12 +140,15 @@ class Failsafe {
   /// @throws hq::InputError via check_config().
   explicit Failsafe(const FailsafeConfig& config);
 
-  /// A received velocity command, at receipt time t_ns.
-  Verdict on_command(std::int64_t t_ns, const link::VelocityCommand& command);
+  /// A received velocity command, at receipt time t_ns, written by `writer`.
+  Verdict on_command(std::int64_t t_ns, const link::VelocityCommand& command,
+                     link::WriterStation writer = {});
   /// A received mode request; on acceptance `mode` is the requested mode.
-  Verdict on_mode_request(std::int64_t t_ns, const link::ModeRequest& request, modes::Mode& mode);
+  Verdict on_mode_request(std::int64_t t_ns, const link::ModeRequest& request, modes::Mode& mode,
+                          link::WriterStation writer = {});
   /// A received heartbeat. Only ground stations' count; vehicles' are ignored without counting.
-  Verdict on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbeat);
+  Verdict on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbeat,
+                       link::WriterStation writer = {});
 
   /// The fail-safe state at t_ns (non-decreasing). Allocates nothing.
   const FailsafeState& update(std::int64_t t_ns);
@@ -142,9 +160,14 @@ class Failsafe {
   [[nodiscard]] const char* last_rejection() const { return last_rejection_; }
   /// Reason of the latest rejected velocity command, "" if none.
   [[nodiscard]] const char* last_command_rejection() const { return last_command_rejection_; }
+  /// The latest intrusion (counters().intrusions says whether there was one).
+  [[nodiscard]] const Intrusion& last_intrusion() const { return last_intrusion_; }
 
  private:
   Verdict reject(std::uint64_t& counter, const char* reason);
+  /// Whether a sample of `kind` claiming `claimed` was written by another station's
+  /// certificate; if so it is counted as an intrusion.
+  bool intrudes(const char* kind, std::uint32_t claimed, link::WriterStation writer);
   /// Why a command stamped stamp_ns received at t_ns is stale (static text), nullptr if it is
   /// not; updates the delay estimate.
   const char* stale(std::int64_t t_ns, std::int64_t stamp_ns);
@@ -177,6 +200,7 @@ class Failsafe {
   bool was_expired_ = false;
   const char* last_rejection_ = "";
   const char* last_command_rejection_ = "";
+  Intrusion last_intrusion_;
 };
 
 /// What the vehicle does with the operator's input (VehicleState.operator_input), given the

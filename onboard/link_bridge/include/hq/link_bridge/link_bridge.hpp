@@ -8,6 +8,7 @@
 /// storage and checked before use, so nothing in a message can crash the process.
 
 #include "hq/link/link.hpp"
+#include "hq/link/writer_binding.hpp"
 #include "hq/link_bridge/failsafe.hpp"
 #include "hq/markers/marker_detector.hpp"
 #include "hq/modes/mode_controller.hpp"
@@ -42,6 +43,8 @@ enum class EventCode : std::uint32_t {
   // 20+: ownership and escalation (numbered apart from codes other work may add after 11).
   kCommanderChanged = 20,  ///< Another station commands the vehicle now.
   kHoldToLand = 21,        ///< Held without commands for hold_to_land: landing.
+  /// Samples claiming another station than their writer's certificate (refused).
+  kIntrusion = link::kEventCodeIntrusion,
 };
 
 /// The marker stage's task of a link MarkerTask; false for NONE or a value outside the enum.
@@ -165,6 +168,7 @@ class LinkBridge {
   link::Reader<link::VelocityCommand> command_reader_;
   link::Reader<link::ModeRequest> mode_reader_;
   link::Reader<link::Heartbeat> heartbeat_reader_;
+  link::WriterBinding writers_;         ///< Which station each sample's writer is (secured link).
   std::int64_t echo_t_ns_ = 0;          ///< Newest accepted ground heartbeat's stamp.
   std::int64_t echo_receipt_t_ns_ = 0;  ///< When it arrived (our clock).
   link::Writer<link::VehicleState> state_writer_;

@@ -29,8 +29,10 @@
 
 namespace hq::link {
 
-/// Returns `rc` if it is >= 0, else throws hq::InputError "operation(entity): reason".
-dds_return_t check(dds_return_t rc, const char* operation, const std::string& entity);
+/// Returns `rc` if it is >= 0, else throws hq::InputError "operation(entity): reason", with
+/// `hint` appended when the reason is Cyclone's "Not Allowed By Security".
+dds_return_t check(dds_return_t rc, const char* operation, const std::string& entity,
+                   const std::string& hint = {});
 
 /// Owns one dds_entity_t and deletes it (with its children). Non-copyable, movable.
 class Entity {
@@ -113,7 +115,9 @@ std::string describe_security(const LinkConfig& config, security::Role role);
 /// problem), then Cyclone's authentication, access-control and crypto plugins are configured
 /// through participant QoS properties (dds.sec.*). Every reader and writer made on a secured
 /// participant is put in the partition security::vehicle_partition(vehicle_id), the unit the
-/// permissions grant (see hq/security/keys.hpp for why). A plain participant uses the default
+/// permissions grant (see hq/security/keys.hpp for why); a station's writers also in its
+/// station partition security::station_partition(vehicle_id, station_id), which binds what
+/// they write to its certificate (writer_binding.hpp). A plain participant uses the default
 /// partition, so plain and secured participants never exchange samples.
 class Participant {
  public:
@@ -125,13 +129,19 @@ class Participant {
   [[nodiscard]] dds_entity_t handle() const { return entity_.handle(); }
   [[nodiscard]] int domain_id() const { return domain_id_; }
   [[nodiscard]] bool secured() const { return !partition_.empty(); }
-  /// `qos` for a reader or writer of this participant (with the partition when secured).
-  [[nodiscard]] Qos endpoint_qos(const Qos& qos) const;
+  /// `qos` for a reader of this participant (with the vehicle partition when secured).
+  [[nodiscard]] Qos reader_qos(const Qos& qos) const;
+  /// `qos` for a writer (with the vehicle partition, and a station's own, when secured).
+  [[nodiscard]] Qos writer_qos(const Qos& qos) const;
+  /// What a refused writer's error adds: which partitions it asked for, under which identity.
+  [[nodiscard]] const std::string& writer_grant_hint() const { return writer_grant_hint_; }
 
  private:
   Entity entity_;
   int domain_id_;
   std::string partition_;
+  std::string station_partition_;  ///< A secured station's own; empty otherwise.
+  std::string writer_grant_hint_;
 };
 
 /// dds_create_topic with T's idlc descriptor; `name` defaults to TopicTraits<T>::kName.
@@ -231,9 +241,9 @@ class Writer {
          const Listener* listener = nullptr)
       : name_(topic.name()),
         entity_(check(dds_create_writer(participant.handle(), topic.handle(),
-                                        participant.endpoint_qos(qos).get(),
+                                        participant.writer_qos(qos).get(),
                                         listener != nullptr ? listener->get() : nullptr),
-                      "dds_create_writer", name_)) {}
+                      "dds_create_writer", name_, participant.writer_grant_hint())) {}
 
   /// Publishes `sample`; false on failure with the reason in last_error(). Allocates nothing
   /// for fixed-size types.
@@ -273,7 +283,7 @@ class Reader {
          const Listener* listener = nullptr)
       : name_(topic.name()),
         entity_(check(dds_create_reader(participant.handle(), topic.handle(),
-                                        participant.endpoint_qos(qos).get(),
+                                        participant.reader_qos(qos).get(),
                                         listener != nullptr ? listener->get() : nullptr),
                       "dds_create_reader", name_)) {}
 

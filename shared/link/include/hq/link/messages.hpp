@@ -52,6 +52,10 @@ struct Validation {
   const char* reason = "";  ///< Static text naming the field, e.g. "v_H_mps.x is NaN or Inf".
 };
 
+/// Event.code of a vehicle's intrusion report: samples claiming a station their writer's
+/// certificate is not (hq/link/writer_binding.hpp). Stations raise it to their operator.
+inline constexpr std::uint32_t kEventCodeIntrusion = 22;
+
 /// Rejects NaN/Inf and components outside `envelope`.
 Validation validate(const VelocityCommand& command, const CommandEnvelope& envelope);
 /// Rejects a requested mode outside the Mode enum, a marker task outside MarkerTask and a

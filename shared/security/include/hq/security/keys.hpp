@@ -23,9 +23,19 @@
 /// holds what every station asked of its vehicle, not only its own. Access control refuses the
 /// writer of a topic/partition not granted when it is created locally, and refuses to match a
 /// remote one, so a station without a grant cannot deliver a single command.
+///
+/// Per-station identity. Every sample a station writes claims its station id, and a station
+/// listed for a vehicle could claim another listed station's id. So a station's writers are
+/// also in station_partition(vehicle_id, station_id) ("hq_vehicle_<v>_station_<s>"), which only
+/// that station's permissions grant: Cyclone's access control refuses a writer whose partitions
+/// are not all granted (locally and remotely), so the partitions a vehicle sees on a matched
+/// writer name the certificate behind it. Readers stay in the vehicle partition (partitions
+/// match when they share one), and the vehicle compares the sample's claimed station id with
+/// its writer's station partition (hq/link/writer_binding.hpp).
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hq::security {
@@ -35,6 +45,12 @@ enum class Role { kVehicle, kStation };
 
 /// "hq_vehicle_<id>": the partition of every secured reader and writer of vehicle `id`.
 std::string vehicle_partition(std::uint32_t vehicle_id);
+/// "hq_vehicle_<vehicle_id>_station_<station_id>": the partition only station `station_id`'s
+/// permissions grant among vehicle `vehicle_id`'s, which its writers add to the vehicle's.
+std::string station_partition(std::uint32_t vehicle_id, std::uint32_t station_id);
+/// The station id of a station partition of vehicle `vehicle_id`, 0 if `partition` is not one
+/// (a station id is >= 1).
+std::uint32_t station_of_partition(std::string_view partition, std::uint32_t vehicle_id);
 /// "vehicle_<id>" or "station_<id>": the identity's folder name in a keys directory.
 std::string identity_name(Role role, std::uint32_t id);
 /// The certificate subject (and permissions subject_name), e.g. "CN=vehicle_1,O=HaptiQuad".
