@@ -10,6 +10,12 @@ namespace hq::modes {
 
 namespace {
 constexpr double kTouchdownThrustRatio = 0.9;
+/// The blind descent's rate loop on the IMU's vertical velocity: a PI whose bandwidth (about
+/// 0.3 Hz) stays well below the attitude loop's and above the accelerometer bias's drift.
+constexpr double kBlindDescentGainPerS = 2.0;
+constexpr double kBlindDescentIntegralGainPerS2 = 1.0;
+/// The IMU counts as present while its last sample is at most this old.
+constexpr std::int64_t kImuFreshNs = 200'000'000;
 /// The take-off's climb ends this near its target height (the slow final approach covers it).
 constexpr double kTakeoffReachedM = 0.02;
 }  // namespace
@@ -54,12 +60,15 @@ void read_config(config::StrictMap& section, ModesConfig& out) {
   section.read_positive("touchdown_speed_mps", out.touchdown_speed_mps, 1.0);
   section.read_positive("touchdown_s", out.touchdown_s, 10.0);
   section.read("blind_descent_thrust_ratio", out.blind_descent_thrust_ratio, 0.5, 1.0);
+  section.read_positive("blind_descent_speed_mps", out.blind_descent_speed_mps, 2.0);
   section.read_positive("blind_descent_s", out.blind_descent_s, 30.0);
   section.read_positive("touchdown_max_height_m", out.touchdown_max_height_m, 5.0);
   section.read("impact_specific_force_mps2", out.impact_specific_force_mps2, 10.0, 100.0);
   section.read_positive("still_specific_force_mps2", out.still_specific_force_mps2, 5.0);
   section.read_positive("max_height_m", out.max_height_m, 100.0);
   section.read_positive("ceiling_slowdown_m", out.ceiling_slowdown_m, 10.0);
+  section.read_positive("max_distance_from_takeoff_m", out.max_distance_from_takeoff_m, 1000.0);
+  section.read_positive("horizontal_slowdown_m", out.horizontal_slowdown_m, 100.0);
   section.read_positive("takeoff_target_height_m", out.takeoff_target_height_m, 10.0);
   section.read_positive("takeoff_speed_mps", out.takeoff_speed_mps, 2.0);
   section.read_positive("takeoff_slowdown_m", out.takeoff_slowdown_m, 5.0);
@@ -177,31 +186,64 @@ ModeSwitch ModeController::request_takeoff(Mode then) {
   return verdict;
 }
 
-void ModeController::set_specific_force_H(const Eigen::Vector3d& f_H_mps2) {
+void ModeController::set_specific_force_H(std::int64_t t_ns, const Eigen::Vector3d& f_H_mps2) {
   if (!f_H_mps2.allFinite()) return;
+  if (t_imu_ns_ >= 0 && t_ns > t_imu_ns_) {
+    // NED: the acceleration is f + g e_z; its bias drifts this by ~0.05 m/s per second of
+    // blind flight for a consumer MEMS part, which the estimate re-anchors when it returns.
+    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_imu_ns_), 0.1);
+    v_z_inertial_mps_ += (f_H_mps2.z() + control::kGravityMps2) * dt_s;
+  }
+  t_imu_ns_ = t_ns;
   f_H_mps2_ = f_H_mps2;
   if (f_H_mps2.norm() > config_.impact_specific_force_mps2) impact_seen_ = true;
 }
 
 void ModeController::limit_to_envelope(Target& wanted, ModeOutput& out) const {
+  out.envelope_max_climb_mps = -wanted.v_H_mps.z();
+  if (landed_) return;
+  limit_horizontal(wanted, out);
+  limit_climb(wanted, out);
+}
+
+void ModeController::limit_horizontal(Target& wanted, ModeOutput& out) const {
+  const double distance_m = offset_from_takeoff_H_m_.norm();
+  const double free_within_m = config_.max_distance_from_takeoff_m - config_.horizontal_slowdown_m;
+  if (!std::isfinite(distance_m) || distance_m <= free_within_m || distance_m <= 0.0) return;
+  const Eigen::Vector2d away = offset_from_takeoff_H_m_ / distance_m;
+  const Eigen::Vector2d v_xy = wanted.v_H_mps.head<2>();
+  const double outward_mps = v_xy.dot(away);
+  if (outward_mps <= 0.0) return;
+  // The outward speed allowed falls linearly to zero at the bound, as the ceiling's climb.
+  const double left_m = config_.max_distance_from_takeoff_m - distance_m;
+  const double max_outward_mps =
+      outward_mps * std::clamp(left_m / config_.horizontal_slowdown_m, 0.0, 1.0);
+  const Eigen::Vector2d limited = v_xy - (outward_mps - max_outward_mps) * away;
+  wanted.v_H_mps.head<2>() = limited;
+  out.envelope_limited = true;
+  out.envelope_horizontal_limited = true;
+  out.envelope_v_xy_H_mps = limited;
+  out.envelope_reason = "horizontal bound (modes.max_distance_from_takeoff_m)";
+}
+
+void ModeController::limit_climb(Target& wanted, ModeOutput& out) const {
   const double climb_mps = -wanted.v_H_mps.z();  // NED
-  if (climb_mps <= 0.0 || landed_) return;
+  if (climb_mps <= 0.0) return;
   double max_climb_mps = climb_mps;
+  const char* reason = "";
   if (!std::isfinite(height_m_)) {
     // The take-off climbs on until the floor (or the integrated climb) gives a height.
     if (wanted.source == Source::kTakeoff) return;
     max_climb_mps = 0.0;
-    out.envelope_reason = "height unknown: no climb";
+    reason = "height unknown: no climb";
   } else {
     const double to_ceiling_m = config_.max_height_m - height_m_;
     max_climb_mps =
         std::max(0.0, climb_mps * std::min(1.0, to_ceiling_m / config_.ceiling_slowdown_m));
-    out.envelope_reason = "ceiling (modes.max_height_m)";
+    reason = "ceiling (modes.max_height_m)";
   }
-  if (max_climb_mps >= climb_mps) {
-    out.envelope_reason = "";
-    return;
-  }
+  if (max_climb_mps >= climb_mps) return;
+  out.envelope_reason = reason;
   wanted.v_H_mps.z() = -max_climb_mps;
   out.envelope_limited = true;
   out.envelope_max_climb_mps = max_climb_mps;
@@ -274,6 +316,7 @@ ModeOutput ModeController::step(std::int64_t t_ns,
                                 const Eigen::Vector3d& v_obs_horizontal_mps) {
   ModeOutput out;
   out.mode = mode_;
+  if (v_est_H_mps && std::isfinite(v_est_H_mps->z())) v_z_inertial_mps_ = v_est_H_mps->z();
 
   Target wanted = target(t_ns, out);
   limit_to_envelope(wanted, out);
@@ -333,7 +376,7 @@ ModeOutput ModeController::step(std::int64_t t_ns,
       v_obs_horizontal_mps.allFinite() ? v_obs_horizontal_mps : Eigen::Vector3d::Zero();
   out.v_des_horizontal_mps = v_star_mps_ + v_obs;
   out.control = controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_H_mps);
-  if (mode_ == Mode::kLand) land_step(dt_s, v_est_H_mps, out);
+  if (mode_ == Mode::kLand) land_step(t_ns, dt_s, v_est_H_mps, out);
   out.flight_state = out.landed             ? FlightState::kLanded
                      : mode_ == Mode::kLand ? FlightState::kLanding
                      : takeoff_active_      ? FlightState::kTakingOff
@@ -350,18 +393,38 @@ bool ModeController::floor_evidence(double dt_s) {
   return still_timer_s_ >= config_.touchdown_s;
 }
 
-void ModeController::land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps,
-                               ModeOutput& out) {
+double ModeController::blind_descent_thrust_ratio(std::int64_t t_ns, double dt_s, ModeOutput& out) {
+  const bool imu_fresh = t_imu_ns_ >= 0 && t_ns - t_imu_ns_ <= kImuFreshNs;
+  if (!imu_fresh) return config_.blind_descent_thrust_ratio;
+  // NED: sinking slower than wanted (v_z below the target) asks for less thrust.
+  const double error_mps = config_.blind_descent_speed_mps - v_z_inertial_mps_;
+  const double low = config_.blind_descent_thrust_ratio;
+  const double high = 2.0 - config_.blind_descent_thrust_ratio;
+  const double unclamped = 1.0 - (kBlindDescentGainPerS * error_mps +
+                                  kBlindDescentIntegralGainPerS2 * blind_descent_integral_mps_) /
+                                     control::kGravityMps2;
+  // Anti-windup: the integral moves only while the thrust is not at a bound it pushes on.
+  const bool pushing_low = unclamped <= low && error_mps > 0.0;
+  const bool pushing_high = unclamped >= high && error_mps < 0.0;
+  if (!pushing_low && !pushing_high) blind_descent_integral_mps_ += error_mps * dt_s;
+  out.blind_descent_rate_held = true;
+  out.blind_descent_v_z_mps = v_z_inertial_mps_;
+  return std::clamp(unclamped, low, high);
+}
+
+void ModeController::land_step(std::int64_t t_ns, double dt_s,
+                               const std::optional<Eigen::Vector3d>& v_est_H_mps, ModeOutput& out) {
   if (!v_est_H_mps || !v_est_H_mps->allFinite()) {
-    // No velocity to close the loop on: sink level at a fixed fraction of hover thrust; the
-    // floor ends it.
+    // No velocity estimate to close the loop on: sink level, on the IMU's vertical velocity if
+    // there is one, else at a fixed fraction of hover thrust; the floor ends it.
     if (blind_descent_timer_s_ == 0.0) {  // a new blind descent: only impacts from now count
       impact_seen_ = false;
       still_timer_s_ = 0.0;
+      blind_descent_integral_mps_ = 0.0;
     }
     out.blind_descent = true;
     out.control.setpoint = controller_.hover_setpoint();
-    out.control.setpoint.thrust_n *= config_.blind_descent_thrust_ratio;
+    out.control.setpoint.thrust_n *= blind_descent_thrust_ratio(t_ns, dt_s, out);
     blind_descent_timer_s_ += dt_s;
     // The loss of the estimate is no evidence of the floor: a vehicle high up that idled its
     // motors here would fall (issue 39: from 11.8 m at 11-13 m/s).

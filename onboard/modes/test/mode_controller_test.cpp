@@ -38,11 +38,12 @@ ModesConfig airborne_config() {
 // Point mass whose attitude follows the setpoint instantly (NED, H frame).
 struct PointMass {
   Eigen::Vector3d v_mps = Eigen::Vector3d::Zero();
+  double mass_kg = test_vehicle().mass_kg;  // the true mass: the controller's may be wrong
   void step(const control::AttitudeSetpoint& sp) {
     const Eigen::Matrix3d R_HQ = (Eigen::AngleAxisd(sp.pitch_rad, Eigen::Vector3d::UnitY()) *
                                   Eigen::AngleAxisd(sp.roll_rad, Eigen::Vector3d::UnitX()))
                                      .toRotationMatrix();
-    v_mps += (R_HQ * Eigen::Vector3d(0, 0, -sp.thrust_n) / test_vehicle().mass_kg +
+    v_mps += (R_HQ * Eigen::Vector3d(0, 0, -sp.thrust_n) / mass_kg +
               Eigen::Vector3d(0, 0, control::kGravityMps2)) *
              kDt;
   }
@@ -386,7 +387,7 @@ TEST(ModeController, BlindDescentLandsAfterAnImpactAndStillnessWithTheHeightUnkn
   double t_floor_s = -1.0;
   double t_landed_s = -1.0;
   for (int k = 0; k < 4000; ++k) {
-    modes.set_specific_force_H(vehicle.f_H_mps2);
+    modes.set_specific_force_H(k * kStepNs, vehicle.f_H_mps2);
     const ModeOutput out = modes.step(k * kStepNs, std::nullopt, Eigen::Vector3d::Zero());
     if (out.landed) {
       t_landed_s = k * kDt;
@@ -400,6 +401,44 @@ TEST(ModeController, BlindDescentLandsAfterAnImpactAndStillnessWithTheHeightUnkn
   EXPECT_GE(t_landed_s, config.blind_descent_s);
   EXPECT_GE(t_landed_s - t_floor_s, config.touchdown_s - kDt);
   EXPECT_LT(t_landed_s - t_floor_s, std::max(config.blind_descent_s, config.touchdown_s) + 0.1);
+}
+
+// The speed at which a blind descent from 8 m meets the floor, the vehicle 5 % heavier than the
+// controller believes (a battery swapped, a payload): with the IMU fed, or without.
+double blind_descent_impact_speed_mps(bool with_imu) {
+  const ModesConfig config = airborne_config();
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  modes.set_height_m(std::numeric_limits<double>::quiet_NaN());
+  EXPECT_TRUE(modes.request_mode(Mode::kLand, kOperator).accepted);
+  FallingOntoFloor vehicle;
+  vehicle.plant.z_m = -8.0;
+  vehicle.plant.mass.mass_kg = 1.05 * test_vehicle().mass_kg;
+  double v_down_mps = 0.0;
+  for (int k = 0; k < 6000 && !vehicle.plant.on_floor; ++k) {  // 30 s at most
+    if (with_imu) modes.set_specific_force_H(k * kStepNs, vehicle.f_H_mps2);
+    const ModeOutput out = modes.step(k * kStepNs, std::nullopt, Eigen::Vector3d::Zero());
+    EXPECT_TRUE(out.blind_descent);
+    EXPECT_EQ(out.blind_descent_rate_held, with_imu);
+    EXPECT_EQ(out.control.setpoint.roll_rad, 0.0);
+    v_down_mps = vehicle.plant.mass.v_mps.z();
+    vehicle.step(out.control.setpoint);
+  }
+  EXPECT_TRUE(vehicle.plant.on_floor);
+  return v_down_mps;
+}
+
+// Issue 39: the estimate lost high up must not end in a fall. Open loop (a fixed 0.9 m g) the
+// descent accelerates for as long as it lasts, and more so when the mass is wrong; on the
+// IMU's vertical velocity it holds blind_descent_speed_mps whatever the mass.
+TEST(ModeController, BlindDescentHoldsItsRateOnTheImuWhateverTheMass) {
+  const double held_mps = blind_descent_impact_speed_mps(true);
+  const double open_loop_mps = blind_descent_impact_speed_mps(false);
+  std::printf(
+      "blind descent from 8 m, 5 %% heavier than believed: floor met at %.2f m/s on the "
+      "IMU, %.2f m/s open loop\n",
+      held_mps, open_loop_mps);
+  EXPECT_NEAR(held_mps, ModesConfig{}.blind_descent_speed_mps, 0.1);
+  EXPECT_GT(open_loop_mps, 3.0);
 }
 
 TEST(ModeController, TouchdownNeedsAHeightNearTheFloorWhenOneIsKnown) {
@@ -441,6 +480,57 @@ TEST(ModeController, AFullClimbStopsAtTheCeiling) {
   EXPECT_GT(height_m, config.max_height_m - 0.1);  // it did climb to it
   EXPECT_TRUE(out.envelope_limited);
   EXPECT_THAT(out.envelope_reason, HasSubstr("ceiling"));
+}
+
+// The horizontal bound around the take-off point: a full dash away stops at it, moving along
+// and back is free, and the cut is said in the output.
+TEST(ModeController, ADashAwayFromTheTakeOffPointStopsAtTheHorizontalBound) {
+  ModesConfig config = airborne_config();
+  config.max_distance_from_takeoff_m = 3.0;
+  ModeController modes(config, control::VelocityControllerConfig{}, test_vehicle());
+  ASSERT_TRUE(modes.request_mode(Mode::kTeleop, kOperator).accepted);
+  modes.set_height_m(1.0);
+  PointMass plant;
+  Eigen::Vector2d offset_m(0.0, 0.0);
+  Eigen::Vector2d offset_at_step_m = offset_m;  // as the last step was given it
+  double farthest_m = 0.0;
+  ModeOutput out;
+  const auto fly = [&](const Eigen::Vector3d& v_cmd_mps, int steps, std::int64_t k0) {
+    for (int k = 0; k < steps; ++k) {
+      const std::int64_t t_ns = (k0 + k) * kStepNs;
+      offset_at_step_m = offset_m;
+      modes.set_offset_from_takeoff_H_m(offset_m);
+      modes.set_operator_command({t_ns, v_cmd_mps, 0.0});
+      out = modes.step(t_ns, plant.v_mps, Eigen::Vector3d::Zero());
+      plant.step(out.control.setpoint);
+      plant.v_mps.z() = 0.0;  // level flight: the test is about x and y
+      offset_m += plant.v_mps.head<2>() * kDt;
+      farthest_m = std::max(farthest_m, offset_m.norm());
+    }
+  };
+  fly(Eigen::Vector3d(1.0, 0.5, 0.0), 4000, 0);  // 20 s at 1.1 m/s, away and aslant
+  EXPECT_LT(farthest_m, config.max_distance_from_takeoff_m + 0.1);
+  EXPECT_GT(offset_m.norm(), config.max_distance_from_takeoff_m - 0.15);  // it did get there
+  EXPECT_TRUE(out.envelope_limited);
+  EXPECT_TRUE(out.envelope_horizontal_limited);
+  EXPECT_THAT(out.envelope_reason, HasSubstr("horizontal bound"));
+  // What is left of the command points along the bound: outward, only the last millimetres'
+  // share of the slowdown (it falls to zero at the bound).
+  const double left_m = config.max_distance_from_takeoff_m - offset_at_step_m.norm();
+  EXPECT_LE(out.envelope_v_xy_H_mps.dot(offset_at_step_m.normalized()),
+            1.2 * std::max(0.0, left_m) / config.horizontal_slowdown_m + 1e-12);
+
+  // Along the bound (1 s at 1 m/s, across the way it came) is flown, and stays inside it.
+  const Eigen::Vector2d before_m = offset_m;
+  const Eigen::Vector2d across = Eigen::Vector2d(-offset_m.y(), offset_m.x()).normalized();
+  fly(Eigen::Vector3d(across.x(), across.y(), 0.0), 200, 4000);
+  EXPECT_GT((offset_m - before_m).norm(), 0.6);
+  EXPECT_LT(farthest_m, config.max_distance_from_takeoff_m + 0.1);
+
+  const double at_bound_m = offset_m.norm();
+  fly(Eigen::Vector3d(-1.0, -0.5, 0.0), 400, 4200);  // 2 s straight back
+  EXPECT_FALSE(out.envelope_limited);
+  EXPECT_LT(offset_m.norm(), at_bound_m - 1.5);  // at close to the full 1.1 m/s
 }
 
 TEST(ModeController, NothingClimbsWithTheHeightUnknown) {

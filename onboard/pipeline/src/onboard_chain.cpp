@@ -4,6 +4,8 @@
 #include "hq/estimator/complementary_filter.hpp"
 #include "hq/geometry/lie.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -103,7 +105,16 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2) {
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
   // The land detector's evidence of the floor (an impact, then the floor carrying the vehicle).
-  modes_.set_specific_force_H(R_horizontal_body() * accel_mps2);
+  const Eigen::Matrix3d R_H_B = R_horizontal_body();
+  modes_.set_specific_force_H(t_ns, R_H_B * accel_mps2);
+  // The heading's turn since take-off, for the dead reckoning of the take-off point.
+  if (t_yaw_ns_ >= 0 && t_ns > t_yaw_ns_) {
+    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_yaw_ns_), 0.1);
+    const Eigen::Vector3d omega_H =
+        R_H_B * (gyro_radps - estimator_.attitude().levelling_gyro_bias_radps());
+    if (omega_H.allFinite()) yaw_since_takeoff_rad_ += omega_H.z() * dt_s;
+  }
+  t_yaw_ns_ = t_ns;
   if (config_.chain.gyro_rotation_prior) {
     // The body's rotation since the last frame, bias removed: R_Bprev_Bcur.
     if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {
@@ -205,6 +216,7 @@ void OnboardChain::sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
                               !takeoff_complete_);
   out.obstacles = obstacles_.compute(depth_m, R_H_B, out.memory.remembered());
   update_height(t_ns, out.obstacles.floor_height_m, out);
+  update_offset_from_takeoff(t_ns, out);
   // What this frame and the memory have seen limits the operator's command.
   v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
   velocity_from_odometry_ = out.estimate.ok();
@@ -302,6 +314,7 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
   apply_operator_limit(&out);
   update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
+  update_offset_from_takeoff(t_ns, out);
   // No depth means no v_obs either: zero.
   out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), Eigen::Vector3d::Zero());
   finish_output(out);
@@ -340,6 +353,23 @@ void OnboardChain::update_height(std::int64_t t_ns, double floor_height_m, Chain
                           : height_m_);
 }
 
+void OnboardChain::update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& out) {
+  const double dt_s =
+      t_offset_ns_ >= 0 ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_offset_ns_)) : 0.0;
+  t_offset_ns_ = t_ns;
+  if (modes_.landed()) {
+    // Where it lifts off is the take-off point, heading included.
+    offset_T_m_.setZero();
+    yaw_since_takeoff_rad_ = 0.0;
+  } else if (out.estimate.usable()) {
+    offset_T_m_ +=
+        Eigen::Rotation2Dd(yaw_since_takeoff_rad_) * out.estimate.v_H_mps.head<2>() * dt_s;
+  }
+  // Without a usable estimate the vehicle holds a level hover: the offset stands still.
+  out.offset_from_takeoff_H_m = Eigen::Rotation2Dd(-yaw_since_takeoff_rad_) * offset_T_m_;
+  modes_.set_offset_from_takeoff_H_m(out.offset_from_takeoff_H_m);
+}
+
 void OnboardChain::finish_output(ChainOutput& out) const {
   out.flight_state = out.mode.flight_state;
   // Left the floor but not yet clear of it: still the take-off, whatever the mode.
@@ -352,6 +382,9 @@ void OnboardChain::finish_output(ChainOutput& out) const {
   if (out.mode.envelope_limited && out.mode.mode == modes::Mode::kTeleop && !out.mode.taking_off) {
     out.v_cmd_flown_H_mps.z() =
         std::max(out.v_cmd_flown_H_mps.z(), -out.mode.envelope_max_climb_mps);
+    if (out.mode.envelope_horizontal_limited) {
+      out.v_cmd_flown_H_mps.head<2>() = out.mode.envelope_v_xy_H_mps;
+    }
     out.command_limited = true;
     out.command_envelope_limited = true;
   }

@@ -411,16 +411,22 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   std::int64_t t_first_hover_ns = -1;
   std::int64_t t_land_ns = -1;
   std::int64_t t_landed_ns = -1;
+  // Specific force (body FRD, level): the thrust over the mass in the air (the vehicle obeys
+  // the setpoint), the floor's stop, then at rest on it; and the vertical speed it gives.
+  const double mass_kg = control::VehicleConfig{}.mass_kg;
+  double thrust_n = mass_kg * control::kGravityMps2;
+  double v_down_mps = 0.0;
+  double v_down_at_impact_mps = 0.0;
   for (std::int64_t t = tick_ns; t <= 12'000'000'000; t += tick_ns) {
-    // Specific force (body FRD, level): hovering m g, sinking on the blind descent's 0.9 m g,
-    // the floor's stop, then at rest on it.
-    const double f_up = t < t_land_ns + tick_ns || t_land_ns < 0 ? 9.80665
-                        : t < t_impact_ns                        ? 0.9 * 9.80665
-                        : t == t_impact_ns                       ? 40.0
-                                                                 : 9.80665;
+    const double f_up = t < t_impact_ns    ? thrust_n / mass_kg
+                        : t == t_impact_ns ? 40.0
+                                           : control::kGravityMps2;
+    if (t < t_impact_ns) v_down_mps += (control::kGravityMps2 - f_up) * 1e-9 * tick_ns;
+    if (t == t_impact_ns) v_down_at_impact_mps = v_down_mps;
     chain.on_imu(t, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 0.0, -f_up));
     const auto out = chain.on_tick(t);
     if (!out) continue;
+    thrust_n = out->mode.control.setpoint.thrust_n;
     if (out->safe_hover && t_first_hover_ns < 0) t_first_hover_ns = t;
     if (out->safe_hover_landing) t_land_ns = t;
     if (out->mode.landed && t_landed_ns < 0) {
@@ -429,7 +435,8 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
     }
     if (t_land_ns > 0 && t > t_land_ns && t_landed_ns < 0) {  // from the step after the request
       EXPECT_TRUE(out->mode.blind_descent);
-      EXPECT_LT(out->mode.control.setpoint.thrust_n, control::kGravityMps2);
+      EXPECT_TRUE(out->mode.blind_descent_rate_held);  // on the IMU the chain feeds it
+      EXPECT_EQ(out->mode.control.setpoint.roll_rad, 0.0);
     }
     if (t_land_ns > 0 && t == t_land_ns + 1'000'000'000) {
       // Descending blind: no going back to teleop while there is no estimate.
@@ -447,6 +454,8 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   EXPECT_GE(t_landed_ns, t_impact_ns) << "landed before the floor was felt";
   EXPECT_NEAR(1e-9 * static_cast<double>(t_landed_ns - t_impact_ns), config.modes.touchdown_s,
               0.02);
+  // It sank at the blind descent's speed, not ever faster.
+  EXPECT_NEAR(v_down_at_impact_mps, config.modes.blind_descent_speed_mps, 0.05);
 }
 
 TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {

@@ -48,13 +48,18 @@ struct ModesConfig {
   /// vehicle: motors go idle (landed).
   double touchdown_speed_mps = 0.08;
   double touchdown_s = 1.0;
-  /// In land without a usable estimate: level, thrust this fraction of m g (sinks gently).
+  /// In land without a usable estimate (the blind descent), level: with the accelerometer
+  /// (set_specific_force_H, fresh within 0.2 s) the thrust holds a descent of
+  /// blind_descent_speed_mps on the vertical velocity the IMU integrates from the last estimate,
+  /// between blind_descent_thrust_ratio and 2 - that of m g; without it, the thrust is that
+  /// fraction of m g (which sinks faster and faster, the more so the worse the mass is known).
   /// Landed only on evidence of the floor (as PX4's land detector), never from the estimate's
   /// loss alone: after at least blind_descent_s, either a known height below
   /// touchdown_max_height_m, or an impact (specific force above impact_specific_force_mps2)
   /// followed by touchdown_s of stillness (specific force within still_specific_force_mps2 of
   /// g: the floor, not the thrust, carries the vehicle).
   double blind_descent_thrust_ratio = 0.9;
+  double blind_descent_speed_mps = 0.5;
   double blind_descent_s = 3.0;
   /// A touchdown needs the height, when known, below this (m above the floor).
   double touchdown_max_height_m = 0.4;
@@ -65,6 +70,11 @@ struct ModesConfig {
   /// sensor's range and no velocity to integrate) nothing climbs.
   double max_height_m = 2.0;
   double ceiling_slowdown_m = 0.5;
+  /// The envelope's horizontal bound (as PX4's GF_MAX_HOR_DIST): the distance from the take-off
+  /// point, dead-reckoned by the chain (set_offset_from_takeoff_H_m). Moving away from it slows
+  /// over the last horizontal_slowdown_m and stops at it; along and back towards it is free.
+  double max_distance_from_takeoff_m = 10.0;
+  double horizontal_slowdown_m = 1.0;
   /// An explicit take-off (request_takeoff) climbs at takeoff_speed_mps to this height above
   /// the floor, slowing down over the last takeoff_slowdown_m so that it does not overshoot,
   /// then flies the mode asked for.
@@ -123,13 +133,20 @@ struct ModeOutput {
   bool ramping = false;           ///< A switch ramp is in progress.
   bool landed = false;            ///< On the ground, motors idle (setpoint thrust 0).
   bool blind_descent = false;     ///< Landing without a velocity estimate.
-  bool taking_off = false;        ///< Climbing to takeoff_target_height_m after request_takeoff().
+  /// The blind descent holds its rate on the IMU (else: the fixed thrust ratio).
+  bool blind_descent_rate_held = false;
+  double blind_descent_v_z_mps = 0.0;  ///< The IMU's vertical velocity it holds (NED, down +).
+  bool taking_off = false;  ///< Climbing to takeoff_target_height_m after request_takeoff().
   /// Climbing back to land_abort_min_height_m after land -> hover low down (also taking_off).
   bool land_abort_climb = false;
-  /// The climb asked for was limited by the envelope (ceiling, or the height unknown).
+  /// The command was limited by the envelope: its climb (ceiling, or the height unknown) or its
+  /// horizontal part (the bound around the take-off point).
   bool envelope_limited = false;
-  double envelope_max_climb_mps = 0.0;  ///< The climb allowed when envelope_limited (NED: -z).
-  const char* envelope_reason = "";     ///< Static text when limited.
+  double envelope_max_climb_mps = 0.0;  ///< The climb allowed (NED: -z); all asked if not cut.
+  bool envelope_horizontal_limited = false;
+  /// The horizontal command after the bound (x, y in H), when envelope_horizontal_limited.
+  Eigen::Vector2d envelope_v_xy_H_mps = Eigen::Vector2d::Zero();
+  const char* envelope_reason = "";  ///< Static text when limited.
   FlightState flight_state = FlightState::kLanded;
   /// The operator's command is not flown this step (landed, taking off, or not in teleop).
   bool operator_ignored = false;
@@ -163,9 +180,15 @@ class ModeController {
   /// which case a take-off climbs on until a height is known again.
   void set_height_m(double height_m) { height_m_ = height_m; }
 
-  /// The accelerometer's specific force in H (NED; at rest (0, 0, -g)) for the land detector.
-  /// Non-finite samples are ignored.
-  void set_specific_force_H(const Eigen::Vector3d& f_H_mps2);
+  /// The body's horizontal offset from the take-off point, in H (m); NaN when unknown, in
+  /// which case the horizontal bound is not enforced (nothing to measure it by).
+  void set_offset_from_takeoff_H_m(const Eigen::Vector2d& offset_H_m) {
+    offset_from_takeoff_H_m_ = offset_H_m;
+  }
+
+  /// The accelerometer's specific force in H (NED; at rest (0, 0, -g)) at t_ns, for the land
+  /// detector and the blind descent's vertical velocity. Non-finite samples are ignored.
+  void set_specific_force_H(std::int64_t t_ns, const Eigen::Vector3d& f_H_mps2);
 
   /// One control step. v_est and v_obs in H; no v_est (nullopt: no usable estimate) gives the
   /// velocity controller's safe hover, and in land the blind descent. Allocates nothing.
@@ -190,9 +213,15 @@ class ModeController {
   /// and out.provider_failed.
   Target target(std::int64_t t_ns, ModeOutput& out);
   /// Touchdown detection and the blind descent of Mode::kLand.
-  void land_step(double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps, ModeOutput& out);
-  /// Limits the target's climb to the envelope (ceiling; none with the height unknown).
+  void land_step(std::int64_t t_ns, double dt_s, const std::optional<Eigen::Vector3d>& v_est_H_mps,
+                 ModeOutput& out);
+  /// The blind descent's thrust as a fraction of m g: the IMU's rate loop, or the fixed ratio.
+  double blind_descent_thrust_ratio(std::int64_t t_ns, double dt_s, ModeOutput& out);
+  /// Limits the target to the envelope: its climb (ceiling; none with the height unknown) and
+  /// its motion away from the take-off point.
   void limit_to_envelope(Target& wanted, ModeOutput& out) const;
+  void limit_climb(Target& wanted, ModeOutput& out) const;
+  void limit_horizontal(Target& wanted, ModeOutput& out) const;
   /// The blind descent's evidence of the floor: an impact, then stillness for touchdown_s.
   [[nodiscard]] bool floor_evidence(double dt_s);
   /// The operator hysteresis for a change to `to`: a refusal with its reason, or accepted (and
@@ -218,8 +247,15 @@ class ModeController {
   bool takeoff_active_ = false;
   Mode takeoff_then_ = Mode::kHover;
   double height_m_ = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector2d offset_from_takeoff_H_m_ =
+      Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Vector3d f_H_mps2_ = Eigen::Vector3d(0.0, 0.0, -control::kGravityMps2);
   bool impact_seen_ = false;  // during this blind descent
+  // The IMU's vertical velocity (NED), anchored to each usable estimate; its sample clock; and
+  // the blind descent's integral term.
+  double v_z_inertial_mps_ = 0.0;
+  std::int64_t t_imu_ns_ = -1;
+  double blind_descent_integral_mps_ = 0.0;
   double still_timer_s_ = 0.0;
   double climb_target_height_m_ = 0.0;  // of the take-off or the land abort's climb
   bool land_abort_climb_ = false;

@@ -150,6 +150,11 @@ struct ChainOutput {
   /// landed height plus the climb integrated from the estimate (kEstimate); 0 with kNone.
   double height_m = 0.0;
   HeightSource height_source = HeightSource::kNone;
+  /// The body's horizontal offset from where it took off, in H (m): the usable estimates'
+  /// velocity integrated in the frame of the take-off heading, turned by the gyro's yaw. It
+  /// drifts as any dead reckoning (the estimate's error times the flight time); it bounds the
+  /// flight (modes.max_distance_from_takeoff_m), it does not navigate.
+  Eigen::Vector2d offset_from_takeoff_H_m = Eigen::Vector2d::Zero();
   /// Closest obstacle clearance the field saw this step (m); -1 when none.
   double clearance_m = -1.0;
   /// The safe hover lasted chain.safe_hover_land_s, so the chain asked to land.
@@ -161,8 +166,8 @@ struct ChainOutput {
   Eigen::Vector3d v_cmd_flown_H_mps = Eigen::Vector3d::Zero();
   bool command_limited = false;
   bool command_unseen = false;
-  /// The operator's climb was limited by the flight envelope (modes.max_height_m, or the
-  /// height unknown); v_cmd_flown_H_mps shows the climb flown.
+  /// The operator's command was limited by the flight envelope (modes.max_height_m, the height
+  /// unknown, or modes.max_distance_from_takeoff_m); v_cmd_flown_H_mps shows what is flown.
   bool command_envelope_limited = false;
   /// Allowed speed per direction in H, bin 0 along the heading then clockwise, for
   /// seen_space_bins bins (m/s; the creep speed where nothing is known).
@@ -259,6 +264,9 @@ class OnboardChain {
   /// Updates the height above the floor from the floor in view (NaN: none) or the estimate,
   /// hands it to the mode controller and fills out.height_m/height_source.
   void update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out);
+  /// Dead-reckons the offset from the take-off point with a usable estimate (reset on the
+  /// floor), hands it to the mode controller and fills out.offset_from_takeoff_H_m.
+  void update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& out);
   /// Fills out.flight_state and out.clearance_m after the mode step.
   void finish_output(ChainOutput& out) const;
   /// Hands the operator's command, limited to the seen space, to the modes; fills out's
@@ -283,6 +291,12 @@ class OnboardChain {
   double height_m_ = 0.0;               ///< Body above the floor (see ChainOutput::height_m).
   bool height_known_ = false;
   std::int64_t t_height_ns_ = 0;
+  // The take-off point's dead reckoning: the offset in the frame T of the take-off heading, the
+  // yaw of H in T (the gyro's, integrated), and their clocks.
+  Eigen::Vector2d offset_T_m_ = Eigen::Vector2d::Zero();
+  double yaw_since_takeoff_rad_ = 0.0;
+  std::int64_t t_yaw_ns_ = -1;
+  std::int64_t t_offset_ns_ = -1;
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
   Eigen::Matrix3d R_B_C_;  ///< To turn the body's rotation into the camera's.
