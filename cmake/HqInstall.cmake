@@ -2,7 +2,7 @@
 # the files they ship with under share/haptiquad/, in the repository's relative layout, where
 # hq::config::resolve_data_path() finds them from the executable's own location.
 
-set(HQ_PROGRAMS hq-onboard hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate
+set(HQ_PROGRAMS hq-onboard hq-sim-flight hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate
                 hq-velocity-eval hq-keys)
 install(TARGETS ${HQ_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 

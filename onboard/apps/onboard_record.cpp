@@ -1,5 +1,5 @@
-// hq-onboard --record DIR: the on-board MCAP flight log (onboard/onboard_log), set up and
-// closed here so each run mode adds a few lines only.
+// --record DIR (hq-onboard, hq-sim-flight): the on-board MCAP flight log (onboard/onboard_log), set
+// up and closed here so each run mode adds a few lines only.
 
 #include "hq/config/data_path.hpp"
 #include "hq/link/config.hpp"
@@ -31,9 +31,10 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
     if (!file.empty()) options.attachments.push_back({config::resolve_data_path(file), ""});
   }
   auto recorder = std::make_unique<onboard_log::OnboardRecorder>(options);
-  std::fprintf(stderr, "hq-onboard: recording the flight to %s\n", recorder->path().c_str());
+  std::fprintf(stderr, "%s: recording the flight to %s\n", g_program_name,
+               recorder->path().c_str());
   for (const std::string& skipped : recorder->attachments_skipped()) {
-    std::fprintf(stderr, "hq-onboard: record attachment skipped: %s\n", skipped.c_str());
+    std::fprintf(stderr, "%s: record attachment skipped: %s\n", g_program_name, skipped.c_str());
   }
   return recorder;
 }
@@ -49,9 +50,9 @@ bool close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summ
   onboard_log::print_report(stdout, report);
   if (report.error.empty()) return true;
   std::fprintf(stderr,
-               "hq-onboard: the flight record is incomplete (%s); exit status %d, the flight "
+               "%s: the flight record is incomplete (%s); exit status %d, the flight "
                "itself went on\n",
-               report.error.c_str(), kRecordFailedExitStatus);
+               g_program_name, report.error.c_str(), kRecordFailedExitStatus);
   return false;
 }
 

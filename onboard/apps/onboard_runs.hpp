@@ -1,13 +1,16 @@
 #pragma once
-// hq-onboard's run modes, one file each: a vehicle runtime on a recording, a live camera or the
-// SITL process (vehicle_runs.cpp), the in-process simulator with a script or over the DDS link
-// (sim_runs.cpp); hq_onboard.cpp parses the command line and picks one.
+// The runs of the on-board chain: hq-onboard's vehicle runtime on a recording, a live camera or
+// the SITL process (vehicle_runs.cpp), and hq-sim-flight's in-process simulator with a script
+// or over the DDS link (onboard/closed_loop/apps/sim_runs.cpp), with what they share
+// (run_support.cpp, onboard_record.cpp: the hq_onboard_runs library, which holds no simulator).
 
 #include "hq/link/config.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
 #include "hq/onboard_log/onboard_recorder.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/steady_clock.hpp"
+
+#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -49,6 +52,16 @@ struct Options {
   std::string record_dir;        ///< --record: DIR/onboard.mcap, the on-board flight log.
 };
 
+/// --config, --vehicle, --csv, --duration-s and --record, with the program's own help for --csv
+/// and --duration-s.
+void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help,
+                        const std::string& duration_help);
+/// --link and its options: the ground station over DDS and the on-board fail-safes.
+void add_ground_link_options(CLI::App& app, Options& o);
+
+/// The program's name at the start of its messages: "hq-onboard" unless main sets another.
+extern const char* g_program_name;
+
 /// Set by SIGINT/SIGTERM; runs that last (sim --link, cameras) stop cleanly when it is.
 extern std::atomic<bool> g_stop;
 void request_stop(int signal);
@@ -81,8 +94,10 @@ inline int with_record_status(int flight_status, bool record_ok) {
   return flight_status == 0 && !record_ok ? kRecordFailedExitStatus : flight_status;
 }
 
-/// replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
+/// hq-onboard: replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
 int run_vehicle(const Options& o);
+/// hq-sim-flight: the closed loop on simulated time with the scripted operator, or paced to
+/// wall time and flown over the DDS link.
 int run_sim(const Options& o);
 int run_sim_link(const Options& o);
 

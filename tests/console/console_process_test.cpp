@@ -1,4 +1,4 @@
-// The operator console against a real simulated flight: hq-onboard --source sim --link and
+// The operator console against a real simulated flight: hq-sim-flight --link and
 // hq-ground (console window, --device sim with the scripted hand) on loopback in a private DDS
 // domain, under a private Xvfb display. Asserts on the console's own state (--state-json), keeps
 // its screenshot in the build directory, reports the recording with hq-report and replays a
@@ -219,7 +219,7 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
 
   // GIVEN a simulated flight flown through the console window and recorded.
   Process onboard(
-      {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world", "onboard/sim/worlds/arena.yaml",
+      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
        "--duration-s", "11", "--domain-id", domain, "--insecure"},
       dir / "onboard.out");
   const fs::path shot = dir / "console.png";
@@ -259,7 +259,7 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   Keyboard keys;
   if (!keys.usable()) GTEST_SKIP() << "no XTest (libXtst.so.6) on this display";
   Process onboard(
-      {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world", "onboard/sim/worlds/arena.yaml",
+      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
        "--duration-s", "60", "--domain-id", domain, "--insecure"},
       dir / "onboard.out");
   const fs::path shot = dir / "link_lost.png";

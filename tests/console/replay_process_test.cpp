@@ -1,4 +1,4 @@
-// A recorded simulated flight (hq-ground --record started before hq-onboard --source sim --link,
+// A recorded simulated flight (hq-ground --record started before hq-sim-flight --link,
 // so it holds the vehicle's whole session), then:
 //   - hq-report's figures against the vehicle's own flight summary and link log where both
 //     measure the same thing (session duration on the vehicle's clock, mode changes, closest
@@ -56,7 +56,7 @@ using hq::console_test::parse_state;
 using hq::console_test::state_flag;
 using hq::console_test::state_number;
 
-// Mode transitions in the vehicle's own link log (hq-onboard --link-log: t_s,mode,...).
+// Mode transitions in the vehicle's own link log (hq-sim-flight --link-log: t_s,mode,...).
 int vehicle_mode_changes(const fs::path& link_log) {
   std::ifstream in(link_log);
   std::string line;
@@ -95,7 +95,7 @@ void record_flight(const fs::path& dir, const fs::path& recording, const std::st
                   "--duration-s", "9", "--headless", "--record", recording.string()},
                  (dir / "ground.out").string());
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  Process onboard({HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world",
+  Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world",
                    "onboard/sim/worlds/arena.yaml", "--duration-s", "5", "--domain-id", domain,
                    "--insecure", "--link-log", (dir / "link.csv").string()},
                   (dir / "onboard.out").string());
@@ -269,7 +269,7 @@ TEST(RecordingProcesses, FullDiskStopsTheFlightRecordNotTheFlight) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   Process onboard(
-      {HQ_ONBOARD_EXE, "--source", "sim", "--link", "--world", "onboard/sim/worlds/arena.yaml",
+      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
        "--duration-s", "10", "--domain-id", domain, "--insecure"},
       (dir / "onboard.out").string());
   // The limit and the ignored SIGXFSZ are inherited through posix_spawn by hq-ground only.

@@ -11,7 +11,7 @@ trap 'rm -rf "$tmp"' EXIT
 prefix=$tmp/prefix
 
 "$cmake" --install "$build" --prefix "$prefix" >/dev/null
-for program in hq-onboard hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate hq-keys; do
+for program in hq-onboard hq-sim-flight hq-ground hq-sim hq-report hq-odometry hq-record hq-evaluate hq-keys; do
   [ -x "$prefix/bin/$program" ] || { echo "FAIL: $program not installed in $prefix/bin"; exit 1; }
 done
 for file in config/onboard.yaml config/haptics.yaml calib/tum_fr1.yaml \
@@ -26,16 +26,16 @@ prefix=$tmp/moved
 mkdir "$tmp/elsewhere"
 cd "$tmp/elsewhere"
 log=$tmp/onboard.log
-"$prefix/bin/hq-onboard" --source sim --world onboard/sim/worlds/arena.yaml \
+"$prefix/bin/hq-sim-flight" --world onboard/sim/worlds/arena.yaml \
   --script onboard/closed_loop/flights/core_paper_box.yaml --csv fig6-8.csv >"$log" 2>&1 || {
-  cat "$log"; echo "FAIL: the installed hq-onboard did not fly"; exit 1; }
-grep -q "hq-onboard: config $prefix/share/haptiquad/config/onboard.yaml" "$log" || {
+  cat "$log"; echo "FAIL: the installed hq-sim-flight did not fly"; exit 1; }
+grep -q "hq-sim-flight: config $prefix/share/haptiquad/config/onboard.yaml" "$log" || {
   cat "$log"; echo "FAIL: the config did not come from the installed share/haptiquad"; exit 1; }
 grep -Eq "collision ticks +0$" "$log" || { cat "$log"; echo "FAIL: the flight collided"; exit 1; }
 [ -s fig6-8.csv ] || { echo "FAIL: no Fig. 6-8 CSV written in the current folder"; exit 1; }
 
 # A file that exists nowhere is named, with every folder looked in.
-if "$prefix/bin/hq-onboard" --source sim --world worlds/none.yaml \
+if "$prefix/bin/hq-sim-flight" --world worlds/none.yaml \
     --script onboard/closed_loop/flights/core_paper_box.yaml >"$log" 2>&1; then
   echo "FAIL: a missing world was accepted"; exit 1
 fi

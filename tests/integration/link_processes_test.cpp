@@ -1,6 +1,6 @@
-// Two (and three) real processes on loopback: hq-onboard --source sim --link flown by hq-ground
+// Two (and three) real processes on loopback: hq-sim-flight --link flown by hq-ground
 // --device sim with a scripted hand, in a private DDS domain per test process. Assertions come
-// from hq-onboard's per-step link log (--link-log), written on simulated time that hq-onboard
+// from hq-sim-flight's per-step link log (--link-log), written on simulated time that hq-sim-flight
 // paces to wall time.
 #include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
@@ -25,7 +25,7 @@
 
 namespace {
 
-// One row of hq-onboard's --link-log.
+// One row of hq-sim-flight's --link-log.
 struct Row {
   double t_s = 0;
   std::string mode;
@@ -107,9 +107,7 @@ class LinkProcesses : public ::testing::Test {
     if (!HasFailure()) std::filesystem::remove_all(dir_);
   }
   std::vector<std::string> onboard_args(double duration_s) const {
-    return {HQ_ONBOARD_EXE,
-            "--source",
-            "sim",
+    return {HQ_SIM_FLIGHT_EXE,
             "--link",
             "--world",
             "onboard/sim/worlds/arena.yaml",
@@ -210,7 +208,7 @@ TEST_F(LinkProcesses, GroundKilledMidFlightHoldsWithin200msThenLandsAfter2s) {
   EXPECT_EQ(held.v_cmd[0], 0.0);
   EXPECT_EQ(held.v_cmd[1], 0.0);
   EXPECT_EQ(held.v_cmd[2], 0.0);
-  // The log has a row per frame (30 Hz); hq-onboard prints the transitions at the 5 ms control
+  // The log has a row per frame (30 Hz); hq-sim-flight prints the transitions at the 5 ms control
   // tick where they happen: the first tick past 200 ms, and past 2 s without a heartbeat.
   const std::string out = slurp((dir_ / "onboard.out").string());
   double hold_t_s = 0;
@@ -288,7 +286,7 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
 }
 
 // Every attack at once, both directions, on a plain link (issue 39 reported 936 collision ticks
-// for this run; on this code it hits nothing). hq-onboard exits 3 on any collision tick.
+// for this run; on this code it hits nothing). hq-sim-flight exits 3 on any collision tick.
 TEST_F(LinkProcesses, AllAttacksAtOnceHitNothing) {
   Process onboard(onboard_args(14.0), (dir_ / "onboard.out").string());
   ASSERT_TRUE(onboard.started());
@@ -583,7 +581,7 @@ TEST_F(LinkProcesses, HostileInEnvelopeCommandsOfAnAllowedStationHitNothing) {
 }
 
 // DDS Security end to end, keys made by hq-keys: the vehicle flies on a secured station's
-// commands; a station listed for another vehicle is refused, naming the writer; hq-onboard
+// commands; a station listed for another vehicle is refused, naming the writer; hq-sim-flight
 // without keys and without --insecure says how to make them.
 TEST_F(LinkProcesses, SecuredStationFliesItsVehicleOthersAreRefused) {
   const std::string keys = make_keys();

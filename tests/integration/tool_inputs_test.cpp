@@ -28,23 +28,22 @@ std::vector<Loader> loaders() {
   const std::string sequence = "onboard/sim/worlds";  // any folder: the config fails first
   const std::string world = "onboard/sim/worlds/arena.yaml";
   const std::string script = "onboard/closed_loop/flights/core_paper_box.yaml";
-  const std::vector<std::string> sim = {HQ_ONBOARD_EXE, "--source", "sim"};
-  const auto onboard = [&](const std::string& flag) {
-    std::vector<std::string> args = sim;
+  const auto sim_flight = [&](const std::string& flag) {
+    std::vector<std::string> args = {HQ_SIM_FLIGHT_EXE};
     args.insert(args.end(), {"--world", flag == "--world" ? "{}" : world});
     args.insert(args.end(), {"--script", flag == "--script" ? "{}" : script});
     if (flag != "--world" && flag != "--script") args.insert(args.end(), {flag, "{}"});
-    return Loader{"hq-onboard", args};
+    return Loader{"hq-sim-flight", args};
   };
   return {
       {"hq-odometry",
        {HQ_ODOMETRY_EXE, sequence, "--camera", "calib/tum_fr1.yaml", "--config", "{}"}},
       {"hq-odometry", {HQ_ODOMETRY_EXE, sequence, "--camera", "{}"}},
-      onboard("--world"),
-      onboard("--script"),
-      onboard("--sim-config"),
-      onboard("--config"),
-      onboard("--vehicle"),
+      sim_flight("--world"),
+      sim_flight("--script"),
+      sim_flight("--sim-config"),
+      sim_flight("--config"),
+      sim_flight("--vehicle"),
       {"hq-ground", {HQ_GROUND_EXE, "--device", "sim", "--headless", "--link-config", "{}"}},
       {"hq-ground", {HQ_GROUND_EXE, "--device", "sim", "--headless", "--haptics-config", "{}"}},
       {"hq-ground", {HQ_GROUND_EXE, "--device", "sim", "--headless", "--vehicle", "{}"}},

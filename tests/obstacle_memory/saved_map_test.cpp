@@ -1,5 +1,5 @@
 // The obstacle memory's map saved at the end of a simulated flight (what
-// hq-onboard --save-map writes) reads back with PCL's own readers: every point, finite, and
+// hq-sim-flight --save-map writes) reads back with PCL's own readers: every point, finite, and
 // within the memory's radius of where the vehicle flew.
 
 #include "memory_campaign.hpp"

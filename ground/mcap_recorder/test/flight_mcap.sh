@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# hq-ground --record as a process against a simulated vehicle (hq-onboard --source sim --link),
+# hq-ground --record as a process against a simulated vehicle (hq-sim-flight --link),
 # its flight.mcap read by independent readers (check_flight.cjs: @mcap/core,
 # @foxglove/omgidl-parser, @foxglove/omgidl-serialization from npm): a flight that ends normally
 # (counts and stamps as hq-ground reports them), one killed with SIGKILL (still readable,
@@ -36,7 +36,7 @@ cleanup() {
 }
 trap cleanup EXIT
 
-"$onboard" --source sim --link --world onboard/sim/worlds/arena.yaml --duration-s 14 \
+"$onboard" --link --world onboard/sim/worlds/arena.yaml --duration-s 14 \
            --domain-id "$domain" --insecure >"$tmp/onboard.out" 2>&1 &
 vehicle_pid=$!
 ground_args=(--device sim --headless --haptics-config ground/config/demo_hand.yaml

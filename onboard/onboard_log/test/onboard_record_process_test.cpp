@@ -178,7 +178,7 @@ TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
   std::ofstream(file("a_file")) << "not a folder";
   const std::string dir = (file("a_file") / "flight").string();
   Process onboard(
-      {HQ_ONBOARD_EXE, "--source", "sim", "--world", "onboard/sim/worlds/arena.yaml", "--link",
+      {HQ_SIM_FLIGHT_EXE, "--world", "onboard/sim/worlds/arena.yaml", "--link",
        "--duration-s", "5", "--domain-id", domain_, "--insecure", "--record", dir},
       file("onboard.out"));
   EXPECT_EQ(onboard.wait_exit(20.0), 2) << slurp(file("onboard.out"));
@@ -190,7 +190,7 @@ TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
 // say the record is incomplete.
 TEST_F(OnboardRecordProcess, SimRunWhoseRecordFailsExitsNonZeroAndSaysWhy) {
   Process onboard(
-      {"/bin/bash", "-c", "ulimit -f 64 && exec \"$0\" \"$@\"", HQ_ONBOARD_EXE, "--source", "sim",
+      {"/bin/bash", "-c", "ulimit -f 64 && exec \"$0\" \"$@\"", HQ_SIM_FLIGHT_EXE,
        "--world", "onboard/sim/worlds/arena.yaml", "--link", "--duration-s", "3", "--domain-id",
        domain_, "--insecure", "--record", file("record").string()},
       file("onboard.out"));
@@ -199,7 +199,8 @@ TEST_F(OnboardRecordProcess, SimRunWhoseRecordFailsExitsNonZeroAndSaysWhy) {
     return slurp(file("onboard.out"));
   }();
   EXPECT_NE(out.find("on-board record FAILED"), std::string::npos) << out;
-  EXPECT_NE(out.find("hq-onboard: the flight record is incomplete ("), std::string::npos) << out;
+  EXPECT_NE(out.find("hq-sim-flight: the flight record is incomplete ("), std::string::npos)
+      << out;
   EXPECT_NE(out.find("File too large"), std::string::npos) << out;
   EXPECT_NE(out.find("flight summary over the link"), std::string::npos) << out;
 }

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A simulated vehicle with the ROS 2 topics on (hq-onboard --source sim --link --ros2
+# A simulated vehicle with the ROS 2 topics on (hq-sim-flight --link --ros2
 # --insecure) against hq_ros2_probe: a native station takes it off, a ROS 2 teleop node flies
 # it over rt/<ns>/cmd_vel_in, the native station overrides it; the probe dumps every rt/ topic
 # as raw CDR into DUMP_DIR.
@@ -35,7 +35,7 @@ vehicle_pid=""
 cleanup() { if [ -n "$vehicle_pid" ]; then kill "$vehicle_pid" 2>/dev/null || true; fi; }
 trap cleanup EXIT
 
-"$onboard" --source sim --link --ros2 --insecure --world onboard/sim/worlds/arena.yaml \
+"$onboard" --link --ros2 --insecure --world onboard/sim/worlds/arena.yaml \
            --duration-s 30 --domain-id "$domain" >"$dump/onboard.out" 2>&1 &
 vehicle_pid=$!
 status=0
@@ -45,7 +45,7 @@ wait "$vehicle_pid" 2>/dev/null || true
 vehicle_pid=""
 grep -E 'ros2|ROS 2' "$dump/onboard.out" || true
 if [ "$status" -ne 0 ]; then
-  echo "probe failed ($status); hq-onboard said:"
+  echo "probe failed ($status); hq-sim-flight said:"
   tail -30 "$dump/onboard.out"
   exit 1
 fi

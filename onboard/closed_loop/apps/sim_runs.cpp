@@ -1,5 +1,5 @@
-// hq-onboard in simulation: the closed loop flown by a scripted operator on simulated time
-// (--source sim), or paced to wall time and flown by a ground station over DDS (--link).
+// hq-sim-flight's runs: the closed loop flown by a scripted operator on simulated time, or paced
+// to wall time and flown by a ground station over DDS (--link).
 
 #include "hq/base/error.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
@@ -69,7 +69,7 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
 }  // namespace
 
 int run_sim_link(const Options& o) {
-  if (o.world_path.empty()) throw hq::InputError("--source sim --link needs --world <world.yaml>");
+  if (o.world_path.empty()) throw hq::InputError("--link needs --world <world.yaml>");
   const hq::sim::World world = hq::sim::load_world(o.world_path);
   hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
   hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
@@ -112,7 +112,7 @@ int run_sim_link(const Options& o) {
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,
-               "hq-onboard: simulated %s over the link: %.1f s, command timeout %.0f ms, "
+               "hq-sim-flight: simulated %s over the link: %.1f s, command timeout %.0f ms, "
                "heartbeat timeout %.0f ms\n",
                world.name.c_str(), o.duration_s, o.command_timeout_ms, o.heartbeat_timeout_ms);
   double t_s = 0.0;
@@ -146,11 +146,12 @@ int run_sim_link(const Options& o) {
 
 int run_sim(const Options& o) {
   if (o.world_path.empty() || o.script_path.empty()) {
-    throw hq::InputError("--source sim needs --world <world.yaml> and --script <timeline.yaml>");
+    throw hq::InputError(
+        "hq-sim-flight needs --world <world.yaml> and --script <timeline.yaml> (or --link)");
   }
   if (!o.record_dir.empty()) {
     throw hq::InputError("--record " + o.record_dir +
-                         ": --source sim records with --link (a scripted run has its CSV, --csv)");
+                         ": a scripted flight records with --link only (it has its CSV, --csv)");
   }
   const hq::sim::World world = hq::sim::load_world(o.world_path);
   hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
@@ -164,9 +165,9 @@ int run_sim(const Options& o) {
   hq::closed_loop::ClosedLoopOptions options;
   options.clock = &clock;
   hq::closed_loop::ClosedLoop loop(sim_config, world, config, vehicle, std::move(player), options);
-  fmt::print(stderr, "hq-onboard: simulated {}, {}x{}, seed {}, script {} ({:.1f} s)\n", world.name,
-             sim_config.camera.pinhole.width, sim_config.camera.pinhole.height, sim_config.seed,
-             o.script_path, loop.player().script().end_s);
+  fmt::print(stderr, "hq-sim-flight: simulated {}, {}x{}, seed {}, script {} ({:.1f} s)\n",
+             world.name, sim_config.camera.pinhole.width, sim_config.camera.pinhole.height,
+             sim_config.seed, o.script_path, loop.player().script().end_s);
   const auto wall_start = std::chrono::steady_clock::now();
   loop.run();
   const double wall_s =

@@ -1,0 +1,141 @@
+// What every run of the on-board chain shares, in hq-onboard and hq-sim-flight alike: the
+// command-line options of a flight and of the link, the link bridge, the status and summary
+// lines, and the stop flag.
+
+#include "hq/base/error.hpp"
+#include "hq/link/link.hpp"
+#include "hq/link_bridge/link_bridge.hpp"
+
+#include "onboard_runs.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <fmt/format.h>
+#include <memory>
+#include <string>
+
+namespace hq::onboard_app {
+
+const char* g_program_name = "hq-onboard";
+std::atomic<bool> g_stop{false};
+
+void request_stop(int /*signal*/) { g_stop = true; }
+
+void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help,
+                        const std::string& duration_help) {
+  app.add_option("--config", o.config_path, "on-board config");
+  app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_body_camera)");
+  app.add_option("--csv", o.csv_path, csv_help);
+  app.add_option("--duration-s", o.duration_s, duration_help)->check(CLI::Range(0.1, 86400.0));
+  app.add_option("--record", o.record_dir,
+                 "write the flight's on-board MCAP log to DIR/onboard.mcap (link samples as CDR, "
+                 "IMU, estimates, setpoints, stage timings)");
+}
+
+/// --link: the ground station over DDS and the on-board fail-safes.
+void add_ground_link_options(CLI::App& app, Options& o) {
+  app.add_flag("--link", o.link, "fly commanded by a ground station over DDS");
+  app.add_option("--link-config", o.link_config_path, "--link: YAML with a link: section");
+  hq::link::add_link_options(app, o.link_overrides);
+  app.add_option("--command-timeout-ms", o.command_timeout_ms,
+                 "--link: no fresh command this long -> hold zero velocity")
+      ->check(CLI::Range(1.0, 10000.0));
+  app.add_option("--heartbeat-timeout-ms", o.heartbeat_timeout_ms,
+                 "--link: no ground heartbeat this long -> land")
+      ->check(CLI::Range(1.0, 60000.0));
+  app.add_option("--hold-to-land-s", o.hold_to_land_s,
+                 "--link: still no fresh command this long after the hold began -> land")
+      ->check(CLI::Range(0.1, 600.0));
+  app.add_option("--camera-rate-hz", o.camera_rate_hz,
+                 "--link: JPEG frames to the ground (0: none)")
+      ->check(CLI::Range(0.0, 60.0));
+}
+
+void print_status(const hq::pipeline::ChainOutput& out, int frames) {
+  const auto& v = out.estimate.v_H_mps;
+  const auto& s = out.mode.control.setpoint;
+  // \033[K clears what a longer previous line left behind.
+  std::fprintf(stderr,
+               "\rt %8.3f s  frame %5d  %-5s  v_H [%+.2f %+.2f %+.2f] m/s  thrust %5.2f N  "
+               "roll %+.3f pitch %+.3f rad  %5.2f ms  %s\033[K",
+               1e-9 * static_cast<double>(out.t_ns), frames, out.estimate.ok() ? "ok" : "HOVER",
+               v.x(), v.y(), v.z(), s.thrust_n, s.roll_rad, s.pitch_rad,
+               1e-6 * static_cast<double>(out.durations.total_ns),
+               out.safe_hover ? out.safe_hover_reason : "");
+  std::fflush(stderr);
+}
+
+std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) {
+  hq::link::LinkConfig link = o.link_config_path.empty()
+                                  ? hq::link::LinkConfig{}
+                                  : hq::link::load_link_config(o.link_config_path);
+  hq::link::apply_overrides(o.link_overrides, link);
+  hq::link_bridge::FailsafeConfig failsafe;
+  failsafe.vehicle_id = link.vehicle_id;
+  failsafe.envelope = link.envelope;
+  failsafe.command_timeout_ns = std::llround(o.command_timeout_ms * 1e6);
+  failsafe.heartbeat_timeout_ns = std::llround(o.heartbeat_timeout_ms * 1e6);
+  failsafe.hold_to_land_ns = std::llround(o.hold_to_land_s * 1e9);
+  hq::link_bridge::BridgeOptions bridge_options;
+  bridge_options.camera_rate_hz = o.camera_rate_hz;
+  auto bridge = std::make_unique<hq::link_bridge::LinkBridge>(link, failsafe, bridge_options);
+  std::string stations;
+  for (const std::uint32_t id : link.stations) {
+    stations += (stations.empty() ? "" : ",") + std::to_string(id);
+  }
+  std::fprintf(stderr,
+               "%s: link on domain %d as vehicle %u, session %016llx, "
+               "commanded by %s, %s\n",
+               g_program_name, link.domain_id, link.vehicle_id,
+               static_cast<unsigned long long>(bridge->session_id()),
+               stations.empty() ? "any station" : ("stations " + stations).c_str(),
+               hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
+  if (const hq::ros2_bridge::Ros2Bridge* ros = bridge->ros2()) {
+    std::fprintf(stderr,
+                 "%s: ROS 2 topics rt/%s/{odom,imu,obstacles,camera/...}, rt/tf; "
+                 "TwistStamped on rt/%s/cmd_vel_in as station %u (lowest priority)\n",
+                 g_program_name, ros->ros_namespace().c_str(), ros->ros_namespace().c_str(),
+                 link.ros2.station_id);
+  }
+  return bridge;
+}
+
+void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
+  const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
+  fmt::print("  {:<40} {} accepted, {} rejected\n", "velocity commands", c.commands_accepted,
+             c.commands_rejected);
+  fmt::print("  {:<40} {} accepted, {} rejected\n", "mode requests", c.mode_requests_accepted,
+             c.mode_requests_rejected);
+  fmt::print("  {:<40} {} accepted, {} rejected\n", "heartbeats", c.heartbeats_accepted,
+             c.heartbeats_rejected);
+  fmt::print("  {:<40} {} holds, {} land requests ({} after a hold)\n", "fail-safes", c.holds,
+             c.land_requests, c.land_requests_hold);
+  fmt::print(
+      "  {:<40} station {}, {} changes; rejected: {} commands not allowed, {} requests not from "
+      "it, {} for another session; {} foreign heartbeats\n",
+      "commanding station", bridge.failsafe().state().commanding_station_id, c.commander_changes,
+      c.commands_not_allowed, c.mode_requests_not_commander, c.mode_requests_wrong_session,
+      c.heartbeats_not_commander);
+  if (c.intrusions > 0) {
+    const hq::link_bridge::Intrusion& last = bridge.failsafe().last_intrusion();
+    fmt::print(
+        "  {:<40} {} refused; last: a {} claiming station {}, written by station {}'s "
+        "certificate (0: no station's)\n",
+        "intrusions", c.intrusions, last.kind, last.claimed_station_id, last.writer_station_id);
+  } else {
+    fmt::print("  {:<40} 0 (samples claiming another station than their certificate)\n",
+               "intrusions");
+  }
+  fmt::print("  {:<40} {} states, {} camera frames, {} events\n", "published", bridge.states_sent(),
+             bridge.camera_frames_sent(), bridge.events_sent());
+  if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {
+    const hq::ros2_bridge::Ros2Counters& r = ros->counters();
+    fmt::print(
+        "  {:<40} {} states, {} clouds, {} images; cmd_vel_in {} taken, {} overridden by a "
+        "native station\n",
+        "ROS 2 published", r.states_published, r.clouds_published, r.images_published,
+        r.commands_received, r.commands_overridden);
+  }
+}
+
+}  // namespace hq::onboard_app
