@@ -218,10 +218,9 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   const XvfbDisplay display(dir, "1600x1000x24");
 
   // GIVEN a simulated flight flown through the console window and recorded.
-  Process onboard(
-      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
-       "--duration-s", "11", "--domain-id", domain, "--insecure"},
-      dir / "onboard.out");
+  Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
+                   "--duration-s", "11", "--domain-id", domain, "--insecure"},
+                  dir / "onboard.out");
   const fs::path shot = dir / "console.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";
@@ -258,10 +257,9 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   const XvfbDisplay display(dir, "1280x720x24");
   Keyboard keys;
   if (!keys.usable()) GTEST_SKIP() << "no XTest (libXtst.so.6) on this display";
-  Process onboard(
-      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
-       "--duration-s", "60", "--domain-id", domain, "--insecure"},
-      dir / "onboard.out");
+  Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
+                   "--duration-s", "60", "--domain-id", domain, "--insecure"},
+                  dir / "onboard.out");
   const fs::path shot = dir / "link_lost.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";

@@ -95,10 +95,10 @@ void record_flight(const fs::path& dir, const fs::path& recording, const std::st
                   "--duration-s", "9", "--headless", "--record", recording.string()},
                  (dir / "ground.out").string());
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world",
-                   "onboard/sim/worlds/arena.yaml", "--duration-s", "5", "--domain-id", domain,
-                   "--insecure", "--link-log", (dir / "link.csv").string()},
-                  (dir / "onboard.out").string());
+  Process onboard(
+      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml", "--duration-s", "5",
+       "--domain-id", domain, "--insecure", "--link-log", (dir / "link.csv").string()},
+      (dir / "onboard.out").string());
   ASSERT_EQ(onboard.wait_exit(40.0), 0) << slurp(dir / "onboard.out");
   ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
 }
@@ -268,10 +268,9 @@ TEST(RecordingProcesses, FullDiskStopsTheFlightRecordNotTheFlight) {
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "full_disk_test";
   fs::remove_all(dir);
   fs::create_directories(dir);
-  Process onboard(
-      {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
-       "--duration-s", "10", "--domain-id", domain, "--insecure"},
-      (dir / "onboard.out").string());
+  Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
+                   "--duration-s", "10", "--domain-id", domain, "--insecure"},
+                  (dir / "onboard.out").string());
   // The limit and the ignored SIGXFSZ are inherited through posix_spawn by hq-ground only.
   rlimit saved{};
   ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);

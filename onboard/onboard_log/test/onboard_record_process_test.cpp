@@ -177,10 +177,9 @@ TEST_F(OnboardRecordProcess, RecordedFlightReadsBackWithNpmReaders) {
 TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
   std::ofstream(file("a_file")) << "not a folder";
   const std::string dir = (file("a_file") / "flight").string();
-  Process onboard(
-      {HQ_SIM_FLIGHT_EXE, "--world", "onboard/sim/worlds/arena.yaml", "--link",
-       "--duration-s", "5", "--domain-id", domain_, "--insecure", "--record", dir},
-      file("onboard.out"));
+  Process onboard({HQ_SIM_FLIGHT_EXE, "--world", "onboard/sim/worlds/arena.yaml", "--link",
+                   "--duration-s", "5", "--domain-id", domain_, "--insecure", "--record", dir},
+                  file("onboard.out"));
   EXPECT_EQ(onboard.wait_exit(20.0), 2) << slurp(file("onboard.out"));
   EXPECT_NE(slurp(file("onboard.out")).find(dir), std::string::npos) << slurp(file("onboard.out"));
 }
@@ -189,18 +188,16 @@ TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
 // disk) WHEN it ends THEN the flight ran its full length, and the exit status (5) and stderr
 // say the record is incomplete.
 TEST_F(OnboardRecordProcess, SimRunWhoseRecordFailsExitsNonZeroAndSaysWhy) {
-  Process onboard(
-      {"/bin/bash", "-c", "ulimit -f 64 && exec \"$0\" \"$@\"", HQ_SIM_FLIGHT_EXE,
-       "--world", "onboard/sim/worlds/arena.yaml", "--link", "--duration-s", "3", "--domain-id",
-       domain_, "--insecure", "--record", file("record").string()},
-      file("onboard.out"));
+  Process onboard({"/bin/bash", "-c", "ulimit -f 64 && exec \"$0\" \"$@\"", HQ_SIM_FLIGHT_EXE,
+                   "--world", "onboard/sim/worlds/arena.yaml", "--link", "--duration-s", "3",
+                   "--domain-id", domain_, "--insecure", "--record", file("record").string()},
+                  file("onboard.out"));
   const std::string out = [&] {
     EXPECT_EQ(onboard.wait_exit(30.0), 5) << slurp(file("onboard.out"));
     return slurp(file("onboard.out"));
   }();
   EXPECT_NE(out.find("on-board record FAILED"), std::string::npos) << out;
-  EXPECT_NE(out.find("hq-sim-flight: the flight record is incomplete ("), std::string::npos)
-      << out;
+  EXPECT_NE(out.find("hq-sim-flight: the flight record is incomplete ("), std::string::npos) << out;
   EXPECT_NE(out.find("File too large"), std::string::npos) << out;
   EXPECT_NE(out.find("flight summary over the link"), std::string::npos) << out;
 }
