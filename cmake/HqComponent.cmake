@@ -1,7 +1,7 @@
 # hq_add_test(<name> SOURCES ... LIBS ... [PREFIX <p>]): one gtest binary per component, discovered
 # by ctest; PREFIX is put before each discovered test name so `ctest -R <p>` selects the component.
 # Tests run from the repository root so that relative paths such as calib/ and ../shared/data
-# resolve the same way as in the README.
+# resolve the same way as in docs/development.md, "Real data".
 function(hq_add_test name)
   cmake_parse_arguments(ARG "" "PREFIX" "SOURCES;LIBS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})

@@ -96,7 +96,8 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
       s.onboard.odometry.depth_jacobian_from_normals = true;
       s.onboard.odometry.min_translation_information_ratio = 0.01;
       s.onboard.odometry.degenerate_step_ratio = 0.01;
-      // HQ_UNSEEN_REMAP=0: the depth-term runs without remapped steps (README "Remapped steps").
+      // HQ_UNSEEN_REMAP=0: the depth-term runs without remapped steps (docs/odometry.md,
+      // "Depth-term options").
       if (const char* r = std::getenv("HQ_UNSEEN_REMAP"))
         s.onboard.odometry.degenerate_step_ratio = std::atof(r);
     }
@@ -183,8 +184,8 @@ std::uint32_t seed_from_environment(std::uint32_t seed) {
 }
 
 std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
-  // HQ_UNSEEN_RUNS=N flies more runs per world and HQ_UNSEEN_SEED=S other ones (the README
-  // figures); the test keeps it short.
+  // HQ_UNSEEN_RUNS=N flies more runs per world and HQ_UNSEEN_SEED=S other ones (the figures
+  // in docs/flight-safety.md, docs/odometry.md and docs/estimator.md); the test keeps it short.
   runs_per_world = runs_from_environment(runs_per_world);
   std::vector<WorldRow> rows;
   std::uint32_t seed = seed_from_environment(kFirstWorldSeed);
@@ -222,13 +223,13 @@ TEST(UnseenCampaign, RandomInEnvelopeCommandsNeverCollideNorFlyAway) {
   }
 }
 
-// The depth term in the world that flew it off (README "Why the depth term flew off"): beside a
-// plain wall its gradient Jacobian claimed the motion along the wall, and the vehicle reached
-// 3.8-5.9 m/s. With normals, the ratio bound, the coast's hold, a coast no longer than what it
-// knows of its accelerometer and remapped steps, these four runs do not fly away; flown wider
-// (HQ_UNSEEN_RUNS=16, ten seeds) 10 of 160 still collide and 2 fly away (README "Remapped
-// steps"), which is why the depth term is not the default and this test asserts no fly-away,
-// not no collision. Same seeds as the campaign's structure_notexture.
+// The depth term in the world that flew it off (docs/odometry.md, "The depth term stays off"):
+// beside a plain wall its gradient Jacobian claimed the motion along the wall, and the vehicle
+// reached 3.8-5.9 m/s. With normals, the ratio bound, the coast's hold, a coast no longer than what
+// it knows of its accelerometer and remapped steps, these four runs do not fly away; flown wider
+// (HQ_UNSEEN_RUNS=16, ten seeds) 10 of 160 still collide and 2 fly away (docs/odometry.md,
+// "The depth term stays off"), which is why the depth term is not the default and this test asserts
+// no fly-away, not no collision. Same seeds as the campaign's structure_notexture.
 TEST(UnseenCampaign, DepthTermWithItsGuardsNeverFliesAway) {
   const WorldRow r = fly("onboard/sim/worlds/structure_notexture.yaml", runs_from_environment(4),
                          true, seed_from_environment(kFirstWorldSeed) + 3 * kSeedStepPerWorld,

@@ -200,7 +200,8 @@ INSTANTIATE_TEST_SUITE_P(DepthTerm, OdometryOnSimulatedCircle,
 // -129 deg; the campaign's depth-term runs that collided began there): the two planes say
 // nothing of the motion along their common line, the camera's x. Without remapped steps the
 // coarsest level's first step, taken before the robust scales are known, moved the pose 2-4 cm
-// along that line per frame while the odometry claimed 0.3 mm (README "Remapped steps").
+// along that line per frame while the odometry claimed 0.3 mm (docs/odometry.md, "Depth-term
+// options").
 TEST(OdometryFacingAPlainWallAndTheFloor, RemappedStepsKeepAHoverStill) {
   const Case c{"plain_wall_hover", hq::odometry::ReferenceMode::kFrameToKeyframe, true, {}, true};
   const auto rpe_mps = [&](double ratio) {

@@ -59,8 +59,9 @@ struct VelocityEstimatorConfig {
   double velocity_gate_chi2 = 16.27;
   /// Consecutive frames that must pass that gate before their velocity is used, after any
   /// frame that was not (a start, a loss, a rejection). One wrong frame between lost ones is
-  /// how the depth term flew off in the textureless world (README "Re-acquired twice"): alone
-  /// it passed the gate, and the vehicle chased its 0.6 m/s. 1: the first frame is taken.
+  /// how the depth term flew off in the textureless world (docs/estimator.md, "A re-acquired
+  /// velocity"): alone it passed the gate, and the vehicle chased its 0.6 m/s. 1: the first frame
+  /// is taken.
   int reacquire_frames = 2;
   /// The acceleration the accelerometer does not see (its bias, and the tilt error the
   /// complementary filter makes of it: a vehicle held "level" on a biased accelerometer

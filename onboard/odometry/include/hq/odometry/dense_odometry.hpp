@@ -54,7 +54,7 @@ struct OdometryConfig {
   bool initialize_with_previous_motion = true;  ///< Start from the last frame's motion
                                                 ///< (frame-to-frame only; also gates the prior).
   bool estimate_brightness_offset = true;       ///< Also estimate a global intensity offset.
-  /// Frame to keyframe with the gyro is the default (README, "Dense odometry in brief").
+  /// Frame to keyframe with the gyro is the default (docs/odometry.md, "Reference mode").
   ReferenceMode reference_mode = ReferenceMode::kFrameToKeyframe;
   double keyframe_entropy_ratio = 0.9;  ///< New keyframe when H(kf,t)/H(kf,kf+1) drops below.
   int max_keyframe_age = 30;            ///< Frames; bounds drift-free reuse of one keyframe.
@@ -97,9 +97,10 @@ struct OdometryConfig {
                                          ///< depths, or the reference pixel's four neighbours,
                                          ///< spread by more than this fraction (an edge).
   /// The depth term acts on this many pyramid levels from finest_level up (0 = every level);
-  /// coarser levels align intensity only. Measured (README): on real Kinect depth (fr1_360) one
-  /// level loses less rotation, but the coarse levels' depth is what carries textureless scenes
-  /// and fast yaw without the gyro in simulation, so every level is the default.
+  /// coarser levels align intensity only. Measured (docs/odometry.md, "Depth-term options"): on
+  /// real Kinect depth (fr1_360) one level loses less rotation, but the coarse levels' depth is
+  /// what carries textureless scenes and fast yaw without the gyro in simulation, so every level is
+  /// the default.
   int depth_levels = 0;
   /// The depth residual's Jacobian from the reference surface's normal, d r / d q = -(q_z /
   /// n.q) n^T / sigma_z (point-to-plane along the viewing ray: exact for a locally planar
@@ -107,9 +108,10 @@ struct OdometryConfig {
   /// plane is mostly noise (its noise against the plane's true gradient is about
   /// f sigma_z / z: 0.15 at 1 m on Kinect v1 at 320x240, 0.8 at 2 m), and a noisy Jacobian
   /// claims information the scene does not hold. The normals come from the depth
-  /// depth_normal_smoothing_levels pyramid levels coarser (block means). Measured (README):
-  /// better in simulation (frame to frame most, the textureless world most of all), worse on
-  /// the real fr1_360 frames (f2kf I+D+gyro 0.0276 -> 0.0305 m/s), so off by default.
+  /// depth_normal_smoothing_levels pyramid levels coarser (block means). Measured
+  /// (docs/odometry.md, "Depth-term options"): better in simulation (frame to frame most, the
+  /// textureless world most of all), worse on the real fr1_360 frames (f2kf I+D+gyro 0.0276 ->
+  /// 0.0305 m/s), so off by default.
   bool depth_jacobian_from_normals = false;
   int depth_normal_smoothing_levels = 2;
   /// Surfaces seen more obliquely than this (normal against the viewing ray) add no depth
@@ -128,8 +130,9 @@ struct OdometryConfig {
   /// (interpolation, blur, the pyramid, model error), so the independent-pixel Hessian is
   /// overconfident: on the six simulated flights (exact truth, no gyro) the mean rotation NEES
   /// e^T Sigma_rr^-1 e / 3 of each frame's T_ref_cur was 7-220, geometric mean 25 over 18
-  /// runs (`hq-bench-odometry --nees`, README "Honest information"), i.e. 0.04; on real Kinect
-  /// frames (fr1_360) 1500-6000. With a gyro it is only the start: adapt_vision_information.
+  /// runs (`hq-bench-odometry --nees`, docs/odometry.md, "The vision's information"), i.e. 0.04; on
+  /// real Kinect frames (fr1_360) 1500-6000. With a gyro it is only the start:
+  /// adapt_vision_information.
   double vision_information_scale = 0.04;
   /// The gyro rotations given to track() carry white noise (their information) and a rate
   /// bias left over by the caller's estimate, which is this component's: per axis it is
@@ -153,7 +156,8 @@ struct OdometryConfig {
   /// in the log domain over the last vision_information_frames frames. Off by default: it
   /// cannot tell which of the two is wrong when they disagree. On real Kinect frames (fr1_360,
   /// gyro synthesised from the ground truth) it trusted the gyro 1000x more than the vision and
-  /// the chain's velocity got worse (eq. 1 |v| RMSE 0.101 -> 0.146 m/s, README).
+  /// the chain's velocity got worse (eq. 1 |v| RMSE 0.101 -> 0.146 m/s, docs/odometry.md, "The
+  /// vision's information").
   bool adapt_vision_information = false;
   int vision_information_frames = 30;
   /// Gauss-Newton iterations of the finest level without the prior, from the joint minimum,
@@ -168,10 +172,11 @@ struct OdometryConfig {
   /// depth Jacobians' own noise adds about that much to every direction (with normals, about
   /// their angular noise squared), so a plain wall's depth "constrains" the motion along it
   /// past any absolute bound. Scale-free, and no bound without the depth term. Measured in the
-  /// unseen-space campaign with the depth term and depth_jacobian_from_normals (README): at
-  /// 0.01 no wrong frame was accepted (259 of 5690 before), but it also loses the textureless
-  /// world's slow circle, which the depth term tracks, and noise-free synthetic depth (whose
-  /// re-estimated scale makes its information 10^4 times the intensity's): 0 (off) by default.
+  /// unseen-space campaign with the depth term and depth_jacobian_from_normals (docs/odometry.md,
+  /// "Depth-term options"): at 0.01 no wrong frame was accepted (259 of 5690 before), but it also
+  /// loses the textureless world's slow circle, which the depth term tracks, and noise-free
+  /// synthetic depth (whose re-estimated scale makes its information 10^4 times the intensity's): 0
+  /// (off) by default.
   double min_translation_information_ratio = 0.0;
   /// A Gauss-Newton step leaves the translation alone along directions whose information
   /// (rotation held) on that level and iteration is under this share of the best direction's:
@@ -179,7 +184,7 @@ struct OdometryConfig {
   /// plain wall and the floor say nothing of the motion along their common line, and without
   /// this the coarsest level's first step, taken before the robust scales are known, moved
   /// the pose 2-4 cm along it per frame of a hover, which the finer levels could not undo
-  /// (README "Remapped steps"). 0: off.
+  /// (docs/odometry.md, "Depth-term options"). 0: off.
   double degenerate_step_ratio = 0.0;
 };
 

@@ -38,7 +38,7 @@
 /// max(creep, v_max(d)): beyond d nothing is known.
 ///
 /// Vertical: not limited here; the obstacle field's support push keeps the vehicle off the
-/// floor and the modes' land handles touchdown (documented in README).
+/// floor and the modes' land handles touchdown (docs/flight-safety.md).
 ///
 /// Pure core: data and time in, limit out; buffers are fixed arrays, nothing allocates.
 /// Frames (hq/geometry/frames.hpp): O the odometry origin (the obstacle memory's world), C camera
