@@ -5,8 +5,8 @@
 
 #include "hq/base/tool_main.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/haptics/delay_campaign.hpp"
 
-#include "delay_campaign.hpp"
 #include <CLI/CLI.hpp>
 
 #include <cstdio>

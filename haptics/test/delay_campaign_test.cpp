@@ -1,5 +1,5 @@
 // The small ctest variant of hq-bench-delay-campaign: 0 and 300 ms round trips, 10 s flights.
-#include "delay_campaign.hpp"
+#include "hq/haptics/delay_campaign.hpp"
 
 #include "test_support.hpp"
 #include <gtest/gtest.h>

@@ -1,18 +1,17 @@
 #pragma once
 // The operator's side flown over a delayed, jittery, lossy link into the real closed loop: the
 // shipped HapticLoop (mapping, stamped force law, passivity controller) with the operator's arm
-// closing the loop (haptics/bench/delay_campaign.hpp), its commands delayed up to the vehicle,
-// the chain's estimates delayed back down. Shared by hq-bench-delay-closed-loop and
-// hq_delay_closed_loop_test. Simulated time throughout.
+// closing the loop (haptics/campaign/include/hq/haptics/delay_campaign.hpp), its commands delayed
+// up to the vehicle, the chain's estimates delayed back down. Shared by hq-bench-delay-closed-loop
+// and hq_delay_closed_loop_test. Simulated time throughout.
 
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/control/vehicle_config.hpp"
+#include "hq/haptics/delay_campaign.hpp"
 #include "hq/haptics/haptics_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
-
-#include "delay_campaign.hpp"
 
 #include <algorithm>
 #include <cmath>

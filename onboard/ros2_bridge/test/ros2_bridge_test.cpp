@@ -2,9 +2,9 @@
 // values in ROS frames, XCDR1 on the wire, and cmd_vel_in as the link's command.
 #include "hq/ros2_bridge/ros2_bridge.hpp"
 
+#include "hq/link/test_support.hpp"
 #include "hq/ros2_bridge/ros_frames.hpp"
 
-#include "link_test_support.hpp"
 #include <dds/ddsi/ddsi_serdata.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
 #include "hq/link/link.hpp"
+#include "hq/link/test_support.hpp"
 #include "hq/testing/input_error.hpp"
 
-#include "link_test_support.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 

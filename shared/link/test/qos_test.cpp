@@ -1,6 +1,6 @@
 #include "hq/link/link.hpp"
+#include "hq/link/test_support.hpp"
 
-#include "link_test_support.hpp"
 #include <gtest/gtest.h>
 
 #include <chrono>

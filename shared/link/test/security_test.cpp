@@ -1,11 +1,11 @@
 // DDS Security on the link, real Cyclone DDS on loopback with keys made by hq::security (the
 // code of hq-keys) in a temp dir: a permitted station commands its vehicle; nobody else delivers
 // a single command, and a station cannot publish vehicle state.
+#include "hq/link/test_support.hpp"
 #include "hq/link/writer_binding.hpp"
 #include "hq/security/keys.hpp"
 #include "hq/testing/input_error.hpp"
 
-#include "link_test_support.hpp"
 #include <gtest/gtest.h>
 
 #include <algorithm>

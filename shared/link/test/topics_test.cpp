@@ -1,7 +1,7 @@
 #include "hq/link/link.hpp"
+#include "hq/link/test_support.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
-#include "link_test_support.hpp"
 #include <gtest/gtest.h>
 
 #include <cstring>
