@@ -22,7 +22,6 @@
 #include "hq/console/console_window.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/ground/operator_station.hpp"
@@ -34,6 +33,7 @@
 #include "hq/link/link.hpp"
 #include "hq/mcap_recorder/flight_recorder.hpp"
 #include "hq/security/keys.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -351,7 +351,7 @@ hq::console::WindowOptions window_options(const Options& o) {
   window_options.ini_path = o.window_ini == "none" ? std::string()
                             : o.window_ini.empty() ? hq::console::default_window_ini_path()
                                                    : o.window_ini;
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   window_options.camera_heading_rad = vehicle.camera.heading_rad();
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
@@ -855,7 +855,7 @@ std::optional<hq::console::WindowStats> fly(const Options& o, hq::ground::Operat
 int run_live(const Options& o) {
   const hq::link::LinkConfig link = load_link(o);
   const hq::haptics::HapticsConfig haptics = hq::haptics::load_haptics_config(o.haptics_path);
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   hq::haptics::DeviceOptions device_options;
   device_options.config = haptics;
   device_options.terminal_fd = STDIN_FILENO;

@@ -4,8 +4,8 @@
 // the figures do not depend on the machine's load. Not run by ctest.
 
 #include "hq/base/tool_main.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/delay_campaign.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -39,8 +39,7 @@ int run(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     hq::haptics::HapticsConfig shipped = hq::haptics::load_haptics_config(haptics_path);
-    const Eigen::Matrix3d R_body_camera =
-        hq::control::load_vehicle_config(vehicle_path).camera.R_B_C();
+    const Eigen::Matrix3d R_body_camera = hq::load_vehicle_config(vehicle_path).camera.R_B_C();
     // The stiff law: what a user raising the cue's gain for a crisper feel gets. Fade off, so
     // the delayed cue stays on at every delay and the passivity controller is all that acts.
     hq::haptics::HapticsConfig stiff = shipped;

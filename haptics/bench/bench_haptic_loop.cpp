@@ -5,8 +5,8 @@
 
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/tool_main.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/haptic_loop.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -72,7 +72,7 @@ int run(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   const hq::haptics::HapticsConfig config = hq::haptics::load_haptics_config(config_path);
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(vehicle_path);
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config(vehicle_path);
   hq::haptics::SimulatedDevice device(config.sim);
   hq::haptics::HapticLoop loop(device, config, vehicle.camera.R_B_C());
 

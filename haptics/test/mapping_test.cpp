@@ -1,6 +1,6 @@
-#include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/teleop_mapping.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include "test_support.hpp"
 #include <gmock/gmock.h>
@@ -29,7 +29,7 @@ TEST(TeleopMapping, AlphaFollowsCameraYawForAnyPitchAndRoll) {
     for (double pitch_deg : {-60.0, -30.0, 0.0, 45.0}) {
       for (double roll_deg : {-20.0, 0.0, 90.0}) {
         const Eigen::Matrix3d R_QC =
-            control::R_body_camera_from_angles(yaw_deg * kDeg, pitch_deg * kDeg, roll_deg * kDeg);
+            R_body_camera_from_angles(yaw_deg * kDeg, pitch_deg * kDeg, roll_deg * kDeg);
         const TeleopMapping mapping(MappingConfig{}, R_QC);
         EXPECT_NEAR(mapping.alpha_rad(), yaw_deg * kDeg, 1e-9)
             << "yaw " << yaw_deg << " pitch " << pitch_deg << " roll " << roll_deg;
@@ -131,7 +131,7 @@ TEST(TeleopMapping, DisplacementForInvertsTheMappingOutsideTheDeadBand) {
 }
 
 TEST(TeleopMapping, CameraLookingStraightDownIsRejected) {
-  const Eigen::Matrix3d R_QC = control::R_body_camera_from_angles(0.3, -90.0 * kDeg, 0.0);
+  const Eigen::Matrix3d R_QC = R_body_camera_from_angles(0.3, -90.0 * kDeg, 0.0);
   const std::string message =
       testing::input_error_message([&] { const TeleopMapping mapping(MappingConfig{}, R_QC); });
   EXPECT_THAT(message, HasSubstr("vertical"));

@@ -1,8 +1,8 @@
 #pragma once
 // Shared by the haptics tests: the core paper's vehicle extrinsics and small helpers.
 
-#include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/haptics_config.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 
@@ -13,7 +13,7 @@
 namespace hq::haptics::test {
 
 inline Eigen::Matrix3d core_paper_R_body_camera() {
-  return control::load_vehicle_config("calib/vehicle_core_paper.yaml").camera.R_B_C();
+  return load_vehicle_config("calib/vehicle_core_paper.yaml").camera.R_B_C();
 }
 
 /// Writes `text` to a fresh file under /tmp and returns its path.

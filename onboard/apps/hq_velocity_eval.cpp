@@ -12,9 +12,9 @@
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
 #include "hq/pipeline/velocity_evaluation.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -52,7 +52,7 @@ int run(int argc, char** argv) {
   const hq::pipeline::SequenceReplay replay =
       hq::pipeline::replay_velocity(sequence_dir, hq::config::load_camera_info(camera_path),
                                     hq::pipeline::load_onboard_config(config_path),
-                                    hq::control::load_vehicle_config(vehicle_path), synthesis);
+                                    hq::load_vehicle_config(vehicle_path), synthesis);
   std::printf("%s\n", replay.imu.description.c_str());
   hq::pipeline::LagSearch lag;
   lag.max_lag_s = 1e-3 * max_lag_ms;

@@ -17,7 +17,6 @@
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/link/link.hpp"
 #include "hq/link_bridge/link_operator_port.hpp"
 #include "hq/pipeline/replay_imu.hpp"
@@ -28,6 +27,7 @@
 #include "hq/sources/tum_frame_source.hpp"
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include "onboard_runs.hpp"
 
@@ -245,9 +245,10 @@ OpenedSource open_source(const Options& o, const std::string& fc_spec,
 /// The flight controller: the recording's (or synthesised) IMU on replay, none for a hand-held
 /// camera, else MAVLink. The first two fly the camera as the body, so they set the vehicle's
 /// extrinsics to the camera-as-body ones.
-std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(
-    const Options& o, const std::string& fc_spec, const OpenedSource& opened,
-    hq::control::VehicleConfig& vehicle) {
+std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Options& o,
+                                                                      const std::string& fc_spec,
+                                                                      const OpenedSource& opened,
+                                                                      hq::VehicleConfig& vehicle) {
   std::unique_ptr<hq::vehicle::FlightController> fc;
   if (opened.tum != nullptr) {
     const hq::pipeline::ReplayImu imu = hq::pipeline::load_replay_imu(
@@ -374,7 +375,7 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
 int run_vehicle(const Options& o) {
   const std::string fc_spec = flight_controller_spec(o);
   hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
-  hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   // --record: before the source and the link, so an unwritable folder stops the start.
   const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
   const OpenedSource opened = open_source(o, fc_spec, config);

@@ -6,12 +6,12 @@
 // and hq_delay_closed_loop_test. Simulated time throughout.
 
 #include "hq/closed_loop/closed_loop.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/delay_campaign.hpp"
 #include "hq/haptics/haptics_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -136,8 +136,7 @@ inline FlightResult fly(const haptics::HapticsConfig& haptics_config,
   sim::SimConfig sim_config = sim::load_sim_config("onboard/sim/config/sim.yaml");
   sim::set_resolution(sim_config, "320x240", "delay flight");
   const pipeline::OnboardConfig onboard = pipeline::load_onboard_config("config/onboard.yaml");
-  const control::VehicleConfig vehicle =
-      control::load_vehicle_config("calib/vehicle_core_paper.yaml");
+  const VehicleConfig vehicle = load_vehicle_config("calib/vehicle_core_paper.yaml");
   OperatorScript script;
   script.end_s = end_s;
   DelayedHapticOperator source(haptics_config, vehicle.camera.R_B_C(), link);

@@ -4,10 +4,10 @@
 
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/operator_script.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 
@@ -24,7 +24,7 @@ struct Scenario {
   sim::SimConfig sim = sim::load_sim_config("onboard/sim/config/sim.yaml");
   sim::World world;
   pipeline::OnboardConfig onboard = pipeline::load_onboard_config("config/onboard.yaml");
-  control::VehicleConfig vehicle = control::load_vehicle_config("calib/vehicle_core_paper.yaml");
+  VehicleConfig vehicle = load_vehicle_config("calib/vehicle_core_paper.yaml");
   OperatorScript script;
   ClosedLoopOptions options;
 

@@ -5,11 +5,11 @@
 #include "hq/closed_loop/operator_script.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/config/strict_yaml.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/haptics/haptics_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <gtest/gtest.h>
 
@@ -43,7 +43,7 @@ TEST(ShippedFiles, CalibrationFilesLoad) {
   int cameras = 0;
   for (const std::string& path : yaml_files_in("calib")) {
     if (path.find("vehicle_") != std::string::npos) {
-      EXPECT_NO_THROW(control::load_vehicle_config(path)) << path;
+      EXPECT_NO_THROW(load_vehicle_config(path)) << path;
     } else {
       EXPECT_NO_THROW(config::load_camera_info(path)) << path;
       ++cameras;

@@ -1,10 +1,10 @@
 // ClosedLoop with an external OperatorSource (what hq-onboard --link plugs the DDS link into):
 // the source, not the script, commands the flight, hears every mode answer, output and frame.
 #include "hq/closed_loop/closed_loop.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <gtest/gtest.h>
 
@@ -64,8 +64,7 @@ TEST(OperatorSource, CommandsTheFlightInsteadOfTheScript) {
   sim::SimConfig sim_config = sim::load_sim_config("onboard/sim/config/sim.yaml");
   sim::set_resolution(sim_config, "320x240", "test");
   const pipeline::OnboardConfig onboard = pipeline::load_onboard_config("config/onboard.yaml");
-  const control::VehicleConfig vehicle =
-      control::load_vehicle_config("calib/vehicle_core_paper.yaml");
+  const VehicleConfig vehicle = load_vehicle_config("calib/vehicle_core_paper.yaml");
   OperatorScript script;  // no steps: the script only sets the end
   script.end_s = 6.0;
   ScriptedSource source;

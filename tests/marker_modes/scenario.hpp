@@ -4,11 +4,11 @@
 
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/operator_script.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/marker_modes/marker_navigation.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 
@@ -46,8 +46,7 @@ inline Flight make_flight(const std::string& script, std::uint64_t seed,
   sim_config.seed = seed;
   pipeline::OnboardConfig config = pipeline::load_onboard_config("config/onboard.yaml");
   config.markers.enabled = true;
-  const control::VehicleConfig vehicle =
-      control::load_vehicle_config("calib/vehicle_core_paper.yaml");
+  const VehicleConfig vehicle = load_vehicle_config("calib/vehicle_core_paper.yaml");
   closed_loop::OperatorPlayer player(closed_loop::load_operator_script(script),
                                      vehicle.camera.heading_rad());
   f.loop = std::make_unique<closed_loop::ClosedLoop>(sim_config, f.world, config, vehicle,

@@ -9,13 +9,13 @@
 // Each bound sits beside the figure measured when it was set (this test, same code and seed),
 // with a margin of at most 25 %.
 #include "hq/config/camera_info.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/velocity_evaluation.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/tum_writer.hpp"
 #include "hq/sim/world.hpp"
 #include "hq/testing/input_error.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -69,7 +69,7 @@ std::optional<SliceFigures> replay_fr1_xyz(bool recorded_accelerometer) {
   out.replay = hq::pipeline::replay_velocity(
       dir, hq::config::load_camera_info("calib/tum_fr1.yaml"),
       hq::pipeline::load_onboard_config("config/onboard.yaml"),
-      hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"), synthesis);
+      hq::load_vehicle_config("calib/vehicle_core_paper.yaml"), synthesis);
   out.errors = hq::pipeline::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
                                                out.replay.frame_interval_ns);
   print(recorded_accelerometer ? "fr1_xyz, Kinect accelerometer" : "fr1_xyz, BMI088", out.replay,
@@ -107,9 +107,8 @@ TEST(VelocityOnRecordedDepth, ASequenceTooShortForTheEstimatorSaysWhichValuesToL
   auto config = hq::pipeline::load_onboard_config("config/onboard.yaml");
   config.estimator.reacquire_frames = 5;
   const std::string message = hq::testing::input_error_message([&] {
-    hq::pipeline::replay_velocity(
-        dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
-        hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+    hq::pipeline::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
+                                  hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   });
   // THEN the error names the sequence and the value, not an empty evaluation
   EXPECT_THAT(message, ::testing::HasSubstr("rgbd_dataset_freiburg1_360: none of its 5 frames"));
@@ -119,9 +118,8 @@ TEST(VelocityOnRecordedDepth, ASequenceTooShortForTheEstimatorSaysWhichValuesToL
   config.estimator.velocity_output =
       hq::estimator::VelocityEstimatorConfig::VelocityOutput::kOneEuro;
   const std::string one_euro = hq::testing::input_error_message([&] {
-    hq::pipeline::replay_velocity(
-        dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
-        hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+    hq::pipeline::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
+                                  hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   });
   EXPECT_THAT(one_euro, ::testing::HasSubstr("estimator.warmup_s (0.2 s)"));
 }
@@ -220,10 +218,10 @@ SimulatedEvaluation fly_and_evaluate(const char* name, double manoeuvre) {
   std::filesystem::remove_all(dir);
   record_flight(dir, 10.0, manoeuvre);
   SimulatedEvaluation out;
-  out.replay = hq::pipeline::replay_velocity(
-      dir, hq::config::load_camera_info(dir + "/camera.yaml"),
-      hq::pipeline::load_onboard_config("config/onboard.yaml"),
-      hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+  out.replay =
+      hq::pipeline::replay_velocity(dir, hq::config::load_camera_info(dir + "/camera.yaml"),
+                                    hq::pipeline::load_onboard_config("config/onboard.yaml"),
+                                    hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   std::filesystem::remove_all(dir);
   out.errors = hq::pipeline::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
                                                out.replay.frame_interval_ns);

@@ -4,13 +4,13 @@
 #include "hq/base/error.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/flight_summary.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/link/config.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
 #include "hq/link_bridge/link_operator_port.hpp"
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include "onboard_runs.hpp"
 #include <Eigen/Geometry>
@@ -75,7 +75,7 @@ int run_sim_link(const Options& o) {
   hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
   sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   // --record: before the link, so an unwritable folder stops the start.
   const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
   const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
@@ -158,7 +158,7 @@ int run_sim(const Options& o) {
   hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
   sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(o.vehicle_path);
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(o.script_path),
                                          vehicle.camera.heading_rad());
   const SteadyClock clock;

@@ -71,9 +71,8 @@ class ClosedLoop::Port final : public vehicle::OperatorPort {
 };
 
 ClosedLoop::ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world,
-                       const pipeline::OnboardConfig& onboard,
-                       const control::VehicleConfig& vehicle, OperatorPlayer player,
-                       ClosedLoopOptions options)
+                       const pipeline::OnboardConfig& onboard, const VehicleConfig& vehicle,
+                       OperatorPlayer player, ClosedLoopOptions options)
     : sim_(std::make_unique<sim::Simulator>(sim_config, world)),
       chain_(std::make_unique<pipeline::OnboardChain>(onboard, vehicle, sim_config.camera.pinhole,
                                                       options.clock)),

@@ -495,9 +495,9 @@ pipeline::OnboardConfig chain_config(bool markers_enabled) {
 }
 
 // A forward-looking camera (eq. 9 needs a horizontal viewing direction).
-control::VehicleConfig forward_camera_vehicle() {
-  control::VehicleConfig vehicle;
-  vehicle.camera = control::camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
+VehicleConfig forward_camera_vehicle() {
+  VehicleConfig vehicle;
+  vehicle.camera = camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
   return vehicle;
 }
 

@@ -6,11 +6,11 @@
 #include "hq/base/tool_main.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/operator_script.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/marker_modes/marker_providers.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -47,8 +47,7 @@ Run make_run(const Options& o, const std::string& script, std::uint64_t seed) {
   hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config("config/onboard.yaml");
   config.markers.enabled = true;
   config.markers.marker_mode.target_id = o.target_id;
-  const hq::control::VehicleConfig vehicle =
-      hq::control::load_vehicle_config("calib/vehicle_core_paper.yaml");
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config("calib/vehicle_core_paper.yaml");
   hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(script),
                                          vehicle.camera.heading_rad());
   r.loop = std::make_unique<hq::closed_loop::ClosedLoop>(sim_config, r.world, config, vehicle,

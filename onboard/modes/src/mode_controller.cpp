@@ -81,7 +81,7 @@ void read_config(config::StrictMap& section, ModesConfig& out) {
 
 ModeController::ModeController(const ModesConfig& config,
                                const control::VelocityControllerConfig& control,
-                               const control::VehicleConfig& vehicle)
+                               const VehicleConfig& vehicle)
     : config_(config),
       controller_(control, vehicle),
       landed_(config.start_landed),

@@ -25,7 +25,7 @@ constexpr RequestOrigin kOperator = RequestOrigin::kOperator;
 constexpr RequestOrigin kVehicle = RequestOrigin::kVehicle;
 constexpr double kDt = 5e-3;
 
-control::VehicleConfig test_vehicle() { return control::VehicleConfig{}; }
+VehicleConfig test_vehicle() { return VehicleConfig{}; }
 
 // ModesConfig::start_landed defaults to true (motors idle until a climb request); the tests of
 // airborne behaviour start in the air.

@@ -11,12 +11,12 @@
 #include "hq/base/error.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/pipeline/steady_clock.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/sources/tum_frame_source.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -71,7 +71,7 @@ int run(int argc, char** argv) {
 
   const SteadyClock clock;
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(config_path);
-  const hq::control::VehicleConfig vehicle = hq::control::load_vehicle_config(vehicle_path);
+  const hq::VehicleConfig vehicle = hq::load_vehicle_config(vehicle_path);
   hq::pipeline::OnboardChain chain(config, vehicle, source.camera(), &clock);
   hq::pipeline::StageTimingLog log(order.size());
   constexpr std::int64_t kFramePeriodNs = 68'000'000;

@@ -79,7 +79,7 @@ std::int64_t stage_ns(const StageDurations& durations, int i) {
   }
 }
 
-OnboardChain::OnboardChain(const OnboardConfig& config, const control::VehicleConfig& vehicle,
+OnboardChain::OnboardChain(const OnboardConfig& config, const VehicleConfig& vehicle,
                            const geometry::PinholeCamera& camera, const Clock* clock)
     : config_(config),
       clock_(clock),

@@ -1,8 +1,8 @@
 #include "hq/pipeline/replay_imu.hpp"
 
 #include "hq/base/error.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/estimator/complementary_filter.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -66,11 +66,11 @@ std::optional<Eigen::Isometry3d> interpolate_pose(const std::vector<recording::S
 }
 
 Eigen::Matrix3d R_body_camera_for_camera_as_body() {
-  return control::R_body_camera_from_angles(0.0, 0.0, 0.0);
+  return R_body_camera_from_angles(0.0, 0.0, 0.0);
 }
 
 geometry::CameraMount camera_as_body_mount() {
-  return control::camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
+  return camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
 }
 
 Eigen::Matrix3d R_camera_kinect_accel() { return Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal(); }

@@ -106,7 +106,7 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
 }
 
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
-                               const OnboardConfig& config, const control::VehicleConfig& vehicle,
+                               const OnboardConfig& config, const VehicleConfig& vehicle,
                                const ImuSynthesis& synthesis) {
   sources::TumFrameSource source(sequence_dir, camera);
   const recording::TumSequence& sequence = source.sequence();
@@ -130,7 +130,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
   replay.frame_interval_ns = spacing_ns[spacing_ns.size() / 2];
 
   replay.imu = load_replay_imu(sequence, R_body_camera_for_camera_as_body(), synthesis);
-  control::VehicleConfig replay_vehicle = vehicle;
+  VehicleConfig replay_vehicle = vehicle;
   if (replay.imu.synthesised) {
     // The synthesised IMU lives on the camera: the camera is the body (see replay_imu.hpp).
     replay_vehicle.camera = camera_as_body_mount();

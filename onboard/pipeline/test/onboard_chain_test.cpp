@@ -76,7 +76,7 @@ std::optional<ChainOutput> tick_after_imu(OnboardChain& chain, std::int64_t from
 class ChainOnRenderedPlane : public ::testing::Test {
  protected:
   explicit ChainOnRenderedPlane(const OnboardConfig& config = airborne_config())
-      : chain_(config, control::VehicleConfig{}, kCamera, &clock_) {}
+      : chain_(config, VehicleConfig{}, kCamera, &clock_) {}
 
   /// Frame k at t = k * period; IMU up to its stamp first, as the apps do.
   ChainOutput frame(int k, bool valid_depth = true) {
@@ -307,7 +307,7 @@ TEST(OnboardChainCoast, OperatorsHorizontalCommandIsHeldOnTheCoastClimbIsFlown) 
     config.seen_space.enabled = false;
     config.chain.hold_on_inertial_coast = hold;
     FakeClock clock;
-    OnboardChain chain(config, control::VehicleConfig{}, kCamera, &clock);
+    OnboardChain chain(config, VehicleConfig{}, kCamera, &clock);
     cv::Mat gray, depth;
     ChainOutput out;
     int k = 0;
@@ -348,7 +348,7 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
     T.linear() = geometry::exp_so3(omega_C_radps * 1e-9 * static_cast<double>(t_ns));
     return T;
   };
-  const control::VehicleConfig vehicle;
+  const VehicleConfig vehicle;
   const Eigen::Vector3d omega_B_radps = vehicle.camera.R_B_C() * omega_C_radps;
   double rms_error_mps[2] = {0.0, 0.0};
   // (and a depth stamp 1 s off, a wrong stamp rather than a camera's gap, is not used)
@@ -404,7 +404,7 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   // 39: idled at 11.8 m).
   OnboardConfig config = airborne_config();
   config.chain.safe_hover_land_s = 2.0;
-  OnboardChain chain(config, control::VehicleConfig{}, kCamera);
+  OnboardChain chain(config, VehicleConfig{}, kCamera);
   chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
   const std::int64_t tick_ns = 5'000'000;
   const std::int64_t t_impact_ns = 9'000'000'000;  // after the blind_descent_s of 3 s
@@ -413,7 +413,7 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   std::int64_t t_landed_ns = -1;
   // Specific force (body FRD, level): the thrust over the mass in the air (the vehicle obeys
   // the setpoint), the floor's stop, then at rest on it; and the vertical speed it gives.
-  const double mass_kg = control::VehicleConfig{}.mass_kg;
+  const double mass_kg = VehicleConfig{}.mass_kg;
   double thrust_n = mass_kg * control::kGravityMps2;
   double v_down_mps = 0.0;
   double v_down_at_impact_mps = 0.0;
@@ -460,7 +460,7 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
 
 TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
   // Airborne, no frame ever and no IMU: nothing to coast on, the safe hover.
-  OnboardChain airborne(airborne_config(), control::VehicleConfig{}, kCamera);
+  OnboardChain airborne(airborne_config(), VehicleConfig{}, kCamera);
   EXPECT_FALSE(airborne.on_tick(1'000'000'000).has_value());
   const auto out = airborne.on_tick(1'400'000'000);
   ASSERT_TRUE(out.has_value());
@@ -468,7 +468,7 @@ TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
   EXPECT_TRUE(out->safe_hover);
   EXPECT_DOUBLE_EQ(out->mode.control.setpoint.thrust_n, 1.0 * control::kGravityMps2);
   // On the ground (the default) the same silence keeps the motors idle: no safe hover.
-  OnboardChain landed(OnboardConfig{}, control::VehicleConfig{}, kCamera);
+  OnboardChain landed(OnboardConfig{}, VehicleConfig{}, kCamera);
   EXPECT_FALSE(landed.on_tick(1'000'000'000).has_value());
   const auto on_ground = landed.on_tick(1'400'000'000);
   ASSERT_TRUE(on_ground.has_value());
@@ -480,7 +480,7 @@ TEST(OnboardChainTimeout, NoFrameEverAlsoTimesOut) {
 
 TEST(OnboardChainModeRequests, OperatorsWaitTheDwellTheVehiclesOwnLandDoesNot) {
   // GIVEN an airborne chain that an operator put in teleop, stepped (on the safe hover) since
-  OnboardChain chain(airborne_config(), control::VehicleConfig{}, kCamera);
+  OnboardChain chain(airborne_config(), VehicleConfig{}, kCamera);
   ASSERT_TRUE(chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator).accepted);
   chain.on_tick(1'000'000'000);
   ASSERT_TRUE(chain.on_tick(1'400'000'000).has_value());

@@ -3,7 +3,7 @@
 #include "hq/base/error.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/config/strict_yaml.hpp"
-#include "hq/control/vehicle_config.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -80,8 +80,7 @@ namespace {
 
 /// vehicle: the quadrotor's parameters; mass and tilt limit come from the vehicle file if one
 /// is named, and the rotors must lift what that file says the vehicle can.
-void read_vehicle(config::StrictMap& section, const control::VehicleConfig& vehicle_file,
-                  SimConfig& out) {
+void read_vehicle(config::StrictMap& section, const VehicleConfig& vehicle_file, SimConfig& out) {
   config::StrictMap v = section.child("vehicle");
   QuadrotorParams& p = out.vehicle;
   reject_with_vehicle_file(v, "mass_kg", out);
@@ -220,9 +219,9 @@ void read_config(config::StrictMap& section, SimConfig& out) {
   section.read("seed", seed, 0, 2147483647);
   out.seed = static_cast<std::uint64_t>(seed);
   section.read("vehicle_file", out.vehicle_file, {});
-  control::VehicleConfig vehicle_file;
+  VehicleConfig vehicle_file;
   if (!out.vehicle_file.empty()) {
-    vehicle_file = control::load_vehicle_config(out.vehicle_file);
+    vehicle_file = load_vehicle_config(out.vehicle_file);
     out.vehicle.mass_kg = vehicle_file.mass_kg;
     out.vehicle.max_tilt_rad = vehicle_file.max_tilt_rad;
     out.camera.T_body_camera = vehicle_file.camera.T_B_C();

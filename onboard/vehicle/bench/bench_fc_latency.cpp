@@ -225,7 +225,7 @@ int run(int argc, char** argv) {
   // In process.
   std::vector<double> in_process_us;
   {
-    hq::pipeline::OnboardChain chain(airborne(), hq::control::VehicleConfig{}, kCamera);
+    hq::pipeline::OnboardChain chain(airborne(), hq::VehicleConfig{}, kCamera);
     RenderedFrames source(60);
     CallFc fc;
     hq::vehicle::VehicleRuntime runtime(chain, source, fc, nullptr);
@@ -242,7 +242,7 @@ int run(int argc, char** argv) {
     hq::vehicle::MavlinkFcConfig config;
     config.transport = "udp:127.0.0.1:" + std::to_string(port);
     hq::vehicle::MavlinkFlightController fc(config);
-    hq::pipeline::OnboardChain chain(airborne(), hq::control::VehicleConfig{}, kCamera);
+    hq::pipeline::OnboardChain chain(airborne(), hq::VehicleConfig{}, kCamera);
     RenderedFrames source(60);
     hq::vehicle::VehicleRuntime runtime(chain, source, fc, nullptr);
     // Until the FC is heard, setpoints are not sent: warm up first.

@@ -109,7 +109,7 @@ pipeline::OnboardConfig airborne_config() {
 
 struct Rig {
   explicit Rig(int frames, const pipeline::OnboardConfig& config = airborne_config())
-      : chain(config, control::VehicleConfig{}, kCamera), source(frames) {
+      : chain(config, VehicleConfig{}, kCamera), source(frames) {
     runtime = std::make_unique<VehicleRuntime>(chain, source, fc, &port);
   }
   void run_until(std::int64_t end_ns) {
@@ -269,7 +269,7 @@ TEST(VehicleRuntime, LandsWhenTheFlightControllerDisarms) {
 
 // After the first frames have sized every buffer, a step allocates nothing.
 TEST(VehicleRuntime, StepAllocatesNothingAfterTheFirstFrames) {
-  pipeline::OnboardChain chain(airborne_config(), control::VehicleConfig{}, kCamera);
+  pipeline::OnboardChain chain(airborne_config(), VehicleConfig{}, kCamera);
   PlaneSource source(100);
   FakeFc fc;
   NoFlightController none;
@@ -291,7 +291,7 @@ TEST(VehicleRuntime, StepAllocatesNothingAfterTheFirstFrames) {
 }
 
 TEST(VehicleRuntime, RejectsAConfigOutOfRange) {
-  pipeline::OnboardChain chain(airborne_config(), control::VehicleConfig{}, kCamera);
+  pipeline::OnboardChain chain(airborne_config(), VehicleConfig{}, kCamera);
   PlaneSource source(1);
   NoFlightController none;
   RuntimeConfig config;

@@ -49,7 +49,7 @@ struct VehicleEstimate {
 /// Eq. 6-10 with dead-band and saturation.
 class TeleopMapping {
  public:
-  /// @param R_body_camera  R_QC in the optical convention of hq::control::VehicleConfig (z
+  /// @param R_body_camera  R_QC in the optical convention of hq::VehicleConfig (z
   /// forward). @throws hq::InputError if the camera looks (nearly) straight up or down, where
   /// eq. 9 has no direction, or if the matrix is not a rotation.
   TeleopMapping(const MappingConfig& config, const Eigen::Matrix3d& R_body_camera);

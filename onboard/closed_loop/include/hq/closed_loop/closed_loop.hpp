@@ -15,12 +15,12 @@
 
 #include "hq/closed_loop/operator_script.hpp"
 #include "hq/closed_loop/sim_vehicle.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/stage_timing.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -108,7 +108,7 @@ class ClosedLoop {
  public:
   /// @throws hq::InputError if the simulator or the chain reject their configs.
   ClosedLoop(const sim::SimConfig& sim_config, const sim::World& world,
-             const pipeline::OnboardConfig& onboard, const control::VehicleConfig& vehicle,
+             const pipeline::OnboardConfig& onboard, const VehicleConfig& vehicle,
              OperatorPlayer player, ClosedLoopOptions options = {});
   ~ClosedLoop();
   ClosedLoop(const ClosedLoop&) = delete;

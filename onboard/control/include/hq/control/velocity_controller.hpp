@@ -8,7 +8,7 @@
 /// NED throughout: z down, so climbing is v_z < 0 and thrust points along -z of the body.
 /// Roll/pitch are the ZYX Euler angles, i.e. R_HQ = Ry(pitch) Rx(roll).
 
-#include "hq/control/vehicle_config.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 

@@ -157,7 +157,7 @@ class ModeController {
  public:
   /// Starts in hover.
   ModeController(const ModesConfig& config, const control::VelocityControllerConfig& control,
-                 const control::VehicleConfig& vehicle);
+                 const VehicleConfig& vehicle);
 
   /// Registers the provider of kMarker or kExplore (not owned; must outlive this object).
   /// @return false for other modes.

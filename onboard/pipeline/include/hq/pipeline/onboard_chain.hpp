@@ -7,7 +7,6 @@
 /// durations come from a Clock the caller injects (a steady clock in the apps, a fake in tests,
 /// none to skip timing). After the first frame, on_frame() allocates nothing.
 
-#include "hq/control/vehicle_config.hpp"
 #include "hq/control/velocity_controller.hpp"
 #include "hq/estimator/velocity_estimator.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
@@ -17,6 +16,7 @@
 #include "hq/obstacles/obstacle_field.hpp"
 #include "hq/odometry/dense_odometry.hpp"
 #include "hq/seen_space/seen_space_limiter.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -199,7 +199,7 @@ class OnboardChain {
   /// @param vehicle  mass, limits and the camera mount T_B_C (the paper's R_QC, Q_p_C).
   /// @param clock    optional, not owned, must outlive the chain; null disables stage timing.
   /// @throws hq::InputError if the components reject the camera or config.
-  OnboardChain(const OnboardConfig& config, const control::VehicleConfig& vehicle,
+  OnboardChain(const OnboardConfig& config, const VehicleConfig& vehicle,
                const geometry::PinholeCamera& camera, const Clock* clock = nullptr);
 
   /// One IMU sample in the body frame B (FRD): gyro (rad/s) and specific force (m/s^2).

@@ -7,10 +7,10 @@
 /// the stamps (interpolate_pose), expressed in the camera frame at time t like Ck_v_Ck.
 
 #include "hq/config/camera_info.hpp"
-#include "hq/control/vehicle_config.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/replay_imu.hpp"
 #include "hq/recording/tum_io.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
 
@@ -94,7 +94,7 @@ struct SequenceReplay {
 ///                 or no usable velocity in the whole sequence (too short for the estimator's
 ///                 warm-up and reacquire_frames).
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
-                               const OnboardConfig& config, const control::VehicleConfig& vehicle,
+                               const OnboardConfig& config, const VehicleConfig& vehicle,
                                const ImuSynthesis& synthesis = {});
 
 }  // namespace hq::pipeline

@@ -1,6 +1,7 @@
 #pragma once
 /// The vehicle: mass, actuator limits and the camera extrinsics T_body_camera, from a calib file
-/// such as calib/vehicle_core_paper.yaml.
+/// such as calib/vehicle_core_paper.yaml. Shared: the vehicle file is read by both processes
+/// (the on-board chain flies it; the ground maps the operator's commands through its mount).
 ///
 /// T_body_camera is given as the camera's yaw_deg, pitch_deg, roll_deg in the NED body frame Q
 /// (ZYX, aerospace: yaw right positive, pitch up positive) applied to a forward-looking optical
@@ -18,7 +19,7 @@ namespace hq::config {
 class StrictMap;
 }
 
-namespace hq::control {
+namespace hq {
 
 struct VehicleConfig {
   double mass_kg = 1.0;
@@ -49,4 +50,4 @@ void read_config(config::StrictMap& root, VehicleConfig& out);
 /// Loads and validates a vehicle file.
 VehicleConfig load_vehicle_config(const std::string& path);
 
-}  // namespace hq::control
+}  // namespace hq

@@ -1,4 +1,4 @@
-#include "hq/control/vehicle_config.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include "hq/base/error.hpp"
 #include "hq/config/strict_yaml.hpp"
@@ -9,7 +9,7 @@
 #include <cmath>
 #include <sstream>
 
-namespace hq::control {
+namespace hq {
 namespace {
 void require_deg_as_rad(config::StrictMap& map, const std::string& key, double& value_rad,
                         double min_deg, double max_deg) {
@@ -98,4 +98,4 @@ VehicleConfig load_vehicle_config(const std::string& path) {
   return vehicle;
 }
 
-}  // namespace hq::control
+}  // namespace hq
