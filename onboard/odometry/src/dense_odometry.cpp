@@ -3,6 +3,7 @@
 #include "hq/base/target_clones.hpp"
 #include "hq/geometry/lie.hpp"
 
+#include "degeneracy.hpp"
 #include "kernels.hpp"
 #include "pyramid.hpp"
 #include <Eigen/Cholesky>
@@ -30,9 +31,10 @@ constexpr float kMadToSigma = 1.4826f;  // sigma of a normal distribution over i
 // A depth turn under this moves no pixel by a thousandth of one at 640x480: skipped.
 constexpr double kMinDepthTurnRad = 2e-6;
 
-using Vector6d = geometry::Vector6d;
-using Matrix7d = Eigen::Matrix<double, 7, 7>;  // the twist and the brightness offset
-using Vector7d = Eigen::Matrix<double, 7, 1>;
+using detail::Matrix7d;
+using detail::NormalEquations;
+using detail::Vector6d;
+using detail::Vector7d;
 
 // One prepared pyramid level of the reference frame, structure of arrays so that the warp and
 // accumulation loops stream through memory.
@@ -59,27 +61,12 @@ struct FrameSlot {
   std::array<cv::Mat, kMaxLevels> depth_m;    // CV_32FC1, 0 = no depth
 };
 
-// Normal equations of the pose twist and the brightness offset b (a seventh parameter with
-// Jacobian 1), kept in blocks so that the pose-only system needs no copy.
-struct NormalEquations {
-  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-  Vector6d g = Vector6d::Zero();
-  Vector6d H_pose_offset = Vector6d::Zero();
-  double H_offset = 0.0;
-  double g_offset = 0.0;
-  // The depth rows' share of H's translation block (zero without the depth term).
-  Eigen::Matrix3d H_depth_translation = Eigen::Matrix3d::Zero();
-};
-
 // The range of one frame's sample of the vision's overconfidence (adapt_vision_information),
 // averaged in the log domain. A consistent vision's samples are chi-square(3) / 3, below 0.01
 // with probability 5e-4: the floor keeps the samples where the gyro's own uncertainty exceeds
 // the disagreement (the moment estimate is then negative) from dominating the average, the
 // ceiling bounds a frame where vision slipped. Not tuning values.
 constexpr double kMinOverconfidenceSample = 0.01;
-// An information matrix whose smallest eigenvalue is below this fraction of its largest is
-// singular to double precision: some direction is not measured at all.
-constexpr double kSingularEigenvalueRatio = 1e-12;
 constexpr double kMaxOverconfidenceSample = 1e6;
 
 double entropy_of(const Matrix6d& information) {
@@ -1008,35 +995,9 @@ struct DenseOdometry::Impl {
       A7(6, 6) = normal.H_offset;
       b7(6) = normal.g_offset;
     }
-    const Vector7d x = solve_remapped(A7, b7);
+    const Vector7d x = detail::solve_remapped(A7, b7, config.degenerate_step_ratio);
     delta = x.head<6>();
     delta_offset = config.estimate_brightness_offset ? x(6) : 0.0;
-  }
-
-  // A7 x = b7, with no step along the translation directions degenerate_step_ratio calls
-  // unobserved: in the basis of the translation block's eigenvectors their rows become the
-  // identity's and their right-hand sides 0.
-  Vector7d solve_remapped(const Matrix7d& A7, const Vector7d& b7) const {
-    if (config.degenerate_step_ratio <= 0.0) return A7.ldlt().solve(b7);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translation(A7.topLeftCorner<3, 3>());
-    if (translation.info() != Eigen::Success) return A7.ldlt().solve(b7);
-    const Eigen::Vector3d& values = translation.eigenvalues();  // ascending
-    int degenerate = 0;
-    while (degenerate < 2 && !(values(degenerate) > config.degenerate_step_ratio * values(2))) {
-      ++degenerate;
-    }
-    if (degenerate == 0) return A7.ldlt().solve(b7);
-    Matrix7d Q = Matrix7d::Identity();
-    Q.topLeftCorner<3, 3>() = translation.eigenvectors();
-    Matrix7d A_rotated = Q.transpose() * A7 * Q;
-    Vector7d b_rotated = Q.transpose() * b7;
-    for (int i = 0; i < degenerate; ++i) {
-      A_rotated.row(i).setZero();
-      A_rotated.col(i).setZero();
-      A_rotated(i, i) = 1.0;
-      b_rotated(i) = 0.0;
-    }
-    return Q * A_rotated.ldlt().solve(b_rotated);
   }
 
   // Iteratively re-weighted Gauss-Newton on one pyramid level, continuing from T_cur_ref and
@@ -1208,14 +1169,8 @@ struct DenseOdometry::Impl {
   // The information of the pose twist: with the offset estimated, its Schur complement, times
   // vision_information_scale (the data term's honest share of the independent-pixel one).
   Matrix6d pose_information(const NormalEquations& normal) const {
-    return vision_scale * independent_pixel_information(normal);
-  }
-  Matrix6d independent_pixel_information(const NormalEquations& normal) const {
-    Matrix6d information = normal.H;
-    if (config.estimate_brightness_offset && normal.H_offset > 0.0) {
-      information -= normal.H_pose_offset * normal.H_pose_offset.transpose() / normal.H_offset;
-    }
-    return information;
+    return vision_scale *
+           detail::independent_pixel_information(normal, config.estimate_brightness_offset);
   }
 
   // What one alignment that used the gyro prior says about the gyro and about the vision: the
@@ -1232,7 +1187,8 @@ struct DenseOdometry::Impl {
 
   bool observe_gyro(const Alignment& vision_alignment, const Prediction& p, const GyroSteps& gyro,
                     GyroObservation& out) const {
-    const Matrix6d H = independent_pixel_information(vision_alignment.normal);
+    const Matrix6d H = detail::independent_pixel_information(vision_alignment.normal,
+                                                             config.estimate_brightness_offset);
     const Eigen::LDLT<Matrix6d> data(H);
     if (!p.use_prior || gyro.chain.span_s <= 0.0 || data.info() != Eigen::Success ||
         !data.isPositive()) {
@@ -1288,45 +1244,6 @@ struct DenseOdometry::Impl {
           (o.vision_covariance / vision_scale + o.gyro_covariance) / (o.span_s * o.span_s);
       gyro_bias.update(o.bias_innovation, noise, config.gyro_bias_gate_chi2);
     }
-  }
-
-  // min_translation_information_ratio: the depth rows' noise floor. Their Jacobians' noise adds
-  // about that share of their best direction's information to every direction. Off at 0.
-  bool translation_information_too_weak(const NormalEquations& normal) const {
-    if (config.min_translation_information_ratio <= 0.0) return false;
-    const double depth_best = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
-                                  normal.H_depth_translation, Eigen::EigenvaluesOnly)
-                                  .eigenvalues()
-                                  .maxCoeff();
-    const double weakest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
-                               normal.H.topLeftCorner<3, 3>(), Eigen::EigenvaluesOnly)
-                               .eigenvalues()
-                               .minCoeff();
-    return !(weakest > config.min_translation_information_ratio * depth_best);
-  }
-
-  // Whether the translation's standard deviation along its least constrained direction exceeds
-  // max_translation_sigma_m under the configured honest scale (not the learnt one, which also
-  // carries the gyro's disagreement: this is about the scene's geometry and texture).
-  bool translation_unconstrained(const NormalEquations& normal) const {
-    // Eigen-decomposed rather than factorised: an LDLT solves a singular system by zeroing
-    // the unconstrained directions, which would read as perfectly known.
-    const Eigen::SelfAdjointEigenSolver<Matrix6d> information(
-        config.vision_information_scale * independent_pixel_information(normal));
-    const Vector6d& values = information.eigenvalues();
-    if (information.info() != Eigen::Success || !values.allFinite() ||
-        values.minCoeff() <= kSingularEigenvalueRatio * values.maxCoeff()) {
-      return true;
-    }
-    if (translation_information_too_weak(normal)) return true;
-    const Eigen::Matrix<double, 3, 6> V_t = information.eigenvectors().topRows<3>();
-    const Eigen::Matrix3d covariance = V_t * values.cwiseInverse().asDiagonal() * V_t.transpose();
-    const double largest =
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance, Eigen::EigenvaluesOnly)
-            .eigenvalues()
-            .maxCoeff();
-    return !std::isfinite(largest) ||
-           largest > config.max_translation_sigma_m * config.max_translation_sigma_m;
   }
 
   // The keyframe chain broke (Kerl IROS 2013 re-anchors on such failures): this frame's pose
@@ -1411,7 +1328,7 @@ struct DenseOdometry::Impl {
       make_reference(current_slot, T_O_C);
       return out;
     }
-    if (translation_unconstrained(normal)) {
+    if (detail::translation_unconstrained(normal, config)) {
       // A textureless wall seen with the depth term: translation along it is not measured,
       // and a pose from it would read as standing still while the vehicle slides.
       const Eigen::Isometry3d T_O_C = result.T_O_C;
