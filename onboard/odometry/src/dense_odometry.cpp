@@ -4,6 +4,7 @@
 #include "hq/geometry/lie.hpp"
 
 #include "degeneracy.hpp"
+#include "gyro_fusion.hpp"
 #include "kernels.hpp"
 #include "pyramid.hpp"
 #include <Eigen/Cholesky>
@@ -31,6 +32,8 @@ constexpr float kMadToSigma = 1.4826f;  // sigma of a normal distribution over i
 // A depth turn under this moves no pixel by a thousandth of one at 640x480: skipped.
 constexpr double kMinDepthTurnRad = 2e-6;
 
+using detail::GyroObservation;
+using detail::GyroSteps;
 using detail::Matrix7d;
 using detail::NormalEquations;
 using detail::Vector6d;
@@ -61,14 +64,6 @@ struct FrameSlot {
   std::array<cv::Mat, kMaxLevels> depth_m;    // CV_32FC1, 0 = no depth
 };
 
-// The range of one frame's sample of the vision's overconfidence (adapt_vision_information),
-// averaged in the log domain. A consistent vision's samples are chi-square(3) / 3, below 0.01
-// with probability 5e-4: the floor keeps the samples where the gyro's own uncertainty exceeds
-// the disagreement (the moment estimate is then negative) from dominating the average, the
-// ceiling bounds a frame where vision slipped. Not tuning values.
-constexpr double kMinOverconfidenceSample = 0.01;
-constexpr double kMaxOverconfidenceSample = 1e6;
-
 double entropy_of(const Matrix6d& information) {
   // Differential entropy of a Gaussian up to a constant: -0.5 ln det(information).
   const Eigen::LLT<Matrix6d> llt(information);
@@ -78,51 +73,6 @@ double entropy_of(const Matrix6d& information) {
   for (int i = 0; i < 6; ++i) log_det += 2.0 * std::log(L(i, i));
   return -0.5 * log_det;
 }
-
-// The residual rate bias of the gyro rotations given to track() (camera axes, rad/s): a random
-// walk, observed each frame through the vision-only rotation against the gyro's.
-class GyroBiasFilter {
- public:
-  void reset(double initial_sigma_radps) {
-    bias_.setZero();
-    covariance_ = Eigen::Matrix3d::Identity() * initial_sigma_radps * initial_sigma_radps;
-    t_ns_ = -1;
-  }
-
-  // The random walk up to t_ns.
-  void propagate(std::int64_t t_ns, double random_walk) {
-    if (t_ns_ >= 0 && t_ns > t_ns_) {
-      const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
-      covariance_.diagonal().array() += random_walk * random_walk * dt_s;
-    }
-    t_ns_ = t_ns;
-  }
-
-  // innovation: the observed bias minus the estimate (rad/s), with its noise covariance. Returns
-  // false, leaving the estimate, for a non-finite or gated observation.
-  bool update(const Eigen::Vector3d& innovation, const Eigen::Matrix3d& noise, double gate_chi2) {
-    const Eigen::Matrix3d S = covariance_ + noise;
-    const Eigen::LDLT<Eigen::Matrix3d> ldlt(S);
-    if (!innovation.allFinite() || !S.allFinite() || ldlt.info() != Eigen::Success ||
-        !ldlt.isPositive()) {
-      return false;
-    }
-    if (innovation.dot(ldlt.solve(innovation)) > gate_chi2) return false;
-    const Eigen::Matrix3d gain = ldlt.solve(covariance_).transpose();  // P S^-1, S symmetric
-    bias_ += gain * innovation;
-    const Eigen::Matrix3d updated = (Eigen::Matrix3d::Identity() - gain) * covariance_;
-    covariance_ = 0.5 * (updated + updated.transpose());
-    return true;
-  }
-
-  [[nodiscard]] const Eigen::Vector3d& bias() const { return bias_; }
-  [[nodiscard]] const Eigen::Matrix3d& covariance() const { return covariance_; }
-
- private:
-  Eigen::Vector3d bias_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
-  std::int64_t t_ns_ = -1;
-};
 
 }  // namespace
 
@@ -175,26 +125,10 @@ struct DenseOdometry::Impl {
   Eigen::Isometry3d T_ref_last = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d last_motion = Eigen::Isometry3d::Identity();  // T_prev_cur of last frame
   Matrix6d last_information = Matrix6d::Zero();
-  // The gyro rotations since the reference, chained with the bias estimate removed: the
-  // rotation prior's mean (frame to keyframe as frame to frame). Independent of the vision,
-  // unlike the last estimate times the gyro step, whose error is the same keyframe's vision
-  // error again and would be counted twice. A frame without a gyro step breaks the chain until
-  // the next reference.
-  struct GyroChain {
-    Eigen::Matrix3d R_ref_cur = Eigen::Matrix3d::Identity();
-    Eigen::Matrix3d noise_covariance = Eigen::Matrix3d::Zero();  // white noise, reference axes
-    double span_s = 0.0;
-    bool intact = true;
-  };
-  GyroChain gyro_chain;  // up to the last accepted frame
   bool has_motion = false;
-  GyroBiasFilter gyro_bias;
+  // The rotation prior, the gyro bias and the vision's honest scale.
+  detail::GyroFusion gyro{config};
   std::int64_t last_frame_t_ns = -1;  // any frame's, for the gyro step's interval
-  // The data term's honest share of its independent-pixel information: the configured one,
-  // then (adapt_vision_information) as the gyro observes it.
-  double vision_scale = 1.0;
-  int vision_scale_samples = 0;
-  double log_overconfidence = 0.0;  // running mean of the samples' logs
   double keyframe_first_entropy = 0.0;
   int keyframe_age = 0;
   float min_cos_incidence = 0.0f;              // of depth_max_incidence_deg
@@ -213,8 +147,6 @@ struct DenseOdometry::Impl {
 
   Impl(const OdometryConfig& c, const geometry::PinholeCamera& cam) : config(c), camera(cam) {
     validate(config);
-    gyro_bias.reset(config.gyro_bias_sigma_radps);
-    vision_scale = config.vision_information_scale;
     min_cos_incidence = static_cast<float>(std::cos(config.depth_max_incidence_deg * M_PI / 180.0));
     levels = config.pyramid_levels;
     finest = config.finest_level;
@@ -825,7 +757,7 @@ struct DenseOdometry::Impl {
     has_reference = reference_usable();
     T_O_ref = T_O_C;
     T_ref_last.setIdentity();
-    gyro_chain = GyroChain{};
+    gyro.restart_chain();
     keyframe_age = 0;
     keyframe_first_entropy = 0.0;
   }
@@ -1070,40 +1002,8 @@ struct DenseOdometry::Impl {
     return out;
   }
 
-  // This frame's gyro: its step since the previous frame and the chain since the reference, bias
-  // estimate removed, each with its covariance (white noise plus the bias still unknown).
-  struct GyroSteps {
-    Eigen::Matrix3d R_prev_cur = Eigen::Matrix3d::Identity();
-    Eigen::Matrix3d step_covariance = Eigen::Matrix3d::Zero();   // current axes, rad^2
-    GyroChain chain;                                             // extended by the step
-    Eigen::Matrix3d chain_covariance = Eigen::Matrix3d::Zero();  // reference axes, rad^2
-  };
-
-  // The bias still unknown adds P_b dt^2 to a step and, being the same in every step,
-  // R P_b R^T span^2 to the chain.
-  bool gyro_steps(const RotationPrior& prior, double step_s, GyroSteps& out) const {
-    if (prior.information.isZero()) return false;  // R_depth_colour alone
-    const Eigen::LDLT<Eigen::Matrix3d> information(prior.information);
-    if (!prior.R_prev_cur.allFinite() || !prior.information.allFinite() || step_s <= 0.0 ||
-        information.info() != Eigen::Success || !information.isPositive()) {
-      return false;
-    }
-    const Eigen::Matrix3d noise = information.solve(Eigen::Matrix3d::Identity());
-    if (!noise.allFinite()) return false;
-    out.R_prev_cur = prior.R_prev_cur * geometry::exp_so3(-gyro_bias.bias() * step_s);
-    out.step_covariance = noise + gyro_bias.covariance() * step_s * step_s;
-    out.chain = gyro_chain;
-    out.chain.R_ref_cur = gyro_chain.R_ref_cur * out.R_prev_cur;
-    const Eigen::Matrix3d& R = out.chain.R_ref_cur;
-    out.chain.noise_covariance += R * noise * R.transpose();
-    out.chain.span_s += step_s;
-    out.chain_covariance = out.chain.noise_covariance + R * gyro_bias.covariance() * R.transpose() *
-                                                            out.chain.span_s * out.chain.span_s;
-    return out.chain.intact;
-  }
-
   // Constant-velocity initial guess (and prior mean) for T_ref_cur, with the gyro's rotation.
-  Prediction predict_motion(const GyroSteps* gyro) const {
+  Prediction predict_motion(const GyroSteps* steps) const {
     Prediction p;
     // Frame to frame only: against a keyframe, the part of each step that the optimiser leaves
     // uncorrected is carried into the next prediction, so the predicted velocity random-walks
@@ -1113,38 +1013,28 @@ struct DenseOdometry::Impl {
     p.T_ref_predicted = p.predict ? T_ref_last * last_motion : T_ref_last;
     // The gyro's rotation since the reference replaces the predicted one: photometric
     // alignment fails first under fast yaw, where the gyro is at its best.
-    p.use_prior = config.use_rotation_prior && gyro != nullptr;
+    p.use_prior = config.use_rotation_prior && steps != nullptr;
     if (p.use_prior) {
-      p.R_ref_prior = gyro->chain.R_ref_cur;
-      // The data term's normal equations carry the independent-pixel information; weighing
-      // the prior against the honest scale x that equals dividing the prior by the scale, one
-      // 3x3 here instead of rescaling every iteration's 6x6 (and the costs stay in the data
-      // term's units).
-      const double prior_weight = config.rotation_prior_information_scale / vision_scale;
-      p.prior_information = prior_weight * symmetric_inverse(gyro->chain_covariance);
-      p.step_information = prior_weight * symmetric_inverse(gyro->step_covariance);
+      p.R_ref_prior = steps->chain.R_ref_cur;
+      p.prior_information = gyro.prior_information(steps->chain_covariance);
+      p.step_information = gyro.prior_information(steps->step_covariance);
       p.T_ref_predicted.linear() = p.R_ref_prior;
     }
     return p;
   }
 
-  static Eigen::Matrix3d symmetric_inverse(const Eigen::Matrix3d& covariance) {
-    const Eigen::Matrix3d inverse = covariance.inverse();
-    return 0.5 * (inverse + inverse.transpose());
-  }
-
   // Keyframe check, first half: aligns the current frame to the previous one (prepared in set
   // 1). Returns whether that alignment is usable as the keyframe alignment's start and check.
   bool align_to_previous(const FrameSlot& current, const Prediction& to_reference,
-                         const GyroSteps* gyro, Alignment& to_previous) {
+                         const GyroSteps* steps, Alignment& to_previous) {
     Prediction p;
     p.use_prior = to_reference.use_prior;
     p.prior_information = to_reference.step_information;
-    if (p.use_prior) p.R_ref_prior = gyro->R_prev_cur;
+    if (p.use_prior) p.R_ref_prior = steps->R_prev_cur;
     p.T_ref_predicted = has_motion && config.initialize_with_previous_motion
                             ? last_motion
                             : Eigen::Isometry3d::Identity();
-    if (p.use_prior) p.T_ref_predicted.linear() = gyro->R_prev_cur;
+    if (p.use_prior) p.T_ref_predicted.linear() = steps->R_prev_cur;
     active_set = kPreviousSet;
     to_previous = align(current, p.T_ref_predicted.inverse(), p);
     active_set = kReferenceSet;
@@ -1169,81 +1059,15 @@ struct DenseOdometry::Impl {
   // The information of the pose twist: with the offset estimated, its Schur complement, times
   // vision_information_scale (the data term's honest share of the independent-pixel one).
   Matrix6d pose_information(const NormalEquations& normal) const {
-    return vision_scale *
+    return gyro.vision_scale() *
            detail::independent_pixel_information(normal, config.estimate_brightness_offset);
   }
 
-  // What one alignment that used the gyro prior says about the gyro and about the vision: the
-  // vision's own minimum near it (vision_only()), against the gyro chain's rotation. One
-  // Gauss-Newton step of the data term from the joint minimum would be cheaper but goes about
-  // half the way: the Student-t reweighted Hessian overstates the robust cost's curvature there.
-  struct GyroObservation {
-    Eigen::Vector3d bias_innovation = Eigen::Vector3d::Zero();    // rad/s, camera axes
-    Eigen::Matrix3d vision_covariance = Eigen::Matrix3d::Zero();  // independent pixels, ditto
-    Eigen::Matrix3d gyro_covariance = Eigen::Matrix3d::Zero();    // the chain's white noise
-    double span_s = 0.0;
-    double overconfidence = 1.0;  // this frame's sample of 1 / the vision's honest scale
-  };
-
-  bool observe_gyro(const Alignment& vision_alignment, const Prediction& p, const GyroSteps& gyro,
+  // What the vision's own minimum near the joint one says against the gyro chain.
+  bool observe_gyro(const Alignment& vision_alignment, const Prediction& p, const GyroSteps& steps,
                     GyroObservation& out) const {
-    const Matrix6d H = detail::independent_pixel_information(vision_alignment.normal,
-                                                             config.estimate_brightness_offset);
-    const Eigen::LDLT<Matrix6d> data(H);
-    if (!p.use_prior || gyro.chain.span_s <= 0.0 || data.info() != Eigen::Success ||
-        !data.isPositive()) {
-      return false;
-    }
-    const Eigen::Isometry3d& T_cur_ref_vision = vision_alignment.T_cur_ref;
-    // Reference axes: R_vision = exp(e) R_chain. A bias left over, b - b_estimate in camera
-    // axes, turns the chain by about R (b - b_estimate) span.
-    const Eigen::Vector3d e =
-        geometry::log_so3(T_cur_ref_vision.linear().transpose() * p.R_ref_prior.transpose());
-    const Eigen::Matrix3d vision_covariance =
-        data.solve(Matrix6d::Identity()).bottomRightCorner<3, 3>();
-    const Eigen::LDLT<Eigen::Matrix3d> vision(vision_covariance);
-    if (!e.allFinite() || vision.info() != Eigen::Success || !vision.isPositive()) return false;
-    // E[e e^T] = k C + G for vision overconfident by k: the moment estimate of k from this
-    // frame, k = (e^T C^-1 e - tr(C^-1 G)) / 3. A consistent vision's samples scatter below 1
-    // as often as above, so they are only kept in range here; the scale is bounded once
-    // averaged (no better than independent pixels).
-    const double k = (e.dot(vision.solve(e)) - vision.solve(gyro.chain_covariance).trace()) / 3.0;
-    out.overconfidence = std::clamp(k, kMinOverconfidenceSample, kMaxOverconfidenceSample);
-    const Eigen::Matrix3d& R = gyro.chain.R_ref_cur;
-    out.span_s = gyro.chain.span_s;
-    out.bias_innovation = -R.transpose() * e / out.span_s;
-    out.vision_covariance = R.transpose() * vision_covariance * R;
-    out.gyro_covariance = R.transpose() * gyro.chain.noise_covariance * R;
-    return out.bias_innovation.allFinite() && std::isfinite(out.overconfidence);
-  }
-
-  // Learns from a gyro observation of a frame that tracked: the vision's honest scale from every
-  // such frame, and the gyro bias from the last frame against each reference (the observations
-  // within one keyframe share its vision and chain errors, so only one of them is independent).
-  // The scale is a running geometric mean of the frames' samples (one frame where vision
-  // slipped moves it by a factor, not a multiple) over the last vision_information_frames; the
-  // configured scale holds until the first sample.
-  void learn_from_gyro(const GyroObservation& o, bool learn_bias) {
-    if (config.adapt_vision_information) {
-      vision_scale_samples = std::min(vision_scale_samples + 1, config.vision_information_frames);
-      const double alpha = 1.0 / vision_scale_samples;
-      log_overconfidence = (1.0 - alpha) * log_overconfidence + alpha * std::log(o.overconfidence);
-      // A consistent vision's samples are chi-square(3) / 3, whose log has mean
-      // psi(3/2) + ln(2/3) = -0.369: the geometric mean is 0.69 of the mean.
-      constexpr double kChiSquare3GeometricMean = 0.6915;
-      vision_scale = std::min(1.0, kChiSquare3GeometricMean / std::exp(log_overconfidence));
-    }
-    // Frame to frame the vision's own per-step rotation error is a drift, as constant as a
-    // bias and indistinguishable from one (measured in simulation: f2f with the depth term
-    // learnt its 0.2 deg/s drift as the gyro's bias); against a keyframe it is bounded, so
-    // learn_bias is the last frame against each keyframe only.
-    if (learn_bias) {
-      // Weighed with the scale that includes this frame: the first frames of a vision far
-      // more overconfident than the configured scale must not teach the bias its error.
-      const Eigen::Matrix3d noise =
-          (o.vision_covariance / vision_scale + o.gyro_covariance) / (o.span_s * o.span_s);
-      gyro_bias.update(o.bias_innovation, noise, config.gyro_bias_gate_chi2);
-    }
+    return gyro.observe(vision_alignment.T_cur_ref, vision_alignment.normal, p.R_ref_prior, steps,
+                        out);
   }
 
   // The keyframe chain broke (Kerl IROS 2013 re-anchors on such failures): this frame's pose
@@ -1368,8 +1192,8 @@ struct DenseOdometry::Impl {
     const double step_s =
         last_frame_t_ns >= 0 ? 1e-9 * static_cast<double>(t_ns - last_frame_t_ns) : 0.0;
     last_frame_t_ns = t_ns;
-    result.gyro_bias_radps = gyro_bias.bias();
-    result.vision_information_scale = vision_scale;
+    result.gyro_bias_radps = gyro.bias();
+    result.vision_information_scale = gyro.vision_scale();
 
     if (!has_reference) {
       make_reference(current_slot, result.T_O_C);
@@ -1382,18 +1206,18 @@ struct DenseOdometry::Impl {
 
     // The gyro, with the bias estimate removed and its uncertainty allowed for, before anything
     // uses it. The chain is kept when this frame is accepted against the same reference.
-    if (config.estimate_gyro_bias) gyro_bias.propagate(t_ns, config.gyro_bias_random_walk);
+    gyro.propagate(t_ns);
     GyroSteps steps;
-    const bool have_gyro = prior != nullptr && gyro_steps(*prior, step_s, steps);
-    const GyroSteps* gyro = have_gyro ? &steps : nullptr;
+    const bool have_gyro = prior != nullptr && gyro.steps(*prior, step_s, steps);
+    const GyroSteps* gyro_steps = have_gyro ? &steps : nullptr;
 
-    const Prediction p = predict_motion(gyro);
+    const Prediction p = predict_motion(gyro_steps);
     Eigen::Isometry3d T_cur_ref_guess = p.T_ref_predicted.inverse();
     // Keyframe check: align to the previous frame as well, start the keyframe alignment from
     // that, and re-anchor on the previous frame when the two disagree.
     Alignment to_previous;
     const bool previous_ok =
-        keyframe_check() && has_previous && align_to_previous(current, p, gyro, to_previous);
+        keyframe_check() && has_previous && align_to_previous(current, p, gyro_steps, to_previous);
     if (previous_ok) T_cur_ref_guess = (T_ref_last * to_previous.T_cur_ref.inverse()).inverse();
 
     Alignment a = align(current, T_cur_ref_guess, p);
@@ -1410,15 +1234,11 @@ struct DenseOdometry::Impl {
                           p.use_prior &&
                           observe_gyro(vision_only(current, a), p, steps, observation);
     // Before accept(): a new reference starts a new chain.
-    if (have_gyro) {
-      gyro_chain = steps.chain;
-    } else {
-      gyro_chain.intact = false;
-    }
+    gyro.keep_chain(gyro_steps);
     result = accept(result, a, current_slot, current);
-    if (observed && result.ok()) learn_from_gyro(observation, learn_bias);
-    result.gyro_bias_radps = gyro_bias.bias();
-    result.vision_information_scale = vision_scale;
+    if (observed && result.ok()) gyro.learn(observation, learn_bias);
+    result.gyro_bias_radps = gyro.bias();
+    result.vision_information_scale = gyro.vision_scale();
     return result;
   }
 };
@@ -1444,11 +1264,7 @@ void DenseOdometry::reset() {
   impl_->has_previous = false;
   impl_->T_O_ref.setIdentity();
   impl_->T_ref_last.setIdentity();
-  impl_->gyro_chain = {};
-  impl_->gyro_bias.reset(impl_->config.gyro_bias_sigma_radps);
-  impl_->vision_scale = impl_->config.vision_information_scale;
-  impl_->vision_scale_samples = 0;
-  impl_->log_overconfidence = 0.0;
+  impl_->gyro.reset();
   impl_->last_frame_t_ns = -1;
 }
 
