@@ -2,6 +2,8 @@
 #include "hq/config/strict_yaml.hpp"
 #include "hq/odometry/dense_odometry.hpp"
 
+#include "frame.hpp"
+
 #include <limits>
 #include <sstream>
 #include <string>
@@ -10,8 +12,7 @@ namespace hq::odometry {
 
 namespace {
 
-// As many pyramid levels as DenseOdometry holds buffers for.
-constexpr int kMaxLevels = 6;
+using detail::kMaxLevels;
 
 }  // namespace
 
