@@ -324,9 +324,9 @@ template <class FormRow>
   }
 }
 
-/// The whitened depth rows of the bivariate t (DenseOdometry's accumulate_with_depth), formed
-/// in the accumulation instead of stored: row i is c_z[i] (r_Z, J_Z) + c_i[i] (r_I, J_I), with
-/// J_Z = depth_jacobian_from(d_rz_d_q[.][i], T, p_i) and c_i[i] also the offset's Jacobian.
+/// The whitened depth rows of the bivariate t (Aligner::accumulate_with_depth, alignment.cpp),
+/// formed in the accumulation instead of stored: row i is c_z[i] (r_Z, J_Z) + c_i[i] (r_I, J_I),
+/// with J_Z = depth_jacobian_from(d_rz_d_q[.][i], T, p_i) and c_i[i] also the offset's Jacobian.
 struct DepthRows {
   const float* d_rz_d_q[3];   ///< d r_Z / d q per point (depth_sample_at), 0 without depth
   const float *px, *py, *pz;  ///< reference points

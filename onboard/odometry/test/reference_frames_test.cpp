@@ -1,0 +1,178 @@
+// When the reference changes: DVO-SLAM's entropy ratio, the keyframe's age and coverage, the
+// keyframe check's verdict, and the pixels a new reference leaves out because they moved.
+#include "reference_frames.hpp"
+
+#include "prepared_plane.hpp"
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+namespace hq::odometry::detail {
+namespace {
+
+using test::pose;
+using test::PreparedPlane;
+
+TEST(EntropyOf, IsMinusHalfTheLogDeterminant) {
+  EXPECT_DOUBLE_EQ(entropy_of(Matrix6d::Identity()), 0.0);
+  EXPECT_NEAR(entropy_of(2.0 * Matrix6d::Identity()), -3.0 * std::log(2.0), 1e-12);
+  // More information, less entropy.
+  EXPECT_LT(entropy_of(10.0 * Matrix6d::Identity()), entropy_of(5.0 * Matrix6d::Identity()));
+  EXPECT_EQ(entropy_of(-Matrix6d::Identity()), 0.0);  // not an information matrix
+}
+
+constexpr int kFinestPixels = 320 * 240;
+constexpr int kMostPixels = kFinestPixels / 2;
+
+TEST(KeyframeSelection, FrameToFrameEveryFrameIsTheNextReference) {
+  OdometryConfig config;
+  config.reference_mode = ReferenceMode::kFrameToFrame;
+  const KeyframeSelection keyframes(config, kFinestPixels);
+  EXPECT_TRUE(keyframes.reference_ends_with(10.0 * Matrix6d::Identity(), kMostPixels));
+}
+
+TEST(KeyframeSelection, KeyframeEndsWhenTheEntropyRatioFalls) {
+  const OdometryConfig config;  // ratio 0.9
+  KeyframeSelection keyframes(config, kFinestPixels);
+  const Matrix6d first = 10.0 * Matrix6d::Identity();
+  EXPECT_FALSE(keyframes.reference_ends_with(first, kMostPixels));
+  keyframes.count_alignment(first);
+  // entropy(9.5 I) / entropy(10 I) = ln 9.5 / ln 10 = 0.98: kept; ln 5 / ln 10 = 0.70: ends.
+  EXPECT_FALSE(keyframes.reference_ends_with(9.5 * Matrix6d::Identity(), kMostPixels));
+  EXPECT_TRUE(keyframes.reference_ends_with(5.0 * Matrix6d::Identity(), kMostPixels));
+}
+
+TEST(KeyframeSelection, KeyframeEndsWithAge) {
+  OdometryConfig config;
+  config.max_keyframe_age = 3;
+  KeyframeSelection keyframes(config, kFinestPixels);
+  const Matrix6d H = 10.0 * Matrix6d::Identity();
+  keyframes.count_alignment(H);
+  EXPECT_FALSE(keyframes.reference_ends_with(H, kMostPixels));  // second frame
+  keyframes.count_alignment(H);
+  EXPECT_TRUE(keyframes.reference_ends_with(H, kMostPixels));  // third
+  keyframes.restart();
+  EXPECT_FALSE(keyframes.reference_ends_with(H, kMostPixels));
+}
+
+TEST(KeyframeSelection, KeyframeWithLittleInViewEnds) {
+  const OdometryConfig config;  // keyframe_min_valid_ratio 0.05
+  const KeyframeSelection keyframes(config, kFinestPixels);
+  const Matrix6d H = 10.0 * Matrix6d::Identity();
+  EXPECT_FALSE(keyframes.reference_ends_with(H, kFinestPixels / 10));
+  EXPECT_TRUE(keyframes.reference_ends_with(H, kFinestPixels / 25));
+}
+
+Alignment aligned(const Eigen::Isometry3d& T_cur_ref) {
+  Alignment a;
+  a.T_cur_ref = T_cur_ref;
+  a.valid = kMostPixels;
+  return a;
+}
+
+TEST(KeyframeChainBroke, AgreeingChainsHold) {
+  const OdometryConfig config;
+  const Eigen::Isometry3d T_ref_prev = pose(0.05, 0.0, 0.0, 0.0, 0.02, 0.0);
+  const Eigen::Isometry3d T_prev_cur = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.003);
+  const Alignment to_keyframe = aligned((T_ref_prev * T_prev_cur).inverse());
+  const Alignment to_previous = aligned(T_prev_cur.inverse());
+  EXPECT_FALSE(keyframe_chain_broke(config, kFinestPixels, to_keyframe, to_previous, T_ref_prev));
+}
+
+TEST(KeyframeChainBroke, DisagreementBeyondTheBoundsBreaksIt) {
+  const OdometryConfig config;  // 1 cm, 0.5 deg
+  const Eigen::Isometry3d T_ref_prev = pose(0.05, 0.0, 0.0, 0.0, 0.02, 0.0);
+  const Eigen::Isometry3d T_prev_cur = pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.003);
+  const Alignment to_previous = aligned(T_prev_cur.inverse());
+  const Eigen::Isometry3d slipped = pose(0.0, 0.02, 0.0, 0.0, 0.0, 0.0);  // 2 cm
+  EXPECT_TRUE(keyframe_chain_broke(config, kFinestPixels,
+                                   aligned((T_ref_prev * T_prev_cur * slipped).inverse()),
+                                   to_previous, T_ref_prev));
+  const Eigen::Isometry3d turned = pose(0.0, 0.0, 0.0, 0.0, 0.0, 0.0175);  // 1 deg
+  EXPECT_TRUE(keyframe_chain_broke(config, kFinestPixels,
+                                   aligned((T_ref_prev * T_prev_cur * turned).inverse()),
+                                   to_previous, T_ref_prev));
+  Alignment unusable = aligned((T_ref_prev * T_prev_cur).inverse());
+  unusable.valid = 5;
+  EXPECT_TRUE(keyframe_chain_broke(config, kFinestPixels, unusable, to_previous, T_ref_prev));
+}
+
+int marked_in(const cv::Mat& marks, const cv::Rect& area) {
+  return cv::countNonZero(marks(area & cv::Rect(0, 0, marks.cols, marks.rows)));
+}
+
+TEST(MovingPixels, PatchThatChangedIsMarkedAndLeftOutOfTheNextReference) {
+  const OdometryConfig config;  // 4 sigma, finest level 1 (320x240)
+  PreparedPlane plane(config);
+  // GIVEN a reference and a current frame seen from the same pose, but for a patch that
+  // changed between them (something moved there)
+  plane.prepare_reference(Eigen::Isometry3d::Identity());
+  cv::Mat gray, depth_m;
+  PreparedPlane::render(Eigen::Isometry3d::Identity(), gray, depth_m);
+  const cv::Rect patch(200, 160, 120, 100);  // full resolution
+  cv::Mat changed = gray(patch);
+  cv::bitwise_not(changed, changed);
+  plane.frames.build(plane.current, gray, depth_m, false);
+  Aligner aligner(config, plane.cameras);
+  Alignment a;
+  a.variance = 4.0;  // a residual sigma of 2 grey levels
+  // WHEN the alignment at the identity marks the current frame's moving pixels
+  MovingPixels moving(config, plane.cameras);
+  ASSERT_EQ(moving.known(), nullptr);
+  moving.mark(aligner, plane.reference, plane.current, a);
+  // THEN the patch is marked on the finest level and the coarser ones, and little else
+  ASSERT_NE(moving.known(), nullptr);
+  const cv::Mat& finest = at_level(*moving.known(), 1);
+  const cv::Rect patch_finest(100, 80, 60, 50);
+  EXPECT_GT(marked_in(finest, patch_finest), patch_finest.area() / 2);
+  const cv::Rect around(96, 76, 68, 58);
+  EXPECT_LT(cv::countNonZero(finest) - marked_in(finest, around), 50);
+  EXPECT_GT(marked_in(at_level(*moving.known(), 2), cv::Rect(50, 40, 30, 25)), 30 * 25 / 2);
+  // ... and the current frame prepared as the reference leaves every marked pixel out.
+  plane.prepare_reference(gray, depth_m);
+  const int unmarked_points = at_level(plane.reference, 1).count;
+  plane.prepare_reference(gray, depth_m, moving.known());
+  const ReferenceLevel& ref = at_level(plane.reference, 1);
+  EXPECT_LT(ref.count, unmarked_points - 1000);
+  const Intrinsics k = plane.cameras.intrinsics(1);
+  for (std::size_t i = 0; i < static_cast<std::size_t>(ref.count); ++i) {
+    const auto u = static_cast<int>(std::lround(k.fx * ref.x[i] / ref.z[i] + k.cx));
+    const auto v = static_cast<int>(std::lround(k.fy * ref.y[i] / ref.z[i] + k.cy));
+    ASSERT_EQ(finest.at<std::uint8_t>(v, u), 0) << u << ", " << v;
+  }
+  moving.forget();
+  EXPECT_EQ(moving.known(), nullptr);
+}
+
+TEST(MovingPixels, WhenMostOfTheViewMovedNothingIsMarked) {
+  const OdometryConfig config;  // max_moving_ratio 0.5
+  PreparedPlane plane(config);
+  plane.prepare_reference(Eigen::Isometry3d::Identity());
+  cv::Mat gray, depth_m;
+  PreparedPlane::render(Eigen::Isometry3d::Identity(), gray, depth_m);
+  gray = 255 - gray;  // everything changed: the alignment, not the scene, is in doubt
+  plane.frames.build(plane.current, gray, depth_m, false);
+  Aligner aligner(config, plane.cameras);
+  Alignment a;
+  a.variance = 4.0;
+  MovingPixels moving(config, plane.cameras);
+  moving.mark(aligner, plane.reference, plane.current, a);
+  EXPECT_EQ(moving.known(), nullptr);
+}
+
+TEST(MovingPixels, OffMarksNothing) {
+  OdometryConfig config;
+  config.moving_residual_sigmas = 0.0;
+  PreparedPlane plane(config);
+  plane.prepare_reference(Eigen::Isometry3d::Identity());
+  plane.build_current(pose(0.05, 0.0, 0.0, 0.0, 0.0, 0.0));  // 5 cm off: large residuals
+  Aligner aligner(config, plane.cameras);
+  MovingPixels moving(config, plane.cameras);
+  moving.mark(aligner, plane.reference, plane.current, Alignment{});
+  EXPECT_EQ(moving.known(), nullptr);
+}
+
+}  // namespace
+}  // namespace hq::odometry::detail
