@@ -4,7 +4,7 @@
 option(HQ_WERROR "Treat warnings as errors (on in CI)" OFF)
 # -Wshadow and the conversion family, which the tree holds: on by default so that a local build
 # warns where CI (HQ_WERROR) fails. One exemption, -Wsign-conversion in
-# onboard/odometry/src/dense_odometry.cpp, is set and counted in onboard/odometry/CMakeLists.txt.
+# onboard/odometry/src/alignment.cpp, is set and counted in onboard/odometry/CMakeLists.txt.
 option(HQ_STRICT_WARNINGS "Add -Wshadow and the conversion warnings" ON)
 set(HQ_STRICT_WARNING_FLAGS -Wshadow -Wconversion -Wsign-conversion -Wdouble-promotion
     CACHE STRING "The flags HQ_STRICT_WARNINGS adds")

@@ -1,9 +1,9 @@
 #include "hq/odometry/dense_odometry.hpp"
 
 #include "hq/geometry/lie.hpp"
+#include "hq/odometry/rendered_plane.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
-#include "rendered_plane.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 

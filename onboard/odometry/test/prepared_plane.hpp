@@ -3,10 +3,10 @@
 // plane: a reference frame prepared, and a current frame built, at chosen camera poses.
 
 #include "hq/geometry/lie.hpp"
+#include "hq/odometry/rendered_plane.hpp"
 
 #include "frame.hpp"
 #include "reference_points.hpp"
-#include "rendered_plane.hpp"
 
 namespace hq::odometry::test {
 

@@ -10,10 +10,10 @@
 #include "hq/base/tool_main.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
+#include "hq/odometry/rendered_plane.hpp"
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
 
-#include "rendered_plane.hpp"
 #include <CLI/CLI.hpp>
 
 #include <algorithm>

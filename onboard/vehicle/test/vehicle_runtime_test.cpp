@@ -4,9 +4,9 @@
 #include "hq/vehicle/vehicle_runtime.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/odometry/rendered_plane.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
-#include "rendered_plane.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 

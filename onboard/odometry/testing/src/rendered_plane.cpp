@@ -1,4 +1,4 @@
-#include "rendered_plane.hpp"
+#include "hq/odometry/rendered_plane.hpp"
 
 #include <algorithm>
 #include <cmath>
