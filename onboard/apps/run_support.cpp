@@ -126,6 +126,10 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
     fmt::print("  {:<40} 0 (samples claiming another station than their certificate)\n",
                "intrusions");
   }
+  if (c.unverified > 0) {
+    fmt::print("  {:<40} {} (their writer had left before they were checked)\n",
+               "samples refused unverified", c.unverified);
+  }
   fmt::print("  {:<40} {} states, {} camera frames, {} events\n", "published", bridge.states_sent(),
              bridge.camera_frames_sent(), bridge.events_sent());
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {

@@ -7,6 +7,10 @@
 
 namespace hq::link_bridge {
 
+namespace {
+constexpr const char* kUnverified = "its writer left before it could be checked (secured link)";
+}  // namespace
+
 void check_config(const FailsafeConfig& config) {
   const auto positive = [](const char* key, double value) {
     if (!(value > 0.0)) {
@@ -117,14 +121,24 @@ Verdict Failsafe::reject(std::uint64_t& counter, const char* reason) {
 }
 
 bool Failsafe::intrudes(const char* kind, std::uint32_t claimed, link::WriterStation writer) {
-  if (!writer.bound || writer.station_id == claimed) return false;
+  if (!writer.bound || !writer.known || writer.station_id == claimed) return false;
   ++counters_.intrusions;
   last_intrusion_ = {claimed, writer.station_id, kind};
   return true;
 }
 
+bool Failsafe::unverified(link::WriterStation writer) {
+  if (!writer.bound || writer.known) return false;
+  ++counters_.unverified;
+  return true;
+}
+
 Verdict Failsafe::on_command(std::int64_t t_ns, const link::VelocityCommand& command,
                              link::WriterStation writer) {
+  if (unverified(writer)) {
+    last_command_rejection_ = kUnverified;
+    return reject(counters_.commands_rejected, kUnverified);
+  }
   if (intrudes("command", command.station_id, writer)) {
     last_command_rejection_ = "command claiming another station than its writer's certificate";
     return reject(counters_.commands_rejected, last_command_rejection_);
@@ -202,6 +216,7 @@ const char* Failsafe::stale(std::int64_t t_ns, std::int64_t stamp_ns) {
 
 Verdict Failsafe::on_mode_request(std::int64_t t_ns, const link::ModeRequest& request,
                                   modes::Mode& mode, link::WriterStation writer) {
+  if (unverified(writer)) return reject(counters_.mode_requests_rejected, kUnverified);
   if (intrudes("mode request", request.station_id, writer)) {
     return reject(counters_.mode_requests_rejected,
                   "mode request claiming another station than its writer's certificate");
@@ -241,8 +256,9 @@ Verdict Failsafe::on_mode_request(std::int64_t t_ns, const link::ModeRequest& re
 Verdict Failsafe::on_heartbeat(std::int64_t t_ns, const link::Heartbeat& heartbeat,
                                link::WriterStation writer) {
   // A vehicle's heartbeat (its own among them) has no station to claim.
-  if (static_cast<int>(heartbeat.role) == hq_msgs_ROLE_GROUND &&
-      intrudes("heartbeat", heartbeat.sender_id, writer)) {
+  const bool ground = static_cast<int>(heartbeat.role) == hq_msgs_ROLE_GROUND;
+  if (ground && unverified(writer)) return reject(counters_.heartbeats_rejected, kUnverified);
+  if (ground && intrudes("heartbeat", heartbeat.sender_id, writer)) {
     return reject(counters_.heartbeats_rejected,
                   "heartbeat claiming another station than its writer's certificate");
   }

@@ -346,6 +346,11 @@ TEST(FailsafeIdentity, SamplesClaimingAnotherStationThanTheirCertificateAreIntru
   EXPECT_TRUE(failsafe.on_command(3 * kMs, command_from(1, 0.5F)).accepted);  // unbound
   EXPECT_EQ(failsafe.update(3 * kMs).commanding_station_id, 1U);
   EXPECT_EQ(failsafe.counters().intrusions, 4U);
+  // A sample whose writer left before it was checked (a station restarting) proves nothing
+  // either way: rejected and counted apart, never called an intrusion.
+  EXPECT_FALSE(failsafe.on_command(4 * kMs, command_from(1, 0.5F), {true, 0, false}).accepted);
+  EXPECT_EQ(failsafe.counters().unverified, 1U);
+  EXPECT_EQ(failsafe.counters().intrusions, 4U);
   // The vehicle's own heartbeat claims no station: ignored as before, not an intrusion.
   link::Heartbeat own = ground_heartbeat(1);
   own.role = hq_msgs_ROLE_VEHICLE;

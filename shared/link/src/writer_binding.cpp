@@ -35,16 +35,11 @@ WriterStation WriterBinding::station_of(dds_entity_t reader, const dds_sample_in
   }
   ++lookups_;
   dds_builtintopic_endpoint_t* writer = dds_get_matched_publication_data(reader, publication);
-  std::uint32_t station = 0;
-  if (writer != nullptr) {
-    station = station_in_partitions(writer->qos, vehicle_id_);
-    dds_builtintopic_free_endpoint(writer);
-  }
-  // A writer that is gone cannot be looked up again: remember only what was found.
-  if (writer != nullptr) {
-    cache_[next_slot_] = {publication, station};
-    next_slot_ = (next_slot_ + 1) % kWriters;
-  }
+  if (writer == nullptr) return {true, 0, false};  // gone: not remembered, not judged
+  const std::uint32_t station = station_in_partitions(writer->qos, vehicle_id_);
+  dds_builtintopic_free_endpoint(writer);
+  cache_[next_slot_] = {publication, station};
+  next_slot_ = (next_slot_ + 1) % kWriters;
   return {true, station};
 }
 

@@ -43,7 +43,9 @@
 /// from the writer's certificate on a secured link). A bound sample whose claimed station id is
 /// not its writer's is an intrusion: rejected before any other check and counted (intrusions,
 /// with the last claim and writer kept for the report), so an allowed station cannot speak for
-/// another. Without security nothing is bound: any process on the domain can claim any id.
+/// another. A bound sample whose writer had left before it was checked cannot be verified: it is
+/// rejected and counted apart (unverified), not called an intrusion. Without security nothing is
+/// bound: any process on the domain can claim any id.
 ///
 /// Sequence numbers are recorded, not used to drop samples: a hostile sample with a huge sequence
 /// number would otherwise lock the real station out for good.
@@ -126,6 +128,8 @@ struct FailsafeCounters {
   /// Samples (commands, mode requests, heartbeats) claiming another station than the one their
   /// writer's certificate is: rejected (and also in the kind's _rejected count).
   std::uint64_t intrusions = 0;
+  /// Of the rejections: samples whose writer had left before they were checked (secured link).
+  std::uint64_t unverified = 0;
 };
 
 /// The latest intrusion: who was claimed and who wrote it (0: a writer bound to no station).
@@ -168,6 +172,8 @@ class Failsafe {
   /// Whether a sample of `kind` claiming `claimed` was written by another station's
   /// certificate; if so it is counted as an intrusion.
   bool intrudes(const char* kind, std::uint32_t claimed, link::WriterStation writer);
+  /// Whether the sample's writer left before it could be checked (counted if so).
+  bool unverified(link::WriterStation writer);
   /// Why a command stamped stamp_ns received at t_ns is stale (static text), nullptr if it is
   /// not; updates the delay estimate.
   const char* stale(std::int64_t t_ns, std::int64_t stamp_ns);

@@ -21,10 +21,12 @@ namespace hq::link {
 
 /// The station a writer is bound to: `bound` when the link is secured (the answer is the
 /// certificate's); station_id 0 when bound and the writer holds no station partition of this
-/// vehicle (not a station's, or gone before it was asked about).
+/// vehicle. `known` is false when the writer had left before its sample was checked (a station
+/// restarting, a sample held by an emulated delay): nothing can be said of who wrote it.
 struct WriterStation {
   bool bound = false;
   std::uint32_t station_id = 0;
+  bool known = true;
 };
 
 class WriterBinding {
