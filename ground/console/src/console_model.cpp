@@ -288,8 +288,9 @@ bool intrusion_banner(const LinkHealth& link, char* out, std::size_t size) {
   if (size == 0) return false;
   out[0] = '\0';
   if (link.intrusion_reports == 0) return false;
-  std::snprintf(out, size, "vehicle %u reports an intrusion (%llu reports): %s",
-                link.selected_vehicle, static_cast<unsigned long long>(link.intrusion_reports),
+  // The vehicle's text starts with "INTRUSION:" and ends naming the certificate to revoke.
+  std::snprintf(out, size, "vehicle %u, report %llu: %s", link.selected_vehicle,
+                static_cast<unsigned long long>(link.intrusion_reports),
                 link.last_intrusion.data());
   return true;
 }

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <string>
 
 namespace hq::console {
 namespace {
@@ -113,6 +115,29 @@ TEST(ConsoleModel, ControlBannerNamesTheCommandingStation) {
   m.snapshot(s);
   EXPECT_TRUE(s.link.control_lost);
   EXPECT_EQ(s.link.commanding_station, 9U);
+}
+
+// A vehicle's intrusion report (another certificate speaking for a station) is shown whole,
+// with how many came, from the first one on; nothing before.
+TEST(ConsoleModel, IntrusionBannerShowsTheVehiclesLatestReport) {
+  LinkHealth link;
+  link.selected_vehicle = 1;
+  char text[256];
+  EXPECT_FALSE(intrusion_banner(link, text, sizeof text));
+  EXPECT_STREQ(text, "");
+  link.intrusion_reports = 3;
+  std::snprintf(link.last_intrusion.data(), link.last_intrusion.size(),
+                "INTRUSION: 12 samples (40 in total) claimed another station, refused; last: a "
+                "command claiming station 1, written by station_3's certificate");
+  ASSERT_TRUE(intrusion_banner(link, text, sizeof text));
+  EXPECT_EQ(std::string(text).rfind("vehicle 1, report 3: INTRUSION: 12 samples", 0), 0U) << text;
+  EXPECT_NE(std::string(text).find("written by station_3's certificate"), std::string::npos);
+  ConsoleModel m;
+  m.on_link(link);
+  Snapshot s = m.make_snapshot();
+  m.snapshot(s);
+  EXPECT_EQ(s.link.intrusion_reports, 3U);
+  EXPECT_STREQ(s.link.last_intrusion.data(), link.last_intrusion.data());
 }
 
 TEST(ConsoleModel, FlightStateHeightAndOperatorInputReachTheSnapshot) {
