@@ -36,6 +36,15 @@ void VelocityController::reset() {
   have_previous_ = false;
 }
 
+void VelocityController::rescale_thrust(double ratio) {
+  if (!(ratio > 0.0 && std::isfinite(ratio)) || config_.ki_z_per_s2 <= 0.0) return;
+  // The integral's acceleration (NED: up is -z) is the part of the command that persists.
+  const double a_z_mps2 = config_.ki_z_per_s2 * integral_m_.z();
+  const double a_z_new_mps2 = kGravityMps2 - ratio * (kGravityMps2 - a_z_mps2);
+  integral_m_.z() = std::clamp(a_z_new_mps2 / config_.ki_z_per_s2, -config_.max_integral_m,
+                               config_.max_integral_m);
+}
+
 AttitudeSetpoint VelocityController::hover_setpoint() const {
   AttitudeSetpoint hover;
   hover.thrust_n = vehicle_.mass_kg * kGravityMps2;

@@ -66,6 +66,12 @@ class VelocityController {
   [[nodiscard]] const Eigen::Vector3d& integral_m() const { return integral_m_; }
   [[nodiscard]] const VehicleConfig& vehicle() const { return vehicle_; }
   void reset();
+  /// The thrust this controller commands is about to be divided by a learnt gain `ratio` times
+  /// the one it was divided by so far (HoverThrustEstimator). The vertical integral, which has
+  /// been carrying the difference, is moved so the thrust actually sent does not jump: in a
+  /// hover (g - a_z) becomes ratio (g - a_z). PX4's PositionControl::updateHoverThrust does
+  /// the same for its hover thrust.
+  void rescale_thrust(double ratio);
 
  private:
   VelocityControllerConfig config_;
