@@ -48,8 +48,10 @@ void add_vehicle_options(CLI::App& app, Options& o) {
   app.add_option("--fc", o.fc_spec,
                  "flight controller: none | mavlink:udp:HOST:PORT | mavlink:serial:DEVICE:BAUD "
                  "(default: none; sitl: mavlink:udp:127.0.0.1:14560)");
-  app.add_option("--fc-max-thrust-n", o.fc_max_thrust_n,
-                 "MAVLink: collective thrust at full throttle, for the normalised thrust")
+  app.add_option(
+         "--fc-max-thrust-n", o.fc_max_thrust_n,
+         "MAVLink: collective thrust at full throttle, for the normalised thrust: a starting "
+         "value, learnt in flight (hover_thrust: in the onboard config)")
       ->check(CLI::Range(1.0, 1000.0));
   app.add_option("--channel", o.sitl_channel, "sitl: hq-sim's frame channel name");
   app.add_option("--fc-lost-exit-s", o.fc_lost_exit_s,

@@ -367,6 +367,18 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
                : runtime.status().fc.connected ? "connected"
                                                : "never heard");
   }
+  if (const auto& last = runtime.last_output()) {
+    const hq::control::HoverThrustEstimate& h = last->hover_thrust;
+    fmt::print(
+        "  {:<40} gain {:.3f} +- {:.3f} ({}; {} fused, {} gated), hovers on {:.1f} N "
+        "commanded",
+        "hover thrust (learnt in flight)", h.gain, h.sigma,
+        h.converged ? "converged" : "not converged", h.updates, h.rejected, last->hover_thrust_n);
+    if (fc_spec != "none" && o.fc_max_thrust_n > 0.0) {
+      fmt::print(", {:.2f} of --fc-max-thrust-n", last->hover_thrust_n / o.fc_max_thrust_n);
+    }
+    fmt::print("\n");
+  }
   std::printf("  %-40s %d\n", "runtime events", port.events);
 }
 

@@ -169,6 +169,7 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.flight_state = out.flight_state;
   s.height_m = out.height_m;
   s.height_source = out.height_source;
+  s.hover_thrust_gain = out.hover_thrust.gain;
   samples_.push_back(s);
 }
 

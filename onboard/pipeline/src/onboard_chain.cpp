@@ -52,6 +52,8 @@ OnboardConfig load_onboard_config(const std::string& path) {
   seen_space::read_config(seen_space, out.seen_space);
   config::StrictMap control = root.child("control");
   control::read_config(control, out.control);
+  config::StrictMap hover_thrust = root.child("hover_thrust");
+  control::read_config(hover_thrust, out.hover_thrust);
   config::StrictMap modes = root.child("modes");
   modes::read_config(modes, out.modes);
   config::StrictMap chain = root.child("chain");
@@ -90,6 +92,7 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const VehicleConfig& veh
       seen_space_(config.seen_space, camera, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m(),
                   config.obstacles.vehicle_radius_m),
       modes_(config.modes, config.control, vehicle),
+      hover_thrust_(config.hover_thrust, vehicle.mass_kg),
       R_B_C_(vehicle.camera.R_B_C()) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
   takeoff_complete_ = !config.modes.start_landed;
@@ -104,6 +107,7 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const VehicleConfig& veh
 void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                           const Eigen::Vector3d& accel_mps2) {
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
+  hover_thrust_.on_specific_force(t_ns, accel_mps2.z(), thrust_measurable_);
   // The land detector's evidence of the floor (an impact, then the floor carrying the vehicle).
   const Eigen::Matrix3d R_H_B = R_horizontal_body();
   modes_.set_specific_force_H(t_ns, R_H_B * accel_mps2);
@@ -266,8 +270,10 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, std::int64_t depth_t_ns, c
   // Without an estimate the PID gets none (nullopt): the velocity controller's safe-hover path
   // then commands a level hover (m g) and freezes its integral, which is what the vehicle can
   // do on IMU attitude alone.
+  follow_hover_thrust();
   out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), out.obstacles.v_obs_horizontal_mps);
   finish_output(out);
+  correct_thrust(out);
   const std::int64_t t_control_ns = now_ns();
 
   out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
@@ -316,8 +322,10 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
   update_offset_from_takeoff(t_ns, out);
   // No depth means no v_obs either: zero.
+  follow_hover_thrust();
   out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), Eigen::Vector3d::Zero());
   finish_output(out);
+  correct_thrust(out);
   out.degraded = true;
   out.safe_hover = out.mode.control.safe_hover && !out.mode.landed && !out.mode.blind_descent;
   if (out.safe_hover) out.safe_hover_reason = "camera timed out: hover on IMU attitude only";
@@ -388,6 +396,25 @@ void OnboardChain::finish_output(ChainOutput& out) const {
     out.command_limited = true;
     out.command_envelope_limited = true;
   }
+}
+
+void OnboardChain::follow_hover_thrust() {
+  const double gain = hover_thrust_.estimate().gain;
+  if (gain == thrust_gain_applied_) return;
+  modes_.rescale_thrust(gain / thrust_gain_applied_);
+  thrust_gain_applied_ = gain;
+}
+
+void OnboardChain::correct_thrust(ChainOutput& out) {
+  double& thrust_n = out.mode.control.setpoint.thrust_n;
+  thrust_n = hover_thrust_.corrected_thrust_n(thrust_n);
+  hover_thrust_.on_command(out.t_ns, thrust_n);
+  // Only in free flight, and only while the camera confirms the motion: an inertial coast's
+  // velocity is the PID's input but not evidence of what the rotors do.
+  thrust_measurable_ =
+      out.flight_state == modes::FlightState::kAirborne && !out.mode.landed && out.estimate.ok();
+  out.hover_thrust = hover_thrust_.estimate();
+  out.hover_thrust_n = hover_thrust_.hover_thrust_n();
 }
 
 void OnboardChain::apply_operator_limit(ChainOutput* out) {

@@ -215,9 +215,25 @@ void VehicleRuntime::deliver(const pipeline::ChainOutput& out) {
   } else {
     ++counters_.setpoints_withheld;
   }
+  announce_hover_thrust(out);
   status_.truth = truth_ != nullptr ? truth_->truth() : std::nullopt;
   last_ = out;
   if (op_ != nullptr) op_->on_output(out, status_);
+}
+
+void VehicleRuntime::announce_hover_thrust(const pipeline::ChainOutput& out) {
+  // Once per flight the operator hears what the vehicle really needs: a gain far from 1 means
+  // the mass or the FC's maximum thrust in the config is off, worth fixing before the next one.
+  if (out.hover_thrust.converged == said_hover_thrust_) return;
+  said_hover_thrust_ = out.hover_thrust.converged;
+  if (!said_hover_thrust_) return;
+  char text[160];
+  std::snprintf(text, sizeof text,
+                "hover thrust learnt: the rotors give %.0f %% of the thrust commanded; hovering on "
+                "%.1f N",
+                100.0 * out.hover_thrust.gain, out.hover_thrust_n);
+  const bool far_off = std::abs(out.hover_thrust.gain - 1.0) > 0.15;
+  event(out.t_ns, far_off ? FcSeverity::kWarning : FcSeverity::kInfo, text);
 }
 
 NoFlightController::NoFlightController(std::vector<FcImuSample> recorded)

@@ -102,6 +102,7 @@ struct FlightSample {
   modes::FlightState flight_state = modes::FlightState::kLanded;
   double height_m = 0.0;
   pipeline::HeightSource height_source = pipeline::HeightSource::kNone;
+  double hover_thrust_gain = 1.0;  ///< Actual over commanded thrust, as learnt (ChainOutput).
 };
 
 class ClosedLoop {

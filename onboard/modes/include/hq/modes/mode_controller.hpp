@@ -175,6 +175,8 @@ class ModeController {
   /// takeoff_speed_mps, then `then` (request_mode's rules for an operator apply to it; refused
   /// otherwise).
   ModeSwitch request_takeoff(Mode then);
+  /// See control::VelocityController::rescale_thrust.
+  void rescale_thrust(double ratio) { controller_.rescale_thrust(ratio); }
 
   /// Height of the body above the floor (m) for the take-off's climb; NaN when unknown, in
   /// which case a take-off climbs on until a height is known again.

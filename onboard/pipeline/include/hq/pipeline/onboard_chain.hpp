@@ -7,6 +7,7 @@
 /// durations come from a Clock the caller injects (a steady clock in the apps, a fake in tests,
 /// none to skip timing). After the first frame, on_frame() allocates nothing.
 
+#include "hq/control/hover_thrust_estimator.hpp"
 #include "hq/control/velocity_controller.hpp"
 #include "hq/estimator/velocity_estimator.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
@@ -82,6 +83,8 @@ struct OnboardConfig {
   obstacle_memory::MemoryConfig memory;
   seen_space::SeenSpaceConfig seen_space;  ///< No motion into unseen space.
   control::VelocityControllerConfig control;
+  /// The thrust the vehicle really gives for the thrust commanded, learnt in flight.
+  control::HoverThrustConfig hover_thrust;
   modes::ModesConfig modes;
   ChainConfig chain;
   /// The marker stage and the marker/explore providers; off unless markers.enabled.
@@ -173,6 +176,11 @@ struct ChainOutput {
   /// seen_space_bins bins (m/s; the creep speed where nothing is known).
   std::array<float, seen_space::kMaxBins> seen_space_limits_mps{};
   int seen_space_bins = 0;
+  /// The gain between the thrust commanded and the thrust the rotors give, learnt in flight;
+  /// mode.control.setpoint.thrust_n is already divided by it.
+  control::HoverThrustEstimate hover_thrust;
+  /// The thrust that hovers the vehicle as learnt (N, in the units sent to the FC): m g / gain.
+  double hover_thrust_n = 0.0;
   StageDurations durations;
 };
 
@@ -224,6 +232,10 @@ class OnboardChain {
   /// The operator's latest command (used in teleop mode). The mode controller gets it limited
   /// to the seen space, again on every frame with that frame's view.
   void set_operator_command(const modes::OperatorCommand& command);
+  /// The gain between commanded and actual thrust as learnt so far.
+  [[nodiscard]] const control::HoverThrustEstimate& hover_thrust() const {
+    return hover_thrust_.estimate();
+  }
   /// Requests a flight mode; see ModeController::request_mode. Operators' requests are held to
   /// the modes' dwell and rate limit; the vehicle's own (its failsafes) are not.
   modes::ModeSwitch request_mode(modes::Mode mode, modes::RequestOrigin origin);
@@ -269,6 +281,11 @@ class OnboardChain {
   void update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& out);
   /// Fills out.flight_state and out.clearance_m after the mode step.
   void finish_output(ChainOutput& out) const;
+  /// Before the controller runs: a gain learnt since the last output moves the controller's
+  /// integral so the thrust sent does not jump.
+  void follow_hover_thrust();
+  /// Divides the setpoint's thrust by the learnt gain and tells the estimator what was sent.
+  void correct_thrust(ChainOutput& out);
   /// Hands the operator's command, limited to the seen space, to the modes; fills out's
   /// command fields and per-bin limits when out is given.
   void apply_operator_limit(ChainOutput* out);
@@ -283,6 +300,11 @@ class OnboardChain {
   obstacles::ObstacleField obstacles_;
   seen_space::SeenSpaceLimiter seen_space_;
   modes::ModeController modes_;
+  control::HoverThrustEstimator hover_thrust_;
+  /// The latest output was airborne (not on the floor, not taking off or landing): the
+  /// accelerometer measures the rotors' thrust.
+  bool thrust_measurable_ = false;
+  double thrust_gain_applied_ = 1.0;  ///< The gain the controller's integral was moved for.
   std::unique_ptr<marker_modes::MarkerStage> markers_;
   bool have_frame_ = false;
   std::int64_t t_last_frame_ns_ = 0;

@@ -131,6 +131,8 @@ class VehicleRuntime final : private FcSink {
   void take_operator(std::int64_t t_ns);
   void feed_imu_until(std::int64_t t_ns);
   void deliver(const pipeline::ChainOutput& out);
+  /// Says the learnt hover thrust once it has converged (a warning when far from the config).
+  void announce_hover_thrust(const pipeline::ChainOutput& out);
   void event(std::int64_t t_ns, FcSeverity severity, std::string_view text);
 
   pipeline::OnboardChain& chain_;
@@ -156,6 +158,7 @@ class VehicleRuntime final : private FcSink {
   int arm_attempts_ = 0;
   std::int64_t next_arm_attempt_ns_ = 0;
   bool was_flying_offboard_ = false;
+  bool said_hover_thrust_ = false;  ///< The learnt hover thrust was announced.
   VehicleStatus status_;
   RuntimeCounters counters_;
   std::optional<pipeline::ChainOutput> last_;

@@ -38,8 +38,8 @@ void check_keys(const YAML::Node& node, const std::string& where, const std::str
 /// given to --link-config): a loader that reads one of them accepts the others, read
 /// elsewhere, and rejects any other top-level key (StrictMap::finish_sections).
 inline const std::vector<std::string> kSharedFileSections = {
-    "odometry", "estimator", "obstacles", "memory",     "control",   "modes",
-    "chain",    "markers",   "link",      "navigation", "seen_space"};
+    "odometry", "estimator", "obstacles", "memory", "control",    "hover_thrust",
+    "modes",    "chain",     "markers",   "link",   "navigation", "seen_space"};
 
 /// A YAML mapping read strictly. Create it, read keys with the typed getters (a missing key
 /// keeps the default passed in), then call finish() to reject keys that were never read.
