@@ -4,6 +4,9 @@
 //       the very bytes our encoder produced (field order, zero trimming, CRC_EXTRA).
 //   node conformance.cjs MODULES encode FRAMES TEXT   node-mavlink encodes every message (v2,
 //       one signed, one v1) and writes the values for hq-mavlink-conformance to check.
+//   node conformance.cjs MODULES targets JSON         checks the router's table: each message's
+//       name, CRC_EXTRA and the payload offsets of target_system (or MANUAL_CONTROL's target)
+//       and target_component against node-mavlink's definitions.
 'use strict';
 const fs = require('fs');
 const path = require('path');
@@ -169,9 +172,36 @@ function encode() {
   console.log(`node-mavlink encoded ${frames.length} frames (one signed, one v1)`);
 }
 
+function targets() {
+  const table = JSON.parse(fs.readFileSync(framesPath, 'utf8'));
+  for (const entry of table) {
+    const clazz = REGISTRY[entry.msgid];
+    if (!clazz) {
+      fail(`${entry.name} (${entry.msgid}): not in node-mavlink's common.xml`);
+      continue;
+    }
+    const offset = (...names) => {
+      const field = clazz.FIELDS.find((f) => names.includes(f.source));
+      return field ? field.offset : -1;
+    };
+    const theirs = { name: clazz.MSG_NAME, crc_extra: clazz.MAGIC_NUMBER,
+                     target_system: offset('target_system', 'target'),
+                     target_component: offset('target_component') };
+    for (const key of Object.keys(theirs)) {
+      if (theirs[key] !== entry[key]) {
+        fail(`${entry.name} (${entry.msgid}): ${key} ${entry[key]}, node-mavlink has ${theirs[key]}`);
+      }
+    }
+  }
+  console.log(`node-mavlink checked ${table.length} routed messages (CRC_EXTRA, target offsets); ` +
+              `${failures} failures`);
+  process.exit(failures === 0 ? 0 : 1);
+}
+
 if (mode === 'decode') decode();
+else if (mode === 'targets') targets();
 else if (mode === 'encode') encode();
 else {
-  console.error('usage: node conformance.cjs MODULES decode|encode FRAMES VALUES');
+  console.error('usage: node conformance.cjs MODULES decode|encode FRAMES VALUES | targets JSON');
   process.exit(2);
 }

@@ -3,9 +3,12 @@
 //                       as JSON under the specification's field names, for node to decode and check
 //   check FRAMES TEXT   decodes FRAMES that node-mavlink encoded and checks every field against
 //                       TEXT ("message ID SYSID COMPID v1|v2|signed" then "FIELD VALUE..." lines)
+//   targets JSON        writes the router's table (message_targets.hpp) for node to check each
+//                       CRC_EXTRA and target offset against its own definitions
 // Exit status 0 when everything matched, 1 on a mismatch, 2 on bad usage or files.
 
 #include "hq/mavlink/codec.hpp"
+#include "hq/mavlink/message_targets.hpp"
 
 #include <bit>
 #include <cinttypes>
@@ -381,11 +384,31 @@ int check(const std::string& frames_path, const std::string& text_path) {
   return mismatches == 0 ? 0 : 1;
 }
 
+int targets(const std::string& json_path) {
+  std::ofstream json(json_path);
+  if (!json) {
+    std::cerr << "cannot write " << json_path << "\n";
+    return 2;
+  }
+  nlohmann::ordered_json table = nlohmann::ordered_json::array();
+  for (const MessageTargets& m : routed_messages()) {
+    table.push_back({{"msgid", m.id},
+                     {"name", m.name},
+                     {"crc_extra", m.crc_extra},
+                     {"target_system", m.target_system_offset},
+                     {"target_component", m.target_component_offset}});
+  }
+  json << table.dump(1) << "\n";
+  return json ? 0 : 2;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "targets") return targets(argv[2]);
   if (argc == 4 && std::string(argv[1]) == "write") return write(argv[2], argv[3]);
   if (argc == 4 && std::string(argv[1]) == "check") return check(argv[2], argv[3]);
-  std::cerr << "usage: hq-mavlink-conformance write FRAMES JSON | check FRAMES TEXT\n";
+  std::cerr
+      << "usage: hq-mavlink-conformance write FRAMES JSON | check FRAMES TEXT | targets JSON\n";
   return 2;
 }
