@@ -1,8 +1,10 @@
 #include "hq/sim/sitl_autopilot.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
+#include <string_view>
 
 namespace hq::sim {
 
@@ -27,6 +29,35 @@ constexpr double kBatteryFullV = 16.8;
 constexpr double kBatteryEmptyV = 14.0;
 constexpr double kDrainIdleVps = 0.0005;
 constexpr double kDrainArmedVps = 0.004;
+
+// PX4's names and units for what SitlAutopilotConfig holds (docs.px4.io parameter reference),
+// sorted by name as PX4 lists them; ranges within PX4's.
+struct SitlParam {
+  const char* id;
+  double min, max;
+  double SitlAutopilotConfig::*seconds_or_value;  // a double member, or
+  std::int64_t SitlAutopilotConfig::*ns;          // a nanosecond member shown in seconds
+};
+constexpr std::array<SitlParam, kSitlParamCount> kParams{{
+    {"COM_DISARM_LAND", 0.1, 20.0, nullptr, &SitlAutopilotConfig::landed_disarm_ns},
+    {"COM_OBC_LOSS_T", 0.1, 60.0, nullptr, &SitlAutopilotConfig::companion_loss_ns},
+    {"COM_OF_LOSS_T", 0.1, 60.0, nullptr, &SitlAutopilotConfig::offboard_loss_ns},
+    {"MPC_LAND_SPEED", 0.1, 5.0, &SitlAutopilotConfig::land_speed_mps, nullptr},
+    {"MPC_Z_VEL_P_ACC", 0.1, 20.0, &SitlAutopilotConfig::land_speed_gain_per_s, nullptr},
+}};
+
+int find_param(const std::array<char, 16>& id) {
+  const std::string_view name(id.data(), strnlen(id.data(), id.size()));
+  for (std::size_t i = 0; i < kParams.size(); ++i) {
+    if (name == kParams[i].id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+bool for_us(std::uint8_t target_system, std::uint8_t target_component) {
+  return (target_system == 0 || target_system == 1) &&
+         (target_component == 0 || target_component == mavlink::kMavCompIdAutopilot1);
+}
 
 bool finite(const mavlink::SetAttitudeTarget& t) {
   return std::isfinite(t.q[0]) && std::isfinite(t.q[1]) && std::isfinite(t.q[2]) &&
@@ -114,6 +145,16 @@ void SitlAutopilot::on_message(std::int64_t t_ns, std::uint8_t system_id, std::u
                                MessageSink& out) {
   if (const auto* h = std::get_if<mavlink::Heartbeat>(&message)) {
     if (h->type == mavlink::kMavTypeOnboardController) last_companion_ns_ = t_ns;
+    if (h->type == mavlink::kMavTypeGcs) {
+      // A GCS that just connected sees the vehicle at once, not within a second.
+      if (last_gcs_ns_ < 0) send_heartbeat(out);
+      last_gcs_ns_ = t_ns;
+      ++stats_.gcs_heartbeats;
+    }
+  } else if (std::holds_alternative<mavlink::ParamRequestList>(message) ||
+             std::holds_alternative<mavlink::ParamRequestRead>(message) ||
+             std::holds_alternative<mavlink::ParamSet>(message)) {
+    handle_param(message, out);
   } else if (const auto* c = std::get_if<mavlink::CommandLong>(&message)) {
     // As PX4: a command for another system is not ours to ack.
     if (c->target_system != 0 && c->target_system != 1) return;
@@ -131,6 +172,58 @@ void SitlAutopilot::on_message(std::int64_t t_ns, std::uint8_t system_id, std::u
     const Eigen::Vector3d v_ned_est(v->x_mps, v->y_mps, v->z_mps);
     ++stats_.vision_estimates;
     stats_.vision_sq_error_sum += (v_ned_est - v_ned_true).squaredNorm();
+  }
+}
+
+void SitlAutopilot::send_param(int index, MessageSink& out) {
+  const SitlParam& p = kParams[static_cast<std::size_t>(index)];
+  mavlink::ParamValue v;
+  v.param_value = static_cast<float>(p.ns != nullptr ? static_cast<double>(config_.*p.ns) * 1e-9
+                                                     : config_.*p.seconds_or_value);
+  v.param_count = kParams.size();
+  v.param_index = static_cast<std::uint16_t>(index);
+  std::memcpy(v.param_id.data(), p.id, std::min(std::strlen(p.id), v.param_id.size()));
+  v.param_type = mavlink::kMavParamTypeReal32;
+  out.send(v);
+  ++stats_.params_sent;
+}
+
+void SitlAutopilot::handle_param(const mavlink::Message& message, MessageSink& out) {
+  if (const auto* list = std::get_if<mavlink::ParamRequestList>(&message)) {
+    if (!for_us(list->target_system, list->target_component)) return;
+    for (int i = 0; i < kSitlParamCount; ++i) send_param(i, out);
+  } else if (const auto* read = std::get_if<mavlink::ParamRequestRead>(&message)) {
+    if (!for_us(read->target_system, read->target_component)) return;
+    const int index = read->param_index >= 0 ? read->param_index : find_param(read->param_id);
+    if (index < 0 || index >= kSitlParamCount) {
+      ++stats_.params_rejected;  // PX4 stays silent; the GCS times out and says so
+      return;
+    }
+    send_param(index, out);
+  } else if (const auto* set = std::get_if<mavlink::ParamSet>(&message)) {
+    if (!for_us(set->target_system, set->target_component)) return;
+    const int index = find_param(set->param_id);
+    if (index < 0) {
+      ++stats_.params_rejected;
+      return;
+    }
+    // As PX4: the answer is always the parameter's value after the request, so a GCS sees a
+    // refused value as not taken.
+    const SitlParam& p = kParams[static_cast<std::size_t>(index)];
+    const auto value = static_cast<double>(set->param_value);
+    if (set->param_type != mavlink::kMavParamTypeReal32 || !std::isfinite(value) || value < p.min ||
+        value > p.max) {
+      ++stats_.params_rejected;
+      statustext(kSeverityWarning, "param set refused: out of range or not REAL32", out);
+    } else {
+      if (p.ns != nullptr) {
+        config_.*p.ns = std::llround(value * 1e9);
+      } else {
+        config_.*p.seconds_or_value = value;
+      }
+      ++stats_.params_set;
+    }
+    send_param(index, out);
   }
 }
 

@@ -288,6 +288,11 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
       static_cast<unsigned long long>(st.setpoints_rejected),
       static_cast<unsigned long long>(st.commands), static_cast<double>(st.armed_ns) * 1e-9,
       static_cast<double>(st.offboard_ns) * 1e-9);
+  std::printf("GCS heartbeats %llu, parameters sent %llu, set %llu, refused or unknown %llu\n",
+              static_cast<unsigned long long>(st.gcs_heartbeats),
+              static_cast<unsigned long long>(st.params_sent),
+              static_cast<unsigned long long>(st.params_set),
+              static_cast<unsigned long long>(st.params_rejected));
   if (st.vision_estimates > 0) {
     std::printf("vision speed estimates %llu, RMSE against truth (NED) %.3f m/s\n",
                 static_cast<unsigned long long>(st.vision_estimates),

@@ -6,7 +6,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -253,6 +256,93 @@ TEST_F(SitlAutopilotTest, VisionSpeedErrorIsTakenAgainstTruthInNed) {
   ap_.on_message(0, 1, 191, v, truth, out_);
   EXPECT_NEAR(ap_.stats().vision_sq_error_sum, 16.0 + 36.0, 1e-9);
   EXPECT_EQ(ap_.stats().vision_estimates, 2u);
+}
+
+std::array<char, 16> param_id(const char* name) {
+  std::array<char, 16> id{};
+  std::memcpy(id.data(), name, std::min<std::size_t>(std::strlen(name), id.size()));
+  return id;
+}
+
+std::string name_of(const mav::ParamValue& v) {
+  return {v.param_id.data(), strnlen(v.param_id.data(), v.param_id.size())};
+}
+
+TEST_F(SitlAutopilotTest, ParameterListGivesEveryParameterWithCountAndIndex) {
+  TruthState ground;
+  ap_.on_message(0, 255, 190, mav::ParamRequestList{1, 0}, ground, out_);
+  const auto values = out_.all<mav::ParamValue>();
+  ASSERT_EQ(values.size(), static_cast<std::size_t>(hq::sim::kSitlParamCount));
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    EXPECT_EQ(values[i].param_count, hq::sim::kSitlParamCount);
+    EXPECT_EQ(values[i].param_index, i);
+    EXPECT_EQ(values[i].param_type, mav::kMavParamTypeReal32);
+  }
+  EXPECT_EQ(name_of(values[2]), "COM_OF_LOSS_T");
+  EXPECT_FLOAT_EQ(values[2].param_value, 0.5f) << "SitlAutopilotConfig::offboard_loss_ns";
+  EXPECT_EQ(name_of(values[3]), "MPC_LAND_SPEED");
+  EXPECT_FLOAT_EQ(values[3].param_value, 0.5f);
+  // For another system or component: not ours to answer.
+  ap_.on_message(0, 255, 190, mav::ParamRequestList{2, 0}, ground, out_);
+  ap_.on_message(0, 255, 190, mav::ParamRequestList{1, 191}, ground, out_);
+  EXPECT_EQ(out_.all<mav::ParamValue>().size(), values.size());
+}
+
+TEST_F(SitlAutopilotTest, ParameterReadByNameOrIndex) {
+  TruthState ground;
+  ap_.on_message(0, 255, 190, mav::ParamRequestRead{-1, 1, 1, param_id("COM_OBC_LOSS_T")}, ground,
+                 out_);
+  ap_.on_message(0, 255, 190, mav::ParamRequestRead{0, 1, 1, {}}, ground, out_);
+  ap_.on_message(0, 255, 190, mav::ParamRequestRead{-1, 1, 1, param_id("NO_SUCH_PARAM")}, ground,
+                 out_);
+  ap_.on_message(0, 255, 190, mav::ParamRequestRead{99, 1, 1, {}}, ground, out_);
+  const auto values = out_.all<mav::ParamValue>();
+  ASSERT_EQ(values.size(), 2u);
+  EXPECT_EQ(name_of(values[0]), "COM_OBC_LOSS_T");
+  EXPECT_FLOAT_EQ(values[0].param_value, 2.0f);
+  EXPECT_EQ(name_of(values[1]), "COM_DISARM_LAND");
+  EXPECT_EQ(ap_.stats().params_rejected, 2u);
+}
+
+TEST_F(SitlAutopilotTest, ParameterSetIsEchoedAndChangesTheFailsafe) {
+  TruthState flying = airborne(2.0);
+  ap_.on_message(0, 255, 190,
+                 mav::ParamSet{2.0f, 1, 1, param_id("COM_OF_LOSS_T"), mav::kMavParamTypeReal32},
+                 flying, out_);
+  ASSERT_EQ(out_.all<mav::ParamValue>().size(), 1u);
+  EXPECT_FLOAT_EQ(out_.all<mav::ParamValue>()[0].param_value, 2.0f);
+  // Out of range: refused, and the echo says the old value.
+  ap_.on_message(0, 255, 190,
+                 mav::ParamSet{-1.0f, 1, 1, param_id("COM_OF_LOSS_T"), mav::kMavParamTypeReal32},
+                 flying, out_);
+  EXPECT_FLOAT_EQ(out_.all<mav::ParamValue>().back().param_value, 2.0f);
+  EXPECT_THAT(out_.texts(), HasSubstr("param set refused"));
+  EXPECT_EQ(ap_.stats().params_set, 1u);
+  // The new COM_OF_LOSS_T is the one flown: 1 s without setpoints is no longer a loss.
+  arm_offboard(flying);
+  ap_.update(1000 * kMs, flying, out_);
+  EXPECT_EQ(ap_.mode(), SitlMode::kOffboard);
+  ap_.update(2100 * kMs, flying, out_);
+  EXPECT_EQ(ap_.mode(), SitlMode::kLand);
+}
+
+TEST_F(SitlAutopilotTest, AGcsIsAnsweredAtOnceAndItsModeChangeObeyed) {
+  TruthState flying = airborne(2.0);
+  arm_offboard(flying);
+  const std::size_t heartbeats = out_.all<mav::Heartbeat>().size();
+  mav::Heartbeat gcs;
+  gcs.type = mav::kMavTypeGcs;
+  gcs.autopilot = mav::kMavAutopilotInvalid;
+  ap_.on_message(5 * kMs, 255, 190, gcs, flying, out_);
+  EXPECT_EQ(out_.all<mav::Heartbeat>().size(), heartbeats + 1) << "its first heartbeat answered";
+  ap_.on_message(6 * kMs, 255, 190, gcs, flying, out_);
+  EXPECT_EQ(out_.all<mav::Heartbeat>().size(), heartbeats + 1) << "later ones: the 1 Hz stream";
+  EXPECT_EQ(ap_.stats().gcs_heartbeats, 2u);
+  // The pilot at the GCS takes over (POSCTL): obeyed, acked to the GCS, in the next heartbeat.
+  ap_.on_message(7 * kMs, 255, 190, command(mav::kMavCmdDoSetMode, 1, 3), flying, out_);
+  EXPECT_EQ(ap_.mode(), SitlMode::kPosctl);
+  EXPECT_EQ(out_.all<mav::CommandAck>().back().target_system, 255);
+  EXPECT_EQ(out_.all<mav::Heartbeat>().back().custom_mode, 3u << 16);
 }
 
 }  // namespace

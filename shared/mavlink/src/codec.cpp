@@ -180,6 +180,47 @@ struct Spec<Statustext> {
   }
 };
 
+template <>
+struct Spec<ParamRequestRead> {
+  static constexpr std::uint8_t kCrcExtra = 214;
+  static constexpr std::size_t kBaseLen = 20, kMaxLen = 20;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.param_index), io(m.target_system), io(m.target_component), io(m.param_id);
+  }
+};
+
+template <>
+struct Spec<ParamRequestList> {
+  static constexpr std::uint8_t kCrcExtra = 159;
+  static constexpr std::size_t kBaseLen = 2, kMaxLen = 2;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.target_system), io(m.target_component);
+  }
+};
+
+template <>
+struct Spec<ParamValue> {
+  static constexpr std::uint8_t kCrcExtra = 220;
+  static constexpr std::size_t kBaseLen = 25, kMaxLen = 25;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.param_value), io(m.param_count), io(m.param_index), io(m.param_id), io(m.param_type);
+  }
+};
+
+template <>
+struct Spec<ParamSet> {
+  static constexpr std::uint8_t kCrcExtra = 168;
+  static constexpr std::size_t kBaseLen = 23, kMaxLen = 23;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.param_value), io(m.target_system), io(m.target_component), io(m.param_id),
+        io(m.param_type);
+  }
+};
+
 // The field lists above must add up to the lengths of common.xml.
 template <typename M>
 constexpr std::size_t wire_length() {

@@ -126,6 +126,13 @@ const VALUES = [
                     abs_pressure: 950.5, diff_pressure: 0.25, pressure_alt: 512.75,
                     temperature: 41.5, fields_updated: 0x0FFF, id: 1 }],
   ['STATUSTEXT', { severity: 3, text: 'PreArm: node-mavlink says hello', id: 77, chunk_seq: 1 }],
+  ['PARAM_REQUEST_READ', { param_index: -1, target_system: 1, target_component: 1,
+                           param_id: 'MPC_LAND_SPEED' }],
+  ['PARAM_REQUEST_LIST', { target_system: 1, target_component: 0 }],
+  ['PARAM_VALUE', { param_value: 2.5, param_count: 65535, param_index: 65534,
+                    param_id: 'COM_OBC_LOSS_T', param_type: 9 }],
+  ['PARAM_SET', { param_value: -0.75, target_system: 1, target_component: 1,
+                  param_id: 'SIXTEEN_CHARS_ID', param_type: 9 }],
 ];
 
 function encode() {

@@ -10,6 +10,8 @@
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/message_targets.hpp"
 
+#include <algorithm>
+#include <array>
 #include <bit>
 #include <cinttypes>
 #include <cstdint>
@@ -96,6 +98,34 @@ void fields(const Statustext& m, F&& f) {
   f("severity", m.severity), f("text", m.text), f("id", m.id), f("chunk_seq", m.chunk_seq);
 }
 
+template <typename F>
+void fields(const ParamRequestRead& m, F&& f) {
+  f("param_index", m.param_index), f("target_system", m.target_system),
+      f("target_component", m.target_component), f("param_id", m.param_id);
+}
+template <typename F>
+void fields(const ParamRequestList& m, F&& f) {
+  f("target_system", m.target_system), f("target_component", m.target_component);
+}
+template <typename F>
+void fields(const ParamValue& m, F&& f) {
+  f("param_value", m.param_value), f("param_count", m.param_count), f("param_index", m.param_index),
+      f("param_id", m.param_id), f("param_type", m.param_type);
+}
+template <typename F>
+void fields(const ParamSet& m, F&& f) {
+  f("param_value", m.param_value), f("target_system", m.target_system),
+      f("target_component", m.target_component), f("param_id", m.param_id),
+      f("param_type", m.param_type);
+}
+
+template <std::size_t N>
+std::array<char, N> text_of(const char* text) {
+  std::array<char, N> out{};
+  std::memcpy(out.data(), text, std::min(N, std::strlen(text)));
+  return out;
+}
+
 // The values this side chooses: every field non-zero (extensions included), plus short ones that
 // exercise zero-trimming and a full 50-character text.
 std::vector<Message> chosen_messages() {
@@ -164,6 +194,11 @@ std::vector<Message> chosen_messages() {
   st2.id = 4242;
   st2.chunk_seq = 2;
   out.emplace_back(st2);
+  out.emplace_back(ParamRequestRead{-1, 1, 1, text_of<16>("COM_OF_LOSS_T")});
+  out.emplace_back(ParamRequestRead{7, 1, 0, {}});
+  out.emplace_back(ParamRequestList{1, 1});
+  out.emplace_back(ParamValue{0.5f, 5, 4, text_of<16>("SIXTEEN_CHARS_ID"), kMavParamTypeReal32});
+  out.emplace_back(ParamSet{-1.25f, 1, 1, text_of<16>("MPC_LAND_SPEED"), kMavParamTypeReal32});
   return out;
 }
 
@@ -186,7 +221,8 @@ struct JsonFields {
       return static_cast<std::int64_t>(v);
     }
   }
-  void operator()(const char* name, const std::array<char, 50>& text) {
+  template <std::size_t N>
+  void operator()(const char* name, const std::array<char, N>& text) {
     object[name] = std::string(text.data(), strnlen(text.data(), text.size()));
   }
   template <typename T, std::size_t N>
@@ -268,7 +304,8 @@ struct CheckFields {
     }
     return os.str();
   }
-  void operator()(const char* name, const std::array<char, 50>& value) {
+  template <std::size_t N>
+  void operator()(const char* name, const std::array<char, N>& value) {
     const std::string* want = find(name);
     ++seen;
     const std::string got(value.data(), strnlen(value.data(), value.size()));

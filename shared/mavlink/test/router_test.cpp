@@ -74,10 +74,11 @@ CommandLong command_to(std::uint8_t system, std::uint8_t component) {
   return c;
 }
 
-/// PARAM_REQUEST_LIST (21): target_system, target_component; not decoded by the codec.
-Bytes param_request_list(std::uint8_t system, std::uint8_t component, std::uint8_t target_system,
-                         std::uint8_t target_component) {
-  return frame_of(21, 159, system, component, {target_system, target_component});
+/// MISSION_REQUEST_LIST (43): target_system, target_component (mission_type trimmed); not
+/// decoded by the codec.
+Bytes mission_request_list(std::uint8_t system, std::uint8_t component, std::uint8_t target_system,
+                           std::uint8_t target_component) {
+  return frame_of(43, 132, system, component, {target_system, target_component, 0});
 }
 
 class RouterTest : public ::testing::Test {
@@ -149,8 +150,9 @@ TEST_F(RouterTest, TargetedFramesGoOnlyToTheTargetsLink) {
 TEST_F(RouterTest, ComponentZeroReachesEveryLinkOfThatSystemOnce) {
   introduce_all();
   // System 1 is both the companion (local) and the FC: one copy to each, none back to the GCS.
-  EXPECT_EQ(arrive_one(kGcs, param_request_list(255, 190, 1, 0)), link_bit(kLocal) | link_bit(kFc));
-  EXPECT_TRUE(last_crc_checked_) << "PARAM_REQUEST_LIST is in the table: its CRC is checked";
+  EXPECT_EQ(arrive_one(kGcs, mission_request_list(255, 190, 1, 0)),
+            link_bit(kLocal) | link_bit(kFc));
+  EXPECT_TRUE(last_crc_checked_) << "MISSION_REQUEST_LIST is in the table: its CRC is checked";
   EXPECT_EQ(parsers_[kGcs].counters().undecoded, 1u);
 }
 
@@ -162,7 +164,7 @@ TEST_F(RouterTest, NeverSendsAFrameBackToItsSource) {
   // Heard on two links: every link but the source's.
   arrive_one(kLocal, encode(7, 1, heartbeat(kMavTypeQuadrotor)));
   arrive_one(kFc, encode(7, 2, heartbeat(kMavTypeQuadrotor)));
-  EXPECT_EQ(arrive_one(kFc, param_request_list(1, 1, 7, 0)), link_bit(kLocal));
+  EXPECT_EQ(arrive_one(kFc, mission_request_list(1, 1, 7, 0)), link_bit(kLocal));
 }
 
 TEST_F(RouterTest, TargetHeardNowhereIsDroppedAndCounted) {
@@ -185,7 +187,7 @@ TEST_F(RouterTest, UnknownIdIsForwardedAsABroadcastWithItsCrcUnchecked) {
 TEST_F(RouterTest, RoutedMessageWithABadCrcNeverReachesTheRouter) {
   introduce_all();
   const std::uint64_t routed_before = router_.counters().received[kGcs];
-  Bytes broken = param_request_list(255, 190, 1, 1);
+  Bytes broken = mission_request_list(255, 190, 1, 1);
   broken[broken.size() - 1] ^= 0x5A;
   EXPECT_TRUE(arrive(kGcs, broken).empty());
   EXPECT_EQ(parsers_[kGcs].counters().bad_crc, 1u);

@@ -52,7 +52,16 @@ struct SitlAutopilotStats {
   double vision_sq_error_sum = 0.0;      ///< Sum of |v_est - v_true|^2 (NED), m^2/s^2.
   std::int64_t armed_ns = 0;
   std::int64_t offboard_ns = 0;
+  std::uint64_t gcs_heartbeats = 0;   ///< HEARTBEAT from a GCS (MAV_TYPE_GCS).
+  std::uint64_t params_sent = 0;      ///< PARAM_VALUE sent.
+  std::uint64_t params_set = 0;       ///< PARAM_SET accepted.
+  std::uint64_t params_rejected = 0;  ///< PARAM_SET refused (range, type) or unknown name/index.
 };
+
+/// The parameters hq-sim --sitl exposes to a GCS, under PX4's names, onto SitlAutopilotConfig
+/// (all REAL32, so no INT32 byte-wise encoding question arises): COM_DISARM_LAND (s),
+/// COM_OBC_LOSS_T (s), COM_OF_LOSS_T (s), MPC_LAND_SPEED (m/s), MPC_Z_VEL_P_ACC (1/s).
+inline constexpr int kSitlParamCount = 5;
 
 class SitlAutopilot {
  public:
@@ -84,6 +93,9 @@ class SitlAutopilot {
                       const mavlink::CommandLong& command, const TruthState& truth,
                       MessageSink& out);
   void handle_setpoint(std::int64_t t_ns, const mavlink::SetAttitudeTarget& target);
+  /// The parameter protocol: PARAM_REQUEST_LIST, PARAM_REQUEST_READ, PARAM_SET (echoed).
+  void handle_param(const mavlink::Message& message, MessageSink& out);
+  void send_param(int index, MessageSink& out);
   void set_mode(SitlMode mode, std::string_view why, MessageSink& out);
   void set_armed(bool armed, std::string_view why, MessageSink& out);
   void send_heartbeat(MessageSink& out) const;
@@ -98,6 +110,7 @@ class SitlAutopilot {
   AttitudeCommand setpoint_;
   std::int64_t last_setpoint_ns_ = -1;  ///< -1: never.
   std::int64_t last_companion_ns_ = -1;
+  std::int64_t last_gcs_ns_ = -1;
   std::int64_t on_ground_since_ns_ = -1;
   std::int64_t last_update_ns_ = -1;
   std::int64_t next_attitude_ns_ = 0;

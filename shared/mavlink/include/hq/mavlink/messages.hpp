@@ -126,8 +126,52 @@ struct Statustext {
   bool operator==(const Statustext&) const = default;  ///< Field by field (tests, tools).
 };
 
+// The parameter protocol (mavlink.io "Parameter Protocol"), which a GCS runs with the FC
+// through the companion and hq-sim --sitl answers.
+
+/// PARAM_REQUEST_READ (20): by param_index, or by param_id when the index is -1.
+struct ParamRequestRead {
+  static constexpr std::uint32_t kId = 20;
+  std::int16_t param_index = -1;
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  std::array<char, 16> param_id{};  ///< Not NUL-terminated when all 16 are used.
+  bool operator==(const ParamRequestRead&) const = default;  ///< Field by field (tests, tools).
+};
+
+/// PARAM_REQUEST_LIST (21).
+struct ParamRequestList {
+  static constexpr std::uint32_t kId = 21;
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  bool operator==(const ParamRequestList&) const = default;  ///< Field by field (tests, tools).
+};
+
+/// PARAM_VALUE (22).
+struct ParamValue {
+  static constexpr std::uint32_t kId = 22;
+  float param_value = 0;
+  std::uint16_t param_count = 0;
+  std::uint16_t param_index = 0;
+  std::array<char, 16> param_id{};
+  std::uint8_t param_type = 0;                         ///< MAV_PARAM_TYPE.
+  bool operator==(const ParamValue&) const = default;  ///< Field by field (tests, tools).
+};
+
+/// PARAM_SET (23).
+struct ParamSet {
+  static constexpr std::uint32_t kId = 23;
+  float param_value = 0;
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  std::array<char, 16> param_id{};
+  std::uint8_t param_type = 0;                       ///< MAV_PARAM_TYPE.
+  bool operator==(const ParamSet&) const = default;  ///< Field by field (tests, tools).
+};
+
 using Message = std::variant<Heartbeat, SysStatus, Attitude, CommandLong, CommandAck,
-                             SetAttitudeTarget, VisionSpeedEstimate, HighresImu, Statustext>;
+                             SetAttitudeTarget, VisionSpeedEstimate, HighresImu, Statustext,
+                             ParamRequestRead, ParamRequestList, ParamValue, ParamSet>;
 
 // The enum values HaptiQuad uses (common.xml, minimal.xml; PX4 custom modes from px4_custom_mode.h
 // as documented on docs.px4.io; ArduCopter modes from its documentation).
@@ -147,6 +191,8 @@ inline constexpr std::uint16_t kMavCmdComponentArmDisarm = 400;
 inline constexpr std::uint16_t kMavCmdSetMessageInterval = 511;
 inline constexpr std::uint8_t kMavResultAccepted = 0;
 inline constexpr std::uint8_t kMavCompIdAutopilot1 = 1;
+inline constexpr std::uint8_t kMavTypeGcs = 6;
+inline constexpr std::uint8_t kMavParamTypeReal32 = 9;
 inline constexpr std::uint8_t kMavCompIdOnboardComputer = 191;
 inline constexpr std::uint8_t kAttitudeTargetIgnoreBodyRollRate = 1;
 inline constexpr std::uint8_t kAttitudeTargetIgnoreBodyPitchRate = 2;
