@@ -24,7 +24,8 @@ constexpr int kMaxReadsPerPoll = 1000;
 // A setpoint gap longer than this integrates no yaw (a stall must not turn the vehicle).
 constexpr double kMaxYawStepS = 0.1;
 
-constexpr std::uint8_t kMavTypeGcs = 6;
+using ml::kMavTypeGcs;
+constexpr std::uint32_t kSetModeId = 11;  // SET_MODE, deprecated but still sent by some GCSs
 constexpr std::uint8_t kMavSeverityError = 3;
 constexpr std::uint8_t kMavSeverityWarning = 4;
 
@@ -65,6 +66,9 @@ void MavlinkFcConfig::validate(const std::string& where) const {
     return std::string(buf);
   };
   if (transport.empty()) fail("transport", "\"\"", "a spec such as udp:127.0.0.1:14540");
+  if (!gcs.empty() && gcs.rfind("udp:", 0) != 0 && gcs.rfind("udp-listen:", 0) != 0) {
+    fail("gcs", "\"" + gcs + "\"", "\"\" (none), udp:HOST:PORT or udp-listen:[HOST:]PORT");
+  }
   if (system_id == 0) fail("system_id", "0", "1..255");
   if (component_id == 0) fail("component_id", "0", "1..255");
   if (!(heartbeat_timeout_s > 0.0 && heartbeat_timeout_s <= 60.0)) {
@@ -86,6 +90,7 @@ void MavlinkFcConfig::validate(const std::string& where) const {
 
 void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
   section.read("transport", out.transport, {});
+  section.read("gcs", out.gcs, {});
   int system_id = out.system_id;
   int component_id = out.component_id;
   section.read("system_id", system_id, 1, 255);
@@ -110,6 +115,14 @@ void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
   out.validate(path.substr(0, path.size() - std::string_view("transport").size()));
 }
 
+std::string gcs_transport_spec(const std::string& gcs) {
+  const std::string listen = "udp-listen:";
+  if (gcs.rfind(listen, 0) == 0 && gcs.find(':', listen.size()) == std::string::npos) {
+    return listen + "0.0.0.0:" + gcs.substr(listen.size());
+  }
+  return gcs;
+}
+
 MavlinkFlightController::MavlinkFlightController(const MavlinkFcConfig& config)
     : MavlinkFlightController(config, (config.validate(), ml::open_transport(config.transport))) {}
 
@@ -120,6 +133,7 @@ MavlinkFlightController::MavlinkFlightController(const MavlinkFcConfig& config,
       encoder_(config.system_id, config.component_id) {
   config_.validate();
   if (!transport_) throw InputError("MavlinkFlightController: no transport");
+  if (!config_.gcs.empty()) gcs_ = ml::open_transport(gcs_transport_spec(config_.gcs));
 }
 
 void MavlinkFlightController::emit(FcSink& sink, FcSeverity severity, std::size_t length) {
@@ -128,12 +142,77 @@ void MavlinkFlightController::emit(FcSink& sink, FcSeverity severity, std::size_
 
 bool MavlinkFlightController::send(const ml::Message& message) {
   const std::size_t n = encoder_.encode(message, tx_);
-  if (transport_->send(std::span<const std::uint8_t>(tx_.data(), n))) {
+  const std::span<const std::uint8_t> bytes(tx_.data(), n);
+  const bool sent = transport_->send(bytes);
+  if (sent) {
     ++counters_.messages_sent;
-    return true;
+  } else {
+    ++counters_.send_failures;
   }
-  ++counters_.send_failures;
-  return false;
+  if (gcs_) {
+    // The FC always gets our frames directly, routed or not; the router decides the GCS's copy.
+    ml::RawFrame frame;
+    frame.bytes = bytes;
+    frame.header.system_id = config_.system_id;
+    frame.header.component_id = config_.component_id;
+    frame.header.message_id = static_cast<std::uint32_t>(tx_[7] | (tx_[8] << 8) | (tx_[9] << 16));
+    frame.crc_checked = true;
+    forward(kLinkCompanion, frame);
+  }
+  return sent;
+}
+
+void MavlinkFlightController::forward(std::size_t from, const ml::RawFrame& frame) {
+  const ml::LinkMask to = router_.route(from, frame);
+  if ((to & ml::link_bit(kLinkGcs)) != 0) {
+    // udp-listen before the GCS spoke: nowhere to send, and no error text to write per frame.
+    if (gcs_->has_peer() && gcs_->send(frame.bytes)) {
+      ++sent_[from][kLinkGcs];
+    } else {
+      ++gcs_send_failures_;
+    }
+  }
+  if (from != kLinkCompanion && (to & ml::link_bit(kLinkFc)) != 0) {
+    if (transport_->send(frame.bytes)) {
+      ++sent_[from][kLinkFc];
+    } else {
+      ++fc_forward_failures_;
+    }
+  }
+}
+
+void MavlinkFlightController::poll_gcs(FcSink& sink) {
+  const bool datagrams = gcs_->datagrams();
+  auto on_message = [&](const ml::FrameHeader& header, const ml::Message& message) {
+    if (const auto* hb = std::get_if<ml::Heartbeat>(&message);
+        hb != nullptr && hb->type == kMavTypeGcs && gcs_system_ != header.system_id) {
+      gcs_system_ = header.system_id;
+      event(sink, FcSeverity::kInfo, "GCS heard: system %d, component %d", header.system_id,
+            header.component_id);
+    }
+    // The pilot keeps authority through the GCS too: the FC obeys, the runtime sees the FC's
+    // new mode in its heartbeat and reports it as for the RC; this says who asked.
+    if (const auto* cmd = std::get_if<ml::CommandLong>(&message);
+        cmd != nullptr &&
+        (cmd->command == ml::kMavCmdDoSetMode || cmd->command == ml::kMavCmdComponentArmDisarm)) {
+      event(sink, FcSeverity::kWarning, "GCS (system %d) sent %s (param1 %g, param2 %g) to the FC",
+            header.system_id, command_name(cmd->command), static_cast<double>(cmd->param[0]),
+            static_cast<double>(cmd->param[1]));
+    }
+  };
+  auto on_frame = [&](const ml::RawFrame& frame) {
+    if (frame.header.message_id == kSetModeId) {
+      event(sink, FcSeverity::kWarning, "GCS (system %d) sent SET_MODE to the FC",
+            frame.header.system_id);
+    }
+    forward(kLinkGcs, frame);
+  };
+  for (int i = 0; i < kMaxReadsPerPoll; ++i) {
+    const std::size_t n = gcs_->receive(rx_);
+    if (n == 0) break;
+    gcs_parser_.feed(std::span<const std::uint8_t>(rx_.data(), n), on_message, on_frame);
+    if (datagrams) gcs_parser_.end_of_datagram();
+  }
 }
 
 void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
@@ -153,12 +232,17 @@ void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
   for (int i = 0; i < kMaxReadsPerPoll; ++i) {
     const std::size_t n = transport_->receive(rx_);
     if (n == 0) break;
-    parser_.feed(std::span<const std::uint8_t>(rx_.data(), n),
-                 [&](const ml::FrameHeader& header, const ml::Message& message) {
-                   handle(t_ns, header, message, sink);
-                 });
+    parser_.feed(
+        std::span<const std::uint8_t>(rx_.data(), n),
+        [&](const ml::FrameHeader& header, const ml::Message& message) {
+          handle(t_ns, header, message, sink);
+        },
+        [&](const ml::RawFrame& frame) {
+          if (gcs_) forward(kLinkFc, frame);
+        });
     if (datagrams) parser_.end_of_datagram();
   }
+  if (gcs_) poll_gcs(sink);
 
   // State changes, each said once.
   const bool is_connected = connected(t_ns);
@@ -438,7 +522,24 @@ FcCounters MavlinkFlightController::counters() const {
 
 std::string MavlinkFlightController::describe() const {
   return "MAVLink " + transport_->describe() + " (" + autopilot_name(autopilot()) + ", system " +
-         std::to_string(have_target_ ? target_system_ : config_.system_id) + ")";
+         std::to_string(have_target_ ? target_system_ : config_.system_id) + ")" +
+         (gcs_ ? ", routed to a GCS " + gcs_->describe() : "");
+}
+
+std::optional<GcsRouting> MavlinkFlightController::gcs_routing() const {
+  if (!gcs_) return std::nullopt;
+  GcsRouting r;
+  r.spec = config_.gcs;
+  r.peer = gcs_->peer();
+  r.gcs_system = gcs_system_;
+  r.fc_to_gcs = sent_[kLinkFc][kLinkGcs];
+  r.gcs_to_fc = sent_[kLinkGcs][kLinkFc];
+  r.companion_to_gcs = sent_[kLinkCompanion][kLinkGcs];
+  r.gcs_send_failures = gcs_send_failures_;
+  r.fc_send_failures = fc_forward_failures_;
+  r.router = router_.counters();
+  r.gcs_parser = gcs_parser_.counters();
+  return r;
 }
 
 }  // namespace hq::vehicle

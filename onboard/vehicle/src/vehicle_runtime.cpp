@@ -183,12 +183,14 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
     status_.fc_override = true;
     arm_wanted_ = false;
     if (!fc.armed) {
-      event(t_ns, FcSeverity::kError,
-            "flight controller disarmed (its failsafe or the pilot): landing, not re-arming");
+      event(
+          t_ns, FcSeverity::kError,
+          "flight controller disarmed (its failsafe, the pilot or a GCS): landing, not re-arming");
       if (!landed()) chain_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
     } else {
       event(t_ns, FcSeverity::kError,
-            "flight controller left offboard (its failsafe or the pilot's RC): our setpoints "
+            "flight controller left offboard (its failsafe, the pilot's RC or a GCS): our "
+            "setpoints "
             "are not flown; holding, not re-entering offboard");
       if (!landed()) chain_.request_mode(modes::Mode::kHover, modes::RequestOrigin::kVehicle);
     }

@@ -10,11 +10,13 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -586,6 +588,12 @@ TEST(MavlinkFc, ConfigIsReadStrictlyAndValidated) {
               HasSubstr("mavlink.system_id"));
   EXPECT_THAT(input_error_message([&] { read("mavlink: {transport: ''}"); }),
               HasSubstr("onboard.yaml: mavlink.transport = \"\""));
+  EXPECT_THAT(input_error_message([&] { read("mavlink: {gcs: 'serial:/dev/ttyUSB0:57600'}"); }),
+              HasSubstr("mavlink.gcs = \"serial:/dev/ttyUSB0:57600\", expected"));
+  EXPECT_NO_THROW(read("mavlink: {gcs: 'udp-listen:14550'}"));
+  EXPECT_EQ(gcs_transport_spec("udp-listen:14550"), "udp-listen:0.0.0.0:14550");
+  EXPECT_EQ(gcs_transport_spec("udp-listen:127.0.0.1:14550"), "udp-listen:127.0.0.1:14550");
+  EXPECT_EQ(gcs_transport_spec("udp:10.0.0.5:14550"), "udp:10.0.0.5:14550");
 
   MavlinkFcConfig bad;
   bad.max_thrust_n = 0.0;
@@ -595,6 +603,190 @@ TEST(MavlinkFc, ConfigIsReadStrictlyAndValidated) {
   bad_transport.transport = "udp:127.0.0.1:99999";
   EXPECT_THAT(input_error_message([&] { MavlinkFlightController fc(bad_transport); }),
               HasSubstr("port 99999 out of range 1..65535"));
+}
+
+// A GCS listening on loopback, as QGroundControl does on 14550: every frame it gets, raw, so
+// messages the codec does not decode are seen too.
+class FakeGcs {
+ public:
+  explicit FakeGcs(int port)
+      : transport_(ml::open_transport("udp-listen:" + std::to_string(port))) {}
+  void send(const ml::Message& message) {
+    std::array<std::uint8_t, ml::kMaxFrameSize> frame{};
+    const std::size_t n = encoder_.encode(message, frame);
+    ASSERT_TRUE(transport_->send(std::span<const std::uint8_t>(frame.data(), n)))
+        << transport_->error();
+  }
+  /// Takes what arrived within timeout_ns, until `done` holds.
+  bool receive_until(std::int64_t timeout_ns, const std::function<bool()>& done) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
+    std::array<std::uint8_t, 2048> buffer{};
+    while (!done()) {
+      if (std::chrono::steady_clock::now() >= end) return false;
+      if (!transport_->wait_readable(5 * kMs)) continue;
+      const std::size_t n = transport_->receive(buffer);
+      parser_.feed(
+          std::span<const std::uint8_t>(buffer.data(), n),
+          [&](const ml::FrameHeader& h, const ml::Message& m) {
+            messages.push_back({h, m});
+          },
+          [&](const ml::RawFrame& f) { ids.push_back(f.header.message_id); });
+      parser_.end_of_datagram();
+    }
+    return true;
+  }
+  [[nodiscard]] int count(std::uint32_t id) const {
+    return static_cast<int>(std::count(ids.begin(), ids.end(), id));
+  }
+  std::vector<Received> messages;
+  std::vector<std::uint32_t> ids;
+
+ private:
+  std::unique_ptr<ml::Transport> transport_;
+  ml::Encoder encoder_{255, 190};
+  ml::Parser parser_;
+};
+
+ml::Heartbeat gcs_heartbeat() {
+  ml::Heartbeat hb;
+  hb.type = 6;  // MAV_TYPE_GCS
+  hb.autopilot = ml::kMavAutopilotInvalid;
+  return hb;
+}
+
+TEST(MavlinkFcGcs, FcAndGcsTrafficIsRoutedBothWaysByTarget) {
+  const int gcs_port = next_port();
+  FakeGcs gcs(gcs_port);
+  MavlinkFcConfig config;
+  config.gcs = "udp:127.0.0.1:" + std::to_string(gcs_port);
+  Link link(config);
+  // GIVEN the FC heard WHEN it sends its heartbeat, IMU and a message the codec does not decode
+  // THEN the GCS gets all of them, and our own heartbeat too.
+  ASSERT_TRUE(link.deliver(px4_heartbeat(true, ml::kPx4MainModeOffboard)));
+  ASSERT_TRUE(link.deliver_imu(1000, link.t_ns));
+  const std::vector<std::uint8_t> battery_status = {
+      0xFD, 2, 0, 0, 0, 1, 1, 147, 0, 0, 9, 9, 0x12, 0x34};  // id 147, CRC not checkable
+  link.fc.send_raw(battery_status);
+  EXPECT_TRUE(gcs.receive_until(kSecond, [&] {
+    link.controller->poll(link.t_ns, link.sink);
+    return gcs.count(ml::HighresImu::kId) >= 1 && gcs.count(147) == 1 &&
+           gcs.count(ml::Heartbeat::kId) >= 2;
+  }));
+  int fc_heartbeats = 0;
+  int companion_heartbeats = 0;
+  for (const Received& r : gcs.messages) {
+    if (!std::holds_alternative<ml::Heartbeat>(r.message)) continue;
+    (r.header.component_id == 1 ? fc_heartbeats : companion_heartbeats) += 1;
+  }
+  EXPECT_GE(fc_heartbeats, 1);
+  EXPECT_GE(companion_heartbeats, 1) << "the companion shows as a component of the vehicle";
+
+  // WHEN the companion sends a setpoint (addressed to the FC) THEN the GCS does not get it.
+  link.controller->send_setpoint(link.t_ns, {15.0, 0.0, 0.0, 0.0});
+  const auto setpoints = link.fc.receive_all<ml::SetAttitudeTarget>(kSecond, 1);
+  EXPECT_EQ(setpoints.size(), 1u);
+
+  // WHEN the GCS says hello and commands the FC THEN the FC gets both, and the operator is told.
+  gcs.send(gcs_heartbeat());
+  ml::CommandLong land;
+  land.command = ml::kMavCmdDoSetMode;
+  land.param = {1, 4, 6, 0, 0, 0, 0};
+  land.target_system = 1;
+  land.target_component = 1;
+  gcs.send(land);
+  std::vector<Received> at_fc;
+  ASSERT_TRUE(link.poll_until([&] {
+    const auto got = link.fc.receive(2 * kMs);
+    at_fc.insert(at_fc.end(), got.begin(), got.end());
+    return std::any_of(at_fc.begin(), at_fc.end(), [](const Received& r) {
+      return std::holds_alternative<ml::CommandLong>(r.message) && r.header.system_id == 255;
+    });
+  }));
+  EXPECT_TRUE(std::any_of(at_fc.begin(), at_fc.end(), [](const Received& r) {
+    return std::holds_alternative<ml::Heartbeat>(r.message) && r.header.system_id == 255;
+  }));
+  EXPECT_TRUE(link.sink.said("GCS heard: system 255, component 190"));
+  EXPECT_TRUE(link.sink.said("GCS (system 255) sent MAV_CMD_DO_SET_MODE"));
+
+  // WHEN the FC acks to the GCS THEN the ack goes to the GCS.
+  ml::CommandAck ack;
+  ack.command = ml::kMavCmdDoSetMode;
+  ack.target_system = 255;
+  ack.target_component = 190;
+  link.fc.send(ack);
+  EXPECT_TRUE(gcs.receive_until(kSecond, [&] {
+    link.controller->poll(link.t_ns, link.sink);
+    return gcs.count(ml::CommandAck::kId) == 1;
+  }));
+
+  const std::optional<GcsRouting> routing = link.controller->gcs_routing();
+  ASSERT_TRUE(routing.has_value());
+  EXPECT_EQ(routing->gcs_system, 255);
+  EXPECT_EQ(routing->peer, "127.0.0.1:" + std::to_string(gcs_port));
+  EXPECT_GE(routing->fc_to_gcs, 4u);
+  EXPECT_EQ(routing->gcs_to_fc, 2u);
+  EXPECT_GE(routing->companion_to_gcs, 1u);
+  EXPECT_EQ(gcs.count(ml::SetAttitudeTarget::kId), 0) << "setpoints are the FC's alone";
+  EXPECT_EQ(routing->router.unchecked_broadcast, 1u);
+  EXPECT_EQ(routing->router.dropped(), 0u);
+  EXPECT_THAT(link.controller->describe(), HasSubstr("routed to a GCS udp:127.0.0.1:"));
+}
+
+TEST(MavlinkFcGcs, ListeningForAGcsLearnsItsAddressFromWhatItSends) {
+  const int gcs_port = next_port();
+  MavlinkFcConfig config;
+  config.gcs = "udp-listen:127.0.0.1:" + std::to_string(gcs_port);
+  Link link(config);
+  ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
+  // Nobody heard yet: the FC's frames have nowhere to go, counted, not an error per frame.
+  EXPECT_GE(link.controller->gcs_routing()->gcs_send_failures, 1u);
+  EXPECT_EQ(link.controller->gcs_routing()->peer, "");
+
+  auto gcs = ml::open_transport("udp:127.0.0.1:" + std::to_string(gcs_port));
+  std::array<std::uint8_t, ml::kMaxFrameSize> frame{};
+  ml::Encoder encoder(255, 190);
+  const std::size_t n = encoder.encode(gcs_heartbeat(), frame);
+  ASSERT_TRUE(gcs->send(std::span<const std::uint8_t>(frame.data(), n)));
+  ASSERT_TRUE(link.poll_until([&] { return link.sink.said("GCS heard"); }));
+  link.fc.send(px4_heartbeat(false, 3));
+  ml::Parser parser;
+  int heartbeats_from_fc = 0;
+  std::array<std::uint8_t, 2048> rx{};
+  for (int i = 0; i < 500 && heartbeats_from_fc == 0; ++i) {
+    link.controller->poll(link.t_ns, link.sink);
+    for (std::size_t got = gcs->receive(rx); got > 0; got = gcs->receive(rx)) {
+      parser.feed(std::span<const std::uint8_t>(rx.data(), got),
+                  [&](const ml::FrameHeader& h, const ml::Message& m) {
+                    if (std::holds_alternative<ml::Heartbeat>(m) && h.component_id == 1) {
+                      ++heartbeats_from_fc;
+                    }
+                  });
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_EQ(heartbeats_from_fc, 1);
+  EXPECT_THAT(link.controller->gcs_routing()->peer, HasSubstr("127.0.0.1:"));
+}
+
+TEST(MavlinkFcGcs, RoutingAllocatesNothingAfterTheFirstCall) {
+  const int gcs_port = next_port();
+  FakeGcs gcs(gcs_port);
+  MavlinkFcConfig config;
+  config.gcs = "udp:127.0.0.1:" + std::to_string(gcs_port);
+  Link link(config);
+  CountingSink sink;
+  ASSERT_TRUE(link.deliver(px4_heartbeat(true, ml::kPx4MainModeOffboard)));
+  std::int64_t t = link.t_ns;
+  std::uint64_t stamp_usec = 1'000'000;
+  const long before = hq::testing::allocation_count();
+  for (int i = 0; i < 50; ++i, t += 4 * kMs) {
+    link.fc.send(imu_at(stamp_usec += 4000));
+    link.controller->poll(t, sink);
+    link.controller->send_setpoint(t, {15.0, 0.05, -0.05, 0.2});
+    link.controller->send_velocity_estimate(t, Eigen::Vector3d(0.1, 0.2, 0.3), 0.01);
+  }
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
+  EXPECT_GE(link.controller->gcs_routing()->fc_to_gcs, 40u);
 }
 
 }  // namespace

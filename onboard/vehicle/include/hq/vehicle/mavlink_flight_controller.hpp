@@ -8,9 +8,16 @@
 /// arrives late by the transport delay and the least-delayed one bounds it most tightly (the
 /// minimum-delay rule of NTP-style one-way clock estimation). The same offset stamps what we send
 /// (time_boot_ms, usec) in the FC's clock.
+///
+/// With a GCS (`gcs`), the companion is also a MAVLink router between the FC and the GCS
+/// (mavlink::Router; what mavlink-router or MAVROS's GCS bridge do elsewhere): the FC's frames
+/// are forwarded as they arrive, tapped from the same parse, the GCS's frames go to the FC, and
+/// our own broadcasts (heartbeat, vision speed) reach the GCS too, so it sees the companion as a
+/// component; our setpoints and commands, addressed to the FC, do not.
 
 #include "hq/config/strict_yaml.hpp"
 #include "hq/mavlink/codec.hpp"
+#include "hq/mavlink/router.hpp"
 #include "hq/mavlink/transport.hpp"
 #include "hq/vehicle/flight_controller.hpp"
 
@@ -18,6 +25,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace hq::vehicle {
@@ -25,8 +33,13 @@ namespace hq::vehicle {
 struct MavlinkFcConfig {
   enum class Autopilot { kAuto, kPx4, kArduPilot };
   std::string transport = "udp:127.0.0.1:14540";  ///< mavlink::open_transport() spec.
-  std::uint8_t system_id = 1;                     ///< Ours (a companion shares the vehicle's).
-  std::uint8_t component_id = 191;                ///< MAV_COMP_ID_ONBOARD_COMPUTER.
+  /// A ground control station the FC's traffic is routed to and from: "" none,
+  /// udp:HOST:PORT (a GCS listening there, QGroundControl's default is 14550) or
+  /// udp-listen:[HOST:]PORT (the GCS's address learnt from what it sends; all interfaces when
+  /// HOST is omitted, since a GCS is on another machine).
+  std::string gcs;
+  std::uint8_t system_id = 1;       ///< Ours (a companion shares the vehicle's).
+  std::uint8_t component_id = 191;  ///< MAV_COMP_ID_ONBOARD_COMPUTER.
   /// Nothing from the FC (heartbeat, IMU, attitude: any message) for longer: not connected.
   double heartbeat_timeout_s = 1.0;
   double heartbeat_rate_hz = 1.0;  ///< Our HEARTBEAT, sent from poll().
@@ -44,7 +57,24 @@ struct MavlinkFcConfig {
   void validate(const std::string& where = "mavlink.") const;
 };
 
-/// Reads the `mavlink:` section strictly: transport, system_id, component_id,
+/// The GCS spec as the transport opens it: udp-listen:PORT listens on every interface.
+std::string gcs_transport_spec(const std::string& gcs);
+
+/// What the routing between the FC and a GCS did, for the run's summary.
+struct GcsRouting {
+  std::string spec;                     ///< As configured, e.g. udp:192.168.1.20:14550.
+  std::string peer;                     ///< The GCS's address, "" if never heard (udp-listen).
+  int gcs_system = -1;                  ///< The GCS's system id as heard, -1 never.
+  std::uint64_t fc_to_gcs = 0;          ///< FC frames forwarded to the GCS.
+  std::uint64_t gcs_to_fc = 0;          ///< GCS frames forwarded to the FC.
+  std::uint64_t companion_to_gcs = 0;   ///< Our own broadcasts (heartbeat, vision speed).
+  std::uint64_t gcs_send_failures = 0;  ///< Not sent: no GCS address yet, or a socket error.
+  std::uint64_t fc_send_failures = 0;   ///< GCS frames the FC's transport refused.
+  mavlink::RouterCounters router;
+  mavlink::ParserCounters gcs_parser;  ///< Frames from the GCS: bad CRC, truncated, ...
+};
+
+/// Reads the `mavlink:` section strictly: transport, gcs, system_id, component_id,
 /// heartbeat_timeout_s, heartbeat_rate_hz, max_thrust_n, autopilot (auto | px4 | ardupilot),
 /// max_yaw_lead_rad, imu_rate_hz; then validate().
 void read_config(config::StrictMap& section, MavlinkFcConfig& out);
@@ -71,8 +101,14 @@ class MavlinkFlightController final : public FlightController {
   [[nodiscard]] FcStatus status(std::int64_t t_ns) const override;
   [[nodiscard]] FcCounters counters() const override;
   [[nodiscard]] std::string describe() const override;
+  /// The routing to and from the GCS; nullopt without one. Allocates (the addresses).
+  [[nodiscard]] std::optional<GcsRouting> gcs_routing() const;
 
  private:
+  /// Router links: our own frames, the FC's, the GCS's.
+  static constexpr std::size_t kLinkCompanion = 0;
+  static constexpr std::size_t kLinkFc = 1;
+  static constexpr std::size_t kLinkGcs = 2;
   using Autopilot = MavlinkFcConfig::Autopilot;
   static constexpr std::size_t kOffsetWindow = 64;
 
@@ -85,6 +121,10 @@ class MavlinkFlightController final : public FlightController {
   [[nodiscard]] bool connected(std::int64_t t_ns) const;
   [[nodiscard]] Autopilot autopilot() const;
   bool send(const mavlink::Message& message);
+  /// Sends one received frame to the links the router chose (not the companion: it has read it).
+  void forward(std::size_t from, const mavlink::RawFrame& frame);
+  /// Everything the GCS sent: routed to the FC; mode and arming commands said as events.
+  void poll_gcs(FcSink& sink);
   void send_command(std::uint16_t command, float param1, float param2);
   /// Formats into text_ (no allocation) and hands it to the sink.
   template <typename... Args>
@@ -98,6 +138,14 @@ class MavlinkFlightController final : public FlightController {
   std::unique_ptr<mavlink::Transport> transport_;
   mavlink::Encoder encoder_;
   mavlink::Parser parser_;
+  std::unique_ptr<mavlink::Transport> gcs_;  ///< Null without a GCS.
+  mavlink::Parser gcs_parser_;
+  mavlink::Router router_{3, kLinkCompanion};
+  /// sent_[from][to]: frames routed and sent, by link.
+  std::array<std::array<std::uint64_t, 3>, 3> sent_{};
+  std::uint64_t gcs_send_failures_ = 0;
+  std::uint64_t fc_forward_failures_ = 0;
+  int gcs_system_ = -1;
   std::array<std::uint8_t, 65536> rx_{};
   std::array<std::uint8_t, mavlink::kMaxFrameSize> tx_{};
   std::array<char, 160> text_{};  ///< Event text, formatted without allocating.

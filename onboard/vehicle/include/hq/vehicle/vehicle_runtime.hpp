@@ -7,7 +7,8 @@
 /// through this same code, so the fail-safes are the same for all of them:
 ///   - no setpoint stream until the chain has an estimate (or knows it is landed, at rest);
 ///   - flight controller silent beyond its timeout: an error event, the chain holds (hover);
-///   - flight controller disarmed or out of offboard on its own (its failsafe, the pilot's RC):
+///   - flight controller disarmed or out of offboard on its own (its failsafe, the pilot's RC, a
+///   GCS):
 ///     said once, the chain lands or holds, and the runtime never re-arms or re-enters offboard
 ///     by itself: only an operator's request for a flying mode asks the FC to arm (retried a
 ///     few times while the FC is not yet heard or refuses);
