@@ -135,8 +135,7 @@ Result run(Path path, double rate_hz, double seconds) {
   std::atomic<bool> sending_done{false};
   std::atomic<bool> stop{false};
 
-  std::thread receiver(
-      [&] { receive_latencies(*gcs, sending_done, stop, latency_ns); });
+  std::thread receiver([&] { receive_latencies(*gcs, sending_done, stop, latency_ns); });
 
   std::thread router;
   if (companion) router = std::thread([&] { poll_companion(*companion, path, stop); });
@@ -182,9 +181,10 @@ int run_bench(int argc, char** argv) {
   app.add_option("--rates", rates, "messages per second")->delimiter(',');
   CLI11_PARSE(app, argc, argv);
 
-  fmt::print("hq-bench-gcs-forwarding: HIGHRES_IMU (74-byte frames) FC -> GCS on loopback UDP, "
-             "{:.1f} s per rate and path; latency in microseconds\n",
-             seconds);
+  fmt::print(
+      "hq-bench-gcs-forwarding: HIGHRES_IMU (74-byte frames) FC -> GCS on loopback UDP, "
+      "{:.1f} s per rate and path; latency in microseconds\n",
+      seconds);
   fmt::print("{:>8}  {:<24} {:>8} {:>9} {:>6} {:>9} {:>9} {:>9}\n", "msg/s", "path", "sent",
              "received", "lost", "p50", "p99", "max");
   for (const double rate : rates) {
@@ -200,4 +200,6 @@ int run_bench(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) { return hq::run_tool("hq-bench-gcs-forwarding", argc, argv, run_bench); }
+int main(int argc, char** argv) {
+  return hq::run_tool("hq-bench-gcs-forwarding", argc, argv, run_bench);
+}
