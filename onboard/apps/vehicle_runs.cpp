@@ -280,6 +280,12 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     hq::vehicle::MavlinkFcConfig fc_config;
     fc_config.transport = fc_spec.substr(std::string("mavlink:").size());
     if (o.fc_max_thrust_n > 0.0) fc_config.max_thrust_n = o.fc_max_thrust_n;
+    const auto velocity_message = hq::vehicle::parse_velocity_message(o.fc_velocity_message);
+    if (!velocity_message) {
+      throw hq::InputError("--fc-velocity-message " + o.fc_velocity_message +
+                           ": expected odometry or vision_speed_estimate");
+    }
+    fc_config.velocity_message = *velocity_message;
     fc = std::make_unique<hq::vehicle::MavlinkFlightController>(fc_config);
   }
   std::fprintf(stderr, "hq-onboard: flight controller: %s\n", fc->describe().c_str());

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <numbers>
+#include <optional>
 #include <string_view>
 
 namespace hq::vehicle {
@@ -27,6 +29,22 @@ constexpr double kMaxYawStepS = 0.1;
 constexpr std::uint8_t kMavTypeGcs = 6;
 constexpr std::uint8_t kMavSeverityError = 3;
 constexpr std::uint8_t kMavSeverityWarning = 4;
+
+// ODOMETRY quality (common.xml: 1 worst .. 100 best): a tracked velocity scores 50..100 with its
+// standard deviation (100 at or below kQualitySigmaMps, 50 at twice it and worse), an IMU coast
+// 1..49 likewise: it is the FC's own IMU integrated, which PX4 can be told to skip
+// (EKF2_EV_QMIN = 50).
+constexpr double kQualitySigmaMps = 0.1;
+
+std::int8_t odometry_quality(const VelocityReport& report, const Eigen::Matrix3d& covariance) {
+  const double sigma_mps = std::sqrt(std::max(covariance.diagonal().maxCoeff(), 0.0));
+  const double score =
+      std::clamp(kQualitySigmaMps / std::max(sigma_mps, 1e-9), 0.5, 1.0);  // 0.5 .. 1
+  const double quality = report.source == VelocitySource::kOdometry
+                             ? 100.0 * score
+                             : std::max(1.0, 49.0 * (2.0 * score - 1.0));
+  return static_cast<std::int8_t>(std::lround(quality));
+}
 
 double wrap_pi(double angle_rad) { return std::remainder(angle_rad, 2.0 * std::numbers::pi); }
 
@@ -82,6 +100,18 @@ void MavlinkFcConfig::validate(const std::string& where) const {
   if (!(imu_rate_hz >= 10.0 && imu_rate_hz <= 1000.0)) {
     fail("imu_rate_hz", text(imu_rate_hz), "in [10, 1000]");
   }
+  if (velocity_message != VelocityMessage::kOdometry &&
+      velocity_message != VelocityMessage::kVisionSpeedEstimate) {
+    fail("velocity_message", std::to_string(static_cast<int>(velocity_message)),
+         "odometry or vision_speed_estimate");
+  }
+}
+
+std::optional<MavlinkFcConfig::VelocityMessage> parse_velocity_message(std::string_view name) {
+  if (name == "odometry") return MavlinkFcConfig::VelocityMessage::kOdometry;
+  if (name == "vision_speed_estimate")
+    return MavlinkFcConfig::VelocityMessage::kVisionSpeedEstimate;
+  return std::nullopt;
 }
 
 void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
@@ -104,6 +134,11 @@ void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
                                              : MavlinkFcConfig::Autopilot::kAuto;
   section.read_positive("max_yaw_lead_rad", out.max_yaw_lead_rad, std::numbers::pi);
   section.read_positive("imu_rate_hz", out.imu_rate_hz, 1000.0);
+  std::string velocity_message = out.velocity_message == MavlinkFcConfig::VelocityMessage::kOdometry
+                                     ? "odometry"
+                                     : "vision_speed_estimate";
+  section.read("velocity_message", velocity_message, {"odometry", "vision_speed_estimate"});
+  out.velocity_message = *parse_velocity_message(velocity_message);
   section.finish();
   // The key path without a key, e.g. "config/onboard.yaml: mavlink.", for the same messages.
   const std::string path = section.describe("transport");
@@ -181,6 +216,13 @@ void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
     said_offboard_ = offboard_;
     event(sink, offboard_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC %s",
           offboard_ ? "entered offboard mode" : "left offboard mode");
+  }
+  if (is_connected && autopilot() == Autopilot::kArduPilot && !said_ardupilot_odometry_ &&
+      config_.velocity_message == MavlinkFcConfig::VelocityMessage::kOdometry) {
+    said_ardupilot_odometry_ = true;
+    event(sink, FcSeverity::kWarning, "%s",
+          "ArduPilot takes ODOMETRY's pose too and HaptiQuad sends none: fly it with "
+          "--fc-velocity-message vision_speed_estimate");
   }
   if (pending_no_autopilot_) {
     pending_no_autopilot_ = false;
@@ -364,25 +406,68 @@ void MavlinkFlightController::send_setpoint(std::int64_t t_ns,
   if (send(target)) ++counters_.setpoints_sent;
 }
 
-void MavlinkFlightController::send_velocity_estimate(std::int64_t t_ns,
-                                                     const Eigen::Vector3d& v_H_mps,
-                                                     double variance_m2ps2) {
-  if (!v_H_mps.allFinite() || !std::isfinite(variance_m2ps2) || variance_m2ps2 < 0.0) {
+void MavlinkFlightController::send_velocity(const VelocityReport& report) {
+  const Eigen::Matrix3d& covariance_H = report.covariance_H_m2ps2;
+  if (!report.v_H_mps.allFinite() || !covariance_H.allFinite() || !std::isfinite(report.roll_rad) ||
+      !std::isfinite(report.pitch_rad) || covariance_H.diagonal().minCoeff() < 0.0) {
     ++counters_.send_failures;
     return;
   }
-  // H is the yaw-only frame of the body: NED = Rz(yaw) H.
-  const double yaw_rad = have_fc_yaw_ ? fc_yaw_rad_ : 0.0;
-  const Eigen::Vector3d v_NED_mps = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) * v_H_mps;
-  ml::VisionSpeedEstimate estimate;
-  estimate.usec = static_cast<std::uint64_t>(fc_time_ns(t_ns) / 1000);
-  estimate.x_mps = static_cast<float>(v_NED_mps.x());
-  estimate.y_mps = static_cast<float>(v_NED_mps.y());
-  estimate.z_mps = static_cast<float>(v_NED_mps.z());
-  estimate.covariance = {};
-  estimate.covariance[0] = estimate.covariance[4] = estimate.covariance[8] =
-      static_cast<float>(variance_m2ps2);
-  send(estimate);
+  const auto usec = static_cast<std::uint64_t>(fc_time_ns(report.t_ns) / 1000);
+  if (config_.velocity_message == MavlinkFcConfig::VelocityMessage::kVisionSpeedEstimate) {
+    // H is the yaw-only frame of the body: NED = Rz(yaw) H.
+    const Eigen::Matrix3d R_NED_H =
+        Eigen::AngleAxisd(have_fc_yaw_ ? fc_yaw_rad_ : 0.0, Eigen::Vector3d::UnitZ())
+            .toRotationMatrix();
+    const Eigen::Vector3d v_NED_mps = R_NED_H * report.v_H_mps;
+    const Eigen::Matrix3d covariance_NED = R_NED_H * covariance_H * R_NED_H.transpose();
+    ml::VisionSpeedEstimate estimate;
+    estimate.usec = usec;
+    estimate.x_mps = static_cast<float>(v_NED_mps.x());
+    estimate.y_mps = static_cast<float>(v_NED_mps.y());
+    estimate.z_mps = static_cast<float>(v_NED_mps.z());
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        estimate.covariance[static_cast<std::size_t>(3 * r + c)] =
+            static_cast<float>(covariance_NED(r, c));
+      }
+    }
+    estimate.reset_counter = report.reset_counter;
+    if (send(estimate)) ++counters_.velocity_reports_sent;
+    return;
+  }
+  // v_H = R_H_B v_B with R_H_B = Ry(pitch) Rx(roll) (eq. 5 of the core paper): the body FRD
+  // velocity EKF2 rotates with its own attitude (VELOCITY_FRAME_BODY_FRD).
+  const Eigen::Matrix3d R_H_B = (Eigen::AngleAxisd(report.pitch_rad, Eigen::Vector3d::UnitY()) *
+                                 Eigen::AngleAxisd(report.roll_rad, Eigen::Vector3d::UnitX()))
+                                    .toRotationMatrix();
+  const Eigen::Vector3d v_B_mps = R_H_B.transpose() * report.v_H_mps;
+  const Eigen::Matrix3d covariance_B = R_H_B.transpose() * covariance_H * R_H_B;
+  constexpr float kUnknown = std::numeric_limits<float>::quiet_NaN();
+  ml::Odometry odometry;
+  odometry.time_usec = usec;
+  // A velocity-only source: no pose (NaN position, orientation and pose covariance), which PX4's
+  // receiver leaves unset while it still takes the velocity.
+  odometry.x_m = odometry.y_m = odometry.z_m = kUnknown;
+  odometry.q.fill(kUnknown);
+  odometry.pose_covariance.fill(kUnknown);
+  odometry.vx_mps = static_cast<float>(v_B_mps.x());
+  odometry.vy_mps = static_cast<float>(v_B_mps.y());
+  odometry.vz_mps = static_cast<float>(v_B_mps.z());
+  odometry.rollspeed_radps = odometry.pitchspeed_radps = odometry.yawspeed_radps = kUnknown;
+  odometry.velocity_covariance.fill(kUnknown);  // the rates' rows and columns: unknown
+  for (std::size_t r = 0; r < 3; ++r) {
+    for (std::size_t c = r; c < 3; ++c) {
+      odometry.velocity_covariance[ml::upper_triangle_index(r, c)] = static_cast<float>(
+          covariance_B(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)));
+    }
+  }
+  odometry.frame_id = ml::kMavFrameLocalFrd;
+  odometry.child_frame_id = ml::kMavFrameBodyFrd;
+  odometry.reset_counter = report.reset_counter;
+  odometry.estimator_type = ml::kMavEstimatorTypeVio;
+  odometry.quality_pct = odometry_quality(report, covariance_B);
+  if (send(odometry)) ++counters_.velocity_reports_sent;
 }
 
 void MavlinkFlightController::send_command(std::uint16_t command, float param1, float param2) {

@@ -1,7 +1,8 @@
 #pragma once
 /// The flight controller over MAVLink (PX4, ArduPilot, hq-sim --sitl): HIGHRES_IMU and ATTITUDE
-/// in, SET_ATTITUDE_TARGET and VISION_SPEED_ESTIMATE out, arming and the offboard mode by
-/// COMMAND_LONG, health from HEARTBEAT, SYS_STATUS and STATUSTEXT.
+/// in, SET_ATTITUDE_TARGET and the velocity (ODOMETRY, or VISION_SPEED_ESTIMATE by option) out,
+/// arming and the offboard mode by COMMAND_LONG, health from HEARTBEAT, SYS_STATUS and
+/// STATUSTEXT.
 ///
 /// Clocks: the FC stamps in its boot time; the runtime clock is whatever t_ns poll() is given.
 /// offset = min over a sliding window of (t_ns at receipt - FC stamp), because every packet
@@ -18,12 +19,18 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace hq::vehicle {
 
 struct MavlinkFcConfig {
   enum class Autopilot { kAuto, kPx4, kArduPilot };
+  /// ODOMETRY: what PX4's EKF2 reads external-vision velocity from (body FRD velocity, no
+  /// pose). VISION_SPEED_ESTIMATE: NED velocity, for ArduPilot's VISO MAVLink backend, which
+  /// takes ODOMETRY's pose as well and HaptiQuad has none to give.
+  enum class VelocityMessage { kOdometry, kVisionSpeedEstimate };
   std::string transport = "udp:127.0.0.1:14540";  ///< mavlink::open_transport() spec.
   std::uint8_t system_id = 1;                     ///< Ours (a companion shares the vehicle's).
   std::uint8_t component_id = 191;                ///< MAV_COMP_ID_ONBOARD_COMPUTER.
@@ -38,6 +45,7 @@ struct MavlinkFcConfig {
   double max_yaw_lead_rad = 0.3;
   /// HIGHRES_IMU rate asked of the FC once it is heard (MAV_CMD_SET_MESSAGE_INTERVAL).
   double imu_rate_hz = 200.0;
+  VelocityMessage velocity_message = VelocityMessage::kOdometry;
 
   /// Throws hq::InputError naming the key after the prefix `where`, e.g.
   /// `config/onboard.yaml: mavlink.max_thrust_n = -1, expected > 0 and <= 10000`.
@@ -46,8 +54,11 @@ struct MavlinkFcConfig {
 
 /// Reads the `mavlink:` section strictly: transport, system_id, component_id,
 /// heartbeat_timeout_s, heartbeat_rate_hz, max_thrust_n, autopilot (auto | px4 | ardupilot),
-/// max_yaw_lead_rad, imu_rate_hz; then validate().
+/// max_yaw_lead_rad, imu_rate_hz, velocity_message (odometry | vision_speed_estimate); then
+/// validate().
 void read_config(config::StrictMap& section, MavlinkFcConfig& out);
+/// "odometry" or "vision_speed_estimate" (config key, --fc-velocity-message); nullopt otherwise.
+std::optional<MavlinkFcConfig::VelocityMessage> parse_velocity_message(std::string_view name);
 
 class MavlinkFlightController final : public FlightController {
  public:
@@ -63,9 +74,10 @@ class MavlinkFlightController final : public FlightController {
   /// SET_ATTITUDE_TARGET, q = Rz(yaw_target) Ry(pitch) Rx(roll) of B (FRD) in NED. Not sent
   /// (counted a send failure) if not finite or no FC has been heard yet.
   void send_setpoint(std::int64_t t_ns, const control::AttitudeSetpoint& setpoint) override;
-  /// VISION_SPEED_ESTIMATE, v_NED = Rz(fc_yaw) v_H, covariance diagonal = variance.
-  void send_velocity_estimate(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
-                              double variance_m2ps2) override;
+  /// ODOMETRY: v_B = R_H_B^T v_H (child frame MAV_FRAME_BODY_FRD), its covariance rotated
+  /// likewise, pose unknown (NaN), estimator VIO, quality from the source and the covariance.
+  /// Or VISION_SPEED_ESTIMATE: v_NED = Rz(fc_yaw) v_H. Not sent (a send failure) if not finite.
+  void send_velocity(const VelocityReport& report) override;
   void request_arm_offboard(std::int64_t t_ns) override;
   void request_disarm(std::int64_t t_ns) override;
   [[nodiscard]] FcStatus status(std::int64_t t_ns) const override;
@@ -122,6 +134,7 @@ class MavlinkFlightController final : public FlightController {
   bool said_armed_ = false;
   bool said_offboard_ = false;
   bool pending_no_autopilot_ = false;
+  bool said_ardupilot_odometry_ = false;
 
   // Clock mapping: offsets (receipt - FC stamp) of the last kOffsetWindow IMU samples.
   std::array<std::int64_t, kOffsetWindow> offsets_ns_{};
