@@ -372,6 +372,19 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
                runtime.status().fc_lost        ? "LOST"
                : runtime.status().fc.connected ? "connected"
                                                : "never heard");
+    fmt::print("  {:<40} {} sent, {} restarts (reset_counter)\n", "velocity to the FC",
+               fcc.velocity_reports_sent, rc.velocity_resets);
+    if (fcc.clock_from_timesync) {
+      fmt::print(
+          "  {:<40} TIMESYNC: offset {:.3f} ms, jitter {:.3f} ms, RTT {:.3f} ms "
+          "({} answers, {} dropped)\n",
+          "FC clock", 1e-6 * static_cast<double>(fcc.timesync_offset_ns),
+          1e-6 * fcc.timesync_jitter_ns, 1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
+          fcc.timesync_samples, fcc.timesync_rejected);
+    } else {
+      fmt::print("  {:<40} least-delayed packet (no TIMESYNC answers: {} taken, {} dropped)\n",
+                 "FC clock", fcc.timesync_samples, fcc.timesync_rejected);
+    }
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
 }

@@ -400,7 +400,12 @@ struct VehicleLoop {
       report.covariance_H_m2ps2 =
           kVelocityNoiseMps * kVelocityNoiseMps * Eigen::Matrix3d::Identity();
       fc.send_velocity(report);
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      // Polled every 2 ms in between, as the runtime polls every control period: an answer's
+      // receipt is stamped at the poll that reads it, which bounds the TIMESYNC round trip.
+      for (int i = 0; i < 10; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        fc.poll(hq::monotonic_now_ns(), sink);
+      }
     }
   }
 };
@@ -487,6 +492,19 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   EXPECT_LT(fused, 0.5 * kVelocityNoiseMps * std::sqrt(3.0)) << summary;
   EXPECT_LT(fused, received);
   EXPECT_GT(number_after(summary, "LAND descended on vision"), 1.0) << summary;
+  // The SITL answers TIMESYNC as PX4 does: the client's clock comes from the round trips. Its
+  // clock is the simulated time, paced to the host's: the offset is the SITL's start on the
+  // host clock, good to the SITL's 2 ms tick (answers are read once per tick).
+  const hq::vehicle::FcCounters fcc = fc.counters();
+  std::printf("TIMESYNC: offset %.3f ms, jitter %.3f ms, RTT %.3f ms, %llu answers, %llu dropped\n",
+              1e-6 * static_cast<double>(fcc.timesync_offset_ns), 1e-6 * fcc.timesync_jitter_ns,
+              1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
+              static_cast<unsigned long long>(fcc.timesync_samples),
+              static_cast<unsigned long long>(fcc.timesync_rejected));
+  EXPECT_TRUE(fcc.clock_from_timesync);
+  EXPECT_GT(fcc.timesync_samples, 50u);
+  EXPECT_LT(fcc.timesync_jitter_ns, 2e6);
+  EXPECT_GT(number_after(summary, "TIMESYNC answered"), 50.0);
   EXPECT_THAT(summary, HasSubstr("collision ticks airborne 0"));
 }
 

@@ -172,7 +172,8 @@ void SitlAutopilot::handle_odometry(const mavlink::Odometry& o) {
     ++stats_.rejected_estimator;
     return;
   }
-  const Eigen::Vector3d v(o.vx_mps, o.vy_mps, o.vz_mps);
+  const Eigen::Vector3d v(static_cast<double>(o.vx_mps), static_cast<double>(o.vy_mps),
+                          static_cast<double>(o.vz_mps));
   if (!v.allFinite()) {
     ++stats_.rejected_nan;
     return;
@@ -180,8 +181,8 @@ void SitlAutopilot::handle_odometry(const mavlink::Odometry& o) {
   Eigen::Matrix3d R_child;  // the velocity's covariance as sent (NaN in [0]: unknown)
   for (std::size_t r = 0; r < 3; ++r) {
     for (std::size_t c = 0; c < 3; ++c) {
-      R_child(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
-          o.velocity_covariance[mavlink::upper_triangle_index(std::min(r, c), std::max(r, c))];
+      R_child(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = static_cast<double>(
+          o.velocity_covariance[mavlink::upper_triangle_index(std::min(r, c), std::max(r, c))]);
     }
   }
   Eigen::Matrix3d R_NED_child;

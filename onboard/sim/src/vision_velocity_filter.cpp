@@ -64,8 +64,8 @@ VisionFuse VisionVelocityFilter::fuse(std::int64_t t_meas_ns, const Eigen::Vecto
   const bool have_then = velocity_at(t_meas_ns, v_then);
   if (!initialised_ || reset_counter != reset_counter_) {
     // A reset: start on the measurement, carried to now by the IMU since its stamp.
-    const Eigen::Vector3d carried = have_then ? Eigen::Vector3d(v_NED_mps_ - v_then)
-                                              : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d carried =
+        have_then ? Eigen::Vector3d(v_NED_mps_ - v_then) : Eigen::Vector3d::Zero();
     const bool was_reset = initialised_;
     v_NED_mps_ = z_NED_mps + (initialised_ ? carried : Eigen::Vector3d::Zero());
     P_ = R;

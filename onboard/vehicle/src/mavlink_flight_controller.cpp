@@ -23,6 +23,14 @@ namespace ml = mavlink;
 constexpr std::int64_t kOffsetJumpNs = 50'000'000;
 // At most this many datagrams or reads per poll(), so a flood cannot hold the loop.
 constexpr int kMaxReadsPerPoll = 1000;
+// TIMESYNC: the filter averages the first kTimesyncWarmup answers, then follows with weight
+// kTimesyncAlpha (a time constant of 20 answers, 2 s at 10 Hz); an answer farther than
+// kTimesyncOutlierNs from the offset is dropped, unless kTimesyncResetAfter come in a row
+// (the FC rebooted: its clock restarted), which restarts the filter.
+constexpr std::uint64_t kTimesyncWarmup = 5;
+constexpr double kTimesyncAlpha = 0.05;
+constexpr double kTimesyncOutlierNs = 5e6;
+constexpr int kTimesyncResetAfter = 5;
 // A setpoint gap longer than this integrates no yaw (a stall must not turn the vehicle).
 constexpr double kMaxYawStepS = 0.1;
 
@@ -100,6 +108,12 @@ void MavlinkFcConfig::validate(const std::string& where) const {
   if (!(imu_rate_hz >= 10.0 && imu_rate_hz <= 1000.0)) {
     fail("imu_rate_hz", text(imu_rate_hz), "in [10, 1000]");
   }
+  if (!(timesync_rate_hz >= 0.0 && timesync_rate_hz <= 50.0)) {
+    fail("timesync_rate_hz", text(timesync_rate_hz), ">= 0 and <= 50");
+  }
+  if (!(timesync_max_rtt_s > 0.0 && timesync_max_rtt_s <= 1.0)) {
+    fail("timesync_max_rtt_s", text(timesync_max_rtt_s), "> 0 and <= 1");
+  }
   if (velocity_message != VelocityMessage::kOdometry &&
       velocity_message != VelocityMessage::kVisionSpeedEstimate) {
     fail("velocity_message", std::to_string(static_cast<int>(velocity_message)),
@@ -138,6 +152,8 @@ void read_config(config::StrictMap& section, MavlinkFcConfig& out) {
                                      ? "odometry"
                                      : "vision_speed_estimate";
   section.read("velocity_message", velocity_message, {"odometry", "vision_speed_estimate"});
+  section.read("timesync_rate_hz", out.timesync_rate_hz, 0.0, 50.0);
+  section.read_positive("timesync_max_rtt_s", out.timesync_max_rtt_s, 1.0);
   out.velocity_message = *parse_velocity_message(velocity_message);
   section.finish();
   // The key path without a key, e.g. "config/onboard.yaml: mavlink.", for the same messages.
@@ -182,6 +198,18 @@ void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
     send(hb);
     sent_first_heartbeat_ = true;
     last_heartbeat_sent_ns_ = t_ns;
+  }
+
+  if (config_.timesync_rate_hz > 0.0 &&
+      (last_timesync_sent_ns_ < 0 ||
+       static_cast<double>(t_ns - last_timesync_sent_ns_) >= 1e9 / config_.timesync_rate_hz)) {
+    ml::Timesync request;
+    request.tc1_ns = 0;
+    request.ts1_ns = t_ns;
+    request.target_system = target_system_;  // 0 (broadcast) until the FC is heard
+    request.target_component = target_component_;
+    if (send(request)) timesync_pending_ts1_ns_ = t_ns;
+    last_timesync_sent_ns_ = t_ns;
   }
 
   const bool datagrams = transport_->datagrams();
@@ -244,11 +272,13 @@ void MavlinkFlightController::handle(std::int64_t t_ns, const ml::FrameHeader& h
   if (have_target_ && header.system_id != target_system_) return;
   if (have_target_) last_heard_ns_ = t_ns;
 
-  if (const auto* imu = std::get_if<ml::HighresImu>(&message)) {
+  if (const auto* ts = std::get_if<ml::Timesync>(&message)) {
+    handle_timesync(t_ns, header, *ts);
+  } else if (const auto* imu = std::get_if<ml::HighresImu>(&message)) {
     const auto fc_stamp_ns = static_cast<std::int64_t>(imu->time_usec) * 1000;
     update_clock(t_ns, fc_stamp_ns);
     FcImuSample sample;
-    sample.t_ns = fc_stamp_ns + offset_ns_;
+    sample.t_ns = fc_stamp_ns + clock_offset_ns();
     if (have_imu_ && sample.t_ns <= last_imu_t_ns_) return;  // stamps in order, or not at all
     sample.omega_B_radps = Eigen::Vector3d(imu->xgyro_radps, imu->ygyro_radps, imu->zgyro_radps);
     sample.f_B_mps2 = Eigen::Vector3d(imu->xacc_mps2, imu->yacc_mps2, imu->zacc_mps2);
@@ -264,7 +294,8 @@ void MavlinkFlightController::handle(std::int64_t t_ns, const ml::FrameHeader& h
     }
     FcAttitude attitude;
     attitude.t_ns =
-        have_offset_ ? static_cast<std::int64_t>(att->time_boot_ms) * 1'000'000 + offset_ns_ : t_ns;
+        have_offset_ ? static_cast<std::int64_t>(att->time_boot_ms) * 1'000'000 + clock_offset_ns()
+                     : t_ns;
     attitude.roll_rad = att->roll_rad;
     attitude.pitch_rad = att->pitch_rad;
     attitude.yaw_rad = att->yaw_rad;
@@ -345,8 +376,61 @@ void MavlinkFlightController::update_clock(std::int64_t t_ns, std::int64_t fc_st
   have_offset_ = true;
 }
 
+void MavlinkFlightController::handle_timesync(std::int64_t t_ns, const ml::FrameHeader& header,
+                                              const ml::Timesync& ts) {
+  const bool for_us =
+      (ts.target_system == 0 && ts.target_component == 0) ||
+      (ts.target_system == config_.system_id && ts.target_component == config_.component_id);
+  if (!for_us) return;
+  if (ts.tc1_ns == 0) {
+    // The FC's own request (PX4 sends them too): answered with our clock, ts1 echoed.
+    ml::Timesync answer;
+    answer.tc1_ns = t_ns;
+    answer.ts1_ns = ts.ts1_ns;
+    answer.target_system = header.system_id;
+    answer.target_component = header.component_id;
+    send(answer);
+    return;
+  }
+  // An answer to our last request only (an older protocol's answer has no targets; the echoed
+  // stamp tells it is ours).
+  if (ts.ts1_ns != timesync_pending_ts1_ns_) return;
+  timesync_pending_ts1_ns_ = -1;
+  const std::int64_t rtt_ns = t_ns - ts.ts1_ns;
+  if (rtt_ns < 0 || static_cast<double>(rtt_ns) > config_.timesync_max_rtt_s * 1e9) {
+    ++counters_.timesync_rejected;
+    return;
+  }
+  // Our clock at the answer's moment, the middle of the round trip, minus the FC's.
+  const double sample_ns = 0.5 * (static_cast<double>(ts.ts1_ns) + static_cast<double>(t_ns)) -
+                           static_cast<double>(ts.tc1_ns);
+  const std::uint64_t n = counters_.timesync_samples;
+  if (n >= kTimesyncWarmup && std::abs(sample_ns - timesync_offset_ns_) > kTimesyncOutlierNs) {
+    ++counters_.timesync_rejected;
+    if (++timesync_far_in_a_row_ < kTimesyncResetAfter) return;
+    counters_.timesync_samples = 0;  // the FC's clock jumped: start again
+    timesync_variance_ns2_ = 0.0;
+  }
+  timesync_far_in_a_row_ = 0;
+  const std::uint64_t k = counters_.timesync_samples;
+  const double weight = k < kTimesyncWarmup ? 1.0 / static_cast<double>(k + 1) : kTimesyncAlpha;
+  const double deviation_ns = sample_ns - (k == 0 ? sample_ns : timesync_offset_ns_);
+  timesync_offset_ns_ = k == 0 ? sample_ns : timesync_offset_ns_ + weight * deviation_ns;
+  timesync_variance_ns2_ += weight * (deviation_ns * deviation_ns - timesync_variance_ns2_);
+  ++counters_.timesync_samples;
+  counters_.timesync_rtt_ns = rtt_ns;
+  counters_.timesync_offset_ns = std::llround(timesync_offset_ns_);
+  counters_.timesync_jitter_ns = std::sqrt(timesync_variance_ns2_);
+  counters_.clock_from_timesync = counters_.timesync_samples >= kTimesyncWarmup;
+  if (counters_.clock_from_timesync) have_offset_ = true;
+}
+
+std::int64_t MavlinkFlightController::clock_offset_ns() const {
+  return counters_.clock_from_timesync ? counters_.timesync_offset_ns : offset_ns_;
+}
+
 std::int64_t MavlinkFlightController::fc_time_ns(std::int64_t t_ns) const {
-  return have_offset_ ? std::max<std::int64_t>(0, t_ns - offset_ns_) : 0;
+  return have_offset_ ? std::max<std::int64_t>(0, t_ns - clock_offset_ns()) : 0;
 }
 
 bool MavlinkFlightController::connected(std::int64_t t_ns) const {
@@ -426,8 +510,8 @@ void MavlinkFlightController::send_velocity(const VelocityReport& report) {
     estimate.x_mps = static_cast<float>(v_NED_mps.x());
     estimate.y_mps = static_cast<float>(v_NED_mps.y());
     estimate.z_mps = static_cast<float>(v_NED_mps.z());
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) {
+    for (Eigen::Index r = 0; r < 3; ++r) {
+      for (Eigen::Index c = 0; c < 3; ++c) {
         estimate.covariance[static_cast<std::size_t>(3 * r + c)] =
             static_cast<float>(covariance_NED(r, c));
       }

@@ -508,6 +508,85 @@ TEST(MavlinkFc, ArduPilotWithOdometryIsToldToUseVisionSpeedEstimate) {
   EXPECT_TRUE(link.sink.said("--fc-velocity-message vision_speed_estimate"));
 }
 
+// One TIMESYNC round trip: the controller's request at link.t_ns + 200 ms, answered by the FC
+// with its clock (the runtime's minus fc_behind_ns, read at the middle of the round trip) and
+// received rtt_ns after the request. False if no request came.
+bool timesync_round(Link& link, std::int64_t fc_behind_ns, std::int64_t rtt_ns,
+                    bool old_protocol = false) {
+  link.t_ns += 200 * kMs;
+  link.controller->poll(link.t_ns, link.sink);
+  // All that came (an earlier request may still wait in the socket): the newest is answered.
+  const auto requests = link.fc.receive_all<ml::Timesync>(50 * kMs, 100);
+  if (requests.empty() || requests.back().tc1_ns != 0) return false;
+  const std::int64_t ts1 = requests.back().ts1_ns;
+  ml::Timesync answer;
+  answer.tc1_ns = ts1 + rtt_ns / 2 - fc_behind_ns;
+  answer.ts1_ns = ts1;
+  answer.target_system = old_protocol ? 0 : 1;
+  answer.target_component = old_protocol ? 0 : 191;
+  link.t_ns = ts1 + rtt_ns;
+  return link.deliver(answer);
+}
+
+TEST(MavlinkFc, TimesyncOffsetFromAnFcThatAnswersStampsTheImu) {
+  Link link;
+  ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
+  // GIVEN an FC whose clock is 8 s behind ours answering in 2 ms (the old protocol once).
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(timesync_round(link, 8 * kSecond, 2 * kMs, i == 3));
+  FcCounters c = link.controller->counters();
+  EXPECT_TRUE(c.clock_from_timesync);
+  EXPECT_EQ(c.timesync_samples, 6u);
+  EXPECT_EQ(c.timesync_offset_ns, 8 * kSecond);
+  EXPECT_EQ(c.timesync_rtt_ns, 2 * kMs);
+  EXPECT_NEAR(c.timesync_jitter_ns, 0.0, 1.0);
+  // WHEN an IMU sample arrives 3 ms after it was taken, THEN it sits at its FC stamp + 8 s, not
+  // at its receipt (the least-delayed mapping's answer with one sample).
+  const std::int64_t taken_ns = link.t_ns + kSecond;
+  ASSERT_TRUE(link.deliver_imu(static_cast<std::uint64_t>((taken_ns - 8 * kSecond) / 1000),
+                               taken_ns + 3 * kMs));
+  ASSERT_FALSE(link.sink.imu.empty());
+  EXPECT_EQ(link.sink.imu.back().t_ns, taken_ns);
+  // A slow answer (50 ms round trip) says little of the offset: dropped and counted.
+  ASSERT_TRUE(timesync_round(link, 9 * kSecond, 50 * kMs));
+  c = link.controller->counters();
+  EXPECT_EQ(c.timesync_rejected, 1u);
+  EXPECT_EQ(c.timesync_offset_ns, 8 * kSecond);
+  // Jittery answers: the filter follows their mean and reports their spread.
+  for (int i = 0; i < 40; ++i) {
+    ASSERT_TRUE(timesync_round(link, 8 * kSecond + (i % 2 == 0 ? 1 : -1) * kMs / 2, 2 * kMs));
+  }
+  c = link.controller->counters();
+  EXPECT_NEAR(static_cast<double>(c.timesync_offset_ns), 8e9, 0.3e6);
+  EXPECT_NEAR(c.timesync_jitter_ns, 0.5e6, 0.2e6);
+}
+
+TEST(MavlinkFc, WithoutTimesyncAnswersTheLeastDelayedPacketMapsTheClock) {
+  Link link;
+  ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
+  link.t_ns += 200 * kMs;
+  link.controller->poll(link.t_ns, link.sink);
+  EXPECT_FALSE(link.fc.receive_all<ml::Timesync>(kSecond, 1).empty()) << "requests go out";
+  ASSERT_TRUE(link.deliver_imu(2'000'000, 10'003 * kMs));
+  ASSERT_TRUE(link.deliver_imu(2'004'000, 10'005 * kMs));
+  const FcCounters c = link.controller->counters();
+  EXPECT_FALSE(c.clock_from_timesync);
+  EXPECT_EQ(c.timesync_samples, 0u);
+  EXPECT_EQ(link.sink.imu.back().t_ns, 10'005 * kMs) << "offset min(receipt - stamp) = 8.001 s";
+}
+
+TEST(MavlinkFc, TheFcsOwnTimesyncRequestIsAnsweredWithOurClock) {
+  Link link;
+  ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));
+  link.t_ns = 42 * kSecond;
+  ASSERT_TRUE(link.deliver(ml::Timesync{0, 777, 0, 0}));
+  const auto answers = link.fc.receive_all<ml::Timesync>(100 * kMs, 100);
+  bool answered = false;
+  for (const auto& a : answers) {
+    if (a.tc1_ns == 42 * kSecond && a.ts1_ns == 777) answered = a.target_system == 1;
+  }
+  EXPECT_TRUE(answered);
+}
+
 TEST(MavlinkFc, StatustextAndRefusalsBecomeEvents) {
   Link link;
   ASSERT_TRUE(link.deliver(px4_heartbeat(false, 3)));

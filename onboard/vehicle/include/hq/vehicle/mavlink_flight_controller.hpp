@@ -5,10 +5,14 @@
 /// STATUSTEXT.
 ///
 /// Clocks: the FC stamps in its boot time; the runtime clock is whatever t_ns poll() is given.
-/// offset = min over a sliding window of (t_ns at receipt - FC stamp), because every packet
-/// arrives late by the transport delay and the least-delayed one bounds it most tightly (the
-/// minimum-delay rule of NTP-style one-way clock estimation). The same offset stamps what we send
-/// (time_boot_ms, usec) in the FC's clock.
+/// When the FC answers TIMESYNC (PX4 does; https://mavlink.io/en/services/timesync.html), the
+/// offset comes from the round trips: we send tc1 = 0, ts1 = our time, the FC answers with its
+/// time in tc1 and ts1 echoed, and offset = (ts1 + receipt) / 2 - tc1 assuming a symmetric
+/// path; answers slower than timesync_max_rtt_s are dropped and the rest filtered. Until then,
+/// or with an FC that never answers, offset = min over a sliding window of (t_ns at receipt -
+/// FC stamp), because every packet arrives late by the transport delay and the least-delayed
+/// one bounds it most tightly (the minimum-delay rule of one-way clock estimation). The offset
+/// stamps what we send (time_boot_ms, usec) in the FC's clock.
 
 #include "hq/config/strict_yaml.hpp"
 #include "hq/mavlink/codec.hpp"
@@ -46,6 +50,8 @@ struct MavlinkFcConfig {
   /// HIGHRES_IMU rate asked of the FC once it is heard (MAV_CMD_SET_MESSAGE_INTERVAL).
   double imu_rate_hz = 200.0;
   VelocityMessage velocity_message = VelocityMessage::kOdometry;
+  double timesync_rate_hz = 10.0;    ///< TIMESYNC requests (as MAVSDK and mavros send); 0: none.
+  double timesync_max_rtt_s = 0.01;  ///< Slower round trips say little of the offset: dropped.
 
   /// Throws hq::InputError naming the key after the prefix `where`, e.g.
   /// `config/onboard.yaml: mavlink.max_thrust_n = -1, expected > 0 and <= 10000`.
@@ -54,8 +60,8 @@ struct MavlinkFcConfig {
 
 /// Reads the `mavlink:` section strictly: transport, system_id, component_id,
 /// heartbeat_timeout_s, heartbeat_rate_hz, max_thrust_n, autopilot (auto | px4 | ardupilot),
-/// max_yaw_lead_rad, imu_rate_hz, velocity_message (odometry | vision_speed_estimate); then
-/// validate().
+/// max_yaw_lead_rad, imu_rate_hz, velocity_message (odometry | vision_speed_estimate),
+/// timesync_rate_hz, timesync_max_rtt_s; then validate().
 void read_config(config::StrictMap& section, MavlinkFcConfig& out);
 /// "odometry" or "vision_speed_estimate" (config key, --fc-velocity-message); nullopt otherwise.
 std::optional<MavlinkFcConfig::VelocityMessage> parse_velocity_message(std::string_view name);
@@ -93,6 +99,10 @@ class MavlinkFlightController final : public FlightController {
   void handle_heartbeat(std::int64_t t_ns, const mavlink::FrameHeader& header,
                         const mavlink::Heartbeat& hb);
   void update_clock(std::int64_t t_ns, std::int64_t fc_stamp_ns);
+  void handle_timesync(std::int64_t t_ns, const mavlink::FrameHeader& header,
+                       const mavlink::Timesync& timesync);
+  /// The offset the stamps use: TIMESYNC's once it has converged, else the least-delayed one.
+  [[nodiscard]] std::int64_t clock_offset_ns() const;
   [[nodiscard]] std::int64_t fc_time_ns(std::int64_t t_ns) const;
   [[nodiscard]] bool connected(std::int64_t t_ns) const;
   [[nodiscard]] Autopilot autopilot() const;
@@ -144,6 +154,13 @@ class MavlinkFlightController final : public FlightController {
   bool have_offset_ = false;
   std::int64_t last_imu_t_ns_ = 0;
   bool have_imu_ = false;
+
+  // TIMESYNC: the offset (runtime - FC) from round trips, filtered.
+  std::int64_t last_timesync_sent_ns_ = -1;
+  std::int64_t timesync_pending_ts1_ns_ = -1;  ///< Our last request's stamp, not yet answered.
+  double timesync_offset_ns_ = 0.0;
+  double timesync_variance_ns2_ = 0.0;
+  int timesync_far_in_a_row_ = 0;
 
   // Commanded yaw, integrated from yaw_rate_radps while armed and offboard.
   double yaw_target_rad_ = 0.0;
