@@ -57,6 +57,10 @@ void add_vehicle_options(CLI::App& app, Options& o) {
   app.add_option("--fc-max-thrust-n", o.fc_max_thrust_n,
                  "MAVLink: collective thrust at full throttle, for the normalised thrust")
       ->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--fc-velocity-message", o.fc_velocity_message,
+                 "MAVLink: the velocity's message: odometry (PX4's EKF2 reads only this) | "
+                 "vision_speed_estimate (ArduPilot)")
+      ->check(CLI::IsMember({"odometry", "vision_speed_estimate"}));
   app.add_option("--channel", o.sitl_channel, "sitl: hq-sim's frame channel name");
   app.add_option("--fc-lost-exit-s", o.fc_lost_exit_s,
                  "stop once the flight controller is lost this long (0: never; default 3 s "

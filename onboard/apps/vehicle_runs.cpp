@@ -284,6 +284,12 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     hq::vehicle::MavlinkFcConfig fc_config;
     fc_config.transport = fc_spec.substr(std::string("mavlink:").size());
     if (o.fc_max_thrust_n > 0.0) fc_config.max_thrust_n = o.fc_max_thrust_n;
+    const auto velocity_message = hq::vehicle::parse_velocity_message(o.fc_velocity_message);
+    if (!velocity_message) {
+      throw hq::InputError("--fc-velocity-message " + o.fc_velocity_message +
+                           ": expected odometry or vision_speed_estimate");
+    }
+    fc_config.velocity_message = *velocity_message;
     fc_config.gcs = o.gcs_spec;
     fc = std::make_unique<hq::vehicle::MavlinkFlightController>(fc_config);
   }
@@ -396,6 +402,19 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
                runtime.status().fc_lost        ? "LOST"
                : runtime.status().fc.connected ? "connected"
                                                : "never heard");
+    fmt::print("  {:<40} {} sent, {} restarts (reset_counter)\n", "velocity to the FC",
+               fcc.velocity_reports_sent, rc.velocity_resets);
+    if (fcc.clock_from_timesync) {
+      fmt::print(
+          "  {:<40} TIMESYNC: offset {:.3f} ms, jitter {:.3f} ms, RTT {:.3f} ms "
+          "({} answers, {} dropped)\n",
+          "FC clock", 1e-6 * static_cast<double>(fcc.timesync_offset_ns),
+          1e-6 * fcc.timesync_jitter_ns, 1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
+          fcc.timesync_samples, fcc.timesync_rejected);
+    } else {
+      fmt::print("  {:<40} least-delayed packet (no TIMESYNC answers: {} taken, {} dropped)\n",
+                 "FC clock", fcc.timesync_samples, fcc.timesync_rejected);
+    }
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
 }

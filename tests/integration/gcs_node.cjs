@@ -3,7 +3,8 @@
 //   node gcs_node.cjs MODULES PORT TIMEOUT_S
 // It learns the vehicle's address from the first datagram, sends a GCS heartbeat each second,
 // and passes when, through the companion, it has seen the FC's heartbeat and attitude and the
-// companion's heartbeat, read every parameter with PARAM_REQUEST_LIST (each index once, the
+// companion's heartbeat and velocity (ODOMETRY, a broadcast; its TIMESYNC with the FC is not
+// for the GCS), read every parameter with PARAM_REQUEST_LIST (each index once, the
 // count right), set one with PARAM_SET (echoed with the new value) and read it back by name.
 'use strict';
 const dgram = require('dgram');
@@ -34,7 +35,8 @@ function send(name, values) {
 }
 
 // What has been seen, and the steps of the parameter protocol.
-const seen = { fcHeartbeat: 0, companionHeartbeat: 0, attitude: 0, unknown: 0 };
+const seen = { fcHeartbeat: 0, companionHeartbeat: 0, attitude: 0, companionOdometry: 0,
+               companionTimesyncToFc: 0, unknown: 0 };
 let step = 'wait';  // wait -> list -> set -> read -> done
 let paramCount = -1;
 const params = new Map();  // index -> {id, value}
@@ -69,6 +71,10 @@ function onPacket(packet) {
     if (h.sysid === 1 && h.compid === 191 && m.type === 18) seen.companionHeartbeat++;
   } else if (h.msgid === 30 && h.sysid === 1) {
     seen.attitude++;
+  } else if (h.msgid === 331 && h.sysid === 1 && h.compid === 191) {
+    seen.companionOdometry++;
+  } else if (h.msgid === 111 && h.sysid === 1 && h.compid === 191 && m.target_system !== 0) {
+    seen.companionTimesyncToFc++;  // addressed to the FC: the router must not send it here
   } else if (h.msgid === 22) {
     const id = m.param_id.replace(/\0.*$/, '');
     if (step === 'list') {
@@ -127,12 +133,15 @@ function finish() {
   const names = [...params.values()].map((p) => `${p.id}=${Math.fround(p.value).toPrecision(3)}`);
   console.log(`gcs_node: vehicle at ${peer ? `${peer.address}:${peer.port}` : 'never heard'}; ` +
               `FC heartbeats ${seen.fcHeartbeat}, companion heartbeats ${seen.companionHeartbeat}, ` +
-              `attitude ${seen.attitude}; parameters ${params.size} of ${paramCount}: ` +
+              `attitude ${seen.attitude}, companion ODOMETRY ${seen.companionOdometry}, ` +
+              `companion TIMESYNC addressed to the FC ${seen.companionTimesyncToFc}; parameters ${params.size} of ${paramCount}: ` +
               `${names.join(' ')}; ${setId} set ${setValue}, echoed ${echoed}, read back ${readBack}; ` +
               `GCS heartbeats sent ${heartbeatsSent}`);
   if (step !== 'done') fail(`stopped at step "${step}" (timeout)`);
   if (seen.fcHeartbeat < 3) fail('fewer than 3 FC heartbeats through the companion');
   if (seen.companionHeartbeat < 1) fail('no companion heartbeat');
+  if (seen.companionOdometry < 1) fail('no companion ODOMETRY (a broadcast) through the router');
+  if (seen.companionTimesyncToFc > 0) fail('the companion\'s TIMESYNC to the FC reached the GCS');
   for (let i = 0; i < paramCount; i++) {
     if (!params.has(i)) fail(`parameter index ${i} missing`);
   }

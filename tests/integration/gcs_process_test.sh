@@ -4,7 +4,8 @@
 # a ground control station made of node-mavlink (gcs_node.cjs, listening as QGroundControl does).
 # GIVEN the three WHEN the GCS sends heartbeats, lists every parameter, sets one and reads it
 # back THEN each step passes through the companion; the FC counts the GCS's heartbeats and
-# parameters, and the companion's summary counts frames forwarded both ways.
+# parameters, and the companion's summary counts frames forwarded both ways; the companion's
+# ODOMETRY reaches both the FC (fused) and the GCS, its TIMESYNC with the FC only the FC.
 # Usage: gcs_process_test.sh HQ_SIM HQ_ONBOARD WORK_DIR   (WORK_DIR holds node_modules)
 # Exit 77 (ctest: skipped) when node, npm or the package are unavailable.
 set -euo pipefail
@@ -53,9 +54,9 @@ wait "$sim_pid" || true
 echo "== node-mavlink GCS"
 cat "$out/gcs.out"
 echo "== hq-onboard (GCS lines)"
-grep -E "GCS|MAVLink messages|flight controller" "$out/onboard.out" || true
+grep -E "GCS|MAVLink messages|flight controller|velocity to the FC|FC clock" "$out/onboard.out" || true
 echo "== hq-sim --sitl (MAVLink lines)"
-grep -E "mavlink:|GCS heartbeats" "$out/sim.out" || true
+grep -E "mavlink:|GCS heartbeats|vision: ODOMETRY" "$out/sim.out" || true
 
 failures=0
 check() {  # check DESCRIPTION COMMAND...
@@ -73,6 +74,10 @@ check "the FC's frames reached the GCS" test "$(number 'FC -> GCS' "$out/onboard
 check "the GCS's frames reached the FC" test "$(number 'GCS -> FC' "$out/onboard.out")" -gt 0
 check "the FC heard the GCS's heartbeats" test "$(number 'GCS heartbeats' "$out/sim.out")" -ge 3
 check "the FC set one parameter" grep -q "parameters sent [0-9]*, set 1," "$out/sim.out"
+check "the FC fused the companion's ODOMETRY beside the GCS" \
+  test "$(number 'ODOMETRY received [0-9]*, fused' "$out/sim.out")" -gt 0
+check "the FC answered the companion's TIMESYNC" \
+  test "$(number 'TIMESYNC answered' "$out/sim.out")" -gt 0
 check "hq-onboard's routing dropped nothing" \
   grep -q "no route 0, target on its own link 0, loop 0, malformed 0" "$out/onboard.out"
 if [ "$failures" -ne 0 ]; then

@@ -181,6 +181,30 @@ struct Spec<Statustext> {
 };
 
 template <>
+struct Spec<Timesync> {
+  static constexpr std::uint8_t kCrcExtra = 34;
+  static constexpr std::size_t kBaseLen = 16, kMaxLen = 18;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.tc1_ns), io(m.ts1_ns);
+    io(m.target_system), io(m.target_component);
+  }
+};
+
+template <>
+struct Spec<Odometry> {
+  static constexpr std::uint8_t kCrcExtra = 91;
+  static constexpr std::size_t kBaseLen = 230, kMaxLen = 233;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.time_usec), io(m.x_m), io(m.y_m), io(m.z_m), io(m.q), io(m.vx_mps), io(m.vy_mps),
+        io(m.vz_mps), io(m.rollspeed_radps), io(m.pitchspeed_radps), io(m.yawspeed_radps),
+        io(m.pose_covariance), io(m.velocity_covariance), io(m.frame_id), io(m.child_frame_id);
+    io(m.reset_counter), io(m.estimator_type), io(m.quality_pct);
+  }
+};
+
+template <>
 struct Spec<ParamRequestRead> {
   static constexpr std::uint8_t kCrcExtra = 214;
   static constexpr std::size_t kBaseLen = 20, kMaxLen = 20;

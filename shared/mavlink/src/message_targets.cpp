@@ -10,7 +10,10 @@ namespace {
 // COMMAND_LONG is param1..7 (28 bytes), command (2), target_system at 28 + 2 = 30. Messages that
 // address a system only (SET_MODE, MANUAL_CONTROL) have no component offset. The non-targeted
 // ones listed (PARAM_VALUE, LOG_DATA, ...) are here for their CRC_EXTRA: the parameter and log
-// protocols a GCS runs through the companion are then checked, not only forwarded.
+// protocols a GCS runs through the companion are then checked, not only forwarded. Messages the
+// codec decodes as well (PARAM_*, COMMAND_LONG, COMMAND_ACK, SET_ATTITUDE_TARGET, TIMESYNC) are
+// listed for their target offsets; the parser checks them with the codec's CRC_EXTRA, and
+// router_test (MessageTargets.AgreesWithTheCodecOnEveryMessageItDecodes) holds the two equal.
 constexpr std::array kTable{
     MessageTargets{4, 237, 12, 13, "PING"},
     MessageTargets{5, 217, 0, kNoTargetField, "CHANGE_OPERATOR_CONTROL"},

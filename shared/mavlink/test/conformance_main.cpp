@@ -99,6 +99,22 @@ void fields(const Statustext& m, F&& f) {
 }
 
 template <typename F>
+void fields(const Timesync& m, F&& f) {
+  f("tc1", m.tc1_ns), f("ts1", m.ts1_ns), f("target_system", m.target_system),
+      f("target_component", m.target_component);
+}
+template <typename F>
+void fields(const Odometry& m, F&& f) {
+  f("time_usec", m.time_usec), f("x", m.x_m), f("y", m.y_m), f("z", m.z_m), f("q", m.q);
+  f("vx", m.vx_mps), f("vy", m.vy_mps), f("vz", m.vz_mps), f("rollspeed", m.rollspeed_radps);
+  f("pitchspeed", m.pitchspeed_radps), f("yawspeed", m.yawspeed_radps);
+  f("pose_covariance", m.pose_covariance), f("velocity_covariance", m.velocity_covariance);
+  f("frame_id", m.frame_id), f("child_frame_id", m.child_frame_id);
+  f("reset_counter", m.reset_counter), f("estimator_type", m.estimator_type);
+  f("quality", m.quality_pct);
+}
+
+template <typename F>
 void fields(const ParamRequestRead& m, F&& f) {
   f("param_index", m.param_index), f("target_system", m.target_system),
       f("target_component", m.target_component), f("param_id", m.param_id);
@@ -194,6 +210,29 @@ std::vector<Message> chosen_messages() {
   st2.id = 4242;
   st2.chunk_seq = 2;
   out.emplace_back(st2);
+  // TIMESYNC: a request (tc1 0), an answer with targets, and an answer of the old protocol.
+  out.emplace_back(Timesync{0, 1700000000123456789LL, 1, 1});
+  out.emplace_back(Timesync{-42, 9223372036854775807LL, 255, 191});
+  out.emplace_back(Timesync{123456789012LL, 987654321098LL, 0, 0});
+  Odometry od;
+  od.time_usec = 1700000000654321ull;
+  od.x_m = 1.25f, od.y_m = -3.5f, od.z_m = -0.75f;
+  od.q = {0.7071068f, 0.f, 0.f, -0.7071068f};
+  od.vx_mps = 0.3f, od.vy_mps = -0.45f, od.vz_mps = 0.05f;
+  od.rollspeed_radps = 0.01f, od.pitchspeed_radps = -0.02f, od.yawspeed_radps = 0.5f;
+  for (std::size_t i = 0; i < 21; ++i) {
+    od.pose_covariance[i] = 1e-3f * static_cast<float>(i + 1);
+    od.velocity_covariance[i] = -2.5e-4f * static_cast<float>(i + 1);
+  }
+  od.frame_id = kMavFrameLocalFrd;
+  od.child_frame_id = kMavFrameBodyFrd;
+  od.reset_counter = 255;
+  od.estimator_type = kMavEstimatorTypeVio;
+  od.quality_pct = -1;
+  out.emplace_back(od);
+  od.quality_pct = 87;
+  od.reset_counter = 0;
+  out.emplace_back(od);
   out.emplace_back(ParamRequestRead{-1, 1, 1, text_of<16>("COM_OF_LOSS_T")});
   out.emplace_back(ParamRequestRead{7, 1, 0, {}});
   out.emplace_back(ParamRequestList{1, 1});
@@ -215,7 +254,7 @@ struct JsonFields {
   static nlohmann::ordered_json number(T v) {
     if constexpr (std::is_floating_point_v<T>) {
       return static_cast<double>(v);
-    } else if constexpr (std::is_same_v<T, std::uint64_t>) {
+    } else if constexpr (std::is_same_v<T, std::uint64_t> || std::is_same_v<T, std::int64_t>) {
       return std::to_string(v);
     } else {
       return static_cast<std::int64_t>(v);

@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <span>
+#include <variant>
 #include <vector>
 
 namespace hq::mavlink {
@@ -147,6 +149,34 @@ TEST_F(RouterTest, TargetedFramesGoOnlyToTheTargetsLink) {
   EXPECT_EQ(arrive_one(kLocal, encode(1, 191, setpoint)), link_bit(kFc));
 }
 
+TEST_F(RouterTest, OdometryAndTimesyncAreDecodedCheckedAndRoutedByTheirTargets) {
+  introduce_all();
+  // The companion's ODOMETRY addresses nobody: a broadcast, to the FC and the GCS alike, its CRC
+  // checked by the codec that decodes it (no longer an id known nowhere).
+  Odometry odometry;
+  odometry.vx_mps = 0.5f;
+  EXPECT_EQ(arrive_one(kLocal, encode(1, kMavCompIdOnboardComputer, odometry)),
+            link_bit(kFc) | link_bit(kGcs));
+  EXPECT_TRUE(last_crc_checked_);
+  // Its TIMESYNC request addressed to the FC goes to the FC alone; the FC's answer addressed to
+  // the companion stays with the companion (not the GCS).
+  EXPECT_EQ(arrive_one(kLocal, encode(1, kMavCompIdOnboardComputer, Timesync{0, 42, 1, 1})),
+            link_bit(kFc));
+  EXPECT_EQ(arrive_one(kFc, encode(1, 1, Timesync{7, 42, 1, kMavCompIdOnboardComputer})),
+            link_bit(kLocal));
+  // The FC's own request, and an answer of the older protocol (no targets), are broadcasts.
+  EXPECT_EQ(arrive_one(kFc, encode(1, 1, Timesync{0, 43, 0, 0})),
+            link_bit(kLocal) | link_bit(kGcs));
+  EXPECT_EQ(arrive_one(kFc, encode(1, 1, Timesync{9, 44, 0, 0})),
+            link_bit(kLocal) | link_bit(kGcs));
+  EXPECT_EQ(router_.counters().unchecked_broadcast, 0u);
+  EXPECT_EQ(router_.counters().dropped(), 0u);
+  for (const std::size_t link : {kLocal, kFc}) {
+    EXPECT_EQ(parsers_[link].counters().unknown_id, 0u);
+    EXPECT_EQ(parsers_[link].counters().undecoded, 0u);
+  }
+}
+
 TEST_F(RouterTest, ComponentZeroReachesEveryLinkOfThatSystemOnce) {
   introduce_all();
   // System 1 is both the companion (local) and the FC: one copy to each, none back to the GCS.
@@ -277,6 +307,54 @@ TEST(MessageTargets, TableIsSortedAndFindsEveryEntry) {
   }
   EXPECT_EQ(find_message_targets(0), nullptr) << "HEARTBEAT addresses nobody";
   EXPECT_EQ(find_message_targets(9999), nullptr);
+}
+
+template <typename M>
+concept HasTargetSystem = requires(M m) {
+  m.target_system;
+};
+template <typename M>
+concept HasTargetComponent = requires(M m) {
+  m.target_component;
+};
+
+/// One message the codec decodes against the table: a message with a target must be listed
+/// (else the router would broadcast it), and a listed one must have the codec's CRC_EXTRA and
+/// target offsets, so the two sources cannot drift apart (TIMESYNC, COMMAND_*, PARAM_* are in
+/// both: the codec decodes them, the router reads their targets from the table).
+template <typename M>
+void expect_table_agrees_with_codec() {
+  M m{};
+  if constexpr (HasTargetSystem<M>) m.target_system = 0xA5;
+  if constexpr (HasTargetComponent<M>) m.target_component = 0x5A;
+  const Bytes bytes = encode(255, 190, m);
+  const MessageTargets* entry = find_message_targets(M::kId);
+  if constexpr (HasTargetSystem<M>) {
+    ASSERT_NE(entry, nullptr) << "message " << M::kId << " has a target: it must be in the table";
+  }
+  if (entry == nullptr) return;
+  SCOPED_TRACE(entry->name);
+  const std::size_t n = bytes.size();
+  std::uint16_t crc = crc16_mcrf4xx(std::span<const std::uint8_t>(bytes.data() + 1, n - 3));
+  crc = crc16_mcrf4xx(std::span<const std::uint8_t>(&entry->crc_extra, 1), crc);
+  EXPECT_EQ(crc, static_cast<std::uint16_t>(bytes[n - 2] | (bytes[n - 1] << 8)))
+      << "CRC_EXTRA " << static_cast<int>(entry->crc_extra) << " differs from the codec's";
+  RawFrame frame;
+  frame.bytes = bytes;
+  frame.header.message_id = M::kId;
+  FrameTarget target;
+  ASSERT_TRUE(Router::read_target(frame, target));
+  EXPECT_EQ(target.system, HasTargetSystem<M> ? 0xA5 : 0);
+  EXPECT_EQ(target.component, HasTargetComponent<M> ? 0x5A : 0);
+}
+
+template <typename... Ms>
+void expect_table_agrees_with_codec(std::variant<Ms...>* /*every message*/) {
+  (expect_table_agrees_with_codec<Ms>(), ...);
+}
+
+TEST(MessageTargets, AgreesWithTheCodecOnEveryMessageItDecodes) {
+  expect_table_agrees_with_codec(static_cast<Message*>(nullptr));
 }
 
 TEST(MessageTargets, AgreesWithTheCodecOnTheMessagesBothKnow) {
