@@ -5,6 +5,8 @@
 //              [--csv out.csv]
 //   hq-onboard --source sitl [--fc mavlink:udp:127.0.0.1:14560] [--channel sitl] [--link]
 //   hq-onboard --source openni2|freenect [--fc none|mavlink:serial:/dev/ttyACM0:921600] [--link]
+//   hq-onboard ... --fc mavlink:... --gcs udp:LAPTOP:14550 | udp-listen:PORT   the FC's MAVLink
+//              routed to and from a GCS (QGroundControl) beside the companion
 //   hq-onboard ... --link [--link-config config.yaml] [--domain-id N] [--vehicle-id N]
 //              [--command-timeout-ms 200] [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10]
 //   hq-onboard ... --record DIR        the on-board MCAP flight log, DIR/onboard.mcap
@@ -48,11 +50,19 @@ void add_vehicle_options(CLI::App& app, Options& o) {
   app.add_option("--fc", o.fc_spec,
                  "flight controller: none | mavlink:udp:HOST:PORT | mavlink:serial:DEVICE:BAUD "
                  "(default: none; sitl: mavlink:udp:127.0.0.1:14560)");
+  app.add_option("--gcs", o.gcs_spec,
+                 "MAVLink: route the FC's traffic to and from a ground control station: "
+                 "udp:HOST:PORT (a GCS listening there, QGroundControl: 14550) | "
+                 "udp-listen:[HOST:]PORT (learn the GCS's address from what it sends)");
   app.add_option(
          "--fc-max-thrust-n", o.fc_max_thrust_n,
          "MAVLink: collective thrust at full throttle, for the normalised thrust: a starting "
          "value, learnt in flight (hover_thrust: in the onboard config)")
       ->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--fc-velocity-message", o.fc_velocity_message,
+                 "MAVLink: the velocity's message: odometry (PX4's EKF2 reads only this) | "
+                 "vision_speed_estimate (ArduPilot)")
+      ->check(CLI::IsMember({"odometry", "vision_speed_estimate"}));
   app.add_option("--channel", o.sitl_channel, "sitl: hq-sim's frame channel name");
   app.add_option("--fc-lost-exit-s", o.fc_lost_exit_s,
                  "stop once the flight controller is lost this long (0: never; default 3 s "

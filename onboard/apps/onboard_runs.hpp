@@ -44,8 +44,10 @@ struct Options {
   double camera_rate_hz = 10.0;
   std::string link_log_path;
   std::string save_map_path;
-  std::string fc_spec;                ///< none | mavlink:<transport>; empty: the source's default.
-  double fc_max_thrust_n = 0.0;       ///< > 0: overrides the MAVLink thrust normalisation.
+  std::string fc_spec;           ///< none | mavlink:<transport>; empty: the source's default.
+  double fc_max_thrust_n = 0.0;  ///< > 0: overrides the MAVLink thrust normalisation.
+  std::string fc_velocity_message = "odometry";  ///< odometry | vision_speed_estimate.
+  std::string gcs_spec;               ///< --gcs: udp:HOST:PORT | udp-listen:[HOST:]PORT; "" no GCS.
   std::string sitl_channel = "sitl";  ///< hq-sim --sitl's default: /hq-sitl.
   double sitl_wait_s = 10.0;
   double fc_lost_exit_s = -1.0;  ///< Stop after the FC is lost this long; 0 never; < 0 default.

@@ -202,6 +202,10 @@ std::string flight_controller_spec(const Options& o) {
     throw hq::InputError("--source replay flies no vehicle: it takes --fc none, not --fc " +
                          fc_spec);
   }
+  if (!o.gcs_spec.empty() && fc_spec == "none") {
+    throw hq::InputError("--gcs " + o.gcs_spec +
+                         ": a GCS is routed to a flight controller, and --fc is none");
+  }
   if (sitl && fc_spec == "none") {
     throw hq::InputError(
         "--source sitl needs the simulator's flight controller: --fc mavlink:udp:HOST:PORT");
@@ -280,6 +284,13 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     hq::vehicle::MavlinkFcConfig fc_config;
     fc_config.transport = fc_spec.substr(std::string("mavlink:").size());
     if (o.fc_max_thrust_n > 0.0) fc_config.max_thrust_n = o.fc_max_thrust_n;
+    const auto velocity_message = hq::vehicle::parse_velocity_message(o.fc_velocity_message);
+    if (!velocity_message) {
+      throw hq::InputError("--fc-velocity-message " + o.fc_velocity_message +
+                           ": expected odometry or vision_speed_estimate");
+    }
+    fc_config.velocity_message = *velocity_message;
+    fc_config.gcs = o.gcs_spec;
     fc = std::make_unique<hq::vehicle::MavlinkFlightController>(fc_config);
   }
   std::fprintf(stderr, "hq-onboard: flight controller: %s\n", fc->describe().c_str());
@@ -338,6 +349,28 @@ void run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
   }
 }
 
+/// The routing lines of the summary: frames each way, drops by reason, the GCS as heard.
+void print_gcs_summary(const std::optional<hq::vehicle::GcsRouting>& gcs) {
+  if (!gcs) return;
+  const hq::mavlink::RouterCounters& r = gcs->router;
+  const hq::mavlink::ParserCounters& p = gcs->gcs_parser;
+  fmt::print("  {:<40} {} ({}), system {}\n", "GCS", gcs->spec,
+             gcs->peer.empty() ? "never heard" : "at " + gcs->peer,
+             gcs->gcs_system < 0 ? std::string("never heard") : std::to_string(gcs->gcs_system));
+  fmt::print("  {:<40} FC -> GCS {}, GCS -> FC {}, companion -> GCS {}\n", "GCS frames forwarded",
+             gcs->fc_to_gcs, gcs->gcs_to_fc, gcs->companion_to_gcs);
+  fmt::print(
+      "  {:<40} no route {}, target on its own link {}, loop {}, malformed {}, GCS not heard "
+      "yet or send failed {}, FC send failed {}\n",
+      "GCS frames not forwarded", r.no_route, r.target_on_source, r.loop, r.malformed,
+      gcs->gcs_send_failures, gcs->fc_send_failures);
+  fmt::print(
+      "  {:<40} bad crc {}, truncated {}, bad length {}; unknown id {} (forwarded as "
+      "broadcasts, CRC unchecked: {} in all)\n",
+      "GCS frames dropped by the parser", p.bad_crc, p.truncated, p.bad_length, p.unknown_id,
+      r.unchecked_broadcast);
+}
+
 void print_run_summary(const Options& o, const std::string& fc_spec, const RunPort& port,
                        const hq::sources::FrameSource& source,
                        const hq::vehicle::FlightController& fc,
@@ -361,11 +394,27 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
   if (fc_spec != "none") {
     fmt::print("  {:<40} {} sent, {} received, {} dropped, {} send failures\n", "MAVLink messages",
                fcc.messages_sent, fcc.messages_received, fcc.frames_dropped, fcc.send_failures);
+    if (const auto* mavlink = dynamic_cast<const hq::vehicle::MavlinkFlightController*>(&fc)) {
+      print_gcs_summary(mavlink->gcs_routing());
+    }
     fmt::print("  {:<40} {} IMU samples, {} arm requests, FC {}\n", "flight controller input",
                rc.imu_samples, rc.arm_requests,
                runtime.status().fc_lost        ? "LOST"
                : runtime.status().fc.connected ? "connected"
                                                : "never heard");
+    fmt::print("  {:<40} {} sent, {} restarts (reset_counter)\n", "velocity to the FC",
+               fcc.velocity_reports_sent, rc.velocity_resets);
+    if (fcc.clock_from_timesync) {
+      fmt::print(
+          "  {:<40} TIMESYNC: offset {:.3f} ms, jitter {:.3f} ms, RTT {:.3f} ms "
+          "({} answers, {} dropped)\n",
+          "FC clock", 1e-6 * static_cast<double>(fcc.timesync_offset_ns),
+          1e-6 * fcc.timesync_jitter_ns, 1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
+          fcc.timesync_samples, fcc.timesync_rejected);
+    } else {
+      fmt::print("  {:<40} least-delayed packet (no TIMESYNC answers: {} taken, {} dropped)\n",
+                 "FC clock", fcc.timesync_samples, fcc.timesync_rejected);
+    }
   }
   if (const auto& last = runtime.last_output()) {
     const hq::control::HoverThrustEstimate& h = last->hover_thrust;

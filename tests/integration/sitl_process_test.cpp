@@ -23,6 +23,7 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <random>
 #include <regex>
 #include <signal.h>
 #include <span>
@@ -333,8 +334,10 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   EXPECT_GT(number_after(summary, "real-time factor"), 0.9);
   EXPECT_THAT(summary, HasSubstr("collision ticks airborne 0"));
   EXPECT_GT(number_after(summary, "setpoints received"), 100.0);
-  EXPECT_GT(number_after(summary, "vision speed estimates"), 50.0);
-  EXPECT_LT(number_after(summary, "RMSE against truth \\(NED\\)"), 0.3);
+  // PX4 does not fuse VISION_SPEED_ESTIMATE, and neither does the SITL: counted, said once.
+  EXPECT_GT(number_after(summary, "VISION_SPEED_ESTIMATE ignored"), 50.0);
+  EXPECT_THAT(companion.texts_, HasSubstr("VISION_SPEED_ESTIMATE ignored"));
+  EXPECT_EQ(number_after(summary, "fused"), 0.0);
   EXPECT_THAT(summary, HasSubstr("dropped 0"));
   EXPECT_FALSE(fs::exists("/dev/shm/hq-" + channel)) << "the channel is unlinked";
 }
@@ -357,6 +360,9 @@ class CountingSink final : public hq::vehicle::FcSink {
 };
 
 /// The vehicle's 50 Hz loop around its MAVLink FC client: poll, newest frame, and with
+/// The velocity noise the companion loop adds to the truth it reports (m/s per axis).
+constexpr double kVelocityNoiseMps = 0.1;
+
 /// setpoints on, a setpoint (altitude hold at 1.5 m on the frames' truth) and a velocity
 /// estimate (the truth's v_H, which the client turns into NED with the FC's yaw).
 struct VehicleLoop {
@@ -366,6 +372,8 @@ struct VehicleLoop {
   CountingSink sink;
   cv::Mat image, depth;
   hq::frame_channel::FrameInfo frame;
+  std::mt19937 rng{7};
+  std::normal_distribution<double> noise{0.0, 1.0};
 
   void run_for(double seconds, bool setpoints) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
@@ -379,12 +387,25 @@ struct VehicleLoop {
         hq::control::AttitudeSetpoint sp;
         sp.thrust_n = hover_n * (1.0 + std::clamp(a_up_mps2, -3.0, 3.0) / 9.81);
         fc.send_setpoint(t_ns, sp);
-        fc.send_velocity_estimate(
-            t_ns,
-            Eigen::Vector3d(frame.truth.v_H_mps[0], frame.truth.v_H_mps[1], frame.truth.v_H_mps[2]),
-            0.01);
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      // The truth's v_H with 0.1 m/s of white noise per axis, as the report says, stamped at
+      // the frame's exposure: what the SITL's filter fuses with its IMU (level flight: roll and
+      // pitch near zero). It goes on when the setpoints stop, as the runtime's does, so the
+      // SITL's LAND descends on it.
+      hq::vehicle::VelocityReport report;
+      report.t_ns = frame.t_ns > 0 ? frame.t_ns : t_ns;
+      report.v_H_mps =
+          Eigen::Vector3d(frame.truth.v_H_mps[0], frame.truth.v_H_mps[1], frame.truth.v_H_mps[2]);
+      for (int i = 0; i < 3; ++i) report.v_H_mps[i] += kVelocityNoiseMps * noise(rng);
+      report.covariance_H_m2ps2 =
+          kVelocityNoiseMps * kVelocityNoiseMps * Eigen::Matrix3d::Identity();
+      fc.send_velocity(report);
+      // Polled every 2 ms in between, as the runtime polls every control period: an answer's
+      // receipt is stamped at the poll that reads it, which bounds the TIMESYNC round trip.
+      for (int i = 0; i < 10; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        fc.poll(hq::monotonic_now_ns(), sink);
+      }
     }
   }
 };
@@ -456,9 +477,34 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   ASSERT_EQ(sim.wait_exit(10.0), 0) << slurp(out);
   const std::string summary = slurp(out);
   std::printf("%s", summary.c_str());
-  EXPECT_GT(number_after(summary, "vision speed estimates"), 100.0);
-  EXPECT_LT(number_after(summary, "RMSE against truth \\(NED\\)"), 0.3)
-      << "the client's v_NED = Rz(yaw) v_H agrees with the simulator's NWU truth";
+  // The SITL fused the client's ODOMETRY (body FRD) with its own IMU. The received velocity's
+  // error is the added noise, 0.1 m/s per axis (0.17 m/s over three), plus the frame truth's
+  // age; a Kalman filter on a 30-50 Hz velocity with a 500 Hz IMU averages the white part
+  // down by more than half (the unit test measures 0.35 of it), so the fused RMSE must stay
+  // below half the noise's.
+  const double received = number_after(summary, "against truth \\(NED\\): received");
+  const double fused = number_after(summary, "fused with the IMU");
+  std::printf("SITL velocity RMSE: received %.3f m/s, fused %.3f m/s\n", received, fused);
+  EXPECT_GT(number_after(summary, "ODOMETRY received"), 100.0);
+  EXPECT_GT(number_after(summary, "fused"), 100.0);
+  EXPECT_EQ(number_after(summary, "rejected: frame"), 0.0);
+  EXPECT_GT(received, 0.5 * kVelocityNoiseMps * std::sqrt(3.0)) << "the noise reached the SITL";
+  EXPECT_LT(fused, 0.5 * kVelocityNoiseMps * std::sqrt(3.0)) << summary;
+  EXPECT_LT(fused, received);
+  EXPECT_GT(number_after(summary, "LAND descended on vision"), 1.0) << summary;
+  // The SITL answers TIMESYNC as PX4 does: the client's clock comes from the round trips. Its
+  // clock is the simulated time, paced to the host's: the offset is the SITL's start on the
+  // host clock, good to the SITL's 2 ms tick (answers are read once per tick).
+  const hq::vehicle::FcCounters fcc = fc.counters();
+  std::printf("TIMESYNC: offset %.3f ms, jitter %.3f ms, RTT %.3f ms, %llu answers, %llu dropped\n",
+              1e-6 * static_cast<double>(fcc.timesync_offset_ns), 1e-6 * fcc.timesync_jitter_ns,
+              1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
+              static_cast<unsigned long long>(fcc.timesync_samples),
+              static_cast<unsigned long long>(fcc.timesync_rejected));
+  EXPECT_TRUE(fcc.clock_from_timesync);
+  EXPECT_GT(fcc.timesync_samples, 50u);
+  EXPECT_LT(fcc.timesync_jitter_ns, 2e6);
+  EXPECT_GT(number_after(summary, "TIMESYNC answered"), 50.0);
   EXPECT_THAT(summary, HasSubstr("collision ticks airborne 0"));
 }
 

@@ -24,8 +24,7 @@ constexpr double kRelearnAfterS = 1.0;
 void HoverThrustConfig::validate(const std::string& where) const {
   auto fail = [&](const char* key, double value, const char* expected) {
     char text[160];
-    std::snprintf(text, sizeof text, "%s%s = %g, expected %s", where.c_str(), key, value,
-                  expected);
+    std::snprintf(text, sizeof text, "%s%s = %g, expected %s", where.c_str(), key, value, expected);
     throw InputError(text);
   };
   if (!(filter_time_constant_s > 0.0 && filter_time_constant_s <= 2.0)) {

@@ -18,7 +18,7 @@ namespace {
 using testing::HasSubstr;
 
 constexpr double kMassKg = 1.5;
-constexpr std::int64_t kImuPeriodNs = 5'000'000;  // 200 Hz, as the FC is asked for
+constexpr std::int64_t kImuPeriodNs = 5'000'000;        // 200 Hz, as the FC is asked for
 constexpr std::int64_t kSetpointPeriodNs = 33'333'333;  // a setpoint per 30 Hz camera frame
 
 /// A vertical-only vehicle whose rotors give `true_gain` times the thrust the chain believes it
@@ -74,11 +74,12 @@ TEST(HoverThrustEstimator, LearnsAMaximumThrustSetThirtyPercentTooHighWithinSeco
   VerticalFlight flight;
   flight.true_gain = 1.0 / 1.3;
   const double settled_s = flight.fly(estimator, 20.0, 0.10);
-  std::printf("[ figures ] 30 %% too high a maximum thrust: gain %.3f (true %.3f, sigma %.3f), "
-              "within 10 %% after %.2f s, %llu fused, %llu gated\n",
-              estimator.estimate().gain, flight.true_gain, estimator.estimate().sigma, settled_s,
-              static_cast<unsigned long long>(estimator.estimate().updates),
-              static_cast<unsigned long long>(estimator.estimate().rejected));
+  std::printf(
+      "[ figures ] 30 %% too high a maximum thrust: gain %.3f (true %.3f, sigma %.3f), "
+      "within 10 %% after %.2f s, %llu fused, %llu gated\n",
+      estimator.estimate().gain, flight.true_gain, estimator.estimate().sigma, settled_s,
+      static_cast<unsigned long long>(estimator.estimate().updates),
+      static_cast<unsigned long long>(estimator.estimate().rejected));
   ASSERT_GE(settled_s, 0.0);
   EXPECT_LT(settled_s, 5.0);
   EXPECT_NEAR(estimator.estimate().gain, flight.true_gain, 0.03 * flight.true_gain);
@@ -91,9 +92,10 @@ TEST(HoverThrustEstimator, LearnsAMaximumThrustSetThirtyPercentTooLowWithinSecon
   VerticalFlight flight;
   flight.true_gain = 1.0 / 0.7;
   const double settled_s = flight.fly(estimator, 20.0, 0.10);
-  std::printf("[ figures ] 30 %% too low a maximum thrust: gain %.3f (true %.3f), within 10 %% "
-              "after %.2f s\n",
-              estimator.estimate().gain, flight.true_gain, settled_s);
+  std::printf(
+      "[ figures ] 30 %% too low a maximum thrust: gain %.3f (true %.3f), within 10 %% "
+      "after %.2f s\n",
+      estimator.estimate().gain, flight.true_gain, settled_s);
   ASSERT_GE(settled_s, 0.0);
   EXPECT_LT(settled_s, 5.0);
   EXPECT_NEAR(estimator.estimate().gain, flight.true_gain, 0.03 * flight.true_gain);
@@ -105,8 +107,7 @@ TEST(HoverThrustEstimator, CorrectedThrustMakesTheRotorsGiveWhatTheChainAsked) {
   flight.true_gain = 1.25;
   flight.fly(estimator, 10.0, 0.1);
   const double wanted_n = kMassKg * kGravityMps2;
-  EXPECT_NEAR(flight.true_gain * estimator.corrected_thrust_n(wanted_n), wanted_n,
-              0.03 * wanted_n);
+  EXPECT_NEAR(flight.true_gain * estimator.corrected_thrust_n(wanted_n), wanted_n, 0.03 * wanted_n);
 }
 
 TEST(HoverThrustEstimator, OnTheFloorNothingIsLearnt) {
@@ -144,8 +145,9 @@ TEST(HoverThrustEstimator, AGainChangeInFlightIsLearntAgain) {
   ASSERT_TRUE(estimator.estimate().converged);
   flight.true_gain = 1.35;
   const double settled_s = flight.fly(estimator, 15.0, 0.10);
-  std::printf("[ figures ] gain 1.00 -> 1.35 in flight: within 10 %% after %.2f s, relearned %llu\n",
-              settled_s, static_cast<unsigned long long>(estimator.estimate().relearned));
+  std::printf(
+      "[ figures ] gain 1.00 -> 1.35 in flight: within 10 %% after %.2f s, relearned %llu\n",
+      settled_s, static_cast<unsigned long long>(estimator.estimate().relearned));
   ASSERT_GE(settled_s, 0.0);
   EXPECT_LT(settled_s, 6.0);
   EXPECT_GE(estimator.estimate().relearned, 1U);

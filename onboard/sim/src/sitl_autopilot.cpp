@@ -1,8 +1,12 @@
 #include "hq/sim/sitl_autopilot.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
+#include <string_view>
 
 namespace hq::sim {
 
@@ -28,6 +32,49 @@ constexpr double kBatteryEmptyV = 14.0;
 constexpr double kDrainIdleVps = 0.0005;
 constexpr double kDrainArmedVps = 0.004;
 
+// PX4's names and units for what SitlAutopilotConfig holds (docs.px4.io parameter reference),
+// sorted by name as PX4 lists them; ranges within PX4's.
+struct SitlParam {
+  const char* id;
+  double min, max;
+  double SitlAutopilotConfig::*seconds_or_value;  // a double member, or
+  std::int64_t SitlAutopilotConfig::*ns;          // a nanosecond member shown in seconds
+};
+constexpr std::array<SitlParam, kSitlParamCount> kParams{{
+    {"COM_DISARM_LAND", 0.1, 20.0, nullptr, &SitlAutopilotConfig::landed_disarm_ns},
+    {"COM_OBC_LOSS_T", 0.1, 60.0, nullptr, &SitlAutopilotConfig::companion_loss_ns},
+    {"COM_OF_LOSS_T", 0.1, 60.0, nullptr, &SitlAutopilotConfig::offboard_loss_ns},
+    {"MPC_LAND_SPEED", 0.1, 5.0, &SitlAutopilotConfig::land_speed_mps, nullptr},
+    {"MPC_Z_VEL_P_ACC", 0.1, 20.0, &SitlAutopilotConfig::land_speed_gain_per_s, nullptr},
+}};
+
+int find_param(const std::array<char, 16>& id) {
+  const std::string_view name(id.data(), strnlen(id.data(), id.size()));
+  for (std::size_t i = 0; i < kParams.size(); ++i) {
+    if (name == kParams[i].id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+bool for_us(std::uint8_t target_system, std::uint8_t target_component) {
+  return (target_system == 0 || target_system == 1) &&
+         (target_component == 0 || target_component == mavlink::kMavCompIdAutopilot1);
+}
+
+constexpr std::uint8_t kMavEstimatorTypeUnknown = 0;
+constexpr std::uint8_t kMavEstimatorTypeVision = 2;
+
+Eigen::Vector3d ned_from_world(const Eigen::Vector3d& v_W) {  // W is NWU
+  return {v_W.x(), -v_W.y(), -v_W.z()};
+}
+
+Eigen::Matrix3d R_NED_B_of(const TruthState& truth) {  // euler_rad: B (FRD) in NED
+  return (Eigen::AngleAxisd(truth.euler_rad.z(), Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(truth.euler_rad.y(), Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(truth.euler_rad.x(), Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
 bool finite(const mavlink::SetAttitudeTarget& t) {
   return std::isfinite(t.q[0]) && std::isfinite(t.q[1]) && std::isfinite(t.q[2]) &&
          std::isfinite(t.q[3]) && std::isfinite(t.body_yaw_rate_radps) && std::isfinite(t.thrust);
@@ -51,7 +98,9 @@ SitlAutopilot::SitlAutopilot(const QuadrotorParams& vehicle, const SitlAutopilot
     : config_(config),
       mass_kg_(vehicle.mass_kg),
       max_thrust_n_(4.0 * vehicle.thrust_coefficient * vehicle.max_rotor_speed_radps *
-                    vehicle.max_rotor_speed_radps) {}
+                    vehicle.max_rotor_speed_radps),
+      vision_(config.vision),
+      rng_(config.seed) {}
 
 std::uint32_t SitlAutopilot::custom_mode() const {
   switch (mode_) {
@@ -114,6 +163,16 @@ void SitlAutopilot::on_message(std::int64_t t_ns, std::uint8_t system_id, std::u
                                MessageSink& out) {
   if (const auto* h = std::get_if<mavlink::Heartbeat>(&message)) {
     if (h->type == mavlink::kMavTypeOnboardController) last_companion_ns_ = t_ns;
+    if (h->type == mavlink::kMavTypeGcs) {
+      // A GCS that just connected sees the vehicle at once, not within a second.
+      if (last_gcs_ns_ < 0) send_heartbeat(out);
+      last_gcs_ns_ = t_ns;
+      ++stats_.gcs_heartbeats;
+    }
+  } else if (std::holds_alternative<mavlink::ParamRequestList>(message) ||
+             std::holds_alternative<mavlink::ParamRequestRead>(message) ||
+             std::holds_alternative<mavlink::ParamSet>(message)) {
+    handle_param(message, out);
   } else if (const auto* c = std::get_if<mavlink::CommandLong>(&message)) {
     // As PX4: a command for another system is not ours to ack.
     if (c->target_system != 0 && c->target_system != 1) return;
@@ -124,14 +183,149 @@ void SitlAutopilot::on_message(std::int64_t t_ns, std::uint8_t system_id, std::u
       return;
     }
     handle_setpoint(t_ns, *s);
-  } else if (const auto* v = std::get_if<mavlink::VisionSpeedEstimate>(&message)) {
-    if (!std::isfinite(v->x_mps) || !std::isfinite(v->y_mps) || !std::isfinite(v->z_mps)) return;
-    const Eigen::Vector3d& v_W = truth.v_world_mps;
-    const Eigen::Vector3d v_ned_true(v_W.x(), -v_W.y(), -v_W.z());  // W is NWU
-    const Eigen::Vector3d v_ned_est(v->x_mps, v->y_mps, v->z_mps);
-    ++stats_.vision_estimates;
-    stats_.vision_sq_error_sum += (v_ned_est - v_ned_true).squaredNorm();
+  } else if (std::holds_alternative<mavlink::VisionSpeedEstimate>(message)) {
+    ++stats_.vision_speed_ignored;
+    if (!said_vision_speed_ignored_) {
+      said_vision_speed_ignored_ = true;
+      statustext(kSeverityWarning, "VISION_SPEED_ESTIMATE ignored: send ODOMETRY", out);
+    }
+  } else if (const auto* o = std::get_if<mavlink::Odometry>(&message)) {
+    handle_odometry(*o);
+  } else if (const auto* ts = std::get_if<mavlink::Timesync>(&message)) {
+    // A request (tc1 = 0) is answered with this FC's clock, ts1 echoed, addressed to the
+    // requester (the newer protocol's targets; an old requester ignores them).
+    if (ts->tc1_ns != 0) return;
+    mavlink::Timesync answer;
+    answer.tc1_ns = t_ns;
+    answer.ts1_ns = ts->ts1_ns;
+    answer.target_system = system_id;
+    answer.target_component = component_id;
+    ++stats_.timesync_answered;
+    out.send(answer);
   }
+}
+
+void SitlAutopilot::send_param(int index, MessageSink& out) {
+  const SitlParam& p = kParams[static_cast<std::size_t>(index)];
+  mavlink::ParamValue v;
+  v.param_value = static_cast<float>(p.ns != nullptr ? static_cast<double>(config_.*p.ns) * 1e-9
+                                                     : config_.*p.seconds_or_value);
+  v.param_count = kParams.size();
+  v.param_index = static_cast<std::uint16_t>(index);
+  std::memcpy(v.param_id.data(), p.id, std::min(std::strlen(p.id), v.param_id.size()));
+  v.param_type = mavlink::kMavParamTypeReal32;
+  out.send(v);
+  ++stats_.params_sent;
+}
+
+void SitlAutopilot::handle_param(const mavlink::Message& message, MessageSink& out) {
+  if (const auto* list = std::get_if<mavlink::ParamRequestList>(&message)) {
+    if (!for_us(list->target_system, list->target_component)) return;
+    for (int i = 0; i < kSitlParamCount; ++i) send_param(i, out);
+  } else if (const auto* read = std::get_if<mavlink::ParamRequestRead>(&message)) {
+    if (!for_us(read->target_system, read->target_component)) return;
+    const int index = read->param_index >= 0 ? read->param_index : find_param(read->param_id);
+    if (index < 0 || index >= kSitlParamCount) {
+      ++stats_.params_rejected;  // PX4 stays silent; the GCS times out and says so
+      return;
+    }
+    send_param(index, out);
+  } else if (const auto* set = std::get_if<mavlink::ParamSet>(&message)) {
+    if (!for_us(set->target_system, set->target_component)) return;
+    const int index = find_param(set->param_id);
+    if (index < 0) {
+      ++stats_.params_rejected;
+      return;
+    }
+    // As PX4: the answer is always the parameter's value after the request, so a GCS sees a
+    // refused value as not taken.
+    const SitlParam& p = kParams[static_cast<std::size_t>(index)];
+    const auto value = static_cast<double>(set->param_value);
+    if (set->param_type != mavlink::kMavParamTypeReal32 || !std::isfinite(value) || value < p.min ||
+        value > p.max) {
+      ++stats_.params_rejected;
+      statustext(kSeverityWarning, "param set refused: out of range or not REAL32", out);
+    } else {
+      if (p.ns != nullptr) {
+        config_.*p.ns = std::llround(value * 1e9);
+      } else {
+        config_.*p.seconds_or_value = value;
+      }
+      ++stats_.params_set;
+    }
+    send_param(index, out);
+  }
+}
+
+void SitlAutopilot::handle_odometry(const mavlink::Odometry& o) {
+  ++stats_.odometry_received;
+  // PX4's receiver: vision estimator types go to EKF2, others (MOCAP, GPS, ...) do not.
+  if (o.estimator_type != kMavEstimatorTypeUnknown && o.estimator_type != kMavEstimatorTypeVision &&
+      o.estimator_type != mavlink::kMavEstimatorTypeVio) {
+    ++stats_.rejected_estimator;
+    return;
+  }
+  const Eigen::Vector3d v(static_cast<double>(o.vx_mps), static_cast<double>(o.vy_mps),
+                          static_cast<double>(o.vz_mps));
+  if (!v.allFinite()) {
+    ++stats_.rejected_nan;
+    return;
+  }
+  Eigen::Matrix3d R_child;  // the velocity's covariance as sent (NaN in [0]: unknown)
+  for (std::size_t r = 0; r < 3; ++r) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      R_child(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = static_cast<double>(
+          o.velocity_covariance[mavlink::upper_triangle_index(std::min(r, c), std::max(r, c))]);
+    }
+  }
+  Eigen::Matrix3d R_NED_child;
+  if (o.child_frame_id == mavlink::kMavFrameBodyFrd) {
+    R_NED_child = R_NED_B_;
+  } else if (o.child_frame_id == mavlink::kMavFrameLocalNed) {
+    R_NED_child.setIdentity();
+  } else {
+    ++stats_.rejected_frame;
+    return;
+  }
+  if (o.quality_pct < config_.min_vision_quality_pct) {
+    ++stats_.rejected_quality;
+    return;
+  }
+  const auto t_meas_ns = static_cast<std::int64_t>(o.time_usec) * 1000;
+  const Eigen::Vector3d z_NED = R_NED_child * v;
+  const Eigen::Matrix3d R_NED = R_NED_child * R_child * R_NED_child.transpose();
+  Eigen::Vector3d v_true_NED;
+  if (truth_at(t_meas_ns, v_true_NED)) {
+    ++stats_.raw_samples;
+    stats_.raw_sq_error_sum += (z_NED - v_true_NED).squaredNorm();
+  }
+  switch (vision_.fuse(t_meas_ns, z_NED, R_NED, o.reset_counter)) {
+    case VisionFuse::kFused:
+      ++stats_.odometry_fused;
+      break;
+    case VisionFuse::kReset:
+      ++stats_.odometry_fused;
+      ++stats_.odometry_resets;
+      break;
+    case VisionFuse::kRejectedGate:
+      ++stats_.rejected_gate;
+      break;
+    case VisionFuse::kRejectedStamp:
+      ++stats_.rejected_stamp;
+      break;
+  }
+}
+
+bool SitlAutopilot::truth_at(std::int64_t t_ns, Eigen::Vector3d& v_NED_mps) const {
+  for (std::size_t k = 1; k <= truth_count_; ++k) {
+    const std::size_t i = (truth_next_ + kTruthHistory - k) % kTruthHistory;
+    if (truth_t_ns_[i] <= t_ns) {
+      if (k == 1 && t_ns - truth_t_ns_[i] > 20'000'000) return false;
+      v_NED_mps = truth_v_NED_mps_[i];
+      return true;
+    }
+  }
+  return false;
 }
 
 void SitlAutopilot::handle_setpoint(std::int64_t t_ns, const mavlink::SetAttitudeTarget& t) {
@@ -213,9 +407,22 @@ void SitlAutopilot::handle_command(std::int64_t t_ns, std::uint8_t system_id,
   ack(c, kResultUnsupported, system_id, component_id, out);
 }
 
-AttitudeCommand SitlAutopilot::level_command(const TruthState& truth, double v_up_mps) const {
-  // The FC's own estimator is the truth here: a P loop on vertical speed, level, no yaw.
-  const double a_up_mps2 = config_.land_speed_gain_per_s * (v_up_mps - truth.v_world_mps.z());
+double SitlAutopilot::estimated_v_up_mps(std::int64_t t_ns, const TruthState& truth,
+                                         std::int64_t dt_ns) {
+  // The barometer's rate wanders whether or not it is used, as a sensor's error does.
+  const double dt_s = static_cast<double>(dt_ns) * 1e-9;
+  const double decay = std::exp(-dt_s / config_.baro_rate_correlation_s);
+  baro_rate_error_mps_ = decay * baro_rate_error_mps_ + config_.baro_rate_sigma_mps *
+                                                            std::sqrt(1.0 - decay * decay) *
+                                                            normal_(rng_);
+  if (vision_.fresh(t_ns)) return -vision_.v_NED_mps().z();
+  return truth.v_world_mps.z() + baro_rate_error_mps_;
+}
+
+AttitudeCommand SitlAutopilot::level_command(const TruthState& truth, double v_up_mps,
+                                             double v_up_estimate_mps) const {
+  // A P loop on the estimated vertical speed, level, no yaw (attitude from the truth).
+  const double a_up_mps2 = config_.land_speed_gain_per_s * (v_up_mps - v_up_estimate_mps);
   const double tilt = std::cos(truth.euler_rad.x()) * std::cos(truth.euler_rad.y());
   AttitudeCommand c;
   c.thrust_n =
@@ -245,6 +452,7 @@ AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth
     }
   }
 
+  const double v_up_estimate_mps = estimated_v_up_mps(t_ns, truth, dt_ns);
   AttitudeCommand command;  // disarmed: no thrust
   if (armed_) {
     switch (mode_) {
@@ -252,7 +460,10 @@ AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth
         command = setpoint_;
         break;
       case SitlMode::kLand:
-        command = level_command(truth, -config_.land_speed_mps);
+        command = level_command(truth, -config_.land_speed_mps, v_up_estimate_mps);
+        if (!truth.on_ground) {
+          (vision_.fresh(t_ns) ? stats_.descent_on_vision_ns : stats_.descent_on_baro_ns) += dt_ns;
+        }
         if (truth.on_ground) {
           if (on_ground_since_ns_ < 0) on_ground_since_ns_ = t_ns;
           if (t_ns - on_ground_since_ns_ >= config_.landed_disarm_ns) {
@@ -265,7 +476,7 @@ AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth
         break;
       case SitlMode::kPosctl:
         // No sticks: idle on the ground, hold altitude (zero vertical speed) in the air.
-        if (!truth.on_ground) command = level_command(truth, 0.0);
+        if (!truth.on_ground) command = level_command(truth, 0.0, v_up_estimate_mps);
         break;
     }
   }
@@ -296,7 +507,20 @@ AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth
   return command;
 }
 
-void SitlAutopilot::send_imu(const ImuSample& sample, MessageSink& out) const {
+void SitlAutopilot::on_imu(const ImuSample& sample, const TruthState& truth, MessageSink& out) {
+  R_NED_B_ = R_NED_B_of(truth);
+  const Eigen::Vector3d a_NED_mps2 =
+      R_NED_B_ * sample.f_body_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2);
+  vision_.predict(sample.t_ns, a_NED_mps2);
+  const Eigen::Vector3d v_true_NED = ned_from_world(truth.v_world_mps);
+  truth_t_ns_[truth_next_] = sample.t_ns;
+  truth_v_NED_mps_[truth_next_] = v_true_NED;
+  truth_next_ = (truth_next_ + 1) % kTruthHistory;
+  truth_count_ = std::min(truth_count_ + 1, kTruthHistory);
+  if (vision_.fresh(sample.t_ns)) {
+    ++stats_.fused_samples;
+    stats_.fused_sq_error_sum += (vision_.v_NED_mps() - v_true_NED).squaredNorm();
+  }
   mavlink::HighresImu m;
   m.time_usec = static_cast<std::uint64_t>(sample.t_ns / 1000);
   m.xacc_mps2 = static_cast<float>(sample.f_body_mps2.x());

@@ -288,13 +288,29 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
       static_cast<unsigned long long>(st.setpoints_rejected),
       static_cast<unsigned long long>(st.commands), static_cast<double>(st.armed_ns) * 1e-9,
       static_cast<double>(st.offboard_ns) * 1e-9);
-  if (st.vision_estimates > 0) {
-    std::printf("vision speed estimates %llu, RMSE against truth (NED) %.3f m/s\n",
-                static_cast<unsigned long long>(st.vision_estimates),
-                std::sqrt(st.vision_sq_error_sum / static_cast<double>(st.vision_estimates)));
-  } else {
-    std::printf("vision speed estimates 0, RMSE n/a\n");
-  }
+  std::printf("GCS heartbeats %llu, parameters sent %llu, set %llu, refused or unknown %llu\n",
+              static_cast<unsigned long long>(st.gcs_heartbeats),
+              static_cast<unsigned long long>(st.params_sent),
+              static_cast<unsigned long long>(st.params_set),
+              static_cast<unsigned long long>(st.params_rejected));
+  auto rmse = [](double sum, std::uint64_t n) {
+    return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : std::nan("");
+  };
+  auto u = [](std::uint64_t n) { return static_cast<unsigned long long>(n); };
+  std::printf(
+      "vision: ODOMETRY received %llu, fused %llu, resets %llu, rejected: frame %llu, "
+      "estimator %llu, nan %llu, quality %llu, gate %llu, stamp %llu; VISION_SPEED_ESTIMATE "
+      "ignored %llu; TIMESYNC answered %llu\n",
+      u(st.odometry_received), u(st.odometry_fused), u(st.odometry_resets), u(st.rejected_frame),
+      u(st.rejected_estimator), u(st.rejected_nan), u(st.rejected_quality), u(st.rejected_gate),
+      u(st.rejected_stamp), u(st.vision_speed_ignored), u(st.timesync_answered));
+  std::printf(
+      "velocity RMSE against truth (NED): received %.3f m/s (%llu), fused with the IMU %.3f m/s "
+      "(%llu IMU steps); LAND descended on vision %.2f s, on baro %.2f s\n",
+      rmse(st.raw_sq_error_sum, st.raw_samples), u(st.raw_samples),
+      rmse(st.fused_sq_error_sum, st.fused_samples), u(st.fused_samples),
+      static_cast<double>(st.descent_on_vision_ns) * 1e-9,
+      static_cast<double>(st.descent_on_baro_ns) * 1e-9);
   std::printf("final: %s %s, battery %.2f V, %s at altitude %.2f m\n",
               autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
               autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
@@ -350,7 +366,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
     t_ns = sim.t_ns();
 
     const std::size_t n_imu = sim.take_imu(imu.data(), imu.size());
-    for (std::size_t i = 0; i < n_imu; ++i) autopilot.send_imu(imu[i], sink);
+    for (std::size_t i = 0; i < n_imu; ++i) autopilot.on_imu(imu[i], sim.truth(), sink);
     if (sim.camera_due()) publish_camera(sim, *renderer, wall_origin_ns, stats);
     channel.heartbeat();
 

@@ -3,6 +3,7 @@
 #include "hq/base/error.hpp"
 #include "hq/estimator/complementary_filter.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -183,12 +184,14 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
     status_.fc_override = true;
     arm_wanted_ = false;
     if (!fc.armed) {
-      event(t_ns, FcSeverity::kError,
-            "flight controller disarmed (its failsafe or the pilot): landing, not re-arming");
+      event(
+          t_ns, FcSeverity::kError,
+          "flight controller disarmed (its failsafe, the pilot or a GCS): landing, not re-arming");
       if (!landed()) chain_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
     } else {
       event(t_ns, FcSeverity::kError,
-            "flight controller left offboard (its failsafe or the pilot's RC): our setpoints "
+            "flight controller left offboard (its failsafe, the pilot's RC or a GCS): our "
+            "setpoints "
             "are not flown; holding, not re-entering offboard");
       if (!landed()) chain_.request_mode(modes::Mode::kHover, modes::RequestOrigin::kVehicle);
     }
@@ -206,12 +209,10 @@ void VehicleRuntime::deliver(const pipeline::ChainOutput& out) {
           out.mode.landed ? "landed and at rest: setpoint stream to the FC started"
                           : "first estimate: setpoint stream to the FC started");
   }
+  if (out.frame) report_velocity(out);
   if (status_.streaming) {
     fc_.send_setpoint(out.t_ns, out.mode.control.setpoint);
     ++counters_.setpoints;
-    if (out.frame && out.estimate.ok()) {
-      fc_.send_velocity_estimate(out.t_ns, out.estimate.v_H_mps, config_.velocity_variance_m2ps2);
-    }
   } else {
     ++counters_.setpoints_withheld;
   }
@@ -234,6 +235,41 @@ void VehicleRuntime::announce_hover_thrust(const pipeline::ChainOutput& out) {
                 100.0 * out.hover_thrust.gain, out.hover_thrust_n);
   const bool far_off = std::abs(out.hover_thrust.gain - 1.0) > 0.15;
   event(out.t_ns, far_off ? FcSeverity::kWarning : FcSeverity::kInfo, text);
+}
+
+void VehicleRuntime::report_velocity(const pipeline::ChainOutput& out) {
+  const estimator::VelocityEstimate& estimate = out.estimate;
+  if (!estimate.usable()) {
+    velocity_interrupted_ = velocity_reported_;
+    return;
+  }
+  // Keyframe changes of the odometry do not count: the fused velocity is continuous across
+  // them. Only a restart of the estimator's filter (after it was unavailable, or reset) is.
+  if (velocity_interrupted_) {
+    ++velocity_reset_counter_;
+    ++counters_.velocity_resets;
+    velocity_interrupted_ = false;
+  }
+  VelocityReport report;
+  report.t_ns = out.t_ns;
+  report.v_H_mps = estimate.v_H_mps;
+  report.roll_rad = estimate.roll_rad;
+  report.pitch_rad = estimate.pitch_rad;
+  report.source = estimate.ok() ? VelocitySource::kOdometry : VelocitySource::kInertialCoast;
+  report.reset_counter = velocity_reset_counter_;
+  const double floor_m2ps2 = config_.velocity_variance_m2ps2;
+  const Eigen::Matrix3d& covariance = estimate.v_H_covariance;
+  if (covariance.allFinite() && covariance.diagonal().minCoeff() > 0.0) {
+    report.covariance_H_m2ps2 = covariance;
+    for (int i = 0; i < 3; ++i) {
+      report.covariance_H_m2ps2(i, i) = std::max(covariance(i, i), floor_m2ps2);
+    }
+  } else {
+    report.covariance_H_m2ps2 = floor_m2ps2 * Eigen::Matrix3d::Identity();
+  }
+  fc_.send_velocity(report);
+  velocity_reported_ = true;
+  ++counters_.velocity_reports;
 }
 
 NoFlightController::NoFlightController(std::vector<FcImuSample> recorded)

@@ -59,14 +59,16 @@ class FakeFc final : public FlightController {
     ++setpoints;
     last = s;
   }
-  void send_velocity_estimate(std::int64_t, const Eigen::Vector3d&, double) override {
+  void send_velocity(const VelocityReport& report) override {
     ++velocity_estimates;
+    last_velocity = report;
   }
   void request_arm_offboard(std::int64_t /*t_ns*/) override { ++arm_requests; }
   [[nodiscard]] FcStatus status(std::int64_t /*t_ns*/) const override { return fc_status; }
   [[nodiscard]] std::string describe() const override { return "fake"; }
 
   FcStatus fc_status;
+  VelocityReport last_velocity;
   int setpoints = 0;
   int velocity_estimates = 0;
   int arm_requests = 0;

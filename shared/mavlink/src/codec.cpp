@@ -1,5 +1,7 @@
 #include "hq/mavlink/codec.hpp"
 
+#include "hq/mavlink/message_targets.hpp"
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -178,6 +180,71 @@ struct Spec<Statustext> {
   }
 };
 
+template <>
+struct Spec<Timesync> {
+  static constexpr std::uint8_t kCrcExtra = 34;
+  static constexpr std::size_t kBaseLen = 16, kMaxLen = 18;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.tc1_ns), io(m.ts1_ns);
+    io(m.target_system), io(m.target_component);
+  }
+};
+
+template <>
+struct Spec<Odometry> {
+  static constexpr std::uint8_t kCrcExtra = 91;
+  static constexpr std::size_t kBaseLen = 230, kMaxLen = 233;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.time_usec), io(m.x_m), io(m.y_m), io(m.z_m), io(m.q), io(m.vx_mps), io(m.vy_mps),
+        io(m.vz_mps), io(m.rollspeed_radps), io(m.pitchspeed_radps), io(m.yawspeed_radps),
+        io(m.pose_covariance), io(m.velocity_covariance), io(m.frame_id), io(m.child_frame_id);
+    io(m.reset_counter), io(m.estimator_type), io(m.quality_pct);
+  }
+};
+
+template <>
+struct Spec<ParamRequestRead> {
+  static constexpr std::uint8_t kCrcExtra = 214;
+  static constexpr std::size_t kBaseLen = 20, kMaxLen = 20;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.param_index), io(m.target_system), io(m.target_component), io(m.param_id);
+  }
+};
+
+template <>
+struct Spec<ParamRequestList> {
+  static constexpr std::uint8_t kCrcExtra = 159;
+  static constexpr std::size_t kBaseLen = 2, kMaxLen = 2;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.target_system), io(m.target_component);
+  }
+};
+
+template <>
+struct Spec<ParamValue> {
+  static constexpr std::uint8_t kCrcExtra = 220;
+  static constexpr std::size_t kBaseLen = 25, kMaxLen = 25;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.param_value), io(m.param_count), io(m.param_index), io(m.param_id), io(m.param_type);
+  }
+};
+
+template <>
+struct Spec<ParamSet> {
+  static constexpr std::uint8_t kCrcExtra = 168;
+  static constexpr std::size_t kBaseLen = 23, kMaxLen = 23;
+  template <typename Io, typename M>
+  static constexpr void wire(Io& io, M& m) {
+    io(m.param_value), io(m.target_system), io(m.target_component), io(m.param_id),
+        io(m.param_type);
+  }
+};
+
 // The field lists above must add up to the lengths of common.xml.
 template <typename M>
 constexpr std::size_t wire_length() {
@@ -339,17 +406,18 @@ std::size_t Parser::accumulate(std::span<const std::uint8_t> bytes, bool& comple
   }
 }
 
-bool Parser::decode_candidate(FrameHeader& header, Message& message) {
+void Parser::consume_frame(std::size_t frame_size) {
+  // Bytes after this frame stay for the next candidate (they are there after a resync).
+  std::memmove(buf_, buf_ + frame_size, size_ - frame_size);
+  size_ -= frame_size;
+}
+
+Parser::Candidate Parser::check_candidate(RawFrame& frame, Message& message) {
   const bool v2 = buf_[0] == kStxV2;
   const std::size_t header_size = v2 ? kHeaderV2 : kHeaderV1;
   const std::size_t length = buf_[1];
   const std::size_t frame_size = header_size + length + kCrcSize +
                                  ((v2 && (buf_[2] & kIncompatSigned) != 0) ? kSignatureSize : 0);
-  // Bytes after this frame stay for the next candidate (they are there after a resync).
-  auto drop_frame = [&] {
-    std::memmove(buf_, buf_ + frame_size, size_ - frame_size);
-    size_ -= frame_size;
-  };
   auto drop_start_byte = [&] {
     std::memmove(buf_, buf_ + 1, size_ - 1);
     --size_;
@@ -357,44 +425,53 @@ bool Parser::decode_candidate(FrameHeader& header, Message& message) {
 
   const std::uint32_t id =
       v2 ? static_cast<std::uint32_t>(buf_[7] | (buf_[8] << 8) | (buf_[9] << 16)) : buf_[5];
-  MessageInfo info{};
-  if (!message_info(id, info)) {
-    // Well framed but not ours: its CRC cannot be checked without the CRC_EXTRA, so trust the
-    // length and skip the frame whole.
-    ++counters_.unknown_id;
-    drop_frame();
-    return false;
-  }
-  std::uint16_t crc =
-      crc16_mcrf4xx(std::span<const std::uint8_t>(buf_ + 1, header_size - 1 + length));
-  crc = crc_accumulate(info.crc_extra, crc);
-  const std::uint16_t received = static_cast<std::uint16_t>(buf_[header_size + length] |
-                                                            (buf_[header_size + length + 1] << 8));
-  if (crc != received) {
-    ++counters_.bad_crc;
-    drop_start_byte();  // a real frame may begin inside this one
-    return false;
-  }
-  // MAVLink 1 frames carry no extensions; one that does anyway (node-mavlink writes them) is
-  // accepted and its extension bytes ignored.
-  if (length > info.max_len) {
-    ++counters_.bad_length;
-    drop_frame();
-    return false;
-  }
-  std::uint8_t payload[kMaxPayload]{};  // zero padding restores trimmed bytes and extensions
-  std::memcpy(payload, buf_ + header_size, v2 ? length : std::min(length, info.base_len));
-  decode_payload(info.variant_index, payload, message);
+  FrameHeader& header = frame.header;
   header.v1 = !v2;
   header.is_signed = v2 && (buf_[2] & kIncompatSigned) != 0;
   header.sequence = v2 ? buf_[4] : buf_[2];
   header.system_id = v2 ? buf_[5] : buf_[3];
   header.component_id = v2 ? buf_[6] : buf_[4];
   header.message_id = id;
+  frame.bytes = std::span<const std::uint8_t>(buf_, frame_size);
+
+  MessageInfo info{};
+  const bool decodable = message_info(id, info);
+  const MessageTargets* routed = decodable ? nullptr : find_message_targets(id);
+  if (!decodable && routed == nullptr) {
+    // Well framed but known nowhere: its CRC cannot be checked without the CRC_EXTRA, so trust
+    // the length and hand the frame on whole, unchecked, for a router to forward.
+    ++counters_.unknown_id;
+    frame.crc_checked = false;
+    return Candidate::kRawOnly;
+  }
+  std::uint16_t crc =
+      crc16_mcrf4xx(std::span<const std::uint8_t>(buf_ + 1, header_size - 1 + length));
+  crc = crc_accumulate(decodable ? info.crc_extra : routed->crc_extra, crc);
+  const std::uint16_t received = static_cast<std::uint16_t>(buf_[header_size + length] |
+                                                            (buf_[header_size + length + 1] << 8));
+  if (crc != received) {
+    ++counters_.bad_crc;
+    drop_start_byte();  // a real frame may begin inside this one
+    return Candidate::kDropped;
+  }
+  frame.crc_checked = true;
+  if (!decodable) {
+    ++counters_.undecoded;
+    return Candidate::kRawOnly;
+  }
+  // MAVLink 1 frames carry no extensions; one that does anyway (node-mavlink writes them) is
+  // accepted and its extension bytes ignored.
+  if (length > info.max_len) {
+    ++counters_.bad_length;
+    consume_frame(frame_size);
+    return Candidate::kDropped;
+  }
+  std::uint8_t payload[kMaxPayload]{};  // zero padding restores trimmed bytes and extensions
+  std::memcpy(payload, buf_ + header_size, v2 ? length : std::min(length, info.base_len));
+  decode_payload(info.variant_index, payload, message);
   ++counters_.frames;
   if (!v2) ++counters_.v1_frames;
-  drop_frame();
-  return true;
+  return Candidate::kDecoded;
 }
 
 }  // namespace hq::mavlink

@@ -150,6 +150,13 @@ class UdpTransport final : public FdTransport {
   }
 
   [[nodiscard]] bool datagrams() const override { return true; }
+  [[nodiscard]] bool has_peer() const override { return has_peer_; }
+  [[nodiscard]] std::string peer() const override {
+    if (!has_peer_) return {};
+    char host[INET_ADDRSTRLEN] = "";
+    ::inet_ntop(AF_INET, &peer_.sin_addr, host, sizeof(host));
+    return std::string(host) + ":" + std::to_string(ntohs(peer_.sin_port));
+  }
 
  private:
   bool listen_;

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -98,7 +100,23 @@ std::vector<Message> every_message() {
   std::memcpy(st.text.data(), text, std::strlen(text));
   st.id = 513;
   st.chunk_seq = 1;
-  return {hb, ss, att, cl, ack, sat, vse, imu, st};
+  const Timesync ts{-1234567890123LL, 9876543210987LL, 1, 191};
+  Odometry od;
+  od.time_usec = 0x0123456789ABCull;
+  od.x_m = 1.f, od.y_m = -2.f, od.z_m = -0.5f;
+  od.q = {0.5f, 0.5f, -0.5f, 0.5f};
+  od.vx_mps = 0.25f, od.vy_mps = -0.125f, od.vz_mps = 0.0625f;
+  od.rollspeed_radps = 0.1f, od.pitchspeed_radps = -0.2f, od.yawspeed_radps = 0.3f;
+  for (std::size_t i = 0; i < 21; ++i) {
+    od.pose_covariance[i] = 0.001f * static_cast<float>(i + 1);
+    od.velocity_covariance[i] = -0.002f * static_cast<float>(i + 1);
+  }
+  od.frame_id = kMavFrameLocalFrd;
+  od.child_frame_id = kMavFrameBodyFrd;
+  od.reset_counter = 9;
+  od.estimator_type = kMavEstimatorTypeVio;
+  od.quality_pct = -1;
+  return {hb, ss, att, cl, ack, sat, vse, imu, st, ts, od};
 }
 
 TEST(Crc, Mcrf4xxCheckValue) {
@@ -126,6 +144,70 @@ TEST(Codec, EveryMessageRoundTripsWithItsHeader) {
   EXPECT_EQ(parser.counters().frames, every_message().size());
   EXPECT_EQ(parser.counters().dropped(), 0u);
   EXPECT_EQ(parser.counters().garbage_bytes, 0u);
+}
+
+TEST(Codec, OdometryFieldsSitAtTheirSpecOffsets) {
+  // common.xml ODOMETRY: time_usec at 0, q at 20, vx at 36, pose_covariance at 60,
+  // velocity_covariance at 144, frame_id 228, child_frame_id 229; extensions reset_counter 230,
+  // estimator_type 231, quality 232 (int8).
+  Odometry od;
+  od.time_usec = 0x0807060504030201ull;
+  od.q = {2.f, 0.f, 0.f, 0.f};
+  od.vx_mps = -1.f;
+  od.pose_covariance[0] = 4.f;
+  od.velocity_covariance[20] = 8.f;
+  od.frame_id = kMavFrameLocalFrd;
+  od.child_frame_id = kMavFrameBodyFrd;
+  od.reset_counter = 3;
+  od.estimator_type = kMavEstimatorTypeVio;
+  od.quality_pct = -1;
+  const Bytes frame = encode(od);
+  ASSERT_EQ(frame[1], 233);
+  const std::uint8_t* payload = frame.data() + 10;
+  auto f32 = [&](std::size_t offset) {
+    float v = 0;
+    std::memcpy(&v, payload + offset, 4);
+    return v;
+  };
+  EXPECT_EQ(payload[0], 0x01);
+  EXPECT_EQ(payload[7], 0x08);
+  EXPECT_EQ(f32(20), 2.f);
+  EXPECT_EQ(f32(36), -1.f);
+  EXPECT_EQ(f32(60), 4.f);
+  EXPECT_EQ(f32(144 + 20 * 4), 8.f);
+  EXPECT_EQ(payload[228], kMavFrameLocalFrd);
+  EXPECT_EQ(payload[229], kMavFrameBodyFrd);
+  EXPECT_EQ(payload[230], 3);
+  EXPECT_EQ(payload[231], kMavEstimatorTypeVio);
+  EXPECT_EQ(payload[232], 0xFF);
+  EXPECT_EQ(upper_triangle_index(1, 1), 6u);
+  EXPECT_EQ(upper_triangle_index(2, 2), 11u);
+  EXPECT_EQ(upper_triangle_index(5, 5), 20u);
+}
+
+TEST(Codec, OdometryNanFieldsSurviveBitForBit) {
+  Odometry od;
+  od.x_m = od.y_m = od.z_m = std::numeric_limits<float>::quiet_NaN();
+  od.q.fill(std::numeric_limits<float>::quiet_NaN());
+  od.pose_covariance.fill(std::numeric_limits<float>::quiet_NaN());
+  od.vx_mps = 0.5f;
+  Parser parser;
+  const auto got = feed(parser, encode(od));
+  ASSERT_EQ(got.size(), 1u);
+  const auto& back = std::get<Odometry>(got[0].message);
+  EXPECT_TRUE(std::isnan(back.x_m) && std::isnan(back.q[3]) && std::isnan(back.pose_covariance[0]));
+  EXPECT_EQ(back.vx_mps, 0.5f);
+}
+
+TEST(Codec, OldTimesyncWithoutTargetsDecodesWithTargetsZero) {
+  // The protocol before the target fields: a 16-byte payload, as an old autopilot sends it.
+  Timesync ts{42, 0x0123456789ABCDEFLL, 0, 0};
+  const Bytes frame = encode(ts);
+  EXPECT_EQ(frame[1], 16);
+  Parser parser;
+  const auto got = feed(parser, frame);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(std::get<Timesync>(got[0].message), ts);
 }
 
 TEST(Codec, SequenceWrapsAfter255) {

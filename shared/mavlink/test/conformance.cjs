@@ -3,7 +3,10 @@
 //       wrote and checks every field against JSON; it also re-encodes each message and expects
 //       the very bytes our encoder produced (field order, zero trimming, CRC_EXTRA).
 //   node conformance.cjs MODULES encode FRAMES TEXT   node-mavlink encodes every message (v2,
-//       one signed, one v1) and writes the values for hq-mavlink-conformance to check.
+//       two signed, one v1) and writes the values for hq-mavlink-conformance to check.
+//   node conformance.cjs MODULES targets JSON         checks the router's table: each message's
+//       name, CRC_EXTRA and the payload offsets of target_system (or MANUAL_CONTROL's target)
+//       and target_component against node-mavlink's definitions.
 'use strict';
 const fs = require('fs');
 const path = require('path');
@@ -123,6 +126,22 @@ const VALUES = [
                     abs_pressure: 950.5, diff_pressure: 0.25, pressure_alt: 512.75,
                     temperature: 41.5, fields_updated: 0x0FFF, id: 1 }],
   ['STATUSTEXT', { severity: 3, text: 'PreArm: node-mavlink says hello', id: 77, chunk_seq: 1 }],
+  ['TIMESYNC', { tc1: 1234567890123456789n, ts1: -987654321n, target_system: 1,
+                 target_component: 191 }],
+  ['ODOMETRY', { time_usec: 1700000000000001n, x: 0.5, y: -1.5, z: -2.25,
+                 q: [0.9238795, 0, 0, 0.3826834], vx: -0.3, vy: 0.2, vz: -0.1, rollspeed: 0.05,
+                 pitchspeed: -0.06, yawspeed: 0.7,
+                 pose_covariance: Array.from({ length: 21 }, (_, i) => 0.01 * (i + 1)),
+                 velocity_covariance: Array.from({ length: 21 }, (_, i) => -0.003 * (i + 1)),
+                 frame_id: 20, child_frame_id: 12, reset_counter: 17, estimator_type: 3,
+                 quality: -1 }],
+  ['PARAM_REQUEST_READ', { param_index: -1, target_system: 1, target_component: 1,
+                           param_id: 'MPC_LAND_SPEED' }],
+  ['PARAM_REQUEST_LIST', { target_system: 1, target_component: 0 }],
+  ['PARAM_VALUE', { param_value: 2.5, param_count: 65535, param_index: 65534,
+                    param_id: 'COM_OBC_LOSS_T', param_type: 9 }],
+  ['PARAM_SET', { param_value: -0.75, target_system: 1, target_component: 1,
+                  param_id: 'SIXTEEN_CHARS_ID', param_type: 9 }],
 ];
 
 function encode() {
@@ -159,19 +178,53 @@ function encode() {
       lines.push(`${field.source} ${Array.isArray(v) ? v.map(f).join(' ') : field.type === 'char[]' ? v : f(v)}`);
     }
   };
+  // By name, not by position: VALUES grows as messages are added.
+  const valuesOf = (name) => VALUES.find(([n]) => n === name)[1];
   for (const [name, values] of VALUES) add(name, values, 'v2');
-  add('HEARTBEAT', VALUES[0][1], 'signed');
-  add('ATTITUDE', VALUES[2][1], 'v1');
+  add('HEARTBEAT', valuesOf('HEARTBEAT'), 'signed');
+  add('ATTITUDE', valuesOf('ATTITUDE'), 'v1');
   // Trailing zeros: node trims them too; our parser pads them back.
-  add('HIGHRES_IMU', { ...VALUES[7][1], id: 0, fields_updated: 0, temperature: 0 }, 'v2');
+  add('HIGHRES_IMU', { ...valuesOf('HIGHRES_IMU'), id: 0, fields_updated: 0, temperature: 0 }, 'v2');
+  // The older TIMESYNC (no targets, trimmed to 16 bytes) as an older autopilot answers, and a
+  // signed ODOMETRY whose quality and frames are the defaults a minimal sender leaves.
+  add('TIMESYNC', { ...valuesOf('TIMESYNC'), target_system: 0, target_component: 0 }, 'v2');
+  add('ODOMETRY', { ...valuesOf('ODOMETRY'), quality: 0, reset_counter: 0, estimator_type: 0 },
+      'signed');
   fs.writeFileSync(framesPath, Buffer.concat(frames));
   fs.writeFileSync(valuesPath, lines.join('\n') + '\n');
-  console.log(`node-mavlink encoded ${frames.length} frames (one signed, one v1)`);
+  console.log(`node-mavlink encoded ${frames.length} frames (two signed, one v1)`);
+}
+
+function targets() {
+  const table = JSON.parse(fs.readFileSync(framesPath, 'utf8'));
+  for (const entry of table) {
+    const clazz = REGISTRY[entry.msgid];
+    if (!clazz) {
+      fail(`${entry.name} (${entry.msgid}): not in node-mavlink's common.xml`);
+      continue;
+    }
+    const offset = (...names) => {
+      const field = clazz.FIELDS.find((f) => names.includes(f.source));
+      return field ? field.offset : -1;
+    };
+    const theirs = { name: clazz.MSG_NAME, crc_extra: clazz.MAGIC_NUMBER,
+                     target_system: offset('target_system', 'target'),
+                     target_component: offset('target_component') };
+    for (const key of Object.keys(theirs)) {
+      if (theirs[key] !== entry[key]) {
+        fail(`${entry.name} (${entry.msgid}): ${key} ${entry[key]}, node-mavlink has ${theirs[key]}`);
+      }
+    }
+  }
+  console.log(`node-mavlink checked ${table.length} routed messages (CRC_EXTRA, target offsets); ` +
+              `${failures} failures`);
+  process.exit(failures === 0 ? 0 : 1);
 }
 
 if (mode === 'decode') decode();
+else if (mode === 'targets') targets();
 else if (mode === 'encode') encode();
 else {
-  console.error('usage: node conformance.cjs MODULES decode|encode FRAMES VALUES');
+  console.error('usage: node conformance.cjs MODULES decode|encode FRAMES VALUES | targets JSON');
   process.exit(2);
 }

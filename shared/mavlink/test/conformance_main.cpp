@@ -3,10 +3,15 @@
 //                       as JSON under the specification's field names, for node to decode and check
 //   check FRAMES TEXT   decodes FRAMES that node-mavlink encoded and checks every field against
 //                       TEXT ("message ID SYSID COMPID v1|v2|signed" then "FIELD VALUE..." lines)
+//   targets JSON        writes the router's table (message_targets.hpp) for node to check each
+//                       CRC_EXTRA and target offset against its own definitions
 // Exit status 0 when everything matched, 1 on a mismatch, 2 on bad usage or files.
 
 #include "hq/mavlink/codec.hpp"
+#include "hq/mavlink/message_targets.hpp"
 
+#include <algorithm>
+#include <array>
 #include <bit>
 #include <cinttypes>
 #include <cstdint>
@@ -93,6 +98,50 @@ void fields(const Statustext& m, F&& f) {
   f("severity", m.severity), f("text", m.text), f("id", m.id), f("chunk_seq", m.chunk_seq);
 }
 
+template <typename F>
+void fields(const Timesync& m, F&& f) {
+  f("tc1", m.tc1_ns), f("ts1", m.ts1_ns), f("target_system", m.target_system),
+      f("target_component", m.target_component);
+}
+template <typename F>
+void fields(const Odometry& m, F&& f) {
+  f("time_usec", m.time_usec), f("x", m.x_m), f("y", m.y_m), f("z", m.z_m), f("q", m.q);
+  f("vx", m.vx_mps), f("vy", m.vy_mps), f("vz", m.vz_mps), f("rollspeed", m.rollspeed_radps);
+  f("pitchspeed", m.pitchspeed_radps), f("yawspeed", m.yawspeed_radps);
+  f("pose_covariance", m.pose_covariance), f("velocity_covariance", m.velocity_covariance);
+  f("frame_id", m.frame_id), f("child_frame_id", m.child_frame_id);
+  f("reset_counter", m.reset_counter), f("estimator_type", m.estimator_type);
+  f("quality", m.quality_pct);
+}
+
+template <typename F>
+void fields(const ParamRequestRead& m, F&& f) {
+  f("param_index", m.param_index), f("target_system", m.target_system),
+      f("target_component", m.target_component), f("param_id", m.param_id);
+}
+template <typename F>
+void fields(const ParamRequestList& m, F&& f) {
+  f("target_system", m.target_system), f("target_component", m.target_component);
+}
+template <typename F>
+void fields(const ParamValue& m, F&& f) {
+  f("param_value", m.param_value), f("param_count", m.param_count), f("param_index", m.param_index),
+      f("param_id", m.param_id), f("param_type", m.param_type);
+}
+template <typename F>
+void fields(const ParamSet& m, F&& f) {
+  f("param_value", m.param_value), f("target_system", m.target_system),
+      f("target_component", m.target_component), f("param_id", m.param_id),
+      f("param_type", m.param_type);
+}
+
+template <std::size_t N>
+std::array<char, N> text_of(const char* text) {
+  std::array<char, N> out{};
+  std::memcpy(out.data(), text, std::min(N, std::strlen(text)));
+  return out;
+}
+
 // The values this side chooses: every field non-zero (extensions included), plus short ones that
 // exercise zero-trimming and a full 50-character text.
 std::vector<Message> chosen_messages() {
@@ -161,6 +210,34 @@ std::vector<Message> chosen_messages() {
   st2.id = 4242;
   st2.chunk_seq = 2;
   out.emplace_back(st2);
+  // TIMESYNC: a request (tc1 0), an answer with targets, and an answer of the old protocol.
+  out.emplace_back(Timesync{0, 1700000000123456789LL, 1, 1});
+  out.emplace_back(Timesync{-42, 9223372036854775807LL, 255, 191});
+  out.emplace_back(Timesync{123456789012LL, 987654321098LL, 0, 0});
+  Odometry od;
+  od.time_usec = 1700000000654321ull;
+  od.x_m = 1.25f, od.y_m = -3.5f, od.z_m = -0.75f;
+  od.q = {0.7071068f, 0.f, 0.f, -0.7071068f};
+  od.vx_mps = 0.3f, od.vy_mps = -0.45f, od.vz_mps = 0.05f;
+  od.rollspeed_radps = 0.01f, od.pitchspeed_radps = -0.02f, od.yawspeed_radps = 0.5f;
+  for (std::size_t i = 0; i < 21; ++i) {
+    od.pose_covariance[i] = 1e-3f * static_cast<float>(i + 1);
+    od.velocity_covariance[i] = -2.5e-4f * static_cast<float>(i + 1);
+  }
+  od.frame_id = kMavFrameLocalFrd;
+  od.child_frame_id = kMavFrameBodyFrd;
+  od.reset_counter = 255;
+  od.estimator_type = kMavEstimatorTypeVio;
+  od.quality_pct = -1;
+  out.emplace_back(od);
+  od.quality_pct = 87;
+  od.reset_counter = 0;
+  out.emplace_back(od);
+  out.emplace_back(ParamRequestRead{-1, 1, 1, text_of<16>("COM_OF_LOSS_T")});
+  out.emplace_back(ParamRequestRead{7, 1, 0, {}});
+  out.emplace_back(ParamRequestList{1, 1});
+  out.emplace_back(ParamValue{0.5f, 5, 4, text_of<16>("SIXTEEN_CHARS_ID"), kMavParamTypeReal32});
+  out.emplace_back(ParamSet{-1.25f, 1, 1, text_of<16>("MPC_LAND_SPEED"), kMavParamTypeReal32});
   return out;
 }
 
@@ -177,13 +254,14 @@ struct JsonFields {
   static nlohmann::ordered_json number(T v) {
     if constexpr (std::is_floating_point_v<T>) {
       return static_cast<double>(v);
-    } else if constexpr (std::is_same_v<T, std::uint64_t>) {
+    } else if constexpr (std::is_same_v<T, std::uint64_t> || std::is_same_v<T, std::int64_t>) {
       return std::to_string(v);
     } else {
       return static_cast<std::int64_t>(v);
     }
   }
-  void operator()(const char* name, const std::array<char, 50>& text) {
+  template <std::size_t N>
+  void operator()(const char* name, const std::array<char, N>& text) {
     object[name] = std::string(text.data(), strnlen(text.data(), text.size()));
   }
   template <typename T, std::size_t N>
@@ -265,7 +343,8 @@ struct CheckFields {
     }
     return os.str();
   }
-  void operator()(const char* name, const std::array<char, 50>& value) {
+  template <std::size_t N>
+  void operator()(const char* name, const std::array<char, N>& value) {
     const std::string* want = find(name);
     ++seen;
     const std::string got(value.data(), strnlen(value.data(), value.size()));
@@ -381,11 +460,31 @@ int check(const std::string& frames_path, const std::string& text_path) {
   return mismatches == 0 ? 0 : 1;
 }
 
+int targets(const std::string& json_path) {
+  std::ofstream json(json_path);
+  if (!json) {
+    std::cerr << "cannot write " << json_path << "\n";
+    return 2;
+  }
+  nlohmann::ordered_json table = nlohmann::ordered_json::array();
+  for (const MessageTargets& m : routed_messages()) {
+    table.push_back({{"msgid", m.id},
+                     {"name", m.name},
+                     {"crc_extra", m.crc_extra},
+                     {"target_system", m.target_system_offset},
+                     {"target_component", m.target_component_offset}});
+  }
+  json << table.dump(1) << "\n";
+  return json ? 0 : 2;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "targets") return targets(argv[2]);
   if (argc == 4 && std::string(argv[1]) == "write") return write(argv[2], argv[3]);
   if (argc == 4 && std::string(argv[1]) == "check") return check(argv[2], argv[3]);
-  std::cerr << "usage: hq-mavlink-conformance write FRAMES JSON | check FRAMES TEXT\n";
+  std::cerr
+      << "usage: hq-mavlink-conformance write FRAMES JSON | check FRAMES TEXT | targets JSON\n";
   return 2;
 }

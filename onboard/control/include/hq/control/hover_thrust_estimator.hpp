@@ -65,8 +65,8 @@ struct HoverThrustConfig {
 void read_config(config::StrictMap& section, HoverThrustConfig& out);
 
 struct HoverThrustEstimate {
-  double gain = 1.0;     ///< k: actual over commanded thrust (mass-corrected).
-  double sigma = 0.3;    ///< Its 1 sigma.
+  double gain = 1.0;   ///< k: actual over commanded thrust (mass-corrected).
+  double sigma = 0.3;  ///< Its 1 sigma.
   bool converged = false;
   std::uint64_t updates = 0;   ///< Measurements fused.
   std::uint64_t rejected = 0;  ///< Measurements outside the gate.

@@ -111,9 +111,8 @@ class RecordingFlightController final : public vehicle::FlightController {
   void send_setpoint(std::int64_t t_ns, const control::AttitudeSetpoint& setpoint) override {
     inner_.send_setpoint(t_ns, setpoint);
   }
-  void send_velocity_estimate(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
-                              double variance_m2ps2) override {
-    inner_.send_velocity_estimate(t_ns, v_H_mps, variance_m2ps2);
+  void send_velocity(const vehicle::VelocityReport& report) override {
+    inner_.send_velocity(report);
   }
   void request_arm_offboard(std::int64_t t_ns) override { inner_.request_arm_offboard(t_ns); }
   void request_disarm(std::int64_t t_ns) override { inner_.request_disarm(t_ns); }

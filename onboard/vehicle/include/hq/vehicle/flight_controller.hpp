@@ -34,6 +34,23 @@ struct FcAttitude {
 
 enum class FcSeverity { kInfo, kWarning, kError };
 
+/// Where a reported velocity comes from: the estimator's odometry-corrected filter, or its
+/// IMU-only coast over lost frames (degraded, bounded in time; the FC has that IMU itself).
+enum class VelocitySource { kOdometry, kInertialCoast };
+
+/// The chain's velocity for the FC's own estimator, one per camera frame while it is usable.
+struct VelocityReport {
+  std::int64_t t_ns = 0;                                         ///< Runtime clock.
+  Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();             ///< In H (yaw-only B).
+  Eigen::Matrix3d covariance_H_m2ps2 = Eigen::Matrix3d::Zero();  ///< Of v_H_mps, in H.
+  double roll_rad = 0.0;   ///< B in H, as the chain's attitude filter has it (R_H_B = Ry Rx).
+  double pitch_rad = 0.0;  ///< B in H, as the chain's attitude filter has it.
+  VelocitySource source = VelocitySource::kOdometry;
+  /// Bumped when the velocity restarts without continuity (the estimator's filter re-seeded
+  /// after the estimate was unavailable): the FC re-initialises instead of fusing the jump.
+  std::uint8_t reset_counter = 0;
+};
+
 /// Receives what the FC sent, during FlightController::poll().
 class FcSink {
  public:
@@ -62,6 +79,15 @@ struct FcCounters {
   std::uint64_t send_failures = 0;
   std::uint64_t setpoints_sent = 0;
   std::uint64_t imu_samples = 0;
+  std::uint64_t velocity_reports_sent = 0;  ///< ODOMETRY or VISION_SPEED_ESTIMATE.
+  /// Companion-to-FC clock: from TIMESYNC round trips when the FC answers them, else the
+  /// least-delayed-packet mapping of its stamps.
+  bool clock_from_timesync = false;
+  std::uint64_t timesync_samples = 0;   ///< Answers taken into the offset.
+  std::uint64_t timesync_rejected = 0;  ///< Answers too slow (RTT) or far off the offset.
+  std::int64_t timesync_offset_ns = 0;  ///< Runtime clock minus FC clock.
+  double timesync_jitter_ns = 0.0;      ///< RMS of the samples about the filtered offset.
+  std::int64_t timesync_rtt_ns = 0;     ///< Round trip of the last accepted answer.
 };
 
 class FlightController {
@@ -72,9 +98,8 @@ class FlightController {
   virtual void poll(std::int64_t t_ns, FcSink& sink) = 0;
   /// An attitude-thrust setpoint produced at t_ns. Allocates nothing.
   virtual void send_setpoint(std::int64_t t_ns, const control::AttitudeSetpoint& setpoint) = 0;
-  /// The chain's velocity in H (yaw-only NED frame of the body), for the FC's own estimator.
-  virtual void send_velocity_estimate(std::int64_t /*t_ns*/, const Eigen::Vector3d& /*v_H_mps*/,
-                                      double /*variance_m2ps2*/) {}
+  /// The chain's velocity, for the FC's own estimator. Allocates nothing.
+  virtual void send_velocity(const VelocityReport& /*report*/) {}
   /// Asks the FC to arm and enter the offboard mode. Only ever called on an operator's request.
   virtual void request_arm_offboard(std::int64_t /*t_ns*/) {}
   /// Asks the FC to disarm (after touchdown).

@@ -7,7 +7,8 @@
 /// through this same code, so the fail-safes are the same for all of them:
 ///   - no setpoint stream until the chain has an estimate (or knows it is landed, at rest);
 ///   - flight controller silent beyond its timeout: an error event, the chain holds (hover);
-///   - flight controller disarmed or out of offboard on its own (its failsafe, the pilot's RC):
+///   - flight controller disarmed or out of offboard on its own (its failsafe, the pilot's RC, a
+///   GCS):
 ///     said once, the chain lands or holds, and the runtime never re-arms or re-enters offboard
 ///     by itself: only an operator's request for a flying mode asks the FC to arm (retried a
 ///     few times while the FC is not yet heard or refuses);
@@ -80,7 +81,10 @@ struct RuntimeConfig {
   std::int64_t control_period_ns = 5'000'000;
   /// IMU samples buffered between two steps; more are dropped and counted.
   int imu_capacity = 1024;
-  /// Variance sent with the velocity estimate to the FC's estimator (m^2/s^2 per axis).
+  /// The least variance per axis sent with the velocity to the FC's estimator (m^2/s^2), and
+  /// the variance sent when the estimator's covariance is unknown (zero or not finite): the
+  /// estimator's own covariance leaves out what it cannot see (the camera's latency and
+  /// extrinsics error), so the FC is never told the velocity is better than this.
   double velocity_variance_m2ps2 = 0.01;
 };
 
@@ -94,6 +98,8 @@ struct RuntimeCounters {
   std::uint64_t imu_samples = 0;
   std::uint64_t imu_overflow = 0;
   std::uint64_t arm_requests = 0;
+  std::uint64_t velocity_reports = 0;  ///< Velocities handed to the FC (usable frames).
+  std::uint64_t velocity_resets = 0;   ///< Times the reported velocity restarted (reset_counter).
 };
 
 class VehicleRuntime final : private FcSink {
@@ -129,6 +135,9 @@ class VehicleRuntime final : private FcSink {
   /// The chain's latest belief: on the ground, motors idle.
   [[nodiscard]] bool landed() const { return last_ && last_->mode.landed; }
   void take_operator(std::int64_t t_ns);
+  /// Hands a frame's usable velocity to the FC, from the first estimate on (landed too: EKF2
+  /// starts fusing external vision before take-off).
+  void report_velocity(const pipeline::ChainOutput& out);
   void feed_imu_until(std::int64_t t_ns);
   void deliver(const pipeline::ChainOutput& out);
   /// Says the learnt hover thrust once it has converged (a warning when far from the config).
@@ -159,6 +168,11 @@ class VehicleRuntime final : private FcSink {
   std::int64_t next_arm_attempt_ns_ = 0;
   bool was_flying_offboard_ = false;
   bool said_hover_thrust_ = false;  ///< The learnt hover thrust was announced.
+  /// A frame's estimate was unusable since the last velocity reported: the estimator re-seeds
+  /// its filter, so the next one is a restart (reset_counter), not a continuation.
+  bool velocity_interrupted_ = false;
+  bool velocity_reported_ = false;
+  std::uint8_t velocity_reset_counter_ = 0;
   VehicleStatus status_;
   RuntimeCounters counters_;
   std::optional<pipeline::ChainOutput> last_;

@@ -5,6 +5,7 @@
 /// Extension fields are included: a v2 frame carries them (zero-trimmed), a v1 frame does not.
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <variant>
 
@@ -101,6 +102,19 @@ struct VisionSpeedEstimate {
   bool operator==(const VisionSpeedEstimate&) const = default;  ///< Field by field (tests, tools).
 };
 
+/// TIMESYNC (111): a request carries tc1 = 0 and ts1 = the requester's time; the answer carries
+/// tc1 = the responder's time and ts1 echoed (https://mavlink.io/en/services/timesync.html).
+/// Senders of the older protocol leave the target extension fields zero.
+struct Timesync {
+  static constexpr std::uint32_t kId = 111;
+  std::int64_t tc1_ns = 0;
+  std::int64_t ts1_ns = 0;
+  // Extensions.
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  bool operator==(const Timesync&) const = default;  ///< Field by field (tests, tools).
+};
+
 /// HIGHRES_IMU (105): body FRD.
 struct HighresImu {
   static constexpr std::uint32_t kId = 105;
@@ -126,8 +140,74 @@ struct Statustext {
   bool operator==(const Statustext&) const = default;  ///< Field by field (tests, tools).
 };
 
-using Message = std::variant<Heartbeat, SysStatus, Attitude, CommandLong, CommandAck,
-                             SetAttitudeTarget, VisionSpeedEstimate, HighresImu, Statustext>;
+/// ODOMETRY (331), REP 147 shaped: pose in frame_id, twist (velocity, rates) in child_frame_id.
+/// Covariances are the upper-right triangle of a 6x6 matrix, row-major (21 values: the first
+/// six are row 0, the next five row 1, ...); NaN in [0]: unknown. NaN fields: not known.
+struct Odometry {
+  static constexpr std::uint32_t kId = 331;
+  std::uint64_t time_usec = 0;
+  float x_m = 0, y_m = 0, z_m = 0;
+  std::array<float, 4> q{1, 0, 0, 0};  ///< w, x, y, z: child frame in frame_id.
+  float vx_mps = 0, vy_mps = 0, vz_mps = 0;
+  float rollspeed_radps = 0, pitchspeed_radps = 0, yawspeed_radps = 0;
+  std::array<float, 21> pose_covariance{};      ///< x, y, z, roll, pitch, yaw (m^2, rad^2).
+  std::array<float, 21> velocity_covariance{};  ///< vx, vy, vz, rates (m^2/s^2, rad^2/s^2).
+  std::uint8_t frame_id = 0;                    ///< MAV_FRAME of the pose.
+  std::uint8_t child_frame_id = 0;              ///< MAV_FRAME of the velocity and rates.
+  // Extensions.
+  std::uint8_t reset_counter = 0;   ///< Bumped when the estimate jumps (re-initialisation).
+  std::uint8_t estimator_type = 0;  ///< MAV_ESTIMATOR_TYPE.
+  std::int8_t quality_pct = 0;      ///< -1 failed, 0 unknown, 1 worst .. 100 best.
+  bool operator==(const Odometry&) const = default;  ///< Field by field (NaN never equal).
+};
+
+// The parameter protocol (mavlink.io "Parameter Protocol"), which a GCS runs with the FC
+// through the companion and hq-sim --sitl answers.
+
+/// PARAM_REQUEST_READ (20): by param_index, or by param_id when the index is -1.
+struct ParamRequestRead {
+  static constexpr std::uint32_t kId = 20;
+  std::int16_t param_index = -1;
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  std::array<char, 16> param_id{};  ///< Not NUL-terminated when all 16 are used.
+  bool operator==(const ParamRequestRead&) const = default;  ///< Field by field (tests, tools).
+};
+
+/// PARAM_REQUEST_LIST (21).
+struct ParamRequestList {
+  static constexpr std::uint32_t kId = 21;
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  bool operator==(const ParamRequestList&) const = default;  ///< Field by field (tests, tools).
+};
+
+/// PARAM_VALUE (22).
+struct ParamValue {
+  static constexpr std::uint32_t kId = 22;
+  float param_value = 0;
+  std::uint16_t param_count = 0;
+  std::uint16_t param_index = 0;
+  std::array<char, 16> param_id{};
+  std::uint8_t param_type = 0;                         ///< MAV_PARAM_TYPE.
+  bool operator==(const ParamValue&) const = default;  ///< Field by field (tests, tools).
+};
+
+/// PARAM_SET (23).
+struct ParamSet {
+  static constexpr std::uint32_t kId = 23;
+  float param_value = 0;
+  std::uint8_t target_system = 0;
+  std::uint8_t target_component = 0;
+  std::array<char, 16> param_id{};
+  std::uint8_t param_type = 0;                       ///< MAV_PARAM_TYPE.
+  bool operator==(const ParamSet&) const = default;  ///< Field by field (tests, tools).
+};
+
+using Message =
+    std::variant<Heartbeat, SysStatus, Attitude, CommandLong, CommandAck, SetAttitudeTarget,
+                 VisionSpeedEstimate, HighresImu, Statustext, Timesync, Odometry, ParamRequestRead,
+                 ParamRequestList, ParamValue, ParamSet>;
 
 // The enum values HaptiQuad uses (common.xml, minimal.xml; PX4 custom modes from px4_custom_mode.h
 // as documented on docs.px4.io; ArduCopter modes from its documentation).
@@ -147,7 +227,17 @@ inline constexpr std::uint16_t kMavCmdComponentArmDisarm = 400;
 inline constexpr std::uint16_t kMavCmdSetMessageInterval = 511;
 inline constexpr std::uint8_t kMavResultAccepted = 0;
 inline constexpr std::uint8_t kMavCompIdAutopilot1 = 1;
+inline constexpr std::uint8_t kMavTypeGcs = 6;
+inline constexpr std::uint8_t kMavParamTypeReal32 = 9;
 inline constexpr std::uint8_t kMavCompIdOnboardComputer = 191;
+inline constexpr std::uint8_t kMavFrameLocalNed = 1;
+inline constexpr std::uint8_t kMavFrameBodyFrd = 12;
+inline constexpr std::uint8_t kMavFrameLocalFrd = 20;
+inline constexpr std::uint8_t kMavEstimatorTypeVio = 3;
+/// Index of row r, column c (r <= c) of a 6x6 covariance's upper-right triangle in ODOMETRY.
+constexpr std::size_t upper_triangle_index(std::size_t r, std::size_t c) {
+  return r * 6 - r * (r - 1) / 2 + (c - r);
+}
 inline constexpr std::uint8_t kAttitudeTargetIgnoreBodyRollRate = 1;
 inline constexpr std::uint8_t kAttitudeTargetIgnoreBodyPitchRate = 2;
 inline constexpr std::uint8_t kAttitudeTargetIgnoreBodyYawRate = 4;

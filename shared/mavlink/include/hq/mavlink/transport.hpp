@@ -35,6 +35,11 @@ class Transport {
   [[nodiscard]] virtual const std::string& describe() const = 0;
   /// The latest error (errno text), "" if none.
   [[nodiscard]] virtual const std::string& error() const = 0;
+  /// False while a listening transport has heard nobody to answer (a send would fail).
+  [[nodiscard]] virtual bool has_peer() const { return true; }
+  /// Where sends go as "HOST:PORT" (UDP), "" before a listening transport heard anyone or for
+  /// serial. Allocates: for summaries, not per frame.
+  [[nodiscard]] virtual std::string peer() const { return {}; }
 };
 
 /// Opens a transport from a spec (see the file comment). Throws hq::InputError naming the spec
