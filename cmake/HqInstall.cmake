@@ -10,6 +10,7 @@ set(HQ_DATA_DESTINATION ${CMAKE_INSTALL_DATADIR}/haptiquad)
 install(DIRECTORY config/ DESTINATION ${HQ_DATA_DESTINATION}/config FILES_MATCHING PATTERN "*.yaml")
 install(DIRECTORY calib/ DESTINATION ${HQ_DATA_DESTINATION}/calib
         FILES_MATCHING PATTERN "*.yaml" PATTERN "test" EXCLUDE)
+install(DIRECTORY onboard/sim/config/ DESTINATION ${HQ_DATA_DESTINATION}/onboard/sim/config)
 install(DIRECTORY onboard/sim/worlds/ DESTINATION ${HQ_DATA_DESTINATION}/onboard/sim/worlds)
 install(DIRECTORY onboard/closed_loop/flights/
         DESTINATION ${HQ_DATA_DESTINATION}/onboard/closed_loop/flights)
