@@ -11,8 +11,10 @@
 //              [--command-timeout-ms 200] [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10]
 //   hq-onboard ... --record DIR        the on-board MCAP flight log, DIR/onboard.mcap
 //
-// Exit status: 0 a good run, 2 bad input, 4 the flight controller lost, 5 a good flight whose
-// --record failed (disk full; the flight went on without it).
+// Exit status: 0 a good run (also when stopped by SIGINT or SIGTERM), 2 bad input, 4 the flight
+// controller lost, 5 a good flight whose --record failed (disk full; the flight went on without
+// it), 6 the camera or the FC's serial port absent or busy at start (hq-onboard.service starts
+// it again for 6, never for 2).
 //
 // Every source runs through one VehicleRuntime (onboard/vehicle) with a flight controller
 // (--fc): none (replay, bench), or MAVLink to PX4/ArduPilot or hq-sim --sitl. --link works with
@@ -76,8 +78,11 @@ int run(int argc, char** argv) {
   CLI::App app{"hq-onboard: the on-board velocity chain of the core paper on a frame source"};
   Options o;
   add_vehicle_options(app, o);
-  add_flight_options(app, o, "replay: per-frame estimates and setpoints",
-                     "sitl and cameras: run length");
+  add_flight_options(app, o, "replay: per-frame estimates and setpoints");
+  // 0 for a companion computer, whose run lasts until it is stopped (hq-onboard.service).
+  app.add_option("--duration-s", o.duration_s,
+                 "sitl and cameras: run length (0: until SIGINT or SIGTERM)")
+      ->check(CLI::Range(0.0, 86400.0));
   add_ground_link_options(app, o);
   // Before parsing: the simulator's options (--world, --script) would be refused first, with
   // less to say.
@@ -100,7 +105,12 @@ int run(int argc, char** argv) {
   // Which file serves, since a relative name may come from the current folder or the install.
   std::fprintf(stderr, "hq-onboard: config %s\n",
                hq::config::resolve_data_path(o.config_path).c_str());
-  return run_vehicle(o);
+  try {
+    return run_vehicle(o);
+  } catch (const hq::DeviceUnavailableError& e) {
+    std::fprintf(stderr, "hq-onboard: %s\n", e.what());
+    return kDeviceUnavailableExitStatus;
+  }
 }
 
 }  // namespace

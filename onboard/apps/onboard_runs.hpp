@@ -35,7 +35,7 @@ struct Options {
   std::string resolution = "320x240";
   long long seed = -1;
   bool link = false;
-  double duration_s = 60.0;
+  double duration_s = 60.0;  ///< Wall-time runs; hq-onboard: 0 runs until SIGINT/SIGTERM.
   std::string link_config_path;
   hq::link::LinkOverrides link_overrides;
   double command_timeout_ms = 200.0;
@@ -54,10 +54,9 @@ struct Options {
   std::string record_dir;        ///< --record: DIR/onboard.mcap, the on-board flight log.
 };
 
-/// --config, --vehicle, --csv, --duration-s and --record, with the program's own help for --csv
-/// and --duration-s.
-void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help,
-                        const std::string& duration_help);
+/// --config, --vehicle, --csv and --record, with the program's own help for --csv. Each program
+/// adds its own --duration-s: what a run length means differs between them.
+void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help);
 /// --link and its options: the ground station over DDS and the on-board fail-safes.
 void add_ground_link_options(CLI::App& app, Options& o);
 
@@ -85,6 +84,10 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o);
 /// is not flight-critical, so the flight went on, but whoever started the run must learn that
 /// its record is incomplete.
 inline constexpr int kRecordFailedExitStatus = 5;
+/// Exit status of hq-onboard when the camera or the flight controller's serial port is absent or
+/// busy at start (hq::DeviceUnavailableError): unlike bad input (2), starting again may succeed,
+/// so a supervisor retries this one.
+inline constexpr int kDeviceUnavailableExitStatus = 6;
 /// Closes the log with the run summary (plus session id, duration, steps and IMU samples
 /// pushed) as its metadata and prints the record's lines of the exit summary. Returns false,
 /// after saying so on stderr, when the record failed at any time in the flight or at close.

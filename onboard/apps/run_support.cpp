@@ -21,12 +21,10 @@ std::atomic<bool> g_stop{false};
 
 void request_stop(int /*signal*/) { g_stop = true; }
 
-void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help,
-                        const std::string& duration_help) {
+void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help) {
   app.add_option("--config", o.config_path, "on-board config");
   app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_body_camera)");
   app.add_option("--csv", o.csv_path, csv_help);
-  app.add_option("--duration-s", o.duration_s, duration_help)->check(CLI::Range(0.1, 86400.0));
   app.add_option("--record", o.record_dir,
                  "write the flight's on-board MCAP log to DIR/onboard.mcap (link samples as CDR, "
                  "IMU, estimates, setpoints, stage timings)");

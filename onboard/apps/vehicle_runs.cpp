@@ -35,6 +35,7 @@
 #include <csignal>
 #include <cstdio>
 #include <fmt/format.h>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -324,7 +325,9 @@ void run_recorded_time(const Options& o, hq::vehicle::VehicleRuntime& runtime,
 void run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
   constexpr std::int64_t kLoopPeriodNs = 1'000'000;
   const std::int64_t start_ns = hq::monotonic_now_ns();
-  const auto end_ns = start_ns + static_cast<std::int64_t>(o.duration_s * 1e9);
+  const std::int64_t end_ns = o.duration_s > 0.0
+                                  ? start_ns + static_cast<std::int64_t>(o.duration_s * 1e9)
+                                  : std::numeric_limits<std::int64_t>::max();
   // In SITL the flight controller is the simulator: once it is gone for good there is no
   // vehicle left to fly, so the process stops (a real companion keeps waiting for its FC).
   const bool sitl = o.source_kind == "sitl";

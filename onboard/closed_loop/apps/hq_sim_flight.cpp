@@ -58,8 +58,10 @@ int run(int argc, char** argv) {
   CLI::App app{"hq-sim-flight: the on-board chain flown in closed loop by the simulator"};
   Options o;
   add_sim_options(app, o);
-  add_flight_options(app, o, "the Fig. 6-8 signals of a scripted flight",
-                     "--link: run length (a scripted flight lasts its script)");
+  add_flight_options(app, o, "the Fig. 6-8 signals of a scripted flight");
+  app.add_option("--duration-s", o.duration_s,
+                 "--link: run length (a scripted flight lasts its script)")
+      ->check(CLI::Range(0.1, 86400.0));
   add_ground_link_options(app, o);
   try {
     app.parse(argc, argv);

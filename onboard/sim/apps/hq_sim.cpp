@@ -62,7 +62,7 @@ struct Options {
 void add_options(CLI::App& app, Options& o) {
   app.add_option("--world", o.world_path, "world YAML (onboard/sim/worlds/*.yaml)")->required();
   app.add_option("--config", o.config_path,
-                 "sim config YAML (run from the repository root for the default)");
+                 "sim config YAML (default: the shipped onboard/sim/config/sim.yaml)");
   app.add_option("--duration-s", o.duration_s, "simulated seconds")->check(CLI::Range(0.1, 3600.0));
   app.add_option("--record", o.record_dir, "output directory (TUM RGB-D layout)");
   app.add_option("--resolution", o.resolution, "WIDTHxHEIGHT, e.g. 320x240 or 640x480");

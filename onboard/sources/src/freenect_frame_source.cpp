@@ -122,7 +122,11 @@ class FreenectFrameSource final : public CameraSource {
           raw < kInvalidRaw11 && inverse_z > 0.0 ? static_cast<float>(1.0 / inverse_z) : 0.0f;
     }
     std::string why;
-    if (!open_device(why)) throw InputError(why);
+    if (!open_device(why)) {
+      // A fakenect dump that does not open stays broken; a Kinect may be plugged in yet.
+      if (fakenect_) throw InputError(why);
+      throw DeviceUnavailableError(why);
+    }
   }
 
   ~FreenectFrameSource() override { close_device(); }

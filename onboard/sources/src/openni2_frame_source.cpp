@@ -50,7 +50,11 @@ class Openni2FrameSource final : public CameraSource {
     initialized_ = true;
     try {
       std::string why;
-      if (!open_device(why)) throw InputError(why);
+      if (!open_device(why)) {
+        // A recording that does not open stays broken; a camera may be plugged in yet.
+        if (is_file_) throw InputError(why);
+        throw DeviceUnavailableError(why);
+      }
       if (options.camera_file.empty() && has_fov_intrinsics()) {
         camera_ = fov_intrinsics();
       } else {

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
+#include <vector>
 
 namespace hq::config {
 namespace {
@@ -62,6 +63,25 @@ TEST_F(DataPath, AbsentFilesAreNamedWithEveryFolderTried) {
   EXPECT_THAT(message, HasSubstr("config/absent.yaml: file not found"));
   EXPECT_THAT(message, HasSubstr("looked in the current folder"));
   EXPECT_THAT(message, HasSubstr("share/haptiquad"));
+}
+
+TEST_F(DataPath, InstalledProgramsNeverLookInTheSourceTree) {
+  const std::vector<fs::path> dirs = data_dirs_for_executable("/opt/hq/bin/hq-onboard");
+  ASSERT_EQ(dirs.size(), 1U);
+  EXPECT_EQ(dirs[0], fs::path("/opt/hq/share/haptiquad"));
+}
+
+TEST_F(DataPath, ProgramsOfTheBuildTreeAlsoLookInTheSourceTree) {
+  // This test runs from <build>/bin, like every program built here.
+  const fs::path executable = fs::read_symlink("/proc/self/exe");
+  const std::vector<fs::path> dirs = data_dirs_for_executable(executable);
+  ASSERT_EQ(dirs.size(), 2U);
+  EXPECT_TRUE(fs::exists(dirs[1] / "config" / "onboard.yaml")) << dirs[1];
+
+  // A folder beside the build tree whose name merely starts with the build tree's is outside it.
+  const fs::path build_dir = executable.parent_path().parent_path();
+  const fs::path beside = fs::path(build_dir.string() + "-installed") / "bin" / "hq-onboard";
+  EXPECT_EQ(data_dirs_for_executable(beside).size(), 1U);
 }
 
 TEST_F(DataPath, AbsolutePathsAreLeftAlone) {

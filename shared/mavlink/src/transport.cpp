@@ -207,7 +207,16 @@ class SerialTransport final : public FdTransport {
       : FdTransport(spec) {
     const speed_t speed = baud_constant(spec, baud);
     fd_ = ::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-    if (fd_ < 0) fail(spec, "cannot open " + device + ": " + errno_text(errno));
+    if (fd_ < 0) {
+      const int error = errno;
+      const std::string what =
+          "mavlink transport \"" + spec + "\": cannot open " + device + ": " + errno_text(error);
+      // Not there yet (a USB FC still booting) or held by another program: may clear by itself.
+      if (error == ENOENT || error == ENODEV || error == ENXIO || error == EBUSY) {
+        throw DeviceUnavailableError(what);
+      }
+      throw InputError(what);
+    }
     termios tio{};
     if (::tcgetattr(fd_, &tio) != 0) {
       fail(spec, device + " is not a serial port: " + errno_text(errno));

@@ -1,5 +1,6 @@
 #include "hq/mavlink/transport.hpp"
 
+#include "hq/base/error.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/testing/input_error.hpp"
 
@@ -147,6 +148,19 @@ TEST(Transport, BadSpecsNameTheSpecAndTheProblem) {
               HasSubstr("cannot open /nonexistent/tty: No such file or directory"));
   EXPECT_THAT(input_error_message([] { open_transport("serial:/dev/null:115200"); }),
               HasSubstr("/dev/null is not a serial port"));
+}
+
+// A supervisor starts hq-onboard again for a port that is not there yet (a USB flight controller
+// still booting), never for one that is wrong.
+TEST(Transport, AnAbsentSerialPortIsADeviceThatMayYetAppearAWrongOneIsNot) {
+  EXPECT_THROW(open_transport("serial:/nonexistent/tty:115200"), DeviceUnavailableError);
+  try {
+    open_transport("serial:/dev/null:115200");
+    ADD_FAILURE() << "/dev/null opened as a serial port";
+  } catch (const DeviceUnavailableError& e) {
+    ADD_FAILURE() << "not a serial port, yet called a device that may appear: " << e.what();
+  } catch (const InputError&) {
+  }
 }
 
 }  // namespace
