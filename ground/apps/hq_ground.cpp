@@ -190,6 +190,8 @@ class ModelFeed : public hq::ground::LinkObserver {
                                : "-";
     extras.operator_input = operator_input_warning(static_cast<int>(s.operator_input));
     extras.clearance_m = s.clearance_m;
+    extras.hover_thrust_gain = s.hover_thrust_gain;
+    extras.hover_thrust_converged = s.hover_thrust_converged;
     model_.on_state(
         receipt_ns, 1e-6 * static_cast<double>(latency_ns), {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
         {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z}, s.roll_rad, s.pitch_rad,

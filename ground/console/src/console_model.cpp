@@ -104,6 +104,8 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   height_source_ = extras.height_source;
   operator_input_ = extras.operator_input;
   clearance_m_ = std::isfinite(extras.clearance_m) ? extras.clearance_m : -1.0F;
+  hover_thrust_gain_ = std::isfinite(extras.hover_thrust_gain) ? extras.hover_thrust_gain : 0.0F;
+  hover_thrust_converged_ = extras.hover_thrust_converged && hover_thrust_gain_ > 0.0F;
   link_health_ = link_health;
   roll_rad_ = roll_rad;
   pitch_rad_ = pitch_rad;
@@ -256,6 +258,8 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.height_source = height_source_;
   out.operator_input = operator_input_;
   out.clearance_m = clearance_m_;
+  out.hover_thrust_gain = hover_thrust_gain_;
+  out.hover_thrust_converged = hover_thrust_converged_;
   out.roll_rad = roll_rad_;
   out.pitch_rad = pitch_rad_;
   out.yaw_W_rad = static_cast<float>(yaw_W_rad_);

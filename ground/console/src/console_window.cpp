@@ -862,6 +862,17 @@ struct ConsoleWindow::Impl {
       std::snprintf(clearance, sizeof clearance, "-");
     }
     field("clearance", clearance, IM_COL32(230, 230, 230, 255), stale);
+    // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
+    // file's mass or the FC's maximum thrust is off (the vehicle flies on the learnt value).
+    char thrust[40];
+    const double thrust_pct = 100.0 * static_cast<double>(s.hover_thrust_gain);
+    if (s.hover_thrust_converged) {
+      std::snprintf(thrust, sizeof thrust, "%.0f %% (learnt)", thrust_pct);
+    } else {
+      std::snprintf(thrust, sizeof thrust, "%s", s.hover_thrust_gain > 0 ? "learning" : "-");
+    }
+    const bool thrust_off = s.hover_thrust_converged && std::abs(thrust_pct - 100.0) > 15.0;
+    field("thrust given", thrust, thrust_off ? bad : IM_COL32(230, 230, 230, 255), stale);
     // The take-off action, prominent while the vehicle reports landed.
     if (landed && stale < 0) {
       ImGui::PushStyleColor(ImGuiCol_Button, IM_COL32(40, 130, 60, 255));

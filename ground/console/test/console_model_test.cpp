@@ -150,6 +150,8 @@ TEST(ConsoleModel, FlightStateHeightAndOperatorInputReachTheSnapshot) {
   extras.height_source = "depth";
   extras.operator_input = "slowed: unseen space";
   extras.clearance_m = 0.7F;
+  extras.hover_thrust_gain = 1.3F;
+  extras.hover_thrust_converged = true;
   m.on_state(0, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "teleop", "ok", "ok", nullptr, 0,
              extras);
   Snapshot s = m.make_snapshot();
@@ -161,13 +163,18 @@ TEST(ConsoleModel, FlightStateHeightAndOperatorInputReachTheSnapshot) {
   EXPECT_STREQ(s.height_source, "depth");
   EXPECT_STREQ(s.operator_input, "slowed: unseen space");
   EXPECT_FLOAT_EQ(s.clearance_m, 0.7F);
-  // A non-finite height from a broken sender is shown as unknown, never as NaN.
+  EXPECT_FLOAT_EQ(s.hover_thrust_gain, 1.3F);
+  EXPECT_TRUE(s.hover_thrust_converged);
+  // A non-finite height or gain from a broken sender is shown as unknown, never as NaN.
   extras.height_m = std::nanf("");
+  extras.hover_thrust_gain = std::nanf("");
   m.on_state(1, 1.0, {0, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "teleop", "ok", "ok", nullptr, 0,
              extras);
   m.snapshot(s);
   EXPECT_FALSE(s.height_valid);
   EXPECT_EQ(s.height_m, 0.0F);
+  EXPECT_EQ(s.hover_thrust_gain, 0.0F);
+  EXPECT_FALSE(s.hover_thrust_converged);
 }
 
 TEST(LinkLossMonitor, LostAfterTheThresholdRegainedByAFreshStateCountsAndKeepsTheLongest) {

@@ -89,6 +89,7 @@ std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2
   c.put<std::uint64_t>(0xABCDEF).put<std::uint32_t>(7).put<std::uint32_t>(2);          // airborne
   c.put<std::uint8_t>(1).put<std::uint32_t>(1).put(1.25F).put<std::uint32_t>(6);  // depth, limited
   c.vec3(0.2F, 0.0F, 0.0F).put(0.85F);
+  c.put(1.2F).put<std::uint8_t>(1);  // hover thrust: the rotors give 120 %, learnt
   return c.bytes();
 }
 

@@ -407,6 +407,9 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
                                                                           : hq_msgs_HEIGHT_ESTIMATE;
   s.height_m = height_ok ? static_cast<float>(out.height_m) : 0.0F;
   s.clearance_m = std::isfinite(out.clearance_m) ? static_cast<float>(out.clearance_m) : -1.0F;
+  s.hover_thrust_gain =
+      std::isfinite(out.hover_thrust.gain) ? static_cast<float>(out.hover_thrust.gain) : 0.0F;
+  s.hover_thrust_converged = out.hover_thrust.converged;
   s.truth_valid = extras.truth_valid && extras.v_truth_H_mps.allFinite();
   s.v_truth_H_mps =
       s.truth_valid ? to_msg(extras.v_truth_H_mps) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};

@@ -270,6 +270,22 @@ TEST(LinkBridge, SaysWhenTheFlightEnvelopeCutTheClimb) {
   EXPECT_TRUE(link::validate(state).ok);
 }
 
+// The hover thrust the chain learnt reaches the station, so the operator sees a vehicle whose
+// file or FC maximum thrust is off.
+TEST(LinkBridge, CarriesTheLearntHoverThrust) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  pipeline::ChainOutput out;
+  out.hover_thrust.gain = 1.43;
+  out.hover_thrust.converged = true;
+  link::VehicleState state{};
+  ASSERT_TRUE(publish_until(bridge, ground, out, state,
+                            [](const link::VehicleState& s) { return s.hover_thrust_converged; }));
+  EXPECT_FLOAT_EQ(state.hover_thrust_gain, 1.43F);
+  EXPECT_TRUE(link::validate(state).ok);
+}
+
 // GIVEN two bridges (a vehicle and its restart) THEN their sessions differ and the state of each
 // carries the station whose commands it flies.
 TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {

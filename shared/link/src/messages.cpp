@@ -113,6 +113,10 @@ Validation validate(const VehicleState& state) {
     return {false, "height_m or clearance_m is NaN or Inf"};
   }
   if (!finite(state.v_cmd_flown_H_mps)) return {false, "v_cmd_flown_H_mps is NaN or Inf"};
+  // 0: a sender that reports none (the field's default).
+  if (!(state.hover_thrust_gain >= 0.0F && state.hover_thrust_gain <= 10.0F)) {
+    return {false, "hover_thrust_gain not in [0, 10]"};
+  }
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};
   }

@@ -118,6 +118,13 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   state.obstacle_points_body_m._length = 2;
   state.obstacle_points_body_m._maximum = 2;
   EXPECT_THAT(validate(state).reason, HasSubstr("obstacle_points_body_m has a NaN"));
+  state = VehicleState{};
+  state.hover_thrust_gain = 1.4F;
+  EXPECT_TRUE(validate(state).ok);
+  state.hover_thrust_gain = std::nanf("");
+  EXPECT_THAT(validate(state).reason, HasSubstr("hover_thrust_gain not in [0, 10]"));
+  state.hover_thrust_gain = -1.0F;
+  EXPECT_FALSE(validate(state).ok);
 }
 
 }  // namespace

@@ -64,6 +64,10 @@ struct StateExtras {
   /// What the vehicle does with the operator's input, as a warning ("" when flown as is).
   const char* operator_input = "";
   float clearance_m = -1;  ///< Closest obstacle clearance; < 0: none seen.
+  /// Actual over commanded thrust as the vehicle learnt it in flight (0: not reported);
+  /// converged once learnt.
+  float hover_thrust_gain = 0;
+  bool hover_thrust_converged = false;
 };
 
 struct TrackPoint {
@@ -203,6 +207,8 @@ struct Snapshot {
   const char* height_source = "-";
   const char* operator_input = "";
   float clearance_m = -1;
+  float hover_thrust_gain = 0;  ///< See StateExtras.
+  bool hover_thrust_converged = false;
   float roll_rad = 0;
   float pitch_rad = 0;
   float yaw_W_rad = 0;
@@ -308,6 +314,8 @@ class ConsoleModel {
   const char* height_source_ = "-";
   const char* operator_input_ = "";
   float clearance_m_ = -1;
+  float hover_thrust_gain_ = 0;
+  bool hover_thrust_converged_ = false;
   float roll_rad_ = 0;
   float pitch_rad_ = 0;
   PlotSample latest_{};
