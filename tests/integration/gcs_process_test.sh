@@ -12,6 +12,9 @@ set -euo pipefail
 sim=$1
 onboard=$2
 work=$3
+for program in "$sim" "$onboard"; do
+  [ -x "$program" ] || { echo "FAILED: $program is not built" >&2; exit 1; }
+done
 here=$(cd "$(dirname "$0")" && pwd)
 source "$here/../../scripts/lib.sh"
 hq_npm_checkers "$work" 'node-mavlink@2'
