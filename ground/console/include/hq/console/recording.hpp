@@ -56,6 +56,15 @@ struct RecordedState {
   std::array<float, 3> v_cmd_flown_H_mps{};
   /// The vehicle's closest obstacle clearance; NaN when unknown or none seen.
   double clearance_m = std::numeric_limits<double>::quiet_NaN();
+  /// The learnt thrust gain (0: not reported or not recorded) and whether it converged.
+  float hover_thrust_gain = 0;
+  bool hover_thrust_converged = false;
+  /// The obstacle cloud the state carried, body frame FRD (x, y, z in m); empty when it
+  /// carried none (the cloud rides on about one state a second) or the record lacks it.
+  std::vector<std::array<float, 3>> obstacle_points_body_m;
+  /// The markers detected in the state's frame with their poses; empty when none or when the
+  /// record holds only their count (markers_n).
+  std::vector<MarkerView> markers;
 };
 
 struct RecordedCommand {
