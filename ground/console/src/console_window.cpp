@@ -855,11 +855,14 @@ struct ConsoleWindow::Impl {
     const ImU32 bad = IM_COL32(255, 170, 40, 255);
     field("estimator", s.estimator_health.c_str(), s.estimator_health == "ok" ? ok : bad, stale);
     field("vehicle link", s.link_health.c_str(), s.link_health == "ok" ? ok : bad, stale);
-    char clearance[24];
+    // The vehicle's clearance (sphere to nearest obstacle point in view or memory); negative:
+    // it saw none within its depth range, which is news too, not a missing figure.
+    char clearance[32];
     if (s.clearance_m >= 0) {
       std::snprintf(clearance, sizeof clearance, "%.2f m", static_cast<double>(s.clearance_m));
     } else {
-      std::snprintf(clearance, sizeof clearance, "-");
+      std::snprintf(clearance, sizeof clearance, "%s",
+                    s.have_state ? "none in view or memory" : "-");
     }
     field("clearance", clearance, IM_COL32(230, 230, 230, 255), stale);
     // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
