@@ -11,6 +11,7 @@
 #include "hq/ground/ground_station.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap/mcap.hpp"
+#include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/files.hpp"
 
 #include <dds/ddsi/ddsi_cdrstream.h>
@@ -258,6 +259,31 @@ TEST(ReplayParity, TheLiveViewShowsEveryPhaseOfTheFlight) {
   EXPECT_STREQ(live[55].flight_state, "landing");
   EXPECT_TRUE(live[40].hover_thrust_converged);
   EXPECT_FLOAT_EQ(live[40].hover_thrust_gain, 0.9375F);
+}
+
+// The live path runs on the flying thread: after construction it allocates nothing, even for
+// the largest cloud and marker list the link allows.
+TEST(ReplayParity, TheLivePathAllocatesNothingPerState) {
+  std::vector<FlightState> flight = make_flight();
+  FlightState& big = flight[25];
+  big.cloud.assign(hq_msgs_kMaxObstaclePoints, {1.0F, 0.5F, 0.0F});
+  big.markers.assign(hq_msgs_kMaxMarkersInState,
+                     big.markers.empty() ? hq_msgs_MarkerInCamera{} : big.markers.front());
+  big.s.obstacle_points_body_m = {hq_msgs_kMaxObstaclePoints, hq_msgs_kMaxObstaclePoints,
+                                  big.cloud.data(), false};
+  big.s.markers = {hq_msgs_kMaxMarkersInState, hq_msgs_kMaxMarkersInState, big.markers.data(),
+                   false};
+  ConsoleModel live;
+  LiveStateFeed feed;
+  const long before = hq::testing::allocation_count();
+  for (int round = 0; round < 3; ++round) {
+    for (int i = 0; i < kStates; ++i) {
+      feed.on_state(live, receipt_ns(round * kStates + i), 2.5,
+                    flight[static_cast<std::size_t>(i)].s, {1.0F, 2.0F});
+    }
+  }
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
+  EXPECT_EQ(feed.latest().obstacle_points_body_m.size(), 0U);  // the last state carried none
 }
 
 TEST(ReplayParity, McapReplayShowsWhatTheLiveConsoleShowedFrameByFrame) {
