@@ -53,7 +53,7 @@ std::vector<FlightState> make_flight() {
     link::VehicleState& s = f.s;
     const auto k = static_cast<float>(i);
     s.vehicle_id = 1;
-    s.sequence_number = static_cast<std::uint64_t>(100 + i);
+    s.sequence_number = 100U + static_cast<std::uint64_t>(i);
     s.t_ns = 5'000'000'000LL + i * kPeriod_ns;
     s.session_id = 0xABCDEFULL;
     s.commanding_station_id = 7;
