@@ -9,10 +9,10 @@
 #include "onboard_runs.hpp"
 
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <fmt/format.h>
 #include <memory>
-#include <csignal>
 #include <string>
 
 namespace hq::onboard_app {

@@ -314,9 +314,9 @@ bool vehicle_ended_banner(const LinkHealth& link, char* out, std::size_t size) {
   out[0] = '\0';
   if (!link.vehicle_ended) return false;
   // The vehicle's text starts with "vehicle ended: " and says why and how it was left.
-  std::snprintf(out, size, "vehicle %u: %s", link.selected_vehicle,
-                link.vehicle_ended_text[0] != '\0' ? link.vehicle_ended_text.data()
-                                                   : "vehicle ended");
+  std::snprintf(
+      out, size, "vehicle %u: %s", link.selected_vehicle,
+      link.vehicle_ended_text[0] != '\0' ? link.vehicle_ended_text.data() : "vehicle ended");
   return true;
 }
 

@@ -6,7 +6,8 @@
 //                 --script onboard/closed_loop/flights/core_paper_box.yaml
 //                 [--sim-config onboard/sim/config/sim.yaml] [--resolution 320x240] [--seed N]
 //                 [--csv fig6-8.csv] [--save-map map.pcd|map.ply]
-//   hq-sim-flight --world W --link [--duration-s 0] [--on-stop land|hold] [--link-config config.yaml]
+//   hq-sim-flight --world W --link [--duration-s 0] [--on-stop land|hold] [--link-config
+//   config.yaml]
 //                 [--domain-id N] [--vehicle-id N] [--command-timeout-ms 200]
 //                 [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
 //                 [--record DIR]

@@ -20,9 +20,7 @@ bool flying_mode(modes::Mode mode) {
 
 }  // namespace
 
-const char* to_string(StopAction action) {
-  return action == StopAction::kLand ? "land" : "hold";
-}
+const char* to_string(StopAction action) { return action == StopAction::kLand ? "land" : "hold"; }
 
 VehicleRuntime::VehicleRuntime(pipeline::OnboardChain& chain, sources::FrameSource& source,
                                FlightController& fc, OperatorPort* op, const TruthSource* truth,

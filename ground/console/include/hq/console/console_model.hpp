@@ -195,7 +195,7 @@ struct Snapshot {
   /// The previous vehicle session's track (before a restart), drawn greyed; oldest first.
   std::vector<TrackPoint> previous_track;
   std::size_t previous_track_count = 0;
-  std::uint64_t sessions = 0;  ///< Vehicle sessions shown (1 + restarts); 0 before any.
+  std::uint64_t sessions = 0;       ///< Vehicle sessions shown (1 + restarts); 0 before any.
   std::vector<TrackPoint> cloud_W;  ///< Latest obstacle cloud, top view in W.
   std::size_t cloud_count = 0;
   std::vector<EventLine> events;  ///< Oldest first.

@@ -184,7 +184,7 @@ class VehicleRuntime final : private FcSink {
   std::int64_t next_arm_attempt_ns_ = 0;
   bool was_flying_offboard_ = false;
   bool said_hover_thrust_ = false;  ///< The learnt hover thrust was announced.
-  bool stopping_ = false;            ///< begin_stop() was called.
+  bool stopping_ = false;           ///< begin_stop() was called.
   StopAction stop_action_ = StopAction::kLand;
   /// A frame's estimate was unusable since the last velocity reported: the estimator re-seeds
   /// its filter, so the next one is a restart (reset_counter), not a continuation.
