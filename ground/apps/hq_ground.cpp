@@ -244,7 +244,6 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   j["vehicle_ended_text"] = s.link.vehicle_ended_text.data();
   j["sessions"] = s.sessions;
   j["previous_track_points"] = s.previous_track_count;
-  j["yaw_W_rad"] = decimals(s.yaw_W_rad, 3);
   j["stale_s"] = decimals(s.link.state_age_s, 3);
   j["link_losses"] = s.link.link_losses;
   j["longest_link_loss_s"] = decimals(s.link.longest_loss_s, 3);
