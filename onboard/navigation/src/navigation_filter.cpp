@@ -73,6 +73,10 @@ void read_config(config::StrictMap& section, NavigationConfig& out) {
   section.read_positive("max_measurement_age_s", out.max_measurement_age_s, 10.0);
   section.read_positive("degraded_after_s", out.degraded_after_s, 600.0);
   section.read("reanchor_after_gated_markers", out.reanchor_after_gated_markers, 0, 1000);
+  section.read_positive("position_max_age_s", out.position_max_age_s, 600.0);
+  section.read_positive("position_max_sigma_m", out.position_max_sigma_m, 100.0);
+  section.read("position_inconsistent_after_gated", out.position_inconsistent_after_gated, 1,
+               1000);
   section.finish();
 }
 
@@ -339,6 +343,7 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns, const Eigen::Iso
   residual.tail<3>() = log_so3(geometry::orthonormalize(R_WC_pred.transpose() * R_meas));
   const UpdateResult result = correct<6>(residual, marker_jacobian(state_, R_B_C_, p_B_C_m_),
                                          covariance, config_.marker_gate_chi2);
+  last_marker_nis_ = result.nis;
   if (result.status == UpdateStatus::kGated) {
     ++counters_.markers_gated;
     ++consecutive_gated_markers_;
@@ -379,8 +384,33 @@ UpdateResult NavigationFilter::update_velocity(const estimator::VelocityEstimate
   return update_velocity(estimate.t_ns, estimate.v_H_mps, Matrix3d::Identity() * variance);
 }
 
+PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
+  PositionCheck check;
+  const Eigen::Matrix2d P_xy = P_.block<2, 2>(kIndexPosition, kIndexPosition);
+  check.sigma_horizontal_m = std::sqrt(std::max(0.0, P_xy.trace()));
+  if (!initialized_ || !counters_.anchored) {
+    check.reason = PositionInvalid::kNotAnchored;
+    return check;
+  }
+  check.age_s = seconds(std::max(t_now_ns, t_ns_) - t_last_marker_ns_);
+  if (!(check.age_s <= config_.position_max_age_s)) {
+    check.reason = PositionInvalid::kNoMarker;
+  } else if (!(check.sigma_horizontal_m <= config_.position_max_sigma_m)) {
+    // NaN fails here too: a broken covariance is never a valid pose.
+    check.reason = PositionInvalid::kCovarianceOverBound;
+  } else if (consecutive_gated_markers_ >= config_.position_inconsistent_after_gated) {
+    check.reason = PositionInvalid::kInnovationInconsistent;
+  } else {
+    check.valid = true;
+    check.reason = PositionInvalid::kNone;
+  }
+  return check;
+}
+
 NavigationHealth NavigationFilter::health() const {
   NavigationHealth health = counters_;
+  health.consecutive_gated_markers = consecutive_gated_markers_;
+  health.last_marker_nis = last_marker_nis_;
   health.initialized = initialized_;
   health.position_sigma_m = std::sqrt(P_.block<3, 3>(kIndexPosition, kIndexPosition).trace());
   health.time_since_marker_s = initialized_ ? seconds(t_ns_ - t_last_marker_ns_) : 0.0;
@@ -397,6 +427,22 @@ Eigen::Isometry3d NavigationFilter::T_W_B() const {
 }
 
 Vector3d NavigationFilter::v_H_mps() const { return predict_velocity_horizontal(state_); }
+
+const char* to_string(PositionInvalid reason) {
+  switch (reason) {
+    case PositionInvalid::kNone:
+      return "valid";
+    case PositionInvalid::kNotAnchored:
+      return "no marker seen yet";
+    case PositionInvalid::kNoMarker:
+      return "no marker";
+    case PositionInvalid::kCovarianceOverBound:
+      return "position uncertainty over bound";
+    case PositionInvalid::kInnovationInconsistent:
+      return "markers disagree with the estimate";
+  }
+  return "unknown";
+}
 
 const char* to_string(UpdateStatus status) {
   switch (status) {
