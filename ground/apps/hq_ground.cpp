@@ -163,6 +163,9 @@ class ModelFeed : public hq::ground::LinkObserver {
     extras.position_valid = s.position_valid;
     extras.p_W_m = {s.p_W_m.x, s.p_W_m.y, s.p_W_m.z};
     extras.yaw_W_rad = s.yaw_W_rad;
+    extras.position_invalid_reason = s.position_invalid_reason;
+    extras.position_age_s = s.position_age_s;
+    extras.position_sigma_m = s.position_sigma_m;
     extras.truth_valid = s.truth_valid;
     extras.v_truth_H_mps = {s.v_truth_H_mps.x, s.v_truth_H_mps.y, s.v_truth_H_mps.z};
     const hq::ground::LinkStatus& link = ground_.status();

@@ -320,7 +320,8 @@ const std::vector<std::string> kStateColumns = {
     "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
     "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
     "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
-    "v_cmd_flown_H_z_mps", "clearance_m"};
+    "v_cmd_flown_H_z_mps", "clearance_m", "position_invalid_reason", "position_age_s",
+    "position_sigma_m"};
 constexpr std::size_t kRequiredStateColumns = 18;
 
 using Fields = std::vector<std::string_view>;
@@ -425,12 +426,32 @@ bool parse_state_flight(const CsvFile& file, const Fields& f, RecordedState& s,
   return true;
 }
 
+// Columns 40-42: why the position is invalid, its age and sigma (0: not said).
+bool parse_state_position_validity(const CsvFile& file, const Fields& f, RecordedState& s,
+                                   std::string& error) {
+  if (!file.has(40) || !file.has(42)) return true;
+  int reason = 0;
+  std::array<float, 2> values{};
+  if (!parse_integer(f[40], reason) || reason < 0 || reason > 255 ||
+      !parse_floats(f, 41, kStateColumns, values, error)) {
+    if (error.empty()) {
+      error = "position_invalid_reason = '" + std::string(f[40]) + "', expected 0..255";
+    }
+    return false;
+  }
+  s.position_invalid_reason = static_cast<std::uint8_t>(reason);
+  s.position_age_s = values[0];
+  s.position_sigma_m = values[1];
+  return true;
+}
+
 void read_states(Recording& r, FileStarts& starts) {
   CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
   telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
     RecordedState s;
     if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
-        !parse_state_flight(telemetry, f, s, error)) {
+        !parse_state_flight(telemetry, f, s, error) ||
+        !parse_state_position_validity(telemetry, f, s, error)) {
       return false;
     }
     r.states.push_back(s);

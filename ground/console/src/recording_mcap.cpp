@@ -103,6 +103,9 @@ RecordedState to_recorded(std::int64_t log_ns, std::int64_t publish_ns,
   out.position_valid = s.position_valid;
   out.p_W_m = array3(s.p_W_m);
   out.yaw_W_rad = s.yaw_W_rad;
+  out.position_invalid_reason = s.position_invalid_reason;
+  out.position_age_s = std::isfinite(s.position_age_s) ? s.position_age_s : 0.0F;
+  out.position_sigma_m = std::isfinite(s.position_sigma_m) ? s.position_sigma_m : 0.0F;
   out.truth_valid = s.truth_valid;
   out.v_truth_H_mps = array3(s.v_truth_H_mps);
   out.markers_n = static_cast<int>(s.markers._length);

@@ -253,6 +253,9 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
   extras.position_valid = s.position_valid;
   extras.p_W_m = s.p_W_m;
   extras.yaw_W_rad = s.yaw_W_rad;
+  extras.position_invalid_reason = s.position_invalid_reason;
+  extras.position_age_s = s.position_age_s;
+  extras.position_sigma_m = s.position_sigma_m;
   extras.truth_valid = s.truth_valid;
   extras.v_truth_H_mps = s.v_truth_H_mps;
   model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad, s.pitch_rad,
