@@ -187,8 +187,9 @@ const char* describe_position(const navigation::PositionCheck& check,
                     check.sigma_horizontal_m, config.position_max_sigma_m);
       break;
     case PositionInvalid::kInnovationInconsistent:
-      std::snprintf(out, size, "position lost (%d markers in a row disagree with the estimate)",
-                    config.position_inconsistent_after_gated);
+      std::snprintf(out, size,
+                    "position lost (the markers of %d frames in a row disagree with the estimate)",
+                    config.position_inconsistent_after_frames);
       break;
   }
   return out;

@@ -75,7 +75,7 @@ void read_config(config::StrictMap& section, NavigationConfig& out) {
   section.read("reanchor_after_gated_markers", out.reanchor_after_gated_markers, 0, 1000);
   section.read_positive("position_max_age_s", out.position_max_age_s, 600.0);
   section.read_positive("position_max_sigma_m", out.position_max_sigma_m, 100.0);
-  section.read("position_inconsistent_after_gated", out.position_inconsistent_after_gated, 1,
+  section.read("position_inconsistent_after_frames", out.position_inconsistent_after_frames, 1,
                1000);
   section.finish();
 }
@@ -162,6 +162,10 @@ UpdateResult NavigationFilter::initialize(std::int64_t t_ns, const NominalState&
   have_imu_ = false;
   counters_.anchored = false;
   consecutive_gated_markers_ = 0;
+  t_marker_frame_ns_ = -1;
+  frame_accepted_ = false;
+  frame_gated_ = false;
+  disagreeing_frames_ = 0;
   return UpdateResult{UpdateStatus::kAccepted, "initialised", 0.0};
 }
 
@@ -216,6 +220,7 @@ UpdateResult NavigationFilter::anchor_to_marker(std::int64_t t_ns, const Eigen::
   ++counters_.reanchors;
   t_last_marker_ns_ = t_ns_;
   consecutive_gated_markers_ = 0;
+  note_marker_outcome(t_ns, true);
   ++counters_.markers_accepted;
   return UpdateResult{UpdateStatus::kAccepted, "anchored on marker", 0.0};
 }
@@ -345,6 +350,7 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns, const Eigen::Iso
                                          covariance, config_.marker_gate_chi2);
   last_marker_nis_ = result.nis;
   if (result.status == UpdateStatus::kGated) {
+    note_marker_outcome(t_ns, false);
     ++counters_.markers_gated;
     ++consecutive_gated_markers_;
     if (config_.reanchor_after_gated_markers > 0 &&
@@ -355,6 +361,7 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns, const Eigen::Iso
     return result;
   }
   if (result.accepted()) {
+    note_marker_outcome(t_ns, true);
     ++counters_.markers_accepted;
     consecutive_gated_markers_ = 0;
     t_last_marker_ns_ = t_ns_;
@@ -384,6 +391,27 @@ UpdateResult NavigationFilter::update_velocity(const estimator::VelocityEstimate
   return update_velocity(estimate.t_ns, estimate.v_H_mps, Matrix3d::Identity() * variance);
 }
 
+void NavigationFilter::note_marker_outcome(std::int64_t t_ns, bool accepted) {
+  // One frame brings several markers (one stamp); a frame disagrees when none of its markers
+  // passed the gate. A far marker of a frame gated beside accepted ones is no disagreement.
+  if (t_ns != t_marker_frame_ns_) {
+    if (frame_accepted_) {
+      disagreeing_frames_ = 0;
+    } else if (frame_gated_) {
+      ++disagreeing_frames_;
+    }
+    t_marker_frame_ns_ = t_ns;
+    frame_accepted_ = false;
+    frame_gated_ = false;
+  }
+  (accepted ? frame_accepted_ : frame_gated_) = true;
+}
+
+int NavigationFilter::disagreeing_marker_frames() const {
+  if (frame_accepted_) return 0;
+  return disagreeing_frames_ + (frame_gated_ ? 1 : 0);
+}
+
 PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
   PositionCheck check;
   const Eigen::Matrix2d P_xy = P_.block<2, 2>(kIndexPosition, kIndexPosition);
@@ -398,7 +426,7 @@ PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
   } else if (!(check.sigma_horizontal_m <= config_.position_max_sigma_m)) {
     // NaN fails here too: a broken covariance is never a valid pose.
     check.reason = PositionInvalid::kCovarianceOverBound;
-  } else if (consecutive_gated_markers_ >= config_.position_inconsistent_after_gated) {
+  } else if (disagreeing_marker_frames() >= config_.position_inconsistent_after_frames) {
     check.reason = PositionInvalid::kInnovationInconsistent;
   } else {
     check.valid = true;
@@ -409,7 +437,7 @@ PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
 
 NavigationHealth NavigationFilter::health() const {
   NavigationHealth health = counters_;
-  health.consecutive_gated_markers = consecutive_gated_markers_;
+  health.disagreeing_marker_frames = disagreeing_marker_frames();
   health.last_marker_nis = last_marker_nis_;
   health.initialized = initialized_;
   health.position_sigma_m = std::sqrt(P_.block<3, 3>(kIndexPosition, kIndexPosition).trace());

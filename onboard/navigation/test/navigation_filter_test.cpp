@@ -461,33 +461,48 @@ TEST(PositionCheck, CovarianceGrowthWithoutObservationsIsBounded) {
       invalid_after_s = 0.1 * i;
     }
   }
-  std::printf("no markers: invalid (sigma over %.2f m) after %.1f s, worst error while valid %.3f m\n",
-              options.config.position_max_sigma_m, invalid_after_s, worst_valid_error_m);
+  std::printf(
+      "no markers: invalid (sigma over %.2f m) after %.1f s, worst error while valid %.3f m\n",
+      options.config.position_max_sigma_m, invalid_after_s, worst_valid_error_m);
   EXPECT_GT(invalid_after_s, 0.0) << "covariance never reached the bound";
   EXPECT_LT(worst_valid_error_m, 3.0 * options.config.position_max_sigma_m);
 }
 
-// GIVEN position_inconsistent_after_gated markers in a row failing the chi-square gate THEN the
-// pose is invalid ("markers disagree"), the NIS is reported, and a consistent marker clears it.
-TEST(PositionCheck, GatedMarkersInARowMarkThePoseInconsistentUntilOneIsAccepted) {
+// GIVEN position_inconsistent_after_frames marker frames in a row whose markers all fail the
+// chi-square gate THEN the pose is invalid ("markers disagree"), the NIS is reported, and a
+// consistent marker clears it. A gated marker beside an accepted one of the same frame (a far,
+// less accurate marker) is no disagreement.
+TEST(PositionCheck, FramesOfGatedMarkersInARowMarkThePoseInconsistentUntilOneIsAccepted) {
   Scenario run;
   run.run_to(10.0);
-  const int n = run.filter().config().position_inconsistent_after_gated;
-  ASSERT_LT(n, run.filter().config().reanchor_after_gated_markers);
-  for (int i = 0; i < n; ++i) {
-    EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "after " << i << " gated";
+  const int n = run.filter().config().position_inconsistent_after_frames;
+  const auto outlier = [&run] {
     Eigen::Isometry3d T_WC = run.marker_truth(run.truth());
     T_WC.translation() += Vector3d(1.0, 0.0, 0.0);
-    const UpdateResult r = run.filter().update_marker(run.t_ns(), T_WC, run.marker_covariance());
-    ASSERT_EQ(r.status, UpdateStatus::kGated);
+    return run.filter().update_marker(run.t_ns(), T_WC, run.marker_covariance());
+  };
+  // One frame: an accepted marker, then several gated ones of the same stamp.
+  ASSERT_TRUE(run.filter()
+                  .update_marker(run.t_ns(), run.marker_truth(run.truth()), run.marker_covariance())
+                  .accepted());
+  const long reanchors = run.filter().health().reanchors;
+  for (int i = 0; i < 2; ++i) ASSERT_EQ(outlier().status, UpdateStatus::kGated);
+  EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "gated beside an accepted one";
+  EXPECT_EQ(run.filter().health().disagreeing_marker_frames, 0);
+  for (int i = 0; i < n; ++i) {
+    run.run_to(to_s(run.t_ns()) + 0.02, false);
+    EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "after " << i << " frames";
+    ASSERT_EQ(outlier().status, UpdateStatus::kGated);
+    ASSERT_EQ(outlier().status, UpdateStatus::kGated);  // two markers in the frame, both off
     EXPECT_GT(run.filter().health().last_marker_nis, run.filter().config().marker_gate_chi2);
   }
+  ASSERT_EQ(run.filter().health().reanchors, reanchors) << "re-anchored: fewer gated markers";
   PositionCheck check = run.filter().check_position(run.t_ns());
   EXPECT_FALSE(check.valid);
   EXPECT_EQ(check.reason, PositionInvalid::kInnovationInconsistent);
-  EXPECT_EQ(run.filter().health().consecutive_gated_markers, n);
-  const UpdateResult good = run.filter().update_marker(
-      run.t_ns(), run.marker_truth(run.truth()), run.marker_covariance());
+  EXPECT_EQ(run.filter().health().disagreeing_marker_frames, n);
+  const UpdateResult good = run.filter().update_marker(run.t_ns(), run.marker_truth(run.truth()),
+                                                       run.marker_covariance());
   ASSERT_TRUE(good.accepted());
   check = run.filter().check_position(run.t_ns());
   EXPECT_TRUE(check.valid) << to_string(check.reason);
@@ -626,7 +641,7 @@ TEST(NavigationConfig, ReadsNavigationSectionWithDegreesConverted) {
                                       "  reanchor_after_gated_markers: 0\n"
                                       "  position_max_age_s: 2.5\n"
                                       "  position_max_sigma_m: 0.4\n"
-                                      "  position_inconsistent_after_gated: 5\n");
+                                      "  position_inconsistent_after_frames: 5\n");
   const NavigationConfig config = load_navigation_config(path);
   EXPECT_DOUBLE_EQ(config.gyro_noise_density_radps_rthz, 3.0e-4);
   EXPECT_NEAR(config.initial_attitude_sigma_rad, 10.0 * kPi / 180.0, 1e-12);
@@ -634,7 +649,7 @@ TEST(NavigationConfig, ReadsNavigationSectionWithDegreesConverted) {
   EXPECT_EQ(config.reanchor_after_gated_markers, 0);
   EXPECT_DOUBLE_EQ(config.position_max_age_s, 2.5);
   EXPECT_DOUBLE_EQ(config.position_max_sigma_m, 0.4);
-  EXPECT_EQ(config.position_inconsistent_after_gated, 5);
+  EXPECT_EQ(config.position_inconsistent_after_frames, 5);
 }
 
 TEST(NavigationConfig, ErrorsNameTheKey) {
@@ -654,10 +669,10 @@ TEST(NavigationConfig, ErrorsNameTheKey) {
       write_yaml("hq_navigation_age.yaml", "navigation: {position_max_age_s: 0}\n");
   EXPECT_THAT(hq::testing::input_error_message([&] { load_navigation_config(age); }),
               HasSubstr("navigation.position_max_age_s = 0"));
-  const std::string gated =
-      write_yaml("hq_navigation_gated.yaml", "navigation: {position_inconsistent_after_gated: 0}\n");
+  const std::string gated = write_yaml("hq_navigation_gated.yaml",
+                                       "navigation: {position_inconsistent_after_frames: 0}\n");
   EXPECT_THAT(hq::testing::input_error_message([&] { load_navigation_config(gated); }),
-              HasSubstr("navigation.position_inconsistent_after_gated"));
+              HasSubstr("navigation.position_inconsistent_after_frames"));
   const std::string missing = write_yaml("hq_navigation_missing.yaml", "estimator: {}\n");
   const std::string message =
       hq::testing::input_error_message([&] { load_navigation_config(missing); });

@@ -62,9 +62,9 @@ struct NavigationConfig {
   double position_max_age_s = 3.0;
   /// Horizontal 1-sigma position bound, sqrt(P_xx + P_yy): the covariance grows without markers.
   double position_max_sigma_m = 0.5;
-  /// This many consecutive markers failing the chi-square gate: the filter disagrees with the
-  /// map, invalid until a marker is accepted or it re-anchors.
-  int position_inconsistent_after_gated = 3;
+  /// This many marker frames (stamps) in a row whose markers all failed the chi-square gate:
+  /// the filter disagrees with the map, invalid until a marker is accepted or it re-anchors.
+  int position_inconsistent_after_frames = 3;
 };
 
 /// Reads the `navigation:` section (keys as in NavigationConfig, `initial_attitude_sigma_deg`
@@ -101,7 +101,7 @@ enum class PositionInvalid : std::uint8_t {
   kNotAnchored = 1,             ///< Not initialised, or no marker seen yet.
   kNoMarker = 2,                ///< No accepted marker for longer than position_max_age_s.
   kCovarianceOverBound = 3,     ///< Horizontal sigma above position_max_sigma_m.
-  kInnovationInconsistent = 4,  ///< position_inconsistent_after_gated markers gated in a row.
+  kInnovationInconsistent = 4,  ///< Markers of position_inconsistent_after_frames frames gated.
 };
 /// Plain words for the operator ("no marker", ...).
 const char* to_string(PositionInvalid reason);
@@ -127,9 +127,9 @@ struct NavigationHealth {
   long velocities_gated = 0;
   long inputs_rejected = 0;
   long reanchors = 0;
-  int consecutive_gated_markers = 0;
-  double last_marker_nis = 0.0;  ///< NIS of the last marker update (accepted or gated).
-  const char* last_reason = "";  ///< of the last gated or rejected input.
+  int disagreeing_marker_frames = 0;  ///< Marker stamps in a row with every marker gated.
+  double last_marker_nis = 0.0;       ///< NIS of the last marker update (accepted or gated).
+  const char* last_reason = "";       ///< of the last gated or rejected input.
 };
 
 class NavigationFilter {
@@ -173,7 +173,8 @@ class NavigationFilter {
   /// May the pose be flown on at t_now_ns (the age counts from the later of t_now_ns and the
   /// filter's time, so an IMU that stops does not freeze it): anchored, a marker accepted within
   /// position_max_age_s, horizontal sigma within position_max_sigma_m, and fewer than
-  /// position_inconsistent_after_gated markers gated in a row. The first failing check is the
+  /// position_inconsistent_after_frames marker frames in a row whose every marker was
+  /// gated (markers of one frame share a stamp). The first failing check is the
   /// reason, in that order. Allocates nothing.
   [[nodiscard]] PositionCheck check_position(std::int64_t t_now_ns) const;
   [[nodiscard]] Eigen::Isometry3d T_W_B() const;
@@ -188,6 +189,9 @@ class NavigationFilter {
                        const Eigen::Matrix<double, kDim, kDim>& R, double gate_chi2);
   UpdateResult check_stamp(std::int64_t t_ns) const;
   UpdateResult reject(const char* reason);
+  /// Books a marker update's outcome against its frame (its stamp).
+  void note_marker_outcome(std::int64_t t_ns, bool accepted);
+  [[nodiscard]] int disagreeing_marker_frames() const;
 
   NavigationConfig config_;
   Eigen::Matrix3d R_B_C_;
@@ -202,6 +206,10 @@ class NavigationFilter {
   std::int64_t t_last_marker_ns_ = 0;
   int consecutive_gated_markers_ = 0;
   double last_marker_nis_ = 0.0;
+  std::int64_t t_marker_frame_ns_ = -1;  ///< Stamp of the marker frame being booked.
+  bool frame_accepted_ = false;
+  bool frame_gated_ = false;
+  int disagreeing_frames_ = 0;  ///< Complete frames in a row with every marker gated.
   NavigationHealth counters_;
 };
 
