@@ -26,7 +26,7 @@ const char* position_invalid_text(std::uint8_t reason, float age_s, float sigma_
                     static_cast<double>(sigma_m));
       break;
     case 4:
-      std::snprintf(out, size, "markers disagree with the estimate");
+      std::snprintf(out, size, "markers or velocity disagree with the estimate");
       break;
     default:
       std::snprintf(out, size, "unknown reason %u", static_cast<unsigned>(reason));

@@ -23,7 +23,7 @@ TEST(PositionStatus, ReasonsReadInPlainWords) {
   EXPECT_STREQ(position_invalid_text(3, 1.0F, 0.62F, text, sizeof text),
                "position uncertainty 0.62 m, over its bound");
   EXPECT_STREQ(position_invalid_text(4, 1.0F, 0.1F, text, sizeof text),
-               "markers disagree with the estimate");
+               "markers or velocity disagree with the estimate");
   EXPECT_STREQ(position_invalid_text(1, 0.0F, 0.0F, text, sizeof text), "no marker seen yet");
   EXPECT_STREQ(position_invalid_text(0, 0.0F, 0.0F, text, sizeof text), "");
   EXPECT_STREQ(position_invalid_text(9, 0.0F, 0.0F, text, sizeof text), "unknown reason 9");

@@ -188,8 +188,10 @@ const char* describe_position(const navigation::PositionCheck& check,
       break;
     case PositionInvalid::kInnovationInconsistent:
       std::snprintf(out, size,
-                    "position lost (the markers of %d frames in a row disagree with the estimate)",
-                    config.position_inconsistent_after_frames);
+                    "position lost (markers or velocity disagree with the estimate: %d frames or "
+                    "%d velocities in a row gated)",
+                    config.position_inconsistent_after_frames,
+                    config.position_inconsistent_after_velocities);
       break;
   }
   return out;

@@ -77,6 +77,8 @@ void read_config(config::StrictMap& section, NavigationConfig& out) {
   section.read_positive("position_max_sigma_m", out.position_max_sigma_m, 100.0);
   section.read("position_inconsistent_after_frames", out.position_inconsistent_after_frames, 1,
                1000);
+  section.read("position_inconsistent_after_velocities", out.position_inconsistent_after_velocities,
+               1, 100000);
   section.finish();
 }
 
@@ -166,6 +168,7 @@ UpdateResult NavigationFilter::initialize(std::int64_t t_ns, const NominalState&
   frame_accepted_ = false;
   frame_gated_ = false;
   disagreeing_frames_ = 0;
+  consecutive_gated_velocities_ = 0;
   return UpdateResult{UpdateStatus::kAccepted, "initialised", 0.0};
 }
 
@@ -380,8 +383,14 @@ UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d
   const Vector3d residual = v_H_mps - predict_velocity_horizontal(state_);
   const UpdateResult result =
       correct<3>(residual, velocity_jacobian(state_), covariance, config_.velocity_gate_chi2);
-  if (result.status == UpdateStatus::kGated) ++counters_.velocities_gated;
-  if (result.accepted()) ++counters_.velocities_accepted;
+  if (result.status == UpdateStatus::kGated) {
+    ++counters_.velocities_gated;
+    ++consecutive_gated_velocities_;
+  }
+  if (result.accepted()) {
+    ++counters_.velocities_accepted;
+    consecutive_gated_velocities_ = 0;
+  }
   return result;
 }
 
@@ -426,7 +435,8 @@ PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
   } else if (!(check.sigma_horizontal_m <= config_.position_max_sigma_m)) {
     // NaN fails here too: a broken covariance is never a valid pose.
     check.reason = PositionInvalid::kCovarianceOverBound;
-  } else if (disagreeing_marker_frames() >= config_.position_inconsistent_after_frames) {
+  } else if (disagreeing_marker_frames() >= config_.position_inconsistent_after_frames ||
+             consecutive_gated_velocities_ >= config_.position_inconsistent_after_velocities) {
     check.reason = PositionInvalid::kInnovationInconsistent;
   } else {
     check.valid = true;
@@ -438,6 +448,7 @@ PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
 NavigationHealth NavigationFilter::health() const {
   NavigationHealth health = counters_;
   health.disagreeing_marker_frames = disagreeing_marker_frames();
+  health.consecutive_gated_velocities = consecutive_gated_velocities_;
   health.last_marker_nis = last_marker_nis_;
   health.initialized = initialized_;
   health.position_sigma_m = std::sqrt(P_.block<3, 3>(kIndexPosition, kIndexPosition).trace());
@@ -467,7 +478,7 @@ const char* to_string(PositionInvalid reason) {
     case PositionInvalid::kCovarianceOverBound:
       return "position uncertainty over bound";
     case PositionInvalid::kInnovationInconsistent:
-      return "markers disagree with the estimate";
+      return "markers or velocity disagree with the estimate";
   }
   return "unknown";
 }

@@ -508,6 +508,32 @@ TEST(PositionCheck, FramesOfGatedMarkersInARowMarkThePoseInconsistentUntilOneIsA
   EXPECT_TRUE(check.valid) << to_string(check.reason);
 }
 
+// GIVEN position_inconsistent_after_velocities RGB-D velocities in a row failing their gate (the
+// filter no longer believes the velocity its pose integrates between markers) THEN the pose is
+// invalid as inconsistent; an accepted velocity clears it.
+TEST(PositionCheck, GatedVelocitiesInARowMarkThePoseInconsistent) {
+  Scenario run;
+  run.run_to(10.0);
+  const int n = run.filter().config().position_inconsistent_after_velocities;
+  const Vector3d v_H = predict_velocity_horizontal(run.filter().state());
+  for (int i = 0; i < n; ++i) {
+    EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "after " << i << " gated";
+    const UpdateResult r = run.filter().update_velocity(run.t_ns(), v_H + Vector3d(2.0, 0.0, 0.0),
+                                                        run.velocity_covariance());
+    ASSERT_EQ(r.status, UpdateStatus::kGated);
+  }
+  PositionCheck check = run.filter().check_position(run.t_ns());
+  EXPECT_FALSE(check.valid);
+  EXPECT_EQ(check.reason, PositionInvalid::kInnovationInconsistent);
+  EXPECT_EQ(run.filter().health().consecutive_gated_velocities, n);
+  ASSERT_TRUE(run.filter()
+                  .update_velocity(run.t_ns(), predict_velocity_horizontal(run.filter().state()),
+                                   run.velocity_covariance())
+                  .accepted());
+  check = run.filter().check_position(run.t_ns());
+  EXPECT_TRUE(check.valid) << to_string(check.reason);
+}
+
 TEST(PositionCheck, AllocatesNothing) {
   Scenario run;
   run.run_to(2.0);
@@ -641,7 +667,8 @@ TEST(NavigationConfig, ReadsNavigationSectionWithDegreesConverted) {
                                       "  reanchor_after_gated_markers: 0\n"
                                       "  position_max_age_s: 2.5\n"
                                       "  position_max_sigma_m: 0.4\n"
-                                      "  position_inconsistent_after_frames: 5\n");
+                                      "  position_inconsistent_after_frames: 5\n"
+                                      "  position_inconsistent_after_velocities: 7\n");
   const NavigationConfig config = load_navigation_config(path);
   EXPECT_DOUBLE_EQ(config.gyro_noise_density_radps_rthz, 3.0e-4);
   EXPECT_NEAR(config.initial_attitude_sigma_rad, 10.0 * kPi / 180.0, 1e-12);
@@ -650,6 +677,7 @@ TEST(NavigationConfig, ReadsNavigationSectionWithDegreesConverted) {
   EXPECT_DOUBLE_EQ(config.position_max_age_s, 2.5);
   EXPECT_DOUBLE_EQ(config.position_max_sigma_m, 0.4);
   EXPECT_EQ(config.position_inconsistent_after_frames, 5);
+  EXPECT_EQ(config.position_inconsistent_after_velocities, 7);
 }
 
 TEST(NavigationConfig, ErrorsNameTheKey) {

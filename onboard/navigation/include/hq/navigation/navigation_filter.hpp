@@ -65,6 +65,9 @@ struct NavigationConfig {
   /// This many marker frames (stamps) in a row whose markers all failed the chi-square gate:
   /// the filter disagrees with the map, invalid until a marker is accepted or it re-anchors.
   int position_inconsistent_after_frames = 3;
+  /// This many RGB-D velocity updates in a row failing their gate: between markers the pose is
+  /// the velocity integrated, and a filter that refuses the velocity drifts unseen by P.
+  int position_inconsistent_after_velocities = 10;
 };
 
 /// Reads the `navigation:` section (keys as in NavigationConfig, `initial_attitude_sigma_deg`
@@ -101,7 +104,9 @@ enum class PositionInvalid : std::uint8_t {
   kNotAnchored = 1,             ///< Not initialised, or no marker seen yet.
   kNoMarker = 2,                ///< No accepted marker for longer than position_max_age_s.
   kCovarianceOverBound = 3,     ///< Horizontal sigma above position_max_sigma_m.
-  kInnovationInconsistent = 4,  ///< Markers of position_inconsistent_after_frames frames gated.
+  /// Markers of position_inconsistent_after_frames frames, or position_inconsistent_after_
+  /// velocities velocities, gated in a row.
+  kInnovationInconsistent = 4,
 };
 /// Plain words for the operator ("no marker", ...).
 const char* to_string(PositionInvalid reason);
@@ -128,6 +133,7 @@ struct NavigationHealth {
   long inputs_rejected = 0;
   long reanchors = 0;
   int disagreeing_marker_frames = 0;  ///< Marker stamps in a row with every marker gated.
+  int consecutive_gated_velocities = 0;
   double last_marker_nis = 0.0;       ///< NIS of the last marker update (accepted or gated).
   const char* last_reason = "";       ///< of the last gated or rejected input.
 };
@@ -174,7 +180,8 @@ class NavigationFilter {
   /// filter's time, so an IMU that stops does not freeze it): anchored, a marker accepted within
   /// position_max_age_s, horizontal sigma within position_max_sigma_m, and fewer than
   /// position_inconsistent_after_frames marker frames in a row whose every marker was
-  /// gated (markers of one frame share a stamp). The first failing check is the
+  /// gated (markers of one frame share a stamp) and fewer than
+  /// position_inconsistent_after_velocities velocity updates gated in a row. The first failing check is the
   /// reason, in that order. Allocates nothing.
   [[nodiscard]] PositionCheck check_position(std::int64_t t_now_ns) const;
   [[nodiscard]] Eigen::Isometry3d T_W_B() const;
@@ -210,6 +217,7 @@ class NavigationFilter {
   bool frame_accepted_ = false;
   bool frame_gated_ = false;
   int disagreeing_frames_ = 0;  ///< Complete frames in a row with every marker gated.
+  int consecutive_gated_velocities_ = 0;
   NavigationHealth counters_;
 };
 
