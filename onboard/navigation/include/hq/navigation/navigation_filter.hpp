@@ -59,7 +59,7 @@ struct NavigationConfig {
   int reanchor_after_gated_markers = 10;
   // When the pose may be flown on (check_position): beyond any of these it is invalid.
   /// No accepted marker for longer than this: the pose is dead reckoning, invalid.
-  double position_max_age_s = 3.0;
+  double position_max_age_s = 5.0;
   /// Horizontal 1-sigma position bound, sqrt(P_xx + P_yy): the covariance grows without markers.
   double position_max_sigma_m = 0.5;
   /// This many marker frames (stamps) in a row whose markers all failed the chi-square gate:
