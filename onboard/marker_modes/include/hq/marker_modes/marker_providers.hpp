@@ -136,7 +136,7 @@ class MarkerStage {
   [[nodiscard]] bool wants_land(modes::Mode mode) const;
   /// Called once per step with the chain's mode: in marker or explore mode, the text of an event
   /// when the pose just became unusable after being flown on ("marker mode: position lost (no
-  /// marker for 3.0 s), holding") or usable again ("... position valid again, resuming"), else
+  /// marker for 5.0 s), holding") or usable again ("... position valid again, resuming"), else
   /// nullptr. The text lives until the next call. Allocates nothing.
   const char* position_event(modes::Mode mode, std::int64_t t_ns);
   /// In marker or explore mode, the pose became unusable after being flown on: hovering.
