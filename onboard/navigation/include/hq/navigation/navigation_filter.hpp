@@ -101,9 +101,9 @@ struct UpdateResult {
 /// (VehicleState.position_invalid_reason), so they are never renumbered.
 enum class PositionInvalid : std::uint8_t {
   kNone = 0,
-  kNotAnchored = 1,             ///< Not initialised, or no marker seen yet.
-  kNoMarker = 2,                ///< No accepted marker for longer than position_max_age_s.
-  kCovarianceOverBound = 3,     ///< Horizontal sigma above position_max_sigma_m.
+  kNotAnchored = 1,          ///< Not initialised, or no marker seen yet.
+  kNoMarker = 2,             ///< No accepted marker for longer than position_max_age_s.
+  kCovarianceOverBound = 3,  ///< Horizontal sigma above position_max_sigma_m.
   /// Markers of position_inconsistent_after_frames frames, or position_inconsistent_after_
   /// velocities velocities, gated in a row.
   kInnovationInconsistent = 4,
@@ -134,8 +134,8 @@ struct NavigationHealth {
   long reanchors = 0;
   int disagreeing_marker_frames = 0;  ///< Marker stamps in a row with every marker gated.
   int consecutive_gated_velocities = 0;
-  double last_marker_nis = 0.0;       ///< NIS of the last marker update (accepted or gated).
-  const char* last_reason = "";       ///< of the last gated or rejected input.
+  double last_marker_nis = 0.0;  ///< NIS of the last marker update (accepted or gated).
+  const char* last_reason = "";  ///< of the last gated or rejected input.
 };
 
 class NavigationFilter {
@@ -181,8 +181,8 @@ class NavigationFilter {
   /// position_max_age_s, horizontal sigma within position_max_sigma_m, and fewer than
   /// position_inconsistent_after_frames marker frames in a row whose every marker was
   /// gated (markers of one frame share a stamp) and fewer than
-  /// position_inconsistent_after_velocities velocity updates gated in a row. The first failing check is the
-  /// reason, in that order. Allocates nothing.
+  /// position_inconsistent_after_velocities velocity updates gated in a row. The first failing
+  /// check is the reason, in that order. Allocates nothing.
   [[nodiscard]] PositionCheck check_position(std::int64_t t_now_ns) const;
   [[nodiscard]] Eigen::Isometry3d T_W_B() const;
   /// Velocity in H, what the velocity tracker consumes.
