@@ -218,8 +218,11 @@ constexpr const char* kTelemetryHeader =
     "# height_m above the floor from height_source (none: meaningless);\n"
     "# operator_input: what the vehicle did with the command; v_cmd_flown_H: the\n"
     "# command as flown (m/s); clearance_m: the vehicle's closest obstacle clearance\n"
-    "# (m, < 0: none seen); hover_thrust_gain: thrust given over commanded, learnt in\n"
-    "# flight (0: not reported), hover_thrust_converged 1 once learnt.\n"
+    "# (m, < 0: none seen); hover_thrust_gain: thrust given over commanded, learnt in "
+    "flight (0: not reported), hover_thrust_converged 1 once learnt;\n"
+    "# position_invalid_reason: why position_valid is 0 (0 valid or not said, 1 no marker "
+    "seen yet, 2 no marker for too long, 3 uncertainty over its bound, 4 markers disagree), "
+    "position_age_s since the last marker, position_sigma_m (m) 1-sigma.\n"
     "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
     "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
     "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
@@ -227,7 +230,8 @@ constexpr const char* kTelemetryHeader =
     "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n,"
     "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
     "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
-    "clearance_m,hover_thrust_gain,hover_thrust_converged\n";
+    "clearance_m,hover_thrust_gain,hover_thrust_converged,position_invalid_reason,"
+    "position_age_s,position_sigma_m\n";
 constexpr const char* kObstaclesHeader =
     "# hq-ground obstacles v1: the obstacle cloud a vehicle state carried, one row per point\n"
     "# (states without a cloud have none). receipt_ns and sequence: its state's row in\n"
@@ -347,7 +351,7 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           telemetry_,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
           "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,%llu,%u,%s,%d,%s,%.4f,%s,%.4f,"
-          "%.4f,%.4f,%.4f,%.4f,%d\n",
+          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
@@ -364,7 +368,8 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           operator_input_name(s.operator_input), as_double(s.v_cmd_flown_H_mps.x),
           as_double(s.v_cmd_flown_H_mps.y), as_double(s.v_cmd_flown_H_mps.z),
           as_double(s.clearance_m), as_double(s.hover_thrust_gain),
-          s.hover_thrust_converged ? 1 : 0),
+          s.hover_thrust_converged ? 1 : 0, static_cast<unsigned>(s.position_invalid_reason),
+          as_double(s.position_age_s), as_double(s.position_sigma_m)),
       "telemetry.csv");
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];

@@ -52,7 +52,7 @@ TEST(MarkerModesConfig, OutOfRangeAndUnknownKeysNameTheKey) {
 TEST(MarkerProviders, StepAllocatesNothingOnceAnchored) {
   test::Flight f = test::make_flight("onboard/closed_loop/flights/marker_hover.yaml", 3);
   f.loop->run_until(8.0);
-  ASSERT_TRUE(f.stage().navigation().pose_usable(1.0));
+  ASSERT_TRUE(f.stage().navigation().pose_usable(f.loop->simulator().t_ns(), 1.0));
   const std::int64_t t_ns = f.loop->simulator().t_ns();
   MarkerModeProvider& marker = f.stage().marker_mode();
   ExploreProvider& explore = f.stage().explore();

@@ -14,11 +14,13 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace hq::marker_modes::test {
 
 inline constexpr const char* kWorld = "onboard/sim/worlds/marker_grid.yaml";
+inline constexpr const char* kVehicle = "calib/vehicle_core_paper.yaml";
 
 struct Flight {
   sim::World world;
@@ -37,16 +39,19 @@ struct Flight {
   }
 };
 
+/// @param imu  the simulated IMU instead of onboard/sim/config/sim.yaml's (e.g. larger biases).
 inline Flight make_flight(const std::string& script, std::uint64_t seed,
-                          closed_loop::ClosedLoopOptions options = {}) {
+                          closed_loop::ClosedLoopOptions options = {},
+                          const std::optional<sim::ImuParams>& imu = std::nullopt) {
   Flight f;
   f.world = sim::load_world(kWorld);
   sim::SimConfig sim_config = sim::load_sim_config("onboard/sim/config/sim.yaml");
   sim::set_resolution(sim_config, "320x240", "test");
   sim_config.seed = seed;
+  if (imu) sim_config.imu = *imu;
   pipeline::OnboardConfig config = pipeline::load_onboard_config("config/onboard.yaml");
   config.markers.enabled = true;
-  const VehicleConfig vehicle = load_vehicle_config("calib/vehicle_core_paper.yaml");
+  const VehicleConfig vehicle = load_vehicle_config(kVehicle);
   closed_loop::OperatorPlayer player(closed_loop::load_operator_script(script),
                                      vehicle.camera.heading_rad());
   f.loop = std::make_unique<closed_loop::ClosedLoop>(sim_config, f.world, config, vehicle,

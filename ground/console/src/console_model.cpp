@@ -1,5 +1,7 @@
 #include "hq/console/console_model.hpp"
 
+#include "hq/console/position_status.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -50,7 +52,14 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   const double t_s = seconds(t_ns);
   const bool position = extras.position_valid && std::isfinite(extras.p_W_m[0]) &&
                         std::isfinite(extras.p_W_m[1]) && std::isfinite(extras.yaw_W_rad);
-  if (position) {
+  position_lost_ = !position && position_lost(extras.position_invalid_reason);
+  position_invalid_reason_ = position ? 0 : extras.position_invalid_reason;
+  position_age_s_ = std::isfinite(extras.position_age_s) ? extras.position_age_s : 0.0F;
+  position_sigma_m_ = std::isfinite(extras.position_sigma_m) ? extras.position_sigma_m : 0.0F;
+  if (position_lost_) {
+    // The vehicle's pose is invalid: neither followed nor dead-reckoned from (it may be far
+    // off); the last valid position stays, greyed, with the reason.
+  } else if (position) {
     // The vehicle's own estimate replaces the dead reckoning, which carries on from it when
     // the position drops out again.
     x_W_m_ = extras.p_W_m[0];
@@ -95,8 +104,10 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   marker_detections_ += marker_count_;
   latest_ = p;
   ++plot_total_;
-  track_[track_total_ % track_.size()] = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
-  ++track_total_;
+  if (!position_lost_) {
+    track_[track_total_ % track_.size()] = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
+    ++track_total_;
+  }
   mode_ = mode;
   estimator_health_ = estimator_health;
   flight_state_ = extras.flight_state;
@@ -200,6 +211,8 @@ void ConsoleModel::reset() {
   y_W_m_ = 0;
   position_from_vehicle_ = false;
   position_states_ = 0;
+  position_lost_ = false;
+  position_invalid_reason_ = 0;
   have_truth_ = false;
   marker_count_ = 0;
   marker_detections_ = 0;
@@ -297,6 +310,10 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.position_W = {static_cast<float>(x_W_m_), static_cast<float>(y_W_m_)};
   out.position_from_vehicle = position_from_vehicle_;
   out.position_states = position_states_;
+  out.position_lost = position_lost_;
+  out.position_invalid_reason = position_invalid_reason_;
+  out.position_age_s = position_age_s_;
+  out.position_sigma_m = position_sigma_m_;
   out.have_truth = have_truth_;
   out.markers = markers_;
   out.marker_count = marker_count_;

@@ -1,6 +1,7 @@
 #include "hq/console/console_window.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/console/position_status.hpp"
 
 #include "replay_strip.hpp"
 #include <opencv2/core.hpp>
@@ -607,9 +608,18 @@ struct ConsoleWindow::Impl {
   // The top view's legend. Two short lines so that a narrow panel does not cut the yaw off.
   static void top_view_legend(ImDrawList* draw, ImVec2 origin, const Snapshot& s) {
     char text[160];
-    std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
-                  s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
-    draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
+    if (s.position_lost) {
+      // The vehicle's pose is invalid: say why; the greyed dot is the last valid position.
+      char reason[96];
+      std::snprintf(text, sizeof text, "POSITION LOST: %s; grey: last valid position",
+                    position_invalid_text(s.position_invalid_reason, s.position_age_s,
+                                          s.position_sigma_m, reason, sizeof reason));
+      draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(255, 150, 40, 255), text);
+    } else {
+      std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
+                    s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
+      draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
+    }
     std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
                   static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
                   static_cast<double>(s.yaw_W_rad) * 57.29578, s.cloud_count);
@@ -684,14 +694,19 @@ struct ConsoleWindow::Impl {
     const auto along = [&](float heading, float length) {
       return ImVec2(p.x + std::sin(heading) * length, p.y - std::cos(heading) * length);
     };
-    draw->AddTriangleFilled(p, along(camera_yaw - half_fov, reach_px),
-                            along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 40));
-    draw->AddLine(p, along(camera_yaw - half_fov, reach_px), IM_COL32(255, 200, 60, 120));
-    draw->AddLine(p, along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 120));
-    top_view_markers(draw, s, to_px);
-    draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
-    arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25), IM_COL32(255, 255, 255, 255));
-    arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40), kCameraAxis);
+    if (s.position_lost) {
+      // No pose to draw from: the last valid position, greyed, without heading or view.
+      draw->AddCircle(p, 7, IM_COL32(140, 140, 140, 255), 0, 2.0F);
+    } else {
+      draw->AddTriangleFilled(p, along(camera_yaw - half_fov, reach_px),
+                              along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 40));
+      draw->AddLine(p, along(camera_yaw - half_fov, reach_px), IM_COL32(255, 200, 60, 120));
+      draw->AddLine(p, along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 120));
+      top_view_markers(draw, s, to_px);
+      draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
+      arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25), IM_COL32(255, 255, 255, 255));
+      arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40), kCameraAxis);
+    }
     draw->PopClipRect();
     top_view_legend(draw, origin, s);
     ImGui::End();

@@ -101,6 +101,9 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.position_valid = s.position_valid;
   out.p_W_m = array3(s.p_W_m);
   out.yaw_W_rad = s.yaw_W_rad;
+  out.position_invalid_reason = s.position_invalid_reason;
+  out.position_age_s = std::isfinite(s.position_age_s) ? s.position_age_s : 0.0F;
+  out.position_sigma_m = std::isfinite(s.position_sigma_m) ? s.position_sigma_m : 0.0F;
   out.truth_valid = s.truth_valid;
   out.v_truth_H_mps = array3(s.v_truth_H_mps);
   out.markers_n = static_cast<int>(s.markers._length);
@@ -147,6 +150,9 @@ void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& 
   extras.position_valid = s.position_valid;
   extras.p_W_m = s.p_W_m;
   extras.yaw_W_rad = s.yaw_W_rad;
+  extras.position_invalid_reason = s.position_invalid_reason;
+  extras.position_age_s = s.position_age_s;
+  extras.position_sigma_m = s.position_sigma_m;
   extras.truth_valid = s.truth_valid;
   extras.v_truth_H_mps = s.v_truth_H_mps;
   extras.state_age_ms = figures.state_age_ms;

@@ -89,7 +89,8 @@ std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2
   c.put<std::uint64_t>(0xABCDEF).put<std::uint32_t>(7).put<std::uint32_t>(2);          // airborne
   c.put<std::uint8_t>(1).put<std::uint32_t>(1).put(1.25F).put<std::uint32_t>(6);  // depth, limited
   c.vec3(0.2F, 0.0F, 0.0F).put(0.85F);
-  c.put(1.2F).put<std::uint8_t>(1);  // hover thrust: the rotors give 120 %, learnt
+  c.put(1.2F).put<std::uint8_t>(1);             // hover thrust: the rotors give 120 %, learnt
+  c.put<std::uint8_t>(0).put(0.2F).put(0.05F);  // position valid, marker 0.2 s old, sigma 5 cm
   return c.bytes();
 }
 
@@ -210,6 +211,9 @@ TEST(FlightMcap, EveryFieldOfTheRecordedStatesReturns) {
   EXPECT_TRUE(s.position_valid);
   EXPECT_FLOAT_EQ(s.p_W_m[1], -2.5F);
   EXPECT_FLOAT_EQ(s.yaw_W_rad, 0.7F);
+  EXPECT_EQ(s.position_invalid_reason, 0);
+  EXPECT_FLOAT_EQ(s.position_age_s, 0.2F);
+  EXPECT_FLOAT_EQ(s.position_sigma_m, 0.05F);
   EXPECT_EQ(s.markers_n, 1);
   EXPECT_TRUE(s.truth_valid);
   EXPECT_FLOAT_EQ(s.v_truth_H_mps[0], 0.77F);

@@ -67,6 +67,9 @@ TEST(Recording, RoundTripsPositionTruthAndMarkerCount) {
       s.sequence_number = static_cast<std::uint64_t>(i + 1);
       s.mode = hq_msgs_MODE_MARKER;
       s.position_valid = i != 1;
+      s.position_invalid_reason = i == 1 ? 2 : 0;  // no marker for too long
+      s.position_age_s = i == 1 ? 3.25F : 0.125F;
+      s.position_sigma_m = 0.0625F;
       s.p_W_m = {1.5F + static_cast<float>(i), -0.25F, -1.125F};
       s.yaw_W_rad = 0.75F * static_cast<float>(i);
       s.truth_valid = i == 2;
@@ -82,6 +85,10 @@ TEST(Recording, RoundTripsPositionTruthAndMarkerCount) {
   EXPECT_TRUE(r.absent_columns.empty()) << r.absent_columns.front();
   EXPECT_TRUE(r.states[0].position_valid);
   EXPECT_FALSE(r.states[1].position_valid);
+  EXPECT_EQ(r.states[0].position_invalid_reason, 0);
+  EXPECT_EQ(r.states[1].position_invalid_reason, 2);
+  EXPECT_FLOAT_EQ(r.states[1].position_age_s, 3.25F);
+  EXPECT_FLOAT_EQ(r.states[1].position_sigma_m, 0.0625F);
   EXPECT_FLOAT_EQ(r.states[2].p_W_m[0], 3.5F);
   EXPECT_FLOAT_EQ(r.states[2].p_W_m[1], -0.25F);
   EXPECT_FLOAT_EQ(r.states[2].p_W_m[2], -1.125F);
@@ -171,8 +178,9 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
                                "telemetry.csv: truth_valid", "telemetry.csv: v_truth_H_x_mps",
                                "telemetry.csv: markers_n"}));
   // 11 of the second layout's columns, 11 of the flight fields' (session .. clearance), the
-  // two hover thrust columns and the two files of telemetry v2 (obstacles.csv, markers.csv).
-  EXPECT_EQ(r.absent_columns.size(), 26U);
+  // two hover thrust columns, the three of the position's validity and the two files of telemetry
+  // v2 (obstacles.csv, markers.csv).
+  EXPECT_EQ(r.absent_columns.size(), 29U);
   EXPECT_THAT(r.absent_columns,
               ::testing::Contains(HasSubstr("obstacles.csv (the whole file: an older recording; "
                                             "replay shows no obstacle cloud)")));
@@ -200,7 +208,7 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
   EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:23: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:29: expected 43 fields"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:29: expected 46 fields"));
   fs::remove_all(dir);
 }
 

@@ -395,6 +395,13 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
       extras.position_valid && extras.p_W_m.allFinite() && std::isfinite(extras.yaw_rad);
   s.p_W_m = s.position_valid ? to_msg(extras.p_W_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
   s.yaw_W_rad = s.position_valid ? static_cast<float>(extras.yaw_rad) : 0.0F;
+  s.position_invalid_reason =
+      s.position_valid ? 0 : std::min<std::uint8_t>(extras.position_invalid_reason, 4);
+  const auto bounded = [](double x) {
+    return std::isfinite(x) ? static_cast<float>(std::clamp(x, 0.0, 1e6)) : 0.0F;
+  };
+  s.position_age_s = bounded(extras.position_age_s);
+  s.position_sigma_m = bounded(extras.position_sigma_m);
   std::uint32_t markers = 0;
   for (const markers::MarkerDetection& d : extras.markers) {
     if (markers == hq_msgs_kMaxMarkersInState) break;

@@ -51,7 +51,13 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
   }
   if (const marker_modes::MarkerStage* markers = chain_.markers()) {
     const marker_modes::MarkerNavigation& navigation = markers->navigation();
-    extras.position_valid = navigation.pose_usable(kPositionMaxAgeS);
+    // The filter's own checks (markers.navigation.position_*): what the console shows is what
+    // the marker and explore modes would fly on.
+    const navigation::PositionCheck check = navigation.position_check(out.t_ns);
+    extras.position_valid = check.valid;
+    extras.position_invalid_reason = static_cast<std::uint8_t>(check.reason);
+    extras.position_age_s = check.age_s;
+    extras.position_sigma_m = check.sigma_horizontal_m;
     extras.p_W_m = navigation.p_W_m();
     extras.yaw_rad = navigation.yaw_rad();
     extras.markers = navigation.detections();

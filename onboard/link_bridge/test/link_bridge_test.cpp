@@ -532,6 +532,46 @@ TEST(LinkBridge, PublishesPositionMarkersAndTruthOnlyWhenGivenAndFinite) {
   EXPECT_TRUE(link::validate(*state).ok);
 }
 
+// GIVEN an invalid marker pose THEN the state says why, how old and how uncertain it is, and
+// sends no position; a valid one goes out with no reason.
+TEST(LinkBridge, CarriesWhyThePositionIsInvalid) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  pipeline::ChainOutput out;
+  StateExtras extras;
+  extras.position_valid = false;
+  extras.p_W_m = Eigen::Vector3d(-34.0, -122.0, -1.0);
+  extras.position_invalid_reason = 2;  // no marker
+  extras.position_age_s = 3.4;
+  extras.position_sigma_m = 0.31;
+  link::Sample<link::VehicleState> state;
+  std::vector<pipeline::ModeRequest> requests;
+  const auto publish_until_age = [&](float age_s) {
+    return poll_until(bridge, requests, [&] {
+      bridge.publish_state(out, extras);
+      dds_sample_info_t info{};
+      bool got = false;
+      while (ground.states.take(*state, info)) got = state->position_age_s == age_s;
+      return got;
+    });
+  };
+  ASSERT_TRUE(publish_until_age(3.4F));
+  EXPECT_FALSE(state->position_valid);
+  EXPECT_EQ(state->position_invalid_reason, 2);
+  EXPECT_FLOAT_EQ(state->position_sigma_m, 0.31F);
+  EXPECT_EQ(state->p_W_m.x, 0.0F) << "an invalid position must not be sent";
+  EXPECT_TRUE(link::validate(*state).ok);
+  extras.position_valid = true;
+  extras.position_invalid_reason = 0;
+  extras.position_age_s = 0.1;
+  ASSERT_TRUE(publish_until_age(0.1F));
+  EXPECT_TRUE(state->position_valid);
+  EXPECT_EQ(state->position_invalid_reason, 0);
+  EXPECT_FLOAT_EQ(state->p_W_m.y, -122.0F);
+  EXPECT_TRUE(link::validate(*state).ok);
+}
+
 }  // namespace
 }  // namespace hq::link_bridge
 

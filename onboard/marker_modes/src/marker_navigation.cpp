@@ -7,6 +7,7 @@
 #include "hq/geometry/lie.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 namespace hq::marker_modes {
 namespace {
@@ -162,9 +163,38 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
   }
 }
 
-bool MarkerNavigation::pose_usable(double max_age_s) const {
-  const navigation::NavigationHealth h = filter_.health();
-  return h.initialized && h.anchored && h.time_since_marker_s <= max_age_s;
+bool MarkerNavigation::pose_usable(std::int64_t t_ns, double max_age_s) const {
+  const navigation::PositionCheck check = filter_.check_position(t_ns);
+  return check.valid && check.age_s <= max_age_s;
+}
+
+const char* describe_position(const navigation::PositionCheck& check,
+                              const navigation::NavigationConfig& config, char* out,
+                              std::size_t size) {
+  using navigation::PositionInvalid;
+  switch (check.reason) {
+    case PositionInvalid::kNone:
+      std::snprintf(out, size, "position valid");
+      break;
+    case PositionInvalid::kNotAnchored:
+      std::snprintf(out, size, "no position (no marker seen yet)");
+      break;
+    case PositionInvalid::kNoMarker:
+      std::snprintf(out, size, "position lost (no marker for %.1f s)", check.age_s);
+      break;
+    case PositionInvalid::kCovarianceOverBound:
+      std::snprintf(out, size, "position lost (uncertainty %.2f m, over %.2f m)",
+                    check.sigma_horizontal_m, config.position_max_sigma_m);
+      break;
+    case PositionInvalid::kInnovationInconsistent:
+      std::snprintf(out, size,
+                    "position lost (markers or velocity disagree with the estimate: %d frames or "
+                    "%d velocities in a row gated)",
+                    config.position_inconsistent_after_frames,
+                    config.position_inconsistent_after_velocities);
+      break;
+  }
+  return out;
 }
 
 double MarkerNavigation::yaw_rad() const {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <optional>
 
 namespace hq::marker_modes {
@@ -80,7 +81,11 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   // A gap in the calls means the mode was (re-)entered: hold the heading it finds.
   if (t_ns - t_last_ns_ > 200'000'000) have_yaw_ = false;
   t_last_ns_ = t_ns;
-  if (!navigation_.pose_usable(config_.max_marker_age_s)) return invalid("no marker pose");
+  // Never flown on an invalid pose: the controller hovers on the velocity estimate instead,
+  // and this provider resumes by itself once the pose is valid again (MarkerStage says so).
+  if (!navigation_.pose_usable(t_ns, config_.max_marker_age_s)) {
+    return invalid("marker mode: position lost, holding");
+  }
   const std::optional<Eigen::Vector3d> p_marker = navigation_.p_W_M_m(marker_id_);
   const double yaw = navigation_.yaw_rad();
   if (!have_yaw_) {
@@ -247,7 +252,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
 std::optional<modes::ModeCommand> ExploreProvider::step(std::int64_t t_ns) {
   StepInputs in;
   in.in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
-  in.have_pose = navigation_.pose_usable(marker_mode_.config().max_marker_age_s);
+  in.have_pose = navigation_.pose_usable(t_ns, marker_mode_.config().max_marker_age_s);
   in.p_W_m = navigation_.p_W_m();
   in.z_target_m = -config_.height_m;
   in.alpha_rad = navigation_.camera_heading_rad();
@@ -309,8 +314,8 @@ std::optional<modes::ModeCommand> ExploreProvider::explore(std::int64_t t_ns,
     exploring_started_ = true;
     t_explore_ns_ = t_ns;
   }
-  // Lost the markers for long (e.g. facing empty floor beyond the field): steer back to
-  // the map's centre on the filter's dead-reckoned pose, as at the edge.
+  // Lost the markers for long (e.g. facing empty floor beyond the field): the edge phase
+  // steers back while the pose is valid, and holds once it is not.
   if (!in.have_pose) {
     ++edge_events_;
     enter(ExplorePhase::kEdge, t_ns);
@@ -368,6 +373,9 @@ std::optional<modes::ModeCommand> ExploreProvider::counter_steer(std::int64_t t_
     enter(ExplorePhase::kExplore, t_ns);
     return std::nullopt;
   }
+  // The pose invalid (no marker for position_max_age_s, ...): steering on it would fly dead
+  // reckoning; hover on the velocity estimate until a marker shows again.
+  if (!in.have_pose) return invalid("explore: position lost, holding");
   Eigen::Vector2d lo;
   Eigen::Vector2d hi;
   if (!map_box(lo, hi)) return invalid("explore: no map");
@@ -396,6 +404,37 @@ MarkerStage::MarkerStage(const MarkerModesConfig& config, const geometry::Pinhol
     : navigation_(config, camera, R_body_camera, p_body_camera_m),
       marker_mode_(config.marker_mode, navigation_),
       explore_(config.explore, navigation_, marker_mode_) {}
+
+const char* MarkerStage::position_event(modes::Mode mode, std::int64_t t_ns) {
+  if (mode != modes::Mode::kMarker && mode != modes::Mode::kExplore) {
+    flying_on_pose_ = false;
+    holding_ = false;
+    return nullptr;
+  }
+  const navigation::PositionCheck check = navigation_.position_check(t_ns);
+  const bool usable = check.valid && check.age_s <= marker_mode_.config().max_marker_age_s;
+  const char* who = mode == modes::Mode::kMarker ? "marker mode" : "explore";
+  if (usable) {
+    const bool resumed = holding_;
+    flying_on_pose_ = true;
+    holding_ = false;
+    if (!resumed) return nullptr;
+    std::snprintf(event_text_, sizeof event_text_, "%s: position valid again, resuming", who);
+    return event_text_;
+  }
+  // Only a loss is news: before the first marker the mode is searching, not holding.
+  if (!flying_on_pose_ || holding_) return nullptr;
+  holding_ = true;
+  char reason[96];
+  navigation::PositionCheck shown = check;
+  if (check.valid) {
+    // Valid for the filter but older than the mode's own limit.
+    shown.reason = navigation::PositionInvalid::kNoMarker;
+  }
+  describe_position(shown, navigation_.config().navigation, reason, sizeof reason);
+  std::snprintf(event_text_, sizeof event_text_, "%s: %s, holding", who, reason);
+  return event_text_;
+}
 
 bool MarkerStage::wants_land(modes::Mode mode) const {
   if (mode == modes::Mode::kMarker) return marker_mode_.wants_land();

@@ -73,6 +73,12 @@ void read_config(config::StrictMap& section, NavigationConfig& out) {
   section.read_positive("max_measurement_age_s", out.max_measurement_age_s, 10.0);
   section.read_positive("degraded_after_s", out.degraded_after_s, 600.0);
   section.read("reanchor_after_gated_markers", out.reanchor_after_gated_markers, 0, 1000);
+  section.read_positive("position_max_age_s", out.position_max_age_s, 600.0);
+  section.read_positive("position_max_sigma_m", out.position_max_sigma_m, 100.0);
+  section.read("position_inconsistent_after_frames", out.position_inconsistent_after_frames, 1,
+               1000);
+  section.read("position_inconsistent_after_velocities", out.position_inconsistent_after_velocities,
+               1, 100000);
   section.finish();
 }
 
@@ -158,6 +164,11 @@ UpdateResult NavigationFilter::initialize(std::int64_t t_ns, const NominalState&
   have_imu_ = false;
   counters_.anchored = false;
   consecutive_gated_markers_ = 0;
+  t_marker_frame_ns_ = -1;
+  frame_accepted_ = false;
+  frame_gated_ = false;
+  disagreeing_frames_ = 0;
+  consecutive_gated_velocities_ = 0;
   return UpdateResult{UpdateStatus::kAccepted, "initialised", 0.0};
 }
 
@@ -212,6 +223,7 @@ UpdateResult NavigationFilter::anchor_to_marker(std::int64_t t_ns, const Eigen::
   ++counters_.reanchors;
   t_last_marker_ns_ = t_ns_;
   consecutive_gated_markers_ = 0;
+  note_marker_outcome(t_ns, true);
   ++counters_.markers_accepted;
   return UpdateResult{UpdateStatus::kAccepted, "anchored on marker", 0.0};
 }
@@ -339,7 +351,9 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns, const Eigen::Iso
   residual.tail<3>() = log_so3(geometry::orthonormalize(R_WC_pred.transpose() * R_meas));
   const UpdateResult result = correct<6>(residual, marker_jacobian(state_, R_B_C_, p_B_C_m_),
                                          covariance, config_.marker_gate_chi2);
+  last_marker_nis_ = result.nis;
   if (result.status == UpdateStatus::kGated) {
+    note_marker_outcome(t_ns, false);
     ++counters_.markers_gated;
     ++consecutive_gated_markers_;
     if (config_.reanchor_after_gated_markers > 0 &&
@@ -350,6 +364,7 @@ UpdateResult NavigationFilter::update_marker(std::int64_t t_ns, const Eigen::Iso
     return result;
   }
   if (result.accepted()) {
+    note_marker_outcome(t_ns, true);
     ++counters_.markers_accepted;
     consecutive_gated_markers_ = 0;
     t_last_marker_ns_ = t_ns_;
@@ -368,8 +383,14 @@ UpdateResult NavigationFilter::update_velocity(std::int64_t t_ns, const Vector3d
   const Vector3d residual = v_H_mps - predict_velocity_horizontal(state_);
   const UpdateResult result =
       correct<3>(residual, velocity_jacobian(state_), covariance, config_.velocity_gate_chi2);
-  if (result.status == UpdateStatus::kGated) ++counters_.velocities_gated;
-  if (result.accepted()) ++counters_.velocities_accepted;
+  if (result.status == UpdateStatus::kGated) {
+    ++counters_.velocities_gated;
+    ++consecutive_gated_velocities_;
+  }
+  if (result.accepted()) {
+    ++counters_.velocities_accepted;
+    consecutive_gated_velocities_ = 0;
+  }
   return result;
 }
 
@@ -379,8 +400,56 @@ UpdateResult NavigationFilter::update_velocity(const estimator::VelocityEstimate
   return update_velocity(estimate.t_ns, estimate.v_H_mps, Matrix3d::Identity() * variance);
 }
 
+void NavigationFilter::note_marker_outcome(std::int64_t t_ns, bool accepted) {
+  // One frame brings several markers (one stamp); a frame disagrees when none of its markers
+  // passed the gate. A far marker of a frame gated beside accepted ones is no disagreement.
+  if (t_ns != t_marker_frame_ns_) {
+    if (frame_accepted_) {
+      disagreeing_frames_ = 0;
+    } else if (frame_gated_) {
+      ++disagreeing_frames_;
+    }
+    t_marker_frame_ns_ = t_ns;
+    frame_accepted_ = false;
+    frame_gated_ = false;
+  }
+  (accepted ? frame_accepted_ : frame_gated_) = true;
+}
+
+int NavigationFilter::disagreeing_marker_frames() const {
+  if (frame_accepted_) return 0;
+  return disagreeing_frames_ + (frame_gated_ ? 1 : 0);
+}
+
+PositionCheck NavigationFilter::check_position(std::int64_t t_now_ns) const {
+  PositionCheck check;
+  const Eigen::Matrix2d P_xy = P_.block<2, 2>(kIndexPosition, kIndexPosition);
+  check.sigma_horizontal_m = std::sqrt(std::max(0.0, P_xy.trace()));
+  if (!initialized_ || !counters_.anchored) {
+    check.reason = PositionInvalid::kNotAnchored;
+    return check;
+  }
+  check.age_s = seconds(std::max(t_now_ns, t_ns_) - t_last_marker_ns_);
+  if (!(check.age_s <= config_.position_max_age_s)) {
+    check.reason = PositionInvalid::kNoMarker;
+  } else if (!(check.sigma_horizontal_m <= config_.position_max_sigma_m)) {
+    // NaN fails here too: a broken covariance is never a valid pose.
+    check.reason = PositionInvalid::kCovarianceOverBound;
+  } else if (disagreeing_marker_frames() >= config_.position_inconsistent_after_frames ||
+             consecutive_gated_velocities_ >= config_.position_inconsistent_after_velocities) {
+    check.reason = PositionInvalid::kInnovationInconsistent;
+  } else {
+    check.valid = true;
+    check.reason = PositionInvalid::kNone;
+  }
+  return check;
+}
+
 NavigationHealth NavigationFilter::health() const {
   NavigationHealth health = counters_;
+  health.disagreeing_marker_frames = disagreeing_marker_frames();
+  health.consecutive_gated_velocities = consecutive_gated_velocities_;
+  health.last_marker_nis = last_marker_nis_;
   health.initialized = initialized_;
   health.position_sigma_m = std::sqrt(P_.block<3, 3>(kIndexPosition, kIndexPosition).trace());
   health.time_since_marker_s = initialized_ ? seconds(t_ns_ - t_last_marker_ns_) : 0.0;
@@ -397,6 +466,22 @@ Eigen::Isometry3d NavigationFilter::T_W_B() const {
 }
 
 Vector3d NavigationFilter::v_H_mps() const { return predict_velocity_horizontal(state_); }
+
+const char* to_string(PositionInvalid reason) {
+  switch (reason) {
+    case PositionInvalid::kNone:
+      return "valid";
+    case PositionInvalid::kNotAnchored:
+      return "no marker seen yet";
+    case PositionInvalid::kNoMarker:
+      return "no marker";
+    case PositionInvalid::kCovarianceOverBound:
+      return "position uncertainty over bound";
+    case PositionInvalid::kInnovationInconsistent:
+      return "markers or velocity disagree with the estimate";
+  }
+  return "unknown";
+}
 
 const char* to_string(UpdateStatus status) {
   switch (status) {

@@ -84,6 +84,8 @@ struct ScenarioOptions {
   double gyro_noise = 1.7e-4;  // densities, as the default config
   double accel_noise = 2.0e-3;
   std::uint64_t seed = 7;
+  bool velocity_on = true;  ///< false: no RGB-D velocity, the IMU alone between markers.
+  NavigationConfig config;
 };
 
 /// Runs the filter on the figure-eight: IMU at 500 Hz, velocity in H at 30 Hz, markers at
@@ -91,7 +93,7 @@ struct ScenarioOptions {
 class Scenario {
  public:
   explicit Scenario(const ScenarioOptions& options = {})
-      : options_(options), filter_(NavigationConfig{}, T_B_C()), rng_(options.seed) {
+      : options_(options), filter_(options.config, T_B_C()), rng_(options.seed) {
     // Unanchored start: yaw off by 0.3 rad, position unknown, velocity right in H.
     const Truth x = figure_eight(0.0);
     NominalState start;
@@ -119,7 +121,7 @@ class Scenario {
     const Vector3d accel = x.R_WB.transpose() * (x.a_W - Vector3d(0, 0, kGravity)) +
                            options_.accel_bias_mps2 + noise(sa);
     last_predict_ = filter_.predict(t_ns_, gyro, accel);
-    if (t_ns_ >= next_velocity_ns_) {
+    if (options_.velocity_on && t_ns_ >= next_velocity_ns_) {
       next_velocity_ns_ += kVelocityPeriodNs;
       const Vector3d v_H = R_W_H(x.R_WB).transpose() * x.v_W;
       const Vector3d measured = v_H + noise(options_.velocity_sigma_mps);
@@ -194,6 +196,7 @@ class Scenario {
   [[nodiscard]] double mean_nees() const { return nees_sum_ / static_cast<double>(samples_); }
   [[nodiscard]] Truth truth() const { return figure_eight(to_s(t_ns_)); }
   NavigationFilter& filter() { return filter_; }
+  void set_velocity_on(bool on) { options_.velocity_on = on; }
   [[nodiscard]] const ScenarioOptions& options() const { return options_; }
   [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
   [[nodiscard]] double position_error_m() const { return position_error_m_; }
@@ -403,6 +406,144 @@ TEST(NavigationFilter, MarkersWithheldFiveSecondsDriftBoundedThenReconverge) {
   EXPECT_LT(run.filter().health().position_sigma_m, 1.5 * sigma_with_markers);
 }
 
+// GIVEN markers withheld WHEN their age passes position_max_age_s THEN the pose is invalid for
+// "no marker", also when asked at a later time than the filter's (an IMU that stopped), and
+// valid again with the first accepted marker.
+TEST(PositionCheck, NoMarkerForLongerThanTheLimitInvalidatesUntilTheNextMarker) {
+  Scenario run;
+  EXPECT_FALSE(run.filter().check_position(0).valid);
+  EXPECT_EQ(run.filter().check_position(0).reason, PositionInvalid::kNotAnchored);
+  run.run_to(15.0);
+  ASSERT_TRUE(run.filter().check_position(run.t_ns()).valid);
+  const double limit_s = run.filter().config().position_max_age_s;
+  run.run_to(15.0 + limit_s - 0.15, false);
+  PositionCheck check = run.filter().check_position(run.t_ns());
+  EXPECT_TRUE(check.valid) << "age " << check.age_s;
+  EXPECT_NEAR(check.age_s, limit_s - 0.15, 0.11);
+  // The filter's clock frozen: asked 0.2 s later, the age has passed the limit all the same.
+  const std::int64_t later_ns = run.t_ns() + 200'000'000;
+  check = run.filter().check_position(later_ns);
+  EXPECT_FALSE(check.valid);
+  EXPECT_EQ(check.reason, PositionInvalid::kNoMarker);
+  EXPECT_STREQ(to_string(check.reason), "no marker");
+  run.run_to(15.0 + limit_s + 0.15, false);
+  check = run.filter().check_position(run.t_ns());
+  EXPECT_FALSE(check.valid);
+  EXPECT_EQ(check.reason, PositionInvalid::kNoMarker);
+  EXPECT_GT(check.age_s, limit_s);
+  run.run_to(15.0 + limit_s + 0.35, true);
+  check = run.filter().check_position(run.t_ns());
+  EXPECT_TRUE(check.valid) << to_string(check.reason);
+  EXPECT_LT(check.age_s, 0.11);
+}
+
+// GIVEN no marker and no RGB-D velocity (the IMU alone) and an age limit out of the way, WHEN the
+// covariance grows THEN the pose turns invalid for it, and while it was valid the error stayed
+// within three times the sigma bound.
+TEST(PositionCheck, CovarianceGrowthWithoutObservationsIsBounded) {
+  ScenarioOptions options;
+  options.config.position_max_age_s = 600.0;
+  options.config.position_max_sigma_m = 0.3;
+  Scenario run(options);
+  run.run_to(20.0);
+  ASSERT_TRUE(run.filter().check_position(run.t_ns()).valid);
+  run.set_velocity_on(false);
+  double invalid_after_s = -1.0;
+  double worst_valid_error_m = 0.0;
+  for (int i = 1; i <= 600 && invalid_after_s < 0; ++i) {
+    run.run_to(20.0 + 0.1 * i, false);
+    const PositionCheck check = run.filter().check_position(run.t_ns());
+    if (check.valid) {
+      worst_valid_error_m = std::max(worst_valid_error_m, run.position_error_m());
+    } else {
+      EXPECT_EQ(check.reason, PositionInvalid::kCovarianceOverBound);
+      EXPECT_GT(check.sigma_horizontal_m, options.config.position_max_sigma_m);
+      invalid_after_s = 0.1 * i;
+    }
+  }
+  std::printf(
+      "no markers: invalid (sigma over %.2f m) after %.1f s, worst error while valid %.3f m\n",
+      options.config.position_max_sigma_m, invalid_after_s, worst_valid_error_m);
+  EXPECT_GT(invalid_after_s, 0.0) << "covariance never reached the bound";
+  EXPECT_LT(worst_valid_error_m, 3.0 * options.config.position_max_sigma_m);
+}
+
+// GIVEN position_inconsistent_after_frames marker frames in a row whose markers all fail the
+// chi-square gate THEN the pose is invalid ("markers disagree"), the NIS is reported, and a
+// consistent marker clears it. A gated marker beside an accepted one of the same frame (a far,
+// less accurate marker) is no disagreement.
+TEST(PositionCheck, FramesOfGatedMarkersInARowMarkThePoseInconsistentUntilOneIsAccepted) {
+  Scenario run;
+  run.run_to(10.0);
+  const int n = run.filter().config().position_inconsistent_after_frames;
+  const auto outlier = [&run] {
+    Eigen::Isometry3d T_WC = run.marker_truth(run.truth());
+    T_WC.translation() += Vector3d(1.0, 0.0, 0.0);
+    return run.filter().update_marker(run.t_ns(), T_WC, run.marker_covariance());
+  };
+  // One frame: an accepted marker, then several gated ones of the same stamp.
+  ASSERT_TRUE(run.filter()
+                  .update_marker(run.t_ns(), run.marker_truth(run.truth()), run.marker_covariance())
+                  .accepted());
+  const long reanchors = run.filter().health().reanchors;
+  for (int i = 0; i < 2; ++i) ASSERT_EQ(outlier().status, UpdateStatus::kGated);
+  EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "gated beside an accepted one";
+  EXPECT_EQ(run.filter().health().disagreeing_marker_frames, 0);
+  for (int i = 0; i < n; ++i) {
+    run.run_to(to_s(run.t_ns()) + 0.02, false);
+    EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "after " << i << " frames";
+    ASSERT_EQ(outlier().status, UpdateStatus::kGated);
+    ASSERT_EQ(outlier().status, UpdateStatus::kGated);  // two markers in the frame, both off
+    EXPECT_GT(run.filter().health().last_marker_nis, run.filter().config().marker_gate_chi2);
+  }
+  ASSERT_EQ(run.filter().health().reanchors, reanchors) << "re-anchored: fewer gated markers";
+  PositionCheck check = run.filter().check_position(run.t_ns());
+  EXPECT_FALSE(check.valid);
+  EXPECT_EQ(check.reason, PositionInvalid::kInnovationInconsistent);
+  EXPECT_EQ(run.filter().health().disagreeing_marker_frames, n);
+  const UpdateResult good = run.filter().update_marker(run.t_ns(), run.marker_truth(run.truth()),
+                                                       run.marker_covariance());
+  ASSERT_TRUE(good.accepted());
+  check = run.filter().check_position(run.t_ns());
+  EXPECT_TRUE(check.valid) << to_string(check.reason);
+}
+
+// GIVEN position_inconsistent_after_velocities RGB-D velocities in a row failing their gate (the
+// filter no longer believes the velocity its pose integrates between markers) THEN the pose is
+// invalid as inconsistent; an accepted velocity clears it.
+TEST(PositionCheck, GatedVelocitiesInARowMarkThePoseInconsistent) {
+  Scenario run;
+  run.run_to(10.0);
+  const int n = run.filter().config().position_inconsistent_after_velocities;
+  const Vector3d v_H = predict_velocity_horizontal(run.filter().state());
+  for (int i = 0; i < n; ++i) {
+    EXPECT_TRUE(run.filter().check_position(run.t_ns()).valid) << "after " << i << " gated";
+    const UpdateResult r = run.filter().update_velocity(run.t_ns(), v_H + Vector3d(2.0, 0.0, 0.0),
+                                                        run.velocity_covariance());
+    ASSERT_EQ(r.status, UpdateStatus::kGated);
+  }
+  PositionCheck check = run.filter().check_position(run.t_ns());
+  EXPECT_FALSE(check.valid);
+  EXPECT_EQ(check.reason, PositionInvalid::kInnovationInconsistent);
+  EXPECT_EQ(run.filter().health().consecutive_gated_velocities, n);
+  ASSERT_TRUE(run.filter()
+                  .update_velocity(run.t_ns(), predict_velocity_horizontal(run.filter().state()),
+                                   run.velocity_covariance())
+                  .accepted());
+  check = run.filter().check_position(run.t_ns());
+  EXPECT_TRUE(check.valid) << to_string(check.reason);
+}
+
+TEST(PositionCheck, AllocatesNothing) {
+  Scenario run;
+  run.run_to(2.0);
+  const long before = hq::testing::allocation_count();
+  bool valid = false;
+  for (int i = 0; i < 100; ++i) valid = run.filter().check_position(run.t_ns() + i).valid || valid;
+  EXPECT_TRUE(valid);
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
+}
+
 TEST(NavigationFilter, NonFiniteInputsAreRejectedWithReasonAndStateUntouched) {
   Scenario run;
   run.run_to(3.0);
@@ -523,12 +664,20 @@ TEST(NavigationConfig, ReadsNavigationSectionWithDegreesConverted) {
                                       "  gyro_noise_density_radps_rthz: 3.0e-4\n"
                                       "  initial_attitude_sigma_deg: 10\n"
                                       "  degraded_after_s: 4\n"
-                                      "  reanchor_after_gated_markers: 0\n");
+                                      "  reanchor_after_gated_markers: 0\n"
+                                      "  position_max_age_s: 2.5\n"
+                                      "  position_max_sigma_m: 0.4\n"
+                                      "  position_inconsistent_after_frames: 5\n"
+                                      "  position_inconsistent_after_velocities: 7\n");
   const NavigationConfig config = load_navigation_config(path);
   EXPECT_DOUBLE_EQ(config.gyro_noise_density_radps_rthz, 3.0e-4);
   EXPECT_NEAR(config.initial_attitude_sigma_rad, 10.0 * kPi / 180.0, 1e-12);
   EXPECT_DOUBLE_EQ(config.degraded_after_s, 4.0);
   EXPECT_EQ(config.reanchor_after_gated_markers, 0);
+  EXPECT_DOUBLE_EQ(config.position_max_age_s, 2.5);
+  EXPECT_DOUBLE_EQ(config.position_max_sigma_m, 0.4);
+  EXPECT_EQ(config.position_inconsistent_after_frames, 5);
+  EXPECT_EQ(config.position_inconsistent_after_velocities, 7);
 }
 
 TEST(NavigationConfig, ErrorsNameTheKey) {
@@ -544,6 +693,14 @@ TEST(NavigationConfig, ErrorsNameTheKey) {
       write_yaml("hq_navigation_gate.yaml", "navigation: {velocity_gate_chi2: 0}\n");
   EXPECT_THAT(hq::testing::input_error_message([&] { load_navigation_config(gate); }),
               HasSubstr("navigation.velocity_gate_chi2"));
+  const std::string age =
+      write_yaml("hq_navigation_age.yaml", "navigation: {position_max_age_s: 0}\n");
+  EXPECT_THAT(hq::testing::input_error_message([&] { load_navigation_config(age); }),
+              HasSubstr("navigation.position_max_age_s = 0"));
+  const std::string gated = write_yaml("hq_navigation_gated.yaml",
+                                       "navigation: {position_inconsistent_after_frames: 0}\n");
+  EXPECT_THAT(hq::testing::input_error_message([&] { load_navigation_config(gated); }),
+              HasSubstr("navigation.position_inconsistent_after_frames"));
   const std::string missing = write_yaml("hq_navigation_missing.yaml", "estimator: {}\n");
   const std::string message =
       hq::testing::input_error_message([&] { load_navigation_config(missing); });

@@ -2,6 +2,7 @@
 
 #include "hq/base/error.hpp"
 #include "hq/estimator/complementary_filter.hpp"
+#include "hq/marker_modes/marker_providers.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -251,6 +252,7 @@ void VehicleRuntime::deliver(const pipeline::ChainOutput& out) {
     ++counters_.setpoints_withheld;
   }
   announce_hover_thrust(out);
+  announce_marker_position(out);
   status_.truth = truth_ != nullptr ? truth_->truth() : std::nullopt;
   last_ = out;
   if (op_ != nullptr) op_->on_output(out, status_);
@@ -269,6 +271,15 @@ void VehicleRuntime::announce_hover_thrust(const pipeline::ChainOutput& out) {
                 100.0 * out.hover_thrust.gain, out.hover_thrust_n);
   const bool far_off = std::abs(out.hover_thrust.gain - 1.0) > 0.15;
   event(out.t_ns, far_off ? FcSeverity::kWarning : FcSeverity::kInfo, text);
+}
+
+void VehicleRuntime::announce_marker_position(const pipeline::ChainOutput& out) {
+  marker_modes::MarkerStage* markers = chain_.markers();
+  if (markers == nullptr) return;
+  if (const char* text = markers->position_event(out.mode.mode, out.t_ns)) {
+    event(out.t_ns, markers->holding_for_position() ? FcSeverity::kWarning : FcSeverity::kInfo,
+          text);
+  }
 }
 
 void VehicleRuntime::report_velocity(const pipeline::ChainOutput& out) {

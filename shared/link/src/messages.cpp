@@ -7,6 +7,8 @@ namespace hq::link {
 namespace {
 
 constexpr Validation kOk{};
+/// The last VehicleState.position_invalid_reason (hq::navigation PositionInvalid).
+constexpr std::uint8_t kMaxPositionInvalidReason = 4;
 
 // The link carries float, the envelope is double: compare in double so a limit is never rounded.
 bool exceeds(float value, double limit) { return static_cast<double>(std::abs(value)) > limit; }
@@ -116,6 +118,16 @@ Validation validate(const VehicleState& state) {
   // 0: a sender that reports none (the field's default).
   if (!(state.hover_thrust_gain >= 0.0F && state.hover_thrust_gain <= 10.0F)) {
     return {false, "hover_thrust_gain not in [0, 10]"};
+  }
+  if (state.position_invalid_reason > kMaxPositionInvalidReason) {
+    return {false, "position_invalid_reason outside 0..4"};
+  }
+  if (state.position_valid && state.position_invalid_reason != 0) {
+    return {false, "position_valid with a position_invalid_reason"};
+  }
+  if (!(state.position_age_s >= 0.0F && state.position_age_s <= 1e6F) ||
+      !(state.position_sigma_m >= 0.0F && state.position_sigma_m <= 1e6F)) {
+    return {false, "position_age_s or position_sigma_m not in [0, 1e6]"};
   }
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};

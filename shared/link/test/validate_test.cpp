@@ -125,6 +125,22 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   EXPECT_THAT(validate(state).reason, HasSubstr("hover_thrust_gain not in [0, 10]"));
   state.hover_thrust_gain = -1.0F;
   EXPECT_FALSE(validate(state).ok);
+  state = VehicleState{};
+  state.position_invalid_reason = 2;  // no marker for too long
+  state.position_age_s = 3.5F;
+  state.position_sigma_m = 0.2F;
+  EXPECT_TRUE(validate(state).ok);
+  state.position_invalid_reason = 5;
+  EXPECT_THAT(validate(state).reason, HasSubstr("position_invalid_reason outside 0..4"));
+  state.position_invalid_reason = 2;
+  state.position_valid = true;
+  EXPECT_THAT(validate(state).reason, HasSubstr("position_valid with a position_invalid_reason"));
+  state.position_valid = false;
+  state.position_age_s = std::nanf("");
+  EXPECT_THAT(validate(state).reason, HasSubstr("position_age_s or position_sigma_m"));
+  state.position_age_s = 1.0F;
+  state.position_sigma_m = -0.1F;
+  EXPECT_FALSE(validate(state).ok);
 }
 
 }  // namespace

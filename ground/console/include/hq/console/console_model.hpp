@@ -10,7 +10,10 @@
 /// no position, the top view integrates p_W += R_z(yaw) v_H dt with yaw integrated from the
 /// gyro's z rate (a dead-reckoned track: it drifts, and says so on screen). Once the vehicle
 /// sends its position (the marker filter's, in the marker map's W) the track and the cloud
-/// follow that, and the view says which one it shows.
+/// follow that, and the view says which one it shows. When the vehicle says its position is
+/// lost (position_invalid_reason 2..4: no marker for too long, uncertainty over its bound,
+/// markers disagreeing), the view neither follows nor dead-reckons from it: it keeps the last
+/// valid position, greyed, and says why.
 
 #include <array>
 #include <cstdint>
@@ -68,6 +71,11 @@ struct StateExtras {
   /// converged once learnt.
   float hover_thrust_gain = 0;
   bool hover_thrust_converged = false;
+  /// Why position_valid is false, as VehicleState.position_invalid_reason (0: not said);
+  /// seconds since the vehicle's last marker; horizontal 1-sigma (m).
+  std::uint8_t position_invalid_reason = 0;
+  float position_age_s = 0;
+  float position_sigma_m = 0;
 };
 
 struct TrackPoint {
@@ -226,7 +234,12 @@ struct Snapshot {
   TrackPoint position_W{};
   bool position_from_vehicle = false;  ///< position_W is the vehicle's estimate, not ours.
   std::uint64_t position_states = 0;   ///< States that carried a position.
-  bool have_truth = false;             ///< Some state carried simulator truth.
+  /// The vehicle says its position is lost (position_lost()): position_W is the last valid one.
+  bool position_lost = false;
+  std::uint8_t position_invalid_reason = 0;  ///< See StateExtras.
+  float position_age_s = 0;
+  float position_sigma_m = 0;
+  bool have_truth = false;                            ///< Some state carried simulator truth.
   std::array<MarkerView, kMaxMarkerViews> markers{};  ///< Of the latest state.
   std::size_t marker_count = 0;
   std::uint64_t marker_detections = 0;  ///< Markers in all states so far.
@@ -316,6 +329,10 @@ class ConsoleModel {
   double y_W_m_ = 0;
   bool position_from_vehicle_ = false;
   std::uint64_t position_states_ = 0;
+  bool position_lost_ = false;
+  std::uint8_t position_invalid_reason_ = 0;
+  float position_age_s_ = 0;
+  float position_sigma_m_ = 0;
   bool have_truth_ = false;
   std::array<MarkerView, kMaxMarkerViews> markers_{};
   std::size_t marker_count_ = 0;

@@ -38,6 +38,11 @@ struct RecordedState {
   bool position_valid = false;
   std::array<float, 3> p_W_m{};
   float yaw_W_rad = 0;
+  /// Why the position is invalid (VehicleState.position_invalid_reason; 0: valid or not said,
+  /// as in older recordings), seconds since the last marker, horizontal 1-sigma (m).
+  std::uint8_t position_invalid_reason = 0;
+  float position_age_s = 0;
+  float position_sigma_m = 0;
   /// Simulator truth of the velocity in H; false on a real vehicle or older recordings.
   bool truth_valid = false;
   std::array<float, 3> v_truth_H_mps{};

@@ -89,6 +89,11 @@ struct StateExtras {
   bool position_valid = false;
   Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();
   double yaw_rad = 0.0;
+  /// Why position_valid is false (hq::navigation::PositionInvalid; 0 while valid or without a
+  /// marker stage), seconds since the last accepted marker, horizontal 1-sigma (m).
+  std::uint8_t position_invalid_reason = 0;
+  double position_age_s = 0.0;
+  double position_sigma_m = 0.0;
   /// Markers detected in the latest frame (at most kMaxMarkersInState are sent).
   std::span<const markers::MarkerDetection> markers;
   /// Simulator truth of the velocity in H: only ever set when the vehicle is the simulator.

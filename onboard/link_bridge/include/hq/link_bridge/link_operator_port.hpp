@@ -19,9 +19,6 @@ namespace hq::link_bridge {
 
 class LinkOperatorPort : public vehicle::OperatorPort {
  public:
-  /// The marker filter's position is sent while a marker was seen this recently.
-  static constexpr double kPositionMaxAgeS = 5.0;
-
   /// @param chain  the chain whose obstacle memory and marker stage go out with the state;
   ///               T_B_C its camera's extrinsics (the vehicle's own, not a simulator's truth).
   /// @param log    optional: fail-safe transitions are printed here (e.g. stdout).

@@ -17,6 +17,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -85,6 +86,12 @@ struct MarkerModesConfig {
 /// marker_mode and explore; strict, every error names the file and key.
 void read_config(config::StrictMap& section, MarkerModesConfig& out);
 
+/// "position lost (no marker for 3.2 s)" and the like, for an invalid check, in plain words
+/// into `out` (snprintf: no allocation); "position valid" for a valid one. Returns out.
+const char* describe_position(const navigation::PositionCheck& check,
+                              const navigation::NavigationConfig& config, char* out,
+                              std::size_t size);
+
 /// R_W_map: the NED world from the map frame of a floor marker.
 const Eigen::Matrix3d& R_world_map();
 
@@ -107,8 +114,13 @@ class MarkerNavigation {
   /// Markers ignored (a camera fault on the detector, or a test hiding them).
   void set_markers_hidden(bool hidden) { hidden_ = hidden; }
 
-  /// The filter is anchored on a marker and has seen one within max_age_s.
-  [[nodiscard]] bool pose_usable(double max_age_s) const;
+  /// Whether the pose may be flown on at t_ns, with the reason and figures (hq::navigation).
+  [[nodiscard]] navigation::PositionCheck position_check(std::int64_t t_ns) const {
+    return filter_.check_position(t_ns);
+  }
+  /// The pose may be flown on at t_ns (position_check valid) and a marker was accepted within
+  /// max_age_s (a mode's own, possibly shorter, limit).
+  [[nodiscard]] bool pose_usable(std::int64_t t_ns, double max_age_s) const;
   [[nodiscard]] Eigen::Vector3d p_W_m() const { return filter_.state().p_W_m; }
   [[nodiscard]] double yaw_rad() const;
   /// Marker centre in W, if mapped.

@@ -134,6 +134,13 @@ class MarkerStage {
   }
   /// In `mode`, the active provider wants the touchdown (Mode::kLand) now.
   [[nodiscard]] bool wants_land(modes::Mode mode) const;
+  /// Called once per step with the chain's mode: in marker or explore mode, the text of an event
+  /// when the pose just became unusable after being flown on ("marker mode: position lost (no
+  /// marker for 5.0 s), holding") or usable again ("... position valid again, resuming"), else
+  /// nullptr. The text lives until the next call. Allocates nothing.
+  const char* position_event(modes::Mode mode, std::int64_t t_ns);
+  /// In marker or explore mode, the pose became unusable after being flown on: hovering.
+  [[nodiscard]] bool holding_for_position() const { return holding_; }
 
   [[nodiscard]] MarkerNavigation& navigation() { return navigation_; }
   [[nodiscard]] const MarkerNavigation& navigation() const { return navigation_; }
@@ -144,6 +151,9 @@ class MarkerStage {
   MarkerNavigation navigation_;
   MarkerModeProvider marker_mode_;
   ExploreProvider explore_;
+  bool flying_on_pose_ = false;
+  bool holding_ = false;
+  char event_text_[160] = {};
 };
 
 }  // namespace hq::marker_modes

@@ -57,6 +57,17 @@ struct NavigationConfig {
   /// Consecutive gated markers after which the filter re-anchors on the marker (it has more
   /// likely diverged than the map has moved); 0 disables.
   int reanchor_after_gated_markers = 10;
+  // When the pose may be flown on (check_position): beyond any of these it is invalid.
+  /// No accepted marker for longer than this: the pose is dead reckoning, invalid.
+  double position_max_age_s = 5.0;
+  /// Horizontal 1-sigma position bound, sqrt(P_xx + P_yy): the covariance grows without markers.
+  double position_max_sigma_m = 0.5;
+  /// This many marker frames (stamps) in a row whose markers all failed the chi-square gate:
+  /// the filter disagrees with the map, invalid until a marker is accepted or it re-anchors.
+  int position_inconsistent_after_frames = 3;
+  /// This many RGB-D velocity updates in a row failing their gate: between markers the pose is
+  /// the velocity integrated, and a filter that refuses the velocity drifts unseen by P.
+  int position_inconsistent_after_velocities = 10;
 };
 
 /// Reads the `navigation:` section (keys as in NavigationConfig, `initial_attitude_sigma_deg`
@@ -86,6 +97,28 @@ struct UpdateResult {
   [[nodiscard]] bool accepted() const { return status == UpdateStatus::kAccepted; }
 };
 
+/// Why the pose may not be flown on; kNone while valid. Values travel on the link
+/// (VehicleState.position_invalid_reason), so they are never renumbered.
+enum class PositionInvalid : std::uint8_t {
+  kNone = 0,
+  kNotAnchored = 1,          ///< Not initialised, or no marker seen yet.
+  kNoMarker = 2,             ///< No accepted marker for longer than position_max_age_s.
+  kCovarianceOverBound = 3,  ///< Horizontal sigma above position_max_sigma_m.
+  /// Markers of position_inconsistent_after_frames frames, or position_inconsistent_after_
+  /// velocities velocities, gated in a row.
+  kInnovationInconsistent = 4,
+};
+/// Plain words for the operator ("no marker", ...).
+const char* to_string(PositionInvalid reason);
+
+/// Whether the pose may be flown on, and the figures behind it.
+struct PositionCheck {
+  bool valid = false;
+  PositionInvalid reason = PositionInvalid::kNotAnchored;
+  double age_s = 0.0;               ///< Since the last accepted marker (0 before the first).
+  double sigma_horizontal_m = 0.0;  ///< sqrt(P_xx + P_yy).
+};
+
 struct NavigationHealth {
   bool initialized = false;
   bool anchored = false;          ///< a marker has fixed position and yaw in the map.
@@ -99,6 +132,9 @@ struct NavigationHealth {
   long velocities_gated = 0;
   long inputs_rejected = 0;
   long reanchors = 0;
+  int disagreeing_marker_frames = 0;  ///< Marker stamps in a row with every marker gated.
+  int consecutive_gated_velocities = 0;
+  double last_marker_nis = 0.0;  ///< NIS of the last marker update (accepted or gated).
   const char* last_reason = "";  ///< of the last gated or rejected input.
 };
 
@@ -140,6 +176,14 @@ class NavigationFilter {
   [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
   /// Health at the filter's current time.
   [[nodiscard]] NavigationHealth health() const;
+  /// May the pose be flown on at t_now_ns (the age counts from the later of t_now_ns and the
+  /// filter's time, so an IMU that stops does not freeze it): anchored, a marker accepted within
+  /// position_max_age_s, horizontal sigma within position_max_sigma_m, and fewer than
+  /// position_inconsistent_after_frames marker frames in a row whose every marker was
+  /// gated (markers of one frame share a stamp) and fewer than
+  /// position_inconsistent_after_velocities velocity updates gated in a row. The first failing
+  /// check is the reason, in that order. Allocates nothing.
+  [[nodiscard]] PositionCheck check_position(std::int64_t t_now_ns) const;
   [[nodiscard]] Eigen::Isometry3d T_W_B() const;
   /// Velocity in H, what the velocity tracker consumes.
   [[nodiscard]] Eigen::Vector3d v_H_mps() const;
@@ -152,6 +196,9 @@ class NavigationFilter {
                        const Eigen::Matrix<double, kDim, kDim>& R, double gate_chi2);
   UpdateResult check_stamp(std::int64_t t_ns) const;
   UpdateResult reject(const char* reason);
+  /// Books a marker update's outcome against its frame (its stamp).
+  void note_marker_outcome(std::int64_t t_ns, bool accepted);
+  [[nodiscard]] int disagreeing_marker_frames() const;
 
   NavigationConfig config_;
   Eigen::Matrix3d R_B_C_;
@@ -165,6 +212,12 @@ class NavigationFilter {
   Eigen::Vector3d accel_prev_mps2_ = Eigen::Vector3d::Zero();
   std::int64_t t_last_marker_ns_ = 0;
   int consecutive_gated_markers_ = 0;
+  double last_marker_nis_ = 0.0;
+  std::int64_t t_marker_frame_ns_ = -1;  ///< Stamp of the marker frame being booked.
+  bool frame_accepted_ = false;
+  bool frame_gated_ = false;
+  int disagreeing_frames_ = 0;  ///< Complete frames in a row with every marker gated.
+  int consecutive_gated_velocities_ = 0;
   NavigationHealth counters_;
 };
 

@@ -158,6 +158,8 @@ class VehicleRuntime final : private FcSink {
   void deliver(const pipeline::ChainOutput& out);
   /// Says the learnt hover thrust once it has converged (a warning when far from the config).
   void announce_hover_thrust(const pipeline::ChainOutput& out);
+  /// Marker or explore mode holding because the marker pose became invalid, and resuming.
+  void announce_marker_position(const pipeline::ChainOutput& out);
   void event(std::int64_t t_ns, FcSeverity severity, std::string_view text);
 
   pipeline::OnboardChain& chain_;
