@@ -439,232 +439,233 @@ bool parse_state_thrust(const CsvFile& file, const Fields& f, RecordedState& s,
   }
   s.hover_thrust_gain = static_cast<float>(gain);
   s.hover_thrust_converged = converged != 0;
+  return true;
+}
 
-  // Columns 42-44 (telemetry v2): why the position is invalid, its age and sigma (0: not said).
-  bool parse_state_position_validity(const CsvFile& file, const Fields& f, RecordedState& s,
-                                     std::string& error) {
-    if (!file.has(42) || !file.has(44)) return true;
-    int reason = 0;
-    std::array<float, 2> values{};
-    if (!parse_integer(f[42], reason) || reason < 0 || reason > 255 ||
-        !parse_floats(f, 43, kStateColumns, values, error)) {
-      if (error.empty()) {
-        error = "position_invalid_reason = '" + std::string(f[42]) + "', expected 0..255";
-      }
-      return false;
+// Columns 42-44 (telemetry v2): why the position is invalid, its age and sigma (0: not said).
+bool parse_state_position_validity(const CsvFile& file, const Fields& f, RecordedState& s,
+                                   std::string& error) {
+  if (!file.has(42) || !file.has(44)) return true;
+  int reason = 0;
+  std::array<float, 2> values{};
+  if (!parse_integer(f[42], reason) || reason < 0 || reason > 255 ||
+      !parse_floats(f, 43, kStateColumns, values, error)) {
+    if (error.empty()) {
+      error = "position_invalid_reason = '" + std::string(f[42]) + "', expected 0..255";
     }
-    s.position_invalid_reason = static_cast<std::uint8_t>(reason);
-    s.position_age_s = values[0];
-    s.position_sigma_m = values[1];
-    return true;
-  }
-
-  void read_states(Recording & r, FileStarts & starts) {
-    CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
-    telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
-      RecordedState s;
-      if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
-          !parse_state_flight(telemetry, f, s, error) ||
-          !parse_state_thrust(telemetry, f, s, error) ||
-          !parse_state_position_validity(telemetry, f, s, error)) {
-        return false;
-      }
-      r.states.push_back(s);
-      return true;
-    });
-  }
-
-  // The state a row of obstacles.csv or markers.csv belongs to: the one with its receipt_ns and
-  // sequence; null if none.
-  RecordedState* state_of(Recording & r, std::int64_t receipt_ns, std::uint64_t sequence) {
-    const auto first =
-        std::lower_bound(r.states.begin(), r.states.end(), receipt_ns,
-                         [](const RecordedState& s, std::int64_t t) { return s.receipt_ns < t; });
-    for (auto it = first; it != r.states.end() && it->receipt_ns == receipt_ns; ++it) {
-      if (it->sequence == sequence) return &*it;
-    }
-    return nullptr;
-  }
-
-  // A file added to the layout later (telemetry v2): absent in older recordings, which replay
-  // without what it holds (named in absent_columns with what the replay lacks).
-  bool optional_file(Recording & r, const std::string& name, const char* lacking) {
-    if (fs::exists(fs::path(r.directory) / name)) return true;
-    r.absent_columns.push_back(name + " (the whole file: an older recording; " + lacking + ")");
     return false;
   }
+  s.position_invalid_reason = static_cast<std::uint8_t>(reason);
+  s.position_age_s = values[0];
+  s.position_sigma_m = values[1];
+  return true;
+}
 
-  void read_obstacles(Recording & r) {
-    if (!optional_file(r, "obstacles.csv", "replay shows no obstacle cloud")) return;
-    const std::vector<std::string> columns = {"receipt_ns", "sequence", "p_B_x_m", "p_B_y_m",
-                                              "p_B_z_m"};
-    CsvFile(r, "obstacles.csv", columns).read([&](const Fields& f, std::string& error) {
-      std::int64_t receipt_ns = 0;
-      std::uint64_t sequence = 0;
-      std::array<float, 3> p{};
-      if (!parse_integer(f[0], receipt_ns) || !parse_integer(f[1], sequence)) {
-        error = "receipt_ns or sequence is not an integer";
-        return false;
-      }
-      if (!parse_floats(f, 2, columns, p, error)) return false;
-      RecordedState* s = state_of(r, receipt_ns, sequence);
-      if (s == nullptr) {
-        error = "no state in telemetry.csv with receipt_ns " + std::string(f[0]) +
-                " and sequence " + std::string(f[1]) + "; point skipped";
-        return false;
-      }
-      if (s->obstacle_points_body_m.size() >= hq_msgs_kMaxObstaclePoints) {
-        error = "more than " + std::to_string(hq_msgs_kMaxObstaclePoints) +
-                " points for one state (the link's bound); point skipped";
-        return false;
-      }
-      s->obstacle_points_body_m.push_back(p);
-      return true;
-    });
-  }
-
-  void read_markers(Recording & r) {
-    if (!optional_file(r, "markers.csv", "replay shows marker counts, not their poses")) return;
-    const std::vector<std::string> columns = {"receipt_ns", "sequence", "id",    "p_C_x_m",
-                                              "p_C_y_m",    "p_C_z_m",  "q_C_w", "q_C_x",
-                                              "q_C_y",      "q_C_z"};
-    CsvFile(r, "markers.csv", columns).read([&](const Fields& f, std::string& error) {
-      std::int64_t receipt_ns = 0;
-      std::uint64_t sequence = 0;
-      MarkerView m;
-      std::array<float, 7> pose{};
-      if (!parse_integer(f[0], receipt_ns) || !parse_integer(f[1], sequence) ||
-          !parse_integer(f[2], m.id)) {
-        error = "receipt_ns, sequence or id is not an integer";
-        return false;
-      }
-      if (!parse_floats(f, 3, columns, pose, error)) return false;
-      m.p_camera_marker_m = {pose[0], pose[1], pose[2]};
-      m.q_camera_marker = {pose[3], pose[4], pose[5], pose[6]};
-      RecordedState* s = state_of(r, receipt_ns, sequence);
-      if (s == nullptr) {
-        error = "no state in telemetry.csv with receipt_ns " + std::string(f[0]) +
-                " and sequence " + std::string(f[1]) + "; marker skipped";
-        return false;
-      }
-      if (s->markers.size() >= kMaxMarkerViews) {
-        error = "more than " + std::to_string(kMaxMarkerViews) + " markers for one state; skipped";
-        return false;
-      }
-      s->markers.push_back(m);
-      return true;
-    });
-  }
-
-  void read_commands(Recording & r, FileStarts & starts) {
-    const std::vector<std::string> columns = {"t_ns",      "v_H_x_mps",      "v_H_y_mps",
-                                              "v_H_z_mps", "yaw_rate_radps", "valid"};
-    CsvFile(r, "commands.csv", columns)
-        .check_stamps(starts)
-        .read([&](const Fields& f, std::string& error) {
-          RecordedCommand c;
-          int valid = 0;
-          if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
-            error = "t_ns or valid is not an integer";
-            return false;
-          }
-          std::array<float, 4> v{};
-          if (!parse_floats(f, 1, columns, v, error)) return false;
-          c.v_H_mps = {v[0], v[1], v[2]};
-          c.yaw_rate_radps = v[3];
-          c.valid = valid != 0;
-          r.commands.push_back(c);
-          return true;
-        });
-  }
-
-  void read_mode_requests(Recording & r, FileStarts & starts) {
-    CsvFile(r, "mode_requests.csv", {"t_ns", "mode"})
-        .check_stamps(starts)
-        .read([&](const Fields& f, std::string& error) {
-          RecordedModeRequest m;
-          if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
-            error = "expected \"t_ns,mode\"";
-            return false;
-          }
-          m.mode = intern(f[1]);
-          r.mode_requests.push_back(m);
-          return true;
-        });
-  }
-
-  void read_events(Recording & r, FileStarts & starts) {
-    CsvFile events(r, "events.csv", {"receipt_ns", "severity", "text", "code"}, true, 3);
-    events.check_stamps(starts).read([&](const Fields& f, std::string& error) {
-      RecordedEvent e;
-      if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity) ||
-          (events.has(3) && !parse_integer(f[3], e.code))) {
-        error = "receipt_ns, severity or code is not an integer";
-        return false;
-      }
-      std::string_view text = f[2];
-      if (text.size() >= 2 && text.front() == '"' && text.back() == '"') {
-        text = text.substr(1, text.size() - 2);
-      }
-      e.text = text;
-      r.events.push_back(std::move(e));
-      return true;
-    });
-  }
-
-  // Each file is in order; a file that starts far from the others (one garbled row alone in it)
-  // would still stretch the merged timeline.
-  void check_file_starts(const FileStarts& starts) {
-    const auto [earliest, latest] =
-        std::minmax_element(starts.begin(), starts.end(),
-                            [](const auto& a, const auto& b) { return a.second < b.second; });
-    if (earliest != starts.end() && latest->second - earliest->second > kMaxStampGapNs) {
-      throw InputError(latest->first + ": first stamp " + std::to_string(latest->second) + " is " +
-                       seconds_text(latest->second - earliest->second) + " after " +
-                       fs::path(earliest->first).filename().string() + "'s " +
-                       std::to_string(earliest->second) +
-                       ", expected the files of one recording to start within " +
-                       seconds_text(kMaxStampGapNs) + " (a garbled stamp?)");
+void read_states(Recording& r, FileStarts& starts) {
+  CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
+  telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
+    RecordedState s;
+    if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
+        !parse_state_flight(telemetry, f, s, error) ||
+        !parse_state_thrust(telemetry, f, s, error) ||
+        !parse_state_position_validity(telemetry, f, s, error)) {
+      return false;
     }
-  }
+    r.states.push_back(s);
+    return true;
+  });
+}
 
-  bool has_csv_recording(const std::string& directory) {
-    return fs::exists(fs::path(directory) / "telemetry.csv") ||
-           fs::exists(fs::path(directory) / "rgb.txt");
+// The state a row of obstacles.csv or markers.csv belongs to: the one with its receipt_ns and
+// sequence; null if none.
+RecordedState* state_of(Recording& r, std::int64_t receipt_ns, std::uint64_t sequence) {
+  const auto first =
+      std::lower_bound(r.states.begin(), r.states.end(), receipt_ns,
+                       [](const RecordedState& s, std::int64_t t) { return s.receipt_ns < t; });
+  for (auto it = first; it != r.states.end() && it->receipt_ns == receipt_ns; ++it) {
+    if (it->sequence == sequence) return &*it;
   }
+  return nullptr;
+}
 
-  Recording load_csv_recording(const std::string& directory) {
-    Recording r;
-    r.directory = directory;
-    FileStarts starts;
-    read_states(r, starts);
-    read_obstacles(r);
-    read_markers(r);
-    read_commands(r, starts);
-    read_mode_requests(r, starts);
-    read_events(r, starts);
-    read_frame_list(r, "rgb.txt", r.rgb, true, starts);
-    read_frame_list(r, "depth_preview.txt", r.depth_preview, false, starts);
-    check_file_starts(starts);
-    return r;
-  }
+// A file added to the layout later (telemetry v2): absent in older recordings, which replay
+// without what it holds (named in absent_columns with what the replay lacks).
+bool optional_file(Recording& r, const std::string& name, const char* lacking) {
+  if (fs::exists(fs::path(r.directory) / name)) return true;
+  r.absent_columns.push_back(name + " (the whole file: an older recording; " + lacking + ")");
+  return false;
+}
 
-  // A folder's flight.mcap, or its CSV files when the MCAP is unreadable or empty of states
-  // (a recorder that failed early): the CSV recorder ran beside it.
-  Recording load_folder_mcap(const std::string& directory, const std::string& mcap_path) {
-    std::string why;
-    try {
-      Recording r = load_mcap_recording(mcap_path);
-      if (!r.states.empty() || !has_csv_recording(directory)) return r;
-      why = "holds no vehicle state";
-    } catch (const InputError& e) {
-      if (!has_csv_recording(directory)) throw;
-      why = std::string("unreadable (") + e.what() + ")";
+void read_obstacles(Recording& r) {
+  if (!optional_file(r, "obstacles.csv", "replay shows no obstacle cloud")) return;
+  const std::vector<std::string> columns = {"receipt_ns", "sequence", "p_B_x_m", "p_B_y_m",
+                                            "p_B_z_m"};
+  CsvFile(r, "obstacles.csv", columns).read([&](const Fields& f, std::string& error) {
+    std::int64_t receipt_ns = 0;
+    std::uint64_t sequence = 0;
+    std::array<float, 3> p{};
+    if (!parse_integer(f[0], receipt_ns) || !parse_integer(f[1], sequence)) {
+      error = "receipt_ns or sequence is not an integer";
+      return false;
     }
-    Recording r = load_csv_recording(directory);
-    add_problem(r, "flight.mcap " + why + "; the CSV files were read instead");
-    return r;
+    if (!parse_floats(f, 2, columns, p, error)) return false;
+    RecordedState* s = state_of(r, receipt_ns, sequence);
+    if (s == nullptr) {
+      error = "no state in telemetry.csv with receipt_ns " + std::string(f[0]) + " and sequence " +
+              std::string(f[1]) + "; point skipped";
+      return false;
+    }
+    if (s->obstacle_points_body_m.size() >= hq_msgs_kMaxObstaclePoints) {
+      error = "more than " + std::to_string(hq_msgs_kMaxObstaclePoints) +
+              " points for one state (the link's bound); point skipped";
+      return false;
+    }
+    s->obstacle_points_body_m.push_back(p);
+    return true;
+  });
+}
+
+void read_markers(Recording& r) {
+  if (!optional_file(r, "markers.csv", "replay shows marker counts, not their poses")) return;
+  const std::vector<std::string> columns = {"receipt_ns", "sequence", "id",    "p_C_x_m", "p_C_y_m",
+                                            "p_C_z_m",    "q_C_w",    "q_C_x", "q_C_y",   "q_C_z"};
+  CsvFile(r, "markers.csv", columns).read([&](const Fields& f, std::string& error) {
+    std::int64_t receipt_ns = 0;
+    std::uint64_t sequence = 0;
+    MarkerView m;
+    std::array<float, 7> pose{};
+    if (!parse_integer(f[0], receipt_ns) || !parse_integer(f[1], sequence) ||
+        !parse_integer(f[2], m.id)) {
+      error = "receipt_ns, sequence or id is not an integer";
+      return false;
+    }
+    if (!parse_floats(f, 3, columns, pose, error)) return false;
+    m.p_camera_marker_m = {pose[0], pose[1], pose[2]};
+    m.q_camera_marker = {pose[3], pose[4], pose[5], pose[6]};
+    RecordedState* s = state_of(r, receipt_ns, sequence);
+    if (s == nullptr) {
+      error = "no state in telemetry.csv with receipt_ns " + std::string(f[0]) + " and sequence " +
+              std::string(f[1]) + "; marker skipped";
+      return false;
+    }
+    if (s->markers.size() >= kMaxMarkerViews) {
+      error = "more than " + std::to_string(kMaxMarkerViews) + " markers for one state; skipped";
+      return false;
+    }
+    s->markers.push_back(m);
+    return true;
+  });
+}
+
+void read_commands(Recording& r, FileStarts& starts) {
+  const std::vector<std::string> columns = {"t_ns",      "v_H_x_mps",      "v_H_y_mps",
+                                            "v_H_z_mps", "yaw_rate_radps", "valid"};
+  CsvFile(r, "commands.csv", columns)
+      .check_stamps(starts)
+      .read([&](const Fields& f, std::string& error) {
+        RecordedCommand c;
+        int valid = 0;
+        if (!parse_integer(f[0], c.t_ns) || !parse_integer(f[5], valid)) {
+          error = "t_ns or valid is not an integer";
+          return false;
+        }
+        std::array<float, 4> v{};
+        if (!parse_floats(f, 1, columns, v, error)) return false;
+        c.v_H_mps = {v[0], v[1], v[2]};
+        c.yaw_rate_radps = v[3];
+        c.valid = valid != 0;
+        r.commands.push_back(c);
+        return true;
+      });
+}
+
+void read_mode_requests(Recording& r, FileStarts& starts) {
+  CsvFile(r, "mode_requests.csv", {"t_ns", "mode"})
+      .check_stamps(starts)
+      .read([&](const Fields& f, std::string& error) {
+        RecordedModeRequest m;
+        if (!parse_integer(f[0], m.t_ns) || !known_name(f[1])) {
+          error = "expected \"t_ns,mode\"";
+          return false;
+        }
+        m.mode = intern(f[1]);
+        r.mode_requests.push_back(m);
+        return true;
+      });
+}
+
+void read_events(Recording& r, FileStarts& starts) {
+  CsvFile events(r, "events.csv", {"receipt_ns", "severity", "text", "code"}, true, 3);
+  events.check_stamps(starts).read([&](const Fields& f, std::string& error) {
+    RecordedEvent e;
+    if (!parse_integer(f[0], e.receipt_ns) || !parse_integer(f[1], e.severity) ||
+        (events.has(3) && !parse_integer(f[3], e.code))) {
+      error = "receipt_ns, severity or code is not an integer";
+      return false;
+    }
+    std::string_view text = f[2];
+    if (text.size() >= 2 && text.front() == '"' && text.back() == '"') {
+      text = text.substr(1, text.size() - 2);
+    }
+    e.text = text;
+    r.events.push_back(std::move(e));
+    return true;
+  });
+}
+
+// Each file is in order; a file that starts far from the others (one garbled row alone in it)
+// would still stretch the merged timeline.
+void check_file_starts(const FileStarts& starts) {
+  const auto [earliest, latest] =
+      std::minmax_element(starts.begin(), starts.end(),
+                          [](const auto& a, const auto& b) { return a.second < b.second; });
+  if (earliest != starts.end() && latest->second - earliest->second > kMaxStampGapNs) {
+    throw InputError(latest->first + ": first stamp " + std::to_string(latest->second) + " is " +
+                     seconds_text(latest->second - earliest->second) + " after " +
+                     fs::path(earliest->first).filename().string() + "'s " +
+                     std::to_string(earliest->second) +
+                     ", expected the files of one recording to start within " +
+                     seconds_text(kMaxStampGapNs) + " (a garbled stamp?)");
   }
+}
+
+bool has_csv_recording(const std::string& directory) {
+  return fs::exists(fs::path(directory) / "telemetry.csv") ||
+         fs::exists(fs::path(directory) / "rgb.txt");
+}
+
+Recording load_csv_recording(const std::string& directory) {
+  Recording r;
+  r.directory = directory;
+  FileStarts starts;
+  read_states(r, starts);
+  read_obstacles(r);
+  read_markers(r);
+  read_commands(r, starts);
+  read_mode_requests(r, starts);
+  read_events(r, starts);
+  read_frame_list(r, "rgb.txt", r.rgb, true, starts);
+  read_frame_list(r, "depth_preview.txt", r.depth_preview, false, starts);
+  check_file_starts(starts);
+  return r;
+}
+
+// A folder's flight.mcap, or its CSV files when the MCAP is unreadable or empty of states
+// (a recorder that failed early): the CSV recorder ran beside it.
+Recording load_folder_mcap(const std::string& directory, const std::string& mcap_path) {
+  std::string why;
+  try {
+    Recording r = load_mcap_recording(mcap_path);
+    if (!r.states.empty() || !has_csv_recording(directory)) return r;
+    why = "holds no vehicle state";
+  } catch (const InputError& e) {
+    if (!has_csv_recording(directory)) throw;
+    why = std::string("unreadable (") + e.what() + ")";
+  }
+  Recording r = load_csv_recording(directory);
+  add_problem(r, "flight.mcap " + why + "; the CSV files were read instead");
+  return r;
+}
 
 }  // namespace
 
