@@ -201,6 +201,10 @@ struct Snapshot {
   std::string estimator_health = "-";
   std::string link_health = "-";
   const char* flight_state = "-";  ///< Static texts, see StateExtras.
+  /// Seconds since the take-off while off the ground, else the last flight's length (< 0: none
+  /// yet), on the vehicle states' time (it stops when they stop).
+  double flight_time_s = -1;
+  bool airborne = false;  ///< Off the ground (taking off, airborne or landing).
   bool motors_armed = false;
   bool height_valid = false;
   float height_m = 0;
@@ -271,6 +275,8 @@ class ConsoleModel {
 
  private:
   double seconds(std::int64_t t_ns);
+  void add_event(double t_s, int severity, const char* text);  ///< With mutex_ held.
+  void track_flight(double t_s, const char* flight_state);     ///< With mutex_ held.
 
   Capacity capacity_;
   mutable std::mutex mutex_;
@@ -323,6 +329,9 @@ class ConsoleModel {
   LinkHealth link_{};
   std::array<char, 192> source_{};
   ReplayStatus replay_{};
+  double take_off_s_ = -1;  ///< < 0: on the ground.
+  double last_flight_s_ = -1;
+  double last_state_s_ = 0;
 };
 
 }  // namespace hq::console
