@@ -253,7 +253,16 @@ nlohmann::ordered_json window_json(const hq::console::WindowStats* window) {
           {"display_width_px", w.display_width_px},
           {"display_height_px", w.display_height_px},
           {"link_lost_banner_frames", w.link_lost_banner_frames},
-          {"take_off_hint_frames", w.take_off_hint_frames}};
+          {"take_off_hint_frames", w.take_off_hint_frames},
+          {"camera_shown_width_px", w.camera_shown_width_px},
+          {"camera_shown_height_px", w.camera_shown_height_px},
+          {"camera_image_whole", w.camera_image_whole},
+          {"force_bars_whole", w.force_bars_whole},
+          {"alarm_cause", w.alarm_cause},
+          {"alarm_muted", w.alarm_muted},
+          {"alarm_audio", w.alarm_audio},
+          {"alarm_tone_samples", w.alarm_tone_samples},
+          {"alarm_frames", w.alarm_frames}};
 }
 
 // Ownership and the checks on what the vehicle sends, in the state JSON.
