@@ -80,8 +80,8 @@ PixelRect fit_image(const PixelRect& area, int image_width_px, int image_height_
                                area.height / static_cast<float>(image_height_px));
   const float w = std::floor(scale * static_cast<float>(image_width_px));
   const float h = std::floor(scale * static_cast<float>(image_height_px));
-  return PixelRect{std::floor(area.x + (area.width - w) / 2), std::floor(area.y + (area.height - h) / 2),
-                   w, h};
+  return PixelRect{std::floor(area.x + (area.width - w) / 2),
+                   std::floor(area.y + (area.height - h) / 2), w, h};
 }
 
 CameraPanelResult draw_camera_panel(const Snapshot& s, const ImageTexture& camera,

@@ -27,8 +27,8 @@ struct ImageTexture {
 
 /// What the panel reports back for the window's stats.
 struct CameraPanelResult {
-  PixelRect image{};           ///< Where the camera image was drawn (screen pixels).
-  bool image_whole = false;    ///< Drawn entirely inside the panel's visible area.
+  PixelRect image{};         ///< Where the camera image was drawn (screen pixels).
+  bool image_whole = false;  ///< Drawn entirely inside the panel's visible area.
 };
 
 /// Draws the "Camera" window's content (the caller places the window). `video_line` is the

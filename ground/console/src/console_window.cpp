@@ -500,6 +500,8 @@ struct ConsoleWindow::Impl {
         draw_camera_panel(s, ImageTexture{camera.id, camera.width_px, camera.height_px},
                           ImageTexture{depth.id, depth.width_px, depth.height_px}, video, size);
     stats.camera_image_whole = shown.image_whole;
+    stats.camera_shown_x_px = static_cast<int>(shown.image.x);
+    stats.camera_shown_y_px = static_cast<int>(shown.image.y);
     stats.camera_shown_width_px = static_cast<int>(shown.image.width);
     stats.camera_shown_height_px = static_cast<int>(shown.image.height);
     ImGui::End();
@@ -681,6 +683,11 @@ struct ConsoleWindow::Impl {
     if (bar_actions.take_off) actions.take_off = true;
     if (bar_actions.toggle_mute) mute_key = true;  // applied on the next frame
     if (bar_actions.take_off_hint) ++stats.take_off_hint_frames;
+    if (s.have_state && bar.stale_s < 0) {
+      const double climb_mps = -static_cast<double>(s.latest.v_est_H_mps[2]);
+      stats.climb_shown_max_mps = std::max(stats.climb_shown_max_mps, climb_mps);
+      stats.climb_shown_min_mps = std::min(stats.climb_shown_min_mps, climb_mps);
+    }
     const float top = status_bar_height();
     const float rest = std::max(H - top, 100.0F);
     const auto place = [&](float x, float y, float width, float height) {

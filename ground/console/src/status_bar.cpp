@@ -60,6 +60,69 @@ void clock_text(double t_s, char* out, std::size_t size) {
   std::snprintf(out, size, "%02d:%02d", s / 60, s % 60);
 }
 
+// Rows 1 and 2: what the vehicle is doing, how it moves and what limits it.
+void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
+  ImGui::TextUnformatted("VEHICLE");
+  Row row1(x0 + 9 * ImGui::CalcTextSize("0").x, false);
+  const ImU32 flight_colour = landed ? IM_COL32(230, 200, 80, 255)
+                              : std::strcmp(s.flight_state, "airborne") == 0
+                                  ? kOk
+                                  : IM_COL32(120, 200, 255, 255);
+  row1.field("flight", s.flight_state, flight_colour, grey, 20);
+  row1.field("motors", s.motors_armed ? "ARMED" : "idle",
+             s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), grey, 15);
+  char text[64];
+  if (s.height_valid) {
+    std::snprintf(text, sizeof text, "%.2f m (%s)", static_cast<double>(s.height_m),
+                  s.height_source);
+  } else {
+    std::snprintf(text, sizeof text, "unknown");
+  }
+  row1.field("height", text, kText, grey, 27);
+  row1.field("mode", s.mode.c_str(), kText, grey, 16);
+  clock_text(s.flight_time_s, text, sizeof text);
+  row1.field("flight time", text, kText, false, 20);
+  const int link_class = link_state_text(s, text, sizeof text);
+  row1.field("link", text,
+             link_class == 0   ? kOk
+             : link_class == 1 ? kWarn
+             : link_class == 2 ? kAlarm
+                               : kText,
+             false, 30);
+
+  // Row 2: how it moves and what limits it.
+  Row row2(x0, true);
+  const auto& v = s.latest.v_est_H_mps;
+  std::snprintf(text, sizeof text, "%.2f m/s",
+                std::hypot(static_cast<double>(v[0]), static_cast<double>(v[1])));
+  row2.field("ground speed", s.have_state ? text : "-", kText, grey, 24);
+  // H is NED: z points down, a climb is -v_z.
+  std::snprintf(text, sizeof text, "%+.2f m/s", -static_cast<double>(v[2]));
+  row2.field("climb", s.have_state ? text : "-", kText, grey, 18);
+  row2.field("estimator", s.estimator_health.c_str(), s.estimator_health == "ok" ? kOk : kWarn,
+             grey, 21);
+  if (s.clearance_m >= 0) {
+    std::snprintf(text, sizeof text, "%.2f m", static_cast<double>(s.clearance_m));
+  } else {
+    std::snprintf(text, sizeof text, "-");
+  }
+  row2.field("clearance", text, kText, grey, 19);
+  // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
+  // file's mass or the FC's maximum thrust is off (the vehicle flies on the learnt value).
+  const double thrust_pct = 100.0 * static_cast<double>(s.hover_thrust_gain);
+  if (s.hover_thrust_converged) {
+    std::snprintf(text, sizeof text, "%.0f %% (learnt)", thrust_pct);
+  } else {
+    std::snprintf(text, sizeof text, "%s", s.hover_thrust_gain > 0 ? "learning" : "-");
+  }
+  const bool thrust_off = s.hover_thrust_converged && std::abs(thrust_pct - 100.0) > 15.0;
+  row2.field("thrust given", text, thrust_off ? kWarn : kText, grey, 30);
+  if (s.operator_input[0] != '\0') {
+    const bool slowed = std::strncmp(s.operator_input, "slowed", 6) == 0;
+    row2.put(s.operator_input, grey ? kStale : slowed ? IM_COL32(255, 200, 60, 255) : kAlarm, 40);
+  }
+}
+
 }  // namespace
 
 float status_bar_height() {
@@ -105,67 +168,16 @@ StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, fl
   const bool grey = in.stale_s >= 0;
   const bool landed = std::strcmp(s.flight_state, "landed") == 0;
   const float x0 = ImGui::GetCursorPosX();
-
-  // Row 1: what the vehicle is doing.
-  ImGui::TextUnformatted(s.have_state ? "VEHICLE" : "NO STATE");
-  Row row1(x0 + 9 * ImGui::CalcTextSize("0").x, false);
-  const ImU32 flight_colour = landed ? IM_COL32(230, 200, 80, 255)
-                              : std::strcmp(s.flight_state, "airborne") == 0
-                                  ? kOk
-                                  : IM_COL32(120, 200, 255, 255);
-  row1.field("flight", s.flight_state, flight_colour, grey, 20);
-  row1.field("motors", s.motors_armed ? "ARMED" : "idle",
-             s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), grey,
-             15);
   char text[64];
-  if (s.height_valid) {
-    std::snprintf(text, sizeof text, "%.2f m (%s)", static_cast<double>(s.height_m),
-                  s.height_source);
-  } else {
-    std::snprintf(text, sizeof text, "unknown");
-  }
-  row1.field("height", text, kText, grey, 27);
-  row1.field("mode", s.mode.c_str(), kText, grey, 16);
-  clock_text(s.flight_time_s, text, sizeof text);
-  row1.field("flight time", text, kText, false, 20);
-  const int link_class = link_state_text(s, text, sizeof text);
-  row1.field("link", text,
-             link_class == 0   ? kOk
-             : link_class == 1 ? kWarn
-             : link_class == 2 ? kAlarm
-                               : kText,
-             false, 30);
 
-  // Row 2: how it moves and what limits it.
-  Row row2(x0, true);
-  const auto& v = s.latest.v_est_H_mps;
-  std::snprintf(text, sizeof text, "%.2f m/s", std::hypot(static_cast<double>(v[0]),
-                                                          static_cast<double>(v[1])));
-  row2.field("ground speed", s.have_state ? text : "-", kText, grey, 24);
-  // H is NED: z points down, a climb is -v_z.
-  std::snprintf(text, sizeof text, "%+.2f m/s", -static_cast<double>(v[2]));
-  row2.field("climb", s.have_state ? text : "-", kText, grey, 18);
-  row2.field("estimator", s.estimator_health.c_str(),
-             s.estimator_health == "ok" ? kOk : kWarn, grey, 21);
-  if (s.clearance_m >= 0) {
-    std::snprintf(text, sizeof text, "%.2f m", static_cast<double>(s.clearance_m));
+  if (!s.have_state) {
+    // Before the first state: one line that says so, not two rows of dashes.
+    char link[64];
+    link_state_text(s, link, sizeof link);
+    ImGui::TextColored(ImColor(IM_COL32(230, 200, 80, 255)), "VEHICLE: %s", link);
+    ImGui::TextUnformatted("");
   } else {
-    std::snprintf(text, sizeof text, "-");
-  }
-  row2.field("clearance", text, kText, grey, 19);
-  // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
-  // file's mass or the FC's maximum thrust is off (the vehicle flies on the learnt value).
-  const double thrust_pct = 100.0 * static_cast<double>(s.hover_thrust_gain);
-  if (s.hover_thrust_converged) {
-    std::snprintf(text, sizeof text, "%.0f %% (learnt)", thrust_pct);
-  } else {
-    std::snprintf(text, sizeof text, "%s", s.hover_thrust_gain > 0 ? "learning" : "-");
-  }
-  const bool thrust_off = s.hover_thrust_converged && std::abs(thrust_pct - 100.0) > 15.0;
-  row2.field("thrust given", text, thrust_off ? kWarn : kText, grey, 30);
-  if (s.operator_input[0] != '\0') {
-    const bool slowed = std::strncmp(s.operator_input, "slowed", 6) == 0;
-    row2.put(s.operator_input, grey ? kStale : slowed ? IM_COL32(255, 200, 60, 255) : kAlarm, 40);
+    draw_vehicle_rows(s, grey, landed, x0);
   }
 
   // Row 3: the actions (take off, mute) and the keys.
@@ -180,7 +192,9 @@ StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, fl
   ImGui::SameLine(0, 18);
   if (in.alarm != AlarmCause::kNone) {
     std::snprintf(text, sizeof text, "ALARM: %s%s", to_string(in.alarm),
-                  in.alarm_muted ? " (muted)" : in.audio ? "" : " (no sound)");
+                  in.alarm_muted ? " (muted)"
+                  : in.audio     ? ""
+                                 : " (no sound)");
     ImGui::TextColored(ImColor(in.alarm_muted ? kWarn : kAlarm), "%s", text);
     ImGui::SameLine();
     if (ImGui::SmallButton(in.alarm_muted ? "Unmute (B)" : "Mute (B)")) actions.toggle_mute = true;

@@ -13,7 +13,7 @@ struct StatusBarInput {
   double stale_s = -1;  ///< Age of the vehicle's state when stale (its fields greyed), else < 0.
   AlarmCause alarm = AlarmCause::kNone;
   bool alarm_muted = false;
-  bool audio = false;           ///< An audio device plays the alarm.
+  bool audio = false;  ///< An audio device plays the alarm.
   const char* audio_status = "";
 };
 

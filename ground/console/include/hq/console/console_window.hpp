@@ -74,10 +74,15 @@ struct WindowStats {
   std::uint64_t link_lost_banner_frames = 0;  ///< Frames drawn with the link-loss banner.
   std::uint64_t take_off_hint_frames = 0;     ///< Frames drawn with the landed take-off hint.
   /// The camera image as last drawn: its size on screen and whether all of it was visible.
+  int camera_shown_x_px = 0;
+  int camera_shown_y_px = 0;
   int camera_shown_width_px = 0;
   int camera_shown_height_px = 0;
   bool camera_image_whole = false;
   bool force_bars_whole = false;  ///< The haptic force bars (Fz last) all visible.
+  /// The highest and lowest climb (m/s, up positive) the status bar showed.
+  double climb_shown_max_mps = 0;
+  double climb_shown_min_mps = 0;
   /// The alarm: its cause at the last frame ("none", "link lost", "fail-safe"), muted, the
   /// audio driver or why there is none, samples of tone played, frames drawn with an alarm.
   std::string alarm_cause = "none";
