@@ -122,6 +122,13 @@ const char* operator_input_warning(int input) {
   }
 }
 
+// The explore mode's phase as the state carries it (0: not exploring).
+const char* explore_phase_name(int phase) {
+  static const char* const kNames[8] = {"",     "lift-off", "search", "explore",
+                                        "edge", "navigate", "land",   "done"};
+  return phase >= 0 && phase < 8 ? kNames[phase] : "";
+}
+
 const char* flight_state_name(int state) {
   switch (state) {
     case hq_msgs_FLIGHT_LANDED:
@@ -192,6 +199,8 @@ class ModelFeed : public hq::ground::LinkObserver {
     extras.clearance_m = s.clearance_m;
     extras.hover_thrust_gain = s.hover_thrust_gain;
     extras.hover_thrust_converged = s.hover_thrust_converged;
+    extras.marker_target_id = s.marker_target_valid ? s.marker_target_id : -1;
+    extras.explore_phase = explore_phase_name(s.explore_phase);
     model_.on_state(
         receipt_ns, 1e-6 * static_cast<double>(latency_ns), {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
         {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z}, s.roll_rad, s.pitch_rad,
@@ -308,6 +317,8 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   j["marker_detections"] = s.marker_detections;
   j["flight_state"] = s.flight_state;
   j["flight_time_s"] = decimals(s.flight_time_s, 2);
+  j["marker_target_id"] = s.marker_target_id;
+  j["explore_phase"] = s.explore_phase;
   j["motors_armed"] = s.motors_armed;
   j["height_valid"] = s.height_valid;
   j["height_m"] = decimals(s.height_m, 3);

@@ -107,6 +107,8 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   clearance_m_ = std::isfinite(extras.clearance_m) ? extras.clearance_m : -1.0F;
   hover_thrust_gain_ = std::isfinite(extras.hover_thrust_gain) ? extras.hover_thrust_gain : 0.0F;
   hover_thrust_converged_ = extras.hover_thrust_converged && hover_thrust_gain_ > 0.0F;
+  marker_target_id_ = extras.marker_target_id;
+  explore_phase_ = extras.explore_phase != nullptr ? extras.explore_phase : "";
   link_health_ = link_health;
   roll_rad_ = roll_rad;
   pitch_rad_ = pitch_rad;
@@ -232,6 +234,8 @@ void ConsoleModel::reset() {
   link_ = LinkHealth{};
   take_off_s_ = -1;
   last_flight_s_ = -1;
+  marker_target_id_ = -1;
+  explore_phase_ = "";
 }
 
 void ConsoleModel::start_new_track() {
@@ -277,6 +281,8 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.estimator_health = estimator_health_;
   out.link_health = link_health_;
   out.flight_state = flight_state_;
+  out.marker_target_id = marker_target_id_;
+  out.explore_phase = explore_phase_;
   out.flight_time_s = take_off_s_ >= 0 ? last_state_s_ - take_off_s_ : last_flight_s_;
   out.airborne = take_off_s_ >= 0;
   out.motors_armed = motors_armed_;

@@ -68,9 +68,9 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
                               : std::strcmp(s.flight_state, "airborne") == 0
                                   ? kOk
                                   : IM_COL32(120, 200, 255, 255);
-  row1.field("flight", s.flight_state, flight_colour, grey, 20);
+  row1.field("flight", s.flight_state, flight_colour, grey, 19);
   row1.field("motors", s.motors_armed ? "ARMED" : "idle",
-             s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), grey, 15);
+             s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), grey, 14);
   char text[64];
   if (s.height_valid) {
     std::snprintf(text, sizeof text, "%.2f m (%s)", static_cast<double>(s.height_m),
@@ -78,17 +78,27 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
   } else {
     std::snprintf(text, sizeof text, "unknown");
   }
-  row1.field("height", text, kText, grey, 27);
-  row1.field("mode", s.mode.c_str(), kText, grey, 16);
-  clock_text(s.flight_time_s, text, sizeof text);
-  row1.field("flight time", text, kText, false, 20);
+  row1.field("height", text, kText, grey, 26);
   const int link_class = link_state_text(s, text, sizeof text);
   row1.field("link", text,
              link_class == 0   ? kOk
              : link_class == 1 ? kWarn
              : link_class == 2 ? kAlarm
                                : kText,
-             false, 30);
+             false, 28);
+
+  clock_text(s.flight_time_s, text, sizeof text);
+  row1.field("flight time", text, kText, false, 18);
+  // The mode with what an autonomous one is at: its marker, the exploration's phase.
+  if (s.explore_phase[0] != '\0') {
+    std::snprintf(text, sizeof text, "%s (%s, marker %d)", s.mode.c_str(), s.explore_phase,
+                  s.marker_target_id);
+  } else if (s.marker_target_id >= 0) {
+    std::snprintf(text, sizeof text, "%s (to %d)", s.mode.c_str(), s.marker_target_id);
+  } else {
+    std::snprintf(text, sizeof text, "%s", s.mode.c_str());
+  }
+  row1.field("mode", text, kText, grey, 40);
 
   // Row 2: how it moves and what limits it.
   Row row2(x0, true);

@@ -117,6 +117,10 @@ Validation validate(const VehicleState& state) {
   if (!(state.hover_thrust_gain >= 0.0F && state.hover_thrust_gain <= 10.0F)) {
     return {false, "hover_thrust_gain not in [0, 10]"};
   }
+  if (state.marker_target_valid && state.marker_target_id < 0) {
+    return {false, "marker_target_id negative"};
+  }
+  if (state.explore_phase > 7) return {false, "explore_phase not in [0, 7]"};
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};
   }

@@ -125,6 +125,16 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   EXPECT_THAT(validate(state).reason, HasSubstr("hover_thrust_gain not in [0, 10]"));
   state.hover_thrust_gain = -1.0F;
   EXPECT_FALSE(validate(state).ok);
+  state = VehicleState{};
+  state.marker_target_valid = true;
+  state.marker_target_id = 12;
+  state.explore_phase = 7;
+  EXPECT_TRUE(validate(state).ok);
+  state.explore_phase = 8;
+  EXPECT_THAT(validate(state).reason, HasSubstr("explore_phase not in [0, 7]"));
+  state.explore_phase = 0;
+  state.marker_target_id = -3;
+  EXPECT_THAT(validate(state).reason, HasSubstr("marker_target_id negative"));
 }
 
 }  // namespace

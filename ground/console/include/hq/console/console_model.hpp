@@ -68,6 +68,10 @@ struct StateExtras {
   /// converged once learnt.
   float hover_thrust_gain = 0;
   bool hover_thrust_converged = false;
+  /// The marker the marker or explore mode flies to (< 0: none); the explore mode's phase
+  /// (static text, "" when not exploring).
+  int marker_target_id = -1;
+  const char* explore_phase = "";
 };
 
 struct TrackPoint {
@@ -213,6 +217,8 @@ struct Snapshot {
   float clearance_m = -1;
   float hover_thrust_gain = 0;  ///< See StateExtras.
   bool hover_thrust_converged = false;
+  int marker_target_id = -1;  ///< See StateExtras.
+  const char* explore_phase = "";
   float roll_rad = 0;
   float pitch_rad = 0;
   float yaw_W_rad = 0;
@@ -330,6 +336,8 @@ class ConsoleModel {
   std::array<char, 192> source_{};
   ReplayStatus replay_{};
   double take_off_s_ = -1;  ///< < 0: on the ground.
+  int marker_target_id_ = -1;
+  const char* explore_phase_ = "";
   double last_flight_s_ = -1;
   double last_state_s_ = 0;
 };
