@@ -7,7 +7,6 @@
 #include "hq/testing/process.hpp"
 
 #include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -15,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -55,10 +55,10 @@ class Xvfb {
     int number = 170 + getpid() % 40;
     while (fs::exists("/tmp/.X" + std::to_string(number) + "-lock")) ++number;
     const std::string name = ":" + std::to_string(number);
-    process_ = std::make_unique<Process>(
-        std::vector<std::string>{"/usr/bin/Xvfb", name, "-screen", "0", size + "x24",
-                                 "-nolisten", "tcp"},
-        dir / "xvfb.out");
+    process_ =
+        std::make_unique<Process>(std::vector<std::string>{"/usr/bin/Xvfb", name, "-screen", "0",
+                                                           size + "x24", "-nolisten", "tcp"},
+                                  dir / "xvfb.out");
     for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(number)); ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
@@ -94,10 +94,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   hq::testing::use_loopback_dds();
-  const std::string fps_cap = std::to_string(max_fps);
-  std::printf("hq-bench-console: %.0f s per run, --max-fps %s, simulated flight "
-              "(ground/config/demo_hand.yaml)\n",
-              seconds, fps_cap.c_str());
+  char fps_cap_text[32];
+  std::snprintf(fps_cap_text, sizeof fps_cap_text, "%g", max_fps);
+  const std::string fps_cap = fps_cap_text;
+  std::printf(
+      "hq-bench-console: %.0f s per run, --max-fps %s, simulated flight "
+      "(ground/config/demo_hand.yaml)\n",
+      seconds, fps_cap.c_str());
   std::printf("%-10s %-22s %8s %16s %14s  %s\n", "size", "window", "fps", "render p50 ms",
               "render max ms", "renderer");
   int failures = 0;
@@ -109,24 +112,38 @@ int main(int argc, char** argv) {
     const std::string duration = std::to_string(seconds);
     // The empty window first (no vehicle needed), then the console during a flight.
     {
-      Process bare({HQ_GROUND_EXE, "--device", "sim", "--bare-window", "--duration-s", duration,
-                    "--window-size", size, "--window-ini", "none", "--max-fps", fps_cap,
-                    "--domain-id", "231", "--insecure", "--state-json",
-                    (dir / "bare.json").string()},
-                   dir / "bare.out");
+      Process bare(
+          {HQ_GROUND_EXE, "--device", "sim", "--bare-window", "--duration-s", duration,
+           "--window-size", size, "--window-ini", "none", "--max-fps", fps_cap, "--domain-id",
+           "231", "--insecure", "--state-json", (dir / "bare.json").string()},
+          dir / "bare.out");
       if (bare.wait_exit(seconds + 30) != 0) ++failures;
     }
     const std::string domain = std::to_string(hq::testing::private_domain_id(71));
-    Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
-                     "--duration-s", std::to_string(seconds + 6), "--domain-id", domain,
-                     "--insecure"},
-                    dir / "onboard.out");
+    Process onboard(
+        {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml", "--duration-s",
+         std::to_string(seconds + 6), "--domain-id", domain, "--insecure"},
+        dir / "onboard.out");
     {
-      Process console({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                       "ground/config/demo_hand.yaml", "--duration-s", duration,
-                       "--window-size", size, "--window-ini", "none", "--max-fps", fps_cap,
-                       "--domain-id", domain, "--insecure", "--state-json",
-                       (dir / "console.json").string(), "--screenshot",
+      Process console({HQ_GROUND_EXE,
+                       "--device",
+                       "sim",
+                       "--haptics-config",
+                       "ground/config/demo_hand.yaml",
+                       "--duration-s",
+                       duration,
+                       "--window-size",
+                       size,
+                       "--window-ini",
+                       "none",
+                       "--max-fps",
+                       fps_cap,
+                       "--domain-id",
+                       domain,
+                       "--insecure",
+                       "--state-json",
+                       (dir / "console.json").string(),
+                       "--screenshot",
                        (dir / "console.png").string()},
                       dir / "console.out");
       if (console.wait_exit(seconds + 30) != 0) ++failures;
@@ -135,8 +152,8 @@ int main(int argc, char** argv) {
     for (const char* which : {"bare", "console"}) {
       const Figures f = read_figures(dir / (std::string(which) + ".json"));
       std::printf("%-10s %-22s %8.1f %16.1f %14.1f  %s\n", size.c_str(),
-                  std::string(which) == "bare" ? "empty ImGui window" : "console, flying",
-                  f.fps, f.render_p50_ms, f.render_max_ms, f.renderer.c_str());
+                  std::string(which) == "bare" ? "empty ImGui window" : "console, flying", f.fps,
+                  f.render_p50_ms, f.render_max_ms, f.renderer.c_str());
     }
   }
   std::printf("logs, states and screenshots in %s/\n", out_dir.c_str());

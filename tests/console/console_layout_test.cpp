@@ -106,10 +106,25 @@ TEST(ConsoleLayout, At1280x800WholeCameraForceBarsClimbUpAndLinkLossAlarmSounds)
   const fs::path shot = dir / "console.png";
   const fs::path state = dir / "state.json";
   const fs::path recording = dir / "recording";
-  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure",
-                  "--duration-s", "60", "--window-size", "1280x800", "--window-ini", "none",
-                  "--record", recording.string(), "--screenshot", shot.string(), "--state-json",
+  Process ground({HQ_GROUND_EXE,
+                  "--device",
+                  "sim",
+                  "--haptics-config",
+                  "ground/config/demo_hand.yaml",
+                  "--domain-id",
+                  domain,
+                  "--insecure",
+                  "--duration-s",
+                  "60",
+                  "--window-size",
+                  "1280x800",
+                  "--window-ini",
+                  "none",
+                  "--record",
+                  recording.string(),
+                  "--screenshot",
+                  shot.string(),
+                  "--state-json",
                   state.string()},
                  dir / "ground.out");
   // WHEN the vehicle dies in flight (kill -9: no last word) and the operator closes the
@@ -177,8 +192,8 @@ TEST(ConsoleLayout, At1280x800WholeCameraForceBarsClimbUpAndLinkLossAlarmSounds)
   // (the same patches a third of the image away differ: the check can tell places apart)
   const double elsewhere = colour_distance(patch_mean(shown, 1, h - kPatch - 1, kPatch),
                                            patch_mean(scaled, w / 3, h / 3, kPatch));
-  std::printf("console layout: image %dx%d at %d,%d; corner vs elsewhere %.0f; %.1f fps; %s\n",
-              w, h, x, y, elsewhere, state_number(parsed, "/window/fps"), shot.c_str());
+  std::printf("console layout: image %dx%d at %d,%d; corner vs elsewhere %.0f; %.1f fps; %s\n", w,
+              h, x, y, elsewhere, state_number(parsed, "/window/fps"), shot.c_str());
 }
 
 }  // namespace

@@ -446,7 +446,8 @@ std::uint32_t flight_key_for_scancode(int sdl_scancode) {
 struct ConsoleWindow::Impl {
   SDL_Window* window = nullptr;
   SDL_GLContext gl = nullptr;
-  int marker_target_id = 0;  ///< The marker panel's target id field.
+  int marker_target_id = 0;        ///< The marker panel's target id field.
+  int vehicle_marker_target = -1;  ///< The vehicle's target the field last took.
   bool imgui_sdl = false;
   bool imgui_gl = false;
   double max_fps = 60;
@@ -884,6 +885,12 @@ struct ConsoleWindow::Impl {
     // Marker mode with a chosen target: each button asks for Mode marker with a task.
     ImGui::Text("marker:");
     ImGui::SameLine();
+    // The box follows the vehicle's target when that changes (it said 0 while the vehicle
+    // flew to 12); the operator's own entry stands until the next change.
+    if (s.marker_target_id >= 0 && s.marker_target_id != vehicle_marker_target) {
+      marker_target_id = s.marker_target_id;
+      vehicle_marker_target = s.marker_target_id;
+    }
     ImGui::SetNextItemWidth(100);
     ImGui::InputInt("target id", &marker_target_id);
     marker_target_id = std::max(marker_target_id, 0);
@@ -920,11 +927,9 @@ struct ConsoleWindow::Impl {
   void link_panel(const Snapshot& s) {
     ImGui::Begin("Link health");
     const LinkHealth& l = s.link;
-    const char* state = s.replay.active       ? (s.replay.at_end ? "END OF RECORDING" : "replayed")
-                        : l.state_age_s < 0   ? "waiting"
-                        : l.state_age_s < 0.2 ? "ok"
-                        : l.state_age_s < 2.0 ? "STALE"
-                                              : "LOST";
+    // The link's state in the status bar's and the banner's words, not thresholds of its own.
+    char state[64];
+    link_state_text(s, state, sizeof state);
     ImGui::Text("states: %s (age %.2f s)  heartbeat %s", state, l.state_age_s,
                 l.heartbeat_seen ? "seen" : "none");
     ImGui::Text("latency last %.2f ms  p50 %.2f  p99 %.2f", l.last_latency_ms, l.latency_p50_ms,
