@@ -31,7 +31,8 @@ class Row {
     put(text, greyed ? kStale : colour, chars);
   }
   void put(const char* text, ImU32 colour, int chars) {
-    const float column = static_cast<float>(chars) * ImGui::CalcTextSize("0").x;
+    // Two characters more than the widest text: a gap between the columns.
+    const float column = static_cast<float>(chars + 2) * ImGui::CalcTextSize("0").x;
     if (new_line_) {
       ImGui::SetCursorPosX(x_);
       new_line_ = false;
@@ -39,7 +40,8 @@ class Row {
       ImGui::SameLine(x_);
     }
     const ImVec2 p = ImGui::GetCursorScreenPos();
-    ImGui::PushClipRect(p, ImVec2(p.x + column - 6, p.y + ImGui::GetTextLineHeight()), true);
+    ImGui::PushClipRect(p, ImVec2(p.x + column - 6, p.y + ImGui::GetTextLineHeightWithSpacing()),
+                        true);
     ImGui::TextColored(ImColor(colour), "%s", text);
     ImGui::PopClipRect();
     x_ += column;
@@ -87,8 +89,6 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
                                : kText,
              false, 28);
 
-  clock_text(s.flight_time_s, text, sizeof text);
-  row1.field("flight time", text, kText, false, 18);
   // The mode with what an autonomous one is at: its marker, the exploration's phase.
   if (s.explore_phase[0] != '\0') {
     std::snprintf(text, sizeof text, "%s (%s, marker %d)", s.mode.c_str(), s.explore_phase,
@@ -98,7 +98,9 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
   } else {
     std::snprintf(text, sizeof text, "%s", s.mode.c_str());
   }
-  row1.field("mode", text, kText, grey, 40);
+  row1.field("mode", text, kText, grey, 36);
+  clock_text(s.flight_time_s, text, sizeof text);
+  row1.field("flight time", text, kText, false, 18);
 
   // Row 2: how it moves and what limits it.
   Row row2(x0, true);

@@ -1,7 +1,6 @@
 // The console window's pure parts: the camera image's fit, the alarm's cause and mute.
 #include "alarm.hpp"
 #include "camera_panel.hpp"
-
 #include <gtest/gtest.h>
 
 namespace hq::console {
