@@ -22,6 +22,7 @@
 #include "hq/console/console_window.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
+#include "hq/console/state_feed.hpp"
 #include "hq/geometry/camera_mount.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/ground/operator_station.hpp"
@@ -102,48 +103,6 @@ void require_display(const char* what) {
   }
 }
 
-// What the vehicle does with the operator's input, as the console's warning.
-const char* operator_input_warning(int input) {
-  switch (input) {
-    case hq_msgs_INPUT_IGNORED_LANDED:
-      return "commands ignored: take off first";
-    case hq_msgs_INPUT_IGNORED_MODE:
-      return "commands ignored: not teleop";
-    case hq_msgs_INPUT_IGNORED_NOT_OWNER:
-      return "commands ignored: another station commands";
-    case hq_msgs_INPUT_IGNORED_FAILSAFE:
-      return "commands ignored: fail-safe";
-    case hq_msgs_INPUT_LIMITED_UNSEEN:
-      return "slowed: unseen space";
-    case hq_msgs_INPUT_LIMITED_ENVELOPE:
-      return "slowed: flight envelope (ceiling)";
-    default:
-      return "";
-  }
-}
-
-// The explore mode's phase as the state carries it (0: not exploring).
-const char* explore_phase_name(int phase) {
-  static const char* const kNames[8] = {"",     "lift-off", "search", "explore",
-                                        "edge", "navigate", "land",   "done"};
-  return phase >= 0 && phase < 8 ? kNames[phase] : "";
-}
-
-const char* flight_state_name(int state) {
-  switch (state) {
-    case hq_msgs_FLIGHT_LANDED:
-      return "landed";
-    case hq_msgs_FLIGHT_TAKING_OFF:
-      return "taking off";
-    case hq_msgs_FLIGHT_AIRBORNE:
-      return "airborne";
-    case hq_msgs_FLIGHT_LANDING:
-      return "landing";
-    default:
-      return "?";
-  }
-}
-
 int mode_of(const char* name) {
   static constexpr std::array<std::pair<const char*, int>, 5> kModes = {
       {{"teleop", hq_msgs_MODE_TELEOP},
@@ -164,50 +123,14 @@ class ModelFeed : public hq::ground::LinkObserver {
       : model_(model), ground_(ground) {}
   void on_state(std::int64_t receipt_ns, std::int64_t latency_ns,
                 const hq::link::VehicleState& s) override {
-    static_assert(sizeof(hq_msgs_Vector3f) == 3 * sizeof(float));
-    static_assert(hq::console::kMaxMarkerViews == hq_msgs_kMaxMarkersInState);
-    hq::console::StateExtras extras;
-    extras.position_valid = s.position_valid;
-    extras.p_W_m = {s.p_W_m.x, s.p_W_m.y, s.p_W_m.z};
-    extras.yaw_W_rad = s.yaw_W_rad;
-    extras.truth_valid = s.truth_valid;
-    extras.v_truth_H_mps = {s.v_truth_H_mps.x, s.v_truth_H_mps.y, s.v_truth_H_mps.z};
+    // The replay's path too (state_feed.hpp): a replayed frame derives what this one does.
     const hq::ground::LinkStatus& link = ground_.status();
-    extras.state_age_ms = static_cast<float>(
+    hq::console::LinkFigures figures;
+    figures.state_age_ms = static_cast<float>(
         1e-6 * static_cast<double>(std::max<std::int64_t>(link.last_state_age_ns, 0)));
-    extras.round_trip_ms = static_cast<float>(
+    figures.round_trip_ms = static_cast<float>(
         1e-6 * static_cast<double>(std::max<std::int64_t>(link.round_trip_ns, 0)));
-    const std::size_t count = std::min<std::size_t>(s.markers._length, markers_.size());
-    for (std::size_t i = 0; i < count; ++i) {
-      const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
-      markers_[i] = {
-          m.id,
-          {m.p_camera_marker_m.x, m.p_camera_marker_m.y, m.p_camera_marker_m.z},
-          {m.q_camera_marker.w, m.q_camera_marker.x, m.q_camera_marker.y, m.q_camera_marker.z}};
-    }
-    extras.markers = markers_.data();
-    extras.marker_count = count;
-    extras.flight_state = flight_state_name(static_cast<int>(s.flight_state));
-    extras.motors_armed = s.motors_armed;
-    extras.height_valid = static_cast<int>(s.height_source) != hq_msgs_HEIGHT_NONE;
-    extras.height_m = s.height_m;
-    extras.height_source = static_cast<int>(s.height_source) == hq_msgs_HEIGHT_DEPTH ? "depth"
-                           : static_cast<int>(s.height_source) == hq_msgs_HEIGHT_ESTIMATE
-                               ? "estimate"
-                               : "-";
-    extras.operator_input = operator_input_warning(static_cast<int>(s.operator_input));
-    extras.clearance_m = s.clearance_m;
-    extras.hover_thrust_gain = s.hover_thrust_gain;
-    extras.hover_thrust_converged = s.hover_thrust_converged;
-    extras.marker_target_id = s.marker_target_valid ? s.marker_target_id : -1;
-    extras.explore_phase = explore_phase_name(s.explore_phase);
-    model_.on_state(
-        receipt_ns, 1e-6 * static_cast<double>(latency_ns), {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z},
-        {s.omega_body_radps.x, s.omega_body_radps.y, s.omega_body_radps.z}, s.roll_rad, s.pitch_rad,
-        {s.v_obs_H_mps.x, s.v_obs_H_mps.y, s.v_obs_H_mps.z}, hq::ground::to_string(s.mode),
-        hq::ground::to_string(s.estimator_health), hq::ground::to_string(s.link_health),
-        reinterpret_cast<const float*>(s.obstacle_points_body_m._buffer),
-        s.obstacle_points_body_m._length, extras);
+    feed_.on_state(model_, receipt_ns, 1e-6 * static_cast<double>(latency_ns), s, figures);
   }
   void on_camera(std::int64_t receipt_ns, const hq::link::CameraFrame& f) override {
     // The exposure on our clock through the heartbeat clock offset (video latency).
@@ -224,7 +147,7 @@ class ModelFeed : public hq::ground::LinkObserver {
  private:
   hq::console::ConsoleModel& model_;
   const hq::ground::GroundStation& ground_;
-  std::array<hq::console::MarkerView, hq::console::kMaxMarkerViews> markers_{};
+  hq::console::LiveStateFeed feed_;
 };
 
 // A figure with the decimals the state JSON has always shown (printf's %.3f before it was
@@ -325,6 +248,9 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   j["height_source"] = s.height_source;
   j["operator_input"] = s.operator_input;
   j["clearance_m"] = decimals(s.clearance_m, 3);
+  j["obstacle_points"] = s.cloud_count;  // the cloud standing in the top view
+  j["yaw_W_rad"] = decimals(s.yaw_W_rad, 3);
+  j["hover_thrust_gain"] = decimals(s.hover_thrust_gain, 3);
   j["link_lost"] = s.link.link_lost;
   j["stale_s"] = decimals(s.link.state_age_s, 3);
   j["link_losses"] = s.link.link_losses;
@@ -510,6 +436,10 @@ int run_replay(const Options& o) {
     std::fprintf(stderr, "hq-ground: replay: %zu problem(s) in %s; showing what is readable:\n",
                  recording.problem_count, o.replay_dir.c_str());
     for (const std::string& p : recording.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+  }
+  for (const std::string& c : recording.absent_columns) {
+    std::fprintf(stderr, "hq-ground: replay: not in this (older) recording, shown as missing: %s\n",
+                 c.c_str());
   }
   hq::console::ConsoleModel model;
   model.set_source("replay " + o.replay_dir);

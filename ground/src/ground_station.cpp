@@ -202,7 +202,8 @@ const char* operator_input_name(hq_msgs_OperatorInput v) {
 
 // The files' heads: the '#' lines naming frames, clocks and units, then the columns.
 constexpr const char* kTelemetryHeader =
-    "# hq-ground telemetry v1: one row per vehicle state received.\n"
+    "# hq-ground telemetry v2: one row per vehicle state received (v2 added the hover\n"
+    "# thrust columns; the cloud and marker poses are in obstacles.csv and markers.csv).\n"
     "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
     "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
     "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
@@ -217,7 +218,8 @@ constexpr const char* kTelemetryHeader =
     "# height_m above the floor from height_source (none: meaningless);\n"
     "# operator_input: what the vehicle did with the command; v_cmd_flown_H: the\n"
     "# command as flown (m/s); clearance_m: the vehicle's closest obstacle clearance\n"
-    "# (m, < 0: none seen).\n"
+    "# (m, < 0: none seen); hover_thrust_gain: thrust given over commanded, learnt in\n"
+    "# flight (0: not reported), hover_thrust_converged 1 once learnt.\n"
     "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
     "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
     "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
@@ -225,7 +227,18 @@ constexpr const char* kTelemetryHeader =
     "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n,"
     "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
     "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
-    "clearance_m\n";
+    "clearance_m,hover_thrust_gain,hover_thrust_converged\n";
+constexpr const char* kObstaclesHeader =
+    "# hq-ground obstacles v1: the obstacle cloud a vehicle state carried, one row per point\n"
+    "# (states without a cloud have none). receipt_ns and sequence: its state's row in\n"
+    "# telemetry.csv; p_B: the point in the body frame B (FRD), m.\n"
+    "receipt_ns,sequence,p_B_x_m,p_B_y_m,p_B_z_m\n";
+constexpr const char* kMarkersHeader =
+    "# hq-ground markers v1: the markers a vehicle state reported, one row per marker.\n"
+    "# receipt_ns and sequence: its state's row in telemetry.csv; id: AprilTag 36h11 id;\n"
+    "# p_C, q_C: the marker's pose in the camera frame C (optical: x right, y down, z\n"
+    "# forward), m, unit quaternion w x y z.\n"
+    "receipt_ns,sequence,id,p_C_x_m,p_C_y_m,p_C_z_m,q_C_w,q_C_x,q_C_y,q_C_z\n";
 constexpr const char* kEventsHeader =
     "# hq-ground events v1: receipt_ns ground clock (ns), t_ns vehicle stamp (ns),\n"
     "# severity 0 info 1 warning 2 error.\n"
@@ -263,8 +276,8 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
     bool armed = true;
     ~Closer() {
       if (!armed) return;
-      for (std::FILE* f :
-           {r->telemetry_, r->events_, r->commands_, r->modes_, r->rgb_list_, r->depth_list_}) {
+      for (std::FILE* f : {r->telemetry_, r->events_, r->commands_, r->modes_, r->rgb_list_,
+                           r->depth_list_, r->obstacles_, r->markers_}) {
         if (f != nullptr) std::fclose(f);
       }
     }
@@ -275,6 +288,8 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
   modes_ = open_for_writing(directory + "/mode_requests.csv");
   rgb_list_ = open_for_writing(directory + "/rgb.txt");
   depth_list_ = open_for_writing(directory + "/depth_preview.txt");
+  obstacles_ = open_for_writing(directory + "/obstacles.csv");
+  markers_ = open_for_writing(directory + "/markers.csv");
   closer.armed = false;
   written(std::fputs(kTelemetryHeader, telemetry_), "telemetry.csv");
   written(std::fputs(kEventsHeader, events_), "events.csv");
@@ -282,6 +297,8 @@ TelemetryRecorder::TelemetryRecorder(const std::string& directory) : directory_(
   written(std::fputs(kModesHeader, modes_), "mode_requests.csv");
   written(std::fputs(kRgbListHeader, rgb_list_), "rgb.txt");
   written(std::fputs(kDepthListHeader, depth_list_), "depth_preview.txt");
+  written(std::fputs(kObstaclesHeader, obstacles_), "obstacles.csv");
+  written(std::fputs(kMarkersHeader, markers_), "markers.csv");
   path_.reserve(directory.size() + 64);
 }
 
@@ -301,6 +318,8 @@ bool TelemetryRecorder::flush() {
   written(std::fflush(modes_), "mode_requests.csv");
   written(std::fflush(rgb_list_), "rgb.txt");
   written(std::fflush(depth_list_), "depth_preview.txt");
+  written(std::fflush(obstacles_), "obstacles.csv");
+  written(std::fflush(markers_), "markers.csv");
   return error_.empty();
 }
 
@@ -313,7 +332,10 @@ bool TelemetryRecorder::close() {
   written(std::fclose(modes_), "mode_requests.csv");
   written(std::fclose(rgb_list_), "rgb.txt");
   written(std::fclose(depth_list_), "depth_preview.txt");
-  telemetry_ = events_ = commands_ = modes_ = rgb_list_ = depth_list_ = nullptr;
+  written(std::fclose(obstacles_), "obstacles.csv");
+  written(std::fclose(markers_), "markers.csv");
+  telemetry_ = events_ = commands_ = modes_ = rgb_list_ = depth_list_ = obstacles_ = markers_ =
+      nullptr;
   return error_.empty();
 }
 
@@ -326,7 +348,7 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
           "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,0x%016llx,%u,%s,%d,%s,%.4f,%s,%."
           "4f,"
-          "%.4f,%.4f,%.4f\n",
+          "%.4f,%.4f,%.4f,%.4f,%d\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
@@ -342,8 +364,28 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           height_source_name(s.height_source), as_double(s.height_m),
           operator_input_name(s.operator_input), as_double(s.v_cmd_flown_H_mps.x),
           as_double(s.v_cmd_flown_H_mps.y), as_double(s.v_cmd_flown_H_mps.z),
-          as_double(s.clearance_m)),
+          as_double(s.clearance_m), as_double(s.hover_thrust_gain),
+          s.hover_thrust_converged ? 1 : 0),
       "telemetry.csv");
+  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
+    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
+    written(
+        std::fprintf(obstacles_, "%lld,%llu,%.4f,%.4f,%.4f\n", static_cast<long long>(receipt_ns),
+                     static_cast<unsigned long long>(s.sequence_number), as_double(p.x),
+                     as_double(p.y), as_double(p.z)),
+        "obstacles.csv");
+  }
+  for (std::uint32_t i = 0; i < s.markers._length; ++i) {
+    const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
+    written(std::fprintf(markers_, "%lld,%llu,%d,%.4f,%.4f,%.4f,%.5f,%.5f,%.5f,%.5f\n",
+                         static_cast<long long>(receipt_ns),
+                         static_cast<unsigned long long>(s.sequence_number), static_cast<int>(m.id),
+                         as_double(m.p_camera_marker_m.x), as_double(m.p_camera_marker_m.y),
+                         as_double(m.p_camera_marker_m.z), as_double(m.q_camera_marker.w),
+                         as_double(m.q_camera_marker.x), as_double(m.q_camera_marker.y),
+                         as_double(m.q_camera_marker.z)),
+            "markers.csv");
+  }
 }
 
 void TelemetryRecorder::command(std::int64_t t_ns, const haptics::VelocityCommand& command,

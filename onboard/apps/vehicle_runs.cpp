@@ -113,6 +113,12 @@ class RunPort final : public hq::vehicle::OperatorPort {
     } else {
       ++ticks;
     }
+    // The clearance sent in the state (ClearanceFilter): the summary's closest distance is the
+    // same figure the ground shows and hq-report finds.
+    if (out.clearance_m >= 0.0 &&
+        (closest_clearance_m < 0.0 || out.clearance_m < closest_clearance_m)) {
+      closest_clearance_m = out.clearance_m;
+    }
     if (csv_ != nullptr) write_csv_row(csv_, out);
     if (link_ != nullptr) link_->on_output(out, status);
   }
@@ -131,6 +137,7 @@ class RunPort final : public hq::vehicle::OperatorPort {
     ++events;
   }
 
+  double closest_clearance_m = -1.0;  ///< Smallest clearance sent; < 0: none seen.
   int frames = 0;
   int ok = 0;
   int safe_hover = 0;
@@ -430,6 +437,11 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
       fmt::print(", {:.2f} of --fc-max-thrust-n", last->hover_thrust_n / o.fc_max_thrust_n);
     }
     fmt::print("\n");
+  }
+  if (port.closest_clearance_m >= 0.0) {
+    std::printf("  %-40s %.3f m\n", "closest distance (clearance)", port.closest_clearance_m);
+  } else {
+    std::printf("  %-40s none seen\n", "closest distance (clearance)");
   }
   std::printf("  %-40s %d\n", "runtime events", port.events);
 }

@@ -55,6 +55,7 @@ double number_after(const std::string& text, const std::string& pattern) {
 using hq::console_test::parse_state;
 using hq::console_test::state_flag;
 using hq::console_test::state_number;
+using hq::console_test::state_text;
 
 // Mode transitions in the vehicle's own link log (hq-sim-flight --link-log: t_s,mode,...).
 int vehicle_mode_changes(const fs::path& link_log) {
@@ -90,10 +91,11 @@ std::string run_report(const fs::path& dir, const std::string& name,
 
 // GIVEN a flight recorded from before the vehicle's first state to after its last.
 void record_flight(const fs::path& dir, const fs::path& recording, const std::string& domain) {
-  Process ground({HQ_GROUND_EXE, "--device", "sim", "--haptics-config",
-                  "ground/config/demo_hand.yaml", "--domain-id", domain, "--insecure",
-                  "--duration-s", "9", "--headless", "--record", recording.string()},
-                 (dir / "ground.out").string());
+  Process ground(
+      {HQ_GROUND_EXE, "--device", "sim", "--haptics-config", "ground/config/demo_hand.yaml",
+       "--domain-id", domain, "--insecure", "--duration-s", "9", "--headless", "--record",
+       recording.string(), "--state-json", (dir / "live.json").string()},
+      (dir / "ground.out").string());
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   Process onboard(
       {HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml", "--duration-s", "5",
@@ -238,6 +240,31 @@ void expect_replay_ends(const fs::path& dir, const fs::path& recording) {
   EXPECT_EQ(state_number(parsed, "/link_events"), state_number(parsed, "/events")) << json;
   EXPECT_GT(state_number(parsed, "/camera_frames_received"), 20) << json;  // from the MCAP
   EXPECT_NE(slurp(dir / "replay_end.out").find("(end of recording)"), std::string::npos);
+  // The replay's last frame is the live console's last: what it derived from the vehicle's
+  // last state (the flight record has the whole state; replay feeds it the live path).
+  const nlohmann::json live = parse_state(slurp(dir / "live.json"));
+  for (const char* key : {"/flight_state", "/height_source", "/operator_input", "/mode"}) {
+    EXPECT_EQ(state_text(parsed, key), state_text(live, key))
+        << key << "\nreplay: " << json << "\nlive: " << live.dump();
+  }
+  // The vehicle sends it: neither "-" (unknown) nor absent.
+  EXPECT_NE(state_text(parsed, "/flight_state"), "-") << json;
+  EXPECT_NE(state_text(parsed, "/flight_state"), "") << json;
+  for (const char* key : {"/motors_armed", "/height_valid", "/position_from_vehicle"}) {
+    EXPECT_EQ(state_flag(parsed, key), state_flag(live, key)) << key << "\n" << json;
+  }
+  for (const char* key :
+       {"/height_m", "/clearance_m", "/hover_thrust_gain", "/obstacle_points", "/markers_latest"}) {
+    EXPECT_NEAR(state_number(parsed, key), state_number(live, key), 1e-3)
+        << key << "\nreplay: " << json << "\nlive: " << live.dump();
+  }
+  EXPECT_GT(state_number(live, "/obstacle_points"), 0) << live.dump();  // the arena's walls
+  // The top view's pose: dead reckoned over the same states (the recorder's receipt stamps
+  // differ from the link's by its thread's take).
+  EXPECT_NEAR(state_number(parsed, "/yaw_W_rad"), state_number(live, "/yaw_W_rad"), 0.02);
+  for (const char* key : {"/position_W_m/0", "/position_W_m/1"}) {
+    EXPECT_NEAR(state_number(parsed, key), state_number(live, key), 0.1) << key;
+  }
 }
 
 TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {

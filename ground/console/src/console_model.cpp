@@ -228,6 +228,16 @@ void ConsoleModel::reset() {
   mode_ = "-";
   estimator_health_ = "-";
   link_health_ = "-";
+  // A seek to before the first state shows no state's fields, as a live console before one.
+  flight_state_ = "-";
+  motors_armed_ = false;
+  height_valid_ = false;
+  height_m_ = 0;
+  height_source_ = "-";
+  operator_input_ = "";
+  clearance_m_ = -1;
+  hover_thrust_gain_ = 0;
+  hover_thrust_converged_ = false;
   roll_rad_ = 0;
   pitch_rad_ = 0;
   latest_ = PlotSample{};

@@ -330,7 +330,7 @@ const std::vector<std::string> kStateColumns = {
     "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
     "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
     "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
-    "v_cmd_flown_H_z_mps", "clearance_m"};
+    "v_cmd_flown_H_z_mps", "clearance_m", "hover_thrust_gain", "hover_thrust_converged"};
 constexpr std::size_t kRequiredStateColumns = 18;
 
 using Fields = std::vector<std::string_view>;
@@ -435,15 +435,113 @@ bool parse_state_flight(const CsvFile& file, const Fields& f, RecordedState& s,
   return true;
 }
 
+// Columns 40-41 (telemetry v2): the learnt hover thrust.
+bool parse_state_thrust(const CsvFile& file, const Fields& f, RecordedState& s,
+                        std::string& error) {
+  if (!file.has(40) || !file.has(41)) return true;
+  double gain = 0;
+  int converged = 0;
+  if (!parse_double(f[40], gain) || !parse_integer(f[41], converged)) {
+    error = "hover_thrust_gain = '" + std::string(f[40]) + "', hover_thrust_converged = '" +
+            std::string(f[41]) + "', expected a finite number and 0/1";
+    return false;
+  }
+  s.hover_thrust_gain = static_cast<float>(gain);
+  s.hover_thrust_converged = converged != 0;
+  return true;
+}
+
 void read_states(Recording& r, FileStarts& starts) {
   CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
   telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
     RecordedState s;
     if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
-        !parse_state_flight(telemetry, f, s, error)) {
+        !parse_state_flight(telemetry, f, s, error) ||
+        !parse_state_thrust(telemetry, f, s, error)) {
       return false;
     }
     r.states.push_back(s);
+    return true;
+  });
+}
+
+// The state a row of obstacles.csv or markers.csv belongs to: the one with its receipt_ns and
+// sequence; null if none.
+RecordedState* state_of(Recording& r, std::int64_t receipt_ns, std::uint64_t sequence) {
+  const auto first =
+      std::lower_bound(r.states.begin(), r.states.end(), receipt_ns,
+                       [](const RecordedState& s, std::int64_t t) { return s.receipt_ns < t; });
+  for (auto it = first; it != r.states.end() && it->receipt_ns == receipt_ns; ++it) {
+    if (it->sequence == sequence) return &*it;
+  }
+  return nullptr;
+}
+
+// A file added to the layout later (telemetry v2): absent in older recordings, which replay
+// without what it holds (named in absent_columns with what the replay lacks).
+bool optional_file(Recording& r, const std::string& name, const char* lacking) {
+  if (fs::exists(fs::path(r.directory) / name)) return true;
+  r.absent_columns.push_back(name + " (the whole file: an older recording; " + lacking + ")");
+  return false;
+}
+
+void read_obstacles(Recording& r) {
+  if (!optional_file(r, "obstacles.csv", "replay shows no obstacle cloud")) return;
+  const std::vector<std::string> columns = {"receipt_ns", "sequence", "p_B_x_m", "p_B_y_m",
+                                            "p_B_z_m"};
+  CsvFile(r, "obstacles.csv", columns).read([&](const Fields& f, std::string& error) {
+    std::int64_t receipt_ns = 0;
+    std::uint64_t sequence = 0;
+    std::array<float, 3> p{};
+    if (!parse_integer(f[0], receipt_ns) || !parse_integer(f[1], sequence)) {
+      error = "receipt_ns or sequence is not an integer";
+      return false;
+    }
+    if (!parse_floats(f, 2, columns, p, error)) return false;
+    RecordedState* s = state_of(r, receipt_ns, sequence);
+    if (s == nullptr) {
+      error = "no state in telemetry.csv with receipt_ns " + std::string(f[0]) + " and sequence " +
+              std::string(f[1]) + "; point skipped";
+      return false;
+    }
+    if (s->obstacle_points_body_m.size() >= hq_msgs_kMaxObstaclePoints) {
+      error = "more than " + std::to_string(hq_msgs_kMaxObstaclePoints) +
+              " points for one state (the link's bound); point skipped";
+      return false;
+    }
+    s->obstacle_points_body_m.push_back(p);
+    return true;
+  });
+}
+
+void read_markers(Recording& r) {
+  if (!optional_file(r, "markers.csv", "replay shows marker counts, not their poses")) return;
+  const std::vector<std::string> columns = {"receipt_ns", "sequence", "id",    "p_C_x_m", "p_C_y_m",
+                                            "p_C_z_m",    "q_C_w",    "q_C_x", "q_C_y",   "q_C_z"};
+  CsvFile(r, "markers.csv", columns).read([&](const Fields& f, std::string& error) {
+    std::int64_t receipt_ns = 0;
+    std::uint64_t sequence = 0;
+    MarkerView m;
+    std::array<float, 7> pose{};
+    if (!parse_integer(f[0], receipt_ns) || !parse_integer(f[1], sequence) ||
+        !parse_integer(f[2], m.id)) {
+      error = "receipt_ns, sequence or id is not an integer";
+      return false;
+    }
+    if (!parse_floats(f, 3, columns, pose, error)) return false;
+    m.p_camera_marker_m = {pose[0], pose[1], pose[2]};
+    m.q_camera_marker = {pose[3], pose[4], pose[5], pose[6]};
+    RecordedState* s = state_of(r, receipt_ns, sequence);
+    if (s == nullptr) {
+      error = "no state in telemetry.csv with receipt_ns " + std::string(f[0]) + " and sequence " +
+              std::string(f[1]) + "; marker skipped";
+      return false;
+    }
+    if (s->markers.size() >= kMaxMarkerViews) {
+      error = "more than " + std::to_string(kMaxMarkerViews) + " markers for one state; skipped";
+      return false;
+    }
+    s->markers.push_back(m);
     return true;
   });
 }
@@ -530,6 +628,8 @@ Recording load_csv_recording(const std::string& directory) {
   r.directory = directory;
   FileStarts starts;
   read_states(r, starts);
+  read_obstacles(r);
+  read_markers(r);
   read_commands(r, starts);
   read_mode_requests(r, starts);
   read_events(r, starts);

@@ -2,6 +2,7 @@
 // into the rows the CSV reader produces, so replay and hq-report treat both alike.
 #include "hq/console/flight_mcap.hpp"
 #include "hq/console/recording.hpp"
+#include "hq/console/state_feed.hpp"
 
 #include "recording_internal.hpp"
 
@@ -15,7 +16,7 @@ namespace hq::console {
 
 namespace {
 
-// The names the CSV recorder writes for the link's enums (ground_station.cpp), as static text.
+// The name the CSV recorder writes for a requested mode (ground_station.cpp), as static text.
 const char* mode_name(hq_msgs_Mode v) {
   static constexpr std::array<const char*, 5> kModes = {"teleop", "hover", "land", "marker",
                                                         "explore"};
@@ -23,91 +24,8 @@ const char* mode_name(hq_msgs_Mode v) {
   return intern(i < kModes.size() ? kModes[i] : "invalid");
 }
 
-const char* health_name(hq_msgs_Health v) {
-  static constexpr std::array<const char*, 3> kHealth = {"ok", "degraded", "lost"};
-  const auto i = static_cast<std::size_t>(v);
-  return intern(i < kHealth.size() ? kHealth[i] : "invalid");
-}
-
-template <std::size_t N>
-const char* name_of(const std::array<const char*, N>& names, int v) {
-  return v >= 0 && static_cast<std::size_t>(v) < N ? names[static_cast<std::size_t>(v)] : "unknown";
-}
-
-constexpr std::array<const char*, 4> kFlightStates = {"landed", "taking_off", "airborne",
-                                                      "landing"};
-constexpr std::array<const char*, 3> kHeightSources = {"none", "depth", "estimate"};
-constexpr std::array<const char*, 8> kOperatorInputs = {"flown",
-                                                        "none",
-                                                        "ignored_mode",
-                                                        "ignored_landed",
-                                                        "ignored_not_owner",
-                                                        "ignored_failsafe",
-                                                        "limited_unseen",
-                                                        "limited_envelope"};
-
-std::array<float, 3> array3(const hq_msgs_Vector3f& v) { return {v.x, v.y, v.z}; }
-
 bool finite3(const hq_msgs_Vector3f& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
-// Closest point of the down-sampled cloud to the body origin, NaN without one (the CSV's
-// closest_obstacle_m).
-double closest_cloud_point_m(const link::VehicleState& s) {
-  double best_sq = std::numeric_limits<double>::infinity();
-  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
-    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
-    const auto x = static_cast<double>(p.x);
-    const auto y = static_cast<double>(p.y);
-    const auto z = static_cast<double>(p.z);
-    best_sq = std::min(best_sq, x * x + y * y + z * z);
-  }
-  return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
-}
-
-// The flight fields as load_recording reads them from the CSV: unknown for a vehicle that
-// leaves them unfilled (session 0).
-void set_flight_fields(const link::VehicleState& s, RecordedState& out) {
-  out.session_id = s.session_id;
-  out.commanding_station_id = s.commanding_station_id;
-  out.flight_fields = s.session_id != 0;
-  if (!out.flight_fields) return;
-  out.flight_state = name_of(kFlightStates, static_cast<int>(s.flight_state));
-  out.motors_armed = s.motors_armed ? 1 : 0;
-  out.height_source = name_of(kHeightSources, static_cast<int>(s.height_source));
-  out.operator_input = name_of(kOperatorInputs, static_cast<int>(s.operator_input));
-  out.v_cmd_flown_H_mps = array3(s.v_cmd_flown_H_mps);
-  if (std::string_view(out.height_source) != "none" && std::isfinite(s.height_m)) {
-    out.height_m = s.height_m;
-  }
-  if (std::isfinite(s.clearance_m) && s.clearance_m >= 0) out.clearance_m = s.clearance_m;
-}
-
-RecordedState to_recorded(std::int64_t log_ns, std::int64_t publish_ns,
-                          const link::VehicleState& s) {
-  RecordedState out;
-  out.receipt_ns = log_ns;
-  out.latency_ms = 1e-6 * static_cast<double>(log_ns - publish_ns);
-  out.sequence = s.sequence_number;
-  out.vehicle_t_ns = s.t_ns;
-  out.v_H_mps = array3(s.v_H_mps);
-  out.omega_body_radps = array3(s.omega_body_radps);
-  out.roll_rad = s.roll_rad;
-  out.pitch_rad = s.pitch_rad;
-  out.v_obs_H_mps = array3(s.v_obs_H_mps);
-  out.mode = mode_name(s.mode);
-  out.estimator_health = health_name(s.estimator_health);
-  out.link_health = health_name(s.link_health);
-  out.closest_obstacle_m = closest_cloud_point_m(s);
-  out.position_valid = s.position_valid;
-  out.p_W_m = array3(s.p_W_m);
-  out.yaw_W_rad = s.yaw_W_rad;
-  out.truth_valid = s.truth_valid;
-  out.v_truth_H_mps = array3(s.v_truth_H_mps);
-  out.markers_n = static_cast<int>(s.markers._length);
-  set_flight_fields(s, out);
-  return out;
 }
 
 // The CSV reader refuses rows with a non-finite number; so does this one.
@@ -141,7 +59,9 @@ class RecordingBuilder : public FlightSampleSink {
                           std::to_string(s.sequence_number) + ": a field is not finite; skipped");
       return;
     }
-    r_.states.push_back(to_recorded(log_ns, publish_ns, s));
+    RecordedState row;
+    to_recorded(log_ns, 1e-6 * static_cast<double>(log_ns - publish_ns), s, row);
+    r_.states.push_back(std::move(row));
     state_vehicle_.push_back(s.vehicle_id);
     ++states_of_[s.vehicle_id];
   }

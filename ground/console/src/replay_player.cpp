@@ -1,5 +1,7 @@
 #include "hq/console/replay_player.hpp"
 
+#include "hq/console/state_feed.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -248,15 +250,9 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
     }
   }
   ++is_;
-  // Marker poses are not recorded (only their count): the replay shows none.
-  StateExtras extras;
-  extras.position_valid = s.position_valid;
-  extras.p_W_m = s.p_W_m;
-  extras.yaw_W_rad = s.yaw_W_rad;
-  extras.truth_valid = s.truth_valid;
-  extras.v_truth_H_mps = s.v_truth_H_mps;
-  model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad, s.pitch_rad,
-                 s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health, nullptr, 0, extras);
+  // The live link's path (state_feed.hpp): the replayed frame derives what the live one did.
+  // Link figures the record does not hold (state age, round trip) stay unknown (0).
+  hq::console::feed_state(model, s);
 }
 
 void ReplayPlayer::feed_streams(ConsoleModel& model, std::int64_t t_ns) {

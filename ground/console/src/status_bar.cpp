@@ -116,9 +116,10 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
   if (s.clearance_m >= 0) {
     std::snprintf(text, sizeof text, "%.2f m", static_cast<double>(s.clearance_m));
   } else {
-    std::snprintf(text, sizeof text, "-");
+    // The vehicle saw no obstacle within its depth range: news too, not a missing figure.
+    std::snprintf(text, sizeof text, "none in view or memory");
   }
-  row2.field("clearance", text, kText, grey, 19);
+  row2.field("clearance", text, kText, grey, 33);
   // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
   // file's mass or the FC's maximum thrust is off (the vehicle flies on the learnt value).
   const double thrust_pct = 100.0 * static_cast<double>(s.hover_thrust_gain);

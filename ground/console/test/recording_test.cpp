@@ -170,8 +170,12 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
       ::testing::IsSupersetOf({"telemetry.csv: closest_obstacle_m", "telemetry.csv: position_valid",
                                "telemetry.csv: truth_valid", "telemetry.csv: v_truth_H_x_mps",
                                "telemetry.csv: markers_n"}));
-  // 11 of the second layout's columns and 11 of the flight fields' (session .. clearance).
-  EXPECT_EQ(r.absent_columns.size(), 22U);
+  // 11 of the second layout's columns, 11 of the flight fields' (session .. clearance), the
+  // two hover thrust columns and the two files of telemetry v2 (obstacles.csv, markers.csv).
+  EXPECT_EQ(r.absent_columns.size(), 26U);
+  EXPECT_THAT(r.absent_columns,
+              ::testing::Contains(HasSubstr("obstacles.csv (the whole file: an older recording; "
+                                            "replay shows no obstacle cloud)")));
   EXPECT_FALSE(r.states[1].flight_fields);
   EXPECT_STREQ(r.states[1].flight_state, "unknown");
   EXPECT_TRUE(std::isnan(r.states[1].height_m));
@@ -195,8 +199,8 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const Recording r = load_recording(dir.string());
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
-  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:21: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:27: expected 41 fields"));
+  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:23: v_H_x_mps = 'abc'"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:29: expected 43 fields"));
   fs::remove_all(dir);
 }
 
@@ -225,8 +229,8 @@ TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
   std::ofstream(dir / "telemetry.csv") << text;
   const std::string message =
       hq::testing::input_error_message([&] { load_recording(dir.string()); });
-  EXPECT_THAT(message, HasSubstr("telemetry.csv:21: receipt_ns = 9099000000000000000 is "));
-  EXPECT_THAT(message, HasSubstr("after line 20's 1066000000, expected rows in time order at most "
+  EXPECT_THAT(message, HasSubstr("telemetry.csv:23: receipt_ns = 9099000000000000000 is "));
+  EXPECT_THAT(message, HasSubstr("after line 22's 1066000000, expected rows in time order at most "
                                  "3600 s apart"));
   fs::remove_all(dir);
 }
@@ -256,7 +260,7 @@ TEST(Recording, FileStartingFarFromTheOthersIsRejected) {
   std::ofstream(dir / "events.csv") << text;
   EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
               HasSubstr("events.csv:4: first stamp 5100000000000000000 is 5.1e+09 s after "
-                        "telemetry.csv:18's 1000000000, expected the files of one recording to "
+                        "telemetry.csv:20's 1000000000, expected the files of one recording to "
                         "start within 3600 s"));
   fs::remove_all(dir);
 }

@@ -164,6 +164,7 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.yaw_rate_gyro_radps = out.estimate.omega_body_radps.z();
   s.yaw_rate_true_radps = truth.omega_body_radps.z();
   s.clearance_m = truth.clearance_m;
+  s.clearance_sent_m = out.clearance_m;
   s.p_N_m = truth.T_world_body.translation();
   s.reason = out.safe_hover ? out.safe_hover_reason : "";
   s.flight_state = out.flight_state;

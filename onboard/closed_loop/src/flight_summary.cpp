@@ -35,6 +35,9 @@ FlightSummary summarise(const ClosedLoop& loop) {
   const FlightSample* last_airborne = nullptr;
   double previous_t_s = 0.0;
   for (const FlightSample& x : samples) {
+    if (x.clearance_sent_m >= 0.0 && !(x.clearance_sent_m >= s.min_clearance_sent_m)) {
+      s.min_clearance_sent_m = x.clearance_sent_m;  // NaN compares false: the first one
+    }
     const double dt_s = x.t_s - previous_t_s;
     previous_t_s = x.t_s;
     if (x.frame) ++s.frames;
@@ -78,7 +81,9 @@ void print_summary(std::FILE* out, const std::string& title, const FlightSummary
   row3("tracking RMSE, operator v*_des vs truth", s.operator_tracking_rmse_mps, "m/s");
   std::fprintf(out, "  %-40s %.3f rad/s\n", "yaw rate RMSE, command vs gyro",
                s.yaw_rate_rmse_radps);
-  std::fprintf(out, "  %-40s %.3f m\n", "closest distance (clearance)", s.min_clearance_m);
+  // The vehicle's own figure (the state's, the console's, hq-report's), then the truth.
+  std::fprintf(out, "  %-40s %.3f m\n", "closest distance (clearance)", s.min_clearance_sent_m);
+  std::fprintf(out, "  %-40s %.3f m\n", "closest distance, simulator truth", s.min_clearance_m);
   std::fprintf(out, "  %-40s %d\n", "collision ticks", s.collision_ticks);
   std::fprintf(out, "  %-40s %d, fastest %.2f m/s\n", "floor contacts (falls count as collisions)",
                s.floor_impacts, s.max_floor_impact_speed_mps);

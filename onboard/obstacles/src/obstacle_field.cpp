@@ -249,16 +249,16 @@ bool ObstacleField::check_near_range(const cv::Mat& depth_m, const Eigen::Matrix
 
 void ObstacleField::find_minima() {
   // Local minima within the suppression radius; ties go to the lower index so that a plateau
-  // yields one point. Only cells that can be within d0 of the body are candidates.
+  // yields one point. Every cell with a range (out to max_range_m) is a candidate: those beyond
+  // d0 push nothing but still give the clearance (ClearanceFilter), which the operator sees
+  // whenever an obstacle is in view, not only once it pushes.
   minima_.clear();
-  const double candidate_range_m =
-      config_.influence_distance_m + config_.vehicle_radius_m + p_B_C_m_.norm();
   const int r2 = radius_cells_ * radius_cells_;
   for (int cy = 0; cy < cells_y_; ++cy) {
     for (int cx = 0; cx < cells_x_; ++cx) {
       const int index = cy * cells_x_ + cx;
       const float range = cells_[static_cast<std::size_t>(index)].range_m;
-      if (!(static_cast<double>(range) < candidate_range_m)) continue;
+      if (!std::isfinite(range)) continue;
       bool is_minimum = true;
       for (int dy = -radius_cells_; dy <= radius_cells_ && is_minimum; ++dy) {
         const int ny = cy + dy;

@@ -381,8 +381,12 @@ TEST(ObstacleField, FloorInViewGivesTheHeightAboveItAndATableTopDoesNot) {
   result = field.compute(wall(1.0F), Eigen::Matrix3d::Identity());
   EXPECT_TRUE(std::isnan(result.floor_height_m));
   EXPECT_NEAR(result.min_clearance_m, 1.0 - config.vehicle_radius_m, 0.02);
-  // and nothing within range: no clearance either
+  // and a wall far beyond d0 pushes nothing but still gives the clearance the operator sees
   result = field.compute(wall(7.0F), Eigen::Matrix3d::Identity());
+  EXPECT_EQ(result.v_obs_horizontal_mps.norm(), 0.0);
+  EXPECT_NEAR(result.min_clearance_m, 7.0 - config.vehicle_radius_m, 0.05);
+  // and nothing within the sensor's range (max_range_m 8): no clearance
+  result = field.compute(wall(9.0F), Eigen::Matrix3d::Identity());
   EXPECT_EQ(result.min_clearance_m, -1.0);
 }
 

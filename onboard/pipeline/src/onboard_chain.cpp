@@ -265,6 +265,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, std::int64_t depth_t_ns, c
   const std::int64_t t_memory_ns = now_ns();
 
   sense_obstacles(t_ns, depth_m, odometry, R_H_B, out);
+  out.clearance_m = clearance_filter_.update(out.obstacles.min_clearance_m);
   const std::int64_t t_obstacles_ns = now_ns();
 
   // Without an estimate the PID gets none (nullopt): the velocity controller's safe-hover path
@@ -314,6 +315,8 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   out.estimate = estimator_.between_frames(t_ns, "camera timed out");
   out.estimate.unavailable_for_s = std::max(out.estimate.unavailable_for_s, silence_s);
   out.obstacles.reason = "no frame";
+  // No new depth: the clearance stands at the last frames' (as the console's cloud does).
+  out.clearance_m = clearance_filter_.clearance_m();
   // No frame: the seen space only ages (no pose to turn it with).
   v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
   velocity_from_odometry_ = out.estimate.ok();
@@ -384,7 +387,6 @@ void OnboardChain::finish_output(ChainOutput& out) const {
   if (out.flight_state == modes::FlightState::kAirborne && !takeoff_complete_) {
     out.flight_state = modes::FlightState::kTakingOff;
   }
-  out.clearance_m = out.obstacles.min_clearance_m;
   // The operator feels the envelope's cut as the seen space's: the climb flown is what the
   // vehicle does, and the command-versus-estimate cue pushes back on the rest.
   if (out.mode.envelope_limited && out.mode.mode == modes::Mode::kTeleop && !out.mode.taking_off) {

@@ -192,7 +192,9 @@ class TelemetryRecorder {
   std::FILE* modes_ = nullptr;
   std::FILE* rgb_list_ = nullptr;
   std::FILE* depth_list_ = nullptr;
-  std::string path_;  ///< Reused for frame file names.
+  std::FILE* obstacles_ = nullptr;  ///< obstacles.csv: each state's cloud, a point a row.
+  std::FILE* markers_ = nullptr;    ///< markers.csv: each state's marker poses.
+  std::string path_;                ///< Reused for frame file names.
   std::uint64_t frame_write_failures_ = 0;
   std::string error_;
   void written(int result, const char* file);

@@ -95,7 +95,9 @@ struct FlightSample {
   double yaw_rate_cmd_radps = 0.0;
   double yaw_rate_gyro_radps = 0.0;  ///< The estimator's low-passed, bias-corrected gyro z.
   double yaw_rate_true_radps = 0.0;
-  double clearance_m = 0.0;
+  double clearance_m = 0.0;  ///< Truth: surface to the vehicle sphere.
+  /// The vehicle's own clearance as sent in its state (ChainOutput, ClearanceFilter); < 0: none.
+  double clearance_sent_m = -1.0;
   Eigen::Vector3d p_N_m = Eigen::Vector3d::Zero();  ///< Truth, in the simulator's NWU world N.
   const char* reason = "";                          ///< Static text when safe_hover.
   /// The vehicle's own flight state and height above the floor (ChainOutput).

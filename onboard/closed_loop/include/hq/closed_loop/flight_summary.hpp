@@ -26,7 +26,10 @@ struct FlightSummary {
   Eigen::Vector3d tracking_rmse_mps = Eigen::Vector3d::Constant(NAN);
   Eigen::Vector3d operator_tracking_rmse_mps = Eigen::Vector3d::Constant(NAN);
   double yaw_rate_rmse_radps = NAN;  ///< Commanded against the gyro, as Fig. 8.
-  double min_clearance_m = NAN;      ///< Surface to vehicle sphere, over every physics tick.
+  double min_clearance_m = NAN;      ///< Truth: surface to vehicle sphere, every physics tick.
+  /// The vehicle's clearance as it sent it (ClearanceFilter), smallest over the flight's steps:
+  /// what the ground shows and hq-report finds; NaN if it never saw an obstacle.
+  double min_clearance_sent_m = NAN;
   int collision_ticks = 0;
   int floor_impacts = 0;  ///< touchdowns and impacts, each once
   double max_floor_impact_speed_mps = 0.0;

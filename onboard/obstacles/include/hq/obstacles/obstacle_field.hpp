@@ -83,8 +83,9 @@ struct ObstacleResult {
   /// Height of the body origin above the lowest near-horizontal surface seen below it (the
   /// floor), from the lower half of the image; NaN when no such surface is in view.
   double floor_height_m = std::numeric_limits<double>::quiet_NaN();
-  /// Smallest clearance (|p| - vehicle_radius_m, >= 0) of the points considered this step;
-  /// -1 when there were none.
+  /// This frame's clearance (ClearanceFilter's definition: |p| - vehicle_radius_m, >= 0) of
+  /// the nearest obstacle point in view out to max_range_m (support surfaces excluded) or in
+  /// the memory; -1 when there was none. Unfiltered: see ClearanceFilter.
   double min_clearance_m = -1.0;
 };
 

@@ -14,6 +14,7 @@
 #include "hq/marker_modes/marker_providers.hpp"
 #include "hq/modes/mode_controller.hpp"
 #include "hq/obstacle_memory/obstacle_memory.hpp"
+#include "hq/obstacles/clearance_filter.hpp"
 #include "hq/obstacles/obstacle_field.hpp"
 #include "hq/odometry/dense_odometry.hpp"
 #include "hq/seen_space/seen_space_limiter.hpp"
@@ -158,7 +159,9 @@ struct ChainOutput {
   /// drifts as any dead reckoning (the estimate's error times the flight time); it bounds the
   /// flight (modes.max_distance_from_takeoff_m), it does not navigate.
   Eigen::Vector2d offset_from_takeoff_H_m = Eigen::Vector2d::Zero();
-  /// Closest obstacle clearance the field saw this step (m); -1 when none.
+  /// The vehicle's clearance (hq/obstacles/clearance_filter.hpp: bounding sphere to the
+  /// nearest obstacle point in view or in the memory, median of the last frames), the figure
+  /// sent as VehicleState.clearance_m (m); -1 when none; held on steps without a frame.
   double clearance_m = -1.0;
   /// The safe hover lasted chain.safe_hover_land_s, so the chain asked to land.
   bool safe_hover_landing = false;
@@ -279,7 +282,7 @@ class OnboardChain {
   /// Dead-reckons the offset from the take-off point with a usable estimate (reset on the
   /// floor), hands it to the mode controller and fills out.offset_from_takeoff_H_m.
   void update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& out);
-  /// Fills out.flight_state and out.clearance_m after the mode step.
+  /// Fills out.flight_state after the mode step.
   void finish_output(ChainOutput& out) const;
   /// Before the controller runs: a gain learnt since the last output moves the controller's
   /// integral so the thrust sent does not jump.
@@ -298,6 +301,7 @@ class OnboardChain {
   estimator::VelocityEstimator estimator_;
   obstacle_memory::ObstacleMemory memory_;
   obstacles::ObstacleField obstacles_;
+  obstacles::ClearanceFilter clearance_filter_;
   seen_space::SeenSpaceLimiter seen_space_;
   modes::ModeController modes_;
   control::HoverThrustEstimator hover_thrust_;
