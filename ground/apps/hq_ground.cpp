@@ -142,6 +142,9 @@ class ModelFeed : public hq::ground::LinkObserver {
   }
   void on_event(std::int64_t receipt_ns, const hq::link::Event& e) override {
     model_.on_event(receipt_ns, static_cast<int>(e.severity), e.text);
+    // The station's notice of a new session comes before that session's first state: the
+    // top view and the plots start afresh for it (as a replay does).
+    if (e.code == hq::ground::kGroundEventVehicleRestarted) model_.start_new_track();
   }
 
  private:
@@ -185,6 +188,7 @@ nlohmann::ordered_json window_json(const hq::console::WindowStats* window) {
           {"display_width_px", w.display_width_px},
           {"display_height_px", w.display_height_px},
           {"link_lost_banner_frames", w.link_lost_banner_frames},
+          {"vehicle_ended_banner_frames", w.vehicle_ended_banner_frames},
           {"take_off_hint_frames", w.take_off_hint_frames},
           {"camera_shown_x_px", w.camera_shown_x_px},
           {"camera_shown_y_px", w.camera_shown_y_px},
@@ -252,6 +256,10 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   j["yaw_W_rad"] = decimals(s.yaw_W_rad, 3);
   j["hover_thrust_gain"] = decimals(s.hover_thrust_gain, 3);
   j["link_lost"] = s.link.link_lost;
+  j["vehicle_ended"] = s.link.vehicle_ended;
+  j["vehicle_ended_text"] = s.link.vehicle_ended_text.data();
+  j["sessions"] = s.sessions;
+  j["previous_track_points"] = s.previous_track_count;
   j["stale_s"] = decimals(s.link.state_age_s, 3);
   j["link_losses"] = s.link.link_losses;
   j["longest_link_loss_s"] = decimals(s.link.longest_loss_s, 3);

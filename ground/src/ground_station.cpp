@@ -639,6 +639,11 @@ void GroundStation::deliver_event(const link::Event& event) {
     ++status_.intrusion_reports;
     std::snprintf(status_.last_intrusion.data(), status_.last_intrusion.size(), "%s", event.text);
   }
+  if (event.code == link::kEventCodeVehicleEnded) {
+    status_.vehicle_ended = true;
+    std::snprintf(status_.vehicle_ended_text.data(), status_.vehicle_ended_text.size(), "%s",
+                  event.text);
+  }
   std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
   const std::int64_t now = dds_time();
   if (recorder_ != nullptr) recorder_->event(now, event);
@@ -671,12 +676,15 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::uint64_t write
   if (!plausible(s).ok) return reject(status_.states_implausible);
   if (s.session_id == 0) return reject(status_.states_wrong_session);  // no vehicle draws 0
   if (s.session_id != status_.vehicle_session) {
-    const bool live =
-        status_.vehicle_session != 0 && receipt_ns - session_receipt_ns_ <= kSessionLiveNs;
+    // A session that said goodbye is over: its successor need not wait for it to go quiet.
+    const bool live = status_.vehicle_session != 0 && !status_.vehicle_ended &&
+                      receipt_ns - session_receipt_ns_ <= kSessionLiveNs;
     if (live) return reject(status_.states_wrong_session);
     // The current session went quiet: a new vehicle process (a restart) took its place.
     const bool restart = status_.vehicle_session != 0;
     status_.vehicle_session = s.session_id;
+    status_.vehicle_ended = false;
+    status_.vehicle_ended_text[0] = '\0';
     state_sequence_.reset();
     if (restart) {
       ++status_.vehicle_restarts;
@@ -769,6 +777,15 @@ void GroundStation::notice(hq_msgs_Severity severity, std::uint32_t code, const 
 void GroundStation::note_echo(const link::Heartbeat& heartbeat) {
   // NTP with t0 our send (echo_t_ns), t1 = t2 - held the vehicle's receipt, t2 its send
   // (t_ns), t3 our receipt: round trip (t3 - t0) - held, offset ((t1 - t0) + (t2 - t3)) / 2.
+  if (heartbeat.session_id != echo_session_) {
+    // A restarted vehicle: its clock (CLOCK_MONOTONIC of another boot, or a simulator's time
+    // from 0) has nothing to do with its predecessor's. Mixing the two offsets put the state
+    // age at +150 s or -7 s; the new session's offset is learnt from its own echoes only.
+    echo_session_ = heartbeat.session_id;
+    echo_count_ = 0;
+    status_.have_clock_offset = false;
+    status_.last_state_age_ns = -1;
+  }
   const std::int64_t t3 = monotonic_now_ns();
   const std::int64_t round_trip_ns = t3 - heartbeat.echo_t_ns - heartbeat.echo_held_ns;
   if (round_trip_ns < 0 || heartbeat.echo_held_ns < 0) return;  // not our clock's echo

@@ -19,6 +19,7 @@ constexpr std::int64_t kStatusPeriodNs = 1'000'000'000;
 // Stale, lost or waiting, as the headless status line says it.
 const char* link_word(const LinkStatus& s, double age_s) {
   if (!s.have_state) return "waiting";
+  if (s.vehicle_ended) return "ENDED";
   return age_s < 0.2 ? "ok" : age_s < 2.0 ? "STALE" : "LOST";
 }
 
@@ -99,8 +100,10 @@ void OperatorStation::take_state(std::int64_t now_ns) {
 // The link-loss alarm: told once per loss on `out`, in the console's events and in the
 // recording (so a replay shows it), and counted for the summary.
 void OperatorStation::watch_link_loss(std::int64_t now_ns, double t_s) {
+  // A vehicle that said goodbye is silent on purpose: no alarm (its banner says why it ended).
+  const LinkStatus& st = link_.status();
   const console::LinkLossMonitor::Change loss =
-      link_loss_.update(link_.status().have_state ? link_.state_age_s() : -1.0);
+      link_loss_.update(st.have_state && !st.vehicle_ended ? link_.state_age_s() : -1.0);
   if (loss == console::LinkLossMonitor::Change::kNone) return;
   const bool lost = loss == console::LinkLossMonitor::Change::kLost;
   link::Event e{};
@@ -272,6 +275,8 @@ void OperatorStation::report_health(std::int64_t now_ns) {
   health.vehicle_id_count = st.vehicle_ids_seen_count;
   health.selected_vehicle = link_.vehicle_id();
   health.link_lost = link_loss_.lost();
+  health.vehicle_ended = st.vehicle_ended;
+  health.vehicle_ended_text = st.vehicle_ended_text;
   health.link_losses = link_loss_.losses();
   health.longest_loss_s = link_loss_.longest_s();
   model_.on_link(health);

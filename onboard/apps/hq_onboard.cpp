@@ -10,6 +10,9 @@
 //   hq-onboard ... --link [--link-config config.yaml] [--domain-id N] [--vehicle-id N]
 //              [--command-timeout-ms 200] [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10]
 //   hq-onboard ... --record DIR        the on-board MCAP flight log, DIR/onboard.mcap
+//   hq-onboard ... [--duration-s 0] [--on-stop land|hold] [--stop-timeout-s 30]
+//              however the run ends (its length, SIGINT/SIGTERM, the FC or camera lost) the
+//              vehicle lands (or holds), then says goodbye to the ground with the reason
 //
 // Exit status: 0 a good run (also when stopped by SIGINT or SIGTERM), 2 bad input, 4 the flight
 // controller lost, 5 a good flight whose --record failed (disk full; the flight went on without
@@ -79,11 +82,13 @@ int run(int argc, char** argv) {
   Options o;
   add_vehicle_options(app, o);
   add_flight_options(app, o, "replay: per-frame estimates and setpoints");
-  // 0 for a companion computer, whose run lasts until it is stopped (hq-onboard.service).
+  // A vehicle's run lasts until it is stopped unless a length is asked for: one that ended by
+  // itself mid-flight would leave its operator with a vehicle gone.
   app.add_option("--duration-s", o.duration_s,
-                 "sitl and cameras: run length (0: until SIGINT or SIGTERM)")
+                 "sitl and cameras: run length (default 0: until SIGINT or SIGTERM)")
       ->check(CLI::Range(0.0, 86400.0));
   add_ground_link_options(app, o);
+  add_stop_options(app, o);
   // Before parsing: the simulator's options (--world, --script) would be refused first, with
   // less to say.
   for (int i = 1; i < argc; ++i) {

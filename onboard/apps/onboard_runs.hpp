@@ -9,12 +9,14 @@
 #include "hq/onboard_log/onboard_recorder.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/steady_clock.hpp"
+#include "hq/vehicle/vehicle_runtime.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -35,7 +37,7 @@ struct Options {
   std::string resolution = "320x240";
   long long seed = -1;
   bool link = false;
-  double duration_s = 60.0;  ///< Wall-time runs; hq-onboard: 0 runs until SIGINT/SIGTERM.
+  double duration_s = 0.0;  ///< Wall-time runs; 0 (default) runs until SIGINT/SIGTERM.
   std::string link_config_path;
   hq::link::LinkOverrides link_overrides;
   double command_timeout_ms = 200.0;
@@ -52,6 +54,8 @@ struct Options {
   double sitl_wait_s = 10.0;
   double fc_lost_exit_s = -1.0;  ///< Stop after the FC is lost this long; 0 never; < 0 default.
   std::string record_dir;        ///< --record: DIR/onboard.mcap, the on-board flight log.
+  std::string on_stop = "land";  ///< --on-stop: land | hold when the run ends.
+  double stop_timeout_s = 30.0;  ///< --stop-timeout-s: the landing or hold given this long.
 };
 
 /// --config, --vehicle, --csv and --record, with the program's own help for --csv. Each program
@@ -65,7 +69,29 @@ extern const char* g_program_name;
 
 /// Set by SIGINT/SIGTERM; runs that last (sim --link, cameras) stop cleanly when it is.
 extern std::atomic<bool> g_stop;
+/// The signal that set g_stop first (0: none), and how many arrived: a second one cuts the
+/// landing short.
+extern std::atomic<int> g_stop_signal;
+extern std::atomic<int> g_stop_requests;
 void request_stop(int signal);
+/// "stopped by SIGTERM" (or SIGINT) for the goodbye.
+std::string signal_reason();
+
+/// --on-stop and --stop-timeout-s: what the vehicle does when its run ends.
+void add_stop_options(CLI::App& app, Options& o);
+/// How the wind-down of a run went, for the goodbye and the exit summary.
+struct StopOutcome {
+  std::string reason;  ///< Why the run ended: "run length 60 s reached", "stopped by SIGTERM".
+  std::string result;  ///< "landed", "holding", "landing cut short after 30 s", ...
+};
+/// Steps `step(t_ns)` (the caller's loop, one control period per call, returning the time it
+/// reached) after runtime.begin_stop() until the stop is complete, stop_timeout_s passed or a
+/// second signal arrived; says what happened in outcome.result.
+template <typename Step>
+void wind_down(const Options& o, vehicle::VehicleRuntime& runtime, std::int64_t t_ns, Step step,
+               StopOutcome& outcome);
+/// Publishes the goodbye on the link and says on stdout whether the ground acknowledged it.
+void say_goodbye(link_bridge::LinkBridge& bridge, std::int64_t t_ns, const StopOutcome& outcome);
 
 /// One live status line on stderr (overwritten in place).
 void print_status(const pipeline::ChainOutput& out, int frames);
@@ -101,6 +127,36 @@ inline int with_record_status(int flight_status, bool record_ok) {
 
 /// hq-onboard: replay, openni2, freenect and sitl, with --fc and --link: one VehicleRuntime.
 int run_vehicle(const Options& o);
+
+template <typename Step>
+void wind_down(const Options& o, vehicle::VehicleRuntime& runtime, std::int64_t t_ns, Step step,
+               StopOutcome& outcome) {
+  const vehicle::StopAction action =
+      o.on_stop == "hold" ? vehicle::StopAction::kHold : vehicle::StopAction::kLand;
+  const int signals = g_stop_requests.load();
+  const bool was_landed = runtime.last_output() && runtime.last_output()->mode.landed;
+  runtime.begin_stop(t_ns, action);
+  const std::int64_t deadline_ns = t_ns + static_cast<std::int64_t>(o.stop_timeout_s * 1e9);
+  while (!runtime.stop_complete() && t_ns < deadline_ns && g_stop_requests.load() == signals) {
+    t_ns = step();
+  }
+  if (was_landed) {
+    outcome.result = "on the ground";
+  } else if (runtime.status().fc_lost) {
+    outcome.result = "flight controller lost, not landed";
+  } else if (runtime.stop_complete()) {
+    outcome.result = action == vehicle::StopAction::kLand
+                         ? "landed"
+                         : "holding (the flight controller's failsafe takes over)";
+  } else if (g_stop_requests.load() != signals) {
+    outcome.result = std::string(vehicle::to_string(action)) + " cut short by a second signal";
+  } else {
+    char text[64];
+    std::snprintf(text, sizeof text, "%s not complete after %.0f s", vehicle::to_string(action),
+                  o.stop_timeout_s);
+    outcome.result = text;
+  }
+}
 /// hq-sim-flight: the closed loop on simulated time with the scripted operator, or paced to
 /// wall time and flown over the DDS link.
 int run_sim(const Options& o);

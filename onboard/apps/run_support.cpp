@@ -9,6 +9,7 @@
 #include "onboard_runs.hpp"
 
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <fmt/format.h>
 #include <memory>
@@ -18,8 +19,41 @@ namespace hq::onboard_app {
 
 const char* g_program_name = "hq-onboard";
 std::atomic<bool> g_stop{false};
+std::atomic<int> g_stop_signal{0};
+std::atomic<int> g_stop_requests{0};
 
-void request_stop(int /*signal*/) { g_stop = true; }
+void request_stop(int signal) {
+  int none = 0;
+  g_stop_signal.compare_exchange_strong(none, signal);
+  g_stop_requests.fetch_add(1);
+  g_stop = true;
+}
+
+std::string signal_reason() {
+  const int signal = g_stop_signal.load();
+  return signal == SIGTERM  ? "stopped by SIGTERM"
+         : signal == SIGINT ? "stopped by SIGINT"
+                            : "stopped by signal " + std::to_string(signal);
+}
+
+void add_stop_options(CLI::App& app, Options& o) {
+  app.add_option("--on-stop", o.on_stop,
+                 "when the run ends (its length, SIGINT/SIGTERM, the FC or camera lost): land, "
+                 "or hold and leave the rest to the FC's offboard-loss failsafe (default land)")
+      ->check(CLI::IsMember({"land", "hold"}));
+  app.add_option("--stop-timeout-s", o.stop_timeout_s,
+                 "the landing or hold at the end is given this long (a second signal cuts it "
+                 "short)")
+      ->check(CLI::Range(0.0, 600.0));
+}
+
+void say_goodbye(link_bridge::LinkBridge& bridge, std::int64_t t_ns, const StopOutcome& outcome) {
+  const std::string text = outcome.reason + "; " + outcome.result;
+  const bool acknowledged = bridge.say_goodbye(t_ns, text);
+  std::printf("%s: vehicle ended: %s (goodbye %s)\n", g_program_name, text.c_str(),
+              acknowledged ? "acknowledged by the ground"
+                           : "not acknowledged within 500 ms: the ground may see a link loss");
+}
 
 void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help) {
   app.add_option("--config", o.config_path, "on-board config");

@@ -305,6 +305,31 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
   return fc;
 }
 
+/// Paces a wall-time loop at one step a millisecond, with no burst of catch-up steps when late.
+class WallStepper {
+ public:
+  explicit WallStepper(hq::vehicle::VehicleRuntime& runtime)
+      : runtime_(runtime), next_ns_(hq::monotonic_now_ns()) {}
+  void sleep() {
+    next_ns_ += kLoopPeriodNs;
+    const std::int64_t now_ns = hq::monotonic_now_ns();
+    if (next_ns_ < now_ns) next_ns_ = now_ns;  // late: no burst of catch-up steps
+    hq::sleep_until_monotonic_ns(next_ns_);
+  }
+  /// One step of the wind-down (the source may have ended: the chain is still ticked).
+  std::int64_t operator()() {
+    sleep();
+    const std::int64_t t_ns = hq::monotonic_now_ns();
+    runtime_.step(t_ns);
+    return t_ns;
+  }
+
+ private:
+  static constexpr std::int64_t kLoopPeriodNs = 1'000'000;
+  hq::vehicle::VehicleRuntime& runtime_;
+  std::int64_t next_ns_;
+};
+
 /// Recorded time, as fast as the chain goes (with --link: at the recording's own pace, so a
 /// ground station sees it as it happened); the clock jumps to the first frame and over gaps.
 void run_recorded_time(const Options& o, hq::vehicle::VehicleRuntime& runtime,
@@ -328,9 +353,8 @@ void run_recorded_time(const Options& o, hq::vehicle::VehicleRuntime& runtime,
 }
 
 /// Wall time: the loop wakes every millisecond (frames and FC input within 1 ms); a camera
-/// blocks only its own thread.
-void run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
-  constexpr std::int64_t kLoopPeriodNs = 1'000'000;
+/// blocks only its own thread. Returns why the run ended.
+std::string run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
   const std::int64_t start_ns = hq::monotonic_now_ns();
   const std::int64_t end_ns = o.duration_s > 0.0
                                   ? start_ns + static_cast<std::int64_t>(o.duration_s * 1e9)
@@ -340,22 +364,29 @@ void run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime) {
   const bool sitl = o.source_kind == "sitl";
   const double fc_lost_exit_s = o.fc_lost_exit_s >= 0.0 ? o.fc_lost_exit_s : (sitl ? 3.0 : 0.0);
   std::int64_t fc_lost_since_ns = -1;
-  std::int64_t next_ns = start_ns;
-  while (!g_stop && runtime.step(hq::monotonic_now_ns()) && hq::monotonic_now_ns() < end_ns) {
+  WallStepper stepper(runtime);
+  char text[96];
+  while (true) {
+    if (g_stop) return signal_reason();
+    if (!runtime.step(hq::monotonic_now_ns())) {
+      return sitl ? "the simulator's frames ended" : "the camera's frames ended";
+    }
+    if (hq::monotonic_now_ns() >= end_ns) {
+      std::snprintf(text, sizeof text, "run length %g s reached", o.duration_s);
+      return text;
+    }
     if (runtime.status().fc_lost) {
       if (fc_lost_since_ns < 0) fc_lost_since_ns = hq::monotonic_now_ns();
       if (fc_lost_exit_s > 0.0 && hq::monotonic_now_ns() - fc_lost_since_ns >
                                       static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
         std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
-        break;
+        std::snprintf(text, sizeof text, "flight controller lost for %.1f s", fc_lost_exit_s);
+        return text;
       }
     } else {
       fc_lost_since_ns = -1;
     }
-    next_ns += kLoopPeriodNs;
-    const std::int64_t now_ns = hq::monotonic_now_ns();
-    if (next_ns < now_ns) next_ns = now_ns;  // late: no burst of catch-up steps
-    hq::sleep_until_monotonic_ns(next_ns);
+    stepper.sleep();
   }
 }
 
@@ -494,11 +525,26 @@ int run_vehicle(const Options& o) {
 
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
-  if (opened.tum != nullptr) {
-    run_recorded_time(o, runtime, port);
-  } else {
-    run_wall_time(o, runtime);
+  // Every way the run ends lands or holds (a live vehicle), then says goodbye on the link, so
+  // the operator reads why instead of a link loss: the run length, a signal, the FC or camera
+  // lost, or an error thrown from the loop.
+  StopOutcome stop;
+  try {
+    if (opened.tum != nullptr) {
+      run_recorded_time(o, runtime, port);
+      stop = {g_stop ? signal_reason() : "the recording ended", "replay, nothing flown"};
+    } else {
+      stop.reason = run_wall_time(o, runtime);
+      wind_down(o, runtime, hq::monotonic_now_ns(), WallStepper(runtime), stop);
+    }
+  } catch (const std::exception& e) {
+    if (bridge) {
+      say_goodbye(*bridge, hq::monotonic_now_ns(),
+                  {std::string("fatal error: ") + e.what(), "not landed by hq-onboard"});
+    }
+    throw;
   }
+  if (bridge) say_goodbye(*bridge, hq::monotonic_now_ns(), stop);
   if (live) std::fprintf(stderr, "\n");
   if (csv && std::fclose(csv) != 0) throw hq::InputError(o.csv_path + ": write failed");
 

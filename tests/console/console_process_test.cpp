@@ -330,6 +330,76 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
               state_number(parsed, "/stale_s"), state_number(parsed, "/window/fps"), shot.c_str());
 }
 
+TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfresh) {
+  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
+  use_loopback_dds();
+  const std::string domain = std::to_string(hq::testing::private_domain_id(83));
+  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_goodbye_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
+  const XvfbDisplay display(dir, "1280x800x24");
+  // GIVEN a simulated vehicle with no run length (it flies until stopped) and the console with
+  // the scripted hand, which takes off at 1 s and climbs until 4 s
+  const std::vector<std::string> vehicle = {
+      HQ_SIM_FLIGHT_EXE, "--link", "--world",   "onboard/sim/worlds/arena.yaml",
+      "--domain-id",     domain,   "--insecure"};
+  auto first = std::make_unique<Process>(vehicle, dir / "onboard1.out");
+  const fs::path state = dir / "state.json";
+  const fs::path recording = dir / "recording";
+  Process ground(
+      {HQ_GROUND_EXE, "--device", "sim", "--haptics-config", "ground/config/demo_hand.yaml",
+       "--domain-id", domain, "--insecure", "--duration-s", "120", "--record", recording.string(),
+       "--screenshot", (dir / "console.png").string(), "--state-json", state.string()},
+      dir / "ground.out");
+  // WHEN it is stopped by SIGTERM mid-flight (7 s in: airborne, flying forward)
+  std::this_thread::sleep_for(std::chrono::seconds(7));
+  first->signal(SIGTERM);
+  ASSERT_EQ(first->wait_exit(40.0), 0) << slurp(dir / "onboard1.out");
+  // THEN it landed and said goodbye, acknowledged by the console
+  const std::string out1 = slurp(dir / "onboard1.out");
+  EXPECT_NE(out1.find("vehicle stopping: landing"), std::string::npos) << out1;
+  EXPECT_NE(out1.find("vehicle ended: stopped by SIGTERM; landed (goodbye acknowledged"),
+            std::string::npos)
+      << out1;
+  // ... and the console, 3 s into the silence, raised no link loss: a calm "vehicle ended".
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  // WHEN a new vehicle process (a new session) starts and flies a few seconds
+  auto second = std::make_unique<Process>(vehicle, dir / "onboard2.out");
+  std::this_thread::sleep_for(std::chrono::seconds(6));
+  ground.signal(SIGTERM);
+  ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
+  second->signal(SIGTERM);
+  EXPECT_EQ(second->wait_exit(40.0), 0) << slurp(dir / "onboard2.out");
+
+  const std::string json = slurp(state);
+  const std::string ground_out = slurp(dir / "ground.out");
+  ASSERT_FALSE(json.empty()) << ground_out;
+  const nlohmann::json parsed = parse_state(json);
+  // THEN the goodbye was shown as its own banner, and never as a link loss
+  EXPECT_EQ(state_number(parsed, "/link_losses"), 0) << json;
+  EXPECT_EQ(state_number(parsed, "/window/link_lost_banner_frames"), 0) << json;
+  EXPECT_GT(state_number(parsed, "/window/vehicle_ended_banner_frames"), 3) << json;
+  EXPECT_EQ(ground_out.find("VEHICLE LINK LOST"), std::string::npos) << ground_out;
+  const std::string events = slurp(recording / "events.csv");
+  EXPECT_NE(events.find("vehicle ended: stopped by SIGTERM; landed"), std::string::npos) << events;
+  // ... and the new session replaced the ended one at once: its own track from W's origin,
+  // the old one kept greyed, its own plots, the banner gone with the new session
+  EXPECT_EQ(state_number(parsed, "/sessions"), 2) << json;
+  EXPECT_EQ(state_flag(parsed, "/vehicle_ended"), 0) << json;
+  EXPECT_GT(state_number(parsed, "/previous_track_points"), 100) << json;
+  EXPECT_GT(state_number(parsed, "/track_points"), 10) << json;
+  // 6 s of the new session at ~30 states/s: its plot holds no more than that
+  EXPECT_LT(state_number(parsed, "/plot_samples"), 8 * 40) << json;
+  EXPECT_GT(state_number(parsed, "/plot_samples"), 30) << json;
+  std::printf(
+      "goodbye: %g vehicle-ended banner frames, %g link losses; after the restart %g "
+      "plot samples, %g previous track points\n",
+      state_number(parsed, "/window/vehicle_ended_banner_frames"),
+      state_number(parsed, "/link_losses"), state_number(parsed, "/plot_samples"),
+      state_number(parsed, "/previous_track_points"));
+}
+
 TEST(ConsoleProcesses, WindowedGroundWithoutADisplaySaysUseHeadlessAndExits2) {
   const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_no_display_test";
   fs::remove_all(dir);

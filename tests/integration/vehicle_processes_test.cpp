@@ -181,6 +181,39 @@ TEST_F(VehicleProcesses, KillingTheGroundHoldsThenLandsThroughMavlink) {
   EXPECT_THAT(sim_out, HasSubstr("on the ground"));
 }
 
+// GIVEN the vehicle airborne, hq-onboard with no run length WHEN it is stopped by SIGTERM THEN
+// it lands through MAVLink before it ends, says goodbye to the ground, which acknowledges it and
+// raises no link loss for the silence that follows (its status line says ENDED).
+TEST_F(VehicleProcesses, SigtermMidFlightLandsThenSaysGoodbyeNotALinkLoss) {
+  Process sim(sim_args(90.0), file("sim.out"));
+  Process onboard(onboard_args(0.0), file("onboard.out"));
+  Process ground(ground_args(60.0), file("ground.out"));
+  ASSERT_TRUE(sim.started() && onboard.started() && ground.started());
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(25);
+  while (std::chrono::steady_clock::now() < end &&
+         sim_altitude(file("sim.out")).value_or(0) < 0.6) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_GE(sim_altitude(file("sim.out")).value_or(0), 0.6) << slurp(file("sim.out"));
+  onboard.signal(SIGTERM);
+  EXPECT_EQ(onboard.wait_exit(40.0), 0) << slurp(file("onboard.out"));
+  const std::string out = slurp(file("onboard.out"));
+  EXPECT_THAT(out, HasSubstr("vehicle stopping: landing before the run ends"));
+  EXPECT_THAT(out, HasSubstr("vehicle ended: stopped by SIGTERM; landed (goodbye acknowledged"));
+  // Down at the simulated vehicle's rest height when hq-onboard ended.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  EXPECT_LE(sim_altitude(file("sim.out")).value_or(1), 0.09) << slurp(file("sim.out"));
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  ground.signal(SIGTERM);
+  EXPECT_EQ(ground.wait_exit(20.0), 0) << slurp(file("ground.out"));
+  sim.signal(SIGTERM);
+  EXPECT_EQ(sim.wait_exit(10.0), 0);
+  const std::string ground_out = slurp(file("ground.out"));
+  EXPECT_THAT(ground_out, ::testing::Not(HasSubstr("VEHICLE LINK LOST")));
+  EXPECT_THAT(ground_out, HasSubstr("link ENDED"));
+  EXPECT_EQ(number_after(slurp(file("sim.out")), R"(collision ticks airborne ([0-9]+))"), 0.0);
+}
+
 // GIVEN a recorded sequence WHEN hq-onboard replays it with --link THEN a ground station
 // receives its states and camera frames, paced as recorded.
 TEST_F(VehicleProcesses, ReplayWithLinkReachesTheGround) {

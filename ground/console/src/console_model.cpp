@@ -25,6 +25,7 @@ ConsoleModel::ConsoleModel(const Capacity& capacity)
     : capacity_(capacity),
       plot_(std::max<std::size_t>(capacity.plot, 1)),
       track_(std::max<std::size_t>(capacity.track, 1)),
+      previous_track_(track_.size()),
       cloud_W_(capacity.cloud),
       events_(std::max<std::size_t>(capacity.events, 1)),
       jpeg_(capacity.jpeg_bytes),
@@ -72,6 +73,7 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
       y_W_m_ += (s * vx + c * vy) * dt_s;
     }
   }
+  if (sessions_ == 0) sessions_ = 1;
   have_state_ = true;
   last_state_ns_ = t_ns;
   PlotSample& p = plot_[plot_total_ % plot_.size()];
@@ -208,6 +210,8 @@ void ConsoleModel::reset() {
   last_state_ns_ = 0;
   plot_total_ = 0;
   track_total_ = 0;
+  previous_track_count_ = 0;
+  sessions_ = 0;
   cloud_count_ = 0;
   events_total_ = 0;
   jpeg_size_ = 0;
@@ -250,18 +254,32 @@ void ConsoleModel::reset() {
 
 void ConsoleModel::start_new_track() {
   const std::lock_guard<std::mutex> lock(mutex_);
+  // The old session's trail stays on the top view, greyed; a restart before any state of the
+  // new session has nothing of its own to keep.
+  if (track_total_ > 0) previous_track_count_ = copy_ring(track_, track_total_, previous_track_);
+  ++sessions_;
   track_total_ = 0;
   cloud_count_ = 0;
   yaw_W_rad_ = 0;
   x_W_m_ = 0;
   y_W_m_ = 0;
+  position_from_vehicle_ = false;
+  marker_count_ = 0;
   have_state_ = false;  // no dead-reckoning step across the restart
+  // The plots: another vehicle's clock and link; its first state is t = 0 of a fresh axis.
+  plot_total_ = 0;
+  latest_ = PlotSample{};
+  have_truth_ = false;
+  command_ = {};
+  yaw_rate_command_ = 0;
+  have_t0_ = false;
 }
 
 Snapshot ConsoleModel::make_snapshot() const {
   Snapshot s;
   s.plot.resize(plot_.size());
   s.track.resize(track_.size());
+  s.previous_track.resize(previous_track_.size());
   s.cloud_W.resize(cloud_W_.size());
   s.events.resize(events_.size());
   s.jpeg.resize(jpeg_.size());
@@ -274,6 +292,9 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.plot_count = copy_ring(plot_, plot_total_, out.plot);
   out.plot_total = plot_total_;
   out.track_count = copy_ring(track_, track_total_, out.track);
+  out.previous_track_count = previous_track_count_;
+  std::copy_n(previous_track_.begin(), previous_track_count_, out.previous_track.begin());
+  out.sessions = sessions_;
   out.cloud_count = cloud_count_;
   std::copy_n(cloud_W_.begin(), cloud_count_, out.cloud_W.begin());
   out.event_count = copy_ring(events_, events_total_, out.events);
@@ -328,6 +349,17 @@ bool control_banner(const LinkHealth& link, char* out, std::size_t size) {
                 "CONTROL LOST: station %u commands vehicle %u; this station (%u) does not: its "
                 "hand and mode requests are ignored",
                 link.commanding_station, link.selected_vehicle, link.own_station);
+  return true;
+}
+
+bool vehicle_ended_banner(const LinkHealth& link, char* out, std::size_t size) {
+  if (size == 0) return false;
+  out[0] = '\0';
+  if (!link.vehicle_ended) return false;
+  // The vehicle's text starts with "vehicle ended: " and says why and how it was left.
+  std::snprintf(
+      out, size, "vehicle %u: %s", link.selected_vehicle,
+      link.vehicle_ended_text[0] != '\0' ? link.vehicle_ended_text.data() : "vehicle ended");
   return true;
 }
 

@@ -635,6 +635,12 @@ struct ConsoleWindow::Impl {
       draw->AddRectFilled(q, ImVec2(q.x + 2, q.y + 2), kObstacle);
     }
     draw->PopClipRect();
+    // The previous vehicle session's trail, greyed: history, not where this vehicle is.
+    for (std::size_t i = 1; i < s.previous_track_count; ++i) {
+      draw->AddLine(to_px(s.previous_track[i - 1].x_W_m, s.previous_track[i - 1].y_W_m),
+                    to_px(s.previous_track[i].x_W_m, s.previous_track[i].y_W_m),
+                    IM_COL32(120, 120, 120, 160), 1.0F);
+    }
     for (std::size_t i = 1; i < s.track_count; ++i) {
       draw->AddLine(to_px(s.track[i - 1].x_W_m, s.track[i - 1].y_W_m),
                     to_px(s.track[i].x_W_m, s.track[i].y_W_m), kEstimated, 2.0F);
@@ -712,6 +718,7 @@ struct ConsoleWindow::Impl {
     place(0.75F, 0.58F, 0.25F, 0.42F);
     events_panel(s);
     link_lost_banner(s, top, W);
+    vehicle_ended_banner(s, top, W);
     stats.mode_shown = s.mode;
   }
 
@@ -839,6 +846,21 @@ struct ConsoleWindow::Impl {
     draw->AddText(font, size, ImVec2(std::max(4.0F, (width - extent.x) / 2), top + 6),
                   IM_COL32(255, 255, 255, 255), text);
     ++stats.link_lost_banner_frames;
+  }
+
+  /// Across the window when the vehicle said goodbye: why it ended, calm (it is no alarm).
+  void vehicle_ended_banner(const Snapshot& s, float top, float width) {
+    char text[200];
+    if (s.link.link_lost || !hq::console::vehicle_ended_banner(s.link, text, sizeof text)) return;
+    ImDrawList* draw = ImGui::GetForegroundDrawList();
+    const float size = 1.4F * ImGui::GetFontSize();
+    const float height = size + 12;
+    draw->AddRectFilled(ImVec2(0, top), ImVec2(width, top + height), IM_COL32(40, 70, 120, 235));
+    ImFont* font = ImGui::GetFont();
+    const ImVec2 extent = font->CalcTextSizeA(size, width, 0, text);
+    draw->AddText(font, size, ImVec2(std::max(4.0F, (width - extent.x) / 2), top + 6),
+                  IM_COL32(255, 255, 255, 255), text);
+    ++stats.vehicle_ended_banner_frames;
   }
 
   void control_panel(const Snapshot& s, UiActions& actions) {

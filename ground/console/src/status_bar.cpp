@@ -158,6 +158,11 @@ int link_state_text(const Snapshot& s, char* out, std::size_t size) {
     std::snprintf(out, size, "LOST %.1f s", l.state_age_s);
     return 2;
   }
+  if (l.vehicle_ended) {
+    // It said goodbye: silent on purpose, as the vehicle-ended banner says.
+    std::snprintf(out, size, "vehicle ended");
+    return 3;
+  }
   if (l.state_age_s > 0.5) {
     std::snprintf(out, size, "STALE %.1f s", l.state_age_s);
     return 1;

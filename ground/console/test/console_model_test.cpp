@@ -140,6 +140,71 @@ TEST(ConsoleModel, IntrusionBannerShowsTheVehiclesLatestReport) {
   EXPECT_STREQ(s.link.last_intrusion.data(), link.last_intrusion.data());
 }
 
+// GIVEN a vehicle that turned to -98 deg, left a trail and a cloud, with 150 s of plots WHEN it
+// restarts (a new session) THEN the new session's top view starts at W's origin with yaw 0 and
+// no cloud, the old trail is kept as the previous (greyed) one, and the plots hold only the new
+// session's states from t = 0: no axis spans both sessions. Events are kept.
+TEST(ConsoleModel, ARestartResetsThePoseTrailCloudAndPlotsOfTheOldSession) {
+  ConsoleModel m;
+  const float yaw_rate = static_cast<float>(-98.0 * M_PI / 180.0);  // -98 deg in 1 s
+  for (int i = 0; i <= 100; ++i) add_state(m, i * 10'000'000LL, 1.0F, yaw_rate);
+  const float cloud[3] = {2.0F, 0.0F, 0.0F};
+  m.on_state(1'010'000'000LL, 150'000.0, {1, 0, 0}, {0, 0, 0}, 0, 0, {0, 0, 0}, "teleop", "ok",
+             "ok", cloud, 1);
+  for (int i = 102; i < 15000; i += 100) add_state(m, i * 10'000'000LL, 0.0F, 0.0F);
+  m.on_event(150'000'000'000LL, 1, "vehicle 1 restarted (new session 2): request the mode again");
+  Snapshot before = m.make_snapshot();
+  m.snapshot(before);
+  ASSERT_NEAR(before.yaw_W_rad, -98.0 * M_PI / 180.0, 1e-2);
+  ASSERT_EQ(before.cloud_count, 1U);
+  ASSERT_GT(before.latest.t_s, 140.0F);
+  EXPECT_EQ(before.sessions, 1U);
+
+  m.start_new_track();
+  Snapshot s = m.make_snapshot();
+  m.snapshot(s);
+  EXPECT_EQ(s.sessions, 2U);
+  EXPECT_EQ(s.plot_count, 0U);
+  EXPECT_EQ(s.track_count, 0U);
+  EXPECT_EQ(s.cloud_count, 0U);
+  EXPECT_EQ(s.previous_track_count, before.track_count);
+  EXPECT_FLOAT_EQ(s.previous_track[s.previous_track_count - 1].x_W_m,
+                  before.track[before.track_count - 1].x_W_m);
+  EXPECT_EQ(s.event_count, before.event_count);
+
+  // The new vehicle's first states, on the same ground clock 200 s on, turning slightly left.
+  for (int i = 0; i <= 10; ++i) add_state(m, 200'000'000'000LL + i * 10'000'000LL, 0.5F, 0.035F);
+  m.snapshot(s);
+  EXPECT_EQ(s.plot_count, 11U);
+  EXPECT_FLOAT_EQ(s.plot[0].t_s, 0.0F);  // a fresh axis from the new session's first state
+  EXPECT_NEAR(s.plot[10].t_s, 0.1F, 1e-4);
+  for (std::size_t i = 0; i < s.plot_count; ++i) EXPECT_LT(s.plot[i].latency_ms, 2.0F);
+  EXPECT_NEAR(s.yaw_W_rad, 0.0035, 1e-4);  // +0.2 deg, not -98 deg carried on
+  EXPECT_NEAR(s.position_W.x_W_m, 0.05, 1e-3);
+  EXPECT_EQ(s.track_count, 11U);
+  EXPECT_EQ(s.previous_track_count, before.track_count);  // still shown, greyed
+  EXPECT_EQ(s.cloud_count, 0U);                           // the old cloud is not this vehicle's
+
+  m.reset();  // a replay seeking backwards forgets both sessions
+  m.snapshot(s);
+  EXPECT_EQ(s.previous_track_count, 0U);
+  EXPECT_EQ(s.sessions, 0U);
+}
+
+TEST(ConsoleModel, VehicleEndedBannerSaysWhyOnlyOnceTheVehicleSaidGoodbye) {
+  LinkHealth link;
+  link.selected_vehicle = 1;
+  char text[200];
+  EXPECT_FALSE(vehicle_ended_banner(link, text, sizeof text));
+  EXPECT_STREQ(text, "");
+  link.vehicle_ended = true;
+  std::snprintf(link.vehicle_ended_text.data(), link.vehicle_ended_text.size(), "%s",
+                "vehicle ended: stopped by SIGTERM; landed");
+  ASSERT_TRUE(vehicle_ended_banner(link, text, sizeof text));
+  EXPECT_STREQ(text, "vehicle 1: vehicle ended: stopped by SIGTERM; landed");
+  EXPECT_FALSE(vehicle_ended_banner(link, text, 0));
+}
+
 TEST(ConsoleModel, FlightStateHeightAndOperatorInputReachTheSnapshot) {
   ConsoleModel m;
   StateExtras extras;

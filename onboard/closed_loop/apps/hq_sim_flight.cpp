@@ -6,7 +6,8 @@
 //                 --script onboard/closed_loop/flights/core_paper_box.yaml
 //                 [--sim-config onboard/sim/config/sim.yaml] [--resolution 320x240] [--seed N]
 //                 [--csv fig6-8.csv] [--save-map map.pcd|map.ply]
-//   hq-sim-flight --world W --link [--duration-s 60] [--link-config config.yaml]
+//   hq-sim-flight --world W --link [--duration-s 0] [--on-stop land|hold] [--link-config
+//   config.yaml]
 //                 [--domain-id N] [--vehicle-id N] [--command-timeout-ms 200]
 //                 [--heartbeat-timeout-ms 2000] [--camera-rate-hz 10] [--link-log link.csv]
 //                 [--record DIR]
@@ -60,9 +61,11 @@ int run(int argc, char** argv) {
   add_sim_options(app, o);
   add_flight_options(app, o, "the Fig. 6-8 signals of a scripted flight");
   app.add_option("--duration-s", o.duration_s,
-                 "--link: run length (a scripted flight lasts its script)")
-      ->check(CLI::Range(0.1, 86400.0));
+                 "--link: run length (default 0: until SIGINT or SIGTERM; a scripted flight "
+                 "lasts its script)")
+      ->check(CLI::Range(0.0, 86400.0));
   add_ground_link_options(app, o);
+  add_stop_options(app, o);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -20,6 +20,7 @@
 #include <csignal>
 #include <cstdio>
 #include <fmt/format.h>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -95,7 +96,8 @@ int run_sim_link(const Options& o) {
                  "commands_rejected,mode_requests_rejected\n");
   }
   hq::closed_loop::OperatorScript script;
-  script.end_s = o.duration_s;
+  // Over the link the script gives only the length the flight record is sized for.
+  script.end_s = o.duration_s > 0.0 ? o.duration_s : 600.0;
   hq::closed_loop::ClosedLoopOptions options;
   options.realtime = true;
   hq::closed_loop::ClosedLoop loop(
@@ -112,14 +114,35 @@ int run_sim_link(const Options& o) {
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   std::fprintf(stderr,
-               "hq-sim-flight: simulated %s over the link: %.1f s, command timeout %.0f ms, "
+               "hq-sim-flight: simulated %s over the link: %s, command timeout %.0f ms, "
                "heartbeat timeout %.0f ms\n",
-               world.name.c_str(), o.duration_s, o.command_timeout_ms, o.heartbeat_timeout_ms);
+               world.name.c_str(),
+               o.duration_s > 0.0 ? fmt::format("{:.1f} s", o.duration_s).c_str()
+                                  : "until SIGINT or SIGTERM",
+               o.command_timeout_ms, o.heartbeat_timeout_ms);
+  const double end_s = o.duration_s > 0.0 ? o.duration_s : std::numeric_limits<double>::max();
   double t_s = 0.0;
-  while (t_s < o.duration_s && !g_stop) {
-    t_s = std::min(o.duration_s, t_s + 0.1);
+  while (t_s < end_s && !g_stop) {
+    t_s = std::min(end_s, t_s + 0.1);
     loop.run_until(t_s);
   }
+  // However the run ends, the vehicle lands (or holds) and says goodbye to the ground.
+  StopOutcome stop;
+  if (g_stop) {
+    stop.reason = signal_reason();
+  } else {
+    char text[64];
+    std::snprintf(text, sizeof text, "run length %g s reached", o.duration_s);
+    stop.reason = text;
+  }
+  wind_down(
+      o, loop.runtime(), loop.t_ns(),
+      [&loop] {
+        loop.run_until(1e-9 * static_cast<double>(loop.t_ns()) + 0.01);
+        return loop.t_ns();
+      },
+      stop);
+  say_goodbye(bridge, loop.t_ns(), stop);
   if (log && std::fclose(log) != 0) throw hq::InputError(o.link_log_path + ": write failed");
 
   const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);

@@ -331,6 +331,15 @@ void LinkBridge::publish_event(std::int64_t t_ns, hq_msgs_Severity severity, Eve
   event_writer_.write(*event_);
 }
 
+bool LinkBridge::say_goodbye(std::int64_t t_ns, std::string_view reason,
+                             std::int64_t ack_timeout_ns) {
+  char text[sizeof event_->text];
+  std::snprintf(text, sizeof text, "vehicle ended: %.*s", static_cast<int>(reason.size()),
+                reason.data());
+  publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kVehicleEnded, text);
+  return event_writer_.wait_for_acks(std::max<std::int64_t>(ack_timeout_ns, 0));
+}
+
 void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtras& extras) {
   const ObstacleCloudSource& cloud = extras.cloud;
   const FailsafeState& link_state = failsafe_.state();

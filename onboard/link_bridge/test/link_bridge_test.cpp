@@ -313,6 +313,42 @@ TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {
   EXPECT_EQ(state.operator_input, hq_msgs_INPUT_FLOWN);
 }
 
+// GIVEN a station matched to the vehicle WHEN the run ends THEN say_goodbye returns only once
+// the station acknowledged the goodbye: it is already in the station's reader, as an info event
+// with its own code, the reason and the session, the last of the session.
+TEST(LinkBridge, GoodbyeIsAcknowledgedBeforeItReturns) {
+  link::LinkConfig config = private_link();
+  Ground ground(config);
+  LinkBridge bridge(config, FailsafeConfig{});
+  pipeline::ChainOutput out;
+  link::VehicleState state{};
+  ASSERT_TRUE(publish_until(bridge, ground, out, state, [](const link::VehicleState&) {
+    return true;
+  }));  // discovered both ways
+  EXPECT_TRUE(bridge.say_goodbye(now_ns(), "stopped by SIGTERM; landed"));
+  link::Event event{};
+  dds_sample_info_t info{};
+  bool found = false;
+  while (ground.events.take(event, info)) {
+    if (!info.valid_data) continue;
+    found = event.code == link::kEventCodeVehicleEnded;
+  }
+  ASSERT_TRUE(found) << "the goodbye was not in the station's reader when say_goodbye returned";
+  EXPECT_EQ(event.code, static_cast<std::uint32_t>(EventCode::kVehicleEnded));
+  EXPECT_EQ(event.severity, hq_msgs_SEVERITY_INFO);
+  EXPECT_STREQ(event.text, "vehicle ended: stopped by SIGTERM; landed");
+  EXPECT_EQ(event.session_id, bridge.session_id());
+  EXPECT_EQ(bridge.events_sent(), event.sequence_number);
+}
+
+// GIVEN no station WHEN the vehicle says goodbye THEN it does not wait (nobody to acknowledge).
+TEST(LinkBridge, GoodbyeWithNoStationReturnsAtOnce) {
+  LinkBridge bridge(private_link(), FailsafeConfig{});
+  const std::int64_t start_ns = now_ns();
+  EXPECT_TRUE(bridge.say_goodbye(start_ns, "run length 1 s reached", 5'000'000'000));
+  EXPECT_LT(now_ns() - start_ns, 1'000'000'000);
+}
+
 // The memory's cloud rides on the state at the cloud rate, bounded, in the body frame.
 // The memory holds a wall 2 m along the camera's optical axis; whatever pose the body has in the
 // memory's world, the published points must sit 2 m along that axis seen from the body.

@@ -20,6 +20,8 @@ bool flying_mode(modes::Mode mode) {
 
 }  // namespace
 
+const char* to_string(StopAction action) { return action == StopAction::kLand ? "land" : "hold"; }
+
 VehicleRuntime::VehicleRuntime(pipeline::OnboardChain& chain, sources::FrameSource& source,
                                FlightController& fc, OperatorPort* op, const TruthSource* truth,
                                const RuntimeConfig& config)
@@ -118,10 +120,42 @@ void VehicleRuntime::feed_imu_until(std::int64_t t_ns) {
   }
 }
 
+void VehicleRuntime::begin_stop(std::int64_t t_ns, StopAction action) {
+  if (stopping_) return;
+  stopping_ = true;
+  stop_action_ = action;
+  arm_wanted_ = false;
+  chain_.set_operator_command({});
+  if (landed()) {
+    event(t_ns, FcSeverity::kInfo, "vehicle stopping: landed, motors idle");
+    return;
+  }
+  if (status_.fc_lost) {
+    event(t_ns, FcSeverity::kWarning,
+          "vehicle stopping: the flight controller is lost, nothing left to land through");
+    return;
+  }
+  const bool land = action == StopAction::kLand;
+  chain_.request_mode(land ? modes::Mode::kLand : modes::Mode::kHover,
+                      modes::RequestOrigin::kVehicle);
+  event(t_ns, FcSeverity::kWarning,
+        land ? "vehicle stopping: landing before the run ends"
+             : "vehicle stopping: holding; the flight controller's failsafe takes over at the end");
+}
+
+bool VehicleRuntime::stop_complete() const {
+  if (!stopping_) return false;
+  if (landed() || status_.fc_lost) return true;
+  return stop_action_ == StopAction::kHold && last_ && last_->mode.mode == modes::Mode::kHover;
+}
+
 void VehicleRuntime::take_operator(std::int64_t t_ns) {
   if (op_ == nullptr) return;
   requests_.clear();
-  const modes::OperatorCommand command = op_->poll(t_ns, requests_);
+  const modes::OperatorCommand polled = op_->poll(t_ns, requests_);
+  // Stopping: the port is polled (heartbeats, fail-safes) but the operator no longer flies.
+  if (stopping_) return;
+  const modes::OperatorCommand& command = polled;
   for (const pipeline::ModeRequest& request : requests_) {
     const modes::ModeSwitch result = chain_.request_mode(request);
     op_->on_mode_result(t_ns, request, result);

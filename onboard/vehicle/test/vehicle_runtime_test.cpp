@@ -269,6 +269,51 @@ TEST(VehicleRuntime, LandsWhenTheFlightControllerDisarms) {
   EXPECT_EQ(rig.chain.mode(), modes::Mode::kLand);
 }
 
+// GIVEN flying in teleop WHEN the run ends with StopAction::kLand THEN the chain lands on the
+// vehicle's own request, the operator's later requests to fly are not taken, and the stop is
+// complete only once the chain believes it is on the ground.
+TEST(VehicleRuntime, StopLandsAndNoLongerTakesTheOperator) {
+  // The plane ahead reads as 2 m of height: the floor is allowed that far for the touchdown.
+  pipeline::OnboardConfig config = airborne_config();
+  config.modes.touchdown_max_height_m = 5.0;
+  Rig rig(2000, config);
+  rig.fc.fc_status = {true, true, true, 0, -1.0, -1};
+  rig.chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
+  rig.run_until(10 * kFramePeriodNs);
+  ASSERT_FALSE(rig.runtime->stop_complete());
+  rig.runtime->begin_stop(rig.t_ns, StopAction::kLand);
+  EXPECT_TRUE(rig.runtime->stopping());
+  EXPECT_TRUE(contains(rig.port.events, "vehicle stopping: landing"));
+  EXPECT_EQ(rig.chain.mode(), modes::Mode::kLand);
+  rig.port.queued.push_back({modes::Mode::kTeleop, std::nullopt});
+  rig.run_until(rig.t_ns + 2 * kFramePeriodNs);
+  EXPECT_EQ(rig.chain.mode(), modes::Mode::kLand);
+  EXPECT_TRUE(rig.port.queued.empty());  // polled: the link stays served
+  EXPECT_FALSE(rig.runtime->stop_complete());
+  for (int i = 0; i < 3000 && !rig.runtime->stop_complete(); ++i) rig.run_until(rig.t_ns);
+  EXPECT_TRUE(rig.runtime->stop_complete());
+  ASSERT_TRUE(rig.runtime->last_output().has_value());
+  EXPECT_TRUE(rig.runtime->last_output()->mode.landed);
+  EXPECT_LT(rig.fc.last.thrust_n, 0.5);  // motors idle
+  EXPECT_EQ(rig.fc.arm_requests, 0);
+}
+
+// GIVEN flying in teleop WHEN the run ends with StopAction::kHold THEN the chain hovers and the
+// stop completes without landing; a second begin_stop changes nothing.
+TEST(VehicleRuntime, StopHoldsWhenAskedTo) {
+  Rig rig(200);
+  rig.fc.fc_status = {true, true, true, 0, -1.0, -1};
+  rig.chain.request_mode(modes::Mode::kTeleop, modes::RequestOrigin::kOperator);
+  rig.run_until(10 * kFramePeriodNs);
+  rig.runtime->begin_stop(rig.t_ns, StopAction::kHold);
+  rig.runtime->begin_stop(rig.t_ns, StopAction::kLand);
+  rig.run_until(rig.t_ns + 2 * kFramePeriodNs);
+  EXPECT_EQ(rig.chain.mode(), modes::Mode::kHover);
+  EXPECT_TRUE(rig.runtime->stop_complete());
+  EXPECT_FALSE(rig.runtime->last_output()->mode.landed);
+  EXPECT_TRUE(contains(rig.port.events, "vehicle stopping: holding"));
+}
+
 // After the first frames have sized every buffer, a step allocates nothing.
 TEST(VehicleRuntime, StepAllocatesNothingAfterTheFirstFrames) {
   pipeline::OnboardChain chain(airborne_config(), VehicleConfig{}, kCamera);

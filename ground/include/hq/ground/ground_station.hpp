@@ -137,6 +137,10 @@ struct LinkStatus {
   std::array<char, 161> last_intrusion{};           ///< Text of the latest one.
   std::array<std::uint32_t, 8> vehicle_ids_seen{};  ///< Ids of every vehicle heard from.
   std::size_t vehicle_ids_seen_count = 0;
+  /// The current session said goodbye (link::kEventCodeVehicleEnded): its silence is an end,
+  /// not a link loss, and the next session may start at once. Cleared by a new session.
+  bool vehicle_ended = false;
+  std::array<char, 161> vehicle_ended_text{};  ///< "vehicle ended: <reason>".
 };
 
 /// Everything the station takes from the link for the selected vehicle, as it arrives (called
@@ -337,6 +341,9 @@ class GroundStation final : public VehicleLink {
   };
   std::array<Echo, 16> echoes_{};
   std::size_t echo_count_ = 0;
+  /// The vehicle session whose heartbeats the echoes are from: another session's clock is
+  /// another clock, so its offset must not be mixed with this one's.
+  std::uint64_t echo_session_ = 0;
 };
 
 }  // namespace hq::ground

@@ -136,6 +136,9 @@ struct LinkHealth {
   bool link_lost = false;
   std::uint32_t link_losses = 0;  ///< Losses so far.
   double longest_loss_s = 0;      ///< Longest loss so far (the current one included).
+  /// The vehicle said goodbye (its run ended on purpose): no link-loss alarm for its silence.
+  bool vehicle_ended = false;
+  std::array<char, 161> vehicle_ended_text{};  ///< "vehicle ended: <reason>".
 };
 
 /// Where a replay stands (hq-ground --replay); inactive in a live console.
@@ -156,6 +159,10 @@ bool control_banner(const LinkHealth& link, char* out, std::size_t size);
 /// The loud line of a vehicle that reported an intrusion (another certificate speaking for a
 /// station; refused on board), written into `out`; false (out empty) if none was reported.
 bool intrusion_banner(const LinkHealth& link, char* out, std::size_t size);
+
+/// The calm line of a vehicle that said goodbye ("vehicle ended: stopped by SIGTERM; landed"),
+/// written into `out`; false (out empty) while the vehicle has not ended.
+bool vehicle_ended_banner(const LinkHealth& link, char* out, std::size_t size);
 
 /// The link-loss alarm's logic: lost once the newest vehicle state is older than lost_after_s,
 /// regained at the next fresh state; counts the losses and keeps the longest. Pure: the age is
@@ -189,6 +196,10 @@ struct Snapshot {
   std::uint64_t plot_total = 0;  ///< Samples ever added.
   std::vector<TrackPoint> track;
   std::size_t track_count = 0;
+  /// The previous vehicle session's track (before a restart), drawn greyed; oldest first.
+  std::vector<TrackPoint> previous_track;
+  std::size_t previous_track_count = 0;
+  std::uint64_t sessions = 0;       ///< Vehicle sessions shown (1 + restarts); 0 before any.
   std::vector<TrackPoint> cloud_W;  ///< Latest obstacle cloud, top view in W.
   std::size_t cloud_count = 0;
   std::vector<EventLine> events;  ///< Oldest first.
@@ -270,8 +281,11 @@ class ConsoleModel {
   /// Forgets every state, command, event and frame (a replay seeking backwards refills it);
   /// keeps the source and the buffers' storage.
   void reset();
-  /// A restarted vehicle (a new session): its track starts afresh at W's origin instead of
-  /// being joined to its predecessor's.
+  /// A restarted vehicle (a new session): what belonged to the old one is reset. Its track
+  /// starts afresh at W's origin with yaw 0 instead of being joined to its predecessor's (which
+  /// is kept as previous_track, drawn greyed), its cloud, markers and pose are dropped, and the
+  /// plots restart empty with the new session's first state at t = 0, so no axis spans two
+  /// sessions. Events are kept. Allocates nothing.
   void start_new_track();
 
   /// A Snapshot with every buffer at its capacity.
@@ -293,6 +307,9 @@ class ConsoleModel {
   std::uint64_t plot_total_ = 0;
   std::vector<TrackPoint> track_;  ///< Ring.
   std::uint64_t track_total_ = 0;
+  std::vector<TrackPoint> previous_track_;  ///< Oldest first, sized as track_.
+  std::size_t previous_track_count_ = 0;
+  std::uint64_t sessions_ = 0;
   std::vector<TrackPoint> cloud_W_;
   std::size_t cloud_count_ = 0;
   std::vector<EventLine> events_;  ///< Ring.

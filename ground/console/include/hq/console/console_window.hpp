@@ -72,7 +72,9 @@ struct WindowStats {
   int display_width_px = 0;
   int display_height_px = 0;
   std::uint64_t link_lost_banner_frames = 0;  ///< Frames drawn with the link-loss banner.
-  std::uint64_t take_off_hint_frames = 0;     ///< Frames drawn with the landed take-off hint.
+  /// Frames drawn with the banner of a vehicle that said goodbye ("vehicle ended: ...").
+  std::uint64_t vehicle_ended_banner_frames = 0;
+  std::uint64_t take_off_hint_frames = 0;  ///< Frames drawn with the landed take-off hint.
   /// The camera image as last drawn: its size on screen and whether all of it was visible.
   int camera_shown_x_px = 0;
   int camera_shown_y_px = 0;

@@ -144,6 +144,10 @@ class ClosedLoop {
   [[nodiscard]] const sim::Simulator& simulator() const { return *sim_; }
   [[nodiscard]] pipeline::OnboardChain& chain() { return *chain_; }
   [[nodiscard]] const vehicle::VehicleRuntime& runtime() const { return *runtime_; }
+  /// The runtime itself: begin_stop() when a run over the link ends.
+  [[nodiscard]] vehicle::VehicleRuntime& runtime() { return *runtime_; }
+  /// Simulated time reached by run_until().
+  [[nodiscard]] std::int64_t t_ns() const { return t_ns_; }
   [[nodiscard]] const SimFlightController& flight_controller() const { return *fc_; }
   [[nodiscard]] const OperatorPlayer& player() const { return player_; }
 

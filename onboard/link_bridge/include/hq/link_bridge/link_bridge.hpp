@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string_view>
 #include <vector>
 
 namespace hq::link_bridge {
@@ -43,6 +44,8 @@ enum class EventCode : std::uint32_t {
   // 20+: ownership and escalation (numbered apart from codes other work may add after 11).
   kCommanderChanged = 20,  ///< Another station commands the vehicle now.
   kHoldToLand = 21,        ///< Held without commands for hold_to_land: landing.
+  /// The run ended on purpose, after landing or holding: the session's last event.
+  kVehicleEnded = link::kEventCodeVehicleEnded,
   /// Samples claiming another station than their writer's certificate (refused).
   kIntrusion = link::kEventCodeIntrusion,
 };
@@ -147,6 +150,15 @@ class LinkBridge {
   /// Publishes an event (text truncated to the message's bound).
   void publish_event(std::int64_t t_ns, hq_msgs_Severity severity, EventCode code,
                      const char* text);
+
+  /// The session's last event, before the participant goes: "vehicle ended: <reason>" (info,
+  /// kVehicleEnded), then waits at most ack_timeout_ns for every matched station to acknowledge
+  /// it, so the ground learns the vehicle said goodbye instead of seeing a link loss. Returns
+  /// true when all acknowledged (or none is matched), false on timeout. Blocks: call it once, at
+  /// the end of a run, never from the control loop.
+  bool say_goodbye(std::int64_t t_ns, std::string_view reason,
+                   std::int64_t ack_timeout_ns = kGoodbyeAckTimeoutNs);
+  static constexpr std::int64_t kGoodbyeAckTimeoutNs = 500'000'000;
 
   [[nodiscard]] const Failsafe& failsafe() const { return failsafe_; }
   /// The ROS 2 topics, null unless link.ros2.enabled.

@@ -76,6 +76,12 @@ class OperatorPort {
   }
 };
 
+/// What the vehicle does when its run ends (the run length, SIGINT/SIGTERM, a fatal error):
+/// land where it is, or hold (hover) and leave the rest to the flight controller's own
+/// offboard-loss failsafe once the setpoint stream stops.
+enum class StopAction { kLand, kHold };
+const char* to_string(StopAction action);
+
 struct RuntimeConfig {
   /// The chain is ticked at this period between frames (camera timeout, IMU coast).
   std::int64_t control_period_ns = 5'000'000;
@@ -113,6 +119,16 @@ class VehicleRuntime final : private FcSink {
   /// One step at t_ns (non-decreasing). Returns false once the frame source has ended and its
   /// last frame was processed.
   bool step(std::int64_t t_ns);
+
+  /// The run is ending: from now on the operator's commands and mode requests are not taken
+  /// (the port is still polled, so the link stays served), and the chain lands or holds on the
+  /// vehicle's own request (never held by the modes' dwell). Said once as an event. Keep
+  /// stepping until stop_complete(); a source that has ended is still ticked.
+  void begin_stop(std::int64_t t_ns, StopAction action);
+  /// begin_stop() was called and the vehicle is where it should end: landed (kLand, also when it
+  /// never took off), hovering (kHold), or the flight controller lost (nothing to fly through).
+  [[nodiscard]] bool stop_complete() const;
+  [[nodiscard]] bool stopping() const { return stopping_; }
 
   /// Stamp of a frame read ahead and waiting for the clock to reach it (replays).
   [[nodiscard]] std::optional<std::int64_t> pending_frame_t_ns() const;
@@ -168,6 +184,8 @@ class VehicleRuntime final : private FcSink {
   std::int64_t next_arm_attempt_ns_ = 0;
   bool was_flying_offboard_ = false;
   bool said_hover_thrust_ = false;  ///< The learnt hover thrust was announced.
+  bool stopping_ = false;           ///< begin_stop() was called.
+  StopAction stop_action_ = StopAction::kLand;
   /// A frame's estimate was unusable since the last velocity reported: the estimator re-seeds
   /// its filter, so the next one is a restart (reset_counter), not a continuation.
   bool velocity_interrupted_ = false;

@@ -252,6 +252,11 @@ class Writer {
   bool unregister(const T& key_sample) noexcept {
     return ok(dds_unregister_instance(entity_.handle(), &key_sample));
   }
+  /// Blocks until every matched reliable reader acknowledged what was written, at most
+  /// timeout_ns. True when all did (also with no reader matched); false on timeout or error.
+  bool wait_for_acks(std::int64_t timeout_ns) noexcept {
+    return ok(dds_wait_for_acks(entity_.handle(), timeout_ns));
+  }
   /// Readers currently matched.
   [[nodiscard]] std::uint32_t matched_readers() const {
     dds_publication_matched_status_t status{};

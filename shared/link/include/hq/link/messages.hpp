@@ -55,6 +55,10 @@ struct Validation {
 /// Event.code of a vehicle's intrusion report: samples claiming a station their writer's
 /// certificate is not (hq/link/writer_binding.hpp). Stations raise it to their operator.
 inline constexpr std::uint32_t kEventCodeIntrusion = 22;
+/// Event.code of a vehicle's goodbye: its run ended on purpose (run length, SIGINT/SIGTERM, a
+/// fatal error), after landing or holding; the text says why. The last event of a session: a
+/// station shows it instead of raising a link loss when the vehicle falls silent.
+inline constexpr std::uint32_t kEventCodeVehicleEnded = 23;
 
 /// Rejects NaN/Inf and components outside `envelope`.
 Validation validate(const VelocityCommand& command, const CommandEnvelope& envelope);
