@@ -189,7 +189,20 @@ nlohmann::ordered_json window_json(const hq::console::WindowStats* window) {
           {"display_height_px", w.display_height_px},
           {"link_lost_banner_frames", w.link_lost_banner_frames},
           {"vehicle_ended_banner_frames", w.vehicle_ended_banner_frames},
-          {"take_off_hint_frames", w.take_off_hint_frames}};
+          {"take_off_hint_frames", w.take_off_hint_frames},
+          {"camera_shown_x_px", w.camera_shown_x_px},
+          {"camera_shown_y_px", w.camera_shown_y_px},
+          {"camera_shown_width_px", w.camera_shown_width_px},
+          {"camera_shown_height_px", w.camera_shown_height_px},
+          {"camera_image_whole", w.camera_image_whole},
+          {"force_bars_whole", w.force_bars_whole},
+          {"climb_shown_max_mps", decimals(w.climb_shown_max_mps, 3)},
+          {"climb_shown_min_mps", decimals(w.climb_shown_min_mps, 3)},
+          {"alarm_cause", w.alarm_cause},
+          {"alarm_muted", w.alarm_muted},
+          {"alarm_audio", w.alarm_audio},
+          {"alarm_tone_samples", w.alarm_tone_samples},
+          {"alarm_frames", w.alarm_frames}};
 }
 
 // Ownership and the checks on what the vehicle sends, in the state JSON.
@@ -230,6 +243,9 @@ void write_state_json(const std::string& path, const hq::console::Snapshot& s,
   j["markers_latest"] = s.marker_count;
   j["marker_detections"] = s.marker_detections;
   j["flight_state"] = s.flight_state;
+  j["flight_time_s"] = decimals(s.flight_time_s, 2);
+  j["marker_target_id"] = s.marker_target_id;
+  j["explore_phase"] = s.explore_phase;
   j["motors_armed"] = s.motors_armed;
   j["height_valid"] = s.height_valid;
   j["height_m"] = decimals(s.height_m, 3);

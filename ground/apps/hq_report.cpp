@@ -368,10 +368,13 @@ void write_time_plots(std::ofstream& gp, const std::string& format,
 
 void write_top_view(std::ofstream& gp, const std::string& format, const Summary& sum) {
   gp << "unset object\nunset arrow\nunset label\nset autoscale x\nunset xrange\n";
-  gp << "set output '" << ("top_view." + format) << "'\n"
-     << "set title 'Top view, dead-reckoned from v_H and gyro yaw (drifts); one track per "
+  gp << "set output '" << ("top_view." + format)
+     << "'\n"
+     // Two lines (a gnuplot double-quoted "\\n"): on one, the square plot's narrow canvas
+     // cut the title off at both ends.
+     << "set title \"Top view, dead-reckoned from v_H and gyro yaw (drifts)\\none track per "
         "vehicle session"
-     << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "'\n"
+     << (sum.position_samples > 0 ? "; vehicle position from the marker filter" : "") << "\"\n"
      << "set size ratio -1\nset xlabel 'east y_W [m]'\nset ylabel 'north x_W [m]'\n"
      << "set autoscale\n"
      << "plot d u 14:13 w l lw 2 t 'track (dead-reckoned)', d u (column(14)):(column(13)) "

@@ -213,7 +213,7 @@ constexpr const char* kTelemetryHeader =
     "# marker map's world frame W (NED); 0: no anchored pose (values meaningless).\n"
     "# truth_valid 1: v_truth_H is the simulator's true velocity in H (m/s); 0: a\n"
     "# real vehicle, no truth. markers_n: markers detected in the state's frame.\n"
-    "# session_id: the vehicle process's session (a new value: the vehicle restarted);\n"
+    "# session_id: the vehicle process's session, hex as the console says it (new: restart);\n"
     "# commanding_station_id: the station it obeys (0 none); flight_state, motors_armed;\n"
     "# height_m above the floor from height_source (none: meaningless);\n"
     "# operator_input: what the vehicle did with the command; v_cmd_flown_H: the\n"
@@ -350,7 +350,8 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
       std::fprintf(
           telemetry_,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,%llu,%u,%s,%d,%s,%.4f,%s,%.4f,"
+          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,0x%016llx,%u,%s,%d,%s,%.4f,%s,%."
+          "4f,"
           "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
@@ -698,7 +699,7 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::uint64_t write
       status_.waiting_for_vehicle = false;
       char text[128];
       std::snprintf(text, sizeof text,
-                    "vehicle %u restarted (new session %016llx): request the mode again",
+                    "vehicle %u restarted (new session 0x%016llx): request the mode again",
                     config_.vehicle_id, static_cast<unsigned long long>(s.session_id));
       notice(hq_msgs_SEVERITY_WARNING, kGroundEventVehicleRestarted, text);
     } else if (pending_request_) {

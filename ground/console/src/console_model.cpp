@@ -110,6 +110,7 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   }
   mode_ = mode;
   estimator_health_ = estimator_health;
+  track_flight(t_s, extras.flight_state);
   flight_state_ = extras.flight_state;
   motors_armed_ = extras.motors_armed;
   height_valid_ = extras.height_valid && std::isfinite(extras.height_m);
@@ -119,6 +120,8 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   clearance_m_ = std::isfinite(extras.clearance_m) ? extras.clearance_m : -1.0F;
   hover_thrust_gain_ = std::isfinite(extras.hover_thrust_gain) ? extras.hover_thrust_gain : 0.0F;
   hover_thrust_converged_ = extras.hover_thrust_converged && hover_thrust_gain_ > 0.0F;
+  marker_target_id_ = extras.marker_target_id;
+  explore_phase_ = extras.explore_phase != nullptr ? extras.explore_phase : "";
   link_health_ = link_health;
   roll_rad_ = roll_rad;
   pitch_rad_ = pitch_rad;
@@ -148,11 +151,33 @@ void ConsoleModel::on_command(std::int64_t t_ns, const std::array<float, 3>& v_H
 
 void ConsoleModel::on_event(std::int64_t t_ns, int severity, const char* text) {
   const std::lock_guard<std::mutex> lock(mutex_);
+  add_event(seconds(t_ns), severity, text);
+}
+
+void ConsoleModel::add_event(double t_s, int severity, const char* text) {
   EventLine& e = events_[events_total_ % events_.size()];
-  e.t_s = seconds(t_ns);
+  e.t_s = t_s;
   e.severity = severity;
   std::snprintf(e.text.data(), e.text.size(), "%s", text);
   ++events_total_;
+}
+
+// The flight timer runs from the first state off the ground to the next one on it, the
+// touchdown, which the events say with the flight's length (the vehicle's own "landed" event
+// is about the FC's setpoints, and a replay seeks past it).
+void ConsoleModel::track_flight(double t_s, const char* flight_state) {
+  if (std::strcmp(flight_state, "-") == 0) return;  // a state that does not say
+  const bool landed = std::strcmp(flight_state, "landed") == 0;
+  last_state_s_ = t_s;
+  if (!landed && take_off_s_ < 0) take_off_s_ = t_s;
+  if (landed && take_off_s_ >= 0) {
+    last_flight_s_ = t_s - take_off_s_;
+    take_off_s_ = -1;
+    const int s = static_cast<int>(last_flight_s_);
+    char text[64];
+    std::snprintf(text, sizeof text, "touchdown: landed after %02d:%02d of flight", s / 60, s % 60);
+    add_event(t_s, 0, text);
+  }
 }
 
 void ConsoleModel::on_camera(std::int64_t t_ns, const std::uint8_t* jpeg, std::size_t jpeg_size,
@@ -234,6 +259,10 @@ void ConsoleModel::reset() {
   pitch_rad_ = 0;
   latest_ = PlotSample{};
   link_ = LinkHealth{};
+  take_off_s_ = -1;
+  last_flight_s_ = -1;
+  marker_target_id_ = -1;
+  explore_phase_ = "";
 }
 
 void ConsoleModel::start_new_track() {
@@ -296,6 +325,10 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.estimator_health = estimator_health_;
   out.link_health = link_health_;
   out.flight_state = flight_state_;
+  out.marker_target_id = marker_target_id_;
+  out.explore_phase = explore_phase_;
+  out.flight_time_s = take_off_s_ >= 0 ? last_state_s_ - take_off_s_ : last_flight_s_;
+  out.airborne = take_off_s_ >= 0;
   out.motors_armed = motors_armed_;
   out.height_valid = height_valid_;
   out.height_m = height_m_;

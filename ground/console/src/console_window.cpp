@@ -3,7 +3,10 @@
 #include "hq/base/error.hpp"
 #include "hq/console/position_status.hpp"
 
+#include "alarm.hpp"
+#include "camera_panel.hpp"
 #include "replay_strip.hpp"
+#include "status_bar.hpp"
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -45,9 +48,9 @@ constexpr ImU32 kStale = IM_COL32(120, 120, 120, 255);
 constexpr ImU32 kCameraAxis = IM_COL32(255, 200, 60, 255);
 /// The newest vehicle state older than this: its fields are greyed and marked STALE.
 constexpr double kStaleAfterS = 0.5;
-constexpr const char* kKeyHint =
-    "keys: U take off | W/S forward/back | A/D or Q/E yaw | PgUp/PgDn climb/descend | T teleop | "
-    "H hover | L land | M marker | X explore | Esc quit";
+/// The panels' background: the frame is cleared to it and the windows draw none, so that
+/// the software renderer fills the screen once, not once more per panel.
+constexpr float kBackground[3] = {0.06F, 0.06F, 0.07F};
 
 // One GL texture holding a decoded image.
 struct Texture {
@@ -264,10 +267,6 @@ class FrameDecoder {
   std::thread worker_;  ///< Last: starts once everything above exists.
 };
 
-ImTextureID texture_id(GLuint id) {
-  return reinterpret_cast<ImTextureID>(static_cast<std::intptr_t>(id));
-}
-
 // Lines of several series over the plot's time window, in a framed box with a zero line.
 struct Series {
   const char* label;
@@ -276,7 +275,7 @@ struct Series {
 };
 
 void draw_plot(const char* title, const Snapshot& s, const Series* series, int series_count,
-               float window_s, float height_px) {
+               float window_s, float height_px, std::vector<ImVec2>& line) {
   ImGui::TextUnformatted(title);
   ImGui::SameLine();
   for (int k = 0; k < series_count; ++k) {
@@ -287,7 +286,6 @@ void draw_plot(const char* title, const Snapshot& s, const Series* series, int s
   const ImVec2 origin = ImGui::GetCursorScreenPos();
   const float width_px = std::max(ImGui::GetContentRegionAvail().x, 50.0F);
   const ImVec2 corner(origin.x + width_px, origin.y + height_px);
-  draw->AddRectFilled(origin, corner, IM_COL32(25, 25, 30, 255));
   draw->AddRect(origin, corner, kGrid);
   ImGui::Dummy(ImVec2(width_px, height_px));
   if (s.plot_count < 2) return;
@@ -319,20 +317,28 @@ void draw_plot(const char* title, const Snapshot& s, const Series* series, int s
                 static_cast<double>(window_s));
   draw->AddText(ImVec2(origin.x + 2, corner.y - 14), kGrid, label);
   draw->PushClipRect(origin, corner, true);
-  for (int k = 0; k < series_count; ++k) {
-    // One vertex per sample; ImGui batches them into a single polyline.
-    // A non-finite value (a sample without that series, e.g. no truth) breaks the line.
-    float previous_value = series[k].value(s.plot[first]);
-    ImVec2 previous(x_of(s.plot[first].t_s), y_of(previous_value));
-    for (std::size_t i = first + 1; i < s.plot_count; ++i) {
-      const float value = series[k].value(s.plot[i]);
-      const ImVec2 p(x_of(s.plot[i].t_s), y_of(value));
-      if (std::isfinite(value) && std::isfinite(previous_value)) {
-        draw->AddLine(previous, p, series[k].colour, 1.5F);
-      }
-      previous = p;
-      previous_value = value;
+  // One polyline per run of finite values (a non-finite value, e.g. a sample without truth,
+  // breaks the line), at most one vertex per pixel column: a 120 s window is ~4000 samples on
+  // ~1000 pixels, and every vertex costs the software renderer.
+  const auto flush = [&](ImU32 colour) {
+    if (line.size() >= 2) {
+      draw->AddPolyline(line.data(), static_cast<int>(line.size()), colour, ImDrawFlags_None, 1.5F);
     }
+    line.clear();
+  };
+  for (int k = 0; k < series_count; ++k) {
+    line.clear();
+    for (std::size_t i = first; i < s.plot_count; ++i) {
+      const float value = series[k].value(s.plot[i]);
+      if (!std::isfinite(value)) {
+        flush(series[k].colour);
+        continue;
+      }
+      const ImVec2 p(x_of(s.plot[i].t_s), y_of(value));
+      if (!line.empty() && p.x - line.back().x < 1.0F && i + 1 < s.plot_count) continue;
+      line.push_back(p);  // capacity reserved once: no allocation per frame
+    }
+    flush(series[k].colour);
   }
   draw->PopClipRect();
 }
@@ -441,7 +447,8 @@ std::uint32_t flight_key_for_scancode(int sdl_scancode) {
 struct ConsoleWindow::Impl {
   SDL_Window* window = nullptr;
   SDL_GLContext gl = nullptr;
-  int marker_target_id = 0;  ///< The marker panel's target id field.
+  int marker_target_id = 0;        ///< The marker panel's target id field.
+  int vehicle_marker_target = -1;  ///< The vehicle's target the field last took.
   bool imgui_sdl = false;
   bool imgui_gl = false;
   double max_fps = 60;
@@ -460,6 +467,10 @@ struct ConsoleWindow::Impl {
   WindowStats stats;
   std::vector<std::uint8_t> pixels;
   float plot_window_s = 20.0F;
+  std::vector<ImVec2> polyline;  ///< A plot's line, reserved once at the plot's capacity.
+  std::unique_ptr<AlarmTone> alarm;
+  AlarmMute alarm_mute;
+  bool mute_key = false;  ///< B pressed this frame.
 
   // Hands a new frame's bytes to the decoder thread, and uploads whatever it finished since;
   // the UI thread does only the copy and the texture upload, never the JPEG decode.
@@ -473,78 +484,37 @@ struct ConsoleWindow::Impl {
   }
 
   void camera_panel(const Snapshot& s) {
-    ImGui::Begin("Camera");
-    if (camera.id == 0) {
-      ImGui::TextUnformatted("no camera frame yet");
-    } else {
-      const float avail = ImGui::GetContentRegionAvail().x;
-      const bool with_depth = depth.id != 0;
-      const float w = with_depth ? avail * 0.66F : avail;
-      const float h =
-          w * static_cast<float>(camera.height_px) / static_cast<float>(camera.width_px);
-      const ImVec2 origin = ImGui::GetCursorScreenPos();
-      ImGui::Image(texture_id(camera.id), ImVec2(w, h));
-      if (with_depth) {
-        ImGui::SameLine();
-        const float dw = avail - w - 8;
-        ImGui::Image(texture_id(depth.id),
-                     ImVec2(dw, dw * static_cast<float>(depth.height_px) /
-                                    static_cast<float>(std::max(depth.width_px, 1))));
-      }
-      // Overlays: velocities in H seen from behind the camera: H's y (right) to image x and
-      // H's z (down) to image y, and H's x (forward) as a ring whose size grows with it.
-      ImDrawList* draw = ImGui::GetWindowDrawList();
-      const ImVec2 centre(origin.x + w / 2, origin.y + h / 2);
-      const float px_per_mps = h / 3.0F;
-      const auto overlay = [&](const std::array<float, 3>& v, ImU32 colour) {
-        arrow(draw, centre, ImVec2(v[1] * px_per_mps, v[2] * px_per_mps), colour);
-        draw->AddCircle(centre, std::abs(v[0]) * px_per_mps * 0.5F + 2, colour, 32,
-                        v[0] >= 0 ? 2.0F : 1.0F);
-      };
-      overlay(s.latest.v_cmd_H_mps, kCommanded);
-      overlay(s.latest.v_est_H_mps, kEstimated);
-      overlay(s.latest.v_obs_H_mps, kObstacle);
-      // Detected markers, projected with a pinhole whose focal length fits the frame's width
-      // to a 60 deg field of view (the state carries poses, not the camera's intrinsics).
-      const float f_px = w / (2.0F * std::tan(0.5236F));
-      for (std::size_t i = 0; i < s.marker_count; ++i) {
-        const MarkerView& mk = s.markers[i];
-        if (!(mk.p_camera_marker_m[2] > 0.05F)) continue;
-        const ImVec2 c(origin.x + w / 2 + f_px * mk.p_camera_marker_m[0] / mk.p_camera_marker_m[2],
-                       origin.y + h / 2 + f_px * mk.p_camera_marker_m[1] / mk.p_camera_marker_m[2]);
-        const float r = std::clamp(f_px * 0.08F / mk.p_camera_marker_m[2], 6.0F, 80.0F);
-        draw->AddRect(ImVec2(c.x - r, c.y - r), ImVec2(c.x + r, c.y + r), kMarker, 0, 0, 2.0F);
-        char label[48];
-        std::snprintf(label, sizeof label, "id %d  %.2f m", mk.id,
-                      static_cast<double>(mk.p_camera_marker_m[2]));
-        draw->AddText(ImVec2(c.x - r, c.y - r - 16), kMarker, label);
-      }
-      draw->AddText(ImVec2(origin.x + 6, origin.y + 4), IM_COL32(255, 255, 255, 255),
-                    "arrows: lateral/vertical in H; rings: forward speed");
-    }
+    ImGui::Begin("Camera", nullptr,
+                 ImGuiWindowFlags_NoScrollbar | ImGuiWindowFlags_NoScrollWithMouse);
+    char video[160] = "";
     if (stats.video_p50_ms >= 0) {
-      ImGui::Text(
-          "video exposure->display %.0f ms (p50 %.0f, p99 %.0f): vehicle+link %.0f, "
-          "pick-up+decode %.0f, to display %.0f (p50s)",
-          stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms, stats.video_link_p50_ms,
-          stats.video_decode_p50_ms, stats.video_display_p50_ms);
+      std::snprintf(video, sizeof video,
+                    "video %.0f ms (p50 %.0f, p99 %.0f): vehicle+link %.0f, decode %.0f, "
+                    "display %.0f",
+                    stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms,
+                    stats.video_link_p50_ms, stats.video_decode_p50_ms, stats.video_display_p50_ms);
     }
-    ImGui::TextColored(ImColor(kCommanded), "commanded");
-    ImGui::SameLine();
-    ImGui::TextColored(ImColor(kEstimated), "estimated");
-    ImGui::SameLine();
-    ImGui::TextColored(ImColor(kObstacle), "v_obs");
-    ImGui::SameLine();
-    ImGui::Text("  %d x %d, %llu frames decoded", stats.camera_width_px, stats.camera_height_px,
-                static_cast<unsigned long long>(stats.camera_frames_decoded));
+    char size[80];
+    std::snprintf(size, sizeof size, "  %d x %d, %llu frames", stats.camera_width_px,
+                  stats.camera_height_px,
+                  static_cast<unsigned long long>(stats.camera_frames_decoded));
+    const CameraPanelResult shown =
+        draw_camera_panel(s, ImageTexture{camera.id, camera.width_px, camera.height_px},
+                          ImageTexture{depth.id, depth.width_px, depth.height_px}, video, size);
+    stats.camera_image_whole = shown.image_whole;
+    stats.camera_shown_x_px = static_cast<int>(shown.image.x);
+    stats.camera_shown_y_px = static_cast<int>(shown.image.y);
+    stats.camera_shown_width_px = static_cast<int>(shown.image.width);
+    stats.camera_shown_height_px = static_cast<int>(shown.image.height);
     ImGui::End();
   }
 
   void plots_panel(const Snapshot& s) {
-    ImGui::Begin("Plots (Fig. 6-8)");
+    ImGui::Begin("Plots (Fig. 6-8)", nullptr, ImGuiWindowFlags_NoScrollbar);
+    if (polyline.capacity() < s.plot.size()) polyline.reserve(s.plot.size());
     ImGui::SliderFloat("window s", &plot_window_s, 5.0F, 120.0F, "%.0f");
     const float h = std::max((ImGui::GetContentRegionAvail().y - 7 * 22) / 6, 40.0F);
-    static const char* const kAxes[3] = {"v_x H [m/s]", "v_y H [m/s]", "v_z H [m/s]"};
+    static const char* const kAxes[3] = {"v_x H [m/s]", "v_y H [m/s]", "climb [m/s], up +"};
     // Simulator truth is the third series, drawn only once some state carried it.
     constexpr float kNone = std::numeric_limits<float>::quiet_NaN();
     static const Series kVx[3] = {
@@ -557,11 +527,12 @@ struct ConsoleWindow::Impl {
         {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[1]; }},
         {"truth (sim)", kTruth,
          [](const PlotSample& p) { return p.truth_valid ? p.v_truth_H_mps[1] : kNone; }}};
+    // H is NED (z down): the climb is -v_z, plotted up positive as the operator reads it.
     static const Series kVz[3] = {
-        {"estimated", kEstimated, [](const PlotSample& p) { return p.v_est_H_mps[2]; }},
-        {"commanded", kCommanded, [](const PlotSample& p) { return p.v_cmd_H_mps[2]; }},
+        {"estimated", kEstimated, [](const PlotSample& p) { return -p.v_est_H_mps[2]; }},
+        {"commanded", kCommanded, [](const PlotSample& p) { return -p.v_cmd_H_mps[2]; }},
         {"truth (sim)", kTruth,
-         [](const PlotSample& p) { return p.truth_valid ? p.v_truth_H_mps[2] : kNone; }}};
+         [](const PlotSample& p) { return p.truth_valid ? -p.v_truth_H_mps[2] : kNone; }}};
     const int velocity_series = s.have_truth ? 3 : 2;
     static const Series kObs[3] = {
         {"x", kObstacle, [](const PlotSample& p) { return p.v_obs_H_mps[0]; }},
@@ -576,12 +547,12 @@ struct ConsoleWindow::Impl {
          [](const PlotSample& p) { return p.state_age_ms; }},
         {"round trip", IM_COL32(230, 120, 120, 255),
          [](const PlotSample& p) { return p.round_trip_ms; }}};
-    draw_plot(kAxes[0], s, kVx, velocity_series, plot_window_s, h);
-    draw_plot(kAxes[1], s, kVy, velocity_series, plot_window_s, h);
-    draw_plot(kAxes[2], s, kVz, velocity_series, plot_window_s, h);
-    draw_plot("v_obs H [m/s]", s, kObs, 3, plot_window_s, h);
-    draw_plot("yaw rate [rad/s]", s, kYaw, 2, plot_window_s, h);
-    draw_plot("latency [ms]", s, kLatency, 3, plot_window_s, h);
+    draw_plot(kAxes[0], s, kVx, velocity_series, plot_window_s, h, polyline);
+    draw_plot(kAxes[1], s, kVy, velocity_series, plot_window_s, h, polyline);
+    draw_plot(kAxes[2], s, kVz, velocity_series, plot_window_s, h, polyline);
+    draw_plot("v_obs H [m/s]", s, kObs, 3, plot_window_s, h, polyline);
+    draw_plot("yaw rate [rad/s]", s, kYaw, 2, plot_window_s, h, polyline);
+    draw_plot("latency [ms]", s, kLatency, 3, plot_window_s, h, polyline);
     stats.plot_samples_drawn = s.plot_count;
     ImGui::End();
   }
@@ -667,12 +638,13 @@ struct ConsoleWindow::Impl {
     for (float g = std::floor(min_y - m_span); g <= max_y + m_span; g += 1.0F) {
       draw->AddLine(to_px(min_x - m_span, g), to_px(max_x + m_span, g), IM_COL32(45, 55, 45, 255));
     }
+    // The obstacle points stay out of the legend's four lines at the top.
+    draw->PushClipRect(ImVec2(origin.x, origin.y + 4 * ImGui::GetFontSize() + 8), corner, true);
     for (std::size_t i = 0; i < s.cloud_count; ++i) {
-      draw->AddRectFilled(to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m),
-                          ImVec2(to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m).x + 2,
-                                 to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m).y + 2),
-                          kObstacle);
+      const ImVec2 q = to_px(s.cloud_W[i].x_W_m, s.cloud_W[i].y_W_m);
+      draw->AddRectFilled(q, ImVec2(q.x + 2, q.y + 2), kObstacle);
     }
+    draw->PopClipRect();
     // The previous vehicle session's trail, greyed: history, not where this vehicle is.
     for (std::size_t i = 1; i < s.previous_track_count; ++i) {
       draw->AddLine(to_px(s.previous_track[i - 1].x_W_m, s.previous_track[i - 1].y_W_m),
@@ -712,20 +684,47 @@ struct ConsoleWindow::Impl {
     ImGui::End();
   }
 
-  // Laid out from the current size on every frame: a resize re-lays the panels out, and the
-  // status bar's height (it wraps the key hint on narrow windows) pushes them down.
+  // Laid out from the current size on every frame: a resize re-lays the panels out. The status
+  // bar has a fixed height, so nothing below it moves as its values change.
   void draw_panels(const Snapshot& s, UiActions& actions, float W, float H) {
-    const float top = status_bar(s, actions, W);
+    const AlarmCause cause = alarm_cause(s);
+    const bool muted = alarm_mute.update(cause, mute_key);
+    mute_key = false;
+    if (alarm) alarm->play(muted ? AlarmCause::kNone : cause);
+    if (cause != AlarmCause::kNone) ++stats.alarm_frames;
+    stats.alarm_cause = to_string(cause);
+    stats.alarm_muted = muted;
+    stats.alarm_tone_samples = alarm ? alarm->tone_samples() : 0;
+    StatusBarInput bar;
+    bar.stale_s = stale_s(s);
+    bar.alarm = cause;
+    bar.alarm_muted = muted;
+    bar.audio = alarm && alarm->available();
+    bar.audio_status = alarm ? alarm->status().c_str() : "off";
+    const StatusBarActions bar_actions = draw_status_bar(s, bar, W);
+    if (bar_actions.take_off) actions.take_off = true;
+    if (bar_actions.toggle_mute) mute_key = true;  // applied on the next frame
+    if (bar_actions.take_off_hint) ++stats.take_off_hint_frames;
+    if (s.have_state && bar.stale_s < 0) {
+      const double climb_mps = -static_cast<double>(s.latest.v_est_H_mps[2]);
+      stats.climb_shown_max_mps = std::max(stats.climb_shown_max_mps, climb_mps);
+      stats.climb_shown_min_mps = std::min(stats.climb_shown_min_mps, climb_mps);
+    }
+    const float top = status_bar_height();
     const float rest = std::max(H - top, 100.0F);
     const auto place = [&](float x, float y, float width, float height) {
-      ImGui::SetNextWindowPos(ImVec2(x * W, top + y * rest), ImGuiCond_Always);
-      ImGui::SetNextWindowSize(ImVec2(width * W, height * rest), ImGuiCond_Always);
+      ImGui::SetNextWindowPos(ImVec2(std::floor(x * W), std::floor(top + y * rest)),
+                              ImGuiCond_Always);
+      ImGui::SetNextWindowSize(ImVec2(std::floor(width * W), std::floor(height * rest)),
+                               ImGuiCond_Always);
     };
-    place(0, 0, 0.45F, 0.45F);
+    // The left column holds the camera, the controls (their force bars must show whole at
+    // 1280x800) and the link's figures; the right the plots, the top view and the events.
+    place(0, 0, 0.45F, 0.46F);
     camera_panel(s);
     place(0.45F, 0, 0.55F, 0.58F);
     plots_panel(s);
-    place(0, 0.45F, 0.45F, 0.33F);
+    place(0, 0.46F, 0.45F, 0.32F);
     control_panel(s, actions);
     place(0, 0.78F, 0.45F, 0.22F);
     link_panel(s);
@@ -768,7 +767,7 @@ struct ConsoleWindow::Impl {
     }
   }
 
-  static void mode_key(SDL_Keycode key, UiActions& actions) {
+  void mode_key(SDL_Keycode key, UiActions& actions) {
     switch (key) {
       case SDLK_t:
         actions.mode_request = "teleop";
@@ -788,6 +787,9 @@ struct ConsoleWindow::Impl {
       case SDLK_u:
         actions.take_off = true;
         break;
+      case SDLK_b:
+        mute_key = true;
+        break;
       case SDLK_ESCAPE:
         actions.quit = true;
         break;
@@ -803,6 +805,8 @@ struct ConsoleWindow::Impl {
     render_ms[stats.frames % render_ms.size()] =
         std::chrono::duration<float, std::milli>(end - begin).count();
     ++stats.frames;
+    // The link panel shows these: refreshed twice a second, from a copy on the stack.
+    if (stats.frames % 30 == 0) render_quantiles(stats);
     const double elapsed_s = std::chrono::duration<double>(end - first_frame).count();
     if (elapsed_s > 0) stats.fps = static_cast<double>(stats.frames - 1) / elapsed_s;
     next_frame +=
@@ -812,6 +816,17 @@ struct ConsoleWindow::Impl {
     } else {
       next_frame = end;
     }
+  }
+
+  // Median and maximum over the last render_ms.size() frames, into `out`; no allocation.
+  void render_quantiles(WindowStats& out) const {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(stats.frames, render_ms.size()));
+    if (n == 0) return;
+    std::array<float, 256> sorted = render_ms;
+    std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n));
+    out.render_ms_p50 = sorted[n / 2];
+    out.render_ms_max = sorted[n - 1];
   }
 
   // The floor: one empty ImGui window, no text, no plots, no texture.
@@ -828,103 +843,6 @@ struct ConsoleWindow::Impl {
     if (!s.have_state) return -1.0;
     if (s.link.link_lost) return std::max(s.link.state_age_s, kStaleAfterS);
     return s.link.state_age_s > kStaleAfterS ? s.link.state_age_s : -1.0;
-  }
-
-  /// One "name: value" field of the status bar; greyed and marked STALE when the vehicle's
-  /// state is old.
-  /// On the same line while it fits, else on the next: a narrow window wraps the bar, never
-  /// cuts it.
-  static void field(const char* name, const char* value, ImU32 colour, double stale) {
-    char text[128];
-    if (stale >= 0) {
-      std::snprintf(text, sizeof text, "%s: %s (STALE %.0f s)", name, value, stale);
-    } else {
-      std::snprintf(text, sizeof text, "%s: %s", name, value);
-    }
-    ImGui::SameLine(0, 18);
-    if (ImGui::CalcTextSize(text).x > ImGui::GetContentRegionAvail().x) ImGui::NewLine();
-    ImGui::TextColored(ImColor(stale >= 0 ? kStale : colour), "%s", text);
-  }
-
-  /// The status bar across the top: the vehicle's flight at a glance, the take-off action and
-  /// the key hint (wrapped, never cut). Returns its height.
-  float status_bar(const Snapshot& s, UiActions& actions, float width) {
-    ImGui::SetNextWindowPos(ImVec2(0, 0), ImGuiCond_Always);
-    ImGui::SetNextWindowSize(ImVec2(width, 0), ImGuiCond_Always);
-    ImGui::Begin("Status", nullptr,
-                 ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
-                     ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoSavedSettings);
-    const double stale = stale_s(s);
-    const bool landed = std::strcmp(s.flight_state, "landed") == 0;
-    const ImU32 flight_colour = landed ? IM_COL32(230, 200, 80, 255)
-                                : std::strcmp(s.flight_state, "airborne") == 0
-                                    ? IM_COL32(90, 220, 110, 255)
-                                    : IM_COL32(120, 200, 255, 255);
-    ImGui::TextUnformatted(s.have_state ? "VEHICLE" : "VEHICLE (no state yet)");
-    field("flight", s.flight_state, flight_colour, stale);
-    field("motors", s.motors_armed ? "ARMED" : "idle",
-          s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), stale);
-    char height[48];
-    if (s.height_valid) {
-      std::snprintf(height, sizeof height, "%.2f m (%s)", static_cast<double>(s.height_m),
-                    s.height_source);
-    } else {
-      std::snprintf(height, sizeof height, "unknown");
-    }
-    field("height", height, IM_COL32(230, 230, 230, 255), stale);
-    field("mode", s.mode.c_str(), IM_COL32(230, 230, 230, 255), stale);
-    const ImU32 ok = IM_COL32(90, 220, 110, 255);
-    const ImU32 bad = IM_COL32(255, 170, 40, 255);
-    field("estimator", s.estimator_health.c_str(), s.estimator_health == "ok" ? ok : bad, stale);
-    field("vehicle link", s.link_health.c_str(), s.link_health == "ok" ? ok : bad, stale);
-    // The vehicle's clearance (sphere to nearest obstacle point in view or memory); negative:
-    // it saw none within its depth range, which is news too, not a missing figure.
-    char clearance[32];
-    if (s.clearance_m >= 0) {
-      std::snprintf(clearance, sizeof clearance, "%.2f m", static_cast<double>(s.clearance_m));
-    } else {
-      std::snprintf(clearance, sizeof clearance, "%s",
-                    s.have_state ? "none in view or memory" : "-");
-    }
-    field("clearance", clearance, IM_COL32(230, 230, 230, 255), stale);
-    // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
-    // file's mass or the FC's maximum thrust is off (the vehicle flies on the learnt value).
-    char thrust[40];
-    const double thrust_pct = 100.0 * static_cast<double>(s.hover_thrust_gain);
-    if (s.hover_thrust_converged) {
-      std::snprintf(thrust, sizeof thrust, "%.0f %% (learnt)", thrust_pct);
-    } else {
-      std::snprintf(thrust, sizeof thrust, "%s", s.hover_thrust_gain > 0 ? "learning" : "-");
-    }
-    const bool thrust_off = s.hover_thrust_converged && std::abs(thrust_pct - 100.0) > 15.0;
-    field("thrust given", thrust, thrust_off ? bad : IM_COL32(230, 230, 230, 255), stale);
-    // The take-off action, prominent while the vehicle reports landed.
-    if (landed && stale < 0) {
-      ImGui::PushStyleColor(ImGuiCol_Button, IM_COL32(40, 130, 60, 255));
-      if (ImGui::Button("Take off (U)")) actions.take_off = true;
-      ImGui::PopStyleColor();
-      ImGui::SameLine();
-      ImGui::TextColored(ImColor(IM_COL32(230, 200, 80, 255)),
-                         "landed - press U to take off (climbs to the take-off height, then "
-                         "teleop)");
-      ++stats.take_off_hint_frames;
-    } else {
-      if (ImGui::Button("Take off (U)")) actions.take_off = true;
-    }
-    if (s.operator_input[0] != '\0') {
-      ImGui::SameLine(0, 18);
-      const bool slowed = std::strncmp(s.operator_input, "slowed", 6) == 0;
-      ImGui::TextColored(stale >= 0 ? ImColor(kStale)
-                         : slowed   ? ImColor(IM_COL32(255, 200, 60, 255))
-                                    : ImColor(IM_COL32(255, 90, 90, 255)),
-                         "%s", s.operator_input);
-    }
-    ImGui::PushTextWrapPos(width - 8);
-    ImGui::TextColored(ImColor(IM_COL32(170, 170, 190, 255)), "%s", kKeyHint);
-    ImGui::PopTextWrapPos();
-    const float height_px = ImGui::GetWindowHeight();
-    ImGui::End();
-    return height_px;
   }
 
   /// Across the window when the vehicle went silent: its age, on top of everything.
@@ -970,16 +888,12 @@ struct ConsoleWindow::Impl {
       ImGui::TextColored(ImVec4(1, 0.15F, 0.15F, 1), "%s", banner);
       ImGui::PopTextWrapPos();
     }
-    ImGui::Text("source: %s", s.source.data());
+    // One line: the controls' force bars must stay in the panel at 1280x800.
     const double stale = stale_s(s);
-    if (stale >= 0) {
-      ImGui::TextColored(ImColor(kStale), "roll %+.1f deg  pitch %+.1f deg (STALE %.0f s)",
-                         static_cast<double>(s.roll_rad) * 57.29578,
-                         static_cast<double>(s.pitch_rad) * 57.29578, stale);
-    } else {
-      ImGui::Text("roll %+.1f deg  pitch %+.1f deg", static_cast<double>(s.roll_rad) * 57.29578,
-                  static_cast<double>(s.pitch_rad) * 57.29578);
-    }
+    ImGui::TextColored(ImColor(stale >= 0 ? kStale : IM_COL32(230, 230, 230, 255)),
+                       "roll %+.1f deg  pitch %+.1f deg   source: %s",
+                       static_cast<double>(s.roll_rad) * 57.29578,
+                       static_cast<double>(s.pitch_rad) * 57.29578, s.source.data());
     // A replay has no vehicle to ask: the requests are greyed out, not live-looking.
     if (s.replay.active) ImGui::TextDisabled("replay: mode requests off (no vehicle to ask)");
     ImGui::BeginDisabled(s.replay.active);
@@ -1008,6 +922,12 @@ struct ConsoleWindow::Impl {
     // Marker mode with a chosen target: each button asks for Mode marker with a task.
     ImGui::Text("marker:");
     ImGui::SameLine();
+    // The box follows the vehicle's target when that changes (it said 0 while the vehicle
+    // flew to 12); the operator's own entry stands until the next change.
+    if (s.marker_target_id >= 0 && s.marker_target_id != vehicle_marker_target) {
+      marker_target_id = s.marker_target_id;
+      vehicle_marker_target = s.marker_target_id;
+    }
     ImGui::SetNextItemWidth(100);
     ImGui::InputInt("target id", &marker_target_id);
     marker_target_id = std::max(marker_target_id, 0);
@@ -1026,28 +946,27 @@ struct ConsoleWindow::Impl {
     const HapticState& h = s.haptics;
     ImGui::Text("haptic device: %s  buttons 0x%x  %s", h.connected ? "connected" : "LOST",
                 h.buttons, h.status.data());
-    ImGui::Text("p_D [mm] %+6.1f %+6.1f %+6.1f", static_cast<double>(h.p_D_m[0]) * 1e3,
-                static_cast<double>(h.p_D_m[1]) * 1e3, static_cast<double>(h.p_D_m[2]) * 1e3);
-    ImGui::Text("F_D [N]  %+6.2f %+6.2f %+6.2f  cue weight %.2f  passivity %.3f J",
-                static_cast<double>(h.F_D_n[0]), static_cast<double>(h.F_D_n[1]),
-                static_cast<double>(h.F_D_n[2]), static_cast<double>(h.cue_weight),
+    // F_D's values are on its bars below.
+    ImGui::Text("p_D [mm] %+6.1f %+6.1f %+6.1f  cue weight %.2f  passivity %.3f J",
+                static_cast<double>(h.p_D_m[0]) * 1e3, static_cast<double>(h.p_D_m[1]) * 1e3,
+                static_cast<double>(h.p_D_m[2]) * 1e3, static_cast<double>(h.cue_weight),
                 static_cast<double>(h.passivity_energy_j));
     // Force as bars centred on zero, the device's 3 axes (5 N full scale either way).
     for (int i = 0; i < 3; ++i) {
       const char label[3] = {'F', "xyz"[i], '\0'};
       centred_bar(label, h.F_D_n[static_cast<std::size_t>(i)], 5.0F);
     }
+    stats.force_bars_whole =
+        ImGui::GetItemRectMax().y <= ImGui::GetWindowDrawList()->GetClipRectMax().y + 0.5F;
     ImGui::End();
   }
 
   void link_panel(const Snapshot& s) {
     ImGui::Begin("Link health");
     const LinkHealth& l = s.link;
-    const char* state = s.replay.active       ? (s.replay.at_end ? "END OF RECORDING" : "replayed")
-                        : l.state_age_s < 0   ? "waiting"
-                        : l.state_age_s < 0.2 ? "ok"
-                        : l.state_age_s < 2.0 ? "STALE"
-                                              : "LOST";
+    // The link's state in the status bar's and the banner's words, not thresholds of its own.
+    char state[64];
+    link_state_text(s, state, sizeof state);
     ImGui::Text("states: %s (age %.2f s)  heartbeat %s", state, l.state_age_s,
                 l.heartbeat_seen ? "seen" : "none");
     ImGui::Text("latency last %.2f ms  p50 %.2f  p99 %.2f", l.last_latency_ms, l.latency_p50_ms,
@@ -1067,7 +986,8 @@ struct ConsoleWindow::Impl {
                 static_cast<unsigned long long>(l.states_rejected),
                 static_cast<unsigned long long>(l.commands_sent),
                 static_cast<unsigned long long>(l.write_failures));
-    ImGui::Text("console %.1f fps, render p50 %.2f ms", stats.fps, stats.render_ms_p50);
+    ImGui::Text("console %.1f fps, render p50 %.1f ms (max %.1f, last 256 frames)", stats.fps,
+                stats.render_ms_p50, stats.render_ms_max);
     ImGui::End();
   }
 
@@ -1143,10 +1063,14 @@ ConsoleWindow::ConsoleWindow(const std::string& title, const WindowOptions& opti
   ImGui::CreateContext();
   ImGui::GetIO().IniFilename = nullptr;  // the layout below, not a file in the working dir
   ImGui::StyleColorsDark();
+  // The panels draw no background of their own over the cleared frame (kBackground).
+  ImGui::GetStyle().Colors[ImGuiCol_WindowBg] = ImVec4(0, 0, 0, 0);
   impl_->imgui_sdl = ImGui_ImplSDL2_InitForOpenGL(impl_->window, impl_->gl);
   impl_->imgui_gl = ImGui_ImplOpenGL3_Init("#version 330");
   if (!impl_->imgui_sdl || !impl_->imgui_gl)
     throw InputError("ImGui backend initialisation failed");
+  if (!options.bare) impl_->alarm = std::make_unique<AlarmTone>();
+  impl_->stats.alarm_audio = impl_->alarm ? impl_->alarm->status() : "off";
   const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   impl_->stats.gl_renderer = renderer != nullptr ? renderer : "?";
 }
@@ -1160,6 +1084,7 @@ ConsoleWindow::~ConsoleWindow() {
     write_placement(impl_->options.ini_path, p);
   }
   impl_->camera = Texture{};
+  impl_->alarm.reset();  // before SDL_Quit
   if (impl_->imgui_gl) ImGui_ImplOpenGL3_Shutdown();
   if (impl_->imgui_sdl) ImGui_ImplSDL2_Shutdown();
   if (ImGui::GetCurrentContext() != nullptr) ImGui::DestroyContext();
@@ -1198,7 +1123,7 @@ UiActions ConsoleWindow::frame(const Snapshot& s) {
   m.stats.height_px = h;
   ImGui::Render();
   glViewport(0, 0, w, h);
-  glClearColor(0.08F, 0.08F, 0.1F, 1.0F);
+  glClearColor(kBackground[0], kBackground[1], kBackground[2], 1.0F);
   glClear(GL_COLOR_BUFFER_BIT);
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
   if (!m.pixels.empty()) {
@@ -1252,14 +1177,7 @@ void ConsoleWindow::queue_key(const std::string& name) {
 
 WindowStats ConsoleWindow::stats() const {
   WindowStats s = impl_->stats;
-  const std::size_t n =
-      static_cast<std::size_t>(std::min<std::uint64_t>(s.frames, impl_->render_ms.size()));
-  if (n > 0) {
-    std::array<float, 256> sorted = impl_->render_ms;
-    std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n));
-    s.render_ms_p50 = sorted[n / 2];
-    s.render_ms_max = sorted[n - 1];
-  }
+  impl_->render_quantiles(s);
   return s;
 }
 

@@ -223,6 +223,16 @@ bool parse_integer(std::string_view text, T& out) {
   return ec == std::errc{} && end == text.data() + text.size();
 }
 
+// The vehicle session: 0x and 16 hex digits as the console writes it, or decimal (recordings
+// before the console and the CSV said it alike).
+bool parse_session_id(std::string_view text, std::uint64_t& out) {
+  if (text.size() > 2 && text[0] == '0' && text[1] == 'x') {
+    const auto [end, ec] = std::from_chars(text.data() + 2, text.data() + text.size(), out, 16);
+    return ec == std::errc{} && end == text.data() + text.size();
+  }
+  return parse_integer(text, out);
+}
+
 bool parse_double(std::string_view text, double& out, bool allow_nan = false) {
   const std::string s(text);
   char* end = nullptr;
@@ -403,7 +413,7 @@ bool parse_state_flight(const CsvFile& file, const Fields& f, RecordedState& s,
   const char* flight = intern_flight(f[31]);
   const char* source = intern_flight(f[33]);
   const char* input = intern_flight(f[35]);
-  if (!parse_integer(f[29], s.session_id) || !parse_integer(f[30], s.commanding_station_id) ||
+  if (!parse_session_id(f[29], s.session_id) || !parse_integer(f[30], s.commanding_station_id) ||
       flight == nullptr || !parse_integer(f[32], armed) || source == nullptr ||
       !parse_double(f[34], height, true) || input == nullptr ||
       !parse_floats(f, 36, kStateColumns, s.v_cmd_flown_H_mps, error) ||

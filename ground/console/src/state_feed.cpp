@@ -110,6 +110,8 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   set_flight_fields(s, out);
   out.hover_thrust_gain = s.hover_thrust_gain;
   out.hover_thrust_converged = s.hover_thrust_converged;
+  out.marker_target_id = s.marker_target_valid ? s.marker_target_id : -1;
+  out.explore_phase = s.explore_phase;
   // resize() within the capacity reserved by LiveStateFeed: no allocation on the live path.
   out.obstacle_points_body_m.resize(s.obstacle_points_body_m._length);
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
@@ -124,6 +126,17 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
         {m.q_camera_marker.w, m.q_camera_marker.x, m.q_camera_marker.y, m.q_camera_marker.z}};
   }
 }
+
+namespace {
+
+// The explore mode's phase as the state carries it (0: not exploring).
+const char* explore_phase_text(int phase) {
+  static const char* const kNames[8] = {"",     "lift-off", "search", "explore",
+                                        "edge", "navigate", "land",   "done"};
+  return phase >= 0 && phase < 8 ? kNames[phase] : "";
+}
+
+}  // namespace
 
 const char* flight_state_text(const char* recorded_name) {
   const std::string_view n = recorded_name != nullptr ? recorded_name : "";
@@ -173,6 +186,8 @@ void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& 
   extras.clearance_m = std::isfinite(s.clearance_m) ? static_cast<float>(s.clearance_m) : -1.0F;
   extras.hover_thrust_gain = s.hover_thrust_gain;
   extras.hover_thrust_converged = s.hover_thrust_converged;
+  extras.marker_target_id = s.marker_target_id;
+  extras.explore_phase = explore_phase_text(s.explore_phase);
   static_assert(sizeof(std::array<float, 3>) == 3 * sizeof(float));
   const float* cloud =
       s.obstacle_points_body_m.empty() ? nullptr : s.obstacle_points_body_m.front().data();

@@ -66,6 +66,16 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
     extras.truth_valid = true;
     extras.v_truth_H_mps = status.truth->v_H_mps;
   }
+  if (const marker_modes::MarkerStage* stage = chain_.markers()) {
+    // What the console shows beside the mode: the marker flown to, the exploration's phase.
+    const modes::Mode mode = out.mode.mode;
+    if (mode == modes::Mode::kMarker || mode == modes::Mode::kExplore) {
+      extras.marker_target_id = stage->marker_mode().marker_id();
+    }
+    if (mode == modes::Mode::kExplore) {
+      extras.explore_phase = static_cast<int>(stage->explore().phase()) + 1;
+    }
+  }
   extras.vehicle_degraded = status.degraded();
   // Spinning: the chain off the floor (landed is motors idle, thrust 0) and, when a flight
   // controller reports, it armed (the simulator's always is; a real one may be disarmed).

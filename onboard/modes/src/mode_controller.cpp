@@ -102,10 +102,11 @@ bool ModeController::register_provider(Mode mode, VelocityProvider* provider) {
 
 ModeSwitch ModeController::request_mode(Mode mode, RequestOrigin origin) {
   if (mode == Mode::kMarker && marker_ == nullptr) {
-    return {false, "marker mode has no provider registered"};
+    // The operator reads this in the console: what is off and where to turn it on.
+    return {false, "marker mode is off on this vehicle (markers.enabled: false in its config)"};
   }
   if (mode == Mode::kExplore && explore_ == nullptr) {
-    return {false, "explore mode has no provider registered"};
+    return {false, "explore mode is off on this vehicle (markers.enabled: false in its config)"};
   }
   if (mode == mode_) return {true, ""};  // nothing changes: no dwell, no rate, the climb goes on
   if (origin == RequestOrigin::kOperator) {

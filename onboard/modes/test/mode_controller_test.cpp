@@ -115,7 +115,7 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
   EXPECT_FALSE(refused.accepted);
   EXPECT_THAT(refused.reason, HasSubstr("marker"));
   EXPECT_THAT(modes.request_mode(Mode::kExplore, kOperator).reason,
-              HasSubstr("explore mode has no provider"));
+              HasSubstr("explore mode is off on this vehicle"));
   EXPECT_EQ(modes.mode(), Mode::kHover);
 
   FixedProvider provider;

@@ -129,6 +129,10 @@ Validation validate(const VehicleState& state) {
       !(state.position_sigma_m >= 0.0F && state.position_sigma_m <= 1e6F)) {
     return {false, "position_age_s or position_sigma_m not in [0, 1e6]"};
   }
+  if (state.marker_target_valid && state.marker_target_id < 0) {
+    return {false, "marker_target_id negative"};
+  }
+  if (state.explore_phase > 7) return {false, "explore_phase not in [0, 7]"};
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};
   }

@@ -141,6 +141,15 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   state.position_age_s = 1.0F;
   state.position_sigma_m = -0.1F;
   EXPECT_FALSE(validate(state).ok);
+  state.marker_target_valid = true;
+  state.marker_target_id = 12;
+  state.explore_phase = 7;
+  EXPECT_TRUE(validate(state).ok);
+  state.explore_phase = 8;
+  EXPECT_THAT(validate(state).reason, HasSubstr("explore_phase not in [0, 7]"));
+  state.explore_phase = 0;
+  state.marker_target_id = -3;
+  EXPECT_THAT(validate(state).reason, HasSubstr("marker_target_id negative"));
 }
 
 }  // namespace

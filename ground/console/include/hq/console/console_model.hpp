@@ -76,6 +76,10 @@ struct StateExtras {
   std::uint8_t position_invalid_reason = 0;
   float position_age_s = 0;
   float position_sigma_m = 0;
+  /// The marker the marker or explore mode flies to (< 0: none); the explore mode's phase
+  /// (static text, "" when not exploring).
+  int marker_target_id = -1;
+  const char* explore_phase = "";
 };
 
 struct TrackPoint {
@@ -220,6 +224,10 @@ struct Snapshot {
   std::string estimator_health = "-";
   std::string link_health = "-";
   const char* flight_state = "-";  ///< Static texts, see StateExtras.
+  /// Seconds since the take-off while off the ground, else the last flight's length (< 0: none
+  /// yet), on the vehicle states' time (it stops when they stop).
+  double flight_time_s = -1;
+  bool airborne = false;  ///< Off the ground (taking off, airborne or landing).
   bool motors_armed = false;
   bool height_valid = false;
   float height_m = 0;
@@ -228,6 +236,8 @@ struct Snapshot {
   float clearance_m = -1;
   float hover_thrust_gain = 0;  ///< See StateExtras.
   bool hover_thrust_converged = false;
+  int marker_target_id = -1;  ///< See StateExtras.
+  const char* explore_phase = "";
   float roll_rad = 0;
   float pitch_rad = 0;
   float yaw_W_rad = 0;
@@ -298,6 +308,8 @@ class ConsoleModel {
 
  private:
   double seconds(std::int64_t t_ns);
+  void add_event(double t_s, int severity, const char* text);  ///< With mutex_ held.
+  void track_flight(double t_s, const char* flight_state);     ///< With mutex_ held.
 
   Capacity capacity_;
   mutable std::mutex mutex_;
@@ -357,6 +369,11 @@ class ConsoleModel {
   LinkHealth link_{};
   std::array<char, 192> source_{};
   ReplayStatus replay_{};
+  double take_off_s_ = -1;  ///< < 0: on the ground.
+  int marker_target_id_ = -1;
+  const char* explore_phase_ = "";
+  double last_flight_s_ = -1;
+  double last_state_s_ = 0;
 };
 
 }  // namespace hq::console

@@ -11,7 +11,7 @@
 /// state came for link_lost_after_s, a red link-loss banner with every vehicle field greyed
 /// and marked STALE. Panels are laid out from the window's size on every frame, so a resize
 /// re-lays them out. Shortcuts (when no text field has focus): U take off, T teleop, H hover,
-/// L land, M marker, X explore, Esc quit; with set_flight_keys(), the flying
+/// L land, M marker, X explore, B mute the alarm, Esc quit; with set_flight_keys(), the flying
 /// keys of flight_keys.hpp (W/S, Q/E, A/D, arrows, page up/down) are held into FlightKeys.
 
 #include "hq/console/console_model.hpp"
@@ -75,6 +75,23 @@ struct WindowStats {
   /// Frames drawn with the banner of a vehicle that said goodbye ("vehicle ended: ...").
   std::uint64_t vehicle_ended_banner_frames = 0;
   std::uint64_t take_off_hint_frames = 0;  ///< Frames drawn with the landed take-off hint.
+  /// The camera image as last drawn: its size on screen and whether all of it was visible.
+  int camera_shown_x_px = 0;
+  int camera_shown_y_px = 0;
+  int camera_shown_width_px = 0;
+  int camera_shown_height_px = 0;
+  bool camera_image_whole = false;
+  bool force_bars_whole = false;  ///< The haptic force bars (Fz last) all visible.
+  /// The highest and lowest climb (m/s, up positive) the status bar showed.
+  double climb_shown_max_mps = 0;
+  double climb_shown_min_mps = 0;
+  /// The alarm: its cause at the last frame ("none", "link lost", "fail-safe"), muted, the
+  /// audio driver or why there is none, samples of tone played, frames drawn with an alarm.
+  std::string alarm_cause = "none";
+  bool alarm_muted = false;
+  std::string alarm_audio;
+  std::uint64_t alarm_tone_samples = 0;
+  std::uint64_t alarm_frames = 0;
 };
 
 struct WindowOptions {

@@ -64,6 +64,10 @@ struct RecordedState {
   /// The learnt thrust gain (0: not reported or not recorded) and whether it converged.
   float hover_thrust_gain = 0;
   bool hover_thrust_converged = false;
+  /// The marker the marker or explore mode flies to (< 0: none) and the explore phase (0: not
+  /// exploring, else ExplorePhase + 1), as the state carried them (live and MCAP only).
+  int marker_target_id = -1;
+  int explore_phase = 0;
   /// The obstacle cloud the state carried, body frame FRD (x, y, z in m); empty when it
   /// carried none (the cloud rides on about one state a second) or the record lacks it.
   std::vector<std::array<float, 3>> obstacle_points_body_m;

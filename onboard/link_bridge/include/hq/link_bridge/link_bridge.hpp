@@ -105,6 +105,10 @@ struct StateExtras {
   /// Motors spinning: off the floor (not landed) and the flight controller, when one reports,
   /// armed.
   bool motors_armed = false;
+  /// The marker the marker or explore mode flies to (< 0: none), and the explore mode's phase
+  /// (0: not exploring, else marker_modes::ExplorePhase + 1).
+  int marker_target_id = -1;
+  int explore_phase = 0;
 };
 
 class LinkBridge {

@@ -146,6 +146,8 @@ class MarkerStage {
   [[nodiscard]] const MarkerNavigation& navigation() const { return navigation_; }
   [[nodiscard]] MarkerModeProvider& marker_mode() { return marker_mode_; }
   [[nodiscard]] ExploreProvider& explore() { return explore_; }
+  [[nodiscard]] const MarkerModeProvider& marker_mode() const { return marker_mode_; }
+  [[nodiscard]] const ExploreProvider& explore() const { return explore_; }
 
  private:
   MarkerNavigation navigation_;
