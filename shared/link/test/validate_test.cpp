@@ -141,6 +141,7 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   state.position_age_s = 1.0F;
   state.position_sigma_m = -0.1F;
   EXPECT_FALSE(validate(state).ok);
+  state = VehicleState{};
   state.marker_target_valid = true;
   state.marker_target_id = 12;
   state.explore_phase = 7;
