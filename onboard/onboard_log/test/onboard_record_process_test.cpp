@@ -186,9 +186,10 @@ TEST_F(OnboardRecordProcess, UnwritableFolderStopsTheStartNamingIt) {
 
 // GIVEN a short simulated flight over the link whose record hits a file-size limit (a full
 // disk) WHEN it ends THEN the flight ran its full length, and the exit status (5) and stderr
-// say the record is incomplete.
+// say the record is incomplete. (96 KiB: past the record's opening, its attachments and
+// schemas, which alone passed 64 KiB once the state grew.)
 TEST_F(OnboardRecordProcess, SimRunWhoseRecordFailsExitsNonZeroAndSaysWhy) {
-  Process onboard({"/bin/bash", "-c", "ulimit -f 64 && exec \"$0\" \"$@\"", HQ_SIM_FLIGHT_EXE,
+  Process onboard({"/bin/bash", "-c", "ulimit -f 96 && exec \"$0\" \"$@\"", HQ_SIM_FLIGHT_EXE,
                    "--world", "onboard/sim/worlds/arena.yaml", "--link", "--duration-s", "3",
                    "--domain-id", domain_, "--insecure", "--record", file("record").string()},
                   file("onboard.out"));
