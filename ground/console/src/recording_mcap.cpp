@@ -16,14 +16,6 @@ namespace hq::console {
 
 namespace {
 
-// The name the CSV recorder writes for a requested mode (ground_station.cpp), as static text.
-const char* mode_name(hq_msgs_Mode v) {
-  static constexpr std::array<const char*, 5> kModes = {"teleop", "hover", "land", "marker",
-                                                        "explore"};
-  const auto i = static_cast<std::size_t>(v);
-  return intern(i < kModes.size() ? kModes[i] : "invalid");
-}
-
 bool finite3(const hq_msgs_Vector3f& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
@@ -81,7 +73,7 @@ class RecordingBuilder : public FlightSampleSink {
     event_vehicle_.push_back(e.vehicle_id);
   }
   void on_mode_request(std::int64_t log_ns, const link::ModeRequest& m) override {
-    r_.mode_requests.push_back({log_ns, mode_name(m.requested_mode)});
+    r_.mode_requests.push_back({log_ns, recorded_mode_name(m.requested_mode)});
   }
   void on_command(std::int64_t t_ns, bool valid, const std::array<float, 3>& v_H_mps,
                   float yaw_rate_radps) override {

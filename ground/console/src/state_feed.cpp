@@ -10,13 +10,6 @@ namespace hq::console {
 namespace {
 
 // The names the CSV recorder writes for the link's enums (ground_station.cpp), as static text.
-const char* mode_name(hq_msgs_Mode v) {
-  static constexpr std::array<const char*, 5> kModes = {"teleop", "hover", "land", "marker",
-                                                        "explore"};
-  const auto i = static_cast<std::size_t>(v);
-  return intern(i < kModes.size() ? kModes[i] : "invalid");
-}
-
 const char* health_name(hq_msgs_Health v) {
   static constexpr std::array<const char*, 3> kHealth = {"ok", "degraded", "lost"};
   const auto i = static_cast<std::size_t>(v);
@@ -94,7 +87,7 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.roll_rad = s.roll_rad;
   out.pitch_rad = s.pitch_rad;
   out.v_obs_H_mps = array3(s.v_obs_H_mps);
-  out.mode = mode_name(s.mode);
+  out.mode = recorded_mode_name(s.mode);
   out.estimator_health = health_name(s.estimator_health);
   out.link_health = health_name(s.link_health);
   out.closest_obstacle_m = closest_cloud_point_m(s);
@@ -137,6 +130,13 @@ const char* explore_phase_text(int phase) {
 }
 
 }  // namespace
+
+const char* recorded_mode_name(hq_msgs_Mode mode) {
+  static constexpr std::array<const char*, 5> kModes = {"teleop", "hover", "land", "marker",
+                                                        "explore"};
+  const auto i = static_cast<std::size_t>(mode);
+  return intern(i < kModes.size() ? kModes[i] : "invalid");
+}
 
 const char* flight_state_text(const char* recorded_name) {
   const std::string_view n = recorded_name != nullptr ? recorded_name : "";

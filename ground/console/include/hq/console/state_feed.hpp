@@ -32,6 +32,9 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
 /// Hands `s` to `model` as the live link does (ConsoleModel::on_state with its StateExtras).
 void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& figures = {});
 
+/// The name the CSV recorder writes for a mode (ground_station.cpp), as static text.
+const char* recorded_mode_name(hq_msgs_Mode mode);
+
 /// The console's texts of a recorded name ("taking_off" shows as "taking off"); "-" if unknown.
 const char* flight_state_text(const char* recorded_name);
 /// The operator-input warning of a recorded name ("" when flown as is or unknown).
