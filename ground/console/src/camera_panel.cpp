@@ -1,5 +1,7 @@
 #include "camera_panel.hpp"
 
+#include "draw_arrow.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -19,18 +21,6 @@ ImTextureID texture_id(unsigned int id) {
   return reinterpret_cast<ImTextureID>(static_cast<std::intptr_t>(id));
 }
 
-// An arrow from `from` along `v` (already in pixels).
-void arrow(ImDrawList* draw, ImVec2 from, ImVec2 v, ImU32 colour) {
-  const ImVec2 to(from.x + v.x, from.y + v.y);
-  draw->AddLine(from, to, colour, 3.0F);
-  const float length = std::hypot(v.x, v.y);
-  if (length < 4.0F) return;
-  const ImVec2 u(v.x / length, v.y / length);
-  const ImVec2 n(-u.y, u.x);
-  draw->AddTriangleFilled(to, ImVec2(to.x - 10 * u.x + 5 * n.x, to.y - 10 * u.y + 5 * n.y),
-                          ImVec2(to.x - 10 * u.x - 5 * n.x, to.y - 10 * u.y - 5 * n.y), colour);
-}
-
 void draw_image(const ImageTexture& t, const PixelRect& r) {
   ImGui::GetWindowDrawList()->AddImage(texture_id(t.id), ImVec2(r.x, r.y),
                                        ImVec2(r.x + r.width, r.y + r.height));
@@ -46,7 +36,7 @@ void draw_overlays(const Snapshot& s, const PixelRect& r) {
   const ImVec2 centre(r.x + r.width / 2, r.y + r.height / 2);
   const float px_per_mps = r.height / 3.0F;
   const auto overlay = [&](const std::array<float, 3>& v, ImU32 colour) {
-    arrow(draw, centre, ImVec2(v[1] * px_per_mps, v[2] * px_per_mps), colour);
+    draw_arrow(draw, centre, ImVec2(v[1] * px_per_mps, v[2] * px_per_mps), colour);
     draw->AddCircle(centre, std::abs(v[0]) * px_per_mps * 0.5F + 2, colour, 32,
                     v[0] >= 0 ? 2.0F : 1.0F);
   };
@@ -71,6 +61,17 @@ void draw_overlays(const Snapshot& s, const PixelRect& r) {
 }
 
 }  // namespace
+
+void draw_arrow(ImDrawList* draw, ImVec2 from, ImVec2 v, ImU32 colour) {
+  const ImVec2 to(from.x + v.x, from.y + v.y);
+  draw->AddLine(from, to, colour, 3.0F);
+  const float length = std::hypot(v.x, v.y);
+  if (length < 4.0F) return;
+  const ImVec2 u(v.x / length, v.y / length);
+  const ImVec2 n(-u.y, u.x);
+  draw->AddTriangleFilled(to, ImVec2(to.x - 10 * u.x + 5 * n.x, to.y - 10 * u.y + 5 * n.y),
+                          ImVec2(to.x - 10 * u.x - 5 * n.x, to.y - 10 * u.y - 5 * n.y), colour);
+}
 
 PixelRect fit_image(const PixelRect& area, int image_width_px, int image_height_px) {
   if (area.width <= 0 || area.height <= 0 || image_width_px <= 0 || image_height_px <= 0) {

@@ -5,6 +5,7 @@
 
 #include "alarm.hpp"
 #include "camera_panel.hpp"
+#include "draw_arrow.hpp"
 #include "replay_strip.hpp"
 #include "status_bar.hpp"
 #include <opencv2/core.hpp>
@@ -343,18 +344,6 @@ void draw_plot(const char* title, const Snapshot& s, const Series* series, int s
   draw->PopClipRect();
 }
 
-// An arrow from `from` along `v` (already in pixels).
-void arrow(ImDrawList* draw, ImVec2 from, ImVec2 v, ImU32 colour) {
-  const ImVec2 to(from.x + v.x, from.y + v.y);
-  draw->AddLine(from, to, colour, 3.0F);
-  const float length = std::hypot(v.x, v.y);
-  if (length < 4.0F) return;
-  const ImVec2 u(v.x / length, v.y / length);
-  const ImVec2 n(-u.y, u.x);
-  draw->AddTriangleFilled(to, ImVec2(to.x - 10 * u.x + 5 * n.x, to.y - 10 * u.y + 5 * n.y),
-                          ImVec2(to.x - 10 * u.x - 5 * n.x, to.y - 10 * u.y - 5 * n.y), colour);
-}
-
 // A bar centred on zero with a mark there: empty is zero force, full left/right the negative/
 // positive full scale.
 void centred_bar(const char* label, float value, float full_scale) {
@@ -676,8 +665,10 @@ struct ConsoleWindow::Impl {
       draw->AddLine(p, along(camera_yaw + half_fov, reach_px), IM_COL32(255, 200, 60, 120));
       top_view_markers(draw, s, to_px);
       draw->AddCircleFilled(p, 5, IM_COL32(255, 255, 255, 255));
-      arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25), IM_COL32(255, 255, 255, 255));
-      arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40), kCameraAxis);
+      draw_arrow(draw, p, ImVec2(std::sin(yaw) * 25, -std::cos(yaw) * 25),
+                 IM_COL32(255, 255, 255, 255));
+      draw_arrow(draw, p, ImVec2(std::sin(camera_yaw) * 40, -std::cos(camera_yaw) * 40),
+                 kCameraAxis);
     }
     draw->PopClipRect();
     top_view_legend(draw, origin, s);
