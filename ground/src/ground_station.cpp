@@ -3,6 +3,7 @@
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/quantile.hpp"
+#include "hq/link/state_figures.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -135,19 +136,6 @@ void make_directory(const std::string& path) {
   if (mkdir(path.c_str(), 0755) != 0 && errno != EEXIST) {
     throw InputError("--record " + path + ": cannot create directory: " + std::strerror(errno));
   }
-}
-
-// Closest point of the down-sampled cloud to the body origin, NaN without a cloud.
-double closest_obstacle_m(const link::VehicleState& s) {
-  double best_sq = std::numeric_limits<double>::infinity();
-  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
-    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
-    const auto x = static_cast<double>(p.x);
-    const auto y = static_cast<double>(p.y);
-    const auto z = static_cast<double>(p.z);
-    best_sq = std::min(best_sq, x * x + y * y + z * z);
-  }
-  return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
 }
 
 // Names of the link's flight enums as recorded (hq::console::load_recording reads them back);
@@ -360,7 +348,7 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           as_double(s.omega_body_radps.z), as_double(s.roll_rad), as_double(s.pitch_rad),
           as_double(s.v_obs_H_mps.x), as_double(s.v_obs_H_mps.y), as_double(s.v_obs_H_mps.z),
           to_string(s.mode), to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
-          closest_obstacle_m(s), s.position_valid ? 1 : 0, as_double(s.p_W_m.x),
+          link::closest_cloud_point_m(s), s.position_valid ? 1 : 0, as_double(s.p_W_m.x),
           as_double(s.p_W_m.y), as_double(s.p_W_m.z), as_double(s.yaw_W_rad), s.truth_valid ? 1 : 0,
           as_double(s.v_truth_H_mps.x), as_double(s.v_truth_H_mps.y), as_double(s.v_truth_H_mps.z),
           s.markers._length, static_cast<unsigned long long>(s.session_id), s.commanding_station_id,

@@ -1,5 +1,7 @@
 #include "hq/console/state_feed.hpp"
 
+#include "hq/link/state_figures.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -34,20 +36,6 @@ constexpr std::array<const char*, 8> kOperatorInputs = {"flown",
                                                         "limited_envelope"};
 
 std::array<float, 3> array3(const hq_msgs_Vector3f& v) { return {v.x, v.y, v.z}; }
-
-// Closest point of the down-sampled cloud to the body origin, NaN without one (the CSV's
-// closest_obstacle_m).
-double closest_cloud_point_m(const link::VehicleState& s) {
-  double best_sq = std::numeric_limits<double>::infinity();
-  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
-    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
-    const auto x = static_cast<double>(p.x);
-    const auto y = static_cast<double>(p.y);
-    const auto z = static_cast<double>(p.z);
-    best_sq = std::min(best_sq, x * x + y * y + z * z);
-  }
-  return std::isfinite(best_sq) ? std::sqrt(best_sq) : std::numeric_limits<double>::quiet_NaN();
-}
 
 // The flight fields as load_recording reads them from the CSV: unknown for a vehicle that
 // leaves them unfilled (session 0).
@@ -90,7 +78,7 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.mode = recorded_mode_name(s.mode);
   out.estimator_health = health_name(s.estimator_health);
   out.link_health = health_name(s.link_health);
-  out.closest_obstacle_m = closest_cloud_point_m(s);
+  out.closest_obstacle_m = link::closest_cloud_point_m(s);
   out.position_valid = s.position_valid;
   out.p_W_m = array3(s.p_W_m);
   out.yaw_W_rad = s.yaw_W_rad;
