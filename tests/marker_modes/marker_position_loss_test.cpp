@@ -11,6 +11,7 @@
 
 #include "hq/closed_loop/operator_script.hpp"
 #include "hq/marker_modes/marker_providers.hpp"
+#include "hq/markers/testing/sim_marker_truth.hpp"
 
 #include "scenario.hpp"
 #include <gtest/gtest.h>
@@ -39,21 +40,6 @@ constexpr double kHiddenForS = 30.0;
 /// bias sigmas (navigation.initial_*_bias_sigma_*).
 constexpr double kGyroBiasSigmaRadps = 0.01;
 constexpr double kAccelBiasSigmaMps2 = 0.1;
-
-/// T_world_marker of a simulated marker in the detector's (ViSP) tag frame, as
-/// onboard/markers/test/sim_marker_truth.hpp derives it (a folder's test/ is not shared).
-Eigen::Isometry3d T_world_marker(const sim::Marker& m) {
-  const Eigen::Vector3d n = m.normal_world.normalized();
-  Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ();
-  up = (up - up.dot(n) * n).normalized();
-  up = Eigen::AngleAxisd(m.rotation_rad, n) * up;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = n.cross(up);
-  T.linear().col(1) = -up;
-  T.linear().col(2) = n;
-  T.translation() = m.center_world_m;
-  return T;
-}
 
 std::string write_script() {
   const std::filesystem::path path =
@@ -102,7 +88,7 @@ class Observer final : public vehicle::OperatorPort {
       for (const sim::Marker& m : flight_.world.markers) {
         if (m.id != first) continue;
         const Eigen::Vector3d p_W_truth =
-            R_world_map() * (T_world_marker(m).inverse() * flight_.p_truth_m());
+            R_world_map() * (hq::markers::test::T_world_marker(m).inverse() * flight_.p_truth_m());
         const double e = (nav.p_W_m() - p_W_truth).head<2>().norm();
         max_valid_error_m = std::max(max_valid_error_m, e);
         if (hidden) max_valid_error_hidden_m = std::max(max_valid_error_hidden_m, e);

@@ -1,10 +1,10 @@
 // Detection and pose on real photos (../shared/data/markers), config and bad-input paths.
 #include "hq/markers/marker_detector.hpp"
 
+#include "hq/markers/testing/sim_marker_truth.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/testing/input_error.hpp"
 
-#include "sim_marker_truth.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>

@@ -3,12 +3,12 @@
 #include "hq/markers/marker_map.hpp"
 
 #include "hq/markers/marker_detector.hpp"
+#include "hq/markers/testing/sim_marker_truth.hpp"
 #include "hq/sim/rgbd_renderer.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
 #include "hq/testing/input_error.hpp"
 
-#include "sim_marker_truth.hpp"
 #include "sim_views.hpp"
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
 // Detection accuracy against the simulator's exact marker poses, with and without depth.
 #include "hq/markers/marker_detector.hpp"
+#include "hq/markers/testing/sim_marker_truth.hpp"
 #include "hq/sim/rgbd_renderer.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/world.hpp"
 
-#include "sim_marker_truth.hpp"
 #include "sim_views.hpp"
 #include <gtest/gtest.h>
 
