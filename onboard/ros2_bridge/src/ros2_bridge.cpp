@@ -1,11 +1,19 @@
 #include "hq/ros2_bridge/ros2_bridge.hpp"
 
-#include "hq/ros2_bridge/ros_frames.hpp"
+#include "hq/geometry/ros_frames.hpp"
 
 #include <cmath>
 #include <cstring>
 
 namespace hq::ros2_bridge {
+
+using geometry::command_from_twist;
+using geometry::enu_from_ned;
+using geometry::flu_from_frd;
+using geometry::HorizontalCommand;
+using geometry::q_E_F;
+using geometry::v_F_from_v_H;
+
 namespace {
 
 constexpr int kRosDepth = 10;             // rmw_qos_profile_default's history depth

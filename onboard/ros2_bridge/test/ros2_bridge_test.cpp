@@ -2,8 +2,8 @@
 // values in ROS frames, XCDR1 on the wire, and cmd_vel_in as the link's command.
 #include "hq/ros2_bridge/ros2_bridge.hpp"
 
+#include "hq/geometry/ros_frames.hpp"
 #include "hq/link/test_support.hpp"
-#include "hq/ros2_bridge/ros_frames.hpp"
 
 #include <dds/ddsi/ddsi_serdata.h>
 #include <gmock/gmock.h>

@@ -1,8 +1,8 @@
 #pragma once
 /// ROS 2-compatible topics beside the link (link.ros2, --ros2): what a ROS 2 machine with
-/// rmw_cyclonedds on the same DDS domain sees as ROS topics, in ROS's frames (ros_frames.hpp),
-/// with ROS's naming (DDS topic rt/<ns>/<name>, type pkg::msg::dds_::Type_), XCDR1 and ROS's
-/// default QoS (reliable, volatile, keep last 10):
+/// rmw_cyclonedds on the same DDS domain sees as ROS topics, in ROS's frames
+/// (hq/geometry/ros_frames.hpp), with ROS's naming (DDS topic rt/<ns>/<name>, type
+/// pkg::msg::dds_::Type_), XCDR1 and ROS's default QoS (reliable, volatile, keep last 10):
 ///
 /// | ROS topic                            | type                      | from |
 /// |--------------------------------------|---------------------------|-----------------------------|

@@ -1,6 +1,6 @@
-#include "hq/ros2_bridge/ros_frames.hpp"
+#include "hq/geometry/ros_frames.hpp"
 
-namespace hq::ros2_bridge {
+namespace hq::geometry {
 
 Eigen::Vector3d enu_from_ned(const Eigen::Vector3d& v_ned) {
   return {v_ned.y(), v_ned.x(), -v_ned.z()};
@@ -39,4 +39,19 @@ HorizontalCommand command_from_twist(const Eigen::Vector3d& linear_F_mps,
   return {flu_from_frd(linear_F_mps), -angular_z_F_radps};
 }
 
-}  // namespace hq::ros2_bridge
+RosCameraFrames ros_camera_frames(const CameraMount& mount) {
+  // Columns: the optical x (right), y (down), z (forward) in camera_link (forward, left, up).
+  Eigen::Matrix3d R_link_optical;
+  R_link_optical << 0, 0, 1,  //
+      -1, 0, 0,               //
+      0, -1, 0;
+  const Eigen::Matrix3d R_F_B = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
+  const Eigen::Matrix3d R_F_optical = R_F_B * mount.R_B_C();
+  RosCameraFrames frames;
+  frames.T_F_camera_link.linear() = R_F_optical * R_link_optical.transpose();
+  frames.T_F_camera_link.translation() = flu_from_frd(mount.p_B_C_m());
+  frames.T_camera_link_optical.linear() = R_link_optical;
+  return frames;
+}
+
+}  // namespace hq::geometry

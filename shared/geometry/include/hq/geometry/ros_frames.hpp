@@ -4,11 +4,16 @@
 ///   B, body FRD                       -> F, ROS's FLU body (base_link): x forward, y left, z up.
 ///   H, horizontal FRD (core eq. 5)    -> F at zero roll and pitch (REP-120 base_stabilized).
 /// Both swaps are proper rotations: R_E_NED = [[0,1,0],[1,0,0],[0,0,-1]], R_F_B = diag(1,-1,-1).
+/// The camera (REP-103's suffix convention): camera_link looks along its x (x forward, y left,
+/// z up), camera_optical is the optical frame C (z forward, x right, y down).
+/// Pure geometry, so the ROS 2 bridge and the flight records (MCAP) place the vehicle alike.
+
+#include "hq/geometry/camera_mount.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-namespace hq::ros2_bridge {
+namespace hq::geometry {
 
 /// A vector in a NED frame, expressed in the ENU frame sharing its origin: (y, x, -z).
 Eigen::Vector3d enu_from_ned(const Eigen::Vector3d& v_ned);
@@ -36,4 +41,12 @@ struct HorizontalCommand {
 };
 HorizontalCommand command_from_twist(const Eigen::Vector3d& linear_F_mps, double angular_z_F_radps);
 
-}  // namespace hq::ros2_bridge
+/// The camera mount as the two fixed transforms of a ROS frame tree:
+/// base_link -> camera_link -> camera_optical. Both frames sit at the optical centre.
+struct RosCameraFrames {
+  Eigen::Isometry3d T_F_camera_link = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_camera_link_optical = Eigen::Isometry3d::Identity();
+};
+RosCameraFrames ros_camera_frames(const CameraMount& mount);
+
+}  // namespace hq::geometry

@@ -1,11 +1,11 @@
-#include "hq/ros2_bridge/ros_frames.hpp"
+#include "hq/geometry/ros_frames.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 
-namespace hq::ros2_bridge {
+namespace hq::geometry {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
@@ -86,5 +86,37 @@ TEST(RosFrames, TwistCommandBecomesHorizontalFrdCommand) {
   EXPECT_DOUBLE_EQ(c.yaw_rate_radps, -0.4);
 }
 
+// The core paper's mount (camera 45 deg right of the nose, 30 deg down, 0.1 m ahead): the
+// optical axis in base_link points forward, right (-y in FLU) and down, and camera_link's x is
+// that same axis; the lever arm flips its y and z into FLU.
+TEST(RosFrames, CameraFramesLookAlongTheMountsOpticalAxis) {
+  const double yaw = kPi / 4;
+  const double pitch = -kPi / 6;
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  // Optical (z forward, x right, y down) from a body-aligned camera looking along body x.
+  Eigen::Matrix3d R_forward;
+  R_forward << 0, 0, 1,  //
+      1, 0, 0,           //
+      0, 1, 0;
+  T_B_C.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                    Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
+                       .toRotationMatrix() *
+                   R_forward;
+  T_B_C.translation() = Eigen::Vector3d(0.1, 0.02, -0.03);
+  const RosCameraFrames frames = ros_camera_frames(CameraMount(T_B_C));
+
+  const Eigen::Vector3d axis_B = T_B_C.linear().col(2);
+  const Eigen::Isometry3d T_F_optical = frames.T_F_camera_link * frames.T_camera_link_optical;
+  expect_near(T_F_optical.linear().col(2), flu_from_frd(axis_B));
+  expect_near(frames.T_F_camera_link.linear().col(0), flu_from_frd(axis_B));
+  EXPECT_GT(axis_B.z(), 0.4);  // looks down in FRD: z down
+  expect_near(frames.T_F_camera_link.translation(), {0.1, -0.02, 0.03});
+  expect_near(frames.T_camera_link_optical.translation(), Eigen::Vector3d::Zero());
+  // Optical x (image right) is camera_link's -y, optical y (image down) its -z.
+  expect_near(frames.T_camera_link_optical.linear().col(0), {0, -1, 0});
+  expect_near(frames.T_camera_link_optical.linear().col(1), {0, 0, -1});
+  EXPECT_NEAR(frames.T_F_camera_link.linear().determinant(), 1.0, 1e-12);
+}
+
 }  // namespace
-}  // namespace hq::ros2_bridge
+}  // namespace hq::geometry
