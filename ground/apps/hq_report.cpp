@@ -14,7 +14,9 @@
 //   hq-report <recording-dir | flight.mcap> [--out DIR] [--format png|svg]
 //   hq-report <recording-dir | flight.mcap> --csv OUT_DIR
 //   hq-report --recover IN.mcap OUT.mcap
+#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/flight_mcap.hpp"
 #include "hq/console/flight_report.hpp"
@@ -175,11 +177,7 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_option("--recover", o.recover,
                  "rewrite IN.mcap (a writer killed: no summary) into a complete OUT.mcap")
       ->expected(2);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   if (o.recover.empty() && o.recording.empty()) {
     throw hq::InputError(std::string("no recording given (") + kUsage + ")");
   }
@@ -194,9 +192,9 @@ hq::console::Recording load_checked(const std::string& path) {
   } catch (const hq::InputError& e) {
     throw hq::InputError(std::string(e.what()) + " (" + kUsage + ")");
   }
-  for (const std::string& p : r.problems) std::fprintf(stderr, "hq-report: %s\n", p.c_str());
+  for (const std::string& p : r.problems) hq::log::note( "hq-report: {}\n", p.c_str());
   for (const std::string& c : r.absent_columns) {
-    std::fprintf(stderr, "hq-report: column absent (older layout): %s\n", c.c_str());
+    hq::log::note( "hq-report: column absent (older layout): {}\n", c.c_str());
   }
   if (r.states.empty()) {
     throw hq::InputError(
@@ -505,25 +503,25 @@ void write_markdown(const std::string& md_path, const std::string& title,
                     const hq::console::Recording& r, const Rows& rows, const std::string& format) {
   std::FILE* md = std::fopen(md_path.c_str(), "w");
   if (md == nullptr) throw hq::InputError(md_path + ": cannot open for writing");
-  std::fprintf(md, "# Flight report: %s\n\n", title.c_str());
-  std::fprintf(md, "| figure | value |\n| --- | --- |\n");
+  fmt::print( md, "# Flight report: {}\n\n", title.c_str());
+  fmt::print( md, "| figure | value |\n| --- | --- |\n");
   for (const auto& [name, value] : rows) {
-    std::fprintf(md, "| %s | %s |\n", name.c_str(), value.c_str());
+    fmt::print( md, "| {} | {} |\n", name.c_str(), value.c_str());
   }
-  std::fprintf(md,
+  fmt::print( md,
                "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
                "orange, marker purple, explore teal), event ticks at the top (grey info, "
                "amber warning, red error), vehicle restarts as red lines.\n\n");
   for (const char* name : kFigures)
-    std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
+    fmt::print( md, "![{}]({}.{})\n\n", name, name, format.c_str());
   if (!r.absent_columns.empty()) {
-    std::fprintf(md, "## Columns absent (older recording layout)\n\n");
-    for (const std::string& c : r.absent_columns) std::fprintf(md, "- %s\n", c.c_str());
-    std::fprintf(md, "\n");
+    fmt::print( md, "## Columns absent (older recording layout)\n\n");
+    for (const std::string& c : r.absent_columns) fmt::print( md, "- {}\n", c.c_str());
+    fmt::print( md, "\n");
   }
   if (!r.problems.empty()) {
-    std::fprintf(md, "## Recording problems\n\n");
-    for (const std::string& p : r.problems) std::fprintf(md, "- %s\n", p.c_str());
+    fmt::print( md, "## Recording problems\n\n");
+    for (const std::string& p : r.problems) fmt::print( md, "- {}\n", p.c_str());
   }
   if (std::fclose(md) != 0) throw hq::InputError(md_path + ": write failed");
 }
@@ -582,7 +580,7 @@ int write_report(const Options& o) {
   const std::string md_path = (fs::path(out_dir) / "report.md").string();
   write_markdown(md_path, o.recording, r, rows, o.format);
   write_html((fs::path(out_dir) / "report.html").string(), o.recording, rows, o.format);
-  std::printf("hq-report: %s (and report.html; figures %s in %s; read from %s)\n", md_path.c_str(),
+  hq::log::info("hq-report: {} (and report.html; figures {} in {}; read from {})\n", md_path.c_str(),
               o.format.c_str(), out_dir.c_str(),
               r.from_mcap ? r.directory.c_str() : "the CSV files");
   return 0;
@@ -613,7 +611,7 @@ class CsvExport : public hq::console::FlightSampleSink {
     recorder_.command(t_ns, c, valid);
   }
   void on_problem(const std::string& text) override {
-    std::fprintf(stderr, "hq-report: %s\n", text.c_str());
+    hq::log::note( "hq-report: {}\n", text.c_str());
   }
   hq::ground::TelemetryRecorder& recorder() { return recorder_; }
 
@@ -624,11 +622,11 @@ class CsvExport : public hq::console::FlightSampleSink {
 // What a damaged file cost, on stderr: each warning names the file and the offset.
 void print_damage(const hq::mcap::ReadReport& r) {
   for (const std::string& w : r.warnings)
-    std::fprintf(stderr, "hq-report: warning: %s\n", w.c_str());
+    hq::log::warn( "hq-report: warning: {}\n", w.c_str());
   if (!r.damaged()) return;
-  std::fprintf(stderr,
-               "hq-report: warning: damaged file: %llu chunks dropped (%llu messages%s), %llu "
-               "records and %llu bytes skipped; the rest is kept\n",
+  hq::log::warn(
+               "hq-report: warning: damaged file: {} chunks dropped ({} messages{}), {} "
+               "records and {} bytes skipped; the rest is kept\n",
                static_cast<unsigned long long>(r.chunks_dropped),
                static_cast<unsigned long long>(r.messages_dropped),
                r.chunks_dropped_uncounted > 0 ? " or more" : "",
@@ -648,9 +646,9 @@ int export_csv(const Options& o) {
   CsvExport out(o.csv_dir);
   const hq::console::FlightCounts n = hq::console::read_flight(reader, mcap_path, out);
   if (!out.recorder().close()) throw hq::InputError("--csv: " + out.recorder().error());
-  std::printf(
-      "hq-report: %s -> %s: %zu states, %zu commands, %zu mode requests, %zu events, "
-      "%zu camera frames%s\n",
+  hq::log::info(
+      "hq-report: {} -> {}: {} states, {} commands, {} mode requests, {} events, "
+      "{} camera frames{}\n",
       mcap_path.c_str(), o.csv_dir.c_str(), n.states, n.commands, n.mode_requests, n.events,
       n.frames, reader.report().has_summary ? "" : " (no summary: recovered by scanning)");
   return n.undecodable == 0 ? 0 : 1;
@@ -659,7 +657,7 @@ int export_csv(const Options& o) {
 int recover_file(const Options& o) {
   const hq::mcap::RecoveryReport r = hq::mcap::recover(o.recover[0], o.recover[1]);
   print_damage(r.read);
-  std::printf("hq-report: %s -> %s: %s\n", o.recover[0].c_str(), o.recover[1].c_str(),
+  hq::log::info("hq-report: {} -> {}: {}\n", o.recover[0].c_str(), o.recover[1].c_str(),
               r.read.has_summary ? "had a summary already (rewritten as it was)"
                                  : "no summary (writer killed?), recovered by scanning");
   fmt::print("  messages   {} recovered, {} channels, {} attachments, {} metadata\n",

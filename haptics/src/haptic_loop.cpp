@@ -1,3 +1,4 @@
+#include "hq/base/log.hpp"
 #include "hq/haptics/haptic_loop.hpp"
 
 #include "hq/base/error.hpp"
@@ -229,7 +230,7 @@ RealtimeGrant HapticLoop::start() {
     grant.summary += " -- " + refused +
                      "timing will jitter under load (needs root or CAP_SYS_NICE / CAP_IPC_LOCK, "
                      "or rtprio and memlock limits)";
-    std::fprintf(stderr, "warning: %s\n", grant.summary.c_str());
+    hq::log::warn( "warning: {}\n", grant.summary.c_str());
   }
   return grant;
 }

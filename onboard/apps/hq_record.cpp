@@ -1,6 +1,8 @@
 // hq-record: records a live RGB-D camera in the TUM RGB-D layout, so that every tool of the
 // project (hq-odometry, hq-onboard --source replay, hq-evaluate) runs on the recording.
+#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/sources/camera_sources.hpp"
 #include "hq/sources/tum_recorder.hpp"
@@ -10,6 +12,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 namespace {
@@ -39,10 +42,10 @@ static int run(int argc, char** argv) {
   app.add_option("--width", options.width, "stream width");
   app.add_option("--height", options.height, "stream height");
   app.add_option("--fps", options.fps, "stream rate");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const auto source = hq::sources::open_camera_source(spec, options);
-  std::fprintf(stderr, "hq-record: %s\n", source->describe().c_str());
+  hq::log::note( "hq-record: {}\n", source->describe().c_str());
   hq::sources::TumRecorder recorder(out_dir, source->camera(), "hq-record " + spec);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
@@ -56,7 +59,7 @@ static int run(int argc, char** argv) {
     if (status == hq::sources::FrameStatus::kEndOfStream) break;
     if (status == hq::sources::FrameStatus::kNoFrame) {
       if (source->error() != last_error)
-        std::fprintf(stderr, "hq-record: %s\n", source->error().c_str());
+        hq::log::note( "hq-record: {}\n", source->error().c_str());
       last_error = source->error();
       continue;
     }
@@ -68,7 +71,7 @@ static int run(int argc, char** argv) {
     }
   }
   recorder.close();
-  std::fprintf(stderr, "hq-record: %zu frames and %d accelerometer samples written to %s\n",
+  hq::log::note( "hq-record: {} frames and {} accelerometer samples written to {}\n",
                recorder.frames(), accel_samples, out_dir.c_str());
   return recorder.frames() > 0 ? 0 : 1;
 }

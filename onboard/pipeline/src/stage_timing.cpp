@@ -1,5 +1,6 @@
 #include "hq/pipeline/stage_timing.hpp"
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <cmath>
 
@@ -33,11 +34,11 @@ StageStatistics StageTimingLog::statistics(int stage) const {
 }
 
 void StageTimingLog::print(std::FILE* out) const {
-  std::fprintf(out, "%-10s %10s %10s %10s   (%zu frames)\n", "stage", "median_ms", "p99_ms",
+  fmt::print( out, "{:<10} {:>10} {:>10} {:>10}   ({} frames)\n", "stage", "median_ms", "p99_ms",
                "max_ms", size());
   for (int i = 0; i < kStageCount; ++i) {
     const StageStatistics s = statistics(i);
-    std::fprintf(out, "%-10s %10.3f %10.3f %10.3f\n", kStageNames[i], s.median_ms, s.p99_ms,
+    fmt::print( out, "{:<10} {:10.3f} {:10.3f} {:10.3f}\n", kStageNames[i], s.median_ms, s.p99_ms,
                  s.max_ms);
   }
 }
