@@ -14,8 +14,9 @@
 //   hq-report <recording-dir | flight.mcap> [--out DIR] [--format png|svg]
 //   hq-report <recording-dir | flight.mcap> --csv OUT_DIR
 //   hq-report --recover IN.mcap OUT.mcap
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/flight_mcap.hpp"
@@ -192,9 +193,9 @@ hq::console::Recording load_checked(const std::string& path) {
   } catch (const hq::InputError& e) {
     throw hq::InputError(std::string(e.what()) + " (" + kUsage + ")");
   }
-  for (const std::string& p : r.problems) hq::log::note( "hq-report: {}\n", p.c_str());
+  for (const std::string& p : r.problems) hq::log::note("hq-report: {}\n", p.c_str());
   for (const std::string& c : r.absent_columns) {
-    hq::log::note( "hq-report: column absent (older layout): {}\n", c.c_str());
+    hq::log::note("hq-report: column absent (older layout): {}\n", c.c_str());
   }
   if (r.states.empty()) {
     throw hq::InputError(
@@ -301,12 +302,11 @@ Summary write_data_file(const hq::console::Recording& r, const hq::console::Repo
       data << '\n';
     } else if (i > 0) {
       // A gap of more than a second is not bridged.
-      track.step(
-          s, std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0));
+      track.step(s, std::min(hq::to_seconds(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0));
     }
     const hq::console::RecordedCommand* c = command_at(r.commands, s.receipt_ns);
     accumulate(s, c, sum);
-    write_data_row(data, 1e-9 * static_cast<double>(s.receipt_ns - t0_ns), s, c, track, session);
+    write_data_row(data, hq::to_seconds(s.receipt_ns - t0_ns), s, c, track, session);
   }
   data.close();
   if (!data) throw hq::InputError(data_path + ": write failed (disk full?)");
@@ -503,25 +503,24 @@ void write_markdown(const std::string& md_path, const std::string& title,
                     const hq::console::Recording& r, const Rows& rows, const std::string& format) {
   std::FILE* md = std::fopen(md_path.c_str(), "w");
   if (md == nullptr) throw hq::InputError(md_path + ": cannot open for writing");
-  fmt::print( md, "# Flight report: {}\n\n", title.c_str());
-  fmt::print( md, "| figure | value |\n| --- | --- |\n");
+  fmt::print(md, "# Flight report: {}\n\n", title.c_str());
+  fmt::print(md, "| figure | value |\n| --- | --- |\n");
   for (const auto& [name, value] : rows) {
-    fmt::print( md, "| {} | {} |\n", name.c_str(), value.c_str());
+    fmt::print(md, "| {} | {} |\n", name.c_str(), value.c_str());
   }
-  fmt::print( md,
-               "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
-               "orange, marker purple, explore teal), event ticks at the top (grey info, "
-               "amber warning, red error), vehicle restarts as red lines.\n\n");
-  for (const char* name : kFigures)
-    fmt::print( md, "![{}]({}.{})\n\n", name, name, format.c_str());
+  fmt::print(md,
+             "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
+             "orange, marker purple, explore teal), event ticks at the top (grey info, "
+             "amber warning, red error), vehicle restarts as red lines.\n\n");
+  for (const char* name : kFigures) fmt::print(md, "![{}]({}.{})\n\n", name, name, format.c_str());
   if (!r.absent_columns.empty()) {
-    fmt::print( md, "## Columns absent (older recording layout)\n\n");
-    for (const std::string& c : r.absent_columns) fmt::print( md, "- {}\n", c.c_str());
-    fmt::print( md, "\n");
+    fmt::print(md, "## Columns absent (older recording layout)\n\n");
+    for (const std::string& c : r.absent_columns) fmt::print(md, "- {}\n", c.c_str());
+    fmt::print(md, "\n");
   }
   if (!r.problems.empty()) {
-    fmt::print( md, "## Recording problems\n\n");
-    for (const std::string& p : r.problems) fmt::print( md, "- {}\n", p.c_str());
+    fmt::print(md, "## Recording problems\n\n");
+    for (const std::string& p : r.problems) fmt::print(md, "- {}\n", p.c_str());
   }
   if (std::fclose(md) != 0) throw hq::InputError(md_path + ": write failed");
 }
@@ -580,9 +579,9 @@ int write_report(const Options& o) {
   const std::string md_path = (fs::path(out_dir) / "report.md").string();
   write_markdown(md_path, o.recording, r, rows, o.format);
   write_html((fs::path(out_dir) / "report.html").string(), o.recording, rows, o.format);
-  hq::log::info("hq-report: {} (and report.html; figures {} in {}; read from {})\n", md_path.c_str(),
-              o.format.c_str(), out_dir.c_str(),
-              r.from_mcap ? r.directory.c_str() : "the CSV files");
+  hq::log::info("hq-report: {} (and report.html; figures {} in {}; read from {})\n",
+                md_path.c_str(), o.format.c_str(), out_dir.c_str(),
+                r.from_mcap ? r.directory.c_str() : "the CSV files");
   return 0;
 }
 
@@ -611,7 +610,7 @@ class CsvExport : public hq::console::FlightSampleSink {
     recorder_.command(t_ns, c, valid);
   }
   void on_problem(const std::string& text) override {
-    hq::log::note( "hq-report: {}\n", text.c_str());
+    hq::log::note("hq-report: {}\n", text.c_str());
   }
   hq::ground::TelemetryRecorder& recorder() { return recorder_; }
 
@@ -621,17 +620,16 @@ class CsvExport : public hq::console::FlightSampleSink {
 
 // What a damaged file cost, on stderr: each warning names the file and the offset.
 void print_damage(const hq::mcap::ReadReport& r) {
-  for (const std::string& w : r.warnings)
-    hq::log::warn( "hq-report: warning: {}\n", w.c_str());
+  for (const std::string& w : r.warnings) hq::log::warn("hq-report: warning: {}\n", w.c_str());
   if (!r.damaged()) return;
   hq::log::warn(
-               "hq-report: warning: damaged file: {} chunks dropped ({} messages{}), {} "
-               "records and {} bytes skipped; the rest is kept\n",
-               static_cast<unsigned long long>(r.chunks_dropped),
-               static_cast<unsigned long long>(r.messages_dropped),
-               r.chunks_dropped_uncounted > 0 ? " or more" : "",
-               static_cast<unsigned long long>(r.records_skipped),
-               static_cast<unsigned long long>(r.bytes_skipped));
+      "hq-report: warning: damaged file: {} chunks dropped ({} messages{}), {} "
+      "records and {} bytes skipped; the rest is kept\n",
+      static_cast<unsigned long long>(r.chunks_dropped),
+      static_cast<unsigned long long>(r.messages_dropped),
+      r.chunks_dropped_uncounted > 0 ? " or more" : "",
+      static_cast<unsigned long long>(r.records_skipped),
+      static_cast<unsigned long long>(r.bytes_skipped));
 }
 
 int export_csv(const Options& o) {
@@ -658,26 +656,28 @@ int recover_file(const Options& o) {
   const hq::mcap::RecoveryReport r = hq::mcap::recover(o.recover[0], o.recover[1]);
   print_damage(r.read);
   hq::log::info("hq-report: {} -> {}: {}\n", o.recover[0].c_str(), o.recover[1].c_str(),
-              r.read.has_summary ? "had a summary already (rewritten as it was)"
-                                 : "no summary (writer killed?), recovered by scanning");
-  fmt::print("  messages   {} recovered, {} channels, {} attachments, {} metadata\n",
-             r.written.message_count, r.written.channel_count, r.written.attachment_count,
-             r.written.metadata_count);
-  fmt::print("  time span  {:.3f} s (log time {} .. {} ns)\n",
-             1e-9 * static_cast<double>(r.last_log_time_ns - r.first_log_time_ns),
-             r.first_log_time_ns, r.last_log_time_ns);
-  fmt::print("  dropped    {} bytes at the tail (an incomplete record){}\n", r.bytes_dropped,
-             r.messages_without_channel > 0
-                 ? fmt::format(", {} messages without a channel record", r.messages_without_channel)
-                 : std::string());
+                r.read.has_summary ? "had a summary already (rewritten as it was)"
+                                   : "no summary (writer killed?), recovered by scanning");
+  hq::log::info("  messages   {} recovered, {} channels, {} attachments, {} metadata\n",
+                r.written.message_count, r.written.channel_count, r.written.attachment_count,
+                r.written.metadata_count);
+  hq::log::info("  time span  {:.3f} s (log time {} .. {} ns)\n",
+                hq::to_seconds(r.last_log_time_ns - r.first_log_time_ns), r.first_log_time_ns,
+                r.last_log_time_ns);
+  hq::log::info(
+      "  dropped    {} bytes at the tail (an incomplete record){}\n", r.bytes_dropped,
+      r.messages_without_channel > 0
+          ? fmt::format(", {} messages without a channel record", r.messages_without_channel)
+          : std::string());
   if (r.read.damaged()) {
-    fmt::print("  damaged    {} chunks dropped ({}{} messages), {} records and {} bytes skipped\n",
-               r.read.chunks_dropped, r.read.messages_dropped,
-               r.read.chunks_dropped_uncounted > 0 ? " or more" : "", r.read.records_skipped,
-               r.read.bytes_skipped);
+    hq::log::info(
+        "  damaged    {} chunks dropped ({}{} messages), {} records and {} bytes skipped\n",
+        r.read.chunks_dropped, r.read.messages_dropped,
+        r.read.chunks_dropped_uncounted > 0 ? " or more" : "", r.read.records_skipped,
+        r.read.bytes_skipped);
   }
-  fmt::print("  written    {} bytes, {} chunks, with summary and indexes\n", r.bytes_written,
-             r.written.chunk_count);
+  hq::log::info("  written    {} bytes, {} chunks, with summary and indexes\n", r.bytes_written,
+                r.written.chunk_count);
   return 0;
 }
 

@@ -24,8 +24,8 @@
 // every source. The flight binary holds no simulator: the in-process simulated flight (the
 // simulator as camera and flight controller in this process) is hq-sim-flight.
 
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/data_path.hpp"
@@ -107,12 +107,11 @@ int run(int argc, char** argv) {
   }
   if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   // Which file serves, since a relative name may come from the current folder or the install.
-  hq::log::note( "hq-onboard: config {}\n",
-               hq::config::resolve_data_path(o.config_path).c_str());
+  hq::log::note("hq-onboard: config {}\n", hq::config::resolve_data_path(o.config_path).c_str());
   try {
     return run_vehicle(o);
   } catch (const hq::DeviceUnavailableError& e) {
-    hq::log::note( "hq-onboard: {}\n", e.what());
+    hq::log::note("hq-onboard: {}\n", e.what());
     return kDeviceUnavailableExitStatus;
   }
 }

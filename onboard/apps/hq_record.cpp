@@ -1,7 +1,8 @@
 // hq-record: records a live RGB-D camera in the TUM RGB-D layout, so that every tool of the
 // project (hq-odometry, hq-onboard --source replay, hq-evaluate) runs on the recording.
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/sources/camera_sources.hpp"
@@ -45,21 +46,20 @@ static int run(int argc, char** argv) {
   if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const auto source = hq::sources::open_camera_source(spec, options);
-  hq::log::note( "hq-record: {}\n", source->describe().c_str());
+  hq::log::note("hq-record: {}\n", source->describe().c_str());
   hq::sources::TumRecorder recorder(out_dir, source->camera(), "hq-record " + spec);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
 
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  const std::int64_t end_ns = hq::monotonic_now_ns() + static_cast<std::int64_t>(1e9 * seconds);
   hq::sources::RgbdFrame frame;
   std::string last_error;
   int accel_samples = 0;
-  while (g_stop == 0 && std::chrono::steady_clock::now() < end) {
+  while (g_stop == 0 && hq::monotonic_now_ns() < end_ns) {
     const hq::sources::FrameStatus status = source->next(frame);
     if (status == hq::sources::FrameStatus::kEndOfStream) break;
     if (status == hq::sources::FrameStatus::kNoFrame) {
-      if (source->error() != last_error)
-        hq::log::note( "hq-record: {}\n", source->error().c_str());
+      if (source->error() != last_error) hq::log::note("hq-record: {}\n", source->error().c_str());
       last_error = source->error();
       continue;
     }
@@ -71,8 +71,8 @@ static int run(int argc, char** argv) {
     }
   }
   recorder.close();
-  hq::log::note( "hq-record: {} frames and {} accelerometer samples written to {}\n",
-               recorder.frames(), accel_samples, out_dir.c_str());
+  hq::log::note("hq-record: {} frames and {} accelerometer samples written to {}\n",
+                recorder.frames(), accel_samples, out_dir.c_str());
   return recorder.frames() > 0 ? 0 : 1;
 }
 

@@ -9,8 +9,8 @@
 // gyro.txt/accelerometer.txt (TUM) get the IMU a named MEMS IMU on the camera would have given,
 // from a B-spline fit of the ground truth, with the Kinect's recorded accelerometer where there
 // is one (see hq/pipeline/replay_imu.hpp).
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
@@ -64,10 +64,11 @@ int run(int argc, char** argv) {
       sequence_dir.c_str(), replay.frames, replay.ok_estimates, e.samples,
       1e3 * e.frame_interval_s);
   hq::log::info("velocity from the odometry on {} of {} frames ({:.1f} %), inertial coast on {}\n",
-              replay.ok_estimates, replay.frames, 100.0 * replay.availability(),
-              replay.inertial_estimates);
-  hq::log::info("mean innovation chi^2 of the frames used: {:.2f} (3 when the covariances are right)\n",
-              replay.mean_innovation_chi2);
+                replay.ok_estimates, replay.frames, 100.0 * replay.availability(),
+                replay.inertial_estimates);
+  hq::log::info(
+      "mean innovation chi^2 of the frames used: {:.2f} (3 when the covariances are right)\n",
+      replay.mean_innovation_chi2);
   for (const auto& [reason, count] : replay.unavailable_reasons) {
     hq::log::info("  {:5} frames: {}\n", count, reason.c_str());
   }
@@ -80,16 +81,19 @@ int run(int argc, char** argv) {
       noise.pair_trans_m() / (2.0 * e.frame_interval_s));
   hq::log::info("{:<22} {:>9} {:>9} {:>9} {:>9}\n", "RMSE (m/s)", "x", "y", "z", "|xyz|");
   hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 1 raw", e.rmse_raw_mps.x(),
-              e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
-  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 2 one-euro", e.rmse_filtered_mps.x(),
-              e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(), e.filtered_norm_mps());
-  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "flown (fused with IMU)", e.rmse_flown_mps.x(),
-              e.rmse_flown_mps.y(), e.rmse_flown_mps.z(), e.flown_norm_mps());
+                e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
+  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 2 one-euro",
+                e.rmse_filtered_mps.x(), e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(),
+                e.filtered_norm_mps());
+  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "flown (fused with IMU)",
+                e.rmse_flown_mps.x(), e.rmse_flown_mps.y(), e.rmse_flown_mps.z(),
+                e.flown_norm_mps());
   hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 2 shifted by lag",
-              e.rmse_filtered_at_lag_mps.x(), e.rmse_filtered_at_lag_mps.y(),
-              e.rmse_filtered_at_lag_mps.z(), e.rmse_filtered_at_lag_mps.norm());
+                e.rmse_filtered_at_lag_mps.x(), e.rmse_filtered_at_lag_mps.y(),
+                e.rmse_filtered_at_lag_mps.z(), e.rmse_filtered_at_lag_mps.norm());
   hq::log::info(
-      "lag minimising RMSE over 0..{:.0f} ms: eq. 2 {:.0f} ms, eq. 1 {:.0f} ms, flown {:.0f} ms; the "
+      "lag minimising RMSE over 0..{:.0f} ms: eq. 2 {:.0f} ms, eq. 1 {:.0f} ms, flown {:.0f} ms; "
+      "the "
       "1-euro filter adds {:.0f} ms\n",
       max_lag_ms, e.filtered_lag_ms, e.raw_lag_ms, e.flown_lag_ms,
       e.filtered_lag_ms - e.raw_lag_ms);

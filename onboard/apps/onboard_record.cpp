@@ -32,10 +32,9 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
     if (!file.empty()) options.attachments.push_back({config::resolve_data_path(file), ""});
   }
   auto recorder = std::make_unique<onboard_log::OnboardRecorder>(options);
-  hq::log::note( "{}: recording the flight to {}\n", g_program_name,
-               recorder->path().c_str());
+  hq::log::note("{}: recording the flight to {}\n", g_program_name, recorder->path().c_str());
   for (const std::string& skipped : recorder->attachments_skipped()) {
-    hq::log::note( "{}: record attachment skipped: {}\n", g_program_name, skipped.c_str());
+    hq::log::note("{}: record attachment skipped: {}\n", g_program_name, skipped.c_str());
   }
   return recorder;
 }
@@ -51,9 +50,9 @@ bool close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summ
   onboard_log::print_report(stdout, report);
   if (report.error.empty()) return true;
   hq::log::note(
-               "{}: the flight record is incomplete ({}); exit status {}, the flight "
-               "itself went on\n",
-               g_program_name, report.error.c_str(), kRecordFailedExitStatus);
+      "{}: the flight record is incomplete ({}); exit status {}, the flight "
+      "itself went on\n",
+      g_program_name, report.error.c_str(), kRecordFailedExitStatus);
   return false;
 }
 

@@ -1,7 +1,7 @@
 // hq-evaluate: TUM benchmark accuracy (RPE, ATE; Sturm et al., IROS 2012) of an estimated
 // trajectory against ground truth, both in TUM trajectory format.
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
@@ -20,8 +20,8 @@
 namespace {
 
 void print_row(const char* name, const char* unit, const hq::evaluation::ErrorStats& s) {
-  hq::log::info("{:<10} {:<6} {:10.6f} {:10.6f} {:10.6f} {:10.6f} {:6}\n", name, unit, s.rmse, s.mean, s.median,
-              s.max, s.count);
+  hq::log::info("{:<10} {:<6} {:10.6f} {:10.6f} {:10.6f} {:10.6f} {:6}\n", name, unit, s.rmse,
+                s.mean, s.median, s.max, s.count);
 }
 
 double largest_coordinate_m(const std::vector<hq::recording::StampedPose>& poses) {
@@ -73,11 +73,12 @@ static int run(int argc, char** argv) {
   require_finite("ATE", ate.trans_m, gt_path, gt_largest_m, est_path, est_largest_m);
 
   hq::log::info("poses: ground truth {}, estimate {}, associated {} (max_dt {:.3f} s)\n", gt.size(),
-              est.size(), pairs.size(), max_dt_s);
-  hq::log::info("RPE window {:.3f} s{}\n", rpe.delta_s,
-              rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
-  hq::log::info("{:<10} {:<6} {:>10} {:>10} {:>10} {:>10} {:>6}\n", "metric", "unit", "rmse", "mean", "median",
-              "max", "count");
+                est.size(), pairs.size(), max_dt_s);
+  hq::log::info(
+      "RPE window {:.3f} s{}\n", rpe.delta_s,
+      rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
+  hq::log::info("{:<10} {:<6} {:>10} {:>10} {:>10} {:>10} {:>6}\n", "metric", "unit", "rmse",
+                "mean", "median", "max", "count");
   print_row("RPE trans", "m/s", rpe.trans_mps);
   print_row("RPE rot", "deg/s", rpe.rot_degps);
   print_row("ATE", "m", ate.trans_m);

@@ -6,8 +6,8 @@
 //                 [--peer-ca PEER_CA.pem]
 // The layout and what the permissions allow: hq/security/keys.hpp.
 
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/security/keys.hpp"
@@ -63,7 +63,7 @@ void run_check(const std::string& dir, const std::string& identity, const std::s
     const hq::security::Peer other = peer_of(dir, peer);
     hq::security::check_handshake(own, other, now_s());
     hq::log::info("hq-keys: {} and {} can complete a handshake\n", own.name.c_str(),
-                other.name.c_str());
+                  other.name.c_str());
   }
   if (!peer_ca.empty()) {
     hq::security::check_trusted_by(own, peer_ca, now_s());
@@ -148,7 +148,7 @@ int run(int argc, char** argv) {
     hq::security::make_identity(dir, request);
     const std::string name = hq::security::identity_name(request.role, id);
     hq::log::info("hq-keys: identity {}/{} ({})\n", dir.c_str(), name.c_str(),
-                hq::security::subject_name(request.role, id).c_str());
+                  hq::security::subject_name(request.role, id).c_str());
   } else if (check->parsed()) {
     run_check(dir, identity_to_check, peer, peer_ca);
   }

@@ -71,8 +71,7 @@ int run(int argc, char** argv) {
   add_stop_options(app, o);
   if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   // Which file serves, since a relative name may come from the current folder or the install.
-  hq::log::note( "hq-sim-flight: config {}\n",
-               hq::config::resolve_data_path(o.config_path).c_str());
+  hq::log::note("hq-sim-flight: config {}\n", hq::config::resolve_data_path(o.config_path).c_str());
   return o.link ? run_sim_link(o) : run_sim(o);
 }
 

@@ -8,8 +8,8 @@
 // for hq-onboard --source sitl (SIGINT/SIGTERM or --duration-s end it with a summary).
 //   hq-sim --sitl --world onboard/sim/worlds/arena.yaml [--resolution 320x240] [--seed N]
 //          [--mavlink udp-listen:14560] [--channel sitl] [--duration-s S] [--config ...]
-#include "hq/base/log.hpp"
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/sim/scripted_flight.hpp"
@@ -135,8 +135,8 @@ int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Optio
       world.name.c_str(), o.script_kind.c_str(), static_cast<unsigned long long>(config.seed),
       o.duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples,
       static_cast<long long>(sim.dropped_frames()));
-  hq::log::info("final position [{:.2f} {:.2f} {:.2f}] m, min clearance {:.2f} m, collision {}\n", p_N_m.x(),
-              p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
+  hq::log::info("final position [{:.2f} {:.2f} {:.2f}] m, min clearance {:.2f} m, collision {}\n",
+                p_N_m.x(), p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
   if (writer) hq::log::info("recorded to {}\n", o.record_dir.c_str());
   return 0;
 }
