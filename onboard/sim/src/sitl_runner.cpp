@@ -1,7 +1,7 @@
-#include "hq/base/log.hpp"
 #include "hq/sim/sitl_runner.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
 #include "hq/mavlink/codec.hpp"
@@ -259,22 +259,23 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
   const double sim_s = static_cast<double>(sim.t_ns()) * 1e-9;
   const mavlink::ParserCounters& pc = parser.counters();
   const SitlAutopilotStats& st = autopilot.stats();
-  hq::log::info("simulated {:.2f} s in {:.2f} s wall: real-time factor {:.3f}, largest lag {:.1f} ms\n",
-              sim_s, wall_s, wall_s > 0.0 ? sim_s / wall_s : 0.0,
-              static_cast<double>(stats.max_lag_ns) * 1e-6);
+  hq::log::info(
+      "simulated {:.2f} s in {:.2f} s wall: real-time factor {:.3f}, largest lag {:.1f} ms\n",
+      sim_s, wall_s, wall_s > 0.0 ? sim_s / wall_s : 0.0,
+      static_cast<double>(stats.max_lag_ns) * 1e-6);
   hq::log::info("frames published {} (render {:.1f} ms mean), skipped while rendering {}\n",
-              static_cast<long long>(frames),
-              frames > 0 ? 1e3 * render_s / static_cast<double>(frames) : 0.0,
-              static_cast<long long>(stats.frames_skipped));
+                static_cast<long long>(frames),
+                frames > 0 ? 1e3 * render_s / static_cast<double>(frames) : 0.0,
+                static_cast<long long>(stats.frames_skipped));
   char clearance[32] = "n/a (never airborne)";
   if (stats.min_clearance_m < 1e8) {
     std::snprintf(clearance, sizeof(clearance), "%.2f m", stats.min_clearance_m);
   }
   hq::log::info("collision ticks airborne {}, smallest clearance {}, max true speed {:.2f} m/s\n",
-              static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);
+                static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);
   hq::log::info("floor contacts {} (fastest {:.2f} m/s), falls (faster than {:.1f} m/s) {}\n",
-              sim.floor_impacts(), sim.max_floor_impact_speed_mps(), kHardFloorImpactSpeedMps,
-              sim.hard_floor_impacts());
+                sim.floor_impacts(), sim.max_floor_impact_speed_mps(), kHardFloorImpactSpeedMps,
+                sim.hard_floor_impacts());
   hq::log::info(
       "mavlink: sent {}, send failures {}, received {}, dropped {} (bad crc {}, "
       "unknown id {}, truncated {}, bad length {})\n",
@@ -290,10 +291,10 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
       static_cast<unsigned long long>(st.commands), static_cast<double>(st.armed_ns) * 1e-9,
       static_cast<double>(st.offboard_ns) * 1e-9);
   hq::log::info("GCS heartbeats {}, parameters sent {}, set {}, refused or unknown {}\n",
-              static_cast<unsigned long long>(st.gcs_heartbeats),
-              static_cast<unsigned long long>(st.params_sent),
-              static_cast<unsigned long long>(st.params_set),
-              static_cast<unsigned long long>(st.params_rejected));
+                static_cast<unsigned long long>(st.gcs_heartbeats),
+                static_cast<unsigned long long>(st.params_sent),
+                static_cast<unsigned long long>(st.params_set),
+                static_cast<unsigned long long>(st.params_rejected));
   auto rmse = [](double sum, std::uint64_t n) {
     return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : std::nan("");
   };
@@ -313,9 +314,9 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
       static_cast<double>(st.descent_on_vision_ns) * 1e-9,
       static_cast<double>(st.descent_on_baro_ns) * 1e-9);
   hq::log::info("final: {} {}, battery {:.2f} V, {} at altitude {:.2f} m\n",
-              autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
-              autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
-              sim.truth().T_world_body.translation().z());
+                autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
+                autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
+                sim.truth().T_world_body.translation().z());
   std::fflush(stdout);
 }
 
@@ -376,11 +377,11 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
     const std::int64_t wall_ns = monotonic_now_ns();
     if (options.status_lines && wall_ns >= next_status_wall_ns) {
       next_status_wall_ns += 1'000'000'000;
-      hq::log::note( "hq-sim: t {:.1f} s, RT {:.2f}, {} {}, altitude {:.2f} m\n",
-                   static_cast<double>(t_ns) * 1e-9,
-                   static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
-                   autopilot.armed() ? "armed" : "disarmed",
-                   sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
+      hq::log::note("hq-sim: t {:.1f} s, RT {:.2f}, {} {}, altitude {:.2f} m\n",
+                    static_cast<double>(t_ns) * 1e-9,
+                    static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
+                    autopilot.armed() ? "armed" : "disarmed",
+                    sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
     }
   }
 

@@ -59,8 +59,8 @@ TEST_F(LogTest, ALoggedLineAllocatesNothing) {
   write(Level::kInfo, sink, "warm-up {}\n", 0);  // stdio's own buffer, once per stream
   const long before = g_allocations.load();
   for (int i = 0; i < 1000; ++i) {
-    write(Level::kInfo, sink, "t={:.3f} s v=({:.2f}, {:.2f}, {:.2f}) m/s status {} {}\n",
-          1e-3 * i, 0.1, -0.2, 0.3, i, "tracking");
+    write(Level::kInfo, sink, "t={:.3f} s v=({:.2f}, {:.2f}, {:.2f}) m/s status {} {}\n", 1e-3 * i,
+          0.1, -0.2, 0.3, i, "tracking");
     debug("filtered {}\n", i);
   }
   const long after = g_allocations.load();

@@ -1,7 +1,8 @@
 // parse_or_exit: --help and --version exit 0, every usage error exits 2 with the program's name,
 // --quiet and --verbose set the log level.
-#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
+
+#include "hq/base/log.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -61,12 +62,9 @@ TEST(ParseOrExit, HelpAndVersionExitZeroOnStdout) {
 // CLI11 alone exits 109 (unknown option), 106 (missing required), 105 (validation).
 TEST(ParseOrExit, EveryUsageErrorExitsTwoNamingTheProgram) {
   const std::vector<std::vector<std::string>> usage_errors = {
-      {"--input", "a.yaml", "--no-such-option"},
-      {},
-      {"--input", "a.yaml", "--rate-hz", "1000"},
-      {"--input", "a.yaml", "--rate-hz", "fast"},
-      {"--input", "a.yaml", "stray-positional"},
-      {"--input", "a.yaml", "--quiet", "--verbose"}};
+      {"--input", "a.yaml", "--no-such-option"},  {},
+      {"--input", "a.yaml", "--rate-hz", "1000"}, {"--input", "a.yaml", "--rate-hz", "fast"},
+      {"--input", "a.yaml", "stray-positional"},  {"--input", "a.yaml", "--quiet", "--verbose"}};
   for (const std::vector<std::string>& args : usage_errors) {
     const Parsed parsed = parse(args);
     EXPECT_EQ(parsed.exit, 2) << ::testing::PrintToString(args);

@@ -30,8 +30,7 @@ inline std::atomic<Level>& threshold() {
 inline void set_level(Level level) { threshold().store(level, std::memory_order_relaxed); }
 
 inline bool enabled(Level level) {
-  return static_cast<int>(level) <=
-         static_cast<int>(threshold().load(std::memory_order_relaxed));
+  return static_cast<int>(level) <= static_cast<int>(threshold().load(std::memory_order_relaxed));
 }
 
 /// Formats and writes one line (or part of one) if `level` is enabled.
