@@ -7,7 +7,7 @@ BUILD_DIR=${BUILD_DIR:-$HQ_ROOT/build}
 
 # Every Debian 12 package the build and tests need. Nothing is downloaded at build time.
 # strace and systemd (systemd-analyze) serve tests/install: no program reads the source tree,
-# and hq-onboard.service verifies.
+# and hq-onboard.service verifies; help2man writes the man pages from --help, man-db reads them.
 HQ_PACKAGES=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libopencv-dev libopencv-contrib-dev libyaml-cpp-dev libcli11-dev
@@ -16,7 +16,7 @@ HQ_PACKAGES=(
   libfreenect-dev libfreenect-bin libopenni2-dev libsdl2-dev libimgui-dev
   xvfb xauth libgl1-mesa-dri gnuplot valgrind libbenchmark-dev dpkg-dev
   openssl libssl-dev
-  strace systemd
+  strace systemd help2man man-db
   clang-format clang-tidy
 )
 

@@ -17,6 +17,9 @@
 // (keys that fail the handshake), 5 a flight whose --record failed on the way (disk full; the
 // flight went on without it).
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/console_model.hpp"
 #include "hq/console/console_window.hpp"
@@ -332,11 +335,11 @@ hq::console::WindowStats close_window(const Options& o, hq::console::ConsoleWind
   model.snapshot(snap);
   if (!o.screenshot_path.empty()) {
     window.save_screenshot(snap, o.screenshot_path);
-    std::fprintf(stderr, "hq-ground: screenshot %s\n", o.screenshot_path.c_str());
+    hq::log::note("hq-ground: screenshot {}\n", o.screenshot_path.c_str());
   }
   const hq::console::WindowStats st = window.stats();
-  fmt::print("  {:<40} {:.1f} fps over {} frames (render p50 {:.2f} ms, max {:.2f} ms; GL {})\n",
-             "console", st.fps, st.frames, st.render_ms_p50, st.render_ms_max, st.gl_renderer);
+  hq::log::info("  {:<40} {:.1f} fps over {} frames (render p50 {:.2f} ms, max {:.2f} ms; GL {})\n",
+                "console", st.fps, st.frames, st.render_ms_p50, st.render_ms_max, st.gl_renderer);
   return st;
 }
 
@@ -366,13 +369,12 @@ hq::console::WindowStats run_window(const Options& o, const std::string& title,
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_print) {
       const hq::console::WindowStats st = window.stats();
-      fmt::print(stderr,
-                 "hq-ground: console {:.1f} fps (render p50 {:.2f} ms), {} frames decoded, video "
-                 "exposure->display p50 {:.0f} ms p99 {:.0f} ms (vehicle+link {:.0f}, decode "
-                 "{:.0f}, display {:.0f})\n",
-                 st.fps, st.render_ms_p50, st.camera_frames_decoded, st.video_p50_ms,
-                 st.video_p99_ms, st.video_link_p50_ms, st.video_decode_p50_ms,
-                 st.video_display_p50_ms);
+      hq::log::note(
+          "hq-ground: console {:.1f} fps (render p50 {:.2f} ms), {} frames decoded, video "
+          "exposure->display p50 {:.0f} ms p99 {:.0f} ms (vehicle+link {:.0f}, decode "
+          "{:.0f}, display {:.0f})\n",
+          st.fps, st.render_ms_p50, st.camera_frames_decoded, st.video_p50_ms, st.video_p99_ms,
+          st.video_link_p50_ms, st.video_decode_p50_ms, st.video_display_p50_ms);
       next_print += std::chrono::seconds(1);
     }
     if (o.duration_s > 0 && std::chrono::duration<double>(now - start).count() >= o.duration_s) {
@@ -416,10 +418,9 @@ hq::console::WindowStats run_replay_window(const Options& o, hq::console::Consol
   window.set_replay(&timeline);
   const std::vector<std::pair<double, std::string>> keys = parse_keys(o.keys);
   std::size_t next_key = 0;
-  const auto start = std::chrono::steady_clock::now();
+  const std::int64_t start_ns = hq::monotonic_now_ns();
   while (!g_stop) {
-    const double elapsed_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double elapsed_s = hq::to_seconds(hq::monotonic_now_ns() - start_ns);
     for (; next_key < keys.size() && keys[next_key].first <= elapsed_s; ++next_key) {
       window.queue_key(keys[next_key].second);
     }
@@ -437,17 +438,17 @@ hq::console::WindowStats run_replay_window(const Options& o, hq::console::Consol
 
 int run_replay(const Options& o) {
   const hq::console::Recording recording = hq::console::load_recording(o.replay_dir);
-  std::fprintf(stderr, "hq-ground: replay %s: %zu states, %zu commands, %zu events, %zu frames\n",
-               o.replay_dir.c_str(), recording.states.size(), recording.commands.size(),
-               recording.events.size(), recording.rgb.size());
+  hq::log::note("hq-ground: replay {}: {} states, {} commands, {} events, {} frames\n",
+                o.replay_dir.c_str(), recording.states.size(), recording.commands.size(),
+                recording.events.size(), recording.rgb.size());
   if (recording.problem_count > 0) {
-    std::fprintf(stderr, "hq-ground: replay: %zu problem(s) in %s; showing what is readable:\n",
-                 recording.problem_count, o.replay_dir.c_str());
-    for (const std::string& p : recording.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+    hq::log::note("hq-ground: replay: {} problem(s) in {}; showing what is readable:\n",
+                  recording.problem_count, o.replay_dir.c_str());
+    for (const std::string& p : recording.problems) hq::log::note("  {}\n", p.c_str());
   }
   for (const std::string& c : recording.absent_columns) {
-    std::fprintf(stderr, "hq-ground: replay: not in this (older) recording, shown as missing: %s\n",
-                 c.c_str());
+    hq::log::note("hq-ground: replay: not in this (older) recording, shown as missing: {}\n",
+                  c.c_str());
   }
   hq::console::ConsoleModel model;
   model.set_source("replay " + o.replay_dir);
@@ -458,8 +459,8 @@ int run_replay(const Options& o) {
   }
   for (const hq::console::SessionStart& session : player.timeline().sessions) {
     if (session.first_state > 0) {
-      std::fprintf(stderr, "hq-ground: replay: vehicle restarted at %.1f s (%s)\n", session.t_s,
-                   session.why);
+      hq::log::note("hq-ground: replay: vehicle restarted at {:.1f} s ({})\n", session.t_s,
+                    session.why);
     }
   }
   player.set_speed(o.speed);
@@ -488,13 +489,12 @@ int run_replay(const Options& o) {
   });
   hq::console::Snapshot snap = model.make_snapshot();
   std::optional<hq::console::WindowStats> window;
-  std::printf("hq-ground replay summary\n");
+  hq::log::info("hq-ground replay summary\n");
   if (o.headless) {
-    const auto start = std::chrono::steady_clock::now();
-    while (!g_stop && !at_end &&
-           (o.duration_s <= 0 ||
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() <
-                o.duration_s)) {
+    const std::int64_t start_ns = hq::monotonic_now_ns();
+    while (
+        !g_stop && !at_end &&
+        (o.duration_s <= 0 || hq::to_seconds(hq::monotonic_now_ns() - start_ns) < o.duration_s)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   } else {
@@ -507,7 +507,7 @@ int run_replay(const Options& o) {
   model.snapshot(snap);
   char clock[16];
   hq::console::format_clock(snap.replay.position_s, clock, sizeof clock);
-  fmt::print(
+  hq::log::info(
       "  {:<40} {} states, {} camera frames ({} missing), {} problems, at {} of {:.1f} s{}\n",
       "replayed", snap.plot_total, snap.link.camera_frames, frames_missing.load(),
       recording.problem_count, clock, snap.replay.duration_s,
@@ -530,7 +530,7 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_option("--haptics-config", o.haptics_path, "mapping, feedback, loop and device config");
   app.add_option("--vehicle", o.vehicle_path, "vehicle file (R_QC gives eq. 9's alpha)");
   app.add_option("--link-config", o.link_config_path, "YAML with a link: section");
-  hq::link::add_link_options(app, o.link_overrides);
+  hq::link::add_link_options(app, o.link_overrides, hq::link::LinkSide::kStation);
   app.add_option("--command-rate-hz", o.command_rate_hz, "velocity commands sent per second")
       ->check(CLI::Range(5.0, 1000.0));
   app.add_option("--record", o.record_dir,
@@ -563,11 +563,7 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "$XDG_CONFIG_HOME/haptiquad/console.ini; \"none\": neither read nor written)");
   app.add_flag("--bare-window", o.bare_window,
                "measurement: draw an empty window (the frame-rate floor of the console)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   return std::nullopt;
 }
 
@@ -576,12 +572,12 @@ hq::link::LinkConfig load_link(const Options& o) {
                                   ? hq::link::LinkConfig{}
                                   : hq::link::load_link_config(o.link_config_path);
   hq::link::apply_overrides(o.link_overrides, link);
-  std::fprintf(stderr, "hq-ground: link on domain %d as station %u for vehicle %u, %s\n",
-               link.domain_id, link.station_id, link.vehicle_id,
-               hq::link::describe_security(link, hq::security::Role::kStation).c_str());
+  hq::log::note("hq-ground: link on domain {} as station {} for vehicle {}, {}\n", link.domain_id,
+                link.station_id, link.vehicle_id,
+                hq::link::describe_security(link, hq::security::Role::kStation).c_str());
   if (link.impairment.active()) {
-    std::fprintf(stderr, "hq-ground: received samples impaired: %s\n",
-                 hq::link::describe(link.impairment).c_str());
+    hq::log::note("hq-ground: received samples impaired: {}\n",
+                  hq::link::describe(link.impairment).c_str());
   }
   return link;
 }
@@ -602,12 +598,12 @@ std::unique_ptr<hq::mcap_recorder::FlightRecorder> open_mcap(const Options& o,
   try {
     auto mcap = std::make_unique<hq::mcap_recorder::FlightRecorder>(mo);
     for (const std::string& skipped : mcap->attachments_skipped()) {
-      std::fprintf(stderr, "hq-ground: mcap: attachment skipped: %s\n", skipped.c_str());
+      hq::log::note("hq-ground: mcap: attachment skipped: {}\n", skipped.c_str());
     }
     return mcap;
   } catch (const hq::InputError& e) {
     off = std::string("mcap recording off: ") + e.what();
-    std::fprintf(stderr, "hq-ground: %s\n", off.c_str());
+    hq::log::note("hq-ground: {}\n", off.c_str());
     return nullptr;
   }
 }
@@ -632,30 +628,30 @@ hq::ground::OperatorStationOptions station_options(const Options& o,
 void print_link_summary(const hq::ground::GroundStation& ground,
                         const hq::ground::OperatorStation& station) {
   const hq::ground::LinkStatus& s = ground.status();
-  fmt::print("  {:<40} {} commands, {} mode requests, {} heartbeats, {} failed\n", "sent",
-             s.commands_sent, s.mode_requests_sent, s.heartbeats_sent, s.write_failures);
-  fmt::print("  {:<40} {} states, {} events, {} camera frames ({:.1f} KB)\n", "received", s.states,
-             s.events, s.camera_frames, 1e-3 * static_cast<double>(s.camera_bytes));
-  fmt::print("  {:<40} p50 {:.2f} ms, p99 {:.2f} ms over {}\n", "vehicle state latency (one way)",
-             ground.latency().quantile_ms(0.5), ground.latency().quantile_ms(0.99),
-             ground.latency().count());
-  fmt::print("  {:<40} p50 {:.0f} ms, p99 {:.0f} ms over {}\n", "heartbeat round trip",
-             ground.round_trip().quantile_ms(0.5), ground.round_trip().quantile_ms(0.99),
-             ground.round_trip().count());
-  fmt::print("  {:<40} p50 {:.0f} ms, p99 {:.0f} ms over {}\n", "vehicle state age (one way)",
-             ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
-             ground.state_age().count());
-  fmt::print("  {:<40} {:.1f} % ({} reordered, dropped as older)\n", "vehicle state loss",
-             100.0 * ground.state_loss(), s.states_reordered);
-  fmt::print("  {:<40} {:.1f} ms\n", "largest gap between vehicle states",
-             1e3 * station.stats().max_state_gap_s);
+  hq::log::info("  {:<40} {} commands, {} mode requests, {} heartbeats, {} failed\n", "sent",
+                s.commands_sent, s.mode_requests_sent, s.heartbeats_sent, s.write_failures);
+  hq::log::info("  {:<40} {} states, {} events, {} camera frames ({:.1f} KB)\n", "received",
+                s.states, s.events, s.camera_frames, 1e-3 * static_cast<double>(s.camera_bytes));
+  hq::log::info("  {:<40} p50 {:.2f} ms, p99 {:.2f} ms over {}\n",
+                "vehicle state latency (one way)", ground.latency().quantile_ms(0.5),
+                ground.latency().quantile_ms(0.99), ground.latency().count());
+  hq::log::info("  {:<40} p50 {:.0f} ms, p99 {:.0f} ms over {}\n", "heartbeat round trip",
+                ground.round_trip().quantile_ms(0.5), ground.round_trip().quantile_ms(0.99),
+                ground.round_trip().count());
+  hq::log::info("  {:<40} p50 {:.0f} ms, p99 {:.0f} ms over {}\n", "vehicle state age (one way)",
+                ground.state_age().quantile_ms(0.5), ground.state_age().quantile_ms(0.99),
+                ground.state_age().count());
+  hq::log::info("  {:<40} {:.1f} % ({} reordered, dropped as older)\n", "vehicle state loss",
+                100.0 * ground.state_loss(), s.states_reordered);
+  hq::log::info("  {:<40} {:.1f} ms\n", "largest gap between vehicle states",
+                1e3 * station.stats().max_state_gap_s);
   const hq::console::LinkLossMonitor& link_loss = station.link_loss();
-  fmt::print("  {:<40} {}, longest {:.1f} s (alarm after {:.1f} s without a state)\n",
-             "vehicle link losses", link_loss.losses(), link_loss.longest_s(),
-             link_loss.lost_after_s());
-  fmt::print("  {:<40} {}\n", "last vehicle mode",
-             s.have_state ? hq::ground::to_string(s.state.mode) : "-");
-  fmt::print("  {:<40} {}\n", "last event", s.last_event.data());
+  hq::log::info("  {:<40} {}, longest {:.1f} s (alarm after {:.1f} s without a state)\n",
+                "vehicle link losses", link_loss.losses(), link_loss.longest_s(),
+                link_loss.lost_after_s());
+  hq::log::info("  {:<40} {}\n", "last vehicle mode",
+                s.have_state ? hq::ground::to_string(s.state.mode) : "-");
+  hq::log::info("  {:<40} {}\n", "last event", s.last_event.data());
 }
 
 // Haptic loop, checks and ownership figures of the summary.
@@ -664,29 +660,29 @@ void print_hand_summary(const hq::ground::GroundStation& ground,
                         const hq::haptics::HapticLoop& loop, std::uint32_t station_id) {
   const hq::ground::LinkStatus& s = ground.status();
   const hq::haptics::LoopTimingReport& timing = loop.timing();
-  fmt::print("  {:<40} p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us, {} missed\n",
-             "haptic loop period jitter", timing.period.quantile_us(0.5),
-             timing.period.quantile_us(0.99), timing.period.max_us(), timing.missed_deadlines);
-  fmt::print("  {:<40} {:.4f} J (>= 0: passive), min {:.4f} J\n", "passivity observer energy",
-             loop.passivity().energy_j(), loop.passivity().min_energy_j());
-  fmt::print("  {:<40} {:.4f} J dissipated ({})\n", "passivity controller",
-             loop.passivity_controller().dissipated_j(),
-             loop.passivity_controller().enabled() ? "on" : "off");
-  fmt::print("  {:<40} {}\n", "device losses", station.stats().device_losses);
-  fmt::print(
+  hq::log::info("  {:<40} p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us, {} missed\n",
+                "haptic loop period jitter", timing.period.quantile_us(0.5),
+                timing.period.quantile_us(0.99), timing.period.max_us(), timing.missed_deadlines);
+  hq::log::info("  {:<40} {:.4f} J (>= 0: passive), min {:.4f} J\n", "passivity observer energy",
+                loop.passivity().energy_j(), loop.passivity().min_energy_j());
+  hq::log::info("  {:<40} {:.4f} J dissipated ({})\n", "passivity controller",
+                loop.passivity_controller().dissipated_j(),
+                loop.passivity_controller().enabled() ? "on" : "off");
+  hq::log::info("  {:<40} {}\n", "device losses", station.stats().device_losses);
+  hq::log::info(
       "  {:<40} {} missing, {} rejected ({} invalid, {} implausible, {} of another session, {} "
       "sequence jumps), {} out of order, {} sequence resyncs\n",
       "vehicle states lost", s.state_sequence_gaps, s.states_rejected, s.states_invalid,
       s.states_implausible, s.states_wrong_session, s.states_sequence_jump, s.states_reordered,
       s.states_resynced);
-  fmt::print("  {:<40} {} rejected (not of session {:016x}); {} vehicle restarts\n",
-             "vehicle events", s.events_rejected, s.vehicle_session, s.vehicle_restarts);
-  fmt::print("  {:<40} {} (commander: station {}, this station {}, {} losses)\n", "control",
-             s.control_lost ? "LOST" : "held", s.commanding_station_id, station_id,
-             s.control_losses);
-  fmt::print("  {:<40} {}{}{}\n", "intrusions the vehicle reported", s.intrusion_reports,
-             s.intrusion_reports > 0 ? "; last: " : "", s.last_intrusion.data());
-  fmt::print("  {:<40} {:.3f} N\n", "largest force on the hand", station.stats().max_force_n);
+  hq::log::info("  {:<40} {} rejected (not of session {:016x}); {} vehicle restarts\n",
+                "vehicle events", s.events_rejected, s.vehicle_session, s.vehicle_restarts);
+  hq::log::info("  {:<40} {} (commander: station {}, this station {}, {} losses)\n", "control",
+                s.control_lost ? "LOST" : "held", s.commanding_station_id, station_id,
+                s.control_losses);
+  hq::log::info("  {:<40} {}{}{}\n", "intrusions the vehicle reported", s.intrusion_reports,
+                s.intrusion_reports > 0 ? "; last: " : "", s.last_intrusion.data());
+  hq::log::info("  {:<40} {:.3f} N\n", "largest force on the hand", station.stats().max_force_n);
 }
 
 // --state-json of a flight: the station's final word, not the console's last 4 Hz copy.
@@ -736,16 +732,16 @@ void report_vehicle_never_reached(const hq::link::LinkConfig& link, double waite
   const std::string vehicle =
       hq::security::identity_name(hq::security::Role::kVehicle, link.vehicle_id);
   const std::string keys = link.security.keys_dir.empty() ? "KEYS" : link.security.keys_dir;
-  std::fprintf(stderr,
-               "hq-ground: error: station %s (certificate %s) never reached vehicle %u (%s): "
-               "nothing of it arrived in %.1f s on domain %d. Either the vehicle is not "
-               "running there, or the DDS Security handshake failed (Cyclone logs only "
-               "\"handshake failed\"), e.g. with keys of another CA. Check both ends' keys "
-               "with `hq-keys check %s --identity %s --peer VEHICLE_KEYS/%s`; exit status "
-               "%d\n",
-               station.c_str(), files.certificate.c_str(), link.vehicle_id, vehicle.c_str(),
-               waited_s, link.domain_id, keys.c_str(), station.c_str(), vehicle.c_str(),
-               kVehicleNeverReachedExitStatus);
+  hq::log::error(
+      "hq-ground: error: station {} (certificate {}) never reached vehicle {} ({}): "
+      "nothing of it arrived in {:.1f} s on domain {}. Either the vehicle is not "
+      "running there, or the DDS Security handshake failed (Cyclone logs only "
+      "\"handshake failed\"), e.g. with keys of another CA. Check both ends' keys "
+      "with `hq-keys check {} --identity {} --peer VEHICLE_KEYS/{}`; exit status "
+      "{}\n",
+      station.c_str(), files.certificate.c_str(), link.vehicle_id, vehicle.c_str(), waited_s,
+      link.domain_id, keys.c_str(), station.c_str(), vehicle.c_str(),
+      kVehicleNeverReachedExitStatus);
 }
 
 // Exit status of a flight that went well but whose record failed (disk full): the record is
@@ -760,8 +756,7 @@ bool close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::Groun
   const hq::ground::LinkStatus& s = ground.status();
   hq::mcap::KeyValues summary;
   const auto put = [&](const char* key, double v) { summary[key] = fmt::format("{:.6g}", v); };
-  put("duration_s",
-      1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - station.start_ns()));
+  put("duration_s", hq::to_seconds(hq::haptics::monotonic_now_ns() - station.start_ns()));
   put("commands_sent", static_cast<double>(s.commands_sent));
   put("mode_requests_sent", static_cast<double>(s.mode_requests_sent));
   put("states_received", static_cast<double>(s.states));
@@ -775,16 +770,16 @@ bool close_mcap(hq::mcap_recorder::FlightRecorder& mcap, const hq::ground::Groun
   summary["last_vehicle_mode"] = s.have_state ? hq::ground::to_string(s.state.mode) : "-";
   summary["last_event"] = s.last_event.data();
   const hq::mcap_recorder::RecorderReport& r = mcap.close(summary);
-  fmt::print(
+  hq::log::info(
       "  {:<40} {} messages, {} channels, {} bytes, {} attachments, {} ground samples dropped\n",
       "mcap", r.messages, r.channels, r.bytes, r.attachments, r.ground_samples_dropped);
   for (const hq::mcap_recorder::ChannelReport& c : r.per_channel) {
-    fmt::print("  mcap channel {} {} {} {}\n", c.topic, c.messages, c.first_log_time_ns,
-               c.last_log_time_ns);
+    hq::log::info("  mcap channel {} {} {} {}\n", c.topic, c.messages, c.first_log_time_ns,
+                  c.last_log_time_ns);
   }
   if (r.error.empty()) return true;
-  std::printf("  %-40s %s\n", "mcap error", r.error.c_str());
-  std::fprintf(stderr, "hq-ground: the flight record failed: %s\n", r.error.c_str());
+  hq::log::info("  {:<40} {}\n", "mcap error", r.error.c_str());
+  hq::log::error("hq-ground: the flight record failed: {}\n", r.error.c_str());
   return false;
 }
 
@@ -847,11 +842,11 @@ int run_live(const Options& o) {
   model.set_source("live: domain " + std::to_string(link.domain_id) + ", device " + o.device);
   hq::haptics::HapticLoop loop(*device, haptics, vehicle.camera.R_B_C());
   const hq::haptics::RealtimeGrant grant = loop.start();
-  std::fprintf(stderr,
-               "hq-ground: device %s, domain %d, vehicle %u, station %u (strength %d); haptic "
-               "loop: %s\n",
-               device->name(), link.domain_id, link.vehicle_id, link.station_id,
-               link.station_strength, grant.summary.c_str());
+  hq::log::note(
+      "hq-ground: device {}, domain {}, vehicle {}, station {} (strength {}); haptic "
+      "loop: {}\n",
+      device->name(), link.domain_id, link.vehicle_id, link.station_id, link.station_strength,
+      grant.summary.c_str());
 
   hq::ground::SystemClock clock;
   hq::ground::OperatorOutputs outputs;
@@ -859,7 +854,7 @@ int run_live(const Options& o) {
   outputs.mcap = mcap.get();
   hq::ground::OperatorStation station(station_options(o, link), ground, loop, model, clock,
                                       outputs);
-  std::printf("hq-ground summary\n");
+  hq::log::info("hq-ground summary\n");
   hq::console::Snapshot snap = model.make_snapshot();
   const std::optional<hq::console::WindowStats> window =
       fly(o, station, model, snap, window_keyboard ? &flight_keys : nullptr);
@@ -873,22 +868,22 @@ int run_live(const Options& o) {
   bool record_ok = !mcap || close_mcap(*mcap, ground, station, loop);
   // A flight.mcap that could not be made at the start (one already there) was told then, and
   // the CSV recording holds the flight: that is no failure of the record made.
-  if (!mcap_off.empty()) std::printf("  %-40s %s\n", "mcap", mcap_off.c_str());
+  if (!mcap_off.empty()) hq::log::info("  {:<40} {}\n", "mcap", mcap_off.c_str());
   if (recorder && !recorder->close()) {
-    std::fprintf(stderr, "hq-ground: the flight record failed: recording: %s\n",
-                 recorder->error().c_str());
+    hq::log::error("hq-ground: the flight record failed: recording: {}\n",
+                   recorder->error().c_str());
     record_ok = false;
   }
   if (link.security.enabled && !heard_from_vehicle(ground.status())) {
     report_vehicle_never_reached(
-        link, 1e-9 * static_cast<double>(hq::haptics::monotonic_now_ns() - station.start_ns()));
+        link, hq::to_seconds(hq::haptics::monotonic_now_ns() - station.start_ns()));
     return kVehicleNeverReachedExitStatus;
   }
   if (record_ok) return 0;
-  std::fprintf(stderr,
-               "hq-ground: the flight record is incomplete; exit status %d, the flight itself "
-               "went on\n",
-               kRecordFailedExitStatus);
+  hq::log::note(
+      "hq-ground: the flight record is incomplete; exit status {}, the flight itself "
+      "went on\n",
+      kRecordFailedExitStatus);
   return kRecordFailedExitStatus;
 }
 

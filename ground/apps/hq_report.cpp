@@ -15,6 +15,9 @@
 //   hq-report <recording-dir | flight.mcap> --csv OUT_DIR
 //   hq-report --recover IN.mcap OUT.mcap
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/console/flight_mcap.hpp"
 #include "hq/console/flight_report.hpp"
@@ -175,11 +178,7 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_option("--recover", o.recover,
                  "rewrite IN.mcap (a writer killed: no summary) into a complete OUT.mcap")
       ->expected(2);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   if (o.recover.empty() && o.recording.empty()) {
     throw hq::InputError(std::string("no recording given (") + kUsage + ")");
   }
@@ -194,9 +193,9 @@ hq::console::Recording load_checked(const std::string& path) {
   } catch (const hq::InputError& e) {
     throw hq::InputError(std::string(e.what()) + " (" + kUsage + ")");
   }
-  for (const std::string& p : r.problems) std::fprintf(stderr, "hq-report: %s\n", p.c_str());
+  for (const std::string& p : r.problems) hq::log::note("hq-report: {}\n", p.c_str());
   for (const std::string& c : r.absent_columns) {
-    std::fprintf(stderr, "hq-report: column absent (older layout): %s\n", c.c_str());
+    hq::log::note("hq-report: column absent (older layout): {}\n", c.c_str());
   }
   if (r.states.empty()) {
     throw hq::InputError(
@@ -303,12 +302,11 @@ Summary write_data_file(const hq::console::Recording& r, const hq::console::Repo
       data << '\n';
     } else if (i > 0) {
       // A gap of more than a second is not bridged.
-      track.step(
-          s, std::min(1e-9 * static_cast<double>(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0));
+      track.step(s, std::min(hq::to_seconds(s.receipt_ns - r.states[i - 1].receipt_ns), 1.0));
     }
     const hq::console::RecordedCommand* c = command_at(r.commands, s.receipt_ns);
     accumulate(s, c, sum);
-    write_data_row(data, 1e-9 * static_cast<double>(s.receipt_ns - t0_ns), s, c, track, session);
+    write_data_row(data, hq::to_seconds(s.receipt_ns - t0_ns), s, c, track, session);
   }
   data.close();
   if (!data) throw hq::InputError(data_path + ": write failed (disk full?)");
@@ -505,25 +503,24 @@ void write_markdown(const std::string& md_path, const std::string& title,
                     const hq::console::Recording& r, const Rows& rows, const std::string& format) {
   std::FILE* md = std::fopen(md_path.c_str(), "w");
   if (md == nullptr) throw hq::InputError(md_path + ": cannot open for writing");
-  std::fprintf(md, "# Flight report: %s\n\n", title.c_str());
-  std::fprintf(md, "| figure | value |\n| --- | --- |\n");
+  fmt::print(md, "# Flight report: {}\n\n", title.c_str());
+  fmt::print(md, "| figure | value |\n| --- | --- |\n");
   for (const auto& [name, value] : rows) {
-    std::fprintf(md, "| %s | %s |\n", name.c_str(), value.c_str());
+    fmt::print(md, "| {} | {} |\n", name.c_str(), value.c_str());
   }
-  std::fprintf(md,
-               "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
-               "orange, marker purple, explore teal), event ticks at the top (grey info, "
-               "amber warning, red error), vehicle restarts as red lines.\n\n");
-  for (const char* name : kFigures)
-    std::fprintf(md, "![%s](%s.%s)\n\n", name, name, format.c_str());
+  fmt::print(md,
+             "\nPlots: mode bands behind the traces (teleop green, hover blue, land "
+             "orange, marker purple, explore teal), event ticks at the top (grey info, "
+             "amber warning, red error), vehicle restarts as red lines.\n\n");
+  for (const char* name : kFigures) fmt::print(md, "![{}]({}.{})\n\n", name, name, format.c_str());
   if (!r.absent_columns.empty()) {
-    std::fprintf(md, "## Columns absent (older recording layout)\n\n");
-    for (const std::string& c : r.absent_columns) std::fprintf(md, "- %s\n", c.c_str());
-    std::fprintf(md, "\n");
+    fmt::print(md, "## Columns absent (older recording layout)\n\n");
+    for (const std::string& c : r.absent_columns) fmt::print(md, "- {}\n", c.c_str());
+    fmt::print(md, "\n");
   }
   if (!r.problems.empty()) {
-    std::fprintf(md, "## Recording problems\n\n");
-    for (const std::string& p : r.problems) std::fprintf(md, "- %s\n", p.c_str());
+    fmt::print(md, "## Recording problems\n\n");
+    for (const std::string& p : r.problems) fmt::print(md, "- {}\n", p.c_str());
   }
   if (std::fclose(md) != 0) throw hq::InputError(md_path + ": write failed");
 }
@@ -582,9 +579,9 @@ int write_report(const Options& o) {
   const std::string md_path = (fs::path(out_dir) / "report.md").string();
   write_markdown(md_path, o.recording, r, rows, o.format);
   write_html((fs::path(out_dir) / "report.html").string(), o.recording, rows, o.format);
-  std::printf("hq-report: %s (and report.html; figures %s in %s; read from %s)\n", md_path.c_str(),
-              o.format.c_str(), out_dir.c_str(),
-              r.from_mcap ? r.directory.c_str() : "the CSV files");
+  hq::log::info("hq-report: {} (and report.html; figures {} in {}; read from {})\n",
+                md_path.c_str(), o.format.c_str(), out_dir.c_str(),
+                r.from_mcap ? r.directory.c_str() : "the CSV files");
   return 0;
 }
 
@@ -613,7 +610,7 @@ class CsvExport : public hq::console::FlightSampleSink {
     recorder_.command(t_ns, c, valid);
   }
   void on_problem(const std::string& text) override {
-    std::fprintf(stderr, "hq-report: %s\n", text.c_str());
+    hq::log::note("hq-report: {}\n", text.c_str());
   }
   hq::ground::TelemetryRecorder& recorder() { return recorder_; }
 
@@ -623,17 +620,16 @@ class CsvExport : public hq::console::FlightSampleSink {
 
 // What a damaged file cost, on stderr: each warning names the file and the offset.
 void print_damage(const hq::mcap::ReadReport& r) {
-  for (const std::string& w : r.warnings)
-    std::fprintf(stderr, "hq-report: warning: %s\n", w.c_str());
+  for (const std::string& w : r.warnings) hq::log::warn("hq-report: warning: {}\n", w.c_str());
   if (!r.damaged()) return;
-  std::fprintf(stderr,
-               "hq-report: warning: damaged file: %llu chunks dropped (%llu messages%s), %llu "
-               "records and %llu bytes skipped; the rest is kept\n",
-               static_cast<unsigned long long>(r.chunks_dropped),
-               static_cast<unsigned long long>(r.messages_dropped),
-               r.chunks_dropped_uncounted > 0 ? " or more" : "",
-               static_cast<unsigned long long>(r.records_skipped),
-               static_cast<unsigned long long>(r.bytes_skipped));
+  hq::log::warn(
+      "hq-report: warning: damaged file: {} chunks dropped ({} messages{}), {} "
+      "records and {} bytes skipped; the rest is kept\n",
+      static_cast<unsigned long long>(r.chunks_dropped),
+      static_cast<unsigned long long>(r.messages_dropped),
+      r.chunks_dropped_uncounted > 0 ? " or more" : "",
+      static_cast<unsigned long long>(r.records_skipped),
+      static_cast<unsigned long long>(r.bytes_skipped));
 }
 
 int export_csv(const Options& o) {
@@ -648,9 +644,9 @@ int export_csv(const Options& o) {
   CsvExport out(o.csv_dir);
   const hq::console::FlightCounts n = hq::console::read_flight(reader, mcap_path, out);
   if (!out.recorder().close()) throw hq::InputError("--csv: " + out.recorder().error());
-  std::printf(
-      "hq-report: %s -> %s: %zu states, %zu commands, %zu mode requests, %zu events, "
-      "%zu camera frames%s\n",
+  hq::log::info(
+      "hq-report: {} -> {}: {} states, {} commands, {} mode requests, {} events, "
+      "{} camera frames{}\n",
       mcap_path.c_str(), o.csv_dir.c_str(), n.states, n.commands, n.mode_requests, n.events,
       n.frames, reader.report().has_summary ? "" : " (no summary: recovered by scanning)");
   return n.undecodable == 0 ? 0 : 1;
@@ -659,27 +655,29 @@ int export_csv(const Options& o) {
 int recover_file(const Options& o) {
   const hq::mcap::RecoveryReport r = hq::mcap::recover(o.recover[0], o.recover[1]);
   print_damage(r.read);
-  std::printf("hq-report: %s -> %s: %s\n", o.recover[0].c_str(), o.recover[1].c_str(),
-              r.read.has_summary ? "had a summary already (rewritten as it was)"
-                                 : "no summary (writer killed?), recovered by scanning");
-  fmt::print("  messages   {} recovered, {} channels, {} attachments, {} metadata\n",
-             r.written.message_count, r.written.channel_count, r.written.attachment_count,
-             r.written.metadata_count);
-  fmt::print("  time span  {:.3f} s (log time {} .. {} ns)\n",
-             1e-9 * static_cast<double>(r.last_log_time_ns - r.first_log_time_ns),
-             r.first_log_time_ns, r.last_log_time_ns);
-  fmt::print("  dropped    {} bytes at the tail (an incomplete record){}\n", r.bytes_dropped,
-             r.messages_without_channel > 0
-                 ? fmt::format(", {} messages without a channel record", r.messages_without_channel)
-                 : std::string());
+  hq::log::info("hq-report: {} -> {}: {}\n", o.recover[0].c_str(), o.recover[1].c_str(),
+                r.read.has_summary ? "had a summary already (rewritten as it was)"
+                                   : "no summary (writer killed?), recovered by scanning");
+  hq::log::info("  messages   {} recovered, {} channels, {} attachments, {} metadata\n",
+                r.written.message_count, r.written.channel_count, r.written.attachment_count,
+                r.written.metadata_count);
+  hq::log::info("  time span  {:.3f} s (log time {} .. {} ns)\n",
+                hq::to_seconds(r.last_log_time_ns - r.first_log_time_ns), r.first_log_time_ns,
+                r.last_log_time_ns);
+  hq::log::info(
+      "  dropped    {} bytes at the tail (an incomplete record){}\n", r.bytes_dropped,
+      r.messages_without_channel > 0
+          ? fmt::format(", {} messages without a channel record", r.messages_without_channel)
+          : std::string());
   if (r.read.damaged()) {
-    fmt::print("  damaged    {} chunks dropped ({}{} messages), {} records and {} bytes skipped\n",
-               r.read.chunks_dropped, r.read.messages_dropped,
-               r.read.chunks_dropped_uncounted > 0 ? " or more" : "", r.read.records_skipped,
-               r.read.bytes_skipped);
+    hq::log::info(
+        "  damaged    {} chunks dropped ({}{} messages), {} records and {} bytes skipped\n",
+        r.read.chunks_dropped, r.read.messages_dropped,
+        r.read.chunks_dropped_uncounted > 0 ? " or more" : "", r.read.records_skipped,
+        r.read.bytes_skipped);
   }
-  fmt::print("  written    {} bytes, {} chunks, with summary and indexes\n", r.bytes_written,
-             r.written.chunk_count);
+  hq::log::info("  written    {} bytes, {} chunks, with summary and indexes\n", r.bytes_written,
+                r.written.chunk_count);
   return 0;
 }
 

@@ -3,6 +3,7 @@
 // passivity controller off and on, all in one run beside the no-delay baseline. Simulated time:
 // the figures do not depend on the machine's load. Not run by ctest.
 
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/haptics/delay_campaign.hpp"
 #include "hq/vehicle_config/vehicle_config.hpp"
@@ -10,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,7 +38,7 @@ int run(int argc, char** argv) {
     double stiff_k = 200.0;
     app.add_option("--stiff-k", stiff_k, "cue stiffness of the stiff law (N/m)")
         ->check(CLI::Range(0.0, 5000.0));
-    CLI11_PARSE(app, argc, argv);
+    if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
     hq::haptics::HapticsConfig shipped = hq::haptics::load_haptics_config(haptics_path);
     const Eigen::Matrix3d R_body_camera = hq::load_vehicle_config(vehicle_path).camera.R_B_C();

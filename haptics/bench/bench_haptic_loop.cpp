@@ -4,6 +4,7 @@
 // ground's DDS side, reading commands and feeding vehicle estimates at 100 Hz. Not run by ctest.
 
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/haptics/haptic_loop.hpp"
 #include "hq/vehicle_config/vehicle_config.hpp"
@@ -15,6 +16,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fmt/format.h>
+#include <optional>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/prctl.h>
@@ -69,7 +71,7 @@ int run(int argc, char** argv) {
   app.add_option("--seconds", seconds, "Duration of the run")->check(CLI::Range(0.5, 3600.0));
   app.add_option("--config", config_path, "Haptics config");
   app.add_option("--vehicle", vehicle_path, "Vehicle file (camera mount for eq. 9)");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const hq::haptics::HapticsConfig config = hq::haptics::load_haptics_config(config_path);
   const hq::VehicleConfig vehicle = hq::load_vehicle_config(vehicle_path);

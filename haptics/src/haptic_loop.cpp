@@ -1,6 +1,7 @@
 #include "hq/haptics/haptic_loop.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/haptics/force_limit.hpp"
@@ -110,8 +111,7 @@ void HapticLoop::tick(std::int64_t t_ns) {
   DeviceSample sample;
   const bool read_ok = device_.read(t_ns, sample);
   out.device_connected = read_ok;
-  const double dt_s = have_last_ ? 1e-9 * static_cast<double>(t_ns - last_t_ns_)
-                                 : 1e-9 * static_cast<double>(period_ns_);
+  const double dt_s = have_last_ ? hq::to_seconds(t_ns - last_t_ns_) : hq::to_seconds(period_ns_);
 
   if (!read_ok || !sample.p_D_m.allFinite() || !(dt_s > 0.0)) {
     // Device lost or reading unusable: zero command and no force until it comes back.
@@ -229,7 +229,7 @@ RealtimeGrant HapticLoop::start() {
     grant.summary += " -- " + refused +
                      "timing will jitter under load (needs root or CAP_SYS_NICE / CAP_IPC_LOCK, "
                      "or rtprio and memlock limits)";
-    std::fprintf(stderr, "warning: %s\n", grant.summary.c_str());
+    hq::log::warn("warning: {}\n", grant.summary.c_str());
   }
   return grant;
 }

@@ -1,4 +1,5 @@
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/haptics/haptic_device.hpp"
 
 #include <algorithm>
@@ -98,7 +99,7 @@ bool SimulatedDevice::read(std::int64_t t_ns, DeviceSample& out) {
     started_ = true;
     t0_ns_ = t_ns;
   }
-  integrate(1e-9 * static_cast<double>(t_ns - t0_ns_));
+  integrate(hq::to_seconds(t_ns - t0_ns_));
   Eigen::Vector3d p_hand = Eigen::Vector3d::Zero();
   Eigen::Vector3d v_hand = Eigen::Vector3d::Zero();
   std::uint32_t buttons = 0;

@@ -1,6 +1,7 @@
 #include "hq/haptics/teleop_mapping.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/geometry/camera_mount.hpp"
 
 #include <algorithm>
@@ -78,7 +79,7 @@ ForceFeedback::ForceFeedback(const FeedbackConfig& config, const TeleopMapping& 
 
 double ForceFeedback::cue_weight(std::int64_t t_ns, const VehicleEstimate& estimate) const {
   if (!estimate.valid) return 0.0;
-  const double age_s = 1e-9 * static_cast<double>(t_ns - estimate.t_ns);
+  const double age_s = hq::to_seconds(t_ns - estimate.t_ns);
   if (age_s <= config_.stale_after_s) return 1.0;
   if (config_.fade_s <= 0.0) return 0.0;
   const double fraction = (age_s - config_.stale_after_s) / config_.fade_s;

@@ -1,3 +1,4 @@
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/haptics/haptic_loop.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
@@ -118,8 +119,8 @@ TEST(HapticLoop, NanPositionGivesZeroCommandZeroForceAndStatus) {
 class SwingingDevice final : public HapticDevice {
  public:
   bool read(std::int64_t t_ns, DeviceSample& out) override {
-    out.p_D_m = Eigen::Vector3d(
-        kAmplitudeM * std::sin(kOmegaRadps * 1e-9 * static_cast<double>(t_ns)), 0.0, 0.0);
+    out.p_D_m =
+        Eigen::Vector3d(kAmplitudeM * std::sin(kOmegaRadps * hq::to_seconds(t_ns)), 0.0, 0.0);
     return true;
   }
   void write_force(std::int64_t, const Eigen::Vector3d& F_D_n) override {
@@ -129,7 +130,7 @@ class SwingingDevice final : public HapticDevice {
   [[nodiscard]] const char* name() const override { return "swinging"; }
   [[nodiscard]] bool connected() const override { return true; }
   [[nodiscard]] static double v_x_mps(std::int64_t t_ns) {
-    return kAmplitudeM * kOmegaRadps * std::cos(kOmegaRadps * 1e-9 * static_cast<double>(t_ns));
+    return kAmplitudeM * kOmegaRadps * std::cos(kOmegaRadps * hq::to_seconds(t_ns));
   }
 
   static constexpr double kAmplitudeM = 0.03;

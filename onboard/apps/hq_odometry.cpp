@@ -1,5 +1,8 @@
 // hq-odometry: dense RGB-D odometry over a recorded sequence, written as a TUM trajectory.
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/config/strict_yaml.hpp"
@@ -14,6 +17,7 @@
 #include <csignal>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -87,32 +91,31 @@ std::unique_ptr<hq::sources::FrameSource> open_source(const Options& o) {
 std::vector<hq::recording::StampedPose> track_all(hq::sources::FrameSource& source,
                                                   hq::odometry::DenseOdometry& odometry,
                                                   double seconds, int& lost) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  const std::int64_t end_ns = hq::monotonic_now_ns() + static_cast<std::int64_t>(1e9 * seconds);
   std::vector<hq::recording::StampedPose> trajectory;
   hq::sources::RgbdFrame frame;
   std::string last_error;
-  while (g_stop == 0 && (seconds <= 0.0 || std::chrono::steady_clock::now() < end)) {
+  while (g_stop == 0 && (seconds <= 0.0 || hq::monotonic_now_ns() < end_ns)) {
     const hq::sources::FrameStatus status = source.next(frame);
     if (status == hq::sources::FrameStatus::kEndOfStream) break;
     if (status == hq::sources::FrameStatus::kNoFrame) {
       // A live camera was lost; the source reopens it on later calls.
       if (source.error() != last_error) {
-        std::fprintf(stderr, "hq-odometry: %s\n", source.error().c_str());
+        hq::log::note("hq-odometry: {}\n", source.error().c_str());
       }
       last_error = source.error();
       continue;
     }
     last_error.clear();
-    const auto start = std::chrono::steady_clock::now();
+    const std::int64_t start_ns = hq::monotonic_now_ns();
     const hq::odometry::OdometryResult result =
         odometry.track(frame.t_ns, frame.gray, frame.depth_m);
-    const double ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    const double ms = 1e3 * hq::to_seconds(hq::monotonic_now_ns() - start_ns);
     if (result.status == hq::odometry::TrackingStatus::kLost) ++lost;
     trajectory.push_back({frame.t_ns, result.T_O_C});
-    std::fprintf(stderr, "frame %4zu  %-11s %6.2f ms  valid %.2f  iterations %2d%s  %s\n",
-                 trajectory.size(), hq::odometry::to_string(result.status), ms, result.valid_ratio,
-                 result.iterations, result.new_keyframe ? "  keyframe" : "", result.reason);
+    hq::log::note("frame {:4}  {:<11} {:6.2f} ms  valid {:.2f}  iterations {:2}{}  {}\n",
+                  trajectory.size(), hq::odometry::to_string(result.status), ms, result.valid_ratio,
+                  result.iterations, result.new_keyframe ? "  keyframe" : "", result.reason);
   }
   return trajectory;
 }
@@ -123,18 +126,18 @@ static int run(int argc, char** argv) {
   CLI::App app{"Dense RGB-D odometry (DVO, Kerl 2013) over a TUM RGB-D sequence or a camera"};
   Options o;
   add_options(app, o);
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const hq::odometry::OdometryConfig config = load_config(o.config_path);
   const std::unique_ptr<hq::sources::FrameSource> source = open_source(o);
   hq::odometry::DenseOdometry odometry(config, source->camera());
-  std::fprintf(stderr, "hq-odometry: %s\n", source->describe().c_str());
+  hq::log::note("hq-odometry: {}\n", source->describe().c_str());
   int lost = 0;
   const std::vector<hq::recording::StampedPose> trajectory =
       track_all(*source, odometry, o.seconds, lost);
   hq::recording::write_tum_trajectory(o.out_path, trajectory);
-  std::fprintf(stderr, "hq-odometry: %zu poses written to %s, %d lost\n", trajectory.size(),
-               o.out_path.c_str(), lost);
+  hq::log::note("hq-odometry: {} poses written to {}, {} lost\n", trajectory.size(),
+                o.out_path.c_str(), lost);
   return 0;
 }
 

@@ -25,6 +25,8 @@
 // simulator as camera and flight controller in this process) is hq-sim-flight.
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/data_path.hpp"
 #include "hq/link/config.hpp"
@@ -34,6 +36,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <optional>
 #include <string>
 
 namespace hq::onboard_app {
@@ -102,18 +105,13 @@ int run(int argc, char** argv) {
           "hq-onboard --source sitl");
     }
   }
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   // Which file serves, since a relative name may come from the current folder or the install.
-  std::fprintf(stderr, "hq-onboard: config %s\n",
-               hq::config::resolve_data_path(o.config_path).c_str());
+  hq::log::note("hq-onboard: config {}\n", hq::config::resolve_data_path(o.config_path).c_str());
   try {
     return run_vehicle(o);
   } catch (const hq::DeviceUnavailableError& e) {
-    std::fprintf(stderr, "hq-onboard: %s\n", e.what());
+    hq::log::note("hq-onboard: {}\n", e.what());
     return kDeviceUnavailableExitStatus;
   }
 }

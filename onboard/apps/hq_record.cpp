@@ -1,6 +1,9 @@
 // hq-record: records a live RGB-D camera in the TUM RGB-D layout, so that every tool of the
 // project (hq-odometry, hq-onboard --source replay, hq-evaluate) runs on the recording.
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/sources/camera_sources.hpp"
 #include "hq/sources/tum_recorder.hpp"
@@ -10,6 +13,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 namespace {
@@ -39,24 +43,23 @@ static int run(int argc, char** argv) {
   app.add_option("--width", options.width, "stream width");
   app.add_option("--height", options.height, "stream height");
   app.add_option("--fps", options.fps, "stream rate");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const auto source = hq::sources::open_camera_source(spec, options);
-  std::fprintf(stderr, "hq-record: %s\n", source->describe().c_str());
+  hq::log::note("hq-record: {}\n", source->describe().c_str());
   hq::sources::TumRecorder recorder(out_dir, source->camera(), "hq-record " + spec);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
 
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  const std::int64_t end_ns = hq::monotonic_now_ns() + static_cast<std::int64_t>(1e9 * seconds);
   hq::sources::RgbdFrame frame;
   std::string last_error;
   int accel_samples = 0;
-  while (g_stop == 0 && std::chrono::steady_clock::now() < end) {
+  while (g_stop == 0 && hq::monotonic_now_ns() < end_ns) {
     const hq::sources::FrameStatus status = source->next(frame);
     if (status == hq::sources::FrameStatus::kEndOfStream) break;
     if (status == hq::sources::FrameStatus::kNoFrame) {
-      if (source->error() != last_error)
-        std::fprintf(stderr, "hq-record: %s\n", source->error().c_str());
+      if (source->error() != last_error) hq::log::note("hq-record: {}\n", source->error().c_str());
       last_error = source->error();
       continue;
     }
@@ -68,8 +71,8 @@ static int run(int argc, char** argv) {
     }
   }
   recorder.close();
-  std::fprintf(stderr, "hq-record: %zu frames and %d accelerometer samples written to %s\n",
-               recorder.frames(), accel_samples, out_dir.c_str());
+  hq::log::note("hq-record: {} frames and {} accelerometer samples written to {}\n",
+                recorder.frames(), accel_samples, out_dir.c_str());
   return recorder.frames() > 0 ? 0 : 1;
 }
 

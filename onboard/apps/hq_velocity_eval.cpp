@@ -10,6 +10,8 @@
 // from a B-spline fit of the ground truth, with the Kinect's recorded accelerometer where there
 // is one (see hq/pipeline/replay_imu.hpp).
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
@@ -19,6 +21,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <optional>
 #include <string>
 
 namespace {
@@ -42,56 +45,56 @@ int run(int argc, char** argv) {
                  "where a TUM sequence has accelerometer.txt: replay it (recorded) or use the "
                  "IMU model's (model)")
       ->check(CLI::IsMember({"recorded", "model"}));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   hq::pipeline::ImuSynthesis synthesis;
   synthesis.recorded_accelerometer = accelerometer == "recorded";
   const hq::pipeline::SequenceReplay replay =
       hq::pipeline::replay_velocity(sequence_dir, hq::config::load_camera_info(camera_path),
                                     hq::pipeline::load_onboard_config(config_path),
                                     hq::load_vehicle_config(vehicle_path), synthesis);
-  std::printf("%s\n", replay.imu.description.c_str());
+  hq::log::info("{}\n", replay.imu.description.c_str());
   hq::pipeline::LagSearch lag;
   lag.max_lag_s = 1e-3 * max_lag_ms;
   const hq::pipeline::VelocityErrors e = hq::pipeline::evaluate_velocity(
       replay.samples, replay.ground_truth, replay.frame_interval_ns, lag);
 
-  std::printf(
-      "%s: %d frames, %d estimates ok, %d compared; truth = central difference over "
-      "+-%.1f ms (1 frame), camera frame C\n",
+  hq::log::info(
+      "{}: {} frames, {} estimates ok, {} compared; truth = central difference over "
+      "+-{:.1f} ms (1 frame), camera frame C\n",
       sequence_dir.c_str(), replay.frames, replay.ok_estimates, e.samples,
       1e3 * e.frame_interval_s);
-  std::printf("velocity from the odometry on %d of %d frames (%.1f %%), inertial coast on %d\n",
-              replay.ok_estimates, replay.frames, 100.0 * replay.availability(),
-              replay.inertial_estimates);
-  std::printf("mean innovation chi^2 of the frames used: %.2f (3 when the covariances are right)\n",
-              replay.mean_innovation_chi2);
+  hq::log::info("velocity from the odometry on {} of {} frames ({:.1f} %), inertial coast on {}\n",
+                replay.ok_estimates, replay.frames, 100.0 * replay.availability(),
+                replay.inertial_estimates);
+  hq::log::info(
+      "mean innovation chi^2 of the frames used: {:.2f} (3 when the covariances are right)\n",
+      replay.mean_innovation_chi2);
   for (const auto& [reason, count] : replay.unavailable_reasons) {
-    std::printf("  %5d frames: %s\n", count, reason.c_str());
+    hq::log::info("  {:5} frames: {}\n", count, reason.c_str());
   }
   // The truth's own noise: a central difference of two poses 2h apart.
   const hq::evaluation::PoseNoise noise = hq::evaluation::ground_truth_noise(replay.ground_truth);
-  std::printf(
-      "truth |v| RMS %.4f m/s; its floor from the ground truth's own noise (%.3f mm per pose, "
-      "%d third differences): %.4f m/s\n",
+  hq::log::info(
+      "truth |v| RMS {:.4f} m/s; its floor from the ground truth's own noise ({:.3f} mm per pose, "
+      "{} third differences): {:.4f} m/s\n",
       e.truth_rms_mps, 1e3 * noise.trans_m, noise.differences,
       noise.pair_trans_m() / (2.0 * e.frame_interval_s));
-  std::printf("%-22s %9s %9s %9s %9s\n", "RMSE (m/s)", "x", "y", "z", "|xyz|");
-  std::printf("%-22s %9.4f %9.4f %9.4f %9.4f\n", "eq. 1 raw", e.rmse_raw_mps.x(),
-              e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
-  std::printf("%-22s %9.4f %9.4f %9.4f %9.4f\n", "eq. 2 one-euro", e.rmse_filtered_mps.x(),
-              e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(), e.filtered_norm_mps());
-  std::printf("%-22s %9.4f %9.4f %9.4f %9.4f\n", "flown (fused with IMU)", e.rmse_flown_mps.x(),
-              e.rmse_flown_mps.y(), e.rmse_flown_mps.z(), e.flown_norm_mps());
-  std::printf("%-22s %9.4f %9.4f %9.4f %9.4f\n", "eq. 2 shifted by lag",
-              e.rmse_filtered_at_lag_mps.x(), e.rmse_filtered_at_lag_mps.y(),
-              e.rmse_filtered_at_lag_mps.z(), e.rmse_filtered_at_lag_mps.norm());
-  std::printf(
-      "lag minimising RMSE over 0..%.0f ms: eq. 2 %.0f ms, eq. 1 %.0f ms, flown %.0f ms; the "
-      "1-euro filter adds %.0f ms\n",
+  hq::log::info("{:<22} {:>9} {:>9} {:>9} {:>9}\n", "RMSE (m/s)", "x", "y", "z", "|xyz|");
+  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 1 raw", e.rmse_raw_mps.x(),
+                e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
+  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 2 one-euro",
+                e.rmse_filtered_mps.x(), e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(),
+                e.filtered_norm_mps());
+  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "flown (fused with IMU)",
+                e.rmse_flown_mps.x(), e.rmse_flown_mps.y(), e.rmse_flown_mps.z(),
+                e.flown_norm_mps());
+  hq::log::info("{:<22} {:9.4f} {:9.4f} {:9.4f} {:9.4f}\n", "eq. 2 shifted by lag",
+                e.rmse_filtered_at_lag_mps.x(), e.rmse_filtered_at_lag_mps.y(),
+                e.rmse_filtered_at_lag_mps.z(), e.rmse_filtered_at_lag_mps.norm());
+  hq::log::info(
+      "lag minimising RMSE over 0..{:.0f} ms: eq. 2 {:.0f} ms, eq. 1 {:.0f} ms, flown {:.0f} ms; "
+      "the "
+      "1-euro filter adds {:.0f} ms\n",
       max_lag_ms, e.filtered_lag_ms, e.raw_lag_ms, e.flown_lag_ms,
       e.filtered_lag_ms - e.raw_lag_ms);
   return 0;

@@ -1,6 +1,7 @@
 // --record DIR (hq-onboard, hq-sim-flight): the on-board MCAP flight log (onboard/onboard_log), set
 // up and closed here so each run mode adds a few lines only.
 
+#include "hq/base/log.hpp"
 #include "hq/config/data_path.hpp"
 #include "hq/link/config.hpp"
 
@@ -31,10 +32,9 @@ std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
     if (!file.empty()) options.attachments.push_back({config::resolve_data_path(file), ""});
   }
   auto recorder = std::make_unique<onboard_log::OnboardRecorder>(options);
-  std::fprintf(stderr, "%s: recording the flight to %s\n", g_program_name,
-               recorder->path().c_str());
+  hq::log::note("{}: recording the flight to {}\n", g_program_name, recorder->path().c_str());
   for (const std::string& skipped : recorder->attachments_skipped()) {
-    std::fprintf(stderr, "%s: record attachment skipped: %s\n", g_program_name, skipped.c_str());
+    hq::log::note("{}: record attachment skipped: {}\n", g_program_name, skipped.c_str());
   }
   return recorder;
 }
@@ -49,10 +49,10 @@ bool close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summ
   const flight_log::RecorderReport& report = recorder.close(summary);
   onboard_log::print_report(stdout, report);
   if (report.error.empty()) return true;
-  std::fprintf(stderr,
-               "%s: the flight record is incomplete (%s); exit status %d, the flight "
-               "itself went on\n",
-               g_program_name, report.error.c_str(), kRecordFailedExitStatus);
+  hq::log::note(
+      "{}: the flight record is incomplete ({}); exit status {}, the flight "
+      "itself went on\n",
+      g_program_name, report.error.c_str(), kRecordFailedExitStatus);
   return false;
 }
 

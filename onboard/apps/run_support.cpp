@@ -3,6 +3,8 @@
 // lines, and the stop flag.
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/link/link.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
 
@@ -50,9 +52,9 @@ void add_stop_options(CLI::App& app, Options& o) {
 void say_goodbye(link_bridge::LinkBridge& bridge, std::int64_t t_ns, const StopOutcome& outcome) {
   const std::string text = outcome.reason + "; " + outcome.result;
   const bool acknowledged = bridge.say_goodbye(t_ns, text);
-  std::printf("%s: vehicle ended: %s (goodbye %s)\n", g_program_name, text.c_str(),
-              acknowledged ? "acknowledged by the ground"
-                           : "not acknowledged within 500 ms: the ground may see a link loss");
+  hq::log::info("{}: vehicle ended: {} (goodbye {})\n", g_program_name, text.c_str(),
+                acknowledged ? "acknowledged by the ground"
+                             : "not acknowledged within 500 ms: the ground may see a link loss");
 }
 
 void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help) {
@@ -68,7 +70,7 @@ void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help) 
 void add_ground_link_options(CLI::App& app, Options& o) {
   app.add_flag("--link", o.link, "fly commanded by a ground station over DDS");
   app.add_option("--link-config", o.link_config_path, "--link: YAML with a link: section");
-  hq::link::add_link_options(app, o.link_overrides);
+  hq::link::add_link_options(app, o.link_overrides, hq::link::LinkSide::kVehicle);
   app.add_option("--command-timeout-ms", o.command_timeout_ms,
                  "--link: no fresh command this long -> hold zero velocity")
       ->check(CLI::Range(1.0, 10000.0));
@@ -87,13 +89,12 @@ void print_status(const hq::pipeline::ChainOutput& out, int frames) {
   const auto& v = out.estimate.v_H_mps;
   const auto& s = out.mode.control.setpoint;
   // \033[K clears what a longer previous line left behind.
-  std::fprintf(stderr,
-               "\rt %8.3f s  frame %5d  %-5s  v_H [%+.2f %+.2f %+.2f] m/s  thrust %5.2f N  "
-               "roll %+.3f pitch %+.3f rad  %5.2f ms  %s\033[K",
-               1e-9 * static_cast<double>(out.t_ns), frames, out.estimate.ok() ? "ok" : "HOVER",
-               v.x(), v.y(), v.z(), s.thrust_n, s.roll_rad, s.pitch_rad,
-               1e-6 * static_cast<double>(out.durations.total_ns),
-               out.safe_hover ? out.safe_hover_reason : "");
+  hq::log::note(
+      "\rt {:8.3f} s  frame {:5}  {:<5}  v_H [{:+.2f} {:+.2f} {:+.2f}] m/s  thrust {:5.2f} N  "
+      "roll {:+.3f} pitch {:+.3f} rad  {:5.2f} ms  {}\033[K",
+      hq::to_seconds(out.t_ns), frames, out.estimate.ok() ? "ok" : "HOVER", v.x(), v.y(), v.z(),
+      s.thrust_n, s.roll_rad, s.pitch_rad, 1e-6 * static_cast<double>(out.durations.total_ns),
+      out.safe_hover ? out.safe_hover_reason : "");
   std::fflush(stderr);
 }
 
@@ -115,34 +116,34 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
   for (const std::uint32_t id : link.stations) {
     stations += (stations.empty() ? "" : ",") + std::to_string(id);
   }
-  std::fprintf(stderr,
-               "%s: link on domain %d as vehicle %u, session %016llx, "
-               "commanded by %s, %s\n",
-               g_program_name, link.domain_id, link.vehicle_id,
-               static_cast<unsigned long long>(bridge->session_id()),
-               stations.empty() ? "any station" : ("stations " + stations).c_str(),
-               hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
+  hq::log::note(
+      "{}: link on domain {} as vehicle {}, session {:016x}, "
+      "commanded by {}, {}\n",
+      g_program_name, link.domain_id, link.vehicle_id,
+      static_cast<unsigned long long>(bridge->session_id()),
+      stations.empty() ? "any station" : ("stations " + stations).c_str(),
+      hq::link::describe_security(link, hq::security::Role::kVehicle).c_str());
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge->ros2()) {
-    std::fprintf(stderr,
-                 "%s: ROS 2 topics rt/%s/{odom,imu,obstacles,camera/...}, rt/tf; "
-                 "TwistStamped on rt/%s/cmd_vel_in as station %u (lowest priority)\n",
-                 g_program_name, ros->ros_namespace().c_str(), ros->ros_namespace().c_str(),
-                 link.ros2.station_id);
+    hq::log::note(
+        "{}: ROS 2 topics rt/{}/{{odom,imu,obstacles,camera/...}}, rt/tf; "
+        "TwistStamped on rt/{}/cmd_vel_in as station {} (lowest priority)\n",
+        g_program_name, ros->ros_namespace().c_str(), ros->ros_namespace().c_str(),
+        link.ros2.station_id);
   }
   return bridge;
 }
 
 void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
   const hq::link_bridge::FailsafeCounters& c = bridge.failsafe().counters();
-  fmt::print("  {:<40} {} accepted, {} rejected\n", "velocity commands", c.commands_accepted,
-             c.commands_rejected);
-  fmt::print("  {:<40} {} accepted, {} rejected\n", "mode requests", c.mode_requests_accepted,
-             c.mode_requests_rejected);
-  fmt::print("  {:<40} {} accepted, {} rejected\n", "heartbeats", c.heartbeats_accepted,
-             c.heartbeats_rejected);
-  fmt::print("  {:<40} {} holds, {} land requests ({} after a hold)\n", "fail-safes", c.holds,
-             c.land_requests, c.land_requests_hold);
-  fmt::print(
+  hq::log::info("  {:<40} {} accepted, {} rejected\n", "velocity commands", c.commands_accepted,
+                c.commands_rejected);
+  hq::log::info("  {:<40} {} accepted, {} rejected\n", "mode requests", c.mode_requests_accepted,
+                c.mode_requests_rejected);
+  hq::log::info("  {:<40} {} accepted, {} rejected\n", "heartbeats", c.heartbeats_accepted,
+                c.heartbeats_rejected);
+  hq::log::info("  {:<40} {} holds, {} land requests ({} after a hold)\n", "fail-safes", c.holds,
+                c.land_requests, c.land_requests_hold);
+  hq::log::info(
       "  {:<40} station {}, {} changes; rejected: {} commands not allowed, {} requests not from "
       "it, {} for another session; {} foreign heartbeats\n",
       "commanding station", bridge.failsafe().state().commanding_station_id, c.commander_changes,
@@ -150,23 +151,23 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
       c.heartbeats_not_commander);
   if (c.intrusions > 0) {
     const hq::link_bridge::Intrusion& last = bridge.failsafe().last_intrusion();
-    fmt::print(
+    hq::log::info(
         "  {:<40} {} refused; last: a {} claiming station {}, written by station {}'s "
         "certificate (0: no station's)\n",
         "intrusions", c.intrusions, last.kind, last.claimed_station_id, last.writer_station_id);
   } else {
-    fmt::print("  {:<40} 0 (samples claiming another station than their certificate)\n",
-               "intrusions");
+    hq::log::info("  {:<40} 0 (samples claiming another station than their certificate)\n",
+                  "intrusions");
   }
   if (c.unverified > 0) {
-    fmt::print("  {:<40} {} (their writer had left before they were checked)\n",
-               "samples refused unverified", c.unverified);
+    hq::log::info("  {:<40} {} (their writer had left before they were checked)\n",
+                  "samples refused unverified", c.unverified);
   }
-  fmt::print("  {:<40} {} states, {} camera frames, {} events\n", "published", bridge.states_sent(),
-             bridge.camera_frames_sent(), bridge.events_sent());
+  hq::log::info("  {:<40} {} states, {} camera frames, {} events\n", "published",
+                bridge.states_sent(), bridge.camera_frames_sent(), bridge.events_sent());
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {
     const hq::ros2_bridge::Ros2Counters& r = ros->counters();
-    fmt::print(
+    hq::log::info(
         "  {:<40} {} states, {} clouds, {} images; cmd_vel_in {} taken, {} overridden by a "
         "native station\n",
         "ROS 2 published", r.states_published, r.clouds_published, r.images_published,

@@ -15,6 +15,7 @@
 // tilt, the Kinect's accelerometer or else a level vehicle, with the camera as the body.
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/link/link.hpp"
@@ -49,42 +50,42 @@ namespace hq::onboard_app {
 namespace {
 
 void write_csv_header(std::FILE* csv) {
-  std::fprintf(csv,
-               "# hq-onboard per-step log. Frames (hq/geometry/frames.hpp): C camera optical (x "
-               "right, y down, z forward); B body FRD; H horizontal (B without roll and pitch, yaw "
-               "kept). SI units as named; frame = 0 rows are camera-timeout steps between "
-               "frames.\n");
-  std::fprintf(csv,
-               "t_s,frame,tracking,valid_ratio,estimate_ok,v_C_raw_x_mps,v_C_raw_y_mps,"
-               "v_C_raw_z_mps,v_C_x_mps,v_C_y_mps,v_C_z_mps,v_B_x_mps,v_B_y_mps,v_B_z_mps,"
-               "v_H_x_mps,v_H_y_mps,v_H_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,"
-               "near_hazard,v_obs_H_x_mps,v_obs_H_y_mps,v_obs_H_z_mps,mode,v_des_H_x_mps,"
-               "v_des_H_y_mps,v_des_H_z_mps,thrust_n,roll_cmd_rad,pitch_cmd_rad,"
-               "yaw_rate_cmd_radps,safe_hover,total_ms,reason\n");
+  fmt::print(csv,
+             "# hq-onboard per-step log. Frames (hq/geometry/frames.hpp): C camera optical (x "
+             "right, y down, z forward); B body FRD; H horizontal (B without roll and pitch, yaw "
+             "kept). SI units as named; frame = 0 rows are camera-timeout steps between "
+             "frames.\n");
+  fmt::print(csv,
+             "t_s,frame,tracking,valid_ratio,estimate_ok,v_C_raw_x_mps,v_C_raw_y_mps,"
+             "v_C_raw_z_mps,v_C_x_mps,v_C_y_mps,v_C_z_mps,v_B_x_mps,v_B_y_mps,v_B_z_mps,"
+             "v_H_x_mps,v_H_y_mps,v_H_z_mps,roll_est_rad,pitch_est_rad,obstacle_count,"
+             "near_hazard,v_obs_H_x_mps,v_obs_H_y_mps,v_obs_H_z_mps,mode,v_des_H_x_mps,"
+             "v_des_H_y_mps,v_des_H_z_mps,thrust_n,roll_cmd_rad,pitch_cmd_rad,"
+             "yaw_rate_cmd_radps,safe_hover,total_ms,reason\n");
 }
 
 void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
   const auto& e = out.estimate;
   const auto& s = out.mode.control.setpoint;
   const auto v3 = [csv](const Eigen::Vector3d& v) {
-    std::fprintf(csv, "%.6f,%.6f,%.6f,", v.x(), v.y(), v.z());
+    fmt::print(csv, "{:.6f},{:.6f},{:.6f},", v.x(), v.y(), v.z());
   };
-  std::fprintf(csv, "%.6f,%d,%s,%.4f,%d,", 1e-9 * static_cast<double>(out.t_ns), out.frame ? 1 : 0,
-               out.frame ? hq::odometry::to_string(out.tracking) : "none", out.valid_ratio,
-               e.ok() ? 1 : 0);
+  fmt::print(csv, "{:.6f},{},{},{:.4f},{},", hq::to_seconds(out.t_ns), out.frame ? 1 : 0,
+             out.frame ? hq::odometry::to_string(out.tracking) : "none", out.valid_ratio,
+             e.ok() ? 1 : 0);
   v3(e.v_C_raw_mps);
   v3(e.v_C_mps);
   v3(e.v_B_mps);
   v3(e.v_H_mps);
-  std::fprintf(csv, "%.6f,%.6f,%d,%d,", e.roll_rad, e.pitch_rad, out.obstacles.count,
-               out.obstacles.near_hazard ? 1 : 0);
+  fmt::print(csv, "{:.6f},{:.6f},{},{},", e.roll_rad, e.pitch_rad, out.obstacles.count,
+             out.obstacles.near_hazard ? 1 : 0);
   v3(out.obstacles.v_obs_horizontal_mps);
-  std::fprintf(csv, "%s,", hq::modes::to_string(out.mode.mode));
+  fmt::print(csv, "{},", hq::modes::to_string(out.mode.mode));
   v3(out.mode.v_des_horizontal_mps);
-  std::fprintf(csv, "%.6f,%.6f,%.6f,%.6f,%d,%.3f,\"%s\"\n", s.thrust_n, s.roll_rad, s.pitch_rad,
-               s.yaw_rate_radps, out.safe_hover ? 1 : 0,
-               1e-6 * static_cast<double>(out.durations.total_ns),
-               out.safe_hover ? out.safe_hover_reason : "");
+  fmt::print(csv, "{:.6f},{:.6f},{:.6f},{:.6f},{},{:.3f},\"{}\"\n", s.thrust_n, s.roll_rad,
+             s.pitch_rad, s.yaw_rate_radps, out.safe_hover ? 1 : 0,
+             1e-6 * static_cast<double>(out.durations.total_ns),
+             out.safe_hover ? out.safe_hover_reason : "");
 }
 
 /// The run's own operator-side duties around the link (or nobody): the CSV log, the live status
@@ -131,8 +132,7 @@ class RunPort final : public hq::vehicle::OperatorPort {
     if (link_ != nullptr) {
       link_->on_event(t_ns, severity, text);
     } else {
-      std::fprintf(stderr, "%shq-onboard: %.*s\n", live_ ? "\n" : "", static_cast<int>(text.size()),
-                   text.data());
+      hq::log::note("{}hq-onboard: {}\n", live_ ? "\n" : "", text);
     }
     ++events;
   }
@@ -181,8 +181,7 @@ std::unique_ptr<hq::sources::SitlFrameSource> open_sitl(const std::string& chann
         throw hq::InputError(std::string(e.what()) + " (waited " + std::to_string(wait_s) +
                              " s for hq-sim --sitl)");
       }
-      if (!said)
-        std::fprintf(stderr, "hq-onboard: waiting for hq-sim's frame channel: %s\n", e.what());
+      if (!said) hq::log::note("hq-onboard: waiting for hq-sim's frame channel: {}\n", e.what());
       said = true;
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
@@ -250,7 +249,7 @@ OpenedSource open_source(const Options& o, const std::string& fc_spec,
         hq::sources::open_camera_source(o.source_kind, camera_options));
     if (fc_spec == "none") config.modes.start_landed = false;  // carried by hand
   }
-  std::fprintf(stderr, "hq-onboard: %s\n", opened.source->describe().c_str());
+  hq::log::note("hq-onboard: {}\n", opened.source->describe().c_str());
   return opened;
 }
 
@@ -265,13 +264,13 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
   if (opened.tum != nullptr) {
     const hq::pipeline::ReplayImu imu = hq::pipeline::load_replay_imu(
         opened.tum->sequence(), hq::pipeline::R_body_camera_for_camera_as_body());
-    std::fprintf(stderr, "hq-onboard: %s\n", imu.description.c_str());
+    hq::log::note("hq-onboard: {}\n", imu.description.c_str());
     if (imu.synthesised) {
       vehicle.camera = hq::pipeline::camera_as_body_mount();
-      std::fprintf(stderr,
-                   "hq-onboard: body frame = the camera's NED-equivalent (camera-as-body "
-                   "extrinsics); %s supplies mass and limits only\n",
-                   o.vehicle_path.c_str());
+      hq::log::note(
+          "hq-onboard: body frame = the camera's NED-equivalent (camera-as-body "
+          "extrinsics); {} supplies mass and limits only\n",
+          o.vehicle_path.c_str());
     }
     std::vector<hq::vehicle::FcImuSample> samples;
     samples.reserve(imu.samples.size());
@@ -284,9 +283,9 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     // A hand-held camera is the body; the Kinect's accelerometer is in its optical axes.
     vehicle.camera = hq::pipeline::camera_as_body_mount();
     none->set_tilt_source(opened.source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
-    std::fprintf(stderr, "hq-onboard: camera-as-body, no gyro (zero rate), tilt from %s\n",
-                 o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
-                                                         : "a level-camera assumption");
+    hq::log::note("hq-onboard: camera-as-body, no gyro (zero rate), tilt from {}\n",
+                  o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
+                                                          : "a level-camera assumption");
     fc = std::move(none);
   } else {
     hq::vehicle::MavlinkFcConfig fc_config;
@@ -301,7 +300,7 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     fc_config.gcs = o.gcs_spec;
     fc = std::make_unique<hq::vehicle::MavlinkFlightController>(fc_config);
   }
-  std::fprintf(stderr, "hq-onboard: flight controller: %s\n", fc->describe().c_str());
+  hq::log::note("hq-onboard: flight controller: {}\n", fc->describe().c_str());
   return fc;
 }
 
@@ -379,7 +378,8 @@ std::string run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime
       if (fc_lost_since_ns < 0) fc_lost_since_ns = hq::monotonic_now_ns();
       if (fc_lost_exit_s > 0.0 && hq::monotonic_now_ns() - fc_lost_since_ns >
                                       static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
-        std::printf("hq-onboard: flight controller lost for %.1f s: stopping\n", fc_lost_exit_s);
+        hq::log::info("hq-onboard: flight controller lost for {:.1f} s: stopping\n",
+                      fc_lost_exit_s);
         std::snprintf(text, sizeof text, "flight controller lost for %.1f s", fc_lost_exit_s);
         return text;
       }
@@ -395,17 +395,17 @@ void print_gcs_summary(const std::optional<hq::vehicle::GcsRouting>& gcs) {
   if (!gcs) return;
   const hq::mavlink::RouterCounters& r = gcs->router;
   const hq::mavlink::ParserCounters& p = gcs->gcs_parser;
-  fmt::print("  {:<40} {} ({}), system {}\n", "GCS", gcs->spec,
-             gcs->peer.empty() ? "never heard" : "at " + gcs->peer,
-             gcs->gcs_system < 0 ? std::string("never heard") : std::to_string(gcs->gcs_system));
-  fmt::print("  {:<40} FC -> GCS {}, GCS -> FC {}, companion -> GCS {}\n", "GCS frames forwarded",
-             gcs->fc_to_gcs, gcs->gcs_to_fc, gcs->companion_to_gcs);
-  fmt::print(
+  hq::log::info("  {:<40} {} ({}), system {}\n", "GCS", gcs->spec,
+                gcs->peer.empty() ? "never heard" : "at " + gcs->peer,
+                gcs->gcs_system < 0 ? std::string("never heard") : std::to_string(gcs->gcs_system));
+  hq::log::info("  {:<40} FC -> GCS {}, GCS -> FC {}, companion -> GCS {}\n",
+                "GCS frames forwarded", gcs->fc_to_gcs, gcs->gcs_to_fc, gcs->companion_to_gcs);
+  hq::log::info(
       "  {:<40} no route {}, target on its own link {}, loop {}, malformed {}, GCS not heard "
       "yet or send failed {}, FC send failed {}\n",
       "GCS frames not forwarded", r.no_route, r.target_on_source, r.loop, r.malformed,
       gcs->gcs_send_failures, gcs->fc_send_failures);
-  fmt::print(
+  hq::log::info(
       "  {:<40} bad crc {}, truncated {}, bad length {}; unknown id {} (forwarded as "
       "broadcasts, CRC unchecked: {} in all)\n",
       "GCS frames dropped by the parser", p.bad_crc, p.truncated, p.bad_length, p.unknown_id,
@@ -418,63 +418,64 @@ void print_run_summary(const Options& o, const std::string& fc_spec, const RunPo
                        const hq::vehicle::VehicleRuntime& runtime, bool csv) {
   const hq::vehicle::RuntimeCounters& rc = runtime.counters();
   const hq::vehicle::FcCounters fcc = fc.counters();
-  std::printf(
-      "hq-onboard: %d frames from %s, %d estimates ok, %d safe-hover setpoints, %d "
-      "camera-timeout steps%s%s\n",
+  hq::log::info(
+      "hq-onboard: {} frames from {}, {} estimates ok, {} safe-hover setpoints, {} "
+      "camera-timeout steps{}{}\n",
       port.frames, source.describe().c_str(), port.ok, port.safe_hover, port.ticks,
       csv ? ", log in " : "", o.csv_path.c_str());
   // A live camera does not wait for the chain: a frame the chain was too busy to take is
   // replaced by the next one, and said here.
   if (const auto* threaded = dynamic_cast<const hq::sources::ThreadedFrameSource*>(&source)) {
-    fmt::print("  {:<40} {} (a newer one arrived while the chain was busy)\n",
-               "camera frames skipped", threaded->skipped());
+    hq::log::info("  {:<40} {} (a newer one arrived while the chain was busy)\n",
+                  "camera frames skipped", threaded->skipped());
   }
-  std::printf("  %-40s %s\n", "flight controller", fc.describe().c_str());
-  fmt::print("  {:<40} {} sent ({} withheld before the first estimate)\n", "setpoints",
-             rc.setpoints, rc.setpoints_withheld);
+  hq::log::info("  {:<40} {}\n", "flight controller", fc.describe().c_str());
+  hq::log::info("  {:<40} {} sent ({} withheld before the first estimate)\n", "setpoints",
+                rc.setpoints, rc.setpoints_withheld);
   if (fc_spec != "none") {
-    fmt::print("  {:<40} {} sent, {} received, {} dropped, {} send failures\n", "MAVLink messages",
-               fcc.messages_sent, fcc.messages_received, fcc.frames_dropped, fcc.send_failures);
+    hq::log::info("  {:<40} {} sent, {} received, {} dropped, {} send failures\n",
+                  "MAVLink messages", fcc.messages_sent, fcc.messages_received, fcc.frames_dropped,
+                  fcc.send_failures);
     if (const auto* mavlink = dynamic_cast<const hq::vehicle::MavlinkFlightController*>(&fc)) {
       print_gcs_summary(mavlink->gcs_routing());
     }
-    fmt::print("  {:<40} {} IMU samples, {} arm requests, FC {}\n", "flight controller input",
-               rc.imu_samples, rc.arm_requests,
-               runtime.status().fc_lost        ? "LOST"
-               : runtime.status().fc.connected ? "connected"
-                                               : "never heard");
-    fmt::print("  {:<40} {} sent, {} restarts (reset_counter)\n", "velocity to the FC",
-               fcc.velocity_reports_sent, rc.velocity_resets);
+    hq::log::info("  {:<40} {} IMU samples, {} arm requests, FC {}\n", "flight controller input",
+                  rc.imu_samples, rc.arm_requests,
+                  runtime.status().fc_lost        ? "LOST"
+                  : runtime.status().fc.connected ? "connected"
+                                                  : "never heard");
+    hq::log::info("  {:<40} {} sent, {} restarts (reset_counter)\n", "velocity to the FC",
+                  fcc.velocity_reports_sent, rc.velocity_resets);
     if (fcc.clock_from_timesync) {
-      fmt::print(
+      hq::log::info(
           "  {:<40} TIMESYNC: offset {:.3f} ms, jitter {:.3f} ms, RTT {:.3f} ms "
           "({} answers, {} dropped)\n",
           "FC clock", 1e-6 * static_cast<double>(fcc.timesync_offset_ns),
           1e-6 * fcc.timesync_jitter_ns, 1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
           fcc.timesync_samples, fcc.timesync_rejected);
     } else {
-      fmt::print("  {:<40} least-delayed packet (no TIMESYNC answers: {} taken, {} dropped)\n",
-                 "FC clock", fcc.timesync_samples, fcc.timesync_rejected);
+      hq::log::info("  {:<40} least-delayed packet (no TIMESYNC answers: {} taken, {} dropped)\n",
+                    "FC clock", fcc.timesync_samples, fcc.timesync_rejected);
     }
   }
   if (const auto& last = runtime.last_output()) {
     const hq::control::HoverThrustEstimate& h = last->hover_thrust;
-    fmt::print(
+    hq::log::info(
         "  {:<40} gain {:.3f} +- {:.3f} ({}; {} fused, {} gated), hovers on {:.1f} N "
         "commanded",
         "hover thrust (learnt in flight)", h.gain, h.sigma,
         h.converged ? "converged" : "not converged", h.updates, h.rejected, last->hover_thrust_n);
     if (fc_spec != "none" && o.fc_max_thrust_n > 0.0) {
-      fmt::print(", {:.2f} of --fc-max-thrust-n", last->hover_thrust_n / o.fc_max_thrust_n);
+      hq::log::info(", {:.2f} of --fc-max-thrust-n", last->hover_thrust_n / o.fc_max_thrust_n);
     }
-    fmt::print("\n");
+    hq::log::info("\n");
   }
   if (port.closest_clearance_m >= 0.0) {
-    std::printf("  %-40s %.3f m\n", "closest distance (clearance)", port.closest_clearance_m);
+    hq::log::info("  {:<40} {:.3f} m\n", "closest distance (clearance)", port.closest_clearance_m);
   } else {
-    std::printf("  %-40s none seen\n", "closest distance (clearance)");
+    hq::log::info("  {:<40} none seen\n", "closest distance (clearance)");
   }
-  std::printf("  %-40s %d\n", "runtime events", port.events);
+  hq::log::info("  {:<40} {}\n", "runtime events", port.events);
 }
 
 }  // namespace
@@ -545,12 +546,12 @@ int run_vehicle(const Options& o) {
     throw;
   }
   if (bridge) say_goodbye(*bridge, hq::monotonic_now_ns(), stop);
-  if (live) std::fprintf(stderr, "\n");
+  if (live) hq::log::note("\n");
   if (csv && std::fclose(csv) != 0) throw hq::InputError(o.csv_path + ": write failed");
 
   print_run_summary(o, fc_spec, port, *opened.source, *fc, runtime, csv != nullptr);
   if (bridge) print_link_summary(*bridge);
-  std::printf("per-stage time from frame arrival to setpoint (first frame excluded):\n");
+  hq::log::info("per-stage time from frame arrival to setpoint (first frame excluded):\n");
   port.timing.print(stdout);
   bool record_ok = true;
   if (recorder) {

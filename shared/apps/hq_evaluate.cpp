@@ -1,6 +1,8 @@
 // hq-evaluate: TUM benchmark accuracy (RPE, ATE; Sturm et al., IROS 2012) of an estimated
 // trajectory against ground truth, both in TUM trajectory format.
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
 #include "hq/recording/tum_io.hpp"
@@ -11,14 +13,15 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace {
 
 void print_row(const char* name, const char* unit, const hq::evaluation::ErrorStats& s) {
-  std::printf("%-10s %-6s %10.6f %10.6f %10.6f %10.6f %6d\n", name, unit, s.rmse, s.mean, s.median,
-              s.max, s.count);
+  hq::log::info("{:<10} {:<6} {:10.6f} {:10.6f} {:10.6f} {:10.6f} {:6}\n", name, unit, s.rmse,
+                s.mean, s.median, s.max, s.count);
 }
 
 double largest_coordinate_m(const std::vector<hq::recording::StampedPose>& poses) {
@@ -55,7 +58,7 @@ static int run(int argc, char** argv) {
   app.add_option("--est", est_path, "estimated trajectory, same format")->required();
   app.add_option("--delta-s", delta_s, "RPE window length (s)");
   app.add_option("--max-dt-s", max_dt_s, "largest stamp difference of an associated pair (s)");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const auto gt = hq::recording::read_tum_trajectory(gt_path);
   const auto est = hq::recording::read_tum_trajectory(est_path);
@@ -69,23 +72,24 @@ static int run(int argc, char** argv) {
   require_finite("RPE rot", rpe.rot_degps, gt_path, gt_largest_m, est_path, est_largest_m);
   require_finite("ATE", ate.trans_m, gt_path, gt_largest_m, est_path, est_largest_m);
 
-  std::printf("poses: ground truth %zu, estimate %zu, associated %zu (max_dt %.3f s)\n", gt.size(),
-              est.size(), pairs.size(), max_dt_s);
-  std::printf("RPE window %.3f s%s\n", rpe.delta_s,
-              rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
-  std::printf("%-10s %-6s %10s %10s %10s %10s %6s\n", "metric", "unit", "rmse", "mean", "median",
-              "max", "count");
+  hq::log::info("poses: ground truth {}, estimate {}, associated {} (max_dt {:.3f} s)\n", gt.size(),
+                est.size(), pairs.size(), max_dt_s);
+  hq::log::info(
+      "RPE window {:.3f} s{}\n", rpe.delta_s,
+      rpe.delta_clipped ? " (clipped: the associated poses span less than --delta-s)" : "");
+  hq::log::info("{:<10} {:<6} {:>10} {:>10} {:>10} {:>10} {:>6}\n", "metric", "unit", "rmse",
+                "mean", "median", "max", "count");
   print_row("RPE trans", "m/s", rpe.trans_mps);
   print_row("RPE rot", "deg/s", rpe.rot_degps);
   print_row("ATE", "m", ate.trans_m);
   // The ground truth's own noise: two estimates whose errors differ by less are not ranked by it.
   const hq::evaluation::PoseNoise noise = hq::evaluation::ground_truth_noise(gt);
   if (noise.differences == 0) {
-    std::printf("ground truth noise: not estimated (needs 4 or more evenly spaced poses)\n");
+    hq::log::info("ground truth noise: not estimated (needs 4 or more evenly spaced poses)\n");
   } else {
-    std::printf(
-        "ground truth noise per pose %.6f m, %.4f deg (third differences of its poses): "
-        "floor of the RPE %.6f m/s, %.4f deg/s\n",
+    hq::log::info(
+        "ground truth noise per pose {:.6f} m, {:.4f} deg (third differences of its poses): "
+        "floor of the RPE {:.6f} m/s, {:.4f} deg/s\n",
         noise.trans_m, noise.rot_deg, noise.pair_trans_m() / rpe.delta_s,
         noise.pair_rot_deg() / rpe.delta_s);
   }

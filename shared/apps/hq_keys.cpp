@@ -7,6 +7,8 @@
 // The layout and what the permissions allow: hq/security/keys.hpp.
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/security/keys.hpp"
 
@@ -14,6 +16,7 @@
 
 #include <cstdio>
 #include <ctime>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -59,14 +62,14 @@ void run_check(const std::string& dir, const std::string& identity, const std::s
   if (!peer.empty()) {
     const hq::security::Peer other = peer_of(dir, peer);
     hq::security::check_handshake(own, other, now_s());
-    std::printf("hq-keys: %s and %s can complete a handshake\n", own.name.c_str(),
-                other.name.c_str());
+    hq::log::info("hq-keys: {} and {} can complete a handshake\n", own.name.c_str(),
+                  other.name.c_str());
   }
   if (!peer_ca.empty()) {
     hq::security::check_trusted_by(own, peer_ca, now_s());
-    std::printf("hq-keys: a peer trusting %s accepts %s\n", peer_ca.c_str(), own.name.c_str());
+    hq::log::info("hq-keys: a peer trusting {} accepts {}\n", peer_ca.c_str(), own.name.c_str());
   }
-  std::printf("hq-keys: %s/%s ok\n", dir.c_str(), identity.c_str());
+  hq::log::info("hq-keys: {}/{} ok\n", dir.c_str(), identity.c_str());
 }
 
 int run(int argc, char** argv) {
@@ -122,18 +125,14 @@ int run(int argc, char** argv) {
   check->add_option("--peer-ca", peer_ca,
                     "the CA certificate a peer trusts: checks that it accepts this identity");
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   if (init->parsed()) {
     hq::security::make_ca(dir, hq::security::valid_for_days(now_s(), ca_days));
     hq::security::make_governance(dir, parse_domains(ca_domains));
-    std::printf(
-        "hq-keys: CA %s/ca.pem (key ca.key.pem: keep it off the vehicle), governance "
-        "%s/governance.p7s\n",
+    hq::log::info(
+        "hq-keys: CA {}/ca.pem (key ca.key.pem: keep it off the vehicle), governance "
+        "{}/governance.p7s\n",
         dir.c_str(), dir.c_str());
   } else if (identity->parsed()) {
     hq::security::IdentityRequest request;
@@ -148,8 +147,8 @@ int run(int argc, char** argv) {
     request.domains = parse_domains(identity_domains);
     hq::security::make_identity(dir, request);
     const std::string name = hq::security::identity_name(request.role, id);
-    std::printf("hq-keys: identity %s/%s (%s)\n", dir.c_str(), name.c_str(),
-                hq::security::subject_name(request.role, id).c_str());
+    hq::log::info("hq-keys: identity {}/{} ({})\n", dir.c_str(), name.c_str(),
+                  hq::security::subject_name(request.role, id).c_str());
   } else if (check->parsed()) {
     run_check(dir, identity_to_check, peer, peer_ca);
   }

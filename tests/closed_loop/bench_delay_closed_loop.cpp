@@ -3,12 +3,14 @@
 // round trip, with the passivity controller off and on, in one run beside the no-delay flight.
 // Simulated time. Not run by ctest (hq_delay_closed_loop_test keeps a small variant).
 
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 
 #include "delayed_operator.hpp"
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <optional>
 #include <vector>
 
 namespace {
@@ -30,7 +32,7 @@ int run(int argc, char** argv) {
   double stiff_k = 200.0;
   app.add_option("--stiff-k", stiff_k, "cue stiffness of the stiff law (N/m), 0: shipped only")
       ->check(CLI::Range(0.0, 5000.0));
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   const hq::haptics::HapticsConfig shipped =
       hq::haptics::load_haptics_config("config/haptics.yaml");
   // The stiff law: a crisper cue that never fades, so only the passivity controller acts.

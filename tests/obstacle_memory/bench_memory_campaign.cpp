@@ -7,6 +7,7 @@
 // Run from the repository root (configs are read from config/ and onboard/).
 
 #include "hq/base/error.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/pipeline/stage_timing.hpp"
@@ -18,6 +19,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -130,11 +132,7 @@ int run(int argc, char** argv) {
   app.add_option("--trace", trace,
                  "CASE:INDEX (e.g. back-up:0): fly that run only, memory off then on, one line "
                  "per frame");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   const hq::sim::World room = hq::sim::load_world("onboard/sim/worlds/room.yaml");
   if (!trace.empty()) return trace_one(trace, seed, room);

@@ -8,6 +8,7 @@
 // --duration-s.
 //   hq-bench-flight-recorder [--duration-s 5] [--out /tmp/bench_flight.mcap]
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap_recorder/flight_recorder.hpp"
@@ -22,6 +23,7 @@
 #include <cstring>
 #include <fmt/format.h>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -79,11 +81,15 @@ int main(int argc, char** argv) {
   double duration_s = 5.0;
   std::string out = "/tmp/bench_flight.mcap";
   int vehicle_domain = -1;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (std::strcmp(argv[i], "--duration-s") == 0) duration_s = std::atof(argv[i + 1]);
-    if (std::strcmp(argv[i], "--out") == 0) out = argv[i + 1];
-    if (std::strcmp(argv[i], "--vehicle") == 0) vehicle_domain = std::atoi(argv[i + 1]);
-  }
+  CLI::App app{
+      "hq-bench-flight-recorder: the MCAP flight recorder's write rate and drops "
+      "against a vehicle in another process"};
+  app.add_option("--duration-s", duration_s, "recording length")->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--out", out, "the MCAP file written");
+  app.add_option("--vehicle", vehicle_domain,
+                 "internal: run as the vehicle process on this DDS domain")
+      ->check(CLI::Range(0, 232));
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   hq::testing::use_loopback_dds(/*keep_existing=*/true);
   hq::mcap_recorder::FlightRecorderOptions options;
   options.path = out;

@@ -21,6 +21,8 @@
 // Exit status: 0 a good run, 2 bad input, 3 a simulated collision, 5 a good flight whose
 // --record failed.
 
+#include "hq/base/log.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/data_path.hpp"
 
@@ -28,6 +30,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <optional>
 #include <string>
 
 namespace hq::onboard_app {
@@ -66,14 +69,9 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 86400.0));
   add_ground_link_options(app, o);
   add_stop_options(app, o);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   // Which file serves, since a relative name may come from the current folder or the install.
-  std::fprintf(stderr, "hq-sim-flight: config %s\n",
-               hq::config::resolve_data_path(o.config_path).c_str());
+  hq::log::note("hq-sim-flight: config {}\n", hq::config::resolve_data_path(o.config_path).c_str());
   return o.link ? run_sim_link(o) : run_sim(o);
 }
 

@@ -2,6 +2,8 @@
 // to wall time and flown by a ground station over DDS (--link).
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/flight_summary.hpp"
 #include "hq/link/config.hpp"
@@ -47,19 +49,20 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
     const hq::link_bridge::FailsafeState& f = bridge().failsafe().state();
     const hq::link_bridge::FailsafeCounters& c = bridge().failsafe().counters();
     const Eigen::Vector3d& v = f.command.v_H_mps;
-    std::fprintf(log_,
-                 "%.4f,%s,%d,%d,%.2f,%.2f,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,"
-                 "%llu,%llu,%llu\n",
-                 1e-9 * static_cast<double>(out.t_ns), hq::modes::to_string(out.mode.mode),
-                 out.mode.landed ? 1 : 0, truth.on_ground ? 0 : 1,
-                 f.command_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.command_age_ns),
-                 f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
-                 f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
-                 f.command.yaw_rate_radps, truth.v_H_mps.x(), truth.v_H_mps.y(), truth.v_H_mps.z(),
-                 truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
-                 out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
-                 static_cast<unsigned long long>(c.commands_rejected),
-                 static_cast<unsigned long long>(c.mode_requests_rejected));
+    fmt::print(log_,
+               "{:.4f},{},{},{},{:.2f},{:.2f},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:."
+               "4f},{:.4f},{},{},"
+               "{},{},{}\n",
+               hq::to_seconds(out.t_ns), hq::modes::to_string(out.mode.mode),
+               out.mode.landed ? 1 : 0, truth.on_ground ? 0 : 1,
+               f.command_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.command_age_ns),
+               f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
+               f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
+               f.command.yaw_rate_radps, truth.v_H_mps.x(), truth.v_H_mps.y(), truth.v_H_mps.z(),
+               truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
+               out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
+               static_cast<unsigned long long>(c.commands_rejected),
+               static_cast<unsigned long long>(c.mode_requests_rejected));
   }
 
  private:
@@ -89,11 +92,11 @@ int run_sim_link(const Options& o) {
     if (!log) throw hq::InputError(o.link_log_path + ": cannot open for writing");
     // Line-buffered: a row per frame is cheap, and tests follow the flight while it happens.
     std::setvbuf(log, nullptr, _IOLBF, 0);
-    std::fprintf(log,
-                 "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
-                 "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"
-                 "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
-                 "commands_rejected,mode_requests_rejected\n");
+    fmt::print(log,
+               "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
+               "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"
+               "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
+               "commands_rejected,mode_requests_rejected\n");
   }
   hq::closed_loop::OperatorScript script;
   // Over the link the script gives only the length the flight record is sized for.
@@ -113,13 +116,13 @@ int run_sim_link(const Options& o) {
                                      : &port);
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
-  std::fprintf(stderr,
-               "hq-sim-flight: simulated %s over the link: %s, command timeout %.0f ms, "
-               "heartbeat timeout %.0f ms\n",
-               world.name.c_str(),
-               o.duration_s > 0.0 ? fmt::format("{:.1f} s", o.duration_s).c_str()
-                                  : "until SIGINT or SIGTERM",
-               o.command_timeout_ms, o.heartbeat_timeout_ms);
+  hq::log::note(
+      "hq-sim-flight: simulated {} over the link: {}, command timeout {:.0f} ms, "
+      "heartbeat timeout {:.0f} ms\n",
+      world.name.c_str(),
+      o.duration_s > 0.0 ? fmt::format("{:.1f} s", o.duration_s).c_str()
+                         : "until SIGINT or SIGTERM",
+      o.command_timeout_ms, o.heartbeat_timeout_ms);
   const double end_s = o.duration_s > 0.0 ? o.duration_s : std::numeric_limits<double>::max();
   double t_s = 0.0;
   while (t_s < end_s && !g_stop) {
@@ -138,7 +141,7 @@ int run_sim_link(const Options& o) {
   wind_down(
       o, loop.runtime(), loop.t_ns(),
       [&loop] {
-        loop.run_until(1e-9 * static_cast<double>(loop.t_ns()) + 0.01);
+        loop.run_until(hq::to_seconds(loop.t_ns()) + 0.01);
         return loop.t_ns();
       },
       stop);
@@ -151,12 +154,13 @@ int run_sim_link(const Options& o) {
   const bool landed = !loop.samples().empty() && loop.samples().back().landed;
   const bool on_ground = loop.simulator().truth().on_ground;
   print_link_summary(bridge);
-  std::printf("  %-40s %.1f ms\n", "largest lag behind real time", 1e3 * loop.max_realtime_lag_s());
-  std::printf("  %-40s %s (vehicle believes %s)\n", "final state",
-              on_ground ? "on the ground" : "in the air",
-              landed ? "landed, motors idle" : "flying");
+  hq::log::info("  {:<40} {:.1f} ms\n", "largest lag behind real time",
+                1e3 * loop.max_realtime_lag_s());
+  hq::log::info("  {:<40} {} (vehicle believes {})\n", "final state",
+                on_ground ? "on the ground" : "in the air",
+                landed ? "landed, motors idle" : "flying");
   for (const std::string& refusal : loop.refusals()) {
-    std::printf("  mode request refused at %s\n", refusal.c_str());
+    hq::log::info("  mode request refused at {}\n", refusal.c_str());
   }
   const bool record_ok =
       !recorder || close_recorder(*recorder,
@@ -188,35 +192,34 @@ int run_sim(const Options& o) {
   hq::closed_loop::ClosedLoopOptions options;
   options.clock = &clock;
   hq::closed_loop::ClosedLoop loop(sim_config, world, config, vehicle, std::move(player), options);
-  fmt::print(stderr, "hq-sim-flight: simulated {}, {}x{}, seed {}, script {} ({:.1f} s)\n",
-             world.name, sim_config.camera.pinhole.width, sim_config.camera.pinhole.height,
-             sim_config.seed, o.script_path, loop.player().script().end_s);
-  const auto wall_start = std::chrono::steady_clock::now();
+  hq::log::note("hq-sim-flight: simulated {}, {}x{}, seed {}, script {} ({:.1f} s)\n", world.name,
+                sim_config.camera.pinhole.width, sim_config.camera.pinhole.height, sim_config.seed,
+                o.script_path, loop.player().script().end_s);
+  const std::int64_t wall_start_ns = hq::monotonic_now_ns();
   loop.run();
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  const double wall_s = hq::to_seconds(hq::monotonic_now_ns() - wall_start_ns);
 
   const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
   hq::closed_loop::print_summary(stdout, "flight summary (" + world.name + ")", summary);
-  std::printf("  %-40s %s\n", "obstacle memory (outside the view)",
-              config.memory.enabled ? "on" : "off");
-  std::printf("  %-40s %.1fx real time (%.1f s wall)\n", "simulation speed",
-              summary.duration_s / std::max(wall_s, 1e-9), wall_s);
+  hq::log::info("  {:<40} {}\n", "obstacle memory (outside the view)",
+                config.memory.enabled ? "on" : "off");
+  hq::log::info("  {:<40} {:.1f}x real time ({:.1f} s wall)\n", "simulation speed",
+                summary.duration_s / std::max(wall_s, 1e-9), wall_s);
   for (const std::string& refusal : loop.refusals()) {
-    std::printf("  mode request refused at %s\n", refusal.c_str());
+    hq::log::info("  mode request refused at {}\n", refusal.c_str());
   }
-  std::printf("per-stage time from frame arrival to setpoint:\n");
+  hq::log::info("per-stage time from frame arrival to setpoint:\n");
   loop.timing().print(stdout);
   if (!o.save_map_path.empty()) {
     // The obstacle memory's map at the end of the flight (points in the world of the
     // odometry), for PCL's viewers and CloudCompare.
     loop.chain().memory().save(o.save_map_path);
-    std::printf("obstacle memory map (%d points) written to %s\n", loop.chain().memory().size(),
-                o.save_map_path.c_str());
+    hq::log::info("obstacle memory map ({} points) written to {}\n", loop.chain().memory().size(),
+                  o.save_map_path.c_str());
   }
   if (!o.csv_path.empty()) {
     hq::closed_loop::write_figure_csv(o.csv_path, loop.samples());
-    std::printf("Fig. 6-8 signals written to %s\n", o.csv_path.c_str());
+    hq::log::info("Fig. 6-8 signals written to {}\n", o.csv_path.c_str());
   }
   return summary.collision_ticks == 0 ? 0 : 3;
 }

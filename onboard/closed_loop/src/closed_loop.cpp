@@ -40,7 +40,7 @@ class ClosedLoop::Port final : public vehicle::OperatorPort {
     if (o.operator_port != nullptr) o.operator_port->on_mode_result(t_ns, request, result);
     if (o.operator_source != nullptr) o.operator_source->on_mode_result(t_ns, request.mode, result);
     if (!result.accepted) {
-      loop_.refusals_.push_back(std::to_string(1e-9 * static_cast<double>(t_ns)) +
+      loop_.refusals_.push_back(std::to_string(hq::to_seconds(t_ns)) +
                                 " s: " + modes::to_string(request.mode) + ": " + result.reason);
     }
   }
@@ -144,7 +144,7 @@ void ClosedLoop::pace(std::int64_t t_ns) {
 void ClosedLoop::record(const pipeline::ChainOutput& out) {
   const sim::TruthState& truth = sim_->truth();
   FlightSample s;
-  s.t_s = 1e-9 * static_cast<double>(out.t_ns);
+  s.t_s = hq::to_seconds(out.t_ns);
   s.frame = out.frame;
   s.airborne = !truth.on_ground;
   s.estimate_ok = out.estimate.ok();

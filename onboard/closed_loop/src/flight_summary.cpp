@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fmt/format.h>
 
 namespace hq::closed_loop {
 
@@ -69,52 +70,52 @@ FlightSummary summarise(const ClosedLoop& loop) {
 
 void print_summary(std::FILE* out, const std::string& title, const FlightSummary& s) {
   const auto row3 = [out](const char* name, const Eigen::Vector3d& v, const char* unit) {
-    std::fprintf(out, "  %-40s x %.3f  y %.3f  z %.3f %s\n", name, v.x(), v.y(), v.z(), unit);
+    fmt::print(out, "  {:<40} x {:.3f}  y {:.3f}  z {:.3f} {}\n", name, v.x(), v.y(), v.z(), unit);
   };
-  std::fprintf(out, "%s\n", title.c_str());
-  std::fprintf(out, "  %-40s %.1f s, %d frames (%d airborne)\n", "flight", s.duration_s, s.frames,
-               s.airborne_frames);
-  std::fprintf(out, "  %-40s %.1f %%\n", "estimate available (airborne frames)",
-               100.0 * s.estimate_available);
+  fmt::print(out, "{}\n", title.c_str());
+  fmt::print(out, "  {:<40} {:.1f} s, {} frames ({} airborne)\n", "flight", s.duration_s, s.frames,
+             s.airborne_frames);
+  fmt::print(out, "  {:<40} {:.1f} %\n", "estimate available (airborne frames)",
+             100.0 * s.estimate_available);
   row3("velocity estimate RMSE vs truth (H)", s.velocity_rmse_mps, "m/s");
   row3("tracking RMSE, v_des vs truth (H)", s.tracking_rmse_mps, "m/s");
   row3("tracking RMSE, operator v*_des vs truth", s.operator_tracking_rmse_mps, "m/s");
-  std::fprintf(out, "  %-40s %.3f rad/s\n", "yaw rate RMSE, command vs gyro",
-               s.yaw_rate_rmse_radps);
+  fmt::print(out, "  {:<40} {:.3f} rad/s\n", "yaw rate RMSE, command vs gyro",
+             s.yaw_rate_rmse_radps);
   // The vehicle's own figure (the state's, the console's, hq-report's), then the truth.
-  std::fprintf(out, "  %-40s %.3f m\n", "closest distance (clearance)", s.min_clearance_sent_m);
-  std::fprintf(out, "  %-40s %.3f m\n", "closest distance, simulator truth", s.min_clearance_m);
-  std::fprintf(out, "  %-40s %d\n", "collision ticks", s.collision_ticks);
-  std::fprintf(out, "  %-40s %d, fastest %.2f m/s\n", "floor contacts (falls count as collisions)",
-               s.floor_impacts, s.max_floor_impact_speed_mps);
-  std::fprintf(out, "  %-40s %.2f m/s\n", "max true speed", s.max_speed_true_mps);
-  std::fprintf(out, "  %-40s %.2f s\n", "time in safe hover (airborne)", s.safe_hover_s);
+  fmt::print(out, "  {:<40} {:.3f} m\n", "closest distance (clearance)", s.min_clearance_sent_m);
+  fmt::print(out, "  {:<40} {:.3f} m\n", "closest distance, simulator truth", s.min_clearance_m);
+  fmt::print(out, "  {:<40} {}\n", "collision ticks", s.collision_ticks);
+  fmt::print(out, "  {:<40} {}, fastest {:.2f} m/s\n", "floor contacts (falls count as collisions)",
+             s.floor_impacts, s.max_floor_impact_speed_mps);
+  fmt::print(out, "  {:<40} {:.2f} m/s\n", "max true speed", s.max_speed_true_mps);
+  fmt::print(out, "  {:<40} {:.2f} s\n", "time in safe hover (airborne)", s.safe_hover_s);
 }
 
 void write_figure_csv(const std::string& path, const std::vector<FlightSample>& samples) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw InputError(path + ": cannot open for writing");
-  std::fprintf(f,
-               "# Core paper Fig. 6-8 signals from a simulated flight. Frames "
-               "(hq/geometry/frames.hpp): H horizontal (yaw only, z down), N the simulator's NWU "
-               "world. est = on-board estimate, true = simulator, cmd = operator v*_des, "
-               "des = v*_des + v_obs. Yaw rates about z of H. SI units.\n");
-  std::fprintf(f,
-               "t_s,frame,airborne,mode,estimate_ok,v_est_H_x_mps,v_est_H_y_mps,v_est_H_z_mps,"
-               "v_true_H_x_mps,v_true_H_y_mps,v_true_H_z_mps,v_cmd_H_x_mps,v_cmd_H_y_mps,"
-               "v_cmd_H_z_mps,v_des_H_x_mps,v_des_H_y_mps,v_des_H_z_mps,v_obs_H_x_mps,"
-               "v_obs_H_y_mps,v_obs_H_z_mps,yaw_rate_cmd_radps,yaw_rate_gyro_radps,"
-               "yaw_rate_true_radps,clearance_m,p_N_x_m,p_N_y_m,p_N_z_m,safe_hover,reason\n");
+  fmt::print(f,
+             "# Core paper Fig. 6-8 signals from a simulated flight. Frames "
+             "(hq/geometry/frames.hpp): H horizontal (yaw only, z down), N the simulator's NWU "
+             "world. est = on-board estimate, true = simulator, cmd = operator v*_des, "
+             "des = v*_des + v_obs. Yaw rates about z of H. SI units.\n");
+  fmt::print(f,
+             "t_s,frame,airborne,mode,estimate_ok,v_est_H_x_mps,v_est_H_y_mps,v_est_H_z_mps,"
+             "v_true_H_x_mps,v_true_H_y_mps,v_true_H_z_mps,v_cmd_H_x_mps,v_cmd_H_y_mps,"
+             "v_cmd_H_z_mps,v_des_H_x_mps,v_des_H_y_mps,v_des_H_z_mps,v_obs_H_x_mps,"
+             "v_obs_H_y_mps,v_obs_H_z_mps,yaw_rate_cmd_radps,yaw_rate_gyro_radps,"
+             "yaw_rate_true_radps,clearance_m,p_N_x_m,p_N_y_m,p_N_z_m,safe_hover,reason\n");
   for (const FlightSample& s : samples) {
-    std::fprintf(f, "%.4f,%d,%d,%s,%d", s.t_s, s.frame ? 1 : 0, s.airborne ? 1 : 0,
-                 modes::to_string(s.mode), s.estimate_ok ? 1 : 0);
+    fmt::print(f, "{:.4f},{},{},{},{}", s.t_s, s.frame ? 1 : 0, s.airborne ? 1 : 0,
+               modes::to_string(s.mode), s.estimate_ok ? 1 : 0);
     for (const Eigen::Vector3d* v :
          {&s.v_est_mps, &s.v_true_mps, &s.v_star_des_mps, &s.v_des_mps, &s.v_obs_mps}) {
-      std::fprintf(f, ",%.5f,%.5f,%.5f", v->x(), v->y(), v->z());
+      fmt::print(f, ",{:.5f},{:.5f},{:.5f}", v->x(), v->y(), v->z());
     }
-    std::fprintf(f, ",%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%.4f,%d,\"%s\"\n", s.yaw_rate_cmd_radps,
-                 s.yaw_rate_gyro_radps, s.yaw_rate_true_radps, s.clearance_m, s.p_N_m.x(),
-                 s.p_N_m.y(), s.p_N_m.z(), s.safe_hover ? 1 : 0, s.reason);
+    fmt::print(f, ",{:.5f},{:.5f},{:.5f},{:.4f},{:.4f},{:.4f},{:.4f},{},\"{}\"\n",
+               s.yaw_rate_cmd_radps, s.yaw_rate_gyro_radps, s.yaw_rate_true_radps, s.clearance_m,
+               s.p_N_m.x(), s.p_N_m.y(), s.p_N_m.z(), s.safe_hover ? 1 : 0, s.reason);
   }
   if (std::fclose(f) != 0) throw InputError(path + ": write failed");
 }

@@ -1,6 +1,7 @@
 #include "hq/closed_loop/operator_script.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 
 #include <cmath>
@@ -94,7 +95,7 @@ OperatorPlayer::OperatorPlayer(OperatorScript script, double alpha_rad)
 modes::OperatorCommand OperatorPlayer::command(std::int64_t t_ns) const {
   modes::OperatorCommand command;
   command.t_ns = t_ns;
-  const double t_s = 1e-9 * static_cast<double>(t_ns);
+  const double t_s = hq::to_seconds(t_ns);
   for (std::size_t i = script_.steps.size(); i-- > 0;) {
     if (script_.steps[i].t_s <= t_s) {
       command.v_H_mps = v_H_mps_[i];
@@ -106,7 +107,7 @@ modes::OperatorCommand OperatorPlayer::command(std::int64_t t_ns) const {
 }
 
 void OperatorPlayer::take_mode_requests(std::int64_t t_ns, std::vector<modes::Mode>& out) {
-  const double t_s = 1e-9 * static_cast<double>(t_ns);
+  const double t_s = hq::to_seconds(t_ns);
   while (next_mode_step_ < script_.steps.size() && script_.steps[next_mode_step_].t_s <= t_s) {
     if (const auto& mode = script_.steps[next_mode_step_].mode) out.push_back(*mode);
     ++next_mode_step_;

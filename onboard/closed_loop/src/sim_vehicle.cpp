@@ -1,6 +1,7 @@
 #include "hq/closed_loop/sim_vehicle.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -74,7 +75,7 @@ SimCamera::SimCamera(sim::Simulator& sim, std::vector<CameraFault> faults, Image
     : sim_(sim), faults_(std::move(faults)), observer_(std::move(observer)) {}
 
 const CameraFault* SimCamera::active_fault(std::int64_t t_ns) const {
-  const double t_s = 1e-9 * static_cast<double>(t_ns);
+  const double t_s = hq::to_seconds(t_ns);
   for (const CameraFault& fault : faults_) {
     if (t_s >= fault.start_s && t_s < fault.start_s + fault.duration_s) return &fault;
   }

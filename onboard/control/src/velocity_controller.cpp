@@ -1,5 +1,6 @@
 #include "hq/control/velocity_controller.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 
 #include <algorithm>
@@ -67,7 +68,7 @@ ControlOutput VelocityController::update(std::int64_t t_ns,
   }
   const Eigen::Vector3d& v_est_horizontal_mps = *v_est_H_mps;
 
-  const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_ns_);
+  const double dt_s = hq::to_seconds(t_ns - t_prev_ns_);
   const bool step_valid = have_previous_ && dt_s > 0.0 && dt_s <= config_.max_dt_s;
   if (step_valid) {
     // Derivative on measurement, low-passed: a setpoint step does not kick the output.

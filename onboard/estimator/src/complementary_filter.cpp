@@ -1,5 +1,6 @@
 #include "hq/estimator/complementary_filter.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/geometry/lie.hpp"
 
@@ -55,7 +56,7 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
     return FilterStatus::kRejectedNonFinite;
   }
   if (initialized_ && t_ns <= t_ns_) return FilterStatus::kRejectedTime;
-  const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+  const double dt_s = hq::to_seconds(t_ns - t_ns_);
   if (!initialized_ || dt_s > config_.max_dt_s) {
     initialize(accel_mps2);
     initialized_ = true;
@@ -68,9 +69,8 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
   // The accelerometer is trusted only near 1 g, where it measures mostly gravity.
   Eigen::Vector3d omega_mes = Eigen::Vector3d::Zero();
   const double norm = accel_mps2.norm();
-  const bool levelling_paused =
-      velocity_aided_ &&
-      1e-9 * static_cast<double>(t_ns - t_velocity_aided_ns_) < config_.accel_levelling_pause_s;
+  const bool levelling_paused = velocity_aided_ && hq::to_seconds(t_ns - t_velocity_aided_ns_) <
+                                                       config_.accel_levelling_pause_s;
   if (!levelling_paused && std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 &&
       norm > 1e-3) {
     const Eigen::Vector3d v = -accel_mps2 / norm;

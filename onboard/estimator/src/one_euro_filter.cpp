@@ -1,5 +1,6 @@
 #include "hq/estimator/one_euro_filter.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/geometry/lie.hpp"
 
@@ -49,7 +50,7 @@ FilterStatus PoseOneEuroFilter::update(std::int64_t t_ns, const Eigen::Isometry3
     t_ns_ = t_ns;
     return FilterStatus::kFirstSample;
   }
-  const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+  const double dt_s = hq::to_seconds(t_ns - t_ns_);
   if (!(dt_s > 0.0)) return FilterStatus::kRejectedTime;
   position_.update(t_ns, T.translation());
 

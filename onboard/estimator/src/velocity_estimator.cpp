@@ -1,5 +1,6 @@
 #include "hq/estimator/velocity_estimator.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -107,7 +108,7 @@ void VelocityEstimator::level_on_velocity(std::int64_t t_ns, const Eigen::Vector
   // roll and pitch; what it missed of the velocity is, to first order, their tilt error. Eq.
   // 1's velocities, not the 1-euro filtered ones: the filter's lag (0.05-0.16 s) would read
   // every change of acceleration as a tilt.
-  const double span_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  const double span_s = hq::to_seconds(t_ns - t_coast_anchor_ns_);
   if (coast_anchored_ && coast_from_odometry_ && span_s > 0.0 &&
       span_s <= config_.max_frame_gap_s) {
     attitude_.level_on_velocity(t_ns, (v_H_raw_mps - coast_v_H_raw_mps_) / span_s, span_s);
@@ -168,16 +169,16 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
   if (have_previous_ && t_ns > t_prev_frame_ns_ && t_ns > t_lag_moment_ns_) {
     // The acceleration weighted by its time since the previous frame (velocity_at_frame_H).
     const double dt_s =
-        std::min(1e-9 * static_cast<double>(t_ns - std::max(t_lag_moment_ns_, t_prev_frame_ns_)),
+        std::min(hq::to_seconds(t_ns - std::max(t_lag_moment_ns_, t_prev_frame_ns_)),
                  config_.complementary.max_dt_s);
-    const double since_frame_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
+    const double since_frame_s = hq::to_seconds(t_ns - t_prev_frame_ns_);
     lag_moment_H_ += since_frame_s * dt_s * acceleration_H(accel_mps2);
     t_lag_moment_ns_ = t_ns;
   }
   if (coast_anchored_ && t_ns > t_coast_ns_) {
     // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch.
     const double dt_s =
-        std::min(1e-9 * static_cast<double>(t_ns - t_coast_ns_), config_.complementary.max_dt_s);
+        std::min(hq::to_seconds(t_ns - t_coast_ns_), config_.complementary.max_dt_s);
     const double roll_rad = attitude_.roll_rad();
     const double pitch_rad = attitude_.pitch_rad();
     const Eigen::Vector3d a_H = acceleration_H(accel_mps2);
@@ -214,15 +215,14 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
   estimate.status = EstimateStatus::kUnavailable;
   estimate.reason = reason;
   const std::int64_t since_ns = ever_ok_ ? t_last_ok_ns_ : t_first_update_ns_;
-  estimate.unavailable_for_s = std::max(0.0, 1e-9 * static_cast<double>(t_ns - since_ns));
+  estimate.unavailable_for_s = std::max(0.0, hq::to_seconds(t_ns - since_ns));
   if (attitude_.initialized()) {
     estimate.roll_rad = attitude_.roll_rad();
     estimate.pitch_rad = attitude_.pitch_rad();
   }
-  const double coast_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
-  const bool imu_fresh =
-      attitude_.initialized() && gyro_low_pass_.initialized() &&
-      1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
+  const double coast_s = hq::to_seconds(t_ns - t_coast_anchor_ns_);
+  const bool imu_fresh = attitude_.initialized() && gyro_low_pass_.initialized() &&
+                         hq::to_seconds(t_ns - attitude_.t_ns()) <= config_.max_imu_age_s;
   if (coast_anchored_ && config_.inertial_coast_s > 0.0 && imu_fresh &&
       coast_s <= coast_horizon_s() && coast_v_H_mps_.allFinite()) {
     estimate.status = EstimateStatus::kInertial;
@@ -371,7 +371,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     have_previous_ = false;
     return unavailable(t_ns, reason);
   }
-  const double dt_s = 1e-9 * static_cast<double>(t_ns - t_prev_frame_ns_);
+  const double dt_s = hq::to_seconds(t_ns - t_prev_frame_ns_);
   if (!have_previous_ || dt_s > config_.max_frame_gap_s) {
     // Eq. 2 needs two consecutive accepted poses.
     reseed(t_ns, odometry.T_O_C);
@@ -411,12 +411,12 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   lag_moment_H_.setZero();
   t_lag_moment_ns_ = t_ns;
   const bool one_euro_output = config_.velocity_output == VelocityOutput::kOneEuro;
-  const bool warming_up = 1e-9 * static_cast<double>(t_ns - t_seed_ns_) < config_.warmup_s;
+  const bool warming_up = hq::to_seconds(t_ns - t_seed_ns_) < config_.warmup_s;
   if (one_euro_output && warming_up) {
     return unavailable(t_ns, "pose filter warming up after a (re)start");
   }
   if (!have_attitude) return unavailable(t_ns, "no IMU sample yet");
-  if (1e-9 * static_cast<double>(t_ns - attitude_.t_ns()) > config_.max_imu_age_s) {
+  if (hq::to_seconds(t_ns - attitude_.t_ns()) > config_.max_imu_age_s) {
     return unavailable(t_ns, "IMU samples too old");
   }
   const Eigen::Vector3d& omega_B = gyro_low_pass_.value();
@@ -456,7 +456,7 @@ void VelocityEstimator::take_frame(std::int64_t t_ns, const Eigen::Vector3d& z_H
                                    const Eigen::Vector3d& v_H_mean_raw_mps,
                                    const Eigen::Vector3d& gyro_bias_C_radps) {
   const bool had_filter = coast_anchored_ && t_coast_anchor_ns_ < t_ns;
-  const double since_anchor_s = 1e-9 * static_cast<double>(t_ns - t_coast_anchor_ns_);
+  const double since_anchor_s = hq::to_seconds(t_ns - t_coast_anchor_ns_);
   fuse(z_H_mps, R_H);
   motion_accel_H_mps2_.setZero();
   if (had_filter && coast_from_odometry_ && since_anchor_s <= config_.max_frame_gap_s) {

@@ -1,5 +1,6 @@
 #include "hq/estimator/velocity_estimator.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
@@ -82,7 +83,7 @@ VelocityEstimate run(VelocityEstimator& estimator, const Motion& motion, double 
   const int steps = static_cast<int>(duration_s * 1e9 / kImuNs);
   for (int k = 0; k <= steps; ++k) {
     const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const double t_s = hq::to_seconds(t_ns);
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
     if (k % kImuPerFrame == 0) last = estimator.update(t_ns, motion.odometry_at(t_s, t_ns, k == 0));
   }
@@ -152,7 +153,7 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
   double previous = 0.0;
   for (int i = 1; i <= 5; ++i) {
     const std::int64_t t_ns = t_last_ok_ns + i * kImuPerFrame * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const double t_s = hq::to_seconds(t_ns);
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
     odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, false);
     if (i % 2 == 0) {
@@ -167,7 +168,7 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
     EXPECT_EQ(estimate.status, EstimateStatus::kInertial);
     EXPECT_TRUE(estimate.usable());
     EXPECT_LT((estimate.v_H_mps - last_ok.v_H_mps).norm(), 2e-3) << estimate.v_H_mps.transpose();
-    EXPECT_NEAR(estimate.unavailable_for_s, 1e-9 * static_cast<double>(t_ns - t_last_ok_ns), 1e-9);
+    EXPECT_NEAR(estimate.unavailable_for_s, hq::to_seconds(t_ns - t_last_ok_ns), 1e-9);
     EXPECT_GT(estimate.unavailable_for_s, previous);
     previous = estimate.unavailable_for_s;
     EXPECT_THAT(estimate.reason, HasSubstr(i % 2 == 0 ? "lost" : "valid_ratio"));
@@ -179,17 +180,15 @@ TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {
   const std::int64_t t_seed_ns = t_ns;
   VelocityEstimate recovered;
   for (; !recovered.ok() && t_ns < t_seed_ns + 1'000'000'000; t_ns += kImuPerFrame * kImuNs) {
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
-    recovered =
-        estimator.update(t_ns, motion.odometry_at(1e-9 * static_cast<double>(t_ns), t_ns, false));
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(hq::to_seconds(t_ns)));
+    recovered = estimator.update(t_ns, motion.odometry_at(hq::to_seconds(t_ns), t_ns, false));
     if (!recovered.ok()) {
       EXPECT_GT(recovered.unavailable_for_s, previous);
     }
   }
   ASSERT_TRUE(recovered.ok()) << recovered.reason;
-  const double frame_s = 1e-9 * static_cast<double>(kImuPerFrame * kImuNs);
-  EXPECT_NEAR(1e-9 * static_cast<double>(recovered.t_ns - t_seed_ns),
-              config.reacquire_frames * frame_s, 1e-9);
+  const double frame_s = hq::to_seconds(kImuPerFrame * kImuNs);
+  EXPECT_NEAR(hq::to_seconds(recovered.t_ns - t_seed_ns), config.reacquire_frames * frame_s, 1e-9);
   EXPECT_EQ(recovered.unavailable_for_s, 0.0);
   EXPECT_NEAR(recovered.v_H_mps.x(), 0.3, 0.005);
   // With the 1-euro output (the core paper's eq. 2 as it is) the filter's 0.2 s warm-up comes
@@ -222,7 +221,7 @@ TEST(VelocityEstimator, FusedVelocityHasNoLagWhereTheOneEuroLags) {
     VelocityEstimate last;
     for (int k = 0; k <= static_cast<int>((kStartS + 0.4) * 1e9 / kImuNs); ++k) {
       const std::int64_t t_ns = k * kImuNs;
-      const double t_s = 1e-9 * static_cast<double>(t_ns);
+      const double t_s = hq::to_seconds(t_ns);
       const double a_mps2 = t_s > kStartS ? 2.0 : 0.0;
       estimator.update_imu(t_ns, Eigen::Vector3d::Zero(),
                            motion.accel(t_s) + Eigen::Vector3d(a_mps2, 0.0, 0.0));
@@ -232,7 +231,7 @@ TEST(VelocityEstimator, FusedVelocityHasNoLagWhereTheOneEuroLags) {
       last = estimator.update(t_ns, odometry);
     }
     ASSERT_TRUE(last.ok()) << last.reason;
-    const double lag_s = moving_s(1e-9 * static_cast<double>(last.t_ns)) - last.v_H_mps.x() / 2.0;
+    const double lag_s = moving_s(hq::to_seconds(last.t_ns)) - last.v_H_mps.x() / 2.0;
     std::printf("%s output: lag %.1f ms at 2 m/s^2\n",
                 output == VelocityEstimatorConfig::VelocityOutput::kFused ? "fused" : "one-euro",
                 1e3 * lag_s);
@@ -272,7 +271,7 @@ TEST(VelocityEstimator, UpdatesAllocateNothing) {
   const long before = hq::testing::allocation_count();
   for (int i = 0; i < 60 * kImuPerFrame; ++i) {
     const std::int64_t t_ns = i * kImuNs;
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(hq::to_seconds(t_ns)));
     if (i % kImuPerFrame == 0)
       estimator.update(t_ns, frames[static_cast<std::size_t>(i / kImuPerFrame)]);
   }
@@ -311,8 +310,8 @@ TEST(VelocityEstimator, WithoutTheCoastRejectedOdometryIsUnavailable) {
   const VelocityEstimate last_ok = run(estimator, motion, 1.0);
   ASSERT_TRUE(last_ok.ok());
   const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
-  estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
-  odometry::OdometryResult lost = motion.odometry_at(1e-9 * static_cast<double>(t_ns), t_ns, false);
+  estimator.update_imu(t_ns, motion.gyro(), motion.accel(hq::to_seconds(t_ns)));
+  odometry::OdometryResult lost = motion.odometry_at(hq::to_seconds(t_ns), t_ns, false);
   lost.status = odometry::TrackingStatus::kLost;
   const VelocityEstimate estimate = estimator.update(t_ns, lost);
   EXPECT_EQ(estimate.status, EstimateStatus::kUnavailable);
@@ -339,7 +338,7 @@ CoastRun coast_after_loss(VelocityEstimator& estimator, const Motion& motion, do
   const int steps = good_steps + static_cast<int>(lost_s * 1e9 / kImuNs);
   for (int k = good_steps + 1; k <= steps; ++k) {
     const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const double t_s = hq::to_seconds(t_ns);
     const Eigen::Matrix3d R_NQ = rz(motion.yaw(t_s)) * motion.R_tilt();
     // f = R_QN (a - g e_z) in NED.
     const Eigen::Vector3d accel =
@@ -371,14 +370,14 @@ TEST(VelocityEstimator, InertialCoastIntegratesTheRotatedAccelerometer) {
   int inertial = 0;
   int unavailable = 0;
   for (const VelocityEstimate& estimate : coast.lost) {
-    const double coast_s = 1e-9 * static_cast<double>(estimate.t_ns - coast.last_ok.t_ns);
+    const double coast_s = hq::to_seconds(estimate.t_ns - coast.last_ok.t_ns);
     if (coast_s <= config.inertial_coast_s) {
       // THEN within inertial_coast_s: kInertial, the last good velocity plus a t along H z
       // (the specific force rotated with roll and pitch: unrotated, the tilt would add
       // g sin(12 deg) = 2 m/s^2 sideways).
       ASSERT_EQ(estimate.status, EstimateStatus::kInertial) << coast_s;
       EXPECT_STREQ(estimate.reason, "odometry lost");
-      const double accel_s = 1e-9 * static_cast<double>(estimate.t_ns - coast.t_accel_start_ns);
+      const double accel_s = hq::to_seconds(estimate.t_ns - coast.t_accel_start_ns);
       const Eigen::Vector3d expected =
           coast.last_ok.v_H_mps + Eigen::Vector3d(0.0, 0.0, a_z * accel_s);
       EXPECT_LT((estimate.v_H_mps - expected).norm(), 5e-3)
@@ -409,11 +408,11 @@ TEST(VelocityEstimator, CoastTurnsWithTheHeading) {
   ASSERT_TRUE(coast.last_ok.ok()) << coast.last_ok.reason;
   // (the 1-euro filter's lag under the turn has the last ok estimate 4 cm/s off the truth
   // already; the coast is judged against that estimate turned by the truth's heading change)
-  const double t_ok_s = 1e-9 * static_cast<double>(coast.last_ok.t_ns);
+  const double t_ok_s = hq::to_seconds(coast.last_ok.t_ns);
   double max_error_mps = 0.0;
   for (const VelocityEstimate& estimate : coast.lost) {
     ASSERT_EQ(estimate.status, EstimateStatus::kInertial);
-    const double t_s = 1e-9 * static_cast<double>(estimate.t_ns);
+    const double t_s = hq::to_seconds(estimate.t_ns);
     const Eigen::Vector3d turned =
         rz(motion.yaw(t_s) - motion.yaw(t_ok_s)).transpose() * coast.last_ok.v_H_mps;
     max_error_mps = std::max(max_error_mps, (estimate.v_H_mps - turned).norm());
@@ -449,7 +448,7 @@ UnseenAccelRun fly_with_unseen_accel(const VelocityEstimatorConfig& config, doub
   const int steps = static_cast<int>((tracked_s + lost_s) * 1e9 / kImuNs);
   for (int k = 0; k <= steps; ++k) {
     const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const double t_s = hq::to_seconds(t_ns);
     estimator.update_imu(t_ns, Eigen::Vector3d::Zero(), motion.accel(t_s));
     if (k % kImuPerFrame != 0) continue;
     odometry::OdometryResult odometry;
@@ -551,7 +550,7 @@ TEST(VelocityEstimator, HoldAtRestAnchorsTheCoastAtZero) {
   VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   std::int64_t t_ns = 0;
   for (; t_ns <= 500'000'000; t_ns += kImuNs) {
-    estimator.update_imu(t_ns, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t_ns)));
+    estimator.update_imu(t_ns, motion.gyro(), motion.accel(hq::to_seconds(t_ns)));
   }
   t_ns -= kImuNs;
   // GIVEN no odometry ever: nothing to coast from.
@@ -597,10 +596,9 @@ VelocityEstimate first_jumped_frame(const VelocityEstimatorConfig& config,
   EXPECT_TRUE(last_ok.ok());
   const std::int64_t t_ns = last_ok.t_ns + kImuPerFrame * kImuNs;
   for (std::int64_t t = last_ok.t_ns + kImuNs; t <= t_ns; t += kImuNs) {
-    estimator.update_imu(t, motion.gyro(), motion.accel(1e-9 * static_cast<double>(t)));
+    estimator.update_imu(t, motion.gyro(), motion.accel(hq::to_seconds(t)));
   }
-  odometry::OdometryResult jumped =
-      motion.odometry_at(1e-9 * static_cast<double>(t_ns), t_ns, false);
+  odometry::OdometryResult jumped = motion.odometry_at(hq::to_seconds(t_ns), t_ns, false);
   jumped.T_O_C.translation() += jumped.T_O_C.linear() * jump_C_m;
   return estimator.update(t_ns, jumped);
 }
@@ -637,7 +635,7 @@ void hover(const VelocityEstimatorConfig& config, double duration_s, Edit edit, 
   const int steps = static_cast<int>(duration_s * 1e9 / kImuNs);
   for (int k = 0; k <= steps; ++k) {
     const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const double t_s = hq::to_seconds(t_ns);
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
     if (k % kImuPerFrame != 0) continue;
     odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);
@@ -690,7 +688,7 @@ TEST(VelocityEstimator, OdometryReturningAfterTheCoastHasEndedIsCheckedAgainstTh
 // loss was ok.
 bool taken_after_a_loss(const VelocityEstimatorConfig& config, int returned_frames) {
   constexpr double kReturnS = 1.5;
-  const double frame_s = kImuPerFrame * 1e-9 * static_cast<double>(kImuNs);
+  const double frame_s = kImuPerFrame * hq::to_seconds(kImuNs);
   const double lost_again_s = kReturnS + frame_s + (returned_frames - 0.5) * frame_s;
   bool taken = false;
   hover(
@@ -763,7 +761,7 @@ Eigen::Vector3d vision_bias_in_the_attitude(const VelocityEstimatorConfig& confi
   VelocityEstimator estimator(config, motion.R_B_C, motion.p_B_C_m);
   for (int k = 0; k <= static_cast<int>(2e9 / kImuNs); ++k) {
     const std::int64_t t_ns = k * kImuNs;
-    const double t_s = 1e-9 * static_cast<double>(t_ns);
+    const double t_s = hq::to_seconds(t_ns);
     estimator.update_imu(t_ns, motion.gyro(), motion.accel(t_s));
     if (k % kImuPerFrame != 0) continue;
     odometry::OdometryResult odometry = motion.odometry_at(t_s, t_ns, k == 0);

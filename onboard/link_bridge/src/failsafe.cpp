@@ -1,6 +1,7 @@
 #include "hq/link_bridge/failsafe.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 
 #include <algorithm>
 #include <string>
@@ -22,7 +23,7 @@ void check_config(const FailsafeConfig& config) {
   positive("heartbeat_timeout_ms", 1e-6 * static_cast<double>(config.heartbeat_timeout_ns));
   positive("command_max_delay_ms", 1e-6 * static_cast<double>(config.command_max_delay_ns));
   positive("command_reanchor_ms", 1e-6 * static_cast<double>(config.command_reanchor_ns));
-  const double hold_to_land_s = 1e-9 * static_cast<double>(config.hold_to_land_ns);
+  const double hold_to_land_s = hq::to_seconds(config.hold_to_land_ns);
   if (!(hold_to_land_s >= 0.1 && hold_to_land_s <= 600.0)) {
     throw InputError("link fail-safe: hold_to_land_s = " + std::to_string(hold_to_land_s) +
                      ", expected in [0.1, 600]");

@@ -1,5 +1,7 @@
 #include "hq/link_bridge/link_bridge.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
+
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
@@ -193,14 +195,14 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
     char text[96];
     std::snprintf(text, sizeof text, "no heartbeat from station %u for %.1f s: landing",
                   state.commanding_station_id,
-                  1e-9 * static_cast<double>(failsafe_.config().heartbeat_timeout_ns));
+                  hq::to_seconds(failsafe_.config().heartbeat_timeout_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHeartbeatLost, text);
   }
   if (state.land_for_hold) {
     char text[96];
     std::snprintf(text, sizeof text, "no command for %.1f s (held %.1f s): landing",
-                  1e-9 * static_cast<double>(state.command_age_ns),
-                  1e-9 * static_cast<double>(failsafe_.config().hold_to_land_ns));
+                  hq::to_seconds(state.command_age_ns),
+                  hq::to_seconds(failsafe_.config().hold_to_land_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHoldToLand, text);
   }
   report_rejections(t_ns);

@@ -1,7 +1,10 @@
 #include "hq/link_bridge/link_operator_port.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
+
 #include <algorithm>
 #include <cstring>
+#include <fmt/format.h>
 
 namespace hq::link_bridge {
 
@@ -13,23 +16,20 @@ modes::OperatorCommand LinkOperatorPort::poll(std::int64_t t_ns,
                                               std::vector<pipeline::ModeRequest>& requests) {
   const FailsafeState& state = bridge_.poll(t_ns, requests);
   if (log_ != nullptr && state.hold_started) {
-    std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe hold, command age %.1f ms\n",
-                 1e-9 * static_cast<double>(t_ns),
-                 1e-6 * static_cast<double>(state.command_age_ns));
+    fmt::print(log_, "hq-onboard: t {:.3f} s: fail-safe hold, command age {:.1f} ms\n",
+               hq::to_seconds(t_ns), 1e-6 * static_cast<double>(state.command_age_ns));
   }
   if (log_ != nullptr && state.land_for_heartbeat) {
-    std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe land, heartbeat age %.1f ms\n",
-                 1e-9 * static_cast<double>(t_ns),
-                 1e-6 * static_cast<double>(state.heartbeat_age_ns));
+    fmt::print(log_, "hq-onboard: t {:.3f} s: fail-safe land, heartbeat age {:.1f} ms\n",
+               hq::to_seconds(t_ns), 1e-6 * static_cast<double>(state.heartbeat_age_ns));
   }
   if (log_ != nullptr && state.land_for_hold) {
-    std::fprintf(log_, "hq-onboard: t %.3f s: fail-safe land after hold, command age %.1f ms\n",
-                 1e-9 * static_cast<double>(t_ns),
-                 1e-6 * static_cast<double>(state.command_age_ns));
+    fmt::print(log_, "hq-onboard: t {:.3f} s: fail-safe land after hold, command age {:.1f} ms\n",
+               hq::to_seconds(t_ns), 1e-6 * static_cast<double>(state.command_age_ns));
   }
   if (log_ != nullptr && state.commander_changed) {
-    std::fprintf(log_, "hq-onboard: t %.3f s: commanded by station %u\n",
-                 1e-9 * static_cast<double>(t_ns), state.commanding_station_id);
+    fmt::print(log_, "hq-onboard: t {:.3f} s: commanded by station {}\n", hq::to_seconds(t_ns),
+               state.commanding_station_id);
   }
   return state.command;
 }
@@ -100,7 +100,7 @@ void LinkOperatorPort::on_event(std::int64_t t_ns, vehicle::FcSeverity severity,
                                                   : hq_msgs_SEVERITY_INFO;
   bridge_.publish_event(t_ns, link_severity, EventCode::kVehicle, buffer);
   if (log_ != nullptr) {
-    std::fprintf(log_, "hq-onboard: t %.3f s: %s\n", 1e-9 * static_cast<double>(t_ns), buffer);
+    fmt::print(log_, "hq-onboard: t {:.3f} s: {}\n", hq::to_seconds(t_ns), buffer);
   }
 }
 

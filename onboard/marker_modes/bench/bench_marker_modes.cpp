@@ -3,6 +3,7 @@
 // smartphone seed ~0.2 m) and explore flights (markers mapped within the budget; the seed maps
 // 80 % in 2 min), with collisions counted in every run. Figures only; never run by ctest.
 
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
 #include "hq/closed_loop/operator_script.hpp"
@@ -19,6 +20,7 @@
 #include <cstdio>
 #include <fmt/format.h>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -141,7 +143,7 @@ int main(int argc, char** argv) {
     app.add_option("--target", o.target_id, "marker id landed on");
     app.add_option("--resolution", o.resolution, "camera WxH");
     app.add_option("--world", o.world, "world file");
-    CLI11_PARSE(app, c, v);
+    if (const std::optional<int> exit = hq::parse_or_exit(app, c, v)) return *exit;
     return run(o);
   });
 }

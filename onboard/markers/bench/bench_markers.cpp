@@ -2,6 +2,7 @@
 // ViSP detection + corner pose, + depth-plane refinement, beside OpenCV's aruco AprilTag 36h11
 // detector (corners only) on the same frames, one thread each. Not run by ctest.
 //   hq-bench-markers [world.yaml]   (default onboard/sim/worlds/marker_grid.yaml)
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/markers/marker_detector.hpp"
 #include "hq/sim/rgbd_renderer.hpp"
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -47,7 +49,10 @@ Stats time_frames(std::size_t n, const std::function<int(std::size_t)>& detect_f
 }
 
 int run(int argc, char** argv) {
-  const std::string world_path = argc > 1 ? argv[1] : "onboard/sim/worlds/marker_grid.yaml";
+  CLI::App app{"hq-bench-markers: AprilTag detection time and rate on rendered frames"};
+  std::string world_path = "onboard/sim/worlds/marker_grid.yaml";
+  app.add_option("world", world_path, "simulator world with markers");
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   const hq::sim::World world = hq::sim::load_world(world_path);
   const hq::sim::CameraParams camera = hq::sim::default_sim_config(640, 480).camera;
   hq::sim::RgbdRenderer renderer(camera, world, 3);

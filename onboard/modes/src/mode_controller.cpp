@@ -1,5 +1,6 @@
 #include "hq/modes/mode_controller.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 
 #include <algorithm>
@@ -145,8 +146,7 @@ ModeSwitch ModeController::operator_may_change(Mode to) {
   // On the floor with the motors idle a change moves nothing; before the first step there is
   // no time to measure a dwell by.
   if (landed_ || !have_previous_) return {true, ""};
-  const double in_mode_s =
-      mode_entered_ns_ ? 1e-9 * static_cast<double>(t_prev_ns_ - *mode_entered_ns_) : 0.0;
+  const double in_mode_s = mode_entered_ns_ ? hq::to_seconds(t_prev_ns_ - *mode_entered_ns_) : 0.0;
   if (mode_entered_ns_ && in_mode_s < config_.min_mode_dwell_s) {
     std::snprintf(
         refusal_, sizeof refusal_,
@@ -158,7 +158,7 @@ ModeSwitch ModeController::operator_may_change(Mode to) {
   // operator could not leave land (and its descent) or a mode flying somewhere unwanted.
   if (to == Mode::kHover) return {true, ""};
   // Token bucket: operator_mode_change_burst changes at once, refilled at the sustained rate.
-  const double since_refill_s = 1e-9 * static_cast<double>(t_prev_ns_ - changes_refilled_ns_);
+  const double since_refill_s = hq::to_seconds(t_prev_ns_ - changes_refilled_ns_);
   operator_changes_left_ =
       std::min(static_cast<double>(config_.operator_mode_change_burst),
                operator_changes_left_ +
@@ -192,7 +192,7 @@ void ModeController::set_specific_force_H(std::int64_t t_ns, const Eigen::Vector
   if (t_imu_ns_ >= 0 && t_ns > t_imu_ns_) {
     // NED: the acceleration is f + g e_z; its bias drifts this by ~0.05 m/s per second of
     // blind flight for a consumer MEMS part, which the estimate re-anchors when it returns.
-    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_imu_ns_), 0.1);
+    const double dt_s = std::min(hq::to_seconds(t_ns - t_imu_ns_), 0.1);
     v_z_inertial_mps_ += (f_H_mps2.z() + control::kGravityMps2) * dt_s;
   }
   t_imu_ns_ = t_ns;
@@ -267,7 +267,7 @@ ModeController::Target ModeController::target(std::int64_t t_ns, ModeOutput& out
   }
   switch (takeoff_active_ ? Mode::kHover : mode_) {
     case Mode::kTeleop: {
-      const double age_s = 1e-9 * static_cast<double>(t_ns - operator_command_.t_ns);
+      const double age_s = hq::to_seconds(t_ns - operator_command_.t_ns);
       if (have_operator_command_ && age_s <= config_.teleop_timeout_s) {
         wanted.source = Source::kOperator;
         wanted.v_H_mps = operator_command_.v_H_mps;
@@ -353,8 +353,7 @@ ModeOutput ModeController::step(std::int64_t t_ns,
       return out;
     }
   }
-  const double dt_s =
-      have_previous_ ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_prev_ns_)) : 0.0;
+  const double dt_s = have_previous_ ? std::max(0.0, hq::to_seconds(t_ns - t_prev_ns_)) : 0.0;
   have_previous_ = true;
   t_prev_ns_ = t_ns;
   if (ramping_) {

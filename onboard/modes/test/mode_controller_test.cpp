@@ -1,6 +1,7 @@
 #include "hq/modes/mode_controller.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 
 #include <Eigen/Geometry>
@@ -334,7 +335,7 @@ TEST(ModeController, BlindDescentSinksLevelAndLandsNearTheFloorAfterBlindDescent
   ModeOutput out;
   int k = 0;
   // WHEN land has no velocity estimate: level, blind_descent_thrust_ratio m g ...
-  for (; 1e-9 * static_cast<double>(k * kStepNs) < config.blind_descent_s - 1.5 * kDt; ++k) {
+  for (; hq::to_seconds(k * kStepNs) < config.blind_descent_s - 1.5 * kDt; ++k) {
     out = modes.step(k * kStepNs, no_estimate, Eigen::Vector3d::Zero());
     ASSERT_TRUE(out.blind_descent) << k;
     ASSERT_FALSE(out.landed) << k;

@@ -3,6 +3,7 @@
 // RgbdRenderer), beside PCL's own VoxelGrid + RadiusOutlierRemoval on the same frames (the
 // peer, on every 10th frame). Not run by ctest.
 //   hq-bench-memory [--seconds 600] [--world onboard/sim/worlds/room.yaml] [--config cfg.yaml]
+#include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/strict_yaml.hpp"
@@ -21,6 +22,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -136,11 +138,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(1.0, 7200.0));
   app.add_option("--world", world_path, "world file");
   app.add_option("--config", config_path, "on-board config: its memory section");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   hq::obstacle_memory::MemoryConfig memory_config;
   if (!config_path.empty()) {

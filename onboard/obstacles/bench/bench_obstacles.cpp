@@ -3,6 +3,7 @@
 // structured-light-like noise and holes), median and p90 over every frame, wall and thread CPU
 // time. Depth is made once before timing, so only compute() is measured. Not run by ctest.
 //   hq-bench-obstacles [--frames 600]
+#include "hq/base/program.hpp"
 #include "hq/obstacles/obstacle_field.hpp"
 
 #include <Eigen/Geometry>
@@ -13,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -116,11 +118,9 @@ void run(int width, int height, int frame_count) {
 
 int main(int argc, char** argv) {
   int frames = 600;
-  if (argc == 3 && std::string(argv[1]) == "--frames") frames = std::atoi(argv[2]);
-  if (frames < 1) {
-    std::fprintf(stderr, "hq-bench-obstacles: --frames N, expected N >= 1\n");
-    return 2;
-  }
+  CLI::App app{"hq-bench-obstacles: the obstacle field's time per frame at two resolutions"};
+  app.add_option("--frames", frames, "frames per resolution")->check(CLI::Range(1, 1'000'000));
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   run(320, 240, frames);
   run(640, 480, frames);
   return 0;

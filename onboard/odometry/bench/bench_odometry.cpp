@@ -14,6 +14,7 @@
 // (a sequence folder with its own camera.yaml, as hq-sim records, uses that one).
 // Without sequence arguments it runs the bundled real sequences under ../shared/data/tum.
 #include "hq/base/error.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
@@ -543,7 +544,7 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_flag("--nees", with_nees,
                "one more pass per HaptiQuad method: the returned information's consistency "
                "(NEES) against the ground truth");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   cv::setNumThreads(1);
   if (sequence_dirs.empty()) {

@@ -8,6 +8,7 @@
 // and the MCAP size of the vehicle's own channels per minute (every step a frame, 1 kHz IMU:
 // an upper bound; a real flight adds the link samples, mostly camera JPEGs).
 //   hq-bench-onboard-recorder [--steps 20000] [--out DIR]
+#include "hq/base/program.hpp"
 #include "hq/link/link.hpp"
 #include "hq/onboard_log/onboard_recorder.hpp"
 #include "hq/testing/loopback_dds.hpp"
@@ -19,6 +20,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fmt/format.h>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -107,10 +109,10 @@ int main(int argc, char** argv) {
   std::string out_dir = (std::filesystem::temp_directory_path() /
                          ("hq_bench_onboard_recorder_" + std::to_string(getpid())))
                             .string();
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (std::strcmp(argv[i], "--steps") == 0) steps = std::max(100, std::atoi(argv[i + 1]));
-    if (std::strcmp(argv[i], "--out") == 0) out_dir = argv[i + 1];
-  }
+  CLI::App app{"hq-bench-onboard-recorder: the on-board MCAP recorder's cost per 200 Hz step"};
+  app.add_option("--steps", steps, "steps recorded")->check(CLI::Range(100, 100'000'000));
+  app.add_option("--out", out_dir, "folder of the record (emptied first)");
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   hq::testing::use_loopback_dds(/*keep_existing=*/true);
   const int domain_id = hq::testing::private_domain_id(0);
   std::filesystem::remove_all(out_dir);

@@ -9,6 +9,7 @@
 // frame per pass exceeds estimator.max_mean_error and the estimator re-seeds and warms up again:
 // the "no estimate" counts printed come from the playback, not from the recorded motion.
 #include "hq/base/error.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
@@ -22,6 +23,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -43,11 +45,7 @@ int run(int argc, char** argv) {
   app.add_option("--vehicle", vehicle_path, "vehicle file");
   app.add_option("--passes", passes, "back-and-forth passes over the frames")
       ->check(CLI::Range(1, 100000));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   if (sequence_dir.empty()) {
     const auto data = hq::recording::find_data_dir();
     if (!data) {

@@ -1,5 +1,6 @@
 #include "hq/pipeline/onboard_chain.hpp"
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/complementary_filter.hpp"
 #include "hq/geometry/lie.hpp"
@@ -113,7 +114,7 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
   modes_.set_specific_force_H(t_ns, R_H_B * accel_mps2);
   // The heading's turn since take-off, for the dead reckoning of the take-off point.
   if (t_yaw_ns_ >= 0 && t_ns > t_yaw_ns_) {
-    const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_yaw_ns_), 0.1);
+    const double dt_s = std::min(hq::to_seconds(t_ns - t_yaw_ns_), 0.1);
     const Eigen::Vector3d omega_H =
         R_H_B * (gyro_radps - estimator_.attitude().levelling_gyro_bias_radps());
     if (omega_H.allFinite()) yaw_since_takeoff_rad_ += omega_H.z() * dt_s;
@@ -122,7 +123,7 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
   if (config_.chain.gyro_rotation_prior) {
     // The body's rotation since the last frame, bias removed: R_Bprev_Bcur.
     if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {
-      const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - t_last_imu_ns_), 0.1);
+      const double dt_s = std::min(hq::to_seconds(t_ns - t_last_imu_ns_), 0.1);
       // Less the levelling's bias only: the rest is what the odometry itself estimates.
       const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().levelling_gyro_bias_radps();
       R_prev_cur_body_ = R_prev_cur_body_ * geometry::exp_so3(omega * dt_s);
@@ -145,7 +146,7 @@ odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, std::in
   odometry::RotationPrior gyro;
   gyro.information.setZero();  // no prior unless the gyro ran since the last frame
   // The depth's exposure to the colour's, at the latest rate (a few milliseconds).
-  const double depth_lead_s = 1e-9 * static_cast<double>(t_ns - depth_t_ns);
+  const double depth_lead_s = hq::to_seconds(t_ns - depth_t_ns);
   const bool align_depth = config_.chain.gyro_rotation_prior && t_last_imu_ns_ >= 0 &&
                            std::abs(depth_lead_s) <= config_.chain.depth_colour_max_offset_s;
   if (align_depth) {
@@ -157,8 +158,7 @@ odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, std::in
     // R_Cprev_Ccur = R_C_B R_Bprev_Bcur R_B_C.
     gyro.R_prev_cur = R_B_C_.transpose() * R_prev_cur_body_ * R_B_C_;
     const auto interval_ns = std::max<std::int64_t>(t_ns - t_last_frame_ns_, 1);
-    const double sigma_rad =
-        config_.chain.gyro_prior_sigma_radps * 1e-9 * static_cast<double>(interval_ns);
+    const double sigma_rad = config_.chain.gyro_prior_sigma_radps * hq::to_seconds(interval_ns);
     gyro.information = Eigen::Matrix3d::Identity() / (sigma_rad * sigma_rad);
   }
   R_prev_cur_body_.setIdentity();
@@ -212,8 +212,7 @@ void OnboardChain::sense_obstacles(std::int64_t t_ns, const cv::Mat& depth_m,
     climb_since_takeoff_m_ = 0.0;
     takeoff_complete_ = false;
   } else if (!takeoff_complete_ && out.estimate.usable() && have_frame_) {
-    climb_since_takeoff_m_ -=
-        out.estimate.v_H_mps.z() * 1e-9 * static_cast<double>(t_ns - t_last_frame_ns_);
+    climb_since_takeoff_m_ -= out.estimate.v_H_mps.z() * hq::to_seconds(t_ns - t_last_frame_ns_);
     takeoff_complete_ = climb_since_takeoff_m_ >= config_.chain.takeoff_height_m;
   }
   obstacles_.set_ground_phase(modes_.landed() || modes_.mode() == modes::Mode::kLand ||
@@ -301,7 +300,7 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
     t_first_tick_ns_ = t_ns;
   }
   const std::int64_t since_ns = have_frame_ ? t_last_frame_ns_ : t_first_tick_ns_;
-  const double silence_s = 1e-9 * static_cast<double>(t_ns - since_ns);
+  const double silence_s = hq::to_seconds(t_ns - since_ns);
   if (!(silence_s > config_.chain.camera_timeout_s)) return std::nullopt;
 
   ChainOutput out;
@@ -337,8 +336,7 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
 }
 
 void OnboardChain::update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out) {
-  const double dt_s =
-      height_known_ ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_height_ns_)) : 0.0;
+  const double dt_s = height_known_ ? std::max(0.0, hq::to_seconds(t_ns - t_height_ns_)) : 0.0;
   t_height_ns_ = t_ns;
   if (std::isfinite(floor_height_m)) {
     // The floor in view is the measurement; the integrated climb carries on from it when the
@@ -365,8 +363,7 @@ void OnboardChain::update_height(std::int64_t t_ns, double floor_height_m, Chain
 }
 
 void OnboardChain::update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& out) {
-  const double dt_s =
-      t_offset_ns_ >= 0 ? std::max(0.0, 1e-9 * static_cast<double>(t_ns - t_offset_ns_)) : 0.0;
+  const double dt_s = t_offset_ns_ >= 0 ? std::max(0.0, hq::to_seconds(t_ns - t_offset_ns_)) : 0.0;
   t_offset_ns_ = t_ns;
   if (modes_.landed()) {
     // Where it lifts off is the take-off point, heading included.
@@ -452,7 +449,7 @@ void OnboardChain::escalate_safe_hover(ChainOutput& out) {
     in_safe_hover_ = true;
     t_safe_hover_start_ns_ = out.t_ns;
   }
-  const double hover_s = 1e-9 * static_cast<double>(out.t_ns - t_safe_hover_start_ns_);
+  const double hover_s = hq::to_seconds(out.t_ns - t_safe_hover_start_ns_);
   if (hover_s >= config_.chain.safe_hover_land_s && modes_.mode() != modes::Mode::kLand) {
     modes_.request_mode(modes::Mode::kLand, modes::RequestOrigin::kVehicle);
     lost_estimate_landing_ = true;

@@ -1,6 +1,7 @@
 #include "hq/pipeline/replay_imu.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/estimator/complementary_filter.hpp"
 #include "hq/vehicle_config/vehicle_config.hpp"
 
@@ -177,10 +178,10 @@ std::vector<ImuMeasurement> synthesise_imu(
     out.push_back(sample);
   }
   if (out.empty()) {
-    throw InputError(fmt::format(
-        "IMU synthesis: no sample over the ground truth's {:.3f} s{}",
-        1e-9 * static_cast<double>(T_world_camera.t_end_ns() - T_world_camera.t_begin_ns()),
-        recorded_accel != nullptr ? " with the recorded accelerometer" : ""));
+    throw InputError(
+        fmt::format("IMU synthesis: no sample over the ground truth's {:.3f} s{}",
+                    hq::to_seconds(T_world_camera.t_end_ns() - T_world_camera.t_begin_ns()),
+                    recorded_accel != nullptr ? " with the recorded accelerometer" : ""));
   }
   return out;
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fmt/format.h>
 
 namespace hq::pipeline {
 
@@ -33,12 +34,12 @@ StageStatistics StageTimingLog::statistics(int stage) const {
 }
 
 void StageTimingLog::print(std::FILE* out) const {
-  std::fprintf(out, "%-10s %10s %10s %10s   (%zu frames)\n", "stage", "median_ms", "p99_ms",
-               "max_ms", size());
+  fmt::print(out, "{:<10} {:>10} {:>10} {:>10}   ({} frames)\n", "stage", "median_ms", "p99_ms",
+             "max_ms", size());
   for (int i = 0; i < kStageCount; ++i) {
     const StageStatistics s = statistics(i);
-    std::fprintf(out, "%-10s %10.3f %10.3f %10.3f\n", kStageNames[i], s.median_ms, s.p99_ms,
-                 s.max_ms);
+    fmt::print(out, "{:<10} {:10.3f} {:10.3f} {:10.3f}\n", kStageNames[i], s.median_ms, s.p99_ms,
+               s.max_ms);
   }
 }
 

@@ -1,6 +1,7 @@
 #include "hq/pipeline/velocity_evaluation.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/sources/tum_frame_source.hpp"
 
 #include <algorithm>
@@ -70,7 +71,7 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
   }
   VelocityErrors errors;
   errors.samples = static_cast<int>(usable.size());
-  errors.frame_interval_s = 1e-9 * static_cast<double>(frame_interval_ns);
+  errors.frame_interval_s = hq::to_seconds(frame_interval_ns);
   const double n = static_cast<double>(usable.size());
   const Shifted at_zero = squared_errors(usable, T_world_camera, frame_interval_ns, 0);
   errors.rmse_raw_mps = (at_zero.sq_raw / n).cwiseSqrt();

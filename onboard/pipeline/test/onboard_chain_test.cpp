@@ -3,6 +3,7 @@
 #include "hq/pipeline/onboard_chain.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/geometry/lie.hpp"
 #include "hq/odometry/rendered_plane.hpp"
 #include "hq/testing/allocation_counter.hpp"
@@ -39,7 +40,7 @@ class FakeClock final : public Clock {
 
 Eigen::Isometry3d camera_pose_at(std::int64_t t_ns) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = Eigen::Vector3d(kSpeedMps * 1e-9 * static_cast<double>(t_ns), 0.0, 0.0);
+  T.translation() = Eigen::Vector3d(kSpeedMps * hq::to_seconds(t_ns), 0.0, 0.0);
   return T;
 }
 
@@ -170,7 +171,7 @@ TEST_F(ChainOnRenderedPlane, AllInvalidDepthCoastsOnTheImuThenSafeHover) {
     const long before = testing::allocation_count();
     const ChainOutput out = chain_.on_frame(t_ns, gray_, depth_);
     allocations += testing::allocation_count() - before;
-    const double since_ok_s = 1e-9 * static_cast<double>(t_ns - t_last_ok_ns);
+    const double since_ok_s = hq::to_seconds(t_ns - t_last_ok_ns);
     EXPECT_EQ(out.tracking, odometry::TrackingStatus::kLost) << "frame " << k;
     EXPECT_FALSE(out.estimate.ok()) << "frame " << k;
     EXPECT_STRNE(out.estimate.reason, "");
@@ -349,7 +350,7 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
   const Eigen::Vector3d omega_C_radps(0.0, 30.0 * M_PI / 180.0, 0.0);
   const auto pose_at = [&](std::int64_t t_ns) {
     Eigen::Isometry3d T = camera_pose_at(t_ns);
-    T.linear() = geometry::exp_so3(omega_C_radps * 1e-9 * static_cast<double>(t_ns));
+    T.linear() = geometry::exp_so3(omega_C_radps * hq::to_seconds(t_ns));
     return T;
   };
   const VehicleConfig vehicle;
@@ -452,12 +453,11 @@ TEST(OnboardChainTimeout, SafeHoverWithoutEstimateLandsOnEvidenceOfTheFloorOnly)
   }
   ASSERT_GT(t_first_hover_ns, 0);
   ASSERT_GT(t_land_ns, 0) << "the safe hover never escalated";
-  EXPECT_NEAR(1e-9 * static_cast<double>(t_land_ns - t_first_hover_ns), 2.0, 0.01);
+  EXPECT_NEAR(hq::to_seconds(t_land_ns - t_first_hover_ns), 2.0, 0.01);
   EXPECT_EQ(chain.mode(), modes::Mode::kLand);
   ASSERT_GT(t_landed_ns, 0) << "the blind descent never ended landed";
   EXPECT_GE(t_landed_ns, t_impact_ns) << "landed before the floor was felt";
-  EXPECT_NEAR(1e-9 * static_cast<double>(t_landed_ns - t_impact_ns), config.modes.touchdown_s,
-              0.02);
+  EXPECT_NEAR(hq::to_seconds(t_landed_ns - t_impact_ns), config.modes.touchdown_s, 0.02);
   // It sank at the blind descent's speed, not ever faster.
   EXPECT_NEAR(v_down_at_impact_mps, config.modes.blind_descent_speed_mps, 0.05);
 }

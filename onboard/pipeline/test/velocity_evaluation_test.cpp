@@ -3,6 +3,7 @@
 #include "hq/pipeline/velocity_evaluation.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/pipeline/replay_imu.hpp"
 #include "hq/testing/input_error.hpp"
 
@@ -34,7 +35,7 @@ std::vector<StampedPose> trajectory(double duration_s, double yaw_rate_radps, Po
   std::vector<StampedPose> out;
   for (std::int64_t t = 0; t <= static_cast<std::int64_t>(duration_s * 1e9);
        t += kGroundTruthPeriodNs) {
-    const double t_s = 1e-9 * static_cast<double>(t);
+    const double t_s = hq::to_seconds(t);
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = Rz(yaw_rate_radps * t_s) * Rx_pi * R_QC;
     T.translation() = p(t_s);
@@ -114,7 +115,7 @@ TEST(SynthesiseImu, GivesBodyRateAndGravityOfALevelYawingCamera) {
   const auto imu = synthesise_imu(evaluation::TrajectorySpline::fit(gt),
                                   R_body_camera_for_camera_as_body(), kGravityDownW, synthesis);
   ASSERT_GT(imu.size(), 300u);
-  EXPECT_NEAR(1e-9 * static_cast<double>(imu[1].t_ns - imu[0].t_ns), 1.0 / 200.0, 1e-9);
+  EXPECT_NEAR(hq::to_seconds(imu[1].t_ns - imu[0].t_ns), 1.0 / 200.0, 1e-9);
   for (const ImuMeasurement& m : imu) {
     EXPECT_LT((m.gyro_radps - Eigen::Vector3d(0.0, 0.0, -0.5)).norm(), 1e-3);
     EXPECT_LT((m.accel_mps2 - Eigen::Vector3d(0.0, 0.0, -9.80665)).norm(), 1e-3);

@@ -9,6 +9,8 @@
 //   hq-sim --sitl --world onboard/sim/worlds/arena.yaml [--resolution 320x240] [--seed N]
 //          [--mavlink udp-listen:14560] [--channel sitl] [--duration-s S] [--config ...]
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/sim/scripted_flight.hpp"
 #include "hq/sim/simulator.hpp"
@@ -127,15 +129,15 @@ int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Optio
   if (writer) writer->close();
 
   const Eigen::Vector3d p_N_m = sim.truth().T_world_body.translation();
-  std::printf(
-      "hq-sim: %s, script %s, seed %llu, %.1f s: %zu frames (%dx%d), %zu IMU samples, "
-      "%lld dropped frames\n",
+  hq::log::info(
+      "hq-sim: {}, script {}, seed {}, {:.1f} s: {} frames ({}x{}), {} IMU samples, "
+      "{} dropped frames\n",
       world.name.c_str(), o.script_kind.c_str(), static_cast<unsigned long long>(config.seed),
       o.duration_s, frames, config.camera.pinhole.width, config.camera.pinhole.height, imu_samples,
       static_cast<long long>(sim.dropped_frames()));
-  std::printf("final position [%.2f %.2f %.2f] m, min clearance %.2f m, collision %s\n", p_N_m.x(),
-              p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
-  if (writer) std::printf("recorded to %s\n", o.record_dir.c_str());
+  hq::log::info("final position [{:.2f} {:.2f} {:.2f}] m, min clearance {:.2f} m, collision {}\n",
+                p_N_m.x(), p_N_m.y(), p_N_m.z(), min_clearance_m, sim.collided() ? "YES" : "no");
+  if (writer) hq::log::info("recorded to {}\n", o.record_dir.c_str());
   return 0;
 }
 
@@ -143,11 +145,7 @@ int run(int argc, char** argv) {
   CLI::App app{"hq-sim: scripted flight in a simulated world, recorded as a TUM RGB-D sequence"};
   Options o;
   add_options(app, o);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   hq::sim::World world = hq::sim::load_world(o.world_path);
   if (o.start_yaw_deg) world.start_yaw_rad = *o.start_yaw_deg * M_PI / 180.0;

@@ -4,6 +4,7 @@
 // time and in this thread's CPU time: on a shared, loaded machine the wall clock also counts
 // the time other processes hold the core. Not run by ctest.
 //   hq-bench-sim [world.yaml]   (default onboard/sim/worlds/room.yaml, run from the repo root)
+#include "hq/base/program.hpp"
 #include "hq/sim/simulator.hpp"
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <cstdio>
 #include <ctime>
 #include <exception>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -112,8 +114,11 @@ void run(const hq::sim::World& world, int width, int height) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"hq-bench-sim: the simulator's render and step time at two resolutions"};
+  std::string path = "onboard/sim/worlds/room.yaml";
+  app.add_option("world", path, "simulator world");
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   try {
-    const std::string path = argc > 1 ? argv[1] : "onboard/sim/worlds/room.yaml";
     const hq::sim::World world = hq::sim::load_world(path);
     std::printf("world %s: %zu walls, %zu boxes, %zu cylinders, %zu markers\n", path.c_str(),
                 world.walls.size(), world.boxes.size(), world.cylinders.size(),

@@ -1,6 +1,7 @@
 #include "hq/sim/sitl_runner.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
 #include "hq/mavlink/codec.hpp"
@@ -199,9 +200,9 @@ void print_banner(const Simulator& sim, const frame_channel::FrameChannelWriter&
                   const mavlink::Transport& transport, const SitlAutopilot& autopilot) {
   const SimConfig& config = sim.config();
   const geometry::PinholeCamera& pinhole = config.camera.pinhole;
-  std::printf(
-      "hq-sim --sitl: %s, seed %llu, %dx%d %s-D at %.0f Hz on %s; MAVLink %s (system 1, "
-      "component 1, PX4); max thrust %.2f N (4 x %.3g x %.0f^2), hover %.2f N\n",
+  hq::log::info(
+      "hq-sim --sitl: {}, seed {}, {}x{} {}-D at {:.0f} Hz on {}; MAVLink {} (system 1, "
+      "component 1, PX4); max thrust {:.2f} N (4 x {:.3g} x {:.0f}^2), hover {:.2f} N\n",
       sim.world().name.c_str(), static_cast<unsigned long long>(config.seed), pinhole.width,
       pinhole.height, config.camera.gray ? "gray" : "BGR", config.camera.rate_hz,
       channel.name().c_str(), transport.describe().c_str(), autopilot.max_thrust_n(),
@@ -258,63 +259,64 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
   const double sim_s = static_cast<double>(sim.t_ns()) * 1e-9;
   const mavlink::ParserCounters& pc = parser.counters();
   const SitlAutopilotStats& st = autopilot.stats();
-  std::printf("simulated %.2f s in %.2f s wall: real-time factor %.3f, largest lag %.1f ms\n",
-              sim_s, wall_s, wall_s > 0.0 ? sim_s / wall_s : 0.0,
-              static_cast<double>(stats.max_lag_ns) * 1e-6);
-  std::printf("frames published %lld (render %.1f ms mean), skipped while rendering %lld\n",
-              static_cast<long long>(frames),
-              frames > 0 ? 1e3 * render_s / static_cast<double>(frames) : 0.0,
-              static_cast<long long>(stats.frames_skipped));
+  hq::log::info(
+      "simulated {:.2f} s in {:.2f} s wall: real-time factor {:.3f}, largest lag {:.1f} ms\n",
+      sim_s, wall_s, wall_s > 0.0 ? sim_s / wall_s : 0.0,
+      static_cast<double>(stats.max_lag_ns) * 1e-6);
+  hq::log::info("frames published {} (render {:.1f} ms mean), skipped while rendering {}\n",
+                static_cast<long long>(frames),
+                frames > 0 ? 1e3 * render_s / static_cast<double>(frames) : 0.0,
+                static_cast<long long>(stats.frames_skipped));
   char clearance[32] = "n/a (never airborne)";
   if (stats.min_clearance_m < 1e8) {
     std::snprintf(clearance, sizeof(clearance), "%.2f m", stats.min_clearance_m);
   }
-  std::printf("collision ticks airborne %lld, smallest clearance %s, max true speed %.2f m/s\n",
-              static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);
-  std::printf("floor contacts %d (fastest %.2f m/s), falls (faster than %.1f m/s) %d\n",
-              sim.floor_impacts(), sim.max_floor_impact_speed_mps(), kHardFloorImpactSpeedMps,
-              sim.hard_floor_impacts());
-  std::printf(
-      "mavlink: sent %llu, send failures %llu, received %llu, dropped %llu (bad crc %llu, "
-      "unknown id %llu, truncated %llu, bad length %llu)\n",
+  hq::log::info("collision ticks airborne {}, smallest clearance {}, max true speed {:.2f} m/s\n",
+                static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);
+  hq::log::info("floor contacts {} (fastest {:.2f} m/s), falls (faster than {:.1f} m/s) {}\n",
+                sim.floor_impacts(), sim.max_floor_impact_speed_mps(), kHardFloorImpactSpeedMps,
+                sim.hard_floor_impacts());
+  hq::log::info(
+      "mavlink: sent {}, send failures {}, received {}, dropped {} (bad crc {}, "
+      "unknown id {}, truncated {}, bad length {})\n",
       static_cast<unsigned long long>(sink.sent()), static_cast<unsigned long long>(sink.failed()),
       static_cast<unsigned long long>(stats.messages_received),
       static_cast<unsigned long long>(pc.dropped()), static_cast<unsigned long long>(pc.bad_crc),
       static_cast<unsigned long long>(pc.unknown_id), static_cast<unsigned long long>(pc.truncated),
       static_cast<unsigned long long>(pc.bad_length));
-  std::printf(
-      "setpoints received %llu (rejected %llu), commands %llu, armed %.2f s, offboard %.2f s\n",
+  hq::log::info(
+      "setpoints received {} (rejected {}), commands {}, armed {:.2f} s, offboard {:.2f} s\n",
       static_cast<unsigned long long>(st.setpoints),
       static_cast<unsigned long long>(st.setpoints_rejected),
       static_cast<unsigned long long>(st.commands), static_cast<double>(st.armed_ns) * 1e-9,
       static_cast<double>(st.offboard_ns) * 1e-9);
-  std::printf("GCS heartbeats %llu, parameters sent %llu, set %llu, refused or unknown %llu\n",
-              static_cast<unsigned long long>(st.gcs_heartbeats),
-              static_cast<unsigned long long>(st.params_sent),
-              static_cast<unsigned long long>(st.params_set),
-              static_cast<unsigned long long>(st.params_rejected));
+  hq::log::info("GCS heartbeats {}, parameters sent {}, set {}, refused or unknown {}\n",
+                static_cast<unsigned long long>(st.gcs_heartbeats),
+                static_cast<unsigned long long>(st.params_sent),
+                static_cast<unsigned long long>(st.params_set),
+                static_cast<unsigned long long>(st.params_rejected));
   auto rmse = [](double sum, std::uint64_t n) {
     return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : std::nan("");
   };
   auto u = [](std::uint64_t n) { return static_cast<unsigned long long>(n); };
-  std::printf(
-      "vision: ODOMETRY received %llu, fused %llu, resets %llu, rejected: frame %llu, "
-      "estimator %llu, nan %llu, quality %llu, gate %llu, stamp %llu; VISION_SPEED_ESTIMATE "
-      "ignored %llu; TIMESYNC answered %llu\n",
+  hq::log::info(
+      "vision: ODOMETRY received {}, fused {}, resets {}, rejected: frame {}, "
+      "estimator {}, nan {}, quality {}, gate {}, stamp {}; VISION_SPEED_ESTIMATE "
+      "ignored {}; TIMESYNC answered {}\n",
       u(st.odometry_received), u(st.odometry_fused), u(st.odometry_resets), u(st.rejected_frame),
       u(st.rejected_estimator), u(st.rejected_nan), u(st.rejected_quality), u(st.rejected_gate),
       u(st.rejected_stamp), u(st.vision_speed_ignored), u(st.timesync_answered));
-  std::printf(
-      "velocity RMSE against truth (NED): received %.3f m/s (%llu), fused with the IMU %.3f m/s "
-      "(%llu IMU steps); LAND descended on vision %.2f s, on baro %.2f s\n",
+  hq::log::info(
+      "velocity RMSE against truth (NED): received {:.3f} m/s ({}), fused with the IMU {:.3f} m/s "
+      "({} IMU steps); LAND descended on vision {:.2f} s, on baro {:.2f} s\n",
       rmse(st.raw_sq_error_sum, st.raw_samples), u(st.raw_samples),
       rmse(st.fused_sq_error_sum, st.fused_samples), u(st.fused_samples),
       static_cast<double>(st.descent_on_vision_ns) * 1e-9,
       static_cast<double>(st.descent_on_baro_ns) * 1e-9);
-  std::printf("final: %s %s, battery %.2f V, %s at altitude %.2f m\n",
-              autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
-              autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
-              sim.truth().T_world_body.translation().z());
+  hq::log::info("final: {} {}, battery {:.2f} V, {} at altitude {:.2f} m\n",
+                autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
+                autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
+                sim.truth().T_world_body.translation().z());
   std::fflush(stdout);
 }
 
@@ -375,11 +377,11 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
     const std::int64_t wall_ns = monotonic_now_ns();
     if (options.status_lines && wall_ns >= next_status_wall_ns) {
       next_status_wall_ns += 1'000'000'000;
-      std::fprintf(stderr, "hq-sim: t %.1f s, RT %.2f, %s %s, altitude %.2f m\n",
-                   static_cast<double>(t_ns) * 1e-9,
-                   static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
-                   autopilot.armed() ? "armed" : "disarmed",
-                   sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
+      hq::log::note("hq-sim: t {:.1f} s, RT {:.2f}, {} {}, altitude {:.2f} m\n",
+                    static_cast<double>(t_ns) * 1e-9,
+                    static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
+                    autopilot.armed() ? "armed" : "disarmed",
+                    sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
     }
   }
 

@@ -7,6 +7,7 @@
 // same sockets. Medians and tails in microseconds; the machine is shared, so compare columns of
 // one run, not runs.
 //   hq-bench-fc-latency [--frames N]
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
@@ -24,6 +25,7 @@
 #include <fmt/format.h>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <time.h>
@@ -215,11 +217,7 @@ int run(int argc, char** argv) {
   CLI::App app{"hq-bench-fc-latency: frame to setpoint on the flight controller's wire"};
   int frames = 600;
   app.add_option("--frames", frames, "frames per path")->check(CLI::Range(50, 100000));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   const int port = 30000 + getpid() % 20000;
 
   // In process.

@@ -8,6 +8,7 @@
 // The machine is shared, so compare the columns of one run, not runs.
 //   hq-bench-gcs-forwarding [--seconds S] [--rates 300,1000,5000,20000]
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/transport.hpp"
@@ -21,6 +22,7 @@
 #include <cstdint>
 #include <fmt/format.h>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -179,7 +181,7 @@ int run_bench(int argc, char** argv) {
   std::vector<double> rates{300, 1000, 5000, 20000};
   app.add_option("--seconds", seconds, "per rate and path")->check(CLI::Range(0.2, 60.0));
   app.add_option("--rates", rates, "messages per second")->delimiter(',');
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
   fmt::print(
       "hq-bench-gcs-forwarding: HIGHRES_IMU (74-byte frames) FC -> GCS on loopback UDP, "

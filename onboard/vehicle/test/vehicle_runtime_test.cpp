@@ -4,6 +4,7 @@
 #include "hq/vehicle/vehicle_runtime.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/odometry/rendered_plane.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
@@ -31,7 +32,7 @@ class PlaneSource final : public sources::FrameSource {
     if (hold_) return sources::FrameStatus::kNoFrame;
     const std::int64_t t_ns = (index_ + 1) * kFramePeriodNs + out_of_order_shift_;
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.translation().x() = 0.2 * 1e-9 * static_cast<double>(t_ns);
+    T.translation().x() = 0.2 * hq::to_seconds(t_ns);
     odometry::test::render_textured_plane(kCamera, T, 2.0, frame.gray, frame.depth_m);
     frame.t_ns = t_ns;
     ++index_;

@@ -1,6 +1,7 @@
 #include "hq/evaluation/trajectory_spline.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 
 #include <Eigen/Sparse>
 
@@ -37,7 +38,7 @@ struct Segment {
 };
 
 Segment locate(std::int64_t t_ns, std::int64_t t_begin_ns, double knot_spacing_s, int segments) {
-  const double s = 1e-9 * static_cast<double>(t_ns - t_begin_ns) / knot_spacing_s;
+  const double s = hq::to_seconds(t_ns - t_begin_ns) / knot_spacing_s;
   const int i = std::clamp(static_cast<int>(std::floor(s)), 0, segments - 1);
   return {i, std::clamp(s - i, 0.0, 1.0)};
 }
@@ -69,7 +70,7 @@ TrajectorySpline TrajectorySpline::fit(const std::vector<recording::StampedPose>
   spline.t_begin_ns_ = poses.front().t_ns;
   spline.t_end_ns_ = poses.back().t_ns;
   spline.knot_spacing_s_ = config.knot_spacing_s;
-  const double span_s = 1e-9 * static_cast<double>(spline.t_end_ns_ - spline.t_begin_ns_);
+  const double span_s = hq::to_seconds(spline.t_end_ns_ - spline.t_begin_ns_);
   const int segments = std::max(1, static_cast<int>(std::ceil(span_s / config.knot_spacing_s)));
   const int n = segments + kOrder - 1;
 

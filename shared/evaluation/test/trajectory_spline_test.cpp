@@ -1,6 +1,7 @@
 #include "hq/evaluation/trajectory_spline.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/testing/input_error.hpp"
 
 #include <gmock/gmock.h>
@@ -102,7 +103,7 @@ TEST(TrajectorySpline, RecoversPoseRateAndAccelerationOfNoisyMotionCapture) {
   double sq_difference = 0;
   int differences = 0;
   for (std::size_t k = 20; k + 21 < poses.size(); ++k) {
-    const double t = 1e-9 * static_cast<double>(poses[k].t_ns - kT0Ns);
+    const double t = hq::to_seconds(poses[k].t_ns - kT0Ns);
     if (poses[k + 1].t_ns - poses[k - 1].t_ns != 20'000'000) continue;  // the gap's edges
     const Eigen::Vector3d a =
         (poses[k + 1].T_world_sensor.translation() - 2.0 * poses[k].T_world_sensor.translation() +

@@ -1,6 +1,7 @@
 #include "hq/flight_log/link_log.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/link/link.hpp"
 
 #include "foxglove_schemas.hpp"
@@ -29,11 +30,7 @@ mcap::Bytes as_bytes(const char* text) {
   return {reinterpret_cast<const std::uint8_t*>(text), std::strlen(text)};
 }
 
-std::int64_t steady_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
+std::int64_t steady_ns() { return monotonic_now_ns(); }
 
 // JPEG (FF D8) or PNG (89 'P' 'N' 'G'), as foxglove.CompressedImage's format names them.
 const char* image_format(std::span<const std::uint8_t> data) {

@@ -2,11 +2,13 @@
 // the floor of the same run (memcpy of the same bytes between two buffers), so the figures say
 // what the channel adds to copying. Median and p90 over 300 frames; not run by ctest.
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
 
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -60,7 +62,9 @@ void bench(int width, int height, int channels) {
 
 }  // namespace
 
-int main() {
+int main(int argc, char** argv) {
+  CLI::App app{"hq-bench-frame-channel: the shared-memory frame channel's publish-to-read time"};
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   bench(320, 240, 1);
   bench(320, 240, 3);
   bench(640, 480, 1);

@@ -4,6 +4,7 @@
 // secured in the same run). Prints figures; asserts nothing.
 
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/link/link.hpp"
@@ -426,11 +427,7 @@ std::optional<int> parse_options(int argc, char** argv, BenchOptions& o) {
   app.add_option("--security-samples", o.security_samples,
                  "commands (1 ms apart) measured plain and then secured (0 skips it)")
       ->check(CLI::Range(0, 1'000'000));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   if (!overrides.domain_id) overrides.domain_id = 150 + static_cast<int>(getpid() % 70);
   apply_overrides(overrides, o.config);
   return std::nullopt;

@@ -152,18 +152,24 @@ LinkConfig load_link_config(const std::string& path) {
   return config;
 }
 
-void add_link_options(CLI::App& app, LinkOverrides& overrides) {
+void add_link_options(CLI::App& app, LinkOverrides& overrides, LinkSide side) {
+  const bool vehicle = side != LinkSide::kStation;
+  const bool station = side != LinkSide::kVehicle;
   app.add_option("--domain-id", overrides.domain_id, "DDS domain id")
       ->check(CLI::Range(0, kMaxDomainId));
   app.add_option("--vehicle-id", overrides.vehicle_id, "vehicle id (key of every topic)");
-  app.add_option("--station-id", overrides.station_id, "ground station id");
-  app.add_option("--station-strength", overrides.station_strength,
-                 "ownership strength of this station's commands (higher wins)")
-      ->check(CLI::Range(0, kMaxId));
-  app.add_option("--stations", overrides.stations,
-                 "on board: station ids allowed to command, e.g. 1,2 (default: any)")
-      ->delimiter(',')
-      ->check(CLI::Range(1, kMaxId));
+  if (station) {
+    app.add_option("--station-id", overrides.station_id, "ground station id");
+    app.add_option("--station-strength", overrides.station_strength,
+                   "ownership strength of this station's commands (higher wins)")
+        ->check(CLI::Range(0, kMaxId));
+  }
+  if (vehicle) {
+    app.add_option("--stations", overrides.stations,
+                   "on board: station ids allowed to command, e.g. 1,2 (default: any)")
+        ->delimiter(',')
+        ->check(CLI::Range(1, kMaxId));
+  }
   app.add_option("--command-deadline-ms", overrides.command_deadline_ms,
                  "command deadline in milliseconds")
       ->check(CLI::Range(kMinPeriodMs, kMaxPeriodMs));
@@ -174,9 +180,11 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides) {
       "identity in --security-dir (default vehicle_<vehicle id> / station_<station id>)");
   app.add_flag("--insecure", overrides.insecure,
                "plain DDS without authentication or encryption: loopback demo and tests only");
-  app.add_flag("--ros2", overrides.ros2,
-               "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
-               "rt/tf and take TwistStamped on cmd_vel_in (link.ros2.enabled; needs --insecure)");
+  if (vehicle) {
+    app.add_flag("--ros2", overrides.ros2,
+                 "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
+                 "rt/tf and take TwistStamped on cmd_vel_in (link.ros2.enabled; needs --insecure)");
+  }
   app.add_option("--link-impair", overrides.link_impair,
                  "impair received samples for tests and demos: "
                  "delay_ms=150,jitter_ms=30,loss=0.05[,seed=N] (one way, this process's side)");

@@ -273,3 +273,35 @@ TEST(LinkConfig, Ros2StationMustBeAnAllowedStation) {
 
 }  // namespace
 }  // namespace hq::link
+
+namespace hq::link {
+namespace {
+
+// hq-ground used to accept --ros2 and --stations and ignore them.
+TEST(LinkOptions, EachSideRefusesTheOtherSidesOptions) {
+  const auto parses = [](LinkSide side, std::vector<std::string> args) {
+    CLI::App app;
+    LinkOverrides overrides;
+    add_link_options(app, overrides, side);
+    std::reverse(args.begin(), args.end());
+    try {
+      app.parse(args);
+      return true;
+    } catch (const CLI::ParseError&) {
+      return false;
+    }
+  };
+  EXPECT_FALSE(parses(LinkSide::kStation, {"--ros2"}));
+  EXPECT_FALSE(parses(LinkSide::kStation, {"--stations", "1,2"}));
+  EXPECT_TRUE(parses(LinkSide::kStation, {"--station-id", "2", "--station-strength", "3"}));
+  EXPECT_FALSE(parses(LinkSide::kVehicle, {"--station-id", "2"}));
+  EXPECT_FALSE(parses(LinkSide::kVehicle, {"--station-strength", "3"}));
+  EXPECT_TRUE(parses(LinkSide::kVehicle, {"--ros2", "--stations", "1,2"}));
+  EXPECT_TRUE(parses(LinkSide::kEither, {"--ros2", "--station-id", "2"}));
+  for (LinkSide side : {LinkSide::kVehicle, LinkSide::kStation}) {
+    EXPECT_TRUE(parses(side, {"--domain-id", "3", "--insecure", "--vehicle-id", "2"}));
+  }
+}
+
+}  // namespace
+}  // namespace hq::link

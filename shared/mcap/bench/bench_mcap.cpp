@@ -5,6 +5,7 @@
 //   hq-bench-mcap [--messages N] [--passes P] [--dir DIR]
 
 #include "hq/base/error.hpp"
+#include "hq/base/program.hpp"
 #include "hq/mcap/mcap.hpp"
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -111,19 +113,11 @@ int main(int argc, char** argv) {
   int count = 100'000;
   int passes = 5;
   std::string dir = std::filesystem::temp_directory_path().string();
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string key = argv[i];
-    if (key == "--messages") {
-      count = std::atoi(argv[i + 1]);
-    } else if (key == "--passes") {
-      passes = std::atoi(argv[i + 1]);
-    } else if (key == "--dir") {
-      dir = argv[i + 1];
-    } else {
-      std::fprintf(stderr, "usage: hq-bench-mcap [--messages N] [--passes P] [--dir DIR]\n");
-      return 2;
-    }
-  }
+  CLI::App app{"hq-bench-mcap: MCAP write and read throughput"};
+  app.add_option("--messages", count, "messages per pass")->check(CLI::PositiveNumber);
+  app.add_option("--passes", passes, "passes (the median is reported)")->check(CLI::PositiveNumber);
+  app.add_option("--dir", dir, "folder of the scratch files");
+  if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   if (count <= 0 || passes <= 0) {
     std::fprintf(stderr, "hq-bench-mcap: --messages and --passes must be > 0\n");
     return 2;

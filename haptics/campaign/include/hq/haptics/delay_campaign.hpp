@@ -17,6 +17,7 @@
 //     velocity estimate, as with the real chain.
 // Simulated time throughout: results do not depend on the machine's load.
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/haptics/haptic_device.hpp"
 #include "hq/haptics/haptic_loop.hpp"
 #include "hq/haptics/teleop_mapping.hpp"
@@ -87,7 +88,7 @@ class OperatorArm final : public HapticDevice {
       t_s_ = 0.0;
       t0_ns_ = t_ns;
     }
-    const double t_s = 1e-9 * static_cast<double>(t_ns - t0_ns_);
+    const double t_s = hq::to_seconds(t_ns - t0_ns_);
     while (t_s_ + 1e-4 <= t_s) step(1e-4);  // 10 kHz arm integration between loop ticks
     out.p_D_m = p_D_m_;
     out.buttons = 0;
@@ -247,7 +248,7 @@ inline RunResult run(HapticsConfig config, const Eigen::Matrix3d& R_body_camera,
   const int ticks = static_cast<int>(seconds * 1e3);
   for (int k = 0; k < ticks; ++k) {
     const std::int64_t t_ns = t0_ns + k * dt_ns;
-    const double t_s = 1e-9 * static_cast<double>(t_ns - t0_ns);
+    const double t_s = hq::to_seconds(t_ns - t0_ns);
     // Ground: the newest state that has arrived, stamped with the vehicle's time of it (one
     // clock in simulation), so the force law's fade sees its true age.
     if (down.receive(t_ns)) {
@@ -264,8 +265,7 @@ inline RunResult run(HapticsConfig config, const Eigen::Matrix3d& R_body_camera,
     // Vehicle.
     up.receive(t_ns);
     Eigen::Vector2d v_cmd_H = Eigen::Vector2d::Zero();
-    if (up.have() &&
-        1e-9 * static_cast<double>(t_ns - up.newest_arrived_ns()) <= vehicle.command_timeout_s) {
+    if (up.have() && hq::to_seconds(t_ns - up.newest_arrived_ns()) <= vehicle.command_timeout_s) {
       v_cmd_H = up.newest().v_H_mps.head<2>();
     }
     const double distance_m = vehicle.wall_distance_m - heading_H.dot(p_H_m);

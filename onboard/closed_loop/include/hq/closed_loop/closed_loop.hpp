@@ -13,6 +13,7 @@
 ///
 /// Never linked into flight code: this is the test bench around it.
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/closed_loop/operator_script.hpp"
 #include "hq/closed_loop/sim_vehicle.hpp"
 #include "hq/geometry/camera_mount.hpp"
@@ -136,9 +137,7 @@ class ClosedLoop {
   /// Stage durations of every frame after the first (all zero without options.clock).
   [[nodiscard]] const pipeline::StageTimingLog& timing() const { return timing_; }
   /// With options.realtime: the largest lag of a control tick behind its wall-clock time.
-  [[nodiscard]] double max_realtime_lag_s() const {
-    return 1e-9 * static_cast<double>(max_lag_ns_);
-  }
+  [[nodiscard]] double max_realtime_lag_s() const { return hq::to_seconds(max_lag_ns_); }
 
   [[nodiscard]] sim::Simulator& simulator() { return *sim_; }
   [[nodiscard]] const sim::Simulator& simulator() const { return *sim_; }

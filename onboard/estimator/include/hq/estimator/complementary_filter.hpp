@@ -10,6 +10,7 @@
 /// are the core paper's, and R_N_B = Rx(pi) R_ned_body, as its R_WQ = Rx(pi) Rz(psi) Ry(theta)
 /// Rx(phi).
 
+#include "hq/base/monotonic_clock.hpp"
 #include "hq/estimator/one_euro_filter.hpp"
 
 #include <Eigen/Core>
@@ -134,7 +135,7 @@ class LowPassFilter {
       initialized_ = true;
       return FilterStatus::kFirstSample;
     }
-    const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+    const double dt_s = hq::to_seconds(t_ns - t_ns_);
     if (!(dt_s > 0.0)) return FilterStatus::kRejectedTime;
     y_ += dt_s / (tau_s_ + dt_s) * (x - y_);
     t_ns_ = t_ns;

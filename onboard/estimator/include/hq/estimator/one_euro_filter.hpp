@@ -3,6 +3,8 @@
 /// irregular sampling: dt comes from the stamps. Used on the odometry poses before eq. 2 of the
 /// core paper differentiates them.
 
+#include "hq/base/monotonic_clock.hpp"
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -65,7 +67,7 @@ class OneEuroFilter {
       initialized_ = true;
       return FilterStatus::kFirstSample;
     }
-    const double dt_s = 1e-9 * static_cast<double>(t_ns - t_ns_);
+    const double dt_s = hq::to_seconds(t_ns - t_ns_);
     if (!(dt_s > 0.0)) return FilterStatus::kRejectedTime;
     // Speed from the raw sample against the previous estimate, itself low-passed (Casiez 2012).
     const Vector dx = (x - x_hat_) / dt_s;

@@ -10,6 +10,10 @@
 
 namespace hq {
 
+/// A stamp or duration in ns as seconds, for printing and for the few formulas written in
+/// seconds; stamps themselves stay std::int64_t ns.
+constexpr double to_seconds(std::int64_t t_ns) { return 1e-9 * static_cast<double>(t_ns); }
+
 /// CLOCK_MONOTONIC now, ns.
 inline std::int64_t monotonic_now_ns() {
   timespec now{};

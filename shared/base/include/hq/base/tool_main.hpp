@@ -5,8 +5,8 @@
 /// exception's abort).
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 
-#include <cstdio>
 #include <exception>
 
 namespace hq {
@@ -17,13 +17,13 @@ int run_tool(const char* tool_name, int argc, char** argv, Run run) {
   try {
     return run(argc, argv);
   } catch (const InputError& e) {
-    std::fprintf(stderr, "%s: %s\n", tool_name, e.what());
+    log::error("{}: {}\n", tool_name, e.what());
   } catch (const std::exception& e) {
     // A library's own exception (yaml-cpp's bad conversion, std::filesystem, OpenCV): the
     // input reached a check we lack, still the operator's to fix, so it is reported the same.
-    std::fprintf(stderr, "%s: %s\n", tool_name, e.what());
+    log::error("{}: {}\n", tool_name, e.what());
   } catch (...) {
-    std::fprintf(stderr, "%s: unknown exception\n", tool_name);
+    log::error("{}: unknown exception\n", tool_name);
   }
   return 2;
 }

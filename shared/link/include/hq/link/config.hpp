@@ -109,7 +109,10 @@ struct LinkOverrides {
 /// --command-deadline-ms (range-checked by CLI11), --link-impair (checked by apply_overrides),
 /// --security-dir, --identity, --insecure and --ros2 to `app`, storing into
 /// `overrides` (which must outlive parsing).
-void add_link_options(CLI::App& app, LinkOverrides& overrides);
+/// Which end of the link a program is: options of the other end only are not offered, so a
+/// station given --ros2 or --stations (or a vehicle --station-id) is refused, not ignored.
+enum class LinkSide { kVehicle, kStation, kEither };
+void add_link_options(CLI::App& app, LinkOverrides& overrides, LinkSide side = LinkSide::kEither);
 
 /// Applies the options that were given, then checks the ranges again (hq::InputError).
 void apply_overrides(const LinkOverrides& overrides, LinkConfig& config);
