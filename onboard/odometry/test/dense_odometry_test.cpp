@@ -700,6 +700,7 @@ TEST(DenseOdometry, TrackAllocatesNothingAfterTheFirstFrame) {
     // Normals are computed for every reference, and the check prepares one per frame.
     config.depth_jacobian_from_normals = variant == 2;
     config.degenerate_step_ratio = variant == 1 ? 0.01 : 0.0;
+    config.dense_moving_marks = variant == 1;  // marks every pixel of each new keyframe
     DenseOdometry odometry(config, kCamera);
     RotationPrior gyro;
     gyro.R_depth_colour = geometry::exp_so3(Eigen::Vector3d(0.0, 1e-3, 0.0));  // turned in place
