@@ -91,7 +91,7 @@ std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2
   c.vec3(0.2F, 0.0F, 0.0F).put(0.85F);
   c.put(1.2F).put<std::uint8_t>(1);             // hover thrust: the rotors give 120 %, learnt
   c.put<std::uint8_t>(0).put(0.2F).put(0.05F);  // position valid, marker 0.2 s old, sigma 5 cm
-  c.put<std::uint8_t>(1).put<std::int32_t>(12).put<std::uint8_t>(3);  // to marker 12, exploring
+  c.put<std::uint8_t>(1).put<std::int32_t>(12).put<std::uint8_t>(3);    // to marker 12, exploring
   c.put<std::uint8_t>(0x1F).put<std::uint8_t>(0).put<std::uint8_t>(0);  // every mode offered
   return c.bytes();
 }

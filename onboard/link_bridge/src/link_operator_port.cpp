@@ -69,8 +69,7 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
   // The marker and explore modes exist only with the marker stage (OnboardChain registers them
   // with it): the console greys their buttons and says why before the operator asks.
   const bool marker_stage_on = chain_.markers() != nullptr;
-  extras.modes_offered =
-      marker_stage_on ? link::kModesOfferedMask : link::kModesWithoutMarkerStage;
+  extras.modes_offered = marker_stage_on ? link::kModesOfferedMask : link::kModesWithoutMarkerStage;
   if (!marker_stage_on) {
     extras.marker_mode_off_reason = link::kModeOffMarkerStageDisabled;
     extras.explore_mode_off_reason = link::kModeOffMarkerStageDisabled;
