@@ -591,7 +591,13 @@ class CsvExport : public hq::console::FlightSampleSink {
   explicit CsvExport(const std::string& dir) : recorder_(dir) {}
   void on_state(std::int64_t log_ns, std::int64_t publish_ns,
                 const hq::link::VehicleState& s) override {
-    recorder_.state(log_ns, log_ns - publish_ns, s);
+    recorder_.state(log_ns, log_ns - publish_ns, s, state_age_ns_, round_trip_ns_);
+  }
+  // The ground's figures at its latest tick before a state stand for that state's, as replay
+  // takes them (recording_mcap.cpp).
+  void on_ground_link(std::int64_t /*t_ns*/, float state_age_ms, float round_trip_ms) override {
+    state_age_ns_ = std::llround(1e6 * static_cast<double>(state_age_ms));
+    round_trip_ns_ = std::llround(1e6 * static_cast<double>(round_trip_ms));
   }
   void on_camera(std::int64_t log_ns, const hq::link::CameraFrame& f) override {
     recorder_.camera(log_ns, f);
@@ -616,6 +622,8 @@ class CsvExport : public hq::console::FlightSampleSink {
 
  private:
   hq::ground::TelemetryRecorder recorder_;
+  std::int64_t state_age_ns_ = -1;
+  std::int64_t round_trip_ns_ = -1;
 };
 
 // What a damaged file cost, on stderr: each warning names the file and the offset.

@@ -190,8 +190,10 @@ const char* operator_input_name(hq_msgs_OperatorInput v) {
 
 // The files' heads: the '#' lines naming frames, clocks and units, then the columns.
 constexpr const char* kTelemetryHeader =
-    "# hq-ground telemetry v2: one row per vehicle state received (v2 added the hover\n"
-    "# thrust columns; the cloud and marker poses are in obstacles.csv and markers.csv).\n"
+    "# hq-ground telemetry v3: one row per vehicle state received (v2 added the hover\n"
+    "# thrust columns, v3 the modes offered, marker target, explore phase and the ground's\n"
+    "# link figures; the cloud and marker poses are in obstacles.csv\n"
+    "# and markers.csv).\n"
     "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
     "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
     "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
@@ -211,6 +213,13 @@ constexpr const char* kTelemetryHeader =
     "# position_invalid_reason: why position_valid is 0 (0 valid or not said, 1 no marker "
     "seen yet, 2 no marker for too long, 3 uncertainty over its bound, 4 markers disagree), "
     "position_age_s since the last marker, position_sigma_m (m) 1-sigma.\n"
+    "# modes_offered: the modes the vehicle offers, bit per mode (1 teleop, 2 hover, 4 land,\n"
+    "# 8 marker, 16 explore; 0 not said); marker_mode_off_reason, explore_mode_off_reason: why\n"
+    "# not offered (0 offered or not said, 1 markers.enabled: false in the vehicle's config).\n"
+    "# marker_target_valid 1: marker_target_id is the marker the marker or explore mode flies\n"
+    "# to; explore_phase 0 not exploring, 1 lift-off 2 search 3 explore 4 edge 5 navigate 6 land\n"
+    "# 7 done; state_age_ms: the state's age at receipt through the clock offset, round_trip_ms:\n"
+    "# the latest heartbeat round trip, both as the ground measured them (0: unknown).\n"
     "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
     "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
     "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
@@ -219,7 +228,9 @@ constexpr const char* kTelemetryHeader =
     "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
     "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
     "clearance_m,hover_thrust_gain,hover_thrust_converged,position_invalid_reason,"
-    "position_age_s,position_sigma_m\n";
+    "position_age_s,position_sigma_m,modes_offered,marker_mode_off_reason,"
+    "explore_mode_off_reason,marker_target_valid,marker_target_id,explore_phase,state_age_ms,"
+    "round_trip_ms\n";
 constexpr const char* kObstaclesHeader =
     "# hq-ground obstacles v1: the obstacle cloud a vehicle state carried, one row per point\n"
     "# (states without a cloud have none). receipt_ns and sequence: its state's row in\n"
@@ -332,7 +343,12 @@ bool TelemetryRecorder::close() {
 }
 
 void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
-                              const link::VehicleState& s) {
+                              const link::VehicleState& s, std::int64_t state_age_ns,
+                              std::int64_t round_trip_ns) {
+  // As the live console takes them (hq-ground's ModelFeed): unknown reads as 0.
+  const auto ms = [](std::int64_t ns) {
+    return 1e-6 * static_cast<double>(std::max<std::int64_t>(ns, 0));
+  };
   if (!error_.empty() || telemetry_ == nullptr) return;
   written(
       std::fprintf(
@@ -340,7 +356,7 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
           "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,0x%016llx,%u,%s,%d,%s,%.4f,%s,%."
           "4f,"
-          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f\n",
+          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f,%u,%u,%u,%d,%d,%u,%.3f,%.3f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
@@ -358,7 +374,11 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           as_double(s.v_cmd_flown_H_mps.y), as_double(s.v_cmd_flown_H_mps.z),
           as_double(s.clearance_m), as_double(s.hover_thrust_gain),
           s.hover_thrust_converged ? 1 : 0, static_cast<unsigned>(s.position_invalid_reason),
-          as_double(s.position_age_s), as_double(s.position_sigma_m)),
+          as_double(s.position_age_s), as_double(s.position_sigma_m),
+          static_cast<unsigned>(s.modes_offered), static_cast<unsigned>(s.marker_mode_off_reason),
+          static_cast<unsigned>(s.explore_mode_off_reason), s.marker_target_valid ? 1 : 0,
+          static_cast<int>(s.marker_target_id), static_cast<unsigned>(s.explore_phase),
+          ms(state_age_ns), ms(round_trip_ns)),
       "telemetry.csv");
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
@@ -577,7 +597,8 @@ bool GroundStation::poll() {
     }
     if (observer_ != nullptr) observer_->on_state(now, now - info.source_timestamp, *state_sample_);
     if (recorder_ != nullptr) {
-      recorder_->state(now, now - info.source_timestamp, *state_sample_);
+      recorder_->state(now, now - info.source_timestamp, *state_sample_, status_.last_state_age_ns,
+                       status_.round_trip_ns);
     }
     status_.state = *state_sample_;
     status_.state.obstacle_points_body_m = {};  // the copy must not alias the sample's buffer

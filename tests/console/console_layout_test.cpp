@@ -1,10 +1,12 @@
 // What the operator sees, checked by content on the console's screenshot and state under a
-// private Xvfb: the whole camera image in its panel, the force bars at 1280x800, the climb up
-// positive, the flight timer, and the link-loss alarm played (SDL's dummy audio driver stands
-// for a sound card, as on CI).
+// private Xvfb: the whole camera image in its panel and every panel's last line (force bars,
+// status bar, link figures) at 1280x800 and at 1024x640, the climb up positive, the flight
+// timer, and the link-loss alarm played (SDL's dummy audio driver stands for a sound card, as
+// on CI).
 #include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
+#include "console_fixture.hpp"
 #include "state_json.hpp"
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -27,43 +29,15 @@
 namespace {
 
 namespace fs = std::filesystem;
+using hq::console_test::fresh_artefact_dir;
+using hq::console_test::kXvfb;
 using hq::console_test::parse_state;
+using hq::console_test::slurp;
 using hq::console_test::state_flag;
 using hq::console_test::state_number;
 using hq::console_test::state_text;
+using hq::console_test::XvfbDisplay;
 using hq::testing::Process;
-
-const char* const kXvfb = "/usr/bin/Xvfb";
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// A private Xvfb of the given size; sets DISPLAY.
-class XvfbDisplay {
- public:
-  XvfbDisplay(const fs::path& dir, const std::string& screen) {
-    number_ = 140 + getpid() % 50;
-    while (fs::exists("/tmp/.X" + std::to_string(number_) + "-lock")) ++number_;
-    name_ = ":";
-    name_.append(std::to_string(number_));
-    xvfb_ = std::make_unique<Process>(
-        std::vector<std::string>{kXvfb, name_, "-screen", "0", screen, "-nolisten", "tcp"},
-        dir / "xvfb.out");
-    for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(number_)); ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    setenv("DISPLAY", name_.c_str(), 1);
-  }
-
- private:
-  int number_ = 0;
-  std::string name_;
-  std::unique_ptr<Process> xvfb_;
-};
 
 // The last camera frame of a recording (TUM rgb.txt: "timestamp rgb/NAME.jpg" lines).
 cv::Mat last_recorded_frame(const fs::path& recording) {
@@ -87,19 +61,69 @@ double colour_distance(const cv::Scalar& a, const cv::Scalar& b) {
   return std::max({std::abs(a[0] - b[0]), std::abs(a[1] - b[1]), std::abs(a[2] - b[2])});
 }
 
+// Every panel's content whole in the console's state (the force bars, Fz last; the status
+// bar's columns and lines; the controls' and link panel's last lines; the camera image), and
+// the screenshot showing the recorded frame's own bottom corners and middle-row ends where the
+// console says it drew it (the top may be under a banner): a cropped or shifted image puts
+// other parts of the scene there.
+void expect_every_panel_whole(const std::string& json, const nlohmann::json& parsed,
+                              const fs::path& shot, const fs::path& recording, int min_width_px,
+                              int min_height_px) {
+  EXPECT_EQ(state_flag(parsed, "/window/force_bars_whole"), 1) << json;
+  EXPECT_EQ(state_flag(parsed, "/window/status_bar_whole"), 1) << json;
+  EXPECT_EQ(state_flag(parsed, "/window/control_panel_whole"), 1) << json;
+  EXPECT_EQ(state_flag(parsed, "/window/link_panel_whole"), 1) << json;
+  EXPECT_EQ(state_flag(parsed, "/window/camera_image_whole"), 1) << json;
+  const int x = static_cast<int>(state_number(parsed, "/window/camera_shown_x_px"));
+  const int y = static_cast<int>(state_number(parsed, "/window/camera_shown_y_px"));
+  const int w = static_cast<int>(state_number(parsed, "/window/camera_shown_width_px"));
+  const int h = static_cast<int>(state_number(parsed, "/window/camera_shown_height_px"));
+  ASSERT_GT(w, min_width_px) << json;
+  ASSERT_GT(h, min_height_px) << json;
+  // kept its aspect
+  EXPECT_NEAR(static_cast<double>(w) / h,
+              state_number(parsed, "/window/camera_width_px") /
+                  state_number(parsed, "/window/camera_height_px"),
+              0.02)
+      << json;
+  const cv::Mat screen = cv::imread(shot.string(), cv::IMREAD_COLOR);
+  const cv::Mat frame = last_recorded_frame(recording);
+  ASSERT_FALSE(screen.empty()) << shot;
+  ASSERT_FALSE(frame.empty()) << recording / "rgb.txt";
+  ASSERT_LE(x + w, screen.cols);
+  ASSERT_LE(y + h, screen.rows);
+  cv::Mat scaled;
+  cv::resize(frame, scaled, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  const cv::Mat shown = screen(cv::Rect(x, y, w, h));
+  constexpr int kPatch = 10;
+  const std::vector<cv::Point> corners = {{1, h - kPatch - 1},
+                                          {w - kPatch - 1, h - kPatch - 1},
+                                          {1, h / 2 - kPatch / 2},
+                                          {w - kPatch - 1, h / 2 - kPatch / 2}};
+  for (const cv::Point& c : corners) {
+    const double d =
+        colour_distance(patch_mean(shown, c.x, c.y, kPatch), patch_mean(scaled, c.x, c.y, kPatch));
+    EXPECT_LT(d, 25.0) << "patch at " << c.x << "," << c.y << " of the shown image";
+  }
+  // (the same patches a third of the image away differ: the check can tell places apart)
+  const double elsewhere = colour_distance(patch_mean(shown, 1, h - kPatch - 1, kPatch),
+                                           patch_mean(scaled, w / 3, h / 3, kPatch));
+  std::printf(
+      "console layout %dx%d: image %dx%d at %d,%d; corner vs elsewhere %.0f; %.1f fps; %s\n",
+      screen.cols, screen.rows, w, h, x, y, elsewhere, state_number(parsed, "/window/fps"),
+      shot.c_str());
+}
+
 TEST(ConsoleLayout, At1280x800WholeCameraForceBarsClimbUpAndLinkLossAlarmSounds) {
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   hq::testing::use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(83));
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_layout_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
+  const fs::path dir = fresh_artefact_dir("console_layout_test");
   // SDL's dummy audio driver consumes the tone in real time, as a sound card would.
   setenv("SDL_AUDIODRIVER", "dummy", 1);
   // GIVEN a 1280x800 display, a simulated vehicle and the console flown by the scripted hand
   // (take off, climb for 2 s, forward, ...)
-  const XvfbDisplay display(dir, "1280x800x24");
+  const XvfbDisplay display(dir, "1280x800x24", 140);
   Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
                    "--duration-s", "60", "--domain-id", domain, "--insecure"},
                   dir / "onboard.out");
@@ -152,48 +176,59 @@ TEST(ConsoleLayout, At1280x800WholeCameraForceBarsClimbUpAndLinkLossAlarmSounds)
   EXPECT_GT(state_number(parsed, "/window/climb_shown_max_mps"), 0.15) << json;
   EXPECT_GT(state_number(parsed, "/flight_time_s"), 4.0) << json;
   EXPECT_LT(state_number(parsed, "/flight_time_s"), 12.0) << json;
-  // and every panel whole at 1280x800: the force bars (Fz last), the camera image
-  EXPECT_EQ(state_flag(parsed, "/window/force_bars_whole"), 1) << json;
-  EXPECT_EQ(state_flag(parsed, "/window/camera_image_whole"), 1) << json;
-  const int x = static_cast<int>(state_number(parsed, "/window/camera_shown_x_px"));
-  const int y = static_cast<int>(state_number(parsed, "/window/camera_shown_y_px"));
-  const int w = static_cast<int>(state_number(parsed, "/window/camera_shown_width_px"));
-  const int h = static_cast<int>(state_number(parsed, "/window/camera_shown_height_px"));
-  ASSERT_GT(w, 200) << json;
-  ASSERT_GT(h, 150) << json;
-  // kept its aspect
-  EXPECT_NEAR(static_cast<double>(w) / h,
-              state_number(parsed, "/window/camera_width_px") /
-                  state_number(parsed, "/window/camera_height_px"),
-              0.02)
-      << json;
-  // and the screenshot shows the frame's own bottom corners and the ends of its middle row
-  // where the console says it drew it (the top is under the link-loss banner): a cropped or
-  // shifted image puts other parts of the scene there
-  const cv::Mat screen = cv::imread(shot.string(), cv::IMREAD_COLOR);
-  const cv::Mat frame = last_recorded_frame(recording);
-  ASSERT_FALSE(screen.empty()) << shot;
-  ASSERT_FALSE(frame.empty()) << recording / "rgb.txt";
-  ASSERT_LE(x + w, screen.cols);
-  ASSERT_LE(y + h, screen.rows);
-  cv::Mat scaled;
-  cv::resize(frame, scaled, cv::Size(w, h), 0, 0, cv::INTER_AREA);
-  const cv::Mat shown = screen(cv::Rect(x, y, w, h));
-  constexpr int kPatch = 10;
-  const std::vector<cv::Point> corners = {{1, h - kPatch - 1},
-                                          {w - kPatch - 1, h - kPatch - 1},
-                                          {1, h / 2 - kPatch / 2},
-                                          {w - kPatch - 1, h / 2 - kPatch / 2}};
-  for (const cv::Point& c : corners) {
-    const double d =
-        colour_distance(patch_mean(shown, c.x, c.y, kPatch), patch_mean(scaled, c.x, c.y, kPatch));
-    EXPECT_LT(d, 25.0) << "patch at " << c.x << "," << c.y << " of the shown image";
-  }
-  // (the same patches a third of the image away differ: the check can tell places apart)
-  const double elsewhere = colour_distance(patch_mean(shown, 1, h - kPatch - 1, kPatch),
-                                           patch_mean(scaled, w / 3, h / 3, kPatch));
-  std::printf("console layout: image %dx%d at %d,%d; corner vs elsewhere %.0f; %.1f fps; %s\n", w,
-              h, x, y, elsewhere, state_number(parsed, "/window/fps"), shot.c_str());
+  // and every panel whole at 1280x800, the camera showing the recorded frame
+  expect_every_panel_whole(json, parsed, shot, recording, 200, 150);
+}
+
+TEST(ConsoleLayout, At1024x640EveryPanelWhole) {
+  if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
+  hq::testing::use_loopback_dds();
+  const std::string domain = std::to_string(hq::testing::private_domain_id(84));
+  const fs::path dir = fresh_artefact_dir("console_layout_1024_test");
+  // GIVEN the smallest display the console is made for, a simulated vehicle (the shipped
+  // config: the note under the greyed marker and explore buttons is drawn too) and the console
+  // flown by the scripted hand
+  const XvfbDisplay display(dir, "1024x640x24", 140);
+  Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
+                   "--duration-s", "30", "--domain-id", domain, "--insecure"},
+                  dir / "onboard.out");
+  const fs::path shot = dir / "console.png";
+  const fs::path state = dir / "state.json";
+  const fs::path recording = dir / "recording";
+  Process ground({HQ_GROUND_EXE,
+                  "--device",
+                  "sim",
+                  "--haptics-config",
+                  "ground/config/demo_hand.yaml",
+                  "--domain-id",
+                  domain,
+                  "--insecure",
+                  "--duration-s",
+                  "8",
+                  "--window-size",
+                  "1024x640",
+                  "--window-ini",
+                  "none",
+                  "--record",
+                  recording.string(),
+                  "--screenshot",
+                  shot.string(),
+                  "--state-json",
+                  state.string()},
+                 dir / "ground.out");
+  ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
+  onboard.signal(SIGTERM);
+  onboard.wait_exit(40.0);
+  const std::string json = slurp(state);
+  ASSERT_FALSE(json.empty()) << slurp(dir / "ground.out");
+  const nlohmann::json parsed = parse_state(json);
+  // THEN at 1024x640 too every panel's content is whole and the camera shows the frame
+  EXPECT_EQ(state_number(parsed, "/window/width_px"), 1024) << json;
+  EXPECT_EQ(state_number(parsed, "/window/height_px"), 640) << json;
+  EXPECT_NE(state_text(parsed, "/window/modes_off_note"), "") << json;
+  // (the camera gets what the controls and link figures leave: 120x90 here, still enough for
+  // the content check's 10 px patches a third of the image apart)
+  expect_every_panel_whole(json, parsed, shot, recording, 100, 75);
 }
 
 }  // namespace

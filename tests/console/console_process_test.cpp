@@ -6,6 +6,7 @@
 #include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
+#include "console_fixture.hpp"
 #include "state_json.hpp"
 #include <gtest/gtest.h>
 
@@ -30,44 +31,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 using hq::console_test::parse_state;
 using hq::console_test::state_flag;
 using hq::console_test::state_number;
 using hq::console_test::state_text;
 
+using hq::console_test::fresh_artefact_dir;
+using hq::console_test::kXvfb;
+using hq::console_test::slurp;
+using hq::console_test::XvfbDisplay;
 using hq::testing::Process;
-
-const char* const kXvfb = "/usr/bin/Xvfb";
-
-// A private Xvfb of the given size; sets DISPLAY.
-class XvfbDisplay {
- public:
-  XvfbDisplay(const fs::path& dir, const std::string& screen) {
-    number_ = 90 + getpid() % 50;
-    while (fs::exists("/tmp/.X" + std::to_string(number_) + "-lock")) ++number_;
-    name_ = ":";  // appended: GCC 12 -Wrestrict false positive on "+"
-    name_.append(std::to_string(number_));
-    xvfb_ = std::make_unique<Process>(
-        std::vector<std::string>{kXvfb, name_, "-screen", "0", screen, "-nolisten", "tcp"},
-        dir / "xvfb.out");
-    for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(number_)); ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    setenv("DISPLAY", name_.c_str(), 1);
-  }
-
- private:
-  int number_ = 0;
-  std::string name_;
-  std::unique_ptr<Process> xvfb_;
-};
 
 // Real key presses into a window found by its title, through the XTest extension (what
 // xdotool does): the console sees them as a user's keys. libXtst is opened at run time.
@@ -210,12 +183,8 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(101));
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  // The window placement file goes to the test's folder, never the user's.
-  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
-  const XvfbDisplay display(dir, "1600x1000x24");
+  const fs::path dir = fresh_artefact_dir("console_test");
+  const XvfbDisplay display(dir, "1600x1000x24", 90);
 
   // GIVEN a simulated flight flown through the console window and recorded.
   Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
@@ -236,6 +205,15 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
   const std::string json = slurp(state);
   ASSERT_FALSE(json.empty()) << slurp(dir / "ground.out");
   expect_console_drew_the_flight(json);
+  // The shipped config has no marker stage: the console greyed marker and explore before any
+  // refusal, and said why and how to turn them on under the buttons.
+  const nlohmann::json parsed = parse_state(json);
+  EXPECT_EQ(state_flag(parsed, "/window/marker_button_enabled"), 0) << json;
+  EXPECT_EQ(state_flag(parsed, "/window/explore_button_enabled"), 0) << json;
+  EXPECT_EQ(state_text(parsed, "/window/modes_off_note"),
+            "marker, explore: off on this vehicle (markers.enabled: false in its config; fly "
+            "with --config config/markers.yaml)")
+      << json;
   ASSERT_TRUE(fs::exists(shot));
   EXPECT_GT(fs::file_size(shot), 20'000U);  // a PNG of a 1600x960 console, not a blank
   std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(),
@@ -248,13 +226,10 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(57));
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_takeoff_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
+  const fs::path dir = fresh_artefact_dir("console_takeoff_test");
   // GIVEN a 1280x720 display, the simulated vehicle on the floor and the console flown from
   // the keyboard
-  const XvfbDisplay display(dir, "1280x720x24");
+  const XvfbDisplay display(dir, "1280x720x24", 90);
   Keyboard keys;
   if (!keys.usable()) GTEST_SKIP() << "no XTest (libXtst.so.6) on this display";
   Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
@@ -334,11 +309,8 @@ TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfres
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(83));
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "console_goodbye_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);
-  const XvfbDisplay display(dir, "1280x800x24");
+  const fs::path dir = fresh_artefact_dir("console_goodbye_test");
+  const XvfbDisplay display(dir, "1280x800x24", 90);
   // GIVEN a simulated vehicle with no run length (it flies until stopped) and the console with
   // the scripted hand, which takes off at 1 s and climbs until 4 s
   const std::vector<std::string> vehicle = {
@@ -364,8 +336,11 @@ TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfres
       << out1;
   // ... and the console, 3 s into the silence, raised no link loss: a calm "vehicle ended".
   std::this_thread::sleep_for(std::chrono::seconds(3));
-  // WHEN a new vehicle process (a new session) starts and flies a few seconds
-  auto second = std::make_unique<Process>(vehicle, dir / "onboard2.out");
+  // WHEN a new vehicle process (a new session), this one with its marker stage on, starts and
+  // flies a few seconds
+  std::vector<std::string> with_markers = vehicle;
+  with_markers.insert(with_markers.end(), {"--config", "config/markers.yaml"});
+  auto second = std::make_unique<Process>(with_markers, dir / "onboard2.out");
   std::this_thread::sleep_for(std::chrono::seconds(6));
   ground.signal(SIGTERM);
   ASSERT_EQ(ground.wait_exit(30.0), 0) << slurp(dir / "ground.out");
@@ -392,6 +367,11 @@ TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfres
   // 6 s of the new session at ~30 states/s: its plot holds no more than that
   EXPECT_LT(state_number(parsed, "/plot_samples"), 8 * 40) << json;
   EXPECT_GT(state_number(parsed, "/plot_samples"), 30) << json;
+  // ... and the new vehicle offers marker and explore (config/markers.yaml): their buttons
+  // are on, with no note, where the first vehicle's had them greyed
+  EXPECT_EQ(state_flag(parsed, "/window/marker_button_enabled"), 1) << json;
+  EXPECT_EQ(state_flag(parsed, "/window/explore_button_enabled"), 1) << json;
+  EXPECT_EQ(state_text(parsed, "/window/modes_off_note"), "") << json;
   std::printf(
       "goodbye: %g vehicle-ended banner frames, %g link losses; after the restart %g "
       "plot samples, %g previous track points\n",

@@ -14,6 +14,7 @@
 #include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
+#include "console_fixture.hpp"
 #include "state_json.hpp"
 #include <gtest/gtest.h>
 
@@ -35,14 +36,11 @@
 namespace {
 
 namespace fs = std::filesystem;
+using hq::console_test::fresh_artefact_dir;
+using hq::console_test::kXvfb;
+using hq::console_test::slurp;
+using hq::console_test::XvfbDisplay;
 using hq::testing::Process;
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 // The first number after `pattern` (a regex ending where the number starts); NaN if none.
 double number_after(const std::string& text, const std::string& pattern) {
@@ -74,8 +72,6 @@ int vehicle_mode_changes(const fs::path& link_log) {
   }
   return changes;
 }
-
-const char* const kXvfb = "/usr/bin/Xvfb";
 
 using hq::testing::use_loopback_dds;
 
@@ -167,23 +163,6 @@ void expect_mcap_report_and_csv_export(const fs::path& dir, const fs::path& reco
       << csv_page;
 }
 
-// A private Xvfb (1280x800), DISPLAY set; the Process keeps it alive.
-std::unique_ptr<Process> start_display(const fs::path& dir) {
-  int display = 120 + getpid() % 50;
-  while (fs::exists("/tmp/.X" + std::to_string(display) + "-lock")) ++display;
-  std::string display_name = ":";
-  display_name.append(std::to_string(display));
-  auto xvfb =
-      std::make_unique<Process>(std::vector<std::string>{kXvfb, display_name, "-screen", "0",
-                                                         "1280x800x24", "-nolisten", "tcp"},
-                                (dir / "xvfb.out").string());
-  for (int i = 0; i < 50 && !fs::exists("/tmp/.X11-unix/X" + std::to_string(display)); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  setenv("DISPLAY", display_name.c_str(), 1);
-  return xvfb;
-}
-
 // hq-ground --replay with `extra` arguments; returns its --state-json.
 std::string replay(const fs::path& dir, const fs::path& recording, const std::string& name,
                    std::vector<std::string> extra) {
@@ -271,15 +250,13 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
   if (!fs::exists(kXvfb)) GTEST_SKIP() << kXvfb << " not installed (apt-get install xvfb)";
   use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(57));
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "replay_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_artefact_dir("replay_test");
   const fs::path recording = dir / "recording";
   record_flight(dir, recording, domain);
   ASSERT_FALSE(HasFatalFailure());
   ASSERT_TRUE(fs::exists(recording / "flight.mcap"));
   expect_mcap_report_and_csv_export(dir, recording);
-  const std::unique_ptr<Process> xvfb = start_display(dir);
+  const XvfbDisplay display(dir, "1280x800x24", 120);
   expect_replay_plays(dir, recording);
   expect_replay_pauses_and_seeks(dir, recording);
   expect_replay_ends(dir, recording);
@@ -292,9 +269,7 @@ TEST(ReplayProcesses, ReportMatchesTheVehicleAndTheReplayPausesSeeksAndEnds) {
 TEST(RecordingProcesses, FullDiskStopsTheFlightRecordNotTheFlight) {
   use_loopback_dds();
   const std::string domain = std::to_string(hq::testing::private_domain_id(131));
-  const fs::path dir = fs::path(HQ_CONSOLE_ARTEFACT_DIR) / "full_disk_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_artefact_dir("full_disk_test");
   Process onboard({HQ_SIM_FLIGHT_EXE, "--link", "--world", "onboard/sim/worlds/arena.yaml",
                    "--duration-s", "10", "--domain-id", domain, "--insecure"},
                   (dir / "onboard.out").string());

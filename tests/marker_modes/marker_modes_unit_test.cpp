@@ -49,10 +49,23 @@ TEST(MarkerModesConfig, OutOfRangeAndUnknownKeysNameTheKey) {
   EXPECT_NE(nan_message.find("kp_position_per_s"), std::string::npos) << nan_message;
 }
 
+// The mode's own marker age limit was shadowed by the filter's: one limit, the old key refused
+// with where the limit is now.
+TEST(MarkerModesConfig, TheShadowedMarkerAgeKeyIsRefusedNamingTheOneLimit) {
+  const std::string old_key =
+      write_config("age", "markers: {marker_mode: {target_id: 3, max_marker_age_s: 10.0}}\n");
+  const std::string message =
+      ::hq::testing::input_error_message([&] { (void)pipeline::load_onboard_config(old_key); });
+  EXPECT_NE(message.find(old_key), std::string::npos) << message;
+  EXPECT_NE(message.find("markers.marker_mode.max_marker_age_s: removed"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("markers.navigation.position_max_age_s"), std::string::npos) << message;
+}
+
 TEST(MarkerProviders, StepAllocatesNothingOnceAnchored) {
   test::Flight f = test::make_flight("onboard/closed_loop/flights/marker_hover.yaml", 3);
   f.loop->run_until(8.0);
-  ASSERT_TRUE(f.stage().navigation().pose_usable(f.loop->simulator().t_ns(), 1.0));
+  ASSERT_TRUE(f.stage().navigation().pose_usable(f.loop->simulator().t_ns()));
   const std::int64_t t_ns = f.loop->simulator().t_ns();
   MarkerModeProvider& marker = f.stage().marker_mode();
   ExploreProvider& explore = f.stage().explore();

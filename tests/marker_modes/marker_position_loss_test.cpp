@@ -95,7 +95,7 @@ class Observer final : public vehicle::OperatorPort {
       }
     }
     if (out.mode.mode == modes::Mode::kMarker) {
-      const bool usable = nav.pose_usable(out.t_ns, stage.marker_mode().config().max_marker_age_s);
+      const bool usable = nav.pose_usable(out.t_ns);
       if (!usable) {
         ++steps_invalid_in_marker;
         if (!out.mode.provider_failed) ++steps_flown_on_invalid;

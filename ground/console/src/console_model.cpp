@@ -122,6 +122,9 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   hover_thrust_converged_ = extras.hover_thrust_converged && hover_thrust_gain_ > 0.0F;
   marker_target_id_ = extras.marker_target_id;
   explore_phase_ = extras.explore_phase != nullptr ? extras.explore_phase : "";
+  modes_offered_ = extras.modes_offered;
+  marker_mode_off_ = extras.marker_mode_off != nullptr ? extras.marker_mode_off : "";
+  explore_mode_off_ = extras.explore_mode_off != nullptr ? extras.explore_mode_off : "";
   link_health_ = link_health;
   roll_rad_ = roll_rad;
   pitch_rad_ = pitch_rad;
@@ -263,6 +266,9 @@ void ConsoleModel::reset() {
   last_flight_s_ = -1;
   marker_target_id_ = -1;
   explore_phase_ = "";
+  modes_offered_ = 0;
+  marker_mode_off_ = "";
+  explore_mode_off_ = "";
 }
 
 void ConsoleModel::start_new_track() {
@@ -327,6 +333,9 @@ void ConsoleModel::snapshot(Snapshot& out) const {
   out.flight_state = flight_state_;
   out.marker_target_id = marker_target_id_;
   out.explore_phase = explore_phase_;
+  out.modes_offered = modes_offered_;
+  out.marker_mode_off = marker_mode_off_;
+  out.explore_mode_off = explore_mode_off_;
   out.flight_time_s = take_off_s_ >= 0 ? last_state_s_ - take_off_s_ : last_flight_s_;
   out.airborne = take_off_s_ >= 0;
   out.motors_armed = motors_armed_;

@@ -346,10 +346,10 @@ void draw_plot(const char* title, const Snapshot& s, const Series* series, int s
 
 // A bar centred on zero with a mark there: empty is zero force, full left/right the negative/
 // positive full scale.
-void centred_bar(const char* label, float value, float full_scale) {
+void centred_bar(const char* label, float value, float full_scale, float bar_width) {
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const ImVec2 origin = ImGui::GetCursorScreenPos();
-  const float width = std::max(ImGui::GetContentRegionAvail().x, 40.0F);
+  const float width = std::max(bar_width, 40.0F);
   const float height = ImGui::GetFrameHeight();
   ImGui::Dummy(ImVec2(width, height));
   const ImVec2 corner(origin.x + width, origin.y + height);
@@ -438,6 +438,11 @@ struct ConsoleWindow::Impl {
   SDL_GLContext gl = nullptr;
   int marker_target_id = 0;        ///< The marker panel's target id field.
   int vehicle_marker_target = -1;  ///< The vehicle's target the field last took.
+  // The heights the status bar, the controls and the link panel took at the last frame: the
+  // layout gives them that much (their content depends on the width only), the camera the rest.
+  float status_needed_px = 0;
+  float control_needed_px = 0;
+  float link_needed_px = 0;
   bool imgui_sdl = false;
   bool imgui_gl = false;
   double max_fps = 60;
@@ -692,7 +697,11 @@ struct ConsoleWindow::Impl {
     bar.alarm_muted = muted;
     bar.audio = alarm && alarm->available();
     bar.audio_status = alarm ? alarm->status().c_str() : "off";
-    const StatusBarActions bar_actions = draw_status_bar(s, bar, W);
+    const float top = std::max(status_bar_height(), status_needed_px);
+    const StatusBarActions bar_actions = draw_status_bar(s, bar, W, top);
+    status_needed_px = bar_actions.needed_height_px;
+    stats.status_bar_whole =
+        bar_actions.columns_inside && bar_actions.needed_height_px <= top + 0.5F;
     if (bar_actions.take_off) actions.take_off = true;
     if (bar_actions.toggle_mute) mute_key = true;  // applied on the next frame
     if (bar_actions.take_off_hint) ++stats.take_off_hint_frames;
@@ -701,7 +710,6 @@ struct ConsoleWindow::Impl {
       stats.climb_shown_max_mps = std::max(stats.climb_shown_max_mps, climb_mps);
       stats.climb_shown_min_mps = std::min(stats.climb_shown_min_mps, climb_mps);
     }
-    const float top = status_bar_height();
     const float rest = std::max(H - top, 100.0F);
     const auto place = [&](float x, float y, float width, float height) {
       ImGui::SetNextWindowPos(ImVec2(std::floor(x * W), std::floor(top + y * rest)),
@@ -709,15 +717,20 @@ struct ConsoleWindow::Impl {
       ImGui::SetNextWindowSize(ImVec2(std::floor(width * W), std::floor(height * rest)),
                                ImGuiCond_Always);
     };
-    // The left column holds the camera, the controls (their force bars must show whole at
-    // 1280x800) and the link's figures; the right the plots, the top view and the events.
-    place(0, 0, 0.45F, 0.46F);
+    // The left column holds the camera, the controls and the link's figures; the right the
+    // plots, the top view and the events. The controls and the link panel get at least what
+    // their content took (their force bars and last lines whole down to 1024x640); the camera,
+    // scaled whole into its panel, takes the rest.
+    const float control_share = std::max(0.32F, control_needed_px / rest);
+    const float link_share = std::max(0.22F, link_needed_px / rest);
+    const float camera_share = std::max(1.0F - control_share - link_share, 0.1F);
+    place(0, 0, 0.45F, camera_share);
     camera_panel(s);
     place(0.45F, 0, 0.55F, 0.58F);
     plots_panel(s);
-    place(0, 0.46F, 0.45F, 0.32F);
+    place(0, camera_share, 0.45F, control_share);
     control_panel(s, actions);
-    place(0, 0.78F, 0.45F, 0.22F);
+    place(0, camera_share + control_share, 0.45F, link_share);
     link_panel(s);
     place(0.45F, 0.58F, 0.3F, 0.42F);
     top_view_panel(s);
@@ -869,6 +882,25 @@ struct ConsoleWindow::Impl {
     ++stats.vehicle_ended_banner_frames;
   }
 
+  // Under the mode buttons: why marker or explore is greyed, in plain words (one line for both
+  // when the reason is the same, as it is for a vehicle without its marker stage).
+  void modes_off_note(const Snapshot& s) {
+    const std::string_view marker = s.marker_mode_off;
+    const std::string_view explore = s.explore_mode_off;
+    stats.modes_off_note.clear();
+    if (marker.empty() && explore.empty()) return;
+    if (marker == explore) {
+      stats.modes_off_note.append("marker, explore: ").append(marker);
+    } else {
+      if (!marker.empty()) stats.modes_off_note.append("marker: ").append(marker);
+      if (!marker.empty() && !explore.empty()) stats.modes_off_note.append("; ");
+      if (!explore.empty()) stats.modes_off_note.append("explore: ").append(explore);
+    }
+    ImGui::PushTextWrapPos(0);
+    ImGui::TextColored(ImVec4(1.0F, 0.75F, 0.3F, 1), "%s", stats.modes_off_note.c_str());
+    ImGui::PopTextWrapPos();
+  }
+
   void control_panel(const Snapshot& s, UiActions& actions) {
     ImGui::Begin("Vehicle and modes");
     if (char banner[192]; control_banner(s.link, banner, sizeof banner)) {
@@ -891,13 +923,22 @@ struct ConsoleWindow::Impl {
     static const char* const kModes[5] = {"teleop", "hover", "land", "marker", "explore"};
     static const char* const kKeys[5] = {"teleop (T)", "hover (H)", "land (L)", "marker (M)",
                                          "explore (X)"};
+    // Greyed before a refusal: the vehicle says in every state which modes it offers.
+    const bool marker_on = s.marker_mode_off[0] == '\0';
+    const bool explore_on = s.explore_mode_off[0] == '\0';
+    stats.marker_button_enabled = marker_on && !s.replay.active;
+    stats.explore_button_enabled = explore_on && !s.replay.active;
     for (int i = 0; i < 5; ++i) {
       if (i > 0) ImGui::SameLine();
+      const bool off = (i == 3 && !marker_on) || (i == 4 && !explore_on);
       const bool current = s.mode == kModes[i];
       if (current) ImGui::PushStyleColor(ImGuiCol_Button, IM_COL32(40, 130, 60, 255));
+      ImGui::BeginDisabled(off);
       if (ImGui::Button(kKeys[i])) actions.mode_request = kModes[i];
+      ImGui::EndDisabled();
       if (current) ImGui::PopStyleColor();
     }
+    modes_off_note(s);
     ImGui::Text("vehicles seen:");
     for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
       ImGui::SameLine();
@@ -911,6 +952,7 @@ struct ConsoleWindow::Impl {
       }
     }
     // Marker mode with a chosen target: each button asks for Mode marker with a task.
+    ImGui::BeginDisabled(!marker_on);
     ImGui::Text("marker:");
     ImGui::SameLine();
     // The box follows the vehicle's target when that changes (it said 0 while the vehicle
@@ -933,6 +975,7 @@ struct ConsoleWindow::Impl {
       }
     }
     ImGui::EndDisabled();
+    ImGui::EndDisabled();
     ImGui::Separator();
     const HapticState& h = s.haptics;
     ImGui::Text("haptic device: %s  buttons 0x%x  %s", h.connected ? "connected" : "LOST",
@@ -942,18 +985,33 @@ struct ConsoleWindow::Impl {
                 static_cast<double>(h.p_D_m[0]) * 1e3, static_cast<double>(h.p_D_m[1]) * 1e3,
                 static_cast<double>(h.p_D_m[2]) * 1e3, static_cast<double>(h.cue_weight),
                 static_cast<double>(h.passivity_energy_j));
-    // Force as bars centred on zero, the device's 3 axes (5 N full scale either way).
+    // Force as bars centred on zero, the device's 3 axes (5 N full scale either way), side by
+    // side on one line.
+    const float gap = ImGui::GetStyle().ItemSpacing.x;
+    const float bar_width = (ImGui::GetContentRegionAvail().x - 2 * gap) / 3;
     for (int i = 0; i < 3; ++i) {
+      if (i > 0) ImGui::SameLine(0, gap);
       const char label[3] = {'F', "xyz"[i], '\0'};
-      centred_bar(label, h.F_D_n[static_cast<std::size_t>(i)], 5.0F);
+      centred_bar(label, h.F_D_n[static_cast<std::size_t>(i)], 5.0F, bar_width);
     }
+    const ImVec2 clip = ImGui::GetWindowDrawList()->GetClipRectMax();
     stats.force_bars_whole =
-        ImGui::GetItemRectMax().y <= ImGui::GetWindowDrawList()->GetClipRectMax().y + 0.5F;
+        ImGui::GetItemRectMax().y <= clip.y + 0.5F && ImGui::GetItemRectMax().x <= clip.x + 0.5F;
+    control_needed_px = content_height();
+    stats.control_panel_whole = control_needed_px <= ImGui::GetWindowHeight() + 0.5F;
     ImGui::End();
+  }
+
+  // The height the current window's content took so far, with its bottom padding.
+  static float content_height() {
+    const ImGuiStyle& style = ImGui::GetStyle();
+    return ImGui::GetCursorPosY() - style.ItemSpacing.y + style.WindowPadding.y;
   }
 
   void link_panel(const Snapshot& s) {
     ImGui::Begin("Link health");
+    // Long lines wrap in a narrow window rather than lose their end.
+    ImGui::PushTextWrapPos(0);
     const LinkHealth& l = s.link;
     // The link's state in the status bar's and the banner's words, not thresholds of its own.
     char state[64];
@@ -979,6 +1037,9 @@ struct ConsoleWindow::Impl {
                 static_cast<unsigned long long>(l.write_failures));
     ImGui::Text("console %.1f fps, render p50 %.1f ms (max %.1f, last 256 frames)", stats.fps,
                 stats.render_ms_p50, stats.render_ms_max);
+    ImGui::PopTextWrapPos();
+    link_needed_px = content_height();
+    stats.link_panel_whole = link_needed_px <= ImGui::GetWindowHeight() + 0.5F;
     ImGui::End();
   }
 

@@ -68,13 +68,29 @@ bool parse_ground_command(std::string_view text, bool& valid, std::array<float, 
   return true;
 }
 
-enum class Kind { kNone, kState, kCamera, kEvent, kModeRequest, kGroundCommand };
+// One "/ground/link" message (hq_ground.Link): state_age_ms and round_trip_ms, each a number or
+// null (unknown). False if it is not JSON or lacks one of them.
+bool parse_ground_link(std::string_view text, float& state_age_ms, float& round_trip_ms) {
+  const nlohmann::json json = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!json.is_object()) return false;
+  const auto figure = [&](const char* key, float& out) {
+    const auto it = json.find(key);
+    if (it == json.end() || !(it->is_number() || it->is_null())) return false;
+    out = it->is_number() ? it->get<float>() : -1.0F;
+    if (!std::isfinite(out)) out = -1.0F;
+    return true;
+  };
+  return figure("state_age_ms", state_age_ms) && figure("round_trip_ms", round_trip_ms);
+}
+
+enum class Kind { kNone, kState, kCamera, kEvent, kModeRequest, kGroundCommand, kGroundLink };
 
 // The channels read, by topic and the schema the recorder gives them.
 Kind kind_of(const mcap::McapReader& reader, const mcap::Channel& c) {
   const mcap::Schema* schema = reader.schema(c.schema_id);
   const std::string schema_name = schema != nullptr ? schema->name : "";
   if (c.message_encoding == "json" && c.topic == "/ground/haptics") return Kind::kGroundCommand;
+  if (c.message_encoding == "json" && c.topic == "/ground/link") return Kind::kGroundLink;
   if (c.message_encoding != "cdr") return Kind::kNone;
   if (c.topic == "/hq/vehicle_state" && schema_name == "hq_msgs::VehicleState") {
     return Kind::kState;
@@ -132,6 +148,17 @@ bool dispatch(Kind kind, const mcap::Message& m, Decoders& d, FlightSampleSink& 
       }
       sink.on_command(m.log_time_ns, valid, v, yaw_rate);
       ++counts.commands;
+      return true;
+    }
+    case Kind::kGroundLink: {
+      float state_age_ms = -1;
+      float round_trip_ms = -1;
+      const std::string_view json(reinterpret_cast<const char*>(m.data.data()), m.data.size());
+      if (!parse_ground_link(json, state_age_ms, round_trip_ms)) {
+        d.error = "not the recorder's link JSON (state_age_ms, round_trip_ms)";
+        return false;
+      }
+      sink.on_ground_link(m.log_time_ns, state_age_ms, round_trip_ms);
       return true;
     }
     case Kind::kNone:

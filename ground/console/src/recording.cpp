@@ -331,7 +331,9 @@ const std::vector<std::string> kStateColumns = {
     "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
     "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
     "v_cmd_flown_H_z_mps", "clearance_m", "hover_thrust_gain", "hover_thrust_converged",
-    "position_invalid_reason", "position_age_s", "position_sigma_m"};
+    "position_invalid_reason", "position_age_s", "position_sigma_m", "modes_offered",
+    "marker_mode_off_reason", "explore_mode_off_reason", "marker_target_valid", "marker_target_id",
+    "explore_phase", "state_age_ms", "round_trip_ms"};
 constexpr std::size_t kRequiredStateColumns = 18;
 
 using Fields = std::vector<std::string_view>;
@@ -471,6 +473,52 @@ bool parse_state_position_validity(const CsvFile& file, const Fields& f, Recorde
   return true;
 }
 
+// Columns 45-47 (telemetry v3): the modes the vehicle offered and why marker and explore were
+// off (0: not said).
+bool parse_state_modes_offered(const CsvFile& file, const Fields& f, RecordedState& s,
+                               std::string& error) {
+  if (!file.has(45) || !file.has(47)) return true;
+  if (!parse_integer(f[45], s.modes_offered) || s.modes_offered < 0 || s.modes_offered > 0x1F ||
+      !parse_integer(f[46], s.marker_mode_off_reason) || s.marker_mode_off_reason < 0 ||
+      s.marker_mode_off_reason > 255 || !parse_integer(f[47], s.explore_mode_off_reason) ||
+      s.explore_mode_off_reason < 0 || s.explore_mode_off_reason > 255) {
+    error = "modes_offered = '" + std::string(f[45]) + "', marker_mode_off_reason = '" +
+            std::string(f[46]) + "', explore_mode_off_reason = '" + std::string(f[47]) +
+            "', expected 0..31, 0..255, 0..255";
+    return false;
+  }
+  return true;
+}
+
+// Columns 48-52 (telemetry v3): the marker target and explore phase the state carried, and the
+// ground's link figures as the state arrived (0: unknown).
+bool parse_state_target_and_link(const CsvFile& file, const Fields& f, RecordedState& s,
+                                 std::string& error) {
+  if (file.has(48) && file.has(50)) {
+    int valid = 0;
+    int id = 0;
+    if (!parse_integer(f[48], valid) || !parse_integer(f[49], id) || id < 0 ||
+        !parse_integer(f[50], s.explore_phase) || s.explore_phase < 0 || s.explore_phase > 7) {
+      error = "marker_target_valid = '" + std::string(f[48]) + "', marker_target_id = '" +
+              std::string(f[49]) + "', explore_phase = '" + std::string(f[50]) +
+              "', expected 0/1, an id >= 0 and 0..7";
+      return false;
+    }
+    s.marker_target_id = valid != 0 ? id : -1;
+  }
+  if (file.has(51) && file.has(52)) {
+    std::array<float, 2> figures{};
+    if (!parse_floats(f, 51, kStateColumns, figures, error) || figures[0] < 0 || figures[1] < 0) {
+      if (error.empty())
+        error = "state_age_ms or round_trip_ms negative, expected >= 0 (0: unknown)";
+      return false;
+    }
+    s.state_age_ms = figures[0];
+    s.round_trip_ms = figures[1];
+  }
+  return true;
+}
+
 void read_states(Recording& r, FileStarts& starts) {
   CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
   telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
@@ -478,7 +526,9 @@ void read_states(Recording& r, FileStarts& starts) {
     if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
         !parse_state_flight(telemetry, f, s, error) ||
         !parse_state_thrust(telemetry, f, s, error) ||
-        !parse_state_position_validity(telemetry, f, s, error)) {
+        !parse_state_position_validity(telemetry, f, s, error) ||
+        !parse_state_modes_offered(telemetry, f, s, error) ||
+        !parse_state_target_and_link(telemetry, f, s, error)) {
       return false;
     }
     r.states.push_back(s);

@@ -52,7 +52,7 @@ class RecordingBuilder : public FlightSampleSink {
       return;
     }
     RecordedState row;
-    to_recorded(log_ns, 1e-6 * static_cast<double>(log_ns - publish_ns), s, row);
+    to_recorded(log_ns, 1e-6 * static_cast<double>(log_ns - publish_ns), s, row, link_figures_);
     r_.states.push_back(std::move(row));
     state_vehicle_.push_back(s.vehicle_id);
     ++states_of_[s.vehicle_id];
@@ -78,6 +78,12 @@ class RecordingBuilder : public FlightSampleSink {
   void on_command(std::int64_t t_ns, bool valid, const std::array<float, 3>& v_H_mps,
                   float yaw_rate_radps) override {
     r_.commands.push_back({t_ns, v_H_mps, yaw_rate_radps, valid});
+  }
+  // The ground's figures at its latest tick before a state stand for that state's (the recorder
+  // writes them per command tick, not per state).
+  void on_ground_link(std::int64_t /*t_ns*/, float state_age_ms, float round_trip_ms) override {
+    link_figures_.state_age_ms = std::max(state_age_ms, 0.0F);
+    link_figures_.round_trip_ms = std::max(round_trip_ms, 0.0F);
   }
   void on_problem(const std::string& text) override { add_problem(r_, text); }
 
@@ -108,6 +114,7 @@ class RecordingBuilder : public FlightSampleSink {
   std::vector<std::uint32_t> depth_vehicle_;
   std::vector<std::uint32_t> event_vehicle_;
   std::map<std::uint32_t, std::size_t> states_of_;
+  LinkFigures link_figures_;
 };
 
 }  // namespace

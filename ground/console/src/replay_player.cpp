@@ -231,6 +231,8 @@ void ReplayPlayer::rewind_if_behind(ConsoleModel& model, std::int64_t t_ns) {
     model.reset();
     is_ = ic_ = ie_ = ir_ = 0;
     next_session_ = 0;
+    vehicle_ended_ = false;
+    vehicle_ended_text_[0] = '\0';
   }
   fed_any_ = true;
   fed_ns_ = t_ns;
@@ -242,6 +244,9 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
       timeline_.sessions[next_session_].first_state == is_) {
     const SessionStart& start = timeline_.sessions[next_session_++];
     if (start.first_state > 0) {
+      // As the live station: a new session ends the old one's goodbye banner.
+      vehicle_ended_ = false;
+      vehicle_ended_text_[0] = '\0';
       model.start_new_track();
       char text[160];
       std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session", start.t_s,
@@ -250,8 +255,8 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
     }
   }
   ++is_;
-  // The live link's path (state_feed.hpp): the replayed frame derives what the live one did.
-  // Link figures the record does not hold (state age, round trip) stay unknown (0).
+  // The live link's path (state_feed.hpp): the replayed frame derives what the live one did,
+  // with the link figures the ground recorded beside the state (0: unknown, older records).
   hq::console::feed_state(model, s);
 }
 
@@ -274,6 +279,10 @@ void ReplayPlayer::feed_streams(ConsoleModel& model, std::int64_t t_ns) {
     } else {
       const RecordedEvent& e = r.events[ie_++];
       model.on_event(e.receipt_ns, e.severity, e.text.c_str());
+      if (e.code == static_cast<int>(link::kEventCodeVehicleEnded)) {
+        vehicle_ended_ = true;
+        std::snprintf(vehicle_ended_text_.data(), vehicle_ended_text_.size(), "%s", e.text.c_str());
+      }
     }
   }
 }
@@ -327,6 +336,15 @@ void ReplayPlayer::publish_status(ConsoleModel& model) const {
   link.last_latency_ms = c.latency_last_ms;
   link.latency_p50_ms = c.latency_p50_ms;
   link.state_age_s = c.state_age_s;
+  // The ground's own figures at the latest state, as recorded (< 0: unknown, as live before the
+  // first heartbeat echo).
+  if (c.states > 0) {
+    const RecordedState& last = recording_.states[c.states - 1];
+    link.round_trip_ms = last.round_trip_ms > 0 ? static_cast<double>(last.round_trip_ms) : -1.0;
+    link.state_one_way_ms = last.state_age_ms > 0 ? static_cast<double>(last.state_age_ms) : -1.0;
+  }
+  link.vehicle_ended = vehicle_ended_;
+  link.vehicle_ended_text = vehicle_ended_text_;
   link.state_loss_percent = c.states + c.sequence_gaps > 0
                                 ? 100.0 * static_cast<double>(c.sequence_gaps) /
                                       static_cast<double>(c.states + c.sequence_gaps)

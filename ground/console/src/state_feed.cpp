@@ -65,9 +65,11 @@ void set_flight_fields(const link::VehicleState& s, RecordedState& out) {
 }  // namespace
 
 void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::VehicleState& s,
-                 RecordedState& out) {
+                 RecordedState& out, const LinkFigures& figures) {
   out.receipt_ns = receipt_ns;
   out.latency_ms = latency_ms;
+  out.state_age_ms = std::isfinite(figures.state_age_ms) ? figures.state_age_ms : 0.0F;
+  out.round_trip_ms = std::isfinite(figures.round_trip_ms) ? figures.round_trip_ms : 0.0F;
   out.sequence = s.sequence_number;
   out.vehicle_t_ns = s.t_ns;
   out.v_H_mps = array3(s.v_H_mps);
@@ -93,6 +95,9 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.hover_thrust_converged = s.hover_thrust_converged;
   out.marker_target_id = s.marker_target_valid ? s.marker_target_id : -1;
   out.explore_phase = s.explore_phase;
+  out.modes_offered = s.modes_offered;
+  out.marker_mode_off_reason = s.marker_mode_off_reason;
+  out.explore_mode_off_reason = s.explore_mode_off_reason;
   // resize() within the capacity reserved by LiveStateFeed: no allocation on the live path.
   out.obstacle_points_body_m.resize(s.obstacle_points_body_m._length);
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
@@ -115,6 +120,17 @@ const char* explore_phase_text(int phase) {
   static const char* const kNames[8] = {"",     "lift-off", "search", "explore",
                                         "edge", "navigate", "land",   "done"};
   return phase >= 0 && phase < 8 ? kNames[phase] : "";
+}
+
+// Why the vehicle does not offer `mode`, in the operator's words with what turns it on; "" when
+// offered or when the vehicle does not say what it offers (modes_offered 0: an older vehicle).
+const char* mode_off_text(int modes_offered, hq_msgs_Mode mode, int reason) {
+  if (modes_offered == 0 || (modes_offered & link::mode_bit(mode)) != 0) return "";
+  if (reason == link::kModeOffMarkerStageDisabled) {
+    return "off on this vehicle (markers.enabled: false in its config; fly with --config "
+           "config/markers.yaml)";
+  }
+  return "off on this vehicle";  // no reason, or a newer vehicle's this console does not know
 }
 
 }  // namespace
@@ -146,7 +162,7 @@ const char* operator_input_text(const char* recorded_name) {
   return "";
 }
 
-void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& figures) {
+void feed_state(ConsoleModel& model, const RecordedState& s) {
   StateExtras extras;
   extras.position_valid = s.position_valid;
   extras.p_W_m = s.p_W_m;
@@ -156,8 +172,8 @@ void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& 
   extras.position_sigma_m = s.position_sigma_m;
   extras.truth_valid = s.truth_valid;
   extras.v_truth_H_mps = s.v_truth_H_mps;
-  extras.state_age_ms = figures.state_age_ms;
-  extras.round_trip_ms = figures.round_trip_ms;
+  extras.state_age_ms = s.state_age_ms;
+  extras.round_trip_ms = s.round_trip_ms;
   extras.markers = s.markers.data();
   extras.marker_count = s.markers.size();
   extras.flight_state = s.flight_fields ? flight_state_text(s.flight_state) : "-";
@@ -176,6 +192,11 @@ void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& 
   extras.hover_thrust_converged = s.hover_thrust_converged;
   extras.marker_target_id = s.marker_target_id;
   extras.explore_phase = explore_phase_text(s.explore_phase);
+  extras.modes_offered = static_cast<std::uint8_t>(s.modes_offered);
+  extras.marker_mode_off =
+      mode_off_text(s.modes_offered, hq_msgs_MODE_MARKER, s.marker_mode_off_reason);
+  extras.explore_mode_off =
+      mode_off_text(s.modes_offered, hq_msgs_MODE_EXPLORE, s.explore_mode_off_reason);
   static_assert(sizeof(std::array<float, 3>) == 3 * sizeof(float));
   const float* cloud =
       s.obstacle_points_body_m.empty() ? nullptr : s.obstacle_points_body_m.front().data();
@@ -191,8 +212,8 @@ LiveStateFeed::LiveStateFeed() {
 
 void LiveStateFeed::on_state(ConsoleModel& model, std::int64_t receipt_ns, double latency_ms,
                              const link::VehicleState& s, const LinkFigures& figures) {
-  to_recorded(receipt_ns, latency_ms, s, row_);
-  feed_state(model, row_, figures);
+  to_recorded(receipt_ns, latency_ms, s, row_, figures);
+  feed_state(model, row_);
 }
 
 }  // namespace hq::console

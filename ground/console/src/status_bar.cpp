@@ -20,11 +20,13 @@ constexpr const char* kKeyHint =
     "H hover | L land | M marker | X explore | B mute alarm | Esc quit";
 
 // One "name: value" field in a column `chars` characters wide (the default font is monospaced),
-// clipped to it: the next field starts at the same place whatever this one says.
+// clipped to it: the next field starts at the same place whatever this one says. A column that
+// would pass the window's right edge starts a new line at the row's first column.
 class Row {
  public:
   /// `new_line`: the row starts a line (else it carries on the line of the item before).
-  Row(float x0, bool new_line) : x_(x0), new_line_(new_line) {}
+  Row(float x0, bool new_line, bool& columns_inside)
+      : x_(x0), first_x_(x0), new_line_(new_line), columns_inside_(columns_inside) {}
   void field(const char* name, const char* value, ImU32 colour, bool greyed, int chars) {
     char text[128];
     std::snprintf(text, sizeof text, "%s: %s", name, value);
@@ -33,6 +35,12 @@ class Row {
   void put(const char* text, ImU32 colour, int chars) {
     // Two characters more than the widest text: a gap between the columns.
     const float column = static_cast<float>(chars + 2) * ImGui::CalcTextSize("0").x;
+    const float right = ImGui::GetWindowContentRegionMax().x;
+    if (!new_line_ && x_ > first_x_ && x_ + column - 6 > right) {
+      new_line_ = true;
+      x_ = first_x_;
+    }
+    if (x_ + column - 6 > right) columns_inside_ = false;  // one column wider than the window
     if (new_line_) {
       ImGui::SetCursorPosX(x_);
       new_line_ = false;
@@ -49,7 +57,9 @@ class Row {
 
  private:
   float x_;
+  float first_x_;
   bool new_line_;
+  bool& columns_inside_;
 };
 
 // mm:ss of flight.
@@ -63,9 +73,9 @@ void clock_text(double t_s, char* out, std::size_t size) {
 }
 
 // Rows 1 and 2: what the vehicle is doing, how it moves and what limits it.
-void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
+void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0, bool& inside) {
   ImGui::TextUnformatted("VEHICLE");
-  Row row1(x0 + 9 * ImGui::CalcTextSize("0").x, false);
+  Row row1(x0 + 9 * ImGui::CalcTextSize("0").x, false, inside);
   const ImU32 flight_colour = landed ? IM_COL32(230, 200, 80, 255)
                               : std::strcmp(s.flight_state, "airborne") == 0
                                   ? kOk
@@ -103,7 +113,7 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0) {
   row1.field("flight time", text, kText, false, 18);
 
   // Row 2: how it moves and what limits it.
-  Row row2(x0, true);
+  Row row2(x0, true, inside);
   const auto& v = s.latest.v_est_H_mps;
   std::snprintf(text, sizeof text, "%.2f m/s",
                 std::hypot(static_cast<double>(v[0]), static_cast<double>(v[1])));
@@ -175,10 +185,11 @@ int link_state_text(const Snapshot& s, char* out, std::size_t size) {
   return 0;
 }
 
-StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, float width) {
+StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, float width,
+                                 float height) {
   StatusBarActions actions;
   ImGui::SetNextWindowPos(ImVec2(0, 0), ImGuiCond_Always);
-  ImGui::SetNextWindowSize(ImVec2(width, status_bar_height()), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(width, std::max(height, status_bar_height())), ImGuiCond_Always);
   ImGui::Begin("Status", nullptr,
                ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
                    ImGuiWindowFlags_NoCollapse | ImGuiWindowFlags_NoSavedSettings |
@@ -195,7 +206,7 @@ StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, fl
     ImGui::TextColored(ImColor(IM_COL32(230, 200, 80, 255)), "VEHICLE: %s", link);
     ImGui::TextUnformatted("");
   } else {
-    draw_vehicle_rows(s, grey, landed, x0);
+    draw_vehicle_rows(s, grey, landed, x0, actions.columns_inside);
   }
 
   // Row 3: the actions (take off, mute) and the keys.
@@ -225,7 +236,12 @@ StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, fl
     ImGui::TextColored(ImColor(IM_COL32(230, 200, 80, 255)), "landed - press U to take off");
     ImGui::SameLine(0, 18);
   }
+  // The hint wraps at the window's edge: its end (Esc quit) stays on screen when narrow.
+  ImGui::PushTextWrapPos(0);
   ImGui::TextColored(ImColor(IM_COL32(170, 170, 190, 255)), "%s", kKeyHint);
+  ImGui::PopTextWrapPos();
+  const ImGuiStyle& style = ImGui::GetStyle();
+  actions.needed_height_px = ImGui::GetCursorPosY() - style.ItemSpacing.y + style.WindowPadding.y;
   ImGui::End();
   return actions;
 }

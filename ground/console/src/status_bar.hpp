@@ -1,7 +1,9 @@
 #pragma once
 // The status bar across the top of the console: the flight at a glance in fixed columns on
-// three rows of a fixed height, clipped, never wrapped, so that nothing below it moves as
-// values change. The link's state is said once, in the same words as the link-loss banner.
+// three rows, each value clipped to its column so that nothing moves as values change. A window
+// too narrow for a row's columns continues them on the next line (and the key hint wraps)
+// rather than cutting off its end: the bar then grows by those lines, which depend only on the
+// width. The link's state is said once, in the same words as the link-loss banner.
 
 #include "hq/console/console_model.hpp"
 
@@ -21,9 +23,13 @@ struct StatusBarActions {
   bool take_off = false;
   bool toggle_mute = false;
   bool take_off_hint = false;  ///< The landed take-off hint was shown.
+  /// The height its content took (lines wrapped at this width); the next frame's height.
+  float needed_height_px = 0;
+  /// Every column within the window's width.
+  bool columns_inside = true;
 };
 
-/// The bar's height for the current font: three rows and the window padding.
+/// The bar's least height for the current font: three rows and the window padding.
 float status_bar_height();
 
 /// The link's state in the banner's words: "waiting", "ok", "STALE 0.8 s", "LOST 6.1 s", or
@@ -31,7 +37,9 @@ float status_bar_height();
 /// Writes into `out`; returns its colour class: 0 ok, 1 warning, 2 alarm, 3 neutral.
 int link_state_text(const Snapshot& s, char* out, std::size_t size);
 
-/// Draws the bar at the window's top, `width` wide, status_bar_height() high.
-StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, float width);
+/// Draws the bar at the window's top, `width` wide and `height` high (at least
+/// status_bar_height(); the previous frame's needed_height_px shows it whole).
+StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, float width,
+                                 float height);
 
 }  // namespace hq::console

@@ -91,7 +91,8 @@ std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2
   c.vec3(0.2F, 0.0F, 0.0F).put(0.85F);
   c.put(1.2F).put<std::uint8_t>(1);             // hover thrust: the rotors give 120 %, learnt
   c.put<std::uint8_t>(0).put(0.2F).put(0.05F);  // position valid, marker 0.2 s old, sigma 5 cm
-  c.put<std::uint8_t>(1).put<std::int32_t>(12).put<std::uint8_t>(3);  // to marker 12, exploring
+  c.put<std::uint8_t>(1).put<std::int32_t>(12).put<std::uint8_t>(3);    // to marker 12, exploring
+  c.put<std::uint8_t>(0x1F).put<std::uint8_t>(0).put<std::uint8_t>(0);  // every mode offered
   return c.bytes();
 }
 
@@ -215,6 +216,10 @@ TEST(FlightMcap, EveryFieldOfTheRecordedStatesReturns) {
   EXPECT_EQ(s.position_invalid_reason, 0);
   EXPECT_FLOAT_EQ(s.position_age_s, 0.2F);
   EXPECT_FLOAT_EQ(s.position_sigma_m, 0.05F);
+  EXPECT_EQ(s.marker_target_id, 12);
+  EXPECT_EQ(s.explore_phase, 3);
+  EXPECT_EQ(s.modes_offered, 0x1F);
+  EXPECT_EQ(s.marker_mode_off_reason, 0);
   EXPECT_EQ(s.markers_n, 1);
   EXPECT_TRUE(s.truth_valid);
   EXPECT_FLOAT_EQ(s.v_truth_H_mps[0], 0.77F);

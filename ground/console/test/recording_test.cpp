@@ -178,9 +178,10 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
                                "telemetry.csv: truth_valid", "telemetry.csv: v_truth_H_x_mps",
                                "telemetry.csv: markers_n"}));
   // 11 of the second layout's columns, 11 of the flight fields' (session .. clearance), the
-  // two hover thrust columns, the three of the position's validity and the two files of telemetry
+  // two hover thrust columns, the three of the position's validity, the eight of telemetry v3
+  // (modes offered, marker target, explore phase, link figures) and the two files of telemetry
   // v2 (obstacles.csv, markers.csv).
-  EXPECT_EQ(r.absent_columns.size(), 29U);
+  EXPECT_EQ(r.absent_columns.size(), 37U);
   EXPECT_THAT(r.absent_columns,
               ::testing::Contains(HasSubstr("obstacles.csv (the whole file: an older recording; "
                                             "replay shows no obstacle cloud)")));
@@ -207,8 +208,8 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const Recording r = load_recording(dir.string());
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
-  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:23: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:29: expected 46 fields"));
+  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:32: v_H_x_mps = 'abc'"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:38: expected 54 fields"));
   fs::remove_all(dir);
 }
 
@@ -237,8 +238,8 @@ TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
   std::ofstream(dir / "telemetry.csv") << text;
   const std::string message =
       hq::testing::input_error_message([&] { load_recording(dir.string()); });
-  EXPECT_THAT(message, HasSubstr("telemetry.csv:23: receipt_ns = 9099000000000000000 is "));
-  EXPECT_THAT(message, HasSubstr("after line 22's 1066000000, expected rows in time order at most "
+  EXPECT_THAT(message, HasSubstr("telemetry.csv:32: receipt_ns = 9099000000000000000 is "));
+  EXPECT_THAT(message, HasSubstr("after line 31's 1066000000, expected rows in time order at most "
                                  "3600 s apart"));
   fs::remove_all(dir);
 }
@@ -268,7 +269,7 @@ TEST(Recording, FileStartingFarFromTheOthersIsRejected) {
   std::ofstream(dir / "events.csv") << text;
   EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
               HasSubstr("events.csv:4: first stamp 5100000000000000000 is 5.1e+09 s after "
-                        "telemetry.csv:20's 1000000000, expected the files of one recording to "
+                        "telemetry.csv:29's 1000000000, expected the files of one recording to "
                         "start within 3600 s"));
   fs::remove_all(dir);
 }

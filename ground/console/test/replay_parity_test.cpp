@@ -3,7 +3,9 @@
 // the link's CDR, here serialised by Cyclone itself) and replayed through ReplayPlayer into a
 // second console, THEN every replayed frame shows what the live one showed: flight state,
 // motors, height, clearance, operator input, thrust, the obstacle cloud placed in the top
-// view, the track and heading, the markers and the state latency.
+// view, the track and heading, the markers and the state latency, the modes the vehicle offers,
+// its marker target and explore phase, the ground's own link figures (state age, round trip)
+// and, after the vehicle's goodbye event, the "vehicle ended" banner.
 #include "hq/console/console_model.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
@@ -34,6 +36,12 @@ constexpr std::int64_t kT0_ns = 1'700'000'000'000'000'000LL;
 constexpr std::int64_t kPeriod_ns = 33'000'000;
 constexpr std::int64_t kLatency_ns = 2'500'000;  // exact in the CSV's latency_us (%.1f)
 constexpr int kStates = 60;
+constexpr const char* kGoodbye = "vehicle ended: stopped by SIGTERM; landed";
+
+// What the ground measured of the link as state i arrived (exact at the CSV's 3 decimals).
+LinkFigures figures_at(int i) {
+  return {12.5F + 0.25F * static_cast<float>(i), 40.0F + 0.5F * static_cast<float>(i % 7)};
+}
 
 // A state and the storage its sequences point into.
 struct FlightState {
@@ -100,6 +108,17 @@ std::vector<FlightState> make_flight() {
     s.yaw_W_rad = s.position_valid ? 0.5F : 0.0F;
     s.truth_valid = true;
     s.v_truth_H_mps = {0.25F, 0.0F, 0.0F};
+    // Flying to marker 3 from state 40, exploring (phase 3) for a stretch of it.
+    s.marker_target_valid = i >= 40 && i < 52;
+    s.marker_target_id = s.marker_target_valid ? 3 : 0;
+    s.explore_phase = i >= 44 && i < 50 ? 3 : 0;
+    // The first half from a vehicle without its marker stage, the second with it.
+    if (i < 30) {
+      s.modes_offered = link::kModesWithoutMarkerStage;
+      s.marker_mode_off_reason = s.explore_mode_off_reason = link::kModeOffMarkerStageDisabled;
+    } else {
+      s.modes_offered = link::kModesOfferedMask;
+    }
     if (i >= 15 && i % 10 == 5) {
       for (int p = 0; p < 12; ++p) {
         const auto q = static_cast<float>(p);
@@ -124,13 +143,30 @@ std::vector<FlightState> make_flight() {
 
 std::int64_t receipt_ns(int i) { return kT0_ns + i * kPeriod_ns; }
 
+// The vehicle's goodbye, received three quarters of a period after the last state.
+link::Event goodbye() {
+  link::Event e{};
+  e.vehicle_id = 1;
+  e.sequence_number = 9;
+  e.t_ns = 5'000'000'000LL + kStates * kPeriod_ns;
+  e.severity = hq_msgs_SEVERITY_INFO;
+  e.code = link::kEventCodeVehicleEnded;
+  std::snprintf(e.text, sizeof e.text, "%s", kGoodbye);
+  e.session_id = 0xABCDEFULL;
+  return e;
+}
+std::int64_t goodbye_receipt_ns() {
+  return kT0_ns + (kStates - 1) * kPeriod_ns + 3 * kPeriod_ns / 4;
+}
+
 // The CDR Cyclone sends for `s` (XCDR1, little endian), with its encapsulation header: what the
 // recorder takes with dds_takecdr and writes unchanged.
-std::vector<std::uint8_t> cdr_of(const link::VehicleState& s) {
+template <typename T>
+std::vector<std::uint8_t> cdr_of(const T& s) {
   dds_ostreamLE_t os;
   dds_ostreamLE_init(&os, 0, CDR_ENC_VERSION_1);
   dds_stream_writeLE(&os, reinterpret_cast<const char*>(&s),
-                     link::TopicTraits<link::VehicleState>::descriptor().m_ops);
+                     link::TopicTraits<T>::descriptor().m_ops);
   std::vector<std::uint8_t> out = {0x00, 0x01, 0x00, 0x00};
   out.insert(out.end(), os.x.m_buffer, os.x.m_buffer + os.x.m_index);
   dds_ostreamLE_fini(&os);
@@ -145,18 +181,38 @@ void write_mcap(const fs::path& path, const std::vector<FlightState>& flight) {
       writer.add_schema("hq_msgs::VehicleState", "omgidl",
                         {reinterpret_cast<const std::uint8_t*>(idl.data()), idl.size()});
   const std::uint16_t channel = writer.add_channel(schema, "/hq/vehicle_state", "cdr");
+  const std::uint16_t event_schema = writer.add_schema(
+      "hq_msgs::Event", "omgidl", {reinterpret_cast<const std::uint8_t*>(idl.data()), idl.size()});
+  const std::uint16_t events = writer.add_channel(event_schema, "/hq/event", "cdr");
+  // The ground's own figures (the recorder's /ground/link, written per command tick: here one
+  // tick just before each state).
+  const std::uint16_t ground_link = writer.add_channel(0, "/ground/link", "json");
   for (int i = 0; i < kStates; ++i) {
+    const LinkFigures f = figures_at(i);
+    const std::string json =
+        "{\"timestamp\":{\"sec\":0,\"nsec\":0},\"latency_ms\":2.5,"
+        "\"round_trip_ms\":" +
+        std::to_string(f.round_trip_ms) + ",\"state_age_ms\":" + std::to_string(f.state_age_ms) +
+        "}";
+    writer.write(ground_link, static_cast<std::uint32_t>(i), receipt_ns(i) - 1000,
+                 receipt_ns(i) - 1000,
+                 {reinterpret_cast<const std::uint8_t*>(json.data()), json.size()});
     writer.write(channel, static_cast<std::uint32_t>(i), receipt_ns(i), receipt_ns(i) - kLatency_ns,
                  cdr_of(flight[static_cast<std::size_t>(i)].s));
   }
+  writer.write(events, 0, goodbye_receipt_ns(), goodbye_receipt_ns(), cdr_of(goodbye()));
   writer.close();
 }
 
 void write_csv(const fs::path& dir, const std::vector<FlightState>& flight) {
   ground::TelemetryRecorder recorder(dir.string());
   for (int i = 0; i < kStates; ++i) {
-    recorder.state(receipt_ns(i), kLatency_ns, flight[static_cast<std::size_t>(i)].s);
+    const LinkFigures f = figures_at(i);
+    recorder.state(receipt_ns(i), kLatency_ns, flight[static_cast<std::size_t>(i)].s,
+                   std::llround(1e6 * static_cast<double>(f.state_age_ms)),
+                   std::llround(1e6 * static_cast<double>(f.round_trip_ms)));
   }
+  recorder.event(goodbye_receipt_ns(), goodbye());
   ASSERT_TRUE(recorder.close()) << recorder.error();
 }
 
@@ -185,6 +241,13 @@ void expect_same_view(const Snapshot& live, const Snapshot& replayed, const std:
   EXPECT_EQ(replayed.position_from_vehicle, live.position_from_vehicle);
   EXPECT_EQ(replayed.position_states, live.position_states);
   EXPECT_EQ(replayed.have_truth, live.have_truth);
+  EXPECT_EQ(replayed.modes_offered, live.modes_offered);
+  EXPECT_STREQ(replayed.marker_mode_off, live.marker_mode_off);
+  EXPECT_STREQ(replayed.explore_mode_off, live.explore_mode_off);
+  EXPECT_EQ(replayed.marker_target_id, live.marker_target_id);
+  EXPECT_STREQ(replayed.explore_phase, live.explore_phase);
+  EXPECT_NEAR(replayed.latest.state_age_ms, live.latest.state_age_ms, 1e-3F);
+  EXPECT_NEAR(replayed.latest.round_trip_ms, live.latest.round_trip_ms, 1e-3F);
   EXPECT_EQ(replayed.track_count, live.track_count);
   ASSERT_EQ(replayed.cloud_count, live.cloud_count);
   for (std::size_t i = 0; i < live.cloud_count; ++i) {
@@ -212,7 +275,7 @@ std::vector<Snapshot> live_frames(const std::vector<FlightState>& flight) {
   std::vector<Snapshot> frames;
   for (int i = 0; i < kStates; ++i) {
     feed.on_state(live, receipt_ns(i), 1e-6 * static_cast<double>(kLatency_ns),
-                  flight[static_cast<std::size_t>(i)].s, {});
+                  flight[static_cast<std::size_t>(i)].s, figures_at(i));
     frames.push_back(live.make_snapshot());
     live.snapshot(frames.back());
   }
@@ -232,8 +295,20 @@ void expect_replay_matches_live(const Recording& r, const std::vector<Snapshot>&
     replayed.snapshot(view);
     expect_same_view(live[static_cast<std::size_t>(i)], view,
                      r.directory + ", state " + std::to_string(i));
+    // The link panel's figures: the ground's, as recorded with the state
+    EXPECT_NEAR(view.link.round_trip_ms, figures_at(i).round_trip_ms, 1e-3) << "state " << i;
+    EXPECT_NEAR(view.link.state_one_way_ms, figures_at(i).state_age_ms, 1e-3) << "state " << i;
+    EXPECT_FALSE(view.link.vehicle_ended) << "state " << i;
     ASSERT_FALSE(::testing::Test::HasFailure()) << "first difference at state " << i;
   }
+  // After the goodbye: the live console's blue banner, its words the vehicle's.
+  player.seek(player.timeline().duration_s);
+  player.feed(replayed, frames_missing);
+  replayed.snapshot(view);
+  EXPECT_TRUE(view.link.vehicle_ended);
+  char banner[256];
+  ASSERT_TRUE(vehicle_ended_banner(view.link, banner, sizeof banner));
+  EXPECT_THAT(banner, HasSubstr(kGoodbye));
 }
 
 // The live view must show the flight's fields (not the defaults both sides would share).
@@ -259,6 +334,14 @@ TEST(ReplayParity, TheLiveViewShowsEveryPhaseOfTheFlight) {
   EXPECT_STREQ(live[55].flight_state, "landing");
   EXPECT_TRUE(live[40].hover_thrust_converged);
   EXPECT_FLOAT_EQ(live[40].hover_thrust_gain, 0.9375F);
+  EXPECT_THAT(live[10].explore_mode_off, HasSubstr("markers.enabled: false in its config"));
+  EXPECT_THAT(live[10].marker_mode_off, HasSubstr("--config config/markers.yaml"));
+  EXPECT_STREQ(live[40].marker_mode_off, "");
+  EXPECT_EQ(live[40].modes_offered, link::kModesOfferedMask);
+  EXPECT_EQ(live[45].marker_target_id, 3);
+  EXPECT_STREQ(live[45].explore_phase, "explore");
+  EXPECT_EQ(live[30].marker_target_id, -1);
+  EXPECT_FLOAT_EQ(live[20].latest.state_age_ms, 17.5F);
 }
 
 // The live path runs on the flying thread: after construction it allocates nothing, even for

@@ -431,6 +431,9 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.marker_target_valid = extras.marker_target_id >= 0;
   s.marker_target_id = std::max(extras.marker_target_id, 0);
   s.explore_phase = static_cast<std::uint8_t>(std::clamp(extras.explore_phase, 0, 7));
+  s.modes_offered = extras.modes_offered & link::kModesOfferedMask;
+  s.marker_mode_off_reason = extras.marker_mode_off_reason;
+  s.explore_mode_off_reason = extras.explore_mode_off_reason;
   s.truth_valid = extras.truth_valid && extras.v_truth_H_mps.allFinite();
   s.v_truth_H_mps =
       s.truth_valid ? to_msg(extras.v_truth_H_mps) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};

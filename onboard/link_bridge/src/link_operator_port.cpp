@@ -66,6 +66,14 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
     extras.truth_valid = true;
     extras.v_truth_H_mps = status.truth->v_H_mps;
   }
+  // The marker and explore modes exist only with the marker stage (OnboardChain registers them
+  // with it): the console greys their buttons and says why before the operator asks.
+  const bool marker_stage_on = chain_.markers() != nullptr;
+  extras.modes_offered = marker_stage_on ? link::kModesOfferedMask : link::kModesWithoutMarkerStage;
+  if (!marker_stage_on) {
+    extras.marker_mode_off_reason = link::kModeOffMarkerStageDisabled;
+    extras.explore_mode_off_reason = link::kModeOffMarkerStageDisabled;
+  }
   if (const marker_modes::MarkerStage* stage = chain_.markers()) {
     // What the console shows beside the mode: the marker flown to, the exploration's phase.
     const modes::Mode mode = out.mode.mode;

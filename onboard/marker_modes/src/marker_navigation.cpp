@@ -30,7 +30,13 @@ void read_marker_mode(config::StrictMap& s, MarkerModeConfig& out) {
   s.read_positive("land_align_m", out.land_align_m, 1.0);
   s.read_positive("land_descent_mps", out.land_descent_mps, 1.0);
   s.read_positive("land_handover_height_m", out.land_handover_height_m, 2.0);
-  s.read_positive("max_marker_age_s", out.max_marker_age_s, 600.0);
+  // One limit on a marker's age: the filter's. This mode's own (10 s) never acted, the filter
+  // declared the pose invalid at its 5 s first, so a file setting it meant nothing it said.
+  if (s.has("max_marker_age_s")) {
+    throw InputError(s.describe("max_marker_age_s") +
+                     ": removed; the one limit on a marker's age is the marker filter's "
+                     "markers.navigation.position_max_age_s (default 5.0 s): set that instead");
+  }
   s.finish();
 }
 
@@ -163,9 +169,8 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
   }
 }
 
-bool MarkerNavigation::pose_usable(std::int64_t t_ns, double max_age_s) const {
-  const navigation::PositionCheck check = filter_.check_position(t_ns);
-  return check.valid && check.age_s <= max_age_s;
+bool MarkerNavigation::pose_usable(std::int64_t t_ns) const {
+  return filter_.check_position(t_ns).valid;
 }
 
 const char* describe_position(const navigation::PositionCheck& check,

@@ -83,7 +83,7 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   t_last_ns_ = t_ns;
   // Never flown on an invalid pose: the controller hovers on the velocity estimate instead,
   // and this provider resumes by itself once the pose is valid again (MarkerStage says so).
-  if (!navigation_.pose_usable(t_ns, config_.max_marker_age_s)) {
+  if (!navigation_.pose_usable(t_ns)) {
     return invalid("marker mode: position lost, holding");
   }
   const std::optional<Eigen::Vector3d> p_marker = navigation_.p_W_M_m(marker_id_);
@@ -252,7 +252,7 @@ modes::ModeCommand ExploreProvider::desired(std::int64_t t_ns) {
 std::optional<modes::ModeCommand> ExploreProvider::step(std::int64_t t_ns) {
   StepInputs in;
   in.in_phase_s = 1e-9 * static_cast<double>(t_ns - t_phase_ns_);
-  in.have_pose = navigation_.pose_usable(t_ns, marker_mode_.config().max_marker_age_s);
+  in.have_pose = navigation_.pose_usable(t_ns);
   in.p_W_m = navigation_.p_W_m();
   in.z_target_m = -config_.height_m;
   in.alpha_rad = navigation_.camera_heading_rad();
@@ -412,7 +412,7 @@ const char* MarkerStage::position_event(modes::Mode mode, std::int64_t t_ns) {
     return nullptr;
   }
   const navigation::PositionCheck check = navigation_.position_check(t_ns);
-  const bool usable = check.valid && check.age_s <= marker_mode_.config().max_marker_age_s;
+  const bool usable = check.valid;
   const char* who = mode == modes::Mode::kMarker ? "marker mode" : "explore";
   if (usable) {
     const bool resumed = holding_;

@@ -133,6 +133,19 @@ Validation validate(const VehicleState& state) {
     return {false, "marker_target_id negative"};
   }
   if (state.explore_phase > 7) return {false, "explore_phase not in [0, 7]"};
+  if ((state.modes_offered & ~kModesOfferedMask) != 0) {
+    return {false, "modes_offered has a bit beyond MODE_EXPLORE"};
+  }
+  if (state.marker_mode_off_reason > kMaxModeOffReason ||
+      state.explore_mode_off_reason > kMaxModeOffReason) {
+    return {false, "marker_mode_off_reason or explore_mode_off_reason outside 0..1"};
+  }
+  if (((state.modes_offered & mode_bit(hq_msgs_MODE_MARKER)) != 0 &&
+       state.marker_mode_off_reason != kModeOffNone) ||
+      ((state.modes_offered & mode_bit(hq_msgs_MODE_EXPLORE)) != 0 &&
+       state.explore_mode_off_reason != kModeOffNone)) {
+    return {false, "a mode both offered and off (modes_offered with an off reason)"};
+  }
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};
   }

@@ -153,5 +153,24 @@ TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   EXPECT_THAT(validate(state).reason, HasSubstr("marker_target_id negative"));
 }
 
+TEST(Validate, ModesOfferedBitsAndOffReasonsAgree) {
+  VehicleState state{};
+  const std::uint8_t basic = kModesWithoutMarkerStage;
+  state.modes_offered = basic;
+  state.marker_mode_off_reason = kModeOffMarkerStageDisabled;
+  state.explore_mode_off_reason = kModeOffMarkerStageDisabled;
+  EXPECT_TRUE(validate(state).ok);
+  state.modes_offered = static_cast<std::uint8_t>(basic | mode_bit(hq_msgs_MODE_EXPLORE));
+  EXPECT_THAT(validate(state).reason, HasSubstr("both offered and off"));
+  state.modes_offered = kModesOfferedMask;
+  state.marker_mode_off_reason = state.explore_mode_off_reason = kModeOffNone;
+  EXPECT_TRUE(validate(state).ok);
+  state.modes_offered = 0x20;
+  EXPECT_THAT(validate(state).reason, HasSubstr("beyond MODE_EXPLORE"));
+  state.modes_offered = basic;
+  state.marker_mode_off_reason = 2;
+  EXPECT_THAT(validate(state).reason, HasSubstr("outside 0..1"));
+}
+
 }  // namespace
 }  // namespace hq::link

@@ -171,7 +171,10 @@ class TelemetryRecorder {
   ~TelemetryRecorder();
   TelemetryRecorder(const TelemetryRecorder&) = delete;
   TelemetryRecorder& operator=(const TelemetryRecorder&) = delete;
-  void state(std::int64_t receipt_ns, std::int64_t latency_ns, const link::VehicleState& s);
+  /// A state's row, with what the ground measured of the link as it arrived (the state's age
+  /// through the clock offset and the latest heartbeat round trip; < 0: unknown, written 0).
+  void state(std::int64_t receipt_ns, std::int64_t latency_ns, const link::VehicleState& s,
+             std::int64_t state_age_ns = -1, std::int64_t round_trip_ns = -1);
   void event(std::int64_t receipt_ns, const link::Event& e);
   /// A velocity command as sent at `t_ns` (zero when not valid).
   void command(std::int64_t t_ns, const haptics::VelocityCommand& command, bool valid);

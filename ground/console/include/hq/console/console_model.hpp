@@ -80,6 +80,12 @@ struct StateExtras {
   /// (static text, "" when not exploring).
   int marker_target_id = -1;
   const char* explore_phase = "";
+  /// The modes the vehicle offers (bit per hq_msgs_Mode, as VehicleState.modes_offered; 0: not
+  /// said, every button stays on) and, for marker and explore when not offered, why in plain
+  /// words (static text, "" when offered or not said).
+  std::uint8_t modes_offered = 0;
+  const char* marker_mode_off = "";
+  const char* explore_mode_off = "";
 };
 
 struct TrackPoint {
@@ -238,6 +244,9 @@ struct Snapshot {
   bool hover_thrust_converged = false;
   int marker_target_id = -1;  ///< See StateExtras.
   const char* explore_phase = "";
+  std::uint8_t modes_offered = 0;  ///< See StateExtras.
+  const char* marker_mode_off = "";
+  const char* explore_mode_off = "";
   float roll_rad = 0;
   float pitch_rad = 0;
   float yaw_W_rad = 0;
@@ -372,6 +381,9 @@ class ConsoleModel {
   double take_off_s_ = -1;  ///< < 0: on the ground.
   int marker_target_id_ = -1;
   const char* explore_phase_ = "";
+  std::uint8_t modes_offered_ = 0;
+  const char* marker_mode_off_ = "";
+  const char* explore_mode_off_ = "";
   double last_flight_s_ = -1;
   double last_state_s_ = 0;
 };

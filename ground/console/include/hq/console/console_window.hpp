@@ -82,6 +82,15 @@ struct WindowStats {
   int camera_shown_height_px = 0;
   bool camera_image_whole = false;
   bool force_bars_whole = false;  ///< The haptic force bars (Fz last) all visible.
+  /// Every line of the status bar, the controls and the link panel within its panel.
+  bool status_bar_whole = false;
+  bool control_panel_whole = false;
+  bool link_panel_whole = false;
+  /// The marker and explore mode buttons as last drawn (greyed when the vehicle does not offer
+  /// them), and the note drawn under them saying why ("" when none).
+  bool marker_button_enabled = true;
+  bool explore_button_enabled = true;
+  std::string modes_off_note;
   /// The highest and lowest climb (m/s, up positive) the status bar showed.
   double climb_shown_max_mps = 0;
   double climb_shown_min_mps = 0;

@@ -3,8 +3,8 @@
 /// back as link samples: the cdr channels are decoded with the IDL's idlc-generated descriptors
 /// (Cyclone's CDR stream reader, after its normalize step has checked every length and bound
 /// against the type, so a damaged message is refused, never read out of bounds); the ground's
-/// own channel (/ground/haptics) is read from its JSON. Replay, hq-report and the CSV export
-/// (hq-report --csv) all take their data from here.
+/// own channels (/ground/haptics, /ground/link) are read from their JSON. Replay, hq-report and the
+/// CSV export (hq-report --csv) all take their data from here.
 
 #include "hq/link/link.hpp"
 #include "hq/mcap/mcap.hpp"
@@ -30,6 +30,10 @@ class FlightSampleSink {
   /// velocity when !valid, as sent.
   virtual void on_command(std::int64_t /*t_ns*/, bool /*valid*/,
                           const std::array<float, 3>& /*v_H_mps*/, float /*yaw_rate_radps*/) {}
+  /// The ground's link figures at one tick (/ground/link): the latest state's age through the
+  /// clock offset and the heartbeat round trip (ms; < 0 or NaN: unknown then).
+  virtual void on_ground_link(std::int64_t /*t_ns*/, float /*state_age_ms*/,
+                              float /*round_trip_ms*/) {}
   /// A message that could not be decoded ("flight.mcap: /hq/vehicle_state message 17: ...").
   virtual void on_problem(const std::string& /*text*/) {}
 };

@@ -65,9 +65,19 @@ struct RecordedState {
   float hover_thrust_gain = 0;
   bool hover_thrust_converged = false;
   /// The marker the marker or explore mode flies to (< 0: none) and the explore phase (0: not
-  /// exploring, else ExplorePhase + 1), as the state carried them (live and MCAP only).
+  /// exploring, else ExplorePhase + 1), as the state carried them.
   int marker_target_id = -1;
   int explore_phase = 0;
+  /// The modes the vehicle offered (VehicleState.modes_offered: bit per hq_msgs_Mode; 0: not
+  /// said or not recorded) and why marker and explore were off (link::ModeOffReason; 0: not).
+  int modes_offered = 0;
+  int marker_mode_off_reason = 0;
+  int explore_mode_off_reason = 0;
+  /// What the ground measured of the link when the state arrived: the state's one-way age
+  /// through the clock offset and the latest heartbeat round trip (ms; 0: unknown then, or not
+  /// recorded). CSV: columns of the state's row; MCAP: the ground's /ground/link channel.
+  float state_age_ms = 0;
+  float round_trip_ms = 0;
   /// The obstacle cloud the state carried, body frame FRD (x, y, z in m); empty when it
   /// carried none (the cloud rides on about one state a second) or the record lacks it.
   std::vector<std::array<float, 3>> obstacle_points_body_m;

@@ -14,6 +14,7 @@
 #include "hq/console/console_model.hpp"
 #include "hq/console/recording.hpp"
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <string>
@@ -112,7 +113,8 @@ class ReplayPlayer {
   /// Brings `model` to the position: forwards by feeding what lies between, backwards by
   /// model.reset() and feeding from the start. Of the camera frames passed only the newest is
   /// shown (read from disk in a CSV recording); one missing or unreadable counts in
-  /// frames_missing. Also sets the model's LinkHealth (counts()) and ReplayStatus.
+  /// frames_missing. Also sets the model's LinkHealth (counts(), the recorded round trip and
+  /// state age, a recorded goodbye) and ReplayStatus.
   void feed(ConsoleModel& model, std::uint64_t& frames_missing);
 
  private:
@@ -140,6 +142,10 @@ class ReplayPlayer {
   std::size_t ie_ = 0;
   std::size_t ir_ = 0;
   std::size_t next_session_ = 0;
+  // The fed session's goodbye (link::kEventCodeVehicleEnded), shown as the live console's
+  // banner until the next session starts.
+  bool vehicle_ended_ = false;
+  std::array<char, 161> vehicle_ended_text_{};
   std::vector<std::uint8_t> jpeg_;
   std::vector<std::uint8_t> depth_;
   mutable std::vector<double> latency_window_;

@@ -23,14 +23,16 @@ struct LinkFigures {
   float round_trip_ms = 0;  ///< The latest heartbeat round trip.
 };
 
-/// The row of `s` received at `receipt_ns` with `latency_ms`, into `out` (its vectors reused:
-/// no allocation once they hold a full cloud and kMaxMarkerViews markers). Enums by the names the
-/// recorders write; a vehicle that leaves the flight fields unfilled (session 0) has them unknown.
+/// The row of `s` received at `receipt_ns` with `latency_ms` and the ground's link `figures`,
+/// into `out` (its vectors reused: no allocation once they hold a full cloud and kMaxMarkerViews
+/// markers). Enums by the names the recorders write; a vehicle that leaves the flight fields
+/// unfilled (session 0) has them unknown.
 void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::VehicleState& s,
-                 RecordedState& out);
+                 RecordedState& out, const LinkFigures& figures = {});
 
-/// Hands `s` to `model` as the live link does (ConsoleModel::on_state with its StateExtras).
-void feed_state(ConsoleModel& model, const RecordedState& s, const LinkFigures& figures = {});
+/// Hands `s` to `model` as the live link does (ConsoleModel::on_state with its StateExtras),
+/// with the link figures the row holds.
+void feed_state(ConsoleModel& model, const RecordedState& s);
 
 /// The name the CSV recorder writes for a mode (ground_station.cpp), as static text.
 const char* recorded_mode_name(hq_msgs_Mode mode);

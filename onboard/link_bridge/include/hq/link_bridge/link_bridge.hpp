@@ -109,6 +109,11 @@ struct StateExtras {
   /// (0: not exploring, else marker_modes::ExplorePhase + 1).
   int marker_target_id = -1;
   int explore_phase = 0;
+  /// The modes the vehicle offers (link::mode_bit per hq_msgs_Mode; 0: not said) and why marker
+  /// and explore are not (link::ModeOffReason).
+  std::uint8_t modes_offered = 0;
+  std::uint8_t marker_mode_off_reason = 0;
+  std::uint8_t explore_mode_off_reason = 0;
 };
 
 class LinkBridge {

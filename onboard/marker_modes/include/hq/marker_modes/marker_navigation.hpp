@@ -47,8 +47,8 @@ struct MarkerModeConfig {
   /// Below this height the marker mode hands over to Mode::kLand (vertical touchdown): above
   /// the floor push of the obstacle field, which Mode::kLand switches off (ground phase).
   double land_handover_height_m = 0.6;
-  /// No accepted marker for this long: the provider gives no command (the controller hovers).
-  double max_marker_age_s = 10.0;
+  // No max_marker_age_s: markers.navigation.position_max_age_s is the one limit (a file that
+  // still sets it is refused, naming that key).
 };
 
 /// Exploration of a marker field (smartphone seed §III, its state machine).
@@ -118,9 +118,9 @@ class MarkerNavigation {
   [[nodiscard]] navigation::PositionCheck position_check(std::int64_t t_ns) const {
     return filter_.check_position(t_ns);
   }
-  /// The pose may be flown on at t_ns (position_check valid) and a marker was accepted within
-  /// max_age_s (a mode's own, possibly shorter, limit).
-  [[nodiscard]] bool pose_usable(std::int64_t t_ns, double max_age_s) const;
+  /// The pose may be flown on at t_ns: position_check valid (a marker accepted within
+  /// markers.navigation.position_max_age_s, the one limit on a marker's age, and the rest).
+  [[nodiscard]] bool pose_usable(std::int64_t t_ns) const;
   [[nodiscard]] Eigen::Vector3d p_W_m() const { return filter_.state().p_W_m; }
   [[nodiscard]] double yaw_rad() const;
   /// Marker centre in W, if mapped.

@@ -60,6 +60,22 @@ inline constexpr std::uint32_t kEventCodeIntrusion = 22;
 /// station shows it instead of raising a link loss when the vehicle falls silent.
 inline constexpr std::uint32_t kEventCodeVehicleEnded = 23;
 
+/// VehicleState.modes_offered: bit `mode` (hq_msgs_Mode) set when the vehicle offers it; the
+/// bits above MODE_EXPLORE are never set. 0 means not reported (an older vehicle).
+[[nodiscard]] constexpr std::uint8_t mode_bit(hq_msgs_Mode mode) {
+  return static_cast<std::uint8_t>(1U << static_cast<unsigned>(mode));
+}
+inline constexpr std::uint8_t kModesOfferedMask = 0x1F;
+/// What a vehicle without its marker stage offers: teleop, hover and land.
+inline constexpr std::uint8_t kModesWithoutMarkerStage = static_cast<std::uint8_t>(
+    mode_bit(hq_msgs_MODE_TELEOP) | mode_bit(hq_msgs_MODE_HOVER) | mode_bit(hq_msgs_MODE_LAND));
+/// VehicleState.marker_mode_off_reason / explore_mode_off_reason: why a mode is not offered.
+enum ModeOffReason : std::uint8_t {
+  kModeOffNone = 0,                ///< Offered, or the vehicle does not say.
+  kModeOffMarkerStageDisabled = 1  ///< markers.enabled: false in the vehicle's config.
+};
+inline constexpr std::uint8_t kMaxModeOffReason = kModeOffMarkerStageDisabled;
+
 /// Rejects NaN/Inf and components outside `envelope`.
 Validation validate(const VelocityCommand& command, const CommandEnvelope& envelope);
 /// Rejects a requested mode outside the Mode enum, a marker task outside MarkerTask and a
