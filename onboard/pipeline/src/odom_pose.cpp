@@ -30,8 +30,8 @@ void OdomPose::on_yaw_rate(std::int64_t t_ns, double yaw_rate_H_radps) {
 }
 
 const OdomPoseEstimate& OdomPose::on_estimate(std::int64_t t_ns,
-                                               const estimator::VelocityEstimate& estimate,
-                                               bool landed) {
+                                              const estimator::VelocityEstimate& estimate,
+                                              bool landed) {
   const double dt_s = step_s(t_position_ns_, t_ns);
   if (landed) {
     pose_.valid = true;
@@ -43,16 +43,15 @@ const OdomPoseEstimate& OdomPose::on_estimate(std::int64_t t_ns,
     return pose_;
   }
   // H and odom share z (both level): turning by the yaw takes v_H into odom.
-  const Eigen::Vector3d v_odom_mps = Eigen::AngleAxisd(pose_.yaw_rad, Eigen::Vector3d::UnitZ()) *
-                                     estimate.v_H_mps;
+  const Eigen::Vector3d v_odom_mps =
+      Eigen::AngleAxisd(pose_.yaw_rad, Eigen::Vector3d::UnitZ()) * estimate.v_H_mps;
   pose_.p_odom_m += v_odom_mps * dt_s;
   const double speed_mps = estimate.v_H_mps.head<2>().norm();
   const double variance_xy = estimate.v_H_covariance(0, 0) + estimate.v_H_covariance(1, 1);
   if (std::isfinite(variance_xy) && variance_xy > 0.0) {
     random_variance_m2_ += 2.0 * config_.velocity_error_correlation_s * variance_xy * dt_s;
   }
-  systematic_m_ +=
-      (config_.velocity_error_fraction + pose_.yaw_sigma_rad) * speed_mps * dt_s;
+  systematic_m_ += (config_.velocity_error_fraction + pose_.yaw_sigma_rad) * speed_mps * dt_s;
   pose_.position_sigma_m = std::sqrt(random_variance_m2_) + systematic_m_;
   pose_.valid = true;
   return pose_;

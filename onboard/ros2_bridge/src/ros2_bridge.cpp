@@ -2,6 +2,7 @@
 
 #include "hq/geometry/ros_frames.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 
@@ -19,17 +20,6 @@ namespace {
 constexpr int kRosDepth = 10;             // rmw_qos_profile_default's history depth
 constexpr std::uint8_t kFloat32 = 7;      // sensor_msgs/PointField FLOAT32
 constexpr std::uint32_t kPointStep = 12;  // x, y, z float32
-
-builtin_interfaces_msg_dds__Time_ to_time(std::int64_t t_ns) {
-  // ROS Time: seconds and a nanosecond part in [0, 1e9), also for negative stamps.
-  std::int64_t sec = t_ns / 1'000'000'000;
-  std::int64_t nsec = t_ns % 1'000'000'000;
-  if (nsec < 0) {
-    nsec += 1'000'000'000;
-    --sec;
-  }
-  return {static_cast<std::int32_t>(sec), static_cast<std::uint32_t>(nsec)};
-}
 
 geometry_msgs_msg_dds__Vector3_ to_vector3(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
@@ -54,6 +44,36 @@ void point_at(Sequence& sequence, Element* buffer, std::uint32_t length) {
 }
 
 }  // namespace
+
+RosClock RosClock::epoch_from_monotonic() {
+  // Read back to back; the pair's spread (well under a microsecond) is the offset's error.
+  const auto system = std::chrono::system_clock::now().time_since_epoch();
+  const auto monotonic = std::chrono::steady_clock::now().time_since_epoch();
+  return {std::chrono::duration_cast<std::chrono::nanoseconds>(system - monotonic).count(), false};
+}
+
+builtin_interfaces_msg_dds__Time_ to_ros_time(std::int64_t ros_t_ns) {
+  // ROS Time: seconds and a nanosecond part in [0, 1e9), also for negative stamps.
+  std::int64_t sec = ros_t_ns / 1'000'000'000;
+  std::int64_t nsec = ros_t_ns % 1'000'000'000;
+  if (nsec < 0) {
+    nsec += 1'000'000'000;
+    --sec;
+  }
+  return {static_cast<std::int32_t>(sec), static_cast<std::uint32_t>(nsec)};
+}
+
+std::int64_t from_ros_time(const builtin_interfaces_msg_dds__Time_& time) {
+  return static_cast<std::int64_t>(time.sec) * 1'000'000'000 +
+         static_cast<std::int64_t>(time.nanosec);
+}
+
+link::Qos clock_qos() {
+  // As a simulator's /clock publisher: the latest time is all that matters.
+  link::Qos qos = ros2_qos();
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  return qos;
+}
 
 link::Qos ros2_qos() {
   link::Qos qos;
@@ -103,7 +123,9 @@ Ros2Bridge::Ros2Bridge(const link::Participant& participant, const link::LinkCon
       cloud_writer_(participant, cloud_topic_, ros2_qos()),
       image_writer_(participant, image_topic_, ros2_qos()),
       info_writer_(participant, info_topic_, ros2_qos()),
-      command_reader_(participant, command_topic_, ros2_command_qos()) {
+      command_reader_(participant, command_topic_, ros2_command_qos()),
+      clock_topic_(participant, "rt/clock"),
+      clock_writer_(participant, clock_topic_, clock_qos()) {
   odom_.header.frame_id = c_str(odom_frame_);
   odom_.child_frame_id = c_str(body_frame_);
   imu_.header.frame_id = c_str(body_frame_);
@@ -142,7 +164,12 @@ void Ros2Bridge::set_camera(const geometry::PinholeCamera& camera) {
 }
 
 void Ros2Bridge::publish_state(const link::VehicleState& s) {
-  const auto stamp = to_time(s.t_ns);
+  const auto stamp = to_ros_time(clock_.ros_ns(s.t_ns));
+  if (clock_.is_simulated()) {
+    const RosClockMsg now{stamp};
+    clock_writer_.write(now);
+    ++counters_.clocks_published;
+  }
   const double roll_rad = s.roll_rad;
   const double pitch_rad = s.pitch_rad;
   const bool pose_known = s.position_valid;
@@ -195,7 +222,7 @@ void Ros2Bridge::publish_state(const link::VehicleState& s) {
 }
 
 void Ros2Bridge::publish_camera(const link::CameraFrame& frame) {
-  const auto stamp = to_time(frame.t_ns);
+  const auto stamp = to_ros_time(clock_.ros_ns(frame.t_ns));
   image_.header.stamp = stamp;
   point_at(image_.data, frame.rgb_jpeg._buffer, frame.rgb_jpeg._length);
   image_writer_.write(image_);

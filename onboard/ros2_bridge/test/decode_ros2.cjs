@@ -48,6 +48,7 @@ const MSGS = {
       'std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\n' +
       'bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense',
   'tf2_msgs/TFMessage': 'geometry_msgs/TransformStamped[] transforms',
+  'rosgraph_msgs/Clock': 'builtin_interfaces/Time clock',
 };
 
 // The message text as rosbag2 stores it: the type's own, then every other type after a
@@ -174,6 +175,22 @@ for (const m of infos) {
   check(m.width > 0 && m.height > 0 && m.k[0] > 0 && m.k[8] === 1 && m.d.length === 5,
         `camera_info ${m.width}x${m.height} fx ${m.k[0]}`);
 }
+
+// /clock: the simulated time (use_sim_time), increasing, and the very stamps the topics carry.
+const clocks = decodeAll('clock.cdr', 'rosgraph_msgs/Clock', 20);
+const clockNs = clocks.map((c) => stampNs(c.clock));
+for (let i = 1; i < clockNs.length; ++i) {
+  if (clockNs[i] <= clockNs[i - 1]) {
+    check(false, `clock ${i} not after clock ${i - 1}`);
+    break;
+  }
+}
+check(clockNs.length > 0 && clockNs[clockNs.length - 1] < 3600n * 1000000000n,
+      'clock is the simulated time (under an hour), not the epoch');
+const clockSet = new Set(clockNs.map(String));
+const stamped = odom.filter((o) => clockSet.has(String(stampNs(o.header.stamp)))).length;
+console.log(`clock: ${clocks.length} decoded; ${stamped} of ${odom.length} odom stamps are /clock times`);
+check(stamped >= 10, `only ${stamped} odom stamps are /clock times`);
 
 if (failures > 0) {
   console.log(`${failures} check(s) failed`);

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -43,6 +44,7 @@ std::string topic_name(dds_entity_t topic) {
 }
 
 struct Fixture {
+  Fixture() { bridge.set_clock(RosClock::simulated_time()); }  // stamps = the states' t_ns
   link::LinkConfig config = ros2_config();
   link::Participant participant{config.domain_id};
   Ros2Bridge bridge{participant, config};
@@ -78,7 +80,8 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
       {"rt/hq3/obstacles", "sensor_msgs::msg::dds_::PointCloud2_"},
       {"rt/hq3/camera/image/compressed", "sensor_msgs::msg::dds_::CompressedImage_"},
       {"rt/hq3/camera/camera_info", "sensor_msgs::msg::dds_::CameraInfo_"},
-      {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"}};
+      {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"},
+      {"rt/clock", "rosgraph_msgs::msg::dds_::Clock_"}};
   // The participant's topics are among its children.
   std::array<dds_entity_t, 64> children{};
   const dds_return_t n = dds_get_children(f.participant.handle(), children.data(), children.size());
@@ -92,6 +95,52 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
     }
     EXPECT_TRUE(found) << name;
   }
+}
+
+// On a real vehicle ROS time is the epoch: the chain's monotonic stamp plus one offset, within
+// a few milliseconds of the system clock read now; stamps split into sec and nanosec in
+// [0, 1e9) for negative times too, and read back exactly.
+TEST(RosClock, RealVehicleStampsAreTheEpochAndSimulatedOnesTheSimulatedTime) {
+  const RosClock epoch = RosClock::epoch_from_monotonic();
+  EXPECT_FALSE(epoch.is_simulated());
+  const auto ns = [](auto d) {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(d.time_since_epoch()).count();
+  };
+  const std::int64_t monotonic_ns = ns(std::chrono::steady_clock::now());
+  const std::int64_t system_ns = ns(std::chrono::system_clock::now());
+  EXPECT_NEAR(static_cast<double>(epoch.ros_ns(monotonic_ns) - system_ns), 0.0, 5e6);
+  EXPECT_EQ(epoch.chain_ns(epoch.ros_ns(monotonic_ns)), monotonic_ns);
+  const RosClock sim = RosClock::simulated_time();
+  EXPECT_TRUE(sim.is_simulated());
+  EXPECT_EQ(sim.ros_ns(12'345), 12'345);
+  const auto t = to_ros_time(-1'500'000'000);
+  EXPECT_EQ(t.sec, -2);
+  EXPECT_EQ(t.nanosec, 500'000'000U);
+  EXPECT_EQ(from_ros_time(t), -1'500'000'000);
+  EXPECT_EQ(from_ros_time(to_ros_time(1'797'000'000'123'456'789)), 1'797'000'000'123'456'789);
+}
+
+// Simulated: every state's stamp goes out on /clock too, and the stamps are that time; a real
+// vehicle publishes no /clock (ROS nodes use their system clock) and stamps in the epoch.
+TEST(Ros2Bridge, PublishesClockOnlyWhenSimulated) {
+  Fixture f;
+  Probe<RosClockMsg> clock(f.participant, "rt/clock");
+  Probe<Odometry> odom(f.participant, "rt/hq3/odom");
+  f.bridge.publish_state(level_state());
+  ASSERT_TRUE(take_within(f.participant, clock.reader, *clock.sample));
+  EXPECT_EQ(clock.sample->clock.sec, 12);
+  EXPECT_EQ(clock.sample->clock.nanosec, 345'678'901U);
+  EXPECT_EQ(f.bridge.counters().clocks_published, 1U);
+
+  f.bridge.set_clock(RosClock(1'797'000'000'000'000'000, false));
+  f.bridge.publish_state(level_state());
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));  // the first state's
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
+  EXPECT_EQ(odom.sample->header.stamp.sec, 1'797'000'012);
+  EXPECT_EQ(odom.sample->header.stamp.nanosec, 345'678'901U);
+  EXPECT_EQ(f.bridge.counters().clocks_published, 1U);
+  dds_sample_info_t info{};
+  EXPECT_FALSE(clock.reader.take(*clock.sample, info));
 }
 
 // GIVEN a level vehicle flying forward-right and climbing WHEN its state is published THEN the

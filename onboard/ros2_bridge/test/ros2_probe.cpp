@@ -191,6 +191,7 @@ class Probe {
         raw_dump(participant_, image_topics_, rt("camera/image/compressed"), file("image"), 10));
     dumps_.push_back(
         raw_dump(participant_, info_topics_, rt("camera/camera_info"), file("camera_info"), 10));
+    dumps_.push_back(raw_dump(participant_, clock_topics_, "rt/clock", file("clock"), 400));
   }
 
   /// Every new state: into states.csv, and counted when it shows the phase's commander flying
@@ -335,6 +336,7 @@ class Probe {
   std::vector<hq::link::Topic<hq::ros2_bridge::PointCloud2>> cloud_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::CompressedImage>> image_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::CameraInfo>> info_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::RosClockMsg>> clock_topics_;
   std::vector<RawDump> dumps_;
   std::string twist_frame_;
   hq::ros2_bridge::TwistStamped twist_{};

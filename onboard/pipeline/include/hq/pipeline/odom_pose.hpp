@@ -65,8 +65,8 @@ class OdomPose {
   void on_yaw_rate(std::int64_t t_ns, double yaw_rate_H_radps);
   /// One chain output's estimate: integrates it (or grows the blind drift) since the last call.
   /// `landed`: the vehicle stands on the floor (velocity zero, nothing grows).
-  const OdomPoseEstimate& on_estimate(std::int64_t t_ns, const estimator::VelocityEstimate& estimate,
-                                      bool landed);
+  const OdomPoseEstimate& on_estimate(std::int64_t t_ns,
+                                      const estimator::VelocityEstimate& estimate, bool landed);
 
   [[nodiscard]] const OdomPoseEstimate& pose() const { return pose_; }
 

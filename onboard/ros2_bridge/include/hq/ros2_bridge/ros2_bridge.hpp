@@ -16,7 +16,8 @@
 /// -> take_command |
 ///
 /// Frame ids: <ns>/odom (ENU world E), <ns>/base_link (FLU body F), <ns>/camera_optical (C,
-/// already ROS's optical convention). Stamps are the vehicle state's t_ns (the chain's clock).
+/// already ROS's optical convention). Stamps are ROS time (RosClock below): the epoch on a real
+/// vehicle, the simulated time with /clock (rosgraph_msgs/Clock on rt/clock) in simulation.
 ///
 /// Odometry: the pose is the marker filter's while it is anchored (VehicleState.position_valid,
 /// marker map W NED -> E); otherwise position 0 and pose.covariance[0] = -1 (ROS: "no estimate"),
@@ -54,6 +55,7 @@ HQ_ROS2_TOPIC(sensor_msgs_msg_dds__PointCloud2_);
 HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CompressedImage_);
 HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CameraInfo_);
 HQ_ROS2_TOPIC(geometry_msgs_msg_dds__TwistStamped_);
+HQ_ROS2_TOPIC(rosgraph_msgs_msg_dds__Clock_);
 #undef HQ_ROS2_TOPIC
 }  // namespace hq::link
 
@@ -68,6 +70,38 @@ using PointField = sensor_msgs_msg_dds__PointField_;
 using CompressedImage = sensor_msgs_msg_dds__CompressedImage_;
 using CameraInfo = sensor_msgs_msg_dds__CameraInfo_;
 using TwistStamped = geometry_msgs_msg_dds__TwistStamped_;
+using RosClockMsg = rosgraph_msgs_msg_dds__Clock_;
+
+/// The one mapping from the chain's clock (VehicleState.t_ns, CameraFrame.t_ns) to ROS time,
+/// used for every stamp the bridge writes and every stamp it reads:
+/// - a real vehicle: its chain runs on the monotonic clock; ROS time is the epoch (the system
+///   clock, as rclcpp's RCL_ROS_TIME without use_sim_time): t + (system - monotonic), the offset
+///   taken once, so stamps never jump when NTP steps the system clock later;
+/// - the simulator: ROS time is the simulated time itself, and the bridge publishes it on /clock
+///   (rosgraph_msgs/Clock) so that nodes run with use_sim_time:=true follow it.
+class RosClock {
+ public:
+  /// The epoch from the host's monotonic clock (std::chrono::steady_clock, CLOCK_MONOTONIC).
+  static RosClock epoch_from_monotonic();
+  /// Simulated time: ROS time = the chain's time, /clock published.
+  static RosClock simulated_time() { return RosClock(0, true); }
+  RosClock(std::int64_t offset_ns, bool simulated) : offset_ns_(offset_ns), simulated_(simulated) {}
+
+  [[nodiscard]] std::int64_t ros_ns(std::int64_t chain_t_ns) const {
+    return chain_t_ns + offset_ns_;
+  }
+  [[nodiscard]] std::int64_t chain_ns(std::int64_t ros_t_ns) const { return ros_t_ns - offset_ns_; }
+  [[nodiscard]] bool is_simulated() const { return simulated_; }
+
+ private:
+  std::int64_t offset_ns_;
+  bool simulated_;
+};
+
+/// builtin_interfaces/Time of a ROS time in ns: seconds and nanoseconds in [0, 1e9).
+builtin_interfaces_msg_dds__Time_ to_ros_time(std::int64_t ros_t_ns);
+/// The ns of a builtin_interfaces/Time.
+std::int64_t from_ros_time(const builtin_interfaces_msg_dds__Time_& time);
 
 /// ROS 2's default QoS (rmw_qos_profile_default: reliable, volatile, keep last 10) with XCDR1,
 /// the representation rmw_cyclonedds reads and writes.
@@ -75,6 +109,9 @@ link::Qos ros2_qos();
 /// The command reader's: as ros2_qos() but best-effort, so it matches reliable and best-effort
 /// ROS publishers alike (a retransmitted command would be late anyway).
 link::Qos ros2_command_qos();
+/// /clock's: as ros2_qos() but keep last 1 (only the latest time matters; rclcpp's clock
+/// subscription is best-effort keep-last 1, which a reliable writer serves).
+link::Qos clock_qos();
 
 /// The DDS topic of ROS topic `name` in namespace `ns`: "rt/<ns>/<name>".
 std::string dds_topic_name(const std::string& ns, const std::string& name);
@@ -85,6 +122,7 @@ struct Ros2Counters {
   std::uint64_t images_published = 0;
   std::uint64_t commands_received = 0;    ///< TwistStamped samples taken from cmd_vel_in.
   std::uint64_t commands_overridden = 0;  ///< Of those: dropped, a native station commands.
+  std::uint64_t clocks_published = 0;     ///< /clock samples (simulated time only).
 };
 
 class Ros2Bridge {
@@ -99,6 +137,10 @@ class Ros2Bridge {
   void publish_camera(const link::CameraFrame& frame);
   /// Intrinsics of the frames sent (undistorted pinhole: D zeros, R identity, P = [K|0]).
   void set_camera(const geometry::PinholeCamera& camera);
+  /// How the chain's clock maps to ROS time (default: epoch_from_monotonic(), a real vehicle).
+  /// simulated_time() also publishes /clock with every state.
+  void set_clock(const RosClock& clock) { clock_ = clock; }
+  [[nodiscard]] const RosClock& clock() const { return clock_; }
 
   /// The next ROS command from cmd_vel_in as the link's command in H (command_from_twist) from
   /// station link.ros2.station_id, unstamped (t_ns 0: ROS stamps are another clock, often 0);
@@ -136,6 +178,9 @@ class Ros2Bridge {
   link::Writer<CompressedImage> image_writer_;
   link::Writer<CameraInfo> info_writer_;
   link::Reader<TwistStamped> command_reader_;
+  link::Topic<RosClockMsg> clock_topic_;
+  link::Writer<RosClockMsg> clock_writer_;
+  RosClock clock_ = RosClock::epoch_from_monotonic();
 
   Odometry odom_{};
   Imu imu_{};
