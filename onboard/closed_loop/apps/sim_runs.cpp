@@ -83,6 +83,7 @@ int run_sim_link(const Options& o) {
   hq::link_bridge::LinkBridge& bridge = *link_bridge;
   if (bridge.ros2() != nullptr) {
     bridge.ros2()->set_camera(sim_config.camera.pinhole);
+    bridge.ros2()->set_camera_mount(vehicle.camera);
     // Simulated time is ROS time here, announced on /clock (use_sim_time).
     bridge.ros2()->set_clock(hq::ros2_bridge::RosClock::simulated_time());
   }

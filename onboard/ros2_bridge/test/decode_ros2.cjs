@@ -114,8 +114,9 @@ let moving = 0;
 for (const o of odom) {
   check(o.header.frame_id === `${ns}/odom`, `odom frame_id ${o.header.frame_id}`);
   check(o.child_frame_id === `${ns}/base_link`, `odom child_frame_id ${o.child_frame_id}`);
-  check(o.pose.covariance.length === 36 && o.pose.covariance[0] === -1,
-        'odom pose.covariance[0] = -1 (no marker pose in this world)');
+  check(o.pose.covariance.length === 36 && (o.pose.covariance[0] === -1 ||
+        (o.pose.covariance[0] >= 0 && o.pose.covariance[35] >= 0)),
+        'odom pose.covariance: -1 before the odom pose, else its variances');
   check(unit(o.pose.pose.orientation), 'odom orientation is a unit quaternion');
   const s = states.get(stampNs(o.header.stamp));
   if (!s) continue;
@@ -132,6 +133,16 @@ for (const o of odom) {
   if (Math.hypot(x, y) > 0.05) ++moving;
 }
 console.log(`odom: twist checked against ${compared} native states, ${moving} of them moving`);
+// The odom pose moves with the vehicle (no marker map in this world), its uncertainty growing.
+const last = odom[odom.length - 1];
+const p = last.pose.pose.position;
+console.log(`odom: last pose (${p.x.toFixed(3)}, ${p.y.toFixed(3)}, ${p.z.toFixed(3)}) m ENU, ` +
+            `sigma ${Math.sqrt(last.pose.covariance[0]).toFixed(3)} m, ` +
+            `twist sigma x ${Math.sqrt(last.twist.covariance[0]).toFixed(4)} m/s`);
+check(Math.hypot(p.x, p.y, p.z) > 0.1, 'odom: the pose never moved');
+check(last.pose.covariance[0] > 0 && last.pose.covariance[35] > 0,
+      'odom: position and yaw variances grow in flight');
+check(last.twist.covariance[0] > 0, 'odom: the twist covariance is the estimator\'s, not zero');
 check(compared >= 10, `odom: only ${compared} samples matched a native state by stamp`);
 check(moving >= 1, 'odom: the vehicle never moved while odometry was recorded');
 
@@ -140,6 +151,8 @@ increasing(imu, 'imu');
 for (const m of imu) {
   check(m.header.frame_id === `${ns}/base_link`, `imu frame_id ${m.header.frame_id}`);
   check(m.linear_acceleration_covariance[0] === -1, 'imu: no acceleration, covariance[0] = -1');
+  check(Math.abs(m.orientation_covariance[8] - Math.PI * Math.PI / 3) < 1e-3,
+        'imu: the yaw is unknown (variance pi^2/3)');
   check(unit(m.orientation), 'imu orientation is a unit quaternion');
 }
 
@@ -151,6 +164,17 @@ for (const m of tf) {
         `tf ${t.header.frame_id} -> ${t.child_frame_id}`);
   check(unit(t.transform.rotation), 'tf rotation is a unit quaternion');
 }
+
+// /tf_static, read by a reader that joined seconds after it was written (transient local).
+const statics = decodeAll('tf_static.cdr', 'tf2_msgs/TFMessage', 1);
+for (const m of statics) {
+  const names = m.transforms.map((t) => `${t.header.frame_id}->${t.child_frame_id}`).join(' ');
+  check(names === `${ns}/base_link->${ns}/camera_link ${ns}/camera_link->${ns}/camera_optical`,
+        `tf_static: ${names}`);
+  for (const t of m.transforms) check(unit(t.transform.rotation), 'tf_static: unit quaternions');
+}
+console.log(`tf_static: ${statics.length} sample(s) to a late joiner: base_link -> camera_link ` +
+            `at (${statics.length ? statics[0].transforms[0].transform.translation.x.toFixed(3) : '?'}, ...) m`);
 
 const clouds = decodeAll('obstacles.cdr', 'sensor_msgs/PointCloud2', 1);
 for (const c of clouds) {

@@ -81,7 +81,8 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
       {"rt/hq3/camera/image/compressed", "sensor_msgs::msg::dds_::CompressedImage_"},
       {"rt/hq3/camera/camera_info", "sensor_msgs::msg::dds_::CameraInfo_"},
       {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"},
-      {"rt/clock", "rosgraph_msgs::msg::dds_::Clock_"}};
+      {"rt/clock", "rosgraph_msgs::msg::dds_::Clock_"},
+      {"rt/tf_static", "tf2_msgs::msg::dds_::TFMessage_"}};
   // The participant's topics are among its children.
   std::array<dds_entity_t, 64> children{};
   const dds_return_t n = dds_get_children(f.participant.handle(), children.data(), children.size());
@@ -174,6 +175,7 @@ TEST(Ros2Bridge, OdometryIsInRosFramesAndMarksTheUnknownPose) {
   EXPECT_STREQ(imu.sample->header.frame_id, "hq3/base_link");
   EXPECT_NEAR(imu.sample->angular_velocity.y, -0.2, 1e-6);
   EXPECT_EQ(imu.sample->linear_acceleration_covariance[0], -1.0);
+  EXPECT_DOUBLE_EQ(imu.sample->orientation_covariance[8], kUnknownYawVariance_rad2);
 
   ASSERT_TRUE(take_within(f.participant, tf.reader, *tf.sample));
   ASSERT_EQ(tf.sample->transforms._length, 1U);
@@ -183,27 +185,94 @@ TEST(Ros2Bridge, OdometryIsInRosFramesAndMarksTheUnknownPose) {
   EXPECT_DOUBLE_EQ(t.transform.rotation.w, o.pose.pose.orientation.w);
 }
 
-// With the marker filter anchored, the pose is W's NED position in ENU with its yaw, and the
-// covariance no longer says "unknown"; a lost estimator marks the twist instead.
-TEST(Ros2Bridge, MarkerPoseGoesOutInEnu) {
+// GIVEN the odometry's integrated pose (2 m north, 1 m west, 1.5 m up, facing east) and the
+// marker filter anchored 1 m further north THEN the odometry is that pose in ENU with its
+// covariances (position and yaw sigma, the estimator's velocity sigma), /tf carries
+// odom -> base_link and map -> odom (1 m north, no turn), and a lost estimator marks the twist.
+TEST(Ros2Bridge, OdomPoseGoesOutInEnuWithItsCovariancesAndMapToOdom) {
   Fixture f;
   Probe<Odometry> odom(f.participant, "rt/hq3/odom");
+  Probe<Imu> imu(f.participant, "rt/hq3/imu");
+  Probe<TfMessage> tf(f.participant, "rt/tf");
   link::VehicleState s = level_state();
+  s.odom_valid = true;
+  s.p_odom_m = {2.0F, -1.0F, -1.5F};
+  s.yaw_odom_rad = static_cast<float>(M_PI / 2);
+  s.odom_position_sigma_m = 0.3F;
+  s.odom_yaw_sigma_rad = 0.05F;
+  s.v_H_sigma_mps = {0.02F, 0.03F, 0.04F};
   s.position_valid = true;
-  s.p_W_m = {2.0F, -1.0F, -1.5F};              // 2 m north, 1 m west, 1.5 m up
-  s.yaw_W_rad = static_cast<float>(M_PI / 2);  // facing east
-  s.estimator_health = hq_msgs_HEALTH_LOST;
+  s.p_W_m = {3.0F, -1.0F, -1.5F};
+  s.yaw_W_rad = static_cast<float>(M_PI / 2);
   f.bridge.publish_state(s);
   ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
   const Odometry& o = *odom.sample;
   EXPECT_DOUBLE_EQ(o.pose.pose.position.x, -1.0);
   EXPECT_DOUBLE_EQ(o.pose.pose.position.y, 2.0);
   EXPECT_DOUBLE_EQ(o.pose.pose.position.z, 1.5);
-  EXPECT_EQ(o.pose.covariance[0], 0.0);
-  EXPECT_EQ(o.twist.covariance[0], -1.0);
+  EXPECT_NEAR(o.pose.covariance[0], 0.09, 1e-6);
+  EXPECT_NEAR(o.pose.covariance[7], 0.09, 1e-6);
+  EXPECT_NEAR(o.pose.covariance[35], 0.0025, 1e-7);
+  EXPECT_DOUBLE_EQ(o.pose.covariance[21], kRollPitchVariance_rad2);
+  EXPECT_NEAR(o.twist.covariance[0], 0.0004, 1e-8);
+  EXPECT_NEAR(o.twist.covariance[7], 0.0009, 1e-8);
+  EXPECT_NEAR(o.twist.covariance[14], 0.0016, 1e-8);
+  EXPECT_DOUBLE_EQ(o.twist.covariance[35], kRateVariance_rad2ps2);
   const Eigen::Quaterniond q(o.pose.pose.orientation.w, o.pose.pose.orientation.x,
                              o.pose.pose.orientation.y, o.pose.pose.orientation.z);
-  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 1e-6);
+  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 1e-6);  // east
+
+  ASSERT_TRUE(take_within(f.participant, imu.reader, *imu.sample));
+  EXPECT_DOUBLE_EQ(imu.sample->orientation_covariance[8], kUnknownYawVariance_rad2);
+  EXPECT_DOUBLE_EQ(imu.sample->orientation_covariance[0], kRollPitchVariance_rad2);
+  EXPECT_DOUBLE_EQ(imu.sample->angular_velocity_covariance[4], kRateVariance_rad2ps2);
+
+  ASSERT_TRUE(take_within(f.participant, tf.reader, *tf.sample));
+  ASSERT_EQ(tf.sample->transforms._length, 2U);
+  const TransformStamped& map_odom = tf.sample->transforms._buffer[1];
+  EXPECT_STREQ(map_odom.header.frame_id, "hq3/map");
+  EXPECT_STREQ(map_odom.child_frame_id, "hq3/odom");
+  EXPECT_NEAR(map_odom.transform.translation.x, 0.0, 1e-6);
+  EXPECT_NEAR(map_odom.transform.translation.y, 1.0, 1e-6);
+  EXPECT_NEAR(map_odom.transform.translation.z, 0.0, 1e-6);
+  EXPECT_NEAR(std::abs(map_odom.transform.rotation.w), 1.0, 1e-6);
+
+  s.estimator_health = hq_msgs_HEALTH_LOST;
+  f.bridge.publish_state(s);
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
+  EXPECT_EQ(odom.sample->twist.covariance[0], -1.0);
+}
+
+// /tf_static as tf2's static broadcaster: base_link -> camera_link -> camera_optical of the
+// mount, transient local, so a reader that joins after it was written still gets it.
+TEST(Ros2Bridge, TfStaticReachesAReaderThatJoinsLater) {
+  Fixture f;
+  const Eigen::Isometry3d T_B_C =
+      Eigen::Translation3d(0.1, 0.0, 0.05) *
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY());  // optical z along body x
+  f.bridge.set_camera_mount(geometry::CameraMount(T_B_C));
+  f.bridge.publish_state(level_state());
+  link::Topic<TfMessage> topic(f.participant, "rt/tf_static");
+  link::Reader<TfMessage> late(f.participant, topic, tf_static_qos());
+  link::Sample<TfMessage> sample;
+  ASSERT_TRUE(take_within(f.participant, late, *sample));
+  ASSERT_EQ(sample->transforms._length, 2U);
+  const TransformStamped& link = sample->transforms._buffer[0];
+  const TransformStamped& optical = sample->transforms._buffer[1];
+  EXPECT_STREQ(link.header.frame_id, "hq3/base_link");
+  EXPECT_STREQ(link.child_frame_id, "hq3/camera_link");
+  EXPECT_STREQ(optical.header.frame_id, "hq3/camera_link");
+  EXPECT_STREQ(optical.child_frame_id, "hq3/camera_optical");
+  const geometry::RosCameraFrames frames =
+      geometry::ros_camera_frames(geometry::CameraMount(T_B_C));
+  EXPECT_NEAR(link.transform.translation.x, frames.T_F_camera_link.translation().x(), 1e-9);
+  EXPECT_NEAR(link.transform.translation.z, frames.T_F_camera_link.translation().z(), 1e-9);
+  EXPECT_NEAR(link.transform.translation.x, 0.1, 1e-9);
+  EXPECT_NEAR(link.transform.translation.z, -0.05, 1e-9);  // FRD z down -> FLU z up
+  // Written once: the next state writes no second sample.
+  f.bridge.publish_state(level_state());
+  dds_sample_info_t info{};
+  EXPECT_FALSE(late.take(*sample, info));
 }
 
 // The state's cloud (body FRD) goes out as a PointCloud2 of float32 x, y, z in FLU.

@@ -7,7 +7,8 @@
 // flown is the ROS one in H; then the native station commands 0.1 m/s along the heading beside
 // the ROS node and must take over. Meanwhile it
 // takes every rt/ topic as raw CDR (dds_takecdr, the bytes a ROS 2 machine receives) into
-// DIR/<topic>.cdr (records: uint32 little-endian length, bytes) and writes each native state's
+// DIR/<topic>.cdr (records: uint32 little-endian length, bytes; rt/tf_static read by a reader
+// created only once airborne, as a late tf2 listener) and writes each native state's
 // stamp, v_H and attitude to DIR/states.csv, for the independent decoder (decode_ros2.cjs).
 // Exit 0 when both phases were seen, 1 naming the phase that was not, 2 on bad arguments.
 #include "hq/link/link.hpp"
@@ -73,14 +74,15 @@ struct RawDump {
 
 template <typename T>
 RawDump raw_dump(const Participant& participant, std::vector<hq::link::Topic<T>>& topics,
-                 const std::string& dds_name, const std::string& file, int max_samples) {
+                 const std::string& dds_name, const std::string& file, int max_samples,
+                 const hq::link::Qos& qos = hq::ros2_bridge::ros2_qos()) {
   topics.emplace_back(participant, dds_name);
   RawDump d;
   d.name = dds_name;
   d.max_samples = max_samples;
-  d.reader = hq::link::check(dds_create_reader(participant.handle(), topics.back().handle(),
-                                               hq::ros2_bridge::ros2_qos().get(), nullptr),
-                             "dds_create_reader", dds_name);
+  d.reader = hq::link::check(
+      dds_create_reader(participant.handle(), topics.back().handle(), qos.get(), nullptr),
+      "dds_create_reader", dds_name);
   d.file = std::fopen(file.c_str(), "wb");
   if (d.file == nullptr) throw hq::InputError(file + ": cannot open for writing");
   return d;
@@ -307,6 +309,13 @@ class Probe {
   }
 
   void next_phase(Phase phase, std::int64_t t_ns) {
+    if (phase == Phase::kRos) {
+      // A late joiner, as tf2's static listener: /tf_static was written at the vehicle's first
+      // state, seconds ago; transient local must still deliver it.
+      tf_static_topics_.reserve(1);
+      dumps_.push_back(raw_dump(participant_, tf_static_topics_, "rt/tf_static",
+                                a_.out + "/tf_static.cdr", 5, hq::ros2_bridge::tf_static_qos()));
+    }
     phase_ = phase;
     phase_start_ns_ = t_ns;
   }
@@ -337,6 +346,7 @@ class Probe {
   std::vector<hq::link::Topic<hq::ros2_bridge::CompressedImage>> image_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::CameraInfo>> info_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::RosClockMsg>> clock_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::TfMessage>> tf_static_topics_;
   std::vector<RawDump> dumps_;
   std::string twist_frame_;
   hq::ros2_bridge::TwistStamped twist_{};

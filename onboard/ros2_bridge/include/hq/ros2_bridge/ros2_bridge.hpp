@@ -9,6 +9,7 @@
 /// | /<ns>/odom                           | nav_msgs/Odometry         | every vehicle state | |
 /// /<ns>/imu                            | sensor_msgs/Imu           | every vehicle state         |
 /// | /tf                                  | tf2_msgs/TFMessage        | every vehicle state | |
+/// | /tf_static                           | tf2_msgs/TFMessage        | once set_camera_mount() |
 /// /<ns>/obstacles                      | sensor_msgs/PointCloud2   | states carrying the cloud   |
 /// | /<ns>/camera/image/compressed        | sensor_msgs/CompressedImage | every camera frame sent |
 /// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once
@@ -19,19 +20,24 @@
 /// already ROS's optical convention). Stamps are ROS time (RosClock below): the epoch on a real
 /// vehicle, the simulated time with /clock (rosgraph_msgs/Clock on rt/clock) in simulation.
 ///
-/// Odometry: the pose is the marker filter's while it is anchored (VehicleState.position_valid,
-/// marker map W NED -> E); otherwise position 0 and pose.covariance[0] = -1 (ROS: "no estimate"),
-/// the orientation then from roll and pitch with yaw 0 (heading unknown: E's x is the heading).
-/// The twist is the estimated velocity in the child frame F (v_H rotated by roll and pitch) and
-/// the gyro rates; its covariance unknown (zeros), or twist.covariance[0] = -1 while the
-/// estimator is lost. Imu: the same orientation and rates; no acceleration (linear_acceleration
-/// covariance[0] = -1). /tf: <ns>/odom -> <ns>/base_link, the odometry's pose.
+/// Odometry: the pose is the odometry's integrated pose (VehicleState.p_odom_m, yaw_odom_rad:
+/// odom NED-like -> E, continuous, REP-105), its covariance from its sigmas (position, yaw
+/// relative to odom's start heading; roll and pitch about a degree), or pose.covariance[0] = -1
+/// before it is valid. The twist is the estimated velocity in the child frame F (v_H rotated by
+/// roll and pitch) and the gyro rates, its covariance the estimator's (v_H_sigma_mps), or
+/// twist.covariance[0] = -1 while the estimator is lost. Imu: the same orientation and rates,
+/// its yaw variance that of an unknown heading (pi^2/3: no compass); no acceleration
+/// (linear_acceleration covariance[0] = -1). /tf: <ns>/odom -> <ns>/base_link, and while the
+/// marker filter is anchored <ns>/map -> <ns>/odom (the marker map W NED -> ENU). /tf_static
+/// (transient local, keep last 1, as tf2's static broadcaster): <ns>/base_link ->
+/// <ns>/camera_link -> <ns>/camera_optical of the vehicle file's camera mount.
 ///
 /// The bridge writes on the LinkBridge's own participant, from the same calls that publish the
 /// link's state and camera (no thread, no extra JPEG encoding: the image is the link's bytes).
 /// Publishing allocates nothing of its own: frame ids, the cloud and the image point at buffers
 /// sized at construction.
 
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
 #include "hq/link/link.hpp"
 
@@ -106,6 +112,20 @@ std::int64_t from_ros_time(const builtin_interfaces_msg_dds__Time_& time);
 /// ROS 2's default QoS (rmw_qos_profile_default: reliable, volatile, keep last 10) with XCDR1,
 /// the representation rmw_cyclonedds reads and writes.
 link::Qos ros2_qos();
+/// /tf_static's, as tf2's static broadcaster: reliable, transient local, keep last 1, so a
+/// node that joins later still receives the fixed frames.
+link::Qos tf_static_qos();
+/// The covariances the bridge writes, in one place (ROS: 6x6 row-major x y z roll pitch yaw).
+/// Roll and pitch: the complementary filter's levelling, about a degree (1-sigma).
+inline constexpr double kRollPitchVariance_rad2 = 0.0175 * 0.0175;
+/// A yaw nothing measures (no compass): uniform over the circle, variance pi^2 / 3.
+inline constexpr double kUnknownYawVariance_rad2 = 3.14159265358979 * 3.14159265358979 / 3.0;
+/// The gyro's rates after the bias: noise and filter lag, chain.gyro_prior_sigma_radps's 0.01.
+inline constexpr double kRateVariance_rad2ps2 = 0.01 * 0.01;
+/// Odometry.pose and twist covariances and Imu covariances of one state (out: 36, 36, 9, 9).
+void state_covariances(const link::VehicleState& s, double pose[36], double twist[36],
+                       double imu_orientation[9], double imu_rates[9]);
+
 /// The command reader's: as ros2_qos() but best-effort, so it matches reliable and best-effort
 /// ROS publishers alike (a retransmitted command would be late anyway).
 link::Qos ros2_command_qos();
@@ -137,6 +157,9 @@ class Ros2Bridge {
   void publish_camera(const link::CameraFrame& frame);
   /// Intrinsics of the frames sent (undistorted pinhole: D zeros, R identity, P = [K|0]).
   void set_camera(const geometry::PinholeCamera& camera);
+  /// The camera's mount (the vehicle file's): /tf_static gets base_link -> camera_link ->
+  /// camera_optical (hq::geometry::ros_camera_frames), written with the first state after.
+  void set_camera_mount(const geometry::CameraMount& mount);
   /// How the chain's clock maps to ROS time (default: epoch_from_monotonic(), a real vehicle).
   /// simulated_time() also publishes /clock with every state.
   void set_clock(const RosClock& clock) { clock_ = clock; }
@@ -162,6 +185,7 @@ class Ros2Bridge {
   // Frame ids and fixed strings the samples point at (never freed by Cyclone: the samples are
   // plain structs, not link::Sample).
   std::string odom_frame_, body_frame_, camera_frame_, jpeg_format_, distortion_model_;
+  std::string map_frame_, camera_link_frame_;
   std::string field_x_, field_y_, field_z_;
 
   link::Topic<Odometry> odom_topic_;
@@ -178,13 +202,19 @@ class Ros2Bridge {
   link::Writer<CompressedImage> image_writer_;
   link::Writer<CameraInfo> info_writer_;
   link::Reader<TwistStamped> command_reader_;
+  link::Topic<TfMessage> tf_static_topic_;
+  link::Writer<TfMessage> tf_static_writer_;
+  TransformStamped static_transforms_[2]{};
+  TfMessage tf_static_{};
+  bool have_mount_ = false;
+  bool mount_published_ = false;
+  TransformStamped tf_pair_[2]{};  ///< odom -> base_link, then map -> odom (marker pose valid).
   link::Topic<RosClockMsg> clock_topic_;
   link::Writer<RosClockMsg> clock_writer_;
   RosClock clock_ = RosClock::epoch_from_monotonic();
 
   Odometry odom_{};
   Imu imu_{};
-  TransformStamped transform_{};
   TfMessage tf_{};
   PointCloud2 cloud_{};
   PointField fields_[3]{};
