@@ -167,7 +167,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   }
   if (ros2_ != nullptr) {
     // The ROS 2 station is the weakest: a native station commanding within its lease wins.
-    while (ros2_->take_command(command)) {
+    while (ros2_->take_command(t_ns, command)) {
       if (have_native_command_ && t_ns - last_native_command_t_ns_ <= link_.command_lease_ns) {
         ros2_->count_overridden();
         continue;

@@ -816,6 +816,7 @@ TEST(LinkBridge, Ros2OdometryGoesOutWithTheState) {
   config.ros2.enabled = true;
   config.ros2.ros_namespace = "quad";
   LinkBridge bridge(config, FailsafeConfig{});
+  bridge.ros2()->set_clock(ros2_bridge::RosClock::simulated_time());  // stamps = the chain's
   link::Participant ros(config.domain_id);
   link::Topic<ros2_bridge::Odometry> topic(ros, "rt/quad/odom");
   link::Reader<ros2_bridge::Odometry> odom(ros, topic, ros2_bridge::ros2_qos());

@@ -159,6 +159,7 @@ Ros2Bridge::Ros2Bridge(const link::Participant& participant, const link::LinkCon
       image_topic_(participant, dds_topic_name(namespace_, "camera/image/compressed")),
       info_topic_(participant, dds_topic_name(namespace_, "camera/camera_info")),
       command_topic_(participant, dds_topic_name(namespace_, "cmd_vel_in")),
+      twist_topic_(participant, dds_topic_name(namespace_, "cmd_vel")),
       odom_writer_(participant, odom_topic_, ros2_qos()),
       imu_writer_(participant, imu_topic_, ros2_qos()),
       tf_writer_(participant, tf_topic_, ros2_qos()),
@@ -166,6 +167,7 @@ Ros2Bridge::Ros2Bridge(const link::Participant& participant, const link::LinkCon
       image_writer_(participant, image_topic_, ros2_qos()),
       info_writer_(participant, info_topic_, ros2_qos()),
       command_reader_(participant, command_topic_, ros2_command_qos()),
+      twist_reader_(participant, twist_topic_, ros2_command_qos()),
       tf_static_topic_(participant, "rt/tf_static"),
       tf_static_writer_(participant, tf_static_topic_, tf_static_qos()),
       clock_topic_(participant, "rt/clock"),
@@ -310,12 +312,26 @@ void Ros2Bridge::publish_camera(const link::CameraFrame& frame) {
   info_writer_.write(info_);
 }
 
-bool Ros2Bridge::take_command(link::VelocityCommand& command) {
+bool Ros2Bridge::take_command(std::int64_t now_chain_ns, link::VelocityCommand& command) {
   dds_sample_info_t info{};
-  if (!command_reader_.take(*twist_, info)) return false;
-  ++counters_.commands_received;
-  const auto& t = twist_->twist;
-  const HorizontalCommand c = command_from_twist({t.linear.x, t.linear.y, t.linear.z}, t.angular.z);
+  const geometry_msgs_msg_dds__Twist_* t = nullptr;
+  while (t == nullptr && command_reader_.take(*twist_, info)) {
+    ++counters_.commands_received;
+    const std::int64_t stamp_ns = from_ros_time(twist_->header.stamp);
+    const std::int64_t age_ns = clock_.ros_ns(now_chain_ns) - stamp_ns;
+    if (stamp_ns != 0 && (age_ns > kMaxCommandAge_ns || age_ns < -kMaxCommandAge_ns)) {
+      ++counters_.commands_stale;
+      continue;
+    }
+    t = &twist_->twist;
+  }
+  if (t == nullptr && twist_reader_.take(*plain_twist_, info)) {
+    ++counters_.commands_received;
+    t = &*plain_twist_;
+  }
+  if (t == nullptr) return false;
+  const HorizontalCommand c =
+      command_from_twist({t->linear.x, t->linear.y, t->linear.z}, t->angular.z);
   command = {};
   command.vehicle_id = vehicle_id_;
   command.station_id = station_id_;

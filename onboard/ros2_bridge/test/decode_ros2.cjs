@@ -90,11 +90,17 @@ function increasing(msgs, name) {
 }
 const unit = (q) => Math.abs(Math.hypot(q.x, q.y, q.z, q.w) - 1) < 1e-6;
 
-function decodeAll(file, type, min) {
+// A type alone with what it uses (the full set leaves Twist, used unqualified by
+// TwistWithCovariance, without its own definition when Twist is the top-level type).
+function readerOf(text) {
+  return new MessageReader(parse(text, { ros2: true }));
+}
+
+function decodeAll(file, type, min, makeReader = () => reader(type)) {
   const cdr = records(file);
   // XCDR1 little-endian (CDR_LE): the encapsulation rmw_cyclonedds writes and reads.
   for (const c of cdr) check(c[0] === 0 && c[1] === 1, `${file}: encapsulation ${c[0]} ${c[1]}`);
-  const r = reader(type);
+  const r = makeReader();
   const msgs = cdr.map((c) => r.readMessage(c));
   console.log(`${type}: ${msgs.length} decoded from ${file}`);
   check(msgs.length >= min, `${file}: ${msgs.length} samples, expected >= ${min}`);
@@ -198,6 +204,15 @@ const infos = decodeAll('camera_info.cdr', 'sensor_msgs/CameraInfo', 1);
 for (const m of infos) {
   check(m.width > 0 && m.height > 0 && m.k[0] > 0 && m.k[8] === 1 && m.d.length === 5,
         `camera_info ${m.width}x${m.height} fx ${m.k[0]}`);
+}
+
+// cmd_vel: the Twist the probe flew the vehicle with, as teleop_twist_keyboard sends it.
+const cmds = decodeAll('cmd_vel.cdr', 'geometry_msgs/Twist', 5, () => readerOf(
+    'geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular' + SEP +
+    'MSG: geometry_msgs/Vector3\n' + MSGS['geometry_msgs/Vector3']));
+for (const c of cmds) {
+  check(Math.abs(Math.hypot(c.linear.x, c.linear.y) - 0.3) < 1e-6 && c.linear.z === 0 &&
+        c.angular.z === 0, `cmd_vel ${JSON.stringify(c)}: 0.3 m/s along the heading`);
 }
 
 // /clock: the simulated time (use_sim_time), increasing, and the very stamps the topics carry.

@@ -370,7 +370,7 @@ TEST(Ros2Bridge, CmdVelInBecomesALinkCommandInH) {
   twist.twist.angular = {0.0, 0.0, 0.4};
   ASSERT_TRUE(writer.write(twist)) << writer.last_error();
   link::VelocityCommand command{};
-  for (int i = 0; i < 500 && !f.bridge.take_command(command); ++i) dds_sleepfor(DDS_MSECS(10));
+  for (int i = 0; i < 500 && !f.bridge.take_command(0, command); ++i) dds_sleepfor(DDS_MSECS(10));
   EXPECT_EQ(command.vehicle_id, 3U);
   EXPECT_EQ(command.station_id, 250U);
   EXPECT_EQ(command.t_ns, 0);
@@ -379,6 +379,56 @@ TEST(Ros2Bridge, CmdVelInBecomesALinkCommandInH) {
   EXPECT_FLOAT_EQ(command.v_H_mps.z, -0.1F);
   EXPECT_FLOAT_EQ(command.yaw_rate_radps, -0.4F);
   EXPECT_EQ(f.bridge.counters().commands_received, 1U);
+}
+
+// A Twist on cmd_vel, as teleop_twist_keyboard and teleop_twist_joy publish by default, flies
+// as a TwistStamped does.
+TEST(Ros2Bridge, TwistOnCmdVelBecomesALinkCommandInH) {
+  Fixture f;
+  link::Topic<Twist> topic(f.participant, "rt/hq3/cmd_vel");
+  link::Writer<Twist> writer(f.participant, topic, ros2_qos());
+  const Twist twist{{0.5, 0.2, 0.1}, {0.0, 0.0, 0.4}};
+  ASSERT_TRUE(writer.write(twist)) << writer.last_error();
+  link::VelocityCommand command{};
+  for (int i = 0; i < 500 && !f.bridge.take_command(0, command); ++i) dds_sleepfor(DDS_MSECS(10));
+  EXPECT_EQ(command.station_id, 250U);
+  EXPECT_FLOAT_EQ(command.v_H_mps.x, 0.5F);
+  EXPECT_FLOAT_EQ(command.v_H_mps.y, -0.2F);
+  EXPECT_FLOAT_EQ(command.yaw_rate_radps, -0.4F);
+  EXPECT_EQ(f.bridge.counters().commands_received, 1U);
+}
+
+// GIVEN ROS time 100 s (simulated) WHEN TwistStamped commands arrive stamped 99.6 s (fresh),
+// 99.4 s (older than kMaxCommandAge_ns), 100.6 s (from the future) and 0 (unstamped) THEN the
+// fresh and the unstamped ones fly, the other two are dropped and counted stale.
+TEST(Ros2Bridge, StaleStampedCommandsAreDropped) {
+  Fixture f;
+  link::Topic<TwistStamped> topic(f.participant, "rt/hq3/cmd_vel_in");
+  link::Writer<TwistStamped> writer(f.participant, topic, ros2_qos());
+  std::string frame = "base_link";
+  const std::int64_t now_ns = 100'000'000'000;
+  const std::int64_t stamps_ns[] = {now_ns - 400'000'000, now_ns - 600'000'000,
+                                    now_ns + 600'000'000, 0};
+  const double speeds[] = {0.1, 0.2, 0.3, 0.4};
+  for (int i = 0; i < 4; ++i) {
+    TwistStamped twist{};
+    twist.header.frame_id = frame.data();
+    twist.header.stamp = to_ros_time(stamps_ns[i]);
+    twist.twist.linear = {speeds[i], 0.0, 0.0};
+    ASSERT_TRUE(writer.write(twist)) << writer.last_error();
+  }
+  std::vector<float> flown;
+  link::VelocityCommand command{};
+  for (int i = 0; i < 300 && flown.size() < 2; ++i) {
+    while (f.bridge.take_command(now_ns, command)) flown.push_back(command.v_H_mps.x);
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  ASSERT_EQ(flown.size(), 2U);
+  EXPECT_FLOAT_EQ(flown[0], 0.1F);
+  EXPECT_FLOAT_EQ(flown[1], 0.4F);
+  EXPECT_EQ(f.bridge.counters().commands_stale, 2U);
+  EXPECT_EQ(f.bridge.counters().commands_received, 4U);
+  EXPECT_EQ(kMaxCommandAge_ns, 500'000'000);
 }
 
 }  // namespace

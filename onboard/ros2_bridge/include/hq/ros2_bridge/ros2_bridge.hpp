@@ -14,7 +14,7 @@
 /// | /<ns>/camera/image/compressed        | sensor_msgs/CompressedImage | every camera frame sent |
 /// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once
 /// set_camera() | | /<ns>/cmd_vel_in (read)              | geometry_msgs/TwistStamped | ROS teleop
-/// -> take_command |
+/// -> take_command | | /<ns>/cmd_vel (read) | geometry_msgs/Twist | teleop_twist_keyboard/joy |
 ///
 /// Frame ids: <ns>/odom (ENU world E), <ns>/base_link (FLU body F), <ns>/camera_optical (C,
 /// already ROS's optical convention). Stamps are ROS time (RosClock below): the epoch on a real
@@ -62,6 +62,7 @@ HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CompressedImage_);
 HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CameraInfo_);
 HQ_ROS2_TOPIC(geometry_msgs_msg_dds__TwistStamped_);
 HQ_ROS2_TOPIC(rosgraph_msgs_msg_dds__Clock_);
+HQ_ROS2_TOPIC(geometry_msgs_msg_dds__Twist_);
 #undef HQ_ROS2_TOPIC
 }  // namespace hq::link
 
@@ -77,6 +78,13 @@ using CompressedImage = sensor_msgs_msg_dds__CompressedImage_;
 using CameraInfo = sensor_msgs_msg_dds__CameraInfo_;
 using TwistStamped = geometry_msgs_msg_dds__TwistStamped_;
 using RosClockMsg = rosgraph_msgs_msg_dds__Clock_;
+using Twist = geometry_msgs_msg_dds__Twist_;
+
+/// A TwistStamped on cmd_vel_in older than this (its stamp against the bridge's ROS time, the
+/// same RosClock) is stale and dropped: a command from a queue, a replayed bag or a node whose
+/// clock is off must not fly. A stamp of 0 (many teleop nodes leave it unset) is taken as
+/// unstamped, as Twist on cmd_vel is. Newer than now by more than the same limit: also dropped.
+inline constexpr std::int64_t kMaxCommandAge_ns = 500'000'000;
 
 /// The one mapping from the chain's clock (VehicleState.t_ns, CameraFrame.t_ns) to ROS time,
 /// used for every stamp the bridge writes and every stamp it reads:
@@ -142,6 +150,7 @@ struct Ros2Counters {
   std::uint64_t images_published = 0;
   std::uint64_t commands_received = 0;    ///< TwistStamped samples taken from cmd_vel_in.
   std::uint64_t commands_overridden = 0;  ///< Of those: dropped, a native station commands.
+  std::uint64_t commands_stale = 0;       ///< TwistStamped dropped: stamp past kMaxCommandAge_ns.
   std::uint64_t clocks_published = 0;     ///< /clock samples (simulated time only).
 };
 
@@ -165,11 +174,14 @@ class Ros2Bridge {
   void set_clock(const RosClock& clock) { clock_ = clock; }
   [[nodiscard]] const RosClock& clock() const { return clock_; }
 
-  /// The next ROS command from cmd_vel_in as the link's command in H (command_from_twist) from
-  /// station link.ros2.station_id, unstamped (t_ns 0: ROS stamps are another clock, often 0);
-  /// false when none is pending. Values are not checked here: the fail-safe rejects and counts
-  /// NaN, Inf and out-of-envelope ones as for any station.
-  bool take_command(link::VelocityCommand& command);
+  /// The next ROS command, a Twist from cmd_vel (teleop_twist_keyboard's and teleop_twist_joy's
+  /// default) or a TwistStamped from cmd_vel_in, as the link's command in H
+  /// (command_from_twist) from station link.ros2.station_id, unstamped (t_ns 0); false when none
+  /// is pending. `now_chain_ns` (the chain's clock) judges TwistStamped stamps: one older than
+  /// kMaxCommandAge_ns in ROS time (clock()) is dropped and counted (commands_stale). Values are
+  /// not checked here: the fail-safe rejects and counts NaN, Inf and out-of-envelope ones as for
+  /// any station.
+  bool take_command(std::int64_t now_chain_ns, link::VelocityCommand& command);
   /// Counts a taken command dropped because a native station commands (lowest priority).
   void count_overridden() { ++counters_.commands_overridden; }
 
@@ -195,6 +207,7 @@ class Ros2Bridge {
   link::Topic<CompressedImage> image_topic_;
   link::Topic<CameraInfo> info_topic_;
   link::Topic<TwistStamped> command_topic_;
+  link::Topic<Twist> twist_topic_;
   link::Writer<Odometry> odom_writer_;
   link::Writer<Imu> imu_writer_;
   link::Writer<TfMessage> tf_writer_;
@@ -202,6 +215,7 @@ class Ros2Bridge {
   link::Writer<CompressedImage> image_writer_;
   link::Writer<CameraInfo> info_writer_;
   link::Reader<TwistStamped> command_reader_;
+  link::Reader<Twist> twist_reader_;
   link::Topic<TfMessage> tf_static_topic_;
   link::Writer<TfMessage> tf_static_writer_;
   TransformStamped static_transforms_[2]{};
@@ -224,6 +238,7 @@ class Ros2Bridge {
   bool have_camera_ = false;
   double distortion_[5]{};
   link::Sample<TwistStamped> twist_;
+  link::Sample<Twist> plain_twist_;
   std::uint64_t command_sequence_ = 0;
   Ros2Counters counters_;
 };
