@@ -191,9 +191,9 @@ const char* operator_input_name(hq_msgs_OperatorInput v) {
 // The files' heads: the '#' lines naming frames, clocks and units, then the columns.
 constexpr const char* kTelemetryHeader =
     "# hq-ground telemetry v3: one row per vehicle state received (v2 added the hover\n"
-    "# thrust columns, v3 the modes offered, marker target, explore phase and the ground's\n"
-    "# link figures; the cloud and marker poses are in obstacles.csv\n"
-    "# and markers.csv).\n"
+    "# thrust columns, v3 the modes offered, marker target, explore phase, the ground's\n"
+    "# link figures and the odometry's integrated pose; the cloud and marker poses are in\n"
+    "# obstacles.csv and markers.csv).\n"
     "# receipt_ns: ground clock (dds_time, ns); latency_us: source stamp to receipt;\n"
     "# t_ns: vehicle stamp; v_H: estimated velocity in H, the horizontal NED frame of\n"
     "# eq. 5 of the core paper (x forward along the heading, y right, z down), m/s;\n"
@@ -220,6 +220,10 @@ constexpr const char* kTelemetryHeader =
     "# to; explore_phase 0 not exploring, 1 lift-off 2 search 3 explore 4 edge 5 navigate 6 land\n"
     "# 7 done; state_age_ms: the state's age at receipt through the clock offset, round_trip_ms:\n"
     "# the latest heartbeat round trip, both as the ground measured them (0: unknown).\n"
+    "# odom_valid 1: p_odom (m) and yaw_odom (rad) are the odometry's integrated pose in the "
+    "odom frame (origin and heading of the start, x forward, y right, z down), "
+    "odom_position_sigma_m and odom_yaw_sigma_rad its 1-sigma, odom_yaw_relative_to_start 1: "
+    "the world heading unknown; v_H_sigma: the estimated velocity's 1-sigma (m/s).\n"
     "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
     "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
     "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
@@ -230,7 +234,10 @@ constexpr const char* kTelemetryHeader =
     "clearance_m,hover_thrust_gain,hover_thrust_converged,position_invalid_reason,"
     "position_age_s,position_sigma_m,modes_offered,marker_mode_off_reason,"
     "explore_mode_off_reason,marker_target_valid,marker_target_id,explore_phase,state_age_ms,"
-    "round_trip_ms\n";
+    "round_trip_ms,"
+    "odom_valid,p_odom_x_m,p_odom_y_m,p_odom_z_m,yaw_odom_rad,"
+    "odom_position_sigma_m,odom_yaw_sigma_rad,odom_yaw_relative_to_start,v_H_sigma_x_mps,"
+    "v_H_sigma_y_mps,v_H_sigma_z_mps\n";
 constexpr const char* kObstaclesHeader =
     "# hq-ground obstacles v1: the obstacle cloud a vehicle state carried, one row per point\n"
     "# (states without a cloud have none). receipt_ns and sequence: its state's row in\n"
@@ -356,7 +363,8 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
           "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,0x%016llx,%u,%s,%d,%s,%.4f,%s,%."
           "4f,"
-          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f,%u,%u,%u,%d,%d,%u,%.3f,%.3f\n",
+          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f,%u,%u,%u,%d,%d,%u,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,"
+          "%.4f,%.4f,%d,%.4f,%.4f,%.4f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
@@ -378,7 +386,11 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           static_cast<unsigned>(s.modes_offered), static_cast<unsigned>(s.marker_mode_off_reason),
           static_cast<unsigned>(s.explore_mode_off_reason), s.marker_target_valid ? 1 : 0,
           static_cast<int>(s.marker_target_id), static_cast<unsigned>(s.explore_phase),
-          ms(state_age_ns), ms(round_trip_ns)),
+          ms(state_age_ns), ms(round_trip_ns), s.odom_valid ? 1 : 0,
+          as_double(s.p_odom_m.x), as_double(s.p_odom_m.y), as_double(s.p_odom_m.z),
+          as_double(s.yaw_odom_rad), as_double(s.odom_position_sigma_m),
+          as_double(s.odom_yaw_sigma_rad), s.odom_yaw_relative_to_start ? 1 : 0,
+          as_double(s.v_H_sigma_mps.x), as_double(s.v_H_sigma_mps.y), as_double(s.v_H_sigma_mps.z)),
       "telemetry.csv");
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];

@@ -168,10 +168,10 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge.ros2()) {
     const hq::ros2_bridge::Ros2Counters& r = ros->counters();
     hq::log::info(
-        "  {:<40} {} states, {} clouds, {} images; cmd_vel_in {} taken, {} overridden by a "
-        "native station\n",
+        "  {:<40} {} states, {} clouds, {} images, {} clocks; cmd_vel/cmd_vel_in {} taken, {} "
+        "stale, {} overridden by a native station\n",
         "ROS 2 published", r.states_published, r.clouds_published, r.images_published,
-        r.commands_received, r.commands_overridden);
+        r.clocks_published, r.commands_received, r.commands_stale, r.commands_overridden);
   }
 }
 

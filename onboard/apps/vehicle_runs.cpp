@@ -505,7 +505,10 @@ int run_vehicle(const Options& o) {
   std::unique_ptr<hq::link_bridge::LinkOperatorPort> link_port;
   if (o.link) {
     bridge = make_link_bridge(o);
-    if (bridge->ros2() != nullptr) bridge->ros2()->set_camera(opened.source->camera());
+    if (bridge->ros2() != nullptr) {
+      bridge->ros2()->set_camera(opened.source->camera());
+      bridge->ros2()->set_camera_mount(vehicle.camera);
+    }
     link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain,
                                                                     vehicle.camera.T_B_C(), stdout);
   }

@@ -333,7 +333,11 @@ const std::vector<std::string> kStateColumns = {
     "v_cmd_flown_H_z_mps", "clearance_m", "hover_thrust_gain", "hover_thrust_converged",
     "position_invalid_reason", "position_age_s", "position_sigma_m", "modes_offered",
     "marker_mode_off_reason", "explore_mode_off_reason", "marker_target_valid", "marker_target_id",
-    "explore_phase", "state_age_ms", "round_trip_ms"};
+    "explore_phase", "state_age_ms", "round_trip_ms",
+    // The odometry's integrated pose (odom -> base_link) and the velocity's sigma.
+    "odom_valid", "p_odom_x_m", "p_odom_y_m", "p_odom_z_m", "yaw_odom_rad", "odom_position_sigma_m",
+    "odom_yaw_sigma_rad", "odom_yaw_relative_to_start", "v_H_sigma_x_mps", "v_H_sigma_y_mps",
+    "v_H_sigma_z_mps"};
 constexpr std::size_t kRequiredStateColumns = 18;
 
 using Fields = std::vector<std::string_view>;
@@ -519,6 +523,31 @@ bool parse_state_target_and_link(const CsvFile& file, const Fields& f, RecordedS
   return true;
 }
 
+// Columns 53-63 (telemetry v3; absent in older recordings): the odometry's integrated
+// pose and the velocity's sigma.
+bool parse_state_odom(const CsvFile& file, const Fields& f, RecordedState& s, std::string& error) {
+  if (!file.has(53) || !file.has(63)) return true;
+  int valid = 0;
+  int relative = 0;
+  std::array<float, 6> values{};
+  if (!parse_integer(f[53], valid) || !parse_floats(f, 54, kStateColumns, values, error) ||
+      !parse_integer(f[60], relative) ||
+      !parse_floats(f, 61, kStateColumns, s.v_H_sigma_mps, error)) {
+    if (error.empty()) {
+      error = "odom_valid = '" + std::string(f[53]) + "', odom_yaw_relative_to_start = '" +
+              std::string(f[60]) + "', expected 0/1";
+    }
+    return false;
+  }
+  s.odom_valid = valid != 0;
+  s.p_odom_m = {values[0], values[1], values[2]};
+  s.yaw_odom_rad = values[3];
+  s.odom_position_sigma_m = values[4];
+  s.odom_yaw_sigma_rad = values[5];
+  s.odom_yaw_relative_to_start = relative != 0;
+  return true;
+}
+
 void read_states(Recording& r, FileStarts& starts) {
   CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
   telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
@@ -528,7 +557,8 @@ void read_states(Recording& r, FileStarts& starts) {
         !parse_state_thrust(telemetry, f, s, error) ||
         !parse_state_position_validity(telemetry, f, s, error) ||
         !parse_state_modes_offered(telemetry, f, s, error) ||
-        !parse_state_target_and_link(telemetry, f, s, error)) {
+        !parse_state_target_and_link(telemetry, f, s, error) ||
+        !parse_state_odom(telemetry, f, s, error)) {
       return false;
     }
     r.states.push_back(s);

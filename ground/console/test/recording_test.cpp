@@ -179,9 +179,9 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
                                "telemetry.csv: markers_n"}));
   // 11 of the second layout's columns, 11 of the flight fields' (session .. clearance), the
   // two hover thrust columns, the three of the position's validity, the eight of telemetry v3
-  // (modes offered, marker target, explore phase, link figures) and the two files of telemetry
-  // v2 (obstacles.csv, markers.csv).
-  EXPECT_EQ(r.absent_columns.size(), 37U);
+  // (modes offered, marker target, explore phase, link figures), the eleven of the odom pose and
+  // the two files of telemetry v2 (obstacles.csv, markers.csv).
+  EXPECT_EQ(r.absent_columns.size(), 48U);
   EXPECT_THAT(r.absent_columns,
               ::testing::Contains(HasSubstr("obstacles.csv (the whole file: an older recording; "
                                             "replay shows no obstacle cloud)")));
@@ -208,8 +208,8 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const Recording r = load_recording(dir.string());
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
-  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:32: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:38: expected 54 fields"));
+  EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:33: v_H_x_mps = 'abc'"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:39: expected 65 fields"));
   fs::remove_all(dir);
 }
 

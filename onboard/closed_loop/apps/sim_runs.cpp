@@ -84,7 +84,12 @@ int run_sim_link(const Options& o) {
   const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
   const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
   hq::link_bridge::LinkBridge& bridge = *link_bridge;
-  if (bridge.ros2() != nullptr) bridge.ros2()->set_camera(sim_config.camera.pinhole);
+  if (bridge.ros2() != nullptr) {
+    bridge.ros2()->set_camera(sim_config.camera.pinhole);
+    bridge.ros2()->set_camera_mount(vehicle.camera);
+    // Simulated time is ROS time here, announced on /clock (use_sim_time).
+    bridge.ros2()->set_clock(hq::ros2_bridge::RosClock::simulated_time());
+  }
 
   std::FILE* log = nullptr;
   if (!o.link_log_path.empty()) {

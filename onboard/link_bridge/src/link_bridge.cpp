@@ -21,6 +21,22 @@ hq_msgs_Vector3f to_msg(const Eigen::Vector3d& v) {
   return {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())};
 }
 
+// The chain's odom pose and the estimate's velocity sigma; zeros (odom_valid false) for
+// anything non-finite, never garbage.
+void set_odom_fields(const pipeline::ChainOutput& out, link::VehicleState& s) {
+  const pipeline::OdomPoseEstimate& odom = out.odom;
+  s.odom_valid = odom.valid && odom.p_odom_m.allFinite() && std::isfinite(odom.yaw_rad) &&
+                 std::isfinite(odom.position_sigma_m) && std::isfinite(odom.yaw_sigma_rad);
+  s.p_odom_m = s.odom_valid ? to_msg(odom.p_odom_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
+  s.yaw_odom_rad = s.odom_valid ? static_cast<float>(odom.yaw_rad) : 0.0F;
+  s.odom_position_sigma_m =
+      s.odom_valid ? static_cast<float>(std::clamp(odom.position_sigma_m, 0.0, 1e6)) : 0.0F;
+  s.odom_yaw_sigma_rad =
+      s.odom_valid ? static_cast<float>(std::clamp(odom.yaw_sigma_rad, 0.0, 1e6)) : 0.0F;
+  s.odom_yaw_relative_to_start = odom.yaw_relative_to_start;
+  const Eigen::Vector3d sigma = out.estimate.v_H_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  s.v_H_sigma_mps = sigma.allFinite() ? to_msg(sigma.cwiseMin(1e6)) : hq_msgs_Vector3f{0, 0, 0};
+}
 }  // namespace
 
 bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task) {
@@ -153,7 +169,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   }
   if (ros2_ != nullptr) {
     // The ROS 2 station is the weakest: a native station commanding within its lease wins.
-    while (ros2_->take_command(command)) {
+    while (ros2_->take_command(t_ns, command)) {
       if (have_native_command_ && t_ns - last_native_command_t_ns_ <= link_.command_lease_ns) {
         ros2_->count_overridden();
         continue;
@@ -434,6 +450,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.modes_offered = extras.modes_offered & link::kModesOfferedMask;
   s.marker_mode_off_reason = extras.marker_mode_off_reason;
   s.explore_mode_off_reason = extras.explore_mode_off_reason;
+  set_odom_fields(out, s);
   s.truth_valid = extras.truth_valid && extras.v_truth_H_mps.allFinite();
   s.v_truth_H_mps =
       s.truth_valid ? to_msg(extras.v_truth_H_mps) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};

@@ -48,6 +48,7 @@ const MSGS = {
       'std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\n' +
       'bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense',
   'tf2_msgs/TFMessage': 'geometry_msgs/TransformStamped[] transforms',
+  'rosgraph_msgs/Clock': 'builtin_interfaces/Time clock',
 };
 
 // The message text as rosbag2 stores it: the type's own, then every other type after a
@@ -89,11 +90,17 @@ function increasing(msgs, name) {
 }
 const unit = (q) => Math.abs(Math.hypot(q.x, q.y, q.z, q.w) - 1) < 1e-6;
 
-function decodeAll(file, type, min) {
+// A type alone with what it uses (the full set leaves Twist, used unqualified by
+// TwistWithCovariance, without its own definition when Twist is the top-level type).
+function readerOf(text) {
+  return new MessageReader(parse(text, { ros2: true }));
+}
+
+function decodeAll(file, type, min, makeReader = () => reader(type)) {
   const cdr = records(file);
   // XCDR1 little-endian (CDR_LE): the encapsulation rmw_cyclonedds writes and reads.
   for (const c of cdr) check(c[0] === 0 && c[1] === 1, `${file}: encapsulation ${c[0]} ${c[1]}`);
-  const r = reader(type);
+  const r = makeReader();
   const msgs = cdr.map((c) => r.readMessage(c));
   console.log(`${type}: ${msgs.length} decoded from ${file}`);
   check(msgs.length >= min, `${file}: ${msgs.length} samples, expected >= ${min}`);
@@ -113,8 +120,9 @@ let moving = 0;
 for (const o of odom) {
   check(o.header.frame_id === `${ns}/odom`, `odom frame_id ${o.header.frame_id}`);
   check(o.child_frame_id === `${ns}/base_link`, `odom child_frame_id ${o.child_frame_id}`);
-  check(o.pose.covariance.length === 36 && o.pose.covariance[0] === -1,
-        'odom pose.covariance[0] = -1 (no marker pose in this world)');
+  check(o.pose.covariance.length === 36 && (o.pose.covariance[0] === -1 ||
+        (o.pose.covariance[0] >= 0 && o.pose.covariance[35] >= 0)),
+        'odom pose.covariance: -1 before the odom pose, else its variances');
   check(unit(o.pose.pose.orientation), 'odom orientation is a unit quaternion');
   const s = states.get(stampNs(o.header.stamp));
   if (!s) continue;
@@ -131,6 +139,16 @@ for (const o of odom) {
   if (Math.hypot(x, y) > 0.05) ++moving;
 }
 console.log(`odom: twist checked against ${compared} native states, ${moving} of them moving`);
+// The odom pose moves with the vehicle (no marker map in this world), its uncertainty growing.
+const last = odom[odom.length - 1];
+const p = last.pose.pose.position;
+console.log(`odom: last pose (${p.x.toFixed(3)}, ${p.y.toFixed(3)}, ${p.z.toFixed(3)}) m ENU, ` +
+            `sigma ${Math.sqrt(last.pose.covariance[0]).toFixed(3)} m, ` +
+            `twist sigma x ${Math.sqrt(last.twist.covariance[0]).toFixed(4)} m/s`);
+check(Math.hypot(p.x, p.y, p.z) > 0.1, 'odom: the pose never moved');
+check(last.pose.covariance[0] > 0 && last.pose.covariance[35] > 0,
+      'odom: position and yaw variances grow in flight');
+check(last.twist.covariance[0] > 0, 'odom: the twist covariance is the estimator\'s, not zero');
 check(compared >= 10, `odom: only ${compared} samples matched a native state by stamp`);
 check(moving >= 1, 'odom: the vehicle never moved while odometry was recorded');
 
@@ -139,6 +157,8 @@ increasing(imu, 'imu');
 for (const m of imu) {
   check(m.header.frame_id === `${ns}/base_link`, `imu frame_id ${m.header.frame_id}`);
   check(m.linear_acceleration_covariance[0] === -1, 'imu: no acceleration, covariance[0] = -1');
+  check(Math.abs(m.orientation_covariance[8] - Math.PI * Math.PI / 3) < 1e-3,
+        'imu: the yaw is unknown (variance pi^2/3)');
   check(unit(m.orientation), 'imu orientation is a unit quaternion');
 }
 
@@ -150,6 +170,17 @@ for (const m of tf) {
         `tf ${t.header.frame_id} -> ${t.child_frame_id}`);
   check(unit(t.transform.rotation), 'tf rotation is a unit quaternion');
 }
+
+// /tf_static, read by a reader that joined seconds after it was written (transient local).
+const statics = decodeAll('tf_static.cdr', 'tf2_msgs/TFMessage', 1);
+for (const m of statics) {
+  const names = m.transforms.map((t) => `${t.header.frame_id}->${t.child_frame_id}`).join(' ');
+  check(names === `${ns}/base_link->${ns}/camera_link ${ns}/camera_link->${ns}/camera_optical`,
+        `tf_static: ${names}`);
+  for (const t of m.transforms) check(unit(t.transform.rotation), 'tf_static: unit quaternions');
+}
+console.log(`tf_static: ${statics.length} sample(s) to a late joiner: base_link -> camera_link ` +
+            `at (${statics.length ? statics[0].transforms[0].transform.translation.x.toFixed(3) : '?'}, ...) m`);
 
 const clouds = decodeAll('obstacles.cdr', 'sensor_msgs/PointCloud2', 1);
 for (const c of clouds) {
@@ -174,6 +205,31 @@ for (const m of infos) {
   check(m.width > 0 && m.height > 0 && m.k[0] > 0 && m.k[8] === 1 && m.d.length === 5,
         `camera_info ${m.width}x${m.height} fx ${m.k[0]}`);
 }
+
+// cmd_vel: the Twist the probe flew the vehicle with, as teleop_twist_keyboard sends it.
+const cmds = decodeAll('cmd_vel.cdr', 'geometry_msgs/Twist', 5, () => readerOf(
+    'geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular' + SEP +
+    'MSG: geometry_msgs/Vector3\n' + MSGS['geometry_msgs/Vector3']));
+for (const c of cmds) {
+  check(Math.abs(Math.hypot(c.linear.x, c.linear.y) - 0.3) < 1e-6 && c.linear.z === 0 &&
+        c.angular.z === 0, `cmd_vel ${JSON.stringify(c)}: 0.3 m/s along the heading`);
+}
+
+// /clock: the simulated time (use_sim_time), increasing, and the very stamps the topics carry.
+const clocks = decodeAll('clock.cdr', 'rosgraph_msgs/Clock', 20);
+const clockNs = clocks.map((c) => stampNs(c.clock));
+for (let i = 1; i < clockNs.length; ++i) {
+  if (clockNs[i] <= clockNs[i - 1]) {
+    check(false, `clock ${i} not after clock ${i - 1}`);
+    break;
+  }
+}
+check(clockNs.length > 0 && clockNs[clockNs.length - 1] < 3600n * 1000000000n,
+      'clock is the simulated time (under an hour), not the epoch');
+const clockSet = new Set(clockNs.map(String));
+const stamped = odom.filter((o) => clockSet.has(String(stampNs(o.header.stamp)))).length;
+console.log(`clock: ${clocks.length} decoded; ${stamped} of ${odom.length} odom stamps are /clock times`);
+check(stamped >= 10, `only ${stamped} odom stamps are /clock times`);
 
 if (failures > 0) {
   console.log(`${failures} check(s) failed`);

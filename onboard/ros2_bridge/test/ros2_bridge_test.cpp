@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -43,6 +44,7 @@ std::string topic_name(dds_entity_t topic) {
 }
 
 struct Fixture {
+  Fixture() { bridge.set_clock(RosClock::simulated_time()); }  // stamps = the states' t_ns
   link::LinkConfig config = ros2_config();
   link::Participant participant{config.domain_id};
   Ros2Bridge bridge{participant, config};
@@ -78,7 +80,9 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
       {"rt/hq3/obstacles", "sensor_msgs::msg::dds_::PointCloud2_"},
       {"rt/hq3/camera/image/compressed", "sensor_msgs::msg::dds_::CompressedImage_"},
       {"rt/hq3/camera/camera_info", "sensor_msgs::msg::dds_::CameraInfo_"},
-      {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"}};
+      {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"},
+      {"rt/clock", "rosgraph_msgs::msg::dds_::Clock_"},
+      {"rt/tf_static", "tf2_msgs::msg::dds_::TFMessage_"}};
   // The participant's topics are among its children.
   std::array<dds_entity_t, 64> children{};
   const dds_return_t n = dds_get_children(f.participant.handle(), children.data(), children.size());
@@ -92,6 +96,52 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
     }
     EXPECT_TRUE(found) << name;
   }
+}
+
+// On a real vehicle ROS time is the epoch: the chain's monotonic stamp plus one offset, within
+// a few milliseconds of the system clock read now; stamps split into sec and nanosec in
+// [0, 1e9) for negative times too, and read back exactly.
+TEST(RosClock, RealVehicleStampsAreTheEpochAndSimulatedOnesTheSimulatedTime) {
+  const RosClock epoch = RosClock::epoch_from_monotonic();
+  EXPECT_FALSE(epoch.is_simulated());
+  const auto ns = [](auto d) {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(d.time_since_epoch()).count();
+  };
+  const std::int64_t monotonic_ns = ns(std::chrono::steady_clock::now());
+  const std::int64_t system_ns = ns(std::chrono::system_clock::now());
+  EXPECT_NEAR(static_cast<double>(epoch.ros_ns(monotonic_ns) - system_ns), 0.0, 5e6);
+  EXPECT_EQ(epoch.chain_ns(epoch.ros_ns(monotonic_ns)), monotonic_ns);
+  const RosClock sim = RosClock::simulated_time();
+  EXPECT_TRUE(sim.is_simulated());
+  EXPECT_EQ(sim.ros_ns(12'345), 12'345);
+  const auto t = to_ros_time(-1'500'000'000);
+  EXPECT_EQ(t.sec, -2);
+  EXPECT_EQ(t.nanosec, 500'000'000U);
+  EXPECT_EQ(from_ros_time(t), -1'500'000'000);
+  EXPECT_EQ(from_ros_time(to_ros_time(1'797'000'000'123'456'789)), 1'797'000'000'123'456'789);
+}
+
+// Simulated: every state's stamp goes out on /clock too, and the stamps are that time; a real
+// vehicle publishes no /clock (ROS nodes use their system clock) and stamps in the epoch.
+TEST(Ros2Bridge, PublishesClockOnlyWhenSimulated) {
+  Fixture f;
+  Probe<RosClockMsg> clock(f.participant, "rt/clock");
+  Probe<Odometry> odom(f.participant, "rt/hq3/odom");
+  f.bridge.publish_state(level_state());
+  ASSERT_TRUE(take_within(f.participant, clock.reader, *clock.sample));
+  EXPECT_EQ(clock.sample->clock.sec, 12);
+  EXPECT_EQ(clock.sample->clock.nanosec, 345'678'901U);
+  EXPECT_EQ(f.bridge.counters().clocks_published, 1U);
+
+  f.bridge.set_clock(RosClock(1'797'000'000'000'000'000, false));
+  f.bridge.publish_state(level_state());
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));  // the first state's
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
+  EXPECT_EQ(odom.sample->header.stamp.sec, 1'797'000'012);
+  EXPECT_EQ(odom.sample->header.stamp.nanosec, 345'678'901U);
+  EXPECT_EQ(f.bridge.counters().clocks_published, 1U);
+  dds_sample_info_t info{};
+  EXPECT_FALSE(clock.reader.take(*clock.sample, info));
 }
 
 // GIVEN a level vehicle flying forward-right and climbing WHEN its state is published THEN the
@@ -125,6 +175,7 @@ TEST(Ros2Bridge, OdometryIsInRosFramesAndMarksTheUnknownPose) {
   EXPECT_STREQ(imu.sample->header.frame_id, "hq3/base_link");
   EXPECT_NEAR(imu.sample->angular_velocity.y, -0.2, 1e-6);
   EXPECT_EQ(imu.sample->linear_acceleration_covariance[0], -1.0);
+  EXPECT_DOUBLE_EQ(imu.sample->orientation_covariance[8], kUnknownYawVariance_rad2);
 
   ASSERT_TRUE(take_within(f.participant, tf.reader, *tf.sample));
   ASSERT_EQ(tf.sample->transforms._length, 1U);
@@ -134,27 +185,94 @@ TEST(Ros2Bridge, OdometryIsInRosFramesAndMarksTheUnknownPose) {
   EXPECT_DOUBLE_EQ(t.transform.rotation.w, o.pose.pose.orientation.w);
 }
 
-// With the marker filter anchored, the pose is W's NED position in ENU with its yaw, and the
-// covariance no longer says "unknown"; a lost estimator marks the twist instead.
-TEST(Ros2Bridge, MarkerPoseGoesOutInEnu) {
+// GIVEN the odometry's integrated pose (2 m north, 1 m west, 1.5 m up, facing east) and the
+// marker filter anchored 1 m further north THEN the odometry is that pose in ENU with its
+// covariances (position and yaw sigma, the estimator's velocity sigma), /tf carries
+// odom -> base_link and map -> odom (1 m north, no turn), and a lost estimator marks the twist.
+TEST(Ros2Bridge, OdomPoseGoesOutInEnuWithItsCovariancesAndMapToOdom) {
   Fixture f;
   Probe<Odometry> odom(f.participant, "rt/hq3/odom");
+  Probe<Imu> imu(f.participant, "rt/hq3/imu");
+  Probe<TfMessage> tf(f.participant, "rt/tf");
   link::VehicleState s = level_state();
+  s.odom_valid = true;
+  s.p_odom_m = {2.0F, -1.0F, -1.5F};
+  s.yaw_odom_rad = static_cast<float>(M_PI / 2);
+  s.odom_position_sigma_m = 0.3F;
+  s.odom_yaw_sigma_rad = 0.05F;
+  s.v_H_sigma_mps = {0.02F, 0.03F, 0.04F};
   s.position_valid = true;
-  s.p_W_m = {2.0F, -1.0F, -1.5F};              // 2 m north, 1 m west, 1.5 m up
-  s.yaw_W_rad = static_cast<float>(M_PI / 2);  // facing east
-  s.estimator_health = hq_msgs_HEALTH_LOST;
+  s.p_W_m = {3.0F, -1.0F, -1.5F};
+  s.yaw_W_rad = static_cast<float>(M_PI / 2);
   f.bridge.publish_state(s);
   ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
   const Odometry& o = *odom.sample;
   EXPECT_DOUBLE_EQ(o.pose.pose.position.x, -1.0);
   EXPECT_DOUBLE_EQ(o.pose.pose.position.y, 2.0);
   EXPECT_DOUBLE_EQ(o.pose.pose.position.z, 1.5);
-  EXPECT_EQ(o.pose.covariance[0], 0.0);
-  EXPECT_EQ(o.twist.covariance[0], -1.0);
+  EXPECT_NEAR(o.pose.covariance[0], 0.09, 1e-6);
+  EXPECT_NEAR(o.pose.covariance[7], 0.09, 1e-6);
+  EXPECT_NEAR(o.pose.covariance[35], 0.0025, 1e-7);
+  EXPECT_DOUBLE_EQ(o.pose.covariance[21], kRollPitchVariance_rad2);
+  EXPECT_NEAR(o.twist.covariance[0], 0.0004, 1e-8);
+  EXPECT_NEAR(o.twist.covariance[7], 0.0009, 1e-8);
+  EXPECT_NEAR(o.twist.covariance[14], 0.0016, 1e-8);
+  EXPECT_DOUBLE_EQ(o.twist.covariance[35], kRateVariance_rad2ps2);
   const Eigen::Quaterniond q(o.pose.pose.orientation.w, o.pose.pose.orientation.x,
                              o.pose.pose.orientation.y, o.pose.pose.orientation.z);
-  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 1e-6);
+  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm(), 1e-6);  // east
+
+  ASSERT_TRUE(take_within(f.participant, imu.reader, *imu.sample));
+  EXPECT_DOUBLE_EQ(imu.sample->orientation_covariance[8], kUnknownYawVariance_rad2);
+  EXPECT_DOUBLE_EQ(imu.sample->orientation_covariance[0], kRollPitchVariance_rad2);
+  EXPECT_DOUBLE_EQ(imu.sample->angular_velocity_covariance[4], kRateVariance_rad2ps2);
+
+  ASSERT_TRUE(take_within(f.participant, tf.reader, *tf.sample));
+  ASSERT_EQ(tf.sample->transforms._length, 2U);
+  const TransformStamped& map_odom = tf.sample->transforms._buffer[1];
+  EXPECT_STREQ(map_odom.header.frame_id, "hq3/map");
+  EXPECT_STREQ(map_odom.child_frame_id, "hq3/odom");
+  EXPECT_NEAR(map_odom.transform.translation.x, 0.0, 1e-6);
+  EXPECT_NEAR(map_odom.transform.translation.y, 1.0, 1e-6);
+  EXPECT_NEAR(map_odom.transform.translation.z, 0.0, 1e-6);
+  EXPECT_NEAR(std::abs(map_odom.transform.rotation.w), 1.0, 1e-6);
+
+  s.estimator_health = hq_msgs_HEALTH_LOST;
+  f.bridge.publish_state(s);
+  ASSERT_TRUE(take_within(f.participant, odom.reader, *odom.sample));
+  EXPECT_EQ(odom.sample->twist.covariance[0], -1.0);
+}
+
+// /tf_static as tf2's static broadcaster: base_link -> camera_link -> camera_optical of the
+// mount, transient local, so a reader that joins after it was written still gets it.
+TEST(Ros2Bridge, TfStaticReachesAReaderThatJoinsLater) {
+  Fixture f;
+  const Eigen::Isometry3d T_B_C =
+      Eigen::Translation3d(0.1, 0.0, 0.05) *
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY());  // optical z along body x
+  f.bridge.set_camera_mount(geometry::CameraMount(T_B_C));
+  f.bridge.publish_state(level_state());
+  link::Topic<TfMessage> topic(f.participant, "rt/tf_static");
+  link::Reader<TfMessage> late(f.participant, topic, tf_static_qos());
+  link::Sample<TfMessage> sample;
+  ASSERT_TRUE(take_within(f.participant, late, *sample));
+  ASSERT_EQ(sample->transforms._length, 2U);
+  const TransformStamped& link = sample->transforms._buffer[0];
+  const TransformStamped& optical = sample->transforms._buffer[1];
+  EXPECT_STREQ(link.header.frame_id, "hq3/base_link");
+  EXPECT_STREQ(link.child_frame_id, "hq3/camera_link");
+  EXPECT_STREQ(optical.header.frame_id, "hq3/camera_link");
+  EXPECT_STREQ(optical.child_frame_id, "hq3/camera_optical");
+  const geometry::RosCameraFrames frames =
+      geometry::ros_camera_frames(geometry::CameraMount(T_B_C));
+  EXPECT_NEAR(link.transform.translation.x, frames.T_F_camera_link.translation().x(), 1e-9);
+  EXPECT_NEAR(link.transform.translation.z, frames.T_F_camera_link.translation().z(), 1e-9);
+  EXPECT_NEAR(link.transform.translation.x, 0.1, 1e-9);
+  EXPECT_NEAR(link.transform.translation.z, -0.05, 1e-9);  // FRD z down -> FLU z up
+  // Written once: the next state writes no second sample.
+  f.bridge.publish_state(level_state());
+  dds_sample_info_t info{};
+  EXPECT_FALSE(late.take(*sample, info));
 }
 
 // The state's cloud (body FRD) goes out as a PointCloud2 of float32 x, y, z in FLU.
@@ -252,7 +370,7 @@ TEST(Ros2Bridge, CmdVelInBecomesALinkCommandInH) {
   twist.twist.angular = {0.0, 0.0, 0.4};
   ASSERT_TRUE(writer.write(twist)) << writer.last_error();
   link::VelocityCommand command{};
-  for (int i = 0; i < 500 && !f.bridge.take_command(command); ++i) dds_sleepfor(DDS_MSECS(10));
+  for (int i = 0; i < 500 && !f.bridge.take_command(0, command); ++i) dds_sleepfor(DDS_MSECS(10));
   EXPECT_EQ(command.vehicle_id, 3U);
   EXPECT_EQ(command.station_id, 250U);
   EXPECT_EQ(command.t_ns, 0);
@@ -261,6 +379,56 @@ TEST(Ros2Bridge, CmdVelInBecomesALinkCommandInH) {
   EXPECT_FLOAT_EQ(command.v_H_mps.z, -0.1F);
   EXPECT_FLOAT_EQ(command.yaw_rate_radps, -0.4F);
   EXPECT_EQ(f.bridge.counters().commands_received, 1U);
+}
+
+// A Twist on cmd_vel, as teleop_twist_keyboard and teleop_twist_joy publish by default, flies
+// as a TwistStamped does.
+TEST(Ros2Bridge, TwistOnCmdVelBecomesALinkCommandInH) {
+  Fixture f;
+  link::Topic<Twist> topic(f.participant, "rt/hq3/cmd_vel");
+  link::Writer<Twist> writer(f.participant, topic, ros2_qos());
+  const Twist twist{{0.5, 0.2, 0.1}, {0.0, 0.0, 0.4}};
+  ASSERT_TRUE(writer.write(twist)) << writer.last_error();
+  link::VelocityCommand command{};
+  for (int i = 0; i < 500 && !f.bridge.take_command(0, command); ++i) dds_sleepfor(DDS_MSECS(10));
+  EXPECT_EQ(command.station_id, 250U);
+  EXPECT_FLOAT_EQ(command.v_H_mps.x, 0.5F);
+  EXPECT_FLOAT_EQ(command.v_H_mps.y, -0.2F);
+  EXPECT_FLOAT_EQ(command.yaw_rate_radps, -0.4F);
+  EXPECT_EQ(f.bridge.counters().commands_received, 1U);
+}
+
+// GIVEN ROS time 100 s (simulated) WHEN TwistStamped commands arrive stamped 99.6 s (fresh),
+// 99.4 s (older than kMaxCommandAge_ns), 100.6 s (from the future) and 0 (unstamped) THEN the
+// fresh and the unstamped ones fly, the other two are dropped and counted stale.
+TEST(Ros2Bridge, StaleStampedCommandsAreDropped) {
+  Fixture f;
+  link::Topic<TwistStamped> topic(f.participant, "rt/hq3/cmd_vel_in");
+  link::Writer<TwistStamped> writer(f.participant, topic, ros2_qos());
+  std::string frame = "base_link";
+  const std::int64_t now_ns = 100'000'000'000;
+  const std::int64_t stamps_ns[] = {now_ns - 400'000'000, now_ns - 600'000'000,
+                                    now_ns + 600'000'000, 0};
+  const double speeds[] = {0.1, 0.2, 0.3, 0.4};
+  for (int i = 0; i < 4; ++i) {
+    TwistStamped twist{};
+    twist.header.frame_id = frame.data();
+    twist.header.stamp = to_ros_time(stamps_ns[i]);
+    twist.twist.linear = {speeds[i], 0.0, 0.0};
+    ASSERT_TRUE(writer.write(twist)) << writer.last_error();
+  }
+  std::vector<float> flown;
+  link::VelocityCommand command{};
+  for (int i = 0; i < 300 && flown.size() < 2; ++i) {
+    while (f.bridge.take_command(now_ns, command)) flown.push_back(command.v_H_mps.x);
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  ASSERT_EQ(flown.size(), 2U);
+  EXPECT_FLOAT_EQ(flown[0], 0.1F);
+  EXPECT_FLOAT_EQ(flown[1], 0.4F);
+  EXPECT_EQ(f.bridge.counters().commands_stale, 2U);
+  EXPECT_EQ(f.bridge.counters().commands_received, 4U);
+  EXPECT_EQ(kMaxCommandAge_ns, 500'000'000);
 }
 
 }  // namespace

@@ -1,13 +1,14 @@
 // hq_ros2_probe: the other side of a vehicle run with --ros2, for test/ros2_topics.sh.
 //   hq_ros2_probe --domain-id D --out DIR [--ns hq1] [--seconds 20] [--heading-deg 45]
 // As a native ground station (station 1) it takes the vehicle off in teleop; then, as a ROS 2
-// teleop node, it publishes TwistStamped (0.3 m/s along the camera's heading, --heading-deg
-// right of forward: the vehicle limits what it flies to the space its camera has seen) on
-// rt/<ns>/cmd_vel_in and checks in the vehicle's state that station 250 commands and the command
-// flown is the ROS one in H; then the native station commands 0.1 m/s along the heading beside
-// the ROS node and must take over. Meanwhile it
-// takes every rt/ topic as raw CDR (dds_takecdr, the bytes a ROS 2 machine receives) into
-// DIR/<topic>.cdr (records: uint32 little-endian length, bytes) and writes each native state's
+// teleop node, it publishes Twist (0.3 m/s along the camera's heading, --heading-deg
+// right of forward: the vehicle limits what it flies to the space its camera has seen) as a
+// geometry_msgs/Twist on rt/<ns>/cmd_vel (teleop_twist_keyboard's default) and checks in the
+// vehicle's state that station 250 commands and the command flown is the ROS one in H; then the
+// native station commands 0.1 m/s along the heading beside the ROS node and must take over.
+// Meanwhile it takes every rt/ topic as raw CDR (dds_takecdr, the bytes a ROS 2 machine receives)
+// into DIR/<topic>.cdr (records: uint32 little-endian length, bytes; rt/tf_static read by a reader
+// created only once airborne, as a late tf2 listener) and writes each native state's
 // stamp, v_H and attitude to DIR/states.csv, for the independent decoder (decode_ros2.cjs).
 // Exit 0 when both phases were seen, 1 naming the phase that was not, 2 on bad arguments.
 #include "hq/link/link.hpp"
@@ -73,14 +74,15 @@ struct RawDump {
 
 template <typename T>
 RawDump raw_dump(const Participant& participant, std::vector<hq::link::Topic<T>>& topics,
-                 const std::string& dds_name, const std::string& file, int max_samples) {
+                 const std::string& dds_name, const std::string& file, int max_samples,
+                 const hq::link::Qos& qos = hq::ros2_bridge::ros2_qos()) {
   topics.emplace_back(participant, dds_name);
   RawDump d;
   d.name = dds_name;
   d.max_samples = max_samples;
-  d.reader = hq::link::check(dds_create_reader(participant.handle(), topics.back().handle(),
-                                               hq::ros2_bridge::ros2_qos().get(), nullptr),
-                             "dds_create_reader", dds_name);
+  d.reader = hq::link::check(
+      dds_create_reader(participant.handle(), topics.back().handle(), qos.get(), nullptr),
+      "dds_create_reader", dds_name);
   d.file = std::fopen(file.c_str(), "wb");
   if (d.file == nullptr) throw hq::InputError(file + ": cannot open for writing");
   return d;
@@ -133,16 +135,14 @@ class Probe {
         heartbeats_(participant_, topics_.heartbeat, hq::link::heartbeat_qos(insecure(a))),
         commands_(participant_, topics_.command,
                   hq::link::command_qos(insecure(a), hq::link::End::kWriter)),
-        twist_topic_(participant_, hq::ros2_bridge::dds_topic_name(a.ns, "cmd_vel_in")),
+        twist_topic_(participant_, hq::ros2_bridge::dds_topic_name(a.ns, "cmd_vel")),
         twists_(participant_, twist_topic_, hq::ros2_bridge::ros2_qos()),
         cos_heading_(static_cast<float>(std::cos(a.heading_deg * M_PI / 180.0))),
         sin_heading_(static_cast<float>(std::sin(a.heading_deg * M_PI / 180.0))) {
     open_dumps();
-    twist_frame_ = a.ns + "/base_link";
-    twist_.header.frame_id = twist_frame_.data();
     // Along the heading, in H: (cos, sin) right of forward; in the ROS body FLU y is left.
-    twist_.twist.linear = {0.3 * static_cast<double>(cos_heading_),
-                           -0.3 * static_cast<double>(sin_heading_), 0.0};
+    twist_.linear = {0.3 * static_cast<double>(cos_heading_),
+                     -0.3 * static_cast<double>(sin_heading_), 0.0};
     csv_ = std::fopen((a.out + "/states.csv").c_str(), "w");
     if (csv_ == nullptr) throw hq::InputError(a.out + "/states.csv: cannot open for writing");
     std::fprintf(csv_, "t_ns,v_H_x,v_H_y,v_H_z,roll_rad,pitch_rad\n");
@@ -191,6 +191,9 @@ class Probe {
         raw_dump(participant_, image_topics_, rt("camera/image/compressed"), file("image"), 10));
     dumps_.push_back(
         raw_dump(participant_, info_topics_, rt("camera/camera_info"), file("camera_info"), 10));
+    dumps_.push_back(raw_dump(participant_, clock_topics_, "rt/clock", file("clock"), 400));
+    // What this probe sends as teleop_twist_keyboard would, as the bytes on the wire.
+    dumps_.push_back(raw_dump(participant_, cmd_vel_topics_, rt("cmd_vel"), file("cmd_vel"), 20));
   }
 
   /// Every new state: into states.csv, and counted when it shows the phase's commander flying
@@ -268,7 +271,7 @@ class Probe {
   bool step_ros(std::int64_t t_ns) {
     twists_.write(twist_);
     if (ros_seen_ >= 10) {
-      std::printf("probe: ROS 2 cmd_vel_in flown by station 250 after %.1f s\n",
+      std::printf("probe: ROS 2 Twist on cmd_vel flown by station 250 after %.1f s\n",
                   1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kNative, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
@@ -306,6 +309,13 @@ class Probe {
   }
 
   void next_phase(Phase phase, std::int64_t t_ns) {
+    if (phase == Phase::kRos) {
+      // A late joiner, as tf2's static listener: /tf_static was written at the vehicle's first
+      // state, seconds ago; transient local must still deliver it.
+      tf_static_topics_.reserve(1);
+      dumps_.push_back(raw_dump(participant_, tf_static_topics_, "rt/tf_static",
+                                a_.out + "/tf_static.cdr", 5, hq::ros2_bridge::tf_static_qos()));
+    }
     phase_ = phase;
     phase_start_ns_ = t_ns;
   }
@@ -326,8 +336,8 @@ class Probe {
   hq::link::Writer<hq::link::ModeRequest> requests_;
   hq::link::Writer<hq::link::Heartbeat> heartbeats_;
   hq::link::Writer<hq::link::VelocityCommand> commands_;
-  hq::link::Topic<hq::ros2_bridge::TwistStamped> twist_topic_;
-  hq::link::Writer<hq::ros2_bridge::TwistStamped> twists_;
+  hq::link::Topic<hq::ros2_bridge::Twist> twist_topic_;
+  hq::link::Writer<hq::ros2_bridge::Twist> twists_;
   // One topic each, in vectors so raw_dump can create them in place (a Topic does not move).
   std::vector<hq::link::Topic<hq::ros2_bridge::Odometry>> odom_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::Imu>> imu_topics_;
@@ -335,9 +345,11 @@ class Probe {
   std::vector<hq::link::Topic<hq::ros2_bridge::PointCloud2>> cloud_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::CompressedImage>> image_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::CameraInfo>> info_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::RosClockMsg>> clock_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::TfMessage>> tf_static_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::Twist>> cmd_vel_topics_;
   std::vector<RawDump> dumps_;
-  std::string twist_frame_;
-  hq::ros2_bridge::TwistStamped twist_{};
+  hq::ros2_bridge::Twist twist_{};
   float cos_heading_;
   float sin_heading_;
   std::FILE* csv_ = nullptr;

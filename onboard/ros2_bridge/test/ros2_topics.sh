@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A simulated vehicle with the ROS 2 topics on (hq-sim-flight --link --ros2
 # --insecure) against hq_ros2_probe: a native station takes it off, a ROS 2 teleop node flies
-# it over rt/<ns>/cmd_vel_in, the native station overrides it; the probe dumps every rt/ topic
+# it over rt/<ns>/cmd_vel (Twist, as teleop_twist_keyboard), the native station overrides it; the probe dumps every rt/ topic
 # as raw CDR into DUMP_DIR.
 # Usage: ros2_topics.sh HQ_ONBOARD HQ_ROS2_PROBE DUMP_DIR   (run from the repository root)
 #        ros2_topics.sh --decode DUMP_DIR WORK_DIR   decodes the dump with @foxglove/rosmsg2-

@@ -9,28 +9,35 @@
 /// | /<ns>/odom                           | nav_msgs/Odometry         | every vehicle state | |
 /// /<ns>/imu                            | sensor_msgs/Imu           | every vehicle state         |
 /// | /tf                                  | tf2_msgs/TFMessage        | every vehicle state | |
+/// | /tf_static                           | tf2_msgs/TFMessage        | once set_camera_mount() |
 /// /<ns>/obstacles                      | sensor_msgs/PointCloud2   | states carrying the cloud   |
 /// | /<ns>/camera/image/compressed        | sensor_msgs/CompressedImage | every camera frame sent |
 /// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once
 /// set_camera() | | /<ns>/cmd_vel_in (read)              | geometry_msgs/TwistStamped | ROS teleop
-/// -> take_command |
+/// -> take_command | | /<ns>/cmd_vel (read) | geometry_msgs/Twist | teleop_twist_keyboard/joy |
 ///
 /// Frame ids: <ns>/odom (ENU world E), <ns>/base_link (FLU body F), <ns>/camera_optical (C,
-/// already ROS's optical convention). Stamps are the vehicle state's t_ns (the chain's clock).
+/// already ROS's optical convention). Stamps are ROS time (RosClock below): the epoch on a real
+/// vehicle, the simulated time with /clock (rosgraph_msgs/Clock on rt/clock) in simulation.
 ///
-/// Odometry: the pose is the marker filter's while it is anchored (VehicleState.position_valid,
-/// marker map W NED -> E); otherwise position 0 and pose.covariance[0] = -1 (ROS: "no estimate"),
-/// the orientation then from roll and pitch with yaw 0 (heading unknown: E's x is the heading).
-/// The twist is the estimated velocity in the child frame F (v_H rotated by roll and pitch) and
-/// the gyro rates; its covariance unknown (zeros), or twist.covariance[0] = -1 while the
-/// estimator is lost. Imu: the same orientation and rates; no acceleration (linear_acceleration
-/// covariance[0] = -1). /tf: <ns>/odom -> <ns>/base_link, the odometry's pose.
+/// Odometry: the pose is the odometry's integrated pose (VehicleState.p_odom_m, yaw_odom_rad:
+/// odom NED-like -> E, continuous, REP-105), its covariance from its sigmas (position, yaw
+/// relative to odom's start heading; roll and pitch about a degree), or pose.covariance[0] = -1
+/// before it is valid. The twist is the estimated velocity in the child frame F (v_H rotated by
+/// roll and pitch) and the gyro rates, its covariance the estimator's (v_H_sigma_mps), or
+/// twist.covariance[0] = -1 while the estimator is lost. Imu: the same orientation and rates,
+/// its yaw variance that of an unknown heading (pi^2/3: no compass); no acceleration
+/// (linear_acceleration covariance[0] = -1). /tf: <ns>/odom -> <ns>/base_link, and while the
+/// marker filter is anchored <ns>/map -> <ns>/odom (the marker map W NED -> ENU). /tf_static
+/// (transient local, keep last 1, as tf2's static broadcaster): <ns>/base_link ->
+/// <ns>/camera_link -> <ns>/camera_optical of the vehicle file's camera mount.
 ///
 /// The bridge writes on the LinkBridge's own participant, from the same calls that publish the
 /// link's state and camera (no thread, no extra JPEG encoding: the image is the link's bytes).
 /// Publishing allocates nothing of its own: frame ids, the cloud and the image point at buffers
 /// sized at construction.
 
+#include "hq/geometry/camera_mount.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
 #include "hq/link/link.hpp"
 
@@ -54,6 +61,8 @@ HQ_ROS2_TOPIC(sensor_msgs_msg_dds__PointCloud2_);
 HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CompressedImage_);
 HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CameraInfo_);
 HQ_ROS2_TOPIC(geometry_msgs_msg_dds__TwistStamped_);
+HQ_ROS2_TOPIC(rosgraph_msgs_msg_dds__Clock_);
+HQ_ROS2_TOPIC(geometry_msgs_msg_dds__Twist_);
 #undef HQ_ROS2_TOPIC
 }  // namespace hq::link
 
@@ -68,13 +77,69 @@ using PointField = sensor_msgs_msg_dds__PointField_;
 using CompressedImage = sensor_msgs_msg_dds__CompressedImage_;
 using CameraInfo = sensor_msgs_msg_dds__CameraInfo_;
 using TwistStamped = geometry_msgs_msg_dds__TwistStamped_;
+using RosClockMsg = rosgraph_msgs_msg_dds__Clock_;
+using Twist = geometry_msgs_msg_dds__Twist_;
+
+/// A TwistStamped on cmd_vel_in older than this (its stamp against the bridge's ROS time, the
+/// same RosClock) is stale and dropped: a command from a queue, a replayed bag or a node whose
+/// clock is off must not fly. A stamp of 0 (many teleop nodes leave it unset) is taken as
+/// unstamped, as Twist on cmd_vel is. Newer than now by more than the same limit: also dropped.
+inline constexpr std::int64_t kMaxCommandAge_ns = 500'000'000;
+
+/// The one mapping from the chain's clock (VehicleState.t_ns, CameraFrame.t_ns) to ROS time,
+/// used for every stamp the bridge writes and every stamp it reads:
+/// - a real vehicle: its chain runs on the monotonic clock; ROS time is the epoch (the system
+///   clock, as rclcpp's RCL_ROS_TIME without use_sim_time): t + (system - monotonic), the offset
+///   taken once, so stamps never jump when NTP steps the system clock later;
+/// - the simulator: ROS time is the simulated time itself, and the bridge publishes it on /clock
+///   (rosgraph_msgs/Clock) so that nodes run with use_sim_time:=true follow it.
+class RosClock {
+ public:
+  /// The epoch from the host's monotonic clock (std::chrono::steady_clock, CLOCK_MONOTONIC).
+  static RosClock epoch_from_monotonic();
+  /// Simulated time: ROS time = the chain's time, /clock published.
+  static RosClock simulated_time() { return RosClock(0, true); }
+  RosClock(std::int64_t offset_ns, bool simulated) : offset_ns_(offset_ns), simulated_(simulated) {}
+
+  [[nodiscard]] std::int64_t ros_ns(std::int64_t chain_t_ns) const {
+    return chain_t_ns + offset_ns_;
+  }
+  [[nodiscard]] std::int64_t chain_ns(std::int64_t ros_t_ns) const { return ros_t_ns - offset_ns_; }
+  [[nodiscard]] bool is_simulated() const { return simulated_; }
+
+ private:
+  std::int64_t offset_ns_;
+  bool simulated_;
+};
+
+/// builtin_interfaces/Time of a ROS time in ns: seconds and nanoseconds in [0, 1e9).
+builtin_interfaces_msg_dds__Time_ to_ros_time(std::int64_t ros_t_ns);
+/// The ns of a builtin_interfaces/Time.
+std::int64_t from_ros_time(const builtin_interfaces_msg_dds__Time_& time);
 
 /// ROS 2's default QoS (rmw_qos_profile_default: reliable, volatile, keep last 10) with XCDR1,
 /// the representation rmw_cyclonedds reads and writes.
 link::Qos ros2_qos();
+/// /tf_static's, as tf2's static broadcaster: reliable, transient local, keep last 1, so a
+/// node that joins later still receives the fixed frames.
+link::Qos tf_static_qos();
+/// The covariances the bridge writes, in one place (ROS: 6x6 row-major x y z roll pitch yaw).
+/// Roll and pitch: the complementary filter's levelling, about a degree (1-sigma).
+inline constexpr double kRollPitchVariance_rad2 = 0.0175 * 0.0175;
+/// A yaw nothing measures (no compass): uniform over the circle, variance pi^2 / 3.
+inline constexpr double kUnknownYawVariance_rad2 = 3.14159265358979 * 3.14159265358979 / 3.0;
+/// The gyro's rates after the bias: noise and filter lag, chain.gyro_prior_sigma_radps's 0.01.
+inline constexpr double kRateVariance_rad2ps2 = 0.01 * 0.01;
+/// Odometry.pose and twist covariances and Imu covariances of one state (out: 36, 36, 9, 9).
+void state_covariances(const link::VehicleState& s, double pose[36], double twist[36],
+                       double imu_orientation[9], double imu_rates[9]);
+
 /// The command reader's: as ros2_qos() but best-effort, so it matches reliable and best-effort
 /// ROS publishers alike (a retransmitted command would be late anyway).
 link::Qos ros2_command_qos();
+/// /clock's: as ros2_qos() but keep last 1 (only the latest time matters; rclcpp's clock
+/// subscription is best-effort keep-last 1, which a reliable writer serves).
+link::Qos clock_qos();
 
 /// The DDS topic of ROS topic `name` in namespace `ns`: "rt/<ns>/<name>".
 std::string dds_topic_name(const std::string& ns, const std::string& name);
@@ -85,6 +150,8 @@ struct Ros2Counters {
   std::uint64_t images_published = 0;
   std::uint64_t commands_received = 0;    ///< TwistStamped samples taken from cmd_vel_in.
   std::uint64_t commands_overridden = 0;  ///< Of those: dropped, a native station commands.
+  std::uint64_t commands_stale = 0;       ///< TwistStamped dropped: stamp past kMaxCommandAge_ns.
+  std::uint64_t clocks_published = 0;     ///< /clock samples (simulated time only).
 };
 
 class Ros2Bridge {
@@ -99,12 +166,22 @@ class Ros2Bridge {
   void publish_camera(const link::CameraFrame& frame);
   /// Intrinsics of the frames sent (undistorted pinhole: D zeros, R identity, P = [K|0]).
   void set_camera(const geometry::PinholeCamera& camera);
+  /// The camera's mount (the vehicle file's): /tf_static gets base_link -> camera_link ->
+  /// camera_optical (hq::geometry::ros_camera_frames), written with the first state after.
+  void set_camera_mount(const geometry::CameraMount& mount);
+  /// How the chain's clock maps to ROS time (default: epoch_from_monotonic(), a real vehicle).
+  /// simulated_time() also publishes /clock with every state.
+  void set_clock(const RosClock& clock) { clock_ = clock; }
+  [[nodiscard]] const RosClock& clock() const { return clock_; }
 
-  /// The next ROS command from cmd_vel_in as the link's command in H (command_from_twist) from
-  /// station link.ros2.station_id, unstamped (t_ns 0: ROS stamps are another clock, often 0);
-  /// false when none is pending. Values are not checked here: the fail-safe rejects and counts
-  /// NaN, Inf and out-of-envelope ones as for any station.
-  bool take_command(link::VelocityCommand& command);
+  /// The next ROS command, a Twist from cmd_vel (teleop_twist_keyboard's and teleop_twist_joy's
+  /// default) or a TwistStamped from cmd_vel_in, as the link's command in H
+  /// (command_from_twist) from station link.ros2.station_id, unstamped (t_ns 0); false when none
+  /// is pending. `now_chain_ns` (the chain's clock) judges TwistStamped stamps: one older than
+  /// kMaxCommandAge_ns in ROS time (clock()) is dropped and counted (commands_stale). Values are
+  /// not checked here: the fail-safe rejects and counts NaN, Inf and out-of-envelope ones as for
+  /// any station.
+  bool take_command(std::int64_t now_chain_ns, link::VelocityCommand& command);
   /// Counts a taken command dropped because a native station commands (lowest priority).
   void count_overridden() { ++counters_.commands_overridden; }
 
@@ -120,6 +197,7 @@ class Ros2Bridge {
   // Frame ids and fixed strings the samples point at (never freed by Cyclone: the samples are
   // plain structs, not link::Sample).
   std::string odom_frame_, body_frame_, camera_frame_, jpeg_format_, distortion_model_;
+  std::string map_frame_, camera_link_frame_;
   std::string field_x_, field_y_, field_z_;
 
   link::Topic<Odometry> odom_topic_;
@@ -129,6 +207,7 @@ class Ros2Bridge {
   link::Topic<CompressedImage> image_topic_;
   link::Topic<CameraInfo> info_topic_;
   link::Topic<TwistStamped> command_topic_;
+  link::Topic<Twist> twist_topic_;
   link::Writer<Odometry> odom_writer_;
   link::Writer<Imu> imu_writer_;
   link::Writer<TfMessage> tf_writer_;
@@ -136,10 +215,20 @@ class Ros2Bridge {
   link::Writer<CompressedImage> image_writer_;
   link::Writer<CameraInfo> info_writer_;
   link::Reader<TwistStamped> command_reader_;
+  link::Reader<Twist> twist_reader_;
+  link::Topic<TfMessage> tf_static_topic_;
+  link::Writer<TfMessage> tf_static_writer_;
+  TransformStamped static_transforms_[2]{};
+  TfMessage tf_static_{};
+  bool have_mount_ = false;
+  bool mount_published_ = false;
+  TransformStamped tf_pair_[2]{};  ///< odom -> base_link, then map -> odom (marker pose valid).
+  link::Topic<RosClockMsg> clock_topic_;
+  link::Writer<RosClockMsg> clock_writer_;
+  RosClock clock_ = RosClock::epoch_from_monotonic();
 
   Odometry odom_{};
   Imu imu_{};
-  TransformStamped transform_{};
   TfMessage tf_{};
   PointCloud2 cloud_{};
   PointField fields_[3]{};
@@ -149,6 +238,7 @@ class Ros2Bridge {
   bool have_camera_ = false;
   double distortion_[5]{};
   link::Sample<TwistStamped> twist_;
+  link::Sample<Twist> plain_twist_;
   std::uint64_t command_sequence_ = 0;
   Ros2Counters counters_;
 };
