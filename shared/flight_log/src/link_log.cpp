@@ -1,6 +1,7 @@
 #include "hq/flight_log/link_log.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/flight_log/time_order.hpp"
 #include "hq/link/link.hpp"
 
 #include "foxglove_schemas.hpp"
@@ -13,6 +14,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <span>
 #include <sys/resource.h>
 #include <thread>
@@ -184,22 +186,37 @@ struct LinkLog::Impl final : ChannelWriter {
                        "json", metadata);
   }
 
+  // Every message goes through the time-order buffer, so the file's log times never go back.
   void write(std::uint16_t channel, std::int64_t log_ns, std::int64_t publish_ns,
              mcap::Bytes data) override {
     if (owner.failed()) {
       ++report.samples_not_written;
       return;
     }
-    ChannelReport& c = report.per_channel[channel];
+    order.add(channel, log_ns, publish_ns, data,
+              [this](const TimeOrderBuffer::Message& m) { commit(m); });
+  }
+
+  void release(std::int64_t horizon_ns) {
+    order.release(horizon_ns, [this](const TimeOrderBuffer::Message& m) { commit(m); });
+  }
+
+  void commit(const TimeOrderBuffer::Message& m) {
+    if (owner.failed()) {
+      ++report.samples_not_written;
+      return;
+    }
+    ChannelReport& c = report.per_channel[m.channel];
     try {
-      writer.write(channel, static_cast<std::uint32_t>(c.messages), log_ns, publish_ns, data);
+      writer.write(m.channel, static_cast<std::uint32_t>(c.messages), m.log_ns, m.publish_ns,
+                   m.data);
     } catch (const std::exception& e) {
       // Handed over all the same: its chunk may have reached the file before a later part
       // failed, so count_written() asks the writer what the file holds.
       fail(e.what());
     }
-    if (c.messages == 0) c.first_log_time_ns = log_ns;
-    c.last_log_time_ns = log_ns;
+    if (c.messages == 0) c.first_log_time_ns = m.log_ns;
+    c.last_log_time_ns = m.log_ns;
     ++c.messages;
   }
 
@@ -321,6 +338,8 @@ struct LinkLog::Impl final : ChannelWriter {
       // 100 ms: the local queues have no DDS condition, so they are drained at least this often.
       waitset.wait(triggered, DDS_MSECS(100));
       drain_all();
+      // Held for the window: what the queues and readers hand over later is older than now.
+      release(dds_time() - options.reorder_window_ns);
       // At least one chunk a second reaches the file, even when few messages arrive, so a
       // SIGKILL loses at most about a second.
       const std::int64_t now_ns = steady_ns();
@@ -334,6 +353,7 @@ struct LinkLog::Impl final : ChannelWriter {
       }
     }
     drain_all();
+    release(std::numeric_limits<std::int64_t>::max());
   }
 
   LinkLog& owner;
@@ -362,6 +382,8 @@ struct LinkLog::Impl final : ChannelWriter {
   std::atomic<bool> stopping{false};
   std::atomic<bool> closed{false};
   std::int64_t last_flush_ns = 0;
+  // About a second of a flight at 10 Hz camera (two images and the frame's CDR each).
+  TimeOrderBuffer order{8192, std::size_t{8} << 20};
   RecorderReport report;
   std::thread thread;
 };
@@ -406,7 +428,12 @@ const RecorderReport& LinkLog::close(const mcap::KeyValues& summary) {
       }
       if (d.local != nullptr) {
         counts[d.local->dropped_key()] = std::to_string(d.report.local_samples_dropped);
+        d.local->describe_clock(counts);
       }
+      counts["log_time"] = "epoch (CLOCK_REALTIME) ns, written in log-time order";
+      counts["reorder_window_ns"] = std::to_string(d.options.reorder_window_ns);
+      counts["late_messages_restamped"] = std::to_string(d.order.late());
+      counts["late_max_ns"] = std::to_string(d.order.late_max_ns());
       d.writer.add_metadata("recorder", counts);
       d.writer.close();
     } catch (const std::exception& e) {

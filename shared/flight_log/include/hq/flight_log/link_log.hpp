@@ -17,8 +17,11 @@
 ///   /camera/depth_preview/compressed      json / jsonschema foxglove.CompressedImage
 ///   /obstacles                            json / jsonschema foxglove.PointCloud (frame "body")
 ///   the LocalSource's                     json / jsonschema
-/// log_time of link samples is the receipt (dds_time()); publish_time the sample's DDS source
-/// timestamp (the writer's dds_time()).
+/// One time base per file: every log_time is epoch nanoseconds (the CLOCK_REALTIME of dds_time()).
+/// Link samples are stamped at receipt, publish_time is the sample's DDS source timestamp (the
+/// writer's dds_time()); a LocalSource maps its own clock to the epoch (describe_clock() says
+/// how). Messages are written in log-time order (TimeOrderBuffer, reorder_window_ns), so the
+/// file's log times never go back.
 ///
 /// Crash safety: chunks are closed at least once a second and written with write(2), so a
 /// SIGKILLed process loses about the last second and hq::mcap::McapReader (or any reader that
@@ -99,6 +102,9 @@ class LocalSource {
   [[nodiscard]] virtual std::uint64_t dropped() const = 0;
   /// Metadata key for dropped() in the "recorder" record, e.g. "ground_samples_dropped".
   [[nodiscard]] virtual const char* dropped_key() const = 0;
+  /// At close, after the last drain: how the source's clock was mapped to the epoch, added to
+  /// the "recorder" metadata. Nothing by default (a source stamping in the epoch already).
+  virtual void describe_clock(mcap::KeyValues& /*recorder_metadata*/) const {}
 };
 
 struct LinkLogOptions {
@@ -107,6 +113,10 @@ struct LinkLogOptions {
   security::Role role = security::Role::kStation;  ///< The identity the log's participant uses.
   std::vector<AttachmentFile> attachments;         ///< Unreadable ones are skipped and reported.
   mcap::WriterOptions writer;  ///< chunk_time_limit_ns bounds what a SIGKILL loses.
+  /// Messages are held this long before they are written in log-time order: longer than the
+  /// log thread's drain period (100 ms) plus what a local source's stamps lag behind the clock.
+  /// A SIGKILL loses this much more.
+  std::int64_t reorder_window_ns = 250'000'000;
   /// False: the link channels are declared but nothing is taken from DDS (a process without a
   /// link must not record whoever else flies on the domain).
   bool record_link = true;
