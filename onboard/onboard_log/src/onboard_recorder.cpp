@@ -311,6 +311,7 @@ flight_log::LinkLogOptions link_log_options(const OnboardRecorderOptions& option
   o.attachments = options.attachments;
   o.writer = options.writer;
   o.record_link = options.record_link;
+  o.camera_mount = options.camera_mount;
   return o;
 }
 
@@ -348,6 +349,10 @@ void OnboardRecorder::push_step(const pipeline::ChainOutput& out,
 void OnboardRecorder::push_imu(const vehicle::FcImuSample& sample) noexcept {
   if (impl_->closed.load(std::memory_order_relaxed)) return;
   impl_->source.push_imu(sample);
+}
+
+void OnboardRecorder::set_camera(const geometry::PinholeCamera& camera) {
+  impl_->log.set_camera(camera);
 }
 
 bool OnboardRecorder::failed() const noexcept { return impl_->log.failed(); }

@@ -54,9 +54,8 @@ class TimeOrderBuffer {
   template <class Out>
   void release(std::int64_t horizon_ns, Out&& out) {
     sort();
-    const auto first_after =
-        std::partition_point(held_.begin(), held_.end(),
-                             [&](const Held& h) { return h.log_ns <= horizon_ns; });
+    const auto first_after = std::partition_point(
+        held_.begin(), held_.end(), [&](const Held& h) { return h.log_ns <= horizon_ns; });
     release_first(static_cast<std::size_t>(first_after - held_.begin()), out);
   }
 
