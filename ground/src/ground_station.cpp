@@ -210,7 +210,11 @@ constexpr const char* kTelemetryHeader =
     "flight (0: not reported), hover_thrust_converged 1 once learnt;\n"
     "# position_invalid_reason: why position_valid is 0 (0 valid or not said, 1 no marker "
     "seen yet, 2 no marker for too long, 3 uncertainty over its bound, 4 markers disagree), "
-    "position_age_s since the last marker, position_sigma_m (m) 1-sigma.\n"
+    "position_age_s since the last marker, position_sigma_m (m) 1-sigma; "
+    "odom_valid 1: p_odom (m) and yaw_odom (rad) are the odometry's integrated pose in the "
+    "odom frame (origin and heading of the start, x forward, y right, z down), "
+    "odom_position_sigma_m and odom_yaw_sigma_rad its 1-sigma, odom_yaw_relative_to_start 1: "
+    "the world heading unknown; v_H_sigma: the estimated velocity's 1-sigma (m/s).\n"
     "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
     "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
     "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
@@ -219,7 +223,9 @@ constexpr const char* kTelemetryHeader =
     "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
     "operator_input,v_cmd_flown_H_x_mps,v_cmd_flown_H_y_mps,v_cmd_flown_H_z_mps,"
     "clearance_m,hover_thrust_gain,hover_thrust_converged,position_invalid_reason,"
-    "position_age_s,position_sigma_m\n";
+    "position_age_s,position_sigma_m,odom_valid,p_odom_x_m,p_odom_y_m,p_odom_z_m,yaw_odom_rad,"
+    "odom_position_sigma_m,odom_yaw_sigma_rad,odom_yaw_relative_to_start,v_H_sigma_x_mps,"
+    "v_H_sigma_y_mps,v_H_sigma_z_mps\n";
 constexpr const char* kObstaclesHeader =
     "# hq-ground obstacles v1: the obstacle cloud a vehicle state carried, one row per point\n"
     "# (states without a cloud have none). receipt_ns and sequence: its state's row in\n"
@@ -340,7 +346,8 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
           "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,0x%016llx,%u,%s,%d,%s,%.4f,%s,%."
           "4f,"
-          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f\n",
+          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,"
+          "%.4f\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
@@ -358,7 +365,11 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           as_double(s.v_cmd_flown_H_mps.y), as_double(s.v_cmd_flown_H_mps.z),
           as_double(s.clearance_m), as_double(s.hover_thrust_gain),
           s.hover_thrust_converged ? 1 : 0, static_cast<unsigned>(s.position_invalid_reason),
-          as_double(s.position_age_s), as_double(s.position_sigma_m)),
+          as_double(s.position_age_s), as_double(s.position_sigma_m), s.odom_valid ? 1 : 0,
+          as_double(s.p_odom_m.x), as_double(s.p_odom_m.y), as_double(s.p_odom_m.z),
+          as_double(s.yaw_odom_rad), as_double(s.odom_position_sigma_m),
+          as_double(s.odom_yaw_sigma_rad), s.odom_yaw_relative_to_start ? 1 : 0,
+          as_double(s.v_H_sigma_mps.x), as_double(s.v_H_sigma_mps.y), as_double(s.v_H_sigma_mps.z)),
       "telemetry.csv");
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];

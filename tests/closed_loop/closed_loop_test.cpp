@@ -622,5 +622,68 @@ TEST(OperatorPlayer, HoldsStepsAndTurnsCameraHeadingIntoH) {
   EXPECT_EQ(requests[0], modes::Mode::kTeleop);
 }
 
+// Issue 43: the odom pose (odom -> base_link) integrated on board without markers, against the
+// simulator's truth expressed in the odom frame (origin and heading of the start, NED-like).
+TEST(ClosedLoop, OdomPoseFollowsTheTruthWithinItsOwnUncertainty) {
+  // GIVEN a take-off, a leg where the camera looks, a turn on the spot and a second leg
+  Scenario s = room_takeoff(22.0);
+  s.step(4.0, Vec(0.4, 0.0, 0.0), 0.0);
+  s.step(8.0, Vec::Zero(), 0.4);
+  s.step(11.0, Vec(0.4, 0.0, 0.0), 0.0);
+  s.step(15.0, Vec::Zero(), 0.0);
+  auto loop = s.make();
+  loop->run();
+  const FlightSample& start = loop->samples().front();
+  const Eigen::AngleAxisd R_odom_ned(-start.heading_true_ned_rad, Vec::UnitZ());
+  double worst_error_m = 0.0;
+  double sigma_at_worst_m = 0.0;
+  double worst_ratio = 0.0;
+  double worst_yaw_error_rad = 0.0;
+  double flown_m = 0.0;
+  Vec last_truth = Vec::Zero();
+  const FlightSample* last = nullptr;
+  for (const FlightSample& x : loop->samples()) {
+    ASSERT_TRUE(x.odom.valid) << "t = " << x.t_s;
+    EXPECT_TRUE(x.odom.yaw_relative_to_start);
+    const Vec d_N = x.p_N_m - start.p_N_m;
+    const Vec truth_odom = R_odom_ned * Vec(d_N.x(), -d_N.y(), -d_N.z());
+    flown_m += (truth_odom - last_truth).head<2>().norm();
+    last_truth = truth_odom;
+    const double error_m = (x.odom.p_odom_m - truth_odom).head<2>().norm();
+    // The sigma of a horizontal 2-D error: its radius is within 3 sigma at 99 %.
+    const double ratio = error_m / std::max(x.odom.position_sigma_m, 1e-3);
+    if (error_m > worst_error_m) {
+      worst_error_m = error_m;
+      sigma_at_worst_m = x.odom.position_sigma_m;
+    }
+    worst_ratio = std::max(worst_ratio, ratio);
+    const double yaw_true =
+        std::remainder(x.heading_true_ned_rad - start.heading_true_ned_rad, 2.0 * M_PI);
+    const double yaw_error = std::abs(std::remainder(x.odom.yaw_rad - yaw_true, 2.0 * M_PI));
+    worst_yaw_error_rad = std::max(worst_yaw_error_rad, yaw_error);
+    if (x.airborne) {
+      EXPECT_LT(yaw_error, 3.0 * x.odom.yaw_sigma_rad + 0.01) << "t = " << x.t_s;
+    }
+    last = &x;
+  }
+  ASSERT_NE(last, nullptr);
+  const double end_error_m = (last->odom.p_odom_m - last_truth).head<2>().norm();
+  std::printf(
+      "odom pose over %.1f m flown in %.1f s: drift at the end %.3f m (sigma %.3f m), worst "
+      "%.3f m (sigma then %.3f m), worst error/sigma %.2f; yaw: worst error %.4f rad, sigma at "
+      "the end %.4f rad; turned %.2f rad\n",
+      flown_m, last->t_s, end_error_m, last->odom.position_sigma_m, worst_error_m, sigma_at_worst_m,
+      worst_ratio, worst_yaw_error_rad, last->odom.yaw_sigma_rad, last->odom.yaw_rad);
+  // THEN it moved with the vehicle (a leg, a turn, a leg), its drift stays within 3 sigma of
+  // its own uncertainty, and that uncertainty is not so wide as to say nothing. Measured at
+  // seed 5: 0.07 m of drift over 3.6 m flown, sigma 0.56 m (error/sigma at worst 0.23); yaw
+  // 0.03 rad off, sigma 0.11 rad.
+  EXPECT_GT(flown_m, 2.0);
+  EXPECT_GT(std::abs(last->odom.yaw_rad), 0.8);
+  EXPECT_LT(worst_ratio, 3.0);
+  EXPECT_LT(last->odom.position_sigma_m, 0.25 * flown_m);
+  EXPECT_EQ(loop->collision_ticks(), 0);
+}
+
 }  // namespace
 }  // namespace hq::closed_loop

@@ -331,7 +331,11 @@ const std::vector<std::string> kStateColumns = {
     "session_id", "commanding_station_id", "flight_state", "motors_armed", "height_source",
     "height_m", "operator_input", "v_cmd_flown_H_x_mps", "v_cmd_flown_H_y_mps",
     "v_cmd_flown_H_z_mps", "clearance_m", "hover_thrust_gain", "hover_thrust_converged",
-    "position_invalid_reason", "position_age_s", "position_sigma_m"};
+    "position_invalid_reason", "position_age_s", "position_sigma_m",
+    // The odometry's integrated pose (odom -> base_link) and the velocity's sigma.
+    "odom_valid", "p_odom_x_m", "p_odom_y_m", "p_odom_z_m", "yaw_odom_rad", "odom_position_sigma_m",
+    "odom_yaw_sigma_rad", "odom_yaw_relative_to_start", "v_H_sigma_x_mps", "v_H_sigma_y_mps",
+    "v_H_sigma_z_mps"};
 constexpr std::size_t kRequiredStateColumns = 18;
 
 using Fields = std::vector<std::string_view>;
@@ -471,6 +475,31 @@ bool parse_state_position_validity(const CsvFile& file, const Fields& f, Recorde
   return true;
 }
 
+// Columns 45-55 (appended to telemetry v2; absent in older recordings): the odometry's integrated
+// pose and the velocity's sigma.
+bool parse_state_odom(const CsvFile& file, const Fields& f, RecordedState& s, std::string& error) {
+  if (!file.has(45) || !file.has(55)) return true;
+  int valid = 0;
+  int relative = 0;
+  std::array<float, 6> values{};
+  if (!parse_integer(f[45], valid) || !parse_floats(f, 46, kStateColumns, values, error) ||
+      !parse_integer(f[52], relative) ||
+      !parse_floats(f, 53, kStateColumns, s.v_H_sigma_mps, error)) {
+    if (error.empty()) {
+      error = "odom_valid = '" + std::string(f[45]) + "', odom_yaw_relative_to_start = '" +
+              std::string(f[52]) + "', expected 0/1";
+    }
+    return false;
+  }
+  s.odom_valid = valid != 0;
+  s.p_odom_m = {values[0], values[1], values[2]};
+  s.yaw_odom_rad = values[3];
+  s.odom_position_sigma_m = values[4];
+  s.odom_yaw_sigma_rad = values[5];
+  s.odom_yaw_relative_to_start = relative != 0;
+  return true;
+}
+
 void read_states(Recording& r, FileStarts& starts) {
   CsvFile telemetry(r, "telemetry.csv", kStateColumns, false, kRequiredStateColumns);
   telemetry.check_stamps(starts).read([&](const Fields& f, std::string& error) {
@@ -478,7 +507,8 @@ void read_states(Recording& r, FileStarts& starts) {
     if (!parse_state_core(f, s, error) || !parse_state_pose_truth(telemetry, f, s, error) ||
         !parse_state_flight(telemetry, f, s, error) ||
         !parse_state_thrust(telemetry, f, s, error) ||
-        !parse_state_position_validity(telemetry, f, s, error)) {
+        !parse_state_position_validity(telemetry, f, s, error) ||
+        !parse_state_odom(telemetry, f, s, error)) {
       return false;
     }
     r.states.push_back(s);

@@ -93,6 +93,13 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.hover_thrust_converged = s.hover_thrust_converged;
   out.marker_target_id = s.marker_target_valid ? s.marker_target_id : -1;
   out.explore_phase = s.explore_phase;
+  out.odom_valid = s.odom_valid;
+  out.p_odom_m = array3(s.p_odom_m);
+  out.yaw_odom_rad = s.yaw_odom_rad;
+  out.odom_position_sigma_m = s.odom_position_sigma_m;
+  out.odom_yaw_sigma_rad = s.odom_yaw_sigma_rad;
+  out.odom_yaw_relative_to_start = s.odom_yaw_relative_to_start;
+  out.v_H_sigma_mps = array3(s.v_H_sigma_mps);
   // resize() within the capacity reserved by LiveStateFeed: no allocation on the live path.
   out.obstacle_points_body_m.resize(s.obstacle_points_body_m._length);
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {

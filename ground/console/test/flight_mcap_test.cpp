@@ -92,6 +92,9 @@ std::vector<std::uint8_t> vehicle_state(std::uint32_t vehicle, int i, bool xcdr2
   c.put(1.2F).put<std::uint8_t>(1);             // hover thrust: the rotors give 120 %, learnt
   c.put<std::uint8_t>(0).put(0.2F).put(0.05F);  // position valid, marker 0.2 s old, sigma 5 cm
   c.put<std::uint8_t>(1).put<std::int32_t>(12).put<std::uint8_t>(3);  // to marker 12, exploring
+  // The odom pose (valid, p, yaw, sigmas, yaw relative to the start) and the velocity's sigma.
+  c.put<std::uint8_t>(1).vec3(0.5F * f, -1.5F, -1.0F).put(0.3F).put(0.25F).put(0.02F);
+  c.put<std::uint8_t>(1).vec3(0.03F, 0.04F, 0.05F);
   return c.bytes();
 }
 
@@ -228,6 +231,14 @@ TEST(FlightMcap, EveryFieldOfTheRecordedStatesReturns) {
   EXPECT_STREQ(s.operator_input, "limited_unseen");
   EXPECT_FLOAT_EQ(s.v_cmd_flown_H_mps[0], 0.2F);
   EXPECT_NEAR(s.clearance_m, 0.85, 1e-6);
+  EXPECT_TRUE(s.odom_valid);
+  EXPECT_FLOAT_EQ(s.p_odom_m[0], 3.5F);
+  EXPECT_FLOAT_EQ(s.p_odom_m[1], -1.5F);
+  EXPECT_FLOAT_EQ(s.yaw_odom_rad, 0.3F);
+  EXPECT_FLOAT_EQ(s.odom_position_sigma_m, 0.25F);
+  EXPECT_FLOAT_EQ(s.odom_yaw_sigma_rad, 0.02F);
+  EXPECT_TRUE(s.odom_yaw_relative_to_start);
+  EXPECT_FLOAT_EQ(s.v_H_sigma_mps[2], 0.05F);
   fs::remove_all(dir);
 }
 

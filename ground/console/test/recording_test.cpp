@@ -178,9 +178,9 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
                                "telemetry.csv: truth_valid", "telemetry.csv: v_truth_H_x_mps",
                                "telemetry.csv: markers_n"}));
   // 11 of the second layout's columns, 11 of the flight fields' (session .. clearance), the
-  // two hover thrust columns, the three of the position's validity and the two files of telemetry
-  // v2 (obstacles.csv, markers.csv).
-  EXPECT_EQ(r.absent_columns.size(), 29U);
+  // two hover thrust columns, the three of the position's validity, the eleven of the odom pose
+  // and the two files of telemetry v2 (obstacles.csv, markers.csv).
+  EXPECT_EQ(r.absent_columns.size(), 40U);
   EXPECT_THAT(r.absent_columns,
               ::testing::Contains(HasSubstr("obstacles.csv (the whole file: an older recording; "
                                             "replay shows no obstacle cloud)")));
@@ -208,7 +208,7 @@ TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   EXPECT_EQ(r.states.size(), 8U);
   ASSERT_EQ(r.problem_count, 2U);
   EXPECT_THAT(r.problems[0], HasSubstr("telemetry.csv:23: v_H_x_mps = 'abc'"));
-  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:29: expected 46 fields"));
+  EXPECT_THAT(r.problems[1], HasSubstr("telemetry.csv:29: expected 57 fields"));
   fs::remove_all(dir);
 }
 

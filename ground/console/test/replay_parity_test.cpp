@@ -100,6 +100,15 @@ std::vector<FlightState> make_flight() {
     s.yaw_W_rad = s.position_valid ? 0.5F : 0.0F;
     s.truth_valid = true;
     s.v_truth_H_mps = {0.25F, 0.0F, 0.0F};
+    // The odom pose: integrated from take-off on, its sigmas growing (exact at 4 decimals).
+    s.odom_valid = i >= 5;
+    s.p_odom_m = {s.odom_valid ? 0.0625F * (k - 5.0F) : 0.0F, s.odom_valid ? -0.125F : 0.0F,
+                  s.odom_valid ? -1.0F : 0.0F};
+    s.yaw_odom_rad = s.odom_valid ? 0.25F + 0.0625F * k : 0.0F;
+    s.odom_position_sigma_m = s.odom_valid ? 0.0625F * (k - 5.0F) : 0.0F;
+    s.odom_yaw_sigma_rad = s.odom_valid ? 0.0625F : 0.0F;
+    s.odom_yaw_relative_to_start = true;
+    s.v_H_sigma_mps = {0.0625F, 0.0625F, 0.125F};
     if (i >= 15 && i % 10 == 5) {
       for (int p = 0; p < 12; ++p) {
         const auto q = static_cast<float>(p);
@@ -306,6 +315,39 @@ TEST(ReplayParity, CsvReplayShowsWhatTheLiveConsoleShowedFrameByFrame) {
   // rgb.txt has no frame: the only problem allowed is none.
   EXPECT_EQ(r.problem_count, 0U) << (r.problems.empty() ? "" : r.problems[0]);
   expect_replay_matches_live(r, live_frames(flight));
+  fs::remove_all(dir);
+}
+
+// The odom pose and the velocity's sigma (VehicleState's last fields) come back from the MCAP
+// and the CSV as the live feed took them.
+TEST(ReplayParity, TheOdomPoseReplaysAsTheLiveFeedRecordedIt) {
+  const fs::path dir = testing::fresh_dir("hq_replay_parity", "odom");
+  fs::create_directories(dir / "csv");
+  const std::vector<FlightState> flight = make_flight();
+  write_mcap(dir / "flight.mcap", flight);
+  write_csv(dir / "csv", flight);
+  for (const std::string& path : {(dir / "flight.mcap").string(), (dir / "csv").string()}) {
+    SCOPED_TRACE(path);
+    const Recording r = load_recording(path);
+    ASSERT_EQ(r.states.size(), static_cast<std::size_t>(kStates));
+    for (int i = 0; i < kStates; ++i) {
+      RecordedState live;
+      to_recorded(receipt_ns(i), 1e-6 * static_cast<double>(kLatency_ns),
+                  flight[static_cast<std::size_t>(i)].s, live);
+      const RecordedState& replayed = r.states[static_cast<std::size_t>(i)];
+      EXPECT_EQ(replayed.odom_valid, live.odom_valid) << "state " << i;
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_FLOAT_EQ(replayed.p_odom_m[a], live.p_odom_m[a]) << "state " << i;
+        EXPECT_FLOAT_EQ(replayed.v_H_sigma_mps[a], live.v_H_sigma_mps[a]) << "state " << i;
+      }
+      EXPECT_FLOAT_EQ(replayed.yaw_odom_rad, live.yaw_odom_rad) << "state " << i;
+      EXPECT_FLOAT_EQ(replayed.odom_position_sigma_m, live.odom_position_sigma_m) << i;
+      EXPECT_FLOAT_EQ(replayed.odom_yaw_sigma_rad, live.odom_yaw_sigma_rad) << "state " << i;
+      EXPECT_EQ(replayed.odom_yaw_relative_to_start, live.odom_yaw_relative_to_start) << i;
+    }
+    EXPECT_TRUE(r.states[30].odom_valid);  // not the defaults both sides would share
+    EXPECT_FLOAT_EQ(r.states[30].p_odom_m[0], 0.0625F * 25.0F);
+  }
   fs::remove_all(dir);
 }
 

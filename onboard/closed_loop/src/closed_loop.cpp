@@ -171,6 +171,9 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.height_m = out.height_m;
   s.height_source = out.height_source;
   s.hover_thrust_gain = out.hover_thrust.gain;
+  s.odom = out.odom;
+  const Eigen::Vector3d x_body_N = truth.T_world_body.linear().col(0);
+  s.heading_true_ned_rad = std::atan2(-x_body_N.y(), x_body_N.x());  // N is NWU: y left
   samples_.push_back(s);
 }
 

@@ -19,6 +19,22 @@ hq_msgs_Vector3f to_msg(const Eigen::Vector3d& v) {
   return {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())};
 }
 
+// The chain's odom pose and the estimate's velocity sigma; zeros (odom_valid false) for
+// anything non-finite, never garbage.
+void set_odom_fields(const pipeline::ChainOutput& out, link::VehicleState& s) {
+  const pipeline::OdomPoseEstimate& odom = out.odom;
+  s.odom_valid = odom.valid && odom.p_odom_m.allFinite() && std::isfinite(odom.yaw_rad) &&
+                 std::isfinite(odom.position_sigma_m) && std::isfinite(odom.yaw_sigma_rad);
+  s.p_odom_m = s.odom_valid ? to_msg(odom.p_odom_m) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};
+  s.yaw_odom_rad = s.odom_valid ? static_cast<float>(odom.yaw_rad) : 0.0F;
+  s.odom_position_sigma_m =
+      s.odom_valid ? static_cast<float>(std::clamp(odom.position_sigma_m, 0.0, 1e6)) : 0.0F;
+  s.odom_yaw_sigma_rad =
+      s.odom_valid ? static_cast<float>(std::clamp(odom.yaw_sigma_rad, 0.0, 1e6)) : 0.0F;
+  s.odom_yaw_relative_to_start = odom.yaw_relative_to_start;
+  const Eigen::Vector3d sigma = out.estimate.v_H_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  s.v_H_sigma_mps = sigma.allFinite() ? to_msg(sigma.cwiseMin(1e6)) : hq_msgs_Vector3f{0, 0, 0};
+}
 }  // namespace
 
 bool to_marker_task(hq_msgs_MarkerTask value, marker_modes::MarkerTask& task) {
@@ -429,6 +445,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.marker_target_valid = extras.marker_target_id >= 0;
   s.marker_target_id = std::max(extras.marker_target_id, 0);
   s.explore_phase = static_cast<std::uint8_t>(std::clamp(extras.explore_phase, 0, 7));
+  set_odom_fields(out, s);
   s.truth_valid = extras.truth_valid && extras.v_truth_H_mps.allFinite();
   s.v_truth_H_mps =
       s.truth_valid ? to_msg(extras.v_truth_H_mps) : hq_msgs_Vector3f{0.0F, 0.0F, 0.0F};

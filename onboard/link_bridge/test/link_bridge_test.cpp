@@ -286,6 +286,38 @@ TEST(LinkBridge, CarriesTheLearntHoverThrust) {
   EXPECT_TRUE(link::validate(state).ok);
 }
 
+// The chain's odom pose and the velocity's sigma reach the state as computed; a non-finite
+// pose goes out as absent (odom_valid false, zeros), never as garbage.
+TEST(LinkBridge, CarriesTheOdomPoseAndTheVelocitySigma) {
+  const link::LinkConfig config = private_link();
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  pipeline::ChainOutput out;
+  out.odom.valid = true;
+  out.odom.p_odom_m = {1.5, -0.5, -1.0};
+  out.odom.yaw_rad = 0.75;
+  out.odom.position_sigma_m = 0.2;
+  out.odom.yaw_sigma_rad = 0.03;
+  out.estimate.v_H_covariance = Eigen::Vector3d(0.0004, 0.0009, 0.0016).asDiagonal();
+  link::VehicleState state{};
+  ASSERT_TRUE(publish_until(bridge, ground, out, state,
+                            [](const link::VehicleState& s) { return s.odom_valid; }));
+  EXPECT_FLOAT_EQ(state.p_odom_m.x, 1.5F);
+  EXPECT_FLOAT_EQ(state.p_odom_m.z, -1.0F);
+  EXPECT_FLOAT_EQ(state.yaw_odom_rad, 0.75F);
+  EXPECT_FLOAT_EQ(state.odom_position_sigma_m, 0.2F);
+  EXPECT_FLOAT_EQ(state.odom_yaw_sigma_rad, 0.03F);
+  EXPECT_TRUE(state.odom_yaw_relative_to_start);
+  EXPECT_FLOAT_EQ(state.v_H_sigma_mps.x, 0.02F);
+  EXPECT_FLOAT_EQ(state.v_H_sigma_mps.z, 0.04F);
+  EXPECT_TRUE(link::validate(state).ok);
+  out.odom.p_odom_m.x() = std::nan("");
+  ASSERT_TRUE(publish_until(bridge, ground, out, state,
+                            [](const link::VehicleState& s) { return !s.odom_valid; }));
+  EXPECT_FLOAT_EQ(state.p_odom_m.x, 0.0F);
+  EXPECT_TRUE(link::validate(state).ok);
+}
+
 // GIVEN two bridges (a vehicle and its restart) THEN their sessions differ and the state of each
 // carries the station whose commands it flies.
 TEST(LinkBridge, EachInstanceHasItsOwnSessionAndReportsItsCommander) {

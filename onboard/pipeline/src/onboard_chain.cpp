@@ -21,6 +21,11 @@ void read_config(config::StrictMap& section, ChainConfig& out) {
   section.read("landed_height_m", out.landed_height_m, 0.0, 2.0);
   section.read_positive("safe_hover_land_s", out.safe_hover_land_s, 600.0);
   section.read("hold_on_inertial_coast", out.hold_on_inertial_coast);
+  section.read("odom_yaw_drift_radps", out.odom.yaw_drift_radps, 0.0, 1.0);
+  section.read("odom_velocity_error_fraction", out.odom.velocity_error_fraction, 0.0, 1.0);
+  section.read("odom_velocity_error_correlation_s", out.odom.velocity_error_correlation_s, 0.0,
+               60.0);
+  section.read("odom_blind_drift_mps", out.odom.blind_drift_mps, 0.0, 10.0);
   section.finish();
 }
 
@@ -96,6 +101,7 @@ OnboardChain::OnboardChain(const OnboardConfig& config, const VehicleConfig& veh
       R_B_C_(vehicle.camera.R_B_C()) {
   // A chain started in the air (config.modes.start_landed false) is past its take-off.
   takeoff_complete_ = !config.modes.start_landed;
+  odom_pose_ = OdomPose(config.chain.odom);
   if (config.markers.enabled) {
     markers_ = std::make_unique<marker_modes::MarkerStage>(
         config.markers, camera, vehicle.camera.R_B_C(), vehicle.camera.p_B_C_m());
@@ -119,6 +125,10 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
     if (omega_H.allFinite()) yaw_since_takeoff_rad_ += omega_H.z() * dt_s;
   }
   t_yaw_ns_ = t_ns;
+  // The whole bias, yaw's too (the odometry measures it): the odom yaw drifts with what is left.
+  const Eigen::Vector3d omega_odom_H =
+      R_H_B * (gyro_radps - estimator_.attitude().gyro_bias_radps());
+  odom_pose_.on_yaw_rate(t_ns, omega_odom_H.z());
   if (config_.chain.gyro_rotation_prior) {
     // The body's rotation since the last frame, bias removed: R_Bprev_Bcur.
     if (t_last_imu_ns_ >= 0 && t_ns > t_last_imu_ns_) {
@@ -379,6 +389,7 @@ void OnboardChain::update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& ou
   // Without a usable estimate the vehicle holds a level hover: the offset stands still.
   out.offset_from_takeoff_H_m = Eigen::Rotation2Dd(-yaw_since_takeoff_rad_) * offset_T_m_;
   modes_.set_offset_from_takeoff_H_m(out.offset_from_takeoff_H_m);
+  out.odom = odom_pose_.on_estimate(t_ns, out.estimate, modes_.landed());
 }
 
 void OnboardChain::finish_output(ChainOutput& out) const {

@@ -133,6 +133,18 @@ Validation validate(const VehicleState& state) {
     return {false, "marker_target_id negative"};
   }
   if (state.explore_phase > 7) return {false, "explore_phase not in [0, 7]"};
+  // The odom pose travels as zeros when absent: finite, its sigmas non-negative.
+  if (!finite(state.p_odom_m) || !std::isfinite(state.yaw_odom_rad)) {
+    return {false, "p_odom_m or yaw_odom_rad is NaN or Inf"};
+  }
+  if (!(state.odom_position_sigma_m >= 0.0F && state.odom_position_sigma_m <= 1e6F) ||
+      !(state.odom_yaw_sigma_rad >= 0.0F && state.odom_yaw_sigma_rad <= 1e6F)) {
+    return {false, "odom_position_sigma_m or odom_yaw_sigma_rad not in [0, 1e6]"};
+  }
+  if (!finite(state.v_H_sigma_mps) || state.v_H_sigma_mps.x < 0.0F ||
+      state.v_H_sigma_mps.y < 0.0F || state.v_H_sigma_mps.z < 0.0F) {
+    return {false, "v_H_sigma_mps negative, NaN or Inf"};
+  }
   if (state.markers._length > hq_msgs_kMaxMarkersInState) {
     return {false, "markers longer than kMaxMarkersInState"};
   }

@@ -68,6 +68,16 @@ struct RecordedState {
   /// exploring, else ExplorePhase + 1), as the state carried them (live and MCAP only).
   int marker_target_id = -1;
   int explore_phase = 0;
+  /// The odometry's integrated pose, odom -> base_link (VehicleState.p_odom_m, NED-like odom
+  /// frame of the start), its horizontal and yaw 1-sigma, whether the yaw is relative to the
+  /// start, and the velocity's 1-sigma per axis; odom_valid false when absent (older records).
+  bool odom_valid = false;
+  std::array<float, 3> p_odom_m{};
+  float yaw_odom_rad = 0;
+  float odom_position_sigma_m = 0;
+  float odom_yaw_sigma_rad = 0;
+  bool odom_yaw_relative_to_start = false;
+  std::array<float, 3> v_H_sigma_mps{};
   /// The obstacle cloud the state carried, body frame FRD (x, y, z in m); empty when it
   /// carried none (the cloud rides on about one state a second) or the record lacks it.
   std::vector<std::array<float, 3>> obstacle_points_body_m;

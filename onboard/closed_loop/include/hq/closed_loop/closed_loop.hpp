@@ -105,6 +105,10 @@ struct FlightSample {
   double height_m = 0.0;
   pipeline::HeightSource height_source = pipeline::HeightSource::kNone;
   double hover_thrust_gain = 1.0;  ///< Actual over commanded thrust, as learnt (ChainOutput).
+  /// The chain's odom pose (ChainOutput::odom) and, for it, the truth's heading: the body's x
+  /// axis in N as a NED yaw (clockwise from N's x seen from above).
+  pipeline::OdomPoseEstimate odom;
+  double heading_true_ned_rad = 0.0;
 };
 
 class ClosedLoop {

@@ -17,6 +17,7 @@
 #include "hq/obstacles/clearance_filter.hpp"
 #include "hq/obstacles/obstacle_field.hpp"
 #include "hq/odometry/dense_odometry.hpp"
+#include "hq/pipeline/odom_pose.hpp"
 #include "hq/seen_space/seen_space_limiter.hpp"
 #include "hq/vehicle_config/vehicle_config.hpp"
 
@@ -69,11 +70,15 @@ struct ChainConfig {
   /// on the coast and drifted into the wall. Climb and descent are still flown (the take-off
   /// climbs on the coast until the floor is beyond the sensor's minimum range).
   bool hold_on_inertial_coast = true;
+  /// The integrated odom pose's uncertainty growth (odom_pose.hpp): keys odom_yaw_drift_radps,
+  /// odom_velocity_error_fraction, odom_velocity_error_correlation_s, odom_blind_drift_mps.
+  OdomPoseConfig odom;
 };
 
 /// Reads the `chain:` section {camera_timeout_s, takeoff_height_m, gyro_rotation_prior,
 /// gyro_prior_sigma_radps, depth_colour_max_offset_s, landed_height_m, safe_hover_land_s,
-/// hold_on_inertial_coast} strictly.
+/// hold_on_inertial_coast, odom_yaw_drift_radps, odom_velocity_error_fraction,
+/// odom_velocity_error_correlation_s, odom_blind_drift_mps} strictly.
 void read_config(config::StrictMap& section, ChainConfig& out);
 
 /// Everything config/onboard.yaml configures, one struct per component.
@@ -159,6 +164,9 @@ struct ChainOutput {
   /// drifts as any dead reckoning (the estimate's error times the flight time); it bounds the
   /// flight (modes.max_distance_from_takeoff_m), it does not navigate.
   Eigen::Vector2d offset_from_takeoff_H_m = Eigen::Vector2d::Zero();
+  /// The body's pose in the world-fixed odom frame (odom_pose.hpp): the same dead reckoning
+  /// from the chain's start, never reset (odom -> base_link), with its growing uncertainty.
+  OdomPoseEstimate odom;
   /// The vehicle's clearance (hq/obstacles/clearance_filter.hpp: bounding sphere to the
   /// nearest obstacle point in view or in the memory, median of the last frames), the figure
   /// sent as VehicleState.clearance_m (m); -1 when none; held on steps without a frame.
@@ -280,7 +288,8 @@ class OnboardChain {
   /// hands it to the mode controller and fills out.height_m/height_source.
   void update_height(std::int64_t t_ns, double floor_height_m, ChainOutput& out);
   /// Dead-reckons the offset from the take-off point with a usable estimate (reset on the
-  /// floor), hands it to the mode controller and fills out.offset_from_takeoff_H_m.
+  /// floor), hands it to the mode controller and fills out.offset_from_takeoff_H_m; steps the
+  /// odom pose (never reset) into out.odom.
   void update_offset_from_takeoff(std::int64_t t_ns, ChainOutput& out);
   /// Fills out.flight_state after the mode step.
   void finish_output(ChainOutput& out) const;
@@ -323,6 +332,7 @@ class OnboardChain {
   double yaw_since_takeoff_rad_ = 0.0;
   std::int64_t t_yaw_ns_ = -1;
   std::int64_t t_offset_ns_ = -1;
+  OdomPose odom_pose_;  ///< The odom frame's dead reckoning (out.odom).
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
   Eigen::Matrix3d R_B_C_;  ///< To turn the body's rotation into the camera's.
