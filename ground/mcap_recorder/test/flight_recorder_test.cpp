@@ -154,6 +154,9 @@ void publish_flight(Publishers& pub, FlightRecorder& recorder) {
 
     state->vehicle_id = 1;
     state->sequence_number = static_cast<unsigned>(i);
+    // The odometry's pose from the second half on: 1 m north, 2 m east (NED-like odom).
+    state->odom_valid = i >= kCount / 2;
+    state->p_odom_m = {1.0F, 2.0F, 0.0F};
     state->obstacle_points_body_m._length = 3;
     for (std::uint32_t k = 0; k < 3; ++k) {
       state->obstacle_points_body_m._buffer[k] = {1.0F + static_cast<float>(k), 2.0F, -0.5F};
@@ -286,8 +289,8 @@ nlohmann::json json_of(const mcap::Message& m) {
   return nlohmann::json::parse(std::string(m.data.begin(), m.data.end()), nullptr, false);
 }
 
-// The frame tree Foxglove's 3D panel needs: odom -> base_link per state (the published states
-// carry no marker pose: the origin, heading north, which is ENU's y), and the camera mount's
+// The frame tree Foxglove's 3D panel needs: odom -> base_link per state (heading north, ENU's
+// y; at the origin until the state carries the odometry's pose), and the camera mount's
 // base_link -> camera_link -> camera_optical on /tf_static.
 void expect_frame_transforms(const mcap::McapReader& r) {
   const auto tf = messages_of(r, "/tf");
@@ -300,6 +303,12 @@ void expect_frame_transforms(const mcap::McapReader& r) {
   EXPECT_NEAR(odom["rotation"]["z"].get<double>(), std::sqrt(0.5), 1e-9) << odom;
   EXPECT_NEAR(odom["rotation"]["w"].get<double>(), std::sqrt(0.5), 1e-9) << odom;
   EXPECT_EQ(odom["timestamp"]["sec"].get<std::int64_t>(), tf[0]->log_time_ns / 1'000'000'000);
+  EXPECT_EQ(odom["translation"]["x"].get<double>(), 0.0) << odom;  // nothing integrated yet
+  // Once the state carries the odometry's pose: (1 N, 2 E) is ENU (2, 1, 0).
+  const nlohmann::json moved = json_of(*tf.back());
+  EXPECT_NEAR(moved["translation"]["x"].get<double>(), 2.0, 1e-6) << moved;
+  EXPECT_NEAR(moved["translation"]["y"].get<double>(), 1.0, 1e-6) << moved;
+  EXPECT_NEAR(moved["translation"]["z"].get<double>(), 0.0, 1e-6) << moved;
 
   const auto statics = messages_of(r, "/tf_static");
   ASSERT_GE(statics.size(), 2u);

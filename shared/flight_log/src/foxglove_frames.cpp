@@ -4,16 +4,16 @@
 
 namespace hq::flight_log {
 
-RigidTransform odom_T_base_link(const Eigen::Vector3d& p_W_m, double yaw_rad, double roll_rad,
+RigidTransform odom_T_base_link(const Eigen::Vector3d& p_m, double yaw_rad, double roll_rad,
                                 double pitch_rad) {
-  return {geometry::enu_from_ned(p_W_m), geometry::q_E_F(roll_rad, pitch_rad, yaw_rad)};
+  return {geometry::enu_from_ned(p_m), geometry::q_E_F(roll_rad, pitch_rad, yaw_rad)};
 }
 
 RigidTransform odom_T_base_link(const link::VehicleState& s) {
-  const bool known = s.position_valid;
-  const Eigen::Vector3d p_W_m =
-      known ? Eigen::Vector3d(s.p_W_m.x, s.p_W_m.y, s.p_W_m.z) : Eigen::Vector3d::Zero();
-  return odom_T_base_link(p_W_m, known ? static_cast<double>(s.yaw_W_rad) : 0.0, s.roll_rad,
+  const bool known = s.odom_valid;
+  const Eigen::Vector3d p_odom_m =
+      known ? Eigen::Vector3d(s.p_odom_m.x, s.p_odom_m.y, s.p_odom_m.z) : Eigen::Vector3d::Zero();
+  return odom_T_base_link(p_odom_m, known ? static_cast<double>(s.yaw_odom_rad) : 0.0, s.roll_rad,
                           s.pitch_rad);
 }
 

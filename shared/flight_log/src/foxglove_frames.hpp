@@ -28,13 +28,14 @@ struct RigidTransform {
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
 };
 
-/// odom -> base_link of a body pose in the NED world: position p_W_m (NED), yaw about down,
-/// roll and pitch (the estimator's), as ENU position and q_E_F.
-RigidTransform odom_T_base_link(const Eigen::Vector3d& p_W_m, double yaw_rad, double roll_rad,
+/// odom -> base_link of a body pose in a NED-like frame: position p_m, yaw about down, roll and
+/// pitch (the estimator's), as ENU position and q_E_F.
+RigidTransform odom_T_base_link(const Eigen::Vector3d& p_m, double yaw_rad, double roll_rad,
                                 double pitch_rad);
 
-/// The one place choosing the source of the odom pose in a state: the marker pose while
-/// position_valid, otherwise the origin with yaw 0 (nothing integrated on the link yet).
+/// The one place choosing the source of the odom pose in a state: the odometry's integrated
+/// pose (p_odom_m, yaw_odom_rad: NED-like, origin and heading of the start, continuous as
+/// REP-105 wants) once odom_valid, otherwise the origin with yaw 0 (nothing integrated yet).
 RigidTransform odom_T_base_link(const link::VehicleState& state);
 
 /// {"timestamp":..,"parent_frame_id":..,"child_frame_id":..,"translation":..,"rotation":..}
