@@ -598,6 +598,7 @@ std::unique_ptr<hq::mcap_recorder::FlightRecorder> open_mcap(const Options& o,
   hq::mcap_recorder::FlightRecorderOptions mo;
   mo.path = o.record_dir + "/flight.mcap";
   mo.link = link;
+  mo.camera_mount = hq::load_vehicle_config(o.vehicle_path).camera;
   for (const std::string& path : {o.haptics_path, o.vehicle_path, o.link_config_path}) {
     if (!path.empty()) mo.attachments.push_back({path, ""});
   }

@@ -14,13 +14,15 @@
 
 namespace hq::onboard_app {
 
-std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o) {
+std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o,
+                                                            const VehicleConfig& vehicle) {
   if (o.record_dir.empty()) return nullptr;
   // A file-size limit (ulimit -f) then fails the write with EFBIG, which the log reports as it
   // does a full disk, instead of SIGXFSZ killing the flight.
   std::signal(SIGXFSZ, SIG_IGN);
   onboard_log::OnboardRecorderOptions options;
   options.dir = o.record_dir;
+  options.camera_mount = vehicle.camera;
   options.link =
       o.link_config_path.empty() ? link::LinkConfig{} : link::load_link_config(o.link_config_path);
   link::apply_overrides(o.link_overrides, options.link);

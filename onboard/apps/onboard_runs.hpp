@@ -10,6 +10,7 @@
 #include "hq/pipeline/onboard_chain.hpp"
 #include "hq/pipeline/steady_clock.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
+#include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -105,7 +106,8 @@ void print_link_summary(const link_bridge::LinkBridge& bridge);
 
 /// --record DIR: the on-board MCAP log (null without --record), created before the flight so
 /// an unwritable folder stops the start with hq::InputError naming it.
-std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o);
+std::unique_ptr<onboard_log::OnboardRecorder> make_recorder(const Options& o,
+                                                            const VehicleConfig& vehicle);
 /// Exit status of a run whose flight went well but whose record failed (disk full): the record
 /// is not flight-critical, so the flight went on, but whoever started the run must learn that
 /// its record is incomplete.

@@ -485,8 +485,9 @@ int run_vehicle(const Options& o) {
   hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   // --record: before the source and the link, so an unwritable folder stops the start.
-  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
+  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o, vehicle);
   const OpenedSource opened = open_source(o, fc_spec, config);
+  if (recorder) recorder->set_camera(opened.source->camera());
   const std::unique_ptr<hq::vehicle::FlightController> fc =
       open_flight_controller(o, fc_spec, opened, vehicle);
 

@@ -73,6 +73,7 @@ flight_log::LinkLogOptions link_log_options(const FlightRecorderOptions& options
   o.role = security::Role::kStation;
   o.attachments = options.attachments;
   o.writer = options.writer;
+  o.camera_mount = options.camera_mount;
   return o;
 }
 

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstring>
 #include <filesystem>
@@ -153,6 +154,9 @@ void publish_flight(Publishers& pub, FlightRecorder& recorder) {
 
     state->vehicle_id = 1;
     state->sequence_number = static_cast<unsigned>(i);
+    // The odometry's pose from the second half on: 1 m north, 2 m east (NED-like odom).
+    state->odom_valid = i >= kCount / 2;
+    state->p_odom_m = {1.0F, 2.0F, 0.0F};
     state->obstacle_points_body_m._length = 3;
     for (std::uint32_t k = 0; k < 3; ++k) {
       state->obstacle_points_body_m._buffer[k] = {1.0F + static_cast<float>(k), 2.0F, -0.5F};
@@ -267,7 +271,7 @@ void expect_foxglove_channels(const mcap::McapReader& r) {
   const nlohmann::json image_json = nlohmann::json::parse(first_image, nullptr, false);
   ASSERT_TRUE(image_json.is_object()) << first_image;
   EXPECT_EQ(image_json.value("format", ""), "jpeg") << first_image;
-  EXPECT_EQ(image_json.value("frame_id", ""), "camera") << first_image;
+  EXPECT_EQ(image_json.value("frame_id", ""), "camera_optical") << first_image;
   EXPECT_TRUE(image_json.value("data", "").starts_with("/9j/")) << first_image;  // FF D8 FF
   const auto clouds = messages_of(r, "/obstacles");
   ASSERT_FALSE(clouds.empty());
@@ -275,16 +279,67 @@ void expect_foxglove_channels(const mcap::McapReader& r) {
   const std::string cloud(clouds[0]->data.begin(), clouds[0]->data.end());
   const nlohmann::json cloud_json = nlohmann::json::parse(cloud, nullptr, false);
   ASSERT_TRUE(cloud_json.is_object()) << cloud;
-  // (1, 2, -0.5) as float32 LE: 0000803F 00000040 000000BF -> "AACAPwAAAEAAAAC/".
-  EXPECT_TRUE(cloud_json.value("data", "").starts_with("AACAPwAAAEAAAAC/")) << cloud;
+  // FRD (1, 2, -0.5) is FLU (1, -2, 0.5), float32 LE: 0000803F 000000C0 0000003F.
+  EXPECT_TRUE(cloud_json.value("data", "").starts_with("AACAPwAAAMAAAAA/")) << cloud;
   EXPECT_EQ(cloud_json.value("point_stride", 0), 12) << cloud;
-  EXPECT_EQ(cloud_json.value("frame_id", ""), "body") << cloud;
+  EXPECT_EQ(cloud_json.value("frame_id", ""), "base_link") << cloud;
+}
+
+nlohmann::json json_of(const mcap::Message& m) {
+  return nlohmann::json::parse(std::string(m.data.begin(), m.data.end()), nullptr, false);
+}
+
+// The frame tree Foxglove's 3D panel needs: odom -> base_link per state (heading north, ENU's
+// y; at the origin until the state carries the odometry's pose), and the camera mount's
+// base_link -> camera_link -> camera_optical on /tf_static.
+void expect_frame_transforms(const mcap::McapReader& r) {
+  const auto tf = messages_of(r, "/tf");
+  EXPECT_EQ(tf.size(), messages_of(r, "/hq/vehicle_state").size());
+  ASSERT_FALSE(tf.empty());
+  EXPECT_EQ(r.schema(channel_of(r, "/tf")->schema_id)->name, "foxglove.FrameTransform");
+  const nlohmann::json odom = json_of(*tf[0]);
+  EXPECT_EQ(odom.value("parent_frame_id", ""), "odom") << odom;
+  EXPECT_EQ(odom.value("child_frame_id", ""), "base_link") << odom;
+  EXPECT_NEAR(odom["rotation"]["z"].get<double>(), std::sqrt(0.5), 1e-9) << odom;
+  EXPECT_NEAR(odom["rotation"]["w"].get<double>(), std::sqrt(0.5), 1e-9) << odom;
+  EXPECT_EQ(odom["timestamp"]["sec"].get<std::int64_t>(), tf[0]->log_time_ns / 1'000'000'000);
+  EXPECT_EQ(odom["translation"]["x"].get<double>(), 0.0) << odom;  // nothing integrated yet
+  // Once the state carries the odometry's pose: (1 N, 2 E) is ENU (2, 1, 0).
+  const nlohmann::json moved = json_of(*tf.back());
+  EXPECT_NEAR(moved["translation"]["x"].get<double>(), 2.0, 1e-6) << moved;
+  EXPECT_NEAR(moved["translation"]["y"].get<double>(), 1.0, 1e-6) << moved;
+  EXPECT_NEAR(moved["translation"]["z"].get<double>(), 0.0, 1e-6) << moved;
+
+  const auto statics = messages_of(r, "/tf_static");
+  ASSERT_GE(statics.size(), 2u);
+  const nlohmann::json base_camera = json_of(*statics[0]);
+  EXPECT_EQ(base_camera.value("parent_frame_id", ""), "base_link") << base_camera;
+  EXPECT_EQ(base_camera.value("child_frame_id", ""), "camera_link") << base_camera;
+  // The lever arm p_B_C = (0.1, 0.02, -0.03) FRD is (0.1, -0.02, 0.03) in FLU; a camera
+  // looking forward: camera_link is base_link's orientation.
+  EXPECT_NEAR(base_camera["translation"]["x"].get<double>(), 0.1, 1e-9);
+  EXPECT_NEAR(base_camera["translation"]["y"].get<double>(), -0.02, 1e-9);
+  EXPECT_NEAR(base_camera["translation"]["z"].get<double>(), 0.03, 1e-9);
+  EXPECT_NEAR(std::abs(base_camera["rotation"]["w"].get<double>()), 1.0, 1e-9) << base_camera;
+  const nlohmann::json optical = json_of(*statics[1]);
+  EXPECT_EQ(optical.value("parent_frame_id", ""), "camera_link") << optical;
+  EXPECT_EQ(optical.value("child_frame_id", ""), "camera_optical") << optical;
+  EXPECT_TRUE(messages_of(r, "/camera/calibration").empty());  // no camera given
+}
+
+// A camera looking forward (optical z = body x, x = body y, y = body z), 10 cm ahead.
+geometry::CameraMount forward_camera() {
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  T_B_C.linear() << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  T_B_C.translation() = Eigen::Vector3d(0.1, 0.02, -0.03);
+  return geometry::CameraMount(T_B_C);
 }
 
 TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChannels) {
   const fs::path config = dir_ / "vehicle.yaml";
   std::ofstream(config) << "vehicle:\n  mass_kg: 0.5\n";
   options_.attachments = {{config.string(), ""}, {(dir_ / "missing.yaml").string(), ""}};
+  options_.camera_mount = forward_camera();
   FlightRecorder recorder(options_);
   Publishers pub(options_.link);
   ASSERT_TRUE(wait_matched(pub));
@@ -302,6 +357,7 @@ TEST_F(FlightRecorderTest, RecordsEveryLinkTopicAsCdrWithStampsAndFoxgloveChanne
   expect_counts_as_reported(r, report, options_.path);
   expect_commands_as_cdr(r);
   expect_foxglove_channels(r);
+  expect_frame_transforms(r);
   ASSERT_EQ(r.attachments().size(), 1u);
   EXPECT_EQ(r.attachments()[0].name, config.string());
   EXPECT_EQ(r.attachments()[0].media_type, "application/yaml");

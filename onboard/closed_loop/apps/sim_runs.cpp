@@ -81,7 +81,8 @@ int run_sim_link(const Options& o) {
   const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
   const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   // --record: before the link, so an unwritable folder stops the start.
-  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o);
+  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o, vehicle);
+  if (recorder) recorder->set_camera(sim_config.camera.pinhole);
   const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
   hq::link_bridge::LinkBridge& bridge = *link_bridge;
   if (bridge.ros2() != nullptr) {

@@ -5,11 +5,13 @@
 
 #include "onboard_schemas.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cinttypes>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <system_error>
 
 namespace hq::onboard_log {
@@ -111,16 +113,37 @@ class OnboardSource final : public flight_log::LocalSource {
   }
 
   void drain(flight_log::ChannelWriter& out) override {
+    // Set before the first sample was queued (the queue's release orders it).
+    const std::int64_t offset_ns = epoch_offset_ns_.load(std::memory_order_acquire);
+    const std::int64_t now_ns = wall_ns();
     imu_.drain([&](const ImuRecord& m) {
-      flight_log::Json& j = begin(out, m.t_ns);
+      const std::int64_t log_ns = m.t_ns + offset_ns;
+      note_lag(now_ns - log_ns);
+      flight_log::Json& j = begin(out, log_ns, m.t_ns);
       j.raw(",\"omega_B_radps\":");
       j.vector3(m.omega_B_radps);
       j.raw(",\"f_B_mps2\":");
       j.vector3(m.f_B_mps2);
       j.raw("}");
-      out.write_json(imu_channel_, m.t_ns, m.t_ns);
+      out.write_json(imu_channel_, log_ns, log_ns);
     });
-    steps_.drain([&](const StepSample& s) { write_step(out, s); });
+    steps_.drain([&](const StepSample& s) {
+      note_lag(now_ns - (s.t_ns + offset_ns));
+      write_step(out, s, s.t_ns + offset_ns);
+    });
+  }
+
+  void describe_clock(mcap::KeyValues& metadata) const override {
+    const std::int64_t offset_ns = epoch_offset_ns_.load(std::memory_order_acquire);
+    if (offset_ns == kNoOffset) return;
+    metadata["chain_clock"] =
+        "the on-board chain's t_ns (simulated time, or the monotonic clock on a vehicle), in "
+        "each /onboard/ message as t_ns; log_time = t_ns + chain_to_epoch_offset_ns";
+    metadata["chain_to_epoch_offset_ns"] = std::to_string(offset_ns);
+    // How far the mapped stamps were behind (or, negative, ahead of) the clock when drained:
+    // the queues' delay, plus the drift of a simulated clock from the wall clock.
+    metadata["chain_lag_min_ns"] = std::to_string(lag_min_ns_);
+    metadata["chain_lag_max_ns"] = std::to_string(lag_max_ns_);
   }
 
   [[nodiscard]] std::uint64_t dropped() const override { return steps_.dropped() + imu_.dropped(); }
@@ -128,10 +151,12 @@ class OnboardSource final : public flight_log::LocalSource {
 
   void push_step(const StepSample& s) noexcept {
     steps_pushed_.fetch_add(1, std::memory_order_relaxed);
+    map_clock(s.t_ns);
     steps_.push(s);
   }
   void push_imu(const vehicle::FcImuSample& m) noexcept {
     imu_pushed_.fetch_add(1, std::memory_order_relaxed);
+    map_clock(m.t_ns);
     ImuRecord r;
     r.t_ns = m.t_ns;
     copy3(m.omega_B_radps, r.omega_B_radps);
@@ -142,17 +167,43 @@ class OnboardSource final : public flight_log::LocalSource {
   std::uint64_t imu_pushed() const { return imu_pushed_.load(std::memory_order_relaxed); }
 
  private:
-  static flight_log::Json& begin(flight_log::ChannelWriter& out, std::int64_t t_ns) {
+  void note_lag(std::int64_t lag_ns) {
+    lag_min_ns_ = std::min(lag_min_ns_, lag_ns);
+    lag_max_ns_ = std::max(lag_max_ns_, lag_ns);
+  }
+
+  static std::int64_t wall_ns() noexcept {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  }
+
+  // One offset per run, from the first sample: the chain's clock (simulated, or monotonic) to
+  // the epoch the link samples are stamped in. Simulated time maps to the wall clock at the
+  // run's first step; hq-sim-flight paces it in real time, so the two stay together
+  // (chain_lag_max_ns in the metadata says how well).
+  void map_clock(std::int64_t t_ns) noexcept {
+    if (epoch_offset_ns_.load(std::memory_order_relaxed) != kNoOffset) return;
+    std::int64_t expected = kNoOffset;
+    epoch_offset_ns_.compare_exchange_strong(expected, wall_ns() - t_ns, std::memory_order_acq_rel);
+  }
+
+  // "timestamp" is the log time (epoch), so Foxglove plots these beside the link's channels;
+  // "t_ns" the chain's own stamp, as the chain's logs and CSV files carry it.
+  static flight_log::Json& begin(flight_log::ChannelWriter& out, std::int64_t log_ns,
+                                 std::int64_t t_ns) {
     flight_log::Json& j = out.json();
     j.clear();
     j.raw("{\"timestamp\":");
-    j.stamp(t_ns);
+    j.stamp(log_ns);
+    j.raw(",\"t_ns\":");
+    j.integer(t_ns);
     return j;
   }
 
-  void write_step(flight_log::ChannelWriter& out, const StepSample& s) {
+  void write_step(flight_log::ChannelWriter& out, const StepSample& s, std::int64_t log_ns) {
     if (s.frame) {
-      flight_log::Json& j = begin(out, s.t_ns);
+      flight_log::Json& j = begin(out, log_ns, s.t_ns);
       j.raw(",\"tracking\":");
       j.string(s.tracking);
       j.raw(",\"reason\":");
@@ -164,10 +215,10 @@ class OnboardSource final : public flight_log::LocalSource {
       j.raw(",\"v_C_mps\":");
       j.vector3(s.v_C_mps);
       j.raw("}");
-      out.write_json(odometry_channel_, s.t_ns, s.t_ns);
+      out.write_json(odometry_channel_, log_ns, log_ns);
     }
     {
-      flight_log::Json& j = begin(out, s.t_ns);
+      flight_log::Json& j = begin(out, log_ns, s.t_ns);
       j.raw(s.frame ? ",\"frame\":true,\"status\":" : ",\"frame\":false,\"status\":");
       j.string(s.estimate_status);
       j.raw(",\"reason\":");
@@ -183,10 +234,10 @@ class OnboardSource final : public flight_log::LocalSource {
       j.raw(",\"pitch_rad\":");
       j.number(s.pitch_rad);
       j.raw("}");
-      out.write_json(estimator_channel_, s.t_ns, s.t_ns);
+      out.write_json(estimator_channel_, log_ns, log_ns);
     }
     {
-      flight_log::Json& j = begin(out, s.t_ns);
+      flight_log::Json& j = begin(out, log_ns, s.t_ns);
       j.raw(",\"mode\":");
       j.string(s.mode);
       j.raw(",\"flight_state\":");
@@ -213,10 +264,10 @@ class OnboardSource final : public flight_log::LocalSource {
       j.raw(",\"clearance_m\":");
       j.number(s.clearance_m);
       j.raw("}");
-      out.write_json(control_channel_, s.t_ns, s.t_ns);
+      out.write_json(control_channel_, log_ns, log_ns);
     }
     if (s.frame) {
-      flight_log::Json& j = begin(out, s.t_ns);
+      flight_log::Json& j = begin(out, log_ns, s.t_ns);
       for (int i = 0; i < pipeline::kStageCount; ++i) {
         j.raw(",\"");
         j.raw(pipeline::kStageNames[i]);
@@ -224,7 +275,7 @@ class OnboardSource final : public flight_log::LocalSource {
         j.integer(pipeline::stage_ns(s.durations, i));
       }
       j.raw("}");
-      out.write_json(timing_channel_, s.t_ns, s.t_ns);
+      out.write_json(timing_channel_, log_ns, log_ns);
     }
   }
 
@@ -232,6 +283,10 @@ class OnboardSource final : public flight_log::LocalSource {
   flight_log::SpscQueue<ImuRecord> imu_;
   std::atomic<std::uint64_t> steps_pushed_{0};
   std::atomic<std::uint64_t> imu_pushed_{0};
+  static constexpr std::int64_t kNoOffset = std::numeric_limits<std::int64_t>::min();
+  std::atomic<std::int64_t> epoch_offset_ns_{kNoOffset};
+  std::int64_t lag_min_ns_ = std::numeric_limits<std::int64_t>::max();  ///< log thread only
+  std::int64_t lag_max_ns_ = std::numeric_limits<std::int64_t>::min();
   std::uint16_t imu_channel_ = 0;
   std::uint16_t odometry_channel_ = 0;
   std::uint16_t estimator_channel_ = 0;
@@ -256,6 +311,7 @@ flight_log::LinkLogOptions link_log_options(const OnboardRecorderOptions& option
   o.attachments = options.attachments;
   o.writer = options.writer;
   o.record_link = options.record_link;
+  o.camera_mount = options.camera_mount;
   return o;
 }
 
@@ -293,6 +349,10 @@ void OnboardRecorder::push_step(const pipeline::ChainOutput& out,
 void OnboardRecorder::push_imu(const vehicle::FcImuSample& sample) noexcept {
   if (impl_->closed.load(std::memory_order_relaxed)) return;
   impl_->source.push_imu(sample);
+}
+
+void OnboardRecorder::set_camera(const geometry::PinholeCamera& camera) {
+  impl_->log.set_camera(camera);
 }
 
 bool OnboardRecorder::failed() const noexcept { return impl_->log.failed(); }

@@ -116,7 +116,23 @@ TEST_F(OnboardRecorderTest, StepsAndImuAreWrittenAsTheirChannelsWithTheLinkOnes)
       ASSERT_LT(messages[i - 1]->log_time_ns, messages[i]->log_time_ns) << topic;
     }
   }
+  // One time base: the chain's clock mapped to the epoch by one offset, the file in log-time
+  // order, the chain's own stamp kept in the payload.
+  for (std::size_t i = 1; i < r.messages().size(); ++i) {
+    ASSERT_LE(r.messages()[i - 1].log_time_ns, r.messages()[i].log_time_ns) << i;
+  }
+  const mcap::Metadata* recorder_meta = nullptr;
+  for (const mcap::Metadata& md : r.metadata()) {
+    if (md.name == "recorder") recorder_meta = &md;
+  }
+  ASSERT_NE(recorder_meta, nullptr);
+  const std::int64_t offset_ns = std::stoll(recorder_meta->values.at("chain_to_epoch_offset_ns"));
+  EXPECT_GT(offset_ns, 1'600'000'000'000'000'000);  // the epoch, not the chain's clock
+  EXPECT_EQ(m.at("/onboard/estimator").front()->log_time_ns, 1'000'000'000 + offset_ns);
+  EXPECT_EQ(m.at("/onboard/imu").back()->log_time_ns,
+            std::int64_t{1'000'000'000} + (kSteps - 1) * 5'000'000 + 4'000'000 + offset_ns);
   const std::string estimator = text(*m.at("/onboard/estimator").front());
+  EXPECT_NE(estimator.find("\"t_ns\":1000000000,"), std::string::npos) << estimator;
   EXPECT_NE(estimator.find("\"v_H_mps\":{\"x\":0.5,\"y\":-0.25,\"z\":0.125}"), std::string::npos)
       << estimator;
   EXPECT_NE(estimator.find("\"roll_rad\":0.0625"), std::string::npos) << estimator;

@@ -27,6 +27,28 @@ inline constexpr const char* kPointCloudSchema =
     R"j("type":"object","properties":{"name":{"type":"string"},"offset":{"type":"integer"},)j"
     R"j("type":{"type":"integer"}}}},"data":{"type":"string","contentEncoding":"base64"}}})j";
 
+// foxglove.FrameTransform (https://docs.foxglove.dev/docs/sdk/schemas/frame-transform).
+inline constexpr const char* kFrameTransformSchema =
+    R"j({"title":"foxglove.FrameTransform","description":"A transform between two reference )j"
+    R"j(frames in 3D space","type":"object","properties":{"timestamp":{"type":"object",)j"
+    R"j("properties":{"sec":{"type":"integer"},"nsec":{"type":"integer"}}},)j"
+    R"j("parent_frame_id":{"type":"string"},"child_frame_id":{"type":"string"},)j"
+    R"j("translation":{"type":"object","properties":{"x":{"type":"number"},)j"
+    R"j("y":{"type":"number"},"z":{"type":"number"}}},"rotation":{"type":"object",)j"
+    R"j("properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},)j"
+    R"j("w":{"type":"number"}}}}})j";
+
+// foxglove.CameraCalibration (https://docs.foxglove.dev/docs/sdk/schemas/camera-calibration).
+inline constexpr const char* kCameraCalibrationSchema =
+    R"j({"title":"foxglove.CameraCalibration","description":"Camera calibration parameters",)j"
+    R"j("type":"object","properties":{"timestamp":{"type":"object","properties":{)j"
+    R"j("sec":{"type":"integer"},"nsec":{"type":"integer"}}},"frame_id":{"type":"string"},)j"
+    R"j("width":{"type":"integer","minimum":0},"height":{"type":"integer","minimum":0},)j"
+    R"j("distortion_model":{"type":"string"},"D":{"type":"array","items":{"type":"number"}},)j"
+    R"j("K":{"type":"array","items":{"type":"number"},"minItems":9,"maxItems":9},)j"
+    R"j("R":{"type":"array","items":{"type":"number"},"minItems":9,"maxItems":9},)j"
+    R"j("P":{"type":"array","items":{"type":"number"},"minItems":12,"maxItems":12}}})j";
+
 inline constexpr const char* kVector3Schema =
     R"j({"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},)j"
     R"j("z":{"type":"number"}}})j";

@@ -2,8 +2,11 @@
 
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
+#include "hq/flight_log/time_order.hpp"
+#include "hq/geometry/ros_frames.hpp"
 #include "hq/link/link.hpp"
 
+#include "foxglove_frames.hpp"
 #include "foxglove_schemas.hpp"
 #include <dds/dds.h>
 #include <dds/ddsi/ddsi_serdata.h>
@@ -14,6 +17,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <span>
 #include <sys/resource.h>
 #include <thread>
@@ -118,6 +122,7 @@ struct LinkLog::Impl final : ChannelWriter {
     link::reserve(state_sample->markers, hq_msgs_kMaxMarkersInState);
     link::reserve(camera_sample->rgb_jpeg, hq_msgs_kMaxJpegBytes);
     link::reserve(camera_sample->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
+    cloud_flu.reserve(std::size_t{3} * hq_msgs_kMaxObstaclePoints);
     cdr.reserve(64 * 1024);
     json().text().reserve(512 * 1024);
 
@@ -147,7 +152,23 @@ struct LinkLog::Impl final : ChannelWriter {
     depth_channel = add_channel(image_schema, "/camera/depth_preview/compressed", "json", {});
     cloud_channel = add_channel(
         writer.add_schema("foxglove.PointCloud", "jsonschema", as_bytes(kPointCloudSchema)),
-        "/obstacles", "json", {{"frame", "body (FRD: x forward, y right, z down)"}});
+        "/obstacles", "json", {{"frame", "base_link (FLU: x forward, y left, z up)"}});
+    const std::uint16_t transform_schema =
+        writer.add_schema("foxglove.FrameTransform", "jsonschema", as_bytes(kFrameTransformSchema));
+    tf_channel = add_channel(transform_schema, "/tf", "json",
+                             {{"frames", "odom (ENU) -> base_link (FLU), per state"}});
+    tf_static_channel =
+        add_channel(transform_schema, "/tf_static", "json",
+                    {{"frames", "base_link -> camera_link -> camera_optical (the camera mount)"}});
+    calibration_channel = add_channel(writer.add_schema("foxglove.CameraCalibration", "jsonschema",
+                                                        as_bytes(kCameraCalibrationSchema)),
+                                      "/camera/calibration", "json", {{"frame", "camera_optical"}});
+    if (options.camera_mount) {
+      const geometry::RosCameraFrames frames = geometry::ros_camera_frames(*options.camera_mount);
+      T_base_camera_link = rigid(frames.T_F_camera_link);
+      T_camera_link_optical = rigid(frames.T_camera_link_optical);
+      write_static_transforms(dds_time());
+    }
     if (local != nullptr) local->add_channels(*this);
 
     for (const AttachmentFile& a : options.attachments) {
@@ -181,22 +202,37 @@ struct LinkLog::Impl final : ChannelWriter {
                        "json", metadata);
   }
 
+  // Every message goes through the time-order buffer, so the file's log times never go back.
   void write(std::uint16_t channel, std::int64_t log_ns, std::int64_t publish_ns,
              mcap::Bytes data) override {
     if (owner.failed()) {
       ++report.samples_not_written;
       return;
     }
-    ChannelReport& c = report.per_channel[channel];
+    order.add(channel, log_ns, publish_ns, data,
+              [this](const TimeOrderBuffer::Message& m) { commit(m); });
+  }
+
+  void release(std::int64_t horizon_ns) {
+    order.release(horizon_ns, [this](const TimeOrderBuffer::Message& m) { commit(m); });
+  }
+
+  void commit(const TimeOrderBuffer::Message& m) {
+    if (owner.failed()) {
+      ++report.samples_not_written;
+      return;
+    }
+    ChannelReport& c = report.per_channel[m.channel];
     try {
-      writer.write(channel, static_cast<std::uint32_t>(c.messages), log_ns, publish_ns, data);
+      writer.write(m.channel, static_cast<std::uint32_t>(c.messages), m.log_ns, m.publish_ns,
+                   m.data);
     } catch (const std::exception& e) {
       // Handed over all the same: its chunk may have reached the file before a later part
       // failed, so count_written() asks the writer what the file holds.
       fail(e.what());
     }
-    if (c.messages == 0) c.first_log_time_ns = log_ns;
-    c.last_log_time_ns = log_ns;
+    if (c.messages == 0) c.first_log_time_ns = m.log_ns;
+    c.last_log_time_ns = m.log_ns;
     ++c.messages;
   }
 
@@ -245,6 +281,7 @@ struct LinkLog::Impl final : ChannelWriter {
           if (topic == kVehicleState && !owner.failed() &&
               ddsi_serdata_to_sample(sample, &*state_sample, nullptr, nullptr)) {
             write_cloud(log_ns, infos[i].source_timestamp);
+            write_odom_transform(log_ns, infos[i].source_timestamp);
           } else if (topic == kCameraFrame && !owner.failed() &&
                      ddsi_serdata_to_sample(sample, &*camera_sample, nullptr, nullptr)) {
             write_images(log_ns, infos[i].source_timestamp);
@@ -257,20 +294,26 @@ struct LinkLog::Impl final : ChannelWriter {
   }
 
   void write_cloud(std::int64_t log_ns, std::int64_t publish_ns) {
+    // FRD -> FLU (x, -y, -z), so the 3D panel shows the obstacles the right way up.
     const auto& points = state_sample->obstacle_points_body_m;
+    cloud_flu.resize(std::size_t{3} * points._length);
+    for (std::uint32_t i = 0; i < points._length; ++i) {
+      cloud_flu[3 * i] = points._buffer[i].x;
+      cloud_flu[3 * i + 1] = -points._buffer[i].y;
+      cloud_flu[3 * i + 2] = -points._buffer[i].z;
+    }
     Json& j = json();
     j.clear();
     j.raw("{\"timestamp\":");
     j.stamp(log_ns);
     j.raw(
-        ",\"frame_id\":\"body\",\"pose\":{\"position\":{\"x\":0,\"y\":0,\"z\":0},"
+        ",\"frame_id\":\"base_link\",\"pose\":{\"position\":{\"x\":0,\"y\":0,\"z\":0},"
         "\"orientation\":{\"x\":0,\"y\":0,\"z\":0,\"w\":1}},\"point_stride\":12,\"fields\":["
         "{\"name\":\"x\",\"offset\":0,\"type\":7},{\"name\":\"y\",\"offset\":4,\"type\":7},"
         "{\"name\":\"z\",\"offset\":8,\"type\":7}],\"data\":");
-    // Vector3f is three packed little-endian floats: Foxglove's FLOAT32 (7) fields as they are.
-    static_assert(sizeof(hq_msgs_Vector3f) == 12);
-    j.base64({reinterpret_cast<const std::uint8_t*>(points._buffer),
-              std::size_t{points._length} * sizeof(hq_msgs_Vector3f)});
+    // Three packed little-endian floats a point: Foxglove's FLOAT32 (7) fields as they are.
+    j.base64({reinterpret_cast<const std::uint8_t*>(cloud_flu.data()),
+              cloud_flu.size() * sizeof(float)});
     j.raw("}");
     write_json(cloud_channel, log_ns, publish_ns);
   }
@@ -291,14 +334,37 @@ struct LinkLog::Impl final : ChannelWriter {
     write_json(channel, log_ns, publish_ns);
   }
 
+  // odom -> base_link of the state just taken; the static ones again every second, so a
+  // viewer that seeks into the file finds them within a second of any instant.
+  void write_odom_transform(std::int64_t log_ns, std::int64_t publish_ns) {
+    frame_transform_json(json(), log_ns, kOdomFrame, kBaseFrame, odom_T_base_link(*state_sample));
+    write_json(tf_channel, log_ns, publish_ns);
+    if (options.camera_mount && log_ns - last_static_ns >= 1'000'000'000) {
+      write_static_transforms(log_ns);
+    }
+  }
+
+  void write_static_transforms(std::int64_t log_ns) {
+    last_static_ns = log_ns;
+    frame_transform_json(json(), log_ns, kBaseFrame, kCameraLinkFrame, T_base_camera_link);
+    write_json(tf_static_channel, log_ns, log_ns);
+    frame_transform_json(json(), log_ns, kCameraLinkFrame, kCameraOpticalFrame,
+                         T_camera_link_optical);
+    write_json(tf_static_channel, log_ns, log_ns);
+  }
+
   void write_images(std::int64_t log_ns, std::int64_t publish_ns) {
     const auto& f = *camera_sample;
+    if (camera_set.load(std::memory_order_acquire)) {
+      camera_calibration_json(json(), log_ns, kCameraOpticalFrame, camera, f.width_px, f.height_px);
+      write_json(calibration_channel, log_ns, publish_ns);
+    }
     if (f.rgb_jpeg._length > 0) {
-      write_image(image_channel, "camera", log_ns, publish_ns,
+      write_image(image_channel, kCameraOpticalFrame, log_ns, publish_ns,
                   {f.rgb_jpeg._buffer, f.rgb_jpeg._length});
     }
     if (f.depth_preview._length > 0) {
-      write_image(depth_channel, "camera", log_ns, publish_ns,
+      write_image(depth_channel, kCameraOpticalFrame, log_ns, publish_ns,
                   {f.depth_preview._buffer, f.depth_preview._length});
     }
   }
@@ -318,6 +384,8 @@ struct LinkLog::Impl final : ChannelWriter {
       // 100 ms: the local queues have no DDS condition, so they are drained at least this often.
       waitset.wait(triggered, DDS_MSECS(100));
       drain_all();
+      // Held for the window: what the queues and readers hand over later is older than now.
+      release(dds_time() - options.reorder_window_ns);
       // At least one chunk a second reaches the file, even when few messages arrive, so a
       // SIGKILL loses at most about a second.
       const std::int64_t now_ns = steady_ns();
@@ -331,6 +399,7 @@ struct LinkLog::Impl final : ChannelWriter {
       }
     }
     drain_all();
+    release(std::numeric_limits<std::int64_t>::max());
   }
 
   LinkLog& owner;
@@ -353,12 +422,24 @@ struct LinkLog::Impl final : ChannelWriter {
   std::uint16_t image_channel = 0;
   std::uint16_t depth_channel = 0;
   std::uint16_t cloud_channel = 0;
+  std::uint16_t tf_channel = 0;
+  std::uint16_t tf_static_channel = 0;
+  std::uint16_t calibration_channel = 0;
+  RigidTransform T_base_camera_link;
+  RigidTransform T_camera_link_optical;
+  std::int64_t last_static_ns = 0;
+  std::vector<float> cloud_flu;    ///< the state's cloud in FLU, sized once
+  geometry::PinholeCamera camera;  ///< written once before camera_set
+  std::atomic<bool> camera_set{false};
+  std::atomic<bool> camera_claimed{false};
   link::Sample<link::VehicleState> state_sample;
   link::Sample<link::CameraFrame> camera_sample;
   std::vector<std::uint8_t> cdr;
   std::atomic<bool> stopping{false};
   std::atomic<bool> closed{false};
   std::int64_t last_flush_ns = 0;
+  // About a second of a flight at 10 Hz camera (two images and the frame's CDR each).
+  TimeOrderBuffer order{8192, std::size_t{8} << 20};
   RecorderReport report;
   std::thread thread;
 };
@@ -378,6 +459,13 @@ LinkLog::~LinkLog() {
 
 const std::vector<std::string>& LinkLog::attachments_skipped() const {
   return impl_->report.attachments_skipped;  // written only by the constructor
+}
+
+void LinkLog::set_camera(const geometry::PinholeCamera& camera) {
+  Impl& d = *impl_;
+  if (d.camera_claimed.exchange(true)) return;
+  d.camera = camera;
+  d.camera_set.store(true, std::memory_order_release);
 }
 
 const RecorderReport& LinkLog::close(const mcap::KeyValues& summary) {
@@ -403,7 +491,12 @@ const RecorderReport& LinkLog::close(const mcap::KeyValues& summary) {
       }
       if (d.local != nullptr) {
         counts[d.local->dropped_key()] = std::to_string(d.report.local_samples_dropped);
+        d.local->describe_clock(counts);
       }
+      counts["log_time"] = "epoch (CLOCK_REALTIME) ns, written in log-time order";
+      counts["reorder_window_ns"] = std::to_string(d.options.reorder_window_ns);
+      counts["late_messages_restamped"] = std::to_string(d.order.late());
+      counts["late_max_ns"] = std::to_string(d.order.late_max_ns());
       d.writer.add_metadata("recorder", counts);
       d.writer.close();
     } catch (const std::exception& e) {

@@ -4,10 +4,13 @@
 #include "hq/flight_log/json.hpp"
 #include "hq/flight_log/link_log.hpp"
 #include "hq/flight_log/spsc_queue.hpp"
+#include "hq/flight_log/time_order.hpp"
 #include "hq/mcap/mcap.hpp"
+#include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
 #include "hq/testing/loopback_dds.hpp"
 
+#include <dds/dds.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -117,6 +120,87 @@ TEST(Json, AParserReadsItBackFloatExact) {
   EXPECT_EQ(parsed["text"], "a \"quoted\" back\\slash");
 }
 
+struct Released {
+  std::uint16_t channel;
+  std::int64_t log_ns;
+  std::string text;
+};
+
+mcap::Bytes bytes_of(const std::string& s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+
+// GIVEN two queues whose stamps interleave (as a camera frame taken after the IMU samples of
+// the same instant) WHEN added as they are drained THEN they come out oldest first, ties in
+// arrival order, each with its own bytes, and only what the horizon passed.
+TEST(TimeOrderBuffer, ReleasesInLogTimeOrderUpToTheHorizon) {
+  TimeOrderBuffer order(64, 4096);
+  std::vector<Released> out;
+  const auto sink = [&](const TimeOrderBuffer::Message& m) {
+    out.push_back({m.channel, m.log_ns, std::string(m.data.begin(), m.data.end())});
+  };
+  const std::string texts[] = {"a30", "a10", "b20", "b10", "c40"};
+  order.add(1, 30, 30, bytes_of(texts[0]), sink);
+  order.add(1, 10, 10, bytes_of(texts[1]), sink);
+  order.add(2, 20, 20, bytes_of(texts[2]), sink);
+  order.add(2, 10, 10, bytes_of(texts[3]), sink);
+  order.add(3, 40, 40, bytes_of(texts[4]), sink);
+  order.release(25, sink);
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_EQ(out[0].text, "a10");  // tie at 10: arrival order
+  EXPECT_EQ(out[1].text, "b10");
+  EXPECT_EQ(out[2].text, "b20");
+  EXPECT_EQ(order.held(), 2u);
+  order.release_all(sink);
+  ASSERT_EQ(out.size(), 5u);
+  EXPECT_EQ(out[3].text, "a30");
+  EXPECT_EQ(out[4].text, "c40");
+  EXPECT_EQ(out[4].channel, 3);
+  EXPECT_EQ(order.late(), 0u);
+}
+
+// GIVEN a message older than one already released (held longer than the window) THEN it is
+// released at that later time and counted, so the file's log times still never go back.
+TEST(TimeOrderBuffer, ALateMessageIsRestampedToTheLastReleasedTimeAndCounted) {
+  TimeOrderBuffer order(64, 4096);
+  std::vector<Released> out;
+  const auto sink = [&](const TimeOrderBuffer::Message& m) {
+    out.push_back({m.channel, m.log_ns, std::string(m.data.begin(), m.data.end())});
+  };
+  const std::string text = "x";
+  order.add(1, 100, 100, bytes_of(text), sink);
+  order.release(150, sink);
+  order.add(2, 70, 70, bytes_of(text), sink);
+  order.release_all(sink);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[1].log_ns, 100);
+  EXPECT_EQ(order.late(), 1u);
+  EXPECT_EQ(order.late_max_ns(), 30);
+}
+
+// GIVEN more bytes than the buffer holds THEN the oldest are released early, still in order;
+// and within its reserve, adding and releasing allocates nothing.
+TEST(TimeOrderBuffer, FullReleasesTheOldestEarlyAndWithinItsReserveAllocatesNothing) {
+  TimeOrderBuffer order(1000, 1000);
+  std::vector<std::int64_t> released;
+  released.reserve(1000);
+  const auto sink = [&](const TimeOrderBuffer::Message& m) { released.push_back(m.log_ns); };
+  const std::array<std::uint8_t, 100> payload{};
+  for (int i = 0; i < 15; ++i) order.add(1, 1000 - i, 0, payload, sink);
+  EXPECT_FALSE(released.empty());
+  EXPECT_LE(order.held() * payload.size(), 1000u);
+  order.release_all(sink);
+  EXPECT_EQ(released.size(), 15u);
+  EXPECT_TRUE(std::is_sorted(released.begin(), released.end()));
+
+  const long before = hq::testing::allocation_count();
+  for (int round = 0; round < 100; ++round) {
+    for (int i = 0; i < 8; ++i) order.add(1, 10'000 + round * 10 + (7 - i), 0, payload, sink);
+    order.release(10'000 + round * 10 + 4, sink);
+  }
+  EXPECT_EQ(hq::testing::allocation_count() - before, 0);
+}
+
 class CountingSource final : public LocalSource {
  public:
   void add_channels(ChannelWriter& out) override {
@@ -194,6 +278,34 @@ TEST_F(LinkLogTest, LocalSamplesAreWrittenOnTheLogsThreadWithTheLinkChannels) {
     }
   }
   EXPECT_TRUE(found);
+}
+
+// Two sources whose stamps interleave and arrive out of order (a second queue drained after
+// the first, as the vehicle's IMU and step queues are): the file's log times never go back.
+TEST_F(LinkLogTest, QueuesDrainedOneAfterAnotherAreWrittenInLogTimeOrder) {
+  CountingSource source;
+  options_.reorder_window_ns = 50'000'000;
+  LinkLog log(options_, &source);
+  constexpr int kSamples = 400;
+  const std::int64_t now_ns = dds_time();
+  for (int i = 0; i < kSamples; ++i) {
+    // Two interleaved series pushed in the wrong order: odd stamps first, then even ones.
+    const int k = i < kSamples / 2 ? 2 * i + 1 : 2 * (i - kSamples / 2);
+    // Ahead of the clock, so they are all held until close whenever the thread drains.
+    source.queue.push({now_ns + 1'000'000'000 + k * 100'000, 1.0 * k});
+  }
+  const RecorderReport& report = log.close();
+  EXPECT_TRUE(report.error.empty()) << report.error;
+  const mcap::McapReader r(options_.path);
+  ASSERT_EQ(r.messages().size(), static_cast<std::size_t>(kSamples));
+  for (std::size_t i = 1; i < r.messages().size(); ++i) {
+    ASSERT_LE(r.messages()[i - 1].log_time_ns, r.messages()[i].log_time_ns) << i;
+  }
+  for (const mcap::Metadata& m : r.metadata()) {
+    if (m.name == "recorder") {
+      EXPECT_EQ(m.values.at("late_messages_restamped"), "0");
+    }
+  }
 }
 
 // GIVEN a log under way WHEN the disk fills (RLIMIT_FSIZE) THEN the report counts what the

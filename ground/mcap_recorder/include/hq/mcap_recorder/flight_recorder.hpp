@@ -13,9 +13,12 @@
 ///   /hq/mode_request                      cdr / omgidl (schema "hq_msgs::<Type>")
 ///   /camera/image/compressed              json / jsonschema foxglove.CompressedImage
 ///   /camera/depth_preview/compressed      json / jsonschema foxglove.CompressedImage
-///   /obstacles                            json / jsonschema foxglove.PointCloud (frame "body")
+///   /obstacles                            json / jsonschema foxglove.PointCloud (base_link, FLU)
+///   /tf /tf_static                        json / jsonschema foxglove.FrameTransform (odom ->
+///                                         base_link; base_link -> camera_link -> camera_optical)
 ///   /ground/haptics /ground/link          json / jsonschema hq_ground.Haptics, hq_ground.Link
-/// log_time is the ground's receipt (dds_time(), the CSV recording's receipt_ns clock);
+/// log_time is the ground's receipt (dds_time(), the CSV recording's receipt_ns clock), the
+/// file in log-time order;
 /// publish_time the sample's DDS source timestamp (the writer's dds_time()).
 ///
 /// A failed write (disk full) stops recording, failed() turns true and error() says why; the
@@ -27,6 +30,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,6 +46,8 @@ struct FlightRecorderOptions {
   std::vector<AttachmentFile> attachments;   ///< Unreadable ones are skipped and reported.
   std::size_t ground_queue_capacity = 4096;  ///< GroundSample slots (about 4 s at 1 kHz).
   mcap::WriterOptions writer;                ///< chunk_time_limit_ns bounds what a SIGKILL loses.
+  /// The vehicle file's camera mount: /tf_static (base_link -> camera_link -> camera_optical).
+  std::optional<geometry::CameraMount> camera_mount;
 };
 
 /// What the ground side knew at one command tick (pushed by the flight loop).

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -39,6 +40,8 @@ struct OnboardRecorderOptions {
   std::vector<flight_log::AttachmentFile> attachments;  ///< vehicle config, camera calibration
   std::size_t step_queue_capacity = 1024;               ///< Chain outputs (about 5 s at 200 Hz).
   std::size_t imu_queue_capacity = 4096;                ///< IMU samples (about 4 s at 1 kHz).
+  /// The vehicle file's camera mount: /tf_static (base_link -> camera_link -> camera_optical).
+  std::optional<geometry::CameraMount> camera_mount;
   mcap::WriterOptions writer;
 };
 
@@ -59,6 +62,10 @@ class OnboardRecorder {
   void push_step(const pipeline::ChainOutput& out, const vehicle::VehicleStatus& status) noexcept;
   /// From the runtime's FC poll: one IMU sample (B frame). Same guarantees.
   void push_imu(const vehicle::FcImuSample& sample) noexcept;
+
+  /// The camera the images come from (the frame source's, undistorted): /camera/calibration
+  /// beside every frame. Once, before the flight (the first call wins).
+  void set_camera(const geometry::PinholeCamera& camera);
 
   /// True once a write failed (disk full); error() names the file and reason. Any thread.
   [[nodiscard]] bool failed() const noexcept;

@@ -15,10 +15,20 @@
 ///   /hq/mode_request                      cdr / omgidl (schema "hq_msgs::<Type>")
 ///   /camera/image/compressed              json / jsonschema foxglove.CompressedImage
 ///   /camera/depth_preview/compressed      json / jsonschema foxglove.CompressedImage
-///   /obstacles                            json / jsonschema foxglove.PointCloud (frame "body")
+///   /obstacles                            json / jsonschema foxglove.PointCloud (base_link, FLU)
+///   /tf                                   json / jsonschema foxglove.FrameTransform, per state:
+///                                         odom (ENU) -> base_link (FLU)
+///   /tf_static                            json / jsonschema foxglove.FrameTransform, at the
+///                                         start and every second: base_link -> camera_link ->
+///                                         camera_optical (the camera mount; when given)
+///   /camera/calibration                   json / jsonschema foxglove.CameraCalibration, per
+///                                         frame, camera_optical (when set_camera() was called)
 ///   the LocalSource's                     json / jsonschema
-/// log_time of link samples is the receipt (dds_time()); publish_time the sample's DDS source
-/// timestamp (the writer's dds_time()).
+/// One time base per file: every log_time is epoch nanoseconds (the CLOCK_REALTIME of dds_time()).
+/// Link samples are stamped at receipt, publish_time is the sample's DDS source timestamp (the
+/// writer's dds_time()); a LocalSource maps its own clock to the epoch (describe_clock() says
+/// how). Messages are written in log-time order (TimeOrderBuffer, reorder_window_ns), so the
+/// file's log times never go back.
 ///
 /// Crash safety: chunks are closed at least once a second and written with write(2), so a
 /// SIGKILLed process loses about the last second and hq::mcap::McapReader (or any reader that
@@ -26,6 +36,8 @@
 /// failed() turns true and error() says why; the flight goes on.
 
 #include "hq/flight_log/json.hpp"
+#include "hq/geometry/camera_mount.hpp"
+#include "hq/geometry/pinhole_camera.hpp"
 #include "hq/link/config.hpp"
 #include "hq/mcap/mcap.hpp"
 #include "hq/security/keys.hpp"
@@ -33,6 +45,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -99,6 +112,9 @@ class LocalSource {
   [[nodiscard]] virtual std::uint64_t dropped() const = 0;
   /// Metadata key for dropped() in the "recorder" record, e.g. "ground_samples_dropped".
   [[nodiscard]] virtual const char* dropped_key() const = 0;
+  /// At close, after the last drain: how the source's clock was mapped to the epoch, added to
+  /// the "recorder" metadata. Nothing by default (a source stamping in the epoch already).
+  virtual void describe_clock(mcap::KeyValues& /*recorder_metadata*/) const {}
 };
 
 struct LinkLogOptions {
@@ -107,6 +123,13 @@ struct LinkLogOptions {
   security::Role role = security::Role::kStation;  ///< The identity the log's participant uses.
   std::vector<AttachmentFile> attachments;         ///< Unreadable ones are skipped and reported.
   mcap::WriterOptions writer;  ///< chunk_time_limit_ns bounds what a SIGKILL loses.
+  /// Messages are held this long before they are written in log-time order: longer than the
+  /// log thread's drain period (100 ms) plus what a local source's stamps lag behind the clock.
+  /// A SIGKILL loses this much more.
+  std::int64_t reorder_window_ns = 250'000'000;
+  /// The vehicle file's camera mount: /tf_static's base_link -> camera_link -> camera_optical.
+  /// Empty: no static transforms (the image frames then have no path to odom).
+  std::optional<geometry::CameraMount> camera_mount;
   /// False: the link channels are declared but nothing is taken from DDS (a process without a
   /// link must not record whoever else flies on the domain).
   bool record_link = true;
@@ -131,6 +154,11 @@ class LinkLog {
   [[nodiscard]] const std::string& error() const noexcept { return error_; }
   /// Attachment files that could not be read ("path: reason"), known from construction.
   [[nodiscard]] const std::vector<std::string>& attachments_skipped() const;
+
+  /// The camera's calibration (the images' intrinsics, scaled to each frame's size), written
+  /// as /camera/calibration beside every frame from now on. Once, before frames flow (the
+  /// first call wins); any thread.
+  void set_camera(const geometry::PinholeCamera& camera);
 
   /// Stops the thread after taking what DDS and the local queues still hold, writes `summary`
   /// as the "flight_summary" metadata, the log's own counts as "recorder" metadata, and the
