@@ -386,11 +386,11 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           static_cast<unsigned>(s.modes_offered), static_cast<unsigned>(s.marker_mode_off_reason),
           static_cast<unsigned>(s.explore_mode_off_reason), s.marker_target_valid ? 1 : 0,
           static_cast<int>(s.marker_target_id), static_cast<unsigned>(s.explore_phase),
-          ms(state_age_ns), ms(round_trip_ns), s.odom_valid ? 1 : 0,
-          as_double(s.p_odom_m.x), as_double(s.p_odom_m.y), as_double(s.p_odom_m.z),
-          as_double(s.yaw_odom_rad), as_double(s.odom_position_sigma_m),
-          as_double(s.odom_yaw_sigma_rad), s.odom_yaw_relative_to_start ? 1 : 0,
-          as_double(s.v_H_sigma_mps.x), as_double(s.v_H_sigma_mps.y), as_double(s.v_H_sigma_mps.z)),
+          ms(state_age_ns), ms(round_trip_ns), s.odom_valid ? 1 : 0, as_double(s.p_odom_m.x),
+          as_double(s.p_odom_m.y), as_double(s.p_odom_m.z), as_double(s.yaw_odom_rad),
+          as_double(s.odom_position_sigma_m), as_double(s.odom_yaw_sigma_rad),
+          s.odom_yaw_relative_to_start ? 1 : 0, as_double(s.v_H_sigma_mps.x),
+          as_double(s.v_H_sigma_mps.y), as_double(s.v_H_sigma_mps.z)),
       "telemetry.csv");
   for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];

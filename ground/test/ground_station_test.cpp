@@ -182,7 +182,7 @@ TEST(HqGround, ReplayOfAGarbledStampExitsTwoNamingFileAndLine) {
   hq::testing::Process p({HQ_GROUND_EXE, "--replay", dir.string(), "--headless"}, out.string());
   EXPECT_EQ(p.wait_exit(30.0), 2);
   EXPECT_THAT(slurp(out), HasSubstr("hq-ground: " + (dir / "telemetry.csv").string() +
-                                    ":25: receipt_ns = 9000000000000000000 is "));
+                                    ":35: receipt_ns = 9000000000000000000 is "));
   fs::remove(out);
   fs::remove_all(dir);
 }

@@ -238,8 +238,8 @@ TEST(Recording, GarbledStampIsRejectedNamingFileAndLine) {
   std::ofstream(dir / "telemetry.csv") << text;
   const std::string message =
       hq::testing::input_error_message([&] { load_recording(dir.string()); });
-  EXPECT_THAT(message, HasSubstr("telemetry.csv:32: receipt_ns = 9099000000000000000 is "));
-  EXPECT_THAT(message, HasSubstr("after line 31's 1066000000, expected rows in time order at most "
+  EXPECT_THAT(message, HasSubstr("telemetry.csv:33: receipt_ns = 9099000000000000000 is "));
+  EXPECT_THAT(message, HasSubstr("after line 32's 1066000000, expected rows in time order at most "
                                  "3600 s apart"));
   fs::remove_all(dir);
 }
@@ -269,7 +269,7 @@ TEST(Recording, FileStartingFarFromTheOthersIsRejected) {
   std::ofstream(dir / "events.csv") << text;
   EXPECT_THAT(hq::testing::input_error_message([&] { load_recording(dir.string()); }),
               HasSubstr("events.csv:4: first stamp 5100000000000000000 is 5.1e+09 s after "
-                        "telemetry.csv:29's 1000000000, expected the files of one recording to "
+                        "telemetry.csv:30's 1000000000, expected the files of one recording to "
                         "start within 3600 s"));
   fs::remove_all(dir);
 }

@@ -21,6 +21,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sys/resource.h>
 #include <thread>
 #include <unistd.h>
@@ -512,12 +513,13 @@ TEST_F(FlightRecorderTest, ExistingFlightRecordIsRefusedNotTruncated) {
 }
 
 TEST_F(FlightRecorderTest, WriteFailureMidFlightStopsRecordingAndSaysWhy) {
-  // A file size limit stands in for a full disk: write(2) fails with EFBIG mid-flight.
+  // A file size limit stands in for a full disk: write(2) fails with EFBIG mid-flight (the
+  // limit above the opening: schemas, Foxglove's among them, and the first chunks).
   std::signal(SIGXFSZ, SIG_IGN);
   rlimit saved{};
   ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
   rlimit limited = saved;
-  limited.rlim_cur = 64 * 1024;
+  limited.rlim_cur = 256 * 1024;
   options_.writer.chunk_size_bytes = 8 * 1024;
   ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limited), 0);
   {
@@ -527,8 +529,12 @@ TEST_F(FlightRecorderTest, WriteFailureMidFlightStopsRecordingAndSaysWhy) {
     link::Sample<link::CameraFrame> frame;
     link::reserve(frame->rgb_jpeg, 20'000);
     frame->rgb_jpeg._length = 20'000;
-    std::memset(frame->rgb_jpeg._buffer, 0x5A, 20'000);
+    // Bytes a chunk's compression cannot shrink, as a JPEG's: 100 frames are 2 MB on disk.
+    std::mt19937 noise(7);
     for (int i = 0; i < 100 && !recorder.failed(); ++i) {
+      for (std::uint32_t b = 0; b < frame->rgb_jpeg._length; ++b) {
+        frame->rgb_jpeg._buffer[b] = static_cast<std::uint8_t>(noise());
+      }
       frame->sequence_number = static_cast<unsigned>(i);
       ASSERT_TRUE(pub.camera.write(*frame));
       std::this_thread::sleep_for(std::chrono::milliseconds(10));

@@ -7,9 +7,10 @@
 /// it, then released oldest first, ties in arrival order. One arriving after a later one was
 /// released (held longer than the window) is released at that later time and counted in late().
 ///
-/// Storage is reserved at construction (a message table and a byte arena, copied into a second
-/// arena when compacting), so a flight that stays within it allocates nothing; beyond
-/// `max_bytes` or `max_messages` the oldest messages are released early (ordered still).
+/// Storage is reserved at construction (a message table and a byte arena, whose held messages
+/// are copied into a second arena when it runs out of room), so a flight that stays within it
+/// allocates nothing; beyond `max_bytes` or `max_messages` the oldest messages are released early
+/// (ordered still).
 
 #include "hq/mcap/mcap.hpp"
 
@@ -42,9 +43,11 @@ class TimeOrderBuffer {
   template <class Out>
   void add(std::uint16_t channel, std::int64_t log_ns, std::int64_t publish_ns, mcap::Bytes data,
            Out&& out) {
+    if (bytes_.size() + data.size() > max_bytes_) compact();
     if (held_.size() >= max_messages_ || bytes_.size() + data.size() > max_bytes_) {
       sort();
       release_first(std::max<std::size_t>(held_.size() / 2, 1), out);
+      compact();
     }
     held_.push_back({log_ns, publish_ns, arrivals_++, bytes_.size(), data.size(), channel});
     bytes_.insert(bytes_.end(), data.begin(), data.end());
@@ -100,16 +103,22 @@ class TimeOrderBuffer {
       last_released_ns_ = log_ns;
       out(Message{h.channel, log_ns, h.publish_ns, {bytes_.data() + h.offset, h.size}});
     }
-    // The rest move to the front of the spare arena, which becomes the arena.
+    held_.erase(held_.begin(), held_.begin() + static_cast<std::ptrdiff_t>(n));
+    // The released bytes stay where they are until the arena runs out (add() compacts then):
+    // copying what is still held on every release cost the writer thread a window's worth of
+    // bytes per drain.
+    if (held_.empty()) bytes_.clear();
+  }
+
+  // What is still held moves to the front of the spare arena, which becomes the arena.
+  void compact() {
     spare_.clear();
-    for (std::size_t i = n; i < held_.size(); ++i) {
-      Held& h = held_[i];
+    for (Held& h : held_) {
       const std::size_t offset = spare_.size();
       spare_.insert(spare_.end(), bytes_.begin() + static_cast<std::ptrdiff_t>(h.offset),
                     bytes_.begin() + static_cast<std::ptrdiff_t>(h.offset + h.size));
       h.offset = offset;
     }
-    held_.erase(held_.begin(), held_.begin() + static_cast<std::ptrdiff_t>(n));
     bytes_.swap(spare_);
   }
 
