@@ -419,7 +419,7 @@ TEST(ReplayParity, TheOdomPoseReplaysAsTheLiveFeedRecordedIt) {
                   flight[static_cast<std::size_t>(i)].s, live);
       const RecordedState& replayed = r.states[static_cast<std::size_t>(i)];
       EXPECT_EQ(replayed.odom_valid, live.odom_valid) << "state " << i;
-      for (int a = 0; a < 3; ++a) {
+      for (std::size_t a = 0; a < 3; ++a) {
         EXPECT_FLOAT_EQ(replayed.p_odom_m[a], live.p_odom_m[a]) << "state " << i;
         EXPECT_FLOAT_EQ(replayed.v_H_sigma_mps[a], live.v_H_sigma_mps[a]) << "state " << i;
       }
