@@ -30,7 +30,7 @@ inline std::string slurp(const std::filesystem::path& path) {
 
 /// HQ_CONSOLE_ARTEFACT_DIR/`name`, emptied and created; XDG_CONFIG_HOME points into it.
 inline std::filesystem::path fresh_artefact_dir(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::path(HQ_CONSOLE_ARTEFACT_DIR) / name;
+  std::filesystem::path dir = std::filesystem::path(HQ_CONSOLE_ARTEFACT_DIR) / name;
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   setenv("XDG_CONFIG_HOME", (dir / "config").c_str(), 1);

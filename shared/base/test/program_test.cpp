@@ -26,6 +26,7 @@ struct Parsed {
 Parsed parse(std::vector<std::string> args) {
   args.insert(args.begin(), "/usr/bin/hq-test");
   std::vector<char*> argv;
+  argv.reserve(args.size());
   for (std::string& arg : args) argv.push_back(arg.data());
   CLI::App app{"hq-test: a program"};
   std::string input;
