@@ -94,8 +94,9 @@ if command -v systemd-analyze >/dev/null; then
 fi
 grep -q "^Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/" \
   "$root/usr/share/doc/haptiquad-vehicle/copyright" || fail "copyright is not DEP-5"
-gzip -dc "$root/usr/share/doc/haptiquad-vehicle/changelog.Debian.gz" |
-  head -1 | grep -q "^haptiquad-vehicle (" || fail "changelog.Debian names another package"
+changelog=$(gzip -dc "$root/usr/share/doc/haptiquad-vehicle/changelog.Debian.gz")
+grep -q "^haptiquad-vehicle (" <<<"$(head -1 <<<"$changelog")" ||
+  fail "changelog.Debian names another package"
 
 # The programs as installed: stripped, --version and --help answer (exit 0), the man page renders.
 for program in "${vehicle_programs[@]}" "${station_programs[@]}"; do
@@ -103,7 +104,10 @@ for program in "${vehicle_programs[@]}" "${station_programs[@]}"; do
   if file "$exe" | grep -q "not stripped"; then fail "$program is not stripped"; fi
   version=$("$exe" --version) || fail "$program --version exits $?"
   grep -Eq "^$program [0-9]+\.[0-9]+\.[0-9]+" <<<"$version" || fail "$program --version: $version"
-  "$exe" --help | grep -q -- "--verbose" || fail "$program --help lists no --verbose"
+  # Held whole before grep: `--help | grep -q` under pipefail fails when grep stops reading at
+  # its match and the program, still writing its help, dies of SIGPIPE.
+  help=$("$exe" --help) || fail "$program --help exits $?"
+  grep -q -- "--verbose" <<<"$help" || fail "$program --help lists no --verbose"
   page=$(MANWIDTH=80 man -l "$root/usr/share/man/man1/$program.1.gz" 2>&1) ||
     fail "man -l $program: $page"
   grep -q -- "--quiet" <<<"$page" || fail "$program's man page lacks its options"
