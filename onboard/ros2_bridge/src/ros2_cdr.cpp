@@ -215,7 +215,7 @@ bool serialize(const RosClockMsg& m, CdrWriter& out) {
 
 template <>
 const MessageDefinition& message_definition<Odometry>() {
-  static const MessageDefinition d{
+  static const MessageDefinition kDefinition{
       "nav_msgs/msg/Odometry",
       "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n"
       "geometry_msgs/TwistWithCovariance twist\n" HQ_HEADER HQ_MSG(
@@ -225,31 +225,31 @@ const MessageDefinition& message_definition<Odometry>() {
               HQ_QUATERNION HQ_MSG("geometry_msgs/TwistWithCovariance")
                   "geometry_msgs/Twist twist\nfloat64[36] covariance\n" HQ_MSG("geometry_msgs/Twist")
                       "geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular\n" HQ_VECTOR3};
-  return d;
+  return kDefinition;
 }
 
 template <>
 const MessageDefinition& message_definition<Imu>() {
-  static const MessageDefinition d{
+  static const MessageDefinition kDefinition{
       "sensor_msgs/msg/Imu",
       "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\n"
       "float64[9] orientation_covariance\ngeometry_msgs/Vector3 angular_velocity\n"
       "float64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\n"
       "float64[9] linear_acceleration_covariance\n" HQ_HEADER HQ_QUATERNION HQ_VECTOR3};
-  return d;
+  return kDefinition;
 }
 
 template <>
 const MessageDefinition& message_definition<TfMessage>() {
-  static const MessageDefinition d{
+  static const MessageDefinition kDefinition{
       "tf2_msgs/msg/TFMessage",
       "geometry_msgs/TransformStamped[] transforms\n" HQ_TRANSFORM_STAMPED};
-  return d;
+  return kDefinition;
 }
 
 template <>
 const MessageDefinition& message_definition<PointCloud2>() {
-  static const MessageDefinition d{
+  static const MessageDefinition kDefinition{
       "sensor_msgs/msg/PointCloud2",
       "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\n"
       "bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n" HQ_HEADER
@@ -258,34 +258,34 @@ const MessageDefinition& message_definition<PointCloud2>() {
                                            "uint8 FLOAT32 = 7\nuint8 FLOAT64 = 8\n"
                                            "string name\nuint32 offset\nuint8 datatype\n"
                                            "uint32 count\n"};
-  return d;
+  return kDefinition;
 }
 
 template <>
 const MessageDefinition& message_definition<CompressedImage>() {
-  static const MessageDefinition d{
+  static const MessageDefinition kDefinition{
       "sensor_msgs/msg/CompressedImage",
       "std_msgs/Header header\nstring format\nuint8[] data\n" HQ_HEADER};
-  return d;
+  return kDefinition;
 }
 
 template <>
 const MessageDefinition& message_definition<CameraInfo>() {
-  static const MessageDefinition d{
+  static const MessageDefinition kDefinition{
       "sensor_msgs/msg/CameraInfo",
       "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\n"
       "float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\n"
       "uint32 binning_y\nsensor_msgs/RegionOfInterest roi\n" HQ_HEADER
           HQ_MSG("sensor_msgs/RegionOfInterest") "uint32 x_offset\nuint32 y_offset\n"
                                                  "uint32 height\nuint32 width\nbool do_rectify\n"};
-  return d;
+  return kDefinition;
 }
 
 template <>
 const MessageDefinition& message_definition<RosClockMsg>() {
-  static const MessageDefinition d{"rosgraph_msgs/msg/Clock",
-                                   "builtin_interfaces/Time clock\n" HQ_TIME};
-  return d;
+  static const MessageDefinition kDefinition{"rosgraph_msgs/msg/Clock",
+                                             "builtin_interfaces/Time clock\n" HQ_TIME};
+  return kDefinition;
 }
 
 #undef HQ_TRANSFORM_STAMPED

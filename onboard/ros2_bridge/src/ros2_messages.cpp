@@ -181,17 +181,18 @@ StateMessages Ros2Messages::build_state(const link::VehicleState& s) {
     static_transforms_[1].header.stamp = stamp;
     out.tf_static = &tf_static_;
   }
-  const double roll_rad = s.roll_rad;
-  const double pitch_rad = s.pitch_rad;
+  const double roll_rad = static_cast<double>(s.roll_rad);
+  const double pitch_rad = static_cast<double>(s.pitch_rad);
   // odom -> base_link: the odometry's integrated pose (odom NED-like -> ENU), continuous.
-  const Eigen::Quaterniond q_E_F_ = q_E_F(roll_rad, pitch_rad, s.yaw_odom_rad);
+  const Eigen::Quaterniond q_E_F_odom =
+      q_E_F(roll_rad, pitch_rad, static_cast<double>(s.yaw_odom_rad));
   const Eigen::Vector3d p_E_m = enu_from_ned(from_msg(s.p_odom_m));
   const Eigen::Vector3d v_F_mps = v_F_from_v_H(from_msg(s.v_H_mps), roll_rad, pitch_rad);
   const Eigen::Vector3d omega_F_radps = flu_from_frd(from_msg(s.omega_body_radps));
 
   odom_.header.stamp = stamp;
   odom_.pose.pose.position = {p_E_m.x(), p_E_m.y(), p_E_m.z()};
-  odom_.pose.pose.orientation = to_quaternion(q_E_F_);
+  odom_.pose.pose.orientation = to_quaternion(q_E_F_odom);
   odom_.twist.twist.linear = to_vector3(v_F_mps);
   odom_.twist.twist.angular = to_vector3(omega_F_radps);
   state_covariances(s, odom_.pose.covariance, odom_.twist.covariance, imu_.orientation_covariance,
@@ -213,8 +214,8 @@ StateMessages Ros2Messages::build_state(const link::VehicleState& s) {
     // map -> odom = T_map_base T_odom_base^-1: the marker filter's absolute pose against the
     // odometry's, which drifts (REP-105).
     const Eigen::Isometry3d T_map_F = Eigen::Translation3d(enu_from_ned(from_msg(s.p_W_m))) *
-                                      q_E_F(roll_rad, pitch_rad, s.yaw_W_rad);
-    const Eigen::Isometry3d T_odom_F = Eigen::Translation3d(p_E_m) * q_E_F_;
+                                      q_E_F(roll_rad, pitch_rad, static_cast<double>(s.yaw_W_rad));
+    const Eigen::Isometry3d T_odom_F = Eigen::Translation3d(p_E_m) * q_E_F_odom;
     const Eigen::Isometry3d T_map_odom = T_map_F * T_odom_F.inverse();
     tf_pair_[1].header.stamp = stamp;
     tf_pair_[1].transform.translation = to_vector3(T_map_odom.translation());
