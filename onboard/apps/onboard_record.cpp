@@ -50,7 +50,13 @@ bool close_recorder(onboard_log::OnboardRecorder& recorder, mcap::KeyValues summ
   summary["imu_samples_recorded"] = std::to_string(recorder.imu_pushed());
   const flight_log::RecorderReport& report = recorder.close(summary);
   onboard_log::print_report(stdout, report);
-  if (report.error.empty()) return true;
+  const onboard_log::Ros2RecordReport& ros2 = recorder.ros2_report();
+  onboard_log::print_report(stdout, ros2);
+  if (!ros2.error.empty()) {
+    hq::log::note("{}: the ROS 2 record is incomplete ({}); exit status {}\n", g_program_name,
+                  ros2.error.c_str(), kRecordFailedExitStatus);
+  }
+  if (report.error.empty()) return ros2.error.empty();
   hq::log::note(
       "{}: the flight record is incomplete ({}); exit status {}, the flight "
       "itself went on\n",

@@ -509,6 +509,8 @@ int run_vehicle(const Options& o) {
     if (bridge->ros2() != nullptr) {
       bridge->ros2()->set_camera(opened.source->camera());
       bridge->ros2()->set_camera_mount(vehicle.camera);
+      // The record's ROS 2 bag stamped as the bridge publishes.
+      if (recorder) recorder->set_ros_clock(bridge->ros2()->clock());
     }
     link_port = std::make_unique<hq::link_bridge::LinkOperatorPort>(*bridge, chain,
                                                                     vehicle.camera.T_B_C(), stdout);

@@ -82,7 +82,11 @@ int run_sim_link(const Options& o) {
   const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
   // --record: before the link, so an unwritable folder stops the start.
   const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o, vehicle);
-  if (recorder) recorder->set_camera(sim_config.camera.pinhole);
+  if (recorder) {
+    recorder->set_camera(sim_config.camera.pinhole);
+    // Its ROS 2 bag in simulated time with /clock, as the bridge publishes (below).
+    recorder->set_ros_clock(hq::ros2_bridge::RosClock::simulated_time());
+  }
   const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
   hq::link_bridge::LinkBridge& bridge = *link_bridge;
   if (bridge.ros2() != nullptr) {

@@ -4,6 +4,7 @@
 #include "hq/flight_log/spsc_queue.hpp"
 
 #include "onboard_schemas.hpp"
+#include "ros2_record.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -97,7 +98,18 @@ StepSample make_step(const pipeline::ChainOutput& out, const vehicle::VehicleSta
 // What only the vehicle knows, drained on the link log's thread.
 class OnboardSource final : public flight_log::LocalSource {
  public:
-  OnboardSource(std::size_t steps, std::size_t imu) : steps_(steps), imu_(imu) {}
+  OnboardSource(std::size_t steps, std::size_t imu, Ros2Record* ros2)
+      : steps_(steps), imu_(imu), ros2_(ros2) {}
+
+  // The ROS 2 bag is derived from the link's samples, on this thread.
+  void on_link_state(const link::VehicleState& state, std::int64_t log_ns,
+                     std::int64_t publish_ns) override {
+    if (ros2_ != nullptr) ros2_->on_state(state, log_ns, publish_ns);
+  }
+  void on_link_camera(const link::CameraFrame& frame, std::int64_t log_ns,
+                      std::int64_t publish_ns) override {
+    if (ros2_ != nullptr) ros2_->on_camera(frame, log_ns, publish_ns);
+  }
 
   void add_channels(flight_log::ChannelWriter& out) override {
     imu_channel_ = out.add_json_channel("/onboard/imu", "hq_onboard.Imu", kImuSchema,
@@ -131,6 +143,11 @@ class OnboardSource final : public flight_log::LocalSource {
       note_lag(now_ns - (s.t_ns + offset_ns));
       write_step(out, s, s.t_ns + offset_ns);
     });
+    if (ros2_ != nullptr) {
+      ros2_->tick(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::steady_clock::now().time_since_epoch())
+                      .count());
+    }
   }
 
   void describe_clock(mcap::KeyValues& metadata) const override {
@@ -292,6 +309,7 @@ class OnboardSource final : public flight_log::LocalSource {
   std::uint16_t estimator_channel_ = 0;
   std::uint16_t control_channel_ = 0;
   std::uint16_t timing_channel_ = 0;
+  Ros2Record* ros2_;  ///< Not owned; null when ros2.mcap is not recorded.
 };
 
 // The folder is made here, so an unwritable one is named before any DDS setup.
@@ -315,15 +333,32 @@ flight_log::LinkLogOptions link_log_options(const OnboardRecorderOptions& option
   return o;
 }
 
+// DIR/ros2.mcap when the link is recorded and link.ros2.record asks for it.
+std::unique_ptr<Ros2Record> make_ros2_record(const OnboardRecorderOptions& options,
+                                             const flight_log::LinkLogOptions& log_options) {
+  if (!options.record_link || !options.link.ros2.record) return nullptr;
+  // The link log refuses an existing onboard.mcap right after: leave no new file behind then.
+  if (std::filesystem::exists(log_options.path)) return nullptr;
+  Ros2RecordOptions o;
+  o.path = (std::filesystem::path(options.dir) / kRos2FileName).string();
+  o.ros_namespace = link::ros2_namespace(options.link);
+  o.camera_mount = options.camera_mount;
+  o.writer = log_options.writer;
+  return std::make_unique<Ros2Record>(o);
+}
+
 }  // namespace
 
 struct OnboardRecorder::Impl {
   explicit Impl(const OnboardRecorderOptions& options)
       : log_options(link_log_options(options)),
-        source(options.step_queue_capacity, options.imu_queue_capacity),
+        ros2(make_ros2_record(options, log_options)),
+        source(options.step_queue_capacity, options.imu_queue_capacity, ros2.get()),
         log(log_options, &source) {}
   std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
   flight_log::LinkLogOptions log_options;
+  std::unique_ptr<Ros2Record> ros2;  ///< Before the source and log, which use it.
+  Ros2RecordReport ros2_report;
   OnboardSource source;
   flight_log::LinkLog log;
   std::atomic<bool> closed{false};
@@ -353,7 +388,14 @@ void OnboardRecorder::push_imu(const vehicle::FcImuSample& sample) noexcept {
 
 void OnboardRecorder::set_camera(const geometry::PinholeCamera& camera) {
   impl_->log.set_camera(camera);
+  if (impl_->ros2) impl_->ros2->set_camera(camera);
 }
+
+void OnboardRecorder::set_ros_clock(const ros2_bridge::RosClock& clock) {
+  if (impl_->ros2) impl_->ros2->set_clock(clock);
+}
+
+const Ros2RecordReport& OnboardRecorder::ros2_report() const noexcept { return impl_->ros2_report; }
 
 bool OnboardRecorder::failed() const noexcept { return impl_->log.failed(); }
 const std::string& OnboardRecorder::error() const noexcept { return impl_->log.error(); }
@@ -371,7 +413,10 @@ double OnboardRecorder::seconds_since_start() const noexcept {
 
 const flight_log::RecorderReport& OnboardRecorder::close(const mcap::KeyValues& summary) {
   impl_->closed.store(true, std::memory_order_relaxed);
-  return impl_->log.close(summary);
+  const flight_log::RecorderReport& report = impl_->log.close(summary);
+  // After the log's thread stopped: nothing writes to it any more.
+  if (impl_->ros2) impl_->ros2_report = impl_->ros2->close();
+  return report;
 }
 
 modes::OperatorCommand RecordingPort::poll(std::int64_t t_ns,
@@ -434,6 +479,20 @@ class ImuTap final : public vehicle::FcSink {
 void RecordingFlightController::poll(std::int64_t t_ns, vehicle::FcSink& sink) {
   ImuTap tap(sink, recorder_);
   inner_.poll(t_ns, tap);
+}
+
+void print_report(std::FILE* out, const Ros2RecordReport& r) {
+  if (r.path.empty()) return;
+  std::fprintf(out, "  %-40s %s, %" PRIu64 " messages, %" PRIu64 " bytes\n", "ROS 2 record",
+               r.path.c_str(), r.messages, r.bytes);
+  for (const auto& [topic, messages] : r.per_topic) {
+    std::fprintf(out, "  ros2 record %-28s %" PRIu64 " messages\n", topic.c_str(), messages);
+  }
+  if (r.too_large > 0 || r.log_times_raised > 0) {
+    std::fprintf(out, "  %-40s %" PRIu64 " too large, %" PRIu64 " log times raised\n",
+                 "ROS 2 record messages", r.too_large, r.log_times_raised);
+  }
+  if (!r.error.empty()) std::fprintf(out, "  ROS 2 record FAILED: %s\n", r.error.c_str());
 }
 
 void print_report(std::FILE* out, const flight_log::RecorderReport& r) {

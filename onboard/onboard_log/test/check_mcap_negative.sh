@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # scripts/check-mcap fails on each fault it names, and only on it: files written by @mcap/core's
 # own writer (bad_records.cjs), one good and one per fault (a backwards log time, two clocks,
-# an image frame with no transform to odom, a ros2-profile channel whose schema does not parse).
+# an image frame with no transform to odom, a ros2-profile channel whose schema does not parse,
+# a ros2 message cut short; a good ros2 file passes).
 # Usage: check_mcap_negative.sh WORK_DIR (run from the repository root). Exit 77: no npm.
 set -euo pipefail
 work=$1
@@ -34,4 +35,6 @@ expect backwards 1 'FAIL order: 1 of 4 messages go back in log time (worst 10.00
 expect two_clocks 1 'FAIL clock: channels start'
 expect no_transform 1 'FAIL frames: /camera/image/compressed names frame "camera" with no transform path to odom'
 expect ros2_bad_schema 1 'FAIL ros2: /bad: schema std_msgs/msg/Bad does not parse'
+expect ros2_good 0 'check-mcap: OK'
+expect ros2_bad_message 1 'FAIL ros2: /bad: a message does not decode with rosgraph_msgs/msg/Clock'
 [ "$failures" -eq 0 ]

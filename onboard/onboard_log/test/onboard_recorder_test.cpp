@@ -3,7 +3,9 @@
 // allocates nothing; the folder errors; a write failure told once through the port.
 #include "hq/onboard_log/onboard_recorder.hpp"
 
+#include "hq/link/link.hpp"
 #include "hq/mcap/mcap.hpp"
+#include "hq/ros2_bridge/ros2_cdr.hpp"
 #include "hq/testing/allocation_counter.hpp"
 #include "hq/testing/input_error.hpp"
 #include "hq/testing/loopback_dds.hpp"
@@ -194,6 +196,135 @@ TEST_F(OnboardRecorderTest, AnEarlierFlightIsNeverOverwritten) {
   const std::string message =
       hq::testing::input_error_message([&] { OnboardRecorder recorder(options_); });
   EXPECT_NE(message.find("onboard.mcap: exists"), std::string::npos) << message;
+}
+
+// The ROS 2 bag beside onboard.mcap: states and frames the vehicle publishes on the link become
+// the bridge's messages (built by its own Ros2Messages, compared byte for byte), named and typed
+// as ROS 2 names them, with the ros2 profile and the QoS rosbag2 reads.
+TEST_F(OnboardRecorderTest, LinkStatesAndFramesBecomeTheBridgesMessagesInRos2Mcap) {
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
+  T_B_C.translation() = Eigen::Vector3d(0.1, 0.0, 0.05);
+  options_.camera_mount = geometry::CameraMount(T_B_C);
+  options_.link.vehicle_id = 7;
+  OnboardRecorder recorder(options_);
+  geometry::PinholeCamera camera;
+  camera.width = 320;
+  camera.height = 240;
+  camera.fx = camera.fy = 300.0;
+  camera.cx = 160.0;
+  camera.cy = 120.0;
+  recorder.set_camera(camera);
+  recorder.set_ros_clock(ros2_bridge::RosClock::simulated_time());
+
+  const link::Participant vehicle(options_.link.domain_id);
+  const link::Topics topics(vehicle);
+  link::Writer<link::VehicleState> states(vehicle, topics.vehicle_state, link::vehicle_state_qos());
+  link::Writer<link::CameraFrame> frames(vehicle, topics.camera, link::camera_qos());
+  for (int i = 0; i < 300 && (states.matched_readers() == 0 || frames.matched_readers() == 0);
+       ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_GT(states.matched_readers(), 0u);
+  // The bridge's builder, fed the same samples: what --ros2 would have published.
+  ros2_bridge::Ros2Messages bridge("hq7");
+  bridge.set_clock(ros2_bridge::RosClock::simulated_time());
+  bridge.set_camera(camera);
+  bridge.set_camera_mount(*options_.camera_mount);
+  ros2_bridge::CdrWriter cdr(1 << 20);
+  std::vector<std::vector<std::uint8_t>> odoms;
+  constexpr int kStates = 20;
+  link::Sample<link::VehicleState> state;
+  link::reserve(state->obstacle_points_body_m, 2);
+  for (int i = 0; i < kStates; ++i) {
+    state->vehicle_id = 7;
+    state->t_ns = 5'000'000'000 + std::int64_t{i} * 33'000'000;
+    state->v_H_mps = {0.1f * static_cast<float>(i), -0.2f, 0.05f};
+    state->roll_rad = 0.01f * static_cast<float>(i);
+    state->obstacle_points_body_m._length = i % 2 == 0 ? 2 : 0;  // a cloud every other state
+    state->obstacle_points_body_m._buffer[0] = {1.0f, 2.0f, -0.5f};
+    state->obstacle_points_body_m._buffer[1] = {1.5f, -1.0f, 0.25f};
+    ASSERT_TRUE(states.write(*state));
+    ASSERT_TRUE(ros2_bridge::serialize(*bridge.build_state(*state).odom, cdr));
+    odoms.emplace_back(cdr.data().begin(), cdr.data().end());
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  link::Sample<link::CameraFrame> frame;
+  frame->vehicle_id = 7;
+  frame->t_ns = 5'100'000'000;
+  link::reserve(frame->rgb_jpeg, 4);
+  frame->rgb_jpeg._length = 4;
+  const std::uint8_t jpeg[4] = {0xff, 0xd8, 0xff, 0xd9};
+  std::copy(jpeg, jpeg + 4, frame->rgb_jpeg._buffer);
+  ASSERT_TRUE(frames.write(*frame));
+  ASSERT_TRUE(states.wait_for_acks(2'000'000'000));
+  ASSERT_TRUE(frames.wait_for_acks(2'000'000'000));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the log's thread takes them
+  EXPECT_TRUE(recorder.close().error.empty());
+  const Ros2RecordReport& report = recorder.ros2_report();
+  EXPECT_TRUE(report.error.empty()) << report.error;
+  ASSERT_EQ(report.path, (fs::path(options_.dir) / "ros2.mcap").string());
+
+  const mcap::McapReader r(report.path);
+  EXPECT_EQ(r.profile(), "ros2");
+  const std::map<std::string, std::string> expected = {
+      {"/clock", "rosgraph_msgs/msg/Clock"},
+      {"/tf_static", "tf2_msgs/msg/TFMessage"},
+      {"/tf", "tf2_msgs/msg/TFMessage"},
+      {"/hq7/odom", "nav_msgs/msg/Odometry"},
+      {"/hq7/imu", "sensor_msgs/msg/Imu"},
+      {"/hq7/obstacles", "sensor_msgs/msg/PointCloud2"},
+      {"/hq7/camera/image/compressed", "sensor_msgs/msg/CompressedImage"},
+      {"/hq7/camera/camera_info", "sensor_msgs/msg/CameraInfo"}};
+  std::map<std::string, std::string> found;
+  for (const mcap::Channel& c : r.channels()) {
+    const mcap::Schema* schema = r.schema(c.schema_id);
+    ASSERT_NE(schema, nullptr) << c.topic;
+    found[c.topic] = schema->name;
+    EXPECT_EQ(c.message_encoding, "cdr") << c.topic;
+    EXPECT_EQ(schema->encoding, "ros2msg") << c.topic;
+    const std::string qos = c.metadata.count("offered_qos_profiles") != 0
+                                ? c.metadata.at("offered_qos_profiles")
+                                : std::string();
+    EXPECT_NE(qos.find("reliability: 1"), std::string::npos) << c.topic << ": " << qos;
+    EXPECT_EQ(qos.find("durability: 1") != std::string::npos, c.topic == "/tf_static") << qos;
+  }
+  EXPECT_EQ(found, expected);
+  const auto m = by_topic(r);
+  ASSERT_EQ(m.at("/hq7/odom").size(), static_cast<std::size_t>(kStates));
+  for (int i = 0; i < kStates; ++i) {
+    EXPECT_EQ(m.at("/hq7/odom")[static_cast<std::size_t>(i)]->data,
+              odoms[static_cast<std::size_t>(i)])
+        << "odom " << i << " is not what the bridge builds";
+  }
+  EXPECT_EQ(m.at("/clock").size(), static_cast<std::size_t>(kStates));
+  EXPECT_EQ(m.at("/tf_static").size(), 1u);
+  EXPECT_EQ(m.at("/hq7/obstacles").size(), static_cast<std::size_t>(kStates / 2));
+  EXPECT_EQ(m.at("/hq7/camera/image/compressed").size(), 1u);
+  EXPECT_EQ(m.at("/hq7/camera/camera_info").size(), 1u);
+  const std::vector<std::uint8_t>& image = m.at("/hq7/camera/image/compressed")[0]->data;
+  EXPECT_TRUE(std::equal(jpeg, jpeg + 4, image.end() - 4));  // uint8[] data is the last field
+  for (std::size_t i = 1; i < r.messages().size(); ++i) {
+    ASSERT_LE(r.messages()[i - 1].log_time_ns, r.messages()[i].log_time_ns) << i;
+  }
+  EXPECT_EQ(report.messages, r.messages().size());
+}
+
+// Off in the link config: no bag. And like onboard.mcap, an earlier one is never overwritten.
+TEST_F(OnboardRecorderTest, Ros2McapIsOffOnRequestAndNeverOverwritten) {
+  options_.link.ros2.record = false;
+  {
+    OnboardRecorder recorder(options_);
+    recorder.close();
+    EXPECT_TRUE(recorder.ros2_report().path.empty());
+  }
+  EXPECT_TRUE(fs::exists(fs::path(options_.dir) / "onboard.mcap"));
+  EXPECT_FALSE(fs::exists(fs::path(options_.dir) / "ros2.mcap"));
+  fs::remove(fs::path(options_.dir) / "onboard.mcap");
+  std::ofstream(fs::path(options_.dir) / "ros2.mcap") << "an earlier flight";
+  options_.link.ros2.record = true;
+  const std::string message =
+      hq::testing::input_error_message([&] { OnboardRecorder recorder(options_); });
+  EXPECT_NE(message.find("ros2.mcap: exists"), std::string::npos) << message;
 }
 
 class EventPort final : public vehicle::OperatorPort {

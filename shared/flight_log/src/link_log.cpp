@@ -278,18 +278,30 @@ struct LinkLog::Impl final : ChannelWriter {
           cdr.resize(size);
           ddsi_serdata_to_ser(sample, 0, size, cdr.data());
           write(link_channel[topic], log_ns, infos[i].source_timestamp, cdr);
-          if (topic == kVehicleState && !owner.failed() &&
-              ddsi_serdata_to_sample(sample, &*state_sample, nullptr, nullptr)) {
-            write_cloud(log_ns, infos[i].source_timestamp);
-            write_odom_transform(log_ns, infos[i].source_timestamp);
-          } else if (topic == kCameraFrame && !owner.failed() &&
-                     ddsi_serdata_to_sample(sample, &*camera_sample, nullptr, nullptr)) {
-            write_images(log_ns, infos[i].source_timestamp);
-          }
+          derive(topic, sample, log_ns, infos[i].source_timestamp);
         }
         ddsi_serdata_unref(sample);
       }
       if (static_cast<std::uint32_t>(n) < kBatch) return;
+    }
+  }
+
+  // The Foxglove channels of a state or frame, and what the local source derives from it
+  // (which goes on when this file failed: it may write a file of its own).
+  void derive(std::size_t topic, ddsi_serdata* sample, std::int64_t log_ns,
+              std::int64_t publish_ns) {
+    if (owner.failed() && local == nullptr) return;
+    if (topic == kVehicleState &&
+        ddsi_serdata_to_sample(sample, &*state_sample, nullptr, nullptr)) {
+      if (!owner.failed()) {
+        write_cloud(log_ns, publish_ns);
+        write_odom_transform(log_ns, publish_ns);
+      }
+      if (local != nullptr) local->on_link_state(*state_sample, log_ns, publish_ns);
+    } else if (topic == kCameraFrame &&
+               ddsi_serdata_to_sample(sample, &*camera_sample, nullptr, nullptr)) {
+      if (!owner.failed()) write_images(log_ns, publish_ns);
+      if (local != nullptr) local->on_link_camera(*camera_sample, log_ns, publish_ns);
     }
   }
 

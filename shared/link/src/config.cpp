@@ -129,6 +129,7 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
   int ros2_station = static_cast<int>(out.ros2.station_id);
   ros2.read("station_id", ros2_station, 1, kMaxId);
   out.ros2.station_id = static_cast<std::uint32_t>(ros2_station);
+  ros2.read("record", out.ros2.record);
   ros2.finish();
   section.finish();
 }

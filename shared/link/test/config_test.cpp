@@ -238,6 +238,16 @@ TEST(LinkConfig, Ros2IsOffByDefaultAndReadFromYaml) {
               HasSubstr("link.ros2.station_id = 0"));
 }
 
+// The record's ROS 2 bag is on by default (with or without the bridge) and can be turned off.
+TEST(LinkConfig, Ros2RecordIsOnByDefaultAndReadStrictly) {
+  EXPECT_TRUE(from_yaml("{vehicle_id: 4}").ros2.record);
+  EXPECT_FALSE(from_yaml("{ros2: {record: false}}").ros2.record);
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{ros2: {record: maybe}}"); }),
+              HasSubstr("record"));
+  EXPECT_THAT(hq::testing::input_error_message([] { from_yaml("{ros2: {recrd: false}}"); }),
+              HasSubstr("recrd"));
+}
+
 TEST(LinkConfig, Ros2NamespaceMustBeARosName) {
   for (const char* bad : {"/hq1", "hq1/", "1hq", "hq-1", "a//b", "hq 1", "a/2b"}) {
     LinkConfig config;

@@ -17,9 +17,15 @@
 ///   /onboard/timing     hq_onboard.Timing     per frame: stage durations (ns)
 /// The vehicle config and camera calibration are attachments; the run summary (frames, drops,
 /// duration, session id) is the "flight_summary" metadata.
+///
+/// Beside it, DIR/ros2.mcap (link.ros2.record, on by default; with the link only): the flight as
+/// a ROS 2 bag of the MCAP "ros2" profile, the messages the ROS 2 bridge publishes built by its
+/// own code from the same link samples, for `ros2 bag info` and `ros2 bag play`
+/// (src/ros2_record.hpp; docs/flight-records.md).
 
 #include "hq/flight_log/link_log.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
+#include "hq/ros2_bridge/ros2_messages.hpp"
 #include "hq/vehicle/flight_controller.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
 
@@ -47,6 +53,19 @@ struct OnboardRecorderOptions {
 
 /// The file name --record DIR writes.
 inline constexpr const char* kOnboardFileName = "onboard.mcap";
+/// The ROS 2 bag --record DIR writes beside it (link.ros2.record).
+inline constexpr const char* kRos2FileName = "ros2.mcap";
+
+/// What reached DIR/ros2.mcap; path empty when it was not recorded.
+struct Ros2RecordReport {
+  std::string path;
+  std::uint64_t messages = 0;
+  std::uint64_t bytes = 0;
+  std::uint64_t too_large = 0;         ///< Messages larger than the serializing buffer.
+  std::uint64_t log_times_raised = 0;  ///< Receipt stamps lifted to the one before (clock step).
+  std::vector<std::pair<std::string, std::uint64_t>> per_topic;  ///< ROS topic, messages
+  std::string error;                                             ///< First failure, or empty.
+};
 
 class OnboardRecorder {
  public:
@@ -66,6 +85,10 @@ class OnboardRecorder {
   /// The camera the images come from (the frame source's, undistorted): /camera/calibration
   /// beside every frame. Once, before the flight (the first call wins).
   void set_camera(const geometry::PinholeCamera& camera);
+  /// How the chain's clock maps to ROS time in ros2.mcap: the bridge's (Ros2Bridge::clock()),
+  /// so the bag's stamps are those it publishes. Before the flight; default: the epoch from the
+  /// monotonic clock (a real vehicle); RosClock::simulated_time() adds /clock.
+  void set_ros_clock(const ros2_bridge::RosClock& clock);
 
   /// True once a write failed (disk full); error() names the file and reason. Any thread.
   [[nodiscard]] bool failed() const noexcept;
@@ -80,6 +103,8 @@ class OnboardRecorder {
 
   /// Stops, writes `summary` as "flight_summary" metadata and closes. Idempotent.
   const flight_log::RecorderReport& close(const mcap::KeyValues& summary = {});
+  /// DIR/ros2.mcap's, complete after close().
+  [[nodiscard]] const Ros2RecordReport& ros2_report() const noexcept;
 
  private:
   struct Impl;
@@ -137,5 +162,7 @@ class RecordingFlightController final : public vehicle::FlightController {
 /// The exit summary's lines: file, size, per-channel counts ("  record /onboard/imu  N
 /// messages"), drops, failure.
 void print_report(std::FILE* out, const flight_log::RecorderReport& report);
+/// ros2.mcap's lines ("  ros2 record /tf  N messages"), nothing when it was not recorded.
+void print_report(std::FILE* out, const Ros2RecordReport& report);
 
 }  // namespace hq::onboard_log

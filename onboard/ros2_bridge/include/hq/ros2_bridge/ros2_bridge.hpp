@@ -37,11 +37,8 @@
 /// Publishing allocates nothing of its own: frame ids, the cloud and the image point at buffers
 /// sized at construction.
 
-#include "hq/geometry/camera_mount.hpp"
-#include "hq/geometry/pinhole_camera.hpp"
 #include "hq/link/link.hpp"
-
-#include "ros2_msgs.h"
+#include "hq/ros2_bridge/ros2_messages.hpp"
 
 #include <cstdint>
 #include <string>
@@ -68,54 +65,11 @@ HQ_ROS2_TOPIC(geometry_msgs_msg_dds__Twist_);
 
 namespace hq::ros2_bridge {
 
-using Odometry = nav_msgs_msg_dds__Odometry_;
-using Imu = sensor_msgs_msg_dds__Imu_;
-using TfMessage = tf2_msgs_msg_dds__TFMessage_;
-using TransformStamped = geometry_msgs_msg_dds__TransformStamped_;
-using PointCloud2 = sensor_msgs_msg_dds__PointCloud2_;
-using PointField = sensor_msgs_msg_dds__PointField_;
-using CompressedImage = sensor_msgs_msg_dds__CompressedImage_;
-using CameraInfo = sensor_msgs_msg_dds__CameraInfo_;
-using TwistStamped = geometry_msgs_msg_dds__TwistStamped_;
-using RosClockMsg = rosgraph_msgs_msg_dds__Clock_;
-using Twist = geometry_msgs_msg_dds__Twist_;
-
 /// A TwistStamped on cmd_vel_in older than this (its stamp against the bridge's ROS time, the
 /// same RosClock) is stale and dropped: a command from a queue, a replayed bag or a node whose
 /// clock is off must not fly. A stamp of 0 (many teleop nodes leave it unset) is taken as
 /// unstamped, as Twist on cmd_vel is. Newer than now by more than the same limit: also dropped.
 inline constexpr std::int64_t kMaxCommandAge_ns = 500'000'000;
-
-/// The one mapping from the chain's clock (VehicleState.t_ns, CameraFrame.t_ns) to ROS time,
-/// used for every stamp the bridge writes and every stamp it reads:
-/// - a real vehicle: its chain runs on the monotonic clock; ROS time is the epoch (the system
-///   clock, as rclcpp's RCL_ROS_TIME without use_sim_time): t + (system - monotonic), the offset
-///   taken once, so stamps never jump when NTP steps the system clock later;
-/// - the simulator: ROS time is the simulated time itself, and the bridge publishes it on /clock
-///   (rosgraph_msgs/Clock) so that nodes run with use_sim_time:=true follow it.
-class RosClock {
- public:
-  /// The epoch from the host's monotonic clock (std::chrono::steady_clock, CLOCK_MONOTONIC).
-  static RosClock epoch_from_monotonic();
-  /// Simulated time: ROS time = the chain's time, /clock published.
-  static RosClock simulated_time() { return RosClock(0, true); }
-  RosClock(std::int64_t offset_ns, bool simulated) : offset_ns_(offset_ns), simulated_(simulated) {}
-
-  [[nodiscard]] std::int64_t ros_ns(std::int64_t chain_t_ns) const {
-    return chain_t_ns + offset_ns_;
-  }
-  [[nodiscard]] std::int64_t chain_ns(std::int64_t ros_t_ns) const { return ros_t_ns - offset_ns_; }
-  [[nodiscard]] bool is_simulated() const { return simulated_; }
-
- private:
-  std::int64_t offset_ns_;
-  bool simulated_;
-};
-
-/// builtin_interfaces/Time of a ROS time in ns: seconds and nanoseconds in [0, 1e9).
-builtin_interfaces_msg_dds__Time_ to_ros_time(std::int64_t ros_t_ns);
-/// The ns of a builtin_interfaces/Time.
-std::int64_t from_ros_time(const builtin_interfaces_msg_dds__Time_& time);
 
 /// ROS 2's default QoS (rmw_qos_profile_default: reliable, volatile, keep last 10) with XCDR1,
 /// the representation rmw_cyclonedds reads and writes.
@@ -123,17 +77,6 @@ link::Qos ros2_qos();
 /// /tf_static's, as tf2's static broadcaster: reliable, transient local, keep last 1, so a
 /// node that joins later still receives the fixed frames.
 link::Qos tf_static_qos();
-/// The covariances the bridge writes, in one place (ROS: 6x6 row-major x y z roll pitch yaw).
-/// Roll and pitch: the complementary filter's levelling, about a degree (1-sigma).
-inline constexpr double kRollPitchVariance_rad2 = 0.0175 * 0.0175;
-/// A yaw nothing measures (no compass): uniform over the circle, variance pi^2 / 3.
-inline constexpr double kUnknownYawVariance_rad2 = 3.14159265358979 * 3.14159265358979 / 3.0;
-/// The gyro's rates after the bias: noise and filter lag, chain.gyro_prior_sigma_radps's 0.01.
-inline constexpr double kRateVariance_rad2ps2 = 0.01 * 0.01;
-/// Odometry.pose and twist covariances and Imu covariances of one state (out: 36, 36, 9, 9).
-void state_covariances(const link::VehicleState& s, double pose[36], double twist[36],
-                       double imu_orientation[9], double imu_rates[9]);
-
 /// The command reader's: as ros2_qos() but best-effort, so it matches reliable and best-effort
 /// ROS publishers alike (a retransmitted command would be late anyway).
 link::Qos ros2_command_qos();
@@ -165,14 +108,14 @@ class Ros2Bridge {
   /// The link's JPEG as a CompressedImage, and the CameraInfo once set_camera() was called.
   void publish_camera(const link::CameraFrame& frame);
   /// Intrinsics of the frames sent (undistorted pinhole: D zeros, R identity, P = [K|0]).
-  void set_camera(const geometry::PinholeCamera& camera);
+  void set_camera(const geometry::PinholeCamera& camera) { messages_.set_camera(camera); }
   /// The camera's mount (the vehicle file's): /tf_static gets base_link -> camera_link ->
   /// camera_optical (hq::geometry::ros_camera_frames), written with the first state after.
-  void set_camera_mount(const geometry::CameraMount& mount);
+  void set_camera_mount(const geometry::CameraMount& mount) { messages_.set_camera_mount(mount); }
   /// How the chain's clock maps to ROS time (default: epoch_from_monotonic(), a real vehicle).
   /// simulated_time() also publishes /clock with every state.
-  void set_clock(const RosClock& clock) { clock_ = clock; }
-  [[nodiscard]] const RosClock& clock() const { return clock_; }
+  void set_clock(const RosClock& clock) { messages_.set_clock(clock); }
+  [[nodiscard]] const RosClock& clock() const { return messages_.clock(); }
 
   /// The next ROS command, a Twist from cmd_vel (teleop_twist_keyboard's and teleop_twist_joy's
   /// default) or a TwistStamped from cmd_vel_in, as the link's command in H
@@ -187,18 +130,14 @@ class Ros2Bridge {
 
   [[nodiscard]] const Ros2Counters& counters() const { return counters_; }
   [[nodiscard]] const std::string& ros_namespace() const { return namespace_; }
-  [[nodiscard]] const std::string& odom_frame() const { return odom_frame_; }
-  [[nodiscard]] const std::string& body_frame() const { return body_frame_; }
+  [[nodiscard]] const std::string& odom_frame() const { return messages_.odom_frame(); }
+  [[nodiscard]] const std::string& body_frame() const { return messages_.body_frame(); }
 
  private:
   std::string namespace_;
   std::uint32_t vehicle_id_;
   std::uint32_t station_id_;
-  // Frame ids and fixed strings the samples point at (never freed by Cyclone: the samples are
-  // plain structs, not link::Sample).
-  std::string odom_frame_, body_frame_, camera_frame_, jpeg_format_, distortion_model_;
-  std::string map_frame_, camera_link_frame_;
-  std::string field_x_, field_y_, field_z_;
+  Ros2Messages messages_;  ///< What is published, built as the flight record builds it.
 
   link::Topic<Odometry> odom_topic_;
   link::Topic<Imu> imu_topic_;
@@ -218,25 +157,8 @@ class Ros2Bridge {
   link::Reader<Twist> twist_reader_;
   link::Topic<TfMessage> tf_static_topic_;
   link::Writer<TfMessage> tf_static_writer_;
-  TransformStamped static_transforms_[2]{};
-  TfMessage tf_static_{};
-  bool have_mount_ = false;
-  bool mount_published_ = false;
-  TransformStamped tf_pair_[2]{};  ///< odom -> base_link, then map -> odom (marker pose valid).
   link::Topic<RosClockMsg> clock_topic_;
   link::Writer<RosClockMsg> clock_writer_;
-  RosClock clock_ = RosClock::epoch_from_monotonic();
-
-  Odometry odom_{};
-  Imu imu_{};
-  TfMessage tf_{};
-  PointCloud2 cloud_{};
-  PointField fields_[3]{};
-  std::vector<std::uint8_t> cloud_data_;  ///< 12 bytes per point, sized for the IDL bound.
-  CompressedImage image_{};
-  CameraInfo info_{};
-  bool have_camera_ = false;
-  double distortion_[5]{};
   link::Sample<TwistStamped> twist_;
   link::Sample<Twist> plain_twist_;
   std::uint64_t command_sequence_ = 0;

@@ -115,6 +115,13 @@ class LocalSource {
   /// At close, after the last drain: how the source's clock was mapped to the epoch, added to
   /// the "recorder" metadata. Nothing by default (a source stamping in the epoch already).
   virtual void describe_clock(mcap::KeyValues& /*recorder_metadata*/) const {}
+  /// On the log's thread, for each vehicle state and camera frame the log takes (decoded, valid
+  /// for the call only), with its log and publish times: what a source derives from the link's
+  /// samples (the vehicle's ROS 2 bag). Nothing by default.
+  virtual void on_link_state(const link::VehicleState& /*state*/, std::int64_t /*log_ns*/,
+                             std::int64_t /*publish_ns*/) {}
+  virtual void on_link_camera(const link::CameraFrame& /*frame*/, std::int64_t /*log_ns*/,
+                              std::int64_t /*publish_ns*/) {}
 };
 
 struct LinkLogOptions {

@@ -7,7 +7,7 @@
 ///                     max_yaw_rate_radps: 1.5},
 ///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1},   # tests and demos only
 ///          security: {enabled: true, keys_dir: keys, identity: vehicle_1},
-///          ros2: {enabled: false, namespace: hq1, station_id: 250}}
+///          ros2: {enabled: false, namespace: hq1, station_id: 250, record: true}}
 /// security: DDS Security (hq/security/keys.hpp) is on unless `enabled: false` or --insecure;
 /// keys come from `keys_dir` laid out by hq-keys (identity defaults to vehicle_<vehicle_id> on
 /// board, station_<station_id> on the ground) and/or the single paths identity_ca, certificate,
@@ -60,6 +60,10 @@ struct Ros2Config {
   std::string ros_namespace;
   /// The station id ROS 2 commands are taken as (in link.stations when that list is given).
   std::uint32_t station_id = 250;
+  /// With --record on board: also DIR/ros2.mcap, the flight as a ROS 2 bag (the messages this
+  /// bridge publishes, whether or not it runs; onboard/onboard_log). On by default: a ROS user
+  /// expects `ros2 bag info` to take the record; off saves the disk its second image copy takes.
+  bool record = true;
 };
 
 /// The ROS namespace in use: config.ros2.ros_namespace, or "hq<vehicle_id>" when empty.
