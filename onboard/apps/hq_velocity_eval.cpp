@@ -8,14 +8,14 @@
 // frame's time; the floor its own noise sets is printed beside. Sequences without
 // gyro.txt/accelerometer.txt (TUM) get the IMU a named MEMS IMU on the camera would have given,
 // from a B-spline fit of the ground truth, with the Kinect's recorded accelerometer where there
-// is one (see hq/pipeline/replay_imu.hpp).
+// is one (see hq/replay/replay_imu.hpp).
 #include "hq/base/error.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/config/camera_info.hpp"
 #include "hq/evaluation/trajectory_error.hpp"
-#include "hq/pipeline/velocity_evaluation.hpp"
+#include "hq/replay/velocity_evaluation.hpp"
 #include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <CLI/CLI.hpp>
@@ -46,16 +46,16 @@ int run(int argc, char** argv) {
                  "IMU model's (model)")
       ->check(CLI::IsMember({"recorded", "model"}));
   if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
-  hq::pipeline::ImuSynthesis synthesis;
+  hq::replay::ImuSynthesis synthesis;
   synthesis.recorded_accelerometer = accelerometer == "recorded";
-  const hq::pipeline::SequenceReplay replay =
-      hq::pipeline::replay_velocity(sequence_dir, hq::config::load_camera_info(camera_path),
-                                    hq::pipeline::load_onboard_config(config_path),
-                                    hq::load_vehicle_config(vehicle_path), synthesis);
+  const hq::replay::SequenceReplay replay =
+      hq::replay::replay_velocity(sequence_dir, hq::config::load_camera_info(camera_path),
+                                  hq::pipeline::load_onboard_config(config_path),
+                                  hq::load_vehicle_config(vehicle_path), synthesis);
   hq::log::info("{}\n", replay.imu.description.c_str());
-  hq::pipeline::LagSearch lag;
+  hq::replay::LagSearch lag;
   lag.max_lag_s = 1e-3 * max_lag_ms;
-  const hq::pipeline::VelocityErrors e = hq::pipeline::evaluate_velocity(
+  const hq::replay::VelocityErrors e = hq::replay::evaluate_velocity(
       replay.samples, replay.ground_truth, replay.frame_interval_ns, lag);
 
   hq::log::info(

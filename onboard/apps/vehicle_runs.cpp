@@ -20,8 +20,8 @@
 #include "hq/config/camera_info.hpp"
 #include "hq/link/link.hpp"
 #include "hq/link_bridge/link_operator_port.hpp"
-#include "hq/pipeline/replay_imu.hpp"
 #include "hq/pipeline/stage_timing.hpp"
+#include "hq/replay/replay_imu.hpp"
 #include "hq/sources/camera_sources.hpp"
 #include "hq/sources/sitl_frame_source.hpp"
 #include "hq/sources/threaded_frame_source.hpp"
@@ -262,11 +262,11 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
                                                                       hq::VehicleConfig& vehicle) {
   std::unique_ptr<hq::vehicle::FlightController> fc;
   if (opened.tum != nullptr) {
-    const hq::pipeline::ReplayImu imu = hq::pipeline::load_replay_imu(
-        opened.tum->sequence(), hq::pipeline::R_body_camera_for_camera_as_body());
+    const hq::replay::ReplayImu imu = hq::replay::load_replay_imu(
+        opened.tum->sequence(), hq::replay::R_body_camera_for_camera_as_body());
     hq::log::note("hq-onboard: {}\n", imu.description.c_str());
     if (imu.synthesised) {
-      vehicle.camera = hq::pipeline::camera_as_body_mount();
+      vehicle.camera = hq::replay::camera_as_body_mount();
       hq::log::note(
           "hq-onboard: body frame = the camera's NED-equivalent (camera-as-body "
           "extrinsics); {} supplies mass and limits only\n",
@@ -274,15 +274,15 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     }
     std::vector<hq::vehicle::FcImuSample> samples;
     samples.reserve(imu.samples.size());
-    for (const hq::pipeline::ImuMeasurement& m : imu.samples) {
+    for (const hq::replay::ImuMeasurement& m : imu.samples) {
       samples.push_back({m.t_ns, m.gyro_radps, m.accel_mps2});
     }
     fc = std::make_unique<hq::vehicle::NoFlightController>(std::move(samples));
   } else if (fc_spec == "none") {
     auto none = std::make_unique<hq::vehicle::NoFlightController>();
     // A hand-held camera is the body; the Kinect's accelerometer is in its optical axes.
-    vehicle.camera = hq::pipeline::camera_as_body_mount();
-    none->set_tilt_source(opened.source.get(), hq::pipeline::R_body_camera_for_camera_as_body());
+    vehicle.camera = hq::replay::camera_as_body_mount();
+    none->set_tilt_source(opened.source.get(), hq::replay::R_body_camera_for_camera_as_body());
     hq::log::note("hq-onboard: camera-as-body, no gyro (zero rate), tilt from {}\n",
                   o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
                                                           : "a level-camera assumption");

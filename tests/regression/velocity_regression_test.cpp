@@ -9,8 +9,8 @@
 // Each bound sits beside the figure measured when it was set (this test, same code and seed),
 // with a margin of at most 25 %.
 #include "hq/config/camera_info.hpp"
-#include "hq/pipeline/velocity_evaluation.hpp"
 #include "hq/recording/data_dir.hpp"
+#include "hq/replay/velocity_evaluation.hpp"
 #include "hq/sim/simulator.hpp"
 #include "hq/sim/tum_writer.hpp"
 #include "hq/sim/world.hpp"
@@ -29,9 +29,9 @@
 
 namespace {
 
-using hq::pipeline::VelocityErrors;
+using hq::replay::VelocityErrors;
 
-void print(const char* name, const hq::pipeline::SequenceReplay& replay, const VelocityErrors& e) {
+void print(const char* name, const hq::replay::SequenceReplay& replay, const VelocityErrors& e) {
   std::printf("%s: %d frames, %d ok, %d compared, h %.1f ms, truth RMS %.4f m/s\n", name,
               replay.frames, replay.ok_estimates, e.samples, 1e3 * e.frame_interval_s,
               e.truth_rms_mps);
@@ -54,7 +54,7 @@ void print(const char* name, const hq::pipeline::SequenceReplay& replay, const V
 // The two frames without a velocity are the first and the one a start waits for
 // (estimator.reacquire_frames).
 struct SliceFigures {
-  hq::pipeline::SequenceReplay replay;
+  hq::replay::SequenceReplay replay;
   VelocityErrors errors;
 };
 
@@ -63,15 +63,15 @@ std::optional<SliceFigures> replay_fr1_xyz(bool recorded_accelerometer) {
   if (!data) return std::nullopt;
   const std::string dir = *data + "/tum/rgbd_dataset_freiburg1_xyz";
   if (!std::filesystem::exists(dir)) return std::nullopt;
-  hq::pipeline::ImuSynthesis synthesis;
+  hq::replay::ImuSynthesis synthesis;
   synthesis.recorded_accelerometer = recorded_accelerometer;
   SliceFigures out;
-  out.replay = hq::pipeline::replay_velocity(
-      dir, hq::config::load_camera_info("calib/tum_fr1.yaml"),
-      hq::pipeline::load_onboard_config("config/onboard.yaml"),
-      hq::load_vehicle_config("calib/vehicle_core_paper.yaml"), synthesis);
-  out.errors = hq::pipeline::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
-                                               out.replay.frame_interval_ns);
+  out.replay = hq::replay::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"),
+                                           hq::pipeline::load_onboard_config("config/onboard.yaml"),
+                                           hq::load_vehicle_config("calib/vehicle_core_paper.yaml"),
+                                           synthesis);
+  out.errors = hq::replay::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
+                                             out.replay.frame_interval_ns);
   print(recorded_accelerometer ? "fr1_xyz, Kinect accelerometer" : "fr1_xyz, BMI088", out.replay,
         out.errors);
   return out;
@@ -107,8 +107,8 @@ TEST(VelocityOnRecordedDepth, ASequenceTooShortForTheEstimatorSaysWhichValuesToL
   auto config = hq::pipeline::load_onboard_config("config/onboard.yaml");
   config.estimator.reacquire_frames = 5;
   const std::string message = hq::testing::input_error_message([&] {
-    hq::pipeline::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
-                                  hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+    hq::replay::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
+                                hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   });
   // THEN the error names the sequence and the value, not an empty evaluation
   EXPECT_THAT(message, ::testing::HasSubstr("rgbd_dataset_freiburg1_360: none of its 5 frames"));
@@ -118,8 +118,8 @@ TEST(VelocityOnRecordedDepth, ASequenceTooShortForTheEstimatorSaysWhichValuesToL
   config.estimator.velocity_output =
       hq::estimator::VelocityEstimatorConfig::VelocityOutput::kOneEuro;
   const std::string one_euro = hq::testing::input_error_message([&] {
-    hq::pipeline::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
-                                  hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+    hq::replay::replay_velocity(dir, hq::config::load_camera_info("calib/tum_fr1.yaml"), config,
+                                hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   });
   EXPECT_THAT(one_euro, ::testing::HasSubstr("estimator.warmup_s (0.2 s)"));
 }
@@ -206,7 +206,7 @@ void record_flight(const std::string& dir, double duration_s, double manoeuvre) 
 }
 
 struct SimulatedEvaluation {
-  hq::pipeline::SequenceReplay replay;
+  hq::replay::SequenceReplay replay;
   VelocityErrors errors;
 };
 
@@ -219,12 +219,12 @@ SimulatedEvaluation fly_and_evaluate(const char* name, double manoeuvre) {
   record_flight(dir, 10.0, manoeuvre);
   SimulatedEvaluation out;
   out.replay =
-      hq::pipeline::replay_velocity(dir, hq::config::load_camera_info(dir + "/camera.yaml"),
-                                    hq::pipeline::load_onboard_config("config/onboard.yaml"),
-                                    hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
+      hq::replay::replay_velocity(dir, hq::config::load_camera_info(dir + "/camera.yaml"),
+                                  hq::pipeline::load_onboard_config("config/onboard.yaml"),
+                                  hq::load_vehicle_config("calib/vehicle_core_paper.yaml"));
   std::filesystem::remove_all(dir);
-  out.errors = hq::pipeline::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
-                                               out.replay.frame_interval_ns);
+  out.errors = hq::replay::evaluate_velocity(out.replay.samples, out.replay.ground_truth,
+                                             out.replay.frame_interval_ns);
   print(name, out.replay, out.errors);
   return out;
 }

@@ -14,8 +14,8 @@
 #include "hq/base/tool_main.hpp"
 #include "hq/sim/scripted_flight.hpp"
 #include "hq/sim/simulator.hpp"
-#include "hq/sim/sitl_runner.hpp"
 #include "hq/sim/tum_writer.hpp"
+#include "hq/sitl/sitl_runner.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -56,7 +56,7 @@ struct Options {
   double duration_s = 10.0;
   long long seed = -1;
   bool sitl = false;
-  hq::sim::SitlOptions sitl_options;
+  hq::sitl::SitlOptions sitl_options;
   double yaw_rate_degps = -1.0;
   std::optional<double> start_yaw_deg;
 };
@@ -157,7 +157,7 @@ int run(int argc, char** argv) {
   if (o.sitl) {
     o.sitl_options.duration_s = app.count("--duration-s") > 0 ? o.duration_s : 0.0;
     install_stop_handlers();
-    return hq::sim::run_sitl(sim, o.sitl_options, g_stop);
+    return hq::sitl::run_sitl(sim, o.sitl_options, g_stop);
   }
   if (app.count("--mavlink") > 0 || app.count("--channel") > 0) {
     throw hq::InputError("--mavlink and --channel need --sitl");

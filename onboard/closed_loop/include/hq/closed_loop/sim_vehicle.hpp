@@ -5,8 +5,8 @@
 /// the serial link to a flight controller); SimCamera renders each frame as it falls due, with
 /// scheduled faults. Both share one Simulator, which nothing else may step.
 
+#include "hq/frame_source/frame_source.hpp"
 #include "hq/sim/simulator.hpp"
-#include "hq/sources/frame_source.hpp"
 #include "hq/vehicle/flight_controller.hpp"
 #include "hq/vehicle/vehicle_runtime.hpp"
 

@@ -4,9 +4,9 @@
 /// the on-board chain runs on simulated frames exactly as on a recording or a camera. Time is
 /// the simulator's, never the wall clock.
 
+#include "hq/frame_source/frame_source.hpp"
 #include "hq/sim/imu.hpp"
 #include "hq/sim/simulator.hpp"
-#include "hq/sources/frame_source.hpp"
 
 #include <cstdint>
 #include <functional>

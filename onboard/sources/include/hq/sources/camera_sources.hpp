@@ -7,8 +7,8 @@
 ///   openni2            first OpenNI2 device        openni2:<uri>   that device or .oni file
 ///   freenect           Kinect at index 0           freenect:<n>    Kinect at index n
 
+#include "hq/frame_source/frame_source.hpp"
 #include "hq/recording/tum_io.hpp"
-#include "hq/sources/frame_source.hpp"
 
 #include <cstdint>
 #include <memory>

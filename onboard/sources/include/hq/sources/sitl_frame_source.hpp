@@ -4,7 +4,7 @@
 /// driver gives them, so the vehicle process runs on SITL frames as on a real camera.
 
 #include "hq/frame_channel/frame_channel.hpp"
-#include "hq/sources/frame_source.hpp"
+#include "hq/frame_source/frame_source.hpp"
 
 #include <optional>
 #include <string>

@@ -9,7 +9,7 @@
 /// vehicle's clock, with the offset that makes the earliest-arriving frame's latency smallest
 /// (receipt time minus device stamp, minimum kept), since transport delay is never negative.
 
-#include "hq/sources/frame_source.hpp"
+#include "hq/frame_source/frame_source.hpp"
 
 #include <atomic>
 #include <cstdint>

@@ -2,8 +2,8 @@
 /// Frames from a recorded sequence in the TUM RGB-D layout.
 
 #include "hq/config/camera_info.hpp"
+#include "hq/frame_source/frame_source.hpp"
 #include "hq/recording/tum_sequence.hpp"
-#include "hq/sources/frame_source.hpp"
 
 #include <cstddef>
 #include <string>

@@ -6,9 +6,9 @@
 ///   camera.yaml (calib/ layout: the source's undistorted intrinsics, no distortion).
 /// Stamps are seconds with 6 decimals, as TUM writes them.
 
+#include "hq/frame_source/frame_source.hpp"
 #include "hq/geometry/pinhole_camera.hpp"
 #include "hq/recording/tum_io.hpp"
-#include "hq/sources/frame_source.hpp"
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>

@@ -18,8 +18,8 @@
 /// Time is an argument: step(t_ns) with t_ns from CLOCK_MONOTONIC on a vehicle, or simulated
 /// time in lock-step runs. step() allocates nothing after the first frame.
 
+#include "hq/frame_source/frame_source.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
-#include "hq/sources/frame_source.hpp"
 #include "hq/vehicle/flight_controller.hpp"
 
 #include <Eigen/Core>

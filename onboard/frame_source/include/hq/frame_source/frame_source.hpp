@@ -1,5 +1,8 @@
 #pragma once
 /// Where RGB-D frames come from (recording, simulator, camera): the on-board chain's input port.
+/// Header-only and owned by its consumer (the vehicle runtime), so that the flight chain links
+/// no camera driver; the implementations are in hq::sources (recordings, OpenNI2, libfreenect,
+/// the SITL frame channel) and hq::sim, whose namespace the interface keeps.
 
 #include "hq/geometry/pinhole_camera.hpp"
 #include "hq/recording/tum_io.hpp"

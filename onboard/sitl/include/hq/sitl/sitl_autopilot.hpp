@@ -17,14 +17,14 @@
 #include "hq/sim/imu.hpp"
 #include "hq/sim/quadrotor.hpp"
 #include "hq/sim/simulator.hpp"
-#include "hq/sim/vision_velocity_filter.hpp"
+#include "hq/sitl/vision_velocity_filter.hpp"
 
 #include <array>
 #include <cstdint>
 #include <random>
 #include <string_view>
 
-namespace hq::sim {
+namespace hq::sitl {
 
 /// Where the autopilot's messages go (the runner encodes and sends them). Must not allocate.
 class MessageSink {
@@ -98,18 +98,18 @@ inline constexpr int kSitlParamCount = 5;
 class SitlAutopilot {
  public:
   /// max_thrust_n = 4 rotors x thrust_coefficient x max_rotor_speed^2; hover from mass.
-  SitlAutopilot(const QuadrotorParams& vehicle, const SitlAutopilotConfig& config = {});
+  SitlAutopilot(const sim::QuadrotorParams& vehicle, const SitlAutopilotConfig& config = {});
 
   /// A message from the companion received at simulated time t_ns.
   void on_message(std::int64_t t_ns, std::uint8_t system_id, std::uint8_t component_id,
-                  const mavlink::Message& message, const TruthState& truth, MessageSink& out);
+                  const mavlink::Message& message, const sim::TruthState& truth, MessageSink& out);
   /// Failsafes, LAND, periodic messages at t_ns; returns the command to hold until the next
   /// call. Call at a fixed tick (e.g. 2 ms).
-  AttitudeCommand update(std::int64_t t_ns, const TruthState& truth, MessageSink& out);
+  sim::AttitudeCommand update(std::int64_t t_ns, const sim::TruthState& truth, MessageSink& out);
   /// One simulator IMU sample: HIGHRES_IMU out (time_usec = simulated time since start), and
   /// the velocity estimate propagated with it, turned into NED with the attitude of `truth`
   /// (this FC's attitude estimate is the truth's).
-  void on_imu(const ImuSample& sample, const TruthState& truth, MessageSink& out);
+  void on_imu(const sim::ImuSample& sample, const sim::TruthState& truth, MessageSink& out);
 
   [[nodiscard]] bool armed() const { return armed_; }
   [[nodiscard]] SitlMode mode() const { return mode_; }
@@ -124,7 +124,7 @@ class SitlAutopilot {
   void ack(const mavlink::CommandLong& command, std::uint8_t result, std::uint8_t system_id,
            std::uint8_t component_id, MessageSink& out) const;
   void handle_command(std::int64_t t_ns, std::uint8_t system_id, std::uint8_t component_id,
-                      const mavlink::CommandLong& command, const TruthState& truth,
+                      const mavlink::CommandLong& command, const sim::TruthState& truth,
                       MessageSink& out);
   void handle_setpoint(std::int64_t t_ns, const mavlink::SetAttitudeTarget& target);
   /// The parameter protocol: PARAM_REQUEST_LIST, PARAM_REQUEST_READ, PARAM_SET (echoed).
@@ -136,19 +136,19 @@ class SitlAutopilot {
   void handle_odometry(const mavlink::Odometry& odometry);
   /// The vertical velocity (up) this FC flies LAND on: the fused one while vision is fresh,
   /// else the barometer-like rate.
-  double estimated_v_up_mps(std::int64_t t_ns, const TruthState& truth, std::int64_t dt_ns);
+  double estimated_v_up_mps(std::int64_t t_ns, const sim::TruthState& truth, std::int64_t dt_ns);
   /// The true NED velocity at t_ns from the recent IMU steps (false if not that recent).
   bool truth_at(std::int64_t t_ns, Eigen::Vector3d& v_NED_mps) const;
   /// Level, no yaw rate, thrust tracking the vertical speed v_up_mps from v_up_estimate_mps.
-  AttitudeCommand level_command(const TruthState& truth, double v_up_mps,
-                                double v_up_estimate_mps) const;
+  sim::AttitudeCommand level_command(const sim::TruthState& truth, double v_up_mps,
+                                     double v_up_estimate_mps) const;
 
   SitlAutopilotConfig config_;
   double mass_kg_;
   double max_thrust_n_;
   bool armed_ = false;
   SitlMode mode_ = SitlMode::kPosctl;
-  AttitudeCommand setpoint_;
+  sim::AttitudeCommand setpoint_;
   std::int64_t last_setpoint_ns_ = -1;  ///< -1: never.
   std::int64_t last_companion_ns_ = -1;
   std::int64_t last_gcs_ns_ = -1;
@@ -172,4 +172,4 @@ class SitlAutopilot {
   std::size_t truth_count_ = 0;
 };
 
-}  // namespace hq::sim
+}  // namespace hq::sitl

@@ -8,8 +8,8 @@
 
 #include "hq/config/camera_info.hpp"
 #include "hq/pipeline/onboard_chain.hpp"
-#include "hq/pipeline/replay_imu.hpp"
 #include "hq/recording/tum_io.hpp"
+#include "hq/replay/replay_imu.hpp"
 #include "hq/vehicle_config/vehicle_config.hpp"
 
 #include <Eigen/Core>
@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-namespace hq::pipeline {
+namespace hq::replay {
 
 /// One frame's camera velocity from the estimator (only frames whose estimate was kOk).
 struct VelocitySample {
@@ -94,7 +94,7 @@ struct SequenceReplay {
 ///                 or no usable velocity in the whole sequence (too short for the estimator's
 ///                 warm-up and reacquire_frames).
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
-                               const OnboardConfig& config, const VehicleConfig& vehicle,
+                               const pipeline::OnboardConfig& config, const VehicleConfig& vehicle,
                                const ImuSynthesis& synthesis = {});
 
-}  // namespace hq::pipeline
+}  // namespace hq::replay

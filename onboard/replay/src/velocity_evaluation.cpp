@@ -1,4 +1,4 @@
-#include "hq/pipeline/velocity_evaluation.hpp"
+#include "hq/replay/velocity_evaluation.hpp"
 
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
@@ -9,7 +9,7 @@
 #include <cstddef>
 #include <fmt/format.h>
 
-namespace hq::pipeline {
+namespace hq::replay {
 
 std::optional<Eigen::Vector3d> true_camera_velocity(
     const std::vector<recording::StampedPose>& T_world_camera, std::int64_t t_ns,
@@ -107,7 +107,7 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
 }
 
 SequenceReplay replay_velocity(const std::string& sequence_dir, const config::CameraInfo& camera,
-                               const OnboardConfig& config, const VehicleConfig& vehicle,
+                               const pipeline::OnboardConfig& config, const VehicleConfig& vehicle,
                                const ImuSynthesis& synthesis) {
   sources::TumFrameSource source(sequence_dir, camera);
   const recording::TumSequence& sequence = source.sequence();
@@ -138,9 +138,9 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
   }
   // A recording is replayed from its first frame in motion (hand-held or in flight): never a
   // vehicle resting on the floor with its motors idle.
-  OnboardConfig in_motion = config;
+  pipeline::OnboardConfig in_motion = config;
   in_motion.modes.start_landed = false;
-  OnboardChain chain(in_motion, replay_vehicle, source.camera());
+  pipeline::OnboardChain chain(in_motion, replay_vehicle, source.camera());
   std::size_t next_imu = 0;
   sources::RgbdFrame frame;
   while (source.next(frame) == sources::FrameStatus::kFrame) {
@@ -149,7 +149,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
       const ImuMeasurement& m = replay.imu.samples[next_imu++];
       chain.on_imu(m.t_ns, m.gyro_radps, m.accel_mps2);
     }
-    const ChainOutput out =
+    const pipeline::ChainOutput out =
         chain.on_frame(frame.t_ns, frame.depth_exposure_ns(), frame.gray, frame.depth_m);
     ++replay.frames;
     if (out.estimate.ok()) {
@@ -186,4 +186,4 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
   return replay;
 }
 
-}  // namespace hq::pipeline
+}  // namespace hq::replay

@@ -1,4 +1,4 @@
-#include "hq/pipeline/replay_imu.hpp"
+#include "hq/replay/replay_imu.hpp"
 
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
@@ -12,7 +12,7 @@
 #include <fmt/format.h>
 #include <random>
 
-namespace hq::pipeline {
+namespace hq::replay {
 namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
@@ -280,4 +280,4 @@ ReplayImu load_replay_imu(const recording::TumSequence& sequence,
   return imu;
 }
 
-}  // namespace hq::pipeline
+}  // namespace hq::replay

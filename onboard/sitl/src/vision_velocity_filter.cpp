@@ -1,11 +1,11 @@
-#include "hq/sim/vision_velocity_filter.hpp"
+#include "hq/sitl/vision_velocity_filter.hpp"
 
 #include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
 
-namespace hq::sim {
+namespace hq::sitl {
 
 namespace {
 // A measurement stamped this far ahead of the last IMU step is taken as of that step (the
@@ -95,4 +95,4 @@ bool VisionVelocityFilter::fresh(std::int64_t t_ns) const {
   return initialised_ && t_last_fused_ns_ >= 0 && t_ns - t_last_fused_ns_ <= config_.stale_after_ns;
 }
 
-}  // namespace hq::sim
+}  // namespace hq::sitl

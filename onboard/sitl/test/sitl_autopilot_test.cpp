@@ -1,7 +1,7 @@
 // SitlAutopilot, the PX4-like flight controller of hq-sim --sitl: arming and offboard rules,
 // setpoint conversion, the offboard failsafes into LAND and the disarm on the ground, the
 // messages it streams, the vision velocity it fuses as PX4 would and TIMESYNC.
-#include "hq/sim/sitl_autopilot.hpp"
+#include "hq/sitl/sitl_autopilot.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -19,14 +19,14 @@
 namespace {
 
 namespace mav = hq::mavlink;
-using hq::sim::SitlAutopilot;
-using hq::sim::SitlMode;
 using hq::sim::TruthState;
+using hq::sitl::SitlAutopilot;
+using hq::sitl::SitlMode;
 using ::testing::HasSubstr;
 
 constexpr std::int64_t kMs = 1'000'000;
 
-class Capture final : public hq::sim::MessageSink {
+class Capture final : public hq::sitl::MessageSink {
  public:
   void send(const mav::Message& message) override { messages.push_back(message); }
   template <typename T>
@@ -427,9 +427,9 @@ TEST_F(SitlAutopilotTest, ParameterListGivesEveryParameterWithCountAndIndex) {
   TruthState ground;
   ap_.on_message(0, 255, 190, mav::ParamRequestList{1, 0}, ground, out_);
   const auto values = out_.all<mav::ParamValue>();
-  ASSERT_EQ(values.size(), static_cast<std::size_t>(hq::sim::kSitlParamCount));
+  ASSERT_EQ(values.size(), static_cast<std::size_t>(hq::sitl::kSitlParamCount));
   for (std::size_t i = 0; i < values.size(); ++i) {
-    EXPECT_EQ(values[i].param_count, hq::sim::kSitlParamCount);
+    EXPECT_EQ(values[i].param_count, hq::sitl::kSitlParamCount);
     EXPECT_EQ(values[i].param_index, i);
     EXPECT_EQ(values[i].param_type, mav::kMavParamTypeReal32);
   }

@@ -1,4 +1,4 @@
-#include "hq/sim/sitl_autopilot.hpp"
+#include "hq/sitl/sitl_autopilot.hpp"
 
 #include <Eigen/Geometry>
 
@@ -8,7 +8,13 @@
 #include <cstring>
 #include <string_view>
 
-namespace hq::sim {
+namespace hq::sitl {
+
+// The simulator this flight controller flies: its state, IMU and commands.
+using sim::AttitudeCommand;
+using sim::ImuSample;
+using sim::QuadrotorParams;
+using sim::TruthState;
 
 namespace {
 
@@ -333,7 +339,8 @@ void SitlAutopilot::handle_setpoint(std::int64_t t_ns, const mavlink::SetAttitud
   last_setpoint_ns_ = t_ns;
   if ((t.type_mask & mavlink::kAttitudeTargetIgnoreAttitude) == 0) {
     // ZYX Euler angles of the body FRD in NED from q = (w, x, y, z).
-    const double w = t.q[0], x = t.q[1], y = t.q[2], z = t.q[3];
+    const double w = static_cast<double>(t.q[0]), x = static_cast<double>(t.q[1]),
+                 y = static_cast<double>(t.q[2]), z = static_cast<double>(t.q[3]);
     const double n = std::sqrt(w * w + x * x + y * y + z * z);
     if (n > 1e-6) {
       const double qw = w / n, qx = x / n, qy = y / n, qz = z / n;
@@ -535,4 +542,4 @@ void SitlAutopilot::on_imu(const ImuSample& sample, const TruthState& truth, Mes
 
 std::string_view sitl_mode_name(SitlMode mode) { return mode_name(mode); }
 
-}  // namespace hq::sim
+}  // namespace hq::sitl

@@ -1,10 +1,10 @@
 // Ground-truth velocity, the RMSE/lag evaluation and the synthesised IMU on trajectories whose
 // answers are known in closed form.
-#include "hq/pipeline/velocity_evaluation.hpp"
+#include "hq/replay/velocity_evaluation.hpp"
 
 #include "hq/base/error.hpp"
 #include "hq/base/monotonic_clock.hpp"
-#include "hq/pipeline/replay_imu.hpp"
+#include "hq/replay/replay_imu.hpp"
 #include "hq/testing/input_error.hpp"
 
 #include <gmock/gmock.h>
@@ -13,7 +13,7 @@
 #include <cmath>
 #include <vector>
 
-namespace hq::pipeline {
+namespace hq::replay {
 namespace {
 
 using recording::StampedPose;
@@ -233,4 +233,4 @@ TEST(SynthesiseImu, TooShortGroundTruthIsAnError) {
 }
 
 }  // namespace
-}  // namespace hq::pipeline
+}  // namespace hq::replay

@@ -5,13 +5,13 @@
 /// frame channel with the host-clock stamp of its exposure.
 
 #include "hq/sim/simulator.hpp"
-#include "hq/sim/sitl_autopilot.hpp"
+#include "hq/sitl/sitl_autopilot.hpp"
 
 #include <atomic>
 #include <cstdint>
 #include <string>
 
-namespace hq::sim {
+namespace hq::sitl {
 
 struct SitlOptions {
   std::string mavlink_spec = "udp-listen:14560";  ///< hq::mavlink::open_transport spec.
@@ -25,6 +25,6 @@ struct SitlOptions {
 /// Opens the frame channel and the MAVLink transport (hq::InputError when the channel is owned
 /// by a live hq-sim or the port is in use), runs until `stop` or the duration, prints the
 /// summary on stdout and returns the exit status (0). The channel is unlinked on return.
-int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>& stop);
+int run_sitl(sim::Simulator& sim, const SitlOptions& options, const std::atomic<bool>& stop);
 
-}  // namespace hq::sim
+}  // namespace hq::sitl

@@ -13,7 +13,7 @@
 #include <array>
 #include <cstdint>
 
-namespace hq::sim {
+namespace hq::sitl {
 
 struct VisionVelocityFilterConfig {
   /// Process noise of the velocity (m/s^2/sqrt(Hz)): EKF2_ACC_NOISE (0.35 m/s^2 per 10 ms
@@ -68,4 +68,4 @@ class VisionVelocityFilter {
   std::size_t history_count_ = 0;
 };
 
-}  // namespace hq::sim
+}  // namespace hq::sitl

@@ -1,4 +1,4 @@
-#include "hq/sim/sitl_runner.hpp"
+#include "hq/sitl/sitl_runner.hpp"
 
 #include "hq/base/error.hpp"
 #include "hq/base/log.hpp"
@@ -25,7 +25,16 @@
 #include <unistd.h>
 #include <vector>
 
-namespace hq::sim {
+namespace hq::sitl {
+
+// The simulator this flight controller flies: its state, IMU and commands.
+using sim::ImuSample;
+using sim::kHardFloorImpactSpeedMps;
+using sim::RgbdRenderer;
+using sim::SimConfig;
+using sim::Simulator;
+using sim::TruthState;
+using sim::World;
 
 namespace {
 
@@ -391,4 +400,4 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
   return 0;
 }
 
-}  // namespace hq::sim
+}  // namespace hq::sitl

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-namespace hq::pipeline {
+namespace hq::replay {
 
 /// One IMU sample in the body frame Q (NED).
 struct ImuMeasurement {
@@ -137,4 +137,4 @@ std::vector<recording::AccelSample> read_gyro_file(const std::string& path);
 ReplayImu load_replay_imu(const recording::TumSequence& sequence,
                           const Eigen::Matrix3d& R_body_camera, const ImuSynthesis& synthesis = {});
 
-}  // namespace hq::pipeline
+}  // namespace hq::replay
