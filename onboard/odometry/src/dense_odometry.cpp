@@ -47,6 +47,7 @@ struct DenseOdometry::Impl {
   detail::GyroFusion gyro;
   detail::KeyframeSelection keyframes;
   detail::MovingPixels moving;
+  detail::SeenMovingPoints seen_moving;
 
   // Three slots: the reference (keyframe), the previous frame (for the keyframe check) and the
   // current frame; frame to frame the previous frame is the reference.
@@ -76,7 +77,8 @@ struct DenseOdometry::Impl {
         aligner(config, cameras),
         gyro(config),
         keyframes(config, cameras.finest_pixels()),
-        moving(config, cameras) {
+        moving(config, cameras),
+        seen_moving(config, cameras) {
     for (auto& slot : slots) frames.allocate(slot);
     preparer.reserve(reference);
     if (keyframe_check()) preparer.reserve(previous);
@@ -117,6 +119,7 @@ struct DenseOdometry::Impl {
     T_ref_last.setIdentity();
     gyro.restart_chain();
     keyframes.restart();
+    seen_moving.restart();
   }
 
   // The information of the pose twist, times the data term's honest share of the
@@ -196,11 +199,18 @@ struct DenseOdometry::Impl {
     const bool new_reference = keyframes.reference_ends_with(a.normal.H, a.valid);
     keyframes.count_alignment(a.normal.H);
     if (new_reference) {
-      moving.mark(aligner, reference, current, a);
+      const bool seen = config.drop_moving_keyframe_points &&
+                        config.reference_mode == ReferenceMode::kFrameToKeyframe;
+      moving.mark(aligner, reference, slot(reference_slot), current, a,
+                  seen ? &seen_moving.finest_marks() : nullptr);
       make_reference(current_slot, result.T_O_C);
       // The motion of this frame relative to its predecessor stays the prediction.
       result.new_keyframe = has_reference;
       return;
+    }
+    if (config.drop_moving_keyframe_points &&
+        config.reference_mode == ReferenceMode::kFrameToKeyframe) {
+      seen_moving.leave_out(aligner, reference, current, a);
     }
     T_ref_last = T_ref_cur;
     previous_slot = current_slot;

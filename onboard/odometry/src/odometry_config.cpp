@@ -151,6 +151,8 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("occlusion_depth_ratio", out.occlusion_depth_ratio, -kAny, kAny);
   section.read("moving_residual_sigmas", out.moving_residual_sigmas, -kAny, kAny);
   section.read("max_moving_ratio", out.max_moving_ratio, -kAny, kAny);
+  section.read("drop_moving_keyframe_points", out.drop_moving_keyframe_points);
+  section.read("dense_moving_marks", out.dense_moving_marks);
   section.read("depth_noise_per_m", out.depth_noise_per_m, -kAny, kAny);
   section.read("depth_point_stride", out.depth_point_stride, -kAnyInt, kAnyInt);
   section.read("depth_max_spread_ratio", out.depth_max_spread_ratio, -kAny, kAny);

@@ -83,6 +83,7 @@ void ReferenceLevel::reserve(int capacity) {
     v->assign(size, 0.0f);
   }
   for (auto& j : jacobian) j.assign(size, 0.0f);
+  pixel.assign(size, 0);
   count = 0;
 }
 
@@ -180,6 +181,7 @@ void ReferencePreparer::prepare(const FrameSlot& slot, const PerLevel<cv::Mat>* 
         ref.ny[i] = normal.y();
         ref.nz[i] = normal.z();
         for (std::size_t j = 0; j < 6; ++j) ref.jacobian[j][i] = textured ? J[j] : 0.0f;
+        ref.pixel[i] = v * cam.width + u;
         ++n;
       }
     }
