@@ -208,10 +208,6 @@ struct DenseOdometry::Impl {
       result.new_keyframe = has_reference;
       return;
     }
-    if (config.drop_moving_keyframe_points &&
-        config.reference_mode == ReferenceMode::kFrameToKeyframe) {
-      seen_moving.leave_out(aligner, reference, current, a);
-    }
     T_ref_last = T_ref_cur;
     previous_slot = current_slot;
     if (keyframe_check()) {
@@ -258,6 +254,24 @@ struct DenseOdometry::Impl {
     has_motion = true;
     update_reference(current_slot, current, T_ref_cur, a, result);
     return result;
+  }
+
+  // Frame to keyframe: the keyframe points this alignment saw move are left out of it for
+  // good, and when they were more than moving_realign_ratio of its points, the frame is
+  // aligned again without them: they pulled it (the first frames against a new keyframe that
+  // holds a walking person, whose pixels no earlier alignment saw move).
+  void align_again_without_moving_points(const FrameSlot& current, const Prediction& p,
+                                         Alignment& a) {
+    if (!config.drop_moving_keyframe_points ||
+        config.reference_mode != ReferenceMode::kFrameToKeyframe ||
+        !a.T_cur_ref.matrix().allFinite() || a.valid < 6) {
+      return;
+    }
+    const int left_out = seen_moving.leave_out(aligner, reference, current, a);
+    if (left_out == 0 || left_out <= config.moving_realign_ratio * a.valid) return;
+    const int iterations = a.iterations;
+    a = aligner.align(reference, current, a.T_cur_ref, p);
+    a.iterations += iterations;
   }
 
   // Builds the frame into a slot that is neither the reference nor the previous frame.
@@ -329,6 +343,7 @@ struct DenseOdometry::Impl {
       return re_anchor_on_previous(result, a, to_previous, current_slot);
     }
     if (previous_ok) a.iterations += to_previous.iterations;
+    align_again_without_moving_points(current, p, a);
     const bool learn_bias = config.estimate_gyro_bias &&
                             config.reference_mode == ReferenceMode::kFrameToKeyframe &&
                             keyframes.reference_ends_with(a.normal.H, a.valid);

@@ -274,6 +274,7 @@ int SeenMovingPoints::mark_finest(const ReferenceLevel& ref, const FrameSlot& cu
   const auto max_v = static_cast<float>(cam.height - 1) - 1e-3f;
   const auto limit = static_cast<float>(config_.moving_residual_sigmas * std::sqrt(a.variance));
   const auto ratio = static_cast<float>(config_.occlusion_depth_ratio);
+  const auto displacement = static_cast<float>(config_.moving_min_displacement_px);
   const cv::Mat& depth = at_level(current.depth_m, finest);
   const std::vector<float>& residual = aligner.residuals();
   const std::vector<float>& mask = aligner.masks();
@@ -290,8 +291,9 @@ int SeenMovingPoints::mark_finest(const ReferenceLevel& ref, const FrameSlot& cu
     const float v = k.fy * qy / qz + k.cy;
     if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) continue;
     ++used;
-    const bool seen_moving = mask[i] > 0.0f ? std::abs(residual[i]) > limit
-                                            : ratio > 0.0f && surface_gone(depth, u, v, qz, ratio);
+    const bool seen_moving =
+        mask[i] > 0.0f ? std::abs(residual[i]) > std::max(limit, displacement * ref.gradient[i])
+                       : ratio > 0.0f && surface_gone(depth, u, v, qz, ratio);
     moved += seen_moving ? 1 : 0;
   }
   if (moved == 0 || moved > config_.max_moving_ratio * used) return 0;
@@ -305,8 +307,9 @@ int SeenMovingPoints::mark_finest(const ReferenceLevel& ref, const FrameSlot& cu
     const float u = k.fx * qx / qz + k.cx;
     const float v = k.fy * qy / qz + k.cy;
     if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) continue;
-    const bool seen_moving = mask[i] > 0.0f ? std::abs(residual[i]) > limit
-                                            : ratio > 0.0f && surface_gone(depth, u, v, qz, ratio);
+    const bool seen_moving =
+        mask[i] > 0.0f ? std::abs(residual[i]) > std::max(limit, displacement * ref.gradient[i])
+                       : ratio > 0.0f && surface_gone(depth, u, v, qz, ratio);
     if (!seen_moving) continue;
     const int pu = ref.pixel[i] % cam.width;
     const int pv = ref.pixel[i] / cam.width;

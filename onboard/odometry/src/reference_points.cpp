@@ -79,7 +79,7 @@ int normal_source(const OdometryConfig& config, const LevelCameras& cameras, int
 
 void ReferenceLevel::reserve(int capacity) {
   const auto size = static_cast<std::size_t>(capacity);
-  for (auto* v : {&x, &y, &z, &intensity, &photometric, &depth_point, &nx, &ny, &nz}) {
+  for (auto* v : {&x, &y, &z, &intensity, &photometric, &gradient, &depth_point, &nx, &ny, &nz}) {
     v->assign(size, 0.0f);
   }
   for (auto& j : jacobian) j.assign(size, 0.0f);
@@ -176,6 +176,7 @@ void ReferencePreparer::prepare(const FrameSlot& slot, const PerLevel<cv::Mat>* 
         ref.z[i] = z;
         ref.intensity[i] = row[u];
         ref.photometric[i] = textured ? 1.0f : 0.0f;
+        ref.gradient[i] = std::sqrt(gx * gx + gy * gy);
         ref.depth_point[i] = surface ? 1.0f : 0.0f;
         ref.nx[i] = normal.x();
         ref.ny[i] = normal.y();

@@ -91,6 +91,14 @@ struct OdometryConfig {
   /// keyframe, with its four neighbours (under the same max_moving_ratio): a person in the
   /// keyframe walks on, and frames aligned to it later would find their pixels again.
   bool drop_moving_keyframe_points = true;
+  /// ... where its photometric residual also says its image moved this far along the gradient
+  /// (|r| / |grad I|, in pixels of the finest level): at a sharp edge (a marker's, a printed
+  /// pattern's) a sub-pixel misalignment leaves a residual of many sigmas, and those points
+  /// are the ones that fix the pose; a person walking shifts their image by pixels.
+  double moving_min_displacement_px = 1.0;
+  /// When an alignment saw more than this share of its points move (newly left out), the frame
+  /// is aligned again without them: they pulled it. 1 = never.
+  double moving_realign_ratio = 0.03;
   /// A frame about to become the reference also marks, among its own pixels with depth, those
   /// that disagree with the old reference where the estimated motion takes them (the reference
   /// saw through them by occlusion_depth_ratio, or saw that pixel move:
