@@ -155,8 +155,11 @@ TEST_P(OdometryOnSimulatedCircle, RpeAndAteStayWithinMeasuredBounds) {
 
 std::string case_name(const ::testing::TestParamInfo<Case>& info) { return info.param.name; }
 
-// Measured with seed 7 over 241 frames (3 s to 11 s).
-constexpr Bounds kKeyframeBounds{0.00113, 0.0014, 0.0287, 0.035, 0.00075, 0.0009};
+// Measured with seed 7 over 241 frames (3 s to 11 s); 0.00113 m/s, 0.0287 deg/s, ATE 0.00075 m
+// before the keyframe points seen moving were left out of its later alignments; 0.00076 m/s,
+// 0.0223 deg/s, 0.00055 m when they were judged by their residual alone, which also left out
+// the sharp edges (the marker field's) that the explore flight needs (docs/odometry.md).
+constexpr Bounds kKeyframeBounds{0.00103, 0.0013, 0.0278, 0.035, 0.00081, 0.001};
 INSTANTIATE_TEST_SUITE_P(ReferenceModes, OdometryOnSimulatedCircle,
                          // Frame to frame: 0.02397 m/s, 0.9234 deg/s, ATE 0.01639 m before
                          // the robust weights' median scale and the moving pixels left out of
@@ -255,27 +258,31 @@ WithAndWithoutPeople fly_with_and_without_people(bool with_gyro) {
 }
 
 // The near person fills up to half the image at 0.7-1.5 m. Odometry alone (no gyro), measured
-// (seed 7, 241 frames): alone 0.00104 m/s 0.0283 deg/s; with people 0.00664 m/s 0.1298 deg/s
-// (6.4x and 4.6x; the goal is 1.2x). Before: 0.686 m/s, 7.36 deg/s (Kerl's fixed-point scale
+// (seed 7, 241 frames): alone 0.00103 m/s 0.0278 deg/s; with people 0.00228 m/s 0.0553 deg/s
+// (2.2x and 2.0x; the goal is 1.2x). Before: 0.686 m/s, 7.36 deg/s (Kerl's fixed-point scale
 // of the robust weights), 0.119 with the median scale, 0.0292 with the depth consistency check
-// (at 0.1) too, the rest from leaving moving pixels out of new keyframes.
+// (at 0.1) too, 0.00664 with moving pixels left out of new keyframes, the rest from leaving the
+// keyframe points seen moving out of its later alignments, and aligning again without them
+// when they were many (docs/odometry.md, "People in view").
 TEST(OdometryWithPeopleWalkingThroughTheView, RpeStaysNearTheSameCircleWithoutThem) {
   const WithAndWithoutPeople rpe = fly_with_and_without_people(false);
-  EXPECT_LT(rpe.people.trans_mps.rmse, 0.0083);
-  EXPECT_LT(rpe.people.rot_degps.rmse, 0.162);
-  EXPECT_LT(rpe.alone.trans_mps.rmse, 0.0014);
+  EXPECT_LT(rpe.people.trans_mps.rmse, 0.0029);
+  EXPECT_LT(rpe.people.rot_degps.rmse, 0.07);
+  EXPECT_LT(rpe.alone.trans_mps.rmse, 0.0013);
 }
 
 // The same with the gyro's rotation between frames as the prior, as the vehicle flies. Measured
-// (seed 7, 241 frames): alone 0.00078 m/s 0.0198 deg/s; with people 0.00409 m/s 0.0410 deg/s
-// (5.2x and 2.1x; the goal is 1.2x). The gyro halves the rotation's share of the error; the
-// translation's stays (docs/odometry.md).
+// (seed 7, 241 frames): alone 0.00078 m/s 0.0211 deg/s; with people 0.00135 m/s 0.0263 deg/s
+// (1.7x and 1.2x; the goal is 1.2x; before the keyframe points seen moving were left out:
+// 0.00078 / 0.00409 m/s, 0.0198 / 0.0410 deg/s, 5.2x). The first frames aligned to a new
+// keyframe that holds the near person are aligned again without the points they saw move; what
+// is left is the person's low-contrast pixels, within 4 sigmas (docs/odometry.md).
 TEST(OdometryWithPeopleWalkingThroughTheView, WithTheGyroRpeStaysNearTheSameCircleWithoutThem) {
   const WithAndWithoutPeople rpe = fly_with_and_without_people(true);
   EXPECT_LT(rpe.alone.trans_mps.rmse, 0.00098);
-  EXPECT_LT(rpe.alone.rot_degps.rmse, 0.025);
-  EXPECT_LT(rpe.people.trans_mps.rmse, 0.0051);
-  EXPECT_LT(rpe.people.rot_degps.rmse, 0.051);
+  EXPECT_LT(rpe.alone.rot_degps.rmse, 0.027);
+  EXPECT_LT(rpe.people.trans_mps.rmse, 0.0017);
+  EXPECT_LT(rpe.people.rot_degps.rmse, 0.033);
 }
 
 }  // namespace

@@ -262,8 +262,10 @@ TEST(VelocityOnSimulatedFlight, InManoeuvresTheFilterAddsLag) {
   // 17; 13 frame to frame without the gyro, whose errors partly led the motion).
   EXPECT_LE(e.raw_lag_ms, 17.0);
   // The velocity flown (eq. 1 fused with the IMU) has neither the lag nor eq. 1's noise:
-  // measured 0.0089 m/s, lag 9 ms.
-  EXPECT_LT(e.flown_norm_mps(), 0.5 * e.raw_norm_mps());
+  // measured 0.0089 m/s, lag 9 ms (eq. 1 0.0207; 0.0151 since the odometry leaves keyframe
+  // points seen moving out, the flown 0.0088: the IMU, not eq. 1, bounds it).
+  EXPECT_LT(e.flown_norm_mps(), 0.011);
+  EXPECT_LT(e.flown_norm_mps(), 0.7 * e.raw_norm_mps());
   EXPECT_LE(e.flown_lag_ms, 20.0);
 }
 

@@ -531,6 +531,10 @@ static int run_benchmarks(int argc, char** argv) {
   app.add_option("--gyro-bias-sigma", defaults.gyro_bias_sigma_radps,
                  "odometry.gyro_bias_sigma_radps of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
+  app.add_option("--moving-min-displacement-px", defaults.moving_min_displacement_px,
+                 "odometry.moving_min_displacement_px of every HaptiQuad method");
+  app.add_option("--moving-realign-ratio", defaults.moving_realign_ratio,
+                 "odometry.moving_realign_ratio of every HaptiQuad method (1: never)");
   app.add_option("--degenerate-step-ratio", defaults.degenerate_step_ratio,
                  "odometry.degenerate_step_ratio of every HaptiQuad variant")
       ->check(CLI::Range(0.0, 1.0));

@@ -47,6 +47,7 @@ struct DenseOdometry::Impl {
   detail::GyroFusion gyro;
   detail::KeyframeSelection keyframes;
   detail::MovingPixels moving;
+  detail::SeenMovingPoints seen_moving;
 
   // Three slots: the reference (keyframe), the previous frame (for the keyframe check) and the
   // current frame; frame to frame the previous frame is the reference.
@@ -76,7 +77,8 @@ struct DenseOdometry::Impl {
         aligner(config, cameras),
         gyro(config),
         keyframes(config, cameras.finest_pixels()),
-        moving(config, cameras) {
+        moving(config, cameras),
+        seen_moving(config, cameras) {
     for (auto& slot : slots) frames.allocate(slot);
     preparer.reserve(reference);
     if (keyframe_check()) preparer.reserve(previous);
@@ -117,6 +119,7 @@ struct DenseOdometry::Impl {
     T_ref_last.setIdentity();
     gyro.restart_chain();
     keyframes.restart();
+    seen_moving.restart();
   }
 
   // The information of the pose twist, times the data term's honest share of the
@@ -196,7 +199,10 @@ struct DenseOdometry::Impl {
     const bool new_reference = keyframes.reference_ends_with(a.normal.H, a.valid);
     keyframes.count_alignment(a.normal.H);
     if (new_reference) {
-      moving.mark(aligner, reference, current, a);
+      const bool seen = config.drop_moving_keyframe_points &&
+                        config.reference_mode == ReferenceMode::kFrameToKeyframe;
+      moving.mark(aligner, reference, slot(reference_slot), current, a,
+                  seen ? &seen_moving.finest_marks() : nullptr);
       make_reference(current_slot, result.T_O_C);
       // The motion of this frame relative to its predecessor stays the prediction.
       result.new_keyframe = has_reference;
@@ -248,6 +254,24 @@ struct DenseOdometry::Impl {
     has_motion = true;
     update_reference(current_slot, current, T_ref_cur, a, result);
     return result;
+  }
+
+  // Frame to keyframe: the keyframe points this alignment saw move are left out of it for
+  // good, and when they were more than moving_realign_ratio of its points, the frame is
+  // aligned again without them: they pulled it (the first frames against a new keyframe that
+  // holds a walking person, whose pixels no earlier alignment saw move).
+  void align_again_without_moving_points(const FrameSlot& current, const Prediction& p,
+                                         Alignment& a) {
+    if (!config.drop_moving_keyframe_points ||
+        config.reference_mode != ReferenceMode::kFrameToKeyframe ||
+        !a.T_cur_ref.matrix().allFinite() || a.valid < 6) {
+      return;
+    }
+    const int left_out = seen_moving.leave_out(aligner, reference, current, a);
+    if (left_out == 0 || left_out <= config.moving_realign_ratio * a.valid) return;
+    const int iterations = a.iterations;
+    a = aligner.align(reference, current, a.T_cur_ref, p);
+    a.iterations += iterations;
   }
 
   // Builds the frame into a slot that is neither the reference nor the previous frame.
@@ -319,6 +343,7 @@ struct DenseOdometry::Impl {
       return re_anchor_on_previous(result, a, to_previous, current_slot);
     }
     if (previous_ok) a.iterations += to_previous.iterations;
+    align_again_without_moving_points(current, p, a);
     const bool learn_bias = config.estimate_gyro_bias &&
                             config.reference_mode == ReferenceMode::kFrameToKeyframe &&
                             keyframes.reference_ends_with(a.normal.H, a.valid);

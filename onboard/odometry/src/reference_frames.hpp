@@ -66,8 +66,16 @@ class MovingPixels {
   /// that the next frames are not aligned to them. Nothing is marked when more than
   /// max_moving_ratio of the points would be: then the alignment itself, not the scene, is in
   /// doubt.
-  void mark(Aligner& aligner, const ReferenceSet& reference, const FrameSlot& current,
-            const Alignment& a);
+  ///
+  /// Then every pixel of `current` with depth is taken back into the reference frame
+  /// `reference_frame` by the same motion (dense_moving_marks): it is marked where the
+  /// reference saw farther than its point by more than occlusion_depth_ratio (it was not
+  /// there), or, where their depths agree, where the reference's pixel was seen moving
+  /// (`seen`: the keyframe's SeenMovingPoints marks, nullptr: none). The points of the reference
+  /// only mark where they land; a person walking onto low-contrast floor holds pixels that no
+  /// reference point lands on, which then pulled the first frame aligned to the new reference.
+  void mark(Aligner& aligner, const ReferenceSet& reference, const FrameSlot& reference_frame,
+            const FrameSlot& current, const Alignment& a, const cv::Mat* seen);
 
   /// The marks, or nullptr when there are none to leave out.
   [[nodiscard]] const PerLevel<cv::Mat>* known() const { return known_ ? &marks_ : nullptr; }
@@ -75,12 +83,52 @@ class MovingPixels {
 
  private:
   int mark_finest(const ReferenceLevel& ref, const Aligner& aligner, const Alignment& a, int& used);
+  int mark_dense(const FrameSlot& reference_frame, const FrameSlot& current, const Alignment& a,
+                 const cv::Mat* seen, int& used);
   void spread_to_coarser_levels();
 
   const OdometryConfig& config_;
   const LevelCameras& cameras_;
   PerLevel<cv::Mat> marks_;
   bool known_ = false;
+};
+
+/// Frame to keyframe: the keyframe's points that an alignment against it saw move stay out of
+/// every later alignment against that keyframe. A person in the keyframe walks on while frames
+/// are aligned to it; the frames in which they have moved little, or back to where the
+/// keyframe saw them, find their pixels again and are pulled along by them (people.yaml's
+/// circle: docs/odometry.md). A point is seen moving where the estimated motion puts it on a
+/// photometric residual beyond moving_residual_sigmas of the robust scale or on a surface
+/// farther than its own depth by more than occlusion_depth_ratio (the surface it was on has
+/// gone; a nearer one only hides it); its pixel and their four neighbours are left out, on
+/// every level (a coarse pixel where any of its four finer ones is). Nothing is left out when
+/// more than max_moving_ratio of the points would be: then the alignment is in doubt.
+class SeenMovingPoints {
+ public:
+  SeenMovingPoints(const OdometryConfig& config, const LevelCameras& cameras);
+
+  /// After an accepted alignment a of current against the keyframe `reference`: leaves out of
+  /// `reference` the points seen moving (their masks zeroed). Returns how many finest-level
+  /// points were newly left out.
+  int leave_out(Aligner& aligner, ReferenceSet& reference, const FrameSlot& current,
+                const Alignment& a);
+
+  /// A new keyframe: nothing is left out of it yet.
+  void restart();
+
+ private:
+  int mark_finest(const ReferenceLevel& ref, const FrameSlot& current, const Aligner& aligner,
+                  const Alignment& a, int& used);
+  static void zero_marked(const cv::Mat& marks, ReferenceLevel& level);
+
+ public:
+  /// The finest level's marks (keyframe pixels, 1 = seen moving).
+  [[nodiscard]] const cv::Mat& finest_marks() const { return at_level(marks_, cameras_.finest()); }
+
+ private:
+  const OdometryConfig& config_;
+  const LevelCameras& cameras_;
+  PerLevel<cv::Mat> marks_;  // keyframe pixels left out (1), per level
 };
 
 }  // namespace hq::odometry::detail

@@ -79,10 +79,11 @@ int normal_source(const OdometryConfig& config, const LevelCameras& cameras, int
 
 void ReferenceLevel::reserve(int capacity) {
   const auto size = static_cast<std::size_t>(capacity);
-  for (auto* v : {&x, &y, &z, &intensity, &photometric, &depth_point, &nx, &ny, &nz}) {
+  for (auto* v : {&x, &y, &z, &intensity, &photometric, &gradient, &depth_point, &nx, &ny, &nz}) {
     v->assign(size, 0.0f);
   }
   for (auto& j : jacobian) j.assign(size, 0.0f);
+  pixel.assign(size, 0);
   count = 0;
 }
 
@@ -175,11 +176,13 @@ void ReferencePreparer::prepare(const FrameSlot& slot, const PerLevel<cv::Mat>* 
         ref.z[i] = z;
         ref.intensity[i] = row[u];
         ref.photometric[i] = textured ? 1.0f : 0.0f;
+        ref.gradient[i] = std::sqrt(gx * gx + gy * gy);
         ref.depth_point[i] = surface ? 1.0f : 0.0f;
         ref.nx[i] = normal.x();
         ref.ny[i] = normal.y();
         ref.nz[i] = normal.z();
         for (std::size_t j = 0; j < 6; ++j) ref.jacobian[j][i] = textured ? J[j] : 0.0f;
+        ref.pixel[i] = v * cam.width + u;
         ++n;
       }
     }

@@ -20,9 +20,11 @@ struct ReferenceLevel {
   std::vector<float> x, y, z;      // 3D point in the reference camera frame, metres
   std::vector<float> intensity;    // I_ref at the pixel
   std::vector<float> photometric;  // 1 if the pixel has gradient (a photometric residual), else 0
+  std::vector<float> gradient;     // |grad I_ref| at the pixel (intensity per pixel)
   std::vector<float> depth_point;  // 1 if the point may carry a depth residual, else 0
   std::vector<float> nx, ny, nz;   // its surface's unit normal (depth_jacobian_from_normals)
   std::array<std::vector<float>, 6> jacobian;  // d I_ref(pi(exp(xi) p)) / d xi at xi = 0
+  std::vector<int> pixel;                      // v * width + u of the point's pixel at its level
   int count = 0;
 
   void reserve(int capacity);

@@ -26,7 +26,8 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
       " depth_max_incidence_deg: 60, min_translation_information_ratio: 0.02,"
       " degenerate_step_ratio: 0.005,"
       " align_depth_to_colour: false, occlusion_depth_ratio: 0.2, moving_residual_sigmas: 5,"
-      " max_moving_ratio: 0.3}");
+      " max_moving_ratio: 0.3, drop_moving_keyframe_points: false, dense_moving_marks: true,"
+      " moving_min_displacement_px: 0.5, moving_realign_ratio: 0.1}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
@@ -50,6 +51,10 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_DOUBLE_EQ(config.occlusion_depth_ratio, 0.2);
   EXPECT_DOUBLE_EQ(config.moving_residual_sigmas, 5.0);
   EXPECT_DOUBLE_EQ(config.max_moving_ratio, 0.3);
+  EXPECT_FALSE(config.drop_moving_keyframe_points);
+  EXPECT_TRUE(config.dense_moving_marks);
+  EXPECT_DOUBLE_EQ(config.moving_min_displacement_px, 0.5);
+  EXPECT_DOUBLE_EQ(config.moving_realign_ratio, 0.1);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
@@ -73,6 +78,9 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{occlusion_depth_ratio: -0.1}", "odometry.occlusion_depth_ratio = -0.1");
   expect_error("{moving_residual_sigmas: .nan}", "odometry.moving_residual_sigmas");
   expect_error("{max_moving_ratio: 1.5}", "odometry.max_moving_ratio = 1.5");
+  expect_error("{drop_moving_keyframe_points: 3}", "odometry.drop_moving_keyframe_points");
+  expect_error("{moving_min_displacement_px: -1}", "odometry.moving_min_displacement_px = -1");
+  expect_error("{moving_realign_ratio: 2}", "odometry.moving_realign_ratio = 2");
   expect_error("{gyro_bias_sigma_radps: 0}", "odometry.gyro_bias_sigma_radps = 0, expected > 0");
   expect_error("{gyro_bias_gate_chi2: .nan}", "odometry.gyro_bias_gate_chi2");
   expect_error("{estimate_gyro_bias: maybe}", "odometry.estimate_gyro_bias");
