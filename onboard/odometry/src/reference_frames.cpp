@@ -278,42 +278,36 @@ int SeenMovingPoints::mark_finest(const ReferenceLevel& ref, const FrameSlot& cu
   const cv::Mat& depth = at_level(current.depth_m, finest);
   const std::vector<float>& residual = aligner.residuals();
   const std::vector<float>& mask = aligner.masks();
-  // Counted first, marked only once their share is known: a doubtful alignment leaves the
-  // keyframe untouched.
-  int moved = 0;
-  used = 0;
-  for (std::size_t i = 0; i < static_cast<std::size_t>(ref.count); ++i) {
-    if (ref.photometric[i] <= 0.0f) continue;
+  enum class Seen { kOutside, kStill, kMoving };
+  const auto seen = [&](std::size_t i) {
+    if (ref.photometric[i] <= 0.0f) return Seen::kOutside;
     float qx, qy, qz;
     T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-    if (!(qz > 0.0f)) continue;
+    if (!(qz > 0.0f)) return Seen::kOutside;
     const float u = k.fx * qx / qz + k.cx;
     const float v = k.fy * qy / qz + k.cy;
-    if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) continue;
-    ++used;
-    const bool seen_moving =
+    if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) return Seen::kOutside;
+    const bool moving =
         mask[i] > 0.0f ? std::abs(residual[i]) > std::max(limit, displacement * ref.gradient[i])
                        : ratio > 0.0f && surface_gone(depth, u, v, qz, ratio);
-    moved += seen_moving ? 1 : 0;
+    return moving ? Seen::kMoving : Seen::kStill;
+  };
+  // Counted first, marked only once their share is known: a doubtful alignment leaves the
+  // keyframe untouched.
+  const auto count = static_cast<std::size_t>(ref.count);
+  int moved = 0;
+  used = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    const Seen s = seen(i);
+    used += s != Seen::kOutside ? 1 : 0;
+    moved += s == Seen::kMoving ? 1 : 0;
   }
   if (moved == 0 || moved > config_.max_moving_ratio * used) return 0;
   cv::Mat& marks = at_level(marks_, finest);
   int marked = 0;
-  for (std::size_t i = 0; i < static_cast<std::size_t>(ref.count); ++i) {
-    if (ref.photometric[i] <= 0.0f) continue;
-    float qx, qy, qz;
-    T.apply(ref.x[i], ref.y[i], ref.z[i], qx, qy, qz);
-    if (!(qz > 0.0f)) continue;
-    const float u = k.fx * qx / qz + k.cx;
-    const float v = k.fy * qy / qz + k.cy;
-    if (!(u >= 0.0f && v >= 0.0f && u < max_u && v < max_v)) continue;
-    const bool seen_moving =
-        mask[i] > 0.0f ? std::abs(residual[i]) > std::max(limit, displacement * ref.gradient[i])
-                       : ratio > 0.0f && surface_gone(depth, u, v, qz, ratio);
-    if (!seen_moving) continue;
-    const int pu = ref.pixel[i] % cam.width;
-    const int pv = ref.pixel[i] / cam.width;
-    mark_with_neighbours(marks, pu, pv);
+  for (std::size_t i = 0; i < count; ++i) {
+    if (seen(i) != Seen::kMoving) continue;
+    mark_with_neighbours(marks, ref.pixel[i] % cam.width, ref.pixel[i] / cam.width);
     ++marked;
   }
   return marked;
