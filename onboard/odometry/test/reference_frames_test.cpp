@@ -148,7 +148,7 @@ TEST(MovingPixels, PatchThatChangedIsMarkedAndLeftOutOfTheNextReference) {
   EXPECT_EQ(moving.known(), nullptr);
 }
 
-TEST(MovingPixels, WhenMostOfTheViewMovedNothingIsMarked) {
+TEST(MovingPixels, WhenMostOfTheViewMovedNothingIsMarkedOrLeftOut) {
   const OdometryConfig config;  // max_moving_ratio 0.5
   PreparedPlane plane(config);
   plane.prepare_reference(Eigen::Isometry3d::Identity());
@@ -162,6 +162,16 @@ TEST(MovingPixels, WhenMostOfTheViewMovedNothingIsMarked) {
   MovingPixels moving(config, plane.cameras);
   moving.mark(aligner, plane.reference, plane.reference_frame, plane.current, a, nullptr);
   EXPECT_EQ(moving.known(), nullptr);
+  // ... and no keyframe point leaves either
+  SeenMovingPoints seen(config, plane.cameras);
+  EXPECT_EQ(seen.leave_out(aligner, plane.reference, plane.current, a), 0);
+  EXPECT_EQ(cv::countNonZero(seen.finest_marks()), 0);
+  const ReferenceLevel& finest = at_level(plane.reference, 1);
+  int kept = 0;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(finest.count); ++i) {
+    kept += finest.photometric[i] > 0.0f ? 1 : 0;
+  }
+  EXPECT_GT(kept, finest.count / 2);
 }
 
 TEST(MovingPixels, OffMarksNothing) {
@@ -355,28 +365,6 @@ TEST(SeenMovingPoints, SharpEdgesOffByLessThanAPixelStayWhatMovedByPixelsLeaves)
   EXPECT_EQ(kept_edges.on_edges, 0);
   EXPECT_GT(kept_edges.in_patch, 200);
   EXPECT_GT(residual_alone.on_edges, 100);
-}
-
-TEST(SeenMovingPoints, WhenMostOfTheViewMovedNothingLeaves) {
-  const OdometryConfig config;  // max_moving_ratio 0.5
-  PreparedPlane plane(config);
-  plane.prepare_reference(Eigen::Isometry3d::Identity());
-  cv::Mat gray, depth_m;
-  PreparedPlane::render(Eigen::Isometry3d::Identity(), gray, depth_m);
-  gray = 255 - gray;  // everything changed: the alignment, not the scene, is in doubt
-  plane.frames.build(plane.current, gray, depth_m, false);
-  Aligner aligner(config, plane.cameras);
-  Alignment a;
-  a.variance = 4.0;
-  SeenMovingPoints seen(config, plane.cameras);
-  EXPECT_EQ(seen.leave_out(aligner, plane.reference, plane.current, a), 0);
-  EXPECT_EQ(cv::countNonZero(seen.finest_marks()), 0);
-  const ReferenceLevel& finest = at_level(plane.reference, 1);
-  int kept = 0;
-  for (std::size_t i = 0; i < static_cast<std::size_t>(finest.count); ++i) {
-    kept += finest.photometric[i] > 0.0f ? 1 : 0;
-  }
-  EXPECT_GT(kept, finest.count / 2);
 }
 
 }  // namespace
