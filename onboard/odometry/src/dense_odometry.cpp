@@ -87,6 +87,11 @@ struct DenseOdometry::Impl {
   [[nodiscard]] bool keyframe_check() const {
     return config.reference_mode == ReferenceMode::kFrameToKeyframe && config.keyframe_check;
   }
+  // Keyframe points seen moving leave the keyframe (frame to frame, every frame is a new one).
+  [[nodiscard]] bool drops_seen_moving() const {
+    return config.reference_mode == ReferenceMode::kFrameToKeyframe &&
+           config.drop_moving_keyframe_points;
+  }
 
   [[nodiscard]] double finest_ratio(int points) const {
     return static_cast<double>(points) / cameras.finest_pixels();
@@ -199,10 +204,8 @@ struct DenseOdometry::Impl {
     const bool new_reference = keyframes.reference_ends_with(a.normal.H, a.valid);
     keyframes.count_alignment(a.normal.H);
     if (new_reference) {
-      const bool seen = config.drop_moving_keyframe_points &&
-                        config.reference_mode == ReferenceMode::kFrameToKeyframe;
       moving.mark(aligner, reference, slot(reference_slot), current, a,
-                  seen ? &seen_moving.finest_marks() : nullptr);
+                  drops_seen_moving() ? &seen_moving.finest_marks() : nullptr);
       make_reference(current_slot, result.T_O_C);
       // The motion of this frame relative to its predecessor stays the prediction.
       result.new_keyframe = has_reference;
@@ -262,11 +265,7 @@ struct DenseOdometry::Impl {
   // holds a walking person, whose pixels no earlier alignment saw move).
   void align_again_without_moving_points(const FrameSlot& current, const Prediction& p,
                                          Alignment& a) {
-    if (!config.drop_moving_keyframe_points ||
-        config.reference_mode != ReferenceMode::kFrameToKeyframe ||
-        !a.T_cur_ref.matrix().allFinite() || a.valid < 6) {
-      return;
-    }
+    if (!drops_seen_moving() || !a.T_cur_ref.matrix().allFinite() || a.valid < 6) return;
     const int left_out = seen_moving.leave_out(aligner, reference, current, a);
     if (left_out == 0 || left_out <= config.moving_realign_ratio * a.valid) return;
     const int iterations = a.iterations;
