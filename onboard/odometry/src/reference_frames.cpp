@@ -16,6 +16,13 @@ namespace hq::odometry::detail {
 namespace {
 
 // The four-neighbourhood of (u, v), which lies at least one pixel inside the image.
+Warp warp_of(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3f R = T.linear().cast<float>();
+  const Eigen::Vector3f t = T.translation().cast<float>();
+  return {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
+          R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
+}
+
 void mark_with_neighbours(cv::Mat& marks, int u, int v) {
   marks.at<std::uint8_t>(v, u) = 1;
   marks.at<std::uint8_t>(v - 1, u) = 1;
@@ -136,10 +143,7 @@ int MovingPixels::mark_finest(const ReferenceLevel& ref, const Aligner& aligner,
                               int& used) {
   const int finest = cameras_.finest();
   const Intrinsics k = cameras_.intrinsics(finest);
-  const Eigen::Matrix3f R = a.T_cur_ref.linear().cast<float>();
-  const Eigen::Vector3f t = a.T_cur_ref.translation().cast<float>();
-  const Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
-               R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
+  const Warp T = warp_of(a.T_cur_ref);
   const geometry::PinholeCamera& cam = cameras_.at(finest);
   const auto limit = static_cast<float>(config_.moving_residual_sigmas * std::sqrt(a.variance));
   const std::vector<float>& residual = aligner.residuals();
@@ -175,10 +179,7 @@ int MovingPixels::mark_dense(const FrameSlot& reference_frame, const FrameSlot& 
   const geometry::PinholeCamera& cam = cameras_.at(finest);
   const Intrinsics k = cameras_.intrinsics(finest);
   const Eigen::Isometry3d T_ref_cur = a.T_cur_ref.inverse();
-  const Eigen::Matrix3f R = T_ref_cur.linear().cast<float>();
-  const Eigen::Vector3f t = T_ref_cur.translation().cast<float>();
-  const Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
-               R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
+  const Warp T = warp_of(T_ref_cur);
   const auto max_u = static_cast<float>(cam.width - 1) - 1e-3f;
   const auto max_v = static_cast<float>(cam.height - 1) - 1e-3f;
   const auto ratio = static_cast<float>(config_.occlusion_depth_ratio);
@@ -265,10 +266,7 @@ int SeenMovingPoints::mark_finest(const ReferenceLevel& ref, const FrameSlot& cu
                                   const Aligner& aligner, const Alignment& a, int& used) {
   const int finest = cameras_.finest();
   const Intrinsics k = cameras_.intrinsics(finest);
-  const Eigen::Matrix3f R = a.T_cur_ref.linear().cast<float>();
-  const Eigen::Vector3f t = a.T_cur_ref.translation().cast<float>();
-  const Warp T{R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
-               R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
+  const Warp T = warp_of(a.T_cur_ref);
   const geometry::PinholeCamera& cam = cameras_.at(finest);
   const auto max_u = static_cast<float>(cam.width - 1) - 1e-3f;
   const auto max_v = static_cast<float>(cam.height - 1) - 1e-3f;
