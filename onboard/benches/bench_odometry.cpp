@@ -535,6 +535,9 @@ static int run_benchmarks(int argc, char** argv) {
                  "odometry.moving_min_displacement_px of every HaptiQuad method");
   app.add_option("--moving-realign-ratio", defaults.moving_realign_ratio,
                  "odometry.moving_realign_ratio of every HaptiQuad method (1: never)");
+  app.add_option("--moving-mark-radius-px", defaults.moving_mark_radius_px,
+                 "odometry.moving_mark_radius_px of every HaptiQuad method")
+      ->check(CLI::Range(1, 32));
   app.add_option("--degenerate-step-ratio", defaults.degenerate_step_ratio,
                  "odometry.degenerate_step_ratio of every HaptiQuad variant")
       ->check(CLI::Range(0.0, 1.0));

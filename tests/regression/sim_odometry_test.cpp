@@ -61,6 +61,7 @@ struct Flight {
   /// The simulator's gyro between frames as the rotation prior, as the vehicle flies
   /// (config/onboard.yaml: chain.gyro_rotation_prior, gyro_prior_sigma_radps 0.01).
   bool with_gyro = false;
+  int moving_mark_radius_px = hq::odometry::OdometryConfig{}.moving_mark_radius_px;
 };
 
 constexpr double kGyroPriorSigmaRadps = 0.01;
@@ -83,6 +84,7 @@ SimRun fly_and_track(const Case& c, const Flight& flight = {}) {
   odometry_config.use_depth_term = c.use_depth_term;
   odometry_config.depth_jacobian_from_normals = flight.depth_jacobian_from_normals;
   odometry_config.degenerate_step_ratio = flight.degenerate_step_ratio;
+  odometry_config.moving_mark_radius_px = flight.moving_mark_radius_px;
   hq::odometry::DenseOdometry odometry(odometry_config, config.camera.pinhole);
 
   SimRun run;
@@ -234,10 +236,11 @@ struct WithAndWithoutPeople {
 
 // The circle flown in the room alone and again with people.yaml's two people walking through
 // the camera's view, frame to keyframe; with_gyro as Flight's.
-WithAndWithoutPeople fly_with_and_without_people(bool with_gyro) {
+WithAndWithoutPeople fly_with_and_without_people(bool with_gyro, int moving_mark_radius_px = 1) {
   const Case c{"frame_to_keyframe", hq::odometry::ReferenceMode::kFrameToKeyframe, true, {}};
   Flight alone;
   alone.with_gyro = with_gyro;
+  alone.moving_mark_radius_px = moving_mark_radius_px;
   Flight with_people = alone;
   with_people.world = "onboard/sim/worlds/people.yaml";
   const SimRun a = fly_and_track(c, alone);
@@ -248,11 +251,11 @@ WithAndWithoutPeople fly_with_and_without_people(bool with_gyro) {
   WithAndWithoutPeople out{hq::evaluation::relative_pose_error(a.ground_truth, a.trajectory, 1.0),
                            hq::evaluation::relative_pose_error(p.ground_truth, p.trajectory, 1.0)};
   std::printf(
-      "room circle %s, alone: RPE %.5f m/s %.4f deg/s; with people: %.5f m/s %.4f deg/s (%.1fx, "
-      "%.1fx)\n",
-      with_gyro ? "with the gyro" : "odometry alone", out.alone.trans_mps.rmse,
-      out.alone.rot_degps.rmse, out.people.trans_mps.rmse, out.people.rot_degps.rmse,
-      out.people.trans_mps.rmse / out.alone.trans_mps.rmse,
+      "room circle %s, marks of radius %d: alone RPE %.5f m/s %.4f deg/s; with people: %.5f m/s "
+      "%.4f deg/s (%.2fx, %.2fx)\n",
+      with_gyro ? "with the gyro" : "odometry alone", moving_mark_radius_px,
+      out.alone.trans_mps.rmse, out.alone.rot_degps.rmse, out.people.trans_mps.rmse,
+      out.people.rot_degps.rmse, out.people.trans_mps.rmse / out.alone.trans_mps.rmse,
       out.people.rot_degps.rmse / out.alone.rot_degps.rmse);
   return out;
 }
@@ -283,6 +286,18 @@ TEST(OdometryWithPeopleWalkingThroughTheView, WithTheGyroRpeStaysNearTheSameCirc
   EXPECT_LT(rpe.alone.rot_degps.rmse, 0.027);
   EXPECT_LT(rpe.people.trans_mps.rmse, 0.0017);
   EXPECT_LT(rpe.people.rot_degps.rmse, 0.033);
+}
+
+// The same with odometry.moving_mark_radius_px 5, the setting for flights among people: the
+// keyframe's points seen moving leave with the pixels around them. Measured (seed 7): alone
+// 0.00080 m/s 0.0210 deg/s; with people 0.00098 m/s 0.0244 deg/s (1.2x, 1.2x); over seeds 1-5
+// 1.3x and 1.4x against 1.8x and 1.5x with the default (docs/odometry.md, "People in view").
+TEST(OdometryWithPeopleWalkingThroughTheView,
+     WiderMarksAmongPeopleBringTheRpeNearerTheCircleWithout) {
+  const WithAndWithoutPeople rpe = fly_with_and_without_people(true, 5);
+  EXPECT_LT(rpe.alone.trans_mps.rmse, 0.0010);
+  EXPECT_LT(rpe.people.trans_mps.rmse, 0.00123);
+  EXPECT_LT(rpe.people.rot_degps.rmse, 0.0305);
 }
 
 }  // namespace

@@ -95,6 +95,7 @@ void validate(const OdometryConfig& c, const std::string& where) {
   check.in_range("moving_residual_sigmas", c.moving_residual_sigmas, 0.0, 100.0);
   check.in_range("max_moving_ratio", c.max_moving_ratio, 0.0, 1.0);
   check.in_range("moving_min_displacement_px", c.moving_min_displacement_px, 0.0, 100.0);
+  check.in_range("moving_mark_radius_px", c.moving_mark_radius_px, 1, 32);
   check.in_range("moving_realign_ratio", c.moving_realign_ratio, 0.0, 1.0);
   check.positive("depth_noise_per_m", c.depth_noise_per_m, 1.0);
   check.in_range("depth_point_stride", c.depth_point_stride, 1, 64);
@@ -155,6 +156,7 @@ void read_config(config::StrictMap& section, OdometryConfig& out) {
   section.read("max_moving_ratio", out.max_moving_ratio, -kAny, kAny);
   section.read("drop_moving_keyframe_points", out.drop_moving_keyframe_points);
   section.read("moving_min_displacement_px", out.moving_min_displacement_px, -kAny, kAny);
+  section.read("moving_mark_radius_px", out.moving_mark_radius_px, -kAnyInt, kAnyInt);
   section.read("moving_realign_ratio", out.moving_realign_ratio, -kAny, kAny);
   section.read("dense_moving_marks", out.dense_moving_marks);
   section.read("depth_noise_per_m", out.depth_noise_per_m, -kAny, kAny);

@@ -31,6 +31,20 @@ void mark_with_neighbours(cv::Mat& marks, int u, int v) {
   marks.at<std::uint8_t>(v, u + 1) = 1;
 }
 
+// The pixels within city-block distance `radius` of (u, v), clipped to the image; radius 1 is
+// mark_with_neighbours' four-neighbourhood.
+void mark_within(cv::Mat& marks, int u, int v, int radius) {
+  const int v_first = std::max(0, v - radius);
+  const int v_last = std::min(marks.rows - 1, v + radius);
+  for (int row = v_first; row <= v_last; ++row) {
+    const int reach = radius - std::abs(row - v);
+    const int u_first = std::max(0, u - reach);
+    const int u_last = std::min(marks.cols - 1, u + reach);
+    std::uint8_t* line = marks.ptr<std::uint8_t>(row);
+    std::fill(line + u_first, line + u_last + 1, std::uint8_t{1});
+  }
+}
+
 // Each coarser level's pixel is marked where any of the four finer ones is.
 void spread_marks(const LevelCameras& cameras, PerLevel<cv::Mat>& marks) {
   for (int l = cameras.finest() + 1; l < cameras.levels(); ++l) {
@@ -305,7 +319,8 @@ int SeenMovingPoints::mark_finest(const ReferenceLevel& ref, const FrameSlot& cu
   int marked = 0;
   for (std::size_t i = 0; i < count; ++i) {
     if (seen(i) != Seen::kMoving) continue;
-    mark_with_neighbours(marks, ref.pixel[i] % cam.width, ref.pixel[i] / cam.width);
+    mark_within(marks, ref.pixel[i] % cam.width, ref.pixel[i] / cam.width,
+                config_.moving_mark_radius_px);
     ++marked;
   }
   return marked;

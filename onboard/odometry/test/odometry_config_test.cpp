@@ -27,7 +27,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
       " degenerate_step_ratio: 0.005,"
       " align_depth_to_colour: false, occlusion_depth_ratio: 0.2, moving_residual_sigmas: 5,"
       " max_moving_ratio: 0.3, drop_moving_keyframe_points: false, dense_moving_marks: true,"
-      " moving_min_displacement_px: 0.5, moving_realign_ratio: 0.1}");
+      " moving_min_displacement_px: 0.5, moving_realign_ratio: 0.1, moving_mark_radius_px: 4}");
   config::StrictMap section(good, "onboard.yaml", "odometry");
   OdometryConfig config;
   read_config(section, config);
@@ -55,6 +55,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   EXPECT_TRUE(config.dense_moving_marks);
   EXPECT_DOUBLE_EQ(config.moving_min_displacement_px, 0.5);
   EXPECT_DOUBLE_EQ(config.moving_realign_ratio, 0.1);
+  EXPECT_EQ(config.moving_mark_radius_px, 4);
 
   const auto expect_error = [](const std::string& yaml, const std::string& expected) {
     config::StrictMap s(YAML::Load(yaml), "onboard.yaml", "odometry");
@@ -81,6 +82,7 @@ TEST(OdometryConfig, ReadsKeysAndRejectsBadValues) {
   expect_error("{drop_moving_keyframe_points: 3}", "odometry.drop_moving_keyframe_points");
   expect_error("{moving_min_displacement_px: -1}", "odometry.moving_min_displacement_px = -1");
   expect_error("{moving_realign_ratio: 2}", "odometry.moving_realign_ratio = 2");
+  expect_error("{moving_mark_radius_px: 0}", "odometry.moving_mark_radius_px = 0");
   expect_error("{gyro_bias_sigma_radps: 0}", "odometry.gyro_bias_sigma_radps = 0, expected > 0");
   expect_error("{gyro_bias_gate_chi2: .nan}", "odometry.gyro_bias_gate_chi2");
   expect_error("{estimate_gyro_bias: maybe}", "odometry.estimate_gyro_bias");

@@ -306,6 +306,7 @@ TEST(SeenMovingPoints, PointsSeenMovingLeaveTheKeyframeOnEveryLevel) {
 struct LeftOut {
   int on_edges = 0;
   int in_patch = 0;
+  int beyond_patch = 0;  ///< outside the patch grown by 12 px (the radius 5 at level 1, and one)
 };
 LeftOut left_out_after_shift(const OdometryConfig& config, double shift_px,
                              const std::vector<cv::Rect>& markers, const cv::Rect& patch,
@@ -340,6 +341,8 @@ LeftOut left_out_after_shift(const OdometryConfig& config, double shift_px,
                       static_cast<int>(std::lround(k.fy * ref.y[i] / ref.z[i] + k.cy)));
     const cv::Point full(2 * p.x, 2 * p.y);
     if (patch.contains(full)) ++out.in_patch;
+    const cv::Rect grown(patch.x - 12, patch.y - 12, patch.width + 24, patch.height + 24);
+    if (!grown.contains(full)) ++out.beyond_patch;
     for (const cv::Rect& m : markers) {
       const cv::Rect outer(m.x - 4, m.y - 4, m.width + 8, m.height + 8);
       const cv::Rect inner(m.x + 4, m.y + 4, m.width - 8, m.height - 8);
@@ -365,6 +368,22 @@ TEST(SeenMovingPoints, SharpEdgesOffByLessThanAPixelStayWhatMovedByPixelsLeaves)
   EXPECT_EQ(kept_edges.on_edges, 0);
   EXPECT_GT(kept_edges.in_patch, 200);
   EXPECT_GT(residual_alone.on_edges, 100);
+}
+
+TEST(SeenMovingPoints, AWiderMarkRadiusTakesThePixelsAroundWhatMovedAndNoFarther) {
+  // GIVEN the shifted image and moved patch of the test above
+  const std::vector<cv::Rect> markers{{60, 60, 80, 80}};
+  const cv::Rect patch(380, 280, 160, 140);
+  OdometryConfig config;
+  const LeftOut four_neighbours = left_out_after_shift(config, 0.4, markers, patch, 6.0);
+  // WHEN a point seen moving takes the pixels within 5 (finest level, here half resolution)
+  config.moving_mark_radius_px = 5;
+  const LeftOut wide = left_out_after_shift(config, 0.4, markers, patch, 6.0);
+  // THEN more of the patch leaves (its low-gradient points between those seen moving), and
+  // nothing beyond the patch's reach or on the marker's still edges
+  EXPECT_GT(wide.in_patch, four_neighbours.in_patch + 100);
+  EXPECT_EQ(wide.beyond_patch, 0);
+  EXPECT_EQ(wide.on_edges, 0);
 }
 
 }  // namespace

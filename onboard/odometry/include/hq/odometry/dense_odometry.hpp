@@ -96,6 +96,14 @@ struct OdometryConfig {
   /// pattern's) a sub-pixel misalignment leaves a residual of many sigmas, and those points
   /// are the ones that fix the pose; a person walking shifts their image by pixels.
   double moving_min_displacement_px = 1.0;
+  /// A keyframe point seen moving leaves the keyframe with the pixels within this city-block
+  /// distance (finest level; 1 = its four neighbours): a walking person's low-contrast pixels
+  /// between the points seen moving move too, with residuals no test tells from noise. Wider
+  /// also takes more around a static scene's falsely seen points: 5 brings people.yaml's circle
+  /// with the gyro from 1.8x to 1.3x the RPE without people (five seeds), costs the whole
+  /// fr1/xyz 0.0145 -> 0.0166 m/s, and the explore flight loses the marker field's edges
+  /// (docs/odometry.md, "People in view"). For flights among people, without markers.
+  int moving_mark_radius_px = 1;
   /// When an alignment saw more than this share of its points move (newly left out), the frame
   /// is aligned again without them: they pulled it. 1 = never.
   double moving_realign_ratio = 0.03;
