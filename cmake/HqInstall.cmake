@@ -5,7 +5,8 @@
 # Debian packages (docs/development.md, "Packages"), one CPack component each:
 #   haptiquad-vehicle  the companion computer: hq-onboard, hq-keys, hq-onboard.service and its
 #                      files in /etc/haptiquad. No console, no simulator: nothing of SDL, ImGui
-#                      or the simulator's renderer (tests/install/deb_test.sh checks Depends).
+#                      or the simulator's renderer (tests/install/package_test.sh checks Depends
+#                      and what the installed programs load).
 #   haptiquad-station  the operator's laptop: hq-ground, hq-report, and the development tools
 #                      that replay, evaluate or simulate (hq-sim, hq-sim-flight, hq-odometry,
 #                      hq-record, hq-evaluate, hq-velocity-eval), with the simulator's worlds,

@@ -2,6 +2,8 @@
 # Builds the three .deb files with CPack and checks them as Debian policy and an operator would:
 #   haptiquad-vehicle  hq-onboard, hq-keys, hq-onboard.service with its conffiles in /etc/haptiquad,
 #                      and no GUI library among its Depends (SDL, GL, VTK, ImGui, X11, GTK, Qt)
+#                      nor among what its programs load (ldd), but for what two Debian
+#                      libraries it needs bring unavoidably (libopencv_core, libvisp_detection)
 #   haptiquad-station  hq-ground, hq-report, the simulator and the tools
 #   haptiquad-data     config/, calib/, README and docs
 # each with /usr/share/doc/<package>/copyright (DEP-5) and changelog.Debian.gz, stripped
@@ -120,6 +122,44 @@ if grep -Eio "libsdl2[^,]*|libgl[0-9a-z-]*|libvtk[^,]*|libimgui[^,]*|libx11[^,]*
     <<<"$depends"; then
   fail "haptiquad-vehicle depends on a GUI library: $depends"
 fi
+# Nor among what its installed programs load (ldd: every library, not only the direct ones), so
+# the day a GUI library is linked back in, through a component or a library of ours, this fails.
+# Two Debian libraries the vehicle needs bring some unavoidably, and only those are let through:
+#   libopencv_core     built with OpenGL interop: GLX, GLdispatch, X11, xcb, Xau, Xdmcp
+#   libvisp_detection  the AprilTag detector; it needs visp_vision -> visp_io -> opencv_videoio
+#                      -> FFmpeg: VA-API and VDPAU with their X11 and xcb, cairo and pango
+#                      (through librsvg), but no toolkit, GL or VTK
+# Anything else that matches is ours to cut (pcl_io brought 29 VTK libraries, for instance).
+gui_libraries='libvtk|libGL|libEGL|libOpenGL|libX|libxcb|libwayland|libQt|libgtk|libgdk|libSDL|libglfw|libimgui|opencv_highgui|opencv_viz|visp_gui|visp_ar|libcairo|libpango|libva|libvdpau|libdrm|libgbm'
+unavoidable_via=(libopencv_core libvisp_detection)
+loaded_gui() {  # loaded_gui LDD_OUTPUT: the GUI libraries' names, one a line
+  awk '{print $1}' <<<"$1" | grep -E "$gui_libraries" | sort -u || true
+}
+for program in "${vehicle_programs[@]}"; do
+  loaded=$(ldd "$root/usr/bin/$program") || fail "ldd $program: $loaded"
+  grep -q "not found" <<<"$loaded" && { echo "$loaded"; fail "$program misses a library"; }
+  allowed=""
+  for via in "${unavoidable_via[@]}"; do
+    path=$(awk -v via="$via" 'index($1, via ".so") == 1 {print $3}' <<<"$loaded")
+    [ -n "$path" ] && allowed+=$(loaded_gui "$(ldd "$path")")$'\n'
+  done
+  extra=$(comm -23 <(loaded_gui "$loaded") <(grep -v '^$' <<<"$allowed" | sort -u))
+  if [ -n "$extra" ]; then
+    echo "$program loads GUI libraries that no unavoidable Debian library brings:"
+    echo "$extra"
+    # Which of the program's direct libraries brings each one, to say where to cut.
+    for needed in $(objdump -p "$root/usr/bin/$program" | awk '/NEEDED/ {print $2}'); do
+      path=$(awk -v lib="$needed" '$1 == lib {print $3}' <<<"$loaded")
+      [ -z "$path" ] && continue
+      brings=$(comm -12 <(loaded_gui "$(ldd "$path")
+$needed") <(echo "$extra") | tr '\n' ' ')
+      [ -n "$brings" ] && echo "  through $needed: $brings"
+    done
+    fail "$program loads a GUI library"
+  fi
+  echo "$program loads $(wc -l <<<"$loaded") libraries, $(loaded_gui "$loaded" | grep -c .) of" \
+    "them from Debian's X11/GL/FFmpeg stack through ${unavoidable_via[*]}"
+done
 for library in libddsc0debian libopencv-core libfmt9 haptiquad-data; do
   grep -q "$library" <<<"$depends" || fail "haptiquad-vehicle's Depends lacks $library: $depends"
 done

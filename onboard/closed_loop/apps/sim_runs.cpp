@@ -70,66 +70,75 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
   const hq::sim::Simulator* sim_ = nullptr;
 };
 
-}  // namespace
+// What both runs fly: the world, the simulator (its --resolution and --seed applied), the
+// on-board config and the vehicle file.
+struct SimInputs {
+  hq::sim::World world;
+  hq::sim::SimConfig sim_config;
+  hq::pipeline::OnboardConfig config;
+  hq::VehicleConfig vehicle;
+};
 
-int run_sim_link(const Options& o) {
-  if (o.world_path.empty()) throw hq::InputError("--link needs --world <world.yaml>");
-  const hq::sim::World world = hq::sim::load_world(o.world_path);
-  hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
-  hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
-  sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
-  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
-  const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
-  // --record: before the link, so an unwritable folder stops the start.
-  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o, vehicle);
-  if (recorder) {
-    recorder->set_camera(sim_config.camera.pinhole);
-    // Its ROS 2 bag in simulated time with /clock, as the bridge publishes (below).
+SimInputs load_sim_inputs(const Options& o) {
+  SimInputs in{
+      hq::sim::load_world(o.world_path), hq::sim::load_sim_config(o.sim_config_path), {}, {}};
+  hq::sim::set_resolution(in.sim_config, o.resolution, "--resolution");
+  in.sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : in.world.seed;
+  in.config = hq::pipeline::load_onboard_config(o.config_path);
+  in.vehicle = hq::load_vehicle_config(o.vehicle_path);
+  return in;
+}
+
+// The recorder's ROS 2 bag and the bridge's ROS 2 topics in simulated time with /clock
+// (use_sim_time), with the simulator's camera and the vehicle's camera mount.
+void use_simulated_ros_time(hq::onboard_log::OnboardRecorder* recorder,
+                            hq::link_bridge::LinkBridge& bridge, const SimInputs& in) {
+  if (recorder != nullptr) {
+    recorder->set_camera(in.sim_config.camera.pinhole);
     recorder->set_ros_clock(hq::ros2_bridge::RosClock::simulated_time());
   }
-  const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
-  hq::link_bridge::LinkBridge& bridge = *link_bridge;
   if (bridge.ros2() != nullptr) {
-    bridge.ros2()->set_camera(sim_config.camera.pinhole);
-    bridge.ros2()->set_camera_mount(vehicle.camera);
-    // Simulated time is ROS time here, announced on /clock (use_sim_time).
+    bridge.ros2()->set_camera(in.sim_config.camera.pinhole);
+    bridge.ros2()->set_camera_mount(in.vehicle.camera);
     bridge.ros2()->set_clock(hq::ros2_bridge::RosClock::simulated_time());
   }
+}
 
-  std::FILE* log = nullptr;
-  if (!o.link_log_path.empty()) {
-    log = std::fopen(o.link_log_path.c_str(), "w");
-    if (!log) throw hq::InputError(o.link_log_path + ": cannot open for writing");
-    // Line-buffered: a row per frame is cheap, and tests follow the flight while it happens.
-    std::setvbuf(log, nullptr, _IOLBF, 0);
-    fmt::print(log,
-               "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
-               "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"
-               "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
-               "commands_rejected,mode_requests_rejected\n");
-  }
+// --link-log: one CSV row per control step (LoggedLinkPort), or nullptr without the option.
+std::FILE* open_link_log(const std::string& path) {
+  if (path.empty()) return nullptr;
+  std::FILE* log = std::fopen(path.c_str(), "w");
+  if (!log) throw hq::InputError(path + ": cannot open for writing");
+  // Line-buffered: a row per frame is cheap, and tests follow the flight while it happens.
+  std::setvbuf(log, nullptr, _IOLBF, 0);
+  fmt::print(log,
+             "t_s,mode,landed,airborne,command_age_ms,heartbeat_age_ms,hold,heartbeat_lost,"
+             "v_cmd_x_mps,v_cmd_y_mps,v_cmd_z_mps,yaw_rate_cmd_radps,v_true_x_mps,"
+             "v_true_y_mps,v_true_z_mps,altitude_m,collision,estimate_ok,commands_accepted,"
+             "commands_rejected,mode_requests_rejected\n");
+  return log;
+}
+
+hq::closed_loop::ClosedLoop make_link_loop(const Options& o, const SimInputs& in) {
   hq::closed_loop::OperatorScript script;
   // Over the link the script gives only the length the flight record is sized for.
   script.end_s = o.duration_s > 0.0 ? o.duration_s : 600.0;
   hq::closed_loop::ClosedLoopOptions options;
   options.realtime = true;
-  hq::closed_loop::ClosedLoop loop(
-      sim_config, world, config, vehicle,
-      hq::closed_loop::OperatorPlayer(script, vehicle.camera.heading_rad()), options);
-  // The vehicle's own extrinsics (not the simulator's truth) place the cloud in the body.
-  LoggedLinkPort port(bridge, loop.chain(), vehicle.camera.T_B_C(), log);
-  port.set_simulator(&loop.simulator());
-  // --record: the recorder behind the port (chain outputs; the simulator's IMU is not tapped).
-  std::optional<hq::onboard_log::RecordingPort> record_port;
-  if (recorder) record_port.emplace(&port, *recorder);
-  loop.set_operator_port(record_port ? static_cast<hq::vehicle::OperatorPort*>(&*record_port)
-                                     : &port);
+  return hq::closed_loop::ClosedLoop(
+      in.sim_config, in.world, in.config, in.vehicle,
+      hq::closed_loop::OperatorPlayer(script, in.vehicle.camera.heading_rad()), options);
+}
+
+// Paced to wall time in 0.1 s steps until --duration-s (0: forever) or SIGINT/SIGTERM.
+void fly_until_stopped(const Options& o, hq::closed_loop::ClosedLoop& loop,
+                       const std::string& world_name) {
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);
   hq::log::note(
       "hq-sim-flight: simulated {} over the link: {}, command timeout {:.0f} ms, "
       "heartbeat timeout {:.0f} ms\n",
-      world.name.c_str(),
+      world_name.c_str(),
       o.duration_s > 0.0 ? fmt::format("{:.1f} s", o.duration_s).c_str()
                          : "until SIGINT or SIGTERM",
       o.command_timeout_ms, o.heartbeat_timeout_ms);
@@ -139,7 +148,11 @@ int run_sim_link(const Options& o) {
     t_s = std::min(end_s, t_s + 0.1);
     loop.run_until(t_s);
   }
-  // However the run ends, the vehicle lands (or holds) and says goodbye to the ground.
+}
+
+// However the run ends, the vehicle lands (or holds) and says goodbye to the ground.
+void land_and_say_goodbye(const Options& o, hq::closed_loop::ClosedLoop& loop,
+                          hq::link_bridge::LinkBridge& bridge) {
   StopOutcome stop;
   if (g_stop) {
     stop.reason = signal_reason();
@@ -156,10 +169,13 @@ int run_sim_link(const Options& o) {
       },
       stop);
   say_goodbye(bridge, loop.t_ns(), stop);
-  if (log && std::fclose(log) != 0) throw hq::InputError(o.link_log_path + ": write failed");
+}
 
-  const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
-  hq::closed_loop::print_summary(stdout, "flight summary over the link (" + world.name + ")",
+void print_link_flight_report(const hq::closed_loop::ClosedLoop& loop,
+                              const hq::link_bridge::LinkBridge& bridge,
+                              const hq::closed_loop::FlightSummary& summary,
+                              const std::string& world_name) {
+  hq::closed_loop::print_summary(stdout, "flight summary over the link (" + world_name + ")",
                                  summary);
   const bool landed = !loop.samples().empty() && loop.samples().back().landed;
   const bool on_ground = loop.simulator().truth().on_ground;
@@ -172,9 +188,38 @@ int run_sim_link(const Options& o) {
   for (const std::string& refusal : loop.refusals()) {
     hq::log::info("  mode request refused at {}\n", refusal.c_str());
   }
+}
+
+}  // namespace
+
+int run_sim_link(const Options& o) {
+  if (o.world_path.empty()) throw hq::InputError("--link needs --world <world.yaml>");
+  const SimInputs in = load_sim_inputs(o);
+  // --record: before the link, so an unwritable folder stops the start.
+  const std::unique_ptr<hq::onboard_log::OnboardRecorder> recorder = make_recorder(o, in.vehicle);
+  const std::unique_ptr<hq::link_bridge::LinkBridge> link_bridge = make_link_bridge(o);
+  hq::link_bridge::LinkBridge& bridge = *link_bridge;
+  use_simulated_ros_time(recorder.get(), bridge, in);
+
+  std::FILE* log = open_link_log(o.link_log_path);
+  hq::closed_loop::ClosedLoop loop = make_link_loop(o, in);
+  // The vehicle's own extrinsics (not the simulator's truth) place the cloud in the body.
+  LoggedLinkPort port(bridge, loop.chain(), in.vehicle.camera.T_B_C(), log);
+  port.set_simulator(&loop.simulator());
+  // --record: the recorder behind the port (chain outputs; the simulator's IMU is not tapped).
+  std::optional<hq::onboard_log::RecordingPort> record_port;
+  if (recorder) record_port.emplace(&port, *recorder);
+  loop.set_operator_port(record_port ? static_cast<hq::vehicle::OperatorPort*>(&*record_port)
+                                     : &port);
+  fly_until_stopped(o, loop, in.world.name);
+  land_and_say_goodbye(o, loop, bridge);
+  if (log && std::fclose(log) != 0) throw hq::InputError(o.link_log_path + ": write failed");
+
+  const hq::closed_loop::FlightSummary summary = hq::closed_loop::summarise(loop);
+  print_link_flight_report(loop, bridge, summary, in.world.name);
   const bool record_ok =
       !recorder || close_recorder(*recorder,
-                                  {{"source", "simulator " + world.name},
+                                  {{"source", "simulator " + in.world.name},
                                    {"steps", std::to_string(loop.samples().size())},
                                    {"collision_ticks", std::to_string(summary.collision_ticks)}},
                                   &bridge);
@@ -190,12 +235,11 @@ int run_sim(const Options& o) {
     throw hq::InputError("--record " + o.record_dir +
                          ": a scripted flight records with --link only (it has its CSV, --csv)");
   }
-  const hq::sim::World world = hq::sim::load_world(o.world_path);
-  hq::sim::SimConfig sim_config = hq::sim::load_sim_config(o.sim_config_path);
-  hq::sim::set_resolution(sim_config, o.resolution, "--resolution");
-  sim_config.seed = o.seed >= 0 ? static_cast<std::uint64_t>(o.seed) : world.seed;
-  const hq::pipeline::OnboardConfig config = hq::pipeline::load_onboard_config(o.config_path);
-  const hq::VehicleConfig vehicle = hq::load_vehicle_config(o.vehicle_path);
+  const SimInputs in = load_sim_inputs(o);
+  const hq::sim::World& world = in.world;
+  const hq::sim::SimConfig& sim_config = in.sim_config;
+  const hq::pipeline::OnboardConfig& config = in.config;
+  const hq::VehicleConfig& vehicle = in.vehicle;
   hq::closed_loop::OperatorPlayer player(hq::closed_loop::load_operator_script(o.script_path),
                                          vehicle.camera.heading_rad());
   const SteadyClock clock;

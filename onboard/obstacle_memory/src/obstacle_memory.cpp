@@ -5,12 +5,8 @@
 #include "hq/obstacles/obstacle_field.hpp"
 #include "hq/obstacles/support_surface.hpp"
 
+#include "point_cloud_file.hpp"
 #include <Eigen/Geometry>
-#include <pcl/exceptions.h>
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/ply_io.h>
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
 
 #include <algorithm>
 #include <cmath>
@@ -453,30 +449,16 @@ int ObstacleMemory::telemetry_cloud(std::span<Eigen::Vector3f> p_O_m) const {
 }
 
 void ObstacleMemory::save(const std::string& path) const {
-  pcl::PointCloud<pcl::PointXYZ> cloud;
-  cloud.reserve(entries_.size());
-  for (const MapPoint& entry : entries_) {
-    cloud.push_back(pcl::PointXYZ(entry.p_O_m.x(), entry.p_O_m.y(), entry.p_O_m.z()));
-  }
   if (!ends_with(path, ".pcd") && !ends_with(path, ".ply")) {
     throw InputError("memory map " + path + ": unknown extension, expected .pcd or .ply");
   }
-  int status = -1;
-  try {
-    if (ends_with(path, ".pcd")) {
-      // PCL's binary writer refuses an empty cloud; ASCII writes a valid empty file.
-      status = cloud.empty() ? pcl::io::savePCDFileASCII(path, cloud)
-                             : pcl::io::savePCDFileBinary(path, cloud);
-    } else {
-      status = pcl::io::savePLYFileBinary(path, cloud);
-    }
-  } catch (const pcl::PCLException& e) {
-    throw InputError("memory map " + path + ": pcl::io could not write " +
-                     std::to_string(cloud.size()) + " points: " + e.what());
-  }
-  if (status < 0) {
-    throw InputError("memory map " + path + ": pcl::io could not write " +
-                     std::to_string(cloud.size()) + " points");
+  std::vector<Eigen::Vector3f> points;
+  points.reserve(entries_.size());
+  for (const MapPoint& entry : entries_) points.push_back(entry.p_O_m);
+  if (ends_with(path, ".pcd")) {
+    write_pcd(path, points);
+  } else {
+    write_ply(path, points);
   }
 }
 
