@@ -49,6 +49,11 @@ void check_ros2(const LinkConfig& config, const Fail& fail) {
     fail("ros2.namespace", "\"" + r.ros_namespace + "\"",
          "ROS name segments [A-Za-z_][A-Za-z0-9_]* joined by '/' (no leading '/')");
   }
+  if (!r.node_name.empty() &&
+      (!valid_ros_namespace(r.node_name) || r.node_name.find('/') != std::string::npos)) {
+    fail("ros2.node_name", "\"" + r.node_name + "\"",
+         "one ROS name segment [A-Za-z_][A-Za-z0-9_]*");
+  }
   if (r.station_id == 0) fail("ros2.station_id", "0", ">= 1 (0 means no station)");
   if (!r.enabled) return;
   if (config.security.enabled) {
@@ -70,6 +75,11 @@ void check_ros2(const LinkConfig& config, const Fail& fail) {
 std::string ros2_namespace(const LinkConfig& config) {
   return config.ros2.ros_namespace.empty() ? "hq" + std::to_string(config.vehicle_id)
                                            : config.ros2.ros_namespace;
+}
+
+std::string ros2_node_name(const LinkConfig& config) {
+  return config.ros2.node_name.empty() ? "haptiquad_" + std::to_string(config.vehicle_id)
+                                       : config.ros2.node_name;
 }
 
 const char* const kDefaultSecurityLibraryDir = HQ_DDS_SECURITY_LIBRARY_DIR;
@@ -130,6 +140,7 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
   ros2.read("station_id", ros2_station, 1, kMaxId);
   out.ros2.station_id = static_cast<std::uint32_t>(ros2_station);
   ros2.read("record", out.ros2.record);
+  ros2.read("node_name", out.ros2.node_name, {});
   ros2.finish();
   section.finish();
 }
