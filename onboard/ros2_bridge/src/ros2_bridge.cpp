@@ -93,8 +93,7 @@ const char* parse_mode_request(std::string_view text, RosModeRequest& out) {
     out.mode = hq_msgs_MODE_MARKER;
     return parse_marker_task(trimmed(text.substr(kMarker.size())), out);
   }
-  return "unknown mode (expected take_off, land, hover, teleop, explore, marker or "
-         "\"marker <hold|go_to|land> <id>\")";
+  return "unknown mode (expected take_off, land, hover, teleop, explore, marker [TASK ID])";
 }
 
 link::Qos discovery_info_qos() { return tf_static_qos(); }
