@@ -360,8 +360,7 @@ class Probe {
     twists_.write(twist_);  // the ROS node still commands: it is the station that may ask
     const ModeStep& step = kModeSteps[mode_step_];
     if (t_ns >= next_request_ns_) send_mode_text(step.text, t_ns);
-    const bool answered =
-        take_answer() && last_answer_.find(step.answer) != std::string::npos;
+    const bool answered = take_answer() && last_answer_.find(step.answer) != std::string::npos;
     if (answered) step_answered_ = true;
     if (step_answered_ && (step.mode < 0 || static_cast<int>(state_->mode) == step.mode)) {
       std::printf("probe: ROS 2 mode request \"%s\" answered \"%s\"\n", step.text,
@@ -382,8 +381,7 @@ class Probe {
   bool step_ros_refused(std::int64_t t_ns) {
     if (t_ns >= next_request_ns_) send_mode_text("land", t_ns);
     if (take_answer() && last_answer_.find("does not command") != std::string::npos) {
-      std::printf("probe: ROS 2 \"land\" while station 1 commands: \"%s\"\n",
-                  last_answer_.c_str());
+      std::printf("probe: ROS 2 \"land\" while station 1 commands: \"%s\"\n", last_answer_.c_str());
       next_phase(Phase::kDone, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
       std::printf("probe: FAILED: ROS 2 \"land\" not refused by the gate (last answer \"%s\")\n",

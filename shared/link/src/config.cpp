@@ -193,9 +193,11 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides, LinkSide side) {
   app.add_flag("--insecure", overrides.insecure,
                "plain DDS without authentication or encryption: loopback demo and tests only");
   if (vehicle) {
-    app.add_flag("--ros2", overrides.ros2,
-                 "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
-                 "rt/tf and take TwistStamped on cmd_vel_in (link.ros2.enabled; needs --insecure)");
+    app.add_flag(
+        "--ros2", overrides.ros2,
+        "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
+        "rt/tf, take Twist on cmd_vel, TwistStamped on cmd_vel_in and mode texts on mode_request "
+        "(link.ros2.enabled; needs --insecure)");
   }
   app.add_option("--link-impair", overrides.link_impair,
                  "impair received samples for tests and demos: "
