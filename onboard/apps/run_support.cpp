@@ -126,9 +126,10 @@ std::unique_ptr<hq::link_bridge::LinkBridge> make_link_bridge(const Options& o) 
   if (const hq::ros2_bridge::Ros2Bridge* ros = bridge->ros2()) {
     hq::log::note(
         "{}: ROS 2 topics rt/{}/{{odom,imu,obstacles,camera/...}}, rt/tf; "
-        "TwistStamped on rt/{}/cmd_vel_in as station {} (lowest priority)\n",
+        "Twist on rt/{}/cmd_vel, TwistStamped on cmd_vel_in, mode texts on mode_request as "
+        "station {} (lowest priority); node /{}\n",
         g_program_name, ros->ros_namespace().c_str(), ros->ros_namespace().c_str(),
-        link.ros2.station_id);
+        link.ros2.station_id, ros->node_name().c_str());
   }
   return bridge;
 }
@@ -169,9 +170,10 @@ void print_link_summary(const hq::link_bridge::LinkBridge& bridge) {
     const hq::ros2_bridge::Ros2Counters& r = ros->counters();
     hq::log::info(
         "  {:<40} {} states, {} clouds, {} images, {} clocks; cmd_vel/cmd_vel_in {} taken, {} "
-        "stale, {} overridden by a native station\n",
+        "stale, {} overridden by a native station; {} mode requests, {} answers\n",
         "ROS 2 published", r.states_published, r.clouds_published, r.images_published,
-        r.clocks_published, r.commands_received, r.commands_stale, r.commands_overridden);
+        r.clocks_published, r.commands_received, r.commands_stale, r.commands_overridden,
+        r.mode_requests_received, r.mode_answers_published);
   }
 }
 

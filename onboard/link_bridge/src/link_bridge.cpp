@@ -187,6 +187,7 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
     }
   }
   take_mode_requests(t_ns, mode_requests);
+  if (ros2_ != nullptr) take_ros2_mode_requests(t_ns, mode_requests);
 
   const FailsafeState& state = failsafe_.update(t_ns);
   if (state.commander_changed) {
@@ -270,6 +271,65 @@ void LinkBridge::take_mode_requests(std::int64_t t_ns,
   }
 }
 
+namespace {
+// At most `size` - 1 characters of `text`, the unprintable as '?': a refusal quotes what it got.
+void quote(const char* text, char* out, std::size_t size) {
+  std::size_t n = 0;
+  for (; text[n] != '\0' && n + 1 < size; ++n) {
+    const auto c = static_cast<unsigned char>(text[n]);
+    out[n] = c >= 0x20 && c < 0x7F ? static_cast<char>(c) : '?';
+  }
+  out[n] = '\0';
+}
+}  // namespace
+
+void LinkBridge::take_ros2_mode_requests(std::int64_t t_ns,
+                                         std::vector<pipeline::ModeRequest>& mode_requests) {
+  while (const char* text = ros2_->take_mode_request()) {
+    char shown[40];
+    quote(text, shown, sizeof shown);
+    char reply[hq_msgs_kMaxEventText + 1];
+    ros2_bridge::RosModeRequest parsed;
+    if (const char* why = ros2_bridge::parse_mode_request(text, parsed)) {
+      std::snprintf(reply, sizeof reply, "ROS 2 mode request \"%s\" on %s refused: %s", shown,
+                    ros2_bridge::ros_topic_name(ros2_->ros_namespace(), "mode_request").c_str(),
+                    why);
+      answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, reply, true);
+      continue;
+    }
+    // The ground's request, as station link.ros2.station_id of this session: the same gate.
+    link::ModeRequest request{};
+    request.vehicle_id = link_.vehicle_id;
+    request.station_id = link_.ros2.station_id;
+    request.sequence_number = ++ros2_mode_sequence_;
+    request.t_ns = t_ns;
+    request.requested_mode = parsed.mode;
+    request.marker_task = parsed.marker_task;
+    request.target_id = parsed.target_id;
+    request.vehicle_session_id = session_id();
+    request.take_off = parsed.take_off;
+    modes::Mode mode = modes::Mode::kHover;
+    const Verdict verdict = failsafe_.on_mode_request(t_ns, request, mode);
+    pipeline::ModeRequest chain_request;
+    const Verdict routed =
+        verdict.accepted ? to_mode_request(request, mode, chain_request) : verdict;
+    if (!routed.accepted) {
+      std::snprintf(reply, sizeof reply, "ROS 2 mode request \"%s\" (station %u) refused: %s",
+                    shown, link_.ros2.station_id, routed.reason);
+      answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, reply, true);
+      continue;
+    }
+    chain_request.from_ros2 = true;
+    mode_requests.push_back(chain_request);
+  }
+}
+
+void LinkBridge::answer(std::int64_t t_ns, hq_msgs_Severity severity, EventCode code,
+                        const char* text, bool from_ros2) {
+  publish_event(t_ns, severity, code, text);
+  if (from_ros2 && ros2_ != nullptr) ros2_->publish_mode_status(text);
+}
+
 void LinkBridge::report_rejections(std::int64_t t_ns) {
   if (t_ns < next_rejection_report_ns_) return;
   const FailsafeCounters& c = failsafe_.counters();
@@ -321,20 +381,21 @@ void LinkBridge::acknowledge(std::int64_t t_ns, const pipeline::ModeRequest& req
     if (result.accepted) {
       std::snprintf(text, sizeof text, "mode %s accepted: marker task %s on marker %d", mode, task,
                     id);
-      publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text);
+      answer(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text, request.from_ros2);
     } else {
       std::snprintf(text, sizeof text, "mode %s with marker task %s on marker %d refused: %s", mode,
                     task, id, result.reason);
-      publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
+      answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text,
+             request.from_ros2);
     }
     return;
   }
   if (result.accepted) {
     std::snprintf(text, sizeof text, "mode %s accepted", mode);
-    publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kModeAccepted, text);
+    answer(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kModeAccepted, text, request.from_ros2);
   } else {
     std::snprintf(text, sizeof text, "mode %s refused: %s", mode, result.reason);
-    publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRefused, text);
+    answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRefused, text, request.from_ros2);
   }
 }
 

@@ -836,6 +836,84 @@ TEST(LinkBridge, Ros2OdometryGoesOutWithTheState) {
   EXPECT_EQ(bridge.ros2()->counters().states_published, bridge.states_sent());
 }
 
+// GIVEN ROS 2 on WHEN a ROS node sends mode texts THEN they reach the chain through the same
+// fail-safe as the ground's (as station 250 of this session, marked from_ros2), the chain's
+// answer and every refusal (unknown text, unprintable bytes, a station that does not command)
+// go back on mode_status and as events, and nothing unreadable is requested.
+TEST(LinkBridge, Ros2ModeRequestsMeetTheGroundsGateAndAreAnswered) {
+  link::LinkConfig config = private_link();
+  config.ros2.enabled = true;
+  LinkBridge bridge(config, FailsafeConfig{});
+  Ground ground(config);
+  link::Topic<ros2_bridge::RosString> request_topic(ground.participant, "rt/hq1/mode_request");
+  link::Writer<ros2_bridge::RosString> ros_requests(ground.participant, request_topic,
+                                                    ros2_bridge::ros2_qos());
+  link::Topic<ros2_bridge::RosString> status_topic(ground.participant, "rt/hq1/mode_status");
+  link::Reader<ros2_bridge::RosString> status(ground.participant, status_topic,
+                                              ros2_bridge::ros2_qos());
+  link::Sample<ros2_bridge::RosString> answer;
+  std::vector<std::string> answers;
+  const auto answered = [&](const char* needle) {
+    dds_sample_info_t info{};
+    while (status.take(*answer, info)) answers.emplace_back(answer->data);
+    return !answers.empty() && answers.back().find(needle) != std::string::npos;
+  };
+  std::vector<pipeline::ModeRequest> requests;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    return ros_requests.matched_readers() > 0 && status.matched_writers() > 0;
+  }));
+  const auto send = [&](std::string text) {
+    ros2_bridge::RosString sample{};
+    sample.data = text.data();
+    ros_requests.write(sample);
+  };
+
+  send("fly_upside_down");
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return answered("refused"); }));
+  EXPECT_THAT(answers.back(), HasSubstr("\"fly_upside_down\" on /hq1/mode_request refused: "
+                                        "unknown mode"));
+  send("hover\x01\x7f");
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return answered("\"hover??\""); }))
+      << ::testing::PrintToString(answers);
+  EXPECT_TRUE(requests.empty());
+
+  send("take_off");
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
+  EXPECT_EQ(requests.front().mode, modes::Mode::kTeleop);
+  EXPECT_TRUE(requests.front().take_off);
+  EXPECT_TRUE(requests.front().from_ros2);
+  bridge.acknowledge(now_ns(), requests.front(), {true, ""});
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return answered("mode teleop accepted"); }));
+  requests.clear();
+  send("marker go_to 5");
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return !requests.empty(); }));
+  ASSERT_TRUE(requests.front().marker.has_value());
+  EXPECT_EQ(requests.front().marker->task, marker_modes::MarkerTask::kGoTo);
+  EXPECT_EQ(requests.front().marker->marker_id, 5);
+  bridge.acknowledge(now_ns(), requests.front(), {false, "marker stage is off"});
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return answered("marker stage is off"); }));
+
+  // A native station takes command: the ROS node's requests are refused by the same gate.
+  link::VelocityCommand native{};
+  native.vehicle_id = 1;
+  native.station_id = 1;
+  ASSERT_TRUE(poll_until(bridge, requests, [&] {
+    ground.commands.write(native);
+    return bridge.failsafe().state().commanding_station_id == 1;
+  }));
+  requests.clear();
+  send("land");
+  ASSERT_TRUE(poll_until(bridge, requests, [&] { return answered("does not command"); }));
+  EXPECT_THAT(answers.back(), HasSubstr("\"land\" (station 250) refused"));
+  EXPECT_TRUE(requests.empty());
+  // Each refusal is also the vehicle's event, for the ground and the flight record.
+  std::vector<std::string> events;
+  link::Event event{};
+  dds_sample_info_t info{};
+  while (ground.events.take(event, info)) events.emplace_back(event.text);
+  EXPECT_THAT(events, ::testing::Contains(HasSubstr("\"land\" (station 250) refused")));
+}
+
 TEST(LinkBridge, NoRos2TopicsUnlessAskedFor) {
   LinkBridge bridge(private_link(), FailsafeConfig{});
   EXPECT_EQ(bridge.ros2(), nullptr);

@@ -231,6 +231,36 @@ const stamped = odom.filter((o) => clockSet.has(String(stampNs(o.header.stamp)))
 console.log(`clock: ${clocks.length} decoded; ${stamped} of ${odom.length} odom stamps are /clock times`);
 check(stamped >= 10, `only ${stamped} odom stamps are /clock times`);
 
+// mode_status: the vehicle's answers to the probe's mode texts (std_msgs/String).
+const answers = decodeAll('mode_status.cdr', 'std_msgs/String', 4,
+                          () => readerOf('string data')).map((m) => m.data);
+for (const needle of ['refused: unknown mode', 'mode hover accepted', 'mode teleop accepted',
+                      'does not command']) {
+  check(answers.some((a) => a.includes(needle)), `mode_status: no answer with "${needle}"`);
+}
+
+// ros_discovery_info as rmw_dds_common (Iron+, Jazzy: Gid uint8[16]) defines it: the vehicle is
+// node /haptiquad_1 with its readers and writers, each GUID under the participant's prefix.
+const discovery = decodeAll('ros_discovery_info.cdr', 'rmw_dds_common/ParticipantEntitiesInfo', 1,
+                        () => readerOf(
+    'Gid gid\nNodeEntitiesInfo[] node_entities_info_seq' + SEP + 'MSG: rmw_dds_common/Gid\n' +
+    'uint8[16] data' + SEP + 'MSG: rmw_dds_common/NodeEntitiesInfo\n' +
+    'string<=256 node_namespace\nstring<=256 node_name\nGid[] reader_gid_seq\nGid[] writer_gid_seq'));
+const info = discovery[0];
+const hex = (g) => Buffer.from(g.data).toString('hex');
+check(info.node_entities_info_seq.length === 1, 'ros_discovery_info: one node');
+const node = info.node_entities_info_seq[0] || {reader_gid_seq: [], writer_gid_seq: []};
+check(node.node_namespace === '/' && node.node_name === 'haptiquad_1',
+      `ros_discovery_info: node ${node.node_namespace} ${node.node_name}`);
+const gids = [...node.reader_gid_seq, ...node.writer_gid_seq].map(hex);
+check(node.reader_gid_seq.length === 3 && node.writer_gid_seq.length === 9,
+      `ros_discovery_info: ${node.reader_gid_seq.length} readers, ${node.writer_gid_seq.length} writers`);
+check(new Set(gids).size === gids.length, 'ros_discovery_info: GIDs are distinct');
+check(gids.every((g) => g.slice(0, 24) === hex(info.gid).slice(0, 24)),
+      'ros_discovery_info: every GID is under the participant GUID prefix');
+console.log(`ros_discovery_info: node ${node.node_namespace}${node.node_name}, ` +
+            `${node.reader_gid_seq.length} readers, ${node.writer_gid_seq.length} writers`);
+
 if (failures > 0) {
   console.log(`${failures} check(s) failed`);
   process.exit(1);

@@ -9,11 +9,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace hq::ros2_bridge {
 namespace {
@@ -82,7 +84,10 @@ TEST(Ros2Bridge, TopicAndTypeNamesAreThoseRos2Uses) {
       {"rt/hq3/camera/camera_info", "sensor_msgs::msg::dds_::CameraInfo_"},
       {"rt/hq3/cmd_vel_in", "geometry_msgs::msg::dds_::TwistStamped_"},
       {"rt/clock", "rosgraph_msgs::msg::dds_::Clock_"},
-      {"rt/tf_static", "tf2_msgs::msg::dds_::TFMessage_"}};
+      {"rt/tf_static", "tf2_msgs::msg::dds_::TFMessage_"},
+      {"rt/hq3/mode_request", "std_msgs::msg::dds_::String_"},
+      {"rt/hq3/mode_status", "std_msgs::msg::dds_::String_"},
+      {"ros_discovery_info", "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"}};
   // The participant's topics are among its children.
   std::array<dds_entity_t, 64> children{};
   const dds_return_t n = dds_get_children(f.participant.handle(), children.data(), children.size());
@@ -429,6 +434,123 @@ TEST(Ros2Bridge, StaleStampedCommandsAreDropped) {
   EXPECT_EQ(f.bridge.counters().commands_stale, 2U);
   EXPECT_EQ(f.bridge.counters().commands_received, 4U);
   EXPECT_EQ(kMaxCommandAge_ns, 500'000'000);
+}
+
+// Every mode text a ROS node may send, as the ground's request would carry it; anything else
+// is refused with a reason, never guessed.
+TEST(ParseModeRequest, ReadsEveryModeAndRefusesTheRest) {
+  RosModeRequest r;
+  EXPECT_EQ(parse_mode_request("take_off", r), nullptr);
+  EXPECT_EQ(r.mode, hq_msgs_MODE_TELEOP);
+  EXPECT_TRUE(r.take_off);
+  const std::pair<const char*, hq_msgs_Mode> plain[] = {{"land", hq_msgs_MODE_LAND},
+                                                        {" hover\n", hq_msgs_MODE_HOVER},
+                                                        {"teleop", hq_msgs_MODE_TELEOP},
+                                                        {"explore", hq_msgs_MODE_EXPLORE},
+                                                        {"marker", hq_msgs_MODE_MARKER}};
+  for (const auto& [text, mode] : plain) {
+    ASSERT_EQ(parse_mode_request(text, r), nullptr) << text;
+    EXPECT_EQ(r.mode, mode) << text;
+    EXPECT_FALSE(r.take_off) << text;
+    EXPECT_EQ(r.marker_task, hq_msgs_MARKER_TASK_NONE) << text;
+  }
+  ASSERT_EQ(parse_mode_request("marker go_to 7", r), nullptr);
+  EXPECT_EQ(r.mode, hq_msgs_MODE_MARKER);
+  EXPECT_EQ(r.marker_task, hq_msgs_MARKER_TASK_GO_TO);
+  EXPECT_EQ(r.target_id, 7);
+  ASSERT_EQ(parse_mode_request("marker land 0", r), nullptr);
+  EXPECT_EQ(r.marker_task, hq_msgs_MARKER_TASK_LAND);
+  using ::testing::HasSubstr;
+  const std::pair<std::string, const char*> refused[] = {
+      {"fly_upside_down", "unknown mode"},
+      {"", "unknown mode"},
+      {"Land", "unknown mode"},
+      {"take_off now", "unknown mode"},
+      {"marker spin 3", "unknown marker task"},
+      {"marker hold", "needs a marker id"},
+      {"marker hold -1", "not an integer >= 0"},
+      {"marker hold 3x", "not an integer >= 0"},
+      {"marker hold 99999999999", "not an integer >= 0"},
+      {std::string(kMaxModeRequestChars + 1, 'a'), "longer than any mode request"}};
+  for (const auto& [text, why] : refused) {
+    const char* reason = parse_mode_request(text, r);
+    ASSERT_NE(reason, nullptr) << text;
+    EXPECT_THAT(reason, HasSubstr(why)) << text;
+  }
+}
+
+// mode_request texts are taken in order; the answers go out on mode_status.
+TEST(Ros2Bridge, TakesModeRequestTextsAndPublishesTheAnswers) {
+  Fixture f;
+  link::Topic<RosString> request_topic(f.participant, "rt/hq3/mode_request");
+  link::Writer<RosString> requests(f.participant, request_topic, ros2_qos());
+  Probe<RosString> status(f.participant, "rt/hq3/mode_status");
+  std::string text = "land";
+  RosString request{};
+  request.data = text.data();
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  const char* taken = nullptr;
+  while (taken == nullptr && std::chrono::steady_clock::now() < deadline) {
+    if (requests.matched_readers() > 0 && f.bridge.counters().mode_requests_received == 0) {
+      requests.write(request);
+    }
+    taken = f.bridge.take_mode_request();
+  }
+  ASSERT_NE(taken, nullptr);
+  EXPECT_STREQ(taken, "land");
+  EXPECT_EQ(f.bridge.take_mode_request(), nullptr);
+  f.bridge.publish_mode_status("mode land accepted");
+  ASSERT_TRUE(take_within(f.participant, status.reader, *status.sample));
+  EXPECT_STREQ(status.sample->data, "mode land accepted");
+  EXPECT_EQ(f.bridge.counters().mode_answers_published, 1U);
+}
+
+// ros_discovery_info, read by a ROS tool that starts later (transient local): one node,
+// haptiquad_<vehicle id> in "/", with the GIDs (16-byte GUIDs, ROS 2 Iron+) of the bridge's
+// readers and writers, all on the participant that announces them.
+TEST(Ros2Bridge, AnnouncesItsNodeOnRosDiscoveryInfo) {
+  Fixture f;
+  link::Topic<ParticipantEntitiesInfo> topic(f.participant, "ros_discovery_info");
+  link::Reader<ParticipantEntitiesInfo> late(f.participant, topic, discovery_info_qos());
+  link::Sample<ParticipantEntitiesInfo> info;
+  ASSERT_TRUE(take_within(f.participant, late, *info));
+  dds_guid_t participant{};
+  ASSERT_EQ(dds_get_guid(f.participant.handle(), &participant), DDS_RETCODE_OK);
+  EXPECT_EQ(std::memcmp(info->gid.data, participant.v, 16), 0);
+  ASSERT_EQ(info->node_entities_info_seq._length, 1U);
+  const NodeEntitiesInfo& node = info->node_entities_info_seq._buffer[0];
+  EXPECT_STREQ(node.node_namespace, "/");
+  EXPECT_STREQ(node.node_name, "haptiquad_3");
+  EXPECT_EQ(f.bridge.node_name(), "haptiquad_3");
+  ASSERT_EQ(node.reader_gid_seq._length, 3U);  // cmd_vel_in, cmd_vel, mode_request
+  ASSERT_EQ(node.writer_gid_seq._length, 9U);  // odom .. mode_status
+  std::vector<std::string> gids;
+  for (const auto& seq : {node.reader_gid_seq, node.writer_gid_seq}) {
+    for (std::uint32_t i = 0; i < seq._length; ++i) {
+      const Gid& g = seq._buffer[i];
+      // A GUID's first 12 bytes are its participant's prefix.
+      EXPECT_EQ(std::memcmp(g.data, participant.v, 12), 0) << i;
+      gids.emplace_back(reinterpret_cast<const char*>(g.data), 16);
+    }
+  }
+  std::sort(gids.begin(), gids.end());
+  EXPECT_EQ(std::unique(gids.begin(), gids.end()), gids.end()) << "two entities share a GID";
+}
+
+// The node name comes from link.ros2.node_name; a name ROS would not take is refused.
+TEST(Ros2Bridge, NodeNameFromConfigAndCheckedAsARosName) {
+  link::LinkConfig config = ros2_config();
+  config.ros2.node_name = "quad_east";
+  EXPECT_EQ(link::ros2_node_name(config), "quad_east");
+  for (const char* bad : {"9quad", "quad/east", "quad-east", "/quad"}) {
+    config.ros2.node_name = bad;
+    try {
+      link::check_config(config);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("link.ros2.node_name")) << bad;
+    }
+  }
 }
 
 }  // namespace

@@ -4,11 +4,15 @@
 // teleop node, it publishes Twist (0.3 m/s along the camera's heading, --heading-deg
 // right of forward: the vehicle limits what it flies to the space its camera has seen) as a
 // geometry_msgs/Twist on rt/<ns>/cmd_vel (teleop_twist_keyboard's default) and checks in the
-// vehicle's state that station 250 commands and the command flown is the ROS one in H; then the
-// native station commands 0.1 m/s along the heading beside the ROS node and must take over.
+// vehicle's state that station 250 commands and the command flown is the ROS one in H; then, as
+// the ROS node, it changes mode with std_msgs/String texts on rt/<ns>/mode_request (an unknown
+// one refused, hover and teleop accepted, each answer read on rt/<ns>/mode_status); then the
+// native station commands 0.1 m/s along the heading beside the ROS node and must take over, and
+// the ROS node's "land" is refused by the vehicle's gate (a station that does not command).
 // Meanwhile it takes every rt/ topic as raw CDR (dds_takecdr, the bytes a ROS 2 machine receives)
 // into DIR/<topic>.cdr (records: uint32 little-endian length, bytes; rt/tf_static read by a reader
-// created only once airborne, as a late tf2 listener) and writes each native state's
+// created only once airborne, as a late tf2 listener; ros_discovery_info as `ros2 node list`
+// reads it) and writes each native state's
 // stamp, v_H and attitude to DIR/states.csv, for the independent decoder (decode_ros2.cjs).
 // Exit 0 when both phases were seen, 1 naming the phase that was not, 2 on bad arguments.
 #include "hq/link/link.hpp"
@@ -23,6 +27,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 #include <optional>
 #include <string>
 #include <thread>
@@ -137,6 +142,10 @@ class Probe {
                   hq::link::command_qos(insecure(a), hq::link::End::kWriter)),
         twist_topic_(participant_, hq::ros2_bridge::dds_topic_name(a.ns, "cmd_vel")),
         twists_(participant_, twist_topic_, hq::ros2_bridge::ros2_qos()),
+        mode_request_topic_(participant_, hq::ros2_bridge::dds_topic_name(a.ns, "mode_request")),
+        mode_status_topic_(participant_, hq::ros2_bridge::dds_topic_name(a.ns, "mode_status")),
+        ros_mode_requests_(participant_, mode_request_topic_, hq::ros2_bridge::ros2_qos()),
+        ros_mode_status_(participant_, mode_status_topic_, hq::ros2_bridge::ros2_qos()),
         cos_heading_(static_cast<float>(std::cos(a.heading_deg * M_PI / 180.0))),
         sin_heading_(static_cast<float>(std::sin(a.heading_deg * M_PI / 180.0))) {
     open_dumps();
@@ -170,7 +179,19 @@ class Probe {
   }
 
  private:
-  enum class Phase { kTakeOff, kRos, kNative, kDone };
+  enum class Phase { kTakeOff, kRos, kRosModes, kNative, kRosRefused, kDone };
+
+  /// A mode text the ROS node sends and what the vehicle's answer must contain (re-sent each
+  /// second until it does: the modes' dwell may refuse a change at first).
+  struct ModeStep {
+    const char* text;
+    const char* answer;
+    int mode;  ///< The state's mode once accepted; -1: none (a refusal).
+  };
+  static constexpr ModeStep kModeSteps[] = {
+      {"fly_upside_down", "refused: unknown mode", -1},
+      {"hover", "mode hover accepted", hq_msgs_MODE_HOVER},
+      {"teleop", "mode teleop accepted", hq_msgs_MODE_TELEOP}};
 
   static hq::link::LinkConfig insecure(const Args& a) {
     hq::link::LinkConfig config;
@@ -194,6 +215,10 @@ class Probe {
     dumps_.push_back(raw_dump(participant_, clock_topics_, "rt/clock", file("clock"), 400));
     // What this probe sends as teleop_twist_keyboard would, as the bytes on the wire.
     dumps_.push_back(raw_dump(participant_, cmd_vel_topics_, rt("cmd_vel"), file("cmd_vel"), 20));
+    dumps_.push_back(
+        raw_dump(participant_, status_topics_, rt("mode_status"), file("mode_status"), 20));
+    dumps_.push_back(raw_dump(participant_, discovery_topics_, "ros_discovery_info",
+                              file("ros_discovery_info"), 20, discovery_info_qos()));
   }
 
   /// Every new state: into states.csv, and counted when it shows the phase's commander flying
@@ -240,8 +265,12 @@ class Probe {
         return true;
       case Phase::kRos:
         return step_ros(t_ns);
+      case Phase::kRosModes:
+        return step_ros_modes(t_ns);
       case Phase::kNative:
         return step_native(t_ns);
+      case Phase::kRosRefused:
+        return step_ros_refused(t_ns);
       case Phase::kDone:
         return true;
     }
@@ -273,7 +302,7 @@ class Probe {
     if (ros_seen_ >= 10) {
       std::printf("probe: ROS 2 Twist on cmd_vel flown by station 250 after %.1f s\n",
                   1e-9 * static_cast<double>(t_ns - phase_start_ns_));
-      next_phase(Phase::kNative, t_ns);
+      next_phase(Phase::kRosModes, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
       std::printf(
           "probe: FAILED: the ROS 2 command was not flown within 5 s "
@@ -297,12 +326,66 @@ class Probe {
     if (native_seen_ >= 10) {
       std::printf("probe: native station 1 overrode the ROS 2 node after %.1f s\n",
                   1e-9 * static_cast<double>(t_ns - phase_start_ns_));
-      next_phase(Phase::kDone, t_ns);
+      next_phase(Phase::kRosRefused, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
       std::printf(
           "probe: FAILED: the native station did not take over within 5 s "
           "(commanding station %u, v_cmd_flown_H x %.2f)\n",
           state_->commanding_station_id, static_cast<double>(state_->v_cmd_flown_H_mps.x));
+      return false;
+    }
+    return true;
+  }
+
+  /// The newest mode_status answer, if one came since the last call.
+  bool take_answer() {
+    dds_sample_info_t info{};
+    bool got = false;
+    while (ros_mode_status_.take(*answer_, info)) {
+      last_answer_ = answer_->data != nullptr ? answer_->data : "";
+      got = true;
+    }
+    return got;
+  }
+
+  void send_mode_text(const char* text, std::int64_t t_ns) {
+    std::string copy = text;
+    hq::ros2_bridge::RosString sample{};
+    sample.data = copy.data();
+    ros_mode_requests_.write(sample);
+    next_request_ns_ = t_ns + 1'000'000'000;
+  }
+
+  bool step_ros_modes(std::int64_t t_ns) {
+    twists_.write(twist_);  // the ROS node still commands: it is the station that may ask
+    const ModeStep& step = kModeSteps[mode_step_];
+    if (t_ns >= next_request_ns_) send_mode_text(step.text, t_ns);
+    const bool answered = take_answer() && last_answer_.find(step.answer) != std::string::npos;
+    if (answered) step_answered_ = true;
+    if (step_answered_ && (step.mode < 0 || static_cast<int>(state_->mode) == step.mode)) {
+      std::printf("probe: ROS 2 mode request \"%s\" answered \"%s\"\n", step.text,
+                  last_answer_.c_str());
+      step_answered_ = false;
+      next_request_ns_ = 0;
+      if (++mode_step_ == std::size(kModeSteps)) next_phase(Phase::kNative, t_ns);
+      return true;
+    }
+    if (t_ns - phase_start_ns_ > 8'000'000'000) {
+      std::printf("probe: FAILED: ROS 2 mode request \"%s\": last answer \"%s\", mode %d\n",
+                  step.text, last_answer_.c_str(), static_cast<int>(state_->mode));
+      return false;
+    }
+    return true;
+  }
+
+  bool step_ros_refused(std::int64_t t_ns) {
+    if (t_ns >= next_request_ns_) send_mode_text("land", t_ns);
+    if (take_answer() && last_answer_.find("does not command") != std::string::npos) {
+      std::printf("probe: ROS 2 \"land\" while station 1 commands: \"%s\"\n", last_answer_.c_str());
+      next_phase(Phase::kDone, t_ns);
+    } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
+      std::printf("probe: FAILED: ROS 2 \"land\" not refused by the gate (last answer \"%s\")\n",
+                  last_answer_.c_str());
       return false;
     }
     return true;
@@ -318,6 +401,7 @@ class Probe {
     }
     phase_ = phase;
     phase_start_ns_ = t_ns;
+    next_request_ns_ = 0;
   }
 
   void close_files() {
@@ -338,6 +422,14 @@ class Probe {
   hq::link::Writer<hq::link::VelocityCommand> commands_;
   hq::link::Topic<hq::ros2_bridge::Twist> twist_topic_;
   hq::link::Writer<hq::ros2_bridge::Twist> twists_;
+  hq::link::Topic<hq::ros2_bridge::RosString> mode_request_topic_;
+  hq::link::Topic<hq::ros2_bridge::RosString> mode_status_topic_;
+  hq::link::Writer<hq::ros2_bridge::RosString> ros_mode_requests_;
+  hq::link::Reader<hq::ros2_bridge::RosString> ros_mode_status_;
+  hq::link::Sample<hq::ros2_bridge::RosString> answer_;
+  std::string last_answer_;
+  std::size_t mode_step_ = 0;
+  bool step_answered_ = false;
   // One topic each, in vectors so raw_dump can create them in place (a Topic does not move).
   std::vector<hq::link::Topic<hq::ros2_bridge::Odometry>> odom_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::Imu>> imu_topics_;
@@ -348,6 +440,8 @@ class Probe {
   std::vector<hq::link::Topic<hq::ros2_bridge::RosClockMsg>> clock_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::TfMessage>> tf_static_topics_;
   std::vector<hq::link::Topic<hq::ros2_bridge::Twist>> cmd_vel_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::RosString>> status_topics_;
+  std::vector<hq::link::Topic<hq::ros2_bridge::ParticipantEntitiesInfo>> discovery_topics_;
   std::vector<RawDump> dumps_;
   hq::ros2_bridge::Twist twist_{};
   float cos_heading_;

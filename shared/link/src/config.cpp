@@ -49,6 +49,11 @@ void check_ros2(const LinkConfig& config, const Fail& fail) {
     fail("ros2.namespace", "\"" + r.ros_namespace + "\"",
          "ROS name segments [A-Za-z_][A-Za-z0-9_]* joined by '/' (no leading '/')");
   }
+  if (!r.node_name.empty() &&
+      (!valid_ros_namespace(r.node_name) || r.node_name.find('/') != std::string::npos)) {
+    fail("ros2.node_name", "\"" + r.node_name + "\"",
+         "one ROS name segment [A-Za-z_][A-Za-z0-9_]*");
+  }
   if (r.station_id == 0) fail("ros2.station_id", "0", ">= 1 (0 means no station)");
   if (!r.enabled) return;
   if (config.security.enabled) {
@@ -70,6 +75,11 @@ void check_ros2(const LinkConfig& config, const Fail& fail) {
 std::string ros2_namespace(const LinkConfig& config) {
   return config.ros2.ros_namespace.empty() ? "hq" + std::to_string(config.vehicle_id)
                                            : config.ros2.ros_namespace;
+}
+
+std::string ros2_node_name(const LinkConfig& config) {
+  return config.ros2.node_name.empty() ? "haptiquad_" + std::to_string(config.vehicle_id)
+                                       : config.ros2.node_name;
 }
 
 const char* const kDefaultSecurityLibraryDir = HQ_DDS_SECURITY_LIBRARY_DIR;
@@ -130,6 +140,7 @@ void read_config(config::StrictMap& section, LinkConfig& out) {
   ros2.read("station_id", ros2_station, 1, kMaxId);
   out.ros2.station_id = static_cast<std::uint32_t>(ros2_station);
   ros2.read("record", out.ros2.record);
+  ros2.read("node_name", out.ros2.node_name, {});
   ros2.finish();
   section.finish();
 }
@@ -182,9 +193,11 @@ void add_link_options(CLI::App& app, LinkOverrides& overrides, LinkSide side) {
   app.add_flag("--insecure", overrides.insecure,
                "plain DDS without authentication or encryption: loopback demo and tests only");
   if (vehicle) {
-    app.add_flag("--ros2", overrides.ros2,
-                 "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
-                 "rt/tf and take TwistStamped on cmd_vel_in (link.ros2.enabled; needs --insecure)");
+    app.add_flag(
+        "--ros2", overrides.ros2,
+        "also publish ROS 2 topics rt/<link.ros2.namespace>/odom, imu, camera, obstacles, "
+        "rt/tf, take Twist on cmd_vel, TwistStamped on cmd_vel_in and mode texts on mode_request "
+        "(link.ros2.enabled; needs --insecure)");
   }
   app.add_option("--link-impair", overrides.link_impair,
                  "impair received samples for tests and demos: "

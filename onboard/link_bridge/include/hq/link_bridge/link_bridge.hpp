@@ -135,11 +135,14 @@ class LinkBridge {
   /// its commands stand in for heartbeats), but dropped and counted while a native station's
   /// command was accepted within command_lease_ms, as DDS exclusive ownership would if they
   /// shared a topic. A request whose marker task is malformed (to_mode_request) is refused with a
-  /// kMarkerTaskRefused event and not requested.
+  /// kMarkerTaskRefused event and not requested. With ROS 2 on, the mode_request texts
+  /// (ros2_bridge::parse_mode_request) are mode requests of station link.ros2.station_id for
+  /// this session, through the same fail-safe and chain; an unreadable one is refused with a
+  /// kModeRequestRejected event and the reason on mode_status.
   const FailsafeState& poll(std::int64_t t_ns, std::vector<pipeline::ModeRequest>& mode_requests);
 
   /// Acknowledges a mode request with an event (accepted or refused with the chain's reason;
-  /// a marker task is named).
+  /// a marker task is named), and on the ROS 2 mode_status when a ROS node asked.
   void acknowledge(std::int64_t t_ns, const pipeline::ModeRequest& request,
                    const modes::ModeSwitch& result);
 
@@ -183,6 +186,13 @@ class LinkBridge {
   /// The stations' mode requests through the fail-safe into mode_requests (operator origin);
   /// each refused one gets an event.
   void take_mode_requests(std::int64_t t_ns, std::vector<pipeline::ModeRequest>& mode_requests);
+  /// The ROS 2 node's mode requests (mode_request text) as station link.ros2.station_id's,
+  /// through the same fail-safe gate; each refused one is answered on mode_status and an event.
+  void take_ros2_mode_requests(std::int64_t t_ns,
+                               std::vector<pipeline::ModeRequest>& mode_requests);
+  /// The answer to a mode request: an event, and on mode_status when a ROS node asked.
+  void answer(std::int64_t t_ns, hq_msgs_Severity severity, EventCode code, const char* text,
+              bool from_ros2);
   void report_rejections(std::int64_t t_ns);
   static FailsafeConfig with_session(FailsafeConfig config, const link::LinkConfig& link);
 
@@ -215,6 +225,7 @@ class LinkBridge {
   std::uint64_t state_sequence_ = 0;
   std::uint64_t event_sequence_ = 0;
   std::uint64_t heartbeat_sequence_ = 0;
+  std::uint64_t ros2_mode_sequence_ = 0;
   std::uint64_t camera_sent_ = 0;
   std::int64_t next_heartbeat_ns_ = 0;
   std::int64_t next_camera_ns_ = 0;

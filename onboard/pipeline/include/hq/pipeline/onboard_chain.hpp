@@ -210,6 +210,8 @@ struct ModeRequest {
   /// Operators are held to the modes' dwell and rate limit; what arrives on the operator's path
   /// but is the vehicle's own safety (the link failsafe's land) is kVehicle, never held.
   modes::RequestOrigin origin = modes::RequestOrigin::kOperator;
+  /// Asked by a ROS 2 node (link.ros2's mode_request): the answer also goes back there.
+  bool from_ros2 = false;
 };
 
 class OnboardChain {

@@ -15,6 +15,25 @@
 /// | /<ns>/camera/camera_info             | sensor_msgs/CameraInfo    | with each image, once
 /// set_camera() | | /<ns>/cmd_vel_in (read)              | geometry_msgs/TwistStamped | ROS teleop
 /// -> take_command | | /<ns>/cmd_vel (read) | geometry_msgs/Twist | teleop_twist_keyboard/joy |
+
+/// | /<ns>/mode_request (read)            | std_msgs/String           | take_mode_request() | |
+/// /<ns>/mode_status                    | std_msgs/String           | publish_mode_status()      |
+/// | ros_discovery_info                   | rmw_dds_common/ParticipantEntitiesInfo | once, at start
+/// |
+///
+/// Mode requests are text on a topic, not a std_srvs-style service: a ROS 2 service on raw DDS
+/// is a pair of rq/ rr/ topics whose samples carry rmw_cyclonedds's request header, which
+/// `ros2 topic pub` cannot send and which a secured vehicle would have to grant twice; a string
+/// every ROS tool can publish (`ros2 topic pub --once /hq1/mode_request std_msgs/msg/String
+/// "{data: take_off}"`) with the answer on mode_status serves the same purpose. The texts:
+/// parse_mode_request(). The requests go through the vehicle's gate (the link bridge's
+/// fail-safe, then the mode controller), never around it; each answer, accepted or refused
+/// with the reason, is a mode_status sample.
+///
+/// ros_discovery_info (reliable, transient local, keep last 1, as rmw_cyclonedds's): one node,
+/// link.ros2.node_name in namespace "/", with the GUIDs of the bridge's readers and writers, so
+/// `ros2 node list` and `ros2 node info` show the vehicle. ROS 2 Iron and later (Jazzy): the
+/// Gid is the 16-byte GUID; Humble's 24-byte Gid is a different layout, not spoken.
 ///
 /// Frame ids: <ns>/odom (ENU world E), <ns>/base_link (FLU body F), <ns>/camera_optical (C,
 /// already ROS's optical convention). Stamps are ROS time (RosClock below): the epoch on a real
@@ -40,8 +59,10 @@
 #include "hq/link/link.hpp"
 #include "hq/ros2_bridge/ros2_messages.hpp"
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hq::link {
@@ -60,6 +81,8 @@ HQ_ROS2_TOPIC(sensor_msgs_msg_dds__CameraInfo_);
 HQ_ROS2_TOPIC(geometry_msgs_msg_dds__TwistStamped_);
 HQ_ROS2_TOPIC(rosgraph_msgs_msg_dds__Clock_);
 HQ_ROS2_TOPIC(geometry_msgs_msg_dds__Twist_);
+HQ_ROS2_TOPIC(std_msgs_msg_dds__String_);
+HQ_ROS2_TOPIC(rmw_dds_common_msg_dds__ParticipantEntitiesInfo_);
 #undef HQ_ROS2_TOPIC
 }  // namespace hq::link
 
@@ -84,6 +107,25 @@ link::Qos ros2_command_qos();
 /// subscription is best-effort keep-last 1, which a reliable writer serves).
 link::Qos clock_qos();
 
+/// ros_discovery_info's: as tf_static_qos() (rmw_cyclonedds's: reliable, transient local, keep
+/// last 1), so a ROS tool started later still learns the node.
+link::Qos discovery_info_qos();
+
+/// A mode request as the text on mode_request gives it: what the ground's ModeRequest carries.
+struct RosModeRequest {
+  hq_msgs_Mode mode = hq_msgs_MODE_HOVER;
+  bool take_off = false;
+  hq_msgs_MarkerTask marker_task = hq_msgs_MARKER_TASK_NONE;
+  std::int32_t target_id = 0;
+};
+/// Longer mode request texts are refused unread (every valid one is far shorter).
+inline constexpr std::size_t kMaxModeRequestChars = 64;
+/// Parses a mode request text, surrounding whitespace ignored: "take_off" (take off, then
+/// teleop, as the ground's take-off), "land", "hover", "teleop", "explore", "marker", or
+/// "marker <hold|go_to|land> <id>" (a marker task on AprilTag id >= 0). Returns null when
+/// understood, else why not (static text, for the refusal).
+const char* parse_mode_request(std::string_view text, RosModeRequest& out);
+
 /// The DDS topic of ROS topic `name` in namespace `ns`: "rt/<ns>/<name>".
 std::string dds_topic_name(const std::string& ns, const std::string& name);
 
@@ -95,6 +137,8 @@ struct Ros2Counters {
   std::uint64_t commands_overridden = 0;  ///< Of those: dropped, a native station commands.
   std::uint64_t commands_stale = 0;       ///< TwistStamped dropped: stamp past kMaxCommandAge_ns.
   std::uint64_t clocks_published = 0;     ///< /clock samples (simulated time only).
+  std::uint64_t mode_requests_received = 0;  ///< mode_request samples taken.
+  std::uint64_t mode_answers_published = 0;  ///< mode_status samples written.
 };
 
 class Ros2Bridge {
@@ -125,16 +169,26 @@ class Ros2Bridge {
   /// not checked here: the fail-safe rejects and counts NaN, Inf and out-of-envelope ones as for
   /// any station.
   bool take_command(std::int64_t now_chain_ns, link::VelocityCommand& command);
+  /// The next text on mode_request, null when none is pending; valid until the next call.
+  const char* take_mode_request();
+  /// Answers a mode request on mode_status (accepted, or refused with the reason).
+  void publish_mode_status(const char* text);
+
   /// Counts a taken command dropped because a native station commands (lowest priority).
   void count_overridden() { ++counters_.commands_overridden; }
 
   [[nodiscard]] const Ros2Counters& counters() const { return counters_; }
   [[nodiscard]] const std::string& ros_namespace() const { return namespace_; }
+  [[nodiscard]] const std::string& node_name() const { return node_name_; }
   [[nodiscard]] const std::string& odom_frame() const { return messages_.odom_frame(); }
   [[nodiscard]] const std::string& body_frame() const { return messages_.body_frame(); }
 
  private:
+  /// Writes ros_discovery_info once: this node's readers and writers on `participant`.
+  void announce_node(const link::Participant& participant);
+
   std::string namespace_;
+  std::string node_name_;
   std::uint32_t vehicle_id_;
   std::uint32_t station_id_;
   Ros2Messages messages_;  ///< What is published, built as the flight record builds it.
@@ -159,6 +213,16 @@ class Ros2Bridge {
   link::Writer<TfMessage> tf_static_writer_;
   link::Topic<RosClockMsg> clock_topic_;
   link::Writer<RosClockMsg> clock_writer_;
+  link::Topic<RosString> mode_request_topic_;
+  link::Topic<RosString> mode_status_topic_;
+  link::Reader<RosString> mode_request_reader_;
+  link::Writer<RosString> mode_status_writer_;
+  link::Topic<ParticipantEntitiesInfo> discovery_topic_;
+  link::Writer<ParticipantEntitiesInfo> discovery_writer_;
+  std::vector<Gid> reader_gids_;  ///< What ros_discovery_info points at (written once).
+  std::vector<Gid> writer_gids_;
+  NodeEntitiesInfo node_info_{};
+  link::Sample<RosString> mode_request_;
   link::Sample<TwistStamped> twist_;
   link::Sample<Twist> plain_twist_;
   std::uint64_t command_sequence_ = 0;

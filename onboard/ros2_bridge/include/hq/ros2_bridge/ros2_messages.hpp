@@ -29,6 +29,10 @@ using CameraInfo = sensor_msgs_msg_dds__CameraInfo_;
 using TwistStamped = geometry_msgs_msg_dds__TwistStamped_;
 using RosClockMsg = rosgraph_msgs_msg_dds__Clock_;
 using Twist = geometry_msgs_msg_dds__Twist_;
+using RosString = std_msgs_msg_dds__String_;
+using Gid = rmw_dds_common_msg_dds__Gid_;
+using NodeEntitiesInfo = rmw_dds_common_msg_dds__NodeEntitiesInfo_;
+using ParticipantEntitiesInfo = rmw_dds_common_msg_dds__ParticipantEntitiesInfo_;
 
 /// The one mapping from the chain's clock (VehicleState.t_ns, CameraFrame.t_ns) to ROS time,
 /// used for every stamp the bridge writes and every stamp it reads:

@@ -7,7 +7,8 @@
 ///                     max_yaw_rate_radps: 1.5},
 ///          impair: {delay_ms: 0, jitter_ms: 0, loss: 0, seed: 1},   # tests and demos only
 ///          security: {enabled: true, keys_dir: keys, identity: vehicle_1},
-///          ros2: {enabled: false, namespace: hq1, station_id: 250, record: true}}
+///          ros2: {enabled: false, namespace: hq1, station_id: 250, record: true,
+///                node_name: haptiquad_1}}
 /// security: DDS Security (hq/security/keys.hpp) is on unless `enabled: false` or --insecure;
 /// keys come from `keys_dir` laid out by hq-keys (identity defaults to vehicle_<vehicle_id> on
 /// board, station_<station_id> on the ground) and/or the single paths identity_ca, certificate,
@@ -64,11 +65,16 @@ struct Ros2Config {
   /// bridge publishes, whether or not it runs; onboard/onboard_log). On by default: a ROS user
   /// expects `ros2 bag info` to take the record; off saves the disk its second image copy takes.
   bool record = true;
+  /// The ROS node the vehicle is in `ros2 node list` (ros_discovery_info, namespace "/"); empty:
+  /// "haptiquad_<vehicle_id>". A ROS name segment [A-Za-z_][A-Za-z0-9_]*.
+  std::string node_name;
 };
 
 /// The ROS namespace in use: config.ros2.ros_namespace, or "hq<vehicle_id>" when empty.
 struct LinkConfig;
 std::string ros2_namespace(const LinkConfig& config);
+/// The ROS node name in use: config.ros2.node_name, or "haptiquad_<vehicle_id>" when empty.
+std::string ros2_node_name(const LinkConfig& config);
 
 struct LinkConfig {
   int domain_id = 0;             ///< DDS domain, 0..kMaxDomainId.
