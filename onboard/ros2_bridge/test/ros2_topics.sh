@@ -36,10 +36,10 @@ cleanup() { if [ -n "$vehicle_pid" ]; then kill "$vehicle_pid" 2>/dev/null || tr
 trap cleanup EXIT
 
 "$onboard" --link --ros2 --insecure --world onboard/sim/worlds/arena.yaml \
-           --duration-s 30 --domain-id "$domain" >"$dump/onboard.out" 2>&1 &
+           --duration-s 60 --domain-id "$domain" >"$dump/onboard.out" 2>&1 &
 vehicle_pid=$!
 status=0
-"$probe" --domain-id "$domain" --out "$dump" --ns hq1 --seconds 25 || status=$?
+"$probe" --domain-id "$domain" --out "$dump" --ns hq1 --seconds 50 || status=$?
 kill -INT "$vehicle_pid" 2>/dev/null || true
 wait "$vehicle_pid" 2>/dev/null || true
 vehicle_pid=""
