@@ -325,10 +325,10 @@ hq::console::WindowOptions window_options(const Options& o) {
   window_options.camera_heading_rad = vehicle.camera.heading_rad();
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
-      window_options.R_body_camera[static_cast<std::size_t>(3 * r + c)] =
+      window_options.R_B_C[static_cast<std::size_t>(3 * r + c)] =
           static_cast<float>(vehicle.camera.R_B_C()(r, c));
     }
-    window_options.p_body_camera_m[static_cast<std::size_t>(r)] =
+    window_options.p_B_C_m[static_cast<std::size_t>(r)] =
         static_cast<float>(vehicle.camera.p_B_C_m()[r]);
   }
   return window_options;

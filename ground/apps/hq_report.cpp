@@ -246,7 +246,7 @@ struct DeadReckoning {
   double x = 0;
   double y = 0;
   void step(const hq::console::RecordedState& s, double dt_s) {
-    yaw += static_cast<double>(s.omega_body_radps[2]) * dt_s;
+    yaw += static_cast<double>(s.omega_B_radps[2]) * dt_s;
     const auto vx = static_cast<double>(s.v_H_mps[0]);
     const auto vy = static_cast<double>(s.v_H_mps[1]);
     x += (std::cos(yaw) * vx - std::sin(yaw) * vy) * dt_s;
@@ -261,9 +261,9 @@ void write_data_row(std::ofstream& data, double t_s, const hq::console::Recorded
   const float yaw_cmd = c ? c->yaw_rate_radps : 0.0F;
   data << t_s << ' ' << s.v_H_mps[0] << ' ' << s.v_H_mps[1] << ' ' << s.v_H_mps[2] << ' '
        << v_cmd[0] << ' ' << v_cmd[1] << ' ' << v_cmd[2] << ' ' << s.v_obs_H_mps[0] << ' '
-       << s.v_obs_H_mps[1] << ' ' << s.v_obs_H_mps[2] << ' ' << yaw_cmd << ' '
-       << s.omega_body_radps[2] << ' ' << track.x << ' ' << track.y << ' '
-       << number_or_nan(s.closest_obstacle_m) << ' ' << s.latency_ms;
+       << s.v_obs_H_mps[1] << ' ' << s.v_obs_H_mps[2] << ' ' << yaw_cmd << ' ' << s.omega_B_radps[2]
+       << ' ' << track.x << ' ' << track.y << ' ' << number_or_nan(s.closest_obstacle_m) << ' '
+       << s.latency_ms;
   // gnuplot leaves NaN points out, so absent truth or position breaks the trace there.
   for (std::size_t a = 0; a < 3; ++a) {
     data << ' ' << (s.truth_valid ? std::to_string(s.v_truth_H_mps[a]) : "NaN");

@@ -86,8 +86,8 @@ link::Validation plausible(const link::VehicleState& s) {
   if (!(norm(s.v_truth_H_mps) <= kMaxPlausibleSpeedMps)) {
     return {false, "v_truth_H_mps beyond 20 m/s"};
   }
-  if (!(norm(s.omega_body_radps) <= kMaxPlausibleRateRadps)) {
-    return {false, "omega_body_radps beyond 35 rad/s"};
+  if (!(norm(s.omega_B_radps) <= kMaxPlausibleRateRadps)) {
+    return {false, "omega_B_radps beyond 35 rad/s"};
   }
   if (!(magnitude(s.roll_rad) < M_PI) || !(magnitude(s.pitch_rad) < M_PI)) {
     return {false, "roll_rad or pitch_rad outside (-pi, pi)"};
@@ -225,8 +225,8 @@ constexpr const char* kTelemetryHeader =
     "odom_position_sigma_m and odom_yaw_sigma_rad its 1-sigma, odom_yaw_relative_to_start 1: "
     "the world heading unknown; v_H_sigma: the estimated velocity's 1-sigma (m/s).\n"
     "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
-    "omega_x_radps,omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,"
-    "v_obs_y_mps,v_obs_z_mps,mode,estimator_health,link_health,vehicle_id,"
+    "omega_B_x_radps,omega_B_y_radps,omega_B_z_radps,roll_rad,pitch_rad,v_obs_H_x_mps,"
+    "v_obs_H_y_mps,v_obs_H_z_mps,mode,estimator_health,link_health,vehicle_id,"
     "closest_obstacle_m,position_valid,p_W_x_m,p_W_y_m,p_W_z_m,yaw_W_rad,"
     "truth_valid,v_truth_H_x_mps,v_truth_H_y_mps,v_truth_H_z_mps,markers_n,"
     "session_id,commanding_station_id,flight_state,motors_armed,height_source,height_m,"
@@ -368,10 +368,10 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
-          as_double(s.omega_body_radps.x), as_double(s.omega_body_radps.y),
-          as_double(s.omega_body_radps.z), as_double(s.roll_rad), as_double(s.pitch_rad),
-          as_double(s.v_obs_H_mps.x), as_double(s.v_obs_H_mps.y), as_double(s.v_obs_H_mps.z),
-          to_string(s.mode), to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
+          as_double(s.omega_B_radps.x), as_double(s.omega_B_radps.y), as_double(s.omega_B_radps.z),
+          as_double(s.roll_rad), as_double(s.pitch_rad), as_double(s.v_obs_H_mps.x),
+          as_double(s.v_obs_H_mps.y), as_double(s.v_obs_H_mps.z), to_string(s.mode),
+          to_string(s.estimator_health), to_string(s.link_health), s.vehicle_id,
           link::closest_cloud_point_m(s), s.position_valid ? 1 : 0, as_double(s.p_W_m.x),
           as_double(s.p_W_m.y), as_double(s.p_W_m.z), as_double(s.yaw_W_rad), s.truth_valid ? 1 : 0,
           as_double(s.v_truth_H_mps.x), as_double(s.v_truth_H_mps.y), as_double(s.v_truth_H_mps.z),
@@ -392,8 +392,8 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
           s.odom_yaw_relative_to_start ? 1 : 0, as_double(s.v_H_sigma_mps.x),
           as_double(s.v_H_sigma_mps.y), as_double(s.v_H_sigma_mps.z)),
       "telemetry.csv");
-  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
-    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
+  for (std::uint32_t i = 0; i < s.obstacle_points_B_m._length; ++i) {
+    const hq_msgs_Vector3f& p = s.obstacle_points_B_m._buffer[i];
     written(
         std::fprintf(obstacles_, "%lld,%llu,%.4f,%.4f,%.4f\n", static_cast<long long>(receipt_ns),
                      static_cast<unsigned long long>(s.sequence_number), as_double(p.x),
@@ -499,7 +499,7 @@ GroundStation::GroundStation(const link::LinkConfig& config, TelemetryRecorder* 
   while (session_id_ == 0) session_id_ = (static_cast<std::uint64_t>(device()) << 32U) | device();
   waitset_.attach(state_condition_.handle(), 1);
   waitset_.attach(event_condition_.handle(), 2);
-  link::reserve(state_sample_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
+  link::reserve(state_sample_->obstacle_points_B_m, hq_msgs_kMaxObstaclePoints);
   link::reserve(camera_sample_->rgb_jpeg, hq_msgs_kMaxJpegBytes);
   link::reserve(camera_sample_->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
   if (config_.impairment.active()) {  // tests and demos over an emulated slow link
@@ -613,7 +613,7 @@ bool GroundStation::poll() {
                        status_.round_trip_ns);
     }
     status_.state = *state_sample_;
-    status_.state.obstacle_points_body_m = {};  // the copy must not alias the sample's buffer
+    status_.state.obstacle_points_B_m = {};  // the copy must not alias the sample's buffer
     status_.state_receipt_ns = now;
     status_.last_latency_ns = now - info.source_timestamp;
     status_.have_state = true;

@@ -88,7 +88,7 @@ void OperatorStation::take_state(std::int64_t now_ns) {
   estimate.t_ns = now_ns - std::max<std::int64_t>(age_ns, 0);
   estimate.valid = static_cast<int>(s.estimator_health) != hq_msgs_HEALTH_LOST;
   estimate.v_H_mps = {s.v_H_mps.x, s.v_H_mps.y, s.v_H_mps.z};
-  estimate.yaw_rate_radps = s.omega_body_radps.z;
+  estimate.yaw_rate_radps = s.omega_B_radps.z;
   hand_.set_vehicle_estimate(estimate);
   if (last_state_ns_ != 0) {
     stats_.max_state_gap_s =

@@ -89,7 +89,7 @@ TEST(Plausible, RejectsMagnitudesNoVehicleHasAndAcceptsAFlyingOne) {
               HasSubstr("v_H_mps"));
   EXPECT_THAT(rejected([](link::VehicleState& s) { s.v_obs_H_mps.z = -25.0F; }).reason,
               HasSubstr("v_obs_H_mps"));
-  EXPECT_THAT(rejected([](link::VehicleState& s) { s.omega_body_radps.z = 100.0F; }).reason,
+  EXPECT_THAT(rejected([](link::VehicleState& s) { s.omega_B_radps.z = 100.0F; }).reason,
               HasSubstr("omega"));
   EXPECT_THAT(rejected([](link::VehicleState& s) { s.roll_rad = 4.0F; }).reason,
               HasSubstr("roll_rad"));

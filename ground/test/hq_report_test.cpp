@@ -89,8 +89,9 @@ TEST(HqReport, OldLayoutReportsAndNamesAbsentColumns) {
   const fs::path dir = fresh_dir("old");
   fs::create_directories(dir);
   std::ofstream(dir / "telemetry.csv")
-      << "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,omega_x_radps,"
-         "omega_y_radps,omega_z_radps,roll_rad,pitch_rad,v_obs_x_mps,v_obs_y_mps,v_obs_z_mps,"
+      << "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,omega_B_x_radps,"
+         "omega_B_y_radps,omega_B_z_radps,roll_rad,pitch_rad,v_obs_H_x_mps,v_obs_H_y_mps,v_obs_H_z_"
+         "mps,"
          "mode,estimator_health,link_health,vehicle_id\n"
          "1000000000,5.0,1,0,0.25,0,0,0,0,0,0,0,0,0,0,hover,ok,ok,1\n"
          "1100000000,5.0,2,10,0.5,0,0,0,0,0,0,0,0,0,0,teleop,ok,ok,1\n";

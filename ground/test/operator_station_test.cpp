@@ -132,9 +132,9 @@ haptics::HapticsConfig hand_config(std::vector<haptics::HandKeyframe> script = {
 
 // A forward-looking camera: optical z along body x (FRD), x right, y down.
 Eigen::Matrix3d forward_camera() {
-  Eigen::Matrix3d R_body_camera;
-  R_body_camera << 0, 0, 1, 1, 0, 0, 0, 1, 0;
-  return R_body_camera;
+  Eigen::Matrix3d R_B_C;
+  R_B_C << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  return R_B_C;
 }
 
 // Everything one station needs, wired as hq-ground wires it; output captured in memory.

@@ -41,7 +41,7 @@ int run(int argc, char** argv) {
     if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
 
     hq::haptics::HapticsConfig shipped = hq::haptics::load_haptics_config(haptics_path);
-    const Eigen::Matrix3d R_body_camera = hq::load_vehicle_config(vehicle_path).camera.R_B_C();
+    const Eigen::Matrix3d R_B_C = hq::load_vehicle_config(vehicle_path).camera.R_B_C();
     // The stiff law: what a user raising the cue's gain for a crisper feel gets. Fade off, so
     // the delayed cue stays on at every delay and the passivity controller is all that acts.
     hq::haptics::HapticsConfig stiff = shipped;
@@ -74,7 +74,7 @@ int run(int argc, char** argv) {
             link.loss = loss;
             link.seed = seed;
             const hq::haptics::campaign::RunResult r =
-                hq::haptics::campaign::run(run_config, R_body_camera, link, {}, vehicle, seconds);
+                hq::haptics::campaign::run(run_config, R_B_C, link, {}, vehicle, seconds);
             std::printf(
                 "%7.0f %5.2f %3s | %9.4f %9.4f %9.4f | %7.3f %7.3f %6.2f | %8.3f %8.4f | %9.3f "
                 "%5d\n",

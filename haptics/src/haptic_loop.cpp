@@ -81,10 +81,10 @@ void JitterStats::reset() {
 }
 
 HapticLoop::HapticLoop(HapticDevice& device, const HapticsConfig& config,
-                       const Eigen::Matrix3d& R_body_camera)
+                       const Eigen::Matrix3d& R_B_C)
     : device_(device),
       config_(config),
-      mapping_(config.mapping, R_body_camera),
+      mapping_(config.mapping, R_B_C),
       feedback_(config.feedback, mapping_),
       controller_(config.feedback.passivity_max_damping_ns_per_m,
                   config.feedback.passivity_control),

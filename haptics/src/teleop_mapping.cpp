@@ -33,10 +33,10 @@ double clamp_symmetric(double value, double limit, bool& saturated) {
 
 }  // namespace
 
-TeleopMapping::TeleopMapping(const MappingConfig& config, const Eigen::Matrix3d& R_body_camera)
+TeleopMapping::TeleopMapping(const MappingConfig& config, const Eigen::Matrix3d& R_B_C)
     : config_(config) {
   try {
-    alpha_rad_ = geometry::camera_heading_rad(R_body_camera);  // eq. 9
+    alpha_rad_ = geometry::camera_heading_rad(R_B_C);  // eq. 9
   } catch (const InputError& e) {
     throw InputError(std::string("haptics: ") + e.what());
   }

@@ -24,7 +24,7 @@ VehicleEstimate estimate_at(std::int64_t t_ns, const Eigen::Vector3d& v_H_mps,
 class ForceFeedbackTest : public ::testing::Test {
  protected:
   ForceFeedbackTest()
-      : mapping_(MappingConfig{}, test::core_paper_R_body_camera()),
+      : mapping_(MappingConfig{}, test::core_paper_R_B_C()),
         feedback_(FeedbackConfig{}, mapping_) {}
   FeedbackConfig config_;
   TeleopMapping mapping_;

@@ -34,7 +34,7 @@ HapticsConfig pushing_config() {
 TEST(HapticLoop, ThreadRunsAndProducesForwardCommands) {
   const HapticsConfig config = pushing_config();
   SimulatedDevice device(config.sim);
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   const RealtimeGrant grant = loop.start();
   EXPECT_FALSE(grant.fifo);
   EXPECT_THAT(grant.summary, HasSubstr("SCHED_OTHER"));
@@ -54,7 +54,7 @@ TEST(HapticLoop, ThreadRunsAndProducesForwardCommands) {
 TEST(HapticLoop, TickAllocatesNothing) {
   const HapticsConfig config = pushing_config();
   SimulatedDevice device(config.sim);
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   VehicleEstimate estimate;
   estimate.valid = true;
   loop.tick(0);
@@ -77,7 +77,7 @@ TEST(HapticLoop, DeviceLossZeroesCommandAndForceAndSaysSo) {
   lost.connected = false;
   config.sim.script.push_back(lost);
   SimulatedDevice device(config.sim);
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   for (int k = 0; k < 250; ++k) loop.tick(k * test::kMsNs);
   ASSERT_GT(loop.latest().command.v_H_mps.norm(), 0.1);
   for (int k = 250; k < 350; ++k) loop.tick(k * test::kMsNs);
@@ -104,7 +104,7 @@ class NanDevice final : public HapticDevice {
 
 TEST(HapticLoop, NanPositionGivesZeroCommandZeroForceAndStatus) {
   NanDevice device;
-  HapticLoop loop(device, pushing_config(), test::core_paper_R_body_camera());
+  HapticLoop loop(device, pushing_config(), test::core_paper_R_B_C());
   loop.tick(0);
   loop.tick(test::kMsNs);
   const LoopOutput out = loop.latest();
@@ -146,7 +146,7 @@ class SwingingDevice final : public HapticDevice {
 TEST(HapticLoop, ForceOnTheHandNeverExceedsTheCapWhateverIsAddedBeforeIt) {
   HapticsConfig config = pushing_config();
   SwingingDevice device;
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   const double alpha_rad = loop.mapping().alpha_rad();
   VehicleEstimate forged;
   forged.valid = true;
@@ -177,7 +177,7 @@ TEST(HapticLoop, NonFiniteForceTermGivesZeroForceAndSaysSo) {
   HapticsConfig config = pushing_config();
   config.feedback.damping_ns_per_m = std::numeric_limits<double>::quiet_NaN();
   SwingingDevice device;
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   for (int k = 0; k < 100; ++k) loop.tick(k * test::kMsNs);
   const LoopOutput out = loop.latest();
   EXPECT_TRUE(device.all_finite);
@@ -191,7 +191,7 @@ TEST(HapticLoop, NonFiniteForceTermGivesZeroForceAndSaysSo) {
 TEST(HapticLoop, CueWeightFadesWhenEstimatesStop) {
   const HapticsConfig config = pushing_config();
   SimulatedDevice device(config.sim);
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   VehicleEstimate estimate;
   estimate.valid = true;
   estimate.t_ns = 100 * test::kMsNs;

@@ -19,7 +19,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 TEST(TeleopMapping, AlphaIsTheYawOfTheCameraViewingDirection) {
   // GIVEN the core paper's vehicle file (camera yawed 45 deg right, pitched 30 deg down)
-  const TeleopMapping mapping(MappingConfig{}, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(MappingConfig{}, test::core_paper_R_B_C());
   // THEN eq. 9 gives the camera's yaw, not that of the image x axis (135 deg)
   EXPECT_NEAR(mapping.alpha_rad(), 45.0 * kDeg, 1e-9);
 }
@@ -29,7 +29,7 @@ TEST(TeleopMapping, AlphaFollowsCameraYawForAnyPitchAndRoll) {
     for (double pitch_deg : {-60.0, -30.0, 0.0, 45.0}) {
       for (double roll_deg : {-20.0, 0.0, 90.0}) {
         const Eigen::Matrix3d R_QC =
-            R_body_camera_from_angles(yaw_deg * kDeg, pitch_deg * kDeg, roll_deg * kDeg);
+            R_B_C_from_angles(yaw_deg * kDeg, pitch_deg * kDeg, roll_deg * kDeg);
         const TeleopMapping mapping(MappingConfig{}, R_QC);
         EXPECT_NEAR(mapping.alpha_rad(), yaw_deg * kDeg, 1e-9)
             << "yaw " << yaw_deg << " pitch " << pitch_deg << " roll " << roll_deg;
@@ -40,7 +40,7 @@ TEST(TeleopMapping, AlphaFollowsCameraYawForAnyPitchAndRoll) {
 
 TEST(TeleopMapping, PushForwardCommandsAlongAlphaOnly) {
   const MappingConfig config;
-  const TeleopMapping mapping(config, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(config, test::core_paper_R_B_C());
   const double p_x = 0.03;
   const MappedCommand out = mapping.map(Eigen::Vector3d(p_x, 0.0, 0.0));
   ASSERT_TRUE(out.valid);
@@ -56,7 +56,7 @@ TEST(TeleopMapping, PushForwardCommandsAlongAlphaOnly) {
 
 TEST(TeleopMapping, VerticalFromPzWithTheSignOfEq8) {
   const MappingConfig config;
-  const TeleopMapping mapping(config, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(config, test::core_paper_R_B_C());
   // D is NED: +p_z is the handle pushed down; eq. 8 v_z = -k_v p_z, a climb in NED H.
   const MappedCommand out = mapping.map(Eigen::Vector3d(0.0, 0.0, 0.02));
   EXPECT_NEAR(out.command.v_H_mps.z(),
@@ -67,7 +67,7 @@ TEST(TeleopMapping, VerticalFromPzWithTheSignOfEq8) {
 
 TEST(TeleopMapping, YawRateFromPyWithTheSignOfEq10) {
   const MappingConfig config;
-  const TeleopMapping mapping(config, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(config, test::core_paper_R_B_C());
   const MappedCommand out = mapping.map(Eigen::Vector3d(0.0, 0.01, 0.0));
   EXPECT_NEAR(out.command.yaw_rate_radps,
               -config.yaw_gain_radps_per_m * (0.01 - config.dead_band_m), 1e-12);
@@ -77,7 +77,7 @@ TEST(TeleopMapping, YawRateFromPyWithTheSignOfEq10) {
 TEST(TeleopMapping, DeadBandGivesZeroInsideAndIsContinuousAtItsEdge) {
   MappingConfig config;
   config.dead_band_m = 0.004;
-  const TeleopMapping mapping(config, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(config, test::core_paper_R_B_C());
   for (const Eigen::Vector3d& p :
        {Eigen::Vector3d(0.004, -0.004, 0.0039), Eigen::Vector3d(-0.001, 0.002, -0.003)}) {
     const MappedCommand out = mapping.map(p);
@@ -91,7 +91,7 @@ TEST(TeleopMapping, DeadBandGivesZeroInsideAndIsContinuousAtItsEdge) {
 
 TEST(TeleopMapping, SaturationKeepsTheDirectionAndFlagsIt) {
   const MappingConfig config;
-  const TeleopMapping mapping(config, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(config, test::core_paper_R_B_C());
   const MappedCommand out = mapping.map(Eigen::Vector3d(0.5, -0.5, -0.5));
   ASSERT_TRUE(out.valid);
   EXPECT_TRUE(out.saturated);
@@ -104,7 +104,7 @@ TEST(TeleopMapping, SaturationKeepsTheDirectionAndFlagsIt) {
 }
 
 TEST(TeleopMapping, NonFiniteInputGivesZeroCommandAndReason) {
-  const TeleopMapping mapping(MappingConfig{}, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(MappingConfig{}, test::core_paper_R_B_C());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
   for (const Eigen::Vector3d& p : {Eigen::Vector3d(nan, 0.0, 0.0), Eigen::Vector3d(0.02, inf, 0.0),
@@ -119,7 +119,7 @@ TEST(TeleopMapping, NonFiniteInputGivesZeroCommandAndReason) {
 
 TEST(TeleopMapping, DisplacementForInvertsTheMappingOutsideTheDeadBand) {
   const MappingConfig config;
-  const TeleopMapping mapping(config, test::core_paper_R_body_camera());
+  const TeleopMapping mapping(config, test::core_paper_R_B_C());
   for (const Eigen::Vector3d& p :
        {Eigen::Vector3d(0.02, 0.01, -0.015), Eigen::Vector3d(-0.05, -0.02, 0.03)}) {
     const MappedCommand out = mapping.map(p);
@@ -131,7 +131,7 @@ TEST(TeleopMapping, DisplacementForInvertsTheMappingOutsideTheDeadBand) {
 }
 
 TEST(TeleopMapping, CameraLookingStraightDownIsRejected) {
-  const Eigen::Matrix3d R_QC = R_body_camera_from_angles(0.3, -90.0 * kDeg, 0.0);
+  const Eigen::Matrix3d R_QC = R_B_C_from_angles(0.3, -90.0 * kDeg, 0.0);
   const std::string message =
       testing::input_error_message([&] { const TeleopMapping mapping(MappingConfig{}, R_QC); });
   EXPECT_THAT(message, HasSubstr("vertical"));

@@ -80,7 +80,7 @@ std::vector<HandKeyframe> operator_script() {
 ClosedLoopRun run_closed_loop(HapticsConfig config, const VehicleModel& vehicle, double seconds) {
   config.sim.script = operator_script();
   SimulatedDevice device(config.sim);
-  HapticLoop loop(device, config, test::core_paper_R_body_camera());
+  HapticLoop loop(device, config, test::core_paper_R_B_C());
   const double dt_s = 1e-3;
   const auto delay_ticks = static_cast<std::size_t>(std::lround(vehicle.delay_s / dt_s));
   std::vector<VelocityCommand> sent(delay_ticks + 1);

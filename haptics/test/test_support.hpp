@@ -12,7 +12,7 @@
 
 namespace hq::haptics::test {
 
-inline Eigen::Matrix3d core_paper_R_body_camera() {
+inline Eigen::Matrix3d core_paper_R_B_C() {
   return load_vehicle_config("calib/vehicle_core_paper.yaml").camera.R_B_C();
 }
 

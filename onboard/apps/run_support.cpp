@@ -59,7 +59,7 @@ void say_goodbye(link_bridge::LinkBridge& bridge, std::int64_t t_ns, const StopO
 
 void add_flight_options(CLI::App& app, Options& o, const std::string& csv_help) {
   app.add_option("--config", o.config_path, "on-board config");
-  app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_body_camera)");
+  app.add_option("--vehicle", o.vehicle_path, "vehicle file (mass, limits, T_B_C)");
   app.add_option("--csv", o.csv_path, csv_help);
   app.add_option("--record", o.record_dir,
                  "write the flight's on-board MCAP log to DIR/onboard.mcap (link samples as CDR, "

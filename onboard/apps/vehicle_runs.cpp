@@ -79,9 +79,9 @@ void write_csv_row(std::FILE* csv, const hq::pipeline::ChainOutput& out) {
   v3(e.v_H_mps);
   fmt::print(csv, "{:.6f},{:.6f},{},{},", e.roll_rad, e.pitch_rad, out.obstacles.count,
              out.obstacles.near_hazard ? 1 : 0);
-  v3(out.obstacles.v_obs_horizontal_mps);
+  v3(out.obstacles.v_obs_H_mps);
   fmt::print(csv, "{},", hq::modes::to_string(out.mode.mode));
-  v3(out.mode.v_des_horizontal_mps);
+  v3(out.mode.v_des_H_mps);
   fmt::print(csv, "{:.6f},{:.6f},{:.6f},{:.6f},{},{:.3f},\"{}\"\n", s.thrust_n, s.roll_rad,
              s.pitch_rad, s.yaw_rate_radps, out.safe_hover ? 1 : 0,
              1e-6 * static_cast<double>(out.durations.total_ns),
@@ -262,8 +262,8 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
                                                                       hq::VehicleConfig& vehicle) {
   std::unique_ptr<hq::vehicle::FlightController> fc;
   if (opened.tum != nullptr) {
-    const hq::replay::ReplayImu imu = hq::replay::load_replay_imu(
-        opened.tum->sequence(), hq::replay::R_body_camera_for_camera_as_body());
+    const hq::replay::ReplayImu imu =
+        hq::replay::load_replay_imu(opened.tum->sequence(), hq::replay::R_B_C_for_camera_as_body());
     hq::log::note("hq-onboard: {}\n", imu.description.c_str());
     if (imu.synthesised) {
       vehicle.camera = hq::replay::camera_as_body_mount();
@@ -282,7 +282,7 @@ std::unique_ptr<hq::vehicle::FlightController> open_flight_controller(const Opti
     auto none = std::make_unique<hq::vehicle::NoFlightController>();
     // A hand-held camera is the body; the Kinect's accelerometer is in its optical axes.
     vehicle.camera = hq::replay::camera_as_body_mount();
-    none->set_tilt_source(opened.source.get(), hq::replay::R_body_camera_for_camera_as_body());
+    none->set_tilt_source(opened.source.get(), hq::replay::R_B_C_for_camera_as_body());
     hq::log::note("hq-onboard: camera-as-body, no gyro (zero rate), tilt from {}\n",
                   o.source_kind.rfind("freenect", 0) == 0 ? "the Kinect's accelerometer"
                                                           : "a level-camera assumption");

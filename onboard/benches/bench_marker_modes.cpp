@@ -59,7 +59,7 @@ Run make_run(const Options& o, const std::string& script, std::uint64_t seed) {
 
 Eigen::Vector3d marker_truth(const hq::sim::World& world, int id) {
   for (const hq::sim::Marker& m : world.markers) {
-    if (m.id == id) return m.center_world_m;
+    if (m.id == id) return m.center_N_m;
   }
   return Eigen::Vector3d::Constant(NAN);
 }
@@ -81,7 +81,7 @@ int run(const Options& o) {
                                                       o.target_id);
     double t = 15.0;
     for (; t < 40.0 && !landed(*r.loop); t += 0.1) r.loop->run_until(t);
-    const Eigen::Vector3d p = r.loop->simulator().truth().T_world_body.translation();
+    const Eigen::Vector3d p = r.loop->simulator().truth().T_N_B.translation();
     const double e = (p - marker_truth(r.world, o.target_id)).head<2>().norm();
     const bool ok = landed(*r.loop);
     failed += ok ? 0 : 1;
@@ -114,7 +114,7 @@ int run(const Options& o) {
         t90 = stage.explore().exploring_for_s(r.loop->simulator().t_ns());
       }
     }
-    const Eigen::Vector3d p = r.loop->simulator().truth().T_world_body.translation();
+    const Eigen::Vector3d p = r.loop->simulator().truth().T_N_B.translation();
     int mapped = 0;
     for (int id : stage.navigation().map().ids()) mapped += marker_truth(r.world, id).allFinite();
     fmt::print(

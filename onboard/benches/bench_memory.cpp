@@ -110,9 +110,9 @@ FlightFigures fly(double seconds, const hq::sim::World& world,
     sim.render_camera(image, depth);
     const hq::sim::TruthState& truth = sim.truth();
     const Eigen::Matrix3d R_H_B =
-        hq::estimator::R_horizontal_body(truth.euler_rad.x(), truth.euler_rad.y());
+        hq::estimator::R_H_B_from_tilt(truth.euler_rad.x(), truth.euler_rad.y());
     // The simulator's truth stands in for the odometry: its N is the memory's O here.
-    const Eigen::Isometry3d T_O_C = sim.camera_T_world_camera();
+    const Eigen::Isometry3d T_O_C = sim.camera_T_N_C();
     const auto t0 = SteadyClock::now();
     const hq::obstacle_memory::MemoryUpdate update =
         memory.update(sim.camera_t_ns(), depth, T_O_C, R_H_B, 1.2);
@@ -148,7 +148,7 @@ int run(int argc, char** argv) {
   }
   const hq::sim::World world = hq::sim::load_world(world_path);
   const hq::sim::SimConfig sim_config = hq::sim::default_sim_config(320, 240);
-  const Eigen::Isometry3d& T_B_C = sim_config.camera.T_body_camera;
+  const Eigen::Isometry3d& T_B_C = sim_config.camera.T_B_C;
   hq::obstacle_memory::ObstacleMemory memory(memory_config, sim_config.camera.pinhole,
                                              T_B_C.linear(), T_B_C.translation());
 

@@ -66,16 +66,15 @@ std::optional<Eigen::Isometry3d> pose_at(const std::vector<hq::recording::Stampe
   const auto next = std::lower_bound(
       poses.begin(), poses.end(), t_ns,
       [](const hq::recording::StampedPose& p, std::int64_t t) { return p.t_ns < t; });
-  if (next == poses.begin()) return next->T_world_sensor;
+  if (next == poses.begin()) return next->T_G_S;
   const auto prev = next - 1;
   const double s = static_cast<double>(t_ns - prev->t_ns) /
                    static_cast<double>(std::max<std::int64_t>(next->t_ns - prev->t_ns, 1));
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::Quaterniond(prev->T_world_sensor.linear())
-                   .slerp(s, Eigen::Quaterniond(next->T_world_sensor.linear()))
+  T.linear() = Eigen::Quaterniond(prev->T_G_S.linear())
+                   .slerp(s, Eigen::Quaterniond(next->T_G_S.linear()))
                    .toRotationMatrix();
-  T.translation() =
-      (1.0 - s) * prev->T_world_sensor.translation() + s * next->T_world_sensor.translation();
+  T.translation() = (1.0 - s) * prev->T_G_S.translation() + s * next->T_G_S.translation();
   return T;
 }
 
@@ -258,9 +257,8 @@ void pair_errors(const LoadedSequence& sequence,
         all_pairs ? trajectory.size() - 1 : std::min(i + 1, trajectory.size() - 1);
     for (std::size_t j = i + 1; j <= last; ++j) {
       if (!truth[i] || !truth[j]) continue;
-      const Eigen::Isometry3d E =
-          (truth[i]->inverse() * *truth[j]).inverse() *
-          (trajectory[i].T_world_sensor.inverse() * trajectory[j].T_world_sensor);
+      const Eigen::Isometry3d E = (truth[i]->inverse() * *truth[j]).inverse() *
+                                  (trajectory[i].T_G_S.inverse() * trajectory[j].T_G_S);
       sum_t += 1e6 * E.translation().squaredNorm();
       const double angle_deg = Eigen::AngleAxisd(E.linear()).angle() * 180.0 / M_PI;
       sum_r += angle_deg * angle_deg;

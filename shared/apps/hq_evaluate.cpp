@@ -27,7 +27,7 @@ void print_row(const char* name, const char* unit, const hq::evaluation::ErrorSt
 double largest_coordinate_m(const std::vector<hq::recording::StampedPose>& poses) {
   double largest = 0.0;
   for (const auto& p : poses)
-    largest = std::max(largest, p.T_world_sensor.translation().cwiseAbs().maxCoeff());
+    largest = std::max(largest, p.T_G_S.translation().cwiseAbs().maxCoeff());
   return largest;
 }
 

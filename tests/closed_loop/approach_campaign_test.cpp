@@ -51,7 +51,7 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
     s.world.boxes.clear();
     s.world.cylinders.clear();
     s.world.markers.clear();
-    s.world.start_world_m = Eigen::Vector3d(0.0, 0.0, 1.0);
+    s.world.start_N_m = Eigen::Vector3d(0.0, 0.0, 1.0);
     s.world.start_yaw_rad = a.yaw_rad;
     s.start_airborne(1.0);
     s.sim.seed = static_cast<std::uint64_t>(1000 + run);

@@ -49,9 +49,9 @@ TEST(ClosedLoop, HoversThirtySecondsWithSmallEstimateErrorAndDrift) {
   Scenario s = room_takeoff(36.0);
   auto loop = s.make();
   loop->run_until(6.0);
-  const Vec p_start = loop->simulator().truth().T_world_body.translation();
+  const Vec p_start = loop->simulator().truth().T_N_B.translation();
   loop->run();
-  const Vec p_end = loop->simulator().truth().T_world_body.translation();
+  const Vec p_end = loop->simulator().truth().T_N_B.translation();
 
   Vec sum_sq = Vec::Zero();
   int n = 0;
@@ -93,10 +93,10 @@ HoverFigures hover_in(const std::string& world, double end_s) {
   s.world = sim::load_world(world);
   auto loop = s.make();
   loop->run_until(6.0);
-  const Vec p_start = loop->simulator().truth().T_world_body.translation();
+  const Vec p_start = loop->simulator().truth().T_N_B.translation();
   loop->run();
   HoverFigures f;
-  f.drift_m = (loop->simulator().truth().T_world_body.translation() - p_start).head<2>().norm();
+  f.drift_m = (loop->simulator().truth().T_N_B.translation() - p_start).head<2>().norm();
   Vec sum_sq = Vec::Zero();
   int frames = 0;
   int with_estimate = 0;

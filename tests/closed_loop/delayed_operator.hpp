@@ -37,10 +37,10 @@ struct State {
 
 class DelayedHapticOperator final : public OperatorSource {
  public:
-  DelayedHapticOperator(const haptics::HapticsConfig& config, const Eigen::Matrix3d& R_body_camera,
+  DelayedHapticOperator(const haptics::HapticsConfig& config, const Eigen::Matrix3d& R_B_C,
                         const haptics::campaign::LinkModel& link)
       : arm_(haptics::campaign::ArmModel{}, &room_intent),
-        loop_(arm_, with_no_realtime(config), R_body_camera),
+        loop_(arm_, with_no_realtime(config), R_B_C),
         up_(link, link.seed * 2 + 1),
         down_(link, link.seed * 2 + 2) {}
 
@@ -82,7 +82,7 @@ class DelayedHapticOperator final : public OperatorSource {
   void on_output(const pipeline::ChainOutput& out, const sim::TruthState& truth) override {
     State s;
     s.v_H_mps = out.estimate.v_H_mps;
-    s.yaw_rate_radps = out.estimate.omega_body_radps.z();  // as hq-ground reads the state
+    s.yaw_rate_radps = out.estimate.omega_B_radps.z();  // as hq-ground reads the state
     if (s.v_H_mps.allFinite() && std::isfinite(s.yaw_rate_radps)) down_.send(out.t_ns, s);
     (void)truth;
     // Tracking: what the vehicle does against what the operator sends now.

@@ -31,7 +31,7 @@ struct Scenario {
   /// Starts in the air at altitude_m, hovering, with the chain told so (campaigns skip the
   /// take-off, which the core-paper flight covers).
   void start_airborne(double altitude_m) {
-    world.start_world_m.z() = altitude_m;
+    world.start_N_m.z() = altitude_m;
     onboard.modes.start_landed = false;
   }
 

@@ -216,7 +216,7 @@ class Fuzzer {
                 ignoring_own_writers(hq::link::vehicle_state_qos())),
         events_(participant_, topics_.event, ignoring_own_writers(hq::link::event_qos())),
         rng_(o.seed) {
-    hq::link::reserve(state_->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
+    hq::link::reserve(state_->obstacle_points_B_m, hq_msgs_kMaxObstaclePoints);
     std::snprintf(own_request_tag_, sizeof own_request_tag_, "mode request of station %u ",
                   claimed_station());
     std::snprintf(own_commander_tag_, sizeof own_commander_tag_, "station %u commands",

@@ -37,7 +37,7 @@ class ScriptedSource final : public OperatorSource {
   }
   void on_output(const pipeline::ChainOutput& /*out*/, const sim::TruthState& truth) override {
     ++outputs;
-    max_altitude_m = std::max(max_altitude_m, truth.T_world_body.translation().z());
+    max_altitude_m = std::max(max_altitude_m, truth.T_N_B.translation().z());
   }
   void on_camera(std::int64_t t_ns, const cv::Mat& image) override {
     EXPECT_FALSE(image.empty());

@@ -34,8 +34,7 @@ Landing land_once(std::uint64_t seed, int id) {
   Landing out;
   for (double t = 15.0; t < 40.0; t += 0.1) {
     f.loop->run_until(t);
-    if (f.loop->chain().markers() &&
-        f.loop->simulator().truth().T_world_body.translation().z() < 0.2 &&
+    if (f.loop->chain().markers() && f.loop->simulator().truth().T_N_B.translation().z() < 0.2 &&
         f.loop->chain().mode() == modes::Mode::kLand && !f.loop->samples().empty() &&
         f.loop->samples().back().landed) {
       out.landed = true;

@@ -83,12 +83,12 @@ class Observer final : public vehicle::OperatorPort {
       max_disagreeing_frames = std::max(max_disagreeing_frames, health.disagreeing_marker_frames);
     }
     if (check.valid && !nav.map().ids().empty()) {
-      // Truth in W: the map frame is the first marker's, W is it turned by R_world_map.
+      // Truth in W: the map frame is the first marker's, W is it turned by R_W_map.
       const int first = nav.map().ids().front();
       for (const sim::Marker& m : flight_.world.markers) {
         if (m.id != first) continue;
         const Eigen::Vector3d p_W_truth =
-            R_world_map() * (hq::markers::test::T_world_marker(m).inverse() * flight_.p_truth_m());
+            R_W_map() * (hq::markers::test::T_N_M(m).inverse() * flight_.p_truth_m());
         const double e = (nav.p_W_m() - p_W_truth).head<2>().norm();
         max_valid_error_m = std::max(max_valid_error_m, e);
         if (hidden) max_valid_error_hidden_m = std::max(max_valid_error_hidden_m, e);

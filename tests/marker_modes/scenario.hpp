@@ -30,12 +30,12 @@ struct Flight {
   /// Truth centre of marker `id` (world NWU).
   [[nodiscard]] Eigen::Vector3d marker_truth_m(int id) const {
     for (const sim::Marker& m : world.markers) {
-      if (m.id == id) return m.center_world_m;
+      if (m.id == id) return m.center_N_m;
     }
     return Eigen::Vector3d::Constant(NAN);
   }
   [[nodiscard]] Eigen::Vector3d p_truth_m() {
-    return loop->simulator().truth().T_world_body.translation();
+    return loop->simulator().truth().T_N_B.translation();
   }
 };
 

@@ -45,7 +45,7 @@ struct Case {
 
 struct SimRun {
   std::vector<hq::recording::StampedPose> trajectory;
-  std::vector<hq::recording::StampedPose> ground_truth;  ///< T_world_camera, simulator truth.
+  std::vector<hq::recording::StampedPose> ground_truth;  ///< T_N_C, simulator truth.
   int lost = 0;
   std::int64_t dropped_frames = 0;
   bool collided = false;
@@ -90,10 +90,10 @@ SimRun fly_and_track(const Case& c, const Flight& flight = {}) {
   SimRun run;
   cv::Mat gray, depth_m;
   std::vector<hq::sim::ImuSample> imu(256);
-  Eigen::Matrix3d R_prev_cur_body = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_prev_cur_B = Eigen::Matrix3d::Identity();
   std::int64_t t_last_imu_ns = -1;
   std::int64_t t_last_frame_ns = -1;
-  const Eigen::Matrix3d R_B_C = config.camera.T_body_camera.linear();
+  const Eigen::Matrix3d R_B_C = config.camera.T_B_C.linear();
   for (std::int64_t t = 0; t <= kTrackStartNs + kTrackDurationNs;
        t += hq::sim::kScriptControlPeriodNs) {
     sim.set_command(hq::sim::scripted_command(sim, script, static_cast<double>(t) * 1e-9));
@@ -102,26 +102,26 @@ SimRun fly_and_track(const Case& c, const Flight& flight = {}) {
     for (std::size_t i = 0; i < n_imu; ++i) {
       if (t_last_imu_ns >= 0) {
         const double dt_s = 1e-9 * static_cast<double>(imu[i].t_ns - t_last_imu_ns);
-        R_prev_cur_body = R_prev_cur_body * hq::geometry::exp_so3(imu[i].omega_body_radps * dt_s);
+        R_prev_cur_B = R_prev_cur_B * hq::geometry::exp_so3(imu[i].omega_B_radps * dt_s);
       }
       t_last_imu_ns = imu[i].t_ns;
     }
     if (!sim.camera_due()) continue;
     const std::int64_t t_frame_ns = sim.camera_t_ns();
-    const Eigen::Isometry3d T_world_camera = sim.camera_T_world_camera();
+    const Eigen::Isometry3d T_N_C = sim.camera_T_N_C();
     sim.render_camera(gray, depth_m);
     hq::odometry::RotationPrior gyro;
-    gyro.R_prev_cur = R_B_C.transpose() * R_prev_cur_body * R_B_C;
+    gyro.R_prev_cur = R_B_C.transpose() * R_prev_cur_B * R_B_C;
     const double sigma_rad =
         kGyroPriorSigmaRadps * 1e-9 * static_cast<double>(t_frame_ns - t_last_frame_ns);
     gyro.information = Eigen::Matrix3d::Identity() / (sigma_rad * sigma_rad);
-    R_prev_cur_body.setIdentity();
+    R_prev_cur_B.setIdentity();
     const bool have_gyro = flight.with_gyro && t_last_frame_ns >= 0;
     t_last_frame_ns = t_frame_ns;
     if (t_frame_ns < kTrackStartNs) continue;
     const auto result = odometry.track(t_frame_ns, gray, depth_m, have_gyro ? &gyro : nullptr);
     if (result.status == hq::odometry::TrackingStatus::kLost) ++run.lost;
-    run.ground_truth.push_back({t_frame_ns, T_world_camera});
+    run.ground_truth.push_back({t_frame_ns, T_N_C});
     run.trajectory.push_back({t_frame_ns, result.T_O_C});
   }
   run.dropped_frames = sim.dropped_frames();

@@ -129,8 +129,8 @@ TEST(VelocityOnRecordedDepth, ASequenceTooShortForTheEstimatorSaysWhichValuesToL
 class ScriptedFlight {
  public:
   /// @param manoeuvre  scales the velocity and yaw-rate profile: 0 hovers, 1 manoeuvres.
-  ScriptedFlight(const Eigen::Vector3d& start_world_m, double manoeuvre)
-      : start_m_(start_world_m), manoeuvre_(manoeuvre) {}
+  ScriptedFlight(const Eigen::Vector3d& start_N_m, double manoeuvre)
+      : start_m_(start_N_m), manoeuvre_(manoeuvre) {}
 
   hq::sim::AttitudeCommand command(const hq::sim::Simulator& sim, double t_s) const {
     constexpr double kG = 9.80665;
@@ -148,11 +148,10 @@ class ScriptedFlight {
         start_m_.head<2>() + k * Eigen::Vector2d(0.4 / wx * (1.0 - std::cos(wx * tau)),
                                                  0.3 / wy * (1.0 - std::cos(wy * tau)));
     const hq::sim::TruthState& truth = sim.truth();
-    const Eigen::Vector3d p = truth.T_world_body.translation();
+    const Eigen::Vector3d p = truth.T_N_B.translation();
     const Eigen::Vector2d a_xy = (t_s >= kManoeuvreS ? a_ff : Eigen::Vector2d::Zero()) +
-                                 1.0 * (p_d - p.head<2>()) +
-                                 2.0 * (v_d - truth.v_world_mps.head<2>());
-    const double a_up = 3.0 * (kAltitudeM - p.z()) - 2.5 * truth.v_world_mps.z();
+                                 1.0 * (p_d - p.head<2>()) + 2.0 * (v_d - truth.v_N_mps.head<2>());
+    const double a_up = 3.0 * (kAltitudeM - p.z()) - 2.5 * truth.v_N_mps.z();
     // Body forward in NWU is (cos psi, -sin psi), right is (-sin psi, -cos psi).
     const double yaw = truth.euler_rad.z();
     const double a_forward = std::cos(yaw) * a_xy.x() - std::sin(yaw) * a_xy.y();
@@ -182,8 +181,8 @@ void record_flight(const std::string& dir, double duration_s, double manoeuvre) 
   config.camera.pinhole = hq::sim::pinhole_from_fov(320, 240, hfov_rad);
   config.seed = 5;
   hq::sim::Simulator sim(config, world);
-  hq::sim::TumWriter writer(dir, config.camera.pinhole, config.camera.T_body_camera);
-  const ScriptedFlight script(world.start_world_m, manoeuvre);
+  hq::sim::TumWriter writer(dir, config.camera.pinhole, config.camera.T_B_C);
+  const ScriptedFlight script(world.start_N_m, manoeuvre);
   constexpr std::int64_t kControlPeriodNs = 5'000'000;
   const auto start_ns = static_cast<std::int64_t>(ScriptedFlight::kManoeuvreS * 1e9);
   const auto end_ns = start_ns + static_cast<std::int64_t>(duration_s * 1e9);
@@ -196,9 +195,9 @@ void record_flight(const std::string& dir, double duration_s, double manoeuvre) 
     for (std::size_t i = 0; i < n && t >= start_ns; ++i) writer.write_imu(imu[i]);
     if (sim.camera_due()) {
       const std::int64_t t_frame_ns = sim.camera_t_ns();
-      const Eigen::Isometry3d T_world_camera = sim.camera_T_world_camera();
+      const Eigen::Isometry3d T_N_C = sim.camera_T_N_C();
       sim.render_camera(image, depth_m);
-      if (t_frame_ns >= start_ns) writer.write_frame(t_frame_ns, image, depth_m, T_world_camera);
+      if (t_frame_ns >= start_ns) writer.write_frame(t_frame_ns, image, depth_m, T_N_C);
     }
   }
   writer.close();

@@ -43,10 +43,10 @@ double ConsoleModel::seconds(std::int64_t t_ns) {
 
 void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
                             const std::array<float, 3>& v_H_mps,
-                            const std::array<float, 3>& omega_body_radps, float roll_rad,
+                            const std::array<float, 3>& omega_B_radps, float roll_rad,
                             float pitch_rad, const std::array<float, 3>& v_obs_H_mps,
                             const char* mode, const char* estimator_health, const char* link_health,
-                            const float* cloud_body_m, std::size_t cloud_points,
+                            const float* cloud_B_m, std::size_t cloud_points,
                             const StateExtras& extras) {
   const std::lock_guard<std::mutex> lock(mutex_);
   const double t_s = seconds(t_ns);
@@ -70,8 +70,8 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
     // Dead reckoning for the top view (see the header): yaw from the gyro's z rate, then
     // v_W = R_z(yaw) v_H. A gap of more than a second is not bridged.
     const double dt_s = std::min(1e-9 * static_cast<double>(t_ns - last_state_ns_), 1.0);
-    if (std::isfinite(omega_body_radps[2])) {
-      yaw_W_rad_ += static_cast<double>(omega_body_radps[2]) * dt_s;
+    if (std::isfinite(omega_B_radps[2])) {
+      yaw_W_rad_ += static_cast<double>(omega_B_radps[2]) * dt_s;
     }
     const double c = std::cos(yaw_W_rad_);
     const double s = std::sin(yaw_W_rad_);
@@ -91,7 +91,7 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   p.v_cmd_H_mps = command_;
   p.v_obs_H_mps = v_obs_H_mps;
   p.yaw_rate_cmd_radps = yaw_rate_command_;
-  p.yaw_rate_meas_radps = omega_body_radps[2];
+  p.yaw_rate_meas_radps = omega_B_radps[2];
   p.latency_ms = static_cast<float>(latency_ms);
   p.state_age_ms = extras.state_age_ms;
   p.round_trip_ms = extras.round_trip_ms;
@@ -128,14 +128,14 @@ void ConsoleModel::on_state(std::int64_t t_ns, double latency_ms,
   link_health_ = link_health;
   roll_rad_ = roll_rad;
   pitch_rad_ = pitch_rad;
-  if (cloud_body_m != nullptr && cloud_points > 0) {
+  if (cloud_B_m != nullptr && cloud_points > 0) {
     // Body FRD to W about the vertical only (roll and pitch are small in the top view).
     const double c = std::cos(yaw_W_rad_);
     const double s = std::sin(yaw_W_rad_);
     cloud_count_ = std::min(cloud_points, cloud_W_.size());
     for (std::size_t i = 0; i < cloud_count_; ++i) {
-      const double x = cloud_body_m[3 * i];
-      const double y = cloud_body_m[3 * i + 1];
+      const double x = cloud_B_m[3 * i];
+      const double y = cloud_B_m[3 * i + 1];
       cloud_W_[i] = {static_cast<float>(x_W_m_ + c * x - s * y),
                      static_cast<float>(y_W_m_ + s * x + c * y)};
     }

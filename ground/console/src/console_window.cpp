@@ -555,11 +555,11 @@ struct ConsoleWindow::Impl {
   template <typename ToPx>
   void top_view_markers(ImDrawList* draw, const Snapshot& s, const ToPx& to_px) const {
     const float yaw = s.yaw_W_rad;
-    const std::array<float, 9>& R = options.R_body_camera;
+    const std::array<float, 9>& R = options.R_B_C;
     for (std::size_t i = 0; i < s.marker_count; ++i) {
       const std::array<float, 3>& c = s.markers[i].p_camera_marker_m;
-      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_body_camera_m[0];
-      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_body_camera_m[1];
+      const float qx = R[0] * c[0] + R[1] * c[1] + R[2] * c[2] + options.p_B_C_m[0];
+      const float qy = R[3] * c[0] + R[4] * c[1] + R[5] * c[2] + options.p_B_C_m[1];
       const float x_W = s.position_W.x_W_m + std::cos(yaw) * qx - std::sin(yaw) * qy;
       const float y_W = s.position_W.y_W_m + std::sin(yaw) * qx + std::cos(yaw) * qy;
       const ImVec2 mp = to_px(x_W, y_W);

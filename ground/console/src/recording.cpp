@@ -323,8 +323,8 @@ using FileStarts = std::vector<std::pair<std::string, std::int64_t>>;  // "file:
 
 const std::vector<std::string> kStateColumns = {
     "receipt_ns", "latency_us", "sequence", "t_ns", "v_H_x_mps", "v_H_y_mps", "v_H_z_mps",
-    "omega_x_radps", "omega_y_radps", "omega_z_radps", "roll_rad", "pitch_rad", "v_obs_x_mps",
-    "v_obs_y_mps", "v_obs_z_mps", "mode", "estimator_health", "link_health",
+    "omega_B_x_radps", "omega_B_y_radps", "omega_B_z_radps", "roll_rad", "pitch_rad",
+    "v_obs_H_x_mps", "v_obs_H_y_mps", "v_obs_H_z_mps", "mode", "estimator_health", "link_health",
     // Optional from here: later layouts (older recordings lack them).
     "closest_obstacle_m", "position_valid", "p_W_x_m", "p_W_y_m", "p_W_z_m", "yaw_W_rad",
     "truth_valid", "v_truth_H_x_mps", "v_truth_H_y_mps", "v_truth_H_z_mps", "markers_n",
@@ -358,7 +358,7 @@ bool parse_state_core(const Fields& f, RecordedState& s, std::string& error) {
   std::array<float, 11> values{};
   if (!parse_floats(f, 4, kStateColumns, values, error)) return false;
   s.v_H_mps = {values[0], values[1], values[2]};
-  s.omega_body_radps = {values[3], values[4], values[5]};
+  s.omega_B_radps = {values[3], values[4], values[5]};
   s.roll_rad = values[6];
   s.pitch_rad = values[7];
   s.v_obs_H_mps = {values[8], values[9], values[10]};
@@ -605,12 +605,12 @@ void read_obstacles(Recording& r) {
               std::string(f[1]) + "; point skipped";
       return false;
     }
-    if (s->obstacle_points_body_m.size() >= hq_msgs_kMaxObstaclePoints) {
+    if (s->obstacle_points_B_m.size() >= hq_msgs_kMaxObstaclePoints) {
       error = "more than " + std::to_string(hq_msgs_kMaxObstaclePoints) +
               " points for one state (the link's bound); point skipped";
       return false;
     }
-    s->obstacle_points_body_m.push_back(p);
+    s->obstacle_points_B_m.push_back(p);
     return true;
   });
 }

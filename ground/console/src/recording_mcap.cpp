@@ -22,7 +22,7 @@ bool finite3(const hq_msgs_Vector3f& v) {
 
 // The CSV reader refuses rows with a non-finite number; so does this one.
 bool finite(const link::VehicleState& s) {
-  return finite3(s.v_H_mps) && finite3(s.omega_body_radps) && finite3(s.v_obs_H_mps) &&
+  return finite3(s.v_H_mps) && finite3(s.omega_B_radps) && finite3(s.v_obs_H_mps) &&
          std::isfinite(s.roll_rad) && std::isfinite(s.pitch_rad) && finite3(s.p_W_m) &&
          std::isfinite(s.yaw_W_rad) && finite3(s.v_truth_H_mps) && finite3(s.v_cmd_flown_H_mps);
 }

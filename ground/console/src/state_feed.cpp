@@ -73,7 +73,7 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.sequence = s.sequence_number;
   out.vehicle_t_ns = s.t_ns;
   out.v_H_mps = array3(s.v_H_mps);
-  out.omega_body_radps = array3(s.omega_body_radps);
+  out.omega_B_radps = array3(s.omega_B_radps);
   out.roll_rad = s.roll_rad;
   out.pitch_rad = s.pitch_rad;
   out.v_obs_H_mps = array3(s.v_obs_H_mps);
@@ -106,9 +106,9 @@ void to_recorded(std::int64_t receipt_ns, double latency_ms, const link::Vehicle
   out.odom_yaw_relative_to_start = s.odom_yaw_relative_to_start;
   out.v_H_sigma_mps = array3(s.v_H_sigma_mps);
   // resize() within the capacity reserved by LiveStateFeed: no allocation on the live path.
-  out.obstacle_points_body_m.resize(s.obstacle_points_body_m._length);
-  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
-    out.obstacle_points_body_m[i] = array3(s.obstacle_points_body_m._buffer[i]);
+  out.obstacle_points_B_m.resize(s.obstacle_points_B_m._length);
+  for (std::uint32_t i = 0; i < s.obstacle_points_B_m._length; ++i) {
+    out.obstacle_points_B_m[i] = array3(s.obstacle_points_B_m._buffer[i]);
   }
   out.markers.resize(std::min<std::size_t>(s.markers._length, kMaxMarkerViews));
   for (std::size_t i = 0; i < out.markers.size(); ++i) {
@@ -206,14 +206,14 @@ void feed_state(ConsoleModel& model, const RecordedState& s) {
       mode_off_text(s.modes_offered, hq_msgs_MODE_EXPLORE, s.explore_mode_off_reason);
   static_assert(sizeof(std::array<float, 3>) == 3 * sizeof(float));
   const float* cloud =
-      s.obstacle_points_body_m.empty() ? nullptr : s.obstacle_points_body_m.front().data();
-  model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_body_radps, s.roll_rad, s.pitch_rad,
+      s.obstacle_points_B_m.empty() ? nullptr : s.obstacle_points_B_m.front().data();
+  model.on_state(s.receipt_ns, s.latency_ms, s.v_H_mps, s.omega_B_radps, s.roll_rad, s.pitch_rad,
                  s.v_obs_H_mps, s.mode, s.estimator_health, s.link_health, cloud,
-                 s.obstacle_points_body_m.size(), extras);
+                 s.obstacle_points_B_m.size(), extras);
 }
 
 LiveStateFeed::LiveStateFeed() {
-  row_.obstacle_points_body_m.reserve(hq_msgs_kMaxObstaclePoints);
+  row_.obstacle_points_B_m.reserve(hq_msgs_kMaxObstaclePoints);
   row_.markers.reserve(kMaxMarkerViews);
 }
 

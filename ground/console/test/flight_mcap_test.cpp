@@ -205,7 +205,7 @@ TEST(FlightMcap, EveryFieldOfTheRecordedStatesReturns) {
   EXPECT_EQ(s.vehicle_t_ns, 35'000'000LL);
   EXPECT_FLOAT_EQ(s.v_H_mps[0], 0.7F);
   EXPECT_FLOAT_EQ(s.v_H_mps[1], -0.2F);
-  EXPECT_FLOAT_EQ(s.omega_body_radps[2], 0.21F);
+  EXPECT_FLOAT_EQ(s.omega_B_radps[2], 0.21F);
   EXPECT_FLOAT_EQ(s.pitch_rad, -0.06F);
   EXPECT_FLOAT_EQ(s.v_obs_H_mps[2], -0.1F);
   EXPECT_STREQ(s.mode, "teleop");
@@ -295,8 +295,8 @@ TEST(FlightMcap, Xcdr1AndXcdr2DecodeToTheSameState) {
   ASSERT_TRUE(decode_cdr(vehicle_state(3, 11, true), two, scratch, error)) << error;
   EXPECT_EQ(one->vehicle_id, 3U);
   EXPECT_EQ(two->session_id, 0xABCDEFU);
-  EXPECT_EQ(one->obstacle_points_body_m._length, 2U);
-  EXPECT_EQ(two->obstacle_points_body_m._buffer[1].x, 1.0F);
+  EXPECT_EQ(one->obstacle_points_B_m._length, 2U);
+  EXPECT_EQ(two->obstacle_points_B_m._buffer[1].x, 1.0F);
   EXPECT_EQ(two->markers._buffer[0].id, 9);
   EXPECT_EQ(one->clearance_m, two->clearance_m);
   EXPECT_EQ(two->operator_input, hq_msgs_INPUT_LIMITED_UNSEEN);

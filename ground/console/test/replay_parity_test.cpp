@@ -69,7 +69,7 @@ std::vector<FlightState> make_flight() {
     s.estimator_health = hq_msgs_HEALTH_OK;
     s.link_health = i == 30 ? hq_msgs_HEALTH_DEGRADED : hq_msgs_HEALTH_OK;
     s.v_H_mps = {i < 10 ? 0.0F : 0.25F, 0.0625F, i < 10 ? -0.5F : 0.0F};
-    s.omega_body_radps = {0.0F, 0.0F, i >= 20 && i < 30 ? 0.5F : 0.0F};
+    s.omega_B_radps = {0.0F, 0.0F, i >= 20 && i < 30 ? 0.5F : 0.0F};
     s.roll_rad = 0.0125F;
     s.pitch_rad = -0.025F;
     s.v_obs_H_mps = {i >= 20 ? -0.125F : 0.0F, 0.0F, 0.0F};
@@ -138,10 +138,10 @@ std::vector<FlightState> make_flight() {
     if (i >= 38 && i < 46) {
       f.markers.push_back({3, {0.125F, -0.0625F, 1.5F}, {0.96875F, 0.0F, 0.25F, 0.0F}});
     }
-    s.obstacle_points_body_m._length = static_cast<std::uint32_t>(f.cloud.size());
-    s.obstacle_points_body_m._maximum = s.obstacle_points_body_m._length;
-    s.obstacle_points_body_m._buffer = f.cloud.empty() ? nullptr : f.cloud.data();
-    s.obstacle_points_body_m._release = false;
+    s.obstacle_points_B_m._length = static_cast<std::uint32_t>(f.cloud.size());
+    s.obstacle_points_B_m._maximum = s.obstacle_points_B_m._length;
+    s.obstacle_points_B_m._buffer = f.cloud.empty() ? nullptr : f.cloud.data();
+    s.obstacle_points_B_m._release = false;
     s.markers._length = static_cast<std::uint32_t>(f.markers.size());
     s.markers._maximum = s.markers._length;
     s.markers._buffer = f.markers.empty() ? nullptr : f.markers.data();
@@ -361,8 +361,8 @@ TEST(ReplayParity, TheLivePathAllocatesNothingPerState) {
   big.cloud.assign(hq_msgs_kMaxObstaclePoints, {1.0F, 0.5F, 0.0F});
   big.markers.assign(hq_msgs_kMaxMarkersInState,
                      big.markers.empty() ? hq_msgs_MarkerInCamera{} : big.markers.front());
-  big.s.obstacle_points_body_m = {hq_msgs_kMaxObstaclePoints, hq_msgs_kMaxObstaclePoints,
-                                  big.cloud.data(), false};
+  big.s.obstacle_points_B_m = {hq_msgs_kMaxObstaclePoints, hq_msgs_kMaxObstaclePoints,
+                               big.cloud.data(), false};
   big.s.markers = {hq_msgs_kMaxMarkersInState, hq_msgs_kMaxMarkersInState, big.markers.data(),
                    false};
   ConsoleModel live;
@@ -375,7 +375,7 @@ TEST(ReplayParity, TheLivePathAllocatesNothingPerState) {
     }
   }
   EXPECT_EQ(hq::testing::allocation_count() - before, 0);
-  EXPECT_EQ(feed.latest().obstacle_points_body_m.size(), 0U);  // the last state carried none
+  EXPECT_EQ(feed.latest().obstacle_points_B_m.size(), 0U);  // the last state carried none
 }
 
 TEST(ReplayParity, McapReplayShowsWhatTheLiveConsoleShowedFrameByFrame) {
@@ -446,7 +446,7 @@ TEST(ReplayParity, AnOlderCsvRecordingNamesWhatItLacks) {
   EXPECT_THAT(absent, HasSubstr("obstacles.csv (the whole file: an older recording; replay "
                                 "shows no obstacle cloud)"));
   EXPECT_THAT(absent, HasSubstr("markers.csv"));
-  EXPECT_TRUE(r.states[20].obstacle_points_body_m.empty());
+  EXPECT_TRUE(r.states[20].obstacle_points_B_m.empty());
   EXPECT_STREQ(r.states[20].flight_state, "airborne");  // the rest is read as before
   fs::remove_all(dir);
 }
@@ -464,7 +464,7 @@ TEST(ReplayParity, AnObstacleRowWithoutItsStateIsNamed) {
   ASSERT_EQ(r.problems.size(), 1U);
   EXPECT_THAT(r.problems[0], HasSubstr("obstacles.csv:"));
   EXPECT_THAT(r.problems[0], HasSubstr("no state in telemetry.csv"));
-  EXPECT_EQ(r.states[25].obstacle_points_body_m.size(), 12U);
+  EXPECT_EQ(r.states[25].obstacle_points_B_m.size(), 12U);
   fs::remove_all(dir);
 }
 

@@ -53,8 +53,8 @@ int run_vehicle(int domain_id, double duration_s) {
   hq::link::Reader<hq::link::VelocityCommand> command_reader(
       participant, topics.command, hq::link::command_qos(config, hq::link::End::kReader));
   hq::link::Sample<hq::link::VehicleState> state;
-  hq::link::reserve(state->obstacle_points_body_m, 512);
-  state->obstacle_points_body_m._length = 512;
+  hq::link::reserve(state->obstacle_points_B_m, 512);
+  state->obstacle_points_B_m._length = 512;
   hq::link::Sample<hq::link::CameraFrame> frame;
   hq::link::reserve(frame->rgb_jpeg, 20'000);
   frame->rgb_jpeg._length = 20'000;

@@ -119,7 +119,7 @@ async function readAll(bytes, handlers, killed) {
               'camera frame: rgb_jpeg is not a JPEG');
       }
       if (c.topic === '/hq/vehicle_state') {
-        check(Number.isFinite(msg.v_H_mps.x) && msg.obstacle_points_body_m.length <= 2048,
+        check(Number.isFinite(msg.v_H_mps.x) && msg.obstacle_points_B_m.length <= 2048,
               'vehicle state: bad values');
       }
     } else {

@@ -139,7 +139,7 @@ constexpr int kCount = 40;
 // ground sample, paced like a link (the state and camera readers keep the latest sample only).
 void publish_flight(Publishers& pub, FlightRecorder& recorder) {
   link::Sample<link::VehicleState> state;
-  link::reserve(state->obstacle_points_body_m, 3);
+  link::reserve(state->obstacle_points_B_m, 3);
   link::Sample<link::CameraFrame> frame;
   link::reserve(frame->rgb_jpeg, 5);
   for (int i = 0; i < kCount; ++i) {
@@ -158,9 +158,9 @@ void publish_flight(Publishers& pub, FlightRecorder& recorder) {
     // The odometry's pose from the second half on: 1 m north, 2 m east (NED-like odom).
     state->odom_valid = i >= kCount / 2;
     state->p_odom_m = {1.0F, 2.0F, 0.0F};
-    state->obstacle_points_body_m._length = 3;
+    state->obstacle_points_B_m._length = 3;
     for (std::uint32_t k = 0; k < 3; ++k) {
-      state->obstacle_points_body_m._buffer[k] = {1.0F + static_cast<float>(k), 2.0F, -0.5F};
+      state->obstacle_points_B_m._buffer[k] = {1.0F + static_cast<float>(k), 2.0F, -0.5F};
     }
     ASSERT_GE(dds_write_ts(pub.state.handle(), &*state, stamp), 0);
 
@@ -375,7 +375,7 @@ TEST_F(FlightRecorderTest, RecordedSamplesReadBackAsTheReplaysRecording) {
   Publishers pub(options_.link);
   ASSERT_TRUE(wait_matched(pub));
   link::Sample<link::VehicleState> state;
-  link::reserve(state->obstacle_points_body_m, 2);
+  link::reserve(state->obstacle_points_B_m, 2);
   link::Sample<link::CameraFrame> frame;
   link::reserve(frame->rgb_jpeg, 4);
   for (int i = 0; i < 10; ++i) {
@@ -383,9 +383,9 @@ TEST_F(FlightRecorderTest, RecordedSamplesReadBackAsTheReplaysRecording) {
     state->sequence_number = 50u + static_cast<unsigned>(i);
     state->v_H_mps = {0.5F, -0.25F * static_cast<float>(i), 0.125F};
     state->mode = hq_msgs_MODE_TELEOP;
-    state->obstacle_points_body_m._length = 2;
-    state->obstacle_points_body_m._buffer[0] = {0.0F, 3.0F, 4.0F};
-    state->obstacle_points_body_m._buffer[1] = {2.0F, 0.0F, 0.0F};
+    state->obstacle_points_B_m._length = 2;
+    state->obstacle_points_B_m._buffer[0] = {0.0F, 3.0F, 4.0F};
+    state->obstacle_points_B_m._buffer[1] = {2.0F, 0.0F, 0.0F};
     state->session_id = 99;
     state->flight_state = hq_msgs_FLIGHT_AIRBORNE;
     state->height_source = hq_msgs_HEIGHT_DEPTH;

@@ -37,8 +37,8 @@ namespace {
 class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
  public:
   LoggedLinkPort(hq::link_bridge::LinkBridge& bridge, const hq::pipeline::OnboardChain& chain,
-                 const Eigen::Isometry3d& T_body_camera, std::FILE* log)
-      : LinkOperatorPort(bridge, chain, T_body_camera, stdout), log_(log) {}
+                 const Eigen::Isometry3d& T_B_C, std::FILE* log)
+      : LinkOperatorPort(bridge, chain, T_B_C, stdout), log_(log) {}
   void set_simulator(const hq::sim::Simulator* sim) { sim_ = sim; }
 
   void on_output(const hq::pipeline::ChainOutput& out,
@@ -59,8 +59,8 @@ class LoggedLinkPort final : public hq::link_bridge::LinkOperatorPort {
                f.heartbeat_age_ns < 0 ? -1.0 : 1e-6 * static_cast<double>(f.heartbeat_age_ns),
                f.hold ? 1 : 0, f.heartbeat_lost ? 1 : 0, v.x(), v.y(), v.z(),
                f.command.yaw_rate_radps, truth.v_H_mps.x(), truth.v_H_mps.y(), truth.v_H_mps.z(),
-               truth.T_world_body.translation().z(), truth.collision ? 1 : 0,
-               out.estimate.ok() ? 1 : 0, static_cast<unsigned long long>(c.commands_accepted),
+               truth.T_N_B.translation().z(), truth.collision ? 1 : 0, out.estimate.ok() ? 1 : 0,
+               static_cast<unsigned long long>(c.commands_accepted),
                static_cast<unsigned long long>(c.commands_rejected),
                static_cast<unsigned long long>(c.mode_requests_rejected));
   }

@@ -157,23 +157,23 @@ void ClosedLoop::record(const pipeline::ChainOutput& out) {
   s.v_true_mps = truth.v_H_mps;
   s.roll_pitch_est_rad = {out.estimate.roll_rad, out.estimate.pitch_rad};
   s.roll_pitch_true_rad = truth.euler_rad.head<2>();
-  s.v_star_des_mps = out.mode.v_star_des_horizontal_mps;
-  s.v_des_mps = out.mode.v_des_horizontal_mps;
-  s.v_obs_mps = out.obstacles.v_obs_horizontal_mps;
+  s.v_star_des_mps = out.mode.v_star_des_H_mps;
+  s.v_des_mps = out.mode.v_des_H_mps;
+  s.v_obs_mps = out.obstacles.v_obs_H_mps;
   s.yaw_rate_cmd_radps = out.mode.control.setpoint.yaw_rate_radps;
-  s.yaw_rate_gyro_radps = out.estimate.omega_body_radps.z();
-  s.yaw_rate_true_radps = truth.omega_body_radps.z();
+  s.yaw_rate_gyro_radps = out.estimate.omega_B_radps.z();
+  s.yaw_rate_true_radps = truth.omega_B_radps.z();
   s.clearance_m = truth.clearance_m;
   s.clearance_sent_m = out.clearance_m;
-  s.p_N_m = truth.T_world_body.translation();
+  s.p_N_m = truth.T_N_B.translation();
   s.reason = out.safe_hover ? out.safe_hover_reason : "";
   s.flight_state = out.flight_state;
   s.height_m = out.height_m;
   s.height_source = out.height_source;
   s.hover_thrust_gain = out.hover_thrust.gain;
   s.odom = out.odom;
-  const Eigen::Vector3d x_body_N = truth.T_world_body.linear().col(0);
-  s.heading_true_ned_rad = std::atan2(-x_body_N.y(), x_body_N.x());  // N is NWU: y left
+  const Eigen::Vector3d x_B_N = truth.T_N_B.linear().col(0);
+  s.heading_true_ned_rad = std::atan2(-x_B_N.y(), x_B_N.x());  // N is NWU: y left
   samples_.push_back(s);
 }
 

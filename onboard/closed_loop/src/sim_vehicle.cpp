@@ -32,7 +32,7 @@ void SimFlightController::poll(std::int64_t t_ns, vehicle::FcSink& sink) {
   sim_.step_to(t_ns);
   const std::size_t n = sim_.take_imu(imu_.data(), imu_.size());
   for (std::size_t i = 0; i < n; ++i) {
-    sink.on_imu({imu_[i].t_ns, imu_[i].omega_body_radps, imu_[i].f_body_mps2});
+    sink.on_imu({imu_[i].t_ns, imu_[i].omega_B_radps, imu_[i].f_B_mps2});
   }
   counters_.imu_samples += n;
   counters_.messages_received += n;
@@ -68,7 +68,7 @@ vehicle::FcStatus SimFlightController::status(std::int64_t /*t_ns*/) const {
 
 std::optional<vehicle::TruthSample> SimFlightController::truth() const {
   const sim::TruthState& t = sim_.truth();
-  return vehicle::TruthSample{t.v_H_mps, t.T_world_body.translation(), t.on_ground};
+  return vehicle::TruthSample{t.v_H_mps, t.T_N_B.translation(), t.on_ground};
 }
 
 SimCamera::SimCamera(sim::Simulator& sim, std::vector<CameraFault> faults, ImageObserver observer)

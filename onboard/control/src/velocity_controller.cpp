@@ -52,12 +52,11 @@ AttitudeSetpoint VelocityController::hover_setpoint() const {
   return hover;
 }
 
-ControlOutput VelocityController::update(std::int64_t t_ns,
-                                         const Eigen::Vector3d& v_des_horizontal_mps,
+ControlOutput VelocityController::update(std::int64_t t_ns, const Eigen::Vector3d& v_des_H_mps,
                                          double yaw_rate_des_radps,
                                          const std::optional<Eigen::Vector3d>& v_est_H_mps) {
   ControlOutput out;
-  const bool finite = v_des_horizontal_mps.allFinite() && std::isfinite(yaw_rate_des_radps) &&
+  const bool finite = v_des_H_mps.allFinite() && std::isfinite(yaw_rate_des_radps) &&
                       (!v_est_H_mps || v_est_H_mps->allFinite());
   if (!v_est_H_mps || !finite) {
     out.setpoint = hover_setpoint();
@@ -66,22 +65,22 @@ ControlOutput VelocityController::update(std::int64_t t_ns,
     have_previous_ = false;  // no derivative across the gap; the integral is kept frozen
     return out;
   }
-  const Eigen::Vector3d& v_est_horizontal_mps = *v_est_H_mps;
+  const Eigen::Vector3d& v_H_est_mps = *v_est_H_mps;
 
   const double dt_s = hq::to_seconds(t_ns - t_prev_ns_);
   const bool step_valid = have_previous_ && dt_s > 0.0 && dt_s <= config_.max_dt_s;
   if (step_valid) {
     // Derivative on measurement, low-passed: a setpoint step does not kick the output.
-    const Eigen::Vector3d accel_mps2 = (v_est_horizontal_mps - v_prev_mps_) / dt_s;
+    const Eigen::Vector3d accel_mps2 = (v_H_est_mps - v_prev_mps_) / dt_s;
     const double tau_s = 1.0 / (2.0 * M_PI * config_.d_cutoff_hz);
     accel_filtered_mps2_ += dt_s / (tau_s + dt_s) * (accel_mps2 - accel_filtered_mps2_);
   }
-  v_prev_mps_ = v_est_horizontal_mps;
+  v_prev_mps_ = v_H_est_mps;
   t_prev_ns_ = t_ns;
   if (!have_previous_) accel_filtered_mps2_.setZero();
   have_previous_ = true;
 
-  const Eigen::Vector3d error_mps = v_des_horizontal_mps - v_est_horizontal_mps;
+  const Eigen::Vector3d error_mps = v_des_H_mps - v_H_est_mps;
   const Eigen::Vector3d a_cmd = kp_.cwiseProduct(error_mps) + ki_.cwiseProduct(integral_m_) -
                                 kd_.cwiseProduct(accel_filtered_mps2_);
   out.a_command_mps2 = a_cmd;

@@ -204,8 +204,8 @@ TEST(VehicleConfig, ShippedCorePaperVehicleLoads) {
 TEST(VehicleConfig, BadValueIsRejectedNamingTheKey) {
   const YAML::Node node = YAML::Load(
       "{mass_kg: 1.0, limits: {max_tilt_deg: 95, min_thrust_n: 2, max_thrust_n: 20, "
-      "max_yaw_rate_degps: 90}, T_body_camera: {yaw_deg: 45, pitch_deg: -30, roll_deg: 0, "
-      "p_body_camera_m: [0.1, 0, 0]}}");
+      "max_yaw_rate_degps: 90}, T_B_C: {yaw_deg: 45, pitch_deg: -30, roll_deg: 0, "
+      "p_B_C_m: [0.1, 0, 0]}}");
   config::StrictMap root(node, "calib/vehicle_core_paper.yaml");
   VehicleConfig vehicle;
   try {
@@ -224,15 +224,15 @@ TEST(VehicleConfig, BadValueIsRejectedNamingTheKey) {
 TEST(VehicleConfig, VerticalCameraIsRejectedWhereTheFileIsRead) {
   const YAML::Node node = YAML::Load(
       "{mass_kg: 1.0, limits: {max_tilt_deg: 30, min_thrust_n: 2, max_thrust_n: 20, "
-      "max_yaw_rate_degps: 90}, T_body_camera: {yaw_deg: 0, pitch_deg: -90, roll_deg: 0, "
-      "p_body_camera_m: [0.1, 0, 0]}}");
+      "max_yaw_rate_degps: 90}, T_B_C: {yaw_deg: 0, pitch_deg: -90, roll_deg: 0, "
+      "p_B_C_m: [0.1, 0, 0]}}");
   config::StrictMap root(node, "calib/down.yaml");
   VehicleConfig vehicle;
   try {
     read_config(root, vehicle);
     FAIL() << "expected hq::InputError";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("calib/down.yaml: T_body_camera.pitch_deg"));
+    EXPECT_THAT(e.what(), HasSubstr("calib/down.yaml: T_B_C.pitch_deg"));
     EXPECT_THAT(e.what(), HasSubstr("within 3 deg of vertical"));
   }
 }

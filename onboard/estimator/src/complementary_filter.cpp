@@ -9,7 +9,7 @@
 
 namespace hq::estimator {
 
-Eigen::Matrix3d R_horizontal_body(double roll_rad, double pitch_rad) {
+Eigen::Matrix3d R_H_B_from_tilt(double roll_rad, double pitch_rad) {
   return (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
           Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
       .toRotationMatrix();
@@ -33,20 +33,20 @@ ComplementaryFilter::ComplementaryFilter(const ComplementaryConfig& config) : co
 void ComplementaryFilter::reset() {
   initialized_ = false;
   velocity_aided_ = false;
-  R_ned_body_.setIdentity();
+  R_ned_B_.setIdentity();
   bias_radps_.setZero();
   vision_bias_radps_.setZero();
 }
 
 void ComplementaryFilter::initialize(const Eigen::Vector3d& accel_mps2) {
-  R_ned_body_.setIdentity();
+  R_ned_B_.setIdentity();
   const double norm = accel_mps2.norm();
   if (config_.init_from_accel && norm > 1e-3) {
     // At rest a = -R^T g e3, so the measured "down" in Q is -a/|a| = (-s_th, c_th s_ph, c_th c_ph).
     const Eigen::Vector3d down = -accel_mps2 / norm;
     const double roll = std::atan2(down.y(), down.z());
     const double pitch = std::asin(std::clamp(-down.x(), -1.0, 1.0));
-    R_ned_body_ = R_horizontal_body(roll, pitch);
+    R_ned_B_ = R_H_B_from_tilt(roll, pitch);
   }
 }
 
@@ -74,12 +74,12 @@ FilterStatus ComplementaryFilter::update(std::int64_t t_ns, const Eigen::Vector3
   if (!levelling_paused && std::abs(norm - kGravityMps2) <= config_.accel_tolerance_mps2 &&
       norm > 1e-3) {
     const Eigen::Vector3d v = -accel_mps2 / norm;
-    const Eigen::Vector3d v_hat = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d v_hat = R_ned_B_.transpose() * Eigen::Vector3d::UnitZ();
     omega_mes = v.cross(v_hat);
   }
   const Eigen::Vector3d omega_rad =
       (gyro_radps - bias_radps_ - vision_bias_radps_ + config_.k_p * omega_mes) * dt_s;
-  R_ned_body_ = geometry::orthonormalize(R_ned_body_ * geometry::exp_so3(omega_rad));
+  R_ned_B_ = geometry::orthonormalize(R_ned_B_ * geometry::exp_so3(omega_rad));
   bias_radps_ -= config_.k_i * omega_mes * dt_s;
   bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
   t_ns_ = t_ns;
@@ -95,13 +95,13 @@ bool ComplementaryFilter::level_on_velocity(std::int64_t t_ns,
       accel_error_H_mps2.head<2>().norm() > config_.accel_tolerance_mps2) {
     return false;
   }
-  const Eigen::Vector3d down_B = R_ned_body_.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d down_B = R_ned_B_.transpose() * Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d horizontal_error_H(accel_error_H_mps2.x(), accel_error_H_mps2.y(), 0.0);
   const Eigen::Vector3d error_B =
-      R_horizontal_body(roll_rad(), pitch_rad()).transpose() * horizontal_error_H;
+      R_H_B_from_tilt(roll_rad(), pitch_rad()).transpose() * horizontal_error_H;
   const Eigen::Vector3d omega_mes = (error_B / kGravityMps2).cross(down_B);
-  R_ned_body_ = geometry::orthonormalize(
-      R_ned_body_ * geometry::exp_so3(config_.velocity_k_p * span_s * omega_mes));
+  R_ned_B_ = geometry::orthonormalize(R_ned_B_ *
+                                      geometry::exp_so3(config_.velocity_k_p * span_s * omega_mes));
   bias_radps_ -= config_.velocity_k_i * omega_mes * span_s;
   bias_radps_ = bias_radps_.cwiseMax(-config_.max_bias_radps).cwiseMin(config_.max_bias_radps);
   velocity_aided_ = true;
@@ -121,16 +121,16 @@ void ComplementaryFilter::set_vision_gyro_bias(const Eigen::Vector3d& bias_radps
 }
 
 Eigen::Matrix3d ComplementaryFilter::R_N_B() const {
-  return Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix() * R_ned_body_;
+  return Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix() * R_ned_B_;
 }
 
 double ComplementaryFilter::roll_rad() const {
   // R = Rz(psi) Ry(theta) Rx(phi): row 2 is (-s_th, c_th s_ph, c_th c_ph).
-  return std::atan2(R_ned_body_(2, 1), R_ned_body_(2, 2));
+  return std::atan2(R_ned_B_(2, 1), R_ned_B_(2, 2));
 }
 
 double ComplementaryFilter::pitch_rad() const {
-  return std::asin(std::clamp(-R_ned_body_(2, 0), -1.0, 1.0));
+  return std::asin(std::clamp(-R_ned_B_(2, 0), -1.0, 1.0));
 }
 
 }  // namespace hq::estimator

@@ -159,7 +159,7 @@ FilterStatus VelocityEstimator::update_imu(std::int64_t t_ns, const Eigen::Vecto
   Eigen::Vector3d gravity_reading_mps2 = accel_mps2;
   if (attitude_.initialized() && accel_mps2.allFinite()) {
     gravity_reading_mps2 -=
-        R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()).transpose() *
+        R_H_B_from_tilt(attitude_.roll_rad(), attitude_.pitch_rad()).transpose() *
         motion_accel_H_mps2_;
   }
   const FilterStatus status = attitude_.update(t_ns, gyro_radps, gravity_reading_mps2);
@@ -228,9 +228,9 @@ VelocityEstimate VelocityEstimator::unavailable(std::int64_t t_ns, const char* r
     estimate.status = EstimateStatus::kInertial;
     estimate.v_H_mps = coast_v_H_mps_;
     estimate.v_B_mps =
-        R_horizontal_body(estimate.roll_rad, estimate.pitch_rad).transpose() * coast_v_H_mps_;
+        R_H_B_from_tilt(estimate.roll_rad, estimate.pitch_rad).transpose() * coast_v_H_mps_;
     estimate.v_H_covariance = P_.topLeftCorner<3, 3>();
-    estimate.omega_body_radps = gyro_low_pass_.value();
+    estimate.omega_B_radps = gyro_low_pass_.value();
   }
   return estimate;
 }
@@ -259,8 +259,8 @@ const char* VelocityEstimator::unusable_odometry(const odometry::OdometryResult&
   return nullptr;
 }
 
-Eigen::Vector3d VelocityEstimator::raw_body_velocity(const Eigen::Isometry3d& T_raw, double dt_s,
-                                                     Eigen::Vector3d& v_C_raw_mps) const {
+Eigen::Vector3d VelocityEstimator::raw_v_B(const Eigen::Isometry3d& T_raw, double dt_s,
+                                           Eigen::Vector3d& v_C_raw_mps) const {
   // eq. 1 (raw, for evaluation): v_Ck = R_O_Ck^T (p_O_Ck - p_O_Ck-1) / dT.
   v_C_raw_mps =
       T_raw.linear().transpose() * (T_raw.translation() - T_O_Ck_prev_raw_.translation()) / dt_s;
@@ -275,7 +275,7 @@ Eigen::Vector3d VelocityEstimator::raw_body_velocity(const Eigen::Isometry3d& T_
 Eigen::Vector3d VelocityEstimator::acceleration_H(const Eigen::Vector3d& accel_mps2) const {
   // a_H = R_H_B f_B + g e_z (z down): specific force rotated with the filter's roll and pitch,
   // and what the accelerometer misses, as learnt.
-  return R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
+  return R_H_B_from_tilt(attitude_.roll_rad(), attitude_.pitch_rad()) * accel_mps2 +
          Eigen::Vector3d(0.0, 0.0, kGravityMps2) + unseen_accel_H_mps2_;
 }
 
@@ -303,7 +303,7 @@ Eigen::Matrix3d VelocityEstimator::measurement_covariance_H(
   }
   // Two poses' errors over dt, turned into H.
   const Eigen::Matrix3d R_H_C =
-      R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * R_B_C_;
+      R_H_B_from_tilt(attitude_.roll_rad(), attitude_.pitch_rad()) * R_B_C_;
   return 2.0 / (dt_s * dt_s) * R_H_C * position_C * R_H_C.transpose();
 }
 
@@ -381,13 +381,13 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   VelocityEstimate estimate;
   estimate.t_ns = t_ns;
   const Eigen::Isometry3d& T_raw = odometry.T_O_C;
-  const Eigen::Vector3d v_B_raw = raw_body_velocity(T_raw, dt_s, estimate.v_C_raw_mps);
+  const Eigen::Vector3d v_B_raw = raw_v_B(T_raw, dt_s, estimate.v_C_raw_mps);
   const bool have_attitude = attitude_.initialized() && gyro_low_pass_.initialized();
   // The gate, before the 1-euro filter sees the pose: wrong frames rejected only after it still
   // dragged it. A rejected pose restarts the filter instead.
   const Eigen::Matrix3d R_H = measurement_covariance_H(odometry, dt_s);
   const Eigen::Vector3d v_H_mean_raw =
-      R_horizontal_body(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
+      R_H_B_from_tilt(attitude_.roll_rad(), attitude_.pitch_rad()) * v_B_raw;
   const Eigen::Vector3d z_H = velocity_at_frame_H(v_H_mean_raw, dt_s);
   estimate.innovation_chi2 = have_attitude ? innovation_chi2(z_H, R_H) : 0.0;
   if (estimate.innovation_chi2 > config_.velocity_gate_chi2) {
@@ -426,7 +426,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
   const double roll_rad = attitude_.roll_rad();
   const double pitch_rad = attitude_.pitch_rad();
   // eq. 5: H_v_Q = R_HQ Q_v_Q, i.e. v_H = R_H_B v_B with R_H_B = Ry(theta) Rx(phi).
-  const Eigen::Matrix3d R_H_B = R_horizontal_body(roll_rad, pitch_rad);
+  const Eigen::Matrix3d R_H_B = R_H_B_from_tilt(roll_rad, pitch_rad);
   if (!warming_up) estimate.v_H_one_euro_mps = R_H_B * v_B_one_euro;
   agreeing_frames_ = std::min(agreed_before + 1, config_.reacquire_frames);
   if (agreeing_frames_ < config_.reacquire_frames) {
@@ -444,7 +444,7 @@ VelocityEstimate VelocityEstimator::update(std::int64_t t_ns,
     estimate.v_B_mps = R_H_B.transpose() * coast_v_H_mps_;
     estimate.v_H_covariance = P_.topLeftCorner<3, 3>();
   }
-  estimate.omega_body_radps = omega_B;
+  estimate.omega_B_radps = omega_B;
   estimate.roll_rad = roll_rad;
   estimate.pitch_rad = pitch_rad;
   estimate.unavailable_for_s = 0.0;

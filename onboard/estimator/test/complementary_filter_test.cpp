@@ -19,18 +19,18 @@ constexpr double kDeg = M_PI / 180.0;
 
 // Specific force measured at rest by a body with this roll/pitch (any yaw): a = -R^T g e3.
 Eigen::Vector3d static_accel(double roll_rad, double pitch_rad) {
-  return -R_horizontal_body(roll_rad, pitch_rad).transpose() *
+  return -R_H_B_from_tilt(roll_rad, pitch_rad).transpose() *
          Eigen::Vector3d(0.0, 0.0, kGravityMps2);
 }
 
 TEST(HorizontalFrame, LevelVehicleGivesIdentity) {
-  EXPECT_TRUE(R_horizontal_body(0.0, 0.0).isApprox(Eigen::Matrix3d::Identity(), 1e-15));
+  EXPECT_TRUE(R_H_B_from_tilt(0.0, 0.0).isApprox(Eigen::Matrix3d::Identity(), 1e-15));
 }
 
 TEST(HorizontalFrame, PitchedVehicleMovingForwardInH) {
   // GIVEN a vehicle pitched 10 deg nose down (NED pitch -10 deg) moving 1 m/s forward in H.
   const double pitch = -10.0 * kDeg;
-  const Eigen::Matrix3d R_H_B = R_horizontal_body(0.0, pitch);
+  const Eigen::Matrix3d R_H_B = R_H_B_from_tilt(0.0, pitch);
   const Eigen::Vector3d v_B = R_H_B.transpose() * Eigen::Vector3d(1.0, 0.0, 0.0);
   // THEN the body sees most of it along its nose and the rest towards its belly's opposite:
   // body z (down through the belly) leans backwards, so v_B.z = sin(pitch) < 0.
@@ -40,7 +40,7 @@ TEST(HorizontalFrame, PitchedVehicleMovingForwardInH) {
   // AND the body nose axis in H points forward and down (NED z > 0).
   EXPECT_GT(R_H_B.col(0).z(), 0.0);
   // Rolled right: body y axis in H points right and down.
-  const Eigen::Matrix3d R_roll = R_horizontal_body(20.0 * kDeg, 0.0);
+  const Eigen::Matrix3d R_roll = R_H_B_from_tilt(20.0 * kDeg, 0.0);
   EXPECT_NEAR(R_roll.col(1).z(), std::sin(20.0 * kDeg), 1e-12);
 }
 
@@ -103,7 +103,7 @@ double pitch_error_deg_accelerating(const ComplementaryConfig& config, double ac
   const int steps = static_cast<int>(duration_s * 1e9 / kImuNs);
   for (int k = 1; k <= steps; ++k) {
     filter.update(k * kImuNs, Eigen::Vector3d::Zero(), thrust_B);
-    integrated_dv_H += (R_horizontal_body(filter.roll_rad(), filter.pitch_rad()) * thrust_B +
+    integrated_dv_H += (R_H_B_from_tilt(filter.roll_rad(), filter.pitch_rad()) * thrust_B +
                         Eigen::Vector3d(0.0, 0.0, kGravityMps2)) *
                        1e-9 * kImuNs;
     if (velocity_aided && k % kImuPerFrame == 0) {

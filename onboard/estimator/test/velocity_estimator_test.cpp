@@ -27,7 +27,7 @@ constexpr double kDeg = M_PI / 180.0;
 Eigen::Matrix3d rz(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()).matrix(); }
 
 // Camera looking 45 deg right and 30 deg down, optical frame (z forward, x right, y down).
-Eigen::Matrix3d default_R_body_camera() {
+Eigen::Matrix3d default_R_B_C() {
   Eigen::Matrix3d R_forward_optical;
   R_forward_optical << 0, 0, 1, 1, 0, 0, 0, 1, 0;
   return rz(45.0 * kDeg) * Eigen::AngleAxisd(-30.0 * kDeg, Eigen::Vector3d::UnitY()).matrix() *
@@ -42,10 +42,10 @@ struct Motion {
   double yaw0_rad = 0.0;
   double yaw_rate_radps = 0.0;
   Eigen::Vector3d v_ned_mps = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d R_B_C = default_R_body_camera();
+  Eigen::Matrix3d R_B_C = default_R_B_C();
   Eigen::Vector3d p_B_C_m = Eigen::Vector3d(0.12, 0.06, 0.04);
 
-  [[nodiscard]] Eigen::Matrix3d R_tilt() const { return R_horizontal_body(roll_rad, pitch_rad); }
+  [[nodiscard]] Eigen::Matrix3d R_tilt() const { return R_H_B_from_tilt(roll_rad, pitch_rad); }
   [[nodiscard]] double yaw(double t_s) const { return yaw0_rad + yaw_rate_radps * t_s; }
   [[nodiscard]] Eigen::Isometry3d T_ned_camera(double t_s) const {
     Eigen::Isometry3d T_ned_B = Eigen::Isometry3d::Identity();
@@ -62,7 +62,7 @@ struct Motion {
   [[nodiscard]] Eigen::Vector3d accel(double t_s) const {
     return -(rz(yaw(t_s)) * R_tilt()).transpose() * Eigen::Vector3d(0.0, 0.0, kGravityMps2);
   }
-  [[nodiscard]] Eigen::Vector3d v_horizontal(double t_s) const {
+  [[nodiscard]] Eigen::Vector3d v_H(double t_s) const {
     return rz(yaw(t_s)).transpose() * v_ned_mps;
   }
   [[nodiscard]] odometry::OdometryResult odometry_at(double t_s, std::int64_t t_ns,
@@ -104,7 +104,7 @@ TEST(VelocityEstimator, LeverArmTermCancelsThePureRotationOfTheBody) {
   // ... AND eq. 4 removes it: the body centre is still (measured 0.005 m/s of 0.134 m/s).
   EXPECT_LT(estimate.v_B_mps.norm(), 0.01) << estimate.v_B_mps.transpose();
   EXPECT_LT(estimate.v_H_mps.norm(), 0.01);
-  EXPECT_NEAR(estimate.omega_body_radps.z(), 1.0, 1e-6);
+  EXPECT_NEAR(estimate.omega_B_radps.z(), 1.0, 1e-6);
 }
 
 TEST(VelocityEstimator, ConstantVelocityCameraTrajectoryGivesTheRightHorizontalVelocity) {
@@ -114,8 +114,8 @@ TEST(VelocityEstimator, ConstantVelocityCameraTrajectoryGivesTheRightHorizontalV
   VelocityEstimator estimator(VelocityEstimatorConfig{}, motion.R_B_C, motion.p_B_C_m);
   const VelocityEstimate estimate = run(estimator, motion, 3.0);
   ASSERT_TRUE(estimate.ok()) << estimate.reason;
-  EXPECT_LT((estimate.v_H_mps - motion.v_horizontal(3.0)).norm(), 1e-3)
-      << estimate.v_H_mps.transpose() << " vs " << motion.v_horizontal(3.0).transpose();
+  EXPECT_LT((estimate.v_H_mps - motion.v_H(3.0)).norm(), 1e-3)
+      << estimate.v_H_mps.transpose() << " vs " << motion.v_H(3.0).transpose();
   // The raw eq. 1 velocity is exact on a noise-free trajectory too.
   const Eigen::Vector3d true_v_C = motion.T_ned_camera(3.0).linear().transpose() * motion.v_ned_mps;
   EXPECT_LT((estimate.v_C_raw_mps - true_v_C).norm(), 1e-9);
@@ -134,12 +134,11 @@ TEST(VelocityEstimator, Eq5RemovesRollAndPitchOfATiltedVehicle) {
   EXPECT_NEAR(estimate.roll_rad, motion.roll_rad, 1e-3);
   EXPECT_NEAR(estimate.pitch_rad, motion.pitch_rad, 1e-3);
   // THEN the body sees a vertical component, H does not.
-  const Eigen::Vector3d v_body_true =
+  const Eigen::Vector3d v_B_true =
       (rz(motion.yaw(3.0)) * motion.R_tilt()).transpose() * motion.v_ned_mps;
-  EXPECT_GT(std::abs(v_body_true.z()), 0.04);
-  EXPECT_LT((estimate.v_B_mps - v_body_true).norm(), 2e-3);
-  EXPECT_LT((estimate.v_H_mps - motion.v_horizontal(3.0)).norm(), 2e-3)
-      << estimate.v_H_mps.transpose();
+  EXPECT_GT(std::abs(v_B_true.z()), 0.04);
+  EXPECT_LT((estimate.v_B_mps - v_B_true).norm(), 2e-3);
+  EXPECT_LT((estimate.v_H_mps - motion.v_H(3.0)).norm(), 2e-3) << estimate.v_H_mps.transpose();
 }
 
 TEST(VelocityEstimator, RejectedOdometryIsUnavailableForAGrowingTime) {

@@ -134,7 +134,7 @@ LinkBridge::LinkBridge(const link::LinkConfig& link, const FailsafeConfig& fails
         "link bridge: max_obstacle_points = " + std::to_string(options_.max_obstacle_points) +
         ", expected in [1, " + std::to_string(hq_msgs_kMaxObstaclePoints) + "] (the IDL bound)");
   }
-  link::reserve(state_->obstacle_points_body_m,
+  link::reserve(state_->obstacle_points_B_m,
                 static_cast<std::uint32_t>(options_.max_obstacle_points));
   cloud_O_m_.resize(static_cast<std::size_t>(options_.max_obstacle_points));
   link::reserve(state_->markers, hq_msgs_kMaxMarkersInState);
@@ -426,10 +426,10 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   s.sequence_number = ++state_sequence_;
   s.t_ns = out.t_ns;
   s.v_H_mps = to_msg(out.estimate.v_H_mps);
-  s.omega_body_radps = to_msg(out.estimate.omega_body_radps);
+  s.omega_B_radps = to_msg(out.estimate.omega_B_radps);
   s.roll_rad = static_cast<float>(out.estimate.roll_rad);
   s.pitch_rad = static_cast<float>(out.estimate.pitch_rad);
-  s.v_obs_H_mps = to_msg(out.obstacles.v_obs_horizontal_mps);
+  s.v_obs_H_mps = to_msg(out.obstacles.v_obs_H_mps);
   // The command as flown after the seen-space limit, so the ground can show the cut
   // and render it.
   s.v_cmd_flown_H_mps = to_msg(out.v_cmd_flown_H_mps);
@@ -449,7 +449,7 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
   } else if (s.operator_input == hq_msgs_INPUT_FLOWN && out.command_limited) {
     s.operator_input = hq_msgs_INPUT_LIMITED_UNSEEN;
   }
-  s.obstacle_points_body_m._length = 0;
+  s.obstacle_points_B_m._length = 0;
   last_cloud_size_ = 0;
   if (cloud.memory != nullptr && options_.obstacle_cloud_rate_hz > 0.0 &&
       out.t_ns >= next_cloud_ns_ && cloud.T_O_B.matrix().allFinite()) {
@@ -460,11 +460,11 @@ void LinkBridge::publish_state(const pipeline::ChainOutput& out, const StateExtr
     const int n = cloud.memory->telemetry_cloud(cloud_O_m_);
     std::uint32_t count = 0;
     for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3f p_body_m = T_B_O * cloud_O_m_[static_cast<std::size_t>(i)];
-      if (!p_body_m.allFinite()) continue;
-      s.obstacle_points_body_m._buffer[count++] = {p_body_m.x(), p_body_m.y(), p_body_m.z()};
+      const Eigen::Vector3f p_B_m = T_B_O * cloud_O_m_[static_cast<std::size_t>(i)];
+      if (!p_B_m.allFinite()) continue;
+      s.obstacle_points_B_m._buffer[count++] = {p_B_m.x(), p_B_m.y(), p_B_m.z()};
     }
-    s.obstacle_points_body_m._length = count;
+    s.obstacle_points_B_m._length = count;
     last_cloud_size_ = static_cast<int>(count);
     ++clouds_sent_;
   }

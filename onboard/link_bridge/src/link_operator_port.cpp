@@ -44,7 +44,7 @@ void LinkOperatorPort::on_output(const pipeline::ChainOutput& out,
   StateExtras extras;
   if (chain_.config().memory.enabled) {
     // The memory's world is the odometry origin O.
-    if (const auto T_O_C = chain_.memory().T_world_camera()) {
+    if (const auto T_O_C = chain_.memory().T_O_C()) {
       extras.cloud.memory = &chain_.memory();
       extras.cloud.T_O_B = *T_O_C * T_C_B_;
     }

@@ -462,11 +462,11 @@ TEST(LinkBridge, PublishesTheRememberedCloudInTheBodyFrameAtItsRate) {
     bridge.publish_state(out, source);
     dds_sample_info_t info{};
     while (ground.states.take(*state, info)) {
-      if (state->obstacle_points_body_m._length > 0) return true;
+      if (state->obstacle_points_B_m._length > 0) return true;
     }
     return false;
   }));
-  const auto& cloud = state->obstacle_points_body_m;
+  const auto& cloud = state->obstacle_points_B_m;
   EXPECT_LE(cloud._length, static_cast<std::uint32_t>(options.max_obstacle_points));
   EXPECT_GE(cloud._length, static_cast<std::uint32_t>(options.max_obstacle_points) / 2);
   EXPECT_TRUE(link::validate(*state).ok);

@@ -75,7 +75,7 @@ void read_config(config::StrictMap& section, MarkerModesConfig& out) {
   section.finish();
 }
 
-const Eigen::Matrix3d& R_world_map() {
+const Eigen::Matrix3d& R_W_map() {
   static const Eigen::Matrix3d kR = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
   return kR;
 }
@@ -91,15 +91,14 @@ Eigen::Isometry3d body_camera(const Eigen::Matrix3d& R, const Eigen::Vector3d& p
 
 MarkerNavigation::MarkerNavigation(const MarkerModesConfig& config,
                                    const geometry::PinholeCamera& camera,
-                                   const Eigen::Matrix3d& R_body_camera,
-                                   const Eigen::Vector3d& p_body_camera_m)
+                                   const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m)
     : config_(config),
       camera_(camera),
-      T_body_camera_(body_camera(R_body_camera, p_body_camera_m)),
-      camera_heading_rad_(geometry::camera_heading_rad(R_body_camera)),
+      T_B_C_(body_camera(R_B_C, p_B_C_m)),
+      camera_heading_rad_(geometry::camera_heading_rad(R_B_C)),
       detector_(config.detector, camera),
       map_(config.map),
-      filter_(config.navigation, T_body_camera_) {}
+      filter_(config.navigation, T_B_C_) {}
 
 void MarkerNavigation::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
                               const Eigen::Vector3d& accel_mps2) {
@@ -140,7 +139,7 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
   // The providers run per control step and must not allocate: the box is kept here.
   have_box_ = false;
   for (int id : map_.ids()) {
-    const Eigen::Vector2d p = (R_world_map() * map_.T_map_marker(id)->translation()).head<2>();
+    const Eigen::Vector2d p = (R_W_map() * map_.T_map_marker(id)->translation()).head<2>();
     map_lo_m_ = have_box_ ? Eigen::Vector2d(map_lo_m_.cwiseMin(p)) : p;
     map_hi_m_ = have_box_ ? Eigen::Vector2d(map_hi_m_.cwiseMax(p)) : p;
     have_box_ = true;
@@ -151,12 +150,12 @@ void MarkerNavigation::on_frame(std::int64_t t_ns, const cv::Mat& gray, const cv
     if (!T_map_marker) continue;
     const Eigen::Isometry3d T_marker_camera = d.T_camera_marker.inverse();
     Eigen::Isometry3d T_W_C = Eigen::Isometry3d::Identity();
-    T_W_C.linear() = R_world_map() * T_map_marker->linear() * T_marker_camera.linear();
-    T_W_C.translation() = R_world_map() * (*T_map_marker * T_marker_camera.translation());
+    T_W_C.linear() = R_W_map() * T_map_marker->linear() * T_marker_camera.linear();
+    T_W_C.translation() = R_W_map() * (*T_map_marker * T_marker_camera.translation());
     // Detection noise xi (right perturbation of T_CM, in M) mapped to the camera pose:
     // T_MC' = exp(-xi) T_MC, so dp_M = -v + [p_MC]x omega and theta_C = -R_MC^T omega.
     Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
-    const Eigen::Matrix3d R_W_M = R_world_map() * T_map_marker->linear();
+    const Eigen::Matrix3d R_W_M = R_W_map() * T_map_marker->linear();
     J.block<3, 3>(0, 0) = -R_W_M;
     J.block<3, 3>(0, 3) = R_W_M * skew(T_marker_camera.translation());
     J.block<3, 3>(3, 3) = -T_marker_camera.linear().transpose();
@@ -209,7 +208,7 @@ double MarkerNavigation::yaw_rad() const {
 std::optional<Eigen::Vector3d> MarkerNavigation::p_W_M_m(int id) const {
   const std::optional<Eigen::Isometry3d> T = map_.T_map_marker(id);
   if (!T) return std::nullopt;
-  return Eigen::Vector3d(R_world_map() * T->translation());
+  return Eigen::Vector3d(R_W_map() * T->translation());
 }
 
 double MarkerNavigation::time_since_detection_s(std::int64_t t_ns) const {
@@ -218,7 +217,7 @@ double MarkerNavigation::time_since_detection_s(std::int64_t t_ns) const {
 }
 
 bool MarkerNavigation::in_view(const Eigen::Vector3d& p_W_m, double range_m) const {
-  const Eigen::Isometry3d T_W_C = filter_.T_W_B() * T_body_camera_;
+  const Eigen::Isometry3d T_W_C = filter_.T_W_B() * T_B_C_;
   const Eigen::Vector3d p_C = T_W_C.inverse() * p_W_m;
   if (!(p_C.z() > 0.1) || p_C.norm() > range_m) return false;
   const Eigen::Vector2d uv = camera_.project(p_C);

@@ -98,8 +98,8 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   horizontal_error_m_ = offset.head<2>().norm();
   const double height_m = p_marker->z() - p.z();  // NED: the floor marker is below.
 
-  Eigen::Vector3d v_world = config_.kp_position_per_s * offset;
-  v_world.z() = config_.kp_position_per_s * (height_m - config_.hold_height_m);
+  Eigen::Vector3d v_W = config_.kp_position_per_s * offset;
+  v_W.z() = config_.kp_position_per_s * (height_m - config_.hold_height_m);
   // Going far: the camera faces the marker so that the map stays in view; close, the heading
   // found on arrival is held (turning over the target would only disturb the pose).
   if (task_ != MarkerTask::kHold && horizontal_error_m_ > config_.face_target_beyond_m) {
@@ -108,13 +108,13 @@ modes::ModeCommand MarkerModeProvider::desired(std::int64_t t_ns) {
   if (task_ == MarkerTask::kLand) {
     if (!descending_ && horizontal_error_m_ < config_.land_align_m) descending_ = true;
     if (descending_) {
-      v_world.z() = config_.land_descent_mps;
+      v_W.z() = config_.land_descent_mps;
       if (height_m < config_.land_handover_height_m) wants_land_ = true;
     }
   }
   modes::ModeCommand c;
   c.valid = true;
-  c.v_H_mps = to_horizontal(v_world, yaw, config_.max_speed_mps);
+  c.v_H_mps = to_horizontal(v_W, yaw, config_.max_speed_mps);
   if (task_ == MarkerTask::kLand && descending_) c.v_H_mps.z() = config_.land_descent_mps;
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
@@ -131,15 +131,15 @@ modes::ModeCommand MarkerModeProvider::search(double yaw_rad, const Eigen::Vecto
   modes::ModeCommand c;
   c.valid = true;
   c.reason = "searching the target marker";
-  Eigen::Vector3d v_world(0.0, 0.0, 0.0);
+  Eigen::Vector3d v_W(0.0, 0.0, 0.0);
   const double beyond_m = 0.3;
   if (to_centre.norm() > beyond_m) {
-    v_world.head<2>() = config_.kp_position_per_s * to_centre;
+    v_W.head<2>() = config_.kp_position_per_s * to_centre;
     yaw_hold_rad_ = std::atan2(to_centre.y(), to_centre.x()) - navigation_.camera_heading_rad();
   } else {
     yaw_hold_rad_ = yaw_rad + config_.search_yaw_rate_radps / config_.kp_yaw_per_s;
   }
-  c.v_H_mps = to_horizontal(v_world, yaw_rad, config_.max_speed_mps);
+  c.v_H_mps = to_horizontal(v_W, yaw_rad, config_.max_speed_mps);
   c.yaw_rate_radps =
       yaw_rate_towards(yaw_hold_rad_, yaw_rad, config_.kp_yaw_per_s, config_.max_yaw_rate_radps);
   return c;
@@ -399,9 +399,8 @@ std::optional<modes::ModeCommand> ExploreProvider::counter_steer(std::int64_t t_
 namespace hq::marker_modes {
 
 MarkerStage::MarkerStage(const MarkerModesConfig& config, const geometry::PinholeCamera& camera,
-                         const Eigen::Matrix3d& R_body_camera,
-                         const Eigen::Vector3d& p_body_camera_m)
-    : navigation_(config, camera, R_body_camera, p_body_camera_m),
+                         const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m)
+    : navigation_(config, camera, R_B_C, p_B_C_m),
       marker_mode_(config.marker_mode, navigation_),
       explore_(config.explore, navigation_, marker_mode_) {}
 

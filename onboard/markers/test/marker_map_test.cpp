@@ -55,7 +55,7 @@ class MarkerMapFlight : public ::testing::Test {
     std::mt19937 rng(9);
     std::normal_distribution<double> noise(0.0, 1.0);
     Eigen::Isometry3d T_O_C = Eigen::Isometry3d::Identity();
-    Eigen::Isometry3d T_world_camera_prev = Eigen::Isometry3d::Identity();
+    Eigen::Isometry3d T_N_C_prev = Eigen::Isometry3d::Identity();
     cv::Mat image;
     cv::Mat depth_m;
     std::uint64_t index = 0;
@@ -65,24 +65,23 @@ class MarkerMapFlight : public ::testing::Test {
       for (int k = 0; k <= 20; ++k) {
         const double x = dir * (-1.9 + 0.15 * k);
         const Eigen::Vector3d c(x, y, 1.1);
-        const Eigen::Isometry3d T_world_camera =
-            test::look_at(c, c + Eigen::Vector3d(dir * 0.9, 0.0, -1.1));
-        renderer.render(T_world_camera, index, image, depth_m);
+        const Eigen::Isometry3d T_N_C = test::look_at(c, c + Eigen::Vector3d(dir * 0.9, 0.0, -1.1));
+        renderer.render(T_N_C, index, image, depth_m);
         FrameRecord f;
         f.t_ns = static_cast<std::int64_t>(index) * 33'333'333;
         detector.detect(image, depth_m);
         f.detections = detector.detections();
         if (index == 0) {
-          T_O_C = T_world_camera;
+          T_O_C = T_N_C;
         } else {
           geometry::Vector6d xi;
           for (int i = 0; i < 3; ++i) xi(i) = kOdomSigmaM * noise(rng);
           for (int i = 3; i < 6; ++i) xi(i) = kOdomSigmaRad * noise(rng);
           xi(4) += kOdomYawBiasRad;  // camera y is down: a rotation about it is a yaw
-          T_O_C = T_O_C * (T_world_camera_prev.inverse() * T_world_camera) * geometry::exp_se3(xi);
+          T_O_C = T_O_C * (T_N_C_prev.inverse() * T_N_C) * geometry::exp_se3(xi);
         }
         f.T_O_C = T_O_C;
-        T_world_camera_prev = T_world_camera;
+        T_N_C_prev = T_N_C;
         frames->push_back(f);
         ++index;
       }
@@ -101,14 +100,14 @@ class MarkerMapFlight : public ::testing::Test {
   static MapError error_of(const MarkerMap& map) {
     MapError e;
     const int gauge = map.ids().front();
-    Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
+    Eigen::Isometry3d T_N_W = Eigen::Isometry3d::Identity();
     for (const sim::Marker& m : world->markers) {
-      if (m.id == gauge) T_world_map = test::T_world_marker(m);
+      if (m.id == gauge) T_N_W = test::T_N_M(m);
     }
     for (const sim::Marker& m : world->markers) {
       const auto T = map.T_map_marker(m.id);
       if (!T) continue;
-      const double err = ((T_world_map * *T).translation() - m.center_world_m).norm();
+      const double err = ((T_N_W * *T).translation() - m.center_N_m).norm();
       e.mean_m += err;
       e.max_m = std::max(e.max_m, err);
       ++e.mapped;

@@ -66,8 +66,8 @@ TEST_F(MarkerSimTest, PosesMatchTruthAndDepthDoesNotMakeThemWorse) {
     const double a = yaw(rng);
     const Eigen::Vector3d c =
         target + Eigen::Vector3d(back(rng) * std::cos(a), back(rng) * std::sin(a), height(rng));
-    const Eigen::Isometry3d T_world_camera = test::look_at(c, target);
-    renderer.render(T_world_camera, static_cast<std::uint64_t>(frame), image, depth_m);
+    const Eigen::Isometry3d T_N_C = test::look_at(c, target);
+    renderer.render(T_N_C, static_cast<std::uint64_t>(frame), image, depth_m);
     // WHEN both detectors run on the frame
     ASSERT_TRUE(detector_image.detect(image).ok);
     ASSERT_TRUE(detector_depth.detect(image, depth_m).ok);
@@ -80,7 +80,7 @@ TEST_F(MarkerSimTest, PosesMatchTruthAndDepthDoesNotMakeThemWorse) {
           if (m.id == d.id) truth = &m;
         }
         ASSERT_NE(truth, nullptr) << "false detection id " << d.id;
-        const Eigen::Isometry3d T_true = T_world_camera.inverse() * test::T_world_marker(*truth);
+        const Eigen::Isometry3d T_true = T_N_C.inverse() * test::T_N_M(*truth);
         errors.position_m.push_back(
             (d.T_camera_marker.translation() - T_true.translation()).norm());
         errors.angle_rad.push_back(

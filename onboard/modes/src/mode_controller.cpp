@@ -314,7 +314,7 @@ ModeController::Target ModeController::target(std::int64_t t_ns, ModeOutput& out
 
 ModeOutput ModeController::step(std::int64_t t_ns,
                                 const std::optional<Eigen::Vector3d>& v_est_H_mps,
-                                const Eigen::Vector3d& v_obs_horizontal_mps) {
+                                const Eigen::Vector3d& v_obs_H_mps) {
   ModeOutput out;
   out.mode = mode_;
   if (v_est_H_mps && std::isfinite(v_est_H_mps->z())) v_z_inertial_mps_ = v_est_H_mps->z();
@@ -369,13 +369,12 @@ ModeOutput ModeController::step(std::int64_t t_ns,
     yaw_rate_radps_ = yaw_target;
   }
   out.ramping = ramping_;
-  out.v_star_des_horizontal_mps = v_star_mps_;
+  out.v_star_des_H_mps = v_star_mps_;
   out.yaw_rate_des_radps = yaw_rate_radps_;
   // Core paper §3.1: the obstacle term is added in every mode.
-  const Eigen::Vector3d v_obs =
-      v_obs_horizontal_mps.allFinite() ? v_obs_horizontal_mps : Eigen::Vector3d::Zero();
-  out.v_des_horizontal_mps = v_star_mps_ + v_obs;
-  out.control = controller_.update(t_ns, out.v_des_horizontal_mps, yaw_rate_radps_, v_est_H_mps);
+  const Eigen::Vector3d v_obs = v_obs_H_mps.allFinite() ? v_obs_H_mps : Eigen::Vector3d::Zero();
+  out.v_des_H_mps = v_star_mps_ + v_obs;
+  out.control = controller_.update(t_ns, out.v_des_H_mps, yaw_rate_radps_, v_est_H_mps);
   if (mode_ == Mode::kLand) land_step(t_ns, dt_s, v_est_H_mps, out);
   out.flight_state = out.landed             ? FlightState::kLanded
                      : mode_ == Mode::kLand ? FlightState::kLanding

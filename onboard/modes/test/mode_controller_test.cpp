@@ -129,13 +129,13 @@ TEST(ModeController, MarkerAndExploreNeedAProvider) {
   for (int k = 0; k < 100; ++k)
     out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_FALSE(out.ramping);
-  EXPECT_TRUE(out.v_star_des_horizontal_mps.isApprox(Eigen::Vector3d(0.2, 0.0, 0.0)));
+  EXPECT_TRUE(out.v_star_des_H_mps.isApprox(Eigen::Vector3d(0.2, 0.0, 0.0)));
   // A provider with no command: hover.
   provider.command.valid = false;
   for (int k = 100; k < 200; ++k)
     out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_TRUE(out.provider_failed);
-  EXPECT_TRUE(out.v_star_des_horizontal_mps.isZero());
+  EXPECT_TRUE(out.v_star_des_H_mps.isZero());
 }
 
 TEST(ModeController, StaleTeleopCommandFallsBackToHover) {
@@ -147,19 +147,19 @@ TEST(ModeController, StaleTeleopCommandFallsBackToHover) {
     modes.set_operator_command({k * kStepNs, Eigen::Vector3d(0.5, 0.0, 0.0), 0.2});
     out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   }
-  EXPECT_NEAR(out.v_star_des_horizontal_mps.x(), 0.5, 1e-12);
+  EXPECT_NEAR(out.v_star_des_H_mps.x(), 0.5, 1e-12);
   // WHEN the operator goes silent: still obeyed while younger than the 0.5 s timeout ...
   for (int k = 201; k < 290; ++k) {
     out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   }
   EXPECT_FALSE(out.teleop_timed_out);
-  EXPECT_NEAR(out.v_star_des_horizontal_mps.x(), 0.5, 1e-12);
+  EXPECT_NEAR(out.v_star_des_H_mps.x(), 0.5, 1e-12);
   // ... THEN hover (zero velocity and yaw rate, reached through the ramp).
   for (int k = 290; k < 700; ++k) {
     out = modes.step(k * kStepNs, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   }
   EXPECT_TRUE(out.teleop_timed_out);
-  EXPECT_TRUE(out.v_star_des_horizontal_mps.isZero());
+  EXPECT_TRUE(out.v_star_des_H_mps.isZero());
   EXPECT_EQ(out.yaw_rate_des_radps, 0.0);
 }
 
@@ -194,8 +194,7 @@ TEST(ModeController, ObstacleTermIsAddedInEveryMode) {
       out = modes.step(k * kStepNs, v_est, v_obs);
     }
     EXPECT_FALSE(out.landed) << to_string(mode);
-    EXPECT_TRUE(out.v_des_horizontal_mps.isApprox(out.v_star_des_horizontal_mps + v_obs))
-        << to_string(mode);
+    EXPECT_TRUE(out.v_des_H_mps.isApprox(out.v_star_des_H_mps + v_obs)) << to_string(mode);
   }
 }
 
@@ -231,7 +230,7 @@ TEST(ModeController, StartsLandedWithMotorsIdleUntilAClimbRequest) {
     }
   }
   EXPECT_TRUE(modes.landed());
-  EXPECT_TRUE(out.v_star_des_horizontal_mps.isZero());
+  EXPECT_TRUE(out.v_star_des_H_mps.isZero());
   // THEN a climb request faster than takeoff_climb_mps (NED: z < 0) takes off: from motors
   // idle to about m g plus the PID's climb term (measured 1.20 m g: the take-off step applies
   // the 0.5 m/s command at once, see the report).
@@ -542,11 +541,11 @@ TEST(ModeController, NothingClimbsWithTheHeightUnknown) {
     const std::int64_t t_ns = k * kStepNs;
     modes.set_operator_command({t_ns, Eigen::Vector3d(0.5, 0.0, -1.0), 0.0});
     out = modes.step(t_ns, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
-    ASSERT_GE(out.v_star_des_horizontal_mps.z(), 0.0) << k;
+    ASSERT_GE(out.v_star_des_H_mps.z(), 0.0) << k;
   }
   EXPECT_TRUE(out.envelope_limited);
   EXPECT_THAT(out.envelope_reason, HasSubstr("height unknown"));
-  EXPECT_NEAR(out.v_star_des_horizontal_mps.x(), 0.5, 1e-9);  // the rest is flown
+  EXPECT_NEAR(out.v_star_des_H_mps.x(), 0.5, 1e-9);  // the rest is flown
 }
 
 TEST(ModeController, AnEstimateBackRestartsTheBlindDescentTimer) {
@@ -611,7 +610,7 @@ TEST(ModeController, TakeOffClimbsToTheTargetHeightThenFliesTheRequestedMode) {
     if (out.flight_state == FlightState::kTakingOff) {
       saw_taking_off = true;
       EXPECT_TRUE(out.operator_ignored) << "the climb is not the operator's";
-      EXPECT_LE(out.v_star_des_horizontal_mps.z(), 1e-9) << "never sinks while taking off";
+      EXPECT_LE(out.v_star_des_H_mps.z(), 1e-9) << "never sinks while taking off";
     }
   }
   // THEN it climbed through the taking-off state to the target without overshooting, and

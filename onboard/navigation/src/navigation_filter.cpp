@@ -98,15 +98,15 @@ double yaw_rad(const Matrix3d& R_W_B) { return std::atan2(R_W_B(1, 0), R_W_B(0, 
 Matrix3d R_W_H(const Matrix3d& R_W_B) { return rot_z(yaw_rad(R_W_B)); }
 
 Eigen::Matrix<double, 6, kErrorStateSize> marker_jacobian(const NominalState& state,
-                                                          const Matrix3d& R_body_camera,
-                                                          const Vector3d& p_body_camera_m) {
+                                                          const Matrix3d& R_B_C,
+                                                          const Vector3d& p_B_C_m) {
   // p_WC = p_WB + R_WB p_BC and R_WC = R_WB R_BC with R_WB = R̂ Exp(dtheta):
   // dp_WC = dp - R̂ [p_BC]x dtheta;  log(R̂_WCᵀ R_WC) = R_BCᵀ dtheta.
   const Matrix3d R = state.q_W_B.toRotationMatrix();
   Eigen::Matrix<double, 6, kErrorStateSize> H = Eigen::Matrix<double, 6, kErrorStateSize>::Zero();
   H.block<3, 3>(0, kIndexPosition).setIdentity();
-  H.block<3, 3>(0, kIndexAttitude) = -R * hat(p_body_camera_m);
-  H.block<3, 3>(3, kIndexAttitude) = R_body_camera.transpose();
+  H.block<3, 3>(0, kIndexAttitude) = -R * hat(p_B_C_m);
+  H.block<3, 3>(3, kIndexAttitude) = R_B_C.transpose();
   return H;
 }
 
@@ -125,9 +125,9 @@ Eigen::Matrix<double, 3, kErrorStateSize> velocity_jacobian(const NominalState& 
   const Vector3d h = R_WH_T * state.v_W_mps;
   // ZYX Euler kinematics: psi_dot = (s_theta c_psi w_x + s_theta s_psi w_y) / c_theta + w_z for a
   // world-frame rate w; a local error dtheta is the world rotation R̂ dtheta.
-  const Eigen::RowVector3d d_psi_d_theta_world(tan_pitch * std::cos(psi), tan_pitch * std::sin(psi),
-                                               1.0);
-  const Eigen::RowVector3d d_psi_d_dtheta = d_psi_d_theta_world * R;
+  const Eigen::RowVector3d d_psi_d_theta_W(tan_pitch * std::cos(psi), tan_pitch * std::sin(psi),
+                                           1.0);
+  const Eigen::RowVector3d d_psi_d_dtheta = d_psi_d_theta_W * R;
   // d(Rz(psi)ᵀ v)/d psi = -e_z x (Rz(psi)ᵀ v).
   const Vector3d d_h_d_psi = -Vector3d::UnitZ().cross(h);
   Eigen::Matrix<double, 3, kErrorStateSize> H = Eigen::Matrix<double, 3, kErrorStateSize>::Zero();
@@ -249,10 +249,10 @@ UpdateResult NavigationFilter::predict(std::int64_t t_ns, const Vector3d& gyro_r
   const Matrix3d R0 = state_.q_W_B.toRotationMatrix();
   const Matrix3d delta_R = exp_so3(omega * dt);
   const Matrix3d R_mid = R0 * exp_so3(0.5 * dt * omega);
-  const Vector3d a_world = R_mid * f + Vector3d(0.0, 0.0, config_.gravity_mps2);
+  const Vector3d a_W = R_mid * f + Vector3d(0.0, 0.0, config_.gravity_mps2);
 
-  state_.p_W_m += state_.v_W_mps * dt + 0.5 * a_world * dt * dt;
-  state_.v_W_mps += a_world * dt;
+  state_.p_W_m += state_.v_W_mps * dt + 0.5 * a_W * dt * dt;
+  state_.v_W_mps += a_W * dt;
   state_.q_W_B = Eigen::Quaterniond(R0 * delta_R).normalized();
 
   // Error dynamics (local attitude error, Solà 2017 §5.3.3), first order in dt.

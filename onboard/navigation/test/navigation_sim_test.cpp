@@ -90,9 +90,9 @@ struct TruthInW {
 
 TruthInW truth_in_W(const sim::TruthState& truth) {
   TruthInW out;
-  out.T_W_B.linear() = kR_ned_nwu * truth.T_world_body.linear();
-  out.T_W_B.translation() = kR_ned_nwu * truth.T_world_body.translation();
-  out.v_W_mps = kR_ned_nwu * truth.v_world_mps;
+  out.T_W_B.linear() = kR_ned_nwu * truth.T_N_B.linear();
+  out.T_W_B.translation() = kR_ned_nwu * truth.T_N_B.translation();
+  out.v_W_mps = kR_ned_nwu * truth.v_N_mps;
   return out;
 }
 
@@ -102,7 +102,7 @@ TEST(NavigationSim, CircleFlightOnSimulatedImuWithMarkersAndVelocity) {
   const sim::World world = sim::load_world("onboard/sim/worlds/room.yaml");
   sim::Simulator simulator(config, world);
   const sim::FlightScript script = sim::script_for_world(world, sim::FlightScript::Kind::kCircle);
-  const Eigen::Isometry3d T_B_C = config.camera.T_body_camera;
+  const Eigen::Isometry3d T_B_C = config.camera.T_B_C;
   NavigationFilter filter(NavigationConfig{}, T_B_C);
   NoisyMeasurements measure;
   {
@@ -123,7 +123,7 @@ TEST(NavigationSim, CircleFlightOnSimulatedImuWithMarkersAndVelocity) {
     simulator.step_to(t_ns);
     const std::size_t n = simulator.take_imu(imu.data(), imu.size());
     for (std::size_t i = 0; i < n; ++i) {
-      filter.predict(imu[i].t_ns, imu[i].omega_body_radps, imu[i].f_body_mps2);
+      filter.predict(imu[i].t_ns, imu[i].omega_B_radps, imu[i].f_B_mps2);
     }
     const TruthInW truth = truth_in_W(simulator.truth());
     const long step = t_ns / sim::kScriptControlPeriodNs;

@@ -403,8 +403,7 @@ void ObstacleMemory::pick_sector_minima(MemoryUpdate& out) {
   });
   for (const int s : sector_order_) {
     if (out.count >= config_.max_points) break;
-    out.p_horizontal_m[static_cast<std::size_t>(out.count++)] =
-        sector_point_[static_cast<std::size_t>(s)];
+    out.p_H_m[static_cast<std::size_t>(out.count++)] = sector_point_[static_cast<std::size_t>(s)];
   }
 }
 
@@ -425,7 +424,7 @@ MemoryUpdate ObstacleMemory::update(std::int64_t t_ns, const cv::Mat& depth_m,
     return out;
   }
   if (!R_H_B.allFinite() || !std::isfinite(influence_distance_m)) {
-    out.reason = "R_horizontal_body or influence distance is not finite";
+    out.reason = "R_H_B_from_tilt or influence distance is not finite";
     return out;
   }
   forget_on_pose_jump(T_O_C, out);

@@ -42,24 +42,24 @@ geometry::PinholeCamera test_camera() {
 }
 
 // Camera looking along the body's x (forward), level: optical z = body x, x = body y, y = body z.
-Eigen::Matrix3d forward_R_body_camera() {
+Eigen::Matrix3d forward_R_B_C() {
   Eigen::Matrix3d R;
   R << 0, 0, 1, 1, 0, 0, 0, 1, 0;
   return R;
 }
 
 ObstacleMemory make_memory(const MemoryConfig& config = MemoryConfig{}) {
-  return ObstacleMemory(config, test_camera(), forward_R_body_camera(), Eigen::Vector3d::Zero());
+  return ObstacleMemory(config, test_camera(), forward_R_B_C(), Eigen::Vector3d::Zero());
 }
 
 cv::Mat wall(float z_m) { return cv::Mat(240, 320, CV_32FC1, cv::Scalar(z_m)); }
 cv::Mat no_depth() { return wall(0.0f); }
 
-// The camera turned right (NED yaw) by yaw_rad about its own y axis (down), at p_world_m.
-Eigen::Isometry3d camera_pose(double yaw_rad, const Eigen::Vector3d& p_world_m = {0, 0, 0}) {
+// The camera turned right (NED yaw) by yaw_rad about its own y axis (down), at p_O_m.
+Eigen::Isometry3d camera_pose(double yaw_rad, const Eigen::Vector3d& p_O_m = {0, 0, 0}) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitY()).matrix();
-  T.translation() = p_world_m;
+  T.translation() = p_O_m;
   return T;
 }
 
@@ -86,11 +86,11 @@ TEST(ObstacleMemory, WallRememberedOnTheLeftAfterAYawRight) {
   }
   ASSERT_TRUE(update.updated) << update.reason;
   ASSERT_GE(update.count, 1);
-  const Eigen::Vector3d& nearest = update.p_horizontal_m[0];
+  const Eigen::Vector3d& nearest = update.p_H_m[0];
   EXPECT_NEAR(nearest.norm(), 1.0, 0.1);
   EXPECT_LT(nearest.y(), -0.9);
   for (int i = 1; i < update.count; ++i) {
-    EXPECT_GE(update.p_horizontal_m[static_cast<std::size_t>(i)].norm(), nearest.norm());
+    EXPECT_GE(update.p_H_m[static_cast<std::size_t>(i)].norm(), nearest.norm());
   }
 }
 
@@ -428,9 +428,8 @@ TEST(ObstacleMemoryConfig, ReaderAndConstructorRefuseTheSameConfigAlike) {
     });
     MemoryConfig direct;
     c.set(direct);
-    const std::string from_constructor = hq::testing::input_error_message([&] {
-      ObstacleMemory(direct, test_camera(), forward_R_body_camera(), Eigen::Vector3d::Zero());
-    });
+    const std::string from_constructor = hq::testing::input_error_message(
+        [&] { ObstacleMemory(direct, test_camera(), forward_R_B_C(), Eigen::Vector3d::Zero()); });
     // THEN both refuse it naming the key and value; the file's message also names the file
     EXPECT_THAT(from_file, HasSubstr("onboard.yaml: " + c.expected)) << c.yaml;
     EXPECT_THAT(from_constructor, HasSubstr(c.expected)) << c.yaml;
@@ -443,12 +442,11 @@ TEST(ObstacleMemory, RejectsAnUnusableCameraOrExtrinsics) {
   geometry::PinholeCamera camera = test_camera();
   camera.fx = 0.0;
   EXPECT_THAT(hq::testing::input_error_message([&] {
-                ObstacleMemory(MemoryConfig{}, camera, forward_R_body_camera(),
-                               Eigen::Vector3d::Zero());
+                ObstacleMemory(MemoryConfig{}, camera, forward_R_B_C(), Eigen::Vector3d::Zero());
               }),
               HasSubstr("memory: camera 320x240"));
   EXPECT_THAT(hq::testing::input_error_message([&] {
-                ObstacleMemory(MemoryConfig{}, test_camera(), 2.0 * forward_R_body_camera(),
+                ObstacleMemory(MemoryConfig{}, test_camera(), 2.0 * forward_R_B_C(),
                                Eigen::Vector3d::Zero());
               }),
               HasSubstr("not a rotation"));
@@ -469,9 +467,9 @@ TEST(ObstacleMemory, FloorIsNotRememberedAWallIs) {
   for (const double pitch_deg : {0.0, 20.0}) {
     const double pitch = pitch_deg * M_PI / 180.0;
     // The body pitched nose-down by pitch; the floor is horizontal in H.
-    const Eigen::Matrix3d R_horizontal_body =
+    const Eigen::Matrix3d R_H_B_from_tilt =
         Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    const Eigen::Matrix3d R_HC = R_horizontal_body * forward_R_body_camera();
+    const Eigen::Matrix3d R_HC = R_H_B_from_tilt * forward_R_B_C();
     cv::Mat floor = no_depth();
     for (int v = 0; v < camera.height; ++v) {
       for (int u = 0; u < camera.width; ++u) {
@@ -481,7 +479,7 @@ TEST(ObstacleMemory, FloorIsNotRememberedAWallIs) {
       }
     }
     ObstacleMemory memory = make_memory();
-    const MemoryUpdate update = memory.update(0, floor, camera_pose(0.0), R_horizontal_body, kD0);
+    const MemoryUpdate update = memory.update(0, floor, camera_pose(0.0), R_H_B_from_tilt, kD0);
     ASSERT_TRUE(update.updated) << update.reason;
     EXPECT_EQ(update.inserted, 0) << "pitch " << pitch_deg;
     EXPECT_EQ(memory.size(), 0) << "pitch " << pitch_deg;

@@ -103,7 +103,7 @@ void run(int width, int height, int frame_count) {
     const hq::obstacles::ObstacleResult result = field.compute(depth, Eigen::Matrix3d::Identity());
     cpu_ms.push_back(thread_cpu_ms() - cpu_start);
     wall_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
-    checksum += result.v_obs_horizontal_mps.norm() + result.count;
+    checksum += result.v_obs_H_mps.norm() + result.count;
   }
   std::sort(wall_ms.begin(), wall_ms.end());
   std::sort(cpu_ms.begin(), cpu_ms.end());

@@ -58,7 +58,7 @@ void check_camera(const char* component, const geometry::PinholeCamera& camera,
   }
   if (!R_B_C.allFinite() || !p_B_C_m.allFinite() ||
       (R_B_C.transpose() * R_B_C - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6) {
-    throw InputError(std::string(component) + ": R_body_camera is not a rotation");
+    throw InputError(std::string(component) + ": R_B_C is not a rotation");
   }
 }
 
@@ -105,10 +105,10 @@ void ObstacleField::add_point(ObstacleResult& result, const Eigen::Vector3d& p_H
   if (d >= d0 || !(range > 0.0)) return;
   // Khatib 1986 on the clearance d: U = eta/2 (1/d - 1/d0)^2, v = -grad U, along -p/|p|.
   const double speed = config_.gain * (1.0 / d - 1.0 / d0) / (d * d);
-  result.v_obs_horizontal_mps -= speed * p_H / range;
+  result.v_obs_H_mps -= speed * p_H / range;
   if (result.count < config_.max_points) {
     ObstaclePoint& point = result.points[static_cast<std::size_t>(result.count++)];
-    point.p_horizontal_m = p_H;
+    point.p_H_m = p_H;
     point.distance_m = p_H.norm();
     point.near_hazard = hazard;
     point.remembered = remembered;
@@ -119,7 +119,7 @@ void ObstacleField::add_support_push(ObstacleResult& result, double height_m) co
   const double height = std::max(height_m, kMinDistanceM);
   if (ground_phase_ || height >= config_.support_influence_m) return;
   // Upwards only, on the height above the surface.
-  result.v_obs_horizontal_mps.z() -=
+  result.v_obs_H_mps.z() -=
       config_.gain * (1.0 / height - 1.0 / config_.support_influence_m) / (height * height);
 }
 
@@ -315,30 +315,30 @@ void ObstacleField::push_from_remembered(std::span<const Eigen::Vector3d> p_H_m,
 }
 
 ObstacleResult ObstacleField::compute(const cv::Mat& depth_m,
-                                      const Eigen::Matrix3d& R_horizontal_body,
-                                      std::span<const Eigen::Vector3d> remembered_p_horizontal_m) {
+                                      const Eigen::Matrix3d& R_H_B_from_tilt,
+                                      std::span<const Eigen::Vector3d> remembered_p_H_m) {
   ObstacleResult result;
   if (depth_m.type() != CV_32FC1 || depth_m.cols != camera_.width ||
       depth_m.rows != camera_.height) {
     result.reason = "depth image is not CV_32FC1 of the camera's size";
     return result;
   }
-  if (!R_horizontal_body.allFinite()) {
-    result.reason = "R_horizontal_body is not finite";
+  if (!R_H_B_from_tilt.allFinite()) {
+    result.reason = "R_H_B_from_tilt is not finite";
     return result;
   }
-  const Eigen::Matrix3d R_HC = R_horizontal_body * R_B_C_;
-  const Eigen::Vector3d p_HC = R_horizontal_body * p_B_C_m_;
+  const Eigen::Matrix3d R_HC = R_H_B_from_tilt * R_B_C_;
+  const Eigen::Vector3d p_HC = R_H_B_from_tilt * p_B_C_m_;
   min_pool(depth_m);
   result.floor_height_m = floor_height(depth_m, R_HC, p_HC);
   if (!check_near_range(depth_m, R_HC, p_HC, result)) return result;
   find_minima();
   push_from_minima(depth_m, R_HC, p_HC, result);
-  push_from_remembered(remembered_p_horizontal_m, result);
+  push_from_remembered(remembered_p_H_m, result);
 
-  const double speed = result.v_obs_horizontal_mps.norm();
+  const double speed = result.v_obs_H_mps.norm();
   if (speed > config_.max_repulsive_speed_mps) {
-    result.v_obs_horizontal_mps *= config_.max_repulsive_speed_mps / speed;
+    result.v_obs_H_mps *= config_.max_repulsive_speed_mps / speed;
   }
   result.valid = true;
   return result;

@@ -23,17 +23,16 @@ TEST_P(AlignmentTest, KnownMotionIsRecoveredFromIdentity) {
   config.use_depth_term = GetParam();
   PreparedPlane plane(config);
   // GIVEN a reference and a current frame 1.4 cm and 0.5 deg apart over the plane 2 m away
-  const Eigen::Isometry3d T_world_ref = pose(0.02, 0.01, 0.0, 0.01, 0.0, 0.0);
-  const Eigen::Isometry3d T_world_cur =
-      T_world_ref * pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
-  plane.prepare_reference(T_world_ref);
-  plane.build_current(T_world_cur);
+  const Eigen::Isometry3d T_G_ref = pose(0.02, 0.01, 0.0, 0.01, 0.0, 0.0);
+  const Eigen::Isometry3d T_G_cur = T_G_ref * pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
+  plane.prepare_reference(T_G_ref);
+  plane.build_current(T_G_cur);
   Aligner aligner(config, plane.cameras);
   // WHEN aligned from the identity without priors
   const Alignment a =
       aligner.align(plane.reference, plane.current, Eigen::Isometry3d::Identity(), Prediction{});
   // THEN the pose is the true one to a millimetre and a twentieth of a degree
-  const Eigen::Isometry3d T_cur_ref = T_world_cur.inverse() * T_world_ref;
+  const Eigen::Isometry3d T_cur_ref = T_G_cur.inverse() * T_G_ref;
   EXPECT_LT((a.T_cur_ref.translation() - T_cur_ref.translation()).norm(), 1e-3);
   EXPECT_LT(rotation_between_rad(a.T_cur_ref.linear(), T_cur_ref.linear()), 1e-3);
   EXPECT_GT(a.valid, 1000);
@@ -61,14 +60,14 @@ TEST(Aligner, IdenticalFramesStayAtTheIdentityWithSmallResiduals) {
 TEST(Aligner, StrongGyroPriorHoldsTheRotation) {
   const OdometryConfig config;
   PreparedPlane plane(config);
-  const Eigen::Isometry3d T_world_cur = pose(0.005, 0.0, 0.0, 0.0, 0.0, 0.01);
+  const Eigen::Isometry3d T_G_cur = pose(0.005, 0.0, 0.0, 0.0, 0.0, 0.01);
   plane.prepare_reference(Eigen::Isometry3d::Identity());
-  plane.build_current(T_world_cur);
+  plane.build_current(T_G_cur);
   Aligner aligner(config, plane.cameras);
   // A prior 1 degree away from the truth, about 10^6 times the data term's information.
   Prediction p;
   p.use_prior = true;
-  p.R_ref_prior = T_world_cur.linear() * geometry::exp_so3(Eigen::Vector3d(0.0, 0.0, 0.0175));
+  p.R_ref_prior = T_G_cur.linear() * geometry::exp_so3(Eigen::Vector3d(0.0, 0.0, 0.0175));
   p.prior_information = Eigen::Matrix3d::Identity() * 1e14;
   p.T_ref_predicted.linear() = p.R_ref_prior;
   const Alignment held =
@@ -76,8 +75,8 @@ TEST(Aligner, StrongGyroPriorHoldsTheRotation) {
   EXPECT_LT(rotation_between_rad(held.T_cur_ref.linear().transpose(), p.R_ref_prior), 1e-4);
   // The vision alone, from there, finds its own rotation back.
   const Alignment vision = aligner.vision_only(plane.reference, plane.current, held);
-  EXPECT_LT(rotation_between_rad(vision.T_cur_ref.linear().transpose(), T_world_cur.linear()),
-            rotation_between_rad(held.T_cur_ref.linear().transpose(), T_world_cur.linear()));
+  EXPECT_LT(rotation_between_rad(vision.T_cur_ref.linear().transpose(), T_G_cur.linear()),
+            rotation_between_rad(held.T_cur_ref.linear().transpose(), T_G_cur.linear()));
 }
 
 TEST(Aligner, FinestResidualsMarkEveryVisiblePoint) {

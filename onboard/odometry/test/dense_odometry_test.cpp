@@ -33,9 +33,9 @@ struct Frame {
   cv::Mat gray, depth_m;
 };
 
-Frame render(const Eigen::Isometry3d& T_world_camera) {
+Frame render(const Eigen::Isometry3d& T_G_C) {
   Frame f;
-  test::render_textured_plane(kCamera, T_world_camera, kPlaneZ, f.gray, f.depth_m);
+  test::render_textured_plane(kCamera, T_G_C, kPlaneZ, f.gray, f.depth_m);
   return f;
 }
 
@@ -86,18 +86,18 @@ TEST_P(KnownMotion, SmallMotionOfTexturedPlaneIsRecovered) {
   DenseOdometry odometry(config, kCamera);
   // GIVEN a camera moving 1 cm and 0.4 deg per frame over a textured plane 2 m away
   const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
-  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
-  Frame f = render(T_world_camera);
+  Eigen::Isometry3d T_G_C = Eigen::Isometry3d::Identity();
+  Frame f = render(T_G_C);
   ASSERT_EQ(odometry.track(0, f.gray, f.depth_m).status, TrackingStatus::kFirstFrame);
   for (int k = 1; k <= 5; ++k) {
-    T_world_camera = T_world_camera * step;
-    f = render(T_world_camera);
+    T_G_C = T_G_C * step;
+    f = render(T_G_C);
     // WHEN each frame is tracked
     const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
     ASSERT_TRUE(r.ok()) << r.reason;
     // THEN the accumulated pose follows the truth to a millimetre and a tenth of a degree
-    EXPECT_LT(translation_error(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
-    EXPECT_LT(rotation_error_rad(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(translation_error(r.T_O_C, T_G_C), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_O_C, T_G_C), 2e-3) << "frame " << k;
   }
 }
 
@@ -119,21 +119,21 @@ double pose_error_with_a_person_crossing(double occlusion_depth_ratio, Reference
   config.moving_residual_sigmas = moving_residual_sigmas;
   DenseOdometry odometry(config, kCamera);
   const Eigen::Isometry3d step = pose(0.01, 0.004, 0.0, 0.002, -0.003, 0.004);
-  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_G_C = Eigen::Isometry3d::Identity();
   constexpr double kPersonZ = 1.0;
   constexpr double kPersonWidth = 0.5;
   double person_left = -0.45;
   double error_m = 0.0;
   for (int k = 0; k <= 12; ++k) {
-    Frame f = render(T_world_camera);
-    test::render_moving_band(kCamera, T_world_camera, kPersonZ, person_left, kPersonWidth, f.gray,
+    Frame f = render(T_G_C);
+    test::render_moving_band(kCamera, T_G_C, kPersonZ, person_left, kPersonWidth, f.gray,
                              f.depth_m);
     const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
     if (k > 0) {
       EXPECT_TRUE(r.ok()) << r.reason;
-      error_m = translation_error(r.T_O_C, T_world_camera);
+      error_m = translation_error(r.T_O_C, T_G_C);
     }
-    T_world_camera = T_world_camera * step;
+    T_G_C = T_G_C * step;
     person_left += 0.04;
   }
   return error_m;
@@ -173,16 +173,16 @@ TEST(DenseOdometry, DepthTermOnTheFinestLevelOnlyRecoversKnownMotion) {
   config.depth_levels = 1;
   DenseOdometry odometry(config, kCamera);
   const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
-  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
-  Frame f = render(T_world_camera);
+  Eigen::Isometry3d T_G_C = Eigen::Isometry3d::Identity();
+  Frame f = render(T_G_C);
   ASSERT_EQ(odometry.track(0, f.gray, f.depth_m).status, TrackingStatus::kFirstFrame);
   for (int k = 1; k <= 3; ++k) {
-    T_world_camera = T_world_camera * step;
-    f = render(T_world_camera);
+    T_G_C = T_G_C * step;
+    f = render(T_G_C);
     const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
     ASSERT_TRUE(r.ok()) << r.reason;
-    EXPECT_LT(translation_error(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
-    EXPECT_LT(rotation_error_rad(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(translation_error(r.T_O_C, T_G_C), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_O_C, T_G_C), 2e-3) << "frame " << k;
   }
 }
 
@@ -193,19 +193,19 @@ TEST(DenseOdometry, KeyframeCheckKeepsTheKeyframeChainOnKnownMotion) {
   config.keyframe_check = true;
   DenseOdometry odometry(config, kCamera);
   const Eigen::Isometry3d step = pose(0.01, -0.006, 0.008, 0.004, -0.005, 0.007);
-  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
-  Frame f = render(T_world_camera);
+  Eigen::Isometry3d T_G_C = Eigen::Isometry3d::Identity();
+  Frame f = render(T_G_C);
   odometry.track(0, f.gray, f.depth_m);
   int keyframes = 0;
   for (int k = 1; k <= 6; ++k) {
-    T_world_camera = T_world_camera * step;
-    f = render(T_world_camera);
+    T_G_C = T_G_C * step;
+    f = render(T_G_C);
     const OdometryResult r = odometry.track(k * 33'000'000LL, f.gray, f.depth_m);
     ASSERT_TRUE(r.ok()) << r.reason;
     keyframes += r.new_keyframe ? 1 : 0;
     // THEN the poses follow the truth and the chain agrees with each step: no re-anchoring
-    EXPECT_LT(translation_error(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
-    EXPECT_LT(rotation_error_rad(r.T_O_C, T_world_camera), 2e-3) << "frame " << k;
+    EXPECT_LT(translation_error(r.T_O_C, T_G_C), 2e-3) << "frame " << k;
+    EXPECT_LT(rotation_error_rad(r.T_O_C, T_G_C), 2e-3) << "frame " << k;
   }
   EXPECT_LT(keyframes, 6);
 }
@@ -470,14 +470,14 @@ TEST(DenseOdometry, DepthTakenBeforeTheColourIsTurnedToItByTheGyro) {
   const Eigen::Vector3d omega_radps(0.0, 40.0 * M_PI / 180.0, 0.0);
   const Eigen::Isometry3d truth =
       pose(0.01, 0.0, 0.005, 0.0, 0.0, 0.0) * pose(0.0, 0.0, 0.0, 0.0, omega_radps.y() / 30.0, 0.0);
-  const auto frame_with_lead = [&](const Eigen::Isometry3d& T_world_colour, double lead_s,
+  const auto frame_with_lead = [&](const Eigen::Isometry3d& T_G_colour, double lead_s,
                                    RotationPrior& gyro) {
     gyro.information.setZero();
     gyro.R_depth_colour = geometry::exp_so3(omega_radps * lead_s);
-    Frame colour = render(T_world_colour);
-    Eigen::Isometry3d T_world_depth = T_world_colour;
-    T_world_depth.linear() = T_world_colour.linear() * gyro.R_depth_colour.transpose();
-    colour.depth_m = render(T_world_depth).depth_m;
+    Frame colour = render(T_G_colour);
+    Eigen::Isometry3d T_G_depth = T_G_colour;
+    T_G_depth.linear() = T_G_colour.linear() * gyro.R_depth_colour.transpose();
+    colour.depth_m = render(T_G_depth).depth_m;
     return colour;
   };
   RotationPrior gyro_a, gyro_b;

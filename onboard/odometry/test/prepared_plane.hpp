@@ -35,14 +35,14 @@ struct PreparedPlane {
   PreparedPlane(const PreparedPlane&) = delete;
   PreparedPlane& operator=(const PreparedPlane&) = delete;
 
-  static void render(const Eigen::Isometry3d& T_world_camera, cv::Mat& gray, cv::Mat& depth_m) {
-    render_textured_plane(kPlaneCamera, T_world_camera, kPlaneZ, gray, depth_m);
+  static void render(const Eigen::Isometry3d& T_G_C, cv::Mat& gray, cv::Mat& depth_m) {
+    render_textured_plane(kPlaneCamera, T_G_C, kPlaneZ, gray, depth_m);
   }
-  /// The reference seen from T_world_camera, its pixels in `moving` left out (nullptr: none).
-  void prepare_reference(const Eigen::Isometry3d& T_world_camera,
+  /// The reference seen from T_G_C, its pixels in `moving` left out (nullptr: none).
+  void prepare_reference(const Eigen::Isometry3d& T_G_C,
                          const detail::PerLevel<cv::Mat>* moving = nullptr) {
     cv::Mat gray, depth_m;
-    render(T_world_camera, gray, depth_m);
+    render(T_G_C, gray, depth_m);
     prepare_reference(gray, depth_m, moving);
   }
   void prepare_reference(const cv::Mat& gray, const cv::Mat& depth_m,
@@ -50,9 +50,9 @@ struct PreparedPlane {
     frames.build(reference_frame, gray, depth_m, false);
     preparer.prepare(reference_frame, moving, reference);
   }
-  void build_current(const Eigen::Isometry3d& T_world_camera) {
+  void build_current(const Eigen::Isometry3d& T_G_C) {
     cv::Mat gray, depth_m;
-    render(T_world_camera, gray, depth_m);
+    render(T_G_C, gray, depth_m);
     frames.build(current, gray, depth_m, false);
   }
 

@@ -24,7 +24,7 @@ TEST(ReferencePreparer, TexturedPixelsWithDepthBecomePointsWithTheirJacobians) {
     ASSERT_GT(ref.count, cam.width * cam.height / 4) << "level " << l;
     const Intrinsics k = plane.cameras.intrinsics(l);
     for (std::size_t i = 0; i < static_cast<std::size_t>(ref.count); i += 97) {
-      // The plane z_world = 2 seen head-on: every point 2 m away, on a pixel of the image.
+      // The plane z_G = 2 seen head-on: every point 2 m away, on a pixel of the image.
       EXPECT_NEAR(ref.z[i], test::kPlaneZ, 1e-5);
       EXPECT_EQ(ref.photometric[i], 1.0f);  // intensity only: every point is textured
       const float u = k.fx * ref.x[i] / ref.z[i] + k.cx;

@@ -87,8 +87,8 @@ std::vector<std::int64_t> time_state_writes(hq::link::Participant& participant, 
   hq::link::Writer<hq::link::VehicleState> writer(participant, topics.vehicle_state,
                                                   hq::link::vehicle_state_qos());
   hq::link::Sample<hq::link::VehicleState> state;
-  hq::link::reserve(state->obstacle_points_body_m, 512);
-  state->obstacle_points_body_m._length = 512;
+  hq::link::reserve(state->obstacle_points_B_m, 512);
+  state->obstacle_points_B_m._length = 512;
   std::vector<std::int64_t> ns;
   ns.reserve(static_cast<std::size_t>(writes));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // discovery

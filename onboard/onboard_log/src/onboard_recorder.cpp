@@ -77,13 +77,13 @@ StepSample make_step(const pipeline::ChainOutput& out, const vehicle::VehicleSta
   s.estimate_reason = e.reason != nullptr ? e.reason : "";
   copy3(e.v_B_mps, s.v_B_mps);
   copy3(e.v_H_mps, s.v_H_mps);
-  copy3(e.omega_body_radps, s.omega_B_radps);
+  copy3(e.omega_B_radps, s.omega_B_radps);
   s.roll_rad = e.roll_rad;
   s.pitch_rad = e.pitch_rad;
   s.mode = modes::to_string(out.mode.mode);
   s.flight_state = modes::to_string(out.flight_state);
-  copy3(out.mode.v_des_horizontal_mps, s.v_des_H_mps);
-  copy3(out.obstacles.v_obs_horizontal_mps, s.v_obs_H_mps);
+  copy3(out.mode.v_des_H_mps, s.v_des_H_mps);
+  copy3(out.obstacles.v_obs_H_mps, s.v_obs_H_mps);
   s.setpoint = out.mode.control.setpoint;
   s.safe_hover = out.safe_hover;
   s.safe_hover_reason = out.safe_hover_reason != nullptr ? out.safe_hover_reason : "";

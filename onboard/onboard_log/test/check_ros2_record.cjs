@@ -149,7 +149,7 @@ function vF(vH, roll, pitch) {
     check(close(t.x, v.x, 1e-9) && close(t.y, v.y, 1e-9) && close(t.z, v.z, 1e-9),
           `odom ${i}: twist ${JSON.stringify(t)}, the state's velocity in base_link ${JSON.stringify(v)}`);
     const w = o.twist.twist.angular;
-    const g = s.omega_body_radps;
+    const g = s.omega_B_radps;
     check(close(w.x, g.x, 1e-9) && close(w.y, -g.y, 1e-9) && close(w.z, -g.z, 1e-9),
           `odom ${i}: angular ${JSON.stringify(w)}, gyro ${JSON.stringify(g)}`);
     const imu = imus[i].msg;
@@ -208,12 +208,12 @@ function vF(vH, roll, pitch) {
   }
   // A cloud per state that carries obstacle points (the bridge sends none for an empty one).
   const clouds = get(rosMsgs, `/${ns}/obstacles`);
-  const withPoints = states.filter((s) => s.msg.obstacle_points_body_m.length > 0);
+  const withPoints = states.filter((s) => s.msg.obstacle_points_B_m.length > 0);
   check(clouds.length === withPoints.length,
         `obstacles: ${clouds.length} clouds, ${withPoints.length} states with points`);
   for (let i = 0; i < Math.min(clouds.length, withPoints.length); ++i) {
     const c = clouds[i].msg;
-    const p = withPoints[i].msg.obstacle_points_body_m;
+    const p = withPoints[i].msg.obstacle_points_B_m;
     check(c.width === p.length && c.data.length === 12 * p.length, `cloud ${i}: ${c.width} points, state ${p.length}`);
     const view = new DataView(c.data.buffer, c.data.byteOffset, c.data.byteLength);
     check(view.getFloat32(0, true) === p[0].x && view.getFloat32(4, true) === -p[0].y,

@@ -234,15 +234,15 @@ TEST_F(OnboardRecorderTest, LinkStatesAndFramesBecomeTheBridgesMessagesInRos2Mca
   std::vector<std::vector<std::uint8_t>> odoms;
   constexpr int kStates = 20;
   link::Sample<link::VehicleState> state;
-  link::reserve(state->obstacle_points_body_m, 2);
+  link::reserve(state->obstacle_points_B_m, 2);
   for (int i = 0; i < kStates; ++i) {
     state->vehicle_id = 7;
     state->t_ns = 5'000'000'000 + std::int64_t{i} * 33'000'000;
     state->v_H_mps = {0.1f * static_cast<float>(i), -0.2f, 0.05f};
     state->roll_rad = 0.01f * static_cast<float>(i);
-    state->obstacle_points_body_m._length = i % 2 == 0 ? 2 : 0;  // a cloud every other state
-    state->obstacle_points_body_m._buffer[0] = {1.0f, 2.0f, -0.5f};
-    state->obstacle_points_body_m._buffer[1] = {1.5f, -1.0f, 0.25f};
+    state->obstacle_points_B_m._length = i % 2 == 0 ? 2 : 0;  // a cloud every other state
+    state->obstacle_points_B_m._buffer[0] = {1.0f, 2.0f, -0.5f};
+    state->obstacle_points_B_m._buffer[1] = {1.5f, -1.0f, 0.25f};
     ASSERT_TRUE(states.write(*state));
     ASSERT_TRUE(ros2_bridge::serialize(*bridge.build_state(*state).odom, cdr));
     odoms.emplace_back(cdr.data().begin(), cdr.data().end());

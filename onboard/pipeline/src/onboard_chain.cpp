@@ -116,7 +116,7 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
   estimator_.update_imu(t_ns, gyro_radps, accel_mps2);
   hover_thrust_.on_specific_force(t_ns, accel_mps2.z(), thrust_measurable_);
   // The land detector's evidence of the floor (an impact, then the floor carrying the vehicle).
-  const Eigen::Matrix3d R_H_B = R_horizontal_body();
+  const Eigen::Matrix3d R_H_B = R_H_B_from_tilt();
   modes_.set_specific_force_H(t_ns, R_H_B * accel_mps2);
   // The heading's turn since take-off, for the dead reckoning of the take-off point.
   if (t_yaw_ns_ >= 0 && t_ns > t_yaw_ns_) {
@@ -136,19 +136,19 @@ void OnboardChain::on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
       const double dt_s = std::min(hq::to_seconds(t_ns - t_last_imu_ns_), 0.1);
       // Less the levelling's bias only: the rest is what the odometry itself estimates.
       const Eigen::Vector3d omega = gyro_radps - estimator_.attitude().levelling_gyro_bias_radps();
-      R_prev_cur_body_ = R_prev_cur_body_ * geometry::exp_so3(omega * dt_s);
+      R_prev_cur_B_ = R_prev_cur_B_ * geometry::exp_so3(omega * dt_s);
       gyro_since_frame_ = true;
-      if (omega.allFinite()) omega_body_radps_ = omega;
+      if (omega.allFinite()) omega_B_radps_ = omega;
     }
     t_last_imu_ns_ = t_ns;
   }
   if (markers_) markers_->on_imu(t_ns, gyro_radps, accel_mps2);
 }
 
-Eigen::Matrix3d OnboardChain::R_horizontal_body() const {
+Eigen::Matrix3d OnboardChain::R_H_B_from_tilt() const {
   const estimator::ComplementaryFilter& attitude = estimator_.attitude();
   if (!attitude.initialized()) return Eigen::Matrix3d::Identity();
-  return estimator::R_horizontal_body(attitude.roll_rad(), attitude.pitch_rad());
+  return estimator::R_H_B_from_tilt(attitude.roll_rad(), attitude.pitch_rad());
 }
 
 odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, std::int64_t depth_t_ns,
@@ -161,17 +161,17 @@ odometry::OdometryResult OnboardChain::track_odometry(std::int64_t t_ns, std::in
                            std::abs(depth_lead_s) <= config_.chain.depth_colour_max_offset_s;
   if (align_depth) {
     gyro.R_depth_colour =
-        R_B_C_.transpose() * geometry::exp_so3(omega_body_radps_ * depth_lead_s) * R_B_C_;
+        R_B_C_.transpose() * geometry::exp_so3(omega_B_radps_ * depth_lead_s) * R_B_C_;
   }
   const bool use_gyro = config_.chain.gyro_rotation_prior && gyro_since_frame_ && have_frame_;
   if (use_gyro) {
     // R_Cprev_Ccur = R_C_B R_Bprev_Bcur R_B_C.
-    gyro.R_prev_cur = R_B_C_.transpose() * R_prev_cur_body_ * R_B_C_;
+    gyro.R_prev_cur = R_B_C_.transpose() * R_prev_cur_B_ * R_B_C_;
     const auto interval_ns = std::max<std::int64_t>(t_ns - t_last_frame_ns_, 1);
     const double sigma_rad = config_.chain.gyro_prior_sigma_radps * hq::to_seconds(interval_ns);
     gyro.information = Eigen::Matrix3d::Identity() / (sigma_rad * sigma_rad);
   }
-  R_prev_cur_body_.setIdentity();
+  R_prev_cur_B_.setIdentity();
   gyro_since_frame_ = false;
   return odometry_.track(t_ns, gray, depth_m, use_gyro || align_depth ? &gyro : nullptr);
 }
@@ -269,7 +269,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, std::int64_t depth_t_ns, c
   estimate_velocity(t_ns, gray, depth_m, odometry, out);
   const std::int64_t t_estimator_ns = now_ns();
 
-  const Eigen::Matrix3d R_H_B = R_horizontal_body();
+  const Eigen::Matrix3d R_H_B = R_H_B_from_tilt();
   update_memory(t_ns, depth_m, odometry, R_H_B, out);
   const std::int64_t t_memory_ns = now_ns();
 
@@ -281,7 +281,7 @@ ChainOutput OnboardChain::on_frame(std::int64_t t_ns, std::int64_t depth_t_ns, c
   // then commands a level hover (m g) and freezes its integral, which is what the vehicle can
   // do on IMU attitude alone.
   follow_hover_thrust();
-  out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), out.obstacles.v_obs_horizontal_mps);
+  out.mode = modes_.step(t_ns, usable_v_H_mps(out.estimate), out.obstacles.v_obs_H_mps);
   finish_output(out);
   correct_thrust(out);
   const std::int64_t t_control_ns = now_ns();
@@ -329,7 +329,7 @@ std::optional<ChainOutput> OnboardChain::on_tick(std::int64_t t_ns) {
   // No frame: the seen space only ages (no pose to turn it with).
   v_est_for_limit_H_mps_ = usable_v_H_mps(out.estimate);
   velocity_from_odometry_ = out.estimate.ok();
-  out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_horizontal_body());
+  out.seen_space = seen_space_.update(t_ns, cv::Mat(), nullptr, R_H_B_from_tilt());
   apply_operator_limit(&out);
   update_height(t_ns, std::numeric_limits<double>::quiet_NaN(), out);
   update_offset_from_takeoff(t_ns, out);

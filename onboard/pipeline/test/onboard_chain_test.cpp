@@ -55,8 +55,8 @@ void feed_imu(OnboardChain& chain, std::int64_t from_ns, std::int64_t to_ns) {
 bool setpoint_finite(const ChainOutput& out) {
   const control::AttitudeSetpoint& s = out.mode.control.setpoint;
   return std::isfinite(s.thrust_n) && std::isfinite(s.roll_rad) && std::isfinite(s.pitch_rad) &&
-         std::isfinite(s.yaw_rate_radps) && out.mode.v_des_horizontal_mps.allFinite() &&
-         out.estimate.v_H_mps.allFinite() && out.obstacles.v_obs_horizontal_mps.allFinite();
+         std::isfinite(s.yaw_rate_radps) && out.mode.v_des_H_mps.allFinite() &&
+         out.estimate.v_H_mps.allFinite() && out.obstacles.v_obs_H_mps.allFinite();
 }
 
 /// modes.start_landed is true by default (motors idle until a climb request); the tests of
@@ -283,7 +283,7 @@ TEST_F(ChainOnRenderedPlane, OperatorCommandIsLimitedToTheSeenSpace) {
     EXPECT_EQ(out.seen_space_limits_mps[static_cast<std::size_t>(b)], 0.0f);
   }
   // The mode controller got the limited command: v*_des has no horizontal part.
-  EXPECT_NEAR(out.mode.v_star_des_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
+  EXPECT_NEAR(out.mode.v_star_des_H_mps.head<2>().norm(), 0.0, 1e-9);
 }
 
 class UnlimitedChainOnRenderedPlane : public ChainOnRenderedPlane {
@@ -338,7 +338,7 @@ TEST(OnboardChainCoast, OperatorsHorizontalCommandIsHeldOnTheCoastClimbIsFlown) 
     EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.y(), hold ? 0.0 : 1.0);
     EXPECT_DOUBLE_EQ(out.v_cmd_flown_H_mps.z(), -0.2);
     if (hold) {
-      EXPECT_NEAR(out.mode.v_star_des_horizontal_mps.head<2>().norm(), 0.0, 1e-9);
+      EXPECT_NEAR(out.mode.v_star_des_H_mps.head<2>().norm(), 0.0, 1e-9);
     }
   }
 }

@@ -53,22 +53,19 @@ std::optional<Eigen::Isometry3d> interpolate_pose(const std::vector<recording::S
   const auto after = std::lower_bound(
       poses.begin(), poses.end(), t_ns,
       [](const recording::StampedPose& pose, std::int64_t t) { return pose.t_ns < t; });
-  if (after->t_ns == t_ns || after == poses.begin()) return after->T_world_sensor;
+  if (after->t_ns == t_ns || after == poses.begin()) return after->T_G_S;
   const auto before = after - 1;
   const double s =
       static_cast<double>(t_ns - before->t_ns) / static_cast<double>(after->t_ns - before->t_ns);
-  const Eigen::Quaterniond q0(before->T_world_sensor.linear());
-  const Eigen::Quaterniond q1(after->T_world_sensor.linear());
+  const Eigen::Quaterniond q0(before->T_G_S.linear());
+  const Eigen::Quaterniond q1(after->T_G_S.linear());
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = q0.slerp(s, q1).normalized().toRotationMatrix();
-  T.translation() =
-      (1.0 - s) * before->T_world_sensor.translation() + s * after->T_world_sensor.translation();
+  T.translation() = (1.0 - s) * before->T_G_S.translation() + s * after->T_G_S.translation();
   return T;
 }
 
-Eigen::Matrix3d R_body_camera_for_camera_as_body() {
-  return R_body_camera_from_angles(0.0, 0.0, 0.0);
-}
+Eigen::Matrix3d R_B_C_for_camera_as_body() { return R_B_C_from_angles(0.0, 0.0, 0.0); }
 
 geometry::CameraMount camera_as_body_mount() {
   return camera_mount_from_angles(0.0, 0.0, 0.0, Eigen::Vector3d::Zero());
@@ -76,16 +73,16 @@ geometry::CameraMount camera_as_body_mount() {
 
 Eigen::Matrix3d R_camera_kinect_accel() { return Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal(); }
 
-GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T_G_C,
                                            const std::vector<recording::AccelSample>& accel,
                                            const Eigen::Matrix3d& R_C_A) {
   GravityEstimate out;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (const recording::AccelSample& sample : accel) {
-    if (!T_world_camera.contains(sample.t_ns) || !sample.accel_mps2.allFinite()) continue;
-    // f = R_W_A^T (a_W - g_W), so g_W = a_W - R_W_A f.
-    const Eigen::Matrix3d R_W_A = T_world_camera.pose(sample.t_ns).linear() * R_C_A;
-    sum += T_world_camera.acceleration_W_mps2(sample.t_ns) - R_W_A * sample.accel_mps2;
+    if (!T_G_C.contains(sample.t_ns) || !sample.accel_mps2.allFinite()) continue;
+    // f = R_G_A^T (a_G - g_G), so g_G = a_G - R_G_A f.
+    const Eigen::Matrix3d R_G_A = T_G_C.pose(sample.t_ns).linear() * R_C_A;
+    sum += T_G_C.acceleration_G_mps2(sample.t_ns) - R_G_A * sample.accel_mps2;
     ++out.samples;
   }
   if (out.samples == 0 || !(sum.norm() > 0.0)) {
@@ -93,14 +90,14 @@ GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T
         "gravity from the accelerometer: none of its {} samples lies within the ground truth",
         accel.size()));
   }
-  out.g_W_mps2 = kStandardGravityMps2 * sum.normalized();
-  out.tilt_from_world_down_deg =
-      std::acos(std::clamp(-out.g_W_mps2.normalized().z(), -1.0, 1.0)) / kDegToRad;
-  if (out.tilt_from_world_down_deg > kMaxGravityTiltDeg) {
+  out.g_G_mps2 = kStandardGravityMps2 * sum.normalized();
+  out.tilt_from_G_down_deg =
+      std::acos(std::clamp(-out.g_G_mps2.normalized().z(), -1.0, 1.0)) / kDegToRad;
+  if (out.tilt_from_G_down_deg > kMaxGravityTiltDeg) {
     throw InputError(fmt::format(
         "gravity from the accelerometer: {:.1f} deg from the ground truth's down over {} "
         "samples, expected within {:.0f} deg: the accelerometer's axes are not the ones assumed",
-        out.tilt_from_world_down_deg, out.samples, kMaxGravityTiltDeg));
+        out.tilt_from_G_down_deg, out.samples, kMaxGravityTiltDeg));
   }
   return out;
 }
@@ -135,8 +132,8 @@ class SensorErrors {
 }  // namespace
 
 std::vector<ImuMeasurement> synthesise_imu(
-    const evaluation::TrajectorySpline& T_world_camera, const Eigen::Matrix3d& R_body_camera,
-    const Eigen::Vector3d& g_W_mps2, const ImuSynthesis& synthesis,
+    const evaluation::TrajectorySpline& T_G_C, const Eigen::Matrix3d& R_B_C,
+    const Eigen::Vector3d& g_G_mps2, const ImuSynthesis& synthesis,
     const std::vector<recording::AccelSample>* recorded_accel, const Eigen::Matrix3d& R_C_A) {
   const MemsImuModel& model = synthesis.imu;
   if (!(model.rate_hz > 0.0)) {
@@ -148,14 +145,13 @@ std::vector<ImuMeasurement> synthesise_imu(
                            model.gyro_noise_density_radps, model.rate_hz, rng);
   SensorErrors accel_errors(model.accel_turn_on_bias_mps2, model.accel_bias_random_walk,
                             model.accel_noise_density_mps2, model.rate_hz, rng);
-  const Eigen::Matrix3d& R_QC = R_body_camera;
+  const Eigen::Matrix3d& R_QC = R_B_C;
   std::size_t next_recorded = 0;
   std::vector<ImuMeasurement> out;
-  for (std::int64_t t = T_world_camera.t_begin_ns() + period_ns; t <= T_world_camera.t_end_ns();
-       t += period_ns) {
+  for (std::int64_t t = T_G_C.t_begin_ns() + period_ns; t <= T_G_C.t_end_ns(); t += period_ns) {
     ImuMeasurement sample;
     sample.t_ns = t;
-    sample.gyro_radps = R_QC * T_world_camera.omega_S_radps(t) + gyro_errors.next();
+    sample.gyro_radps = R_QC * T_G_C.omega_S_radps(t) + gyro_errors.next();
     if (recorded_accel != nullptr) {
       // The recorded samples of this period, (t - period, t], averaged.
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -170,39 +166,37 @@ std::vector<ImuMeasurement> synthesise_imu(
       if (count == 0) continue;  // the recording has a gap: so has the IMU
       sample.accel_mps2 = R_QC * R_C_A * (sum / count);
     } else {
-      const Eigen::Matrix3d R_WC = T_world_camera.pose(t).linear();
+      const Eigen::Matrix3d R_GC = T_G_C.pose(t).linear();
       sample.accel_mps2 =
-          R_QC * R_WC.transpose() * (T_world_camera.acceleration_W_mps2(t) - g_W_mps2) +
-          accel_errors.next();
+          R_QC * R_GC.transpose() * (T_G_C.acceleration_G_mps2(t) - g_G_mps2) + accel_errors.next();
     }
     out.push_back(sample);
   }
   if (out.empty()) {
     throw InputError(
         fmt::format("IMU synthesis: no sample over the ground truth's {:.3f} s{}",
-                    hq::to_seconds(T_world_camera.t_end_ns() - T_world_camera.t_begin_ns()),
+                    hq::to_seconds(T_G_C.t_end_ns() - T_G_C.t_begin_ns()),
                     recorded_accel != nullptr ? " with the recorded accelerometer" : ""));
   }
   return out;
 }
 
-AccelerometerChoice choose_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+AccelerometerChoice choose_accelerometer(const evaluation::TrajectorySpline& T_G_C,
                                          const std::vector<recording::AccelSample>* accel,
                                          bool use_recorded) {
   AccelerometerChoice choice;
-  choice.g_W_mps2 = Eigen::Vector3d(0.0, 0.0, -kStandardGravityMps2);
+  choice.g_G_mps2 = Eigen::Vector3d(0.0, 0.0, -kStandardGravityMps2);
   if (accel == nullptr) {
     choice.description = "gravity ASSUMED along the ground truth's -z (no accelerometer.txt)";
     return choice;
   }
   try {
-    const GravityEstimate g =
-        gravity_from_accelerometer(T_world_camera, *accel, R_camera_kinect_accel());
-    choice.g_W_mps2 = g.g_W_mps2;
+    const GravityEstimate g = gravity_from_accelerometer(T_G_C, *accel, R_camera_kinect_accel());
+    choice.g_G_mps2 = g.g_G_mps2;
     choice.description = fmt::format(
         "gravity from accelerometer.txt ({} samples, Kinect axes): {:.2f} deg from the ground "
         "truth's -z",
-        g.samples, g.tilt_from_world_down_deg);
+        g.samples, g.tilt_from_G_down_deg);
     if (use_recorded) choice.recorded = accel;
   } catch (const InputError& e) {
     // Another sensor's axes, or no overlap with the ground truth: the model's accelerometer
@@ -244,8 +238,8 @@ ReplayImu recorded_imu(const recording::TumSequence& sequence, const std::string
 
 }  // namespace
 
-ReplayImu load_replay_imu(const recording::TumSequence& sequence,
-                          const Eigen::Matrix3d& R_body_camera, const ImuSynthesis& synthesis) {
+ReplayImu load_replay_imu(const recording::TumSequence& sequence, const Eigen::Matrix3d& R_B_C,
+                          const ImuSynthesis& synthesis) {
   const std::string gyro_path = sequence.directory() + "/gyro.txt";
   if (sequence.has_accelerometer() && std::filesystem::exists(gyro_path)) {
     return recorded_imu(sequence, gyro_path);
@@ -267,11 +261,11 @@ ReplayImu load_replay_imu(const recording::TumSequence& sequence,
   const AccelerometerChoice accel = choose_accelerometer(
       spline, sequence.has_accelerometer() ? &sequence.accelerometer() : nullptr,
       synthesis.recorded_accelerometer);
-  const Eigen::Vector3d& g_W_mps2 = accel.g_W_mps2;
+  const Eigen::Vector3d& g_G_mps2 = accel.g_G_mps2;
   const std::string& gravity = accel.description;
   const std::vector<recording::AccelSample>* recorded = accel.recorded;
   imu.samples =
-      synthesise_imu(spline, R_body_camera, g_W_mps2, synthesis, recorded, R_camera_kinect_accel());
+      synthesise_imu(spline, R_B_C, g_G_mps2, synthesis, recorded, R_camera_kinect_accel());
   imu.description = fmt::format(
       "IMU SYNTHESISED, {} samples: {}; {}; gyro {}; accelerometer {}", imu.samples.size(), fit,
       gravity, describe(synthesis.imu),

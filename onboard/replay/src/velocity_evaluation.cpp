@@ -12,11 +12,10 @@
 namespace hq::replay {
 
 std::optional<Eigen::Vector3d> true_camera_velocity(
-    const std::vector<recording::StampedPose>& T_world_camera, std::int64_t t_ns,
-    std::int64_t h_ns) {
-  const auto T_minus = interpolate_pose(T_world_camera, t_ns - h_ns);
-  const auto T_now = interpolate_pose(T_world_camera, t_ns);
-  const auto T_plus = interpolate_pose(T_world_camera, t_ns + h_ns);
+    const std::vector<recording::StampedPose>& T_G_C, std::int64_t t_ns, std::int64_t h_ns) {
+  const auto T_minus = interpolate_pose(T_G_C, t_ns - h_ns);
+  const auto T_now = interpolate_pose(T_G_C, t_ns);
+  const auto T_plus = interpolate_pose(T_G_C, t_ns + h_ns);
   if (!T_minus || !T_now || !T_plus) return std::nullopt;
   const double two_h_s = 2e-9 * static_cast<double>(h_ns);
   // Central difference in W, then into the camera frame at t (as Ck_v_Ck of eqs. 1-2).
@@ -48,7 +47,7 @@ Shifted squared_errors(const std::vector<VelocitySample>& samples,
 }  // namespace
 
 VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
-                                 const std::vector<recording::StampedPose>& T_world_camera,
+                                 const std::vector<recording::StampedPose>& T_G_C,
                                  std::int64_t frame_interval_ns, const LagSearch& lag) {
   if (frame_interval_ns <= 0) {
     throw InputError("velocity evaluation: frame interval = " + std::to_string(frame_interval_ns) +
@@ -59,8 +58,8 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
   // Truth is defined on one interval, so checking both ends of the shift range suffices.
   std::vector<VelocitySample> usable;
   for (const VelocitySample& sample : samples) {
-    if (true_camera_velocity(T_world_camera, sample.t_ns, frame_interval_ns) &&
-        true_camera_velocity(T_world_camera, sample.t_ns - max_shift_ns, frame_interval_ns)) {
+    if (true_camera_velocity(T_G_C, sample.t_ns, frame_interval_ns) &&
+        true_camera_velocity(T_G_C, sample.t_ns - max_shift_ns, frame_interval_ns)) {
       usable.push_back(sample);
     }
   }
@@ -73,13 +72,13 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
   errors.samples = static_cast<int>(usable.size());
   errors.frame_interval_s = hq::to_seconds(frame_interval_ns);
   const double n = static_cast<double>(usable.size());
-  const Shifted at_zero = squared_errors(usable, T_world_camera, frame_interval_ns, 0);
+  const Shifted at_zero = squared_errors(usable, T_G_C, frame_interval_ns, 0);
   errors.rmse_raw_mps = (at_zero.sq_raw / n).cwiseSqrt();
   errors.rmse_filtered_mps = (at_zero.sq_filtered / n).cwiseSqrt();
   errors.rmse_flown_mps = (at_zero.sq_flown / n).cwiseSqrt();
   double truth_sq = 0.0;
   for (const VelocitySample& sample : usable) {
-    truth_sq += true_camera_velocity(T_world_camera, sample.t_ns, frame_interval_ns)->squaredNorm();
+    truth_sq += true_camera_velocity(T_G_C, sample.t_ns, frame_interval_ns)->squaredNorm();
   }
   errors.truth_rms_mps = std::sqrt(truth_sq / n);
 
@@ -88,7 +87,7 @@ VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
   double best_flown = at_zero.sq_flown.sum();
   errors.rmse_filtered_at_lag_mps = errors.rmse_filtered_mps;
   for (std::int64_t shift = step_ns; shift <= max_shift_ns; shift += step_ns) {
-    const Shifted e = squared_errors(usable, T_world_camera, frame_interval_ns, shift);
+    const Shifted e = squared_errors(usable, T_G_C, frame_interval_ns, shift);
     if (e.sq_filtered.sum() < best_filtered) {
       best_filtered = e.sq_filtered.sum();
       errors.filtered_lag_ms = 1e-6 * static_cast<double>(shift);
@@ -130,7 +129,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
                    spacing_ns.end());
   replay.frame_interval_ns = spacing_ns[spacing_ns.size() / 2];
 
-  replay.imu = load_replay_imu(sequence, R_body_camera_for_camera_as_body(), synthesis);
+  replay.imu = load_replay_imu(sequence, R_B_C_for_camera_as_body(), synthesis);
   VehicleConfig replay_vehicle = vehicle;
   if (replay.imu.synthesised) {
     // The synthesised IMU lives on the camera: the camera is the body (see replay_imu.hpp).
@@ -159,7 +158,7 @@ SequenceReplay replay_velocity(const std::string& sequence_dir, const config::Ca
       const Eigen::Vector3d v_C_flown =
           replay_vehicle.camera.R_B_C().transpose() *
           (out.estimate.v_B_mps +
-           out.estimate.omega_body_radps.cross(replay_vehicle.camera.p_B_C_m()));
+           out.estimate.omega_B_radps.cross(replay_vehicle.camera.p_B_C_m()));
       replay.samples.push_back(
           {frame.t_ns, out.estimate.v_C_raw_mps, out.estimate.v_C_mps, v_C_flown});
     } else {

@@ -25,11 +25,11 @@ Eigen::Matrix3d Rz(double angle_rad) {
   return Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
 }
 
-/// A level camera-as-body (R_WQ = Rz(yaw) Rx(pi), NED body in a z-up world) yawing at
+/// A level camera-as-body (R_GQ = Rz(yaw) Rx(pi), NED body in a z-up world) yawing at
 /// yaw_rate_radps while its position follows p(t).
 template <typename Position>
 std::vector<StampedPose> trajectory(double duration_s, double yaw_rate_radps, Position p) {
-  const Eigen::Matrix3d R_QC = R_body_camera_for_camera_as_body();
+  const Eigen::Matrix3d R_QC = R_B_C_for_camera_as_body();
   const Eigen::Matrix3d Rx_pi =
       Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
   std::vector<StampedPose> out;
@@ -45,13 +45,13 @@ std::vector<StampedPose> trajectory(double duration_s, double yaw_rate_radps, Po
 }
 
 TEST(TrueCameraVelocity, IsTheWorldVelocityInTheCameraFrame) {
-  const Eigen::Vector3d v_world(0.4, -0.2, 0.1);
-  const auto gt = trajectory(2.0, 0.5, [&](double t) { return Eigen::Vector3d(v_world * t); });
+  const Eigen::Vector3d v_G(0.4, -0.2, 0.1);
+  const auto gt = trajectory(2.0, 0.5, [&](double t) { return Eigen::Vector3d(v_G * t); });
   const std::int64_t t_ns = 1'005'000'000;  // between ground-truth samples
   const auto v = true_camera_velocity(gt, t_ns, 33'000'000);
   ASSERT_TRUE(v.has_value());
-  const Eigen::Matrix3d R_WC = interpolate_pose(gt, t_ns)->linear();
-  EXPECT_LT((*v - R_WC.transpose() * v_world).norm(), 1e-9);
+  const Eigen::Matrix3d R_GC = interpolate_pose(gt, t_ns)->linear();
+  EXPECT_LT((*v - R_GC.transpose() * v_G).norm(), 1e-9);
   EXPECT_FALSE(true_camera_velocity(gt, 10'000'000, 33'000'000).has_value())
       << "t - h before the ground truth";
 }
@@ -112,8 +112,8 @@ TEST(SynthesiseImu, GivesBodyRateAndGravityOfALevelYawingCamera) {
   const auto gt = trajectory(2.0, 0.5, [](double t) { return Eigen::Vector3d(0.2 * t, 0.0, 1.0); });
   ImuSynthesis synthesis;
   synthesis.imu = noiseless();
-  const auto imu = synthesise_imu(evaluation::TrajectorySpline::fit(gt),
-                                  R_body_camera_for_camera_as_body(), kGravityDownW, synthesis);
+  const auto imu = synthesise_imu(evaluation::TrajectorySpline::fit(gt), R_B_C_for_camera_as_body(),
+                                  kGravityDownW, synthesis);
   ASSERT_GT(imu.size(), 300u);
   EXPECT_NEAR(hq::to_seconds(imu[1].t_ns - imu[0].t_ns), 1.0 / 200.0, 1e-9);
   for (const ImuMeasurement& m : imu) {
@@ -130,11 +130,9 @@ TEST(SynthesiseImu, AddsTheNamedImusNoiseAtItsDatasheetDensity) {
   synthesis.imu.accel_turn_on_bias_mps2 = 0.0;
   synthesis.imu.gyro_bias_random_walk = 0.0;
   synthesis.imu.accel_bias_random_walk = 0.0;
-  const auto noisy =
-      synthesise_imu(spline, R_body_camera_for_camera_as_body(), kGravityDownW, synthesis);
+  const auto noisy = synthesise_imu(spline, R_B_C_for_camera_as_body(), kGravityDownW, synthesis);
   synthesis.imu = noiseless();
-  const auto clean =
-      synthesise_imu(spline, R_body_camera_for_camera_as_body(), kGravityDownW, synthesis);
+  const auto clean = synthesise_imu(spline, R_B_C_for_camera_as_body(), kGravityDownW, synthesis);
   ASSERT_EQ(noisy.size(), clean.size());
   double sq_gyro = 0.0;
   double sq_accel = 0.0;
@@ -156,12 +154,12 @@ TEST(SynthesiseImu, AddsTheNamedImusNoiseAtItsDatasheetDensity) {
 // A Kinect's accelerometer record of a camera moving under gravity tilted 3 deg from the
 // world's -z (a motion-capture frame not quite level).
 std::vector<recording::AccelSample> kinect_record(const evaluation::TrajectorySpline& spline,
-                                                  const Eigen::Vector3d& g_W) {
+                                                  const Eigen::Vector3d& g_G) {
   std::vector<recording::AccelSample> out;
   const Eigen::Matrix3d R_A_C = R_camera_kinect_accel().transpose();
   for (std::int64_t t = spline.t_begin_ns(); t <= spline.t_end_ns(); t += 1'000'000) {
-    const Eigen::Matrix3d R_WC = spline.pose(t).linear();
-    out.push_back({t, R_A_C * R_WC.transpose() * (spline.acceleration_W_mps2(t) - g_W)});
+    const Eigen::Matrix3d R_GC = spline.pose(t).linear();
+    out.push_back({t, R_A_C * R_GC.transpose() * (spline.acceleration_G_mps2(t) - g_G)});
   }
   return out;
 }
@@ -171,22 +169,22 @@ TEST(GravityFromAccelerometer, FindsATiltedWorldsGravityAndReplaysTheRecording) 
     return Eigen::Vector3d(0.3 * std::sin(2.0 * t), 0.1 * t, 1.0 + 0.1 * std::cos(3.0 * t));
   });
   const evaluation::TrajectorySpline spline = evaluation::TrajectorySpline::fit(gt);
-  const Eigen::Vector3d g_W =
+  const Eigen::Vector3d g_G =
       Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()) * kGravityDownW;
-  const auto record = kinect_record(spline, g_W);
+  const auto record = kinect_record(spline, g_G);
   const GravityEstimate g = gravity_from_accelerometer(spline, record, R_camera_kinect_accel());
-  EXPECT_LT((g.g_W_mps2 - g_W).norm(), 1e-3);
-  EXPECT_NEAR(g.tilt_from_world_down_deg, 3.0, 1e-3);
+  EXPECT_LT((g.g_G_mps2 - g_G).norm(), 1e-3);
+  EXPECT_NEAR(g.tilt_from_G_down_deg, 3.0, 1e-3);
   EXPECT_EQ(g.samples, static_cast<int>(record.size()));
 
   // The replayed accelerometer is the record, in the body frame, averaged per 5 ms sample:
   // what the model would give with the same gravity and no noise.
   ImuSynthesis synthesis;
   synthesis.imu = noiseless();
-  const Eigen::Matrix3d R_QC = R_body_camera_for_camera_as_body();
+  const Eigen::Matrix3d R_QC = R_B_C_for_camera_as_body();
   const auto replayed =
-      synthesise_imu(spline, R_QC, g.g_W_mps2, synthesis, &record, R_camera_kinect_accel());
-  const auto modelled = synthesise_imu(spline, R_QC, g.g_W_mps2, synthesis);
+      synthesise_imu(spline, R_QC, g.g_G_mps2, synthesis, &record, R_camera_kinect_accel());
+  const auto modelled = synthesise_imu(spline, R_QC, g.g_G_mps2, synthesis);
   ASSERT_EQ(replayed.size(), modelled.size());
   double worst = 0.0;
   for (std::size_t i = 0; i < replayed.size(); ++i) {
@@ -209,7 +207,7 @@ TEST(ChooseAccelerometer, ReplaysARecordInKinectAxesAndSaysWhyNotOtherwise) {
   // GIVEN a Kinect record: its gravity, and the record itself when asked for
   const AccelerometerChoice kinect = choose_accelerometer(spline, &record, true);
   EXPECT_EQ(kinect.recorded, &record);
-  EXPECT_LT((kinect.g_W_mps2 - kGravityDownW).norm(), 1e-3);
+  EXPECT_LT((kinect.g_G_mps2 - kGravityDownW).norm(), 1e-3);
   EXPECT_THAT(kinect.description, HasSubstr("gravity from accelerometer.txt"));
   EXPECT_EQ(choose_accelerometer(spline, &record, false).recorded, nullptr);
   // GIVEN a record in other axes (gravity upside down in Kinect axes): not used, and why
@@ -217,7 +215,7 @@ TEST(ChooseAccelerometer, ReplaysARecordInKinectAxesAndSaysWhyNotOtherwise) {
   for (recording::AccelSample& a : flipped) a.accel_mps2 = -a.accel_mps2;
   const AccelerometerChoice other = choose_accelerometer(spline, &flipped, true);
   EXPECT_EQ(other.recorded, nullptr);
-  EXPECT_EQ(other.g_W_mps2, kGravityDownW);
+  EXPECT_EQ(other.g_G_mps2, kGravityDownW);
   EXPECT_THAT(other.description, HasSubstr("accelerometer.txt NOT USED"));
   EXPECT_THAT(other.description, HasSubstr("not the ones assumed"));
   // GIVEN none: gravity assumed, and said to be

@@ -188,7 +188,7 @@ StateMessages Ros2Messages::build_state(const link::VehicleState& s) {
       q_E_F(roll_rad, pitch_rad, static_cast<double>(s.yaw_odom_rad));
   const Eigen::Vector3d p_E_m = enu_from_ned(from_msg(s.p_odom_m));
   const Eigen::Vector3d v_F_mps = v_F_from_v_H(from_msg(s.v_H_mps), roll_rad, pitch_rad);
-  const Eigen::Vector3d omega_F_radps = flu_from_frd(from_msg(s.omega_body_radps));
+  const Eigen::Vector3d omega_F_radps = flu_from_frd(from_msg(s.omega_B_radps));
 
   odom_.header.stamp = stamp;
   odom_.pose.pose.position = {p_E_m.x(), p_E_m.y(), p_E_m.z()};
@@ -225,11 +225,11 @@ StateMessages Ros2Messages::build_state(const link::VehicleState& s) {
   }
   out.tf = &tf_;
 
-  const std::uint32_t n = s.obstacle_points_body_m._length;
+  const std::uint32_t n = s.obstacle_points_B_m._length;
   if (n == 0 || n > hq_msgs_kMaxObstaclePoints) return out;
   for (std::uint32_t i = 0; i < n; ++i) {
     const Eigen::Vector3f p_F_m =
-        flu_from_frd(from_msg(s.obstacle_points_body_m._buffer[i])).cast<float>();
+        flu_from_frd(from_msg(s.obstacle_points_B_m._buffer[i])).cast<float>();
     std::memcpy(&cloud_data_[static_cast<std::size_t>(i) * kPointStep], p_F_m.data(), kPointStep);
   }
   cloud_.header.stamp = stamp;

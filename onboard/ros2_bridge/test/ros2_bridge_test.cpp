@@ -66,7 +66,7 @@ link::VehicleState level_state() {
   s.vehicle_id = 3;
   s.t_ns = 12'345'678'901;
   s.v_H_mps = {1.0F, 0.5F, -0.25F};  // forward, right, up (NED z -)
-  s.omega_body_radps = {0.1F, 0.2F, 0.3F};
+  s.omega_B_radps = {0.1F, 0.2F, 0.3F};
   s.estimator_health = hq_msgs_HEALTH_OK;
   return s;
 }
@@ -286,10 +286,10 @@ TEST(Ros2Bridge, ObstacleCloudIsAPointCloud2InFlu) {
   Probe<PointCloud2> cloud(f.participant, "rt/hq3/obstacles");
   link::Sample<link::VehicleState> s;
   *s = level_state();
-  link::reserve(s->obstacle_points_body_m, 2);
-  s->obstacle_points_body_m._buffer[0] = {1.0F, 2.0F, 3.0F};
-  s->obstacle_points_body_m._buffer[1] = {-4.0F, 0.5F, -0.25F};
-  s->obstacle_points_body_m._length = 2;
+  link::reserve(s->obstacle_points_B_m, 2);
+  s->obstacle_points_B_m._buffer[0] = {1.0F, 2.0F, 3.0F};
+  s->obstacle_points_B_m._buffer[1] = {-4.0F, 0.5F, -0.25F};
+  s->obstacle_points_B_m._length = 2;
   f.bridge.publish_state(*s);
   ASSERT_TRUE(take_within(f.participant, cloud.reader, *cloud.sample));
   const PointCloud2& c = *cloud.sample;

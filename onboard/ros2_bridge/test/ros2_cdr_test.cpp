@@ -173,16 +173,16 @@ TEST(CdrWriter, EveryBridgeMessageIsByteForByteWhatCycloneSerializes) {
   state->yaw_odom_rad = 1.2f;
   state->p_odom_m = {1.5f, -2.0f, -1.0f};
   state->v_H_mps = {0.3f, -0.1f, 0.05f};
-  state->omega_body_radps = {0.01f, 0.02f, -0.3f};
+  state->omega_B_radps = {0.01f, 0.02f, -0.3f};
   state->odom_valid = true;
   state->odom_position_sigma_m = 0.2f;
   state->position_valid = true;  // map -> odom as a second transform
   state->p_W_m = {4.0f, 1.0f, -1.1f};
   state->yaw_W_rad = 0.4f;
-  link::reserve(state->obstacle_points_body_m, 5);
-  state->obstacle_points_body_m._length = 5;
+  link::reserve(state->obstacle_points_B_m, 5);
+  state->obstacle_points_B_m._length = 5;
   for (std::uint32_t i = 0; i < 5; ++i) {
-    state->obstacle_points_body_m._buffer[i] = {1.0f + static_cast<float>(i), 0.5f, -0.25f};
+    state->obstacle_points_B_m._buffer[i] = {1.0f + static_cast<float>(i), 0.5f, -0.25f};
   }
   const StateMessages m = messages.build_state(*state);
   ASSERT_NE(m.tf_static, nullptr);

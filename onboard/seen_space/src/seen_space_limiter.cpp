@@ -43,12 +43,12 @@ void read_config(config::StrictMap& section, SeenSpaceConfig& out) {
 
 SeenSpaceLimiter::SeenSpaceLimiter(const SeenSpaceConfig& config,
                                    const geometry::PinholeCamera& camera,
-                                   const Eigen::Matrix3d& R_body_camera,
-                                   const Eigen::Vector3d& p_body_camera_m, double vehicle_radius_m)
+                                   const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m,
+                                   double vehicle_radius_m)
     : config_(config),
       camera_(camera),
-      R_B_C_(R_body_camera),
-      p_B_C_m_(p_body_camera_m),
+      R_B_C_(R_B_C),
+      p_B_C_m_(p_B_C_m),
       vehicle_radius_m_(vehicle_radius_m) {
   if (config.bins < 8 || config.bins > kMaxBins) {
     throw InputError("seen_space.bins: " + std::to_string(config.bins) + ", expected 8.." +
@@ -61,7 +61,7 @@ SeenSpaceLimiter::SeenSpaceLimiter(const SeenSpaceConfig& config,
   if (!(camera.fx > 0.0 && camera.fy > 0.0 && camera.width > 0 && camera.height > 0)) {
     throw InputError("seen_space: camera intrinsics must be positive (fx, fy, width, height)");
   }
-  if (!R_body_camera.allFinite() || !p_body_camera_m.allFinite() || !(vehicle_radius_m >= 0.0)) {
+  if (!R_B_C.allFinite() || !p_B_C_m.allFinite() || !(vehicle_radius_m >= 0.0)) {
     throw InputError("seen_space: camera extrinsics and vehicle radius must be finite");
   }
   bin_width_rad_ = kTwoPi / config.bins;

@@ -31,7 +31,7 @@ geometry::PinholeCamera test_camera() {
 }
 
 /// A level, forward-looking camera at the body origin: optical z = body x, x = y, y = z.
-Eigen::Matrix3d R_body_camera() {
+Eigen::Matrix3d R_B_C() {
   Eigen::Matrix3d R;
   R.col(0) = Eigen::Vector3d::UnitY();
   R.col(1) = Eigen::Vector3d::UnitZ();
@@ -46,7 +46,7 @@ Eigen::Isometry3d camera_pose(double yaw_rad,
   T_W_Q.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   T_W_Q.translation() = p_W;
   Eigen::Isometry3d T_Q_C = Eigen::Isometry3d::Identity();
-  T_Q_C.linear() = R_body_camera();
+  T_Q_C.linear() = R_B_C();
   return T_W_Q * T_Q_C;
 }
 
@@ -57,8 +57,7 @@ cv::Mat wall(double distance_m) {
 
 class SeenSpaceTest : public ::testing::Test {
  protected:
-  SeenSpaceTest()
-      : limiter_(config_, test_camera(), R_body_camera(), Eigen::Vector3d::Zero(), kRadius) {}
+  SeenSpaceTest() : limiter_(config_, test_camera(), R_B_C(), Eigen::Vector3d::Zero(), kRadius) {}
   SeenSpaceConfig config_;
   SeenSpaceLimiter limiter_;
   const Eigen::Matrix3d level_ = Eigen::Matrix3d::Identity();
@@ -125,8 +124,7 @@ TEST_F(SeenSpaceTest, AVehicleFasterThanItsCommandGetsALowerCommand) {
 TEST_F(SeenSpaceTest, CreepSpeedIsConfigurable) {
   SeenSpaceConfig config = config_;
   config.creep_speed_mps = 0.15;
-  SeenSpaceLimiter limiter(config, test_camera(), R_body_camera(), Eigen::Vector3d::Zero(),
-                           kRadius);
+  SeenSpaceLimiter limiter(config, test_camera(), R_B_C(), Eigen::Vector3d::Zero(), kRadius);
   const Eigen::Isometry3d T = camera_pose(0.0);
   limiter.update(0, wall(2.0), &T, level_);
   const LimitedCommand back = limiter.limit(Eigen::Vector3d(-1.0, 0.0, 0.0));
@@ -190,7 +188,7 @@ TEST_F(SeenSpaceTest, FloorBelowTheBandIsFreeSpaceNotAWall) {
   const geometry::PinholeCamera cam = test_camera();
   const Eigen::Matrix3d R_pitch =
       Eigen::AngleAxisd(-30.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  const Eigen::Matrix3d R_HC = R_pitch * R_body_camera();
+  const Eigen::Matrix3d R_HC = R_pitch * R_B_C();
   for (int v = 0; v < 240; ++v) {
     for (int u = 0; u < 320; ++u) {
       const Eigen::Vector3d ray =

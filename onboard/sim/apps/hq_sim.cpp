@@ -99,7 +99,7 @@ int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Optio
   std::unique_ptr<hq::sim::TumWriter> writer;
   if (!o.record_dir.empty()) {
     writer = std::make_unique<hq::sim::TumWriter>(o.record_dir, config.camera.pinhole,
-                                                  config.camera.T_body_camera);
+                                                  config.camera.T_B_C);
   }
   std::vector<hq::sim::ImuSample> imu(2000);
   cv::Mat image, depth;
@@ -117,7 +117,7 @@ int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Optio
     }
     if (sim.camera_due()) {
       const std::int64_t t_frame = sim.camera_t_ns();
-      const Eigen::Isometry3d T_N_C = sim.camera_T_world_camera();
+      const Eigen::Isometry3d T_N_C = sim.camera_T_N_C();
       sim.render_camera(image, depth);
       if (writer) writer->write_frame(t_frame, image, depth, T_N_C);
       ++frames;
@@ -128,7 +128,7 @@ int fly_script(hq::sim::Simulator& sim, const hq::sim::World& world, const Optio
   }
   if (writer) writer->close();
 
-  const Eigen::Vector3d p_N_m = sim.truth().T_world_body.translation();
+  const Eigen::Vector3d p_N_m = sim.truth().T_N_B.translation();
   hq::log::info(
       "hq-sim: {}, script {}, seed {}, {:.1f} s: {} frames ({}x{}), {} IMU samples, "
       "{} dropped frames\n",

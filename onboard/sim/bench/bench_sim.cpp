@@ -37,8 +37,7 @@ double thread_cpu_ms() {
 hq::sim::AttitudeCommand script(const hq::sim::Simulator& sim, double t_s) {
   const hq::sim::TruthState& truth = sim.truth();
   const double m = sim.config().vehicle.mass_kg;
-  const double a_z =
-      3.0 * (1.0 - truth.T_world_body.translation().z()) - 2.5 * truth.v_world_mps.z();
+  const double a_z = 3.0 * (1.0 - truth.T_N_B.translation().z()) - 2.5 * truth.v_N_mps.z();
   const double roll = t_s > 2.0 ? 0.08 * std::sin(0.8 * t_s) : 0.0;
   const double pitch = t_s > 2.0 ? 0.08 * std::cos(0.8 * t_s) - 0.08 : 0.0;
   return {m * (9.81 + a_z) / (std::cos(roll) * std::cos(pitch)), roll, pitch, 0.3};
@@ -55,7 +54,7 @@ void run(const hq::sim::World& world, int width, int height) {
       sim.set_command(script(sim, static_cast<double>(t) * 1e-9));
       sim.step_to(t + kMs);
       if (sim.camera_due()) {
-        poses.push_back(sim.camera_T_world_camera());
+        poses.push_back(sim.camera_T_N_C());
         cv::Mat unused_image, unused_depth;
         sim.render_camera(unused_image, unused_depth);
       }

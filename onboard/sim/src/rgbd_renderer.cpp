@@ -31,7 +31,7 @@ struct SurfaceMarker {
   float a00 = 0.0f, a01 = 0.0f;  // col = a00 ds + a01 dt + kTagCells / 2
   float a10 = 0.0f, a11 = 0.0f;  // row = a10 ds + a11 dt + kTagCells / 2
   float reach = 0.0f;            // |ds|, |dt| beyond this cannot be on the tag
-  Vec3f normal_world = Vec3f::UnitZ();
+  Vec3f normal_N = Vec3f::UnitZ();
   Vec3f center_world = Vec3f::Zero();
   bool visible = false;                            // per frame: the camera sees the printed side
   std::uint8_t cells[kTagCells * kTagCells] = {};  // 1 = white
@@ -147,14 +147,14 @@ geometry::PinholeCamera pinhole_from_fov(int width, int height, double hfov_rad)
 
 namespace {
 
-Eigen::Matrix3d box_R_world_local(const Box& box) {
+Eigen::Matrix3d box_R_N_local(const Box& box) {
   return Eigen::AngleAxisd(box.yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
 }
 
 /// Surface frame (origin, normal, s axis, t axis) of face f of a box, in world coordinates.
 void box_face_frame(const Box& box, int face, Eigen::Vector3d& origin, Eigen::Vector3d& normal,
                     Eigen::Vector3d& axis_s, Eigen::Vector3d& axis_t) {
-  const Eigen::Matrix3d R = box_R_world_local(box);
+  const Eigen::Matrix3d R = box_R_N_local(box);
   const int axis = face / 2;
   const double sign = (face % 2 == 0) ? 1.0 : -1.0;
   normal = sign * R.col(axis);
@@ -169,8 +169,8 @@ void box_face_frame(const Box& box, int face, Eigen::Vector3d& origin, Eigen::Ve
 bool on_plane(const Eigen::Vector3d& origin, const Eigen::Vector3d& normal,
               const Eigen::Vector3d& axis_s, const Eigen::Vector3d& axis_t, double half_s,
               double half_t, const Marker& m) {
-  const Eigen::Vector3d d = m.center_world_m - origin;
-  return std::abs(d.dot(normal)) < 0.01 && std::abs(m.normal_world.dot(normal)) > 0.99 &&
+  const Eigen::Vector3d d = m.center_N_m - origin;
+  return std::abs(d.dot(normal)) < 0.01 && std::abs(m.normal_N.dot(normal)) > 0.99 &&
          std::abs(d.dot(axis_s)) <= half_s + 1e-6 && std::abs(d.dot(axis_t)) <= half_t + 1e-6;
 }
 
@@ -178,7 +178,7 @@ SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
                           const Eigen::Vector3d& axis_s, const Eigen::Vector3d& axis_t,
                           const cv::Ptr<cv::aruco::Dictionary>& dictionary) {
   SurfaceMarker sm;
-  const Eigen::Vector3d& n = m.normal_world;
+  const Eigen::Vector3d& n = m.normal_N;
   // Default "up" of the printed tag: world z on walls, world x on horizontal surfaces.
   Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ();
   up = (up - up.dot(n) * n).normalized();
@@ -187,7 +187,7 @@ SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
   const Eigen::Vector3d right = up.cross(n);
   const Eigen::Vector3d down = -up;
   const double cell_m = m.size_m / 8.0;
-  const Eigen::Vector3d d = m.center_world_m - origin;
+  const Eigen::Vector3d d = m.center_N_m - origin;
   sm.s0 = static_cast<float>(d.dot(axis_s));
   sm.t0 = static_cast<float>(d.dot(axis_t));
   sm.a00 = static_cast<float>(axis_s.dot(right) / cell_m);
@@ -195,8 +195,8 @@ SurfaceMarker make_marker(const Marker& m, const Eigen::Vector3d& origin,
   sm.a10 = static_cast<float>(axis_s.dot(down) / cell_m);
   sm.a11 = static_cast<float>(axis_t.dot(down) / cell_m);
   sm.reach = static_cast<float>(cell_m * kTagCells * 0.7072);
-  sm.normal_world = n.cast<float>();
-  sm.center_world = m.center_world_m.cast<float>();
+  sm.normal_N = n.cast<float>();
+  sm.center_world = m.center_N_m.cast<float>();
 
   cv::Mat tag;
   dictionary->drawMarker(m.id, 8, tag, 1);  // one pixel per cell: 6x6 code + black border
@@ -301,7 +301,7 @@ void place_markers(SceneTables& sc, const std::vector<Marker>& markers) {
         const int a = f / 2 == 0 ? 1 : 0;
         const int c = f / 2 == 2 ? 1 : 2;
         if (on_plane(origin, normal, axis_s, axis_t, 0.5 * b.size_m[a], 0.5 * b.size_m[c], m) &&
-            m.normal_world.dot(normal) > 0.0) {
+            m.normal_N.dot(normal) > 0.0) {
           surface = sc.boxes[i].surface0 + f;
         }
       }
@@ -482,9 +482,9 @@ void prepare_rects(SceneTables& sc, const FrameView& view) {
     const Rectangle& r = sc.rects_world[i];
     RectC& rc = sc.rects[i];
     const Eigen::Vector3d c_c = view.R_C_N * (r.center_m - view.p_N_C);
-    Eigen::Vector3d n_world = r.normal;
-    if (n_world.dot(view.p_N_C - r.center_m) < 0.0) n_world = -n_world;  // the side we see
-    rc.n_c = (view.R_C_N * n_world).cast<float>();
+    Eigen::Vector3d n_N = r.normal;
+    if (n_N.dot(view.p_N_C - r.center_m) < 0.0) n_N = -n_N;  // the side we see
+    rc.n_c = (view.R_C_N * n_N).cast<float>();
     rc.u_c = (view.R_C_N * r.axis_u).cast<float>();
     rc.v_c = (view.R_C_N * r.axis_v).cast<float>();
     rc.n_dot_c = rc.n_c.dot(c_c.cast<float>());
@@ -492,7 +492,7 @@ void prepare_rects(SceneTables& sc, const FrameView& view) {
     rc.v_dot_c = rc.v_c.dot(c_c.cast<float>());
     rc.half_u = static_cast<float>(r.half_u_m);
     rc.half_v = static_cast<float>(r.half_v_m);
-    rc.shade = view.lambert(n_world);
+    rc.shade = view.lambert(n_N);
     const Eigen::Vector3d du = r.half_u_m * r.axis_u;
     const Eigen::Vector3d dv = r.half_v_m * r.axis_v;
     const Eigen::Vector3d quad[4] = {
@@ -509,20 +509,20 @@ void prepare_boxes(SceneTables& sc, const FrameView& view) {
   for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
     const Box& b = sc.boxes_world[i];
     BoxC& bc = sc.boxes[i];
-    const Eigen::Matrix3d R_world_local = box_R_world_local(b);
-    bc.R_local_camera = (R_world_local.transpose() * view.R_N_C).cast<float>();
-    bc.o_local = (R_world_local.transpose() * (view.p_N_C - b.center_m)).cast<float>();
+    const Eigen::Matrix3d R_N_local = box_R_N_local(b);
+    bc.R_local_camera = (R_N_local.transpose() * view.R_N_C).cast<float>();
+    bc.o_local = (R_N_local.transpose() * (view.p_N_C - b.center_m)).cast<float>();
     bc.half = (0.5 * b.size_m).cast<float>();
     for (int f = 0; f < 6; ++f) {
-      const Eigen::Vector3d n_world = (f % 2 == 0 ? 1.0 : -1.0) * R_world_local.col(f / 2);
-      bc.face_shade[f] = view.lambert(n_world);
-      bc.face_normal_c[f] = (view.R_C_N * n_world).cast<float>();
+      const Eigen::Vector3d n_N = (f % 2 == 0 ? 1.0 : -1.0) * R_N_local.col(f / 2);
+      bc.face_shade[f] = view.lambert(n_N);
+      bc.face_normal_c[f] = (view.R_C_N * n_N).cast<float>();
     }
     Eigen::Vector3d corners[8];
     Eigen::Vector3d corners_c[8];
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d sign((k & 1) ? 1.0 : -1.0, (k & 2) ? 1.0 : -1.0, (k & 4) ? 1.0 : -1.0);
-      corners[k] = b.center_m + R_world_local * (0.5 * b.size_m.cwiseProduct(sign));
+      corners[k] = b.center_m + R_N_local * (0.5 * b.size_m.cwiseProduct(sign));
       corners_c[k] = view.to_camera(corners[k]);
     }
     screen_bounds(corners, view.R_C_N, view.p_N_C, cam, bc.u0, bc.u1, bc.v0, bc.v1);
@@ -572,7 +572,7 @@ void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C, double t_s) {
   Scene& sc = *scene_;
   place_people(sc, t_s);
   // Per frame: every primitive in camera coordinates, so that a pixel only dots its fixed ray.
-  const Eigen::Vector3d light = params_.light_dir_world.normalized();
+  const Eigen::Vector3d light = params_.light_dir_N.normalized();
   const FrameView view{params_.pinhole,     T_N_C.linear(), T_N_C.linear().transpose(),
                        T_N_C.translation(), light,          params_.ambient,
                        params_.diffuse};
@@ -581,7 +581,7 @@ void RgbdRenderer::prepare_frame(const Eigen::Isometry3d& T_N_C, double t_s) {
   prepare_cylinders(sc, view);
   const Eigen::Vector3d& p_N_C = view.p_N_C;
   for (SurfaceMarker& m : sc.markers) {
-    m.visible = m.normal_world.dot(p_N_C.cast<float>() - m.center_world) > 0.0f;
+    m.visible = m.normal_N.dot(p_N_C.cast<float>() - m.center_world) > 0.0f;
   }
   sc.R_N_C = T_N_C.linear().cast<float>();
   sc.light = light.cast<float>();

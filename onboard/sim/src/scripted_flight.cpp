@@ -18,7 +18,7 @@ constexpr double kClimbDampingGain = 2.5;  // 1/s
 FlightScript script_for_world(const World& world, FlightScript::Kind kind) {
   FlightScript script;
   script.kind = kind;
-  script.hover_xy_m = world.start_world_m.head<2>();
+  script.hover_xy_m = world.start_N_m.head<2>();
   const Eigen::Vector2d to_origin = -script.hover_xy_m;
   const Eigen::Vector2d inward =
       to_origin.norm() > 1e-6 ? to_origin.normalized() : Eigen::Vector2d(1.0, 0.0);
@@ -48,11 +48,10 @@ AttitudeCommand scripted_command(const Simulator& sim, const FlightScript& s, do
     a_ff = -ramp * s.circle_speed_mps * w * radial;
     yaw_rate = s.circle_yaw_rate_radps * ramp;
   }
-  const Eigen::Vector3d p = truth.T_world_body.translation();
-  const Eigen::Vector2d a_xy = a_ff + kPositionGain * (p_d - p.head<2>()) +
-                               kVelocityGain * (v_d - truth.v_world_mps.head<2>());
-  const double a_z =
-      kAltitudeGain * (s.altitude_m - p.z()) - kClimbDampingGain * truth.v_world_mps.z();
+  const Eigen::Vector3d p = truth.T_N_B.translation();
+  const Eigen::Vector2d a_xy =
+      a_ff + kPositionGain * (p_d - p.head<2>()) + kVelocityGain * (v_d - truth.v_N_mps.head<2>());
+  const double a_z = kAltitudeGain * (s.altitude_m - p.z()) - kClimbDampingGain * truth.v_N_mps.z();
 
   // World (NWU) acceleration into the horizontal NED frame H, then tilt (core paper §3).
   const double yaw = truth.euler_rad.z();

@@ -46,7 +46,7 @@ sources::FrameStatus SimFrameSource::next(sources::RgbdFrame& frame) {
 
   frame.t_ns = sim_.camera_t_ns();
   frame.depth_t_ns = frame.t_ns;  // rendered together
-  T_world_camera_ = sim_.camera_T_world_camera();
+  T_N_C_ = sim_.camera_T_N_C();
   if (sim_.config().camera.gray) {
     sim_.render_camera(frame.gray, frame.depth_m);
     cv::cvtColor(frame.gray, frame.bgr, cv::COLOR_GRAY2BGR);

@@ -18,7 +18,7 @@ constexpr double kGravityMps2 = 9.81;
 constexpr double kPi = 3.14159265358979323846;
 
 /// Camera optical axes (x right, y down, z forward) in a level forward-looking body NED frame.
-Eigen::Matrix3d R_body_optical() {
+Eigen::Matrix3d R_B_C_looking_forward() {
   Eigen::Matrix3d R;
   R << 0.0, 0.0, 1.0,  //
       1.0, 0.0, 0.0,   //
@@ -26,16 +26,16 @@ Eigen::Matrix3d R_body_optical() {
   return R;
 }
 
-/// T_body_camera of a camera turned yaw_right about body z (down), tilted down by tilt_down
+/// T_B_C of a camera turned yaw_right about body z (down), tilted down by tilt_down
 /// and rolled about its optical axis (core paper §2: 45 deg right, 30 deg down).
-Eigen::Isometry3d make_T_body_camera(const Eigen::Vector3d& p_body_camera_m, double yaw_right_rad,
-                                     double tilt_down_rad, double optical_roll_rad) {
+Eigen::Isometry3d make_T_B_C(const Eigen::Vector3d& p_B_C_m, double yaw_right_rad,
+                             double tilt_down_rad, double optical_roll_rad) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(yaw_right_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
                Eigen::AngleAxisd(-tilt_down_rad, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-               R_body_optical() *
+               R_B_C_looking_forward() *
                Eigen::AngleAxisd(optical_roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  T.translation() = p_body_camera_m;
+  T.translation() = p_B_C_m;
   return T;
 }
 
@@ -58,8 +58,8 @@ void read_vec3(config::StrictMap& map, const std::string& key, Eigen::Vector3d& 
 SimConfig default_sim_config(int width, int height) {
   SimConfig config;
   config.camera.pinhole = pinhole_from_fov(width, height, 58.0 * kPi / 180.0);  // Xtion: 58 deg
-  config.camera.T_body_camera = make_T_body_camera(Eigen::Vector3d(0.12, 0.0, 0.05),
-                                                   45.0 * kPi / 180.0, 30.0 * kPi / 180.0, 0.0);
+  config.camera.T_B_C =
+      make_T_B_C(Eigen::Vector3d(0.12, 0.0, 0.05), 45.0 * kPi / 180.0, 30.0 * kPi / 180.0, 0.0);
   return config;
 }
 
@@ -161,21 +161,20 @@ void read_depth_sensor(config::StrictMap& c, DepthSensorParams& q) {
 
 /// camera: image size and field of view, image model, mount (unless the vehicle file has it)
 /// and depth sensor.
-/// camera.T_body_camera: lever arm and the core paper's mount angles (§2: 45 deg right, 30 deg
+/// camera.T_B_C: lever arm and the core paper's mount angles (§2: 45 deg right, 30 deg
 /// down), defaults those of default_sim_config().
-void read_camera_mount(config::StrictMap& c, Eigen::Isometry3d& T_body_camera) {
-  config::StrictMap t = c.child("T_body_camera");
-  Eigen::Vector3d p_body_camera_m = T_body_camera.translation();
+void read_camera_mount(config::StrictMap& c, Eigen::Isometry3d& T_B_C) {
+  config::StrictMap t = c.child("T_B_C");
+  Eigen::Vector3d p_B_C_m = T_B_C.translation();
   double yaw_right_rad = 45.0 * kPi / 180.0;
   double tilt_down_rad = 30.0 * kPi / 180.0;
   double optical_roll_rad = 0.0;
-  read_vec3(t, "p_body_camera_m", p_body_camera_m);
+  read_vec3(t, "p_B_C_m", p_B_C_m);
   t.read_deg_as_rad("yaw_right_deg", yaw_right_rad, -180.0, 180.0);
   t.read_deg_as_rad("tilt_down_deg", tilt_down_rad, -90.0, 90.0);
   t.read_deg_as_rad("optical_roll_deg", optical_roll_rad, -180.0, 180.0);
   t.finish();
-  T_body_camera =
-      make_T_body_camera(p_body_camera_m, yaw_right_rad, tilt_down_rad, optical_roll_rad);
+  T_B_C = make_T_B_C(p_B_C_m, yaw_right_rad, tilt_down_rad, optical_roll_rad);
 }
 
 void read_camera(config::StrictMap& section, SimConfig& out) {
@@ -200,8 +199,8 @@ void read_camera(config::StrictMap& section, SimConfig& out) {
   c.read("image_noise_sigma", p.image_noise_sigma, 0.0, 50.0);
   c.read("ambient", p.ambient, 0.0, 1.0);
   c.read("diffuse", p.diffuse, 0.0, 1.0);
-  reject_with_vehicle_file(c, "T_body_camera", out);
-  if (out.vehicle_file.empty()) read_camera_mount(c, p.T_body_camera);
+  reject_with_vehicle_file(c, "T_B_C", out);
+  if (out.vehicle_file.empty()) read_camera_mount(c, p.T_B_C);
   read_depth_sensor(c, p.depth);
   c.finish();
 }
@@ -224,7 +223,7 @@ void read_config(config::StrictMap& section, SimConfig& out) {
     vehicle_file = load_vehicle_config(out.vehicle_file);
     out.vehicle.mass_kg = vehicle_file.mass_kg;
     out.vehicle.max_tilt_rad = vehicle_file.max_tilt_rad;
-    out.camera.T_body_camera = vehicle_file.camera.T_B_C();
+    out.camera.T_B_C = vehicle_file.camera.T_B_C();
   }
   read_vehicle(section, vehicle_file, out);
   read_imu(section, out);
@@ -256,12 +255,12 @@ Simulator::Simulator(const SimConfig& config, const World& world)
   }
   camera_period_ns_ = std::llround(1e9 / config_.camera.rate_hz);
   imu_ring_.resize(static_cast<std::size_t>(std::ceil(config_.imu.rate_hz)));  // 1 s
-  vehicle_.reset(world_.start_world_m, world_.start_yaw_rad);
+  vehicle_.reset(world_.start_N_m, world_.start_yaw_rad);
   update_truth();
   // The first frame is due at t = 0.
   camera_due_ = true;
   camera_t_ns_ = 0;
-  camera_pose_ = truth_.T_world_body * config_.camera.T_body_camera;
+  camera_pose_ = truth_.T_N_B * config_.camera.T_B_C;
   next_camera_ns_ = camera_period_ns_;
 }
 
@@ -281,10 +280,9 @@ void Simulator::physics_step() {
   // over its sample period (its digital low-pass), so short events such as the touchdown
   // impulse reach the samples instead of falling between them.
   const QuadrotorState& s = vehicle_.state();
-  const Eigen::Matrix3d R_world_body = s.q_world_body.toRotationMatrix();
-  imu_f_sum_mps2_ +=
-      R_world_body.transpose() * (s.a_world_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2));
-  imu_omega_sum_radps_ += s.omega_body_radps;
+  const Eigen::Matrix3d R_N_B = s.q_N_B.toRotationMatrix();
+  imu_f_sum_mps2_ += R_N_B.transpose() * (s.a_N_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2));
+  imu_omega_sum_radps_ += s.omega_B_radps;
   if (steps_ % imu_decimation_ == 0) {
     const ImuSample sample = imu_.measure(t_ns_, imu_omega_sum_radps_ / imu_decimation_,
                                           imu_f_sum_mps2_ / imu_decimation_);
@@ -303,7 +301,7 @@ void Simulator::physics_step() {
     if (camera_due_) ++dropped_frames_;
     camera_due_ = true;
     camera_t_ns_ = t_ns_;
-    camera_pose_ = truth_.T_world_body * config_.camera.T_body_camera;
+    camera_pose_ = truth_.T_N_B * config_.camera.T_B_C;
     ++frame_index_;
     while (next_camera_ns_ <= t_ns_) next_camera_ns_ += camera_period_ns_;
   }
@@ -312,21 +310,19 @@ void Simulator::physics_step() {
 void Simulator::update_truth() {
   const QuadrotorState& s = vehicle_.state();
   truth_.t_ns = t_ns_;
-  truth_.T_world_body.setIdentity();
-  truth_.T_world_body.linear() = s.q_world_body.toRotationMatrix();
-  truth_.T_world_body.translation() = s.p_world_m;
-  truth_.v_world_mps = s.v_world_mps;
-  truth_.omega_body_radps = s.omega_body_radps;
-  truth_.a_world_mps2 = s.a_world_mps2;
-  truth_.euler_rad = euler_from_R_world_body(truth_.T_world_body.linear());
-  // H: NED, yaw only (core paper §3), so R_world_H = Rx(pi) Rz(psi).
-  const Eigen::Matrix3d R_world_horizontal =
-      R_world_body_from_euler(0.0, 0.0, truth_.euler_rad.z());
-  truth_.v_H_mps = R_world_horizontal.transpose() * s.v_world_mps;
+  truth_.T_N_B.setIdentity();
+  truth_.T_N_B.linear() = s.q_N_B.toRotationMatrix();
+  truth_.T_N_B.translation() = s.p_N_m;
+  truth_.v_N_mps = s.v_N_mps;
+  truth_.omega_B_radps = s.omega_B_radps;
+  truth_.a_N_mps2 = s.a_N_mps2;
+  truth_.euler_rad = euler_from_R_N_B(truth_.T_N_B.linear());
+  // H: NED, yaw only (core paper §3), so R_N_H = Rx(pi) Rz(psi).
+  const Eigen::Matrix3d R_N_H = R_N_B_from_euler(0.0, 0.0, truth_.euler_rad.z());
+  truth_.v_H_mps = R_N_H.transpose() * s.v_N_mps;
   // At this step's time: a person walking into the vehicle is a collision too.
-  truth_.clearance_m =
-      distance_to_obstacles(world_, s.p_world_m, static_cast<double>(t_ns_) * 1e-9) -
-      config_.vehicle_radius_m;
+  truth_.clearance_m = distance_to_obstacles(world_, s.p_N_m, static_cast<double>(t_ns_) * 1e-9) -
+                       config_.vehicle_radius_m;
   truth_.on_ground = s.on_ground;
   // Impacts with the floor count too (issue 39: a fall from 11.8 m read "collision ticks 0").
   truth_.floor_impact_speed_mps = s.floor_impact_speed_mps;

@@ -6,7 +6,7 @@ namespace hq::sim {
 
 namespace {
 
-sources::TumRecordingOptions sim_recording(const Eigen::Isometry3d& T_body_camera) {
+sources::TumRecordingOptions sim_recording(const Eigen::Isometry3d& T_B_C) {
   sources::TumRecordingOptions options;
   options.description = "hq-sim";
   options.camera_name = "hq_sim";
@@ -15,13 +15,12 @@ sources::TumRecordingOptions sim_recording(const Eigen::Isometry3d& T_body_camer
   options.gyro = true;
   options.accel_note = " (specific force, body NED frame, m/s^2)";
   options.gyro_note = " (body NED frame, rad/s)";
-  const Eigen::Quaterniond q(T_body_camera.linear());
-  const Eigen::Vector3d& p = T_body_camera.translation();
+  const Eigen::Quaterniond q(T_B_C.linear());
+  const Eigen::Vector3d& p = T_B_C.translation();
   std::ostringstream mount;
-  mount << "# T_body_camera (body NED, camera optical): p_body_camera_m and q_body_camera xyzw\n"
-        << "# p_body_camera_m: [" << p.x() << ", " << p.y() << ", " << p.z() << "]\n"
-        << "# q_body_camera_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w()
-        << "]\n";
+  mount << "# T_B_C (body NED, camera optical): p_B_C_m and q_B_C xyzw\n"
+        << "# p_B_C_m: [" << p.x() << ", " << p.y() << ", " << p.z() << "]\n"
+        << "# q_B_C_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w() << "]\n";
   options.camera_comment = mount.str();
   return options;
 }
@@ -29,8 +28,8 @@ sources::TumRecordingOptions sim_recording(const Eigen::Isometry3d& T_body_camer
 }  // namespace
 
 TumWriter::TumWriter(const std::string& dir, const geometry::PinholeCamera& camera,
-                     const Eigen::Isometry3d& T_body_camera)
-    : recorder_(dir, camera, sim_recording(T_body_camera)) {}
+                     const Eigen::Isometry3d& T_B_C)
+    : recorder_(dir, camera, sim_recording(T_B_C)) {}
 
 void TumWriter::write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::Mat& depth_m,
                             const Eigen::Isometry3d& T_N_C) {
@@ -39,8 +38,8 @@ void TumWriter::write_frame(std::int64_t t_ns, const cv::Mat& image, const cv::M
 }
 
 void TumWriter::write_imu(const ImuSample& sample) {
-  recorder_.write_accel(recording::AccelSample{sample.t_ns, sample.f_body_mps2});
-  recorder_.write_gyro(sample.t_ns, sample.omega_body_radps);
+  recorder_.write_accel(recording::AccelSample{sample.t_ns, sample.f_B_mps2});
+  recorder_.write_gyro(sample.t_ns, sample.omega_B_radps);
 }
 
 }  // namespace hq::sim

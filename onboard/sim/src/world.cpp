@@ -257,20 +257,19 @@ Cylinder body_at(const Walker& walker, double t_s) {
   return body;
 }
 
-double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m, double t_s) {
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_N_m, double t_s) {
   double best = 1e9;
   for (const Rectangle& wall : world.walls)
-    best = std::min(best, distance_to_rectangle(wall, p_world_m));
-  for (const Box& box : world.boxes) best = std::min(best, distance_to_box(box, p_world_m));
-  for (const Cylinder& c : world.cylinders)
-    best = std::min(best, distance_to_cylinder(c, p_world_m));
+    best = std::min(best, distance_to_rectangle(wall, p_N_m));
+  for (const Box& box : world.boxes) best = std::min(best, distance_to_box(box, p_N_m));
+  for (const Cylinder& c : world.cylinders) best = std::min(best, distance_to_cylinder(c, p_N_m));
   for (const Walker& walker : world.people)
-    best = std::min(best, distance_to_cylinder(body_at(walker, t_s), p_world_m));
+    best = std::min(best, distance_to_cylinder(body_at(walker, t_s), p_N_m));
   return best;
 }
 
-double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m) {
-  return distance_to_obstacles(world, p_world_m, 0.0);
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_N_m) {
+  return distance_to_obstacles(world, p_N_m, 0.0);
 }
 
 namespace {
@@ -281,7 +280,7 @@ void read_start(StrictMap& map, World& world) {
   double xy[2] = {0.0, 0.0};
   start.read_list("xy_m", xy, 2);
   check_within(start, "xy_m", xy, 2);
-  world.start_world_m = Eigen::Vector3d(xy[0], xy[1], 0.0);
+  world.start_N_m = Eigen::Vector3d(xy[0], xy[1], 0.0);
   start.read_deg_as_rad("yaw_deg", world.start_yaw_rad, -180.0, 180.0);
   start.finish();
 }
@@ -301,7 +300,7 @@ void read_floor(StrictMap& map, const std::string& path, std::uint32_t& salt, Wo
   world.floor.half_v_m = half[1];
   world.floor.texture = read_texture(floor.child("texture"), salt++);
   floor.finish();
-  const Eigen::Vector2d start = world.start_world_m.head<2>();
+  const Eigen::Vector2d start = world.start_N_m.head<2>();
   if (std::abs(start.x()) > half[0] || std::abs(start.y()) > half[1]) {
     std::ostringstream message;
     message << path << ": start.xy_m = [" << start.x() << ", " << start.y()
@@ -434,8 +433,8 @@ Marker read_marker(StrictMap m) {
             << ", expected a unit vector (|length - 1| <= " << kNormalLengthTolerance << ")";
     throw InputError(message.str());
   }
-  marker.center_world_m = Eigen::Vector3d(center[0], center[1], center[2]);
-  marker.normal_world = n.normalized();
+  marker.center_N_m = Eigen::Vector3d(center[0], center[1], center[2]);
+  marker.normal_N = n.normalized();
   return marker;
 }
 
@@ -443,7 +442,7 @@ Marker read_marker(StrictMap m) {
 /// or the solid it faces into. A flipped normal puts the printed side against its surface,
 /// where no camera sees it. Walls are two-sided, so a marker on one faces free space both ways.
 std::string faced_solid(const World& world, const Marker& marker) {
-  const Eigen::Vector3d front = marker.center_world_m + kFaceProbeM * marker.normal_world;
+  const Eigen::Vector3d front = marker.center_N_m + kFaceProbeM * marker.normal_N;
   if (front.z() < 0.0) return "the floor";
   for (std::size_t i = 0; i < world.boxes.size(); ++i) {
     if (distance_to_box(world.boxes[i], front) < 0.0) return "boxes[" + std::to_string(i) + "]";
@@ -464,7 +463,7 @@ void check_markers_face_free_space(const World& world, std::size_t listed,
     const std::string solid = faced_solid(world, marker);
     if (solid.empty()) continue;
     throw InputError(path + ": markers[" + std::to_string(k) + "].normal (id " +
-                     std::to_string(marker.id) + ") = " + vector_text(marker.normal_world) +
+                     std::to_string(marker.id) + ") = " + vector_text(marker.normal_N) +
                      " faces into " + solid + ", expected it to face free space");
   }
 }
@@ -510,10 +509,9 @@ void read_marker_grid(StrictMap& map, World& world) {
         marker.id = first_id + r * cols + c;
         marker.size_m = size_m;
         // Row index grows along world -x so that ids read like text seen from the start.
-        marker.center_world_m =
-            Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
-                            center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
-        marker.normal_world = Eigen::Vector3d::UnitZ();
+        marker.center_N_m = Eigen::Vector3d(center[0] + ((rows - 1) * 0.5 - r) * spacing_m,
+                                            center[1] + ((cols - 1) * 0.5 - c) * spacing_m, 0.0);
+        marker.normal_N = Eigen::Vector3d::UnitZ();
         world.markers.push_back(marker);
       }
     }

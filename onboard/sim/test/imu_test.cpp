@@ -27,12 +27,12 @@ TEST(ImuTest, AtRestLevelReadsMinusGAlongBodyZWithinNoise) {
   Eigen::Vector3d mean_f = Eigen::Vector3d::Zero();
   Eigen::Vector3d mean_w = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) {
-    mean_f += samples[i].f_body_mps2 / static_cast<double>(n);
-    mean_w += samples[i].omega_body_radps / static_cast<double>(n);
+    mean_f += samples[i].f_B_mps2 / static_cast<double>(n);
+    mean_w += samples[i].omega_B_radps / static_cast<double>(n);
   }
   double var_fz = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    var_fz += std::pow(samples[i].f_body_mps2.z() - mean_f.z(), 2) / static_cast<double>(n - 1);
+    var_fz += std::pow(samples[i].f_B_mps2.z() - mean_f.z(), 2) / static_cast<double>(n - 1);
   }
   // Initial bias sigma 0.05 m/s^2 and 0.005 rad/s: 4 sigma bounds.
   EXPECT_NEAR(mean_f.x(), 0.0, 0.2);
@@ -51,8 +51,8 @@ TEST(ImuTest, NoiseFreeModelReturnsTruth) {
   ImuModel imu(p, 3);
   const ImuSample s = imu.measure(7, Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d(1, 2, 3));
   EXPECT_EQ(s.t_ns, 7);
-  EXPECT_EQ(s.omega_body_radps, Eigen::Vector3d(0.1, 0.2, 0.3));
-  EXPECT_EQ(s.f_body_mps2, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(s.omega_B_radps, Eigen::Vector3d(0.1, 0.2, 0.3));
+  EXPECT_EQ(s.f_B_mps2, Eigen::Vector3d(1, 2, 3));
 }
 
 TEST(ImuTest, BiasWalksWithConfiguredDensity) {

@@ -21,19 +21,19 @@ constexpr double kPi = 3.14159265358979323846;
 // Between poses: the people walk about half a metre, into and out of view.
 constexpr double kFramePeriodS = 0.43;
 
-/// Camera at p_world with the given yaw (about world z, 0 = looking along +x), pitch (down
+/// Camera at p_N with the given yaw (about world z, 0 = looking along +x), pitch (down
 /// positive) and roll about the optical axis.
-Eigen::Isometry3d camera_pose(const Eigen::Vector3d& p_world, double yaw_rad, double pitch_rad,
+Eigen::Isometry3d camera_pose(const Eigen::Vector3d& p_N, double yaw_rad, double pitch_rad,
                               double roll_rad) {
-  Eigen::Matrix3d R_world_look;  // optical z along +x, image x along -y, image y along -z
-  R_world_look.col(0) = -Eigen::Vector3d::UnitY();
-  R_world_look.col(1) = -Eigen::Vector3d::UnitZ();
-  R_world_look.col(2) = Eigen::Vector3d::UnitX();
+  Eigen::Matrix3d R_N_look;  // optical z along +x, image x along -y, image y along -z
+  R_N_look.col(0) = -Eigen::Vector3d::UnitY();
+  R_N_look.col(1) = -Eigen::Vector3d::UnitZ();
+  R_N_look.col(2) = Eigen::Vector3d::UnitX();
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
                Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-               R_world_look * Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ());
-  T.translation() = p_world;
+               R_N_look * Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ());
+  T.translation() = p_N;
   return T;
 }
 
@@ -48,7 +48,7 @@ std::vector<Eigen::Isometry3d> poses_in(const World& world, int random_count) {
       camera_pose({-2.5, 1.9, 0.4}, 0.02, -0.2, 0.0),
   };
   for (const Walker& walker : world.people) {  // from the start, looking at the walk's middle
-    const Eigen::Vector3d eye(world.start_world_m.x(), world.start_world_m.y(), 1.0);
+    const Eigen::Vector3d eye(world.start_N_m.x(), world.start_N_m.y(), 1.0);
     const Eigen::Vector2d middle = 0.5 * (walker.from_m + walker.to_m);
     const double yaw_rad = std::atan2(middle.y() - eye.y(), middle.x() - eye.x());
     poses.push_back(camera_pose(eye, yaw_rad, 0.25, 0.0));

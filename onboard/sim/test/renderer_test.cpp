@@ -57,10 +57,10 @@ float centre_depth(const cv::Mat& depth) { return depth.at<float>(depth.rows / 2
 
 class RendererFixture : public ::testing::Test {
  protected:
-  void render(const World& world, const Eigen::Isometry3d& T_world_camera,
-              const CameraParams& params, std::uint64_t seed = 1) {
+  void render(const World& world, const Eigen::Isometry3d& T_N_C, const CameraParams& params,
+              std::uint64_t seed = 1) {
     RgbdRenderer renderer(params, world, seed);
-    renderer.render(T_world_camera, 0, image_, depth_);
+    renderer.render(T_N_C, 0, image_, depth_);
   }
   cv::Mat image_, depth_;
 };
@@ -201,8 +201,8 @@ TEST_F(RendererFixture, MarkerOnWallIsDetectedByArucoApriltag36h11WithItsId) {
   for (int id : {42, 7}) {
     Marker m;
     m.id = id;
-    m.center_world_m = Eigen::Vector3d(2.0, id == 42 ? 0.3 : -0.3, 1.0);
-    m.normal_world = -Eigen::Vector3d::UnitX();
+    m.center_N_m = Eigen::Vector3d(2.0, id == 42 ? 0.3 : -0.3, 1.0);
+    m.normal_N = -Eigen::Vector3d::UnitX();
     m.size_m = 0.2;
     world.markers.push_back(m);
   }
@@ -232,7 +232,7 @@ TEST_F(RendererFixture, MarkerOffEverySurfaceIsRejected) {
   World world = base_world();
   Marker m;
   m.id = 3;
-  m.center_world_m = Eigen::Vector3d(1.0, 1.0, 1.0);  // in mid-air
+  m.center_N_m = Eigen::Vector3d(1.0, 1.0, 1.0);  // in mid-air
   world.markers.push_back(m);
   try {
     RgbdRenderer renderer(noise_free_camera(32, 24), world, 1);

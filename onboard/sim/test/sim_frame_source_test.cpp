@@ -47,8 +47,7 @@ TEST(SimFrameSource, DeliversFramesAt30HzStampsWithTheImuSamplesBetweenThem) {
     ASSERT_EQ(source.next(frame), FrameStatus::kFrame) << k;
     EXPECT_EQ(frame.t_ns, expected_stamp_ns(k, 30.0)) << k;
     EXPECT_EQ(frame.t_ns, sim.t_ns()) << "rendered at its own physics step";
-    EXPECT_TRUE(
-        source.T_world_camera().isApprox(sim.truth().T_world_body * config.camera.T_body_camera));
+    EXPECT_TRUE(source.T_N_C().isApprox(sim.truth().T_N_B * config.camera.T_B_C));
     ASSERT_EQ(frame.bgr.type(), CV_8UC3);
     ASSERT_EQ(frame.gray.type(), CV_8UC1);
     ASSERT_EQ(frame.depth_m.type(), CV_32FC1);
@@ -92,7 +91,7 @@ TEST(SimFrameSource, TicksTheControllerAt200HzInLockStep) {
   EXPECT_EQ(frame.t_ns, 3'000'000'000);
   EXPECT_EQ(ticks, 600);
   // The script took off at 1 s: the commands reached the vehicle.
-  EXPECT_GT(sim.truth().T_world_body.translation().z(), 0.8);
+  EXPECT_GT(sim.truth().T_N_B.translation().z(), 0.8);
   EXPECT_EQ(source.next(frame), FrameStatus::kEndOfStream) << "stays ended";
 }
 

@@ -28,7 +28,7 @@ constexpr std::int64_t kMs = 1'000'000;
 AttitudeCommand hold_altitude(const Simulator& sim, double z_ref_m, double roll, double pitch) {
   const TruthState& t = sim.truth();
   const double m = sim.config().vehicle.mass_kg;
-  const double a_z = 3.0 * (z_ref_m - t.T_world_body.translation().z()) - 2.5 * t.v_world_mps.z();
+  const double a_z = 3.0 * (z_ref_m - t.T_N_B.translation().z()) - 2.5 * t.v_N_mps.z();
   return {m * (9.81 + a_z) / (std::cos(roll) * std::cos(pitch)), roll, pitch, 0.0};
 }
 
@@ -41,7 +41,7 @@ TEST(SimulatorTest, TakesOffAndHoversOnAltitudeHold) {
     sim.step_to(t + 10 * kMs);
   }
   EXPECT_FALSE(sim.truth().on_ground);
-  EXPECT_NEAR(sim.truth().T_world_body.translation().z(), 1.0, 0.05);
+  EXPECT_NEAR(sim.truth().T_N_B.translation().z(), 1.0, 0.05);
   EXPECT_FALSE(sim.collided());
   EXPECT_GT(sim.truth().clearance_m, 0.0);
 }
@@ -62,7 +62,7 @@ TEST(SimulatorTest, CollisionFlagWhenFlownIntoAWall) {
   for (std::int64_t t = 3000 * kMs; t < 12000 * kMs && !sim.truth().collision; t += kMs) {
     sim.set_command(hold_altitude(sim, 1.0, 0.0, -0.15));
     sim.step_to(t + kMs);
-    x_at_collision = sim.truth().T_world_body.translation().x();
+    x_at_collision = sim.truth().T_N_B.translation().x();
     if (!sim.truth().collision) previous_clearance = sim.truth().clearance_m;
   }
   EXPECT_TRUE(sim.truth().collision);
@@ -92,7 +92,7 @@ TEST(SimulatorTest, FloorImpactsAreCountedWithTheirSpeedAndAFallIsACollision) {
   const double m = config.vehicle.mass_kg;
   for (; t < 12000 * kMs && !sim.truth().on_ground; t += 10 * kMs) {
     const TruthState& s = sim.truth();
-    sim.set_command({m * (9.81 + 2.5 * (-0.3 - s.v_world_mps.z())), 0.0, 0.0, 0.0});
+    sim.set_command({m * (9.81 + 2.5 * (-0.3 - s.v_N_mps.z())), 0.0, 0.0, 0.0});
     sim.step_to(t + 10 * kMs);
   }
   ASSERT_TRUE(sim.truth().on_ground);
@@ -104,7 +104,7 @@ TEST(SimulatorTest, FloorImpactsAreCountedWithTheirSpeedAndAFallIsACollision) {
     sim.set_command(hold_altitude(sim, 3.0, 0.0, 0.0));
     sim.step_to(t + 10 * kMs);
   }
-  ASSERT_NEAR(sim.truth().T_world_body.translation().z(), 3.0, 0.1);
+  ASSERT_NEAR(sim.truth().T_N_B.translation().z(), 3.0, 0.1);
   bool hit = false;
   for (const std::int64_t end = t + 2000 * kMs; t < end; t += kMs) {
     sim.set_command({0.0, 0.0, 0.0, 0.0});
@@ -136,7 +136,7 @@ TEST(SimulatorTest, PersonWalkingIntoAVehicleStandingStillIsACollision) {
   EXPECT_NEAR(sim.truth().clearance_m, 3.0 - reach_m, 1e-9);
   sim.step_to(2000 * kMs);
   EXPECT_TRUE(sim.truth().on_ground);
-  EXPECT_NEAR(sim.truth().T_world_body.translation().head<2>().norm(), 0.0, 1e-9);  // still
+  EXPECT_NEAR(sim.truth().T_N_B.translation().head<2>().norm(), 0.0, 1e-9);  // still
   EXPECT_NEAR(sim.truth().clearance_m, 1.0 - reach_m, 1e-9);
   sim.step_to(2390 * kMs);
   EXPECT_FALSE(sim.collided());
@@ -163,7 +163,7 @@ TEST(SimulatorTest, FramesShowThePeopleWhereTheyAreAtTheFramesTime) {
   ASSERT_TRUE(sim.camera_due());
   const double t_frame_s = static_cast<double>(sim.camera_t_ns()) * 1e-9;
   ASSERT_GT(t_frame_s, 2.9);
-  const Eigen::Isometry3d T = sim.camera_T_world_camera();
+  const Eigen::Isometry3d T = sim.camera_T_N_C();
   const std::uint64_t frame_index = sim.camera_frame_index();
   cv::Mat image, depth;
   sim.render_camera(image, depth);
@@ -190,11 +190,10 @@ TEST(SimulatorTest, PeopleWorldsWalksKeepClearOfTheScriptedFlights) {
     for (std::int64_t t = 0; t <= 16000 * kMs; t += kScriptControlPeriodNs) {
       sim.set_command(scripted_command(sim, script, static_cast<double>(t) * 1e-9));
       sim.step_to(t);
-      min_clearance_m =
-          std::min(min_clearance_m,
-                   distance_to_obstacles(people_only, sim.truth().T_world_body.translation(),
-                                         static_cast<double>(sim.t_ns()) * 1e-9) -
-                       sim.config().vehicle_radius_m);
+      min_clearance_m = std::min(min_clearance_m,
+                                 distance_to_obstacles(people_only, sim.truth().T_N_B.translation(),
+                                                       static_cast<double>(sim.t_ns()) * 1e-9) -
+                                     sim.config().vehicle_radius_m);
     }
     std::printf("people.yaml, %s: min clearance to the people %.3f m\n",
                 kind == FlightScript::Kind::kHover ? "hover" : "circle", min_clearance_m);
@@ -246,7 +245,7 @@ TEST(SimulatorTest, SameSeedSameRunIdenticalImagesAndTruth) {
       sim.step_to(t + 10 * kMs);
     }
     sim.render_camera(image, depth);
-    return sim.truth().T_world_body.translation().eval();
+    return sim.truth().T_N_B.translation().eval();
   };
   cv::Mat image_a, depth_a, image_b, depth_b, image_c, depth_c;
   const Eigen::Vector3d p_a = run(4, image_a, depth_a);
@@ -280,7 +279,7 @@ TEST(SimulatorTest, RecordsATumSequenceThatReadsBack) {
   std::filesystem::remove_all(dir);
   const World world = load_world("onboard/sim/worlds/arena.yaml");
   Simulator sim(default_sim_config(64, 48), world);
-  TumWriter writer(dir, sim.config().camera.pinhole, sim.config().camera.T_body_camera);
+  TumWriter writer(dir, sim.config().camera.pinhole, sim.config().camera.T_B_C);
   std::vector<ImuSample> imu(1000);
   cv::Mat image, depth;
   Eigen::Isometry3d T_first = Eigen::Isometry3d::Identity();
@@ -294,7 +293,7 @@ TEST(SimulatorTest, RecordsATumSequenceThatReadsBack) {
     for (std::size_t i = 0; i < n && recording; ++i) writer.write_imu(imu[i]);
     if (sim.camera_due()) {
       const std::int64_t t_frame = sim.camera_t_ns();
-      const Eigen::Isometry3d T = sim.camera_T_world_camera();
+      const Eigen::Isometry3d T = sim.camera_T_N_C();
       sim.render_camera(image, depth);
       if (recording) {
         writer.write_frame(t_frame, image, depth, T);

@@ -54,7 +54,7 @@ TEST(WorldTest, ShippedWorldsLoadWithTheirContent) {
   ASSERT_EQ(grid.markers.size(), 25u);
   EXPECT_EQ(grid.markers.front().id, 0);
   EXPECT_EQ(grid.markers.back().id, 24);
-  EXPECT_NEAR((grid.markers[0].center_world_m - grid.markers[1].center_world_m).norm(), 0.6, 1e-9);
+  EXPECT_NEAR((grid.markers[0].center_N_m - grid.markers[1].center_N_m).norm(), 0.6, 1e-9);
   // Every shipped world's markers lie on a surface (the renderer checks).
   for (const World* w : {&arena, &room, &grid}) {
     EXPECT_NO_THROW(Simulator(default_sim_config(32, 24), *w));
@@ -118,7 +118,7 @@ TEST(WorldTest, PeopleWorldIsTheRoomWithTwoPeople) {
   EXPECT_EQ(people.boxes.size(), room.boxes.size());
   EXPECT_EQ(people.cylinders.size(), room.cylinders.size());
   EXPECT_EQ(people.markers.size(), room.markers.size());
-  EXPECT_EQ(people.start_world_m, room.start_world_m);
+  EXPECT_EQ(people.start_N_m, room.start_N_m);
   ASSERT_EQ(people.people.size(), 2u);
   const Walker& near = people.people[0];
   EXPECT_EQ(near.from_m, Eigen::Vector2d(-1.0, 0.3));
@@ -302,15 +302,14 @@ TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
   EXPECT_EQ(config.camera.pinhole.width, 320);
   EXPECT_DOUBLE_EQ(config.imu.rate_hz, 500.0);
   // The camera looks 45 deg right and 30 deg down: its optical axis in body NED.
-  const Eigen::Vector3d z_body = config.camera.T_body_camera.linear().col(2);
-  EXPECT_NEAR(z_body.x(), std::cos(0.5236) * std::cos(0.7854), 1e-3);
-  EXPECT_NEAR(z_body.y(), std::cos(0.5236) * std::sin(0.7854), 1e-3);
-  EXPECT_NEAR(z_body.z(), std::sin(0.5236), 1e-3);
+  const Eigen::Vector3d z_B = config.camera.T_B_C.linear().col(2);
+  EXPECT_NEAR(z_B.x(), std::cos(0.5236) * std::cos(0.7854), 1e-3);
+  EXPECT_NEAR(z_B.y(), std::cos(0.5236) * std::sin(0.7854), 1e-3);
+  EXPECT_NEAR(z_B.z(), std::sin(0.5236), 1e-3);
   // Mass and extrinsics come from the vehicle file hq::control reads (core paper's ^Q p_C).
   EXPECT_EQ(config.vehicle_file, "calib/vehicle_core_paper.yaml");
   EXPECT_DOUBLE_EQ(config.vehicle.mass_kg, 1.0);
-  EXPECT_TRUE(
-      config.camera.T_body_camera.translation().isApprox(Eigen::Vector3d(0.10, 0.05, 0.03)));
+  EXPECT_TRUE(config.camera.T_B_C.translation().isApprox(Eigen::Vector3d(0.10, 0.05, 0.03)));
 
   const auto error_of_config = [](const std::string& yaml) -> std::string {
     try {
@@ -332,8 +331,8 @@ TEST(WorldTest, SimConfigLoadsAndNamesBadKeys) {
       HasSubstr("vehicle.mass_kg is set, but vehicle_file = calib/vehicle_core_paper.yaml"));
   EXPECT_THAT(error_of_config("vehicle_file: calib/no_such_vehicle.yaml\n"),
               HasSubstr("calib/no_such_vehicle.yaml"));
-  EXPECT_THAT(error_of_config("camera: {T_body_camera: {yaw_deg: 4}}\n"),
-              HasSubstr("camera.T_body_camera.yaw_deg is not a known key"));
+  EXPECT_THAT(error_of_config("camera: {T_B_C: {yaw_deg: 4}}\n"),
+              HasSubstr("camera.T_B_C.yaw_deg is not a known key"));
 }
 
 // Values without physical sense are refused with the file, key and value named: a start of

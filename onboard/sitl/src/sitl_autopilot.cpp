@@ -423,7 +423,7 @@ double SitlAutopilot::estimated_v_up_mps(std::int64_t t_ns, const TruthState& tr
                                                             std::sqrt(1.0 - decay * decay) *
                                                             normal_(rng_);
   if (vision_.fresh(t_ns)) return -vision_.v_NED_mps().z();
-  return truth.v_world_mps.z() + baro_rate_error_mps_;
+  return truth.v_N_mps.z() + baro_rate_error_mps_;
 }
 
 AttitudeCommand SitlAutopilot::level_command(const TruthState& truth, double v_up_mps,
@@ -495,9 +495,9 @@ AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth
     a.roll_rad = static_cast<float>(truth.euler_rad.x());  // euler_rad: B (FRD) in NED
     a.pitch_rad = static_cast<float>(truth.euler_rad.y());
     a.yaw_rad = static_cast<float>(truth.euler_rad.z());
-    a.rollspeed_radps = static_cast<float>(truth.omega_body_radps.x());
-    a.pitchspeed_radps = static_cast<float>(truth.omega_body_radps.y());
-    a.yawspeed_radps = static_cast<float>(truth.omega_body_radps.z());
+    a.rollspeed_radps = static_cast<float>(truth.omega_B_radps.x());
+    a.pitchspeed_radps = static_cast<float>(truth.omega_B_radps.y());
+    a.yawspeed_radps = static_cast<float>(truth.omega_B_radps.z());
     out.send(a);
   }
   if (t_ns >= next_status_ns_) {
@@ -517,9 +517,9 @@ AttitudeCommand SitlAutopilot::update(std::int64_t t_ns, const TruthState& truth
 void SitlAutopilot::on_imu(const ImuSample& sample, const TruthState& truth, MessageSink& out) {
   R_NED_B_ = R_NED_B_of(truth);
   const Eigen::Vector3d a_NED_mps2 =
-      R_NED_B_ * sample.f_body_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2);
+      R_NED_B_ * sample.f_B_mps2 + Eigen::Vector3d(0.0, 0.0, kGravityMps2);
   vision_.predict(sample.t_ns, a_NED_mps2);
-  const Eigen::Vector3d v_true_NED = ned_from_world(truth.v_world_mps);
+  const Eigen::Vector3d v_true_NED = ned_from_world(truth.v_N_mps);
   truth_t_ns_[truth_next_] = sample.t_ns;
   truth_v_NED_mps_[truth_next_] = v_true_NED;
   truth_next_ = (truth_next_ + 1) % kTruthHistory;
@@ -530,12 +530,12 @@ void SitlAutopilot::on_imu(const ImuSample& sample, const TruthState& truth, Mes
   }
   mavlink::HighresImu m;
   m.time_usec = static_cast<std::uint64_t>(sample.t_ns / 1000);
-  m.xacc_mps2 = static_cast<float>(sample.f_body_mps2.x());
-  m.yacc_mps2 = static_cast<float>(sample.f_body_mps2.y());
-  m.zacc_mps2 = static_cast<float>(sample.f_body_mps2.z());
-  m.xgyro_radps = static_cast<float>(sample.omega_body_radps.x());
-  m.ygyro_radps = static_cast<float>(sample.omega_body_radps.y());
-  m.zgyro_radps = static_cast<float>(sample.omega_body_radps.z());
+  m.xacc_mps2 = static_cast<float>(sample.f_B_mps2.x());
+  m.yacc_mps2 = static_cast<float>(sample.f_B_mps2.y());
+  m.zacc_mps2 = static_cast<float>(sample.f_B_mps2.z());
+  m.xgyro_radps = static_cast<float>(sample.omega_B_radps.x());
+  m.ygyro_radps = static_cast<float>(sample.omega_B_radps.y());
+  m.zgyro_radps = static_cast<float>(sample.omega_B_radps.z());
   m.fields_updated = kImuAccGyroFields;
   out.send(m);
 }

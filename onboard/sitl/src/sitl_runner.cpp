@@ -119,12 +119,12 @@ class RenderWorker {
 
   /// Hands over the due frame; false (skipped) while the previous one is still rendering.
   /// sim_t_ns: the simulated time the frame shows (where the people are); t_ns: its stamp.
-  bool submit(const Eigen::Isometry3d& T_world_camera, std::uint64_t frame_index,
-              std::int64_t sim_t_ns, std::int64_t t_ns, const frame_channel::SitlTruth& truth) {
+  bool submit(const Eigen::Isometry3d& T_N_C, std::uint64_t frame_index, std::int64_t sim_t_ns,
+              std::int64_t t_ns, const frame_channel::SitlTruth& truth) {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       if (pending_ || busy_) return false;
-      job_.T_world_camera = T_world_camera;
+      job_.T_N_C = T_N_C;
       job_.frame_index = frame_index;
       job_.sim_t_ns = sim_t_ns;
       job_.t_ns = t_ns;
@@ -140,7 +140,7 @@ class RenderWorker {
 
  private:
   struct Job {
-    Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+    Eigen::Isometry3d T_N_C = Eigen::Isometry3d::Identity();
     std::uint64_t frame_index = 0;
     std::int64_t sim_t_ns = 0;
     std::int64_t t_ns = 0;
@@ -159,8 +159,8 @@ class RenderWorker {
         busy_ = true;
       }
       const std::int64_t start_ns = monotonic_now_ns();
-      renderer_.render(job.T_world_camera, static_cast<double>(job.sim_t_ns) * 1e-9,
-                       job.frame_index, image_, depth_m_);
+      renderer_.render(job.T_N_C, static_cast<double>(job.sim_t_ns) * 1e-9, job.frame_index, image_,
+                       depth_m_);
       render_s_ += static_cast<double>(monotonic_now_ns() - start_ns) * 1e-9;
       if (channel_.publish(job.t_ns, image_, depth_m_, &job.truth)) ++published_;
       const std::lock_guard<std::mutex> lock(mutex_);
@@ -241,11 +241,11 @@ void publish_camera(Simulator& sim, RenderWorker& renderer, std::int64_t wall_or
   const TruthState& truth = sim.truth();
   frame_channel::SitlTruth frame_truth;
   const Eigen::Vector3d& v_H = truth.v_H_mps;
-  const Eigen::Vector3d& p_N = truth.T_world_body.translation();
+  const Eigen::Vector3d& p_N = truth.T_N_B.translation();
   frame_truth.v_H_mps = {v_H.x(), v_H.y(), v_H.z()};
   frame_truth.p_W_m = {p_N.x(), p_N.y(), p_N.z()};
   frame_truth.on_ground = truth.on_ground;
-  if (!renderer.submit(sim.camera_T_world_camera(), sim.camera_frame_index(), sim.camera_t_ns(),
+  if (!renderer.submit(sim.camera_T_N_C(), sim.camera_frame_index(), sim.camera_t_ns(),
                        wall_origin_ns + sim.camera_t_ns(), frame_truth)) {
     ++stats.frames_skipped;
   }
@@ -257,7 +257,7 @@ void account_truth(const TruthState& truth, SitlRunStats& stats) {
     if (truth.collision) ++stats.collision_ticks;
     stats.min_clearance_m = std::min(stats.min_clearance_m, truth.clearance_m);
   }
-  stats.max_speed_mps = std::max(stats.max_speed_mps, truth.v_world_mps.norm());
+  stats.max_speed_mps = std::max(stats.max_speed_mps, truth.v_N_mps.norm());
 }
 
 void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
@@ -325,7 +325,7 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
   hq::log::info("final: {} {}, battery {:.2f} V, {} at altitude {:.2f} m\n",
                 autopilot.armed() ? "armed" : "disarmed", sitl_mode_name(autopilot.mode()).data(),
                 autopilot.battery_v(), sim.truth().on_ground ? "on the ground" : "in the air",
-                sim.truth().T_world_body.translation().z());
+                sim.truth().T_N_B.translation().z());
   std::fflush(stdout);
 }
 
@@ -390,7 +390,7 @@ int run_sitl(Simulator& sim, const SitlOptions& options, const std::atomic<bool>
                     static_cast<double>(t_ns) * 1e-9,
                     static_cast<double>(t_ns) / static_cast<double>(wall_ns - wall_origin_ns),
                     autopilot.armed() ? "armed" : "disarmed",
-                    sitl_mode_name(autopilot.mode()).data(), after.T_world_body.translation().z());
+                    sitl_mode_name(autopilot.mode()).data(), after.T_N_B.translation().z());
     }
   }
 

@@ -76,8 +76,8 @@ mav::SetAttitudeTarget level_setpoint(float thrust) {
 TruthState airborne(double altitude_m, double v_up_mps = 0.0) {
   TruthState t;
   t.on_ground = false;
-  t.T_world_body.translation().z() = altitude_m;
-  t.v_world_mps.z() = v_up_mps;
+  t.T_N_B.translation().z() = altitude_m;
+  t.v_N_mps.z() = v_up_mps;
   return t;
 }
 
@@ -237,8 +237,8 @@ TEST_F(SitlAutopilotTest, StreamsAttitudeAt50HzAndStatusAt1HzAndAcksEveryCommand
 TEST_F(SitlAutopilotTest, ImuSamplesBecomeHighresImuInMicrosecondsOfSimulatedTime) {
   hq::sim::ImuSample s;
   s.t_ns = 1'234'000'000;
-  s.f_body_mps2 = Eigen::Vector3d(0.1, 0.2, -9.81);
-  s.omega_body_radps = Eigen::Vector3d(0.01, 0.02, 0.03);
+  s.f_B_mps2 = Eigen::Vector3d(0.1, 0.2, -9.81);
+  s.omega_B_radps = Eigen::Vector3d(0.01, 0.02, 0.03);
   ap_.on_imu(s, TruthState{}, out_);
   const mav::HighresImu m = out_.all<mav::HighresImu>().at(0);
   EXPECT_EQ(m.time_usec, 1'234'000u);
@@ -270,7 +270,7 @@ mav::Odometry body_odometry(std::int64_t t_ns, const Eigen::Vector3d& v_B_mps,
 hq::sim::ImuSample level_imu(std::int64_t t_ns, const Eigen::Vector3d& bias_mps2 = {0, 0, 0}) {
   hq::sim::ImuSample s;
   s.t_ns = t_ns;
-  s.f_body_mps2 = Eigen::Vector3d(0.0, 0.0, -9.81) + bias_mps2;
+  s.f_B_mps2 = Eigen::Vector3d(0.0, 0.0, -9.81) + bias_mps2;
   return s;
 }
 
@@ -316,7 +316,7 @@ TEST_F(SitlAutopilotTest, FusedOdometryIsCloserToTruthThanTheOdometryOrTheImuAlo
   // GIVEN a level vehicle cruising at constant velocity, a biased noisy accelerometer at 500 Hz
   // and a body velocity with 0.1 m/s of white noise at 30 Hz, stamped 40 ms late.
   TruthState truth = airborne(1.0);
-  truth.v_world_mps = Eigen::Vector3d(0.5, -0.2, 0.1);  // NWU
+  truth.v_N_mps = Eigen::Vector3d(0.5, -0.2, 0.1);  // NWU
   const Eigen::Vector3d v_NED(0.5, 0.2, -0.1);
   const Eigen::Vector3d bias(0.05, -0.04, 0.03);
   std::mt19937 rng(11);
@@ -327,9 +327,9 @@ TEST_F(SitlAutopilotTest, FusedOdometryIsCloserToTruthThanTheOdometryOrTheImuAlo
   int imu_steps = 0;
   for (std::int64_t t = 0; t <= 20'000 * kMs; t += 2 * kMs) {
     hq::sim::ImuSample s = level_imu(t, bias);
-    for (int i = 0; i < 3; ++i) s.f_body_mps2[i] += accel_sigma * unit(rng);
+    for (int i = 0; i < 3; ++i) s.f_B_mps2[i] += accel_sigma * unit(rng);
     ap_.on_imu(s, truth, out_);
-    v_imu_only += (s.f_body_mps2 + Eigen::Vector3d(0, 0, 9.81)) * 0.002;
+    v_imu_only += (s.f_B_mps2 + Eigen::Vector3d(0, 0, 9.81)) * 0.002;
     imu_only_sq += (v_imu_only - v_NED).squaredNorm();
     ++imu_steps;
     if (t % (34 * kMs) == 0 && t >= 40 * kMs) {

@@ -118,9 +118,9 @@ void TumRecorder::write_gyro(std::int64_t t_ns, const Eigen::Vector3d& omega_rad
   gyro_ << line;
 }
 
-void TumRecorder::write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d& T_world_camera) {
-  const Eigen::Quaterniond q(T_world_camera.linear());
-  const Eigen::Vector3d& p = T_world_camera.translation();
+void TumRecorder::write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d& T_G_C) {
+  const Eigen::Quaterniond q(T_G_C.linear());
+  const Eigen::Vector3d& p = T_G_C.translation();
   char line[256];
   std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n", stamp(t_ns).c_str(),
                 p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());

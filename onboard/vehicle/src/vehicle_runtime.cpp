@@ -321,13 +321,13 @@ NoFlightController::NoFlightController(std::vector<FcImuSample> recorded)
     : recorded_(std::move(recorded)) {}
 
 void NoFlightController::set_tilt_source(const sources::FrameSource* tilt_source,
-                                         const Eigen::Matrix3d& R_body_sensor, double rate_hz) {
+                                         const Eigen::Matrix3d& R_B_sensor, double rate_hz) {
   if (!(rate_hz >= 1.0 && rate_hz <= 10'000.0)) {
     throw InputError("fc none: IMU rate_hz = " + std::to_string(rate_hz) +
                      ", expected in [1, 10000]");
   }
   tilt_source_ = tilt_source;
-  R_body_sensor_ = R_body_sensor;
+  R_B_sensor_ = R_B_sensor;
   imu_period_ns_ = std::llround(1e9 / rate_hz);
   synthesise_ = true;
 }
@@ -342,7 +342,7 @@ void NoFlightController::poll(std::int64_t t_ns, FcSink& sink) {
   Eigen::Vector3d f_B_mps2(0.0, 0.0, -estimator::kGravityMps2);
   if (tilt_source_ != nullptr) {
     if (const auto accel = tilt_source_->accelerometer()) {
-      if (accel->accel_mps2.allFinite()) f_B_mps2 = R_body_sensor_ * accel->accel_mps2;
+      if (accel->accel_mps2.allFinite()) f_B_mps2 = R_B_sensor_ * accel->accel_mps2;
     }
   }
   for (; next_imu_ns_ <= t_ns; next_imu_ns_ += imu_period_ns_) {

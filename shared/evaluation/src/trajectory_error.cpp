@@ -26,7 +26,7 @@ constexpr double kMaxRegularInterval = 1.5;
 
 void check_trajectory(const std::vector<StampedPose>& poses, const char* name) {
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    if (!poses[i].T_world_sensor.matrix().allFinite()) {
+    if (!poses[i].T_G_S.matrix().allFinite()) {
       throw InputError(std::string(name) + " pose " + std::to_string(i) + " (t_ns " +
                        std::to_string(poses[i].t_ns) + ") is not finite");
     }
@@ -161,10 +161,10 @@ RpeResult relative_pose_error(const std::vector<StampedPose>& gt,
         window_s > kMaxWindowFraction * result.delta_s) {
       continue;
     }
-    const Eigen::Isometry3d& Q_i = gt[pairs[i].first].T_world_sensor;
-    const Eigen::Isometry3d& Q_j = gt[pairs[j].first].T_world_sensor;
-    const Eigen::Isometry3d& P_i = est[pairs[i].second].T_world_sensor;
-    const Eigen::Isometry3d& P_j = est[pairs[j].second].T_world_sensor;
+    const Eigen::Isometry3d& Q_i = gt[pairs[i].first].T_G_S;
+    const Eigen::Isometry3d& Q_j = gt[pairs[j].first].T_G_S;
+    const Eigen::Isometry3d& P_i = est[pairs[i].second].T_G_S;
+    const Eigen::Isometry3d& P_j = est[pairs[j].second].T_G_S;
     // Sturm 2012, eq. 1: the estimate's relative motion seen from the ground truth's.
     const Eigen::Isometry3d E = (Q_i.inverse() * Q_j).inverse() * (P_i.inverse() * P_j);
     trans_mps.push_back(E.translation().norm() / window_s);
@@ -192,8 +192,8 @@ AteResult absolute_trajectory_error(const std::vector<StampedPose>& gt,
   Eigen::Matrix3Xd p_gt(3, static_cast<Eigen::Index>(pairs.size()));
   Eigen::Matrix3Xd p_est(3, static_cast<Eigen::Index>(pairs.size()));
   for (std::size_t k = 0; k < pairs.size(); ++k) {
-    p_gt.col(static_cast<Eigen::Index>(k)) = gt[pairs[k].first].T_world_sensor.translation();
-    p_est.col(static_cast<Eigen::Index>(k)) = est[pairs[k].second].T_world_sensor.translation();
+    p_gt.col(static_cast<Eigen::Index>(k)) = gt[pairs[k].first].T_G_S.translation();
+    p_est.col(static_cast<Eigen::Index>(k)) = est[pairs[k].second].T_G_S.translation();
   }
   AteResult result;
   // Least-squares R, t minimising sum |p_gt - (R p_est + t)|^2 (Sturm 2012, eq. 3; Umeyama).
@@ -227,8 +227,8 @@ PoseNoise ground_truth_noise(const std::vector<StampedPose>& gt) {
   std::vector<Step> steps;
   for (std::size_t k = 0; k + 1 < gt.size(); ++k) {
     const double scale = median_ns / static_cast<double>(intervals_ns[k]);
-    const Eigen::Isometry3d& a = gt[k].T_world_sensor;
-    const Eigen::Isometry3d& b = gt[k + 1].T_world_sensor;
+    const Eigen::Isometry3d& a = gt[k].T_G_S;
+    const Eigen::Isometry3d& b = gt[k + 1].T_G_S;
     const Eigen::AngleAxisd body(
         Eigen::Quaterniond(a.linear().transpose() * b.linear()).normalized());
     steps.push_back({scale * (b.translation() - a.translation()),

@@ -57,7 +57,7 @@ TrajectorySpline TrajectorySpline::fit(const std::vector<recording::StampedPose>
         fmt::format("trajectory spline: {} poses, expected at least {}", poses.size(), kOrder));
   }
   for (std::size_t k = 0; k < poses.size(); ++k) {
-    if (!poses[k].T_world_sensor.matrix().allFinite()) {
+    if (!poses[k].T_G_S.matrix().allFinite()) {
       throw InputError(fmt::format("trajectory spline: pose {} is not finite", k + 1));
     }
     if (k > 0 && poses[k].t_ns <= poses[k - 1].t_ns) {
@@ -79,11 +79,11 @@ TrajectorySpline TrajectorySpline::fit(const std::vector<recording::StampedPose>
   std::vector<Vector7d> observed(poses.size());
   Eigen::Quaterniond q_previous = Eigen::Quaterniond::Identity();
   for (std::size_t k = 0; k < poses.size(); ++k) {
-    Eigen::Quaterniond q(poses[k].T_world_sensor.linear());
+    Eigen::Quaterniond q(poses[k].T_G_S.linear());
     q.normalize();
     if (k > 0 && q.coeffs().dot(q_previous.coeffs()) < 0.0) q.coeffs() = -q.coeffs();
     q_previous = q;
-    observed[k] << poses[k].T_world_sensor.translation(), q.coeffs();
+    observed[k] << poses[k].T_G_S.translation(), q.coeffs();
   }
 
   // Normal equations of the least-squares fit, banded (each pose touches four control points).
@@ -129,9 +129,9 @@ TrajectorySpline TrajectorySpline::fit(const std::vector<recording::StampedPose>
   double sq_rad = 0.0;
   for (const recording::StampedPose& pose : poses) {
     const Eigen::Isometry3d fitted = spline.pose(pose.t_ns);
-    sq_m += (fitted.translation() - pose.T_world_sensor.translation()).squaredNorm();
+    sq_m += (fitted.translation() - pose.T_G_S.translation()).squaredNorm();
     const double angle =
-        Eigen::AngleAxisd(fitted.linear().transpose() * pose.T_world_sensor.linear()).angle();
+        Eigen::AngleAxisd(fitted.linear().transpose() * pose.T_G_S.linear()).angle();
     sq_rad += angle * angle;
   }
   const auto count = static_cast<double>(poses.size());
@@ -162,11 +162,11 @@ Eigen::Isometry3d TrajectorySpline::pose(std::int64_t t_ns) const {
   return T;
 }
 
-Eigen::Vector3d TrajectorySpline::velocity_W_mps(std::int64_t t_ns) const {
+Eigen::Vector3d TrajectorySpline::velocity_G_mps(std::int64_t t_ns) const {
   return evaluate(t_ns, 1).head<3>();
 }
 
-Eigen::Vector3d TrajectorySpline::acceleration_W_mps2(std::int64_t t_ns) const {
+Eigen::Vector3d TrajectorySpline::acceleration_G_mps2(std::int64_t t_ns) const {
   return evaluate(t_ns, 2).head<3>();
 }
 

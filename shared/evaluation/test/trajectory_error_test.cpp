@@ -88,7 +88,7 @@ TEST(TrajectoryError, ConstantRigidOffsetIsAlignedAwayAndInvisibleToRpe) {
   const Eigen::Isometry3d T_est_gt =
       make_pose(Eigen::Vector3d(0.3, -1.2, 0.7), Eigen::Vector3d(5.0, -2.0, 1.5));
   std::vector<StampedPose> est = gt;
-  for (StampedPose& pose : est) pose.T_world_sensor = T_est_gt * pose.T_world_sensor;
+  for (StampedPose& pose : est) pose.T_G_S = T_est_gt * pose.T_G_S;
 
   // THEN the alignment recovers its inverse and both errors vanish.
   const AteResult ate = absolute_trajectory_error(gt, est);
@@ -230,7 +230,7 @@ TEST(TrajectoryError, TooFewAssociatedPosesIsAnInputError) {
 TEST(TrajectoryError, NonFiniteOrUnorderedPosesAreInputErrors) {
   const std::vector<StampedPose> gt = helix(10, 100.0);
   std::vector<StampedPose> est = gt;
-  est[4].T_world_sensor.translation().y() = std::nan("");
+  est[4].T_G_S.translation().y() = std::nan("");
   EXPECT_THAT(input_error_message([&] { absolute_trajectory_error(gt, est); }),
               HasSubstr("estimate pose 4"));
   est = gt;
@@ -252,9 +252,9 @@ std::vector<StampedPose> noisy_helix(int count, double rate_hz, double sigma_m, 
   for (StampedPose& pose : poses) {
     const Eigen::Vector3d dp(normal(rng), normal(rng), normal(rng));
     const Eigen::Vector3d dr(normal(rng), normal(rng), normal(rng));
-    pose.T_world_sensor.translation() += sigma_m * dp;
-    pose.T_world_sensor.linear() =
-        pose.T_world_sensor.linear() * make_pose(sigma_rad * dr, Eigen::Vector3d::Zero()).linear();
+    pose.T_G_S.translation() += sigma_m * dp;
+    pose.T_G_S.linear() =
+        pose.T_G_S.linear() * make_pose(sigma_rad * dr, Eigen::Vector3d::Zero()).linear();
   }
   return poses;
 }
@@ -299,7 +299,7 @@ TEST(GroundTruthNoise, TooFewPosesGiveNoFigureAndBadPosesAnInputError) {
   EXPECT_EQ(ground_truth_noise(helix(3, 100.0)).differences, 0);
   EXPECT_EQ(ground_truth_noise(helix(4, 100.0)).differences, 1);
   std::vector<StampedPose> poses = helix(10, 100.0);
-  poses[6].T_world_sensor.translation().x() = std::nan("");
+  poses[6].T_G_S.translation().x() = std::nan("");
   EXPECT_THAT(input_error_message([&] { ground_truth_noise(poses); }),
               HasSubstr("ground truth pose 6"));
 }

@@ -94,7 +94,7 @@ TEST(TrajectorySpline, RecoversPoseRateAndAccelerationOfNoisyMotionCapture) {
     }
     max_p = std::max(max_p, (spline.pose(stamp(t)).translation() - Motion::p(t)).norm());
     EXPECT_LT(angle, 0.01) << "at t = " << t;
-    sq_accel += (spline.acceleration_W_mps2(stamp(t)) - Motion::a(t)).squaredNorm();
+    sq_accel += (spline.acceleration_G_mps2(stamp(t)) - Motion::a(t)).squaredNorm();
     sq_omega += (spline.omega_S_radps(stamp(t)) - Motion::omega_S(t)).squaredNorm();
     ++count;
   }
@@ -106,8 +106,8 @@ TEST(TrajectorySpline, RecoversPoseRateAndAccelerationOfNoisyMotionCapture) {
     const double t = hq::to_seconds(poses[k].t_ns - kT0Ns);
     if (poses[k + 1].t_ns - poses[k - 1].t_ns != 20'000'000) continue;  // the gap's edges
     const Eigen::Vector3d a =
-        (poses[k + 1].T_world_sensor.translation() - 2.0 * poses[k].T_world_sensor.translation() +
-         poses[k - 1].T_world_sensor.translation()) /
+        (poses[k + 1].T_G_S.translation() - 2.0 * poses[k].T_G_S.translation() +
+         poses[k - 1].T_G_S.translation()) /
         1e-4;
     sq_difference += (a - Motion::a(t)).squaredNorm();
     ++differences;
@@ -130,7 +130,7 @@ TEST(TrajectorySpline, VelocityIsThePositionsDerivative) {
     const Eigen::Vector3d numeric =
         (spline.pose(stamp(t + h)).translation() - spline.pose(stamp(t - h)).translation()) /
         (2 * h);
-    EXPECT_LT((spline.velocity_W_mps(stamp(t)) - numeric).norm(), 1e-4) << "at t = " << t;
+    EXPECT_LT((spline.velocity_G_mps(stamp(t)) - numeric).norm(), 1e-4) << "at t = " << t;
   }
 }
 
@@ -146,7 +146,7 @@ TEST(TrajectorySpline, RefusesWhatItCannotFit) {
   EXPECT_THAT(input_error_message([&] { TrajectorySpline::fit(unordered); }),
               HasSubstr("pose 6 stamped"));
   std::vector<StampedPose> not_finite = poses;
-  not_finite[9].T_world_sensor.translation().x() = std::nan("");
+  not_finite[9].T_G_S.translation().x() = std::nan("");
   EXPECT_THAT(input_error_message([&] { TrajectorySpline::fit(not_finite); }),
               HasSubstr("pose 10 is not finite"));
   EXPECT_THAT(input_error_message([&] {

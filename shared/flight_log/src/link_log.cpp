@@ -118,7 +118,7 @@ struct LinkLog::Impl final : ChannelWriter {
       waitset.attach(conditions[i].handle(), static_cast<dds_attach_t>(i));
     }
     waitset.attach(stop_condition.handle(), static_cast<dds_attach_t>(kLinkTopicCount));
-    link::reserve(state_sample->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
+    link::reserve(state_sample->obstacle_points_B_m, hq_msgs_kMaxObstaclePoints);
     link::reserve(state_sample->markers, hq_msgs_kMaxMarkersInState);
     link::reserve(camera_sample->rgb_jpeg, hq_msgs_kMaxJpegBytes);
     link::reserve(camera_sample->depth_preview, hq_msgs_kMaxDepthPreviewBytes);
@@ -307,7 +307,7 @@ struct LinkLog::Impl final : ChannelWriter {
 
   void write_cloud(std::int64_t log_ns, std::int64_t publish_ns) {
     // FRD -> FLU (x, -y, -z), so the 3D panel shows the obstacles the right way up.
-    const auto& points = state_sample->obstacle_points_body_m;
+    const auto& points = state_sample->obstacle_points_B_m;
     cloud_flu.resize(std::size_t{3} * points._length);
     for (std::uint32_t i = 0; i < points._length; ++i) {
       cloud_flu[3 * i] = points._buffer[i].x;

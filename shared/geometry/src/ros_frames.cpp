@@ -10,7 +10,7 @@ Eigen::Vector3d flu_from_frd(const Eigen::Vector3d& v_frd) {
   return {v_frd.x(), -v_frd.y(), -v_frd.z()};
 }
 
-Eigen::Matrix3d R_ned_body(double roll_rad, double pitch_rad, double yaw_rad) {
+Eigen::Matrix3d R_ned_B(double roll_rad, double pitch_rad, double yaw_rad) {
   return (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
           Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
           Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
@@ -23,13 +23,13 @@ Eigen::Quaterniond q_E_F(double roll_rad, double pitch_rad, double yaw_rad) {
       1, 0, 0,         //
       0, 0, -1;
   const Eigen::Matrix3d R_B_F = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
-  const Eigen::Matrix3d R_E_F = R_E_ned * R_ned_body(roll_rad, pitch_rad, yaw_rad) * R_B_F;
+  const Eigen::Matrix3d R_E_F = R_E_ned * R_ned_B(roll_rad, pitch_rad, yaw_rad) * R_B_F;
   return Eigen::Quaterniond(R_E_F).normalized();
 }
 
 Eigen::Vector3d v_F_from_v_H(const Eigen::Vector3d& v_H_mps, double roll_rad, double pitch_rad) {
-  // H is B with roll and pitch taken out: R_H_B = R_ned_body(roll, pitch, 0).
-  const Eigen::Vector3d v_B_mps = R_ned_body(roll_rad, pitch_rad, 0.0).transpose() * v_H_mps;
+  // H is B with roll and pitch taken out: R_H_B = R_ned_B(roll, pitch, 0).
+  const Eigen::Vector3d v_B_mps = R_ned_B(roll_rad, pitch_rad, 0.0).transpose() * v_H_mps;
   return flu_from_frd(v_B_mps);
 }
 

@@ -53,13 +53,13 @@ TEST(RosFrames, PitchUpAndRollRightKeepTheirMeaning) {
   EXPECT_NEAR((right_down * Eigen::Vector3d::UnitY()).z(), std::sin(0.2), 1e-12);
 }
 
-// Every orientation maps the body's vectors as R_ned_body does, seen through both swaps.
+// Every orientation maps the body's vectors as R_ned_B does, seen through both swaps.
 TEST(RosFrames, QuaternionAgreesWithTheNedRotationForManyAttitudes) {
   for (double roll = -1.0; roll <= 1.0; roll += 0.5) {
     for (double pitch = -1.0; pitch <= 1.0; pitch += 0.5) {
       for (double yaw = -3.0; yaw <= 3.0; yaw += 1.0) {
         const Eigen::Vector3d v_B(0.4, -0.7, 1.1);
-        const Eigen::Vector3d v_ned = R_ned_body(roll, pitch, yaw) * v_B;
+        const Eigen::Vector3d v_ned = R_ned_B(roll, pitch, yaw) * v_B;
         const Eigen::Quaterniond q = q_E_F(roll, pitch, yaw);
         EXPECT_NEAR(q.norm(), 1.0, 1e-12);
         expect_near(q * flu_from_frd(v_B), enu_from_ned(v_ned), 1e-12);

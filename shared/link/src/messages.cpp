@@ -81,7 +81,7 @@ Validation validate(const Heartbeat& heartbeat) {
 
 Validation validate(const VehicleState& state) {
   if (!finite(state.v_H_mps)) return {false, "v_H_mps is NaN or Inf"};
-  if (!finite(state.omega_body_radps)) return {false, "omega_body_radps is NaN or Inf"};
+  if (!finite(state.omega_B_radps)) return {false, "omega_B_radps is NaN or Inf"};
   if (!finite(state.v_obs_H_mps)) return {false, "v_obs_H_mps is NaN or Inf"};
   if (!std::isfinite(state.roll_rad) || !std::isfinite(state.pitch_rad)) {
     return {false, "roll_rad or pitch_rad is NaN or Inf"};
@@ -89,12 +89,12 @@ Validation validate(const VehicleState& state) {
   if (!valid_mode(state.mode)) return {false, "mode outside Mode enum"};
   if (!valid_health(state.estimator_health)) return {false, "estimator_health outside Health enum"};
   if (!valid_health(state.link_health)) return {false, "link_health outside Health enum"};
-  if (state.obstacle_points_body_m._length > hq_msgs_kMaxObstaclePoints) {
-    return {false, "obstacle_points_body_m longer than kMaxObstaclePoints"};
+  if (state.obstacle_points_B_m._length > hq_msgs_kMaxObstaclePoints) {
+    return {false, "obstacle_points_B_m longer than kMaxObstaclePoints"};
   }
-  for (std::uint32_t i = 0; i < state.obstacle_points_body_m._length; ++i) {
-    if (!finite(state.obstacle_points_body_m._buffer[i])) {
-      return {false, "obstacle_points_body_m has a NaN or Inf point"};
+  for (std::uint32_t i = 0; i < state.obstacle_points_B_m._length; ++i) {
+    if (!finite(state.obstacle_points_B_m._buffer[i])) {
+      return {false, "obstacle_points_B_m has a NaN or Inf point"};
     }
   }
   // Absent estimates travel as zeros, so these are finite whatever the flags say.

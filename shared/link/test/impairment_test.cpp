@@ -74,8 +74,8 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
   Reader<VehicleState> reader(participant, topic, vehicle_state_qos());
   reader.impair(parse_impairment("delay_ms=100,jitter_ms=20,loss=0.2,seed=5"), 1);
   Sample<VehicleState> sent;
-  reserve(sent->obstacle_points_body_m, 3);
-  sent->obstacle_points_body_m._length = 3;
+  reserve(sent->obstacle_points_B_m, 3);
+  sent->obstacle_points_B_m._length = 3;
   Sample<VehicleState> received;
   WaitSet waitset(participant);
   GuardCondition never(participant);
@@ -89,7 +89,7 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
     sent->sequence_number = static_cast<std::uint64_t>(i);
     sent->t_ns = dds_time();
     for (std::uint32_t p = 0; p < 3; ++p) {
-      sent->obstacle_points_body_m._buffer[p] = {static_cast<float>(i), static_cast<float>(p), 0};
+      sent->obstacle_points_B_m._buffer[p] = {static_cast<float>(i), static_cast<float>(p), 0};
     }
     ASSERT_TRUE(writer.write(*sent));
     // WHEN the receiver polls every 5 ms (the waitset is the timer)
@@ -100,10 +100,10 @@ TEST(Impairment, ReaderHandsSamplesOutLateAndDeepCopiesSequences) {
       min_delay_ms =
           std::min(min_delay_ms, 1e-6 * static_cast<double>(dds_time() - received->t_ns));
       // THEN the sequence arrives intact, not aliased to the ring's buffer
-      ASSERT_EQ(received->obstacle_points_body_m._length, 3u);
-      EXPECT_EQ(received->obstacle_points_body_m._buffer[2].x,
+      ASSERT_EQ(received->obstacle_points_B_m._length, 3u);
+      EXPECT_EQ(received->obstacle_points_B_m._buffer[2].x,
                 static_cast<float>(received->sequence_number));
-      EXPECT_EQ(received->obstacle_points_body_m._buffer[2].y, 2.0F);
+      EXPECT_EQ(received->obstacle_points_B_m._buffer[2].y, 2.0F);
     }
   }
   for (int i = 0; i < 40; ++i) {  // drain what is still in flight (200 ms)

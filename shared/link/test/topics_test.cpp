@@ -70,30 +70,30 @@ TEST(Topics, VehicleStateRoundTripWithFullObstacleCloud) {
   sent->sequence_number = 77;
   sent->t_ns = 123;
   sent->v_H_mps = {1.0F, 2.0F, 3.0F};
-  sent->omega_body_radps = {0.1F, 0.2F, 0.3F};
+  sent->omega_B_radps = {0.1F, 0.2F, 0.3F};
   sent->roll_rad = 0.05F;
   sent->pitch_rad = -0.05F;
   sent->v_obs_H_mps = {-0.5F, 0.0F, 0.0F};
   sent->mode = hq_msgs_MODE_HOVER;
   sent->estimator_health = hq_msgs_HEALTH_DEGRADED;
   sent->link_health = hq_msgs_HEALTH_OK;
-  reserve(sent->obstacle_points_body_m, hq_msgs_kMaxObstaclePoints);
-  sent->obstacle_points_body_m._length = hq_msgs_kMaxObstaclePoints;
+  reserve(sent->obstacle_points_B_m, hq_msgs_kMaxObstaclePoints);
+  sent->obstacle_points_B_m._length = hq_msgs_kMaxObstaclePoints;
   for (std::uint32_t i = 0; i < hq_msgs_kMaxObstaclePoints; ++i) {
-    sent->obstacle_points_body_m._buffer[i] = {static_cast<float>(i), 1.0F, -1.0F};
+    sent->obstacle_points_B_m._buffer[i] = {static_cast<float>(i), 1.0F, -1.0F};
   }
   Sample<VehicleState> received;
   round_trip(vehicle_state_qos(), vehicle_state_qos(), *sent, *received);
   EXPECT_EQ(received->vehicle_id, 4u);
   EXPECT_EQ(received->v_H_mps.z, 3.0F);
-  EXPECT_EQ(received->omega_body_radps.y, 0.2F);
+  EXPECT_EQ(received->omega_B_radps.y, 0.2F);
   EXPECT_EQ(received->pitch_rad, -0.05F);
   EXPECT_EQ(received->v_obs_H_mps.x, -0.5F);
   EXPECT_EQ(received->mode, hq_msgs_MODE_HOVER);
   EXPECT_EQ(received->estimator_health, hq_msgs_HEALTH_DEGRADED);
-  ASSERT_EQ(received->obstacle_points_body_m._length, hq_msgs_kMaxObstaclePoints);
-  EXPECT_EQ(received->obstacle_points_body_m._buffer[2047].x, 2047.0F);
-  EXPECT_EQ(received->obstacle_points_body_m._buffer[0].z, -1.0F);
+  ASSERT_EQ(received->obstacle_points_B_m._length, hq_msgs_kMaxObstaclePoints);
+  EXPECT_EQ(received->obstacle_points_B_m._buffer[2047].x, 2047.0F);
+  EXPECT_EQ(received->obstacle_points_B_m._buffer[0].z, -1.0F);
 }
 
 TEST(Topics, CameraFrameRoundTripWith40KbJpeg) {

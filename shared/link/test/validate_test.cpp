@@ -107,17 +107,17 @@ TEST(Validate, HeartbeatWithOutOfRangeRoleIsRejected) {
 TEST(Validate, VehicleStateWithNanOrBadEnumIsRejected) {
   VehicleState state{};
   EXPECT_TRUE(validate(state).ok);
-  state.omega_body_radps.z = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_THAT(validate(state).reason, HasSubstr("omega_body_radps"));
+  state.omega_B_radps.z = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THAT(validate(state).reason, HasSubstr("omega_B_radps"));
   state = VehicleState{};
   state.link_health = wire_enum<hq_msgs_Health>(3);
   EXPECT_THAT(validate(state).reason, HasSubstr("link_health"));
   state = VehicleState{};
   hq_msgs_Vector3f points[2] = {{0.0F, 0.0F, 0.0F}, {1.0F, std::nanf(""), 0.0F}};
-  state.obstacle_points_body_m._buffer = points;
-  state.obstacle_points_body_m._length = 2;
-  state.obstacle_points_body_m._maximum = 2;
-  EXPECT_THAT(validate(state).reason, HasSubstr("obstacle_points_body_m has a NaN"));
+  state.obstacle_points_B_m._buffer = points;
+  state.obstacle_points_B_m._length = 2;
+  state.obstacle_points_B_m._maximum = 2;
+  EXPECT_THAT(validate(state).reason, HasSubstr("obstacle_points_B_m has a NaN"));
   state = VehicleState{};
   state.hover_thrust_gain = 1.4F;
   EXPECT_TRUE(validate(state).ok);

@@ -67,18 +67,18 @@ std::vector<StampedPose> read_tum_trajectory(const std::string& path) {
     double values[8];
     for (std::size_t i = 1; i < 8; ++i) values[i] = reader.number(i, kNames[i]);
     // Eigen's constructor order is (w, x, y, z); the file's is x y z w.
-    Eigen::Quaterniond q_world_sensor(values[7], values[4], values[5], values[6]);
-    const double norm = q_world_sensor.norm();
+    Eigen::Quaterniond q_G_S(values[7], values[4], values[5], values[6]);
+    const double norm = q_G_S.norm();
     if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
       char text[64];
       std::snprintf(text, sizeof(text), "%.6g", norm);
       throw InputError(reader.where() + ": quaternion (qx qy qz qw) has norm " + text +
                        ", expected 1 within 0.1 (is the line \"t tx ty tz qx qy qz qw\"?)");
     }
-    q_world_sensor.normalize();
+    q_G_S.normalize();
     StampedPose pose{seconds_to_ns(t_s), Eigen::Isometry3d::Identity()};
-    pose.T_world_sensor.linear() = q_world_sensor.toRotationMatrix();
-    pose.T_world_sensor.translation() = Eigen::Vector3d(values[1], values[2], values[3]);
+    pose.T_G_S.linear() = q_G_S.toRotationMatrix();
+    pose.T_G_S.translation() = Eigen::Vector3d(values[1], values[2], values[3]);
     poses.push_back(pose);
   }
   return poses;
@@ -90,7 +90,7 @@ void write_tum_trajectory(const std::string& path, const std::vector<StampedPose
   out << "# timestamp tx ty tz qx qy qz qw\n";
   char line[256];
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    const Eigen::Isometry3d& T = poses[i].T_world_sensor;
+    const Eigen::Isometry3d& T = poses[i].T_G_S;
     if (!T.matrix().allFinite()) {
       throw InputError(path + ": pose " + std::to_string(i) + " (t_ns " +
                        std::to_string(poses[i].t_ns) + ") is not finite; nothing after it written");

@@ -94,13 +94,12 @@ TEST(ReadTumTrajectory, ParsesAndNormalisesQuaternion) {
   const std::vector<StampedPose> poses = read_tum_trajectory(path);
   ASSERT_EQ(poses.size(), 2u);
   EXPECT_EQ(poses[0].t_ns, seconds_to_ns(1305031789.6406));
-  EXPECT_TRUE(
-      poses[0].T_world_sensor.translation().isApprox(Eigen::Vector3d(0.4365, -0.3888, 1.6888)));
-  const Eigen::Matrix3d R = poses[0].T_world_sensor.rotation();
+  EXPECT_TRUE(poses[0].T_G_S.translation().isApprox(Eigen::Vector3d(0.4365, -0.3888, 1.6888)));
+  const Eigen::Matrix3d R = poses[0].T_G_S.rotation();
   EXPECT_NEAR((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-12);
   // x axis maps to y under +90 degrees about z.
   EXPECT_TRUE((R * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY(), 1e-12));
-  EXPECT_TRUE(poses[1].T_world_sensor.linear().isIdentity(0.0));
+  EXPECT_TRUE(poses[1].T_G_S.linear().isIdentity(0.0));
 }
 
 TEST(ReadTumTrajectory, WrongFieldCountNamesLine) {
@@ -145,9 +144,9 @@ TEST(WriteTumTrajectory, RoundTripsThroughReader) {
   std::vector<StampedPose> poses;
   for (int i = 0; i < 5; ++i) {
     StampedPose pose{1'305'031'790'000'000'000 + i * 33'333'000, Eigen::Isometry3d::Identity()};
-    pose.T_world_sensor.linear() =
+    pose.T_G_S.linear() =
         Eigen::AngleAxisd(0.3 * i + 0.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
-    pose.T_world_sensor.translation() = Eigen::Vector3d(0.123456789 * i, -1.5, 2.0 / 3.0);
+    pose.T_G_S.translation() = Eigen::Vector3d(0.123456789 * i, -1.5, 2.0 / 3.0);
     poses.push_back(pose);
   }
   const std::string path = dir.path() + "/est.txt";
@@ -157,15 +156,14 @@ TEST(WriteTumTrajectory, RoundTripsThroughReader) {
   for (std::size_t i = 0; i < poses.size(); ++i) {
     // Stamps are written at TUM's microsecond resolution; these are whole microseconds.
     EXPECT_LE(std::abs(read[i].t_ns - poses[i].t_ns), 120) << i;
-    EXPECT_TRUE(read[i].T_world_sensor.matrix().isApprox(poses[i].T_world_sensor.matrix(), 1e-8))
-        << i;
+    EXPECT_TRUE(read[i].T_G_S.matrix().isApprox(poses[i].T_G_S.matrix(), 1e-8)) << i;
   }
 }
 
 TEST(WriteTumTrajectory, NonFinitePoseRejected) {
   TempDir dir;
   StampedPose pose{0, Eigen::Isometry3d::Identity()};
-  pose.T_world_sensor.translation().x() = std::nan("");
+  pose.T_G_S.translation().x() = std::nan("");
   EXPECT_THAT(input_error_message([&] { write_tum_trajectory(dir.path() + "/e.txt", {pose}); }),
               HasSubstr("e.txt: pose 0 (t_ns 0) is not finite"));
 }

@@ -22,7 +22,7 @@ void require_positive(config::StrictMap& map, const std::string& key, double& va
 }
 }  // namespace
 
-Eigen::Matrix3d R_body_camera_from_angles(double yaw_rad, double pitch_rad, double roll_rad) {
+Eigen::Matrix3d R_B_C_from_angles(double yaw_rad, double pitch_rad, double roll_rad) {
   Eigen::Matrix3d R_forward_optical;
   // Columns: optical x = body right (e_y), optical y = body down (e_z), optical z = forward (e_x).
   R_forward_optical << 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0;
@@ -36,7 +36,7 @@ Eigen::Matrix3d R_body_camera_from_angles(double yaw_rad, double pitch_rad, doub
 geometry::CameraMount camera_mount_from_angles(double yaw_rad, double pitch_rad, double roll_rad,
                                                const Eigen::Vector3d& p_B_C_m) {
   Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
-  T_B_C.linear() = R_body_camera_from_angles(yaw_rad, pitch_rad, roll_rad);
+  T_B_C.linear() = R_B_C_from_angles(yaw_rad, pitch_rad, roll_rad);
   T_B_C.translation() = p_B_C_m;
   return geometry::CameraMount(T_B_C);
 }
@@ -60,7 +60,7 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
     throw InputError(message.str());
   }
 
-  config::StrictMap camera = root.child("T_body_camera");
+  config::StrictMap camera = root.child("T_B_C");
   double yaw_rad = 0.0;
   double pitch_rad = 0.0;
   double roll_rad = 0.0;
@@ -68,11 +68,11 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
   require_deg_as_rad(camera, "pitch_deg", pitch_rad, -90.0, 90.0);
   require_deg_as_rad(camera, "roll_deg", roll_rad, -180.0, 180.0);
   double p[3] = {0.0, 0.0, 0.0};
-  camera.require_list("p_body_camera_m", p, 3);
+  camera.require_list("p_B_C_m", p, 3);
   for (int i = 0; i < 3; ++i) {
     if (std::abs(p[i]) > 2.0) {
       std::ostringstream message;
-      message << camera.describe("p_body_camera_m") << "[" << i << "] = " << p[i]
+      message << camera.describe("p_B_C_m") << "[" << i << "] = " << p[i]
               << ", expected in [-2, 2]";
       throw InputError(message.str());
     }

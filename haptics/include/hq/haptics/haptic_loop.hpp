@@ -84,9 +84,8 @@ struct LoopTimingReport {
 class HapticLoop {
  public:
   /// @param device  used only from the loop thread once started; must outlive the loop.
-  /// @param R_body_camera  R_QC (optical), for eq. 9. @throws hq::InputError via TeleopMapping.
-  HapticLoop(HapticDevice& device, const HapticsConfig& config,
-             const Eigen::Matrix3d& R_body_camera);
+  /// @param R_B_C  R_QC (optical), for eq. 9. @throws hq::InputError via TeleopMapping.
+  HapticLoop(HapticDevice& device, const HapticsConfig& config, const Eigen::Matrix3d& R_B_C);
   ~HapticLoop();
   HapticLoop(const HapticLoop&) = delete;
   HapticLoop& operator=(const HapticLoop&) = delete;

@@ -49,10 +49,10 @@ struct VehicleEstimate {
 /// Eq. 6-10 with dead-band and saturation.
 class TeleopMapping {
  public:
-  /// @param R_body_camera  R_QC in the optical convention of hq::VehicleConfig (z
+  /// @param R_B_C  R_QC in the optical convention of hq::VehicleConfig (z
   /// forward). @throws hq::InputError if the camera looks (nearly) straight up or down, where
   /// eq. 9 has no direction, or if the matrix is not a rotation.
-  TeleopMapping(const MappingConfig& config, const Eigen::Matrix3d& R_body_camera);
+  TeleopMapping(const MappingConfig& config, const Eigen::Matrix3d& R_B_C);
 
   /// Eq. 6-10 on the end-effector position p_D_m. Non-finite input gives a zero, invalid command.
   [[nodiscard]] MappedCommand map(const Eigen::Vector3d& p_D_m) const;

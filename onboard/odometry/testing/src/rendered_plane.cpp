@@ -14,30 +14,29 @@ double texture(double x, double y) {
   return 128.0 + 110.0 * v;
 }
 
-// Where the ray of pixel (u, v) meets the plane z_world = plane_z_m: its distance s along the
+// Where the ray of pixel (u, v) meets the plane z_G = plane_z_m: its distance s along the
 // ray (the depth: the ray's camera z is 1) and the point; false when it does not.
-bool ray_meets_plane(const geometry::PinholeCamera& camera, const Eigen::Isometry3d& T_world_camera,
-                     int u, int v, double plane_z_m, double& s, Eigen::Vector3d& p) {
+bool ray_meets_plane(const geometry::PinholeCamera& camera, const Eigen::Isometry3d& T_G_C, int u,
+                     int v, double plane_z_m, double& s, Eigen::Vector3d& p) {
   const Eigen::Vector3d d_camera((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
-  const Eigen::Vector3d d_world = T_world_camera.linear() * d_camera;
-  const Eigen::Vector3d& o = T_world_camera.translation();
-  s = d_world.z() != 0.0 ? (plane_z_m - o.z()) / d_world.z() : -1.0;
+  const Eigen::Vector3d d_G = T_G_C.linear() * d_camera;
+  const Eigen::Vector3d& o = T_G_C.translation();
+  s = d_G.z() != 0.0 ? (plane_z_m - o.z()) / d_G.z() : -1.0;
   if (s <= 0.0) return false;
-  p = o + s * d_world;
+  p = o + s * d_G;
   return true;
 }
 }  // namespace
 
-void render_textured_plane(const geometry::PinholeCamera& camera,
-                           const Eigen::Isometry3d& T_world_camera, double plane_z_m, cv::Mat& gray,
-                           cv::Mat& depth_m) {
+void render_textured_plane(const geometry::PinholeCamera& camera, const Eigen::Isometry3d& T_G_C,
+                           double plane_z_m, cv::Mat& gray, cv::Mat& depth_m) {
   gray.create(camera.height, camera.width, CV_8UC1);
   depth_m.create(camera.height, camera.width, CV_32FC1);
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
       double s = 0.0;
       Eigen::Vector3d p;
-      if (!ray_meets_plane(camera, T_world_camera, u, v, plane_z_m, s, p)) {
+      if (!ray_meets_plane(camera, T_G_C, u, v, plane_z_m, s, p)) {
         gray.at<unsigned char>(v, u) = 0;
         depth_m.at<float>(v, u) = 0.0f;
         continue;
@@ -49,14 +48,14 @@ void render_textured_plane(const geometry::PinholeCamera& camera,
   }
 }
 
-void render_moving_band(const geometry::PinholeCamera& camera,
-                        const Eigen::Isometry3d& T_world_camera, double band_z_m, double left_m,
-                        double width_m, cv::Mat& gray, cv::Mat& depth_m) {
+void render_moving_band(const geometry::PinholeCamera& camera, const Eigen::Isometry3d& T_G_C,
+                        double band_z_m, double left_m, double width_m, cv::Mat& gray,
+                        cv::Mat& depth_m) {
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
       double s = 0.0;
       Eigen::Vector3d p;
-      if (!ray_meets_plane(camera, T_world_camera, u, v, band_z_m, s, p)) continue;
+      if (!ray_meets_plane(camera, T_G_C, u, v, band_z_m, s, p)) continue;
       const double along = p.x() - left_m;
       if (along < 0.0 || along > width_m) continue;
       // Its own pattern, coarser than the plane's and shifted: the band is not the plane.

@@ -283,11 +283,11 @@ class ConsoleModel {
   explicit ConsoleModel(const Capacity& capacity);
 
   /// A vehicle state at `t_ns` (any monotonic clock shared by all on_*() calls).
-  /// `cloud_body_m` is x,y,z triples in the body frame (FRD), `cloud_points` of them.
+  /// `cloud_B_m` is x,y,z triples in the body frame (FRD), `cloud_points` of them.
   void on_state(std::int64_t t_ns, double latency_ms, const std::array<float, 3>& v_H_mps,
-                const std::array<float, 3>& omega_body_radps, float roll_rad, float pitch_rad,
+                const std::array<float, 3>& omega_B_radps, float roll_rad, float pitch_rad,
                 const std::array<float, 3>& v_obs_H_mps, const char* mode,
-                const char* estimator_health, const char* link_health, const float* cloud_body_m,
+                const char* estimator_health, const char* link_health, const float* cloud_B_m,
                 std::size_t cloud_points, const StateExtras& extras = StateExtras{});
   void on_command(std::int64_t t_ns, const std::array<float, 3>& v_H_mps, float yaw_rate_radps);
   void on_event(std::int64_t t_ns, int severity, const char* text);

@@ -115,8 +115,8 @@ struct WindowOptions {
   /// camera_heading_rad), its horizontal field of view, and R_QC row-major to place markers.
   double camera_heading_rad = 0.0;
   double camera_hfov_rad = 1.01;  ///< 58 deg, the Xtion's.
-  std::array<float, 9> R_body_camera{0, 0, 1, 1, 0, 0, 0, 1, 0};
-  std::array<float, 3> p_body_camera_m{};
+  std::array<float, 9> R_B_C{0, 0, 1, 1, 0, 0, 0, 1, 0};
+  std::array<float, 3> p_B_C_m{};
   /// Measurement only: draw no panel (an empty ImGui frame on the cleared window), the floor
   /// against which the console's own frame cost is read.
   bool bare = false;

@@ -26,7 +26,7 @@ struct RecordedState {
   std::uint64_t sequence = 0;
   std::int64_t vehicle_t_ns = 0;
   std::array<float, 3> v_H_mps{};
-  std::array<float, 3> omega_body_radps{};
+  std::array<float, 3> omega_B_radps{};
   float roll_rad = 0;
   float pitch_rad = 0;
   std::array<float, 3> v_obs_H_mps{};
@@ -90,7 +90,7 @@ struct RecordedState {
   std::array<float, 3> v_H_sigma_mps{};
   /// The obstacle cloud the state carried, body frame FRD (x, y, z in m); empty when it
   /// carried none (the cloud rides on about one state a second) or the record lacks it.
-  std::vector<std::array<float, 3>> obstacle_points_body_m;
+  std::vector<std::array<float, 3>> obstacle_points_B_m;
   /// The markers detected in the state's frame with their poses; empty when none or when the
   /// record holds only their count (markers_n).
   std::vector<MarkerView> markers;

@@ -217,14 +217,14 @@ class DelayLine {
 };
 
 /// One flight of `seconds` (>= 10: the intent script lasts 9 s).
-inline RunResult run(HapticsConfig config, const Eigen::Matrix3d& R_body_camera,
-                     const LinkModel& link, const ArmModel& arm = {},
-                     const VehicleModel& vehicle = {}, double seconds = 12.0) {
+inline RunResult run(HapticsConfig config, const Eigen::Matrix3d& R_B_C, const LinkModel& link,
+                     const ArmModel& arm = {}, const VehicleModel& vehicle = {},
+                     double seconds = 12.0) {
   config.loop.realtime = false;
   config.loop.lock_memory = false;
   OperatorArm device(arm);
-  HapticLoop loop(device, config, R_body_camera);
-  const TeleopMapping mapping(config.mapping, R_body_camera);
+  HapticLoop loop(device, config, R_B_C);
+  const TeleopMapping mapping(config.mapping, R_B_C);
   HapticsConfig ideal_config = config;
   ideal_config.feedback.stale_after_s = 1e3;
   const ForceFeedback ideal(ideal_config.feedback, mapping);

@@ -57,7 +57,7 @@ class VelocityController {
 
   /// One control step. All vectors in H (z down). No estimate (nullopt) or non-finite input
   /// gives the safe hover setpoint, with the reason.
-  ControlOutput update(std::int64_t t_ns, const Eigen::Vector3d& v_des_horizontal_mps,
+  ControlOutput update(std::int64_t t_ns, const Eigen::Vector3d& v_des_H_mps,
                        double yaw_rate_des_radps,
                        const std::optional<Eigen::Vector3d>& v_est_H_mps);
 

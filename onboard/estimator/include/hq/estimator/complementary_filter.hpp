@@ -6,8 +6,8 @@
 /// Frames (hq/geometry/frames.hpp): B the body, FRD (the core paper's Q); N the level NWU world
 /// (the core paper's W) with the filter's (unobservable, drifting) yaw. The filter integrates
 /// in the gravity-aligned NED frame that shares N's yaw (N turned by Rx(pi), no letter of its
-/// own): R_ned_body = Rz(psi) Ry(theta) Rx(phi) (ZYX, aerospace), so roll phi and pitch theta
-/// are the core paper's, and R_N_B = Rx(pi) R_ned_body, as its R_WQ = Rx(pi) Rz(psi) Ry(theta)
+/// own): R_ned_B = Rz(psi) Ry(theta) Rx(phi) (ZYX, aerospace), so roll phi and pitch theta
+/// are the core paper's, and R_N_B = Rx(pi) R_ned_B, as its R_WQ = Rx(pi) Rz(psi) Ry(theta)
 /// Rx(phi).
 
 #include "hq/base/monotonic_clock.hpp"
@@ -26,7 +26,7 @@ inline constexpr double kGravityMps2 = 9.80665;
 /// removed, yaw kept, origin at B, z_H along gravity), R_H_B = Ry(pitch) Rx(roll), so
 /// v_H = R_H_B v_B (eq. 5 of the core paper; the paper prints R_QH = Rz(theta) Rx(phi), which
 /// we read as this rotation's transpose).
-Eigen::Matrix3d R_horizontal_body(double roll_rad, double pitch_rad);
+Eigen::Matrix3d R_H_B_from_tilt(double roll_rad, double pitch_rad);
 
 struct ComplementaryConfig {
   double k_p = 1.0;                   ///< Proportional gain on the accelerometer error (1/s).
@@ -86,7 +86,7 @@ class ComplementaryFilter {
   void pause_levelling(std::int64_t t_ns);
 
   /// Body B in the gravity-aligned NED frame with N's yaw.
-  [[nodiscard]] const Eigen::Matrix3d& R_ned_body() const { return R_ned_body_; }
+  [[nodiscard]] const Eigen::Matrix3d& R_ned_B() const { return R_ned_B_; }
   /// Body B in N (NWU, the core paper's W), yaw as integrated by the filter.
   [[nodiscard]] Eigen::Matrix3d R_N_B() const;
   [[nodiscard]] double roll_rad() const;
@@ -110,7 +110,7 @@ class ComplementaryFilter {
   void initialize(const Eigen::Vector3d& accel_mps2);
 
   ComplementaryConfig config_;
-  Eigen::Matrix3d R_ned_body_ = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_ned_B_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d bias_radps_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d vision_bias_radps_ = Eigen::Vector3d::Zero();
   bool initialized_ = false;

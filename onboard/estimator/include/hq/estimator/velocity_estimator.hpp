@@ -120,7 +120,7 @@ struct VelocityEstimate {
   Eigen::Matrix3d v_H_covariance = Eigen::Matrix3d::Zero();
   /// The frame's squared Mahalanobis distance against the IMU's prediction (0 without one).
   double innovation_chi2 = 0.0;
-  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();  ///< low-passed, bias removed.
+  Eigen::Vector3d omega_B_radps = Eigen::Vector3d::Zero();  ///< low-passed, bias removed.
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
   double unavailable_for_s = 0.0;  ///< Time since the last kOk estimate (0 when kOk).
@@ -182,8 +182,8 @@ class VelocityEstimator {
   void level_on_velocity(std::int64_t t_ns, const Eigen::Vector3d& v_H_raw_mps);
   /// Eq. 1's camera velocity since the previous frame (into v_C_raw_mps) and the body's mean
   /// velocity over it, lever arm removed.
-  Eigen::Vector3d raw_body_velocity(const Eigen::Isometry3d& T_raw, double dt_s,
-                                    Eigen::Vector3d& v_C_raw_mps) const;
+  Eigen::Vector3d raw_v_B(const Eigen::Isometry3d& T_raw, double dt_s,
+                          Eigen::Vector3d& v_C_raw_mps) const;
   /// The acceleration in H the coast integrates: specific force levelled, gravity, and the
   /// unseen acceleration learnt.
   [[nodiscard]] Eigen::Vector3d acceleration_H(const Eigen::Vector3d& accel_mps2) const;

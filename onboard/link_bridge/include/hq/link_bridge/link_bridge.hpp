@@ -76,7 +76,7 @@ struct BridgeOptions {
 
 /// What the bridge needs to send the memory's cloud: the map (points in the odometry origin O,
 /// hq/geometry/frames.hpp) and where the body is in O, to express the cloud in the body frame B
-/// as the IDL field obstacle_points_body_m says.
+/// as the IDL field obstacle_points_B_m says.
 struct ObstacleCloudSource {
   const obstacle_memory::ObstacleMemory* memory = nullptr;  ///< Not owned; null = no cloud.
   Eigen::Isometry3d T_O_B = Eigen::Isometry3d::Identity();

@@ -93,12 +93,12 @@ const char* describe_position(const navigation::PositionCheck& check,
                               std::size_t size);
 
 /// R_W_map: the NED world from the map frame of a floor marker.
-const Eigen::Matrix3d& R_world_map();
+const Eigen::Matrix3d& R_W_map();
 
 class MarkerNavigation {
  public:
   MarkerNavigation(const MarkerModesConfig& config, const geometry::PinholeCamera& camera,
-                   const Eigen::Matrix3d& R_body_camera, const Eigen::Vector3d& p_body_camera_m);
+                   const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m);
 
   /// IMU in the body frame (NED): initialises the filter level on the first sample, then predicts.
   void on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
@@ -152,7 +152,7 @@ class MarkerNavigation {
  private:
   MarkerModesConfig config_;
   geometry::PinholeCamera camera_;
-  Eigen::Isometry3d T_body_camera_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_B_C_ = Eigen::Isometry3d::Identity();
   double camera_heading_rad_ = 0.0;
   markers::MarkerDetector detector_;
   markers::MarkerMap map_;

@@ -121,7 +121,7 @@ namespace hq::marker_modes {
 class MarkerStage {
  public:
   MarkerStage(const MarkerModesConfig& config, const geometry::PinholeCamera& camera,
-              const Eigen::Matrix3d& R_body_camera, const Eigen::Vector3d& p_body_camera_m);
+              const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m);
 
   void on_imu(std::int64_t t_ns, const Eigen::Vector3d& gyro_radps,
               const Eigen::Vector3d& accel_mps2) {

@@ -125,9 +125,9 @@ struct ModeSwitch {
 
 struct ModeOutput {
   Mode mode = Mode::kHover;
-  Eigen::Vector3d v_star_des_horizontal_mps = Eigen::Vector3d::Zero();  ///< After the ramp.
+  Eigen::Vector3d v_star_des_H_mps = Eigen::Vector3d::Zero();  ///< After the ramp.
   double yaw_rate_des_radps = 0.0;
-  Eigen::Vector3d v_des_horizontal_mps = Eigen::Vector3d::Zero();  ///< v*_des + v_obs.
+  Eigen::Vector3d v_des_H_mps = Eigen::Vector3d::Zero();  ///< v*_des + v_obs.
   bool teleop_timed_out = false;  ///< In teleop, the command was stale: hovering.
   bool provider_failed = false;   ///< Marker/explore provider gave no command: hovering.
   bool ramping = false;           ///< A switch ramp is in progress.
@@ -195,7 +195,7 @@ class ModeController {
   /// One control step. v_est and v_obs in H; no v_est (nullopt: no usable estimate) gives the
   /// velocity controller's safe hover, and in land the blind descent. Allocates nothing.
   ModeOutput step(std::int64_t t_ns, const std::optional<Eigen::Vector3d>& v_est_H_mps,
-                  const Eigen::Vector3d& v_obs_horizontal_mps);
+                  const Eigen::Vector3d& v_obs_H_mps);
 
   [[nodiscard]] Mode mode() const { return mode_; }
   /// On the ground with motors idle (before take-off and after touchdown).

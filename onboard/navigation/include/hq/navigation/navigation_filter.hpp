@@ -160,7 +160,7 @@ class NavigationFilter {
                        const Eigen::Vector3d& accel_mps2);
 
   /// Marker pose T_W_C (from a detection through the marker map). Covariance order
-  /// (p, theta): p_world_camera error in W (m), then rotation error local to C (rad) with
+  /// (p, theta): p_W_C error in W (m), then rotation error local to C (rad) with
   /// R_meas = R_true Exp(theta). Anchors instead if the filter is not yet anchored.
   UpdateResult update_marker(std::int64_t t_ns, const Eigen::Isometry3d& T_W_C,
                              const Matrix6d& covariance);
@@ -229,8 +229,8 @@ Eigen::Matrix3d R_W_H(const Eigen::Matrix3d& R_W_B);
 /// callers that fuse their own measurements).
 /// Marker: residual (p_meas - p̂_WC, log(R̂_WCᵀ R_meas)) for a predicted camera pose.
 Eigen::Matrix<double, 6, kErrorStateSize> marker_jacobian(const NominalState& state,
-                                                          const Eigen::Matrix3d& R_body_camera,
-                                                          const Eigen::Vector3d& p_body_camera_m);
+                                                          const Eigen::Matrix3d& R_B_C,
+                                                          const Eigen::Vector3d& p_B_C_m);
 /// Velocity in H: h = R_WHᵀ v_W; its Jacobian involves the yaw part of dtheta.
 Eigen::Vector3d predict_velocity_horizontal(const NominalState& state);
 Eigen::Matrix<double, 3, kErrorStateSize> velocity_jacobian(const NominalState& state);

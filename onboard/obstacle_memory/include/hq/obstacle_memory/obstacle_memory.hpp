@@ -8,7 +8,7 @@
 /// repulsive law as the view's depth minima.
 ///
 /// Frames (hq/geometry/frames.hpp): O odometry origin, C camera (optical), B body FRD, H
-/// horizontal. The "world" of the API names below (T_world_camera(), p_world_m) is O. All buffers
+/// horizontal. The "world" of the API names below (T_O_C(), p_O_m) is O. All buffers
 /// are sized at construction; update() allocates nothing.
 
 #include "hq/geometry/pinhole_camera.hpp"
@@ -31,7 +31,7 @@ class StrictMap;
 
 namespace hq::obstacle_memory {
 
-/// Capacity of MemoryUpdate::p_horizontal_m; config.max_points may not exceed it.
+/// Capacity of MemoryUpdate::p_H_m; config.max_points may not exceed it.
 inline constexpr int kMaxRememberedPoints = 16;
 /// Bound of the telemetry cloud (telemetry_cloud()).
 inline constexpr int kMaxTelemetryPoints = 2048;
@@ -78,12 +78,12 @@ struct MemoryUpdate {
   int map_size = 0;         ///< Points in the map after this frame.
   /// Remembered obstacle points outside the current view, in H from the body origin, nearest
   /// first: one per azimuth sector that is a local minimum, within the influence distance.
-  std::array<Eigen::Vector3d, kMaxRememberedPoints> p_horizontal_m{};
+  std::array<Eigen::Vector3d, kMaxRememberedPoints> p_H_m{};
   int count = 0;
   std::int64_t clear_count = 0;  ///< Pose-jump clears since construction.
 
   [[nodiscard]] std::span<const Eigen::Vector3d> remembered() const {
-    return {p_horizontal_m.data(), static_cast<std::size_t>(count)};
+    return {p_H_m.data(), static_cast<std::size_t>(count)};
   }
 };
 
@@ -110,7 +110,7 @@ class ObstacleMemory {
   [[nodiscard]] int size() const { return static_cast<int>(entries_.size()); }
   [[nodiscard]] std::int64_t clear_count() const { return clear_count_; }
   /// The camera pose of the last accepted update (what the map is relative to), if any.
-  [[nodiscard]] std::optional<Eigen::Isometry3d> T_world_camera() const {
+  [[nodiscard]] std::optional<Eigen::Isometry3d> T_O_C() const {
     return have_pose_ ? std::optional<Eigen::Isometry3d>(T_O_C_prev_) : std::nullopt;
   }
   [[nodiscard]] const MemoryConfig& config() const { return config_; }

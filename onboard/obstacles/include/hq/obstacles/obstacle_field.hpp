@@ -63,18 +63,18 @@ void check_camera(const char* component, const geometry::PinholeCamera& camera,
 
 /// One obstacle point: a local depth minimum, or the near-range hazard.
 struct ObstaclePoint {
-  Eigen::Vector3d p_horizontal_m = Eigen::Vector3d::Zero();  ///< In H, from the body origin.
-  double distance_m = 0.0;                                   ///< |p_horizontal_m|.
-  bool near_hazard = false;                                  ///< Synthesised from invalid depth.
+  Eigen::Vector3d p_H_m = Eigen::Vector3d::Zero();  ///< In H, from the body origin.
+  double distance_m = 0.0;                          ///< |p_H_m|.
+  bool near_hazard = false;                         ///< Synthesised from invalid depth.
   bool remembered = false;  ///< From the obstacle memory, outside the current view.
 };
 
 struct ObstacleResult {
   bool valid = false;       ///< False if the image was unusable; v_obs is then zero.
   const char* reason = "";  ///< Static text when !valid.
-  Eigen::Vector3d v_obs_horizontal_mps = Eigen::Vector3d::Zero();  ///< Repulsive velocity in H.
-  std::array<ObstaclePoint, kMaxObstaclePoints> points{};          ///< Nearest first.
-  int count = 0;                                                   ///< Valid entries in points.
+  Eigen::Vector3d v_obs_H_mps = Eigen::Vector3d::Zero();   ///< Repulsive velocity in H.
+  std::array<ObstaclePoint, kMaxObstaclePoints> points{};  ///< Nearest first.
+  int count = 0;                                           ///< Valid entries in points.
   bool near_hazard = false;  ///< Central window too invalid: something is too close.
   double central_invalid_fraction = 0.0;
   /// Fraction of NaN pixels: a sensor returns 0 where it sees nothing; NaN is a corrupt frame,
@@ -97,14 +97,14 @@ class ObstacleField {
                 const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m);
 
   /// @param depth_m  CV_32FC1, camera size, metres; 0 / NaN / out of range = no depth.
-  /// @param R_horizontal_body  R_HQ from the attitude estimate.
-  /// @param remembered_p_horizontal_m  obstacle points outside the view (in H from the body
+  /// @param R_H_B_from_tilt  R_HQ from the attitude estimate.
+  /// @param remembered_p_H_m  obstacle points outside the view (in H from the body
   ///        origin, e.g. from hq::obstacle_memory, which keeps only points near the vehicle's
   ///        height): each stands for a column and pushes with the same law on its horizontal
   ///        offset; non-finite ones are skipped.
-  [[nodiscard]] ObstacleResult compute(
-      const cv::Mat& depth_m, const Eigen::Matrix3d& R_horizontal_body,
-      std::span<const Eigen::Vector3d> remembered_p_horizontal_m = {});
+  [[nodiscard]] ObstacleResult compute(const cv::Mat& depth_m,
+                                       const Eigen::Matrix3d& R_H_B_from_tilt,
+                                       std::span<const Eigen::Vector3d> remembered_p_H_m = {});
 
   [[nodiscard]] const ObstacleConfig& config() const { return config_; }
 

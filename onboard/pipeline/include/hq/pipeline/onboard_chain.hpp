@@ -268,7 +268,7 @@ class OnboardChain {
  private:
   [[nodiscard]] std::int64_t now_ns() const { return clock_ ? clock_->now_ns() : 0; }
   /// Current R_H_B from the complementary filter (identity before its first sample).
-  [[nodiscard]] Eigen::Matrix3d R_horizontal_body() const;
+  [[nodiscard]] Eigen::Matrix3d R_H_B_from_tilt() const;
   /// on_frame's stages, in order. The odometry with the gyro's rotation since the last frame.
   odometry::OdometryResult track_odometry(std::int64_t t_ns, std::int64_t depth_t_ns,
                                           const cv::Mat& gray, const cv::Mat& depth_m);
@@ -338,10 +338,10 @@ class OnboardChain {
   bool have_tick_ = false;
   std::int64_t t_first_tick_ns_ = 0;
   Eigen::Matrix3d R_B_C_;  ///< To turn the body's rotation into the camera's.
-  Eigen::Matrix3d R_prev_cur_body_ = Eigen::Matrix3d::Identity();  ///< gyro since last frame
+  Eigen::Matrix3d R_prev_cur_B_ = Eigen::Matrix3d::Identity();  ///< gyro since last frame
   std::int64_t t_last_imu_ns_ = -1;
   bool gyro_since_frame_ = false;
-  Eigen::Vector3d omega_body_radps_ = Eigen::Vector3d::Zero();  ///< latest rate, bias removed
+  Eigen::Vector3d omega_B_radps_ = Eigen::Vector3d::Zero();  ///< latest rate, bias removed
   modes::OperatorCommand operator_command_;  ///< As the operator sent it, before the limit.
   bool have_operator_command_ = false;
   /// The last usable velocity estimate (none when unusable): the limiter's reaction distance.

@@ -73,8 +73,8 @@ std::optional<Eigen::Isometry3d> interpolate_pose(const std::vector<recording::S
 /// The body frame Q of a TUM replay: the camera is the tracked sensor, so Q is the camera's
 /// NED-equivalent (x = optical z forward, y = optical x right, z = optical y down), i.e.
 /// R_QC = R_forward_optical = [e_y e_z e_x] and Q_p_C = 0.
-Eigen::Matrix3d R_body_camera_for_camera_as_body();
-/// The same as a mount: R_body_camera_for_camera_as_body(), no lever arm.
+Eigen::Matrix3d R_B_C_for_camera_as_body();
+/// The same as a mount: R_B_C_for_camera_as_body(), no lever arm.
 geometry::CameraMount camera_as_body_mount();
 
 /// The Kinect v1's accelerometer axes A in its optical frame C: x left, y up, z forward, i.e.
@@ -83,23 +83,23 @@ geometry::CameraMount camera_as_body_mount();
 Eigen::Matrix3d R_camera_kinect_accel();
 
 /// Gravity in the ground truth's world frame, as a recorded accelerometer sees it: the mean of
-/// a_W - R_W_A f_A over the samples within the fit (R_W_A = R_W_C R_C_A), scaled to standard
+/// a_G - R_G_A f_A over the samples within the fit (R_G_A = R_G_C R_C_A), scaled to standard
 /// gravity (the direction is what a tilted motion-capture frame changes; a consumer
 /// accelerometer's scale is no better than a few per cent).
 struct GravityEstimate {
-  Eigen::Vector3d g_W_mps2 = Eigen::Vector3d::Zero();
-  double tilt_from_world_down_deg = 0.0;  ///< Angle between g_W and the world's -z.
+  Eigen::Vector3d g_G_mps2 = Eigen::Vector3d::Zero();
+  double tilt_from_G_down_deg = 0.0;  ///< Angle between g_G and the world's -z.
   int samples = 0;
 };
 /// Throws hq::InputError when no sample lies within the fit, or when the gravity found is more
 /// than 15 deg from the world's down: then R_C_A is not the recording's accelerometer axes.
-GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+GravityEstimate gravity_from_accelerometer(const evaluation::TrajectorySpline& T_G_C,
                                            const std::vector<recording::AccelSample>& accel,
                                            const Eigen::Matrix3d& R_C_A);
 
 /// Where the replay's gravity and accelerometer come from.
 struct AccelerometerChoice {
-  Eigen::Vector3d g_W_mps2 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d g_G_mps2 = Eigen::Vector3d::Zero();
   /// The recorded samples to replay (Kinect axes), or null: the IMU model's.
   const std::vector<recording::AccelSample>* recorded = nullptr;
   std::string description;  ///< One clause for ReplayImu::description.
@@ -108,20 +108,20 @@ struct AccelerometerChoice {
 /// itself; when its gravity is not the motion capture's down (another sensor's axes) or it
 /// does not overlap the ground truth, neither, and the description says why. Without one,
 /// gravity along the world's -z, said to be assumed.
-AccelerometerChoice choose_accelerometer(const evaluation::TrajectorySpline& T_world_camera,
+AccelerometerChoice choose_accelerometer(const evaluation::TrajectorySpline& T_G_C,
                                          const std::vector<recording::AccelSample>* accel,
                                          bool use_recorded);
 
-/// IMU samples at synthesis.imu.rate_hz over the fit's span, in the body frame Q (R_body_camera
+/// IMU samples at synthesis.imu.rate_hz over the fit's span, in the body frame Q (R_B_C
 /// is R_QC, the camera the tracked sensor, no lever arm):
 ///   gyro  = R_QC omega_C + bias + white noise;
-///   accel = R_QC R_WC^T (a_W - g_W) + bias + white noise, or, with recorded_accel, the
+///   accel = R_QC R_GC^T (a_G - g_G) + bias + white noise, or, with recorded_accel, the
 ///           recorded specific force R_QC R_C_A f_A averaged over the sample's period (as a
 ///           flight controller's accelerometer filter decimates) instead.
 /// Biases start at +-turn_on (random sign per axis) and walk. Deterministic for a seed.
 std::vector<ImuMeasurement> synthesise_imu(
-    const evaluation::TrajectorySpline& T_world_camera, const Eigen::Matrix3d& R_body_camera,
-    const Eigen::Vector3d& g_W_mps2, const ImuSynthesis& synthesis = {},
+    const evaluation::TrajectorySpline& T_G_C, const Eigen::Matrix3d& R_B_C,
+    const Eigen::Vector3d& g_G_mps2, const ImuSynthesis& synthesis = {},
     const std::vector<recording::AccelSample>* recorded_accel = nullptr,
     const Eigen::Matrix3d& R_C_A = Eigen::Matrix3d::Identity());
 
@@ -130,11 +130,11 @@ std::vector<ImuMeasurement> synthesise_imu(
 std::vector<recording::AccelSample> read_gyro_file(const std::string& path);
 
 /// The IMU of a sequence: accelerometer.txt + gyro.txt paired by stamp when both exist (body
-/// frame Q of the recording); else synthesised from its ground truth with R_body_camera (use
-/// R_body_camera_for_camera_as_body() for TUM), gravity and the accelerometer from
+/// frame Q of the recording); else synthesised from its ground truth with R_B_C (use
+/// R_B_C_for_camera_as_body() for TUM), gravity and the accelerometer from
 /// accelerometer.txt where there is one (Kinect axes), gravity along the world's -z where not.
 /// Throws hq::InputError if neither is possible.
-ReplayImu load_replay_imu(const recording::TumSequence& sequence,
-                          const Eigen::Matrix3d& R_body_camera, const ImuSynthesis& synthesis = {});
+ReplayImu load_replay_imu(const recording::TumSequence& sequence, const Eigen::Matrix3d& R_B_C,
+                          const ImuSynthesis& synthesis = {});
 
 }  // namespace hq::replay

@@ -2,7 +2,7 @@
 /// Accuracy of the camera velocity of eq. 1 (raw poses) and eq. 2 (1€-filtered poses) of the
 /// core paper against ground truth, and the lag the filter adds.
 ///
-/// Truth: v_C(t) = R_WC(t)^T (p_WC(t + h) - p_WC(t - h)) / 2h, a central difference over +-1
+/// Truth: v_C(t) = R_GC(t)^T (p_GC(t + h) - p_GC(t - h)) / 2h, a central difference over +-1
 /// frame interval h (the median spacing of the evaluated frames), ground truth interpolated to
 /// the stamps (interpolate_pose), expressed in the camera frame at time t like Ck_v_Ck.
 
@@ -57,19 +57,18 @@ struct VelocityErrors {
 
 /// Truth v_C at t_ns (see the file comment); nullopt where t -+ h leaves the ground truth.
 std::optional<Eigen::Vector3d> true_camera_velocity(
-    const std::vector<recording::StampedPose>& T_world_camera, std::int64_t t_ns,
-    std::int64_t h_ns);
+    const std::vector<recording::StampedPose>& T_G_C, std::int64_t t_ns, std::int64_t h_ns);
 
 /// Compares the samples with the truth. Samples whose truth is undefined at any searched shift
 /// are left out. Throws hq::InputError if fewer than one sample remains or h is not positive.
 VelocityErrors evaluate_velocity(const std::vector<VelocitySample>& samples,
-                                 const std::vector<recording::StampedPose>& T_world_camera,
+                                 const std::vector<recording::StampedPose>& T_G_C,
                                  std::int64_t frame_interval_ns, const LagSearch& lag = {});
 
 /// A replay of one sequence through the OnboardChain.
 struct SequenceReplay {
   std::vector<VelocitySample> samples;
-  std::vector<recording::StampedPose> ground_truth;  ///< T_world_camera.
+  std::vector<recording::StampedPose> ground_truth;  ///< T_G_C.
   std::int64_t frame_interval_ns = 0;                ///< Median spacing of all frames.
   int frames = 0;
   int ok_estimates = 0;

@@ -118,11 +118,11 @@ struct LimitedCommand {
 
 class SeenSpaceLimiter {
  public:
-  /// @param R_body_camera, p_body_camera_m  extrinsics R_B_C, p_B_C (the paper's R_QC, Q_p_C).
+  /// @param R_B_C, p_B_C_m  extrinsics R_B_C, p_B_C (the paper's R_QC, Q_p_C).
   /// @param vehicle_radius_m  the obstacle field's bounding sphere (obstacles.vehicle_radius_m).
   /// @throws hq::InputError if config or camera are inconsistent.
   SeenSpaceLimiter(const SeenSpaceConfig& config, const geometry::PinholeCamera& camera,
-                   const Eigen::Matrix3d& R_body_camera, const Eigen::Vector3d& p_body_camera_m,
+                   const Eigen::Matrix3d& R_B_C, const Eigen::Vector3d& p_B_C_m,
                    double vehicle_radius_m);
 
   /// Ages the bins, turns and shrinks them with the pose change, and writes the bins this

@@ -12,8 +12,8 @@ namespace hq::sim {
 /// One IMU sample in the body NED frame Q.
 struct ImuSample {
   std::int64_t t_ns = 0;
-  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();  ///< gyro.
-  Eigen::Vector3d f_body_mps2 = Eigen::Vector3d::Zero();       ///< specific force (accel).
+  Eigen::Vector3d omega_B_radps = Eigen::Vector3d::Zero();  ///< gyro.
+  Eigen::Vector3d f_B_mps2 = Eigen::Vector3d::Zero();       ///< specific force (accel).
 };
 
 struct ImuParams {
@@ -31,8 +31,8 @@ class ImuModel {
   ImuModel(const ImuParams& params, std::uint64_t seed);
   /// A measurement of the true body rate and specific force at t_ns; advances the biases by
   /// one sample period. Allocates nothing.
-  ImuSample measure(std::int64_t t_ns, const Eigen::Vector3d& omega_body_radps,
-                    const Eigen::Vector3d& f_body_mps2);
+  ImuSample measure(std::int64_t t_ns, const Eigen::Vector3d& omega_B_radps,
+                    const Eigen::Vector3d& f_B_mps2);
   [[nodiscard]] const Eigen::Vector3d& gyro_bias_radps() const { return gyro_bias_; }
   [[nodiscard]] const Eigen::Vector3d& accel_bias_mps2() const { return accel_bias_; }
 

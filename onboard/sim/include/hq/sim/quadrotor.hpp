@@ -1,7 +1,7 @@
 #pragma once
 /// Quadrotor rigid body with rotor lag, linear air drag, seeded wind gusts, a floor at z = 0 and
 /// the attitude controller + mixer a flight controller runs. Frames (core paper §3): world W is
-/// NWU, body Q is NED; R_world_body = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
+/// NWU, body Q is NED; R_N_B = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -15,7 +15,7 @@ namespace hq::sim {
 /// The four numbers the on-board velocity tracker produces (core paper §3.1).
 struct AttitudeCommand {
   double thrust_n = 0.0;        ///< collective thrust along body -z.
-  double roll_rad = 0.0;        ///< phi of R_world_body = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
+  double roll_rad = 0.0;        ///< phi of R_N_B = Rx(pi) Rz(psi) Ry(theta) Rx(phi).
   double pitch_rad = 0.0;       ///< theta (positive: nose up, accelerates backwards).
   double yaw_rate_radps = 0.0;  ///< d psi / dt.
 };
@@ -43,35 +43,35 @@ struct QuadrotorParams {
 
 /// Truth state of the rigid body.
 struct QuadrotorState {
-  Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
-  Eigen::Vector3d v_world_mps = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond q_world_body = Eigen::Quaterniond(0.0, 1.0, 0.0, 0.0);  ///< Rx(pi): level.
-  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();
-  Eigen::Vector3d a_world_mps2 = Eigen::Vector3d::Zero();  ///< of the last step.
+  Eigen::Vector3d p_N_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_N_mps = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_N_B = Eigen::Quaterniond(0.0, 1.0, 0.0, 0.0);  ///< Rx(pi): level.
+  Eigen::Vector3d omega_B_radps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d a_N_mps2 = Eigen::Vector3d::Zero();  ///< of the last step.
   std::array<double, 4> rotor_speed_radps{};
   bool on_ground = true;
   /// Speed at which the floor stopped the vehicle in the last step (m/s), 0 when it did not.
   double floor_impact_speed_mps = 0.0;
 };
 
-/// Rotation R_world_body of NED body Euler angles in the NWU world (core paper §3).
-Eigen::Matrix3d R_world_body_from_euler(double roll_rad, double pitch_rad, double yaw_rad);
-/// Inverse of R_world_body_from_euler: (roll, pitch, yaw).
-Eigen::Vector3d euler_from_R_world_body(const Eigen::Matrix3d& R_world_body);
+/// Rotation R_N_B of NED body Euler angles in the NWU world (core paper §3).
+Eigen::Matrix3d R_N_B_from_euler(double roll_rad, double pitch_rad, double yaw_rad);
+/// Inverse of R_N_B_from_euler: (roll, pitch, yaw).
+Eigen::Vector3d euler_from_R_N_B(const Eigen::Matrix3d& R_N_B);
 
 class Quadrotor {
  public:
   Quadrotor(const QuadrotorParams& params, std::uint64_t seed);
 
-  /// Places the vehicle at rest on the floor (or at p_world_m if above it) with yaw.
-  void reset(const Eigen::Vector3d& p_world_m, double yaw_rad);
+  /// Places the vehicle at rest on the floor (or at p_N_m if above it) with yaw.
+  void reset(const Eigen::Vector3d& p_N_m, double yaw_rad);
   void set_command(const AttitudeCommand& command);
   /// Advances by dt_s (fixed step; semi-implicit Euler). Allocates nothing.
   void step(double dt_s);
 
   [[nodiscard]] const QuadrotorState& state() const { return state_; }
   [[nodiscard]] const QuadrotorParams& params() const { return params_; }
-  [[nodiscard]] const Eigen::Vector3d& wind_world_mps() const { return wind_world_mps_; }
+  [[nodiscard]] const Eigen::Vector3d& wind_N_mps() const { return wind_N_mps_; }
   /// Thrust needed to hover (N).
   [[nodiscard]] double hover_thrust_n() const;
 
@@ -84,8 +84,8 @@ class Quadrotor {
   double yaw_setpoint_rad_ = 0.0;
   Eigen::Matrix4d mixer_inverse_ = Eigen::Matrix4d::Identity();  ///< [T; tau] -> rotor w^2.
   Eigen::Matrix4d mixer_ = Eigen::Matrix4d::Identity();          ///< rotor w^2 -> [T; tau].
-  Eigen::Vector3d wind_world_mps_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d gust_world_mps_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wind_N_mps_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gust_N_mps_ = Eigen::Vector3d::Zero();
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
 };

@@ -35,13 +35,13 @@ struct DepthSensorParams {
 
 struct CameraParams {
   geometry::PinholeCamera pinhole;  ///< image size and intrinsics.
-  Eigen::Isometry3d T_body_camera = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_B_C = Eigen::Isometry3d::Identity();
   double rate_hz = 30.0;
   bool gray = false;               ///< CV_8UC1 instead of BGR CV_8UC3.
   double image_noise_sigma = 1.0;  ///< 8-bit intensity units.
   double ambient = 0.45;           ///< light: ambient + diffuse * max(0, n . l).
   double diffuse = 0.55;
-  Eigen::Vector3d light_dir_world = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();  ///< to light.
+  Eigen::Vector3d light_dir_N = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();  ///< to light.
   DepthSensorParams depth;
 };
 

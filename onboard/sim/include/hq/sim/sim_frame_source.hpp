@@ -45,7 +45,7 @@ class SimFrameSource final : public sources::FrameSource {
   /// oldest first (for the first frame: those up to t = 0). Valid until the next next().
   [[nodiscard]] std::span<const ImuSample> imu() const { return {imu_.data(), imu_count_}; }
   /// True camera pose at the last delivered frame's stamp.
-  [[nodiscard]] const Eigen::Isometry3d& T_world_camera() const { return T_world_camera_; }
+  [[nodiscard]] const Eigen::Isometry3d& T_N_C() const { return T_N_C_; }
 
   /// 200 Hz, as a flight computer commands (the scripted flights' rate).
   static constexpr std::int64_t kDefaultControlPeriodNs = 5'000'000;
@@ -59,7 +59,7 @@ class SimFrameSource final : public sources::FrameSource {
   std::int64_t step_ns_;
   std::vector<ImuSample> imu_;  ///< sized once: the simulator's 1 s of IMU samples.
   std::size_t imu_count_ = 0;
-  Eigen::Isometry3d T_world_camera_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_N_C_ = Eigen::Isometry3d::Identity();
 };
 
 }  // namespace hq::sim

@@ -28,7 +28,7 @@ struct SimConfig {
   double vehicle_radius_m = 0.35;    ///< collision sphere (0.5 m span plus propeller tips).
   std::uint64_t seed = 1;            ///< noise and gusts; same seed -> identical run.
   /// Vehicle file shared with hq::control (e.g. calib/vehicle_core_paper.yaml): when set, its
-  /// mass, tilt limit and T_body_camera are used, so the simulated and the controlled vehicle
+  /// mass, tilt limit and T_B_C are used, so the simulated and the controlled vehicle
   /// are the same one.
   std::string vehicle_file;
   QuadrotorParams vehicle;
@@ -38,7 +38,7 @@ struct SimConfig {
 
 /// Fills `out` from a `sim:`-style section (keys: dynamics_rate_hz, vehicle_radius_m, seed,
 /// vehicle_file, vehicle, imu, camera); strict, ranges checked, `_deg` converted once. With
-/// vehicle_file, vehicle.mass_kg, vehicle.max_tilt_deg and camera.T_body_camera must be absent.
+/// vehicle_file, vehicle.mass_kg, vehicle.max_tilt_deg and camera.T_B_C must be absent.
 void read_config(config::StrictMap& section, SimConfig& out);
 /// Loads a sim config file (top-level keys as in read_config).
 SimConfig load_sim_config(const std::string& path);
@@ -51,12 +51,12 @@ void set_resolution(SimConfig& config, const std::string& width_x_height, const 
 /// Ground truth at the current step.
 struct TruthState {
   std::int64_t t_ns = 0;
-  Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
-  Eigen::Vector3d v_world_mps = Eigen::Vector3d::Zero();
-  Eigen::Vector3d omega_body_radps = Eigen::Vector3d::Zero();
+  Eigen::Isometry3d T_N_B = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d v_N_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d omega_B_radps = Eigen::Vector3d::Zero();
   /// Velocity in the horizontal frame H (NED, yaw only; core paper §3): what eq. 5 estimates.
   Eigen::Vector3d v_H_mps = Eigen::Vector3d::Zero();
-  Eigen::Vector3d a_world_mps2 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d a_N_mps2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d euler_rad = Eigen::Vector3d::Zero();  ///< roll, pitch, yaw.
   /// Centre to nearest obstacle surface (people where they are at t_ns) minus vehicle radius.
   double clearance_m = 0.0;
@@ -89,7 +89,7 @@ class Simulator {
   [[nodiscard]] bool camera_due() const { return camera_due_; }
   /// Stamp and camera pose of the due frame (the physics step at or after its nominal time).
   [[nodiscard]] std::int64_t camera_t_ns() const { return camera_t_ns_; }
-  [[nodiscard]] const Eigen::Isometry3d& camera_T_world_camera() const { return camera_pose_; }
+  [[nodiscard]] const Eigen::Isometry3d& camera_T_N_C() const { return camera_pose_; }
   /// Renders the due frame (image BGR CV_8UC3 or gray, depth CV_32F metres), the world's people
   /// where they are at camera_t_ns(), and clears the flag.
   void render_camera(cv::Mat& image, cv::Mat& depth_m);

@@ -22,10 +22,10 @@ namespace hq::sim {
 class TumWriter {
  public:
   /// Creates dir, dir/rgb, dir/depth and the list files with TUM's comment headers, plus
-  /// camera.yaml (camera_info layout with T_body_camera); a recording already in dir is
+  /// camera.yaml (camera_info layout with T_B_C); a recording already in dir is
   /// written over. Throws hq::InputError if it cannot.
   TumWriter(const std::string& dir, const geometry::PinholeCamera& camera,
-            const Eigen::Isometry3d& T_body_camera);
+            const Eigen::Isometry3d& T_B_C);
 
   /// One RGB-D frame and the camera's true pose T_N_C (N: the simulator's NWU world) at t_ns.
   /// image: CV_8UC3 BGR or CV_8UC1; depth_m: CV_32F metres.

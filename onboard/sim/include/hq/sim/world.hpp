@@ -32,8 +32,8 @@ struct Texture {
 /// (the size cv::aruco reports); a two-cell white margin is drawn around it.
 struct Marker {
   int id = 0;
-  Eigen::Vector3d center_world_m = Eigen::Vector3d::Zero();
-  Eigen::Vector3d normal_world = Eigen::Vector3d::UnitZ();  ///< out of the surface.
+  Eigen::Vector3d center_N_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal_N = Eigen::Vector3d::UnitZ();  ///< out of the surface.
   double size_m = 0.2;
   double rotation_rad = 0.0;  ///< about the normal, from the default "up" direction.
 };
@@ -87,7 +87,7 @@ struct World {
   std::vector<Cylinder> cylinders;
   std::vector<Marker> markers;
   std::vector<Walker> people;
-  Eigen::Vector3d start_world_m = Eigen::Vector3d::Zero();  ///< vehicle position on the floor.
+  Eigen::Vector3d start_N_m = Eigen::Vector3d::Zero();  ///< vehicle position on the floor.
   double start_yaw_rad = 0.0;  ///< yaw of the vehicle (NED heading from world x) at start.
 };
 
@@ -101,8 +101,8 @@ Cylinder body_at(const Walker& walker, double t_s);
 /// Signed distance (m) from a point to the nearest obstacle surface at t_s (walls, boxes,
 /// cylinders, and the people where they are then; the floor is excluded: ground contact
 /// handles it). Negative inside a box, cylinder or person.
-double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m, double t_s);
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_N_m, double t_s);
 /// distance_to_obstacles() at t_s = 0: the people stand where the run starts them.
-double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_world_m);
+double distance_to_obstacles(const World& world, const Eigen::Vector3d& p_N_m);
 
 }  // namespace hq::sim

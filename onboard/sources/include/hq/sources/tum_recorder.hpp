@@ -55,9 +55,9 @@ class TumRecorder {
   void write_accel(const recording::AccelSample& sample);
   /// Appends one gyro.txt line. @pre options.gyro.
   void write_gyro(std::int64_t t_ns, const Eigen::Vector3d& omega_radps);
-  /// Appends the camera's pose T_world_camera at t_ns to groundtruth.txt ("timestamp tx ty tz
+  /// Appends the camera's pose T_G_C at t_ns to groundtruth.txt ("timestamp tx ty tz
   /// qx qy qz qw", TUM's layout). @pre options.ground_truth.
-  void write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d& T_world_camera);
+  void write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d& T_G_C);
   /// Flushes the lists; throws hq::InputError if any write failed.
   void close();
 

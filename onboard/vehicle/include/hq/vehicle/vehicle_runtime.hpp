@@ -201,14 +201,14 @@ class VehicleRuntime final : private FcSink {
 /// `--fc none`: no flight controller (replays, bench runs). Setpoints are counted and kept, not
 /// flown. Its IMU is the recording's (replay), or at the IMU rate a level or accelerometer-tilted
 /// one for a camera without a gyro: zero rate, specific force from `tilt_source`'s
-/// accelerometer rotated into B by R_body_sensor, else (0, 0, -g).
+/// accelerometer rotated into B by R_B_sensor, else (0, 0, -g).
 class NoFlightController final : public FlightController {
  public:
   /// Recorded IMU in stamp order (may be empty).
   explicit NoFlightController(std::vector<FcImuSample> recorded = {});
   /// A live source whose accelerometer gives the tilt (not owned; null: level).
-  void set_tilt_source(const sources::FrameSource* tilt_source,
-                       const Eigen::Matrix3d& R_body_sensor, double rate_hz = 200.0);
+  void set_tilt_source(const sources::FrameSource* tilt_source, const Eigen::Matrix3d& R_B_sensor,
+                       double rate_hz = 200.0);
 
   void poll(std::int64_t t_ns, FcSink& sink) override;
   void send_setpoint(std::int64_t t_ns, const control::AttitudeSetpoint& setpoint) override;
@@ -222,7 +222,7 @@ class NoFlightController final : public FlightController {
   std::size_t next_recorded_ = 0;
   const sources::FrameSource* tilt_source_ = nullptr;
   bool synthesise_ = false;
-  Eigen::Matrix3d R_body_sensor_ = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_B_sensor_ = Eigen::Matrix3d::Identity();
   std::int64_t imu_period_ns_ = 5'000'000;
   std::int64_t next_imu_ns_ = -1;
   FcCounters counters_;

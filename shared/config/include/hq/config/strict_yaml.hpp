@@ -59,7 +59,7 @@ class StrictMap {
   void read(const std::string& key, std::string& value, const std::vector<std::string>& allowed);
   /// A key ending in `_deg`: reads degrees, stores radians.
   void read_deg_as_rad(const std::string& key, double& value_rad, double min_deg, double max_deg);
-  /// Fixed-length numeric list, e.g. `p_body_camera_m: [0.1, 0, 0]`.
+  /// Fixed-length numeric list, e.g. `p_B_C_m: [0.1, 0, 0]`.
   void read_list(const std::string& key, double* values, int count);
   /// A list of any length (up to max_count) of integers in [min, max]; absent: left alone.
   void read_int_list(const std::string& key, std::vector<int>& values, int min, int max,

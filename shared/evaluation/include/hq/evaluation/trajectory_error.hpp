@@ -2,7 +2,7 @@
 /// Trajectory accuracy as defined by the TUM RGB-D benchmark (Sturm et al., IROS 2012): relative
 /// pose error (RPE, drift per second, their eq. 1-2) and absolute trajectory error (ATE, their
 /// eq. 3-4, after a least-squares rigid alignment by Horn's / Umeyama's method).
-/// Q denotes ground truth, P the estimate; both are T_world_sensor in their own world frames.
+/// Q denotes ground truth, P the estimate; both are T_G_S in their own world frames.
 
 #include "hq/recording/tum_io.hpp"
 

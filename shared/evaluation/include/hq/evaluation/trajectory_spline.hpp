@@ -4,8 +4,8 @@
 /// averaged out instead of being differentiated twice). Its derivatives give what an IMU riding
 /// on the tracked sensor would measure: the body rate and the acceleration.
 ///
-/// Position: each coordinate of p_W_S(t) is a spline. Rotation: the four coordinates of the
-/// sign-continuous unit quaternion q_W_S are splines and the evaluated quaternion is normalised;
+/// Position: each coordinate of p_G_S(t) is a spline. Rotation: the four coordinates of the
+/// sign-continuous unit quaternion q_G_S are splines and the evaluated quaternion is normalised;
 /// with p(t) the unnormalised spline, omega_S = 2 Im(conj(p) p') / |p|^2, which holds for any
 /// rotation range (a whole turn as in fr1_360 included).
 
@@ -30,7 +30,7 @@ struct TrajectorySplineConfig {
 
 class TrajectorySpline {
  public:
-  /// Fits poses (T_world_sensor, strictly increasing stamps). Throws hq::InputError for fewer
+  /// Fits poses (T_G_S, strictly increasing stamps). Throws hq::InputError for fewer
   /// than 4 poses, non-finite or unordered poses, or a knot spacing that is not positive.
   static TrajectorySpline fit(const std::vector<recording::StampedPose>& poses,
                               const TrajectorySplineConfig& config = {});
@@ -42,12 +42,12 @@ class TrajectorySpline {
     return t_ns >= t_begin_ns_ && t_ns <= t_end_ns_;
   }
 
-  /// T_world_sensor at t. @pre contains(t_ns)
+  /// T_G_S at t. @pre contains(t_ns)
   [[nodiscard]] Eigen::Isometry3d pose(std::int64_t t_ns) const;
-  /// d/dt p_W_S (m/s), world frame. @pre contains(t_ns)
-  [[nodiscard]] Eigen::Vector3d velocity_W_mps(std::int64_t t_ns) const;
-  /// d^2/dt^2 p_W_S (m/s^2), world frame. @pre contains(t_ns)
-  [[nodiscard]] Eigen::Vector3d acceleration_W_mps2(std::int64_t t_ns) const;
+  /// d/dt p_G_S (m/s), world frame. @pre contains(t_ns)
+  [[nodiscard]] Eigen::Vector3d velocity_G_mps(std::int64_t t_ns) const;
+  /// d^2/dt^2 p_G_S (m/s^2), world frame. @pre contains(t_ns)
+  [[nodiscard]] Eigen::Vector3d acceleration_G_mps2(std::int64_t t_ns) const;
   /// The sensor's angular rate in its own frame, omega_S (rad/s). @pre contains(t_ns)
   [[nodiscard]] Eigen::Vector3d omega_S_radps(std::int64_t t_ns) const;
 

@@ -22,7 +22,7 @@ Eigen::Vector3d flu_from_frd(const Eigen::Vector3d& v_frd);
 
 /// R_NED_B of the Z-Y-X Euler angles of the body FRD in a NED world (yaw about down, from north
 /// towards east; pitch nose up; roll right side down), as MAVLink and the estimator define them.
-Eigen::Matrix3d R_ned_body(double roll_rad, double pitch_rad, double yaw_rad);
+Eigen::Matrix3d R_ned_B(double roll_rad, double pitch_rad, double yaw_rad);
 
 /// q_E_F: the orientation of the ROS body (FLU) in the ROS world (ENU) of a body FRD at the
 /// given NED Euler angles. With yaw unknown pass 0: the ENU x axis is then the heading.

@@ -215,12 +215,12 @@ void copy_sample(T& dst, const T& src) {
   dst = src;
 }
 inline void copy_sample(VehicleState& dst, const VehicleState& src) {
-  const auto points = dst.obstacle_points_body_m;
+  const auto points = dst.obstacle_points_B_m;
   const auto markers = dst.markers;
   dst = src;
-  dst.obstacle_points_body_m = points;
+  dst.obstacle_points_B_m = points;
   dst.markers = markers;
-  copy_sequence(dst.obstacle_points_body_m, src.obstacle_points_body_m);
+  copy_sequence(dst.obstacle_points_B_m, src.obstacle_points_B_m);
   copy_sequence(dst.markers, src.markers);
 }
 inline void copy_sample(CameraFrame& dst, const CameraFrame& src) {

@@ -14,8 +14,8 @@ namespace hq::link {
 /// cloud (m); NaN when the state carries no cloud.
 inline double closest_cloud_point_m(const VehicleState& s) {
   double best_sq = std::numeric_limits<double>::infinity();
-  for (std::uint32_t i = 0; i < s.obstacle_points_body_m._length; ++i) {
-    const hq_msgs_Vector3f& p = s.obstacle_points_body_m._buffer[i];
+  for (std::uint32_t i = 0; i < s.obstacle_points_B_m._length; ++i) {
+    const hq_msgs_Vector3f& p = s.obstacle_points_B_m._buffer[i];
     const auto x = static_cast<double>(p.x);
     const auto y = static_cast<double>(p.y);
     const auto z = static_cast<double>(p.z);

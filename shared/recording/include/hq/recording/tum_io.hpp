@@ -30,7 +30,7 @@ struct RgbdFrameFiles {
 /// A pose of the sensor (camera or body, as the file says) in the world frame.
 struct StampedPose {
   std::int64_t t_ns;
-  Eigen::Isometry3d T_world_sensor;
+  Eigen::Isometry3d T_G_S;
 };
 
 /// Specific force measured by the accelerometer, sensor axes.

@@ -26,7 +26,7 @@ class TumSequence {
   const RgbdFrameFiles& frame(std::size_t i) const;
 
   bool has_ground_truth() const;
-  /// T_world_camera of the sequence (empty without groundtruth.txt).
+  /// T_G_C of the sequence (empty without groundtruth.txt).
   const std::vector<StampedPose>& ground_truth() const;
   bool has_accelerometer() const;
   /// Accelerometer samples (empty without accelerometer.txt).

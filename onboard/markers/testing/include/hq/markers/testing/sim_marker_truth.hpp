@@ -9,12 +9,12 @@
 
 namespace hq::markers::test {
 
-/// T_world_marker of a simulated marker in ViSP's tag frame. The renderer prints the tag with
+/// T_N_M of a simulated marker in ViSP's tag frame. The renderer prints the tag with
 /// its image "right" = up x n and "down" = -up as seen from the side the normal n points to
 /// (hq/sim rgbd_renderer.cpp); ViSP's frame has x = -right, y = down, z = n (measured: R^T R
 /// was diag(-1, 1, -1) against x = right, z = -n).
-inline Eigen::Isometry3d T_world_marker(const sim::Marker& m) {
-  const Eigen::Vector3d n = m.normal_world.normalized();
+inline Eigen::Isometry3d T_N_M(const sim::Marker& m) {
+  const Eigen::Vector3d n = m.normal_N.normalized();
   Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ();
   up = (up - up.dot(n) * n).normalized();
   up = Eigen::AngleAxisd(m.rotation_rad, n) * up;
@@ -22,7 +22,7 @@ inline Eigen::Isometry3d T_world_marker(const sim::Marker& m) {
   T.linear().col(0) = n.cross(up);
   T.linear().col(1) = -up;
   T.linear().col(2) = n;
-  T.translation() = m.center_world_m;
+  T.translation() = m.center_N_m;
   return T;
 }
 
