@@ -12,6 +12,9 @@
 ///   M  one marker's own frame (marker i: Mi).
 ///   L  the flight controller's local NED frame (MAVLink LOCAL_NED).
 ///   E  ROS world, ENU (REP-103/105 odom/map); F the ROS body, FLU (base_link).
+///   G  the world an external ground truth is given in: a recording's groundtruth.txt (TUM: the
+///      motion-capture frame), the odometry tests' rendered scene. S the sensor whose
+///      ground-truth trajectory that is (TUM: the colour camera).
 ///
 /// Quantities:
 ///   T_a_b  the rigid transform that maps points expressed in b into a: p_a = T_a_b * p_b,
@@ -20,6 +23,8 @@
 ///   v_a_mps, omega_a_radps, a_a_mps2  a velocity, angular rate or acceleration expressed in a
 ///          (of the body unless the name says otherwise), e.g. v_H_mps, omega_B_radps.
 ///   p_a / p_a_m  a point expressed in a.
-/// Names keep the unit suffix; a frame letter never stands for anything else.
+/// Names keep the unit suffix; a frame letter never stands for anything else, and a frame is
+/// never spelt out as a word in a name (scripts/check-vocabulary; the few names where "body",
+/// "world" or "horizontal" is not a frame are its allow-list).
 
 namespace hq::geometry {}  // namespace hq::geometry
