@@ -16,6 +16,7 @@
 #include <limits>
 #include <map>
 #include <sstream>
+#include <string_view>
 #include <thread>
 #include <time.h>
 
@@ -111,6 +112,28 @@ class StampOrder {
   std::size_t previous_line_ = 0;
 };
 
+// Columns renamed to the frame letters of hq/geometry/frames.hpp, by their new name: the name
+// recordings made before the rename have instead, read as the same column.
+const std::pair<std::string_view, std::string_view> kColumnsRenamed[] = {
+    {"omega_B_x_radps", "omega_x_radps"},  // vocabulary: old spelling
+    {"omega_B_y_radps", "omega_y_radps"},  // vocabulary: old spelling
+    {"omega_B_z_radps", "omega_z_radps"},  // vocabulary: old spelling
+    {"v_obs_H_x_mps", "v_obs_x_mps"},      // vocabulary: old spelling
+    {"v_obs_H_y_mps", "v_obs_y_mps"},      // vocabulary: old spelling
+    {"v_obs_H_z_mps", "v_obs_z_mps"},      // vocabulary: old spelling
+};
+
+// Where `header` has column `name`, under its name or the one it had before the rename.
+std::vector<std::string_view>::const_iterator find_column(
+    const std::vector<std::string_view>& header, const std::string& name) {
+  const auto it = std::find(header.begin(), header.end(), name);
+  if (it != header.end()) return it;
+  for (const auto& [renamed, before] : kColumnsRenamed) {
+    if (renamed == name) return std::find(header.begin(), header.end(), before);
+  }
+  return header.end();
+}
+
 // A CSV of the recorder: '#' lines, then a header naming the columns, then rows. Calls
 // `row(fields, where)` per row with the fields in the order of `columns`; returns false from
 // `row` to report the row as unreadable. Columns from index `required` on are optional (added
@@ -164,7 +187,7 @@ class CsvFile {
         const std::vector<std::string_view> header = split(line, 1000);
         header_fields = header.size();
         for (const std::string& c : columns_) {
-          const auto it = std::find(header.begin(), header.end(), c);
+          const auto it = find_column(header, c);
           if (it == header.end() && index.size() >= required_) {
             recording_.absent_columns.push_back(name_ + ": " + c);
             index.push_back(kAbsent);

@@ -194,6 +194,34 @@ TEST(Recording, OldLayoutLoadsAndNamesTheAbsentColumns) {
   fs::remove_all(dir);
 }
 
+// GIVEN a telemetry.csv written before the frame-letter rename (omega_x_radps for omega_B_x_radps,
+// v_obs_x_mps for v_obs_H_x_mps), WHEN read, THEN the gyro rates and the repulsion load from the
+// old columns, with nothing reported missing.
+TEST(Recording, ColumnsNamedBeforeTheFrameLetterRenameLoad) {
+  const fs::path dir = fresh_dir("before_rename");
+  fs::create_directories(dir);
+  std::ofstream(dir / "telemetry.csv")
+      << "# hq-ground telemetry v1\n"
+         "receipt_ns,latency_us,sequence,t_ns,v_H_x_mps,v_H_y_mps,v_H_z_mps,"
+         "omega_x_radps,omega_y_radps,omega_z_radps,"  // vocabulary: old spelling
+         "roll_rad,pitch_rad,"
+         "v_obs_x_mps,v_obs_y_mps,v_obs_z_mps,"  // vocabulary: old spelling
+         "mode,estimator_health,link_health,vehicle_id\n"
+         "1000,5.0,1,0,0.25,0,0,0.1,-0.2,0.3,0,0,0.4,-0.5,0.6,hover,ok,ok,1\n";
+  const Recording r = load_recording(dir.string());
+  ASSERT_EQ(r.states.size(), 1U);
+  EXPECT_FLOAT_EQ(r.states[0].omega_B_radps[0], 0.1F);
+  EXPECT_FLOAT_EQ(r.states[0].omega_B_radps[1], -0.2F);
+  EXPECT_FLOAT_EQ(r.states[0].omega_B_radps[2], 0.3F);
+  EXPECT_FLOAT_EQ(r.states[0].v_obs_H_mps[0], 0.4F);
+  EXPECT_FLOAT_EQ(r.states[0].v_obs_H_mps[1], -0.5F);
+  EXPECT_FLOAT_EQ(r.states[0].v_obs_H_mps[2], 0.6F);
+  for (const std::string& p : r.problems) EXPECT_THAT(p, ::testing::Not(HasSubstr("telemetry")));
+  EXPECT_THAT(r.absent_columns, ::testing::Not(::testing::Contains(HasSubstr("omega"))));
+  EXPECT_THAT(r.absent_columns, ::testing::Not(::testing::Contains(HasSubstr("v_obs"))));
+  fs::remove_all(dir);
+}
+
 TEST(Recording, TruncatedAndCorruptLinesAreNamedAndTheRestIsRead) {
   const fs::path dir = fresh_dir("truncated");
   write_recording(dir, 10);

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace hq::control {
 namespace {
@@ -199,6 +200,30 @@ TEST(VehicleConfig, ShippedCorePaperVehicleLoads) {
   EXPECT_GT(vehicle.camera.R_B_C().col(1).z(), 0.0);
   EXPECT_NEAR(vehicle.camera.R_B_C().determinant(), 1.0, 1e-12);
   EXPECT_TRUE(vehicle.camera.p_B_C_m().isApprox(Eigen::Vector3d(0.10, 0.05, 0.03)));
+}
+
+// GIVEN a vehicle file written before the frame-letter rename (the mount keys spelt in words),
+// WHEN read, THEN it gives the same mount as the file with T_B_C and p_B_C_m.
+TEST(VehicleConfig, FileWithTheMountKeysOfBeforeTheRenameLoadsTheSameMount) {
+  const std::string limits =
+      "{mass_kg: 1.0, limits: {max_tilt_deg: 30, min_thrust_n: 2, max_thrust_n: 20, "
+      "max_yaw_rate_degps: 90}, ";
+  config::StrictMap before(
+      YAML::Load(
+          limits +
+          "T_body_camera: {yaw_deg: 45, pitch_deg: -30, roll_deg: 0, "  // vocabulary: old spelling
+          "p_body_camera_m: [0.1, 0.05, 0.03]}}"),                      // vocabulary: old spelling
+      "old.yaml");
+  config::StrictMap now(YAML::Load(limits + "T_B_C: {yaw_deg: 45, pitch_deg: -30, roll_deg: 0, "
+                                            "p_B_C_m: [0.1, 0.05, 0.03]}}"),
+                        "new.yaml");
+  VehicleConfig old_vehicle;
+  VehicleConfig new_vehicle;
+  read_config(before, old_vehicle);
+  read_config(now, new_vehicle);
+  EXPECT_TRUE(old_vehicle.camera.R_B_C().isApprox(new_vehicle.camera.R_B_C(), 1e-15));
+  EXPECT_TRUE(old_vehicle.camera.p_B_C_m().isApprox(Eigen::Vector3d(0.1, 0.05, 0.03)));
+  EXPECT_GT((old_vehicle.camera.R_B_C() - Eigen::Matrix3d::Identity()).norm(), 0.5);
 }
 
 TEST(VehicleConfig, BadValueIsRejectedNamingTheKey) {

@@ -60,7 +60,10 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
     throw InputError(message.str());
   }
 
-  config::StrictMap camera = root.child("T_B_C");
+  // Vehicle files written before the frame-letter rename name the mount by words; both load.
+  const char* const mount_key =
+      root.has("T_body_camera") ? "T_body_camera" : "T_B_C";  // vocabulary: old spelling
+  config::StrictMap camera = root.child(mount_key);
   double yaw_rad = 0.0;
   double pitch_rad = 0.0;
   double roll_rad = 0.0;
@@ -68,11 +71,13 @@ void read_config(config::StrictMap& root, VehicleConfig& out) {
   require_deg_as_rad(camera, "pitch_deg", pitch_rad, -90.0, 90.0);
   require_deg_as_rad(camera, "roll_deg", roll_rad, -180.0, 180.0);
   double p[3] = {0.0, 0.0, 0.0};
-  camera.require_list("p_B_C_m", p, 3);
+  const char* const lever_key =
+      camera.has("p_body_camera_m") ? "p_body_camera_m" : "p_B_C_m";  // vocabulary: old spelling
+  camera.require_list(lever_key, p, 3);
   for (int i = 0; i < 3; ++i) {
     if (std::abs(p[i]) > 2.0) {
       std::ostringstream message;
-      message << camera.describe("p_B_C_m") << "[" << i << "] = " << p[i]
+      message << camera.describe(lever_key) << "[" << i << "] = " << p[i]
               << ", expected in [-2, 2]";
       throw InputError(message.str());
     }
