@@ -1,6 +1,7 @@
 #include "hq/onboard_log/onboard_recorder.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/flight_log/spsc_queue.hpp"
 
 #include "onboard_schemas.hpp"
@@ -9,9 +10,9 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cinttypes>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <limits>
 #include <system_error>
 
@@ -452,7 +453,17 @@ void RecordingPort::on_event(std::int64_t t_ns, vehicle::FcSeverity severity,
   if (inner_ != nullptr) {
     inner_->on_event(t_ns, severity, text);
   } else {
-    std::fprintf(stderr, "hq-onboard: %.*s\n", static_cast<int>(text.size()), text.data());
+    switch (severity) {
+      case vehicle::FcSeverity::kError:
+        hq::log::error("hq-onboard: {}\n", text);
+        break;
+      case vehicle::FcSeverity::kWarning:
+        hq::log::warn("hq-onboard: {}\n", text);
+        break;
+      case vehicle::FcSeverity::kInfo:
+        hq::log::note("hq-onboard: {}\n", text);
+        break;
+    }
   }
 }
 
@@ -483,30 +494,30 @@ void RecordingFlightController::poll(std::int64_t t_ns, vehicle::FcSink& sink) {
 
 void print_report(std::FILE* out, const Ros2RecordReport& r) {
   if (r.path.empty()) return;
-  std::fprintf(out, "  %-40s %s, %" PRIu64 " messages, %" PRIu64 " bytes\n", "ROS 2 record",
-               r.path.c_str(), r.messages, r.bytes);
+  fmt::print(out, "  {:<40} {}, {} messages, {} bytes\n", "ROS 2 record", r.path, r.messages,
+             r.bytes);
   for (const auto& [topic, messages] : r.per_topic) {
-    std::fprintf(out, "  ros2 record %-28s %" PRIu64 " messages\n", topic.c_str(), messages);
+    fmt::print(out, "  ros2 record {:<28} {} messages\n", topic, messages);
   }
   if (r.too_large > 0 || r.log_times_raised > 0) {
-    std::fprintf(out, "  %-40s %" PRIu64 " too large, %" PRIu64 " log times raised\n",
-                 "ROS 2 record messages", r.too_large, r.log_times_raised);
+    fmt::print(out, "  {:<40} {} too large, {} log times raised\n", "ROS 2 record messages",
+               r.too_large, r.log_times_raised);
   }
-  if (!r.error.empty()) std::fprintf(out, "  ROS 2 record FAILED: %s\n", r.error.c_str());
+  if (!r.error.empty()) fmt::print(out, "  ROS 2 record FAILED: {}\n", r.error);
 }
 
 void print_report(std::FILE* out, const flight_log::RecorderReport& r) {
-  std::fprintf(out, "  %-40s %s, %" PRIu64 " messages, %" PRIu64 " bytes, %u attachments\n",
-               "on-board record", r.path.c_str(), r.messages, r.bytes, r.attachments);
+  fmt::print(out, "  {:<40} {}, {} messages, {} bytes, {} attachments\n", "on-board record", r.path,
+             r.messages, r.bytes, r.attachments);
   for (const flight_log::ChannelReport& c : r.per_channel) {
-    std::fprintf(out, "  record %-33s %" PRIu64 " messages\n", c.topic.c_str(), c.messages);
+    fmt::print(out, "  record {:<33} {} messages\n", c.topic, c.messages);
   }
-  std::fprintf(out, "  %-40s %" PRIu64 " dropped (queue full), %" PRIu64 " not written\n",
-               "on-board record samples", r.local_samples_dropped, r.samples_not_written);
+  fmt::print(out, "  {:<40} {} dropped (queue full), {} not written\n", "on-board record samples",
+             r.local_samples_dropped, r.samples_not_written);
   for (const std::string& s : r.attachments_skipped) {
-    std::fprintf(out, "  on-board record attachment skipped: %s\n", s.c_str());
+    fmt::print(out, "  on-board record attachment skipped: {}\n", s);
   }
-  if (!r.error.empty()) std::fprintf(out, "  on-board record FAILED: %s\n", r.error.c_str());
+  if (!r.error.empty()) fmt::print(out, "  on-board record FAILED: {}\n", r.error);
 }
 
 }  // namespace hq::onboard_log
