@@ -9,11 +9,14 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <fmt/format.h>
 #include <limits>
 #include <random>
 #include <sys/stat.h>
+#include <system_error>
 #include <time.h>
 #include <unistd.h>
+#include <utility>
 
 namespace hq::ground {
 
@@ -70,8 +73,22 @@ double norm(const hq_msgs_Vector3f& v) {
 // |x| of a link field (float) against a double bound.
 double magnitude(float x) { return std::abs(static_cast<double>(x)); }
 
-// A link field (float) as the double printf's %f reads.
+// A link field (float) widened to double, as the CSV rows have always printed it.
 double as_double(float x) { return static_cast<double>(x); }
+
+// fmt::print reports a failed write by throwing std::system_error; a recorder row reports it as
+// fprintf did, a negative result with errno set, so written() names the file and stops the
+// recording instead of the station.
+template <typename... Args>
+int print_row(std::FILE* file, fmt::format_string<Args...> format, Args&&... args) {
+  try {
+    fmt::print(file, format, std::forward<Args>(args)...);
+    return 0;
+  } catch (const std::system_error& e) {
+    errno = e.code().value();
+    return -1;
+  }
+}
 
 }  // namespace
 
@@ -358,13 +375,13 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
   };
   if (!error_.empty() || telemetry_ == nullptr) return;
   written(
-      std::fprintf(
+      print_row(
           telemetry_,
-          "%lld,%.1f,%llu,%lld,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%s,"
-          "%s,%u,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.4f,%.4f,%.4f,%u,0x%016llx,%u,%s,%d,%s,%.4f,%s,%."
-          "4f,"
-          "%.4f,%.4f,%.4f,%.4f,%d,%u,%.3f,%.4f,%u,%u,%u,%d,%d,%u,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,"
-          "%.4f,%.4f,%d,%.4f,%.4f,%.4f\n",
+          "{},{:.1f},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:"
+          ".4f},{},{},{},{},{:.3f},{},{:.4f},{:.4f},{:.4f},{:.4f},{},{:.4f},{:.4f},{:.4f},{},0x{:"
+          "016x},{},{},{},{},{:.4f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{:.3f},{:.4f},{},{}"
+          ",{},{},{},{},{:.3f},{:.3f},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{:.4f},{:.4f}"
+          ",{:.4f}\n",
           static_cast<long long>(receipt_ns), 1e-3 * static_cast<double>(latency_ns),
           static_cast<unsigned long long>(s.sequence_number), static_cast<long long>(s.t_ns),
           as_double(s.v_H_mps.x), as_double(s.v_H_mps.y), as_double(s.v_H_mps.z),
@@ -395,20 +412,20 @@ void TelemetryRecorder::state(std::int64_t receipt_ns, std::int64_t latency_ns,
   for (std::uint32_t i = 0; i < s.obstacle_points_B_m._length; ++i) {
     const hq_msgs_Vector3f& p = s.obstacle_points_B_m._buffer[i];
     written(
-        std::fprintf(obstacles_, "%lld,%llu,%.4f,%.4f,%.4f\n", static_cast<long long>(receipt_ns),
-                     static_cast<unsigned long long>(s.sequence_number), as_double(p.x),
-                     as_double(p.y), as_double(p.z)),
+        print_row(obstacles_, "{},{},{:.4f},{:.4f},{:.4f}\n", static_cast<long long>(receipt_ns),
+                  static_cast<unsigned long long>(s.sequence_number), as_double(p.x),
+                  as_double(p.y), as_double(p.z)),
         "obstacles.csv");
   }
   for (std::uint32_t i = 0; i < s.markers._length; ++i) {
     const hq_msgs_MarkerInCamera& m = s.markers._buffer[i];
-    written(std::fprintf(markers_, "%lld,%llu,%d,%.4f,%.4f,%.4f,%.5f,%.5f,%.5f,%.5f\n",
-                         static_cast<long long>(receipt_ns),
-                         static_cast<unsigned long long>(s.sequence_number), static_cast<int>(m.id),
-                         as_double(m.p_camera_marker_m.x), as_double(m.p_camera_marker_m.y),
-                         as_double(m.p_camera_marker_m.z), as_double(m.q_camera_marker.w),
-                         as_double(m.q_camera_marker.x), as_double(m.q_camera_marker.y),
-                         as_double(m.q_camera_marker.z)),
+    written(print_row(markers_, "{},{},{},{:.4f},{:.4f},{:.4f},{:.5f},{:.5f},{:.5f},{:.5f}\n",
+                      static_cast<long long>(receipt_ns),
+                      static_cast<unsigned long long>(s.sequence_number), static_cast<int>(m.id),
+                      as_double(m.p_camera_marker_m.x), as_double(m.p_camera_marker_m.y),
+                      as_double(m.p_camera_marker_m.z), as_double(m.q_camera_marker.w),
+                      as_double(m.q_camera_marker.x), as_double(m.q_camera_marker.y),
+                      as_double(m.q_camera_marker.z)),
             "markers.csv");
   }
 }
@@ -417,14 +434,14 @@ void TelemetryRecorder::command(std::int64_t t_ns, const haptics::VelocityComman
                                 bool valid) {
   if (!error_.empty() || commands_ == nullptr) return;
   const Eigen::Vector3d v = valid ? command.v_H_mps : Eigen::Vector3d::Zero();
-  written(std::fprintf(commands_, "%lld,%.4f,%.4f,%.4f,%.4f,%d\n", static_cast<long long>(t_ns),
-                       v.x(), v.y(), v.z(), valid ? command.yaw_rate_radps : 0.0, valid ? 1 : 0),
+  written(print_row(commands_, "{},{:.4f},{:.4f},{:.4f},{:.4f},{}\n", static_cast<long long>(t_ns),
+                    v.x(), v.y(), v.z(), valid ? command.yaw_rate_radps : 0.0, valid ? 1 : 0),
           "commands.csv");
 }
 
 void TelemetryRecorder::mode_request(std::int64_t t_ns, hq_msgs_Mode mode) {
   if (!error_.empty() || modes_ == nullptr) return;
-  written(std::fprintf(modes_, "%lld,%s\n", static_cast<long long>(t_ns), to_string(mode)),
+  written(print_row(modes_, "{},{}\n", static_cast<long long>(t_ns), to_string(mode)),
           "mode_requests.csv");
   written(std::fflush(modes_), "mode_requests.csv");
 }
@@ -451,7 +468,7 @@ void TelemetryRecorder::camera(std::int64_t receipt_ns, const link::CameraFrame&
         written(-1, name);
       }
     } else {
-      written(std::fprintf(list, "%.6f %s\n", 1e-9 * static_cast<double>(receipt_ns), name),
+      written(print_row(list, "{:.6f} {}\n", 1e-9 * static_cast<double>(receipt_ns), name),
               list == rgb_list_ ? "rgb.txt" : "depth_preview.txt");
     }
   };
@@ -472,9 +489,9 @@ void TelemetryRecorder::event(std::int64_t receipt_ns, const link::Event& e) {
     if (c == '"') c = '\'';
   }
   if (!error_.empty() || events_ == nullptr) return;
-  written(std::fprintf(events_, "%lld,%llu,%lld,%d,%u,\"%s\"\n", static_cast<long long>(receipt_ns),
-                       static_cast<unsigned long long>(e.sequence_number),
-                       static_cast<long long>(e.t_ns), static_cast<int>(e.severity), e.code, text),
+  written(print_row(events_, "{},{},{},{},{},\"{}\"\n", static_cast<long long>(receipt_ns),
+                    static_cast<unsigned long long>(e.sequence_number),
+                    static_cast<long long>(e.t_ns), static_cast<int>(e.severity), e.code, text),
           "events.csv");
   written(std::fflush(events_), "events.csv");
 }
@@ -795,7 +812,7 @@ void GroundStation::notice(hq_msgs_Severity severity, std::uint32_t code, const 
   if (recorder_ != nullptr) recorder_->event(now, e);
   if (observer_ != nullptr) observer_->on_event(now, e);
   if (log_ != nullptr) {
-    std::fprintf(log_, "hq-ground: %s\n", text);
+    fmt::print(log_, "hq-ground: {}\n", text);
     std::fflush(log_);
   }
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 
@@ -118,7 +119,7 @@ void OperatorStation::watch_link_loss(std::int64_t now_ns, double t_s) {
                   link_loss_.last_loss_s());
   }
   if (outputs_.out != nullptr) {
-    std::fprintf(outputs_.out, "hq-ground: t %.1f s: %s\n", t_s, e.text);
+    fmt::print(outputs_.out, "hq-ground: t {:.1f} s: {}\n", t_s, e.text);
     std::fflush(outputs_.out);
   }
   const std::int64_t event_wall_ns = clock_.wall_ns();
@@ -133,8 +134,8 @@ bool OperatorStation::send_command(const haptics::LoopOutput& hand, std::int64_t
   if (was_connected_ && !hand.device_connected) {
     ++stats_.device_losses;
     if (outputs_.log != nullptr) {
-      std::fprintf(outputs_.log, "\nhq-ground: device lost (%s): sending zero commands\n",
-                   hand.status.data());
+      fmt::print(outputs_.log, "\nhq-ground: device lost ({}): sending zero commands\n",
+                 hand.status.data());
     }
   }
   was_connected_ = hand.device_connected;
@@ -216,15 +217,15 @@ void OperatorStation::request_modes(const haptics::LoopOutput& hand, std::int64_
   const bool sent = link_.request_mode(now_ns, *mode, marker, take_off);
   if (outputs_.log != nullptr && marker.task != hq_msgs_MARKER_TASK_NONE) {
     static constexpr std::array<const char*, 4> kTaskNames = {"none", "hold", "goto", "land"};
-    std::fprintf(outputs_.log, "hq-ground: marker task %s on marker %d\n",
-                 kTaskNames[static_cast<std::size_t>(marker.task) % kTaskNames.size()],
-                 static_cast<int>(marker.target_id));
+    fmt::print(outputs_.log, "hq-ground: marker task {} on marker {}\n",
+               kTaskNames[static_cast<std::size_t>(marker.task) % kTaskNames.size()],
+               static_cast<int>(marker.target_id));
   }
   if (outputs_.recorder != nullptr) outputs_.recorder->mode_request(wall_ns, *mode);
   if (outputs_.log != nullptr) {
-    std::fprintf(outputs_.log, "hq-ground: t %.1f s: requesting %smode %s%s\n", t_s,
-                 take_off ? "take-off, then " : "", to_string(*mode),
-                 sent ? "" : " (waiting for vehicle)");
+    fmt::print(outputs_.log, "hq-ground: t {:.1f} s: requesting {}mode {}{}\n", t_s,
+               take_off ? "take-off, then " : "", to_string(*mode),
+               sent ? "" : " (waiting for vehicle)");
   }
 }
 
@@ -292,32 +293,31 @@ void OperatorStation::report_status(std::int64_t now_ns, double t_s,
   if (options_.headless && log != nullptr) {
     const LinkStatus& s = link_.status();
     const auto& v = hand.command.v_H_mps;
-    std::fprintf(
-        log,
-        "t %6.1f s  link %-7s  vehicle %-7s est %-8s vlink %-8s  latency %5.2f ms  "
-        "rtt %4.0f ms  age %4.0f ms  loss %4.1f %%  "
-        "cmd [%+.2f %+.2f %+.2f] yaw %+.2f  |F| %.1f N  %s%s\n",
-        t_s, link_word(s, link_.state_age_s()), s.have_state ? to_string(s.state.mode) : "-",
-        s.have_state ? to_string(s.state.estimator_health) : "-",
-        s.have_state ? to_string(s.state.link_health) : "-",
-        1e-6 * static_cast<double>(s.last_latency_ns), 1e-6 * static_cast<double>(s.round_trip_ns),
-        1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * link_.state_loss(), v.x(), v.y(),
-        v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
-        hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
+    fmt::print(log,
+               "t {:6.1f} s  link {:<7}  vehicle {:<7} est {:<8} vlink {:<8}  latency {:5.2f} ms  "
+               "rtt {:4.0f} ms  age {:4.0f} ms  loss {:4.1f} %  cmd [{:+.2f} {:+.2f} {:+.2f}] yaw "
+               "{:+.2f}  |F| {:.1f} N  {}{}\n",
+               t_s, link_word(s, link_.state_age_s()), s.have_state ? to_string(s.state.mode) : "-",
+               s.have_state ? to_string(s.state.estimator_health) : "-",
+               s.have_state ? to_string(s.state.link_health) : "-",
+               1e-6 * static_cast<double>(s.last_latency_ns),
+               1e-6 * static_cast<double>(s.round_trip_ns),
+               1e-6 * static_cast<double>(s.last_state_age_ns), 100.0 * link_.state_loss(), v.x(),
+               v.y(), v.z(), hand.command.yaw_rate_radps, hand.F_D_n.norm(),
+               hand.device_connected ? "" : "DEVICE LOST ", s.last_event.data());
     std::fflush(log);
   }
   TelemetryRecorder* recorder = outputs_.recorder;
   if (recorder != nullptr && !recorder->flush() && !recording_failure_told_) {
     // Told once, on the console and the terminal; flying goes on, the exit status says it.
     recording_failure_told_ = true;
-    if (log != nullptr)
-      std::fprintf(log, "\nhq-ground: recording: %s\n", recorder->error().c_str());
+    if (log != nullptr) fmt::print(log, "\nhq-ground: recording: {}\n", recorder->error());
     model_.on_event(clock_.wall_ns(), 2, ("recording: " + recorder->error()).c_str());
   }
   mcap_recorder::FlightRecorder* mcap = outputs_.mcap;
   if (mcap != nullptr && mcap->failed() && !mcap_failure_told_) {
     mcap_failure_told_ = true;
-    if (log != nullptr) std::fprintf(log, "\nhq-ground: %s\n", mcap->error().c_str());
+    if (log != nullptr) fmt::print(log, "\nhq-ground: {}\n", mcap->error());
     model_.on_event(clock_.wall_ns(), 2, mcap->error().c_str());
   }
 }
