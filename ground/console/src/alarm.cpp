@@ -1,5 +1,7 @@
 #include "alarm.hpp"
 
+#include "hq/base/log.hpp"
+
 #include <SDL.h>
 #include <cmath>
 #include <cstdio>
@@ -60,7 +62,7 @@ AlarmTone::AlarmTone() {
     }
   }
   if (device_ == 0) {
-    std::fprintf(stderr, "hq-ground: %s: alarms are shown, not heard\n", status_.c_str());
+    hq::log::warn("hq-ground: {}: alarms are shown, not heard\n", status_);
   }
 }
 

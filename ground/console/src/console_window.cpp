@@ -1,6 +1,7 @@
 #include "hq/console/console_window.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/console/position_status.hpp"
 
 #include "alarm.hpp"
@@ -26,6 +27,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fmt/format.h>
 #include <imgui.h>
 #include <limits>
 #include <mutex>
@@ -389,10 +391,10 @@ void write_placement(const std::string& path, const SavedPlacement& p) {
   std::filesystem::create_directories(std::filesystem::path(path).parent_path(), error);
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (f == nullptr) {
-    std::fprintf(stderr, "hq-ground: %s: cannot write the window placement\n", path.c_str());
+    hq::log::error("hq-ground: {}: cannot write the window placement\n", path);
     return;
   }
-  std::fprintf(f, "window %d %d %d %d\n", p.x, p.y, p.width, p.height);
+  fmt::print(f, "window {} {} {} {}\n", p.x, p.y, p.width, p.height);
   std::fclose(f);
 }
 
