@@ -7,6 +7,7 @@
 // points, 20 KB camera frames at 33 Hz, and the reader of the commands). Each phase lasts
 // --duration-s.
 //   hq-bench-flight-recorder [--duration-s 5] [--out /tmp/bench_flight.mcap]
+#include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
@@ -34,9 +35,9 @@ namespace {
 std::int64_t now_ns() { return hq::monotonic_now_ns(); }
 
 void print(const char* what, const std::vector<std::int64_t>& ns) {
-  std::printf("  %-44s p50 %6.0f ns  p99 %6.0f ns  p99.9 %7.0f ns  max %8.0f ns  (%zu)\n", what,
-              hq::quantile(ns, 0.5), hq::quantile(ns, 0.99), hq::quantile(ns, 0.999),
-              hq::quantile(ns, 1.0), ns.size());
+  fmt::print("  {:<44} p50 {:6.0f} ns  p99 {:6.0f} ns  p99.9 {:7.0f} ns  max {:8.0f} ns  ({})\n",
+             what, hq::quantile(ns, 0.5), hq::quantile(ns, 0.99), hq::quantile(ns, 0.999),
+             hq::quantile(ns, 1.0), ns.size());
 }
 
 // The child: states at 100 Hz (512 obstacle points) and 20 KB camera frames at 33 Hz, and a
@@ -106,7 +107,7 @@ int main(int argc, char** argv) {
   hq::testing::Process vehicle({argv[0], "--vehicle", domain_arg, "--duration-s", vehicle_duration},
                                out + ".vehicle.txt");
   if (!vehicle.started()) {
-    std::fprintf(stderr, "hq-bench-flight-recorder: cannot start the vehicle process\n");
+    hq::log::error("hq-bench-flight-recorder: cannot start the vehicle process\n");
     return 1;
   }
   hq::link::Participant participant(options.link.domain_id);
