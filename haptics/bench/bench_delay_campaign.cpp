@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <vector>
@@ -51,18 +52,19 @@ int run(int argc, char** argv) {
     hq::haptics::campaign::VehicleModel slow_vehicle;
     hq::haptics::campaign::VehicleModel fast_vehicle;
     fast_vehicle.lag_s = 0.15;
-    std::printf(
-        "# arm 1 kg / 150 N/m / 5 N s/m, reaction 150 ms, yield 0.5; wall 3 m ahead; %.0f s "
-        "flights; jitter +-%.0f ms on each one-way delay when the round trip is > 0; seed %u\n",
+    fmt::print(
+        "# arm 1 kg / 150 N/m / 5 N s/m, reaction 150 ms, yield 0.5; wall 3 m ahead; {:.0f} s "
+        "flights; jitter +-{:.0f} ms on each one-way delay when the round trip is > 0; seed {}\n",
         seconds, jitter_ms, seed);
     const auto campaign = [&](const char* title, const hq::haptics::HapticsConfig& config,
                               const hq::haptics::campaign::VehicleModel& vehicle) {
-      std::printf("## %s: K %.0f N/m, B %.1f N s/m, fade after %.2f s, vehicle lag %.2f s\n", title,
-                  config.feedback.velocity_stiffness_n_per_m, config.feedback.damping_ns_per_m,
-                  config.feedback.stale_after_s, vehicle.lag_s);
-      std::printf("%7s %5s %3s | %9s %9s %9s | %7s %7s %6s | %8s %8s | %9s %5s\n", "rtt_ms", "loss",
-                  "pc", "minE_J", "finalE_J", "dissip_J", "F_rms_N", "Fid_rms", "transp", "track",
-                  "hand_osc", "clear_m", "coll");
+      fmt::print("## {}: K {:.0f} N/m, B {:.1f} N s/m, fade after {:.2f} s, vehicle lag {:.2f} s\n",
+                 title, config.feedback.velocity_stiffness_n_per_m,
+                 config.feedback.damping_ns_per_m, config.feedback.stale_after_s, vehicle.lag_s);
+      fmt::print(
+          "{:>7} {:>5} {:>3} | {:>9} {:>9} {:>9} | {:>7} {:>7} {:>6} | {:>8} {:>8} | {:>9} {:>5}\n",
+          "rtt_ms", "loss", "pc", "minE_J", "finalE_J", "dissip_J", "F_rms_N", "Fid_rms", "transp",
+          "track", "hand_osc", "clear_m", "coll");
       for (const double rtt_ms : round_trips_ms) {
         for (const double loss : losses) {
           for (const bool pc : {false, true}) {
@@ -75,9 +77,9 @@ int run(int argc, char** argv) {
             link.seed = seed;
             const hq::haptics::campaign::RunResult r =
                 hq::haptics::campaign::run(run_config, R_B_C, link, {}, vehicle, seconds);
-            std::printf(
-                "%7.0f %5.2f %3s | %9.4f %9.4f %9.4f | %7.3f %7.3f %6.2f | %8.3f %8.4f | %9.3f "
-                "%5d\n",
+            fmt::print(
+                "{:7.0f} {:5.2f} {:>3} | {:9.4f} {:9.4f} {:9.4f} | {:7.3f} {:7.3f} {:6.2f} | "
+                "{:8.3f} {:8.4f} | {:9.3f} {:5}\n",
                 rtt_ms, r.loss_measured, pc ? "on" : "off", r.min_energy_j, r.final_energy_j,
                 r.dissipated_j, r.force_rms_n, r.ideal_force_rms_n, r.transparency,
                 r.tracking_rms_mps, r.hold_hand_speed_rms_mps, r.min_clearance_m, r.collisions);
@@ -87,10 +89,10 @@ int run(int argc, char** argv) {
     };
     campaign("shipped force law", shipped, slow_vehicle);
     campaign("stiff force law", stiff, fast_vehicle);
-    std::printf(
+    fmt::print(
         "# minE: min over the flight of the device port's energy (J, >= 0 passive); transp: 1 - "
-        "rms(F - F_ideal) / rms(F_ideal), F_ideal the law on the true state now; track: rms "
-        "|v - v_cmd| (m/s); hand_osc: rms effector speed while the intent holds (m/s)\n");
+        "rms(F - F_ideal) / rms(F_ideal), F_ideal the law on the true state now; track: rms |v - "
+        "v_cmd| (m/s); hand_osc: rms effector speed while the intent holds (m/s)\n");
     return 0;
   }
 }

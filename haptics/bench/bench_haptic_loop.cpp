@@ -56,8 +56,8 @@ void run_bare_loop(std::int64_t period_ns, const std::atomic<bool>& running, Bar
 double ratio(double a, double b) { return b > 0.0 ? a / b : 0.0; }
 
 void print_row(const char* name, const JitterStats& loop, const JitterStats& floor) {
-  std::printf(
-      "%-22s %9.1f %9.1f %9.1f | %9.1f %9.1f %9.1f | %6.2f %6.2f %6.2f\n", name,
+  fmt::print(
+      "{:<22} {:9.1f} {:9.1f} {:9.1f} | {:9.1f} {:9.1f} {:9.1f} | {:6.2f} {:6.2f} {:6.2f}\n", name,
       loop.quantile_us(0.5), loop.quantile_us(0.99), loop.max_us(), floor.quantile_us(0.5),
       floor.quantile_us(0.99), floor.max_us(), ratio(loop.quantile_us(0.5), floor.quantile_us(0.5)),
       ratio(loop.quantile_us(0.99), floor.quantile_us(0.99)), ratio(loop.max_us(), floor.max_us()));
@@ -102,8 +102,8 @@ int run(int argc, char** argv) {
     }
   });
 
-  std::printf("hq-bench-haptic-loop: %.0f Hz for %.1f s, device sim\n%s\n", config.loop.rate_hz,
-              seconds, grant.summary.c_str());
+  fmt::print("hq-bench-haptic-loop: {:.0f} Hz for {:.1f} s, device sim\n{}\n", config.loop.rate_hz,
+             seconds, grant.summary);
   std::fflush(stdout);
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
   const hq::haptics::LoopOutput last = loop.latest();
@@ -113,15 +113,15 @@ int run(int argc, char** argv) {
   feeder.join();
 
   const hq::haptics::LoopTimingReport& timing = loop.timing();
-  std::printf("\n%-22s %29s | %29s | %20s\n", "", "haptic loop (us)", "bare nanosleep floor (us)",
-              "ratio");
-  std::printf("%-22s %9s %9s %9s | %9s %9s %9s | %6s %6s %6s\n", "", "p50", "p99", "max", "p50",
-              "p99", "max", "p50", "p99", "max");
+  fmt::print("\n{:<22} {:>29} | {:>29} | {:>20}\n", "", "haptic loop (us)",
+             "bare nanosleep floor (us)", "ratio");
+  fmt::print("{:<22} {:>9} {:>9} {:>9} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6}\n", "", "p50", "p99",
+             "max", "p50", "p99", "max", "p50", "p99", "max");
   print_row("|period - nominal|", timing.period, bare.period);
   print_row("wake - deadline", timing.wake, bare.wake);
   fmt::print("\nperiods: loop {}, floor {}; missed deadlines: loop {}, floor {}\n",
              timing.period.count(), bare.period.count(), timing.missed_deadlines, bare.missed);
-  std::printf("real-time: %s\n", grant.fifo ? "SCHED_FIFO granted" : "NOT granted (SCHED_OTHER)");
+  fmt::print("real-time: {}\n", grant.fifo ? "SCHED_FIFO granted" : "NOT granted (SCHED_OTHER)");
   fmt::print("last tick {}: passivity E {:.4f} J, status \"{}\"\n", last.tick,
              last.passivity_energy_j, last.status.data());
   return 0;
