@@ -23,6 +23,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <utility>
@@ -96,16 +97,16 @@ int run(int argc, char** argv) {
     }
     lost += out.tracking == hq::odometry::TrackingStatus::kLost ? 1 : 0;
   }
-  std::printf("hq-bench-chain: %s, %dx%d, %zu frames (%d passes), %d estimates ok, %d lost\n",
-              sequence_dir.c_str(), source.camera().width, source.camera().height, order.size(),
-              passes, ok, lost);
+  fmt::print("hq-bench-chain: {}, {}x{}, {} frames ({} passes), {} estimates ok, {} lost\n",
+             sequence_dir, source.camera().width, source.camera().height, order.size(), passes, ok,
+             lost);
   for (const auto& [reason, count] : reasons) {
-    std::printf("  no estimate on %d frames: %s\n", count, reason);
+    fmt::print("  no estimate on {} frames: {}\n", count, reason);
   }
   log.print(stdout);
   const double total_ms = log.statistics(hq::pipeline::kStageCount - 1).median_ms;
-  std::printf("target: total median <= 6 ms on one core: %s (%.3f ms)\n",
-              total_ms <= 6.0 ? "met" : "MISSED", total_ms);
+  fmt::print("target: total median <= 6 ms on one core: {} ({:.3f} ms)\n",
+             total_ms <= 6.0 ? "met" : "MISSED", total_ms);
   return 0;
 }
 

@@ -93,11 +93,11 @@ int run(const Options& o) {
   }
   if (!errors.empty()) {
     std::sort(errors.begin(), errors.end());
-    std::printf(
-        "landing on marker %d, %zu runs (%s): median %.3f m, max %.3f m, not landed %d, "
-        "collision ticks %d  [target max <= 0.10 m; smartphone seed ~0.2 m]\n",
-        o.target_id, errors.size(), o.resolution.c_str(), errors[errors.size() / 2], errors.back(),
-        failed, collisions);
+    fmt::print(
+        "landing on marker {}, {} runs ({}): median {:.3f} m, max {:.3f} m, not landed {}, "
+        "collision ticks {}  [target max <= 0.10 m; smartphone seed ~0.2 m]\n",
+        o.target_id, errors.size(), o.resolution, errors[errors.size() / 2], errors.back(), failed,
+        collisions);
   }
   for (int k = 0; k < o.explores; ++k) {
     const std::uint64_t seed = static_cast<std::uint64_t>(o.explore_seed + k);

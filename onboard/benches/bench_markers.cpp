@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <functional>
 #include <optional>
 #include <random>
@@ -105,12 +106,13 @@ int run(int argc, char** argv) {
     cv::aruco::detectMarkers(grays[i], dictionary, corners, ids, parameters);
     return static_cast<int>(ids.size());
   });
-  std::printf("hq-bench-markers: %zu frames 640x480 of %s, 3 passes, one thread\n", kFrames,
-              world_path.c_str());
-  std::printf("%-34s %9s %9s %12s %8s\n", "detector", "median ms", "p90 ms", "tags/frame", "ratio");
+  fmt::print("hq-bench-markers: {} frames 640x480 of {}, 3 passes, one thread\n", kFrames,
+             world_path);
+  fmt::print("{:<34} {:>9} {:>9} {:>12} {:>8}\n", "detector", "median ms", "p90 ms", "tags/frame",
+             "ratio");
   auto row = [&](const char* name, const Stats& s) {
-    std::printf("%-34s %9.2f %9.2f %12.2f %8.2f\n", name, s.median_ms, s.p90_ms,
-                s.detections_per_frame, s.median_ms / aruco.median_ms);
+    fmt::print("{:<34} {:9.2f} {:9.2f} {:12.2f} {:8.2f}\n", name, s.median_ms, s.p90_ms,
+               s.detections_per_frame, s.median_ms / aruco.median_ms);
   };
   row("hq ViSP AprilTag + pose", visp);
   row("hq ViSP AprilTag + pose + depth", visp_depth);

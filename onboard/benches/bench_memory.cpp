@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <fmt/format.h>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -160,19 +161,19 @@ int run(int argc, char** argv) {
   const double p99 = hq::quantile(f.memory_ms, 0.99);
   const double peer_p50 = hq::quantile(f.peer_ms, 0.5);
   const double peer_p99 = hq::quantile(f.peer_ms, 0.99);
-  std::printf("hq-bench-memory: %.0f s simulated flight, %zu frames at 320x240, %s\n", seconds,
-              f.memory_ms.size(), world_path.c_str());
-  std::printf("%-46s %9s %9s\n", "per frame (ms)", "p50", "p99");
-  std::printf("%-46s %9.3f %9.3f\n", "ObstacleMemory::update (all of it)", p50, p99);
-  std::printf("%-46s %9.3f %9.3f\n", "peer: cloud + pcl::VoxelGrid + RadiusOutlierRem.", peer_p50,
-              peer_p99);
-  std::printf("ratio peer / memory (p50): %.2f; target <= 2 ms/frame: %s\n",
-              p50 > 0.0 ? peer_p50 / p50 : 0.0, p99 <= 2.0 ? "met (p99)" : "NOT met (p99)");
-  std::printf("map points: at 10 s %d, max %d, at end %d (capacity %d); pose-jump clears %ld\n",
-              f.map_size_at_10s, f.max_map_size, memory.size(), memory_config.capacity, f.clears);
-  std::printf("memory: buffers %.2f MiB (fixed); process RSS %ld KiB at start, %ld KiB at end\n",
-              static_cast<double>(memory.memory_bytes()) / (1024.0 * 1024.0), rss_start_kib,
-              rss_end_kib);
+  fmt::print("hq-bench-memory: {:.0f} s simulated flight, {} frames at 320x240, {}\n", seconds,
+             f.memory_ms.size(), world_path);
+  fmt::print("{:<46} {:>9} {:>9}\n", "per frame (ms)", "p50", "p99");
+  fmt::print("{:<46} {:9.3f} {:9.3f}\n", "ObstacleMemory::update (all of it)", p50, p99);
+  fmt::print("{:<46} {:9.3f} {:9.3f}\n", "peer: cloud + pcl::VoxelGrid + RadiusOutlierRem.",
+             peer_p50, peer_p99);
+  fmt::print("ratio peer / memory (p50): {:.2f}; target <= 2 ms/frame: {}\n",
+             p50 > 0.0 ? peer_p50 / p50 : 0.0, p99 <= 2.0 ? "met (p99)" : "NOT met (p99)");
+  fmt::print("map points: at 10 s {}, max {}, at end {} (capacity {}); pose-jump clears {}\n",
+             f.map_size_at_10s, f.max_map_size, memory.size(), memory_config.capacity, f.clears);
+  fmt::print("memory: buffers {:.2f} MiB (fixed); process RSS {} KiB at start, {} KiB at end\n",
+             static_cast<double>(memory.memory_bytes()) / (1024.0 * 1024.0), rss_start_kib,
+             rss_end_kib);
   return 0;
 }
 

@@ -14,6 +14,7 @@
 // (a sequence folder with its own camera.yaml, as hq-sim records, uses that one).
 // Without sequence arguments it runs the bundled real sequences under ../shared/data/tum.
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/base/tool_main.hpp"
@@ -36,6 +37,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <fmt/format.h>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -424,9 +426,9 @@ void print_ground_truth_floor(const LoadedSequence& sequence,
   const double pair_deg = noise.pair_rot_deg();
   const double rpe_mps = noise.pair_trans_m() / window_s;
   const double rpe_degps = pair_deg / window_s;
-  std::printf(
-      "ground truth noise per pose (third differences of its %zu poses): %.3f mm, %.3f deg; "
-      "floor of a pair's error %.2f mm, %.3f deg; of the RPE over %.2f s %.4f m/s, %.3f "
+  fmt::print(
+      "ground truth noise per pose (third differences of its {} poses): {:.3f} mm, {:.3f} deg; "
+      "floor of a pair's error {:.2f} mm, {:.3f} deg; of the RPE over {:.2f} s {:.4f} m/s, {:.3f} "
       "deg/s\n",
       sequence.ground_truth.size(), noise.trans_m * 1e3, noise.rot_deg, pair_mm, pair_deg, window_s,
       rpe_mps, rpe_degps);
@@ -447,7 +449,7 @@ void print_ground_truth_floor(const LoadedSequence& sequence,
       if (rows[m].*f.value > best + f.floor) continue;
       within += (within.empty() ? "" : ", ") + methods[m]->name();
     }
-    std::printf("  best within the floor, %s: %s\n", f.name, within.c_str());
+    fmt::print("  best within the floor, {}: {}\n", f.name, within);
   }
 }
 
@@ -455,39 +457,41 @@ void print_ground_truth_floor(const LoadedSequence& sequence,
 void print_sequence_table(const LoadedSequence& sequence,
                           const std::vector<std::unique_ptr<Method>>& methods,
                           std::size_t reference_index, int passes, bool with_nees) {
-  std::printf("\nsequence %s: %zu frames %dx%d, %d passes, one thread\n", sequence.name.c_str(),
-              sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
-  std::printf("%-24s %9s %9s %9s %11s %11s %9s %10s %9s %9s %9s %9s\n", "method", "median_ms",
-              "p90_ms", "cpu_ms", "rpe_t_m/s", "rpe_r_deg/s", "ate_m", "speedup", "pairs_mm",
-              "pairs_deg", "steps_mm", "steps_deg");
+  fmt::print("\nsequence {}: {} frames {}x{}, {} passes, one thread\n", sequence.name,
+             sequence.frames.size(), sequence.camera.width, sequence.camera.height, passes);
+  fmt::print("{:<24} {:>9} {:>9} {:>9} {:>11} {:>11} {:>9} {:>10} {:>9} {:>9} {:>9} {:>9}\n",
+             "method", "median_ms", "p90_ms", "cpu_ms", "rpe_t_m/s", "rpe_r_deg/s", "ate_m",
+             "speedup", "pairs_mm", "pairs_deg", "steps_mm", "steps_deg");
   std::vector<Row> rows;
   for (const auto& method : methods) rows.push_back(run(*method, sequence, passes, with_nees));
   const double reference_ms = rows[reference_index].median_ms;
   for (std::size_t m = 0; m < methods.size(); ++m) {
     const Row& r = rows[m];
-    std::printf("%-24s %9.2f %9.2f %9.2f %11.4f %11.3f %9.4f %9.1fx %9.2f %9.3f %9.2f %9.3f\n",
-                methods[m]->name().c_str(), r.median_ms, r.p90_ms, r.median_cpu_ms, r.rpe_trans_mps,
-                r.rpe_rot_degps, r.ate_m, reference_ms / r.median_ms, r.pairs_trans_mm,
-                r.pairs_rot_deg, r.steps_trans_mm, r.steps_rot_deg);
+    fmt::print(
+        "{:<24} {:9.2f} {:9.2f} {:9.2f} {:11.4f} {:11.3f} {:9.4f} {:9.1f}x {:9.2f} {:9.3f} {:9.2f} "
+        "{:9.3f}\n",
+        methods[m]->name(), r.median_ms, r.p90_ms, r.median_cpu_ms, r.rpe_trans_mps,
+        r.rpe_rot_degps, r.ate_m, reference_ms / r.median_ms, r.pairs_trans_mm, r.pairs_rot_deg,
+        r.steps_trans_mm, r.steps_rot_deg);
     if (with_nees && r.nees_count > 0) {
-      std::printf(
-          "  nees over %d frames: rotation mean %.1f median %.2f, translation mean %.1f "
-          "median %.2f\n",
+      fmt::print(
+          "  nees over {} frames: rotation mean {:.1f} median {:.2f}, translation mean {:.1f} "
+          "median {:.2f}\n",
           r.nees_count, r.nees_rot_mean, r.nees_rot_median, r.nees_trans_mean, r.nees_trans_median);
-      std::printf(
-          "  translation sigma, least constrained direction: median %.2f mm, largest %.2f mm\n",
+      fmt::print(
+          "  translation sigma, least constrained direction: median {:.2f} mm, largest {:.2f} mm\n",
           r.translation_sigma_median_mm, r.translation_sigma_max_mm);
-      std::printf(
-          "  after the last frame: vision information scale %.3g, gyro bias %.4f %.4f %.4f "
+      fmt::print(
+          "  after the last frame: vision information scale {:.3g}, gyro bias {:.4f} {:.4f} {:.4f} "
           "rad/s\n",
           r.final_vision_scale, r.final_gyro_bias_radps.x(), r.final_gyro_bias_radps.y(),
           r.final_gyro_bias_radps.z());
     }
   }
   if (!rows.empty()) {
-    std::printf(
-        "pairs: RMSE over all %d frame pairs i < j; steps: over the %d consecutive pairs "
-        "(mm, deg, not per second)\n",
+    fmt::print(
+        "pairs: RMSE over all {} frame pairs i < j; steps: over the {} consecutive pairs (mm, deg, "
+        "not per second)\n",
         rows.front().pairs, rows.front().steps);
     print_ground_truth_floor(sequence, methods, rows);
   }
@@ -555,8 +559,8 @@ static int run_benchmarks(int argc, char** argv) {
   if (sequence_dirs.empty()) {
     const auto data = hq::recording::find_data_dir();
     if (!data) {
-      std::fprintf(stderr, "hq-bench-odometry: no sequences given and no data found (%s)\n",
-                   hq::recording::data_dir_search_description().c_str());
+      hq::log::error("hq-bench-odometry: no sequences given and no data found ({})\n",
+                     hq::recording::data_dir_search_description());
       return 2;
     }
     for (const auto& entry : std::filesystem::directory_iterator(*data + "/tum")) {
@@ -592,7 +596,7 @@ static int run_benchmarks(int argc, char** argv) {
         skip_s);
     print_sequence_table(sequence, methods, opencv_rgbd, passes, with_nees);
   }
-  std::printf(
+  fmt::print(
       "\nspeedup = OpenCV RgbdOdometry (else the first method) median / method median, same "
       "run.\n");
   return 0;
