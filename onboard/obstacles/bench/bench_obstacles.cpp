@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <fmt/format.h>
 #include <optional>
 #include <random>
 #include <string>
@@ -107,9 +108,9 @@ void run(int width, int height, int frame_count) {
   }
   std::sort(wall_ms.begin(), wall_ms.end());
   std::sort(cpu_ms.begin(), cpu_ms.end());
-  std::printf(
-      "%dx%d ObstacleField::compute: median %.3f ms, p90 %.3f ms (wall); median %.3f, p90 %.3f "
-      "ms (thread CPU); %d frames; checksum %.6f\n",
+  fmt::print(
+      "{}x{} ObstacleField::compute: median {:.3f} ms, p90 {:.3f} ms (wall); median {:.3f}, p90 "
+      "{:.3f} ms (thread CPU); {} frames; checksum {:.6f}\n",
       width, height, wall_ms[wall_ms.size() / 2], wall_ms[wall_ms.size() * 9 / 10],
       cpu_ms[cpu_ms.size() / 2], cpu_ms[cpu_ms.size() * 9 / 10], frame_count, checksum);
 }
