@@ -116,8 +116,8 @@ int main(int argc, char** argv) {
   hq::testing::use_loopback_dds(/*keep_existing=*/true);
   const int domain_id = hq::testing::private_domain_id(0);
   std::filesystem::remove_all(out_dir);
-  std::printf("hq-bench-onboard-recorder: %d steps (200 Hz, 5 IMU samples each), domain %d\n",
-              steps, domain_id);
+  fmt::print("hq-bench-onboard-recorder: {} steps (200 Hz, 5 IMU samples each), domain {}\n", steps,
+             domain_id);
 
   NullPort null_port;
   auto without = time_steps(null_port, nullptr, steps);
@@ -135,10 +135,10 @@ int main(int argc, char** argv) {
     hq::onboard_log::RecordingPort port(&null_port, recorder);
     auto with = time_steps(port, &recorder, steps);
     auto state_with = time_state_writes(vehicle, 2000);
-    std::printf("frame path per step:\n");
+    fmt::print("frame path per step:\n");
     print("port.on_output, no recorder", without);
     print("port.on_output + push_step + 5 push_imu, recorder", with);
-    std::printf("VehicleState write (512 points), the vehicle's own writer:\n");
+    fmt::print("VehicleState write (512 points), the vehicle's own writer:\n");
     print("no recorder in the process", state_without);
     print("recorder's reader in the process", state_with);
     const hq::flight_log::RecorderReport& report = recorder.close();
@@ -147,9 +147,9 @@ int main(int argc, char** argv) {
     fmt::print("recorded {} messages, {} dropped, {}\n", report.messages,
                report.local_samples_dropped, report.error.empty() ? "no error" : report.error);
   }
-  std::printf(
-      "vehicle's own channels (every step a frame, 1 kHz IMU): %.1f MB per minute of "
-      "flight (%.1f MB for %d steps; + link samples, mostly camera JPEGs)\n",
+  fmt::print(
+      "vehicle's own channels (every step a frame, 1 kHz IMU): {:.1f} MB per minute of flight "
+      "({:.1f} MB for {} steps; + link samples, mostly camera JPEGs)\n",
       1e-6 * static_cast<double>(size_bytes) * per_minute_steps,
       1e-6 * static_cast<double>(size_bytes), steps);
   std::filesystem::remove_all(out_dir);
