@@ -4,6 +4,7 @@
 // time and in this thread's CPU time: on a shared, loaded machine the wall clock also counts
 // the time other processes hold the core. Not run by ctest.
 //   hq-bench-sim [world.yaml]   (default onboard/sim/worlds/room.yaml, run from the repo root)
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/sim/simulator.hpp"
 
@@ -13,6 +14,7 @@
 #include <cstdio>
 #include <ctime>
 #include <exception>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <vector>
@@ -77,9 +79,9 @@ void run(const hq::sim::World& world, int width, int height) {
     const auto print = [&](const char* name, std::vector<double>& wall, std::vector<double>& cpu) {
       std::sort(wall.begin(), wall.end());
       std::sort(cpu.begin(), cpu.end());
-      std::printf(
-          "%dx%d render %-9s: median %6.2f ms/frame, p90 %6.2f ms (wall); median %6.2f, p90 "
-          "%6.2f ms (thread CPU); %zu frames\n",
+      fmt::print(
+          "{}x{} render {:<9}: median {:6.2f} ms/frame, p90 {:6.2f} ms (wall); median {:6.2f}, p90 "
+          "{:6.2f} ms (thread CPU); {} frames\n",
           width, height, name, wall[wall.size() / 2], wall[wall.size() * 9 / 10],
           cpu[cpu.size() / 2], cpu[cpu.size() * 9 / 10], wall.size());
     };
@@ -102,9 +104,9 @@ void run(const hq::sim::World& world, int width, int height) {
     }
     const double wall_s = ms_since(start) * 1e-3;
     const double cpu_s = (thread_cpu_ms() - cpu_start) * 1e-3;
-    std::printf(
-        "%dx%d full sim (1 kHz dynamics + %g Hz IMU + %g Hz RGB-D): %.2f s simulated in "
-        "%.2f s wall, real-time factor %.1fx; %.2f s thread CPU, %.1fx\n",
+    fmt::print(
+        "{}x{} full sim (1 kHz dynamics + {:g} Hz IMU + {:g} Hz RGB-D): {:.2f} s simulated in "
+        "{:.2f} s wall, real-time factor {:.1f}x; {:.2f} s thread CPU, {:.1f}x\n",
         width, height, config.imu.rate_hz, config.camera.rate_hz, sim_s, wall_s, sim_s / wall_s,
         cpu_s, sim_s / cpu_s);
   }
@@ -119,13 +121,12 @@ int main(int argc, char** argv) {
   if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   try {
     const hq::sim::World world = hq::sim::load_world(path);
-    std::printf("world %s: %zu walls, %zu boxes, %zu cylinders, %zu markers\n", path.c_str(),
-                world.walls.size(), world.boxes.size(), world.cylinders.size(),
-                world.markers.size());
+    fmt::print("world {}: {} walls, {} boxes, {} cylinders, {} markers\n", path, world.walls.size(),
+               world.boxes.size(), world.cylinders.size(), world.markers.size());
     run(world, 320, 240);
     run(world, 640, 480);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "hq-bench-sim: %s\n", e.what());
+    hq::log::error("hq-bench-sim: {}\n", e.what());
     return 2;
   }
   return 0;
