@@ -287,11 +287,11 @@ int run(int argc, char** argv) {
     }
   }
 
-  std::printf("hq-bench-fc-latency: %d frames of 320x240 per path, frame arrival to setpoint\n",
-              frames);
-  std::printf("%-34s %8s %8s %8s %6s\n", "path", "p50_us", "p90_us", "p99_us", "n");
+  fmt::print("hq-bench-fc-latency: {} frames of 320x240 per path, frame arrival to setpoint\n",
+             frames);
+  fmt::print("{:<34} {:>8} {:>8} {:>8} {:>6}\n", "path", "p50_us", "p90_us", "p99_us", "n");
   const auto row = [](const char* name, const Figures& f) {
-    std::printf("%-34s %8.1f %8.1f %8.1f %6zu\n", name, f.p50_us, f.p90_us, f.p99_us, f.n);
+    fmt::print("{:<34} {:8.1f} {:8.1f} {:8.1f} {:6}\n", name, f.p50_us, f.p90_us, f.p99_us, f.n);
   };
   row("in-process (function call)", figures(in_process_us));
   row("mavlink:udp (received by the FC)", figures(wire_us));
