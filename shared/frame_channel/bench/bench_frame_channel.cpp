@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <unistd.h>
@@ -53,9 +54,9 @@ void bench(int width, int height, int channels) {
     floor_us.push_back(static_cast<double>(t3 - t2) * 1e-3);
   }
   const Figures p = summarise(publish_us), t = summarise(take_us), f = summarise(floor_us);
-  std::printf(
-      "%4dx%-4d %s-D %7.2f MB: publish %6.0f / %6.0f us, take_latest %6.0f / %6.0f us, "
-      "memcpy floor %6.0f / %6.0f us (median / p90)\n",
+  fmt::print(
+      "{:4}x{:<4} {}-D {:7.2f} MB: publish {:6.0f} / {:6.0f} us, take_latest {:6.0f} / {:6.0f} us, "
+      "memcpy floor {:6.0f} / {:6.0f} us (median / p90)\n",
       width, height, channels == 3 ? "BGR " : "gray", static_cast<double>(bytes) / 1e6, p.median_us,
       p.p90_us, t.median_us, t.p90_us, f.median_us, f.p90_us);
 }
