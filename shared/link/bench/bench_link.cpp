@@ -3,6 +3,7 @@
 // and drop rate at 30 Hz, and the cost of DDS Security on the command path (plain beside
 // secured in the same run). Prints figures; asserts nothing.
 
+#include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/quantile.hpp"
@@ -20,6 +21,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <sys/mman.h>
@@ -402,8 +404,8 @@ DdsperfResult run_ddsperf(int domain_id, int duration_s) {
 }
 
 void print(const char* label, const Stats& s) {
-  std::printf("  %-34s p50 %8.1f us  p99 %8.1f us  max %9.1f us  (n=%zu)\n", label, s.p50_us,
-              s.p99_us, s.max_us, s.count);
+  fmt::print("  {:<34} p50 {:8.1f} us  p99 {:8.1f} us  max {:9.1f} us  (n={})\n", label, s.p50_us,
+             s.p99_us, s.max_us, s.count);
 }
 
 struct BenchOptions {
@@ -510,7 +512,7 @@ std::array<pid_t, 2> fork_security_vehicles(const BenchOptions& o, const Securit
         security_vehicle(k == 0 ? pair.plain : pair.secured, o.security_samples,
                          security_ns.data() + k * static_cast<std::size_t>(o.security_samples));
       } catch (const std::exception& e) {
-        std::fprintf(stderr, "hq-bench-link: vehicle: %s\n", e.what());
+        hq::log::error("hq-bench-link: vehicle: {}\n", e.what());
         code = 2;
       }
       std::_Exit(code);
@@ -521,16 +523,16 @@ std::array<pid_t, 2> fork_security_vehicles(const BenchOptions& o, const Securit
 
 void print_commands(const BenchOptions& o, const std::vector<VariantResult>& results,
                     const SharedStamps& one_way_ns, const DdsperfResult& ddsperf) {
-  std::printf("hq-bench-link: loopback, two processes, domain %d, %d samples per variant\n",
-              o.config.domain_id, o.samples);
+  fmt::print("hq-bench-link: loopback, two processes, domain {}, {} samples per variant\n",
+             o.config.domain_id, o.samples);
   if (ddsperf.ran) {
-    std::printf(
-        "Cyclone ddsperf ping/pong floor (reliable, 12 B, listener; %zu one-second "
-        "lines, median of per-second percentiles):\n",
+    fmt::print(
+        "Cyclone ddsperf ping/pong floor (reliable, 12 B, listener; {} one-second lines, median of "
+        "per-second percentiles):\n",
         ddsperf.lines);
     print("ddsperf half round trip", ddsperf.half_round_trip);
   } else if (o.ddsperf_s > 0) {
-    std::printf("ddsperf: not run or printed no latency (is cyclonedds-tools installed?)\n");
+    fmt::print("ddsperf: not run or printed no latency (is cyclonedds-tools installed?)\n");
   }
   const auto samples = static_cast<std::size_t>(o.samples);
   for (std::size_t v = 0; v < kVariants.size(); ++v) {
@@ -539,32 +541,32 @@ void print_commands(const BenchOptions& o, const std::vector<VariantResult>& res
     const Stats one = stats_of(one_way_ns.written(v * samples, samples));
     const Stats round = stats_of(results[v].round_trip_ns);
     const Stats halved = stats_of(half);
-    std::printf("%s  (lost %d)\n", describe(kVariants[v]), results[v].lost);
+    fmt::print("{}  (lost {})\n", describe(kVariants[v]), results[v].lost);
     print("one way ground -> onboard", one);
     print("round trip", round);
     print("half round trip", halved);
     if (ddsperf.ran && ddsperf.half_round_trip.p50_us > 0) {
-      std::printf("  half round trip / ddsperf: p50 x%.2f  p99 x%.2f\n",
-                  halved.p50_us / ddsperf.half_round_trip.p50_us,
-                  halved.p99_us / ddsperf.half_round_trip.p99_us);
+      fmt::print("  half round trip / ddsperf: p50 x{:.2f}  p99 x{:.2f}\n",
+                 halved.p50_us / ddsperf.half_round_trip.p50_us,
+                 halved.p99_us / ddsperf.half_round_trip.p99_us);
     }
   }
 }
 
 void print_camera(const BenchOptions& o, const CameraResult& camera) {
-  std::printf("camera 30 Hz, 40 KB frames, best-effort keep-last-1, %.1f s:\n", o.camera_s);
-  std::printf("  received %d of %d (drop rate %.2f %%), %.2f Mbit/s\n", camera.received,
-              camera.sent, 100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
-              camera.mbit_per_s);
+  fmt::print("camera 30 Hz, 40 KB frames, best-effort keep-last-1, {:.1f} s:\n", o.camera_s);
+  fmt::print("  received {} of {} (drop rate {:.2f} %), {:.2f} Mbit/s\n", camera.received,
+             camera.sent, 100.0 * (camera.sent - camera.received) / std::max(1, camera.sent),
+             camera.mbit_per_s);
   print("frame latency publish -> receipt", camera.latency);
 }
 
 void print_security(const BenchOptions& o, const SecurityPair& pair,
                     const SharedStamps& security_ns) {
-  std::printf(
-      "DDS Security's cost, hq_velocity_command with the command QoS, one way write -> "
-      "take, %d commands 1 ms apart after %d warm-up, plain (domain %d) then secured "
-      "(domain %d: authenticated, access-controlled, payload and metadata AES-GCM):\n",
+  fmt::print(
+      "DDS Security's cost, hq_velocity_command with the command QoS, one way write -> take, {} "
+      "commands 1 ms apart after {} warm-up, plain (domain {}) then secured (domain {}: "
+      "authenticated, access-controlled, payload and metadata AES-GCM):\n",
       o.security_samples, kSecurityWarmup, pair.plain.domain_id, pair.secured.domain_id);
   const auto samples = static_cast<std::size_t>(o.security_samples);
   std::array<Stats, 2> s;
@@ -573,8 +575,8 @@ void print_security(const BenchOptions& o, const SecurityPair& pair,
     print(k == 0 ? "plain DDS" : "DDS Security", s[k]);
   }
   if (s[0].p50_us > 0) {
-    std::printf("  secured - plain: p50 %+.1f us  p99 %+.1f us\n", s[1].p50_us - s[0].p50_us,
-                s[1].p99_us - s[0].p99_us);
+    fmt::print("  secured - plain: p50 {:+.1f} us  p99 {:+.1f} us\n", s[1].p50_us - s[0].p50_us,
+               s[1].p99_us - s[0].p99_us);
   }
 }
 
