@@ -5,6 +5,7 @@
 //   hq-bench-mcap [--messages N] [--passes P] [--dir DIR]
 
 #include "hq/base/error.hpp"
+#include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/mcap/mcap.hpp"
 
@@ -17,6 +18,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fmt/format.h>
 #include <optional>
 #include <random>
 #include <string>
@@ -119,7 +121,7 @@ int main(int argc, char** argv) {
   app.add_option("--dir", dir, "folder of the scratch files");
   if (const std::optional<int> exit = hq::parse_or_exit(app, argc, argv)) return *exit;
   if (count <= 0 || passes <= 0) {
-    std::fprintf(stderr, "hq-bench-mcap: --messages and --passes must be > 0\n");
+    hq::log::error("hq-bench-mcap: --messages and --passes must be > 0\n");
     return 2;
   }
   try {
@@ -130,9 +132,10 @@ int main(int argc, char** argv) {
     const double payload_mb = count * 1000.0 / 1e6;
     const std::string path = dir + "/hq-bench-mcap.bin";
 
-    std::printf("%d messages of 1000 B (%.0f MB) to %s, median of %d passes, 1 MiB chunks\n", count,
-                payload_mb, dir.c_str(), passes);
-    std::printf("%-22s %10s %10s %12s %14s\n", "writer", "MB/s", "ns/msg", "file MB", "ratio");
+    fmt::print("{} messages of 1000 B ({:.0f} MB) to {}, median of {} passes, 1 MiB chunks\n",
+               count, payload_mb, dir, passes);
+    fmt::print("{:<22} {:>10} {:>10} {:>12} {:>14}\n", "writer", "MB/s", "ns/msg", "file MB",
+               "ratio");
     struct Case {
       const char* name;
       int kind;  // 0 fwrite, 1 mcap none, 2 mcap zstd
@@ -151,9 +154,9 @@ int main(int argc, char** argv) {
         bytes = r.file_bytes;
       }
       const double s = median(seconds);
-      std::printf("%-22s %10.0f %10.0f %12.1f %14.3f\n", c.name, payload_mb / s, s * 1e9 / count,
-                  static_cast<double>(bytes) / 1e6,
-                  static_cast<double>(bytes) / (payload_mb * 1e6));
+      fmt::print("{:<22} {:10.0f} {:10.0f} {:12.1f} {:14.3f}\n", c.name, payload_mb / s,
+                 s * 1e9 / count, static_cast<double>(bytes) / 1e6,
+                 static_cast<double>(bytes) / (payload_mb * 1e6));
     }
     std::filesystem::remove(path);
 
@@ -161,12 +164,12 @@ int main(int argc, char** argv) {
     const double zstd_mb = static_cast<double>(flight_minute(flight, Compression::kZstd)) / 1e6;
     const double none_mb = static_cast<double>(flight_minute(flight, Compression::kNone)) / 1e6;
     std::filesystem::remove(flight);
-    std::printf(
-        "typical flight (200 Hz state 296 B + 10 Hz JPEG 20 kB): %.1f MB/min with zstd, "
-        "%.1f MB/min uncompressed (%.2f GB/h with zstd)\n",
+    fmt::print(
+        "typical flight (200 Hz state 296 B + 10 Hz JPEG 20 kB): {:.1f} MB/min with zstd, {:.1f} "
+        "MB/min uncompressed ({:.2f} GB/h with zstd)\n",
         zstd_mb, none_mb, zstd_mb * 60 / 1e3);
   } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-bench-mcap: %s\n", e.what());
+    hq::log::error("hq-bench-mcap: {}\n", e.what());
     return 2;
   }
   return 0;
