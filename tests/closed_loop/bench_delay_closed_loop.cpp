@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <fmt/format.h>
 #include <optional>
 #include <vector>
 
@@ -40,16 +41,17 @@ int run(int argc, char** argv) {
   stiff.feedback.velocity_stiffness_n_per_m = stiff_k;
   stiff.feedback.damping_ns_per_m = 2.0;
   stiff.feedback.stale_after_s = 5.0;
-  std::printf(
-      "# room world, 320x240, %.0f s: climb, push towards the wall along the camera "
-      "heading, pull back; jitter +-%.0f ms and loss %.2f when the round trip is > 0\n",
+  fmt::print(
+      "# room world, 320x240, {:.0f} s: climb, push towards the wall along the camera heading, "
+      "pull back; jitter +-{:.0f} ms and loss {:.2f} when the round trip is > 0\n",
       end_s, jitter_ms, loss);
   const auto campaign = [&](const char* title, const hq::haptics::HapticsConfig& config) {
-    std::printf("## %s: K %.0f N/m, B %.1f N s/m, fade after %.2f s\n", title,
-                config.feedback.velocity_stiffness_n_per_m, config.feedback.damping_ns_per_m,
-                config.feedback.stale_after_s);
-    std::printf("%7s %3s | %9s %9s | %7s %8s | %9s %9s %6s %6s\n", "rtt_ms", "pc", "minE_J",
-                "dissip_J", "F_rms_N", "track", "clear_m", "coll_tick", "alt_m", "lossS");
+    fmt::print("## {}: K {:.0f} N/m, B {:.1f} N s/m, fade after {:.2f} s\n", title,
+               config.feedback.velocity_stiffness_n_per_m, config.feedback.damping_ns_per_m,
+               config.feedback.stale_after_s);
+    fmt::print("{:>7} {:>3} | {:>9} {:>9} | {:>7} {:>8} | {:>9} {:>9} {:>6} {:>6}\n", "rtt_ms",
+               "pc", "minE_J", "dissip_J", "F_rms_N", "track", "clear_m", "coll_tick", "alt_m",
+               "lossS");
     for (const double rtt_ms : round_trips_ms) {
       for (const bool pc : {false, true}) {
         hq::haptics::HapticsConfig run_config = config;
@@ -61,20 +63,20 @@ int run(int argc, char** argv) {
         link.seed = seed;
         const hq::closed_loop::delay::FlightResult r =
             hq::closed_loop::delay::fly(run_config, link, end_s);
-        std::printf("%7.0f %3s | %9.4f %9.4f | %7.3f %8.3f | %9.3f %9d %6.2f %6.3f\n", rtt_ms,
-                    pc ? "on" : "off", r.min_energy_j, r.dissipated_j, r.force_rms_n,
-                    r.tracking_rms_mps, r.min_clearance_m, r.collision_ticks, r.max_altitude_m,
-                    r.state_loss);
+        fmt::print(
+            "{:7.0f} {:>3} | {:9.4f} {:9.4f} | {:7.3f} {:8.3f} | {:9.3f} {:9} {:6.2f} {:6.3f}\n",
+            rtt_ms, pc ? "on" : "off", r.min_energy_j, r.dissipated_j, r.force_rms_n,
+            r.tracking_rms_mps, r.min_clearance_m, r.collision_ticks, r.max_altitude_m,
+            r.state_loss);
         std::fflush(stdout);
       }
     }
   };
   campaign("shipped force law", shipped);
   if (stiff_k > 0.0) campaign("stiff force law", stiff);
-  std::printf(
-      "# minE: least device-port energy (J, >= 0 passive); track: rms |v_est - v_cmd| "
-      "(m/s); clear_m: least clearance; coll_tick: control ticks in collision; lossS: "
-      "states lost\n");
+  fmt::print(
+      "# minE: least device-port energy (J, >= 0 passive); track: rms |v_est - v_cmd| (m/s); "
+      "clear_m: least clearance; coll_tick: control ticks in collision; lossS: states lost\n");
   return 0;
 }
 
