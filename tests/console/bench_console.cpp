@@ -3,6 +3,7 @@
 // --bare-window) measured in the same run on the same display: the floor the renderer (here
 // usually Mesa's llvmpipe) sets. Built, not run by ctest (timings depend on the machine).
 //   hq-bench-console [--seconds 12] [--max-fps 60] [--sizes 1280x800,1920x1080]
+#include "hq/base/log.hpp"
 #include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
 
@@ -12,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -90,19 +92,19 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_dir, "logs, states and screenshots");
   CLI11_PARSE(app, argc, argv);
   if (!fs::exists("/usr/bin/Xvfb")) {
-    std::fprintf(stderr, "hq-bench-console: /usr/bin/Xvfb not installed\n");
+    hq::log::error("hq-bench-console: /usr/bin/Xvfb not installed\n");
     return 2;
   }
   hq::testing::use_loopback_dds();
   char fps_cap_text[32];
   std::snprintf(fps_cap_text, sizeof fps_cap_text, "%g", max_fps);
   const std::string fps_cap = fps_cap_text;
-  std::printf(
-      "hq-bench-console: %.0f s per run, --max-fps %s, simulated flight "
+  fmt::print(
+      "hq-bench-console: {:.0f} s per run, --max-fps {}, simulated flight "
       "(ground/config/demo_hand.yaml)\n",
-      seconds, fps_cap.c_str());
-  std::printf("%-10s %-22s %8s %16s %14s  %s\n", "size", "window", "fps", "render p50 ms",
-              "render max ms", "renderer");
+      seconds, fps_cap);
+  fmt::print("{:<10} {:<22} {:>8} {:>16} {:>14}  {}\n", "size", "window", "fps", "render p50 ms",
+             "render max ms", "renderer");
   int failures = 0;
   for (const std::string& size : split(sizes)) {
     const fs::path dir = fs::path(out_dir) / size;
@@ -151,11 +153,11 @@ int main(int argc, char** argv) {
     onboard.wait_exit(15);
     for (const char* which : {"bare", "console"}) {
       const Figures f = read_figures(dir / (std::string(which) + ".json"));
-      std::printf("%-10s %-22s %8.1f %16.1f %14.1f  %s\n", size.c_str(),
-                  std::string(which) == "bare" ? "empty ImGui window" : "console, flying", f.fps,
-                  f.render_p50_ms, f.render_max_ms, f.renderer.c_str());
+      fmt::print("{:<10} {:<22} {:8.1f} {:16.1f} {:14.1f}  {}\n", size,
+                 std::string(which) == "bare" ? "empty ImGui window" : "console, flying", f.fps,
+                 f.render_p50_ms, f.render_max_ms, f.renderer);
     }
   }
-  std::printf("logs, states and screenshots in %s/\n", out_dir.c_str());
+  fmt::print("logs, states and screenshots in {}/\n", out_dir);
   return failures == 0 ? 0 : 1;
 }
