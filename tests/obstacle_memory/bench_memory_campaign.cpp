@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <vector>
@@ -42,10 +43,10 @@ void print_stage(const char* setting, const hq::pipeline::StageTimingLog& log) {
   const auto memory = log.statistics(2);
   const auto odometry = log.statistics(0);
   const auto total = log.statistics(5);
-  std::printf(
-      "  memory %-3s  %7zu frames  memory stage median %.3f p99 %.3f max %.3f ms;"
-      "  odometry median %.3f ms (memory/odometry %.2f);  total median %.3f p99 %.3f ms"
-      " (memory/total %.2f)\n",
+  fmt::print(
+      "  memory {:<3}  {:7} frames  memory stage median {:.3f} p99 {:.3f} max {:.3f} ms;  odometry "
+      "median {:.3f} ms (memory/odometry {:.2f});  total median {:.3f} p99 {:.3f} ms (memory/total "
+      "{:.2f})\n",
       setting, log.size(), memory.median_ms, memory.p99_ms, memory.max_ms, odometry.median_ms,
       memory.median_ms / std::max(odometry.median_ms, 1e-9), total.median_ms, total.p99_ms,
       memory.median_ms / std::max(total.median_ms, 1e-9));
@@ -62,7 +63,7 @@ int trace_one(const std::string& trace, unsigned seed, const hq::sim::World& roo
     const auto r =
         hq::closed_loop::testing::draw_memory_run(kind, std::stoi(trace.substr(colon + 1)), seed);
     for (int on = 0; on < 2; ++on) {
-      std::printf("--- %s memory %s\n", trace.c_str(), on ? "on" : "off");
+      fmt::print("--- {} memory {}\n", trace, on ? "on" : "off");
       hq::closed_loop::testing::fly_memory_run(r, on == 1, room, nullptr, nullptr, stdout);
     }
     return 0;
@@ -88,9 +89,9 @@ void fly_campaign(int runs, unsigned seed, const hq::sim::World& room, const Ste
         col.clearance_m.push_back(outcome[on].min_clearance_m);
         col.max_map_size = std::max(col.max_map_size, outcome[on].max_map_size);
       }
-      std::printf(
-          "%-9s run %2d: %.2f m/s, box %.2f x %.2f at %.2f m, turn %3.0f deg: "
-          "closest off %+.3f%s  on %+.3f%s\n",
+      fmt::print(
+          "{:<9} run {:2}: {:.2f} m/s, box {:.2f} x {:.2f} at {:.2f} m, turn {:3.0f} deg: closest "
+          "off {:+.3f}{}  on {:+.3f}{}\n",
           hq::closed_loop::testing::to_string(kind), i, r.speed_mps, r.box_size_m.x(),
           r.box_size_m.y(), r.distance_m, r.turn_rad * 180.0 / M_PI, outcome[0].min_clearance_m,
           outcome[0].collided ? " COLLIDED" : "", outcome[1].min_clearance_m,
@@ -102,24 +103,24 @@ void fly_campaign(int runs, unsigned seed, const hq::sim::World& room, const Ste
 
 /// Collisions and closest distances per case, memory off beside on.
 void print_columns(int runs, const Column (&columns)[3][2]) {
-  std::printf("closest distance = box surface to the %.2f m vehicle sphere (m)\n",
-              hq::closed_loop::testing::kVehicleRadiusM);
-  std::printf("%-10s | %-36s | %-36s\n", "case", "memory off", "memory on");
-  std::printf("%-10s | %10s %7s %7s %8s | %10s %7s %7s %8s\n", "", "collisions", "min", "p10",
-              "median", "collisions", "min", "p10", "median");
+  fmt::print("closest distance = box surface to the {:.2f} m vehicle sphere (m)\n",
+             hq::closed_loop::testing::kVehicleRadiusM);
+  fmt::print("{:<10} | {:<36} | {:<36}\n", "case", "memory off", "memory on");
+  fmt::print("{:<10} | {:>10} {:>7} {:>7} {:>8} | {:>10} {:>7} {:>7} {:>8}\n", "", "collisions",
+             "min", "p10", "median", "collisions", "min", "p10", "median");
   for (int c = 0; c < 3; ++c) {
-    std::printf("%-10s |",
-                hq::closed_loop::testing::to_string(hq::closed_loop::testing::kMemoryCases[c]));
+    fmt::print("{:<10} |",
+               hq::closed_loop::testing::to_string(hq::closed_loop::testing::kMemoryCases[c]));
     for (int on = 0; on < 2; ++on) {
       const Column& col = columns[c][on];
-      std::printf(" %4d/%-5d %+7.3f %+7.3f %+8.3f %s", col.collisions, runs,
-                  quantile(col.clearance_m, 0.0), quantile(col.clearance_m, 0.1),
-                  quantile(col.clearance_m, 0.5), on == 0 ? "|" : "\n");
+      fmt::print(" {:4}/{:<5} {:+7.3f} {:+7.3f} {:+8.3f} {}", col.collisions, runs,
+                 quantile(col.clearance_m, 0.0), quantile(col.clearance_m, 0.1),
+                 quantile(col.clearance_m, 0.5), on == 0 ? "|" : "\n");
     }
   }
   int largest_map = 0;
   for (const auto& row : columns) largest_map = std::max(largest_map, row[1].max_map_size);
-  std::printf("largest memory map in any run: %d points\n", largest_map);
+  fmt::print("largest memory map in any run: {} points\n", largest_map);
 }
 
 int run(int argc, char** argv) {
@@ -144,14 +145,13 @@ int run(int argc, char** argv) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
-  std::printf("\nobstacle memory campaign, %d runs per case, seed %u, 320x240 (%.0f s wall)\n",
-              runs, seed, wall_s);
+  fmt::print("\nobstacle memory campaign, {} runs per case, seed {}, 320x240 ({:.0f} s wall)\n",
+             runs, seed, wall_s);
   print_columns(runs, columns);
-  std::printf(
-      "\nper-frame stage time over every frame of the campaign (wall clock, one thread):\n");
+  fmt::print("\nper-frame stage time over every frame of the campaign (wall clock, one thread):\n");
   print_stage("off", timing[0]);
   print_stage("on", timing[1]);
-  std::printf("memory on: chain stages\n");
+  fmt::print("memory on: chain stages\n");
   timing[1].print(stdout);
   return 0;
 }
