@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fmt/format.h>
 #include <limits>
 #include <string>
 #include <thread>
@@ -227,8 +228,8 @@ TEST(GroundChecks, RealStatesBehindAForgedSequenceAreFollowedAgainWithinAFewSamp
       break;
     }
   }
-  std::printf("real states followed again after %d samples (-1: not within %d)\n",
-              samples_until_followed, kBoundSamples);
+  fmt::print("real states followed again after {} samples (-1: not within {})\n",
+             samples_until_followed, kBoundSamples);
   ASSERT_GT(samples_until_followed, 0);
   EXPECT_LE(samples_until_followed, 3);
   const LinkStatus& s = station.status();

@@ -23,6 +23,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <fmt/format.h>
 #include <string>
 #include <vector>
 
@@ -457,7 +458,7 @@ TEST(ReplayParity, AnObstacleRowWithoutItsStateIsNamed) {
   {
     std::FILE* f = std::fopen((dir / "obstacles.csv").c_str(), "a");
     ASSERT_NE(f, nullptr);
-    std::fprintf(f, "%lld,999,1.0,2.0,3.0\n", static_cast<long long>(receipt_ns(3)));
+    fmt::print(f, "{},999,1.0,2.0,3.0\n", static_cast<long long>(receipt_ns(3)));
     std::fclose(f);
   }
   const Recording r = load_recording(dir.string());
