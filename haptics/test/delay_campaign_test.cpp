@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <fmt/format.h>
 
 namespace hq::haptics {
 namespace {
@@ -18,8 +19,9 @@ campaign::RunResult fly(HapticsConfig config, double rtt_s, bool pc,
   link.loss = rtt_s > 0.0 ? 0.05 : 0.0;
   const campaign::RunResult r =
       campaign::run(config, test::core_paper_R_B_C(), link, {}, vehicle, 10.0);
-  std::printf("rtt %.0f ms pc %d: min E %.4f J, transparency %.2f, clearance %.3f m, coll %d\n",
-              1e3 * rtt_s, pc, r.min_energy_j, r.transparency, r.min_clearance_m, r.collisions);
+  fmt::print(
+      "rtt {:.0f} ms pc {:d}: min E {:.4f} J, transparency {:.2f}, clearance {:.3f} m, coll {}\n",
+      1e3 * rtt_s, pc, r.min_energy_j, r.transparency, r.min_clearance_m, r.collisions);
   return r;
 }
 

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <limits>
 #include <numbers>
 #include <thread>
@@ -161,8 +162,8 @@ TEST(HapticLoop, ForceOnTheHandNeverExceedsTheCapWhateverIsAddedBeforeIt) {
     peak_damping_ns_per_m =
         std::max(peak_damping_ns_per_m, loop.latest().passivity_damping_ns_per_m);
   }
-  std::printf("force peak %.3f N (cap %.1f N), damper peak %.1f N s/m\n", device.peak_force_n,
-              config.feedback.max_force_n, peak_damping_ns_per_m);
+  fmt::print("force peak {:.3f} N (cap {:.1f} N), damper peak {:.1f} N s/m\n", device.peak_force_n,
+             config.feedback.max_force_n, peak_damping_ns_per_m);
   EXPECT_GT(peak_damping_ns_per_m, 0.0);  // the damper did act: the case is the issue's
   EXPECT_LE(device.peak_force_n, config.feedback.max_force_n + 1e-9);
   EXPECT_GT(device.peak_force_n, 0.99 * config.feedback.max_force_n);  // the cap was reached

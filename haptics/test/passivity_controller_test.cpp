@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <fmt/format.h>
 
 namespace hq::haptics {
 namespace {
@@ -63,8 +64,8 @@ DelayedCouplingRun run_delayed_coupling(double delay_s, bool control) {
 TEST(PassivityController, DelayedStiffCouplingGainsEnergyWithoutController) {
   // GIVEN a stiff coupling closed over 100 ms, WHEN nothing controls the port
   const DelayedCouplingRun run = run_delayed_coupling(0.1, false);
-  std::printf("no PC, 100 ms: min E %.3g J, exact %.3g J, late amplitude %.3g m\n",
-              run.min_energy_j, run.min_exact_j, run.late_amplitude_m);
+  fmt::print("no PC, 100 ms: min E {:.3g} J, exact {:.3g} J, late amplitude {:.3g} m\n",
+             run.min_energy_j, run.min_exact_j, run.late_amplitude_m);
   // THEN the port gives the hand energy and the oscillation grows past its 2 cm start
   EXPECT_LT(run.min_exact_j, -0.05);
   EXPECT_GT(run.late_amplitude_m, 0.02);
@@ -74,8 +75,9 @@ TEST(PassivityController, ControllerKeepsThePortPassiveAndStopsTheOscillation) {
   for (const double delay_s : {0.05, 0.1, 0.3, 0.6}) {
     // GIVEN the same coupling, WHEN the controller damps the port
     const DelayedCouplingRun run = run_delayed_coupling(delay_s, true);
-    std::printf(
-        "PC, %.0f ms: min E %.5f J, exact %.5f J, late amplitude %.5f m, dissipated %.4f J\n",
+    fmt::print(
+        "PC, {:.0f} ms: min E {:.5f} J, exact {:.5f} J, late amplitude {:.5f} m, dissipated {:.4f} "
+        "J\n",
         1e3 * delay_s, run.min_energy_j, run.min_exact_j, run.late_amplitude_m, run.dissipated_j);
     // THEN E stays above -10 mJ, 2 % of what the damper dissipates (measured at worst -5 mJ
     // at 300 ms: the velocity held over a tick is not the one the damper was sized with) ...

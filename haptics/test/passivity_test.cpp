@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <random>
 #include <vector>
 
@@ -125,9 +126,9 @@ TEST(HapticLoopPassivity, ShippedConfigIsPassiveAgainstALaggingVehicle) {
   // GIVEN the shipped gains and damping, a vehicle 20 ms away that lags 0.3 s with noise
   const HapticsConfig config = load_haptics_config("config/haptics.yaml");
   const ClosedLoopRun run = run_closed_loop(config, VehicleModel{}, 7.0);
-  std::printf(
-      "passive run: min E %.6f J, final E %.4f J, injected %.4f J, max |v| %.2f m/s, "
-      "max |F| %.2f N\n",
+  fmt::print(
+      "passive run: min E {:.6f} J, final E {:.4f} J, injected {:.4f} J, max |v| {:.2f} m/s, max "
+      "|F| {:.2f} N\n",
       run.min_energy_j, run.final_energy_j, run.injected_j, run.max_speed_mps, run.max_force_n);
   // THEN the operator drove the vehicle and felt a cue (the run is not vacuous) ...
   EXPECT_GT(run.max_speed_mps, 0.2);
@@ -148,8 +149,8 @@ TEST(HapticLoopPassivity, ObserverDetectsActivityWithoutDampingUnderDelay) {
   vehicle.delay_s = 0.15;
   vehicle.lag_s = 0.05;
   const ClosedLoopRun run = run_closed_loop(config, vehicle, 7.0);
-  std::printf("active run: min E %.4f J, final E %.4f J, injected %.4f J, max |F| %.2f N\n",
-              run.min_energy_j, run.final_energy_j, run.injected_j, run.max_force_n);
+  fmt::print("active run: min E {:.4f} J, final E {:.4f} J, injected {:.4f} J, max |F| {:.2f} N\n",
+             run.min_energy_j, run.final_energy_j, run.injected_j, run.max_force_n);
   // THEN the observer sees the loop push energy into the hand
   EXPECT_LT(run.min_energy_j, -10.0 * kActivityThresholdJ);
 }
@@ -164,9 +165,9 @@ TEST(HapticLoopPassivity, ControllerKeepsTheSameDelayedLoopPassive) {
   vehicle.delay_s = 0.15;
   vehicle.lag_s = 0.05;
   const ClosedLoopRun run = run_closed_loop(config, vehicle, 7.0);
-  std::printf(
-      "controlled run: min E %.4f J, final E %.4f J, injected %.4f J, max |F| %.2f N, channel "
-      "min E %.4f J, dissipated %.4f J\n",
+  fmt::print(
+      "controlled run: min E {:.4f} J, final E {:.4f} J, injected {:.4f} J, max |F| {:.2f} N, "
+      "channel min E {:.4f} J, dissipated {:.4f} J\n",
       run.min_energy_j, run.final_energy_j, run.injected_j, run.max_force_n,
       run.channel_min_energy_j, run.channel_dissipated_j);
   // THEN the energy given to the hand drops from 0.17 J to what the capped damper (60 N s/m)
