@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -74,9 +75,9 @@ TEST(HoverThrustEstimator, LearnsAMaximumThrustSetThirtyPercentTooHighWithinSeco
   VerticalFlight flight;
   flight.true_gain = 1.0 / 1.3;
   const double settled_s = flight.fly(estimator, 20.0, 0.10);
-  std::printf(
-      "[ figures ] 30 %% too high a maximum thrust: gain %.3f (true %.3f, sigma %.3f), "
-      "within 10 %% after %.2f s, %llu fused, %llu gated\n",
+  fmt::print(
+      "[ figures ] 30 % too high a maximum thrust: gain {:.3f} (true {:.3f}, sigma {:.3f}), within "
+      "10 % after {:.2f} s, {} fused, {} gated\n",
       estimator.estimate().gain, flight.true_gain, estimator.estimate().sigma, settled_s,
       static_cast<unsigned long long>(estimator.estimate().updates),
       static_cast<unsigned long long>(estimator.estimate().rejected));
@@ -92,9 +93,9 @@ TEST(HoverThrustEstimator, LearnsAMaximumThrustSetThirtyPercentTooLowWithinSecon
   VerticalFlight flight;
   flight.true_gain = 1.0 / 0.7;
   const double settled_s = flight.fly(estimator, 20.0, 0.10);
-  std::printf(
-      "[ figures ] 30 %% too low a maximum thrust: gain %.3f (true %.3f), within 10 %% "
-      "after %.2f s\n",
+  fmt::print(
+      "[ figures ] 30 % too low a maximum thrust: gain {:.3f} (true {:.3f}), within 10 % after "
+      "{:.2f} s\n",
       estimator.estimate().gain, flight.true_gain, settled_s);
   ASSERT_GE(settled_s, 0.0);
   EXPECT_LT(settled_s, 5.0);
@@ -145,9 +146,8 @@ TEST(HoverThrustEstimator, AGainChangeInFlightIsLearntAgain) {
   ASSERT_TRUE(estimator.estimate().converged);
   flight.true_gain = 1.35;
   const double settled_s = flight.fly(estimator, 15.0, 0.10);
-  std::printf(
-      "[ figures ] gain 1.00 -> 1.35 in flight: within 10 %% after %.2f s, relearned %llu\n",
-      settled_s, static_cast<unsigned long long>(estimator.estimate().relearned));
+  fmt::print("[ figures ] gain 1.00 -> 1.35 in flight: within 10 % after {:.2f} s, relearned {}\n",
+             settled_s, static_cast<unsigned long long>(estimator.estimate().relearned));
   ASSERT_GE(settled_s, 0.0);
   EXPECT_LT(settled_s, 6.0);
   EXPECT_GE(estimator.estimate().relearned, 1U);
