@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 
 namespace hq::estimator {
 namespace {
@@ -143,9 +144,9 @@ TEST(ComplementaryFilter, MeasuredVelocityKeepsTheTiltTheAccelerometerLevelsAway
   both.accel_levelling_pause_s = 0.0;
   both.k_i = 0.0;
   const double both_deg = pitch_error_deg_accelerating(both, 1.5, 10.0, true);
-  std::printf(
-      "pitch error after 10 s at 1.5 m/s^2: %.3f deg accelerometer only, %.3f aided, "
-      "%.3f both\n",
+  fmt::print(
+      "pitch error after 10 s at 1.5 m/s^2: {:.3f} deg accelerometer only, {:.3f} aided, {:.3f} "
+      "both\n",
       accel_only_deg, aided_deg, both_deg);
   // THEN alone it has lost the whole tilt (and its bias loop, which takes the levelling for a
   // gyro bias, a little more)
@@ -214,9 +215,9 @@ TEST(ComplementaryFilter, GyroBiasTheVisionMeasuredKeepsACoastLevel) {
   // AND when the vision's estimate of it is handed over
   const double with_vision_deg =
       pitch_error_deg_after_a_coast(Eigen::Vector3d(0.0, 0.8 * kDeg, 0.0));
-  std::printf(
-      "pitch after a 1.5 s coast at a 0.8 deg/s bias: %.3f deg alone, %.4f with the "
-      "vision's bias\n",
+  fmt::print(
+      "pitch after a 1.5 s coast at a 0.8 deg/s bias: {:.3f} deg alone, {:.4f} with the vision's "
+      "bias\n",
       alone_deg, with_vision_deg);
   // THEN it does not
   EXPECT_NEAR(alone_deg, 1.2, 0.05);

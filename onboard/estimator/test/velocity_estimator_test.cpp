@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <utility>
 #include <vector>
 
@@ -231,9 +232,9 @@ TEST(VelocityEstimator, FusedVelocityHasNoLagWhereTheOneEuroLags) {
     }
     ASSERT_TRUE(last.ok()) << last.reason;
     const double lag_s = moving_s(hq::to_seconds(last.t_ns)) - last.v_H_mps.x() / 2.0;
-    std::printf("%s output: lag %.1f ms at 2 m/s^2\n",
-                output == VelocityEstimatorConfig::VelocityOutput::kFused ? "fused" : "one-euro",
-                1e3 * lag_s);
+    fmt::print("{} output: lag {:.1f} ms at 2 m/s^2\n",
+               output == VelocityEstimatorConfig::VelocityOutput::kFused ? "fused" : "one-euro",
+               1e3 * lag_s);
     // THEN the fused velocity is the one at the frame's time (eq. 1's mean over the last
     // interval, moved to its end by the accelerometer), the 1-euro's tens of ms behind it
     if (output == VelocityEstimatorConfig::VelocityOutput::kFused) {
@@ -419,7 +420,7 @@ TEST(VelocityEstimator, CoastTurnsWithTheHeading) {
   // THEN the coast's velocity turns the other way in H: within 1 mm/s over 1.5 s (fixed in H
   // it would be 2 x 0.85 x sin(0.75) = 1.16 m/s off by the end; 7 mm/s while the unseen
   // acceleration was learnt from the lagging 1-euro velocity)
-  std::printf("coast error over 1.5 s of 1 rad/s yaw: %.4f m/s\n", max_error_mps);
+  fmt::print("coast error over 1.5 s of 1 rad/s yaw: {:.4f} m/s\n", max_error_mps);
   EXPECT_LT(max_error_mps, 0.001);
   EXPECT_GE(coast.lost.size(), 40U);
 }
@@ -494,9 +495,9 @@ TEST(VelocityEstimator, AccelerationTheAccelerometerMissesIsCarriedIntoTheCoast)
   Eigen::Vector3d learnt;
   const double with_state = coast_error_with_unseen_accel(true, 0.08, 20.0, 1.5, &learnt);
   const double without_state = coast_error_with_unseen_accel(false, 0.08, 20.0, 1.5);
-  std::printf(
-      "coast error after 1.5 s: %.4f m/s with the unseen acceleration state (%.4f "
-      "m/s^2 of it), %.4f without\n",
+  fmt::print(
+      "coast error after 1.5 s: {:.4f} m/s with the unseen acceleration state ({:.4f} m/s^2 of "
+      "it), {:.4f} without\n",
       with_state, learnt.x(), without_state);
   // THEN the coast follows the vehicle instead of gathering the 0.12 m/s that 0.08 m/s^2 makes
   // over 1.5 s: the attitude, levelled on the accelerometer less the fused velocity's own
@@ -516,7 +517,7 @@ TEST(VelocityEstimator, CoastBeforeTheOdometryHasCheckedTheAccelerometerIsShort)
   // THEN the coast lasts about 0.1 / 0.1 = 1 s, not inertial_coast_s: an accelerometer
   // nothing has checked drives the vehicle at its bias while it holds "still" (the filter's
   // 0.1 m/s^2 prior is barely narrowed by a few frames: 1.07 s measured)
-  std::printf("coast horizon after 0.3 s tracked: %.3f s\n", early_09.coast_horizon_s);
+  fmt::print("coast horizon after 0.3 s tracked: {:.3f} s\n", early_09.coast_horizon_s);
   EXPECT_GT(early_09.coast_horizon_s, 1.0);
   EXPECT_LT(early_09.coast_horizon_s, 1.1);
   EXPECT_EQ(early_09.last_status, EstimateStatus::kInertial);
@@ -537,7 +538,7 @@ TEST(VelocityEstimator, LearntUnseenAccelerationIsBoundedToWhatAnAccelerometerCa
     VelocityEstimatorConfig config = without_velocity_aiding();
     config.velocity_gate_chi2 = gate_chi2;
     const UnseenAccelRun run = fly_with_unseen_accel(config, 1.5, 20.0, 0.1);
-    std::printf("gate %.0f: learnt %.3f m/s^2 of 1.5\n", gate_chi2, run.learnt_mps2.norm());
+    fmt::print("gate {:.0f}: learnt {:.3f} m/s^2 of 1.5\n", gate_chi2, run.learnt_mps2.norm());
     // THEN what the filter learns stays within 3 x unseen_accel_sigma_mps2, gate or no gate
     EXPECT_LE(run.learnt_mps2.norm(), 3.0 * config.unseen_accel_sigma_mps2 + 1e-9);
   }
@@ -667,7 +668,7 @@ TEST(VelocityEstimator, OdometryReturningAfterTheCoastHasEndedIsCheckedAgainstTh
   const VelocityEstimate wrong = estimate_after_a_loss(config, 1.5, 1.8);
   // THEN it is rejected: the coast's covariance has grown with 0.1 m/s^2 of unseen acceleration
   // over 1.7 s to a gate of about 0.75 m/s, not opened
-  std::printf("gate after the loss: %s (%s)\n", to_string(wrong.status), wrong.reason);
+  fmt::print("gate after the loss: {} ({})\n", to_string(wrong.status), wrong.reason);
   EXPECT_FALSE(wrong.ok());
   EXPECT_STREQ(wrong.reason, "odometry velocity disagrees with the IMU");
   // AND odometry that agrees with the IMU is taken back
@@ -743,7 +744,7 @@ std::pair<double, bool> fastest_taken_after_a_slide(const VelocityEstimatorConfi
 TEST(VelocityEstimator, RejectedFramesDoNotDragTheFilterPastTheGate) {
   // GIVEN a slide the gate rejects, then odometry right again
   const auto [fastest_mps, any] = fastest_taken_after_a_slide(VelocityEstimatorConfig{});
-  std::printf("fastest velocity taken after the slide: %.3f m/s\n", fastest_mps);
+  fmt::print("fastest velocity taken after the slide: {:.3f} m/s\n", fastest_mps);
   // THEN the estimate comes back
   EXPECT_TRUE(any);
   // AND no velocity of the slide reaches it: the gate looks at eq. 1's velocity before the
