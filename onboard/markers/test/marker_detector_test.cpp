@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -123,9 +124,9 @@ TEST(MarkerDetectorRealPhoto, DetectsTheTwelveTagsWithTheirReferencePoses) {
     max_angle_rad = std::max(max_angle_rad, angle_rad);
     max_normal_rad = std::max(max_normal_rad, normal_rad);
   }
-  std::printf(
-      "[ visp photo ] 12/12 tags; vs reference pose: max position %.2f mm, "
-      "max rotation %.3f deg, max normal %.3f deg\n",
+  fmt::print(
+      "[ visp photo ] 12/12 tags; vs reference pose: max position {:.2f} mm, max rotation {:.3f} "
+      "deg, max normal {:.3f} deg\n",
       1e3 * max_pos_m, max_angle_rad * 180 / M_PI, max_normal_rad * 180 / M_PI);
 }
 
@@ -178,8 +179,8 @@ TEST(MarkerDetectorRealPhoto, FindsTheExpectedTagsInOutdoorPhotos) {
         }
       }
     }
-    std::printf("[ nasa photo ] %s: %d of %d expected tags (detected %zu)\n", name, matched,
-                expected, detector.detections().size());
+    fmt::print("[ nasa photo ] {}: {} of {} expected tags (detected {})\n", name, matched, expected,
+               detector.detections().size());
     expected_total += expected;
     matched_total += matched;
   }

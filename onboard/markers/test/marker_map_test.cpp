@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <random>
 #include <vector>
@@ -140,15 +141,15 @@ TEST_F(MarkerMapFlight, OptimisationReducesTheChainedDrift) {
   MarkerMap incremental = build(MarkerMapConfig{});
   const MapError online = error_of(incremental);
 
-  std::printf("[ marker map ] %zu frames, %d keyframes, %d of %zu markers mapped\n", frames->size(),
-              map.keyframes(), before.mapped, world->markers.size());
-  std::printf("[ marker map ] chained (before): mean %.1f max %.1f mm\n", 1e3 * before.mean_m,
-              1e3 * before.max_m);
-  std::printf("[ marker map ] incremental     : mean %.1f max %.1f mm\n", 1e3 * online.mean_m,
-              1e3 * online.max_m);
-  std::printf(
-      "[ marker map ] optimised       : mean %.1f max %.1f mm (%d iterations, cost "
-      "%.1f -> %.1f)\n",
+  fmt::print("[ marker map ] {} frames, {} keyframes, {} of {} markers mapped\n", frames->size(),
+             map.keyframes(), before.mapped, world->markers.size());
+  fmt::print("[ marker map ] chained (before): mean {:.1f} max {:.1f} mm\n", 1e3 * before.mean_m,
+             1e3 * before.max_m);
+  fmt::print("[ marker map ] incremental     : mean {:.1f} max {:.1f} mm\n", 1e3 * online.mean_m,
+             1e3 * online.max_m);
+  fmt::print(
+      "[ marker map ] optimised       : mean {:.1f} max {:.1f} mm ({} iterations, cost {:.1f} -> "
+      "{:.1f})\n",
       1e3 * after.mean_m, 1e3 * after.max_m, run.iterations, run.initial_cost, run.final_cost);
   EXPECT_GE(before.mapped, 20);
   EXPECT_EQ(after.mapped, before.mapped);

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <random>
 #include <vector>
 
@@ -91,16 +92,18 @@ TEST_F(MarkerSimTest, PosesMatchTruthAndDepthDoesNotMakeThemWorse) {
     seen += static_cast<int>(detector_depth.detections().size());
   }
   ASSERT_EQ(image_errors.position_m.size(), depth_errors.position_m.size());
-  std::printf("[ sim markers ] %d detections in 16 frames 640x480 (%d used depth)\n", seen,
-              depth_errors.depth_used);
-  std::printf(
-      "[ sim markers ] image only : position mean %.1f max %.1f mm, angle mean %.2f max %.2f deg\n",
+  fmt::print("[ sim markers ] {} detections in 16 frames 640x480 ({} used depth)\n", seen,
+             depth_errors.depth_used);
+  fmt::print(
+      "[ sim markers ] image only : position mean {:.1f} max {:.1f} mm, angle mean {:.2f} max "
+      "{:.2f} deg\n",
       1e3 * image_errors.mean(image_errors.position_m),
       1e3 * image_errors.max(image_errors.position_m),
       image_errors.mean(image_errors.angle_rad) * 180 / M_PI,
       image_errors.max(image_errors.angle_rad) * 180 / M_PI);
-  std::printf(
-      "[ sim markers ] with depth : position mean %.1f max %.1f mm, angle mean %.2f max %.2f deg\n",
+  fmt::print(
+      "[ sim markers ] with depth : position mean {:.1f} max {:.1f} mm, angle mean {:.2f} max "
+      "{:.2f} deg\n",
       1e3 * depth_errors.mean(depth_errors.position_m),
       1e3 * depth_errors.max(depth_errors.position_m),
       depth_errors.mean(depth_errors.angle_rad) * 180 / M_PI,
