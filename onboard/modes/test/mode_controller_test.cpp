@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <limits>
 #include <optional>
 #include <string>
@@ -433,9 +434,9 @@ double blind_descent_impact_speed_mps(bool with_imu) {
 TEST(ModeController, BlindDescentHoldsItsRateOnTheImuWhateverTheMass) {
   const double held_mps = blind_descent_impact_speed_mps(true);
   const double open_loop_mps = blind_descent_impact_speed_mps(false);
-  std::printf(
-      "blind descent from 8 m, 5 %% heavier than believed: floor met at %.2f m/s on the "
-      "IMU, %.2f m/s open loop\n",
+  fmt::print(
+      "blind descent from 8 m, 5 % heavier than believed: floor met at {:.2f} m/s on the IMU, "
+      "{:.2f} m/s open loop\n",
       held_mps, open_loop_mps);
   EXPECT_NEAR(held_mps, ModesConfig{}.blind_descent_speed_mps, 0.1);
   EXPECT_GT(open_loop_mps, 3.0);
@@ -692,9 +693,9 @@ TEST(ModeController, HoverLandToggledAt10HzNeitherSinksNorChangesFasterThanTheDw
   unheld_config.operator_mode_change_burst = 100;
   unheld_config.land_abort_min_height_m = 1e-3;
   const ToggleFigures unheld = toggle_hover_land_at_10_hz(unheld_config);
-  std::printf(
-      "10 Hz hover<->land for 20 s from 1 m: with hysteresis lowest %.2f m, final %.2f m, "
-      "%d accepted, %d refused; without: lowest %.2f m, final %.2f m, landed %d\n",
+  fmt::print(
+      "10 Hz hover<->land for 20 s from 1 m: with hysteresis lowest {:.2f} m, final {:.2f} m, {} "
+      "accepted, {} refused; without: lowest {:.2f} m, final {:.2f} m, landed {}\n",
       held.lowest_m, held.final_m, held.accepted, held.refused, unheld.lowest_m, unheld.final_m,
       static_cast<int>(unheld.landed));
   // THEN without the hysteresis every toggle keeps some of land's descent: it sinks to the floor
