@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <limits>
 #include <random>
@@ -288,10 +289,10 @@ TEST(NavigationFilter, TracksFigureEightWithMarkersAndVelocity) {
   Scenario run;
   run.run_to(30.0);
   const NavigationHealth health = run.filter().health();
-  std::printf(
-      "figure-eight 30 s: position RMS %.4f m (raw marker %.4f m), velocity RMS %.4f m/s "
-      "(raw RGB-D %.4f m/s), sigma_p %.4f m, markers %ld accepted %ld gated, velocities %ld "
-      "accepted %ld gated\n",
+  fmt::print(
+      "figure-eight 30 s: position RMS {:.4f} m (raw marker {:.4f} m), velocity RMS {:.4f} m/s "
+      "(raw RGB-D {:.4f} m/s), sigma_p {:.4f} m, markers {} accepted {} gated, velocities {} "
+      "accepted {} gated\n",
       run.position_rms(), run.raw_marker_rms(), run.velocity_rms(), run.raw_velocity_rms(),
       health.position_sigma_m, health.markers_accepted, health.markers_gated,
       health.velocities_accepted, health.velocities_gated);
@@ -315,17 +316,22 @@ TEST(NavigationFilter, BiasesConvergeTowardsTheInjectedOnes) {
   const Vector3d bg_error = s.gyro_bias_radps - run.options().gyro_bias_radps;
   const Vector3d ba_error = s.accel_bias_mps2 - run.options().accel_bias_mps2;
   const ErrorCovariance& P = run.filter().covariance();
-  std::printf("gyro bias est [%.4f %.4f %.4f] true [%.4f %.4f %.4f] rad/s, |error| %.4f at 5 s\n",
-              s.gyro_bias_radps.x(), s.gyro_bias_radps.y(), s.gyro_bias_radps.z(),
-              run.options().gyro_bias_radps.x(), run.options().gyro_bias_radps.y(),
-              run.options().gyro_bias_radps.z(), bg_error_5s.norm());
-  std::printf("accel bias est [%.4f %.4f %.4f] true [%.4f %.4f %.4f] m/s^2, |error| %.4f at 5 s\n",
-              s.accel_bias_mps2.x(), s.accel_bias_mps2.y(), s.accel_bias_mps2.z(),
-              run.options().accel_bias_mps2.x(), run.options().accel_bias_mps2.y(),
-              run.options().accel_bias_mps2.z(), ba_error_5s.norm());
-  std::printf("bias |error| at 40 s: gyro %.5f rad/s (of %.4f), accel %.4f m/s^2 (of %.4f)\n",
-              bg_error.norm(), run.options().gyro_bias_radps.norm(), ba_error.norm(),
-              run.options().accel_bias_mps2.norm());
+  fmt::print(
+      "gyro bias est [{:.4f} {:.4f} {:.4f}] true [{:.4f} {:.4f} {:.4f}] rad/s, |error| {:.4f} at 5 "
+      "s\n",
+      s.gyro_bias_radps.x(), s.gyro_bias_radps.y(), s.gyro_bias_radps.z(),
+      run.options().gyro_bias_radps.x(), run.options().gyro_bias_radps.y(),
+      run.options().gyro_bias_radps.z(), bg_error_5s.norm());
+  fmt::print(
+      "accel bias est [{:.4f} {:.4f} {:.4f}] true [{:.4f} {:.4f} {:.4f}] m/s^2, |error| {:.4f} at "
+      "5 s\n",
+      s.accel_bias_mps2.x(), s.accel_bias_mps2.y(), s.accel_bias_mps2.z(),
+      run.options().accel_bias_mps2.x(), run.options().accel_bias_mps2.y(),
+      run.options().accel_bias_mps2.z(), ba_error_5s.norm());
+  fmt::print(
+      "bias |error| at 40 s: gyro {:.5f} rad/s (of {:.4f}), accel {:.4f} m/s^2 (of {:.4f})\n",
+      bg_error.norm(), run.options().gyro_bias_radps.norm(), ba_error.norm(),
+      run.options().accel_bias_mps2.norm());
   EXPECT_LT(bg_error.norm(), 0.2 * run.options().gyro_bias_radps.norm());
   EXPECT_LT(ba_error.norm(), 0.3 * run.options().accel_bias_mps2.norm());
   for (int i = 0; i < 3; ++i) {
@@ -343,8 +349,8 @@ TEST(NavigationFilter, OutlierMarkerIsGatedAndCountedWithoutTouchingTheState) {
   T_WC.translation() += Vector3d(1.0, 0.0, 0.0);
   const long gated_before = run.filter().health().markers_gated;
   const UpdateResult result = run.filter().update_marker(run.t_ns(), T_WC, run.marker_covariance());
-  std::printf("outlier marker 1 m off: NIS %.1f against gate %.2f\n", result.nis,
-              run.filter().config().marker_gate_chi2);
+  fmt::print("outlier marker 1 m off: NIS {:.1f} against gate {:.2f}\n", result.nis,
+             run.filter().config().marker_gate_chi2);
   EXPECT_EQ(result.status, UpdateStatus::kGated);
   EXPECT_THAT(result.reason, HasSubstr("Mahalanobis"));
   EXPECT_EQ(run.filter().health().markers_gated, gated_before + 1);
@@ -377,9 +383,9 @@ TEST(NavigationFilter, MarkersWithheldFiveSecondsDriftBoundedThenReconverge) {
     }
   }
   const NavigationHealth gap = run.filter().health();
-  std::printf(
-      "6 s without markers: drift %.4f m, sigma_p %.4f m, time since marker %.2f s, "
-      "velocities accepted meanwhile %ld\n",
+  fmt::print(
+      "6 s without markers: drift {:.4f} m, sigma_p {:.4f} m, time since marker {:.2f} s, "
+      "velocities accepted meanwhile {}\n",
       run.position_error_m(), gap.position_sigma_m, gap.time_since_marker_s,
       gap.velocities_accepted - velocities_before);
   EXPECT_TRUE(monotonic) << "position sigma must grow without markers";
@@ -396,9 +402,9 @@ TEST(NavigationFilter, MarkersWithheldFiveSecondsDriftBoundedThenReconverge) {
     run.run_to(21.0 + 0.1 * i, true);
     if (recovered_after_s < 0 && run.position_error_m() < bound_m) recovered_after_s = 0.1 * i;
   }
-  std::printf(
-      "markers back: error below %.4f m (2 sigma_p before the gap) after %.1f s, "
-      "sigma_p %.4f m\n",
+  fmt::print(
+      "markers back: error below {:.4f} m (2 sigma_p before the gap) after {:.1f} s, sigma_p "
+      "{:.4f} m\n",
       bound_m, recovered_after_s, run.filter().health().position_sigma_m);
   EXPECT_GT(recovered_after_s, 0.0);
   EXPECT_LE(recovered_after_s, 1.0);
@@ -461,8 +467,9 @@ TEST(PositionCheck, CovarianceGrowthWithoutObservationsIsBounded) {
       invalid_after_s = 0.1 * i;
     }
   }
-  std::printf(
-      "no markers: invalid (sigma over %.2f m) after %.1f s, worst error while valid %.3f m\n",
+  fmt::print(
+      "no markers: invalid (sigma over {:.2f} m) after {:.1f} s, worst error while valid {:.3f} "
+      "m\n",
       options.config.position_max_sigma_m, invalid_after_s, worst_valid_error_m);
   EXPECT_GT(invalid_after_s, 0.0) << "covariance never reached the bound";
   EXPECT_LT(worst_valid_error_m, 3.0 * options.config.position_max_sigma_m);
@@ -629,14 +636,14 @@ TEST(NavigationFilter, NeesAveragedOverTheRunIsConsistent) {
     options.seed = 100 + static_cast<std::uint64_t>(r);
     Scenario run(options);
     run.run_to(30.0);
-    std::printf("seed %d: mean NEES (p, v, theta; 9 dof) %.2f over %ld samples\n", 100 + r,
-                run.mean_nees(), run.samples());
+    fmt::print("seed {}: mean NEES (p, v, theta; 9 dof) {:.2f} over {} samples\n", 100 + r,
+               run.mean_nees(), run.samples());
     nees_total += run.mean_nees() * static_cast<double>(run.samples());
     samples += run.samples();
   }
   // About 1000 samples, correlated in time: a loose band around the 9-dof mean.
   const double mean = nees_total / static_cast<double>(samples);
-  std::printf("mean NEES over %d runs %.2f (9 expected; accepted band [4.5, 18])\n", kRuns, mean);
+  fmt::print("mean NEES over {} runs {:.2f} (9 expected; accepted band [4.5, 18])\n", kRuns, mean);
   EXPECT_GT(mean, 4.5);
   EXPECT_LT(mean, 18.0);
 }

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <fmt/format.h>
 #include <random>
 
 namespace hq::navigation {
@@ -142,9 +143,9 @@ TEST(NavigationSim, CircleFlightOnSimulatedImuWithMarkersAndVelocity) {
   const double position_rms = std::sqrt(position_sq / static_cast<double>(samples));
   const double velocity_rms = std::sqrt(velocity_sq / static_cast<double>(samples));
   const NavigationHealth health = filter.health();
-  std::printf(
-      "simulator circle 20 s: position RMS %.4f m (raw marker %.4f m), velocity RMS %.4f "
-      "m/s (raw %.4f m/s), markers gated %ld, velocities gated %ld, IMU samples %ld\n",
+  fmt::print(
+      "simulator circle 20 s: position RMS {:.4f} m (raw marker {:.4f} m), velocity RMS {:.4f} m/s "
+      "(raw {:.4f} m/s), markers gated {}, velocities gated {}, IMU samples {}\n",
       position_rms, measure.raw_marker_rms_m(), velocity_rms, measure.raw_velocity_rms_mps(),
       health.markers_gated, health.velocities_gated, health.imu_samples);
   EXPECT_FALSE(simulator.collided());
