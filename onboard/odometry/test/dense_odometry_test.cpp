@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <limits>
 #include <tuple>
 
@@ -150,9 +151,9 @@ TEST(DenseOdometry, SomethingMovingAcrossAThirdOfTheViewDoesNotCarryTheCameraAlo
     const double without = pose_error_with_a_person_crossing(0.0, mode, 4.0, !keyframes);
     const double with = pose_error_with_a_person_crossing(0.1, mode);
     const double unmarked = pose_error_with_a_person_crossing(0.1, mode, 0.0);
-    std::printf(
-        "%s: pose error after 12 frames %.2f mm; without the depth check %.2f mm, without "
-        "leaving moving pixels out %.2f mm\n",
+    fmt::print(
+        "{}: pose error after 12 frames {:.2f} mm; without the depth check {:.2f} mm, without "
+        "leaving moving pixels out {:.2f} mm\n",
         keyframes ? "frame to keyframe" : "frame to frame", 1e3 * with, 1e3 * without,
         1e3 * unmarked);
     // THEN the person's pixels do not pull the camera along: measured 1.6 / 0.2 mm; without
@@ -497,8 +498,9 @@ TEST(DenseOdometry, DepthTakenBeforeTheColourIsTurnedToItByTheGyro) {
     rotation_error[align ? 1 : 0] = rotation_error_rad(r.T_ref_cur, truth);
     translation_error_m[align ? 1 : 0] = translation_error(r.T_ref_cur, truth);
   }
-  std::printf("rotation error %.2e rad unaligned, %.2e aligned; translation %.2e m, %.2e m\n",
-              rotation_error[0], rotation_error[1], translation_error_m[0], translation_error_m[1]);
+  fmt::print(
+      "rotation error {:.2e} rad unaligned, {:.2e} aligned; translation {:.2e} m, {:.2e} m\n",
+      rotation_error[0], rotation_error[1], translation_error_m[0], translation_error_m[1]);
   // THEN turned, the motion is the colour images' (the difference of the two gaps, 0.16 deg,
   // is gone); left, the depth pulls the estimate towards the depth maps' own motion
   EXPECT_LT(rotation_error[1], 5e-5);
