@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -392,8 +393,8 @@ TEST(OnboardChainDepthExposure, DepthTakenBeforeTheColourIsTurnedToItWithTheGyro
     ASSERT_GE(ok, 8) << "variant " << variant;
     (variant == 2 ? wrong_stamp_rms_mps : rms_error_mps[variant]) = std::sqrt(sum_sq / ok);
   }
-  std::printf("camera velocity RMS error: %.4f m/s without the depth stamp, %.4f with\n",
-              rms_error_mps[0], rms_error_mps[1]);
+  fmt::print("camera velocity RMS error: {:.4f} m/s without the depth stamp, {:.4f} with\n",
+             rms_error_mps[0], rms_error_mps[1]);
   // THEN with it, eq. 1's velocity is the motion's; without, each frame's 5 ms of pan between
   // the two leads (0.15 deg) shows in it
   EXPECT_LT(rms_error_mps[1], 0.01);
