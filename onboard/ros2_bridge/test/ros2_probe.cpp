@@ -27,6 +27,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fmt/format.h>
 #include <iterator>
 #include <optional>
 #include <string>
@@ -117,12 +118,12 @@ std::optional<Args> parse_args(int argc, char** argv) {
     } else if (key == "--heading-deg") {
       a.heading_deg = std::atof(argv[i + 1]);
     } else {
-      std::fprintf(stderr, "hq_ros2_probe: unknown option %s\n", key.c_str());
+      fmt::print(stderr, "hq_ros2_probe: unknown option {}\n", key);
       return std::nullopt;
     }
   }
   if (a.out.empty()) {
-    std::fprintf(stderr, "hq_ros2_probe: --out DIR is required\n");
+    fmt::print(stderr, "hq_ros2_probe: --out DIR is required\n");
     return std::nullopt;
   }
   return a;
@@ -154,7 +155,7 @@ class Probe {
                      -0.3 * static_cast<double>(sin_heading_), 0.0};
     csv_ = std::fopen((a.out + "/states.csv").c_str(), "w");
     if (csv_ == nullptr) throw hq::InputError(a.out + "/states.csv: cannot open for writing");
-    std::fprintf(csv_, "t_ns,v_H_x,v_H_y,v_H_z,roll_rad,pitch_rad\n");
+    fmt::print(csv_, "t_ns,v_H_x,v_H_y,v_H_z,roll_rad,pitch_rad\n");
   }
 
   /// Exit status: 0 when both phases were seen, 1 naming the one that was not.
@@ -171,8 +172,8 @@ class Probe {
     }
     close_files();
     if (phase_ != Phase::kDone) {
-      std::printf("probe: FAILED: %s\n",
-                  phase_ == Phase::kTakeOff ? "the vehicle never got airborne" : "ran out of time");
+      fmt::print("probe: FAILED: {}\n",
+                 phase_ == Phase::kTakeOff ? "the vehicle never got airborne" : "ran out of time");
       return 1;
     }
     return 0;
@@ -228,10 +229,10 @@ class Probe {
     while (states_.take(*state_, info)) {
       have_state_ = true;
       session_ = state_->session_id;
-      std::fprintf(csv_, "%lld,%.6f,%.6f,%.6f,%.6f,%.6f\n", static_cast<long long>(state_->t_ns),
-                   static_cast<double>(state_->v_H_mps.x), static_cast<double>(state_->v_H_mps.y),
-                   static_cast<double>(state_->v_H_mps.z), static_cast<double>(state_->roll_rad),
-                   static_cast<double>(state_->pitch_rad));
+      fmt::print(csv_, "{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}\n",
+                 static_cast<long long>(state_->t_ns), static_cast<double>(state_->v_H_mps.x),
+                 static_cast<double>(state_->v_H_mps.y), static_cast<double>(state_->v_H_mps.z),
+                 static_cast<double>(state_->roll_rad), static_cast<double>(state_->pitch_rad));
       if (phase_ == Phase::kRos && flies(250, 0.3F)) ++ros_seen_;
       if (phase_ == Phase::kNative && flies(1, 0.1F)) ++native_seen_;
     }
@@ -291,8 +292,8 @@ class Probe {
       requests_.write(r);
     }
     if (have_state_ && state_->flight_state == hq_msgs_FLIGHT_AIRBORNE) {
-      std::printf("probe: airborne after %.1f s\n",
-                  1e-9 * static_cast<double>(t_ns - phase_start_ns_));
+      fmt::print("probe: airborne after {:.1f} s\n",
+                 1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kRos, t_ns);
     }
   }
@@ -300,13 +301,13 @@ class Probe {
   bool step_ros(std::int64_t t_ns) {
     twists_.write(twist_);
     if (ros_seen_ >= 10) {
-      std::printf("probe: ROS 2 Twist on cmd_vel flown by station 250 after %.1f s\n",
-                  1e-9 * static_cast<double>(t_ns - phase_start_ns_));
+      fmt::print("probe: ROS 2 Twist on cmd_vel flown by station 250 after {:.1f} s\n",
+                 1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kRosModes, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
-      std::printf(
-          "probe: FAILED: the ROS 2 command was not flown within 5 s "
-          "(commanding station %u, v_cmd_flown_H x %.2f, operator input %d, mode %d)\n",
+      fmt::print(
+          "probe: FAILED: the ROS 2 command was not flown within 5 s (commanding station {}, "
+          "v_cmd_flown_H x {:.2f}, operator input {}, mode {})\n",
           state_->commanding_station_id, static_cast<double>(state_->v_cmd_flown_H_mps.x),
           static_cast<int>(state_->operator_input), static_cast<int>(state_->mode));
       return false;
@@ -324,13 +325,13 @@ class Probe {
     command.v_H_mps = {0.1F * cos_heading_, 0.1F * sin_heading_, 0.0F};
     commands_.write(command);
     if (native_seen_ >= 10) {
-      std::printf("probe: native station 1 overrode the ROS 2 node after %.1f s\n",
-                  1e-9 * static_cast<double>(t_ns - phase_start_ns_));
+      fmt::print("probe: native station 1 overrode the ROS 2 node after {:.1f} s\n",
+                 1e-9 * static_cast<double>(t_ns - phase_start_ns_));
       next_phase(Phase::kRosRefused, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
-      std::printf(
-          "probe: FAILED: the native station did not take over within 5 s "
-          "(commanding station %u, v_cmd_flown_H x %.2f)\n",
+      fmt::print(
+          "probe: FAILED: the native station did not take over within 5 s (commanding station {}, "
+          "v_cmd_flown_H x {:.2f})\n",
           state_->commanding_station_id, static_cast<double>(state_->v_cmd_flown_H_mps.x));
       return false;
     }
@@ -363,16 +364,15 @@ class Probe {
     const bool answered = take_answer() && last_answer_.find(step.answer) != std::string::npos;
     if (answered) step_answered_ = true;
     if (step_answered_ && (step.mode < 0 || static_cast<int>(state_->mode) == step.mode)) {
-      std::printf("probe: ROS 2 mode request \"%s\" answered \"%s\"\n", step.text,
-                  last_answer_.c_str());
+      fmt::print("probe: ROS 2 mode request \"{}\" answered \"{}\"\n", step.text, last_answer_);
       step_answered_ = false;
       next_request_ns_ = 0;
       if (++mode_step_ == std::size(kModeSteps)) next_phase(Phase::kNative, t_ns);
       return true;
     }
     if (t_ns - phase_start_ns_ > 8'000'000'000) {
-      std::printf("probe: FAILED: ROS 2 mode request \"%s\": last answer \"%s\", mode %d\n",
-                  step.text, last_answer_.c_str(), static_cast<int>(state_->mode));
+      fmt::print("probe: FAILED: ROS 2 mode request \"{}\": last answer \"{}\", mode {}\n",
+                 step.text, last_answer_, static_cast<int>(state_->mode));
       return false;
     }
     return true;
@@ -381,11 +381,11 @@ class Probe {
   bool step_ros_refused(std::int64_t t_ns) {
     if (t_ns >= next_request_ns_) send_mode_text("land", t_ns);
     if (take_answer() && last_answer_.find("does not command") != std::string::npos) {
-      std::printf("probe: ROS 2 \"land\" while station 1 commands: \"%s\"\n", last_answer_.c_str());
+      fmt::print("probe: ROS 2 \"land\" while station 1 commands: \"{}\"\n", last_answer_);
       next_phase(Phase::kDone, t_ns);
     } else if (t_ns - phase_start_ns_ > 5'000'000'000) {
-      std::printf("probe: FAILED: ROS 2 \"land\" not refused by the gate (last answer \"%s\")\n",
-                  last_answer_.c_str());
+      fmt::print("probe: FAILED: ROS 2 \"land\" not refused by the gate (last answer \"{}\")\n",
+                 last_answer_);
       return false;
     }
     return true;
@@ -407,7 +407,7 @@ class Probe {
   void close_files() {
     for (RawDump& d : dumps_) {
       d.drain();
-      std::printf("probe: %s: %d samples\n", d.name.c_str(), d.samples);
+      fmt::print("probe: {}: {} samples\n", d.name, d.samples);
       std::fclose(d.file);
     }
     std::fclose(csv_);
@@ -468,7 +468,7 @@ int main(int argc, char** argv) {
     Probe probe(*args);
     return probe.run();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "hq_ros2_probe: %s\n", e.what());
+    fmt::print(stderr, "hq_ros2_probe: {}\n", e.what());
     return 2;
   }
 }
