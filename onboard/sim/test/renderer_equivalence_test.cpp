@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <random>
 #include <string>
 #include <vector>
@@ -171,12 +172,12 @@ TEST_P(RendererEquivalence, MatchesTheReferenceRayCasterNoiseFreeAndNoisy) {
       EXPECT_EQ(one.image_differs_inside, 0) << "pose " << i;
       accumulate(image, depth, image_ref, depth_ref, diff);
     }
-    std::printf(
-        "[ %s %s ] %zu poses: depth same on %.4f %% of pixels (%ld differ, %ld off "
-        "silhouettes), image: %ld pixels differ, mean |d| %.4f, max off silhouettes %.0f\n",
-        GetParam().c_str(), noisy ? "noisy" : "noise-free", poses.size(),
-        100.0 * diff.depth_same_ratio(), diff.depth_differs, diff.depth_differs_inside,
-        diff.image_differs, diff.image_mean_abs(image.channels()), diff.max_image_inside);
+    fmt::print(
+        "[ {} {} ] {} poses: depth same on {:.4f} % of pixels ({} differ, {} off silhouettes), "
+        "image: {} pixels differ, mean |d| {:.4f}, max off silhouettes {:.0f}\n",
+        GetParam(), noisy ? "noisy" : "noise-free", poses.size(), 100.0 * diff.depth_same_ratio(),
+        diff.depth_differs, diff.depth_differs_inside, diff.image_differs,
+        diff.image_mean_abs(image.channels()), diff.max_image_inside);
     EXPECT_GE(diff.depth_same_ratio(), 0.995);
     EXPECT_LE(diff.image_mean_abs(image.channels()), 0.05);
   }

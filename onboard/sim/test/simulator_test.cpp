@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -195,8 +196,8 @@ TEST(SimulatorTest, PeopleWorldsWalksKeepClearOfTheScriptedFlights) {
                                                        static_cast<double>(sim.t_ns()) * 1e-9) -
                                      sim.config().vehicle_radius_m);
     }
-    std::printf("people.yaml, %s: min clearance to the people %.3f m\n",
-                kind == FlightScript::Kind::kHover ? "hover" : "circle", min_clearance_m);
+    fmt::print("people.yaml, {}: min clearance to the people {:.3f} m\n",
+               kind == FlightScript::Kind::kHover ? "hover" : "circle", min_clearance_m);
     EXPECT_FALSE(sim.collided());
     EXPECT_GT(min_clearance_m, kind == FlightScript::Kind::kHover ? 1.9 : 0.55);
   }
