@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <fmt/format.h>
 #include <limits>
 #include <random>
 #include <string>
@@ -342,8 +343,8 @@ TEST_F(SitlAutopilotTest, FusedOdometryIsCloserToTruthThanTheOdometryOrTheImuAlo
   const double raw = std::sqrt(st.raw_sq_error_sum / static_cast<double>(st.raw_samples));
   const double fused = std::sqrt(st.fused_sq_error_sum / static_cast<double>(st.fused_samples));
   const double imu_only = std::sqrt(imu_only_sq / imu_steps);
-  std::printf("RMSE (3 axes): odometry %.3f, fused %.3f, IMU alone %.3f m/s\n", raw, fused,
-              imu_only);
+  fmt::print("RMSE (3 axes): odometry {:.3f}, fused {:.3f}, IMU alone {:.3f} m/s\n", raw, fused,
+             imu_only);
   // THEN nearly all is fused, and the fusion beats both: white noise 0.17 m/s (3 axes) is
   // averaged down, the bias's drift (0.07 m/s^2 x 20 s) is held by the odometry.
   EXPECT_GT(st.odometry_fused, 550u);
