@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -204,8 +205,7 @@ TEST(LoadYamlFile, AliasBombIsRefusedNamingFileLineAndBudget) {
   const std::string message = input_error_message([&] { load_yaml_file(path); });
   const double elapsed_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("[ figures  ] 10-level alias bomb refused in %.3f s: %s\n", elapsed_s,
-              message.c_str());
+  fmt::print("[ figures  ] 10-level alias bomb refused in {:.3f} s: {}\n", elapsed_s, message);
   EXPECT_THAT(message, HasSubstr(path + ":"));
   EXPECT_THAT(message, HasSubstr(std::to_string(kMaxYamlNodes)));
   EXPECT_LT(elapsed_s, 5.0) << "a generous bound that only catches a walk of the whole bomb";
