@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <fmt/format.h>
 #include <random>
 #include <vector>
 
@@ -114,8 +115,9 @@ TEST(TrajectorySpline, RecoversPoseRateAndAccelerationOfNoisyMotionCapture) {
   }
   const double spline_accel_rmse = std::sqrt(sq_accel / count);
   const double difference_accel_rmse = std::sqrt(sq_difference / differences);
-  std::printf("acceleration RMSE %.3f m/s^2 (second differences: %.3f), rate RMSE %.4f rad/s\n",
-              spline_accel_rmse, difference_accel_rmse, std::sqrt(sq_omega / count));
+  fmt::print(
+      "acceleration RMSE {:.3f} m/s^2 (second differences: {:.3f}), rate RMSE {:.4f} rad/s\n",
+      spline_accel_rmse, difference_accel_rmse, std::sqrt(sq_omega / count));
   // A tenth of the 2 m/s^2 RMS acceleration (measured 0.21), where the second differences are
   // buried under the noise (0.15 mm x sqrt(6 x 3) / (10 ms)^2, about 6 m/s^2).
   EXPECT_LT(spline_accel_rmse, 0.3);
