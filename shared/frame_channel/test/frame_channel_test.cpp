@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <string>
 #include <sys/mman.h>
 #include <thread>
@@ -187,10 +188,10 @@ TEST(FrameChannel, AFastWriterThreadNeverHandsTheReaderATornFrame) {
   EXPECT_FALSE(out_of_order);
   EXPECT_EQ(reader.frames_taken() + reader.frames_missed(), last - first + 1)
       << "every index from the first take to the last is either taken or missed";
-  std::printf("torn-frame test: %llu taken, %llu missed, %llu retried copies\n",
-              static_cast<unsigned long long>(taken),
-              static_cast<unsigned long long>(reader.frames_missed()),
-              static_cast<unsigned long long>(reader.retries()));
+  fmt::print("torn-frame test: {} taken, {} missed, {} retried copies\n",
+             static_cast<unsigned long long>(taken),
+             static_cast<unsigned long long>(reader.frames_missed()),
+             static_cast<unsigned long long>(reader.retries()));
 }
 
 TEST(FrameChannel, AMissingChannelIsAnInputErrorNamingIt) {
@@ -327,7 +328,7 @@ TEST(FrameChannel, PublishAndTakeAllocateNothingAfterTheFirstFrame) {
       kFrames;
   EXPECT_EQ(hq::testing::allocation_count() - before, 0);
   EXPECT_EQ(taken, kFrames);
-  std::printf("640x480 BGR-D: publish + take_latest %.0f us per frame\n", us_per_pair);
+  fmt::print("640x480 BGR-D: publish + take_latest {:.0f} us per frame\n", us_per_pair);
 }
 
 }  // namespace
