@@ -16,6 +16,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fmt/format.h>
 #include <linux/if_packet.h>
 #include <net/ethernet.h>
 #include <net/if.h>
@@ -101,7 +102,7 @@ class Secured : public ::testing::Test {
         dds_sleepfor(DDS_MSECS(20));
       }
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "station: %s\n", e.what());
+      fmt::print(stderr, "station: {}\n", e.what());
       code = 3;
     }
     std::_Exit(code);
