@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -147,7 +148,7 @@ int failures = 0;
 
 void expect(bool condition, const std::string& what) {
   if (!condition) {
-    std::fprintf(stderr, "hq-mcap-conformance: %s\n", what.c_str());
+    fmt::print(stderr, "hq-mcap-conformance: {}\n", what);
     ++failures;
   }
 }
@@ -278,10 +279,10 @@ void check_cut(const hq::mcap::McapReader& reader, const std::string& mcap_path,
   expect(!recovered.report().has_summary && recovered.report().truncated, "cut file: report");
   expect(!recovered.messages().empty(), "cut file: nothing recovered");
   expect_messages(recovered.messages(), e.messages, recovered.messages().size(), "cut file");
-  std::printf(
-      "%s: hq::mcap read %zu messages in %llu chunks, %zu channels, %zu attachments, "
-      "%zu metadata; cut at %llu of %llu bytes: %zu messages recovered\n",
-      mcap_path.c_str(), reader.messages().size(),
+  fmt::print(
+      "{}: hq::mcap read {} messages in {} chunks, {} channels, {} attachments, {} metadata; cut "
+      "at {} of {} bytes: {} messages recovered\n",
+      mcap_path, reader.messages().size(),
       static_cast<unsigned long long>(reader.report().chunk_count), e.channels, e.attachments,
       e.metadata, static_cast<unsigned long long>(recovered.report().valid_end_bytes),
       static_cast<unsigned long long>(size), recovered.messages().size());
@@ -300,7 +301,7 @@ int check(const std::string& mcap_path, const std::string& values_path) {
 int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
   if (!((argc == 3 && mode == "write") || (argc == 4 && mode == "check"))) {
-    std::fprintf(stderr, "usage: hq-mcap-conformance write DIR | check FILE.mcap FILE.txt\n");
+    fmt::print(stderr, "usage: hq-mcap-conformance write DIR | check FILE.mcap FILE.txt\n");
     return 2;
   }
   try {
@@ -308,7 +309,7 @@ int main(int argc, char** argv) {
     write_files(argv[2], "zstd", Compression::kZstd, true);
     write_files(argv[2], "none", Compression::kNone, false);
   } catch (const hq::InputError& e) {
-    std::fprintf(stderr, "hq-mcap-conformance: %s\n", e.what());
+    fmt::print(stderr, "hq-mcap-conformance: {}\n", e.what());
     return 2;
   }
   return 0;

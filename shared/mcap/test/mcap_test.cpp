@@ -12,6 +12,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <string>
 #include <sys/resource.h>
@@ -685,8 +686,8 @@ TEST(McapWriter, SigkilledWriterLeavesARecoverableFile) {
   // 1 s chunk limit + 10 ms period; 0.1 s margin for a loaded machine.
   EXPECT_LT(lost_s, 1.11) << reader.messages().size() << " messages recovered";
   EXPECT_GT(reader.messages().size(), 100u);
-  std::printf("recovered %zu messages, the last %.3f s before the kill\n", reader.messages().size(),
-              lost_s);
+  fmt::print("recovered {} messages, the last {:.3f} s before the kill\n", reader.messages().size(),
+             lost_s);
   for (std::size_t i = 0; i < reader.messages().size(); ++i) {
     EXPECT_EQ(reader.messages()[i].sequence, i);
   }
