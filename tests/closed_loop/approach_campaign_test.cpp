@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <random>
 #include <vector>
 
@@ -70,9 +71,10 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
     clearances.push_back(loop->min_clearance_m());
     if (loop->collision_ticks() > 0) {
       ++collisions;
-      std::printf("run %d COLLIDED: speed %.2f m/s, yaw %.0f deg, box %.2f x %.2f at %.2f m\n", run,
-                  a.speed_mps, a.yaw_rad * 180 / M_PI, a.box_size_m.x(), a.box_size_m.y(),
-                  a.distance_m);
+      fmt::print(
+          "run {} COLLIDED: speed {:.2f} m/s, yaw {:.0f} deg, box {:.2f} x {:.2f} at {:.2f} m\n",
+          run, a.speed_mps, a.yaw_rad * 180 / M_PI, a.box_size_m.x(), a.box_size_m.y(),
+          a.distance_m);
     }
   }
   std::vector<double> sorted = clearances;
@@ -80,10 +82,10 @@ TEST(ApproachCampaign, HundredRandomizedApproachesNeverTouchTheBox) {
   const auto at = [&](double q) {
     return sorted[static_cast<std::size_t>(q * static_cast<double>(sorted.size() - 1))];
   };
-  std::printf("closest distance (surface to the 0.35 m vehicle sphere) over %zu approaches:\n",
-              sorted.size());
-  std::printf("  min %.3f  p10 %.3f  median %.3f  p90 %.3f  max %.3f m; collisions %d\n", at(0.0),
-              at(0.1), at(0.5), at(0.9), at(1.0), collisions);
+  fmt::print("closest distance (surface to the 0.35 m vehicle sphere) over {} approaches:\n",
+             sorted.size());
+  fmt::print("  min {:.3f}  p10 {:.3f}  median {:.3f}  p90 {:.3f}  max {:.3f} m; collisions {}\n",
+             at(0.0), at(0.1), at(0.5), at(0.9), at(1.0), collisions);
   EXPECT_EQ(collisions, 0);
   EXPECT_GT(at(0.0), 0.0);
   // The approach is real: the vehicle ends well inside the field's influence (1 m clearance).

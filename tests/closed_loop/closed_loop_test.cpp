@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -66,9 +67,9 @@ TEST(ClosedLoop, HoversThirtySecondsWithSmallEstimateErrorAndDrift) {
   const Vec rmse = (sum_sq / n).cwiseSqrt();
   const double drift_m = (p_end - p_start).head<2>().norm();
   const double climb_m = std::abs(p_end.z() - p_start.z());
-  std::printf(
-      "hover 30 s: velocity RMSE x %.4f y %.4f z %.4f m/s, drift %.3f m horizontal, "
-      "%.3f m vertical\n",
+  fmt::print(
+      "hover 30 s: velocity RMSE x {:.4f} y {:.4f} z {:.4f} m/s, drift {:.3f} m horizontal, {:.3f} "
+      "m vertical\n",
       rmse.x(), rmse.y(), rmse.z(), drift_m, climb_m);
   // Measured at seed 5: about 0.01 m/s per axis and a few centimetres of drift.
   EXPECT_LT(rmse.x(), 0.03);
@@ -118,9 +119,10 @@ TEST(ClosedLoop, HoversAsStillWithPeopleWalkingThroughTheViewAsWithout) {
   // the camera's view (people.yaml: the room and them)
   const HoverFigures alone = hover_in("onboard/sim/worlds/room.yaml", 26.0);
   const HoverFigures people = hover_in("onboard/sim/worlds/people.yaml", 26.0);
-  std::printf(
-      "hover 20 s alone: velocity RMSE %.4f %.4f %.4f m/s, drift %.3f m, %.1f %% estimated\n"
-      "with people:      velocity RMSE %.4f %.4f %.4f m/s, drift %.3f m, %.1f %% estimated\n",
+  fmt::print(
+      "hover 20 s alone: velocity RMSE {:.4f} {:.4f} {:.4f} m/s, drift {:.3f} m, {:.1f} % "
+      "estimated\nwith people:      velocity RMSE {:.4f} {:.4f} {:.4f} m/s, drift {:.3f} m, {:.1f} "
+      "% estimated\n",
       alone.rmse_mps.x(), alone.rmse_mps.y(), alone.rmse_mps.z(), alone.drift_m,
       100.0 * alone.available, people.rmse_mps.x(), people.rmse_mps.y(), people.rmse_mps.z(),
       people.drift_m, 100.0 * people.available);
@@ -145,11 +147,11 @@ double gyro_bias_error_after_a_hover(bool from_odometry) {
   loop->run();
   const Vec error = loop->chain().estimator().attitude().gyro_bias_radps() -
                     loop->simulator().imu().gyro_bias_radps();
-  std::printf("gyro bias after 20 s, %s: error %.5f %.5f %.5f rad/s (truth %.5f %.5f %.5f)\n",
-              from_odometry ? "with the odometry's" : "levelling alone", error.x(), error.y(),
-              error.z(), loop->simulator().imu().gyro_bias_radps().x(),
-              loop->simulator().imu().gyro_bias_radps().y(),
-              loop->simulator().imu().gyro_bias_radps().z());
+  fmt::print(
+      "gyro bias after 20 s, {}: error {:.5f} {:.5f} {:.5f} rad/s (truth {:.5f} {:.5f} {:.5f})\n",
+      from_odometry ? "with the odometry's" : "levelling alone", error.x(), error.y(), error.z(),
+      loop->simulator().imu().gyro_bias_radps().x(), loop->simulator().imu().gyro_bias_radps().y(),
+      loop->simulator().imu().gyro_bias_radps().z());
   return error.norm();
 }
 
@@ -180,9 +182,9 @@ TEST(ClosedLoop, FullClimbHeldStopsAtTheCeilingAndNeverFalls) {
     landed_in_the_air = landed_in_the_air || (x.landed && x.p_N_m.z() > 0.5);
   }
   const FlightSummary summary = summarise(*loop);
-  std::printf(
-      "full climb held 21 s: highest %.2f m (ceiling %.1f m), collision ticks %d, "
-      "floor contacts %d (fastest %.2f m/s)\n",
+  fmt::print(
+      "full climb held 21 s: highest {:.2f} m (ceiling {:.1f} m), collision ticks {}, floor "
+      "contacts {} (fastest {:.2f} m/s)\n",
       highest_m, s.onboard.modes.max_height_m, summary.collision_ticks, summary.floor_impacts,
       summary.max_floor_impact_speed_mps);
   // The body's height above the floor, measured by the depth of a tilted camera, is within a
@@ -220,9 +222,8 @@ TEST(ClosedLoop, DashHeldAwayStopsAtTheHorizontalBound) {
   int free_collisions = 0;
   const double bounded_m = farthest_from_takeoff_m(0.8, &bounded_collisions);
   const double free_m = farthest_from_takeoff_m(10.0, &free_collisions);
-  std::printf(
-      "dash held 12 s: farthest %.2f m from take-off with a 0.8 m bound, %.2f m "
-      "without\n",
+  fmt::print(
+      "dash held 12 s: farthest {:.2f} m from take-off with a 0.8 m bound, {:.2f} m without\n",
       bounded_m, free_m);
   EXPECT_LT(bounded_m, 0.8 + 0.15);  // the dead reckoning's error and the PID's lag
   EXPECT_GT(bounded_m, 0.8 - 0.25);  // it did go there
@@ -248,9 +249,9 @@ TEST(ClosedLoop, CameraLostHighUpLandsOnTheImuAtTheBlindDescentSpeed) {
     descended_blind = descended_blind || (x.t_s > 10.0 && x.mode == modes::Mode::kLand);
   }
   const FlightSummary summary = summarise(*loop);
-  std::printf(
-      "camera lost at %.2f m: floor met at %.2f m/s (blind_descent_speed_mps %.1f), "
-      "%d hard impacts\n",
+  fmt::print(
+      "camera lost at {:.2f} m: floor met at {:.2f} m/s (blind_descent_speed_mps {:.1f}), {} hard "
+      "impacts\n",
       height_at_loss_m, summary.max_floor_impact_speed_mps, s.onboard.modes.blind_descent_speed_mps,
       loop->simulator().hard_floor_impacts());
   EXPECT_GT(height_at_loss_m, 1.5);
@@ -293,9 +294,9 @@ ToggleFlight toggle_hover_land_at_10_hz(const modes::ModesConfig& modes) {
   f.summary = summarise(*loop);
   f.hard_floor_impacts = loop->simulator().hard_floor_impacts();
   f.refusals = loop->refusals();
-  std::printf(
-      "hover<->land at 10 Hz for 20 s (dwell %.1f s): collision ticks %d, min clearance %.2f m, "
-      "hard floor impacts %d, lowest %.2f m, final %.2f m, %d mode changes, %zu refused\n",
+  fmt::print(
+      "hover<->land at 10 Hz for 20 s (dwell {:.1f} s): collision ticks {}, min clearance {:.2f} "
+      "m, hard floor impacts {}, lowest {:.2f} m, final {:.2f} m, {} mode changes, {} refused\n",
       modes.min_mode_dwell_s, f.summary.collision_ticks, f.summary.min_clearance_m,
       f.hard_floor_impacts, f.lowest_m, f.final_m, f.mode_changes, f.refusals.size());
   return f;
@@ -357,9 +358,8 @@ TEST(ClosedLoop, VelocityStepRisesFastWithBoundedOvershoot) {
   const double rise_s = t90 - t10;
   const double overshoot = peak / kStepMps - 1.0;
   const double tail_error = std::abs(sample_at(*loop, 8.9).v_true_mps.x() - kStepMps);
-  std::printf(
-      "step 0.5 m/s: rise (10-90 %%) %.2f s, overshoot %.1f %%, error after 2.9 s %.3f "
-      "m/s\n",
+  fmt::print(
+      "step 0.5 m/s: rise (10-90 %) {:.2f} s, overshoot {:.1f} %, error after 2.9 s {:.3f} m/s\n",
       rise_s, 100.0 * overshoot, tail_error);
   // The mode ramp alone (1 m/s^2) takes 0.4 s of the rise; measured about 0.6 s and 10 %.
   EXPECT_LT(rise_s, 1.2);
@@ -390,8 +390,9 @@ TEST(ClosedLoop, OneSecondCameraLossAndNanBurstKeepTheVehicleInPlace) {
       max_drift_m = std::max(max_drift_m, (x.p_N_m - p0).norm());
     }
     const FlightSample& after = sample_at(*loop, start_s + duration_s + 1.0);
-    std::printf("camera fault at %.1f s for %.1f s: max drift %.3f m, estimate ok 1 s later: %s\n",
-                start_s, duration_s, max_drift_m, after.estimate_ok ? "yes" : "no");
+    fmt::print(
+        "camera fault at {:.1f} s for {:.1f} s: max drift {:.3f} m, estimate ok 1 s later: {}\n",
+        start_s, duration_s, max_drift_m, after.estimate_ok ? "yes" : "no");
     // Without frames nothing tracks; through NaN depth frame-to-keyframe odometry may keep
     // tracking on its keyframe's depth, and then there is nothing to say.
     if (start_s == 8.0) {
@@ -421,8 +422,8 @@ TEST(ClosedLoop, LongCameraLossCoastsForABoundedTimeThenSafeHovers) {
   ASSERT_GT(first_safe_hover_s, 0.0) << "the IMU coast must end";
   // The coast runs from the last odometry velocity, the frame before the loss.
   const double coast_s = first_safe_hover_s - last_ok_s;
-  std::printf("4 s camera loss: IMU coast %.2f s (inertial_coast_s %.1f), then safe hover\n",
-              coast_s, s.onboard.estimator.inertial_coast_s);
+  fmt::print("4 s camera loss: IMU coast {:.2f} s (inertial_coast_s {:.1f}), then safe hover\n",
+             coast_s, s.onboard.estimator.inertial_coast_s);
   // The coast's length is what the fused filter still does not know of the accelerometer
   // allows, at most inertial_coast_s: after 8 s tracked its unseen acceleration is known to
   // 0.05 m/s^2 (its random walk against the frames' noise), which allows 1.97 s of the 2.
@@ -514,9 +515,9 @@ TEST(ClosedLoop, HoverThrustIsLearntWhenTheVehicleIsOffItsConfig) {
     const double airborne_s = first_airborne_s(*loop);
     const double settled_s = settled_at_s(*loop, true_gain, 0.10);
     const FlightSample& last = loop->samples().back();
-    std::printf(
-        "[ figures ] vehicle %.0f %% of its believed mass: airborne at %.2f s, gain "
-        "within 10 %% of %.3f from %.2f s (%.2f s airborne), final %.3f; height %.2f m\n",
+    fmt::print(
+        "[ figures ] vehicle {:.0f} % of its believed mass: airborne at {:.2f} s, gain within 10 % "
+        "of {:.3f} from {:.2f} s ({:.2f} s airborne), final {:.3f}; height {:.2f} m\n",
         100.0 * mass_ratio, airborne_s, true_gain, settled_s, settled_s - airborne_s,
         last.hover_thrust_gain, last.p_N_m.z());
     ASSERT_GE(airborne_s, 0.0) << "never left the floor";
@@ -527,7 +528,7 @@ TEST(ClosedLoop, HoverThrustIsLearntWhenTheVehicleIsOffItsConfig) {
     // Once learnt, the gain takes over from the velocity loop's integral without a jump: the
     // hover holds its height (before the integral was moved, the vehicle sank 0.6 m).
     const double excursion_m = height_excursion_after(*loop, settled_s + 2.0);
-    std::printf("[ figures ] height excursion after the gain settled: %.3f m\n", excursion_m);
+    fmt::print("[ figures ] height excursion after the gain settled: {:.3f} m\n", excursion_m);
     EXPECT_LT(excursion_m, 0.15);
     EXPECT_EQ(loop->collision_ticks(), 0);
   }
@@ -564,9 +565,9 @@ TEST(ClosedLoop, TakeOffRequestAloneEndsHoveringAtTargetHeightWithHeightNearTrut
     max_error_m = std::max(max_error_m, std::abs(x.height_m - x.p_N_m.z()));
   }
   const FlightSample& last = loop->samples().back();
-  std::printf(
-      "take-off: final height %.3f m (truth %.3f m, target %.2f m), height error max "
-      "%.3f m over %d airborne frames (%d from depth)\n",
+  fmt::print(
+      "take-off: final height {:.3f} m (truth {:.3f} m, target {:.2f} m), height error max {:.3f} "
+      "m over {} airborne frames ({} from depth)\n",
       last.height_m, last.p_N_m.z(), target_m, max_error_m, airborne_samples, depth_samples);
   EXPECT_TRUE(saw_taking_off);
   EXPECT_EQ(last.flight_state, modes::FlightState::kAirborne);
@@ -668,10 +669,10 @@ TEST(ClosedLoop, OdomPoseFollowsTheTruthWithinItsOwnUncertainty) {
   }
   ASSERT_NE(last, nullptr);
   const double end_error_m = (last->odom.p_odom_m - last_truth).head<2>().norm();
-  std::printf(
-      "odom pose over %.1f m flown in %.1f s: drift at the end %.3f m (sigma %.3f m), worst "
-      "%.3f m (sigma then %.3f m), worst error/sigma %.2f; yaw: worst error %.4f rad, sigma at "
-      "the end %.4f rad; turned %.2f rad\n",
+  fmt::print(
+      "odom pose over {:.1f} m flown in {:.1f} s: drift at the end {:.3f} m (sigma {:.3f} m), "
+      "worst {:.3f} m (sigma then {:.3f} m), worst error/sigma {:.2f}; yaw: worst error {:.4f} "
+      "rad, sigma at the end {:.4f} rad; turned {:.2f} rad\n",
       flown_m, last->t_s, end_error_m, last->odom.position_sigma_m, worst_error_m, sigma_at_worst_m,
       worst_ratio, worst_yaw_error_rad, last->odom.yaw_sigma_rad, last->odom.yaw_rad);
   // THEN it moved with the vehicle (a leg, a turn, a leg), its drift stays within 3 sigma of

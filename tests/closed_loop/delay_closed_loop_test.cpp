@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <fmt/format.h>
 
 namespace hq::closed_loop {
 namespace {
@@ -17,9 +18,9 @@ TEST(DelayClosedLoop, PassiveAndCollisionFreeAt0And300MsRoundTrip) {
     link.jitter_s = rtt_s > 0.0 ? 0.03 : 0.0;
     link.loss = rtt_s > 0.0 ? 0.05 : 0.0;
     const delay::FlightResult r = delay::fly(config, link, 20.0);
-    std::printf(
-        "rtt %.0f ms: min E %.5f J, |F| rms %.2f N, tracking %.3f m/s, clearance %.3f m, "
-        "collision ticks %d, altitude %.2f m\n",
+    fmt::print(
+        "rtt {:.0f} ms: min E {:.5f} J, |F| rms {:.2f} N, tracking {:.3f} m/s, clearance {:.3f} m, "
+        "collision ticks {}, altitude {:.2f} m\n",
         1e3 * rtt_s, r.min_energy_j, r.force_rms_n, r.tracking_rms_mps, r.min_clearance_m,
         r.collision_ticks, r.max_altitude_m);
     EXPECT_GT(r.max_altitude_m, 0.5) << rtt_s;  // it took off: the run is not vacuous

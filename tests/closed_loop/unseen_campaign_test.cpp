@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fmt/format.h>
 #include <random>
 #include <string>
 #include <vector>
@@ -151,17 +152,17 @@ WorldRow fly(const std::string& world_path, int runs, bool limiter, std::uint32_
     }
     if (away) ++row.fly_aways;
     if (std::getenv("HQ_UNSEEN_DEBUG") != nullptr && (loop->collision_ticks() > 0 || away)) {
-      std::printf("%s run %d %s (yaw %.0f deg)\n", world.name.c_str(), run,
-                  away ? "flew away" : "collided", s.world.start_yaw_rad * 180 / M_PI);
+      fmt::print("{} run {} {} (yaw {:.0f} deg)\n", world.name, run,
+                 away ? "flew away" : "collided", s.world.start_yaw_rad * 180 / M_PI);
       for (const OperatorStep& st : s.script.steps) {
-        std::printf("  step t %.1f v %.2f %.2f yaw %.2f\n", st.t_s, st.v_mps->x(), st.v_mps->y(),
-                    st.yaw_rate_radps.value_or(0.0));
+        fmt::print("  step t {:.1f} v {:.2f} {:.2f} yaw {:.2f}\n", st.t_s, st.v_mps->x(),
+                   st.v_mps->y(), st.yaw_rate_radps.value_or(0.0));
       }
       for (const FlightSample& f : loop->samples()) {
         if (!f.frame) continue;
-        std::printf(
-            "  t %.2f ok %d sh %d clr %.2f p %.2f %.2f vtrue %.2f %.2f vest %.2f %.2f "
-            "v* %.2f %.2f vobs %.2f %.2f tilt err deg %.2f %.2f\n",
+        fmt::print(
+            "  t {:.2f} ok {:d} sh {:d} clr {:.2f} p {:.2f} {:.2f} vtrue {:.2f} {:.2f} vest {:.2f} "
+            "{:.2f} v* {:.2f} {:.2f} vobs {:.2f} {:.2f} tilt err deg {:.2f} {:.2f}\n",
             f.t_s, f.estimate_ok, f.safe_hover, f.clearance_m, f.p_N_m.x(), f.p_N_m.y(),
             f.v_true_mps.x(), f.v_true_mps.y(), f.v_est_mps.x(), f.v_est_mps.y(),
             f.v_star_des_mps.x(), f.v_star_des_mps.y(), f.v_obs_mps.x(), f.v_obs_mps.y(),
@@ -198,16 +199,17 @@ std::vector<WorldRow> campaign(bool limiter, int runs_per_world) {
     rows.push_back(
         fly(std::string("onboard/sim/worlds/") + w + ".yaml", runs_per_world, limiter, world_seed));
   }
-  std::printf("random in-envelope commands, seen_space %s:\n", limiter ? "on" : "off");
-  std::printf(
-      "| world | runs | runs collided | collision ticks | fly-aways | min clearance m | "
-      "max true speed m/s | farthest from start m | coast frames | coast error RMS / max m/s "
-      "| tilt error RMS deg, coast / tracked |\n"
-      "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+  fmt::print("random in-envelope commands, seen_space {}:\n", limiter ? "on" : "off");
+  fmt::print(
+      "| world | runs | runs collided | collision ticks | fly-aways | min clearance m | max true "
+      "speed m/s | farthest from start m | coast frames | coast error RMS / max m/s | tilt error "
+      "RMS deg, coast / tracked |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | "
+      "---: | ---: |\n");
   for (const WorldRow& r : rows) {
-    std::printf(
-        "| %s | %d | %d | %d | %d | %.2f | %.2f | %.2f | %d | %.3f / %.2f | %.2f / %.2f |\n",
-        r.world.c_str(), r.runs, r.collided_runs, r.collision_ticks, r.fly_aways, r.min_clearance_m,
+    fmt::print(
+        "| {} | {} | {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {} | {:.3f} / {:.2f} | {:.2f} / "
+        "{:.2f} |\n",
+        r.world, r.runs, r.collided_runs, r.collision_ticks, r.fly_aways, r.min_clearance_m,
         r.max_true_speed_mps, r.max_flown_m, r.coast_frames, r.coast_rms_mps(),
         r.max_coast_error_mps, r.coast_tilt_rms_deg(), r.tracked_tilt_rms_deg());
   }
@@ -234,10 +236,10 @@ TEST(UnseenCampaign, DepthTermWithItsGuardsNeverFliesAway) {
   const WorldRow r = fly("onboard/sim/worlds/structure_notexture.yaml", runs_from_environment(4),
                          true, seed_from_environment(kFirstWorldSeed) + 3 * kSeedStepPerWorld,
                          Odometry::kDepthTermWithItsGuards);
-  std::printf(
-      "structure_notexture, depth term with its guards: %d of %d runs collided, "
-      "%d fly-aways, min clearance %.2f m, max true speed %.2f m/s (asked up to %.2f), coast "
-      "error RMS %.3f m/s over %d frames\n",
+  fmt::print(
+      "structure_notexture, depth term with its guards: {} of {} runs collided, {} fly-aways, min "
+      "clearance {:.2f} m, max true speed {:.2f} m/s (asked up to {:.2f}), coast error RMS {:.3f} "
+      "m/s over {} frames\n",
       r.collided_runs, r.runs, r.fly_aways, r.min_clearance_m, r.max_true_speed_mps,
       r.max_command_mps, r.coast_rms_mps(), r.coast_frames);
   EXPECT_EQ(r.fly_aways, 0);
@@ -273,9 +275,9 @@ TEST(UnseenCampaign, IssueCaseAlongHxInTheArenaDoesNotCollide) {
     for (const FlightSample& f : loop->samples()) {
       max_speed = std::max(max_speed, f.v_true_mps.head<2>().norm());
     }
-    std::printf(
-        "H-x at %.1f m/s, seen_space on: collision ticks %d, min clearance %.2f m, "
-        "max true speed %.2f m/s\n",
+    fmt::print(
+        "H-x at {:.1f} m/s, seen_space on: collision ticks {}, min clearance {:.2f} m, max true "
+        "speed {:.2f} m/s\n",
         speed, loop->collision_ticks(), loop->min_clearance_m(), max_speed);
     EXPECT_EQ(loop->collision_ticks(), 0) << speed;
     EXPECT_GT(loop->min_clearance_m(), 0.0) << speed;
@@ -291,9 +293,9 @@ TEST(UnseenCampaign, DISABLED_IssueCaseWithoutTheLimiter) {
     for (const FlightSample& f : loop->samples()) {
       max_speed = std::max(max_speed, f.v_true_mps.head<2>().norm());
     }
-    std::printf(
-        "H-x at %.1f m/s, seen_space off: collision ticks %d, min clearance %.2f m, "
-        "max true speed %.2f m/s\n",
+    fmt::print(
+        "H-x at {:.1f} m/s, seen_space off: collision ticks {}, min clearance {:.2f} m, max true "
+        "speed {:.2f} m/s\n",
         speed, loop->collision_ticks(), loop->min_clearance_m(), max_speed);
   }
 }
