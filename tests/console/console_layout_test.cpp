@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <memory>
 #include <signal.h>
@@ -108,10 +109,9 @@ void expect_every_panel_whole(const std::string& json, const nlohmann::json& par
   // (the same patches a third of the image away differ: the check can tell places apart)
   const double elsewhere = colour_distance(patch_mean(shown, 1, h - kPatch - 1, kPatch),
                                            patch_mean(scaled, w / 3, h / 3, kPatch));
-  std::printf(
-      "console layout %dx%d: image %dx%d at %d,%d; corner vs elsewhere %.0f; %.1f fps; %s\n",
-      screen.cols, screen.rows, w, h, x, y, elsewhere, state_number(parsed, "/window/fps"),
-      shot.c_str());
+  fmt::print(
+      "console layout {}x{}: image {}x{} at {},{}; corner vs elsewhere {:.0f}; {:.1f} fps; {}\n",
+      screen.cols, screen.rows, w, h, x, y, elsewhere, state_number(parsed, "/window/fps"), shot);
 }
 
 TEST(ConsoleLayout, At1280x800WholeCameraForceBarsClimbUpAndLinkLossAlarmSounds) {

@@ -17,6 +17,7 @@
 #include <cstring>
 #include <dlfcn.h>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <memory>
 #include <signal.h>
@@ -216,8 +217,8 @@ TEST(ConsoleProcesses, ConsoleShowsSimulatedFlightThenReportAndTruncatedReplay) 
       << json;
   ASSERT_TRUE(fs::exists(shot));
   EXPECT_GT(fs::file_size(shot), 20'000U);  // a PNG of a 1600x960 console, not a blank
-  std::printf("console screenshot: %s, %.1f fps\n", shot.c_str(),
-              state_number(parse_state(json), "/window/fps"));
+  fmt::print("console screenshot: {}, {:.1f} fps\n", shot.c_str(),
+             state_number(parse_state(json), "/window/fps"));
   expect_report_written(dir, recording);
   expect_truncated_csv_replay(dir, recording);
 }
@@ -300,9 +301,9 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
                 " " + std::to_string(static_cast<int>(state_number(parsed, "/window/y_px"))) + " " +
                 std::to_string(static_cast<int>(state_number(parsed, "/window/width_px"))) + " " +
                 std::to_string(static_cast<int>(state_number(parsed, "/window/height_px"))) + "\n");
-  std::printf("console take-off: height %.2f m (%s), stale %.1f s, %.1f fps; screenshot %s\n",
-              state_number(parsed, "/height_m"), state_text(parsed, "/height_source").c_str(),
-              state_number(parsed, "/stale_s"), state_number(parsed, "/window/fps"), shot.c_str());
+  fmt::print("console take-off: height {:.2f} m ({}), stale {:.1f} s, {:.1f} fps; screenshot {}\n",
+             state_number(parsed, "/height_m"), state_text(parsed, "/height_source").c_str(),
+             state_number(parsed, "/stale_s"), state_number(parsed, "/window/fps"), shot);
 }
 
 TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfresh) {
@@ -372,9 +373,9 @@ TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfres
   EXPECT_EQ(state_flag(parsed, "/window/marker_button_enabled"), 1) << json;
   EXPECT_EQ(state_flag(parsed, "/window/explore_button_enabled"), 1) << json;
   EXPECT_EQ(state_text(parsed, "/window/modes_off_note"), "") << json;
-  std::printf(
-      "goodbye: %g vehicle-ended banner frames, %g link losses; after the restart %g "
-      "plot samples, %g previous track points\n",
+  fmt::print(
+      "goodbye: {:g} vehicle-ended banner frames, {:g} link losses; after the restart {:g} plot "
+      "samples, {:g} previous track points\n",
       state_number(parsed, "/window/vehicle_ended_banner_frames"),
       state_number(parsed, "/link_losses"), state_number(parsed, "/plot_samples"),
       state_number(parsed, "/previous_track_points"));
