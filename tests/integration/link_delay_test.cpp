@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <fmt/format.h>
 #include <unistd.h>
 #include <vector>
 
@@ -59,9 +60,9 @@ TEST(LinkDelay, RoundTripStateAgeAndCommandsOverAnImpairedLink) {
     }
   }
   const ground::LinkStatus& s = ground.status();
-  std::printf(
-      "round trip %.1f ms (p50 %.1f), offset %.1f ms, state age %.1f ms (p50 %.1f), "
-      "loss %.3f, vehicle hold %d, stale %llu\n",
+  fmt::print(
+      "round trip {:.1f} ms (p50 {:.1f}), offset {:.1f} ms, state age {:.1f} ms (p50 {:.1f}), loss "
+      "{:.3f}, vehicle hold {:d}, stale {}\n",
       1e-6 * static_cast<double>(s.round_trip_ns), ground.round_trip().quantile_ms(0.5),
       1e-6 * static_cast<double>(s.clock_offset_ns - kVehicleAheadNs),
       1e-6 * static_cast<double>(s.last_state_age_ns), ground.state_age().quantile_ms(0.5),
@@ -140,9 +141,9 @@ TEST(LinkDelay, ARestartedVehicleGetsItsOwnClockOffset) {
   link_bridge::LinkBridge second(slower, link_bridge::FailsafeConfig{});
   fly(ground, second, kSecondAheadNs, 1'000'000'000);  // fewer echoes than the ring holds
   const ground::LinkStatus& s = ground.status();
-  std::printf("after the restart: offset %.3f s from the new vehicle's, state age %.1f ms\n",
-              1e-9 * static_cast<double>(s.clock_offset_ns - kSecondAheadNs),
-              1e-6 * static_cast<double>(s.last_state_age_ns));
+  fmt::print("after the restart: offset {:.3f} s from the new vehicle's, state age {:.1f} ms\n",
+             1e-9 * static_cast<double>(s.clock_offset_ns - kSecondAheadNs),
+             1e-6 * static_cast<double>(s.last_state_age_ns));
   EXPECT_EQ(s.vehicle_restarts, 1U);
   EXPECT_EQ(s.vehicle_session, second.session_id());
   EXPECT_FALSE(s.vehicle_ended);

@@ -50,6 +50,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <fmt/format.h>
 #include <limits>
 #include <optional>
 #include <random>
@@ -524,23 +525,22 @@ int Fuzzer::report() const {
   hostile_commands.accepted = impersonating() ? -1 : static_cast<std::int64_t>(states_followed_);
   Tally owner_requests = owner_requests_;
   owner_requests.rejected = static_cast<std::int64_t>(requests_rejected_seen_);
-  std::printf(
-      "hq-link-fuzz: attacks %s as station %u (strength %d) on vehicle %u over %s, session "
-      "%016llx; the vehicle named this station its commander in %llu of %llu states "
-      "(%llu change events)\n",
-      o_.attacks_text.c_str(), config_.station_id, config_.station_strength, config_.vehicle_id,
+  fmt::print(
+      "hq-link-fuzz: attacks {} as station {} (strength {}) on vehicle {} over {}, session "
+      "{:016x}; the vehicle named this station its commander in {} of {} states ({} change "
+      "events)\n",
+      o_.attacks_text, config_.station_id, config_.station_strength, config_.vehicle_id,
       hq::link::describe_security(config_, hq::security::Role::kStation).c_str(),
       static_cast<unsigned long long>(session_), static_cast<unsigned long long>(states_followed_),
       static_cast<unsigned long long>(states_seen_),
       static_cast<unsigned long long>(commander_events_));
   if (impersonating()) {
-    std::printf(
-        "hq-link-fuzz: the samples claimed station %u; the vehicle reported %llu intrusion "
-        "events\n",
+    fmt::print(
+        "hq-link-fuzz: the samples claimed station {}; the vehicle reported {} intrusion events\n",
         claimed_station(), static_cast<unsigned long long>(intrusion_reports_));
   }
-  std::printf("  %-14s %-32s %10s %8s %10s %16s %16s\n", "topic", "attack", "sent", "refused",
-              "no reader", "seen accepted", "seen rejected");
+  fmt::print("  {:<14} {:<32} {:>10} {:>8} {:>10} {:>16} {:>16}\n", "topic", "attack", "sent",
+             "refused", "no reader", "seen accepted", "seen rejected");
   Tally total{"", ""};
   const auto cell = [](std::int64_t v) { return v < 0 ? std::string("-") : std::to_string(v); };
   const std::array<const Tally*, 10> rows = {
@@ -552,31 +552,31 @@ int Fuzzer::report() const {
     total.refused += t->refused;
     total.unmatched += t->unmatched;
     if (t->sent + t->refused == 0) continue;
-    std::printf("  %-14s %-32s %10llu %8llu %10llu %16s %16s\n", t->topic, t->attack,
-                static_cast<unsigned long long>(t->sent),
-                static_cast<unsigned long long>(t->refused),
-                static_cast<unsigned long long>(t->unmatched), cell(t->accepted).c_str(),
-                cell(t->rejected).c_str());
+    fmt::print("  {:<14} {:<32} {:10} {:8} {:10} {:>16} {:>16}\n", t->topic, t->attack,
+               static_cast<unsigned long long>(t->sent),
+               static_cast<unsigned long long>(t->refused),
+               static_cast<unsigned long long>(t->unmatched), cell(t->accepted).c_str(),
+               cell(t->rejected).c_str());
   }
   report_refusals();
   // "malformed samples sent" is the line earlier tests and scripts read.
   const std::string last_error = heartbeats_.last_error();
-  std::printf(
-      "hq-link-fuzz: %llu malformed samples sent, %llu refused%s, %llu of them sent "
-      "with no reader matched\n",
+  fmt::print(
+      "hq-link-fuzz: {} malformed samples sent, {} refused{}, {} of them sent with no reader "
+      "matched\n",
       static_cast<unsigned long long>(total.sent), static_cast<unsigned long long>(total.refused),
       last_error.empty() ? "" : (" (writer: " + last_error + ")").c_str(),
       static_cast<unsigned long long>(total.unmatched));
   if (total.reached() == 0) {
-    std::printf(
-        "hq-link-fuzz: NOT REACHED: no sample reached any reader and %llu vehicle states were "
-        "seen; the vehicle was not tested (no vehicle on domain %d, or the secured link refused "
-        "this participant: see the refusals above and Cyclone's log)\n",
+    fmt::print(
+        "hq-link-fuzz: NOT REACHED: no sample reached any reader and {} vehicle states were seen; "
+        "the vehicle was not tested (no vehicle on domain {}, or the secured link refused this "
+        "participant: see the refusals above and Cyclone's log)\n",
         static_cast<unsigned long long>(states_seen_), config_.domain_id);
     return kExitNotReached;
   }
-  std::printf("hq-link-fuzz: %llu samples reached a reader\n",
-              static_cast<unsigned long long>(total.reached()));
+  fmt::print("hq-link-fuzz: {} samples reached a reader\n",
+             static_cast<unsigned long long>(total.reached()));
   return 0;
 }
 
@@ -585,7 +585,7 @@ int Fuzzer::report() const {
 void Fuzzer::report_refusals() const {
   const auto refused = [](const std::string& reason, const char* consequence) {
     if (!reason.empty()) {
-      std::printf("  refused by the secured link: %s%s\n", reason.c_str(), consequence);
+      fmt::print("  refused by the secured link: {}{}\n", reason, consequence);
     }
   };
   refused(commands_.refusal(), "");

@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -253,9 +254,9 @@ TEST_F(LinkProcesses, GroundKilledMidFlightHoldsWithin200msThenLandsAfter2s) {
   ASSERT_LT(touchdown, rows.size()) << "still in the air at the end";
   EXPECT_FALSE(rows.back().airborne);
   for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
-  std::printf(
-      "[ figures  ] hold at command age %.1f ms; land at heartbeat age %.1f ms, %.2f s "
-      "after the hold; on the ground %.2f s after the land request (from %.2f m)\n",
+  fmt::print(
+      "[ figures  ] hold at command age {:.1f} ms; land at heartbeat age {:.1f} ms, {:.2f} s after "
+      "the hold; on the ground {:.2f} s after the land request (from {:.2f} m)\n",
       hold_age_ms, land_age_ms, land_t_s - hold_t_s, rows[touchdown].t_s - land_t_s,
       rows[land].altitude_m);
 }
@@ -287,9 +288,9 @@ TEST_F(LinkProcesses, FuzzedVehicleKeepsFlyingAndCountsRejections) {
   EXPECT_NE(last.mode, "land");
   EXPECT_GT(last.commands_rejected, 1000) << slurp((dir_ / "fuzz.out").string());
   EXPECT_GT(last.mode_requests_rejected, 0);
-  std::printf("[ figures  ] %ld commands and %ld mode requests rejected; final altitude %.2f m\n%s",
-              last.commands_rejected, last.mode_requests_rejected, last.altitude_m,
-              slurp((dir_ / "fuzz.out").string()).c_str());
+  fmt::print("[ figures  ] {} commands and {} mode requests rejected; final altitude {:.2f} m\n{}",
+             last.commands_rejected, last.mode_requests_rejected, last.altitude_m,
+             slurp((dir_ / "fuzz.out").string()).c_str());
 }
 
 // Every attack at once, both directions, on a plain link (issue 39 reported 936 collision ticks
@@ -312,8 +313,8 @@ TEST_F(LinkProcesses, AllAttacksAtOnceHitNothing) {
   const std::string onboard_out = out("onboard.out");
   EXPECT_NE(onboard_out.find("collision ticks                          0\n"), std::string::npos)
       << onboard_out;
-  std::printf("[ figures  ] %ld commands rejected; fuzzer:\n%s", rows.back().commands_rejected,
-              out("fuzz.out").c_str());
+  fmt::print("[ figures  ] {} commands rejected; fuzzer:\n{}", rows.back().commands_rejected,
+             out("fuzz.out").c_str());
 }
 
 // Ownership, sessions, escalation, checked telemetry. Each < 20 s.
@@ -347,8 +348,8 @@ TEST_F(LinkProcesses, WeakerStationsModeRequestsAreIgnoredWhileTheStrongerComman
   const std::string onboard_out = out("onboard.out");
   EXPECT_NE(onboard_out.find("commanded by station 1"), std::string::npos) << onboard_out;
   EXPECT_EQ(onboard_out.find("commanded by station 2"), std::string::npos) << onboard_out;
-  std::printf("[ figures  ] %ld requests of the weaker station rejected; fuzzer:\n%s",
-              rows.back().mode_requests_rejected - rejected_before, out("fuzz.out").c_str());
+  fmt::print("[ figures  ] {} requests of the weaker station rejected; fuzzer:\n{}",
+             rows.back().mode_requests_rejected - rejected_before, out("fuzz.out").c_str());
 }
 
 // (b) GIVEN a vehicle flown by station 1 and a station 666 that only sends heartbeats, WHEN
@@ -386,9 +387,9 @@ TEST_F(LinkProcesses, ForeignHeartbeatsDoNotKeepAVehicleWhoseCommanderWasKilledI
   ASSERT_GT(rows.size(), 100U);
   EXPECT_FALSE(rows.back().airborne) << "still in the air at the end";
   for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
-  std::printf(
-      "[ figures  ] hold at %.2f s, land at %.2f s (heartbeat age %.1f ms) with station "
-      "666 sending heartbeats\n",
+  fmt::print(
+      "[ figures  ] hold at {:.2f} s, land at {:.2f} s (heartbeat age {:.1f} ms) with station 666 "
+      "sending heartbeats\n",
       hold_t_s, land_t_s, age_ms);
 }
 
@@ -429,7 +430,8 @@ TEST_F(LinkProcesses, CommandsStopHoldThenLandAfterHoldToLand) {
     }
   }
   EXPECT_FALSE(rows.back().airborne) << "still in the air at the end";
-  std::printf("[ figures  ] land after hold at command age %.1f ms (t %.2f s)\n", age_ms, land_t_s);
+  fmt::print("[ figures  ] land after hold at command age {:.1f} ms (t {:.2f} s)\n", age_ms,
+             land_t_s);
 }
 
 // (d) GIVEN a station that asked vehicle instance 1 for teleop (a TRANSIENT_LOCAL request),
@@ -458,8 +460,8 @@ TEST_F(LinkProcesses, RestartedVehicleIgnoresTheRequestMadeToItsPredecessor) {
   EXPECT_GE(rows.back().mode_requests_rejected, 1) << out("onboard2.out");
   const std::string ground_out = out("ground.out");
   EXPECT_NE(ground_out.find("restarted (new session"), std::string::npos) << ground_out;
-  std::printf("[ figures  ] instance 2 rejected %ld stale request(s) and stayed on the floor\n",
-              rows.back().mode_requests_rejected);
+  fmt::print("[ figures  ] instance 2 rejected {} stale request(s) and stayed on the floor\n",
+             rows.back().mode_requests_rejected);
 }
 
 // (e) GIVEN hq-ground flying a vehicle, WHEN forged vehicle states (another session, NaN, 1e6
@@ -498,9 +500,9 @@ TEST_F(LinkProcesses, ForgedStatesAreRejectedAndTheHandsForceStaysBounded) {
   EXPECT_GT(number("passivity_min_energy_j"), -0.05) << json;
   const std::string ground_out = out("ground.out");
   EXPECT_EQ(ground_out.find("FORGED"), std::string::npos) << "a forged event was shown";
-  std::printf(
-      "[ figures  ] ground: %.0f states rejected (%.0f other session, %.0f implausible), "
-      "max force %.3f N, passivity min %.4f J\n%s",
+  fmt::print(
+      "[ figures  ] ground: {:.0f} states rejected ({:.0f} other session, {:.0f} implausible), max "
+      "force {:.3f} N, passivity min {:.4f} J\n{}",
       number("states_rejected"), number("states_wrong_session"), number("states_implausible"),
       number("max_force_n"), number("passivity_min_energy_j"), out("fuzz.out").c_str());
 }
@@ -562,8 +564,8 @@ TEST_F(LinkProcesses, HostileCommandsFromAStationNotListedAreRejected) {
   for (const Row& r : rows) EXPECT_FALSE(r.collision) << r.t_s;
   const long rejected = rows.back().commands_rejected;
   EXPECT_GT(rejected, 100) << onboard_out;
-  std::printf("[ figures  ] %ld commands of station 7 rejected (not in link.stations)\n%s",
-              rejected, out("fuzz.out").c_str());
+  fmt::print("[ figures  ] {} commands of station 7 rejected (not in link.stations)\n{}", rejected,
+             out("fuzz.out").c_str());
 }
 
 // (h) A stronger station the vehicle is allowed to follow (no link.stations) flies it
@@ -671,8 +673,8 @@ TEST_F(LinkProcesses, SecuredFuzzAttacksWithItsCredentialsAndReportsWhatWasRefus
   EXPECT_EQ(report.find(" 0 of 0 states"), std::string::npos) << "saw no vehicle state\n" << report;
   ASSERT_EQ(onboard.wait_exit(30.0), 0) << out("onboard.out");
   EXPECT_GT(read_log(log_path()).back().commands_rejected - rejected_before, 100) << report;
-  std::printf("[ figures  ] station 2 (vehicle 2's):\n%s[ figures  ] station 1's credentials:\n%s",
-              other.c_str(), report.c_str());
+  fmt::print("[ figures  ] station 2 (vehicle 2's):\n{}[ figures  ] station 1's credentials:\n{}",
+             other, report);
 }
 
 // GIVEN a secured vehicle that allows stations 1 and 3 (both certified for it) and station 1
@@ -741,7 +743,7 @@ TEST_F(LinkProcesses, AllowedStationSpeakingForAnotherIsRefusedAndReportedAsIntr
   const std::string json = out("ground.json");
   EXPECT_NE(json.find("\"control_lost\": false"), std::string::npos) << json;
   EXPECT_EQ(json.find("\"intrusion_reports\": 0"), std::string::npos) << json;
-  std::printf("[ figures  ] station_3 speaking for station 1:\n%s", report.c_str());
+  fmt::print("[ figures  ] station_3 speaking for station 1:\n{}", report);
 }
 
 // GIVEN a vehicle with keys of one CA and a station with a complete keyset of another (each

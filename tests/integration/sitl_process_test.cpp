@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <memory>
 #include <optional>
@@ -329,7 +330,7 @@ TEST_F(SitlProcess, CompanionArmsFliesOffboardThenLosesSetpointsAndTheSimLandsAn
   sim.signal(SIGTERM);
   ASSERT_EQ(sim.wait_exit(10.0), 0) << slurp(out);
   const std::string summary = slurp(out);
-  std::printf("%s", summary.c_str());
+  fmt::print("{}", summary);
   EXPECT_THAT(summary, HasSubstr("real-time factor"));
   EXPECT_GT(number_after(summary, "real-time factor"), 0.9);
   EXPECT_THAT(summary, HasSubstr("collision ticks airborne 0"));
@@ -476,7 +477,7 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   sim.signal(SIGTERM);
   ASSERT_EQ(sim.wait_exit(10.0), 0) << slurp(out);
   const std::string summary = slurp(out);
-  std::printf("%s", summary.c_str());
+  fmt::print("{}", summary);
   // The SITL fused the client's ODOMETRY (body FRD) with its own IMU. The received velocity's
   // error is the added noise, 0.1 m/s per axis (0.17 m/s over three), plus the frame truth's
   // age; a Kalman filter on a 30-50 Hz velocity with a 500 Hz IMU averages the white part
@@ -484,7 +485,7 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   // below half the noise's.
   const double received = number_after(summary, "against truth \\(NED\\): received");
   const double fused = number_after(summary, "fused with the IMU");
-  std::printf("SITL velocity RMSE: received %.3f m/s, fused %.3f m/s\n", received, fused);
+  fmt::print("SITL velocity RMSE: received {:.3f} m/s, fused {:.3f} m/s\n", received, fused);
   EXPECT_GT(number_after(summary, "ODOMETRY received"), 100.0);
   EXPECT_GT(number_after(summary, "fused"), 100.0);
   EXPECT_EQ(number_after(summary, "rejected: frame"), 0.0);
@@ -496,11 +497,12 @@ TEST_F(SitlProcess, TheVehiclesMavlinkFlightControllerArmsFliesAndIsLandedOnSetp
   // clock is the simulated time, paced to the host's: the offset is the SITL's start on the
   // host clock, good to the SITL's 2 ms tick (answers are read once per tick).
   const hq::vehicle::FcCounters fcc = fc.counters();
-  std::printf("TIMESYNC: offset %.3f ms, jitter %.3f ms, RTT %.3f ms, %llu answers, %llu dropped\n",
-              1e-6 * static_cast<double>(fcc.timesync_offset_ns), 1e-6 * fcc.timesync_jitter_ns,
-              1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
-              static_cast<unsigned long long>(fcc.timesync_samples),
-              static_cast<unsigned long long>(fcc.timesync_rejected));
+  fmt::print(
+      "TIMESYNC: offset {:.3f} ms, jitter {:.3f} ms, RTT {:.3f} ms, {} answers, {} dropped\n",
+      1e-6 * static_cast<double>(fcc.timesync_offset_ns), 1e-6 * fcc.timesync_jitter_ns,
+      1e-6 * static_cast<double>(fcc.timesync_rtt_ns),
+      static_cast<unsigned long long>(fcc.timesync_samples),
+      static_cast<unsigned long long>(fcc.timesync_rejected));
   EXPECT_TRUE(fcc.clock_from_timesync);
   EXPECT_GT(fcc.timesync_samples, 50u);
   EXPECT_LT(fcc.timesync_jitter_ns, 2e6);

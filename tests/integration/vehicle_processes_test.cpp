@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <optional>
 #include <regex>
@@ -116,9 +117,9 @@ TEST_F(VehicleProcesses, ThreeProcessFlightLandsWithoutCollision) {
       number_after(sim_out, R"(RMSE against truth \(NED\): received ([0-9.]+) m/s)").value_or(1.0);
   const double fused_rmse =
       number_after(sim_out, R"(fused with the IMU ([0-9.]+) m/s)").value_or(1.0);
-  std::printf(
-      "[ figures ] velocity RMSE against truth: HaptiQuad's %.3f m/s, the FC's fused "
-      "%.3f m/s\n",
+  fmt::print(
+      "[ figures ] velocity RMSE against truth: HaptiQuad's {:.3f} m/s, the FC's fused {:.3f} "
+      "m/s\n",
       received_rmse, fused_rmse);
   EXPECT_LT(received_rmse, 0.15) << sim_out;
   EXPECT_LT(fused_rmse, 0.15) << sim_out;

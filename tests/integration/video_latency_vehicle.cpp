@@ -16,6 +16,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <ctime>
+#include <fmt/format.h>
 #include <vector>
 
 namespace {
@@ -77,7 +78,7 @@ int run(int argc, char** argv) {
       bridge.publish_state(out);
     }
   }
-  std::printf("hq-video-latency-vehicle: %d frames published\n", frames);
+  fmt::print("hq-video-latency-vehicle: {} frames published\n", frames);
   return 0;
 }
 
