@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <vector>
 
 namespace hq::marker_modes {
@@ -61,15 +62,16 @@ TEST(MarkerHover, HoldsOverTheMarkerAndRecoversAfterMarkersHidden) {
   f.loop->run_until(34.0);
   const Window recovered = hold_window(f, id, mc.hold_height_m, 34.0, 40.0);
 
-  std::printf("marker hover over id %d (320x240, seed 3)\n", id);
-  std::printf("  hold 15-25 s          horizontal rms %.3f m, max %.3f m, height rms %.3f m\n",
-              hold.rms_m, hold.max_m, hold.height_rms_m);
-  std::printf("  markers hidden 25-30 s horizontal rms %.3f m, max %.3f m (filter sigma %.3f m)\n",
-              hidden.rms_m, hidden.max_m, sigma_hidden_m);
-  std::printf("  recovered 34-40 s     horizontal rms %.3f m, max %.3f m\n", recovered.rms_m,
-              recovered.max_m);
-  std::printf("  collision ticks %d, min clearance %.2f m\n", f.loop->collision_ticks(),
-              f.loop->min_clearance_m());
+  fmt::print("marker hover over id {} (320x240, seed 3)\n", id);
+  fmt::print("  hold 15-25 s          horizontal rms {:.3f} m, max {:.3f} m, height rms {:.3f} m\n",
+             hold.rms_m, hold.max_m, hold.height_rms_m);
+  fmt::print(
+      "  markers hidden 25-30 s horizontal rms {:.3f} m, max {:.3f} m (filter sigma {:.3f} m)\n",
+      hidden.rms_m, hidden.max_m, sigma_hidden_m);
+  fmt::print("  recovered 34-40 s     horizontal rms {:.3f} m, max {:.3f} m\n", recovered.rms_m,
+             recovered.max_m);
+  fmt::print("  collision ticks {}, min clearance {:.2f} m\n", f.loop->collision_ticks(),
+             f.loop->min_clearance_m());
   EXPECT_LT(hold.rms_m, 0.05);
   EXPECT_LT(hold.height_rms_m, 0.05);
   EXPECT_LT(hidden.max_m, 0.30) << "drift without markers not bounded";

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fmt/format.h>
 #include <vector>
 
 namespace hq::marker_modes {
@@ -52,16 +53,16 @@ TEST(MarkerLanding, LandsOnTheMarkerWithinTenCentimetres) {
   int collisions = 0;
   for (std::uint64_t seed : {11U, 12U, 13U}) {
     const Landing l = land_once(seed, 12);
-    std::printf("landing seed %llu: landed %d at %.1f s, horizontal error %.3f m\n",
-                static_cast<unsigned long long>(seed), l.landed ? 1 : 0, l.t_s, l.error_m);
+    fmt::print("landing seed {}: landed {} at {:.1f} s, horizontal error {:.3f} m\n",
+               static_cast<unsigned long long>(seed), l.landed ? 1 : 0, l.t_s, l.error_m);
     EXPECT_TRUE(l.landed) << "seed " << seed;
     errors.push_back(l.error_m);
     collisions += l.collisions;
   }
   std::sort(errors.begin(), errors.end());
-  std::printf(
-      "landing on marker 12, %zu seeded runs: median %.3f m, max %.3f m (target <= 0.10 "
-      "m; smartphone seed ~0.2 m); collision ticks %d\n",
+  fmt::print(
+      "landing on marker 12, {} seeded runs: median {:.3f} m, max {:.3f} m (target <= 0.10 m; "
+      "smartphone seed ~0.2 m); collision ticks {}\n",
       errors.size(), errors[errors.size() / 2], errors.back(), collisions);
   EXPECT_LE(errors.back(), 0.10);
   EXPECT_EQ(collisions, 0);
@@ -116,14 +117,13 @@ TEST(ExploreMode, MapsTheMarkerFieldThenLandsOnTheTarget) {
   f.stage().navigation().map().optimise();
   const double after_m = map_error_m(f, &n);
   const int spurious = static_cast<int>(f.stage().navigation().map().ids().size()) - n;
-  std::printf(
-      "explore: %d/%d markers mapped (%.0f %%, %d spurious ids) after %.1f s of "
-      "exploration, 90 %% at %.1f s (seed: 80 %% in 120 s); %d cells seen, %d edge "
-      "events\n",
+  fmt::print(
+      "explore: {}/{} markers mapped ({:.0f} %, {} spurious ids) after {:.1f} s of exploration, 90 "
+      "% at {:.1f} s (seed: 80 % in 120 s); {} cells seen, {} edge events\n",
       n, total, 100.0 * n / total, spurious, explored_s, t90_s, explore.cells_seen(),
       explore.edge_events());
-  std::printf(
-      "  map error vs truth (rigid alignment, rms): %.3f m online, %.3f m after full "
+  fmt::print(
+      "  map error vs truth (rigid alignment, rms): {:.3f} m online, {:.3f} m after full "
       "optimisation\n",
       before_m, after_m);
   EXPECT_GE(n * 10, total * 9);
@@ -140,9 +140,9 @@ TEST(ExploreMode, MapsTheMarkerFieldThenLandsOnTheTarget) {
     }
   }
   const double landing_m = (f.p_truth_m() - f.marker_truth_m(id)).head<2>().norm();
-  std::printf(
-      "  landed on marker %d: %d, horizontal error %.3f m; collision ticks %d, min "
-      "clearance %.2f m\n",
+  fmt::print(
+      "  landed on marker {}: {}, horizontal error {:.3f} m; collision ticks {}, min clearance "
+      "{:.2f} m\n",
       id, f.loop->chain().mode() == modes::Mode::kLand ? 1 : 0, landing_m,
       f.loop->collision_ticks(), f.loop->min_clearance_m());
   EXPECT_EQ(f.loop->chain().mode(), modes::Mode::kLand);

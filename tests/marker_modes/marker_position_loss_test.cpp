@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -166,28 +167,29 @@ TEST(MarkerPositionLoss, MarkersHiddenThirtySecondsNeverFlownOnAnInvalidPose) {
 
   const auto* lost = find_event(observer, "marker mode: position lost (no marker for");
   const auto* resumed = find_event(observer, "marker mode: position valid again, resuming");
-  std::printf("markers hidden %.0f s at %.0f s (gyro bias sigma %.3f rad/s, accel %.2f m/s^2)\n",
-              kHiddenForS, kHideAtS, kGyroBiasSigmaRadps, kAccelBiasSigmaMps2);
-  std::printf("  last marker %.3f s, invalid from %.3f s to %.3f s (limit %.1f s)\n",
-              observer.last_marker_s, observer.invalid_at_s, observer.last_invalid_s, limit_s);
-  std::printf(
-      "  worst horizontal error while valid: %.3f m overall, %.3f m in the gap (bound %.2f m)\n",
+  fmt::print(
+      "markers hidden {:.0f} s at {:.0f} s (gyro bias sigma {:.3f} rad/s, accel {:.2f} m/s^2)\n",
+      kHiddenForS, kHideAtS, kGyroBiasSigmaRadps, kAccelBiasSigmaMps2);
+  fmt::print("  last marker {:.3f} s, invalid from {:.3f} s to {:.3f} s (limit {:.1f} s)\n",
+             observer.last_marker_s, observer.invalid_at_s, observer.last_invalid_s, limit_s);
+  fmt::print(
+      "  worst horizontal error while valid: {:.3f} m overall, {:.3f} m in the gap (bound {:.2f} "
+      "m)\n",
       observer.max_valid_error_m, observer.max_valid_error_hidden_m, kMaxUnflaggedErrorM);
   const navigation::NavigationHealth health = f.stage().navigation().filter().health();
-  std::printf(
-      "  markers accepted %ld, gated %ld, re-anchors %ld; most frames in a row all gated "
-      "with markers in view: %d; velocities accepted %ld, gated %ld\n",
+  fmt::print(
+      "  markers accepted {}, gated {}, re-anchors {}; most frames in a row all gated with markers "
+      "in view: {}; velocities accepted {}, gated {}\n",
       health.markers_accepted, health.markers_gated, health.reanchors,
       observer.max_disagreeing_frames, health.velocities_accepted, health.velocities_gated);
-  std::printf("  marker-mode steps on an invalid pose %ld, of which flown %ld\n",
-              observer.steps_invalid_in_marker, observer.steps_flown_on_invalid);
-  std::printf("  at the gap's end: %s, sigma %.2f m; truth drift from the marker %.2f m\n",
-              navigation::to_string(at_end.reason), at_end.sigma_horizontal_m,
-              (p_truth_hidden - f.marker_truth_m(id)).head<2>().norm());
-  for (const auto& e : observer.events)
-    std::printf("  event %.2f s: %s\n", e.first, e.second.c_str());
-  std::printf("  15 s after: %s, hold error %.3f m\n", navigation::to_string(after.reason),
-              hold_error_m);
+  fmt::print("  marker-mode steps on an invalid pose {}, of which flown {}\n",
+             observer.steps_invalid_in_marker, observer.steps_flown_on_invalid);
+  fmt::print("  at the gap's end: {}, sigma {:.2f} m; truth drift from the marker {:.2f} m\n",
+             navigation::to_string(at_end.reason), at_end.sigma_horizontal_m,
+             (p_truth_hidden - f.marker_truth_m(id)).head<2>().norm());
+  for (const auto& e : observer.events) fmt::print("  event {:.2f} s: {}\n", e.first, e.second);
+  fmt::print("  15 s after: {}, hold error {:.3f} m\n", navigation::to_string(after.reason),
+             hold_error_m);
 
   EXPECT_LT(observer.max_valid_error_m, kMaxUnflaggedErrorM);
   ASSERT_GT(observer.invalid_at_s, 0.0) << "the pose never became invalid without markers";
@@ -231,10 +233,9 @@ TEST(MarkerPositionLoss, FilterFightingLargeBiasesIsFlaggedNotFlown) {
   observer.hidden = true;
   f.loop->run_until(kHideAtS + kHiddenForS);
   const navigation::NavigationHealth health = f.stage().navigation().filter().health();
-  std::printf(
-      "6x biases: worst error while valid %.3f m (bound %.2f m); markers accepted %ld, "
-      "gated %ld, re-anchors %ld; velocities gated %ld; marker-mode steps on an invalid "
-      "pose %ld, flown %ld\n",
+  fmt::print(
+      "6x biases: worst error while valid {:.3f} m (bound {:.2f} m); markers accepted {}, gated "
+      "{}, re-anchors {}; velocities gated {}; marker-mode steps on an invalid pose {}, flown {}\n",
       observer.max_valid_error_m, kMaxUnflaggedErrorM, health.markers_accepted,
       health.markers_gated, health.reanchors, health.velocities_gated,
       observer.steps_invalid_in_marker, observer.steps_flown_on_invalid);
