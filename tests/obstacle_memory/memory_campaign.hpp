@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <fmt/format.h>
 #include <limits>
 #include <random>
 #include <string>
@@ -167,17 +168,17 @@ class TimedPlayer final : public OperatorSource {
           m.count > 0 ? m.p_H_m[0].norm() : std::numeric_limits<double>::quiet_NaN();
       const Eigen::Vector3d& v_obs = out.obstacles.v_obs_H_mps;
       const Eigen::Vector3d& v_des = out.mode.v_des_H_mps;
-      std::fprintf(trace_,
-                   "t %6.2f track %-5s map %5d recalled %2d nearest %5.2f view %2d "
-                   "v_obs [%+.2f %+.2f] v_des [%+.2f %+.2f] v_true [%+.2f %+.2f] yaw %+6.1f "
-                   "clear %+.3f %s%s near %d p0 [%+.2f %+.2f %+.2f]\n",
-                   1e-9 * static_cast<double>(out.t_ns), odometry::to_string(out.tracking),
-                   m.map_size, m.count, nearest_m, out.obstacles.count, v_obs.x(), v_obs.y(),
-                   v_des.x(), v_des.y(), truth.v_H_mps.x(), truth.v_H_mps.y(),
-                   truth.euler_rad.z() * 180.0 / M_PI, truth.clearance_m, m.updated ? "" : m.reason,
-                   m.cleared ? " CLEARED" : "", out.obstacles.near_hazard ? 1 : 0,
-                   m.count > 0 ? m.p_H_m[0].x() : 0.0, m.count > 0 ? m.p_H_m[0].y() : 0.0,
-                   m.count > 0 ? m.p_H_m[0].z() : 0.0);
+      fmt::print(trace_,
+                 "t {:6.2f} track {:<5} map {:5} recalled {:2} nearest {:5.2f} view {:2} v_obs "
+                 "[{:+.2f} {:+.2f}] v_des [{:+.2f} {:+.2f}] v_true [{:+.2f} {:+.2f}] yaw {:+6.1f} "
+                 "clear {:+.3f} {}{} near {} p0 [{:+.2f} {:+.2f} {:+.2f}]\n",
+                 1e-9 * static_cast<double>(out.t_ns), odometry::to_string(out.tracking),
+                 m.map_size, m.count, nearest_m, out.obstacles.count, v_obs.x(), v_obs.y(),
+                 v_des.x(), v_des.y(), truth.v_H_mps.x(), truth.v_H_mps.y(),
+                 truth.euler_rad.z() * 180.0 / M_PI, truth.clearance_m, m.updated ? "" : m.reason,
+                 m.cleared ? " CLEARED" : "", out.obstacles.near_hazard ? 1 : 0,
+                 m.count > 0 ? m.p_H_m[0].x() : 0.0, m.count > 0 ? m.p_H_m[0].y() : 0.0,
+                 m.count > 0 ? m.p_H_m[0].z() : 0.0);
     }
     if (frames_++ > 0 && timing_ != nullptr) timing_->add(out.durations);
     max_map_size_ = std::max(max_map_size_, out.memory.map_size);

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <fmt/format.h>
 #include <utility>
 #include <vector>
 
@@ -24,9 +25,9 @@ int fly_and_count(const std::vector<std::pair<MemoryCase, int>>& runs, bool memo
   for (const auto& [kind, index] : runs) {
     const testing::MemoryRun r = testing::draw_memory_run(kind, index, kSeed);
     const testing::MemoryOutcome o = testing::fly_memory_run(r, memory_enabled, room);
-    std::printf("%-9s run %d (%.2f m/s, %.2f m): memory %s closest %+.3f m%s\n",
-                testing::to_string(kind), index, r.speed_mps, r.distance_m,
-                memory_enabled ? "on " : "off", o.min_clearance_m, o.collided ? " COLLIDED" : "");
+    fmt::print("{:<9} run {} ({:.2f} m/s, {:.2f} m): memory {} closest {:+.3f} m{}\n",
+               testing::to_string(kind), index, r.speed_mps, r.distance_m,
+               memory_enabled ? "on " : "off", o.min_clearance_m, o.collided ? " COLLIDED" : "");
     collisions += o.collided ? 1 : 0;
     if (memory_enabled) {
       EXPECT_FALSE(o.collided) << testing::to_string(kind) << " run " << index;

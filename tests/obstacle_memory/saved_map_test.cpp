@@ -9,6 +9,7 @@
 #include <pcl/point_types.h>
 
 #include <cstdio>
+#include <fmt/format.h>
 #include <string>
 #include <unistd.h>
 
@@ -49,10 +50,10 @@ TEST(SavedMap, PcdAndPlyReadBackWithTheMemorysPointsInPlausibleBounds) {
       lo = lo.cwiseMin(v);
       hi = hi.cwiseMax(v);
     }
-    std::printf("%s: %zu points, bounds [%.2f %.2f %.2f] .. [%.2f %.2f %.2f] m\n", ext.c_str(),
-                cloud.size(), static_cast<double>(lo.x()), static_cast<double>(lo.y()),
-                static_cast<double>(lo.z()), static_cast<double>(hi.x()),
-                static_cast<double>(hi.y()), static_cast<double>(hi.z()));
+    fmt::print("{}: {} points, bounds [{:.2f} {:.2f} {:.2f}] .. [{:.2f} {:.2f} {:.2f}] m\n", ext,
+               cloud.size(), static_cast<double>(lo.x()), static_cast<double>(lo.y()),
+               static_cast<double>(lo.z()), static_cast<double>(hi.x()),
+               static_cast<double>(hi.y()), static_cast<double>(hi.z()));
     EXPECT_GT((hi - lo).norm(), 1.0) << ext;
   }
 }
