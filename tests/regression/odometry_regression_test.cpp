@@ -11,6 +11,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <map>
 #include <string>
 #include <vector>
@@ -65,7 +66,7 @@ TEST_P(OdometryOnRecordedDepth, RpeAndAteStayWithinMeasuredBounds) {
     const std::string name = entry.path().filename().string();
     const auto bounds = kBounds.find(name + "/" + mode_name);
     if (bounds == kBounds.end()) {
-      std::printf("%s: no bounds recorded for this sequence; measure and add them\n", name.c_str());
+      fmt::print("{}: no bounds recorded for this sequence; measure and add them\n", name);
       continue;
     }
     const SequenceRun run = run_sequence(entry.path().string(), GetParam());
@@ -74,12 +75,12 @@ TEST_P(OdometryOnRecordedDepth, RpeAndAteStayWithinMeasuredBounds) {
     const auto rpe = hq::evaluation::relative_pose_error(run.ground_truth, run.trajectory);
     const auto ate = hq::evaluation::absolute_trajectory_error(run.ground_truth, run.trajectory);
     const Bounds& b = bounds->second;
-    std::printf(
-        "%s %s: RPE %.4f m/s (measured %.4f, bound %.4f), %.3f deg/s (%.3f, %.3f), "
-        "ATE %.4f m (%.4f, %.4f)\n",
-        name.c_str(), mode_name.c_str(), rpe.trans_mps.rmse, b.measured_rpe_trans_mps,
-        b.max_rpe_trans_mps, rpe.rot_degps.rmse, b.measured_rpe_rot_degps, b.max_rpe_rot_degps,
-        ate.trans_m.rmse, b.measured_ate_m, b.max_ate_m);
+    fmt::print(
+        "{} {}: RPE {:.4f} m/s (measured {:.4f}, bound {:.4f}), {:.3f} deg/s ({:.3f}, {:.3f}), ATE "
+        "{:.4f} m ({:.4f}, {:.4f})\n",
+        name, mode_name, rpe.trans_mps.rmse, b.measured_rpe_trans_mps, b.max_rpe_trans_mps,
+        rpe.rot_degps.rmse, b.measured_rpe_rot_degps, b.max_rpe_rot_degps, ate.trans_m.rmse,
+        b.measured_ate_m, b.max_ate_m);
     EXPECT_LT(rpe.trans_mps.rmse, b.max_rpe_trans_mps) << name;
     EXPECT_LT(rpe.rot_degps.rmse, b.max_rpe_rot_degps) << name;
     EXPECT_LT(ate.trans_m.rmse, b.max_ate_m) << name;

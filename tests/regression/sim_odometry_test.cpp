@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <vector>
@@ -144,9 +145,9 @@ TEST_P(OdometryOnSimulatedCircle, RpeAndAteStayWithinMeasuredBounds) {
   const auto ate = hq::evaluation::absolute_trajectory_error(run.ground_truth, run.trajectory);
   EXPECT_FALSE(rpe.delta_clipped);
   const Bounds& b = c.bounds;
-  std::printf(
-      "room circle %s, %zu frames, %.1f s: RPE %.5f m/s (measured %.5f, bound %.5f), "
-      "%.4f deg/s (%.4f, %.4f), ATE %.5f m (%.5f, %.5f), %d lost\n",
+  fmt::print(
+      "room circle {}, {} frames, {:.1f} s: RPE {:.5f} m/s (measured {:.5f}, bound {:.5f}), {:.4f} "
+      "deg/s ({:.4f}, {:.4f}), ATE {:.5f} m ({:.5f}, {:.5f}), {} lost\n",
       c.name, run.trajectory.size(), elapsed_s, rpe.trans_mps.rmse, b.measured_rpe_trans_mps,
       b.max_rpe_trans_mps, rpe.rot_degps.rmse, b.measured_rpe_rot_degps, b.max_rpe_rot_degps,
       ate.trans_m.rmse, b.measured_ate_m, b.max_ate_m, run.lost);
@@ -219,8 +220,9 @@ TEST(OdometryFacingAPlainWallAndTheFloor, RemappedStepsKeepAHoverStill) {
     const SimRun run = fly_and_track(c, flight);
     EXPECT_FALSE(run.collided);
     const auto rpe = hq::evaluation::relative_pose_error(run.ground_truth, run.trajectory, 1.0);
-    std::printf("plain wall and floor, hover, degenerate_step_ratio %.3f: RPE %.4f m/s, %d lost\n",
-                ratio, rpe.trans_mps.rmse, run.lost);
+    fmt::print(
+        "plain wall and floor, hover, degenerate_step_ratio {:.3f}: RPE {:.4f} m/s, {} lost\n",
+        ratio, rpe.trans_mps.rmse, run.lost);
     return rpe.trans_mps.rmse;
   };
   const double free_steps = rpe_mps(0.0);
@@ -250,9 +252,9 @@ WithAndWithoutPeople fly_with_and_without_people(bool with_gyro, int moving_mark
   EXPECT_EQ(p.lost, 0);
   WithAndWithoutPeople out{hq::evaluation::relative_pose_error(a.ground_truth, a.trajectory, 1.0),
                            hq::evaluation::relative_pose_error(p.ground_truth, p.trajectory, 1.0)};
-  std::printf(
-      "room circle %s, marks of radius %d: alone RPE %.5f m/s %.4f deg/s; with people: %.5f m/s "
-      "%.4f deg/s (%.2fx, %.2fx)\n",
+  fmt::print(
+      "room circle {}, marks of radius {}: alone RPE {:.5f} m/s {:.4f} deg/s; with people: {:.5f} "
+      "m/s {:.4f} deg/s ({:.2f}x, {:.2f}x)\n",
       with_gyro ? "with the gyro" : "odometry alone", moving_mark_radius_px,
       out.alone.trans_mps.rmse, out.alone.rot_degps.rmse, out.people.trans_mps.rmse,
       out.people.rot_degps.rmse, out.people.trans_mps.rmse / out.alone.trans_mps.rmse,

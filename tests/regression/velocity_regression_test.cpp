@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fmt/format.h>
 #include <optional>
 #include <string>
 #include <unistd.h>
@@ -32,17 +33,17 @@ namespace {
 using hq::replay::VelocityErrors;
 
 void print(const char* name, const hq::replay::SequenceReplay& replay, const VelocityErrors& e) {
-  std::printf("%s: %d frames, %d ok, %d compared, h %.1f ms, truth RMS %.4f m/s\n", name,
-              replay.frames, replay.ok_estimates, e.samples, 1e3 * e.frame_interval_s,
-              e.truth_rms_mps);
-  std::printf("  RMSE eq. 1 raw      [%.4f %.4f %.4f] |%.4f| m/s\n", e.rmse_raw_mps.x(),
-              e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
-  std::printf("  RMSE eq. 2 filtered [%.4f %.4f %.4f] |%.4f| m/s\n", e.rmse_filtered_mps.x(),
-              e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(), e.filtered_norm_mps());
-  std::printf("  RMSE flown (fused)  [%.4f %.4f %.4f] |%.4f| m/s\n", e.rmse_flown_mps.x(),
-              e.rmse_flown_mps.y(), e.rmse_flown_mps.z(), e.flown_norm_mps());
-  std::printf("  lag eq. 2 %.0f ms, eq. 1 %.0f ms, flown %.0f ms\n", e.filtered_lag_ms,
-              e.raw_lag_ms, e.flown_lag_ms);
+  fmt::print("{}: {} frames, {} ok, {} compared, h {:.1f} ms, truth RMS {:.4f} m/s\n", name,
+             replay.frames, replay.ok_estimates, e.samples, 1e3 * e.frame_interval_s,
+             e.truth_rms_mps);
+  fmt::print("  RMSE eq. 1 raw      [{:.4f} {:.4f} {:.4f}] |{:.4f}| m/s\n", e.rmse_raw_mps.x(),
+             e.rmse_raw_mps.y(), e.rmse_raw_mps.z(), e.raw_norm_mps());
+  fmt::print("  RMSE eq. 2 filtered [{:.4f} {:.4f} {:.4f}] |{:.4f}| m/s\n", e.rmse_filtered_mps.x(),
+             e.rmse_filtered_mps.y(), e.rmse_filtered_mps.z(), e.filtered_norm_mps());
+  fmt::print("  RMSE flown (fused)  [{:.4f} {:.4f} {:.4f}] |{:.4f}| m/s\n", e.rmse_flown_mps.x(),
+             e.rmse_flown_mps.y(), e.rmse_flown_mps.z(), e.flown_norm_mps());
+  fmt::print("  lag eq. 2 {:.0f} ms, eq. 1 {:.0f} ms, flown {:.0f} ms\n", e.filtered_lag_ms,
+             e.raw_lag_ms, e.flown_lag_ms);
 }
 
 // The first 150 frames of fr1/xyz (5 s, hand-held, motion capture), replayed with the
