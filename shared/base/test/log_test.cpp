@@ -1,6 +1,8 @@
 // The log layer: levels filter, lines keep their stream, and a logged line allocates nothing
-// (so a 1 kHz loop's rare line costs no heap).
+// (so a 1 kHz loop's rare line costs no heap); likewise a text formatted into a fixed buffer.
 #include "hq/base/log.hpp"
+
+#include "hq/base/format_into.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -66,6 +68,28 @@ TEST_F(LogTest, ALoggedLineAllocatesNothing) {
   const long after = g_allocations.load();
   std::fclose(sink);
   EXPECT_EQ(after - before, 0);
+}
+
+TEST(FormatInto, TruncatesLikeSnprintfAndAlwaysEndsTheText) {
+  char text[8];
+  EXPECT_EQ(hq::format_into(text, "{:.2f} m", 1.5), "1.50 m");
+  EXPECT_STREQ(text, "1.50 m");
+  EXPECT_EQ(hq::format_into(text, "station {} lost", 12), "station");
+  EXPECT_STREQ(text, "station");
+  char one[1] = {'x'};
+  EXPECT_EQ(hq::format_into(one, "{}", 42), "");
+  EXPECT_EQ(one[0], '\0');
+  EXPECT_EQ(hq::format_into(nullptr, 0, "{}", 42), "");
+}
+
+TEST(FormatInto, AllocatesNothing) {
+  char text[96];
+  const long before = g_allocations.load();
+  for (int i = 0; i < 1000; ++i) {
+    hq::format_into(text, "no heartbeat from station {} for {:.1f} s: {}", i, 1e-3 * i, "landing");
+  }
+  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_STREQ(text, "no heartbeat from station 999 for 1.0 s: landing");
 }
 
 }  // namespace
