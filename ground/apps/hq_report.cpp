@@ -15,6 +15,7 @@
 //   hq-report <recording-dir | flight.mcap> --csv OUT_DIR
 //   hq-report --recover IN.mcap OUT.mcap
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/program.hpp"
@@ -120,27 +121,28 @@ std::string band_script(const hq::console::Timeline& t) {
   char line[256];
   int object = 1;
   for (const hq::console::ModeBand& b : t.bands) {
-    std::snprintf(line, sizeof line,
-                  "set object %d rect from %.3f, graph 0 to %.3f, graph 1 fc rgb '%s' fs "
-                  "transparent solid 0.12 noborder behind\n",
-                  object++, b.start_s, std::max(b.end_s, b.start_s + 1e-3), colour(b.mode));
+    hq::format_into(line,
+                    "set object {} rect from {:.3f}, graph 0 to {:.3f}, graph 1 fc rgb '{}' fs "
+                    "transparent solid 0.12 noborder behind\n",
+                    object++, b.start_s, std::max(b.end_s, b.start_s + 1e-3), colour(b.mode));
     gp += line;
   }
   int arrow = 1;
   for (const hq::console::EventMark& e : t.marks) {
-    std::snprintf(line, sizeof line,
-                  "set arrow %d from %.3f, graph 0.92 to %.3f, graph 1 nohead lw 2 lc rgb '%s'\n",
-                  arrow++, e.t_s, e.t_s,
-                  e.severity >= 2   ? "#e03030"
-                  : e.severity == 1 ? "#e0a000"
-                                    : "#808080");
+    hq::format_into(
+        line, "set arrow {} from {:.3f}, graph 0.92 to {:.3f}, graph 1 nohead lw 2 lc rgb '{}'\n",
+        arrow++, e.t_s, e.t_s,
+        e.severity >= 2   ? "#e03030"
+        : e.severity == 1 ? "#e0a000"
+                          : "#808080");
     gp += line;
   }
   for (std::size_t i = 1; i < t.sessions.size(); ++i) {
-    std::snprintf(line, sizeof line,
-                  "set arrow %d from %.3f, graph 0 to %.3f, graph 1 nohead lw 3 lc rgb '#ff0000'\n"
-                  "set label %zu 'vehicle restarted' at %.3f, graph 0.85 tc rgb '#ff0000'\n",
-                  arrow++, t.sessions[i].t_s, t.sessions[i].t_s, i, t.sessions[i].t_s);
+    hq::format_into(
+        line,
+        "set arrow {} from {:.3f}, graph 0 to {:.3f}, graph 1 nohead lw 3 lc rgb '#ff0000'\nset "
+        "label {} 'vehicle restarted' at {:.3f}, graph 0.85 tc rgb '#ff0000'\n",
+        arrow++, t.sessions[i].t_s, t.sessions[i].t_s, i, t.sessions[i].t_s);
     gp += line;
   }
   return gp;
@@ -149,7 +151,7 @@ std::string band_script(const hq::console::Timeline& t) {
 std::string number_or_nan(double v) {
   if (!std::isfinite(v)) return "NaN";
   char text[32];
-  std::snprintf(text, sizeof text, "%.4f", v);
+  hq::format_into(text, "{:.4f}", v);
   return text;
 }
 

@@ -1,6 +1,7 @@
 #include "hq/ground/ground_station.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/quantile.hpp"
 #include "hq/link/state_figures.hpp"
@@ -451,8 +452,8 @@ void TelemetryRecorder::camera(std::int64_t receipt_ns, const link::CameraFrame&
   const auto write_file = [&](const char* folder, const char* extension,
                               const dds_sequence_octet& bytes, std::FILE* list) {
     char name[64];
-    std::snprintf(name, sizeof name, "%s/%.6f.%s", folder, 1e-9 * static_cast<double>(receipt_ns),
-                  extension);
+    hq::format_into(name, "{}/{:.6f}.{}", folder, 1e-9 * static_cast<double>(receipt_ns),
+                    extension);
     path_.assign(directory_).append("/").append(name);
     std::FILE* f = std::fopen(path_.c_str(), "wb");
     const bool complete =
@@ -484,7 +485,7 @@ void TelemetryRecorder::event(std::int64_t receipt_ns, const link::Event& e) {
   // Quotes in the text would break the CSV field; the vehicle's texts have none, a hostile
   // sender's are replaced.
   char text[sizeof e.text];
-  std::snprintf(text, sizeof text, "%s", e.text);
+  hq::format_into(text, "{}", e.text);
   for (char& c : text) {
     if (c == '"') c = '\'';
   }
@@ -565,8 +566,7 @@ bool GroundStation::request_mode(std::int64_t t_ns, hq_msgs_Mode mode, const Mar
     status_.waiting_for_vehicle = true;
     if (!told) {
       char text[96];
-      std::snprintf(text, sizeof text, "mode %s: waiting for vehicle %u", to_string(mode),
-                    config_.vehicle_id);
+      hq::format_into(text, "mode {}: waiting for vehicle {}", to_string(mode), config_.vehicle_id);
       notice(hq_msgs_SEVERITY_INFO, kGroundEventWaiting, text);
     }
     return false;
@@ -680,14 +680,14 @@ void GroundStation::deliver_event(const link::Event& event) {
   ++status_.events;
   if (event.code == link::kEventCodeIntrusion) {
     ++status_.intrusion_reports;
-    std::snprintf(status_.last_intrusion.data(), status_.last_intrusion.size(), "%s", event.text);
+    hq::format_into(status_.last_intrusion.data(), status_.last_intrusion.size(), "{}", event.text);
   }
   if (event.code == link::kEventCodeVehicleEnded) {
     status_.vehicle_ended = true;
-    std::snprintf(status_.vehicle_ended_text.data(), status_.vehicle_ended_text.size(), "%s",
-                  event.text);
+    hq::format_into(status_.vehicle_ended_text.data(), status_.vehicle_ended_text.size(), "{}",
+                    event.text);
   }
-  std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", event.text);
+  hq::format_into(status_.last_event.data(), status_.last_event.size(), "{}", event.text);
   const std::int64_t now = dds_time();
   if (recorder_ != nullptr) recorder_->event(now, event);
   if (observer_ != nullptr) observer_->on_event(now, event);
@@ -736,9 +736,8 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::uint64_t write
       pending_request_ = false;
       status_.waiting_for_vehicle = false;
       char text[128];
-      std::snprintf(text, sizeof text,
-                    "vehicle %u restarted (new session 0x%016llx): request the mode again",
-                    config_.vehicle_id, static_cast<unsigned long long>(s.session_id));
+      hq::format_into(text, "vehicle {} restarted (new session 0x{:016x}): request the mode again",
+                      config_.vehicle_id, static_cast<unsigned long long>(s.session_id));
       notice(hq_msgs_SEVERITY_WARNING, kGroundEventVehicleRestarted, text);
     } else if (pending_request_) {
       pending_request_ = false;
@@ -774,10 +773,10 @@ bool GroundStation::admit_state(const link::VehicleState& s, std::uint64_t write
 void GroundStation::note_resync(std::uint64_t sequence, std::uint64_t abandoned) {
   ++status_.states_resynced;
   char text[128];
-  std::snprintf(text, sizeof text,
-                "vehicle %u states resynchronised at sequence %llu (was at %llu: forged or leapt)",
-                config_.vehicle_id, static_cast<unsigned long long>(sequence),
-                static_cast<unsigned long long>(abandoned));
+  hq::format_into(text,
+                  "vehicle {} states resynchronised at sequence {} (was at {}: forged or leapt)",
+                  config_.vehicle_id, static_cast<unsigned long long>(sequence),
+                  static_cast<unsigned long long>(abandoned));
   notice(hq_msgs_SEVERITY_WARNING, kGroundEventSequenceResync, text);
 }
 
@@ -789,12 +788,12 @@ void GroundStation::note_control(const link::VehicleState& s) {
   char text[128];
   if (lost) {
     ++status_.control_losses;
-    std::snprintf(text, sizeof text, "CONTROL LOST: station %u commands vehicle %u",
-                  s.commanding_station_id, config_.vehicle_id);
+    hq::format_into(text, "CONTROL LOST: station {} commands vehicle {}", s.commanding_station_id,
+                    config_.vehicle_id);
     notice(hq_msgs_SEVERITY_ERROR, kGroundEventControlLost, text);
   } else {
-    std::snprintf(text, sizeof text, "control regained: station %u commands vehicle %u",
-                  s.commanding_station_id, config_.vehicle_id);
+    hq::format_into(text, "control regained: station {} commands vehicle {}",
+                    s.commanding_station_id, config_.vehicle_id);
     notice(hq_msgs_SEVERITY_WARNING, kGroundEventControlRegained, text);
   }
 }
@@ -806,8 +805,8 @@ void GroundStation::notice(hq_msgs_Severity severity, std::uint32_t code, const 
   e.severity = severity;
   e.code = code;
   e.session_id = status_.vehicle_session;
-  std::snprintf(e.text, sizeof e.text, "%s", text);
-  std::snprintf(status_.last_event.data(), status_.last_event.size(), "%s", text);
+  hq::format_into(e.text, "{}", text);
+  hq::format_into(status_.last_event.data(), status_.last_event.size(), "{}", text);
   const std::int64_t now = dds_time();
   if (recorder_ != nullptr) recorder_->event(now, e);
   if (observer_ != nullptr) observer_->on_event(now, e);

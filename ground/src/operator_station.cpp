@@ -1,5 +1,6 @@
 #include "hq/ground/operator_station.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/mcap_recorder/flight_recorder.hpp"
 
 #include <algorithm>
@@ -112,11 +113,11 @@ void OperatorStation::watch_link_loss(std::int64_t now_ns, double t_s) {
   e.t_ns = now_ns;
   e.severity = lost ? hq_msgs_SEVERITY_ERROR : hq_msgs_SEVERITY_INFO;
   if (lost) {
-    std::snprintf(e.text, sizeof e.text, "VEHICLE LINK LOST: no vehicle state for %.1f s (ground)",
-                  link_loss_.last_loss_s());
+    hq::format_into(e.text, "VEHICLE LINK LOST: no vehicle state for {:.1f} s (ground)",
+                    link_loss_.last_loss_s());
   } else {
-    std::snprintf(e.text, sizeof e.text, "vehicle link regained after %.1f s (ground)",
-                  link_loss_.last_loss_s());
+    hq::format_into(e.text, "vehicle link regained after {:.1f} s (ground)",
+                    link_loss_.last_loss_s());
   }
   if (outputs_.out != nullptr) {
     fmt::print(outputs_.out, "hq-ground: t {:.1f} s: {}\n", t_s, e.text);

@@ -1,5 +1,7 @@
 #include "camera_panel.hpp"
 
+#include "hq/base/format_into.hpp"
+
 #include "draw_arrow.hpp"
 
 #include <algorithm>
@@ -53,8 +55,7 @@ void draw_overlays(const Snapshot& s, const PixelRect& r) {
     draw->AddRect(ImVec2(c.x - half, c.y - half), ImVec2(c.x + half, c.y + half), kMarker, 0, 0,
                   2.0F);
     char label[48];
-    std::snprintf(label, sizeof label, "id %d  %.2f m", mk.id,
-                  static_cast<double>(mk.p_camera_marker_m[2]));
+    hq::format_into(label, "id {}  {:.2f} m", mk.id, static_cast<double>(mk.p_camera_marker_m[2]));
     draw->AddText(ImVec2(c.x - half, c.y - half - 16), kMarker, label);
   }
   draw->PopClipRect();

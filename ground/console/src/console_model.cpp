@@ -1,5 +1,6 @@
 #include "hq/console/console_model.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/console/position_status.hpp"
 
 #include <algorithm>
@@ -161,7 +162,7 @@ void ConsoleModel::add_event(double t_s, int severity, const char* text) {
   EventLine& e = events_[events_total_ % events_.size()];
   e.t_s = t_s;
   e.severity = severity;
-  std::snprintf(e.text.data(), e.text.size(), "%s", text);
+  hq::format_into(e.text.data(), e.text.size(), "{}", text);
   ++events_total_;
 }
 
@@ -178,7 +179,7 @@ void ConsoleModel::track_flight(double t_s, const char* flight_state) {
     take_off_s_ = -1;
     const int s = static_cast<int>(last_flight_s_);
     char text[64];
-    std::snprintf(text, sizeof text, "touchdown: landed after %02d:%02d of flight", s / 60, s % 60);
+    hq::format_into(text, "touchdown: landed after {:02}:{:02} of flight", s / 60, s % 60);
     add_event(t_s, 0, text);
   }
 }
@@ -209,7 +210,7 @@ void ConsoleModel::on_link(const LinkHealth& link) {
 
 void ConsoleModel::set_source(const std::string& text) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  std::snprintf(source_.data(), source_.size(), "%s", text.c_str());
+  hq::format_into(source_.data(), source_.size(), "{}", text);
 }
 
 void ConsoleModel::on_replay(const ReplayStatus& replay) {
@@ -371,10 +372,10 @@ bool control_banner(const LinkHealth& link, char* out, std::size_t size) {
   if (size == 0) return false;
   out[0] = '\0';
   if (!link.control_lost) return false;
-  std::snprintf(out, size,
-                "CONTROL LOST: station %u commands vehicle %u; this station (%u) does not: its "
-                "hand and mode requests are ignored",
-                link.commanding_station, link.selected_vehicle, link.own_station);
+  hq::format_into(out, size,
+                  "CONTROL LOST: station {} commands vehicle {}; this station ({}) does not: its "
+                  "hand and mode requests are ignored",
+                  link.commanding_station, link.selected_vehicle, link.own_station);
   return true;
 }
 
@@ -383,8 +384,8 @@ bool vehicle_ended_banner(const LinkHealth& link, char* out, std::size_t size) {
   out[0] = '\0';
   if (!link.vehicle_ended) return false;
   // The vehicle's text starts with "vehicle ended: " and says why and how it was left.
-  std::snprintf(
-      out, size, "vehicle %u: %s", link.selected_vehicle,
+  hq::format_into(
+      out, size, "vehicle {}: {}", link.selected_vehicle,
       link.vehicle_ended_text[0] != '\0' ? link.vehicle_ended_text.data() : "vehicle ended");
   return true;
 }
@@ -394,9 +395,8 @@ bool intrusion_banner(const LinkHealth& link, char* out, std::size_t size) {
   out[0] = '\0';
   if (link.intrusion_reports == 0) return false;
   // The vehicle's text starts with "INTRUSION:" and ends naming the certificate to revoke.
-  std::snprintf(out, size, "vehicle %u, report %llu: %s", link.selected_vehicle,
-                static_cast<unsigned long long>(link.intrusion_reports),
-                link.last_intrusion.data());
+  hq::format_into(out, size, "vehicle {}, report {}: {}", link.selected_vehicle,
+                  link.intrusion_reports, link.last_intrusion.data());
   return true;
 }
 

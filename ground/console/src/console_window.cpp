@@ -1,6 +1,7 @@
 #include "hq/console/console_window.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/console/position_status.hpp"
 
@@ -314,10 +315,10 @@ void draw_plot(const char* title, const Snapshot& s, const Series* series, int s
   const auto y_of = [&](float v) { return corner.y - (v - lo) / (hi - lo) * height_px; };
   draw->AddLine(ImVec2(origin.x, y_of(0)), ImVec2(corner.x, y_of(0)), kGrid);
   char label[48];
-  std::snprintf(label, sizeof label, "%+.2f", static_cast<double>(hi));
+  hq::format_into(label, "{:+.2f}", static_cast<double>(hi));
   draw->AddText(ImVec2(origin.x + 2, origin.y + 1), kGrid, label);
-  std::snprintf(label, sizeof label, "%+.2f  (last %.0f s)", static_cast<double>(lo),
-                static_cast<double>(window_s));
+  hq::format_into(label, "{:+.2f}  (last {:.0f} s)", static_cast<double>(lo),
+                  static_cast<double>(window_s));
   draw->AddText(ImVec2(origin.x + 2, corner.y - 14), kGrid, label);
   draw->PushClipRect(origin, corner, true);
   // One polyline per run of finite values (a non-finite value, e.g. a sample without truth,
@@ -363,7 +364,7 @@ void centred_bar(const char* label, float value, float full_scale, float bar_wid
                       ImVec2(std::max(mid, end), corner.y - 2), kCommanded);
   draw->AddLine(ImVec2(mid, origin.y), ImVec2(mid, corner.y), IM_COL32(255, 255, 255, 255), 2.0F);
   char text[48];
-  std::snprintf(text, sizeof text, "%s %+.2f N", label, static_cast<double>(value));
+  hq::format_into(text, "{} {:+.2f} N", label, static_cast<double>(value));
   draw->AddText(ImVec2(origin.x + 4, origin.y + 2), IM_COL32(230, 230, 230, 255), text);
 }
 
@@ -484,16 +485,16 @@ struct ConsoleWindow::Impl {
                  ImGuiWindowFlags_NoScrollbar | ImGuiWindowFlags_NoScrollWithMouse);
     char video[160] = "";
     if (stats.video_p50_ms >= 0) {
-      std::snprintf(video, sizeof video,
-                    "video %.0f ms (p50 %.0f, p99 %.0f): vehicle+link %.0f, decode %.0f, "
-                    "display %.0f",
-                    stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms,
-                    stats.video_link_p50_ms, stats.video_decode_p50_ms, stats.video_display_p50_ms);
+      hq::format_into(video,
+                      "video {:.0f} ms (p50 {:.0f}, p99 {:.0f}): vehicle+link {:.0f}, decode "
+                      "{:.0f}, display {:.0f}",
+                      stats.video_last_ms, stats.video_p50_ms, stats.video_p99_ms,
+                      stats.video_link_p50_ms, stats.video_decode_p50_ms,
+                      stats.video_display_p50_ms);
     }
     char size[80];
-    std::snprintf(size, sizeof size, "  %d x %d, %llu frames", stats.camera_width_px,
-                  stats.camera_height_px,
-                  static_cast<unsigned long long>(stats.camera_frames_decoded));
+    hq::format_into(size, "  {} x {}, {} frames", stats.camera_width_px, stats.camera_height_px,
+                    static_cast<unsigned long long>(stats.camera_frames_decoded));
     const CameraPanelResult shown =
         draw_camera_panel(s, ImageTexture{camera.id, camera.width_px, camera.height_px},
                           ImageTexture{depth.id, depth.width_px, depth.height_px}, video, size);
@@ -567,7 +568,7 @@ struct ConsoleWindow::Impl {
       const ImVec2 mp = to_px(x_W, y_W);
       draw->AddRect(ImVec2(mp.x - 5, mp.y - 5), ImVec2(mp.x + 5, mp.y + 5), kMarker, 0, 0, 2.0F);
       char id[16];
-      std::snprintf(id, sizeof id, "%d", s.markers[i].id);
+      hq::format_into(id, "{}", s.markers[i].id);
       draw->AddText(ImVec2(mp.x + 7, mp.y - 7), kMarker, id);
     }
   }
@@ -578,18 +579,19 @@ struct ConsoleWindow::Impl {
     if (s.position_lost) {
       // The vehicle's pose is invalid: say why; the greyed dot is the last valid position.
       char reason[96];
-      std::snprintf(text, sizeof text, "POSITION LOST: %s; grey: last valid position",
-                    position_invalid_text(s.position_invalid_reason, s.position_age_s,
-                                          s.position_sigma_m, reason, sizeof reason));
+      hq::format_into(text, "POSITION LOST: {}; grey: last valid position",
+                      position_invalid_text(s.position_invalid_reason, s.position_age_s,
+                                            s.position_sigma_m, reason, sizeof reason));
       draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(255, 150, 40, 255), text);
     } else {
-      std::snprintf(text, sizeof text, "%s; grid 1 m, north up",
-                    s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
+      hq::format_into(text, "{}; grid 1 m, north up",
+                      s.position_from_vehicle ? "vehicle position" : "DEAD-RECKONED (drifts)");
       draw->AddText(ImVec2(origin.x + 4, origin.y + 4), IM_COL32(220, 220, 220, 255), text);
     }
-    std::snprintf(text, sizeof text, "x %.2f m  y %.2f m  yaw %.0f deg  %zu obstacle pts",
-                  static_cast<double>(s.position_W.x_W_m), static_cast<double>(s.position_W.y_W_m),
-                  static_cast<double>(s.yaw_W_rad) * 57.29578, s.cloud_count);
+    hq::format_into(text, "x {:.2f} m  y {:.2f} m  yaw {:.0f} deg  {} obstacle pts",
+                    static_cast<double>(s.position_W.x_W_m),
+                    static_cast<double>(s.position_W.y_W_m),
+                    static_cast<double>(s.yaw_W_rad) * 57.29578, s.cloud_count);
     draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + ImGui::GetFontSize()),
                   IM_COL32(220, 220, 220, 255), text);
     draw->AddText(ImVec2(origin.x + 4, origin.y + 4 + 2 * ImGui::GetFontSize()),
@@ -858,9 +860,9 @@ struct ConsoleWindow::Impl {
     const float height = 2.2F * ImGui::GetFontSize() + 12;
     draw->AddRectFilled(ImVec2(0, top), ImVec2(width, top + height), IM_COL32(200, 20, 20, 235));
     char text[160];
-    std::snprintf(text, sizeof text,
-                  "VEHICLE LINK LOST %.1f s - no vehicle state; everything shown is from before",
-                  s.link.state_age_s);
+    hq::format_into(
+        text, "VEHICLE LINK LOST {:.1f} s - no vehicle state; everything shown is from before",
+        s.link.state_age_s);
     ImFont* font = ImGui::GetFont();
     const float size = 2.0F * ImGui::GetFontSize();
     const ImVec2 extent = font->CalcTextSizeA(size, width, 0, text);
@@ -945,9 +947,8 @@ struct ConsoleWindow::Impl {
     for (std::size_t i = 0; i < s.link.vehicle_id_count; ++i) {
       ImGui::SameLine();
       char label[32];
-      std::snprintf(label, sizeof label, "%s%u",
-                    s.link.vehicle_ids[i] == s.link.selected_vehicle ? "* " : "",
-                    s.link.vehicle_ids[i]);
+      hq::format_into(label, "{}{}", s.link.vehicle_ids[i] == s.link.selected_vehicle ? "* " : "",
+                      s.link.vehicle_ids[i]);
       if (ImGui::Button(label)) {
         actions.select_vehicle = true;
         actions.vehicle_id = s.link.vehicle_ids[i];

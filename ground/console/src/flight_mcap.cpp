@@ -1,5 +1,7 @@
 #include "hq/console/flight_mcap.hpp"
 
+#include "hq/base/format_into.hpp"
+
 #include <dds/ddsi/ddsi_cdrstream.h>
 #include <dds/ddsrt/endian.h>
 
@@ -179,9 +181,9 @@ bool decode_cdr(mcap::Bytes message, link::Sample<T>& out, std::vector<std::uint
   const Encapsulation e = encapsulation(message);
   if (e.xcdr_version == 0) {
     char text[96];
-    std::snprintf(
-        text, sizeof text,
-        "CDR encapsulation 0x%02x%02x, expected XCDR1 or plain XCDR2 (0000/0001/0006/0007)",
+    hq::format_into(
+        text,
+        "CDR encapsulation 0x{:02x}{:02x}, expected XCDR1 or plain XCDR2 (0000/0001/0006/0007)",
         message[0], message[1]);
     error = text;
     return false;

@@ -1,5 +1,7 @@
 #include "hq/console/position_status.hpp"
 
+#include "hq/base/format_into.hpp"
+
 #include <cstdio>
 
 namespace hq::console {
@@ -16,20 +18,20 @@ const char* position_invalid_text(std::uint8_t reason, float age_s, float sigma_
       out[0] = '\0';
       break;
     case 1:
-      std::snprintf(out, size, "no marker seen yet");
+      hq::format_into(out, size, "no marker seen yet");
       break;
     case 2:
-      std::snprintf(out, size, "no marker for %.1f s", static_cast<double>(age_s));
+      hq::format_into(out, size, "no marker for {:.1f} s", static_cast<double>(age_s));
       break;
     case 3:
-      std::snprintf(out, size, "position uncertainty %.2f m, over its bound",
-                    static_cast<double>(sigma_m));
+      hq::format_into(out, size, "position uncertainty {:.2f} m, over its bound",
+                      static_cast<double>(sigma_m));
       break;
     case 4:
-      std::snprintf(out, size, "markers or velocity disagree with the estimate");
+      hq::format_into(out, size, "markers or velocity disagree with the estimate");
       break;
     default:
-      std::snprintf(out, size, "unknown reason %u", static_cast<unsigned>(reason));
+      hq::format_into(out, size, "unknown reason {}", static_cast<unsigned>(reason));
       break;
   }
   return out;

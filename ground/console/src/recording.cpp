@@ -1,6 +1,7 @@
 #include "hq/console/recording.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/console/flight_mcap.hpp"
 #include "hq/console/replay_player.hpp"
 
@@ -74,7 +75,7 @@ constexpr std::int64_t kMaxStampGapNs = 3600LL * 1'000'000'000LL;
 
 std::string seconds_text(std::int64_t ns) {
   char text[32];
-  std::snprintf(text, sizeof text, "%.6g s", 1e-9 * static_cast<double>(ns));
+  hq::format_into(text, "{:.6g} s", 1e-9 * static_cast<double>(ns));
   return text;
 }
 

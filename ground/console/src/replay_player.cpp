@@ -1,5 +1,6 @@
 #include "hq/console/replay_player.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/console/state_feed.hpp"
 
 #include <algorithm>
@@ -249,8 +250,8 @@ void ReplayPlayer::feed_state(ConsoleModel& model) {
       vehicle_ended_text_[0] = '\0';
       model.start_new_track();
       char text[160];
-      std::snprintf(text, sizeof text, "vehicle restarted at %.1f s (%s): a new session", start.t_s,
-                    start.why);
+      hq::format_into(text, "vehicle restarted at {:.1f} s ({}): a new session", start.t_s,
+                      start.why);
       model.on_event(s.receipt_ns, 1, text);
     }
   }
@@ -281,7 +282,7 @@ void ReplayPlayer::feed_streams(ConsoleModel& model, std::int64_t t_ns) {
       model.on_event(e.receipt_ns, e.severity, e.text.c_str());
       if (e.code == static_cast<int>(link::kEventCodeVehicleEnded)) {
         vehicle_ended_ = true;
-        std::snprintf(vehicle_ended_text_.data(), vehicle_ended_text_.size(), "%s", e.text.c_str());
+        hq::format_into(vehicle_ended_text_.data(), vehicle_ended_text_.size(), "{}", e.text);
       }
     }
   }
@@ -372,7 +373,7 @@ void ReplayPlayer::feed(ConsoleModel& model, std::uint64_t& frames_missing) {
 void format_clock(double t_s, char* out, std::size_t size) {
   const double t = std::max(t_s, 0.0);
   const int minutes = static_cast<int>(t / 60.0);
-  std::snprintf(out, size, "%02d:%04.1f", minutes, t - 60.0 * minutes);
+  hq::format_into(out, size, "{:02}:{:04.1f}", minutes, t - 60.0 * minutes);
 }
 
 void ReplayControl::apply(ReplayPlayer& player) {

@@ -1,5 +1,7 @@
 #include "status_bar.hpp"
 
+#include "hq/base/format_into.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -29,7 +31,7 @@ class Row {
       : x_(x0), first_x_(x0), new_line_(new_line), columns_inside_(columns_inside) {}
   void field(const char* name, const char* value, ImU32 colour, bool greyed, int chars) {
     char text[128];
-    std::snprintf(text, sizeof text, "%s: %s", name, value);
+    hq::format_into(text, "{}: {}", name, value);
     put(text, greyed ? kStale : colour, chars);
   }
   void put(const char* text, ImU32 colour, int chars) {
@@ -65,11 +67,11 @@ class Row {
 // mm:ss of flight.
 void clock_text(double t_s, char* out, std::size_t size) {
   if (t_s < 0) {
-    std::snprintf(out, size, "-");
+    hq::format_into(out, size, "-");
     return;
   }
   const int s = static_cast<int>(t_s);
-  std::snprintf(out, size, "%02d:%02d", s / 60, s % 60);
+  hq::format_into(out, size, "{:02}:{:02}", s / 60, s % 60);
 }
 
 // Rows 1 and 2: what the vehicle is doing, how it moves and what limits it.
@@ -85,10 +87,9 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0, bool
              s.motors_armed ? IM_COL32(255, 140, 60, 255) : IM_COL32(200, 200, 200, 255), grey, 14);
   char text[64];
   if (s.height_valid) {
-    std::snprintf(text, sizeof text, "%.2f m (%s)", static_cast<double>(s.height_m),
-                  s.height_source);
+    hq::format_into(text, "{:.2f} m ({})", static_cast<double>(s.height_m), s.height_source);
   } else {
-    std::snprintf(text, sizeof text, "unknown");
+    hq::format_into(text, "unknown");
   }
   row1.field("height", text, kText, grey, 26);
   const int link_class = link_state_text(s, text, sizeof text);
@@ -101,12 +102,11 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0, bool
 
   // The mode with what an autonomous one is at: its marker, the exploration's phase.
   if (s.explore_phase[0] != '\0') {
-    std::snprintf(text, sizeof text, "%s (%s, marker %d)", s.mode.c_str(), s.explore_phase,
-                  s.marker_target_id);
+    hq::format_into(text, "{} ({}, marker {})", s.mode, s.explore_phase, s.marker_target_id);
   } else if (s.marker_target_id >= 0) {
-    std::snprintf(text, sizeof text, "%s (to %d)", s.mode.c_str(), s.marker_target_id);
+    hq::format_into(text, "{} (to {})", s.mode, s.marker_target_id);
   } else {
-    std::snprintf(text, sizeof text, "%s", s.mode.c_str());
+    hq::format_into(text, "{}", s.mode);
   }
   row1.field("mode", text, kText, grey, 36);
   clock_text(s.flight_time_s, text, sizeof text);
@@ -115,28 +115,28 @@ void draw_vehicle_rows(const Snapshot& s, bool grey, bool landed, float x0, bool
   // Row 2: how it moves and what limits it.
   Row row2(x0, true, inside);
   const auto& v = s.latest.v_est_H_mps;
-  std::snprintf(text, sizeof text, "%.2f m/s",
-                std::hypot(static_cast<double>(v[0]), static_cast<double>(v[1])));
+  hq::format_into(text, "{:.2f} m/s",
+                  std::hypot(static_cast<double>(v[0]), static_cast<double>(v[1])));
   row2.field("ground speed", s.have_state ? text : "-", kText, grey, 24);
   // H is NED: z points down, a climb is -v_z.
-  std::snprintf(text, sizeof text, "%+.2f m/s", -static_cast<double>(v[2]));
+  hq::format_into(text, "{:+.2f} m/s", -static_cast<double>(v[2]));
   row2.field("climb", s.have_state ? text : "-", kText, grey, 18);
   row2.field("estimator", s.estimator_health.c_str(), s.estimator_health == "ok" ? kOk : kWarn,
              grey, 21);
   if (s.clearance_m >= 0) {
-    std::snprintf(text, sizeof text, "%.2f m", static_cast<double>(s.clearance_m));
+    hq::format_into(text, "{:.2f} m", static_cast<double>(s.clearance_m));
   } else {
     // The vehicle saw no obstacle within its depth range: news too, not a missing figure.
-    std::snprintf(text, sizeof text, "none in view or memory");
+    hq::format_into(text, "none in view or memory");
   }
   row2.field("clearance", text, kText, grey, 33);
   // What the rotors really give for the thrust commanded: far from 100 % means the vehicle
   // file's mass or the FC's maximum thrust is off (the vehicle flies on the learnt value).
   const double thrust_pct = 100.0 * static_cast<double>(s.hover_thrust_gain);
   if (s.hover_thrust_converged) {
-    std::snprintf(text, sizeof text, "%.0f %% (learnt)", thrust_pct);
+    hq::format_into(text, "{:.0f} % (learnt)", thrust_pct);
   } else {
-    std::snprintf(text, sizeof text, "%s", s.hover_thrust_gain > 0 ? "learning" : "-");
+    hq::format_into(text, "{}", s.hover_thrust_gain > 0 ? "learning" : "-");
   }
   const bool thrust_off = s.hover_thrust_converged && std::abs(thrust_pct - 100.0) > 15.0;
   row2.field("thrust given", text, thrust_off ? kWarn : kText, grey, 30);
@@ -157,31 +157,31 @@ float status_bar_height() {
 int link_state_text(const Snapshot& s, char* out, std::size_t size) {
   const LinkHealth& l = s.link;
   if (s.replay.active) {
-    std::snprintf(out, size, "%s", s.replay.at_end ? "end of recording" : "replayed");
+    hq::format_into(out, size, "{}", s.replay.at_end ? "end of recording" : "replayed");
     return 3;
   }
   if (!s.have_state || l.state_age_s < 0) {
-    std::snprintf(out, size, "waiting for the vehicle");
+    hq::format_into(out, size, "waiting for the vehicle");
     return 3;
   }
   if (l.link_lost) {
-    std::snprintf(out, size, "LOST %.1f s", l.state_age_s);
+    hq::format_into(out, size, "LOST {:.1f} s", l.state_age_s);
     return 2;
   }
   if (l.vehicle_ended) {
     // It said goodbye: silent on purpose, as the vehicle-ended banner says.
-    std::snprintf(out, size, "vehicle ended");
+    hq::format_into(out, size, "vehicle ended");
     return 3;
   }
   if (l.state_age_s > 0.5) {
-    std::snprintf(out, size, "STALE %.1f s", l.state_age_s);
+    hq::format_into(out, size, "STALE {:.1f} s", l.state_age_s);
     return 1;
   }
   if (s.link_health != "ok") {
-    std::snprintf(out, size, "vehicle says %s", s.link_health.c_str());
+    hq::format_into(out, size, "vehicle says {}", s.link_health);
     return 1;
   }
-  std::snprintf(out, size, "ok");
+  hq::format_into(out, size, "ok");
   return 0;
 }
 
@@ -220,10 +220,10 @@ StatusBarActions draw_status_bar(const Snapshot& s, const StatusBarInput& in, fl
   }
   ImGui::SameLine(0, 18);
   if (in.alarm != AlarmCause::kNone) {
-    std::snprintf(text, sizeof text, "ALARM: %s%s", to_string(in.alarm),
-                  in.alarm_muted ? " (muted)"
-                  : in.audio     ? ""
-                                 : " (no sound)");
+    hq::format_into(text, "ALARM: {}{}", to_string(in.alarm),
+                    in.alarm_muted ? " (muted)"
+                    : in.audio     ? ""
+                                   : " (no sound)");
     ImGui::TextColored(ImColor(in.alarm_muted ? kWarn : kAlarm), "%s", text);
     ImGui::SameLine();
     if (ImGui::SmallButton(in.alarm_muted ? "Unmute (B)" : "Mute (B)")) actions.toggle_mute = true;
