@@ -4,6 +4,7 @@
 // or over the DDS link (onboard/closed_loop/apps/sim_runs.cpp), with what they share
 // (run_support.cpp, onboard_record.cpp: the hq_onboard_runs library, which holds no simulator).
 
+#include "hq/base/format_into.hpp"
 #include "hq/link/config.hpp"
 #include "hq/link_bridge/link_bridge.hpp"
 #include "hq/onboard_log/onboard_recorder.hpp"
@@ -154,8 +155,8 @@ void wind_down(const Options& o, vehicle::VehicleRuntime& runtime, std::int64_t 
     outcome.result = std::string(vehicle::to_string(action)) + " cut short by a second signal";
   } else {
     char text[64];
-    std::snprintf(text, sizeof text, "%s not complete after %.0f s", vehicle::to_string(action),
-                  o.stop_timeout_s);
+    hq::format_into(text, "{} not complete after {:.0f} s", vehicle::to_string(action),
+                    o.stop_timeout_s);
     outcome.result = text;
   }
 }

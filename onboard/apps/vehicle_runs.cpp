@@ -15,6 +15,7 @@
 // tilt, the Kinect's accelerometer or else a level vehicle, with the camera as the body.
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/camera_info.hpp"
@@ -371,7 +372,7 @@ std::string run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime
       return sitl ? "the simulator's frames ended" : "the camera's frames ended";
     }
     if (hq::monotonic_now_ns() >= end_ns) {
-      std::snprintf(text, sizeof text, "run length %g s reached", o.duration_s);
+      hq::format_into(text, "run length {:g} s reached", o.duration_s);
       return text;
     }
     if (runtime.status().fc_lost) {
@@ -380,7 +381,7 @@ std::string run_wall_time(const Options& o, hq::vehicle::VehicleRuntime& runtime
                                       static_cast<std::int64_t>(fc_lost_exit_s * 1e9)) {
         hq::log::info("hq-onboard: flight controller lost for {:.1f} s: stopping\n",
                       fc_lost_exit_s);
-        std::snprintf(text, sizeof text, "flight controller lost for %.1f s", fc_lost_exit_s);
+        hq::format_into(text, "flight controller lost for {:.1f} s", fc_lost_exit_s);
         return text;
       }
     } else {

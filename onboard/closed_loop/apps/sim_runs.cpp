@@ -2,6 +2,7 @@
 // to wall time and flown by a ground station over DDS (--link).
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/closed_loop/closed_loop.hpp"
@@ -158,7 +159,7 @@ void land_and_say_goodbye(const Options& o, hq::closed_loop::ClosedLoop& loop,
     stop.reason = signal_reason();
   } else {
     char text[64];
-    std::snprintf(text, sizeof text, "run length %g s reached", o.duration_s);
+    hq::format_into(text, "run length {:g} s reached", o.duration_s);
     stop.reason = text;
   }
   wind_down(

@@ -1,6 +1,7 @@
 #include "hq/control/hover_thrust_estimator.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/control/velocity_controller.hpp"
 
@@ -24,7 +25,7 @@ constexpr double kRelearnAfterS = 1.0;
 void HoverThrustConfig::validate(const std::string& where) const {
   auto fail = [&](const char* key, double value, const char* expected) {
     char text[160];
-    std::snprintf(text, sizeof text, "%s%s = %g, expected %s", where.c_str(), key, value, expected);
+    hq::format_into(text, "{}{} = {:g}, expected {}", where, key, value, expected);
     throw InputError(text);
   };
   if (!(filter_time_constant_s > 0.0 && filter_time_constant_s <= 2.0)) {

@@ -1,5 +1,6 @@
 #include "hq/link_bridge/link_bridge.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/base/monotonic_clock.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -192,14 +193,13 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   const FailsafeState& state = failsafe_.update(t_ns);
   if (state.commander_changed) {
     char text[96];
-    std::snprintf(text, sizeof text, "station %u commands this vehicle",
-                  state.commanding_station_id);
+    hq::format_into(text, "station {} commands this vehicle", state.commanding_station_id);
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kCommanderChanged, text);
   }
   if (state.hold_started) {
     char text[96];
-    std::snprintf(text, sizeof text, "no command for %.0f ms: holding zero velocity",
-                  1e-6 * static_cast<double>(state.command_age_ns));
+    hq::format_into(text, "no command for {:.0f} ms: holding zero velocity",
+                    1e-6 * static_cast<double>(state.command_age_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHold, text);
   }
   // The failsafe's land is the vehicle's own: the operators' dwell and rate limit must not delay
@@ -210,16 +210,16 @@ const FailsafeState& LinkBridge::poll(std::int64_t t_ns,
   }
   if (state.land_for_heartbeat) {
     char text[96];
-    std::snprintf(text, sizeof text, "no heartbeat from station %u for %.1f s: landing",
-                  state.commanding_station_id,
-                  hq::to_seconds(failsafe_.config().heartbeat_timeout_ns));
+    hq::format_into(text, "no heartbeat from station {} for {:.1f} s: landing",
+                    state.commanding_station_id,
+                    hq::to_seconds(failsafe_.config().heartbeat_timeout_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHeartbeatLost, text);
   }
   if (state.land_for_hold) {
     char text[96];
-    std::snprintf(text, sizeof text, "no command for %.1f s (held %.1f s): landing",
-                  hq::to_seconds(state.command_age_ns),
-                  hq::to_seconds(failsafe_.config().hold_to_land_ns));
+    hq::format_into(text, "no command for {:.1f} s (held {:.1f} s): landing",
+                    hq::to_seconds(state.command_age_ns),
+                    hq::to_seconds(failsafe_.config().hold_to_land_ns));
     publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kHoldToLand, text);
   }
   report_rejections(t_ns);
@@ -253,8 +253,8 @@ void LinkBridge::take_mode_requests(std::int64_t t_ns,
       const Verdict routed = to_mode_request(request, mode, chain_request);
       if (!routed.accepted) {
         char text[hq_msgs_kMaxEventText + 1];
-        std::snprintf(text, sizeof text, "mode %s with marker %ld refused: %s",
-                      modes::to_string(mode), static_cast<long>(request.target_id), routed.reason);
+        hq::format_into(text, "mode {} with marker {} refused: {}", modes::to_string(mode),
+                        static_cast<long>(request.target_id), routed.reason);
         publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text);
         continue;
       }
@@ -263,9 +263,9 @@ void LinkBridge::take_mode_requests(std::int64_t t_ns,
       // Named with the station and sessions: the operator of a station that lost control, or
       // that talks to a previous instance, sees why its request did nothing.
       char text[hq_msgs_kMaxEventText + 1];
-      std::snprintf(text, sizeof text, "mode request of station %u (session %016llx) rejected: %s",
-                    request.station_id, static_cast<unsigned long long>(request.vehicle_session_id),
-                    verdict.reason);
+      hq::format_into(text, "mode request of station {} (session {:016x}) rejected: {}",
+                      request.station_id,
+                      static_cast<unsigned long long>(request.vehicle_session_id), verdict.reason);
       publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, text);
     }
   }
@@ -291,9 +291,9 @@ void LinkBridge::take_ros2_mode_requests(std::int64_t t_ns,
     char reply[hq_msgs_kMaxEventText + 1];
     ros2_bridge::RosModeRequest parsed;
     if (const char* why = ros2_bridge::parse_mode_request(text, parsed)) {
-      std::snprintf(reply, sizeof reply, "ROS 2 mode request \"%s\" on %s refused: %s", shown,
-                    ros2_bridge::ros_topic_name(ros2_->ros_namespace(), "mode_request").c_str(),
-                    why);
+      hq::format_into(reply, "ROS 2 mode request \"{}\" on {} refused: {}", shown,
+                      ros2_bridge::ros_topic_name(ros2_->ros_namespace(), "mode_request").c_str(),
+                      why);
       answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, reply, true);
       continue;
     }
@@ -314,8 +314,8 @@ void LinkBridge::take_ros2_mode_requests(std::int64_t t_ns,
     const Verdict routed =
         verdict.accepted ? to_mode_request(request, mode, chain_request) : verdict;
     if (!routed.accepted) {
-      std::snprintf(reply, sizeof reply, "ROS 2 mode request \"%s\" (station %u) refused: %s",
-                    shown, link_.ros2.station_id, routed.reason);
+      hq::format_into(reply, "ROS 2 mode request \"{}\" (station {}) refused: {}", shown,
+                      link_.ros2.station_id, routed.reason);
       answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRequestRejected, reply, true);
       continue;
     }
@@ -344,27 +344,27 @@ void LinkBridge::report_rejections(std::int64_t t_ns) {
     const Intrusion& last = failsafe_.last_intrusion();
     char writer[48] = "a certificate of no station";
     if (last.writer_station_id != 0) {
-      std::snprintf(writer, sizeof writer, "station_%u's certificate", last.writer_station_id);
+      hq::format_into(writer, "station_{}'s certificate", last.writer_station_id);
     }
-    std::snprintf(text, sizeof text,
-                  "INTRUSION: %llu samples (%llu in total) claimed another station, refused; "
-                  "last: a %s claiming station %u, written by %s",
-                  static_cast<unsigned long long>(intrusions),
-                  static_cast<unsigned long long>(c.intrusions), last.kind, last.claimed_station_id,
-                  writer);
+    hq::format_into(text,
+                    "INTRUSION: {} samples ({} in total) claimed another station, refused; last: a "
+                    "{} claiming station {}, written by {}",
+                    static_cast<unsigned long long>(intrusions),
+                    static_cast<unsigned long long>(c.intrusions), last.kind,
+                    last.claimed_station_id, writer);
     publish_event(t_ns, hq_msgs_SEVERITY_ERROR, EventCode::kIntrusion, text);
   }
   if (commands > 0) {
-    std::snprintf(text, sizeof text, "rejected %llu commands (%llu in total), last: %s",
-                  static_cast<unsigned long long>(commands),
-                  static_cast<unsigned long long>(c.commands_rejected),
-                  failsafe_.last_command_rejection());
+    hq::format_into(text, "rejected {} commands ({} in total), last: {}",
+                    static_cast<unsigned long long>(commands),
+                    static_cast<unsigned long long>(c.commands_rejected),
+                    failsafe_.last_command_rejection());
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kCommandsRejected, text);
   }
   if (heartbeats > 0) {
-    std::snprintf(text, sizeof text, "rejected %llu heartbeats (%llu in total)",
-                  static_cast<unsigned long long>(heartbeats),
-                  static_cast<unsigned long long>(c.heartbeats_rejected));
+    hq::format_into(text, "rejected {} heartbeats ({} in total)",
+                    static_cast<unsigned long long>(heartbeats),
+                    static_cast<unsigned long long>(c.heartbeats_rejected));
     publish_event(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kHeartbeatsRejected, text);
   }
   reported_ = c;
@@ -379,22 +379,21 @@ void LinkBridge::acknowledge(std::int64_t t_ns, const pipeline::ModeRequest& req
     const char* task = marker_modes::to_string(request.marker->task);
     const int id = request.marker->marker_id;
     if (result.accepted) {
-      std::snprintf(text, sizeof text, "mode %s accepted: marker task %s on marker %d", mode, task,
-                    id);
+      hq::format_into(text, "mode {} accepted: marker task {} on marker {}", mode, task, id);
       answer(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kMarkerTaskAccepted, text, request.from_ros2);
     } else {
-      std::snprintf(text, sizeof text, "mode %s with marker task %s on marker %d refused: %s", mode,
-                    task, id, result.reason);
+      hq::format_into(text, "mode {} with marker task {} on marker {} refused: {}", mode, task, id,
+                      result.reason);
       answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kMarkerTaskRefused, text,
              request.from_ros2);
     }
     return;
   }
   if (result.accepted) {
-    std::snprintf(text, sizeof text, "mode %s accepted", mode);
+    hq::format_into(text, "mode {} accepted", mode);
     answer(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kModeAccepted, text, request.from_ros2);
   } else {
-    std::snprintf(text, sizeof text, "mode %s refused: %s", mode, result.reason);
+    hq::format_into(text, "mode {} refused: {}", mode, result.reason);
     answer(t_ns, hq_msgs_SEVERITY_WARNING, EventCode::kModeRefused, text, request.from_ros2);
   }
 }
@@ -406,15 +405,14 @@ void LinkBridge::publish_event(std::int64_t t_ns, hq_msgs_Severity severity, Eve
   event_->severity = severity;
   event_->code = static_cast<std::uint32_t>(code);
   event_->session_id = session_id();
-  std::snprintf(event_->text, sizeof event_->text, "%s", text);
+  hq::format_into(event_->text, "{}", text);
   event_writer_.write(*event_);
 }
 
 bool LinkBridge::say_goodbye(std::int64_t t_ns, std::string_view reason,
                              std::int64_t ack_timeout_ns) {
   char text[sizeof event_->text];
-  std::snprintf(text, sizeof text, "vehicle ended: %.*s", static_cast<int>(reason.size()),
-                reason.data());
+  hq::format_into(text, "vehicle ended: {}", reason);
   publish_event(t_ns, hq_msgs_SEVERITY_INFO, EventCode::kVehicleEnded, text);
   return event_writer_.wait_for_acks(std::max<std::int64_t>(ack_timeout_ns, 0));
 }

@@ -1,6 +1,7 @@
 #include "hq/marker_modes/marker_navigation.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/estimator/velocity_estimator.hpp"
 #include "hq/geometry/camera_mount.hpp"
@@ -178,24 +179,24 @@ const char* describe_position(const navigation::PositionCheck& check,
   using navigation::PositionInvalid;
   switch (check.reason) {
     case PositionInvalid::kNone:
-      std::snprintf(out, size, "position valid");
+      hq::format_into(out, size, "position valid");
       break;
     case PositionInvalid::kNotAnchored:
-      std::snprintf(out, size, "no position (no marker seen yet)");
+      hq::format_into(out, size, "no position (no marker seen yet)");
       break;
     case PositionInvalid::kNoMarker:
-      std::snprintf(out, size, "position lost (no marker for %.1f s)", check.age_s);
+      hq::format_into(out, size, "position lost (no marker for {:.1f} s)", check.age_s);
       break;
     case PositionInvalid::kCovarianceOverBound:
-      std::snprintf(out, size, "position lost (uncertainty %.2f m, over %.2f m)",
-                    check.sigma_horizontal_m, config.position_max_sigma_m);
+      hq::format_into(out, size, "position lost (uncertainty {:.2f} m, over {:.2f} m)",
+                      check.sigma_horizontal_m, config.position_max_sigma_m);
       break;
     case PositionInvalid::kInnovationInconsistent:
-      std::snprintf(out, size,
-                    "position lost (markers or velocity disagree with the estimate: %d frames or "
-                    "%d velocities in a row gated)",
-                    config.position_inconsistent_after_frames,
-                    config.position_inconsistent_after_velocities);
+      hq::format_into(out, size,
+                      "position lost (markers or velocity disagree with the estimate: {} frames or "
+                      "{} velocities in a row gated)",
+                      config.position_inconsistent_after_frames,
+                      config.position_inconsistent_after_velocities);
       break;
   }
   return out;

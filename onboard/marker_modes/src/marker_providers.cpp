@@ -1,5 +1,7 @@
 #include "hq/marker_modes/marker_providers.hpp"
 
+#include "hq/base/format_into.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -418,7 +420,7 @@ const char* MarkerStage::position_event(modes::Mode mode, std::int64_t t_ns) {
     flying_on_pose_ = true;
     holding_ = false;
     if (!resumed) return nullptr;
-    std::snprintf(event_text_, sizeof event_text_, "%s: position valid again, resuming", who);
+    hq::format_into(event_text_, "{}: position valid again, resuming", who);
     return event_text_;
   }
   // Only a loss is news: before the first marker the mode is searching, not holding.
@@ -431,7 +433,7 @@ const char* MarkerStage::position_event(modes::Mode mode, std::int64_t t_ns) {
     shown.reason = navigation::PositionInvalid::kNoMarker;
   }
   describe_position(shown, navigation_.config().navigation, reason, sizeof reason);
-  std::snprintf(event_text_, sizeof event_text_, "%s: %s, holding", who, reason);
+  hq::format_into(event_text_, "{}: {}, holding", who, reason);
   return event_text_;
 }
 

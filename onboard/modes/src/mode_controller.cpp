@@ -1,5 +1,6 @@
 #include "hq/modes/mode_controller.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/config/strict_yaml.hpp"
 
@@ -148,10 +149,10 @@ ModeSwitch ModeController::operator_may_change(Mode to) {
   if (landed_ || !have_previous_) return {true, ""};
   const double in_mode_s = mode_entered_ns_ ? hq::to_seconds(t_prev_ns_ - *mode_entered_ns_) : 0.0;
   if (mode_entered_ns_ && in_mode_s < config_.min_mode_dwell_s) {
-    std::snprintf(
-        refusal_, sizeof refusal_,
-        "mode change refused: minimum dwell in %s %.1f s, %.1f s so far (modes.min_mode_dwell_s)",
-        to_string(mode_), config_.min_mode_dwell_s, in_mode_s);
+    hq::format_into(refusal_,
+                    "mode change refused: minimum dwell in {} {:.1f} s, {:.1f} s so far "
+                    "(modes.min_mode_dwell_s)",
+                    to_string(mode_), config_.min_mode_dwell_s, in_mode_s);
     return {false, refusal_};
   }
   // Hover, the safe state, is held to the dwell only: were the rate limit to refuse it, an
@@ -165,10 +166,10 @@ ModeSwitch ModeController::operator_may_change(Mode to) {
                    std::max(0.0, since_refill_s) * config_.operator_mode_changes_per_min / 60.0);
   changes_refilled_ns_ = t_prev_ns_;
   if (operator_changes_left_ < 1.0) {
-    std::snprintf(refusal_, sizeof refusal_,
-                  "mode change refused: operator mode changes limited to %d at once and %.0f per "
-                  "minute (modes.operator_mode_changes_per_min)",
-                  config_.operator_mode_change_burst, config_.operator_mode_changes_per_min);
+    hq::format_into(refusal_,
+                    "mode change refused: operator mode changes limited to {} at once and {:.0f} "
+                    "per minute (modes.operator_mode_changes_per_min)",
+                    config_.operator_mode_change_burst, config_.operator_mode_changes_per_min);
     return {false, refusal_};
   }
   operator_changes_left_ -= 1.0;

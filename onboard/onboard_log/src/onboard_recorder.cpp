@@ -1,6 +1,7 @@
 #include "hq/onboard_log/onboard_recorder.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/flight_log/spsc_queue.hpp"
 
@@ -438,8 +439,7 @@ void RecordingPort::on_output(const pipeline::ChainOutput& out,
     failure_told_ = true;
     // Once per flight, so the text may be formatted here; the flight itself goes on.
     char text[512];
-    std::snprintf(text, sizeof text, "on-board record stopped (flying on): %s",
-                  recorder_.error().c_str());
+    hq::format_into(text, "on-board record stopped (flying on): {}", recorder_.error());
     on_event(out.t_ns, vehicle::FcSeverity::kError, text);
   }
 }

@@ -1,5 +1,6 @@
 #include "hq/ros2_bridge/ros2_bridge.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/geometry/ros_frames.hpp"
 
 #include <algorithm>
@@ -184,8 +185,8 @@ void Ros2Bridge::announce_node(const link::Participant& participant) {
         clock_writer_.handle(), mode_status_writer_.handle()}) {
     writer_gids_.push_back(gid_of(writer));
   }
-  std::snprintf(node_info_.node_namespace, sizeof node_info_.node_namespace, "/");
-  std::snprintf(node_info_.node_name, sizeof node_info_.node_name, "%s", node_name_.c_str());
+  hq::format_into(node_info_.node_namespace, "/");
+  hq::format_into(node_info_.node_name, "{}", node_name_);
   point_at(node_info_.reader_gid_seq, reader_gids_);
   point_at(node_info_.writer_gid_seq, writer_gids_);
   ParticipantEntitiesInfo info{};

@@ -1,6 +1,7 @@
 #include "hq/sitl/sitl_runner.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/frame_channel/frame_channel.hpp"
@@ -278,7 +279,7 @@ void print_summary(const Simulator& sim, const SitlAutopilot& autopilot,
                 static_cast<long long>(stats.frames_skipped));
   char clearance[32] = "n/a (never airborne)";
   if (stats.min_clearance_m < 1e8) {
-    std::snprintf(clearance, sizeof(clearance), "%.2f m", stats.min_clearance_m);
+    hq::format_into(clearance, "{:.2f} m", stats.min_clearance_m);
   }
   hq::log::info("collision ticks airborne {}, smallest clearance {}, max true speed {:.2f} m/s\n",
                 static_cast<long long>(stats.collision_ticks), clearance, stats.max_speed_mps);

@@ -1,6 +1,7 @@
 #include "hq/sources/tum_recorder.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -33,8 +34,7 @@ std::string TumRecorder::stamp(std::int64_t t_ns) {
   const bool negative = t_ns < 0;
   const std::int64_t us = ((negative ? -t_ns : t_ns) + 500) / 1000;
   char text[40];
-  std::snprintf(text, sizeof(text), "%s%" PRId64 ".%06" PRId64, negative ? "-" : "", us / 1000000,
-                us % 1000000);
+  hq::format_into(text, "{}{}.{:06}", negative ? "-" : "", us / 1000000, us % 1000000);
   return text;
 }
 
@@ -106,15 +106,15 @@ void TumRecorder::write_frame(std::int64_t t_ns, std::int64_t depth_t_ns, const 
 
 void TumRecorder::write_accel(const recording::AccelSample& sample) {
   char line[160];
-  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f\n", stamp(sample.t_ns).c_str(),
-                sample.accel_mps2.x(), sample.accel_mps2.y(), sample.accel_mps2.z());
+  hq::format_into(line, "{} {:.6f} {:.6f} {:.6f}\n", stamp(sample.t_ns).c_str(),
+                  sample.accel_mps2.x(), sample.accel_mps2.y(), sample.accel_mps2.z());
   accelerometer_ << line;
 }
 
 void TumRecorder::write_gyro(std::int64_t t_ns, const Eigen::Vector3d& omega_radps) {
   char line[160];
-  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f\n", stamp(t_ns).c_str(), omega_radps.x(),
-                omega_radps.y(), omega_radps.z());
+  hq::format_into(line, "{} {:.6f} {:.6f} {:.6f}\n", stamp(t_ns).c_str(), omega_radps.x(),
+                  omega_radps.y(), omega_radps.z());
   gyro_ << line;
 }
 
@@ -122,8 +122,8 @@ void TumRecorder::write_ground_truth(std::int64_t t_ns, const Eigen::Isometry3d&
   const Eigen::Quaterniond q(T_G_C.linear());
   const Eigen::Vector3d& p = T_G_C.translation();
   char line[256];
-  std::snprintf(line, sizeof(line), "%s %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n", stamp(t_ns).c_str(),
-                p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+  hq::format_into(line, "{} {:.6f} {:.6f} {:.6f} {:.6f} {:.6f} {:.6f} {:.6f}\n",
+                  stamp(t_ns).c_str(), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
   groundtruth_ << line;
 }
 

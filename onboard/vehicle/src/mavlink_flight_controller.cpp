@@ -1,6 +1,7 @@
 #include "hq/vehicle/mavlink_flight_controller.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 
 #include <Eigen/Geometry>
 
@@ -88,7 +89,7 @@ void MavlinkFcConfig::validate(const std::string& where) const {
   };
   auto text = [](double v) {
     char buf[32];
-    std::snprintf(buf, sizeof(buf), "%g", v);
+    hq::format_into(buf, "{:g}", v);
     return std::string(buf);
   };
   if (transport.empty()) fail("transport", "\"\"", "a spec such as udp:127.0.0.1:14540");

@@ -1,6 +1,7 @@
 #include "hq/vehicle/vehicle_runtime.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/estimator/complementary_filter.hpp"
 #include "hq/marker_modes/marker_providers.hpp"
 
@@ -207,9 +208,9 @@ void VehicleRuntime::supervise_fc(std::int64_t t_ns) {
     status_.fc_lost = false;
   } else if (ever_connected_ && !status_.fc_lost) {
     status_.fc_lost = true;
-    std::snprintf(text, sizeof text,
-                  "flight controller lost: nothing heard for %.0f ms; holding, link degraded",
-                  1e-6 * static_cast<double>(fc.heartbeat_age_ns));
+    hq::format_into(text,
+                    "flight controller lost: nothing heard for {:.0f} ms; holding, link degraded",
+                    1e-6 * static_cast<double>(fc.heartbeat_age_ns));
     event(t_ns, FcSeverity::kError, text);
     arm_wanted_ = false;
     if (!landed()) chain_.request_mode(modes::Mode::kHover, modes::RequestOrigin::kVehicle);
@@ -265,10 +266,10 @@ void VehicleRuntime::announce_hover_thrust(const pipeline::ChainOutput& out) {
   said_hover_thrust_ = out.hover_thrust.converged;
   if (!said_hover_thrust_) return;
   char text[160];
-  std::snprintf(text, sizeof text,
-                "hover thrust learnt: the rotors give %.0f %% of the thrust commanded; hovering on "
-                "%.1f N",
-                100.0 * out.hover_thrust.gain, out.hover_thrust_n);
+  hq::format_into(
+      text,
+      "hover thrust learnt: the rotors give {:.0f} % of the thrust commanded; hovering on {:.1f} N",
+      100.0 * out.hover_thrust.gain, out.hover_thrust_n);
   const bool far_off = std::abs(out.hover_thrust.gain - 1.0) > 0.15;
   event(out.t_ns, far_off ? FcSeverity::kWarning : FcSeverity::kInfo, text);
 }
