@@ -1,6 +1,7 @@
 // hq-evaluate: TUM benchmark accuracy (RPE, ATE; Sturm et al., IROS 2012) of an estimated
 // trajectory against ground truth, both in TUM trajectory format.
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/program.hpp"
 #include "hq/base/tool_main.hpp"
@@ -38,10 +39,10 @@ void require_finite(const char* name, const hq::evaluation::ErrorStats& s, const
   for (const double v : {s.rmse, s.mean, s.median, s.max}) {
     if (std::isfinite(v)) continue;
     char message[512];
-    std::snprintf(message, sizeof message,
-                  "%s is %g over %d pairs, expected finite; the largest coordinate is %g m in %s "
-                  "and %g m in %s",
-                  name, v, s.count, gt_largest_m, gt.c_str(), est_largest_m, est.c_str());
+    hq::format_into(message,
+                    "{} is {:g} over {} pairs, expected finite; the largest coordinate is {:g} m "
+                    "in {} and {:g} m in {}",
+                    name, v, s.count, gt_largest_m, gt, est_largest_m, est);
     throw hq::InputError(message);
   }
 }

@@ -1,6 +1,7 @@
 #include "hq/link/impairment.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -78,8 +79,8 @@ ImpairmentConfig parse_impairment(const std::string& spec) {
 std::string describe(const ImpairmentConfig& c) {
   if (!c.active()) return "none";
   char text[160];
-  std::snprintf(text, sizeof text, "delay %.0f ms, jitter +-%.0f ms, loss %.1f %%, seed %u",
-                c.delay_ms, c.jitter_ms, 100.0 * c.loss, c.seed);
+  hq::format_into(text, "delay {:.0f} ms, jitter +-{:.0f} ms, loss {:.1f} %, seed {}", c.delay_ms,
+                  c.jitter_ms, 100.0 * c.loss, c.seed);
   return text;
 }
 

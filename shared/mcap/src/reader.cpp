@@ -1,4 +1,5 @@
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/mcap/mcap.hpp"
 
 #include "format.hpp"
@@ -25,13 +26,13 @@ namespace {
 
 std::string hex32(std::uint32_t v) {
   std::array<char, 16> text{};
-  std::snprintf(text.data(), text.size(), "0x%08x", v);
+  hq::format_into(text.data(), text.size(), "0x{:08x}", v);
   return text.data();
 }
 
 std::string hex8(std::uint8_t v) {
   std::array<char, 8> text{};
-  std::snprintf(text.data(), text.size(), "0x%02x", v);
+  hq::format_into(text.data(), text.size(), "0x{:02x}", v);
   return text.data();
 }
 

@@ -1,6 +1,7 @@
 #include "line_reader.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 
 #include <charconv>
 #include <cmath>
@@ -80,7 +81,7 @@ double LineReader::stamp_s() {
   }
   if (has_previous_stamp_ && !(t_s > previous_stamp_s_)) {
     char previous[64];
-    std::snprintf(previous, sizeof(previous), "%.6f", previous_stamp_s_);
+    hq::format_into(previous, "{:.6f}", previous_stamp_s_);
     throw InputError(where() + ": timestamp " + std::string(fields_[0]) +
                      " is not after the previous one (" + previous +
                      "); expected strictly increasing stamps");

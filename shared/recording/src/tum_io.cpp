@@ -1,6 +1,7 @@
 #include "hq/recording/tum_io.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 
 #include "line_reader.hpp"
 
@@ -71,7 +72,7 @@ std::vector<StampedPose> read_tum_trajectory(const std::string& path) {
     const double norm = q_G_S.norm();
     if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
       char text[64];
-      std::snprintf(text, sizeof(text), "%.6g", norm);
+      hq::format_into(text, "{:.6g}", norm);
       throw InputError(reader.where() + ": quaternion (qx qy qz qw) has norm " + text +
                        ", expected 1 within 0.1 (is the line \"t tx ty tz qx qy qz qw\"?)");
     }
@@ -97,8 +98,8 @@ void write_tum_trajectory(const std::string& path, const std::vector<StampedPose
     }
     const Eigen::Quaterniond q = Eigen::Quaterniond(T.rotation()).normalized();
     const Eigen::Vector3d& p = T.translation();
-    std::snprintf(line, sizeof(line), "%.6f %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n",
-                  ns_to_seconds(poses[i].t_ns), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+    hq::format_into(line, "{:.6f} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g}\n",
+                    ns_to_seconds(poses[i].t_ns), p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
     out << line;
   }
   out.flush();

@@ -9,7 +9,9 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <openssl/bio.h>
 #include <openssl/bn.h>
@@ -479,10 +481,8 @@ std::string fingerprint(X509* cert) {
   unsigned int n = 0;
   require(X509_digest(cert, EVP_sha256(), md, &n) == 1, "X509_digest", "SHA-256");
   std::string text = "SHA-256 ";
-  char byte[4];
   for (unsigned int i = 0; i < std::min(n, 8U); ++i) {
-    std::snprintf(byte, sizeof byte, i == 0 ? "%02X" : ":%02X", md[i]);
-    text += byte;
+    fmt::format_to(std::back_inserter(text), "{}{:02X}", i == 0 ? "" : ":", md[i]);
   }
   return text + ":...";
 }
