@@ -27,7 +27,7 @@ class ForceDimensionDevice final : public HapticDevice {
     }
     // D's origin is the resting point of the end effector (core paper §3.3): where it is now.
     rest_sdk_m_ = Eigen::Vector3d(x, y, z);
-    set_status("forcedim: %s connected", dhdGetSystemName(static_cast<char>(id_)));
+    set_status("forcedim: {} connected", dhdGetSystemName(static_cast<char>(id_)));
   }
   ~ForceDimensionDevice() override {
     dhdSetForce(0.0, 0.0, 0.0, static_cast<char>(id_));
@@ -42,7 +42,7 @@ class ForceDimensionDevice final : public HapticDevice {
     double z = 0.0;
     if (dhdGetPosition(&x, &y, &z, static_cast<char>(id_)) < 0) {
       connected_ = false;
-      set_status("forcedim: device lost (%s): command zero", dhdErrorGetLastStr());
+      set_status("forcedim: device lost ({}): command zero", dhdErrorGetLastStr());
       return false;
     }
     const Eigen::Vector3d d_sdk_m = Eigen::Vector3d(x, y, z) - rest_sdk_m_;
@@ -56,7 +56,7 @@ class ForceDimensionDevice final : public HapticDevice {
     const Eigen::Vector3d F = F_D_n.allFinite() ? F_D_n : Eigen::Vector3d::Zero();
     if (dhdSetForce(-F.x(), F.y(), -F.z(), static_cast<char>(id_)) < 0) {
       connected_ = false;
-      set_status("forcedim: dhdSetForce failed (%s): command zero", dhdErrorGetLastStr());
+      set_status("forcedim: dhdSetForce failed ({}): command zero", dhdErrorGetLastStr());
     }
   }
 

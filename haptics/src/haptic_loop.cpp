@@ -1,6 +1,7 @@
 #include "hq/haptics/haptic_loop.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/quantile.hpp"
@@ -27,7 +28,7 @@ constexpr std::int64_t kBinNs = 500;
 constexpr std::int64_t kHistogramRangeNs = 20'000'000;
 
 void copy_status(const char* text, std::array<char, 128>& out) {
-  std::snprintf(out.data(), out.size(), "%s", text);
+  hq::format_into(out.data(), out.size(), "{}", text);
 }
 
 /// RLIMIT_MEMLOCK in KiB, -1 when unlimited.
@@ -196,14 +197,13 @@ RealtimeGrant HapticLoop::start() {
     // side's buffers) fail once the limit is reached, so lock only when the limit cannot bite.
     const std::int64_t limit_kib = memlock_limit_kib();
     if (limit_kib >= 0 && !has_ipc_lock_capability()) {
-      std::snprintf(text, sizeof(text),
-                    "mlockall not attempted (RLIMIT_MEMLOCK %lld KiB, no CAP_IPC_LOCK); ",
-                    static_cast<long long>(limit_kib));
+      hq::format_into(text, "mlockall not attempted (RLIMIT_MEMLOCK {} KiB, no CAP_IPC_LOCK); ",
+                      static_cast<long long>(limit_kib));
       refused += text;
     } else if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
       grant.memory_locked = true;
     } else {
-      std::snprintf(text, sizeof(text), "mlockall refused (%s); ", std::strerror(errno));
+      hq::format_into(text, "mlockall refused ({}); ", std::strerror(errno));
       refused += text;
     }
   }
@@ -215,15 +215,15 @@ RealtimeGrant HapticLoop::start() {
       grant.fifo = true;
       grant.priority = config_.loop.realtime_priority;
     } else {
-      std::snprintf(text, sizeof(text), "SCHED_FIFO %d refused (%s); ",
-                    config_.loop.realtime_priority, std::strerror(error));
+      hq::format_into(text, "SCHED_FIFO {} refused ({}); ", config_.loop.realtime_priority,
+                      std::strerror(error));
       refused += text;
     }
   }
-  std::snprintf(text, sizeof(text), "haptic loop %.0f Hz: %s, %s", config_.loop.rate_hz,
-                grant.fifo ? ("SCHED_FIFO " + std::to_string(grant.priority)).c_str()
-                           : "normal scheduling (SCHED_OTHER)",
-                grant.memory_locked ? "memory locked" : "memory not locked");
+  hq::format_into(text, "haptic loop {:.0f} Hz: {}, {}", config_.loop.rate_hz,
+                  grant.fifo ? ("SCHED_FIFO " + std::to_string(grant.priority)).c_str()
+                             : "normal scheduling (SCHED_OTHER)",
+                  grant.memory_locked ? "memory locked" : "memory not locked");
   grant.summary = text;
   if (!refused.empty()) {
     grant.summary += " -- " + refused +

@@ -115,7 +115,7 @@ class SdlJoystickDevice final : public HapticDevice {
       SDL_HapticClose(haptic_);
       haptic_ = nullptr;
     }
-    set_status("joystick '%s' connected, %s", SDL_JoystickName(joystick_),
+    set_status("joystick '{}' connected, {}", SDL_JoystickName(joystick_),
                haptic_ != nullptr ? "rumble as force cue" : "no force feedback");
     return true;
   }
@@ -142,7 +142,7 @@ class SdlJoystickDevice final : public HapticDevice {
     if (added && joystick_ == nullptr) {
       // For ADDED events `which` is a device index; for REMOVED an instance id.
       if (!open(event.cdevice.which))
-        set_status("joystick: plugged in but not opened: %s", SDL_GetError());
+        set_status("joystick: plugged in but not opened: {}", SDL_GetError());
     } else if (removed && joystick_ != nullptr && event.cdevice.which == instance_id_) {
       close();
       set_status("joystick removed: command zero; plug a joystick or gamepad back in");

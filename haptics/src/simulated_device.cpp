@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <sstream>
 
@@ -13,13 +12,6 @@ namespace {
 // Integration substep: the grip spring (200 N/m on 0.2 kg, 5 Hz) is resolved 300 times finer.
 constexpr double kMaxSubstepS = 1e-4;
 }  // namespace
-
-void HapticDevice::set_status(const char* format, ...) {
-  va_list arguments;
-  va_start(arguments, format);
-  std::vsnprintf(status_.data(), status_.size(), format, arguments);
-  va_end(arguments);
-}
 
 SimulatedDevice::SimulatedDevice(const SimulatedDeviceConfig& config) : config_(config) {
   if (!(config.mass_kg > 0.0) || !(config.workspace_m > 0.0)) {
@@ -36,7 +28,7 @@ SimulatedDevice::SimulatedDevice(const SimulatedDeviceConfig& config) : config_(
       throw InputError(message.str());
     }
   }
-  set_status("sim: scripted hand, %zu keyframes", config.script.size());
+  set_status("sim: scripted hand, {} keyframes", config.script.size());
 }
 
 void SimulatedDevice::hand_at(double t_s, Eigen::Vector3d& p_hand_D_m,
@@ -110,7 +102,7 @@ bool SimulatedDevice::read(std::int64_t t_ns, DeviceSample& out) {
     if (connected) {
       set_status("sim: reconnected");
     } else {
-      set_status("sim: device lost (scripted at t = %.3f s): command zero", t_s_);
+      set_status("sim: device lost (scripted at t = {:.3f} s): command zero", t_s_);
     }
   }
   if (!connected_) {

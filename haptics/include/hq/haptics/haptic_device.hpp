@@ -7,14 +7,17 @@
 /// read() and write_force() run on the haptic thread at 1 kHz: they allocate nothing and never
 /// throw. A lost device reads as not connected with a zero position, and says why in status().
 
+#include "hq/base/format_into.hpp"
 #include "hq/haptics/haptics_config.hpp"
 
 #include <Eigen/Core>
 
 #include <array>
 #include <cstdint>
+#include <fmt/format.h>
 #include <memory>
 #include <string>
+#include <utility>
 
 namespace hq::haptics {
 
@@ -42,8 +45,11 @@ class HapticDevice {
   [[nodiscard]] const char* status() const { return status_.data(); }
 
  protected:
-  /// printf-style, truncated to the buffer; allocates nothing.
-  void set_status(const char* format, ...) __attribute__((format(printf, 2, 3)));
+  /// fmt-style, truncated to the buffer; allocates nothing (a device may say it from the loop).
+  template <typename... Args>
+  void set_status(fmt::format_string<Args...> format, Args&&... args) {
+    hq::format_into(status_.data(), status_.size(), format, std::forward<Args>(args)...);
+  }
 
  private:
   std::array<char, 128> status_{};
