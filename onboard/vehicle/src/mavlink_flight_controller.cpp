@@ -239,7 +239,7 @@ void MavlinkFlightController::poll_gcs(FcSink& sink) {
     if (const auto* hb = std::get_if<ml::Heartbeat>(&message);
         hb != nullptr && hb->type == kMavTypeGcs && gcs_system_ != header.system_id) {
       gcs_system_ = header.system_id;
-      event(sink, FcSeverity::kInfo, "GCS heard: system %d, component %d", header.system_id,
+      event(sink, FcSeverity::kInfo, "GCS heard: system {}, component {}", header.system_id,
             header.component_id);
     }
     // The pilot keeps authority through the GCS too: the FC obeys, the runtime sees the FC's
@@ -247,14 +247,15 @@ void MavlinkFlightController::poll_gcs(FcSink& sink) {
     if (const auto* cmd = std::get_if<ml::CommandLong>(&message);
         cmd != nullptr &&
         (cmd->command == ml::kMavCmdDoSetMode || cmd->command == ml::kMavCmdComponentArmDisarm)) {
-      event(sink, FcSeverity::kWarning, "GCS (system %d) sent %s (param1 %g, param2 %g) to the FC",
-            header.system_id, command_name(cmd->command), static_cast<double>(cmd->param[0]),
+      event(sink, FcSeverity::kWarning,
+            "GCS (system {}) sent {} (param1 {:g}, param2 {:g}) to the FC", header.system_id,
+            command_name(cmd->command), static_cast<double>(cmd->param[0]),
             static_cast<double>(cmd->param[1]));
     }
   };
   auto on_frame = [&](const ml::RawFrame& frame) {
     if (frame.header.message_id == kSetModeId) {
-      event(sink, FcSeverity::kWarning, "GCS (system %d) sent SET_MODE to the FC",
+      event(sink, FcSeverity::kWarning, "GCS (system {}) sent SET_MODE to the FC",
             frame.header.system_id);
     }
     forward(kLinkGcs, frame);
@@ -313,33 +314,33 @@ void MavlinkFlightController::poll(std::int64_t t_ns, FcSink& sink) {
   if (is_connected != said_connected_) {
     said_connected_ = is_connected;
     if (is_connected) {
-      event(sink, FcSeverity::kInfo, "FC connected: %s, system %d, component %d",
+      event(sink, FcSeverity::kInfo, "FC connected: {}, system {}, component {}",
             autopilot_name(autopilot()), target_system_, target_component_);
     } else {
-      event(sink, FcSeverity::kError, "FC silent: nothing heard for %.1f s",
+      event(sink, FcSeverity::kError, "FC silent: nothing heard for {:.1f} s",
             static_cast<double>(t_ns - last_heard_ns_) * 1e-9);
     }
   }
   if (armed_ != said_armed_) {
     said_armed_ = armed_;
-    event(sink, armed_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC %s",
+    event(sink, armed_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC {}",
           armed_ ? "armed" : "disarmed");
   }
   if (offboard_ != said_offboard_) {
     said_offboard_ = offboard_;
-    event(sink, offboard_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC %s",
+    event(sink, offboard_ ? FcSeverity::kInfo : FcSeverity::kWarning, "FC {}",
           offboard_ ? "entered offboard mode" : "left offboard mode");
   }
   if (is_connected && autopilot() == Autopilot::kArduPilot && !said_ardupilot_odometry_ &&
       config_.velocity_message == MavlinkFcConfig::VelocityMessage::kOdometry) {
     said_ardupilot_odometry_ = true;
-    event(sink, FcSeverity::kWarning, "%s",
+    event(sink, FcSeverity::kWarning, "{}",
           "ArduPilot takes ODOMETRY's pose too and HaptiQuad sends none: fly it with "
           "--fc-velocity-message vision_speed_estimate");
   }
   if (pending_no_autopilot_) {
     pending_no_autopilot_ = false;
-    event(sink, FcSeverity::kError, "%s",
+    event(sink, FcSeverity::kError, "{}",
           "arm/offboard request not sent: autopilot unknown (no FC heartbeat yet)");
   }
 }
@@ -399,7 +400,7 @@ void MavlinkFlightController::handle(std::int64_t t_ns, const ml::FrameHeader& h
   } else if (const auto* ack = std::get_if<ml::CommandAck>(&message)) {
     const bool for_us = ack->target_system == 0 || ack->target_system == config_.system_id;
     if (for_us && ack->result != ml::kMavResultAccepted) {
-      event(sink, FcSeverity::kError, "FC refused %s (%d): result %d", command_name(ack->command),
+      event(sink, FcSeverity::kError, "FC refused {} ({}): result {}", command_name(ack->command),
             ack->command, ack->result);
     }
   }

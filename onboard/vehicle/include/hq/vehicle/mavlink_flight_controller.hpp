@@ -22,6 +22,7 @@
 /// commands, TIMESYNC once the FC is heard) does not. Only the FC's frames set the clock: a
 /// GCS's TIMESYNC answers are never read as the FC's.
 
+#include "hq/base/format_into.hpp"
 #include "hq/config/strict_yaml.hpp"
 #include "hq/mavlink/codec.hpp"
 #include "hq/mavlink/router.hpp"
@@ -31,10 +32,12 @@
 #include <array>
 #include <cstdint>
 #include <cstdio>
+#include <fmt/format.h>
 #include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace hq::vehicle {
 
@@ -151,9 +154,10 @@ class MavlinkFlightController final : public FlightController {
   void send_command(std::uint16_t command, float param1, float param2);
   /// Formats into text_ (no allocation) and hands it to the sink.
   template <typename... Args>
-  void event(FcSink& sink, FcSeverity severity, const char* format, Args... args) {
-    const int n = std::snprintf(text_.data(), text_.size(), format, args...);
-    if (n >= 0) emit(sink, severity, static_cast<std::size_t>(n));
+  void event(FcSink& sink, FcSeverity severity, fmt::format_string<Args...> format,
+             Args&&... args) {
+    emit(sink, severity,
+         hq::format_into(text_.data(), text_.size(), format, std::forward<Args>(args)...).size());
   }
   void emit(FcSink& sink, FcSeverity severity, std::size_t length);
 
