@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <fmt/format.h>
+#include <iterator>
 #include <span>
 #include <string>
 
@@ -24,15 +26,9 @@ class Json {
       text_.append("null");
       return;
     }
-    char buf[32];
-    const int n = std::snprintf(buf, sizeof buf, "%.9g", v);
-    text_.append(buf, static_cast<std::size_t>(n));
+    fmt::format_to(std::back_inserter(text_), "{:.9g}", v);
   }
-  void integer(long long v) {
-    char buf[24];
-    const int n = std::snprintf(buf, sizeof buf, "%lld", v);
-    text_.append(buf, static_cast<std::size_t>(n));
-  }
+  void integer(long long v) { fmt::format_to(std::back_inserter(text_), "{}", v); }
   /// A string that needs no escaping (static names: modes, statuses, reasons).
   void string(const char* s) {
     text_.push_back('"');
