@@ -15,7 +15,7 @@ bool position_lost(std::uint8_t position_invalid_reason);
 /// The reason in plain words, e.g. "no marker for 3.4 s", "position uncertainty 0.62 m",
 /// "markers or velocity disagree with the
 /// estimate", "no marker seen yet"; "" for 0 (valid or not said) and
-/// "unknown reason N" beyond 4. Writes into out (snprintf: no allocation), returns out.
+/// "unknown reason N" beyond 4. Writes into out (hq::format_into: no allocation), returns out.
 const char* position_invalid_text(std::uint8_t reason, float age_s, float sigma_m, char* out,
                                   std::size_t size);
 

@@ -87,7 +87,7 @@ struct MarkerModesConfig {
 void read_config(config::StrictMap& section, MarkerModesConfig& out);
 
 /// "position lost (no marker for 3.2 s)" and the like, for an invalid check, in plain words
-/// into `out` (snprintf: no allocation); "position valid" for a valid one. Returns out.
+/// into `out` (hq::format_into: no allocation); "position valid" for a valid one. Returns out.
 const char* describe_position(const navigation::PositionCheck& check,
                               const navigation::NavigationConfig& config, char* out,
                               std::size_t size);
