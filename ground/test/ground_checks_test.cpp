@@ -3,6 +3,7 @@
 // only from the vehicle's session; mode requests carry the session and wait for it; a station
 // that another station took the vehicle from says so. Over DDS on a private loopback domain, a
 // fake vehicle writing what a broken or hostile one would.
+#include "hq/base/format_into.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/testing/loopback_dds.hpp"
 
@@ -155,11 +156,11 @@ TEST(GroundChecks, RequestsWaitForTheSessionAndForgedStatesAndEventsAreRejected)
   link::Event forged_event{};
   forged_event.vehicle_id = 1;
   forged_event.session_id = kSession + 1;
-  std::snprintf(forged_event.text, sizeof forged_event.text, "forged");
+  hq::format_into(forged_event.text, "forged");
   vehicle.events.write(forged_event);
   link::Event real_event = forged_event;
   real_event.session_id = kSession;
-  std::snprintf(real_event.text, sizeof real_event.text, "real");
+  hq::format_into(real_event.text, "real");
   vehicle.events.write(real_event);
   ASSERT_TRUE(poll_until(station, [&] {
     return station.status().events >= 1 && station.status().events_rejected >= 1;
@@ -257,10 +258,10 @@ TEST(GroundChecks, EventsBeforeTheFirstStateAreHeldUntilTheSessionIsKnown) {
   link::Event early{};
   early.vehicle_id = 1;
   early.session_id = kSession;
-  std::snprintf(early.text, sizeof early.text, "landed and at rest");
+  hq::format_into(early.text, "landed and at rest");
   link::Event stale = early;
   stale.session_id = kSession + 7;
-  std::snprintf(stale.text, sizeof stale.text, "of a previous instance");
+  hq::format_into(stale.text, "of a previous instance");
   vehicle.events.write(stale);
   vehicle.events.write(early);
   // Both taken (held), nothing shown yet: the session is unknown.

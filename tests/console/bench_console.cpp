@@ -3,6 +3,7 @@
 // --bare-window) measured in the same run on the same display: the floor the renderer (here
 // usually Mesa's llvmpipe) sets. Built, not run by ctest (timings depend on the machine).
 //   hq-bench-console [--seconds 12] [--max-fps 60] [--sizes 1280x800,1920x1080]
+#include "hq/base/format_into.hpp"
 #include "hq/base/log.hpp"
 #include "hq/testing/loopback_dds.hpp"
 #include "hq/testing/process.hpp"
@@ -97,7 +98,7 @@ int main(int argc, char** argv) {
   }
   hq::testing::use_loopback_dds();
   char fps_cap_text[32];
-  std::snprintf(fps_cap_text, sizeof fps_cap_text, "%g", max_fps);
+  hq::format_into(fps_cap_text, "{:g}", max_fps);
   const std::string fps_cap = fps_cap_text;
   fmt::print(
       "hq-bench-console: {:.0f} s per run, --max-fps {}, simulated flight "

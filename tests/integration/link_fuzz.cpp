@@ -36,6 +36,7 @@
 //                [--vehicle-id 1] [--station-id 666] [--station-strength 200]
 //                [--attacks malformed] [--duration-s 4] [--rate-hz 2000] [--seed 1]
 //                [--claim-station N]
+#include "hq/base/format_into.hpp"
 #include "hq/base/monotonic_clock.hpp"
 #include "hq/base/tool_main.hpp"
 #include "hq/link/config.hpp"
@@ -218,10 +219,8 @@ class Fuzzer {
         events_(participant_, topics_.event, ignoring_own_writers(hq::link::event_qos())),
         rng_(o.seed) {
     hq::link::reserve(state_->obstacle_points_B_m, hq_msgs_kMaxObstaclePoints);
-    std::snprintf(own_request_tag_, sizeof own_request_tag_, "mode request of station %u ",
-                  claimed_station());
-    std::snprintf(own_commander_tag_, sizeof own_commander_tag_, "station %u commands",
-                  claimed_station());
+    hq::format_into(own_request_tag_, "mode request of station {} ", claimed_station());
+    hq::format_into(own_commander_tag_, "station {} commands", claimed_station());
   }
 
   void run();
@@ -512,7 +511,7 @@ void Fuzzer::send_forged_state(std::int64_t t_ns) {
     e.sequence_number = forged_sequence_;
     e.t_ns = t_ns;
     e.severity = hq_msgs_SEVERITY_ERROR;
-    std::snprintf(e.text, sizeof e.text, "FORGED: motors failing, land now");
+    hq::format_into(e.text, "FORGED: motors failing, land now");
     forged_events_.write(e, event_forgeries_);
   }
 }

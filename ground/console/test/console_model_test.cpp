@@ -1,5 +1,6 @@
 #include "hq/console/console_model.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/testing/allocation_counter.hpp"
 
 #include <gtest/gtest.h>
@@ -126,9 +127,9 @@ TEST(ConsoleModel, IntrusionBannerShowsTheVehiclesLatestReport) {
   EXPECT_FALSE(intrusion_banner(link, text, sizeof text));
   EXPECT_STREQ(text, "");
   link.intrusion_reports = 3;
-  std::snprintf(link.last_intrusion.data(), link.last_intrusion.size(),
-                "INTRUSION: 12 samples (40 in total) claimed another station, refused; last: a "
-                "command claiming station 1, written by station_3's certificate");
+  hq::format_into(link.last_intrusion.data(), link.last_intrusion.size(),
+                  "INTRUSION: 12 samples (40 in total) claimed another station, refused; last: a "
+                  "command claiming station 1, written by station_3's certificate");
   ASSERT_TRUE(intrusion_banner(link, text, sizeof text));
   EXPECT_EQ(std::string(text).rfind("vehicle 1, report 3: INTRUSION: 12 samples", 0), 0U) << text;
   EXPECT_NE(std::string(text).find("written by station_3's certificate"), std::string::npos);
@@ -198,8 +199,8 @@ TEST(ConsoleModel, VehicleEndedBannerSaysWhyOnlyOnceTheVehicleSaidGoodbye) {
   EXPECT_FALSE(vehicle_ended_banner(link, text, sizeof text));
   EXPECT_STREQ(text, "");
   link.vehicle_ended = true;
-  std::snprintf(link.vehicle_ended_text.data(), link.vehicle_ended_text.size(), "%s",
-                "vehicle ended: stopped by SIGTERM; landed");
+  hq::format_into(link.vehicle_ended_text.data(), link.vehicle_ended_text.size(), "{}",
+                  "vehicle ended: stopped by SIGTERM; landed");
   ASSERT_TRUE(vehicle_ended_banner(link, text, sizeof text));
   EXPECT_STREQ(text, "vehicle 1: vehicle ended: stopped by SIGTERM; landed");
   EXPECT_FALSE(vehicle_ended_banner(link, text, 0));

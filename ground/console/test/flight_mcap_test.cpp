@@ -5,6 +5,7 @@
 // over its CSV files and the CSV files read when the MCAP is unreadable.
 #include "hq/console/flight_mcap.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
 #include "hq/ground/ground_station.hpp"
@@ -154,11 +155,11 @@ struct FlightFile {
   }
   void command(std::int64_t t_ns, bool valid, float vx) {
     char json[256];
-    std::snprintf(json, sizeof json,
-                  "{\"timestamp\":{\"sec\":1,\"nsec\":2},\"command_valid\":%s,\"v_cmd_H_mps\":"
-                  "{\"x\":%.3f,\"y\":0,\"z\":-0.25},\"yaw_rate_cmd_radps\":0.125,\"p_D_m\":{\"x\""
-                  ":0,\"y\":0,\"z\":0},\"F_D_n\":{\"x\":0,\"y\":0,\"z\":1.5}}",
-                  valid ? "true" : "false", static_cast<double>(vx));
+    hq::format_into(json,
+                    "{{\"timestamp\":{{\"sec\":1,\"nsec\":2}},\"command_valid\":{},\"v_cmd_H_mps\":"
+                    "{{\"x\":{:.3f},\"y\":0,\"z\":-0.25}},\"yaw_rate_cmd_radps\":0.125,\"p_D_m\":{{"
+                    "\"x\":0,\"y\":0,\"z\":0}},\"F_D_n\":{{\"x\":0,\"y\":0,\"z\":1.5}}}}",
+                    valid ? "true" : "false", static_cast<double>(vx));
     command_text(t_ns, json);
   }
   void command_text(std::int64_t t_ns, const std::string& text) {

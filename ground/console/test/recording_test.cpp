@@ -1,5 +1,6 @@
 #include "hq/console/recording.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/ground/ground_station.hpp"
 #include "hq/testing/files.hpp"
 #include "hq/testing/input_error.hpp"
@@ -38,7 +39,7 @@ void write_recording(const fs::path& dir, int states) {
     recorder.command(1'000'000'000LL + i * 33'000'000LL, c, true);
   }
   link::Event e{};
-  std::snprintf(e.text, sizeof e.text, "hello, \"world\"");
+  hq::format_into(e.text, "hello, \"world\"");
   recorder.event(1'100'000'000LL, e);
 }
 

@@ -6,6 +6,7 @@
 // view, the track and heading, the markers and the state latency, the modes the vehicle offers,
 // its marker target and explore phase, the ground's own link figures (state age, round trip)
 // and, after the vehicle's goodbye event, the "vehicle ended" banner.
+#include "hq/base/format_into.hpp"
 #include "hq/console/console_model.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/console/replay_player.hpp"
@@ -161,7 +162,7 @@ link::Event goodbye() {
   e.t_ns = 5'000'000'000LL + kStates * kPeriod_ns;
   e.severity = hq_msgs_SEVERITY_INFO;
   e.code = link::kEventCodeVehicleEnded;
-  std::snprintf(e.text, sizeof e.text, "%s", kGoodbye);
+  hq::format_into(e.text, "{}", kGoodbye);
   e.session_id = 0xABCDEFULL;
   return e;
 }

@@ -5,6 +5,7 @@
 // a file read while the recorder still runs (what a SIGKILL leaves), and write failures.
 #include "hq/mcap_recorder/flight_recorder.hpp"
 
+#include "hq/base/format_into.hpp"
 #include "hq/console/recording.hpp"
 #include "hq/link/link.hpp"
 #include "hq/mcap/mcap.hpp"
@@ -180,7 +181,7 @@ void publish_flight(Publishers& pub, FlightRecorder& recorder) {
       link::Event event{};
       event.vehicle_id = 1;
       event.sequence_number = static_cast<unsigned>(i);
-      std::snprintf(event.text, sizeof event.text, "event %d", i);
+      hq::format_into(event.text, "event {}", i);
       ASSERT_GE(dds_write_ts(pub.event.handle(), &event, stamp), 0);
       link::ModeRequest mode{};
       mode.vehicle_id = 1;
@@ -402,7 +403,7 @@ TEST_F(FlightRecorderTest, RecordedSamplesReadBackAsTheReplaysRecording) {
   event.vehicle_id = 1;
   event.severity = hq_msgs_SEVERITY_WARNING;
   event.code = 7;
-  std::snprintf(event.text, sizeof event.text, "ground heartbeat lost");
+  hq::format_into(event.text, "ground heartbeat lost");
   ASSERT_TRUE(pub.event.write(event));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   ASSERT_TRUE(recorder.close().error.empty());

@@ -2,6 +2,7 @@
 // dump directory instead of talking USB: the real driver API, no hardware. Each test re-runs
 // itself in a child process whose LD_LIBRARY_PATH puts fakenect first, because fakenect must
 // replace libfreenect when the process starts and exit()s on a dump it cannot read.
+#include "hq/base/format_into.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/recording/tum_sequence.hpp"
 #include "hq/sources/camera_sources.hpp"
@@ -128,8 +129,7 @@ Dump write_dump(const std::string& tum_dir, const std::string& dir, int passes =
     const auto ticks = static_cast<std::uint32_t>((std::uint64_t{1} << 32) - kTicksBeforeWrap +
                                                   ticks_since_0);  // wraps modulo 2^32
     char name[96];
-    std::snprintf(name, sizeof(name), "a-%f-%u.dump", static_cast<double>(files.depth_t_ns) * 1e-9,
-                  ticks);
+    hq::format_into(name, "a-{:f}-{}.dump", static_cast<double>(files.depth_t_ns) * 1e-9, ticks);
     const std::int16_t tilt[6] = {kAccelRaw[0], kAccelRaw[1], kAccelRaw[2], 0, 0, 0};
     std::ofstream(dir + "/" + name, std::ios::binary)
         .write(reinterpret_cast<const char*>(tilt), 12);  // sizeof(freenect_raw_tilt_state)
@@ -139,14 +139,13 @@ Dump write_dump(const std::string& tum_dir, const std::string& dir, int passes =
         raw.at<std::uint16_t>(v, u) = metres_to_raw11(depth_m.at<float>(v, u));
       }
     }
-    std::snprintf(name, sizeof(name), "d-%f-%u.pgm", static_cast<double>(files.depth_t_ns) * 1e-9,
-                  ticks);
+    hq::format_into(name, "d-{:f}-{}.pgm", static_cast<double>(files.depth_t_ns) * 1e-9, ticks);
     std::ofstream depth_file(dir + "/" + name, std::ios::binary);
     depth_file << "P5 640 480 65535\n";
     depth_file.write(reinterpret_cast<const char*>(raw.data), 640 * 480 * 2);
     index << name << '\n';
     cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-    std::snprintf(name, sizeof(name), "r-%f-%u.ppm", static_cast<double>(files.t_ns) * 1e-9, ticks);
+    hq::format_into(name, "r-{:f}-{}.ppm", static_cast<double>(files.t_ns) * 1e-9, ticks);
     std::ofstream colour_file(dir + "/" + name, std::ios::binary);
     colour_file << "P6 640 480 255\n";
     colour_file.write(reinterpret_cast<const char*>(rgb.data), 640 * 480 * 3);

@@ -1,6 +1,7 @@
 #include "hq/recording/tum_sequence.hpp"
 
 #include "hq/base/error.hpp"
+#include "hq/base/format_into.hpp"
 #include "hq/recording/data_dir.hpp"
 #include "hq/testing/input_error.hpp"
 
@@ -54,8 +55,8 @@ struct Fixture {
     for (int i = 0; i < frames; ++i) {
       char rgb_name[64];
       char depth_name[64];
-      std::snprintf(rgb_name, sizeof(rgb_name), "%.6f", 100.0 + i / 30.0);
-      std::snprintf(depth_name, sizeof(depth_name), "%.6f", 100.003 + i / 30.0);
+      hq::format_into(rgb_name, "{:.6f}", 100.0 + i / 30.0);
+      hq::format_into(depth_name, "{:.6f}", 100.003 + i / 30.0);
       rgb_paths.push_back("rgb/" + std::string(rgb_name) + ".png");
       depth_paths.push_back("depth/" + std::string(depth_name) + ".png");
       rgb_list += std::string(rgb_name) + " " + rgb_paths.back() + "\n";
