@@ -111,7 +111,8 @@ void expect_every_panel_whole(const std::string& json, const nlohmann::json& par
                                            patch_mean(scaled, w / 3, h / 3, kPatch));
   fmt::print(
       "console layout {}x{}: image {}x{} at {},{}; corner vs elsewhere {:.0f}; {:.1f} fps; {}\n",
-      screen.cols, screen.rows, w, h, x, y, elsewhere, state_number(parsed, "/window/fps"), shot);
+      screen.cols, screen.rows, w, h, x, y, elsewhere, state_number(parsed, "/window/fps"),
+      shot.string());
 }
 
 TEST(ConsoleLayout, At1280x800WholeCameraForceBarsClimbUpAndLinkLossAlarmSounds) {

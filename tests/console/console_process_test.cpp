@@ -303,7 +303,7 @@ TEST(ConsoleProcesses, TakeOffKeyThenVehicleKilledShowsAirborneHeightAndLinkLoss
                 std::to_string(static_cast<int>(state_number(parsed, "/window/height_px"))) + "\n");
   fmt::print("console take-off: height {:.2f} m ({}), stale {:.1f} s, {:.1f} fps; screenshot {}\n",
              state_number(parsed, "/height_m"), state_text(parsed, "/height_source").c_str(),
-             state_number(parsed, "/stale_s"), state_number(parsed, "/window/fps"), shot);
+             state_number(parsed, "/stale_s"), state_number(parsed, "/window/fps"), shot.string());
 }
 
 TEST(ConsoleProcesses, VehicleStoppedMidFlightSaysGoodbyeThenARestartStartsAfresh) {
