@@ -497,31 +497,8 @@ void print_sequence_table(const LoadedSequence& sequence,
   }
 }
 
-}  // namespace
-
-static int run_benchmarks(int argc, char** argv) {
-  CLI::App app{
-      "HaptiQuad dense odometry beside OpenCV's RgbdOdometry, ICPOdometry, RgbdICPOdometry"};
-  std::vector<std::string> sequence_dirs;
-  std::string camera_path = "calib/tum_fr1.yaml";
-  int passes = 10;
-  double skip_s = 0.0;
-  bool only_haptiquad = false;
-  // What every HaptiQuad variant shares; the options below set it.
-  hq::odometry::OdometryConfig defaults;
-  app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
-  app.add_option("--camera", camera_path, "camera file of sequences without their own camera.yaml");
-  app.add_option("--passes", passes, "times each sequence is run per method")
-      ->check(CLI::PositiveNumber);
-  app.add_option("--skip-s", skip_s,
-                 "seconds skipped at each sequence's start (hq-sim: 3 s, take-off without depth)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_flag("--only-haptiquad", only_haptiquad, "skip OpenCV's methods (quick comparisons)");
-  std::vector<std::string> method_filters;
-  app.add_option("--method", method_filters,
-                 "run only the methods whose name contains this text (repeatable; exact name "
-                 "match when the text ends with '$')")
-      ->allow_extra_args(false);  // one text per --method: sequence folders may follow
+// The odometry options every HaptiQuad variant of the run shares.
+void add_shared_odometry_options(CLI::App& app, hq::odometry::OdometryConfig& defaults) {
   app.add_option("--depth-point-stride", defaults.depth_point_stride,
                  "odometry.depth_point_stride of every HaptiQuad variant")
       ->check(CLI::PositiveNumber);
@@ -549,6 +526,34 @@ static int run_benchmarks(int argc, char** argv) {
                  "odometry.align_depth_to_colour of every HaptiQuad variant (true/false)");
   app.add_option("--adapt-vision-information", defaults.adapt_vision_information,
                  "odometry.adapt_vision_information of every HaptiQuad variant (true/false)");
+}
+
+}  // namespace
+
+static int run_benchmarks(int argc, char** argv) {
+  CLI::App app{
+      "HaptiQuad dense odometry beside OpenCV's RgbdOdometry, ICPOdometry, RgbdICPOdometry"};
+  std::vector<std::string> sequence_dirs;
+  std::string camera_path = "calib/tum_fr1.yaml";
+  int passes = 10;
+  double skip_s = 0.0;
+  bool only_haptiquad = false;
+  // What every HaptiQuad variant shares; the options below set it.
+  hq::odometry::OdometryConfig defaults;
+  app.add_option("sequences", sequence_dirs, "TUM RGB-D sequence folders");
+  app.add_option("--camera", camera_path, "camera file of sequences without their own camera.yaml");
+  app.add_option("--passes", passes, "times each sequence is run per method")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--skip-s", skip_s,
+                 "seconds skipped at each sequence's start (hq-sim: 3 s, take-off without depth)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--only-haptiquad", only_haptiquad, "skip OpenCV's methods (quick comparisons)");
+  std::vector<std::string> method_filters;
+  app.add_option("--method", method_filters,
+                 "run only the methods whose name contains this text (repeatable; exact name "
+                 "match when the text ends with '$')")
+      ->allow_extra_args(false);  // one text per --method: sequence folders may follow
+  add_shared_odometry_options(app, defaults);
   bool with_nees = false;
   app.add_flag("--nees", with_nees,
                "one more pass per HaptiQuad method: the returned information's consistency "
